@@ -1,0 +1,74 @@
+"""The result of a closed-form or refined solve."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Solution", "CameraResidual"]
+
+
+@dataclass(frozen=True)
+class CameraResidual:
+    """Residuals of one camera's loop ``A_i X = Y B_i`` (paper section V-A).
+
+    Attributes
+    ----------
+    e_R_deg : float
+        Mean over measurements of angle((R_Y R_B)^T (R_A R_X)), degrees.
+    e_t_m : float
+        Mean of ||(R_A t_X + t_A) - (R_Y t_B + t_Y)||, metres.
+    max_R_deg, max_t_m : float
+        Worst measurement.
+    n : int
+        Measurements used.
+    """
+
+    e_R_deg: float
+    e_t_m: float
+    max_R_deg: float
+    max_t_m: float
+    n: int
+
+
+@dataclass(frozen=True)
+class Solution:
+    """Solution of ``A_i^j X^j = Y B_i^j`` for m cameras.
+
+    Attributes
+    ----------
+    X : ndarray, shape (m, 4, 4)
+        Per-camera unknown: ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand).
+    Y : ndarray, shape (4, 4)
+        Shared unknown: ``T_marker_target`` (eye-to-base) or ``T_world_target`` (eye-on-hand).
+    method : str
+        Registry name of the solver.
+    residuals : tuple of CameraResidual
+        One per camera.
+    Y_per_camera : ndarray, shape (m, 4, 4) or None
+        Single-camera methods: each camera's own estimate of Y before combination.
+    covariance : ndarray, shape (6(m+1), 6(m+1)) or None
+        With ``refine=True``: covariance of the perturbations of X^1..X^m then Y, each as
+        (rotation vector, translation) in the unknown's own left-multiplied (world-side) frame,
+        radians and metres.
+    """
+
+    X: np.ndarray
+    Y: np.ndarray
+    method: str
+    residuals: tuple[CameraResidual, ...]
+    Y_per_camera: np.ndarray | None = None
+    covariance: np.ndarray | None = None
+
+    @property
+    def e_R_deg(self) -> float:
+        """Mean rotation residual over all measurements of all cameras, degrees."""
+        n = sum(r.n for r in self.residuals)
+        return float(sum(r.e_R_deg * r.n for r in self.residuals) / n)
+
+    @property
+    def e_t_m(self) -> float:
+        """Mean translation residual over all measurements of all cameras, metres."""
+        n = sum(r.n for r in self.residuals)
+        return float(sum(r.e_t_m * r.n for r in self.residuals) / n)
