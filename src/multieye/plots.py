@@ -1,0 +1,90 @@
+"""Figures of the synthetic experiments (the only module that imports matplotlib).
+
+matplotlib is imported when a figure is drawn, not when this module is imported, and only its
+Agg canvas is used (no pyplot, no global backend switch), so drawing works without a display
+and leaves an interactive session's backend alone.
+
+>>> from multieye.plots import sweep_png
+>>> png = sweep_png("noise level f (%)", [("rotation error (deg)", {"joint": ([0, 5], [0, 1])})])
+>>> png[:4] == b"\\x89PNG"
+True
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+__all__ = ["Curves", "sweep_png"]
+
+#: One panel's curves: method name -> (x values, y values).
+Curves = Mapping[str, tuple[ArrayLike, ArrayLike]]
+
+_MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*")
+_LINESTYLES = ("-", "--", "-.", ":")
+
+
+def sweep_png(x_label: str, panels: Sequence[tuple[str, Curves]], *, title: str = "",
+              log_y: bool = False, dpi: int = 120) -> bytes:
+    """Draw one panel per metric, one curve per method, and return the PNG bytes.
+
+    Every method keeps the same colour, marker and line style in every panel, so that curves
+    which coincide (for instance two solvers with the same optimum) stay distinguishable; a
+    single legend is drawn under the panels.
+
+    Parameters
+    ----------
+    x_label : str
+        Label of the swept parameter (shared by all panels).
+    panels : sequence of (str, Curves)
+        Y-axis label and the curves of each panel; non-finite y values leave gaps.
+    title : str
+        Figure title.
+    log_y : bool
+        Logarithmic y axes.
+    dpi : int
+        Resolution of the PNG.
+
+    Returns
+    -------
+    bytes
+        The PNG file's content (the caller writes it, atomically).
+    """
+    from io import BytesIO
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    n = len(panels)
+    cols = 1 if n == 1 else 2
+    rows = -(-n // cols)
+    height = 3.6 * rows + 0.5  # inches; the last half inch holds the legend
+    fig = Figure(figsize=(5.2 * cols, height), dpi=dpi)
+    FigureCanvasAgg(fig)
+    methods = list(dict.fromkeys(name for _, curves in panels for name in curves))
+    colours = [f"C{k % 10}" for k in range(len(methods))]
+    handles = {}
+    for k, (y_label, curves) in enumerate(panels):
+        ax = fig.add_subplot(rows, cols, k + 1)
+        for name, (x, y) in curves.items():
+            i = methods.index(name)
+            (line,) = ax.plot(np.asarray(x, dtype=float), np.asarray(y, dtype=float),
+                              color=colours[i], marker=_MARKERS[i % len(_MARKERS)],
+                              linestyle=_LINESTYLES[i % len(_LINESTYLES)], markersize=5,
+                              linewidth=1.4, markerfacecolor="none", label=name)
+            handles.setdefault(name, line)
+        ax.set_xlabel(x_label)
+        ax.set_ylabel(y_label)
+        if log_y:
+            ax.set_yscale("log")
+        ax.grid(True, which="major", alpha=0.35)
+    fig.legend([handles[m] for m in methods], methods, loc="lower center",
+               ncol=min(len(methods), 6), frameon=False)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout(rect=(0.0, 0.45 / height, 1.0, 1.0))
+    buffer = BytesIO()
+    fig.savefig(buffer, format="png")
+    return buffer.getvalue()
