@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import integrate
 
 from multieye import geometry as g
@@ -17,11 +19,11 @@ def _loop_error(scenario: sim.RigScenario) -> float:
                for j, (A, B) in enumerate(zip(scenario.A, scenario.B)))
 
 
-@pytest.mark.parametrize("setup", sim.SETUPS)
-@pytest.mark.parametrize("counts", [[3], [40, 3], [40, 17, 5, 40], [8, 9, 10, 11, 12, 13]])
-def test_noise_free_measurements_close_the_loop(setup, counts):
-    scenario = sim.simulate_rig(len(counts) * 7 + 1, n_cameras=len(counts), measurements=counts,
-                                setup=setup)
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), setup=st.sampled_from(sim.SETUPS),
+       counts=st.lists(st.integers(1, 40), min_size=1, max_size=8))
+def test_noise_free_measurements_close_the_loop(seed, setup, counts):
+    scenario = sim.simulate_rig(seed, n_cameras=len(counts), measurements=counts, setup=setup)
     assert scenario.counts == tuple(counts)
     assert scenario.n_cameras == len(counts)
     assert _loop_error(scenario) < 1e-12
