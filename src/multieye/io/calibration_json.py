@@ -1,0 +1,351 @@
+"""``calibration.json``: the result file of ``multieye calibrate`` (DESIGN.md section 4).
+
+The pipeline fills a :class:`CalibrationRecord`; :func:`write_calibration` writes it atomically
+and :func:`read_calibration` reads and validates it back into the same dataclass.  Keys depend
+on the setup (DESIGN.md section 2):
+
+============  =====================  ==================
+setup         shared unknown Y       per camera X
+============  =====================  ==================
+eye-to-base   ``T_marker_target``    ``T_world_cam``
+eye-on-hand   ``T_world_target``     ``T_body_cam``
+============  =====================  ==================
+
+Every camera also has ``T_ref_cam`` and ``measurements_used``; optional per camera:
+``residuals``, ``time_offset_s`` (motion-capture clock minus camera clock, s), ``std_rot_deg``,
+``std_trans_m``, ``covariance`` (6x6, rotation vector then translation) and ``rejected``
+(``[{"item", "reason"}]``).  Top level: ``setup``, ``method``, ``reference_camera``, the shared
+unknown, ``cameras`` (in order), ``residuals`` and ``warnings``.  Matrices are nested lists of
+floats written with full precision, so a round trip is exact.  Keys the reader does not know
+are ignored (forward compatibility); missing keys and non-rigid matrices are errors.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from ..errors import DatasetError, InputError
+from .atomic import write_text_atomic
+from .textfile import read_text
+from .trajectory import RIGID_TOLERANCE
+
+__all__ = [
+    "SETUP_KEYS",
+    "Residuals",
+    "RejectedItem",
+    "CameraRecord",
+    "CalibrationRecord",
+    "write_calibration",
+    "read_calibration",
+    "calibration_to_dict",
+    "calibration_from_dict",
+]
+
+#: setup -> (key of the shared unknown Y, key of each camera's X).
+SETUP_KEYS = {
+    "eye-to-base": ("T_marker_target", "T_world_cam"),
+    "eye-on-hand": ("T_world_target", "T_body_cam"),
+}
+
+
+def _rigid(T, what: str) -> np.ndarray:
+    T = np.asarray(T, dtype=np.float64)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InputError(f"{what} must be a finite 4x4 matrix, got shape {T.shape}")
+    R = T[:3, :3]
+    if (np.abs(R.T @ R - np.eye(3)).max() > RIGID_TOLERANCE
+            or abs(np.linalg.det(R) - 1.0) > RIGID_TOLERANCE
+            or np.any(T[3] != [0.0, 0.0, 0.0, 1.0])):
+        raise InputError(f"{what} is not a rigid transform")
+    return T
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """Residuals of the loop ``A_i X = Y B_i`` (paper section V-A; DESIGN.md section 5).
+
+    Attributes
+    ----------
+    e_R_deg : float
+        Mean rotation residual, degrees.
+    e_t_m : float
+        Mean translation residual, metres.
+    max_R_deg, max_t_m : float or None
+        Worst measurement.
+    reprojection_rms_px : float or None
+        RMS reprojection error of the target points, pixels (image pipeline).
+    """
+
+    e_R_deg: float
+    e_t_m: float
+    max_R_deg: float | None = None
+    max_t_m: float | None = None
+    reprojection_rms_px: float | None = None
+
+
+@dataclass(frozen=True)
+class RejectedItem:
+    """An image or measurement left out, and why (``item`` is e.g. the image file name)."""
+
+    item: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class CameraRecord:
+    """One camera of a calibration result.
+
+    Attributes
+    ----------
+    name : str
+    X : ndarray, shape (4, 4)
+        ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand), metres.
+    T_ref_cam : ndarray, shape (4, 4)
+        Pose of the camera in the reference camera's frame.
+    measurements_used : int
+    residuals : Residuals or None
+    time_offset_s : float or None
+        Motion-capture clock minus camera clock, seconds.
+    std_rot_deg, std_trans_m : float or None
+        Root of the trace of the rotation / translation covariance of ``T_ref_cam``.
+    covariance : ndarray, shape (6, 6), or None
+        Covariance of ``T_ref_cam``: rotation vector (rad) then translation (m).
+    rejected : tuple of RejectedItem
+    """
+
+    name: str
+    X: np.ndarray
+    T_ref_cam: np.ndarray
+    measurements_used: int
+    residuals: Residuals | None = None
+    time_offset_s: float | None = None
+    std_rot_deg: float | None = None
+    std_trans_m: float | None = None
+    covariance: np.ndarray | None = None
+    rejected: tuple[RejectedItem, ...] = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "X", _rigid(self.X, f"camera {self.name}: X"))
+        object.__setattr__(self, "T_ref_cam", _rigid(self.T_ref_cam,
+                                                     f"camera {self.name}: T_ref_cam"))
+        if self.covariance is not None:
+            C = np.asarray(self.covariance, dtype=np.float64)
+            if C.shape != (6, 6) or not np.all(np.isfinite(C)):
+                raise InputError(f"camera {self.name}: covariance must be a finite 6x6 matrix, "
+                                 f"got shape {C.shape}")
+            object.__setattr__(self, "covariance", C)
+        n = self.measurements_used
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+            raise InputError(f"camera {self.name}: measurements_used must be a non-negative "
+                             f"integer, got {n!r}")
+        object.__setattr__(self, "measurements_used", int(n))
+        object.__setattr__(self, "rejected", tuple(self.rejected))
+
+
+@dataclass(frozen=True)
+class CalibrationRecord:
+    """Everything ``calibration.json`` holds.
+
+    Attributes
+    ----------
+    setup : {"eye-to-base", "eye-on-hand"}
+    method : str
+        Solver registry name.
+    reference_camera : str
+        Name of the camera whose frame is ``ref``; one of ``cameras``.
+    Y : ndarray, shape (4, 4)
+        ``T_marker_target`` (eye-to-base) or ``T_world_target`` (eye-on-hand), metres.
+    cameras : tuple of CameraRecord
+        In output order.
+    residuals : Residuals
+        Over all cameras.
+    warnings : tuple of str
+    """
+
+    setup: str
+    method: str
+    reference_camera: str
+    Y: np.ndarray
+    cameras: tuple[CameraRecord, ...]
+    residuals: Residuals
+    warnings: tuple[str, ...] = field(default=())
+
+    def __post_init__(self):
+        if self.setup not in SETUP_KEYS:
+            raise InputError(f"setup must be one of {', '.join(SETUP_KEYS)}, got {self.setup!r}")
+        object.__setattr__(self, "Y", _rigid(self.Y, SETUP_KEYS[self.setup][0]))
+        cams = tuple(self.cameras)
+        names = [c.name for c in cams]
+        if len(set(names)) != len(names):
+            raise InputError(f"camera names must be unique, got {names}")
+        if self.reference_camera not in names:
+            raise InputError(f"reference camera {self.reference_camera!r} is not one of "
+                             f"{names}")
+        object.__setattr__(self, "cameras", cams)
+        object.__setattr__(self, "warnings", tuple(self.warnings))
+
+    def camera(self, name: str) -> CameraRecord:
+        """The record of camera ``name``."""
+        for cam in self.cameras:
+            if cam.name == name:
+                return cam
+        raise KeyError(name)
+
+
+# --------------------------------------------------------------------------- to / from dict
+
+
+def _matrix(T: np.ndarray) -> list[list[float]]:
+    return [[float(v) for v in row] for row in T]
+
+
+def _residuals_dict(r: Residuals) -> dict:
+    return {f.name: float(getattr(r, f.name)) for f in fields(r) if getattr(r, f.name) is not None}
+
+
+def calibration_to_dict(rec: CalibrationRecord) -> dict:
+    """The JSON object of a record (DESIGN.md section 4 key order)."""
+    y_key, x_key = SETUP_KEYS[rec.setup]
+    cameras = {}
+    for cam in rec.cameras:
+        entry = {x_key: _matrix(cam.X), "T_ref_cam": _matrix(cam.T_ref_cam),
+                 "measurements_used": cam.measurements_used}
+        if cam.residuals is not None:
+            entry["residuals"] = _residuals_dict(cam.residuals)
+        for key in ("time_offset_s", "std_rot_deg", "std_trans_m"):
+            if getattr(cam, key) is not None:
+                entry[key] = float(getattr(cam, key))
+        if cam.covariance is not None:
+            entry["covariance"] = _matrix(cam.covariance)
+        if cam.rejected:
+            entry["rejected"] = [{"item": r.item, "reason": r.reason} for r in cam.rejected]
+        cameras[cam.name] = entry
+    return {"setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
+            y_key: _matrix(rec.Y), "cameras": cameras,
+            "residuals": _residuals_dict(rec.residuals), "warnings": list(rec.warnings)}
+
+
+class _Where:
+    """Builds DatasetErrors for one file."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def error(self, message: str, camera: str | None = None) -> DatasetError:
+        return DatasetError(message, path=self.path, camera=camera)
+
+    def need(self, obj: Mapping, key: str, where: str, camera=None):
+        if key not in obj:
+            raise self.error(f"missing key {key!r} in {where}", camera)
+        return obj[key]
+
+    def number(self, value, key: str, camera=None) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self.error(f"{key} must be a finite number, got {value!r}", camera)
+        return float(value)
+
+    def call(self, fn, *args, camera=None, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except (InputError, TypeError, ValueError) as exc:
+            raise self.error(str(exc), camera) from None
+
+
+def _read_residuals(obj, w: _Where, where: str, camera=None) -> Residuals:
+    if not isinstance(obj, Mapping):
+        raise w.error(f"{where} must be an object with e_R_deg and e_t_m", camera)
+    values = {}
+    for f in fields(Residuals):
+        if f.name in obj:
+            values[f.name] = w.number(obj[f.name], f"{where}.{f.name}", camera)
+        elif f.default is not None:
+            raise w.error(f"missing key {f.name!r} in {where}", camera)
+    return Residuals(**values)
+
+
+def calibration_from_dict(data, path: str | os.PathLike | None = None) -> CalibrationRecord:
+    """Validate a parsed ``calibration.json`` object into a record.
+
+    Raises
+    ------
+    DatasetError
+        Missing keys, unknown setup, non-numeric values, non-rigid matrices, a covariance that
+        is not 6x6, a reference camera that is not listed.
+    """
+    w = _Where(path)
+    if not isinstance(data, Mapping):
+        raise w.error("expected a JSON object")
+    setup = w.need(data, "setup", "the top level")
+    if setup not in SETUP_KEYS:
+        raise w.error(f"setup must be one of {', '.join(SETUP_KEYS)}, got {setup!r}")
+    y_key, x_key = SETUP_KEYS[setup]
+    cams = w.need(data, "cameras", "the top level")
+    if not isinstance(cams, Mapping) or not cams:
+        raise w.error("cameras must be a non-empty object of camera name -> result")
+    records = []
+    for name, entry in cams.items():
+        if not isinstance(entry, Mapping):
+            raise w.error("expected an object", name)
+        kw = {}
+        for key in ("time_offset_s", "std_rot_deg", "std_trans_m"):
+            if key in entry:
+                kw[key] = w.number(entry[key], key, name)
+        if "residuals" in entry:
+            kw["residuals"] = _read_residuals(entry["residuals"], w, "residuals", name)
+        if "covariance" in entry:
+            kw["covariance"] = w.call(np.asarray, entry["covariance"], dtype=np.float64,
+                                      camera=name)
+        rejected = entry.get("rejected", [])
+        if not isinstance(rejected, list) or not all(
+                isinstance(r, Mapping) and isinstance(r.get("item"), str)
+                and isinstance(r.get("reason"), str) for r in rejected):
+            raise w.error("rejected must be a list of {\"item\": str, \"reason\": str}", name)
+        kw["rejected"] = tuple(RejectedItem(r["item"], r["reason"]) for r in rejected)
+        X = w.call(np.asarray, w.need(entry, x_key, f"camera {name}", name), dtype=np.float64,
+                   camera=name)
+        T_ref = w.call(np.asarray, w.need(entry, "T_ref_cam", f"camera {name}", name),
+                       dtype=np.float64, camera=name)
+        used = w.need(entry, "measurements_used", f"camera {name}", name)
+        records.append(w.call(CameraRecord, str(name), X, T_ref, used, camera=name, **kw))
+    Y = w.call(np.asarray, w.need(data, y_key, "the top level"), dtype=np.float64)
+    warnings = data.get("warnings", [])
+    if not isinstance(warnings, list) or not all(isinstance(s, str) for s in warnings):
+        raise w.error("warnings must be a list of strings")
+    residuals = _read_residuals(w.need(data, "residuals", "the top level"), w, "residuals")
+    for key in ("method", "reference_camera"):
+        if not isinstance(w.need(data, key, "the top level"), str):
+            raise w.error(f"{key} must be a string")
+    return w.call(CalibrationRecord, setup, data["method"], data["reference_camera"], Y,
+                  tuple(records), residuals, tuple(warnings))
+
+
+# --------------------------------------------------------------------------- files
+
+
+def write_calibration(path: str | os.PathLike, rec: CalibrationRecord) -> None:
+    """Write ``calibration.json`` atomically (a failed run leaves no partial file)."""
+    text = json.dumps(calibration_to_dict(rec), indent=2, allow_nan=False)
+    write_text_atomic(path, text + "\n")
+
+
+def read_calibration(path: str | os.PathLike) -> CalibrationRecord:
+    """Read and validate ``calibration.json``.
+
+    Raises
+    ------
+    DatasetError
+        Missing file, invalid JSON (with the line), or any check of
+        :func:`calibration_from_dict`.
+    """
+    text = read_text(path, what="calibration file")
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise DatasetError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
+    return calibration_from_dict(data, path)

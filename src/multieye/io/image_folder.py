@@ -1,0 +1,92 @@
+"""Image folders whose file names are time stamps (DESIGN.md section 4).
+
+Rule for a file name's stem (the name without its extension):
+
+- digits, a decimal point, digits (``1700000000.123456``): seconds;
+- only digits, at most 10 of them (``1700000000``): whole seconds (10 digits reach the year
+  2286);
+- only digits, 16 to 19 of them (``1700000000123456789``): integer nanoseconds (16 digits
+  start at 1970-04-27, 19 fit in int64);
+- anything else, including 11 to 15 digits (milliseconds or microseconds could not be told
+  apart from the others), is an error naming the file.
+
+Only files with an image extension (:data:`IMAGE_EXTENSIONS`, any case) are considered; other
+files (notes, hidden files) are ignored.  Stamps are also returned as exact integer
+nanoseconds (seconds with more than 9 decimals are rounded to the nearest nanosecond).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from decimal import ROUND_HALF_EVEN, Decimal
+from pathlib import Path
+
+from ..errors import DatasetError
+
+__all__ = ["IMAGE_EXTENSIONS", "list_images", "stamp_from_name"]
+
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
+
+_SECONDS = re.compile(r"^\d+\.\d+$")
+_DIGITS = re.compile(r"^\d+$")
+
+
+def stamp_from_name(stem: str) -> int:
+    """Integer nanoseconds of a file name stem, by the rule of the module docstring.
+
+    Raises
+    ------
+    ValueError
+        The stem is not a time stamp (the message says what is accepted).
+    """
+    if _SECONDS.match(stem):
+        ns = (Decimal(stem) * 1_000_000_000).quantize(Decimal(1), rounding=ROUND_HALF_EVEN)
+        return int(ns)
+    if _DIGITS.match(stem):
+        if len(stem) <= 10:
+            return int(stem) * 1_000_000_000
+        if 16 <= len(stem) <= 19:
+            return int(stem)
+        raise ValueError(f"{len(stem)} digits is ambiguous (milliseconds? microseconds?); "
+                         "name images by seconds with a decimal point (1700000000.123456) or by "
+                         "integer nanoseconds (16 to 19 digits)")
+    raise ValueError("expected a time stamp: seconds (1700000000.123456) or integer "
+                     "nanoseconds (1700000000123456789)")
+
+
+def list_images(folder: str | os.PathLike) -> list[tuple[float, int, Path]]:
+    """Images of a folder sorted by the time stamp in their names.
+
+    Parameters
+    ----------
+    folder : path-like
+
+    Returns
+    -------
+    list of (stamp_s, stamp_ns, path)
+        ``stamp_s`` float seconds, ``stamp_ns`` exact int nanoseconds, sorted by time.
+
+    Raises
+    ------
+    DatasetError
+        Missing folder, no images, a name that is not a time stamp, two images with the same
+        stamp (naming both).
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise DatasetError("image folder not found", path=root)
+    found: dict[int, Path] = {}
+    for p in sorted(root.iterdir()):
+        if not p.is_file() or p.suffix.lower() not in IMAGE_EXTENSIONS:
+            continue
+        try:
+            ns = stamp_from_name(p.stem)
+        except ValueError as exc:
+            raise DatasetError(f"image name is not a time stamp: {exc}", path=p) from None
+        if ns in found:
+            raise DatasetError(f"same time stamp as {found[ns].name}", path=p)
+        found[ns] = p
+    if not found:
+        raise DatasetError(f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder", path=root)
+    return [(ns / 1e9, ns, found[ns]) for ns in sorted(found)]

@@ -1,0 +1,273 @@
+"""Camera intrinsics files -> :class:`~multieye.intrinsics.Intrinsics`.
+
+:func:`read_intrinsics` recognises the format from the content:
+
+OpenCV FileStorage (YAML starting ``%YAML:1.0``, or XML)
+    Read with ``cv2.FileStorage``, the maintained reader of that format.  Keys:
+    ``camera_matrix`` (or ``K``), ``distortion_coefficients`` (or ``D``) with 0, 4, 5, 8, 12 or
+    14 coefficients in OpenCV's order, optional ``image_width`` / ``image_height`` and an
+    optional ``distortion_model`` string (see below; without it the model is pinhole).
+Kalibr camchain (``camera_model: pinhole``)
+    A single entry or a chain of ``cam0``, ``cam1``...; ``camera`` selects one by key or
+    by ``camera_name`` (see :mod:`multieye.io.kalibr`).
+ROS ``camera_info`` YAML (``camera_matrix: {rows, cols, data}``)
+    ``distortion_model`` ``plumb_bob`` / ``rational_polynomial`` (pinhole) or ``equidistant``
+    (fisheye), ``distortion_coefficients: {rows, cols, data}``, ``image_width``,
+    ``image_height``.  Plain YAML with ``K`` / ``D`` lists is read the same way.
+
+``distortion_model`` names accepted everywhere: ``plumb_bob``, ``rational_polynomial``,
+``radtan``, ``pinhole`` -> pinhole; ``equidistant``, ``fisheye``, ``kannala_brandt`` ->
+fisheye.
+
+:func:`write_opencv_intrinsics` writes OpenCV FileStorage YAML (atomically, without OpenCV),
+adding ``distortion_model: fisheye`` for fisheye cameras so that the file reads back the same.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DatasetError, InputError
+from ..intrinsics import Intrinsics
+from .atomic import write_text_atomic
+from .kalibr import camchain_entries, intrinsics_from_kalibr, is_camchain
+from .textfile import read_text
+from .yamlfile import YamlDocument, parse_yaml, yaml_list
+
+__all__ = [
+    "DISTORTION_MODELS",
+    "read_intrinsics",
+    "read_opencv_intrinsics",
+    "read_camera_info",
+    "read_kalibr_intrinsics",
+    "write_opencv_intrinsics",
+]
+
+#: ``distortion_model`` names and the camera model they mean.
+DISTORTION_MODELS = {
+    "plumb_bob": "pinhole", "rational_polynomial": "pinhole", "radtan": "pinhole",
+    "pinhole": "pinhole", "equidistant": "fisheye", "fisheye": "fisheye",
+    "kannala_brandt": "fisheye",
+}
+
+_FORMATS = ("expected OpenCV FileStorage (%YAML:1.0 or XML with camera_matrix), a Kalibr "
+            "camchain (camera_model, intrinsics) or ROS camera_info (camera_matrix: "
+            "{rows, cols, data})")
+
+
+def _model(name, path, line=None) -> str:
+    if name is None:
+        return "pinhole"
+    try:
+        return DISTORTION_MODELS[str(name).lower()]
+    except KeyError:
+        raise DatasetError(f"distortion_model {name!r} is not supported; expected one of "
+                           f"{', '.join(DISTORTION_MODELS)}", path=path, line=line) from None
+
+
+def _build(K, dist, model, width, height, path, line=None) -> Intrinsics:
+    try:
+        K = np.asarray(K, dtype=np.float64).reshape(3, 3)
+    except (TypeError, ValueError):
+        raise DatasetError(f"camera matrix must have 9 numbers, got {K!r}", path=path,
+                           line=line) from None
+    try:
+        return Intrinsics(K, np.asarray(dist, dtype=np.float64).reshape(-1), model,
+                          None if width is None else int(width),
+                          None if height is None else int(height))
+    except (InputError, TypeError, ValueError) as exc:
+        raise DatasetError(str(exc), path=path, line=line) from None
+
+
+# --------------------------------------------------------------------------- OpenCV
+
+
+def read_opencv_intrinsics(path: str | os.PathLike) -> Intrinsics:
+    """Read OpenCV FileStorage YAML or XML (``camera_matrix``/``K``, ``distortion_*``/``D``).
+
+    Raises
+    ------
+    DatasetError
+        The file is missing, OpenCV cannot parse it, or a required key is missing (the message
+        lists the keys present).
+    """
+    import cv2
+
+    p = Path(path)
+    read_text(p, what="intrinsics file")  # missing / unreadable -> DatasetError
+    try:
+        fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
+        opened = fs.isOpened()
+    except (cv2.error, SystemError) as exc:
+        raise DatasetError(f"OpenCV cannot parse this FileStorage file: "
+                           f"{str(exc).strip().splitlines()[-1]}", path=p) from None
+    if not opened:
+        raise DatasetError("OpenCV cannot open this FileStorage file", path=p)
+    try:
+        keys = list(fs.root().keys())
+
+        def node(*names):
+            return next((fs.getNode(n) for n in names if not fs.getNode(n).empty()), None)
+
+        def numbers(n):
+            if n.isSeq():
+                return np.array([n.at(i).real() for i in range(n.size())])
+            mat = n.mat()
+            if mat is None:
+                raise DatasetError(f"{n.name()} must be a matrix or a list of numbers", path=p)
+            return np.asarray(mat, dtype=np.float64).reshape(-1)
+
+        k_node = node("camera_matrix", "K")
+        if k_node is None:
+            raise DatasetError("no camera_matrix (or K); keys present: "
+                               f"{', '.join(keys) or 'none'}", path=p)
+        d_node = node("distortion_coefficients", "D")
+        dist = numbers(d_node) if d_node is not None else np.zeros(0)
+        m_node = node("distortion_model", "model")
+        model = _model(m_node.string() if m_node is not None else None, p)
+        size = [int(n.real()) if n is not None else None
+                for n in (node("image_width"), node("image_height"))]
+        return _build(numbers(k_node), dist, model, *size, p)
+    finally:
+        fs.release()
+
+
+def write_opencv_intrinsics(path: str | os.PathLike, intr: Intrinsics) -> None:
+    """Write OpenCV FileStorage YAML atomically (``cv2.FileStorage`` reads it).
+
+    Keys: ``image_width``, ``image_height`` (when known), ``camera_matrix``,
+    ``distortion_coefficients`` and, for fisheye cameras, ``distortion_model: fisheye``.
+    """
+    def matrix(name, values, rows, cols):
+        return [f"{name}: !!opencv-matrix", f"   rows: {rows}", f"   cols: {cols}",
+                "   dt: d", f"   data: {yaml_list(values)}"]
+
+    lines = ["%YAML:1.0", "---"]
+    if intr.width is not None and intr.height is not None:
+        lines += [f"image_width: {int(intr.width)}", f"image_height: {int(intr.height)}"]
+    lines += matrix("camera_matrix", intr.K.reshape(-1), 3, 3)
+    if intr.dist.size:
+        lines += matrix("distortion_coefficients", intr.dist, 1, intr.dist.size)
+    if intr.model == "fisheye":
+        lines.append("distortion_model: fisheye")
+    write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+# --------------------------------------------------------------------------- YAML formats
+
+
+def _matrix_data(value, doc: YamlDocument, key: str) -> list:
+    """``{rows, cols, data}`` (ROS), a flat list, or a nested list -> flat list of numbers."""
+    if isinstance(value, Mapping):
+        if "data" not in value:
+            raise doc.error("expected a mapping with rows, cols and data", key)
+        value = value["data"]
+    if not isinstance(value, list):
+        raise doc.error(f"expected a list of numbers, got {value!r}", key)
+    flat = [v for row in value for v in (row if isinstance(row, list) else [row])]
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in flat):
+        raise doc.error(f"expected numbers, got {value!r}", key)
+    return flat
+
+
+def _camera_info(doc: YamlDocument) -> Intrinsics:
+    data = doc.data
+    k_key = "camera_matrix" if "camera_matrix" in data else "K"
+    d_key = next((k for k in ("distortion_coefficients", "D") if k in data), None)
+    K = _matrix_data(data[k_key], doc, k_key)
+    if len(K) != 9:
+        raise doc.error(f"expected 9 numbers, got {len(K)}", k_key)
+    dist = _matrix_data(data[d_key], doc, d_key) if d_key else []
+    model = _model(data.get("distortion_model"), doc.path, doc.line("distortion_model"))
+    width, height = data.get("image_width"), data.get("image_height")
+    for key, v in (("image_width", width), ("image_height", height)):
+        if v is not None and (not isinstance(v, int) or isinstance(v, bool) or v <= 0):
+            raise doc.error(f"expected a positive integer, got {v!r}", key)
+    return _build(K, dist, model, width, height, doc.path, doc.line(d_key or k_key))
+
+
+def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) -> Intrinsics:
+    data = doc.data
+    if "camera_model" in data:
+        return intrinsics_from_kalibr(data, doc)
+    entries = camchain_entries(doc)
+    if camera is None and prefer is not None and len(entries) > 1:
+        if any(prefer in (key, entry.get("camera_name")) for key, entry in entries):
+            camera = prefer
+    if camera is None:
+        if len(entries) != 1:
+            raise doc.error(f"the camchain has {len(entries)} cameras "
+                            f"({', '.join(k for k, _ in entries)}); choose one by name")
+        return intrinsics_from_kalibr(entries[0][1], doc, entries[0][0])
+    for key, entry in entries:
+        if camera in (key, entry.get("camera_name")):
+            return intrinsics_from_kalibr(entry, doc, key)
+    names = ", ".join(k for k, _ in entries)
+    raise DatasetError(f"camera {camera!r} not in the camchain; it has {names}", path=doc.path)
+
+
+def _load(path) -> tuple[str, YamlDocument | None]:
+    text = read_text(path, what="intrinsics file")
+    head = text.lstrip()[:32]
+    if head.startswith(("%YAML", "<?xml", "<opencv_storage")):
+        return "opencv", None
+    doc = parse_yaml(text, path)
+    if not isinstance(doc.data, Mapping):
+        raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
+    if is_camchain(doc.data):
+        return "kalibr", doc
+    if "camera_matrix" in doc.data or "K" in doc.data:
+        return "camera_info", doc
+    raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
+
+
+def read_camera_info(path: str | os.PathLike) -> Intrinsics:
+    """Read ROS ``camera_info`` YAML (or plain YAML with ``K`` / ``D`` lists)."""
+    kind, doc = _load(path)
+    if kind != "camera_info":
+        raise DatasetError(f"not a ROS camera_info file (looks like {kind})", path=path)
+    return _camera_info(doc)
+
+
+def read_kalibr_intrinsics(path: str | os.PathLike, camera: str | None = None) -> Intrinsics:
+    """Read one camera of a Kalibr camchain (``camera`` by key ``cam<n>`` or name)."""
+    kind, doc = _load(path)
+    if kind != "kalibr":
+        raise DatasetError(f"not a Kalibr camchain (looks like {kind})", path=path)
+    return _kalibr(doc, camera)
+
+
+def read_intrinsics(path: str | os.PathLike, camera: str | None = None, *,
+                    prefer: str | None = None) -> Intrinsics:
+    """Read intrinsics from any supported file, recognising the format from the content.
+
+    Parameters
+    ----------
+    path : path-like
+    camera : str, optional
+        For a Kalibr camchain with several cameras: the entry (``cam1``) or its
+        ``camera_name``.  Ignored by single-camera formats.
+    prefer : str, optional
+        Without ``camera``, for a camchain with several cameras: the entry with this key or
+        ``camera_name`` if there is one (the rig's camera name).
+
+    Returns
+    -------
+    Intrinsics
+
+    Raises
+    ------
+    DatasetError
+        Missing or unreadable file, unrecognised format (listing the formats), unsupported
+        camera or distortion model, wrong number of coefficients; with the line where known.
+    """
+    kind, doc = _load(path)
+    if kind == "opencv":
+        return read_opencv_intrinsics(path)
+    if kind == "kalibr":
+        return _kalibr(doc, camera, prefer)
+    return _camera_info(doc)

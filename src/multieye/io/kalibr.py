@@ -1,0 +1,236 @@
+"""Kalibr camera chains (``camchain.yaml``): read and write, so results drop into Kalibr tools.
+
+Layout (as Kalibr documents it): one entry per camera, keyed ``cam0``, ``cam1``, ...::
+
+    cam1:
+      camera_model: pinhole
+      intrinsics: [fu, fv, pu, pv]
+      distortion_model: radtan          # or equidistant
+      distortion_coeffs: [k1, k2, r1, r2]
+      resolution: [width, height]
+      T_cn_cnm1: [[...4x4...]]          # n >= 1
+      rostopic: /cam1/image_raw         # optional
+
+``T_cn_cnm1`` maps points in camera n-1 into camera n, i.e. ``T_cam<n>_cam<n-1>``; with
+poses relative to a reference camera, ``T_cn_cnm1 = inv(T_ref_cn) @ T_ref_cnm1``.
+
+Mapping to :class:`~multieye.intrinsics.Intrinsics`: ``radtan`` is OpenCV's pinhole model
+with 4 coefficients ``k1 k2 p1 p2``; ``equidistant`` is the fisheye model ``k1..k4``; a
+``none`` distortion model is a pinhole without distortion.  Kalibr's other models (``omni``,
+``ds``, ``eucm``, ``fov``) are rejected with a message.
+
+Choices: multieye's camera names are kept in an extra ``camera_name`` field (Kalibr ignores
+unknown fields); ``resolution`` is written only when the intrinsics know the image size.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import geometry
+from ..errors import DatasetError, InputError
+from ..intrinsics import Intrinsics
+from .atomic import write_text_atomic
+from .trajectory import RIGID_TOLERANCE
+from .yamlfile import YamlDocument, load_yaml, yaml_list
+
+__all__ = [
+    "CamchainEntry",
+    "read_camchain",
+    "write_camchain",
+    "intrinsics_from_kalibr",
+    "kalibr_fields",
+    "is_camchain",
+    "camchain_entries",
+]
+
+_DISTORTION = {"radtan": "pinhole", "equidistant": "fisheye", "none": "pinhole"}
+
+
+@dataclass(frozen=True)
+class CamchainEntry:
+    """One camera of a chain.
+
+    Attributes
+    ----------
+    name : str
+        multieye's camera name (``cam<n>`` when the file has no ``camera_name``).
+    intrinsics : Intrinsics
+    T_ref_cam : ndarray, shape (4, 4)
+        Pose of the camera in the reference camera's frame (metres).  Read back from a file,
+        the reference is the chain's first camera.
+    rostopic : str or None
+    """
+
+    name: str
+    intrinsics: Intrinsics
+    T_ref_cam: np.ndarray
+    rostopic: str | None = None
+
+    def __post_init__(self):
+        T = np.asarray(self.T_ref_cam, dtype=np.float64)
+        if T.shape != (4, 4):
+            raise InputError(f"camera {self.name}: T_ref_cam must be 4x4, got {T.shape}")
+        object.__setattr__(self, "T_ref_cam", T)
+
+
+def is_camchain(data) -> bool:
+    """True for a Kalibr entry (``camera_model`` key) or a mapping of such entries."""
+    if not isinstance(data, Mapping):
+        return False
+    return "camera_model" in data or any(
+        isinstance(v, Mapping) and "camera_model" in v for v in data.values())
+
+
+def _numbers(value, n: int | None, what: str, doc: YamlDocument, *keys) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise doc.error(f"{what} must be numbers, got {value!r}", *keys) from None
+    if (n is not None and arr.size != n) or not np.all(np.isfinite(arr)):
+        raise doc.error(f"{what} must be {n} finite numbers, got {value!r}", *keys)
+    return arr
+
+
+def intrinsics_from_kalibr(entry: Mapping, doc: YamlDocument, *keys) -> Intrinsics:
+    """Intrinsics from one Kalibr camera entry (``doc`` and ``keys`` locate it for messages)."""
+    model = entry.get("camera_model")
+    if model != "pinhole":
+        raise doc.error(f"camera_model {model!r} is not supported; expected 'pinhole'",
+                        *keys, "camera_model")
+    for key in ("intrinsics", "distortion_model"):
+        if key not in entry:
+            raise doc.error(f"missing key {key!r}", *keys)
+    fu, fv, pu, pv = _numbers(entry["intrinsics"], 4, "intrinsics [fu, fv, pu, pv]", doc,
+                              *keys, "intrinsics")
+    dmodel = entry["distortion_model"]
+    if dmodel not in _DISTORTION:
+        raise doc.error(f"distortion_model {dmodel!r} is not supported; expected radtan, "
+                        "equidistant or none", *keys, "distortion_model")
+    n = 0 if dmodel == "none" else 4
+    coeffs = _numbers(entry.get("distortion_coeffs", [0.0] * n), n, "distortion_coeffs",
+                      doc, *keys, "distortion_coeffs")
+    width = height = None
+    if "resolution" in entry:
+        res = _numbers(entry["resolution"], 2, "resolution [width, height]", doc, *keys,
+                       "resolution")
+        width, height = int(res[0]), int(res[1])
+    K = np.array([[fu, 0.0, pu], [0.0, fv, pv], [0.0, 0.0, 1.0]])
+    try:
+        return Intrinsics(K, coeffs, _DISTORTION[dmodel], width, height)
+    except InputError as exc:
+        raise doc.error(str(exc), *keys) from None
+
+
+def kalibr_fields(intr: Intrinsics) -> dict:
+    """The Kalibr entry fields of intrinsics (without ``T_cn_cnm1``).
+
+    Raises
+    ------
+    InputError
+        A pinhole model with non-zero coefficients beyond ``k1 k2 p1 p2`` (Kalibr's radtan
+        cannot hold them).
+    """
+    K = intr.K
+    if intr.model == "fisheye":
+        dmodel, coeffs = "equidistant", intr.dist[:4]
+    else:
+        coeffs = np.zeros(4)
+        coeffs[: min(4, intr.dist.size)] = intr.dist[:4]
+        if np.any(intr.dist[4:] != 0):
+            raise InputError("Kalibr radtan holds k1 k2 p1 p2 only; these intrinsics have "
+                             f"{intr.dist.size} non-trivial coefficients")
+        dmodel = "radtan"
+    if K[0, 1] != 0:
+        raise InputError(f"Kalibr pinhole has no skew; camera matrix has skew {K[0, 1]}")
+    fields = {
+        "camera_model": "pinhole",
+        "intrinsics": [float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])],
+        "distortion_model": dmodel,
+        "distortion_coeffs": [float(c) for c in coeffs],
+    }
+    if intr.width is not None and intr.height is not None:
+        fields["resolution"] = [int(intr.width), int(intr.height)]
+    return fields
+
+
+def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry]) -> None:
+    """Write a Kalibr ``camchain.yaml`` atomically, cameras in the given order.
+
+    Parameters
+    ----------
+    path : path-like
+    cameras : sequence of CamchainEntry
+        ``cam<n>`` is ``cameras[n]``; ``T_cn_cnm1 = inv(T_ref_cn) @ T_ref_cnm1``.
+    """
+    lines = []
+    for n, cam in enumerate(cameras):
+        lines.append(f"cam{n}:")
+        lines.append(f"  camera_name: {cam.name}")
+        for key, value in kalibr_fields(cam.intrinsics).items():
+            if key == "resolution":
+                text = f"[{value[0]}, {value[1]}]"
+            else:
+                text = yaml_list(value) if isinstance(value, list) else value
+            lines.append(f"  {key}: {text}")
+        if n > 0:
+            T = geometry.inv(cam.T_ref_cam) @ cameras[n - 1].T_ref_cam
+            lines.append("  T_cn_cnm1:")
+            lines.extend(f"  - {yaml_list(row)}" for row in T)
+        if cam.rostopic:
+            lines.append(f"  rostopic: {cam.rostopic}")
+    write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def _rigid(value, doc: YamlDocument, *keys) -> np.ndarray:
+    T = _numbers(value, 16, "T_cn_cnm1 (4x4)", doc, *keys).reshape(4, 4)
+    R = T[:3, :3]
+    if (np.abs(R.T @ R - np.eye(3)).max() > RIGID_TOLERANCE
+            or abs(np.linalg.det(R) - 1) > RIGID_TOLERANCE or np.any(T[3] != [0, 0, 0, 1])):
+        raise doc.error("T_cn_cnm1 is not a rigid transform", *keys)
+    return T
+
+
+def camchain_entries(doc: YamlDocument) -> list[tuple[str, Mapping]]:
+    """``(key, entry)`` of a camchain document in chain order (``cam0``, ``cam1``, ...)."""
+    data = doc.data
+    keys = sorted((k for k in data if k.startswith("cam") and k[3:].isdigit()),
+                  key=lambda k: int(k[3:]))
+    if [int(k[3:]) for k in keys] != list(range(len(keys))) or not keys:
+        raise doc.error(f"camera keys must be cam0, cam1, ... without gaps, got "
+                        f"{', '.join(data) or 'none'}")
+    for k in keys:
+        if not isinstance(data[k], Mapping):
+            raise doc.error("expected a mapping with camera_model, intrinsics, ...", k)
+    return [(k, data[k]) for k in keys]
+
+
+def read_camchain(path: str | os.PathLike) -> tuple[CamchainEntry, ...]:
+    """Read a Kalibr camchain; poses are chained from ``cam0`` (``T_ref_cam0 = I``).
+
+    Raises
+    ------
+    DatasetError
+        Missing keys, unsupported models, malformed numbers or a non-rigid ``T_cn_cnm1``,
+        with the line of the offending key.
+    """
+    doc = load_yaml(path, what="Kalibr camchain")
+    if not isinstance(doc.data, Mapping):
+        raise DatasetError("expected a mapping of cam0, cam1, ...", path=path, line=1)
+    out = []
+    T_ref = np.eye(4)
+    for n, (key, entry) in enumerate(camchain_entries(doc)):
+        intr = intrinsics_from_kalibr(entry, doc, key)
+        if n > 0:
+            if "T_cn_cnm1" not in entry:
+                raise doc.error("missing key 'T_cn_cnm1'", key)
+            T_ref = T_ref @ geometry.inv(_rigid(entry["T_cn_cnm1"], doc, key, "T_cn_cnm1"))
+        name = str(entry.get("camera_name", key))
+        rostopic = entry.get("rostopic")
+        out.append(CamchainEntry(name, intr, T_ref.copy(), None if rostopic is None else
+                                 str(rostopic)))
+    return tuple(out)

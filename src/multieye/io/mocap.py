@@ -1,0 +1,138 @@
+"""One entry point for motion-capture files: :class:`MocapSpec` -> :class:`Trajectory`.
+
+``rig.yaml``'s ``mocap:`` section (DESIGN.md section 4) becomes a :class:`MocapSpec`;
+:func:`read_mocap` dispatches to the reader of its format and returns the poses with
+``world`` as the parent frame, whichever direction the file stores them in.
+
+Format recognition (:func:`sniff_mocap_format`), when the spec does not name one:
+a ROS 2 bag folder or a ``.bag`` / ``.db3`` / ``.mcap`` file is ``rosbag``; a ``.csv`` file is
+``optitrack`` if it starts with ``Format Version``, ``vicon`` if it starts with a Nexus section
+line (``Segments``, ``Trajectories``...), else ``csv``; anything else is ``tum``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import DatasetError
+from .mocap_csv import csv_flavour, read_optitrack_csv, read_pose_csv, read_vicon_csv
+from .rosbag import read_bag_trajectory
+from .trajectory import Trajectory
+from .tum import read_tum
+
+__all__ = ["MOCAP_FORMATS", "MocapSpec", "read_mocap", "sniff_mocap_format", "pose_frames"]
+
+MOCAP_FORMATS = ("tum", "csv", "optitrack", "vicon", "rosbag")
+_POSE = re.compile(r"^T_([A-Za-z0-9]+)_([A-Za-z0-9]+)$")
+
+
+def pose_frames(pose: str) -> tuple[str, str]:
+    """``"T_world_marker"`` -> ``("world", "marker")``; ValueError for other shapes."""
+    m = _POSE.match(pose)
+    if not m:
+        raise ValueError(f"expected a transform name T_<parent>_<child>, got {pose!r}")
+    return m.group(1), m.group(2)
+
+
+@dataclass(frozen=True)
+class MocapSpec:
+    """Where and how to read motion-capture poses.
+
+    Attributes
+    ----------
+    file : Path
+        File (or ROS 2 bag folder), absolute or relative to the working folder.
+    pose : str
+        What each sample is: ``T_world_marker`` / ``T_world_body`` (or their inverses
+        ``T_marker_world`` / ``T_body_world``).
+    time_tolerance : float
+        Seconds allowed between an image and its motion-capture sample.
+    format : {"tum", "csv", "optitrack", "vicon", "rosbag"}
+    topic : str or None
+        Pose topic (``rosbag``).
+    unit : {"m", "cm", "mm"} or None
+        Translation unit for ``tum``, ``csv`` and ``rosbag`` (OptiTrack and Vicon exports state
+        their own).  None: metres (or a ``csv`` header's unit suffix).
+    rigid_body : str or None
+        OptiTrack rigid body or Vicon segment name (needed when the export has several).
+    parent_frame, child_frame : str or None
+        ROS frame ids selecting a transform of a ``/tf`` or TransformStamped topic.
+    columns : mapping or None
+        ``csv`` header names per role (``t tx ty tz qx qy qz qw``).
+    """
+
+    file: Path
+    pose: str = "T_world_marker"
+    time_tolerance: float = 0.03
+    format: str = "tum"
+    topic: str | None = None
+    unit: str | None = None
+    rigid_body: str | None = None
+    parent_frame: str | None = None
+    child_frame: str | None = None
+    columns: Mapping[str, str] | None = None
+
+    @property
+    def moving_frame(self) -> str:
+        """The frame tracked relative to ``world`` (``marker`` or ``body``)."""
+        a, b = pose_frames(self.pose)
+        return b if a == "world" else a
+
+
+def sniff_mocap_format(path: str | os.PathLike) -> str:
+    """The format of a motion-capture file from its name and first line (module docstring)."""
+    p = Path(path)
+    if not p.exists():
+        raise DatasetError("motion-capture file not found", path=p)
+    if p.is_dir():
+        if (p / "metadata.yaml").is_file():
+            return "rosbag"
+        raise DatasetError("expected a motion-capture file or a ROS 2 bag folder "
+                           "(with metadata.yaml), found a folder", path=p)
+    suffix = p.suffix.lower()
+    if suffix in (".bag", ".db3", ".mcap"):
+        return "rosbag"
+    if suffix == ".csv":
+        return csv_flavour(p)
+    return "tum"
+
+
+def read_mocap(spec: MocapSpec) -> Trajectory:
+    """Read the poses a spec describes, as ``T_world_<moving frame>``.
+
+    Returns
+    -------
+    Trajectory
+        ``parent == "world"``; rows stored as ``T_<moving>_world`` are inverted.
+
+    Raises
+    ------
+    DatasetError
+        From the format's reader (file, line and what was expected), or a spec whose options do
+        not fit its format.
+    """
+    parent, child = pose_frames(spec.pose)
+    fmt = spec.format
+    if fmt not in MOCAP_FORMATS:
+        raise DatasetError(f"motion-capture format must be one of {', '.join(MOCAP_FORMATS)}, "
+                           f"got {fmt!r}", path=spec.file)
+    if fmt == "tum":
+        traj = read_tum(spec.file, unit=spec.unit or "m", parent=parent, child=child)
+    elif fmt == "csv":
+        traj = read_pose_csv(spec.file, columns=spec.columns, unit=spec.unit, parent=parent,
+                             child=child)
+    elif fmt == "optitrack":
+        traj = read_optitrack_csv(spec.file, spec.rigid_body, parent=parent, child=child)
+    elif fmt == "vicon":
+        traj = read_vicon_csv(spec.file, spec.rigid_body, parent=parent, child=child)
+    else:
+        if not spec.topic:
+            raise DatasetError("a rosbag motion-capture source needs a topic", path=spec.file)
+        traj = read_bag_trajectory(spec.file, spec.topic, parent_frame=spec.parent_frame,
+                                   child_frame=spec.child_frame, unit=spec.unit or "m",
+                                   parent=parent, child=child)
+    return traj if traj.parent == "world" else traj.inverted()

@@ -1,0 +1,413 @@
+"""Motion-capture poses from CSV files: a generic CSV with a header, OptiTrack Motive and
+Vicon Nexus exports.  Every reader returns a :class:`Trajectory` of ``T_world_<child>`` in
+metres and seconds.
+
+Generic CSV (:func:`read_pose_csv`)
+    One header row, then one pose per row.  Columns are found by name (case-insensitive,
+    a leading ``#`` and a unit suffix such as ``[mm]`` or ``(s)`` are allowed), with defaults
+    :data:`DEFAULT_COLUMNS` or an explicit ``columns`` mapping.  Separator: comma, else
+    semicolon, else whitespace.
+
+OptiTrack Motive CSV export (:func:`read_optitrack_csv`)
+    Facts from the Motive documentation and exported files: line 1 holds ``key,value`` pairs
+    (``Format Version``, ``Rotation Type``, ``Length Units`` = ``Meters``/``Millimeters``/
+    ``Centimeters``, ...); then header rows whose second cell is ``Type`` (``Rigid Body``,
+    ``Marker``, ``Rigid Body Marker``...), ``Name``, ``ID`` (newer versions add ``Parent``),
+    a row naming the quantity (``Rotation``/``Position``/``Mean Marker Error``) and a row
+    starting ``Frame,Time (Seconds)`` naming the axes.  Rigid-body rotation is a quaternion
+    in the column order ``X Y Z W``.  Occluded frames have blank cells.
+    Choices: only ``Rotation Type`` = ``Quaternion`` is accepted (Euler exports are
+    ambiguous about the axis order's meaning, so they are rejected with a message); frames
+    with any blank pose cell are skipped; the stamp is the ``Time (Seconds)`` column.
+
+Vicon Nexus CSV export (:func:`read_vicon_csv`)
+    Facts from exported files: sections start with a line holding the section name
+    (``Segments``, ``Trajectories``, ``Model Outputs``, ``Joints``, ``Devices``), then the
+    frame rate in Hz, a row with each subject/segment name above its first column, the
+    labels ``Frame,Sub Frame,RX,RY,RZ,TX,TY,TZ,...`` and a units row (``deg`` or ``rad``,
+    ``mm``); a blank line ends a section.  ``RX RY RZ`` of a segment is its global
+    orientation as a helical (rotation-vector) angle: axis times angle.
+    Choices: the pose is ``T_world_segment = [exp(RX RY RZ), (TX TY TZ)]``; the stamp is
+    ``Frame / rate`` seconds on the Vicon clock (``Sub Frame``, used by devices sampled
+    faster than the cameras, is ignored; segment rows have one row per frame); frames with a
+    blank pose cell (segment not reconstructed) are skipped.  ``Trajectories`` holds marker
+    positions only, so a file without a ``Segments`` section is rejected with that reason.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .. import geometry
+from ..errors import DatasetError
+from .poserows import quaternion_poses, trajectory_from_rows
+from .textfile import LENGTH_UNITS, parse_float, read_text
+from .trajectory import Trajectory
+
+__all__ = [
+    "DEFAULT_COLUMNS",
+    "read_pose_csv",
+    "read_optitrack_csv",
+    "read_vicon_csv",
+    "csv_flavour",
+]
+
+#: Header names tried for each quantity of a generic CSV (after lower-casing and removing
+#: a leading ``#`` and a unit suffix).
+DEFAULT_COLUMNS: dict[str, tuple[str, ...]] = {
+    "t": ("t", "time", "timestamp", "stamp", "time_s", "times"),
+    "tx": ("tx", "x", "px", "pos_x", "position_x", "p_x", "t_x"),
+    "ty": ("ty", "y", "py", "pos_y", "position_y", "p_y", "t_y"),
+    "tz": ("tz", "z", "pz", "pos_z", "position_z", "p_z", "t_z"),
+    "qx": ("qx", "q_x", "quat_x", "orientation_x", "rot_x"),
+    "qy": ("qy", "q_y", "quat_y", "orientation_y", "rot_y"),
+    "qz": ("qz", "q_z", "quat_z", "orientation_z", "rot_z"),
+    "qw": ("qw", "q_w", "quat_w", "orientation_w", "rot_w"),
+}
+
+_TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([a-zA-Z]+)\s*[\])]$")
+_OPTITRACK_UNITS = {"meters": "m", "millimeters": "mm", "centimeters": "cm"}
+_VICON_SECTIONS = ("Segments", "Trajectories", "Model Outputs", "Joints", "Devices")
+
+
+def _rows(text: str, delimiter: str = ",") -> list[list[str]]:
+    # One physical line per row (exports never quote newlines), so index + 1 is the line.
+    return [next(csv.reader([line], delimiter=delimiter), []) for line in text.splitlines()]
+
+
+def _blank(row: Sequence[str]) -> bool:
+    return all(not c.strip() for c in row)
+
+
+# --------------------------------------------------------------------------- generic CSV
+
+
+def _header_name(cell: str) -> tuple[str, str | None]:
+    name = cell.strip().lstrip("#").strip()
+    m = _UNIT_SUFFIX.match(name)
+    unit = None
+    if m:
+        name, unit = m.group(1), m.group(2).lower()
+    return name.lower(), unit
+
+
+def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, line):
+    names = [_header_name(c) for c in header]
+    found = {}
+    for role, candidates in DEFAULT_COLUMNS.items():
+        wanted = (columns[role].strip().lower(),) if columns and role in columns else candidates
+        hits = [j for j, (n, _) in enumerate(names) if n in wanted]
+        if len(hits) != 1:
+            have = ", ".join(repr(c.strip()) for c in header)
+            problem = "no column" if not hits else "several columns"
+            raise DatasetError(f"{problem} for {role} (looked for {' or '.join(wanted)}); "
+                               f"header has {have}", path=path, line=line)
+        found[role] = hits[0]
+    if columns:
+        unknown = set(columns) - set(DEFAULT_COLUMNS)
+        if unknown:
+            raise DatasetError(f"unknown column roles {sorted(unknown)}; roles are "
+                               f"{', '.join(DEFAULT_COLUMNS)}", path=path)
+    return found, names
+
+
+def _unit_from_header(names, found, roles, default, known, path, line):
+    units = {names[found[r]][1] for r in roles} - {None}
+    if len(units) > 1:
+        raise DatasetError(f"columns {', '.join(roles)} have different units {sorted(units)}",
+                           path=path, line=line)
+    unit = units.pop() if units else None
+    if unit is not None and unit not in known:
+        raise DatasetError(f"unknown unit {unit!r} in the header; expected one of "
+                           f"{', '.join(known)}", path=path, line=line)
+    if unit is not None and default is not None and unit != default:
+        raise DatasetError(f"the header says {unit!r} but {default!r} was requested",
+                           path=path, line=line)
+    return unit or default
+
+
+def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None = None,
+                  unit: str | None = None, time_unit: str | None = None,
+                  parent: str = "world", child: str = "marker") -> Trajectory:
+    """Read poses from a CSV file with a header row.
+
+    Parameters
+    ----------
+    path : path-like
+    columns : mapping, optional
+        Header name for any of the roles ``t tx ty tz qx qy qz qw`` (others use
+        :data:`DEFAULT_COLUMNS`).
+    unit : {"m", "cm", "mm"}, optional
+        Translation unit; default: the header's unit suffix, else metres.
+    time_unit : {"s", "ms", "us", "ns"}, optional
+        Time unit; default: the header's suffix, else seconds.  With ``"ns"`` the stamps are
+        read as exact integers and kept in ``stamps_ns``.
+    parent, child : str
+        Each row is ``T_parent_child``.
+
+    Raises
+    ------
+    DatasetError
+        Missing or ambiguous columns (listing the header), a row with too few cells, a cell that
+        is not a number, a non-unit quaternion, stamps not strictly increasing.  Rows with a
+        blank pose cell are skipped (an occluded sample).
+    """
+    text = read_text(path, what="CSV file")
+    first = next((i for i, line in enumerate(text.splitlines()) if line.strip()), None)
+    if first is None:
+        raise DatasetError("empty CSV file: expected a header row", path=path)
+    header_line = text.splitlines()[first]
+    delimiter = "," if "," in header_line else ";" if ";" in header_line else None
+    if delimiter is None:
+        rows = [line.split() for line in text.splitlines()]
+    else:
+        rows = _rows(text, delimiter)
+    found, names = _find_columns(rows[first], columns, path, first + 1)
+    unit = _unit_from_header(names, found, ("tx", "ty", "tz"), unit, LENGTH_UNITS, path,
+                             first + 1) or "m"
+    time_unit = _unit_from_header(names, found, ("t",), time_unit, _TIME_UNITS, path,
+                                  first + 1) or "s"
+    order = [found[r] for r in DEFAULT_COLUMNS]
+    values, stamps_ns, lines = [], [], []
+    for i in range(first + 1, len(rows)):
+        row = rows[i]
+        if _blank(row) or row[0].lstrip().startswith("#"):
+            continue
+        if len(row) <= max(order):
+            raise DatasetError(f"row has {len(row)} cells, the header has {len(rows[first])}",
+                               path=path, line=i + 1)
+        cells = [row[j].strip() for j in order]
+        if not all(cells):
+            continue
+        if time_unit == "ns":
+            try:
+                stamps_ns.append(int(cells[0]))
+            except ValueError:
+                raise DatasetError(f"expected integer nanoseconds for t, got {cells[0]!r}",
+                                   path=path, line=i + 1) from None
+            cells[0] = "0"
+        values.append([parse_float(c, path=path, line=i + 1, name=role)
+                       for c, role in zip(cells, DEFAULT_COLUMNS)])
+        lines.append(i + 1)
+    if not values:
+        raise DatasetError("no poses found below the header", path=path)
+    data = np.asarray(values)
+    ns = np.asarray(stamps_ns, dtype=np.int64) if time_unit == "ns" else None
+    stamps = ns / 1e9 if ns is not None else data[:, 0] * _TIME_UNITS[time_unit]
+    T = quaternion_poses(data[:, 1:4] * LENGTH_UNITS[unit], data[:, 4:8], path=path, lines=lines)
+    return trajectory_from_rows(stamps, T, path=path, lines=lines, parent=parent, child=child,
+                                stamps_ns=ns)
+
+
+# --------------------------------------------------------------------------- OptiTrack
+
+
+def _label_row(rows: list[list[str]], label: str, start: int, stop: int) -> int | None:
+    for i in range(start, stop):
+        if len(rows[i]) > 1 and rows[i][1].strip() == label and not rows[i][0].strip():
+            return i
+    return None
+
+
+def _choose(name: str | None, available: list[str], what: str, path) -> str:
+    if name is None:
+        if len(available) == 1:
+            return available[0]
+        raise DatasetError(f"{len(available)} {what}s in the file ({', '.join(available) or 'none'});"
+                           f" choose one by name", path=path)
+    if name in available:
+        return name
+    short = [a for a in available if a.split(":")[-1] == name]
+    if len(short) == 1:
+        return short[0]
+    raise DatasetError(f"{what} {name!r} not found; the file has {', '.join(available) or 'none'}",
+                       path=path)
+
+
+def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *,
+                       parent: str = "world", child: str = "marker") -> Trajectory:
+    """Read one rigid body's poses from an OptiTrack Motive CSV export.
+
+    Parameters
+    ----------
+    path : path-like
+    rigid_body : str, optional
+        Name of the rigid body (as in the ``Name`` row); needed when the file has several.
+    parent, child : str
+        Frame names: the poses are ``T_parent_child`` (the rigid body in Motive's world).
+
+    Returns
+    -------
+    Trajectory
+        Stamps from ``Time (Seconds)``, translations converted from ``Length Units``.
+
+    Raises
+    ------
+    DatasetError
+        Not a Motive export, Euler rotations, unknown length unit, rigid body missing (listing
+        those present), malformed cells (with the line).
+    """
+    rows = _rows(read_text(path, what="OptiTrack CSV export"))
+    if not rows or rows[0][0].strip() != "Format Version":
+        raise DatasetError("not an OptiTrack Motive CSV export: the first cell should be "
+                           "'Format Version' (export with header information)", path=path, line=1)
+    meta = {k.strip(): v.strip() for k, v in zip(rows[0][0::2], rows[0][1::2])}
+    rotation = meta.get("Rotation Type", "Quaternion")
+    if rotation != "Quaternion":
+        raise DatasetError(f"Rotation Type is {rotation!r}; export rigid bodies with Rotation "
+                           "Type 'Quaternion'", path=path, line=1)
+    units = meta.get("Length Units")
+    if units is None or units.lower() not in _OPTITRACK_UNITS:
+        raise DatasetError(f"Length Units must be Meters, Millimeters or Centimeters, got "
+                           f"{units!r}", path=path, line=1)
+    scale = LENGTH_UNITS[_OPTITRACK_UNITS[units.lower()]]
+    frame_row = next((i for i, r in enumerate(rows) if r and r[0].strip() == "Frame"), None)
+    if frame_row is None:
+        raise DatasetError("no 'Frame,Time (Seconds),...' header row", path=path)
+    type_row = _label_row(rows, "Type", 1, frame_row)
+    name_row = _label_row(rows, "Name", 1, frame_row)
+    if type_row is None or name_row is None:
+        raise DatasetError("header rows 'Type' and 'Name' not found above the 'Frame' row",
+                           path=path)
+    kinds, names = rows[type_row], rows[name_row]
+    quantity, axes = rows[frame_row - 1], rows[frame_row]
+    bodies = list(dict.fromkeys(names[j].strip() for j in range(2, min(len(kinds), len(names)))
+                                if kinds[j].strip() == "Rigid Body"))
+    body = _choose(rigid_body, bodies, "rigid body", path)
+    cols = {}
+    for j in range(2, min(len(kinds), len(names), len(quantity), len(axes))):
+        if kinds[j].strip() == "Rigid Body" and names[j].strip() == body:
+            cols[(quantity[j].strip(), axes[j].strip())] = j
+    wanted = [("Position", a) for a in "XYZ"] + [("Rotation", a) for a in "XYZW"]
+    missing = [f"{q} {a}" for q, a in wanted if (q, a) not in cols]
+    if missing:
+        raise DatasetError(f"rigid body {body!r} has no column for {', '.join(missing)}",
+                           path=path, line=frame_row + 1)
+    time_col = next((j for j, c in enumerate(axes) if c.strip().startswith("Time")), None)
+    if time_col is None:
+        raise DatasetError("no 'Time (Seconds)' column", path=path, line=frame_row + 1)
+    order = [time_col] + [cols[w] for w in wanted]
+    values, lines = [], []
+    for i in range(frame_row + 1, len(rows)):
+        row = rows[i]
+        if _blank(row):
+            continue
+        cells = [row[j].strip() if j < len(row) else "" for j in order]
+        if not all(cells):
+            continue  # rigid body not tracked in this frame
+        names_ = ("Time (Seconds)", "X", "Y", "Z", "qX", "qY", "qZ", "qW")
+        values.append([parse_float(c, path=path, line=i + 1, name=n)
+                       for c, n in zip(cells, names_)])
+        lines.append(i + 1)
+    if not values:
+        raise DatasetError(f"rigid body {body!r} is not tracked in any frame", path=path)
+    data = np.asarray(values)
+    T = quaternion_poses(data[:, 1:4] * scale, data[:, 4:8], path=path, lines=lines)
+    return trajectory_from_rows(data[:, 0], T, path=path, lines=lines, parent=parent,
+                                child=child)
+
+
+# --------------------------------------------------------------------------- Vicon
+
+
+def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
+                   parent: str = "world", child: str = "marker") -> Trajectory:
+    """Read one segment's global poses from the ``Segments`` section of a Vicon Nexus export.
+
+    Parameters
+    ----------
+    path : path-like
+    segment : str, optional
+        Segment name as in the names row (``Subject:Segment``), or its part after the colon
+        when that is unique; needed when the section has several segments.
+    parent, child : str
+        The poses are ``T_parent_child`` (segment in the Vicon world).
+
+    Raises
+    ------
+    DatasetError
+        No ``Segments`` section, bad frame rate, unknown units, segment missing (listing those
+        present), malformed cells (with the line).
+    """
+    rows = _rows(read_text(path, what="Vicon CSV export"))
+    heads = {r[0].strip(): i for i, r in enumerate(rows)
+             if r and r[0].strip() in _VICON_SECTIONS and _blank(r[1:])}
+    if "Segments" not in heads:
+        reason = ("it has only marker Trajectories, which carry no orientation; export the "
+                  "Segments section" if "Trajectories" in heads else
+                  "expected a section line 'Segments' as Vicon Nexus writes it")
+        raise DatasetError(f"no Segments section: {reason}", path=path)
+    s = heads["Segments"]
+    if s + 4 >= len(rows):
+        raise DatasetError("Segments section is truncated", path=path, line=s + 1)
+    rate = parse_float(rows[s + 1][0] if rows[s + 1] else "", path=path, line=s + 2,
+                       name="the frame rate (Hz)")
+    if rate <= 0:
+        raise DatasetError(f"frame rate must be positive, got {rate}", path=path, line=s + 2)
+    names, labels, units = rows[s + 2], rows[s + 3], rows[s + 4]
+    if [c.strip() for c in labels[:2]] != ["Frame", "Sub Frame"]:
+        raise DatasetError("expected the labels row 'Frame,Sub Frame,RX,RY,RZ,TX,TY,TZ,...'",
+                           path=path, line=s + 4)
+    starts = [j for j in range(2, len(names)) if names[j].strip()]
+    segments = [names[j].strip() for j in starts]
+    name = _choose(segment, segments, "segment", path)
+    j0 = starts[segments.index(name)]
+    j1 = next((j for j in starts if j > j0), len(labels))
+    block = {labels[j].strip(): j for j in range(j0, min(j1, len(labels)))}
+    wanted = ("TX", "TY", "TZ", "RX", "RY", "RZ")
+    missing = [w for w in wanted if w not in block]
+    if missing:
+        raise DatasetError(f"segment {name!r} has no column for {', '.join(missing)}",
+                           path=path, line=s + 4)
+    order = [block[w] for w in wanted]
+
+    def unit_of(label):
+        j = block[label]
+        return units[j].strip().lower() if j < len(units) else ""
+
+    angle = {unit_of(w) for w in ("RX", "RY", "RZ")}
+    length = {unit_of(w) for w in ("TX", "TY", "TZ")}
+    if len(angle) != 1 or angle & {"deg", "rad"} != angle:
+        raise DatasetError(f"rotation units must be 'deg' or 'rad', got {sorted(angle)}",
+                           path=path, line=s + 5)
+    if len(length) != 1 or not length <= set(LENGTH_UNITS):
+        raise DatasetError(f"translation units must be one of {', '.join(LENGTH_UNITS)}, got "
+                           f"{sorted(length)}", path=path, line=s + 5)
+    to_rad = np.pi / 180.0 if angle == {"deg"} else 1.0
+    scale = LENGTH_UNITS[length.pop()]
+    values, lines = [], []
+    for i in range(s + 5, len(rows)):
+        row = rows[i]
+        if _blank(row):
+            break  # end of the section
+        cells = [row[j].strip() if j < len(row) else "" for j in [0, *order]]
+        if not all(cells):
+            continue  # segment not reconstructed in this frame
+        values.append([parse_float(c, path=path, line=i + 1, name=n)
+                       for c, n in zip(cells, ("Frame",) + wanted)])
+        lines.append(i + 1)
+    if not values:
+        raise DatasetError(f"segment {name!r} has no frame with a complete pose", path=path)
+    data = np.asarray(values)
+    T = geometry.transform_from_rotvec(data[:, 4:7] * to_rad, data[:, 1:4] * scale)
+    return trajectory_from_rows(data[:, 0] / rate, T, path=path, lines=lines, parent=parent,
+                                child=child)
+
+
+def csv_flavour(path: str | os.PathLike) -> str:
+    """``"optitrack"``, ``"vicon"`` or ``"csv"`` from the first non-blank line of a CSV file."""
+    for line in read_text(path, what="CSV file").splitlines():
+        if line.strip():
+            first = line.split(",")[0].strip()
+            if first == "Format Version":
+                return "optitrack"
+            if first in _VICON_SECTIONS:
+                return "vicon"
+            return "csv"
+    return "csv"

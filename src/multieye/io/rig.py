@@ -1,0 +1,397 @@
+"""``rig.yaml``: the description of a dataset (DESIGN.md section 4), loaded and checked.
+
+:func:`load_rig` returns a frozen :class:`Rig`.  Every problem is a :class:`DatasetError`
+naming ``rig.yaml``, the line of the key concerned, the dotted key path and what was
+expected: unknown keys, wrong types, missing required keys, unknown setup or target type,
+files or folders that do not exist.  Paths are resolved relative to the folder of
+``rig.yaml``.
+
+Schema (keys not listed are rejected)::
+
+    setup: eye-to-base | eye-on-hand                         # required
+    target:                                                  # required when a camera has images
+      type: chessboard | circles | asymmetric-circles | charuco | aprilgrid
+      rows: int > 0
+      cols: int > 0
+      spacing: number > 0                                    # metres
+      marker_size: number > 0                                # charuco only (required)
+      dictionary: DICT_...                                   # charuco only (required)
+      tag_spacing: number > 0                                # aprilgrid only (required)
+    mocap:                                                   # optional if every camera has one
+      file: path                                             # required
+      pose: T_world_marker                                   # default: T_world_marker
+                                                             #   (T_world_body for eye-on-hand);
+                                                             #   the inverse name is allowed
+      time_tolerance: 0.03                                   # seconds > 0, default 0.03
+      format: tum | csv | optitrack | vicon | rosbag         # default: from the file
+      topic: /vicon/rig/pose                                 # rosbag only (required)
+      unit: m | cm | mm                                      # tum, csv, rosbag only
+      rigid_body: name                                       # optitrack, vicon only
+      parent_frame: world                                    # rosbag only
+      child_frame: rig                                       # rosbag only
+      columns: {t: time, tx: x, ...}                         # csv only
+    cameras:                                                 # required, at least one
+      cam0:
+        intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
+        images: cam0/                  # exactly one of images, poses, rosbag
+        poses: cam0_target.txt         #   precomputed T_cam_target, TUM format
+        rosbag: run.bag                #   image topic of a bag ...
+        topic: /cam0/image_raw         #   ... given here (rosbag only)
+        mocap: cam0_mocap.txt          # optional: own file (other mocap keys inherited),
+                                       #   or a mapping overriding mocap keys
+        time_offset: 0.0               # seconds, motion-capture clock minus camera clock
+
+:func:`read_camera_intrinsics` reads a camera's intrinsics; a Kalibr camchain with several
+cameras and no ``camera`` key selects the entry named like the rig's camera.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from types import MappingProxyType
+
+from ..errors import DatasetError
+from ..intrinsics import Intrinsics
+from .intrinsics import read_intrinsics
+from .mocap import MOCAP_FORMATS, MocapSpec, pose_frames, sniff_mocap_format
+from .mocap_csv import DEFAULT_COLUMNS
+from .textfile import LENGTH_UNITS
+from .yamlfile import YamlDocument, load_yaml
+
+__all__ = ["SETUPS", "TARGET_TYPES", "TargetSpec", "CameraSpec", "Rig", "load_rig",
+           "read_camera_intrinsics"]
+
+#: setup -> the frame motion capture tracks.
+SETUPS = {"eye-to-base": "marker", "eye-on-hand": "body"}
+TARGET_TYPES = ("chessboard", "circles", "asymmetric-circles", "charuco", "aprilgrid")
+_TARGET_ONLY = {"marker_size": "charuco", "dictionary": "charuco", "tag_spacing": "aprilgrid"}
+_MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag"),
+               "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
+               "child_frame": ("rosbag",), "columns": ("csv",)}
+_MOCAP_KEYS = ("file", "pose", "time_tolerance", "format") + tuple(_MOCAP_ONLY)
+_CAMERA_KEYS = ("intrinsics", "images", "poses", "rosbag", "topic", "mocap", "time_offset")
+_SOURCES = ("images", "poses", "rosbag")
+
+
+@dataclass(frozen=True)
+class TargetSpec:
+    """The calibration board (DESIGN.md section 4; metres).
+
+    Attributes
+    ----------
+    type : {"chessboard", "circles", "asymmetric-circles", "charuco", "aprilgrid"}
+    rows, cols : int
+        Along the board's y and x axes, counted as the board's own tools count them.
+    spacing : float
+        Square size, circle centre distance, or tag size (aprilgrid), metres.
+    marker_size : float or None
+        ChArUco marker side, metres.
+    dictionary : str or None
+        ChArUco OpenCV dictionary name (``DICT_5X5_100``).
+    tag_spacing : float or None
+        AprilGrid gap between tags as a fraction of the tag size (Kalibr's ratio).
+    """
+
+    type: str
+    rows: int
+    cols: int
+    spacing: float
+    marker_size: float | None = None
+    dictionary: str | None = None
+    tag_spacing: float | None = None
+
+    def as_dict(self) -> dict:
+        """The fields that are set, as a plain dict (the ``target:`` mapping)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)
+                if getattr(self, f.name) is not None}
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """One camera of ``rig.yaml``; paths are absolute.
+
+    Attributes
+    ----------
+    name : str
+    intrinsics : Path
+    intrinsics_camera : str or None
+        Entry of a Kalibr camchain (``cam1``) when the intrinsics file holds several.
+    images, poses, rosbag : Path or None
+        Exactly one is set: a folder of time-stamped images, a TUM file of ``T_cam_target``,
+        or a bag whose ``topic`` holds the images.
+    topic : str or None
+    mocap : MocapSpec or None
+        This camera's own motion capture (otherwise the rig's).
+    time_offset : float
+        Seconds, motion-capture clock minus camera clock.
+    """
+
+    name: str
+    intrinsics: Path
+    intrinsics_camera: str | None = None
+    images: Path | None = None
+    poses: Path | None = None
+    rosbag: Path | None = None
+    topic: str | None = None
+    mocap: MocapSpec | None = None
+    time_offset: float = 0.0
+
+    @property
+    def source(self) -> str:
+        """``"images"``, ``"poses"`` or ``"rosbag"``."""
+        return next(s for s in _SOURCES if getattr(self, s) is not None)
+
+
+@dataclass(frozen=True)
+class Rig:
+    """A loaded ``rig.yaml``.
+
+    Attributes
+    ----------
+    path : Path
+        The ``rig.yaml`` file (absolute).
+    setup : {"eye-to-base", "eye-on-hand"}
+    cameras : mapping of str to CameraSpec
+        In file order (read-only).
+    target : TargetSpec or None
+        None when no camera has images.
+    mocap : MocapSpec or None
+        None when every camera has its own.
+    """
+
+    path: Path
+    setup: str
+    cameras: Mapping[str, CameraSpec]
+    target: TargetSpec | None = None
+    mocap: MocapSpec | None = field(default=None)
+
+    @property
+    def folder(self) -> Path:
+        return self.path.parent
+
+    def mocap_for(self, camera: str) -> MocapSpec:
+        """The motion capture of a camera: its own, else the rig's."""
+        own = self.cameras[camera].mocap
+        return own if own is not None else self.mocap
+
+
+class _Checker:
+    """Type and presence checks that raise at the line of the key concerned."""
+
+    def __init__(self, doc: YamlDocument):
+        self.doc = doc
+        self.folder = doc.path.parent
+
+    def error(self, message, keys):
+        return self.doc.error(message, *keys)
+
+    def mapping(self, value, keys, allowed, required=()):
+        if not isinstance(value, Mapping):
+            raise self.error(f"expected a mapping, got {type(value).__name__}", keys)
+        for key in value:
+            if key not in allowed:
+                raise self.error(f"unknown key; expected one of {', '.join(allowed)}",
+                                 keys + (key,))
+        for key in required:
+            if key not in value:
+                raise self.error(f"missing key {key!r}", keys)
+        return value
+
+    def string(self, value, keys):
+        if not isinstance(value, str) or not value.strip():
+            raise self.error(f"expected a non-empty string, got {value!r}", keys)
+        return value.strip()
+
+    def choice(self, value, keys, options):
+        if value not in options:
+            raise self.error(f"expected one of {', '.join(options)}, got {value!r}", keys)
+        return value
+
+    def number(self, value, keys, *, positive=False, integer=False):
+        ok = isinstance(value, int) if integer else isinstance(value, (int, float))
+        if isinstance(value, bool) or not ok or (positive and not value > 0):
+            kind = "integer" if integer else "number"
+            raise self.error(f"expected a {'positive ' if positive else ''}{kind}, got "
+                             f"{value!r}", keys)
+        return value if integer else float(value)
+
+    def path(self, value, keys, kind):
+        p = (self.folder / self.string(value, keys)).resolve()
+        if not p.exists():
+            raise self.error(f"{kind} not found: {p}", keys)
+        if kind == "folder" and not p.is_dir():
+            raise self.error(f"expected a folder, found a file: {p}", keys)
+        if kind == "file" and p.is_dir():
+            raise self.error(f"expected a file, found a folder: {p}", keys)
+        return p
+
+
+def _target(c: _Checker, raw) -> TargetSpec:
+    keys = ("target",)
+    allowed = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
+    c.mapping(raw, keys, allowed, ("type", "rows", "cols", "spacing"))
+    kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
+    for key, owner in _TARGET_ONLY.items():
+        if key in raw and owner != kind:
+            raise c.error(f"applies to {owner} targets only (this target is {kind})",
+                          keys + (key,))
+        if key not in raw and owner == kind:
+            raise c.error(f"missing key {key!r} (required for {kind} targets)", keys)
+    extra = {}
+    for key in ("marker_size", "tag_spacing"):
+        if key in raw:
+            extra[key] = c.number(raw[key], keys + (key,), positive=True)
+    if "dictionary" in raw:
+        name = c.string(raw["dictionary"], keys + ("dictionary",))
+        if not name.startswith("DICT_"):
+            raise c.error(f"expected an OpenCV dictionary name such as DICT_5X5_100, got "
+                          f"{name!r}", keys + ("dictionary",))
+        extra["dictionary"] = name
+    spacing = c.number(raw["spacing"], keys + ("spacing",), positive=True)
+    if kind == "charuco" and extra["marker_size"] >= spacing:
+        raise c.error(f"must be smaller than spacing ({spacing})", keys + ("marker_size",))
+    return TargetSpec(kind, c.number(raw["rows"], keys + ("rows",), positive=True, integer=True),
+                      c.number(raw["cols"], keys + ("cols",), positive=True, integer=True),
+                      spacing, **extra)
+
+
+def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
+           where: tuple) -> MocapSpec:
+    """Build a MocapSpec from ``raw`` (written at ``where``); ``origin[key]`` is the key path
+    of the mapping each key came from (a camera's own or the top-level ``mocap``)."""
+    def at(key):
+        return origin[key] + (key,)
+
+    if "file" not in raw:
+        raise c.error("missing key 'file'", where)
+    moving = SETUPS[setup]
+    pose = raw.get("pose", f"T_world_{moving}")
+    try:
+        frames = pose_frames(c.string(pose, at("pose")) if "pose" in raw else pose)
+    except ValueError:
+        frames = ()
+    if set(frames) != {"world", moving}:
+        raise c.error(f"expected T_world_{moving} (or T_{moving}_world) for {setup}, got "
+                      f"{pose!r}", at("pose"))
+    fmt = raw.get("format")
+    if fmt is not None:
+        c.choice(fmt, at("format"), MOCAP_FORMATS)
+    if fmt == "rosbag" or fmt is None:
+        file = c.path(raw["file"], at("file"), "file or bag")
+    else:
+        file = c.path(raw["file"], at("file"), "file")
+    if fmt is None:
+        fmt = sniff_mocap_format(file)
+    kw = {}
+    for key, formats in _MOCAP_ONLY.items():
+        if key in raw and fmt not in formats:
+            raise c.error(f"applies to {', '.join(formats)} sources only (this one is {fmt})",
+                          at(key))
+    if fmt == "rosbag" and "topic" not in raw:
+        raise c.error("missing key 'topic' (required for a rosbag source)", where)
+    for key in ("topic", "rigid_body", "parent_frame", "child_frame"):
+        if key in raw:
+            kw[key] = c.string(raw[key], at(key))
+    if "unit" in raw:
+        kw["unit"] = c.choice(raw["unit"], at("unit"), tuple(LENGTH_UNITS))
+    if "columns" in raw:
+        cols = c.mapping(raw["columns"], at("columns"), tuple(DEFAULT_COLUMNS))
+        kw["columns"] = MappingProxyType({k: c.string(v, at("columns") + (k,))
+                                          for k, v in cols.items()})
+    tol = 0.03
+    if "time_tolerance" in raw:
+        tol = c.number(raw["time_tolerance"], at("time_tolerance"), positive=True)
+    return MocapSpec(file, pose, tol, fmt, **kw)
+
+
+def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
+    keys = ("cameras", name)
+    c.mapping(raw, keys, _CAMERA_KEYS, ("intrinsics",))
+    sources = [s for s in _SOURCES if s in raw]
+    if len(sources) != 1:
+        raise c.error(f"expected exactly one of {', '.join(_SOURCES)}, got "
+                      f"{', '.join(sources) or 'none'}", keys)
+    if ("topic" in raw) != ("rosbag" in raw):
+        raise c.error("'topic' goes with 'rosbag' (the image topic of the bag)", keys)
+    intr = raw["intrinsics"]
+    camera = None
+    if isinstance(intr, Mapping):
+        c.mapping(intr, keys + ("intrinsics",), ("file", "camera"), ("file",))
+        if "camera" in intr:
+            camera = c.string(intr["camera"], keys + ("intrinsics", "camera"))
+        intr_path = c.path(intr["file"], keys + ("intrinsics", "file"), "file")
+    else:
+        intr_path = c.path(intr, keys + ("intrinsics",), "file")
+    kw = {"intrinsics_camera": camera}
+    source = sources[0]
+    kind = "folder" if source == "images" else "file or bag" if source == "rosbag" else "file"
+    kw[source] = c.path(raw[source], keys + (source,), kind)
+    if "topic" in raw:
+        kw["topic"] = c.string(raw["topic"], keys + ("topic",))
+    if "time_offset" in raw:
+        kw["time_offset"] = c.number(raw["time_offset"], keys + ("time_offset",))
+    if "mocap" in raw:
+        top_raw, top_origin = top_mocap
+        own = raw["mocap"]
+        if isinstance(own, Mapping):
+            c.mapping(own, keys + ("mocap",), _MOCAP_KEYS)
+        else:
+            own = {"file": c.string(own, keys + ("mocap",))}
+        origin = {**top_origin, **{k: keys + ("mocap",) for k in own}}
+        kw["mocap"] = _mocap(c, {**top_raw, **own}, origin, setup, keys + ("mocap",))
+    return CameraSpec(str(name), intr_path, **kw)
+
+
+def load_rig(path: str | os.PathLike) -> Rig:
+    """Load and check ``rig.yaml`` (or the ``rig.yaml`` of a dataset folder).
+
+    Raises
+    ------
+    DatasetError
+        The first problem found, naming the file, the line of the key and what was expected.
+    """
+    p = Path(path)
+    if p.is_dir():
+        p = p / "rig.yaml"
+    doc = load_yaml(p.resolve(), what="rig description (rig.yaml)")
+    c = _Checker(doc)
+    raw = c.mapping(doc.data if doc.data is not None else {}, (),
+                    ("setup", "target", "mocap", "cameras"), ("setup", "cameras"))
+    setup = c.choice(raw["setup"], ("setup",), tuple(SETUPS))
+    cams_raw = raw["cameras"]
+    if not isinstance(cams_raw, Mapping) or not cams_raw:
+        raise c.error("expected a mapping of camera name -> camera, with at least one camera",
+                      ("cameras",))
+    mocap = None
+    top = ({}, {})
+    if "mocap" in raw:
+        c.mapping(raw["mocap"], ("mocap",), _MOCAP_KEYS, ("file",))
+        top = (dict(raw["mocap"]), {k: ("mocap",) for k in raw["mocap"]})
+        mocap = _mocap(c, *top, setup, ("mocap",))
+    cameras = {}
+    for name, cam_raw in cams_raw.items():
+        cam = _camera(c, name, cam_raw, top, setup)
+        if cam.mocap is None and mocap is None:
+            raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
+                          "key to this camera", ("cameras", name))
+        cameras[cam.name] = cam
+    target = None
+    if "target" in raw:
+        target = _target(c, raw["target"])
+    elif any(cam.source != "poses" for cam in cameras.values()):
+        needing = [n for n, cam in cameras.items() if cam.source != "poses"]
+        raise DatasetError(f"missing key 'target': cameras with images ({', '.join(needing)}) "
+                           "need the calibration board described", path=doc.path, line=1)
+    return Rig(doc.path, setup, MappingProxyType(cameras), target, mocap)
+
+
+def read_camera_intrinsics(camera: CameraSpec) -> Intrinsics:
+    """Intrinsics of a rig camera (its camchain entry: ``intrinsics_camera``, else the only
+    one, else the one named like the camera).  DatasetErrors name the camera."""
+    try:
+        return read_intrinsics(camera.intrinsics, camera.intrinsics_camera, prefer=camera.name)
+    except DatasetError as exc:
+        raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=camera.name) from None

@@ -1,0 +1,272 @@
+"""Poses and images from ROS 1 (``.bag``) and ROS 2 (folder, ``.db3`` or ``.mcap``) bags,
+read with the ``rosbags`` package: no ROS installation needed.
+
+Pose topics -> :class:`Trajectory` (:func:`read_bag_trajectory`):
+
+- ``geometry_msgs/PoseStamped``: ``T_<header.frame_id>_<body>`` from ``pose``.
+- ``geometry_msgs/TransformStamped``: ``T_<header.frame_id>_<child_frame_id>``.
+- ``tf2_msgs/TFMessage`` (``/tf``): every transform in every message; the pair of frames is
+  chosen with ``parent_frame`` / ``child_frame`` (needed when the topic carries several).
+- ``nav_msgs/Odometry``: ``pose.pose`` as ``T_<header.frame_id>_<child_frame_id>``.
+
+The stamp of a sample is its ``header.stamp`` (exact integer nanoseconds, kept in
+``stamps_ns``); a zero header stamp (a publisher that never filled it) falls back to the bag's
+record time.  Samples are sorted by stamp; two samples with the same stamp are an error.
+
+Image topics -> ``(stamp_ns, image)`` pairs (:func:`iter_bag_images`): ``sensor_msgs/Image``
+with the encodings in :data:`IMAGE_ENCODINGS` and ``sensor_msgs/CompressedImage`` (decoded
+with ``cv2.imdecode``).  Images follow OpenCV's layout: ``(H, W)`` for grey, ``(H, W, 3)`` BGR
+for colour (``rgb8``/``rgba8``/Bayer are converted, alpha dropped).
+
+>>> from multieye.io.rosbag import read_bag_trajectory
+>>> traj = read_bag_trajectory("run.bag", "/vicon/rig/pose")   # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DatasetError, InputError
+from .poserows import quaternion_poses
+from .textfile import length_scale
+from .trajectory import Trajectory
+
+__all__ = [
+    "POSE_TYPES",
+    "IMAGE_TYPES",
+    "IMAGE_ENCODINGS",
+    "bag_topics",
+    "read_bag_trajectory",
+    "iter_bag_images",
+]
+
+POSE_TYPES = ("geometry_msgs/PoseStamped", "geometry_msgs/TransformStamped",
+              "tf2_msgs/TFMessage", "nav_msgs/Odometry")
+IMAGE_TYPES = ("sensor_msgs/Image", "sensor_msgs/CompressedImage")
+
+# encoding -> (numpy dtype, channels, conversion to OpenCV layout)
+_PLAIN = {
+    "mono8": ("u1", 1, None), "8UC1": ("u1", 1, None),
+    "mono16": ("u2", 1, None), "16UC1": ("u2", 1, None),
+    "bgr8": ("u1", 3, None), "8UC3": ("u1", 3, None), "rgb8": ("u1", 3, "rgb"),
+    "bgra8": ("u1", 4, "bgra"), "8UC4": ("u1", 4, "bgra"), "rgba8": ("u1", 4, "rgba"),
+}
+# ROS Bayer names give the colours of the top-left 2x2 block; OpenCV names its conversion
+# codes after the second row's pattern, so ROS rggb is OpenCV's BayerBG (checked in the tests
+# by demosaicing a mosaic of a known colour image).
+_BAYER = {"bayer_rggb8": "COLOR_BayerBG2BGR", "bayer_bggr8": "COLOR_BayerRG2BGR",
+          "bayer_gbrg8": "COLOR_BayerGR2BGR", "bayer_grbg8": "COLOR_BayerGB2BGR"}
+#: Encodings of ``sensor_msgs/Image`` that :func:`iter_bag_images` decodes.
+IMAGE_ENCODINGS = tuple(_PLAIN) + tuple(_BAYER)
+
+
+def _short_type(msgtype: str) -> str:
+    return msgtype.replace("/msg/", "/")
+
+
+@contextlib.contextmanager
+def _reader(path: str | os.PathLike):
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.typesys import Stores, get_typestore
+
+    p = Path(path)
+    if not p.exists():
+        raise DatasetError("bag not found", path=p)
+    if p.is_file() and p.suffix in (".db3", ".mcap"):
+        p = p.parent  # a ROS 2 bag is its folder (with metadata.yaml)
+    try:
+        reader = AnyReader([p], default_typestore=get_typestore(Stores.LATEST))
+        reader.open()
+    except (AnyReaderError, OSError, ValueError) as exc:
+        raise DatasetError(f"cannot read the bag: {exc}", path=path) from exc
+    try:
+        yield reader
+    finally:
+        reader.close()
+
+
+def bag_topics(path: str | os.PathLike) -> dict[str, str]:
+    """Topics of a bag and their message types (``"geometry_msgs/PoseStamped"``)."""
+    with _reader(path) as reader:
+        return {t: _short_type(info.msgtype) for t, info in sorted(reader.topics.items())}
+
+
+def _connections(reader, topic: str, allowed: tuple[str, ...], path):
+    present = {t: _short_type(i.msgtype) for t, i in sorted(reader.topics.items())}
+    if topic not in present:
+        listing = ", ".join(f"{t} ({m})" for t, m in present.items()) or "none"
+        raise DatasetError(f"topic {topic!r} not in the bag; topics present: {listing}",
+                           path=path)
+    if present[topic] not in allowed:
+        raise DatasetError(f"topic {topic!r} has type {present[topic]}; expected one of "
+                           f"{', '.join(allowed)}", path=path)
+    return [c for c in reader.connections if c.topic == topic], present[topic]
+
+
+def _stamp_ns(header, record_ns: int) -> int:
+    ns = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+    return ns if ns != 0 else int(record_ns)
+
+
+def _frame(name: str) -> str:
+    return name.lstrip("/")
+
+
+def _samples(msg, msgtype: str, record_ns: int):
+    """(parent frame, child frame or None, stamp ns, translation, quaternion xyzw)."""
+    if msgtype == "tf2_msgs/TFMessage":
+        for tf in msg.transforms:
+            yield from _samples(tf, "geometry_msgs/TransformStamped", record_ns)
+        return
+    if msgtype == "geometry_msgs/PoseStamped":
+        pose, child = msg.pose, None
+    elif msgtype == "nav_msgs/Odometry":
+        pose, child = msg.pose.pose, msg.child_frame_id
+    else:  # TransformStamped
+        tr = msg.transform
+        yield (_frame(msg.header.frame_id), _frame(msg.child_frame_id),
+               _stamp_ns(msg.header, record_ns),
+               (tr.translation.x, tr.translation.y, tr.translation.z),
+               (tr.rotation.x, tr.rotation.y, tr.rotation.z, tr.rotation.w))
+        return
+    p, q = pose.position, pose.orientation
+    yield (_frame(msg.header.frame_id), None if child is None else _frame(child),
+           _stamp_ns(msg.header, record_ns), (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+
+
+def read_bag_trajectory(path: str | os.PathLike, topic: str, *,
+                        parent_frame: str | None = None, child_frame: str | None = None,
+                        unit: str = "m", parent: str = "world",
+                        child: str = "marker") -> Trajectory:
+    """Read a pose topic of a ROS 1 or ROS 2 bag.
+
+    Parameters
+    ----------
+    path : path-like
+        ``.bag`` file (ROS 1), or ROS 2 bag folder (or its ``.db3`` / ``.mcap`` file).
+    topic : str
+        A topic of one of the :data:`POSE_TYPES`.
+    parent_frame, child_frame : str, optional
+        Keep only samples with this ``header.frame_id`` / ``child_frame_id`` (a leading ``/``
+        is ignored).  Needed for ``/tf`` topics that carry several pairs of frames.
+    unit : {"m", "cm", "mm"}
+        Unit of the translations in the bag.
+    parent, child : str
+        Frame names of the returned ``T_parent_child`` (multieye's names, e.g. ``world`` and
+        ``marker``; the ROS frame ids select the samples but do not rename them).
+
+    Raises
+    ------
+    DatasetError
+        Missing bag, topic missing (listing the topics present) or of another type, no sample
+        for the frames asked (listing the pairs present), several pairs and none chosen,
+        non-unit quaternion, duplicate stamps.
+    """
+    scale = length_scale(unit)
+    rows = []
+    with _reader(path) as reader:
+        connections, msgtype = _connections(reader, topic, POSE_TYPES, path)
+        for conn, record_ns, raw in reader.messages(connections=connections):
+            msg = reader.deserialize(raw, conn.msgtype)
+            rows.extend(_samples(msg, msgtype, record_ns))
+    pairs = sorted({(r[0], r[1]) for r in rows}, key=str)
+    keep = [r for r in rows if (parent_frame is None or r[0] == _frame(parent_frame))
+            and (child_frame is None or r[1] is None or r[1] == _frame(child_frame))]
+    listing = ", ".join(f"{a} -> {b}" if b else a for a, b in pairs) or "none"
+    if not keep:
+        raise DatasetError(f"topic {topic!r}: no sample with parent frame {parent_frame!r} and "
+                           f"child frame {child_frame!r}; frames present: {listing}", path=path)
+    kept_pairs = {(r[0], r[1]) for r in keep}
+    if len(kept_pairs) > 1:
+        raise DatasetError(f"topic {topic!r} carries several transforms ({listing}); choose one "
+                           "with parent_frame and child_frame", path=path)
+    ns = np.array([r[2] for r in keep], dtype=np.int64)
+    T = quaternion_poses(np.array([r[3] for r in keep]) * scale, np.array([r[4] for r in keep]),
+                         path=path, lines=None, what=f"topic {topic}: ")
+    try:
+        return Trajectory.from_unsorted(ns / 1e9, T, parent, child, stamps_ns=ns)
+    except InputError as exc:
+        raise DatasetError(f"topic {topic}: {exc}", path=path) from None
+
+
+def _decode_raw(msg, where: str, path) -> np.ndarray:
+    enc = msg.encoding
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    data = np.asarray(msg.data, dtype=np.uint8)
+    if enc in _BAYER:
+        dtype, channels, convert = "u1", 1, enc
+    elif enc in _PLAIN:
+        dtype, channels, convert = _PLAIN[enc]
+    else:
+        raise DatasetError(f"{where}: image encoding {enc!r} is not supported; supported: "
+                           f"{', '.join(IMAGE_ENCODINGS)}", path=path)
+    dt = np.dtype(dtype).newbyteorder(">" if msg.is_bigendian else "<")
+    row_bytes = w * channels * dt.itemsize
+    if step < row_bytes or data.size < h * step:
+        raise DatasetError(f"{where}: {data.size} data bytes do not hold {h}x{w} {enc} rows "
+                           f"of step {step}", path=path)
+    rows = data[: h * step].reshape(h, step)[:, :row_bytes]
+    img = np.ascontiguousarray(rows).view(dt).reshape((h, w, channels) if channels > 1 else (h, w))
+    img = img.astype(dt.newbyteorder("="), copy=False)
+    if convert == "rgb":
+        return np.ascontiguousarray(img[..., ::-1])
+    if convert == "rgba":
+        return np.ascontiguousarray(img[..., 2::-1])
+    if convert == "bgra":
+        return np.ascontiguousarray(img[..., :3])
+    if convert in _BAYER:
+        import cv2
+
+        return cv2.cvtColor(img, getattr(cv2, _BAYER[convert]))
+    return img
+
+
+def _decode_compressed(msg, where: str, path) -> np.ndarray:
+    import cv2
+
+    buf = np.asarray(msg.data, dtype=np.uint8)
+    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED) if buf.size else None
+    if img is None:
+        raise DatasetError(f"{where}: cannot decode the compressed image (format "
+                           f"{msg.format!r}); expected a JPEG or PNG stream", path=path)
+    if img.ndim == 3 and img.shape[2] == 4:
+        img = np.ascontiguousarray(img[..., :3])
+    return img
+
+
+def iter_bag_images(path: str | os.PathLike, topic: str) -> Iterator[tuple[int, np.ndarray]]:
+    """Images of a ``sensor_msgs/Image`` or ``sensor_msgs/CompressedImage`` topic.
+
+    Parameters
+    ----------
+    path : path-like
+        ROS 1 ``.bag`` or ROS 2 bag.
+    topic : str
+
+    Yields
+    ------
+    stamp_ns : int
+        ``header.stamp`` in nanoseconds (the record time when the header stamp is zero).
+    image : ndarray, shape (H, W) or (H, W, 3)
+        OpenCV layout (BGR); dtype uint8, or uint16 for 16-bit encodings.  In bag order.
+
+    Raises
+    ------
+    DatasetError
+        Missing bag or topic (listing those present), unsupported encoding, undecodable data.
+    """
+    with _reader(path) as reader:
+        connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
+        for conn, record_ns, raw in reader.messages(connections=connections):
+            msg = reader.deserialize(raw, conn.msgtype)
+            stamp = _stamp_ns(msg.header, record_ns)
+            where = f"topic {topic} at {stamp} ns"
+            if msgtype == "sensor_msgs/Image":
+                yield stamp, _decode_raw(msg, where, path)
+            else:
+                yield stamp, _decode_compressed(msg, where, path)

@@ -1,0 +1,108 @@
+"""Reading text files at the file boundary, with errors that name the file and the line.
+
+Every reader of a text format (TUM, CSV exports, YAML, JSON) goes through these helpers, so
+that a missing file, a file that is not UTF-8, or a cell that is not a number produces the same
+kind of message: ``path:line: what was expected, what was found``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+from ..errors import DatasetError
+
+__all__ = [
+    "read_text",
+    "data_lines",
+    "split_fields",
+    "parse_float",
+    "LENGTH_UNITS",
+    "length_scale",
+]
+
+#: Length units accepted at the file boundary, and their size in metres.
+LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+_FIELD_SEP = re.compile(r"[,\s]+")
+
+
+def read_text(path: str | os.PathLike, *, what: str = "file") -> str:
+    """Whole content of a UTF-8 text file (a BOM is dropped).
+
+    Parameters
+    ----------
+    path : path-like
+    what : str
+        How the message names the file when it is missing (``"trajectory file"``).
+
+    Raises
+    ------
+    DatasetError
+        Missing file, a folder, unreadable, or not UTF-8 (with the 1-based line of the first
+        bad byte).
+    """
+    p = Path(path)
+    if not p.exists():
+        raise DatasetError(f"{what} not found", path=p)
+    if p.is_dir():
+        raise DatasetError(f"expected a {what}, found a folder", path=p)
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise DatasetError(f"cannot read {what}: {exc.strerror}", path=p) from exc
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise DatasetError(f"not a UTF-8 text file (byte 0x{data[exc.start]:02x})",
+                           path=p, line=line) from exc
+
+
+def data_lines(text: str) -> Iterator[tuple[int, str]]:
+    """Non-empty lines with ``#`` comments removed, as ``(1-based line number, content)``."""
+    for number, raw in enumerate(text.splitlines(), start=1):
+        content = raw.split("#", 1)[0].strip()
+        if content:
+            yield number, content
+
+
+def split_fields(content: str) -> list[str]:
+    """Fields of a row separated by commas, spaces or tabs (any mix, runs count once)."""
+    return [f for f in _FIELD_SEP.split(content.strip()) if f]
+
+
+def parse_float(token: str, *, path: str | os.PathLike | None, line: int | None,
+                name: str) -> float:
+    """A finite float from a text cell, or a DatasetError naming the cell.
+
+    Parameters
+    ----------
+    token : str
+        The cell's text.
+    path, line : file and 1-based line, for the message.
+    name : str
+        What the cell holds (``"qw"``, ``"Time (Seconds)"``).
+    """
+    try:
+        value = float(token)
+    except ValueError:
+        raise DatasetError(f"expected a number for {name}, got {token.strip()!r}",
+                           path=path, line=line) from None
+    if not math.isfinite(value):
+        raise DatasetError(f"expected a finite number for {name}, got {token.strip()!r}",
+                           path=path, line=line)
+    return value
+
+
+def length_scale(unit: str, *, path: str | os.PathLike | None = None,
+                 line: int | None = None) -> float:
+    """Metres per ``unit`` (``"m"``, ``"cm"`` or ``"mm"``)."""
+    try:
+        return LENGTH_UNITS[unit]
+    except (KeyError, TypeError):
+        raise DatasetError(f"length unit must be one of {', '.join(LENGTH_UNITS)}, got {unit!r}",
+                           path=path, line=line) from None

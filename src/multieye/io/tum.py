@@ -1,0 +1,113 @@
+"""TUM trajectory text files: ``t tx ty tz qx qy qz qw`` per line.
+
+Format (as the TUM RGB-D benchmark defines it): one pose per line, time stamp in seconds,
+translation, then the unit quaternion in the order ``qx qy qz qw`` (scalar last).  The pose of
+each line is ``T_parent_child`` (for motion capture ``T_world_marker``, for precomputed camera
+poses ``T_cam_target``, see DESIGN.md section 4).  Accepted here as well: commas instead of (or
+mixed with) spaces, ``#`` comments anywhere on a line, blank lines.
+
+Choices
+-------
+- Quaternions whose norm differs from 1 by more than
+  :data:`multieye.io.poserows.QUATERNION_TOLERANCE` (1e-3) are rejected
+  (a file that is not what it claims); smaller deviations (rounding in the writer) are
+  normalised.
+- Stamps must be strictly increasing; a duplicate or a step back names both lines.
+- ``unit="mm"`` (or ``"cm"``) converts translations to metres on reading and from metres on
+  writing.
+
+>>> from multieye.io.tum import read_tum
+>>> traj = read_tum("mocap.txt", parent="world", child="marker")   # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .. import geometry
+from ..errors import DatasetError
+from .atomic import atomic_output
+from .poserows import quaternion_poses, trajectory_from_rows
+from .textfile import data_lines, length_scale, parse_float, read_text, split_fields
+from .trajectory import Trajectory
+
+__all__ = ["read_tum", "write_tum", "TUM_COLUMNS"]
+
+TUM_COLUMNS = ("t", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
+
+
+def read_tum(path: str | os.PathLike, *, unit: str = "m", parent: str = "world",
+             child: str = "marker") -> Trajectory:
+    """Read a TUM trajectory file.
+
+    Parameters
+    ----------
+    path : path-like
+    unit : {"m", "cm", "mm"}
+        Unit of the translations in the file; converted to metres.
+    parent, child : str
+        Frame names of the poses: each line is ``T_parent_child``.
+
+    Returns
+    -------
+    Trajectory
+        Stamps in seconds as written, poses in metres.
+
+    Raises
+    ------
+    DatasetError
+        With the file and 1-based line: a row without 8 entries, a cell that is not a finite
+        number, a non-unit quaternion, stamps that repeat or go back, or an empty file.
+    """
+    scale = length_scale(unit, path=path)
+    text = read_text(path, what="trajectory file")
+    rows, lines = [], []
+    for number, content in data_lines(text):
+        fields = split_fields(content)
+        if len(fields) != 8:
+            raise DatasetError("TUM trajectory files must have 8 entries per row, got "
+                               f"{len(fields)} (expected t tx ty tz qx qy qz qw)",
+                               path=path, line=number)
+        rows.append([parse_float(f, path=path, line=number, name=name)
+                     for f, name in zip(fields, TUM_COLUMNS)])
+        lines.append(number)
+    if not rows:
+        raise DatasetError("no poses: expected lines 't tx ty tz qx qy qz qw'", path=path)
+    data = np.asarray(rows)
+    T = quaternion_poses(data[:, 1:4] * scale, data[:, 4:8], path=path, lines=lines)
+    return trajectory_from_rows(data[:, 0], T, path=path, lines=lines, parent=parent,
+                                child=child)
+
+
+def _stamp_text(seconds: float, ns: int | None) -> str:
+    if ns is not None:
+        sign, ns = ("-", -int(ns)) if ns < 0 else ("", int(ns))
+        return f"{sign}{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}"
+    return repr(float(seconds))
+
+
+def write_tum(path: str | os.PathLike, traj: Trajectory, *, unit: str = "m") -> None:
+    """Write a TUM file atomically (round-trips exactly with :func:`read_tum`).
+
+    Numbers are written with ``repr`` (shortest exact decimal); stamps from integer
+    nanoseconds are written as exact decimals.  A comment line names the frames.
+
+    Parameters
+    ----------
+    path : path-like
+    traj : Trajectory
+    unit : {"m", "cm", "mm"}
+        Unit of the translations in the file.
+    """
+    scale = length_scale(unit)
+    q = geometry.quat_from_transform(traj.T)
+    t = traj.T[:, :3, 3] / scale
+    ns = traj.stamps_ns
+    with atomic_output(path) as out:
+        out.write(f"# {traj.name}: t tx ty tz qx qy qz qw (seconds, {unit})\n")
+        for i in range(len(traj)):
+            values = [*t[i], *q[i]]
+            stamp = _stamp_text(traj.stamps[i], None if ns is None else ns[i])
+            out.write(" ".join([stamp, *(repr(float(v)) for v in values)]) + "\n")
