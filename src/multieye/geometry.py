@@ -103,11 +103,20 @@ def project_to_so3(M: ArrayLike) -> F64:
     """
     M = np.asarray(M, dtype=np.float64)
     U, _, Vt = np.linalg.svd(M)
-    d = np.sign(np.linalg.det(U @ Vt))
-    d = np.where(d == 0, 1.0, d)
-    U = U.copy()
-    U[..., :, 2] *= d[..., None]
-    return U @ Vt
+    R = U @ Vt
+    neg = _det3(R) < 0
+    if np.any(neg):
+        U = U.copy()
+        U[..., :, 2] *= np.where(neg, -1.0, 1.0)[..., None]
+        R = U @ Vt
+    return R
+
+
+def _det3(M: np.ndarray) -> np.ndarray:
+    """Determinants of ``(..., 3, 3)`` by the explicit formula (cheaper than LAPACK for 3x3)."""
+    return (M[..., 0, 0] * (M[..., 1, 1] * M[..., 2, 2] - M[..., 1, 2] * M[..., 2, 1])
+            - M[..., 0, 1] * (M[..., 1, 0] * M[..., 2, 2] - M[..., 1, 2] * M[..., 2, 0])
+            + M[..., 0, 2] * (M[..., 1, 0] * M[..., 2, 1] - M[..., 1, 1] * M[..., 2, 0]))
 
 
 def rotation_angle(R: ArrayLike) -> F64:

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .checks import Measurements
 
 __all__ = ["Solution", "CameraResidual"]
 
@@ -44,22 +49,32 @@ class Solution:
         Shared unknown: ``T_marker_target`` (eye-to-base) or ``T_world_target`` (eye-on-hand).
     method : str
         Registry name of the solver.
-    residuals : tuple of CameraResidual
-        One per camera.
     Y_per_camera : ndarray, shape (m, 4, 4) or None
         Single-camera methods: each camera's own estimate of Y before combination.
     covariance : ndarray, shape (6(m+1), 6(m+1)) or None
         With ``refine=True``: covariance of the perturbations of X^1..X^m then Y, each as
-        (rotation vector, translation) in the unknown's own left-multiplied (world-side) frame,
-        radians and metres.
+        (rotation vector, translation), radians and metres; ``multieye.pose_refine``
+        documents the perturbation convention.
+    measurements : Measurements or None
+        The validated input, kept so that :attr:`residuals` can be computed on demand.
+    residuals : tuple of CameraResidual
+        One per camera, for this X and Y (computed on first access).
     """
 
     X: np.ndarray
     Y: np.ndarray
     method: str
-    residuals: tuple[CameraResidual, ...]
     Y_per_camera: np.ndarray | None = None
     covariance: np.ndarray | None = None
+    measurements: "Measurements | None" = field(default=None, repr=False, compare=False)
+
+    @cached_property
+    def residuals(self) -> tuple[CameraResidual, ...]:
+        if self.measurements is None:
+            raise AttributeError("this Solution was built without its measurements")
+        from ..metrics import camera_residuals
+        meas = self.measurements
+        return camera_residuals(meas.A, meas.B, self.X, self.Y, meas.camera, meas.starts)
 
     @property
     def e_R_deg(self) -> float:

@@ -1,0 +1,395 @@
+"""Calibration targets: their geometry in the canonical target frame.
+
+Every target is a frozen dataclass with ``rows``, ``cols`` and ``spacing`` as DESIGN.md
+section 4 defines them, and :meth:`object_points` giving its points, metres, in the
+target frame:
+
+================== ============================ ================================================
+type               rows x cols count            spacing
+================== ============================ ================================================
+chessboard         inner corners                square size
+circles            circles                      centre distance (rows and columns)
+asymmetric-circles circles (``cols`` per row)   centre distance within a row; rows are
+                                                spacing/2 apart, odd rows shifted by spacing/2
+charuco            squares                      square size (points: the (rows-1)x(cols-1)
+                                                inner corners, OpenCV's ChArUco ids)
+aprilgrid          AprilTag 36h11 tags          tag size, black edge to black edge (Kalibr
+                                                ``tagSize``); gap = ``tag_spacing`` * tag size
+================== ============================ ================================================
+
+Canonical frame: origin at the first point, x along ``cols``, y along ``rows``, z = x cross y.
+Point ``id`` is ``row * cols_of_points + col`` (row-major), the order of ``object_points()``.
+For the first four types the first point is the one OpenCV reports first on an upright
+board, y runs down the printed face and z points into the board (away from a camera that
+sees the pattern). The AprilGrid keeps Kalibr's frame and point ids exactly so that poses
+compare with Kalibr's: tag 0 at the bottom-left of the printed sheet, origin at its
+bottom-left corner, y *up* the printed face, so z points *out of* the printed face
+(:attr:`Target.z_into_board` is False); point ids are Kalibr's ``2*rows`` x ``2*cols`` grid
+(tag t has corners ``b, b+1, b+2C+1, b+2C`` = bottom-left, bottom-right, top-right,
+top-left with ``b = (t // C) * 4C + (t % C) * 2`` and ``C = cols``).
+
+Synopsis
+--------
+>>> from multieye.imaging.targets import target_from_spec
+>>> board = target_from_spec({"type": "chessboard", "rows": 7, "cols": 8, "spacing": 0.033})
+>>> board.object_points().shape
+(56, 3)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import DatasetError, InputError
+
+__all__ = [
+    "Target",
+    "Chessboard",
+    "CircleGrid",
+    "AsymmetricCircleGrid",
+    "Charuco",
+    "AprilGrid",
+    "TARGET_TYPES",
+    "target_from_spec",
+]
+
+F64 = NDArray[np.float64]
+
+#: Tags in Kalibr's (and OpenCV's) AprilTag 36h11 family.
+APRILTAG_36H11_SIZE = 587
+
+
+def _grid(rows: int, cols: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Row and column index of every point, row-major."""
+    r, c = np.divmod(np.arange(rows * cols), cols)
+    return r, c
+
+
+@dataclass(frozen=True)
+class Target:
+    """Base of the target types: ``rows``, ``cols``, ``spacing`` (metres).
+
+    Subclasses define :meth:`object_points` and :meth:`bounds`.
+    """
+
+    rows: int
+    cols: int
+    spacing: float
+
+    #: Name in rig.yaml ``target.type``.
+    kind: ClassVar[str] = ""
+    #: Smallest ``rows`` and ``cols`` that the detector accepts.
+    min_size: ClassVar[int] = 3
+    #: True when +z points into the board (away from a camera that sees the printed face).
+    z_into_board: ClassVar[bool] = True
+
+    def __post_init__(self):
+        for name in ("rows", "cols"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise InputError(f"{self.kind} {name} must be an integer, got {value!r}")
+            if value < self.min_size:
+                raise InputError(f"{self.kind} {name} must be at least {self.min_size}, got {value}")
+            object.__setattr__(self, name, int(value))
+        object.__setattr__(self, "spacing", _positive(self.spacing, f"{self.kind} spacing"))
+
+    @property
+    def n_points(self) -> int:
+        """Number of points of the whole target."""
+        return len(self.object_points())
+
+    def object_points(self) -> F64:
+        """Points of the target, shape (N, 3), metres, in the canonical target frame, by id."""
+        raise NotImplementedError
+
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(x_min, x_max, y_min, y_max)``, metres: extent of the printed pattern (no margin)."""
+        raise NotImplementedError
+
+    def grid_shape(self) -> tuple[int, int] | None:
+        """``(rows, cols)`` of the point grid when ids are row-major over a full grid."""
+        return (self.rows, self.cols)
+
+
+def _positive(value: Any, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{name} must be a number (metres), got {value!r}")
+    value = float(value)
+    if not np.isfinite(value) or value <= 0:
+        raise InputError(f"{name} must be a positive finite number (metres), got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class Chessboard(Target):
+    """Chessboard with ``rows`` x ``cols`` inner corners and squares of side ``spacing``.
+
+    The square diagonally outside the first corner (x, y in [-spacing, 0]) is black, as on
+    OpenCV's printed pattern. When ``rows + cols`` is even the board looks the same after a
+    half turn and the detected order cannot be resolved (the detector then warns).
+    """
+
+    kind: ClassVar[str] = "chessboard"
+
+    def object_points(self) -> F64:
+        r, c = _grid(self.rows, self.cols)
+        return np.column_stack([c * self.spacing, r * self.spacing, np.zeros(r.size)])
+
+    def bounds(self):
+        s = self.spacing
+        return (-s, self.cols * s, -s, self.rows * s)
+
+    @property
+    def half_turn_symmetric(self) -> bool:
+        """True when the board is unchanged by a half turn (``rows + cols`` even)."""
+        return (self.rows + self.cols) % 2 == 0
+
+
+@dataclass(frozen=True)
+class CircleGrid(Target):
+    """Symmetric grid of ``rows`` x ``cols`` circles, centres ``spacing`` apart.
+
+    ``diameter`` (metres, default spacing/2) matters only for rendering. The grid always
+    looks the same after a half turn, so the detector warns that the order is ambiguous.
+    """
+
+    diameter: float | None = None
+    kind: ClassVar[str] = "circles"
+
+    def __post_init__(self):
+        super().__post_init__()
+        _check_diameter(self)
+
+    @property
+    def circle_diameter(self) -> float:
+        return self.spacing / 2 if self.diameter is None else self.diameter
+
+    def object_points(self) -> F64:
+        r, c = _grid(self.rows, self.cols)
+        return np.column_stack([c * self.spacing, r * self.spacing, np.zeros(r.size)])
+
+    def bounds(self):
+        rad = self.circle_diameter / 2
+        return (-rad, (self.cols - 1) * self.spacing + rad, -rad, (self.rows - 1) * self.spacing + rad)
+
+
+@dataclass(frozen=True)
+class AsymmetricCircleGrid(Target):
+    """Asymmetric circle grid, OpenCV's ``CALIB_CB_ASYMMETRIC_GRID`` with pattern (cols, rows).
+
+    ``cols`` circles per row, ``spacing`` apart; ``rows`` rows ``spacing / 2`` apart, odd rows
+    shifted by ``spacing / 2`` along x: point (r, c) is at ``((c + (r % 2) / 2) * spacing,
+    r * spacing / 2)``. This is OpenCV's ordering (its sample uses ``(2c + r % 2) * s, r * s``
+    with s = spacing / 2) and the Open3DV board's (7 x 11, 20 or 40 mm). With an odd number
+    of rows the grid is not symmetric under a half turn; with an even number it is and the
+    detector warns. ``diameter`` (default spacing/2) matters only for rendering.
+    """
+
+    diameter: float | None = None
+    kind: ClassVar[str] = "asymmetric-circles"
+
+    def __post_init__(self):
+        super().__post_init__()
+        _check_diameter(self)
+
+    @property
+    def circle_diameter(self) -> float:
+        return self.spacing / 2 if self.diameter is None else self.diameter
+
+    def object_points(self) -> F64:
+        r, c = _grid(self.rows, self.cols)
+        x = (c + 0.5 * (r % 2)) * self.spacing
+        return np.column_stack([x, r * self.spacing / 2, np.zeros(r.size)])
+
+    def bounds(self):
+        rad = self.circle_diameter / 2
+        return (-rad, (self.cols - 0.5) * self.spacing + rad, -rad, (self.rows - 1) * self.spacing / 2 + rad)
+
+
+def _check_diameter(target) -> None:
+    if target.diameter is not None:
+        object.__setattr__(target, "diameter", _positive(target.diameter, f"{target.kind} diameter"))
+        nearest = target.spacing / np.sqrt(2) if target.kind == "asymmetric-circles" else target.spacing
+        if target.diameter >= nearest:
+            raise InputError(f"{target.kind} diameter {target.diameter} must be smaller than the "
+                             f"distance between neighbouring centres ({nearest:.6g})")
+
+
+@dataclass(frozen=True)
+class Charuco(Target):
+    """OpenCV ChArUco board of ``rows`` x ``cols`` squares of side ``spacing``.
+
+    Points are the (rows-1) x (cols-1) inner chessboard corners with OpenCV's ChArUco ids
+    (row-major from the corner next to the top-left square); the origin is corner id 0, one
+    square in from the board's outer corner. Markers of ``marker_size`` metres from the
+    OpenCV dictionary ``dictionary`` (e.g. ``"DICT_5X5_100"``) sit in the white squares, ids
+    from 0. ``legacy=True`` selects the layout OpenCV used before 4.6 (it differs when
+    ``rows`` is even).
+    """
+
+    marker_size: float = 0.0
+    dictionary: str = "DICT_5X5_100"
+    legacy: bool = False
+    kind: ClassVar[str] = "charuco"
+
+    def __post_init__(self):
+        super().__post_init__()
+        m = _positive(self.marker_size, "charuco marker_size")
+        if m >= self.spacing:
+            raise InputError(f"charuco marker_size {m} must be smaller than the square size {self.spacing}")
+        object.__setattr__(self, "marker_size", m)
+        if not isinstance(self.legacy, bool):
+            raise InputError(f"charuco legacy must be true or false, got {self.legacy!r}")
+        n_markers = (self.rows * self.cols) // 2
+        available = aruco_dictionary_size(self.dictionary)
+        if n_markers > available:
+            raise InputError(f"charuco {self.rows}x{self.cols} needs {n_markers} markers but "
+                             f"{self.dictionary} has only {available}")
+
+    def object_points(self) -> F64:
+        r, c = _grid(self.rows - 1, self.cols - 1)
+        return np.column_stack([c * self.spacing, r * self.spacing, np.zeros(r.size)])
+
+    def bounds(self):
+        s = self.spacing
+        return (-s, (self.cols - 1) * s, -s, (self.rows - 1) * s)
+
+    def grid_shape(self):
+        return (self.rows - 1, self.cols - 1)
+
+
+def aruco_dictionary_size(name: str) -> int:
+    """Number of markers in the OpenCV predefined dictionary ``name`` (e.g. ``"DICT_5X5_100"``).
+
+    Raises
+    ------
+    InputError
+        When OpenCV has no dictionary of that name.
+    """
+    import cv2
+
+    code = getattr(cv2.aruco, name, None) if isinstance(name, str) and name.startswith("DICT_") else None
+    if not isinstance(code, int):
+        raise InputError(f"unknown ArUco dictionary {name!r}: expected an OpenCV name such as "
+                         "DICT_4X4_50, DICT_5X5_100, DICT_6X6_250 or DICT_APRILTAG_36h11")
+    return int(cv2.aruco.getPredefinedDictionary(code).bytesList.shape[0])
+
+
+@dataclass(frozen=True)
+class AprilGrid(Target):
+    """Kalibr AprilGrid: ``rows`` x ``cols`` AprilTag 36h11 tags (ids 0.. row-major from the
+    bottom-left tag), tag size ``spacing`` (black edge to black edge), gap between tags
+    ``tag_spacing * spacing``; black squares of the gap size fill the gap at every tag
+    corner, and tags have a 2-bit black border, as ``kalibr_create_target_pdf`` draws them.
+
+    Points: Kalibr's ``2*rows`` x ``2*cols`` tag corners (see the module docstring); partial
+    views are fine since tag ids give the correspondences.
+    """
+
+    tag_spacing: float = 0.0
+    kind: ClassVar[str] = "aprilgrid"
+    min_size: ClassVar[int] = 1
+    z_into_board: ClassVar[bool] = False
+
+    def __post_init__(self):
+        super().__post_init__()
+        s = _positive(self.tag_spacing, "aprilgrid tag_spacing")
+        if s > 1.0:
+            raise InputError(f"aprilgrid tag_spacing is the gap as a fraction of the tag size "
+                             f"(Kalibr tagSpacing, 0 < x <= 1), got {s}")
+        object.__setattr__(self, "tag_spacing", s)
+        if self.rows * self.cols > APRILTAG_36H11_SIZE:
+            raise InputError(f"aprilgrid {self.rows}x{self.cols} needs {self.rows * self.cols} tags "
+                             f"but AprilTag 36h11 has {APRILTAG_36H11_SIZE}")
+
+    @property
+    def pitch(self) -> float:
+        """Distance between the origins of neighbouring tags, metres."""
+        return self.spacing * (1 + self.tag_spacing)
+
+    def object_points(self) -> F64:
+        r, c = _grid(2 * self.rows, 2 * self.cols)
+        x = (c // 2) * self.pitch + (c % 2) * self.spacing
+        y = (r // 2) * self.pitch + (r % 2) * self.spacing
+        return np.column_stack([x, y, np.zeros(r.size)])
+
+    def bounds(self):
+        gap = self.tag_spacing * self.spacing
+        return (-gap, self.cols * self.pitch, -gap, self.rows * self.pitch)
+
+    def grid_shape(self):
+        return (2 * self.rows, 2 * self.cols)
+
+    def tag_corner_ids(self, tag_id: int) -> tuple[int, int, int, int]:
+        """Point ids of a tag's corners: bottom-left, bottom-right, top-right, top-left
+        (as printed; Kalibr's order)."""
+        width = 2 * self.cols
+        base = (tag_id // self.cols) * 2 * width + (tag_id % self.cols) * 2
+        return (base, base + 1, base + width + 1, base + width)
+
+
+TARGET_TYPES: dict[str, type[Target]] = {
+    cls.kind: cls for cls in (Chessboard, CircleGrid, AsymmetricCircleGrid, Charuco, AprilGrid)
+}
+
+#: rig.yaml keys per type (besides ``type``), mapped to dataclass fields; None = required.
+_SPEC_KEYS: dict[str, dict[str, Any]] = {
+    "chessboard": {"rows": None, "cols": None, "spacing": None},
+    "circles": {"rows": None, "cols": None, "spacing": None, "diameter": "optional"},
+    "asymmetric-circles": {"rows": None, "cols": None, "spacing": None, "diameter": "optional"},
+    "charuco": {"rows": None, "cols": None, "spacing": None, "marker_size": None,
+                "dictionary": None, "legacy": "optional"},
+    "aprilgrid": {"rows": None, "cols": None, "spacing": None, "tag_spacing": None},
+}
+
+
+def target_from_spec(spec: Mapping[str, Any], *, path=None, line: int | None = None) -> Target:
+    """Build a target from the ``target:`` mapping of a rig.yaml (DESIGN.md section 4).
+
+    Parameters
+    ----------
+    spec : mapping
+        ``type`` (chessboard | circles | asymmetric-circles | charuco | aprilgrid), ``rows``,
+        ``cols``, ``spacing`` (metres); charuco also ``marker_size`` (metres) and
+        ``dictionary`` (OpenCV name, e.g. ``DICT_5X5_100``), optionally ``legacy``; aprilgrid
+        also ``tag_spacing`` (Kalibr ratio); circle grids optionally ``diameter`` (metres).
+    path, line : optional
+        Where the mapping came from, for the error message.
+
+    Returns
+    -------
+    Target
+
+    Raises
+    ------
+    DatasetError
+        Not a mapping, unknown ``type``, unknown or missing key, or a value of the wrong type
+        or range; the message names the key and what was expected.
+    """
+    def fail(message: str):
+        raise DatasetError(f"target: {message}", path=path, line=line)
+
+    if not isinstance(spec, Mapping):
+        fail(f"expected a mapping with type, rows, cols, spacing; got {type(spec).__name__}")
+    kind = spec.get("type")
+    if kind not in TARGET_TYPES:
+        fail(f"unknown type {kind!r}; expected one of {', '.join(TARGET_TYPES)}")
+    allowed = _SPEC_KEYS[kind]
+    unknown = sorted(set(spec) - set(allowed) - {"type"}, key=str)
+    if unknown:
+        fail(f"unknown key {unknown[0]!r} for type {kind}; expected keys: type, {', '.join(allowed)}")
+    missing = [k for k, v in allowed.items() if v is None and k not in spec]
+    if missing:
+        fail(f"{kind} needs key {missing[0]!r} (keys: type, {', '.join(allowed)})")
+    kwargs = {k: spec[k] for k in allowed if k in spec}
+    cls = TARGET_TYPES[kind]
+    if kind == "charuco" and not isinstance(kwargs["dictionary"], str):
+        fail(f"charuco dictionary must be an OpenCV name such as DICT_5X5_100, got {kwargs['dictionary']!r}")
+    try:
+        return cls(**kwargs)
+    except InputError as exc:
+        fail(str(exc))
