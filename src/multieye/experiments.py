@@ -43,8 +43,8 @@ import numpy as np
 from . import simulation as sim
 from .errors import CalibrationError, InputError
 from .io.atomic import write_bytes_atomic, write_text_atomic
-from .solvers import METHODS, solve  # before .metrics: it imports solvers.result
 from .metrics import extrinsic_errors, relative_extrinsics
+from .solvers import METHODS, solve
 
 __all__ = [
     "EXPERIMENTS",
