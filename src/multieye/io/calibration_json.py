@@ -246,7 +246,8 @@ class _Where:
         return obj[key]
 
     def number(self, value, key: str, camera=None) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if (isinstance(value, bool) or not isinstance(value, (int, float))
+                or not math.isfinite(value)):
             raise self.error(f"{key} must be a finite number, got {value!r}", camera)
         return float(value)
 

@@ -219,8 +219,9 @@ def _choose(name: str | None, available: list[str], what: str, path) -> str:
     if name is None:
         if len(available) == 1:
             return available[0]
-        raise DatasetError(f"{len(available)} {what}s in the file ({', '.join(available) or 'none'});"
-                           f" choose one by name", path=path)
+        listing = ", ".join(available) or "none"
+        raise DatasetError(f"{len(available)} {what}s in the file ({listing}); choose one by name",
+                           path=path)
     if name in available:
         return name
     short = [a for a in available if a.split(":")[-1] == name]
@@ -293,6 +294,7 @@ def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *
     if time_col is None:
         raise DatasetError("no 'Time (Seconds)' column", path=path, line=frame_row + 1)
     order = [time_col] + [cols[w] for w in wanted]
+    cell_names = ["Time (Seconds)"] + [f"{body} {q} {a}" for q, a in wanted]
     values, lines = [], []
     for i in range(frame_row + 1, len(rows)):
         row = rows[i]
@@ -301,9 +303,8 @@ def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *
         cells = [row[j].strip() if j < len(row) else "" for j in order]
         if not all(cells):
             continue  # rigid body not tracked in this frame
-        names_ = ("Time (Seconds)", "X", "Y", "Z", "qX", "qY", "qZ", "qW")
         values.append([parse_float(c, path=path, line=i + 1, name=n)
-                       for c, n in zip(cells, names_)])
+                       for c, n in zip(cells, cell_names)])
         lines.append(i + 1)
     if not values:
         raise DatasetError(f"rigid body {body!r} is not tracked in any frame", path=path)

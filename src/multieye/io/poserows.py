@@ -83,7 +83,7 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
     if np.any(steps <= 0):
         i = int(np.argmax(steps <= 0))
         what = "duplicate time stamp" if steps[i] == 0 else "time stamp goes back"
-        raise DatasetError(f"{what}: {stamps[i + 1]!r} s after {stamps[i]!r} s on line "
-                           f"{lines[i]}; stamps must be strictly increasing",
+        raise DatasetError(f"{what}: {float(stamps[i + 1])!r} s after {float(stamps[i])!r} s "
+                           f"on line {lines[i]}; stamps must be strictly increasing",
                            path=path, line=lines[i + 1])
     return Trajectory(stamps, T, parent, child, stamps_ns)

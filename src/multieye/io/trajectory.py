@@ -85,8 +85,9 @@ class Trajectory:
         if np.any(steps <= 0):
             i = int(np.argmax(steps <= 0))
             kind = "duplicate time stamp" if steps[i] == 0 else "time stamps out of order"
-            raise InputError(f"{kind}: sample {i + 1} at {stamps[i + 1]!r} s follows sample {i} "
-                             f"at {stamps[i]!r} s; stamps must be strictly increasing")
+            raise InputError(f"{kind}: sample {i + 1} at {float(stamps[i + 1])!r} s follows "
+                             f"sample {i} at {float(stamps[i])!r} s; stamps must be strictly "
+                             "increasing")
         ns = self.stamps_ns
         if ns is not None:
             ns = np.asarray(ns).reshape(-1)
