@@ -25,6 +25,7 @@ for colour (``rgb8``/``rgba8``/Bayer are converted, alpha dropped).
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 from collections.abc import Iterator
 from pathlib import Path
@@ -69,10 +70,17 @@ def _short_type(msgtype: str) -> str:
     return msgtype.replace("/msg/", "/")
 
 
+@functools.lru_cache(maxsize=1)
+def _default_typestore():
+    """Message types for ROS 2 bags that do not store their definitions (built once)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.LATEST)
+
+
 @contextlib.contextmanager
 def _reader(path: str | os.PathLike):
     from rosbags.highlevel import AnyReader, AnyReaderError
-    from rosbags.typesys import Stores, get_typestore
 
     p = Path(path)
     if not p.exists():
@@ -80,7 +88,7 @@ def _reader(path: str | os.PathLike):
     if p.is_file() and p.suffix in (".db3", ".mcap"):
         p = p.parent  # a ROS 2 bag is its folder (with metadata.yaml)
     try:
-        reader = AnyReader([p], default_typestore=get_typestore(Stores.LATEST))
+        reader = AnyReader([p], default_typestore=_default_typestore())
         reader.open()
     except (AnyReaderError, OSError, ValueError) as exc:
         raise DatasetError(f"cannot read the bag: {exc}", path=path) from exc
