@@ -17,6 +17,8 @@ from .errors import (
     TooFewMeasurementsError,
 )
 
+from .solvers import METHODS, Solution, solve
+
 __version__ = "0.1.0"
 
 __all__ = [
@@ -26,5 +28,8 @@ __all__ = [
     "DisconnectedError",
     "InputError",
     "TooFewMeasurementsError",
+    "METHODS",
+    "Solution",
+    "solve",
     "__version__",
 ]
