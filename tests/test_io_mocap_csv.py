@@ -120,14 +120,16 @@ def test_optitrack_errors(tmp_path, poses):
     _optitrack(tmp_path / "take.csv", stamps, T, units="Meters")
     with pytest.raises(DatasetError, match=r"2 rigid bodys in the file \(Other, Target\)"):
         read_optitrack_csv(tmp_path / "take.csv")
-    with pytest.raises(DatasetError, match="rigid body 'Nope' not found; the file has Other, Target"):
+    with pytest.raises(DatasetError,
+                       match="rigid body 'Nope' not found; the file has Other, Target"):
         read_optitrack_csv(tmp_path / "take.csv", "Nope")
     _optitrack(tmp_path / "euler.csv", stamps, T, rotation="XYZ")
     with pytest.raises(DatasetError, match="Rotation Type is 'XYZ'") as info:
         read_optitrack_csv(tmp_path / "euler.csv", "Target")
     assert info.value.line == 1
     _optitrack(tmp_path / "inch.csv", stamps, T, units="Inches")
-    with pytest.raises(DatasetError, match="Length Units must be Meters, Millimeters or Centimeters"):
+    with pytest.raises(DatasetError,
+                       match="Length Units must be Meters, Millimeters or Centimeters"):
         read_optitrack_csv(tmp_path / "inch.csv", "Target")
     (tmp_path / "plain.csv").write_text("Frame,Time\n0,0\n")
     with pytest.raises(DatasetError, match="not an OptiTrack Motive CSV export"):
@@ -142,7 +144,8 @@ def test_optitrack_bad_cell_names_line(tmp_path, poses):
     cells[12] = "oops"
     lines[9] = ",".join(cells)
     (tmp_path / "take.csv").write_text("\n".join(lines))
-    with pytest.raises(DatasetError, match="expected a number for Target Rotation Z, got 'oops'") as info:
+    with pytest.raises(DatasetError,
+                       match="expected a number for Target Rotation Z, got 'oops'") as info:
         read_optitrack_csv(tmp_path / "take.csv", "Target")
     assert info.value.line == 10
 
