@@ -37,8 +37,9 @@ Schema (keys not listed are rejected)::
         poses: cam0_target.txt         #   precomputed T_cam_target, TUM format
         rosbag: run.bag                #   image topic of a bag ...
         topic: /cam0/image_raw         #   ... given here (rosbag only)
-        mocap: cam0_mocap.txt          # optional: own file (other mocap keys inherited),
-                                       #   or a mapping overriding mocap keys
+        mocap: cam0_mocap.txt          # optional: own file, or a mapping overriding mocap
+                                       #   keys; pose and time_tolerance are inherited, the
+                                       #   format's keys only if the format is the same
         time_offset: 0.0               # seconds, motion-capture clock minus camera clock
 
 :func:`read_camera_intrinsics` reads a camera's intrinsics; a Kalibr camchain with several
@@ -307,6 +308,28 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
     return MocapSpec(file, pose, tol, fmt, **kw)
 
 
+def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
+    """A camera's own motion capture, completed from the top-level section ``top``
+    (``(raw mapping, MocapSpec)``, or ``({}, None)``): ``pose`` and ``time_tolerance`` are
+    always inherited; the format-specific keys only when the camera's file has the top-level
+    file's format (a camera with a TUM file under a rosbag rig does not inherit ``topic``)."""
+    if isinstance(own, Mapping):
+        c.mapping(own, where, _MOCAP_KEYS)
+    else:
+        own = {"file": c.string(own, where)}
+    top_raw, top_spec = top
+    inherit = [k for k in top_raw if k not in own]
+    if "file" in own and top_spec is not None:
+        fmt = own.get("format")
+        if fmt is None:
+            fmt = sniff_mocap_format(c.path(own["file"], where + ("file",), "file or bag"))
+        if fmt != top_spec.format:
+            inherit = [k for k in inherit if k in ("pose", "time_tolerance")]
+    merged = {**{k: top_raw[k] for k in inherit}, **own}
+    origin = {**{k: ("mocap",) for k in inherit}, **{k: where for k in own}}
+    return _mocap(c, merged, origin, setup, where)
+
+
 def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
     keys = ("cameras", name)
     c.mapping(raw, keys, _CAMERA_KEYS, ("intrinsics",))
@@ -334,14 +357,7 @@ def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
     if "time_offset" in raw:
         kw["time_offset"] = c.number(raw["time_offset"], keys + ("time_offset",))
     if "mocap" in raw:
-        top_raw, top_origin = top_mocap
-        own = raw["mocap"]
-        if isinstance(own, Mapping):
-            c.mapping(own, keys + ("mocap",), _MOCAP_KEYS)
-        else:
-            own = {"file": c.string(own, keys + ("mocap",))}
-        origin = {**top_origin, **{k: keys + ("mocap",) for k in own}}
-        kw["mocap"] = _mocap(c, {**top_raw, **own}, origin, setup, keys + ("mocap",))
+        kw["mocap"] = _camera_mocap(c, raw["mocap"], keys + ("mocap",), top_mocap, setup)
     return CameraSpec(str(name), intr_path, **kw)
 
 
@@ -366,11 +382,11 @@ def load_rig(path: str | os.PathLike) -> Rig:
         raise c.error("expected a mapping of camera name -> camera, with at least one camera",
                       ("cameras",))
     mocap = None
-    top = ({}, {})
     if "mocap" in raw:
         c.mapping(raw["mocap"], ("mocap",), _MOCAP_KEYS, ("file",))
-        top = (dict(raw["mocap"]), {k: ("mocap",) for k in raw["mocap"]})
-        mocap = _mocap(c, *top, setup, ("mocap",))
+        mocap = _mocap(c, raw["mocap"], {k: ("mocap",) for k in raw["mocap"]}, setup,
+                       ("mocap",))
+    top = (dict(raw["mocap"]) if mocap is not None else {}, mocap)
     cameras = {}
     for name, cam_raw in cams_raw.items():
         cam = _camera(c, name, cam_raw, top, setup)
