@@ -242,7 +242,7 @@ class _Where:
 
     def need(self, obj: Mapping, key: str, where: str, camera=None):
         if key not in obj:
-            raise self.error(f"missing key {key!r} in {where}", camera)
+            raise self.error(f"missing key {key!r}" + ("" if camera else f" in {where}"), camera)
         return obj[key]
 
     def number(self, value, key: str, camera=None) -> float:
@@ -255,7 +255,8 @@ class _Where:
         try:
             return fn(*args, **kwargs)
         except (InputError, TypeError, ValueError) as exc:
-            raise self.error(str(exc), camera) from None
+            message = str(exc).removeprefix(f"camera {camera}: ")
+            raise self.error(message, camera) from None
 
 
 def _read_residuals(obj, w: _Where, where: str, camera=None) -> Residuals:
