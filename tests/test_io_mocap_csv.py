@@ -235,3 +235,13 @@ def test_read_mocap_dispatches_optitrack_and_rejects_missing_topic(tmp_path, pos
         read_mocap(MocapSpec(tmp_path / "take.csv", format="rosbag"))
     with pytest.raises(DatasetError, match="motion-capture file not found"):
         sniff_mocap_format(tmp_path / "none.txt")
+
+
+def test_read_mocap_passes_duplicates_to_csv(tmp_path):
+    (tmp_path / "d.csv").write_text("t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n0,1,0,0,0,0,0,1\n"
+                                    "1,2,0,0,0,0,0,1\n")
+    with pytest.raises(DatasetError, match="duplicate time stamp") as info:
+        read_mocap(MocapSpec(tmp_path / "d.csv", format="csv"))
+    assert info.value.line == 3
+    traj = read_mocap(MocapSpec(tmp_path / "d.csv", format="csv", duplicates="drop"))
+    assert traj.T[:, 0, 3].tolist() == [0.0, 2.0]

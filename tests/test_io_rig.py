@@ -119,6 +119,8 @@ def test_loads_the_design_example(dataset):
      "cameras.cam1.mocap.topic: applies to rosbag sources only (this one is tum)"),
     ("  pose: T_world_marker\n", "  pose: T_world_marker\n  unit: inch\n", 10,
      "mocap.unit: expected one of m, cm, mm, got 'inch'"),
+    ("  pose: T_world_marker\n", "  pose: T_world_marker\n  duplicates: average\n", 10,
+     "mocap.duplicates: expected one of error, drop, got 'average'"),
 ])
 def test_bad_rig_files_name_line_and_expectation(dataset, old, new, line, message):
     path = _edit(dataset, old, new)
@@ -170,8 +172,10 @@ def test_target_only_needed_with_images(dataset):
 
 
 def test_per_camera_mocap_inherits_format_keys_of_the_same_format(dataset):
-    path = _edit(dataset, "  pose: T_world_marker\n", "  pose: T_world_marker\n  unit: mm\n")
-    assert load_rig(path).mocap_for("cam1").unit == "mm"
+    path = _edit(dataset, "  pose: T_world_marker\n",
+                 "  pose: T_world_marker\n  unit: mm\n  duplicates: drop\n")
+    own = load_rig(path).mocap_for("cam1")
+    assert (own.unit, own.duplicates) == ("mm", "drop")
 
 
 def test_per_camera_mocap_without_top_level(dataset):

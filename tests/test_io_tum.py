@@ -109,6 +109,40 @@ def test_malformed_files_name_file_and_line(tmp_path, body, line, message):
     assert str(info.value).startswith(f"{path}:{line}: ")
 
 
+def test_duplicates_can_be_dropped_but_steps_back_cannot(tmp_path):
+    (tmp_path / "d.txt").write_text("0 0 0 0 0 0 0 1\n0.01 1 0 0 0 0 0 1\n0.01 2 0 0 0 0 0 1\n"
+                                    "0.02 3 0 0 0 0 0 1\n")
+    traj = read_tum(tmp_path / "d.txt", duplicates="drop")
+    assert traj.stamps.tolist() == [0.0, 0.01, 0.02]
+    assert traj.T[:, 0, 3].tolist() == [0.0, 1.0, 3.0]  # the first of equal stamps is kept
+    (tmp_path / "b.txt").write_text("0 0 0 0 0 0 0 1\n0.02 1 0 0 0 0 0 1\n0.01 2 0 0 0 0 0 1\n")
+    with pytest.raises(DatasetError, match="time stamp goes back") as info:
+        read_tum(tmp_path / "b.txt", duplicates="drop")
+    assert info.value.line == 3
+
+
+def test_real_eth_streams_read_as_tum(shared_data):
+    """ETH ASL hand-eye CSV streams are TUM rows with commas (ethz_handeye/PROVENANCE.md);
+    the Vicon stream of prime_sense_1 prints stamps with too few digits for its rate."""
+    root = shared_data / "ethz_handeye" / "datasets" / "unzipped"
+    robot = root / "robot_arm_w_color_camera_real" / "robot_arm"
+    hand = read_tum(robot / "robot_arm_complete_bag_color_and_ir_base_link_sr300_hinge.csv",
+                    parent="base", child="hand")
+    eye = read_tum(robot / "robot_arm_complete_bag_color_and_ir_target_ir.csv",
+                   parent="target", child="cam")
+    assert (len(hand), len(eye)) == (2817, 1703)  # row counts stated in PROVENANCE.md
+    vicon = root / "prime_sense_color_w_vicon_1" / "prime_sense_1" / \
+        "2017-04-09-18-13-10_vicon_prime_sense.csv"
+    with pytest.raises(DatasetError, match="duplicate time stamp"):
+        read_tum(vicon)
+    stamps = [line.split(",")[0] for line in vicon.read_text().splitlines() if line.strip()]
+    repeats = sum(a == b for a, b in zip(stamps, stamps[1:]))
+    traj = read_tum(vicon, duplicates="drop")
+    assert repeats > 0 and len(traj) == 7093 - repeats
+    # poses are rigid and in metres: the camera moved within a room-sized volume
+    assert np.all(np.abs(traj.T[:, :3, 3]) < 10)
+
+
 def test_missing_empty_and_binary_files(tmp_path):
     with pytest.raises(DatasetError, match="trajectory file not found"):
         read_tum(tmp_path / "none.txt")

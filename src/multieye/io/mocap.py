@@ -63,6 +63,8 @@ class MocapSpec:
         ROS frame ids selecting a transform of a ``/tf`` or TransformStamped topic.
     columns : mapping or None
         ``csv`` header names per role (``t tx ty tz qx qy qz qw``).
+    duplicates : {"error", "drop"}
+        ``tum`` and ``csv``: a sample with the previous sample's stamp is an error, or dropped.
     """
 
     file: Path
@@ -75,6 +77,7 @@ class MocapSpec:
     parent_frame: str | None = None
     child_frame: str | None = None
     columns: Mapping[str, str] | None = None
+    duplicates: str = "error"
 
     @property
     def moving_frame(self) -> str:
@@ -121,10 +124,11 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
         raise DatasetError(f"motion-capture format must be one of {', '.join(MOCAP_FORMATS)}, "
                            f"got {fmt!r}", path=spec.file)
     if fmt == "tum":
-        traj = read_tum(spec.file, unit=spec.unit or "m", parent=parent, child=child)
+        traj = read_tum(spec.file, unit=spec.unit or "m", parent=parent, child=child,
+                        duplicates=spec.duplicates)
     elif fmt == "csv":
         traj = read_pose_csv(spec.file, columns=spec.columns, unit=spec.unit, parent=parent,
-                             child=child)
+                             child=child, duplicates=spec.duplicates)
     elif fmt == "optitrack":
         traj = read_optitrack_csv(spec.file, spec.rigid_body, parent=parent, child=child)
     elif fmt == "vicon":

@@ -134,7 +134,8 @@ def _unit_from_header(names, found, roles, default, known, path, line):
 
 def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None = None,
                   unit: str | None = None, time_unit: str | None = None,
-                  parent: str = "world", child: str = "marker") -> Trajectory:
+                  parent: str = "world", child: str = "marker",
+                  duplicates: str = "error") -> Trajectory:
     """Read poses from a CSV file with a header row.
 
     Parameters
@@ -150,6 +151,8 @@ def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None 
         read as exact integers and kept in ``stamps_ns``.
     parent, child : str
         Each row is ``T_parent_child``.
+    duplicates : {"error", "drop"}
+        A row with the same stamp as the row before: error, or skipped.
 
     Raises
     ------
@@ -202,7 +205,7 @@ def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None 
     stamps = ns / 1e9 if ns is not None else data[:, 0] * _TIME_UNITS[time_unit]
     T = quaternion_poses(data[:, 1:4] * LENGTH_UNITS[unit], data[:, 4:8], path=path, lines=lines)
     return trajectory_from_rows(stamps, T, path=path, lines=lines, parent=parent, child=child,
-                                stamps_ns=ns)
+                                stamps_ns=ns, duplicates=duplicates)
 
 
 # --------------------------------------------------------------------------- OptiTrack

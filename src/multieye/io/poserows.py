@@ -58,7 +58,8 @@ def quaternion_poses(t_xyz: np.ndarray, q_xyzw: np.ndarray, *, path: str | os.Pa
 
 def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.PathLike,
                          lines: Sequence[int], parent: str, child: str,
-                         stamps_ns: np.ndarray | None = None) -> Trajectory:
+                         stamps_ns: np.ndarray | None = None,
+                         duplicates: str = "error") -> Trajectory:
     """A Trajectory from rows in file order; stamps must be strictly increasing.
 
     Parameters
@@ -70,16 +71,28 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
     path, lines : the file and the 1-based line of each row.
     parent, child : frame names.
     stamps_ns : ndarray, shape (N,), int64, optional
+    duplicates : {"error", "drop"}
+        What to do with a row whose stamp equals the previous row's: raise, or keep only the
+        first row of each run of equal stamps (for files written with too few digits).
 
     Raises
     ------
     DatasetError
-        No rows, or a stamp that repeats or goes back (naming both lines).
+        No rows, a stamp that goes back, or (``duplicates="error"``) a stamp that repeats;
+        the message names both lines.
     """
     stamps = np.asarray(stamps, dtype=np.float64)
     if stamps.size == 0:
         raise DatasetError("no poses found", path=path)
-    steps = np.diff(stamps) if stamps_ns is None else np.diff(np.asarray(stamps_ns))
+    if duplicates not in ("error", "drop"):
+        raise ValueError(f"duplicates must be 'error' or 'drop', got {duplicates!r}")
+    key = stamps if stamps_ns is None else np.asarray(stamps_ns)
+    if duplicates == "drop":
+        keep = np.r_[True, np.diff(key) != 0]
+        stamps, T, key = stamps[keep], np.asarray(T)[keep], key[keep]
+        lines = [line for line, k in zip(lines, keep) if k]
+        stamps_ns = None if stamps_ns is None else key
+    steps = np.diff(key)
     if np.any(steps <= 0):
         i = int(np.argmax(steps <= 0))
         what = "duplicate time stamp" if steps[i] == 0 else "time stamp goes back"

@@ -30,6 +30,7 @@ Schema (keys not listed are rejected)::
       parent_frame: world                                    # rosbag only
       child_frame: rig                                       # rosbag only
       columns: {t: time, tx: x, ...}                         # csv only
+      duplicates: error | drop                               # tum, csv only; default error
     cameras:                                                 # required, at least one
       cam0:
         intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
@@ -71,7 +72,7 @@ TARGET_TYPES = ("chessboard", "circles", "asymmetric-circles", "charuco", "april
 _TARGET_ONLY = {"marker_size": "charuco", "dictionary": "charuco", "tag_spacing": "aprilgrid"}
 _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
-               "child_frame": ("rosbag",), "columns": ("csv",)}
+               "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv")}
 _MOCAP_KEYS = ("file", "pose", "time_tolerance", "format") + tuple(_MOCAP_ONLY)
 _CAMERA_KEYS = ("intrinsics", "images", "poses", "rosbag", "topic", "mocap", "time_offset")
 _SOURCES = ("images", "poses", "rosbag")
@@ -298,6 +299,8 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
             kw[key] = c.string(raw[key], at(key))
     if "unit" in raw:
         kw["unit"] = c.choice(raw["unit"], at("unit"), tuple(LENGTH_UNITS))
+    if "duplicates" in raw:
+        kw["duplicates"] = c.choice(raw["duplicates"], at("duplicates"), ("error", "drop"))
     if "columns" in raw:
         cols = c.mapping(raw["columns"], at("columns"), tuple(DEFAULT_COLUMNS))
         kw["columns"] = MappingProxyType({k: c.string(v, at("columns") + (k,))

@@ -12,7 +12,8 @@ Choices
   :data:`multieye.io.poserows.QUATERNION_TOLERANCE` (1e-3) are rejected
   (a file that is not what it claims); smaller deviations (rounding in the writer) are
   normalised.
-- Stamps must be strictly increasing; a duplicate or a step back names both lines.
+- Stamps must be strictly increasing; a duplicate or a step back names both lines
+  (``duplicates="drop"`` keeps the first of equal stamps instead).
 - ``unit="mm"`` (or ``"cm"``) converts translations to metres on reading and from metres on
   writing.
 
@@ -39,7 +40,7 @@ TUM_COLUMNS = ("t", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
 
 
 def read_tum(path: str | os.PathLike, *, unit: str = "m", parent: str = "world",
-             child: str = "marker") -> Trajectory:
+             child: str = "marker", duplicates: str = "error") -> Trajectory:
     """Read a TUM trajectory file.
 
     Parameters
@@ -49,6 +50,9 @@ def read_tum(path: str | os.PathLike, *, unit: str = "m", parent: str = "world",
         Unit of the translations in the file; converted to metres.
     parent, child : str
         Frame names of the poses: each line is ``T_parent_child``.
+    duplicates : {"error", "drop"}
+        A line with the same stamp as the line before is an error, or (``"drop"``) is skipped:
+        some recorders print stamps with too few digits for their rate.
 
     Returns
     -------
@@ -78,7 +82,7 @@ def read_tum(path: str | os.PathLike, *, unit: str = "m", parent: str = "world",
     data = np.asarray(rows)
     T = quaternion_poses(data[:, 1:4] * scale, data[:, 4:8], path=path, lines=lines)
     return trajectory_from_rows(data[:, 0], T, path=path, lines=lines, parent=parent,
-                                child=child)
+                                child=child, duplicates=duplicates)
 
 
 def _stamp_text(seconds: float, ns: int | None) -> str:
