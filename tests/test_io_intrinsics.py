@@ -228,7 +228,8 @@ def _entries(rng, m):
         else:
             intr = Intrinsics(K, np.r_[rng.normal(scale=0.1, size=4), 0.0], "pinhole", 1280, 720)
         T = geometry.random_transforms(rng, translation_scale=0.5) if j else np.eye(4)
-        cams.append(CamchainEntry(f"cam_{'abcdef'[j]}", intr, T, f"/cam{j}/image" if j else None))
+        name = ["front", "yes", "0", "left: wide", "rear", "x"][j]  # YAML-special names too
+        cams.append(CamchainEntry(name, intr, T, f"/cam{j}/image" if j else None))
     return cams
 
 

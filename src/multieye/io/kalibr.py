@@ -25,6 +25,7 @@ unknown fields); ``resolution`` is written only when the intrinsics know the ima
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -170,7 +171,7 @@ def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry]) ->
     lines = []
     for n, cam in enumerate(cameras):
         lines.append(f"cam{n}:")
-        lines.append(f"  camera_name: {cam.name}")
+        lines.append(f"  camera_name: {json.dumps(cam.name)}")  # JSON strings are YAML
         for key, value in kalibr_fields(cam.intrinsics).items():
             if key == "resolution":
                 text = f"[{value[0]}, {value[1]}]"
@@ -182,7 +183,7 @@ def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry]) ->
             lines.append("  T_cn_cnm1:")
             lines.extend(f"  - {yaml_list(row)}" for row in T)
         if cam.rostopic:
-            lines.append(f"  rostopic: {cam.rostopic}")
+            lines.append(f"  rostopic: {json.dumps(cam.rostopic)}")
     write_text_atomic(path, "\n".join(lines) + "\n")
 
 
