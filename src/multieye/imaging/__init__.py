@@ -1,0 +1,53 @@
+"""The image side: camera models, targets, detection, PnP, rendering, batch processing.
+
+The only package of multieye that imports OpenCV (``cv2``). Data flows
+images -> :func:`detect` -> :func:`estimate_pose` -> ``T_cam_target`` per image, which the
+hand-eye solvers consume; :func:`detect_and_estimate` does this over many files in parallel,
+and :func:`render` makes synthetic images for tests and the demo.
+
+Synopsis
+--------
+>>> from multieye.imaging import target_from_spec, detect_and_estimate    # doctest: +SKIP
+>>> board = target_from_spec({"type": "chessboard", "rows": 8, "cols": 11, "spacing": 0.03})  # doctest: +SKIP
+>>> results = detect_and_estimate(paths, board, intrinsics)              # doctest: +SKIP
+"""
+
+from .batch import ImageResult, detect_and_estimate, process_image
+from .camera_model import distort_points, project_points, undistort_points
+from .detect import Detection, detect
+from .pnp import PoseEstimate, estimate_pose, reprojection_residuals
+from .render import render, visible
+from .targets import (
+    AprilGrid,
+    AsymmetricCircleGrid,
+    Charuco,
+    Chessboard,
+    CircleGrid,
+    Target,
+    TARGET_TYPES,
+    target_from_spec,
+)
+
+__all__ = [
+    "AprilGrid",
+    "AsymmetricCircleGrid",
+    "Charuco",
+    "Chessboard",
+    "CircleGrid",
+    "Detection",
+    "ImageResult",
+    "PoseEstimate",
+    "TARGET_TYPES",
+    "Target",
+    "detect",
+    "detect_and_estimate",
+    "distort_points",
+    "estimate_pose",
+    "process_image",
+    "project_points",
+    "render",
+    "reprojection_residuals",
+    "target_from_spec",
+    "undistort_points",
+    "visible",
+]

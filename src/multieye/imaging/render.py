@@ -247,7 +247,7 @@ def _(target: AsymmetricCircleGrid, x, y):
 @lru_cache(maxsize=16)
 def _charuco_layout(target: Charuco):
     """Per square the marker index (-1: black square); per marker corner 0, unit axes, bits."""
-    board = charuco_board(target)
+    board = target.opencv_board()
     dictionary = board.getDictionary()
     nbits = dictionary.markerSize
     s = target.spacing
@@ -263,16 +263,6 @@ def _charuco_layout(target: Charuco):
     bits = np.stack([cv2.aruco.generateImageMarker(dictionary, int(i), nbits + 2, borderBits=1)
                      for i in ids]).astype(np.float32) / 255.0
     return square_marker, c0, eu, ev, bits
-
-
-def charuco_board(target: Charuco):
-    """The ``cv2.aruco.CharucoBoard`` of a :class:`Charuco` target (OpenCV's board frame:
-    origin at the outer corner of the top-left square, which is one square from ours)."""
-    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, target.dictionary))
-    board = cv2.aruco.CharucoBoard((target.cols, target.rows), target.spacing, target.marker_size,
-                                   dictionary)
-    board.setLegacyPattern(target.legacy)
-    return board
 
 
 @_reflectance.register
@@ -299,27 +289,10 @@ def _(target: Charuco, x, y):
     return out
 
 
-@lru_cache(maxsize=16)
-def _aprilgrid_bits(target: AprilGrid) -> NDArray[np.float32]:
-    """Tag images as printed by Kalibr, (n_tags, 10, 10), row 0 at the top (+y), 1 = white.
-
-    Kalibr prints each AprilTag 36h11 code with a 2-bit black border, turned by a half turn
-    with respect to OpenCV's ``generateImageMarker`` of the same id (checked against Kalibr's
-    code table for several ids; the detector relies on the same fact).
-    """
-    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
-    n = target.rows * target.cols
-    out = np.zeros((n, 10, 10), dtype=np.float32)
-    for t in range(n):
-        img = cv2.aruco.generateImageMarker(dictionary, t, 8, borderBits=1)
-        out[t, 2:8, 2:8] = np.rot90(img[1:7, 1:7], 2) / 255.0
-    return out
-
-
 @_reflectance.register
 def _(target: AprilGrid, x, y):
     size, pitch = target.spacing, target.pitch
-    bits = _aprilgrid_bits(target)
+    bits = target.tag_images()
     tc = np.floor(x / pitch).astype(np.int64)
     tr = np.floor(y / pitch).astype(np.int64)
     lx = x - tc * pitch

@@ -39,6 +39,7 @@ Synopsis
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any, ClassVar, Mapping
 
 import numpy as np
@@ -261,6 +262,16 @@ class Charuco(Target):
     def grid_shape(self):
         return (self.rows - 1, self.cols - 1)
 
+    def opencv_board(self):
+        """The ``cv2.aruco.CharucoBoard`` of this target. OpenCV's board frame has its origin
+        at the outer corner of the top-left square, one square from the canonical origin."""
+        import cv2
+
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        board = cv2.aruco.CharucoBoard((self.cols, self.rows), self.spacing, self.marker_size, dictionary)
+        board.setLegacyPattern(self.legacy)
+        return board
+
 
 def aruco_dictionary_size(name: str) -> int:
     """Number of markers in the OpenCV predefined dictionary ``name`` (e.g. ``"DICT_5X5_100"``).
@@ -324,12 +335,41 @@ class AprilGrid(Target):
     def grid_shape(self):
         return (2 * self.rows, 2 * self.cols)
 
+    def tag_images(self) -> NDArray[np.float32]:
+        """Every tag as printed, shape (rows * cols, 10, 10): 1 white, 0 black, a 2-bit black
+        border around the 6x6 code, row 0 at the top of the sheet (+y), column 0 at -x.
+
+        Kalibr draws AprilTag 36h11 code t turned by a half turn with respect to OpenCV's
+        ``cv2.aruco.generateImageMarker`` of ``DICT_APRILTAG_36h11`` id t (checked against
+        the code table of ``kalibr_create_target_pdf`` for several ids).
+        """
+        return _kalibr_tag_images(self.rows * self.cols).copy()
+
+    def tag_corners(self, tag_id: int) -> F64:
+        """Board (x, y) of a tag's corners, metres, shape (4, 2), in Kalibr's order:
+        bottom-left, bottom-right, top-right, top-left as printed."""
+        tr, tc = divmod(int(tag_id), self.cols)
+        x0, y0, s = tc * self.pitch, tr * self.pitch, self.spacing
+        return np.array([[x0, y0], [x0 + s, y0], [x0 + s, y0 + s], [x0, y0 + s]])
+
     def tag_corner_ids(self, tag_id: int) -> tuple[int, int, int, int]:
         """Point ids of a tag's corners: bottom-left, bottom-right, top-right, top-left
         (as printed; Kalibr's order)."""
         width = 2 * self.cols
         base = (tag_id // self.cols) * 2 * width + (tag_id % self.cols) * 2
         return (base, base + 1, base + width + 1, base + width)
+
+
+@lru_cache(maxsize=4)
+def _kalibr_tag_images(n: int) -> NDArray[np.float32]:
+    import cv2
+
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    out = np.zeros((n, 10, 10), dtype=np.float32)
+    for t in range(n):
+        img = cv2.aruco.generateImageMarker(dictionary, t, 8, borderBits=1)
+        out[t, 2:8, 2:8] = np.rot90(img[1:7, 1:7], 2) / 255.0
+    return out
 
 
 TARGET_TYPES: dict[str, type[Target]] = {

@@ -1,0 +1,200 @@
+"""Detection and PnP over many image files, in parallel processes.
+
+Synopsis
+--------
+>>> from multieye.imaging.batch import detect_and_estimate
+>>> results = detect_and_estimate(sorted(Path("cam0").glob("*.png")), board, intrinsics)  # doctest: +SKIP
+>>> [(r.path, r.pose.rms_px) for r in results if r.ok]                                    # doctest: +SKIP
+>>> [(r.path, r.reason) for r in results if not r.ok]                                     # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import Iterable
+
+import cv2
+
+from ..errors import InputError
+from ..intrinsics import Intrinsics
+from .detect import Detection, detect
+from .pnp import PoseEstimate, estimate_pose
+from .targets import Target
+
+__all__ = ["ImageResult", "detect_and_estimate", "process_image", "DEFAULT_MAX_RMS_PX"]
+
+#: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
+DEFAULT_MAX_RMS_PX = 2.0
+
+#: Chunks per worker: enough for load balance, few enough that start-up and pickling stay small.
+_CHUNKS_PER_WORKER = 4
+
+
+@dataclass(frozen=True)
+class ImageResult:
+    """Outcome for one image file.
+
+    Attributes
+    ----------
+    path : str
+    pose : PoseEstimate or None
+        The pose when the image is usable (``reason is None``); also kept, for diagnosis,
+        when the fit was rejected as bad.
+    detection : Detection or None
+        The detected points, when the target was found.
+    reason : str or None
+        Why the image is left out: unreadable file, target not found, PnP failure, or a
+        reprojection RMS above the threshold. None for a usable image.
+    warnings : tuple of str
+        From the detector (e.g. an ambiguous point order).
+    """
+
+    path: str
+    pose: PoseEstimate | None
+    detection: Detection | None
+    reason: str | None
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        """True when the image gave a usable pose."""
+        return self.reason is None
+
+
+def process_image(path, target: Target, intrinsics: Intrinsics, *,
+                  max_rms_px: float = DEFAULT_MAX_RMS_PX) -> ImageResult:
+    """Read one image, detect the target, estimate its pose; failures become a reason.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    target : Target
+    intrinsics : Intrinsics
+    max_rms_px : float
+        Reprojection RMS, pixels, above which the fit counts as bad.
+
+    Returns
+    -------
+    ImageResult
+        Never raises for a bad image (missing, unreadable, empty, wrong size for OpenCV's
+        detectors, no target, degenerate points); programming errors still raise.
+    """
+    path = str(path)
+    image = cv2.imread(path, cv2.IMREAD_GRAYSCALE) if os.path.isfile(path) else None
+    if image is None or image.size == 0:
+        reason = "file not found" if not os.path.exists(path) else "unreadable image file"
+        return ImageResult(path, None, None, reason)
+    try:
+        detection = detect(image, target)
+    except (InputError, cv2.error) as exc:
+        return ImageResult(path, None, None, f"detection failed: {_first_line(exc)}")
+    if detection is None:
+        return ImageResult(path, None, None, f"{target.kind} not found")
+    try:
+        pose = estimate_pose(detection, intrinsics)
+    except (InputError, cv2.error) as exc:
+        return ImageResult(path, None, detection, f"PnP failed: {_first_line(exc)}", detection.warnings)
+    reason = None
+    if not pose.rms_px <= max_rms_px:
+        reason = f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px"
+    return ImageResult(path, pose, detection, reason, detection.warnings)
+
+
+def _first_line(exc: Exception) -> str:
+    text = str(exc).strip().splitlines()
+    return text[-1].strip() if text else type(exc).__name__
+
+
+# Per-worker state, set once by the pool initializer so that tasks carry only a path.
+_WORKER: dict = {}
+
+
+def _init_worker(target: Target, intrinsics: Intrinsics, max_rms_px: float) -> None:
+    cv2.setNumThreads(1)            # one process per core: no nested thread pools
+    _WORKER.update(target=target, intrinsics=intrinsics, max_rms_px=max_rms_px)
+
+
+def _work(path: str) -> ImageResult:
+    return process_image(path, _WORKER["target"], _WORKER["intrinsics"], max_rms_px=_WORKER["max_rms_px"])
+
+
+def _available_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:          # not on Linux
+        return os.cpu_count() or 1
+
+
+def _mp_context():
+    """forkserver where it exists (workers forked from a clean server: no OpenCV threads
+    copied into them), spawn elsewhere."""
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics, *,
+                        processes: int | None = None, progress: bool | None = None,
+                        max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
+    """Detect ``target`` and estimate its pose in every image, in parallel processes.
+
+    Parameters
+    ----------
+    paths : iterable of str or os.PathLike
+        Image files (any format OpenCV reads; colour is converted to gray).
+    target : Target
+    intrinsics : Intrinsics
+    processes : int, optional
+        Worker processes; default the cores this process may use, at most one per image.
+        1 runs in this process.
+    progress : bool, optional
+        Show a tqdm progress bar on stderr; default only when stderr is a terminal.
+    max_rms_px : float
+        Reprojection RMS, pixels, above which an image is rejected as a bad fit.
+
+    Returns
+    -------
+    list of ImageResult
+        One per path, in input order; unreadable or failed images carry a ``reason``.
+
+    Notes
+    -----
+    Paths go to the workers in chunks (about four per worker) so that process start-up and
+    inter-process traffic stay small next to detection; each worker holds the target and
+    intrinsics from its start and runs OpenCV single-threaded.
+    """
+    paths = [str(p) for p in paths]
+    if processes is not None and (isinstance(processes, bool) or int(processes) < 1):
+        raise InputError(f"processes must be a positive integer, got {processes!r}")
+    n_workers = min(_available_cores() if processes is None else int(processes), max(len(paths), 1))
+    show = sys.stderr.isatty() if progress is None else bool(progress)
+    bar = None
+    if show:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(paths), desc=f"detecting {target.kind}", unit="img", file=sys.stderr)
+    try:
+        if n_workers <= 1:
+            results = []
+            for p in paths:
+                results.append(process_image(p, target, intrinsics, max_rms_px=max_rms_px))
+                if bar is not None:
+                    bar.update(1)
+            return results
+        chunksize = max(1, math.ceil(len(paths) / (n_workers * _CHUNKS_PER_WORKER)))
+        with ProcessPoolExecutor(n_workers, mp_context=_mp_context(), initializer=_init_worker,
+                                 initargs=(target, intrinsics, max_rms_px)) as pool:
+            results = []
+            for r in pool.map(_work, paths, chunksize=chunksize):
+                results.append(r)
+                if bar is not None:
+                    bar.update(1)
+            return results
+    finally:
+        if bar is not None:
+            bar.close()
+

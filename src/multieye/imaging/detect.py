@@ -1,0 +1,454 @@
+"""Find a calibration target in an image: point ids, pixels and object points in canonical order.
+
+=================== ==================================================================
+target              detector
+=================== ==================================================================
+chessboard          ``cv2.findChessboardCornersSB``, fallback ``cv2.findChessboardCorners``;
+                    then ``cv2.cornerSubPix``
+circles             ``cv2.findCirclesGrid`` on the image, then on its negative (dark
+asymmetric-circles  circles on light and light on dark both), then with clustering
+charuco             ``cv2.aruco.CharucoDetector`` (partial views; ids from the markers)
+aprilgrid           ``cv2.aruco.ArucoDetector`` with ``DICT_APRILTAG_36h11`` and a 2-bit
+                    marker border as Kalibr prints it, then ``cv2.cornerSubPix`` on the
+                    tag corners (partial views; ids from the tags)
+=================== ==================================================================
+
+Canonical order (grid targets): OpenCV's order is only defined up to the symmetries of the
+grid (it may start from any corner that keeps its rows and columns). The detected grid is
+reordered so that (1) the target frame is right-handed with z into the board, i.e. the map
+from the board to the image keeps orientation, and (2) for a chessboard whose half turn
+swaps the colours (``rows + cols`` odd), the square next to the first corner is black (see
+:class:`~multieye.imaging.targets.Chessboard`). When a symmetry of the board leaves the
+order undecidable (``rows + cols`` even, symmetric circle grids, asymmetric grids with an
+even number of rows, square grids) the order whose x axis points most to the right in the
+image is kept and :attr:`Detection.warnings` says so.
+
+Synopsis
+--------
+>>> from multieye.imaging.detect import detect                      # doctest: +SKIP
+>>> det = detect(cv2.imread("cam0/1.5.png"), board)                 # doctest: +SKIP
+>>> det.ids, det.image_points, det.object_points, det.warnings      # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import InputError
+from .targets import AprilGrid, AsymmetricCircleGrid, Charuco, Chessboard, CircleGrid, Target
+
+__all__ = ["Detection", "detect", "to_gray"]
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Detection:
+    """The target points found in one image.
+
+    Attributes
+    ----------
+    ids : ndarray of int, shape (N,)
+        Point ids (rows of ``target.object_points()``), increasing.
+    image_points : ndarray, shape (N, 2)
+        Pixels, float64; pixel (0, 0) is the centre of the top-left pixel.
+    object_points : ndarray, shape (N, 3)
+        The same points in the canonical target frame, metres.
+    warnings : tuple of str
+        Problems the caller should pass on (e.g. an order that the board's symmetry leaves
+        undecided).
+    """
+
+    ids: NDArray[np.int64]
+    image_points: F64
+    object_points: F64
+    warnings: tuple[str, ...] = ()
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+def to_gray(image: ArrayLike) -> NDArray[np.uint8]:
+    """8-bit grayscale copy of an image: (H, W) or (H, W, 1|3|4) BGR(A), uint8 or uint16/float.
+
+    Other bit depths are scaled by their maximum to 0..255.
+    """
+    img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim == 3 and img.shape[2] in (3, 4):
+        if img.dtype != np.uint8:
+            img = _to_uint8(img)
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if img.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
+    if img.ndim != 2 or min(img.shape) < 8:
+        raise InputError(f"image must be (H, W) or (H, W, 3) with sides of at least 8 pixels, got {img.shape}")
+    return np.ascontiguousarray(_to_uint8(img))
+
+
+def _to_uint8(img: np.ndarray) -> NDArray[np.uint8]:
+    if img.dtype == np.uint8:
+        return img
+    top = float(np.nanmax(img)) if img.size else 0.0
+    scale = 255.0 / top if top > 0 else 1.0
+    return np.clip(np.nan_to_num(img.astype(np.float64) * scale), 0, 255).astype(np.uint8)
+
+
+def detect(image: ArrayLike, target: Target) -> Detection | None:
+    """Detect ``target`` in ``image``.
+
+    Parameters
+    ----------
+    image : array_like
+        Grayscale (H, W) or BGR (H, W, 3) image, see :func:`to_gray`.
+    target : Target
+
+    Returns
+    -------
+    Detection or None
+        None when the target is not found: a grid target must be found whole; a ChArUco
+        board or an AprilGrid needs at least 4 points (one tag, or four inner corners).
+
+    Notes
+    -----
+    Degenerate cases: a board seen very obliquely or blurred may be missed (None), never
+    half-ordered; a grid board whose symmetry leaves the order undecided is returned with a
+    warning (see the module docstring); several AprilTags with the same id (a stray tag in
+    view) are dropped, with a warning.
+    """
+    gray = to_gray(image)
+    if isinstance(target, Chessboard):
+        return _detect_chessboard(gray, target)
+    if isinstance(target, (CircleGrid, AsymmetricCircleGrid)):
+        return _detect_circles(gray, target)
+    if isinstance(target, Charuco):
+        return _detect_charuco(gray, target)
+    if isinstance(target, AprilGrid):
+        return _detect_aprilgrid(gray, target)
+    raise InputError(f"no detector for target type {type(target).__name__}")
+
+
+# --------------------------------------------------------------------------- grids
+
+#: Images with a longer side than this are searched at half size first (4x faster).
+_HALF_SIZE_SEARCH_ABOVE_PX = 1000
+
+
+def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection | None:
+    """findChessboardCornersSB (half size first on large images), then the classic detector;
+    corners refined with cornerSubPix at full size in a window of 40 % of a square.
+
+    SB's own CALIB_CB_ACCURACY costs 4x the time and gained nothing over cornerSubPix on its
+    corners (PnP RMS on the young_mocap_cam images)."""
+    size = (target.cols, target.rows)
+    corners = None
+    if max(gray.shape) > _HALF_SIZE_SEARCH_ABOVE_PX:
+        half = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
+        found, small = cv2.findChessboardCornersSB(half, size, flags=0)
+        if found:
+            corners = 2.0 * small.reshape(-1, 2).astype(np.float64) + 0.5   # pixel centres
+    if corners is None:
+        found, full = cv2.findChessboardCornersSB(gray, size, flags=0)
+        if not found:
+            found, full = cv2.findChessboardCorners(
+                gray, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+            if not found:
+                return None
+        corners = full.reshape(-1, 2).astype(np.float64)
+    corners = _refine_corners(gray, corners, _corner_window(corners, target))
+    return _canonical(gray, target, corners)
+
+
+def _corner_window(points: F64, target: Target) -> int:
+    """Half-size of the cornerSubPix window: 40 % of the smallest neighbour distance."""
+    rows, cols = target.grid_shape()
+    grid = points.reshape(rows, cols, 2)
+    d = np.concatenate([np.linalg.norm(np.diff(grid, axis=0), axis=2).ravel(),
+                        np.linalg.norm(np.diff(grid, axis=1), axis=2).ravel()])
+    return int(np.clip(0.4 * np.min(d), 2, 11))
+
+
+def _refine_corners(gray: NDArray[np.uint8], points: F64, half: int) -> F64:
+    pts = points.astype(np.float32).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
+    cv2.cornerSubPix(gray, pts, (half, half), (-1, -1), criteria)
+    return pts.reshape(-1, 2).astype(np.float64)
+
+
+def _detect_circles(gray: NDArray[np.uint8], target: CircleGrid | AsymmetricCircleGrid) -> Detection | None:
+    size = (target.cols, target.rows)
+    grid = cv2.CALIB_CB_ASYMMETRIC_GRID if isinstance(target, AsymmetricCircleGrid) else cv2.CALIB_CB_SYMMETRIC_GRID
+    blobs = _blob_detector(gray.shape[0] * gray.shape[1] / (target.rows * target.cols))
+    for flags in (grid, grid | cv2.CALIB_CB_CLUSTERING):
+        for img in (gray, 255 - gray):
+            found, centres = cv2.findCirclesGrid(img, size, flags=flags, blobDetector=blobs)
+            if found:
+                return _canonical(gray, target, centres.reshape(-1, 2).astype(np.float64))
+    return None
+
+
+def _blob_detector(max_area: float):
+    """Dark-blob detector that accepts small circles and circles up to ``max_area`` px."""
+    params = cv2.SimpleBlobDetector_Params()
+    params.minArea = 8.0
+    params.maxArea = float(max(max_area, 100.0))
+    params.minDistBetweenBlobs = 3.0
+    return cv2.SimpleBlobDetector_create(params)
+
+
+@lru_cache(maxsize=32)
+def _symmetries(target: Target) -> tuple[tuple[NDArray[np.int64], bool], ...]:
+    """Index permutations of the point grid that an isometry of the board induces.
+
+    Each entry ``(perm, proper)``: object point ``perm[k]`` is where an isometry (a rotation
+    when ``proper``, else a reflection) takes object point k. Candidates are the grid's
+    flips (and transposes of a square grid); only those that keep the point set are kept.
+    """
+    rows, cols = target.grid_shape()
+    P = target.object_points()[:, :2]
+    idx = np.arange(rows * cols).reshape(rows, cols)
+    candidates = [idx, idx[::-1, :], idx[:, ::-1], idx[::-1, ::-1]]
+    if rows == cols:
+        candidates += [c.T for c in candidates]
+    out = []
+    for cand in candidates:
+        perm = cand.ravel()
+        A = P - P.mean(axis=0)
+        B = P[perm] - P[perm].mean(axis=0)
+        U, _, Vt = np.linalg.svd(A.T @ B)
+        Q = U @ Vt                               # best orthogonal map A -> B (Procrustes)
+        if np.allclose(A @ Q, B, atol=1e-9 * target.spacing + 1e-12):
+            out.append((perm, bool(np.linalg.det(Q) > 0)))
+    return tuple(out)
+
+
+def _affine(obj_xy: F64, img: F64) -> F64:
+    """2x2 linear part of the least-squares affine map from board (x, y) to pixels."""
+    A = obj_xy - obj_xy.mean(axis=0)
+    B = img - img.mean(axis=0)
+    M, *_ = np.linalg.lstsq(A, B, rcond=None)
+    return M.T
+
+
+def _canonical(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detection:
+    """Reorder a full-grid detection (OpenCV's order) into the canonical order.
+
+    Candidate orders are the board's symmetries applied to the detected order; kept are
+    those with the canonical handedness, then (chessboard) the one whose colours fit the
+    image best; ties left by the board's symmetry are broken by the direction of the x
+    axis in the image and reported.
+    """
+    obj = target.object_points()
+    proper_id = np.linalg.det(_affine(obj[:, :2], detected)) > 0
+    # source[c] = detected index that lands on canonical point c
+    sources = [np.argsort(perm) for perm, proper in _symmetries(target) if proper == proper_id]
+    warnings: tuple[str, ...] = ()
+    if isinstance(target, Chessboard):
+        signature = [_dark_squares(src, target) for src in sources]
+        scores = [_colour_score(gray, detected[src], target) for src in sources]
+        best = signature[int(np.argmax(scores))]
+        sources = [src for src, sig in zip(sources, signature) if sig == best]
+    if len(sources) > 1:
+        right = []
+        for src in sources:
+            x_dir = _affine(obj[:, :2], detected[src])[:, 0]
+            right.append(x_dir[0] / np.linalg.norm(x_dir))
+        sources = [sources[int(np.argmax(right))]]
+        warnings = (f"{target.kind} {target.rows}x{target.cols} looks the same after a turn, so its "
+                    "point order cannot be told from the image; the order whose x axis points right "
+                    "in the image was taken (use a board without that symmetry, e.g. a chessboard "
+                    "with rows + cols odd, to make poses comparable across images)",)
+    return Detection(ids=np.arange(len(obj)), image_points=detected[sources[0]],
+                     object_points=obj, warnings=warnings)
+
+
+def _square_corners(target: Chessboard) -> NDArray[np.int64]:
+    """Canonical ids of the 4 corners of every inner square, shape (n_squares, 4)."""
+    r, c = np.divmod(np.arange((target.rows - 1) * (target.cols - 1)), target.cols - 1)
+    first = r * target.cols + c
+    return np.column_stack([first, first + 1, first + target.cols, first + target.cols + 1])
+
+
+def _expected_black(target: Chessboard) -> NDArray[np.bool_]:
+    """Per inner square (canonical, row-major): black? (the square at the first corner is)."""
+    r, c = np.divmod(np.arange((target.rows - 1) * (target.cols - 1)), target.cols - 1)
+    return (r + c) % 2 == 0
+
+
+def _dark_squares(source: NDArray[np.int64], target: Chessboard) -> frozenset:
+    """The physical squares (as sets of detected corner indices) an order expects black."""
+    sq = source[_square_corners(target)]
+    return frozenset(frozenset(row) for row in sq[_expected_black(target)].tolist())
+
+
+def _colour_score(gray: NDArray[np.uint8], ordered: F64, target: Chessboard) -> float:
+    """Mean grey of the squares expected white minus that of those expected black."""
+    centres = ordered[_square_corners(target)].mean(axis=1).astype(np.float32)
+    blurred = cv2.blur(gray, (3, 3)).astype(np.float32)
+    values = cv2.remap(blurred, centres[:, 0].reshape(1, -1), centres[:, 1].reshape(1, -1),
+                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).ravel()
+    black = _expected_black(target)
+    return float(values[~black].mean() - values[black].mean())
+
+
+# --------------------------------------------------------------------------- markers
+
+@lru_cache(maxsize=8)
+def _charuco_detector(target: Charuco):
+    return cv2.aruco.CharucoDetector(target.opencv_board())
+
+
+def _detect_charuco(gray: NDArray[np.uint8], target: Charuco) -> Detection | None:
+    # OpenCV places the corners by local homographies of the markers and refines them with
+    # cornerSubPix in a window that stays clear of the markers; refining again does not help
+    corners, ids, _, _ = _charuco_detector(target).detectBoard(gray)
+    if ids is None or len(ids) < 4:
+        return None
+    ids = ids.ravel().astype(np.int64)
+    order = np.argsort(ids)
+    ids = ids[order]
+    return Detection(ids=ids, image_points=corners.reshape(-1, 2)[order].astype(np.float64),
+                     object_points=target.object_points()[ids])
+
+
+#: Kalibr corner (0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left, as printed) of
+#: OpenCV's marker corners 0..3 (top-left, top-right, bottom-right, bottom-left of the
+#: marker as OpenCV draws it): Kalibr prints each tag a half turn from OpenCV's drawing.
+_KALIBR_CORNER_OF_CV = (1, 0, 3, 2)
+
+#: Largest number of the 100 cells of a tag (border included) allowed to read wrong.
+_MAX_BAD_CELLS = 4
+
+
+@lru_cache(maxsize=1)
+def _apriltag_detector():
+    params = cv2.aruco.DetectorParameters()
+    params.markerBorderBits = 2
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_NONE
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    return cv2.aruco.ArucoDetector(dictionary, params)
+
+
+def _detect_aprilgrid(gray: NDArray[np.uint8], target: AprilGrid) -> Detection | None:
+    """Tags found by OpenCV's marker detector, then grown over the grid.
+
+    Kalibr's black squares touch every tag corner, so the contour of a tag often merges with
+    them and OpenCV's contour-based detector misses the tag (most tags below ~40 px). Each tag
+    found seeds a search of its neighbours: their corners are predicted by a homography fitted
+    to the tags found nearby, refined as X-junctions (``cv2.cornerSubPix``) and accepted only
+    when the image read through them matches the tag's own code and border.
+    """
+    corners, ids, _ = _apriltag_detector().detectMarkers(gray)
+    if ids is None:
+        return None
+    ids = ids.ravel()
+    corners = np.asarray(corners, dtype=np.float64).reshape(-1, 4, 2)
+    warnings: tuple[str, ...] = ()
+    unique, counts = np.unique(ids, return_counts=True)
+    repeated = unique[counts > 1]
+    if len(repeated):
+        warnings = (f"AprilTag ids {sorted(repeated.tolist())} seen more than once (a tag that is not "
+                    "on the grid is in view); dropped",)
+    images = target.tag_images()
+    found: dict[int, F64] = {}
+    for t, quad in zip(ids, corners):
+        if t < target.rows * target.cols and t not in repeated:
+            kalibr = np.empty((4, 2))
+            kalibr[list(_KALIBR_CORNER_OF_CV)] = quad
+            refined = _refine_tag(gray, target, images[t], int(t), kalibr)
+            if refined is not None:
+                found[int(t)] = refined
+    _grow_aprilgrid(gray, target, images, found)
+    if not found:
+        return None
+    point_ids = np.array([target.tag_corner_ids(t) for t in found]).ravel()
+    pts = np.concatenate([found[t] for t in found])
+    order = np.argsort(point_ids)
+    ids_out = point_ids[order].astype(np.int64)
+    return Detection(ids=ids_out, image_points=pts[order], object_points=target.object_points()[ids_out],
+                     warnings=warnings)
+
+
+def _refine_tag(gray, target: AprilGrid, expected: NDArray, tag: int, quad: F64) -> F64 | None:
+    """Corners of one tag refined as X-junctions (Kalibr order), or None if they do not hold up.
+
+    The window stays inside the 2-bit border and the gap square around each corner; the
+    tag is rejected when a corner leaves its window or the image, or the tag read through
+    the refined corners does not match ``expected`` (see :func:`_tag_matches`).
+    """
+    h, w = gray.shape
+    side = np.mean(np.linalg.norm(quad - np.roll(quad, 1, axis=0), axis=1))
+    half = int(np.clip(np.floor(0.8 * min(0.2, target.tag_spacing) * side), 2, 15))
+    if np.any(quad < half + 1) or np.any(quad[:, 0] > w - half - 2) or np.any(quad[:, 1] > h - half - 2):
+        return None
+    refined = _refine_corners(gray, quad, half)
+    if np.any(np.linalg.norm(refined - quad, axis=1) >= half):
+        return None
+    return refined if _tag_matches(gray, target, expected, tag, refined) else None
+
+
+def _tag_matches(gray, target: AprilGrid, expected: NDArray, tag: int, quad: F64) -> bool:
+    """Whether the image, read on the tag's 10x10 cells through ``quad``, shows ``expected``.
+
+    Cells are sampled at their centres (bilinear) through the homography from the tag's
+    board corners to ``quad``; the threshold is halfway between the means of the cells
+    expected black and white. At most :data:`_MAX_BAD_CELLS` of the 100 may disagree, and
+    black and white must differ by 15 grey levels. AprilTag 36h11 codes differ in at least
+    11 bits under any rotation, so a wrong tag or a misplaced quad does not pass.
+    """
+    board = target.tag_corners(tag)
+    H = cv2.getPerspectiveTransform(board.astype(np.float32), quad.astype(np.float32))
+    b = target.spacing / 10
+    i, j = np.mgrid[0:10, 0:10]
+    cells = np.column_stack([(board[0, 0] + (j + 0.5) * b).ravel(),
+                             (board[0, 1] + (9 - i + 0.5) * b).ravel()])
+    uv = cv2.perspectiveTransform(cells.reshape(-1, 1, 2), H).reshape(-1, 2).astype(np.float32)
+    values = cv2.remap(gray, uv[:, 0].reshape(1, -1), uv[:, 1].reshape(1, -1), cv2.INTER_LINEAR,
+                       borderMode=cv2.BORDER_REPLICATE).ravel().astype(np.float64)
+    white = expected.ravel() > 0.5
+    lo, hi = values[~white].mean(), values[white].mean()
+    if hi - lo < 15:
+        return False
+    bad = np.sum((values > (lo + hi) / 2) != white)
+    return bool(bad <= _MAX_BAD_CELLS)
+
+
+def _grow_aprilgrid(gray, target: AprilGrid, images: NDArray, found: dict[int, F64]) -> None:
+    """Add to ``found`` the tags next to found ones that :func:`_refine_tag` confirms."""
+    queue = list(found)
+    tried: set[int] = set(found)
+    while queue:
+        t = queue.pop()
+        tr, tc = divmod(t, target.cols)
+        for dr in (-1, 0, 1):
+            for dc in (-1, 0, 1):
+                r, c = tr + dr, tc + dc
+                n = r * target.cols + c
+                if not (0 <= r < target.rows and 0 <= c < target.cols) or n in tried:
+                    continue
+                tried.add(n)
+                quad = _predict_tag(target, found, n)
+                if quad is None:
+                    continue
+                refined = _refine_tag(gray, target, images[n], n, quad)
+                if refined is not None:
+                    found[n] = refined
+                    queue.append(n)
+
+
+def _predict_tag(target: AprilGrid, found: dict[int, F64], tag: int) -> F64 | None:
+    """Image corners of ``tag`` by a homography fitted to the found tags around it."""
+    tr, tc = divmod(tag, target.cols)
+    near = [t for t in found if max(abs(t // target.cols - tr), abs(t % target.cols - tc)) <= 1]
+    if not near:
+        return None
+    board = np.concatenate([target.tag_corners(t) for t in near])
+    image = np.concatenate([found[t] for t in near])
+    H, _ = cv2.findHomography(board, image, 0)
+    if H is None:
+        return None
+    return cv2.perspectiveTransform(target.tag_corners(tag).reshape(-1, 1, 2), H).reshape(4, 2)
