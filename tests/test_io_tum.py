@@ -147,7 +147,7 @@ def test_missing_empty_and_binary_files(tmp_path):
     with pytest.raises(DatasetError, match="trajectory file not found"):
         read_tum(tmp_path / "none.txt")
     (tmp_path / "empty.txt").write_text("# only a comment\n\n")
-    with pytest.raises(DatasetError, match="no poses"):
+    with pytest.raises(DatasetError, match="no rows: expected lines"):
         read_tum(tmp_path / "empty.txt")
     (tmp_path / "bin.txt").write_bytes(b"0 0 0 0 0 0 0 1\n\xff\xfe\n")
     with pytest.raises(DatasetError, match="not a UTF-8 text file") as info:

@@ -85,6 +85,28 @@ def _blank(row: Sequence[str]) -> bool:
     return all(not c.strip() for c in row)
 
 
+def _complete_rows(rows, start: int, columns: Sequence[int], names: Sequence[str], path, *,
+                   section_ends_at_blank: bool, missing: str):
+    """Numbers of ``columns`` in the rows from ``start`` on, skipping rows with a blank cell
+    (an occluded sample); returns ``(array (N, len(columns)), 1-based lines)``."""
+    values, lines = [], []
+    for i in range(start, len(rows)):
+        row = rows[i]
+        if _blank(row):
+            if section_ends_at_blank:
+                break
+            continue
+        cells = [row[j].strip() if j < len(row) else "" for j in columns]
+        if not all(cells):
+            continue
+        values.append([parse_float(c, path=path, line=i + 1, name=n)
+                       for c, n in zip(cells, names)])
+        lines.append(i + 1)
+    if not values:
+        raise DatasetError(missing, path=path)
+    return np.asarray(values), lines
+
+
 # --------------------------------------------------------------------------- generic CSV
 
 
@@ -298,20 +320,9 @@ def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *
         raise DatasetError("no 'Time (Seconds)' column", path=path, line=frame_row + 1)
     order = [time_col] + [cols[w] for w in wanted]
     cell_names = ["Time (Seconds)"] + [f"{body} {q} {a}" for q, a in wanted]
-    values, lines = [], []
-    for i in range(frame_row + 1, len(rows)):
-        row = rows[i]
-        if _blank(row):
-            continue
-        cells = [row[j].strip() if j < len(row) else "" for j in order]
-        if not all(cells):
-            continue  # rigid body not tracked in this frame
-        values.append([parse_float(c, path=path, line=i + 1, name=n)
-                       for c, n in zip(cells, cell_names)])
-        lines.append(i + 1)
-    if not values:
-        raise DatasetError(f"rigid body {body!r} is not tracked in any frame", path=path)
-    data = np.asarray(values)
+    data, lines = _complete_rows(rows, frame_row + 1, order, cell_names, path,
+                                 section_ends_at_blank=False,
+                                 missing=f"rigid body {body!r} is not tracked in any frame")
     T = quaternion_poses(data[:, 1:4] * scale, data[:, 4:8], path=path, lines=lines)
     return trajectory_from_rows(data[:, 0], T, path=path, lines=lines, parent=parent,
                                 child=child)
@@ -385,20 +396,9 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
                            f"{sorted(length)}", path=path, line=s + 5)
     to_rad = np.pi / 180.0 if angle == {"deg"} else 1.0
     scale = LENGTH_UNITS[length.pop()]
-    values, lines = [], []
-    for i in range(s + 5, len(rows)):
-        row = rows[i]
-        if _blank(row):
-            break  # end of the section
-        cells = [row[j].strip() if j < len(row) else "" for j in [0, *order]]
-        if not all(cells):
-            continue  # segment not reconstructed in this frame
-        values.append([parse_float(c, path=path, line=i + 1, name=n)
-                       for c, n in zip(cells, ("Frame",) + wanted)])
-        lines.append(i + 1)
-    if not values:
-        raise DatasetError(f"segment {name!r} has no frame with a complete pose", path=path)
-    data = np.asarray(values)
+    data, lines = _complete_rows(rows, s + 5, [0, *order], ("Frame",) + wanted, path,
+                                 section_ends_at_blank=True,
+                                 missing=f"segment {name!r} has no frame with a complete pose")
     T = geometry.transform_from_rotvec(data[:, 4:7] * to_rad, data[:, 1:4] * scale)
     return trajectory_from_rows(data[:, 0] / rate, T, path=path, lines=lines, parent=parent,
                                 child=child)

@@ -10,8 +10,10 @@ from __future__ import annotations
 import math
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+
+import numpy as np
 
 from ..errors import DatasetError
 
@@ -20,6 +22,7 @@ __all__ = [
     "data_lines",
     "split_fields",
     "parse_float",
+    "read_number_rows",
     "LENGTH_UNITS",
     "length_scale",
 ]
@@ -96,6 +99,48 @@ def parse_float(token: str, *, path: str | os.PathLike | None, line: int | None,
         raise DatasetError(f"expected a finite number for {name}, got {token.strip()!r}",
                            path=path, line=line)
     return value
+
+
+def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: str,
+                     what: str = "file") -> tuple[np.ndarray, list[int]]:
+    """Rows of numbers separated by commas and/or spaces, with ``#`` comments and blank lines.
+
+    Parameters
+    ----------
+    path : path-like
+    columns : sequence of str
+        Name of each column, for messages; every row must have exactly this many entries.
+    files : str
+        How messages name the format: ``"TUM trajectory files"`` gives "TUM trajectory files
+        must have 8 entries per row, got 7 (expected t tx ty tz qx qy qz qw)".
+    what : str
+        How a missing-file message names the file.
+
+    Returns
+    -------
+    data : ndarray, shape (N, len(columns)), float64
+    lines : list of int
+        1-based line of each row.
+
+    Raises
+    ------
+    DatasetError
+        Missing or unreadable file, a row with another number of entries, a cell that is not a
+        finite number (each with the line), or no rows at all.
+    """
+    rows, lines = [], []
+    for number, content in data_lines(read_text(path, what=what)):
+        fields = split_fields(content)
+        if len(fields) != len(columns):
+            raise DatasetError(f"{files} must have {len(columns)} entries per row, got "
+                               f"{len(fields)} (expected {' '.join(columns)})",
+                               path=path, line=number)
+        rows.append([parse_float(f, path=path, line=number, name=name)
+                     for f, name in zip(fields, columns)])
+        lines.append(number)
+    if not rows:
+        raise DatasetError(f"no rows: expected lines '{' '.join(columns)}'", path=path)
+    return np.asarray(rows), lines
 
 
 def length_scale(unit: str, *, path: str | os.PathLike | None = None,

@@ -25,13 +25,10 @@ from __future__ import annotations
 
 import os
 
-import numpy as np
-
 from .. import geometry
-from ..errors import DatasetError
 from .atomic import atomic_output
 from .poserows import quaternion_poses, trajectory_from_rows
-from .textfile import data_lines, length_scale, parse_float, read_text, split_fields
+from .textfile import length_scale, read_number_rows
 from .trajectory import Trajectory
 
 __all__ = ["read_tum", "write_tum", "TUM_COLUMNS"]
@@ -66,20 +63,8 @@ def read_tum(path: str | os.PathLike, *, unit: str = "m", parent: str = "world",
         number, a non-unit quaternion, stamps that repeat or go back, or an empty file.
     """
     scale = length_scale(unit, path=path)
-    text = read_text(path, what="trajectory file")
-    rows, lines = [], []
-    for number, content in data_lines(text):
-        fields = split_fields(content)
-        if len(fields) != 8:
-            raise DatasetError("TUM trajectory files must have 8 entries per row, got "
-                               f"{len(fields)} (expected t tx ty tz qx qy qz qw)",
-                               path=path, line=number)
-        rows.append([parse_float(f, path=path, line=number, name=name)
-                     for f, name in zip(fields, TUM_COLUMNS)])
-        lines.append(number)
-    if not rows:
-        raise DatasetError("no poses: expected lines 't tx ty tz qx qy qz qw'", path=path)
-    data = np.asarray(rows)
+    data, lines = read_number_rows(path, TUM_COLUMNS, files="TUM trajectory files",
+                                   what="trajectory file")
     T = quaternion_poses(data[:, 1:4] * scale, data[:, 4:8], path=path, lines=lines)
     return trajectory_from_rows(data[:, 0], T, path=path, lines=lines, parent=parent,
                                 child=child, duplicates=duplicates)
