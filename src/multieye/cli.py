@@ -55,6 +55,56 @@ def main():
 
 
 @main.command()
+@click.argument("dataset", type=click.Path(path_type=Path))
+@click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              required=True, help="Output folder for calibration.json and camchain.yaml.")
+@click.option("--method", default="joint", show_default=True,
+              help="Solver: joint, wang2022, shah, li, tabb-c1, tabb-c2.")
+@click.option("--reference", default=None, help="Reference camera (default: the first).")
+@click.option("--processes", type=click.IntRange(1), default=None,
+              help="Detection processes (default: one per core).")
+@_user_errors
+def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
+              processes: int | None):
+    """Calibrate the rig in DATASET (a folder with rig.yaml, or the rig.yaml itself).
+
+    Writes OUT/calibration.json and OUT/camchain.yaml and prints a per-camera table.
+    """
+    from .pipeline import calibrate as run_calibration
+    from .pipeline import write_outputs
+    from .solvers import METHODS
+    from .summary import calibration_table
+
+    if method not in METHODS:
+        raise click.BadParameter(f"{method!r}; choose one of {', '.join(METHODS)}",
+                                 param_hint="--method")
+    run = run_calibration(dataset, method=method, reference=reference, processes=processes,
+                          progress=_progress_enabled())
+    paths, notes = write_outputs(run, out_dir)
+    click.echo(calibration_table(run.record))
+    for note in notes:
+        click.echo(f"note: {note}")
+    click.echo("wrote " + ", ".join(str(p) for p in paths))
+
+
+@main.command()
+@click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("demo_out"), show_default=True, help="Output folder.")
+@click.option("--seed", type=int, default=0, show_default=True)
+@_user_errors
+def demo(out_dir: Path, seed: int):
+    """Render a synthetic 4-camera surround rig, calibrate it and compare with ground truth.
+
+    OUT/dataset is a complete dataset (rig.yaml, images, mocap.txt, intrinsics,
+    ground_truth.json) that `multieye calibrate OUT/dataset -o ...` also accepts.
+    """
+    from .demo import run_demo
+
+    result = run_demo(out_dir, seed=seed, progress=_progress_enabled())
+    click.echo(result.text)
+
+
+@main.command()
 @click.argument("name", type=click.Choice(["noise", "cameras", "measurements", "timing"]))
 @click.option("--trials", type=click.IntRange(1), default=100, show_default=True,
               help="Monte Carlo trials per parameter value.")

@@ -51,8 +51,8 @@ __all__ = ["DatasetSpec", "GroundTruth", "render_dataset", "default_intrinsics"]
 def default_intrinsics(n_cameras: int, width: int, height: int, *, fisheye: tuple[int, ...] = (),
                        rng: np.random.Generator | None = None) -> list[Intrinsics]:
     """Plausible intrinsics: ~75 deg horizontal field of view, radial-tangential distortion
-    (5 coefficients) varying per camera; cameras listed in ``fisheye`` use the equidistant
-    model with a wider field of view."""
+    (k1 k2 p1 p2, which Kalibr's ``radtan`` can hold too) varying per camera; cameras listed
+    in ``fisheye`` use the equidistant model with a wider field of view."""
     rng = rng or np.random.default_rng(0)
     out = []
     for j in range(n_cameras):
@@ -69,8 +69,7 @@ def default_intrinsics(n_cameras: int, width: int, height: int, *, fisheye: tupl
                           [0, f * rng.uniform(0.995, 1.005), height / 2 - 0.5 + rng.uniform(-10, 10)],
                           [0, 0, 1]])
             dist = np.array([rng.uniform(-0.3, -0.15), rng.uniform(0.05, 0.12),
-                             rng.uniform(-1e-3, 1e-3), rng.uniform(-1e-3, 1e-3),
-                             rng.uniform(-0.03, 0.0)])
+                             rng.uniform(-1e-3, 1e-3), rng.uniform(-1e-3, 1e-3)])
             out.append(Intrinsics(K=K, dist=dist, model="pinhole", width=width, height=height))
     return out
 
