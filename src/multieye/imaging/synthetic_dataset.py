@@ -57,7 +57,7 @@ def default_intrinsics(n_cameras: int, width: int, height: int, *, fisheye: tupl
     out = []
     for j in range(n_cameras):
         if j in fisheye:
-            f = width / 3.2
+            f = width / 2.6
             K = np.array([[f, 0, width / 2 - 0.5 + rng.uniform(-8, 8)],
                           [0, f * rng.uniform(0.995, 1.005), height / 2 - 0.5 + rng.uniform(-8, 8)],
                           [0, 0, 1]])
@@ -87,7 +87,8 @@ class DatasetSpec:
     target : dict
         The ``target:`` mapping of rig.yaml.
     board_distance_m : float
-        Mean distance of the board from the camera it is shown to.
+        Mean distance of the board from a camera with a 75 degree field of view; cameras with
+        shorter focal lengths see it proportionally closer.
     camera_rate_hz, mocap_rate_hz : float
         Image rate while the board is in front of a camera, and motion-capture rate.
     mocap_noise : (float, float)
@@ -226,7 +227,9 @@ def render_dataset(out_dir: str | os.PathLike, spec: DatasetSpec = DatasetSpec()
     t0 = spec.start_time_s
     for j, name in enumerate(names):
         (out / name).mkdir(exist_ok=True)
-        pose = _motion(rng, _centered_board(target, spec.board_distance_m), duration)
+        # same apparent board size in every camera: closer to short focal lengths (fisheye)
+        distance = max(0.4, spec.board_distance_m * intr[j].K[0, 0] / (0.65 * spec.width))
+        pose = _motion(rng, _centered_board(target, distance), duration)
         # images at the camera rate, with a little trigger jitter
         t_img = (np.arange(spec.images_per_camera) + 0.5) / spec.camera_rate_hz
         t_img = t_img + rng.uniform(-0.01, 0.01, t_img.size)
