@@ -1,0 +1,157 @@
+"""Bad input: one clear line on stderr, exit status 2, and no calibration.json written."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from multieye import geometry as g
+from multieye.cli import main
+from multieye.intrinsics import Intrinsics
+from multieye.io import Trajectory, write_opencv_intrinsics, write_tum
+
+RIG = """\
+setup: eye-to-base
+target: {type: chessboard, rows: 6, cols: 9, spacing: 0.05}
+mocap:
+  file: mocap.txt
+  pose: T_world_marker
+  time_tolerance: 0.01
+cameras:
+  cam0: {intrinsics: cam.yaml, poses: cam0.txt}
+  cam1: {intrinsics: cam.yaml, poses: cam1.txt}
+"""
+
+
+@pytest.fixture
+def dataset(tmp_path):
+    """Two cameras given by precomputed T_cam_target, 12 poses each, exact data."""
+    rng = np.random.default_rng(0)
+    T_world_cam = g.random_transforms(rng, 2, translation_scale=2.0)
+    T_marker_target = g.random_transforms(rng, translation_scale=0.2)
+    stamps = np.arange(24) * 0.5
+    T_world_marker = g.random_transforms(rng, 24)
+    write_tum(tmp_path / "mocap.txt", Trajectory(stamps, T_world_marker))
+    for j in range(2):
+        sl = slice(12 * j, 12 * j + 12)
+        T_cam_target = g.inv(T_world_cam[j]) @ T_world_marker[sl] @ T_marker_target
+        write_tum(tmp_path / f"cam{j}.txt", Trajectory(stamps[sl], T_cam_target, "cam", "target"))
+    write_opencv_intrinsics(tmp_path / "cam.yaml",
+                            Intrinsics(K=np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]]),
+                                       dist=np.zeros(4), width=640, height=480))
+    (tmp_path / "rig.yaml").write_text(RIG)
+    return tmp_path
+
+
+def _run(args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def _fails(ds, out, *expected):
+    res = _run(["calibrate", ds, "-o", out])
+    assert res.exit_code == 2, (res.exit_code, res.stdout, res.stderr)
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1, res.stderr
+    assert "Traceback" not in res.stderr
+    for text in expected:
+        assert text in lines[0], lines[0]
+    assert not (out / "calibration.json").exists()
+    assert not (out / "camchain.yaml").exists()
+    return lines[0]
+
+
+def test_good_dataset_exits_0(dataset, tmp_path):
+    res = _run(["calibrate", dataset, "-o", tmp_path / "out"])
+    assert res.exit_code == 0, res.stderr
+    assert (tmp_path / "out" / "calibration.json").exists()
+    assert "cam1" in res.stdout
+
+
+def test_missing_dataset(tmp_path):
+    _fails(tmp_path / "nope", tmp_path / "out", "nope", "rig.yaml")
+
+
+def test_missing_motion_capture_file(dataset, tmp_path):
+    (dataset / "mocap.txt").unlink()
+    _fails(dataset, tmp_path / "out", "mocap.txt")
+
+
+def test_malformed_line_names_file_and_line(dataset, tmp_path):
+    lines = (dataset / "mocap.txt").read_text().splitlines()
+    k = next(i for i, l in enumerate(lines) if not l.startswith("#")) + 3
+    lines[k] = " ".join(lines[k].split()[:7])
+    (dataset / "mocap.txt").write_text("\n".join(lines) + "\n")
+    _fails(dataset, tmp_path / "out", f"mocap.txt:{k + 1}:", "8 entries")
+
+
+def test_non_unit_quaternion(dataset, tmp_path):
+    lines = (dataset / "cam1.txt").read_text().splitlines()
+    k = next(i for i, l in enumerate(lines) if not l.startswith("#")) + 1
+    parts = lines[k].split()
+    parts[4:8] = ["0.5", "0.5", "0.5", "0.9"]
+    lines[k] = " ".join(parts)
+    (dataset / "cam1.txt").write_text("\n".join(lines) + "\n")
+    _fails(dataset, tmp_path / "out", f"cam1.txt:{k + 1}:", "quaternion")
+
+
+def test_unknown_key_and_wrong_type_in_rig_yaml(dataset, tmp_path):
+    (dataset / "rig.yaml").write_text(RIG.replace("  time_tolerance: 0.01", "  time_tolerence: 0.01"))
+    _fails(dataset, tmp_path / "out", "rig.yaml:6", "time_tolerence")
+    (dataset / "rig.yaml").write_text(RIG.replace("rows: 6", "rows: six"))
+    _fails(dataset, tmp_path / "out", "rig.yaml:2", "rows")
+    (dataset / "rig.yaml").write_text(RIG.replace("eye-to-base", "eye-in-the-sky"))
+    _fails(dataset, tmp_path / "out", "rig.yaml:1", "eye-to-base")
+
+
+def test_camera_with_fewer_than_3_paired_images(dataset, tmp_path):
+    # move cam1's time stamps away from the motion capture except for two of them
+    lines = (dataset / "cam1.txt").read_text().splitlines()
+    data = [i for i, l in enumerate(lines) if not l.startswith("#")]
+    for i in data[2:]:
+        parts = lines[i].split()
+        parts[0] = str(float(parts[0]) + 0.25)
+        lines[i] = " ".join(parts)
+    (dataset / "cam1.txt").write_text("\n".join(lines) + "\n")
+    msg = _fails(dataset, tmp_path / "out", "camera cam1", "only 2 of 12", "at least 3")
+    assert "10 without motion capture" in msg
+
+
+def test_target_never_detected_in_one_camera(dataset, tmp_path):
+    (dataset / "cam1").mkdir()
+    for k in range(4):
+        cv2.imwrite(str(dataset / "cam1" / f"{k}.000000.png"), np.full((480, 640), 128, np.uint8))
+    (dataset / "rig.yaml").write_text(RIG.replace("cam1: {intrinsics: cam.yaml, poses: cam1.txt}",
+                                                  "cam1: {intrinsics: cam.yaml, images: cam1/}"))
+    _fails(dataset, tmp_path / "out", "camera cam1", "not detected in any of the 4 images")
+
+
+def test_unknown_method_and_reference(dataset, tmp_path):
+    res = _run(["calibrate", dataset, "-o", tmp_path / "out", "--method", "magic"])
+    assert res.exit_code == 2 and "magic" in res.stderr
+    _ = _run(["calibrate", dataset, "-o", tmp_path / "out", "--reference", "cam9"])
+    assert _.exit_code == 2 and "cam9" in _.stderr
+    assert not (tmp_path / "out" / "calibration.json").exists()
+
+
+def test_failed_run_leaves_previous_result_untouched(dataset, tmp_path):
+    out = tmp_path / "out"
+    assert _run(["calibrate", dataset, "-o", out]).exit_code == 0
+    before = (out / "calibration.json").read_bytes()
+    (dataset / "mocap.txt").write_text("garbage\n")
+    res = _run(["calibrate", dataset, "-o", out])
+    assert res.exit_code == 2
+    assert (out / "calibration.json").read_bytes() == before
+    assert sorted(p.name for p in out.iterdir()) == ["calibration.json", "camchain.yaml"]
+
+
+def test_console_script_help_is_instant_and_lists_commands():
+    res = subprocess.run([sys.executable, "-m", "multieye.cli", "--help"], capture_output=True,
+                         text=True, timeout=60)
+    assert res.returncode == 0
+    for cmd in ("calibrate", "demo", "experiment"):
+        assert cmd in res.stdout
