@@ -62,12 +62,17 @@ class Detection:
     warnings : tuple of str
         Problems the caller should pass on (e.g. an order that the board's symmetry leaves
         undecided).
+    circle_diameter : float or None
+        Circle grids whose target states its ``diameter``: that diameter, metres. The image
+        points are then blob centroids, which sit off the image of the circle centres under
+        perspective and distortion; :func:`~multieye.imaging.pnp.estimate_pose` corrects for it.
     """
 
     ids: NDArray[np.int64]
     image_points: F64
     object_points: F64
     warnings: tuple[str, ...] = ()
+    circle_diameter: float | None = None
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -179,20 +184,35 @@ def _refine_corners(gray: NDArray[np.uint8], points: F64, half: int) -> F64:
     return pts.reshape(-1, 2).astype(np.float64)
 
 
+#: Per circle target, whether its circles were last found light on dark: tried first next
+#: time, which halves the search on a folder of images of one board.
+_LIGHT_CIRCLES_FIRST: dict[Target, bool] = {}
+
+
 def _detect_circles(gray: NDArray[np.uint8], target: CircleGrid | AsymmetricCircleGrid) -> Detection | None:
+    """findCirclesGrid with OpenCV's default blob detector, then a permissive one (circles of
+    8 px area up to the whole board), then with clustering; each on the image (dark circles)
+    and on its negative (light circles), the polarity that worked last time first."""
     size = (target.cols, target.rows)
     grid = cv2.CALIB_CB_ASYMMETRIC_GRID if isinstance(target, AsymmetricCircleGrid) else cv2.CALIB_CB_SYMMETRIC_GRID
-    blobs = _blob_detector(gray.shape[0] * gray.shape[1] / (target.rows * target.cols))
-    for flags in (grid, grid | cv2.CALIB_CB_CLUSTERING):
-        for img in (gray, 255 - gray):
-            found, centres = cv2.findCirclesGrid(img, size, flags=flags, blobDetector=blobs)
+    permissive = _blob_detector(gray.shape[0] * gray.shape[1] / (target.rows * target.cols))
+    attempts = ((grid, None), (grid, permissive), (grid | cv2.CALIB_CB_CLUSTERING, None))
+    polarities = (True, False) if _LIGHT_CIRCLES_FIRST.get(target, False) else (False, True)
+    for flags, blobs in attempts:
+        for light in polarities:
+            img = 255 - gray if light else gray
+            if blobs is None:
+                found, centres = cv2.findCirclesGrid(img, size, flags=flags)
+            else:
+                found, centres = cv2.findCirclesGrid(img, size, flags=flags, blobDetector=blobs)
             if found:
+                _LIGHT_CIRCLES_FIRST[target] = light
                 return _canonical(gray, target, centres.reshape(-1, 2).astype(np.float64))
     return None
 
 
 def _blob_detector(max_area: float):
-    """Dark-blob detector that accepts small circles and circles up to ``max_area`` px."""
+    """Dark-blob detector for circles from 8 px area up to ``max_area`` px."""
     params = cv2.SimpleBlobDetector_Params()
     params.minArea = 8.0
     params.maxArea = float(max(max_area, 100.0))
@@ -263,7 +283,8 @@ def _canonical(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detect
                     "in the image was taken (use a board without that symmetry, e.g. a chessboard "
                     "with rows + cols odd, to make poses comparable across images)",)
     return Detection(ids=np.arange(len(obj)), image_points=detected[sources[0]],
-                     object_points=obj, warnings=warnings)
+                     object_points=obj, warnings=warnings,
+                     circle_diameter=getattr(target, "diameter", None))
 
 
 def _square_corners(target: Chessboard) -> NDArray[np.int64]:
@@ -363,6 +384,7 @@ def _detect_aprilgrid(gray: NDArray[np.uint8], target: AprilGrid) -> Detection |
             if refined is not None:
                 found[int(t)] = refined
     _grow_aprilgrid(gray, target, images, found)
+    _check_against_neighbours(gray, target, images, found)
     if not found:
         return None
     point_ids = np.array([target.tag_corner_ids(t) for t in found]).ravel()
@@ -440,10 +462,37 @@ def _grow_aprilgrid(gray, target: AprilGrid, images: NDArray, found: dict[int, F
                     queue.append(n)
 
 
-def _predict_tag(target: AprilGrid, found: dict[int, F64], tag: int) -> F64 | None:
+def _check_against_neighbours(gray, target: AprilGrid, images: NDArray, found: dict[int, F64]) -> None:
+    """Re-place tags whose corners disagree with their neighbours.
+
+    A corner that starts a few pixels off can settle on the far corner of the gap square
+    (another X-junction) while the tag still reads right. Each tag with found neighbours is
+    compared with the prediction from those neighbours alone; a corner off by more than a
+    third of the gap is refined again from the prediction, and the tag is dropped if it
+    still disagrees.
+    """
+    for t in sorted(found):
+        predicted = _predict_tag(target, found, t, exclude_self=True)
+        if predicted is None:
+            continue
+        quad = found[t]
+        side = np.mean(np.linalg.norm(quad - np.roll(quad, 1, axis=0), axis=1))
+        limit = max(1.0, target.tag_spacing * side / 3)
+        if np.all(np.linalg.norm(quad - predicted, axis=1) <= limit):
+            continue
+        again = _refine_tag(gray, target, images[t], t, predicted)
+        if again is not None and np.all(np.linalg.norm(again - predicted, axis=1) <= limit):
+            found[t] = again
+        else:
+            del found[t]
+
+
+def _predict_tag(target: AprilGrid, found: dict[int, F64], tag: int, *,
+                 exclude_self: bool = False) -> F64 | None:
     """Image corners of ``tag`` by a homography fitted to the found tags around it."""
     tr, tc = divmod(tag, target.cols)
-    near = [t for t in found if max(abs(t // target.cols - tr), abs(t % target.cols - tc)) <= 1]
+    near = [t for t in found if max(abs(t // target.cols - tr), abs(t % target.cols - tc)) <= 1
+            and not (exclude_self and t == tag)]
     if not near:
         return None
     board = np.concatenate([target.tag_corners(t) for t in near])
