@@ -3,14 +3,18 @@
 =================== ==================================================================
 target              detector
 =================== ==================================================================
-chessboard          ``cv2.findChessboardCornersSB``, fallback ``cv2.findChessboardCorners``;
-                    then ``cv2.cornerSubPix``
-circles             ``cv2.findCirclesGrid`` on the image, then on its negative (dark
-asymmetric-circles  circles on light and light on dark both), then with clustering
+chessboard          ``cv2.findChessboardCornersSB`` (at half size first on images of
+                    640 px and more), fallback ``cv2.findChessboardCorners``; then
+                    ``cv2.cornerSubPix`` at full size
+circles             ``cv2.findCirclesGrid`` on the image and on its negative (dark
+asymmetric-circles  circles on light and light on dark), default blob detector, then a
+                    permissive one, then clustering
 charuco             ``cv2.aruco.CharucoDetector`` (partial views; ids from the markers)
 aprilgrid           ``cv2.aruco.ArucoDetector`` with ``DICT_APRILTAG_36h11`` and a 2-bit
-                    marker border as Kalibr prints it, then ``cv2.cornerSubPix`` on the
-                    tag corners (partial views; ids from the tags)
+                    marker border as Kalibr prints it; the tags found seed a search of
+                    the rest of the grid; tag corners refined with ``cv2.cornerSubPix``
+                    and every tag checked against its code (partial views; ids from
+                    the tags)
 =================== ==================================================================
 
 Canonical order (grid targets): OpenCV's order is only defined up to the symmetries of the
@@ -139,8 +143,10 @@ def detect(image: ArrayLike, target: Target) -> Detection | None:
 
 # --------------------------------------------------------------------------- grids
 
-#: Images with a longer side than this are searched at half size first (4x faster).
-_HALF_SIZE_SEARCH_ABOVE_PX = 1000
+#: Images whose longer side has at least this many pixels are searched at half size first
+#: (2.5-4x faster;
+#: the corners are then refined at full size, so accuracy is unchanged).
+_HALF_SIZE_SEARCH_ABOVE_PX = 640
 
 
 def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection | None:
@@ -151,7 +157,7 @@ def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection
     corners (PnP RMS on the young_mocap_cam images)."""
     size = (target.cols, target.rows)
     corners = None
-    if max(gray.shape) > _HALF_SIZE_SEARCH_ABOVE_PX:
+    if max(gray.shape) >= _HALF_SIZE_SEARCH_ABOVE_PX:
         half = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
         found, small = cv2.findChessboardCornersSB(half, size, flags=0)
         if found:

@@ -151,35 +151,57 @@ class Chessboard(Target):
 
 
 @dataclass(frozen=True)
-class CircleGrid(Target):
-    """Symmetric grid of ``rows`` x ``cols`` circles, centres ``spacing`` apart.
+class _CircleTarget(Target):
+    """What the circle grids share: the circle ``diameter``, metres, optional.
 
-    ``diameter`` (metres, default spacing/2) matters only for rendering. The grid always
-    looks the same after a half turn, so the detector warns that the order is ambiguous.
+    When the diameter is stated, PnP corrects the blob centroids for the offset between the
+    centroid of a circle's image and the image of its centre (perspective and distortion);
+    rendering draws circles of ``circle_diameter`` (default spacing/2).
     """
 
     diameter: float | None = None
-    kind: ClassVar[str] = "circles"
 
     def __post_init__(self):
         super().__post_init__()
-        _check_diameter(self)
+        if self.diameter is not None:
+            d = _positive(self.diameter, f"{self.kind} diameter")
+            nearest = self._neighbour_distance()
+            if d >= nearest:
+                raise InputError(f"{self.kind} diameter {d} must be smaller than the distance "
+                                 f"between neighbouring centres ({nearest:.6g})")
+            object.__setattr__(self, "diameter", d)
+
+    def _neighbour_distance(self) -> float:
+        return self.spacing
 
     @property
     def circle_diameter(self) -> float:
+        """Diameter used for drawing, metres: ``diameter``, or spacing/2 when not stated."""
         return self.spacing / 2 if self.diameter is None else self.diameter
+
+    def bounds(self):
+        P = self.object_points()
+        rad = self.circle_diameter / 2
+        return (P[:, 0].min() - rad, P[:, 0].max() + rad, P[:, 1].min() - rad, P[:, 1].max() + rad)
+
+
+@dataclass(frozen=True)
+class CircleGrid(_CircleTarget):
+    """Symmetric grid of ``rows`` x ``cols`` circles, centres ``spacing`` apart.
+
+    The grid always looks the same after a half turn, so the detector warns that the order
+    is ambiguous. ``diameter``: see :class:`_CircleTarget`.
+    """
+
+    kind: ClassVar[str] = "circles"
 
     def object_points(self) -> F64:
         r, c = _grid(self.rows, self.cols)
         return np.column_stack([c * self.spacing, r * self.spacing, np.zeros(r.size)])
 
-    def bounds(self):
-        rad = self.circle_diameter / 2
-        return (-rad, (self.cols - 1) * self.spacing + rad, -rad, (self.rows - 1) * self.spacing + rad)
-
 
 @dataclass(frozen=True)
-class AsymmetricCircleGrid(Target):
+class AsymmetricCircleGrid(_CircleTarget):
     """Asymmetric circle grid, OpenCV's ``CALIB_CB_ASYMMETRIC_GRID`` with pattern (cols, rows).
 
     ``cols`` circles per row, ``spacing`` apart; ``rows`` rows ``spacing / 2`` apart, odd rows
@@ -187,37 +209,18 @@ class AsymmetricCircleGrid(Target):
     r * spacing / 2)``. This is OpenCV's ordering (its sample uses ``(2c + r % 2) * s, r * s``
     with s = spacing / 2) and the Open3DV board's (7 x 11, 20 or 40 mm). With an odd number
     of rows the grid is not symmetric under a half turn; with an even number it is and the
-    detector warns. ``diameter`` (default spacing/2) matters only for rendering.
+    detector warns. ``diameter``: see :class:`_CircleTarget`.
     """
 
-    diameter: float | None = None
     kind: ClassVar[str] = "asymmetric-circles"
 
-    def __post_init__(self):
-        super().__post_init__()
-        _check_diameter(self)
-
-    @property
-    def circle_diameter(self) -> float:
-        return self.spacing / 2 if self.diameter is None else self.diameter
+    def _neighbour_distance(self) -> float:
+        return self.spacing / np.sqrt(2)
 
     def object_points(self) -> F64:
         r, c = _grid(self.rows, self.cols)
         x = (c + 0.5 * (r % 2)) * self.spacing
         return np.column_stack([x, r * self.spacing / 2, np.zeros(r.size)])
-
-    def bounds(self):
-        rad = self.circle_diameter / 2
-        return (-rad, (self.cols - 0.5) * self.spacing + rad, -rad, (self.rows - 1) * self.spacing / 2 + rad)
-
-
-def _check_diameter(target) -> None:
-    if target.diameter is not None:
-        object.__setattr__(target, "diameter", _positive(target.diameter, f"{target.kind} diameter"))
-        nearest = target.spacing / np.sqrt(2) if target.kind == "asymmetric-circles" else target.spacing
-        if target.diameter >= nearest:
-            raise InputError(f"{target.kind} diameter {target.diameter} must be smaller than the "
-                             f"distance between neighbouring centres ({nearest:.6g})")
 
 
 @dataclass(frozen=True)
