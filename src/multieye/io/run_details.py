@@ -1,0 +1,477 @@
+"""``details.json``: what the report needs beyond ``calibration.json``.
+
+``calibration.json`` (DESIGN.md section 4) holds the result; this file holds the evidence
+behind it, per measurement, so that :mod:`multieye.report` can draw the rig and the residuals
+without the dataset:
+
+- per camera: the used measurements (image name, camera-clock stamp, loop residual of
+  ``A_i X = Y B_i`` in rotation and translation from :func:`multieye.metrics.loop_residuals`,
+  PnP reprojection RMS), the target pose in the world at each of them, the intrinsics (for
+  frustums), the pose of the camera in the world, and an optional free-form ``diagnostics``
+  mapping (weak-motion diagnostics, filled by whoever computes them);
+- the motion-capture trajectories (positions only) over the span of the used images,
+  subsampled to at most a few thousand points.
+
+Frames (DESIGN.md section 2), for the world pictures:
+
+============  ==========================================  ===================================
+setup         ``T_world_target[i]``                       ``T_world_cam`` drawn
+============  ==========================================  ===================================
+eye-to-base   ``T_world_marker[i] @ T_marker_target``     ``T_world_cam`` (static)
+eye-on-hand   ``T_world_body[i] @ T_body_cam @            ``T_world_body_shown @ T_body_cam``
+              T_cam_target[i]``
+============  ==========================================  ===================================
+
+In eye-to-base the target moves and the motion capture says where it was.  In eye-on-hand the
+target is static at ``T_world_target`` and every measurement gives one estimate of it through
+the camera chain, whose scatter shows the residuals in space; the cameras move with the body
+and are drawn at one body pose, ``T_world_body_shown``: the motion-capture pose at the middle
+used image of the reference camera.
+
+Synopsis
+--------
+>>> from multieye.io.run_details import write_run_details, read_run_details
+>>> write_run_details("out/details.json", run)          # doctest: +SKIP
+>>> details = read_run_details("out/details.json")      # doctest: +SKIP
+>>> details.camera("cam0").rot_deg                      # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import DatasetError, InputError
+from ..intrinsics import Intrinsics
+from ..metrics import loop_residuals
+from .atomic import write_text_atomic
+from .calibration_json import SETUP_KEYS
+from .textfile import read_text
+
+if TYPE_CHECKING:  # the pipeline imports io; io must not import it at run time
+    from ..pipeline import CalibrationRun
+
+__all__ = [
+    "FORMAT",
+    "VERSION",
+    "TrajectoryDetails",
+    "CameraDetails",
+    "RunDetails",
+    "run_details",
+    "run_details_to_dict",
+    "run_details_from_dict",
+    "write_run_details",
+    "read_run_details",
+]
+
+#: Value of the top-level ``format`` key.
+FORMAT = "multieye-run-details"
+#: Version of the layout; readers reject other versions.
+VERSION = 1
+#: Seconds of motion capture kept before the first and after the last used image.
+TRAJECTORY_MARGIN_S = 2.0
+
+
+@dataclass(frozen=True)
+class TrajectoryDetails:
+    """Positions of one motion-capture trajectory, for drawing.
+
+    Attributes
+    ----------
+    pose : str
+        What the poses were, ``"T_world_marker"`` or ``"T_world_body"``.
+    stamps : ndarray, shape (k,)
+        Motion-capture clock, seconds.
+    positions : ndarray, shape (k, 3)
+        Origin of the marker (or body) frame in the world, metres.
+    n_samples : int
+        Samples in the span before subsampling (``>= k``).
+    """
+
+    pose: str
+    stamps: np.ndarray
+    positions: np.ndarray
+    n_samples: int
+
+
+@dataclass(frozen=True)
+class CameraDetails:
+    """One camera's measurements and drawing data.
+
+    Attributes
+    ----------
+    name : str
+    T_world_cam : ndarray, shape (4, 4)
+        Where the camera is drawn (module docstring), metres.
+    intrinsics : Intrinsics or None
+        None for a camera given by precomputed poses without intrinsics.
+    trajectory : int
+        Index of its motion capture in :attr:`RunDetails.trajectories`.
+    names : tuple of str
+        Image file names (or ``"<poses file>:<line>"``) of the used measurements.
+    stamps : ndarray, shape (n,)
+        Camera clock, seconds.
+    rot_deg : ndarray, shape (n,)
+        Rotation residual of ``A_i X = Y B_i``, degrees (paper section V-A).
+    trans_m : ndarray, shape (n,)
+        Translation residual, metres.
+    rms_px : ndarray, shape (n,)
+        PnP reprojection RMS, pixels; NaN where unknown (precomputed poses).
+    T_world_target : ndarray, shape (n, 4, 4)
+        The target in the world at each measurement (module docstring).
+    diagnostics : mapping
+        Free-form, JSON-compatible values (e.g. weak-motion diagnostics); empty when none.
+    """
+
+    name: str
+    T_world_cam: np.ndarray
+    intrinsics: Intrinsics | None
+    trajectory: int
+    names: tuple[str, ...]
+    stamps: np.ndarray
+    rot_deg: np.ndarray
+    trans_m: np.ndarray
+    rms_px: np.ndarray
+    T_world_target: np.ndarray
+    diagnostics: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RunDetails:
+    """Everything ``details.json`` holds.
+
+    Attributes
+    ----------
+    setup : {"eye-to-base", "eye-on-hand"}
+    reference_camera : str
+    cameras : tuple of CameraDetails
+        In the order of ``calibration.json``.
+    trajectories : tuple of TrajectoryDetails
+    T_world_body_shown : ndarray, shape (4, 4), or None
+        Eye-on-hand: the body pose at which the cameras are drawn; None for eye-to-base.
+    """
+
+    setup: str
+    reference_camera: str
+    cameras: tuple[CameraDetails, ...]
+    trajectories: tuple[TrajectoryDetails, ...]
+    T_world_body_shown: np.ndarray | None = None
+
+    def camera(self, name: str) -> CameraDetails:
+        """The details of camera ``name``."""
+        for cam in self.cameras:
+            if cam.name == name:
+                return cam
+        raise KeyError(name)
+
+
+# --------------------------------------------------------------------------- from a run
+
+
+def _span_indices(stamps: np.ndarray, lo: float, hi: float, max_points: int) -> np.ndarray:
+    """Indices of the samples in ``[lo, hi]``, evenly thinned to at most ``max_points``."""
+    idx = np.flatnonzero((stamps >= lo) & (stamps <= hi))
+    if idx.size == 0:
+        idx = np.arange(stamps.size)
+    if idx.size > max_points:
+        idx = idx[np.unique(np.linspace(0, idx.size - 1, max_points).round().astype(int))]
+    return idx
+
+
+def _json_value(value, where: str):
+    """``value`` as plain JSON types (numpy scalars and arrays become numbers and lists)."""
+    if isinstance(value, np.ndarray):
+        return _json_value(value.tolist(), where)
+    if isinstance(value, np.generic):
+        return _json_value(value.item(), where)
+    if isinstance(value, Mapping):
+        return {str(k): _json_value(v, where) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_value(v, where) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    raise InputError(f"{where}: {type(value).__name__} is not a JSON value")
+
+
+def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, Any]] | None = None,
+                max_trajectory_points: int = 3000) -> RunDetails:
+    """Collect the details of a calibration run (see module docstring for the frames).
+
+    Parameters
+    ----------
+    run : multieye.pipeline.CalibrationRun
+    diagnostics : mapping of camera name to mapping, optional
+        Free-form, JSON-compatible per-camera diagnostics (numpy values are converted; NaN
+        and inf become null).
+    max_trajectory_points : int
+        Most positions kept per trajectory.
+
+    Raises
+    ------
+    InputError
+        Diagnostics for a camera that is not in the run, or values that JSON cannot hold.
+    """
+    rec = run.record
+    setup = rec.setup
+    diagnostics = dict(diagnostics or {})
+    unknown = sorted(set(diagnostics) - {c.name for c in rec.cameras})
+    if unknown:
+        raise InputError(f"diagnostics given for cameras not in the run: {', '.join(unknown)}")
+    T_shown = None
+    if setup == "eye-on-hand":
+        ref = run.paired[rec.reference_camera].T_world_mocap
+        T_shown = ref[len(ref) // 2]
+    # one entry per distinct motion-capture trajectory (cameras share the object when they
+    # share the file), with the span of the used images in the motion-capture clock
+    traj_index: dict[int, int] = {}
+    sources, spans = [], []
+    cams = []
+    for cam in rec.cameras:
+        data, paired = run.cameras[cam.name], run.paired[cam.name]
+        key = id(data.mocap)
+        if key not in traj_index:
+            traj_index[key] = len(sources)
+            sources.append(data.mocap)
+            spans.append([math.inf, -math.inf])
+        k = traj_index[key]
+        stamps = np.array([o.stamp for o in paired.observations], dtype=np.float64)
+        offset = data.time_offset if cam.time_offset_s is None else cam.time_offset_s
+        spans[k] = [min(spans[k][0], stamps.min() + offset), max(spans[k][1], stamps.max() + offset)]
+        rot, trans = loop_residuals(paired.A, paired.B, cam.X, rec.Y)
+        if setup == "eye-to-base":   # T_world_marker[i] @ T_marker_target
+            T_world_target = paired.T_world_mocap @ rec.Y
+            T_world_cam = cam.X
+        else:                        # T_world_body[i] @ T_body_cam @ T_cam_target[i]
+            T_cam_target = np.stack([o.T_cam_target for o in paired.observations])
+            T_world_target = paired.T_world_mocap @ cam.X @ T_cam_target
+            T_world_cam = T_shown @ cam.X
+        rms = np.array([np.nan if o.rms_px is None else o.rms_px for o in paired.observations],
+                       dtype=np.float64)
+        cams.append(CameraDetails(
+            name=cam.name, T_world_cam=T_world_cam, intrinsics=data.intrinsics, trajectory=k,
+            names=tuple(o.name for o in paired.observations), stamps=stamps, rot_deg=rot,
+            trans_m=trans, rms_px=rms, T_world_target=T_world_target,
+            diagnostics=_json_value(diagnostics.get(cam.name, {}),
+                                    f"diagnostics of camera {cam.name}")))
+    pose = "T_world_marker" if setup == "eye-to-base" else "T_world_body"
+    trajectories = []
+    for traj, (lo, hi) in zip(sources, spans):
+        inside = (traj.stamps >= lo - TRAJECTORY_MARGIN_S) & (traj.stamps <= hi + TRAJECTORY_MARGIN_S)
+        idx = _span_indices(traj.stamps, lo - TRAJECTORY_MARGIN_S, hi + TRAJECTORY_MARGIN_S,
+                            max_trajectory_points)
+        trajectories.append(TrajectoryDetails(pose=pose, stamps=traj.stamps[idx].copy(),
+                                              positions=traj.T[idx, :3, 3].copy(),
+                                              n_samples=int(inside.sum()) or len(traj.stamps)))
+    return RunDetails(setup=setup, reference_camera=rec.reference_camera, cameras=tuple(cams),
+                      trajectories=tuple(trajectories), T_world_body_shown=T_shown)
+
+
+# --------------------------------------------------------------------------- to / from dict
+
+
+def _floats(a) -> list:
+    """Nested lists of Python floats (NaN -> None), full precision."""
+    a = np.asarray(a, dtype=np.float64)
+    if a.ndim == 0:
+        return None if not math.isfinite(a) else float(a)
+    return [_floats(x) for x in a]
+
+
+def _intrinsics_dict(intr: Intrinsics | None):
+    if intr is None:
+        return None
+    return {"model": intr.model, "K": _floats(intr.K), "dist": _floats(intr.dist),
+            "width": intr.width, "height": intr.height}
+
+
+def run_details_to_dict(details: RunDetails) -> dict:
+    """The JSON object of :class:`RunDetails` (matrices as nested lists, NaN as null)."""
+    cameras = {}
+    for c in details.cameras:
+        cameras[c.name] = {
+            "T_world_cam": _floats(c.T_world_cam),
+            "intrinsics": _intrinsics_dict(c.intrinsics),
+            "trajectory": c.trajectory,
+            "measurements": {
+                "name": list(c.names), "stamp": _floats(c.stamps), "rot_deg": _floats(c.rot_deg),
+                "trans_m": _floats(c.trans_m), "rms_px": _floats(c.rms_px),
+                "T_world_target": _floats(c.T_world_target),
+            },
+            "diagnostics": _json_value(c.diagnostics, f"diagnostics of camera {c.name}"),
+        }
+    return {
+        "format": FORMAT, "version": VERSION, "setup": details.setup,
+        "reference_camera": details.reference_camera,
+        "T_world_body_shown": (None if details.T_world_body_shown is None
+                               else _floats(details.T_world_body_shown)),
+        "trajectories": [{"pose": t.pose, "n_samples": t.n_samples, "stamp": _floats(t.stamps),
+                          "position": _floats(t.positions)} for t in details.trajectories],
+        "cameras": cameras,
+    }
+
+
+class _Reader:
+    """Checks values of one ``details.json`` and names the file and camera in errors."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def error(self, message: str, camera: str | None = None) -> DatasetError:
+        return DatasetError(message, path=self.path, camera=camera)
+
+    def get(self, obj, key: str, where: str, camera: str | None = None):
+        if not isinstance(obj, Mapping):
+            raise self.error(f"{where} must be an object", camera)
+        if key not in obj:
+            raise self.error(f"missing key {key!r} in {where}", camera)
+        return obj[key]
+
+    def array(self, value, shape: tuple, what: str, camera: str | None = None,
+              nan_ok: bool = False) -> np.ndarray:
+        """Numbers of the given shape (``-1`` matches any length); null -> NaN if allowed."""
+        try:
+            a = np.array(value, dtype=np.float64)  # None -> nan
+        except (TypeError, ValueError):
+            raise self.error(f"{what} must be numbers", camera) from None
+        if a.ndim != len(shape) or any(s not in (-1, n) for s, n in zip(shape, a.shape)):
+            want = " x ".join("n" if s == -1 else str(s) for s in shape)
+            raise self.error(f"{what} must have shape ({want}), got {a.shape}", camera)
+        if not nan_ok and not np.all(np.isfinite(a)):
+            raise self.error(f"{what} must be finite numbers", camera)
+        return a
+
+
+def _read_intrinsics(r: _Reader, obj, name: str) -> Intrinsics | None:
+    if obj is None:
+        return None
+    K = r.array(r.get(obj, "K", "intrinsics", name), (3, 3), "intrinsics.K", name)
+    dist = r.array(r.get(obj, "dist", "intrinsics", name), (-1,), "intrinsics.dist", name)
+    size = []
+    for key in ("width", "height"):
+        v = obj.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v <= 0):
+            raise r.error(f"intrinsics.{key} must be a positive integer or null, got {v!r}", name)
+        size.append(v)
+    try:
+        return Intrinsics(K, dist, obj.get("model", "pinhole"), *size)
+    except InputError as exc:
+        raise r.error(f"intrinsics: {exc}", name) from None
+
+
+def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDetails:
+    """Validate a parsed ``details.json`` object.
+
+    Raises
+    ------
+    DatasetError
+        Another format or version, missing keys, wrong shapes, lengths that disagree between a
+        camera's measurement columns, or a trajectory index out of range.
+    """
+    r = _Reader(path)
+    if not isinstance(data, Mapping) or data.get("format") != FORMAT:
+        raise r.error(f"not a multieye details file (expected \"format\": \"{FORMAT}\")")
+    if data.get("version") != VERSION:
+        raise r.error(f"details version {data.get('version')!r} is not supported; expected "
+                      f"{VERSION} (rerun `multieye calibrate`)")
+    setup = r.get(data, "setup", "the top level")
+    if setup not in SETUP_KEYS:
+        raise r.error(f"setup must be one of {', '.join(SETUP_KEYS)}, got {setup!r}")
+    reference = r.get(data, "reference_camera", "the top level")
+    shown = data.get("T_world_body_shown")
+    shown = None if shown is None else r.array(shown, (4, 4), "T_world_body_shown")
+    trajectories = []
+    raw_trajs = r.get(data, "trajectories", "the top level")
+    if not isinstance(raw_trajs, list):
+        raise r.error("trajectories must be a list")
+    for k, t in enumerate(raw_trajs):
+        where = f"trajectories[{k}]"
+        stamps = r.array(r.get(t, "stamp", where), (-1,), f"{where}.stamp")
+        pos = r.array(r.get(t, "position", where), (stamps.size, 3), f"{where}.position")
+        n = r.get(t, "n_samples", where)
+        if isinstance(n, bool) or not isinstance(n, int) or n < stamps.size:
+            raise r.error(f"{where}.n_samples must be an integer >= {stamps.size}, got {n!r}")
+        trajectories.append(TrajectoryDetails(str(r.get(t, "pose", where)), stamps, pos, n))
+    cams_raw = r.get(data, "cameras", "the top level")
+    if not isinstance(cams_raw, Mapping) or not cams_raw:
+        raise r.error("cameras must be a non-empty object of camera name -> details")
+    cameras = []
+    for name, c in cams_raw.items():
+        where = f"camera {name}"
+        k = r.get(c, "trajectory", where, name)
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(trajectories):
+            raise r.error(f"trajectory must be an index into trajectories (0..{len(trajectories) - 1}),"
+                          f" got {k!r}", name)
+        m = r.get(c, "measurements", where, name)
+        names = r.get(m, "name", "measurements", name)
+        if not isinstance(names, list) or not all(isinstance(s, str) for s in names):
+            raise r.error("measurements.name must be a list of strings", name)
+        n = len(names)
+        cols = {key: r.array(r.get(m, key, "measurements", name), (n,), f"measurements.{key}",
+                             name, nan_ok=key == "rms_px")
+                for key in ("stamp", "rot_deg", "trans_m", "rms_px")}
+        T_wt = r.array(r.get(m, "T_world_target", "measurements", name), (n, 4, 4),
+                       "measurements.T_world_target", name)
+        if n == 0:
+            T_wt = T_wt.reshape(0, 4, 4)
+        diagnostics = c.get("diagnostics") or {}
+        if not isinstance(diagnostics, Mapping):
+            raise r.error("diagnostics must be an object", name)
+        cameras.append(CameraDetails(
+            name=str(name),
+            T_world_cam=r.array(r.get(c, "T_world_cam", where, name), (4, 4), "T_world_cam", name),
+            intrinsics=_read_intrinsics(r, c.get("intrinsics"), name), trajectory=k,
+            names=tuple(names), stamps=cols["stamp"], rot_deg=cols["rot_deg"],
+            trans_m=cols["trans_m"], rms_px=cols["rms_px"], T_world_target=T_wt,
+            diagnostics=dict(diagnostics)))
+    if reference not in cams_raw:
+        raise r.error(f"reference camera {reference!r} is not one of {', '.join(cams_raw)}")
+    return RunDetails(setup=setup, reference_camera=reference, cameras=tuple(cameras),
+                      trajectories=tuple(trajectories), T_world_body_shown=shown)
+
+
+# --------------------------------------------------------------------------- files
+
+
+def write_run_details(path: str | os.PathLike, run: CalibrationRun, *,
+                      diagnostics: Mapping[str, Mapping[str, Any]] | None = None,
+                      max_trajectory_points: int = 3000) -> RunDetails:
+    """Write ``details.json`` of a run atomically and return what was written.
+
+    Parameters
+    ----------
+    path : path-like
+        Usually ``OUT/details.json`` beside ``calibration.json``.
+    run : multieye.pipeline.CalibrationRun
+    diagnostics, max_trajectory_points
+        See :func:`run_details`.
+    """
+    details = run_details(run, diagnostics=diagnostics,
+                          max_trajectory_points=max_trajectory_points)
+    text = json.dumps(run_details_to_dict(details), allow_nan=False, separators=(",", ":"))
+    write_text_atomic(path, text + "\n")
+    return details
+
+
+def read_run_details(path: str | os.PathLike) -> RunDetails:
+    """Read and validate ``details.json``.
+
+    Raises
+    ------
+    DatasetError
+        Missing file, invalid JSON (with the line), or any check of
+        :func:`run_details_from_dict`.
+    """
+    text = read_text(path, what="details file")
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise DatasetError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
+    return run_details_from_dict(data, path)
