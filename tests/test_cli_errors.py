@@ -9,43 +9,14 @@ import cv2
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from pose_dataset import RIG, write_pose_dataset
 
-from multieye import geometry as g
 from multieye.cli import main
-from multieye.intrinsics import Intrinsics
-from multieye.io import Trajectory, write_opencv_intrinsics, write_tum
-
-RIG = """\
-setup: eye-to-base
-target: {type: chessboard, rows: 6, cols: 9, spacing: 0.05}
-mocap:
-  file: mocap.txt
-  pose: T_world_marker
-  time_tolerance: 0.01
-cameras:
-  cam0: {intrinsics: cam.yaml, poses: cam0.txt}
-  cam1: {intrinsics: cam.yaml, poses: cam1.txt}
-"""
 
 
 @pytest.fixture
 def dataset(tmp_path):
-    """Two cameras given by precomputed T_cam_target, 12 poses each, exact data."""
-    rng = np.random.default_rng(0)
-    T_world_cam = g.random_transforms(rng, 2, translation_scale=2.0)
-    T_marker_target = g.random_transforms(rng, translation_scale=0.2)
-    stamps = np.arange(24) * 0.5
-    T_world_marker = g.random_transforms(rng, 24)
-    write_tum(tmp_path / "mocap.txt", Trajectory(stamps, T_world_marker))
-    for j in range(2):
-        sl = slice(12 * j, 12 * j + 12)
-        T_cam_target = g.inv(T_world_cam[j]) @ T_world_marker[sl] @ T_marker_target
-        write_tum(tmp_path / f"cam{j}.txt", Trajectory(stamps[sl], T_cam_target, "cam", "target"))
-    write_opencv_intrinsics(tmp_path / "cam.yaml",
-                            Intrinsics(K=np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]]),
-                                       dist=np.zeros(4), width=640, height=480))
-    (tmp_path / "rig.yaml").write_text(RIG)
-    return tmp_path
+    return write_pose_dataset(tmp_path)[0]
 
 
 def _run(args):

@@ -85,3 +85,14 @@ def test_cli_calibrate_prints_table_and_writes_outputs(demo, tmp_path):
     rec = read_calibration(tmp_path / "o" / "calibration.json")
     assert rec.method == "shah" and rec.reference_camera == "cam2"
     np.testing.assert_allclose(rec.camera("cam2").T_ref_cam, np.eye(4), atol=1e-12)
+
+
+@pytest.mark.parametrize("per_camera_mocap", [False, True])
+def test_cameras_recorded_one_after_another_one_or_several_mocap_files(tmp_path, per_camera_mocap):
+    from pose_dataset import write_pose_dataset
+
+    folder, T_world_cam, T_marker_target = write_pose_dataset(tmp_path, per_camera_mocap=per_camera_mocap)
+    run = calibrate(folder)
+    np.testing.assert_allclose(run.solution.X, T_world_cam, atol=1e-9)
+    np.testing.assert_allclose(run.solution.Y, T_marker_target, atol=1e-9)
+    assert [c.measurements_used for c in run.record.cameras] == [12, 12]
