@@ -15,7 +15,7 @@ Synopsis
 Method (``method="joint"``)
 ---------------------------
 Rotation.  With column-major ``vec``, ``R_A R_X = R_Y R_B`` is the linear row block
-``(R_B ⊗ R_A) vec(R_X) - vec(R_Y) = 0`` (paper eq. 6 generalised: one block per measurement,
+``(R_B ⊗ R_A) vec(R_X) - vec(R_Y) = 0`` (paper section IV-A, here one block per measurement
 over the rotation unknowns of every X and every Y).  Because every ``K_i = R_B ⊗ R_A`` is
 orthogonal, the normal matrix of the stacked system has scalar diagonal blocks::
 
@@ -39,7 +39,16 @@ then sign-fixed by its determinant and projected onto SO(3).
 Translation.  ``R_A t_X - t_Y = R_Y t_B - t_A`` per measurement, one sparse linear least
 squares over all translations.  Its normal matrix has the same bipartite structure with
 scalar diagonal blocks (``R_A^T R_A = I``), so the larger side is eliminated again and a
-dense symmetric system of size ``3 min(n_X, n_Y)`` remains.
+dense symmetric system of size ``3 min(n_X, n_Y)`` remains.  The per-group sums both steps
+need are formed in one pass (:class:`multieye.solvers.kronecker.CameraStats`, one "camera"
+per group).
+
+Degeneracy.  The normalised rotation system ``I - C C^T`` has one zero eigenvalue without
+noise; the rotations are taken as undetermined (:class:`~multieye.errors.DegenerateMotionError`)
+when its second-smallest eigenvalue is below ``1e-8`` or below 4 times the smallest (the
+noise floor), and the translations when the reduced translation system is singular to
+``1e-10`` relative.  A group may be degenerate on its own (few rows, one rotation axis) as
+long as the whole graph is not.
 
 Connectivity.  Unknowns are nodes of the bipartite graph X-names/Y-names, groups its edges.
 If the graph has several components the problem is not one problem: :func:`solve_general`
@@ -60,7 +69,10 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from .errors import DegenerateMotionError, DisconnectedError, InputError, TooFewMeasurementsError
-from .geometry import make_transform, project_to_so3, rotation_angle
+from .geometry import make_transform
+from .metrics import camera_residual
+from .solvers.checks import Measurements, check_transforms
+from .solvers.kronecker import normalize_rotation, unvec, vec
 from .solvers.result import CameraResidual
 
 __all__ = [
@@ -68,8 +80,7 @@ __all__ = [
     "GeneralSolution",
     "solve_general",
     "as_groups",
-    "loop_residuals",
-    "group_residual",
+    "check_connected",
     "METHODS",
 ]
 
@@ -77,10 +88,10 @@ F64 = NDArray[np.float64]
 
 METHODS = ("joint",)
 
-# Relative size of the second-smallest eigenvalue of the rotation system below which the
-# rotations are not determined by the measurements (exactly 0 without noise).
+# The rotation system's second eigenvalue (normalised as in _rotations) must exceed this and
+# 4 times the first (the noise floor) for the rotations to be determined (0 without noise).
 _ROTATION_GAP_TOL = 1e-8
-# Condition number bound of the reduced translation system.
+# Smallest / largest eigenvalue of the reduced translation system below which it is singular.
 _TRANSLATION_RCOND = 1e-10
 
 
@@ -160,24 +171,13 @@ class GeneralSolution:
         return self.covariance[6 * k:6 * k + 6, 6 * k:6 * k + 6].copy()
 
 
-def _check_transforms(T, what: str) -> F64:
-    """(N, 4, 4) finite rigid transforms, or InputError naming ``what``."""
+def _as_transform_batch(T, what: str) -> F64:
     try:
         T = np.asarray(T, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise InputError(f"{what}: expected an array of 4x4 transforms ({exc})") from None
     if T.ndim != 3 or T.shape[1:] != (4, 4):
         raise InputError(f"{what}: expected shape (N, 4, 4), got {T.shape}")
-    if not np.all(np.isfinite(T)):
-        bad = int(np.flatnonzero(~np.isfinite(T).all(axis=(1, 2)))[0])
-        raise InputError(f"{what}[{bad}]: NaN or infinite entries")
-    R = T[:, :3, :3]
-    err = np.abs(np.swapaxes(R, 1, 2) @ R - np.eye(3)).max(axis=(1, 2))
-    row = np.abs(T[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1)
-    bad = np.flatnonzero((err > 1e-6) | (row > 1e-9) | (np.linalg.det(R) <= 0))
-    if bad.size:
-        raise InputError(f"{what}[{int(bad[0])}]: not a rigid transform (rotation part not "
-                         f"orthonormal with det +1, or last row not [0, 0, 0, 1])")
     return T
 
 
@@ -196,7 +196,9 @@ def as_groups(groups: Iterable) -> tuple[MeasurementGroup, ...]:
     Raises
     ------
     InputError
-        Malformed entries, non-rigid or non-finite transforms, mismatched counts.
+        Malformed entries, non-rigid or non-finite transforms (see
+        :func:`multieye.solvers.checks.check_transforms`; the message names the group and
+        the row), mismatched counts.
     TooFewMeasurementsError
         No groups, or a group without measurements.
     """
@@ -208,21 +210,31 @@ def as_groups(groups: Iterable) -> tuple[MeasurementGroup, ...]:
             raise InputError(f"group {k}: expected (x_name, y_name, A, B)") from None
         if not isinstance(x_name, str) or not isinstance(y_name, str):
             raise InputError(f"group {k}: names must be strings, got {x_name!r}, {y_name!r}")
-        label = f"group ({x_name}, {y_name})"
-        A = _check_transforms(A, f"{label} A")
-        B = _check_transforms(B, f"{label} B")
+        label = f"({x_name}, {y_name})"
+        A = _as_transform_batch(A, f"A{label}")
+        B = _as_transform_batch(B, f"B{label}")
         if len(A) != len(B):
-            raise InputError(f"{label}: {len(A)} A but {len(B)} B transforms; "
+            raise InputError(f"group {label}: {len(A)} A but {len(B)} B transforms; "
                              "A[i] and B[i] must be paired")
         if len(A) == 0:
-            raise TooFewMeasurementsError(f"{label}: no measurements")
+            raise TooFewMeasurementsError(f"group {label}: no measurements")
         merged.setdefault((x_name, y_name), []).append((A, B))
     if not merged:
         raise TooFewMeasurementsError("no measurement groups given")
-    return tuple(
-        MeasurementGroup(x, y, np.concatenate([a for a, _ in parts]),
-                         np.concatenate([b for _, b in parts]))
+    out = tuple(
+        MeasurementGroup(x, y, *(parts[0] if len(parts) == 1 else
+                                 (np.concatenate([a for a, _ in parts]),
+                                  np.concatenate([b for _, b in parts]))))
         for (x, y), parts in merged.items())
+    # One vectorised rigidity check over everything; per group only to name the culprit.
+    for side in ("A", "B"):
+        try:
+            check_transforms(np.concatenate([getattr(g, side) for g in out]), side)
+        except InputError:
+            for g in out:
+                check_transforms(getattr(g, side), f"{side}({g.x_name}, {g.y_name})")
+            raise
+    return out
 
 
 def _names(groups: tuple[MeasurementGroup, ...]) -> tuple[list[str], list[str]]:
@@ -249,8 +261,7 @@ def check_connected(groups: tuple[MeasurementGroup, ...]) -> None:
     if ncomp == 1:
         return
     weight = np.zeros(ncomp)
-    for r, g in zip(rows, groups):
-        weight[label[r]] += len(g.A)
+    np.add.at(weight, label[rows], [len(g.A) for g in groups])
     main = int(np.argmax(weight))
     nodes = [("X", x) for x in xs] + [("Y", y) for y in ys]
     outside = [nodes[k] for k in range(n) if label[k] != main]
@@ -262,58 +273,56 @@ def check_connected(groups: tuple[MeasurementGroup, ...]) -> None:
         names=tuple(name for _, name in outside))
 
 
-def _bipartite_blocks(groups, xs, ys, block):
-    """Sparse ``G`` (``k n_Y x k n_X``) from the per-group kxk ``block`` sums, and degrees."""
+class _Layout(NamedTuple):
+    """Index maps of a grouped problem: names, group -> unknown, measurement counts."""
+
+    xs: list[str]
+    ys: list[str]
+    gx: np.ndarray      # (n_groups,) X index of each group
+    gy: np.ndarray      # (n_groups,) Y index of each group
+    dx: np.ndarray      # (n_X,) measurements of each X
+    dy: np.ndarray      # (n_Y,) measurements of each Y
+
+
+def _layout(groups: tuple[MeasurementGroup, ...], counts: np.ndarray) -> _Layout:
+    xs, ys = _names(groups)
     ix = {n: i for i, n in enumerate(xs)}
     iy = {n: i for i, n in enumerate(ys)}
-    blocks = np.stack([block(g) for g in groups])
+    gx = np.array([ix[g.x_name] for g in groups])
+    gy = np.array([iy[g.y_name] for g in groups])
+    return _Layout(xs, ys, gx, gy, np.bincount(gx, weights=counts, minlength=len(xs)),
+                   np.bincount(gy, weights=counts, minlength=len(ys)))
+
+
+def _bipartite(lay: _Layout, blocks: F64) -> sp.csr_matrix:
+    """Sparse ``G`` (k n_Y x k n_X) whose block (b, a) is the sum of ``blocks`` of groups (a, b)."""
     k = blocks.shape[1]
-    bi = np.array([iy[g.y_name] for g in groups])
-    bj = np.array([ix[g.x_name] for g in groups])
-    r = (bi[:, None, None] * k + np.arange(k)[None, :, None]).repeat(k, axis=2)
-    c = (bj[:, None, None] * k + np.arange(k)[None, None, :]).repeat(k, axis=1)
-    G = sp.csr_matrix((blocks.ravel(), (r.ravel(), c.ravel())), shape=(k * len(ys), k * len(xs)))
-    dx = np.zeros(len(xs))
-    dy = np.zeros(len(ys))
-    for g in groups:
-        dx[ix[g.x_name]] += len(g.A)
-        dy[iy[g.y_name]] += len(g.A)
-    return G, dx, dy
+    r = (lay.gy[:, None, None] * k + np.arange(k)[None, :, None]).repeat(k, axis=2)
+    c = (lay.gx[:, None, None] * k + np.arange(k)[None, None, :]).repeat(k, axis=1)
+    return sp.csr_matrix((blocks.ravel(), (r.ravel(), c.ravel())),
+                         shape=(k * len(lay.ys), k * len(lay.xs)))
 
 
-def _kron_sum(g: MeasurementGroup) -> F64:
-    """``sum_i R_B[i] ⊗ R_A[i]`` (9 x 9) of one group: ``vec(R_A R_X R_B^T)`` for column-major vec."""
-    RA = g.A[:, :3, :3]
-    RB = g.B[:, :3, :3]
-    return np.einsum("iac,ibd->abcd", RB, RA).reshape(9, 9)
+def _rotations(lay: _Layout, K: F64) -> tuple[F64, F64]:
+    """Rotations of every X and every Y, (n_X, 3, 3) and (n_Y, 3, 3).
 
-
-def _vec_cm(R: F64) -> F64:
-    """Column-major vec of (..., 3, 3)."""
-    return np.swapaxes(R, -1, -2).reshape(R.shape[:-2] + (9,))
-
-
-def _unvec_cm(v: F64) -> F64:
-    return np.swapaxes(v.reshape(v.shape[:-1] + (3, 3)), -1, -2)
-
-
-def _rotations(groups, xs, ys) -> tuple[F64, F64]:
-    """Rotations of every X and every Y, shapes (n_X, 3, 3), (n_Y, 3, 3)."""
-    G, dx, dy = _bipartite_blocks(groups, xs, ys, _kron_sum)
-    wx = np.repeat(dx, 9)
-    wy = np.repeat(dy, 9)
+    ``K`` (n_groups, 9, 9) holds each group's ``sum_i R_B ⊗ R_A``.
+    """
+    G = _bipartite(lay, K)
+    wx = np.repeat(lay.dx, 9)
+    wy = np.repeat(lay.dy, 9)
     C = sp.diags(wy ** -0.5) @ G @ sp.diags(wx ** -0.5)
-    keep_y = len(ys) <= len(xs)
-    CC = (C @ C.T) if keep_y else (C.T @ C)
-    mu, V = np.linalg.eigh(CC.toarray())
-    # mu[-1] = 1 without noise; 1 - mu[-2] measures how well the rotations are determined.
-    lam1, lam2 = 1.0 - mu[-1], 1.0 - (mu[-2] if len(mu) > 1 else 0.0)
+    keep_y = len(lay.ys) <= len(lay.xs)
+    mu, V = np.linalg.eigh((C @ C.T if keep_y else C.T @ C).toarray())
+    # Eigenvalues of the normalised normal matrix are 1 - mu: the smallest is 0 without
+    # noise; a second one near it leaves the rotations undetermined.
+    lam1, lam2 = 1.0 - mu[-1], 1.0 - mu[-2]
     if lam2 <= max(_ROTATION_GAP_TOL, 4.0 * lam1):
         raise DegenerateMotionError(
             "the rotations of the unknowns are not determined by the measurements (the "
-            "rotation system has a second near-zero eigenvalue: the rotations of A and B "
-            "vary about a single axis in the linked groups); rotate the targets or the rig "
-            "about at least two different axes")
+            "rotation system has a second near-zero eigenvalue: within the linked groups the "
+            "rotations of A vary about a single axis, or not at all); rotate the targets or "
+            "the rig about at least two different axes")
     top = V[:, -1]
     if keep_y:
         vy = top * wy ** -0.5
@@ -321,31 +330,31 @@ def _rotations(groups, xs, ys) -> tuple[F64, F64]:
     else:
         vx = top * wx ** -0.5
         vy = (G @ vx) / wy
-    Mx = _unvec_cm(vx.reshape(-1, 9))
-    My = _unvec_cm(vy.reshape(-1, 9))
-    Mx *= np.sign(np.linalg.det(Mx))[:, None, None]
-    My *= np.sign(np.linalg.det(My))[:, None, None]
-    return project_to_so3(Mx), project_to_so3(My)
+    return normalize_rotation(unvec(vx.reshape(-1, 9))), normalize_rotation(unvec(vy.reshape(-1, 9)))
 
 
-def _translations(groups, xs, ys, RX, RY) -> tuple[F64, F64]:
-    """Translations of every X and every Y given the rotations, (n_X, 3), (n_Y, 3)."""
-    ix = {n: i for i, n in enumerate(xs)}
-    iy = {n: i for i, n in enumerate(ys)}
-    G, dx, dy = _bipartite_blocks(groups, xs, ys, lambda g: g.A[:, :3, :3].sum(axis=0))
-    # Normal equations of R_A t_X - t_Y = c with c = R_Y t_B - t_A:
-    #   d_x t_X - G^T t_Y = bx,  -G t_X + d_y t_Y = by   (G[b, a] = sum R_A over group (a, b)).
-    bx = np.zeros((len(xs), 3))
-    by = np.zeros((len(ys), 3))
-    for g in groups:
-        a, b = ix[g.x_name], iy[g.y_name]
-        c = g.B[:, :3, 3] @ RY[b].T - g.A[:, :3, 3]
-        bx[a] += np.einsum("nji,nj->i", g.A[:, :3, :3], c)
-        by[b] -= c.sum(axis=0)
-    wx = np.repeat(dx, 3)
-    wy = np.repeat(dy, 3)
+def _translations(lay: _Layout, stats, RX: F64, RY: F64) -> tuple[F64, F64]:
+    """Translations of every X and every Y given the rotations, (n_X, 3) and (n_Y, 3).
+
+    Least squares of ``R_A t_X - t_Y = c`` with ``c = R_Y t_B - t_A`` over all measurements.
+    Normal equations, with ``G[b, a] = sum over group (a, b) of R_A``:
+    ``d_x t_X - G^T t_Y = bx`` and ``-G t_X + d_y t_Y = by`` where ``bx[a] = sum R_A^T c``
+    and ``by[b] = -sum c``.  ``stats`` are the per-group sums
+    (:class:`multieye.solvers.kronecker.CameraStats`).
+    """
+    RYg = RY[lay.gy]                                             # (n_groups, 3, 3)
+    q = np.einsum("gij,gj->gi", stats.G, vec(RYg)) - stats.h     # sum R_A^T c per group
+    s = np.einsum("gij,gj->gi", RYg, stats.StB) - stats.StA      # sum c per group
+    bx = np.zeros((len(lay.xs), 3))
+    by = np.zeros((len(lay.ys), 3))
+    np.add.at(bx, lay.gx, q)
+    np.add.at(by, lay.gy, -s)
+    G = _bipartite(lay, stats.SA)
+    wx = np.repeat(lay.dx, 3)
+    wy = np.repeat(lay.dy, 3)
     bx, by = bx.ravel(), by.ravel()
-    if len(ys) <= len(xs):
+    keep_y = len(lay.ys) <= len(lay.xs)
+    if keep_y:
         S = (sp.diags(wy) - G @ sp.diags(1.0 / wx) @ G.T).toarray()
         rhs = by + G @ (bx / wx)
     else:
@@ -354,11 +363,11 @@ def _translations(groups, xs, ys, RX, RY) -> tuple[F64, F64]:
     ev = np.linalg.eigvalsh(S)
     if ev[0] <= _TRANSLATION_RCOND * ev[-1]:
         raise DegenerateMotionError(
-            "the translations of the unknowns are not determined by the measurements (the "
-            "rotations of A do not vary enough within the linked groups); rotate the targets "
-            "or the rig about at least two different axes")
+            "the translations of the unknowns are not determined by the measurements (within "
+            "the linked groups the rotations of A do not vary enough); rotate the targets or "
+            "the rig about at least two different axes")
     sol = np.linalg.solve(S, rhs)
-    if len(ys) <= len(xs):
+    if keep_y:
         ty = sol
         tx = (bx + G.T @ ty) / wx
     else:
@@ -367,43 +376,13 @@ def _translations(groups, xs, ys, RX, RY) -> tuple[F64, F64]:
     return tx.reshape(-1, 3), ty.reshape(-1, 3)
 
 
-def loop_residuals(A, B, X, Y) -> tuple[F64, F64]:
-    """Per-measurement residuals of ``A[i] X = Y B[i]`` (paper section V-A).
-
-    Parameters
-    ----------
-    A, B : array_like, shape (N, 4, 4)
-    X, Y : array_like, shape (4, 4)
-
-    Returns
-    -------
-    rot_rad : ndarray, shape (N,)
-        angle((R_Y R_B)^T (R_A R_X)), radians.
-    trans_m : ndarray, shape (N,)
-        ||(R_A t_X + t_A) - (R_Y t_B + t_Y)||, metres.
-    """
-    L = np.asarray(A, dtype=np.float64) @ np.asarray(X, dtype=np.float64)
-    R = np.asarray(Y, dtype=np.float64) @ np.asarray(B, dtype=np.float64)
-    rot = rotation_angle(np.swapaxes(R[:, :3, :3], 1, 2) @ L[:, :3, :3])
-    trans = np.linalg.norm(L[:, :3, 3] - R[:, :3, 3], axis=1)
-    return rot, trans
-
-
-def group_residual(A, B, X, Y) -> CameraResidual:
-    """Mean and worst loop residual of one group, as a :class:`CameraResidual`."""
-    rot, trans = loop_residuals(A, B, X, Y)
-    return CameraResidual(e_R_deg=float(np.degrees(rot.mean())), e_t_m=float(trans.mean()),
-                          max_R_deg=float(np.degrees(rot.max())), max_t_m=float(trans.max()),
-                          n=len(rot))
-
-
 def assemble_solution(groups: tuple[MeasurementGroup, ...], X: Mapping[str, F64],
                       Y: Mapping[str, F64], method: str, **extra) -> GeneralSolution:
     """GeneralSolution with the residuals of every group (``extra``: covariance fields)."""
     xs, ys = _names(groups)
     return GeneralSolution(
         X=dict(X), Y=dict(Y), method=method,
-        residuals={(g.x_name, g.y_name): group_residual(g.A, g.B, X[g.x_name], Y[g.y_name])
+        residuals={(g.x_name, g.y_name): camera_residual(g.A, g.B, X[g.x_name], Y[g.y_name])
                    for g in groups},
         groups=tuple((g.x_name, g.y_name, len(g.A)) for g in groups),
         unknowns=tuple([("X", x) for x in xs] + [("Y", y) for y in ys]),
@@ -451,11 +430,14 @@ def solve_general(groups: Iterable, method: str = "joint", refine: bool = False,
         raise InputError(f"refinement options {sorted(refine_options)} given without refine=True")
     groups = as_groups(groups)
     check_connected(groups)
-    xs, ys = _names(groups)
-    RX, RY = _rotations(groups, xs, ys)
-    tX, tY = _translations(groups, xs, ys, RX, RY)
-    X = dict(zip(xs, make_transform(RX, tX)))
-    Y = dict(zip(ys, make_transform(RY, tY)))
+    counts = np.array([len(g.A) for g in groups])
+    stats = Measurements.from_arrays(np.concatenate([g.A for g in groups]),
+                                     np.concatenate([g.B for g in groups]), counts).stats
+    lay = _layout(groups, counts)
+    RX, RY = _rotations(lay, stats.K)
+    tX, tY = _translations(lay, stats, RX, RY)
+    X = dict(zip(lay.xs, make_transform(RX, tX)))
+    Y = dict(zip(lay.ys, make_transform(RY, tY)))
     sol = assemble_solution(groups, X, Y, method)
     if refine:
         from .pose_refine import refine_general

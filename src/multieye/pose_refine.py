@@ -204,28 +204,33 @@ class PoseProblem:
         return self._sparse(blk)
 
 
-# --- robust loss: influence function and covariance factor ----------------------------------
+# --- robust loss: value, influence function, covariance factor ------------------------------
 
-def _rho_derivatives(z: F64, loss: str) -> tuple[F64, F64]:
-    """First and second derivatives of scipy's ``rho(z)``, ``z = (f / scale)^2``."""
+def _rho(z: F64, loss: str) -> tuple[F64, F64, F64]:
+    """scipy's ``rho(z)`` and its first two derivatives, ``z = (f / scale)^2``."""
     if loss == "linear":
-        return np.ones_like(z), np.zeros_like(z)
+        return z, np.ones_like(z), np.zeros_like(z)
     if loss == "huber":
         inside = z <= 1.0
         zs = np.where(inside, 1.0, z)
-        return np.where(inside, 1.0, zs ** -0.5), np.where(inside, 0.0, -0.5 * zs ** -1.5)
+        return (np.where(inside, z, 2.0 * np.sqrt(zs) - 1.0), np.where(inside, 1.0, zs ** -0.5),
+                np.where(inside, 0.0, -0.5 * zs ** -1.5))
     if loss == "soft_l1":
-        return (1.0 + z) ** -0.5, -0.5 * (1.0 + z) ** -1.5
+        return 2.0 * (np.sqrt(1.0 + z) - 1.0), (1.0 + z) ** -0.5, -0.5 * (1.0 + z) ** -1.5
     if loss == "cauchy":
-        return 1.0 / (1.0 + z), -1.0 / (1.0 + z) ** 2
-    # arctan
-    return 1.0 / (1.0 + z ** 2), -2.0 * z / (1.0 + z ** 2) ** 2
+        return np.log1p(z), 1.0 / (1.0 + z), -1.0 / (1.0 + z) ** 2
+    return np.arctan(z), 1.0 / (1.0 + z ** 2), -2.0 * z / (1.0 + z ** 2) ** 2   # arctan
+
+
+def _robust_cost(f: F64, loss: str, scale: float) -> float:
+    """``sum scale^2 rho(f^2 / scale^2) / 2`` (scipy's ``cost``)."""
+    return 0.5 * scale ** 2 * float(_rho((f / scale) ** 2, loss)[0].sum())
 
 
 def _psi(f: F64, loss: str, scale: float) -> tuple[F64, F64]:
     """Influence function ``psi(f) = d/df [scale^2 rho(f^2/scale^2) / 2]`` and its derivative."""
     z = (f / scale) ** 2
-    d1, d2 = _rho_derivatives(z, loss)
+    _, d1, d2 = _rho(z, loss)
     return f * d1, d1 + 2.0 * z * d2
 
 
@@ -250,12 +255,69 @@ def _robust_sigma(r: F64) -> float:
     return max(_MAD_TO_SIGMA * float(np.median(np.abs(r))), _SIGMA_FLOOR)
 
 
+# --- minimisation ---------------------------------------------------------------------------
+
+def _minimize_lm(problem: PoseProblem, T: F64, s_rot: float, s_t: float, loss: str,
+                 scale: float, max_iter: int, tol: float) -> F64:
+    """Levenberg-Marquardt on the sparse normal equations of the robust cost.
+
+    Every iteration re-anchors the chart at the current estimate (p = 0), solves
+    ``(J^T W J + lambda diag(J^T W J)) dp = -J^T psi(f)`` with ``W = psi'(f)`` (floored at
+    ``1e-3 rho'`` so that it stays positive for redescending losses), a ``6k x 6k`` system
+    assembled from the sparse J at a cost linear in the measurements, and accepts the step
+    when the robust cost decreases.  It reaches a stationary point of the same cost that
+    :func:`scipy.optimize.least_squares` minimises with ``loss``, ``f_scale=scale``.
+    """
+    zero = np.zeros(6 * problem.k)
+    f = problem.residuals(zero, T, s_rot, s_t)
+    cost = _robust_cost(f, loss, scale)
+    lam = 1e-6
+    for _ in range(max_iter):
+        J = problem.jacobian(zero, T, s_rot, s_t)
+        z = (f / scale) ** 2
+        _, d1, d2 = _rho(z, loss)
+        # Gauss-Newton Hessian of the robust cost, psi'(f) = rho' + 2 z rho'', kept positive.
+        w = np.maximum(d1 + 2.0 * z * d2, 1e-3 * d1)
+        H = (J.T @ sp.diags(w) @ J).toarray()
+        g = J.T @ (d1 * f)
+        d = np.diag(H).copy()
+        while True:
+            dp = np.linalg.solve(H + lam * np.diag(d), -g)
+            T_new = problem.poses(T, dp)
+            f_new = problem.residuals(zero, T_new, s_rot, s_t)
+            cost_new = _robust_cost(f_new, loss, scale)
+            if cost_new <= cost:
+                break
+            lam *= 10.0
+            if lam > 1e8:
+                return T
+        decrease = cost - cost_new
+        T, f, cost = T_new, f_new, cost_new
+        lam = max(lam / 10.0, 1e-12)
+        if decrease <= tol * max(cost, 1e-300) or np.abs(dp).max() <= tol:
+            break
+    return T
+
+
+def _minimize_scipy(problem: PoseProblem, T: F64, s_rot: float, s_t: float, loss: str,
+                    scale: float, max_iter: int, tol: float) -> F64:
+    """The same minimisation with :func:`scipy.optimize.least_squares` (trf, lsmr)."""
+    res = least_squares(problem.residuals, np.zeros(6 * problem.k), jac=problem.jacobian,
+                        args=(T, s_rot, s_t), loss=loss, f_scale=scale, method="trf",
+                        tr_solver="lsmr", tr_options={"atol": 1e-12, "btol": 1e-12},
+                        x_scale="jac", ftol=tol, xtol=tol, gtol=tol, max_nfev=max_iter)
+    return problem.poses(T, res.x)
+
+
+_SOLVERS = {"lm": _minimize_lm, "scipy": _minimize_scipy}
+
+
 # --- public API -----------------------------------------------------------------------------
 
 def refine_general(groups: Iterable, initial: GeneralSolution, *,
                    rot_sigma_rad: float | None = None, trans_sigma_m: float | None = None,
-                   loss: str = "huber", loss_scale: float = 1.345, max_nfev: int | None = None,
-                   tol: float = 1e-10) -> GeneralSolution:
+                   loss: str = "huber", loss_scale: float = 1.345, solver: str = "lm",
+                   max_iter: int = 100, tol: float = 1e-10) -> GeneralSolution:
     """Maximum-likelihood refinement of every X and Y of ``A_i X_a = Y_b B_i``, with covariance.
 
     Parameters
@@ -275,10 +337,16 @@ def refine_general(groups: Iterable, initial: GeneralSolution, *,
     loss_scale : float
         Where the loss departs from least squares, in units of sigma (1.345: Huber's 95 %
         efficiency under Gaussian noise).
-    max_nfev : int, optional
-        Cap on residual evaluations per optimisation (scipy's default otherwise).
+    solver : {"lm", "scipy"}
+        ``"lm"``: Levenberg-Marquardt on the sparse normal equations with IRLS weights (fast:
+        a 6k x 6k system per iteration).  ``"scipy"``: :func:`scipy.optimize.least_squares`
+        (trf, lsmr on the same analytic sparse Jacobian), much slower with robust losses;
+        both minimise the same cost.
+    max_iter : int
+        Iterations (``"lm"``) or residual evaluations (``"scipy"``) per minimisation.
     tol : float
-        ``ftol``, ``xtol`` and ``gtol`` of :func:`scipy.optimize.least_squares`.
+        Relative cost decrease and step size at which the minimisation stops (``ftol``,
+        ``xtol``, ``gtol`` for scipy).
 
     Returns
     -------
@@ -290,28 +358,28 @@ def refine_general(groups: Iterable, initial: GeneralSolution, *,
     Raises
     ------
     InputError
-        Unknown loss, non-positive sigma or loss scale, or an unknown missing from ``initial``.
+        Unknown loss or solver, non-positive sigma or loss scale, or an unknown missing from
+        ``initial``.
     """
     if loss not in LOSSES:
         raise InputError(f"unknown loss {loss!r}; expected one of {', '.join(LOSSES)}")
+    if solver not in _SOLVERS:
+        raise InputError(f"unknown solver {solver!r}; expected one of {', '.join(_SOLVERS)}")
     for name, v in (("rot_sigma_rad", rot_sigma_rad), ("trans_sigma_m", trans_sigma_m),
                     ("loss_scale", loss_scale)):
         if v is not None and not (np.isfinite(v) and v > 0):
             raise InputError(f"{name} must be a positive number, got {v!r}")
     problem = PoseProblem(groups)
     T = problem.anchor(initial)
-    zero = np.zeros(6 * problem.k)
+    minimize = _SOLVERS[solver]
 
     given = rot_sigma_rad is not None and trans_sigma_m is not None
     for _ in range(1 if given else 2):
         s_rot, s_t = _sigmas(problem, T, rot_sigma_rad, trans_sigma_m)
-        res = least_squares(problem.residuals, zero, jac=problem.jacobian,
-                            args=(T, s_rot, s_t), loss=loss, f_scale=loss_scale,
-                            method="trf", tr_solver="lsmr", x_scale="jac",
-                            ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev)
-        T = problem.poses(T, res.x)
+        T = minimize(problem, T, s_rot, s_t, loss, loss_scale, max_iter, tol)
 
     s_rot, s_t = _sigmas(problem, T, rot_sigma_rad, trans_sigma_m)
+    zero = np.zeros(6 * problem.k)
     f = problem.residuals(zero, T, s_rot, s_t)
     J = problem.jacobian(zero, T, s_rot, s_t)
     kappa = (_gaussian_kappa(loss, loss_scale) if given
@@ -334,34 +402,40 @@ def _sigmas(problem: PoseProblem, T: F64, rot_sigma_rad: float | None,
     return s_rot, s_t
 
 
-def refine_solution(A, B, solution: Solution, **options) -> Solution:
-    """Refine a single-Y solution of ``A_i^j X^j = Y B_i^j`` (the adapter for ``solve(refine=True)``).
+def refine_solution(solution: Solution, **options) -> Solution:
+    """Refine a single-Y solution of ``A_i^j X^j = Y B_i^j``: what ``solve(..., refine=True)`` runs.
 
     Parameters
     ----------
-    A, B : sequence of array_like, each shape (N_j, 4, 4)
-        One entry per camera, as given to :func:`multieye.solve`.
     solution : Solution
-        The closed-form solution to start from.
+        A closed-form solution carrying its validated ``measurements``.
     **options
-        Keyword options of :func:`refine_general` (sigmas, loss, ...).
+        Keyword options of :func:`refine_general` (sigmas, loss, solver, ...).
 
     Returns
     -------
     Solution
-        Same method name and ``Y_per_camera``; refined ``X``, ``Y`` and residuals;
-        ``covariance`` of shape (6(m+1), 6(m+1)), X^1..X^m then Y, each (rotation vector,
+        Same method name, ``Y_per_camera`` and measurements; refined ``X`` and ``Y``;
+        ``covariance`` (6(m+1), 6(m+1)) of X^1..X^m then Y, each (rotation vector,
         translation) with ``R = Exp(phi) R_hat`` and ``t = t_hat + tau`` (radians, metres).
+
+    Raises
+    ------
+    InputError
+        The solution carries no measurements, or an option is invalid.
     """
-    m = len(solution.X)
-    groups = [(str(j), "Y", A[j], B[j]) for j in range(m)]
+    meas = solution.measurements
+    if meas is None:
+        raise InputError("cannot refine a Solution built without its measurements")
+    m = meas.m
+    A, B = meas.split(meas.A), meas.split(meas.B)
+    groups = [MeasurementGroup(str(j), "Y", A[j], B[j]) for j in range(m)]
     initial = GeneralSolution(X={str(j): solution.X[j] for j in range(m)}, Y={"Y": solution.Y},
                               method=solution.method, residuals={}, groups=(), unknowns=())
     ref = refine_general(groups, initial, **options)
     return Solution(X=np.stack([ref.X[str(j)] for j in range(m)]), Y=ref.Y["Y"],
-                    method=solution.method,
-                    residuals=tuple(ref.residuals[(str(j), "Y")] for j in range(m)),
-                    Y_per_camera=solution.Y_per_camera, covariance=ref.covariance)
+                    method=solution.method, Y_per_camera=solution.Y_per_camera,
+                    covariance=ref.covariance, measurements=meas)
 
 
 def relative_pose_covariance(T_w_r, T_w_c, cov) -> F64:
