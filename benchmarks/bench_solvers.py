@@ -47,22 +47,27 @@ from multieye.solvers import check_measurements, solve
 from multieye.solvers.joint import solve_joint
 
 
-def median_time(fn: Callable[[], object], repeats: int, number: int = 1) -> float:
-    """Median over ``repeats`` of the mean time of ``number`` back-to-back calls, seconds."""
-    fn()  # warm-up: lazy imports, caches
-    times = []
+def median_times(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, float]:
+    """Median time of each function, seconds, over ``repeats`` interleaved rounds.
+
+    Each round calls every function once, in turn, so that a change in the machine's load
+    during the run affects all of them alike and their ratios stay meaningful.
+    """
+    for fn in fns.values():
+        fn()  # warm-up: lazy imports, caches
+    times: dict[str, list[float]] = {name: [] for name in fns}
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
         for _ in range(repeats):
-            start = time.perf_counter()
-            for _ in range(number):
+            for name, fn in fns.items():
+                start = time.perf_counter()
                 fn()
-            times.append((time.perf_counter() - start) / number)
+                times[name].append(time.perf_counter() - start)
     finally:
         if gc_was_enabled:
             gc.enable()
-    return statistics.median(times)
+    return {name: statistics.median(t) for name, t in times.items()}
 
 
 def noisy_problem(seed: int, n_cameras: int, measurements: int, f: float = 0.05):
@@ -134,16 +139,14 @@ def main(argv: list[str] | None = None) -> None:
     for name, flag in flags.items():
         print(f"check: max |OpenCV {name} - multieye {name}| = "
               f"{check_opencv_agrees(A, B, flag, name):.1e}")
-    times = {m: median_time(lambda m=m: solve(A, B, method=m), repeats)
-             for m in ("joint", "wang2022", "shah", "li")}
-    times.update({f"opencv-{n}": median_time(opencv_per_camera(A, B, f), repeats)
-                  for n, f in flags.items()})
-    # where the joint time goes: input checks, then the closed form itself
     meas = check_measurements(A, B, per_camera_motion=False)
-    times["  checks"] = median_time(lambda: check_measurements(A, B, per_camera_motion=False),
-                                    repeats)
-    times["  joint core"] = median_time(lambda: solve_joint(meas), repeats)
-    print(f"\n4 cameras x 40 measurements, 5 % noise, median of {repeats} runs:")
+    fns = {m: (lambda m=m: solve(A, B, method=m)) for m in ("joint", "wang2022", "shah", "li")}
+    fns.update({f"opencv-{n}": opencv_per_camera(A, B, f) for n, f in flags.items()})
+    # where the joint time goes: input checks, then the closed form itself
+    fns["  checks"] = lambda: check_measurements(A, B, per_camera_motion=False)
+    fns["  joint core"] = lambda: solve_joint(meas)
+    times = median_times(fns, repeats)
+    print(f"\n4 cameras x 40 measurements, 5 % noise, median of {repeats} interleaved runs:")
     for name, t in times.items():
         print(f"  {name:<13} {t * 1e3:8.3f} ms")
     print("ratios (OpenCV per camera / multieye):")
@@ -156,7 +159,7 @@ def main(argv: list[str] | None = None) -> None:
     for m in (10, 100) if args.quick else (10, 100, 1000):
         A, B = noisy_problem(args.seed, m, 100)
         reps = max(5, repeats // (10 if m >= 1000 else 2 if m >= 100 else 1))
-        t = median_time(lambda: solve(A, B, method="joint"), reps)
+        t = median_times({"joint": lambda: solve(A, B, method="joint")}, reps)["joint"]
         print(f"  {m:5d} cameras x 100: {t * 1e3:9.2f} ms (median of {reps})")
 
     # 3. memory of joint against measurements

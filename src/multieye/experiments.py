@@ -263,7 +263,8 @@ def cameras_experiment(trials: int = 100, seed: int = 0, *,
         return _scenario(scene_rng, noise_rng, n_cameras=int(m), measurements=measurements,
                          noise=noise, setup=setup)
 
-    return _sweep("cameras", "number of cameras", [float(m) for m in counts], problem,
+    return _sweep("cameras", "number of cameras (at 1: error of X itself)",
+                  [float(m) for m in counts], problem,
                   trials=trials, seed=seed, methods=methods, progress=progress)
 
 
@@ -380,7 +381,7 @@ def _figure(result: SweepResult, statistic: str) -> bytes:
     title = f"{result.name} sweep: {statistic} over {trials} trials"
     if result.failures:
         title += f" ({result.failures} failed solves left out)"
-    return sweep_png(x_label, panels, title=title, log_y=timing)
+    return sweep_png(x_label, panels, title=title, log_x=timing, log_y=timing)
 
 
 def run_experiment(name: str, trials: int = 100, seed: int = 0, out_dir: str | Path = ".",
