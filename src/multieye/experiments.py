@@ -53,6 +53,8 @@ __all__ = [
     "CAMERA_COUNTS",
     "MEASUREMENT_COUNTS",
     "TIMING_COUNTS",
+    "COLUMNS",
+    "METRICS",
     "ExperimentRow",
     "SweepResult",
     "ExperimentOutput",
@@ -107,7 +109,9 @@ class ExperimentRow:
     time_s: float
 
 
+#: CSV header, in order.
 COLUMNS: tuple[str, ...] = tuple(f.name for f in fields(ExperimentRow))
+#: Numeric columns that :func:`summarize` reduces.
 METRICS: tuple[str, ...] = ("e_R_deg", "e_t_m", "rel_rot_err_deg", "rel_trans_err_m", "time_s")
 
 
