@@ -15,8 +15,9 @@ It prints, in one run on one machine:
    - the baseline: one process, ``cv2.imread`` + ``cv2.findChessboardCorners`` with default
      flags, nothing else;
    - :func:`multieye.imaging.batch.detect_and_estimate` with ``--processes`` workers (pool
-     start-up included) and with 1 process: read, ``findChessboardCornersSB`` (classic
-     fallback), ``cornerSubPix``, canonical order, IPPE + Levenberg-Marquardt PnP;
+     start-up included; the fork server's one-off start in a session is timed separately
+     first) and with 1 process: read, ``findChessboardCornersSB`` (classic fallback),
+     ``cornerSubPix``, canonical order, IPPE + Levenberg-Marquardt PnP;
 
    and the ratio of ours on ``--processes`` cores to the baseline, plus how many images each
    found the board in.
@@ -129,6 +130,11 @@ def main() -> None:
         print(f"\nrender: {len(paths)} images of 800x600, {per_image * 1e3:.0f} ms each "
               f"({cpu / len(paths) * 1e3:.0f} ms CPU; 1 process); the demo's 4 x 40 = 160 images: "
               f"{160 * per_image:.1f} s on 1 core, about {160 * per_image / 2:.1f} s on 2")
+        start = time.perf_counter()
+        detect_and_estimate(paths[:args.processes], SYNTHETIC_BOARD, SYNTHETIC_CAMERA,
+                            processes=args.processes, progress=False)
+        print(f"first pool of the session (fork server start, {args.processes} images): "
+              f"{time.perf_counter() - start:.2f} s; the pools timed below start warm")
         compare("rendered chessboard 6x9, 800x600", paths, SYNTHETIC_BOARD, SYNTHETIC_CAMERA, args.processes)
     young = SHARED / "young_mocap_cam" / "example_dataset" / "rgb_images"
     if young.is_dir():

@@ -71,6 +71,12 @@ def test_bad_fit_is_a_reason_and_keeps_the_pose(image_files):
     assert result.pose is not None and result.pose.rms_px > 1e-4
 
 
+def test_image_size_must_match_the_intrinsics(image_files):
+    other = Intrinsics(K=CAMERA.K, dist=CAMERA.dist, width=1280, height=720)
+    result = process_image(image_files[0][0], BOARD, other)
+    assert result.reason == "image is 640x480 pixels but the intrinsics are for 1280x720"
+
+
 def test_wrong_board_size_is_not_found(image_files):
     result = process_image(image_files[0][0], Chessboard(rows=6, cols=7, spacing=0.04), CAMERA)
     assert result.reason == "chessboard not found"

@@ -81,14 +81,18 @@ def process_image(path, target: Target, intrinsics: Intrinsics, *,
     Returns
     -------
     ImageResult
-        Never raises for a bad image (missing, unreadable, empty, wrong size for OpenCV's
-        detectors, no target, degenerate points); programming errors still raise.
+        Never raises for a bad image (missing, unreadable, empty, another size than the
+        intrinsics state, no target, degenerate points); programming errors still raise.
     """
     path = str(path)
     image = cv2.imread(path, cv2.IMREAD_GRAYSCALE) if os.path.isfile(path) else None
     if image is None or image.size == 0:
         reason = "file not found" if not os.path.exists(path) else "unreadable image file"
         return ImageResult(path, None, None, reason)
+    size = (intrinsics.width, intrinsics.height)
+    if None not in size and (image.shape[1], image.shape[0]) != size:
+        return ImageResult(path, None, None, f"image is {image.shape[1]}x{image.shape[0]} pixels but "
+                           f"the intrinsics are for {size[0]}x{size[1]}")
     try:
         detection = detect(image, target)
     except (InputError, cv2.error) as exc:
@@ -131,10 +135,16 @@ def _available_cores() -> int:
 
 
 def _mp_context():
-    """forkserver where it exists (workers forked from a clean server: no OpenCV threads
-    copied into them), spawn elsewhere."""
-    methods = multiprocessing.get_all_start_methods()
-    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    """forkserver where it exists, spawn elsewhere: workers never inherit OpenCV's threads.
+
+    The fork server imports this module (numpy, OpenCV) once, so that each worker it forks
+    starts in milliseconds; without that preload every worker would import them again.
+    """
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload([__name__])
+    return ctx
 
 
 def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics, *,
@@ -165,7 +175,10 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics,
     -----
     Paths go to the workers in chunks (about four per worker) so that process start-up and
     inter-process traffic stay small next to detection; each worker holds the target and
-    intrinsics from its start and runs OpenCV single-threaded.
+    intrinsics from its start and runs OpenCV single-threaded. Workers come from a fork
+    server (spawn where there is none): its first start in a session costs about a second,
+    later pools start in milliseconds. As with any multiprocessing code, a script that calls
+    this with more than one process must do so under ``if __name__ == "__main__":``.
     """
     paths = [str(p) for p in paths]
     if processes is not None and (isinstance(processes, bool) or int(processes) < 1):
