@@ -120,10 +120,9 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
     """
     from .experiments import run_experiment
 
-    paths = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
-                           progress=_progress_enabled())
-    for p in paths:
-        click.echo(str(p))
+    out = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
+                         progress=_progress_enabled())
+    click.echo(f"wrote {out.csv_path} and {out.png_path}")
 
 
 if __name__ == "__main__":  # pragma: no cover
