@@ -69,7 +69,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from .errors import DegenerateMotionError, DisconnectedError, InputError, TooFewMeasurementsError
-from .geometry import make_transform
+from .geometry import inv, make_transform, random_transforms, transform_from_rotvec
 from .metrics import camera_residual
 from .solvers.checks import Measurements, check_transforms
 from .solvers.kronecker import normalize_rotation, unvec, vec
@@ -81,6 +81,7 @@ __all__ = [
     "solve_general",
     "as_groups",
     "check_connected",
+    "random_general_problem",
     "METHODS",
 ]
 
@@ -443,3 +444,73 @@ def solve_general(groups: Iterable, method: str = "joint", refine: bool = False,
         from .pose_refine import refine_general
         sol = refine_general(groups, sol, **refine_options)
     return sol
+
+
+def random_general_problem(rng: np.random.Generator, n_x: int, n_y: int, n_measurements: int, *,
+                           n_groups: int | None = None, rot_noise_rad: float = 0.0,
+                           trans_noise_m: float = 0.0, translation_scale: float = 1.0):
+    """A random connected general problem with known answer (tests, benchmarks).
+
+    The X/Y graph is a random spanning tree plus random extra pairs up to ``n_groups``; every
+    group gets at least one measurement and the rest are spread at random.  ``A`` are
+    uniformly random rotations with Gaussian translations; ``B = inv(Y) A X`` then
+    ``B <- B [Exp(n_R), n_t]`` with ``n_R ~ N(0, rot_noise_rad^2 I)``,
+    ``n_t ~ N(0, trans_noise_m^2 I)``, which makes the residuals of
+    :mod:`multieye.pose_refine` Gaussian with exactly those per-component sigmas.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    n_x, n_y : int
+        Number of X unknowns (``"x0"``, ...) and Y unknowns (``"y0"``, ...).
+    n_measurements : int
+        Total measurements, at least the number of groups.
+    n_groups : int, optional
+        Number of (x, y) pairs, from ``n_x + n_y - 1`` (a tree) to ``n_x n_y``; default
+        halfway.
+    rot_noise_rad, trans_noise_m : float
+        Noise on B, radians and metres per component.
+    translation_scale : float
+        Scale of the random translations, metres.
+
+    Returns
+    -------
+    groups : list of MeasurementGroup
+    X, Y : dict of str -> ndarray, shape (4, 4)
+        The true unknowns.
+    """
+    lo, hi = n_x + n_y - 1, n_x * n_y
+    n_groups = (lo + hi) // 2 if n_groups is None else n_groups
+    if not lo <= n_groups <= hi or n_measurements < n_groups:
+        raise InputError(f"need {lo} <= n_groups <= {hi} and n_measurements >= n_groups, got "
+                         f"n_groups={n_groups}, n_measurements={n_measurements}")
+    X = {f"x{i}": T for i, T in enumerate(random_transforms(rng, n_x,
+                                                              translation_scale=translation_scale))}
+    Y = {f"y{i}": T for i, T in enumerate(random_transforms(rng, n_y,
+                                                              translation_scale=translation_scale))}
+    # Random bipartite spanning tree: each new node hangs from a placed node of the other side.
+    order = [("x", i) for i in range(1, n_x)] + [("y", i) for i in range(1, n_y)]
+    rng.shuffle(order)
+    placed = {"x": [0], "y": [0]}
+    pairs = {(0, 0)}
+    for side, i in order:
+        other = placed["y" if side == "x" else "x"]
+        j = int(other[rng.integers(len(other))])
+        pairs.add((i, j) if side == "x" else (j, i))
+        placed[side].append(i)
+    rest = [(a, b) for a in range(n_x) for b in range(n_y) if (a, b) not in pairs]
+    for k in rng.choice(len(rest), size=n_groups - len(pairs), replace=False):
+        pairs.add(rest[k])
+    pairs = sorted(pairs)
+    counts = 1 + rng.multinomial(n_measurements - len(pairs), np.full(len(pairs), 1 / len(pairs)))
+    groups = []
+    for (a, b), n in zip(pairs, counts):
+        Xa, Yb = X[f"x{a}"], Y[f"y{b}"]
+        A = random_transforms(rng, int(n), translation_scale=translation_scale)
+        B = inv(Yb) @ A @ Xa
+        if rot_noise_rad or trans_noise_m:
+            B = B @ transform_from_rotvec(rng.normal(scale=rot_noise_rad, size=(n, 3)),
+                                          rng.normal(scale=trans_noise_m, size=(n, 3)))
+        B[:, 3] = [0.0, 0.0, 0.0, 1.0]
+        groups.append(MeasurementGroup(f"x{a}", f"y{b}", A, B))
+    return groups, X, Y
