@@ -50,6 +50,16 @@ def test_non_rigid_and_reflection_and_bottom_row(rig):
         solve([A0] + A[1:], B)
 
 
+def test_rounding_level_deviations_are_accepted(rig):
+    """float32 round trips and printed matrices are rigid enough (tolerance 1e-5)."""
+    A, B, _, _ = rig
+    A0 = A[0].astype(np.float32).astype(np.float64)
+    A0[:, 3, 3] = 1.0 + 1e-9
+    A0[:, 3, :3] = 1e-9
+    sol = solve([A0] + A[1:], B)
+    assert sol.X.shape == (3, 4, 4)
+
+
 def test_mismatched_counts_and_cameras(rig):
     A, B, _, _ = rig
     with pytest.raises(multieye.InputError, match="3 cameras but B has 2"):

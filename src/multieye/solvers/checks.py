@@ -34,6 +34,7 @@ RIGID_TOL = 1e-5
 #: far above rounding).
 SINGLE_AXIS_TOL_RAD = 1e-3
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
+_EYE = np.eye(3)
 
 
 def _is_batch(T) -> bool:
@@ -66,16 +67,16 @@ def _first_bad(T: np.ndarray, R: np.ndarray | None = None):
         R = np.ascontiguousarray(T[:, :3, :3])
     Rt = np.ascontiguousarray(np.swapaxes(R, 1, 2))   # batched matmul is slow on strided views
     G = Rt @ R
-    G[:, 0, 0] -= 1.0
-    G[:, 1, 1] -= 1.0
-    G[:, 2, 2] -= 1.0
+    G -= _EYE
     det = det3(R)
     if (np.abs(G).max() <= RIGID_TOL and np.abs(det - 1.0).max() <= RIGID_TOL
-            and np.abs(T[:, 3, :3]).max() <= RIGID_TOL and np.abs(T[:, 3, 3] - 1.0).max() <= RIGID_TOL):
+            and (T[:, 3] == _BOTTOM).all()):
         return None
     orth = np.abs(G).max(axis=(1, 2))
     bottom = np.abs(T[:, 3] - _BOTTOM).max(axis=1)
     bad = (orth > RIGID_TOL) | (np.abs(det - 1.0) > RIGID_TOL) | (bottom > RIGID_TOL)
+    if not bad.any():
+        return None
     i = int(np.argmax(bad))
     if bottom[i] > RIGID_TOL:
         what = f"its bottom row is {T[i, 3].tolist()}, expected [0, 0, 0, 1]"
