@@ -1,9 +1,12 @@
 """The image side: camera models, targets, detection, PnP, rendering, batch processing.
 
 The only package of multieye that imports OpenCV (``cv2``). Data flows
-images -> :func:`detect` -> :func:`estimate_pose` -> ``T_cam_target`` per image, which the
-hand-eye solvers consume; :func:`detect_and_estimate` does this over many files in parallel,
-and :func:`render` makes synthetic images for tests and the demo.
+images -> :func:`.detect.detect` -> :func:`.pnp.estimate_pose` -> ``T_cam_target`` per image,
+which the hand-eye solvers consume; :func:`.batch.detect_and_estimate` does this over many
+files in parallel, and :func:`.render.render` makes synthetic images for tests and the demo.
+
+``detect`` and ``render`` are not re-exported here: the names would hide the modules
+``multieye.imaging.detect`` and ``multieye.imaging.render``; import them from their modules.
 
 Synopsis
 --------
@@ -14,9 +17,9 @@ Synopsis
 
 from .batch import ImageResult, detect_and_estimate, process_image
 from .camera_model import distort_points, project_points, undistort_points
-from .detect import Detection, detect
+from .detect import Detection
 from .pnp import PoseEstimate, estimate_pose, reprojection_residuals
-from .render import render, visible
+from .render import visible
 from .targets import (
     AprilGrid,
     AsymmetricCircleGrid,
@@ -39,13 +42,11 @@ __all__ = [
     "PoseEstimate",
     "TARGET_TYPES",
     "Target",
-    "detect",
     "detect_and_estimate",
     "distort_points",
     "estimate_pose",
     "process_image",
     "project_points",
-    "render",
     "reprojection_residuals",
     "target_from_spec",
     "undistort_points",

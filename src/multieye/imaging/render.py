@@ -313,12 +313,17 @@ def _(target: AprilGrid, x, y):
 # --------------------------------------------------------------------------- image
 
 def _background(rng: np.random.Generator, w: int, h: int) -> NDArray[np.float32]:
-    """Smooth random texture, grey levels about 50..170, no sharp corners."""
-    img = np.zeros((h, w), dtype=np.float32)
+    """Smooth random texture, grey levels about 50..170, no sharp corners.
+
+    Three octaves of uniform noise (4, 16 and 64 cells across) summed on the finest cell
+    grid, then one bicubic enlargement to the image.
+    """
+    fine = (max(2, 64 * h // max(w, h)), 64)
+    img = np.full(fine, 110.0, dtype=np.float32)
     for cells, amp in ((4, 45.0), (16, 20.0), (64, 8.0)):
-        small = rng.uniform(-1, 1, size=(max(2, cells * h // max(w, h)), cells)).astype(np.float32)
-        img += amp * cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
-    return img + 110.0
+        small = rng.uniform(-amp, amp, size=(max(2, cells * h // max(w, h)), cells)).astype(np.float32)
+        img += cv2.resize(small, fine[::-1], interpolation=cv2.INTER_CUBIC)
+    return cv2.resize(img, (w, h), interpolation=cv2.INTER_CUBIC)
 
 
 def _board_roi(target: Target, intrinsics: Intrinsics, T: F64, w: int, h: int, margin: float):
@@ -406,9 +411,8 @@ def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike, *,
             y = o[1] + lam * (R[0, 1] * rx + R[1, 1] * ry + R[2, 1] * rz)
         x0, x1, y0, y1 = target.bounds()
         on_board = valid & (lam > 0) & (x >= x0 - m) & (x <= x1 + m) & (y >= y0 - m) & (y <= y1 + m)
-        x[~on_board] = x0 - 2 * m          # off the board: any point where the pattern is blank
-        y[~on_board] = y0 - 2 * m
-        refl = _reflectance(target, x, y)
+        with np.errstate(invalid="ignore"):    # NaN off the board: masked out just below
+            refl = _reflectance(target, x, y)
         refl *= on_board
         size = (ub - ua, vb - va)
         # box filter over the sub-pixels: exact block means for an integer factor
@@ -425,5 +429,5 @@ def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike, *,
     if blur_sigma > 0:
         image = cv2.GaussianBlur(image, (0, 0), blur_sigma)
     if noise_sigma > 0:
-        image = image + rng.normal(0.0, noise_sigma, size=image.shape).astype(np.float32)
+        image += noise_sigma * rng.standard_normal(size=image.shape, dtype=np.float32)
     return np.clip(np.rint(image), 0, 255).astype(np.uint8)
