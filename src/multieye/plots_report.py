@@ -247,12 +247,10 @@ def rig_png(record: CalibrationRecord, details: RunDetails | None = None, *,
         corners = frustum_corners(sc.intrinsics[j], depth) @ T[:3, :3].T + T[:3, 3]
         apex = T[:3, 3]
         lw = 2.0 if j == sc.reference else 1.3
-        segments = [(apex, c) for c in corners] + [(corners[k], corners[(k + 1) % 4])
-                                                   for k in range(4)]
-        for a, b in segments:
-            d = disp(np.stack([a, b]))
-            ax3.plot(d[:, 0], d[:, 1], d[:, 2], color=col, lw=lw)
-            ax2.plot(d[:, 0], d[:, 1], color=col, lw=lw, zorder=3)
+        c0, c1, c2, c3 = corners     # image rectangle and the four rays, as one polyline
+        d = disp(np.stack([c0, c1, c2, c3, c0, apex, c1, np.full(3, np.nan), c2, apex, c3]))
+        ax3.plot(d[:, 0], d[:, 1], d[:, 2], color=col, lw=lw)
+        ax2.plot(d[:, 0], d[:, 1], color=col, lw=lw, zorder=3)
         top = disp(np.stack([corners[0], corners[1]]))          # image top edge, thick
         ax3.plot(top[:, 0], top[:, 1], top[:, 2], color=col, lw=lw * 2.6, solid_capstyle="butt")
         ax2.plot(top[:, 0], top[:, 1], color=col, lw=lw * 2.6, solid_capstyle="butt", zorder=3)
