@@ -5,6 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from multieye.errors import DatasetError, InputError
 from multieye.imaging.targets import (
@@ -143,3 +145,24 @@ def test_dictionary_sizes_come_from_opencv():
     board = Charuco(rows=10, cols=10, spacing=0.02, marker_size=0.015, dictionary="DICT_4X4_50")
     assert cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50).bytesList.shape[0] == 50
     assert board.n_points == 81
+
+
+VALUES = st.one_of(st.none(), st.booleans(), st.integers(-5, 40), st.floats(allow_nan=True, allow_infinity=True),
+                   st.text(max_size=12), st.sampled_from(["DICT_5X5_100", "DICT_4X4_50", "DICT_APRILTAG_36h11"]))
+KEYS = st.sampled_from(["rows", "cols", "spacing", "marker_size", "dictionary", "tag_spacing", "diameter",
+                        "legacy", "size", "Rows"])
+
+
+@settings(max_examples=100, deadline=None)
+@given(kind=st.sampled_from(["chessboard", "circles", "asymmetric-circles", "charuco", "aprilgrid", "grid", None, 3]),
+       entries=st.dictionaries(KEYS, VALUES, max_size=7))
+def test_any_mapping_gives_a_target_or_a_dataset_error(kind, entries):
+    spec = {"type": kind, **entries}
+    try:
+        target = target_from_spec(spec, path="rig.yaml")
+    except DatasetError as exc:
+        assert str(exc).startswith("rig.yaml: target: ")
+        return
+    assert target.kind == kind
+    P = target.object_points()
+    assert P.shape == (target.n_points, 3) and np.all(np.isfinite(P)) and target.spacing > 0
