@@ -112,12 +112,13 @@ def test_unknown_method_and_reference(dataset, tmp_path):
 def test_failed_run_leaves_previous_result_untouched(dataset, tmp_path):
     out = tmp_path / "out"
     assert _run(["calibrate", dataset, "-o", out]).exit_code == 0
-    before = (out / "calibration.json").read_bytes()
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert {"calibration.json", "camchain.yaml", "details.json", "report.html"} <= set(before)
     (dataset / "mocap.txt").write_text("garbage\n")
     res = _run(["calibrate", dataset, "-o", out])
     assert res.exit_code == 2
-    assert (out / "calibration.json").read_bytes() == before
-    assert sorted(p.name for p in out.iterdir()) == ["calibration.json", "camchain.yaml"]
+    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert after == before
 
 
 def test_console_script_help_is_instant_and_lists_commands():
@@ -126,3 +127,26 @@ def test_console_script_help_is_instant_and_lists_commands():
     assert res.returncode == 0
     for cmd in ("calibrate", "demo", "experiment"):
         assert cmd in res.stdout
+
+
+def test_export_formats_listed_in_cli_match_the_library():
+    from multieye.cli import EXPORT_FORMATS
+    from multieye.export import FORMATS
+
+    assert set(EXPORT_FORMATS) == set(FORMATS)
+
+
+def test_calibrate_writes_details_and_report_then_export_and_report_commands(dataset, tmp_path):
+    out = tmp_path / "out"
+    assert _run(["calibrate", dataset, "-o", out]).exit_code == 0
+    assert (out / "details.json").exists() and (out / "report.html").exists()
+    (out / "report.html").unlink()
+    res = _run(["report", out])
+    assert res.exit_code == 0 and (out / "report.html").exists()
+    for fmt in ("kalibr", "opencv", "urdf", "tf-static", "json"):
+        res = _run(["export", out, "--format", fmt])
+        assert res.exit_code == 0, res.stderr
+        assert all((tmp_path / p).exists() or __import__("pathlib").Path(p).exists()
+                   for p in res.stdout.split())
+    res = _run(["report", tmp_path / "empty"])
+    assert res.exit_code == 2 and "calibration.json" in res.stderr

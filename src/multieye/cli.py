@@ -105,6 +105,36 @@ def demo(out_dir: Path, seed: int):
 
 
 @main.command()
+@click.argument("out_dir", type=click.Path(file_okay=False, path_type=Path))
+@_user_errors
+def report(out_dir: Path):
+    """Write OUT/report.html (and OUT/figures/*.png) from a calibration in OUT.
+
+    Reads OUT/calibration.json and, when present, OUT/details.json.
+    """
+    from .report import write_report
+
+    click.echo(str(write_report(out_dir)))
+
+
+EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json")
+
+
+@main.command()
+@click.argument("out_dir", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--format", "fmt", type=click.Choice(EXPORT_FORMATS), required=True,
+              help="kalibr camchain, OpenCV FileStorage, URDF fragment, ROS 2 static "
+                   "transform publisher arguments, or compact JSON.")
+@_user_errors
+def export(out_dir: Path, fmt: str):
+    """Export the calibration in OUT to another tool's format (into OUT/export/)."""
+    from .export import export as run_export
+
+    for p in run_export(out_dir, fmt):
+        click.echo(str(p))
+
+
+@main.command()
 @click.argument("name", type=click.Choice(["noise", "cameras", "measurements", "timing"]))
 @click.option("--trials", type=click.IntRange(1), default=100, show_default=True,
               help="Monte Carlo trials per parameter value.")

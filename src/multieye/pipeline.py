@@ -330,8 +330,13 @@ def calibrate(dataset: str | os.PathLike, *, method: str = "joint", reference: s
     return calibrate_rig(rig, cameras, method=method, reference=reference)
 
 
-def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike) -> tuple[list[Path], list[str]]:
-    """Write ``calibration.json`` and Kalibr ``camchain.yaml`` atomically into ``out_dir``.
+def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bool = True,
+                  diagnostics: dict | None = None) -> tuple[list[Path], list[str]]:
+    """Write the results atomically into ``out_dir``.
+
+    ``calibration.json`` (DESIGN.md section 4), Kalibr ``camchain.yaml``, ``details.json``
+    (per-image residuals, target poses, trajectory; :mod:`multieye.io.run_details`) and,
+    with ``report=True``, ``report.html`` with its figures (:mod:`multieye.report`).
 
     Returns
     -------
@@ -348,6 +353,7 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike) -> tuple[list
     missing = [c.name for c in run.record.cameras if run.cameras[c.name].intrinsics is None]
     if missing:
         notes.append(f"camchain.yaml not written: no intrinsics for {', '.join(missing)}")
+        paths.extend(_write_details_and_report(run, out, report=report, diagnostics=diagnostics))
         return paths, notes
     entries = [CamchainEntry(name=c.name, intrinsics=run.cameras[c.name].intrinsics,
                              T_ref_cam=c.T_ref_cam) for c in run.record.cameras]
@@ -358,4 +364,19 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike) -> tuple[list
         notes.append(f"camchain.yaml not written: {exc}")
     else:
         paths.append(chain)
+    paths.extend(_write_details_and_report(run, out, report=report, diagnostics=diagnostics))
     return paths, notes
+
+
+def _write_details_and_report(run: CalibrationRun, out: Path, *, report: bool,
+                              diagnostics: dict | None) -> list[Path]:
+    from .io.run_details import write_run_details
+
+    details = out / "details.json"
+    write_run_details(details, run, diagnostics=diagnostics)
+    paths = [details]
+    if report:
+        from .report import write_report
+
+        paths.append(write_report(out))
+    return paths
