@@ -158,31 +158,46 @@ def _describe_target(rig: Rig) -> str:
     return f"{t.type} {t.rows}x{t.cols}" if t is not None else "target"
 
 
-def _observations_from_images(name: str, folder: Path, rig: Rig, intr: Intrinsics, *,
-                              processes, progress):
-    from .imaging.batch import detect_and_estimate
+def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsics, *,
+                              processes, progress, topic: str | None = None):
+    """Detection and PnP over a folder of time-stamped images, or a bag's image topic."""
     from .imaging.targets import target_from_spec
 
     target = target_from_spec(rig.target.as_dict(), path=rig.path)
-    images = list_images(folder)
-    results = detect_and_estimate([p for _, _, p in images], target, intr,
-                                  processes=processes, progress=progress)
+    if topic is None:
+        from .imaging.batch import detect_and_estimate
+
+        images = list_images(source)
+        results = detect_and_estimate([p for _, _, p in images], target, intr,
+                                      processes=processes, progress=progress)
+        stamped = [(stamp, path.name) for stamp, _, path in images]
+    else:
+        from .imaging.batch import process_array
+        from .io import iter_bag_images
+
+        results, stamped = [], []
+        for stamp_ns, image in iter_bag_images(source, topic):
+            label = f"{topic}@{stamp_ns}"
+            results.append(process_array(image, label, target, intr))
+            stamped.append((stamp_ns * 1e-9, label))
+        if not stamped:
+            raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
     obs, rejected, warnings = [], [], []
-    for (stamp, _, path), res in zip(images, results):
+    for (stamp, label), res in zip(stamped, results):
         if res.ok:
-            obs.append(Observation(name=path.name, stamp=stamp, T_cam_target=res.pose.T_cam_target,
+            obs.append(Observation(name=label, stamp=stamp, T_cam_target=res.pose.T_cam_target,
                                    rms_px=res.pose.rms_px,
                                    object_points=res.detection.object_points,
                                    image_points=res.detection.image_points))
-            warnings.extend(f"{name}/{path.name}: {w}" for w in res.warnings)
+            warnings.extend(f"{name}/{label}: {w}" for w in res.warnings)
         else:
-            rejected.append(RejectedItem(path.name, res.reason))
+            rejected.append(RejectedItem(label, res.reason))
     if not obs:
         raise DatasetError(f"the target ({_describe_target(rig)}) was not detected in any of "
-                           f"the {len(images)} images; check the target section of rig.yaml "
+                           f"the {len(stamped)} images; check the target section of rig.yaml "
                            "(rows/cols count inner corners for a chessboard) and the images",
-                           path=folder, camera=name)
-    return obs, rejected, len(images), tuple(warnings)
+                           path=source, camera=name)
+    return obs, rejected, len(stamped), tuple(warnings)
 
 
 def load_camera_data(rig: Rig, *, processes: int | None = None,
@@ -214,9 +229,10 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
             obs, rejected, n_inputs, warnings = _observations_from_images(
                 name, cam.images, rig, intr, processes=processes, progress=progress)
         else:
-            raise DatasetError("image topics of ROS bags are read with `multieye.io.iter_bag_images`;"
-                               " extract them to a folder of time-stamped images for now",
-                               path=cam.rosbag, camera=name)
+            intr = read_camera_intrinsics(cam)
+            obs, rejected, n_inputs, warnings = _observations_from_images(
+                name, cam.rosbag, rig, intr, processes=processes, progress=progress,
+                topic=cam.topic)
         out[name] = CameraData(name=name, intrinsics=intr, observations=tuple(obs),
                                rejected=tuple(rejected), n_inputs=n_inputs,
                                mocap=trajectories[key], time_offset=cam.time_offset,

@@ -26,7 +26,8 @@ from .detect import Detection, detect
 from .pnp import PoseEstimate, estimate_pose
 from .targets import Target
 
-__all__ = ["ImageResult", "detect_and_estimate", "process_image", "DEFAULT_MAX_RMS_PX"]
+__all__ = ["ImageResult", "detect_and_estimate", "process_image", "process_array",
+           "DEFAULT_MAX_RMS_PX"]
 
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
 DEFAULT_MAX_RMS_PX = 2.0
@@ -89,6 +90,24 @@ def process_image(path, target: Target, intrinsics: Intrinsics, *,
     if image is None or image.size == 0:
         reason = "file not found" if not os.path.exists(path) else "unreadable image file"
         return ImageResult(path, None, None, reason)
+    return process_array(image, path, target, intrinsics, max_rms_px=max_rms_px)
+
+
+def process_array(image, name: str, target: Target, intrinsics: Intrinsics, *,
+                  max_rms_px: float = DEFAULT_MAX_RMS_PX) -> ImageResult:
+    """:func:`process_image` for an image already in memory (e.g. from a ROS bag).
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, C)
+    name : str
+        How the image is named in the result (``ImageResult.path``).
+    """
+    path = name
+    if image.ndim == 3:
+        from .detect import to_gray
+
+        image = to_gray(image)
     size = (intrinsics.width, intrinsics.height)
     if None not in size and (image.shape[1], image.shape[0]) != size:
         return ImageResult(path, None, None, f"image is {image.shape[1]}x{image.shape[0]} pixels but "
