@@ -17,6 +17,7 @@ from .errors import (
     TooFewMeasurementsError,
 )
 
+from .general import GeneralSolution, solve_general
 from .solvers import METHODS, Solution, solve
 
 __version__ = "0.1.0"
@@ -31,5 +32,7 @@ __all__ = [
     "METHODS",
     "Solution",
     "solve",
+    "solve_general",
+    "GeneralSolution",
     "__version__",
 ]
