@@ -185,3 +185,19 @@ def test_error_messages_name_what_is_wrong():
     obs[1][2] = (pts, uv[:-1], M)
     with pytest.raises(InputError, match=r"camera cam1, image 2: object points must be \(n, 3\)"):
         refine_images(sc.setup, obs, sc.intrinsics, sc.X, sc.Y)
+
+
+def test_refine_experiment_writes_csv_and_png(tmp_path):
+    from multieye.experiments_refine import (COLUMNS, METHODS, run_refine_experiment,
+                                             summarize_refine, refine_sweep)
+    paths = run_refine_experiment(1, 3, tmp_path, progress=False, levels=(0.5,), n_cameras=2,
+                                  images=6)
+    assert [p.name for p in paths] == ["refine.csv", "refine.png"]
+    lines = paths[0].read_text().splitlines()
+    assert lines[0] == ",".join(COLUMNS)
+    assert [line.split(",")[2] for line in lines[1:]] == list(METHODS)
+    assert paths[1].read_bytes()[:4] == b"\x89PNG"
+    rows = refine_sweep(1, 3, levels=(0.5,), n_cameras=2, images=6)
+    s = summarize_refine(rows)
+    assert s["cramer-rao"]["rot_rms_deg"] == pytest.approx(s["cramer-rao"]["pred_rot_rms_deg"])
+    assert np.all(s["refined"]["rot_rms_deg"] > 0)
