@@ -133,7 +133,13 @@ def test_gross_point_errors_are_flagged_and_down_weighted():
         uv = uv.copy()
         uv[pts] += 25.0
         obs[j][i] = (pts_obj, uv, M)
+    pts_obj, uv, M = obs[0][4]
+    uv = uv.copy()
+    uv[10] = np.nan                                      # an undetected corner
+    obs[0][4] = (pts_obj, uv, M)
     res = refine_images(sc.setup, obs, sc.intrinsics, sol.X, sol.Y, pixel_sigma=0.3)
+    assert len(res.point_weights[0][4]) == 48 and np.isnan(res.point_weights[0][4][10])
+    assert not res.point_outliers[0][4][10]
     flagged = {(j, i, int(k)) for j, cam in enumerate(res.point_outliers)
                for i, f in enumerate(cam) for k in np.flatnonzero(f)}
     injected = {(j, i, k) for (j, i), pts in bad.items() for k in pts}

@@ -35,9 +35,17 @@ Jacobian: analytic in the poses, chained with the 2x3 derivative of the pixel wi
 the camera-frame point (:func:`project_with_jacobian`: the lens model's 2x2 derivative by
 central differences of :func:`multieye.imaging.camera_model.distort_points`, so every OpenCV
 pinhole and fisheye model works, times the analytic perspective division).  Each pixel row
-depends on 18 parameters (its camera's X, Y, its image's M), each prior row on one; the
-Jacobian is handed to scipy as a sparse CSR matrix with that structure (trust-region
-reflective, LSMR inner solver, ``x_scale="jac"``).
+depends on 18 parameters (its camera's X, Y, its image's M), each prior row on one
+(:attr:`ImageProblem.sparsity`).
+
+Minimisers (``solver``): ``"lm"`` (default) is Levenberg-Marquardt on the normal equations
+with the per-image 6x6 mocap blocks eliminated by the Schur complement, as bundle adjusters
+do: a (6(m+1))^2 system per iteration, cost linear in the points (about 0.6 s for 4 cameras x
+40 images x 48 points).  ``"scipy"`` hands the same residuals and sparse CSR Jacobian to
+:func:`scipy.optimize.least_squares` (trust-region reflective, LSMR inner solver, ``x_scale``
+set to the expected size of each correction); it reaches the same optimum, but LSMR on this
+badly scaled problem (pixels against sub-millimetre mocap priors) makes it 10-50x slower,
+beyond the 5 s budget of issue 4 for the demo rig.
 
 Covariance: ``kappa (J^T J)^-1`` restricted to X and Y by the Schur complement of the
 block-diagonal per-image part (which marginalises the mocap poses), with ``J`` the Jacobian of
@@ -102,7 +110,6 @@ DEFAULT_F_SCALE = 2.0
 OUTLIER_PROBABILITY = 1e-4
 #: Step of the central differences of the lens model, in normalised image coordinates.
 _LENS_STEP = 1e-6
-_FIRST_SIGMA_PX = 1.0
 _MAX_SIGMA_PASSES = 6
 
 
@@ -170,7 +177,8 @@ class RefinementResult:
         Reprojection RMS over all points of each camera, pixels.
     point_weights : tuple of tuple of ndarray, shape (n_i,)
         Per camera, per image: the robust loss's weight of each point (the smaller of its two
-        coordinates' IRLS weights ``rho'``; 1 = full least-squares weight).
+        coordinates' IRLS weights ``rho'``; 1 = full least-squares weight; NaN for points left
+        out for non-finite coordinates).
     point_outliers : tuple of tuple of ndarray, shape (n_i,), bool
         Points whose squared normalised residual exceeds the chi-square (2 dof) quantile of
         :data:`OUTLIER_PROBABILITY`.
@@ -264,7 +272,7 @@ class ImageProblem:
         self.setup = setup
         self.intrinsics = tuple(intrinsics)
         self.m = m
-        obj, uv, mocap, img_of_point, cam_of_image, counts = [], [], [], [], [], []
+        obj, uv, mocap, img_of_point, cam_of_image, counts, keep = [], [], [], [], [], [], []
         for j, images in enumerate(observations):
             images = list(images)
             if not images:
@@ -287,9 +295,11 @@ class ImageProblem:
                     raise InputError(f"{where}: no finite target point")
                 obj.append(o[ok])
                 uv.append(u[ok])
+                keep.append(ok)
                 mocap.append(_as_pose(M, f"{where}: T_world_mocap"))
                 img_of_point.append(np.full(int(ok.sum()), len(mocap) - 1))
                 cam_of_image.append(j)
+        self._keep = keep                                      # finite points of each image
         self.object_points = np.concatenate(obj)
         self.image_points = np.concatenate(uv)
         self.mocap_measured = np.stack(mocap)
@@ -342,9 +352,16 @@ class ImageProblem:
         """Per-image array (N, ...) to one array per camera."""
         return tuple(np.split(arr, np.cumsum(self.counts)[:-1]))
 
-    def split_points(self, arr: np.ndarray) -> tuple[tuple[np.ndarray, ...], ...]:
-        """Per-point array (P, ...) to per camera, per image arrays."""
-        per_image = np.split(arr, self.image_starts[1:])
+    def split_points(self, arr: np.ndarray, fill) -> tuple[tuple[np.ndarray, ...], ...]:
+        """Per-point array (P,) to per camera, per image arrays over the input's points.
+
+        Points left out for non-finite coordinates get ``fill``.
+        """
+        per_image = []
+        for values, ok in zip(np.split(arr, self.image_starts[1:]), self._keep):
+            full = np.full(ok.shape, fill, dtype=arr.dtype)
+            full[ok] = values
+            per_image.append(full)
         bounds = np.concatenate([[0], np.cumsum(self.counts)])
         return tuple(tuple(per_image[bounds[j]:bounds[j + 1]]) for j in range(self.m))
 
@@ -719,7 +736,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     s_rot = _check_sigma(mocap_rot_sigma_rad, "mocap_rot_sigma_rad")
     s_t = _check_sigma(mocap_trans_sigma_m, "mocap_trans_sigma_m")
     estimate = pixel_sigma is None
-    s_px = _FIRST_SIGMA_PX if estimate else _check_sigma(pixel_sigma, "pixel_sigma")
+    s_px = None if estimate else _check_sigma(pixel_sigma, "pixel_sigma")
     problem = ImageProblem(setup, observations, intrinsics, names)
     X0 = np.asarray(X0, dtype=np.float64)
     Y0 = _as_pose(Y0, "Y0")
@@ -785,7 +802,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     return RefinementResult(
         X=X, Y=Y, covariance=kappa * cov_xy, T_world_mocap=problem.split_images(M),
         image_rms_px=problem.split_images(img_rms), camera_rms_px=cam_rms,
-        point_weights=problem.split_points(w_pt), point_outliers=problem.split_points(point_out),
+        point_weights=problem.split_points(w_pt, np.nan),
+        point_outliers=problem.split_points(point_out, False),
         image_outliers=problem.split_images(img_out), pixel_sigma=float(s_px),
         pixel_sigma_estimated=estimate, mocap_rot_sigma_rad=s_rot, mocap_trans_sigma_m=s_t,
         loss=loss, f_scale=f_scale, iterations=iterations, evaluations=evaluations,
