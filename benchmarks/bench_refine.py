@@ -41,7 +41,7 @@ import numpy as np
 
 from multieye import geometry as g
 from multieye.clock import estimate_offset
-from multieye.experiments_refine import _errors, refine_trial, summarize_refine
+from multieye.experiments_refine import refine_trial, relative_rms_errors, summarize_refine
 from multieye.image_sim import corrupt, simulate_images, simulate_stream
 from multieye.metrics import extrinsic_errors
 from multieye.pairing import pair_in_time
@@ -50,11 +50,11 @@ from multieye.robust import consensus
 from multieye.solvers import solve
 
 
-def timing(seed: int) -> None:
-    sc = simulate_images(seed, n_cameras=4, images=40)
+def timing(seed: int, setup: str) -> None:
+    sc = simulate_images(seed, n_cameras=4, images=40, setup=setup)
     sol = solve(sc.A, sc.B)
     n_points = sum(u.shape[0] * u.shape[1] for u in sc.image_points)
-    print(f"1. refinement of 4 cameras x 40 images ({n_points} points), "
+    print(f"1. refinement of 4 cameras x 40 images ({n_points} points, {setup}), "
           f"{os.cpu_count()} cores, OMP_NUM_THREADS={os.environ['OMP_NUM_THREADS']}:")
     refine_images(sc.setup, sc.observations, sc.intrinsics, sol.X, sol.Y)  # warm-up
     for label, kw in (("pixel noise estimated", {}), ("pixel noise given", {"pixel_sigma": 0.3})):
@@ -65,12 +65,12 @@ def timing(seed: int) -> None:
               f"({runs[0].passes} passes, {runs[0].iterations} iterations)")
 
 
-def accuracy(trials: int, seed: int) -> None:
+def accuracy(trials: int, seed: int, setup: str) -> None:
     rows = []
     start = time.perf_counter()
     for t in range(trials):
         rows += refine_trial(0.3, np.random.default_rng([seed, t]),
-                             np.random.default_rng([seed, t, 0]), trial=t)
+                             np.random.default_rng([seed, t, 0]), trial=t, setup=setup)
     s = summarize_refine(rows)
     j, r, c = s["joint"], s["refined"], s["cramer-rao"]
     print(f"\n2. {trials} rigs, 4 x 40 images, 0.3 px, mocap 0.1 deg / 0.3 mm "
@@ -90,10 +90,11 @@ def accuracy(trials: int, seed: int) -> None:
     print(f"   refinement time: median {statistics.median(times):.2f} s, max {max(times):.2f} s")
 
 
-def robustness(trials: int, seed: int) -> None:
+def robustness(trials: int, seed: int, setup: str) -> None:
     exact, ratios = 0, []
     for t in range(trials):
-        clean = simulate_images(np.random.default_rng([seed, t, 1]), n_cameras=4, images=40)
+        clean = simulate_images(np.random.default_rng([seed, t, 1]), n_cameras=4, images=40,
+                                setup=setup)
         bad = corrupt(clean, 0.2, np.random.default_rng([seed, t, 2]))
         cons = consensus(bad.A, bad.B)
         exact += all(np.array_equal(~k, c) for k, c in zip(cons.inliers, bad.corrupted))
@@ -102,7 +103,8 @@ def robustness(trials: int, seed: int) -> None:
         obs = [[o for o, k in zip(cam, inl) if k]
                for cam, inl in zip(bad.observations, cons.inliers)]
         ref = refine_images(bad.setup, obs, bad.intrinsics, cons.X, cons.Y)
-        ratios.append((_errors(ref.X, clean.X), _errors(ref_clean.X, clean.X)))
+        ratios.append((relative_rms_errors(ref.X, clean.X),
+                       relative_rms_errors(ref_clean.X, clean.X)))
     e = np.array(ratios)                                   # (trials, bad/clean, rot/trans)
     rms = np.sqrt(np.mean(e ** 2, axis=0))
     print(f"\n3. {trials} rigs with 20 % of the measurements corrupted (4 x 40 images):")
@@ -141,12 +143,14 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--trials", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--setup", choices=("eye-to-base", "eye-on-hand"), default="eye-to-base",
+                        help="setup of the simulated rigs of sections 1-3")
     parser.add_argument("--quick", action="store_true", help="10 trials")
     args = parser.parse_args(argv)
     trials = 10 if args.quick else args.trials
-    timing(args.seed)
-    accuracy(trials, args.seed)
-    robustness(max(2, trials // 5), args.seed)
+    timing(args.seed, args.setup)
+    accuracy(trials, args.seed, args.setup)
+    robustness(max(2, trials // 5), args.seed, args.setup)
     clock(max(2, trials // 10), args.seed)
 
 

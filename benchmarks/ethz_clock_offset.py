@@ -236,7 +236,7 @@ sign convention is not stated.
 
 READING = """Reading the results:
 
-- Robot arm and PrimeSense (one camera each): offsets of a few tens of milliseconds, found
+- Robot arm and PrimeSense (one camera each): small offsets (tens of milliseconds), found
   with a correlation near 0.98 and a standard deviation under 1 ms; the two PrimeSense runs
   of the same rig agree within a few milliseconds, and their `T_body_cam` differ by {ps}.
   At these slow motions the residuals drop only a little against pairing without an offset:
@@ -244,14 +244,14 @@ READING = """Reading the results:
 - Falcon: the offset is large (about half a second, the motion-capture clock ahead), and
   correcting it is what makes the data usable at all: the median residual of the depth
   camera `W_d` drops from several degrees and tens of centimetres without the offset to
-  one or two degrees and a few centimetres with it.  Streams `W_r` and `W_e` keep residuals of several degrees at any offset
-  (PROVENANCE.md found the same; for set 5 the last table below tries all four combinations
-  of frame directions: the one used here has the smallest translation residuals, and its
-  rotation residuals tie with inverting both streams), so consensus rejects most of their measurements
-  and their offsets and extrinsics are not trustworthy; `W_e` in sets 3 and 4 has too few
-  images to time.  Offsets differ between runs (separate recordings) and, within a run,
-  between `W_d` and `W_r` by more than their standard deviations, which are optimistic for
-  streams this poor.
+  one or two degrees and a few centimetres with it.  Streams `W_r` and `W_e` keep
+  residuals of several degrees at any offset (PROVENANCE.md found the same; for set 5 the
+  last table below tries all four combinations of frame directions: the one used here has
+  the smallest translation residuals, and its rotation residuals tie with inverting both
+  streams), so consensus rejects most of their measurements and their offsets and
+  extrinsics are not trustworthy; `W_e` in sets 3 and 4 has too few images to time.
+  Offsets differ between runs (separate recordings) and, within a run, between `W_d` and
+  `W_r` by more than their standard deviations, which are optimistic for streams this poor.
 """
 
 

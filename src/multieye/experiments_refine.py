@@ -42,7 +42,8 @@ from .solvers import solve
 from .uncertainty import cramer_rao_bound, relative_covariance
 
 __all__ = ["PIXEL_NOISE_LEVELS", "METHODS", "RefineRow", "refine_trial", "refine_sweep",
-           "summarize_refine", "refine_rows_to_csv", "run_refine_experiment"]
+           "summarize_refine", "refine_rows_to_csv", "run_refine_experiment",
+           "relative_rms_errors"]
 
 #: Pixel noise levels swept, pixels.
 PIXEL_NOISE_LEVELS: tuple[float, ...] = (0.1, 0.3, 0.5, 1.0, 2.0)
@@ -85,8 +86,19 @@ class RefineRow:
 COLUMNS: tuple[str, ...] = tuple(f.name for f in fields(RefineRow))
 
 
-def _errors(X, X_true) -> tuple[float, float]:
-    """RMS rotation (degrees) and translation (metres) errors of T_ref_cam, non-reference."""
+def relative_rms_errors(X, X_true) -> tuple[float, float]:
+    """RMS over the non-reference cameras of the ``T_ref_cam`` errors (camera 0 the reference).
+
+    Parameters
+    ----------
+    X, X_true : array_like, shape (m, 4, 4)
+        Estimated and true ``T_world_cam`` / ``T_body_cam``.
+
+    Returns
+    -------
+    rot_deg, trans_m : float
+        RMS rotation error angle (degrees) and translation error (metres).
+    """
     Tr, Tt = relative_extrinsics(X)[1:], relative_extrinsics(X_true)[1:]
     rot = np.degrees(g.rotation_angle_between(Tr, Tt))
     trans = np.linalg.norm(Tr[:, :3, 3] - Tt[:, :3, 3], axis=1)
@@ -130,12 +142,12 @@ def refine_trial(pixel_sigma: float, scene_rng, noise_rng, *, trial: int = 0,
     nan = float("nan")
     start = time.perf_counter()
     sol = solve(sc.A, sc.B, method="joint")
-    rows = [RefineRow(pixel_sigma, trial, "joint", *_errors(sol.X, sc.X), nan, nan,
-                      time.perf_counter() - start)]
+    rows = [RefineRow(pixel_sigma, trial, "joint", *relative_rms_errors(sol.X, sc.X), nan,
+                      nan, time.perf_counter() - start)]
     res = refine_images(sc.setup, sc.observations, sc.intrinsics, sol.X, sol.Y,
                         mocap_rot_sigma_rad=mocap_rot_sigma_rad,
                         mocap_trans_sigma_m=mocap_trans_sigma_m)
-    rows.append(RefineRow(pixel_sigma, trial, "refined", *_errors(res.X, sc.X),
+    rows.append(RefineRow(pixel_sigma, trial, "refined", *relative_rms_errors(res.X, sc.X),
                           *_predicted(res.X, res.covariance), res.time_s))
     start = time.perf_counter()
     crb = cramer_rao_bound(sc.setup, sc.true_observations, sc.intrinsics, sc.X, sc.Y,
