@@ -126,3 +126,35 @@ def test_errors_share_one_base():
     for exc in (multieye.InputError, multieye.TooFewMeasurementsError,
                 multieye.DegenerateMotionError, multieye.DatasetError, multieye.DisconnectedError):
         assert issubclass(exc, multieye.CalibrationError)
+
+
+def test_turntable_motion_with_noise_is_refused_not_solved():
+    """Rotation about one axis plus motion-capture noise (0.05 deg) is not a second axis."""
+    rng = np.random.default_rng(7)
+    axis = np.array([0.0, 0.0, 1.0])
+    A, B = _single_axis(rng, 30, axis)
+    A = A @ g.transform_from_rotvec(rng.normal(scale=np.radians(0.05), size=(30, 3)), np.zeros((30, 3)))
+    for method in ("joint", "shah"):
+        with pytest.raises(multieye.DegenerateMotionError, match="single axis"):
+            solve([A], [B], method)
+
+
+def test_list_of_single_matrices_gets_a_pointed_message(rig):
+    A, B, _, _ = rig
+    with pytest.raises(multieye.InputError, match=r"list of 6 single 4x4 matrices.*np.stack"):
+        solve(list(A[0]), list(B[0]))
+
+
+def test_refinement_options_without_refine_are_refused(rig):
+    A, B, _, _ = rig
+    with pytest.raises(multieye.InputError, match="loss.*refine=True"):
+        solve(A, B, loss="huber")
+
+
+def test_normalize_rotation_never_returns_a_reflection():
+    from multieye.solvers.kronecker import normalize_rotation
+
+    for M in (np.diag([1.0, -1.0, 0.0]), np.diag([1.0, 1.0, 0.0]), np.diag([-1.0, -2.0, -3.0])):
+        R = normalize_rotation(M)
+        assert np.linalg.det(R) == pytest.approx(1.0)
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)

@@ -150,3 +150,52 @@ def test_calibrate_writes_details_and_report_then_export_and_report_commands(dat
                    for p in res.stdout.split())
     res = _run(["report", tmp_path / "empty"])
     assert res.exit_code == 2 and "calibration.json" in res.stderr
+
+
+def test_run_is_all_or_nothing_when_an_output_cannot_be_written(dataset, tmp_path):
+    out = tmp_path / "out"
+    (out / "report.html").mkdir(parents=True)          # a folder where a file must go
+    res = _run(["calibrate", dataset, "-o", out])
+    assert res.exit_code == 2 and len(res.stderr.strip().splitlines()) == 1
+    assert "report.html" in res.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["report.html"]   # nothing new, no temp
+
+
+def test_output_below_a_file_is_one_line(dataset, tmp_path):
+    (tmp_path / "afile").write_text("x")
+    res = _run(["calibrate", dataset, "-o", tmp_path / "afile" / "sub"])
+    assert res.exit_code == 2 and "Traceback" not in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_time_offset_is_applied_with_the_documented_sign(tmp_path):
+    """time_offset = motion-capture clock minus camera clock: shifting the camera stamps by
+    -0.2 s and declaring time_offset 0.2 gives the exact answer back."""
+    from multieye.pipeline import calibrate
+
+    (tmp_path / "d").mkdir()
+    folder, T_world_cam, _ = write_pose_dataset(tmp_path / "d")
+    for j in range(2):
+        lines = (folder / f"cam{j}.txt").read_text().splitlines()
+        shifted = [l if l.startswith("#") else " ".join([repr(float(l.split()[0]) - 0.2)] + l.split()[1:])
+                   for l in lines]
+        (folder / f"cam{j}.txt").write_text("\n".join(shifted) + "\n")
+    rig = (folder / "rig.yaml").read_text()
+    (folder / "rig.yaml").write_text(rig.replace("poses: cam0.txt}", "poses: cam0.txt, time_offset: 0.2}")
+                                        .replace("poses: cam1.txt}", "poses: cam1.txt, time_offset: 0.2}"))
+    run = calibrate(folder)
+    np.testing.assert_allclose(run.solution.X, T_world_cam, atol=1e-9)
+    (folder / "rig.yaml").write_text(rig.replace("poses: cam0.txt}", "poses: cam0.txt, time_offset: -0.2}"))
+    res = _run(["calibrate", folder, "-o", tmp_path / "o"])
+    assert res.exit_code == 2 and "without motion capture" in res.stderr
+
+
+def test_poses_camera_may_omit_intrinsics_and_non_finite_numbers_are_refused(dataset, tmp_path):
+    rig = (dataset / "rig.yaml").read_text()
+    (dataset / "rig.yaml").write_text(rig.replace("cam1: {intrinsics: cam.yaml, poses: cam1.txt}",
+                                                  "cam1: {poses: cam1.txt}"))
+    res = _run(["calibrate", dataset, "-o", tmp_path / "out"])
+    assert res.exit_code == 0, res.stderr
+    assert "camchain.yaml not written: no intrinsics for cam1" in res.stdout
+    (dataset / "rig.yaml").write_text(rig.replace("time_tolerance: 0.01", "time_tolerance: .inf"))
+    _fails(dataset, tmp_path / "out2", "rig.yaml:6", "time_tolerance")

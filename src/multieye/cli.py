@@ -30,7 +30,7 @@ def _user_errors(fn):
         except CalibrationError as exc:
             click.echo(f"multieye: error: {exc}", err=True)
             sys.exit(EXIT_USER_ERROR)
-        except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        except OSError as exc:   # missing, unreadable or unwritable paths the user gave
             name = getattr(exc, "filename", None) or ""
             click.echo(f"multieye: error: {name}: {exc.strerror or exc}", err=True)
             sys.exit(EXIT_USER_ERROR)

@@ -14,6 +14,8 @@ Synopsis
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -348,11 +350,14 @@ def calibrate(dataset: str | os.PathLike, *, method: str = "joint", reference: s
 
 def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bool = True,
                   diagnostics: dict | None = None) -> tuple[list[Path], list[str]]:
-    """Write the results atomically into ``out_dir``.
+    """Write the results of a run into ``out_dir``, all or nothing.
 
     ``calibration.json`` (DESIGN.md section 4), Kalibr ``camchain.yaml``, ``details.json``
     (per-image residuals, target poses, trajectory; :mod:`multieye.io.run_details`) and,
-    with ``report=True``, ``report.html`` with its figures (:mod:`multieye.report`).
+    with ``report=True``, ``report.html`` with ``figures/`` (:mod:`multieye.report`).
+    Everything is first written into a temporary folder inside ``out_dir``; only when all of
+    it succeeded are the files moved into place, ``calibration.json`` last, so a failed run
+    leaves the previous results as they were.
 
     Returns
     -------
@@ -363,36 +368,49 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    cal = out / "calibration.json"
-    write_calibration(cal, run.record)
-    paths, notes = [cal], []
+    tmp = Path(tempfile.mkdtemp(prefix=".multieye-", dir=out))
+    try:
+        names, notes = _write_all(run, tmp, report=report, diagnostics=diagnostics)
+        names = [n for n in names if (tmp / n).exists()]
+        for name in names:
+            target = out / name
+            if target.is_dir() and not (tmp / name).is_dir():
+                raise DatasetError("cannot replace a folder with a file", path=target)
+        for name in sorted(names, key=lambda n: n == "calibration.json"):
+            target = out / name
+            if (tmp / name).is_dir():
+                if target.exists():
+                    shutil.rmtree(target)
+            os.replace(tmp / name, target)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return [out / n for n in names], notes
+
+
+def _write_all(run: CalibrationRun, folder: Path, *, report: bool,
+               diagnostics: dict | None) -> tuple[list[str], list[str]]:
+    """Write every output into ``folder``; returns the names written and notes."""
+    from .io.run_details import write_run_details
+
+    write_calibration(folder / "calibration.json", run.record)
+    names, notes = ["calibration.json"], []
     missing = [c.name for c in run.record.cameras if run.cameras[c.name].intrinsics is None]
     if missing:
         notes.append(f"camchain.yaml not written: no intrinsics for {', '.join(missing)}")
-        paths.extend(_write_details_and_report(run, out, report=report, diagnostics=diagnostics))
-        return paths, notes
-    entries = [CamchainEntry(name=c.name, intrinsics=run.cameras[c.name].intrinsics,
-                             T_ref_cam=c.T_ref_cam) for c in run.record.cameras]
-    chain = out / "camchain.yaml"
-    try:
-        write_camchain(chain, entries)
-    except InputError as exc:
-        notes.append(f"camchain.yaml not written: {exc}")
     else:
-        paths.append(chain)
-    paths.extend(_write_details_and_report(run, out, report=report, diagnostics=diagnostics))
-    return paths, notes
-
-
-def _write_details_and_report(run: CalibrationRun, out: Path, *, report: bool,
-                              diagnostics: dict | None) -> list[Path]:
-    from .io.run_details import write_run_details
-
-    details = out / "details.json"
-    write_run_details(details, run, diagnostics=diagnostics)
-    paths = [details]
+        entries = [CamchainEntry(name=c.name, intrinsics=run.cameras[c.name].intrinsics,
+                                 T_ref_cam=c.T_ref_cam) for c in run.record.cameras]
+        try:
+            write_camchain(folder / "camchain.yaml", entries)
+        except InputError as exc:
+            notes.append(f"camchain.yaml not written: {exc}")
+        else:
+            names.append("camchain.yaml")
+    write_run_details(folder / "details.json", run, diagnostics=diagnostics)
+    names.append("details.json")
     if report:
         from .report import write_report
 
-        paths.append(write_report(out))
-    return paths
+        write_report(folder)
+        names += ["report.html", "figures"]
+    return names, notes

@@ -49,6 +49,7 @@ cameras and no ``camera`` key selects the entry named like the rig's camera.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
@@ -118,7 +119,8 @@ class CameraSpec:
     Attributes
     ----------
     name : str
-    intrinsics : Path
+    intrinsics : Path or None
+        None only for a camera given by precomputed ``poses``.
     intrinsics_camera : str or None
         Entry of a Kalibr camchain (``cam1``) when the intrinsics file holds several.
     images, poses, rosbag : Path or None
@@ -132,7 +134,7 @@ class CameraSpec:
     """
 
     name: str
-    intrinsics: Path
+    intrinsics: Path | None
     intrinsics_camera: str | None = None
     images: Path | None = None
     poses: Path | None = None
@@ -214,6 +216,7 @@ class _Checker:
 
     def number(self, value, keys, *, positive=False, integer=False):
         ok = isinstance(value, int) if integer else isinstance(value, (int, float))
+        ok = ok and math.isfinite(value)
         if isinstance(value, bool) or not ok or (positive and not value > 0):
             kind = "integer" if integer else "number"
             raise self.error(f"expected a {'positive ' if positive else ''}{kind}, got "
@@ -335,16 +338,21 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
 
 def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
     keys = ("cameras", name)
-    c.mapping(raw, keys, _CAMERA_KEYS, ("intrinsics",))
+    c.mapping(raw, keys, _CAMERA_KEYS)
     sources = [s for s in _SOURCES if s in raw]
     if len(sources) != 1:
         raise c.error(f"expected exactly one of {', '.join(_SOURCES)}, got "
                       f"{', '.join(sources) or 'none'}", keys)
     if ("topic" in raw) != ("rosbag" in raw):
         raise c.error("'topic' goes with 'rosbag' (the image topic of the bag)", keys)
-    intr = raw["intrinsics"]
+    if "intrinsics" not in raw and sources[0] != "poses":
+        raise c.error("missing key 'intrinsics' (needed to find the target in images; only "
+                      "a camera given by precomputed 'poses' may go without)", keys)
+    intr = raw.get("intrinsics")
     camera = None
-    if isinstance(intr, Mapping):
+    if intr is None:
+        intr_path = None
+    elif isinstance(intr, Mapping):
         c.mapping(intr, keys + ("intrinsics",), ("file", "camera"), ("file",))
         if "camera" in intr:
             camera = c.string(intr["camera"], keys + ("intrinsics", "camera"))

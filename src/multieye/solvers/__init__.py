@@ -103,6 +103,9 @@ def solve(A: Sequence[np.ndarray] | np.ndarray, B: Sequence[np.ndarray] | np.nda
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    if refine_options and not refine:
+        raise InputError(f"refinement options {', '.join(sorted(refine_options))} given without "
+                         "refine=True")
     joint = method in JOINT_METHODS
     meas = check_measurements(A, B, names=names, per_camera_motion=not joint)
     Y_per_camera = None

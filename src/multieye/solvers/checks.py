@@ -23,6 +23,7 @@ __all__ = [
     "MIN_MEASUREMENTS",
     "RIGID_TOL",
     "SINGLE_AXIS_TOL_RAD",
+    "SINGLE_AXIS_RATIO",
 ]
 
 #: Fewest measurements a camera needs.
@@ -30,9 +31,13 @@ MIN_MEASUREMENTS = 3
 #: Largest |R^T R - I| entry, |det R - 1| and bottom-row deviation accepted as rigid.
 RIGID_TOL = 1e-5
 #: RMS angle (radians) of the relative rotations off their dominant axis below which the
-#: motion counts as rotation about a single axis (0.057 degrees: far below any real motion,
-#: far above rounding).
+#: motion counts as rotation about a single axis (0.057 degrees: far above rounding).
 SINGLE_AXIS_TOL_RAD = 1e-3
+#: ... or below this fraction of the RMS rotation about the dominant axis.  Motion-capture
+#: and PnP noise alone put 0.05-0.1 degrees off any axis, so an absolute threshold cannot
+#: tell a turntable from real motion; a second axis carrying under 2 % of the motion
+#: determines the rotation no better than the noise does.
+SINGLE_AXIS_RATIO = 0.02
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 _EYE = np.eye(3)
 
@@ -166,7 +171,7 @@ def _spread_from_scatter(C: np.ndarray, n: int) -> np.ndarray:
         return np.zeros(3)
     lam = np.clip(_sym3_eigvals(C), 0.0, None)
     s = np.sqrt(2.0 * lam / n)
-    if s[1] < 10.0 * SINGLE_AXIS_TOL_RAD:
+    if s[1] < 10.0 * max(SINGLE_AXIS_TOL_RAD, SINGLE_AXIS_RATIO * s[0]):
         # Near-repeated eigenvalues: the closed form loses digits there; ask LAPACK.
         s = np.sqrt(2.0 * np.clip(np.linalg.eigvalsh(C)[::-1], 0.0, None) / n)
     return s
@@ -297,6 +302,10 @@ def check_measurements(A, B, *, names: list[str] | None = None,
         raise InputError(f"A has {len(A)} cameras but B has {len(B)}; give one B batch per A batch")
     if not A:
         raise InputError("no cameras given: A and B are empty")
+    if len(A) >= MIN_MEASUREMENTS and all(np.shape(a) == (4, 4) for a in A):
+        raise InputError(f"A is a list of {len(A)} single 4x4 matrices, read as {len(A)} cameras "
+                         "with one measurement each; pass one (N, 4, 4) array per camera, e.g. "
+                         "solve([np.stack(A)], [np.stack(B)])")
     names = names or [f"cam{j}" for j in range(len(A))]
     As, Bs = [], []
     for j, (Aj, Bj) in enumerate(zip(A, B)):
@@ -338,8 +347,8 @@ def _check_spread(s: np.ndarray, who: str) -> None:
         raise DegenerateMotionError(
             f"{who}: the target never rotates (RMS relative rotation {np.degrees(s[0]):.3g} deg); "
             "rotation cannot be determined: tilt the target about two different axes")
-    if s[1] < SINGLE_AXIS_TOL_RAD:
+    if s[1] < max(SINGLE_AXIS_TOL_RAD, SINGLE_AXIS_RATIO * s[0]):
         raise DegenerateMotionError(
             f"{who}: all rotations are about a single axis (RMS off-axis rotation "
-            f"{np.degrees(s[1]):.3g} deg), so the rotation is not determined: rotate the target "
-            "about a second axis as well")
+            f"{np.degrees(s[1]):.3g} deg against {np.degrees(s[0]):.3g} deg about the main axis), "
+            "so the rotation is not determined: rotate the target about a second axis as well")

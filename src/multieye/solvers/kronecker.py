@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import _det3
+from ..geometry import _det3, project_to_so3
 
 __all__ = [
     "vec",
@@ -53,9 +53,7 @@ def normalize_rotation(M: np.ndarray) -> np.ndarray:
     M : ndarray, shape (..., 3, 3)
     """
     d = np.where(det3(M) < 0, -1.0, 1.0)
-    # After the sign fix det(M) > 0, so U V^T of its SVD is already a proper rotation.
-    U, _, Vt = np.linalg.svd(M * d[..., None, None])
-    return U @ Vt
+    return project_to_so3(M * d[..., None, None])
 
 
 @dataclass(frozen=True)

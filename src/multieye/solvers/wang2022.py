@@ -54,7 +54,7 @@ def solve_wang2022(meas: Measurements):
         U[r:r + 9, 9 * m:] = -L[j]
         U[r + 9:r + 18, 9 * j:9 * j + 9] = -K[j]
         U[r + 9:r + 18, 9 * m:] = nj * eye
-    _, _, Vt = np.linalg.svd(U)
+    _, _, Vt = np.linalg.svd(U, full_matrices=False)
     v = Vt[-1]
     blocks = unvec(v.reshape(m + 1, 9))
     R = np.stack([project_to_so3(_scale_block(b)) for b in blocks])
