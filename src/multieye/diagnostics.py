@@ -148,9 +148,10 @@ def _camera_motion(name: str, RA: F64, RB: F64, A: F64) -> CameraMotion:
 
 
 def _advice(name: str, setup: str, what: str) -> str:
+    """``what`` done to the target in front of the camera, or to the rig while it sees it."""
     if setup == "eye-to-base":
-        return f"{what} the target in front of {name}"
-    return f"{what} the rig while {name} sees the target"
+        return f"{what.format(thing='the target')} in front of {name}"
+    return f"{what.format(thing='the rig')} while {name} sees the target"
 
 
 def motion_diagnostics(A, B, names: Sequence[str] | None = None, *,
@@ -206,18 +207,18 @@ def motion_diagnostics(A, B, names: Sequence[str] | None = None, *,
             warnings.append(
                 f"{name}: rotation range {cam.rotation_range_deg:.1f} deg < {min_range_deg:g} "
                 f"deg, so its extrinsic is poorly determined; "
-                + _advice(name, setup, "tilt") + " by 30 deg or more about two axes")
+                + _advice(name, setup, "tilt {thing} by 30 deg or more about two axes"))
         elif s1 < min_second_axis_deg or s1 < min_axis_ratio * s0:
             warnings.append(
                 f"{name}: all rotations are about one axis (RMS {s0:.1f} deg about it, "
                 f"{s1:.2f} deg about any other), so {name} alone does not determine its "
                 f"extrinsic and it rests on the other cameras' estimate of {shared}; "
-                + _advice(name, setup, "rotate") + " about a second axis")
+                + _advice(name, setup, "rotate {thing} about a second axis"))
         elif max(cam.rotation_condition, cam.translation_condition) > max_condition:
             warnings.append(
                 f"{name}: the rotations are small (RMS {s0:.1f}, {s1:.1f}, "
                 f"{cam.rotation_spread_deg[2]:.1f} deg about the principal axes; conditions "
                 f"{cam.rotation_condition:.3g} rotation, {cam.translation_condition:.3g} "
                 f"translation > {max_condition:g}), so its extrinsic is poorly determined; "
-                + _advice(name, setup, "turn") + " further, by 30 deg or more about two axes")
+                + _advice(name, setup, "turn {thing} further, by 30 deg or more about two axes"))
     return MotionDiagnostics(cameras=tuple(cameras), warnings=tuple(warnings))
