@@ -90,3 +90,12 @@ def test_rotation_range_is_the_largest_pairwise_angle():
     diag = motion_diagnostics([A], [B])
     expected = np.degrees(g.rotation_angle_between(A[:, None], A[None]).max())
     assert diag.cameras[0].rotation_range_deg == pytest.approx(expected, abs=1e-6)
+
+
+def test_single_camera_warning_does_not_point_at_other_cameras():
+    A, B = _rig_with("axis", 0)
+    A[0] = A[0].copy()
+    A[0][::3] = A[0][::3] @ g.transform_from_rotvec([0.02, 0.0, 0.0], [0.0, 0.0, 0.0])
+    (w,) = motion_diagnostics(A[:1], B[:1]).warnings
+    assert w.startswith("cam0: all rotations are about one axis")
+    assert "so its extrinsic is poorly determined" in w and "other cameras" not in w

@@ -209,10 +209,12 @@ def motion_diagnostics(A, B, names: Sequence[str] | None = None, *,
                 f"deg, so its extrinsic is poorly determined; "
                 + _advice(name, setup, "tilt {thing} by 30 deg or more about two axes"))
         elif s1 < min_second_axis_deg or s1 < min_axis_ratio * s0:
+            why = (f"so {name} alone does not determine its extrinsic and it rests on the "
+                   f"other cameras' estimate of {shared}" if meas.m > 1
+                   else "so its extrinsic is poorly determined")
             warnings.append(
                 f"{name}: all rotations are about one axis (RMS {s0:.1f} deg about it, "
-                f"{s1:.2f} deg about any other), so {name} alone does not determine its "
-                f"extrinsic and it rests on the other cameras' estimate of {shared}; "
+                f"{s1:.2f} deg about any other), {why}; "
                 + _advice(name, setup, "rotate {thing} about a second axis"))
         elif max(cam.rotation_condition, cam.translation_condition) > max_condition:
             warnings.append(
