@@ -63,12 +63,21 @@ def main():
 @click.option("--reference", default=None, help="Reference camera (default: the first).")
 @click.option("--processes", type=click.IntRange(1), default=None,
               help="Detection processes (default: one per core).")
+@click.option("--no-refine", is_flag=True,
+              help="Keep the closed form (no maximum-likelihood refinement, no uncertainty).")
+@click.option("--no-robust", is_flag=True,
+              help="Use every measurement (no consensus step that rejects outliers).")
+@click.option("--time-offset", default="rig", show_default=True, metavar="rig|auto|SECONDS",
+              help="Motion-capture clock minus camera clock: as rig.yaml says, estimated per "
+                   "camera, or this many seconds for every camera.")
 @_user_errors
 def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
-              processes: int | None):
+              processes: int | None, no_refine: bool, no_robust: bool, time_offset: str):
     """Calibrate the rig in DATASET (a folder with rig.yaml, or the rig.yaml itself).
 
-    Writes OUT/calibration.json and OUT/camchain.yaml and prints a per-camera table.
+    Closed form, consensus over measurements, then maximum-likelihood refinement with
+    uncertainty.  Writes OUT/calibration.json, OUT/camchain.yaml, OUT/details.json and
+    OUT/report.html and prints a per-camera table.
     """
     from .pipeline import calibrate as run_calibration
     from .pipeline import write_outputs
@@ -78,7 +87,14 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
     if method not in METHODS:
         raise click.BadParameter(f"{method!r}; choose one of {', '.join(METHODS)}",
                                  param_hint="--method")
-    run = run_calibration(dataset, method=method, reference=reference, processes=processes,
+    if time_offset not in ("rig", "auto"):
+        try:
+            time_offset = float(time_offset)
+        except ValueError:
+            raise click.BadParameter(f"{time_offset!r}; expected rig, auto or seconds",
+                                     param_hint="--time-offset") from None
+    run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
+                          robust=not no_robust, time_offset=time_offset, processes=processes,
                           progress=_progress_enabled())
     paths, notes = write_outputs(run, out_dir)
     click.echo(calibration_table(run.record))

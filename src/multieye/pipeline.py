@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from . import geometry as g
-from .errors import DatasetError, InputError, TooFewMeasurementsError
+from .errors import CalibrationError, DatasetError, InputError, TooFewMeasurementsError
 from .intrinsics import Intrinsics
 from .io import (
     CalibrationRecord,
@@ -50,6 +50,7 @@ __all__ = [
     "CameraData",
     "PairedCamera",
     "CalibrationRun",
+    "Options",
     "load_camera_data",
     "pair_camera",
     "calibrate",
@@ -278,59 +279,226 @@ def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = Non
                         rejected=tuple(rejected))
 
 
-def _record(rig: Rig, method: str, reference: str, sol: Solution,
-            paired: dict[str, PairedCamera], warnings: list[str],
-            time_offsets: dict[str, float]) -> CalibrationRecord:
-    names = list(paired)
-    ref = names.index(reference)
-    T_ref_cam = relative_extrinsics(sol.X, reference=ref)
-    cams = []
-    for j, name in enumerate(names):
-        r = sol.residuals[j]
-        rms = [o.rms_px for o in paired[name].observations if o.rms_px is not None]
-        cams.append(CameraRecord(
-            name=name, X=sol.X[j], T_ref_cam=T_ref_cam[j], measurements_used=r.n,
-            residuals=Residuals(e_R_deg=r.e_R_deg, e_t_m=r.e_t_m, max_R_deg=r.max_R_deg,
-                                max_t_m=r.max_t_m,
-                                reprojection_rms_px=float(np.sqrt(np.mean(np.square(rms))))
-                                if rms else None),
-            time_offset_s=time_offsets.get(name),
-            rejected=paired[name].rejected))
-    return CalibrationRecord(setup=rig.setup, method=method, reference_camera=reference, Y=sol.Y,
-                             cameras=tuple(cams),
-                             residuals=Residuals(e_R_deg=sol.e_R_deg, e_t_m=sol.e_t_m),
-                             warnings=tuple(warnings))
+@dataclass(frozen=True)
+class Options:
+    """How :func:`calibrate_rig` goes from measurements to the result.
+
+    Attributes
+    ----------
+    method : str
+        Closed-form solver (:data:`multieye.METHODS`).
+    reference : str or None
+        Reference camera; default the first.
+    refine : bool
+        Follow the closed form with the maximum-likelihood refinement: on the target points
+        and motion-capture poses when every camera has images (:func:`multieye.refine.
+        refine_images`), else on the pose residuals (:mod:`multieye.pose_refine`).  Fills the
+        uncertainty.
+    robust : bool
+        Consensus over measurements before solving (:func:`multieye.robust.consensus`);
+        rejected measurements are listed with the reason.
+    time_offset : "rig", "auto" or float
+        ``"rig"``: each camera's ``time_offset`` from rig.yaml; ``"auto"``: estimated per
+        camera (:func:`multieye.clock.estimate_offset`); a number: seconds for every camera.
+    mocap_rot_sigma_rad, mocap_trans_sigma_m : float or None
+        Motion-capture noise for the refinement; None: rig.yaml's ``rotation_noise_deg`` /
+        ``translation_noise_m``, else the defaults of :mod:`multieye.refine`.
+    """
+
+    method: str = "joint"
+    reference: str | None = None
+    refine: bool = True
+    robust: bool = True
+    time_offset: str | float = "rig"
+    mocap_rot_sigma_rad: float | None = None
+    mocap_trans_sigma_m: float | None = None
 
 
-def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], *, method: str = "joint",
-                  reference: str | None = None) -> CalibrationRun:
-    """Pair, solve and summarise already loaded camera data (see :func:`calibrate`)."""
+def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[str, float]:
+    if opts.time_offset == "rig":
+        return {n: d.time_offset for n, d in cameras.items()}
+    if opts.time_offset != "auto":
+        return {n: float(opts.time_offset) for n in cameras}
+    from .clock import estimate_offset
+
+    out = {}
+    for name, d in cameras.items():
+        stamps = np.array([o.stamp for o in d.observations])
+        T = np.stack([o.T_cam_target for o in d.observations])
+        try:
+            est = estimate_offset(stamps, T, d.mocap.stamps, d.mocap.T, setup=rig.setup)
+        except CalibrationError as exc:
+            raise CalibrationError(f"camera {name}: clock offset could not be estimated: {exc}; "
+                                   "give --time-offset SECONDS or time_offset in rig.yaml") from None
+        out[name] = float(est.offset_s)
+    return out
+
+
+def _robust_thresholds(paired: dict[str, PairedCamera], method: str) -> tuple[float, float]:
+    """Inlier thresholds from a first closed form on everything: six robust sigmas of the
+    loop residuals (median / 0.6745 for the half-normal), at least 1 degree and 1 cm."""
+    from .robust import measurement_residuals
+
+    sol = solve([p.A for p in paired.values()], [p.B for p in paired.values()], "joint")
+    rot, trans = [], []
+    for j, p in enumerate(paired.values()):
+        r, t = measurement_residuals(p.A, p.B, sol.X[j], sol.Y)
+        rot.append(r)
+        trans.append(t)
+    rot, trans = np.concatenate(rot), np.concatenate(trans)
+    return (max(1.0, 6.0 * float(np.median(rot)) / 0.6745),
+            max(0.01, 6.0 * float(np.median(trans)) / 0.6745))
+
+
+def _keep(p: PairedCamera, mask: np.ndarray, reasons: dict[int, str]) -> PairedCamera:
+    rejected = p.rejected + tuple(RejectedItem(p.observations[i].name, reasons[i])
+                                  for i in sorted(reasons))
+    idx = np.flatnonzero(mask)
+    return PairedCamera(name=p.name, A=p.A[idx], B=p.B[idx], T_world_mocap=p.T_world_mocap[idx],
+                        observations=tuple(p.observations[i] for i in idx), rejected=rejected)
+
+
+def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = Options(), **kw
+                  ) -> CalibrationRun:
+    """Pair, check, solve, refine and summarise already loaded camera data.
+
+    Parameters
+    ----------
+    rig : Rig
+    cameras : dict of str to CameraData
+        From :func:`load_camera_data`.
+    options : Options
+        Or its fields as keyword arguments (``method="shah", refine=False``).
+    """
+    from dataclasses import replace as _replace
+
+    from .diagnostics import motion_diagnostics
+
+    opts = _replace(options, **kw) if kw else options
     names = list(cameras)
-    reference = reference or names[0]
+    reference = opts.reference or names[0]
     if reference not in cameras:
         raise DatasetError(f"reference camera {reference!r} is not in rig.yaml (cameras: "
                            f"{', '.join(names)})", path=rig.path)
-    paired = {name: pair_camera(rig.setup, data) for name, data in cameras.items()}
-    sol = solve([p.A for p in paired.values()], [p.B for p in paired.values()], method,
-                names=names)
+    offsets = _offsets(rig, cameras, opts)
+    paired = {n: pair_camera(rig.setup, d, time_offset=offsets[n]) for n, d in cameras.items()}
     warnings = [w for data in cameras.values() for w in data.warnings]
-    offsets = {name: data.time_offset for name, data in cameras.items() if data.time_offset}
-    record = _record(rig, method, reference, sol, paired, warnings, offsets)
+
+    if opts.robust:
+        from .robust import consensus
+
+        thr_rot, thr_t = _robust_thresholds(paired, opts.method)
+        cons = consensus([p.A for p in paired.values()], [p.B for p in paired.values()],
+                         threshold_rot_deg=thr_rot, threshold_trans_m=thr_t, names=names)
+        by_cam: dict[str, dict[int, str]] = {n: {} for n in names}
+        for r in cons.rejected:
+            by_cam[r.camera][r.index] = r.reason
+        paired = {n: _keep(p, cons.inliers[j], by_cam[n]) for j, (n, p) in enumerate(paired.items())}
+
+    As = [p.A for p in paired.values()]
+    Bs = [p.B for p in paired.values()]
+    motion = motion_diagnostics(As, Bs, names, setup=rig.setup)
+    warnings.extend(motion.warnings)
+    sol = solve(As, Bs, opts.method, names=names)
+    X, Y, covariance, refinement, reproj = sol.X, sol.Y, None, None, {}
+    if opts.refine:
+        X, Y, covariance, refinement, reproj, more = _refine(rig, cameras, paired, sol, opts)
+        warnings.extend(more)
+    record = _record(rig, opts.method, reference, X, Y, covariance, paired, warnings, offsets,
+                     refinement, reproj, motion.as_dict()["cameras"])
     return CalibrationRun(rig=rig, record=record, solution=sol, cameras=cameras, paired=paired)
 
 
-def calibrate(dataset: str | os.PathLike, *, method: str = "joint", reference: str | None = None,
-              processes: int | None = None, progress: bool = False) -> CalibrationRun:
+def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
+            sol: Solution, opts: Options):
+    """Image-level refinement when every camera has target points, else pose-level."""
+    first = next(iter(paired))
+    spec = rig.mocap_for(first) if first in rig.cameras else rig.mocap
+    rot, trans = opts.mocap_rot_sigma_rad, opts.mocap_trans_sigma_m
+    if spec is not None:
+        rot = spec.rot_sigma_rad if rot is None else rot
+        trans = spec.trans_sigma_m if trans is None else trans
+    sigmas = {k: v for k, v in (("mocap_rot_sigma_rad", rot), ("mocap_trans_sigma_m", trans))
+              if v is not None}
+    have_points = all(cameras[n].intrinsics is not None and p.observations
+                      and all(o.image_points is not None for o in p.observations)
+                      for n, p in paired.items())
+    warnings = []
+    if have_points:
+        from .refine import refine_images
+
+        obs = [[(o.object_points, o.image_points, T) for o, T in zip(p.observations, p.T_world_mocap)]
+               for p in paired.values()]
+        res = refine_images(rig.setup, obs, [cameras[n].intrinsics for n in paired], sol.X, sol.Y,
+                            names=list(paired), **sigmas)
+        if not res.converged:
+            warnings.append(f"refinement did not converge ({res.message}); the result may be "
+                            "short of the best the data allow")
+        for j, name in enumerate(paired):
+            bad = np.flatnonzero(res.image_outliers[j])
+            if bad.size:
+                warnings.append(f"{name}: {bad.size} image(s) fit the refined rig poorly: "
+                                + ", ".join(paired[name].observations[i].name for i in bad[:5])
+                                + (" ..." if bad.size > 5 else ""))
+        reproj = {n: float(res.camera_rms_px[j]) for j, n in enumerate(paired)}
+        return res.X, res.Y, res.covariance, "images", reproj, warnings
+    from .pose_refine import refine_solution
+
+    ref = refine_solution(sol)
+    return ref.X, ref.Y, ref.covariance, "poses", {}, warnings
+
+
+def _record(rig: Rig, method: str, reference: str, X: np.ndarray, Y: np.ndarray,
+            covariance: np.ndarray | None, paired: dict[str, PairedCamera], warnings: list[str],
+            time_offsets: dict[str, float], refinement: str | None, reproj: dict[str, float],
+            motion: dict) -> CalibrationRecord:
+    from .metrics import camera_residual
+
+    names = list(paired)
+    ref = names.index(reference)
+    T_ref_cam = relative_extrinsics(X, reference=ref)
+    unc = None
+    if covariance is not None:
+        from .uncertainty import relative_covariance
+
+        unc = relative_covariance(X, covariance, reference=ref)
+    cams, rot_all, trans_all = [], [], []
+    for j, name in enumerate(names):
+        p = paired[name]
+        r = camera_residual(p.A, p.B, X[j], Y)
+        rot_all.append(r.e_R_deg * r.n)
+        trans_all.append(r.e_t_m * r.n)
+        rms = [o.rms_px for o in p.observations if o.rms_px is not None]
+        reproj_px = reproj.get(name, float(np.sqrt(np.mean(np.square(rms)))) if rms else None)
+        cams.append(CameraRecord(
+            name=name, X=X[j], T_ref_cam=T_ref_cam[j], measurements_used=r.n,
+            residuals=Residuals(e_R_deg=r.e_R_deg, e_t_m=r.e_t_m, max_R_deg=r.max_R_deg,
+                                max_t_m=r.max_t_m, reprojection_rms_px=reproj_px),
+            time_offset_s=time_offsets.get(name) if time_offsets.get(name) else None,
+            std_rot_deg=None if unc is None else float(unc.std_rot_deg[j]),
+            std_trans_m=None if unc is None else float(unc.std_trans_m[j]),
+            covariance=None if unc is None else unc.covariance[j],
+            rejected=p.rejected))
+    n = sum(c.measurements_used for c in cams)
+    return CalibrationRecord(setup=rig.setup, method=method, reference_camera=reference, Y=Y,
+                             cameras=tuple(cams),
+                             residuals=Residuals(e_R_deg=sum(rot_all) / n, e_t_m=sum(trans_all) / n),
+                             warnings=tuple(warnings), refinement=refinement,
+                             motion_diagnostics=motion)
+
+
+def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
+              processes: int | None = None, progress: bool = False, **kw) -> CalibrationRun:
     """Calibrate the rig described by a dataset folder (or its ``rig.yaml``).
 
     Parameters
     ----------
     dataset : path-like
         Folder holding ``rig.yaml``, or the file itself.
-    method : str
-        Solver name (:data:`multieye.METHODS`).
-    reference : str, optional
-        Camera whose frame is ``ref``; default the first camera of ``rig.yaml``.
+    options : Options
+        Or its fields as keyword arguments: ``method`` (solver name, :data:`multieye.METHODS`),
+        ``reference`` (camera whose frame is ``ref``; default the first of ``rig.yaml``),
+        ``refine``, ``robust``, ``time_offset``.
     processes : int, optional
         Worker processes for detection; default one per core.
     progress : bool
@@ -345,7 +513,7 @@ def calibrate(dataset: str | os.PathLike, *, method: str = "joint", reference: s
         path = path / "rig.yaml"
     rig = load_rig(path)
     cameras = load_camera_data(rig, processes=processes, progress=progress)
-    return calibrate_rig(rig, cameras, method=method, reference=reference)
+    return calibrate_rig(rig, cameras, options, **kw)
 
 
 def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bool = True,

@@ -117,7 +117,7 @@ class DatasetSpec:
     board_distance_m: float = 1.0
     camera_rate_hz: float = 4.0
     mocap_rate_hz: float = 120.0
-    mocap_noise: tuple[float, float] = (np.radians(0.01), 0.0001)
+    mocap_noise: tuple[float, float] = (np.radians(0.03), 0.0001)
     blur_sigma: float = 0.7
     noise_sigma: float = 2.0
     fisheye: tuple[int, ...] = ()
@@ -272,7 +272,9 @@ def render_dataset(out_dir: str | os.PathLike, spec: DatasetSpec = DatasetSpec()
                  "setup: eye-to-base", "target:"]
     rig_lines += [f"  {k}: {v}" for k, v in spec.target.items()]
     rig_lines += ["mocap:", "  file: mocap.txt", "  pose: T_world_marker",
-                  f"  time_tolerance: {2.0 / spec.mocap_rate_hz:.4f}", "cameras:"]
+                  f"  time_tolerance: {2.0 / spec.mocap_rate_hz:.4f}",
+                  f"  rotation_noise_deg: {np.degrees(spec.mocap_noise[0]):.6g}",
+                  f"  translation_noise_m: {spec.mocap_noise[1]:.6g}", "cameras:"]
     for name in names:
         rig_lines += [f"  {name}:", f"    intrinsics: {name}.yaml", f"    images: {name}/"]
     write_text_atomic(out / "rig.yaml", "\n".join(rig_lines) + "\n")

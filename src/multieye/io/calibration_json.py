@@ -166,6 +166,12 @@ class CalibrationRecord:
     residuals : Residuals
         Over all cameras.
     warnings : tuple of str
+    refinement : str or None
+        What followed the closed form: ``"images"`` (maximum likelihood on the target points
+        and the motion capture), ``"poses"`` (on the pose residuals), or None.
+    motion_diagnostics : mapping or None
+        Per camera, the numbers of :func:`multieye.diagnostics.motion_diagnostics` (rotation
+        range, spread of rotation axes, conditions), plain JSON values.
     """
 
     setup: str
@@ -175,6 +181,8 @@ class CalibrationRecord:
     cameras: tuple[CameraRecord, ...]
     residuals: Residuals
     warnings: tuple[str, ...] = field(default=())
+    refinement: str | None = None
+    motion_diagnostics: Mapping | None = None
 
     def __post_init__(self):
         if self.setup not in SETUP_KEYS:
@@ -226,9 +234,14 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
         if cam.rejected:
             entry["rejected"] = [{"item": r.item, "reason": r.reason} for r in cam.rejected]
         cameras[cam.name] = entry
-    return {"setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
-            y_key: _matrix(rec.Y), "cameras": cameras,
-            "residuals": _residuals_dict(rec.residuals), "warnings": list(rec.warnings)}
+    out = {"setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
+           y_key: _matrix(rec.Y), "cameras": cameras,
+           "residuals": _residuals_dict(rec.residuals), "warnings": list(rec.warnings)}
+    if rec.refinement is not None:
+        out["refinement"] = rec.refinement
+    if rec.motion_diagnostics is not None:
+        out["motion_diagnostics"] = dict(rec.motion_diagnostics)
+    return out
 
 
 class _Where:
@@ -323,8 +336,14 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
     for key in ("method", "reference_camera"):
         if not isinstance(w.need(data, key, "the top level"), str):
             raise w.error(f"{key} must be a string")
+    refinement = data.get("refinement")
+    if refinement is not None and not isinstance(refinement, str):
+        raise w.error("refinement must be a string")
+    motion = data.get("motion_diagnostics")
+    if motion is not None and not isinstance(motion, Mapping):
+        raise w.error("motion_diagnostics must be an object of camera name -> numbers")
     return w.call(CalibrationRecord, setup, data["method"], data["reference_camera"], Y,
-                  tuple(records), residuals, tuple(warnings))
+                  tuple(records), residuals, tuple(warnings), refinement, motion)
 
 
 # --------------------------------------------------------------------------- files

@@ -77,6 +77,8 @@ class MocapSpec:
     parent_frame: str | None = None
     child_frame: str | None = None
     columns: Mapping[str, str] | None = None
+    rot_sigma_rad: float | None = None
+    trans_sigma_m: float | None = None
     duplicates: str = "error"
 
     @property

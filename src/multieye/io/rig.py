@@ -74,7 +74,8 @@ _TARGET_ONLY = {"marker_size": "charuco", "dictionary": "charuco", "tag_spacing"
 _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv")}
-_MOCAP_KEYS = ("file", "pose", "time_tolerance", "format") + tuple(_MOCAP_ONLY)
+_MOCAP_KEYS = ("file", "pose", "time_tolerance", "format", "rotation_noise_deg",
+               "translation_noise_m") + tuple(_MOCAP_ONLY)
 _CAMERA_KEYS = ("intrinsics", "images", "poses", "rosbag", "topic", "mocap", "time_offset")
 _SOURCES = ("images", "poses", "rosbag")
 
@@ -311,6 +312,12 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
     tol = 0.03
     if "time_tolerance" in raw:
         tol = c.number(raw["time_tolerance"], at("time_tolerance"), positive=True)
+    if "rotation_noise_deg" in raw:
+        kw["rot_sigma_rad"] = math.radians(c.number(raw["rotation_noise_deg"],
+                                                    at("rotation_noise_deg"), positive=True))
+    if "translation_noise_m" in raw:
+        kw["trans_sigma_m"] = c.number(raw["translation_noise_m"], at("translation_noise_m"),
+                                       positive=True)
     return MocapSpec(file, pose, tol, fmt, **kw)
 
 
@@ -330,7 +337,8 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
         if fmt is None:
             fmt = sniff_mocap_format(c.path(own["file"], where + ("file",), "file or bag"))
         if fmt != top_spec.format:
-            inherit = [k for k in inherit if k in ("pose", "time_tolerance")]
+            inherit = [k for k in inherit if k in ("pose", "time_tolerance", "rotation_noise_deg",
+                                                   "translation_noise_m")]
     merged = {**{k: top_raw[k] for k in inherit}, **own}
     origin = {**{k: ("mocap",) for k in inherit}, **{k: where for k in own}}
     return _mocap(c, merged, origin, setup, where)
