@@ -199,3 +199,12 @@ def test_poses_camera_may_omit_intrinsics_and_non_finite_numbers_are_refused(dat
     assert "camchain.yaml not written: no intrinsics for cam1" in res.stdout
     (dataset / "rig.yaml").write_text(rig.replace("time_tolerance: 0.01", "time_tolerance: .inf"))
     _fails(dataset, tmp_path / "out2", "rig.yaml:6", "time_tolerance")
+
+
+def test_experiment_command_writes_csv_and_png(tmp_path):
+    res = _run(["experiment", "measurements", "--trials", "1", "-o", tmp_path])
+    assert res.exit_code == 0, res.stderr
+    assert (tmp_path / "measurements.csv").exists() and (tmp_path / "measurements.png").exists()
+    header = (tmp_path / "measurements.csv").read_text().splitlines()[0]
+    for col in ("param", "method", "e_R_deg", "e_t_m"):
+        assert col in header
