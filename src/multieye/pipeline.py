@@ -538,7 +538,8 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".multieye-", dir=out))
     try:
-        names, notes = _write_all(run, tmp, report=report, diagnostics=diagnostics)
+        names, notes = _write_all(run, tmp, report=report, diagnostics=diagnostics,
+                                  final=out)
         names = [n for n in names if (tmp / n).exists()]
         for name in names:
             target = out / name
@@ -556,7 +557,7 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
 
 
 def _write_all(run: CalibrationRun, folder: Path, *, report: bool,
-               diagnostics: dict | None) -> tuple[list[str], list[str]]:
+               diagnostics: dict | None, final: Path) -> tuple[list[str], list[str]]:
     """Write every output into ``folder``; returns the names written and notes."""
     from .io.run_details import write_run_details
 
@@ -579,6 +580,6 @@ def _write_all(run: CalibrationRun, folder: Path, *, report: bool,
     if report:
         from .report import write_report
 
-        write_report(folder)
+        write_report(folder, shown_as=final.resolve())
         names += ["report.html", "figures"]
     return names, notes

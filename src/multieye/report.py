@@ -414,13 +414,16 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
             f"</title><style>{_STYLE}</style></head><body><main>{body}</main></body></html>\n")
 
 
-def write_report(out_dir: str | os.PathLike) -> Path:
+def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | None = None) -> Path:
     """Write ``OUT/report.html`` and ``OUT/figures/*.png`` from ``OUT/calibration.json``.
 
     Parameters
     ----------
     out_dir : path-like
         The output folder of ``multieye calibrate``.
+    shown_as : path-like, optional
+        The folder named on the page, when the report is built in a staging folder that is
+        moved into place afterwards (``multieye.pipeline.write_outputs``).
 
     Returns
     -------
@@ -451,5 +454,6 @@ def write_report(out_dir: str | os.PathLike) -> Path:
     for name in FIGURES:  # figures of an earlier report that this one does not have
         if name not in figures and (folder / name).exists():
             (folder / name).unlink()
-    html = report_html(rec, details, figures, out_dir=out, notes=notes)
+    html = report_html(rec, details, figures, out_dir=Path(shown_as) if shown_as else out,
+                       notes=notes)
     return write_text_atomic(out / "report.html", html)
