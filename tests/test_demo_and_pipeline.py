@@ -115,3 +115,20 @@ def test_cameras_recorded_one_after_another_one_or_several_mocap_files(tmp_path,
     np.testing.assert_allclose(run.solution.X, T_world_cam, atol=1e-9)
     np.testing.assert_allclose(run.solution.Y, T_marker_target, atol=1e-9)
     assert [c.measurements_used for c in run.record.cameras] == [12, 12]
+
+
+def test_the_demos_own_report_renders_in_chromium_without_console_messages(demo, tmp_path):
+    """`multieye demo` writes report.html; Debian's chromium loads it cleanly (CI installs it)."""
+    import shutil
+
+    from test_report import _probe, _screenshot
+
+    if shutil.which("chromium") is None:
+        pytest.skip("Debian's chromium is not on PATH (.ci/run installs it)")
+    out, _ = demo
+    sizes, console = _probe(out / "report.html", tmp_path)
+    assert console == []
+    assert len(sizes) == 3 and all(w > 100 and h > 100 and done for w, h, done in sizes)
+    rgb, console = _screenshot(out / "report.html", tmp_path)
+    assert console == []
+    assert (rgb.min(axis=2) < 235).mean() > 0.05
