@@ -174,7 +174,7 @@ def _evaluate(scenario: sim.RigScenario, method: str, param: float, trial: int) 
                          float(np.mean(trans)), elapsed)
 
 
-def _progress_bar(total: int, desc: str, progress: bool):
+def progress_bar(total: int, desc: str, progress: bool):
     """A tqdm bar on stderr when ``progress`` is set and stderr is a terminal, else None."""
     if not (progress and sys.stderr.isatty()):
         return None
@@ -196,7 +196,7 @@ def _sweep(name: str, param_label: str, params: Sequence[float], problem: Proble
     warm = problem(params[-1], np.random.default_rng([seed, trials]), np.random.default_rng(0))
     for method in methods:
         _evaluate(warm, method, params[-1], -1)
-    bar = _progress_bar(trials * len(params), name, progress)
+    bar = progress_bar(trials * len(params), name, progress)
     rows: list[ExperimentRow] = []
     try:
         for trial in range(trials):

@@ -182,7 +182,7 @@ def refine_sweep(trials: int = 100, seed: int = 0, *,
     tuple of RefineRow
         Ordered by trial, level, method.
     """
-    from .experiments import _progress_bar
+    from .experiments import progress_bar
 
     if trials < 1:
         raise InputError(f"trials must be at least 1, got {trials}")
@@ -190,7 +190,7 @@ def refine_sweep(trials: int = 100, seed: int = 0, *,
         raise InputError(f"seed must be a non-negative integer, got {seed}")
     if not levels or min(levels) <= 0:
         raise InputError(f"pixel noise levels must be positive, got {list(levels)}")
-    bar = _progress_bar(trials * len(levels), "refine", progress)
+    bar = progress_bar(trials * len(levels), "refine", progress)
     rows: list[RefineRow] = []
     try:
         for trial in range(trials):

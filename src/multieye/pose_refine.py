@@ -60,11 +60,12 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from .errors import InputError
 from .general import GeneralSolution, MeasurementGroup, as_groups, assemble_solution
 from .geometry import make_transform, skew
+from .lie import exp_so3, left_jacobian, left_jacobian_inv, log_so3
+from .robust_loss import LOSSES, gaussian_kappa, rho, robust_cost, sample_kappa
 from .solvers.result import Solution
 
 __all__ = [
@@ -77,41 +78,8 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-LOSSES = ("linear", "huber", "soft_l1", "cauchy", "arctan")
 _MAD_TO_SIGMA = 1.4826
 _SIGMA_FLOOR = 1e-12
-
-
-# --- SO(3) helpers -------------------------------------------------------------------------
-
-def _left_jacobian(phi: F64) -> F64:
-    """Left Jacobian of SO(3), ``(..., 3, 3)`` for rotation vectors ``(..., 3)``."""
-    th = np.linalg.norm(phi, axis=-1)[..., None, None]
-    K = skew(phi)
-    small = th < 1e-6
-    ths = np.where(small, 1.0, th)
-    a = np.where(small, 0.5 - th ** 2 / 24.0, (1.0 - np.cos(ths)) / ths ** 2)
-    b = np.where(small, 1.0 / 6.0 - th ** 2 / 120.0, (ths - np.sin(ths)) / ths ** 3)
-    return np.eye(3) + a * K + b * (K @ K)
-
-
-def _left_jacobian_inv(phi: F64) -> F64:
-    """Inverse of :func:`_left_jacobian`."""
-    th = np.linalg.norm(phi, axis=-1)[..., None, None]
-    K = skew(phi)
-    small = th < 1e-6
-    ths = np.where(small, 1.0, th)
-    c = np.where(small, 1.0 / 12.0 + th ** 2 / 720.0,
-                 1.0 / ths ** 2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths)))
-    return np.eye(3) - 0.5 * K + c * (K @ K)
-
-
-def _exp(phi: F64) -> F64:
-    return Rotation.from_rotvec(phi.reshape(-1, 3)).as_matrix().reshape(phi.shape + (3,))
-
-
-def _log(R: F64) -> F64:
-    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(R.shape[:-1])
 
 
 # --- the stacked problem --------------------------------------------------------------------
@@ -172,7 +140,7 @@ class PoseProblem:
     def poses(self, T0: F64, p: F64) -> F64:
         """Unknowns (k, 4, 4) at parameters ``p`` (6k,) relative to the anchor ``T0``."""
         p = np.asarray(p, dtype=np.float64).reshape(self.k, 6)
-        return make_transform(_exp(p[:, :3]) @ T0[:, :3, :3], T0[:, :3, 3] + p[:, 3:])
+        return make_transform(exp_so3(p[:, :3]) @ T0[:, :3, :3], T0[:, :3, 3] + p[:, 3:])
 
     def raw_residuals(self, T: F64) -> tuple[F64, F64]:
         """Unweighted ``(r_R, r_t)`` (each (m, 3), radians and metres) at unknowns ``T``."""
@@ -183,7 +151,7 @@ class PoseProblem:
         E = RA @ RX @ np.swapaxes(RB, 1, 2) @ np.swapaxes(RY, 1, 2)
         r_t = (np.einsum("nij,nj->ni", RA, tX) + tA
                - np.einsum("nij,nj->ni", RY, tB) - tY)
-        return _log(E), r_t
+        return log_so3(E), r_t
 
     def residuals(self, p: F64, T0: F64, sigma_rot: float, sigma_t: float) -> F64:
         """Sigma-normalised residual vector (6m,) at ``p``."""
@@ -199,8 +167,8 @@ class PoseProblem:
         RB, tB = self.B[:, :3, :3], self.B[:, :3, 3]
         RX, RY = T[self.xi, :3, :3], T[self.yi, :3, :3]
         E = RA @ RX @ np.swapaxes(RB, 1, 2) @ np.swapaxes(RY, 1, 2)
-        Jinv = _left_jacobian_inv(r_rot)
-        Jl = _left_jacobian(p[:, :3])
+        Jinv = left_jacobian_inv(r_rot)
+        Jl = left_jacobian(p[:, :3])
         JlX, JlY = Jl[self.xi], Jl[self.yi]
         blk = np.zeros((self.m, 6, 12))
         blk[:, :3, 0:3] = Jinv @ RA @ JlX / sigma_rot
@@ -209,53 +177,6 @@ class PoseProblem:
         blk[:, 3:, 6:9] = skew(np.einsum("nij,nj->ni", RY, tB)) @ JlY / sigma_t
         blk[:, 3:, 9:12] = -np.eye(3) / sigma_t
         return self._sparse(blk)
-
-
-# --- robust loss: value, influence function, covariance factor ------------------------------
-
-def _rho(z: F64, loss: str) -> tuple[F64, F64, F64]:
-    """scipy's ``rho(z)`` and its first two derivatives, ``z = (f / scale)^2``."""
-    if loss == "linear":
-        return z, np.ones_like(z), np.zeros_like(z)
-    if loss == "huber":
-        inside = z <= 1.0
-        zs = np.where(inside, 1.0, z)
-        return (np.where(inside, z, 2.0 * np.sqrt(zs) - 1.0), np.where(inside, 1.0, zs ** -0.5),
-                np.where(inside, 0.0, -0.5 * zs ** -1.5))
-    if loss == "soft_l1":
-        return 2.0 * (np.sqrt(1.0 + z) - 1.0), (1.0 + z) ** -0.5, -0.5 * (1.0 + z) ** -1.5
-    if loss == "cauchy":
-        return np.log1p(z), 1.0 / (1.0 + z), -1.0 / (1.0 + z) ** 2
-    return np.arctan(z), 1.0 / (1.0 + z ** 2), -2.0 * z / (1.0 + z ** 2) ** 2   # arctan
-
-
-def _robust_cost(f: F64, loss: str, scale: float) -> float:
-    """``sum scale^2 rho(f^2 / scale^2) / 2`` (scipy's ``cost``)."""
-    return 0.5 * scale ** 2 * float(_rho((f / scale) ** 2, loss)[0].sum())
-
-
-def _psi(f: F64, loss: str, scale: float) -> tuple[F64, F64]:
-    """Influence function ``psi(f) = d/df [scale^2 rho(f^2/scale^2) / 2]`` and its derivative."""
-    z = (f / scale) ** 2
-    _, d1, d2 = _rho(z, loss)
-    return f * d1, d1 + 2.0 * z * d2
-
-
-def _gaussian_kappa(loss: str, scale: float) -> float:
-    """``E[psi^2] / E[psi']^2`` for standard normal residuals (Gauss-Hermite quadrature)."""
-    if loss == "linear":
-        return 1.0
-    x, wq = np.polynomial.hermite_e.hermegauss(201)
-    wq = wq / wq.sum()
-    psi, dpsi = _psi(x, loss, scale)
-    return float((wq @ psi ** 2) / (wq @ dpsi) ** 2)
-
-
-def _sample_kappa(f: F64, loss: str, scale: float, n_params: int) -> float:
-    """``[sum psi^2 / (m - n)] / [sum psi' / m]^2`` over residuals ``f``."""
-    psi, dpsi = _psi(f, loss, scale)
-    m = f.size
-    return float((psi @ psi / max(m - n_params, 1)) / (dpsi.sum() / m) ** 2)
 
 
 def _robust_sigma(r: F64) -> float:
@@ -277,12 +198,12 @@ def _minimize_lm(problem: PoseProblem, T: F64, s_rot: float, s_t: float, loss: s
     """
     zero = np.zeros(6 * problem.k)
     f = problem.residuals(zero, T, s_rot, s_t)
-    cost = _robust_cost(f, loss, scale)
+    cost = robust_cost(f, loss, scale)
     lam = 1e-6
     for _ in range(max_iter):
         J = problem.jacobian(zero, T, s_rot, s_t)
         z = (f / scale) ** 2
-        _, d1, d2 = _rho(z, loss)
+        _, d1, d2 = rho(z, loss)
         # Gauss-Newton Hessian of the robust cost, psi'(f) = rho' + 2 z rho'', kept positive.
         w = np.maximum(d1 + 2.0 * z * d2, 1e-3 * d1)
         H = (J.T @ sp.diags(w) @ J).toarray()
@@ -292,7 +213,7 @@ def _minimize_lm(problem: PoseProblem, T: F64, s_rot: float, s_t: float, loss: s
             dp = np.linalg.solve(H + lam * np.diag(d), -g)
             T_new = problem.poses(T, dp)
             f_new = problem.residuals(zero, T_new, s_rot, s_t)
-            cost_new = _robust_cost(f_new, loss, scale)
+            cost_new = robust_cost(f_new, loss, scale)
             if cost_new <= cost:
                 break
             lam *= 10.0
@@ -389,8 +310,8 @@ def refine_general(groups: Iterable, initial: GeneralSolution, *,
     zero = np.zeros(6 * problem.k)
     f = problem.residuals(zero, T, s_rot, s_t)
     J = problem.jacobian(zero, T, s_rot, s_t)
-    kappa = (_gaussian_kappa(loss, loss_scale) if given
-             else _sample_kappa(f, loss, loss_scale, 6 * problem.k))
+    kappa = (gaussian_kappa(loss, loss_scale) if given
+             else sample_kappa(f, loss, loss_scale, 6 * problem.k))
     cov = kappa * np.linalg.inv((J.T @ J).toarray())
     cov = 0.5 * (cov + cov.T)
 

@@ -79,9 +79,10 @@ from scipy.optimize import least_squares
 from scipy.stats import chi2
 
 from .errors import InputError
-from .geometry import make_transform, skew
+from .geometry import make_transform
 from .intrinsics import Intrinsics
-from .pose_refine import LOSSES, _exp, _gaussian_kappa, _left_jacobian, _rho, _robust_cost
+from .lie import exp_so3, left_jacobian
+from .robust_loss import LOSSES, gaussian_kappa, rho, robust_cost
 from .simulation import SETUPS
 
 __all__ = [
@@ -372,10 +373,10 @@ class ImageProblem:
         q = np.asarray(p, dtype=np.float64)
         xy = q[:self.k].reshape(self.m + 1, 6)
         T0 = np.concatenate([X0, Y0[None]])
-        T = make_transform(_exp(xy[:, :3]) @ T0[:, :3, :3], T0[:, :3, 3] + xy[:, 3:])
+        T = make_transform(exp_so3(xy[:, :3]) @ T0[:, :3, :3], T0[:, :3, 3] + xy[:, 3:])
         pm = q[self.k:].reshape(self.n_images, 6)
         Mm = self.mocap_measured
-        M = make_transform(Mm[:, :3, :3] @ _exp(pm[:, :3]), Mm[:, :3, 3] + pm[:, 3:])
+        M = make_transform(Mm[:, :3, :3] @ exp_so3(pm[:, :3]), Mm[:, :3, 3] + pm[:, 3:])
         return T[:self.m], T[self.m], M
 
     def _chain(self, X: F64, Y: F64, M: F64):
@@ -445,9 +446,9 @@ class ImageProblem:
         _, Jp = self.project(pc, with_jacobian=True)                     # (P, 2, 3)
         c, i = self.camera, self.image
         xy = q[:self.k].reshape(self.m + 1, 6)
-        JlX = _left_jacobian(xy[:self.m, :3])                            # (m, 3, 3)
-        JlY = _left_jacobian(xy[self.m, :3])                             # (3, 3)
-        JrM = np.swapaxes(_left_jacobian(q[self.k:].reshape(-1, 6)[:, :3]), 1, 2)[i]
+        JlX = left_jacobian(xy[:self.m, :3])                            # (m, 3, 3)
+        JlY = left_jacobian(xy[self.m, :3])                             # (3, 3)
+        JrM = np.swapaxes(left_jacobian(q[self.k:].reshape(-1, 6)[:, :3]), 1, 2)[i]
         RM = M[:, :3, :3][i]
         JpR = Jp @ RXt[c]                                                # d uv / d q
         JpG = JpR @ (RM if self.setup == "eye-to-base" else np.swapaxes(RM, 1, 2))
@@ -583,11 +584,11 @@ def _minimize_lm(problem: ImageProblem, p: F64, X0: F64, Y0: F64, sigmas: F64, l
     P = problem.n_points
     prior_jac = np.tile(1.0 / np.repeat(sigmas[1:], 3), problem.n_images).reshape(-1, 6)
     f = problem.residuals(p, X0, Y0, sigmas)
-    cost = _robust_cost(f, loss, f_scale)
+    cost = robust_cost(f, loss, f_scale)
     lam = 1e-4
     evaluations, iterations = 1, 0
     for iterations in range(1, max_iter + 1):
-        w = _rho((f / f_scale) ** 2, loss)[1]
+        w = rho((f / f_scale) ** 2, loss)[1]
         sw = np.sqrt(w)
         blk = problem.jacobian_blocks(p, X0, Y0, sigmas[0]) * sw[:2 * P].reshape(P, 2, 1)
         prior_w = w[2 * P:].reshape(-1, 6) * prior_jac ** 2
@@ -601,7 +602,7 @@ def _minimize_lm(problem: ImageProblem, p: F64, X0: F64, Y0: F64, sigmas: F64, l
             dp = problem.step(Ud, W, Vd, g)
             f_new = problem.residuals(p + dp, X0, Y0, sigmas)
             evaluations += 1
-            cost_new = (_robust_cost(f_new, loss, f_scale) if np.all(np.isfinite(f_new))
+            cost_new = (robust_cost(f_new, loss, f_scale) if np.all(np.isfinite(f_new))
                         else np.inf)
             if cost_new <= cost:
                 break
@@ -649,7 +650,7 @@ def _gaussian_scale_constant(loss: str, f_scale: float) -> float:
         return 1.0
     x, wq = np.polynomial.hermite_e.hermegauss(201)
     wq = wq / wq.sum()
-    w = _rho((x / f_scale) ** 2, loss)[1]
+    w = rho((x / f_scale) ** 2, loss)[1]
     return float(wq @ (w * x ** 2))
 
 
@@ -757,7 +758,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     if estimate:
         s_px = max(1.4826 * float(np.median(np.abs(r0))), 1e-3)
 
-    kappa = _gaussian_kappa(loss, f_scale)
+    kappa = gaussian_kappa(loss, f_scale)
     c_w = _gaussian_scale_constant(loss, f_scale)
     iterations = evaluations = passes = 0
     settled = False
@@ -778,7 +779,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         redundancy = 2 * problem.n_points - (problem.n_params - h_prior)
         X, Y, M = problem.poses(p, X0, Y0)
         z = problem.pixel_residuals(X, Y, M).ravel() / s_px
-        w = _rho((z / f_scale) ** 2, loss)[1]
+        w = rho((z / f_scale) ** 2, loss)[1]
         new = s_px * np.sqrt(float(w @ z ** 2) / (c_w * max(redundancy, 1.0)))
         settled = abs(new / s_px - 1.0) < 0.01 or passes >= _MAX_SIGMA_PASSES - 1
         s_px = new
@@ -789,7 +790,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     cov_xy, _ = problem.marginal(blk, 1.0 / np.repeat(sigmas[1:], 3) ** 2)
     r_pix = problem.pixel_residuals(X, Y, M)                              # (P, 2) pixels
     z = r_pix / s_px
-    w_pt = _rho((z / f_scale) ** 2, loss)[1].min(axis=1)
+    w_pt = rho((z / f_scale) ** 2, loss)[1].min(axis=1)
     d2 = np.sum(r_pix ** 2, axis=1)
     point_out = d2 / s_px ** 2 > chi2.isf(OUTLIER_PROBABILITY, 2)
     img_rms = np.sqrt(np.add.reduceat(d2, problem.image_starts)

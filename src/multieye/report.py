@@ -291,7 +291,7 @@ def _figures(details: RunDetails | None, figures: Mapping[str, bytes]) -> str:
                  "line is the marker body's motion capture during the images.")
     else:
         where = ""
-    parts = [f'<section id="rig"><h2>Rig</h2>',
+    parts = ['<section id="rig"><h2>Rig</h2>',
              _figure(figures["rig.png"], "3D plot of the camera rig",
                      f"Camera frustums in {frame}, in 3D and seen from above. {where}",
                      "rig.png"), "</section>"]

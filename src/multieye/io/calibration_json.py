@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import DatasetError, InputError
 from .atomic import write_text_atomic
-from .textfile import read_text
+from .textfile import read_json
 from .trajectory import RIGID_TOLERANCE
 
 __all__ = [
@@ -364,9 +364,4 @@ def read_calibration(path: str | os.PathLike) -> CalibrationRecord:
         Missing file, invalid JSON (with the line), or any check of
         :func:`calibration_from_dict`.
     """
-    text = read_text(path, what="calibration file")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise DatasetError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
-    return calibration_from_dict(data, path)
+    return calibration_from_dict(read_json(path, what="calibration file"), path)

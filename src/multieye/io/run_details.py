@@ -52,7 +52,7 @@ from ..intrinsics import Intrinsics
 from ..metrics import loop_residuals
 from .atomic import write_text_atomic
 from .calibration_json import SETUP_KEYS
-from .textfile import read_text
+from .textfile import read_json
 
 if TYPE_CHECKING:  # the pipeline imports io; io must not import it at run time
     from ..pipeline import CalibrationRun
@@ -469,9 +469,4 @@ def read_run_details(path: str | os.PathLike) -> RunDetails:
         Missing file, invalid JSON (with the line), or any check of
         :func:`run_details_from_dict`.
     """
-    text = read_text(path, what="details file")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise DatasetError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
-    return run_details_from_dict(data, path)
+    return run_details_from_dict(read_json(path, what="details file"), path)

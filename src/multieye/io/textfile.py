@@ -65,6 +65,17 @@ def read_text(path: str | os.PathLike, *, what: str = "file") -> str:
                            path=p, line=line) from exc
 
 
+def read_json(path: str | os.PathLike, *, what: str = "JSON file"):
+    """Parse a JSON file; a syntax error becomes a DatasetError with its line."""
+    import json
+
+    text = read_text(path, what=what)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise DatasetError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
+
+
 def data_lines(text: str) -> Iterator[tuple[int, str]]:
     """Non-empty lines with ``#`` comments removed, as ``(1-based line number, content)``."""
     for number, raw in enumerate(text.splitlines(), start=1):
