@@ -147,13 +147,29 @@ class PairedCamera:
 
 @dataclass(frozen=True)
 class CalibrationRun:
-    """Everything a calibration produced, for writers, reports and Python users."""
+    """Everything a calibration produced, for writers, reports and Python users.
+
+    Attributes
+    ----------
+    rig : Rig
+    record : CalibrationRecord
+        The result as written to ``calibration.json`` (refined when refinement ran).
+    solution : Solution
+        The closed form on the measurements kept.
+    cameras : dict of str to CameraData
+    paired : dict of str to PairedCamera
+        The measurements kept, per camera.
+    refined : RefinementResult or Solution or None
+        The refinement (:class:`multieye.refine.RefinementResult` on images, a refined
+        :class:`~multieye.solvers.Solution` on poses), when it ran.
+    """
 
     rig: Rig
     record: CalibrationRecord
     solution: Solution
     cameras: dict[str, CameraData]
     paired: dict[str, PairedCamera]
+    refined: object | None = None
 
 
 def _describe_target(rig: Rig) -> str:
@@ -400,13 +416,15 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     motion = motion_diagnostics(As, Bs, names, setup=rig.setup)
     warnings.extend(motion.warnings)
     sol = solve(As, Bs, opts.method, names=names)
-    X, Y, covariance, refinement, reproj = sol.X, sol.Y, None, None, {}
+    X, Y, covariance, refinement, reproj, refined = sol.X, sol.Y, None, None, {}, None
     if opts.refine:
-        X, Y, covariance, refinement, reproj, more = _refine(rig, cameras, paired, sol, opts)
+        X, Y, covariance, refinement, reproj, more, refined = _refine(rig, cameras, paired, sol,
+                                                                      opts)
         warnings.extend(more)
     record = _record(rig, opts.method, reference, X, Y, covariance, paired, warnings, offsets,
                      refinement, reproj, motion.as_dict()["cameras"])
-    return CalibrationRun(rig=rig, record=record, solution=sol, cameras=cameras, paired=paired)
+    return CalibrationRun(rig=rig, record=record, solution=sol, cameras=cameras, paired=paired,
+                          refined=refined)
 
 
 def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
@@ -441,11 +459,11 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
                                 + ", ".join(paired[name].observations[i].name for i in bad[:5])
                                 + (" ..." if bad.size > 5 else ""))
         reproj = {n: float(res.camera_rms_px[j]) for j, n in enumerate(paired)}
-        return res.X, res.Y, res.covariance, "images", reproj, warnings
+        return res.X, res.Y, res.covariance, "images", reproj, warnings, res
     from .pose_refine import refine_solution
 
     ref = refine_solution(sol)
-    return ref.X, ref.Y, ref.covariance, "poses", {}, warnings
+    return ref.X, ref.Y, ref.covariance, "poses", {}, warnings, ref
 
 
 def _record(rig: Rig, method: str, reference: str, X: np.ndarray, Y: np.ndarray,
