@@ -93,3 +93,35 @@ def test_bad_process_count():
     with pytest.raises(InputError, match="processes must be a positive integer"):
         detect_and_estimate([], BOARD, CAMERA, processes=0)
     assert detect_and_estimate([], BOARD, CAMERA) == []
+
+
+def test_arrays_in_batches_give_the_same_results_as_files_in_order(tmp_path):
+    """detect_and_estimate_arrays (bag frames) = detect_and_estimate (files), in input order,
+    with a batch smaller than the stream so that several batches go through the pool."""
+    import cv2
+
+    from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
+    from multieye.imaging.render import render
+    from multieye.imaging.targets import target_from_spec
+    from multieye.intrinsics import Intrinsics
+    from multieye import geometry as g
+
+    board = target_from_spec({"type": "chessboard", "rows": 6, "cols": 9, "spacing": 0.03})
+    intr = Intrinsics(K=np.array([[500.0, 0, 319.5], [0, 500, 239.5], [0, 0, 1]]),
+                      dist=np.array([-0.1, 0.02, 0, 0]), width=640, height=480)
+    paths = []
+    for k in range(7):
+        T = g.transform_from_rotvec([0.2 * np.sin(k), 0.15 * np.cos(k), 0.1 * k],
+                                    [-0.12 + 0.01 * k, -0.07, 0.6])
+        img = render(board, intr, T, rng=np.random.default_rng(k)) if k != 3 else \
+            np.full((480, 640), 200, np.uint8)           # one image without a board
+        paths.append(tmp_path / f"{k}.png")
+        cv2.imwrite(str(paths[-1]), img)
+    files = detect_and_estimate(paths, board, intr, processes=2)
+    arrays = detect_and_estimate_arrays(((p.name, cv2.imread(str(p), cv2.IMREAD_GRAYSCALE))
+                                         for p in paths), board, intr, processes=2, batch=3)
+    assert [r.path for r in arrays] == [p.name for p in paths]
+    assert [r.ok for r in arrays] == [r.ok for r in files] == [True] * 3 + [False] + [True] * 3
+    for a, f in zip(arrays, files):
+        if a.ok:
+            np.testing.assert_allclose(a.pose.T_cam_target, f.pose.T_cam_target, atol=1e-12)

@@ -34,7 +34,7 @@ def test_bag_images_and_bag_mocap_give_the_folder_result(tmp_path):
     rig = rig.replace("  file: mocap.txt", "  file: run\n  format: rosbag\n  topic: /mocap/marker")
     (tmp_path / "ds" / "rig.yaml").write_text(rig)
 
-    bag_run = calibrate(tmp_path / "ds", processes=1)
+    bag_run = calibrate(tmp_path / "ds", processes=2)   # bag frames go to worker processes
     assert bag_run.record.camera("cam1").measurements_used == truth.images_written[1]
     assert bag_run.cameras["cam1"].observations[0].name.startswith("/cam1/image_raw@")
     np.testing.assert_allclose(bag_run.solution.X, folder_run.solution.X, atol=1e-6)

@@ -191,14 +191,19 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
                                       processes=processes, progress=progress)
         stamped = [(stamp, path.name) for stamp, _, path in images]
     else:
-        from .imaging.batch import process_array
+        from .imaging.batch import detect_and_estimate_arrays
         from .io import iter_bag_images
 
-        results, stamped = [], []
-        for stamp_ns, image in iter_bag_images(source, topic):
-            label = f"{topic}@{stamp_ns}"
-            results.append(process_array(image, label, target, intr))
-            stamped.append((stamp_ns * 1e-9, label))
+        stamped = []
+
+        def frames():
+            for stamp_ns, image in iter_bag_images(source, topic):
+                label = f"{topic}@{stamp_ns}"
+                stamped.append((stamp_ns * 1e-9, label))
+                yield label, image
+
+        results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
+                                             progress=progress)
         if not stamped:
             raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
     obs, rejected, warnings = [], [], []

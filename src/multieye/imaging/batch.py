@@ -26,8 +26,8 @@ from .detect import Detection, detect
 from .pnp import PoseEstimate, estimate_pose
 from .targets import Target
 
-__all__ = ["ImageResult", "detect_and_estimate", "process_image", "process_array",
-           "DEFAULT_MAX_RMS_PX"]
+__all__ = ["ImageResult", "detect_and_estimate", "detect_and_estimate_arrays", "process_image",
+           "process_array", "DEFAULT_MAX_RMS_PX"]
 
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
 DEFAULT_MAX_RMS_PX = 2.0
@@ -146,6 +146,12 @@ def _work(path: str) -> ImageResult:
     return process_image(path, _WORKER["target"], _WORKER["intrinsics"], max_rms_px=_WORKER["max_rms_px"])
 
 
+def _work_array(item) -> ImageResult:
+    name, image = item
+    return process_array(image, name, _WORKER["target"], _WORKER["intrinsics"],
+                         max_rms_px=_WORKER["max_rms_px"])
+
+
 def _available_cores() -> int:
     try:
         return len(os.sched_getaffinity(0))
@@ -230,3 +236,57 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics,
         if bar is not None:
             bar.close()
 
+
+def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intrinsics, *,
+                               processes: int | None = None, progress: bool | None = None,
+                               max_rms_px: float = DEFAULT_MAX_RMS_PX,
+                               batch: int = 64) -> list[ImageResult]:
+    """:func:`detect_and_estimate` for images in memory, e.g. streamed from a ROS bag.
+
+    Parameters
+    ----------
+    items : iterable of (str, ndarray)
+        Name and image; consumed ``batch`` at a time, so a long stream is never held in
+        memory whole.
+    target, intrinsics, processes, progress, max_rms_px
+        As for :func:`detect_and_estimate`.
+    batch : int
+        Images sent to the workers at once.
+
+    Returns
+    -------
+    list of ImageResult
+        In input order.
+    """
+    if processes is not None and (isinstance(processes, bool) or int(processes) < 1):
+        raise InputError(f"processes must be a positive integer, got {processes!r}")
+    n_workers = _available_cores() if processes is None else int(processes)
+    show = sys.stderr.isatty() if progress is None else bool(progress)
+    bar = None
+    if show:
+        from tqdm import tqdm
+
+        bar = tqdm(desc=f"detecting {target.kind}", unit="img", file=sys.stderr)
+    results: list[ImageResult] = []
+    it = iter(items)
+    try:
+        if n_workers <= 1:
+            for name, image in it:
+                results.append(process_array(image, name, target, intrinsics,
+                                             max_rms_px=max_rms_px))
+                if bar is not None:
+                    bar.update(1)
+            return results
+        with ProcessPoolExecutor(n_workers, mp_context=_mp_context(), initializer=_init_worker,
+                                 initargs=(target, intrinsics, max_rms_px)) as pool:
+            while True:
+                chunk = [item for _, item in zip(range(batch), it)]
+                if not chunk:
+                    return results
+                results.extend(pool.map(_work_array, chunk,
+                                        chunksize=max(1, len(chunk) // (2 * n_workers))))
+                if bar is not None:
+                    bar.update(len(chunk))
+    finally:
+        if bar is not None:
+            bar.close()
