@@ -98,21 +98,15 @@ def test_bad_process_count():
 def test_arrays_in_batches_give_the_same_results_as_files_in_order(tmp_path):
     """detect_and_estimate_arrays (bag frames) = detect_and_estimate (files), in input order,
     with a batch smaller than the stream so that several batches go through the pool."""
-    import cv2
+    from multieye.imaging.batch import detect_and_estimate_arrays
 
-    from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
-    from multieye.imaging.render import render
-    from multieye.imaging.targets import target_from_spec
-    from multieye.intrinsics import Intrinsics
-    from multieye import geometry as g
-
-    board = target_from_spec({"type": "chessboard", "rows": 6, "cols": 9, "spacing": 0.03})
+    board = Chessboard(rows=6, cols=9, spacing=0.03)
     intr = Intrinsics(K=np.array([[500.0, 0, 319.5], [0, 500, 239.5], [0, 0, 1]]),
                       dist=np.array([-0.1, 0.02, 0, 0]), width=640, height=480)
     paths = []
     for k in range(7):
-        T = g.transform_from_rotvec([0.2 * np.sin(k), 0.15 * np.cos(k), 0.1 * k],
-                                    [-0.12 + 0.01 * k, -0.07, 0.6])
+        T = transform_from_rotvec([0.2 * np.sin(k), 0.15 * np.cos(k), 0.1 * k],
+                                  [-0.12 + 0.01 * k, -0.07, 0.6])
         img = render(board, intr, T, rng=np.random.default_rng(k)) if k != 3 else \
             np.full((480, 640), 200, np.uint8)           # one image without a board
         paths.append(tmp_path / f"{k}.png")
