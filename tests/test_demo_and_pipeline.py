@@ -159,3 +159,46 @@ def test_time_offset_auto_recovers_a_clock_offset_end_to_end(tmp_path):
     assert rot.max() < 0.1 and trans.max() < 1e-3, (rot, trans)
     rot_s, trans_s = extrinsic_errors(ref_cam(shifted), ref_cam(synced))
     assert rot_s.max() > 3 * rot.max()          # ignoring the offset costs accuracy
+
+
+def test_unstated_motion_capture_noise_is_estimated(tmp_path):
+    """rig.yaml without rotation_noise_deg / translation_noise_m: the refinement estimates
+    them (0.5 deg / 2 mm here) instead of trusting the 0.1 deg / 0.3 mm defaults."""
+    import re
+
+    spec = DatasetSpec(n_cameras=2, images_per_camera=20, width=640, height=480, processes=1,
+                       mocap_noise=(np.radians(0.5), 0.002))
+    render_dataset(tmp_path / "ds", spec, seed=6)
+    rig = (tmp_path / "ds" / "rig.yaml").read_text()
+    rig = re.sub(r"  (rotation_noise_deg|translation_noise_m): .*\n", "", rig)
+    (tmp_path / "ds" / "rig.yaml").write_text(rig)
+    run = calibrate(tmp_path / "ds", processes=1)
+    assert np.degrees(run.refined.mocap_rot_sigma_rad) == pytest.approx(0.5, rel=0.35)
+    assert run.refined.mocap_trans_sigma_m == pytest.approx(0.002, rel=0.35)
+    assert any("motion-capture noise estimated" in w for w in run.record.warnings)
+
+
+def test_consensus_rejects_exactly_the_glitches_and_names_them(tmp_path):
+    """Four motion-capture glitches of 10-30 degrees among 24 exact measurements: the pipeline
+    rejects those four (by their pose-file line) and recovers the rig exactly."""
+    from pose_dataset import write_pose_dataset
+
+    from multieye import geometry as g
+    from multieye.io import Trajectory, read_tum, write_tum
+
+    folder, T_world_cam, T_marker_target = write_pose_dataset(tmp_path)
+    mocap = read_tum(folder / "mocap.txt")
+    T = mocap.T.copy()
+    rng = np.random.default_rng(1)
+    glitched = [2, 7, 15, 20]                 # cam0: 2, 7; cam1: 15, 20 (12 per camera)
+    for i, deg in zip(glitched, (10, 18, 25, 30)):
+        axis = rng.normal(size=3)
+        T[i] = T[i] @ g.transform_from_rotvec(np.radians(deg) * axis / np.linalg.norm(axis),
+                                              [0.02, 0.0, 0.0])
+    write_tum(folder / "mocap.txt", Trajectory(mocap.stamps, T))
+    run = calibrate(folder, refine=False)
+    rejected = {c.name: sorted(r.item for r in c.rejected) for c in run.record.cameras}
+    assert rejected == {"cam0": ["cam0.txt pose 3", "cam0.txt pose 8"],
+                        "cam1": ["cam1.txt pose 4", "cam1.txt pose 9"]}
+    np.testing.assert_allclose(run.solution.X, T_world_cam, atol=1e-9)
+    assert all("loop residual" in r.reason for c in run.record.cameras for r in c.rejected)

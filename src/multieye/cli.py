@@ -9,6 +9,7 @@ status 2; a result exits with 0.  Heavy modules are imported inside the commands
 from __future__ import annotations
 
 import functools
+import math
 import sys
 from pathlib import Path
 
@@ -91,8 +92,10 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
         try:
             time_offset = float(time_offset)
         except ValueError:
-            raise click.BadParameter(f"{time_offset!r}; expected rig, auto or seconds",
-                                     param_hint="--time-offset") from None
+            time_offset = float("nan")
+        if not math.isfinite(time_offset):
+            raise click.BadParameter("expected rig, auto or a finite number of seconds",
+                                     param_hint="--time-offset")
     run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
                           robust=not no_robust, time_offset=time_offset, processes=processes,
                           progress=_progress_enabled())

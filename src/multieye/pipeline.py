@@ -66,7 +66,7 @@ class Observation:
     Attributes
     ----------
     name : str
-        Image file name, or ``"<poses file>:<line>"``.
+        Image file name, or ``"<poses file> pose <k>"`` (k-th pose of the file, from 1).
     stamp : float
         Camera clock, seconds.
     T_cam_target : ndarray, shape (4, 4)
@@ -243,7 +243,7 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
         warnings: tuple[str, ...] = ()
         if cam.source == "poses":
             traj = read_tum(cam.poses, parent="cam", child="target")
-            obs = [Observation(name=f"{cam.poses.name}:{i + 1}", stamp=float(t), T_cam_target=T)
+            obs = [Observation(name=f"{cam.poses.name} pose {i + 1}", stamp=float(t), T_cam_target=T)
                    for i, (t, T) in enumerate(zip(traj.stamps, traj.T))]
             rejected: list[RejectedItem] = []
             n_inputs = len(obs)
@@ -335,6 +335,10 @@ class Options:
     mocap_trans_sigma_m: float | None = None
 
 
+#: Smallest angular-speed correlation at which an automatic clock offset is trusted.
+CLOCK_MIN_SCORE = 0.5
+
+
 def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[str, float]:
     if opts.time_offset == "rig":
         return {n: d.time_offset for n, d in cameras.items()}
@@ -346,29 +350,51 @@ def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[st
     for name, d in cameras.items():
         stamps = np.array([o.stamp for o in d.observations])
         T = np.stack([o.T_cam_target for o in d.observations])
+        search = (-0.5, 0.5)
         try:
-            est = estimate_offset(stamps, T, d.mocap.stamps, d.mocap.T, setup=rig.setup)
+            est = estimate_offset(stamps, T, d.mocap.stamps, d.mocap.T, setup=rig.setup,
+                                  search_s=search)
         except CalibrationError as exc:
             raise CalibrationError(f"camera {name}: clock offset could not be estimated: {exc}; "
                                    "give --time-offset SECONDS or time_offset in rig.yaml") from None
+        edge = 0.02 * (search[1] - search[0])
+        if not est.score >= CLOCK_MIN_SCORE:
+            raise CalibrationError(
+                f"camera {name}: the clock offset cannot be estimated (angular speeds of camera "
+                f"and motion capture correlate at {est.score:.2f}, below {CLOCK_MIN_SCORE}): move "
+                "the target faster and less uniformly, or give --time-offset SECONDS")
+        if (min(est.coarse_offset_s, est.offset_s) < search[0] + edge
+                or max(est.coarse_offset_s, est.offset_s) > search[1] - edge):
+            raise CalibrationError(
+                f"camera {name}: the best clock offset ({est.offset_s:+.3f} s) is at the edge of "
+                f"the search range {search[0]:+.1f}..{search[1]:+.1f} s, so the true one is "
+                "probably outside it; give --time-offset SECONDS (or time_offset in rig.yaml)")
         out[name] = float(est.offset_s)
     return out
 
 
-def _robust_thresholds(paired: dict[str, PairedCamera], method: str) -> tuple[float, float]:
-    """Inlier thresholds from a first closed form on everything: six robust sigmas of the
-    loop residuals (median / 0.6745 for the half-normal), at least 1 degree and 1 cm."""
-    from .robust import measurement_residuals
+#: Inlier thresholds of the consensus (loop rotation residual, target position residual),
+#: then the wider ones tried when too few measurements of a camera agree with the first.
+CONSENSUS_THRESHOLDS = ((5.0, 0.05), (15.0, 0.15))
 
-    sol = solve([p.A for p in paired.values()], [p.B for p in paired.values()], "joint")
-    rot, trans = [], []
-    for j, p in enumerate(paired.values()):
-        r, t = measurement_residuals(p.A, p.B, sol.X[j], sol.Y)
-        rot.append(r)
-        trans.append(t)
-    rot, trans = np.concatenate(rot), np.concatenate(trans)
-    return (max(1.0, 6.0 * float(np.median(rot)) / 0.6745),
-            max(0.01, 6.0 * float(np.median(trans)) / 0.6745))
+
+def _consensus(paired: dict[str, PairedCamera], names: list[str], warnings: list[str]):
+    """RANSAC over measurements with fixed thresholds (never thresholds taken from a fit
+    that the outliers themselves pulled); wider ones once if the data are noisier."""
+    from .robust import consensus
+
+    A = [p.A for p in paired.values()]
+    B = [p.B for p in paired.values()]
+    for k, (rot, trans) in enumerate(CONSENSUS_THRESHOLDS):
+        try:
+            return consensus(A, B, threshold_rot_deg=rot, threshold_trans_m=trans, names=names)
+        except TooFewMeasurementsError as exc:
+            if k + 1 == len(CONSENSUS_THRESHOLDS):
+                raise TooFewMeasurementsError(
+                    f"{exc} (consensus thresholds up to {rot:g} deg / {trans:g} m); if the data "
+                    "are this noisy, run with --no-robust and check the residuals") from None
+            warnings.append(f"consensus: {exc}; retried with {CONSENSUS_THRESHOLDS[k + 1][0]:g} "
+                            f"deg / {CONSENSUS_THRESHOLDS[k + 1][1]:g} m")
 
 
 def _keep(p: PairedCamera, mask: np.ndarray, reasons: dict[int, str]) -> PairedCamera:
@@ -406,11 +432,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     warnings = [w for data in cameras.values() for w in data.warnings]
 
     if opts.robust:
-        from .robust import consensus
-
-        thr_rot, thr_t = _robust_thresholds(paired, opts.method)
-        cons = consensus([p.A for p in paired.values()], [p.B for p in paired.values()],
-                         threshold_rot_deg=thr_rot, threshold_trans_m=thr_t, names=names)
+        cons = _consensus(paired, names, warnings)
         by_cam: dict[str, dict[int, str]] = {n: {} for n in names}
         for r in cons.rejected:
             by_cam[r.camera][r.index] = r.reason
@@ -423,10 +445,15 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     sol = solve(As, Bs, opts.method, names=names)
     X, Y, covariance, refinement, reproj, refined = sol.X, sol.Y, None, None, {}, None
     if opts.refine:
-        X, Y, covariance, refinement, reproj, more, refined = _refine(rig, cameras, paired, sol,
-                                                                      opts)
-        warnings.extend(more)
-    record = _record(rig, opts.method, reference, X, Y, covariance, paired, warnings, offsets,
+        try:
+            X, Y, covariance, refinement, reproj, more, refined = _refine(rig, cameras, paired,
+                                                                          sol, opts)
+            warnings.extend(more)
+        except CalibrationError as exc:
+            warnings.append(f"refinement failed, the result is the closed form without "
+                            f"uncertainty: {exc}")
+    shown = offsets if opts.time_offset != "rig" else {n: o for n, o in offsets.items() if o}
+    record = _record(rig, opts.method, reference, X, Y, covariance, paired, warnings, shown,
                      refinement, reproj, motion.as_dict()["cameras"])
     return CalibrationRun(rig=rig, record=record, solution=sol, cameras=cameras, paired=paired,
                           refined=refined)
@@ -452,8 +479,23 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
 
         obs = [[(o.object_points, o.image_points, T) for o, T in zip(p.observations, p.T_world_mocap)]
                for p in paired.values()]
-        res = refine_images(rig.setup, obs, [cameras[n].intrinsics for n in paired], sol.X, sol.Y,
-                            names=list(paired), **sigmas)
+        intr = [cameras[n].intrinsics for n in paired]
+        res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired), **sigmas)
+        if not sigmas:
+            # Motion-capture noise not stated: estimate it, like the pixel noise, from how far
+            # the refinement moves the measured poses (fixed point; a few passes)
+            for _ in range(4):
+                est = _mocap_noise(paired, res)
+                old = (res.mocap_rot_sigma_rad, res.mocap_trans_sigma_m)
+                if all(abs(e / o - 1.0) < 0.1 for e, o in zip(est, old)):
+                    break
+                res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired),
+                                    mocap_rot_sigma_rad=est[0], mocap_trans_sigma_m=est[1])
+            warnings.append(
+                f"motion-capture noise estimated from the data: "
+                f"{np.degrees(res.mocap_rot_sigma_rad):.3g} deg, "
+                f"{res.mocap_trans_sigma_m * 1e3:.3g} mm per pose (state rotation_noise_deg and "
+                "translation_noise_m under mocap in rig.yaml to fix it)")
         if not res.converged:
             warnings.append(f"refinement did not converge ({res.message}); the result may be "
                             "short of the best the data allow")
@@ -469,6 +511,25 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
 
     ref = refine_solution(sol)
     return ref.X, ref.Y, ref.covariance, "poses", {}, warnings, ref
+
+
+def _mocap_noise(paired: dict[str, PairedCamera], res) -> tuple[float, float]:
+    """Motion-capture noise from the refinement's corrections of the measured poses.
+
+    The rotation error is the rotation vector of ``R_measured^T R_refined`` (marker frame),
+    the position error ``t_measured - t_refined``; returned as the RMS per component
+    (radians, metres), the convention of :func:`multieye.refine.refine_images`.  With many
+    target points per image the refined pose is close to the truth, so the corrections are
+    close to the errors themselves.
+    """
+    from .lie import log_so3
+
+    meas = np.concatenate([p.T_world_mocap for p in paired.values()])
+    ref = np.concatenate(res.T_world_mocap)
+    dr = log_so3(np.swapaxes(meas[:, :3, :3], 1, 2) @ ref[:, :3, :3])
+    dt = meas[:, :3, 3] - ref[:, :3, 3]
+    return (max(float(np.sqrt(np.mean(dr ** 2))), 1e-7),
+            max(float(np.sqrt(np.mean(dt ** 2))), 1e-7))
 
 
 def _record(rig: Rig, method: str, reference: str, X: np.ndarray, Y: np.ndarray,
@@ -497,7 +558,7 @@ def _record(rig: Rig, method: str, reference: str, X: np.ndarray, Y: np.ndarray,
             name=name, X=X[j], T_ref_cam=T_ref_cam[j], measurements_used=r.n,
             residuals=Residuals(e_R_deg=r.e_R_deg, e_t_m=r.e_t_m, max_R_deg=r.max_R_deg,
                                 max_t_m=r.max_t_m, reprojection_rms_px=reproj_px),
-            time_offset_s=time_offsets.get(name) if time_offsets.get(name) else None,
+            time_offset_s=time_offsets.get(name),
             std_rot_deg=None if unc is None else float(unc.std_rot_deg[j]),
             std_trans_m=None if unc is None else float(unc.std_trans_m[j]),
             covariance=None if unc is None else unc.covariance[j],

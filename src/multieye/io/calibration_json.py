@@ -115,7 +115,9 @@ class CameraRecord:
     std_rot_deg, std_trans_m : float or None
         Root of the trace of the rotation / translation covariance of ``T_ref_cam``.
     covariance : ndarray, shape (6, 6), or None
-        Covariance of ``T_ref_cam``: rotation vector (rad) then translation (m).
+        Covariance of ``T_ref_cam``: rotation vector (rad) then translation (m), both in the
+        reference camera's frame, for the perturbation ``R = Exp(phi) R_hat``,
+        ``t = t_hat + tau`` (left, not the camera-frame convention some tools use).
     rejected : tuple of RejectedItem
     """
 
