@@ -343,7 +343,10 @@ def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps
         if a2 <= 0:
             break
         shift = float(np.clip(-a1 / (2.0 * a2), -fit_half, fit_half))
-        best += shift
+        # never leave the interval the grid search examined around the coarse estimate
+        # (with slow motion capture the fit window is wide and a flat profile can drift)
+        new = float(np.clip(best + shift, coarse - half, coarse + half))
+        shift, best = new - best, new
         if abs(shift) < 1e-3 * fit_half:
             break
     std = float(np.sqrt(1.0 / a2)) if a2 > 0 else nan
