@@ -208,3 +208,12 @@ def test_experiment_command_writes_csv_and_png(tmp_path):
     header = (tmp_path / "measurements.csv").read_text().splitlines()[0]
     for col in ("param", "method", "e_R_deg", "e_t_m"):
         assert col in header
+
+
+def test_import_and_help_do_not_load_the_numerical_stack():
+    code = ("import sys, multieye, multieye.cli; "
+            "heavy = [m for m in ('numpy', 'scipy', 'cv2', 'matplotlib') if m in sys.modules]; "
+            "print(heavy); assert not heavy, heavy; "
+            "assert callable(multieye.solve) and callable(multieye.calibrate)")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stdout + res.stderr

@@ -5,8 +5,14 @@ The core is the closed-form joint solver of Wang, Jiang, Huang, Schwertfeger and
 constraint" (ICRA 2022), solving ``A_i^j X^j = Y B_i^j`` for every camera j at once.
 
 >>> import multieye
->>> sol = multieye.solve(A, B, method="joint")   # doctest: +SKIP
+>>> sol = multieye.solve(A, B, method="joint")          # doctest: +SKIP
+>>> run = multieye.calibrate("dataset")                 # doctest: +SKIP
+
+The solvers and the pipeline are imported on first use (numpy and scipy load then), so
+that ``import multieye`` and ``multieye --help`` stay instant.
 """
+
+from importlib import import_module
 
 from .errors import (
     CalibrationError,
@@ -17,10 +23,18 @@ from .errors import (
     TooFewMeasurementsError,
 )
 
-from .general import GeneralSolution, solve_general
-from .solvers import METHODS, Solution, solve
-
 __version__ = "0.1.0"
+
+#: Public names defined in submodules, imported when first used.
+_LAZY = {
+    "METHODS": "solvers",
+    "Solution": "solvers",
+    "solve": "solvers",
+    "solve_general": "general",
+    "GeneralSolution": "general",
+    "calibrate": "pipeline",
+    "Options": "pipeline",
+}
 
 __all__ = [
     "CalibrationError",
@@ -29,10 +43,18 @@ __all__ = [
     "DisconnectedError",
     "InputError",
     "TooFewMeasurementsError",
-    "METHODS",
-    "Solution",
-    "solve",
-    "solve_general",
-    "GeneralSolution",
+    *_LAZY,
     "__version__",
 ]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
