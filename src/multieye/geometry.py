@@ -38,6 +38,7 @@ __all__ = [
     "rotation_mean",
     "random_transforms",
     "skew",
+    "det3",
 ]
 
 F64 = NDArray[np.float64]
@@ -104,7 +105,7 @@ def project_to_so3(M: ArrayLike) -> F64:
     M = np.asarray(M, dtype=np.float64)
     U, _, Vt = np.linalg.svd(M)
     R = U @ Vt
-    neg = _det3(R) < 0
+    neg = det3(R) < 0
     if np.any(neg):
         U = U.copy()
         U[..., :, 2] *= np.where(neg, -1.0, 1.0)[..., None]
@@ -112,7 +113,7 @@ def project_to_so3(M: ArrayLike) -> F64:
     return R
 
 
-def _det3(M: np.ndarray) -> np.ndarray:
+def det3(M: np.ndarray) -> np.ndarray:
     """Determinants of ``(..., 3, 3)``.
 
     LAPACK for a few matrices; the explicit cofactor formula for large batches, where it is

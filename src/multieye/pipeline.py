@@ -16,7 +16,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +40,7 @@ from .io import (
     write_calibration,
     write_camchain,
 )
-from .metrics import relative_extrinsics
+from .metrics import camera_residual, relative_extrinsics
 from .pairing import pair_in_time
 from .solvers import Solution, solve
 from .solvers.checks import MIN_MEASUREMENTS
@@ -417,11 +417,9 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     options : Options
         Or its fields as keyword arguments (``method="shah", refine=False``).
     """
-    from dataclasses import replace as _replace
-
     from .diagnostics import motion_diagnostics
 
-    opts = _replace(options, **kw) if kw else options
+    opts = replace(options, **kw) if kw else options
     names = list(cameras)
     reference = opts.reference or names[0]
     if reference not in cameras:
@@ -536,8 +534,6 @@ def _record(rig: Rig, method: str, reference: str, X: np.ndarray, Y: np.ndarray,
             covariance: np.ndarray | None, paired: dict[str, PairedCamera], warnings: list[str],
             time_offsets: dict[str, float], refinement: str | None, reproj: dict[str, float],
             motion: dict) -> CalibrationRecord:
-    from .metrics import camera_residual
-
     names = list(paired)
     ref = names.index(reference)
     T_ref_cam = relative_extrinsics(X, reference=ref)

@@ -13,7 +13,8 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import DegenerateMotionError, InputError, TooFewMeasurementsError
-from .kronecker import CameraStats, camera_stats, det3
+from ..geometry import det3
+from .kronecker import CameraStats, camera_stats
 
 __all__ = [
     "check_transforms",

@@ -15,20 +15,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import _det3, project_to_so3
+from ..geometry import det3, project_to_so3
 
 __all__ = [
     "vec",
     "unvec",
-    "det3",
     "normalize_rotation",
     "CameraStats",
     "camera_stats",
     "solve_translations",
 ]
-
-det3 = _det3
-
 
 def vec(R: np.ndarray) -> np.ndarray:
     """Column-major vectorisation of ``(..., 3, 3)`` into ``(..., 9)``."""
