@@ -6,11 +6,15 @@ Run from the repository root::
 
 It prints, in one run on one machine:
 
-1. the median time of ``joint`` and ``wang2022`` (:func:`multieye.solve`, input checks and
-   residuals included) on a 4-camera x 40-measurement problem with 5 % noise, against OpenCV's
+1. the median time of ``joint`` and ``wang2022`` (:func:`multieye.solve`, input checks
+   included) on a 4-camera x 40-measurement problem with 5 % noise, against OpenCV's
    ``calibrateRobotWorldHandEye`` with ``CALIB_ROBOT_WORLD_HAND_EYE_SHAH`` and ``_LI`` called
    once per camera on the same data, as ratios (OpenCV time / our time); our numpy ``shah``
-   and ``li`` are timed too, and every OpenCV answer is checked against ours first;
+   and ``li`` are timed too, and every OpenCV answer is checked against ours first.  The
+   ``joint`` closed form is also timed on its own ("joint solver": from the same per-camera
+   arrays, its pass over the measurements included, but without the input checks, which
+   OpenCV does not make either: rigidity of every matrix and the spread of the motion), and
+   the checks on their own;
 2. the median ``joint`` time for 10, 100 and 1000 cameras x 100 measurements;
 3. the peak memory (tracemalloc) of ``joint`` against the number of measurements, with the
    slope of log(peak) against log(measurements), which is 1 for linear growth.
@@ -44,14 +48,20 @@ import numpy as np
 
 from multieye import simulation as sim
 from multieye.solvers import check_measurements, solve
+from multieye.solvers.checks import Measurements
 from multieye.solvers.joint import solve_joint
 
 
-def median_times(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, float]:
-    """Median time of each function, seconds, over ``repeats`` interleaved rounds.
+def median_times(fns: dict[str, Callable[[], object]], repeats: int,
+                 block: int = 10) -> dict[str, float]:
+    """Median time per call of each function, seconds, over ``repeats`` interleaved rounds.
 
-    Each round calls every function once, in turn, so that a change in the machine's load
-    during the run affects all of them alike and their ratios stay meaningful.
+    Each round runs every function ``block`` times in a row and records the mean per
+    call, then moves to the next function, so that a change in the machine's load during
+    the run affects all of them alike and their ratios stay meaningful.  A block of calls
+    (as ``timeit`` does) measures the function itself; a single call right after a peer
+    measures mostly the refilling of the caches and branch predictors the peer evicted,
+    which penalises Python code, with its large footprint, far more than a compiled peer.
     """
     for fn in fns.values():
         fn()  # warm-up: lazy imports, caches
@@ -62,8 +72,9 @@ def median_times(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str
         for _ in range(repeats):
             for name, fn in fns.items():
                 start = time.perf_counter()
-                fn()
-                times[name].append(time.perf_counter() - start)
+                for _ in range(block):
+                    fn()
+                times[name].append((time.perf_counter() - start) / block)
     finally:
         if gc_was_enabled:
             gc.enable()
@@ -139,27 +150,32 @@ def main(argv: list[str] | None = None) -> None:
     for name, flag in flags.items():
         print(f"check: max |OpenCV {name} - multieye {name}| = "
               f"{check_opencv_agrees(A, B, flag, name):.1e}")
-    meas = check_measurements(A, B, per_camera_motion=False)
+    def joint_solver():
+        """The joint closed form on the same arrays, without the input checks."""
+        return solve_joint(Measurements.from_cameras(A, B))
+
+    X, Y = joint_solver()
+    assert np.abs(X - solve(A, B).X).max() < 1e-12 and np.abs(Y - solve(A, B).Y).max() < 1e-12
     fns = {m: (lambda m=m: solve(A, B, method=m)) for m in ("joint", "wang2022", "shah", "li")}
     fns.update({f"opencv-{n}": opencv_per_camera(A, B, f) for n, f in flags.items()})
-    # where the joint time goes: input checks, then the closed form itself
-    fns["  checks"] = lambda: check_measurements(A, B, per_camera_motion=False)
-    fns["  joint core"] = lambda: solve_joint(meas)
+    fns["joint solver"] = joint_solver
+    fns["input checks"] = lambda: check_measurements(A, B, per_camera_motion=False)
     times = median_times(fns, repeats)
-    print(f"\n4 cameras x 40 measurements, 5 % noise, median of {repeats} interleaved runs:")
+    print(f"\n4 cameras x 40 measurements, 5 % noise, median of {repeats} interleaved rounds "
+          "of 10 calls, per call:")
     for name, t in times.items():
         print(f"  {name:<13} {t * 1e3:8.3f} ms")
     print("ratios (OpenCV per camera / multieye):")
-    for ours in ("joint", "wang2022", "  joint core"):
+    for ours in ("joint", "wang2022", "joint solver"):
         for theirs in ("opencv-shah", "opencv-li"):
-            print(f"  {theirs} / {ours.strip():<10} {times[theirs] / times[ours]:7.2f}x")
+            print(f"  {theirs} / {ours:<12} {times[theirs] / times[ours]:7.2f}x")
 
     # 2. joint on large rigs
     print("\njoint, 100 measurements per camera:")
     for m in (10, 100) if args.quick else (10, 100, 1000):
         A, B = noisy_problem(args.seed, m, 100)
         reps = max(5, repeats // (10 if m >= 1000 else 2 if m >= 100 else 1))
-        t = median_times({"joint": lambda: solve(A, B, method="joint")}, reps)["joint"]
+        t = median_times({"joint": lambda: solve(A, B, method="joint")}, reps, block=1)["joint"]
         print(f"  {m:5d} cameras x 100: {t * 1e3:9.2f} ms (median of {reps})")
 
     # 3. memory of joint against measurements

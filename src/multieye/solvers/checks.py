@@ -7,14 +7,15 @@ what is wrong and what to do about it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from functools import cached_property
+from dataclasses import dataclass, field
+from functools import cached_property, lru_cache
+from itertools import accumulate
 
 import numpy as np
 
 from ..errors import DegenerateMotionError, InputError, TooFewMeasurementsError
 from ..geometry import det3
-from .kronecker import CameraStats, camera_stats
+from .kronecker import CameraStats, camera_stats, transform_entries
 
 __all__ = [
     "check_transforms",
@@ -61,16 +62,22 @@ def _as_batch(T, name: str) -> np.ndarray:
     return T
 
 
-def _first_bad(T: np.ndarray, R: np.ndarray | None = None):
-    """Index of the first non-rigid transform and what is wrong with it, or None.
+@lru_cache(maxsize=64)
+def _default_names(m: int) -> tuple[str, ...]:
+    return tuple(f"cam{j}" for j in range(m))
 
-    ``R`` may pass a contiguous copy of the rotation blocks ``(N, 3, 3)`` already made.
+
+def _first_bad(T: np.ndarray):
+    """Index of the first non-rigid transform of ``T`` (N, 4, 4) and what is wrong, or None.
+
+    This is the definition of rigid used everywhere: finite, ``|R^T R - I|``,
+    ``|det R - 1|`` and the bottom row's deviation from (0, 0, 0, 1) all within
+    :data:`RIGID_TOL`.
     """
     if not np.isfinite(T).all():
         i = int(np.argmin(np.isfinite(T).all(axis=(1, 2))))
         return i, "it contains NaN or inf; drop that measurement or fix its source"
-    if R is None:
-        R = np.ascontiguousarray(T[:, :3, :3])
+    R = np.ascontiguousarray(T[:, :3, :3])
     Rt = np.ascontiguousarray(np.swapaxes(R, 1, 2))   # batched matmul is slow on strided views
     G = Rt @ R
     G -= _EYE
@@ -94,6 +101,70 @@ def _first_bad(T: np.ndarray, R: np.ndarray | None = None):
     return i, f"not a rigid transform: {what}"
 
 
+#: Rows of :func:`transform_entries` giving ``E[i, j] = R[i % 3, j % 3]`` for i, j < 5, so
+#: that every cofactor of R is a product of two shifted 3x3 windows of E.
+_PERIODIC = np.array([4 * (i % 3) + (j % 3) for i in range(5) for j in range(5)])
+_BOTTOM_ROWS = _BOTTOM[:, None]
+#: Transforms per pass of `_surely_rigid` (its temporaries, 25 rows of this, stay in cache).
+_RIGID_CHUNK = 4096
+
+
+def _surely_rigid(entries: np.ndarray) -> bool:
+    """Cheap sufficient test that every transform passes `_first_bad`.
+
+    Let ``D = cof(R) - R``, with cof the cofactor matrix.  From the singular values of R,
+    ``D`` small means R is near SO(3) or near zero (a reflection never has a small D),
+    and near SO(3) ``|det R - 1| <= sqrt(3) |D|_F`` to first order.  ``R^T cof(R) =
+    det(R) I`` gives ``R^T R - I = (det R - 1) I - R^T D``.  So when the sum over all
+    transforms of ``|D|_F^2`` is at most ``(tol / 5)^2``, every transform has
+    ``|det R - 1| <= 0.35 tol`` and ``|R^T R - I| <= 0.7 tol``, or is near zero; and the
+    sum of the determinants, at least ``n - 1/2``, rules out any near-zero one (each would
+    take 1 from it, and the others' errors add up to at most ``0.35 tol sqrt(n)``).  The
+    bottom row must be exactly (0, 0, 0, 1), and the translations finite with a finite sum
+    of squares.  NaN and inf fail.  False only means: look closer, with `_first_bad`.
+    Every operation runs along the rows of ``entries``: a few microseconds per thousand
+    transforms.
+
+    Parameters
+    ----------
+    entries : ndarray, shape (16, n)
+        :func:`multieye.solvers.kronecker.transform_entries` of the transforms.
+    """
+    n = entries.shape[1]
+    dd = det_sum = bottom_ss = t_ss = 0.0
+    for a in range(0, n, _RIGID_CHUNK):          # chunks keep the temporaries in cache
+        rows = entries[:, a:a + _RIGID_CHUNK]
+        k = rows.shape[1]
+        E = rows[_PERIODIC].reshape(5, 5, k)
+        D = E[1:4, 1:4] * E[2:5, 2:5]
+        D -= E[1:4, 2:5] * E[2:5, 1:4]                       # cofactors of R, (3, 3, k)
+        det_sum += E[0, :3].reshape(-1) @ D[0].reshape(-1)   # first-row expansions, summed
+        D -= E[:3, :3]
+        d = D.reshape(-1)
+        dd += d @ d
+        bottom = (rows[12:] - _BOTTOM_ROWS).reshape(-1)
+        bottom_ss += bottom @ bottom
+        t = rows[3:12:4]
+        t_ss += np.einsum("ij,ij->", t, t)
+    return bool(dd <= (RIGID_TOL / 5) ** 2 and det_sum >= n - 0.5 and bottom_ss == 0.0
+                and math.isfinite(t_ss))
+
+
+def _raise_first_bad(AB: np.ndarray, counts: list[int], names: tuple[str, ...]) -> None:
+    """Raise InputError naming the first bad transform of ``[A; B]``, if there is one."""
+    bad = _first_bad(AB)
+    if bad is None:
+        _raise_if_overflowing(AB)
+        return
+    N = AB.shape[0] // 2
+    i, label = (bad[0], "A") if bad[0] < N else (bad[0] - N, "B")
+    j = 0
+    while i >= counts[j]:
+        i -= counts[j]
+        j += 1
+    raise InputError(f"{label}[{names[j]}][{i}]: {bad[1]}")
+
+
 def check_transforms(T, name: str = "T") -> np.ndarray:
     """Validate and convert a batch of rigid transforms.
 
@@ -114,10 +185,21 @@ def check_transforms(T, name: str = "T") -> np.ndarray:
         or a bottom row other than (0, 0, 0, 1); the message names the first bad index.
     """
     T = _as_batch(T, name)
+    if _surely_rigid(transform_entries(T)):
+        return T
     bad = _first_bad(T)
     if bad is not None:
         raise InputError(f"{name}[{bad[0]}]: {bad[1]}")
+    _raise_if_overflowing(T)
     return T
+
+
+def _raise_if_overflowing(T: np.ndarray) -> None:
+    """Raise InputError if the translations of ``T`` (N, 4, 4) are too large to sum safely."""
+    largest = float(np.abs(T[:, :3, 3]).max())
+    if largest > 1e100:
+        raise InputError(f"a translation of {largest:.3g} overflows the sums the solvers form; "
+                         "give translations in metres")
 
 
 def rotation_spread(A: np.ndarray) -> np.ndarray:
@@ -140,8 +222,8 @@ def rotation_spread(A: np.ndarray) -> np.ndarray:
         Descending, radians.
     """
     R = np.asarray(A, dtype=np.float64)[:, :3, :3]
-    C = _axis_scatters(R.sum(axis=0)[None], R[:1], np.array([R.shape[0]]))[0]
-    return _spread_from_scatter(C, A.shape[0] - 1)
+    C = _scatter_from_sum(R.sum(axis=0) @ R[0].T, R.shape[0])
+    return np.array(_spread_from_scatter(C, R.shape[0] - 1))
 
 
 def _axis_scatters(SA: np.ndarray, R0: np.ndarray, n: np.ndarray) -> np.ndarray:
@@ -167,28 +249,48 @@ def _axis_scatters(SA: np.ndarray, R0: np.ndarray, n: np.ndarray) -> np.ndarray:
     return C
 
 
-def _spread_from_scatter(C: np.ndarray, n: int) -> np.ndarray:
+def _scatter_from_sum(S: np.ndarray, n: int) -> tuple[float, ...]:
+    """Axis scatter from ``S = sum_k R_k R_0^T`` over n rotations (see `_axis_scatters`).
+
+    Returns its six distinct entries ``(C00, C01, C02, C11, C12, C22)`` as plain floats.
+    """
+    (a, b, c), (d, e, f), (g, h, i) = S.tolist()
+    k = (a + e + i - n) / 2.0
+    return a - k, (b + d) / 2.0, (c + g) / 2.0, e - k, (f + h) / 2.0, i - k
+
+
+def _spread_from_scatter(C: np.ndarray | tuple[float, ...], n: int) -> list[float]:
+    """RMS rotation about each principal axis (radians, descending) from an axis scatter.
+
+    ``C`` is the symmetric 3x3 scatter, or its six distinct entries; ``n`` the number of
+    relative rotations.
+    """
     if n == 0:
-        return np.zeros(3)
-    lam = np.clip(_sym3_eigvals(C), 0.0, None)
-    s = np.sqrt(2.0 * lam / n)
+        return [0.0, 0.0, 0.0]
+    if isinstance(C, np.ndarray):
+        (c00, c01, c02), (_, c11, c12), (_, _, c22) = C.tolist()
+        C = (c00, c01, c02, c11, c12, c22)
+    s = [math.sqrt(2.0 * max(lam, 0.0) / n) for lam in _sym3_eigvals(*C)]
     if s[1] < 10.0 * max(SINGLE_AXIS_TOL_RAD, SINGLE_AXIS_RATIO * s[0]):
         # Near-repeated eigenvalues: the closed form loses digits there; ask LAPACK.
-        s = np.sqrt(2.0 * np.clip(np.linalg.eigvalsh(C)[::-1], 0.0, None) / n)
+        c00, c01, c02, c11, c12, c22 = C
+        M = np.array([[c00, c01, c02], [c01, c11, c12], [c02, c12, c22]])
+        s = np.sqrt(2.0 * np.clip(np.linalg.eigvalsh(M)[::-1], 0.0, None) / n).tolist()
     return s
 
 
-def _sym3_eigvals(C: np.ndarray) -> np.ndarray:
-    """Eigenvalues of one symmetric 3x3 matrix, descending (closed form, trigonometric).
+def _sym3_eigvals(a: float, b: float, c: float, d: float, e: float,
+                  f: float) -> tuple[float, float, float]:
+    """Eigenvalues of the symmetric matrix [[a, b, c], [b, d, e], [c, e, f]], descending.
 
-    Plain floats: for one 3x3 matrix this is several times cheaper than LAPACK's call.
+    Closed form (trigonometric), in plain floats: for one 3x3 matrix this is several
+    times cheaper than LAPACK's call.
     """
-    (a, b, c), (_, d, e), (_, _, f) = C.tolist()
     p1 = b * b + c * c + e * e
     q = (a + d + f) / 3.0
     p2 = (a - q) ** 2 + (d - q) ** 2 + (f - q) ** 2 + 2.0 * p1
     if p2 <= 1e-300:
-        return np.array([q, q, q])
+        return q, q, q
     p = math.sqrt(p2 / 6.0)
     # det((C - q I) / p) / 2, clipped to [-1, 1]
     a1, d1, f1 = (a - q) / p, (d - q) / p, (f - q) / p
@@ -197,7 +299,7 @@ def _sym3_eigvals(C: np.ndarray) -> np.ndarray:
     phi = math.acos(min(1.0, max(-1.0, r))) / 3.0
     l1 = q + 2.0 * p * math.cos(phi)
     l3 = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
-    return np.array([l1, 3.0 * q - l1 - l3, l3])
+    return l1, 3.0 * q - l1 - l3, l3
 
 
 @dataclass(frozen=True)
@@ -206,40 +308,68 @@ class Measurements:
 
     Attributes
     ----------
-    A, B : ndarray, shape (N, 4, 4)
-    RA, RB : ndarray, shape (N, 3, 3)
-        Contiguous copies of the rotation blocks.
-    tA, tB : ndarray, shape (N, 3)
-        Contiguous copies of the translations, metres.
-    camera : ndarray, shape (N,), int
-        Camera index of each row.
+    entries : ndarray, shape (16, 2N)
+        :func:`multieye.solvers.kronecker.transform_entries` of ``[A; B]``; bottom rows
+        exactly (0, 0, 0, 1).
     counts : ndarray, shape (m,), int
         Measurements per camera.
-    starts : ndarray, shape (m,), int
-        Index of each camera's first row (for ``np.add.reduceat``).
     names : tuple of str
         Camera names used in messages.
+    stats : CameraStats
+        Per-camera sums the closed forms need.
+    A, B : ndarray, shape (N, 4, 4)
+        The transforms (formed on first use, like everything below).
+    starts : ndarray, shape (m,), int
+        Index of each camera's first row (for ``np.add.reduceat``).
+    RA, RB, tA, tB, camera
+        Contiguous rotation blocks ``(N, 3, 3)``, translations ``(N, 3)`` in metres, and
+        the camera index of each row ``(N,)``.
     """
 
-    A: np.ndarray
-    B: np.ndarray
-    RA: np.ndarray
-    RB: np.ndarray
-    tA: np.ndarray
-    tB: np.ndarray
-    camera: np.ndarray
+    entries: np.ndarray = field(repr=False)
     counts: np.ndarray
-    starts: np.ndarray
     names: tuple[str, ...]
+    stats: CameraStats = field(repr=False, compare=False)
 
     @property
     def m(self) -> int:
         return int(self.counts.size)
 
     @cached_property
-    def stats(self) -> CameraStats:
-        """Per-camera sums the closed forms need (formed once, on first use)."""
-        return camera_stats(self.RA, self.tA, self.RB, self.tB, self.starts)
+    def _AB(self) -> np.ndarray:
+        return np.ascontiguousarray(self.entries.T).reshape(-1, 4, 4)
+
+    @property
+    def A(self) -> np.ndarray:
+        return self._AB[:self._AB.shape[0] // 2]
+
+    @property
+    def B(self) -> np.ndarray:
+        return self._AB[self._AB.shape[0] // 2:]
+
+    @cached_property
+    def starts(self) -> np.ndarray:
+        return np.concatenate([[0], np.cumsum(self.counts[:-1])]).astype(int)
+
+    @cached_property
+    def RA(self) -> np.ndarray:
+        return np.ascontiguousarray(self.A[:, :3, :3])
+
+    @cached_property
+    def RB(self) -> np.ndarray:
+        return np.ascontiguousarray(self.B[:, :3, :3])
+
+    @cached_property
+    def tA(self) -> np.ndarray:
+        return np.ascontiguousarray(self.A[:, :3, 3])
+
+    @cached_property
+    def tB(self) -> np.ndarray:
+        return np.ascontiguousarray(self.B[:, :3, 3])
+
+    @cached_property
+    def camera(self) -> np.ndarray:
+        return np.repeat(np.arange(self.m), self.counts)
 
     def split(self, arr: np.ndarray) -> list[np.ndarray]:
         """Split a per-row array back into per-camera arrays."""
@@ -247,25 +377,25 @@ class Measurements:
 
     @classmethod
     def from_arrays(cls, A: np.ndarray, B: np.ndarray, counts, names=None) -> "Measurements":
-        """Build from concatenated arrays ``(N, 4, 4)`` (no checks)."""
-        return cls._from_stacked(np.concatenate([A, B]), counts, names)
+        """Build from concatenated arrays ``(N, 4, 4)`` of rigid transforms (no checks)."""
+        entries = transform_entries(A, B)
+        entries[12:] = _BOTTOM_ROWS
+        return cls._from_entries(entries, [int(c) for c in counts], names)
 
     @classmethod
-    def _from_stacked(cls, AB: np.ndarray, counts, names=None,
-                      R: np.ndarray | None = None) -> "Measurements":
-        """Build from ``[A; B]`` stacked ``(2N, 4, 4)``, reusing contiguous rotations ``R``."""
-        N = AB.shape[0] // 2
-        A, B = AB[:N], AB[N:]
-        if R is None:
-            R = np.ascontiguousarray(AB[:, :3, :3])
-        t = np.ascontiguousarray(AB[:, :3, 3])
-        counts = np.asarray(counts, dtype=int)
-        starts = np.zeros(counts.size, dtype=int)
-        np.cumsum(counts[:-1], out=starts[1:])
-        names = tuple(names or (f"cam{j}" for j in range(counts.size)))
-        return cls(A=A, B=B, RA=R[:N], RB=R[N:], tA=t[:N], tB=t[N:],
-                   camera=np.repeat(np.arange(counts.size), counts), counts=counts, starts=starts,
-                   names=names)
+    def from_cameras(cls, A: list[np.ndarray], B: list[np.ndarray],
+                     names=None) -> "Measurements":
+        """Build from per-camera arrays ``(N_j, 4, 4)`` of rigid transforms (no checks)."""
+        entries = transform_entries(*A, *B)
+        entries[12:] = _BOTTOM_ROWS
+        return cls._from_entries(entries, [len(a) for a in A], names)
+
+    @classmethod
+    def _from_entries(cls, entries: np.ndarray, counts: list[int], names=None) -> "Measurements":
+        """Build from :func:`transform_entries` of ``[A; B]`` with exact bottom rows."""
+        names = tuple(names) if names else _default_names(len(counts))
+        return cls(entries=entries, counts=np.array(counts), names=names,
+                   stats=camera_stats(entries, counts))
 
 
 def check_measurements(A, B, *, names: list[str] | None = None,
@@ -284,6 +414,11 @@ def check_measurements(A, B, *, names: list[str] | None = None,
         together, so only the pooled motion must; a camera whose own motion is about
         one axis is still solved through the shared Y.
 
+    Returns
+    -------
+    Measurements
+        With bottom rows set exactly to (0, 0, 0, 1) where they were within tolerance.
+
     Raises
     ------
     InputError
@@ -299,51 +434,53 @@ def check_measurements(A, B, *, names: list[str] | None = None,
         B = [B]
     A = list(A)
     B = list(B)
-    if len(A) != len(B):
-        raise InputError(f"A has {len(A)} cameras but B has {len(B)}; give one B batch per A batch")
+    m = len(A)
+    if m != len(B):
+        raise InputError(f"A has {m} cameras but B has {len(B)}; give one B batch per A batch")
     if not A:
         raise InputError("no cameras given: A and B are empty")
-    if len(A) >= MIN_MEASUREMENTS and all(np.shape(a) == (4, 4) for a in A):
-        raise InputError(f"A is a list of {len(A)} single 4x4 matrices, read as {len(A)} cameras "
+    if m >= MIN_MEASUREMENTS and not _is_batch(A[0]) and all(np.shape(a) == (4, 4) for a in A):
+        raise InputError(f"A is a list of {m} single 4x4 matrices, read as {m} cameras "
                          "with one measurement each; pass one (N, 4, 4) array per camera, e.g. "
                          "solve([np.stack(A)], [np.stack(B)])")
-    names = names or [f"cam{j}" for j in range(len(A))]
-    As, Bs = [], []
-    for j, (Aj, Bj) in enumerate(zip(A, B)):
+    names = tuple(names) if names else _default_names(m)
+    counts = []
+    for j in range(m):
+        Aj, Bj = A[j], B[j]
         if not _is_batch(Aj):
-            Aj = _as_batch(Aj, f"A[{names[j]}]")
+            A[j] = Aj = _as_batch(Aj, f"A[{names[j]}]")
         if not _is_batch(Bj):
-            Bj = _as_batch(Bj, f"B[{names[j]}]")
-        if Aj.shape[0] != Bj.shape[0]:
-            raise InputError(f"camera {names[j]}: {Aj.shape[0]} A measurements but {Bj.shape[0]} B "
+            B[j] = Bj = _as_batch(Bj, f"B[{names[j]}]")
+        n = Aj.shape[0]
+        if n != Bj.shape[0]:
+            raise InputError(f"camera {names[j]}: {n} A measurements but {Bj.shape[0]} B "
                              "measurements; every A_i needs its B_i")
-        if Aj.shape[0] < MIN_MEASUREMENTS:
+        if n < MIN_MEASUREMENTS:
             raise TooFewMeasurementsError(
-                f"camera {names[j]} has {Aj.shape[0]} measurements, at least {MIN_MEASUREMENTS} "
+                f"camera {names[j]} has {n} measurements, at least {MIN_MEASUREMENTS} "
                 "are needed; record more target poses for it")
-        As.append(Aj)
-        Bs.append(Bj)
-    counts = [a.shape[0] for a in As]
+        counts.append(n)
     N = sum(counts)
-    AB = np.concatenate(As + Bs)
-    R = np.ascontiguousarray(AB[:, :3, :3])
-    meas = Measurements._from_stacked(AB, counts, names, R)
-    bad = _first_bad(AB, R)
-    if bad is not None:
-        i, label = (bad[0], "A") if bad[0] < N else (bad[0] - N, "B")
-        j = int(meas.camera[i])
-        raise InputError(f"{label}[{names[j]}][{i - meas.starts[j]}]: {bad[1]}")
-    C = _axis_scatters(meas.stats.SA, meas.RA[meas.starts], meas.stats.n)
+    entries = transform_entries(*A, *B)
+    if not _surely_rigid(entries):
+        _raise_first_bad(entries.T.reshape(-1, 4, 4), counts, names)
+        entries[12:] = _BOTTOM_ROWS      # within tolerance of (0, 0, 0, 1): make it exact
+    meas = Measurements._from_entries(entries, counts, names)
+    st = meas.stats
+    starts = [0, *accumulate(counts[:-1])]
+    R0 = entries[:12, starts].reshape(3, 4, m)[:, :3]     # R0[c, b, j]: first R_A of camera j
     if per_camera_motion:
-        for j in range(meas.m):
+        C = _axis_scatters(st.SA, np.moveaxis(R0, 2, 0), st.n)
+        for j in range(m):
             _check_spread(_spread_from_scatter(C[j], counts[j] - 1), f"camera {names[j]}")
     else:
-        _check_spread(_spread_from_scatter(C.sum(axis=0), N - meas.m),
+        S = np.einsum("jab,cbj->ac", st.SA, R0)           # sum_j SA_j R0_j^T
+        _check_spread(_spread_from_scatter(_scatter_from_sum(S, N), N - m),
                       "the rig (all cameras together)")
     return meas
 
 
-def _check_spread(s: np.ndarray, who: str) -> None:
+def _check_spread(s: list[float], who: str) -> None:
     if s[0] < SINGLE_AXIS_TOL_RAD:
         raise DegenerateMotionError(
             f"{who}: the target never rotates (RMS relative rotation {np.degrees(s[0]):.3g} deg); "

@@ -22,15 +22,16 @@ cameras; with one camera the result equals Shah's (2013) method.
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import lapack
 
-from ..geometry import make_transform
+from ..errors import DegenerateMotionError
 from .checks import Measurements
 from .kronecker import normalize_rotation, solve_translations, unvec
 
 __all__ = ["solve_joint", "joint_rotation"]
 
 
-def joint_rotation(K: np.ndarray, counts: np.ndarray):
+def joint_rotation(K: np.ndarray, counts: np.ndarray, out: np.ndarray | None = None):
     """Rotations of Y and of every X from the per-camera Kronecker sums.
 
     Parameters
@@ -38,20 +39,27 @@ def joint_rotation(K: np.ndarray, counts: np.ndarray):
     K : ndarray, shape (m, 9, 9)
         ``K_j = sum_i R_B ⊗ R_A``.
     counts : ndarray, shape (m,)
+    out : ndarray, shape (m + 1, 3, 3), optional
+        Where to write the result; it may be a view.
 
     Returns
     -------
-    RX : ndarray, shape (m, 3, 3)
-    RY : ndarray, shape (3, 3)
+    R : ndarray, shape (m + 1, 3, 3)
+        ``R_X^1 .. R_X^m``, then ``R_Y``.
     """
     m = K.shape[0]
-    Kn = K * (1.0 / np.sqrt(counts))[:, None, None]
-    Kcat = Kn.transpose(1, 0, 2).reshape(9, 9 * m)      # [K_1/sqrt(n_1), ..., K_m/sqrt(n_m)]
-    _, V = np.linalg.eigh(Kcat @ Kcat.T)                 # sum_j K_j K_j^T / n_j
-    y = V[:, -1]                     # largest of S = smallest of sum n_j I - K_j K_j^T / n_j
-    x = y @ K                                            # K_j^T y for every j, shape (m, 9)
-    R = normalize_rotation(unvec(np.concatenate([x, y[None]])))
-    return R[:m], R[m]
+    S = np.einsum("jab,jcb->ac", K / counts[:, None, None], K)      # sum_j K_j K_j^T / n_j
+    # Top eigenvector of S = bottom one of sum_j n_j I - K_j K_j^T / n_j.  LAPACK's dsyevr
+    # called directly costs a third of numpy.linalg.eigh's call on a 9x9 matrix; S.T is
+    # the same symmetric matrix in the column-major order LAPACK reads without a copy.
+    _, V, _, _, info = lapack.dsyevr(S.T, range="I", il=9, iu=9)
+    if info != 0:
+        raise DegenerateMotionError(f"the 9x9 rotation eigenproblem did not converge (LAPACK "
+                                    f"dsyevr info {info}); check the input for extreme values")
+    v = np.empty((m + 1, 9))
+    np.matmul(V[:, 0], K, out=v[:m])                  # vec(R_X^j) ~ K_j^T y
+    v[m] = V[:, 0]                                    # vec(R_Y) ~ y
+    return normalize_rotation(unvec(v), out=out)
 
 
 def solve_joint(meas: Measurements):
@@ -68,6 +76,9 @@ def solve_joint(meas: Measurements):
     Y : ndarray, shape (4, 4)
     """
     stats = meas.stats
-    RX, RY = joint_rotation(stats.K, stats.n)
-    tX, tY = solve_translations(stats, RY)
-    return make_transform(RX, tX), make_transform(RY, tY)
+    m = stats.n.shape[0]
+    T = np.zeros((m + 1, 4, 4))                       # X^1 .. X^m, then Y
+    T[:, 3, 3] = 1.0
+    R = joint_rotation(stats.K, stats.n, out=T[:, :3, :3])
+    solve_translations(stats, R[m], out=T[:, :3, 3])
+    return T[:m], T[m]

@@ -11,11 +11,13 @@ Every closed form here needs only a few sums over each camera's measurements
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
+from scipy.linalg import lapack
 
-from ..geometry import det3, project_to_so3
+from ..errors import DegenerateMotionError
+from ..geometry import det3
 
 __all__ = [
     "vec",
@@ -23,8 +25,13 @@ __all__ = [
     "normalize_rotation",
     "CameraStats",
     "camera_stats",
+    "transform_entries",
     "solve_translations",
 ]
+
+
+_EYE3 = np.eye(3)
+
 
 def vec(R: np.ndarray) -> np.ndarray:
     """Column-major vectorisation of ``(..., 3, 3)`` into ``(..., 9)``."""
@@ -37,24 +44,36 @@ def unvec(v: np.ndarray) -> np.ndarray:
     return np.swapaxes(v.reshape(v.shape[:-1] + (3, 3)), -1, -2)
 
 
-def normalize_rotation(M: np.ndarray) -> np.ndarray:
+def normalize_rotation(M: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """Rotation from an estimate known up to scale and sign.
 
-    Scales each 3x3 block by ``sign(det)``, then projects onto SO(3) by SVD
-    (paper section IV-A; the positive ``|det|^(-1/3)`` factor does not change the
-    projection and is left out).
+    The paper (section IV-A) scales each 3x3 block by ``sign(det) |det|^(-1/3)`` and
+    projects it onto SO(3) by SVD.  The positive factor does not change the projection, and
+    for ``M = U S V^T`` the sign of ``det M`` is ``det(U V^T)`` (``S >= 0``), so one SVD gives
+    both: the result is ``det(U V^T) U V^T``, which is the nearest rotation to
+    ``sign(det M) M`` whenever ``det M != 0`` (and a rotation in every case).
 
     Parameters
     ----------
     M : ndarray, shape (..., 3, 3)
+    out : ndarray, shape (..., 3, 3), optional
+        Where to write the result (it may be a view, such as the rotation blocks of
+        transforms).
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
     """
-    d = np.where(det3(M) < 0, -1.0, 1.0)
-    return project_to_so3(M * d[..., None, None])
+    U, _, Vt = np.linalg.svd(M)
+    R = np.matmul(U, Vt, out=out)
+    R *= det3(R)[..., None, None]
+    return R
 
 
-@dataclass(frozen=True)
-class CameraStats:
+class CameraStats(NamedTuple):
     """Per-camera sums over measurements i of camera j (all arrays lead with m).
+
+    An immutable record (a named tuple: formed on every solve, it must cost nothing).
 
     Attributes
     ----------
@@ -70,6 +89,8 @@ class CameraStats:
         ``sum_i R_A``.
     StA, StB : ndarray, shape (m, 3)
         ``sum_i t_A``, ``sum_i t_B``.
+    totals : ndarray, shape (7,)
+        Over all cameras: ``sum t_A`` (3), ``sum t_B`` (3), the number of measurements.
     """
 
     n: np.ndarray
@@ -79,69 +100,123 @@ class CameraStats:
     SA: np.ndarray
     StA: np.ndarray
     StB: np.ndarray
+    totals: np.ndarray
 
 
-def camera_stats(RA: np.ndarray, tA: np.ndarray, RB: np.ndarray, tB: np.ndarray,
-                 starts: np.ndarray) -> CameraStats:
+def transform_entries(*batches: np.ndarray) -> np.ndarray:
+    """Entries of transforms as rows: batches ``(N_k, 4, 4)`` to C-contiguous ``(16, sum N_k)``.
+
+    Row ``4 r + c`` holds entry (r, c) of every transform, in the order given (A's batches,
+    then B's).  In this layout the per-measurement arithmetic of the checks runs along long
+    contiguous rows, and for ``[A; B]`` ``reshape(32, N)`` interleaves A's and B's entries
+    (row ``2 k`` is entry k of A, row ``2 k + 1`` entry k of B) as the per-camera
+    products of :func:`camera_stats` want.
+    """
+    out = np.empty((16, sum(T.shape[0] for T in batches)))    # C order: rows contiguous
+    return np.concatenate([T.reshape(T.shape[0], 16).T for T in batches], axis=1, out=out)
+
+
+def _stat_columns() -> np.ndarray:
+    """Where each statistic sits in ``M = sum_i [a_i; b_i] a_i^T``, flattened ``(32 * 16,)``.
+
+    ``a_i``, ``b_i`` are the 16 entries of ``A_i``, ``B_i`` (entry (r, c) at ``4 r + c``),
+    interleaved: row ``2 k`` of M is A's entry k, row ``2 k + 1`` B's.  The bottom-right
+    entries (15) are exactly 1 and serve as the constant.
+    Order: K (81), G (27), h (9, summed in threes), SA (9), StA (3), StB (3), n (1).
+    """
+    def at(b_row: bool, r: int, c: int, a_r: int, a_c: int) -> int:
+        return (2 * (4 * r + c) + b_row) * 16 + 4 * a_r + a_c
+
+    K = [at(True, p, q, r, s) for p in range(3) for r in range(3)    # row 3p + r
+         for q in range(3) for s in range(3)]                         # col 3q + s
+    G = [at(True, k, 3, s, r) for r in range(3) for k in range(3) for s in range(3)]
+    h = [at(False, s, 3, s, r) for r in range(3) for s in range(3)]
+    SA = [at(True, 3, 3, r, s) for r in range(3) for s in range(3)]
+    StA = [at(True, 3, 3, r, 3) for r in range(3)]
+    StB = [at(True, r, 3, 3, 3) for r in range(3)]
+    return np.array(K + G + h + SA + StA + StB + [at(True, 3, 3, 3, 3)])
+
+
+_STAT_COLUMNS = _stat_columns()
+
+
+def camera_stats(entries: np.ndarray, counts: list[int]) -> CameraStats:
     """Form :class:`CameraStats` in one pass over the measurements.
+
+    Every statistic is an entry of ``sum_i [a_i; b_i] a_i^T`` over a camera's measurements,
+    with ``a_i``, ``b_i`` the 16 entries of ``A_i`` and ``B_i``: one matrix product per
+    camera (one batched product when all cameras have the same count), then one gather.
 
     Parameters
     ----------
-    RA, RB : ndarray, shape (N, 3, 3)
-        Contiguous rotation blocks of A and B, camera by camera.
-    tA, tB : ndarray, shape (N, 3)
-        Translations, metres.
-    starts : ndarray, shape (m,)
-        First row of each camera.
+    entries : ndarray, shape (16, 2N)
+        :func:`transform_entries` of ``[A; B]``, each concatenated camera by camera, with
+        bottom rows exactly (0, 0, 0, 1) (their last entry serves as the constant 1).
+    counts : list of int, length m
+        Measurements per camera.
     """
-    N = RA.shape[0]
-    # Every sum is a block of sum_i l_i r_i^T with l = (vec_r R_B, t_B, t_A, 1) and
-    # r = (vec_r R_A, t_A, t_B) (row-major vec_r): one small product per camera.
-    left = np.empty((N, 16))
-    left[:, :9] = RB.reshape(N, 9)
-    left[:, 9:12] = tB
-    left[:, 12:15] = tA
-    left[:, 15] = 1.0
-    right = np.empty((N, 15))
-    right[:, :9] = RA.reshape(N, 9)
-    right[:, 9:12] = tA
-    right[:, 12:15] = tB
-    ends = np.append(starts[1:], N)
-    M = np.stack([left[a:b].T @ right[a:b] for a, b in zip(starts, ends)])     # (m, 16, 15)
-    m = M.shape[0]
-    # (R_B ⊗ R_A)[3p + r, 3q + s] = R_B[p, q] R_A[r, s]
-    K = M[:, :9, :9].reshape(m, 3, 3, 3, 3).transpose(0, 1, 3, 2, 4).reshape(m, 9, 9)
-    # (t_B^T ⊗ R_A^T)[r, 3k + s] = t_B[k] R_A[s, r]
-    G = M[:, 9:12, :9].reshape(m, 3, 3, 3).transpose(0, 3, 1, 2).reshape(m, 3, 9)
-    # (R_A^T t_A)[r] = sum_s t_A[s] R_A[s, r]: the diagonal s = s' of sum t_A[s'] R_A[s, r]
-    TR = M[:, 12:15, :9].reshape(m, 3, 3, 3)
-    h = TR[:, 0, 0] + TR[:, 1, 1] + TR[:, 2, 2]
-    n = (ends - starts).astype(np.float64)
-    return CameraStats(n=n, K=K, G=G, h=h, SA=M[:, 15, :9].reshape(m, 3, 3),
-                       StA=M[:, 15, 9:12], StB=M[:, 15, 12:15])
+    m, N = len(counts), entries.shape[1] // 2
+    L = entries.reshape(32, N)          # row 2k: entry k of A_i; row 2k + 1: entry k of B_i
+    FA = L[0::2]                        # (16, N): the entries of A_i
+    if m > 1 and counts.count(counts[0]) == m:
+        c = counts[0]
+        M = np.matmul(L.reshape(32, m, c).transpose(1, 0, 2), FA.reshape(16, m, c).transpose(1, 2, 0))
+    else:
+        M = np.empty((m, 32, 16))
+        a = 0
+        for j, c in enumerate(counts):
+            np.dot(L[:, a:a + c], FA[:, a:a + c].T, out=M[j])
+            a += c
+    s = M.reshape(m, 512)[:, _STAT_COLUMNS]
+    return CameraStats(n=s[:, 132], K=s[:, :81].reshape(m, 9, 9),
+                       G=s[:, 81:108].reshape(m, 3, 9), h=s[:, 108:117].reshape(m, 3, 3).sum(axis=2),
+                       SA=s[:, 117:126].reshape(m, 3, 3), StA=s[:, 126:129], StB=s[:, 129:132],
+                       totals=s[:, 126:133].sum(axis=0))
 
 
-def solve_translations(stats: CameraStats, RY: np.ndarray):
+def solve_translations(stats: CameraStats, RY: np.ndarray, out: np.ndarray | None = None):
     """Least-squares translations of all cameras and of Y, given ``R_Y``.
 
     Minimises ``sum_j sum_i ||R_A t_X^j + t_A - R_Y t_B - t_Y||^2``.  With
-    ``c_i = R_Y t_B - t_A``, ``P_j = sum_i R_A^T``, ``q_j = sum_i R_A^T c_i`` and
+    ``c_i = R_Y t_B - t_A``, ``P_j = sum_i R_A^T = SA_j^T``, ``q_j = sum_i R_A^T c_i`` and
     ``s_j = sum_i c_i``, the per-camera unknowns are eliminated in closed form,
     ``t_X^j = (P_j t_Y + q_j) / n_j``, leaving the 3x3 system
-    ``(sum_j n_j I - P_j^T P_j / n_j) t_Y = sum_j (P_j^T q_j / n_j - s_j)``.
+    ``(sum_j n_j I - SA_j SA_j^T / n_j) t_Y = sum_j (SA_j q_j / n_j - s_j)``.
+
+    Parameters
+    ----------
+    stats : CameraStats
+    RY : ndarray, shape (3, 3)
+    out : ndarray, shape (m + 1, 3), optional
+        Where to write ``tX`` (first m rows) and ``tY`` (last row); it may be a view.
 
     Returns
     -------
     tX : ndarray, shape (m, 3)
     tY : ndarray, shape (3,)
+
+    Raises
+    ------
+    DegenerateMotionError
+        The 3x3 system is singular: the target never rotates relative to the cameras.
     """
-    n = stats.n
-    q = stats.G @ vec(RY) - stats.h
-    s = stats.StB.sum(axis=0) @ RY.T - stats.StA.sum(axis=0)
-    rn = 1.0 / np.sqrt(n)
-    Scat = (stats.SA * rn[:, None, None]).transpose(1, 0, 2).reshape(3, -1)  # P_j = SA_j^T
-    M = n.sum() * np.eye(3) - Scat @ Scat.T
-    rhs = Scat @ (q * rn[:, None]).reshape(-1) - s
-    tY = np.linalg.solve(M, rhs)
-    tX = (tY @ stats.SA + q) / n[:, None]
-    return tX, tY
+    n, tot = stats.n, stats.totals
+    q = stats.G @ RY.T.reshape(9)                     # G vec(R_Y) - h = sum_i R_A^T c_i
+    q -= stats.h
+    Wn = stats.SA / n[:, None, None]
+    M = tot[6] * _EYE3 - np.einsum("jab,jcb->ac", Wn, stats.SA)
+    rhs = np.einsum("jab,jb->a", Wn, q) - RY @ tot[3:6] + tot[0:3]
+    lu, _, tY, info = lapack.dgesv(M, rhs)   # LAPACK directly: numpy.linalg.solve costs 5x
+    # M is symmetric positive semi-definite with eigenvalues in [0, N]; a pivot of its LU
+    # factors under 1e-12 N means it is singular to working precision
+    if info != 0 or min(map(abs, lu.diagonal().tolist())) <= 1e-12 * tot[6]:
+        raise DegenerateMotionError("the translations are not determined: the target never "
+                                    "rotates relative to the cameras")
+    m = n.shape[0]
+    if out is None:
+        out = np.empty((m + 1, 3))
+    tX = np.matmul(tY, stats.SA, out=out[:m])
+    tX += q
+    tX /= n[:, None]
+    out[m] = tY
+    return tX, out[m]

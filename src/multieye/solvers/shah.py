@@ -13,15 +13,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import make_transform
-from .kronecker import camera_stats, normalize_rotation, solve_translations, unvec
+from .kronecker import (camera_stats, normalize_rotation, solve_translations,
+                        transform_entries, unvec)
 
 __all__ = ["solve_shah_single"]
 
 
 def solve_shah_single(A: np.ndarray, B: np.ndarray):
     """Solve one camera. A, B: (N, 4, 4). Returns X, Y: (4, 4)."""
-    stats = camera_stats(np.ascontiguousarray(A[:, :3, :3]), A[:, :3, 3],
-                         np.ascontiguousarray(B[:, :3, :3]), B[:, :3, 3], np.zeros(1, dtype=int))
+    entries = transform_entries(A, B)
+    entries[12:] = ((0.0,), (0.0,), (0.0,), (1.0,))    # the constant camera_stats relies on
+    stats = camera_stats(entries, [A.shape[0]])
     U, _, Vt = np.linalg.svd(stats.K[0])
     RX = normalize_rotation(unvec(Vt[0]))
     RY = normalize_rotation(unvec(U[:, 0]))
