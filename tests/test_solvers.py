@@ -182,3 +182,24 @@ def test_noise_free_recovery_on_the_papers_realistic_rig(method):
         for est, true in ((sol.X, sc.X), (sol.Y, sc.Y)):
             rot, trans = _errors(est, true)
             assert rot < tol and trans < tol, (setup, rot, trans)
+
+
+def test_joint_memory_grows_at_most_linearly_with_measurements():
+    """Peak allocation (tracemalloc) of a joint solve on 4 cameras x n: no term above O(n).
+
+    Any array with a dimension per pair of measurements would make the ratio grow with n;
+    the benchmark prints the same figure up to 64000 measurements.
+    """
+    import tracemalloc
+
+    def peak(n):
+        A, B, _, _ = eye_to_base(np.random.default_rng(0), [n] * 4)
+        tracemalloc.start()
+        solve(A, B, method="joint")
+        used = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        return used
+
+    small, large = peak(500), peak(4000)
+    assert large / small <= 8.0 * 1.05        # 8x the measurements, at most 8x the memory
+    assert large / (4 * 4000) < 2000           # bytes per measurement
