@@ -7,6 +7,8 @@ every sum from one matrix product per camera; here each is checked against a pla
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -70,12 +72,58 @@ def test_one_bad_rotation_among_many_is_caught_and_named(bad):
         check_transforms(T, "T")
 
 
-def test_huge_translations_are_refused_with_a_units_hint():
+@pytest.mark.parametrize("other_exact", [True, False])
+def test_huge_translations_are_refused_by_name_whatever_the_other_transforms(other_exact):
+    """Beyond MAX_TRANSLATION both the fast and the exact path refuse, naming the transform."""
     A, B, _, _ = eye_to_base(np.random.default_rng(2), [5, 5])
     A[1] = A[1].copy()
-    A[1][2, 0, 3] = 1e200
-    with pytest.raises(multieye.InputError, match="overflows.*metres"):
+    A[1][2, 0, 3] = 1e120
+    if not other_exact:                        # sends the check down the exact path
+        A[0] = A[0].copy()
+        A[0][0, 3, 3] = 1.0 + 1e-9
+    with pytest.raises(multieye.InputError, match=r"A\[cam1\]\[2\].*1e\+120.*metres"):
         solve(A, B)
+    A[1][2, 0, 3] = 1e99                       # absurd, but summable: accepted
+    assert np.isfinite(solve(A, B).X).all()
+
+
+@pytest.mark.parametrize("delta", [5.1e-6, 5.7e-6, 1e-5, 3e-5])
+def test_fast_rigidity_test_refuses_just_beyond_the_tolerance(delta):
+    """|R^T R - I| = 2 delta + delta^2 is just over 1e-5: the exact test refuses, so must the
+    fast one, in any direction of the stretch."""
+    rng = np.random.default_rng(8)
+    T = _rigid(rng, 50)
+    for _ in range(20):
+        E = rng.normal(size=(3, 3))
+        E = (E + E.T) / 2.0
+        E *= delta / np.abs(E).max()
+        bad = T.copy()
+        bad[17, :3, :3] = bad[17, :3, :3] @ (np.eye(3) + E)
+        if _first_bad(bad) is not None:
+            assert not _surely_rigid(transform_entries(bad))
+    bad = T.copy()
+    bad[17, :3, :3] *= 1.0 + delta
+    assert _first_bad(bad) is not None
+    assert not _surely_rigid(transform_entries(bad))
+
+
+def test_bottom_row_entries_too_small_to_square_are_still_made_exact():
+    A, B, _, _ = eye_to_base(np.random.default_rng(9), [5, 5])
+    A[0] = A[0].copy()
+    A[0][2, 3, 0] = 1e-170
+    meas = check_measurements(A, B, per_camera_motion=False)
+    assert (meas.A[:, 3] == [0.0, 0.0, 0.0, 1.0]).all()
+
+
+@pytest.mark.parametrize("where", [(1, 2), (2, 1), (0, 0), (2, 2)])
+def test_inf_in_a_rotation_gives_the_input_error_even_with_warnings_as_errors(where):
+    A, B, _, _ = eye_to_base(np.random.default_rng(10), [5, 5])
+    B[1] = B[1].copy()
+    B[1][3][where] = np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(multieye.InputError, match=r"B\[cam1\]\[3\].*NaN or inf"):
+            solve(A, B)
 
 
 def test_bottom_rows_within_tolerance_are_made_exact():

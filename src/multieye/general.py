@@ -72,7 +72,7 @@ from .errors import DegenerateMotionError, DisconnectedError, InputError, TooFew
 from .geometry import inv, make_transform, random_transforms, transform_from_rotvec
 from .metrics import camera_residual
 from .solvers.checks import Measurements, check_transforms
-from .solvers.kronecker import normalize_rotation, unvec, vec
+from .solvers.kronecker import TRANSLATION_RCOND, normalize_rotation, unvec, vec
 from .solvers.result import CameraResidual
 
 __all__ = [
@@ -92,8 +92,8 @@ METHODS = ("joint",)
 # The rotation system's second eigenvalue (normalised as in _rotations) must exceed this and
 # 4 times the first (the noise floor) for the rotations to be determined (0 without noise).
 _ROTATION_GAP_TOL = 1e-8
-# Smallest / largest eigenvalue of the reduced translation system below which it is singular.
-_TRANSLATION_RCOND = 1e-10
+# The reduced translation system is singular below TRANSLATION_RCOND (smallest / largest
+# eigenvalue), as in the joint solver.
 
 
 class MeasurementGroup(NamedTuple):
@@ -362,7 +362,7 @@ def _translations(lay: _Layout, stats, RX: F64, RY: F64) -> tuple[F64, F64]:
         S = (sp.diags(wx) - G.T @ sp.diags(1.0 / wy) @ G).toarray()
         rhs = bx + G.T @ (by / wy)
     ev = np.linalg.eigvalsh(S)
-    if ev[0] <= _TRANSLATION_RCOND * ev[-1]:
+    if ev[0] <= TRANSLATION_RCOND * ev[-1]:
         raise DegenerateMotionError(
             "the translations of the unknowns are not determined by the measurements (within "
             "the linked groups the rotations of A do not vary enough); rotate the targets or "

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import DegenerateMotionError, InputError, TooFewMeasurementsError
 from ..geometry import det3
-from .kronecker import CameraStats, camera_stats, transform_entries
+from .kronecker import BOTTOM_ROWS, CameraStats, camera_stats, sym3_eigvals, transform_entries
 
 __all__ = [
     "check_transforms",
@@ -24,6 +24,7 @@ __all__ = [
     "rotation_spread",
     "MIN_MEASUREMENTS",
     "RIGID_TOL",
+    "MAX_TRANSLATION",
     "SINGLE_AXIS_TOL_RAD",
     "SINGLE_AXIS_RATIO",
 ]
@@ -32,6 +33,9 @@ __all__ = [
 MIN_MEASUREMENTS = 3
 #: Largest |R^T R - I| entry, |det R - 1| and bottom-row deviation accepted as rigid.
 RIGID_TOL = 1e-5
+#: Largest translation coordinate accepted (metres): far beyond any rig, and small enough
+#: that sums of products of translations over many measurements cannot overflow.
+MAX_TRANSLATION = 1e100
 #: RMS angle (radians) of the relative rotations off their dominant axis below which the
 #: motion counts as rotation about a single axis (0.057 degrees: far above rounding).
 SINGLE_AXIS_TOL_RAD = 1e-3
@@ -72,7 +76,7 @@ def _first_bad(T: np.ndarray):
 
     This is the definition of rigid used everywhere: finite, ``|R^T R - I|``,
     ``|det R - 1|`` and the bottom row's deviation from (0, 0, 0, 1) all within
-    :data:`RIGID_TOL`.
+    :data:`RIGID_TOL`, and no translation coordinate over :data:`MAX_TRANSLATION`.
     """
     if not np.isfinite(T).all():
         i = int(np.argmin(np.isfinite(T).all(axis=(1, 2))))
@@ -82,15 +86,20 @@ def _first_bad(T: np.ndarray):
     G = Rt @ R
     G -= _EYE
     det = det3(R)
+    t = np.abs(T[:, :3, 3]).max(axis=1)
     if (np.abs(G).max() <= RIGID_TOL and np.abs(det - 1.0).max() <= RIGID_TOL
-            and (T[:, 3] == _BOTTOM).all()):
+            and (T[:, 3] == _BOTTOM).all() and t.max() <= MAX_TRANSLATION):
         return None
     orth = np.abs(G).max(axis=(1, 2))
     bottom = np.abs(T[:, 3] - _BOTTOM).max(axis=1)
-    bad = (orth > RIGID_TOL) | (np.abs(det - 1.0) > RIGID_TOL) | (bottom > RIGID_TOL)
+    bad = ((orth > RIGID_TOL) | (np.abs(det - 1.0) > RIGID_TOL) | (bottom > RIGID_TOL)
+           | (t > MAX_TRANSLATION))
     if not bad.any():
         return None
     i = int(np.argmax(bad))
+    if t[i] > MAX_TRANSLATION:
+        return i, (f"its translation reaches {t[i]:.3g}, beyond the {MAX_TRANSLATION:.0e} the "
+                   "solvers' sums can hold; give translations in metres")
     if bottom[i] > RIGID_TOL:
         what = f"its bottom row is {T[i, 3].tolist()}, expected [0, 0, 0, 1]"
     elif det[i] < 0:
@@ -104,7 +113,6 @@ def _first_bad(T: np.ndarray):
 #: Rows of :func:`transform_entries` giving ``E[i, j] = R[i % 3, j % 3]`` for i, j < 5, so
 #: that every cofactor of R is a product of two shifted 3x3 windows of E.
 _PERIODIC = np.array([4 * (i % 3) + (j % 3) for i in range(5) for j in range(5)])
-_BOTTOM_ROWS = _BOTTOM[:, None]
 #: Transforms per pass of `_surely_rigid` (its temporaries, 25 rows of this, stay in cache).
 _RIGID_CHUNK = 4096
 
@@ -113,17 +121,16 @@ def _surely_rigid(entries: np.ndarray) -> bool:
     """Cheap sufficient test that every transform passes `_first_bad`.
 
     Let ``D = cof(R) - R``, with cof the cofactor matrix.  From the singular values of R,
-    ``D`` small means R is near SO(3) or near zero (a reflection never has a small D),
-    and near SO(3) ``|det R - 1| <= sqrt(3) |D|_F`` to first order.  ``R^T cof(R) =
-    det(R) I`` gives ``R^T R - I = (det R - 1) I - R^T D``.  So when the sum over all
-    transforms of ``|D|_F^2`` is at most ``(tol / 5)^2``, every transform has
-    ``|det R - 1| <= 0.35 tol`` and ``|R^T R - I| <= 0.7 tol``, or is near zero; and the
-    sum of the determinants, at least ``n - 1/2``, rules out any near-zero one (each would
-    take 1 from it, and the others' errors add up to at most ``0.35 tol sqrt(n)``).  The
-    bottom row must be exactly (0, 0, 0, 1), and the translations finite with a finite sum
-    of squares.  NaN and inf fail.  False only means: look closer, with `_first_bad`.
-    Every operation runs along the rows of ``entries``: a few microseconds per thousand
-    transforms.
+    ``D`` is small only near SO(3) or near zero (a reflection's D is at least its scale), and
+    near SO(3) ``|det R - 1| <= sqrt(3) |D|_F`` to first order.  ``R^T cof(R) = det(R) I``
+    gives ``R^T R - I = (det R - 1) I - R^T D``.  So when the sum over all transforms of
+    ``|D|_F^2`` is at most ``(tol / 5)^2``, every transform has ``|det R - 1| <= 0.35 tol``
+    and ``|R^T R - I| <= 0.7 tol``, or is near zero; and the sum of the determinants, at least
+    ``n - 1/2``, rules out any near-zero one: each would take 1 from it, and the others'
+    errors add up to at most ``0.35 tol sqrt(n)``, under 1/2 for n < 2e10 transforms at
+    ``tol = 1e-5``.  The bottom row must be exactly (0, 0, 0, 1), and the sum of the squared
+    translations at most :data:`MAX_TRANSLATION` squared.  NaN and inf fail.  False only
+    means: look closer, with `_first_bad`.  About 50 microseconds per thousand transforms.
 
     Parameters
     ----------
@@ -131,30 +138,30 @@ def _surely_rigid(entries: np.ndarray) -> bool:
         :func:`multieye.solvers.kronecker.transform_entries` of the transforms.
     """
     n = entries.shape[1]
-    dd = det_sum = bottom_ss = t_ss = 0.0
-    for a in range(0, n, _RIGID_CHUNK):          # chunks keep the temporaries in cache
-        rows = entries[:, a:a + _RIGID_CHUNK]
-        k = rows.shape[1]
-        E = rows[_PERIODIC].reshape(5, 5, k)
-        D = E[1:4, 1:4] * E[2:5, 2:5]
-        D -= E[1:4, 2:5] * E[2:5, 1:4]                       # cofactors of R, (3, 3, k)
-        det_sum += E[0, :3].reshape(-1) @ D[0].reshape(-1)   # first-row expansions, summed
-        D -= E[:3, :3]
-        d = D.reshape(-1)
-        dd += d @ d
-        bottom = (rows[12:] - _BOTTOM_ROWS).reshape(-1)
-        bottom_ss += bottom @ bottom
-        t = rows[3:12:4]
-        t_ss += np.einsum("ij,ij->", t, t)
-    return bool(dd <= (RIGID_TOL / 5) ** 2 and det_sum >= n - 0.5 and bottom_ss == 0.0
-                and math.isfinite(t_ss))
+    dd = det_sum = t_ss = 0.0
+    exact_bottom = True
+    with np.errstate(all="ignore"):              # inf and NaN just fail the test
+        for a in range(0, n, _RIGID_CHUNK):      # chunks keep the temporaries in cache
+            rows = entries[:, a:a + _RIGID_CHUNK]
+            k = rows.shape[1]
+            E = rows[_PERIODIC].reshape(5, 5, k)
+            D = E[1:4, 1:4] * E[2:5, 2:5]
+            D -= E[1:4, 2:5] * E[2:5, 1:4]                       # cofactors of R, (3, 3, k)
+            det_sum += E[0, :3].reshape(-1) @ D[0].reshape(-1)   # first-row expansions
+            D -= E[:3, :3]
+            d = D.reshape(-1)
+            dd += d @ d
+            exact_bottom = exact_bottom and not (rows[12:] != BOTTOM_ROWS).any()
+            t = rows[3:12:4]
+            t_ss += np.einsum("ij,ij->", t, t)
+    return bool(dd <= (RIGID_TOL / 5) ** 2 and det_sum >= n - 0.5 and exact_bottom
+                and t_ss <= MAX_TRANSLATION ** 2)
 
 
 def _raise_first_bad(AB: np.ndarray, counts: list[int], names: tuple[str, ...]) -> None:
     """Raise InputError naming the first bad transform of ``[A; B]``, if there is one."""
     bad = _first_bad(AB)
     if bad is None:
-        _raise_if_overflowing(AB)
         return
     N = AB.shape[0] // 2
     i, label = (bad[0], "A") if bad[0] < N else (bad[0] - N, "B")
@@ -181,8 +188,9 @@ def check_transforms(T, name: str = "T") -> np.ndarray:
     Raises
     ------
     InputError
-        Wrong shape, NaN/inf, a rotation block that is not orthonormal with det +1,
-        or a bottom row other than (0, 0, 0, 1); the message names the first bad index.
+        Wrong shape, NaN/inf, a rotation block that is not orthonormal with det +1, a
+        bottom row other than (0, 0, 0, 1), or a translation over :data:`MAX_TRANSLATION`;
+        the message names the first bad index.
     """
     T = _as_batch(T, name)
     if _surely_rigid(transform_entries(T)):
@@ -190,16 +198,7 @@ def check_transforms(T, name: str = "T") -> np.ndarray:
     bad = _first_bad(T)
     if bad is not None:
         raise InputError(f"{name}[{bad[0]}]: {bad[1]}")
-    _raise_if_overflowing(T)
     return T
-
-
-def _raise_if_overflowing(T: np.ndarray) -> None:
-    """Raise InputError if the translations of ``T`` (N, 4, 4) are too large to sum safely."""
-    largest = float(np.abs(T[:, :3, 3]).max())
-    if largest > 1e100:
-        raise InputError(f"a translation of {largest:.3g} overflows the sums the solvers form; "
-                         "give translations in metres")
 
 
 def rotation_spread(A: np.ndarray) -> np.ndarray:
@@ -270,36 +269,13 @@ def _spread_from_scatter(C: np.ndarray | tuple[float, ...], n: int) -> list[floa
     if isinstance(C, np.ndarray):
         (c00, c01, c02), (_, c11, c12), (_, _, c22) = C.tolist()
         C = (c00, c01, c02, c11, c12, c22)
-    s = [math.sqrt(2.0 * max(lam, 0.0) / n) for lam in _sym3_eigvals(*C)]
+    s = [math.sqrt(2.0 * max(lam, 0.0) / n) for lam in sym3_eigvals(*C)]
     if s[1] < 10.0 * max(SINGLE_AXIS_TOL_RAD, SINGLE_AXIS_RATIO * s[0]):
         # Near-repeated eigenvalues: the closed form loses digits there; ask LAPACK.
         c00, c01, c02, c11, c12, c22 = C
         M = np.array([[c00, c01, c02], [c01, c11, c12], [c02, c12, c22]])
         s = np.sqrt(2.0 * np.clip(np.linalg.eigvalsh(M)[::-1], 0.0, None) / n).tolist()
     return s
-
-
-def _sym3_eigvals(a: float, b: float, c: float, d: float, e: float,
-                  f: float) -> tuple[float, float, float]:
-    """Eigenvalues of the symmetric matrix [[a, b, c], [b, d, e], [c, e, f]], descending.
-
-    Closed form (trigonometric), in plain floats: for one 3x3 matrix this is several
-    times cheaper than LAPACK's call.
-    """
-    p1 = b * b + c * c + e * e
-    q = (a + d + f) / 3.0
-    p2 = (a - q) ** 2 + (d - q) ** 2 + (f - q) ** 2 + 2.0 * p1
-    if p2 <= 1e-300:
-        return q, q, q
-    p = math.sqrt(p2 / 6.0)
-    # det((C - q I) / p) / 2, clipped to [-1, 1]
-    a1, d1, f1 = (a - q) / p, (d - q) / p, (f - q) / p
-    b1, c1, e1 = b / p, c / p, e / p
-    r = (a1 * (d1 * f1 - e1 * e1) - b1 * (b1 * f1 - e1 * c1) + c1 * (b1 * e1 - d1 * c1)) / 2.0
-    phi = math.acos(min(1.0, max(-1.0, r))) / 3.0
-    l1 = q + 2.0 * p * math.cos(phi)
-    l3 = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
-    return l1, 3.0 * q - l1 - l3, l3
 
 
 @dataclass(frozen=True)
@@ -378,16 +354,14 @@ class Measurements:
     @classmethod
     def from_arrays(cls, A: np.ndarray, B: np.ndarray, counts, names=None) -> "Measurements":
         """Build from concatenated arrays ``(N, 4, 4)`` of rigid transforms (no checks)."""
-        entries = transform_entries(A, B)
-        entries[12:] = _BOTTOM_ROWS
+        entries = transform_entries(A, B, exact_bottom=True)
         return cls._from_entries(entries, [int(c) for c in counts], names)
 
     @classmethod
     def from_cameras(cls, A: list[np.ndarray], B: list[np.ndarray],
                      names=None) -> "Measurements":
         """Build from per-camera arrays ``(N_j, 4, 4)`` of rigid transforms (no checks)."""
-        entries = transform_entries(*A, *B)
-        entries[12:] = _BOTTOM_ROWS
+        entries = transform_entries(*A, *B, exact_bottom=True)
         return cls._from_entries(entries, [len(a) for a in A], names)
 
     @classmethod
@@ -464,7 +438,7 @@ def check_measurements(A, B, *, names: list[str] | None = None,
     entries = transform_entries(*A, *B)
     if not _surely_rigid(entries):
         _raise_first_bad(entries.T.reshape(-1, 4, 4), counts, names)
-        entries[12:] = _BOTTOM_ROWS      # within tolerance of (0, 0, 0, 1): make it exact
+        entries[12:] = BOTTOM_ROWS       # within tolerance of (0, 0, 0, 1): make it exact
     meas = Measurements._from_entries(entries, counts, names)
     st = meas.stats
     starts = [0, *accumulate(counts[:-1])]

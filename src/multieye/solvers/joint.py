@@ -51,8 +51,8 @@ def joint_rotation(K: np.ndarray, counts: np.ndarray, out: np.ndarray | None = N
     S = np.einsum("jab,jcb->ac", K / counts[:, None, None], K)      # sum_j K_j K_j^T / n_j
     # Top eigenvector of S = bottom one of sum_j n_j I - K_j K_j^T / n_j.  LAPACK's dsyevr
     # called directly costs a third of numpy.linalg.eigh's call on a 9x9 matrix; S.T is
-    # the same symmetric matrix in the column-major order LAPACK reads without a copy.
-    _, V, _, _, info = lapack.dsyevr(S.T, range="I", il=9, iu=9)
+    # the same symmetric matrix in the column-major order LAPACK works in place on.
+    _, V, _, _, info = lapack.dsyevr(S.T, range="I", il=9, iu=9, overwrite_a=True)
     if info != 0:
         raise DegenerateMotionError(f"the 9x9 rotation eigenproblem did not converge (LAPACK "
                                     f"dsyevr info {info}); check the input for extreme values")

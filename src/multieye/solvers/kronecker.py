@@ -11,6 +11,7 @@ Every closed form here needs only a few sums over each camera's measurements
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -31,6 +32,11 @@ __all__ = [
 
 
 _EYE3 = np.eye(3)
+#: Rows 12-15 of :func:`transform_entries` for exact homogeneous transforms.
+BOTTOM_ROWS = np.array([[0.0], [0.0], [0.0], [1.0]])
+#: Smallest eigenvalue of a translation system, relative to its largest, below which the
+#: translations count as undetermined.
+TRANSLATION_RCOND = 1e-10
 
 
 def vec(R: np.ndarray) -> np.ndarray:
@@ -66,7 +72,7 @@ def normalize_rotation(M: np.ndarray, out: np.ndarray | None = None) -> np.ndarr
     """
     U, _, Vt = np.linalg.svd(M)
     R = np.matmul(U, Vt, out=out)
-    R *= det3(R)[..., None, None]
+    R *= np.copysign(1.0, det3(R))[..., None, None]
     return R
 
 
@@ -103,17 +109,22 @@ class CameraStats(NamedTuple):
     totals: np.ndarray
 
 
-def transform_entries(*batches: np.ndarray) -> np.ndarray:
+def transform_entries(*batches: np.ndarray, exact_bottom: bool = False) -> np.ndarray:
     """Entries of transforms as rows: batches ``(N_k, 4, 4)`` to C-contiguous ``(16, sum N_k)``.
 
     Row ``4 r + c`` holds entry (r, c) of every transform, in the order given (A's batches,
     then B's).  In this layout the per-measurement arithmetic of the checks runs along long
     contiguous rows, and for ``[A; B]`` ``reshape(32, N)`` interleaves A's and B's entries
     (row ``2 k`` is entry k of A, row ``2 k + 1`` entry k of B) as the per-camera
-    products of :func:`camera_stats` want.
+    products of :func:`camera_stats` want.  ``exact_bottom`` sets every bottom row to
+    exactly (0, 0, 0, 1), which :func:`camera_stats` relies on (for transforms already known
+    to be rigid).
     """
     out = np.empty((16, sum(T.shape[0] for T in batches)))    # C order: rows contiguous
-    return np.concatenate([T.reshape(T.shape[0], 16).T for T in batches], axis=1, out=out)
+    np.concatenate([T.reshape(T.shape[0], 16).T for T in batches], axis=1, out=out)
+    if exact_bottom:
+        out[12:] = BOTTOM_ROWS
+    return out
 
 
 def _stat_columns() -> np.ndarray:
@@ -205,13 +216,12 @@ def solve_translations(stats: CameraStats, RY: np.ndarray, out: np.ndarray | Non
     q -= stats.h
     Wn = stats.SA / n[:, None, None]
     M = tot[6] * _EYE3 - np.einsum("jab,jcb->ac", Wn, stats.SA)
-    rhs = np.einsum("jab,jb->a", Wn, q) - RY @ tot[3:6] + tot[0:3]
-    lu, _, tY, info = lapack.dgesv(M, rhs)   # LAPACK directly: numpy.linalg.solve costs 5x
-    # M is symmetric positive semi-definite with eigenvalues in [0, N]; a pivot of its LU
-    # factors under 1e-12 N means it is singular to working precision
-    if info != 0 or min(map(abs, lu.diagonal().tolist())) <= 1e-12 * tot[6]:
+    lam = sym3_eigvals(*M[0], *M[1, 1:], M[2, 2])
+    if not lam[2] > TRANSLATION_RCOND * lam[0]:
         raise DegenerateMotionError("the translations are not determined: the target never "
-                                    "rotates relative to the cameras")
+                                    "rotates relative to the cameras about two axes")
+    rhs = np.einsum("jab,jb->a", Wn, q) - RY @ tot[3:6] + tot[0:3]
+    _, _, tY, _ = lapack.dgesv(M, rhs)        # LAPACK directly: numpy.linalg.solve costs 5x
     m = n.shape[0]
     if out is None:
         out = np.empty((m + 1, 3))
@@ -220,3 +230,27 @@ def solve_translations(stats: CameraStats, RY: np.ndarray, out: np.ndarray | Non
     tX /= n[:, None]
     out[m] = tY
     return tX, out[m]
+
+
+def sym3_eigvals(a: float, b: float, c: float, d: float, e: float,
+                 f: float) -> tuple[float, float, float]:
+    """Eigenvalues of the symmetric matrix [[a, b, c], [b, d, e], [c, e, f]], descending.
+
+    Closed form (trigonometric), in plain floats: for one 3x3 matrix this is several
+    times cheaper than LAPACK's call.  Absolute error a few ulps of the largest eigenvalue,
+    except for near-repeated eigenvalues, where it may grow to the square root of that.
+    """
+    p1 = b * b + c * c + e * e
+    q = (a + d + f) / 3.0
+    p2 = (a - q) ** 2 + (d - q) ** 2 + (f - q) ** 2 + 2.0 * p1
+    if p2 <= 1e-300:
+        return q, q, q
+    p = math.sqrt(p2 / 6.0)
+    # det((C - q I) / p) / 2, clipped to [-1, 1]
+    a1, d1, f1 = (a - q) / p, (d - q) / p, (f - q) / p
+    b1, c1, e1 = b / p, c / p, e / p
+    r = (a1 * (d1 * f1 - e1 * e1) - b1 * (b1 * f1 - e1 * c1) + c1 * (b1 * e1 - d1 * c1)) / 2.0
+    phi = math.acos(min(1.0, max(-1.0, r))) / 3.0
+    l1 = q + 2.0 * p * math.cos(phi)
+    l3 = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+    return l1, 3.0 * q - l1 - l3, l3

@@ -21,9 +21,7 @@ __all__ = ["solve_shah_single"]
 
 def solve_shah_single(A: np.ndarray, B: np.ndarray):
     """Solve one camera. A, B: (N, 4, 4). Returns X, Y: (4, 4)."""
-    entries = transform_entries(A, B)
-    entries[12:] = ((0.0,), (0.0,), (0.0,), (1.0,))    # the constant camera_stats relies on
-    stats = camera_stats(entries, [A.shape[0]])
+    stats = camera_stats(transform_entries(A, B, exact_bottom=True), [A.shape[0]])
     U, _, Vt = np.linalg.svd(stats.K[0])
     RX = normalize_rotation(unvec(Vt[0]))
     RY = normalize_rotation(unvec(U[:, 0]))
