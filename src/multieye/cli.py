@@ -71,9 +71,13 @@ def main():
 @click.option("--time-offset", default="rig", show_default=True, metavar="rig|auto|SECONDS",
               help="Motion-capture clock minus camera clock: as rig.yaml says, estimated per "
                    "camera, or this many seconds for every camera.")
+@click.option("--max-time-offset", type=click.FloatRange(min=0, min_open=True), default=0.5,
+              show_default=True, metavar="SECONDS",
+              help="With --time-offset auto: search offsets up to this many seconds either way.")
 @_user_errors
 def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
-              processes: int | None, no_refine: bool, no_robust: bool, time_offset: str):
+              processes: int | None, no_refine: bool, no_robust: bool, time_offset: str,
+              max_time_offset: float):
     """Calibrate the rig in DATASET (a folder with rig.yaml, or the rig.yaml itself).
 
     Closed form, consensus over measurements, then maximum-likelihood refinement with
@@ -97,7 +101,8 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
             raise click.BadParameter("expected rig, auto or a finite number of seconds",
                                      param_hint="--time-offset")
     run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
-                          robust=not no_robust, time_offset=time_offset, processes=processes,
+                          robust=not no_robust, time_offset=time_offset,
+                          max_time_offset=max_time_offset, processes=processes,
                           progress=_progress_enabled())
     paths, notes = write_outputs(run, out_dir)
     click.echo(calibration_table(run.record))

@@ -13,6 +13,7 @@ Synopsis
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import tempfile
@@ -321,6 +322,9 @@ class Options:
     time_offset : "rig", "auto" or float
         ``"rig"``: each camera's ``time_offset`` from rig.yaml; ``"auto"``: estimated per
         camera (:func:`multieye.clock.estimate_offset`); a number: seconds for every camera.
+    max_time_offset : float
+        With ``time_offset="auto"``: offsets from ``-max_time_offset`` to ``+max_time_offset``
+        seconds are searched (an optimum at the edge of that range is refused).
     mocap_rot_sigma_rad, mocap_trans_sigma_m : float or None
         Motion-capture noise for the refinement; None: rig.yaml's ``rotation_noise_deg`` /
         ``translation_noise_m``, else the defaults of :mod:`multieye.refine`.
@@ -331,6 +335,7 @@ class Options:
     refine: bool = True
     robust: bool = True
     time_offset: str | float = "rig"
+    max_time_offset: float = 0.5
     mocap_rot_sigma_rad: float | None = None
     mocap_trans_sigma_m: float | None = None
 
@@ -350,7 +355,10 @@ def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[st
     for name, d in cameras.items():
         stamps = np.array([o.stamp for o in d.observations])
         T = np.stack([o.T_cam_target for o in d.observations])
-        search = (-0.5, 0.5)
+        if not (math.isfinite(opts.max_time_offset) and opts.max_time_offset > 0):
+            raise InputError(f"max_time_offset must be a positive number of seconds, got "
+                             f"{opts.max_time_offset!r}")
+        search = (-opts.max_time_offset, opts.max_time_offset)
         try:
             est = estimate_offset(stamps, T, d.mocap.stamps, d.mocap.T, setup=rig.setup,
                                   search_s=search)
@@ -367,8 +375,9 @@ def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[st
                 or max(est.coarse_offset_s, est.offset_s) > search[1] - edge):
             raise CalibrationError(
                 f"camera {name}: the best clock offset ({est.offset_s:+.3f} s) is at the edge of "
-                f"the search range {search[0]:+.1f}..{search[1]:+.1f} s, so the true one is "
-                "probably outside it; give --time-offset SECONDS (or time_offset in rig.yaml)")
+                f"the search range {search[0]:+.3g}..{search[1]:+.3g} s, so the true one is "
+                "probably outside it; widen the search (--max-time-offset SECONDS) or give "
+                "--time-offset SECONDS (or time_offset in rig.yaml)")
         out[name] = float(est.offset_s)
     return out
 
@@ -578,7 +587,7 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     options : Options
         Or its fields as keyword arguments: ``method`` (solver name, :data:`multieye.METHODS`),
         ``reference`` (camera whose frame is ``ref``; default the first of ``rig.yaml``),
-        ``refine``, ``robust``, ``time_offset``.
+        ``refine``, ``robust``, ``time_offset``, ``max_time_offset``.
     processes : int, optional
         Worker processes for detection; default one per core.
     progress : bool
