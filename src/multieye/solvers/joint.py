@@ -15,8 +15,8 @@ per-camera unknowns are eliminated in closed form: for a given ``y = vec(R_Y)`` 
 a 9x9 symmetric eigenproblem.  ``R_Y`` and every ``R_X^j`` are then projected onto SO(3)
 (sign fixed by the determinant), and the translations follow from a 3x3 system
 (:func:`multieye.solvers.kronecker.solve_translations`).  Both stages use only the
-per-camera sums of :class:`multieye.solvers.kronecker.CameraStats`.  Cost is linear in measurements and
-cameras; with one camera the result equals Shah's (2013) method.
+per-camera sums of :class:`multieye.solvers.kronecker.CameraStats`.  Cost is linear in
+measurements and cameras; with one camera the result equals Shah's (2013) method.
 """
 
 from __future__ import annotations

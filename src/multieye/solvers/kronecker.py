@@ -171,7 +171,8 @@ def camera_stats(entries: np.ndarray, counts: list[int]) -> CameraStats:
     FA = L[0::2]                        # (16, N): the entries of A_i
     if m > 1 and counts.count(counts[0]) == m:
         c = counts[0]
-        M = np.matmul(L.reshape(32, m, c).transpose(1, 0, 2), FA.reshape(16, m, c).transpose(1, 2, 0))
+        M = np.matmul(L.reshape(32, m, c).transpose(1, 0, 2),
+                      FA.reshape(16, m, c).transpose(1, 2, 0))
     else:
         M = np.empty((m, 32, 16))
         a = 0
@@ -180,7 +181,8 @@ def camera_stats(entries: np.ndarray, counts: list[int]) -> CameraStats:
             a += c
     s = M.reshape(m, 512)[:, _STAT_COLUMNS]
     return CameraStats(n=s[:, 132], K=s[:, :81].reshape(m, 9, 9),
-                       G=s[:, 81:108].reshape(m, 3, 9), h=s[:, 108:117].reshape(m, 3, 3).sum(axis=2),
+                       G=s[:, 81:108].reshape(m, 3, 9),
+                       h=s[:, 108:117].reshape(m, 3, 3).sum(axis=2),
                        SA=s[:, 117:126].reshape(m, 3, 3), StA=s[:, 126:129], StB=s[:, 129:132],
                        totals=s[:, 126:133].sum(axis=0))
 
