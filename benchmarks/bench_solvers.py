@@ -53,9 +53,9 @@ from multieye.solvers.checks import Measurements
 from multieye.solvers.joint import solve_joint
 
 
-def median_times(fns: dict[str, Callable[[], object]], repeats: int,
-                 block: int = 10) -> dict[str, float]:
-    """Median time per call of each function, seconds, over ``repeats`` interleaved rounds.
+def round_times(fns: dict[str, Callable[[], object]], rounds: int,
+                block: int) -> dict[str, list[float]]:
+    """Mean time per call of each function, seconds, in each of ``rounds`` interleaved rounds.
 
     Each round runs every function ``block`` times in a row and records the mean per
     call, then moves to the next function, so that a change in the machine's load during
@@ -70,7 +70,7 @@ def median_times(fns: dict[str, Callable[[], object]], repeats: int,
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
-        for _ in range(repeats):
+        for _ in range(rounds):
             for name, fn in fns.items():
                 start = time.perf_counter()
                 for _ in range(block):
@@ -79,26 +79,19 @@ def median_times(fns: dict[str, Callable[[], object]], repeats: int,
     finally:
         if gc_was_enabled:
             gc.enable()
-    return {name: statistics.median(t) for name, t in times.items()}
+    return times
+
+
+def median_times(fns: dict[str, Callable[[], object]], repeats: int,
+                 block: int = 10) -> dict[str, float]:
+    """Median over ``repeats`` interleaved rounds of the time per call (`round_times`)."""
+    return {name: statistics.median(t) for name, t in round_times(fns, repeats, block).items()}
 
 
 def best_times(fns: dict[str, Callable[[], object]], calls: int,
                rounds: int = 10) -> dict[str, float]:
-    """Best mean time per call, seconds, over ``rounds`` interleaved rounds of ``calls`` calls."""
-    best = {name: float("inf") for name in fns}
-    gc_was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        for _ in range(rounds):
-            for name, fn in fns.items():
-                start = time.perf_counter()
-                for _ in range(calls):
-                    fn()
-                best[name] = min(best[name], (time.perf_counter() - start) / calls)
-    finally:
-        if gc_was_enabled:
-            gc.enable()
-    return best
+    """Best over ``rounds`` interleaved rounds of ``calls`` calls each, as ``timeit`` reports."""
+    return {name: min(t) for name, t in round_times(fns, rounds, calls).items()}
 
 
 def noisy_problem(seed: int, n_cameras: int, measurements: int, f: float = 0.05):

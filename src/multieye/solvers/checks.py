@@ -225,31 +225,11 @@ def rotation_spread(A: np.ndarray) -> np.ndarray:
     return np.array(_spread_from_scatter(C, R.shape[0] - 1))
 
 
-def _axis_scatters(SA: np.ndarray, R0: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Per-camera axis scatter of ``R_A[k] R_A[first]^T`` (see `rotation_spread`), (m, 3, 3).
-
-    The sum over k of ``sym(R_k R_0^T) - (tr(R_k R_0^T) - 1)/2 I`` is linear in ``R_k``, so it
-    is formed from ``SA = sum_k R_k`` and ``R_0`` (the k = 0 term adds zero).
-
-    Parameters
-    ----------
-    SA : ndarray, shape (m, 3, 3)
-    R0 : ndarray, shape (m, 3, 3)
-        First rotation of each camera.
-    n : ndarray, shape (m,)
-        Counts.
-    """
-    S = SA @ np.ascontiguousarray(np.swapaxes(R0, 1, 2))
-    c = (S[:, 0, 0] + S[:, 1, 1] + S[:, 2, 2] - n) / 2.0
-    C = (S + np.swapaxes(S, 1, 2)) / 2.0
-    C[:, 0, 0] -= c
-    C[:, 1, 1] -= c
-    C[:, 2, 2] -= c
-    return C
-
-
 def _scatter_from_sum(S: np.ndarray, n: int) -> tuple[float, ...]:
-    """Axis scatter from ``S = sum_k R_k R_0^T`` over n rotations (see `_axis_scatters`).
+    """Axis scatter of n rotations ``R_k`` relative to ``R_0`` from ``S = sum_k R_k R_0^T``.
+
+    The sum over k of ``sym(R_k R_0^T) - (tr(R_k R_0^T) - 1)/2 I`` (see `rotation_spread`) is
+    linear in ``R_k``, so it is formed from the sum alone (the k = 0 term adds zero).
 
     Returns its six distinct entries ``(C00, C01, C02, C11, C12, C22)`` as plain floats.
     """
@@ -258,17 +238,14 @@ def _scatter_from_sum(S: np.ndarray, n: int) -> tuple[float, ...]:
     return a - k, (b + d) / 2.0, (c + g) / 2.0, e - k, (f + h) / 2.0, i - k
 
 
-def _spread_from_scatter(C: np.ndarray | tuple[float, ...], n: int) -> list[float]:
+def _spread_from_scatter(C: tuple[float, ...], n: int) -> list[float]:
     """RMS rotation about each principal axis (radians, descending) from an axis scatter.
 
-    ``C`` is the symmetric 3x3 scatter, or its six distinct entries; ``n`` the number of
-    relative rotations.
+    ``C`` holds the six distinct entries of the symmetric 3x3 scatter (`_scatter_from_sum`);
+    ``n`` is the number of relative rotations.
     """
     if n == 0:
         return [0.0, 0.0, 0.0]
-    if isinstance(C, np.ndarray):
-        (c00, c01, c02), (_, c11, c12), (_, _, c22) = C.tolist()
-        C = (c00, c01, c02, c11, c12, c22)
     s = [math.sqrt(2.0 * max(lam, 0.0) / n) for lam in sym3_eigvals(*C)]
     if s[1] < 10.0 * max(SINGLE_AXIS_TOL_RAD, SINGLE_AXIS_RATIO * s[0]):
         # Near-repeated eigenvalues: the closed form loses digits there; ask LAPACK.
@@ -444,9 +421,10 @@ def check_measurements(A, B, *, names: list[str] | None = None,
     starts = [0, *accumulate(counts[:-1])]
     R0 = entries[:12, starts].reshape(3, 4, m)[:, :3]     # R0[c, b, j]: first R_A of camera j
     if per_camera_motion:
-        C = _axis_scatters(st.SA, np.moveaxis(R0, 2, 0), st.n)
+        S = np.einsum("jab,cbj->jac", st.SA, R0)          # SA_j R0_j^T, camera by camera
         for j in range(m):
-            _check_spread(_spread_from_scatter(C[j], counts[j] - 1), f"camera {names[j]}")
+            _check_spread(_spread_from_scatter(_scatter_from_sum(S[j], counts[j]),
+                                               counts[j] - 1), f"camera {names[j]}")
     else:
         S = np.einsum("jab,cbj->ac", st.SA, R0)           # sum_j SA_j R0_j^T
         _check_spread(_spread_from_scatter(_scatter_from_sum(S, N), N - m),

@@ -218,7 +218,8 @@ def solve_translations(stats: CameraStats, RY: np.ndarray, out: np.ndarray | Non
     q -= stats.h
     Wn = stats.SA / n[:, None, None]
     M = tot[6] * _EYE3 - np.einsum("jab,jcb->ac", Wn, stats.SA)
-    lam = sym3_eigvals(*M[0], *M[1, 1:], M[2, 2])
+    (a, b, c), (_, d, e), (_, _, f) = M.tolist()         # plain floats: cheaper arithmetic
+    lam = sym3_eigvals(a, b, c, d, e, f)
     if not lam[2] > TRANSLATION_RCOND * lam[0]:
         raise DegenerateMotionError("the translations are not determined: the target never "
                                     "rotates relative to the cameras about two axes")
