@@ -7,7 +7,7 @@ Run from the repository root::
 It prints, in one run on one machine:
 
 1. the time (wall and CPU) to render the synthetic chessboard images (800x600, lens
-   distortion, blur and noise; :func:`multieye.imaging.render`) in this one process, and what
+   distortion, blur and noise; :func:`multieye.sim.render`) in this one process, and what
    that means for the demo's 4 cameras x 40 images on 2 cores;
 2. for those images and, when ``../shared/data/young_mocap_cam`` is present, its 30 real
    1280x720 images: images per second of
@@ -37,11 +37,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from multieye.geometry import transform_from_rotvec
+from multieye.core.geometry import transform_from_rotvec
 from multieye.imaging.batch import detect_and_estimate
-from multieye.imaging.render import render, visible
+from multieye.sim.render import render, visible
 from multieye.imaging.targets import Chessboard
-from multieye.intrinsics import Intrinsics
+from multieye.core.intrinsics import Intrinsics
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 

@@ -4,10 +4,10 @@ Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_general.py [--repeats 7] [--seed 0]
 
-Builds a random connected problem with :func:`multieye.general.random_general_problem`
+Builds a random connected problem with :func:`multieye.solvers.general.random_general_problem`
 (20 X = targets, 100 Y = cameras, every camera seeing a few targets: 400 (target, camera)
 pairs, 5000 measurements, 1 % noise) and prints the median wall time of
-:func:`multieye.general.solve_general` (input checks, connectivity, rotations, translations
+:func:`multieye.solvers.general.solve_general` (input checks, connectivity, rotations, translations
 and per-group residuals included) over ``--repeats`` runs, with the worst error against the
 truth.  The issue asks for under 1 s.  BLAS runs on one thread unless the environment says
 otherwise (threads only add overhead on these matrices and make timings erratic on a shared
@@ -27,8 +27,8 @@ import time
 
 import numpy as np
 
-from multieye import geometry as g
-from multieye.general import random_general_problem, solve_general
+from multieye.core import geometry as g
+from multieye.solvers.general import random_general_problem, solve_general
 
 N_CAMERAS, N_TARGETS, N_MEASUREMENTS, N_PAIRS = 100, 20, 5000, 400
 

@@ -6,7 +6,7 @@ Run from the repository root::
 
 It prints, in one run on one machine:
 
-1. the wall time of :func:`multieye.refine.refine_images` on the demo rig (4 cameras x 40
+1. the wall time of :func:`multieye.estimate.refine_images.refine_images` on the demo rig (4 cameras x 40
    images of a 6 x 8 chessboard, 7680 points), pixel noise estimated (the default) and given,
    median of 5 runs, with the number of cores;
 2. over ``--trials`` simulated rigs (4 x 40, 0.3 px, motion capture 0.1 deg / 0.3 mm): the RMS
@@ -14,11 +14,11 @@ It prints, in one run on one machine:
    and refined / bound; and, on the same rigs, the honesty of the reported covariance:
    mean squared error / mean predicted variance, for rotation and translation;
 3. over ``--trials // 5`` rigs with 20 % of the measurements corrupted (mocap glitches and
-   half-turned boards, :func:`multieye.image_sim.corrupt`): how often
-   :func:`multieye.robust.consensus` rejects exactly the corrupted ones, and the RMS error of
+   half-turned boards, :func:`multieye.sim.images.corrupt`): how often
+   :func:`multieye.estimate.consensus.consensus` rejects exactly the corrupted ones, and the RMS error of
    the refinement on its inliers against the refinement of the clean data;
 4. over ``--trials // 10`` continuously moving streams with a 40 ms clock offset: the largest
-   error of :func:`multieye.clock.estimate_offset` and the largest difference of the
+   error of :func:`multieye.estimate.clock.estimate_offset` and the largest difference of the
    extrinsics (closed form after pairing at the estimated offset) from the synchronised case.
 
 Issue 4 asks for: refined better than joint and within 10 % of the bound; honesty ratios in
@@ -39,14 +39,14 @@ import time
 
 import numpy as np
 
-from multieye import geometry as g
-from multieye.clock import estimate_offset
-from multieye.experiments_refine import refine_trial, relative_rms_errors, summarize_refine
-from multieye.image_sim import corrupt, simulate_images, simulate_stream
-from multieye.metrics import extrinsic_errors
-from multieye.pairing import pair_in_time
-from multieye.refine import refine_images
-from multieye.robust import consensus
+from multieye.core import geometry as g
+from multieye.estimate.clock import estimate_offset
+from multieye.experiments.refine import refine_trial, relative_rms_errors, summarize_refine
+from multieye.sim.images import corrupt, simulate_images, simulate_stream
+from multieye.core.metrics import extrinsic_errors
+from multieye.estimate.pairing import pair_in_time
+from multieye.estimate.refine_images import refine_images
+from multieye.estimate.consensus import consensus
 from multieye.solvers import solve
 
 

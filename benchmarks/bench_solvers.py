@@ -47,7 +47,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from multieye import simulation as sim
+from multieye.sim import rigs as sim
 from multieye.solvers import check_measurements, solve
 from multieye.solvers.checks import Measurements
 from multieye.solvers.joint import solve_joint

@@ -8,11 +8,11 @@ Reproduce from the repository root (about a minute)::
 For every data set (robot arm; PrimeSense with Vicon, two runs; the three-camera "falcon"
 platform with Vicon, runs 3-5) and camera stream it
 
-1. estimates the clock offset with :func:`multieye.clock.estimate_offset` (eye-on-hand:
+1. estimates the clock offset with :func:`multieye.estimate.clock.estimate_offset` (eye-on-hand:
    the "hand" stream is ``T_world_body``, the camera stream gives ``T_cam_target``);
 2. pairs every image with the motion-capture pose at its stamp plus the offset
-   (:func:`multieye.pairing.pair_in_time`, SLERP between bracketing samples), leaves out gross
-   outliers with :func:`multieye.robust.consensus`, and solves ``A_i X = Y B_i`` with the
+   (:func:`multieye.estimate.pairing.pair_in_time`, SLERP between bracketing samples), leaves out gross
+   outliers with :func:`multieye.estimate.consensus.consensus`, and solves ``A_i X = Y B_i`` with the
    closed form followed by the pose-level maximum-likelihood refinement
    (``multieye.solve(..., refine=True)``), all cameras of a platform jointly;
 3. reports the offset, the residuals at that offset and without any offset, and the
@@ -32,16 +32,16 @@ from pathlib import Path
 
 import numpy as np
 
-from multieye import geometry as g
-from multieye.clock import estimate_offset
-from multieye.errors import CalibrationError
+from multieye.core import geometry as g
+from multieye.estimate.clock import estimate_offset
+from multieye.core.errors import CalibrationError
 from multieye.io import read_tum
 from multieye.io.atomic import write_text_atomic
-from multieye.metrics import loop_residuals, pose_row
-from multieye.pairing import pair_in_time
-from multieye.robust import consensus
+from multieye.core.metrics import loop_residuals, pose_row
+from multieye.estimate.pairing import pair_in_time
+from multieye.estimate.consensus import consensus
 from multieye.solvers import solve
-from multieye.uncertainty import pose_std
+from multieye.estimate.uncertainty import pose_std
 
 ROOT = "datasets/unzipped"
 
@@ -217,14 +217,14 @@ Data: ethz-asl/hand_eye_calibration (BSD-3-Clause), the CSV pose streams of Furr
 clocks at different rates.  These are eye-on-hand data: `A = T_world_body` (the hand
 stream), `B = T_target_cam`, `X = T_body_cam`, `Y = T_world_target`.
 
-Method (`multieye.clock.estimate_offset`): the mean angular speed over 0.5 s of the target
+Method (`multieye.estimate.clock.estimate_offset`): the mean angular speed over 0.5 s of the target
 seen by the camera is correlated with that of the hand stream (both are independent of the
 unknown `X` and `Y`), then the offset is refined by minimising the loop residuals of the
 closed form with the hand poses interpolated (SLERP) at the image stamps plus the offset.
 The offset is *hand (motion-capture) clock minus camera clock*: the image stamped `c` was
 taken when the hand clock read `c + offset`.  The standard deviation comes from the
 curvature of the residual profile and covers the pose noise only; residuals correlated in
-time make it optimistic.  Gross outliers are left out by `multieye.robust.consensus`
+time make it optimistic.  Gross outliers are left out by `multieye.estimate.consensus.consensus`
 (5 deg / 5 cm) before solving.  No ground truth exists for these data: the evidence is the
 drop in residuals against pairing without an offset, and the agreement between runs.
 

@@ -39,13 +39,13 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from multieye import geometry as g
-from multieye.errors import CalibrationError
-from multieye.general import GeneralSolution, MeasurementGroup, solve_general
+from multieye.core import geometry as g
+from multieye.core.errors import CalibrationError
+from multieye.solvers.general import GeneralSolution, MeasurementGroup, solve_general
 from multieye.io.atomic import write_text_atomic
 from multieye.io.utias import read_utias_rwhec
-from multieye.metrics import loop_residuals, pose_row
-from multieye.pose_refine import relative_pose_covariance
+from multieye.core.metrics import loop_residuals, pose_row
+from multieye.solvers.refine_poses import relative_pose_covariance
 
 REPO = Path(__file__).resolve().parents[1]
 COMMAND = ("PYTHONPATH=src python benchmarks/utias_rwhec.py "
@@ -177,7 +177,7 @@ def report(groups, closed, refined, held: list[HeldOut], seconds: float) -> str:
         "camera extrinsic, so the extrinsic of a camera relative to camera 0 is "
         "`T_cam0_cam = inv(Y_cam0) Y_cam`.  No ground truth exists for these data.",
         "",
-        "Solvers: `multieye.general.solve_general` (closed form: one sparse Kronecker system "
+        "Solvers: `multieye.solvers.general.solve_general` (closed form: one sparse Kronecker system "
         "over all 24 rotations, then one linear least squares over all translations) and "
         "`solve_general(..., refine=True)` (maximum-likelihood refinement of the rotation and "
         "translation pose residuals, Huber loss at 1.345 sigma, sigmas estimated from the "

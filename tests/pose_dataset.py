@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from multieye import geometry as g
-from multieye.intrinsics import Intrinsics
+from multieye.core import geometry as g
+from multieye.core.intrinsics import Intrinsics
 from multieye.io import Trajectory, write_opencv_intrinsics, write_tum
 
 RIG = """\

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from multieye import geometry as g
-from multieye.intrinsics import Intrinsics
+from multieye.core import geometry as g
+from multieye.core.intrinsics import Intrinsics
 from multieye.io import Trajectory, write_opencv_intrinsics, write_tum
 
 

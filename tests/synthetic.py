@@ -1,6 +1,6 @@
 """Minimal frame-chain generators for solver tests (no physical realism needed here).
 
-``multieye.simulation`` builds the paper's realistic rigs; these helpers only build
+``multieye.sim.rigs`` builds the paper's realistic rigs; these helpers only build
 measurements that satisfy the loop of DESIGN.md section 2 exactly, from random frames.
 """
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from multieye import geometry as g
+from multieye.core import geometry as g
 
 
 def eye_to_base(rng, counts, *, rot_noise=0.0, trans_noise=0.0):

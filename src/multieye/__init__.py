@@ -14,7 +14,7 @@ that ``import multieye`` and ``multieye --help`` stay instant.
 
 from importlib import import_module
 
-from .errors import (
+from multieye.core.errors import (
     CalibrationError,
     DatasetError,
     DegenerateMotionError,
@@ -30,8 +30,8 @@ _LAZY = {
     "METHODS": "solvers",
     "Solution": "solvers",
     "solve": "solvers",
-    "solve_general": "general",
-    "GeneralSolution": "general",
+    "solve_general": "solvers",
+    "GeneralSolution": "solvers",
     "calibrate": "pipeline",
     "Options": "pipeline",
 }

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import click
 
-from . import __version__
-from .errors import CalibrationError
+from multieye import __version__
+from multieye.core.errors import CalibrationError
 
 EXIT_USER_ERROR = 2
 
@@ -84,10 +84,10 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
     uncertainty.  Writes OUT/calibration.json, OUT/camchain.yaml, OUT/details.json and
     OUT/report.html and prints a per-camera table.
     """
-    from .pipeline import calibrate as run_calibration
-    from .pipeline import write_outputs
-    from .solvers import METHODS
-    from .summary import calibration_table
+    from multieye.pipeline import calibrate as run_calibration
+    from multieye.outputs.write import write_outputs
+    from multieye.solvers import METHODS
+    from multieye.outputs.summary import calibration_table
 
     if method not in METHODS:
         raise click.BadParameter(f"{method!r}; choose one of {', '.join(METHODS)}",
@@ -122,7 +122,7 @@ def demo(out_dir: Path, seed: int):
     OUT/dataset is a complete dataset (rig.yaml, images, mocap.txt, intrinsics,
     ground_truth.json) that `multieye calibrate OUT/dataset -o ...` also accepts.
     """
-    from .demo import run_demo
+    from multieye.demo import run_demo
 
     result = run_demo(out_dir, seed=seed, progress=_progress_enabled())
     click.echo(result.text)
@@ -136,7 +136,7 @@ def report(out_dir: Path):
 
     Reads OUT/calibration.json and, when present, OUT/details.json.
     """
-    from .report import write_report
+    from multieye.outputs.report import write_report
 
     click.echo(str(write_report(out_dir)))
 
@@ -152,7 +152,7 @@ EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json")
 @_user_errors
 def export(out_dir: Path, fmt: str):
     """Export the calibration in OUT to another tool's format (into OUT/export/)."""
-    from .export import export as run_export
+    from multieye.outputs.export import export as run_export
 
     for p in run_export(out_dir, fmt):
         click.echo(str(p))
@@ -175,13 +175,13 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
     the maximum-likelihood refinement and the Cramer-Rao bound.
     """
     if name == "refine":
-        from .experiments_refine import run_refine_experiment
+        from multieye.experiments.refine import run_refine_experiment
 
         paths = run_refine_experiment(trials=trials, seed=seed, out_dir=out_dir,
                                       progress=_progress_enabled())
         click.echo("wrote " + " and ".join(str(p) for p in paths))
         return
-    from .experiments import run_experiment
+    from multieye.experiments.sweeps import run_experiment
 
     out = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
                          progress=_progress_enabled())

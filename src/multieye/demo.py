@@ -1,6 +1,6 @@
 """The embedded main job: render a synthetic surround-view rig, calibrate it, check it.
 
-``multieye demo -o OUT`` renders ``OUT/dataset`` (:mod:`multieye.imaging.synthetic_dataset`:
+``multieye demo -o OUT`` renders ``OUT/dataset`` (:mod:`multieye.sim.dataset`:
 4 cameras with lens distortion, a chessboard on a motion-captured marker body, blur and sensor
 noise, motion capture at 120 Hz against 4 Hz images), runs the full pipeline on it exactly as
 on a user's dataset (consensus, ``joint`` closed form, maximum-likelihood refinement with
@@ -18,10 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .imaging.synthetic_dataset import DatasetSpec, GroundTruth, render_dataset
-from .metrics import extrinsic_errors
-from .pipeline import CalibrationRun, calibrate, calibrate_rig, write_outputs
-from .summary import calibration_table, comparison_table
+from multieye.sim.dataset import DatasetSpec, GroundTruth, render_dataset
+from multieye.core.metrics import extrinsic_errors
+from multieye.outputs.write import write_outputs
+from multieye.pipeline import CalibrationRun, calibrate, calibrate_rig
+from multieye.outputs.summary import calibration_table, comparison_table
 
 __all__ = ["DemoResult", "run_demo", "COMPARED_METHODS"]
 

@@ -1,12 +1,13 @@
 """The image side: camera models, targets, detection, PnP, rendering, batch processing.
 
-The only package of multieye that imports OpenCV (``cv2``). Data flows
+With the lens models (:mod:`multieye.core.lens`), the only code of multieye that imports
+OpenCV (``cv2``). Data flows
 images -> :func:`.detect.detect` -> :func:`.pnp.estimate_pose` -> ``T_cam_target`` per image,
 which the hand-eye solvers consume; :func:`.batch.detect_and_estimate` does this over many
-files in parallel, and :func:`.render.render` makes synthetic images for tests and the demo.
+files in parallel.  Synthetic images are made in :mod:`multieye.sim.render`.
 
-``detect`` and ``render`` are not re-exported here: the names would hide the modules
-``multieye.imaging.detect`` and ``multieye.imaging.render``; import them from their modules.
+``detect`` is not re-exported here: the name would hide the module
+``multieye.imaging.detect``; import it from its module.
 
 Synopsis
 --------
@@ -15,12 +16,11 @@ Synopsis
 >>> results = detect_and_estimate(paths, board, intrinsics)              # doctest: +SKIP
 """
 
-from .batch import ImageResult, detect_and_estimate, process_image
-from .camera_model import distort_points, project_points, undistort_points
-from .detect import Detection
-from .pnp import PoseEstimate, estimate_pose, reprojection_residuals
-from .render import visible
-from .targets import (
+from multieye.imaging.batch import ImageResult, detect_and_estimate, process_image
+from multieye.core.lens import distort_points, project_points, undistort_points
+from multieye.imaging.detect import Detection
+from multieye.imaging.pnp import PoseEstimate, estimate_pose, reprojection_residuals
+from multieye.imaging.targets import (
     AprilGrid,
     AsymmetricCircleGrid,
     Charuco,
@@ -50,5 +50,4 @@ __all__ = [
     "reprojection_residuals",
     "target_from_spec",
     "undistort_points",
-    "visible",
 ]

@@ -20,11 +20,11 @@ from typing import Iterable
 
 import cv2
 
-from ..errors import InputError
-from ..intrinsics import Intrinsics
-from .detect import Detection, detect
-from .pnp import PoseEstimate, estimate_pose
-from .targets import Target
+from multieye.core.errors import InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.imaging.detect import Detection, detect
+from multieye.imaging.pnp import PoseEstimate, estimate_pose
+from multieye.imaging.targets import Target
 
 __all__ = ["ImageResult", "detect_and_estimate", "detect_and_estimate_arrays", "process_image",
            "process_array", "DEFAULT_MAX_RMS_PX"]
@@ -105,7 +105,7 @@ def process_array(image, name: str, target: Target, intrinsics: Intrinsics, *,
     """
     path = name
     if image.ndim == 3:
-        from .detect import to_gray
+        from multieye.imaging.detect import to_gray
 
         image = to_gray(image)
     size = (intrinsics.width, intrinsics.height)

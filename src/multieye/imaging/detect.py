@@ -43,8 +43,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import InputError
-from .targets import AprilGrid, AsymmetricCircleGrid, Charuco, Chessboard, CircleGrid, Target
+from multieye.core.errors import InputError
+from multieye.imaging.targets import AprilGrid, AsymmetricCircleGrid, Charuco, Chessboard, CircleGrid, Target
 
 __all__ = ["Detection", "detect", "to_gray"]
 

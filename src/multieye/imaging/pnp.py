@@ -21,10 +21,10 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InputError
-from ..intrinsics import Intrinsics
-from .camera_model import project_points, undistort_points
-from .detect import Detection
+from multieye.core.errors import InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.core.lens import project_points, undistort_points
+from multieye.imaging.detect import Detection
 
 __all__ = ["PoseEstimate", "estimate_pose", "reprojection_residuals"]
 

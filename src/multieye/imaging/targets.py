@@ -45,7 +45,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import DatasetError, InputError
+from multieye.core.errors import DatasetError, InputError
 
 __all__ = [
     "Target",

@@ -2,7 +2,7 @@
 
 Units and quaternion orders are converted here and nowhere else (DESIGN.md section 1): what
 leaves this package is in metres, radians and seconds, with poses as 4x4 ``T_a_b`` arrays
-whose frames are named.  Every user-facing problem is a :class:`~multieye.errors.DatasetError`
+whose frames are named.  Every user-facing problem is a :class:`~multieye.core.errors.DatasetError`
 naming the file, the line (where the format has lines) and what was expected.  Every writer is
 atomic (:mod:`multieye.io.atomic`).
 
@@ -14,8 +14,8 @@ OpenCV (``cv2.FileStorage``, ``cv2.imdecode``) and ``rosbags`` are imported only
 function needs them.
 """
 
-from .atomic import atomic_output, write_bytes_atomic, write_text_atomic
-from .calibration_json import (
+from multieye.io.atomic import atomic_output, write_bytes_atomic, write_text_atomic
+from multieye.io.calibration_json import (
     CalibrationRecord,
     CameraRecord,
     RejectedItem,
@@ -23,21 +23,21 @@ from .calibration_json import (
     read_calibration,
     write_calibration,
 )
-from .image_folder import list_images
-from .intrinsics import (
+from multieye.io.image_folder import list_images
+from multieye.io.intrinsics import (
     read_camera_info,
     read_intrinsics,
     read_kalibr_intrinsics,
     read_opencv_intrinsics,
     write_opencv_intrinsics,
 )
-from .kalibr import CamchainEntry, read_camchain, write_camchain
-from .mocap import MocapSpec, read_mocap, sniff_mocap_format
-from .mocap_csv import read_optitrack_csv, read_pose_csv, read_vicon_csv
-from .rig import CameraSpec, Rig, TargetSpec, load_rig, read_camera_intrinsics
-from .rosbag import bag_topics, iter_bag_images, read_bag_trajectory
-from .trajectory import Trajectory
-from .tum import read_tum, write_tum
+from multieye.io.kalibr import CamchainEntry, read_camchain, write_camchain
+from multieye.io.mocap import MocapSpec, read_mocap, sniff_mocap_format
+from multieye.io.mocap_csv import read_optitrack_csv, read_pose_csv, read_vicon_csv
+from multieye.io.rig import CameraSpec, Rig, TargetSpec, load_rig, read_camera_intrinsics
+from multieye.io.rosbag import bag_topics, iter_bag_images, read_bag_trajectory
+from multieye.io.trajectory import Trajectory
+from multieye.io.tum import read_tum, write_tum
 
 __all__ = [
     # trajectories

@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-from ..errors import DatasetError
+from multieye.core.errors import DatasetError
 
 __all__ = ["atomic_output", "write_text_atomic", "write_bytes_atomic"]
 

@@ -30,10 +30,10 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from ..errors import DatasetError, InputError
-from .atomic import write_text_atomic
-from .textfile import read_json
-from .trajectory import RIGID_TOLERANCE
+from multieye.core.errors import DatasetError, InputError
+from multieye.io.atomic import write_text_atomic
+from multieye.io.textfile import read_json
+from multieye.io.trajectory import RIGID_TOLERANCE
 
 __all__ = [
     "SETUP_KEYS",
@@ -172,7 +172,7 @@ class CalibrationRecord:
         What followed the closed form: ``"images"`` (maximum likelihood on the target points
         and the motion capture), ``"poses"`` (on the pose residuals), or None.
     motion_diagnostics : mapping or None
-        Per camera, the numbers of :func:`multieye.diagnostics.motion_diagnostics` (rotation
+        Per camera, the numbers of :func:`multieye.estimate.diagnostics.motion_diagnostics` (rotation
         range, spread of rotation axes, conditions), plain JSON values.
     """
 

@@ -22,7 +22,7 @@ import re
 from decimal import ROUND_HALF_EVEN, Decimal
 from pathlib import Path
 
-from ..errors import DatasetError
+from multieye.core.errors import DatasetError
 
 __all__ = ["IMAGE_EXTENSIONS", "list_images", "stamp_from_name"]
 

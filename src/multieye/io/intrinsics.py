@@ -1,4 +1,4 @@
-"""Camera intrinsics files -> :class:`~multieye.intrinsics.Intrinsics`.
+"""Camera intrinsics files -> :class:`~multieye.core.intrinsics.Intrinsics`.
 
 :func:`read_intrinsics` recognises the format from the content:
 
@@ -31,12 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DatasetError, InputError
-from ..intrinsics import Intrinsics
-from .atomic import write_text_atomic
-from .kalibr import camchain_entries, intrinsics_from_kalibr, is_camchain
-from .textfile import read_text
-from .yamlfile import YamlDocument, parse_yaml, yaml_list
+from multieye.core.errors import DatasetError, InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.io.atomic import write_text_atomic
+from multieye.io.kalibr import camchain_entries, intrinsics_from_kalibr, is_camchain
+from multieye.io.textfile import read_text
+from multieye.io.yamlfile import YamlDocument, parse_yaml, yaml_list
 
 __all__ = [
     "DISTORTION_MODELS",

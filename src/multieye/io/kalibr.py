@@ -14,7 +14,7 @@ Layout (as Kalibr documents it): one entry per camera, keyed ``cam0``, ``cam1``,
 ``T_cn_cnm1`` maps points in camera n-1 into camera n, i.e. ``T_cam<n>_cam<n-1>``; with
 poses relative to a reference camera, ``T_cn_cnm1 = inv(T_ref_cn) @ T_ref_cnm1``.
 
-Mapping to :class:`~multieye.intrinsics.Intrinsics`: ``radtan`` is OpenCV's pinhole model
+Mapping to :class:`~multieye.core.intrinsics.Intrinsics`: ``radtan`` is OpenCV's pinhole model
 with 4 coefficients ``k1 k2 p1 p2``; ``equidistant`` is the fisheye model ``k1..k4``; a
 ``none`` distortion model is a pinhole without distortion.  Kalibr's other models (``omni``,
 ``ds``, ``eucm``, ``fov``) are rejected with a message.
@@ -32,12 +32,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import geometry
-from ..errors import DatasetError, InputError
-from ..intrinsics import Intrinsics
-from .atomic import write_text_atomic
-from .trajectory import RIGID_TOLERANCE
-from .yamlfile import YamlDocument, load_yaml, yaml_list
+from multieye.core import geometry
+from multieye.core.errors import DatasetError, InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.io.atomic import write_text_atomic
+from multieye.io.trajectory import RIGID_TOLERANCE
+from multieye.io.yamlfile import YamlDocument, load_yaml, yaml_list
 
 __all__ = [
     "CamchainEntry",

@@ -18,11 +18,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import DatasetError
-from .mocap_csv import csv_flavour, read_optitrack_csv, read_pose_csv, read_vicon_csv
-from .rosbag import read_bag_trajectory
-from .trajectory import Trajectory
-from .tum import read_tum
+from multieye.core.errors import DatasetError
+from multieye.io.mocap_csv import csv_flavour, read_optitrack_csv, read_pose_csv, read_vicon_csv
+from multieye.io.rosbag import read_bag_trajectory
+from multieye.io.trajectory import Trajectory
+from multieye.io.tum import read_tum
 
 __all__ = ["MOCAP_FORMATS", "MocapSpec", "read_mocap", "sniff_mocap_format", "pose_frames"]
 

@@ -43,11 +43,11 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .. import geometry
-from ..errors import DatasetError
-from .poserows import quaternion_poses, trajectory_from_rows
-from .textfile import LENGTH_UNITS, parse_float, read_text
-from .trajectory import Trajectory
+from multieye.core import geometry
+from multieye.core.errors import DatasetError
+from multieye.io.poserows import quaternion_poses, trajectory_from_rows
+from multieye.io.textfile import LENGTH_UNITS, parse_float, read_text
+from multieye.io.trajectory import Trajectory
 
 __all__ = [
     "DEFAULT_COLUMNS",

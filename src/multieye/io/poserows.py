@@ -11,9 +11,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .. import geometry
-from ..errors import DatasetError
-from .trajectory import Trajectory
+from multieye.core import geometry
+from multieye.core.errors import DatasetError
+from multieye.io.trajectory import Trajectory
 
 __all__ = ["QUATERNION_TOLERANCE", "quaternion_poses", "trajectory_from_rows"]
 

@@ -56,13 +56,13 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from types import MappingProxyType
 
-from ..errors import DatasetError
-from ..intrinsics import Intrinsics
-from .intrinsics import read_intrinsics
-from .mocap import MOCAP_FORMATS, MocapSpec, pose_frames, sniff_mocap_format
-from .mocap_csv import DEFAULT_COLUMNS
-from .textfile import LENGTH_UNITS
-from .yamlfile import YamlDocument, load_yaml
+from multieye.core.errors import DatasetError
+from multieye.core.intrinsics import Intrinsics
+from multieye.io.intrinsics import read_intrinsics
+from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, pose_frames, sniff_mocap_format
+from multieye.io.mocap_csv import DEFAULT_COLUMNS
+from multieye.io.textfile import LENGTH_UNITS
+from multieye.io.yamlfile import YamlDocument, load_yaml
 
 __all__ = ["SETUPS", "TARGET_TYPES", "TargetSpec", "CameraSpec", "Rig", "load_rig",
            "read_camera_intrinsics"]

@@ -32,10 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DatasetError, InputError
-from .poserows import quaternion_poses
-from .textfile import length_scale
-from .trajectory import Trajectory
+from multieye.core.errors import DatasetError, InputError
+from multieye.io.poserows import quaternion_poses
+from multieye.io.textfile import length_scale
+from multieye.io.trajectory import Trajectory
 
 __all__ = [
     "POSE_TYPES",

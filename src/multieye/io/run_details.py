@@ -1,11 +1,11 @@
 """``details.json``: what the report needs beyond ``calibration.json``.
 
 ``calibration.json`` (DESIGN.md section 4) holds the result; this file holds the evidence
-behind it, per measurement, so that :mod:`multieye.report` can draw the rig and the residuals
+behind it, per measurement, so that :mod:`multieye.outputs.report` can draw the rig and the residuals
 without the dataset:
 
 - per camera: the used measurements (image name, camera-clock stamp, loop residual of
-  ``A_i X = Y B_i`` in rotation and translation from :func:`multieye.metrics.loop_residuals`,
+  ``A_i X = Y B_i`` in rotation and translation from :func:`multieye.core.metrics.loop_residuals`,
   PnP reprojection RMS), the target pose in the world at each of them, the intrinsics (for
   frustums), the pose of the camera in the world, and an optional free-form ``diagnostics``
   mapping (weak-motion diagnostics, filled by whoever computes them);
@@ -30,7 +30,8 @@ used image of the reference camera.
 
 Synopsis
 --------
->>> from multieye.io.run_details import write_run_details, read_run_details
+>>> from multieye.io.run_details import read_run_details
+>>> from multieye.outputs.details import write_run_details
 >>> write_run_details("out/details.json", run)          # doctest: +SKIP
 >>> details = read_run_details("out/details.json")      # doctest: +SKIP
 >>> details.camera("cam0").rot_deg                      # doctest: +SKIP
@@ -43,19 +44,15 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from ..errors import DatasetError, InputError
-from ..intrinsics import Intrinsics
-from ..metrics import loop_residuals
-from .atomic import write_text_atomic
-from .calibration_json import SETUP_KEYS
-from .textfile import read_json
-
-if TYPE_CHECKING:  # the pipeline imports io; io must not import it at run time
-    from ..pipeline import CalibrationRun
+from multieye.core.errors import DatasetError, InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.io.atomic import write_text_atomic
+from multieye.io.calibration_json import SETUP_KEYS
+from multieye.io.textfile import read_json
 
 __all__ = [
     "FORMAT",
@@ -63,10 +60,10 @@ __all__ = [
     "TrajectoryDetails",
     "CameraDetails",
     "RunDetails",
-    "run_details",
     "run_details_to_dict",
     "run_details_from_dict",
-    "write_run_details",
+    "write_details",
+    "json_value",
     "read_run_details",
 ]
 
@@ -174,104 +171,21 @@ class RunDetails:
 # --------------------------------------------------------------------------- from a run
 
 
-def _span_indices(stamps: np.ndarray, lo: float, hi: float, max_points: int) -> np.ndarray:
-    """Indices of the samples in ``[lo, hi]``, evenly thinned to at most ``max_points``."""
-    idx = np.flatnonzero((stamps >= lo) & (stamps <= hi))
-    if idx.size == 0:
-        idx = np.arange(stamps.size)
-    if idx.size > max_points:
-        idx = idx[np.unique(np.linspace(0, idx.size - 1, max_points).round().astype(int))]
-    return idx
-
-
-def _json_value(value, where: str):
+def json_value(value, where: str):
     """``value`` as plain JSON types (numpy scalars and arrays become numbers and lists)."""
     if isinstance(value, np.ndarray):
-        return _json_value(value.tolist(), where)
+        return json_value(value.tolist(), where)
     if isinstance(value, np.generic):
-        return _json_value(value.item(), where)
+        return json_value(value.item(), where)
     if isinstance(value, Mapping):
-        return {str(k): _json_value(v, where) for k, v in value.items()}
+        return {str(k): json_value(v, where) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_json_value(v, where) for v in value]
+        return [json_value(v, where) for v in value]
     if isinstance(value, float) and not math.isfinite(value):
         return None
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     raise InputError(f"{where}: {type(value).__name__} is not a JSON value")
-
-
-def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, Any]] | None = None,
-                max_trajectory_points: int = 3000) -> RunDetails:
-    """Collect the details of a calibration run (see module docstring for the frames).
-
-    Parameters
-    ----------
-    run : multieye.pipeline.CalibrationRun
-    diagnostics : mapping of camera name to mapping, optional
-        Free-form, JSON-compatible per-camera diagnostics (numpy values are converted; NaN
-        and inf become null).
-    max_trajectory_points : int
-        Most positions kept per trajectory.
-
-    Raises
-    ------
-    InputError
-        Diagnostics for a camera that is not in the run, or values that JSON cannot hold.
-    """
-    rec = run.record
-    setup = rec.setup
-    diagnostics = dict(diagnostics or {})
-    unknown = sorted(set(diagnostics) - {c.name for c in rec.cameras})
-    if unknown:
-        raise InputError(f"diagnostics given for cameras not in the run: {', '.join(unknown)}")
-    T_shown = None
-    if setup == "eye-on-hand":
-        ref = run.paired[rec.reference_camera].T_world_mocap
-        T_shown = ref[len(ref) // 2]
-    # one entry per distinct motion-capture trajectory (cameras share the object when they
-    # share the file), with the span of the used images in the motion-capture clock
-    traj_index: dict[int, int] = {}
-    sources, spans = [], []
-    cams = []
-    for cam in rec.cameras:
-        data, paired = run.cameras[cam.name], run.paired[cam.name]
-        key = id(data.mocap)
-        if key not in traj_index:
-            traj_index[key] = len(sources)
-            sources.append(data.mocap)
-            spans.append([math.inf, -math.inf])
-        k = traj_index[key]
-        stamps = np.array([o.stamp for o in paired.observations], dtype=np.float64)
-        offset = data.time_offset if cam.time_offset_s is None else cam.time_offset_s
-        spans[k] = [min(spans[k][0], stamps.min() + offset), max(spans[k][1], stamps.max() + offset)]
-        rot, trans = loop_residuals(paired.A, paired.B, cam.X, rec.Y)
-        if setup == "eye-to-base":   # T_world_marker[i] @ T_marker_target
-            T_world_target = paired.T_world_mocap @ rec.Y
-            T_world_cam = cam.X
-        else:                        # T_world_body[i] @ T_body_cam @ T_cam_target[i]
-            T_cam_target = np.stack([o.T_cam_target for o in paired.observations])
-            T_world_target = paired.T_world_mocap @ cam.X @ T_cam_target
-            T_world_cam = T_shown @ cam.X
-        rms = np.array([np.nan if o.rms_px is None else o.rms_px for o in paired.observations],
-                       dtype=np.float64)
-        cams.append(CameraDetails(
-            name=cam.name, T_world_cam=T_world_cam, intrinsics=data.intrinsics, trajectory=k,
-            names=tuple(o.name for o in paired.observations), stamps=stamps, rot_deg=rot,
-            trans_m=trans, rms_px=rms, T_world_target=T_world_target,
-            diagnostics=_json_value(diagnostics.get(cam.name, {}),
-                                    f"diagnostics of camera {cam.name}")))
-    pose = "T_world_marker" if setup == "eye-to-base" else "T_world_body"
-    trajectories = []
-    for traj, (lo, hi) in zip(sources, spans):
-        inside = (traj.stamps >= lo - TRAJECTORY_MARGIN_S) & (traj.stamps <= hi + TRAJECTORY_MARGIN_S)
-        idx = _span_indices(traj.stamps, lo - TRAJECTORY_MARGIN_S, hi + TRAJECTORY_MARGIN_S,
-                            max_trajectory_points)
-        trajectories.append(TrajectoryDetails(pose=pose, stamps=traj.stamps[idx].copy(),
-                                              positions=traj.T[idx, :3, 3].copy(),
-                                              n_samples=int(inside.sum()) or len(traj.stamps)))
-    return RunDetails(setup=setup, reference_camera=rec.reference_camera, cameras=tuple(cams),
-                      trajectories=tuple(trajectories), T_world_body_shown=T_shown)
 
 
 # --------------------------------------------------------------------------- to / from dict
@@ -305,7 +219,7 @@ def run_details_to_dict(details: RunDetails) -> dict:
                 "trans_m": _floats(c.trans_m), "rms_px": _floats(c.rms_px),
                 "T_world_target": _floats(c.T_world_target),
             },
-            "diagnostics": _json_value(c.diagnostics, f"diagnostics of camera {c.name}"),
+            "diagnostics": json_value(c.diagnostics, f"diagnostics of camera {c.name}"),
         }
     return {
         "format": FORMAT, "version": VERSION, "setup": details.setup,
@@ -440,24 +354,10 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
 # --------------------------------------------------------------------------- files
 
 
-def write_run_details(path: str | os.PathLike, run: CalibrationRun, *,
-                      diagnostics: Mapping[str, Mapping[str, Any]] | None = None,
-                      max_trajectory_points: int = 3000) -> RunDetails:
-    """Write ``details.json`` of a run atomically and return what was written.
-
-    Parameters
-    ----------
-    path : path-like
-        Usually ``OUT/details.json`` beside ``calibration.json``.
-    run : multieye.pipeline.CalibrationRun
-    diagnostics, max_trajectory_points
-        See :func:`run_details`.
-    """
-    details = run_details(run, diagnostics=diagnostics,
-                          max_trajectory_points=max_trajectory_points)
+def write_details(path: str | os.PathLike, details: RunDetails) -> None:
+    """Write ``details`` as ``details.json`` atomically (:func:`run_details_to_dict`)."""
     text = json.dumps(run_details_to_dict(details), allow_nan=False, separators=(",", ":"))
     write_text_atomic(path, text + "\n")
-    return details
 
 
 def read_run_details(path: str | os.PathLike) -> RunDetails:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DatasetError
+from multieye.core.errors import DatasetError
 
 __all__ = [
     "read_text",

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import geometry
-from ..errors import InputError
+from multieye.core import geometry
+from multieye.core.errors import InputError
 
 __all__ = ["Trajectory", "RIGID_TOLERANCE"]
 

@@ -25,11 +25,11 @@ from __future__ import annotations
 
 import os
 
-from .. import geometry
-from .atomic import atomic_output
-from .poserows import quaternion_poses, trajectory_from_rows
-from .textfile import length_scale, read_number_rows
-from .trajectory import Trajectory
+from multieye.core import geometry
+from multieye.io.atomic import atomic_output
+from multieye.io.poserows import quaternion_poses, trajectory_from_rows
+from multieye.io.textfile import length_scale, read_number_rows
+from multieye.io.trajectory import Trajectory
 
 __all__ = ["read_tum", "write_tum", "TUM_COLUMNS"]
 

@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DatasetError
-from ..general import MeasurementGroup
-from .poserows import quaternion_poses
-from .textfile import data_lines, parse_float, read_text, split_fields
+from multieye.core.errors import DatasetError
+from multieye.core.problem import MeasurementGroup
+from multieye.io.poserows import quaternion_poses
+from multieye.io.textfile import data_lines, parse_float, read_text, split_fields
 
 __all__ = ["read_utias_rwhec", "read_pose_rows", "UTIAS_COLUMNS", "COMBINED_DIR"]
 

@@ -16,8 +16,8 @@ from typing import Any
 
 import yaml
 
-from ..errors import DatasetError
-from .textfile import read_text
+from multieye.core.errors import DatasetError
+from multieye.io.textfile import read_text
 
 __all__ = ["YamlDocument", "load_yaml", "parse_yaml", "yaml_float", "yaml_list"]
 

@@ -1,124 +1,29 @@
-"""Solvers of ``A_i^j X^j = Y B_i^j`` behind one call, :func:`solve`.
+"""Closed forms of the hand-eye problem and the pose-level refinement behind them.
+
+``A_i^j X^j = Y B_i^j`` for a rig (:func:`solve`, :mod:`multieye.solvers.rig`) and the general
+``A_i X_a = Y_b B_i`` (:func:`solve_general`, :mod:`multieye.solvers.general`); with
+``refine=True`` both continue with the maximum-likelihood refinement of the pose residuals
+(:mod:`multieye.solvers.refine_poses`) on the engine of :mod:`multieye.optimize`.
 
 Synopsis
 --------
->>> import multieye
->>> sol = multieye.solve(A, B, method="joint")      # doctest: +SKIP
->>> sol.X.shape, sol.Y.shape                         # doctest: +SKIP
-((4, 4, 4), (4, 4))
-
-Methods (DESIGN.md section 3):
-
-=========== ================================================================ ===========
-name        what                                                              cameras
-=========== ================================================================ ===========
-joint       least squares of the stacked joint Kronecker system, per-camera  all at once
-            blocks eliminated: 9x9 eigenproblem + 3x3 solve (default)
-wang2022    the paper exactly: SVD of the 18m x 9(m+1) matrix U              all at once
-shah        Shah 2013, as OpenCV 4.x computes it                              one by one
-li          Li, Wang, Wu 2010, as OpenCV 4.x computes it                      one by one
-tabb-c1     Tabb & Yousef 2017, iterative, Euler angles, cost c1              one by one
-tabb-c2     Tabb & Yousef 2017, iterative, Euler angles, cost c2              one by one
-=========== ================================================================ ===========
-
-Single-camera methods on a rig solve each camera alone and combine the m estimates of Y
-as the paper did: chordal mean of the rotations, mean of the translations.  The
-per-camera estimates stay on ``Solution.Y_per_camera``.
+>>> from multieye.solvers import solve, solve_general     # doctest: +SKIP
+>>> sol = solve(A, B, method="joint")                  # doctest: +SKIP
 """
 
-from __future__ import annotations
+from multieye.solvers.general import solve_general
+from multieye.solvers.groups import GeneralSolution, MeasurementGroup
+from multieye.solvers.result import CameraResidual, Solution
+from multieye.solvers.rig import (
+    JOINT_METHODS,
+    METHODS,
+    SINGLE_METHODS,
+    check_measurements,
+    check_transforms,
+    combine_y,
+    solve,
+)
 
-from typing import Callable, Sequence
-
-import numpy as np
-
-from ..errors import InputError
-from ..geometry import make_transform, rotation_mean
-from .checks import Measurements, check_measurements, check_transforms
-from .joint import solve_joint
-from .li import solve_li_single
-from .result import CameraResidual, Solution
-from .shah import solve_shah_single
-from .tabb import solve_tabb_single
-from .wang2022 import solve_wang2022
-
-__all__ = ["solve", "METHODS", "JOINT_METHODS", "SINGLE_METHODS", "Solution", "CameraResidual",
-           "check_measurements", "check_transforms", "combine_y"]
-
-JOINT_METHODS: dict[str, Callable[[Measurements], tuple]] = {
-    "joint": solve_joint,
-    "wang2022": solve_wang2022,
-}
-
-SINGLE_METHODS: dict[str, Callable[[np.ndarray, np.ndarray], tuple]] = {
-    "shah": solve_shah_single,
-    "li": solve_li_single,
-    "tabb-c1": lambda A, B: solve_tabb_single(A, B, "c1"),
-    "tabb-c2": lambda A, B: solve_tabb_single(A, B, "c2"),
-}
-
-#: Every method name accepted by :func:`solve`.
-METHODS: tuple[str, ...] = tuple(JOINT_METHODS) + tuple(SINGLE_METHODS)
-
-
-def combine_y(Ys: np.ndarray) -> np.ndarray:
-    """Combine per-camera estimates of Y ``(m, 4, 4)``: rotation mean, translation mean."""
-    return make_transform(rotation_mean(Ys[:, :3, :3]), Ys[:, :3, 3].mean(axis=0))
-
-
-def solve(A: Sequence[np.ndarray] | np.ndarray, B: Sequence[np.ndarray] | np.ndarray,
-          method: str = "joint", *, refine: bool = False, names: list[str] | None = None,
-          **refine_options) -> Solution:
-    """Solve ``A_i^j X^j = Y B_i^j`` for every camera j and the shared Y.
-
-    Parameters
-    ----------
-    A, B : sequence of array_like, each shape (N_j, 4, 4)
-        One entry per camera (a single (N, 4, 4) array means one camera).  Eye-to-base:
-        ``A = T_marker_world`` (inverse motion capture), ``B = T_target_cam`` (inverse PnP).
-        Eye-on-hand: ``A = T_world_body`` (motion capture), ``B = T_target_cam``.
-        See DESIGN.md section 2.
-    method : str
-        One of :data:`METHODS`; default ``"joint"``.
-    refine : bool
-        Follow the closed form with a maximum-likelihood refinement of the pose residuals
-        and fill ``Solution.covariance`` (``multieye.pose_refine``).
-    names : list of str, optional
-        Camera names used in error messages.
-    **refine_options
-        Passed to the refinement (noise levels, robust loss).
-
-    Returns
-    -------
-    Solution
-        ``X`` (m, 4, 4): ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand);
-        ``Y`` (4, 4): ``T_marker_target`` or ``T_world_target``.
-
-    Raises
-    ------
-    InputError, TooFewMeasurementsError, DegenerateMotionError
-        See :func:`multieye.solvers.checks.check_measurements`.  Joint methods need the
-        pooled motion of all cameras to rotate about two axes; single-camera methods need
-        it for every camera.
-    """
-    if method not in METHODS:
-        raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    if refine_options and not refine:
-        raise InputError(f"refinement options {', '.join(sorted(refine_options))} given without "
-                         "refine=True")
-    joint = method in JOINT_METHODS
-    meas = check_measurements(A, B, names=names, per_camera_motion=not joint)
-    Y_per_camera = None
-    if joint:
-        X, Y = JOINT_METHODS[method](meas)
-    else:
-        As, Bs = meas.split(meas.A), meas.split(meas.B)
-        pairs = [SINGLE_METHODS[method](Aj, Bj) for Aj, Bj in zip(As, Bs)]
-        X = np.stack([p[0] for p in pairs])
-        Y_per_camera = np.stack([p[1] for p in pairs])
-        Y = combine_y(Y_per_camera)
-    sol = Solution(X=X, Y=Y, method=method, Y_per_camera=Y_per_camera, measurements=meas)
-    if refine:
-        from ..pose_refine import refine_solution
-        sol = refine_solution(sol, **refine_options)
-    return sol
+__all__ = ["solve", "solve_general", "METHODS", "JOINT_METHODS", "SINGLE_METHODS", "Solution",
+           "GeneralSolution", "MeasurementGroup", "CameraResidual", "check_measurements",
+           "check_transforms", "combine_y"]

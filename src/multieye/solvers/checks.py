@@ -13,9 +13,9 @@ from itertools import accumulate
 
 import numpy as np
 
-from ..errors import DegenerateMotionError, InputError, TooFewMeasurementsError
-from ..geometry import det3
-from .kronecker import BOTTOM_ROWS, CameraStats, camera_stats, sym3_eigvals, transform_entries
+from multieye.core.errors import DegenerateMotionError, InputError, TooFewMeasurementsError
+from multieye.core.geometry import det3
+from multieye.solvers.kronecker import BOTTOM_ROWS, CameraStats, camera_stats, sym3_eigvals, transform_entries
 
 __all__ = [
     "check_transforms",

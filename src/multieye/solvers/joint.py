@@ -24,9 +24,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import lapack
 
-from ..errors import DegenerateMotionError
-from .checks import Measurements
-from .kronecker import normalize_rotation, solve_translations, unvec
+from multieye.core.errors import DegenerateMotionError
+from multieye.solvers.checks import Measurements
+from multieye.solvers.kronecker import normalize_rotation, solve_translations, unvec
 
 __all__ = ["solve_joint", "joint_rotation"]
 

@@ -17,8 +17,8 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import lapack
 
-from ..errors import DegenerateMotionError
-from ..geometry import det3
+from multieye.core.errors import DegenerateMotionError
+from multieye.core.geometry import det3
 
 __all__ = [
     "vec",

@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import make_transform
-from .kronecker import normalize_rotation
+from multieye.core.geometry import make_transform
+from multieye.solvers.kronecker import normalize_rotation
 
 __all__ = ["solve_li_single"]
 

@@ -9,32 +9,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from .checks import Measurements
+    from multieye.solvers.checks import Measurements
+
+from multieye.core.metrics import CameraResidual, camera_residuals
 
 __all__ = ["Solution", "CameraResidual"]
-
-
-@dataclass(frozen=True)
-class CameraResidual:
-    """Residuals of one camera's loop ``A_i X = Y B_i`` (paper section V-A).
-
-    Attributes
-    ----------
-    e_R_deg : float
-        Mean over measurements of angle((R_Y R_B)^T (R_A R_X)), degrees.
-    e_t_m : float
-        Mean of ||(R_A t_X + t_A) - (R_Y t_B + t_Y)||, metres.
-    max_R_deg, max_t_m : float
-        Worst measurement.
-    n : int
-        Measurements used.
-    """
-
-    e_R_deg: float
-    e_t_m: float
-    max_R_deg: float
-    max_t_m: float
-    n: int
 
 
 @dataclass(frozen=True)
@@ -53,7 +32,7 @@ class Solution:
         Single-camera methods: each camera's own estimate of Y before combination.
     covariance : ndarray, shape (6(m+1), 6(m+1)) or None
         With ``refine=True``: covariance of the perturbations of X^1..X^m then Y, each as
-        (rotation vector, translation), radians and metres; ``multieye.pose_refine``
+        (rotation vector, translation), radians and metres; ``multieye.solvers.refine_poses``
         documents the perturbation convention.
     measurements : Measurements or None
         The validated input, kept so that :attr:`residuals` can be computed on demand.
@@ -72,7 +51,6 @@ class Solution:
     def residuals(self) -> tuple[CameraResidual, ...]:
         if self.measurements is None:
             raise AttributeError("this Solution was built without its measurements")
-        from ..metrics import camera_residuals
         meas = self.measurements
         return camera_residuals(meas.A, meas.B, self.X, self.Y, meas.camera, meas.starts)
 

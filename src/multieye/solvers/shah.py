@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import make_transform
-from .kronecker import (camera_stats, normalize_rotation, solve_translations,
+from multieye.core.geometry import make_transform
+from multieye.solvers.kronecker import (camera_stats, normalize_rotation, solve_translations,
                         transform_entries, unvec)
 
 __all__ = ["solve_shah_single"]

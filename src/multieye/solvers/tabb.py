@@ -20,8 +20,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..geometry import make_transform
-from .shah import solve_shah_single
+from multieye.core.geometry import make_transform
+from multieye.solvers.shah import solve_shah_single
 
 __all__ = ["solve_tabb_single"]
 

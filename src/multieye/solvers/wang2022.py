@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import make_transform, project_to_so3
-from .checks import Measurements
-from .kronecker import unvec
+from multieye.core.geometry import make_transform, project_to_so3
+from multieye.solvers.checks import Measurements
+from multieye.solvers.kronecker import unvec
 
 __all__ = ["solve_wang2022"]
 

@@ -1,0 +1,65 @@
+"""Camera intrinsics as plain data (no OpenCV here).
+
+File readers (``multieye.io.intrinsics``) produce :class:`Intrinsics`; camera models on the
+image side (``multieye.imaging``) consume it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from multieye.core.errors import InputError
+
+__all__ = ["Intrinsics", "PINHOLE_DISTORTION_SIZES"]
+
+#: Lengths of OpenCV's pinhole distortion vector (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]).
+PINHOLE_DISTORTION_SIZES = (0, 4, 5, 8, 12, 14)
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Intrinsics of one camera.
+
+    Attributes
+    ----------
+    K : ndarray, shape (3, 3)
+        Camera matrix, pixels; pixel (0, 0) is the centre of the top-left pixel.
+    dist : ndarray, shape (k,)
+        ``model="pinhole"``: OpenCV's coefficients, k in (0, 4, 5, 8, 12, 14).
+        ``model="fisheye"``: equidistant k1..k4 (OpenCV ``cv2.fisheye``, Kalibr ``equidistant``).
+    model : {"pinhole", "fisheye"}
+    width, height : int or None
+        Image size in pixels, when the file gives it.
+    """
+
+    K: np.ndarray
+    dist: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    model: Literal["pinhole", "fisheye"] = "pinhole"
+    width: int | None = None
+    height: int | None = None
+
+    def __post_init__(self):
+        K = np.asarray(self.K, dtype=np.float64)
+        dist = np.asarray(self.dist, dtype=np.float64).reshape(-1)
+        if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+            raise InputError(f"camera matrix must be a finite 3x3 array, got shape {K.shape}")
+        if K[0, 0] <= 0 or K[1, 1] <= 0:
+            raise InputError(f"focal lengths must be positive, got fx={K[0, 0]}, fy={K[1, 1]}")
+        if self.model == "pinhole":
+            if dist.size not in PINHOLE_DISTORTION_SIZES:
+                raise InputError("pinhole distortion must have 0, 4, 5, 8, 12 or 14 coefficients, "
+                                 f"got {dist.size}")
+        elif self.model == "fisheye":
+            if dist.size not in (0, 4):
+                raise InputError(f"fisheye (equidistant) distortion must have 4 coefficients, got {dist.size}")
+            if dist.size == 0:
+                dist = np.zeros(4)
+        else:
+            raise InputError(f"camera model must be 'pinhole' or 'fisheye', got {self.model!r}")
+        if not np.all(np.isfinite(dist)):
+            raise InputError("distortion coefficients must be finite")
+        object.__setattr__(self, "K", K)
+        object.__setattr__(self, "dist", dist)

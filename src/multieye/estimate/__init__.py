@@ -1,0 +1,3 @@
+"""From measurements to estimates: pairing in time, consensus, clock offsets, the image-level
+refinement problem, uncertainty and motion diagnostics.
+"""

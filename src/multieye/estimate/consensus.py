@@ -1,0 +1,271 @@
+"""Consensus over measurements: find the wrong ones before any least squares sees them.
+
+A wrong PnP solution, a board detected upside down or a motion-capture glitch gives a
+measurement ``(A_i, B_i)`` that no ``X``, ``Y`` fits; one such measurement can pull the closed
+form (and a refinement started from it) far off.  :func:`consensus` finds them with RANSAC
+per camera, the closed form as the minimal solver, then a joint check with the shared ``Y``:
+
+1. Per camera: draw 3 measurements (the fewest that determine ``X^j`` and ``Y`` when their
+   relative rotations are about different axes; samples about a single axis are skipped),
+   solve them with the joint closed form (:func:`multieye.solvers.joint.solve_joint`), and
+   count the measurements whose loop residual (:func:`measurement_residuals`: the paper's
+   rotation residual ``angle((R_Y R_B)^T R_A R_X)`` and the distance between the measured
+   and the predicted target origin in the camera frame) is within both thresholds.  The best
+   sample so far is re-solved on all of its inliers (local optimisation) and the number of
+   samples adapts to the inlier share (``confidence``).
+2. Jointly: the inliers of all cameras are solved together (one ``Y``), every measurement is
+   scored against that solution, and the fit is repeated on the new inliers until the set
+   no longer changes.
+
+Every rejected measurement keeps its residuals and a reason, e.g.
+``"loop residual 12.3 deg / 0.410 m above threshold 5 deg / 0.05 m (RANSAC)"``.
+
+The default thresholds (5 degrees, 5 cm) separate gross errors from noise: a half-turned
+board, a wrong PnP branch or a motion-capture glitch is off by tens of degrees, while a
+board 2 m away seen with 0.3 px noise has PnP rotation errors with a tail to about 2.5
+degrees.  Lower them for close, well-detected targets.
+
+Synopsis
+--------
+>>> from multieye.estimate.consensus import consensus
+>>> cons = consensus(A, B, threshold_rot_deg=5.0, threshold_trans_m=0.05)   # doctest: +SKIP
+>>> A_in = [a[k] for a, k in zip(A, cons.inliers)]                          # doctest: +SKIP
+>>> [(r.camera, r.index, r.reason) for r in cons.rejected]                  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from multieye.core import geometry as g
+from multieye.core.errors import InputError, TooFewMeasurementsError
+from multieye.core.metrics import loop_residuals
+from multieye.solvers.checks import MIN_MEASUREMENTS, Measurements, check_measurements, rotation_spread
+from multieye.solvers.joint import solve_joint
+
+__all__ = ["RejectedMeasurement", "ConsensusResult", "consensus", "measurement_residuals"]
+
+F64 = NDArray[np.float64]
+
+#: RMS rotation (radians) about the second principal axis below which a minimal sample counts
+#: as rotating about a single axis and is skipped (1 degree).
+_MIN_SAMPLE_SPREAD_RAD = np.deg2rad(1.0)
+_SAMPLE = 3
+
+
+@dataclass(frozen=True)
+class RejectedMeasurement:
+    """One measurement left out by :func:`consensus`.
+
+    Attributes
+    ----------
+    camera : str
+    index : int
+        Index of the measurement among that camera's (0-based, input order).
+    rot_deg : float
+        Loop rotation residual under the final solution, degrees.
+    trans_m : float
+        Loop translation residual, metres.
+    reason : str
+    """
+
+    camera: str
+    index: int
+    rot_deg: float
+    trans_m: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class ConsensusResult:
+    """Result of :func:`consensus`.
+
+    Attributes
+    ----------
+    inliers : tuple of ndarray, shape (N_j,), bool
+        Measurements kept, per camera.
+    rejected : tuple of RejectedMeasurement
+        Measurements left out, camera by camera, in input order.
+    X : ndarray, shape (m, 4, 4)
+        Closed-form solution on the inliers (``T_world_cam`` or ``T_body_cam``).
+    Y : ndarray, shape (4, 4)
+    rot_deg, trans_m : tuple of ndarray, shape (N_j,)
+        Loop residuals of every measurement under ``X``, ``Y``, degrees and metres.
+    threshold_rot_deg, threshold_trans_m : float
+    samples : tuple of int
+        Minimal samples solved per camera.
+    """
+
+    inliers: tuple[NDArray[np.bool_], ...]
+    rejected: tuple[RejectedMeasurement, ...]
+    X: F64
+    Y: F64
+    rot_deg: tuple[F64, ...]
+    trans_m: tuple[F64, ...]
+    threshold_rot_deg: float
+    threshold_trans_m: float
+    samples: tuple[int, ...]
+
+
+def measurement_residuals(A: F64, B: F64, X: F64, Y: F64) -> tuple[F64, F64]:
+    """Residuals of ``A_i X = Y B_i`` as errors of the target pose seen by the camera.
+
+    The measured ``T_cam_target = inv(B_i)`` against the predicted ``inv(X) inv(A_i) Y``
+    (both setups, DESIGN.md section 2).
+
+    Parameters
+    ----------
+    A, B : ndarray, shape (N, 4, 4)
+    X, Y : ndarray, shape (4, 4)
+
+    Returns
+    -------
+    rot_deg : ndarray, shape (N,)
+        Angle between the two, degrees: the paper's loop rotation residual (section V-A).
+    trans_m : ndarray, shape (N,)
+        Distance between the two target origins in the camera frame, metres.  Unlike the
+        paper's ``e_t`` (a camera position in the marker frame), it does not multiply PnP
+        rotation errors by the target distance, so one threshold suits near and far views.
+    """
+    pred = g.inv(X) @ g.inv(A) @ Y
+    return loop_residuals(pred, g.inv(B), np.eye(4), np.eye(4))
+
+
+def _score(A: F64, B: F64, X: F64, Y: F64, thr_rot: float, thr_t: float):
+    """Inlier mask and truncated cost (MSAC) of one camera's measurements under X, Y."""
+    rot, trans = measurement_residuals(A, B, X, Y)
+    inl = (rot <= thr_rot) & (trans <= thr_t)
+    cost = np.minimum((rot / thr_rot) ** 2 + (trans / thr_t) ** 2, 2.0).sum()
+    return inl, float(cost)
+
+
+def _fit(A: F64, B: F64) -> tuple[F64, F64]:
+    """Closed form of one camera's measurements: X (4, 4), Y (4, 4)."""
+    X, Y = solve_joint(Measurements.from_arrays(A, B, [len(A)]))
+    return X[0], Y
+
+
+def _ransac_camera(A: F64, B: F64, thr_rot: float, thr_t: float, rng: np.random.Generator,
+                   max_samples: int, confidence: float):
+    """Best inlier mask of one camera (all True when no usable minimal sample exists)."""
+    n = len(A)
+    best_inl, best_count, best_cost = np.ones(n, dtype=bool), -1, np.inf
+    samples = 0
+    needed = max_samples
+    attempts = 0
+    while samples < min(needed, max_samples) and attempts < 10 * max_samples:
+        attempts += 1
+        idx = rng.choice(n, size=_SAMPLE, replace=False)
+        if rotation_spread(A[idx])[1] < _MIN_SAMPLE_SPREAD_RAD:
+            continue
+        samples += 1
+        inl, cost = _score(A, B, *_fit(A[idx], B[idx]), thr_rot, thr_t)
+        count = int(inl.sum())
+        if count > best_count or (count == best_count and cost < best_cost):
+            # Local optimisation: re-solve on the inliers while that gains inliers.
+            for _ in range(3):
+                if inl.sum() < MIN_MEASUREMENTS:
+                    break
+                inl2, cost2 = _score(A, B, *_fit(A[inl], B[inl]), thr_rot, thr_t)
+                if inl2.sum() < inl.sum() or (inl2.sum() == inl.sum() and cost2 >= cost):
+                    break
+                inl, cost = inl2, cost2
+            best_inl, best_count, best_cost = inl, int(inl.sum()), cost
+            w = best_count / n
+            if w >= 1.0:
+                needed = samples
+            elif w > 0.0:
+                needed = int(np.ceil(np.log(1.0 - confidence) / np.log(1.0 - w ** _SAMPLE)))
+    return best_inl, samples
+
+
+def consensus(A, B, *, threshold_rot_deg: float = 5.0, threshold_trans_m: float = 0.05,
+              names: Sequence[str] | None = None, max_samples: int = 500,
+              confidence: float = 0.999, seed: int | np.random.Generator | None = 0
+              ) -> ConsensusResult:
+    """Find the measurements that agree with one ``X^j`` per camera and a shared ``Y``.
+
+    Parameters
+    ----------
+    A, B : sequence of array_like, each shape (N_j, 4, 4)
+        One entry per camera, as for :func:`multieye.solve` (DESIGN.md section 2).
+    threshold_rot_deg : float
+        Largest loop rotation residual of an inlier, degrees.
+    threshold_trans_m : float
+        Largest translation residual of an inlier (target origin in the camera frame, see
+        :func:`measurement_residuals`), metres.
+    names : sequence of str, optional
+        Camera names used in the result and in messages; default ``cam0, cam1, ...``.
+    max_samples : int
+        Minimal samples per camera at most.
+    confidence : float
+        Stop sampling a camera when a sample of inliers only has been drawn with this
+        probability, given the best inlier share so far.
+    seed : int, Generator or None
+        Random source of the samples (fixed by default: same input, same answer).
+
+    Returns
+    -------
+    ConsensusResult
+
+    Raises
+    ------
+    InputError
+        Non-positive thresholds, bad shapes or non-rigid transforms.
+    TooFewMeasurementsError
+        A camera with fewer than 3 measurements, or fewer than 3 that agree with the rest;
+        the message names the camera and the thresholds.
+    DegenerateMotionError
+        The pooled rotations of all cameras are about a single axis.
+    """
+    for name, v in (("threshold_rot_deg", threshold_rot_deg),
+                    ("threshold_trans_m", threshold_trans_m)):
+        if not (np.isfinite(v) and v > 0):
+            raise InputError(f"{name} must be a positive number, got {v!r}")
+    if not 0.0 < confidence < 1.0:
+        raise InputError(f"confidence must be in (0, 1), got {confidence}")
+    meas = check_measurements(A, B, names=list(names) if names is not None else None,
+                              per_camera_motion=False)
+    names = meas.names
+    As, Bs = meas.split(meas.A), meas.split(meas.B)
+    rng = np.random.default_rng(seed)
+    inliers, samples = [], []
+    for Aj, Bj in zip(As, Bs):
+        inl, s = _ransac_camera(Aj, Bj, threshold_rot_deg, threshold_trans_m, rng,
+                                max_samples, confidence)
+        inliers.append(inl)
+        samples.append(s)
+
+    for _ in range(10):
+        for j, inl in enumerate(inliers):
+            if inl.sum() < MIN_MEASUREMENTS:
+                raise TooFewMeasurementsError(
+                    f"camera {names[j]}: only {int(inl.sum())} of {len(inl)} measurements agree "
+                    f"within {threshold_rot_deg:g} deg / {threshold_trans_m:g} m, at least "
+                    f"{MIN_MEASUREMENTS} are needed; check its detections and time pairing, "
+                    "or raise the thresholds")
+        X, Y = solve_joint(Measurements.from_arrays(
+            np.concatenate([a[k] for a, k in zip(As, inliers)]),
+            np.concatenate([b[k] for b, k in zip(Bs, inliers)]),
+            [int(k.sum()) for k in inliers], names))
+        res = [measurement_residuals(a, b, X[j], Y) for j, (a, b) in enumerate(zip(As, Bs))]
+        new = [(r <= threshold_rot_deg) & (t <= threshold_trans_m) for r, t in res]
+        if all(np.array_equal(a, b) for a, b in zip(new, inliers)):
+            break
+        inliers = new
+
+    rejected = []
+    for j, (inl, (rot, trans)) in enumerate(zip(inliers, res)):
+        for i in np.flatnonzero(~inl):
+            rejected.append(RejectedMeasurement(
+                camera=names[j], index=int(i), rot_deg=float(rot[i]), trans_m=float(trans[i]),
+                reason=(f"loop residual {rot[i]:.1f} deg / {trans[i]:.3f} m above threshold "
+                        f"{threshold_rot_deg:g} deg / {threshold_trans_m:g} m (RANSAC)")))
+    return ConsensusResult(inliers=tuple(inliers), rejected=tuple(rejected), X=X, Y=Y,
+                           rot_deg=tuple(r for r, _ in res), trans_m=tuple(t for _, t in res),
+                           threshold_rot_deg=float(threshold_rot_deg),
+                           threshold_trans_m=float(threshold_trans_m), samples=tuple(samples))

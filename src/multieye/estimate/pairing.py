@@ -1,0 +1,140 @@
+"""Pairing images with motion-capture samples in time.
+
+Every image is matched with the motion-capture pose at its time stamp (plus the clock
+offset, DESIGN.md section 4: ``time_offset_s`` is the motion-capture clock minus the camera
+clock).  When two samples bracket the image and are at most ``2 * tolerance`` apart, the
+pose is interpolated between them (SLERP for the rotation, linear for the translation);
+otherwise the nearest sample is used if it lies within ``tolerance``, and the image is
+left unpaired, with the reason, if not.
+
+Synopsis
+--------
+>>> p = pair_in_time(mocap_stamps, T_world_marker, image_stamps, tolerance=0.03)  # doctest: +SKIP
+>>> p.T[k]  # pose at image p.index[k]                                             # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial.transform import Rotation
+
+from multieye.core.errors import InputError
+from multieye.core.geometry import make_transform
+
+__all__ = ["Pairing", "pair_in_time", "interpolate_poses"]
+
+
+@dataclass(frozen=True)
+class Pairing:
+    """Result of :func:`pair_in_time`.
+
+    Attributes
+    ----------
+    index : ndarray, shape (K,), int
+        Indices of the queries that received a pose, increasing.
+    T : ndarray, shape (K, 4, 4)
+        The pose at each of those queries (same frames as the trajectory).
+    gap_s : ndarray, shape (K,)
+        Distance in time to the nearest motion-capture sample, seconds.
+    interpolated : ndarray, shape (K,), bool
+        Whether the pose was interpolated between two bracketing samples.
+    unpaired : tuple of (int, str)
+        Query index and the reason it got no pose.
+    """
+
+    index: np.ndarray
+    T: np.ndarray
+    gap_s: np.ndarray
+    interpolated: np.ndarray
+    unpaired: tuple[tuple[int, str], ...]
+
+
+def interpolate_poses(T0: ArrayLike, T1: ArrayLike, alpha: ArrayLike) -> np.ndarray:
+    """Poses a fraction ``alpha`` of the way from ``T0`` to ``T1``.
+
+    Rotation by SLERP (``R0 exp(alpha log(R0^T R1))``), translation linearly.
+
+    Parameters
+    ----------
+    T0, T1 : array_like, shape (K, 4, 4)
+    alpha : array_like, shape (K,)
+        0 gives ``T0``, 1 gives ``T1``.
+    """
+    T0 = np.asarray(T0, dtype=np.float64)
+    T1 = np.asarray(T1, dtype=np.float64)
+    alpha = np.asarray(alpha, dtype=np.float64)
+    R0 = T0[:, :3, :3]
+    rel = np.swapaxes(R0, 1, 2) @ T1[:, :3, :3]
+    step = Rotation.from_rotvec(Rotation.from_matrix(rel).as_rotvec() * alpha[:, None]).as_matrix()
+    t = (1.0 - alpha)[:, None] * T0[:, :3, 3] + alpha[:, None] * T1[:, :3, 3]
+    return make_transform(R0 @ step, t)
+
+
+def pair_in_time(stamps: ArrayLike, T: ArrayLike, query: ArrayLike, *, tolerance: float,
+                 offset: float = 0.0) -> Pairing:
+    """Motion-capture poses at the query times.
+
+    Parameters
+    ----------
+    stamps : array_like, shape (M,)
+        Motion-capture sample times, seconds, strictly increasing.
+    T : array_like, shape (M, 4, 4)
+        Motion-capture poses.
+    query : array_like, shape (Q,)
+        Image times in the camera clock, seconds.
+    tolerance : float
+        Largest distance in time to the nearest sample, seconds.
+    offset : float
+        Motion-capture clock minus camera clock, seconds: the query time in the motion-capture
+        clock is ``query + offset``.
+
+    Returns
+    -------
+    Pairing
+    """
+    stamps = np.asarray(stamps, dtype=np.float64)
+    T = np.asarray(T, dtype=np.float64)
+    q = np.asarray(query, dtype=np.float64) + offset
+    if tolerance <= 0:
+        raise InputError(f"time tolerance must be positive, got {tolerance} s")
+    if stamps.size == 0:
+        raise InputError("the motion-capture trajectory is empty")
+    if np.any(np.diff(stamps) <= 0):
+        raise InputError("motion-capture time stamps must be strictly increasing")
+    right = np.searchsorted(stamps, q, side="left")          # first sample >= q
+    left = right - 1
+    has_left = left >= 0
+    has_right = right < stamps.size
+    li = np.clip(left, 0, stamps.size - 1)
+    ri = np.clip(right, 0, stamps.size - 1)
+    dl = np.where(has_left, q - stamps[li], np.inf)
+    dr = np.where(has_right, stamps[ri] - q, np.inf)
+    gap = np.minimum(dl, dr)
+    bracket = has_left & has_right & (stamps[ri] - stamps[li] <= 2.0 * tolerance)
+    exact = has_right & (dr == 0)
+    ok = (gap <= tolerance) | exact
+    interp = ok & bracket & ~exact
+    nearest = np.where(dl <= dr, li, ri)
+
+    out = T[nearest].copy()
+    if np.any(interp):
+        k = np.flatnonzero(interp)
+        alpha = (q[k] - stamps[li[k]]) / (stamps[ri[k]] - stamps[li[k]])
+        out[k] = interpolate_poses(T[li[k]], T[ri[k]], alpha)
+
+    unpaired = []
+    for i in np.flatnonzero(~ok):
+        if stamps.size and (q[i] < stamps[0] or q[i] > stamps[-1]):
+            where = "before" if q[i] < stamps[0] else "after"
+            why = (f"{where} the motion-capture recording ({stamps[0]:.3f}..{stamps[-1]:.3f} s), "
+                   f"nearest sample {gap[i]:.3f} s away")
+        else:
+            why = (f"nearest motion-capture sample is {gap[i]:.3f} s away "
+                   f"(time_tolerance {tolerance:g} s)")
+        unpaired.append((int(i), why))
+    idx = np.flatnonzero(ok)
+    return Pairing(index=idx, T=out[idx], gap_s=gap[idx], interpolated=interp[idx],
+                   unpaired=tuple(unpaired))

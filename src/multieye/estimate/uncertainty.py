@@ -1,0 +1,186 @@
+"""Uncertainty of rig extrinsics: relative-pose covariances and the Cramér-Rao bound.
+
+A refinement (:func:`multieye.estimate.refine_images.refine_images`, :mod:`multieye.solvers.refine_poses`) returns the
+covariance of the perturbations of every ``X^j`` and ``Y``, each as (rotation vector,
+translation) with ``R = Exp(phi) R_hat`` and ``t = t_hat + tau`` (radians, metres).  Users care
+about the relative extrinsics ``T_ref_cam = inv(X_ref) @ X_cam`` (DESIGN.md section 2), whose
+covariance follows to first order from the joint covariance of ``X_ref`` and ``X_cam``
+(:func:`multieye.solvers.refine_poses.relative_pose_covariance`).  DESIGN.md section 4 reports it per
+camera as
+
+- ``std_rot_deg``: root of the trace of the 3x3 rotation block, in degrees (the RMS of the
+  rotation error angle, to first order);
+- ``std_trans_m``: root of the trace of the 3x3 translation block, metres (the RMS of the
+  position error);
+- ``covariance``: the full 6x6, rotation vector (in the ``ref`` frame) then translation.
+
+:func:`cramer_rao_bound` evaluates the Fisher information of the image-level problem at the
+truth (pixels with i.i.d. Gaussian noise, mocap poses with the Gaussian noise of
+:class:`multieye.sim.rigs.GaussianNoise`): the smallest covariance any unbiased estimator
+of X and Y can have on simulated data.
+
+Synopsis
+--------
+>>> from multieye.estimate.uncertainty import relative_covariance
+>>> rel = relative_covariance(res.X, res.covariance, reference=0)   # doctest: +SKIP
+>>> rel.std_rot_deg, rel.std_trans_m                                # (m,), (m,)  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from multieye.core.errors import InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.solvers.refine_poses import relative_pose_covariance
+
+__all__ = ["RelativeUncertainty", "relative_covariance", "pose_std", "cramer_rao_bound"]
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RelativeUncertainty:
+    """Uncertainty of every ``T_ref_cam``.
+
+    Attributes
+    ----------
+    reference : int
+        Index of the reference camera (its covariance is zero).
+    covariance : ndarray, shape (m, 6, 6)
+        Covariance of (rotation vector in the ``ref`` frame, translation) of each
+        ``T_ref_cam``, radians and metres.
+    std_rot_deg : ndarray, shape (m,)
+        Root of the trace of each rotation block, degrees.
+    std_trans_m : ndarray, shape (m,)
+        Root of the trace of each translation block, metres.
+    """
+
+    reference: int
+    covariance: F64
+    std_rot_deg: F64
+    std_trans_m: F64
+
+
+def pose_std(covariance: ArrayLike) -> tuple[F64, F64]:
+    """Root of the trace of the rotation and translation blocks of 6x6 pose covariances.
+
+    Parameters
+    ----------
+    covariance : array_like, shape (..., 6, 6)
+        (rotation vector, translation), radians and metres.
+
+    Returns
+    -------
+    std_rot_deg : ndarray, shape (...)
+        Degrees.
+    std_trans_m : ndarray, shape (...)
+        Metres.
+    """
+    C = np.asarray(covariance, dtype=np.float64)
+    if C.shape[-2:] != (6, 6):
+        raise InputError(f"pose covariances must be 6x6, got shape {C.shape}")
+    rot = np.trace(C[..., :3, :3], axis1=-2, axis2=-1)
+    trans = np.trace(C[..., 3:, 3:], axis1=-2, axis2=-1)
+    return np.degrees(np.sqrt(np.clip(rot, 0.0, None))), np.sqrt(np.clip(trans, 0.0, None))
+
+
+def relative_covariance(X: ArrayLike, covariance: ArrayLike, reference: int = 0
+                        ) -> RelativeUncertainty:
+    """Covariance of every ``T_ref_cam = inv(X_ref) @ X_cam`` from the joint covariance of X.
+
+    Parameters
+    ----------
+    X : array_like, shape (m, 4, 4)
+        ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand).
+    covariance : array_like, shape (6m, 6m) or (6(m+1), 6(m+1))
+        Joint covariance of X^0..X^{m-1} (then optionally Y, ignored), each (rotation vector,
+        translation) with ``R = Exp(phi) R_hat``, ``t = t_hat + tau``: the ``covariance`` of
+        :class:`multieye.estimate.refine_images.RefinementResult` or of a refined
+        :class:`multieye.solvers.Solution`.  Cross-covariances between cameras matter (they
+        share Y) and are used.
+    reference : int
+        Index of the reference camera.
+
+    Returns
+    -------
+    RelativeUncertainty
+
+    Raises
+    ------
+    InputError
+        Shapes that do not match, or a reference index out of range.
+    """
+    X = np.asarray(X, dtype=np.float64)
+    C = np.asarray(covariance, dtype=np.float64)
+    if X.ndim != 3 or X.shape[1:] != (4, 4):
+        raise InputError(f"X must have shape (m, 4, 4), got {X.shape}")
+    m = X.shape[0]
+    if C.shape not in ((6 * m, 6 * m), (6 * m + 6, 6 * m + 6)):
+        raise InputError(f"covariance must be {6 * m}x{6 * m} (X) or {6 * m + 6}x{6 * m + 6} "
+                         f"(X and Y) for {m} cameras, got {C.shape}")
+    if not 0 <= reference < m:
+        raise InputError(f"reference camera index {reference} out of range for {m} cameras")
+    out = np.zeros((m, 6, 6))
+    r = slice(6 * reference, 6 * reference + 6)
+    for j in range(m):
+        if j == reference:
+            continue
+        c = slice(6 * j, 6 * j + 6)
+        joint = np.block([[C[r, r], C[r, c]], [C[c, r], C[c, c]]])
+        out[j] = relative_pose_covariance(X[reference], X[j], joint)
+    out = 0.5 * (out + np.swapaxes(out, 1, 2))
+    std_rot, std_trans = pose_std(out)
+    return RelativeUncertainty(reference=reference, covariance=out, std_rot_deg=std_rot,
+                               std_trans_m=std_trans)
+
+
+def cramer_rao_bound(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
+                     X: ArrayLike, Y: ArrayLike, *, pixel_sigma: float,
+                     mocap_rot_sigma_rad: float, mocap_trans_sigma_m: float) -> F64:
+    """Cramér-Rao bound of X and Y for the image-level problem of :mod:`multieye.estimate.refine_images`.
+
+    The inverse of the Fisher information ``J^T J`` of the sigma-normalised residuals
+    (pixels, mocap priors), evaluated at the true parameters, restricted to X and Y by the
+    Schur complement (the true mocap poses are nuisance parameters).  Exact for the Gaussian
+    noise models of :mod:`multieye.sim.images`, to first order in the noise.
+
+    Parameters
+    ----------
+    setup : {"eye-to-base", "eye-on-hand"}
+    observations : sequence over cameras of sequence of (object_points, image_points, T_world_mocap)
+        As for :func:`multieye.estimate.refine_images.refine_images`, with the *true* motion-capture poses
+        (the image points are not used): e.g.
+        :attr:`multieye.sim.images.ImageScenario.true_observations`.
+    intrinsics : sequence of Intrinsics
+    X : array_like, shape (m, 4, 4)
+        True ``T_world_cam`` / ``T_body_cam``.
+    Y : array_like, shape (4, 4)
+        True ``T_marker_target`` / ``T_world_target``.
+    pixel_sigma : float
+        Pixel noise, pixels.
+    mocap_rot_sigma_rad, mocap_trans_sigma_m : float
+        Motion-capture noise, radians and metres.
+
+    Returns
+    -------
+    ndarray, shape (6(m+1), 6(m+1))
+        Lower bound of the covariance of X^0..X^{m-1}, Y in the convention of
+        :class:`multieye.estimate.refine_images.RefinementResult`; pass it to :func:`relative_covariance` for
+        the bound of every ``T_ref_cam``.
+    """
+    from multieye.estimate.refine_images import ImageProblem
+
+    problem = ImageProblem(setup, observations, intrinsics)
+    sigmas = np.array([pixel_sigma, mocap_rot_sigma_rad, mocap_trans_sigma_m], dtype=np.float64)
+    if not np.all(np.isfinite(sigmas) & (sigmas > 0)):
+        raise InputError(f"noise levels must be positive, got {sigmas.tolist()}")
+    X = np.asarray(X, dtype=np.float64)
+    Y = np.asarray(Y, dtype=np.float64)
+    blk = problem.jacobian_blocks(np.zeros(problem.n_params), X, Y, sigmas[0])
+    cov, _ = problem.marginal(blk, 1.0 / np.repeat(sigmas[1:], 3) ** 2)
+    return cov

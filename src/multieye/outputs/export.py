@@ -1,0 +1,397 @@
+"""Export a calibration to the formats other tools read: ``multieye export OUT --format F``.
+
+:func:`export` reads ``OUT/calibration.json`` (and the intrinsics from ``OUT/details.json``,
+:mod:`multieye.io.run_details`, where a format holds them) and writes into ``OUT/export/``:
+
+=============  =========================  ==================================================
+format         file                       content
+=============  =========================  ==================================================
+``kalibr``     ``camchain.yaml``          Kalibr camera chain (``T_cn_cnm1``, intrinsics);
+                                          :func:`multieye.io.read_camchain` reads it back
+``opencv``     ``extrinsics.yaml``        OpenCV FileStorage: per camera ``T_ref_cam`` and
+                                          ``T_world_cam`` (or ``T_body_cam``) as 4x4
+                                          ``!!opencv-matrix``, with intrinsics when known
+``urdf``       ``cameras.urdf``           one fixed joint per camera from the base link;
+                                          :func:`read_urdf_joints` reads it back
+``tf-static``  ``static_transforms.sh``   one ROS 2 ``static_transform_publisher`` command
+                                          per camera; :func:`read_tf_static` reads it back
+``json``       ``calibration.json``       compact ``calibration.json``;
+                                          :func:`multieye.io.read_calibration` reads it back
+=============  =========================  ==================================================
+
+Frames.  The base frame is the one each camera's unknown X is expressed in (DESIGN.md
+section 2): ``world`` (motion capture) for eye-to-base, where ``X = T_world_cam``, and ``body``
+(the tracked rig) for eye-on-hand, where ``X = T_body_cam``.  multieye's camera frame is the
+optical frame of OpenCV and of ROS (REP 103: x right, y down, z forward), so in ROS terms the
+calibrated pose is that of ``<camera>_optical_frame``.  The URDF adds the usual body-convention
+link ``<camera>_link`` (x forward, y left, z up) between the base and the optical frame, with
+``T_link_optical`` = rpy ``(-pi/2, 0, -pi/2)``; the tf lines publish base -> optical frame
+directly.
+
+Conventions checked against the formats' definitions: a URDF joint ``<origin xyz rpy>`` is the
+pose of the child link in the parent link, with ``rpy`` fixed-axis roll about x, then pitch
+about y, then yaw about z, i.e. ``R = Rz(yaw) Ry(pitch) Rx(roll)``; ROS 2's
+``static_transform_publisher --x --y --z --qx --qy --qz --qw --frame-id P --child-frame-id C``
+publishes the pose of C in P (``T_P_C``), translation in metres.  Numbers are written with
+``repr`` precision, so every round trip is exact to the last bit of the text.
+
+Synopsis
+--------
+>>> from multieye.outputs.export import export, FORMATS
+>>> export("out", "urdf")                # doctest: +SKIP
+[PosixPath('out/export/cameras.urdf')]
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from multieye.core import geometry as g
+from multieye.core.errors import DatasetError, InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.io.atomic import write_text_atomic
+from multieye.io.calibration_json import SETUP_KEYS, CalibrationRecord, calibration_to_dict, read_calibration
+from multieye.io.kalibr import CamchainEntry, write_camchain
+from multieye.io.run_details import read_run_details
+from multieye.io.textfile import read_text
+from multieye.io.yamlfile import yaml_list
+
+__all__ = [
+    "FORMATS",
+    "BASE_FRAME",
+    "T_LINK_OPTICAL",
+    "export",
+    "opencv_text",
+    "urdf_text",
+    "tf_static_text",
+    "read_urdf_joints",
+    "read_tf_static",
+    "rpy_from_rotation",
+    "rotation_from_rpy",
+]
+
+#: Format names of ``multieye export --format``, and the file each writes in ``OUT/export/``.
+FORMATS = {
+    "kalibr": "camchain.yaml",
+    "opencv": "extrinsics.yaml",
+    "urdf": "cameras.urdf",
+    "tf-static": "static_transforms.sh",
+    "json": "calibration.json",
+}
+
+#: setup -> name of the frame the cameras' X is expressed in.
+BASE_FRAME = {"eye-to-base": "world", "eye-on-hand": "body"}
+
+_TF_COMMAND = ("ros2", "run", "tf2_ros", "static_transform_publisher")
+
+
+def _rx(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _ry(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rotation_from_rpy(rpy) -> np.ndarray:
+    """URDF's fixed-axis roll, pitch, yaw (radians) -> ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
+    roll, pitch, yaw = (float(a) for a in rpy)
+    return _rz(yaw) @ _ry(pitch) @ _rx(roll)
+
+
+def rpy_from_rotation(R) -> np.ndarray:
+    """Inverse of :func:`rotation_from_rpy`: ``(roll, pitch, yaw)``, radians.
+
+    Accurate to rounding everywhere, gimbal lock included (pitch = +-90 degrees, a camera
+    looking straight up or down): pitch comes from ``atan2(-R20, hypot(R00, R10))``, yaw from
+    the first column, and roll from what is left once yaw and pitch are undone, so that an
+    ill-determined yaw near the lock is compensated by roll instead of leaking into the
+    rotation (at the lock only ``roll - yaw`` or ``roll + yaw`` is defined).
+    """
+    R = np.asarray(R, dtype=np.float64)[:3, :3]
+    pitch = np.arctan2(-R[2, 0], np.hypot(R[0, 0], R[1, 0]))
+    yaw = np.arctan2(R[1, 0], R[0, 0])
+    M = _ry(pitch).T @ _rz(yaw).T @ R          # = Rx(roll) up to rounding
+    roll = np.arctan2(M[2, 1], M[1, 1])
+    return np.array([roll, pitch, yaw])
+
+
+#: Pose of the ROS optical frame (x right, y down, z forward) in the body-convention camera
+#: link (x forward, y left, z up): rpy (-pi/2, 0, -pi/2).
+T_LINK_OPTICAL = g.make_transform(rotation_from_rpy((-np.pi / 2, 0.0, -np.pi / 2)), np.zeros(3))
+
+
+def _f(x: float) -> str:
+    """A float as the shortest text that reads back to the same double."""
+    return repr(float(x))
+
+
+# --------------------------------------------------------------------------- writers (text)
+
+
+def _opencv_matrix(name: str, M: np.ndarray, indent: str) -> list[str]:
+    M = np.atleast_2d(np.asarray(M, dtype=np.float64))
+    return [f"{indent}{name}: !!opencv-matrix", f"{indent}   rows: {M.shape[0]}",
+            f"{indent}   cols: {M.shape[1]}", f"{indent}   dt: d",
+            f"{indent}   data: {yaml_list(M.reshape(-1))}"]
+
+
+def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]) -> str:
+    """OpenCV FileStorage YAML of a calibration (what ``extrinsics.yaml`` holds).
+
+    Layout: ``setup``, ``method``, ``reference_camera``, ``base_frame``, the shared unknown
+    (``T_marker_target`` or ``T_world_target``) and ``cameras``, a sequence of maps with
+    ``name``, ``T_ref_cam``, ``T_world_cam`` (or ``T_body_cam``) and, when known,
+    ``camera_matrix``, ``distortion_model`` (``pinhole`` or ``fisheye``),
+    ``distortion_coefficients`` (1 x k), ``image_width`` and ``image_height``.  Read it with
+    ``cv2.FileStorage(path, cv2.FILE_STORAGE_READ)``; ``fs.getNode("cameras").at(j)``.
+    """
+    y_key, x_key = SETUP_KEYS[rec.setup]
+    lines = ["%YAML:1.0", "---",
+             "# multieye calibration: T_a_b maps coordinates in frame b to frame a (metres)",
+             f"setup: {json.dumps(rec.setup)}", f"method: {json.dumps(rec.method)}",
+             f"reference_camera: {json.dumps(rec.reference_camera)}",
+             f"base_frame: {json.dumps(BASE_FRAME[rec.setup])}",
+             *_opencv_matrix(y_key, rec.Y, ""), "cameras:"]
+    ind = "      "
+    for cam in rec.cameras:
+        lines += ["   -", f"{ind}name: {json.dumps(cam.name)}",
+                  *_opencv_matrix("T_ref_cam", cam.T_ref_cam, ind),
+                  *_opencv_matrix(x_key, cam.X, ind)]
+        intr = intrinsics.get(cam.name)
+        if intr is not None:
+            lines += _opencv_matrix("camera_matrix", intr.K, ind)
+            lines.append(f"{ind}distortion_model: {json.dumps(intr.model)}")
+            if intr.dist.size:
+                lines += _opencv_matrix("distortion_coefficients", intr.dist[None], ind)
+            if intr.width is not None and intr.height is not None:
+                lines += [f"{ind}image_width: {int(intr.width)}",
+                          f"{ind}image_height: {int(intr.height)}"]
+    return "\n".join(lines) + "\n"
+
+
+def _origin(parent: ET.Element, T: np.ndarray) -> None:
+    xyz = " ".join(_f(v) for v in T[:3, 3])
+    rpy = " ".join(_f(v) for v in rpy_from_rotation(T[:3, :3]))
+    ET.SubElement(parent, "origin", xyz=xyz, rpy=rpy)
+
+
+def _joint(robot: ET.Element, name: str, parent: str, child: str, T: np.ndarray) -> None:
+    joint = ET.SubElement(robot, "joint", name=name, type="fixed")
+    ET.SubElement(joint, "parent", link=parent)
+    ET.SubElement(joint, "child", link=child)
+    _origin(joint, T)
+
+
+def urdf_text(rec: CalibrationRecord) -> str:
+    """A URDF ``<robot>`` with the base link, and per camera ``<camera>_link`` and
+    ``<camera>_optical_frame`` joined by fixed joints (see the module docstring)."""
+    base = BASE_FRAME[rec.setup]
+    robot = ET.Element("robot", name="multieye_cameras")
+    robot.append(ET.Comment(
+        f" multieye calibration ({rec.setup}, method {rec.method}, reference "
+        f"{rec.reference_camera}). The cameras' poses in '{base}'; '<camera>_optical_frame' "
+        "is the calibrated camera frame (x right, y down, z forward). Remove the base link "
+        "when merging into a description that already has it. "))
+    ET.SubElement(robot, "link", name=base)
+    T_optical_link = g.inv(T_LINK_OPTICAL)
+    for cam in rec.cameras:
+        link, optical = f"{cam.name}_link", f"{cam.name}_optical_frame"
+        ET.SubElement(robot, "link", name=link)
+        ET.SubElement(robot, "link", name=optical)
+        _joint(robot, f"{cam.name}_joint", base, link, cam.X @ T_optical_link)
+        _joint(robot, f"{cam.name}_optical_joint", link, optical, T_LINK_OPTICAL)
+    ET.indent(robot, space="  ")
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
+def tf_static_text(rec: CalibrationRecord) -> str:
+    """One ROS 2 ``static_transform_publisher`` command per camera, base -> optical frame.
+
+    Each line runs in the background (``&``) and the script waits, so that
+    ``sh static_transforms.sh`` publishes every camera; each line also works on its own.
+    """
+    base = BASE_FRAME[rec.setup]
+    lines = ["#!/bin/sh",
+             f"# multieye calibration ({rec.setup}, method {rec.method}): pose of each camera's "
+             f"optical frame in '{base}'",
+             "# (x right, y down, z forward); ROS 2 static_transform_publisher, metres."]
+    for cam in rec.cameras:
+        q = g.quat_from_transform(cam.X)  # (qx, qy, qz, qw), qw >= 0
+        args = [*_TF_COMMAND,
+                "--x", _f(cam.X[0, 3]), "--y", _f(cam.X[1, 3]), "--z", _f(cam.X[2, 3]),
+                "--qx", _f(q[0]), "--qy", _f(q[1]), "--qz", _f(q[2]), "--qw", _f(q[3]),
+                "--frame-id", base, "--child-frame-id", f"{cam.name}_optical_frame"]
+        lines.append(" ".join(shlex.quote(a) for a in args) + " &")
+    lines.append("wait")
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------- readers
+
+
+def read_urdf_joints(path: str | os.PathLike) -> dict[tuple[str, str], np.ndarray]:
+    """The fixed joints of a URDF: ``(parent, child) -> T_parent_child``.
+
+    Raises
+    ------
+    DatasetError
+        Not XML, or a joint without parent, child or a numeric ``origin``.
+    """
+    text = read_text(path, what="URDF file")
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise DatasetError(f"invalid XML: {exc}", path=path, line=exc.position[0]) from None
+    joints = {}
+    for joint in root.iter("joint"):
+        name = joint.get("name", "?")
+        parent, child = joint.find("parent"), joint.find("child")
+        if parent is None or child is None or not parent.get("link") or not child.get("link"):
+            raise DatasetError(f"joint {name!r} needs <parent link=...> and <child link=...>",
+                               path=path)
+        origin = joint.find("origin")
+        values = {"xyz": [0.0] * 3, "rpy": [0.0] * 3}
+        for key in values:
+            text_value = origin.get(key) if origin is not None else None
+            if text_value is not None:
+                try:
+                    values[key] = [float(v) for v in text_value.split()]
+                except ValueError:
+                    values[key] = []
+                if len(values[key]) != 3:
+                    raise DatasetError(f"joint {name!r}: origin {key} must be 3 numbers, got "
+                                       f"{text_value!r}", path=path)
+        joints[(parent.get("link"), child.get("link"))] = g.make_transform(
+            rotation_from_rpy(values["rpy"]), values["xyz"])
+    return joints
+
+
+def read_tf_static(path: str | os.PathLike) -> dict[tuple[str, str], np.ndarray]:
+    """The ``static_transform_publisher`` lines of a file: ``(frame_id, child) -> T``.
+
+    Accepts the flag form written by :func:`tf_static_text` (``--x ... --child-frame-id``),
+    with or without the ``ros2 run tf2_ros`` prefix and a trailing ``&``; other lines
+    (comments, ``wait``) are skipped.
+
+    Raises
+    ------
+    DatasetError
+        A publisher line with an unknown flag, a missing value, a non-number or a quaternion
+        that is not unit length, with its line number.
+    """
+    out = {}
+    numbers = ("--x", "--y", "--z", "--qx", "--qy", "--qz", "--qw")
+    for lineno, line in enumerate(read_text(path, what="tf file").splitlines(), start=1):
+        try:
+            words = shlex.split(line, comments=True)
+        except ValueError as exc:
+            raise DatasetError(f"cannot split the line: {exc}", path=path, line=lineno) from None
+        if "static_transform_publisher" not in words:
+            continue
+        words = words[words.index("static_transform_publisher") + 1:]
+        if words and words[-1] == "&":
+            words = words[:-1]
+        if len(words) % 2:
+            raise DatasetError("expected --flag value pairs", path=path, line=lineno)
+        args = dict(zip(words[::2], words[1::2]))
+        unknown = sorted(set(args) - {*numbers, "--frame-id", "--child-frame-id"})
+        if unknown or "--frame-id" not in args or "--child-frame-id" not in args:
+            raise DatasetError("expected --x --y --z --qx --qy --qz --qw --frame-id "
+                               f"--child-frame-id{'; unknown ' + ', '.join(unknown) if unknown else ''}",
+                               path=path, line=lineno)
+        try:
+            v = {k: float(args.get(k, "1" if k == "--qw" else "0")) for k in numbers}
+        except ValueError:
+            raise DatasetError("translation and quaternion values must be numbers", path=path,
+                               line=lineno) from None
+        q = np.array([v["--qx"], v["--qy"], v["--qz"], v["--qw"]])
+        if abs(np.linalg.norm(q) - 1.0) > 1e-6:
+            raise DatasetError(f"quaternion norm is {np.linalg.norm(q):.6g}, expected 1",
+                               path=path, line=lineno)
+        out[(args["--frame-id"], args["--child-frame-id"])] = g.transform_from_quat(
+            q, [v["--x"], v["--y"], v["--z"]])
+    return out
+
+
+# --------------------------------------------------------------------------- export
+
+
+def _intrinsics(out: Path, rec: CalibrationRecord, *, required: bool) -> dict:
+    path = out / "details.json"
+    if not path.exists():
+        if required:
+            raise DatasetError("the intrinsics are in details.json, which this folder does not "
+                               "have; rerun `multieye calibrate` to write it", path=path)
+        return {}
+    details = read_run_details(path)
+    found = {c.name: c.intrinsics for c in details.cameras}
+    missing = [c.name for c in rec.cameras if found.get(c.name) is None]
+    if required and missing:
+        raise DatasetError(f"no intrinsics for {', '.join(missing)} (cameras given by poses "
+                           "without intrinsics); a Kalibr camchain needs them", path=path)
+    return found
+
+
+def export(out_dir: str | os.PathLike, fmt: str, *,
+           dest: str | os.PathLike | None = None) -> list[Path]:
+    """Write the calibration in ``out_dir`` in format ``fmt`` (see the module docstring).
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Output folder of ``multieye calibrate`` (``calibration.json``, ``details.json``).
+    fmt : str
+        One of :data:`FORMATS`.
+    dest : path-like, optional
+        Folder to write into (created); default ``out_dir/export``.
+
+    Returns
+    -------
+    list of Path
+        The files written (atomically).
+
+    Raises
+    ------
+    InputError
+        Unknown format, or intrinsics that Kalibr's models cannot hold.
+    DatasetError
+        ``calibration.json`` missing or invalid; ``details.json`` missing for ``kalibr``.
+    """
+    if fmt not in FORMATS:
+        raise InputError(f"unknown export format {fmt!r}; expected one of {', '.join(FORMATS)}")
+    out = Path(out_dir)
+    rec = read_calibration(out / "calibration.json")
+    folder = Path(dest) if dest is not None else out / "export"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"cannot create the export folder: {exc.strerror}", path=folder) from exc
+    path = folder / FORMATS[fmt]
+    if fmt == "kalibr":
+        intr = _intrinsics(out, rec, required=True)
+        write_camchain(path, [CamchainEntry(c.name, intr[c.name], c.T_ref_cam)
+                              for c in rec.cameras])
+    elif fmt == "opencv":
+        write_text_atomic(path, opencv_text(rec, _intrinsics(out, rec, required=False)))
+    elif fmt == "urdf":
+        write_text_atomic(path, urdf_text(rec))
+    elif fmt == "tf-static":
+        write_text_atomic(path, tf_static_text(rec))
+    else:  # json
+        text = json.dumps(calibration_to_dict(rec), separators=(",", ":"), allow_nan=False)
+        write_text_atomic(path, text + "\n")
+    return [path]

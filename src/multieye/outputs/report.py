@@ -1,0 +1,459 @@
+"""``report.html``: a self-contained, printable page about one calibration.
+
+:func:`write_report` reads ``OUT/calibration.json`` (and ``OUT/details.json`` when present,
+:mod:`multieye.io.run_details`) and writes ``OUT/report.html`` plus the figures as PNG files in
+``OUT/figures/`` for people who work from a terminal.  The page holds, in reading order:
+
+1. a summary (setup, method, reference camera, images used and rejected, mean residuals) and
+   the warnings;
+2. the extrinsics ``T_ref_cam`` as tx ty tz yaw pitch roll with their uncertainty and time
+   offsets when the run computed them, and the residuals per camera;
+3. the rig in 3D (:func:`multieye.outputs.figures.rig_png`);
+4. per-camera residual histograms and residuals over time;
+5. the weak-motion diagnostics (the free-form ``diagnostics`` of ``details.json``);
+6. the rejected images and measurements with their reasons.
+
+The page needs nothing else: figures are embedded as base64 PNG, the style is inline, there is
+no JavaScript, and a Content-Security-Policy forbids loading anything from anywhere, so a
+browser shows exactly what the file holds (and logs any attempt to load more as an error).
+Without ``details.json`` the histograms and time plots are left out with a note, and the rig is
+drawn from ``T_ref_cam`` alone.
+
+Synopsis
+--------
+>>> from multieye.outputs.report import write_report
+>>> write_report("out")            # doctest: +SKIP
+PosixPath('out/report.html')
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from html import escape
+from pathlib import Path
+
+import numpy as np
+
+from multieye.core.errors import DatasetError
+from multieye.io.atomic import write_bytes_atomic, write_text_atomic
+from multieye.io.calibration_json import SETUP_KEYS, CalibrationRecord, read_calibration
+from multieye.io.run_details import RunDetails, read_run_details
+from multieye.core.metrics import pose_row
+
+__all__ = ["FIGURES", "write_report", "report_html", "load_details"]
+
+#: File names of the figures in ``OUT/figures/``, in page order.
+FIGURES = ("rig.png", "residual_histograms.png", "residuals_over_time.png")
+
+#: The page may load nothing but its own inline style and data-URI images.
+_CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'"
+
+_STYLE = """
+:root { --ink:#1d232a; --muted:#5b6570; --line:#d9dee3; --soft:#f4f6f8; --accent:#1f5f99;
+        --warn-bg:#fff6e0; --warn-line:#e0a800; --ok-bg:#eaf6ec; --ok-line:#3c9a50; }
+* { box-sizing: border-box; }
+body { margin: 0; color: var(--ink); background: #fff;
+       font: 15px/1.5 system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif; }
+main { max-width: 1120px; margin: 0 auto; padding: 28px 32px 48px; }
+h1 { font-size: 26px; margin: 0 0 4px; }
+h2 { font-size: 19px; margin: 36px 0 10px; padding-bottom: 4px; border-bottom: 2px solid var(--line); }
+h3 { font-size: 15px; margin: 18px 0 6px; }
+p { margin: 6px 0 10px; }
+.sub { color: var(--muted); margin: 0 0 18px; }
+.cards { display: grid; grid-template-columns: repeat(auto-fit, minmax(150px, 1fr)); gap: 10px;
+         margin: 0 0 14px; }
+.card { background: var(--soft); border: 1px solid var(--line); border-radius: 6px; padding: 8px 12px; }
+.card .k { font-size: 12px; color: var(--muted); text-transform: uppercase; letter-spacing: .04em; }
+.card .v { font-size: 20px; font-weight: 600; font-variant-numeric: tabular-nums; }
+nav { font-size: 14px; color: var(--muted); margin: 8px 0 0; }
+nav a { color: var(--accent); text-decoration: none; margin-right: 14px; white-space: nowrap; }
+.box { border-left: 4px solid; border-radius: 4px; padding: 8px 14px; margin: 10px 0; }
+.box.warn { background: var(--warn-bg); border-color: var(--warn-line); }
+.box.ok { background: var(--ok-bg); border-color: var(--ok-line); }
+.box ul { margin: 4px 0; padding-left: 20px; }
+.note { color: var(--muted); font-size: 13.5px; }
+table { border-collapse: collapse; min-width: 60%; margin: 6px 0 8px; font-size: 13.5px; }
+th, td { padding: 4px 12px; border-bottom: 1px solid var(--line); text-align: right;
+         font-variant-numeric: tabular-nums; vertical-align: top; }
+th { background: var(--soft); font-weight: 600; white-space: nowrap; }
+th.l, td.l { text-align: left; }
+th.group { text-align: center; border-bottom: 1px solid #b9c1c9; }
+thead tr:first-child th { padding-bottom: 0; }
+tbody tr:nth-child(even) td { background: #fafbfc; }
+td.ref { font-weight: 600; }
+td.bad { color: #b3261e; font-weight: 600; }
+.wrap { overflow-x: auto; }
+figure { margin: 10px 0 18px; }
+figure img { display: block; max-width: 100%; height: auto; margin: 0 auto;
+             border: 1px solid var(--line); border-radius: 4px; }
+figcaption { color: var(--muted); font-size: 13.5px; margin-top: 6px; }
+code { font-family: "DejaVu Sans Mono", Menlo, Consolas, monospace; font-size: 12.5px; }
+details { margin: 8px 0; }
+summary { cursor: pointer; color: var(--accent); }
+pre.matrix { background: var(--soft); padding: 6px 10px; border-radius: 4px; font-size: 12px;
+             overflow-x: auto; margin: 4px 0 10px; }
+footer { margin-top: 36px; padding-top: 10px; border-top: 1px solid var(--line);
+         color: var(--muted); font-size: 13px; }
+@media print {
+  body { font-size: 10.5pt; }
+  main { max-width: none; padding: 0; }
+  nav { display: none; }
+  h2 { break-after: avoid; }
+  figure, table, .box { break-inside: avoid; }
+  tbody tr:nth-child(even) td { background: none; }
+}
+"""
+
+
+# --------------------------------------------------------------------------- formatting
+
+
+def _num(x, fmt: str, scale: float = 1.0) -> str:
+    """A number cell, or an en dash for a missing or non-finite value."""
+    if x is None:
+        return "–"
+    x = float(x) * scale
+    return format(x, fmt) if np.isfinite(x) else "–"
+
+
+def _value(v) -> str:
+    """A free-form diagnostics value as text."""
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return format(v, ".4g")
+    if isinstance(v, str):
+        return v
+    return json.dumps(v, separators=(", ", ": "))
+
+
+def _table(header: Sequence[str], rows: Iterable[Sequence[str]], *, left: int = 1,
+           classes: Sequence[Sequence[str]] | None = None,
+           groups: Sequence[tuple[str, int]] = ()) -> str:
+    """An HTML table of escaped text cells; the first ``left`` columns are left-aligned.
+
+    ``groups`` adds a first header row of ``(label, number of columns)`` spans (an empty
+    label leaves those columns ungrouped), so that sub-headers can stay short.
+    """
+    def cls(i, extra=""):
+        names = " ".join(n for n in ("l" if i < left else "", extra) if n)
+        return f' class="{names}"' if names else ""
+
+    top = ""
+    if groups:
+        cells, i = [], 0
+        for label, span in groups:
+            cells.append(f'<th colspan="{span}"{cls(i, "group" if label else "")}>'
+                         f"{escape(label)}</th>")
+            i += span
+        top = f"<tr>{''.join(cells)}</tr>"
+    head = "".join(f"<th{cls(i)}>{escape(h)}</th>" for i, h in enumerate(header))
+    body = []
+    for r, row in enumerate(rows):
+        extra = classes[r] if classes is not None else [""] * len(row)
+        body.append("<tr>" + "".join(f"<td{cls(i, extra[i])}>{escape(str(c))}</td>"
+                                     for i, c in enumerate(row)) + "</tr>")
+    return (f'<div class="wrap"><table><thead>{top}<tr>{head}</tr></thead>'
+            f'<tbody>{"".join(body)}</tbody></table></div>')
+
+
+def _figure(png: bytes, alt: str, caption: str, name: str) -> str:
+    data = base64.b64encode(png).decode("ascii")
+    return (f'<figure><img src="data:image/png;base64,{data}" alt="{escape(alt)}">'
+            f"<figcaption>{caption} <span class=\"note\">(also <code>figures/{escape(name)}"
+            "</code>)</span></figcaption></figure>")
+
+
+# --------------------------------------------------------------------------- sections
+
+
+def _summary(rec: CalibrationRecord, out: Path) -> str:
+    used = sum(c.measurements_used for c in rec.cameras)
+    rejected = sum(len(c.rejected) for c in rec.cameras)
+    cards = [("cameras", str(len(rec.cameras))), ("images used", str(used)),
+             ("rejected", str(rejected)),
+             ("mean rotation residual", f"{rec.residuals.e_R_deg:.3f}°"),
+             ("mean translation residual", f"{rec.residuals.e_t_m * 1e3:.2f} mm"),
+             ("warnings", str(len(rec.warnings)))]
+    y_key = SETUP_KEYS[rec.setup][0]
+    cards_html = "".join(f'<div class="card"><div class="k">{escape(k)}</div>'
+                         f'<div class="v">{escape(v)}</div></div>' for k, v in cards)
+    sub = (f"{escape(rec.setup)} setup &middot; method <b>{escape(rec.method)}</b> &middot; "
+           f"reference camera <b>{escape(rec.reference_camera)}</b> &middot; folder "
+           f"<code>{escape(str(out))}</code>")
+    links = [("warnings", "Warnings"), ("extrinsics", "Extrinsics"), ("residuals", "Residuals"),
+             ("rig", "Rig"), ("histograms", "Histograms"), ("over-time", "Over time"),
+             ("diagnostics", "Diagnostics"), ("rejected", "Rejected")]
+    nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in links)
+    shared = (f'<p class="note">Shared unknown <code>{escape(y_key)}</code>: translation '
+              f"{_vector(pose_row(rec.Y)[:3], '.4f')} m, yaw pitch roll "
+              f"{_vector(pose_row(rec.Y)[3:], '.3f')} deg.</p>")
+    return (f"<header><h1>Calibration report</h1><p class=\"sub\">{sub}</p>"
+            f'<div class="cards">{cards_html}</div>{shared}<nav>{nav}</nav></header>')
+
+
+def _vector(v, fmt: str) -> str:
+    return "(" + ", ".join(format(float(x), fmt) for x in v) + ")"
+
+
+def _warnings(rec: CalibrationRecord, notes: Sequence[str]) -> str:
+    out = ['<section id="warnings"><h2>Warnings</h2>']
+    if rec.warnings:
+        items = "".join(f"<li>{escape(w)}</li>" for w in rec.warnings)
+        out.append(f'<div class="box warn"><ul>{items}</ul></div>')
+    else:
+        out.append('<div class="box ok">The calibration raised no warnings.</div>')
+    out.extend(f'<p class="note">{escape(n)}</p>' for n in notes)
+    out.append("</section>")
+    return "".join(out)
+
+
+def _extrinsics(rec: CalibrationRecord) -> str:
+    cams = rec.cameras
+    optional = [("std_rot_deg", "σ rot (deg)", ".3f", 1.0),
+                ("std_trans_m", "σ trans (mm)", ".2f", 1e3),
+                ("time_offset_s", "time offset (ms)", ".1f", 1e3)]
+    present = [o for o in optional if any(getattr(c, o[0]) is not None for c in cams)]
+    header = ["camera", "tx (m)", "ty (m)", "tz (m)", "yaw (deg)", "pitch (deg)", "roll (deg)",
+              *(o[1] for o in present)]
+    rows, classes = [], []
+    for c in cams:
+        p = pose_row(c.T_ref_cam)
+        ref = c.name == rec.reference_camera
+        rows.append([c.name + (" (ref)" if ref else ""),
+                     *(format(v, ".4f") for v in p[:3]), *(format(v, ".3f") for v in p[3:]),
+                     *(_num(getattr(c, key), fmt, scale) for key, _, fmt, scale in present)])
+        classes.append(["ref" if ref else ""] + [""] * (len(header) - 1))
+    missing = [o[1].split(" (")[0] for o in optional if o not in present]
+    note = ("Pose of each camera in the reference camera's frame, <code>T_ref_cam</code> "
+            "(maps camera coordinates to reference coordinates); yaw, pitch, roll with "
+            "R = Rz(yaw) Ry(pitch) Rx(roll).")
+    if any(o[0] != "time_offset_s" for o in present):
+        note += (" σ is the root of the trace of the rotation (or translation) covariance of "
+                 "<code>T_ref_cam</code>.")
+    if missing:
+        note += f" Not computed in this run: {escape(', '.join(missing))}."
+    matrices = "".join(
+        f"<h3>{escape(c.name)}</h3><pre class=\"matrix\">{escape(_matrix_text(c.T_ref_cam))}</pre>"
+        for c in cams)
+    return (f'<section id="extrinsics"><h2>Extrinsics and uncertainty</h2>'
+            f"{_table(header, rows, classes=classes)}<p class=\"note\">{note}</p>"
+            f"<details><summary>T_ref_cam matrices</summary>{matrices}</details></section>")
+
+
+def _matrix_text(T: np.ndarray) -> str:
+    return "\n".join("  ".join(f"{v: .9f}" for v in row) for row in T)
+
+
+def _residuals(rec: CalibrationRecord, details: RunDetails | None) -> str:
+    stats = ["mean", "median", "max"] if details is not None else ["mean", "max"]
+    header = ["camera", "used", "rejected", *stats, *stats, "RMS"]
+    groups = [("", 3), ("rotation (deg)", len(stats)), ("translation (mm)", len(stats)),
+              ("reprojection (px)", 1)]
+    rows = []
+    for c in rec.cameras:
+        r = c.residuals
+        rot = {"mean": r and r.e_R_deg, "max": r and r.max_R_deg}
+        trans = {"mean": r and r.e_t_m, "max": r and r.max_t_m}
+        if details is not None:
+            d = details.camera(c.name)
+            rot["median"], trans["median"] = np.median(d.rot_deg), np.median(d.trans_m)
+        rows.append([c.name, str(c.measurements_used), str(len(c.rejected)),
+                     *(_num(rot[k], ".4f") for k in stats),
+                     *(_num(trans[k], ".3f", 1e3) for k in stats),
+                     _num(r and r.reprojection_rms_px, ".3f")])
+    return (f'<section id="residuals"><h2>Residuals per camera</h2>'
+            f"{_table(header, rows, groups=groups)}"
+            '<p class="note">Loop residuals of <code>A_i X = Y B_i</code> over the used images '
+            "(paper section V-A): the angle of (R_Y R_B)<sup>T</sup> R_A R_X and the distance "
+            "between the two sides' translations; reprojection RMS of the target points in the "
+            "PnP of each image.</p></section>")
+
+
+def _figures(details: RunDetails | None, figures: Mapping[str, bytes]) -> str:
+    frame = "the world (motion-capture) frame" if details is not None else (
+        "the reference camera's frame (no <code>details.json</code>: cameras only)")
+    if details is not None and details.setup == "eye-on-hand":
+        where = ("The cameras move with the body and are drawn at one body pose (the reference "
+                 "camera's middle image); the target estimates from every image cluster around "
+                 "the static target, their spread showing the residuals in space; the grey "
+                 "line is the body's motion capture.")
+    elif details is not None:
+        where = ("The cameras are static; the dots are the target (its first corner) at every "
+                 "used image, from the motion capture and <code>T_marker_target</code>; the grey "
+                 "line is the marker body's motion capture during the images.")
+    else:
+        where = ""
+    parts = ['<section id="rig"><h2>Rig</h2>',
+             _figure(figures["rig.png"], "3D plot of the camera rig",
+                     f"Camera frustums in {frame}, in 3D and seen from above. {where}",
+                     "rig.png"), "</section>"]
+    if details is None:
+        missing = ('<p class="note">Per-image residuals are in <code>details.json</code>, which '
+                   "this output folder does not have; rerun <code>multieye calibrate</code> to "
+                   "get histograms and residuals over time.</p>")
+        parts += [f'<section id="histograms"><h2>Residual histograms</h2>{missing}</section>',
+                  f'<section id="over-time"><h2>Residuals over time</h2>{missing}</section>']
+        return "".join(parts)
+    parts += ['<section id="histograms"><h2>Residual histograms</h2>',
+              _figure(figures["residual_histograms.png"], "residual histograms per camera",
+                      "Loop residuals of every used image, one row per camera; bins are shared "
+                      "down each column so that cameras compare at a glance. Solid line: "
+                      "median, dashed: mean.", "residual_histograms.png"),
+              "</section>",
+              '<section id="over-time"><h2>Residuals over time</h2>',
+              _figure(figures["residuals_over_time.png"], "residuals over time per camera",
+                      "The same residuals against each camera's time. Drifts point to a "
+                      "clock offset or a moving mount; red circles mark images above three "
+                      "times their camera's median.", "residuals_over_time.png"),
+              "</section>"]
+    return "".join(parts)
+
+
+def _diagnostics(rec: CalibrationRecord, details: RunDetails | None) -> str:
+    head = '<section id="diagnostics"><h2>Weak-motion diagnostics</h2>'
+    if details is None or not any(details.camera(c.name).diagnostics for c in rec.cameras):
+        why = ("no <code>details.json</code>" if details is None
+               else "none were computed for this run")
+        return f'{head}<p class="note">Not available: {why}.</p></section>'
+    keys = list(dict.fromkeys(k for c in rec.cameras for k in details.camera(c.name).diagnostics))
+    rows = [[c.name, *(_value(details.camera(c.name).diagnostics.get(k)) for k in keys)]
+            for c in rec.cameras]
+    header = ["camera", *(k.replace("_", " ") for k in keys)]
+    return (f"{head}{_table(header, rows)}<p class=\"note\">How well each camera's motion "
+            "determines its unknowns; weak or single-axis rotation leaves the extrinsics "
+            "poorly constrained.</p></section>")
+
+
+def _rejected(rec: CalibrationRecord) -> str:
+    head = '<section id="rejected"><h2>Rejected images and measurements</h2>'
+    items = [(c.name, r.item, r.reason) for c in rec.cameras for r in c.rejected]
+    if not items:
+        return f'{head}<div class="box ok">Every image was used.</div></section>'
+    counts: dict[tuple[str, str], int] = {}
+    for cam, _, reason in items:
+        counts[(cam, reason)] = counts.get((cam, reason), 0) + 1
+    summary = _table(["camera", "reason", "count"],
+                     [[cam, reason, str(n)] for (cam, reason), n in counts.items()], left=2)
+    full = _table(["camera", "image or measurement", "reason"], items, left=3)
+    inline = len(items) <= 40
+    listing = (f"<h3>All {len(items)}</h3>{full}" if inline else
+               f"<details><summary>All {len(items)}</summary>{full}</details>")
+    return f"{head}<h3>By reason</h3>{summary}{listing}</section>"
+
+
+# --------------------------------------------------------------------------- assembly
+
+
+def load_details(out_dir: str | os.PathLike,
+                 rec: CalibrationRecord) -> tuple[RunDetails | None, list[str]]:
+    """``OUT/details.json`` if present and consistent with ``rec``, and notes on why not.
+
+    Details that cannot be read, or that belong to another run (other cameras, setup,
+    reference, or image counts), are left out with a note rather than mixed in.
+    """
+    path = Path(out_dir) / "details.json"
+    if not path.exists():
+        return None, []
+    try:
+        details = read_run_details(path)
+    except DatasetError as exc:
+        return None, [f"details.json left out: {exc}"]
+    names = [c.name for c in rec.cameras]
+    problems = []
+    if [c.name for c in details.cameras] != names:
+        problems.append(f"cameras {', '.join(c.name for c in details.cameras)} instead of "
+                        f"{', '.join(names)}")
+    elif any(len(details.camera(c.name).names) != c.measurements_used for c in rec.cameras):
+        problems.append("other image counts")
+    if details.setup != rec.setup or details.reference_camera != rec.reference_camera:
+        problems.append("another setup or reference camera")
+    if problems:
+        return None, [f"details.json left out: it belongs to another run ({'; '.join(problems)})"]
+    return details, []
+
+
+def report_html(rec: CalibrationRecord, details: RunDetails | None,
+                figures: Mapping[str, bytes], *, out_dir: str | os.PathLike = ".",
+                notes: Sequence[str] = ()) -> str:
+    """The report page as a string (see the module docstring).
+
+    Parameters
+    ----------
+    rec : CalibrationRecord
+    details : RunDetails or None
+    figures : mapping of str to bytes
+        PNG bytes by file name (:data:`FIGURES`; only ``rig.png`` without details).
+    out_dir : path-like
+        Shown in the header.
+    notes : sequence of str
+        Shown under the warnings (e.g. why ``details.json`` was left out).
+    """
+    from multieye import __version__
+
+    body = "".join([
+        _summary(rec, Path(out_dir)), _warnings(rec, notes), _extrinsics(rec),
+        _residuals(rec, details), _figures(details, figures), _diagnostics(rec, details),
+        _rejected(rec),
+        f"<footer>Written by multieye {escape(__version__)} from <code>calibration.json</code>"
+        + (" and <code>details.json</code>" if details is not None else "")
+        + ". Frames: <code>T_a_b</code> maps coordinates in b to a; metres, degrees in tables."
+        "</footer>",
+    ])
+    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+            f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">'
+            f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+            f"<title>multieye calibration report: {escape(Path(out_dir).name or str(out_dir))}"
+            f"</title><style>{_STYLE}</style></head><body><main>{body}</main></body></html>\n")
+
+
+def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | None = None) -> Path:
+    """Write ``OUT/report.html`` and ``OUT/figures/*.png`` from ``OUT/calibration.json``.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        The output folder of ``multieye calibrate``.
+    shown_as : path-like, optional
+        The folder named on the page, when the report is built in a staging folder that is
+        moved into place afterwards (``multieye.pipeline.write_outputs``).
+
+    Returns
+    -------
+    Path
+        ``OUT/report.html``.
+
+    Raises
+    ------
+    DatasetError
+        ``calibration.json`` is missing or invalid, or the folder is not writable.
+    """
+    from multieye.outputs.figures import residual_histograms_png, residuals_over_time_png, rig_png
+
+    out = Path(out_dir)
+    rec = read_calibration(out / "calibration.json")
+    details, notes = load_details(out, rec)
+    figures = {"rig.png": rig_png(rec, details)}
+    if details is not None:
+        figures["residual_histograms.png"] = residual_histograms_png(details)
+        figures["residuals_over_time.png"] = residuals_over_time_png(details)
+    folder = out / "figures"
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"cannot create the figures folder: {exc.strerror}", path=folder) from exc
+    for name, png in figures.items():
+        write_bytes_atomic(folder / name, png)
+    for name in FIGURES:  # figures of an earlier report that this one does not have
+        if name not in figures and (folder / name).exists():
+            (folder / name).unlink()
+    html = report_html(rec, details, figures, out_dir=Path(shown_as) if shown_as else out,
+                       notes=notes)
+    return write_text_atomic(out / "report.html", html)

@@ -1,0 +1,90 @@
+"""Plain-text tables of a calibration, for the terminal.
+
+A user must be able to judge a result from these numbers alone: measurements used and
+rejected, loop residuals, reprojection RMS, the extrinsics as tx ty tz yaw pitch roll, their
+uncertainty when known, and every warning.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from multieye.io import CalibrationRecord
+from multieye.core.metrics import extrinsic_errors, pose_row
+
+__all__ = ["format_table", "calibration_table", "comparison_table"]
+
+
+def format_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    """Columns right-aligned (the first left-aligned), separated by two spaces."""
+    cols = list(zip(header, *rows))
+    widths = [max(len(str(c)) for c in col) for col in cols]
+    lines = []
+    for r in [header, *rows]:
+        cells = [str(c).ljust(w) if i == 0 else str(c).rjust(w)
+                 for i, (c, w) in enumerate(zip(r, widths))]
+        lines.append("  ".join(cells).rstrip())
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def _f(x, fmt: str) -> str:
+    return "-" if x is None else format(x, fmt)
+
+
+def calibration_table(rec: CalibrationRecord) -> str:
+    """Per-camera summary of a calibration (relative extrinsics in the reference frame).
+
+    Columns: measurements used and rejected, mean loop residuals (degrees, millimetres),
+    reprojection RMS (pixels), ``T_ref_cam`` as tx ty tz (metres) and yaw pitch roll (degrees,
+    ``R = Rz(yaw) Ry(pitch) Rx(roll)``), and the standard deviations when computed.
+    """
+    header = ["camera", "used", "rejected", "e_R deg", "e_t mm", "reproj px",
+              "tx m", "ty m", "tz m", "yaw", "pitch", "roll", "std deg", "std mm", "offset ms"]
+    rows = []
+    for c in rec.cameras:
+        p = pose_row(c.T_ref_cam)
+        r = c.residuals
+        rows.append([
+            c.name + (" (ref)" if c.name == rec.reference_camera else ""),
+            str(c.measurements_used), str(len(c.rejected)),
+            _f(r.e_R_deg if r else None, ".3f"), _f(r.e_t_m * 1e3 if r else None, ".2f"),
+            _f(r.reprojection_rms_px if r else None, ".2f"),
+            *(format(v, ".4f") for v in p[:3]), *(format(v, ".3f") for v in p[3:]),
+            _f(c.std_rot_deg, ".3f"), _f(None if c.std_trans_m is None else c.std_trans_m * 1e3, ".2f"),
+            _f(None if c.time_offset_s is None else c.time_offset_s * 1e3, ".1f"),
+        ])
+    # drop columns nobody filled
+    keep = [i for i in range(len(header)) if i < 12 or any(row[i] != "-" for row in rows)]
+    text = format_table([header[i] for i in keep], [[row[i] for i in keep] for row in rows])
+    lines = [f"{rec.setup}, method {rec.method}, reference {rec.reference_camera}: "
+             f"e_R {rec.residuals.e_R_deg:.3f} deg, e_t {rec.residuals.e_t_m * 1e3:.2f} mm",
+             text]
+    for c in rec.cameras:
+        for item in c.rejected:
+            lines.append(f"rejected {c.name}/{item.item}: {item.reason}")
+    lines.extend(f"warning: {w}" for w in rec.warnings)
+    return "\n".join(lines)
+
+
+def comparison_table(results: dict[str, np.ndarray], truth: np.ndarray,
+                     names: Sequence[str]) -> str:
+    """Errors of ``T_ref_cam`` against ground truth, one row per method and camera.
+
+    Parameters
+    ----------
+    results : dict of str to ndarray, shape (m, 4, 4)
+        ``T_ref_cam`` of every camera per method.
+    truth : ndarray, shape (m, 4, 4)
+    names : sequence of str
+    """
+    header = ["method", *(f"{n} deg / mm" for n in names[1:]), "mean deg", "mean mm", "max deg", "max mm"]
+    rows = []
+    for method, T in results.items():
+        rot, trans = extrinsic_errors(T, truth)
+        rot, trans = rot[1:], trans[1:] * 1e3
+        rows.append([method, *(f"{a:.4f} / {b:.3f}" for a, b in zip(rot, trans)),
+                     f"{rot.mean():.4f}", f"{trans.mean():.3f}", f"{rot.max():.4f}", f"{trans.max():.3f}"])
+    return format_table(header, rows)

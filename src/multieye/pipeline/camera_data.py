@@ -1,0 +1,244 @@
+"""What each camera contributes: its target poses, its motion capture, and their pairing.
+
+``rig.yaml`` (DESIGN.md section 4) -> per camera: images -> target detection -> PnP (or
+precomputed ``T_cam_target`` poses) -> :class:`CameraData`; then pairing with the motion
+capture in time -> ``A``, ``B`` (DESIGN.md section 2) -> :class:`PairedCamera`.  The
+pipeline (:mod:`multieye.pipeline`) takes it from there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from multieye.core import geometry as g
+from multieye.core.errors import DatasetError, TooFewMeasurementsError
+from multieye.core.intrinsics import Intrinsics
+from multieye.io import (
+    RejectedItem,
+    Rig,
+    Trajectory,
+    list_images,
+    read_camera_intrinsics,
+    read_mocap,
+    read_tum,
+)
+from multieye.estimate.pairing import pair_in_time
+from multieye.solvers.checks import MIN_MEASUREMENTS
+
+__all__ = ["Observation", "CameraData", "PairedCamera", "load_camera_data", "pair_camera"]
+
+@dataclass(frozen=True)
+class Observation:
+    """The target seen in one image (or one precomputed pose).
+
+    Attributes
+    ----------
+    name : str
+        Image file name, or ``"<poses file> pose <k>"`` (k-th pose of the file, from 1).
+    stamp : float
+        Camera clock, seconds.
+    T_cam_target : ndarray, shape (4, 4)
+    rms_px : float or None
+        PnP reprojection RMS, pixels (None for precomputed poses).
+    object_points : ndarray, shape (n, 3), or None
+        Detected target points in the target frame, metres.
+    image_points : ndarray, shape (n, 2), or None
+        Their pixels.
+    """
+
+    name: str
+    stamp: float
+    T_cam_target: np.ndarray
+    rms_px: float | None = None
+    object_points: np.ndarray | None = None
+    image_points: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class CameraData:
+    """What one camera contributes before pairing.
+
+    Attributes
+    ----------
+    name : str
+    intrinsics : Intrinsics or None
+        None for a camera given by precomputed poses.
+    observations : tuple of Observation
+        Images with a target pose, in time order.
+    rejected : tuple of RejectedItem
+        Images left out, and why.
+    n_inputs : int
+        Images (or pose rows) read.
+    mocap : Trajectory
+        ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand).
+    time_offset : float
+        Motion-capture clock minus camera clock, seconds.
+    time_tolerance : float
+        Seconds.
+    warnings : tuple of str
+    """
+
+    name: str
+    intrinsics: Intrinsics | None
+    observations: tuple[Observation, ...]
+    rejected: tuple[RejectedItem, ...]
+    n_inputs: int
+    mocap: Trajectory
+    time_offset: float
+    time_tolerance: float
+    warnings: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class PairedCamera:
+    """One camera's measurements for ``A_i X = Y B_i`` (DESIGN.md section 2).
+
+    Attributes
+    ----------
+    name : str
+    A, B : ndarray, shape (n, 4, 4)
+    T_world_mocap : ndarray, shape (n, 4, 4)
+        The motion-capture pose at each used image (``T_world_marker`` or ``T_world_body``).
+    observations : tuple of Observation
+        The used images, one per row of A and B.
+    rejected : tuple of RejectedItem
+        Everything left out so far (detection and pairing).
+    """
+
+    name: str
+    A: np.ndarray
+    B: np.ndarray
+    T_world_mocap: np.ndarray
+    observations: tuple[Observation, ...]
+    rejected: tuple[RejectedItem, ...]
+
+
+def _describe_target(rig: Rig) -> str:
+    t = rig.target
+    return f"{t.type} {t.rows}x{t.cols}" if t is not None else "target"
+
+
+def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsics, *,
+                              processes, progress, topic: str | None = None):
+    """Detection and PnP over a folder of time-stamped images, or a bag's image topic."""
+    from multieye.imaging.targets import target_from_spec
+
+    target = target_from_spec(rig.target.as_dict(), path=rig.path)
+    if topic is None:
+        from multieye.imaging.batch import detect_and_estimate
+
+        images = list_images(source)
+        results = detect_and_estimate([p for _, _, p in images], target, intr,
+                                      processes=processes, progress=progress)
+        stamped = [(stamp, path.name) for stamp, _, path in images]
+    else:
+        from multieye.imaging.batch import detect_and_estimate_arrays
+        from multieye.io import iter_bag_images
+
+        stamped = []
+
+        def frames():
+            for stamp_ns, image in iter_bag_images(source, topic):
+                label = f"{topic}@{stamp_ns}"
+                stamped.append((stamp_ns * 1e-9, label))
+                yield label, image
+
+        results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
+                                             progress=progress)
+        if not stamped:
+            raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
+    obs, rejected, warnings = [], [], []
+    for (stamp, label), res in zip(stamped, results):
+        if res.ok:
+            obs.append(Observation(name=label, stamp=stamp, T_cam_target=res.pose.T_cam_target,
+                                   rms_px=res.pose.rms_px,
+                                   object_points=res.detection.object_points,
+                                   image_points=res.detection.image_points))
+            warnings.extend(f"{name}/{label}: {w}" for w in res.warnings)
+        else:
+            rejected.append(RejectedItem(label, res.reason))
+    if not obs:
+        raise DatasetError(f"the target ({_describe_target(rig)}) was not detected in any of "
+                           f"the {len(stamped)} images; check the target section of rig.yaml "
+                           "(rows/cols count inner corners for a chessboard) and the images",
+                           path=source, camera=name)
+    return obs, rejected, len(stamped), tuple(warnings)
+
+
+def load_camera_data(rig: Rig, *, processes: int | None = None,
+                     progress: bool = False) -> dict[str, CameraData]:
+    """Read, detect and estimate every camera's target poses and its motion capture.
+
+    Raises
+    ------
+    DatasetError
+        A missing or malformed file, or a camera in which the target is never detected.
+    """
+    trajectories: dict[tuple, Trajectory] = {}
+    out = {}
+    for name, cam in rig.cameras.items():
+        spec = rig.mocap_for(name)
+        key = (str(spec.file), spec.pose, spec.format, spec.topic, spec.rigid_body)
+        if key not in trajectories:
+            trajectories[key] = read_mocap(spec)
+        warnings: tuple[str, ...] = ()
+        if cam.source == "poses":
+            traj = read_tum(cam.poses, parent="cam", child="target")
+            obs = [Observation(name=f"{cam.poses.name} pose {i + 1}", stamp=float(t), T_cam_target=T)
+                   for i, (t, T) in enumerate(zip(traj.stamps, traj.T))]
+            rejected: list[RejectedItem] = []
+            n_inputs = len(obs)
+            intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
+        elif cam.source == "images":
+            intr = read_camera_intrinsics(cam)
+            obs, rejected, n_inputs, warnings = _observations_from_images(
+                name, cam.images, rig, intr, processes=processes, progress=progress)
+        else:
+            intr = read_camera_intrinsics(cam)
+            obs, rejected, n_inputs, warnings = _observations_from_images(
+                name, cam.rosbag, rig, intr, processes=processes, progress=progress,
+                topic=cam.topic)
+        out[name] = CameraData(name=name, intrinsics=intr, observations=tuple(obs),
+                               rejected=tuple(rejected), n_inputs=n_inputs,
+                               mocap=trajectories[key], time_offset=cam.time_offset,
+                               time_tolerance=spec.time_tolerance, warnings=warnings)
+    return out
+
+
+def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = None) -> PairedCamera:
+    """Pair a camera's observations with motion capture and form its A and B.
+
+    Parameters
+    ----------
+    setup : {"eye-to-base", "eye-on-hand"}
+    data : CameraData
+    time_offset : float, optional
+        Overrides ``data.time_offset`` (seconds, motion-capture minus camera clock).
+
+    Raises
+    ------
+    TooFewMeasurementsError
+        Fewer than 3 images paired; the message counts what was lost where.
+    """
+    offset = data.time_offset if time_offset is None else time_offset
+    stamps = np.array([o.stamp for o in data.observations])
+    p = pair_in_time(data.mocap.stamps, data.mocap.T, stamps, tolerance=data.time_tolerance,
+                     offset=offset)
+    rejected = list(data.rejected)
+    rejected.extend(RejectedItem(data.observations[i].name, f"no motion capture: {why}")
+                    for i, why in p.unpaired)
+    used = tuple(data.observations[i] for i in p.index)
+    if len(used) < MIN_MEASUREMENTS:
+        raise TooFewMeasurementsError(
+            f"camera {data.name}: only {len(used)} of {data.n_inputs} images could be used "
+            f"({data.n_inputs - len(data.observations)} without a target pose, "
+            f"{len(p.unpaired)} without motion capture within {data.time_tolerance:g} s); "
+            f"at least {MIN_MEASUREMENTS} are needed")
+    T_cam_target = np.stack([o.T_cam_target for o in used])
+    B = g.inv(T_cam_target)                            # T_target_cam
+    A = g.inv(p.T) if setup == "eye-to-base" else p.T  # T_marker_world or T_world_body
+    return PairedCamera(name=data.name, A=A, B=B, T_world_mocap=p.T, observations=used,
+                        rejected=tuple(rejected))

@@ -1,0 +1,380 @@
+"""From a dataset folder to rig extrinsics: the paper's Fig. 3 pipeline.
+
+``rig.yaml`` (DESIGN.md section 4) -> per camera: images -> target detection -> PnP (or
+precomputed ``T_cam_target`` poses) -> pairing with motion capture in time -> ``A``, ``B``
+(DESIGN.md section 2; all of it in :mod:`multieye.pipeline.camera_data`) -> clock offsets,
+consensus, :func:`multieye.solve`, refinement -> :class:`~multieye.io.CalibrationRecord`
+and the files written from it.
+
+Synopsis
+--------
+>>> from multieye.pipeline import calibrate
+>>> from multieye.outputs.write import write_outputs
+>>> run = calibrate("dataset/rig.yaml", method="joint")   # doctest: +SKIP
+>>> write_outputs(run, "out")                              # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from multieye.pipeline.camera_data import CameraData, Observation, PairedCamera, load_camera_data, pair_camera
+from multieye.core.errors import CalibrationError, DatasetError, InputError, TooFewMeasurementsError
+from multieye.io import (
+    CalibrationRecord,
+    CameraRecord,
+    RejectedItem,
+    Residuals,
+    Rig,
+    load_rig,
+)
+from multieye.core.metrics import camera_residual, relative_extrinsics
+from multieye.solvers import Solution, solve
+
+__all__ = [
+    "Observation",
+    "CameraData",
+    "PairedCamera",
+    "CalibrationRun",
+    "Options",
+    "load_camera_data",
+    "pair_camera",
+    "calibrate",
+    "calibrate_rig",
+]
+
+
+@dataclass(frozen=True)
+class CalibrationRun:
+    """Everything a calibration produced, for writers, reports and Python users.
+
+    Attributes
+    ----------
+    rig : Rig
+    record : CalibrationRecord
+        The result as written to ``calibration.json`` (refined when refinement ran).
+    solution : Solution
+        The closed form on the measurements kept.
+    cameras : dict of str to CameraData
+    paired : dict of str to PairedCamera
+        The measurements kept, per camera.
+    refined : RefinementResult or Solution or None
+        The refinement (:class:`multieye.estimate.refine_images.RefinementResult` on images, a refined
+        :class:`~multieye.solvers.Solution` on poses), when it ran.
+    """
+
+    rig: Rig
+    record: CalibrationRecord
+    solution: Solution
+    cameras: dict[str, CameraData]
+    paired: dict[str, PairedCamera]
+    refined: object | None = None
+
+
+@dataclass(frozen=True)
+class Options:
+    """How :func:`calibrate_rig` goes from measurements to the result.
+
+    Attributes
+    ----------
+    method : str
+        Closed-form solver (:data:`multieye.METHODS`).
+    reference : str or None
+        Reference camera; default the first.
+    refine : bool
+        Follow the closed form with the maximum-likelihood refinement: on the target points
+        and motion-capture poses when every camera has images (:func:`multieye.estimate.refine_images.
+        refine_images`), else on the pose residuals (:mod:`multieye.solvers.refine_poses`).  Fills the
+        uncertainty.
+    robust : bool
+        Consensus over measurements before solving (:func:`multieye.estimate.consensus.consensus`);
+        rejected measurements are listed with the reason.
+    time_offset : "rig", "auto" or float
+        ``"rig"``: each camera's ``time_offset`` from rig.yaml; ``"auto"``: estimated per
+        camera (:func:`multieye.estimate.clock.estimate_offset`); a number: seconds for every camera.
+    max_time_offset : float
+        With ``time_offset="auto"``: offsets from ``-max_time_offset`` to ``+max_time_offset``
+        seconds are searched (an optimum at the edge of that range is refused).
+    mocap_rot_sigma_rad, mocap_trans_sigma_m : float or None
+        Motion-capture noise for the refinement; None: rig.yaml's ``rotation_noise_deg`` /
+        ``translation_noise_m``, else the defaults of :mod:`multieye.estimate.refine_images`.
+    """
+
+    method: str = "joint"
+    reference: str | None = None
+    refine: bool = True
+    robust: bool = True
+    time_offset: str | float = "rig"
+    max_time_offset: float = 0.5
+    mocap_rot_sigma_rad: float | None = None
+    mocap_trans_sigma_m: float | None = None
+
+
+#: Smallest angular-speed correlation at which an automatic clock offset is trusted.
+CLOCK_MIN_SCORE = 0.5
+
+
+def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[str, float]:
+    if opts.time_offset == "rig":
+        return {n: d.time_offset for n, d in cameras.items()}
+    if opts.time_offset != "auto":
+        return {n: float(opts.time_offset) for n in cameras}
+    from multieye.estimate.clock import estimate_offset
+
+    out = {}
+    for name, d in cameras.items():
+        stamps = np.array([o.stamp for o in d.observations])
+        T = np.stack([o.T_cam_target for o in d.observations])
+        if not (math.isfinite(opts.max_time_offset) and opts.max_time_offset > 0):
+            raise InputError(f"max_time_offset must be a positive number of seconds, got "
+                             f"{opts.max_time_offset!r}")
+        search = (-opts.max_time_offset, opts.max_time_offset)
+        try:
+            est = estimate_offset(stamps, T, d.mocap.stamps, d.mocap.T, setup=rig.setup,
+                                  search_s=search)
+        except CalibrationError as exc:
+            raise CalibrationError(f"camera {name}: clock offset could not be estimated: {exc}; "
+                                   "give --time-offset SECONDS or time_offset in rig.yaml") from None
+        edge = 0.02 * (search[1] - search[0])
+        if not est.score >= CLOCK_MIN_SCORE:
+            raise CalibrationError(
+                f"camera {name}: the clock offset cannot be estimated (angular speeds of camera "
+                f"and motion capture correlate at {est.score:.2f}, below {CLOCK_MIN_SCORE}): move "
+                "the target faster and less uniformly, or give --time-offset SECONDS")
+        if (min(est.coarse_offset_s, est.offset_s) < search[0] + edge
+                or max(est.coarse_offset_s, est.offset_s) > search[1] - edge):
+            raise CalibrationError(
+                f"camera {name}: the best clock offset ({est.offset_s:+.3f} s) is at the edge of "
+                f"the search range {search[0]:+.3g}..{search[1]:+.3g} s, so the true one is "
+                "probably outside it; widen the search (--max-time-offset SECONDS) or give "
+                "--time-offset SECONDS (or time_offset in rig.yaml)")
+        out[name] = float(est.offset_s)
+    return out
+
+
+#: Inlier thresholds of the consensus (loop rotation residual, target position residual),
+#: then the wider ones tried when too few measurements of a camera agree with the first.
+CONSENSUS_THRESHOLDS = ((5.0, 0.05), (15.0, 0.15))
+
+
+def _consensus(paired: dict[str, PairedCamera], names: list[str], warnings: list[str]):
+    """RANSAC over measurements with fixed thresholds (never thresholds taken from a fit
+    that the outliers themselves pulled); wider ones once if the data are noisier."""
+    from multieye.estimate.consensus import consensus
+
+    A = [p.A for p in paired.values()]
+    B = [p.B for p in paired.values()]
+    for k, (rot, trans) in enumerate(CONSENSUS_THRESHOLDS):
+        try:
+            return consensus(A, B, threshold_rot_deg=rot, threshold_trans_m=trans, names=names)
+        except TooFewMeasurementsError as exc:
+            if k + 1 == len(CONSENSUS_THRESHOLDS):
+                raise TooFewMeasurementsError(
+                    f"{exc} (consensus thresholds up to {rot:g} deg / {trans:g} m); if the data "
+                    "are this noisy, run with --no-robust and check the residuals") from None
+            warnings.append(f"consensus: {exc}; retried with {CONSENSUS_THRESHOLDS[k + 1][0]:g} "
+                            f"deg / {CONSENSUS_THRESHOLDS[k + 1][1]:g} m")
+
+
+def _keep(p: PairedCamera, mask: np.ndarray, reasons: dict[int, str]) -> PairedCamera:
+    rejected = p.rejected + tuple(RejectedItem(p.observations[i].name, reasons[i])
+                                  for i in sorted(reasons))
+    idx = np.flatnonzero(mask)
+    return PairedCamera(name=p.name, A=p.A[idx], B=p.B[idx], T_world_mocap=p.T_world_mocap[idx],
+                        observations=tuple(p.observations[i] for i in idx), rejected=rejected)
+
+
+def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = Options(), **kw
+                  ) -> CalibrationRun:
+    """Pair, check, solve, refine and summarise already loaded camera data.
+
+    Parameters
+    ----------
+    rig : Rig
+    cameras : dict of str to CameraData
+        From :func:`load_camera_data`.
+    options : Options
+        Or its fields as keyword arguments (``method="shah", refine=False``).
+    """
+    from multieye.estimate.diagnostics import motion_diagnostics
+
+    opts = replace(options, **kw) if kw else options
+    names = list(cameras)
+    reference = opts.reference or names[0]
+    if reference not in cameras:
+        raise DatasetError(f"reference camera {reference!r} is not in rig.yaml (cameras: "
+                           f"{', '.join(names)})", path=rig.path)
+    offsets = _offsets(rig, cameras, opts)
+    paired = {n: pair_camera(rig.setup, d, time_offset=offsets[n]) for n, d in cameras.items()}
+    warnings = [w for data in cameras.values() for w in data.warnings]
+
+    if opts.robust:
+        cons = _consensus(paired, names, warnings)
+        by_cam: dict[str, dict[int, str]] = {n: {} for n in names}
+        for r in cons.rejected:
+            by_cam[r.camera][r.index] = r.reason
+        paired = {n: _keep(p, cons.inliers[j], by_cam[n]) for j, (n, p) in enumerate(paired.items())}
+
+    As = [p.A for p in paired.values()]
+    Bs = [p.B for p in paired.values()]
+    motion = motion_diagnostics(As, Bs, names, setup=rig.setup)
+    warnings.extend(motion.warnings)
+    sol = solve(As, Bs, opts.method, names=names)
+    X, Y, covariance, refinement, reproj, refined = sol.X, sol.Y, None, None, {}, None
+    if opts.refine:
+        try:
+            X, Y, covariance, refinement, reproj, more, refined = _refine(rig, cameras, paired,
+                                                                          sol, opts)
+            warnings.extend(more)
+        except CalibrationError as exc:
+            warnings.append(f"refinement failed, the result is the closed form without "
+                            f"uncertainty: {exc}")
+    shown = offsets if opts.time_offset != "rig" else {n: o for n, o in offsets.items() if o}
+    record = _record(rig, opts.method, reference, X, Y, covariance, paired, warnings, shown,
+                     refinement, reproj, motion.as_dict()["cameras"])
+    return CalibrationRun(rig=rig, record=record, solution=sol, cameras=cameras, paired=paired,
+                          refined=refined)
+
+
+def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
+            sol: Solution, opts: Options):
+    """Image-level refinement when every camera has target points, else pose-level."""
+    first = next(iter(paired))
+    spec = rig.mocap_for(first) if first in rig.cameras else rig.mocap
+    rot, trans = opts.mocap_rot_sigma_rad, opts.mocap_trans_sigma_m
+    if spec is not None:
+        rot = spec.rot_sigma_rad if rot is None else rot
+        trans = spec.trans_sigma_m if trans is None else trans
+    sigmas = {k: v for k, v in (("mocap_rot_sigma_rad", rot), ("mocap_trans_sigma_m", trans))
+              if v is not None}
+    have_points = all(cameras[n].intrinsics is not None and p.observations
+                      and all(o.image_points is not None for o in p.observations)
+                      for n, p in paired.items())
+    warnings = []
+    if have_points:
+        from multieye.estimate.refine_images import refine_images
+
+        obs = [[(o.object_points, o.image_points, T) for o, T in zip(p.observations, p.T_world_mocap)]
+               for p in paired.values()]
+        intr = [cameras[n].intrinsics for n in paired]
+        res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired), **sigmas)
+        if not sigmas:
+            # Motion-capture noise not stated: estimate it, like the pixel noise, from how far
+            # the refinement moves the measured poses (fixed point; a few passes)
+            for _ in range(4):
+                est = _mocap_noise(paired, res)
+                old = (res.mocap_rot_sigma_rad, res.mocap_trans_sigma_m)
+                if all(abs(e / o - 1.0) < 0.1 for e, o in zip(est, old)):
+                    break
+                res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired),
+                                    mocap_rot_sigma_rad=est[0], mocap_trans_sigma_m=est[1])
+            warnings.append(
+                f"motion-capture noise estimated from the data: "
+                f"{np.degrees(res.mocap_rot_sigma_rad):.3g} deg, "
+                f"{res.mocap_trans_sigma_m * 1e3:.3g} mm per pose (state rotation_noise_deg and "
+                "translation_noise_m under mocap in rig.yaml to fix it)")
+        if not res.converged:
+            warnings.append(f"refinement did not converge ({res.message}); the result may be "
+                            "short of the best the data allow")
+        for j, name in enumerate(paired):
+            bad = np.flatnonzero(res.image_outliers[j])
+            if bad.size:
+                warnings.append(f"{name}: {bad.size} image(s) fit the refined rig poorly: "
+                                + ", ".join(paired[name].observations[i].name for i in bad[:5])
+                                + (" ..." if bad.size > 5 else ""))
+        reproj = {n: float(res.camera_rms_px[j]) for j, n in enumerate(paired)}
+        return res.X, res.Y, res.covariance, "images", reproj, warnings, res
+    from multieye.solvers.refine_poses import refine_solution
+
+    ref = refine_solution(sol)
+    return ref.X, ref.Y, ref.covariance, "poses", {}, warnings, ref
+
+
+def _mocap_noise(paired: dict[str, PairedCamera], res) -> tuple[float, float]:
+    """Motion-capture noise from the refinement's corrections of the measured poses.
+
+    The rotation error is the rotation vector of ``R_measured^T R_refined`` (marker frame),
+    the position error ``t_measured - t_refined``; returned as the RMS per component
+    (radians, metres), the convention of :func:`multieye.estimate.refine_images.refine_images`.  With many
+    target points per image the refined pose is close to the truth, so the corrections are
+    close to the errors themselves.
+    """
+    from multieye.core.lie import log_so3
+
+    meas = np.concatenate([p.T_world_mocap for p in paired.values()])
+    ref = np.concatenate(res.T_world_mocap)
+    dr = log_so3(np.swapaxes(meas[:, :3, :3], 1, 2) @ ref[:, :3, :3])
+    dt = meas[:, :3, 3] - ref[:, :3, 3]
+    return (max(float(np.sqrt(np.mean(dr ** 2))), 1e-7),
+            max(float(np.sqrt(np.mean(dt ** 2))), 1e-7))
+
+
+def _record(rig: Rig, method: str, reference: str, X: np.ndarray, Y: np.ndarray,
+            covariance: np.ndarray | None, paired: dict[str, PairedCamera], warnings: list[str],
+            time_offsets: dict[str, float], refinement: str | None, reproj: dict[str, float],
+            motion: dict) -> CalibrationRecord:
+    names = list(paired)
+    ref = names.index(reference)
+    T_ref_cam = relative_extrinsics(X, reference=ref)
+    unc = None
+    if covariance is not None:
+        from multieye.estimate.uncertainty import relative_covariance
+
+        unc = relative_covariance(X, covariance, reference=ref)
+    cams, rot_all, trans_all = [], [], []
+    for j, name in enumerate(names):
+        p = paired[name]
+        r = camera_residual(p.A, p.B, X[j], Y)
+        rot_all.append(r.e_R_deg * r.n)
+        trans_all.append(r.e_t_m * r.n)
+        rms = [o.rms_px for o in p.observations if o.rms_px is not None]
+        reproj_px = reproj.get(name, float(np.sqrt(np.mean(np.square(rms)))) if rms else None)
+        cams.append(CameraRecord(
+            name=name, X=X[j], T_ref_cam=T_ref_cam[j], measurements_used=r.n,
+            residuals=Residuals(e_R_deg=r.e_R_deg, e_t_m=r.e_t_m, max_R_deg=r.max_R_deg,
+                                max_t_m=r.max_t_m, reprojection_rms_px=reproj_px),
+            time_offset_s=time_offsets.get(name),
+            std_rot_deg=None if unc is None else float(unc.std_rot_deg[j]),
+            std_trans_m=None if unc is None else float(unc.std_trans_m[j]),
+            covariance=None if unc is None else unc.covariance[j],
+            rejected=p.rejected))
+    n = sum(c.measurements_used for c in cams)
+    return CalibrationRecord(setup=rig.setup, method=method, reference_camera=reference, Y=Y,
+                             cameras=tuple(cams),
+                             residuals=Residuals(e_R_deg=sum(rot_all) / n, e_t_m=sum(trans_all) / n),
+                             warnings=tuple(warnings), refinement=refinement,
+                             motion_diagnostics=motion)
+
+
+def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
+              processes: int | None = None, progress: bool = False, **kw) -> CalibrationRun:
+    """Calibrate the rig described by a dataset folder (or its ``rig.yaml``).
+
+    Parameters
+    ----------
+    dataset : path-like
+        Folder holding ``rig.yaml``, or the file itself.
+    options : Options
+        Or its fields as keyword arguments: ``method`` (solver name, :data:`multieye.METHODS`),
+        ``reference`` (camera whose frame is ``ref``; default the first of ``rig.yaml``),
+        ``refine``, ``robust``, ``time_offset``, ``max_time_offset``.
+    processes : int, optional
+        Worker processes for detection; default one per core.
+    progress : bool
+        Show a progress bar (only sensible on a terminal).
+
+    Returns
+    -------
+    CalibrationRun
+    """
+    path = Path(dataset)
+    if path.is_dir():
+        path = path / "rig.yaml"
+    rig = load_rig(path)
+    cameras = load_camera_data(rig, processes=processes, progress=progress)
+    return calibrate_rig(rig, cameras, options, **kw)

@@ -1,0 +1,108 @@
+"""Property-based tests of the SE(3) helpers (hypothesis)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.spatial.transform import Rotation
+
+from multieye.core import geometry as g
+
+finite = st.floats(-10, 10, allow_nan=False, width=64)
+rotvecs = arrays(np.float64, (3,), elements=st.floats(-1.8, 1.8, allow_nan=False)).filter(
+    lambda r: np.linalg.norm(r) < 3.1)     # the rotation vector is unique below pi
+vec3 = arrays(np.float64, (3,), elements=finite)
+mats3 = arrays(np.float64, (3, 3), elements=finite)
+quats = arrays(np.float64, (4,), elements=st.floats(-1, 1, allow_nan=False)).filter(
+    lambda q: np.linalg.norm(q) > 0.1)
+
+
+@st.composite
+def transforms(draw):
+    return g.transform_from_rotvec(draw(rotvecs), draw(vec3))
+
+
+@settings(max_examples=200, deadline=None)
+@given(transforms(), transforms(), transforms())
+def test_inverse_and_composition(T1, T2, T3):
+    np.testing.assert_allclose(g.inv(T1) @ T1, np.eye(4), atol=1e-12)
+    np.testing.assert_allclose(g.inv(g.inv(T1)), T1, atol=1e-12)
+    np.testing.assert_allclose(g.compose(T1, T2, T3), (T1 @ T2) @ T3, atol=1e-9)
+    np.testing.assert_allclose(g.inv(T1 @ T2), g.inv(T2) @ g.inv(T1), atol=1e-10)
+    # batched inverse equals one by one
+    batch = np.stack([T1, T2, T3])
+    np.testing.assert_allclose(g.inv(batch), np.stack([g.inv(T) for T in batch]), atol=0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(mats3)
+def test_project_to_so3_is_a_rotation_and_idempotent(M):
+    R = g.project_to_so3(M)
+    np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-9)
+    assert np.linalg.det(R) > 0
+    np.testing.assert_allclose(g.project_to_so3(R), R, atol=1e-9)
+
+
+@settings(max_examples=200, deadline=None)
+@given(rotvecs)
+def test_project_to_so3_is_nearest(rv):
+    R = Rotation.from_rotvec(rv).as_matrix()
+    # a perturbed rotation projects back closer than the perturbation
+    P = g.project_to_so3(R + 1e-3 * np.arange(9).reshape(3, 3) / 9)
+    assert np.linalg.norm(P - R) < np.linalg.norm(1e-3 * np.arange(9).reshape(3, 3) / 9) * 2
+
+
+@settings(max_examples=200, deadline=None)
+@given(quats, vec3)
+def test_quaternion_round_trip_both_orders(q, t):
+    q = q / np.linalg.norm(q)
+    T = g.transform_from_quat(q, t)
+    q2 = g.quat_from_transform(T)
+    assert np.allclose(q2, q, atol=1e-9) or np.allclose(q2, -q, atol=1e-9)
+    T_wxyz = g.transform_from_quat(np.r_[q[3], q[:3]], t, scalar_first=True)
+    np.testing.assert_allclose(T_wxyz, T, atol=1e-12)
+    q3 = g.quat_from_transform(T, scalar_first=True)
+    assert q3[0] >= 0
+    np.testing.assert_allclose(q3, np.r_[q2[3], q2[:3]], atol=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(rotvecs, vec3)
+def test_rotvec_round_trip_and_angle(rv, t):
+    T = g.transform_from_rotvec(rv, t)
+    np.testing.assert_allclose(g.rotvec_from_transform(T), rv, atol=1e-8)
+    assert abs(g.rotation_angle(T[:3, :3]) - np.linalg.norm(rv)) < 1e-9
+    assert abs(g.rotation_angle_between(np.eye(4), T) - np.linalg.norm(rv)) < 1e-9
+
+
+def test_rotation_angle_is_accurate_near_zero_and_pi():
+    for ang in (1e-12, 1e-8, 1e-4, np.pi - 1e-6, np.pi):
+        R = Rotation.from_rotvec([0, ang, 0]).as_matrix()
+        assert abs(g.rotation_angle(R) - ang) < 1e-12 + 1e-9 * (ang > 3)
+
+
+@settings(max_examples=100, deadline=None)
+@given(arrays(np.float64, (3,), elements=st.floats(-1.5, 1.5, allow_nan=False)))
+def test_ypr_convention(ypr):
+    yaw, pitch, roll = ypr
+    R = Rotation.from_euler("z", yaw).as_matrix() @ Rotation.from_euler("y", pitch).as_matrix() \
+        @ Rotation.from_euler("x", roll).as_matrix()
+    np.testing.assert_allclose(g.ypr_from_rotation(R), ypr, atol=1e-9)
+
+
+def test_rotation_mean_of_symmetric_perturbations():
+    rng = np.random.default_rng(0)
+    R0 = Rotation.random(random_state=1).as_matrix()
+    d = rng.normal(scale=0.05, size=(10, 3))
+    Rs = np.concatenate([R0 @ Rotation.from_rotvec(d).as_matrix(),
+                         R0 @ Rotation.from_rotvec(-d).as_matrix()])
+    # R0 (exp(d) + exp(-d)) = R0 (symmetric positive definite): its projection is exactly R0
+    assert g.rotation_angle_between(g.rotation_mean(Rs), R0) < 1e-12
+
+
+def test_skew_is_cross_product():
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(size=(2, 3))
+    np.testing.assert_allclose(g.skew(a) @ b, np.cross(a, b), atol=1e-15)

@@ -1,0 +1,75 @@
+"""Clock offset from continuously moving, unsynchronised streams."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import multieye
+from multieye.core import geometry as g
+from multieye.estimate.clock import angular_speed, estimate_offset
+from multieye.core.errors import DegenerateMotionError, InputError, TooFewMeasurementsError
+from multieye.sim.images import simulate_stream
+from multieye.core.metrics import extrinsic_errors
+from multieye.estimate.pairing import pair_in_time
+
+
+def _solve_paired(st, offset):
+    """Closed-form X of the camera with its images paired to the mocap at ``offset``."""
+    p = pair_in_time(st.mocap_stamps, st.T_world_mocap, st.cam_stamps, tolerance=0.01,
+                     offset=offset)
+    A = p.T if st.setup == "eye-on-hand" else g.inv(p.T)
+    return multieye.solve([A], [g.inv(st.T_cam_target[p.index])]).X[0]
+
+
+@pytest.mark.parametrize("setup, offset", [("eye-to-base", 0.040), ("eye-on-hand", 0.040),
+                                           ("eye-to-base", -0.2137)])
+def test_offset_recovered_within_2ms_and_extrinsics_match_synchronised(setup, offset):
+    st = simulate_stream(41, setup=setup, time_offset_s=offset, duration_s=40.0)
+    est = estimate_offset(st.cam_stamps, st.T_cam_target, st.mocap_stamps, st.T_world_mocap,
+                          setup=setup)
+    assert abs(est.offset_s - offset) < 0.002
+    # The error is consistent with the reported standard deviation.
+    assert abs(est.offset_s - offset) < 5 * est.std_s
+    assert est.std_s < 0.001 and est.score > 0.9
+    assert abs(est.coarse_offset_s - offset) < 0.01
+    rot, trans = extrinsic_errors(_solve_paired(st, est.offset_s), _solve_paired(st, offset))
+    assert rot < 0.01 and trans < 2e-4           # degrees, metres
+    # Ignoring the offset costs far more than that.
+    rot0, trans0 = extrinsic_errors(_solve_paired(st, 0.0), st.X)
+    assert rot0 > 10 * extrinsic_errors(_solve_paired(st, est.offset_s), st.X)[0]
+
+
+def test_coarse_only():
+    st = simulate_stream(42, time_offset_s=0.1, duration_s=30.0)
+    est = estimate_offset(st.cam_stamps, st.T_cam_target, st.mocap_stamps, st.T_world_mocap,
+                          refine=False)
+    assert abs(est.offset_s - 0.1) < 0.01
+    assert np.isnan(est.std_s) and est.method == "angular-speed correlation"
+
+
+def test_angular_speed_of_a_constant_turn():
+    t = np.arange(0.0, 2.0, 0.01)
+    T = g.transform_from_rotvec(np.outer(0.7 * t, [0.0, 0.6, 0.8]), np.zeros((t.size, 3)))
+    mid, speed, dt = angular_speed(t, T)
+    np.testing.assert_allclose(speed, 0.7, rtol=1e-9)
+    np.testing.assert_allclose(mid, t[:-1] + 0.005)
+    mid, speed, dt = angular_speed(t, T, baseline_s=0.25)
+    np.testing.assert_allclose(speed, 0.7, rtol=1e-9)
+    assert np.all(dt >= 0.25 - 1e-12) and np.all(dt <= 0.26 + 1e-12)
+
+
+def test_input_errors():
+    st = simulate_stream(43, duration_s=10.0)
+    args = (st.cam_stamps, st.T_cam_target, st.mocap_stamps, st.T_world_mocap)
+    with pytest.raises(InputError, match="camera stream: time stamps must be strictly increasing"):
+        estimate_offset(st.cam_stamps[::-1], *args[1:])
+    with pytest.raises(InputError, match="motion-capture stream: expected one 4x4 pose per time"):
+        estimate_offset(*args[:3], st.T_world_mocap[:-1])
+    with pytest.raises(InputError, match="do not overlap in time for any offset in 50..60 s"):
+        estimate_offset(*args, search_s=(50.0, 60.0))
+    with pytest.raises(TooFewMeasurementsError, match="camera stream: 5 samples"):
+        estimate_offset(st.cam_stamps[:5], st.T_cam_target[:5], *args[2:])
+    still = np.repeat(st.T_cam_target[:1], len(st.cam_stamps), axis=0)
+    with pytest.raises(DegenerateMotionError, match="never changes its angular speed"):
+        estimate_offset(st.cam_stamps, still, *args[2:])

@@ -1,0 +1,69 @@
+"""Consensus over measurements: corrupted measurements found, clean ones kept."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import multieye
+from multieye.core import geometry as g
+from multieye.core.errors import TooFewMeasurementsError
+from multieye.sim.images import corrupt, simulate_images
+from multieye.core.metrics import extrinsic_errors, relative_extrinsics
+from multieye.estimate.refine_images import refine_images
+from multieye.estimate.consensus import consensus, measurement_residuals
+
+from synthetic import eye_to_base
+
+
+def _rms_errors(X, X_true):
+    rot, trans = extrinsic_errors(relative_extrinsics(X)[1:], relative_extrinsics(X_true)[1:])
+    return np.sqrt(np.mean(rot ** 2)), np.sqrt(np.mean(trans ** 2))
+
+
+@pytest.mark.parametrize("setup", ["eye-to-base", "eye-on-hand"])
+def test_twenty_percent_corrupted_found_and_result_within_twice_clean(setup):
+    clean = simulate_images(31, n_cameras=4, images=20, setup=setup)
+    bad = corrupt(clean, 0.2, 32)
+    assert [int(c.sum()) for c in bad.corrupted] == [4, 4, 4, 4]
+    cons = consensus(bad.A, bad.B)
+    for inl, corrupted in zip(cons.inliers, bad.corrupted):
+        np.testing.assert_array_equal(~inl, corrupted)
+    assert len(cons.rejected) == 16
+    assert all(r.reason.endswith("above threshold 5 deg / 0.05 m (RANSAC)")
+               for r in cons.rejected)
+    assert consensus(clean.A, clean.B).rejected == ()
+
+    # Refining on the inliers only: within 2x of refining the clean data.
+    sol_clean = multieye.solve(clean.A, clean.B)
+    ref_clean = refine_images(setup, clean.observations, clean.intrinsics, sol_clean.X,
+                              sol_clean.Y, pixel_sigma=0.3)
+    obs = [[o for o, k in zip(cam, inl) if k] for cam, inl in zip(bad.observations, cons.inliers)]
+    ref = refine_images(setup, obs, bad.intrinsics, cons.X, cons.Y, pixel_sigma=0.3)
+    e_clean, e_bad = _rms_errors(ref_clean.X, clean.X), _rms_errors(ref.X, clean.X)
+    assert e_bad[0] < 2 * e_clean[0] and e_bad[1] < 2 * e_clean[1], (e_clean, e_bad)
+
+
+def test_reason_names_the_residuals(rng):
+    A, B, X, Y = eye_to_base(rng, [12, 12])
+    B[1] = B[1].copy()
+    B[1][7] = B[1][7] @ g.transform_from_rotvec([0.0, 0.0, np.radians(12.3)], [0.0, 0.0, 0.0])
+    cons = consensus(A, B, names=["left", "right"])
+    (r,) = cons.rejected
+    assert (r.camera, r.index) == ("right", 7)
+    rot, trans = measurement_residuals(A[1][7:8], B[1][7:8], X[1], Y)
+    assert r.rot_deg == pytest.approx(12.3, abs=1e-6) == pytest.approx(float(rot[0]))
+    assert r.trans_m == pytest.approx(float(trans[0]), abs=1e-9)
+    assert r.reason == (f"loop residual 12.3 deg / {r.trans_m:.3f} m above threshold "
+                        "5 deg / 0.05 m (RANSAC)")
+    # Exact data otherwise: the consensus solution is the exact one.
+    np.testing.assert_allclose(cons.X, X, atol=1e-9)
+    np.testing.assert_allclose(cons.Y, Y, atol=1e-9)
+
+
+def test_camera_without_agreeing_measurements_is_named(rng):
+    A, B, _, _ = eye_to_base(rng, [10, 10])
+    B[1] = g.random_transforms(rng, 10)
+    with pytest.raises(TooFewMeasurementsError, match=r"camera cam1: only \d of 10 measurements "
+                       r"agree within 5 deg / 0.05 m"):
+        consensus(A, B)

@@ -1,0 +1,86 @@
+"""Pairing images with motion capture: nearest within tolerance, SLERP between brackets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from multieye.core import geometry as g
+from multieye.core.errors import InputError
+from multieye.estimate.pairing import interpolate_poses, pair_in_time
+
+
+def _trajectory(rate=100.0, duration=2.0):
+    """Constant-velocity motion: rotation 0.5 rad/s about a fixed axis, 0.2 m/s along x."""
+    t = np.arange(0.0, duration, 1.0 / rate)
+    axis = np.array([0.2, 0.5, 0.84]) / np.linalg.norm([0.2, 0.5, 0.84])
+    T = g.transform_from_rotvec(np.outer(0.5 * t, axis), np.outer(t, [0.2, 0.0, 0.0]))
+    return t, T, axis
+
+
+def _truth(tq, axis):
+    return g.transform_from_rotvec(np.outer(0.5 * tq, axis), np.outer(tq, [0.2, 0.0, 0.0]))
+
+
+def test_interpolation_is_exact_for_constant_velocity():
+    t, T, axis = _trajectory()
+    tq = np.array([0.0031, 0.5, 1.23456, 1.9849])
+    p = pair_in_time(t, T, tq, tolerance=0.01)
+    np.testing.assert_array_equal(p.index, [0, 1, 2, 3])
+    np.testing.assert_allclose(p.T, _truth(tq, axis), atol=1e-12)
+    assert p.interpolated.tolist() == [True, False, True, True]   # 0.5 is a sample
+    assert p.unpaired == ()
+
+
+def test_offset_shifts_the_query_into_the_mocap_clock():
+    t, T, axis = _trajectory()
+    tq = np.array([0.3, 0.9])
+    p = pair_in_time(t, T, tq - 0.04, tolerance=0.01, offset=0.04)
+    np.testing.assert_allclose(p.T, _truth(tq, axis), atol=1e-12)
+
+
+def test_outside_and_gaps_are_reported():
+    t, T, _ = _trajectory()
+    t2 = np.concatenate([t[:50], t[150:]])          # 1 s dropout from 0.5 s to 1.5 s
+    T2 = np.concatenate([T[:50], T[150:]])
+    p = pair_in_time(t2, T2, np.array([-0.5, 0.495, 1.0, 1.505, 3.0]), tolerance=0.02)
+    assert p.index.tolist() == [1, 3]
+    reasons = dict(p.unpaired)
+    assert "before the motion-capture recording" in reasons[0]
+    assert "0.500 s away" in reasons[2] and "time_tolerance 0.02 s" in reasons[2]
+    assert "after" in reasons[4]
+    # next to the dropout the nearest sample is used, never an interpolation across it
+    assert p.interpolated.tolist() == [False, True]     # 0.495: only 0.49 is near; 1.505: 1.50..1.51
+    assert p.gap_s.max() <= 0.02
+
+
+def test_no_interpolation_across_a_dropout():
+    t = np.array([0.0, 0.01, 0.02, 1.0, 1.01])
+    T = g.transform_from_rotvec(np.zeros((5, 3)), np.outer(t, [1.0, 0, 0]))
+    T[3:, 0, 3] += 10.0                                 # something different after the gap
+    p = pair_in_time(t, T, np.array([0.025]), tolerance=0.01)
+    assert not p.interpolated[0]
+    np.testing.assert_allclose(p.T[0], T[2])
+
+
+def test_bad_arguments():
+    t, T, _ = _trajectory()
+    with pytest.raises(InputError, match="positive"):
+        pair_in_time(t, T, [0.1], tolerance=0.0)
+    with pytest.raises(InputError, match="strictly increasing"):
+        pair_in_time(t[::-1], T, [0.1], tolerance=0.01)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.floats(0.0, 1.0))
+def test_slerp_endpoints_and_midpoint_symmetry(alpha):
+    rng = np.random.default_rng(0)
+    T0 = g.random_transforms(rng, 3)
+    T1 = T0 @ g.transform_from_rotvec(rng.normal(scale=0.5, size=(3, 3)), rng.normal(size=(3, 3)))
+    Ta = interpolate_poses(T0, T1, np.full(3, alpha))
+    Tb = interpolate_poses(T1, T0, np.full(3, 1.0 - alpha))
+    np.testing.assert_allclose(Ta, Tb, atol=1e-9)
+    np.testing.assert_allclose(interpolate_poses(T0, T1, np.zeros(3)), T0, atol=1e-12)
+    np.testing.assert_allclose(interpolate_poses(T0, T1, np.ones(3)), T1, atol=1e-9)

@@ -1,0 +1,121 @@
+"""Detection and PnP over files in parallel processes: order, failures as reasons."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from multieye.core.errors import InputError
+from multieye.core.geometry import rotation_angle_between, transform_from_rotvec, translation_distance
+from multieye.imaging.batch import detect_and_estimate, process_image
+from multieye.sim.render import render, visible
+from multieye.imaging.targets import Chessboard
+from multieye.core.intrinsics import Intrinsics
+
+CAMERA = Intrinsics(K=[[600, 0, 399.5], [0, 600, 299.5], [0, 0, 1]], dist=[-0.2, 0.05, 0, 0, 0],
+                    width=640, height=480)
+BOARD = Chessboard(rows=5, cols=7, spacing=0.04)
+
+
+@pytest.fixture(scope="module")
+def image_files(tmp_path_factory):
+    """Four rendered views, a corrupt file, a blank image and a missing path, with the truth."""
+    folder = tmp_path_factory.mktemp("cam0")
+    rng = np.random.default_rng(11)
+    paths, truth = [], []
+    tilts = [(0.3, -0.2, 0.05), (-0.25, 0.3, 0.0), (0.1, 0.35, -0.1), (-0.3, -0.25, 0.1)]
+    for k, tilt in enumerate(tilts):
+        T = transform_from_rotvec(tilt, [0.0, 0.0, 0.0])
+        T[:3, 3] = -T[:3, :3] @ [0.12, 0.08, 0.0] + [0.0, 0.0, 0.6]    # board centre on the axis
+        assert visible(BOARD, CAMERA, T)
+        path = folder / f"{k}.5.png"
+        cv2.imwrite(str(path), render(BOARD, CAMERA, T, rng=rng))
+        paths.append(path)
+        truth.append(T)
+    corrupt = folder / "7.0.png"
+    corrupt.write_bytes(b"\x89PNG not really")
+    blank = folder / "8.0.png"
+    cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
+    missing = folder / "9.0.png"
+    order = [paths[0], corrupt, paths[1], blank, paths[2], missing, paths[3]]
+    return order, truth
+
+
+def check(results, image_files):
+    order, truth = image_files
+    assert [r.path for r in results] == [str(p) for p in order]
+    reasons = [r.reason for r in results]
+    assert reasons == [None, "unreadable image file", None, "chessboard not found", None,
+                       "file not found", None]
+    good = [r for r in results if r.ok]
+    for r, T in zip(good, truth):
+        assert np.degrees(rotation_angle_between(r.pose.T_cam_target, T)) < 0.1
+        assert translation_distance(r.pose.T_cam_target, T) < 1e-3
+        assert r.detection is not None and len(r.detection) == 35
+
+
+def test_two_processes_keep_input_order_and_report_failures(image_files):
+    results = detect_and_estimate(image_files[0], BOARD, CAMERA, processes=2, progress=False)
+    check(results, image_files)
+    serial = detect_and_estimate(image_files[0], BOARD, CAMERA, processes=1, progress=False)
+    check(serial, image_files)
+    for a, b in zip(results, serial):
+        if a.ok:
+            np.testing.assert_allclose(a.pose.T_cam_target, b.pose.T_cam_target, atol=1e-12)
+
+
+def test_bad_fit_is_a_reason_and_keeps_the_pose(image_files):
+    result = process_image(image_files[0][0], BOARD, CAMERA, max_rms_px=1e-4)
+    assert not result.ok and result.reason.startswith("bad fit: reprojection RMS")
+    assert result.pose is not None and result.pose.rms_px > 1e-4
+
+
+def test_image_size_must_match_the_intrinsics(image_files):
+    other = Intrinsics(K=CAMERA.K, dist=CAMERA.dist, width=1280, height=720)
+    result = process_image(image_files[0][0], BOARD, other)
+    assert result.reason == "image is 640x480 pixels but the intrinsics are for 1280x720"
+
+
+def test_wrong_board_size_is_not_found(image_files):
+    result = process_image(image_files[0][0], Chessboard(rows=6, cols=7, spacing=0.04), CAMERA)
+    assert result.reason == "chessboard not found"
+
+
+def test_progress_bar_only_when_asked(image_files, capsys):
+    detect_and_estimate(image_files[0][:1], BOARD, CAMERA, processes=1, progress=True)
+    assert "detecting chessboard" in capsys.readouterr().err
+    detect_and_estimate(image_files[0][:1], BOARD, CAMERA, processes=1)   # stderr is not a terminal
+    assert capsys.readouterr().err == ""
+
+
+def test_bad_process_count():
+    with pytest.raises(InputError, match="processes must be a positive integer"):
+        detect_and_estimate([], BOARD, CAMERA, processes=0)
+    assert detect_and_estimate([], BOARD, CAMERA) == []
+
+
+def test_arrays_in_batches_give_the_same_results_as_files_in_order(tmp_path):
+    """detect_and_estimate_arrays (bag frames) = detect_and_estimate (files), in input order,
+    with a batch smaller than the stream so that several batches go through the pool."""
+    from multieye.imaging.batch import detect_and_estimate_arrays
+
+    board = Chessboard(rows=6, cols=9, spacing=0.03)
+    intr = Intrinsics(K=np.array([[500.0, 0, 319.5], [0, 500, 239.5], [0, 0, 1]]),
+                      dist=np.array([-0.1, 0.02, 0, 0]), width=640, height=480)
+    paths = []
+    for k in range(7):
+        T = transform_from_rotvec([0.2 * np.sin(k), 0.15 * np.cos(k), 0.1 * k],
+                                  [-0.12 + 0.01 * k, -0.07, 0.6])
+        img = render(board, intr, T, rng=np.random.default_rng(k)) if k != 3 else \
+            np.full((480, 640), 200, np.uint8)           # one image without a board
+        paths.append(tmp_path / f"{k}.png")
+        cv2.imwrite(str(paths[-1]), img)
+    files = detect_and_estimate(paths, board, intr, processes=2)
+    arrays = detect_and_estimate_arrays(((p.name, cv2.imread(str(p), cv2.IMREAD_GRAYSCALE))
+                                         for p in paths), board, intr, processes=2, batch=3)
+    assert [r.path for r in arrays] == [p.name for p in paths]
+    assert [r.ok for r in arrays] == [r.ok for r in files] == [True] * 3 + [False] + [True] * 3
+    for a, f in zip(arrays, files):
+        if a.ok:
+            np.testing.assert_allclose(a.pose.T_cam_target, f.pose.T_cam_target, atol=1e-12)

@@ -1,0 +1,149 @@
+"""calibration.json: DESIGN.md section 4 keys, exact round trips, validation on read."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from multieye.core import geometry
+from multieye.core.errors import DatasetError, InputError
+from multieye.io.calibration_json import (
+    CalibrationRecord,
+    CameraRecord,
+    RejectedItem,
+    Residuals,
+    read_calibration,
+    write_calibration,
+)
+
+
+def _record(rng, setup="eye-to-base", m=3, full=True):
+    X = geometry.random_transforms(rng, m)
+    cams = []
+    for j in range(m):
+        extra = {}
+        if full and j:
+            A = rng.normal(size=(6, 6))
+            extra = dict(residuals=Residuals(0.01 * j, 1e-4 * j, 0.05, 3e-4, 0.21),
+                         time_offset_s=-0.0123, std_rot_deg=0.02, std_trans_m=4e-4,
+                         covariance=A @ A.T * 1e-8,
+                         rejected=(RejectedItem("1700000000.5.png", "no target detected"),
+                                   RejectedItem("1700000001.png", "reprojection RMS 3.2 px")))
+        cams.append(CameraRecord(f"cam{j}", X[j], geometry.inv(X[0]) @ X[j], 40 + j, **extra))
+    return CalibrationRecord(setup, "joint", "cam0", geometry.random_transforms(rng), cams,
+                             Residuals(0.012, 2.5e-4), ("cam2: rotations span only 12 deg",))
+
+
+@pytest.mark.parametrize("setup, y_key, x_key", [("eye-to-base", "T_marker_target", "T_world_cam"),
+                                                 ("eye-on-hand", "T_world_target", "T_body_cam")])
+def test_keys_follow_the_design(tmp_path, rng, setup, y_key, x_key):
+    rec = _record(rng, setup)
+    write_calibration(tmp_path / "calibration.json", rec)
+    data = json.loads((tmp_path / "calibration.json").read_text())
+    assert list(data) == ["setup", "method", "reference_camera", y_key, "cameras", "residuals",
+                          "warnings"]
+    assert data["setup"] == setup and data["reference_camera"] == "cam0"
+    assert np.array_equal(np.array(data[y_key]), rec.Y)
+    cam0, cam1 = data["cameras"]["cam0"], data["cameras"]["cam1"]
+    assert set(cam0) == {x_key, "T_ref_cam", "measurements_used"}
+    assert set(cam1) == {x_key, "T_ref_cam", "measurements_used", "residuals", "time_offset_s",
+                         "std_rot_deg", "std_trans_m", "covariance", "rejected"}
+    assert cam1["rejected"][0] == {"item": "1700000000.5.png", "reason": "no target detected"}
+    assert np.array(cam1["covariance"]).shape == (6, 6)
+    assert data["residuals"] == {"e_R_deg": 0.012, "e_t_m": 2.5e-4}
+    assert cam1["residuals"]["reprojection_rms_px"] == 0.21
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), m=st.integers(1, 6),
+       setup=st.sampled_from(["eye-to-base", "eye-on-hand"]), full=st.booleans())
+def test_round_trip_is_exact(tmp_path_factory, seed, m, setup, full):
+    rec = _record(np.random.default_rng(seed), setup, m, full)
+    path = tmp_path_factory.mktemp("cal") / "calibration.json"
+    write_calibration(path, rec)
+    back = read_calibration(path)
+    assert (back.setup, back.method, back.reference_camera) == (setup, "joint", "cam0")
+    assert np.array_equal(back.Y, rec.Y)
+    assert back.residuals == rec.residuals and back.warnings == rec.warnings
+    for a, b in zip(rec.cameras, back.cameras, strict=True):
+        assert a.name == b.name and a.measurements_used == b.measurements_used
+        assert np.array_equal(a.X, b.X) and np.array_equal(a.T_ref_cam, b.T_ref_cam)
+        assert (a.residuals, a.time_offset_s, a.std_rot_deg, a.std_trans_m, a.rejected) == (
+            b.residuals, b.time_offset_s, b.std_rot_deg, b.std_trans_m, b.rejected)
+        assert (a.covariance is None and b.covariance is None) or np.array_equal(
+            a.covariance, b.covariance)
+    assert back.camera("cam0").name == "cam0"
+
+
+def _write_json(path, data):
+    path.write_text(json.dumps(data, indent=1))
+    return path
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d.pop("T_marker_target"), "missing key 'T_marker_target' in the top level"),
+    (lambda d: d["cameras"]["cam1"].pop("T_world_cam"),
+     "camera cam1: missing key 'T_world_cam'$"),
+    (lambda d: d["cameras"]["cam0"].pop("measurements_used"), "missing key 'measurements_used'"),
+    (lambda d: d.update(setup="eye-in-hand"), "setup must be one of eye-to-base, eye-on-hand"),
+    (lambda d: d["cameras"]["cam1"]["T_ref_cam"][0].__setitem__(0, 1.5),
+     ": camera cam1: T_ref_cam is not a rigid transform$"),
+    (lambda d: d.__setitem__("T_marker_target", [[1, 0], [0, 1]]),
+     "T_marker_target must be a finite 4x4 matrix, got shape \\(2, 2\\)"),
+    (lambda d: d["cameras"]["cam1"].__setitem__("covariance", [[0.0] * 6] * 5),
+     "covariance must be a finite 6x6 matrix"),
+    (lambda d: d["cameras"]["cam1"].__setitem__("std_rot_deg", "small"),
+     "std_rot_deg must be a finite number, got 'small'"),
+    (lambda d: d.update(reference_camera="cam9"), "reference camera 'cam9' is not one of"),
+    (lambda d: d["residuals"].pop("e_t_m"), "missing key 'e_t_m' in residuals"),
+    (lambda d: d["cameras"]["cam1"].__setitem__("rejected", [{"item": "x"}]),
+     "rejected must be a list of"),
+    (lambda d: d["cameras"]["cam0"].__setitem__("measurements_used", -1),
+     "measurements_used must be a non-negative integer"),
+])
+def test_validation_on_read(tmp_path, rng, edit, message):
+    write_calibration(tmp_path / "ok.json", _record(rng))
+    data = json.loads((tmp_path / "ok.json").read_text())
+    edit(data)
+    path = _write_json(tmp_path / "bad.json", data)
+    with pytest.raises(DatasetError, match=message) as info:
+        read_calibration(path)
+    assert info.value.path == str(path)
+
+
+def test_unknown_keys_are_ignored_and_bad_json_names_the_line(tmp_path, rng):
+    write_calibration(tmp_path / "ok.json", _record(rng))
+    data = json.loads((tmp_path / "ok.json").read_text())
+    data["multieye_version"] = "0.1.0"
+    data["cameras"]["cam0"]["notes"] = "front bumper"
+    assert read_calibration(_write_json(tmp_path / "extra.json", data)).method == "joint"
+    (tmp_path / "broken.json").write_text('{\n  "setup": "eye-to-base",\n  "method": joint\n}')
+    with pytest.raises(DatasetError, match="invalid JSON") as info:
+        read_calibration(tmp_path / "broken.json")
+    assert info.value.line == 3
+
+
+def test_records_check_their_input(rng):
+    T = geometry.random_transforms(rng)
+    cam = CameraRecord("a", T, np.eye(4), 3)
+    with pytest.raises(InputError, match="reference camera 'b' is not one of \\['a'\\]"):
+        CalibrationRecord("eye-to-base", "joint", "b", T, (cam,), Residuals(0, 0))
+    with pytest.raises(InputError, match="camera names must be unique"):
+        CalibrationRecord("eye-to-base", "joint", "a", T, (cam, cam), Residuals(0, 0))
+    bad = T.copy()
+    bad[:3, :3] *= 2
+    with pytest.raises(InputError, match="camera a: X is not a rigid transform"):
+        CameraRecord("a", bad, np.eye(4), 3)
+
+
+def test_nan_residual_is_not_written(tmp_path, rng):
+    rec = _record(rng)
+    bad = CalibrationRecord(rec.setup, rec.method, rec.reference_camera, rec.Y, rec.cameras,
+                            Residuals(float("nan"), 0.0))
+    with pytest.raises(ValueError):
+        write_calibration(tmp_path / "calibration.json", bad)
+    assert not (tmp_path / "calibration.json").exists()

@@ -1,0 +1,247 @@
+"""Generic CSV, OptiTrack Motive and Vicon Nexus exports, and the read_mocap dispatcher.
+
+The export files are written here following the layouts documented in
+multieye/io/mocap_csv.py, from poses with a known answer.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from multieye.core import geometry
+from multieye.core.errors import DatasetError
+from multieye.io.mocap import MocapSpec, read_mocap, sniff_mocap_format
+from multieye.io.mocap_csv import read_optitrack_csv, read_pose_csv, read_vicon_csv
+
+
+@pytest.fixture
+def poses(rng):
+    """(stamps s, T_world_body (N,4,4)) with translations of a metre or so."""
+    n = 6
+    return np.round(np.arange(n) * 0.01 + 12.0, 6), geometry.random_transforms(rng, n)
+
+
+def _fmt(v):
+    return repr(float(v))
+
+
+# --------------------------------------------------------------------------- generic CSV
+
+
+def test_generic_csv_default_and_custom_columns(tmp_path, poses):
+    stamps, T = poses
+    q = geometry.quat_from_transform(T)
+    lines = ["timestamp,qw,qx,qy,qz,x,y,z,extra"]
+    for s, Ti, qi in zip(stamps, T, q):
+        lines.append(",".join(map(_fmt, [s, qi[3], *qi[:3], *Ti[:3, 3], 7])))
+    (tmp_path / "a.csv").write_text("\n".join(lines) + "\n")
+    traj = read_pose_csv(tmp_path / "a.csv", parent="world", child="body")
+    assert np.array_equal(traj.stamps, stamps)
+    assert np.abs(traj.T - T).max() < 1e-12
+
+    renamed = ["Zeit;PX;PY;PZ;A;B;C;D"] + [
+        ";".join(map(_fmt, [s, *Ti[:3, 3], *qi])) for s, Ti, qi in zip(stamps, T, q)]
+    (tmp_path / "b.csv").write_text("\n".join(renamed))
+    cols = {"t": "zeit", "qx": "A", "qy": "B", "qz": "C", "qw": "D"}
+    traj = read_pose_csv(tmp_path / "b.csv", columns=cols)
+    assert np.abs(traj.T - T).max() < 1e-12
+
+
+def test_generic_csv_units_from_header_and_nanoseconds(tmp_path):
+    text = ("#timestamp [ns], tx [mm], ty [mm], tz [mm], qx, qy, qz, qw\n"
+            "1700000000000000001, 1000, 2000, -3, 0, 0, 0, 1\n"
+            "1700000000000000002, , , , , , , \n"  # occluded sample: skipped
+            "1700000000500000000, 0, 0, 0, 0, 0, 0, 1\n")
+    (tmp_path / "c.csv").write_text(text)
+    traj = read_pose_csv(tmp_path / "c.csv")
+    assert traj.stamps_ns.tolist() == [1700000000000000001, 1700000000500000000]
+    assert traj.T[0, :3, 3].tolist() == [1.0, 2.0, -0.003]
+    with pytest.raises(DatasetError, match="the header says 'mm' but 'm' was requested"):
+        read_pose_csv(tmp_path / "c.csv", unit="m")
+
+
+def test_generic_csv_errors(tmp_path):
+    (tmp_path / "a.csv").write_text("time,x,y,z,qx,qy,qz\n0,0,0,0,0,0,0\n")
+    with pytest.raises(DatasetError, match=r"no column for qw \(looked for qw or q_w") as info:
+        read_pose_csv(tmp_path / "a.csv")
+    assert info.value.line == 1
+    (tmp_path / "b.csv").write_text("t,x,tx,y,z,qx,qy,qz,qw\n")
+    with pytest.raises(DatasetError, match="several columns for tx"):
+        read_pose_csv(tmp_path / "b.csv")
+    (tmp_path / "c.csv").write_text("t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n1,0,0\n")
+    with pytest.raises(DatasetError, match="row has 3 cells, the header has 8") as info:
+        read_pose_csv(tmp_path / "c.csv")
+    assert info.value.line == 3
+
+
+# --------------------------------------------------------------------------- OptiTrack
+
+
+def _optitrack(path, stamps, T, *, units="Millimeters", rotation="Quaternion", blank=()):
+    """A Motive 1.2x-style export: rigid bodies 'Target' and 'Other', one marker."""
+    scale = {"Millimeters": 1000.0, "Meters": 1.0}.get(units, 1.0)
+    meta = (f"Format Version,1.23,Take Name,Take 01,Capture Frame Rate,120.000000,"
+            f"Export Frame Rate,120.000000,Total Exported Frames,{len(stamps)},"
+            f"Rotation Type,{rotation},Length Units,{units},Coordinate Space,Global")
+    body = ["Rigid Body"] * 8
+    cols = ["Other"] * 8 + ["Target"] * 8 + ["Target:Marker1"] * 3
+    lines = [meta, "",
+             ",Type," + ",".join(body * 2 + ["Marker"] * 3),
+             ",Name," + ",".join(cols),
+             ",ID," + ",".join(["1"] * 8 + ["2"] * 8 + ["3"] * 3),
+             ",," + ",".join((["Rotation"] * 4 + ["Position"] * 3 + ["Mean Marker Error"]) * 2
+                             + ["Position"] * 3),
+             "Frame,Time (Seconds)," + ",".join(["X", "Y", "Z", "W", "X", "Y", "Z", ""] * 2
+                                                + ["X", "Y", "Z"])]
+    q = geometry.quat_from_transform(T)
+    for i, (s, Ti, qi) in enumerate(zip(stamps, T, q)):
+        other = ["0", "0", "0", "1", "5", "5", "5", "0.1"]
+        target = [*map(_fmt, qi), *map(_fmt, Ti[:3, 3] * scale), "0.2"]
+        if i in blank:
+            target = [""] * 7 + [""]
+        lines.append(",".join([str(i), _fmt(s), *other, *target, "1", "2", "3"]))
+    path.write_text("\r\n".join(lines) + "\r\n")
+
+
+def test_optitrack_rigid_body_millimetres_and_occlusion(tmp_path, poses):
+    stamps, T = poses
+    _optitrack(tmp_path / "take.csv", stamps, T, blank=(2,))
+    traj = read_optitrack_csv(tmp_path / "take.csv", "Target", parent="world", child="marker")
+    keep = [0, 1, 3, 4, 5]
+    assert np.array_equal(traj.stamps, stamps[keep])
+    assert np.abs(traj.T - T[keep]).max() < 1e-12
+    assert sniff_mocap_format(tmp_path / "take.csv") == "optitrack"
+
+
+def test_optitrack_errors(tmp_path, poses):
+    stamps, T = poses
+    _optitrack(tmp_path / "take.csv", stamps, T, units="Meters")
+    with pytest.raises(DatasetError, match=r"2 rigid bodys in the file \(Other, Target\)"):
+        read_optitrack_csv(tmp_path / "take.csv")
+    with pytest.raises(DatasetError,
+                       match="rigid body 'Nope' not found; the file has Other, Target"):
+        read_optitrack_csv(tmp_path / "take.csv", "Nope")
+    _optitrack(tmp_path / "euler.csv", stamps, T, rotation="XYZ")
+    with pytest.raises(DatasetError, match="Rotation Type is 'XYZ'") as info:
+        read_optitrack_csv(tmp_path / "euler.csv", "Target")
+    assert info.value.line == 1
+    _optitrack(tmp_path / "inch.csv", stamps, T, units="Inches")
+    with pytest.raises(DatasetError,
+                       match="Length Units must be Meters, Millimeters or Centimeters"):
+        read_optitrack_csv(tmp_path / "inch.csv", "Target")
+    (tmp_path / "plain.csv").write_text("Frame,Time\n0,0\n")
+    with pytest.raises(DatasetError, match="not an OptiTrack Motive CSV export"):
+        read_optitrack_csv(tmp_path / "plain.csv")
+
+
+def test_optitrack_bad_cell_names_line(tmp_path, poses):
+    stamps, T = poses
+    _optitrack(tmp_path / "take.csv", stamps, T)
+    lines = (tmp_path / "take.csv").read_text().splitlines()
+    cells = lines[9].split(",")
+    cells[12] = "oops"
+    lines[9] = ",".join(cells)
+    (tmp_path / "take.csv").write_text("\n".join(lines))
+    with pytest.raises(DatasetError,
+                       match="expected a number for Target Rotation Z, got 'oops'") as info:
+        read_optitrack_csv(tmp_path / "take.csv", "Target")
+    assert info.value.line == 10
+
+
+# --------------------------------------------------------------------------- Vicon
+
+
+def _vicon(path, frames, T, *, rate=100, angle="deg", length="mm", blank=()):
+    rv = geometry.rotvec_from_transform(T) * (180 / np.pi if angle == "deg" else 1.0)
+    t = T[:, :3, 3] * (1000.0 if length == "mm" else 1.0)
+    lines = ["Segments", str(rate), ",,Rig:Base,,,,,,Rig:Marker,,,,,",
+             "Frame,Sub Frame" + ",RX,RY,RZ,TX,TY,TZ" * 2,
+             ",," + ",".join([angle] * 3 + [length] * 3) * 1 + "," +
+             ",".join([angle] * 3 + [length] * 3)]
+    for i, f in enumerate(frames):
+        marker = ["", "", "", "", "", ""] if i in blank else [*map(_fmt, rv[i]), *map(_fmt, t[i])]
+        lines.append(",".join([str(f), "0", "0", "0", "0", "1", "2", "3", *marker]))
+    lines += ["", "Trajectories", str(rate), ",,Rig:M1,,", "Frame,Sub Frame,X,Y,Z",
+              ",,mm,mm,mm", "1,0,1,2,3"]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_vicon_segment_helical_degrees_millimetres(tmp_path, rng):
+    T = geometry.random_transforms(rng, 5)
+    frames = [101, 102, 103, 105, 106]
+    _vicon(tmp_path / "trial.csv", frames, T, blank=(1,))
+    traj = read_vicon_csv(tmp_path / "trial.csv", "Marker")  # short name after the colon
+    keep = [0, 2, 3, 4]
+    assert np.allclose(traj.stamps, np.array(frames)[keep] / 100.0, rtol=0, atol=1e-15)
+    assert np.abs(traj.T - T[keep]).max() < 1e-12
+    # the helical angles are a rotation vector, not Euler angles
+    rv = geometry.rotvec_from_transform(T[0])
+    assert not np.allclose(traj.T[0, :3, :3], Rotation.from_euler("xyz", rv).as_matrix())
+    assert sniff_mocap_format(tmp_path / "trial.csv") == "vicon"
+
+
+def test_vicon_radians_metres(tmp_path, rng):
+    T = geometry.random_transforms(rng, 3)
+    _vicon(tmp_path / "trial.csv", [1, 2, 3], T, rate=250, angle="rad", length="m")
+    traj = read_vicon_csv(tmp_path / "trial.csv", "Rig:Marker")
+    assert np.abs(traj.T - T).max() < 1e-12
+    assert traj.stamps.tolist() == [1 / 250, 2 / 250, 3 / 250]
+
+
+def test_vicon_errors(tmp_path, rng):
+    T = geometry.random_transforms(rng, 3)
+    _vicon(tmp_path / "trial.csv", [1, 2, 3], T)
+    with pytest.raises(DatasetError, match=r"2 segments in the file \(Rig:Base, Rig:Marker\)"):
+        read_vicon_csv(tmp_path / "trial.csv")
+    text = (tmp_path / "trial.csv").read_text()
+    (tmp_path / "traj.csv").write_text(text[text.index("Trajectories"):])
+    with pytest.raises(DatasetError, match="only marker Trajectories"):
+        read_vicon_csv(tmp_path / "traj.csv")
+    (tmp_path / "grad.csv").write_text(text.replace("deg", "grad"))
+    with pytest.raises(DatasetError, match="rotation units must be 'deg' or 'rad'") as info:
+        read_vicon_csv(tmp_path / "grad.csv", "Marker")
+    assert info.value.line == 5
+    (tmp_path / "rate.csv").write_text(text.replace("Segments\n100", "Segments\nfast", 1))
+    with pytest.raises(DatasetError, match=r"expected a number for the frame rate \(Hz\)") as info:
+        read_vicon_csv(tmp_path / "rate.csv", "Marker")
+    assert info.value.line == 2
+
+
+# --------------------------------------------------------------------------- dispatcher
+
+
+def test_read_mocap_inverts_to_world_parent(tmp_path, poses):
+    stamps, T = poses
+    q = geometry.quat_from_transform(geometry.inv(T))
+    t = geometry.inv(T)[:, :3, 3]
+    (tmp_path / "m.txt").write_text("".join(
+        " ".join(map(_fmt, [s, *ti, *qi])) + "\n" for s, ti, qi in zip(stamps, t, q)))
+    spec = MocapSpec(tmp_path / "m.txt", pose="T_body_world", format="tum")
+    traj = read_mocap(spec)
+    assert traj.name == "T_world_body"
+    assert np.abs(traj.T - T).max() < 1e-12
+    assert spec.moving_frame == "body"
+    assert sniff_mocap_format(tmp_path / "m.txt") == "tum"
+
+
+def test_read_mocap_dispatches_optitrack_and_rejects_missing_topic(tmp_path, poses):
+    stamps, T = poses
+    _optitrack(tmp_path / "take.csv", stamps, T)
+    traj = read_mocap(MocapSpec(tmp_path / "take.csv", format="optitrack", rigid_body="Target"))
+    assert traj.name == "T_world_marker" and np.abs(traj.T - T).max() < 1e-12
+    with pytest.raises(DatasetError, match="rosbag motion-capture source needs a topic"):
+        read_mocap(MocapSpec(tmp_path / "take.csv", format="rosbag"))
+    with pytest.raises(DatasetError, match="motion-capture file not found"):
+        sniff_mocap_format(tmp_path / "none.txt")
+
+
+def test_read_mocap_passes_duplicates_to_csv(tmp_path):
+    (tmp_path / "d.csv").write_text("t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n0,1,0,0,0,0,0,1\n"
+                                    "1,2,0,0,0,0,0,1\n")
+    with pytest.raises(DatasetError, match="duplicate time stamp") as info:
+        read_mocap(MocapSpec(tmp_path / "d.csv", format="csv"))
+    assert info.value.line == 3
+    traj = read_mocap(MocapSpec(tmp_path / "d.csv", format="csv", duplicates="drop"))
+    assert traj.T[:, 0, 3].tolist() == [0.0, 2.0]

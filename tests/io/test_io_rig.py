@@ -1,0 +1,261 @@
+"""rig.yaml loading and checking, and time-stamped image folders."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from multieye.core.errors import DatasetError
+from multieye.io.image_folder import list_images
+from multieye.io.rig import load_rig, read_camera_intrinsics
+
+INTRINSICS = "camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
+
+RIG = """\
+setup: eye-to-base
+target:
+  type: chessboard
+  rows: 7
+  cols: 8
+  spacing: 0.033
+mocap:
+  file: mocap.txt
+  pose: T_world_marker
+  time_tolerance: 0.02
+cameras:
+  cam0:
+    intrinsics: cam0.yaml
+    images: cam0/
+  cam1:
+    intrinsics: {file: camchain.yaml, camera: cam1}
+    poses: cam1_target.txt
+    time_offset: -0.25
+    mocap: cam1_mocap.txt
+"""
+
+CAMCHAIN = """\
+cam0:
+  camera_model: pinhole
+  intrinsics: [400.0, 400.0, 320.0, 240.0]
+  distortion_model: radtan
+  distortion_coeffs: [0, 0, 0, 0]
+cam1:
+  camera_model: pinhole
+  intrinsics: [600.0, 600.0, 320.0, 240.0]
+  distortion_model: equidistant
+  distortion_coeffs: [0.1, 0, 0, 0]
+  T_cn_cnm1: [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+"""
+
+
+@pytest.fixture
+def dataset(tmp_path):
+    (tmp_path / "cam0").mkdir()
+    (tmp_path / "cam0" / "1700000000.5.png").write_bytes(b"")
+    (tmp_path / "cam0.yaml").write_text(INTRINSICS)
+    (tmp_path / "camchain.yaml").write_text(CAMCHAIN)
+    for name in ("mocap.txt", "cam1_target.txt", "cam1_mocap.txt"):
+        (tmp_path / name).write_text("0 0 0 0 0 0 0 1\n")
+    (tmp_path / "rig.yaml").write_text(RIG)
+    return tmp_path
+
+
+def _edit(dataset, old, new):
+    text = (dataset / "rig.yaml").read_text()
+    assert old in text
+    (dataset / "rig.yaml").write_text(text.replace(old, new, 1))
+    return dataset / "rig.yaml"
+
+
+def test_loads_the_design_example(dataset):
+    rig = load_rig(dataset)  # the folder works as well as the file
+    assert rig.path == (dataset / "rig.yaml").resolve()
+    assert rig.setup == "eye-to-base" and list(rig.cameras) == ["cam0", "cam1"]
+    assert rig.target.as_dict() == {"type": "chessboard", "rows": 7, "cols": 8,
+                                    "spacing": 0.033}
+    assert rig.mocap.file == (dataset / "mocap.txt").resolve()
+    assert (rig.mocap.pose, rig.mocap.time_tolerance, rig.mocap.format) == (
+        "T_world_marker", 0.02, "tum")
+    cam0, cam1 = rig.cameras["cam0"], rig.cameras["cam1"]
+    assert cam0.source == "images" and cam0.images == (dataset / "cam0").resolve()
+    assert cam0.time_offset == 0.0 and rig.mocap_for("cam0") is rig.mocap
+    assert cam1.source == "poses" and cam1.time_offset == -0.25
+    assert cam1.intrinsics_camera == "cam1"
+    own = rig.mocap_for("cam1")  # own file, other keys inherited
+    assert own.file == (dataset / "cam1_mocap.txt").resolve() and own.time_tolerance == 0.02
+    assert read_camera_intrinsics(cam1).model == "fisheye"
+    assert read_camera_intrinsics(cam0).K[0, 0] == 500.0
+    with pytest.raises(TypeError):
+        rig.cameras["cam2"] = cam0  # read-only
+
+
+@pytest.mark.parametrize("old, new, line, message", [
+    ("  spacing: 0.033\n", "  spacing: 0.033\n  colour: red\n", 7,
+     "target.colour: unknown key; expected one of type, rows, cols, spacing"),
+    ("setup: eye-to-base", "setup: eye-in-hand", 1,
+     "setup: expected one of eye-to-base, eye-on-hand, got 'eye-in-hand'"),
+    ("type: chessboard", "type: checkerboard", 3, "target.type: expected one of chessboard,"),
+    ("rows: 7", "rows: 7.5", 4, "target.rows: expected a positive integer, got 7.5"),
+    ("spacing: 0.033", "spacing: '3cm'", 6, "target.spacing: expected a positive number"),
+    ("  cols: 8\n", "", 2, "target: missing key 'cols'"),
+    ("time_tolerance: 0.02", "time_tolerance: -1", 10, "mocap.time_tolerance: expected a "
+     "positive number"),
+    ("pose: T_world_marker", "pose: T_world_body", 9,
+     "mocap.pose: expected T_world_marker (or T_marker_world) for eye-to-base"),
+    ("file: mocap.txt", "file: missing.txt", 8, "mocap.file: file or bag not found: "),
+    ("images: cam0/", "images: nowhere/", 14, "cameras.cam0.images: folder not found"),
+    ("images: cam0/", "images: mocap.txt", 14, "expected a folder, found a file"),
+    ("    images: cam0/\n", "", 12, "cameras.cam0: expected exactly one of images, poses, "
+     "rosbag, got none"),
+    ("    poses: cam1_target.txt\n", "    poses: cam1_target.txt\n    images: cam0/\n", 15,
+     "got images, poses"),
+    ("intrinsics: cam0.yaml", "intrinsic: cam0.yaml", 13, "cameras.cam0.intrinsic: unknown key"),
+    ("    time_offset: -0.25", "    time_offset: soon", 18,
+     "cameras.cam1.time_offset: expected a number, got 'soon'"),
+    ("camera: cam1}", "camera: cam1, name: x}", 16, "cameras.cam1.intrinsics.name: unknown key"),
+    ("mocap: cam1_mocap.txt", "mocap: {file: cam1_mocap.txt, topic: /x}", 19,
+     "cameras.cam1.mocap.topic: applies to rosbag sources only (this one is tum)"),
+    ("  pose: T_world_marker\n", "  pose: T_world_marker\n  unit: inch\n", 10,
+     "mocap.unit: expected one of m, cm, mm, got 'inch'"),
+    ("  pose: T_world_marker\n", "  pose: T_world_marker\n  duplicates: average\n", 10,
+     "mocap.duplicates: expected one of error, drop, got 'average'"),
+])
+def test_bad_rig_files_name_line_and_expectation(dataset, old, new, line, message):
+    path = _edit(dataset, old, new)
+    with pytest.raises(DatasetError, match=message.replace("(", r"\(").replace(")", r"\)")) as info:
+        load_rig(path)
+    assert info.value.path == str(path.resolve())
+    assert info.value.line == line
+
+
+def test_duplicate_keys_and_yaml_syntax(dataset):
+    path = _edit(dataset, "  rows: 7\n", "  rows: 7\n  rows: 6\n")
+    with pytest.raises(DatasetError, match="duplicate key 'rows' \\(first on line 4\\)") as info:
+        load_rig(path)
+    assert info.value.line == 5
+    (dataset / "rig.yaml").write_text("setup: [eye-to-base\ncameras: {}\n")
+    with pytest.raises(DatasetError, match="invalid YAML") as info:
+        load_rig(dataset)
+    assert info.value.line == 2
+    with pytest.raises(DatasetError, match="rig description \\(rig.yaml\\) not found"):
+        load_rig(dataset / "nowhere")
+
+
+def test_target_types_need_their_keys(dataset):
+    path = _edit(dataset, "type: chessboard", "type: charuco")
+    with pytest.raises(DatasetError, match="target: missing key 'marker_size' \\(required for "
+                       "charuco targets\\)"):
+        load_rig(path)
+    _edit(dataset, "  spacing: 0.033\n",
+          "  spacing: 0.033\n  marker_size: 0.025\n  dictionary: DICT_5X5_100\n")
+    target = load_rig(path).target
+    assert (target.type, target.marker_size, target.dictionary) == ("charuco", 0.025,
+                                                                     "DICT_5X5_100")
+    _edit(dataset, "type: charuco", "type: aprilgrid")
+    with pytest.raises(DatasetError, match="target.marker_size: applies to charuco targets "
+                       "only \\(this target is aprilgrid\\)"):
+        load_rig(path)
+
+
+def test_target_only_needed_with_images(dataset):
+    text = RIG.split("mocap:")[1]
+    text = "setup: eye-to-base\nmocap:" + text.replace("    images: cam0/",
+                                                        "    poses: cam1_target.txt")
+    (dataset / "rig.yaml").write_text(text)
+    assert load_rig(dataset).target is None
+    (dataset / "rig.yaml").write_text(text.replace("    poses: cam1_target.txt\n  cam1",
+                                                   "    images: cam0/\n  cam1", 1))
+    with pytest.raises(DatasetError, match="missing key 'target': cameras with images \\(cam0\\)"):
+        load_rig(dataset)
+
+
+def test_per_camera_mocap_inherits_format_keys_of_the_same_format(dataset):
+    path = _edit(dataset, "  pose: T_world_marker\n",
+                 "  pose: T_world_marker\n  unit: mm\n  duplicates: drop\n")
+    own = load_rig(path).mocap_for("cam1")
+    assert (own.unit, own.duplicates) == ("mm", "drop")
+
+
+def test_per_camera_mocap_without_top_level(dataset):
+    (dataset / "rig.yaml").write_text(textwrap.dedent("""\
+        setup: eye-on-hand
+        cameras:
+          left:
+            intrinsics: cam0.yaml
+            poses: cam1_target.txt
+            mocap: {file: cam1_mocap.txt, time_tolerance: 0.5}
+          right:
+            intrinsics: cam0.yaml
+            poses: cam1_target.txt
+        """))
+    with pytest.raises(DatasetError, match="cameras.right: no motion capture") as info:
+        load_rig(dataset)
+    assert info.value.line == 7
+    (dataset / "rig.yaml").write_text((dataset / "rig.yaml").read_text() + "    mocap: mocap.txt\n")
+    rig = load_rig(dataset)
+    assert rig.mocap is None
+    assert rig.mocap_for("left").time_tolerance == 0.5
+    assert rig.mocap_for("right").pose == "T_world_body"  # default for eye-on-hand
+    assert rig.mocap_for("right").time_tolerance == 0.03
+
+
+def test_rosbag_sources(dataset):
+    (dataset / "run.bag").write_bytes(b"")
+    path = _edit(dataset, "  file: mocap.txt\n", "  file: run.bag\n  topic: /vicon/pose\n"
+                 "  parent_frame: world\n")
+    path = _edit(dataset, "    images: cam0/", "    rosbag: run.bag\n    topic: /cam0/image_raw")
+    rig = load_rig(path)
+    assert (rig.mocap.format, rig.mocap.topic, rig.mocap.parent_frame) == (
+        "rosbag", "/vicon/pose", "world")
+    cam0 = rig.cameras["cam0"]
+    assert (cam0.source, cam0.topic) == ("rosbag", "/cam0/image_raw")
+    own = rig.mocap_for("cam1")  # a TUM file: the bag's topic and frames are not inherited
+    assert (own.format, own.topic, own.parent_frame, own.time_tolerance) == ("tum", None,
+                                                                             None, 0.02)
+    _edit(dataset, "  topic: /vicon/pose\n", "")
+    with pytest.raises(DatasetError, match="mocap: missing key 'topic' \\(required for a rosbag"):
+        load_rig(path)
+
+
+# --------------------------------------------------------------------------- images
+
+
+def test_list_images_seconds_and_nanoseconds(tmp_path):
+    names = ["1700000000.5.png", "1700000000.000000001.JPG", "1700000001.png",
+             "1700000002123456789.png", "notes.txt", ".hidden"]
+    for name in names:
+        (tmp_path / name).write_bytes(b"")
+    out = list_images(tmp_path)
+    assert [p.name for _, _, p in out] == [names[1], names[0], names[2], names[3]]
+    assert [ns for _, ns, _ in out] == [1700000000000000001, 1700000000500000000,
+                                        1700000001000000000, 1700000002123456789]
+    assert np.allclose([s for s, _, _ in out], [1700000000.000000001, 1700000000.5,
+                                                1700000001.0, 1700000002.123456789],
+                       rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("name, message", [
+    ("frame_001.png", "expected a time stamp"),
+    ("1700000000123.png", "13 digits is ambiguous"),
+    ("-5.png", "expected a time stamp"),
+])
+def test_list_images_rejects_names_that_are_not_stamps(tmp_path, name, message):
+    (tmp_path / "1700000000.png").write_bytes(b"")
+    (tmp_path / name).write_bytes(b"")
+    with pytest.raises(DatasetError, match=message) as info:
+        list_images(tmp_path)
+    assert info.value.path == str(tmp_path / name)
+
+
+def test_list_images_duplicates_and_empty(tmp_path):
+    (tmp_path / "1700000000.5.png").write_bytes(b"")
+    (tmp_path / "1700000000.500.jpg").write_bytes(b"")
+    with pytest.raises(DatasetError, match="same time stamp as 1700000000.5.png"):
+        list_images(tmp_path)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DatasetError, match="no images"):
+        list_images(tmp_path / "empty")
+    with pytest.raises(DatasetError, match="image folder not found"):
+        list_images(tmp_path / "none")

@@ -1,0 +1,236 @@
+"""ROS 1 and ROS 2 bags written with rosbags' writers and read back through multieye.io."""
+
+from __future__ import annotations
+
+import functools
+
+import cv2
+import numpy as np
+import pytest
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from multieye.core import geometry
+from multieye.core.errors import DatasetError
+from multieye.io.mocap import MocapSpec, read_mocap, sniff_mocap_format
+from multieye.io.rosbag import bag_topics, iter_bag_images, read_bag_trajectory
+
+BASE_NS = 1_700_000_000_000_000_000
+
+
+@functools.cache
+def _typestore(ros):
+    ts = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
+    if "tf2_msgs/msg/TFMessage" not in ts.types:  # not in rosbags' noetic store
+        ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
+                                       "tf2_msgs/msg/TFMessage"))
+    return ts
+
+
+class Bag:
+    """Writes messages to a ROS 1 or ROS 2 bag with the matching type store."""
+
+    def __init__(self, path, ros):
+        self.ros = ros
+        self.ts = _typestore(ros)
+        self.writer = Writer1(path) if ros == 1 else Writer2(path, version=9)
+        self.conns = {}
+
+    def __enter__(self):
+        self.writer.open()
+        return self
+
+    def __exit__(self, *exc):
+        self.writer.close()
+
+    def t(self, name):
+        return self.ts.types[name]
+
+    def header(self, ns, frame):
+        kw = {"seq": 0} if self.ros == 1 else {}
+        stamp = self.t("builtin_interfaces/msg/Time")(sec=ns // 10**9, nanosec=ns % 10**9)
+        return self.t("std_msgs/msg/Header")(stamp=stamp, frame_id=frame, **kw)
+
+    def write(self, topic, msg, record_ns):
+        if topic not in self.conns:
+            self.conns[topic] = self.writer.add_connection(topic, msg.__msgtype__,
+                                                           typestore=self.ts)
+        serialize = self.ts.serialize_ros1 if self.ros == 1 else self.ts.serialize_cdr
+        self.writer.write(self.conns[topic], record_ns, serialize(msg, msg.__msgtype__))
+
+    def pose(self, T):
+        q = geometry.quat_from_transform(T)
+        point = self.t("geometry_msgs/msg/Point")(x=T[0, 3], y=T[1, 3], z=T[2, 3])
+        quat = self.t("geometry_msgs/msg/Quaternion")(x=q[0], y=q[1], z=q[2], w=q[3])
+        return self.t("geometry_msgs/msg/Pose")(position=point, orientation=quat)
+
+    def transform_stamped(self, ns, parent, child, T):
+        q = geometry.quat_from_transform(T)
+        tr = self.t("geometry_msgs/msg/Transform")(
+            translation=self.t("geometry_msgs/msg/Vector3")(x=T[0, 3], y=T[1, 3], z=T[2, 3]),
+            rotation=self.t("geometry_msgs/msg/Quaternion")(x=q[0], y=q[1], z=q[2], w=q[3]))
+        return self.t("geometry_msgs/msg/TransformStamped")(
+            header=self.header(ns, parent), child_frame_id=child, transform=tr)
+
+
+def _bag_path(tmp_path, ros):
+    return tmp_path / ("run.bag" if ros == 1 else "run")
+
+
+@pytest.fixture(params=[1, 2], ids=["ros1", "ros2"])
+def pose_bag(request, tmp_path, rng):
+    """A bag with every pose topic type; returns (path, stamps_ns, T_world_rig, T_world_other)."""
+    ros = request.param
+    path = _bag_path(tmp_path, ros)
+    n = 5
+    stamps = BASE_NS + np.arange(n, dtype=np.int64) * 10_000_001
+    T = geometry.random_transforms(rng, n)
+    T_other = geometry.random_transforms(rng, n)
+    with Bag(path, ros) as bag:
+        cov = np.zeros(36)
+        twist = bag.t("geometry_msgs/msg/TwistWithCovariance")(
+            twist=bag.t("geometry_msgs/msg/Twist")(
+                linear=bag.t("geometry_msgs/msg/Vector3")(x=0, y=0, z=0),
+                angular=bag.t("geometry_msgs/msg/Vector3")(x=0, y=0, z=0)), covariance=cov)
+        for i in reversed(range(n)):  # out of order in the bag: the reader sorts by stamp
+            ns = int(stamps[i])
+            rec = ns + 3_000_000
+            bag.write("/vicon/rig/pose", bag.t("geometry_msgs/msg/PoseStamped")(
+                header=bag.header(ns, "/world"), pose=bag.pose(T[i])), rec)
+            bag.write("/rig/transform", bag.transform_stamped(ns, "world", "rig", T[i]), rec)
+            bag.write("/tf", bag.t("tf2_msgs/msg/TFMessage")(transforms=[
+                bag.transform_stamped(ns, "world", "rig", T[i]),
+                bag.transform_stamped(ns, "world", "other", T_other[i])]), rec)
+            bag.write("/odom", bag.t("nav_msgs/msg/Odometry")(
+                header=bag.header(ns, "world"), child_frame_id="rig",
+                pose=bag.t("geometry_msgs/msg/PoseWithCovariance")(pose=bag.pose(T[i]),
+                                                                  covariance=cov),
+                twist=twist), rec)
+    return path, stamps, T, T_other
+
+
+@pytest.mark.parametrize("topic, frames", [
+    ("/vicon/rig/pose", {}),
+    ("/rig/transform", {}),
+    ("/odom", {"child_frame": "rig"}),
+    ("/tf", {"parent_frame": "world", "child_frame": "/rig"}),
+])
+def test_pose_topics_round_trip(pose_bag, topic, frames):
+    path, stamps, T, _ = pose_bag
+    traj = read_bag_trajectory(path, topic, parent="world", child="body", **frames)
+    assert traj.name == "T_world_body"
+    assert np.array_equal(traj.stamps_ns, stamps)
+    assert np.abs(traj.T - T).max() < 1e-12
+
+
+def test_tf_picks_the_requested_pair_and_lists_pairs(pose_bag):
+    path, stamps, _, T_other = pose_bag
+    traj = read_bag_trajectory(path, "/tf", child_frame="other")
+    assert np.abs(traj.T - T_other).max() < 1e-12
+    with pytest.raises(DatasetError, match=r"several transforms \(world -> other, world -> rig\)"):
+        read_bag_trajectory(path, "/tf")
+    with pytest.raises(DatasetError, match="no sample with parent frame 'map'"):
+        read_bag_trajectory(path, "/tf", parent_frame="map")
+
+
+def test_missing_topic_lists_topics_present(pose_bag):
+    path = pose_bag[0]
+    with pytest.raises(DatasetError) as info:
+        read_bag_trajectory(path, "/mocap")
+    msg = str(info.value)
+    assert "topic '/mocap' not in the bag; topics present: /odom (nav_msgs/Odometry)" in msg
+    assert "/vicon/rig/pose (geometry_msgs/PoseStamped)" in msg
+    assert bag_topics(path)["/tf"] == "tf2_msgs/TFMessage"
+
+
+def test_read_mocap_from_bag(pose_bag):
+    path, stamps, T, _ = pose_bag
+    assert sniff_mocap_format(path) == "rosbag"
+    traj = read_mocap(MocapSpec(path, pose="T_world_marker", format="rosbag",
+                                topic="/vicon/rig/pose"))
+    assert traj.name == "T_world_marker" and np.abs(traj.T - T).max() < 1e-12
+
+
+def test_duplicate_stamps_and_bad_quaternions_are_errors(tmp_path):
+    path = tmp_path / "dup.bag"
+    with Bag(path, 1) as bag:
+        for k in range(2):
+            bag.write("/p", bag.t("geometry_msgs/msg/PoseStamped")(
+                header=bag.header(BASE_NS, "world"), pose=bag.pose(np.eye(4))), BASE_NS + k)
+        T = np.eye(4)
+        msg = bag.t("geometry_msgs/msg/PoseStamped")(header=bag.header(BASE_NS, "w"),
+                                                     pose=bag.pose(T))
+        msg.pose.orientation.w = 2.0
+        bag.write("/q", msg, BASE_NS)
+    with pytest.raises(DatasetError, match="topic /p: duplicate time stamp"):
+        read_bag_trajectory(path, "/p")
+    with pytest.raises(DatasetError, match="topic /q: sample 0: quaternion .* got norm 2"):
+        read_bag_trajectory(path, "/q")
+    with pytest.raises(DatasetError, match="bag not found"):
+        read_bag_trajectory(tmp_path / "none.bag", "/p")
+    (tmp_path / "junk.bag").write_bytes(b"not a bag at all")
+    with pytest.raises(DatasetError, match="cannot read the bag"):
+        read_bag_trajectory(tmp_path / "junk.bag", "/p")
+
+
+# --------------------------------------------------------------------------- images
+
+
+def _image_msg(bag, ns, img, encoding, *, bigendian=False, pad=0):
+    data = img.astype(img.dtype.newbyteorder(">" if bigendian else "<")).tobytes()
+    h, w = img.shape[:2]
+    row = len(data) // h
+    rows = np.frombuffer(data, np.uint8).reshape(h, row)
+    rows = np.concatenate([rows, np.full((h, pad), 77, np.uint8)], axis=1)
+    return bag.t("sensor_msgs/msg/Image")(
+        header=bag.header(ns, "cam"), height=h, width=w, encoding=encoding,
+        is_bigendian=int(bigendian), step=row + pad, data=rows.reshape(-1))
+
+
+@pytest.mark.parametrize("ros", [1, 2], ids=["ros1", "ros2"])
+def test_image_topics_decode(tmp_path, rng, ros):
+    path = _bag_path(tmp_path, ros)
+    bgr = rng.integers(0, 256, (6, 8, 3), dtype=np.uint8)
+    grey16 = rng.integers(0, 65536, (6, 8), dtype=np.uint16)
+    ok, png = cv2.imencode(".png", bgr)
+    with Bag(path, ros) as bag:
+        bag.write("/cam/raw", _image_msg(bag, BASE_NS, bgr[..., 0], "mono8"), BASE_NS)
+        bag.write("/cam/raw", _image_msg(bag, BASE_NS + 1, bgr[..., ::-1], "rgb8", pad=3),
+                  BASE_NS + 1)
+        bag.write("/cam/raw", _image_msg(bag, BASE_NS + 2, grey16, "mono16", bigendian=True),
+                  BASE_NS + 2)
+        bag.write("/cam/raw", _image_msg(bag, BASE_NS + 3, bgr, "bgr8"), BASE_NS + 3)
+        bag.write("/cam/compressed", bag.t("sensor_msgs/msg/CompressedImage")(
+            header=bag.header(0, "cam"), format="png", data=png.reshape(-1)), BASE_NS + 9)
+        bag.write("/cam/weird", _image_msg(bag, BASE_NS, bgr, "yuv422"), BASE_NS)
+    images = list(iter_bag_images(path, "/cam/raw"))
+    assert [s for s, _ in images] == [BASE_NS, BASE_NS + 1, BASE_NS + 2, BASE_NS + 3]
+    assert np.array_equal(images[0][1], bgr[..., 0])
+    assert np.array_equal(images[1][1], bgr)  # rgb8 -> BGR, row padding dropped
+    assert images[2][1].dtype == np.uint16 and np.array_equal(images[2][1], grey16)
+    assert np.array_equal(images[3][1], bgr)
+    (stamp, decoded), = iter_bag_images(path, "/cam/compressed")
+    assert stamp == BASE_NS + 9  # zero header stamp -> record time
+    assert np.array_equal(decoded, bgr)
+    with pytest.raises(DatasetError, match="image encoding 'yuv422' is not supported"):
+        list(iter_bag_images(path, "/cam/weird"))
+    with pytest.raises(DatasetError, match="has type sensor_msgs/Image; expected one of"):
+        read_bag_trajectory(path, "/cam/raw")
+
+
+def test_bayer_rggb_demosaics_to_the_right_colours(tmp_path):
+    # A flat colour image, mosaicked with the ROS rggb layout (R at (0,0), B at (1,1)).
+    bgr = np.empty((8, 8, 3), np.uint8)
+    bgr[:] = (30, 120, 220)  # B, G, R
+    mosaic = np.empty((8, 8), np.uint8)
+    mosaic[0::2, 0::2] = bgr[0::2, 0::2, 2]
+    mosaic[0::2, 1::2] = bgr[0::2, 1::2, 1]
+    mosaic[1::2, 0::2] = bgr[1::2, 0::2, 1]
+    mosaic[1::2, 1::2] = bgr[1::2, 1::2, 0]
+    path = tmp_path / "bayer.bag"
+    with Bag(path, 1) as bag:
+        bag.write("/cam", _image_msg(bag, BASE_NS, mosaic, "bayer_rggb8"), BASE_NS)
+    (_, img), = iter_bag_images(path, "/cam")
+    assert img.shape == (8, 8, 3)
+    assert np.abs(img[2:-2, 2:-2].astype(int) - [30, 120, 220]).max() <= 1

@@ -1,0 +1,306 @@
+"""multieye.outputs.export: every format written from a calibration and read back to 1e-9.
+
+Runs are built in memory (:func:`make_run`: the pipeline's own pairing and solver on exact
+measurements from known frames), for both setups and with camera names that need quoting.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+from synthetic import eye_on_hand, eye_to_base
+
+from multieye.core import geometry as g
+from multieye.core.errors import DatasetError, InputError
+from multieye.outputs.export import (
+    BASE_FRAME,
+    FORMATS,
+    T_LINK_OPTICAL,
+    export,
+    read_tf_static,
+    read_urdf_joints,
+    rotation_from_rpy,
+    rpy_from_rotation,
+)
+from multieye.core.intrinsics import Intrinsics
+from multieye.io import RejectedItem, Trajectory, read_calibration, read_camchain
+from multieye.io.rig import Rig
+from multieye.outputs.details import write_run_details
+from multieye.outputs.write import write_outputs
+from multieye.pipeline import CameraData, Observation, calibrate_rig
+
+NAMES = ("cam0", "front left", "rear<&>\"q\"")
+
+
+def make_run(tmp: Path, setup: str, *, names=NAMES, counts=(6, 7, 5), seed: int = 3,
+             noise: float = 0.0, mocap_per_image: int = 1, warnings: tuple[str, ...] = ()):
+    """A calibration run of known frames through the real pairing and solver.
+
+    Every camera sees the target every 0.5 s (camera clock), one camera after the other;
+    the motion capture samples the marker (or body) at those times and ``mocap_per_image - 1``
+    more in between; one extra image per camera has no motion capture near it (rejected in
+    pairing) and one "was not detected" (rejected before).  ``warnings`` are the first
+    camera's (they end up in the record's warnings).
+
+    Returns
+    -------
+    run : CalibrationRun
+    truth : dict
+        ``X`` (m, 4, 4), ``Y`` (4, 4), ``T_world_mocap`` list of (n_j, 4, 4) at the used images.
+    """
+    rng = np.random.default_rng(seed)
+    make = eye_to_base if setup == "eye-to-base" else eye_on_hand
+    A, B, X, Y = make(rng, list(counts), rot_noise=noise, trans_noise=noise / 10)
+    stamps, poses, cameras, mocap_at_images = [], [], {}, []
+    start = 100.0
+    for j, name in enumerate(names):
+        T_world_mocap = g.inv(A[j]) if setup == "eye-to-base" else A[j]
+        t = start + 0.5 * np.arange(len(A[j]))
+        start = t[-1] + 5.0   # the next camera's segment, well after this one's lonely image
+        for i, (ti, Ti) in enumerate(zip(t, T_world_mocap)):
+            stamps.append(ti)
+            poses.append(Ti)
+            for k in range(1, mocap_per_image):  # filler samples between images
+                stamps.append(ti + 0.5 * k / mocap_per_image)
+                poses.append(Ti)
+        mocap_at_images.append(T_world_mocap)
+        obs = [Observation(name=f"{ti:.6f}.png", stamp=float(ti), T_cam_target=g.inv(Bi),
+                           rms_px=0.1 + 0.01 * i)
+               for i, (ti, Bi) in enumerate(zip(t, B[j]))]
+        obs.append(Observation(name="lonely.png", stamp=float(t[-1] + 2.0),
+                               T_cam_target=g.inv(B[j][0])))
+        K = np.array([[500.0 + 10 * j, 0, 319.5], [0, 501.0 + 10 * j, 239.5], [0, 0, 1]])
+        cameras[name] = (obs, Intrinsics(K, [-0.2, 0.05, 1e-4, -2e-4], "pinhole", 640, 480))
+    order = np.argsort(stamps)
+    mocap = Trajectory(np.asarray(stamps)[order], np.stack(poses)[order], "world",
+                       "marker" if setup == "eye-to-base" else "body")
+    data = {name: CameraData(name=name, intrinsics=intr, observations=tuple(obs),
+                             rejected=(RejectedItem("blurred.png", "target not detected"),),
+                             n_inputs=len(obs) + 1, mocap=mocap, time_offset=0.0,
+                             time_tolerance=0.01, warnings=warnings if name == names[0] else ())
+            for name, (obs, intr) in cameras.items()}
+    rig = Rig(path=tmp / "rig.yaml", setup=setup, cameras={})
+    run = calibrate_rig(rig, data)
+    return run, {"X": X, "Y": Y, "A": A, "B": B, "T_world_mocap": mocap_at_images}
+
+
+@pytest.fixture(scope="module", params=["eye-to-base", "eye-on-hand"])
+def result(request, tmp_path_factory):
+    """An output folder as ``multieye calibrate`` leaves it, with details.json."""
+    out = tmp_path_factory.mktemp(request.param)
+    run, truth = make_run(out, request.param)
+    write_outputs(run, out)
+    write_run_details(out / "details.json", run)
+    return out, run.record, truth
+
+
+def _near(a, b, tol=1e-9):
+    np.testing.assert_allclose(np.asarray(a, dtype=float), np.asarray(b, dtype=float), rtol=0,
+                               atol=tol)
+
+
+def test_format_names_are_the_cli_choices():
+    assert list(FORMATS) == ["kalibr", "opencv", "urdf", "tf-static", "json"]
+
+
+def test_json_round_trips_through_read_calibration(result, tmp_path):
+    out, rec, _ = result
+    (path,) = export(out, "json", dest=tmp_path)
+    assert path == tmp_path / "calibration.json"
+    assert "\n" not in path.read_text().rstrip("\n")          # compact: one line
+    back = read_calibration(path)
+    assert (back.setup, back.method, back.reference_camera) == (rec.setup, rec.method,
+                                                                rec.reference_camera)
+    _near(back.Y, rec.Y, 0)
+    assert [c.name for c in back.cameras] == list(NAMES)
+    for a, b in zip(back.cameras, rec.cameras):
+        _near(a.X, b.X, 0)
+        _near(a.T_ref_cam, b.T_ref_cam, 0)
+        assert a.rejected == b.rejected and a.measurements_used == b.measurements_used
+        assert [r.item for r in a.rejected] == ["blurred.png", "lonely.png"]
+    assert back.warnings == rec.warnings
+
+
+def test_kalibr_round_trips_through_read_camchain(result):
+    out, rec, _ = result
+    (path,) = export(out, "kalibr")
+    assert path == out / "export" / "camchain.yaml"
+    chain = read_camchain(path)
+    assert [c.name for c in chain] == list(NAMES)
+    T0 = rec.cameras[0].T_ref_cam                  # the chain's poses are relative to cam0
+    for entry, cam in zip(chain, rec.cameras):
+        _near(entry.T_ref_cam, g.inv(T0) @ cam.T_ref_cam)
+        assert entry.intrinsics.width == 640 and entry.intrinsics.model == "pinhole"
+    _near(chain[1].intrinsics.K, [[510, 0, 319.5], [0, 511, 239.5], [0, 0, 1]], 0)
+    _near(chain[2].intrinsics.dist, [-0.2, 0.05, 1e-4, -2e-4], 0)
+
+
+def test_opencv_filestorage_is_read_by_cv2(result):
+    cv2 = pytest.importorskip("cv2")
+    out, rec, _ = result
+    (path,) = export(out, "opencv")
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    try:
+        assert fs.isOpened()
+        y_key, x_key = ("T_marker_target", "T_world_cam") if rec.setup == "eye-to-base" else (
+            "T_world_target", "T_body_cam")
+        assert fs.getNode("setup").string() == rec.setup
+        assert fs.getNode("reference_camera").string() == "cam0"
+        assert fs.getNode("base_frame").string() == BASE_FRAME[rec.setup]
+        _near(fs.getNode(y_key).mat(), rec.Y)
+        cams = fs.getNode("cameras")
+        assert cams.size() == len(NAMES)
+        for j, cam in enumerate(rec.cameras):
+            node = cams.at(j)
+            assert node.getNode("name").string() == cam.name
+            _near(node.getNode("T_ref_cam").mat(), cam.T_ref_cam)
+            _near(node.getNode(x_key).mat(), cam.X)
+            _near(node.getNode("camera_matrix").mat(),
+                  [[500 + 10 * j, 0, 319.5], [0, 501 + 10 * j, 239.5], [0, 0, 1]])
+            _near(node.getNode("distortion_coefficients").mat(), [[-0.2, 0.05, 1e-4, -2e-4]])
+            assert node.getNode("distortion_model").string() == "pinhole"
+            assert (node.getNode("image_width").real(), node.getNode("image_height").real()) == (
+                640, 480)
+    finally:
+        fs.release()
+
+
+def test_opencv_without_details_has_extrinsics_only(result, tmp_path):
+    cv2 = pytest.importorskip("cv2")
+    out, rec, _ = result
+    (tmp_path / "calibration.json").write_bytes((out / "calibration.json").read_bytes())
+    (path,) = export(tmp_path, "opencv")
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    try:
+        node = fs.getNode("cameras").at(1)
+        _near(node.getNode("T_ref_cam").mat(), rec.cameras[1].T_ref_cam)
+        assert node.getNode("camera_matrix").empty()
+    finally:
+        fs.release()
+
+
+def test_urdf_joints_give_back_every_camera_pose(result):
+    out, rec, _ = result
+    (path,) = export(out, "urdf")
+    root = ET.parse(path).getroot()
+    assert root.tag == "robot"
+    base = BASE_FRAME[rec.setup]
+    links = [link.get("name") for link in root.iter("link")]
+    assert links[0] == base and len(links) == 1 + 2 * len(NAMES)
+    joints = read_urdf_joints(path)
+    assert all(j.get("type") == "fixed" for j in root.iter("joint"))
+    for cam in rec.cameras:
+        link, optical = f"{cam.name}_link", f"{cam.name}_optical_frame"
+        assert {link, optical} <= set(links)
+        T = joints[(base, link)] @ joints[(link, optical)]
+        _near(T, cam.X)                            # T_world_cam (or T_body_cam)
+        _near(joints[(link, optical)], T_LINK_OPTICAL)
+
+
+def test_tf_static_lines_give_back_every_camera_pose(result):
+    out, rec, _ = result
+    (path,) = export(out, "tf-static")
+    lines = [ln for ln in path.read_text().splitlines() if ln.startswith("ros2 ")]
+    assert len(lines) == len(NAMES)
+    flags = [w for w in shlex.split(lines[0]) if w.startswith("--")]
+    assert flags == ["--x", "--y", "--z", "--qx", "--qy", "--qz", "--qw", "--frame-id",
+                     "--child-frame-id"]
+    assert shlex.split(lines[0])[:4] == ["ros2", "run", "tf2_ros", "static_transform_publisher"]
+    transforms = read_tf_static(path)
+    base = BASE_FRAME[rec.setup]
+    assert set(transforms) == {(base, f"{c.name}_optical_frame") for c in rec.cameras}
+    for cam in rec.cameras:
+        _near(transforms[(base, f"{cam.name}_optical_frame")], cam.X)
+
+
+def test_exports_match_the_true_rig_on_exact_data(result):
+    """Noise-free measurements: the exported poses are the true ones, not just self-consistent."""
+    out, rec, truth = result
+    export(out, "tf-static")
+    transforms = read_tf_static(out / "export" / "static_transforms.sh")
+    base = BASE_FRAME[rec.setup]
+    for j, name in enumerate(NAMES):
+        _near(transforms[(base, f"{name}_optical_frame")], truth["X"][j], 1e-8)
+
+
+def test_urdf_rpy_is_fixed_axis_roll_pitch_yaw():
+    r, p, y = 0.3, -0.7, 2.1
+    R = rotation_from_rpy((r, p, y))
+    _near(R, Rotation.from_euler("xyz", [r, p, y]).as_matrix(), 1e-15)  # extrinsic x, y, z
+    _near(rotation_from_rpy((0, 0, np.pi / 2)) @ [1, 0, 0], [0, 1, 0], 1e-15)  # yaw about z
+    _near(rotation_from_rpy((np.pi / 2, 0, 0)) @ [0, 1, 0], [0, 0, 1], 1e-15)  # roll about x
+
+
+def test_optical_frame_axes_follow_rep_103():
+    R = T_LINK_OPTICAL[:3, :3]       # columns: optical x, y, z in the link frame
+    _near(R[:, 2], [1, 0, 0], 1e-15)  # optical z (forward) = link x (forward)
+    _near(R[:, 0], [0, -1, 0], 1e-15)  # optical x (right) = link -y
+    _near(R[:, 1], [0, 0, -1], 1e-15)  # optical y (down) = link -z
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-np.pi, np.pi), st.one_of(st.floats(-np.pi / 2, np.pi / 2),
+                                             st.sampled_from([np.pi / 2, -np.pi / 2,
+                                                              np.pi / 2 - 1e-9])),
+       st.floats(-np.pi, np.pi))
+def test_rpy_round_trip_including_gimbal_lock(roll, pitch, yaw):
+    R = rotation_from_rpy((roll, pitch, yaw))
+    _near(rotation_from_rpy(rpy_from_rotation(R)), R, 1e-9)
+
+
+def test_unknown_format_lists_the_formats(result):
+    out, _, _ = result
+    with pytest.raises(InputError, match="unknown export format 'ply'; expected one of kalibr, "
+                                         "opencv, urdf, tf-static, json"):
+        export(out, "ply")
+
+
+def test_missing_calibration_names_the_file(tmp_path):
+    with pytest.raises(DatasetError, match=r"calibration\.json: calibration file not found"):
+        export(tmp_path, "urdf")
+
+
+def test_kalibr_without_details_says_where_the_intrinsics_are(result, tmp_path):
+    out, _, _ = result
+    (tmp_path / "calibration.json").write_bytes((out / "calibration.json").read_bytes())
+    with pytest.raises(DatasetError, match=r"details\.json: the intrinsics are in details\.json"):
+        export(tmp_path, "kalibr")
+    assert not (tmp_path / "export" / "camchain.yaml").exists()
+
+
+def test_tf_reader_names_the_line_of_a_bad_value(tmp_path):
+    path = tmp_path / "tf.sh"
+    path.write_text("# comment\nros2 run tf2_ros static_transform_publisher --x 1 --y oops "
+                    "--frame-id a --child-frame-id b\n")
+    with pytest.raises(DatasetError, match=r"tf\.sh:2: translation and quaternion values must "
+                                           "be numbers"):
+        read_tf_static(path)
+    path.write_text("static_transform_publisher --x 1 --qw 2 --frame-id a --child-frame-id b\n")
+    with pytest.raises(DatasetError, match=r"tf\.sh:1: quaternion norm is 2, expected 1"):
+        read_tf_static(path)
+    path.write_text("static_transform_publisher --x 1 --frame-id a\n")
+    with pytest.raises(DatasetError, match=r"tf\.sh:1: expected --x --y --z"):
+        read_tf_static(path)
+
+
+def test_urdf_reader_rejects_a_short_origin(tmp_path):
+    path = tmp_path / "r.urdf"
+    path.write_text('<robot name="r"><joint name="j" type="fixed"><parent link="a"/>'
+                    '<child link="b"/><origin xyz="1 2" rpy="0 0 0"/></joint></robot>')
+    with pytest.raises(DatasetError, match="joint 'j': origin xyz must be 3 numbers, got '1 2'"):
+        read_urdf_joints(path)
+
+
+def test_json_export_is_the_record_not_a_copy_of_the_file(result, tmp_path):
+    """The compact export is re-serialised from the validated record (same keys)."""
+    out, _, _ = result
+    (path,) = export(out, "json", dest=tmp_path)
+    assert json.loads(path.read_text()) == json.loads((out / "calibration.json").read_text())

@@ -1,0 +1,385 @@
+"""details.json, the report figures and report.html, down to a real headless browser.
+
+Most tests use in-memory runs of known frames (``test_export.make_run``: the pipeline's pairing
+and solver on exact or noisy measurements).  The browser test renders a small demo-like
+dataset (2 cameras, 8 images each, 640 x 480), runs the whole pipeline on it and loads the
+report in Debian's chromium: no console message at all (the page has no script and a
+Content-Security-Policy that turns any attempt to load something into a logged error), every
+figure decodes at its PNG size, and the screenshot shows the figures' colours.
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import html
+import json
+import re
+import shutil
+import struct
+import subprocess
+
+import numpy as np
+import pytest
+from test_export import NAMES, make_run
+
+from multieye.core import geometry as g
+from multieye.core.errors import DatasetError, InputError
+from multieye.io import Trajectory, read_calibration
+from multieye.io.run_details import (
+    TRAJECTORY_MARGIN_S,
+    read_run_details,
+    run_details_from_dict,
+    run_details_to_dict,
+)
+from multieye.outputs.details import write_run_details
+from multieye.core.metrics import loop_residuals, pose_row
+from multieye.outputs.write import write_outputs
+from multieye.outputs.figures import display_rotation, frustum_corners, outliers
+from multieye.outputs.report import FIGURES, write_report
+
+SETUPS = ["eye-to-base", "eye-on-hand"]
+
+
+def _png_size(data: bytes) -> tuple[int, int]:
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    return struct.unpack(">II", data[16:24])
+
+
+# --------------------------------------------------------------------------- details.json
+
+
+@pytest.mark.parametrize("setup", SETUPS)
+def test_details_round_trip_is_exact(setup, tmp_path):
+    run, _ = make_run(tmp_path, setup, noise=1e-3)
+    diag = {"cam0": {"rotation_spread_deg": np.float64(12.5), "axes": np.array([1, 2]),
+                     "weak": np.bool_(True), "nan": float("nan")}}
+    written = write_run_details(tmp_path / "details.json", run, diagnostics=diag)
+    back = read_run_details(tmp_path / "details.json")
+    assert (back.setup, back.reference_camera) == (setup, "cam0")
+    assert [c.name for c in back.cameras] == list(NAMES)
+    for a, b in zip(back.cameras, written.cameras):
+        assert a.names == b.names and a.trajectory == b.trajectory
+        for key in ("T_world_cam", "stamps", "rot_deg", "trans_m", "rms_px", "T_world_target"):
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key), err_msg=key)
+        np.testing.assert_array_equal(a.intrinsics.K, b.intrinsics.K)
+        np.testing.assert_array_equal(a.intrinsics.dist, b.intrinsics.dist)
+        assert (a.intrinsics.width, a.intrinsics.height) == (640, 480)
+    assert back.camera("cam0").diagnostics == {"rotation_spread_deg": 12.5, "axes": [1, 2],
+                                               "weak": True, "nan": None}
+    assert back.camera("front left").diagnostics == {}
+    (t,) = back.trajectories
+    np.testing.assert_array_equal(t.positions, written.trajectories[0].positions)
+    assert t.pose == ("T_world_marker" if setup == "eye-to-base" else "T_world_body")
+    assert (back.T_world_body_shown is None) == (setup == "eye-to-base")
+
+
+@pytest.mark.parametrize("setup", SETUPS)
+def test_details_frames_are_the_true_frames_on_exact_data(setup, tmp_path):
+    """DESIGN.md section 2: the target in the world and the cameras where they really are."""
+    run, truth = make_run(tmp_path, setup)
+    details = write_run_details(tmp_path / "details.json", run)
+    X, Y = truth["X"], truth["Y"]
+    for j, cam in enumerate(details.cameras):
+        assert cam.rot_deg.max() < 1e-6 and cam.trans_m.max() < 1e-9
+        T_world_mocap = truth["T_world_mocap"][j]
+        if setup == "eye-to-base":   # static cameras, the target moves with the marker
+            np.testing.assert_allclose(cam.T_world_cam, X[j], atol=1e-9)
+            np.testing.assert_allclose(cam.T_world_target, T_world_mocap @ Y, atol=1e-9)
+        else:                        # static target, the cameras move with the body
+            ref = truth["T_world_mocap"][0]     # the reference camera's middle image
+            shown = ref[len(ref) // 2]
+            np.testing.assert_allclose(details.T_world_body_shown, shown, atol=1e-12)
+            np.testing.assert_allclose(cam.T_world_cam, shown @ X[j], atol=1e-9)
+            np.testing.assert_allclose(cam.T_world_target, np.broadcast_to(Y, (len(cam.names), 4, 4)),
+                                       atol=1e-9)
+        # the stamps are the camera's, one per used image, in order
+        assert len(cam.names) == len(T_world_mocap) and np.all(np.diff(cam.stamps) > 0)
+
+
+def test_details_residuals_are_the_loop_residuals_of_the_record(tmp_path):
+    run, _ = make_run(tmp_path, "eye-to-base", noise=2e-3)
+    details = write_run_details(tmp_path / "details.json", run)
+    for cam in run.record.cameras:
+        p = run.paired[cam.name]
+        rot, trans = loop_residuals(p.A, p.B, cam.X, run.record.Y)
+        d = details.camera(cam.name)
+        np.testing.assert_array_equal(d.rot_deg, rot)
+        np.testing.assert_array_equal(d.trans_m, trans)
+        assert d.rot_deg.mean() == pytest.approx(cam.residuals.e_R_deg, rel=1e-12)
+        assert d.trans_m.max() == pytest.approx(cam.residuals.max_t_m, rel=1e-12)
+        assert d.rot_deg.min() > 0
+        np.testing.assert_allclose(d.rms_px, 0.1 + 0.01 * np.arange(len(d.names)))
+
+
+def test_trajectory_is_clipped_to_the_images_and_subsampled(tmp_path):
+    run, _ = make_run(tmp_path, "eye-to-base", mocap_per_image=40)
+    mocap = run.cameras["cam0"].mocap
+    # decoy samples long before and after the calibration (a marker lying on a table)
+    early = 100.0 - 50.0 + 0.01 * np.arange(100)
+    late = mocap.stamps[-1] + 60.0 + 0.01 * np.arange(100)
+    stamps = np.concatenate([early, mocap.stamps, late])
+    T = np.concatenate([np.broadcast_to(np.eye(4), (100, 4, 4)), mocap.T,
+                        np.broadcast_to(np.eye(4), (100, 4, 4))])
+    decoyed = Trajectory(stamps, T, "world", "marker")
+    run = dataclasses.replace(run, cameras={n: dataclasses.replace(d, mocap=decoyed)
+                                            for n, d in run.cameras.items()})
+    details = write_run_details(tmp_path / "d.json", run, max_trajectory_points=25)
+    (t,) = details.trajectories
+    used = np.concatenate([c.stamps for c in details.cameras])
+    lo, hi = used.min() - TRAJECTORY_MARGIN_S, used.max() + TRAJECTORY_MARGIN_S
+    inside = (stamps >= lo) & (stamps <= hi)
+    assert t.n_samples == inside.sum() == len(mocap.stamps)
+    assert len(t.stamps) == 25
+    assert t.stamps[0] == stamps[inside][0] and t.stamps[-1] == stamps[inside][-1]
+    k = np.searchsorted(stamps, t.stamps)
+    np.testing.assert_array_equal(t.positions, T[k, :3, 3])
+
+
+def test_details_reader_names_file_camera_and_expectation(tmp_path):
+    run, _ = make_run(tmp_path, "eye-to-base")
+    data = json.loads(json.dumps(run_details_to_dict(write_run_details(tmp_path / "d.json", run))))
+    path = tmp_path / "details.json"
+
+    def fails(mutate, message):
+        bad = json.loads(json.dumps(data))
+        mutate(bad)
+        path.write_text(json.dumps(bad))
+        with pytest.raises(DatasetError, match=message):
+            read_run_details(path)
+
+    fails(lambda d: d.update(format="other"), r"details\.json: not a multieye details file")
+    fails(lambda d: d.update(version=99), r"details version 99 is not supported; expected 1")
+    fails(lambda d: d["cameras"]["cam0"]["measurements"].pop("rot_deg"),
+          r"details\.json: camera cam0: missing key 'rot_deg' in measurements")
+    fails(lambda d: d["cameras"]["cam0"]["measurements"]["trans_m"].pop(),
+          r"camera cam0: measurements\.trans_m must have shape \(6\), got \(5,\)")
+    fails(lambda d: d["cameras"]["front left"].update(trajectory=3),
+          r"camera front left: trajectory must be an index into trajectories \(0\.\.0\), got 3")
+    fails(lambda d: d["cameras"]["cam0"]["intrinsics"].update(width=-1),
+          r"camera cam0: intrinsics\.width must be a positive integer or null, got -1")
+    path.write_text("{\n  \"format\": ,\n}")
+    with pytest.raises(DatasetError, match=r"details\.json:2: invalid JSON"):
+        read_run_details(path)
+    assert run_details_from_dict(data, path).camera("cam0").names == tuple(
+        o.name for o in run.paired["cam0"].observations)          # the untouched dict is valid
+
+
+def test_diagnostics_for_an_unknown_camera_are_refused(tmp_path):
+    run, _ = make_run(tmp_path, "eye-to-base")
+    with pytest.raises(InputError, match="diagnostics given for cameras not in the run: cam9"):
+        write_run_details(tmp_path / "d.json", run, diagnostics={"cam9": {"x": 1}})
+    with pytest.raises(InputError, match="diagnostics of camera cam0: object is not a JSON value"):
+        write_run_details(tmp_path / "d.json", run, diagnostics={"cam0": {"x": object()}})
+    assert not (tmp_path / "d.json").exists()
+
+
+# --------------------------------------------------------------------------- figure helpers
+
+
+@pytest.mark.parametrize("up", [[0, 0, 1], [0, 0, -1], [0, 1, 0], [0, -3, 0], [1, 0, 0],
+                                [-1, 0, 0], [0.2, -0.9, 0.3]])
+def test_display_rotation_is_a_rotation_that_puts_up_on_top(up):
+    P, labels = display_rotation(up)
+    assert np.linalg.det(P) == pytest.approx(1.0)
+    np.testing.assert_array_equal(P @ P.T, np.eye(3))
+    a = int(np.argmax(np.abs(up)))
+    axis = np.zeros(3)
+    axis[a] = np.sign(up[a])
+    np.testing.assert_array_equal(P @ axis, [0, 0, 1])
+    assert labels[2] == ("-" if up[a] < 0 else "") + "xyz"[a]
+
+
+def test_frustum_corners_project_to_the_image_corners():
+    from multieye.core.intrinsics import Intrinsics
+    intr = Intrinsics(np.array([[400.0, 0, 300.2], [0, 410.0, 250.7], [0, 0, 1]]), width=640,
+                      height=480)
+    corners = frustum_corners(intr, 0.3)
+    np.testing.assert_allclose(corners[:, 2], 0.3)
+    pix = corners @ intr.K.T
+    pix = pix[:, :2] / pix[:, 2:]
+    np.testing.assert_allclose(pix, [[-0.5, -0.5], [639.5, -0.5], [639.5, 479.5], [-0.5, 479.5]],
+                               atol=1e-9)
+
+
+def test_outliers_flag_only_values_far_above_the_median():
+    np.testing.assert_array_equal(outliers([1.0, 1.2, 0.9, 1.1, 3.5, 2.9]),
+                                  [False, False, False, False, True, False])
+    assert not outliers([0.0, 0.0, 0.0]).any()
+
+
+# --------------------------------------------------------------------------- report.html
+
+
+@pytest.fixture(scope="module")
+def memory_out(tmp_path_factory):
+    """An output folder from an in-memory noisy run, with a warning that needs escaping."""
+    out = tmp_path_factory.mktemp("report")
+    run, _ = make_run(out, "eye-to-base", noise=1e-3,
+                      warnings=("cam0/x.png: corners <b>blurred</b> & dark",))
+    write_outputs(run, out)
+    write_run_details(out / "details.json", run,
+                      diagnostics={n: {"rotation_spread_deg": 10.0 + j, "weak_axis": "z"}
+                                   for j, n in enumerate(NAMES)})
+    write_report(out)
+    return out, run
+
+
+def _embedded_pngs(text: str) -> list[bytes]:
+    return [base64.b64decode(m) for m in re.findall(r'src="data:image/png;base64,([^"]+)"', text)]
+
+
+def test_report_holds_tables_figures_and_reasons(memory_out):
+    out, run = memory_out
+    text = (out / "report.html").read_text()
+    pngs = _embedded_pngs(text)
+    assert len(pngs) == len(FIGURES)
+    for name, png in zip(FIGURES, pngs):   # page order, and the files are the same figures
+        assert (out / "figures" / name).read_bytes() == png
+        w, h = _png_size(png)
+        assert w > 600 and h > 300
+    for cam in run.record.cameras:
+        assert html.escape(cam.name) in text
+        tx, ty, tz, yaw, pitch, roll = pose_row(cam.T_ref_cam)
+        assert f"<td>{tx:.4f}</td><td>{ty:.4f}</td><td>{tz:.4f}</td>" in text
+        assert f"<td>{yaw:.3f}</td><td>{pitch:.3f}</td><td>{roll:.3f}</td>" in text
+    assert text.count("target not detected") >= len(NAMES)
+    assert "no motion capture" in text and "lonely.png" in text
+    assert "corners &lt;b&gt;blurred&lt;/b&gt; &amp; dark" in text and "<b>blurred" not in text
+    assert "rotation spread deg" in text and "<td>12</td>" in text
+    # self-contained: nothing to fetch, no script, and a policy that forbids both
+    assert "<script" not in text
+    assert re.findall(r'(?:src|href)="(?!data:image/png;base64,|#)', text) == []
+    assert "default-src 'none'" in text
+
+
+def test_report_without_details_shows_what_calibration_json_has(memory_out, tmp_path):
+    out, run = memory_out
+    (tmp_path / "calibration.json").write_bytes((out / "calibration.json").read_bytes())
+    shutil.copytree(out / "figures", tmp_path / "figures")  # an earlier report's figures
+    text = write_report(tmp_path).read_text()
+    assert len(_embedded_pngs(text)) == 1
+    assert sorted(p.name for p in (tmp_path / "figures").iterdir()) == ["rig.png"]
+    assert "this output folder does not have" in text
+    assert "Not available: no <code>details.json</code>" in text
+    assert run.record.cameras[1].name in text and "lonely.png" in text
+
+
+def test_details_of_another_run_are_left_out_with_a_note(memory_out, tmp_path):
+    out, _ = memory_out
+    (tmp_path / "calibration.json").write_bytes((out / "calibration.json").read_bytes())
+    other, _ = make_run(tmp_path, "eye-to-base", names=("a", "b", "c"))
+    write_run_details(tmp_path / "details.json", other)
+    text = write_report(tmp_path).read_text()
+    assert "details.json left out: it belongs to another run (cameras a, b, c instead of" in text
+    assert len(_embedded_pngs(text)) == 1
+
+
+def test_write_report_returns_the_page(memory_out):
+    out, _ = memory_out
+    assert (out / "report.html").stat().st_size > 0
+    assert sorted(p.name for p in (out / "figures").iterdir()) == sorted(FIGURES)
+
+
+def test_report_needs_calibration_json(tmp_path):
+    with pytest.raises(DatasetError, match=r"calibration\.json: calibration file not found"):
+        write_report(tmp_path)
+    assert not (tmp_path / "report.html").exists()
+
+
+# --------------------------------------------------------------------------- in a browser
+
+CHROMIUM = shutil.which("chromium")
+needs_chromium = pytest.mark.skipif(
+    CHROMIUM is None, reason="Debian's chromium is not on PATH (.ci/run installs it with "
+                             "apt-get install chromium)")
+
+#: Writes every image's natural size into the DOM once the page has loaded (test copy only).
+_PROBE = ("<script>addEventListener('load',function(){var r=[];for(var i=0;i<document.images"
+          ".length;i++){var m=document.images[i];r.push([m.naturalWidth,m.naturalHeight,"
+          "m.complete]);}var p=document.createElement('pre');p.id='probe';p.textContent="
+          "JSON.stringify(r);document.body.appendChild(p);});</script>")
+
+
+def _chromium(page, tmp_path, *flags):
+    """Run headless chromium on a file; returns (stdout, console lines from stderr)."""
+    profile = tmp_path / f"profile-{len(list(tmp_path.iterdir()))}"
+    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu",
+           "--disable-background-networking", "--disable-component-update", "--disable-sync",
+           "--no-first-run", f"--user-data-dir={profile}", "--enable-logging=stderr", "--v=0",
+           "--hide-scrollbars", *flags, page.as_uri()]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    # chromium logs every console message (errors, warnings, CSP violations, uncaught
+    # exceptions) of the page as "...:CONSOLE..." lines on stderr
+    console = [ln for ln in proc.stderr.splitlines() if ":CONSOLE" in ln]
+    return proc.stdout, console
+
+
+def _probe(report, tmp_path):
+    """Natural sizes of the images of a copy of ``report`` with :data:`_PROBE` added."""
+    text = report.read_text()
+    text = text.replace("default-src 'none';", "default-src 'none'; script-src 'unsafe-inline';")
+    probe_page = report.with_name("probe.html")
+    probe_page.write_text(text.replace("</body>", _PROBE + "</body>"))
+    dom, console = _chromium(probe_page, tmp_path, "--dump-dom")
+    found = re.search(r'<pre id="probe">(.*?)</pre>', dom)
+    assert found, dom[-500:]
+    return json.loads(html.unescape(found.group(1))), console
+
+
+def _screenshot(page, tmp_path):
+    from PIL import Image
+
+    shot = tmp_path / "shot.png"
+    _, console = _chromium(page, tmp_path, f"--screenshot={shot}", "--window-size=1200,3200")
+    rgb = np.asarray(Image.open(shot).convert("RGB"), dtype=np.float64)
+    return rgb, console
+
+
+@pytest.fixture(scope="module")
+def demo_report(tmp_path_factory):
+    """The whole pipeline on a small rendered dataset, then the report."""
+    from multieye.sim.dataset import DatasetSpec, render_dataset
+    from multieye.pipeline import calibrate
+
+    out = tmp_path_factory.mktemp("demo_report")
+    spec = DatasetSpec(n_cameras=2, images_per_camera=8, width=640, height=480, processes=1)
+    render_dataset(out / "dataset", spec, seed=2)
+    run = calibrate(out / "dataset", processes=1)
+    write_outputs(run, out)
+    write_run_details(out / "details.json", run,
+                      diagnostics={"cam0": {"rotation_spread_deg": 31.2, "weak": False}})
+    return write_report(out)
+
+
+@needs_chromium
+def test_demo_report_renders_in_chromium_without_console_messages(demo_report, tmp_path):
+    sizes, console = _probe(demo_report, tmp_path)
+    assert console == []
+    pngs = [(demo_report.parent / "figures" / name).read_bytes() for name in FIGURES]
+    assert [tuple(s[:2]) for s in sizes] == [_png_size(p) for p in pngs]  # every figure decoded
+    rgb, console = _screenshot(demo_report, tmp_path)
+    assert console == []                   # the page itself: no script, nothing blocked
+    not_white = (rgb.min(axis=2) < 235).mean()
+    colourful = (rgb.max(axis=2) - rgb.min(axis=2) > 80).mean()   # figure and camera colours
+    assert not_white > 0.05, not_white
+    assert colourful > 0.002, colourful
+
+
+@needs_chromium
+def test_browser_check_sees_script_errors_blocked_loads_and_broken_images(tmp_path):
+    """The same checks on a page that is broken on purpose, so that they can fail."""
+    page = tmp_path / "broken.html"
+    page.write_text(
+        "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><meta http-equiv=\"Content-Security-"
+        "Policy\" content=\"default-src 'none'; img-src data:; style-src 'unsafe-inline'\">"
+        "</head><body><img src=\"data:image/png;base64,AAAA\"><img src=\"figures/none.png\">"
+        "</body></html>")
+    sizes, console = _probe(page, tmp_path)
+    assert [s[:2] for s in sizes] == [[0, 0], [0, 0]]
+    assert any("violates the following Content Security Policy" in ln for ln in console)
+    thrown = tmp_path / "thrown.html"
+    thrown.write_text("<html><body><p>x</p><script>throw new Error('boom')</script></body></html>")
+    _, console = _chromium(thrown, tmp_path, "--dump-dom")
+    assert any("Uncaught Error: boom" in ln for ln in console)
