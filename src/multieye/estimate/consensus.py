@@ -44,7 +44,13 @@ from numpy.typing import NDArray
 from multieye.core import geometry as g
 from multieye.core.errors import InputError, TooFewMeasurementsError
 from multieye.core.metrics import loop_residuals
-from multieye.solvers.checks import MIN_MEASUREMENTS, Measurements, check_measurements, rotation_spread
+from multieye.solvers.checks import (
+    MIN_MEASUREMENTS,
+    Measurements,
+    check_measurements,
+    given_measurements,
+    rotation_spread,
+)
 from multieye.solvers.joint import solve_joint
 
 __all__ = ["RejectedMeasurement", "ConsensusResult", "consensus", "measurement_residuals"]
@@ -183,7 +189,7 @@ def _ransac_camera(A: F64, B: F64, thr_rot: float, thr_t: float, rng: np.random.
     return best_inl, samples
 
 
-def consensus(A, B, *, threshold_rot_deg: float = 5.0, threshold_trans_m: float = 0.05,
+def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: float = 0.05,
               names: Sequence[str] | None = None, max_samples: int = 500,
               confidence: float = 0.999, seed: int | np.random.Generator | None = 0
               ) -> ConsensusResult:
@@ -192,7 +198,9 @@ def consensus(A, B, *, threshold_rot_deg: float = 5.0, threshold_trans_m: float 
     Parameters
     ----------
     A, B : sequence of array_like, each shape (N_j, 4, 4)
-        One entry per camera, as for :func:`multieye.solve` (DESIGN.md section 2).
+        One entry per camera, as for :func:`multieye.solve` (DESIGN.md section 2); or ``A``
+        is a :class:`~multieye.solvers.checks.Measurements` validated before and ``B`` is
+        omitted (no checks run again).
     threshold_rot_deg : float
         Largest loop rotation residual of an inlier, degrees.
     threshold_trans_m : float
@@ -228,8 +236,11 @@ def consensus(A, B, *, threshold_rot_deg: float = 5.0, threshold_trans_m: float 
             raise InputError(f"{name} must be a positive number, got {v!r}")
     if not 0.0 < confidence < 1.0:
         raise InputError(f"confidence must be in (0, 1), got {confidence}")
-    meas = check_measurements(A, B, names=list(names) if names is not None else None,
-                              per_camera_motion=False)
+    if isinstance(A, Measurements):
+        meas = given_measurements(A, B, names)
+    else:
+        meas = check_measurements(A, B, names=list(names) if names is not None else None,
+                                  per_camera_motion=False)
     names = meas.names
     As, Bs = meas.split(meas.A), meas.split(meas.B)
     rng = np.random.default_rng(seed)

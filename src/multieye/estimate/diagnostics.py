@@ -44,7 +44,12 @@ from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
 from multieye.core.problem import SETUPS
-from multieye.solvers.checks import check_measurements, rotation_spread
+from multieye.solvers.checks import (
+    Measurements,
+    check_measurements,
+    given_measurements,
+    rotation_spread,
+)
 
 __all__ = ["CameraMotion", "MotionDiagnostics", "motion_diagnostics",
            "MIN_ROTATION_RANGE_DEG", "MIN_SECOND_AXIS_DEG", "MIN_AXIS_RATIO",
@@ -154,7 +159,7 @@ def _advice(name: str, setup: str, what: str) -> str:
     return f"{what.format(thing='the rig')} while {name} sees the target"
 
 
-def motion_diagnostics(A, B, names: Sequence[str] | None = None, *,
+def motion_diagnostics(A, B=None, names: Sequence[str] | None = None, *,
                        setup: str = "eye-to-base",
                        min_range_deg: float = MIN_ROTATION_RANGE_DEG,
                        min_second_axis_deg: float = MIN_SECOND_AXIS_DEG,
@@ -165,7 +170,9 @@ def motion_diagnostics(A, B, names: Sequence[str] | None = None, *,
     Parameters
     ----------
     A, B : sequence of array_like, each shape (N_j, 4, 4)
-        One entry per camera, as for :func:`multieye.solve` (DESIGN.md section 2).
+        One entry per camera, as for :func:`multieye.solve` (DESIGN.md section 2); or ``A``
+        is a :class:`~multieye.solvers.checks.Measurements` validated before and ``B`` is
+        omitted (no checks run again).
     names : sequence of str, optional
         Camera names; default ``cam0, cam1, ...``.
     setup : {"eye-to-base", "eye-on-hand"}
@@ -193,8 +200,11 @@ def motion_diagnostics(A, B, names: Sequence[str] | None = None, *,
     """
     if setup not in SETUPS:
         raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
-    meas = check_measurements(A, B, names=list(names) if names is not None else None,
-                              per_camera_motion=False)
+    if isinstance(A, Measurements):
+        meas = given_measurements(A, B, names)
+    else:
+        meas = check_measurements(A, B, names=list(names) if names is not None else None,
+                                  per_camera_motion=False)
     cameras, warnings = [], []
     for j, (RA, RB, Aj) in enumerate(zip(meas.split(meas.RA), meas.split(meas.RB),
                                           meas.split(meas.A))):

@@ -35,6 +35,7 @@ from multieye.io import (
 )
 from multieye.core.metrics import camera_residual, relative_extrinsics
 from multieye.solvers import Solution, solve
+from multieye.solvers.checks import Measurements, check_measurements
 
 __all__ = [
     "Observation",
@@ -42,6 +43,7 @@ __all__ = [
     "PairedCamera",
     "CalibrationRun",
     "Options",
+    "Refinement",
     "load_camera_data",
     "pair_camera",
     "calibrate",
@@ -162,16 +164,14 @@ def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[st
 CONSENSUS_THRESHOLDS = ((5.0, 0.05), (15.0, 0.15))
 
 
-def _consensus(paired: dict[str, PairedCamera], names: list[str], warnings: list[str]):
+def _consensus(meas: Measurements, warnings: list[str]):
     """RANSAC over measurements with fixed thresholds (never thresholds taken from a fit
     that the outliers themselves pulled); wider ones once if the data are noisier."""
     from multieye.estimate.consensus import consensus
 
-    A = [p.A for p in paired.values()]
-    B = [p.B for p in paired.values()]
     for k, (rot, trans) in enumerate(CONSENSUS_THRESHOLDS):
         try:
-            return consensus(A, B, threshold_rot_deg=rot, threshold_trans_m=trans, names=names)
+            return consensus(meas, threshold_rot_deg=rot, threshold_trans_m=trans)
         except TooFewMeasurementsError as exc:
             if k + 1 == len(CONSENSUS_THRESHOLDS):
                 raise TooFewMeasurementsError(
@@ -212,37 +212,68 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     offsets = _offsets(rig, cameras, opts)
     paired = {n: pair_camera(rig.setup, d, time_offset=offsets[n]) for n, d in cameras.items()}
     warnings = [w for data in cameras.values() for w in data.warnings]
-
+    # Validated here, once: consensus, the diagnostics and the solve take them as they are.
+    meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
+                              names=names, per_camera_motion=False)
     if opts.robust:
-        cons = _consensus(paired, names, warnings)
+        cons = _consensus(meas, warnings)
         by_cam: dict[str, dict[int, str]] = {n: {} for n in names}
         for r in cons.rejected:
             by_cam[r.camera][r.index] = r.reason
         paired = {n: _keep(p, cons.inliers[j], by_cam[n]) for j, (n, p) in enumerate(paired.items())}
+        meas = meas.select(cons.inliers)
 
-    As = [p.A for p in paired.values()]
-    Bs = [p.B for p in paired.values()]
-    motion = motion_diagnostics(As, Bs, names, setup=rig.setup)
+    motion = motion_diagnostics(meas, setup=rig.setup)
     warnings.extend(motion.warnings)
-    sol = solve(As, Bs, opts.method, names=names)
-    X, Y, covariance, refinement, reproj, refined = sol.X, sol.Y, None, None, {}, None
+    sol = solve(meas, method=opts.method)
+    refinement = None
     if opts.refine:
         try:
-            X, Y, covariance, refinement, reproj, more, refined = _refine(rig, cameras, paired,
-                                                                          sol, opts)
-            warnings.extend(more)
+            refinement = _refine(rig, cameras, paired, sol, opts)
         except CalibrationError as exc:
             warnings.append(f"refinement failed, the result is the closed form without "
                             f"uncertainty: {exc}")
+        else:
+            warnings.extend(refinement.warnings)
     shown = offsets if opts.time_offset != "rig" else {n: o for n, o in offsets.items() if o}
-    record = _record(rig, opts.method, reference, X, Y, covariance, paired, warnings, shown,
-                     refinement, reproj, motion.as_dict()["cameras"])
+    record = _record(rig, paired, sol, refinement, method=opts.method, reference=reference,
+                     warnings=warnings, time_offsets=shown, motion=motion.as_dict()["cameras"])
     return CalibrationRun(rig=rig, record=record, solution=sol, cameras=cameras, paired=paired,
-                          refined=refined)
+                          refined=None if refinement is None else refinement.result)
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """What the maximum-likelihood refinement after the closed form gave.
+
+    Attributes
+    ----------
+    kind : {"images", "poses"}
+        On the target points and motion-capture poses, or on the pose residuals.
+    X : ndarray, shape (m, 4, 4)
+    Y : ndarray, shape (4, 4)
+    covariance : ndarray, shape (6(m+1), 6(m+1)), or None
+        Of the perturbations of X^1..X^m then Y (rotation vector, translation; radians,
+        metres).
+    reprojection_rms_px : dict of str to float
+        Per camera, from the refined rig (image refinement only).
+    warnings : tuple of str
+    result : RefinementResult or Solution
+        The refinement's own result: :class:`multieye.estimate.refine_images.RefinementResult`
+        on images, a refined :class:`~multieye.solvers.Solution` on poses.
+    """
+
+    kind: str
+    X: np.ndarray
+    Y: np.ndarray
+    covariance: np.ndarray | None
+    reprojection_rms_px: dict[str, float]
+    warnings: tuple[str, ...]
+    result: object
 
 
 def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
-            sol: Solution, opts: Options):
+            sol: Solution, opts: Options) -> Refinement:
     """Image-level refinement when every camera has target points, else pose-level."""
     first = next(iter(paired))
     spec = rig.mocap_for(first) if first in rig.cameras else rig.mocap
@@ -288,11 +319,13 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
                                 + ", ".join(paired[name].observations[i].name for i in bad[:5])
                                 + (" ..." if bad.size > 5 else ""))
         reproj = {n: float(res.camera_rms_px[j]) for j, n in enumerate(paired)}
-        return res.X, res.Y, res.covariance, "images", reproj, warnings, res
+        return Refinement(kind="images", X=res.X, Y=res.Y, covariance=res.covariance,
+                          reprojection_rms_px=reproj, warnings=tuple(warnings), result=res)
     from multieye.solvers.refine_poses import refine_solution
 
     ref = refine_solution(sol)
-    return ref.X, ref.Y, ref.covariance, "poses", {}, warnings, ref
+    return Refinement(kind="poses", X=ref.X, Y=ref.Y, covariance=ref.covariance,
+                      reprojection_rms_px={}, warnings=(), result=ref)
 
 
 def _mocap_noise(paired: dict[str, PairedCamera], res) -> tuple[float, float]:
@@ -314,10 +347,13 @@ def _mocap_noise(paired: dict[str, PairedCamera], res) -> tuple[float, float]:
             max(float(np.sqrt(np.mean(dt ** 2))), 1e-7))
 
 
-def _record(rig: Rig, method: str, reference: str, X: np.ndarray, Y: np.ndarray,
-            covariance: np.ndarray | None, paired: dict[str, PairedCamera], warnings: list[str],
-            time_offsets: dict[str, float], refinement: str | None, reproj: dict[str, float],
-            motion: dict) -> CalibrationRecord:
+def _record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
+            refinement: Refinement | None, *, method: str, reference: str, warnings: list[str],
+            time_offsets: dict[str, float], motion: dict) -> CalibrationRecord:
+    """The record of the final result: the refinement's when it ran, else the closed form."""
+    final = sol if refinement is None else refinement
+    X, Y, covariance = final.X, final.Y, None if refinement is None else refinement.covariance
+    reproj = {} if refinement is None else refinement.reprojection_rms_px
     names = list(paired)
     ref = names.index(reference)
     T_ref_cam = relative_extrinsics(X, reference=ref)
@@ -347,7 +383,8 @@ def _record(rig: Rig, method: str, reference: str, X: np.ndarray, Y: np.ndarray,
     return CalibrationRecord(setup=rig.setup, method=method, reference_camera=reference, Y=Y,
                              cameras=tuple(cams),
                              residuals=Residuals(e_R_deg=sum(rot_all) / n, e_t_m=sum(trans_all) / n),
-                             warnings=tuple(warnings), refinement=refinement,
+                             warnings=tuple(warnings),
+                             refinement=None if refinement is None else refinement.kind,
                              motion_diagnostics=motion)
 
 

@@ -29,6 +29,7 @@ True
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache, singledispatch
 
 import cv2
@@ -244,9 +245,32 @@ def _(target: AsymmetricCircleGrid, x, y):
     return _circle_reflectance(best, target.circle_diameter / 2)
 
 
+@dataclass(frozen=True)
+class _CharucoLayout:
+    """Where a ChArUco board's markers are, in the canonical frame.
+
+    Attributes
+    ----------
+    square_marker : ndarray, shape (rows, cols), int
+        Per square the index of its marker; -1 for a black square.
+    corner0 : ndarray, shape (k, 2)
+        Per marker its corner 0, metres.
+    axis_u, axis_v : ndarray, shape (k, 2)
+        Per marker the unit vectors of its bit columns and rows.
+    bits : ndarray, shape (k, n, n), float32
+        Per marker its image (border included), 0 black, 1 white.
+    """
+
+    square_marker: np.ndarray
+    corner0: np.ndarray
+    axis_u: np.ndarray
+    axis_v: np.ndarray
+    bits: np.ndarray
+
+
 @lru_cache(maxsize=16)
-def _charuco_layout(target: Charuco):
-    """Per square the marker index (-1: black square); per marker corner 0, unit axes, bits."""
+def _charuco_layout(target: Charuco) -> _CharucoLayout:
+    """The marker layout of a ChArUco board (:class:`_CharucoLayout`)."""
     board = target.opencv_board()
     dictionary = board.getDictionary()
     nbits = dictionary.markerSize
@@ -262,12 +286,14 @@ def _charuco_layout(target: Charuco):
         square_marker[int(cy // s), int(cx // s)] = k
     bits = np.stack([cv2.aruco.generateImageMarker(dictionary, int(i), nbits + 2, borderBits=1)
                      for i in ids]).astype(np.float32) / 255.0
-    return square_marker, c0, eu, ev, bits
+    return _CharucoLayout(square_marker=square_marker, corner0=c0, axis_u=eu, axis_v=ev, bits=bits)
 
 
 @_reflectance.register
 def _(target: Charuco, x, y):
-    square_marker, c0, eu, ev, bits = _charuco_layout(target)
+    lay = _charuco_layout(target)
+    square_marker, c0, bits = lay.square_marker, lay.corner0, lay.bits
+    eu, ev = lay.axis_u, lay.axis_v
     s, m = target.spacing, target.marker_size
     n = bits.shape[1]
     i = np.floor(x / s).astype(np.int64) + 1

@@ -20,6 +20,8 @@ from multieye.solvers.kronecker import BOTTOM_ROWS, CameraStats, camera_stats, s
 __all__ = [
     "check_transforms",
     "check_measurements",
+    "check_motion",
+    "given_measurements",
     "Measurements",
     "rotation_spread",
     "MIN_MEASUREMENTS",
@@ -328,6 +330,33 @@ class Measurements:
         """Split a per-row array back into per-camera arrays."""
         return np.split(arr, self.starts[1:])
 
+    def select(self, keep) -> "Measurements":
+        """The measurements where ``keep[j]`` (a boolean mask per camera) is True.
+
+        Subsets of validated transforms need no new checks; the motion of the subset is
+        not checked here (:func:`check_motion`, which :func:`multieye.solve` runs).
+
+        Raises
+        ------
+        InputError
+            Not one mask of the camera's length per camera.
+        TooFewMeasurementsError
+            A camera left with fewer than 3 measurements.
+        """
+        masks = [np.asarray(k, dtype=bool) for k in keep]
+        if len(masks) != self.m or any(k.shape != (int(c),) for k, c in zip(masks, self.counts)):
+            raise InputError(f"select needs one boolean mask per camera of lengths "
+                             f"{self.counts.tolist()}, got shapes {[k.shape for k in masks]}")
+        counts = [int(k.sum()) for k in masks]
+        for name, n in zip(self.names, counts):
+            if n < MIN_MEASUREMENTS:
+                raise TooFewMeasurementsError(
+                    f"camera {name} keeps {n} measurements, at least {MIN_MEASUREMENTS} are needed")
+        idx = np.flatnonzero(np.concatenate(masks))
+        N = int(self.counts.sum())
+        return Measurements._from_entries(self.entries[:, np.concatenate([idx, N + idx])],
+                                          counts, self.names)
+
     @classmethod
     def from_arrays(cls, A: np.ndarray, B: np.ndarray, counts, names=None) -> "Measurements":
         """Build from concatenated arrays ``(N, 4, 4)`` of rigid transforms (no checks)."""
@@ -379,6 +408,8 @@ def check_measurements(A, B, *, names: list[str] | None = None,
     DegenerateMotionError
         Rotations about a single axis (or none at all).
     """
+    if B is None:
+        raise InputError("B is missing: give one B batch per A batch")
     if isinstance(A, np.ndarray) and A.ndim == 3:
         A = [A]
     if isinstance(B, np.ndarray) and B.ndim == 3:
@@ -411,24 +442,57 @@ def check_measurements(A, B, *, names: list[str] | None = None,
                 f"camera {names[j]} has {n} measurements, at least {MIN_MEASUREMENTS} "
                 "are needed; record more target poses for it")
         counts.append(n)
-    N = sum(counts)
     entries = transform_entries(*A, *B)
     if not _surely_rigid(entries):
         _raise_first_bad(entries.T.reshape(-1, 4, 4), counts, names)
         entries[12:] = BOTTOM_ROWS       # within tolerance of (0, 0, 0, 1): make it exact
     meas = Measurements._from_entries(entries, counts, names)
-    st = meas.stats
+    check_motion(meas, per_camera_motion=per_camera_motion)
+    return meas
+
+
+def check_motion(meas: Measurements, *, per_camera_motion: bool = True) -> None:
+    """The motion test of :func:`check_measurements`, for measurements already validated.
+
+    Parameters
+    ----------
+    meas : Measurements
+    per_camera_motion : bool
+        As for :func:`check_measurements`.
+
+    Raises
+    ------
+    DegenerateMotionError
+        Rotations about a single axis (or none at all).
+    """
+    counts = [int(c) for c in meas.counts]
+    m, N = len(counts), sum(counts)
     starts = [0, *accumulate(counts[:-1])]
-    R0 = entries[:12, starts].reshape(3, 4, m)[:, :3]     # R0[c, b, j]: first R_A of camera j
+    R0 = meas.entries[:12, starts].reshape(3, 4, m)[:, :3]   # R0[c, b, j]: first R_A of camera j
     if per_camera_motion:
-        S = np.einsum("jab,cbj->jac", st.SA, R0)          # SA_j R0_j^T, camera by camera
+        S = np.einsum("jab,cbj->jac", meas.stats.SA, R0)      # SA_j R0_j^T, camera by camera
         for j in range(m):
             _check_spread(_spread_from_scatter(_scatter_from_sum(S[j], counts[j]),
-                                               counts[j] - 1), f"camera {names[j]}")
+                                               counts[j] - 1), f"camera {meas.names[j]}")
     else:
-        S = np.einsum("jab,cbj->ac", st.SA, R0)           # sum_j SA_j R0_j^T
+        S = np.einsum("jab,cbj->ac", meas.stats.SA, R0)       # sum_j SA_j R0_j^T
         _check_spread(_spread_from_scatter(_scatter_from_sum(S, N), N - m),
                       "the rig (all cameras together)")
+
+
+def given_measurements(meas: Measurements, B=None, names=None) -> Measurements:
+    """``meas`` as passed in place of ``A, B`` to a function that takes either (no new checks).
+
+    Raises
+    ------
+    InputError
+        ``B`` given as well, or ``names`` that differ from the measurements' own.
+    """
+    if B is not None:
+        raise InputError("give either validated Measurements or A and B, not both")
+    if names is not None and tuple(names) != meas.names:
+        raise InputError(f"names {list(names)} differ from the measurements' names "
+                         f"{list(meas.names)}")
     return meas
 
 

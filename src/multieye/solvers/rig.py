@@ -34,7 +34,13 @@ import numpy as np
 
 from multieye.core.errors import InputError
 from multieye.core.geometry import make_transform, rotation_mean
-from multieye.solvers.checks import Measurements, check_measurements, check_transforms
+from multieye.solvers.checks import (
+    Measurements,
+    check_measurements,
+    check_motion,
+    check_transforms,
+    given_measurements,
+)
 from multieye.solvers.joint import solve_joint
 from multieye.solvers.li import solve_li_single
 from multieye.solvers.result import CameraResidual, Solution
@@ -66,9 +72,9 @@ def combine_y(Ys: np.ndarray) -> np.ndarray:
     return make_transform(rotation_mean(Ys[:, :3, :3]), Ys[:, :3, 3].mean(axis=0))
 
 
-def solve(A: Sequence[np.ndarray] | np.ndarray, B: Sequence[np.ndarray] | np.ndarray,
-          method: str = "joint", *, refine: bool = False, names: list[str] | None = None,
-          **refine_options) -> Solution:
+def solve(A: Sequence[np.ndarray] | np.ndarray | Measurements,
+          B: Sequence[np.ndarray] | np.ndarray | None = None, method: str = "joint", *,
+          refine: bool = False, names: list[str] | None = None, **refine_options) -> Solution:
     """Solve ``A_i^j X^j = Y B_i^j`` for every camera j and the shared Y.
 
     Parameters
@@ -77,7 +83,9 @@ def solve(A: Sequence[np.ndarray] | np.ndarray, B: Sequence[np.ndarray] | np.nda
         One entry per camera (a single (N, 4, 4) array means one camera).  Eye-to-base:
         ``A = T_marker_world`` (inverse motion capture), ``B = T_target_cam`` (inverse PnP).
         Eye-on-hand: ``A = T_world_body`` (motion capture), ``B = T_target_cam``.
-        See DESIGN.md section 2.
+        See DESIGN.md section 2.  Or ``A`` is a :class:`~multieye.solvers.checks.Measurements`
+        validated before (:func:`~multieye.solvers.checks.check_measurements`) and ``B``
+        is omitted: only the motion test of the method runs again.
     method : str
         One of :data:`METHODS`; default ``"joint"``.
     refine : bool
@@ -107,7 +115,11 @@ def solve(A: Sequence[np.ndarray] | np.ndarray, B: Sequence[np.ndarray] | np.nda
         raise InputError(f"refinement options {', '.join(sorted(refine_options))} given without "
                          "refine=True")
     joint = method in JOINT_METHODS
-    meas = check_measurements(A, B, names=names, per_camera_motion=not joint)
+    if isinstance(A, Measurements):
+        meas = given_measurements(A, B, names)
+        check_motion(meas, per_camera_motion=not joint)
+    else:
+        meas = check_measurements(A, B, names=names, per_camera_motion=not joint)
     Y_per_camera = None
     if joint:
         X, Y = JOINT_METHODS[method](meas)

@@ -1,0 +1,94 @@
+"""The pipeline's own contracts: inputs validated once, the run's result names."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from multieye.io import load_rig
+from multieye.pipeline import calibrate_rig, load_camera_data
+from multieye.solvers import checks
+from pose_dataset import write_pose_dataset
+
+
+def _count_calls(monkeypatch, module_attr: str, fn) -> list:
+    """Replace ``fn`` wherever a multieye module holds it under ``module_attr``; count calls."""
+    calls = []
+
+    def counting(*args, **kwargs):
+        calls.append(1)
+        return fn(*args, **kwargs)
+
+    for mod in list(sys.modules.values()):
+        if (getattr(mod, "__name__", "").startswith("multieye")
+                and getattr(mod, module_attr, None) is fn):
+            monkeypatch.setattr(mod, module_attr, counting)
+    return calls
+
+
+@pytest.mark.parametrize("method", ["joint", "shah"])
+@pytest.mark.parametrize("robust", [True, False])
+def test_measurements_are_validated_once_per_calibration(tmp_path, monkeypatch, method, robust):
+    folder, _, _ = write_pose_dataset(tmp_path)
+    rig = load_rig(folder / "rig.yaml")
+    cameras = load_camera_data(rig)
+    # consensus, the motion diagnostics and the solver are all loaded, so every module that
+    # imported check_measurements by name is patched
+    import multieye.estimate.consensus  # noqa: F401
+    import multieye.estimate.diagnostics  # noqa: F401
+
+    calls = _count_calls(monkeypatch, "check_measurements", checks.check_measurements)
+    run = calibrate_rig(rig, cameras, method=method, robust=robust)
+    assert len(calls) == 1
+    assert run.record.cameras[1].measurements_used == 12
+
+
+def test_public_functions_still_validate_raw_arrays():
+    from multieye.core.errors import InputError
+    from multieye.estimate.consensus import consensus
+    from multieye.estimate.diagnostics import motion_diagnostics
+    from multieye.solvers import solve
+
+    bad = [np.tile(np.eye(4), (5, 1, 1)) * 2.0]        # not rigid
+    good = [np.tile(np.eye(4), (5, 1, 1))]
+    for fn in (solve, consensus, motion_diagnostics):
+        with pytest.raises(InputError):
+            fn(bad, good)
+        with pytest.raises(InputError, match="B is missing"):
+            fn(good)
+
+
+def test_validated_measurements_are_not_checked_again_but_subsets_keep_their_rows(monkeypatch):
+    from multieye.core import geometry as g
+    from multieye.estimate.consensus import consensus
+    from multieye.estimate.diagnostics import motion_diagnostics
+    from multieye.solvers import solve
+
+    rng = np.random.default_rng(1)
+    X = g.random_transforms(rng, 2)
+    Y = g.random_transforms(rng)
+    A = [g.random_transforms(rng, 10) for _ in range(2)]
+    B = [g.inv(Y) @ a @ x for a, x in zip(A, X)]
+    meas = checks.check_measurements(A, B, names=["a", "b"], per_camera_motion=False)
+    calls = _count_calls(monkeypatch, "check_measurements", checks.check_measurements)
+    sol = solve(meas)
+    np.testing.assert_allclose(sol.X, X, atol=1e-9)
+    assert consensus(meas).rejected == ()
+    assert [c.name for c in motion_diagnostics(meas).cameras] == ["a", "b"]
+    keep = [np.arange(10) % 2 == 0, np.arange(10) < 7]
+    sub = meas.select(keep)
+    assert sub.counts.tolist() == [5, 7]
+    np.testing.assert_array_equal(sub.A[5:], A[1][:7])
+    np.testing.assert_array_equal(sub.B[:5], B[0][::2])
+    np.testing.assert_allclose(solve(sub, method="shah").X, X, atol=1e-9)
+    assert calls == []
+    from multieye.core.errors import InputError, TooFewMeasurementsError
+
+    with pytest.raises(InputError, match="not both"):
+        solve(meas, B)
+    with pytest.raises(InputError, match="differ"):
+        solve(meas, names=["x", "y"])
+    with pytest.raises(TooFewMeasurementsError, match="camera b keeps 2"):
+        meas.select([np.ones(10, bool), np.arange(10) < 2])
