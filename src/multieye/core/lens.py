@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 
-__all__ = ["project_points", "distort_points", "undistort_points"]
+__all__ = ["project_points", "project_with_jacobian", "distort_points", "undistort_points"]
 
 F64 = NDArray[np.float64]
 
@@ -92,6 +92,54 @@ def project_points(points_cam: ArrayLike, intrinsics: Intrinsics) -> F64:
         return out
     out[ok] = _project_normalised(P[ok, :2] / P[ok, 2:3], intrinsics)
     return out
+
+
+def project_with_jacobian(points_cam: ArrayLike, intrinsics: Intrinsics
+                          ) -> tuple[F64, F64, F64]:
+    """Pixels of camera-frame points with their derivatives, from OpenCV's own Jacobians.
+
+    ``cv2.projectPoints`` / ``cv2.fisheye.projectPoints`` are called with a zero pose, so the
+    derivative of each pixel with respect to the translation is the derivative with respect
+    to the point itself (``p_cam = R(0) p + t``).
+
+    Parameters
+    ----------
+    points_cam : array_like, shape (P, 3)
+        Points in the camera frame (x right, y down, z forward), metres, ``z > 0``.
+    intrinsics : Intrinsics
+
+    Returns
+    -------
+    uv : ndarray, shape (P, 2)
+        Pixels, as :func:`project_points` (NaN on or behind the camera plane).
+    J_point : ndarray, shape (P, 2, 3)
+        ``d uv / d points_cam``, pixels per metre (NaN where ``uv`` is).
+    J_intrinsics : ndarray, shape (P, 2, 4 + len(dist))
+        ``d uv / d (fx, fy, cx, cy, dist...)``: the distortion coefficients in OpenCV's order
+        (pinhole k1 k2 p1 p2 [k3 [k4 k5 k6 ...]]; fisheye k1..k4).
+    """
+    P = _as_points(points_cam, 3, "camera-frame points")
+    n, nd = len(P), intrinsics.dist.size
+    uv = np.full((n, 2), np.nan)
+    J_point = np.full((n, 2, 3), np.nan)
+    J_intr = np.full((n, 2, 4 + nd), np.nan)
+    ok = np.all(np.isfinite(P), axis=1) & (P[:, 2] > 0)
+    if not np.any(ok):
+        return uv, J_point, J_intr
+    obj = P[ok].reshape(-1, 1, 3)
+    zero = np.zeros(3)
+    if intrinsics.model == "fisheye":
+        out, jac = cv2.fisheye.projectPoints(obj, zero, zero, intrinsics.K, intrinsics.dist)
+        jac = jac.reshape(-1, 2, jac.shape[-1])
+        jp, ji = jac[:, :, 11:14], jac[:, :, 0:8]
+    else:
+        out, jac = cv2.projectPoints(obj, zero, zero, intrinsics.K, intrinsics.dist)
+        jac = jac.reshape(-1, 2, jac.shape[-1])
+        jp, ji = jac[:, :, 3:6], jac[:, :, 6:10 + nd]
+    uv[ok] = out.reshape(-1, 2)
+    J_point[ok] = jp
+    J_intr[ok] = ji
+    return uv, J_point, J_intr
 
 
 def _project_normalised(xy: F64, intrinsics: Intrinsics) -> F64:

@@ -173,14 +173,13 @@ def cramer_rao_bound(setup: str, observations: Sequence, intrinsics: Sequence[In
         :class:`multieye.estimate.refine_images.RefinementResult`; pass it to :func:`relative_covariance` for
         the bound of every ``T_ref_cam``.
     """
-    from multieye.estimate.refine_images import ImageProblem
+    from multieye.estimate.image_residuals import ImageData
+    from multieye.optimize.levenberg_marquardt import covariance
 
-    problem = ImageProblem(setup, observations, intrinsics)
+    data = ImageData(setup, observations, intrinsics)
     sigmas = np.array([pixel_sigma, mocap_rot_sigma_rad, mocap_trans_sigma_m], dtype=np.float64)
     if not np.all(np.isfinite(sigmas) & (sigmas > 0)):
         raise InputError(f"noise levels must be positive, got {sigmas.tolist()}")
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
-    blk = problem.jacobian_blocks(np.zeros(problem.n_params), X, Y, sigmas[0])
-    cov, _ = problem.marginal(blk, 1.0 / np.repeat(sigmas[1:], 3) ** 2)
-    return cov
+    return covariance(data.families(X, Y), data.groups(*sigmas)).kept

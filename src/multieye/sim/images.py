@@ -214,14 +214,14 @@ def estimate_target_poses(object_points: F64, image_points: F64, T_init: F64,
     ndarray, shape (N, 4, 4)
         ``T_cam_target`` minimising the sum of squared pixel residuals.
     """
-    from multieye.estimate.refine_images import project_with_jacobian
+    from multieye.core.lens import project_with_jacobian
 
     T = np.array(T_init, dtype=np.float64)
     N, n = image_points.shape[:2]
     for _ in range(iterations):
         Rp = np.einsum("nij,kj->nki", T[:, :3, :3], object_points)           # (N, n, 3)
         pc = Rp + T[:, None, :3, 3]
-        uv, Jp = project_with_jacobian(pc.reshape(-1, 3), intrinsics)
+        uv, Jp, _ = project_with_jacobian(pc.reshape(-1, 3), intrinsics)
         r = (uv.reshape(N, n, 2) - image_points).reshape(N, n * 2)
         Jpose = np.concatenate([-Jp @ g.skew(Rp.reshape(-1, 3)),
                                 np.broadcast_to(Jp, Jp.shape)], axis=2)      # (N n, 2, 6)

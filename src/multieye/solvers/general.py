@@ -248,8 +248,8 @@ def solve_general(groups: Iterable, method: str = "joint", refine: bool = False,
     Y = dict(zip(lay.ys, make_transform(RY, tY)))
     sol = assemble_solution(groups, X, Y, method)
     if refine:
-        from multieye.solvers.refine_poses import refine_general
-        sol = refine_general(groups, sol, **refine_options)
+        from multieye.solvers.refine_poses import refine_groups
+        sol = refine_groups(groups, sol, **refine_options)
     return sol
 
 

@@ -13,37 +13,32 @@ rotation residual in place of their chordal one and a robust loss)::
 of the six components of a measurement's residual separately, with the threshold
 ``loss_scale`` in units of sigma.
 
-Parameterisation: each unknown ``T = (R, t)`` is perturbed on the left for the rotation and
-additively for the translation, ``R = Exp(phi) R_hat``, ``t = t_hat + tau``, parameters
-``(phi, tau)`` (6 per unknown, radians and metres).  ``phi`` is a rotation in the unknown's
-world-side (left) frame; ``tau`` is a translation in metres in the same frame, so the
-translation block of the covariance is directly the covariance of ``t``.  The Jacobian is
-analytic and sparse (each residual involves one X and one Y):
+Parameterisation: every unknown lives on ``se3-left`` (:mod:`multieye.optimize.blocks`),
+``R = Exp(phi) R_hat``, ``t = t_hat + tau``: ``phi`` is a rotation in the unknown's world-side
+(left) frame and ``tau`` a translation in metres in the same frame, so the translation block
+of the covariance is directly the covariance of ``t``.  The Jacobian (:class:`PoseResiduals`)
+is analytic; each residual involves one X and one Y:
 
     d r_R / d phi_X = J_l^-1(r_R) R_A,          d r_R / d phi_Y = -J_l^-1(r_R) E,
     d r_t / d tau_X = R_A,   d r_t / d tau_Y = -I,   d r_t / d phi_Y = [R_Y t_B]_x,
 
-with ``E = R_A R_X R_B^T R_Y^T`` and ``J_l`` the left Jacobian of SO(3) (times ``J_l(phi)`` of
-the current parameter, since the chart is anchored at the starting estimate).
+with ``E = R_A R_X R_B^T R_Y^T`` and ``J_l`` the left Jacobian of SO(3).
 
-Minimisation: by default Levenberg-Marquardt on the sparse normal equations of the robust
-cost (a ``6k x 6k`` system per iteration, k unknowns, assembled from the sparse Jacobian at a
-cost linear in the measurements); ``solver="scipy"`` runs :func:`scipy.optimize.least_squares`
-(trf, lsmr) on the same residuals and analytic sparse Jacobian instead.  Both reach the same
-optimum; scipy's trust region needs far more iterations with a robust loss (about 10x slower
-on the UTIAS data).
+Minimisation: the engine (:mod:`multieye.optimize.levenberg_marquardt`), Levenberg-Marquardt on
+the normal equations of the robust cost (a ``6k x 6k`` system per iteration for k unknowns,
+assembled at a cost linear in the measurements).
 
-Covariance: the Jacobian ``J`` of the sigma-normalised residuals is re-evaluated at the
-optimum (chart re-anchored there) and ``cov = kappa (J^T J)^-1`` with Huber's asymptotic factor
-``kappa = E[psi^2] / E[psi']^2`` of the loss's influence function ``psi``.  When the sigmas are
-given, the expectations are those of standard normal residuals (``kappa = 1`` for the linear
-loss, the Cramér-Rao bound).  When they are not, ``sigma_R`` and ``sigma_t`` are estimated
-robustly (1.4826 x median absolute residual component), the refinement runs twice (the second
-time with the sigmas re-estimated from the refined residuals), and the expectations are the
-sample averages over the final residuals, ``kappa = [sum psi^2 / (m - n)] / [sum psi' / m]^2``,
-which for the linear loss is the estimated residual variance.  The covariance describes noise
-in A and B only: it does not cover model error (unsynchronised measurements, a non-rigid
-rig) or outliers that the loss has not down-weighted.
+Covariance: the Jacobian ``J`` of the sigma-normalised residuals at the optimum gives
+``cov = kappa (J^T J)^-1`` with Huber's asymptotic factor ``kappa = E[psi^2] / E[psi']^2`` of
+the loss's influence function ``psi``.  When the sigmas are given, the expectations are those
+of standard normal residuals (``kappa = 1`` for the linear loss, the Cramér-Rao bound).  When
+they are not, ``sigma_R`` and ``sigma_t`` are estimated robustly (1.4826 x median absolute
+residual component), the refinement runs twice (the second time with the sigmas re-estimated
+from the refined residuals), and the expectations are the sample averages over the final
+residuals, ``kappa = [sum psi^2 / (m - n)] / [sum psi' / m]^2``, which for the linear loss is
+the estimated residual variance.  The covariance describes noise in A and B only: it does not
+cover model error (unsynchronised measurements, a non-rigid rig) or outliers that the loss has
+not down-weighted.
 
 Synopsis
 --------
@@ -54,24 +49,26 @@ Synopsis
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 
 from multieye.core.errors import InputError
-from multieye.solvers.groups import GeneralSolution, MeasurementGroup, as_groups, assemble_solution
-from multieye.core.geometry import make_transform, skew
-from multieye.core.lie import exp_so3, left_jacobian, left_jacobian_inv, log_so3
-from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho, robust_cost, sample_kappa
+from multieye.core.geometry import skew
+from multieye.core.lie import left_jacobian_inv, log_so3
+from multieye.core.problem import MeasurementGroup
+from multieye.core.robust_loss import LOSSES, gaussian_kappa, sample_kappa
+from multieye.optimize.blocks import Blocks, ResidualGroup
+from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
+from multieye.solvers.groups import GeneralSolution, as_groups, assemble_solution
 from multieye.solvers.result import Solution
 
 __all__ = [
     "refine_general",
     "refine_solution",
-    "PoseProblem",
+    "refine_groups",
+    "PoseResiduals",
     "relative_pose_covariance",
     "LOSSES",
 ]
@@ -82,169 +79,81 @@ _MAD_TO_SIGMA = 1.4826
 _SIGMA_FLOOR = 1e-12
 
 
-# --- the stacked problem --------------------------------------------------------------------
+class PoseResiduals(ResidualGroup):
+    """Pose residuals of every measurement, over their sigmas (module docstring).
 
-class PoseProblem:
-    """All measurements of the groups stacked, with the index of each row's X and Y unknown.
-
-    Parameters are 6 per unknown, ``(phi, tau)`` in ``unknowns`` order, relative to an anchor
-    ``T0`` (k, 4, 4): ``R = Exp(phi) R0``, ``t = t0 + tau``.  Residuals are 6 per measurement,
-    ``(r_R / sigma_R, r_t / sigma_t)``, measurement by measurement in group order.
+    Rows are measurements in group order; slots are the block families ``X`` and ``Y``.
 
     Parameters
     ----------
-    groups : iterable of (x_name, y_name, A, B)
-        As for :func:`multieye.solvers.general.solve_general`.
+    groups : tuple of MeasurementGroup
+        Validated (:func:`multieye.solvers.groups.as_groups`).
+    x_names, y_names : sequence of str
+        Order of the blocks of the ``X`` and ``Y`` families.
+    sigma_rot, sigma_t : float
     """
 
-    def __init__(self, groups: Iterable):
-        groups = as_groups(groups)
-        self.groups = groups
-        xs = list(dict.fromkeys(g.x_name for g in groups))
-        ys = list(dict.fromkeys(g.y_name for g in groups))
-        #: (side, name) of each unknown, in parameter order.
-        self.unknowns = tuple([("X", x) for x in xs] + [("Y", y) for y in ys])
-        index = {u: k for k, u in enumerate(self.unknowns)}
+    def __init__(self, groups: tuple[MeasurementGroup, ...], x_names, y_names,
+                 sigma_rot: float, sigma_t: float):
+        ix = {n: k for k, n in enumerate(x_names)}
+        iy = {n: k for k, n in enumerate(y_names)}
+        n = [len(g.A) for g in groups]
+        index = np.column_stack([np.repeat([ix[g.x_name] for g in groups], n),
+                                 np.repeat([iy[g.y_name] for g in groups], n)])
+        super().__init__(("X", "Y"), index, np.arange(len(index)), 6)
         self.A = np.concatenate([g.A for g in groups])
         self.B = np.concatenate([g.B for g in groups])
-        n = [len(g.A) for g in groups]
-        self.xi = np.repeat([index[("X", g.x_name)] for g in groups], n)
-        self.yi = np.repeat([index[("Y", g.y_name)] for g in groups], n)
-        self.m = len(self.A)
-        self.k = len(self.unknowns)
-        # Residual rows 6i..6i+5 depend on the 6 columns of X[xi] and the 6 of Y[yi].
-        rows = np.repeat(6 * np.arange(self.m)[:, None] + np.arange(6), 12, axis=1)
-        cx = 6 * self.xi[:, None] + np.arange(6)
-        cy = 6 * self.yi[:, None] + np.arange(6)
-        cols = np.broadcast_to(np.concatenate([cx, cy], axis=1)[:, None, :], (self.m, 6, 12))
-        self._rows = rows.ravel()
-        self._cols = cols.ravel()
+        self.sigma_rot, self.sigma_t = float(sigma_rot), float(sigma_t)
 
-    @property
-    def sparsity(self) -> sp.csr_matrix:
-        """Structural non-zeros of the Jacobian, (6m, 6k)."""
-        return self._sparse(np.ones(self._rows.size))
-
-    def _sparse(self, data: F64) -> sp.csr_matrix:
-        return sp.csr_matrix((data.ravel(), (self._rows, self._cols)),
-                             shape=(6 * self.m, 6 * self.k))
-
-    def anchor(self, solution: GeneralSolution) -> F64:
-        """The unknowns of ``solution`` stacked in parameter order, (k, 4, 4)."""
-        try:
-            return np.stack([(solution.X if side == "X" else solution.Y)[name]
-                             for side, name in self.unknowns])
-        except KeyError as exc:
-            raise InputError(f"the solution has no unknown named {exc.args[0]!r}") from None
-
-    def poses(self, T0: F64, p: F64) -> F64:
-        """Unknowns (k, 4, 4) at parameters ``p`` (6k,) relative to the anchor ``T0``."""
-        p = np.asarray(p, dtype=np.float64).reshape(self.k, 6)
-        return make_transform(exp_so3(p[:, :3]) @ T0[:, :3, :3], T0[:, :3, 3] + p[:, 3:])
-
-    def raw_residuals(self, T: F64) -> tuple[F64, F64]:
-        """Unweighted ``(r_R, r_t)`` (each (m, 3), radians and metres) at unknowns ``T``."""
+    def raw(self, X: F64, Y: F64) -> tuple[F64, F64, F64]:
+        """Unweighted ``r_R``, ``r_t`` (each (n, 3), radians and metres) and ``E``."""
         RA, tA = self.A[:, :3, :3], self.A[:, :3, 3]
         RB, tB = self.B[:, :3, :3], self.B[:, :3, 3]
-        RX, tX = T[self.xi, :3, :3], T[self.xi, :3, 3]
-        RY, tY = T[self.yi, :3, :3], T[self.yi, :3, 3]
+        Xi, Yi = X[self.index[:, 0]], Y[self.index[:, 1]]
+        RX, tX, RY, tY = Xi[:, :3, :3], Xi[:, :3, 3], Yi[:, :3, :3], Yi[:, :3, 3]
         E = RA @ RX @ np.swapaxes(RB, 1, 2) @ np.swapaxes(RY, 1, 2)
-        r_t = (np.einsum("nij,nj->ni", RA, tX) + tA
-               - np.einsum("nij,nj->ni", RY, tB) - tY)
-        return log_so3(E), r_t
+        r_t = (np.einsum("nij,nj->ni", RA, tX) + tA - np.einsum("nij,nj->ni", RY, tB) - tY)
+        return log_so3(E), r_t, E
 
-    def residuals(self, p: F64, T0: F64, sigma_rot: float, sigma_t: float) -> F64:
-        """Sigma-normalised residual vector (6m,) at ``p``."""
-        r_rot, r_t = self.raw_residuals(self.poses(T0, p))
-        return np.concatenate([r_rot / sigma_rot, r_t / sigma_t], axis=1).ravel()
-
-    def jacobian(self, p: F64, T0: F64, sigma_rot: float, sigma_t: float) -> sp.csr_matrix:
-        """Analytic sparse Jacobian (6m, 6k) of :meth:`residuals` (module docstring)."""
-        p = np.asarray(p, dtype=np.float64).reshape(self.k, 6)
-        T = self.poses(T0, p)
-        r_rot, _ = self.raw_residuals(T)
+    def evaluate(self, values: Mapping[str, F64], jacobians: bool):
+        X, Y = values["X"], values["Y"]
+        r_rot, r_t, E = self.raw(X, Y)
+        r = np.concatenate([r_rot / self.sigma_rot, r_t / self.sigma_t], axis=1)
+        if not jacobians:
+            return r, None
         RA = self.A[:, :3, :3]
-        RB, tB = self.B[:, :3, :3], self.B[:, :3, 3]
-        RX, RY = T[self.xi, :3, :3], T[self.yi, :3, :3]
-        E = RA @ RX @ np.swapaxes(RB, 1, 2) @ np.swapaxes(RY, 1, 2)
+        RY = Y[self.index[:, 1], :3, :3]
+        tB = self.B[:, :3, 3]
         Jinv = left_jacobian_inv(r_rot)
-        Jl = left_jacobian(p[:, :3])
-        JlX, JlY = Jl[self.xi], Jl[self.yi]
-        blk = np.zeros((self.m, 6, 12))
-        blk[:, :3, 0:3] = Jinv @ RA @ JlX / sigma_rot
-        blk[:, :3, 6:9] = -(Jinv @ E) @ JlY / sigma_rot
-        blk[:, 3:, 3:6] = RA / sigma_t
-        blk[:, 3:, 6:9] = skew(np.einsum("nij,nj->ni", RY, tB)) @ JlY / sigma_t
-        blk[:, 3:, 9:12] = -np.eye(3) / sigma_t
-        return self._sparse(blk)
+        n = len(r)
+        JX = np.zeros((n, 6, 6))
+        JY = np.zeros((n, 6, 6))
+        JX[:, :3, :3] = Jinv @ RA / self.sigma_rot
+        JX[:, 3:, 3:] = RA / self.sigma_t
+        JY[:, :3, :3] = -(Jinv @ E) / self.sigma_rot
+        JY[:, 3:, :3] = skew(np.einsum("nij,nj->ni", RY, tB)) / self.sigma_t
+        JY[:, 3:, 3:] = -np.eye(3) / self.sigma_t
+        return r, [JX, JY]
 
 
 def _robust_sigma(r: F64) -> float:
     return max(_MAD_TO_SIGMA * float(np.median(np.abs(r))), _SIGMA_FLOOR)
 
 
-# --- minimisation ---------------------------------------------------------------------------
+def _families(groups, initial: GeneralSolution) -> tuple[list[str], list[str], list[Blocks]]:
+    xs = list(dict.fromkeys(g.x_name for g in groups))
+    ys = list(dict.fromkeys(g.y_name for g in groups))
+    try:
+        X = np.stack([initial.X[n] for n in xs])
+        Y = np.stack([initial.Y[n] for n in ys])
+    except KeyError as exc:
+        raise InputError(f"the solution has no unknown named {exc.args[0]!r}") from None
+    return xs, ys, [Blocks("X", X, "se3-left"), Blocks("Y", Y, "se3-left")]
 
-def _minimize_lm(problem: PoseProblem, T: F64, s_rot: float, s_t: float, loss: str,
-                 scale: float, max_iter: int, tol: float) -> F64:
-    """Levenberg-Marquardt on the sparse normal equations of the robust cost.
-
-    Every iteration re-anchors the chart at the current estimate (p = 0), solves
-    ``(J^T W J + lambda diag(J^T W J)) dp = -J^T psi(f)`` with ``W = psi'(f)`` (floored at
-    ``1e-3 rho'`` so that it stays positive for redescending losses), a ``6k x 6k`` system
-    assembled from the sparse J at a cost linear in the measurements, and accepts the step
-    when the robust cost decreases.  It reaches a stationary point of the same cost that
-    :func:`scipy.optimize.least_squares` minimises with ``loss``, ``f_scale=scale``.
-    """
-    zero = np.zeros(6 * problem.k)
-    f = problem.residuals(zero, T, s_rot, s_t)
-    cost = robust_cost(f, loss, scale)
-    lam = 1e-6
-    for _ in range(max_iter):
-        J = problem.jacobian(zero, T, s_rot, s_t)
-        z = (f / scale) ** 2
-        _, d1, d2 = rho(z, loss)
-        # Gauss-Newton Hessian of the robust cost, psi'(f) = rho' + 2 z rho'', kept positive.
-        w = np.maximum(d1 + 2.0 * z * d2, 1e-3 * d1)
-        H = (J.T @ sp.diags(w) @ J).toarray()
-        g = J.T @ (d1 * f)
-        d = np.diag(H).copy()
-        while True:
-            dp = np.linalg.solve(H + lam * np.diag(d), -g)
-            T_new = problem.poses(T, dp)
-            f_new = problem.residuals(zero, T_new, s_rot, s_t)
-            cost_new = robust_cost(f_new, loss, scale)
-            if cost_new <= cost:
-                break
-            lam *= 10.0
-            if lam > 1e8:
-                return T
-        decrease = cost - cost_new
-        T, f, cost = T_new, f_new, cost_new
-        lam = max(lam / 10.0, 1e-12)
-        if decrease <= tol * max(cost, 1e-300) or np.abs(dp).max() <= tol:
-            break
-    return T
-
-
-def _minimize_scipy(problem: PoseProblem, T: F64, s_rot: float, s_t: float, loss: str,
-                    scale: float, max_iter: int, tol: float) -> F64:
-    """The same minimisation with :func:`scipy.optimize.least_squares` (trf, lsmr)."""
-    res = least_squares(problem.residuals, np.zeros(6 * problem.k), jac=problem.jacobian,
-                        args=(T, s_rot, s_t), loss=loss, f_scale=scale, method="trf",
-                        tr_solver="lsmr", tr_options={"atol": 1e-12, "btol": 1e-12},
-                        x_scale="jac", ftol=tol, xtol=tol, gtol=tol, max_nfev=max_iter)
-    return problem.poses(T, res.x)
-
-
-_SOLVERS = {"lm": _minimize_lm, "scipy": _minimize_scipy}
-
-
-# --- public API -----------------------------------------------------------------------------
 
 def refine_general(groups: Iterable, initial: GeneralSolution, *,
                    rot_sigma_rad: float | None = None, trans_sigma_m: float | None = None,
-                   loss: str = "huber", loss_scale: float = 1.345, solver: str = "lm",
+                   loss: str = "huber", loss_scale: float = 1.345,
                    max_iter: int = 100, tol: float = 1e-10) -> GeneralSolution:
     """Maximum-likelihood refinement of every X and Y of ``A_i X_a = Y_b B_i``, with covariance.
 
@@ -265,16 +174,10 @@ def refine_general(groups: Iterable, initial: GeneralSolution, *,
     loss_scale : float
         Where the loss departs from least squares, in units of sigma (1.345: Huber's 95 %
         efficiency under Gaussian noise).
-    solver : {"lm", "scipy"}
-        ``"lm"``: Levenberg-Marquardt on the sparse normal equations with IRLS weights (fast:
-        a 6k x 6k system per iteration).  ``"scipy"``: :func:`scipy.optimize.least_squares`
-        (trf, lsmr on the same analytic sparse Jacobian), much slower with robust losses;
-        both minimise the same cost.
     max_iter : int
-        Iterations (``"lm"``) or residual evaluations (``"scipy"``) per minimisation.
+        Levenberg-Marquardt iterations per minimisation at most.
     tol : float
-        Relative cost decrease and step size at which the minimisation stops (``ftol``,
-        ``xtol``, ``gtol`` for scipy).
+        Relative cost decrease at which the minimisation stops.
 
     Returns
     -------
@@ -286,48 +189,50 @@ def refine_general(groups: Iterable, initial: GeneralSolution, *,
     Raises
     ------
     InputError
-        Unknown loss or solver, non-positive sigma or loss scale, or an unknown missing from
+        Unknown loss, non-positive sigma or loss scale, or an unknown missing from
         ``initial``.
     """
+    return refine_groups(as_groups(groups), initial, rot_sigma_rad=rot_sigma_rad,
+                         trans_sigma_m=trans_sigma_m, loss=loss, loss_scale=loss_scale,
+                         max_iter=max_iter, tol=tol)
+
+
+def refine_groups(groups: tuple[MeasurementGroup, ...], initial: GeneralSolution, *,
+                  rot_sigma_rad: float | None = None, trans_sigma_m: float | None = None,
+                  loss: str = "huber", loss_scale: float = 1.345, max_iter: int = 100,
+                  tol: float = 1e-10) -> GeneralSolution:
+    """:func:`refine_general` on groups already validated by
+    :func:`multieye.solvers.groups.as_groups` (the transforms are not checked again)."""
     if loss not in LOSSES:
         raise InputError(f"unknown loss {loss!r}; expected one of {', '.join(LOSSES)}")
-    if solver not in _SOLVERS:
-        raise InputError(f"unknown solver {solver!r}; expected one of {', '.join(_SOLVERS)}")
     for name, v in (("rot_sigma_rad", rot_sigma_rad), ("trans_sigma_m", trans_sigma_m),
                     ("loss_scale", loss_scale)):
-        if v is not None and not (np.isfinite(v) and v > 0):
+        if v is not None and not (isinstance(v, (int, float, np.floating, np.integer))
+                                  and np.isfinite(v) and v > 0):
             raise InputError(f"{name} must be a positive number, got {v!r}")
-    problem = PoseProblem(groups)
-    T = problem.anchor(initial)
-    minimize = _SOLVERS[solver]
+    xs, ys, fams = _families(groups, initial)
+    opts = Options(loss=loss, f_scale=float(loss_scale), max_iter=max_iter, tol=tol)
+
+    def sigmas(fams) -> tuple[float, float]:
+        r_rot, r_t, _ = PoseResiduals(groups, xs, ys, 1.0, 1.0).raw(fams[0].value, fams[1].value)
+        return (rot_sigma_rad if rot_sigma_rad is not None else _robust_sigma(r_rot),
+                trans_sigma_m if trans_sigma_m is not None else _robust_sigma(r_t))
 
     given = rot_sigma_rad is not None and trans_sigma_m is not None
     for _ in range(1 if given else 2):
-        s_rot, s_t = _sigmas(problem, T, rot_sigma_rad, trans_sigma_m)
-        T = minimize(problem, T, s_rot, s_t, loss, loss_scale, max_iter, tol)
-
-    s_rot, s_t = _sigmas(problem, T, rot_sigma_rad, trans_sigma_m)
-    zero = np.zeros(6 * problem.k)
-    f = problem.residuals(zero, T, s_rot, s_t)
-    J = problem.jacobian(zero, T, s_rot, s_t)
+        res = minimize(fams, [PoseResiduals(groups, xs, ys, *sigmas(fams))], opts)
+        fams = res.families
+    s_rot, s_t = sigmas(fams)
+    residual_group = [PoseResiduals(groups, xs, ys, s_rot, s_t)]
+    ev = evaluate(fams, residual_group, jacobians=True)
+    k = len(xs) + len(ys)
     kappa = (gaussian_kappa(loss, loss_scale) if given
-             else sample_kappa(f, loss, loss_scale, 6 * problem.k))
-    cov = kappa * np.linalg.inv((J.T @ J).toarray())
-    cov = 0.5 * (cov + cov.T)
-
-    X = {name: T[k] for k, (side, name) in enumerate(problem.unknowns) if side == "X"}
-    Y = {name: T[k] for k, (side, name) in enumerate(problem.unknowns) if side == "Y"}
-    return assemble_solution(problem.groups, X, Y, initial.method, covariance=cov,
+             else sample_kappa(ev[0][0].ravel(), loss, loss_scale, 6 * k))
+    cov = kappa * covariance(fams, residual_group, evaluated=ev).kept
+    X = dict(zip(xs, fams[0].value))
+    Y = dict(zip(ys, fams[1].value))
+    return assemble_solution(groups, X, Y, initial.method, covariance=cov,
                              sigma_rot_rad=float(s_rot), sigma_trans_m=float(s_t))
-
-
-def _sigmas(problem: PoseProblem, T: F64, rot_sigma_rad: float | None,
-            trans_sigma_m: float | None) -> tuple[float, float]:
-    """The given sigmas, or robust estimates from the residuals at ``T``."""
-    r_rot, r_t = problem.raw_residuals(T)
-    s_rot = rot_sigma_rad if rot_sigma_rad is not None else _robust_sigma(r_rot)
-    s_t = trans_sigma_m if trans_sigma_m is not None else _robust_sigma(r_t)
-    return s_rot, s_t
 
 
 def refine_solution(solution: Solution, **options) -> Solution:
@@ -357,10 +262,10 @@ def refine_solution(solution: Solution, **options) -> Solution:
         raise InputError("cannot refine a Solution built without its measurements")
     m = meas.m
     A, B = meas.split(meas.A), meas.split(meas.B)
-    groups = [MeasurementGroup(str(j), "Y", A[j], B[j]) for j in range(m)]
+    groups = tuple(MeasurementGroup(str(j), "Y", A[j], B[j]) for j in range(m))
     initial = GeneralSolution(X={str(j): solution.X[j] for j in range(m)}, Y={"Y": solution.Y},
                               method=solution.method, residuals={}, groups=(), unknowns=())
-    ref = refine_general(groups, initial, **options)
+    ref = refine_groups(groups, initial, **options)       # measurements validated by solve
     return Solution(X=np.stack([ref.X[str(j)] for j in range(m)]), Y=ref.Y["Y"],
                     method=solution.method, Y_per_camera=solution.Y_per_camera,
                     covariance=ref.covariance, measurements=meas)

@@ -1,0 +1,168 @@
+"""Parameter blocks on manifolds and residual groups: what a problem hands the engine.
+
+A problem is a set of *families* of parameter blocks (every camera's ``X``, the shared ``Y``,
+one motion-capture pose per image, ...) and a set of *residual groups*.  Each family declares
+its manifold once; a residual group says which blocks every row touches and returns its
+residuals and their Jacobians with respect to the blocks' local perturbations at the current
+values (Ceres' and GTSAM's split: the engine knows nothing about cameras).
+
+Manifolds (parameters per block, radians and metres):
+
+===============  ===  ==========================================================================
+``se3-left``     6    ``R <- Exp(phi) R``, ``t <- t + tau``: rotation perturbed on the left, in the
+                      frame the pose maps into (docs/conventions.md, covariance convention)
+``se3-right``    6    ``R <- R Exp(phi)``, ``t <- t + tau``: rotation perturbed in the pose's own
+                      frame (the motion-capture noise model: rotation noise in the marker frame)
+``euclidean``    n    ``v <- v + d``
+===============  ===  ==========================================================================
+
+A family marked ``eliminate=True`` holds per-measurement blocks (one motion-capture pose per
+image): the engine removes them from the normal equations by a Schur complement, so each
+residual group may touch at most one such block per row, and the rows that share it must
+touch the same other blocks (an image belongs to one camera).
+
+Synopsis
+--------
+>>> import numpy as np
+>>> X = Blocks("X", np.eye(4)[None].repeat(3, axis=0), "se3-left")
+>>> X.size, X.count
+(6, 3)
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from multieye.core.errors import InputError
+from multieye.core.geometry import make_transform
+from multieye.core.lie import exp_so3
+
+__all__ = ["MANIFOLDS", "Blocks", "ResidualGroup"]
+
+F64 = NDArray[np.float64]
+
+#: Manifolds a family of blocks can live on (module docstring).
+MANIFOLDS = ("se3-left", "se3-right", "euclidean")
+
+
+@dataclass(frozen=True)
+class Blocks:
+    """A family of parameter blocks of one kind, with their current values.
+
+    Attributes
+    ----------
+    name : str
+        How residual groups refer to the family.
+    value : ndarray, shape (count, 4, 4) or (count, n)
+        Current values: rigid transforms (``se3-*``) or vectors (``euclidean``).
+    manifold : {"se3-left", "se3-right", "euclidean"}
+    eliminate : bool
+        Per-measurement blocks, eliminated by the Schur complement.
+    """
+
+    name: str
+    value: F64
+    manifold: str = "se3-left"
+    eliminate: bool = False
+
+    def __post_init__(self):
+        v = np.asarray(self.value, dtype=np.float64)
+        if self.manifold not in MANIFOLDS:
+            raise InputError(f"blocks {self.name!r}: manifold must be one of {MANIFOLDS}, "
+                             f"got {self.manifold!r}")
+        if self.manifold == "euclidean":
+            if v.ndim != 2:
+                raise InputError(f"blocks {self.name!r}: euclidean values must be (count, n), "
+                                 f"got shape {v.shape}")
+        elif v.ndim != 3 or v.shape[1:] != (4, 4):
+            raise InputError(f"blocks {self.name!r}: pose values must be (count, 4, 4), "
+                             f"got shape {v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise InputError(f"blocks {self.name!r}: values must be finite")
+        object.__setattr__(self, "value", v)
+
+    @property
+    def size(self) -> int:
+        """Parameters per block."""
+        return 6 if self.manifold != "euclidean" else int(self.value.shape[1])
+
+    @property
+    def count(self) -> int:
+        """Number of blocks."""
+        return int(self.value.shape[0])
+
+    def retract(self, delta: F64) -> Blocks:
+        """The family moved by ``delta`` (count * size,), block by block (module docstring)."""
+        d = np.asarray(delta, dtype=np.float64).reshape(self.count, self.size)
+        v = self.value
+        if self.manifold == "euclidean":
+            new = v + d
+        elif self.manifold == "se3-left":
+            new = make_transform(exp_so3(d[:, :3]) @ v[:, :3, :3], v[:, :3, 3] + d[:, 3:])
+        else:
+            new = make_transform(v[:, :3, :3] @ exp_so3(d[:, :3]), v[:, :3, 3] + d[:, 3:])
+        return Blocks(self.name, new, self.manifold, self.eliminate)
+
+
+class ResidualGroup(ABC):
+    """Rows of residuals of one kind, each touching one block of each of its slots.
+
+    Rows are grouped into *segments*: consecutive rows that touch the same blocks (all the
+    target points of one image).  The engine forms the normal equations segment by segment.
+
+    Parameters
+    ----------
+    slots : sequence of str
+        Family names of the blocks each row touches, in the order of the Jacobians that
+        :meth:`evaluate` returns.
+    index : array_like of int, shape (n_segments, n_slots)
+        Block of each slot's family that each segment touches.
+    segment : array_like of int, shape (n_rows,)
+        Segment of each row, non-decreasing (rows stored segment by segment).
+    dim : int
+        Residual components per row.
+    """
+
+    def __init__(self, slots: Sequence[str], index, segment, dim: int):
+        self.slots = tuple(slots)
+        self.index = np.asarray(index, dtype=np.int64).reshape(-1, len(self.slots))
+        self.segment = np.asarray(segment, dtype=np.int64).reshape(-1)
+        self.dim = int(dim)
+        n_seg = len(self.index)
+        if self.segment.size and (np.any(np.diff(self.segment) < 0) or self.segment[0] < 0
+                                  or self.segment[-1] >= n_seg):
+            raise InputError("residual rows must be stored segment by segment, with segments "
+                             f"numbered 0..{n_seg - 1}")
+        starts = np.searchsorted(self.segment, np.arange(n_seg))
+        #: Position of each row inside its segment, and the longest segment.
+        self.position = np.arange(self.segment.size) - starts[self.segment]
+        self.longest = int(self.position.max()) + 1 if self.segment.size else 0
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.segment.size)
+
+    @abstractmethod
+    def evaluate(self, values: Mapping[str, F64], jacobians: bool
+                 ) -> tuple[F64, list[F64] | None]:
+        """Residuals at the current values, and their Jacobians when asked.
+
+        Parameters
+        ----------
+        values : mapping of family name to ndarray
+            Current values of every family (:attr:`Blocks.value`).
+        jacobians : bool
+
+        Returns
+        -------
+        residuals : ndarray, shape (n_rows, dim)
+            Normalised by their noise (unit variance for a correct noise model); NaN where a
+            row cannot be evaluated (the engine then rejects the step).
+        jacobians : list of ndarray, shape (n_rows, dim, size of slot k), or None
+            Derivative with respect to each slot's block perturbation at its current value.
+        """

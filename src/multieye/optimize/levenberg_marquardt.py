@@ -1,0 +1,239 @@
+"""Levenberg-Marquardt on a robust cost, and the covariance at its optimum.
+
+The cost is scipy's: ``sum f_scale^2 rho(r^2 / f_scale^2) / 2`` over every residual component
+``r`` of every group (:mod:`multieye.core.robust_loss`).  Each iteration
+
+1. evaluates every group's residuals and Jacobians at the current values,
+2. weights them by the loss's IRLS weights ``rho'`` (which makes the weighted Gauss-Newton step
+   a descent direction of the robust cost; its stationary points are the robust cost's),
+3. forms the normal equations, eliminates the per-measurement blocks by the Schur complement
+   (:mod:`multieye.optimize.normal_equations`) and solves the damped system,
+4. moves every block on its manifold (:meth:`multieye.optimize.blocks.Blocks.retract`) and
+   keeps the step if the cost went down (damping / 10), else retries with damping x 10.
+
+The charts are re-anchored at every accepted step, so the Jacobians are always taken at zero
+perturbation and the covariance (:func:`covariance`) is in the perturbation convention of each
+family at the optimum (``R = Exp(phi) R_hat`` for ``se3-left``).
+
+Synopsis
+--------
+>>> result = minimize(families, groups, Options(loss="huber"))   # doctest: +SKIP
+>>> cov = covariance(result.families, groups).kept                # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from multieye.core.errors import InputError
+from multieye.core.robust_loss import LOSSES, rho
+from multieye.optimize.blocks import Blocks, ResidualGroup
+from multieye.optimize.normal_equations import (
+    Layout,
+    assemble,
+    marginal_covariance,
+    solve_step,
+)
+
+__all__ = ["Options", "Result", "Covariance", "minimize", "covariance", "evaluate"]
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Options:
+    """How :func:`minimize` runs.
+
+    Attributes
+    ----------
+    loss : {"linear", "huber", "soft_l1", "cauchy", "arctan"}
+        Robust loss on every residual component (scipy's names).
+    f_scale : float
+        Where the loss departs from least squares, in the residuals' units (sigmas).
+    max_iter : int
+        Iterations (Jacobian evaluations) at most.
+    tol : float
+        Stop when an accepted step lowers the cost by less than ``tol`` times the cost.
+    initial_damping : float
+    """
+
+    loss: str = "linear"
+    f_scale: float = 1.0
+    max_iter: int = 100
+    tol: float = 1e-10
+    initial_damping: float = 1e-4
+
+    def __post_init__(self):
+        if self.loss not in LOSSES:
+            raise InputError(f"unknown loss {self.loss!r}; expected one of {', '.join(LOSSES)}")
+        if not (np.isfinite(self.f_scale) and self.f_scale > 0):
+            raise InputError(f"f_scale must be a positive number, got {self.f_scale!r}")
+        if not (isinstance(self.max_iter, (int, np.integer)) and self.max_iter >= 1):
+            raise InputError(f"max_iter must be a whole number >= 1, got {self.max_iter!r}")
+        if not (np.isfinite(self.tol) and self.tol >= 0):
+            raise InputError(f"tol must be a non-negative number, got {self.tol!r}")
+
+
+@dataclass(frozen=True)
+class Result:
+    """What :func:`minimize` reached.
+
+    Attributes
+    ----------
+    families : tuple of Blocks
+        At the optimum, in the order given.
+    cost : float
+        Robust cost there.
+    iterations : int
+        Jacobian evaluations.
+    evaluations : int
+        Residual evaluations.
+    converged : bool
+    message : str
+    """
+
+    families: tuple[Blocks, ...]
+    cost: float
+    iterations: int
+    evaluations: int
+    converged: bool
+    message: str
+
+    def value(self, name: str) -> F64:
+        """Values of the family called ``name``."""
+        for f in self.families:
+            if f.name == name:
+                return f.value
+        raise KeyError(name)
+
+
+@dataclass(frozen=True)
+class Covariance:
+    """``(J^T J)^-1`` of the noise-normalised residuals at a point.
+
+    Attributes
+    ----------
+    kept : ndarray, shape (k, k)
+        Over the blocks of the families not eliminated, family by family in the given order,
+        block by block, each in its manifold's perturbation (rotation then translation).
+    local : ndarray, shape (n_local, d, d), or None
+        Marginal covariance of each eliminated block (when asked for).
+    layout : Layout
+        Where each family's parameters sit in ``kept``.
+    """
+
+    kept: F64
+    local: F64 | None
+    layout: Layout
+
+
+def evaluate(families: Sequence[Blocks], groups: Sequence[ResidualGroup], jacobians: bool):
+    """Every group's residuals (and Jacobians) at the families' values."""
+    values = {f.name: f.value for f in families}
+    return [grp.evaluate(values, jacobians) for grp in groups]
+
+
+def _cost(evaluated, opts: Options) -> float:
+    total = 0.0
+    for r, _ in evaluated:
+        if not np.all(np.isfinite(r)):
+            return np.inf
+        total += float(rho((r / opts.f_scale) ** 2, opts.loss)[0].sum())
+    return 0.5 * opts.f_scale ** 2 * total
+
+
+def _retract(families: Sequence[Blocks], layout: Layout, dg: F64, dl: F64) -> tuple[Blocks, ...]:
+    out = []
+    for f in families:
+        o = layout.offset[f.name]
+        if f.eliminate:
+            out.append(f.retract(dl[o:o + f.count]))
+        else:
+            out.append(f.retract(dg[o:o + f.count * f.size]))
+    return tuple(out)
+
+
+def minimize(families: Sequence[Blocks], groups: Sequence[ResidualGroup],
+             options: Options = Options()) -> Result:
+    """Minimise the robust cost of ``groups`` over ``families`` (module docstring).
+
+    Parameters
+    ----------
+    families : sequence of Blocks
+        Starting values.
+    groups : sequence of ResidualGroup
+    options : Options
+
+    Returns
+    -------
+    Result
+    """
+    families = tuple(families)
+    layout = Layout.of(families)
+    by_name = {f.name: f for f in families}
+    for grp in groups:
+        missing = [s for s in grp.slots if s not in by_name]
+        if missing:
+            raise InputError(f"residual group refers to unknown block families {missing}")
+    opts = options
+    ev = evaluate(families, groups, jacobians=True)
+    cost = _cost(ev, opts)
+    if not np.isfinite(cost):
+        raise InputError("the residuals are not finite at the starting point")
+    lam = opts.initial_damping
+    evaluations, iterations = 1, 0
+    for iterations in range(1, opts.max_iter + 1):
+        weights = [rho((r / opts.f_scale) ** 2, opts.loss)[1] for r, _ in ev]
+        ne = assemble(layout, by_name, groups, ev, weights)
+        while True:
+            step = solve_step(ne, lam)
+            if step is not None:
+                trial = _retract(families, layout, *step)
+                ev_new = evaluate(trial, groups, jacobians=False)
+                evaluations += 1
+                cost_new = _cost(ev_new, opts)
+                if cost_new <= cost:
+                    break
+            lam *= 10.0
+            if lam > 1e10:
+                return Result(families, cost, iterations, evaluations, True,
+                              "no further decrease of the cost")
+        decrease = cost - cost_new
+        families, cost = trial, cost_new
+        by_name = {f.name: f for f in families}
+        lam = max(lam / 10.0, 1e-12)
+        if decrease <= opts.tol * cost:
+            return Result(families, cost, iterations, evaluations, True,
+                          "relative decrease of the cost below tol")
+        ev = evaluate(families, groups, jacobians=True)
+    return Result(families, cost, iterations, evaluations, False,
+                  f"stopped after {opts.max_iter} iterations")
+
+
+def covariance(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,
+               local: bool = False, evaluated=None) -> Covariance:
+    """``(J^T J)^-1`` of the unweighted residuals at the families' values.
+
+    For noise-normalised residuals and the linear loss this is the Cramér-Rao bound at that
+    point; a caller with a robust loss multiplies it by the loss's efficiency factor
+    (:func:`multieye.core.robust_loss.gaussian_kappa`).
+
+    Parameters
+    ----------
+    families : sequence of Blocks
+    groups : sequence of ResidualGroup
+    local : bool
+        Also the marginal covariance of each eliminated block.
+    evaluated : list, optional
+        The groups' residuals and Jacobians at these values, if already at hand.
+    """
+    families = tuple(families)
+    layout = Layout.of(families)
+    ev = evaluated if evaluated is not None else evaluate(families, groups, jacobians=True)
+    ne = assemble(layout, {f.name: f for f in families}, groups, ev)
+    kept, loc = marginal_covariance(ne, local=local)
+    return Covariance(kept, loc, layout)

@@ -1,0 +1,282 @@
+"""Normal equations of a problem, reduced by the Schur complement, and their solution.
+
+For the stacked Jacobian ``J = [J_g, J_l]`` of the weighted residuals (``g``: blocks kept,
+``l``: blocks of families marked ``eliminate``)::
+
+    [[U,   W], [W^T, V]] [dx_g, dx_l] = -[g_g, g_l],     U = J_g^T J_g,  W = J_g^T J_l,  V = J_l^T J_l
+
+``V`` is block diagonal (one block per eliminated block), so ``dx_l`` is eliminated:
+
+    S = U - W V^-1 W^T,    S dx_g = -(g_g - W V^-1 g_l),    dx_l = -V^-1 (g_l + W^T dx_g)
+
+which is how bundle adjusters treat the points (Triggs et al. 2000, section 6.1).  ``S`` is
+small and dense (the global blocks); it is factorised by Cholesky
+(:func:`scipy.linalg.cho_factor`), and the same factorisation gives the covariance: the global
+block of ``(J^T J)^-1`` is ``S^-1`` and each eliminated block's marginal covariance is
+``V^-1 + V^-1 W^T S^-1 W V^-1`` (its diagonal block).
+
+Everything is formed segment by segment (:class:`~multieye.optimize.blocks.ResidualGroup`):
+per segment one small Gram matrix, summed into ``U``, ``V`` and the sparse ``W`` by index,
+so the cost is linear in the residual rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
+from multieye.core.errors import InputError
+from multieye.optimize.blocks import Blocks, ResidualGroup
+
+__all__ = ["Layout", "NormalEquations", "assemble", "solve_step", "marginal_covariance"]
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where each family's parameters sit.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Families in order.
+    offset : dict of str to int
+        Global families: first column in the reduced system; eliminated families: first block
+        number among the eliminated blocks.
+    k : int
+        Parameters kept (size of ``S``).
+    n_local : int
+        Eliminated blocks.
+    d : int
+        Parameters per eliminated block (0 when there are none).
+    """
+
+    names: tuple[str, ...]
+    offset: dict[str, int]
+    k: int
+    n_local: int
+    d: int
+
+    @staticmethod
+    def of(families: Sequence[Blocks]) -> Layout:
+        """Layout of ``families``: kept ones first in the given order, then eliminated ones."""
+        names = [f.name for f in families]
+        if len(set(names)) != len(names):
+            raise InputError(f"block family names must be unique, got {names}")
+        offset, k, n_local, d = {}, 0, 0, 0
+        for f in families:
+            if f.eliminate:
+                if d and f.size != d:
+                    raise InputError("eliminated block families must have one block size, got "
+                                     f"{d} and {f.size}")
+                d = f.size
+                offset[f.name] = n_local
+                n_local += f.count
+            else:
+                offset[f.name] = k
+                k += f.count * f.size
+        return Layout(tuple(names), offset, k, n_local, d)
+
+
+@dataclass(frozen=True)
+class NormalEquations:
+    """``J^T J`` and ``J^T r`` of the weighted residuals, split into kept and eliminated parts.
+
+    Attributes
+    ----------
+    U : ndarray, shape (k, k)
+    g : ndarray, shape (k,)
+    V : ndarray, shape (n_local, d, d)
+    g_local : ndarray, shape (n_local, d)
+    W : scipy.sparse.csr_matrix, shape (k, n_local * d)
+    """
+
+    U: F64
+    g: F64
+    V: F64
+    g_local: F64
+    W: sp.csr_matrix
+
+
+def _columns(layout: Layout, families: dict[str, Blocks], group: ResidualGroup):
+    """Per segment: kept columns (S, cg) with their positions in the row Jacobian, and the
+    eliminated block (S,) with its positions (or None)."""
+    gcols, gpos, lblock, lpos, at = [], [], None, None, 0
+    for s, name in enumerate(group.slots):
+        f = families[name]
+        pos = np.arange(at, at + f.size)
+        at += f.size
+        if f.eliminate:
+            if lblock is not None:
+                raise InputError(f"a residual group touches two eliminated blocks per row "
+                                 f"({group.slots})")
+            lblock, lpos = layout.offset[name] + group.index[:, s], pos
+        else:
+            gcols.append(layout.offset[name] + group.index[:, s, None] * f.size
+                         + np.arange(f.size))
+            gpos.append(pos)
+    cols = np.concatenate(gcols, axis=1) if gcols else np.zeros((len(group.index), 0), int)
+    return cols, (np.concatenate(gpos) if gpos else np.zeros(0, int)), lblock, lpos
+
+
+def assemble(layout: Layout, families: dict[str, Blocks], groups: Sequence[ResidualGroup],
+             evaluated: Sequence[tuple[F64, list[F64]]], weights: Sequence[F64] | None = None
+             ) -> NormalEquations:
+    """Normal equations of the (weighted) residuals.
+
+    Parameters
+    ----------
+    layout : Layout
+    families : dict of str to Blocks
+    groups : sequence of ResidualGroup
+    evaluated : sequence of (residuals (n, dim), jacobians)
+        What each group's :meth:`~ResidualGroup.evaluate` returned, with Jacobians.
+    weights : sequence of ndarray, shape (n, dim), optional
+        Per-component weights (the robust loss's IRLS weights); 1 when not given.
+    """
+    k, L, d = layout.k, layout.n_local, layout.d
+    U = np.zeros(k * k)
+    g = np.zeros(k)
+    V = np.zeros(L * d * d)
+    gl = np.zeros(L * d)
+    w_rows, w_cols, w_data = [], [], []
+    for n, (group, (r, jac)) in enumerate(zip(groups, evaluated)):
+        if group.n_rows == 0:
+            continue
+        J = np.concatenate(jac, axis=2)                                   # (n, dim, c)
+        if weights is not None:
+            sw = np.sqrt(weights[n])
+            J = J * sw[:, :, None]
+            r = r * sw
+        S, c, m = len(group.index), J.shape[2], group.longest
+        if m == 1:
+            B, rb = J, r
+        else:
+            B = np.zeros((S, m, group.dim, c))
+            B[group.segment, group.position] = J
+            B = B.reshape(S, m * group.dim, c)
+            rb = np.zeros((S, m, group.dim))
+            rb[group.segment, group.position] = r
+            rb = rb.reshape(S, m * group.dim)
+        Bt = np.swapaxes(B, 1, 2)
+        G = Bt @ B                                                        # (S, c, c)
+        gs = (Bt @ rb[:, :, None])[:, :, 0]                               # (S, c)
+        cols, gpos, lblock, lpos = _columns(layout, families, group)
+        if cols.shape[1]:
+            Ugg = G[:, gpos][:, :, gpos]
+            U += np.bincount((cols[:, :, None] * k + cols[:, None, :]).ravel(), Ugg.ravel(),
+                             minlength=k * k)
+            g += np.bincount(cols.ravel(), gs[:, gpos].ravel(), minlength=k)
+        if lblock is not None:
+            Vll = G[:, lpos][:, :, lpos]
+            V += np.bincount((lblock[:, None] * d * d + np.arange(d * d)).ravel(), Vll.ravel(),
+                             minlength=L * d * d)
+            lcols = lblock[:, None] * d + np.arange(d)                    # (S, d)
+            gl += np.bincount(lcols.ravel(), gs[:, lpos].ravel(), minlength=L * d)
+            if cols.shape[1]:
+                w_rows.append(np.broadcast_to(cols[:, :, None], (S, cols.shape[1], d)).ravel())
+                w_cols.append(np.broadcast_to(lcols[:, None, :], (S, cols.shape[1], d)).ravel())
+                w_data.append(G[:, gpos][:, :, lpos].ravel())
+    if w_data:
+        W = sp.csr_matrix((np.concatenate(w_data), (np.concatenate(w_rows),
+                                                    np.concatenate(w_cols))), shape=(k, L * d))
+    else:
+        W = sp.csr_matrix((k, L * d))
+    return NormalEquations(U.reshape(k, k), g, V.reshape(L, d, d), gl.reshape(L, d), W)
+
+
+def _block_diagonal(blocks: F64) -> sp.csr_matrix:
+    L, d, _ = blocks.shape
+    return sp.bsr_matrix((blocks, np.arange(L), np.arange(L + 1)), shape=(L * d, L * d)).tocsr()
+
+
+def _reduce(ne: NormalEquations, lam: float):
+    """Damped Schur complement: ``S``, ``V^-1`` and ``W V^-1`` (or None if not definite)."""
+    U = ne.U
+    if lam:
+        diag = np.diag(U)
+        U = U + lam * np.diag(np.maximum(diag, 1e-12 * max(float(diag.max(initial=0.0)), 1.0)))
+    if ne.V.size == 0:
+        return U, ne.V, None
+    V = ne.V
+    if lam:
+        V = V.copy()
+        idx = np.arange(V.shape[1])
+        V[:, idx, idx] *= 1.0 + lam
+    try:
+        Vinv = np.linalg.inv(V)
+    except np.linalg.LinAlgError:
+        return None
+    WVi = ne.W @ _block_diagonal(Vinv)
+    return U - (WVi @ ne.W.T).toarray(), Vinv, WVi
+
+
+def solve_step(ne: NormalEquations, lam: float) -> tuple[F64, F64] | None:
+    """The Levenberg-Marquardt step for damping ``lam`` (Marquardt's diagonal scaling).
+
+    Returns
+    -------
+    (dx_global (k,), dx_local (n_local, d)), or None when the damped system is not positive
+    definite.
+    """
+    reduced = _reduce(ne, lam)
+    if reduced is None:
+        return None
+    S, Vinv, WVi = reduced
+    rhs = -ne.g
+    if WVi is not None:
+        rhs = rhs + WVi @ ne.g_local.ravel()
+    try:
+        dg = cho_solve(cho_factor(S), rhs) if S.size else np.zeros(0)
+    except LinAlgError:
+        return None
+    if WVi is None:
+        return dg, np.zeros((0, 0))
+    back = ne.g_local + (ne.W.T @ dg).reshape(ne.g_local.shape)
+    return dg, -np.einsum("lij,lj->li", Vinv, back)
+
+
+def marginal_covariance(ne: NormalEquations, *, local: bool = False
+                        ) -> tuple[F64, F64 | None]:
+    """``(J^T J)^-1``: its kept block, and the diagonal blocks of the eliminated ones.
+
+    Parameters
+    ----------
+    ne : NormalEquations
+        Of the unweighted (noise-normalised) residuals at the optimum.
+    local : bool
+        Also return each eliminated block's marginal covariance.
+
+    Returns
+    -------
+    cov : ndarray, shape (k, k)
+    cov_local : ndarray, shape (n_local, d, d), or None
+
+    Raises
+    ------
+    InputError
+        The information matrix is singular: some parameters are not determined by the data.
+    """
+    reduced = _reduce(ne, 0.0)
+    if reduced is None:
+        raise InputError("the information matrix is singular: an eliminated block is not "
+                         "determined by its residuals")
+    S, Vinv, WVi = reduced
+    try:
+        cov = cho_solve(cho_factor(S), np.eye(len(S))) if S.size else S
+    except LinAlgError:
+        raise InputError("the information matrix is singular: the data do not determine every "
+                         "parameter (too few measurements, or motion that leaves a direction "
+                         "unobserved)") from None
+    cov = 0.5 * (cov + cov.T)
+    if not local or WVi is None:
+        return cov, None
+    L, d = ne.g_local.shape
+    Z = WVi.T.toarray().reshape(L, d, -1)                                 # V^-1 W^T
+    return cov, Vinv + Z @ cov @ np.swapaxes(Z, 1, 2)

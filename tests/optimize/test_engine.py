@@ -1,0 +1,161 @@
+"""The optimisation engine: exact answers on linear problems, the Schur complement against the
+dense normal equations, robust losses against scipy, manifolds, and its error messages."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from multieye.core import geometry as g
+from multieye.core.errors import InputError
+from multieye.core.lie import exp_so3
+from multieye.optimize.blocks import Blocks, ResidualGroup
+from multieye.optimize.gradient_check import numerical_jacobians
+from multieye.optimize.levenberg_marquardt import Options, covariance, minimize
+
+
+class Linear(ResidualGroup):
+    """Rows ``r = (A_g x_g + A_l x_l - b)`` over slots (global family, local family)."""
+
+    def __init__(self, slots, index, segment, Ag, Al, b, nonlinear=0.0):
+        super().__init__(slots, index, segment, b.shape[1])
+        self.Ag, self.Al, self.b, self.nonlinear = Ag, Al, b, nonlinear
+
+    def evaluate(self, values, jacobians):
+        xg = values[self.slots[0]][self.index[self.segment, 0]]           # (n, sg)
+        parts = [np.einsum("nij,nj->ni", self.Ag, xg)]
+        if self.Al is not None:
+            xl = values[self.slots[1]][self.index[self.segment, 1]]
+            parts.append(np.einsum("nij,nj->ni", self.Al, xl))
+        lin = sum(parts)
+        r = lin + self.nonlinear * lin ** 3 - self.b
+        if not jacobians:
+            return r, None
+        scale = (1 + 3 * self.nonlinear * lin ** 2)[:, :, None]
+        jac = [scale * self.Ag] + ([scale * self.Al] if self.Al is not None else [])
+        return r, jac
+
+
+def _linear_problem(rng, n_global=3, n_local=20, rows_per_local=4, dim=2):
+    """Globals (n_global, 2), locals (n_local, 3); each local segment touches one global."""
+    seg_global = rng.integers(0, n_global, size=n_local)
+    index = np.column_stack([seg_global, np.arange(n_local)])
+    segment = np.repeat(np.arange(n_local), rows_per_local)
+    n = segment.size
+    Ag = rng.normal(size=(n, dim, 2))
+    Al = rng.normal(size=(n, dim, 3))
+    b = rng.normal(size=(n, dim))
+    prior = Linear(("G",), np.arange(n_global)[:, None], np.arange(n_global),
+                   np.tile(np.eye(2), (n_global, 1, 1)), None, rng.normal(size=(n_global, 2)))
+    fams = [Blocks("G", np.zeros((n_global, 2)), "euclidean"),
+            Blocks("L", np.zeros((n_local, 3)), "euclidean", eliminate=True)]
+    return fams, [Linear(("G", "L"), index, segment, Ag, Al, b), prior]
+
+
+def _dense(fams, groups):
+    """The stacked Jacobian (rows x all parameters) and residuals at zero."""
+    sizes = {f.name: f.size for f in fams}
+    offsets, at = {}, 0
+    for f in fams:
+        offsets[f.name] = at
+        at += f.count * f.size
+    rows, r_all = [], []
+    values = {f.name: f.value for f in fams}
+    for grp in groups:
+        r, jac = grp.evaluate(values, True)
+        J = np.zeros((grp.n_rows, grp.dim, at))
+        for s, name in enumerate(grp.slots):
+            blk = grp.index[grp.segment, s]
+            for i in range(grp.n_rows):
+                o = offsets[name] + blk[i] * sizes[name]
+                J[i, :, o:o + sizes[name]] = jac[s][i]
+        rows.append(J.reshape(-1, at))
+        r_all.append(r.ravel())
+    return np.concatenate(rows), np.concatenate(r_all)
+
+
+def test_linear_problem_solved_exactly_with_the_dense_covariance(rng):
+    fams, groups = _linear_problem(rng)
+    J, r0 = _dense(fams, groups)
+    x = np.linalg.lstsq(J, -r0, rcond=None)[0]
+    res = minimize(fams, groups, Options(tol=1e-14))
+    got = np.concatenate([res.value("G").ravel(), res.value("L").ravel()])
+    np.testing.assert_allclose(got, x, atol=1e-10)
+    cov = covariance(res.families, groups, local=True)
+    full = np.linalg.inv(J.T @ J)
+    np.testing.assert_allclose(cov.kept, full[:6, :6], rtol=1e-9, atol=1e-12)
+    blocks = np.stack([full[6 + 3 * b:9 + 3 * b, 6 + 3 * b:9 + 3 * b] for b in range(20)])
+    np.testing.assert_allclose(cov.local, blocks, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("loss", ["huber", "soft_l1", "cauchy"])
+def test_robust_nonlinear_problem_matches_scipy(loss, rng):
+    fams, groups = _linear_problem(rng, n_local=10)
+    groups[0].nonlinear = 0.05
+    groups[0].b[::7] += 8.0                                   # outliers for the loss to meet
+    res = minimize(fams, groups, Options(loss=loss, f_scale=1.5, tol=1e-15, max_iter=200))
+    sizes = [f.count * f.size for f in fams]
+
+    def residuals(p):
+        values = {f.name: f.retract(p[o:o + s]).value
+                  for f, o, s in zip(fams, np.cumsum([0] + sizes[:-1]), sizes)}
+        return np.concatenate([grp.evaluate(values, False)[0].ravel() for grp in groups])
+
+    ref = least_squares(residuals, np.zeros(sum(sizes)), loss=loss, f_scale=1.5, ftol=1e-15,
+                        xtol=1e-15, gtol=1e-15)
+    got = np.concatenate([res.value("G").ravel(), res.value("L").ravel()])
+    np.testing.assert_allclose(got, ref.x, atol=1e-7)
+    assert res.converged
+
+
+def test_gradient_check_of_the_test_group(rng):
+    fams, groups = _linear_problem(rng, n_local=5)
+    groups[0].nonlinear = 0.1
+    fams = [f.retract(rng.normal(scale=0.3, size=f.count * f.size)) for f in fams]
+    _, analytic = groups[0].evaluate({f.name: f.value for f in fams}, True)
+    for a, n in zip(analytic, numerical_jacobians(fams, groups[0])):
+        np.testing.assert_allclose(a, n, atol=1e-7)
+
+
+def test_manifolds_retract_as_documented(rng):
+    T = g.random_transforms(rng, 4)
+    d = rng.normal(scale=0.1, size=(4, 6))
+    left = Blocks("T", T, "se3-left").retract(d).value
+    right = Blocks("T", T, "se3-right").retract(d).value
+    R = exp_so3(d[:, :3])
+    np.testing.assert_allclose(left[:, :3, :3], R @ T[:, :3, :3], atol=1e-14)
+    np.testing.assert_allclose(right[:, :3, :3], T[:, :3, :3] @ R, atol=1e-14)
+    for out in (left, right):
+        np.testing.assert_allclose(out[:, :3, 3], T[:, :3, 3] + d[:, 3:], atol=1e-14)
+    v = Blocks("v", np.zeros((2, 3)), "euclidean").retract(np.arange(6.0)).value
+    assert np.array_equal(v, np.arange(6.0).reshape(2, 3))
+
+
+def test_bad_problems_are_refused(rng):
+    fams, groups = _linear_problem(rng, n_local=4)
+    with pytest.raises(InputError, match="names must be unique"):
+        minimize([fams[0], fams[0]], groups[1:])
+    with pytest.raises(InputError, match="unknown block families"):
+        minimize(fams[:1], groups)
+    with pytest.raises(InputError, match="manifold must be one of"):
+        Blocks("T", np.eye(4)[None], "so3")
+    with pytest.raises(InputError, match=r"pose values must be \(count, 4, 4\)"):
+        Blocks("T", np.eye(3)[None])
+    with pytest.raises(InputError, match="segment by segment"):
+        Linear(("G",), np.zeros((2, 1), int), [1, 0], None, None, np.zeros((2, 2)))
+    with pytest.raises(InputError, match="unknown loss"):
+        Options(loss="l2")
+    with pytest.raises(InputError, match="max_iter must be a whole number"):
+        Options(max_iter=0)
+    two_local = Linear(("L", "L"), np.zeros((1, 2), int), [0], np.zeros((1, 2, 3)),
+                       np.zeros((1, 2, 3)), np.zeros((1, 2)))
+    with pytest.raises(InputError, match="two eliminated blocks"):
+        minimize(fams, [two_local])
+
+
+def test_unobserved_parameters_make_the_covariance_refuse(rng):
+    fams, groups = _linear_problem(rng, n_global=3, n_local=4)
+    extra = Blocks("H", np.zeros((1, 2)), "euclidean")
+    with pytest.raises(InputError, match="information matrix is singular"):
+        covariance(fams + [extra], groups)
