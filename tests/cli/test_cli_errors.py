@@ -184,7 +184,7 @@ def test_time_offset_is_applied_with_the_documented_sign(tmp_path):
     (folder / "rig.yaml").write_text(rig.replace("poses: cam0.txt}", "poses: cam0.txt, time_offset: 0.2}")
                                         .replace("poses: cam1.txt}", "poses: cam1.txt, time_offset: 0.2}"))
     run = calibrate(folder)
-    np.testing.assert_allclose(run.solution.X, T_world_cam, atol=1e-9)
+    np.testing.assert_allclose(run.closed_form.X, T_world_cam, atol=1e-9)
     (folder / "rig.yaml").write_text(rig.replace("poses: cam0.txt}", "poses: cam0.txt, time_offset: -0.2}"))
     res = _run(["calibrate", folder, "-o", tmp_path / "o"])
     assert res.exit_code == 2 and "without motion capture" in res.stderr

@@ -112,8 +112,8 @@ def test_cameras_recorded_one_after_another_one_or_several_mocap_files(tmp_path,
 
     folder, T_world_cam, T_marker_target = write_pose_dataset(tmp_path, per_camera_mocap=per_camera_mocap)
     run = calibrate(folder)
-    np.testing.assert_allclose(run.solution.X, T_world_cam, atol=1e-9)
-    np.testing.assert_allclose(run.solution.Y, T_marker_target, atol=1e-9)
+    np.testing.assert_allclose(run.closed_form.X, T_world_cam, atol=1e-9)
+    np.testing.assert_allclose(run.closed_form.Y, T_marker_target, atol=1e-9)
     assert [c.measurements_used for c in run.record.cameras] == [12, 12]
 
 
@@ -173,8 +173,8 @@ def test_unstated_motion_capture_noise_is_estimated(tmp_path):
     rig = re.sub(r"  (rotation_noise_deg|translation_noise_m): .*\n", "", rig)
     (tmp_path / "ds" / "rig.yaml").write_text(rig)
     run = calibrate(tmp_path / "ds", processes=1)
-    assert np.degrees(run.refined.mocap_rot_sigma_rad) == pytest.approx(0.5, rel=0.35)
-    assert run.refined.mocap_trans_sigma_m == pytest.approx(0.002, rel=0.35)
+    assert np.degrees(run.refinement.result.mocap_rot_sigma_rad) == pytest.approx(0.5, rel=0.35)
+    assert run.refinement.result.mocap_trans_sigma_m == pytest.approx(0.002, rel=0.35)
     assert any("motion-capture noise estimated" in w for w in run.record.warnings)
 
 
@@ -200,5 +200,5 @@ def test_consensus_rejects_exactly_the_glitches_and_names_them(tmp_path):
     rejected = {c.name: sorted(r.item for r in c.rejected) for c in run.record.cameras}
     assert rejected == {"cam0": ["cam0.txt pose 3", "cam0.txt pose 8"],
                         "cam1": ["cam1.txt pose 4", "cam1.txt pose 9"]}
-    np.testing.assert_allclose(run.solution.X, T_world_cam, atol=1e-9)
+    np.testing.assert_allclose(run.closed_form.X, T_world_cam, atol=1e-9)
     assert all("loop residual" in r.reason for c in run.record.cameras for r in c.rejected)

@@ -37,7 +37,7 @@ def test_bag_images_and_bag_mocap_give_the_folder_result(tmp_path):
     bag_run = calibrate(tmp_path / "ds", processes=2)   # bag frames go to worker processes
     assert bag_run.record.camera("cam1").measurements_used == truth.images_written[1]
     assert bag_run.cameras["cam1"].observations[0].name.startswith("/cam1/image_raw@")
-    np.testing.assert_allclose(bag_run.solution.X, folder_run.solution.X, atol=1e-6)
+    np.testing.assert_allclose(bag_run.closed_form.X, folder_run.closed_form.X, atol=1e-6)
     T = np.stack([c.T_ref_cam for c in bag_run.record.cameras])
     rot, trans = extrinsic_errors(T, truth.T_ref_cam)
     assert rot.max() < 0.1 and trans.max() < 3e-3

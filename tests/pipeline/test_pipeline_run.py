@@ -7,10 +7,23 @@ import sys
 import numpy as np
 import pytest
 
-from multieye.io import load_rig
-from multieye.pipeline import calibrate_rig, load_camera_data
-from multieye.solvers import checks
+from multieye.io import load_rig, read_calibration
+from multieye.pipeline import calibrate, calibrate_rig, load_camera_data
+from multieye.solvers import checks, solve
 from pose_dataset import write_pose_dataset
+from small_dataset import render_small
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    """A calibration of a small rendered dataset, refined on the images, and its outputs."""
+    from multieye.outputs.write import write_outputs
+
+    folder = tmp_path_factory.mktemp("small")
+    render_small(folder / "ds")
+    run = calibrate(folder / "ds", processes=1)
+    write_outputs(run, folder / "out", report=False)
+    return folder / "out", run
 
 
 def _count_calls(monkeypatch, module_attr: str, fn) -> list:
@@ -92,3 +105,34 @@ def test_validated_measurements_are_not_checked_again_but_subsets_keep_their_row
         solve(meas, names=["x", "y"])
     with pytest.raises(TooFewMeasurementsError, match="camera b keeps 2"):
         meas.select([np.ones(10, bool), np.arange(10) < 2])
+
+
+def test_run_gives_the_final_result_under_plain_names_and_the_closed_form_apart(small_run):
+    out, run = small_run
+    rec = read_calibration(out / "calibration.json")
+    assert run.refinement is not None and run.refinement.kind == "images" == rec.refinement
+    # the final (refined) result is what calibration.json holds
+    np.testing.assert_allclose(run.X, np.stack([c.X for c in rec.cameras]), atol=1e-12)
+    np.testing.assert_allclose(run.X, run.refinement.X, atol=1e-12)
+    np.testing.assert_allclose(run.Y, rec.Y, atol=1e-12)
+    assert list(run.T_ref_cam) == [c.name for c in rec.cameras] == ["cam0", "cam1"]
+    for c in rec.cameras:
+        np.testing.assert_allclose(run.T_ref_cam[c.name], c.T_ref_cam, atol=1e-12)
+    np.testing.assert_allclose(run.T_ref_cam["cam0"], np.eye(4), atol=1e-12)
+    assert run.covariance.shape == (18, 18)
+    np.testing.assert_allclose(run.covariance, run.refinement.covariance)
+    # the closed form: joint on the measurements kept, not the refinement
+    paired = list(run.paired.values())
+    closed = solve([p.A for p in paired], [p.B for p in paired], "joint")
+    np.testing.assert_allclose(run.closed_form.X, closed.X, atol=1e-9)
+    np.testing.assert_allclose(run.closed_form.Y, closed.Y, atol=1e-9)
+    assert not np.allclose(run.closed_form.X, run.X, atol=1e-9)
+
+
+def test_run_without_refinement_is_the_closed_form(small_run):
+    _, run = small_run
+    plain = calibrate_rig(run.rig, run.cameras, refine=False)
+    assert plain.refinement is None and plain.covariance is None
+    np.testing.assert_allclose(plain.X, plain.closed_form.X, atol=1e-12)
+    np.testing.assert_allclose(plain.Y, plain.closed_form.Y, atol=1e-12)
+    np.testing.assert_allclose(plain.closed_form.X, run.closed_form.X, atol=1e-12)

@@ -14,7 +14,7 @@ from multieye.pipeline.camera_data import (
     load_camera_data,
     pair_camera,
 )
-from multieye.pipeline.run import CalibrationRun, Options, calibrate, calibrate_rig
+from multieye.pipeline.run import CalibrationRun, Options, Refinement, calibrate, calibrate_rig
 
 __all__ = ["CameraData", "Observation", "PairedCamera", "CalibrationRun", "Options",
-           "load_camera_data", "pair_camera", "calibrate", "calibrate_rig"]
+           "Refinement", "load_camera_data", "pair_camera", "calibrate", "calibrate_rig"]

@@ -1,10 +1,10 @@
 """From a dataset folder to rig extrinsics: the paper's Fig. 3 pipeline.
 
-``rig.yaml`` (DESIGN.md section 4) -> per camera: images -> target detection -> PnP (or
+``rig.yaml`` (docs/rig-yaml.md) -> per camera: images -> target detection -> PnP (or
 precomputed ``T_cam_target`` poses) -> pairing with motion capture in time -> ``A``, ``B``
-(DESIGN.md section 2; all of it in :mod:`multieye.pipeline.camera_data`) -> clock offsets,
-consensus, :func:`multieye.solve`, refinement -> :class:`~multieye.io.CalibrationRecord`
-and the files written from it.
+(docs/conventions.md, section 2; all of it in :mod:`multieye.pipeline.camera_data`) ->
+clock offsets, consensus, :func:`multieye.solve`, refinement ->
+:class:`~multieye.io.CalibrationRecord` and the files written from it.
 
 Synopsis
 --------
@@ -52,30 +52,91 @@ __all__ = [
 
 
 @dataclass(frozen=True)
+class Refinement:
+    """What the maximum-likelihood refinement after the closed form gave.
+
+    Attributes
+    ----------
+    kind : {"images", "poses"}
+        On the target points and motion-capture poses, or on the pose residuals.
+    X : ndarray, shape (m, 4, 4)
+    Y : ndarray, shape (4, 4)
+    covariance : ndarray, shape (6(m+1), 6(m+1)), or None
+        Of the perturbations of X^1..X^m then Y (rotation vector, translation; radians,
+        metres).
+    reprojection_rms_px : dict of str to float
+        Per camera, from the refined rig (image refinement only).
+    warnings : tuple of str
+    result : RefinementResult or Solution
+        The refinement's own result: :class:`multieye.estimate.refine_images.RefinementResult`
+        on images, a refined :class:`~multieye.solvers.Solution` on poses.
+    """
+
+    kind: str
+    X: np.ndarray
+    Y: np.ndarray
+    covariance: np.ndarray | None
+    reprojection_rms_px: dict[str, float]
+    warnings: tuple[str, ...]
+    result: object
+
+
+@dataclass(frozen=True)
 class CalibrationRun:
     """Everything a calibration produced, for writers, reports and Python users.
+
+    The final result (refined when the refinement ran, else the closed form) is ``X``,
+    ``Y``, ``T_ref_cam`` and ``covariance``; the closed form stays on ``closed_form``.
 
     Attributes
     ----------
     rig : Rig
     record : CalibrationRecord
-        The result as written to ``calibration.json`` (refined when refinement ran).
-    solution : Solution
-        The closed form on the measurements kept.
+        The final result as written to ``calibration.json``.
+    closed_form : Solution
+        The closed form on the measurements kept (``closed_form.X``, ``closed_form.Y``).
     cameras : dict of str to CameraData
     paired : dict of str to PairedCamera
         The measurements kept, per camera.
-    refined : RefinementResult or Solution or None
-        The refinement (:class:`multieye.estimate.refine_images.RefinementResult` on images, a refined
-        :class:`~multieye.solvers.Solution` on poses), when it ran.
+    refinement : Refinement or None
+        The refinement, when it ran and succeeded; its own result (a
+        :class:`multieye.estimate.refine_images.RefinementResult` on images, a refined
+        :class:`~multieye.solvers.Solution` on poses) is ``refinement.result``.
+    X : ndarray, shape (m, 4, 4)
+        Final ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand), cameras in the
+        order of ``record.cameras``.
+    Y : ndarray, shape (4, 4)
+        Final ``T_marker_target`` (eye-to-base) or ``T_world_target`` (eye-on-hand).
+    T_ref_cam : dict of str to ndarray, shape (4, 4)
+        Final extrinsics relative to the reference camera, by camera name.
+    covariance : ndarray, shape (6(m+1), 6(m+1)), or None
+        Of the final X^1..X^m then Y (:attr:`Refinement.covariance`); None without
+        refinement.  Per camera, the 6x6 covariance of ``T_ref_cam`` is
+        ``record.cameras[j].covariance``.
     """
 
     rig: Rig
     record: CalibrationRecord
-    solution: Solution
+    closed_form: Solution
     cameras: dict[str, CameraData]
     paired: dict[str, PairedCamera]
-    refined: object | None = None
+    refinement: Refinement | None = None
+
+    @property
+    def X(self) -> np.ndarray:
+        return np.stack([c.X for c in self.record.cameras])
+
+    @property
+    def Y(self) -> np.ndarray:
+        return self.record.Y
+
+    @property
+    def T_ref_cam(self) -> dict[str, np.ndarray]:
+        return {c.name: c.T_ref_cam for c in self.record.cameras}
+
+    @property
+    def covariance(self) -> np.ndarray | None:
+        return None if self.refinement is None else self.refinement.covariance
 
 
 @dataclass(frozen=True)
@@ -238,38 +299,8 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     shown = offsets if opts.time_offset != "rig" else {n: o for n, o in offsets.items() if o}
     record = _record(rig, paired, sol, refinement, method=opts.method, reference=reference,
                      warnings=warnings, time_offsets=shown, motion=motion.as_dict()["cameras"])
-    return CalibrationRun(rig=rig, record=record, solution=sol, cameras=cameras, paired=paired,
-                          refined=None if refinement is None else refinement.result)
-
-
-@dataclass(frozen=True)
-class Refinement:
-    """What the maximum-likelihood refinement after the closed form gave.
-
-    Attributes
-    ----------
-    kind : {"images", "poses"}
-        On the target points and motion-capture poses, or on the pose residuals.
-    X : ndarray, shape (m, 4, 4)
-    Y : ndarray, shape (4, 4)
-    covariance : ndarray, shape (6(m+1), 6(m+1)), or None
-        Of the perturbations of X^1..X^m then Y (rotation vector, translation; radians,
-        metres).
-    reprojection_rms_px : dict of str to float
-        Per camera, from the refined rig (image refinement only).
-    warnings : tuple of str
-    result : RefinementResult or Solution
-        The refinement's own result: :class:`multieye.estimate.refine_images.RefinementResult`
-        on images, a refined :class:`~multieye.solvers.Solution` on poses.
-    """
-
-    kind: str
-    X: np.ndarray
-    Y: np.ndarray
-    covariance: np.ndarray | None
-    reprojection_rms_px: dict[str, float]
-    warnings: tuple[str, ...]
-    result: object
+    return CalibrationRun(rig=rig, record=record, closed_form=sol, cameras=cameras,
+                          paired=paired, refinement=refinement)
 
 
 def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
@@ -293,17 +324,12 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
         obs = [[(o.object_points, o.image_points, T) for o, T in zip(p.observations, p.T_world_mocap)]
                for p in paired.values()]
         intr = [cameras[n].intrinsics for n in paired]
-        res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired), **sigmas)
-        if not sigmas:
-            # Motion-capture noise not stated: estimate it, like the pixel noise, from how far
-            # the refinement moves the measured poses (fixed point; a few passes)
-            for _ in range(4):
-                est = _mocap_noise(paired, res)
-                old = (res.mocap_rot_sigma_rad, res.mocap_trans_sigma_m)
-                if all(abs(e / o - 1.0) < 0.1 for e, o in zip(est, old)):
-                    break
-                res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired),
-                                    mocap_rot_sigma_rad=est[0], mocap_trans_sigma_m=est[1])
+        # Motion-capture noise not stated: refine_images estimates it, like the pixel noise,
+        # from how far the refinement moves the measured poses.
+        # (one of the two stated: the other takes refine_images' default)
+        given = sigmas or {"mocap_rot_sigma_rad": None, "mocap_trans_sigma_m": None}
+        res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired), **given)
+        if res.mocap_sigma_estimated:
             warnings.append(
                 f"motion-capture noise estimated from the data: "
                 f"{np.degrees(res.mocap_rot_sigma_rad):.3g} deg, "
@@ -326,25 +352,6 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
     ref = refine_solution(sol)
     return Refinement(kind="poses", X=ref.X, Y=ref.Y, covariance=ref.covariance,
                       reprojection_rms_px={}, warnings=(), result=ref)
-
-
-def _mocap_noise(paired: dict[str, PairedCamera], res) -> tuple[float, float]:
-    """Motion-capture noise from the refinement's corrections of the measured poses.
-
-    The rotation error is the rotation vector of ``R_measured^T R_refined`` (marker frame),
-    the position error ``t_measured - t_refined``; returned as the RMS per component
-    (radians, metres), the convention of :func:`multieye.estimate.refine_images.refine_images`.  With many
-    target points per image the refined pose is close to the truth, so the corrections are
-    close to the errors themselves.
-    """
-    from multieye.core.lie import log_so3
-
-    meas = np.concatenate([p.T_world_mocap for p in paired.values()])
-    ref = np.concatenate(res.T_world_mocap)
-    dr = log_so3(np.swapaxes(meas[:, :3, :3], 1, 2) @ ref[:, :3, :3])
-    dt = meas[:, :3, 3] - ref[:, :3, 3]
-    return (max(float(np.sqrt(np.mean(dr ** 2))), 1e-7),
-            max(float(np.sqrt(np.mean(dt ** 2))), 1e-7))
 
 
 def _record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
