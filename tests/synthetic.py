@@ -1,7 +1,7 @@
 """Minimal frame-chain generators for solver tests (no physical realism needed here).
 
 ``multieye.sim.rigs`` builds the paper's realistic rigs; these helpers only build
-measurements that satisfy the loop of DESIGN.md section 2 exactly, from random frames.
+measurements that satisfy the loop of docs/conventions.md, section 2, exactly, from random frames.
 """
 
 from __future__ import annotations

@@ -51,7 +51,7 @@ def main():
     \b
     Quick start:
       multieye demo -o demo_out          # render, calibrate and check a synthetic rig
-      multieye calibrate DATASET -o OUT  # your rig: DATASET/rig.yaml (see DESIGN.md)
+      multieye calibrate DATASET -o OUT  # your rig: DATASET/rig.yaml (see docs/rig-yaml.md)
     """
 
 

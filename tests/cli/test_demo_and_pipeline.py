@@ -121,15 +121,15 @@ def test_the_demos_own_report_renders_in_chromium_without_console_messages(demo,
     """`multieye demo` writes report.html; Debian's chromium loads it cleanly (CI installs it)."""
     import shutil
 
-    from test_report import _probe, _screenshot
+    from browser import probe, screenshot
 
     if shutil.which("chromium") is None:
         pytest.skip("Debian's chromium is not on PATH (.ci/run installs it)")
     out, _ = demo
-    sizes, console = _probe(out / "report.html", tmp_path)
+    sizes, console = probe(out / "report.html", tmp_path)
     assert console == []
     assert len(sizes) == 3 and all(w > 100 and h > 100 and done for w, h, done in sizes)
-    rgb, console = _screenshot(out / "report.html", tmp_path)
+    rgb, console = screenshot(out / "report.html", tmp_path)
     assert console == []
     assert (rgb.min(axis=2) < 235).mean() > 0.05
 

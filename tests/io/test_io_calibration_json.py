@@ -1,4 +1,4 @@
-"""calibration.json: DESIGN.md section 4 keys, exact round trips, validation on read."""
+"""calibration.json: the keys of docs/outputs.md, exact round trips, validation on read."""
 
 from __future__ import annotations
 

@@ -2,76 +2,15 @@
 
 from __future__ import annotations
 
-import functools
-
 import cv2
 import numpy as np
 import pytest
-from rosbags.rosbag1 import Writer as Writer1
-from rosbags.rosbag2 import Writer as Writer2
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
 from multieye.io.mocap import MocapSpec, read_mocap, sniff_mocap_format
 from multieye.io.rosbag import bag_topics, iter_bag_images, read_bag_trajectory
 
-BASE_NS = 1_700_000_000_000_000_000
-
-
-@functools.cache
-def _typestore(ros):
-    ts = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
-    if "tf2_msgs/msg/TFMessage" not in ts.types:  # not in rosbags' noetic store
-        ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
-                                       "tf2_msgs/msg/TFMessage"))
-    return ts
-
-
-class Bag:
-    """Writes messages to a ROS 1 or ROS 2 bag with the matching type store."""
-
-    def __init__(self, path, ros):
-        self.ros = ros
-        self.ts = _typestore(ros)
-        self.writer = Writer1(path) if ros == 1 else Writer2(path, version=9)
-        self.conns = {}
-
-    def __enter__(self):
-        self.writer.open()
-        return self
-
-    def __exit__(self, *exc):
-        self.writer.close()
-
-    def t(self, name):
-        return self.ts.types[name]
-
-    def header(self, ns, frame):
-        kw = {"seq": 0} if self.ros == 1 else {}
-        stamp = self.t("builtin_interfaces/msg/Time")(sec=ns // 10**9, nanosec=ns % 10**9)
-        return self.t("std_msgs/msg/Header")(stamp=stamp, frame_id=frame, **kw)
-
-    def write(self, topic, msg, record_ns):
-        if topic not in self.conns:
-            self.conns[topic] = self.writer.add_connection(topic, msg.__msgtype__,
-                                                           typestore=self.ts)
-        serialize = self.ts.serialize_ros1 if self.ros == 1 else self.ts.serialize_cdr
-        self.writer.write(self.conns[topic], record_ns, serialize(msg, msg.__msgtype__))
-
-    def pose(self, T):
-        q = geometry.quat_from_transform(T)
-        point = self.t("geometry_msgs/msg/Point")(x=T[0, 3], y=T[1, 3], z=T[2, 3])
-        quat = self.t("geometry_msgs/msg/Quaternion")(x=q[0], y=q[1], z=q[2], w=q[3])
-        return self.t("geometry_msgs/msg/Pose")(position=point, orientation=quat)
-
-    def transform_stamped(self, ns, parent, child, T):
-        q = geometry.quat_from_transform(T)
-        tr = self.t("geometry_msgs/msg/Transform")(
-            translation=self.t("geometry_msgs/msg/Vector3")(x=T[0, 3], y=T[1, 3], z=T[2, 3]),
-            rotation=self.t("geometry_msgs/msg/Quaternion")(x=q[0], y=q[1], z=q[2], w=q[3]))
-        return self.t("geometry_msgs/msg/TransformStamped")(
-            header=self.header(ns, parent), child_frame_id=child, transform=tr)
+from rosbag_writer import BASE_NS, Bag, image_msg
 
 
 def _bag_path(tmp_path, ros):
@@ -177,17 +116,6 @@ def test_duplicate_stamps_and_bad_quaternions_are_errors(tmp_path):
 # --------------------------------------------------------------------------- images
 
 
-def _image_msg(bag, ns, img, encoding, *, bigendian=False, pad=0):
-    data = img.astype(img.dtype.newbyteorder(">" if bigendian else "<")).tobytes()
-    h, w = img.shape[:2]
-    row = len(data) // h
-    rows = np.frombuffer(data, np.uint8).reshape(h, row)
-    rows = np.concatenate([rows, np.full((h, pad), 77, np.uint8)], axis=1)
-    return bag.t("sensor_msgs/msg/Image")(
-        header=bag.header(ns, "cam"), height=h, width=w, encoding=encoding,
-        is_bigendian=int(bigendian), step=row + pad, data=rows.reshape(-1))
-
-
 @pytest.mark.parametrize("ros", [1, 2], ids=["ros1", "ros2"])
 def test_image_topics_decode(tmp_path, rng, ros):
     path = _bag_path(tmp_path, ros)
@@ -195,15 +123,15 @@ def test_image_topics_decode(tmp_path, rng, ros):
     grey16 = rng.integers(0, 65536, (6, 8), dtype=np.uint16)
     ok, png = cv2.imencode(".png", bgr)
     with Bag(path, ros) as bag:
-        bag.write("/cam/raw", _image_msg(bag, BASE_NS, bgr[..., 0], "mono8"), BASE_NS)
-        bag.write("/cam/raw", _image_msg(bag, BASE_NS + 1, bgr[..., ::-1], "rgb8", pad=3),
+        bag.write("/cam/raw", image_msg(bag, BASE_NS, bgr[..., 0], "mono8"), BASE_NS)
+        bag.write("/cam/raw", image_msg(bag, BASE_NS + 1, bgr[..., ::-1], "rgb8", pad=3),
                   BASE_NS + 1)
-        bag.write("/cam/raw", _image_msg(bag, BASE_NS + 2, grey16, "mono16", bigendian=True),
+        bag.write("/cam/raw", image_msg(bag, BASE_NS + 2, grey16, "mono16", bigendian=True),
                   BASE_NS + 2)
-        bag.write("/cam/raw", _image_msg(bag, BASE_NS + 3, bgr, "bgr8"), BASE_NS + 3)
+        bag.write("/cam/raw", image_msg(bag, BASE_NS + 3, bgr, "bgr8"), BASE_NS + 3)
         bag.write("/cam/compressed", bag.t("sensor_msgs/msg/CompressedImage")(
             header=bag.header(0, "cam"), format="png", data=png.reshape(-1)), BASE_NS + 9)
-        bag.write("/cam/weird", _image_msg(bag, BASE_NS, bgr, "yuv422"), BASE_NS)
+        bag.write("/cam/weird", image_msg(bag, BASE_NS, bgr, "yuv422"), BASE_NS)
     images = list(iter_bag_images(path, "/cam/raw"))
     assert [s for s, _ in images] == [BASE_NS, BASE_NS + 1, BASE_NS + 2, BASE_NS + 3]
     assert np.array_equal(images[0][1], bgr[..., 0])
@@ -230,7 +158,7 @@ def test_bayer_rggb_demosaics_to_the_right_colours(tmp_path):
     mosaic[1::2, 1::2] = bgr[1::2, 1::2, 0]
     path = tmp_path / "bayer.bag"
     with Bag(path, 1) as bag:
-        bag.write("/cam", _image_msg(bag, BASE_NS, mosaic, "bayer_rggb8"), BASE_NS)
+        bag.write("/cam", image_msg(bag, BASE_NS, mosaic, "bayer_rggb8"), BASE_NS)
     (_, img), = iter_bag_images(path, "/cam")
     assert img.shape == (8, 8, 3)
     assert np.abs(img[2:-2, 2:-2].astype(int) - [30, 120, 220]).max() <= 1

@@ -17,15 +17,12 @@ import json
 import re
 import shutil
 import struct
-import subprocess
 
 import numpy as np
 import pytest
-from test_export import NAMES, make_run
-
-from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
-from multieye.io import Trajectory, read_calibration
+from multieye.core.metrics import loop_residuals, pose_row
+from multieye.io import Trajectory
 from multieye.io.run_details import (
     TRAJECTORY_MARGIN_S,
     read_run_details,
@@ -33,10 +30,12 @@ from multieye.io.run_details import (
     run_details_to_dict,
 )
 from multieye.outputs.details import write_run_details
-from multieye.core.metrics import loop_residuals, pose_row
-from multieye.outputs.write import write_outputs
 from multieye.outputs.figures import display_rotation, frustum_corners, outliers
 from multieye.outputs.report import FIGURES, write_report
+from multieye.outputs.write import write_outputs
+from test_export import NAMES, make_run
+
+from browser import chromium, needs_chromium, probe, screenshot
 
 SETUPS = ["eye-to-base", "eye-on-hand"]
 
@@ -76,7 +75,7 @@ def test_details_round_trip_is_exact(setup, tmp_path):
 
 @pytest.mark.parametrize("setup", SETUPS)
 def test_details_frames_are_the_true_frames_on_exact_data(setup, tmp_path):
-    """DESIGN.md section 2: the target in the world and the cameras where they really are."""
+    """Targets in the world, cameras where they really are (docs/conventions.md, section 2)."""
     run, truth = make_run(tmp_path, setup)
     details = write_run_details(tmp_path / "details.json", run)
     X, Y = truth["X"], truth["Y"]
@@ -289,59 +288,12 @@ def test_report_needs_calibration_json(tmp_path):
 
 # --------------------------------------------------------------------------- in a browser
 
-CHROMIUM = shutil.which("chromium")
-needs_chromium = pytest.mark.skipif(
-    CHROMIUM is None, reason="Debian's chromium is not on PATH (.ci/run installs it with "
-                             "apt-get install chromium)")
-
-#: Writes every image's natural size into the DOM once the page has loaded (test copy only).
-_PROBE = ("<script>addEventListener('load',function(){var r=[];for(var i=0;i<document.images"
-          ".length;i++){var m=document.images[i];r.push([m.naturalWidth,m.naturalHeight,"
-          "m.complete]);}var p=document.createElement('pre');p.id='probe';p.textContent="
-          "JSON.stringify(r);document.body.appendChild(p);});</script>")
-
-
-def _chromium(page, tmp_path, *flags):
-    """Run headless chromium on a file; returns (stdout, console lines from stderr)."""
-    profile = tmp_path / f"profile-{len(list(tmp_path.iterdir()))}"
-    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu",
-           "--disable-background-networking", "--disable-component-update", "--disable-sync",
-           "--no-first-run", f"--user-data-dir={profile}", "--enable-logging=stderr", "--v=0",
-           "--hide-scrollbars", *flags, page.as_uri()]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    # chromium logs every console message (errors, warnings, CSP violations, uncaught
-    # exceptions) of the page as "...:CONSOLE..." lines on stderr
-    console = [ln for ln in proc.stderr.splitlines() if ":CONSOLE" in ln]
-    return proc.stdout, console
-
-
-def _probe(report, tmp_path):
-    """Natural sizes of the images of a copy of ``report`` with :data:`_PROBE` added."""
-    text = report.read_text()
-    text = text.replace("default-src 'none';", "default-src 'none'; script-src 'unsafe-inline';")
-    probe_page = report.with_name("probe.html")
-    probe_page.write_text(text.replace("</body>", _PROBE + "</body>"))
-    dom, console = _chromium(probe_page, tmp_path, "--dump-dom")
-    found = re.search(r'<pre id="probe">(.*?)</pre>', dom)
-    assert found, dom[-500:]
-    return json.loads(html.unescape(found.group(1))), console
-
-
-def _screenshot(page, tmp_path):
-    from PIL import Image
-
-    shot = tmp_path / "shot.png"
-    _, console = _chromium(page, tmp_path, f"--screenshot={shot}", "--window-size=1200,3200")
-    rgb = np.asarray(Image.open(shot).convert("RGB"), dtype=np.float64)
-    return rgb, console
-
 
 @pytest.fixture(scope="module")
 def demo_report(tmp_path_factory):
     """The whole pipeline on a small rendered dataset, then the report."""
-    from multieye.sim.dataset import DatasetSpec, render_dataset
     from multieye.pipeline import calibrate
+    from multieye.sim.dataset import DatasetSpec, render_dataset
 
     out = tmp_path_factory.mktemp("demo_report")
     spec = DatasetSpec(n_cameras=2, images_per_camera=8, width=640, height=480, processes=1)
@@ -355,11 +307,11 @@ def demo_report(tmp_path_factory):
 
 @needs_chromium
 def test_demo_report_renders_in_chromium_without_console_messages(demo_report, tmp_path):
-    sizes, console = _probe(demo_report, tmp_path)
+    sizes, console = probe(demo_report, tmp_path)
     assert console == []
     pngs = [(demo_report.parent / "figures" / name).read_bytes() for name in FIGURES]
     assert [tuple(s[:2]) for s in sizes] == [_png_size(p) for p in pngs]  # every figure decoded
-    rgb, console = _screenshot(demo_report, tmp_path)
+    rgb, console = screenshot(demo_report, tmp_path)
     assert console == []                   # the page itself: no script, nothing blocked
     not_white = (rgb.min(axis=2) < 235).mean()
     colourful = (rgb.max(axis=2) - rgb.min(axis=2) > 80).mean()   # figure and camera colours
@@ -376,10 +328,10 @@ def test_browser_check_sees_script_errors_blocked_loads_and_broken_images(tmp_pa
         "Policy\" content=\"default-src 'none'; img-src data:; style-src 'unsafe-inline'\">"
         "</head><body><img src=\"data:image/png;base64,AAAA\"><img src=\"figures/none.png\">"
         "</body></html>")
-    sizes, console = _probe(page, tmp_path)
+    sizes, console = probe(page, tmp_path)
     assert [s[:2] for s in sizes] == [[0, 0], [0, 0]]
     assert any("violates the following Content Security Policy" in ln for ln in console)
     thrown = tmp_path / "thrown.html"
     thrown.write_text("<html><body><p>x</p><script>throw new Error('boom')</script></body></html>")
-    _, console = _chromium(thrown, tmp_path, "--dump-dom")
+    _, console = chromium(thrown, tmp_path, "--dump-dom")
     assert any("Uncaught Error: boom" in ln for ln in console)

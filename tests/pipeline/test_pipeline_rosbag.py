@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-from test_io_rosbag import Bag, _image_msg
-
-from multieye.sim.dataset import DatasetSpec, render_dataset
-from multieye.io import list_images, read_tum
 from multieye.core.metrics import extrinsic_errors
+from multieye.io import list_images, read_tum
 from multieye.pipeline import calibrate
+from multieye.sim.dataset import DatasetSpec, render_dataset
+
+from rosbag_writer import Bag, image_msg
 
 
 def test_bag_images_and_bag_mocap_give_the_folder_result(tmp_path):
@@ -28,7 +28,7 @@ def test_bag_images_and_bag_mocap_give_the_folder_result(tmp_path):
             bag.write("/mocap/marker", msg, ns)
         for stamp, ns, path in list_images(tmp_path / "ds" / "cam1"):
             img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-            bag.write("/cam1/image_raw", _image_msg(bag, ns, img, "mono8"), ns)
+            bag.write("/cam1/image_raw", image_msg(bag, ns, img, "mono8"), ns)
     rig = (tmp_path / "ds" / "rig.yaml").read_text()
     rig = rig.replace("    images: cam1/", "    rosbag: run\n    topic: /cam1/image_raw")
     rig = rig.replace("  file: mocap.txt", "  file: run\n  format: rosbag\n  topic: /mocap/marker")

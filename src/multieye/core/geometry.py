@@ -1,6 +1,6 @@
 """Rigid transforms as 4x4 float64 arrays, batched over leading axes.
 
-Conventions (DESIGN.md section 1): ``T_a_b`` maps coordinates of a point in
+Conventions (docs/conventions.md, section 1): ``T_a_b`` maps coordinates of a point in
 frame ``b`` into frame ``a`` (``p_a = T_a_b @ p_b``); products chain when the
 inner names match, ``T_a_c = T_a_b @ T_b_c``.  Metres and radians inside.
 Quaternions are converted here, with :class:`scipy.spatial.transform.Rotation`,

@@ -7,7 +7,8 @@ Two models, both as OpenCV defines them:
 - ``"fisheye"``: ``cv2.fisheye`` equidistant model, k1..k4 (Kalibr ``equidistant``).
 
 Normalised coordinates are ``(X / Z, Y / Z)`` of a point in the camera frame (x right, y
-down, z forward); pixel (0, 0) is the centre of the top-left pixel (DESIGN.md section 1).
+down, z forward); pixel (0, 0) is the centre of the top-left pixel (docs/conventions.md,
+section 5).
 
 Synopsis
 --------

@@ -116,7 +116,7 @@ def camera_residuals(A: np.ndarray, B: np.ndarray, X: np.ndarray, Y: np.ndarray,
 
 
 def relative_extrinsics(X: ArrayLike, reference: int = 0) -> np.ndarray:
-    """``T_ref_cam = inv(X_ref) @ X_cam`` for every camera (DESIGN.md section 2).
+    """``T_ref_cam = inv(X_ref) @ X_cam`` for every camera (docs/conventions.md, section 2).
 
     Valid for both setups: X is ``T_world_cam`` (eye-to-base) or ``T_body_cam``
     (eye-on-hand), and the chain ``T_ref_world @ T_world_cam`` (or through ``body``)

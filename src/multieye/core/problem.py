@@ -1,6 +1,6 @@
 """The calibration problem's description, shared by every layer: setups and measurement groups.
 
-DESIGN.md section 2 (``docs/conventions.md``): both setups are ``A_i^j X^j = Y B_i^j``; the
+docs/conventions.md, section 2: both setups are ``A_i^j X^j = Y B_i^j``; the
 general problem tags each measurement with one unknown on each side, ``A_i X_a = Y_b B_i``.
 """
 
@@ -15,8 +15,8 @@ __all__ = ["Setup", "SETUPS", "MeasurementGroup"]
 
 F64 = NDArray[np.float64]
 
-#: The two setups (DESIGN.md section 2): static cameras and a moved target, or cameras on a
-#: moved rig and a static target.
+#: The two setups (docs/conventions.md, section 2): static cameras and a moved target, or
+#: cameras on a moved rig and a static target.
 Setup = Literal["eye-to-base", "eye-on-hand"]
 SETUPS: tuple[str, ...] = ("eye-to-base", "eye-on-hand")
 

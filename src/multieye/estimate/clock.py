@@ -1,7 +1,7 @@
 """Clock offset between a camera and the motion capture, estimated from the data.
 
 The paper (Wang et al. 2022) requires hard-synchronised clocks.  When the camera and the
-motion capture each stamp their samples with their own clock, the offset (DESIGN.md
+motion capture each stamp their samples with their own clock, the offset (docs/conventions.md,
 section 4: ``time_offset_s`` = motion-capture clock minus camera clock; the image stamped
 ``c`` matches the motion-capture sample stamped ``c + offset``) is estimated in two steps:
 
@@ -74,7 +74,7 @@ class ClockOffset:
     Attributes
     ----------
     offset_s : float
-        Motion-capture clock minus camera clock, seconds (DESIGN.md section 4).
+        Motion-capture clock minus camera clock, seconds (docs/conventions.md, section 4).
     std_s : float
         Standard deviation from the curvature of the loop-residual profile, seconds (NaN when
         only the coarse step ran).
@@ -281,7 +281,7 @@ def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps
     search_s : (float, float)
         Range of offsets searched, seconds.
     setup : {"eye-to-base", "eye-on-hand"}
-        How A is formed from the motion capture for the fine step (DESIGN.md section 2).
+        How A is formed from the motion capture for the fine step (docs/conventions.md, section 2).
     baseline_s : float
         Time between the two poses of each angular-speed sample, seconds.  Longer baselines
         average out the PnP noise (which dominates the speed between consecutive images of a

@@ -121,7 +121,7 @@ def measurement_residuals(A: F64, B: F64, X: F64, Y: F64) -> tuple[F64, F64]:
     """Residuals of ``A_i X = Y B_i`` as errors of the target pose seen by the camera.
 
     The measured ``T_cam_target = inv(B_i)`` against the predicted ``inv(X) inv(A_i) Y``
-    (both setups, DESIGN.md section 2).
+    (both setups, docs/conventions.md, section 2).
 
     Parameters
     ----------
@@ -198,9 +198,9 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
     Parameters
     ----------
     A, B : sequence of array_like, each shape (N_j, 4, 4)
-        One entry per camera, as for :func:`multieye.solve` (DESIGN.md section 2); or ``A``
-        is a :class:`~multieye.solvers.checks.Measurements` validated before and ``B`` is
-        omitted (no checks run again).
+        One entry per camera, as for :func:`multieye.solve` (docs/conventions.md, section 2);
+        or ``A`` is a :class:`~multieye.solvers.checks.Measurements` validated before and
+        ``B`` is omitted (no checks run again).
     threshold_rot_deg : float
         Largest loop rotation residual of an inlier, degrees.
     threshold_trans_m : float

@@ -170,9 +170,9 @@ def motion_diagnostics(A, B=None, names: Sequence[str] | None = None, *,
     Parameters
     ----------
     A, B : sequence of array_like, each shape (N_j, 4, 4)
-        One entry per camera, as for :func:`multieye.solve` (DESIGN.md section 2); or ``A``
-        is a :class:`~multieye.solvers.checks.Measurements` validated before and ``B`` is
-        omitted (no checks run again).
+        One entry per camera, as for :func:`multieye.solve` (docs/conventions.md, section 2);
+        or ``A`` is a :class:`~multieye.solvers.checks.Measurements` validated before and
+        ``B`` is omitted (no checks run again).
     names : sequence of str, optional
         Camera names; default ``cam0, cam1, ...``.
     setup : {"eye-to-base", "eye-on-hand"}

@@ -1,7 +1,7 @@
 """Pairing images with motion-capture samples in time.
 
 Every image is matched with the motion-capture pose at its time stamp (plus the clock
-offset, DESIGN.md section 4: ``time_offset_s`` is the motion-capture clock minus the camera
+offset, docs/conventions.md, section 4: ``time_offset_s``, motion-capture minus camera
 clock).  When two samples bracket the image and are at most ``2 * tolerance`` apart, the
 pose is interpolated between them (SLERP for the rotation, linear for the translation);
 otherwise the nearest sample is used if it lies within ``tolerance``, and the image is

@@ -3,10 +3,10 @@
 A refinement (:func:`multieye.estimate.refine_images.refine_images`, :mod:`multieye.solvers.refine_poses`) returns the
 covariance of the perturbations of every ``X^j`` and ``Y``, each as (rotation vector,
 translation) with ``R = Exp(phi) R_hat`` and ``t = t_hat + tau`` (radians, metres).  Users care
-about the relative extrinsics ``T_ref_cam = inv(X_ref) @ X_cam`` (DESIGN.md section 2), whose
-covariance follows to first order from the joint covariance of ``X_ref`` and ``X_cam``
-(:func:`multieye.solvers.refine_poses.relative_pose_covariance`).  DESIGN.md section 4 reports it per
-camera as
+about the relative extrinsics ``T_ref_cam = inv(X_ref) @ X_cam`` (docs/conventions.md,
+sections 2 and 6), whose covariance follows to first order from the joint covariance of
+``X_ref`` and ``X_cam`` (:func:`multieye.solvers.refine_poses.relative_pose_covariance`).
+``calibration.json`` (docs/outputs.md, section 2) reports it per camera as
 
 - ``std_rot_deg``: root of the trace of the 3x3 rotation block, in degrees (the RMS of the
   rotation error angle, to first order);

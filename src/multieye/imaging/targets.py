@@ -1,7 +1,7 @@
 """Calibration targets: their geometry in the canonical target frame.
 
-Every target is a frozen dataclass with ``rows``, ``cols`` and ``spacing`` as DESIGN.md
-section 4 defines them, and :meth:`object_points` giving its points, metres, in the
+Every target is a frozen dataclass with ``rows``, ``cols`` and ``spacing`` as docs/rig-yaml.md
+(section 3) defines them, and :meth:`object_points` giving its points, metres, in the
 target frame:
 
 ================== ============================ ================================================
@@ -391,7 +391,7 @@ _SPEC_KEYS: dict[str, dict[str, Any]] = {
 
 
 def target_from_spec(spec: Mapping[str, Any], *, path=None, line: int | None = None) -> Target:
-    """Build a target from the ``target:`` mapping of a rig.yaml (DESIGN.md section 4).
+    """Build a target from the ``target:`` mapping of a rig.yaml (docs/rig-yaml.md, section 3).
 
     Parameters
     ----------

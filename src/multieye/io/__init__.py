@@ -1,6 +1,6 @@
 """The file boundary: readers and writers of every format multieye touches.
 
-Units and quaternion orders are converted here and nowhere else (DESIGN.md section 1): what
+Units and quaternion orders are converted here only (docs/conventions.md, section 4): what
 leaves this package is in metres, radians and seconds, with poses as 4x4 ``T_a_b`` arrays
 whose frames are named.  Every user-facing problem is a :class:`~multieye.core.errors.DatasetError`
 naming the file, the line (where the format has lines) and what was expected.  Every writer is

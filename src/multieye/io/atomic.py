@@ -1,6 +1,6 @@
 """Atomic file writes: a reader sees the old file or the complete new one, never a part.
 
-Every writer in multieye goes through :func:`atomic_output` (DESIGN.md section 7): the content
+Every writer goes through :func:`atomic_output` (docs/outputs.md, section 1): the content
 is written to a temporary file in the destination's folder (same file system, so the final
 rename is atomic), flushed and fsync'ed, then moved over the destination with
 :func:`os.replace`.  If anything fails before the rename, the temporary file is removed and the

@@ -1,8 +1,8 @@
-"""``calibration.json``: the result file of ``multieye calibrate`` (DESIGN.md section 4).
+"""``calibration.json``: the result file of ``multieye calibrate`` (docs/outputs.md, section 2).
 
 The pipeline fills a :class:`CalibrationRecord`; :func:`write_calibration` writes it atomically
 and :func:`read_calibration` reads and validates it back into the same dataclass.  Keys depend
-on the setup (DESIGN.md section 2):
+on the setup (docs/conventions.md, section 2):
 
 ============  =====================  ==================
 setup         shared unknown Y       per camera X
@@ -68,7 +68,7 @@ def _rigid(T, what: str) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Residuals:
-    """Residuals of the loop ``A_i X = Y B_i`` (paper section V-A; DESIGN.md section 5).
+    """Residuals of the loop ``A_i X = Y B_i`` (paper section V-A; docs/conventions.md, section 7).
 
     Attributes
     ----------
@@ -220,7 +220,7 @@ def _residuals_dict(r: Residuals) -> dict:
 
 
 def calibration_to_dict(rec: CalibrationRecord) -> dict:
-    """The JSON object of a record (DESIGN.md section 4 key order)."""
+    """The JSON object of a record (key order of docs/outputs.md, section 2)."""
     y_key, x_key = SETUP_KEYS[rec.setup]
     cameras = {}
     for cam in rec.cameras:

@@ -1,4 +1,4 @@
-"""Image folders whose file names are time stamps (DESIGN.md section 4).
+"""Image folders whose file names are time stamps (docs/rig-yaml.md, section 5).
 
 Rule for a file name's stem (the name without its extension):
 

@@ -1,6 +1,6 @@
 """One entry point for motion-capture files: :class:`MocapSpec` -> :class:`Trajectory`.
 
-``rig.yaml``'s ``mocap:`` section (DESIGN.md section 4) becomes a :class:`MocapSpec`;
+``rig.yaml``'s ``mocap:`` section (docs/rig-yaml.md, section 4) becomes a :class:`MocapSpec`;
 :func:`read_mocap` dispatches to the reader of its format and returns the poses with
 ``world`` as the parent frame, whichever direction the file stores them in.
 

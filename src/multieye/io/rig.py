@@ -1,4 +1,4 @@
-"""``rig.yaml``: the description of a dataset (DESIGN.md section 4), loaded and checked.
+"""``rig.yaml``: the description of a dataset (docs/rig-yaml.md), loaded and checked.
 
 :func:`load_rig` returns a frozen :class:`Rig`.  Every problem is a :class:`DatasetError`
 naming ``rig.yaml``, the line of the key concerned, the dotted key path and what was
@@ -6,7 +6,8 @@ expected: unknown keys, wrong types, missing required keys, unknown setup or tar
 files or folders that do not exist.  Paths are resolved relative to the folder of
 ``rig.yaml``.
 
-Schema (keys not listed are rejected)::
+Schema (keys not listed are rejected; :data:`TOP_LEVEL_KEYS` and the other ``*_KEYS``
+constants hold them, docs/rig-yaml.md documents each)::
 
     setup: eye-to-base | eye-on-hand                         # required
     target:                                                  # required when a camera has images
@@ -23,6 +24,8 @@ Schema (keys not listed are rejected)::
                                                              #   (T_world_body for eye-on-hand);
                                                              #   the inverse name is allowed
       time_tolerance: 0.03                                   # seconds > 0, default 0.03
+      rotation_noise_deg: 0.03                               # degrees > 0; default: estimated
+      translation_noise_m: 0.0001                            # metres > 0; default: estimated
       format: tum | csv | optitrack | vicon | rosbag         # default: from the file
       topic: /vicon/rig/pose                                 # rosbag only (required)
       unit: m | cm | mm                                      # tum, csv, rosbag only
@@ -39,8 +42,9 @@ Schema (keys not listed are rejected)::
         rosbag: run.bag                #   image topic of a bag ...
         topic: /cam0/image_raw         #   ... given here (rosbag only)
         mocap: cam0_mocap.txt          # optional: own file, or a mapping overriding mocap
-                                       #   keys; pose and time_tolerance are inherited, the
-                                       #   format's keys only if the format is the same
+                                       #   keys; pose, time_tolerance and the noise keys are
+                                       #   inherited, the format's keys only if the
+                                       #   format is the same
         time_offset: 0.0               # seconds, motion-capture clock minus camera clock
 
 :func:`read_camera_intrinsics` reads a camera's intrinsics; a Kalibr camchain with several
@@ -64,8 +68,9 @@ from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.textfile import LENGTH_UNITS
 from multieye.io.yamlfile import YamlDocument, load_yaml
 
-__all__ = ["SETUPS", "TARGET_TYPES", "TargetSpec", "CameraSpec", "Rig", "load_rig",
-           "read_camera_intrinsics"]
+__all__ = ["SETUPS", "TARGET_TYPES", "TOP_LEVEL_KEYS", "TARGET_KEYS", "MOCAP_KEYS",
+           "MOCAP_COLUMN_KEYS", "CAMERA_KEYS", "CAMERA_INTRINSICS_KEYS", "TargetSpec",
+           "CameraSpec", "Rig", "load_rig", "read_camera_intrinsics"]
 
 #: setup -> the frame motion capture tracks.
 SETUPS = {"eye-to-base": "marker", "eye-on-hand": "body"}
@@ -74,15 +79,24 @@ _TARGET_ONLY = {"marker_size": "charuco", "dictionary": "charuco", "tag_spacing"
 _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv")}
-_MOCAP_KEYS = ("file", "pose", "time_tolerance", "format", "rotation_noise_deg",
-               "translation_noise_m") + tuple(_MOCAP_ONLY)
-_CAMERA_KEYS = ("intrinsics", "images", "poses", "rosbag", "topic", "mocap", "time_offset")
 _SOURCES = ("images", "poses", "rosbag")
+
+#: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
+#: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
+TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras")
+TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
+MOCAP_KEYS = ("file", "pose", "time_tolerance", "format", "rotation_noise_deg",
+              "translation_noise_m") + tuple(_MOCAP_ONLY)
+#: Roles of ``mocap.columns`` (csv sources).
+MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
+#: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
+CAMERA_KEYS = ("intrinsics", "images", "poses", "rosbag", "topic", "mocap", "time_offset")
+CAMERA_INTRINSICS_KEYS = ("file", "camera")
 
 
 @dataclass(frozen=True)
 class TargetSpec:
-    """The calibration board (DESIGN.md section 4; metres).
+    """The calibration board (docs/rig-yaml.md, section 3; metres).
 
     Attributes
     ----------
@@ -237,8 +251,7 @@ class _Checker:
 
 def _target(c: _Checker, raw) -> TargetSpec:
     keys = ("target",)
-    allowed = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
-    c.mapping(raw, keys, allowed, ("type", "rows", "cols", "spacing"))
+    c.mapping(raw, keys, TARGET_KEYS, ("type", "rows", "cols", "spacing"))
     kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
     for key, owner in _TARGET_ONLY.items():
         if key in raw and owner != kind:
@@ -306,7 +319,7 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
     if "duplicates" in raw:
         kw["duplicates"] = c.choice(raw["duplicates"], at("duplicates"), ("error", "drop"))
     if "columns" in raw:
-        cols = c.mapping(raw["columns"], at("columns"), tuple(DEFAULT_COLUMNS))
+        cols = c.mapping(raw["columns"], at("columns"), MOCAP_COLUMN_KEYS)
         kw["columns"] = MappingProxyType({k: c.string(v, at("columns") + (k,))
                                           for k, v in cols.items()})
     tol = 0.03
@@ -323,11 +336,11 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
 
 def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
     """A camera's own motion capture, completed from the top-level section ``top``
-    (``(raw mapping, MocapSpec)``, or ``({}, None)``): ``pose`` and ``time_tolerance`` are
-    always inherited; the format-specific keys only when the camera's file has the top-level
+    (``(raw mapping, MocapSpec)``, or ``({}, None)``): ``pose``, ``time_tolerance`` and the
+    noise keys are always inherited; the format-specific keys only when the camera's file has the top-level
     file's format (a camera with a TUM file under a rosbag rig does not inherit ``topic``)."""
     if isinstance(own, Mapping):
-        c.mapping(own, where, _MOCAP_KEYS)
+        c.mapping(own, where, MOCAP_KEYS)
     else:
         own = {"file": c.string(own, where)}
     top_raw, top_spec = top
@@ -346,7 +359,7 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
 
 def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
     keys = ("cameras", name)
-    c.mapping(raw, keys, _CAMERA_KEYS)
+    c.mapping(raw, keys, CAMERA_KEYS)
     sources = [s for s in _SOURCES if s in raw]
     if len(sources) != 1:
         raise c.error(f"expected exactly one of {', '.join(_SOURCES)}, got "
@@ -361,7 +374,7 @@ def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
     if intr is None:
         intr_path = None
     elif isinstance(intr, Mapping):
-        c.mapping(intr, keys + ("intrinsics",), ("file", "camera"), ("file",))
+        c.mapping(intr, keys + ("intrinsics",), CAMERA_INTRINSICS_KEYS, ("file",))
         if "camera" in intr:
             camera = c.string(intr["camera"], keys + ("intrinsics", "camera"))
         intr_path = c.path(intr["file"], keys + ("intrinsics", "file"), "file")
@@ -394,7 +407,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
     doc = load_yaml(p.resolve(), what="rig description (rig.yaml)")
     c = _Checker(doc)
     raw = c.mapping(doc.data if doc.data is not None else {}, (),
-                    ("setup", "target", "mocap", "cameras"), ("setup", "cameras"))
+                    TOP_LEVEL_KEYS, ("setup", "cameras"))
     setup = c.choice(raw["setup"], ("setup",), tuple(SETUPS))
     cams_raw = raw["cameras"]
     if not isinstance(cams_raw, Mapping) or not cams_raw:
@@ -402,7 +415,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
                       ("cameras",))
     mocap = None
     if "mocap" in raw:
-        c.mapping(raw["mocap"], ("mocap",), _MOCAP_KEYS, ("file",))
+        c.mapping(raw["mocap"], ("mocap",), MOCAP_KEYS, ("file",))
         mocap = _mocap(c, raw["mocap"], {k: ("mocap",) for k in raw["mocap"]}, setup,
                        ("mocap",))
     top = (dict(raw["mocap"]) if mocap is not None else {}, mocap)

@@ -1,6 +1,6 @@
 """``details.json``: what the report needs beyond ``calibration.json``.
 
-``calibration.json`` (DESIGN.md section 4) holds the result; this file holds the evidence
+``calibration.json`` (docs/outputs.md, section 2) holds the result; this file holds the evidence
 behind it, per measurement, so that :mod:`multieye.outputs.report` can draw the rig and the residuals
 without the dataset:
 
@@ -12,7 +12,7 @@ without the dataset:
 - the motion-capture trajectories (positions only) over the span of the used images,
   subsampled to at most a few thousand points.
 
-Frames (DESIGN.md section 2), for the world pictures:
+Frames (docs/conventions.md, section 2), for the world pictures:
 
 ============  ==========================================  ===================================
 setup         ``T_world_target[i]``                       ``T_world_cam`` drawn

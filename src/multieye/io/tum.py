@@ -3,7 +3,7 @@
 Format (as the TUM RGB-D benchmark defines it): one pose per line, time stamp in seconds,
 translation, then the unit quaternion in the order ``qx qy qz qw`` (scalar last).  The pose of
 each line is ``T_parent_child`` (for motion capture ``T_world_marker``, for precomputed camera
-poses ``T_cam_target``, see DESIGN.md section 4).  Accepted here as well: commas instead of (or
+poses ``T_cam_target``, docs/rig-yaml.md).  Accepted here as well: commas instead of (or
 mixed with) spaces, ``#`` comments anywhere on a line, blank lines.
 
 Choices

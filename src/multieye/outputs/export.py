@@ -19,7 +19,7 @@ format         file                       content
                                           :func:`multieye.io.read_calibration` reads it back
 =============  =========================  ==================================================
 
-Frames.  The base frame is the one each camera's unknown X is expressed in (DESIGN.md
+Frames.  The base frame is the one each camera's unknown X is expressed in (docs/conventions.md,
 section 2): ``world`` (motion capture) for eye-to-base, where ``X = T_world_cam``, and ``body``
 (the tracked rig) for eye-on-hand, where ``X = T_body_cam``.  multieye's camera frame is the
 optical frame of OpenCV and of ROS (REP 103: x right, y down, z forward), so in ROS terms the

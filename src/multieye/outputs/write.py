@@ -26,7 +26,7 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
                   diagnostics: dict | None = None) -> tuple[list[Path], list[str]]:
     """Write the results of a run into ``out_dir``, all or nothing.
 
-    ``calibration.json`` (DESIGN.md section 4), Kalibr ``camchain.yaml``, ``details.json``
+    ``calibration.json`` (docs/outputs.md), Kalibr ``camchain.yaml``, ``details.json``
     (per-image residuals, target poses, trajectory; :mod:`multieye.io.run_details`) and,
     with ``report=True``, ``report.html`` with ``figures/`` (:mod:`multieye.outputs.report`).
     Everything is first written into a temporary folder inside ``out_dir``; only when all of

@@ -1,9 +1,9 @@
 """What each camera contributes: its target poses, its motion capture, and their pairing.
 
-``rig.yaml`` (DESIGN.md section 4) -> per camera: images -> target detection -> PnP (or
+``rig.yaml`` (docs/rig-yaml.md) -> per camera: images -> target detection -> PnP (or
 precomputed ``T_cam_target`` poses) -> :class:`CameraData`; then pairing with the motion
-capture in time -> ``A``, ``B`` (DESIGN.md section 2) -> :class:`PairedCamera`.  The
-pipeline (:mod:`multieye.pipeline`) takes it from there.
+capture in time -> ``A``, ``B`` (docs/conventions.md, section 2) -> :class:`PairedCamera`.
+The pipeline (:mod:`multieye.pipeline`) takes it from there.
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ class CameraData:
 
 @dataclass(frozen=True)
 class PairedCamera:
-    """One camera's measurements for ``A_i X = Y B_i`` (DESIGN.md section 2).
+    """One camera's measurements for ``A_i X = Y B_i`` (docs/conventions.md, section 2).
 
     Attributes
     ----------

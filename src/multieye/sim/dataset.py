@@ -9,7 +9,7 @@ optical blur and sensor noise.  Everything a user would have is written to disk:
 
 ``rig.yaml``, ``camN.yaml`` (OpenCV FileStorage intrinsics), ``camN/<stamp>.png``,
 ``mocap.txt`` (TUM, ``T_world_marker``) and ``ground_truth.json`` (the calibration.json
-schema, DESIGN.md section 4).
+schema, docs/outputs.md, section 2).
 
 Synopsis
 --------

@@ -153,7 +153,7 @@ class ImageScenario:
 
     @property
     def A(self) -> tuple[F64, ...]:
-        """Measured ``A_i^j`` (DESIGN.md section 2) per camera, from the noisy mocap."""
+        """Measured ``A_i^j`` (docs/conventions.md, section 2) per camera, from the noisy mocap."""
         if self.setup == "eye-on-hand":
             return tuple(np.array(M) for M in self.mocap)
         return tuple(g.inv(M) for M in self.mocap)
@@ -375,7 +375,7 @@ class StreamScenario:
     ----------
     setup : {"eye-to-base", "eye-on-hand"}
     X, Y : ndarray, shape (4, 4)
-        Ground truth (DESIGN.md section 2).
+        Ground truth (docs/conventions.md, section 2).
     cam_stamps : ndarray, shape (K,)
         Image times in the camera clock, seconds.
     T_cam_target : ndarray, shape (K, 4, 4)

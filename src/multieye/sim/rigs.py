@@ -3,7 +3,8 @@
 Wang et al. (ICRA 2022) evaluate their solver on a simulated surround rig: four cameras in a
 horizontal plane, 0.4-0.65 m from the body origin, facing outwards, each observing a
 calibration board up to 40 times, with both measurement streams corrupted by noise. This
-module builds such scenarios with a known ground truth for both setups of DESIGN.md section 2:
+module builds such scenarios with a known ground truth for both setups (docs/conventions.md,
+section 2):
 
 =============  ======================  ===============  =================  ====================
 setup          A_i^j                   X^j              Y                  B_i^j

@@ -7,7 +7,7 @@ Synopsis
 >>> sol.X.shape, sol.Y.shape                         # doctest: +SKIP
 ((4, 4, 4), (4, 4))
 
-Methods (DESIGN.md section 3):
+Methods (docs/conventions.md, section 3):
 
 =========== ================================================================ ===========
 name        what                                                              cameras
@@ -83,9 +83,10 @@ def solve(A: Sequence[np.ndarray] | np.ndarray | Measurements,
         One entry per camera (a single (N, 4, 4) array means one camera).  Eye-to-base:
         ``A = T_marker_world`` (inverse motion capture), ``B = T_target_cam`` (inverse PnP).
         Eye-on-hand: ``A = T_world_body`` (motion capture), ``B = T_target_cam``.
-        See DESIGN.md section 2.  Or ``A`` is a :class:`~multieye.solvers.checks.Measurements`
-        validated before (:func:`~multieye.solvers.checks.check_measurements`) and ``B``
-        is omitted: only the motion test of the method runs again.
+        See docs/conventions.md, section 2.  Or ``A`` is a
+        :class:`~multieye.solvers.checks.Measurements` validated before
+        (:func:`~multieye.solvers.checks.check_measurements`) and ``B`` is omitted: only the
+        motion test of the method runs again.
     method : str
         One of :data:`METHODS`; default ``"joint"``.
     refine : bool
