@@ -36,7 +36,6 @@ DOCS = REPO / "docs"
 
 #: Files that still name DESIGN.md because they are being rewritten by someone else.  Each
 #: entry must still name it (a stale entry fails too), so the set only shrinks.
-PENDING_DESIGN_REFERENCES = {"src/multieye/estimate/refine_images.py"}
 
 _TEXT_SUFFIXES = {".py", ".md", ".txt", ".toml", ".yaml", ".cfg", ".typed"}
 
@@ -94,11 +93,9 @@ def test_nothing_names_design_md():
     found = {_rel(p) for p in _files("src", "README.md", "tests", "benchmarks", "docs")
              if "DESIGN.md" in p.read_text(errors="replace")}
     found.discard(_rel(Path(__file__)))
-    assert found - PENDING_DESIGN_REFERENCES == set(), (
+    assert found == set(), (
         "DESIGN.md is not in the repository; point to docs/conventions.md, docs/rig-yaml.md "
         "or docs/outputs.md (with the section) instead")
-    assert PENDING_DESIGN_REFERENCES <= found, (
-        "no longer names DESIGN.md: remove it from PENDING_DESIGN_REFERENCES")
 
 
 def test_every_named_document_exists():

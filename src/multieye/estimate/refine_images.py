@@ -231,7 +231,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     Parameters
     ----------
     setup : {"eye-to-base", "eye-on-hand"}
-        DESIGN.md section 2.
+        docs/conventions.md, section 2.
     observations : sequence over cameras of sequence over images
         ``observations[j][i] = (object_points, image_points, T_world_mocap)``: the target
         points seen in image i of camera j, shape (n, 3), metres in the ``target`` frame;
