@@ -87,7 +87,7 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
     from multieye.pipeline import calibrate as run_calibration
     from multieye.outputs.write import write_outputs
     from multieye.solvers import METHODS
-    from multieye.outputs.summary import calibration_table
+    from multieye.outputs.summary import calibration_table, timings_line
 
     if method not in METHODS:
         raise click.BadParameter(f"{method!r}; choose one of {', '.join(METHODS)}",
@@ -104,11 +104,12 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
                           robust=not no_robust, time_offset=time_offset,
                           max_time_offset=max_time_offset, processes=processes,
                           progress=_progress_enabled())
-    paths, notes = write_outputs(run, out_dir)
+    written = write_outputs(run, out_dir)
     click.echo(calibration_table(run.record))
-    for note in notes:
+    for note in written.notes:
         click.echo(f"note: {note}")
-    click.echo("wrote " + ", ".join(str(p) for p in paths))
+    click.echo("wrote " + ", ".join(str(p) for p in written.paths))
+    click.echo(timings_line(written.timings))
 
 
 @main.command()

@@ -69,7 +69,8 @@ def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, spec: DatasetSpec = D
         other = calibrate_rig(run.rig, run.cameras, method=method, refine=False)
         results[method] = np.stack([c.T_ref_cam for c in other.record.cameras])
     t3 = time.perf_counter()
-    outputs, notes = write_outputs(run, out)
+    written = write_outputs(run, out)
+    outputs, notes = written.paths, written.notes
     t4 = time.perf_counter()
     errors = {m: extrinsic_errors(T, truth.T_ref_cam) for m, T in results.items()}
     timings = {"render_s": t1 - t0, "calibrate_s": t2 - t1, "closed_forms_s": t3 - t2,

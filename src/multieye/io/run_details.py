@@ -10,7 +10,9 @@ without the dataset:
   frustums), the pose of the camera in the world, and an optional free-form ``diagnostics``
   mapping (weak-motion diagnostics, filled by whoever computes them);
 - the motion-capture trajectories (positions only) over the span of the used images,
-  subsampled to at most a few thousand points.
+  subsampled to at most a few thousand points;
+- ``timings_s``: seconds spent per stage of the run (:class:`StageTimings`); files written
+  before it existed do not have it.
 
 Frames (docs/conventions.md, section 2), for the world pictures:
 
@@ -60,6 +62,8 @@ __all__ = [
     "TrajectoryDetails",
     "CameraDetails",
     "RunDetails",
+    "StageTimings",
+    "TIMING_KEYS",
     "run_details_to_dict",
     "run_details_from_dict",
     "write_details",
@@ -140,6 +144,46 @@ class CameraDetails:
 
 
 @dataclass(frozen=True)
+class StageTimings:
+    """Seconds spent per stage of a calibration (``timings_s`` of ``details.json``).
+
+    Attributes
+    ----------
+    reading : float
+        ``rig.yaml``, intrinsics, motion capture, image listing.
+    detection : float
+        Target detection and PnP (images read from a ROS bag are streamed into it).
+    pairing : float
+        Clock offsets, pairing in time, input checks, consensus, motion diagnostics.
+    closed_form : float
+        The closed-form solve.
+    refinement : float
+        Maximum-likelihood refinement and the uncertainty of the result.
+    outputs : float
+        Writing ``calibration.json``, ``camchain.yaml``, ``details.json`` and the report;
+        0 until :func:`multieye.outputs.write.write_outputs` has measured it.
+    total : float
+        The whole run, outputs included once measured; at least the sum of the stages.
+    """
+
+    reading: float = 0.0
+    detection: float = 0.0
+    pairing: float = 0.0
+    closed_form: float = 0.0
+    refinement: float = 0.0
+    outputs: float = 0.0
+    total: float = 0.0
+
+    def as_dict(self) -> dict[str, float]:
+        """``{"reading": ..., ..., "total": ...}``, seconds."""
+        return {k: float(getattr(self, k)) for k in TIMING_KEYS}
+
+
+#: Keys of ``timings_s``: the stages in the order they run, then the total.
+TIMING_KEYS = ("reading", "detection", "pairing", "closed_form", "refinement", "outputs", "total")
+
+
+@dataclass(frozen=True)
 class RunDetails:
     """Everything ``details.json`` holds.
 
@@ -152,6 +196,8 @@ class RunDetails:
     trajectories : tuple of TrajectoryDetails
     T_world_body_shown : ndarray, shape (4, 4), or None
         Eye-on-hand: the body pose at which the cameras are drawn; None for eye-to-base.
+    timings : StageTimings or None
+        None when the file has no ``timings_s`` (written before it existed).
     """
 
     setup: str
@@ -159,6 +205,7 @@ class RunDetails:
     cameras: tuple[CameraDetails, ...]
     trajectories: tuple[TrajectoryDetails, ...]
     T_world_body_shown: np.ndarray | None = None
+    timings: StageTimings | None = None
 
     def camera(self, name: str) -> CameraDetails:
         """The details of camera ``name``."""
@@ -221,7 +268,7 @@ def run_details_to_dict(details: RunDetails) -> dict:
             },
             "diagnostics": json_value(c.diagnostics, f"diagnostics of camera {c.name}"),
         }
-    return {
+    out = {
         "format": FORMAT, "version": VERSION, "setup": details.setup,
         "reference_camera": details.reference_camera,
         "T_world_body_shown": (None if details.T_world_body_shown is None
@@ -230,6 +277,9 @@ def run_details_to_dict(details: RunDetails) -> dict:
                           "position": _floats(t.positions)} for t in details.trajectories],
         "cameras": cameras,
     }
+    if details.timings is not None:
+        out["timings_s"] = details.timings.as_dict()
+    return out
 
 
 class _Reader:
@@ -280,6 +330,22 @@ def _read_intrinsics(r: _Reader, obj, name: str) -> Intrinsics | None:
         raise r.error(f"intrinsics: {exc}", name) from None
 
 
+def _read_timings(r: _Reader, obj) -> StageTimings | None:
+    """``timings_s``: absent (older files) or every key a finite non-negative number."""
+    if obj is None:
+        return None
+    if not isinstance(obj, Mapping):
+        raise r.error("timings_s must be an object of stage -> seconds")
+    values = {}
+    for key in TIMING_KEYS:
+        v = r.get(obj, key, "timings_s")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v)
+                                                                          and v >= 0):
+            raise r.error(f"timings_s.{key} must be a non-negative number of seconds, got {v!r}")
+        values[key] = float(v)
+    return StageTimings(**values)
+
+
 def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDetails:
     """Validate a parsed ``details.json`` object.
 
@@ -287,7 +353,8 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
     ------
     DatasetError
         Another format or version, missing keys, wrong shapes, lengths that disagree between a
-        camera's measurement columns, or a trajectory index out of range.
+        camera's measurement columns, a trajectory index out of range, or ``timings_s``
+        (optional) without every stage as a non-negative number.
     """
     r = _Reader(path)
     if not isinstance(data, Mapping) or data.get("format") != FORMAT:
@@ -348,7 +415,8 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
     if reference not in cams_raw:
         raise r.error(f"reference camera {reference!r} is not one of {', '.join(cams_raw)}")
     return RunDetails(setup=setup, reference_camera=reference, cameras=tuple(cameras),
-                      trajectories=tuple(trajectories), T_world_body_shown=shown)
+                      trajectories=tuple(trajectories), T_world_body_shown=shown,
+                      timings=_read_timings(r, data.get("timings_s")))
 
 
 # --------------------------------------------------------------------------- files

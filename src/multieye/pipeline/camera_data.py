@@ -8,6 +8,7 @@ The pipeline (:mod:`multieye.pipeline`) takes it from there.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -79,6 +80,9 @@ class CameraData:
     time_tolerance : float
         Seconds.
     warnings : tuple of str
+    detection_s : float
+        Seconds spent on target detection and PnP (reading the images included, listing
+        them not); 0 for precomputed poses.
     """
 
     name: str
@@ -90,6 +94,7 @@ class CameraData:
     time_offset: float
     time_tolerance: float
     warnings: tuple[str, ...] = ()
+    detection_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -121,8 +126,19 @@ def _describe_target(rig: Rig) -> str:
     return f"{t.type} {t.rows}x{t.cols}" if t is not None else "target"
 
 
+@dataclass(frozen=True)
+class _Detected:
+    """What detection and PnP gave for one camera's images."""
+
+    observations: list[Observation]
+    rejected: list[RejectedItem]
+    n_inputs: int
+    warnings: tuple[str, ...]
+    seconds: float
+
+
 def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsics, *,
-                              processes, progress, topic: str | None = None):
+                              processes, progress, topic: str | None = None) -> _Detected:
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic."""
     from multieye.imaging.targets import target_from_spec
 
@@ -131,8 +147,10 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
         from multieye.imaging.batch import detect_and_estimate
 
         images = list_images(source)
+        t0 = time.perf_counter()
         results = detect_and_estimate([p for _, _, p in images], target, intr,
                                       processes=processes, progress=progress)
+        seconds = time.perf_counter() - t0
         stamped = [(stamp, path.name) for stamp, _, path in images]
     else:
         from multieye.imaging.batch import detect_and_estimate_arrays
@@ -146,8 +164,10 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
                 stamped.append((stamp_ns * 1e-9, label))
                 yield label, image
 
+        t0 = time.perf_counter()   # the bag is read as the frames are detected
         results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
                                              progress=progress)
+        seconds = time.perf_counter() - t0
         if not stamped:
             raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
     obs, rejected, warnings = [], [], []
@@ -165,7 +185,8 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
                            f"the {len(stamped)} images; check the target section of rig.yaml "
                            "(rows/cols count inner corners for a chessboard) and the images",
                            path=source, camera=name)
-    return obs, rejected, len(stamped), tuple(warnings)
+    return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped),
+                     warnings=tuple(warnings), seconds=seconds)
 
 
 def load_camera_data(rig: Rig, *, processes: int | None = None,
@@ -185,6 +206,7 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
         if key not in trajectories:
             trajectories[key] = read_mocap(spec)
         warnings: tuple[str, ...] = ()
+        seconds = 0.0
         if cam.source == "poses":
             traj = read_tum(cam.poses, parent="cam", child="target")
             obs = [Observation(name=f"{cam.poses.name} pose {i + 1}", stamp=float(t), T_cam_target=T)
@@ -192,19 +214,19 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
             rejected: list[RejectedItem] = []
             n_inputs = len(obs)
             intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
-        elif cam.source == "images":
-            intr = read_camera_intrinsics(cam)
-            obs, rejected, n_inputs, warnings = _observations_from_images(
-                name, cam.images, rig, intr, processes=processes, progress=progress)
         else:
             intr = read_camera_intrinsics(cam)
-            obs, rejected, n_inputs, warnings = _observations_from_images(
-                name, cam.rosbag, rig, intr, processes=processes, progress=progress,
-                topic=cam.topic)
+            det = _observations_from_images(
+                name, cam.images if cam.source == "images" else cam.rosbag, rig, intr,
+                processes=processes, progress=progress,
+                topic=None if cam.source == "images" else cam.topic)
+            obs, rejected, n_inputs = det.observations, det.rejected, det.n_inputs
+            warnings, seconds = det.warnings, det.seconds
         out[name] = CameraData(name=name, intrinsics=intr, observations=tuple(obs),
                                rejected=tuple(rejected), n_inputs=n_inputs,
                                mocap=trajectories[key], time_offset=cam.time_offset,
-                               time_tolerance=spec.time_tolerance, warnings=warnings)
+                               time_tolerance=spec.time_tolerance, warnings=warnings,
+                               detection_s=seconds)
     return out
 
 

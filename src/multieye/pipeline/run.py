@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, replace
+import time
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +35,7 @@ from multieye.io import (
     load_rig,
 )
 from multieye.core.metrics import camera_residual, relative_extrinsics
+from multieye.io.run_details import StageTimings
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import Measurements, check_measurements
 
@@ -44,6 +46,7 @@ __all__ = [
     "CalibrationRun",
     "Options",
     "Refinement",
+    "StageTimings",
     "load_camera_data",
     "pair_camera",
     "calibrate",
@@ -102,6 +105,10 @@ class CalibrationRun:
         The refinement, when it ran and succeeded; its own result (a
         :class:`multieye.estimate.refine_images.RefinementResult` on images, a refined
         :class:`~multieye.solvers.Solution` on poses) is ``refinement.result``.
+    timings : StageTimings
+        Seconds per stage; ``reading`` and ``detection`` are 0 when the cameras were loaded
+        outside :func:`calibrate`; ``outputs`` is 0: writing the files adds it to the
+        timings written into ``details.json`` (``multieye.outputs.write.write_outputs``).
     X : ndarray, shape (m, 4, 4)
         Final ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand), cameras in the
         order of ``record.cameras``.
@@ -121,6 +128,7 @@ class CalibrationRun:
     cameras: dict[str, CameraData]
     paired: dict[str, PairedCamera]
     refinement: Refinement | None = None
+    timings: StageTimings = field(default_factory=StageTimings)
 
     @property
     def X(self) -> np.ndarray:
@@ -264,6 +272,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     """
     from multieye.estimate.diagnostics import motion_diagnostics
 
+    start = time.perf_counter()
     opts = replace(options, **kw) if kw else options
     names = list(cameras)
     reference = opts.reference or names[0]
@@ -286,8 +295,10 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
 
     motion = motion_diagnostics(meas, setup=rig.setup)
     warnings.extend(motion.warnings)
+    paired_at = time.perf_counter()
     sol = solve(meas, method=opts.method)
-    refinement = None
+    solved_at = time.perf_counter()
+    refinement, uncertainty = None, None
     if opts.refine:
         try:
             refinement = _refine(rig, cameras, paired, sol, opts)
@@ -296,11 +307,21 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
                             f"uncertainty: {exc}")
         else:
             warnings.extend(refinement.warnings)
+            if refinement.covariance is not None:
+                from multieye.estimate.uncertainty import relative_covariance
+
+                uncertainty = relative_covariance(refinement.X, refinement.covariance,
+                                                  reference=names.index(reference))
+    refined_at = time.perf_counter()
     shown = offsets if opts.time_offset != "rig" else {n: o for n, o in offsets.items() if o}
-    record = _record(rig, paired, sol, refinement, method=opts.method, reference=reference,
-                     warnings=warnings, time_offsets=shown, motion=motion.as_dict()["cameras"])
+    record = _record(rig, paired, sol, refinement, uncertainty, method=opts.method,
+                     reference=reference, warnings=warnings, time_offsets=shown,
+                     motion=motion.as_dict()["cameras"])
+    timings = StageTimings(pairing=paired_at - start, closed_form=solved_at - paired_at,
+                           refinement=refined_at - solved_at,
+                           total=time.perf_counter() - start)
     return CalibrationRun(rig=rig, record=record, closed_form=sol, cameras=cameras,
-                          paired=paired, refinement=refinement)
+                          paired=paired, refinement=refinement, timings=timings)
 
 
 def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
@@ -355,20 +376,19 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
 
 
 def _record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
-            refinement: Refinement | None, *, method: str, reference: str, warnings: list[str],
-            time_offsets: dict[str, float], motion: dict) -> CalibrationRecord:
-    """The record of the final result: the refinement's when it ran, else the closed form."""
+            refinement: Refinement | None, unc, *, method: str, reference: str,
+            warnings: list[str], time_offsets: dict[str, float], motion: dict
+            ) -> CalibrationRecord:
+    """The record of the final result: the refinement's when it ran, else the closed form.
+
+    ``unc`` is the :class:`~multieye.estimate.uncertainty.RelativeUncertainty` of the
+    refinement, or None.
+    """
     final = sol if refinement is None else refinement
-    X, Y, covariance = final.X, final.Y, None if refinement is None else refinement.covariance
+    X, Y = final.X, final.Y
     reproj = {} if refinement is None else refinement.reprojection_rms_px
     names = list(paired)
-    ref = names.index(reference)
-    T_ref_cam = relative_extrinsics(X, reference=ref)
-    unc = None
-    if covariance is not None:
-        from multieye.estimate.uncertainty import relative_covariance
-
-        unc = relative_covariance(X, covariance, reference=ref)
+    T_ref_cam = relative_extrinsics(X, reference=names.index(reference))
     cams, rot_all, trans_all = [], [], []
     for j, name in enumerate(names):
         p = paired[name]
@@ -416,9 +436,15 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     -------
     CalibrationRun
     """
+    start = time.perf_counter()
     path = Path(dataset)
     if path.is_dir():
         path = path / "rig.yaml"
     rig = load_rig(path)
     cameras = load_camera_data(rig, processes=processes, progress=progress)
-    return calibrate_rig(rig, cameras, options, **kw)
+    loaded = time.perf_counter() - start
+    run = calibrate_rig(rig, cameras, options, **kw)
+    detection = sum(d.detection_s for d in cameras.values())
+    timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
+                      total=time.perf_counter() - start)
+    return replace(run, timings=timings)
