@@ -1,5 +1,13 @@
 """Detection and PnP over many image files, in parallel processes.
 
+Worker processes start by importing the main script again (the ``spawn`` and
+``forkserver`` start methods, Linux, macOS and Windows alike; ``fork`` would not, but forks
+OpenCV's and BLAS's threads and is unsafe on macOS).  A script that calls multieye at its
+top level, outside ``if __name__ == "__main__":``, would run again in every worker;
+:func:`main_reimport_problem` recognises that case, and detection then runs in threads of
+this process instead (OpenCV releases the GIL while it detects), with a warning that says
+why.
+
 Synopsis
 --------
 >>> from multieye.imaging.batch import detect_and_estimate
@@ -10,12 +18,16 @@ Synopsis
 
 from __future__ import annotations
 
+import ast
 import math
 import multiprocessing
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor
+import threading
+import warnings
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Iterable
 
 import cv2
@@ -27,7 +39,7 @@ from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.targets import Target
 
 __all__ = ["ImageResult", "detect_and_estimate", "detect_and_estimate_arrays", "process_image",
-           "process_array", "DEFAULT_MAX_RMS_PX"]
+           "process_array", "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
 
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
 DEFAULT_MAX_RMS_PX = 2.0
@@ -172,6 +184,105 @@ def _mp_context():
     return ctx
 
 
+def _is_main_guard(test: ast.expr) -> bool:
+    """``__name__ == "__main__"`` (either side), alone or as a term of an ``and``."""
+    if isinstance(test, ast.BoolOp) and isinstance(test.op, ast.And):
+        return any(_is_main_guard(v) for v in test.values)
+    if not (isinstance(test, ast.Compare) and len(test.ops) == 1
+            and isinstance(test.ops[0], ast.Eq)):
+        return False
+    sides = [test.left, test.comparators[0]]
+    return (any(isinstance(x, ast.Name) and x.id == "__name__" for x in sides)
+            and any(isinstance(x, ast.Constant) and x.value == "__main__" for x in sides))
+
+
+@lru_cache(maxsize=8)
+def _guarded_lines(path: str, mtime_ns: int) -> tuple[tuple[int, int], ...] | None:
+    """Line ranges of the bodies of the ``if __name__ == "__main__":`` blocks of a script;
+    None when its source cannot be read or parsed."""
+    try:
+        with open(path, "rb") as f:
+            tree = ast.parse(f.read(), filename=path)
+    except (OSError, SyntaxError, ValueError):
+        return None
+    return tuple((node.body[0].lineno, node.body[-1].end_lineno) for node in ast.walk(tree)
+                 if isinstance(node, ast.If) and _is_main_guard(node.test))
+
+
+def _main_module_frame(main):
+    """The frame running the main script's top level: in this thread, else the main thread."""
+    candidates = [sys._getframe()]
+    main_thread = sys._current_frames().get(threading.main_thread().ident)
+    if main_thread is not None:
+        candidates.append(main_thread)
+    for frame in candidates:
+        while frame is not None:
+            if frame.f_globals is main.__dict__ and frame.f_code.co_name == "<module>":
+                return frame
+            frame = frame.f_back
+    return None
+
+
+def main_reimport_problem() -> str | None:
+    """Why worker processes cannot be started safely now, or None when they can.
+
+    Workers started by ``spawn`` or ``forkserver`` import the main script again (as
+    ``__mp_main__``), so that what it defines can be unpickled.  That is harmless when the
+    script's top level only defines things and calls multieye under
+    ``if __name__ == "__main__":``; when the call runs at the top level itself, every worker
+    would run it again (and multiprocessing stops it with an error).  There is no main
+    script to import in an interactive session, a notebook or ``python -c``.
+
+    Returns
+    -------
+    str or None
+        What is wrong, for a message: the call at the script's top level, outside
+        ``if __name__ == "__main__":``, or a script whose source cannot be read to tell.
+    """
+    main = sys.modules.get("__main__")
+    if main is None:
+        return None
+    path = getattr(main, "__file__", None)
+    spec = getattr(main, "__spec__", None)
+    if path is None or (spec is None and os.path.splitext(os.path.basename(path))[0] == "ipython"):
+        return None       # multiprocessing imports nothing as the main module then
+    frame = _main_module_frame(main)
+    if frame is None:
+        return (f"the main script {path} is not running this call from its top level, so "
+                "whether importing it again would run it cannot be told")
+    try:
+        guarded = _guarded_lines(os.path.abspath(path), os.stat(path).st_mtime_ns)
+    except OSError:
+        guarded = None
+    if guarded is None:
+        return f"the main script {path} cannot be read to tell whether it is safe to import"
+    line = frame.f_lineno
+    if any(lo <= line <= hi for lo, hi in guarded):
+        return None
+    return (f"{path} calls multieye at its top level (line {line}), outside "
+            "`if __name__ == \"__main__\":`, and worker processes would run it again")
+
+
+def _threads_instead(n_workers: int) -> bool:
+    """True, with a warning saying why, when worker processes must not be started."""
+    if n_workers <= 1:
+        return False
+    problem = main_reimport_problem()
+    if problem is None:
+        return False
+    # point the warning at the script's line that called multieye
+    main = sys.modules["__main__"]
+    frame, level = sys._getframe(), 1
+    while frame is not None and not (frame.f_globals is main.__dict__
+                                     and frame.f_code.co_name == "<module>"):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(f"multieye: detecting in {n_workers} threads of this process instead of "
+                  f"worker processes: {problem}. Put the call under "
+                  "`if __name__ == \"__main__\":` to detect in worker processes.",
+                  RuntimeWarning, stacklevel=level if frame is not None else 2)
+    return True
+
+
 def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics, *,
                         processes: int | None = None, progress: bool | None = None,
                         max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
@@ -202,8 +313,9 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics,
     inter-process traffic stay small next to detection; each worker holds the target and
     intrinsics from its start and runs OpenCV single-threaded. Workers come from a fork
     server (spawn where there is none): its first start in a session costs about a second,
-    later pools start in milliseconds. As with any multiprocessing code, a script that calls
-    this with more than one process must do so under ``if __name__ == "__main__":``.
+    later pools start in milliseconds.  Workers import the main script again; when it calls
+    this at its top level, outside ``if __name__ == "__main__":``, detection runs in threads
+    of this process instead, with a warning (:func:`main_reimport_problem`).
     """
     paths = [str(p) for p in paths]
     if processes is not None and (isinstance(processes, bool) or int(processes) < 1):
@@ -223,6 +335,15 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics,
                 if bar is not None:
                     bar.update(1)
             return results
+        if _threads_instead(n_workers):
+            with ThreadPoolExecutor(n_workers) as pool:
+                results = []
+                for r in pool.map(lambda p: process_image(p, target, intrinsics,
+                                                          max_rms_px=max_rms_px), paths):
+                    results.append(r)
+                    if bar is not None:
+                        bar.update(1)
+                return results
         chunksize = max(1, math.ceil(len(paths) / (n_workers * _CHUNKS_PER_WORKER)))
         with ProcessPoolExecutor(n_workers, mp_context=_mp_context(), initializer=_init_worker,
                                  initargs=(target, intrinsics, max_rms_px)) as pool:
@@ -277,6 +398,16 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
                 if bar is not None:
                     bar.update(1)
             return results
+        if _threads_instead(n_workers):
+            with ThreadPoolExecutor(n_workers) as pool:
+                while True:
+                    chunk = [item for _, item in zip(range(batch), it)]
+                    if not chunk:
+                        return results
+                    results.extend(pool.map(lambda item: process_array(
+                        item[1], item[0], target, intrinsics, max_rms_px=max_rms_px), chunk))
+                    if bar is not None:
+                        bar.update(len(chunk))
         with ProcessPoolExecutor(n_workers, mp_context=_mp_context(), initializer=_init_worker,
                                  initargs=(target, intrinsics, max_rms_px)) as pool:
             while True:
