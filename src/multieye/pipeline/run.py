@@ -428,13 +428,17 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
         ``reference`` (camera whose frame is ``ref``; default the first of ``rig.yaml``),
         ``refine``, ``robust``, ``time_offset``, ``max_time_offset``.
     processes : int, optional
-        Worker processes for detection; default one per core.
+        Worker processes for detection; default one per core.  Threads of this process
+        instead, with a warning, when the calling script runs this at its top level, outside
+        ``if __name__ == "__main__":`` (:func:`multieye.imaging.batch.main_reimport_problem`).
     progress : bool
         Show a progress bar (only sensible on a terminal).
 
     Returns
     -------
     CalibrationRun
+        The final result as ``run.X``, ``run.Y``, ``run.T_ref_cam``, ``run.covariance``; the
+        closed form as ``run.closed_form``; seconds per stage as ``run.timings``.
     """
     start = time.perf_counter()
     path = Path(dataset)
