@@ -3,6 +3,7 @@ Kalibr camchain round trips."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import cv2
@@ -274,3 +275,79 @@ def test_camchain_writer_rejects_what_kalibr_cannot_hold(tmp_path):
     with pytest.raises(InputError, match="Kalibr radtan holds k1 k2 p1 p2 only"):
         write_camchain(tmp_path / "c.yaml", [CamchainEntry("a", rational, np.eye(4))])
     assert not (tmp_path / "c.yaml").exists()
+
+
+OPENCV_TEXT = """%YAML:1.0
+---
+image_width: 640
+image_height: 480
+camera_matrix: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0]
+"""
+
+
+@pytest.mark.parametrize("old, new, expected", [
+    ("image_width: 640", "image_width: -640", "image_width must be a positive integer, got -640"),
+    ("image_width: 640", "image_width: 640.5", "image_width must be a positive integer, got 640.5"),
+    ("image_width: 640", "image_width: wide", "image_width must be a positive integer, got wide"),
+    ("image_height: 480", "image_height: 1e30", "image_height must be a positive integer"),
+    ("image_width: 640", "image_width: 1000000", "image width must be a positive integer of "
+                                                 "at most 100000 pixels"),
+    ("data: [500.0", "data: [.Nan", "camera matrix must be finite"),
+    ("data: [500.0", "data: [-500.0", "focal lengths must be positive"),
+    ("data: [500.0", "data: [1e300", "focal lengths must be positive and at most 1e+06 px"),
+    ("0.0, 0.0, 1.0]", "0.0, 0.0, 2.0]", "camera matrix must be [[fx, s, cx], [0, fy, cy], "
+                                         "[0, 0, 1]]"),
+    ("rows: 3", "rows: 300000000", "camera_matrix: OpenCV cannot read this matrix"),
+    ("data: [500.0", "data: [.nan, 500.0", "camera_matrix: OpenCV cannot read this matrix"),
+    ("camera_matrix: !!opencv-matrix", "camera_matrix: !!opencv-matrix\n   rows: [1\n",
+     "OpenCV cannot parse this FileStorage file"),
+])
+def test_opencv_values_are_range_checked(tmp_path, old, new, expected):
+    path = tmp_path / "cam.yaml"
+    assert old in OPENCV_TEXT
+    path.write_text(OPENCV_TEXT.replace(old, new, 1))
+    with pytest.raises(DatasetError) as info:
+        read_intrinsics(path)
+    assert expected in str(info.value) and str(info.value).startswith(str(path))
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
+     "image_width: -640\n", "info.yaml:2: image_width: expected a positive integer, got -640"),
+    ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, .inf]}\n",
+     "camera matrix must be finite"),
+    ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500]}\n",
+     "info.yaml:1: camera_matrix: expected 9 numbers, got 5"),
+    ("cam0: {camera_model: pinhole, intrinsics: [500, 500, 320, 240], distortion_model: none,"
+     " resolution: [-640, 480]}\n", "info.yaml:1: cam0.resolution: resolution [width, height] "
+                                    "must be positive integers, got [-640.0, 480.0]"),
+    ("cam0: {camera_model: pinhole, intrinsics: [500, 500, 320, 240], distortion_model: none,"
+     " resolution: [.nan, 480]}\n", "cam0.resolution: resolution [width, height] must be 2 "
+                                    "finite numbers"),
+    ("cam0: {camera_model: pinhole, intrinsics: [500, .nan, 320, 240], distortion_model: none}\n",
+     "cam0.intrinsics: intrinsics [fu, fv, pu, pv] must be 4 finite numbers"),
+])
+def test_yaml_intrinsics_are_range_checked(tmp_path, text, expected):
+    path = tmp_path / "info.yaml"
+    path.write_text(text)
+    with pytest.raises(DatasetError) as info:
+        read_intrinsics(path)
+    assert expected in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("kw, expected", [
+    ({"width": 0, "height": 480}, "image width must be a positive integer"),
+    ({"width": 640, "height": 480.0}, "image height must be a positive integer"),
+    ({"width": True, "height": 480}, "image width must be a positive integer"),
+    ({"K": np.full((3, 3), np.nan)}, "camera matrix must be finite"),
+    ({"K": np.eye(4)}, "camera matrix must be a 3x3 array, got shape (4, 4)"),
+])
+def test_intrinsics_object_checks(kw, expected):
+    args = {"K": K, **kw}
+    with pytest.raises(InputError, match=re.escape(expected)):
+        Intrinsics(**args)

@@ -69,4 +69,5 @@ class DatasetError(CalibrationError):
         elif line is not None:
             where = f"line {line}: "
         cam = f"camera {camera}: " if camera is not None else ""
-        super().__init__(f"{where}{cam}{message}")
+        # One line whatever a file put into the message (a key or a name with a line break).
+        super().__init__(" ".join(f"{where}{cam}{message}".splitlines()))

@@ -12,6 +12,7 @@ from typing import Literal
 import numpy as np
 
 from multieye.core.errors import InputError
+from multieye.core.limits import MAX_FOCAL_PX, MAX_IMAGE_SIDE_PX
 
 __all__ = ["Intrinsics", "PINHOLE_DISTORTION_SIZES"]
 
@@ -44,10 +45,28 @@ class Intrinsics:
     def __post_init__(self):
         K = np.asarray(self.K, dtype=np.float64)
         dist = np.asarray(self.dist, dtype=np.float64).reshape(-1)
-        if K.shape != (3, 3) or not np.all(np.isfinite(K)):
-            raise InputError(f"camera matrix must be a finite 3x3 array, got shape {K.shape}")
-        if K[0, 0] <= 0 or K[1, 1] <= 0:
-            raise InputError(f"focal lengths must be positive, got fx={K[0, 0]}, fy={K[1, 1]}")
+        if K.shape != (3, 3):
+            raise InputError(f"camera matrix must be a 3x3 array, got shape {K.shape}")
+        if not np.all(np.isfinite(K)):
+            raise InputError("camera matrix must be finite, got NaN or inf entries")
+        if not (0 < K[0, 0] <= MAX_FOCAL_PX and 0 < K[1, 1] <= MAX_FOCAL_PX):
+            raise InputError(f"focal lengths must be positive and at most {MAX_FOCAL_PX:g} px, "
+                             f"got fx={K[0, 0]:g}, fy={K[1, 1]:g}")
+        if np.abs(K[:2, 1:]).max() > MAX_FOCAL_PX:
+            raise InputError(f"principal point and skew must be within {MAX_FOCAL_PX:g} px, got "
+                             f"cx={K[0, 2]:g}, cy={K[1, 2]:g}, skew={K[0, 1]:g}")
+        if K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
+            raise InputError(f"camera matrix must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]], got "
+                             f"rows 2 and 3 {K[1].tolist()}, {K[2].tolist()}")
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if v is None:
+                continue
+            if (isinstance(v, bool) or not isinstance(v, (int, np.integer))
+                    or not 0 < v <= MAX_IMAGE_SIDE_PX):
+                raise InputError(f"image {name} must be a positive integer of at most "
+                                 f"{MAX_IMAGE_SIDE_PX} pixels, got {v!r}")
+            object.__setattr__(self, name, int(v))
         if self.model == "pinhole":
             if dist.size not in PINHOLE_DISTORTION_SIZES:
                 raise InputError("pinhole distortion must have 0, 4, 5, 8, 12 or 14 coefficients, "

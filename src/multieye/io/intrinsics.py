@@ -26,6 +26,7 @@ adding ``distortion_model: fisheye`` for fisheye cameras so that the file reads 
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -36,7 +37,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.io.atomic import write_text_atomic
 from multieye.io.kalibr import camchain_entries, intrinsics_from_kalibr, is_camchain
 from multieye.io.textfile import read_text
-from multieye.io.yamlfile import YamlDocument, parse_yaml, yaml_list
+from multieye.io.yamlfile import MAX_YAML_BYTES, YamlDocument, parse_yaml, yaml_list
 
 __all__ = [
     "DISTORTION_MODELS",
@@ -73,7 +74,8 @@ def _build(K, dist, model, width, height, path, line=None) -> Intrinsics:
     try:
         K = np.asarray(K, dtype=np.float64).reshape(3, 3)
     except (TypeError, ValueError):
-        raise DatasetError(f"camera matrix must have 9 numbers, got {K!r}", path=path,
+        count = len(K) if isinstance(K, (list, tuple, np.ndarray)) else 1
+        raise DatasetError(f"camera matrix must have 9 numbers, got {count}", path=path,
                            line=line) from None
     try:
         return Intrinsics(K, np.asarray(dist, dtype=np.float64).reshape(-1), model,
@@ -86,40 +88,106 @@ def _build(K, dist, model, width, height, path, line=None) -> Intrinsics:
 # --------------------------------------------------------------------------- OpenCV
 
 
+#: Deepest nesting of ``[``/``{`` (YAML) or elements (XML) handed to OpenCV's FileStorage
+#: parser, which recurses without a limit (and crashes the process on tens of thousands).
+_MAX_OPENCV_NESTING = 32
+_XML_TAG = re.compile(r"<(/?)([A-Za-z_][^\s/>]*)[^>]*?(/?)>")
+_CV_WHERE = re.compile(r"\((\d+)\): (.*?)'?\s*$")
+
+
+def _nesting(text: str) -> int:
+    """Largest nesting of flow collections (YAML) or elements (XML) in ``text``; counted on
+    the raw text (brackets inside strings too), which only errs on the safe side."""
+    depth = deepest = 0
+    if text.lstrip().startswith("<"):
+        for close, _, empty in _XML_TAG.findall(text):
+            depth = max(depth - 1, 0) if close else depth + (not empty)
+            deepest = max(deepest, depth)
+        return deepest
+    for ch in text:
+        if ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth = max(depth - 1, 0)
+    return deepest
+
+
+def _cv_message(exc: BaseException) -> tuple[str, int | None]:
+    """What OpenCV says is wrong, and the line it names, from a cv2.error (or the SystemError
+    its bindings wrap one in)."""
+    import cv2
+
+    cause = exc if isinstance(exc, cv2.error) else (exc.__cause__ or exc.__context__ or exc)
+    lines = str(cause).strip().splitlines()
+    text = lines[-1].strip() if lines else type(exc).__name__
+    m = _CV_WHERE.search(text)
+    if m:
+        return m.group(2).strip(), int(m.group(1))
+    return text.split("error: ", 1)[-1], None
+
+
 def read_opencv_intrinsics(path: str | os.PathLike) -> Intrinsics:
     """Read OpenCV FileStorage YAML or XML (``camera_matrix``/``K``, ``distortion_*``/``D``).
 
     Raises
     ------
     DatasetError
-        The file is missing, OpenCV cannot parse it, or a required key is missing (the message
-        lists the keys present).
+        The file is missing, larger than :data:`~multieye.io.yamlfile.MAX_YAML_BYTES`, nested
+        deeper than OpenCV's parser survives, OpenCV cannot parse it, a required key is
+        missing (the message lists the keys present), or a value has the wrong type.
     """
     import cv2
 
     p = Path(path)
-    read_text(p, what="intrinsics file")  # missing / unreadable -> DatasetError
+    text = read_text(p, what="intrinsics file", max_bytes=MAX_YAML_BYTES)
+    if _nesting(text) > _MAX_OPENCV_NESTING:
+        raise DatasetError(f"FileStorage refused: nested deeper than {_MAX_OPENCV_NESTING} "
+                           "levels", path=p)
     try:
         fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
         opened = fs.isOpened()
     except (cv2.error, SystemError) as exc:
-        raise DatasetError(f"OpenCV cannot parse this FileStorage file: "
-                           f"{str(exc).strip().splitlines()[-1]}", path=p) from None
+        message, line = _cv_message(exc)
+        raise DatasetError(f"OpenCV cannot parse this FileStorage file: {message}", path=p,
+                           line=line) from None
     if not opened:
         raise DatasetError("OpenCV cannot open this FileStorage file", path=p)
     try:
-        keys = list(fs.root().keys())
+        root = fs.root()
+        if not root.isMap():
+            raise DatasetError("expected a FileStorage map with camera_matrix (or K)", path=p)
+        keys = list(root.keys())
 
         def node(*names):
             return next((fs.getNode(n) for n in names if not fs.getNode(n).empty()), None)
 
         def numbers(n):
             if n.isSeq():
-                return np.array([n.at(i).real() for i in range(n.size())])
-            mat = n.mat()
+                items = [n.at(i) for i in range(n.size())]
+                if not all(i.isReal() or i.isInt() for i in items):
+                    raise DatasetError(f"{n.name()} must be a matrix or a list of numbers",
+                                       path=p)
+                return np.array([i.real() for i in items])
+            try:
+                mat = n.mat() if n.isMap() else None
+            except cv2.error as exc:
+                raise DatasetError(f"{n.name()}: OpenCV cannot read this matrix "
+                                   f"({_cv_message(exc)[0]}); rows x cols must match data",
+                                   path=p) from None
             if mat is None:
                 raise DatasetError(f"{n.name()} must be a matrix or a list of numbers", path=p)
             return np.asarray(mat, dtype=np.float64).reshape(-1)
+
+        def size(n):
+            if n is None:
+                return None
+            if not n.isInt() or n.real() <= 0:
+                shown = (n.string() if n.isString() else int(n.real()) if n.isInt()
+                         else n.real() if n.isReal() else "not a number")
+                raise DatasetError(f"{n.name()} must be a positive integer, got {shown}",
+                                   path=p)
+            return int(n.real())
 
         k_node = node("camera_matrix", "K")
         if k_node is None:
@@ -128,10 +196,15 @@ def read_opencv_intrinsics(path: str | os.PathLike) -> Intrinsics:
         d_node = node("distortion_coefficients", "D")
         dist = numbers(d_node) if d_node is not None else np.zeros(0)
         m_node = node("distortion_model", "model")
+        if m_node is not None and not m_node.isString():
+            raise DatasetError(f"{m_node.name()} must be a name such as plumb_bob", path=p)
         model = _model(m_node.string() if m_node is not None else None, p)
-        size = [int(n.real()) if n is not None else None
-                for n in (node("image_width"), node("image_height"))]
-        return _build(numbers(k_node), dist, model, *size, p)
+        width, height = size(node("image_width")), size(node("image_height"))
+        return _build(numbers(k_node), dist, model, width, height, p)
+    except (cv2.error, SystemError) as exc:
+        message, line = _cv_message(exc)
+        raise DatasetError(f"OpenCV cannot read this FileStorage file: {message}", path=p,
+                           line=line) from None
     finally:
         fs.release()
 
@@ -211,7 +284,7 @@ def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) ->
 
 
 def _load(path) -> tuple[str, YamlDocument | None]:
-    text = read_text(path, what="intrinsics file")
+    text = read_text(path, what="intrinsics file", max_bytes=MAX_YAML_BYTES)
     head = text.lstrip()[:32]
     if head.startswith(("%YAML", "<?xml", "<opencv_storage")):
         return "opencv", None

@@ -37,7 +37,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.atomic import write_text_atomic
 from multieye.io.trajectory import RIGID_TOLERANCE
-from multieye.io.yamlfile import YamlDocument, load_yaml, yaml_list
+from multieye.io.yamlfile import YamlDocument, load_yaml, shown, yaml_list
 
 __all__ = [
     "CamchainEntry",
@@ -91,9 +91,9 @@ def _numbers(value, n: int | None, what: str, doc: YamlDocument, *keys) -> np.nd
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise doc.error(f"{what} must be numbers, got {value!r}", *keys) from None
+        raise doc.error(f"{what} must be numbers, got {shown(value)}", *keys) from None
     if (n is not None and arr.size != n) or not np.all(np.isfinite(arr)):
-        raise doc.error(f"{what} must be {n} finite numbers, got {value!r}", *keys)
+        raise doc.error(f"{what} must be {n} finite numbers, got {shown(value)}", *keys)
     return arr
 
 
@@ -119,6 +119,9 @@ def intrinsics_from_kalibr(entry: Mapping, doc: YamlDocument, *keys) -> Intrinsi
     if "resolution" in entry:
         res = _numbers(entry["resolution"], 2, "resolution [width, height]", doc, *keys,
                        "resolution")
+        if not all(v > 0 and v == int(v) for v in res):
+            raise doc.error(f"resolution [width, height] must be positive integers, got "
+                            f"{res.tolist()}", *keys, "resolution")
         width, height = int(res[0]), int(res[1])
     K = np.array([[fu, 0.0, pu], [0.0, fv, pv], [0.0, 0.0, 1.0]])
     try:

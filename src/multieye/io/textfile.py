@@ -33,7 +33,8 @@ LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 _FIELD_SEP = re.compile(r"[,\s]+")
 
 
-def read_text(path: str | os.PathLike, *, what: str = "file") -> str:
+def read_text(path: str | os.PathLike, *, what: str = "file",
+              max_bytes: int | None = None) -> str:
     """Whole content of a UTF-8 text file (a BOM is dropped).
 
     Parameters
@@ -41,12 +42,14 @@ def read_text(path: str | os.PathLike, *, what: str = "file") -> str:
     path : path-like
     what : str
         How the message names the file when it is missing (``"trajectory file"``).
+    max_bytes : int, optional
+        Refuse a larger file before reading it (small formats such as YAML).
 
     Raises
     ------
     DatasetError
-        Missing file, a folder, unreadable, or not UTF-8 (with the 1-based line of the first
-        bad byte).
+        Missing file, a folder, unreadable, larger than ``max_bytes``, or not UTF-8 (with the
+        1-based line of the first bad byte).
     """
     p = Path(path)
     if not p.exists():
@@ -54,6 +57,9 @@ def read_text(path: str | os.PathLike, *, what: str = "file") -> str:
     if p.is_dir():
         raise DatasetError(f"expected a {what}, found a folder", path=p)
     try:
+        if max_bytes is not None and p.stat().st_size > max_bytes:
+            raise DatasetError(f"{what} is {p.stat().st_size} bytes, more than the {max_bytes} "
+                               "accepted for it", path=p)
         data = p.read_bytes()
     except OSError as exc:
         raise DatasetError(f"cannot read {what}: {exc.strerror}", path=p) from exc

@@ -1,0 +1,45 @@
+"""Bounds on the numbers multieye accepts where they enter: rig.yaml, intrinsics files,
+motion-capture and pose rows (docs/rig-yaml.md, section 1).
+
+Each bound is far beyond any real rig, board, camera or recording, and close enough that a
+value past it is a mistake (a unit read wrong, a corrupted cell, a test value) rather than a
+measurement: such values are refused where they enter, with the file, the line and the bound,
+instead of overflowing or degenerating somewhere downstream.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "MAX_SPACING_M",
+    "MAX_GRID_SIDE",
+    "MAX_IMAGE_SIDE_PX",
+    "MAX_FOCAL_PX",
+    "MAX_POSITION_M",
+    "MAX_STAMP_S",
+    "MAX_TIME_OFFSET_S",
+    "MAX_TIME_TOLERANCE_S",
+    "MAX_ROTATION_NOISE_DEG",
+    "MAX_TRANSLATION_NOISE_M",
+]
+
+#: Largest target ``spacing`` (and ``marker_size``), metres.
+MAX_SPACING_M = 10.0
+#: Largest target ``rows`` and ``cols``.
+MAX_GRID_SIDE = 200
+#: Largest image width or height in intrinsics, pixels.
+MAX_IMAGE_SIDE_PX = 100_000
+#: Largest focal length and principal point coordinate in intrinsics, pixels.
+MAX_FOCAL_PX = 1e6
+#: Largest translation coordinate of a motion-capture or precomputed pose row, metres (after
+#: the unit conversion): a row beyond it is left out, with its line, as absurd.
+MAX_POSITION_M = 1e4
+#: Largest time stamp of a motion-capture or pose row, seconds (about the year 2286: image
+#: names have at most 10 digits of whole seconds); a row beyond it is left out as absurd.
+MAX_STAMP_S = 1e10
+#: Largest clock offset (``time_offset``), seconds: the distance between any two stamps.
+MAX_TIME_OFFSET_S = 1e10
+#: Largest ``time_tolerance``, seconds.
+MAX_TIME_TOLERANCE_S = 10.0
+#: Largest stated motion-capture noise: ``rotation_noise_deg`` and ``translation_noise_m``.
+MAX_ROTATION_NOISE_DEG = 30.0
+MAX_TRANSLATION_NOISE_M = 1.0
