@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core.errors import DatasetError, InputError
+from multieye.core.limits import MAX_GRID_SIDE, MAX_SPACING_M
 
 __all__ = [
     "Target",
@@ -95,6 +96,8 @@ class Target:
                 raise InputError(f"{self.kind} {name} must be an integer, got {value!r}")
             if value < self.min_size:
                 raise InputError(f"{self.kind} {name} must be at least {self.min_size}, got {value}")
+            if value > MAX_GRID_SIDE:
+                raise InputError(f"{self.kind} {name} must be at most {MAX_GRID_SIDE}, got {value}")
             object.__setattr__(self, name, int(value))
         object.__setattr__(self, "spacing", _positive(self.spacing, f"{self.kind} spacing"))
 
@@ -116,12 +119,14 @@ class Target:
         return (self.rows, self.cols)
 
 
-def _positive(value: Any, name: str) -> float:
+def _positive(value: Any, name: str, maximum: float | None = MAX_SPACING_M) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise InputError(f"{name} must be a number (metres), got {value!r}")
     value = float(value)
     if not np.isfinite(value) or value <= 0:
         raise InputError(f"{name} must be a positive finite number (metres), got {value}")
+    if maximum is not None and value > maximum:
+        raise InputError(f"{name} must be at most {maximum:g} metres, got {value:g}")
     return value
 
 
@@ -311,7 +316,7 @@ class AprilGrid(Target):
 
     def __post_init__(self):
         super().__post_init__()
-        s = _positive(self.tag_spacing, "aprilgrid tag_spacing")
+        s = _positive(self.tag_spacing, "aprilgrid tag_spacing", maximum=None)
         if s > 1.0:
             raise InputError(f"aprilgrid tag_spacing is the gap as a fraction of the tag size "
                              f"(Kalibr tagSpacing, 0 < x <= 1), got {s}")

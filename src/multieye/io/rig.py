@@ -12,20 +12,22 @@ constants hold them, docs/rig-yaml.md documents each)::
     setup: eye-to-base | eye-on-hand                         # required
     target:                                                  # required when a camera has images
       type: chessboard | circles | asymmetric-circles | charuco | aprilgrid
-      rows: int > 0
-      cols: int > 0
-      spacing: number > 0                                    # metres
+      rows: int > 0                                          # at most 200
+      cols: int > 0                                          # at most 200
+      spacing: number > 0                                    # metres, at most 10
       marker_size: number > 0                                # charuco only (required)
       dictionary: DICT_...                                   # charuco only (required)
-      tag_spacing: number > 0                                # aprilgrid only (required)
+      tag_spacing: 0 < number <= 1                           # aprilgrid only (required)
     mocap:                                                   # optional if every camera has one
       file: path                                             # required
       pose: T_world_marker                                   # default: T_world_marker
                                                              #   (T_world_body for eye-on-hand);
                                                              #   the inverse name is allowed
-      time_tolerance: 0.03                                   # seconds > 0, default 0.03
-      rotation_noise_deg: 0.03                               # degrees > 0; default: estimated
-      translation_noise_m: 0.0001                            # metres > 0; default: estimated
+      time_tolerance: 0.03                                   # 0 < seconds <= 10, default 0.03
+      rotation_noise_deg: 0.03                               # 0 < degrees <= 30; default:
+                                                             #   estimated
+      translation_noise_m: 0.0001                            # 0 < metres <= 1; default:
+                                                             #   estimated
       format: tum | csv | optitrack | vicon | rosbag         # default: from the file
       topic: /vicon/rig/pose                                 # rosbag only (required)
       unit: m | cm | mm                                      # tum, csv, rosbag only
@@ -45,7 +47,8 @@ constants hold them, docs/rig-yaml.md documents each)::
                                        #   keys; pose, time_tolerance and the noise keys are
                                        #   inherited, the format's keys only if the
                                        #   format is the same
-        time_offset: 0.0               # seconds, motion-capture clock minus camera clock
+        time_offset: 0.0               # seconds, motion-capture clock minus camera clock,
+                                       #   |x| <= 1e10
 
 :func:`read_camera_intrinsics` reads a camera's intrinsics; a Kalibr camchain with several
 cameras and no ``camera`` key selects the entry named like the rig's camera.
@@ -55,6 +58,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -62,11 +66,19 @@ from types import MappingProxyType
 
 from multieye.core.errors import DatasetError
 from multieye.core.intrinsics import Intrinsics
+from multieye.core.limits import (
+    MAX_GRID_SIDE,
+    MAX_ROTATION_NOISE_DEG,
+    MAX_SPACING_M,
+    MAX_TIME_OFFSET_S,
+    MAX_TIME_TOLERANCE_S,
+    MAX_TRANSLATION_NOISE_M,
+)
 from multieye.io.intrinsics import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, pose_frames, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.textfile import LENGTH_UNITS
-from multieye.io.yamlfile import YamlDocument, load_yaml
+from multieye.io.yamlfile import YamlDocument, load_yaml, shown
 
 __all__ = ["SETUPS", "TARGET_TYPES", "TOP_LEVEL_KEYS", "TARGET_KEYS", "MOCAP_KEYS",
            "MOCAP_COLUMN_KEYS", "CAMERA_KEYS", "CAMERA_INTRINSICS_KEYS", "TargetSpec",
@@ -80,6 +92,7 @@ _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv")}
 _SOURCES = ("images", "poses", "rosbag")
+_FLOAT_TEXT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
@@ -221,21 +234,35 @@ class _Checker:
 
     def string(self, value, keys):
         if not isinstance(value, str) or not value.strip():
-            raise self.error(f"expected a non-empty string, got {value!r}", keys)
+            raise self.error(f"expected a non-empty string, got {shown(value)}", keys)
         return value.strip()
 
     def choice(self, value, keys, options):
-        if value not in options:
-            raise self.error(f"expected one of {', '.join(options)}, got {value!r}", keys)
+        if isinstance(value, (list, dict)) or value not in options:
+            raise self.error(f"expected one of {', '.join(options)}, got {shown(value)}", keys)
         return value
 
-    def number(self, value, keys, *, positive=False, integer=False):
+    def number(self, value, keys, *, positive=False, integer=False, maximum=None, unit=""):
+        """A finite number (``integer``: an int), > 0 if ``positive``, and at most ``maximum``
+        (in magnitude when it may be negative); ``unit`` names it in the message."""
         ok = isinstance(value, int) if integer else isinstance(value, (int, float))
-        ok = ok and math.isfinite(value)
-        if isinstance(value, bool) or not ok or (positive and not value > 0):
+        ok = ok and not isinstance(value, bool) and math.isfinite(value)
+        ok = ok and (not positive or value > 0)
+        ok = ok and (maximum is None or (value if positive else abs(value)) <= maximum)
+        if not ok:
             kind = "integer" if integer else "number"
-            raise self.error(f"expected a {'positive ' if positive else ''}{kind}, got "
-                             f"{value!r}", keys)
+            unit = f" {unit}" if unit else ""
+            if maximum is None:
+                what = f"a {'positive ' if positive else ''}{kind}{unit}"
+            elif positive:
+                what = f"a positive {kind} of at most {maximum:g}{unit}"
+            else:
+                what = f"a {kind} between {-maximum:g} and {maximum:g}{unit}"
+            hint = ""
+            if isinstance(value, str) and _FLOAT_TEXT.match(value.strip()):
+                hint = (" (YAML 1.1 reads an exponent without a dot and a sign as text: write "
+                        "1.0e-3, not 1e-3)")
+            raise self.error(f"expected {what}, got {shown(value)}{hint}", keys)
         return value if integer else float(value)
 
     def path(self, value, keys, kind):
@@ -260,21 +287,26 @@ def _target(c: _Checker, raw) -> TargetSpec:
         if key not in raw and owner == kind:
             raise c.error(f"missing key {key!r} (required for {kind} targets)", keys)
     extra = {}
-    for key in ("marker_size", "tag_spacing"):
-        if key in raw:
-            extra[key] = c.number(raw[key], keys + (key,), positive=True)
+    if "marker_size" in raw:
+        extra["marker_size"] = c.number(raw["marker_size"], keys + ("marker_size",),
+                                        positive=True, maximum=MAX_SPACING_M, unit="metres")
+    if "tag_spacing" in raw:
+        extra["tag_spacing"] = c.number(raw["tag_spacing"], keys + ("tag_spacing",),
+                                        positive=True, maximum=1.0,
+                                        unit="(a fraction of the tag size)")
     if "dictionary" in raw:
         name = c.string(raw["dictionary"], keys + ("dictionary",))
         if not name.startswith("DICT_"):
             raise c.error(f"expected an OpenCV dictionary name such as DICT_5X5_100, got "
                           f"{name!r}", keys + ("dictionary",))
         extra["dictionary"] = name
-    spacing = c.number(raw["spacing"], keys + ("spacing",), positive=True)
+    spacing = c.number(raw["spacing"], keys + ("spacing",), positive=True,
+                       maximum=MAX_SPACING_M, unit="metres")
     if kind == "charuco" and extra["marker_size"] >= spacing:
         raise c.error(f"must be smaller than spacing ({spacing})", keys + ("marker_size",))
-    return TargetSpec(kind, c.number(raw["rows"], keys + ("rows",), positive=True, integer=True),
-                      c.number(raw["cols"], keys + ("cols",), positive=True, integer=True),
-                      spacing, **extra)
+    rows, cols = (c.number(raw[k], keys + (k,), positive=True, integer=True,
+                           maximum=MAX_GRID_SIDE) for k in ("rows", "cols"))
+    return TargetSpec(kind, rows, cols, spacing, **extra)
 
 
 def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
@@ -324,13 +356,16 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
                                           for k, v in cols.items()})
     tol = 0.03
     if "time_tolerance" in raw:
-        tol = c.number(raw["time_tolerance"], at("time_tolerance"), positive=True)
+        tol = c.number(raw["time_tolerance"], at("time_tolerance"), positive=True,
+                       maximum=MAX_TIME_TOLERANCE_S, unit="seconds")
     if "rotation_noise_deg" in raw:
-        kw["rot_sigma_rad"] = math.radians(c.number(raw["rotation_noise_deg"],
-                                                    at("rotation_noise_deg"), positive=True))
+        kw["rot_sigma_rad"] = math.radians(c.number(
+            raw["rotation_noise_deg"], at("rotation_noise_deg"), positive=True,
+            maximum=MAX_ROTATION_NOISE_DEG, unit="degrees"))
     if "translation_noise_m" in raw:
         kw["trans_sigma_m"] = c.number(raw["translation_noise_m"], at("translation_noise_m"),
-                                       positive=True)
+                                       positive=True, maximum=MAX_TRANSLATION_NOISE_M,
+                                       unit="metres")
     return MocapSpec(file, pose, tol, fmt, **kw)
 
 
@@ -388,7 +423,8 @@ def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
     if "topic" in raw:
         kw["topic"] = c.string(raw["topic"], keys + ("topic",))
     if "time_offset" in raw:
-        kw["time_offset"] = c.number(raw["time_offset"], keys + ("time_offset",))
+        kw["time_offset"] = c.number(raw["time_offset"], keys + ("time_offset",),
+                                     maximum=MAX_TIME_OFFSET_S, unit="seconds")
     if "mocap" in raw:
         kw["mocap"] = _camera_mocap(c, raw["mocap"], keys + ("mocap",), top_mocap, setup)
     return CameraSpec(str(name), intr_path, **kw)
@@ -422,6 +458,9 @@ def load_rig(path: str | os.PathLike) -> Rig:
     top = (dict(raw["mocap"]) if mocap is not None else {}, mocap)
     cameras = {}
     for name, cam_raw in cams_raw.items():
+        if not name.strip() or not name.isprintable():
+            raise c.error(f"camera names must be printable text, got {name!r}",
+                          ("cameras", name))
         cam = _camera(c, name, cam_raw, top, setup)
         if cam.mocap is None and mocap is None:
             raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
