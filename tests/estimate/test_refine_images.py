@@ -50,6 +50,10 @@ def test_jacobians_match_central_differences(setup, model, rng):
         for a, n in zip(analytic, numeric):
             assert a.shape == n.shape
             assert np.abs(a - n).max() <= 1e-6 * np.abs(n).max()
+        # what the engine consumes: the same Jacobian laid out image by image
+        r, blocks, padded = group.linearize(values)
+        np.testing.assert_array_equal(blocks, group.pad(np.concatenate(analytic, axis=2)))
+        np.testing.assert_array_equal(padded, group.pad(r))
 
 
 def test_projection_jacobian_is_the_derivative(rng):

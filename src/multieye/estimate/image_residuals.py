@@ -172,8 +172,21 @@ class ImageData:
         return f"camera {self.names[j]}, image {image - int(np.sum(self.counts[:j]))}"
 
 
+def _cross(a: F64, v: F64) -> F64:
+    """Row-wise ``a x v`` for a (..., k, 3) against v (..., 3): ``a^T [v]_x`` per row."""
+    v = v[..., None, :]
+    return np.stack([a[..., 1] * v[..., 2] - a[..., 2] * v[..., 1],
+                     a[..., 2] * v[..., 0] - a[..., 0] * v[..., 2],
+                     a[..., 0] * v[..., 1] - a[..., 1] * v[..., 0]], axis=-1)
+
+
 class PixelResiduals(ResidualGroup):
-    """Target-point pixel residuals over ``sigma_px`` (module docstring), slots X, Y, M."""
+    """Target-point pixel residuals over ``sigma_px`` (module docstring), slots X, Y, M.
+
+    The chain is evaluated image by image on zero-padded ``(N, n_max, 3)`` point arrays, so
+    every rotation is one batched 3x3 product per image rather than per point, and
+    :meth:`linearize` hands the engine the per-image Jacobian blocks directly.
+    """
 
     def __init__(self, data: ImageData, sigma_px: float):
         index = np.column_stack([data.cam_of_image, np.zeros(data.n_images, int),
@@ -181,25 +194,25 @@ class PixelResiduals(ResidualGroup):
         super().__init__(("X", "Y", "M"), index, data.image, 2)
         self.data = data
         self.sigma = float(sigma_px)
+        self._obj = np.zeros((data.n_images, self.longest, 3))
+        self._obj[data.image, self.position] = data.object_points
 
-    def camera_points(self, X: F64, Y: F64, M: F64):
-        """Camera-frame points (P, 3) and the intermediate quantities of the Jacobian."""
-        dat = self.data
-        c, i = dat.camera, dat.image
+    def _chain(self, X: F64, Y: F64, M: F64):
+        """Per image (N, n_max, 3): ``R_Y p``, ``p_y``, ``q``, ``d`` and ``p_cam``."""
+        c = self.data.cam_of_image
+        RX, tX = X[c, :3, :3], X[c, :3, 3]
         RM, tM = M[:, :3, :3], M[:, :3, 3]
-        RXt = np.swapaxes(X[:, :3, :3], 1, 2)
-        ry = dat.object_points @ Y[:3, :3].T                # R_Y p (P, 3)
-        py = ry + Y[:3, 3]                                  # marker (world) frame
-        if dat.setup == "eye-to-base":
-            q = np.einsum("pij,pj->pi", RM[i], py) + tM[i]                 # world
+        ry = self._obj @ Y[:3, :3].T
+        py = ry + Y[:3, 3]
+        if self.data.setup == "eye-to-base":
+            q = py @ np.swapaxes(RM, 1, 2) + tM[:, None]                # R_M p_y + t_M
         else:
-            q = np.einsum("pji,pj->pi", RM[i], py - tM[i])                 # body
-        d = q - X[c, :3, 3]
-        pc = np.einsum("pij,pj->pi", RXt[c], d)
-        return pc, ry, py, q, d, RXt
+            q = (py - tM[:, None]) @ RM                                  # R_M^T (p_y - t_M)
+        d = q - tX[:, None]
+        return ry, py, q, d, d @ RX                                      # p_cam = R_X^T d
 
-    def pixels(self, pc: F64, with_jacobian: bool):
-        """Pixels (P, 2) of camera-frame points, camera by camera (and d uv / d pc)."""
+    def _project(self, pc: F64, with_jacobian: bool):
+        """Pixels (P, 2) of camera-frame points (P, 3), camera by camera (and d uv / d pc)."""
         dat = self.data
         uv = np.empty((dat.n_points, 2))
         J = np.empty((dat.n_points, 2, 3)) if with_jacobian else None
@@ -210,25 +223,43 @@ class PixelResiduals(ResidualGroup):
                 uv[s] = project_points(pc[s], dat.intrinsics[j])
         return uv, J
 
-    def evaluate(self, values: Mapping[str, F64], jacobians: bool):
+    def camera_points(self, X: F64, Y: F64, M: F64) -> F64:
+        """Every target point in its camera's frame, (P, 3), metres."""
+        return self._chain(X, Y, M)[4][self.data.image, self.position]
+
+    def _linear(self, values: Mapping[str, F64]):
         X, Y, M = values["X"], values["Y"][0], values["M"]
-        pc, ry, py, q, d, RXt = self.camera_points(X, Y, M)
-        uv, Jp = self.pixels(pc, jacobians)
-        r = (uv - self.data.image_points) / self.sigma
-        if not jacobians:
-            return r, None
         dat = self.data
-        c, i = dat.camera, dat.image
-        RM = M[:, :3, :3][i]
-        JpR = (Jp / self.sigma) @ RXt[c]                                 # d r / d q
-        JpG = JpR @ (RM if dat.setup == "eye-to-base" else np.swapaxes(RM, 1, 2))
-        JX = np.concatenate([np.cross(JpR, d[:, None, :]), -JpR], axis=2)
-        JY = np.concatenate([-np.cross(JpG, ry[:, None, :]), JpG], axis=2)
+        ry, py, q, d, pc = self._chain(X, Y, M)
+        uv, Jp = self._project(pc[dat.image, self.position], True)
+        r = (uv - dat.image_points) / self.sigma
+        N, n = len(M), self.longest
+        Jp_pad = np.zeros((N, n, 2, 3))
+        Jp_pad[dat.image, self.position] = Jp / self.sigma
+        RX = X[dat.cam_of_image, :3, :3]
+        RM = M[:, :3, :3]
+        G = RX.swapaxes(1, 2) @ (RM if dat.setup == "eye-to-base" else RM.swapaxes(1, 2))
+        JpR = (Jp_pad.reshape(N, 2 * n, 3) @ RX.swapaxes(1, 2)).reshape(N, n, 2, 3)   # d r/d q
+        JpG = (Jp_pad.reshape(N, 2 * n, 3) @ G).reshape(N, n, 2, 3)                   # d r/d p_y
         if dat.setup == "eye-to-base":
-            JM = np.concatenate([-np.cross(JpG, py[:, None, :]), JpR], axis=2)
+            JM = [-_cross(JpG, py), JpR]
         else:
-            JM = np.concatenate([np.cross(JpR, q[:, None, :]), -JpG], axis=2)
-        return r, [JX, JY, JM]
+            JM = [_cross(JpR, q), -JpG]
+        blocks = np.concatenate([_cross(JpR, d), -JpR, -_cross(JpG, ry), JpG] + JM, axis=3)
+        return r, blocks                                                 # (N, n, 2, 18)
+
+    def linearize(self, values: Mapping[str, F64]):
+        r, blocks = self._linear(values)
+        N, n = blocks.shape[:2]
+        return r, blocks.reshape(N, 2 * n, 18), self.pad(r)
+
+    def evaluate(self, values: Mapping[str, F64], jacobians: bool):
+        if jacobians:
+            r, blocks = self._linear(values)
+            rows = blocks[self.data.image, self.position]                # (P, 2, 18)
+            return r, [rows[:, :, 0:6], rows[:, :, 6:12], rows[:, :, 12:18]]
+        pc = self.camera_points(values["X"], values["Y"][0], values["M"])
+        return (self._project(pc, False)[0] - self.data.image_points) / self.sigma, None
 
 
 class MocapPriors(ResidualGroup):

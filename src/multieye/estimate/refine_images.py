@@ -209,7 +209,7 @@ def _pixel_sigma_update(data: ImageData, fams, s_px: float, s_rot: float, s_t: f
     groups = data.groups(s_px, s_rot, s_t)
     ev = evaluate(fams, groups, jacobians=True)
     cov = covariance(fams, groups, local=True, evaluated=ev)
-    Jp = ev[1][1][0]                                                      # (N, 6, 6) priors
+    Jp = ev[1][1]                                                            # (N, 6, 6) priors
     h_prior = float(np.einsum("nki,nij,nkj->", Jp, cov.local, Jp))
     n_params = cov.layout.k + 6 * data.n_images
     redundancy = 2 * data.n_points - (n_params - h_prior)

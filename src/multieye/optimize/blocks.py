@@ -147,6 +147,31 @@ class ResidualGroup(ABC):
     def n_rows(self) -> int:
         return int(self.segment.size)
 
+    def pad(self, rows: F64) -> F64:
+        """Per-row array (n_rows, dim, ...) to zero-padded segment blocks (S, longest * dim, ...)."""
+        S, m = len(self.index), self.longest
+        out = np.zeros((S, m) + rows.shape[1:])
+        out[self.segment, self.position] = rows
+        return out.reshape((S, m * self.dim) + rows.shape[2:])
+
+    def linearize(self, values: Mapping[str, F64]) -> tuple[F64, F64, F64]:
+        """Residuals and their Jacobian laid out per segment, as the engine consumes them.
+
+        Returns
+        -------
+        residuals : ndarray, shape (n_rows, dim)
+        blocks : ndarray, shape (n_segments, longest * dim, c)
+            Each segment's rows stacked (zero rows where a segment is shorter), against the
+            concatenated parameters of its slots (c = sum of the slots' block sizes).
+        padded : ndarray, shape (n_segments, longest * dim)
+            The residuals in the same layout.
+
+        The default pads what :meth:`evaluate` returns; a group that can compute the padded
+        layout directly (all the points of an image at once) overrides it.
+        """
+        r, jac = self.evaluate(values, True)
+        return r, self.pad(np.concatenate(jac, axis=2)), self.pad(r)
+
     @abstractmethod
     def evaluate(self, values: Mapping[str, F64], jacobians: bool
                  ) -> tuple[F64, list[F64] | None]:

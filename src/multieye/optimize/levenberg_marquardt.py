@@ -132,14 +132,18 @@ class Covariance:
 
 
 def evaluate(families: Sequence[Blocks], groups: Sequence[ResidualGroup], jacobians: bool):
-    """Every group's residuals (and Jacobians) at the families' values."""
+    """Every group's residuals at the families' values: ``(residuals, None)`` per group, or
+    with ``jacobians`` its :meth:`~multieye.optimize.blocks.ResidualGroup.linearize`
+    ``(residuals, blocks, padded residuals)``."""
     values = {f.name: f.value for f in families}
-    return [grp.evaluate(values, jacobians) for grp in groups]
+    if jacobians:
+        return [grp.linearize(values) for grp in groups]
+    return [grp.evaluate(values, False) for grp in groups]
 
 
 def _cost(evaluated, opts: Options) -> float:
     total = 0.0
-    for r, _ in evaluated:
+    for r, *_ in evaluated:
         if not np.all(np.isfinite(r)):
             return np.inf
         total += float(rho((r / opts.f_scale) ** 2, opts.loss)[0].sum())
@@ -187,7 +191,7 @@ def minimize(families: Sequence[Blocks], groups: Sequence[ResidualGroup],
     lam = opts.initial_damping
     evaluations, iterations = 1, 0
     for iterations in range(1, opts.max_iter + 1):
-        weights = [rho((r / opts.f_scale) ** 2, opts.loss)[1] for r, _ in ev]
+        weights = [rho((e[0] / opts.f_scale) ** 2, opts.loss)[1] for e in ev]
         ne = assemble(layout, by_name, groups, ev, weights)
         while True:
             step = solve_step(ne, lam)
@@ -229,7 +233,7 @@ def covariance(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,
     local : bool
         Also the marginal covariance of each eliminated block.
     evaluated : list, optional
-        The groups' residuals and Jacobians at these values, if already at hand.
+        :func:`evaluate` with ``jacobians=True`` at these values, if already at hand.
     """
     families = tuple(families)
     layout = Layout.of(families)

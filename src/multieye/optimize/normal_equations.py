@@ -126,7 +126,7 @@ def _columns(layout: Layout, families: dict[str, Blocks], group: ResidualGroup):
 
 
 def assemble(layout: Layout, families: dict[str, Blocks], groups: Sequence[ResidualGroup],
-             evaluated: Sequence[tuple[F64, list[F64]]], weights: Sequence[F64] | None = None
+             linearized: Sequence[tuple[F64, F64, F64]], weights: Sequence[F64] | None = None
              ) -> NormalEquations:
     """Normal equations of the (weighted) residuals.
 
@@ -135,8 +135,8 @@ def assemble(layout: Layout, families: dict[str, Blocks], groups: Sequence[Resid
     layout : Layout
     families : dict of str to Blocks
     groups : sequence of ResidualGroup
-    evaluated : sequence of (residuals (n, dim), jacobians)
-        What each group's :meth:`~ResidualGroup.evaluate` returned, with Jacobians.
+    linearized : sequence of (residuals (n, dim), blocks (S, m dim, c), padded (S, m dim))
+        What each group's :meth:`~ResidualGroup.linearize` returned.
     weights : sequence of ndarray, shape (n, dim), optional
         Per-component weights (the robust loss's IRLS weights); 1 when not given.
     """
@@ -146,24 +146,14 @@ def assemble(layout: Layout, families: dict[str, Blocks], groups: Sequence[Resid
     V = np.zeros(L * d * d)
     gl = np.zeros(L * d)
     w_rows, w_cols, w_data = [], [], []
-    for n, (group, (r, jac)) in enumerate(zip(groups, evaluated)):
+    for n, (group, (_, B, rb)) in enumerate(zip(groups, linearized)):
         if group.n_rows == 0:
             continue
-        J = np.concatenate(jac, axis=2)                                   # (n, dim, c)
         if weights is not None:
-            sw = np.sqrt(weights[n])
-            J = J * sw[:, :, None]
-            r = r * sw
-        S, c, m = len(group.index), J.shape[2], group.longest
-        if m == 1:
-            B, rb = J, r
-        else:
-            B = np.zeros((S, m, group.dim, c))
-            B[group.segment, group.position] = J
-            B = B.reshape(S, m * group.dim, c)
-            rb = np.zeros((S, m, group.dim))
-            rb[group.segment, group.position] = r
-            rb = rb.reshape(S, m * group.dim)
+            sw = group.pad(np.sqrt(weights[n]))
+            B = B * sw[:, :, None]
+            rb = rb * sw
+        S = len(group.index)
         Bt = np.swapaxes(B, 1, 2)
         G = Bt @ B                                                        # (S, c, c)
         gs = (Bt @ rb[:, :, None])[:, :, 0]                               # (S, c)
