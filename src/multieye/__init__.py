@@ -23,7 +23,7 @@ from multieye.core.errors import (
     TooFewMeasurementsError,
 )
 
-__version__ = "0.1.0"
+from multieye.core.version import __version__
 
 #: Public names defined in submodules, imported when first used.
 _LAZY = {

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import click
 
-from multieye import __version__
+from multieye.core.version import __version__
 from multieye.core.errors import CalibrationError
 
 EXIT_USER_ERROR = 2

@@ -396,7 +396,7 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
     notes : sequence of str
         Shown under the warnings (e.g. why ``details.json`` was left out).
     """
-    from multieye import __version__
+    from multieye.core.version import __version__
 
     body = "".join([
         _summary(rec, Path(out_dir)), _warnings(rec, notes), _extrinsics(rec),
