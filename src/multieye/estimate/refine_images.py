@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
+from multieye.core.arguments import real_array
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lie import log_so3
@@ -203,7 +204,7 @@ def estimate_mocap_noise(measured: F64, refined: F64) -> tuple[float, float]:
             max(float(np.sqrt(np.mean(dt ** 2))), _MOCAP_SIGMA_FLOOR))
 
 
-def _pixel_sigma_update(data: ImageData, fams, s_px: float, s_rot: float, s_t: float,
+def _pixel_sigma_update(data: ImageData, fams, *, s_px: float, s_rot: float, s_t: float,
                         loss: str, f_scale: float, c_w: float) -> float:
     """Variance-component estimate of the pixel noise at the current optimum."""
     groups = data.groups(s_px, s_rot, s_t)
@@ -291,7 +292,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     (True, (18, 18))
     """
     start = time.perf_counter()
-    if loss not in LOSSES:
+    if not isinstance(loss, str) or loss not in LOSSES:
         raise InputError(f"unknown loss {loss!r}; expected one of {', '.join(LOSSES)}")
     f_scale = _check_sigma(f_scale, "f_scale")
     estimate_mocap = mocap_rot_sigma_rad is None or mocap_trans_sigma_m is None
@@ -304,17 +305,11 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 1):
         raise InputError(f"max_iter must be a whole number >= 1, got {max_iter!r}")
     data = ImageData(setup, observations, intrinsics, names)
-    try:
-        X0 = np.asarray(X0, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError("X0 must be an array of 4x4 transforms") from None
+    X0 = real_array(X0, "X0", expected=f"{data.m} finite 4x4 transforms (one per camera)")
     if X0.shape != (data.m, 4, 4) or not np.all(np.isfinite(X0)):
         raise InputError(f"X0 must be {data.m} finite 4x4 transforms (one per camera), "
                          f"got shape {X0.shape}")
-    try:
-        Y0 = np.asarray(Y0, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError("Y0 must be a 4x4 transform") from None
+    Y0 = real_array(Y0, "Y0", expected="a finite 4x4 transform")
     if Y0.shape != (4, 4) or not np.all(np.isfinite(Y0)):
         raise InputError(f"Y0 must be a finite 4x4 transform, got shape {Y0.shape}")
     fams = data.families(X0, Y0)
@@ -349,7 +344,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
                         abs(new_t / s_t - 1.0) / _MOCAP_SETTLED]
             s_rot, s_t = new_rot, new_t
         if estimate_px:
-            new = _pixel_sigma_update(data, fams, s_px, s_rot, s_t, loss, f_scale, c_w)
+            new = _pixel_sigma_update(data, fams, s_px=s_px, s_rot=s_rot, s_t=s_t, loss=loss,
+                                      f_scale=f_scale, c_w=c_w)
             changes.append(abs(new / s_px - 1.0) / _SETTLED)
             s_px = new
         settled = max(changes) < 1.0
