@@ -14,10 +14,38 @@ import numpy as np
 from multieye.core.errors import InputError
 from multieye.core.limits import MAX_FOCAL_PX, MAX_IMAGE_SIDE_PX
 
-__all__ = ["Intrinsics", "PINHOLE_DISTORTION_SIZES"]
+__all__ = ["Intrinsics", "PINHOLE_DISTORTION_SIZES", "LENS_MODELS", "lens_model", "parameter_names"]
 
 #: Lengths of OpenCV's pinhole distortion vector (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]).
 PINHOLE_DISTORTION_SIZES = (0, 4, 5, 8, 12, 14)
+
+#: Lens models a camera's intrinsics can be estimated in (rig.yaml ``model:``): the
+#: :class:`Intrinsics` model and the distortion coefficients, in OpenCV's order and meaning.
+LENS_MODELS = {
+    "pinhole-radtan": ("pinhole", ("k1", "k2", "p1", "p2", "k3")),
+    "pinhole-rational": ("pinhole", ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")),
+    "fisheye": ("fisheye", ("k1", "k2", "k3", "k4")),
+}
+_PINHOLE_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
+                  "taux", "tauy")
+
+
+def lens_model(intrinsics: Intrinsics) -> str:
+    """The rig.yaml name of an intrinsics' lens model (``pinhole-radtan`` for 0, 4 or 5
+    coefficients, ``pinhole-rational`` for 8, ``pinhole-thin-prism`` for 12,
+    ``pinhole-tilted`` for 14, ``fisheye``)."""
+    if intrinsics.model == "fisheye":
+        return "fisheye"
+    return {0: "pinhole-radtan", 4: "pinhole-radtan", 5: "pinhole-radtan",
+            8: "pinhole-rational", 12: "pinhole-thin-prism", 14: "pinhole-tilted"}[
+        intrinsics.dist.size]
+
+
+def parameter_names(intrinsics: Intrinsics) -> tuple[str, ...]:
+    """Names of :attr:`Intrinsics.params` in order: fx fy cx cy, then the distortion."""
+    dist = (("k1", "k2", "k3", "k4") if intrinsics.model == "fisheye"
+            else _PINHOLE_NAMES[:intrinsics.dist.size])
+    return ("fx", "fy", "cx", "cy") + dist
 
 
 @dataclass(frozen=True)
@@ -82,3 +110,21 @@ class Intrinsics:
             raise InputError("distortion coefficients must be finite")
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "dist", dist)
+
+    @property
+    def params(self) -> np.ndarray:
+        """``(fx, fy, cx, cy, dist...)``: the parameters estimated when the intrinsics are
+        (the order of :func:`multieye.core.lens.project_with_jacobian`'s derivative)."""
+        K = self.K
+        return np.concatenate([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]], self.dist])
+
+    def with_params(self, params) -> Intrinsics:
+        """The same model and image size with ``(fx, fy, cx, cy, dist...)`` replaced (the
+        skew kept); raises InputError for parameters the model does not accept."""
+        p = np.asarray(params, dtype=np.float64).reshape(-1)
+        if p.size != 4 + self.dist.size:
+            raise InputError(f"expected {4 + self.dist.size} intrinsic parameters, got {p.size}")
+        K = self.K.copy()
+        K[0, 0], K[1, 1], K[0, 2], K[1, 2] = p[:4]
+        return Intrinsics(K=K, dist=p[4:], model=self.model, width=self.width,
+                          height=self.height)

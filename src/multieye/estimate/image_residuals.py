@@ -41,6 +41,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from multieye.core.arguments import camera_names, real_array
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
@@ -54,7 +55,7 @@ F64 = NDArray[np.float64]
 
 
 def _as_pose(T, what: str) -> F64:
-    T = np.asarray(T, dtype=np.float64)
+    T = real_array(T, what, expected="a finite 4x4 transform")
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise InputError(f"{what} must be a finite 4x4 transform, got shape {T.shape}")
     return T
@@ -76,12 +77,24 @@ class ImageData:
         One per camera.
     names : sequence of str, optional
         Camera names for messages.
+    free_intrinsics : sequence of bool, optional
+        Per camera: estimate its intrinsics (default: all held fixed).
+    intrinsics_observations : sequence over cameras of sequence of (object_points, image_points, T_cam_target), optional
+        Images without motion capture that only inform a camera's intrinsics (cameras whose
+        intrinsics are estimated): the target points, their pixels and a starting
+        ``T_cam_target`` (PnP).  An empty list for a camera without such images.
     """
 
     def __init__(self, setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
-                 names: Sequence[str] | None = None):
-        if setup not in SETUPS:
+                 names: Sequence[str] | None = None, *,
+                 free_intrinsics: Sequence[bool] | None = None,
+                 intrinsics_observations: Sequence | None = None):
+        if not isinstance(setup, str) or setup not in SETUPS:
             raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
+        for label, arg in (("observations", observations), ("intrinsics", intrinsics)):
+            if arg is None or isinstance(arg, (str, bytes)) or not hasattr(arg, "__iter__"):
+                raise InputError(f"{label} must be a list with one entry per camera, got "
+                                 f"{type(arg).__name__}")
         observations = list(observations)
         intrinsics = list(intrinsics)
         m = len(observations)
@@ -90,14 +103,21 @@ class ImageData:
         if len(intrinsics) != m:
             raise InputError(f"{m} cameras of observations but {len(intrinsics)} intrinsics; "
                              "give one Intrinsics per camera")
-        if names is not None and len(names) != m:
-            raise InputError(f"{len(names)} camera names for {m} cameras")
-        self.names = tuple(names) if names is not None else tuple(f"cam{j}" for j in range(m))
+        bad = [j for j, c in enumerate(intrinsics) if not isinstance(c, Intrinsics)]
+        if bad:
+            raise InputError(f"intrinsics[{bad[0]}] must be a multieye Intrinsics, got "
+                             f"{type(intrinsics[bad[0]]).__name__}")
+        names = camera_names(names, m)
+        self.names = names if names is not None else tuple(f"cam{j}" for j in range(m))
         self.setup = setup
         self.intrinsics = tuple(intrinsics)
         self.m = m
         obj, uv, mocap, img_of_point, cam_of_image, counts, keep = [], [], [], [], [], [], []
         for j, images in enumerate(observations):
+            if images is None or isinstance(images, (str, bytes)) or not hasattr(images,
+                                                                                  "__iter__"):
+                raise InputError(f"observations[{j}] must be a list of (object_points, "
+                                 f"image_points, T_world_mocap), got {type(images).__name__}")
             images = list(images)
             if not images:
                 raise InputError(f"camera {self.names[j]} has no images")
@@ -109,8 +129,8 @@ class ImageData:
                 except (TypeError, ValueError):
                     raise InputError(f"{where}: expected (object_points, image_points, "
                                      "T_world_mocap)") from None
-                o = np.asarray(o, dtype=np.float64)
-                u = np.asarray(u, dtype=np.float64)
+                o = real_array(o, f"{where}: object points", expected="an array (n, 3)")
+                u = real_array(u, f"{where}: image points", expected="an array (n, 2)")
                 if o.ndim != 2 or o.shape[1] != 3 or u.shape != (len(o), 2):
                     raise InputError(f"{where}: object points must be (n, 3) and image points "
                                      f"(n, 2), got {o.shape} and {u.shape}")
@@ -137,17 +157,42 @@ class ImageData:
         self.camera_slices = [slice(int(a), int(b)) for a, b in zip(
             np.searchsorted(self.camera, np.arange(m)),
             np.searchsorted(self.camera, np.arange(m), side="right"))]
+        free = [False] * m if free_intrinsics is None else [bool(f) for f in free_intrinsics]
+        if len(free) != m:
+            raise InputError(f"free_intrinsics has {len(free)} entries for {m} cameras")
+        self.free = tuple(free)
+        self.extra = (None if intrinsics_observations is None else
+                      IntrinsicsImages(intrinsics_observations, self.names, self.free))
+        if self.extra is not None and self.extra.n_images == 0:
+            self.extra = None
 
-    def families(self, X: F64, Y: F64, M: F64 | None = None) -> list[Blocks]:
-        """Block families ``X`` (m), ``Y`` (1) and ``M`` (one per image; default measured)."""
+    def families(self, X: F64, Y: F64, M: F64 | None = None, *,
+                 intrinsics: Sequence[Intrinsics] | None = None,
+                 free_poses: F64 | None = None) -> list[Blocks]:
+        """Block families: ``X`` (m), ``Y`` (1), ``M`` (one per image; default measured),
+        ``K:<camera>`` for every camera whose intrinsics are estimated (:attr:`free`; values
+        from ``intrinsics``, default the given ones) and ``T`` for the intrinsics-only images
+        (``free_poses``, default their starting poses)."""
         M = self.mocap_measured if M is None else M
-        return [Blocks("X", X, "se3-left"), Blocks("Y", np.asarray(Y)[None], "se3-left"),
-                Blocks("M", M, "se3-right", eliminate=True)]
+        intrinsics = self.intrinsics if intrinsics is None else intrinsics
+        fams = [Blocks("X", X, "se3-left"), Blocks("Y", np.asarray(Y)[None], "se3-left")]
+        fams += [Blocks(intrinsics_family(n), intrinsics[j].params[None], "euclidean")
+                 for j, n in enumerate(self.names) if self.free[j]]
+        fams.append(Blocks("M", M, "se3-right", eliminate=True))
+        if self.extra is not None:
+            T = self.extra.poses if free_poses is None else free_poses
+            fams.append(Blocks("T", T, "se3-left", eliminate=True))
+        return fams
 
     def groups(self, sigma_px: float, sigma_rot: float, sigma_t: float) -> list[ResidualGroup]:
-        """The pixel residuals and the motion-capture priors at these noise levels."""
-        return [PixelResiduals(self, sigma_px), MocapPriors(self.mocap_measured, sigma_rot,
-                                                            sigma_t)]
+        """One pixel group per camera, the motion-capture priors, then one group of
+        intrinsics-only images per camera that has them, at these noise levels."""
+        out: list[ResidualGroup] = [PixelResiduals(self, j, sigma_px, self.free[j])
+                                    for j in range(self.m)]
+        out.append(MocapPriors(self.mocap_measured, sigma_rot, sigma_t))
+        if self.extra is not None:
+            out += self.extra.groups(self, sigma_px)
+        return out
 
     def split_images(self, arr: np.ndarray) -> tuple[np.ndarray, ...]:
         """Per-image array (N, ...) to one array per camera."""
@@ -180,86 +225,255 @@ def _cross(a: F64, v: F64) -> F64:
                      a[..., 0] * v[..., 1] - a[..., 1] * v[..., 0]], axis=-1)
 
 
-class PixelResiduals(ResidualGroup):
-    """Target-point pixel residuals over ``sigma_px`` (module docstring), slots X, Y, M.
+def intrinsics_family(name: str) -> str:
+    """Block-family name of a camera's intrinsics when they are estimated."""
+    return f"K:{name}"
 
-    The chain is evaluated image by image on zero-padded ``(N, n_max, 3)`` point arrays, so
-    every rotation is one batched 3x3 product per image rather than per point, and
-    :meth:`linearize` hands the engine the per-image Jacobian blocks directly.
+
+def _pixels(pc: F64, intr: Intrinsics, with_jacobian: bool):
+    """Pixels of camera-frame points and, when asked, d uv / d pc and d uv / d intrinsics."""
+    if with_jacobian:
+        return project_with_jacobian(pc, intr)
+    return project_points(pc, intr), None, None
+
+
+def _current_intrinsics(values: Mapping[str, F64], name: str, fixed: Intrinsics,
+                        free: bool) -> Intrinsics | None:
+    """The camera's intrinsics at the current values (None if the values are not valid)."""
+    if not free:
+        return fixed
+    try:
+        return fixed.with_params(values[intrinsics_family(name)][0])
+    except InputError:
+        return None
+
+
+class IntrinsicsImages:
+    """Images without motion capture that only inform the intrinsics, stacked camera by camera.
+
+    Attributes
+    ----------
+    poses : ndarray, shape (n_images, 4, 4)
+        Starting ``T_cam_target`` of each image.
+    camera : ndarray of int, shape (n_images,)
+    object_points, image_points : ndarray, shape (P, 3), (P, 2)
+    image : ndarray of int, shape (P,)
+        Image of each point.
     """
 
-    def __init__(self, data: ImageData, sigma_px: float):
-        index = np.column_stack([data.cam_of_image, np.zeros(data.n_images, int),
-                                 np.arange(data.n_images)])
-        super().__init__(("X", "Y", "M"), index, data.image, 2)
-        self.data = data
+    def __init__(self, per_camera: Sequence, names: Sequence[str], free: Sequence[bool]):
+        per_camera = list(per_camera)
+        if len(per_camera) != len(names):
+            raise InputError(f"intrinsics_observations has {len(per_camera)} entries for "
+                             f"{len(names)} cameras (give an empty list for a camera without "
+                             "such images)")
+        poses, cams, obj, uv, img = [], [], [], [], []
+        for j, images in enumerate(per_camera):
+            images = list(images or ())
+            if images and not free[j]:
+                raise InputError(f"camera {names[j]}: images for the intrinsics given, but its "
+                                 "intrinsics are not estimated")
+            for i, item in enumerate(images):
+                where = f"camera {names[j]}, intrinsics image {i}"
+                try:
+                    o, u, T = item
+                except (TypeError, ValueError):
+                    raise InputError(f"{where}: expected (object_points, image_points, "
+                                     "T_cam_target)") from None
+                o = real_array(o, f"{where}: object points", expected="an array (n, 3)")
+                u = real_array(u, f"{where}: image points", expected="an array (n, 2)")
+                if o.ndim != 2 or o.shape[1] != 3 or u.shape != (len(o), 2):
+                    raise InputError(f"{where}: object points must be (n, 3) and image points "
+                                     f"(n, 2), got {o.shape} and {u.shape}")
+                ok = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(u), axis=1)
+                if ok.sum() < 4:
+                    raise InputError(f"{where}: fewer than 4 finite target points")
+                obj.append(o[ok])
+                uv.append(u[ok])
+                img.append(np.full(int(ok.sum()), len(poses)))
+                poses.append(_as_pose(T, f"{where}: T_cam_target"))
+                cams.append(j)
+        self.names = tuple(names)
+        self.n_images = len(poses)
+        if not poses:
+            return
+        self.poses = np.stack(poses)
+        self.camera = np.asarray(cams)
+        self.object_points = np.concatenate(obj)
+        self.image_points = np.concatenate(uv)
+        self.image = np.concatenate(img)
+
+    def groups(self, data: ImageData, sigma_px: float) -> list[ResidualGroup]:
+        """One :class:`FreePoseResiduals` per camera that has such images."""
+        out = []
+        for j in np.unique(self.camera):
+            pts = self.camera[self.image] == j
+            first = int(np.flatnonzero(self.camera == j)[0])
+            out.append(FreePoseResiduals(self.names[j], data.intrinsics[j],
+                                         self.object_points[pts], self.image_points[pts],
+                                         self.image[pts], first, sigma_px))
+        return out
+
+
+class PixelResiduals(ResidualGroup):
+    """One camera's target-point pixel residuals over ``sigma_px`` (module docstring).
+
+    Slots ``X``, ``Y``, ``M`` and, when the camera's intrinsics are estimated, its intrinsics
+    family ``K:<camera>`` (``fx fy cx cy`` then the distortion, :attr:`Intrinsics.params`).
+    The chain is evaluated image by image on zero-padded ``(n_images, n_max, 3)`` point
+    arrays, so every rotation is one batched 3x3 product per image rather than per point, and
+    :meth:`linearize` hands the engine the per-image Jacobian blocks directly.
+
+    Parameters
+    ----------
+    data : ImageData
+    camera : int
+    sigma_px : float
+    free_intrinsics : bool
+        Estimate the camera's intrinsics (a slot of their own).
+    """
+
+    def __init__(self, data: ImageData, camera: int, sigma_px: float,
+                 free_intrinsics: bool = False):
+        images = np.flatnonzero(data.cam_of_image == camera)
+        self.first = int(images[0])
+        pts = data.camera_slices[camera]
+        slots = ("X", "Y", "M") + ((intrinsics_family(data.names[camera]),)
+                                   if free_intrinsics else ())
+        index = np.column_stack([np.full(images.size, camera), np.zeros(images.size, int),
+                                 images] + ([np.zeros(images.size, int)]
+                                            if free_intrinsics else []))
+        super().__init__(slots, index, data.image[pts] - self.first, 2)
+        self.data, self.camera, self.points = data, camera, pts
+        self.images = images
         self.sigma = float(sigma_px)
-        self._obj = np.zeros((data.n_images, self.longest, 3))
-        self._obj[data.image, self.position] = data.object_points
+        self.free = bool(free_intrinsics)
+        self._obj = np.zeros((images.size, self.longest, 3))
+        self._obj[self.segment, self.position] = data.object_points[pts]
+        self._uv = data.image_points[pts]
 
     def _chain(self, X: F64, Y: F64, M: F64):
-        """Per image (N, n_max, 3): ``R_Y p``, ``p_y``, ``q``, ``d`` and ``p_cam``."""
-        c = self.data.cam_of_image
-        RX, tX = X[c, :3, :3], X[c, :3, 3]
-        RM, tM = M[:, :3, :3], M[:, :3, 3]
+        """Per image (n, n_max, 3): ``R_Y p``, ``p_y``, ``q``, ``d`` and ``p_cam``."""
+        RX, tX = X[self.camera, :3, :3], X[self.camera, :3, 3]
+        RM, tM = M[self.images, :3, :3], M[self.images, :3, 3]
         ry = self._obj @ Y[:3, :3].T
         py = ry + Y[:3, 3]
         if self.data.setup == "eye-to-base":
             q = py @ np.swapaxes(RM, 1, 2) + tM[:, None]                # R_M p_y + t_M
         else:
             q = (py - tM[:, None]) @ RM                                  # R_M^T (p_y - t_M)
-        d = q - tX[:, None]
+        d = q - tX
         return ry, py, q, d, d @ RX                                      # p_cam = R_X^T d
 
-    def _project(self, pc: F64, with_jacobian: bool):
-        """Pixels (P, 2) of camera-frame points (P, 3), camera by camera (and d uv / d pc)."""
-        dat = self.data
-        uv = np.empty((dat.n_points, 2))
-        J = np.empty((dat.n_points, 2, 3)) if with_jacobian else None
-        for j, s in enumerate(dat.camera_slices):
-            if with_jacobian:
-                uv[s], J[s], _ = project_with_jacobian(pc[s], dat.intrinsics[j])
-            else:
-                uv[s] = project_points(pc[s], dat.intrinsics[j])
-        return uv, J
-
     def camera_points(self, X: F64, Y: F64, M: F64) -> F64:
-        """Every target point in its camera's frame, (P, 3), metres."""
-        return self._chain(X, Y, M)[4][self.data.image, self.position]
+        """The camera's target points in its frame, (P_j, 3), metres."""
+        return self._chain(X, Y, M)[4][self.segment, self.position]
+
+    def _intrinsics(self, values) -> Intrinsics | None:
+        return _current_intrinsics(values, self.data.names[self.camera],
+                                   self.data.intrinsics[self.camera], self.free)
 
     def _linear(self, values: Mapping[str, F64]):
         X, Y, M = values["X"], values["Y"][0], values["M"]
-        dat = self.data
+        intr = self._intrinsics(values)
         ry, py, q, d, pc = self._chain(X, Y, M)
-        uv, Jp = self._project(pc[dat.image, self.position], True)
-        r = (uv - dat.image_points) / self.sigma
-        N, n = len(M), self.longest
-        Jp_pad = np.zeros((N, n, 2, 3))
-        Jp_pad[dat.image, self.position] = Jp / self.sigma
-        RX = X[dat.cam_of_image, :3, :3]
-        RM = M[:, :3, :3]
-        G = RX.swapaxes(1, 2) @ (RM if dat.setup == "eye-to-base" else RM.swapaxes(1, 2))
-        JpR = (Jp_pad.reshape(N, 2 * n, 3) @ RX.swapaxes(1, 2)).reshape(N, n, 2, 3)   # d r/d q
-        JpG = (Jp_pad.reshape(N, 2 * n, 3) @ G).reshape(N, n, 2, 3)                   # d r/d p_y
-        if dat.setup == "eye-to-base":
+        seg, pos = self.segment, self.position
+        uv, Jp, Jk = _pixels(pc[seg, pos], intr, True)
+        r = (uv - self._uv) / self.sigma
+        n_img, n = len(self.images), self.longest
+        Jp_pad = np.zeros((n_img, n, 2, 3))
+        Jp_pad[seg, pos] = Jp / self.sigma
+        RX = X[self.camera, :3, :3]
+        RM = M[self.images, :3, :3]
+        G = RX.T @ (RM if self.data.setup == "eye-to-base" else RM.swapaxes(1, 2))
+        flat = Jp_pad.reshape(n_img, 2 * n, 3)
+        JpR = (flat @ RX.T).reshape(n_img, n, 2, 3)                     # d r / d q
+        JpG = (flat @ G).reshape(n_img, n, 2, 3)                        # d r / d p_y
+        if self.data.setup == "eye-to-base":
             JM = [-_cross(JpG, py), JpR]
         else:
             JM = [_cross(JpR, q), -JpG]
-        blocks = np.concatenate([_cross(JpR, d), -JpR, -_cross(JpG, ry), JpG] + JM, axis=3)
-        return r, blocks                                                 # (N, n, 2, 18)
+        parts = [_cross(JpR, d), -JpR, -_cross(JpG, ry), JpG] + JM
+        if self.free:
+            Jk_pad = np.zeros((n_img, n, 2, Jk.shape[2]))
+            Jk_pad[seg, pos] = Jk / self.sigma
+            parts.append(Jk_pad)
+        return r, np.concatenate(parts, axis=3)                          # (n_img, n, 2, c)
 
     def linearize(self, values: Mapping[str, F64]):
+        if self._intrinsics(values) is None:
+            raise InputError(f"camera {self.data.names[self.camera]}: intrinsics outside the "
+                             "model's valid range")
         r, blocks = self._linear(values)
-        N, n = blocks.shape[:2]
-        return r, blocks.reshape(N, 2 * n, 18), self.pad(r)
+        n_img, n, _, c = blocks.shape
+        return r, blocks.reshape(n_img, 2 * n, c), self.pad(r)
 
     def evaluate(self, values: Mapping[str, F64], jacobians: bool):
+        intr = self._intrinsics(values)
+        if intr is None:
+            return np.full((self.n_rows, 2), np.nan), None
         if jacobians:
             r, blocks = self._linear(values)
-            rows = blocks[self.data.image, self.position]                # (P, 2, 18)
-            return r, [rows[:, :, 0:6], rows[:, :, 6:12], rows[:, :, 12:18]]
+            rows = blocks[self.segment, self.position]                   # (P_j, 2, c)
+            cuts = np.cumsum([0, 6, 6, 6] + ([rows.shape[2] - 18] if self.free else []))
+            return r, [rows[:, :, a:b] for a, b in zip(cuts[:-1], cuts[1:])]
         pc = self.camera_points(values["X"], values["Y"][0], values["M"])
-        return (self._project(pc, False)[0] - self.data.image_points) / self.sigma, None
+        return (_pixels(pc, intr, False)[0] - self._uv) / self.sigma, None
+
+
+class FreePoseResiduals(ResidualGroup):
+    """Pixel residuals of images that only inform a camera's intrinsics (no motion capture):
+    each image has its own ``T_cam_target`` (family ``T``, ``se3-left``, eliminated).
+
+    ``d p_cam / d phi_T = -[R_T p]_x``, ``d p_cam / d tau_T = I``.
+
+    Parameters
+    ----------
+    name : str
+        Camera name.
+    intrinsics : Intrinsics
+        The camera's (starting) intrinsics.
+    object_points, image_points : ndarray, shape (P, 3), (P, 2)
+        Target points and pixels, image by image.
+    image : ndarray of int, shape (P,)
+        Block of family ``T`` of each point (non-decreasing).
+    first : int
+        Block of ``T`` of this camera's first image.
+    sigma_px : float
+    """
+
+    def __init__(self, name: str, intrinsics: Intrinsics, object_points: F64,
+                 image_points: F64, image, first: int, sigma_px: float):
+        image = np.asarray(image)
+        n_img = int(image.max()) + 1 - first
+        super().__init__(("T", intrinsics_family(name)),
+                         np.column_stack([first + np.arange(n_img), np.zeros(n_img, int)]),
+                         image - first, 2)
+        self.name, self.intrinsics = name, intrinsics
+        self._uv = image_points
+        self._obj = np.zeros((n_img, self.longest, 3))
+        self._obj[self.segment, self.position] = object_points
+        self.first, self.n_img = first, n_img
+        self.sigma = float(sigma_px)
+
+    def _points(self, T: F64):
+        T = T[self.first:self.first + self.n_img]
+        rp = self._obj @ np.swapaxes(T[:, :3, :3], 1, 2)
+        return rp, rp + T[:, None, :3, 3]
+
+    def evaluate(self, values: Mapping[str, F64], jacobians: bool):
+        intr = _current_intrinsics(values, self.name, self.intrinsics, True)
+        if intr is None:
+            return np.full((self.n_rows, 2), np.nan), None
+        rp, pc = self._points(values["T"])
+        seg, pos = self.segment, self.position
+        uv, Jp, Jk = _pixels(pc[seg, pos], intr, jacobians)
+        r = (uv - self._uv) / self.sigma
+        if not jacobians:
+            return r, None
+        Jp = Jp / self.sigma
+        JT = np.concatenate([-_cross(Jp, rp[seg, pos]), Jp], axis=2)
+        return r, [JT, Jk / self.sigma]
 
 
 class MocapPriors(ResidualGroup):

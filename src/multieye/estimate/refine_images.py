@@ -51,7 +51,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lie import log_so3
 from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho
-from multieye.estimate.image_residuals import ImageData
+from multieye.estimate.image_residuals import ImageData, intrinsics_family
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
 
 __all__ = [
@@ -97,6 +97,17 @@ class RefinementResult:
         Covariance of the perturbations of X^0..X^{m-1} then Y, each (rotation vector,
         translation) with ``R = Exp(phi) R_hat``, ``t = t_hat + tau`` (radians, metres), the
         per-image mocap poses marginalised (module docstring).
+    full_covariance : ndarray, shape (k, k)
+        Covariance of every kept parameter: X, Y, then the intrinsics of each camera whose
+        intrinsics were estimated (``layout.offset["K:<camera>"]``); X and Y's block is
+        ``covariance`` (which therefore includes the intrinsics' uncertainty).
+    layout : multieye.optimize.normal_equations.Layout
+        Where each family sits in ``full_covariance``.
+    intrinsics : tuple of Intrinsics
+        Per camera: refined when estimated, else as given.
+    intrinsics_covariance : tuple of (ndarray or None)
+        Per camera: covariance of ``Intrinsics.params`` (fx fy cx cy, then the distortion)
+        when estimated, else None.
     mocap_covariance : ndarray, shape (N, 6, 6)
         Marginal covariance of each refined motion-capture pose (``se3-right``: rotation in
         the marker/body frame, translation in the world frame), images camera by camera.
@@ -143,6 +154,10 @@ class RefinementResult:
     X: F64
     Y: F64
     covariance: F64
+    full_covariance: F64
+    layout: object
+    intrinsics: tuple[Intrinsics, ...]
+    intrinsics_covariance: tuple
     mocap_covariance: F64
     T_world_mocap: tuple[F64, ...]
     image_rms_px: tuple[F64, ...]
@@ -204,17 +219,26 @@ def estimate_mocap_noise(measured: F64, refined: F64) -> tuple[float, float]:
             max(float(np.sqrt(np.mean(dt ** 2))), _MOCAP_SIGMA_FLOOR))
 
 
+def _value(fams, name: str):
+    return next(f.value for f in fams if f.name == name)
+
+
+def _pixel_residuals(data: ImageData, ev) -> F64:
+    """Normalised pixel residuals of every motion-captured image's points, (P, 2)."""
+    return np.concatenate([e[0] for e in ev[:data.m]])
+
+
 def _pixel_sigma_update(data: ImageData, fams, *, s_px: float, s_rot: float, s_t: float,
                         loss: str, f_scale: float, c_w: float) -> float:
     """Variance-component estimate of the pixel noise at the current optimum."""
     groups = data.groups(s_px, s_rot, s_t)
     ev = evaluate(fams, groups, jacobians=True)
     cov = covariance(fams, groups, local=True, evaluated=ev)
-    Jp = ev[1][1]                                                            # (N, 6, 6) priors
-    h_prior = float(np.einsum("nki,nij,nkj->", Jp, cov.local, Jp))
-    n_params = cov.layout.k + 6 * data.n_images
-    redundancy = 2 * data.n_points - (n_params - h_prior)
-    z = ev[0][0].ravel()                                                  # pixels / s_px
+    Jp = ev[data.m][1]                                                    # (N, 6, 6) priors
+    h_prior = float(np.einsum("nki,nij,nkj->", Jp, cov.local[:data.n_images], Jp))
+    n_params = cov.layout.k + 6 * cov.layout.n_local
+    z = np.concatenate([e[0].ravel() for j, e in enumerate(ev) if j != data.m])
+    redundancy = z.size - (n_params - h_prior)
     w = rho((z / f_scale) ** 2, loss)[1]
     return s_px * np.sqrt(float(w @ z ** 2) / (c_w * max(redundancy, 1.0)))
 
@@ -225,8 +249,9 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
                   mocap_trans_sigma_m: float | None = DEFAULT_MOCAP_TRANS_SIGMA_M,
                   pixel_sigma: float | None = None, loss: str = "huber",
                   f_scale: float = DEFAULT_F_SCALE, names: Sequence[str] | None = None,
-                  max_iter: int = 100, tol: float = 1e-8
-                  ) -> RefinementResult:
+                  max_iter: int = 100, tol: float = 1e-8,
+                  free_intrinsics: Sequence[bool] | None = None,
+                  intrinsics_observations: Sequence | None = None) -> RefinementResult:
     """Maximum-likelihood refinement of every ``X^j`` and ``Y`` from pixels and mocap poses.
 
     Parameters
@@ -304,7 +329,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     s_px = None if estimate_px else _check_sigma(pixel_sigma, "pixel_sigma")
     if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 1):
         raise InputError(f"max_iter must be a whole number >= 1, got {max_iter!r}")
-    data = ImageData(setup, observations, intrinsics, names)
+    data = ImageData(setup, observations, intrinsics, names, free_intrinsics=free_intrinsics,
+                     intrinsics_observations=intrinsics_observations)
     X0 = real_array(X0, "X0", expected=f"{data.m} finite 4x4 transforms (one per camera)")
     if X0.shape != (data.m, 4, 4) or not np.all(np.isfinite(X0)):
         raise InputError(f"X0 must be {data.m} finite 4x4 transforms (one per camera), "
@@ -313,7 +339,9 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     if Y0.shape != (4, 4) or not np.all(np.isfinite(Y0)):
         raise InputError(f"Y0 must be a finite 4x4 transform, got shape {Y0.shape}")
     fams = data.families(X0, Y0)
-    r0 = data.groups(1.0, s_rot, s_t)[0].evaluate({f.name: f.value for f in fams}, False)[0]
+    values = {f.name: f.value for f in fams}
+    r0 = np.concatenate([g_.evaluate(values, False)[0] for g_ in data.groups(1.0, s_rot, s_t)
+                         [:data.m]])
     bad = ~np.all(np.isfinite(r0), axis=1)
     if np.any(bad):
         raise InputError(f"{data.where(int(data.image[np.argmax(bad)]))}: target points project "
@@ -339,7 +367,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
             break
         changes = []
         if estimate_mocap:
-            new_rot, new_t = estimate_mocap_noise(data.mocap_measured, fams[2].value)
+            new_rot, new_t = estimate_mocap_noise(data.mocap_measured, _value(fams, "M"))
             changes += [abs(new_rot / s_rot - 1.0) / _MOCAP_SETTLED,
                         abs(new_t / s_t - 1.0) / _MOCAP_SETTLED]
             s_rot, s_t = new_rot, new_t
@@ -350,22 +378,38 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
             s_px = new
         settled = max(changes) < 1.0
 
-    X, Y, M = fams[0].value, fams[1].value[0], fams[2].value
+    X, Y, M = _value(fams, "X"), _value(fams, "Y")[0], _value(fams, "M")
     groups = data.groups(s_px, s_rot, s_t)
     ev = evaluate(fams, groups, jacobians=True)
     cov = covariance(fams, groups, local=True, evaluated=ev)
-    r_pix = ev[0][0] * s_px                                               # (P, 2) pixels
-    w_pt = rho((ev[0][0] / f_scale) ** 2, loss)[1].min(axis=1)
+    z_pix = _pixel_residuals(data, ev)
+    r_pix = z_pix * s_px                                                  # (P, 2) pixels
+    w_pt = rho((z_pix / f_scale) ** 2, loss)[1].min(axis=1)
     d2 = np.sum(r_pix ** 2, axis=1)
     point_out = d2 / s_px ** 2 > chi2.isf(OUTLIER_PROBABILITY, 2)
     per_image = np.diff(np.append(data.image_starts, data.n_points))
     img_rms = np.sqrt(np.add.reduceat(d2, data.image_starts) / per_image)
     frac_out = np.add.reduceat(point_out.astype(float), data.image_starts) / per_image
-    prior = ev[1][0]
+    prior = ev[data.m][0]
     img_out = (frac_out > 0.5) | (np.sum(prior ** 2, axis=1) > chi2.isf(OUTLIER_PROBABILITY, 6))
     cam_rms = np.array([np.sqrt(np.mean(d2[s])) for s in data.camera_slices])
+    k_xy = 6 * (data.m + 1)
+    intr_out, intr_cov = [], []
+    for j, name in enumerate(data.names):
+        if data.free[j]:
+            fam = intrinsics_family(name)
+            o = cov.layout.offset[fam]
+            n = data.intrinsics[j].params.size
+            intr_out.append(data.intrinsics[j].with_params(_value(fams, fam)[0]))
+            intr_cov.append(kappa * cov.kept[o:o + n, o:o + n])
+        else:
+            intr_out.append(data.intrinsics[j])
+            intr_cov.append(None)
     return RefinementResult(
-        X=X, Y=Y, covariance=kappa * cov.kept, mocap_covariance=kappa * cov.local,
+        X=X, Y=Y, covariance=kappa * cov.kept[:k_xy, :k_xy],
+        full_covariance=kappa * cov.kept, layout=cov.layout,
+        intrinsics=tuple(intr_out), intrinsics_covariance=tuple(intr_cov),
+        mocap_covariance=kappa * cov.local[:data.n_images],
         T_world_mocap=data.split_images(M),
         image_rms_px=data.split_images(img_rms), camera_rms_px=cam_rms,
         point_weights=data.split_points(w_pt, np.nan),

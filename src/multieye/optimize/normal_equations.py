@@ -181,6 +181,20 @@ def assemble(layout: Layout, families: dict[str, Blocks], groups: Sequence[Resid
     return NormalEquations(U.reshape(k, k), g, V.reshape(L, d, d), gl.reshape(L, d), W)
 
 
+def _factor(S: F64):
+    """Cholesky of ``S`` with a Jacobi scaling (parameters in pixels, metres, radians and
+    unitless distortion differ by orders of magnitude): ``(c, d)`` with ``S = D C D``."""
+    d = np.sqrt(np.maximum(np.diag(S), 1e-300))
+    return cho_factor(S / np.outer(d, d)), d
+
+
+def _solve(factor, rhs: F64) -> F64:
+    c, d = factor
+    if rhs.ndim == 1:
+        return cho_solve(c, rhs / d) / d
+    return cho_solve(c, rhs / d[:, None]) / d[:, None]
+
+
 def _block_diagonal(blocks: F64) -> sp.csr_matrix:
     L, d, _ = blocks.shape
     return sp.bsr_matrix((blocks, np.arange(L), np.arange(L + 1)), shape=(L * d, L * d)).tocsr()
@@ -223,7 +237,7 @@ def solve_step(ne: NormalEquations, lam: float) -> tuple[F64, F64] | None:
     if WVi is not None:
         rhs = rhs + WVi @ ne.g_local.ravel()
     try:
-        dg = cho_solve(cho_factor(S), rhs) if S.size else np.zeros(0)
+        dg = _solve(_factor(S), rhs) if S.size else np.zeros(0)
     except LinAlgError:
         return None
     if WVi is None:
@@ -259,7 +273,7 @@ def marginal_covariance(ne: NormalEquations, *, local: bool = False
                          "determined by its residuals")
     S, Vinv, WVi = reduced
     try:
-        cov = cho_solve(cho_factor(S), np.eye(len(S))) if S.size else S
+        cov = _solve(_factor(S), np.eye(len(S))) if S.size else S
     except LinAlgError:
         raise InputError("the information matrix is singular: the data do not determine every "
                          "parameter (too few measurements, or motion that leaves a direction "
