@@ -73,3 +73,36 @@ def test_input_errors():
     still = np.repeat(st.T_cam_target[:1], len(st.cam_stamps), axis=0)
     with pytest.raises(DegenerateMotionError, match="never changes its angular speed"):
         estimate_offset(st.cam_stamps, still, *args[2:])
+
+
+def _streams():
+    rng = np.random.default_rng(3)
+    cam_t = np.arange(40) * 0.25
+    mocap_t = np.arange(400) * 0.025
+    return cam_t, g.random_transforms(rng, 40), mocap_t, g.random_transforms(rng, 400)
+
+
+@pytest.mark.parametrize("change, kw, message", [
+    ((0, None), {}, "camera stream: time stamps is None"),
+    ((1, "complex"), {}, "camera stream: poses must be real, got complex"),
+    ((3, "short"), {}, "motion-capture stream: expected one 4x4 pose per time stamp"),
+    (None, {"search_s": None}, "search_s is None; expected (low, high)"),
+    (None, {"search_s": (1, 2, 3)}, "search_s must be (low, high), two finite numbers of seconds"),
+    (None, {"search_s": "ab"}, "search_s must be (low, high)"),
+    (None, {"search_s": (0.5, -0.5)}, "search_s must be (low, high) with low < high"),
+    (None, {"search_s": (float("nan"), 1.0)}, "with low < high"),
+    (None, {"baseline_s": None}, "baseline_s must be a positive number, got None"),
+    (None, {"baseline_s": 0}, "baseline_s must be a positive number, got 0"),
+    (None, {"step_s": float("nan")}, "step_s must be a positive number, got nan"),
+    (None, {"step_s": 1e-12}, "spans more than 1e+07 grid points"),
+    (None, {"search_s": (-1e12, 1e12)}, "spans more than 1e+07 grid points"),
+    (None, {"setup": None}, "setup must be one of"),
+])
+def test_bad_arguments_are_input_errors(change, kw, message):
+    args = list(_streams())
+    if change is not None:
+        k, how = change
+        args[k] = (None if how is None else args[k] + 0j if how == "complex" else args[k][:10])
+    with pytest.raises(InputError) as info:
+        estimate_offset(*args, **kw)
+    assert message in str(info.value)

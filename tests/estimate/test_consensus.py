@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
 import multieye
 from multieye.core import geometry as g
-from multieye.core.errors import TooFewMeasurementsError
+from multieye.core.errors import InputError, TooFewMeasurementsError
 from multieye.sim.images import corrupt, simulate_images
 from multieye.core.metrics import extrinsic_errors, relative_extrinsics
 from multieye.estimate.refine_images import refine_images
@@ -30,8 +32,8 @@ def test_twenty_percent_corrupted_found_and_result_within_twice_clean(setup):
     for inl, corrupted in zip(cons.inliers, bad.corrupted):
         np.testing.assert_array_equal(~inl, corrupted)
     assert len(cons.rejected) == 16
-    assert all(r.reason.endswith("above threshold 5 deg / 0.05 m (RANSAC)")
-               for r in cons.rejected)
+    assert all(r.reason.startswith("outlier by consensus (loop residual ")
+               and r.reason.endswith("above threshold 5 deg / 0.05 m)") for r in cons.rejected)
     assert consensus(clean.A, clean.B).rejected == ()
 
     # Refining on the inliers only: within 2x of refining the clean data.
@@ -54,8 +56,8 @@ def test_reason_names_the_residuals(rng):
     rot, trans = measurement_residuals(A[1][7:8], B[1][7:8], X[1], Y)
     assert r.rot_deg == pytest.approx(12.3, abs=1e-6) == pytest.approx(float(rot[0]))
     assert r.trans_m == pytest.approx(float(trans[0]), abs=1e-9)
-    assert r.reason == (f"loop residual 12.3 deg / {r.trans_m:.3f} m above threshold "
-                        "5 deg / 0.05 m (RANSAC)")
+    assert r.reason == (f"outlier by consensus (loop residual 12.3 deg / {r.trans_m:.3f} m "
+                        "above threshold 5 deg / 0.05 m)")
     # Exact data otherwise: the consensus solution is the exact one.
     np.testing.assert_allclose(cons.X, X, atol=1e-9)
     np.testing.assert_allclose(cons.Y, Y, atol=1e-9)
@@ -67,3 +69,44 @@ def test_camera_without_agreeing_measurements_is_named(rng):
     with pytest.raises(TooFewMeasurementsError, match=r"camera cam1: only \d of 10 measurements "
                        r"agree within 5 deg / 0.05 m"):
         consensus(A, B)
+    # with labels the message names the measurements that disagree
+    labels = [[f"{c}/{i}.png" for i in range(10)] for c in ("a", "b")]
+    with pytest.raises(TooFewMeasurementsError, match=r"\(outliers: b/\d\.png, b/\d\.png, "
+                       r".* and \d more\)") as info:
+        consensus(A, B, labels=labels)
+    assert "a/" not in str(info.value)
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"names": ["a"]}, "names has 1 entries but there are 2 cameras"),
+    ({"names": "ab"}, "names must be a list of 2 strings"),
+    ({"names": ["a", "a"]}, "names must be distinct"),
+    ({"threshold_rot_deg": None}, "threshold_rot_deg must be a real number, got None"),
+    ({"threshold_trans_m": "0.05"}, "threshold_trans_m must be a real number"),
+    ({"threshold_trans_m": -1.0}, "threshold_trans_m must be a positive number"),
+    ({"confidence": 1.0}, "confidence must be in (0, 1)"),
+    ({"max_samples": 0}, "max_samples must be a positive integer, got 0"),
+    ({"max_samples": 2.5}, "max_samples must be a positive integer"),
+    ({"seed": "x"}, "seed must be an int, a numpy Generator or None"),
+    ({"labels": [["x"], ["y"]]}, "labels must hold one name per measurement"),
+])
+def test_bad_arguments_are_input_errors(rng, kw, message):
+    A, B, _, _ = eye_to_base(rng, [6, 6])
+    with pytest.raises(InputError, match=re.escape(message)):
+        consensus(A, B, **kw)
+
+
+@pytest.mark.parametrize("A, B, message", [
+    (None, None, "A is None"),
+    ("AB", None, "B is missing"),
+    ("AB", "AB", "A must be a list with one (N, 4, 4) array"),
+])
+def test_missing_or_wrong_measurements(A, B, message):
+    with pytest.raises(InputError, match=re.escape(message)):
+        consensus(A, B)
+
+
+def test_complex_measurements_are_refused(rng):
+    A, B, _, _ = eye_to_base(rng, [6, 6])
+    with pytest.raises(InputError, match=r"A\[cam0\] must be real, got complex"):
+        consensus([a + 0j for a in A], B)

@@ -49,7 +49,7 @@ def test_outside_and_gaps_are_reported():
     assert p.index.tolist() == [1, 3]
     reasons = dict(p.unpaired)
     assert "before the motion-capture recording" in reasons[0]
-    assert "0.500 s away" in reasons[2] and "time_tolerance 0.02 s" in reasons[2]
+    assert reasons[2] == "nearest motion-capture sample is 0.500 s away"
     assert "after" in reasons[4]
     # next to the dropout the nearest sample is used, never an interpolation across it
     assert p.interpolated.tolist() == [False, True]     # 0.495: only 0.49 is near; 1.505: 1.50..1.51
@@ -84,3 +84,36 @@ def test_slerp_endpoints_and_midpoint_symmetry(alpha):
     np.testing.assert_allclose(Ta, Tb, atol=1e-9)
     np.testing.assert_allclose(interpolate_poses(T0, T1, np.zeros(3)), T0, atol=1e-12)
     np.testing.assert_allclose(interpolate_poses(T0, T1, np.ones(3)), T1, atol=1e-9)
+
+
+_T = g.transform_from_rotvec(np.zeros((5, 3)), np.zeros((5, 3)))
+
+
+@pytest.mark.parametrize("args, kw, message", [
+    ((None, _T, [1.0]), {}, "motion-capture stamps is None; expected a real array of shape (N,)"),
+    ((np.arange(5.0), None, [1.0]), {}, "motion-capture poses T is None; expected one 4x4 pose "
+                                        "per stamp, shape (5, 4, 4)"),
+    ((np.arange(5.0), _T, None), {}, "image stamps (query) is None"),
+    ((np.arange(5.0) + 0j, _T, [1.0]), {}, "motion-capture stamps must be real, got complex"),
+    ((np.arange(5.0), _T[:, :3], [1.0]), {}, "must be one 4x4 pose per stamp, shape (5, 4, 4), "
+                                             "got shape (5, 3, 4)"),
+    ((np.arange(4.0), _T, [1.0]), {}, "got shape (5, 4, 4)"),
+    ((np.arange(5.0), _T, [[1.0]]), {}, "image stamps (query) must be a real array of shape (N,)"),
+    ((np.arange(5.0), _T, ["soon"]), {}, "image stamps (query) must be a real array"),
+    ((np.arange(5.0), _T, [np.nan]), {}, "image stamps must be finite"),
+    ((np.arange(5.0), _T * np.nan, [1.0]), {}, "motion-capture poses must be finite"),
+    ((np.arange(5.0), _T, [1.0]), {"tolerance": None}, "time tolerance must be a positive number, "
+                                                       "got None"),
+    ((np.arange(5.0), _T, [1.0]), {"tolerance": float("nan")}, "time tolerance must be a "
+                                                               "positive number, got nan"),
+    ((np.arange(5.0), _T, [1.0]), {"tolerance": "0.1"}, "time tolerance must be a positive "
+                                                        "number, got '0.1'"),
+    ((np.arange(5.0), _T, [1.0]), {"offset": None}, "time offset must be a number, got None"),
+    ((np.arange(5.0), _T, [1.0]), {"offset": 1e300}, "time offset must be within 1e+10 s"),
+    ((np.arange(5.0)[::-1], _T, [1.0]), {}, "strictly increasing"),
+])
+def test_bad_arguments_are_input_errors_saying_what_was_expected(args, kw, message):
+    kw = {"tolerance": 0.1, **kw}
+    with pytest.raises(InputError) as info:
+        pair_in_time(*args, **kw)
+    assert message in str(info.value)

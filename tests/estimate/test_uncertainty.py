@@ -75,3 +75,23 @@ def test_crb_equals_the_refinement_covariance_at_the_truth():
     with pytest.raises(InputError, match="noise levels must be positive"):
         cramer_rao_bound(sc.setup, sc.true_observations, sc.intrinsics, sc.X, sc.Y,
                          pixel_sigma=0.0, mocap_rot_sigma_rad=1e-3, mocap_trans_sigma_m=1e-3)
+
+
+@pytest.mark.parametrize("X, C, reference, message", [
+    (None, np.eye(18), 0, "X is None; expected a real array of shape (N, 4, 4)"),
+    ("X", None, 0, "covariance is None"),
+    ("complex", np.eye(18), 0, "X must be real, got complex"),
+    ("X", np.eye(18) + 0j, 0, "covariance must be real, got complex"),
+    ("X", np.eye(18) * np.nan, 0, "X and covariance must be finite"),
+    ("X", np.eye(7), 0, "covariance must be 12x12 (X) or 18x18 (X and Y) for 2 cameras"),
+    ("X", np.eye(18), None, "reference must be a camera index (int), got None"),
+    ("X", np.eye(18), "cam0", "reference must be a camera index (int), got 'cam0'"),
+    ("X", np.eye(18), 0.5, "reference must be a camera index (int), got 0.5"),
+    ("X", np.eye(18), 2, "reference camera index 2 out of range for 2 cameras"),
+])
+def test_relative_covariance_bad_arguments(X, C, reference, message):
+    Xs = g.random_transforms(np.random.default_rng(0), 2)
+    X = Xs if isinstance(X, str) and X == "X" else Xs + 0j if X == "complex" else X
+    with pytest.raises(InputError) as info:
+        relative_covariance(X, C, reference=reference)
+    assert message in str(info.value)

@@ -158,3 +158,61 @@ def test_normalize_rotation_never_returns_a_reflection():
         R = normalize_rotation(M)
         assert np.linalg.det(R) == pytest.approx(1.0)
         np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+
+
+@pytest.mark.parametrize("args, kw, message", [
+    ((None, None), {}, "A is None: give one (N, 4, 4) array of transforms per camera"),
+    (("A", "B"), {}, "A must be a list with one (N, 4, 4) array of transforms per camera, got str"),
+    (({"a": 1}, [1]), {}, "A must be a list with one (N, 4, 4) array of transforms per camera, "
+                          "got dict"),
+    ((None, "rig"), {"names": ["a"]}, "names has 1 entries but there are 3 cameras"),
+    ((None, "rig"), {"names": "abc"}, "names must be a list of 3 strings"),
+    ((None, "rig"), {"names": [1, 2, 3]}, "names must be non-empty strings"),
+    ((None, "rig"), {"names": ["a", "b", "a"]}, "names must be distinct"),
+    ((None, "rig"), {"method": None}, "unknown method None"),
+    ((None, "rig"), {"method": ["joint"]}, "unknown method ['joint']"),
+    ((None, "rig"), {"refine": True, "max_iter": 0}, "max_iter must be a whole number >= 1, got 0"),
+    ((None, "rig"), {"refine": True, "max_iter": -3}, "max_iter must be a whole number >= 1"),
+    ((None, "rig"), {"refine": True, "max_iter": None}, "max_iter must be a whole number >= 1"),
+    ((None, "rig"), {"refine": True, "loss": None}, "unknown loss None"),
+    ((None, "rig"), {"refine": True, "bogus": 1}, "unknown refinement option bogus"),
+    ((None, "rig"), {"max_iter": 5}, "given without refine=True"),
+])
+def test_bad_arguments_are_input_errors(rig, args, kw, message):
+    A, B, _, _ = rig
+    if args == (None, "rig"):
+        args = (A, B)
+    with pytest.raises(multieye.InputError) as info:
+        solve(*args, **kw)
+    assert message in str(info.value)
+
+
+def test_complex_transforms_are_refused_not_cast(rig):
+    A, B, _, _ = rig
+    with pytest.raises(multieye.InputError, match=r"A\[cam0\] must be real, got complex"):
+        solve([A[0] + 1e-3j, *A[1:]], B)
+    with pytest.raises(multieye.InputError, match=r"A\(x, y\) must be real, got complex"):
+        multieye.solve_general([("x", "y", A[0].astype(complex), B[0])])
+
+
+@pytest.mark.parametrize("groups, message", [
+    (None, "groups must be an iterable of (x_name, y_name, A, B), got NoneType"),
+    (5, "groups must be an iterable of (x_name, y_name, A, B), got int"),
+    ("xyAB", "groups must be an iterable of (x_name, y_name, A, B), got str"),
+    ([("x", "y", None, None)], "A(x, y) is None"),
+])
+def test_solve_general_bad_groups(groups, message):
+    with pytest.raises(multieye.InputError) as info:
+        multieye.solve_general(groups)
+    assert message in str(info.value)
+
+
+def test_solve_general_bad_options(rig):
+    A, B, _, _ = rig
+    groups = [(f"x{j}", "y", A[j], B[j]) for j in range(3)]
+    with pytest.raises(multieye.InputError, match="max_iter must be a whole number >= 1"):
+        multieye.solve_general(groups, refine=True, max_iter=0)
+    with pytest.raises(multieye.InputError, match="unknown refinement option iterations"):
+        multieye.solve_general(groups, refine=True, iterations=3)
+    with pytest.raises(multieye.InputError, match="unknown method None"):
+        multieye.solve_general(groups, method=None)

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from multieye.core.arguments import real_array, real_number
 from multieye.core import geometry as g
 from multieye.core.errors import DegenerateMotionError, InputError, TooFewMeasurementsError
 from multieye.core.metrics import chordal_angle, loop_residuals
@@ -154,9 +155,13 @@ def _interpolate(stamps: F64, T: F64, query: F64) -> F64:
     return interpolate_poses(T[left], T[right], alpha)
 
 
+#: Most grid points of the coarse search and of the motion-capture resampling.
+_MAX_GRID = 1e7
+
+
 def _check_stream(stamps, T, what: str) -> tuple[F64, F64]:
-    t = np.asarray(stamps, dtype=np.float64).reshape(-1)
-    P = np.asarray(T, dtype=np.float64)
+    t = real_array(stamps, f"{what}: time stamps").reshape(-1)
+    P = real_array(T, f"{what}: poses")
     if P.ndim != 3 or P.shape[1:] != (4, 4) or len(P) != len(t):
         raise InputError(f"{what}: expected one 4x4 pose per time stamp, got {len(t)} stamps "
                          f"and poses of shape {P.shape}")
@@ -307,19 +312,23 @@ def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps
     DegenerateMotionError
         The target (or rig) never turns, so angular speeds carry no timing.
     """
-    if setup not in SETUPS:
+    if not isinstance(setup, str) or setup not in SETUPS:
         raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
-    lo, hi = (float(v) for v in search_s)
-    if not hi > lo:
+    search = real_array(search_s, "search_s", shape=(2,),
+                        expected="(low, high), two finite numbers of seconds")
+    lo, hi = (float(v) for v in search)
+    if not (np.isfinite(search).all() and hi > lo):
         raise InputError(f"search_s must be (low, high) with low < high, got {search_s}")
+    baseline_s = real_number(baseline_s, "baseline_s", positive=True)
+    step_s = real_number(step_s, "step_s", positive=True, allow_none=True)
     cam_t, P = _check_stream(cam_stamps, T_cam_target, "camera stream")
     mocap_t, M = _check_stream(mocap_stamps, T_world_mocap, "motion-capture stream")
     camera_dt = float(np.median(np.diff(cam_t)))
     step = step_s if step_s is not None else min(camera_dt / 4.0, 0.005)
-    if not step > 0:
-        raise InputError(f"step_s must be positive, got {step_s}")
-    if not baseline_s > 0:
-        raise InputError(f"baseline_s must be positive, got {baseline_s}")
+    if (hi - lo) / step > _MAX_GRID or np.ptp(mocap_t) / np.median(np.diff(mocap_t)) > _MAX_GRID:
+        raise InputError(f"the search ({hi - lo:g} s in steps of {step:g} s) or the motion "
+                         f"capture ({np.ptp(mocap_t):g} s at its median interval) spans more "
+                         f"than {_MAX_GRID:g} grid points; narrow search_s or check the stamps")
     coarse, score, pairs = _correlate(cam_t, P, mocap_t, M, baseline_s, (lo, hi), step)
     method = "angular-speed correlation"
     nan = float("nan")

@@ -18,7 +18,7 @@ per camera, the closed form as the minimal solver, then a joint check with the s
    no longer changes.
 
 Every rejected measurement keeps its residuals and a reason, e.g.
-``"loop residual 12.3 deg / 0.410 m above threshold 5 deg / 0.05 m (RANSAC)"``.
+``"outlier by consensus (loop residual 12.3 deg / 0.410 m above threshold 5 deg / 0.05 m)"``.
 
 The default thresholds (5 degrees, 5 cm) separate gross errors from noise: a half-turned
 board, a wrong PnP branch or a motion-capture glitch is off by tens of degrees, while a
@@ -48,6 +48,7 @@ from multieye.solvers.checks import (
     MIN_MEASUREMENTS,
     Measurements,
     check_measurements,
+    check_names,
     given_measurements,
     rotation_spread,
 )
@@ -115,6 +116,22 @@ class ConsensusResult:
     threshold_rot_deg: float
     threshold_trans_m: float
     samples: tuple[int, ...]
+
+
+def _real(v) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
+def _labels(labels, meas: Measurements) -> list[list[str]]:
+    """Per-camera measurement names for messages, checked against the counts."""
+    counts = [int(c) for c in meas.counts]
+    if labels is None:
+        return [[f"measurement {i}" for i in range(n)] for n in counts]
+    if isinstance(labels, (str, bytes)) or len(labels) != len(counts) or any(
+            isinstance(lj, (str, bytes)) or len(lj) != n for lj, n in zip(labels, counts)):
+        raise InputError(f"labels must hold one name per measurement of each camera "
+                         f"(counts {counts})")
+    return [[str(x) for x in lj] for lj in labels]
 
 
 def measurement_residuals(A: F64, B: F64, X: F64, Y: F64) -> tuple[F64, F64]:
@@ -191,8 +208,8 @@ def _ransac_camera(A: F64, B: F64, thr_rot: float, thr_t: float, rng: np.random.
 
 def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: float = 0.05,
               names: Sequence[str] | None = None, max_samples: int = 500,
-              confidence: float = 0.999, seed: int | np.random.Generator | None = 0
-              ) -> ConsensusResult:
+              confidence: float = 0.999, seed: int | np.random.Generator | None = 0,
+              labels: Sequence[Sequence[str]] | None = None) -> ConsensusResult:
     """Find the measurements that agree with one ``X^j`` per camera and a shared ``Y``.
 
     Parameters
@@ -215,6 +232,9 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
         probability, given the best inlier share so far.
     seed : int, Generator or None
         Random source of the samples (fixed by default: same input, same answer).
+    labels : sequence of sequence of str, optional
+        Per camera, a name for each measurement (its image file), used in messages; default
+        ``measurement <i>``.
 
     Returns
     -------
@@ -231,19 +251,27 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
         The pooled rotations of all cameras are about a single axis.
     """
     for name, v in (("threshold_rot_deg", threshold_rot_deg),
-                    ("threshold_trans_m", threshold_trans_m)):
-        if not (np.isfinite(v) and v > 0):
+                    ("threshold_trans_m", threshold_trans_m), ("confidence", confidence)):
+        if not _real(v):
+            raise InputError(f"{name} must be a real number, got {v!r}")
+        if name != "confidence" and not (np.isfinite(v) and v > 0):
             raise InputError(f"{name} must be a positive number, got {v!r}")
     if not 0.0 < confidence < 1.0:
         raise InputError(f"confidence must be in (0, 1), got {confidence}")
+    if isinstance(max_samples, bool) or not isinstance(max_samples, (int, np.integer)) \
+            or max_samples < 1:
+        raise InputError(f"max_samples must be a positive integer, got {max_samples!r}")
     if isinstance(A, Measurements):
         meas = given_measurements(A, B, names)
     else:
-        meas = check_measurements(A, B, names=list(names) if names is not None else None,
-                                  per_camera_motion=False)
+        meas = check_measurements(A, B, names=check_names(names, A), per_camera_motion=False)
     names = meas.names
+    labels = _labels(labels, meas)
     As, Bs = meas.split(meas.A), meas.split(meas.B)
-    rng = np.random.default_rng(seed)
+    try:
+        rng = np.random.default_rng(seed)
+    except (TypeError, ValueError):
+        raise InputError(f"seed must be an int, a numpy Generator or None, got {seed!r}") from None
     inliers, samples = [], []
     for Aj, Bj in zip(As, Bs):
         inl, s = _ransac_camera(Aj, Bj, threshold_rot_deg, threshold_trans_m, rng,
@@ -254,11 +282,13 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
     for _ in range(10):
         for j, inl in enumerate(inliers):
             if inl.sum() < MIN_MEASUREMENTS:
+                out = [labels[j][i] for i in np.flatnonzero(~inl)]
+                listed = ", ".join(out[:5]) + (f" and {len(out) - 5} more" if len(out) > 5 else "")
                 raise TooFewMeasurementsError(
                     f"camera {names[j]}: only {int(inl.sum())} of {len(inl)} measurements agree "
                     f"within {threshold_rot_deg:g} deg / {threshold_trans_m:g} m, at least "
-                    f"{MIN_MEASUREMENTS} are needed; check its detections and time pairing, "
-                    "or raise the thresholds")
+                    f"{MIN_MEASUREMENTS} are needed (outliers: {listed}); check its detections "
+                    "and time pairing, or raise the thresholds")
         X, Y = solve_joint(Measurements.from_arrays(
             np.concatenate([a[k] for a, k in zip(As, inliers)]),
             np.concatenate([b[k] for b, k in zip(Bs, inliers)]),
@@ -274,8 +304,9 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
         for i in np.flatnonzero(~inl):
             rejected.append(RejectedMeasurement(
                 camera=names[j], index=int(i), rot_deg=float(rot[i]), trans_m=float(trans[i]),
-                reason=(f"loop residual {rot[i]:.1f} deg / {trans[i]:.3f} m above threshold "
-                        f"{threshold_rot_deg:g} deg / {threshold_trans_m:g} m (RANSAC)")))
+                reason=(f"outlier by consensus (loop residual {rot[i]:.1f} deg / "
+                        f"{trans[i]:.3f} m above threshold {threshold_rot_deg:g} deg / "
+                        f"{threshold_trans_m:g} m)")))
     return ConsensusResult(inliers=tuple(inliers), rejected=tuple(rejected), X=X, Y=Y,
                            rot_deg=tuple(r for r, _ in res), trans_m=tuple(t for _, t in res),
                            threshold_rot_deg=float(threshold_rot_deg),

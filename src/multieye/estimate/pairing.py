@@ -21,8 +21,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
+from multieye.core.arguments import real_array, real_number
 from multieye.core.errors import InputError
 from multieye.core.geometry import make_transform
+from multieye.core.limits import MAX_TIME_OFFSET_S
 
 __all__ = ["Pairing", "pair_in_time", "interpolate_poses"]
 
@@ -94,12 +96,27 @@ def pair_in_time(stamps: ArrayLike, T: ArrayLike, query: ArrayLike, *, tolerance
     Returns
     -------
     Pairing
+
+    Raises
+    ------
+    InputError
+        Arrays of the wrong shape or not real, non-finite stamps or poses, stamps not
+        strictly increasing, a tolerance that is not a positive number, an offset that is not
+        a finite number within :data:`~multieye.core.limits.MAX_TIME_OFFSET_S`.
     """
-    stamps = np.asarray(stamps, dtype=np.float64)
-    T = np.asarray(T, dtype=np.float64)
-    q = np.asarray(query, dtype=np.float64) + offset
-    if tolerance <= 0:
-        raise InputError(f"time tolerance must be positive, got {tolerance} s")
+    stamps = real_array(stamps, "motion-capture stamps", shape=(None,))
+    T = real_array(T, "motion-capture poses T", shape=(len(stamps), 4, 4),
+                   expected=f"one 4x4 pose per stamp, shape ({len(stamps)}, 4, 4)")
+    query = real_array(query, "image stamps (query)", shape=(None,))
+    tolerance = real_number(tolerance, "time tolerance", positive=True)
+    offset = real_number(offset, "time offset")
+    if abs(offset) > MAX_TIME_OFFSET_S:
+        raise InputError(f"time offset must be within {MAX_TIME_OFFSET_S:g} s, got {offset:g} s")
+    for what, arr in (("motion-capture stamps", stamps), ("motion-capture poses", T),
+                      ("image stamps", query)):
+        if not np.isfinite(arr).all():
+            raise InputError(f"{what} must be finite, got NaN or inf")
+    q = query + offset
     if stamps.size == 0:
         raise InputError("the motion-capture trajectory is empty")
     if np.any(np.diff(stamps) <= 0):
@@ -132,8 +149,7 @@ def pair_in_time(stamps: ArrayLike, T: ArrayLike, query: ArrayLike, *, tolerance
             why = (f"{where} the motion-capture recording ({stamps[0]:.3f}..{stamps[-1]:.3f} s), "
                    f"nearest sample {gap[i]:.3f} s away")
         else:
-            why = (f"nearest motion-capture sample is {gap[i]:.3f} s away "
-                   f"(time_tolerance {tolerance:g} s)")
+            why = f"nearest motion-capture sample is {gap[i]:.3f} s away"
         unpaired.append((int(i), why))
     idx = np.flatnonzero(ok)
     return Pairing(index=idx, T=out[idx], gap_s=gap[idx], interpolated=interp[idx],

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from multieye.core.arguments import real_array
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.solvers.refine_poses import relative_pose_covariance
@@ -81,7 +82,7 @@ def pose_std(covariance: ArrayLike) -> tuple[F64, F64]:
     std_trans_m : ndarray, shape (...)
         Metres.
     """
-    C = np.asarray(covariance, dtype=np.float64)
+    C = real_array(covariance, "covariance")
     if C.shape[-2:] != (6, 6):
         raise InputError(f"pose covariances must be 6x6, got shape {C.shape}")
     rot = np.trace(C[..., :3, :3], axis1=-2, axis2=-1)
@@ -113,16 +114,19 @@ def relative_covariance(X: ArrayLike, covariance: ArrayLike, reference: int = 0
     Raises
     ------
     InputError
-        Shapes that do not match, or a reference index out of range.
+        Shapes that do not match, arrays that are not real and finite, or a reference that
+        is not an index in range.
     """
-    X = np.asarray(X, dtype=np.float64)
-    C = np.asarray(covariance, dtype=np.float64)
-    if X.ndim != 3 or X.shape[1:] != (4, 4):
-        raise InputError(f"X must have shape (m, 4, 4), got {X.shape}")
+    X = real_array(X, "X", shape=(None, 4, 4))
+    C = real_array(covariance, "covariance")
     m = X.shape[0]
     if C.shape not in ((6 * m, 6 * m), (6 * m + 6, 6 * m + 6)):
         raise InputError(f"covariance must be {6 * m}x{6 * m} (X) or {6 * m + 6}x{6 * m + 6} "
                          f"(X and Y) for {m} cameras, got {C.shape}")
+    if not (np.isfinite(X).all() and np.isfinite(C).all()):
+        raise InputError("X and covariance must be finite, got NaN or inf")
+    if isinstance(reference, bool) or not isinstance(reference, (int, np.integer)):
+        raise InputError(f"reference must be a camera index (int), got {reference!r}")
     if not 0 <= reference < m:
         raise InputError(f"reference camera index {reference} out of range for {m} cameras")
     out = np.zeros((m, 6, 6))

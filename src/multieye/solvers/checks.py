@@ -13,6 +13,7 @@ from itertools import accumulate
 
 import numpy as np
 
+from multieye.core.arguments import camera_names, real_array
 from multieye.core.errors import DegenerateMotionError, InputError, TooFewMeasurementsError
 from multieye.core.geometry import det3
 from multieye.solvers.kronecker import BOTTOM_ROWS, CameraStats, camera_stats, sym3_eigvals, transform_entries
@@ -22,6 +23,7 @@ __all__ = [
     "check_measurements",
     "check_motion",
     "given_measurements",
+    "check_names",
     "Measurements",
     "rotation_spread",
     "MIN_MEASUREMENTS",
@@ -57,10 +59,7 @@ def _is_batch(T) -> bool:
 def _as_batch(T, name: str) -> np.ndarray:
     if _is_batch(T):
         return T
-    try:
-        T = np.asarray(T, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be an array of 4x4 transforms: {exc}") from None
+    T = real_array(T, name, expected="an array of 4x4 transforms, shape (N, 4, 4)")
     if T.ndim == 2 and T.shape == (4, 4):
         T = T[None]
     if T.ndim != 3 or T.shape[1:] != (4, 4):
@@ -408,12 +407,19 @@ def check_measurements(A, B, *, names: list[str] | None = None,
     DegenerateMotionError
         Rotations about a single axis (or none at all).
     """
+    if A is None:
+        raise InputError("A is None: give one (N, 4, 4) array of transforms per camera")
     if B is None:
         raise InputError("B is missing: give one B batch per A batch")
+    names = check_names(names, A)
     if isinstance(A, np.ndarray) and A.ndim == 3:
         A = [A]
     if isinstance(B, np.ndarray) and B.ndim == 3:
         B = [B]
+    for label, arg in (("A", A), ("B", B)):
+        if isinstance(arg, (str, bytes, dict, set)) or not hasattr(arg, "__len__"):
+            raise InputError(f"{label} must be a list with one (N, 4, 4) array of transforms "
+                             f"per camera, got {type(arg).__name__}")
     A = list(A)
     B = list(B)
     m = len(A)
@@ -478,6 +484,21 @@ def check_motion(meas: Measurements, *, per_camera_motion: bool = True) -> None:
         S = np.einsum("jab,cbj->ac", meas.stats.SA, R0)       # sum_j SA_j R0_j^T
         _check_spread(_spread_from_scatter(_scatter_from_sum(S, N), N - m),
                       "the rig (all cameras together)")
+
+
+def check_names(names, A) -> list[str] | None:
+    """``names`` for :func:`check_measurements` (one distinct string per camera of ``A``), or
+    None; an InputError otherwise.  The number of cameras is counted as there."""
+    if names is None:
+        return None
+    if isinstance(A, np.ndarray) and A.ndim == 3:
+        m = 1
+    else:
+        try:
+            m = len(A)
+        except TypeError:
+            return list(camera_names(names, len(names) if hasattr(names, "__len__") else 0))
+    return list(camera_names(names, m))
 
 
 def given_measurements(meas: Measurements, B=None, names=None) -> Measurements:

@@ -231,11 +231,15 @@ def solve_general(groups: Iterable, method: str = "joint", refine: bool = False,
     DegenerateMotionError
         The measurements do not determine the rotations or the translations.
     """
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:
         raise InputError(f"unknown method {method!r} for solve_general; expected one of "
                          f"{', '.join(METHODS)}")
     if refine_options and not refine:
         raise InputError(f"refinement options {sorted(refine_options)} given without refine=True")
+    if refine:
+        from multieye.solvers.refine_poses import check_refine_options
+
+        check_refine_options(refine_options)
     groups = as_groups(groups)
     check_connected(groups)
     counts = np.array([len(g.A) for g in groups])

@@ -14,6 +14,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
+from multieye.core.arguments import real_array
 from multieye.core.errors import DisconnectedError, InputError, TooFewMeasurementsError
 from multieye.core.metrics import CameraResidual, camera_residual
 from multieye.core.problem import MeasurementGroup
@@ -84,10 +85,7 @@ class GeneralSolution:
 
 
 def _as_transform_batch(T, what: str) -> F64:
-    try:
-        T = np.asarray(T, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{what}: expected an array of 4x4 transforms ({exc})") from None
+    T = real_array(T, what, expected="an array of 4x4 transforms, shape (N, 4, 4)")
     if T.ndim != 3 or T.shape[1:] != (4, 4):
         raise InputError(f"{what}: expected shape (N, 4, 4), got {T.shape}")
     return T
@@ -114,6 +112,10 @@ def as_groups(groups: Iterable) -> tuple[MeasurementGroup, ...]:
     TooFewMeasurementsError
         No groups, or a group without measurements.
     """
+    if groups is None or isinstance(groups, (str, bytes, Mapping)) or not isinstance(
+            groups, Iterable):
+        raise InputError(f"groups must be an iterable of (x_name, y_name, A, B), got "
+                         f"{type(groups).__name__}")
     merged: dict[tuple[str, str], list[tuple[F64, F64]]] = {}
     for k, g in enumerate(groups):
         try:

@@ -203,7 +203,7 @@ def refine_groups(groups: tuple[MeasurementGroup, ...], initial: GeneralSolution
                   tol: float = 1e-10) -> GeneralSolution:
     """:func:`refine_general` on groups already validated by
     :func:`multieye.solvers.groups.as_groups` (the transforms are not checked again)."""
-    if loss not in LOSSES:
+    if not isinstance(loss, str) or loss not in LOSSES:
         raise InputError(f"unknown loss {loss!r}; expected one of {', '.join(LOSSES)}")
     for name, v in (("rot_sigma_rad", rot_sigma_rad), ("trans_sigma_m", trans_sigma_m),
                     ("loss_scale", loss_scale)):
@@ -235,6 +235,18 @@ def refine_groups(groups: tuple[MeasurementGroup, ...], initial: GeneralSolution
                              sigma_rot_rad=float(s_rot), sigma_trans_m=float(s_t))
 
 
+#: Keyword options of the pose-level refinement (``solve(..., refine=True, **options)``).
+REFINE_OPTIONS = ("rot_sigma_rad", "trans_sigma_m", "loss", "loss_scale", "max_iter", "tol")
+
+
+def check_refine_options(options: Mapping) -> None:
+    """InputError for an option name the refinement does not take (before any work)."""
+    unknown = sorted(set(options) - set(REFINE_OPTIONS))
+    if unknown:
+        raise InputError(f"unknown refinement option {', '.join(unknown)}; the options are "
+                         f"{', '.join(REFINE_OPTIONS)}")
+
+
 def refine_solution(solution: Solution, **options) -> Solution:
     """Refine a single-Y solution of ``A_i^j X^j = Y B_i^j``: what ``solve(..., refine=True)`` runs.
 
@@ -257,6 +269,7 @@ def refine_solution(solution: Solution, **options) -> Solution:
     InputError
         The solution carries no measurements, or an option is invalid.
     """
+    check_refine_options(options)
     meas = solution.measurements
     if meas is None:
         raise InputError("cannot refine a Solution built without its measurements")

@@ -110,11 +110,15 @@ def solve(A: Sequence[np.ndarray] | np.ndarray | Measurements,
         pooled motion of all cameras to rotate about two axes; single-camera methods need
         it for every camera.
     """
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if refine_options and not refine:
         raise InputError(f"refinement options {', '.join(sorted(refine_options))} given without "
                          "refine=True")
+    if refine:
+        from multieye.solvers.refine_poses import check_refine_options
+
+        check_refine_options(refine_options)
     joint = method in JOINT_METHODS
     if isinstance(A, Measurements):
         meas = given_measurements(A, B, names)

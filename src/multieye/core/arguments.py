@@ -1,0 +1,121 @@
+"""Checks of the arguments of the public functions, so that a wrong argument (None, a complex
+or ragged array, a string where a number belongs, names of the wrong length, a non-positive
+iteration count) is an :class:`~multieye.core.errors.InputError` that says what was expected,
+never a TypeError or a numpy traceback from deep inside.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from multieye.core.errors import InputError
+
+__all__ = ["real_array", "real_number", "positive_int", "camera_names", "one_of", "as_path"]
+
+
+def _kind(value: Any) -> str:
+    if isinstance(value, np.ndarray):
+        return f"an array of dtype {value.dtype} and shape {value.shape}"
+    return type(value).__name__
+
+
+def real_array(value: Any, name: str, *, shape: tuple[int | None, ...] | None = None,
+               expected: str | None = None) -> np.ndarray:
+    """``value`` as a float64 array, or an InputError naming ``name`` and what was expected.
+
+    Parameters
+    ----------
+    value : array_like
+    name : str
+        How the message names the argument.
+    shape : tuple of int or None, optional
+        Required shape; None entries take any length.
+    expected : str, optional
+        What the message says is expected (default: from ``shape``).
+    """
+    want = expected or ("an array of real numbers" if shape is None else
+                        "a real array of shape (" + ", ".join("N" if n is None else str(n)
+                                                              for n in shape)
+                        + ("," if len(shape) == 1 else "") + ")")
+    if value is None:
+        raise InputError(f"{name} is None; expected {want}")
+    if isinstance(value, (str, bytes, dict, set)):
+        raise InputError(f"{name} must be {want}, got {_kind(value)}")
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be {want}: {exc}") from None
+    if np.iscomplexobj(arr):
+        raise InputError(f"{name} must be real, got complex numbers ({_kind(arr)})")
+    if arr.dtype.kind not in "fiub":
+        try:
+            arr = arr.astype(np.float64)
+        except (TypeError, ValueError):
+            raise InputError(f"{name} must be {want}, got {_kind(arr)}") from None
+    arr = arr.astype(np.float64, copy=False)
+    if shape is not None and (arr.ndim != len(shape) or any(
+            n is not None and n != k for n, k in zip(shape, arr.shape))):
+        raise InputError(f"{name} must be {want}, got shape {arr.shape}")
+    return arr
+
+
+def real_number(value: Any, name: str, *, positive: bool = False, finite: bool = True,
+                allow_none: bool = False) -> float | None:
+    """A real number (``positive``: > 0; ``finite``: not NaN or inf), as a float."""
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{name} must be a {'positive ' if positive else ''}number, got "
+                         f"{value!r}")
+    value = float(value)
+    if (finite and not math.isfinite(value)) or (positive and not value > 0):
+        raise InputError(f"{name} must be a {'positive' if positive else 'finite'} number, "
+                         f"got {value!r}")
+    return value
+
+
+def positive_int(value: Any, name: str) -> int:
+    """A positive integer (``max_iter``, ``processes``), or an InputError."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise InputError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def camera_names(names: Any, count: int, what: str = "cameras") -> tuple[str, ...] | None:
+    """``names`` as a tuple of ``count`` distinct non-empty strings, or None when not given."""
+    if names is None:
+        return None
+    if isinstance(names, (str, bytes)) or not isinstance(names, Sequence | np.ndarray):
+        raise InputError(f"names must be a list of {count} strings (one per {what[:-1]}), got "
+                         f"{names!r}")
+    names = list(names)
+    if len(names) != count:
+        raise InputError(f"names has {len(names)} entries but there are {count} {what}; give "
+                         f"one name per {what[:-1]}")
+    if not all(isinstance(n, str) and n for n in names):
+        raise InputError(f"names must be non-empty strings, got {names!r}")
+    if len(set(names)) != len(names):
+        raise InputError(f"names must be distinct, got {names!r}")
+    return tuple(names)
+
+
+def one_of(value: Any, name: str, options: Sequence[str]) -> str:
+    """``value`` if it is one of ``options`` (strings), else an InputError listing them."""
+    if not isinstance(value, str) or value not in options:
+        raise InputError(f"{name} must be one of {', '.join(options)}, got {value!r}")
+    return value
+
+
+def as_path(value: Any, name: str = "path") -> Path:
+    """``value`` as a Path, or an InputError when it is not a path (None, a number, a list)."""
+    if isinstance(value, (str, os.PathLike)) and not isinstance(value, bytes):
+        text = os.fspath(value)
+        if isinstance(text, str) and text and "\0" not in text:
+            return Path(text)
+    raise InputError(f"{name} must be a path (str or os.PathLike), got {value!r}")
