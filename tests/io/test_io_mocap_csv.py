@@ -76,6 +76,25 @@ def test_generic_csv_errors(tmp_path):
     assert info.value.line == 3
 
 
+def test_generic_csv_leaves_out_non_finite_and_absurd_rows(tmp_path):
+    text = ("t,x [mm],y [mm],z [mm],qx,qy,qz,qw\n"
+            "0,0,0,0,0,0,0,1\n"
+            "1,NaN,0,0,0,0,0,1\n"
+            "2,0,0,2e7,0,0,0,1\n"          # 20 km once in metres
+            "3,0,0,0,0,0,0,1\n")
+    (tmp_path / "a.csv").write_text(text)
+    traj = read_pose_csv(tmp_path / "a.csv")
+    assert traj.stamps.tolist() == [0.0, 3.0]
+    assert [(s.where, s.reason) for s in traj.skipped] == [
+        ("line 3", "not a finite number: tx = nan"),
+        ("line 4", "absurd position: tz = 20000 m, beyond 10000 m")]
+    (tmp_path / "b.csv").write_text("t,x,y,z,qx,qy,qz,qw\n0,inf,0,0,0,0,0,1\n")
+    with pytest.raises(DatasetError, match="no usable pose: all 1 rows left out; line 2: not a "
+                                           "finite number: tx = inf") as info:
+        read_pose_csv(tmp_path / "b.csv")
+    assert info.value.line == 2
+
+
 # --------------------------------------------------------------------------- OptiTrack
 
 
@@ -150,6 +169,20 @@ def test_optitrack_bad_cell_names_line(tmp_path, poses):
     assert info.value.line == 10
 
 
+def test_optitrack_leaves_out_a_non_finite_row(tmp_path, poses):
+    stamps, T = poses
+    _optitrack(tmp_path / "take.csv", stamps, T)
+    lines = (tmp_path / "take.csv").read_text().splitlines()
+    cells = lines[9].split(",")
+    cells[14] = "1e400"                     # Target Position X: beyond the float range
+    lines[9] = ",".join(cells)
+    (tmp_path / "take.csv").write_text("\n".join(lines))
+    traj = read_optitrack_csv(tmp_path / "take.csv", "Target")
+    assert len(traj) == len(stamps) - 1
+    assert traj.skipped[0].line == 10
+    assert traj.skipped[0].reason == "not a finite number: Target Position X = inf"
+
+
 # --------------------------------------------------------------------------- Vicon
 
 
@@ -209,6 +242,20 @@ def test_vicon_errors(tmp_path, rng):
     assert info.value.line == 2
 
 
+def test_vicon_leaves_out_absurd_rows(tmp_path, rng):
+    T = geometry.random_transforms(rng, 4)
+    _vicon(tmp_path / "trial.csv", [1, 2, 3, 4], T, angle="rad", length="m")
+    lines = (tmp_path / "trial.csv").read_text().splitlines()
+    cells = lines[6].split(",")
+    cells[8] = "1e300"                      # Rig:Marker RX of frame 2, radians
+    lines[6] = ",".join(cells)
+    (tmp_path / "trial.csv").write_text("\n".join(lines) + "\n")
+    traj = read_vicon_csv(tmp_path / "trial.csv", "Marker")
+    assert traj.stamps.tolist() == [1 / 100, 3 / 100, 4 / 100]
+    assert traj.skipped[0].line == 7
+    assert traj.skipped[0].reason == "absurd rotation: RX = 1e+300 rad, beyond 1000 rad"
+
+
 # --------------------------------------------------------------------------- dispatcher
 
 
@@ -245,3 +292,25 @@ def test_read_mocap_passes_duplicates_to_csv(tmp_path):
     assert info.value.line == 3
     traj = read_mocap(MocapSpec(tmp_path / "d.csv", format="csv", duplicates="drop"))
     assert traj.T[:, 0, 3].tolist() == [0.0, 2.0]
+
+
+@pytest.mark.parametrize("bad", [None, 5, ["mocap.txt"]])
+def test_readers_refuse_what_is_not_a_path(bad):
+    from multieye.core.errors import InputError
+    from multieye.io import list_images, load_rig, read_intrinsics, read_tum
+
+    for reader in (read_tum, read_pose_csv, read_optitrack_csv, read_vicon_csv, read_intrinsics,
+                   load_rig, list_images, sniff_mocap_format):
+        with pytest.raises(InputError, match="must be a path"):
+            reader(bad)
+    with pytest.raises(InputError, match="read_mocap takes a MocapSpec, got"):
+        read_mocap(bad)
+
+
+def test_duplicates_option_is_an_input_error(tmp_path):
+    from multieye.core.errors import InputError
+    from multieye.io import read_tum
+
+    (tmp_path / "m.txt").write_text("0 0 0 0 0 0 0 1\n")
+    with pytest.raises(InputError, match="duplicates must be 'error' or 'drop', got 'x'"):
+        read_tum(tmp_path / "m.txt", duplicates="x")

@@ -113,6 +113,21 @@ def test_duplicate_stamps_and_bad_quaternions_are_errors(tmp_path):
         read_bag_trajectory(tmp_path / "junk.bag", "/p")
 
 
+def test_non_finite_bag_samples_are_left_out(tmp_path):
+    path = tmp_path / "nan.bag"
+    with Bag(path, 1) as bag:
+        for k in range(3):
+            T = np.eye(4)
+            T[0, 3] = np.nan if k == 1 else k
+            stamp = BASE_NS + k * 10_000_000
+            bag.write("/p", bag.t("geometry_msgs/msg/PoseStamped")(
+                header=bag.header(stamp, "world"), pose=bag.pose(T)), stamp)
+    traj = read_bag_trajectory(path, "/p")
+    assert traj.stamps_ns.tolist() == [BASE_NS, BASE_NS + 20_000_000]
+    assert [(s.where, s.reason, s.line) for s in traj.skipped] == [
+        (f"/p@{BASE_NS + 10_000_000}", "not a finite number: x = nan", None)]
+
+
 # --------------------------------------------------------------------------- images
 
 

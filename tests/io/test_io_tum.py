@@ -94,7 +94,8 @@ def test_small_quaternion_deviation_is_normalised(tmp_path):
     ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 1\n",
      2, "TUM trajectory files must have 8 entries per row, got 7"),
     ("# c\n0 0 0 zero 0 0 0 1\n", 2, "expected a number for tz, got 'zero'"),
-    ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 nan\n", 2, "expected a finite number for qw"),
+    ("# c\n1 0 0 0 0 0 0 nan\n2 inf 0 0 0 0 0 1\n", 2,
+     r"no usable pose: all 2 rows left out; line 2: not a finite number: qw = nan"),
     ("0 0 0 0 0 0 0 1\n\n1 0 0 0 0.1 0 0 1.2\n", 3,
      r"quaternion \(qx qy qz qw\) must have unit norm, got norm 1.20416"),
     ("0 0 0 0 0 0 0 1\n0 0 0 0 0 0 0 1\n", 2, "duplicate time stamp: 0.0 s after 0.0 s on line 1"),
@@ -107,6 +108,27 @@ def test_malformed_files_name_file_and_line(tmp_path, body, line, message):
         read_tum(path)
     assert info.value.line == line
     assert str(info.value).startswith(f"{path}:{line}: ")
+
+
+def test_non_finite_and_absurd_rows_are_left_out_with_their_line(tmp_path):
+    rows = ["0 0 0 0 0 0 0 1", "1 0 0 0 0 0 0 nan", "2 1e308 0 0 0 0 0 1", "3 0 -2e4 0 0 0 0 1",
+            "4 0 0 0 0 0 0 1", "1e12 0 0 0 0 0 0 1", "5 0 0 inf 0 0 0 1", "6 0 0 0 0 0 0 1"]
+    (tmp_path / "m.txt").write_text("# header\n" + "\n".join(rows) + "\n")
+    traj = read_tum(tmp_path / "m.txt")
+    assert traj.stamps.tolist() == [0.0, 4.0, 6.0]
+    assert [(s.line, s.row) for s in traj.skipped] == [(3, 2), (4, 3), (5, 4), (7, 6), (8, 7)]
+    assert [s.reason for s in traj.skipped] == [
+        "not a finite number: qw = nan",
+        "absurd position: tx = 1e+308 m, beyond 10000 m",
+        "absurd position: ty = -20000 m, beyond 10000 m",
+        "absurd time stamp: t = 1e+12 s, beyond 1e+10 s",
+        "not a finite number: tz = inf"]
+    assert traj.skipped[0].where == "line 3"
+    assert traj.inverted().skipped == traj.skipped
+    # in millimetres the bound applies after the conversion: 2e6 mm = 2 km is kept
+    (tmp_path / "mm.txt").write_text("0 2e6 0 0 0 0 0 1\n1 2e7 0 0 0 0 0 1\n")
+    traj = read_tum(tmp_path / "mm.txt", unit="mm")
+    assert traj.T[:, 0, 3].tolist() == [2000.0] and len(traj.skipped) == 1
 
 
 def test_duplicates_can_be_dropped_but_steps_back_cannot(tmp_path):

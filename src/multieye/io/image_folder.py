@@ -22,6 +22,7 @@ import re
 from decimal import ROUND_HALF_EVEN, Decimal
 from pathlib import Path
 
+from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
 
 __all__ = ["IMAGE_EXTENSIONS", "list_images", "stamp_from_name"]
@@ -73,7 +74,7 @@ def list_images(folder: str | os.PathLike) -> list[tuple[float, int, Path]]:
         Missing folder, no images, a name that is not a time stamp, two images with the same
         stamp (naming both).
     """
-    root = Path(folder)
+    root = as_path(folder, "image folder")
     if not root.is_dir():
         raise DatasetError("image folder not found", path=root)
     found: dict[int, Path] = {}

@@ -18,7 +18,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from multieye.core.errors import DatasetError
+from multieye.core.arguments import as_path
+from multieye.core.errors import DatasetError, InputError
 from multieye.io.mocap_csv import csv_flavour, read_optitrack_csv, read_pose_csv, read_vicon_csv
 from multieye.io.rosbag import read_bag_trajectory
 from multieye.io.trajectory import Trajectory
@@ -90,7 +91,7 @@ class MocapSpec:
 
 def sniff_mocap_format(path: str | os.PathLike) -> str:
     """The format of a motion-capture file from its name and first line (module docstring)."""
-    p = Path(path)
+    p = as_path(path, "motion-capture file")
     if not p.exists():
         raise DatasetError("motion-capture file not found", path=p)
     if p.is_dir():
@@ -120,7 +121,12 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
         From the format's reader (file, line and what was expected), or a spec whose options do
         not fit its format.
     """
-    parent, child = pose_frames(spec.pose)
+    if not isinstance(spec, MocapSpec):
+        raise InputError(f"read_mocap takes a MocapSpec, got {type(spec).__name__}")
+    try:
+        parent, child = pose_frames(spec.pose)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"MocapSpec.pose: {exc}") from None
     fmt = spec.format
     if fmt not in MOCAP_FORMATS:
         raise DatasetError(f"motion-capture format must be one of {', '.join(MOCAP_FORMATS)}, "

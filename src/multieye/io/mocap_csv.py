@@ -45,7 +45,7 @@ import numpy as np
 
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
-from multieye.io.poserows import quaternion_poses, trajectory_from_rows
+from multieye.io.poserows import quaternion_poses, trajectory_from_rows, usable_rows
 from multieye.io.textfile import LENGTH_UNITS, parse_float, read_text
 from multieye.io.trajectory import Trajectory
 
@@ -74,6 +74,9 @@ _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([a-zA-Z]+)\s*[\])]$")
 _OPTITRACK_UNITS = {"meters": "m", "millimeters": "mm", "centimeters": "cm"}
 _VICON_SECTIONS = ("Segments", "Trajectories", "Model Outputs", "Joints", "Devices")
+#: Largest rotation-vector component accepted from a Vicon export, radians (beyond it a row is
+#: left out as absurd: no exporter writes it, and it has lost every digit of the angle).
+_MAX_ROTVEC_RAD = 1e3
 
 
 def _rows(text: str, delimiter: str = ",") -> list[list[str]]:
@@ -99,12 +102,18 @@ def _complete_rows(rows, start: int, columns: Sequence[int], names: Sequence[str
         cells = [row[j].strip() if j < len(row) else "" for j in columns]
         if not all(cells):
             continue
-        values.append([parse_float(c, path=path, line=i + 1, name=n)
+        values.append([parse_float(c, path=path, line=i + 1, name=n, finite=False)
                        for c, n in zip(cells, names)])
         lines.append(i + 1)
     if not values:
         raise DatasetError(missing, path=path)
     return np.asarray(values), lines
+
+
+def _screened(stamps, t, rotation, names, path, lines, max_rotation=None):
+    """:func:`usable_rows` on the converted numbers: ``(keep, skipped, kept lines)``."""
+    return usable_rows(stamps, t, rotation, path=path, lines=lines, names=names,
+                       max_rotation=max_rotation)
 
 
 # --------------------------------------------------------------------------- generic CSV
@@ -217,17 +226,28 @@ def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None 
                 raise DatasetError(f"expected integer nanoseconds for t, got {cells[0]!r}",
                                    path=path, line=i + 1) from None
             cells[0] = "0"
-        values.append([parse_float(c, path=path, line=i + 1, name=role)
+        values.append([parse_float(c, path=path, line=i + 1, name=role, finite=False)
                        for c, role in zip(cells, DEFAULT_COLUMNS)])
         lines.append(i + 1)
     if not values:
         raise DatasetError("no poses found below the header", path=path)
     data = np.asarray(values)
-    ns = np.asarray(stamps_ns, dtype=np.int64) if time_unit == "ns" else None
-    stamps = ns / 1e9 if ns is not None else data[:, 0] * _TIME_UNITS[time_unit]
-    T = quaternion_poses(data[:, 1:4] * LENGTH_UNITS[unit], data[:, 4:8], path=path, lines=lines)
-    return trajectory_from_rows(stamps, T, path=path, lines=lines, parent=parent, child=child,
-                                stamps_ns=ns, duplicates=duplicates)
+    if time_unit == "ns":
+        if any(abs(v) >= 2 ** 63 for v in stamps_ns):
+            i = next(k for k, v in enumerate(stamps_ns) if abs(v) >= 2 ** 63)
+            raise DatasetError(f"time stamp {stamps_ns[i]} ns does not fit 64 bits", path=path,
+                               line=lines[i])
+        ns = np.asarray(stamps_ns, dtype=np.int64)
+    else:
+        ns = None
+    with np.errstate(over="ignore", invalid="ignore"):
+        stamps = ns / 1e9 if ns is not None else data[:, 0] * _TIME_UNITS[time_unit]
+        t = data[:, 1:4] * LENGTH_UNITS[unit]
+    keep, skipped, lines = _screened(stamps, t, data[:, 4:8], tuple(DEFAULT_COLUMNS), path, lines)
+    T = quaternion_poses(t[keep], data[keep, 4:8], path=path, lines=lines)
+    return trajectory_from_rows(stamps[keep], T, path=path, lines=lines, parent=parent,
+                                child=child, stamps_ns=None if ns is None else ns[keep],
+                                duplicates=duplicates, skipped=skipped)
 
 
 # --------------------------------------------------------------------------- OptiTrack
@@ -323,9 +343,12 @@ def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *
     data, lines = _complete_rows(rows, frame_row + 1, order, cell_names, path,
                                  section_ends_at_blank=False,
                                  missing=f"rigid body {body!r} is not tracked in any frame")
-    T = quaternion_poses(data[:, 1:4] * scale, data[:, 4:8], path=path, lines=lines)
-    return trajectory_from_rows(data[:, 0], T, path=path, lines=lines, parent=parent,
-                                child=child)
+    with np.errstate(over="ignore", invalid="ignore"):
+        t = data[:, 1:4] * scale
+    keep, skipped, lines = _screened(data[:, 0], t, data[:, 4:8], cell_names, path, lines)
+    T = quaternion_poses(t[keep], data[keep, 4:8], path=path, lines=lines)
+    return trajectory_from_rows(data[keep, 0], T, path=path, lines=lines, parent=parent,
+                                child=child, skipped=skipped)
 
 
 # --------------------------------------------------------------------------- Vicon
@@ -399,9 +422,13 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
     data, lines = _complete_rows(rows, s + 5, [0, *order], ("Frame",) + wanted, path,
                                  section_ends_at_blank=True,
                                  missing=f"segment {name!r} has no frame with a complete pose")
-    T = geometry.transform_from_rotvec(data[:, 4:7] * to_rad, data[:, 1:4] * scale)
-    return trajectory_from_rows(data[:, 0] / rate, T, path=path, lines=lines, parent=parent,
-                                child=child)
+    with np.errstate(over="ignore", invalid="ignore"):
+        t, rotvec, stamps = data[:, 1:4] * scale, data[:, 4:7] * to_rad, data[:, 0] / rate
+    keep, skipped, lines = _screened(stamps, t, rotvec, ("Frame",) + wanted, path, lines,
+                                     max_rotation=_MAX_ROTVEC_RAD)
+    T = geometry.transform_from_rotvec(rotvec[keep], t[keep])
+    return trajectory_from_rows(stamps[keep], T, path=path, lines=lines, parent=parent,
+                                child=child, skipped=skipped)
 
 
 def csv_flavour(path: str | os.PathLike) -> str:

@@ -1,7 +1,12 @@
 """Rows of time-stamped poses read from a text file -> :class:`Trajectory`, with line numbers.
 
-Shared by the TUM, CSV, OptiTrack and Vicon readers so that every format reports a non-unit
-quaternion or a repeated time stamp the same way, naming the file and the line.
+Shared by the TUM, CSV, OptiTrack, Vicon and bag readers so that every format reports a
+non-unit quaternion or a repeated time stamp the same way, naming the file and the line, and
+leaves out the same unusable rows (:func:`screen_rows`): a row with a value that is not a
+finite number, a translation coordinate beyond :data:`~multieye.core.limits.MAX_POSITION_M`
+(after the unit conversion) or a time stamp beyond :data:`~multieye.core.limits.MAX_STAMP_S`
+is skipped and listed in :attr:`Trajectory.skipped` with its line and the reason, and the rest
+of the file is read; a file with no usable row at all is an error naming the first one.
 """
 
 from __future__ import annotations
@@ -12,10 +17,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from multieye.core import geometry
-from multieye.core.errors import DatasetError
-from multieye.io.trajectory import Trajectory
+from multieye.core.errors import DatasetError, InputError
+from multieye.core.limits import MAX_POSITION_M, MAX_STAMP_S
+from multieye.io.trajectory import SkippedRow, Trajectory
 
-__all__ = ["QUATERNION_TOLERANCE", "quaternion_poses", "trajectory_from_rows"]
+__all__ = ["QUATERNION_TOLERANCE", "quaternion_poses", "trajectory_from_rows", "screen_rows",
+           "usable_rows"]
 
 #: Largest accepted ``| ||q|| - 1 |`` before a quaternion is rejected.
 QUATERNION_TOLERANCE = 1e-3
@@ -46,7 +53,7 @@ def quaternion_poses(t_xyz: np.ndarray, q_xyzw: np.ndarray, *, path: str | os.Pa
     """
     q = np.asarray(q_xyzw, dtype=np.float64).reshape(-1, 4)
     norms = np.linalg.norm(q, axis=1)
-    bad = np.abs(norms - 1.0) > tolerance
+    bad = ~(np.abs(norms - 1.0) <= tolerance)          # NaN is bad too
     if np.any(bad):
         i = int(np.argmax(bad))
         where = what if lines is not None else f"{what}sample {i}: "
@@ -56,10 +63,103 @@ def quaternion_poses(t_xyz: np.ndarray, q_xyzw: np.ndarray, *, path: str | os.Pa
     return geometry.transform_from_quat(q / norms[:, None], t_xyz)
 
 
+def screen_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
+                names: Sequence[str], lines: Sequence[int] | None = None,
+                labels: Sequence[str] | None = None, max_rotation: float | None = None
+                ) -> tuple[np.ndarray, tuple[SkippedRow, ...]]:
+    """Which pose rows are usable, and why the others are not.
+
+    Parameters
+    ----------
+    stamps : ndarray, shape (N,)
+        Seconds.
+    t_xyz : ndarray, shape (N, 3)
+        Translations in metres (after the unit conversion).
+    rotation : ndarray, shape (N, k)
+        The rotation's numbers as the file gives them (quaternion, rotation vector).
+    names : sequence of str
+        Names of the ``1 + 3 + k`` columns, for the reasons (``t tx ty tz qx qy qz qw``).
+    lines : sequence of int, optional
+        1-based line of each row (text files).
+    labels : sequence of str, optional
+        How to name each row without lines (``"sample 3"``).
+    max_rotation : float, optional
+        Largest magnitude of a rotation number (a rotation vector's components, radians).
+
+    Returns
+    -------
+    keep : ndarray, shape (N,), bool
+    skipped : tuple of SkippedRow
+        The rows left out: a value that is not a finite number, a translation coordinate
+        beyond :data:`MAX_POSITION_M` metres or a stamp beyond :data:`MAX_STAMP_S` seconds.
+    """
+    stamps = np.asarray(stamps, dtype=np.float64).reshape(-1)
+    t_xyz = np.asarray(t_xyz, dtype=np.float64).reshape(-1, 3)
+    rotation = np.asarray(rotation, dtype=np.float64).reshape(len(stamps), -1)
+    values = np.column_stack([stamps, t_xyz, rotation])
+    finite = np.isfinite(values)
+    with np.errstate(invalid="ignore", over="ignore"):
+        far = ~(np.abs(t_xyz) <= MAX_POSITION_M)
+        late = ~(np.abs(stamps) <= MAX_STAMP_S)
+        turned = np.zeros_like(far) if max_rotation is None else ~(np.abs(rotation)
+                                                                    <= max_rotation)
+    bad = ~finite.all(axis=1) | far.any(axis=1) | late | turned.any(axis=1)
+    skipped = []
+    for i in np.flatnonzero(bad):
+        if not finite[i].all():
+            j = int(np.argmin(finite[i]))
+            reason = f"not a finite number: {names[j]} = {float(values[i, j])!r}"
+        elif late[i]:
+            reason = (f"absurd time stamp: {names[0]} = {stamps[i]:g} s, beyond "
+                      f"{MAX_STAMP_S:g} s")
+        elif turned[i].any():
+            j = int(np.argmax(turned[i]))
+            reason = (f"absurd rotation: {names[4 + j]} = {rotation[i, j]:g} rad, beyond "
+                      f"{max_rotation:g} rad")
+        else:
+            j = int(np.argmax(far[i]))
+            reason = (f"absurd position: {names[1 + j]} = {t_xyz[i, j]:g} m, beyond "
+                      f"{MAX_POSITION_M:g} m")
+        line = None if lines is None else int(lines[i])
+        where = f"line {line}" if line is not None else (
+            labels[i] if labels is not None else f"sample {i + 1}")
+        skipped.append(SkippedRow(where, reason, line, int(i) + 1))
+    return ~bad, tuple(skipped)
+
+
+def usable_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
+                path: str | os.PathLike, names: Sequence[str], lines: Sequence[int] | None = None,
+                labels: Sequence[str] | None = None, what: str = "",
+                max_rotation: float | None = None):
+    """:func:`screen_rows`, then the usable rows only.
+
+    Returns
+    -------
+    keep : ndarray, shape (N,), bool
+    skipped : tuple of SkippedRow
+    lines : list of int or None
+        The lines of the rows kept.
+
+    Raises
+    ------
+    DatasetError
+        No usable row at all (naming the first row and why).
+    """
+    keep, skipped = screen_rows(stamps, t_xyz, rotation, names=names, lines=lines,
+                                labels=labels, max_rotation=max_rotation)
+    if len(keep) and not keep.any():
+        first = skipped[0]
+        raise DatasetError(f"{what}no usable pose: all {len(keep)} rows left out; "
+                           f"{first.where}: {first.reason}", path=path, line=first.line)
+    kept_lines = None if lines is None else [ln for ln, k in zip(lines, keep) if k]
+    return keep, skipped, kept_lines
+
+
 def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.PathLike,
                          lines: Sequence[int], parent: str, child: str,
                          stamps_ns: np.ndarray | None = None,
-                         duplicates: str = "error") -> Trajectory:
+                         duplicates: str = "error",
+                         skipped: tuple[SkippedRow, ...] = ()) -> Trajectory:
     """A Trajectory from rows in file order; stamps must be strictly increasing.
 
     Parameters
@@ -74,6 +174,8 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
     duplicates : {"error", "drop"}
         What to do with a row whose stamp equals the previous row's: raise, or keep only the
         first row of each run of equal stamps (for files written with too few digits).
+    skipped : tuple of SkippedRow
+        Rows left out before (:func:`screen_rows`), kept on the trajectory.
 
     Raises
     ------
@@ -85,7 +187,7 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
     if stamps.size == 0:
         raise DatasetError("no poses found", path=path)
     if duplicates not in ("error", "drop"):
-        raise ValueError(f"duplicates must be 'error' or 'drop', got {duplicates!r}")
+        raise InputError(f"duplicates must be 'error' or 'drop', got {duplicates!r}")
     key = stamps if stamps_ns is None else np.asarray(stamps_ns)
     if duplicates == "drop":
         keep = np.r_[True, np.diff(key) != 0]
@@ -99,4 +201,4 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
         raise DatasetError(f"{what}: {float(stamps[i + 1])!r} s after {float(stamps[i])!r} s "
                            f"on line {lines[i]}; stamps must be strictly increasing",
                            path=path, line=lines[i + 1])
-    return Trajectory(stamps, T, parent, child, stamps_ns)
+    return Trajectory(stamps, T, parent, child, stamps_ns, skipped)

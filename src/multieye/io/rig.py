@@ -64,6 +64,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from types import MappingProxyType
 
+from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.limits import (
@@ -438,7 +439,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
     DatasetError
         The first problem found, naming the file, the line of the key and what was expected.
     """
-    p = Path(path)
+    p = as_path(path, "the dataset (a folder or its rig.yaml)")
     if p.is_dir():
         p = p / "rig.yaml"
     doc = load_yaml(p.resolve(), what="rig description (rig.yaml)")

@@ -28,12 +28,12 @@ import contextlib
 import functools
 import os
 from collections.abc import Iterator
-from pathlib import Path
 
 import numpy as np
 
+from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
-from multieye.io.poserows import quaternion_poses
+from multieye.io.poserows import quaternion_poses, usable_rows
 from multieye.io.textfile import length_scale
 from multieye.io.trajectory import Trajectory
 
@@ -82,7 +82,7 @@ def _default_typestore():
 def _reader(path: str | os.PathLike):
     from rosbags.highlevel import AnyReader, AnyReaderError
 
-    p = Path(path)
+    p = as_path(path, "bag")
     if not p.exists():
         raise DatasetError("bag not found", path=p)
     if p.is_file() and p.suffix in (".db3", ".mcap"):
@@ -194,10 +194,16 @@ def read_bag_trajectory(path: str | os.PathLike, topic: str, *,
         raise DatasetError(f"topic {topic!r} carries several transforms ({listing}); choose one "
                            "with parent_frame and child_frame", path=path)
     ns = np.array([r[2] for r in keep], dtype=np.int64)
-    T = quaternion_poses(np.array([r[3] for r in keep]) * scale, np.array([r[4] for r in keep]),
-                         path=path, lines=None, what=f"topic {topic}: ")
+    with np.errstate(over="ignore", invalid="ignore"):
+        t = np.array([r[3] for r in keep], dtype=np.float64).reshape(-1, 3) * scale
+    q = np.array([r[4] for r in keep], dtype=np.float64).reshape(-1, 4)
+    ok, skipped, _ = usable_rows(ns / 1e9, t, q, path=path, what=f"topic {topic}: ",
+                                 names=("stamp", "x", "y", "z", "qx", "qy", "qz", "qw"),
+                                 labels=[f"{topic}@{n}" for n in ns])
+    T = quaternion_poses(t[ok], q[ok], path=path, lines=None, what=f"topic {topic}: ")
     try:
-        return Trajectory.from_unsorted(ns / 1e9, T, parent, child, stamps_ns=ns)
+        return Trajectory.from_unsorted(ns[ok] / 1e9, T, parent, child, stamps_ns=ns[ok],
+                                        skipped=skipped)
     except InputError as exc:
         raise DatasetError(f"topic {topic}: {exc}", path=path) from None
 

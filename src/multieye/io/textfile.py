@@ -11,10 +11,10 @@ import math
 import os
 import re
 from collections.abc import Iterator, Sequence
-from pathlib import Path
 
 import numpy as np
 
+from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
 
 __all__ = [
@@ -51,7 +51,7 @@ def read_text(path: str | os.PathLike, *, what: str = "file",
         Missing file, a folder, unreadable, larger than ``max_bytes``, or not UTF-8 (with the
         1-based line of the first bad byte).
     """
-    p = Path(path)
+    p = as_path(path, what)
     if not p.exists():
         raise DatasetError(f"{what} not found", path=p)
     if p.is_dir():
@@ -96,7 +96,7 @@ def split_fields(content: str) -> list[str]:
 
 
 def parse_float(token: str, *, path: str | os.PathLike | None, line: int | None,
-                name: str) -> float:
+                name: str, finite: bool = True) -> float:
     """A finite float from a text cell, or a DatasetError naming the cell.
 
     Parameters
@@ -106,20 +106,23 @@ def parse_float(token: str, *, path: str | os.PathLike | None, line: int | None,
     path, line : file and 1-based line, for the message.
     name : str
         What the cell holds (``"qw"``, ``"Time (Seconds)"``).
+    finite : bool
+        False: ``nan`` and ``inf`` (and numbers beyond the float range) are returned as they
+        are, for readers that leave such rows out one by one.
     """
     try:
         value = float(token)
     except ValueError:
-        raise DatasetError(f"expected a number for {name}, got {token.strip()!r}",
+        raise DatasetError(f"expected a number for {name}, got {token.strip()[:40]!r}",
                            path=path, line=line) from None
-    if not math.isfinite(value):
+    if finite and not math.isfinite(value):
         raise DatasetError(f"expected a finite number for {name}, got {token.strip()!r}",
                            path=path, line=line)
     return value
 
 
 def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: str,
-                     what: str = "file") -> tuple[np.ndarray, list[int]]:
+                     what: str = "file", finite: bool = True) -> tuple[np.ndarray, list[int]]:
     """Rows of numbers separated by commas and/or spaces, with ``#`` comments and blank lines.
 
     Parameters
@@ -132,6 +135,8 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
         must have 8 entries per row, got 7 (expected t tx ty tz qx qy qz qw)".
     what : str
         How a missing-file message names the file.
+    finite : bool
+        False: cells ``nan`` and ``inf`` are read as such (see :func:`parse_float`).
 
     Returns
     -------
@@ -152,7 +157,7 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
             raise DatasetError(f"{files} must have {len(columns)} entries per row, got "
                                f"{len(fields)} (expected {' '.join(columns)})",
                                path=path, line=number)
-        rows.append([parse_float(f, path=path, line=number, name=name)
+        rows.append([parse_float(f, path=path, line=number, name=name, finite=finite)
                      for f, name in zip(fields, columns)])
         lines.append(number)
     if not rows:

@@ -21,7 +21,7 @@ import numpy as np
 from multieye.core import geometry
 from multieye.core.errors import InputError
 
-__all__ = ["Trajectory", "RIGID_TOLERANCE"]
+__all__ = ["Trajectory", "SkippedRow", "RIGID_TOLERANCE"]
 
 #: Largest ``|R^T R - I|`` entry and ``|det R - 1|`` accepted as a rotation.
 RIGID_TOLERANCE = 1e-6
@@ -44,6 +44,28 @@ def _check_rigid(T: np.ndarray) -> None:
 
 
 @dataclass(frozen=True)
+class SkippedRow:
+    """A row of a pose file that a reader left out as unusable (the rest is still read).
+
+    Attributes
+    ----------
+    where : str
+        The row within its file: ``"line 17"``, or for a bag ``"sample 3 (1700000000.5 s)"``.
+    reason : str
+        Why: a value that is not finite, or absurd (docs/rig-yaml.md, section 1).
+    line : int or None
+        1-based line, for text files.
+    row : int
+        1-based index of the row among the file's pose rows (``k`` of ``"<file> pose <k>"``).
+    """
+
+    where: str
+    reason: str
+    line: int | None = None
+    row: int = 0
+
+
+@dataclass(frozen=True)
 class Trajectory:
     """Poses ``T_parent_child`` sampled at strictly increasing times.
 
@@ -58,6 +80,9 @@ class Trajectory:
     stamps_ns : ndarray, shape (N,), int64, or None
         The stamps in integer nanoseconds when the source had them exactly (ROS headers,
         nanosecond file names); ``stamps == stamps_ns * 1e-9`` then.
+    skipped : tuple of SkippedRow
+        Rows of the source file left out as unusable (non-finite or absurd values), which
+        the poses above do not include.
 
     Raises
     ------
@@ -72,6 +97,7 @@ class Trajectory:
     parent: str = "world"
     child: str = "marker"
     stamps_ns: np.ndarray | None = field(default=None)
+    skipped: tuple[SkippedRow, ...] = ()
 
     def __post_init__(self):
         stamps = np.asarray(self.stamps, dtype=np.float64).reshape(-1)
@@ -102,10 +128,11 @@ class Trajectory:
         object.__setattr__(self, "stamps", stamps)
         object.__setattr__(self, "T", T)
         object.__setattr__(self, "stamps_ns", ns)
+        object.__setattr__(self, "skipped", tuple(self.skipped))
 
     @classmethod
     def from_unsorted(cls, stamps, T, parent: str = "world", child: str = "marker",
-                      stamps_ns=None) -> Trajectory:
+                      stamps_ns=None, skipped: tuple[SkippedRow, ...] = ()) -> Trajectory:
         """Sort samples by time (stable); equal stamps still raise :class:`InputError`."""
         stamps = np.asarray(stamps, dtype=np.float64).reshape(-1)
         if stamps_ns is not None:
@@ -114,7 +141,8 @@ class Trajectory:
             stamps_ns = stamps_ns[order]
         else:
             order = np.argsort(stamps, kind="stable")
-        return cls(stamps[order], np.asarray(T, dtype=np.float64)[order], parent, child, stamps_ns)
+        return cls(stamps[order], np.asarray(T, dtype=np.float64)[order], parent, child, stamps_ns,
+                   tuple(skipped))
 
     def __len__(self) -> int:
         return int(self.stamps.shape[0])
@@ -127,4 +155,4 @@ class Trajectory:
     def inverted(self) -> Trajectory:
         """The same samples as ``T_child_parent``."""
         return Trajectory(self.stamps, geometry.inv(self.T), self.child, self.parent,
-                          self.stamps_ns)
+                          self.stamps_ns, self.skipped)

@@ -16,6 +16,9 @@ Choices
   (``duplicates="drop"`` keeps the first of equal stamps instead).
 - ``unit="mm"`` (or ``"cm"``) converts translations to metres on reading and from metres on
   writing.
+- A line with ``nan`` or ``inf``, a translation beyond 1e4 m or a stamp beyond 1e10 s is left
+  out and listed in ``Trajectory.skipped`` with its line; the other lines are read
+  (:func:`multieye.io.poserows.screen_rows`).
 
 >>> from multieye.io.tum import read_tum
 >>> traj = read_tum("mocap.txt", parent="world", child="marker")   # doctest: +SKIP
@@ -25,9 +28,11 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 from multieye.core import geometry
 from multieye.io.atomic import atomic_output
-from multieye.io.poserows import quaternion_poses, trajectory_from_rows
+from multieye.io.poserows import quaternion_poses, trajectory_from_rows, usable_rows
 from multieye.io.textfile import length_scale, read_number_rows
 from multieye.io.trajectory import Trajectory
 
@@ -59,15 +64,22 @@ def read_tum(path: str | os.PathLike, *, unit: str = "m", parent: str = "world",
     Raises
     ------
     DatasetError
-        With the file and 1-based line: a row without 8 entries, a cell that is not a finite
-        number, a non-unit quaternion, stamps that repeat or go back, or an empty file.
+        With the file and 1-based line: a row without 8 entries, a cell that is not a
+        number, a non-unit quaternion, stamps that repeat or go back, an empty file, or no
+        usable row at all.  Rows with non-finite or absurd values are left out and listed in
+        ``skipped`` of the result.
     """
     scale = length_scale(unit, path=path)
     data, lines = read_number_rows(path, TUM_COLUMNS, files="TUM trajectory files",
-                                   what="trajectory file")
-    T = quaternion_poses(data[:, 1:4] * scale, data[:, 4:8], path=path, lines=lines)
+                                   what="trajectory file", finite=False)
+    with np.errstate(over="ignore", invalid="ignore"):
+        t = data[:, 1:4] * scale
+    keep, skipped, lines = usable_rows(data[:, 0], t, data[:, 4:8], path=path, lines=lines,
+                                       names=TUM_COLUMNS)
+    data, t = data[keep], t[keep]
+    T = quaternion_poses(t, data[:, 4:8], path=path, lines=lines)
     return trajectory_from_rows(data[:, 0], T, path=path, lines=lines, parent=parent,
-                                child=child, duplicates=duplicates)
+                                child=child, duplicates=duplicates, skipped=skipped)
 
 
 def _stamp_text(seconds: float, ns: int | None) -> str:
