@@ -38,7 +38,9 @@ def image_files(tmp_path_factory):
     blank = folder / "8.0.png"
     cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
     missing = folder / "9.0.png"
-    order = [paths[0], corrupt, paths[1], blank, paths[2], missing, paths[3]]
+    empty = folder / "9.5.png"
+    empty.write_bytes(b"")
+    order = [paths[0], corrupt, paths[1], blank, paths[2], missing, paths[3], empty]
     return order, truth
 
 
@@ -46,8 +48,9 @@ def check(results, image_files):
     order, truth = image_files
     assert [r.path for r in results] == [str(p) for p in order]
     reasons = [r.reason for r in results]
-    assert reasons == [None, "unreadable image file", None, "chessboard not found", None,
-                       "file not found", None]
+    assert reasons == [None, "unreadable file: not an image OpenCV can decode (truncated or "
+                       "corrupt?)", None, "target not detected (chessboard 5x7)", None,
+                       "unreadable file: not found", None, "unreadable file: empty (0 bytes)"]
     good = [r for r in results if r.ok]
     for r, T in zip(good, truth):
         assert np.degrees(rotation_angle_between(r.pose.T_cam_target, T)) < 0.1
@@ -74,12 +77,12 @@ def test_bad_fit_is_a_reason_and_keeps_the_pose(image_files):
 def test_image_size_must_match_the_intrinsics(image_files):
     other = Intrinsics(K=CAMERA.K, dist=CAMERA.dist, width=1280, height=720)
     result = process_image(image_files[0][0], BOARD, other)
-    assert result.reason == "image is 640x480 pixels but the intrinsics are for 1280x720"
+    assert result.reason == "wrong resolution (640 x 480, intrinsics say 1280 x 720)"
 
 
 def test_wrong_board_size_is_not_found(image_files):
     result = process_image(image_files[0][0], Chessboard(rows=6, cols=7, spacing=0.04), CAMERA)
-    assert result.reason == "chessboard not found"
+    assert result.reason == "target not detected (chessboard 6x7)"
 
 
 def test_progress_bar_only_when_asked(image_files, capsys):

@@ -61,8 +61,10 @@ class ImageResult:
     detection : Detection or None
         The detected points, when the target was found.
     reason : str or None
-        Why the image is left out: unreadable file, target not found, PnP failure, or a
-        reprojection RMS above the threshold. None for a usable image.
+        Why the image is left out, starting with its kind: ``unreadable file: ...``,
+        ``wrong resolution (W x H, intrinsics say W' x H')``, ``target not detected (...)``,
+        ``PnP failed: ...`` or ``bad fit: ...`` (reprojection RMS above the threshold). None
+        for a usable image.
     warnings : tuple of str
         From the detector (e.g. an ambiguous point order).
     """
@@ -100,7 +102,9 @@ def process_image(path, target: Target, intrinsics: Intrinsics, *,
     path = str(path)
     image = cv2.imread(path, cv2.IMREAD_GRAYSCALE) if os.path.isfile(path) else None
     if image is None or image.size == 0:
-        reason = "file not found" if not os.path.exists(path) else "unreadable image file"
+        reason = ("unreadable file: not found" if not os.path.exists(path) else
+                  "unreadable file: empty (0 bytes)" if os.path.getsize(path) == 0 else
+                  "unreadable file: not an image OpenCV can decode (truncated or corrupt?)")
         return ImageResult(path, None, None, reason)
     return process_array(image, path, target, intrinsics, max_rms_px=max_rms_px)
 
@@ -122,14 +126,14 @@ def process_array(image, name: str, target: Target, intrinsics: Intrinsics, *,
         image = to_gray(image)
     size = (intrinsics.width, intrinsics.height)
     if None not in size and (image.shape[1], image.shape[0]) != size:
-        return ImageResult(path, None, None, f"image is {image.shape[1]}x{image.shape[0]} pixels but "
-                           f"the intrinsics are for {size[0]}x{size[1]}")
+        return ImageResult(path, None, None, f"wrong resolution ({image.shape[1]} x {image.shape[0]}, "
+                           f"intrinsics say {size[0]} x {size[1]})")
     try:
         detection = detect(image, target)
     except (InputError, cv2.error) as exc:
-        return ImageResult(path, None, None, f"detection failed: {_first_line(exc)}")
+        return ImageResult(path, None, None, f"target not detected (detection failed: {_first_line(exc)})")
     if detection is None:
-        return ImageResult(path, None, None, f"{target.kind} not found")
+        return ImageResult(path, None, None, f"target not detected ({target.kind} {target.rows}x{target.cols})")
     try:
         pose = estimate_pose(detection, intrinsics)
     except (InputError, cv2.error) as exc:

@@ -9,13 +9,15 @@ The pipeline (:mod:`multieye.pipeline`) takes it from there.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, is_dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from multieye.core import geometry as g
-from multieye.core.errors import DatasetError, TooFewMeasurementsError
+from multieye.core.arguments import one_of, real_number
+from multieye.core.errors import DatasetError, InputError, TooFewMeasurementsError
+from multieye.core.limits import MAX_TIME_OFFSET_S
 from multieye.core.intrinsics import Intrinsics
 from multieye.io import (
     RejectedItem,
@@ -29,7 +31,8 @@ from multieye.io import (
 from multieye.estimate.pairing import pair_in_time
 from multieye.solvers.checks import MIN_MEASUREMENTS
 
-__all__ = ["Observation", "CameraData", "PairedCamera", "load_camera_data", "pair_camera"]
+__all__ = ["Observation", "CameraData", "PairedCamera", "load_camera_data", "pair_camera",
+           "check_options", "updated_options"]
 
 @dataclass(frozen=True)
 class Observation:
@@ -121,9 +124,40 @@ class PairedCamera:
     rejected: tuple[RejectedItem, ...]
 
 
+#: How the reason of a motion-capture row left out starts (those rows are listed with the
+#: images of every camera that uses the file, but are not images).
+_MOCAP_ROW = "motion-capture row left out"
+
+
 def _describe_target(rig: Rig) -> str:
     t = rig.target
     return f"{t.type} {t.rows}x{t.cols}" if t is not None else "target"
+
+
+def _kind(reason: str) -> str:
+    """The kind of an image's rejection: the reason up to its details (``unreadable file``,
+    ``wrong resolution``, ``target not detected``, ``PnP failed``, ``bad fit``)."""
+    return reason.split(":", 1)[0].split(" (", 1)[0]
+
+
+def _no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
+    """Why a camera has no usable image, by kind, naming the first image of each kind."""
+    kinds: dict[str, list[RejectedItem]] = {}
+    for r in rejected:
+        kinds.setdefault(_kind(r.reason), []).append(r)
+    if set(kinds) == {"target not detected"}:
+        return (f"the target ({_describe_target(rig)}) was not detected in any of the {n} "
+                "images; check the target section of rig.yaml (rows/cols count inner corners "
+                "for a chessboard) and the images")
+    parts = [f"{len(items)} {kind} (first {items[0].item}: {items[0].reason})"
+             for kind, items in kinds.items()]
+    return f"none of the {n} images is usable: " + "; ".join(parts)
+
+
+def _listed(items: list[RejectedItem], limit: int = 3) -> str:
+    """``a.png (reason), b.png (reason) and 5 more`` for a message."""
+    text = ", ".join(f"{r.item} ({r.reason})" for r in items[:limit])
+    return text + (f" and {len(items) - limit} more" if len(items) > limit else "")
 
 
 @dataclass(frozen=True)
@@ -181,10 +215,8 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
         else:
             rejected.append(RejectedItem(label, res.reason))
     if not obs:
-        raise DatasetError(f"the target ({_describe_target(rig)}) was not detected in any of "
-                           f"the {len(stamped)} images; check the target section of rig.yaml "
-                           "(rows/cols count inner corners for a chessboard) and the images",
-                           path=source, camera=name)
+        raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
+                           camera=name)
     return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped),
                      warnings=tuple(warnings), seconds=seconds)
 
@@ -209,10 +241,15 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
         seconds = 0.0
         if cam.source == "poses":
             traj = read_tum(cam.poses, parent="cam", child="target")
-            obs = [Observation(name=f"{cam.poses.name} pose {i + 1}", stamp=float(t), T_cam_target=T)
-                   for i, (t, T) in enumerate(zip(traj.stamps, traj.T))]
-            rejected: list[RejectedItem] = []
-            n_inputs = len(obs)
+            # poses keep their row number in the file (k of "pose k") when rows are left out
+            gone = {r.row for r in traj.skipped}
+            rows = [k for k in range(1, len(traj) + len(gone) + 1) if k not in gone]
+            obs = [Observation(name=f"{cam.poses.name} pose {k}", stamp=float(t), T_cam_target=T)
+                   for k, t, T in zip(rows, traj.stamps, traj.T)]
+            rejected: list[RejectedItem] = [
+                RejectedItem(f"{cam.poses.name} pose {r.row}", f"{r.where}: {r.reason}")
+                for r in traj.skipped]
+            n_inputs = len(obs) + len(rejected)
             intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
         else:
             intr = read_camera_intrinsics(cam)
@@ -222,6 +259,10 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
                 topic=None if cam.source == "images" else cam.topic)
             obs, rejected, n_inputs = det.observations, det.rejected, det.n_inputs
             warnings, seconds = det.warnings, det.seconds
+        # motion-capture rows left out, listed with every camera that uses the file
+        rejected = list(rejected) + [
+            RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
+            for r in trajectories[key].skipped]
         out[name] = CameraData(name=name, intrinsics=intr, observations=tuple(obs),
                                rejected=tuple(rejected), n_inputs=n_inputs,
                                mocap=trajectories[key], time_offset=cam.time_offset,
@@ -250,17 +291,56 @@ def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = Non
     p = pair_in_time(data.mocap.stamps, data.mocap.T, stamps, tolerance=data.time_tolerance,
                      offset=offset)
     rejected = list(data.rejected)
-    rejected.extend(RejectedItem(data.observations[i].name, f"no motion capture: {why}")
-                    for i, why in p.unpaired)
+    unpaired = [RejectedItem(data.observations[i].name,
+                             f"no motion capture within {data.time_tolerance:g} s ({why})")
+                for i, why in p.unpaired]
+    rejected.extend(unpaired)
     used = tuple(data.observations[i] for i in p.index)
     if len(used) < MIN_MEASUREMENTS:
+        lost = [r for r in data.rejected if not r.reason.startswith(_MOCAP_ROW)] + unpaired
         raise TooFewMeasurementsError(
             f"camera {data.name}: only {len(used)} of {data.n_inputs} images could be used "
             f"({data.n_inputs - len(data.observations)} without a target pose, "
             f"{len(p.unpaired)} without motion capture within {data.time_tolerance:g} s); "
-            f"at least {MIN_MEASUREMENTS} are needed")
+            f"at least {MIN_MEASUREMENTS} are needed; left out: {_listed(lost)}")
     T_cam_target = np.stack([o.T_cam_target for o in used])
     B = g.inv(T_cam_target)                            # T_target_cam
     A = g.inv(p.T) if setup == "eye-to-base" else p.T  # T_marker_world or T_world_body
     return PairedCamera(name=data.name, A=A, B=B, T_world_mocap=p.T, observations=used,
                         rejected=tuple(rejected))
+
+
+def check_options(opts) -> None:
+    """InputError for a field of :class:`multieye.pipeline.Options` that cannot be right
+    (run by ``Options`` itself, so ``calibrate(..., max_time_offset=None)`` fails at once with
+    what was expected instead of deep in the pipeline)."""
+    from multieye.solvers import METHODS
+
+    one_of(opts.method, "method", METHODS)
+    if opts.reference is not None and not isinstance(opts.reference, str):
+        raise InputError(f"reference must be a camera name, got {opts.reference!r}")
+    for name in ("refine", "robust"):
+        if not isinstance(getattr(opts, name), (bool, np.bool_)):
+            raise InputError(f"{name} must be True or False, got {getattr(opts, name)!r}")
+    if not (isinstance(opts.time_offset, str) and opts.time_offset in ("rig", "auto")):
+        if isinstance(opts.time_offset, str):
+            raise InputError(f"time_offset must be 'rig', 'auto' or a number of seconds, got "
+                             f"{opts.time_offset!r}")
+        offset = real_number(opts.time_offset, "time_offset")
+        if abs(offset) > MAX_TIME_OFFSET_S:
+            raise InputError(f"time_offset must be within {MAX_TIME_OFFSET_S:g} s, got {offset:g}")
+    real_number(opts.max_time_offset, "max_time_offset", positive=True)
+    real_number(opts.mocap_rot_sigma_rad, "mocap_rot_sigma_rad", positive=True, allow_none=True)
+    real_number(opts.mocap_trans_sigma_m, "mocap_trans_sigma_m", positive=True, allow_none=True)
+
+
+def updated_options(options, kw: dict):
+    """``options`` with the fields in ``kw`` replaced; InputError for anything else than
+    Options or for an unknown field (instead of dataclasses' TypeError)."""
+    if not is_dataclass(options) or isinstance(options, type):
+        raise InputError(f"options must be a multieye Options, got {type(options).__name__}")
+    unknown = sorted(set(kw) - {f.name for f in fields(options)})
+    if unknown:
+        raise InputError(f"unknown option {', '.join(unknown)}; the options are "
+                         f"{', '.join(f.name for f in fields(options))}")
+    return replace(options, **kw) if kw else options

@@ -20,11 +20,12 @@ import math
 import os
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
 from multieye.pipeline.camera_data import CameraData, Observation, PairedCamera, load_camera_data, pair_camera
+from multieye.pipeline.camera_data import check_options, updated_options
+from multieye.core.arguments import as_path
 from multieye.core.errors import CalibrationError, DatasetError, InputError, TooFewMeasurementsError
 from multieye.io import (
     CalibrationRecord,
@@ -185,6 +186,9 @@ class Options:
     mocap_rot_sigma_rad: float | None = None
     mocap_trans_sigma_m: float | None = None
 
+    def __post_init__(self):
+        check_options(self)
+
 
 #: Smallest angular-speed correlation at which an automatic clock offset is trusted.
 CLOCK_MIN_SCORE = 0.5
@@ -233,14 +237,14 @@ def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[st
 CONSENSUS_THRESHOLDS = ((5.0, 0.05), (15.0, 0.15))
 
 
-def _consensus(meas: Measurements, warnings: list[str]):
+def _consensus(meas: Measurements, warnings: list[str], labels=None):
     """RANSAC over measurements with fixed thresholds (never thresholds taken from a fit
     that the outliers themselves pulled); wider ones once if the data are noisier."""
     from multieye.estimate.consensus import consensus
 
     for k, (rot, trans) in enumerate(CONSENSUS_THRESHOLDS):
         try:
-            return consensus(meas, threshold_rot_deg=rot, threshold_trans_m=trans)
+            return consensus(meas, threshold_rot_deg=rot, threshold_trans_m=trans, labels=labels)
         except TooFewMeasurementsError as exc:
             if k + 1 == len(CONSENSUS_THRESHOLDS):
                 raise TooFewMeasurementsError(
@@ -273,7 +277,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     from multieye.estimate.diagnostics import motion_diagnostics
 
     start = time.perf_counter()
-    opts = replace(options, **kw) if kw else options
+    opts = updated_options(options, kw)
     names = list(cameras)
     reference = opts.reference or names[0]
     if reference not in cameras:
@@ -286,7 +290,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=names, per_camera_motion=False)
     if opts.robust:
-        cons = _consensus(meas, warnings)
+        cons = _consensus(meas, warnings, [[o.name for o in p.observations] for p in paired.values()])
         by_cam: dict[str, dict[int, str]] = {n: {} for n in names}
         for r in cons.rejected:
             by_cam[r.camera][r.index] = r.reason
@@ -441,7 +445,7 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
         closed form as ``run.closed_form``; seconds per stage as ``run.timings``.
     """
     start = time.perf_counter()
-    path = Path(dataset)
+    path = as_path(dataset, "dataset (a folder with rig.yaml, or the rig.yaml)")
     if path.is_dir():
         path = path / "rig.yaml"
     rig = load_rig(path)
