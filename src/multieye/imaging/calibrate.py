@@ -1,0 +1,136 @@
+"""A camera's intrinsics from its own target images: OpenCV's calibration as the starting point.
+
+The joint problem (:func:`multieye.estimate.refine_images.refine_images` with
+``free_intrinsics``) estimates every camera's intrinsics together with the extrinsics and the
+motion capture; it needs a start.  That start is what a user would get from
+``cv2.calibrateCamera`` (pinhole models) or ``cv2.fisheye.calibrate`` (equidistant fisheye)
+on the same detected points, camera by camera.
+
+Synopsis
+--------
+>>> start = initial_intrinsics(views, (1280, 960), "pinhole-radtan")      # doctest: +SKIP
+>>> start.intrinsics.K, start.rms_px                                       # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from multieye.core.errors import InputError
+from multieye.core.intrinsics import LENS_MODELS, Intrinsics
+
+__all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS"]
+
+F64 = NDArray[np.float64]
+
+#: Views of the target below which a camera's intrinsics are not estimated at all.
+MIN_VIEWS = 3
+_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+
+
+@dataclass(frozen=True)
+class InitialIntrinsics:
+    """OpenCV's per-camera calibration.
+
+    Attributes
+    ----------
+    intrinsics : Intrinsics
+    T_cam_target : ndarray, shape (n_views, 4, 4)
+        The pose of the target in each view, as OpenCV estimated it with these intrinsics.
+    rms_px : float
+        OpenCV's RMS reprojection error, pixels.
+    """
+
+    intrinsics: Intrinsics
+    T_cam_target: F64
+    rms_px: float
+
+
+def _flat_guess(views, size) -> F64:
+    """A pinhole camera matrix from the views' homographies (Zhang's method, via OpenCV)."""
+    obj = [np.ascontiguousarray(o[:, :2], np.float64) for o, _ in views]
+    img = [np.ascontiguousarray(u, np.float64) for _, u in views]
+    return cv2.initCameraMatrix2D([np.column_stack([o, np.zeros(len(o))]).astype(np.float32)
+                                   for o in obj],
+                                  [u.astype(np.float32) for u in img], size)
+
+
+def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
+                       model: str, *, name: str = "camera") -> InitialIntrinsics:
+    """Intrinsics of one camera from views of a planar target (OpenCV's calibration).
+
+    Parameters
+    ----------
+    views : sequence of (object_points, image_points)
+        Per image: the target points in the target frame, (n, 3) metres with z = 0, and
+        their pixels, (n, 2).
+    image_size : (int, int)
+        Width and height, pixels.
+    model : {"pinhole-radtan", "pinhole-rational", "fisheye"}
+        Lens model (:data:`multieye.core.intrinsics.LENS_MODELS`).
+    name : str
+        Camera name for messages.
+
+    Returns
+    -------
+    InitialIntrinsics
+
+    Raises
+    ------
+    InputError
+        Unknown model, fewer than :data:`MIN_VIEWS` views, or OpenCV failing to calibrate
+        (the message names the camera and what to add).
+    """
+    if model not in LENS_MODELS:
+        raise InputError(f"camera {name}: unknown lens model {model!r}; expected one of "
+                         f"{', '.join(LENS_MODELS)}")
+    views = [(np.asarray(o, np.float64), np.asarray(u, np.float64)) for o, u in views]
+    if len(views) < MIN_VIEWS:
+        raise InputError(f"camera {name}: {len(views)} image(s) with the target, at least "
+                         f"{MIN_VIEWS} are needed to estimate its intrinsics (add images of "
+                         "the target at different tilts, or give intrinsics:)")
+    w, h = int(image_size[0]), int(image_size[1])
+    kind, coefficients = LENS_MODELS[model]
+    K0 = _flat_guess(views, (w, h))
+    try:
+        if kind == "fisheye":
+            obj = [o.reshape(-1, 1, 3) for o, _ in views]
+            img = [u.reshape(-1, 1, 2) for _, u in views]
+            flags = (cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
+                     | cv2.fisheye.CALIB_USE_INTRINSIC_GUESS)
+            rms, K, D, rvecs, tvecs = cv2.fisheye.calibrate(obj, img, (w, h), K0.copy(),
+                                                             np.zeros(4), flags=flags,
+                                                             criteria=_CRITERIA)
+        else:
+            obj = [o.astype(np.float32) for o, _ in views]
+            img = [u.astype(np.float32) for _, u in views]
+            flags = cv2.CALIB_RATIONAL_MODEL if len(coefficients) == 8 else 0
+            rms, K, D, rvecs, tvecs = cv2.calibrateCamera(obj, img, (w, h), None, None,
+                                                          flags=flags, criteria=_CRITERIA)
+    except cv2.error as exc:
+        raise InputError(f"camera {name}: OpenCV could not calibrate its intrinsics from "
+                         f"{len(views)} images ({str(exc).strip().splitlines()[-1]}); add "
+                         "images with the target tilted and in the corners of the image"
+                         ) from None
+    D = np.asarray(D, np.float64).reshape(-1)[:len(coefficients)]
+    if not (np.all(np.isfinite(K)) and np.all(np.isfinite(D)) and np.isfinite(rms)):
+        raise InputError(f"camera {name}: OpenCV's calibration of its intrinsics did not "
+                         "converge; add images with the target tilted and covering the image")
+    K = np.asarray(K, np.float64)
+    K[0, 1] = 0.0
+    try:
+        intr = Intrinsics(K=K, dist=D, model=kind, width=w, height=h)
+    except InputError as exc:
+        raise InputError(f"camera {name}: OpenCV's calibration gave intrinsics outside any "
+                         f"plausible range ({exc}); check the target and the images") from None
+    T = np.zeros((len(views), 4, 4))
+    T[:, 3, 3] = 1.0
+    for k, (r, t) in enumerate(zip(rvecs, tvecs)):
+        T[k, :3, :3] = cv2.Rodrigues(np.asarray(r, np.float64).reshape(3))[0]
+        T[k, :3, 3] = np.asarray(t, np.float64).reshape(3)
+    return InitialIntrinsics(intrinsics=intr, T_cam_target=T, rms_px=float(rms))
