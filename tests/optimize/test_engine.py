@@ -159,3 +159,21 @@ def test_unobserved_parameters_make_the_covariance_refuse(rng):
     extra = Blocks("H", np.zeros((1, 2)), "euclidean")
     with pytest.raises(InputError, match="information matrix is singular"):
         covariance(fams + [extra], groups)
+
+
+def test_parameters_the_data_cannot_tell_apart_are_named_not_hidden(rng):
+    """Two globals that enter every residual only through their sum: each is observed, their
+    difference is not. The covariance covers the sum; the difference is returned as the
+    undetermined direction."""
+    n = 30
+    A = rng.normal(size=(n, 1, 1))
+    group = Linear(("G",), np.zeros((n, 1), int), np.arange(n),
+                   np.concatenate([A, A], axis=2), None, rng.normal(size=(n, 1)))
+    fams = [Blocks("G", np.zeros((1, 2)), "euclidean")]
+    cov = covariance(fams, [group])
+    assert cov.undetermined.shape == (2, 1)
+    np.testing.assert_allclose(np.abs(cov.undetermined[:, 0]), [2 ** -0.5] * 2, atol=1e-6)
+    assert cov.undetermined_in("G", 1, 2)
+    # the sum's variance is the least-squares one
+    s = np.array([1.0, 1.0])
+    assert s @ cov.kept @ s == pytest.approx(1.0 / np.sum(A ** 2), rel=1e-9)

@@ -103,6 +103,11 @@ class RefinementResult:
         ``covariance`` (which therefore includes the intrinsics' uncertainty).
     layout : multieye.optimize.normal_equations.Layout
         Where each family sits in ``full_covariance``.
+    undetermined : tuple of str
+        Families (``X``, ``Y``, ``K:<camera>``) involved in a combination of parameters the
+        data do not determine (e.g. the rational model's numerator and denominator terms over
+        a narrow field of view); their covariance covers the determined directions only.
+        Empty in a well-posed problem.
     intrinsics : tuple of Intrinsics
         Per camera: refined when estimated, else as given.
     intrinsics_covariance : tuple of (ndarray or None)
@@ -156,6 +161,7 @@ class RefinementResult:
     covariance: F64
     full_covariance: F64
     layout: object
+    undetermined: tuple[str, ...]
     intrinsics: tuple[Intrinsics, ...]
     intrinsics_covariance: tuple
     mocap_covariance: F64
@@ -394,6 +400,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     img_out = (frac_out > 0.5) | (np.sum(prior ** 2, axis=1) > chi2.isf(OUTLIER_PROBABILITY, 6))
     cam_rms = np.array([np.sqrt(np.mean(d2[s])) for s in data.camera_slices])
     k_xy = 6 * (data.m + 1)
+    undetermined = tuple(f.name for f in fams if not f.eliminate and cov.undetermined_in(
+        f.name, f.count, f.size))
     intr_out, intr_cov = [], []
     for j, name in enumerate(data.names):
         if data.free[j]:
@@ -407,7 +415,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
             intr_cov.append(None)
     return RefinementResult(
         X=X, Y=Y, covariance=kappa * cov.kept[:k_xy, :k_xy],
-        full_covariance=kappa * cov.kept, layout=cov.layout,
+        full_covariance=kappa * cov.kept, layout=cov.layout, undetermined=undetermined,
         intrinsics=tuple(intr_out), intrinsics_covariance=tuple(intr_cov),
         mocap_covariance=kappa * cov.local[:data.n_images],
         T_world_mocap=data.split_images(M),

@@ -124,11 +124,24 @@ class Covariance:
         Marginal covariance of each eliminated block (when asked for).
     layout : Layout
         Where each family's parameters sit in ``kept``.
+    undetermined : ndarray, shape (k, r)
+        Unit directions of the kept parameters that the data do not determine (r = 0 in a
+        regular problem); ``kept`` is then the inverse on the other directions only.
     """
 
     kept: F64
     local: F64 | None
     layout: Layout
+    undetermined: F64 = None
+
+    def undetermined_in(self, name: str, count: int, size: int) -> bool:
+        """Whether an undetermined direction involves the family ``name`` (count x size
+        parameters) by more than 1 % of its length."""
+        if self.undetermined is None or self.undetermined.shape[1] == 0:
+            return False
+        o = self.layout.offset[name]
+        part = self.undetermined[o:o + count * size]
+        return bool(np.any(np.linalg.norm(part, axis=0) > 0.01))
 
 
 def evaluate(families: Sequence[Blocks], groups: Sequence[ResidualGroup], jacobians: bool):
@@ -239,5 +252,5 @@ def covariance(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,
     layout = Layout.of(families)
     ev = evaluated if evaluated is not None else evaluate(families, groups, jacobians=True)
     ne = assemble(layout, {f.name: f for f in families}, groups, ev)
-    kept, loc = marginal_covariance(ne, local=local)
-    return Covariance(kept, loc, layout)
+    kept, loc, undetermined = marginal_covariance(ne, local=local)
+    return Covariance(kept, loc, layout, undetermined)

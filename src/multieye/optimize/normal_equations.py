@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.linalg import LinAlgError, cho_factor, cho_solve
+from scipy.linalg import LinAlgError, cho_factor, cho_solve, eigh
 
 from multieye.core.errors import InputError
 from multieye.optimize.blocks import Blocks, ResidualGroup
@@ -181,6 +181,11 @@ def assemble(layout: Layout, families: dict[str, Blocks], groups: Sequence[Resid
     return NormalEquations(U.reshape(k, k), g, V.reshape(L, d, d), gl.reshape(L, d), W)
 
 
+#: Relative eigenvalue of the Jacobi-scaled reduced system below which a direction counts as
+#: not determined by the data.
+_UNDETERMINED = 1e-12
+
+
 def _factor(S: F64):
     """Cholesky of ``S`` with a Jacobi scaling (parameters in pixels, metres, radians and
     unitless distortion differ by orders of magnitude): ``(c, d)`` with ``S = D C D``."""
@@ -247,8 +252,14 @@ def solve_step(ne: NormalEquations, lam: float) -> tuple[F64, F64] | None:
 
 
 def marginal_covariance(ne: NormalEquations, *, local: bool = False
-                        ) -> tuple[F64, F64 | None]:
+                        ) -> tuple[F64, F64 | None, F64]:
     """``(J^T J)^-1``: its kept block, and the diagonal blocks of the eliminated ones.
+
+    When the kept system is numerically singular although every parameter is observed (a
+    combination of parameters the data cannot tell apart, e.g. the numerator and the
+    denominator terms of the rational lens model over a narrow field of view), the inverse
+    is taken on the determined directions only (a pseudo-inverse of the Jacobi-scaled
+    system) and the undetermined directions are returned, so that the caller can say so.
 
     Parameters
     ----------
@@ -261,26 +272,39 @@ def marginal_covariance(ne: NormalEquations, *, local: bool = False
     -------
     cov : ndarray, shape (k, k)
     cov_local : ndarray, shape (n_local, d, d), or None
+    undetermined : ndarray, shape (k, r)
+        Unit directions of the kept parameters (in their own units) that the data do not
+        determine; r = 0 when the system is regular.
 
     Raises
     ------
     InputError
-        The information matrix is singular: some parameters are not determined by the data.
+        A parameter (or an eliminated block) has no information at all.
     """
     reduced = _reduce(ne, 0.0)
     if reduced is None:
         raise InputError("the information matrix is singular: an eliminated block is not "
                          "determined by its residuals")
     S, Vinv, WVi = reduced
+    k = len(S)
+    undetermined = np.zeros((k, 0))
     try:
-        cov = _solve(_factor(S), np.eye(len(S))) if S.size else S
+        cov = _solve(_factor(S), np.eye(k)) if S.size else S
     except LinAlgError:
-        raise InputError("the information matrix is singular: the data do not determine every "
-                         "parameter (too few measurements, or motion that leaves a direction "
-                         "unobserved)") from None
+        diag = np.diag(S)
+        if np.any(diag <= _UNDETERMINED * max(float(diag.max()), 1e-300)):
+            raise InputError("the information matrix is singular: the data do not determine "
+                             "every parameter (too few measurements, or motion that leaves a "
+                             "direction unobserved)") from None
+        d = np.sqrt(diag)
+        w, V = eigh(S / np.outer(d, d))
+        keep = w > _UNDETERMINED * w.max()
+        cov = (V[:, keep] / w[keep]) @ V[:, keep].T / np.outer(d, d)
+        undetermined = V[:, ~keep] / d[:, None]
+        undetermined /= np.linalg.norm(undetermined, axis=0)
     cov = 0.5 * (cov + cov.T)
     if not local or WVi is None:
-        return cov, None
+        return cov, None, undetermined
     L, d = ne.g_local.shape
     Z = WVi.T.toarray().reshape(L, d, -1)                                 # V^-1 W^T
-    return cov, Vinv + Z @ cov @ np.swapaxes(Z, 1, 2)
+    return cov, Vinv + Z @ cov @ np.swapaxes(Z, 1, 2), undetermined
