@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import functools
 import math
+import signal
 import sys
+import threading
 from pathlib import Path
 
 import click
@@ -21,13 +23,40 @@ from multieye.core.errors import CalibrationError
 EXIT_USER_ERROR = 2
 
 
+class Stopped(KeyboardInterrupt):
+    """Raised by SIGTERM or SIGHUP, so that the work unwinds as on Ctrl-C: worker processes
+    end and ``finally`` blocks remove temporary folders (docs/outputs.md, section 1)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _stop(signum, frame):
+    raise Stopped(signum)
+
+
+def _stop_on_signals() -> dict:
+    """Install :func:`_stop` for SIGTERM and SIGHUP; returns the handlers it replaced."""
+    if threading.current_thread() is not threading.main_thread():   # handlers live there
+        return {}
+    return {sig: signal.signal(sig, _stop) for sig in
+            (getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n))}
+
+
 def _user_errors(fn):
-    """Turn CalibrationError (and unreadable files) into one line on stderr and exit 2."""
+    """Turn CalibrationError (and unreadable files) into one line on stderr and exit 2;
+    SIGINT, SIGTERM and SIGHUP into one line and exit 128 + the signal number."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        previous = _stop_on_signals()
         try:
             return fn(*args, **kwargs)
+        except KeyboardInterrupt as exc:
+            signum = getattr(exc, "signum", signal.SIGINT)
+            click.echo(f"multieye: stopped by {signal.Signals(signum).name}", err=True)
+            sys.exit(128 + signum)
         except CalibrationError as exc:
             click.echo(f"multieye: error: {exc}", err=True)
             sys.exit(EXIT_USER_ERROR)
@@ -35,6 +64,9 @@ def _user_errors(fn):
             name = getattr(exc, "filename", None) or ""
             click.echo(f"multieye: error: {name}: {exc.strerror or exc}", err=True)
             sys.exit(EXIT_USER_ERROR)
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, signal.SIG_DFL if handler is None else handler)
 
     return wrapper
 
@@ -85,6 +117,7 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
     OUT/report.html and prints a per-camera table.
     """
     from multieye.pipeline import calibrate as run_calibration
+    from multieye.outputs.folder import claim_output
     from multieye.outputs.write import write_outputs
     from multieye.solvers import METHODS
     from multieye.outputs.summary import calibration_table, timings_line
@@ -100,11 +133,12 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
         if not math.isfinite(time_offset):
             raise click.BadParameter("expected rig, auto or a finite number of seconds",
                                      param_hint="--time-offset")
-    run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
-                          robust=not no_robust, time_offset=time_offset,
-                          max_time_offset=max_time_offset, processes=processes,
-                          progress=_progress_enabled())
-    written = write_outputs(run, out_dir)
+    with claim_output(out_dir, inputs=[dataset]):   # one run per folder, checked before work
+        run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
+                              robust=not no_robust, time_offset=time_offset,
+                              max_time_offset=max_time_offset, processes=processes,
+                              progress=_progress_enabled())
+        written = write_outputs(run, out_dir)
     click.echo(calibration_table(run.record))
     for note in written.notes:
         click.echo(f"note: {note}")
@@ -137,9 +171,11 @@ def report(out_dir: Path):
 
     Reads OUT/calibration.json and, when present, OUT/details.json.
     """
+    from multieye.outputs.folder import claim_output
     from multieye.outputs.report import write_report
 
-    click.echo(str(write_report(out_dir)))
+    with claim_output(out_dir, replace=False):
+        click.echo(str(write_report(out_dir)))
 
 
 EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json")
@@ -154,9 +190,11 @@ EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json")
 def export(out_dir: Path, fmt: str):
     """Export the calibration in OUT to another tool's format (into OUT/export/)."""
     from multieye.outputs.export import export as run_export
+    from multieye.outputs.folder import claim_output
 
-    for p in run_export(out_dir, fmt):
-        click.echo(str(p))
+    with claim_output(out_dir, replace=False):
+        for p in run_export(out_dir, fmt):
+            click.echo(str(p))
 
 
 @main.command()

@@ -14,13 +14,13 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from multieye.sim.dataset import DatasetSpec, GroundTruth, render_dataset
 from multieye.core.metrics import extrinsic_errors
-from multieye.outputs.write import write_outputs
+from multieye.outputs.folder import staged_output
+from multieye.outputs.write import write_output_files
 from multieye.pipeline import CalibrationRun, calibrate, calibrate_rig
 from multieye.outputs.summary import calibration_table, comparison_table
 
@@ -36,7 +36,9 @@ class DemoResult:
     Attributes
     ----------
     run : CalibrationRun
-        The ``joint`` calibration (written to ``calibration.json``).
+        The ``joint`` calibration (written to ``calibration.json``).  It was computed from
+        the dataset in the staging folder, so the file paths it holds (``run.rig.path``)
+        name that folder, which is ``OUT`` now.
     truth : GroundTruth
     errors : dict of str to (ndarray, ndarray)
         Per method: rotation (degrees) and translation (metres) error of every ``T_ref_cam``.
@@ -58,19 +60,22 @@ class DemoResult:
 def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, spec: DatasetSpec = DatasetSpec(),
              progress: bool = False) -> DemoResult:
     """Render, calibrate and compare (see module docstring)."""
-    out = Path(out_dir)
-    t0 = time.perf_counter()
-    truth = render_dataset(out / "dataset", spec, seed=seed)
-    t1 = time.perf_counter()
-    run = calibrate(out / "dataset", method="joint", progress=progress)
-    t2 = time.perf_counter()
-    results = {"joint + refinement": np.stack([c.T_ref_cam for c in run.record.cameras])}
-    for method in COMPARED_METHODS:
-        other = calibrate_rig(run.rig, run.cameras, method=method, refine=False)
-        results[method] = np.stack([c.T_ref_cam for c in other.record.cameras])
-    t3 = time.perf_counter()
-    written = write_outputs(run, out)
-    outputs, notes = written.paths, written.notes
+    # OUT as one set (multieye.outputs.folder): the dataset and the outputs are written into a
+    # staging folder beside OUT, which replaces OUT when everything succeeded
+    with staged_output(out_dir) as stage:
+        out = stage.out
+        t0 = time.perf_counter()
+        truth = render_dataset(stage.folder / "dataset", spec, seed=seed)
+        t1 = time.perf_counter()
+        run = calibrate(stage.folder / "dataset", method="joint", progress=progress)
+        t2 = time.perf_counter()
+        results = {"joint + refinement": np.stack([c.T_ref_cam for c in run.record.cameras])}
+        for method in COMPARED_METHODS:
+            other = calibrate_rig(run.rig, run.cameras, method=method, refine=False)
+            results[method] = np.stack([c.T_ref_cam for c in other.record.cameras])
+        t3 = time.perf_counter()
+        names, notes, _ = write_output_files(run, stage.folder, final=out)
+    outputs = [out / n for n in names]
     t4 = time.perf_counter()
     errors = {m: extrinsic_errors(T, truth.T_ref_cam) for m, T in results.items()}
     timings = {"render_s": t1 - t0, "calibrate_s": t2 - t1, "closed_forms_s": t3 - t2,

@@ -295,10 +295,11 @@ def demo_report(tmp_path_factory):
     from multieye.pipeline import calibrate
     from multieye.sim.dataset import DatasetSpec, render_dataset
 
-    out = tmp_path_factory.mktemp("demo_report")
+    tmp = tmp_path_factory.mktemp("demo_report")
     spec = DatasetSpec(n_cameras=2, images_per_camera=8, width=640, height=480, processes=1)
-    render_dataset(out / "dataset", spec, seed=2)
-    run = calibrate(out / "dataset", processes=1)
+    render_dataset(tmp / "dataset", spec, seed=2)
+    run = calibrate(tmp / "dataset", processes=1)
+    out = tmp / "out"      # not the dataset's folder: the outputs replace their folder whole
     write_outputs(run, out)
     write_run_details(out / "details.json", run,
                       diagnostics={"cam0": {"rotation_spread_deg": 31.2, "weak": False}})

@@ -9,20 +9,19 @@ Synopsis
 from __future__ import annotations
 
 import os
-import shutil
-import tempfile
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from multieye.core.errors import DatasetError, InputError
+from multieye.core.errors import InputError
 from multieye.io import CamchainEntry, write_calibration, write_camchain
 from multieye.io.run_details import RunDetails, StageTimings, write_details
 from multieye.outputs.details import write_run_details
+from multieye.outputs.folder import staged_output
 from multieye.outputs.report import write_report
 from multieye.pipeline import CalibrationRun
 
-__all__ = ["WrittenOutputs", "write_outputs"]
+__all__ = ["WrittenOutputs", "write_outputs", "write_output_files"]
 
 
 @dataclass(frozen=True)
@@ -47,14 +46,16 @@ class WrittenOutputs:
 
 def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bool = True,
                   diagnostics: dict | None = None) -> WrittenOutputs:
-    """Write the results of a run into ``out_dir``, all or nothing.
+    """Write the results of a run as the new content of ``out_dir``, all or nothing.
 
     ``calibration.json`` (docs/outputs.md), Kalibr ``camchain.yaml``, ``details.json``
     (per-image residuals, target poses, trajectory; :mod:`multieye.io.run_details`) and,
     with ``report=True``, ``report.html`` with ``figures/`` (:mod:`multieye.outputs.report`).
-    Everything is first written into a temporary folder inside ``out_dir``; only when all of
-    it succeeded are the files moved into place, ``calibration.json`` last, so a failed run
-    leaves the previous results as they were.
+    Everything is written into a staging folder beside ``out_dir``, which then replaces
+    ``out_dir`` as a whole (:func:`multieye.outputs.folder.staged_output`): files of an
+    earlier run that this one does not write are gone, and a run that fails at any point
+    leaves ``out_dir`` exactly as it was.  ``out_dir`` must be missing, empty or hold only
+    files multieye wrote, and no other run may hold it.
 
     The time spent writing is the ``outputs`` stage of the run's timings
     (:class:`~multieye.io.run_details.StageTimings`); ``details.json`` is written again with
@@ -64,31 +65,39 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
     Returns
     -------
     WrittenOutputs
+
+    Raises
+    ------
+    DatasetError
+        ``out_dir`` is held by another run, holds files multieye did not write, or cannot be
+        written; ``out_dir`` is unchanged.
     """
     start = time.perf_counter()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".multieye-", dir=out))
-    try:
-        names, notes, details = _write_all(run, tmp, report=report, diagnostics=diagnostics,
-                                           final=out)
-        seconds = time.perf_counter() - start
-        timings = replace(run.timings, outputs=seconds, total=run.timings.total + seconds)
-        write_details(tmp / "details.json", replace(details, timings=timings))
-        names = [n for n in names if (tmp / n).exists()]
-        for name in names:
-            target = out / name
-            if target.is_dir() and not (tmp / name).is_dir():
-                raise DatasetError("cannot replace a folder with a file", path=target)
-        for name in sorted(names, key=lambda n: n == "calibration.json"):
-            target = out / name
-            if (tmp / name).is_dir():
-                if target.exists():
-                    shutil.rmtree(target)
-            os.replace(tmp / name, target)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return WrittenOutputs(paths=[out / n for n in names], notes=notes, timings=timings)
+    rig = getattr(run, "rig", None)
+    inputs = [rig.path] if getattr(rig, "path", None) is not None else []
+    with staged_output(out_dir, inputs=inputs) as stage:
+        names, notes, timings = write_output_files(run, stage.folder, final=stage.out,
+                                                   report=report, diagnostics=diagnostics,
+                                                   start=start)
+    return WrittenOutputs(paths=[stage.out / n for n in names], notes=notes, timings=timings)
+
+
+def write_output_files(run: CalibrationRun, folder: Path, *, final: Path, report: bool = True,
+                       diagnostics: dict | None = None, start: float | None = None
+                       ) -> tuple[list[str], list[str], StageTimings]:
+    """Write the files of :func:`write_outputs` into ``folder`` (a staging folder).
+
+    ``final`` is the folder they will be moved to (named on the report); ``start``, a
+    ``time.perf_counter()`` value, where the ``outputs`` stage began (default: now).
+    Returns the names written, the notes and the timings written into ``details.json``.
+    """
+    start = time.perf_counter() if start is None else start
+    names, notes, details = _write_all(run, folder, report=report, diagnostics=diagnostics,
+                                       final=final)
+    seconds = time.perf_counter() - start
+    timings = replace(run.timings, outputs=seconds, total=run.timings.total + seconds)
+    write_details(folder / "details.json", replace(details, timings=timings))
+    return [n for n in names if (folder / n).exists()], notes, timings
 
 
 def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: dict | None,
