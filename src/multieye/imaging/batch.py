@@ -25,7 +25,7 @@ import os
 import sys
 import threading
 import warnings
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Iterable
@@ -37,6 +37,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.detect import Detection, detect
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.targets import Target
+from multieye.imaging.workers import worker_pool
 
 __all__ = ["ImageResult", "detect_and_estimate", "detect_and_estimate_arrays", "process_image",
            "process_array", "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
@@ -317,7 +318,9 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics,
     inter-process traffic stay small next to detection; each worker holds the target and
     intrinsics from its start and runs OpenCV single-threaded. Workers come from a fork
     server (spawn where there is none): its first start in a session costs about a second,
-    later pools start in milliseconds.  Workers import the main script again; when it calls
+    later pools start in milliseconds.  Workers end with this process however it ends, and at
+    once when an exception (Ctrl-C included) leaves the pool (:mod:`multieye.imaging.workers`).
+    Workers import the main script again; when it calls
     this at its top level, outside ``if __name__ == "__main__":``, detection runs in threads
     of this process instead, with a warning (:func:`main_reimport_problem`).
     """
@@ -349,8 +352,8 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics,
                         bar.update(1)
                 return results
         chunksize = max(1, math.ceil(len(paths) / (n_workers * _CHUNKS_PER_WORKER)))
-        with ProcessPoolExecutor(n_workers, mp_context=_mp_context(), initializer=_init_worker,
-                                 initargs=(target, intrinsics, max_rms_px)) as pool:
+        with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_worker,
+                         initargs=(target, intrinsics, max_rms_px)) as pool:
             results = []
             for r in pool.map(_work, paths, chunksize=chunksize):
                 results.append(r)
@@ -412,8 +415,8 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
                         item[1], item[0], target, intrinsics, max_rms_px=max_rms_px), chunk))
                     if bar is not None:
                         bar.update(len(chunk))
-        with ProcessPoolExecutor(n_workers, mp_context=_mp_context(), initializer=_init_worker,
-                                 initargs=(target, intrinsics, max_rms_px)) as pool:
+        with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_worker,
+                         initargs=(target, intrinsics, max_rms_px)) as pool:
             while True:
                 chunk = [item for _, item in zip(range(batch), it)]
                 if not chunk:

@@ -20,7 +20,6 @@ Synopsis
 from __future__ import annotations
 
 import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -44,6 +43,7 @@ from multieye.core.metrics import relative_extrinsics
 from multieye.sim.rigs import surround_rig
 from multieye.sim.render import render, visible
 from multieye.imaging.targets import target_from_spec
+from multieye.imaging.workers import worker_pool
 
 __all__ = ["DatasetSpec", "GroundTruth", "render_dataset", "default_intrinsics"]
 
@@ -262,7 +262,7 @@ def render_dataset(out_dir: str | os.PathLike, spec: DatasetSpec = DatasetSpec()
         decoys = g.random_transforms(rng, 2 * spec.decoy_samples)
         T_all = np.concatenate([decoys[:spec.decoy_samples], T_all, decoys[spec.decoy_samples:]])
 
-    with ProcessPoolExecutor(max_workers=spec.processes or os.cpu_count() or 1) as pool:
+    with worker_pool(spec.processes or os.cpu_count() or 1) as pool:
         list(pool.map(_render_one, jobs, chunksize=max(1, len(jobs) // (4 * (os.cpu_count() or 1)))))
 
     write_tum(out / "mocap.txt", Trajectory(t_all, T_all, parent="world", child="marker"))

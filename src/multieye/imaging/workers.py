@@ -1,0 +1,144 @@
+"""Worker processes that never outlive the process that started them.
+
+A worker of a ``concurrent.futures.ProcessPoolExecutor`` waits for work on a pipe whose
+writing end it holds itself, so when the main process dies without shutting the pool down
+(``SIGKILL``, a crash, an unhandled signal) the worker waits for ever; with the
+``forkserver`` start method the fork server waits too, since every worker it forked holds
+the pipe whose end it waits for.  Every pool of multieye comes from :func:`worker_pool`,
+whose workers first call :func:`die_with`: a daemon thread that ends the worker as soon as
+the main process has ended.  On Linux (5.3 and later) it waits on a pidfd of the main
+process, which becomes readable the moment that process ends (a zombie counts as ended);
+elsewhere it checks every 0.5 s.  Once the workers are gone, the fork server and
+multiprocessing's resource tracker see the end of their pipes and end too.
+
+So workers end within a second of the main process ending by any signal, ``SIGKILL``
+included.  When the main process leaves a pool because of an exception (``KeyboardInterrupt``
+from ``SIGINT``, the exception the command line raises on ``SIGTERM``, an error), the pool's
+queued work is cancelled and its workers are terminated at once instead of finishing the
+work already queued.
+
+Synopsis
+--------
+>>> from multieye.imaging.workers import worker_pool
+>>> with worker_pool(2) as pool:                    # doctest: +SKIP
+...     results = list(pool.map(work, items))
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+
+__all__ = ["worker_pool", "die_with", "stop_workers"]
+
+#: Seconds between two checks where the main process cannot be waited for (no pidfd).
+POLL_S = 0.5
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` is running (a zombie, ended but not yet collected, is not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:             # exists, but belongs to someone else
+        return True
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            stat = f.read()
+    except OSError:             # no /proc (macOS, Windows)
+        return True
+    return stat[stat.rindex(b")") + 2:][:1] not in (b"Z", b"X")
+
+
+def die_with(main_pid: int, *, poll_s: float = POLL_S) -> None:
+    """End this process as soon as process ``main_pid`` ends (call it first in a worker).
+
+    Parameters
+    ----------
+    main_pid : int
+        The process that started the pool.  When it has already ended, this process ends
+        at once.
+    poll_s : float
+        Seconds between two checks where no pidfd can be opened.
+    """
+    if main_pid == os.getpid():
+        return
+    pidfd = None
+    if hasattr(os, "pidfd_open"):
+        try:
+            pidfd = os.pidfd_open(main_pid)
+        except ProcessLookupError:
+            os._exit(1)
+        except OSError:         # a kernel before 5.3: poll instead
+            pidfd = None
+    if not _alive(main_pid):
+        os._exit(1)
+
+    def watch():
+        if pidfd is not None:
+            select.select([pidfd], [], [])      # readable once main_pid has ended
+        else:
+            while _alive(main_pid):
+                time.sleep(poll_s)
+        sys.stderr.flush()
+        os._exit(1)
+
+    threading.Thread(target=watch, name="multieye-main-watchdog", daemon=True).start()
+
+
+def _start_worker(main_pid: int, initializer: Callable | None, initargs: tuple) -> None:
+    die_with(main_pid)
+    if initializer is not None:
+        initializer(*initargs)
+
+
+def stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Cancel the queued work of ``pool`` and end its worker processes now."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    deadline = time.monotonic() + 2.0
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.join(max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.kill()
+
+
+@contextlib.contextmanager
+def worker_pool(max_workers: int, *, mp_context=None, initializer: Callable | None = None,
+                initargs: tuple = ()) -> Iterator[ProcessPoolExecutor]:
+    """A process pool whose workers end with this process (see the module docstring).
+
+    Parameters
+    ----------
+    max_workers : int
+    mp_context : multiprocessing context, optional
+        Default: the platform's default start method.
+    initializer, initargs
+        Run in every worker after the parent watchdog is set up.
+
+    Yields
+    ------
+    ProcessPoolExecutor
+        Shut down normally (waiting for its work) when the block ends normally; on an
+        exception (``KeyboardInterrupt`` included) its queued work is cancelled and its
+        workers are terminated before the exception propagates.
+    """
+    pool = ProcessPoolExecutor(max_workers, mp_context=mp_context, initializer=_start_worker,
+                               initargs=(os.getpid(), initializer, tuple(initargs)))
+    try:
+        yield pool
+    except BaseException:
+        stop_workers(pool)
+        raise
+    pool.shutdown(wait=True)

@@ -1,0 +1,141 @@
+"""`multieye calibrate` stopped during detection: no orphans, no leftovers, one run per folder.
+
+The runs are real processes.  Detection is slowed down by a ``sitecustomize`` module on
+``PYTHONPATH`` (written here, nothing in the package) that makes ``cv2.imread`` sleep, so
+every run is in detection, with its worker processes, for a few seconds.  The run is started
+in its own process group; its workers are found in /proc by that group.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import stat
+import subprocess
+import sys
+
+import pytest
+from proc_tree import group_members, needs_proc, wait_until
+from small_dataset import render_small
+
+pytestmark = needs_proc
+
+SLOW_IMREAD = """
+import os
+_delay = float(os.environ.get("MULTIEYE_TEST_IMREAD_DELAY_S") or 0)
+if _delay > 0:
+    import time
+    import cv2
+    _imread = cv2.imread
+
+    def _slow_imread(*args, **kwargs):
+        time.sleep(_delay)
+        return _imread(*args, **kwargs)
+
+    cv2.imread = _slow_imread
+"""
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("ds") / "ds"
+    render_small(folder, images_per_camera=12)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def slow_env(tmp_path_factory):
+    hook = tmp_path_factory.mktemp("hook")
+    (hook / "sitecustomize.py").write_text(SLOW_IMREAD)
+    path = os.pathsep.join(filter(None, [str(hook), os.environ.get("PYTHONPATH")]))
+    return dict(os.environ, PYTHONPATH=path, MULTIEYE_TEST_IMREAD_DELAY_S="0.4")
+
+
+def _calibrate(ds, out, env=None, **kw):
+    return subprocess.Popen([sys.executable, "-m", "multieye", "calibrate", str(ds), "-o",
+                             str(out), "--processes", "2"], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def _in_detection(ds, out, env):
+    """A slowed run, in its own process group, once its detection workers run."""
+    proc = _calibrate(ds, out, env, start_new_session=True)
+
+    def workers_started():     # a grandchild: a worker forked by the fork server
+        members = group_members(proc.pid)
+        return any(parent != proc.pid and parent in members for parent in members.values())
+
+    if wait_until(workers_started, timeout=60.0) is None:
+        proc.kill()
+        pytest.fail("the run never reached detection: " + proc.communicate()[1])
+    return proc
+
+
+def _tree(folder):
+    return {p.relative_to(folder).as_posix(): (stat.S_IMODE(p.stat().st_mode),
+                                               None if p.is_dir() else p.read_bytes())
+            for p in sorted(folder.rglob("*"))}
+
+
+def _beside(out):
+    return sorted(p.name for p in out.parent.iterdir() if p.name != out.name)
+
+
+def _earlier_output(out):
+    out.mkdir(parents=True)
+    (out / "calibration.json").write_text('{"an": "earlier run"}\n')
+    (out / "camchain.yaml").write_text("cam0: {}\n")
+    return _tree(out)
+
+
+def _stopped_cleanly(proc, signum, out, before):
+    proc.send_signal(signum)                    # to the main process only
+    stdout, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 128 + signum, (proc.returncode, stderr)
+    assert stderr.strip().splitlines()[-1] == f"multieye: stopped by {signum.name}", stderr
+    assert "Traceback" not in stderr
+    took = wait_until(lambda: not group_members(proc.pid), timeout=5.0)
+    assert took is not None, f"still running: {group_members(proc.pid)}"
+    assert _tree(out) == before
+    assert _beside(out) == []                   # no lock, no staging folder
+
+
+def test_sigterm_ends_workers_removes_temporary_files_and_a_second_run_is_refused(
+        dataset, slow_env, tmp_path):
+    out = tmp_path / "out"
+    before = _earlier_output(out)
+    first = _in_detection(dataset, out, slow_env)
+    second = _calibrate(dataset, out)
+    _, err = second.communicate(timeout=60)
+    assert second.returncode == 2, err
+    (line,) = err.strip().splitlines()
+    assert line.startswith(f"multieye: error: {out}: in use by another multieye run "
+                           f"(process {first.pid}: multieye calibrate {dataset} -o {out}")
+    _stopped_cleanly(first, signal.SIGTERM, out, before)
+
+
+def test_sigint_ends_workers_and_removes_temporary_files(dataset, slow_env, tmp_path):
+    out = tmp_path / "out"
+    before = _earlier_output(out)
+    _stopped_cleanly(_in_detection(dataset, out, slow_env), signal.SIGINT, out, before)
+
+
+def test_after_sigkill_workers_end_within_5_s_and_the_next_run_leaves_no_leftovers(
+        dataset, slow_env, tmp_path):
+    out = tmp_path / "out"
+    before = _earlier_output(out)
+    killed = _in_detection(dataset, out, slow_env)
+    killed.kill()
+    took = wait_until(lambda: not group_members(killed.pid), timeout=5.0)
+    killed.communicate()
+    assert took is not None, f"still running 5 s after SIGKILL: {group_members(killed.pid)}"
+    assert _tree(out) == before
+    assert _beside(out) == ["out.multieye-lock"]        # the lock of the dead run
+    again = _calibrate(dataset, out)
+    stdout, stderr = again.communicate(timeout=120)
+    assert again.returncode == 0, stderr
+    assert _beside(out) == []
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".multieye-manifest.json", "calibration.json", "camchain.yaml", "details.json",
+        "figures", "report.html"]
+    assert (out / "calibration.json").read_bytes() != before["calibration.json"][1]

@@ -1,0 +1,60 @@
+"""Worker processes end with the process that started them, however it ends."""
+
+from __future__ import annotations
+
+import multiprocessing
+import subprocess
+import sys
+import time
+
+import pytest
+from proc_tree import needs_proc, running, wait_until
+
+from multieye.imaging.workers import worker_pool
+
+HOLDER = """
+import multiprocessing, sys, time
+from multieye.imaging.workers import worker_pool
+with worker_pool(2, mp_context=multiprocessing.get_context(sys.argv[1])) as pool:
+    futures = [pool.submit(time.sleep, 60) for _ in range(4)]
+    while len(pool._processes) < 2 or not any(f.running() for f in futures):
+        time.sleep(0.02)
+    print(" ".join(map(str, pool._processes)), flush=True)
+    time.sleep(60)
+"""
+
+
+@needs_proc
+@pytest.mark.parametrize("method", ["forkserver", "fork"])
+def test_workers_end_within_a_second_of_a_sigkilled_main_process(method):
+    main = subprocess.Popen([sys.executable, "-c", HOLDER, method], stdout=subprocess.PIPE,
+                            text=True)
+    try:
+        workers = [int(p) for p in main.stdout.readline().split()]
+        assert len(workers) == 2 and all(running(p) for p in workers)
+        main.kill()
+        took = wait_until(lambda: not any(running(p) for p in workers), timeout=5.0)
+        assert took is not None, "workers still running 5 s after the main process was killed"
+        assert took < 2.0, took
+    finally:
+        main.kill()
+        main.wait()
+
+
+@needs_proc
+def test_leaving_the_pool_by_an_exception_ends_the_workers_at_once():
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        with worker_pool(2, mp_context=multiprocessing.get_context("forkserver")) as pool:
+            futures = [pool.submit(time.sleep, 30) for _ in range(6)]
+            assert wait_until(lambda: any(f.running() for f in futures), timeout=20.0) is not None
+            workers = list(pool._processes)
+            raise KeyboardInterrupt
+    assert time.monotonic() - start < 15.0          # not the 90 s of queued work
+    assert wait_until(lambda: not any(running(p) for p in workers), timeout=5.0) is not None
+    assert all(f.cancelled() or f.done() for f in futures)
+
+
+def test_a_pool_left_normally_finishes_its_work():
+    with worker_pool(2) as pool:
+        assert list(pool.map(abs, [-1, -2, 3])) == [1, 2, 3]

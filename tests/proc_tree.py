@@ -1,0 +1,51 @@
+"""Processes from /proc (Linux): which are running, and which belong to a process group."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+import pytest
+
+needs_proc = pytest.mark.skipif(not sys.platform.startswith("linux") or not os.path.isdir("/proc"),
+                                reason="reads processes from /proc (Linux)")
+
+
+def _stat(pid: int) -> tuple[str, int, int] | None:
+    """(state, parent pid, process group) of ``pid``, or None when it is gone."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            text = f.read().decode(errors="replace")
+    except OSError:
+        return None
+    fields = text[text.rindex(")") + 2:].split()
+    return fields[0], int(fields[1]), int(fields[2])
+
+
+def running(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie, ended but not collected, does not)."""
+    st = _stat(pid)
+    return st is not None and st[0] not in ("Z", "X")
+
+
+def group_members(pgid: int) -> dict[int, int]:
+    """Running processes of process group ``pgid``: pid -> parent pid."""
+    members = {}
+    for name in os.listdir("/proc"):
+        if name.isdigit():
+            st = _stat(int(name))
+            if st is not None and st[2] == pgid and st[0] not in ("Z", "X"):
+                members[int(name)] = st[1]
+    return members
+
+
+def wait_until(condition, timeout: float, step: float = 0.05) -> float | None:
+    """Seconds until ``condition()`` held, or None when it did not within ``timeout``."""
+    start = time.monotonic()
+    while True:
+        if condition():
+            return time.monotonic() - start
+        if time.monotonic() - start > timeout:
+            return None
+        time.sleep(step)
