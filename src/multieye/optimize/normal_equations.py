@@ -292,7 +292,7 @@ def marginal_covariance(ne: NormalEquations, *, local: bool = False
         cov = _solve(_factor(S), np.eye(k)) if S.size else S
     except LinAlgError:
         diag = np.diag(S)
-        if np.any(diag <= _UNDETERMINED * max(float(diag.max()), 1e-300)):
+        if np.any(diag <= 0.0):       # a parameter no residual depends on
             raise InputError("the information matrix is singular: the data do not determine "
                              "every parameter (too few measurements, or motion that leaves a "
                              "direction unobserved)") from None
