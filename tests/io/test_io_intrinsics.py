@@ -346,6 +346,9 @@ def test_yaml_intrinsics_are_range_checked(tmp_path, text, expected):
     ({"width": True, "height": 480}, "image width must be a positive integer"),
     ({"K": np.full((3, 3), np.nan)}, "camera matrix must be finite"),
     ({"K": np.eye(4)}, "camera matrix must be a 3x3 array, got shape (4, 4)"),
+    ({"K": K + 1e-3j}, "camera matrix must be real, got complex numbers"),
+    ({"K": None}, "camera matrix is None; expected a 3x3 array"),
+    ({"dist": ["k1"]}, "distortion coefficients must be an array of real numbers"),
 ])
 def test_intrinsics_object_checks(kw, expected):
     args = {"K": K, **kw}

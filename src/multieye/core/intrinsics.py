@@ -11,6 +11,7 @@ from typing import Literal
 
 import numpy as np
 
+from multieye.core.arguments import real_array
 from multieye.core.errors import InputError
 from multieye.core.limits import MAX_FOCAL_PX, MAX_IMAGE_SIDE_PX
 
@@ -71,8 +72,8 @@ class Intrinsics:
     height: int | None = None
 
     def __post_init__(self):
-        K = np.asarray(self.K, dtype=np.float64)
-        dist = np.asarray(self.dist, dtype=np.float64).reshape(-1)
+        K = real_array(self.K, "camera matrix", expected="a 3x3 array")
+        dist = real_array(self.dist, "distortion coefficients").reshape(-1)
         if K.shape != (3, 3):
             raise InputError(f"camera matrix must be a 3x3 array, got shape {K.shape}")
         if not np.all(np.isfinite(K)):

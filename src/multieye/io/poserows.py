@@ -52,7 +52,8 @@ def quaternion_poses(t_xyz: np.ndarray, q_xyzw: np.ndarray, *, path: str | os.Pa
         A quaternion is further than ``tolerance`` from unit norm (the message gives the norm).
     """
     q = np.asarray(q_xyzw, dtype=np.float64).reshape(-1, 4)
-    norms = np.linalg.norm(q, axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):     # 1e308 cells: norm inf, refused
+        norms = np.linalg.norm(q, axis=1)
     bad = ~(np.abs(norms - 1.0) <= tolerance)          # NaN is bad too
     if np.any(bad):
         i = int(np.argmax(bad))
