@@ -8,7 +8,7 @@ import pytest
 
 from multieye.core.errors import InputError
 from multieye.core.geometry import rotation_angle_between, transform_from_rotvec, translation_distance
-from multieye.imaging.batch import detect_and_estimate, process_image
+from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays, process_image
 from multieye.sim.render import render, visible
 from multieye.imaging.targets import Chessboard
 from multieye.core.intrinsics import Intrinsics
@@ -122,3 +122,11 @@ def test_arrays_in_batches_give_the_same_results_as_files_in_order(tmp_path):
     for a, f in zip(arrays, files):
         if a.ok:
             np.testing.assert_allclose(a.pose.T_cam_target, f.pose.T_cam_target, atol=1e-12)
+
+
+@pytest.mark.parametrize("processes", [0, -1, 1.5, "2", True])
+def test_processes_must_be_a_positive_integer(image_files, processes):
+    with pytest.raises(InputError, match="processes must be a positive integer"):
+        detect_and_estimate(image_files[0][:1], BOARD, CAMERA, processes=processes)
+    with pytest.raises(InputError, match="processes must be a positive integer"):
+        detect_and_estimate_arrays([], BOARD, CAMERA, processes=processes)

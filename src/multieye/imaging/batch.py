@@ -32,6 +32,7 @@ from typing import Iterable
 
 import cv2
 
+from multieye.core.arguments import positive_int
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.detect import Detection, detect
@@ -325,8 +326,8 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics,
     of this process instead, with a warning (:func:`main_reimport_problem`).
     """
     paths = [str(p) for p in paths]
-    if processes is not None and (isinstance(processes, bool) or int(processes) < 1):
-        raise InputError(f"processes must be a positive integer, got {processes!r}")
+    if processes is not None:
+        processes = positive_int(processes, "processes")
     n_workers = min(_available_cores() if processes is None else int(processes), max(len(paths), 1))
     show = sys.stderr.isatty() if progress is None else bool(progress)
     bar = None
@@ -386,8 +387,8 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
     list of ImageResult
         In input order.
     """
-    if processes is not None and (isinstance(processes, bool) or int(processes) < 1):
-        raise InputError(f"processes must be a positive integer, got {processes!r}")
+    if processes is not None:
+        processes = positive_int(processes, "processes")
     n_workers = _available_cores() if processes is None else int(processes)
     show = sys.stderr.isatty() if progress is None else bool(progress)
     bar = None
