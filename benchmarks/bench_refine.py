@@ -3,8 +3,20 @@
 Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_refine.py [--trials 100] [--seed 0] [--quick]
+    PYTHONPATH=src python benchmarks/bench_refine.py --stage 8x25,8x50,8x100,8x200,16x500
 
-It prints, in one run on one machine:
+``--stage`` measures only the refinement stage of the pipeline (section 0) on rendered rigs
+(``multieye.sim.dataset.render_dataset``: chessboard images with blur and sensor noise,
+every camera detected, paired and solved by ``multieye.pipeline``), each size given as
+CAMERASxIMAGES; the rendered datasets are kept under ``--cache`` (default
+``benchmarks/.cache``) so a second run does not render again.  It prints, per rig, the
+points refined, the seconds the pipeline's ``refinement`` stage took (its ``timings_s``: the
+image-level refinement with the pixel noise estimated, and the uncertainty), the median of
+``--repeat`` runs, and the seconds per 1000 images, whose constancy over the sizes shows the
+time growing linearly with the images; once with the motion-capture noise stated in rig.yaml
+(as the renderer writes it) and once with it left out, so that it is estimated too.
+
+Otherwise it prints, in one run on one machine:
 
 1. the wall time of :func:`multieye.estimate.refine_images.refine_images` on the demo rig (4 cameras x 40
    images of a 6 x 8 chessboard, 7680 points), pixel noise estimated (the default) and given,
@@ -36,6 +48,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse
 import statistics
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -48,6 +61,39 @@ from multieye.estimate.pairing import pair_in_time
 from multieye.estimate.refine_images import refine_images
 from multieye.estimate.consensus import consensus
 from multieye.solvers import solve
+
+
+def stage(sizes: list[tuple[int, int]], cache: Path, repeat: int) -> None:
+    """Section 0: the pipeline's refinement stage on rendered rigs."""
+    from multieye.io import load_rig
+    from multieye.pipeline import calibrate_rig, load_camera_data
+    from multieye.sim.dataset import DatasetSpec, render_dataset
+
+    print(f"0. refinement stage of the pipeline on rendered rigs, {os.cpu_count()} cores, "
+          f"OMP_NUM_THREADS={os.environ['OMP_NUM_THREADS']}, median of {repeat}:")
+    print(f"   {'rig':>8} {'images':>7} {'points':>8} {'mocap noise':>10} {'refinement s':>13} "
+          f"{'s / 1000 images':>16} {'iterations':>11} {'passes':>7}")
+    for m, n in sizes:
+        folder = cache / f"rendered_{m}x{n}"
+        if not (folder / "rig.yaml").exists():
+            spec = DatasetSpec(n_cameras=m, images_per_camera=n, fisheye=(1,) if m > 1 else ())
+            render_dataset(folder, spec, seed=0)
+        # the same rig with the motion-capture noise not stated, so that it is estimated
+        text = (folder / "rig.yaml").read_text()
+        unstated = folder / "rig_noise_unstated.yaml"
+        unstated.write_text("".join(ln for ln in text.splitlines(keepends=True)
+                                    if "_noise_" not in ln))
+        cameras = load_camera_data(load_rig(folder / "rig.yaml"))
+        for label, path in (("stated", folder / "rig.yaml"), ("estimated", unstated)):
+            rig = load_rig(path)
+            runs = [calibrate_rig(rig, cameras) for _ in range(repeat)]
+            t = statistics.median(r.timings.refinement for r in runs)
+            res = runs[0].refinement.result
+            images = sum(len(p.observations) for p in runs[0].paired.values())
+            points = sum(o.image_points.shape[0] for p in runs[0].paired.values()
+                         for o in p.observations)
+            print(f"   {m:>3} x {n:<4}{images:>7} {points:>8} {label:>10} {t:13.2f} "
+                  f"{1e3 * t / images:16.2f} {res.iterations:>11} {res.passes:>7}")
 
 
 def timing(seed: int, setup: str) -> None:
@@ -146,7 +192,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--setup", choices=("eye-to-base", "eye-on-hand"), default="eye-to-base",
                         help="setup of the simulated rigs of sections 1-3")
     parser.add_argument("--quick", action="store_true", help="10 trials")
+    parser.add_argument("--stage", metavar="MxN,...",
+                        help="only section 0: the refinement stage on rendered rigs of M cameras "
+                             "x N images each, e.g. 8x100,16x500")
+    parser.add_argument("--cache", type=Path, default=Path(__file__).parent / ".cache",
+                        help="where rendered datasets are kept between runs")
+    parser.add_argument("--repeat", type=int, default=3, help="runs per rig in section 0")
     args = parser.parse_args(argv)
+    if args.stage:
+        sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.stage.split(",")]
+        stage(sizes, args.cache, args.repeat)
+        return
     trials = 10 if args.quick else args.trials
     timing(args.seed, args.setup)
     accuracy(trials, args.seed, args.setup)
