@@ -176,6 +176,8 @@ def test_normalize_rotation_never_returns_a_reflection():
     ((None, "rig"), {"refine": True, "max_iter": None}, "max_iter must be a whole number >= 1"),
     ((None, "rig"), {"refine": True, "loss": None}, "unknown loss None"),
     ((None, "rig"), {"refine": True, "bogus": 1}, "unknown refinement option bogus"),
+    ((None, "rig"), {"refine": True, "tol": None}, "tol must be a number, got None"),
+    ((None, "rig"), {"refine": True, "tol": -1.0}, "tol must be a non-negative number"),
     ((None, "rig"), {"max_iter": 5}, "given without refine=True"),
 ])
 def test_bad_arguments_are_input_errors(rig, args, kw, message):

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from multieye.core.arguments import real_number
 from multieye.core.errors import InputError
 from multieye.core.robust_loss import LOSSES, rho
 from multieye.optimize.blocks import Blocks, ResidualGroup
@@ -70,11 +71,10 @@ class Options:
     def __post_init__(self):
         if self.loss not in LOSSES:
             raise InputError(f"unknown loss {self.loss!r}; expected one of {', '.join(LOSSES)}")
-        if not (np.isfinite(self.f_scale) and self.f_scale > 0):
-            raise InputError(f"f_scale must be a positive number, got {self.f_scale!r}")
+        real_number(self.f_scale, "f_scale", positive=True)
         if not (isinstance(self.max_iter, (int, np.integer)) and self.max_iter >= 1):
             raise InputError(f"max_iter must be a whole number >= 1, got {self.max_iter!r}")
-        if not (np.isfinite(self.tol) and self.tol >= 0):
+        if not real_number(self.tol, "tol") >= 0:
             raise InputError(f"tol must be a non-negative number, got {self.tol!r}")
 
 
