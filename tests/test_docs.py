@@ -193,7 +193,7 @@ def test_planned_keys_are_not_accepted_yet():
     accepted = set().union(rig_yaml.TOP_LEVEL_KEYS, rig_yaml.TARGET_KEYS, rig_yaml.MOCAP_KEYS,
                            rig_yaml.CAMERA_KEYS, rig_yaml.CAMERA_INTRINSICS_KEYS)
     plain = {k for k in planned if re.fullmatch(r"\w+", k)}
-    assert {"model", "intrinsics_images", "refine_intrinsics", "diameter", "legacy"} <= plain
+    assert {"diameter", "legacy"} <= plain
     assert plain & accepted == set()
     types = {k.split(": ")[1] for k in planned if k.startswith("type: ")}
     assert types and types.isdisjoint(rig_yaml.TARGET_TYPES)

@@ -69,6 +69,8 @@ class ImageResult:
         for a usable image.
     warnings : tuple of str
         From the detector (e.g. an ambiguous point order).
+    image_size : (int, int) or None
+        Width and height of the image read, pixels (None when it could not be read).
     """
 
     path: str
@@ -76,6 +78,7 @@ class ImageResult:
     detection: Detection | None
     reason: str | None
     warnings: tuple[str, ...] = ()
+    image_size: tuple[int, int] | None = None
 
     @property
     def ok(self) -> bool:
@@ -83,7 +86,7 @@ class ImageResult:
         return self.reason is None
 
 
-def process_image(path, target: Target, intrinsics: Intrinsics, *,
+def process_image(path, target: Target, intrinsics: Intrinsics | None, *,
                   max_rms_px: float = DEFAULT_MAX_RMS_PX) -> ImageResult:
     """Read one image, detect the target, estimate its pose; failures become a reason.
 
@@ -111,7 +114,7 @@ def process_image(path, target: Target, intrinsics: Intrinsics, *,
     return process_array(image, path, target, intrinsics, max_rms_px=max_rms_px)
 
 
-def process_array(image, name: str, target: Target, intrinsics: Intrinsics, *,
+def process_array(image, name: str, target: Target, intrinsics: Intrinsics | None, *,
                   max_rms_px: float = DEFAULT_MAX_RMS_PX) -> ImageResult:
     """:func:`process_image` for an image already in memory (e.g. from a ROS bag).
 
@@ -120,30 +123,39 @@ def process_array(image, name: str, target: Target, intrinsics: Intrinsics, *,
     image : ndarray, shape (H, W) or (H, W, C)
     name : str
         How the image is named in the result (``ImageResult.path``).
+    intrinsics : Intrinsics or None
+        None: detection only (the camera's intrinsics are still to be estimated); a usable
+        result then has a detection and no pose.
     """
     path = name
     if image.ndim == 3:
         from multieye.imaging.detect import to_gray
 
         image = to_gray(image)
-    size = (intrinsics.width, intrinsics.height)
-    if None not in size and (image.shape[1], image.shape[0]) != size:
-        return ImageResult(path, None, None, f"wrong resolution ({image.shape[1]} x {image.shape[0]}, "
-                           f"intrinsics say {size[0]} x {size[1]})")
+    shape = (int(image.shape[1]), int(image.shape[0]))
+    size = (None, None) if intrinsics is None else (intrinsics.width, intrinsics.height)
+    if None not in size and shape != size:
+        return ImageResult(path, None, None, f"wrong resolution ({shape[0]} x {shape[1]}, "
+                           f"intrinsics say {size[0]} x {size[1]})", image_size=shape)
     try:
         detection = detect(image, target)
     except (InputError, cv2.error) as exc:
-        return ImageResult(path, None, None, f"target not detected (detection failed: {_first_line(exc)})")
+        return ImageResult(path, None, None, "target not detected (detection failed: "
+                           f"{_first_line(exc)})", image_size=shape)
     if detection is None:
-        return ImageResult(path, None, None, f"target not detected ({target.kind} {target.rows}x{target.cols})")
+        return ImageResult(path, None, None, f"target not detected ({target.kind} "
+                           f"{target.rows}x{target.cols})", image_size=shape)
+    if intrinsics is None:
+        return ImageResult(path, None, detection, None, detection.warnings, image_size=shape)
     try:
         pose = estimate_pose(detection, intrinsics)
     except (InputError, cv2.error) as exc:
-        return ImageResult(path, None, detection, f"PnP failed: {_first_line(exc)}", detection.warnings)
+        return ImageResult(path, None, detection, f"PnP failed: {_first_line(exc)}",
+                           detection.warnings, image_size=shape)
     reason = None
     if not pose.rms_px <= max_rms_px:
         reason = f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px"
-    return ImageResult(path, pose, detection, reason, detection.warnings)
+    return ImageResult(path, pose, detection, reason, detection.warnings, image_size=shape)
 
 
 def _first_line(exc: Exception) -> str:
@@ -155,7 +167,7 @@ def _first_line(exc: Exception) -> str:
 _WORKER: dict = {}
 
 
-def _init_worker(target: Target, intrinsics: Intrinsics, max_rms_px: float) -> None:
+def _init_worker(target: Target, intrinsics: Intrinsics | None, max_rms_px: float) -> None:
     cv2.setNumThreads(1)            # one process per core: no nested thread pools
     _WORKER.update(target=target, intrinsics=intrinsics, max_rms_px=max_rms_px)
 
@@ -289,7 +301,7 @@ def _threads_instead(n_workers: int) -> bool:
     return True
 
 
-def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics, *,
+def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics | None, *,
                         processes: int | None = None, progress: bool | None = None,
                         max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
     """Detect ``target`` and estimate its pose in every image, in parallel processes.
@@ -299,7 +311,8 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics,
     paths : iterable of str or os.PathLike
         Image files (any format OpenCV reads; colour is converted to gray).
     target : Target
-    intrinsics : Intrinsics
+    intrinsics : Intrinsics or None
+        None: detection only, no pose (a camera whose intrinsics are still to be estimated).
     processes : int, optional
         Worker processes; default the cores this process may use, at most one per image.
         1 runs in this process.
@@ -366,7 +379,8 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics,
             bar.close()
 
 
-def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intrinsics, *,
+def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intrinsics | None,
+                               *,
                                processes: int | None = None, progress: bool | None = None,
                                max_rms_px: float = DEFAULT_MAX_RMS_PX,
                                batch: int = 64) -> list[ImageResult]:

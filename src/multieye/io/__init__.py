@@ -18,12 +18,13 @@ from multieye.io.atomic import atomic_output, write_bytes_atomic, write_text_ato
 from multieye.io.calibration_json import (
     CalibrationRecord,
     CameraRecord,
+    PlausibilityItem,
     RejectedItem,
     Residuals,
     read_calibration,
     write_calibration,
 )
-from multieye.io.image_folder import list_images
+from multieye.io.image_folder import list_image_files, list_images
 from multieye.io.intrinsics import (
     read_camera_info,
     read_intrinsics,
@@ -53,6 +54,7 @@ __all__ = [
     "sniff_mocap_format",
     # images
     "list_images",
+    "list_image_files",
     "iter_bag_images",
     "bag_topics",
     # intrinsics and camera chains
@@ -74,6 +76,7 @@ __all__ = [
     "CalibrationRecord",
     "CameraRecord",
     "Residuals",
+    "PlausibilityItem",
     "RejectedItem",
     "read_calibration",
     "write_calibration",

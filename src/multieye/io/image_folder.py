@@ -25,7 +25,7 @@ from pathlib import Path
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
 
-__all__ = ["IMAGE_EXTENSIONS", "list_images", "stamp_from_name"]
+__all__ = ["IMAGE_EXTENSIONS", "list_images", "list_image_files", "stamp_from_name"]
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 
@@ -91,3 +91,22 @@ def list_images(folder: str | os.PathLike) -> list[tuple[float, int, Path]]:
     if not found:
         raise DatasetError(f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder", path=root)
     return [(ns / 1e9, ns, found[ns]) for ns in sorted(found)]
+
+
+def list_image_files(folder: str | os.PathLike) -> list[Path]:
+    """Every image of a folder, sorted by name, whatever the names (images that carry no
+    time, e.g. ``intrinsics_images``).
+
+    Raises
+    ------
+    DatasetError
+        Missing folder or no images.
+    """
+    root = as_path(folder, "image folder")
+    if not root.is_dir():
+        raise DatasetError("image folder not found", path=root)
+    found = [p for p in sorted(root.iterdir())
+             if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS]
+    if not found:
+        raise DatasetError(f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder", path=root)
+    return found

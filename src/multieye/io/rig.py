@@ -66,7 +66,7 @@ from types import MappingProxyType
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
-from multieye.core.intrinsics import Intrinsics
+from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.core.limits import (
     MAX_GRID_SIDE,
     MAX_ROTATION_NOISE_DEG,
@@ -97,14 +97,15 @@ _FLOAT_TEXT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
-TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras")
+TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
 TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
 MOCAP_KEYS = ("file", "pose", "time_tolerance", "format", "rotation_noise_deg",
               "translation_noise_m") + tuple(_MOCAP_ONLY)
 #: Roles of ``mocap.columns`` (csv sources).
 MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 #: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
-CAMERA_KEYS = ("intrinsics", "images", "poses", "rosbag", "topic", "mocap", "time_offset")
+CAMERA_KEYS = ("intrinsics", "model", "images", "poses", "rosbag", "topic", "mocap",
+               "time_offset", "intrinsics_images", "intrinsics_target", "refine_intrinsics")
 CAMERA_INTRINSICS_KEYS = ("file", "camera")
 
 
@@ -160,6 +161,16 @@ class CameraSpec:
         This camera's own motion capture (otherwise the rig's).
     time_offset : float
         Seconds, motion-capture clock minus camera clock.
+    model : str or None
+        Lens model whose intrinsics are estimated from the recording (``pinhole-radtan``,
+        ``pinhole-rational``, ``fisheye``); with ``intrinsics`` too, the model they must have.
+    estimate_intrinsics : bool
+        Whether the intrinsics are estimated: ``model`` without ``intrinsics``, or
+        ``refine_intrinsics: true`` (the camera's, else the rig's).
+    intrinsics_images : Path or None
+        A folder of images without motion capture that only inform the intrinsics.
+    intrinsics_target : TargetSpec or None
+        Their board, when it is not the rig's ``target``.
     """
 
     name: str
@@ -171,6 +182,10 @@ class CameraSpec:
     topic: str | None = None
     mocap: MocapSpec | None = None
     time_offset: float = 0.0
+    model: str | None = None
+    estimate_intrinsics: bool = False
+    intrinsics_images: Path | None = None
+    intrinsics_target: TargetSpec | None = None
 
     @property
     def source(self) -> str:
@@ -238,6 +253,11 @@ class _Checker:
             raise self.error(f"expected a non-empty string, got {shown(value)}", keys)
         return value.strip()
 
+    def boolean(self, value, keys) -> bool:
+        if not isinstance(value, bool):
+            raise self.error(f"expected true or false, got {shown(value)}", keys)
+        return value
+
     def choice(self, value, keys, options):
         if isinstance(value, (list, dict)) or value not in options:
             raise self.error(f"expected one of {', '.join(options)}, got {shown(value)}", keys)
@@ -277,8 +297,7 @@ class _Checker:
         return p
 
 
-def _target(c: _Checker, raw) -> TargetSpec:
-    keys = ("target",)
+def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
     c.mapping(raw, keys, TARGET_KEYS, ("type", "rows", "cols", "spacing"))
     kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
     for key, owner in _TARGET_ONLY.items():
@@ -394,7 +413,7 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
     return _mocap(c, merged, origin, setup, where)
 
 
-def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
+def _camera(c: _Checker, name, raw, top_mocap, setup, refine_all=False) -> CameraSpec:
     keys = ("cameras", name)
     c.mapping(raw, keys, CAMERA_KEYS)
     sources = [s for s in _SOURCES if s in raw]
@@ -403,9 +422,11 @@ def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
                       f"{', '.join(sources) or 'none'}", keys)
     if ("topic" in raw) != ("rosbag" in raw):
         raise c.error("'topic' goes with 'rosbag' (the image topic of the bag)", keys)
-    if "intrinsics" not in raw and sources[0] != "poses":
-        raise c.error("missing key 'intrinsics' (needed to find the target in images; only "
-                      "a camera given by precomputed 'poses' may go without)", keys)
+    lens = _lens(c, raw, keys, sources[0], refine_all)
+    if "intrinsics" not in raw and "model" not in raw and sources[0] != "poses":
+        raise c.error("missing key 'intrinsics' or 'model' (intrinsics to find the target in "
+                      "the images, or the lens model to estimate them in; only a camera "
+                      "given by precomputed 'poses' may go without)", keys)
     intr = raw.get("intrinsics")
     camera = None
     if intr is None:
@@ -428,7 +449,44 @@ def _camera(c: _Checker, name, raw, top_mocap, setup) -> CameraSpec:
                                      maximum=MAX_TIME_OFFSET_S, unit="seconds")
     if "mocap" in raw:
         kw["mocap"] = _camera_mocap(c, raw["mocap"], keys + ("mocap",), top_mocap, setup)
-    return CameraSpec(str(name), intr_path, **kw)
+    return CameraSpec(str(name), intr_path, **kw, **lens)
+
+
+def _lens(c: _Checker, raw, keys, source: str, refine_all: bool) -> dict:
+    """The keys that decide whether a camera's intrinsics are estimated, checked together."""
+    out: dict = {}
+    if "model" in raw:
+        out["model"] = c.choice(raw["model"], keys + ("model",), tuple(LENS_MODELS))
+        if source == "poses":
+            raise c.error("a camera given by precomputed 'poses' has no images to estimate "
+                          "its intrinsics from; leave out 'model'", keys + ("model",))
+    refine = None
+    if "refine_intrinsics" in raw:
+        refine = c.boolean(raw["refine_intrinsics"], keys + ("refine_intrinsics",))
+        if refine is False and "intrinsics" not in raw and "model" in raw:
+            raise c.error("'refine_intrinsics: false' but no 'intrinsics' to hold fixed: a "
+                          "camera with only a 'model' has its intrinsics estimated",
+                          keys + ("refine_intrinsics",))
+        if refine and source == "poses":
+            raise c.error("a camera given by precomputed 'poses' has no images to refine "
+                          "its intrinsics with", keys + ("refine_intrinsics",))
+    estimate = ("model" in raw and "intrinsics" not in raw) or (
+        source != "poses" and (refine if refine is not None else refine_all))
+    out["estimate_intrinsics"] = bool(estimate)
+    if "intrinsics_images" in raw:
+        if not estimate:
+            raise c.error("images for the intrinsics only, but this camera's intrinsics are "
+                          "held fixed: give 'model' instead of 'intrinsics', or "
+                          "'refine_intrinsics: true'", keys + ("intrinsics_images",))
+        out["intrinsics_images"] = c.path(raw["intrinsics_images"],
+                                          keys + ("intrinsics_images",), "folder")
+    if "intrinsics_target" in raw:
+        if "intrinsics_images" not in raw:
+            raise c.error("'intrinsics_target' describes the board of 'intrinsics_images', "
+                          "which this camera does not have", keys + ("intrinsics_target",))
+        out["intrinsics_target"] = _target(c, raw["intrinsics_target"],
+                                           keys + ("intrinsics_target",))
+    return out
 
 
 def load_rig(path: str | os.PathLike) -> Rig:
@@ -457,12 +515,14 @@ def load_rig(path: str | os.PathLike) -> Rig:
         mocap = _mocap(c, raw["mocap"], {k: ("mocap",) for k in raw["mocap"]}, setup,
                        ("mocap",))
     top = (dict(raw["mocap"]) if mocap is not None else {}, mocap)
+    refine_all = (c.boolean(raw["refine_intrinsics"], ("refine_intrinsics",))
+                  if "refine_intrinsics" in raw else False)
     cameras = {}
     for name, cam_raw in cams_raw.items():
         if not name.strip() or not name.isprintable():
             raise c.error(f"camera names must be printable text, got {name!r}",
                           ("cameras", name))
-        cam = _camera(c, name, cam_raw, top, setup)
+        cam = _camera(c, name, cam_raw, top, setup, refine_all)
         if cam.mocap is None and mocap is None:
             raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
                           "key to this camera", ("cameras", name))

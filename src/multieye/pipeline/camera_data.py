@@ -86,6 +86,12 @@ class CameraData:
     detection_s : float
         Seconds spent on target detection and PnP (reading the images included, listing
         them not); 0 for precomputed poses.
+    intrinsics_estimated : bool
+        The intrinsics are estimated from the recording (``intrinsics`` is then the start:
+        OpenCV's calibration from the camera's own views, or the given file to refine).
+    intrinsics_views : tuple of Observation
+        Images without motion capture that inform the intrinsics only (``intrinsics_images``),
+        with their starting target pose.
     """
 
     name: str
@@ -98,6 +104,8 @@ class CameraData:
     time_tolerance: float
     warnings: tuple[str, ...] = ()
     detection_s: float = 0.0
+    intrinsics_estimated: bool = False
+    intrinsics_views: tuple[Observation, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -169,11 +177,18 @@ class _Detected:
     n_inputs: int
     warnings: tuple[str, ...]
     seconds: float
+    intrinsics: Intrinsics | None = None     # the started lens, when it was estimated
 
 
-def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsics, *,
-                              processes, progress, topic: str | None = None) -> _Detected:
-    """Detection and PnP over a folder of time-stamped images, or a bag's image topic."""
+def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsics | None, *,
+                              processes, progress, topic: str | None = None,
+                              model: str | None = None) -> _Detected:
+    """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
+
+    Without ``intr`` (a camera whose lens is estimated), detection runs alone, the lens
+    ``model`` is started from the detections (:mod:`multieye.pipeline.intrinsics`) and the
+    poses follow by PnP with it; the start is then ``_Detected.intrinsics``.
+    """
     from multieye.imaging.targets import target_from_spec
 
     target = target_from_spec(rig.target.as_dict(), path=rig.path)
@@ -204,7 +219,18 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
         seconds = time.perf_counter() - t0
         if not stamped:
             raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
-    obs, rejected, warnings = [], [], []
+    lens = None
+    if intr is None:
+        from multieye.pipeline.intrinsics import start_lens, with_poses
+
+        detected = [r for r in results if r.reason is None]
+        if not detected:
+            raise DatasetError(_no_usable_image(rig, [RejectedItem(lb, r.reason) for (_, lb), r
+                                                      in zip(stamped, results)], len(stamped)),
+                               path=source, camera=name)
+        lens = start_lens(name, model, results, source)
+        results = with_poses(results, lens.intrinsics)
+    obs, rejected, warnings = [], [], list(lens.warnings if lens else ())
     for (stamp, label), res in zip(stamped, results):
         if res.ok:
             obs.append(Observation(name=label, stamp=stamp, T_cam_target=res.pose.T_cam_target,
@@ -218,7 +244,33 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
         raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
                            camera=name)
     return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped),
-                     warnings=tuple(warnings), seconds=seconds)
+                     warnings=tuple(warnings), seconds=seconds,
+                     intrinsics=None if lens is None else lens.intrinsics)
+
+
+def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, *, processes, progress
+                      ) -> tuple[list[Observation], list[RejectedItem], float]:
+    """Detection and PnP over a camera's ``intrinsics_images`` (their own board if given)."""
+    from multieye.imaging.batch import detect_and_estimate
+    from multieye.imaging.targets import target_from_spec
+    from multieye.io import list_image_files
+
+    spec = cam.intrinsics_target or rig.target
+    target = target_from_spec(spec.as_dict(), path=rig.path)
+    paths = list_image_files(cam.intrinsics_images)
+    t0 = time.perf_counter()
+    results = detect_and_estimate(paths, target, intr, processes=processes, progress=progress)
+    obs, rejected = [], []
+    for path, res in zip(paths, results):
+        label = f"{cam.intrinsics_images.name}/{path.name}"
+        if res.ok:
+            obs.append(Observation(name=label, stamp=float("nan"),
+                                   T_cam_target=res.pose.T_cam_target, rms_px=res.pose.rms_px,
+                                   object_points=res.detection.object_points,
+                                   image_points=res.detection.image_points))
+        else:
+            rejected.append(RejectedItem(label, res.reason))
+    return obs, rejected, time.perf_counter() - t0
 
 
 def load_camera_data(rig: Rig, *, processes: int | None = None,
@@ -239,6 +291,7 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
             trajectories[key] = read_mocap(spec)
         warnings: tuple[str, ...] = ()
         seconds = 0.0
+        views: list[Observation] = []
         if cam.source == "poses":
             traj = read_tum(cam.poses, parent="cam", child="target")
             # poses keep their row number in the file (k of "pose k") when rows are left out
@@ -252,13 +305,23 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
             n_inputs = len(obs) + len(rejected)
             intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
         else:
-            intr = read_camera_intrinsics(cam)
+            intr = None
+            if cam.intrinsics is not None:
+                from multieye.pipeline.intrinsics import check_model
+
+                intr = read_camera_intrinsics(cam)
+                check_model(name, intr, cam.model, cam.intrinsics)
             det = _observations_from_images(
                 name, cam.images if cam.source == "images" else cam.rosbag, rig, intr,
                 processes=processes, progress=progress,
-                topic=None if cam.source == "images" else cam.topic)
+                topic=None if cam.source == "images" else cam.topic, model=cam.model)
             obs, rejected, n_inputs = det.observations, det.rejected, det.n_inputs
             warnings, seconds = det.warnings, det.seconds
+            intr = intr if det.intrinsics is None else det.intrinsics
+            if cam.intrinsics_images is not None:
+                views, lost, s = _intrinsics_views(name, cam, rig, intr, processes=processes,
+                                                   progress=progress)
+                rejected, seconds = list(rejected) + lost, seconds + s
         # motion-capture rows left out, listed with every camera that uses the file
         rejected = list(rejected) + [
             RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
@@ -267,7 +330,9 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
                                rejected=tuple(rejected), n_inputs=n_inputs,
                                mocap=trajectories[key], time_offset=cam.time_offset,
                                time_tolerance=spec.time_tolerance, warnings=warnings,
-                               detection_s=seconds)
+                               detection_s=seconds,
+                               intrinsics_estimated=cam.estimate_intrinsics,
+                               intrinsics_views=tuple(views))
     return out
 
 

@@ -3,7 +3,8 @@
 ``rig.yaml`` (docs/rig-yaml.md) -> per camera: images -> target detection -> PnP (or
 precomputed ``T_cam_target`` poses) -> pairing with motion capture in time -> ``A``, ``B``
 (docs/conventions.md, section 2; all of it in :mod:`multieye.pipeline.camera_data`) ->
-clock offsets, consensus, :func:`multieye.solve`, refinement ->
+clock offsets, consensus, :func:`multieye.solve`, plausibility checks
+(:mod:`multieye.estimate.plausibility`), refinement ->
 :class:`~multieye.io.CalibrationRecord` and the files written from it.
 
 Synopsis
@@ -30,6 +31,7 @@ from multieye.core.errors import CalibrationError, DatasetError, InputError, Too
 from multieye.io import (
     CalibrationRecord,
     CameraRecord,
+    PlausibilityItem,
     RejectedItem,
     Residuals,
     Rig,
@@ -74,6 +76,10 @@ class Refinement:
     result : RefinementResult or Solution
         The refinement's own result: :class:`multieye.estimate.refine_images.RefinementResult`
         on images, a refined :class:`~multieye.solvers.Solution` on poses.
+    intrinsics : dict of str to Intrinsics
+        Per camera whose intrinsics were estimated: the refined lens (image refinement only).
+    intrinsics_covariance : dict of str to ndarray
+        Their covariance over ``Intrinsics.params`` (fx fy cx cy, then the distortion).
     """
 
     kind: str
@@ -83,6 +89,8 @@ class Refinement:
     reprojection_rms_px: dict[str, float]
     warnings: tuple[str, ...]
     result: object
+    intrinsics: dict = field(default_factory=dict)
+    intrinsics_covariance: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -110,6 +118,14 @@ class CalibrationRun:
         Seconds per stage; ``reading`` and ``detection`` are 0 when the cameras were loaded
         outside :func:`calibrate`; ``outputs`` is 0: writing the files adds it to the
         timings written into ``details.json`` (``multieye.outputs.write.write_outputs``).
+    plausibility : Plausibility or None
+        The plausibility checks after the solve
+        (:func:`multieye.estimate.plausibility.check_plausibility`); ``doubts`` lists its
+        findings.
+    doubts : tuple of Finding
+        What the plausibility checks doubt, each with its cause and message (also in
+        ``record.warnings`` and ``record.plausibility``); empty when nothing is doubted.  The
+        command line exits with status 3 when it is not empty.
     X : ndarray, shape (m, 4, 4)
         Final ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand), cameras in the
         order of ``record.cameras``.
@@ -130,6 +146,11 @@ class CalibrationRun:
     paired: dict[str, PairedCamera]
     refinement: Refinement | None = None
     timings: StageTimings = field(default_factory=StageTimings)
+    plausibility: object | None = None
+
+    @property
+    def doubts(self) -> tuple:
+        return () if self.plausibility is None else self.plausibility.findings
 
     @property
     def X(self) -> np.ndarray:
@@ -254,6 +275,49 @@ def _consensus(meas: Measurements, warnings: list[str], labels=None):
                             f"deg / {CONSENSUS_THRESHOLDS[k + 1][1]:g} m")
 
 
+def _plausibility(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
+                  offsets: dict[str, float], opts: Options):
+    """The plausibility checks on every paired measurement (the consensus outliers too: the
+    checks trim their own), with the motion-capture noise rig.yaml states."""
+    from multieye.estimate.plausibility import CameraEvidence, Declared, check_plausibility
+
+    evidence = []
+    for name, p in paired.items():
+        d = cameras[name]
+        obs = p.observations
+        points = (d.intrinsics is not None and bool(obs)
+                  and all(o.image_points is not None and o.object_points is not None
+                          and o.rms_px is not None for o in obs))
+        evidence.append(CameraEvidence(
+            name=name, A=p.A, B=p.B, T_world_mocap=p.T_world_mocap,
+            stamps=np.array([o.stamp for o in obs]), intrinsics=d.intrinsics,
+            object_points=tuple(o.object_points for o in obs) if points else None,
+            image_points=tuple(o.image_points for o in obs) if points else None,
+            rms_px=np.array([o.rms_px for o in obs]) if points else None,
+            mocap_stamps=d.mocap.stamps, mocap_T=d.mocap.T, time_offset=offsets[name]))
+    first = next(iter(paired))
+    spec = rig.mocap_for(first) if first in rig.cameras else rig.mocap
+    rot, trans = opts.mocap_rot_sigma_rad, opts.mocap_trans_sigma_m
+    if spec is not None:
+        rot = spec.rot_sigma_rad if rot is None else rot
+        trans = spec.trans_sigma_m if trans is None else trans
+    declared = Declared(spacing_m=None if rig.target is None else rig.target.spacing,
+                        mocap_unit=(spec.unit if spec is not None else None) or "m",
+                        mocap_pose=None if spec is None else spec.pose,
+                        mocap_format="tum" if spec is None else spec.format)
+    return check_plausibility(rig.setup, evidence, declared=declared, mocap_rot_sigma_rad=rot,
+                              mocap_trans_sigma_m=trans, clock=opts.time_offset != "auto",
+                              max_time_offset_s=opts.max_time_offset)
+
+
+def _failed(exc: CalibrationError, check) -> CalibrationError:
+    """``exc`` (no result) with the likely cause the plausibility checks find first, if any."""
+    found = check()
+    if not found.findings:
+        return exc
+    return type(exc)(f"{'; '.join(found.messages)} (so the calibration failed: {exc})")
+
+
 def _keep(p: PairedCamera, mask: np.ndarray, reasons: dict[int, str]) -> PairedCamera:
     rejected = p.rejected + tuple(RejectedItem(p.observations[i].name, reasons[i])
                                   for i in sorted(reasons))
@@ -289,8 +353,17 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     # Validated here, once: consensus, the diagnostics and the solve take them as they are.
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=names, per_camera_motion=False)
+    every = paired               # before the consensus: what the plausibility checks see
+
+    def check():
+        return _plausibility(rig, cameras, every, offsets, opts)
+
     if opts.robust:
-        cons = _consensus(meas, warnings, [[o.name for o in p.observations] for p in paired.values()])
+        try:
+            cons = _consensus(meas, warnings,
+                              [[o.name for o in p.observations] for p in paired.values()])
+        except TooFewMeasurementsError as exc:   # almost nothing agrees: say why, if known
+            raise _failed(exc, check) from None
         by_cam: dict[str, dict[int, str]] = {n: {} for n in names}
         for r in cons.rejected:
             by_cam[r.camera][r.index] = r.reason
@@ -300,7 +373,12 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     motion = motion_diagnostics(meas, setup=rig.setup)
     warnings.extend(motion.warnings)
     paired_at = time.perf_counter()
-    sol = solve(meas, method=opts.method)
+    try:
+        sol = solve(meas, method=opts.method)
+    except CalibrationError as exc:
+        raise _failed(exc, check) from None
+    plausibility = check()
+    warnings.extend(plausibility.messages)
     solved_at = time.perf_counter()
     refinement, uncertainty = None, None
     if opts.refine:
@@ -317,15 +395,28 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
                 uncertainty = relative_covariance(refinement.X, refinement.covariance,
                                                   reference=names.index(reference))
     refined_at = time.perf_counter()
+    unrefined = [n for n, d in cameras.items() if d.intrinsics_estimated
+                 and not (refinement is not None and n in refinement.intrinsics)]
+    if unrefined:
+        warnings.append(f"{', '.join(unrefined)}: the intrinsics are OpenCV's per-camera "
+                        "calibration only, since the joint image-level refinement did not run "
+                        "(it needs refinement and target points in every camera)")
     shown = offsets if opts.time_offset != "rig" else {n: o for n, o in offsets.items() if o}
     record = _record(rig, paired, sol, refinement, uncertainty, method=opts.method,
                      reference=reference, warnings=warnings, time_offsets=shown,
-                     motion=motion.as_dict()["cameras"])
+                     motion=motion.as_dict()["cameras"],
+                     doubts=tuple(PlausibilityItem(f.cause, f.message, f.camera)
+                                  for f in plausibility.findings))
     timings = StageTimings(pairing=paired_at - start, closed_form=solved_at - paired_at,
                            refinement=refined_at - solved_at,
                            total=time.perf_counter() - start)
+    if refinement is not None and refinement.intrinsics:
+        # estimated lenses: the refined ones are the cameras' intrinsics from here on
+        cameras = {n: replace(d, intrinsics=refinement.intrinsics.get(n, d.intrinsics))
+                   for n, d in cameras.items()}
     return CalibrationRun(rig=rig, record=record, closed_form=sol, cameras=cameras,
-                          paired=paired, refinement=refinement, timings=timings)
+                          paired=paired, refinement=refinement, timings=timings,
+                          plausibility=plausibility)
 
 
 def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
@@ -353,7 +444,19 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
         # from how far the refinement moves the measured poses.
         # (one of the two stated: the other takes refine_images' default)
         given = sigmas or {"mocap_rot_sigma_rad": None, "mocap_trans_sigma_m": None}
-        res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired), **given)
+        free = [cameras[n].intrinsics_estimated for n in paired]
+        views = [[(o.object_points, o.image_points, o.T_cam_target)
+                  for o in cameras[n].intrinsics_views] for n in paired]
+        res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired),
+                            free_intrinsics=free,
+                            intrinsics_observations=views if any(views) else None, **given)
+        for family in res.undetermined:
+            what = (f"{family[2:]}: the intrinsics" if family.startswith("K:")
+                    else f"the {family} estimate")
+            warnings.append(f"{what} include a combination of parameters this recording does "
+                            "not determine (their uncertainty covers the other directions "
+                            "only); add views with more tilt and nearer the image corners, or "
+                            "use a lens model with fewer coefficients")
         if res.mocap_sigma_estimated:
             warnings.append(
                 f"motion-capture noise estimated from the data: "
@@ -370,8 +473,12 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
                                 + ", ".join(paired[name].observations[i].name for i in bad[:5])
                                 + (" ..." if bad.size > 5 else ""))
         reproj = {n: float(res.camera_rms_px[j]) for j, n in enumerate(paired)}
+        estimated = {n: j for j, n in enumerate(paired) if free[j]}
         return Refinement(kind="images", X=res.X, Y=res.Y, covariance=res.covariance,
-                          reprojection_rms_px=reproj, warnings=tuple(warnings), result=res)
+                          reprojection_rms_px=reproj, warnings=tuple(warnings), result=res,
+                          intrinsics={n: res.intrinsics[j] for n, j in estimated.items()},
+                          intrinsics_covariance={n: res.intrinsics_covariance[j]
+                                                 for n, j in estimated.items()})
     from multieye.solvers.refine_poses import refine_solution
 
     ref = refine_solution(sol)
@@ -381,8 +488,8 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
 
 def _record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
             refinement: Refinement | None, unc, *, method: str, reference: str,
-            warnings: list[str], time_offsets: dict[str, float], motion: dict
-            ) -> CalibrationRecord:
+            warnings: list[str], time_offsets: dict[str, float], motion: dict,
+            doubts: tuple[PlausibilityItem, ...] = ()) -> CalibrationRecord:
     """The record of the final result: the refinement's when it ran, else the closed form.
 
     ``unc`` is the :class:`~multieye.estimate.uncertainty.RelativeUncertainty` of the
@@ -416,7 +523,7 @@ def _record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
                              residuals=Residuals(e_R_deg=sum(rot_all) / n, e_t_m=sum(trans_all) / n),
                              warnings=tuple(warnings),
                              refinement=None if refinement is None else refinement.kind,
-                             motion_diagnostics=motion)
+                             motion_diagnostics=motion, plausibility=doubts)
 
 
 def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
@@ -442,7 +549,8 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     -------
     CalibrationRun
         The final result as ``run.X``, ``run.Y``, ``run.T_ref_cam``, ``run.covariance``; the
-        closed form as ``run.closed_form``; seconds per stage as ``run.timings``.
+        closed form as ``run.closed_form``; seconds per stage as ``run.timings``; what the
+        plausibility checks doubt as ``run.doubts`` (empty when nothing).
     """
     start = time.perf_counter()
     path = as_path(dataset, "dataset (a folder with rig.yaml, or the rig.yaml)")

@@ -1,0 +1,152 @@
+"""Cameras whose intrinsics come from the recording itself (rig.yaml ``model:``).
+
+Detection runs without intrinsics; the detected views (the motion-captured images and the
+``intrinsics_images``) give a starting lens per camera (OpenCV's calibration,
+:func:`multieye.imaging.calibrate.initial_intrinsics`); every view's target pose follows by
+PnP with it; the joint problem (:func:`multieye.estimate.refine_images.refine_images` with
+``free_intrinsics``) then estimates the lens with everything else.  Weak data is said: too
+few views, too little tilt or too little of the image covered for a lens model gives a
+warning that names the camera and what to add.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from multieye.core.errors import DatasetError, InputError
+from multieye.core.intrinsics import Intrinsics, lens_model
+from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
+from multieye.imaging.calibrate import initial_intrinsics
+from multieye.imaging.pnp import estimate_pose
+
+__all__ = ["LensStart", "start_lens", "with_poses", "weak_data_warnings", "check_model",
+           "RECOMMENDED_VIEWS"]
+
+#: Views of the target a lens model wants before its intrinsics count as well supported.
+RECOMMENDED_VIEWS = {"pinhole-radtan": 10, "pinhole-rational": 20, "fisheye": 15}
+#: Smallest largest tilt of the board against the line of sight, degrees.
+MIN_TILT_DEG = 20.0
+#: Smallest share of a 4 x 4 grid over the image in which the target was seen.
+MIN_COVERAGE = 0.5
+
+
+@dataclass(frozen=True)
+class LensStart:
+    """A camera's starting lens and what it was estimated from.
+
+    Attributes
+    ----------
+    intrinsics : Intrinsics
+    rms_px : float
+        OpenCV's reprojection RMS over the views, pixels.
+    views : int
+        Views used.
+    warnings : tuple of str
+    """
+
+    intrinsics: Intrinsics
+    rms_px: float
+    views: int
+    warnings: tuple[str, ...]
+
+
+def check_model(name: str, intrinsics: Intrinsics, model: str | None, path) -> None:
+    """A camera with both ``intrinsics`` and ``model``: the file's lens must be that model."""
+    if model is not None and lens_model(intrinsics) != model:
+        raise DatasetError(f"rig.yaml says model: {model} but the intrinsics file holds a "
+                           f"{lens_model(intrinsics)} lens; give one or make them agree",
+                           path=path, camera=name)
+
+
+def _image_size(name: str, results: Sequence[ImageResult], where) -> tuple[int, int]:
+    sizes = {r.image_size for r in results if r.image_size is not None}
+    if not sizes:
+        raise DatasetError("no image could be read to estimate the intrinsics from",
+                           path=where, camera=name)
+    if len(sizes) > 1:
+        first = next(r for r in results if r.image_size is not None)
+        other = next(r for r in results if r.image_size not in (None, first.image_size))
+        raise DatasetError(f"images of different sizes: {first.path} is "
+                           f"{first.image_size[0]} x {first.image_size[1]}, {other.path} is "
+                           f"{other.image_size[0]} x {other.image_size[1]}; one camera's "
+                           "images must all have one size", path=where, camera=name)
+    return sizes.pop()
+
+
+def start_lens(name: str, model: str, results: Sequence[ImageResult], where) -> LensStart:
+    """OpenCV's calibration of one camera from its detections (every image it has).
+
+    Raises
+    ------
+    DatasetError
+        Images of different sizes, too few views, or OpenCV failing; the message names the
+        camera and what to add.
+    """
+    size = _image_size(name, results, where)
+    views = [(r.detection.object_points, r.detection.image_points) for r in results
+             if r.detection is not None and r.reason is None]
+    try:
+        start = initial_intrinsics(views, size, model, name=name)
+    except InputError as exc:
+        raise DatasetError(str(exc), path=where, camera=name) from None
+    return LensStart(start.intrinsics, start.rms_px, len(views),
+                     weak_data_warnings(name, model, views, start.T_cam_target, size))
+
+
+def with_poses(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
+               max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
+    """Detection-only results completed with the target pose by PnP with ``intrinsics``
+    (the same rules as detection with known intrinsics: a failed PnP or a bad fit becomes the
+    image's reason)."""
+    out = []
+    for r in results:
+        if r.detection is None or r.reason is not None:
+            out.append(r)
+            continue
+        try:
+            pose = estimate_pose(r.detection, intrinsics)
+        except InputError as exc:
+            out.append(replace(r, reason=f"PnP failed: {exc}"))
+            continue
+        reason = None if pose.rms_px <= max_rms_px else (
+            f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px")
+        out.append(replace(r, pose=pose, reason=reason))
+    return out
+
+
+def weak_data_warnings(name: str, model: str, views, T_cam_target, size) -> tuple[str, ...]:
+    """What the views lack for ``model``: their number, the board's tilt, the image covered.
+
+    Parameters
+    ----------
+    views : sequence of (object_points, image_points)
+    T_cam_target : ndarray, shape (n, 4, 4)
+        The board's pose in each view.
+    size : (int, int)
+    """
+    out = []
+    want = RECOMMENDED_VIEWS[model]
+    if len(views) < want:
+        out.append(f"{name}: only {len(views)} images of the target to estimate its "
+                   f"{model} intrinsics; add at least {want - len(views)} more, with the "
+                   "board tilted and near the edges of the image")
+    normal = np.asarray(T_cam_target)[:, :3, 2]                  # board z axis in the camera
+    line = np.asarray(T_cam_target)[:, :3, 3]
+    cos = np.abs(np.einsum("ij,ij->i", normal, line)) / np.linalg.norm(line, axis=1)
+    tilt = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
+    if tilt.size and tilt.max() < MIN_TILT_DEG:
+        out.append(f"{name}: the board is never tilted more than {tilt.max():.0f} degrees "
+                   f"against the line of sight, which leaves the focal length poorly "
+                   f"determined; add views with the board tilted 30-45 degrees")
+    uv = np.concatenate([u for _, u in views]) if views else np.zeros((0, 2))
+    w, h = size
+    cells = np.unique(np.clip((uv / [w, h] * 4).astype(int), 0, 3), axis=0)
+    coverage = len(cells) / 16.0
+    if coverage < MIN_COVERAGE:
+        out.append(f"{name}: the target was seen in only {coverage:.0%} of the image (4 x 4 "
+                   "cells); the distortion is extrapolated elsewhere; add views with the "
+                   "board near the edges and corners of the image")
+    return tuple(out)

@@ -1,0 +1,118 @@
+"""Whole rig from one recording: cameras given by their lens model instead of intrinsics, on a
+rendered dataset, through rig.yaml and the pipeline; and the rig.yaml rules of these keys."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from multieye.core import geometry as g
+from multieye.core.errors import DatasetError
+from multieye.core.lens import project_points
+from multieye.io import load_rig
+from multieye.pipeline import calibrate
+from multieye.sim.dataset import DatasetSpec, render_dataset
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("lens") / "dataset"
+    spec = DatasetSpec(n_cameras=2, images_per_camera=24, width=640, height=480, processes=2)
+    truth = render_dataset(folder, spec, seed=5)
+    return folder, truth
+
+
+def _with_model(folder, out, model="pinhole-radtan", extra=""):
+    """A copy of rig.yaml whose cameras give ``model:`` instead of their intrinsics file."""
+    text = (folder / "rig.yaml").read_text()
+    text = re.sub(r"intrinsics: (cam\d)\.yaml", rf"model: {model}{extra}", text)
+    rig = folder / out
+    rig.write_text(text)
+    return rig
+
+
+def _projection_error(est, true, truth_T, board):
+    rays = np.concatenate([board @ T[:3, :3].T + T[:3, 3] for T in truth_T])
+    return np.linalg.norm(project_points(rays, est) - project_points(rays, true), axis=1)
+
+
+def test_model_instead_of_intrinsics_recovers_lens_and_rig(rendered):
+    folder, truth = rendered
+    given = calibrate(folder, processes=2)
+    run = calibrate(_with_model(folder, "rig_model.yaml"), processes=2)
+    assert [run.cameras[n].intrinsics_estimated for n in run.cameras] == [True, True]
+    for j, name in enumerate(truth.names):
+        est = run.cameras[name].intrinsics
+        true = truth.intrinsics[j]
+        assert est.model == "pinhole" and est.dist.size == 5
+        assert (est.width, est.height) == (640, 480)
+        # within a few tenths of a pixel of the true lens where the board was seen
+        grid = np.stack(np.meshgrid(np.linspace(-0.4, 0.4, 9), np.linspace(-0.3, 0.3, 7)),
+                        axis=-1).reshape(-1, 2)
+        rays = np.column_stack([grid, np.ones(len(grid))])
+        err = np.linalg.norm(project_points(rays, est) - project_points(rays, true), axis=1)
+        assert err.max() < 1.0, err.max()
+        cov = run.refinement.intrinsics_covariance[name]
+        assert cov.shape == (9, 9) and np.all(np.linalg.eigvalsh(cov) > 0)
+    # the rig: close to the truth, and close to what the true intrinsics give
+    for T_est, T_given, T_true in zip(run.record.cameras, given.record.cameras, truth.T_ref_cam):
+        assert np.degrees(g.rotation_angle_between(T_est.T_ref_cam, T_true)) < 0.1
+        assert g.translation_distance(T_est.T_ref_cam, T_true) < 2e-3
+        assert g.translation_distance(T_est.T_ref_cam, T_given.T_ref_cam) < 2e-3
+
+
+def test_intrinsics_images_join_the_joint_problem(rendered, tmp_path):
+    folder, _ = rendered
+    extra_dir = folder / "cam0_intrinsics"
+    if not extra_dir.exists():
+        extra_dir.mkdir()
+        for k, p in enumerate(sorted((folder / "cam0").iterdir())[:6]):
+            (extra_dir / f"view{k}.png").write_bytes(p.read_bytes())
+    text = (folder / "rig.yaml").read_text()
+    text = text.replace("intrinsics: cam0.yaml", "model: pinhole-radtan\n    intrinsics_images: "
+                        "cam0_intrinsics/")
+    text = re.sub(r"intrinsics: (cam1)\.yaml", "model: pinhole-radtan", text)
+    (folder / "rig_views.yaml").write_text(text)
+    run = calibrate(folder / "rig_views.yaml", processes=2)
+    assert len(run.cameras["cam0"].intrinsics_views) == 6
+    assert run.cameras["cam1"].intrinsics_views == ()
+    assert "cam0" in run.refinement.intrinsics
+
+
+@pytest.mark.parametrize("camera, message", [
+    ("{model: kannala, images: cam0/}", r"model: expected one of pinhole-radtan, "
+                                        r"pinhole-rational, fisheye, got 'kannala'"),
+    ("{images: cam0/}", "missing key 'intrinsics' or 'model'"),
+    ("{model: fisheye, refine_intrinsics: false, images: cam0/}",
+     "'refine_intrinsics: false' but no 'intrinsics' to hold fixed"),
+    ("{intrinsics: cam0.yaml, intrinsics_images: cam0/, images: cam0/}",
+     "images for the intrinsics only, but this camera's intrinsics are held fixed"),
+    ("{model: fisheye, poses: p.txt}", "precomputed 'poses' has no images to estimate"),
+    ("{model: fisheye, images: cam0/, intrinsics_target: {type: chessboard}}",
+     "'intrinsics_target' describes the board of 'intrinsics_images'"),
+    ("{model: fisheye, images: cam0/, refine_intrinsics: 1}",
+     "refine_intrinsics: expected true or false"),
+])
+def test_lens_keys_are_checked_where_they_enter(rendered, tmp_path, camera, message):
+    folder, _ = rendered
+    (tmp_path / "cam0").mkdir()
+    (tmp_path / "p.txt").write_text("")
+    (tmp_path / "cam0.yaml").write_text((folder / "cam0.yaml").read_text())
+    (tmp_path / "m.txt").write_text("")
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("setup: eye-to-base\ntarget: {type: chessboard, rows: 6, cols: 9, "
+                   f"spacing: 0.05}}\nmocap: {{file: m.txt}}\ncameras:\n  cam0: {camera}\n")
+    with pytest.raises(DatasetError, match=message):
+        load_rig(rig)
+
+
+def test_intrinsics_of_another_model_than_stated_are_refused(rendered):
+    folder, _ = rendered
+    text = (folder / "rig.yaml").read_text().replace(
+        "intrinsics: cam0.yaml", "intrinsics: cam0.yaml\n    model: fisheye")
+    (folder / "rig_mismatch.yaml").write_text(text)
+    with pytest.raises(DatasetError, match="camera cam0.*rig.yaml says model: fisheye but the "
+                                           "intrinsics file holds a pinhole-radtan lens"):
+        calibrate(folder / "rig_mismatch.yaml", processes=1)
