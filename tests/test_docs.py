@@ -17,6 +17,7 @@ from multieye.io.calibration_json import (
     SETUP_KEYS,
     CalibrationRecord,
     CameraRecord,
+    PlausibilityItem,
     RejectedItem,
     Residuals,
     calibration_to_dict,
@@ -216,7 +217,8 @@ def _record(setup: str) -> CalibrationRecord:
                                    float("inf")).as_dict() for c in cams}
     return CalibrationRecord(setup, "joint", "cam0", geometry.random_transforms(rng), cams,
                              Residuals(0.01, 1e-4), ("a warning",), refinement="images",
-                             motion_diagnostics=motion)
+                             motion_diagnostics=motion,
+                             plausibility=(PlausibilityItem("intrinsics", "a doubt", "cam1"),))
 
 
 @pytest.mark.parametrize("setup", sorted(SETUP_KEYS))
@@ -227,6 +229,7 @@ def test_outputs_doc_names_every_calibration_json_key(setup):
         keys |= set(cam) | set(cam["residuals"]) | set(cam["rejected"][0])
     for numbers in data["motion_diagnostics"].values():
         keys |= set(numbers)
+    keys |= set(data["plausibility"][0])
     section = _sections("outputs.md")[2]
     assert sorted(k for k in keys if not _named(section, k)) == []
 

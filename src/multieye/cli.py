@@ -2,7 +2,8 @@
 
 Every command is a thin layer over a library function a Python user can call directly.
 Errors the user can fix (bad files, weak motion) print one line on stderr and exit with
-status 2; a result exits with 0.  Heavy modules are imported inside the commands so that
+status 2; a result exits with 0, or with 3 when a plausibility check doubts it (written all
+the same, the cause named on stderr).  Heavy modules are imported inside the commands so that
 ``--help`` stays instant.
 """
 
@@ -21,6 +22,8 @@ from multieye.core.version import __version__
 from multieye.core.errors import CalibrationError
 
 EXIT_USER_ERROR = 2
+#: The result is written, but a plausibility check doubts it (docs/conventions.md, section 8).
+EXIT_IMPLAUSIBLE = 3
 
 
 class Stopped(KeyboardInterrupt):
@@ -144,6 +147,10 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
         click.echo(f"note: {note}")
     click.echo("wrote " + ", ".join(str(p) for p in written.paths))
     click.echo(timings_line(written.timings))
+    for doubt in run.doubts:
+        click.echo(f"multieye: written, but implausible: {doubt.message}", err=True)
+    if run.doubts:
+        sys.exit(EXIT_IMPLAUSIBLE)
 
 
 @main.command()

@@ -45,7 +45,8 @@ def test_keys_follow_the_design(tmp_path, rng, setup, y_key, x_key):
     write_calibration(tmp_path / "calibration.json", rec)
     data = json.loads((tmp_path / "calibration.json").read_text())
     assert list(data) == ["setup", "method", "reference_camera", y_key, "cameras", "residuals",
-                          "warnings"]
+                          "warnings", "plausibility"]
+    assert data["plausibility"] == []
     assert data["setup"] == setup and data["reference_camera"] == "cam0"
     assert np.array_equal(np.array(data[y_key]), rec.Y)
     cam0, cam1 = data["cameras"]["cam0"], data["cameras"]["cam1"]
@@ -56,6 +57,32 @@ def test_keys_follow_the_design(tmp_path, rng, setup, y_key, x_key):
     assert np.array(cam1["covariance"]).shape == (6, 6)
     assert data["residuals"] == {"e_R_deg": 0.012, "e_t_m": 2.5e-4}
     assert cam1["residuals"]["reprojection_rms_px"] == 0.21
+
+
+def test_plausibility_doubts_round_trip_and_older_files_have_none(tmp_path, rng):
+    from dataclasses import replace
+
+    from multieye.io import PlausibilityItem
+
+    doubts = (PlausibilityItem("scale", "scale: the target spacing looks off by x1.25"),
+              PlausibilityItem("time-offset", "time offset: cam1 fits 0.1 s later", "cam1"))
+    rec = replace(_record(rng, "eye-to-base"), plausibility=doubts)
+    path = tmp_path / "calibration.json"
+    write_calibration(path, rec)
+    data = json.loads(path.read_text())
+    assert data["plausibility"] == [
+        {"cause": "scale", "message": "scale: the target spacing looks off by x1.25"},
+        {"cause": "time-offset", "message": "time offset: cam1 fits 0.1 s later",
+         "camera": "cam1"}]
+    assert read_calibration(path).plausibility == doubts
+    del data["plausibility"]                           # written by an earlier version
+    path.write_text(json.dumps(data))
+    assert read_calibration(path).plausibility == ()
+    for bad in ([{"cause": "scale"}], {"cause": "scale", "message": "m"},
+                [{"cause": "scale", "message": "m", "camera": 3}]):
+        path.write_text(json.dumps(data | {"plausibility": bad}))
+        with pytest.raises(DatasetError, match="plausibility must be a list"):
+            read_calibration(path)
 
 
 @settings(max_examples=20, deadline=None)

@@ -15,7 +15,9 @@ Every camera also has ``T_ref_cam`` and ``measurements_used``; optional per came
 ``residuals``, ``time_offset_s`` (motion-capture clock minus camera clock, s), ``std_rot_deg``,
 ``std_trans_m``, ``covariance`` (6x6, rotation vector then translation) and ``rejected``
 (``[{"item", "reason"}]``).  Top level: ``setup``, ``method``, ``reference_camera``, the shared
-unknown, ``cameras`` (in order), ``residuals`` and ``warnings``.  Matrices are nested lists of
+unknown, ``cameras`` (in order), ``residuals``, ``warnings`` and ``plausibility`` (what the
+plausibility checks doubt: ``[{"cause", "message", "camera"}]``, ``camera`` only for a
+per-camera doubt; files without it read as none).  Matrices are nested lists of
 floats written with full precision, so a round trip is exact.  Keys the reader does not know
 are ignored (forward compatibility); missing keys and non-rigid matrices are errors.
 """
@@ -39,6 +41,7 @@ __all__ = [
     "SETUP_KEYS",
     "Residuals",
     "RejectedItem",
+    "PlausibilityItem",
     "CameraRecord",
     "CalibrationRecord",
     "write_calibration",
@@ -95,6 +98,18 @@ class RejectedItem:
 
     item: str
     reason: str
+
+
+@dataclass(frozen=True)
+class PlausibilityItem:
+    """What a plausibility check doubts (:mod:`multieye.estimate.plausibility`): its
+    ``cause`` (``scale``, ``unit``, ``quaternion-order``, ``setup``, ``inverted-poses``,
+    ``time-offset``, ``intrinsics``, ``fit``), the ``message`` and, for a per-camera doubt, the
+    ``camera``."""
+
+    cause: str
+    message: str
+    camera: str | None = None
 
 
 @dataclass(frozen=True)
@@ -174,6 +189,9 @@ class CalibrationRecord:
     motion_diagnostics : mapping or None
         Per camera, the numbers of :func:`multieye.estimate.diagnostics.motion_diagnostics` (rotation
         range, spread of rotation axes, conditions), plain JSON values.
+    plausibility : tuple of PlausibilityItem
+        What the plausibility checks doubt; empty when nothing (their messages are among
+        ``warnings`` too).
     """
 
     setup: str
@@ -185,6 +203,7 @@ class CalibrationRecord:
     warnings: tuple[str, ...] = field(default=())
     refinement: str | None = None
     motion_diagnostics: Mapping | None = None
+    plausibility: tuple[PlausibilityItem, ...] = ()
 
     def __post_init__(self):
         if self.setup not in SETUP_KEYS:
@@ -199,6 +218,7 @@ class CalibrationRecord:
                              f"{names}")
         object.__setattr__(self, "cameras", cams)
         object.__setattr__(self, "warnings", tuple(self.warnings))
+        object.__setattr__(self, "plausibility", tuple(self.plausibility))
 
     def camera(self, name: str) -> CameraRecord:
         """The record of camera ``name``."""
@@ -238,7 +258,10 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
         cameras[cam.name] = entry
     out = {"setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
            y_key: _matrix(rec.Y), "cameras": cameras,
-           "residuals": _residuals_dict(rec.residuals), "warnings": list(rec.warnings)}
+           "residuals": _residuals_dict(rec.residuals), "warnings": list(rec.warnings),
+           "plausibility": [{"cause": d.cause, "message": d.message}
+                            | ({} if d.camera is None else {"camera": d.camera})
+                            for d in rec.plausibility]}
     if rec.refinement is not None:
         out["refinement"] = rec.refinement
     if rec.motion_diagnostics is not None:
@@ -344,8 +367,16 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
     motion = data.get("motion_diagnostics")
     if motion is not None and not isinstance(motion, Mapping):
         raise w.error("motion_diagnostics must be an object of camera name -> numbers")
+    doubts = data.get("plausibility", [])       # absent from files of older versions
+    if not isinstance(doubts, list) or not all(
+            isinstance(d, Mapping) and isinstance(d.get("cause"), str)
+            and isinstance(d.get("message"), str)
+            and isinstance(d.get("camera", ""), str) for d in doubts):
+        raise w.error('plausibility must be a list of {"cause": str, "message": str, '
+                      '"camera": str (optional)}')
+    items = tuple(PlausibilityItem(d["cause"], d["message"], d.get("camera")) for d in doubts)
     return w.call(CalibrationRecord, setup, data["method"], data["reference_camera"], Y,
-                  tuple(records), residuals, tuple(warnings), refinement, motion)
+                  tuple(records), residuals, tuple(warnings), refinement, motion, items)
 
 
 # --------------------------------------------------------------------------- files
