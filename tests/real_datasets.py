@@ -95,3 +95,28 @@ def open3dv(shared: Path, out: Path, which: str) -> Path:
         f"mocap: {{file: robot.txt, pose: {pose}, time_tolerance: 0.01}}\n"
         "cameras:\n  cam0: {intrinsics: cam0.yaml, images: cam0/}\n")
     return out
+
+
+def yizhong_eye_in_hand(shared: Path, out: Path) -> Path:
+    """6 chessboard images (11 x 8 inner corners, 20 mm) + the robot's ``end2base`` per image
+    (``k.json``: 4x4 T_base_end, metres); camera on the end effector, board static
+    (eye-on-hand, ``T_world_body = T_base_end``); no intrinsics are published, so the camera
+    gives ``model: pinhole-radtan``. Image k.jpg gets the time stamp k seconds."""
+    import json
+
+    src = shared / "yizhong_toolkit" / "sample_data" / "eye_in_hand_test_data"
+    ks = sorted(int(p.stem) for p in src.glob("*.jpg"))
+    T = np.stack([np.array(json.loads((src / f"{k}.json").read_text())["end2base"], float)
+                  for k in ks])
+    out.mkdir(parents=True, exist_ok=True)
+    write_tum(out / "mocap.txt", Trajectory(np.array(ks, float), T, parent="world",
+                                            child="body"))
+    (out / "cam0").mkdir(exist_ok=True)
+    for k in ks:
+        _link(src / f"{k}.jpg", out / "cam0" / f"{k}.000000.jpg")
+    (out / "rig.yaml").write_text(
+        "setup: eye-on-hand\n"
+        "target: {type: chessboard, rows: 8, cols: 11, spacing: 0.02}\n"
+        "mocap: {file: mocap.txt, pose: T_world_body, time_tolerance: 0.01}\n"
+        "cameras:\n  cam0: {model: pinhole-radtan, images: cam0/}\n")
+    return out

@@ -37,3 +37,35 @@ def test_open3dv_eye_to_hand_all_images(shared_data, tmp_path):
     # the paper's e_t is measured at the camera, 1.6 m from the board: the lever arm of a
     # 0.08 degree rotation residual alone is 2 mm
     assert run.record.residuals.e_t_m < 3e-3
+
+
+def test_young_mocap_cam_with_its_lens_estimated(shared_data, tmp_path):
+    """No intrinsics file: model: pinhole-radtan, the lens from the same 30 images. The
+    published (factory, rational) focal length is 607.9 px; the recording rotates the camera
+    about one axis only, which the diagnostics say."""
+    folder = real_datasets.young_mocap_cam(shared_data, tmp_path / "young")
+    text = (folder / "rig.yaml").read_text().replace("intrinsics: cam0.yaml",
+                                                     "model: pinhole-radtan")
+    (folder / "rig_model.yaml").write_text(text)
+    run = calibrate(folder / "rig_model.yaml")
+    cam = run.record.cameras[0]
+    assert cam.measurements_used == 30
+    lens = run.refinement.intrinsics["cam0"]
+    assert lens.dist.size == 5 and (lens.width, lens.height) == (1280, 720)
+    assert abs(lens.K[0, 0] / 607.88 - 1) < 0.05
+    assert abs(lens.K[0, 2] - 641.875) < 5 and abs(lens.K[1, 2] - 365.585) < 5
+    assert cam.residuals.reprojection_rms_px < 0.3
+    assert np.linalg.norm(cam.X[:3, 3]) < 0.1
+    assert any("about one axis" in w for w in run.record.warnings)
+
+
+def test_yizhong_eye_in_hand_without_published_intrinsics(shared_data, tmp_path):
+    run = calibrate(real_datasets.yizhong_eye_in_hand(shared_data, tmp_path / "yizhong"))
+    cam = run.record.cameras[0]
+    assert cam.measurements_used == 6 and cam.rejected == ()
+    lens = run.refinement.intrinsics["cam0"]
+    assert (lens.width, lens.height) == (960, 540)
+    assert cam.residuals.reprojection_rms_px < 0.3
+    assert run.record.residuals.e_R_deg < 0.5 and run.record.residuals.e_t_m < 2e-3
+    # six views are fewer than the model wants: said, with what to add
+    assert any("only 6 images of the target" in w for w in run.record.warnings)
