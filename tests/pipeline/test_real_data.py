@@ -12,6 +12,7 @@ from multieye.pipeline import calibrate
 def test_young_mocap_cam_all_30_images(shared_data, tmp_path):
     run = calibrate(real_datasets.young_mocap_cam(shared_data, tmp_path / "young"))
     cam = run.record.cameras[0]
+    assert run.doubts == () and run.record.plausibility == ()     # exit status 0
     assert cam.measurements_used == 30 and cam.rejected == ()
     # the data set's author expects the camera within ~5 cm of the marker body (bug.md)
     assert np.linalg.norm(run.closed_form.X[0][:3, 3]) < 0.1
@@ -21,6 +22,7 @@ def test_young_mocap_cam_all_30_images(shared_data, tmp_path):
 def test_open3dv_eye_in_hand_all_images_and_submillimetre_residual(shared_data, tmp_path):
     run = calibrate(real_datasets.open3dv(shared_data, tmp_path / "eih", "eye-in-hand"))
     cam = run.record.cameras[0]
+    assert run.doubts == () and run.record.plausibility == ()     # exit status 0
     assert cam.measurements_used == 8 and cam.rejected == ()
     assert run.record.residuals.e_t_m < 1e-3
     assert cam.residuals.reprojection_rms_px < 0.1
@@ -31,6 +33,7 @@ def test_open3dv_eye_in_hand_all_images_and_submillimetre_residual(shared_data, 
 def test_open3dv_eye_to_hand_all_images(shared_data, tmp_path):
     run = calibrate(real_datasets.open3dv(shared_data, tmp_path / "eth", "eye-to-hand"))
     cam = run.record.cameras[0]
+    assert run.doubts == () and run.record.plausibility == ()     # exit status 0
     assert cam.measurements_used == 5 and cam.rejected == ()
     # T_world_cam = T_base_cam: PROVENANCE.md found (910.5, 116.3, 1350.5) mm
     np.testing.assert_allclose(run.closed_form.X[0][:3, 3] * 1e3, [910.5, 116.3, 1350.5], atol=3.0)
@@ -49,6 +52,7 @@ def test_young_mocap_cam_with_its_lens_estimated(shared_data, tmp_path):
     (folder / "rig_model.yaml").write_text(text)
     run = calibrate(folder / "rig_model.yaml")
     cam = run.record.cameras[0]
+    assert run.doubts == () and run.record.plausibility == ()     # exit status 0
     assert cam.measurements_used == 30
     lens = run.refinement.intrinsics["cam0"]
     assert lens.dist.size == 5 and (lens.width, lens.height) == (1280, 720)
@@ -62,6 +66,7 @@ def test_young_mocap_cam_with_its_lens_estimated(shared_data, tmp_path):
 def test_yizhong_eye_in_hand_without_published_intrinsics(shared_data, tmp_path):
     run = calibrate(real_datasets.yizhong_eye_in_hand(shared_data, tmp_path / "yizhong"))
     cam = run.record.cameras[0]
+    assert run.doubts == () and run.record.plausibility == ()     # exit status 0
     assert cam.measurements_used == 6 and cam.rejected == ()
     lens = run.refinement.intrinsics["cam0"]
     assert (lens.width, lens.height) == (960, 540)

@@ -79,6 +79,8 @@ class CameraEvidence:
         The whole motion-capture stream (for the clock offset).
     time_offset : float
         The clock offset the measurements were paired with (motion capture minus camera).
+    intrinsics_estimated : bool
+        The intrinsics are estimated with the rig (a start only): not a cause to test.
     """
 
     name: str
@@ -93,6 +95,7 @@ class CameraEvidence:
     mocap_stamps: F64 | None = None
     mocap_T: F64 | None = None
     time_offset: float = 0.0
+    intrinsics_estimated: bool = False
 
     @property
     def has_points(self) -> bool:

@@ -388,7 +388,7 @@ def _camera_findings(setup: str, cam: CameraEvidence, w, clock: bool, max_offset
                     f"--time-offset auto (it finds {off:+.3f} s here) or set time_offset for "
                     "the camera in rig.yaml", cam.name, before, after,
                     {"time_offset_s": off, "std_s": std}))
-    if not cam.has_points:
+    if not cam.has_points or cam.intrinsics_estimated:
         return found
     res = h.focal_search(cam, w)
     if res is not None:
