@@ -421,7 +421,7 @@ def _unexplained(name: str, cost: float, tested: list[str]) -> Finding:
     causes = sorted({t.split(":")[0] for t in tested})
     return Finding("fit", f"poor fit: camera {name}'s residuals are {_times(cost)} times what "
                    f"the noise explains and none of the causes tested ({', '.join(causes)}) "
-                   "explains them; check its images and detections, the time offset "
+                   "explains them; check its target poses (images, detections), the time offset "
                    "(--time-offset auto), and state the motion-capture noise "
                    "(rotation_noise_deg, translation_noise_m) if it is this large", name, cost,
                    cost, {})
