@@ -17,7 +17,9 @@ from multieye.io.calibration_json import (
     SETUP_KEYS,
     CalibrationRecord,
     CameraRecord,
+    IntrinsicsRecord,
     PlausibilityItem,
+    PoseUncertainty,
     RejectedItem,
     Residuals,
     calibration_to_dict,
@@ -208,17 +210,24 @@ def _record(setup: str) -> CalibrationRecord:
     rng = np.random.default_rng(5)
     X = geometry.random_transforms(rng, 2)
     A = rng.normal(size=(6, 6))
+    x_key = SETUP_KEYS[setup][1]
+    unc = PoseUncertainty(0.02, 4e-4, A @ A.T * 1e-8)
+    lens = Intrinsics(K=[[600, 0, 320], [0, 600, 240], [0, 0, 1]], dist=np.zeros(5),
+                      width=640, height=480)
     cams = [CameraRecord(f"cam{j}", X[j], geometry.inv(X[0]) @ X[j], 30,
                          residuals=Residuals(0.01, 1e-4, 0.05, 3e-4, 0.2), time_offset_s=0.01,
                          std_rot_deg=0.02, std_trans_m=4e-4, covariance=A @ A.T * 1e-8,
-                         rejected=(RejectedItem("1700000000.5.png", "no target detected"),))
+                         rejected=(RejectedItem("1700000000.5.png", "no target detected"),),
+                         intrinsics=IntrinsicsRecord(lens, True, np.eye(9), (0.1, 0.3)),
+                         uncertainty={x_key: unc, "T_ref_cam": unc})
             for j in range(2)]
     motion = {c.name: CameraMotion(c.name, 30, 60.0, np.array([20.0, 10.0, 5.0]), 3.0,
                                    float("inf")).as_dict() for c in cams}
     return CalibrationRecord(setup, "joint", "cam0", geometry.random_transforms(rng), cams,
                              Residuals(0.01, 1e-4), ("a warning",), refinement="images",
                              motion_diagnostics=motion,
-                             plausibility=(PlausibilityItem("intrinsics", "a doubt", "cam1"),))
+                             plausibility=(PlausibilityItem("intrinsics", "a doubt", "cam1"),),
+                             uncertainty={SETUP_KEYS[setup][0]: unc})
 
 
 @pytest.mark.parametrize("setup", sorted(SETUP_KEYS))
@@ -227,6 +236,9 @@ def test_outputs_doc_names_every_calibration_json_key(setup):
     keys = set(data) | set(data["residuals"])
     for cam in data["cameras"].values():
         keys |= set(cam) | set(cam["residuals"]) | set(cam["rejected"][0])
+        keys |= set(cam["intrinsics"]) | set(cam["intrinsics"]["projection_std_px"])
+        keys |= set(cam["uncertainty"]) | set(cam["uncertainty"]["T_ref_cam"])
+    keys |= set(data["uncertainty"])
     for numbers in data["motion_diagnostics"].values():
         keys |= set(numbers)
     keys |= set(data["plausibility"][0])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -174,3 +175,44 @@ def test_nan_residual_is_not_written(tmp_path, rng):
     with pytest.raises(ValueError):
         write_calibration(tmp_path / "calibration.json", bad)
     assert not (tmp_path / "calibration.json").exists()
+
+
+def test_intrinsics_and_uncertainty_round_trip_exactly(tmp_path):
+    from multieye.core.intrinsics import Intrinsics
+    from multieye.io import IntrinsicsRecord, PoseUncertainty
+
+    rng = np.random.default_rng(3)
+    rec = _record(rng, "eye-on-hand")
+    A = rng.normal(size=(6, 6))
+    unc = PoseUncertainty(0.03, 5e-4, A @ A.T * 1e-8)
+    lens = Intrinsics(K=[[700.5, 0, 640.25], [0, 701.0, 480.5], [0, 0, 1]],
+                      dist=[0.02, -0.01, 0.003, -0.001], model="fisheye", width=1280,
+                      height=960)
+    B = rng.normal(size=(8, 8))
+    cams = tuple(replace(c, intrinsics=IntrinsicsRecord(lens, j == 0, B @ B.T if j == 0 else
+                                                         None, (0.12, 0.4) if j == 0 else None),
+                         uncertainty={"T_body_cam": unc, "T_ref_cam": unc})
+                 for j, c in enumerate(rec.cameras))
+    rec = replace(rec, cameras=cams, uncertainty={"T_world_target": unc})
+    write_calibration(tmp_path / "c.json", rec)
+    back = read_calibration(tmp_path / "c.json")
+    data = json.loads((tmp_path / "c.json").read_text())
+    assert data["cameras"][cams[0].name]["intrinsics"]["model"] == "fisheye"
+    assert data["cameras"][cams[0].name]["intrinsics"]["image_size"] == [1280, 960]
+    for a, b in zip(back.cameras, cams):
+        np.testing.assert_array_equal(a.intrinsics.intrinsics.K, b.intrinsics.intrinsics.K)
+        np.testing.assert_array_equal(a.intrinsics.intrinsics.dist, b.intrinsics.intrinsics.dist)
+        assert a.intrinsics.estimated == b.intrinsics.estimated
+        assert a.intrinsics.projection_std_px == b.intrinsics.projection_std_px
+        if b.intrinsics.covariance is None:
+            assert a.intrinsics.covariance is None
+        else:
+            np.testing.assert_array_equal(a.intrinsics.covariance, b.intrinsics.covariance)
+        np.testing.assert_array_equal(a.uncertainty["T_body_cam"].covariance, unc.covariance)
+    assert back.uncertainty["T_world_target"].std_rot_deg == 0.03
+    # a wrong key for the setup is refused
+    data["uncertainty"] = {"T_marker_target": data["uncertainty"]["T_world_target"]}
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(DatasetError, match="uncertainty must be an object with keys among "
+                                           "T_world_target"):
+        read_calibration(tmp_path / "bad.json")

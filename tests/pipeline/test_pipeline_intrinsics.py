@@ -116,3 +116,43 @@ def test_intrinsics_of_another_model_than_stated_are_refused(rendered):
     with pytest.raises(DatasetError, match="camera cam0.*rig.yaml says model: fisheye but the "
                                            "intrinsics file holds a pinhole-radtan lens"):
         calibrate(folder / "rig_mismatch.yaml", processes=1)
+
+
+def test_estimated_intrinsics_are_written_where_people_look(rendered, tmp_path):
+    """calibration.json's intrinsics and uncertainty blocks, OUT/intrinsics/<camera>.yaml
+    (read back by cv2.FileStorage and by multieye) and the camchain with the refined lens."""
+    import json
+
+    import cv2
+
+    from multieye.io import read_intrinsics
+    from multieye.outputs.write import write_outputs
+
+    folder, _ = rendered
+    run = calibrate(_with_model(folder, "rig_out.yaml"), processes=2)
+    written = write_outputs(run, tmp_path / "out", report=False)
+    data = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert set(data["uncertainty"]) == {"T_marker_target"}
+    # Kalibr's radtan has no k3: the camchain is not written, and the note says why
+    assert not (tmp_path / "out" / "camchain.yaml").exists()
+    assert any("camchain.yaml not written: cam0: Kalibr radtan" in n for n in written.notes), \
+        written.notes
+    for name in ("cam0", "cam1"):
+        block = data["cameras"][name]["intrinsics"]
+        lens = run.cameras[name].intrinsics
+        assert block["model"] == "pinhole-radtan" and block["estimated"] is True
+        assert block["image_size"] == [640, 480]
+        np.testing.assert_array_equal(block["K"], lens.K)
+        cov = np.array(block["covariance"])
+        assert cov.shape == (9, 9) and np.all(np.linalg.eigvalsh(cov) > 0)
+        assert 0 < block["projection_std_px"]["mean"] <= block["projection_std_px"]["max"] < 1
+        unc = data["cameras"][name]["uncertainty"]
+        assert set(unc) == {"T_world_cam", "T_ref_cam"}
+        assert unc["T_world_cam"]["std_rot_deg"] > 0 and unc["T_world_cam"]["std_trans_m"] > 0
+        assert unc["T_ref_cam"]["std_rot_deg"] == data["cameras"][name].get("std_rot_deg", 0.0)
+        path = tmp_path / "out" / "intrinsics" / f"{name}.yaml"
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        np.testing.assert_allclose(fs.getNode("camera_matrix").mat(), lens.K, rtol=1e-12)
+        fs.release()
+        back = read_intrinsics(path)
+        np.testing.assert_allclose(back.dist, lens.dist, rtol=1e-12)

@@ -39,7 +39,8 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.solvers.refine_poses import relative_pose_covariance
 
-__all__ = ["RelativeUncertainty", "relative_covariance", "pose_std", "cramer_rao_bound"]
+__all__ = ["RelativeUncertainty", "relative_covariance", "pose_std", "cramer_rao_bound",
+           "projection_std"]
 
 F64 = NDArray[np.float64]
 
@@ -187,3 +188,39 @@ def cramer_rao_bound(setup: str, observations: Sequence, intrinsics: Sequence[In
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
     return covariance(data.families(X, Y), data.groups(*sigmas)).kept
+
+
+def projection_std(intrinsics: Intrinsics, covariance: ArrayLike, points_cam: ArrayLike
+                   ) -> tuple[float, float]:
+    """How uncertain a camera's projection is, from the covariance of its intrinsics.
+
+    For each camera-frame point (a fixed ray), the 2x2 pixel covariance
+    ``J Sigma J^T`` with ``J = d uv / d (fx fy cx cy dist...)``
+    (:func:`multieye.core.lens.project_with_jacobian`); its standard deviation is the root of
+    half its trace (the RMS over the two pixel axes).
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+    covariance : array_like, shape (4 + k, 4 + k)
+        Over ``Intrinsics.params``.
+    points_cam : array_like, shape (P, 3)
+        Where to evaluate it: e.g. the observed target points in the camera frame.
+
+    Returns
+    -------
+    mean, max : float
+        Over the points, pixels.
+    """
+    from multieye.core.lens import project_with_jacobian
+
+    _, _, J = project_with_jacobian(np.asarray(points_cam, dtype=np.float64), intrinsics)
+    C = np.asarray(covariance, dtype=np.float64)
+    if C.shape != (J.shape[2], J.shape[2]):
+        raise InputError(f"intrinsics covariance must be {J.shape[2]}x{J.shape[2]}, got "
+                         f"{C.shape}")
+    var = np.einsum("pik,kl,pil->p", J, C, J) / 2.0
+    s = np.sqrt(var[np.isfinite(var)])
+    if s.size == 0:
+        raise InputError("no point in front of the camera to evaluate the projection at")
+    return float(s.mean()), float(s.max())

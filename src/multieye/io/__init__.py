@@ -18,7 +18,9 @@ from multieye.io.atomic import atomic_output, write_bytes_atomic, write_text_ato
 from multieye.io.calibration_json import (
     CalibrationRecord,
     CameraRecord,
+    IntrinsicsRecord,
     PlausibilityItem,
+    PoseUncertainty,
     RejectedItem,
     Residuals,
     read_calibration,
@@ -77,6 +79,8 @@ __all__ = [
     "CameraRecord",
     "Residuals",
     "PlausibilityItem",
+    "PoseUncertainty",
+    "IntrinsicsRecord",
     "RejectedItem",
     "read_calibration",
     "write_calibration",

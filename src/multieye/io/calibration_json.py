@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
+from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.io.atomic import write_text_atomic
 from multieye.io.textfile import read_json
 from multieye.io.trajectory import RIGID_TOLERANCE
@@ -42,6 +43,8 @@ __all__ = [
     "Residuals",
     "RejectedItem",
     "PlausibilityItem",
+    "PoseUncertainty",
+    "IntrinsicsRecord",
     "CameraRecord",
     "CalibrationRecord",
     "write_calibration",
@@ -113,6 +116,53 @@ class PlausibilityItem:
 
 
 @dataclass(frozen=True)
+class PoseUncertainty:
+    """Uncertainty of one transform (docs/conventions.md, covariance convention).
+
+    Attributes
+    ----------
+    std_rot_deg, std_trans_m : float
+        Root of the trace of the rotation / translation block of ``covariance``.
+    covariance : ndarray, shape (6, 6)
+        Rotation vector (rad) then translation (m), perturbation ``R = Exp(phi) R_hat``,
+        ``t = t_hat + tau``, in the frame the transform maps into.
+    """
+
+    std_rot_deg: float
+    std_trans_m: float
+    covariance: np.ndarray
+
+    def __post_init__(self):
+        C = np.asarray(self.covariance, dtype=np.float64)
+        if C.shape != (6, 6) or not np.all(np.isfinite(C)):
+            raise InputError(f"a pose covariance must be a finite 6x6 matrix, got shape {C.shape}")
+        object.__setattr__(self, "covariance", C)
+
+
+@dataclass(frozen=True)
+class IntrinsicsRecord:
+    """A camera's intrinsics as calibration.json states them.
+
+    Attributes
+    ----------
+    intrinsics : Intrinsics
+    estimated : bool
+        Estimated (or refined) from the recording; False: given and held fixed.
+    covariance : ndarray, shape (4 + k, 4 + k), or None
+        Over fx fy cx cy then the distortion coefficients (OpenCV order), when estimated.
+    projection_std_px : (float, float) or None
+        Mean and largest standard deviation of the projection of a fixed camera-frame ray
+        over the observed target points (root of half the trace of the 2x2 pixel covariance
+        from ``covariance``), pixels.
+    """
+
+    intrinsics: Intrinsics
+    estimated: bool = False
+    covariance: np.ndarray | None = None
+    projection_std_px: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
 class CameraRecord:
     """One camera of a calibration result.
 
@@ -134,6 +184,10 @@ class CameraRecord:
         reference camera's frame, for the perturbation ``R = Exp(phi) R_hat``,
         ``t = t_hat + tau`` (left, not the camera-frame convention some tools use).
     rejected : tuple of RejectedItem
+    intrinsics : IntrinsicsRecord or None
+        None for a camera given by precomputed poses without intrinsics.
+    uncertainty : mapping of str to PoseUncertainty, or None
+        Of ``X`` (under its key, ``T_world_cam`` or ``T_body_cam``) and of ``T_ref_cam``.
     """
 
     name: str
@@ -146,6 +200,8 @@ class CameraRecord:
     std_trans_m: float | None = None
     covariance: np.ndarray | None = None
     rejected: tuple[RejectedItem, ...] = ()
+    intrinsics: IntrinsicsRecord | None = None
+    uncertainty: Mapping | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "X", _rigid(self.X, f"camera {self.name}: X"))
@@ -192,6 +248,8 @@ class CalibrationRecord:
     plausibility : tuple of PlausibilityItem
         What the plausibility checks doubt; empty when nothing (their messages are among
         ``warnings`` too).
+    uncertainty : mapping of str to PoseUncertainty, or None
+        Of ``Y`` (under its key, ``T_marker_target`` or ``T_world_target``).
     """
 
     setup: str
@@ -204,6 +262,7 @@ class CalibrationRecord:
     refinement: str | None = None
     motion_diagnostics: Mapping | None = None
     plausibility: tuple[PlausibilityItem, ...] = ()
+    uncertainty: Mapping | None = None
 
     def __post_init__(self):
         if self.setup not in SETUP_KEYS:
@@ -255,6 +314,10 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
             entry["covariance"] = _matrix(cam.covariance)
         if cam.rejected:
             entry["rejected"] = [{"item": r.item, "reason": r.reason} for r in cam.rejected]
+        if cam.intrinsics is not None:
+            entry["intrinsics"] = _intrinsics_dict(cam.intrinsics)
+        if cam.uncertainty:
+            entry["uncertainty"] = _uncertainty_dict(cam.uncertainty)
         cameras[cam.name] = entry
     out = {"setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
            y_key: _matrix(rec.Y), "cameras": cameras,
@@ -266,7 +329,73 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
         out["refinement"] = rec.refinement
     if rec.motion_diagnostics is not None:
         out["motion_diagnostics"] = dict(rec.motion_diagnostics)
+    if rec.uncertainty:
+        out["uncertainty"] = _uncertainty_dict(rec.uncertainty)
     return out
+
+
+def _uncertainty_dict(unc: Mapping) -> dict:
+    return {k: {"std_rot_deg": float(u.std_rot_deg), "std_trans_m": float(u.std_trans_m),
+                "covariance": _matrix(u.covariance)} for k, u in unc.items()}
+
+
+def _intrinsics_dict(r: IntrinsicsRecord) -> dict:
+    I = r.intrinsics
+    return {"model": lens_model(I),
+            "image_size": None if I.width is None else [I.width, I.height],
+            "K": _matrix(I.K), "distortion": [float(v) for v in I.dist],
+            "estimated": bool(r.estimated),
+            "covariance": None if r.covariance is None else _matrix(r.covariance),
+            "projection_std_px": None if r.projection_std_px is None else {
+                "mean": float(r.projection_std_px[0]), "max": float(r.projection_std_px[1])}}
+
+
+def _read_uncertainty(obj, w: _Where, keys: tuple[str, ...], camera=None) -> dict:
+    if not isinstance(obj, Mapping) or not set(obj) <= set(keys):
+        raise w.error(f"uncertainty must be an object with keys among {', '.join(keys)}",
+                      camera)
+    out = {}
+    for k, v in obj.items():
+        if not isinstance(v, Mapping):
+            raise w.error(f"uncertainty.{k} must be an object", camera)
+        out[k] = w.call(PoseUncertainty, w.number(w.need(v, "std_rot_deg", k, camera),
+                                                  f"uncertainty.{k}.std_rot_deg", camera),
+                        w.number(w.need(v, "std_trans_m", k, camera),
+                                 f"uncertainty.{k}.std_trans_m", camera),
+                        np.asarray(w.need(v, "covariance", k, camera), dtype=np.float64),
+                        camera=camera)
+    return out
+
+
+def _read_intrinsics(obj, w: _Where, camera) -> IntrinsicsRecord:
+    if not isinstance(obj, Mapping):
+        raise w.error("intrinsics must be an object", camera)
+    model = w.need(obj, "model", "intrinsics", camera)
+    kind = "fisheye" if model == "fisheye" else "pinhole"
+    size = obj.get("image_size")
+    if size is not None and (not isinstance(size, list) or len(size) != 2):
+        raise w.error("intrinsics.image_size must be [width, height] or null", camera)
+    intr = w.call(Intrinsics, np.asarray(w.need(obj, "K", "intrinsics", camera), np.float64),
+                  np.asarray(w.need(obj, "distortion", "intrinsics", camera), np.float64),
+                  kind, *(size or (None, None)), camera=camera)
+    cov = obj.get("covariance")
+    if cov is not None:
+        cov = w.call(np.asarray, cov, dtype=np.float64, camera=camera)
+        n = intr.params.size
+        if cov.shape != (n, n) or not np.all(np.isfinite(cov)):
+            raise w.error(f"intrinsics.covariance must be a finite {n}x{n} matrix", camera)
+    proj = obj.get("projection_std_px")
+    if proj is not None:
+        if not isinstance(proj, Mapping):
+            raise w.error("intrinsics.projection_std_px must be {mean, max} or null", camera)
+        proj = (w.number(w.need(proj, "mean", "projection_std_px", camera),
+                         "projection_std_px.mean", camera),
+                w.number(w.need(proj, "max", "projection_std_px", camera),
+                         "projection_std_px.max", camera))
+    estimated = obj.get("estimated", False)
+    if not isinstance(estimated, bool):
+        raise w.error("intrinsics.estimated must be true or false", camera)
+    return IntrinsicsRecord(intr, estimated, cov, proj)
 
 
 class _Where:
@@ -347,6 +476,11 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
                 and isinstance(r.get("reason"), str) for r in rejected):
             raise w.error("rejected must be a list of {\"item\": str, \"reason\": str}", name)
         kw["rejected"] = tuple(RejectedItem(r["item"], r["reason"]) for r in rejected)
+        if "intrinsics" in entry and entry["intrinsics"] is not None:
+            kw["intrinsics"] = _read_intrinsics(entry["intrinsics"], w, name)
+        if "uncertainty" in entry:
+            kw["uncertainty"] = _read_uncertainty(entry["uncertainty"], w,
+                                                  (x_key, "T_ref_cam"), name)
         X = w.call(np.asarray, w.need(entry, x_key, f"camera {name}", name), dtype=np.float64,
                    camera=name)
         T_ref = w.call(np.asarray, w.need(entry, "T_ref_cam", f"camera {name}", name),
@@ -375,8 +509,10 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
         raise w.error('plausibility must be a list of {"cause": str, "message": str, '
                       '"camera": str (optional)}')
     items = tuple(PlausibilityItem(d["cause"], d["message"], d.get("camera")) for d in doubts)
+    unc = (_read_uncertainty(data["uncertainty"], w, (y_key,)) if "uncertainty" in data
+           else None)
     return w.call(CalibrationRecord, setup, data["method"], data["reference_camera"], Y,
-                  tuple(records), residuals, tuple(warnings), refinement, motion, items)
+                  tuple(records), residuals, tuple(warnings), refinement, motion, items, unc)
 
 
 # --------------------------------------------------------------------------- files

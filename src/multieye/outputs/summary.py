@@ -11,7 +11,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from multieye.core.intrinsics import lens_model, parameter_names
 from multieye.io import CalibrationRecord
+from multieye.io.calibration_json import SETUP_KEYS
 from multieye.io.run_details import TIMING_KEYS, StageTimings
 from multieye.core.metrics import extrinsic_errors, pose_row
 
@@ -42,39 +44,80 @@ def _f(x, fmt: str) -> str:
     return "-" if x is None else format(x, fmt)
 
 
-def calibration_table(rec: CalibrationRecord) -> str:
-    """Per-camera summary of a calibration (relative extrinsics in the reference frame).
+def _pose_cells(T, unc) -> list[str]:
+    p = pose_row(T)
+    return [*(format(v, ".4f") for v in p[:3]), *(format(v, ".3f") for v in p[3:]),
+            _f(None if unc is None else unc.std_rot_deg, ".3f"),
+            _f(None if unc is None else unc.std_trans_m * 1e3, ".2f")]
 
-    Columns: measurements used and rejected, mean loop residuals (degrees, millimetres),
-    reprojection RMS (pixels), ``T_ref_cam`` as tx ty tz (metres) and yaw pitch roll (degrees,
-    ``R = Rz(yaw) Ry(pitch) Rx(roll)``), and the standard deviations when computed.
+
+def calibration_table(rec: CalibrationRecord) -> str:
+    """Per-camera summary of a calibration, with the transforms people came for.
+
+    First every camera's own unknown ``X`` (``T_world_cam`` or ``T_body_cam``) as tx ty tz
+    (metres) and yaw pitch roll (degrees, ``R = Rz(yaw) Ry(pitch) Rx(roll)``) with its
+    standard deviations (root of the trace of its rotation and translation covariance) and
+    the measurements used and rejected, mean loop residuals (degrees, millimetres) and
+    reprojection RMS (pixels); then the shared ``Y`` with its own; then, with several
+    cameras, ``T_ref_cam`` relative to the reference camera; then estimated intrinsics with
+    their standard deviations, rejected items and warnings.
     """
+    y_key, x_key = SETUP_KEYS[rec.setup]
+    pose_head = ["tx m", "ty m", "tz m", "yaw", "pitch", "roll", "std deg", "std mm"]
     header = ["camera", "used", "rejected", "e_R deg", "e_t mm", "reproj px",
-              "tx m", "ty m", "tz m", "yaw", "pitch", "roll", "std deg", "std mm", "offset ms"]
+              *pose_head, "offset ms"]
     rows = []
     for c in rec.cameras:
-        p = pose_row(c.T_ref_cam)
         r = c.residuals
+        unc = None if not c.uncertainty else c.uncertainty.get(x_key)
         rows.append([
-            c.name + (" (ref)" if c.name == rec.reference_camera else ""),
+            c.name + (" (ref)" if c.name == rec.reference_camera and len(rec.cameras) > 1
+                      else ""),
             str(c.measurements_used), str(len(c.rejected)),
             _f(r.e_R_deg if r else None, ".3f"), _f(r.e_t_m * 1e3 if r else None, ".2f"),
-            _f(r.reprojection_rms_px if r else None, ".2f"),
-            *(format(v, ".4f") for v in p[:3]), *(format(v, ".3f") for v in p[3:]),
-            _f(c.std_rot_deg, ".3f"), _f(None if c.std_trans_m is None else c.std_trans_m * 1e3, ".2f"),
+            _f(r.reprojection_rms_px if r else None, ".2f"), *_pose_cells(c.X, unc),
             _f(None if c.time_offset_s is None else c.time_offset_s * 1e3, ".1f"),
         ])
-    # drop columns nobody filled
     keep = [i for i in range(len(header)) if i < 12 or any(row[i] != "-" for row in rows)]
-    text = format_table([header[i] for i in keep], [[row[i] for i in keep] for row in rows])
     lines = [f"{rec.setup}, method {rec.method}, reference {rec.reference_camera}: "
              f"e_R {rec.residuals.e_R_deg:.3f} deg, e_t {rec.residuals.e_t_m * 1e3:.2f} mm",
-             text]
+             f"{x_key} of every camera:",
+             format_table([header[i] for i in keep], [[row[i] for i in keep] for row in rows])]
+    y_unc = None if not rec.uncertainty else rec.uncertainty.get(y_key)
+    y_row = _pose_cells(rec.Y, y_unc)
+    lines.append(f"{y_key}: t = ({', '.join(y_row[:3])}) m, yaw pitch roll = "
+                 f"({', '.join(y_row[3:6])}) deg"
+                 + ("" if y_unc is None else f", std {y_row[6]} deg / {y_row[7]} mm"))
+    if len(rec.cameras) > 1:
+        rel = [[c.name + (" (ref)" if c.name == rec.reference_camera else ""),
+                *_pose_cells(c.T_ref_cam, None if not c.uncertainty
+                             else c.uncertainty.get("T_ref_cam"))] for c in rec.cameras]
+        keep = [i for i in range(9) if i < 7 or any(row[i] != "-" for row in rel)]
+        lines += [f"T_ref_cam, relative to {rec.reference_camera}:",
+                  format_table([(["camera"] + pose_head)[i] for i in keep],
+                               [[row[i] for i in keep] for row in rel])]
+    for c in rec.cameras:
+        if c.intrinsics is not None and c.intrinsics.estimated:
+            lines.append(_intrinsics_line(c))
     for c in rec.cameras:
         for item in c.rejected:
             lines.append(f"rejected {c.name}/{item.item}: {item.reason}")
     lines.extend(f"warning: {w}" for w in rec.warnings)
     return "\n".join(lines)
+
+
+def _intrinsics_line(c) -> str:
+    ir = c.intrinsics
+    names = parameter_names(ir.intrinsics)
+    values = ir.intrinsics.params
+    std = (np.sqrt(np.diag(ir.covariance)) if ir.covariance is not None
+           else np.full(len(values), np.nan))
+    cells = ", ".join(f"{n} {v:.4g}" + ("" if not np.isfinite(s) else f" +- {s:.2g}")
+                      for n, v, s in zip(names, values, std))
+    proj = ("" if ir.projection_std_px is None else
+            f"; projection std {ir.projection_std_px[0]:.2f} px mean, "
+            f"{ir.projection_std_px[1]:.2f} px max")
+    return f"{c.name} intrinsics (estimated, {lens_model(ir.intrinsics)}): {cells}{proj}"
 
 
 def comparison_table(results: dict[str, np.ndarray], truth: np.ndarray,

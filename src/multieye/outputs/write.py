@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from multieye.core.errors import InputError
-from multieye.io import CamchainEntry, write_calibration, write_camchain
+from multieye.io import CamchainEntry, write_calibration, write_camchain, write_opencv_intrinsics
 from multieye.io.run_details import RunDetails, StageTimings, write_details
 from multieye.outputs.details import write_run_details
 from multieye.outputs.folder import staged_output
@@ -48,7 +48,8 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
                   diagnostics: dict | None = None) -> WrittenOutputs:
     """Write the results of a run as the new content of ``out_dir``, all or nothing.
 
-    ``calibration.json`` (docs/outputs.md), Kalibr ``camchain.yaml``, ``details.json``
+    ``calibration.json`` (docs/outputs.md), Kalibr ``camchain.yaml``, ``intrinsics/<camera>.yaml``
+    for every camera whose intrinsics were estimated, ``details.json``
     (per-image residuals, target poses, trajectory; :mod:`multieye.io.run_details`) and,
     with ``report=True``, ``report.html`` with ``figures/`` (:mod:`multieye.outputs.report`).
     Everything is written into a staging folder beside ``out_dir``, which then replaces
@@ -114,12 +115,33 @@ def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: 
         try:
             write_camchain(folder / "camchain.yaml", entries)
         except InputError as exc:
-            notes.append(f"camchain.yaml not written: {exc}")
+            notes.append(f"camchain.yaml not written: {_unrepresentable(entries) or exc}")
         else:
             names.append("camchain.yaml")
+    estimated = [c.name for c in run.record.cameras
+                 if c.intrinsics is not None and c.intrinsics.estimated]
+    if estimated:
+        (folder / "intrinsics").mkdir()
+        for name in estimated:
+            write_opencv_intrinsics(folder / "intrinsics" / f"{name}.yaml",
+                                    run.record.camera(name).intrinsics.intrinsics)
+        names.append("intrinsics")
     details = write_run_details(folder / "details.json", run, diagnostics=diagnostics)
     names.append("details.json")
     if report:
         write_report(folder, shown_as=final.resolve())
         names += ["report.html", "figures"]
     return names, notes, details
+
+
+def _unrepresentable(entries) -> str:
+    """Which cameras Kalibr's camera models cannot hold, and why (empty if none)."""
+    from multieye.io.kalibr import kalibr_fields
+
+    why = []
+    for e in entries:
+        try:
+            kalibr_fields(e.intrinsics)
+        except InputError as exc:
+            why.append(f"{e.name}: {exc}")
+    return "; ".join(why)

@@ -30,17 +30,15 @@ from multieye.core.arguments import as_path
 from multieye.core.errors import CalibrationError, DatasetError, InputError, TooFewMeasurementsError
 from multieye.io import (
     CalibrationRecord,
-    CameraRecord,
     PlausibilityItem,
     RejectedItem,
-    Residuals,
     Rig,
     load_rig,
 )
-from multieye.core.metrics import camera_residual, relative_extrinsics
 from multieye.io.run_details import StageTimings
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import Measurements, check_measurements
+from multieye.pipeline.record import build_record
 
 __all__ = [
     "Observation",
@@ -294,7 +292,8 @@ def _plausibility(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, Pa
             object_points=tuple(o.object_points for o in obs) if points else None,
             image_points=tuple(o.image_points for o in obs) if points else None,
             rms_px=np.array([o.rms_px for o in obs]) if points else None,
-            mocap_stamps=d.mocap.stamps, mocap_T=d.mocap.T, time_offset=offsets[name]))
+            mocap_stamps=d.mocap.stamps, mocap_T=d.mocap.T, time_offset=offsets[name],
+            intrinsics_estimated=d.intrinsics_estimated))
     first = next(iter(paired))
     spec = rig.mocap_for(first) if first in rig.cameras else rig.mocap
     rot, trans = opts.mocap_rot_sigma_rad, opts.mocap_trans_sigma_m
@@ -402,11 +401,11 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
                         "calibration only, since the joint image-level refinement did not run "
                         "(it needs refinement and target points in every camera)")
     shown = offsets if opts.time_offset != "rig" else {n: o for n, o in offsets.items() if o}
-    record = _record(rig, paired, sol, refinement, uncertainty, method=opts.method,
+    record = build_record(rig, paired, sol, refinement, uncertainty, method=opts.method,
                      reference=reference, warnings=warnings, time_offsets=shown,
                      motion=motion.as_dict()["cameras"],
                      doubts=tuple(PlausibilityItem(f.cause, f.message, f.camera)
-                                  for f in plausibility.findings))
+                                  for f in plausibility.findings), cameras=cameras)
     timings = StageTimings(pairing=paired_at - start, closed_form=solved_at - paired_at,
                            refinement=refined_at - solved_at,
                            total=time.perf_counter() - start)
@@ -484,46 +483,6 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
     ref = refine_solution(sol)
     return Refinement(kind="poses", X=ref.X, Y=ref.Y, covariance=ref.covariance,
                       reprojection_rms_px={}, warnings=(), result=ref)
-
-
-def _record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
-            refinement: Refinement | None, unc, *, method: str, reference: str,
-            warnings: list[str], time_offsets: dict[str, float], motion: dict,
-            doubts: tuple[PlausibilityItem, ...] = ()) -> CalibrationRecord:
-    """The record of the final result: the refinement's when it ran, else the closed form.
-
-    ``unc`` is the :class:`~multieye.estimate.uncertainty.RelativeUncertainty` of the
-    refinement, or None.
-    """
-    final = sol if refinement is None else refinement
-    X, Y = final.X, final.Y
-    reproj = {} if refinement is None else refinement.reprojection_rms_px
-    names = list(paired)
-    T_ref_cam = relative_extrinsics(X, reference=names.index(reference))
-    cams, rot_all, trans_all = [], [], []
-    for j, name in enumerate(names):
-        p = paired[name]
-        r = camera_residual(p.A, p.B, X[j], Y)
-        rot_all.append(r.e_R_deg * r.n)
-        trans_all.append(r.e_t_m * r.n)
-        rms = [o.rms_px for o in p.observations if o.rms_px is not None]
-        reproj_px = reproj.get(name, float(np.sqrt(np.mean(np.square(rms)))) if rms else None)
-        cams.append(CameraRecord(
-            name=name, X=X[j], T_ref_cam=T_ref_cam[j], measurements_used=r.n,
-            residuals=Residuals(e_R_deg=r.e_R_deg, e_t_m=r.e_t_m, max_R_deg=r.max_R_deg,
-                                max_t_m=r.max_t_m, reprojection_rms_px=reproj_px),
-            time_offset_s=time_offsets.get(name),
-            std_rot_deg=None if unc is None else float(unc.std_rot_deg[j]),
-            std_trans_m=None if unc is None else float(unc.std_trans_m[j]),
-            covariance=None if unc is None else unc.covariance[j],
-            rejected=p.rejected))
-    n = sum(c.measurements_used for c in cams)
-    return CalibrationRecord(setup=rig.setup, method=method, reference_camera=reference, Y=Y,
-                             cameras=tuple(cams),
-                             residuals=Residuals(e_R_deg=sum(rot_all) / n, e_t_m=sum(trans_all) / n),
-                             warnings=tuple(warnings),
-                             refinement=None if refinement is None else refinement.kind,
-                             motion_diagnostics=motion, plausibility=doubts)
 
 
 def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
