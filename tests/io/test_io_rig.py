@@ -172,8 +172,56 @@ def test_target_types_need_their_keys(dataset):
     assert (target.type, target.marker_size, target.dictionary) == ("charuco", 0.025,
                                                                      "DICT_5X5_100")
     _edit(dataset, "type: charuco", "type: aprilgrid")
-    with pytest.raises(DatasetError, match="target.marker_size: applies to charuco targets "
-                       "only \\(this target is aprilgrid\\)"):
+    with pytest.raises(DatasetError, match="target.marker_size: applies to charuco, aruco, "
+                       "aruco-grid targets only \\(this target is aprilgrid\\)"):
+        load_rig(path)
+
+
+_TARGET = "  type: chessboard\n  rows: 7\n  cols: 8\n  spacing: 0.033\n"
+
+
+def test_aruco_targets(dataset):
+    from multieye.imaging.targets import ArucoGrid, ArucoMarker, target_from_spec
+
+    path = _edit(dataset, _TARGET, "  type: aruco\n  marker_size: 0.053\n"
+                 "  dictionary: DICT_6X6_250\n  id: 0\n")
+    target = load_rig(path).target
+    assert (target.type, target.rows, target.cols, target.spacing, target.id) == (
+        "aruco", 1, 1, 0.053, 0)
+    assert target.as_dict() == {"type": "aruco", "marker_size": 0.053,
+                                "dictionary": "DICT_6X6_250", "id": 0}
+    assert isinstance(target_from_spec(target.as_dict()), ArucoMarker)
+    (dataset / "rig.yaml").write_text(RIG)
+    _edit(dataset, _TARGET, "  type: aruco-grid\n  rows: 5\n  cols: 7\n  marker_size: 0.04\n"
+          "  marker_separation: 0.01\n  dictionary: DICT_6X6_250\n")
+    target = load_rig(path).target
+    assert (target.rows, target.cols, target.spacing, target.marker_separation,
+            target.first_id) == (5, 7, 0.04, 0.01, None)
+    grid = target_from_spec(target.as_dict())
+    assert isinstance(grid, ArucoGrid) and grid.first_id == 0
+
+
+@pytest.mark.parametrize("body, message", [
+    ("type: aruco\n  marker_size: 0.05\n  dictionary: DICT_6X6_250",
+     "target: missing key 'id' \\(required for aruco targets\\)"),
+    ("type: aruco\n  marker_size: 0.05\n  dictionary: DICT_6X6_250\n  id: -1",
+     "target.id: expected a marker id \\(an integer >= 0\\), got -1"),
+    ("type: aruco\n  marker_size: 0.05\n  dictionary: DICT_6X6_250\n  id: 0\n  rows: 2",
+     "target.rows: a single marker has no rows and cols"),
+    ("type: aruco\n  spacing: 0.05\n  marker_size: 0.05\n  dictionary: DICT_6X6_250\n  id: 0",
+     "target.spacing: aruco targets give the marker side as 'marker_size'"),
+    ("type: aruco-grid\n  rows: 2\n  cols: 2\n  marker_size: 0.05\n  dictionary: DICT_6X6_250",
+     "target: missing key 'marker_separation' \\(required for aruco-grid targets\\)"),
+    ("type: aruco-grid\n  cols: 2\n  marker_size: 0.05\n  marker_separation: 0.01\n"
+     "  dictionary: DICT_6X6_250", "target: missing key 'rows'"),
+    ("type: aruco-grid\n  rows: 2\n  cols: 2\n  marker_size: 0.05\n  marker_separation: 0.01\n"
+     "  dictionary: DICT_6X6_250\n  id: 3", "target.id: applies to aruco targets only"),
+    ("type: chessboard\n  rows: 7\n  cols: 8\n  spacing: 0.03\n  first_id: 3",
+     "target.first_id: applies to aruco-grid targets only"),
+])
+def test_bad_aruco_targets(dataset, body, message):
+    path = _edit(dataset, _TARGET, "  " + body + "\n")
+    with pytest.raises(DatasetError, match=message):
         load_rig(path)
 
 

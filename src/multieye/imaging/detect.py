@@ -44,7 +44,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from multieye.core.errors import InputError
-from multieye.imaging.targets import AprilGrid, AsymmetricCircleGrid, Charuco, Chessboard, CircleGrid, Target
+from multieye.imaging.targets import (
+    AprilGrid,
+    ArucoGrid,
+    ArucoMarker,
+    AsymmetricCircleGrid,
+    Charuco,
+    Chessboard,
+    CircleGrid,
+    Target,
+)
 
 __all__ = ["Detection", "detect", "to_gray"]
 
@@ -138,6 +147,8 @@ def detect(image: ArrayLike, target: Target) -> Detection | None:
         return _detect_charuco(gray, target)
     if isinstance(target, AprilGrid):
         return _detect_aprilgrid(gray, target)
+    if isinstance(target, (ArucoMarker, ArucoGrid)):
+        return _detect_aruco(gray, target)
     raise InputError(f"no detector for target type {type(target).__name__}")
 
 
@@ -340,6 +351,42 @@ def _detect_charuco(gray: NDArray[np.uint8], target: Charuco) -> Detection | Non
     ids = ids[order]
     return Detection(ids=ids, image_points=corners.reshape(-1, 2)[order].astype(np.float64),
                      object_points=target.object_points()[ids])
+
+
+@lru_cache(maxsize=8)
+def _aruco_detector(dictionary: str):
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    return cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)),
+                                   params)
+
+
+def _detect_aruco(gray: NDArray[np.uint8], target: ArucoMarker | ArucoGrid) -> Detection | None:
+    """OpenCV's ArUco detector with sub-pixel corner refinement; markers of the target only.
+
+    A marker id seen more than once (a stray copy in view) is dropped with a warning.
+    """
+    corners, ids, _ = _aruco_detector(target.dictionary).detectMarkers(gray)
+    if ids is None:
+        return None
+    ids = ids.ravel().astype(np.int64)
+    corners = np.asarray(corners, dtype=np.float64).reshape(-1, 4, 2)
+    first = target.id if isinstance(target, ArucoMarker) else target.first_id
+    count = target.rows * target.cols
+    unique, counts = np.unique(ids, return_counts=True)
+    repeated = unique[counts > 1]
+    keep = (ids >= first) & (ids < first + count) & ~np.isin(ids, repeated)
+    mine = repeated[(repeated >= first) & (repeated < first + count)]
+    warnings = ((f"ArUco ids {sorted(mine.tolist())} seen more than once (a marker that is not "
+                 "on the target is in view); dropped",) if len(mine) else ())
+    if not keep.any():
+        return None
+    point_ids = ((ids[keep] - first)[:, None] * 4 + np.arange(4)[None]).ravel()
+    pts = corners[keep].reshape(-1, 2)
+    order = np.argsort(point_ids)
+    ids_out = point_ids[order].astype(np.int64)
+    return Detection(ids=ids_out, image_points=pts[order],
+                     object_points=target.object_points()[ids_out], warnings=warnings)
 
 
 #: Kalibr corner (0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left, as printed) of

@@ -15,6 +15,10 @@ charuco            squares                      square size (points: the (rows-1
                                                 inner corners, OpenCV's ChArUco ids)
 aprilgrid          AprilTag 36h11 tags          tag size, black edge to black edge (Kalibr
                                                 ``tagSize``); gap = ``tag_spacing`` * tag size
+aruco              1 x 1 (one marker)           marker side (``marker_size``); points: its 4
+                                                corners
+aruco-grid         markers (OpenCV GridBoard)   marker side (``marker_size``); points: 4
+                                                corners per marker
 ================== ============================ ================================================
 
 Canonical frame: origin at the first point, x along ``cols``, y along ``rows``, z = x cross y.
@@ -55,6 +59,8 @@ __all__ = [
     "AsymmetricCircleGrid",
     "Charuco",
     "AprilGrid",
+    "ArucoMarker",
+    "ArucoGrid",
     "TARGET_TYPES",
     "target_from_spec",
 ]
@@ -368,6 +374,108 @@ class AprilGrid(Target):
         return (base, base + 1, base + width + 1, base + width)
 
 
+@dataclass(frozen=True)
+class ArucoMarker(Target):
+    """One ArUco marker of side ``marker_size`` metres, id ``id`` of the OpenCV dictionary
+    ``dictionary``.  ``rows = cols = 1`` and ``spacing`` is the marker side.
+
+    Points: the marker's 4 outer corners in OpenCV's order (top-left, top-right,
+    bottom-right, bottom-left as ``cv2.aruco.generateImageMarker`` draws it); origin at the
+    top-left corner, x along the top edge, y down the printed face, z into the board.
+    """
+
+    dictionary: str = "DICT_6X6_250"
+    id: int = 0
+    kind: ClassVar[str] = "aruco"
+    min_size: ClassVar[int] = 1
+
+    def __post_init__(self):
+        super().__post_init__()
+        _marker_ids(self.dictionary, self.id, 1, "aruco id")
+
+    @property
+    def marker_size(self) -> float:
+        return self.spacing
+
+    def object_points(self) -> F64:
+        s = self.spacing
+        return np.array([[0.0, 0.0, 0.0], [s, 0.0, 0.0], [s, s, 0.0], [0.0, s, 0.0]])
+
+    def bounds(self):
+        return (0.0, self.spacing, 0.0, self.spacing)
+
+    def grid_shape(self):
+        return None
+
+
+@dataclass(frozen=True)
+class ArucoGrid(Target):
+    """OpenCV ArUco ``GridBoard``: ``rows`` x ``cols`` markers of side ``marker_size``,
+    ``marker_separation`` apart, ids ``first_id``, ``first_id + 1``, ... row-major from the
+    top-left marker, of the OpenCV dictionary ``dictionary``.  ``spacing`` is the marker side.
+
+    Points: 4 corners per marker, point id ``4 * k + j`` for marker ``k`` (counted from
+    ``first_id``) and OpenCV's corner ``j`` (top-left, top-right, bottom-right, bottom-left);
+    OpenCV's board frame: origin at the top-left corner of the first marker, x along
+    ``cols``, y down the printed face, z into the board.  Partial views are fine.
+    """
+
+    marker_separation: float = 0.0
+    dictionary: str = "DICT_6X6_250"
+    first_id: int = 0
+    kind: ClassVar[str] = "aruco-grid"
+    min_size: ClassVar[int] = 1
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "marker_separation",
+                           _positive(self.marker_separation, "aruco-grid marker_separation"))
+        _marker_ids(self.dictionary, self.first_id, self.rows * self.cols, "aruco-grid first_id")
+
+    @property
+    def marker_size(self) -> float:
+        return self.spacing
+
+    @property
+    def pitch(self) -> float:
+        """Distance between the top-left corners of neighbouring markers, metres."""
+        return self.spacing + self.marker_separation
+
+    def object_points(self) -> F64:
+        r, c = _grid(self.rows, self.cols)
+        corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) * self.spacing
+        xy = (np.column_stack([c, r]) * self.pitch)[:, None, :] + corners[None]
+        return np.column_stack([xy.reshape(-1, 2), np.zeros(4 * r.size)])
+
+    def bounds(self):
+        return (0.0, self.cols * self.pitch - self.marker_separation,
+                0.0, self.rows * self.pitch - self.marker_separation)
+
+    def grid_shape(self):
+        return None
+
+    def opencv_board(self):
+        """The ``cv2.aruco.GridBoard`` of this target (same frame and corners)."""
+        import cv2
+
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        ids = np.arange(self.first_id, self.first_id + self.rows * self.cols, dtype=np.int32)
+        return cv2.aruco.GridBoard((self.cols, self.rows), self.spacing, self.marker_separation,
+                                   dictionary, ids)
+
+
+def _marker_ids(dictionary: Any, first: Any, count: int, name: str) -> None:
+    """Check that ``dictionary`` is an OpenCV dictionary holding ids ``first .. first+count-1``."""
+    if not isinstance(dictionary, str):
+        raise InputError(f"dictionary must be an OpenCV name such as DICT_6X6_250, got {dictionary!r}")
+    available = aruco_dictionary_size(dictionary)
+    if isinstance(first, bool) or not isinstance(first, (int, np.integer)) or first < 0:
+        raise InputError(f"{name} must be a marker id (an integer >= 0), got {first!r}")
+    if first + count > available:
+        raise InputError(f"{name} {first} needs ids up to {first + count - 1} but {dictionary} "
+                         f"has ids 0 to {available - 1}")
+
+
 @lru_cache(maxsize=4)
 def _kalibr_tag_images(n: int) -> NDArray[np.float32]:
     import cv2
@@ -381,7 +489,8 @@ def _kalibr_tag_images(n: int) -> NDArray[np.float32]:
 
 
 TARGET_TYPES: dict[str, type[Target]] = {
-    cls.kind: cls for cls in (Chessboard, CircleGrid, AsymmetricCircleGrid, Charuco, AprilGrid)
+    cls.kind: cls for cls in (Chessboard, CircleGrid, AsymmetricCircleGrid, Charuco, AprilGrid,
+                              ArucoMarker, ArucoGrid)
 }
 
 #: rig.yaml keys per type (besides ``type``), mapped to dataclass fields; None = required.
@@ -392,6 +501,9 @@ _SPEC_KEYS: dict[str, dict[str, Any]] = {
     "charuco": {"rows": None, "cols": None, "spacing": None, "marker_size": None,
                 "dictionary": None, "legacy": "optional"},
     "aprilgrid": {"rows": None, "cols": None, "spacing": None, "tag_spacing": None},
+    "aruco": {"marker_size": None, "dictionary": None, "id": None},
+    "aruco-grid": {"rows": None, "cols": None, "marker_size": None, "marker_separation": None,
+                   "dictionary": None, "first_id": "optional"},
 }
 
 
@@ -405,6 +517,9 @@ def target_from_spec(spec: Mapping[str, Any], *, path=None, line: int | None = N
         ``cols``, ``spacing`` (metres); charuco also ``marker_size`` (metres) and
         ``dictionary`` (OpenCV name, e.g. ``DICT_5X5_100``), optionally ``legacy``; aprilgrid
         also ``tag_spacing`` (Kalibr ratio); circle grids optionally ``diameter`` (metres).
+        ``aruco``: ``marker_size``, ``dictionary``, ``id`` only; ``aruco-grid``: ``rows``,
+        ``cols``, ``marker_size``, ``marker_separation``, ``dictionary``, optionally
+        ``first_id`` (0).
     path, line : optional
         Where the mapping came from, for the error message.
 
@@ -435,6 +550,10 @@ def target_from_spec(spec: Mapping[str, Any], *, path=None, line: int | None = N
         fail(f"{kind} needs key {missing[0]!r} (keys: type, {', '.join(allowed)})")
     kwargs = {k: spec[k] for k in allowed if k in spec}
     cls = TARGET_TYPES[kind]
+    if kind in ("aruco", "aruco-grid"):
+        kwargs["spacing"] = kwargs.pop("marker_size")
+        if kind == "aruco":
+            kwargs.update(rows=1, cols=1)
     if kind == "charuco" and not isinstance(kwargs["dictionary"], str):
         fail(f"charuco dictionary must be an OpenCV name such as DICT_5X5_100, got {kwargs['dictionary']!r}")
     try:

@@ -11,13 +11,15 @@ constants hold them, docs/rig-yaml.md documents each)::
 
     setup: eye-to-base | eye-on-hand                         # required
     target:                                                  # required when a camera has images
-      type: chessboard | circles | asymmetric-circles | charuco | aprilgrid
+      type: chessboard | circles | asymmetric-circles | charuco | aprilgrid | aruco | aruco-grid
       rows: int > 0                                          # at most 200
       cols: int > 0                                          # at most 200
       spacing: number > 0                                    # metres, at most 10
       marker_size: number > 0                                # charuco only (required)
       dictionary: DICT_...                                   # charuco only (required)
       tag_spacing: 0 < number <= 1                           # aprilgrid only (required)
+      # aruco: marker_size, dictionary, id (no rows, cols, spacing)
+      # aruco-grid: rows, cols, marker_size, marker_separation, dictionary, first_id (0)
     mocap:                                                   # optional if every camera has one
       file: path                                             # required
       pose: T_world_marker                                   # default: T_world_marker
@@ -87,8 +89,15 @@ __all__ = ["SETUPS", "TARGET_TYPES", "TOP_LEVEL_KEYS", "TARGET_KEYS", "MOCAP_KEY
 
 #: setup -> the frame motion capture tracks.
 SETUPS = {"eye-to-base": "marker", "eye-on-hand": "body"}
-TARGET_TYPES = ("chessboard", "circles", "asymmetric-circles", "charuco", "aprilgrid")
-_TARGET_ONLY = {"marker_size": "charuco", "dictionary": "charuco", "tag_spacing": "aprilgrid"}
+TARGET_TYPES = ("chessboard", "circles", "asymmetric-circles", "charuco", "aprilgrid", "aruco",
+                "aruco-grid")
+_TARGET_ONLY = {"marker_size": ("charuco", "aruco", "aruco-grid"),
+                "dictionary": ("charuco", "aruco", "aruco-grid"), "tag_spacing": ("aprilgrid",),
+                "marker_separation": ("aruco-grid",), "id": ("aruco",), "first_id": ("aruco-grid",)}
+#: Keys each target type requires besides ``type`` and the keys of :data:`_TARGET_ONLY` it
+#: owns (``first_id`` is optional).
+_TARGET_GRID = {"aruco": (), "aruco-grid": ("rows", "cols")}
+_TARGET_OPTIONAL = ("first_id",)
 _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv")}
@@ -126,6 +135,15 @@ class TargetSpec:
         ChArUco OpenCV dictionary name (``DICT_5X5_100``).
     tag_spacing : float or None
         AprilGrid gap between tags as a fraction of the tag size (Kalibr's ratio).
+    marker_separation : float or None
+        ``aruco-grid``: the gap between markers, metres.
+    id : int or None
+        ``aruco``: the marker's id.
+    first_id : int or None
+        ``aruco-grid``: the id of the first marker (default 0).
+
+    ``aruco`` targets have ``rows = cols = 1``; for ``aruco`` and ``aruco-grid`` ``spacing`` is
+    the marker side (``marker_size``), which rig.yaml gives instead.
     """
 
     type: str
@@ -135,11 +153,19 @@ class TargetSpec:
     marker_size: float | None = None
     dictionary: str | None = None
     tag_spacing: float | None = None
+    marker_separation: float | None = None
+    id: int | None = None
+    first_id: int | None = None
 
     def as_dict(self) -> dict:
         """The fields that are set, as a plain dict (the ``target:`` mapping)."""
-        return {f.name: getattr(self, f.name) for f in fields(self)
-                if getattr(self, f.name) is not None}
+        out = {f.name: getattr(self, f.name) for f in fields(self)
+               if getattr(self, f.name) is not None}
+        if self.type in _TARGET_GRID:
+            out.pop("spacing")
+            if self.type == "aruco":
+                del out["rows"], out["cols"]
+        return out
 
 
 @dataclass(frozen=True)
@@ -298,18 +324,37 @@ class _Checker:
 
 
 def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
-    c.mapping(raw, keys, TARGET_KEYS, ("type", "rows", "cols", "spacing"))
+    c.mapping(raw, keys, TARGET_KEYS, ("type",))
     kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
-    for key, owner in _TARGET_ONLY.items():
-        if key in raw and owner != kind:
-            raise c.error(f"applies to {owner} targets only (this target is {kind})",
+    for key in _TARGET_GRID.get(kind, ("rows", "cols", "spacing")):
+        if key not in raw:
+            raise c.error(f"missing key {key!r}", keys)
+    if kind in _TARGET_GRID and "spacing" in raw:
+        raise c.error(f"{kind} targets give the marker side as 'marker_size'", keys + ("spacing",))
+    if kind == "aruco" and ("rows" in raw or "cols" in raw):
+        raise c.error("a single marker has no rows and cols (use aruco-grid for a board)",
+                      keys + ("rows" if "rows" in raw else "cols",))
+    for key, owners in _TARGET_ONLY.items():
+        if key in raw and kind not in owners:
+            raise c.error(f"applies to {', '.join(owners)} targets only (this target is {kind})",
                           keys + (key,))
-        if key not in raw and owner == kind:
+        if key not in raw and kind in owners and key not in _TARGET_OPTIONAL:
             raise c.error(f"missing key {key!r} (required for {kind} targets)", keys)
     extra = {}
     if "marker_size" in raw:
         extra["marker_size"] = c.number(raw["marker_size"], keys + ("marker_size",),
                                         positive=True, maximum=MAX_SPACING_M, unit="metres")
+    if "marker_separation" in raw:
+        extra["marker_separation"] = c.number(raw["marker_separation"],
+                                              keys + ("marker_separation",), positive=True,
+                                              maximum=MAX_SPACING_M, unit="metres")
+    for key in ("id", "first_id"):
+        if key in raw:
+            value = raw[key]
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise c.error(f"expected a marker id (an integer >= 0), got {shown(value)}",
+                              keys + (key,))
+            extra[key] = value
     if "tag_spacing" in raw:
         extra["tag_spacing"] = c.number(raw["tag_spacing"], keys + ("tag_spacing",),
                                         positive=True, maximum=1.0,
@@ -320,12 +365,15 @@ def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
             raise c.error(f"expected an OpenCV dictionary name such as DICT_5X5_100, got "
                           f"{name!r}", keys + ("dictionary",))
         extra["dictionary"] = name
-    spacing = c.number(raw["spacing"], keys + ("spacing",), positive=True,
-                       maximum=MAX_SPACING_M, unit="metres")
+    if kind in _TARGET_GRID:
+        spacing = extra["marker_size"]
+    else:
+        spacing = c.number(raw["spacing"], keys + ("spacing",), positive=True,
+                           maximum=MAX_SPACING_M, unit="metres")
     if kind == "charuco" and extra["marker_size"] >= spacing:
         raise c.error(f"must be smaller than spacing ({spacing})", keys + ("marker_size",))
     rows, cols = (c.number(raw[k], keys + (k,), positive=True, integer=True,
-                           maximum=MAX_GRID_SIDE) for k in ("rows", "cols"))
+                           maximum=MAX_GRID_SIDE) if k in raw else 1 for k in ("rows", "cols"))
     return TargetSpec(kind, rows, cols, spacing, **extra)
 
 
