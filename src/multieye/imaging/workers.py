@@ -8,8 +8,9 @@ the pipe whose end it waits for.  Every pool of multieye comes from :func:`worke
 whose workers first call :func:`die_with`: a daemon thread that ends the worker as soon as
 the main process has ended.  On Linux (5.3 and later) it waits on a pidfd of the main
 process, which becomes readable the moment that process ends (a zombie counts as ended);
-elsewhere it checks every 0.5 s.  Once the workers are gone, the fork server and
-multiprocessing's resource tracker see the end of their pipes and end too.
+elsewhere it checks every 0.5 s (not on Windows, where nothing here is set up).  Once the
+workers are gone, the fork server and multiprocessing's resource tracker see the end of
+their pipes and end too.
 
 So workers end within a second of the main process ending by any signal, ``SIGKILL``
 included.  When the main process leaves a pool because of an exception (``KeyboardInterrupt``
@@ -68,7 +69,7 @@ def die_with(main_pid: int, *, poll_s: float = POLL_S) -> None:
     poll_s : float
         Seconds between two checks where no pidfd can be opened.
     """
-    if main_pid == os.getpid():
+    if main_pid == os.getpid() or os.name == "nt":   # Windows: os.kill(pid, 0) is Ctrl-C there
         return
     pidfd = None
     if hasattr(os, "pidfd_open"):
@@ -125,7 +126,7 @@ def worker_pool(max_workers: int, *, mp_context=None, initializer: Callable | No
     mp_context : multiprocessing context, optional
         Default: the platform's default start method.
     initializer, initargs
-        Run in every worker after the parent watchdog is set up.
+        Run in every worker after its watchdog is set up.
 
     Yields
     ------
