@@ -61,6 +61,25 @@ def _as_pose(T, what: str) -> F64:
     return T
 
 
+def _view(item, where: str, pose: str, min_points: int):
+    """One image's (object_points, image_points, pose), checked: the arrays, their shapes, the
+    finite points (at least ``min_points``) and the pose; returns them and the finite mask."""
+    try:
+        o, u, T = item
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: expected (object_points, image_points, {pose})") from None
+    o = real_array(o, f"{where}: object points", expected="an array (n, 3)")
+    u = real_array(u, f"{where}: image points", expected="an array (n, 2)")
+    if o.ndim != 2 or o.shape[1] != 3 or u.shape != (len(o), 2):
+        raise InputError(f"{where}: object points must be (n, 3) and image points "
+                         f"(n, 2), got {o.shape} and {u.shape}")
+    ok = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(u), axis=1)
+    if ok.sum() < min_points:
+        raise InputError(f"{where}: " + ("no finite target point" if min_points == 1 else
+                                         f"fewer than {min_points} finite target points"))
+    return o, u, _as_pose(T, f"{where}: {pose}"), ok
+
+
 class ImageData:
     """Target points, pixels and motion-capture poses of every image, stacked.
 
@@ -124,23 +143,11 @@ class ImageData:
             counts.append(len(images))
             for i, item in enumerate(images):
                 where = f"camera {self.names[j]}, image {i}"
-                try:
-                    o, u, M = item
-                except (TypeError, ValueError):
-                    raise InputError(f"{where}: expected (object_points, image_points, "
-                                     "T_world_mocap)") from None
-                o = real_array(o, f"{where}: object points", expected="an array (n, 3)")
-                u = real_array(u, f"{where}: image points", expected="an array (n, 2)")
-                if o.ndim != 2 or o.shape[1] != 3 or u.shape != (len(o), 2):
-                    raise InputError(f"{where}: object points must be (n, 3) and image points "
-                                     f"(n, 2), got {o.shape} and {u.shape}")
-                ok = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(u), axis=1)
-                if not np.any(ok):
-                    raise InputError(f"{where}: no finite target point")
+                o, u, M, ok = _view(item, where, "T_world_mocap", 1)
                 obj.append(o[ok])
                 uv.append(u[ok])
                 keep.append(ok)
-                mocap.append(_as_pose(M, f"{where}: T_world_mocap"))
+                mocap.append(M)
                 img_of_point.append(np.full(int(ok.sum()), len(mocap) - 1))
                 cam_of_image.append(j)
         self.keep = keep                                       # finite points of each image
@@ -275,23 +282,11 @@ class IntrinsicsImages:
                                  "intrinsics are not estimated")
             for i, item in enumerate(images):
                 where = f"camera {names[j]}, intrinsics image {i}"
-                try:
-                    o, u, T = item
-                except (TypeError, ValueError):
-                    raise InputError(f"{where}: expected (object_points, image_points, "
-                                     "T_cam_target)") from None
-                o = real_array(o, f"{where}: object points", expected="an array (n, 3)")
-                u = real_array(u, f"{where}: image points", expected="an array (n, 2)")
-                if o.ndim != 2 or o.shape[1] != 3 or u.shape != (len(o), 2):
-                    raise InputError(f"{where}: object points must be (n, 3) and image points "
-                                     f"(n, 2), got {o.shape} and {u.shape}")
-                ok = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(u), axis=1)
-                if ok.sum() < 4:
-                    raise InputError(f"{where}: fewer than 4 finite target points")
+                o, u, T, ok = _view(item, where, "T_cam_target", 4)
                 obj.append(o[ok])
                 uv.append(u[ok])
                 img.append(np.full(int(ok.sum()), len(poses)))
-                poses.append(_as_pose(T, f"{where}: T_cam_target"))
+                poses.append(T)
                 cams.append(j)
         self.names = tuple(names)
         self.n_images = len(poses)
