@@ -21,6 +21,7 @@ from pathlib import Path
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
 from multieye.io.mocap_csv import csv_flavour, read_optitrack_csv, read_pose_csv, read_vicon_csv
+from multieye.io.pose_files import STEM
 from multieye.io.rosbag import read_bag_trajectory
 from multieye.io.trajectory import Trajectory
 from multieye.io.tum import read_tum
@@ -66,6 +67,10 @@ class MocapSpec:
         ``csv`` header names per role (``t tx ty tz qx qy qz qw``).
     duplicates : {"error", "drop"}
         ``tum`` and ``csv``: a sample with the previous sample's stamp is an error, or dropped.
+    key, values, rotation :
+        ``pose-files`` (``file`` is a pattern with ``{stem}``, relative to each camera's image
+        folder): the JSON key of the pose, the order of plain numbers and the rotation
+        convention (:mod:`multieye.io.pose_files`).
     """
 
     file: Path
@@ -81,6 +86,15 @@ class MocapSpec:
     rot_sigma_rad: float | None = None
     trans_sigma_m: float | None = None
     duplicates: str = "error"
+    key: str | None = None
+    values: tuple[str, ...] | None = None
+    rotation: str = "quaternion-xyzw"
+
+    @property
+    def by_name(self) -> bool:
+        """One pose file beside each image (``file`` holds ``{stem}``), paired by name;
+        :func:`multieye.io.pose_files.read_pose_file` reads them, not :func:`read_mocap`."""
+        return STEM in str(self.file)
 
     @property
     def moving_frame(self) -> str:
@@ -128,6 +142,9 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
     except (TypeError, ValueError) as exc:
         raise InputError(f"MocapSpec.pose: {exc}") from None
     fmt = spec.format
+    if spec.by_name:
+        raise InputError("read_mocap reads one file; pose files beside each image ({stem}) are "
+                         "read by multieye.io.pose_files.read_pose_file")
     if fmt not in MOCAP_FORMATS:
         raise DatasetError(f"motion-capture format must be one of {', '.join(MOCAP_FORMATS)}, "
                            f"got {fmt!r}", path=spec.file)

@@ -38,6 +38,8 @@ constants hold them, docs/rig-yaml.md documents each)::
       child_frame: rig                                       # rosbag only
       columns: {t: time, tx: x, ...}                         # csv only
       duplicates: error | drop                               # tum, csv only; default error
+      # file: "{stem}.json": one pose file beside each image (format pose-files), with
+      # key: end2base, values: [x, y, z, qx, qy, qz, qw], rotation: quaternion-xyzw | ...
     cameras:                                                 # required, at least one
       cam0:
         intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
@@ -60,7 +62,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -80,8 +81,10 @@ from multieye.core.limits import (
 from multieye.io.intrinsics import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, pose_frames, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
+from multieye.io.pose_files import STEM, check_rotation, check_values
+from multieye.io.rig_checks import Checker as _Checker
 from multieye.io.textfile import LENGTH_UNITS
-from multieye.io.yamlfile import YamlDocument, load_yaml, shown
+from multieye.io.yamlfile import load_yaml, shown
 
 __all__ = ["SETUPS", "TARGET_TYPES", "TOP_LEVEL_KEYS", "TARGET_KEYS", "MOCAP_KEYS",
            "MOCAP_COLUMN_KEYS", "CAMERA_KEYS", "CAMERA_INTRINSICS_KEYS", "TargetSpec",
@@ -98,11 +101,11 @@ _TARGET_ONLY = {"marker_size": ("charuco", "aruco", "aruco-grid"),
 #: owns (``first_id`` is optional).
 _TARGET_GRID = {"aruco": (), "aruco-grid": ("rows", "cols")}
 _TARGET_OPTIONAL = ("first_id",)
-_MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag"),
+_MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-files"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
-               "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv")}
+               "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv"),
+               "key": ("pose-files",), "values": ("pose-files",), "rotation": ("pose-files",)}
 _SOURCES = ("images", "poses", "rosbag")
-_FLOAT_TEXT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
@@ -252,77 +255,6 @@ class Rig:
         return own if own is not None else self.mocap
 
 
-class _Checker:
-    """Type and presence checks that raise at the line of the key concerned."""
-
-    def __init__(self, doc: YamlDocument):
-        self.doc = doc
-        self.folder = doc.path.parent
-
-    def error(self, message, keys):
-        return self.doc.error(message, *keys)
-
-    def mapping(self, value, keys, allowed, required=()):
-        if not isinstance(value, Mapping):
-            raise self.error(f"expected a mapping, got {type(value).__name__}", keys)
-        for key in value:
-            if key not in allowed:
-                raise self.error(f"unknown key; expected one of {', '.join(allowed)}",
-                                 keys + (key,))
-        for key in required:
-            if key not in value:
-                raise self.error(f"missing key {key!r}", keys)
-        return value
-
-    def string(self, value, keys):
-        if not isinstance(value, str) or not value.strip():
-            raise self.error(f"expected a non-empty string, got {shown(value)}", keys)
-        return value.strip()
-
-    def boolean(self, value, keys) -> bool:
-        if not isinstance(value, bool):
-            raise self.error(f"expected true or false, got {shown(value)}", keys)
-        return value
-
-    def choice(self, value, keys, options):
-        if isinstance(value, (list, dict)) or value not in options:
-            raise self.error(f"expected one of {', '.join(options)}, got {shown(value)}", keys)
-        return value
-
-    def number(self, value, keys, *, positive=False, integer=False, maximum=None, unit=""):
-        """A finite number (``integer``: an int), > 0 if ``positive``, and at most ``maximum``
-        (in magnitude when it may be negative); ``unit`` names it in the message."""
-        ok = isinstance(value, int) if integer else isinstance(value, (int, float))
-        ok = ok and not isinstance(value, bool) and math.isfinite(value)
-        ok = ok and (not positive or value > 0)
-        ok = ok and (maximum is None or (value if positive else abs(value)) <= maximum)
-        if not ok:
-            kind = "integer" if integer else "number"
-            unit = f" {unit}" if unit else ""
-            if maximum is None:
-                what = f"a {'positive ' if positive else ''}{kind}{unit}"
-            elif positive:
-                what = f"a positive {kind} of at most {maximum:g}{unit}"
-            else:
-                what = f"a {kind} between {-maximum:g} and {maximum:g}{unit}"
-            hint = ""
-            if isinstance(value, str) and _FLOAT_TEXT.match(value.strip()):
-                hint = (" (YAML 1.1 reads an exponent without a dot and a sign as text: write "
-                        "1.0e-3, not 1e-3)")
-            raise self.error(f"expected {what}, got {shown(value)}{hint}", keys)
-        return value if integer else float(value)
-
-    def path(self, value, keys, kind):
-        p = (self.folder / self.string(value, keys)).resolve()
-        if not p.exists():
-            raise self.error(f"{kind} not found: {p}", keys)
-        if kind == "folder" and not p.is_dir():
-            raise self.error(f"expected a folder, found a file: {p}", keys)
-        if kind == "file" and p.is_dir():
-            raise self.error(f"expected a file, found a folder: {p}", keys)
-        return p
-
-
 def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
     c.mapping(raw, keys, TARGET_KEYS, ("type",))
     kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
@@ -398,7 +330,12 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
     fmt = raw.get("format")
     if fmt is not None:
         c.choice(fmt, at("format"), MOCAP_FORMATS)
-    if fmt == "rosbag" or fmt is None:
+    if STEM in str(raw["file"]):
+        if fmt is not None:
+            raise c.error("a file name with {stem} is one pose file beside each image; leave "
+                          "out 'format'", at("format"))
+        fmt, file = "pose-files", Path(c.string(raw["file"], at("file")))
+    elif fmt == "rosbag" or fmt is None:
         file = c.path(raw["file"], at("file"), "file or bag")
     else:
         file = c.path(raw["file"], at("file"), "file")
@@ -418,6 +355,18 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
         kw["unit"] = c.choice(raw["unit"], at("unit"), tuple(LENGTH_UNITS))
     if "duplicates" in raw:
         kw["duplicates"] = c.choice(raw["duplicates"], at("duplicates"), ("error", "drop"))
+    if "rotation" in raw:
+        try:
+            kw["rotation"] = check_rotation(raw["rotation"])
+        except ValueError as exc:
+            raise c.error(str(exc), at("rotation")) from None
+    if "values" in raw:
+        try:
+            kw["values"] = check_values(raw["values"], kw.get("rotation", "quaternion-xyzw"))
+        except ValueError as exc:
+            raise c.error(str(exc), at("values")) from None
+    if "key" in raw:
+        kw["key"] = c.string(raw["key"], at("key"))
     if "columns" in raw:
         cols = c.mapping(raw["columns"], at("columns"), MOCAP_COLUMN_KEYS)
         kw["columns"] = MappingProxyType({k: c.string(v, at("columns") + (k,))
@@ -451,7 +400,9 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
     inherit = [k for k in top_raw if k not in own]
     if "file" in own and top_spec is not None:
         fmt = own.get("format")
-        if fmt is None:
+        if STEM in str(own["file"]):
+            fmt = "pose-files"
+        elif fmt is None:
             fmt = sniff_mocap_format(c.path(own["file"], where + ("file",), "file or bag"))
         if fmt != top_spec.format:
             inherit = [k for k in inherit if k in ("pose", "time_tolerance", "rotation_noise_deg",
@@ -574,6 +525,9 @@ def load_rig(path: str | os.PathLike) -> Rig:
         if cam.mocap is None and mocap is None:
             raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
                           "key to this camera", ("cameras", name))
+        if (cam.mocap or mocap).by_name and cam.source != "images":
+            raise c.error("pose files beside each image ({stem}) need a folder of 'images'",
+                          ("cameras", name))
         cameras[cam.name] = cam
     target = None
     if "target" in raw:

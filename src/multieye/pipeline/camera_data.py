@@ -92,6 +92,10 @@ class CameraData:
     intrinsics_views : tuple of Observation
         Images without motion capture that inform the intrinsics only (``intrinsics_images``),
         with their starting target pose.
+    by_name : bool
+        Paired by name (one pose file beside each image): the images with a pose file have
+        the stamps 0, 1, 2, ... in name order and ``mocap`` holds their poses at the same
+        stamps; :func:`pair_camera` pairs them exactly, without clock offset.
     """
 
     name: str
@@ -106,6 +110,7 @@ class CameraData:
     detection_s: float = 0.0
     intrinsics_estimated: bool = False
     intrinsics_views: tuple[Observation, ...] = ()
+    by_name: bool = False
 
 
 @dataclass(frozen=True)
@@ -182,12 +187,13 @@ class _Detected:
 
 def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsics | None, *,
                               processes, progress, topic: str | None = None,
-                              model: str | None = None) -> _Detected:
+                              model: str | None = None, listed=None) -> _Detected:
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
 
     Without ``intr`` (a camera whose lens is estimated), detection runs alone, the lens
     ``model`` is started from the detections (:mod:`multieye.pipeline.intrinsics`) and the
-    poses follow by PnP with it; the start is then ``_Detected.intrinsics``.
+    poses follow by PnP with it; the start is then ``_Detected.intrinsics``. ``listed``:
+    the images as ``(stamp, ns, path)`` instead of the folder's time-stamped names.
     """
     from multieye.imaging.targets import target_from_spec
 
@@ -195,7 +201,7 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
     if topic is None:
         from multieye.imaging.batch import detect_and_estimate
 
-        images = list_images(source)
+        images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
         results = detect_and_estimate([p for _, _, p in images], target, intr,
                                       processes=processes, progress=progress)
@@ -287,7 +293,11 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
     for name, cam in rig.cameras.items():
         spec = rig.mocap_for(name)
         key = (str(spec.file), spec.pose, spec.format, spec.topic, spec.rigid_body)
-        if key not in trajectories:
+        listed, unmatched = None, []
+        if spec.by_name:
+            key = (key, name)
+            trajectories[key], listed, unmatched = _poses_by_name(name, cam.images, spec)
+        elif key not in trajectories:
             trajectories[key] = read_mocap(spec)
         warnings: tuple[str, ...] = ()
         seconds = 0.0
@@ -314,8 +324,10 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
             det = _observations_from_images(
                 name, cam.images if cam.source == "images" else cam.rosbag, rig, intr,
                 processes=processes, progress=progress,
-                topic=None if cam.source == "images" else cam.topic, model=cam.model)
-            obs, rejected, n_inputs = det.observations, det.rejected, det.n_inputs
+                topic=None if cam.source == "images" else cam.topic, model=cam.model,
+                listed=listed)
+            obs, rejected, n_inputs = det.observations, unmatched + det.rejected, det.n_inputs
+            n_inputs += sum(r.reason.startswith("no pose file") for r in unmatched)
             warnings, seconds = det.warnings, det.seconds
             intr = intr if det.intrinsics is None else det.intrinsics
             if cam.intrinsics_images is not None:
@@ -332,8 +344,34 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
                                time_tolerance=spec.time_tolerance, warnings=warnings,
                                detection_s=seconds,
                                intrinsics_estimated=cam.estimate_intrinsics,
-                               intrinsics_views=tuple(views))
+                               intrinsics_views=tuple(views), by_name=spec.by_name)
     return out
+
+
+def _poses_by_name(name: str, folder: Path, spec) -> tuple[Trajectory, list, list]:
+    """A by-name camera's poses (stamps 0, 1, 2, ... in name order), its images with a pose
+    file as ``(stamp, ns, path)``, and what has no partner, with the reason."""
+    from multieye.io import list_image_files
+    from multieye.io.mocap import pose_frames
+    from multieye.io.pose_files import PoseFormat, poses_by_name
+
+    fmt = PoseFormat(rotation=spec.rotation, values=spec.values, key=spec.key,
+                     unit=spec.unit or "m")
+    try:
+        matched, unmatched = poses_by_name(list_image_files(folder), str(spec.file), fmt)
+    except DatasetError as exc:
+        raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=name) from None
+    rejected = [RejectedItem(item, reason) for item, reason in unmatched]
+    if not matched:
+        raise DatasetError(f"no image has its pose file {spec.file} beside it"
+                           + (f" (first: {rejected[0].item}: {rejected[0].reason})"
+                              if rejected else ""), path=folder, camera=name)
+    parent, child = pose_frames(spec.pose)
+    stamps = np.arange(len(matched), dtype=np.float64)
+    traj = Trajectory(stamps, np.stack([T for _, T in matched]), parent, child)
+    traj = traj if parent == "world" else traj.inverted()
+    listed = [(float(k), k * 1_000_000_000, image) for k, (image, _) in enumerate(matched)]
+    return traj, listed, rejected
 
 
 def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = None) -> PairedCamera:
@@ -353,8 +391,11 @@ def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = Non
     """
     offset = data.time_offset if time_offset is None else time_offset
     stamps = np.array([o.stamp for o in data.observations])
-    p = pair_in_time(data.mocap.stamps, data.mocap.T, stamps, tolerance=data.time_tolerance,
-                     offset=offset)
+    if data.by_name:     # stamp k on both sides: the exact pose of the image's own file
+        p = pair_in_time(data.mocap.stamps, data.mocap.T, stamps, tolerance=0.25, offset=0.0)
+    else:
+        p = pair_in_time(data.mocap.stamps, data.mocap.T, stamps,
+                         tolerance=data.time_tolerance, offset=offset)
     rejected = list(data.rejected)
     unpaired = [RejectedItem(data.observations[i].name,
                              f"no motion capture within {data.time_tolerance:g} s ({why})")

@@ -214,14 +214,17 @@ CLOCK_MIN_SCORE = 0.5
 
 
 def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[str, float]:
-    if opts.time_offset == "rig":
-        return {n: d.time_offset for n, d in cameras.items()}
+    if opts.time_offset == "rig":   # cameras paired by name have no clock offset
+        return {n: 0.0 if d.by_name else d.time_offset for n, d in cameras.items()}
     if opts.time_offset != "auto":
-        return {n: float(opts.time_offset) for n in cameras}
+        return {n: 0.0 if d.by_name else float(opts.time_offset) for n, d in cameras.items()}
     from multieye.estimate.clock import estimate_offset
 
     out = {}
     for name, d in cameras.items():
+        if d.by_name:            # paired by name: no clock to estimate
+            out[name] = 0.0
+            continue
         stamps = np.array([o.stamp for o in d.observations])
         T = np.stack([o.T_cam_target for o in d.observations])
         if not (math.isfinite(opts.max_time_offset) and opts.max_time_offset > 0):
@@ -288,7 +291,8 @@ def _plausibility(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, Pa
                           and o.rms_px is not None for o in obs))
         evidence.append(CameraEvidence(
             name=name, A=p.A, B=p.B, T_world_mocap=p.T_world_mocap,
-            stamps=np.array([o.stamp for o in obs]), intrinsics=d.intrinsics,
+            stamps=None if d.by_name else np.array([o.stamp for o in obs]),
+            intrinsics=d.intrinsics,
             object_points=tuple(o.object_points for o in obs) if points else None,
             image_points=tuple(o.image_points for o in obs) if points else None,
             rms_px=np.array([o.rms_px for o in obs]) if points else None,

@@ -1,0 +1,313 @@
+"""One pose file beside each image: ``pos3.bmp`` + ``pos3.txt``, ``12.jpg`` + ``12.json``.
+
+Robot toolkits store the pose of each image in a file of the same stem. ``rig.yaml``'s
+``mocap.file`` names them with ``{stem}`` (``"{stem}.json"``); docs/rig-yaml.md, section 4,
+describes the keys this module reads:
+
+- ``key`` (JSON files): the key that holds the pose (a dotted path such as ``pose.matrix``
+  goes into nested objects);
+- ``rotation``: ``quaternion-xyzw`` (default), ``quaternion-wxyz``, ``matrix``, ``rotvec``,
+  ``euler-<axes>-deg`` or ``euler-<axes>-rad`` (axes as scipy's ``Rotation.from_euler``
+  reads them: ``xyz`` extrinsic, ``XYZ`` intrinsic);
+- ``values``: the order of plain numbers (default ``x y z`` then the rotation's numbers:
+  ``qx qy qz qw``, ``qw qx qy qz``, ``rx ry rz`` for a rotation vector, ``a1 a2 a3`` for Euler
+  angles in the order of the axes; ``rx ry rz`` for Euler angles name the angle about each
+  axis when the axes are x, y and z once each);
+- ``unit``: ``m`` (default), ``cm`` or ``mm`` for the translation.
+
+A pose stored as 16 numbers (or 12, the top three rows), or as a JSON 4x4 (or 3x4) array,
+is ``rotation: matrix`` (row-major, translation in the last column). A JSON object of
+numbers (``{"x": 0.5, ..., "rx": 0.1, ...}``) gives the values by name. Every problem is a
+:class:`DatasetError` naming the pose file and what was expected.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from multieye.core import geometry
+from multieye.core.errors import DatasetError
+from multieye.core.limits import MAX_POSITION_M
+from multieye.io.textfile import length_scale
+
+__all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
+           "read_pose_file", "pose_file_pattern", "poses_by_name"]
+
+#: The placeholder of ``mocap.file`` for the image's stem.
+STEM = "{stem}"
+#: The rotation conventions (``euler-<axes>-deg|rad`` stands for every axes sequence).
+ROTATION_NAMES = ("quaternion-xyzw", "quaternion-wxyz", "matrix", "rotvec",
+                  "euler-<axes>-deg", "euler-<axes>-rad")
+_EULER = re.compile(r"^euler-([xyz]{3}|[XYZ]{3})-(deg|rad)$")
+#: Largest ``|R^T R - I|`` entry and ``|det R - 1|`` of a rotation matrix read from a file
+#: (robot controllers print 6 decimals or fewer).
+MATRIX_TOLERANCE = 1e-3
+#: Largest accepted ``| ||q|| - 1 |``.
+QUATERNION_TOLERANCE = 1e-3
+
+
+def check_rotation(name: object) -> str:
+    """``name`` if it is a rotation convention; ValueError saying what was expected."""
+    if isinstance(name, str) and (name in ROTATION_NAMES[:4] or _EULER.match(name)):
+        if _EULER.match(name):
+            axes = _EULER.match(name).group(1)
+            if any(axes[i] == axes[i + 1] for i in range(2)):
+                raise ValueError(f"Euler axes must not repeat an axis twice in a row, got "
+                                 f"{axes!r}")
+        return name
+    raise ValueError(f"expected one of quaternion-xyzw, quaternion-wxyz, matrix, rotvec, "
+                     f"euler-<axes>-deg, euler-<axes>-rad (axes such as xyz, ZYX), got {name!r}")
+
+
+def default_values(rotation: str) -> tuple[str, ...]:
+    """The order of plain numbers when ``values`` is not given."""
+    rot = {"quaternion-xyzw": ("qx", "qy", "qz", "qw"),
+           "quaternion-wxyz": ("qw", "qx", "qy", "qz"),
+           "rotvec": ("rx", "ry", "rz")}.get(rotation, ("a1", "a2", "a3"))
+    return ("x", "y", "z") + rot
+
+
+def _rotation_names(rotation: str) -> tuple[set[str], ...]:
+    """The sets of names ``values`` may use for the rotation's numbers."""
+    if rotation.startswith("quaternion"):
+        return ({"qx", "qy", "qz", "qw"},)
+    if rotation == "rotvec":
+        return ({"rx", "ry", "rz"},)
+    axes = _EULER.match(rotation).group(1).lower()
+    names = [{"a1", "a2", "a3"}]
+    if sorted(axes) == ["x", "y", "z"]:
+        names.append({"rx", "ry", "rz"})
+    return tuple(names)
+
+
+def check_values(values: object, rotation: str) -> tuple[str, ...]:
+    """``values`` as a tuple of names if they fit ``rotation``; ValueError otherwise."""
+    if rotation == "matrix":
+        raise ValueError("a matrix is read as 16 (or 12) numbers, row-major; leave out "
+                         "'values'")
+    if not isinstance(values, (list, tuple)) or not all(isinstance(v, str) for v in values):
+        raise ValueError(f"expected a list of names, got {values!r}")
+    got = set(values)
+    for rot in _rotation_names(rotation):
+        if len(values) == 3 + len(rot) and got == {"x", "y", "z"} | rot:
+            return tuple(values)
+    options = " or ".join("x, y, z, " + ", ".join(sorted(r)) for r in _rotation_names(rotation))
+    raise ValueError(f"expected each of {options} once (for {rotation}), got "
+                     f"{', '.join(map(str, values))}")
+
+
+@dataclass(frozen=True)
+class PoseFormat:
+    """How to read one pose file (docs/rig-yaml.md, section 4)."""
+
+    rotation: str = "quaternion-xyzw"
+    values: tuple[str, ...] | None = None
+    key: str | None = None
+    unit: str = "m"
+
+    @property
+    def order(self) -> tuple[str, ...]:
+        return self.values if self.values is not None else default_values(self.rotation)
+
+
+def pose_file_pattern(pattern: str, image: Path) -> Path:
+    """The pose file of an image: ``pattern`` with ``{stem}`` replaced, beside the image."""
+    return image.parent / pattern.replace(STEM, image.stem)
+
+
+def _numbers_from_text(path: Path) -> list[float]:
+    text = path.read_text(encoding="utf-8-sig", errors="replace")
+    cells = [c for line in text.splitlines() for c in re.split(r"[\s,;]+", line.split("#")[0])
+             if c]
+    out = []
+    for c in cells:
+        try:
+            out.append(float(c))
+        except ValueError:
+            raise DatasetError(f"expected numbers only, got {c!r}", path=path) from None
+    return out
+
+
+def _from_json(path: Path, fmt: PoseFormat):
+    try:
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DatasetError(f"not a JSON file: {exc}", path=path) from None
+    if fmt.key is not None:
+        for part in fmt.key.split("."):
+            if not isinstance(data, Mapping) or part not in data:
+                have = (f"; its keys: {', '.join(map(str, data))}" if isinstance(data, Mapping)
+                        else "")
+                raise DatasetError(f"no key {fmt.key!r} (mocap.key){have}", path=path)
+            data = data[part]
+    elif isinstance(data, Mapping) and not _numeric_mapping(data):
+        raise DatasetError(f"a JSON object: give mocap.key, the key that holds the pose "
+                           f"(keys: {', '.join(map(str, data))})", path=path)
+    return data
+
+
+def _numeric_mapping(data: Mapping) -> bool:
+    return bool(data) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                              for v in data.values())
+
+
+def _flat_numbers(data, path: Path) -> tuple[list[float], bool]:
+    """Numbers of a JSON value and whether it was an array of rows (a matrix)."""
+    rows = isinstance(data, list) and bool(data) and all(isinstance(r, list) for r in data)
+    flat = [x for r in data for x in r] if rows else data
+    if not isinstance(flat, list) or not all(isinstance(x, (int, float))
+                                             and not isinstance(x, bool) for x in flat):
+        raise DatasetError(f"expected the pose as numbers (a list, a 4x4 array or an object of "
+                           f"named numbers), got {json.dumps(data)[:80]}", path=path)
+    if rows and {len(r) for r in data} != {4}:
+        raise DatasetError(f"expected a 4x4 (or 3x4) array, got rows of "
+                           f"{sorted({len(r) for r in data})} numbers", path=path)
+    return [float(x) for x in flat], rows
+
+
+def _matrix(numbers: Sequence[float], scale: float, path: Path) -> np.ndarray:
+    T = np.eye(4)
+    T[:len(numbers) // 4] = np.reshape(numbers, (-1, 4))
+    if not np.allclose(T[3], [0, 0, 0, 1], atol=1e-9):
+        raise DatasetError(f"expected a 4x4 pose whose last row is 0 0 0 1, got "
+                           f"{' '.join(f'{v:g}' for v in T[3])}", path=path)
+    R = T[:3, :3]
+    ortho = float(np.abs(R.T @ R - np.eye(3)).max())
+    det = float(np.linalg.det(R))
+    if not (ortho <= MATRIX_TOLERANCE and abs(det - 1) <= MATRIX_TOLERANCE):
+        raise DatasetError(f"expected a rotation matrix (orthonormal, det 1) in the pose's "
+                           f"upper-left 3x3, got |R^T R - I| = {ortho:.2g}, det R = {det:.6g}",
+                           path=path)
+    u, _, vt = np.linalg.svd(R)
+    return geometry.make_transform(u @ vt, T[:3, 3] * scale)
+
+
+def _rotation(rotation: str, v: Mapping[str, float], path: Path) -> np.ndarray:
+    if rotation.startswith("quaternion"):
+        q = np.array([v["qx"], v["qy"], v["qz"], v["qw"]])
+        norm = float(np.linalg.norm(q))
+        if not abs(norm - 1) <= QUATERNION_TOLERANCE:
+            raise DatasetError(f"quaternion (qx qy qz qw) must have unit norm, got norm "
+                               f"{norm:.6g} (tolerance {QUATERNION_TOLERANCE:g})", path=path)
+        return Rotation.from_quat(q / norm).as_matrix()
+    if rotation == "rotvec":
+        return Rotation.from_rotvec([v["rx"], v["ry"], v["rz"]]).as_matrix()
+    axes, unit = _EULER.match(rotation).groups()
+    if "a1" in v:
+        angles = [v["a1"], v["a2"], v["a3"]]
+    else:
+        angles = [v["r" + a] for a in axes.lower()]
+    return Rotation.from_euler(axes, angles, degrees=unit == "deg").as_matrix()
+
+
+def read_pose_file(path: str | os.PathLike, fmt: PoseFormat) -> np.ndarray:
+    """The 4x4 pose (metres) one file holds.
+
+    Raises
+    ------
+    DatasetError
+        Unreadable file, a missing key, the wrong count of numbers, a non-rotation matrix, a
+        non-unit quaternion or a non-finite or absurd value; the message names the file and
+        what was expected.
+    """
+    path = Path(path)
+    scale = length_scale(fmt.unit)
+    try:
+        if path.suffix.lower() == ".json":
+            data = _from_json(path, fmt)
+            if isinstance(data, Mapping):
+                return _named(data, fmt, scale, path)
+            numbers, rows = _flat_numbers(data, path)
+        else:
+            numbers, rows = _numbers_from_text(path), False
+    except OSError as exc:
+        raise DatasetError(f"cannot read the pose file: {exc.strerror or exc}",
+                           path=path) from None
+    if not all(np.isfinite(numbers)):
+        raise DatasetError("expected finite numbers, got nan or inf", path=path)
+    if rows or fmt.rotation == "matrix" or (len(numbers) == 16 and fmt.values is None):
+        if len(numbers) not in (12, 16):
+            raise DatasetError(f"expected 16 numbers (a 4x4 pose, row-major) or 12 (its top "
+                               f"three rows), got {len(numbers)}", path=path)
+        return _checked(_matrix(numbers, scale, path), path)
+    order = fmt.order
+    if len(numbers) != len(order):
+        raise DatasetError(f"expected {len(order)} numbers ({' '.join(order)}; rotation "
+                           f"{fmt.rotation}), got {len(numbers)}", path=path)
+    return _named(dict(zip(order, numbers)), fmt, scale, path)
+
+
+def _named(values: Mapping, fmt: PoseFormat, scale: float, path: Path) -> np.ndarray:
+    if fmt.rotation == "matrix":
+        raise DatasetError("expected a 4x4 array or 16 numbers for rotation: matrix, got an "
+                           "object of named numbers", path=path)
+    if not _numeric_mapping(values):
+        raise DatasetError("expected an object of named numbers", path=path)
+    need = fmt.order
+    missing = [n for n in need if n not in values]
+    if missing:
+        raise DatasetError(f"expected the numbers {', '.join(need)} (rotation {fmt.rotation}), "
+                           f"missing {', '.join(missing)}", path=path)
+    v = {n: float(values[n]) for n in need}
+    if not all(np.isfinite(list(v.values()))):
+        raise DatasetError("expected finite numbers, got nan or inf", path=path)
+    T = geometry.make_transform(_rotation(fmt.rotation, v, path),
+                                np.array([v["x"], v["y"], v["z"]]) * scale)
+    return _checked(T, path)
+
+
+def _checked(T: np.ndarray, path: Path) -> np.ndarray:
+    if not np.all(np.abs(T[:3, 3]) <= MAX_POSITION_M):
+        raise DatasetError(f"absurd position: {np.abs(T[:3, 3]).max():g} m, beyond "
+                           f"{MAX_POSITION_M:g} m (mocap.unit?)", path=path)
+    return T
+
+
+def _natural(path: Path) -> tuple:
+    """Sort key: ``pos2`` before ``pos10``."""
+    return tuple((0, int(t), "") if t.isdigit() else (1, 0, t)
+                 for t in re.split(r"(\d+)", path.name) if t)
+
+
+def poses_by_name(images: Sequence[Path], pattern: str, fmt: PoseFormat
+                  ) -> tuple[list[tuple[Path, np.ndarray]], list[tuple[str, str]]]:
+    """Each image with the pose of its file (``pattern`` with ``{stem}``, beside the image).
+
+    Returns
+    -------
+    matched : list of (image, 4x4 pose)
+        In natural name order (``pos2`` before ``pos10``).
+    unmatched : list of (name, reason)
+        Images without a pose file, and pose files (names that fit ``pattern``) without an
+        image.
+
+    Raises
+    ------
+    DatasetError
+        A pose file that cannot be read (:func:`read_pose_file`).
+    """
+    matched, unmatched, stems = [], [], set()
+    for image in sorted(images, key=_natural):
+        stems.add((image.parent, image.stem))
+        pose = pose_file_pattern(pattern, image)
+        if pose.is_file():
+            matched.append((image, read_pose_file(pose, fmt)))
+        else:
+            unmatched.append((image.name, f"no pose file {pose.name}"))
+    head, _, tail = pattern.partition(STEM)
+    fits = re.compile(re.escape(head) + "(.+)" + re.escape(tail.replace(STEM, "*")) + "$")
+    for folder in sorted({image.parent for image in images}):
+        for p in sorted(folder.glob(pattern.replace(STEM, "*")), key=_natural):
+            rel = p.relative_to(folder).as_posix()
+            m = fits.match(rel)
+            if p.is_file() and m and (folder, m.group(1)) not in stems:
+                unmatched.append((rel, f"pose file without an image {m.group(1)}.*"))
+    return matched, unmatched

@@ -1,0 +1,138 @@
+"""One pose file beside each image (issue 14, item 1): every format and rotation convention
+against scipy's Rotation, and every bad file as one line naming it."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from multieye.core.errors import DatasetError
+from multieye.io.pose_files import (
+    PoseFormat,
+    check_rotation,
+    check_values,
+    read_pose_file,
+)
+
+R_TRUE = Rotation.from_euler("xyz", [30.0, -50.0, 120.0], degrees=True)
+T_TRUE = np.eye(4)
+T_TRUE[:3, :3] = R_TRUE.as_matrix()
+T_TRUE[:3, 3] = [0.5, -0.2, 1.25]
+
+
+def _write(tmp_path, name, content):
+    p = tmp_path / name
+    p.write_text(content if isinstance(content, str) else json.dumps(content))
+    return p
+
+
+def _text(numbers):
+    return "\n".join(f"{v:.12g}" for v in numbers) + "\n"
+
+
+@pytest.mark.parametrize("rotation, numbers", [
+    ("quaternion-xyzw", list(R_TRUE.as_quat())),
+    ("quaternion-wxyz", list(np.roll(R_TRUE.as_quat(), 1))),
+    ("rotvec", list(R_TRUE.as_rotvec())),
+    ("euler-xyz-deg", list(R_TRUE.as_euler("xyz", degrees=True))),
+    ("euler-ZYX-rad", list(R_TRUE.as_euler("ZYX"))),
+    ("euler-zyz-deg", list(R_TRUE.as_euler("zyz", degrees=True))),
+])
+@pytest.mark.parametrize("unit", ["m", "mm"])
+def test_plain_numbers_every_rotation(tmp_path, rotation, numbers, unit):
+    scale = 1000.0 if unit == "mm" else 1.0
+    p = _write(tmp_path, "pos3.txt", _text(list(T_TRUE[:3, 3] * scale) + numbers))
+    T = read_pose_file(p, PoseFormat(rotation=rotation, unit=unit))
+    np.testing.assert_allclose(T, T_TRUE, atol=1e-9)
+
+
+def test_values_give_the_order(tmp_path):
+    """Open3DV's pos<k>.txt: Rx Ry Rz (degrees, extrinsic xyz) then X Y Z in millimetres."""
+    angles = R_TRUE.as_euler("xyz", degrees=True)
+    p = _write(tmp_path, "pos0.txt", _text(list(angles) + list(T_TRUE[:3, 3] * 1000)))
+    fmt = PoseFormat(rotation="euler-xyz-deg", values=("rx", "ry", "rz", "x", "y", "z"),
+                     unit="mm")
+    np.testing.assert_allclose(read_pose_file(p, fmt), T_TRUE, atol=1e-9)
+    # euler angles named by axis follow the axes, whatever the sequence
+    zyx = R_TRUE.as_euler("zyx")                       # angles about z, y, x
+    p = _write(tmp_path, "a.txt", _text([zyx[2], zyx[1], zyx[0], *T_TRUE[:3, 3]]))
+    fmt = PoseFormat(rotation="euler-zyx-rad", values=("rx", "ry", "rz", "x", "y", "z"))
+    np.testing.assert_allclose(read_pose_file(p, fmt), T_TRUE, atol=1e-9)
+    q = R_TRUE.as_quat()
+    p = _write(tmp_path, "b.csv", f"{q[3]}, {q[0]}, {q[1]}, {q[2]}, 0.5, -0.2, 1.25")
+    fmt = PoseFormat(values=("qw", "qx", "qy", "qz", "x", "y", "z"))
+    np.testing.assert_allclose(read_pose_file(p, fmt), T_TRUE, atol=1e-9)
+
+
+def test_matrices(tmp_path):
+    p = _write(tmp_path, "12.json", {"end2base": T_TRUE.tolist(), "joint_angles": [0] * 6})
+    np.testing.assert_allclose(read_pose_file(p, PoseFormat(key="end2base")), T_TRUE, atol=1e-12)
+    p = _write(tmp_path, "13.json", {"pose": {"matrix": T_TRUE[:3].tolist()}})
+    np.testing.assert_allclose(read_pose_file(p, PoseFormat(key="pose.matrix")), T_TRUE,
+                               atol=1e-12)
+    p = _write(tmp_path, "14.txt", _text(T_TRUE.ravel()))        # 16 numbers: a matrix
+    np.testing.assert_allclose(read_pose_file(p, PoseFormat()), T_TRUE, atol=1e-9)
+    mm = T_TRUE.copy()
+    mm[:3, 3] *= 1000
+    p = _write(tmp_path, "15.txt", _text(mm[:3].ravel()))
+    np.testing.assert_allclose(read_pose_file(p, PoseFormat(rotation="matrix", unit="mm")),
+                               T_TRUE, atol=1e-9)
+
+
+def test_json_object_of_named_numbers(tmp_path):
+    rx, ry, rz = R_TRUE.as_euler("xyz")
+    p = _write(tmp_path, "1.json", {"end_xyzrpy": {"x": 0.5, "y": -0.2, "z": 1.25, "rx": rx,
+                                                   "ry": ry, "rz": rz}})
+    fmt = PoseFormat(rotation="euler-xyz-rad", key="end_xyzrpy",
+                     values=("x", "y", "z", "rx", "ry", "rz"))
+    np.testing.assert_allclose(read_pose_file(p, fmt), T_TRUE, atol=1e-9)
+    p = _write(tmp_path, "2.json", {"x": 0.5, "y": -0.2, "z": 1.25,
+                                    **dict(zip(("qx", "qy", "qz", "qw"), R_TRUE.as_quat()))})
+    np.testing.assert_allclose(read_pose_file(p, PoseFormat()), T_TRUE, atol=1e-9)
+    p = _write(tmp_path, "3.json", list(T_TRUE[:3, 3]) + list(R_TRUE.as_quat()))
+    np.testing.assert_allclose(read_pose_file(p, PoseFormat()), T_TRUE, atol=1e-9)
+
+
+def test_rotation_and_values_names_are_checked():
+    assert check_rotation("euler-XYZ-deg") == "euler-XYZ-deg"
+    for bad in ("euler", "euler-xyz", "euler-xxz-deg", "euler-xYz-deg", "quaternion", 3):
+        with pytest.raises(ValueError, match="expected|must not repeat"):
+            check_rotation(bad)
+    assert check_values(["rx", "ry", "rz", "x", "y", "z"], "euler-xyz-deg")
+    with pytest.raises(ValueError, match="expected each of x, y, z, a1, a2, a3 once"):
+        check_values(["rx", "ry", "rz", "x", "y", "z"], "euler-zyz-deg")
+    with pytest.raises(ValueError, match="qw, qx, qy, qz"):
+        check_values(["x", "y", "z", "qx", "qy", "qz"], "quaternion-xyzw")
+    with pytest.raises(ValueError, match="leave out 'values'"):
+        check_values(["x"], "matrix")
+
+
+@pytest.mark.parametrize("name, content, fmt, message", [
+    ("a.json", {"pose": [1, 2]}, PoseFormat(key="end2base"),
+     "no key 'end2base' \\(mocap.key\\); its keys: pose"),
+    ("a.json", {"end2base": [[1, 0, 0, 0]] * 3 + [[0, 0, 0, 1]]}, PoseFormat(key="end2base"),
+     "expected a rotation matrix \\(orthonormal, det 1\\)"),
+    ("a.json", {"end2base": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}, PoseFormat(key="end2base"),
+     "expected a 4x4 \\(or 3x4\\) array, got rows of \\[3\\] numbers"),
+    ("a.json", {"p": 1}, PoseFormat(key="p"), "expected the pose as numbers"),
+    ("a.json", "{not json", PoseFormat(), "not a JSON file"),
+    ("a.json", {"a": [1]}, PoseFormat(), "give mocap.key"),
+    ("a.txt", "1 2 3 4 5 6 7\n", PoseFormat(rotation="euler-xyz-deg"),
+     "expected 6 numbers \\(x y z a1 a2 a3; rotation euler-xyz-deg\\), got 7"),
+    ("a.txt", "1 2 3 0 0 0 2\n", PoseFormat(), "quaternion \\(qx qy qz qw\\) must have unit norm"),
+    ("a.txt", "1 2 x 0 0 0 1\n", PoseFormat(), "expected numbers only, got 'x'"),
+    ("a.txt", "1 2 nan 0 0 0 1\n", PoseFormat(), "expected finite numbers"),
+    ("a.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n0 0 0 2\n", PoseFormat(), "last row is 0 0 0 1"),
+    ("a.txt", "1 2 3 4 5 6 7 8 9\n", PoseFormat(rotation="matrix"),
+     "expected 16 numbers \\(a 4x4 pose, row-major\\) or 12"),
+    ("a.txt", "1e9 0 0 0 0 0 1\n", PoseFormat(unit="mm"), "absurd position"),
+    ("a.json", {"x": 1, "y": 2, "z": 3}, PoseFormat(), "missing qx, qy, qz, qw"),
+])
+def test_bad_pose_files_name_the_file(tmp_path, name, content, fmt, message):
+    p = _write(tmp_path, name, content)
+    with pytest.raises(DatasetError, match=message) as info:
+        read_pose_file(p, fmt)
+    assert str(info.value).startswith(str(p)) and "\n" not in str(info.value)
