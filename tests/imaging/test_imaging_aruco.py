@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from multieye.core.errors import DatasetError
+from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.detect import detect
 from multieye.imaging.pnp import estimate_pose
 from multieye.imaging.targets import ArucoGrid, ArucoMarker, target_from_spec
-from multieye.core.intrinsics import Intrinsics
 
 H = np.array([[0.8, 0.1, 60.0], [0.05, 0.9, 40.0], [2e-4, 1e-4, 1.0]])
 

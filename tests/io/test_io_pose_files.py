@@ -136,3 +136,46 @@ def test_bad_pose_files_name_the_file(tmp_path, name, content, fmt, message):
     with pytest.raises(DatasetError, match=message) as info:
         read_pose_file(p, fmt)
     assert str(info.value).startswith(str(p)) and "\n" not in str(info.value)
+
+
+def test_pose_table_matched_by_image_name(tmp_path):
+    """OptiTrack-style w x y z quaternions in a table with an image column."""
+    from multieye.io.pose_files import poses_by_table, read_pose_table
+
+    q = R_TRUE.as_quat()
+    t = tmp_path / "poses.csv"
+    t.write_text("# exported\nImage, QW, QX, QY, QZ, X, Y, Z\n"
+                 f"3.png, {q[3]}, {q[0]}, {q[1]}, {q[2]}, 500, -200, 1250\n"
+                 f"4, 1, 0, 0, 0, 0, 0, 0\n"
+                 f"9, 1, 0, 0, 0, 0, 0, 0\n")
+    fmt = PoseFormat(rotation="quaternion-wxyz", unit="mm")
+    rows = read_pose_table(t, fmt)
+    np.testing.assert_allclose(rows["3.png"][0], T_TRUE, atol=1e-9)
+    assert rows["4"][1] == 4
+    images = [tmp_path / n for n in ("4.png", "3.png", "10.png")]
+    matched, unmatched = poses_by_table(images, t, fmt)
+    assert [p.name for p, _ in matched] == ["3.png", "4.png"]
+    assert unmatched == [("10.png", "no row for it in poses.csv"),
+                         ("poses.csv line 5", "pose row without an image: 9")]
+    # without names the numbers follow values; 16 numbers a matrix
+    t.write_text("image " + " ".join(f"c{i}" for i in range(16)) + "\n3 "
+                 + " ".join(map(str, T_TRUE.ravel())) + "\n")
+    np.testing.assert_allclose(read_pose_table(t, PoseFormat())["3"][0], T_TRUE, atol=1e-9)
+
+
+@pytest.mark.parametrize("content, message, line", [
+    ("name x y z qx qy qz qw\n", "expected a header with a column 'image'", 1),
+    ("image x y z qx qy qz qw\na 1 2 3 0 0 0\n", "expected 8 cells", 2),
+    ("image x y z qx qy qz qw\na 1 2 3 0 0 0 1\na 1 2 3 0 0 0 1\n",
+     "image a has a pose on line 2 already", 3),
+    ("image x y z qx qy qz qw\na 1 2 3 0 0 0 2\n", "quaternion", 2),
+    ("image x y z qx qy qz qw\na 1 2 b 0 0 0 1\n", "expected numbers besides the image name", 2),
+    ("image u v w\na 1 2 3\n", "expected the columns x, y, z, qx, qy, qz, qw besides image", 2),
+])
+def test_bad_pose_tables(tmp_path, content, message, line):
+    from multieye.io.pose_files import read_pose_table
+
+    t = _write(tmp_path, "poses.txt", content)
+    with pytest.raises(DatasetError, match=message) as info:
+        read_pose_table(t, PoseFormat())
+    assert info.value.line == line and str(info.value).startswith(f"{t}:{line}:")

@@ -77,6 +77,36 @@ def test_by_name_gives_the_time_paired_result(rendered, tmp_path, mocap, write):
     assert all(c.rejected == () for c in by_name.record.cameras)
 
 
+def test_table_matched_by_image_name(rendered, tmp_path):
+    """One table, rows matched by the image column: OptiTrack's w x y z quaternions, mm."""
+    rows = []
+
+    def collect(path, T):
+        q = Rotation.from_matrix(T[:3, :3]).as_quat()
+        rows.append(f"{path.name}.png"
+                    f",{q[3]:.12f},{q[0]:.12f},{q[1]:.12f},{q[2]:.12f}"
+                    + "".join(f",{v * 1000:.9f}" for v in T[:3, 3]))
+
+    ds = _by_name(rendered, tmp_path / "ds", "{file: cam0/poses.csv, match: image, "
+                  "values: [qw, qx, qy, qz, x, y, z], rotation: quaternion-wxyz, unit: mm}",
+                  collect)
+    n0 = len(list((ds / "cam0").glob("*.png")))
+    (ds / "cam0" / "poses.csv").write_text("image,qw,qx,qy,qz,x,y,z\n" + "\n".join(rows[:n0])
+                                           + "\n")
+    (ds / "cam1" / "poses.csv").write_text("image,qw,qx,qy,qz,x,y,z\n" + "\n".join(rows[n0:])
+                                           + "\nimg77.png,1,0,0,0,0,0,0\n")
+    text = (ds / "rig.yaml").read_text().replace(
+        "images: cam1/}", "images: cam1/, mocap: {file: cam1/poses.csv}}")
+    (ds / "rig.yaml").write_text(text)
+    in_time = calibrate(rendered, processes=1)
+    by_name = calibrate(ds, processes=1)
+    for a, b in zip(in_time.closed_form.X, by_name.closed_form.X):
+        np.testing.assert_allclose(a, b, atol=1e-6)
+    assert by_name.record.cameras[0].rejected == ()
+    assert [(r.item, r.reason) for r in by_name.record.cameras[1].rejected] == [
+        (f"poses.csv line {len(rows) - n0 + 2}", "pose row without an image: img77.png")]
+
+
 def test_missing_and_orphan_pose_files_are_listed(rendered, tmp_path):
     ds = _by_name(rendered, tmp_path / "ds", '{file: "{stem}.json", key: end2base}', _json)
     (ds / "cam0" / "img3.json").unlink()
@@ -141,6 +171,11 @@ def test_bad_pose_files_exit_2_naming_the_file(tmp_path, mocap, content, expecte
     ('{file: cam0/mocap.txt, key: end2base}',
      "rig.yaml:3: mocap.key: applies to pose-files sources only (this one is tum)"),
     ('{file: "{stem}.txt", format: tum}', "mocap.format: a file name with {stem}"),
+    ('{file: cam0/mocap.txt, match: name}', "rig.yaml:3: mocap.match: expected one of time, image"),
+    ('{file: cam0/mocap.txt, match: image, format: tum}',
+     "mocap.match: match: image reads a table with an 'image' column; leave out 'format'"),
+    ('{file: cam0/mocap.txt, match: image}',
+     "cam0/mocap.txt:1: camera cam0: expected a header with a column 'image' (match: image)"),
 ])
 def test_bad_pose_file_keys_exit_2_at_their_line(tmp_path, mocap, expected):
     ds = _bad_dataset(tmp_path, mocap, {"mocap.txt": "0 0 0 0 0 0 0 1\n"})

@@ -71,6 +71,9 @@ class MocapSpec:
         ``pose-files`` (``file`` is a pattern with ``{stem}``, relative to each camera's image
         folder): the JSON key of the pose, the order of plain numbers and the rotation
         convention (:mod:`multieye.io.pose_files`).
+    match : {"time", "image"}
+        ``image``: ``file`` is a table whose ``image`` column names the image of each pose
+        (``pose-table``); ``values``, ``rotation`` and ``unit`` read its numbers.
     """
 
     file: Path
@@ -89,12 +92,14 @@ class MocapSpec:
     key: str | None = None
     values: tuple[str, ...] | None = None
     rotation: str = "quaternion-xyzw"
+    match: str = "time"
 
     @property
     def by_name(self) -> bool:
-        """One pose file beside each image (``file`` holds ``{stem}``), paired by name;
-        :func:`multieye.io.pose_files.read_pose_file` reads them, not :func:`read_mocap`."""
-        return STEM in str(self.file)
+        """Paired with the images by name: one pose file beside each image (``file`` holds
+        ``{stem}``), or a table with an ``image`` column (``match == "image"``);
+        :mod:`multieye.io.pose_files` reads them, not :func:`read_mocap`."""
+        return STEM in str(self.file) or self.match == "image"
 
     @property
     def moving_frame(self) -> str:
@@ -143,8 +148,8 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
         raise InputError(f"MocapSpec.pose: {exc}") from None
     fmt = spec.format
     if spec.by_name:
-        raise InputError("read_mocap reads one file; pose files beside each image ({stem}) are "
-                         "read by multieye.io.pose_files.read_pose_file")
+        raise InputError("read_mocap reads poses stamped in time; poses matched by image name "
+                         "are read by multieye.io.pose_files")
     if fmt not in MOCAP_FORMATS:
         raise DatasetError(f"motion-capture format must be one of {', '.join(MOCAP_FORMATS)}, "
                            f"got {fmt!r}", path=spec.file)

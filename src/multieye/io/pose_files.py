@@ -39,7 +39,8 @@ from multieye.core.limits import MAX_POSITION_M
 from multieye.io.textfile import length_scale
 
 __all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
-           "read_pose_file", "pose_file_pattern", "poses_by_name"]
+           "read_pose_file", "pose_file_pattern", "poses_by_name", "read_pose_table",
+           "poses_by_table"]
 
 #: The placeholder of ``mocap.file`` for the image's stem.
 STEM = "{stem}"
@@ -310,4 +311,104 @@ def poses_by_name(images: Sequence[Path], pattern: str, fmt: PoseFormat
             m = fits.match(rel)
             if p.is_file() and m and (folder, m.group(1)) not in stems:
                 unmatched.append((rel, f"pose file without an image {m.group(1)}.*"))
+    return matched, unmatched
+
+
+def read_pose_table(path: str | os.PathLike, fmt: PoseFormat) -> dict[str, tuple[np.ndarray, int]]:
+    """A table of poses with an ``image`` column (``match: image``): image name -> (pose, line).
+
+    The first line that is not a comment (``#``) is the header; cells are separated by
+    commas, else semicolons, else white space. Besides ``image`` (any case), the columns are
+    the names of ``values`` (any order, any case), else 16 (or 12) numbers of a matrix, else
+    the numbers in the order of ``values``.
+
+    Raises
+    ------
+    DatasetError
+        No ``image`` column, the wrong count of cells, a bad pose or an image named twice;
+        the message names the file and the line.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig", errors="replace")
+    except OSError as exc:
+        raise DatasetError(f"cannot read the pose table: {exc.strerror or exc}",
+                           path=path) from None
+    rows = [(n, line) for n, line in enumerate(text.splitlines(), 1)
+            if line.strip() and not line.lstrip().startswith("#")]
+    if not rows:
+        raise DatasetError("empty pose table: expected a header with an 'image' column",
+                           path=path)
+    head_line, head = rows[0]
+    sep = "," if "," in head else ";" if ";" in head else None
+    names = [c.strip().lower() for c in (head.split(sep) if sep else head.split())]
+    if "image" not in names:
+        raise DatasetError(f"expected a header with a column 'image' (match: image), got "
+                           f"{', '.join(names)}", path=path, line=head_line)
+    col = names.index("image")
+    others = [n for i, n in enumerate(names) if i != col]
+    by_name = set(fmt.order) <= set(others) and fmt.rotation != "matrix"
+    out: dict[str, tuple[np.ndarray, int]] = {}
+    scale = length_scale(fmt.unit)
+    for n, line in rows[1:]:
+        cells = [c.strip() for c in (line.split(sep) if sep else line.split())]
+        if len(cells) != len(names):
+            raise DatasetError(f"expected {len(names)} cells ({', '.join(names)}), got "
+                               f"{len(cells)}", path=path, line=n)
+        image = cells.pop(col)
+        try:
+            numbers = [float(c) for c in cells]
+        except ValueError:
+            bad = next(c for c in cells if not _is_number(c))
+            raise DatasetError(f"expected numbers besides the image name, got {bad!r}",
+                               path=path, line=n) from None
+        try:
+            if by_name:
+                T = _named(dict(zip(others, numbers)), fmt, scale, path)
+            elif fmt.rotation == "matrix" or (len(numbers) == 16 and fmt.values is None):
+                if len(numbers) not in (12, 16):
+                    raise DatasetError(f"expected 16 numbers (a 4x4 pose, row-major) or 12, got "
+                                       f"{len(numbers)}", path=path)
+                T = _checked(_matrix(numbers, scale, path), path)
+            elif len(numbers) != len(fmt.order):
+                raise DatasetError(f"expected the columns {', '.join(fmt.order)} besides "
+                                   f"image (rotation {fmt.rotation}), got {', '.join(others)}",
+                                   path=path)
+            else:
+                T = _named(dict(zip(fmt.order, numbers)), fmt, scale, path)
+        except DatasetError as exc:
+            raise DatasetError(exc.reason, path=path, line=n) from None
+        if image in out:
+            raise DatasetError(f"image {image} has a pose on line {out[image][1]} already",
+                               path=path, line=n)
+        out[image] = (T, n)
+    return out
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
+
+
+def poses_by_table(images: Sequence[Path], table: str | os.PathLike, fmt: PoseFormat
+                   ) -> tuple[list[tuple[Path, np.ndarray]], list[tuple[str, str]]]:
+    """Each image with the row of ``table`` whose ``image`` cell is its name or its stem;
+    returns what :func:`poses_by_name` returns (rows without an image are listed as
+    ``<table> line <n>``)."""
+    rows = read_pose_table(table, fmt)
+    matched, unmatched, used = [], [], set()
+    for image in sorted(images, key=_natural):
+        cell = image.name if image.name in rows else image.stem if image.stem in rows else None
+        if cell is None:
+            unmatched.append((image.name, f"no row for it in {Path(table).name}"))
+        else:
+            used.add(cell)
+            matched.append((image, rows[cell][0]))
+    for cell, (_, line) in rows.items():
+        if cell not in used:
+            unmatched.append((f"{Path(table).name} line {line}",
+                              f"pose row without an image: {cell}"))
     return matched, unmatched

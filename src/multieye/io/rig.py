@@ -101,10 +101,11 @@ _TARGET_ONLY = {"marker_size": ("charuco", "aruco", "aruco-grid"),
 #: owns (``first_id`` is optional).
 _TARGET_GRID = {"aruco": (), "aruco-grid": ("rows", "cols")}
 _TARGET_OPTIONAL = ("first_id",)
-_MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-files"),
+_MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-files", "pose-table"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv"),
-               "key": ("pose-files",), "values": ("pose-files",), "rotation": ("pose-files",)}
+               "key": ("pose-files",), "values": ("pose-files", "pose-table"),
+               "rotation": ("pose-files", "pose-table")}
 _SOURCES = ("images", "poses", "rosbag")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
@@ -112,7 +113,7 @@ _SOURCES = ("images", "poses", "rosbag")
 TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
 TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
 MOCAP_KEYS = ("file", "pose", "time_tolerance", "format", "rotation_noise_deg",
-              "translation_noise_m") + tuple(_MOCAP_ONLY)
+              "translation_noise_m", "match") + tuple(_MOCAP_ONLY)
 #: Roles of ``mocap.columns`` (csv sources).
 MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 #: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
@@ -335,13 +336,21 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
             raise c.error("a file name with {stem} is one pose file beside each image; leave "
                           "out 'format'", at("format"))
         fmt, file = "pose-files", Path(c.string(raw["file"], at("file")))
+    if c.choice(raw.get("match", "time"), at("match") if "match" in raw else where,
+                ("time", "image")) == "image":
+        if fmt is not None:
+            raise c.error(f"match: image reads a table with an 'image' column; leave out "
+                          f"'format'{' and {stem}' if fmt == 'pose-files' else ''}", at("match"))
+        fmt, file = "pose-table", c.path(raw["file"], at("file"), "file")
+    elif fmt == "pose-files":
+        pass
     elif fmt == "rosbag" or fmt is None:
         file = c.path(raw["file"], at("file"), "file or bag")
     else:
         file = c.path(raw["file"], at("file"), "file")
     if fmt is None:
         fmt = sniff_mocap_format(file)
-    kw = {}
+    kw = {"match": "image"} if fmt == "pose-table" else {}
     for key, formats in _MOCAP_ONLY.items():
         if key in raw and fmt not in formats:
             raise c.error(f"applies to {', '.join(formats)} sources only (this one is {fmt})",
@@ -402,6 +411,8 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
         fmt = own.get("format")
         if STEM in str(own["file"]):
             fmt = "pose-files"
+        elif own.get("match", top_raw.get("match")) == "image":   # a table like the rig's
+            fmt = "pose-table"
         elif fmt is None:
             fmt = sniff_mocap_format(c.path(own["file"], where + ("file",), "file or bag"))
         if fmt != top_spec.format:
@@ -526,7 +537,8 @@ def load_rig(path: str | os.PathLike) -> Rig:
             raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
                           "key to this camera", ("cameras", name))
         if (cam.mocap or mocap).by_name and cam.source != "images":
-            raise c.error("pose files beside each image ({stem}) need a folder of 'images'",
+            raise c.error("poses matched by image name ({stem} or match: image) need a "
+                          "folder of 'images'",
                           ("cameras", name))
         cameras[cam.name] = cam
     target = None

@@ -353,17 +353,19 @@ def _poses_by_name(name: str, folder: Path, spec) -> tuple[Trajectory, list, lis
     file as ``(stamp, ns, path)``, and what has no partner, with the reason."""
     from multieye.io import list_image_files
     from multieye.io.mocap import pose_frames
-    from multieye.io.pose_files import PoseFormat, poses_by_name
+    from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
 
     fmt = PoseFormat(rotation=spec.rotation, values=spec.values, key=spec.key,
                      unit=spec.unit or "m")
     try:
-        matched, unmatched = poses_by_name(list_image_files(folder), str(spec.file), fmt)
+        images = list_image_files(folder)
+        matched, unmatched = (poses_by_table(images, spec.file, fmt) if spec.match == "image"
+                              else poses_by_name(images, str(spec.file), fmt))
     except DatasetError as exc:
         raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=name) from None
     rejected = [RejectedItem(item, reason) for item, reason in unmatched]
     if not matched:
-        raise DatasetError(f"no image has its pose file {spec.file} beside it"
+        raise DatasetError(f"no image has its pose in {spec.file}"
                            + (f" (first: {rejected[0].item}: {rejected[0].reason})"
                               if rejected else ""), path=folder, camera=name)
     parent, child = pose_frames(spec.pose)
