@@ -12,7 +12,11 @@ without the dataset:
 - the motion-capture trajectories (positions only) over the span of the used images,
   subsampled to at most a few thousand points;
 - ``timings_s``: seconds spent per stage of the run (:class:`StageTimings`); files written
-  before it existed do not have it.
+  before it existed do not have it;
+- per camera, where the target was seen and how well it fits (the target points of every used
+  image and their reprojection residuals), the intrinsics' covariance when they were
+  estimated and the projection's uncertainty over the image (:mod:`multieye.io.pixel_details`);
+  files written before these existed read with them as None.
 
 Frames (docs/conventions.md, section 2), for the world pictures:
 
@@ -51,9 +55,17 @@ from typing import Any
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.intrinsics import Intrinsics
+from multieye.core.intrinsics import Intrinsics, parameter_names
 from multieye.io.atomic import write_text_atomic
 from multieye.io.calibration_json import SETUP_KEYS
+from multieye.io.pixel_details import (
+    ImagePoints,
+    ProjectionStd,
+    points_from_dict,
+    points_to_dict,
+    projection_from_dict,
+    projection_to_dict,
+)
 from multieye.io.textfile import read_json
 
 __all__ = [
@@ -61,6 +73,8 @@ __all__ = [
     "VERSION",
     "TrajectoryDetails",
     "CameraDetails",
+    "ImagePoints",
+    "ProjectionStd",
     "RunDetails",
     "StageTimings",
     "TIMING_KEYS",
@@ -128,6 +142,17 @@ class CameraDetails:
         The target in the world at each measurement (module docstring).
     diagnostics : mapping
         Free-form, JSON-compatible values (e.g. weak-motion diagnostics); empty when none.
+    points : ImagePoints or None
+        The target points of the used images and their reprojection residuals; None for a
+        camera given by poses, and in files written before it existed.
+    intrinsics_estimated : bool or None
+        Whether the intrinsics were estimated from the recording; None when the file does
+        not say (written before it existed).
+    intrinsics_covariance : ndarray, shape (p, p), or None
+        Covariance of ``intrinsics.params`` (fx fy cx cy, then the distortion) when they were
+        estimated by the joint refinement.
+    projection_std : ProjectionStd or None
+        Standard deviation of the projection over the image, from that covariance.
     """
 
     name: str
@@ -141,6 +166,10 @@ class CameraDetails:
     rms_px: np.ndarray
     T_world_target: np.ndarray
     diagnostics: Mapping[str, Any] = field(default_factory=dict)
+    points: ImagePoints | None = None
+    intrinsics_estimated: bool | None = None
+    intrinsics_covariance: np.ndarray | None = None
+    projection_std: ProjectionStd | None = None
 
 
 @dataclass(frozen=True)
@@ -246,11 +275,18 @@ def _floats(a) -> list:
     return [_floats(x) for x in a]
 
 
-def _intrinsics_dict(intr: Intrinsics | None):
+def _intrinsics_dict(c: CameraDetails):
+    intr = c.intrinsics
     if intr is None:
         return None
-    return {"model": intr.model, "K": _floats(intr.K), "dist": _floats(intr.dist),
-            "width": intr.width, "height": intr.height}
+    out = {"model": intr.model, "K": _floats(intr.K), "dist": _floats(intr.dist),
+           "width": intr.width, "height": intr.height}
+    if c.intrinsics_estimated is not None:
+        out["estimated"] = bool(c.intrinsics_estimated)
+    if c.intrinsics_covariance is not None:
+        out["parameters"] = list(parameter_names(intr))
+        out["covariance"] = _floats(c.intrinsics_covariance)
+    return out
 
 
 def run_details_to_dict(details: RunDetails) -> dict:
@@ -259,7 +295,7 @@ def run_details_to_dict(details: RunDetails) -> dict:
     for c in details.cameras:
         cameras[c.name] = {
             "T_world_cam": _floats(c.T_world_cam),
-            "intrinsics": _intrinsics_dict(c.intrinsics),
+            "intrinsics": _intrinsics_dict(c),
             "trajectory": c.trajectory,
             "measurements": {
                 "name": list(c.names), "stamp": _floats(c.stamps), "rot_deg": _floats(c.rot_deg),
@@ -268,6 +304,10 @@ def run_details_to_dict(details: RunDetails) -> dict:
             },
             "diagnostics": json_value(c.diagnostics, f"diagnostics of camera {c.name}"),
         }
+        if c.points is not None:
+            cameras[c.name]["points"] = points_to_dict(c.points)
+        if c.projection_std is not None:
+            cameras[c.name]["projection_std"] = projection_to_dict(c.projection_std)
     out = {
         "format": FORMAT, "version": VERSION, "setup": details.setup,
         "reference_camera": details.reference_camera,
@@ -330,6 +370,20 @@ def _read_intrinsics(r: _Reader, obj, name: str) -> Intrinsics | None:
         raise r.error(f"intrinsics: {exc}", name) from None
 
 
+def _read_estimated(r: _Reader, obj, intr: Intrinsics | None, name: str):
+    """``intrinsics.estimated`` and ``intrinsics.covariance`` (both optional)."""
+    if intr is None:
+        return None, None
+    estimated = obj.get("estimated")
+    if estimated is not None and not isinstance(estimated, bool):
+        raise r.error(f"intrinsics.estimated must be true or false, got {estimated!r}", name)
+    cov = obj.get("covariance")
+    if cov is not None:
+        n = intr.params.size
+        cov = r.array(cov, (n, n), "intrinsics.covariance", name)
+    return estimated, cov
+
+
 def _read_timings(r: _Reader, obj) -> StageTimings | None:
     """``timings_s``: absent (older files) or every key a finite non-negative number."""
     if obj is None:
@@ -353,8 +407,9 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
     ------
     DatasetError
         Another format or version, missing keys, wrong shapes, lengths that disagree between a
-        camera's measurement columns, a trajectory index out of range, or ``timings_s``
-        (optional) without every stage as a non-negative number.
+        camera's measurement columns, a trajectory index out of range, ``timings_s``
+        (optional) without every stage as a non-negative number, or malformed optional
+        ``points``, ``projection_std`` or intrinsics covariance.
     """
     r = _Reader(path)
     if not isinstance(data, Mapping) or data.get("format") != FORMAT:
@@ -405,13 +460,17 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
         diagnostics = c.get("diagnostics") or {}
         if not isinstance(diagnostics, Mapping):
             raise r.error("diagnostics must be an object", name)
+        intr = _read_intrinsics(r, c.get("intrinsics"), name)
+        estimated, intr_cov = _read_estimated(r, c.get("intrinsics"), intr, name)
         cameras.append(CameraDetails(
             name=str(name),
             T_world_cam=r.array(r.get(c, "T_world_cam", where, name), (4, 4), "T_world_cam", name),
-            intrinsics=_read_intrinsics(r, c.get("intrinsics"), name), trajectory=k,
+            intrinsics=intr, trajectory=k,
             names=tuple(names), stamps=cols["stamp"], rot_deg=cols["rot_deg"],
             trans_m=cols["trans_m"], rms_px=cols["rms_px"], T_world_target=T_wt,
-            diagnostics=dict(diagnostics)))
+            diagnostics=dict(diagnostics), points=points_from_dict(r, c.get("points"), n, name),
+            intrinsics_estimated=estimated, intrinsics_covariance=intr_cov,
+            projection_std=projection_from_dict(r, c.get("projection_std"), name)))
     if reference not in cams_raw:
         raise r.error(f"reference camera {reference!r} is not one of {', '.join(cams_raw)}")
     return RunDetails(setup=setup, reference_camera=reference, cameras=tuple(cameras),

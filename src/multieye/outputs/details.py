@@ -1,7 +1,10 @@
 """``details.json`` from a calibration run: the evidence behind ``calibration.json``.
 
 The format, its frames and its reader live in :mod:`multieye.io.run_details`; this module
-collects the details from a :class:`~multieye.pipeline.CalibrationRun`.
+collects the details from a :class:`~multieye.pipeline.CalibrationRun`: per camera also the
+target points of the used images with their reprojection residuals (:func:`image_points`) and,
+for estimated intrinsics, their covariance and the projection's uncertainty over the image
+(:func:`projection_std_grid`).
 
 Synopsis
 --------
@@ -18,8 +21,12 @@ from typing import Any
 
 import numpy as np
 
+from multieye.core import geometry as g
 from multieye.core.errors import InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.core.lens import project_points, project_with_jacobian, undistort_points
 from multieye.core.metrics import loop_residuals
+from multieye.io.pixel_details import MAX_POINTS, ImagePoints, ProjectionStd
 from multieye.io.run_details import (
     TRAJECTORY_MARGIN_S,
     CameraDetails,
@@ -30,7 +37,113 @@ from multieye.io.run_details import (
 )
 from multieye.pipeline import CalibrationRun
 
-__all__ = ["run_details", "write_run_details"]
+__all__ = ["run_details", "write_run_details", "image_points", "projection_std_grid"]
+
+#: Cells across the image of the projection-uncertainty grid.
+GRID_COLUMNS = 32
+
+
+def _camera_index(run: CalibrationRun, name: str) -> int:
+    return list(run.paired).index(name)
+
+
+def image_points(run: CalibrationRun, name: str, *, max_points: int = MAX_POINTS
+                 ) -> ImagePoints | None:
+    """The target points of camera ``name``'s used images and their reprojection residuals.
+
+    After the image-level refinement the residuals are the refined rig's: the points
+    projected through ``inv(X) @ M_i @ Y`` (eye-to-base; ``inv(X) @ inv(M_i) @ Y`` eye-on-hand)
+    with the refined motion-capture pose ``M_i`` of the image and the camera's final
+    intrinsics, minus the detected pixels (the residuals the refinement minimised, in
+    pixels).  Without it they are each image's PnP residuals.  Points are evenly subsampled
+    to at most ``max_points`` over the camera (the per-image RMS counts every point).
+
+    Returns None for a camera without target points (given by poses, or without intrinsics).
+    """
+    paired, data = run.paired[name], run.cameras[name]
+    obs = paired.observations
+    if (data.intrinsics is None or not obs
+            or any(o.object_points is None or o.image_points is None for o in obs)):
+        return None
+    ref = run.refinement
+    if ref is not None and ref.kind == "images":
+        j = _camera_index(run, name)
+        res = ref.result
+        intr, X, Y, M = res.intrinsics[j], res.X[j], res.Y, res.T_world_mocap[j]
+        eye_to_base = run.record.setup == "eye-to-base"
+        poses = [g.inv(X) @ (M[i] if eye_to_base else g.inv(M[i])) @ Y for i in range(len(obs))]
+        source = "refined"
+    else:
+        intr, poses, source = data.intrinsics, [o.T_cam_target for o in obs], "pnp"
+    uv, resid, rms = [], [], np.full(len(obs), np.nan)
+    for i, (o, T) in enumerate(zip(obs, poses)):
+        P = np.asarray(o.object_points, dtype=np.float64)
+        u = np.asarray(o.image_points, dtype=np.float64).reshape(-1, 2)
+        ok = np.all(np.isfinite(P), axis=1) & np.all(np.isfinite(u), axis=1)
+        r = project_points(P[ok] @ T[:3, :3].T + T[:3, 3], intr) - u[ok]
+        uv.append(u[ok])
+        resid.append(r)
+        d2 = np.sum(r ** 2, axis=1)
+        if np.any(np.isfinite(d2)):
+            rms[i] = float(np.sqrt(np.nanmean(d2)))
+    counts = np.array([len(u) for u in uv])
+    total = int(counts.sum())
+    if total > max_points:
+        keep = np.unique(np.linspace(0, total - 1, max_points).round().astype(int))
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        idx = [keep[(keep >= a) & (keep < b)] - a for a, b in zip(starts[:-1], starts[1:])]
+        uv = [u[k] for u, k in zip(uv, idx)]
+        resid = [r[k] for r, k in zip(resid, idx)]
+    size = (intr.width, intr.height) if intr.width and intr.height else None
+    return ImagePoints(source=source, image_size=size, n_points=total, uv=tuple(uv),
+                       residual_px=tuple(resid), rms_px=rms)
+
+
+def projection_std_grid(intrinsics: Intrinsics, covariance, *, columns: int = GRID_COLUMNS
+                        ) -> ProjectionStd:
+    """Standard deviation of the projection at the centres of a grid of cells over the image.
+
+    For the camera-frame ray that a cell centre sees under ``intrinsics`` (held fixed),
+    ``J = d uv / d params`` (:func:`multieye.core.lens.project_with_jacobian`, params fx fy cx
+    cy then the distortion) and the value is ``sqrt(trace(J covariance J^T) / 2)``: the RMS of
+    the standard deviations of u and v, pixels.  It counts the lens' uncertainty only (the
+    camera's pose held fixed).  ``columns`` cells across, rows from the aspect ratio; the
+    image is ``width x height`` (``2 cx + 1`` by ``2 cy + 1`` when the intrinsics do not say).
+    NaN where the lens cannot be inverted.
+    """
+    C = np.asarray(covariance, dtype=np.float64)
+    n = intrinsics.params.size
+    if C.shape != (n, n) or not np.all(np.isfinite(C)):
+        raise InputError(f"the intrinsics covariance must be a finite {n}x{n} array, got "
+                         f"shape {C.shape}")
+    K = intrinsics.K
+    w = intrinsics.width or max(int(round(2 * K[0, 2] + 1)), 2)
+    h = intrinsics.height or max(int(round(2 * K[1, 2] + 1)), 2)
+    nu, nv = int(columns), max(int(round(columns * h / w)), 2)
+    u = (np.arange(nu) + 0.5) * w / nu - 0.5
+    v = (np.arange(nv) + 0.5) * h / nv - 0.5
+    uu, vv = np.meshgrid(u, v)
+    xy = undistort_points(np.column_stack([uu.ravel(), vv.ravel()]), intrinsics)
+    std = np.full(len(xy), np.nan)
+    ok = np.all(np.isfinite(xy), axis=1)
+    if np.any(ok):
+        _, _, J = project_with_jacobian(np.column_stack([xy[ok], np.ones(int(ok.sum()))]),
+                                        intrinsics)
+        std[ok] = np.sqrt(np.clip(np.einsum("nip,pq,niq->n", J, C, J) / 2.0, 0.0, None))
+    return ProjectionStd(u=u, v=v, std_px=std.reshape(nv, nu))
+
+
+def _lens(run: CalibrationRun, name: str):
+    """Whether camera ``name``'s intrinsics were estimated, their covariance and the
+    projection grid (None, None when not estimated by the joint refinement)."""
+    data = run.cameras[name]
+    if data.intrinsics is None:
+        return None, None, None
+    ref = run.refinement
+    cov = None if ref is None else ref.intrinsics_covariance.get(name)
+    if cov is None:
+        return bool(data.intrinsics_estimated), None, None
+    return True, cov, projection_std_grid(data.intrinsics, cov)
 
 
 def _span_indices(stamps: np.ndarray, lo: float, hi: float, max_points: int) -> np.ndarray:
@@ -44,7 +157,7 @@ def _span_indices(stamps: np.ndarray, lo: float, hi: float, max_points: int) -> 
 
 
 def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, Any]] | None = None,
-                max_trajectory_points: int = 3000) -> RunDetails:
+                max_trajectory_points: int = 3000, max_points: int = MAX_POINTS) -> RunDetails:
     """Collect the details of a calibration run (see module docstring for the frames).
 
     Parameters
@@ -55,6 +168,8 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
         and inf become null).
     max_trajectory_points : int
         Most positions kept per trajectory.
+    max_points : int
+        Most target points kept per camera (:func:`image_points`).
 
     Raises
     ------
@@ -97,12 +212,16 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
             T_world_cam = T_shown @ cam.X
         rms = np.array([np.nan if o.rms_px is None else o.rms_px for o in paired.observations],
                        dtype=np.float64)
+        estimated, intr_cov, grid = _lens(run, cam.name)
         cams.append(CameraDetails(
             name=cam.name, T_world_cam=T_world_cam, intrinsics=data.intrinsics, trajectory=k,
             names=tuple(o.name for o in paired.observations), stamps=stamps, rot_deg=rot,
             trans_m=trans, rms_px=rms, T_world_target=T_world_target,
             diagnostics=json_value(diagnostics.get(cam.name, {}),
-                                    f"diagnostics of camera {cam.name}")))
+                                    f"diagnostics of camera {cam.name}"),
+            points=image_points(run, cam.name, max_points=max_points),
+            intrinsics_estimated=estimated, intrinsics_covariance=intr_cov,
+            projection_std=grid))
     pose = "T_world_marker" if setup == "eye-to-base" else "T_world_body"
     trajectories = []
     for traj, (lo, hi) in zip(sources, spans):
