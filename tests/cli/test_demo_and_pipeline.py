@@ -129,7 +129,8 @@ def test_the_demos_own_report_renders_in_chromium_without_console_messages(demo,
     out, _ = demo
     sizes, console = probe(out / "report.html", tmp_path)
     assert console == []
-    assert len(sizes) == 3 and all(w > 100 and h > 100 and done for w, h, done in sizes)
+    # rig, histograms, residuals over time, then one figure per camera of the demo's four
+    assert len(sizes) == 3 + 4 and all(w > 100 and h > 100 and done for w, h, done in sizes)
     rgb, console = screenshot(out / "report.html", tmp_path)
     assert console == []
     assert (rgb.min(axis=2) < 235).mean() > 0.05

@@ -260,7 +260,11 @@ def test_report_without_details_shows_what_calibration_json_has(memory_out, tmp_
     assert len(_embedded_pngs(text)) == 1
     assert sorted(p.name for p in (tmp_path / "figures").iterdir()) == ["rig.png"]
     assert "this output folder does not have" in text
-    assert "Not available: no <code>details.json</code>" in text
+    # the weak-motion diagnostics come from calibration.json: shown without details.json too
+    motion = run.record.motion_diagnostics[run.record.cameras[1].name]
+    assert f"<td>{motion['rotation_range_deg']:.1f}</td>" in text
+    assert "No target points: this output folder has no <code>details.json</code>" in text
+    assert '<td class="l">given</td><td>500.00</td><td>501.00</td>' in text   # from calibration.json
     assert run.record.cameras[1].name in text and "lonely.png" in text
 
 
@@ -310,7 +314,8 @@ def demo_report(tmp_path_factory):
 def test_demo_report_renders_in_chromium_without_console_messages(demo_report, tmp_path):
     sizes, console = probe(demo_report, tmp_path)
     assert console == []
-    pngs = [(demo_report.parent / "figures" / name).read_bytes() for name in FIGURES]
+    names = list(FIGURES) + ["camera_cam0.png", "camera_cam1.png"]      # page order
+    pngs = [(demo_report.parent / "figures" / name).read_bytes() for name in names]
     assert [tuple(s[:2]) for s in sizes] == [_png_size(p) for p in pngs]  # every figure decoded
     rgb, console = screenshot(demo_report, tmp_path)
     assert console == []                   # the page itself: no script, nothing blocked

@@ -1,13 +1,17 @@
 """Figures of the calibration report (matplotlib, Agg canvas, imported when drawing).
 
-Three figures, each returned as PNG bytes for :mod:`multieye.outputs.report` to embed and to write:
+Four figures, each returned as PNG bytes for :mod:`multieye.outputs.report` to embed and to write:
 
 - :func:`rig_png`: the rig in 3D and seen from above: camera frustums with names, the
   reference camera's axes, the world origin, the target at every used image and the
   motion-capture trajectory;
 - :func:`residual_histograms_png`: per camera, histograms of the loop residuals of
   ``A_i X = Y B_i`` (rotation in degrees, translation in millimetres, paper section V-A);
-- :func:`residuals_over_time_png`: the same residuals against the camera's time.
+- :func:`residuals_over_time_png`: the same residuals against the camera's time;
+- :func:`camera_png`, one per camera: where the target was seen on the image, the
+  reprojection residuals over the image and by radius, every image's RMS, and the
+  projection's uncertainty from the estimated intrinsics (the numbers from
+  :mod:`multieye.outputs.image_stats`).
 
 A camera keeps its colour in every figure.  As in :mod:`multieye.experiments.figures`, only the Agg canvas
 is used (no pyplot, no global backend switch).
@@ -38,6 +42,7 @@ __all__ = [
     "rig_png",
     "residual_histograms_png",
     "residuals_over_time_png",
+    "camera_png",
 ]
 
 _AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")  # x red, y green, z blue
@@ -402,3 +407,174 @@ def residuals_over_time_png(details: RunDetails, *, dpi: int = 100) -> bytes:
             if row == 0:
                 ax.set_title(label.split(" (")[0].capitalize(), fontsize=10)
     return _png(fig)
+
+
+# --------------------------------------------------------------------------- one camera
+
+
+def _image_axes(ax, frame, title: str) -> None:
+    """Image coordinates (y down), the image frame drawn, equal scale."""
+    from matplotlib.patches import Rectangle
+
+    w, h = frame.width, frame.height
+    ax.add_patch(Rectangle((-0.5, -0.5), w, h, fill=False, lw=1.4, color="black", zorder=5))
+    pad = 0.03 * max(w, h)
+    ax.set_xlim(-0.5 - pad, w - 0.5 + pad)
+    ax.set_ylim(h - 0.5 + pad, -0.5 - pad)
+    ax.set_aspect("equal")
+    ax.tick_params(labelsize=7)
+    ax.set_title(title, fontsize=8.5, loc="left")
+    if frame.cx is not None:
+        ax.plot([frame.cx], [frame.cy], marker="+", ms=9, mew=1.3, color="black", zorder=6)
+
+
+def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 100) -> bytes:
+    """Where one camera saw the target and how well it fits, as PNG bytes.
+
+    Top row, on the image (principal point ``+``): the target points of every used image
+    (coverage; cells of a 4 x 4 grid without any are shaded), their reprojection residuals
+    as vectors (magnified, the key arrow labelled), and the standard deviation of the
+    projection from the intrinsics' covariance (when estimated; else the RMS residual in
+    cells of the image).  Bottom row: residual length against the distance from the
+    principal point (binned RMS and median over the points), and the RMS of every image with
+    the worst named.  Needs ``cam.points`` (:mod:`multieye.io.pixel_details`).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import LogNorm
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
+
+    from multieye.outputs.image_stats import (
+        COVERAGE_CELLS, MAX_ARROWS, arrow_scale, coverage, image_frame, mean_vectors,
+        position_bins, radial_bins, stacked, worst_images)
+
+    pts = cam.points
+    frame = image_frame(cam)
+    uv, res = stacked(cam)
+    w, h = frame.width, frame.height
+    fig = Figure(figsize=(12.0, 6.9), dpi=dpi)
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(2, 6, height_ratios=(1.1, 1.0), hspace=0.38, wspace=0.9)
+    ax_cov, ax_vec, ax_map = (fig.add_subplot(grid[0, 2 * k:2 * k + 2]) for k in range(3))
+    ax_rad, ax_img = fig.add_subplot(grid[1, :2]), fig.add_subplot(grid[1, 2:])
+    size_note = "" if frame.known else " (image size unknown)"
+    n_img = sum(len(u) > 0 for u in pts.uv)
+    sub = "" if pts.kept == pts.n_points else f", {pts.kept} drawn"
+    # coverage
+    cells = COVERAGE_CELLS
+    if len(uv):
+        idx = np.clip((uv / [w, h] * cells).astype(int), 0, cells - 1)
+        seen = {tuple(c) for c in np.unique(idx, axis=0)}
+    else:
+        seen = set()
+    for a in range(cells):
+        for b in range(cells):
+            if (a, b) not in seen:
+                ax_cov.add_patch(Rectangle((a * w / cells - 0.5, b * h / cells - 0.5), w / cells,
+                                           h / cells, color="#d62728", alpha=0.08, lw=0))
+    for k in range(1, cells):
+        ax_cov.axvline(k * w / cells - 0.5, color=_GREY, lw=0.5, ls=":")
+        ax_cov.axhline(k * h / cells - 0.5, color=_GREY, lw=0.5, ls=":")
+    ax_cov.scatter(uv[:, 0], uv[:, 1], s=3, color=colour, alpha=0.6, lw=0)
+    _image_axes(ax_cov, frame, f"coverage: {coverage(uv, frame):.0%} of {cells} x {cells} cells\n"
+                f"{pts.n_points} points in {n_img} images{sub}{size_note}")
+    # residual vectors: per point, or their mean per cell when there are many
+    ax_vec.scatter(uv[:, 0], uv[:, 1], s=1, color=_GREY, alpha=0.3, lw=0)
+    if len(uv) > MAX_ARROWS:
+        at, vec, _ = mean_vectors(uv, res, frame)
+        what = "mean per cell (>= 3 points)"
+    else:
+        at, vec, what = uv, res, "per point"
+    key, magnify = arrow_scale(vec, frame)
+    if len(at):
+        q = ax_vec.quiver(at[:, 0], at[:, 1], vec[:, 0], vec[:, 1], angles="xy",
+                          scale_units="xy", scale=1.0 / magnify, color=colour, width=0.004,
+                          headwidth=3.5, headlength=4)
+        times = f"{magnify:.0f}" if magnify >= 10 else f"{magnify:.2g}"
+        ax_vec.quiverkey(q, 0.02, -0.12, key, f"{key:g} px (arrows ×{times})", labelpos="E",
+                         coordinates="axes", fontproperties={"size": 7.5})
+    e = np.hypot(res[:, 0], res[:, 1])
+    rms = float(np.sqrt(np.nanmean(e ** 2))) if len(e) else float("nan")
+    _image_axes(ax_vec, frame, f"residuals ({'refined rig' if pts.source == 'refined' else 'PnP'}"
+                f"): RMS {rms:.3f} px\nprojection minus detection, {what}")
+    # projection uncertainty, or the residuals binned by position
+    if cam.projection_std is not None and np.any(np.isfinite(cam.projection_std.std_px)):
+        ps = cam.projection_std
+        s = ps.std_px
+        lo, hi = float(np.nanmin(s)), float(np.nanmax(s))
+        norm = LogNorm(vmin=max(lo, hi / 1e3, 1e-6), vmax=max(hi, 1e-6)) if hi > 20 * lo else None
+        du, dv = (ps.u[1] - ps.u[0]) / 2, (ps.v[1] - ps.v[0]) / 2
+        im = ax_map.imshow(s, extent=(ps.u[0] - du, ps.u[-1] + du, ps.v[-1] + dv, ps.v[0] - dv),
+                           cmap="viridis", norm=norm, interpolation="nearest", aspect="auto")
+        ax_map.scatter(uv[:, 0], uv[:, 1], s=1, color="white", alpha=0.35, lw=0)
+        title = (f"projection σ from the intrinsics (px)\nmean {ps.mean_px:.3g}, "
+                 f"max {ps.max_px:.3g}; dots: points")
+        label = "σ (px)"
+    else:
+        cell, _ = position_bins(uv, res, frame)
+        im = ax_map.imshow(cell, extent=(-0.5, w - 0.5, h - 0.5, -0.5), cmap="viridis",
+                           interpolation="nearest", aspect="auto")
+        title = ("RMS residual in cells of the image (px)\n"
+                 + ("intrinsics given: no projection σ" if cam.intrinsics_estimated is False
+                    else "no intrinsics covariance"))
+        label = "RMS (px)"
+    _image_axes(ax_map, frame, title)
+    bar = fig.colorbar(im, ax=ax_map, fraction=0.046, pad=0.03)
+    bar.ax.tick_params(labelsize=7)
+    bar.set_label(label, fontsize=7.5)
+    # residual against radius
+    edges, rms_b, med_b, count = radial_bins(uv, res, frame)
+    if len(uv):
+        r = np.hypot(uv[:, 0] - (frame.cx if frame.cx is not None else (w - 1) / 2),
+                     uv[:, 1] - (frame.cy if frame.cy is not None else (h - 1) / 2))
+        ax_rad.scatter(r, e, s=2, color=colour, alpha=0.25, lw=0, label="points")
+    mid = (edges[:-1] + edges[1:]) / 2
+    ax_rad.plot(mid, rms_b, color="black", marker="o", ms=3.5, lw=1.2, label="RMS per bin")
+    ax_rad.plot(mid, med_b, color="black", marker="s", ms=3, lw=1, ls="--", label="median")
+    for x, n in zip(mid, count):
+        if n:
+            ax_rad.text(x, 1.0, str(n), transform=ax_rad.get_xaxis_transform(), ha="center",
+                        va="bottom", fontsize=6, color=_GREY)
+    ax_rad.set_xlim(0, edges[-1])
+    ax_rad.set_ylim(0, None)
+    ax_rad.set_xlabel("distance from the principal point (px; to the farthest corner)", fontsize=8)
+    ax_rad.set_ylabel("residual length (px)", fontsize=8)
+    ax_rad.set_title("residuals by radius (grey: points per bin)", fontsize=8.5, loc="left",
+                     pad=12)
+    ax_rad.legend(fontsize=7, loc="upper left", frameon=False)
+    ax_rad.tick_params(labelsize=7)
+    ax_rad.grid(True, alpha=0.3)
+    # per-image RMS
+    rms_i = pts.rms_px
+    x = np.arange(len(rms_i))
+    worst = worst_images(cam, 3)
+    bad = [cam.names.index(n) for n, _ in worst]
+    bars = ax_img.bar(x, np.nan_to_num(rms_i), width=0.85 if len(x) < 60 else 1.0,
+                      color=colour, alpha=0.85)
+    for rank, i in enumerate(bad, 1):
+        bars[i].set_color("#d62728")
+        ax_img.text(i, rms_i[i], str(rank), ha="center", va="bottom", fontsize=7,
+                    color="#d62728", fontweight="bold")
+    ax_img.axhline(np.nanmedian(rms_i) if np.any(np.isfinite(rms_i)) else 0, color="black",
+                   lw=1, ls="--")
+    listing = "\n".join(f"{rank}  {n}  {v:.3f} px" for rank, (n, v) in enumerate(worst, 1))
+    ax_img.text(0.99, 0.97, "worst:\n" + listing, transform=ax_img.transAxes, ha="right",
+                va="top", fontsize=7, family="monospace",
+                bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": _GREY, "lw": 0.5})
+    ax_img.set_xlim(-0.6, max(len(x), 1) - 0.4)
+    ax_img.set_ylim(0, max(float(np.nanmax(rms_i)) if np.any(np.isfinite(rms_i)) else 1.0,
+                           1e-6) * 1.45)
+    ax_img.set_xlabel("used image, in time order", fontsize=8)
+    ax_img.set_ylabel("reprojection RMS (px)", fontsize=8)
+    ax_img.set_title("RMS of every image (dashed: median; red: the worst)", fontsize=8.5,
+                     loc="left", pad=12)
+    ax_img.tick_params(labelsize=7)
+    ax_img.xaxis.get_major_locator().set_params(integer=True)
+    ax_img.grid(True, axis="y", alpha=0.3)
+    fig.suptitle(cam.name, x=0.01, ha="left", fontsize=11, fontweight="bold", color=colour)
+    fig.subplots_adjust(left=0.05, right=0.95, top=0.9, bottom=0.08)
+    from io import BytesIO
+
+    buffer = BytesIO()
+    fig.savefig(buffer, format="png")
+    return buffer.getvalue()

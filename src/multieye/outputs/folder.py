@@ -74,6 +74,9 @@ KNOWN_FILES = frozenset({
     "export/static_transforms.sh", "export/calibration.json",
 })
 _KNOWN_FOLDERS = frozenset({"figures", "export"})
+#: Files multieye writes under names of the cameras: the report's per-camera figures
+#: (``multieye report`` on a folder whose manifest predates them writes them too).
+_KNOWN_PATTERN = re.compile(r"figures/camera_[A-Za-z0-9._-]+\.png")
 #: Left by file managers, anywhere: never a reason to refuse a folder.
 _DISPOSABLE = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
 #: The temporary file of an interrupted atomic write (multieye.io.atomic).
@@ -251,7 +254,8 @@ def foreign_files(out: str | os.PathLike) -> list[str]:
     """Files and folders in ``out`` that multieye did not write, relative, sorted.
 
     Written by multieye: the manifest, the files it lists, the fixed names of
-    :data:`KNOWN_FILES` and the folders holding them, ``.multieye-*`` staging folders an
+    :data:`KNOWN_FILES` and the folders holding them, the report's per-camera figures
+    (``figures/camera_<name>.png``), ``.multieye-*`` staging folders an
     earlier version left inside ``OUT`` and the temporary files of interrupted atomic writes.
     File managers' litter (``.DS_Store``, ``Thumbs.db``, ``desktop.ini``) is not counted.
     Symbolic links are judged by their own name, never followed.
@@ -276,6 +280,7 @@ def foreign_files(out: str | os.PathLike) -> list[str]:
                 dirs.remove(d)
                 foreign.append(prefix + d + "/")
         foreign += [prefix + f for f in files if prefix + f not in known
+                    and not _KNOWN_PATTERN.fullmatch(prefix + f)
                     and f not in _DISPOSABLE and not _ATOMIC_TMP.fullmatch(f)]
     return sorted(foreign)
 

@@ -10,14 +10,20 @@
    offsets when the run computed them, and the residuals per camera;
 3. the rig in 3D (:func:`multieye.outputs.figures.rig_png`);
 4. per-camera residual histograms and residuals over time;
-5. the weak-motion diagnostics (the free-form ``diagnostics`` of ``details.json``);
-6. the rejected images and measurements with their reasons.
+5. per camera, where the data was (:mod:`multieye.outputs.report_cameras`): the intrinsics
+   with their standard deviations when estimated, the coverage of the sensor by the target
+   points, the reprojection residuals over the image and by radius, every image's RMS with
+   the worst named, and the projection's uncertainty over the image (one figure per camera,
+   ``figures/camera_<name>.png``, :func:`multieye.outputs.figures.camera_png`);
+6. the weak-motion diagnostics (``motion_diagnostics`` of ``calibration.json``, and the
+   free-form ``diagnostics`` of ``details.json``);
+7. the rejected images and measurements with their reasons.
 
 The page needs nothing else: figures are embedded as base64 PNG, the style is inline, there is
 no JavaScript, and a Content-Security-Policy forbids loading anything from anywhere, so a
 browser shows exactly what the file holds (and logs any attempt to load more as an error).
-Without ``details.json`` the histograms and time plots are left out with a note, and the rig is
-drawn from ``T_ref_cam`` alone.
+Without ``details.json`` the histograms, time plots and per-camera figures are left out with a
+note, and the rig is drawn from ``T_ref_cam`` alone.
 
 Synopsis
 --------
@@ -28,10 +34,9 @@ PosixPath('out/report.html')
 
 from __future__ import annotations
 
-import base64
-import json
 import os
-from collections.abc import Iterable, Mapping, Sequence
+import re
+from collections.abc import Mapping, Sequence
 from html import escape
 from pathlib import Path
 
@@ -42,11 +47,22 @@ from multieye.io.atomic import write_bytes_atomic, write_text_atomic
 from multieye.io.calibration_json import SETUP_KEYS, CalibrationRecord, read_calibration
 from multieye.io.run_details import RunDetails, read_run_details
 from multieye.core.metrics import pose_row
+from multieye.outputs.html import figure as _figure
+from multieye.outputs.html import num as _num
+from multieye.outputs.html import table as _table
+from multieye.outputs.report_cameras import (
+    camera_figure_names,
+    cameras_section,
+    diagnostics_section,
+)
 
 __all__ = ["FIGURES", "write_report", "report_html", "load_details"]
 
 #: File names of the figures in ``OUT/figures/``, in page order.
 FIGURES = ("rig.png", "residual_histograms.png", "residuals_over_time.png")
+
+#: Names of the per-camera figures (:func:`~multieye.outputs.report_cameras.camera_figure_names`).
+_CAMERA_FIGURE = re.compile(r"camera_[A-Za-z0-9._-]+\.png")
 
 #: The page may load nothing but its own inline style and data-URI images.
 _CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'"
@@ -108,69 +124,6 @@ footer { margin-top: 36px; padding-top: 10px; border-top: 1px solid var(--line);
 """
 
 
-# --------------------------------------------------------------------------- formatting
-
-
-def _num(x, fmt: str, scale: float = 1.0) -> str:
-    """A number cell, or an en dash for a missing or non-finite value."""
-    if x is None:
-        return "–"
-    x = float(x) * scale
-    return format(x, fmt) if np.isfinite(x) else "–"
-
-
-def _value(v) -> str:
-    """A free-form diagnostics value as text."""
-    if v is None:
-        return "–"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return format(v, ".4g")
-    if isinstance(v, str):
-        return v
-    return json.dumps(v, separators=(", ", ": "))
-
-
-def _table(header: Sequence[str], rows: Iterable[Sequence[str]], *, left: int = 1,
-           classes: Sequence[Sequence[str]] | None = None,
-           groups: Sequence[tuple[str, int]] = ()) -> str:
-    """An HTML table of escaped text cells; the first ``left`` columns are left-aligned.
-
-    ``groups`` adds a first header row of ``(label, number of columns)`` spans (an empty
-    label leaves those columns ungrouped), so that sub-headers can stay short.
-    """
-    def cls(i, extra=""):
-        names = " ".join(n for n in ("l" if i < left else "", extra) if n)
-        return f' class="{names}"' if names else ""
-
-    top = ""
-    if groups:
-        cells, i = [], 0
-        for label, span in groups:
-            cells.append(f'<th colspan="{span}"{cls(i, "group" if label else "")}>'
-                         f"{escape(label)}</th>")
-            i += span
-        top = f"<tr>{''.join(cells)}</tr>"
-    head = "".join(f"<th{cls(i)}>{escape(h)}</th>" for i, h in enumerate(header))
-    body = []
-    for r, row in enumerate(rows):
-        extra = classes[r] if classes is not None else [""] * len(row)
-        body.append("<tr>" + "".join(f"<td{cls(i, extra[i])}>{escape(str(c))}</td>"
-                                     for i, c in enumerate(row)) + "</tr>")
-    return (f'<div class="wrap"><table><thead>{top}<tr>{head}</tr></thead>'
-            f'<tbody>{"".join(body)}</tbody></table></div>')
-
-
-def _figure(png: bytes, alt: str, caption: str, name: str) -> str:
-    data = base64.b64encode(png).decode("ascii")
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{escape(alt)}">'
-            f"<figcaption>{caption} <span class=\"note\">(also <code>figures/{escape(name)}"
-            "</code>)</span></figcaption></figure>")
-
-
 # --------------------------------------------------------------------------- sections
 
 
@@ -190,7 +143,7 @@ def _summary(rec: CalibrationRecord, out: Path) -> str:
            f"<code>{escape(str(out))}</code>")
     links = [("warnings", "Warnings"), ("extrinsics", "Extrinsics"), ("residuals", "Residuals"),
              ("rig", "Rig"), ("histograms", "Histograms"), ("over-time", "Over time"),
-             ("diagnostics", "Diagnostics"), ("rejected", "Rejected")]
+             ("cameras", "Cameras"), ("diagnostics", "Diagnostics"), ("rejected", "Rejected")]
     nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in links)
     shared = (f'<p class="note">Shared unknown <code>{escape(y_key)}</code>: translation '
               f"{_vector(pose_row(rec.Y)[:3], '.4f')} m, yaw pitch roll "
@@ -317,21 +270,6 @@ def _figures(details: RunDetails | None, figures: Mapping[str, bytes]) -> str:
     return "".join(parts)
 
 
-def _diagnostics(rec: CalibrationRecord, details: RunDetails | None) -> str:
-    head = '<section id="diagnostics"><h2>Weak-motion diagnostics</h2>'
-    if details is None or not any(details.camera(c.name).diagnostics for c in rec.cameras):
-        why = ("no <code>details.json</code>" if details is None
-               else "none were computed for this run")
-        return f'{head}<p class="note">Not available: {why}.</p></section>'
-    keys = list(dict.fromkeys(k for c in rec.cameras for k in details.camera(c.name).diagnostics))
-    rows = [[c.name, *(_value(details.camera(c.name).diagnostics.get(k)) for k in keys)]
-            for c in rec.cameras]
-    header = ["camera", *(k.replace("_", " ") for k in keys)]
-    return (f"{head}{_table(header, rows)}<p class=\"note\">How well each camera's motion "
-            "determines its unknowns; weak or single-axis rotation leaves the extrinsics "
-            "poorly constrained.</p></section>")
-
-
 def _rejected(rec: CalibrationRecord) -> str:
     head = '<section id="rejected"><h2>Rejected images and measurements</h2>'
     items = [(c.name, r.item, r.reason) for c in rec.cameras for r in c.rejected]
@@ -390,7 +328,9 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
     rec : CalibrationRecord
     details : RunDetails or None
     figures : mapping of str to bytes
-        PNG bytes by file name (:data:`FIGURES`; only ``rig.png`` without details).
+        PNG bytes by file name (:data:`FIGURES` and the cameras' figures,
+        :func:`~multieye.outputs.report_cameras.camera_figure_names`; only ``rig.png``
+        without details).
     out_dir : path-like
         Shown in the header.
     notes : sequence of str
@@ -400,7 +340,8 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
 
     body = "".join([
         _summary(rec, Path(out_dir)), _warnings(rec, notes), _extrinsics(rec),
-        _residuals(rec, details), _figures(details, figures), _diagnostics(rec, details),
+        _residuals(rec, details), _figures(details, figures),
+        cameras_section(rec, details, figures), diagnostics_section(rec, details),
         _rejected(rec),
         f"<footer>Written by multieye {escape(__version__)} from <code>calibration.json</code>"
         + (" and <code>details.json</code>" if details is not None else "")
@@ -435,7 +376,8 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     DatasetError
         ``calibration.json`` is missing or invalid, or the folder is not writable.
     """
-    from multieye.outputs.figures import residual_histograms_png, residuals_over_time_png, rig_png
+    from multieye.outputs.figures import (
+        camera_colours, camera_png, residual_histograms_png, residuals_over_time_png, rig_png)
 
     out = Path(out_dir)
     rec = read_calibration(out / "calibration.json")
@@ -444,6 +386,12 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     if details is not None:
         figures["residual_histograms.png"] = residual_histograms_png(details)
         figures["residuals_over_time.png"] = residuals_over_time_png(details)
+        files = camera_figure_names(c.name for c in rec.cameras)
+        colours = camera_colours(len(rec.cameras))
+        for j, c in enumerate(rec.cameras):
+            cam = details.camera(c.name)
+            if cam.points is not None:
+                figures[files[c.name]] = camera_png(cam, colours[j])
     folder = out / "figures"
     try:
         folder.mkdir(exist_ok=True)
@@ -451,9 +399,10 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
         raise DatasetError(f"cannot create the figures folder: {exc.strerror}", path=folder) from exc
     for name, png in figures.items():
         write_bytes_atomic(folder / name, png)
-    for name in FIGURES:  # figures of an earlier report that this one does not have
-        if name not in figures and (folder / name).exists():
-            (folder / name).unlink()
+    for path in folder.iterdir():  # figures of an earlier report that this one does not have
+        if path.name not in figures and (path.name in FIGURES or _CAMERA_FIGURE.fullmatch(
+                path.name)) and path.is_file():
+            path.unlink()
     html = report_html(rec, details, figures, out_dir=Path(shown_as) if shown_as else out,
                        notes=notes)
     return write_text_atomic(out / "report.html", html)

@@ -1,0 +1,279 @@
+"""Where the data was: details.json's target points, residuals and lens uncertainty from a real
+pipeline run, and the report's per-camera section and weak-motion diagnostics.
+
+A small rendered dataset (2 cameras x 8 images, 640 x 480, tests/small_dataset.py) is
+calibrated twice: with the intrinsics files it comes with (given, held fixed) and with
+``model: pinhole-radtan`` instead (estimated with the rig).
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+
+import numpy as np
+import pytest
+
+from multieye.core import geometry as g
+from multieye.core.lens import project_points, undistort_points
+from multieye.io.run_details import read_run_details
+from multieye.outputs.details import image_points, projection_std_grid
+from multieye.outputs.folder import foreign_files
+from multieye.outputs.image_stats import (
+    ImageFrame,
+    arrow_scale,
+    coverage,
+    mean_vectors,
+    position_bins,
+    radial_bins,
+)
+from multieye.outputs.report import write_report
+from multieye.outputs.report_cameras import camera_figure_names
+from multieye.outputs.write import write_outputs
+from multieye.pipeline import calibrate, calibrate_rig
+from small_dataset import render_small
+
+from browser import needs_chromium, probe
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """``{"given": (run, OUT), "model": (run, OUT)}`` on one rendered dataset."""
+    tmp = tmp_path_factory.mktemp("where")
+    render_small(tmp / "dataset")
+    text = (tmp / "dataset" / "rig.yaml").read_text()
+    (tmp / "dataset" / "rig_model.yaml").write_text(
+        re.sub(r"intrinsics: (cam\d)\.yaml", "model: pinhole-radtan", text))
+    out = {}
+    for kind, rig in (("given", "rig.yaml"), ("model", "rig_model.yaml")):
+        run = calibrate(tmp / "dataset" / rig, processes=1)
+        write_outputs(run, tmp / kind)
+        out[kind] = (run, tmp / kind)
+    return out
+
+
+def _pngs(text: str) -> list[bytes]:
+    return [base64.b64decode(m) for m in re.findall(r'src="data:image/png;base64,([^"]+)"', text)]
+
+
+# --------------------------------------------------------------------------- details.json
+
+
+@pytest.mark.parametrize("kind", ["given", "model"])
+def test_points_are_the_refined_rigs_residuals(runs, kind):
+    run, out = runs[kind]
+    details = read_run_details(out / "details.json")
+    res = run.refinement.result
+    for j, name in enumerate(run.paired):
+        cam = details.camera(name)
+        obs = run.paired[name].observations
+        p = cam.points
+        assert (p.source, p.image_size) == ("refined", (640, 480))
+        assert p.n_points == p.kept == sum(len(o.image_points) for o in obs) == 8 * 54
+        np.testing.assert_allclose(p.rms_px, res.image_rms_px[j], rtol=0, atol=5.1e-5)
+        for i in (0, len(obs) - 1):          # a point projected independently
+            T = g.inv(res.X[j]) @ res.T_world_mocap[j][i] @ res.Y   # eye-to-base
+            P = obs[i].object_points @ T[:3, :3].T + T[:3, 3]
+            expected = project_points(P, run.cameras[name].intrinsics) - obs[i].image_points
+            np.testing.assert_allclose(p.residual_px[i], expected, atol=6e-4)
+            np.testing.assert_allclose(p.uv[i], obs[i].image_points, atol=6e-3)
+        every = np.concatenate(p.residual_px)
+        assert np.sqrt(np.mean(np.sum(every ** 2, axis=1))) == pytest.approx(
+            run.record.camera(name).residuals.reprojection_rms_px, rel=1e-3)
+
+
+def test_given_intrinsics_have_no_covariance_and_estimated_ones_do(runs):
+    for name in ("cam0", "cam1"):
+        given = read_run_details(runs["given"][1] / "details.json").camera(name)
+        assert given.intrinsics_estimated is False
+        assert given.intrinsics_covariance is None and given.projection_std is None
+        run, out = runs["model"]
+        cam = read_run_details(out / "details.json").camera(name)
+        assert cam.intrinsics_estimated is True
+        np.testing.assert_array_equal(cam.intrinsics_covariance,
+                                      run.refinement.intrinsics_covariance[name])
+        np.testing.assert_array_equal(cam.intrinsics.params, run.cameras[name].intrinsics.params)
+        s = cam.projection_std
+        assert s.std_px.shape == (24, 32)
+        centre = s.std_px[10:14, 14:18]
+        assert np.all(np.isfinite(centre)) and 0 < centre.max() < 1.0   # where the board was
+        assert s.max_px > 5 * centre.max()                              # extrapolated corners
+        assert s.mean_px < s.max_px
+
+
+def test_projection_std_is_the_propagated_covariance(runs):
+    """sqrt(tr(J C J^T) / 2) with J by finite differences of the projection of a fixed ray."""
+    run, _ = runs["model"]
+    intr = run.cameras["cam1"].intrinsics
+    cov = run.refinement.intrinsics_covariance["cam1"]
+    grid = projection_std_grid(intr, cov, columns=8)
+    assert grid.std_px.shape == (6, 8)
+    i, k = 1, 5
+    ray = np.append(undistort_points([[grid.u[k], grid.v[i]]], intr)[0], 1.0)
+    J = np.zeros((2, intr.params.size))
+    for n in range(intr.params.size):
+        h = 1e-6 * max(1.0, abs(intr.params[n]))
+        up, down = intr.params.copy(), intr.params.copy()
+        up[n] += h
+        down[n] -= h
+        J[:, n] = (project_points(ray[None], intr.with_params(up))[0]
+                   - project_points(ray[None], intr.with_params(down))[0]) / (2 * h)
+    assert grid.std_px[i, k] == pytest.approx(np.sqrt(np.trace(J @ cov @ J.T) / 2), rel=1e-4)
+    # a diagonal covariance of the principal point only: exactly its standard deviation
+    only_c = np.zeros_like(cov)
+    only_c[2, 2] = only_c[3, 3] = 0.25
+    np.testing.assert_allclose(projection_std_grid(intr, only_c, columns=4).std_px, 0.5,
+                               rtol=1e-9)
+
+
+def test_without_image_refinement_the_residuals_are_pnp(runs):
+    run, _ = runs["given"]
+    plain = calibrate_rig(run.rig, run.cameras, refine=False)
+    for name, paired in plain.paired.items():
+        p = image_points(plain, name)
+        assert p.source == "pnp"
+        np.testing.assert_allclose(p.rms_px, [o.rms_px for o in paired.observations], rtol=1e-9)
+
+
+def test_points_are_subsampled_evenly_and_the_rms_counts_them_all(runs):
+    run, _ = runs["given"]
+    full = image_points(run, "cam0")
+    part = image_points(run, "cam0", max_points=100)
+    assert part.kept == 100 and part.n_points == full.n_points == 432
+    assert [len(u) for u in part.uv] == [13, 12, 13, 12, 12, 13, 12, 13]
+    np.testing.assert_array_equal(part.rms_px, full.rms_px)
+    for u, v, r, s in zip(part.uv, full.uv, part.residual_px, full.residual_px):
+        rows = [int(np.flatnonzero(np.all(v == x, axis=1))[0]) for x in u]
+        np.testing.assert_array_equal(s[rows], r)
+
+
+def test_details_json_stays_small(runs):
+    for kind in ("given", "model"):
+        out = runs[kind][1]
+        size = (out / "details.json").stat().st_size
+        assert size < 150_000, size                           # 2 x 432 points
+        data = json.loads((out / "details.json").read_text())
+        assert data["cameras"]["cam0"]["points"]["uv"][0][0] == [
+            round(v, 2) for v in runs[kind][0].paired["cam0"].observations[0].image_points[0]]
+
+
+# --------------------------------------------------------------------------- report.html
+
+
+@pytest.mark.parametrize("kind", ["given", "model"])
+def test_report_shows_every_camera_and_the_diagnostics(runs, kind):
+    run, out = runs[kind]
+    text = (out / "report.html").read_text()
+    assert '<section id="cameras"><h2>Cameras: intrinsics and where the target was seen' in text
+    pngs = _pngs(text)
+    assert len(pngs) == 5                     # rig, histograms, over time, one per camera
+    for name, png in zip(("camera_cam0.png", "camera_cam1.png"), pngs[3:]):
+        assert (out / "figures" / name).read_bytes() == png
+    details = read_run_details(out / "details.json")
+    for name in ("cam0", "cam1"):
+        cam = details.camera(name)
+        fx, fy = cam.intrinsics.params[:2]
+        row = "estimated" if kind == "model" else "given"
+        assert f'<td class="l">{row}</td><td>{fx:.2f}</td><td>{fy:.2f}</td>' in text
+        worst = cam.names[int(np.nanargmax(cam.points.rms_px))]
+        assert f"<td class=\"l\">{worst}</td><td>{np.nanmax(cam.points.rms_px):.3f}</td>" in text
+        motion = run.record.motion_diagnostics[name]
+        assert f"<td>{motion['rotation_range_deg']:.1f}</td>" in text
+        assert f"<td>{motion['rotation_condition']:.3g}</td>" in text
+        if kind == "model":
+            sigma = np.sqrt(np.diag(cam.intrinsics_covariance))
+            assert f'<td class="l">σ</td><td>{sigma[0]:.3f}</td><td>{sigma[1]:.3f}</td>' in text
+            assert (f"over the image: mean {cam.projection_std.mean_px:.3g} px, max "
+                    f"{cam.projection_std.max_px:.3g} px") in text
+            at = run.record.camera(name).intrinsics.projection_std_px
+            assert f"at the observed target points: mean {at[0]:.3g} px" in text
+    if kind == "given":
+        assert text.count("given in rig.yaml and held fixed") == 2
+    assert "Not available" not in text
+    assert '<a href="#cameras">Cameras</a>' in text
+
+
+@needs_chromium
+def test_report_with_estimated_intrinsics_renders_without_console_messages(runs, tmp_path):
+    report = runs["model"][1] / "report.html"
+    sizes, console = probe(report, tmp_path)
+    assert console == []
+    assert len(sizes) == 5 and all(w > 600 and h > 300 for w, h, _ in sizes)
+
+
+def test_camera_figures_of_an_earlier_report_are_removed(runs, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("calibration.json", "details.json"):
+        (out / name).write_bytes((runs["given"][1] / name).read_bytes())
+    (out / "figures").mkdir()
+    (out / "figures" / "camera_gone.png").write_bytes(b"old")
+    (out / "figures" / "notes.txt").write_text("mine")
+    write_report(out)
+    assert sorted(p.name for p in (out / "figures").iterdir()) == [
+        "camera_cam0.png", "camera_cam1.png", "notes.txt", "residual_histograms.png",
+        "residuals_over_time.png", "rig.png"]
+    # a folder whose manifest predates the per-camera figures may still be replaced
+    assert foreign_files(out) == ["figures/notes.txt"]
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def test_camera_figure_names_are_safe_and_distinct():
+    assert camera_figure_names(["cam0", "front left", "front_left", "a/b", "rear<&>"]) == {
+        "cam0": "camera_cam0.png", "front left": "camera_front_left.png",
+        "front_left": "camera_front_left_2.png", "a/b": "camera_a_b.png",
+        "rear<&>": "camera_rear___.png"}
+
+
+def test_image_statistics():
+    frame = ImageFrame(640, 480, True, 320.0, 240.0)
+    uv = np.array([[10.0, 10], [630, 470], [320, 240], [321, 241], [322, 242]])
+    res = np.array([[0.3, 0.4], [0.0, 1.0], [0.1, 0.0], [0.0, 0.1], [0.1, 0.0]])
+    assert coverage(uv, frame) == 3 / 16
+    edges, rms, med, count = radial_bins(uv, res, frame, bins=4)
+    assert edges[-1] == pytest.approx(np.hypot(320.5, 240.5))
+    assert count.tolist() == [3, 0, 0, 2]
+    assert rms[0] == pytest.approx(0.1) and np.isnan(rms[1])
+    assert rms[3] == pytest.approx(np.sqrt((0.25 + 1.0) / 2))
+    cells, n = position_bins(uv, res, frame, columns=4, min_points=1)
+    assert cells.shape == (3, 4) and n.sum() == 5 and n[1, 2] == 3
+    assert cells[0, 0] == pytest.approx(0.5) and np.isnan(cells[0, 1])
+    at, mean, n = mean_vectors(uv, res, frame, columns=4, min_points=2)
+    np.testing.assert_allclose(at, [[399.5, 239.5]])           # the one cell with 3 points
+    np.testing.assert_allclose(mean, [[0.2 / 3, 0.1 / 3]])
+    assert n.tolist() == [3]
+    key, magnify = arrow_scale(res, frame)
+    assert key == 1.0 and magnify == pytest.approx(0.06 * 640)
+    assert arrow_scale(res * 0.03, frame)[0] == 0.02
+
+
+def test_eye_on_hand_points_are_the_refined_rigs_residuals(tmp_path):
+    """inv(X) @ inv(M_i) @ Y: the refined rig's residuals in the other setup too."""
+    from multieye.io import Rig, Trajectory
+    from multieye.pipeline import CameraData, Observation
+    from multieye.sim.images import simulate_images
+
+    sc = simulate_images(7, n_cameras=2, images=6, setup="eye-on-hand")
+    stamps, poses, cameras = [], [], {}
+    for j in range(2):
+        t = 100.0 + 10 * j + 0.5 * np.arange(6)
+        stamps.append(t)
+        poses.append(sc.mocap[j])
+        obs = tuple(Observation(name=f"{ti:.1f}.png", stamp=float(ti), T_cam_target=T,
+                                rms_px=0.3, object_points=sc.object_points, image_points=u)
+                    for ti, T, u in zip(t, sc.T_cam_target[j], sc.image_points[j]))
+        cameras[f"cam{j}"] = (obs, sc.intrinsics[j])
+    mocap = Trajectory(np.concatenate(stamps), np.concatenate(poses), "world", "body")
+    data = {n: CameraData(name=n, intrinsics=intr, observations=obs, rejected=(), n_inputs=6,
+                          mocap=mocap, time_offset=0.0, time_tolerance=0.01)
+            for n, (obs, intr) in cameras.items()}
+    run = calibrate_rig(Rig(path=tmp_path / "rig.yaml", setup="eye-on-hand", cameras={}), data)
+    assert run.refinement.kind == "images"
+    for j, name in enumerate(run.paired):
+        p = image_points(run, name)
+        assert p.source == "refined"
+        np.testing.assert_allclose(p.rms_px, run.refinement.result.image_rms_px[j], rtol=1e-9)
+        assert 0.2 < np.nanmedian(p.rms_px) < 0.6                    # 0.3 px per coordinate
