@@ -40,6 +40,8 @@ constants hold them, docs/rig-yaml.md documents each)::
       duplicates: error | drop                               # tum, csv only; default error
       # file: "{stem}.json": one pose file beside each image (format pose-files), with
       # key: end2base, values: [x, y, z, qx, qy, qz, qw], rotation: quaternion-xyzw | ...
+      match: time | image                                    # image: a table with an image
+                                                             #   column (format pose-table)
     cameras:                                                 # required, at least one
       cam0:
         intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
