@@ -36,3 +36,12 @@ def test_one_camera_shows_its_answer_and_its_uncertainty(tmp_path):
     # the reference camera's T_ref_cam is the identity, with zero uncertainty
     assert cam["uncertainty"]["T_ref_cam"]["std_rot_deg"] == 0.0
     assert data["uncertainty"]["T_marker_target"]["std_trans_m"] > 0
+    # the report says the same: X and Y with their sigma, no relative table
+    html = (tmp_path / "out" / "report.html").read_text()
+    section = html[html.index('<section id="extrinsics">'):]
+    section = section[:section.index("</section>")]
+    assert "<code>T_world_cam</code> of every camera" in section
+    assert "<code>T_marker_target</code>" in section and "σ" in section
+    assert f"{std_deg:.3f}" in section
+    assert "relative to" not in section
+

@@ -44,7 +44,8 @@ import numpy as np
 
 from multieye.core.errors import DatasetError
 from multieye.io.atomic import write_bytes_atomic, write_text_atomic
-from multieye.io.calibration_json import SETUP_KEYS, CalibrationRecord, read_calibration
+from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUncertainty,
+                                         read_calibration)
 from multieye.io.run_details import RunDetails, read_run_details
 from multieye.core.metrics import pose_row
 from multieye.outputs.html import figure as _figure
@@ -168,37 +169,62 @@ def _warnings(rec: CalibrationRecord, notes: Sequence[str]) -> str:
     return "".join(out)
 
 
-def _extrinsics(rec: CalibrationRecord) -> str:
+def _pose_table(rec: CalibrationRecord, poses, key: str, ref_mark: bool) -> str:
+    """tx ty tz yaw pitch roll of one transform per camera, with its σ when computed."""
     cams = rec.cameras
-    optional = [("std_rot_deg", "σ rot (deg)", ".3f", 1.0),
-                ("std_trans_m", "σ trans (mm)", ".2f", 1e3),
-                ("time_offset_s", "time offset (ms)", ".1f", 1e3)]
-    present = [o for o in optional if any(getattr(c, o[0]) is not None for c in cams)]
-    header = ["camera", "tx (m)", "ty (m)", "tz (m)", "yaw (deg)", "pitch (deg)", "roll (deg)",
-              *(o[1] for o in present)]
+    unc = [None if not c.uncertainty else c.uncertainty.get(key) for c in cams]
+    if key == "T_ref_cam" and not any(unc):     # files of earlier versions: the flat keys
+        unc = [None if c.std_rot_deg is None or c.covariance is None else
+               PoseUncertainty(c.std_rot_deg, c.std_trans_m, c.covariance) for c in cams]
+    offsets = any(c.time_offset_s is not None for c in cams)
+    header = ["camera", "tx (m)", "ty (m)", "tz (m)", "yaw (deg)", "pitch (deg)", "roll (deg)"]
+    header += ["σ rot (deg)", "σ trans (mm)"] if any(unc) else []
+    header += ["time offset (ms)"] if offsets else []
     rows, classes = [], []
-    for c in cams:
-        p = pose_row(c.T_ref_cam)
-        ref = c.name == rec.reference_camera
-        rows.append([c.name + (" (ref)" if ref else ""),
-                     *(format(v, ".4f") for v in p[:3]), *(format(v, ".3f") for v in p[3:]),
-                     *(_num(getattr(c, key), fmt, scale) for key, _, fmt, scale in present)])
+    for c, T, u in zip(cams, poses, unc):
+        p = pose_row(T)
+        ref = ref_mark and c.name == rec.reference_camera
+        row = [c.name + (" (ref)" if ref else ""), *(format(v, ".4f") for v in p[:3]),
+               *(format(v, ".3f") for v in p[3:])]
+        if any(unc):
+            row += [_num(None if u is None else u.std_rot_deg, ".3f", 1.0),
+                    _num(None if u is None else u.std_trans_m, ".2f", 1e3)]
+        if offsets:
+            row.append(_num(c.time_offset_s, ".1f", 1e3))
+        rows.append(row)
         classes.append(["ref" if ref else ""] + [""] * (len(header) - 1))
-    missing = [o[1].split(" (")[0] for o in optional if o not in present]
-    note = ("Pose of each camera in the reference camera's frame, <code>T_ref_cam</code> "
-            "(maps camera coordinates to reference coordinates); yaw, pitch, roll with "
-            "R = Rz(yaw) Ry(pitch) Rx(roll).")
-    if any(o[0] != "time_offset_s" for o in present):
-        note += (" σ is the root of the trace of the rotation (or translation) covariance of "
-                 "<code>T_ref_cam</code>.")
-    if missing:
-        note += f" Not computed in this run: {escape(', '.join(missing))}."
+    return _table(header, rows, classes=classes)
+
+
+def _extrinsics(rec: CalibrationRecord) -> str:
+    """Every camera's X and the shared Y with their σ; T_ref_cam with several cameras."""
+    y_key, x_key = SETUP_KEYS[rec.setup]
+    several = len(rec.cameras) > 1
+    parts = ['<section id="extrinsics"><h2>Extrinsics and uncertainty</h2>',
+             f"<h3><code>{x_key}</code> of every camera</h3>",
+             _pose_table(rec, [c.X for c in rec.cameras], x_key, several)]
+    y_unc = None if not rec.uncertainty else rec.uncertainty.get(y_key)
+    p = pose_row(rec.Y)
+    y_text = (f"t = ({', '.join(format(v, '.4f') for v in p[:3])}) m, yaw pitch roll = "
+              f"({', '.join(format(v, '.3f') for v in p[3:])}) deg")
+    if y_unc is not None:
+        y_text += (f", σ {y_unc.std_rot_deg:.3f} deg / {1e3 * y_unc.std_trans_m:.2f} mm")
+    parts.append(f"<h3><code>{y_key}</code></h3><p>{escape(y_text)}</p>")
+    if several:
+        parts += [f"<h3><code>T_ref_cam</code>, relative to {escape(rec.reference_camera)}</h3>",
+                  _pose_table(rec, [c.T_ref_cam for c in rec.cameras], "T_ref_cam", True)]
+    note = (f"<code>{x_key}</code> and <code>{y_key}</code> as the setup defines them "
+            "(docs/conventions.md, section 2); <code>T_ref_cam</code> is the pose of each camera "
+            "in the reference camera's frame. Yaw, pitch, roll with R = Rz(yaw) Ry(pitch) "
+            "Rx(roll). σ is the root of the trace of the rotation (or translation) covariance "
+            "of that transform (left perturbation; with estimated intrinsics their "
+            "uncertainty is included); absent when the refinement did not run.")
     matrices = "".join(
         f"<h3>{escape(c.name)}</h3><pre class=\"matrix\">{escape(_matrix_text(c.T_ref_cam))}</pre>"
-        for c in cams)
-    return (f'<section id="extrinsics"><h2>Extrinsics and uncertainty</h2>'
-            f"{_table(header, rows, classes=classes)}<p class=\"note\">{note}</p>"
-            f"<details><summary>T_ref_cam matrices</summary>{matrices}</details></section>")
+        for c in rec.cameras)
+    parts += [f'<p class="note">{note}</p>',
+              f"<details><summary>T_ref_cam matrices</summary>{matrices}</details></section>"]
+    return "".join(parts)
 
 
 def _matrix_text(T: np.ndarray) -> str:
