@@ -179,3 +179,59 @@ def test_bad_pose_tables(tmp_path, content, message, line):
     with pytest.raises(DatasetError, match=message) as info:
         read_pose_table(t, PoseFormat())
     assert info.value.line == line and str(info.value).startswith(f"{t}:{line}:")
+
+
+def test_stamped_table_in_any_order_and_rotation(tmp_path):
+    """Rows stamped in time, e.g. OptiTrack's w x y z quaternions or Euler angles in mm."""
+    from multieye.io.mocap import MocapSpec, read_mocap
+    from multieye.io.pose_files import read_stamped_table
+
+    rots = Rotation.from_rotvec([[0.1, 0.2, 0.3], [0.5, -0.4, 0.2], [-1.0, 0.3, 2.0]])
+    pos = np.array([[0.1, 0.2, 0.3], [1.0, -2.0, 0.5], [0.0, 0.4, -0.9]])
+    q = rots.as_quat()
+    lines = [f"{k * 0.01} {q[k, 3]} {q[k, 0]} {q[k, 1]} {q[k, 2]} "
+             + " ".join(f"{v * 1000:.9f}" for v in pos[k]) for k in range(3)]
+    lines.insert(1, "0.005 1 0 0 0 nan 0 0")                     # left out, listed
+    p = _write(tmp_path, "take.txt", "# t qw qx qy qz x y z\n" + "\n".join(lines) + "\n")
+    fmt = PoseFormat(rotation="quaternion-wxyz", values=("t", "qw", "qx", "qy", "qz", "x", "y",
+                                                         "z"), unit="mm")
+    traj = read_stamped_table(p, fmt)
+    np.testing.assert_allclose(traj.stamps, [0, 0.01, 0.02])
+    np.testing.assert_allclose(traj.T[:, :3, :3], rots.as_matrix(), atol=1e-9)
+    np.testing.assert_allclose(traj.T[:, :3, 3], pos, atol=1e-9)
+    assert [(s.where, s.reason) for s in traj.skipped] == [("line 3",
+                                                           "not a finite number: x = nan")]
+    # the same through read_mocap, inverted on reading when stored the other way
+    spec = MocapSpec(p, pose="T_marker_world", format="tum", unit="mm", values=fmt.values,
+                     rotation=fmt.rotation)
+    np.testing.assert_allclose(read_mocap(spec).T[1] @ traj.T[1], np.eye(4), atol=1e-9)
+    e = rots.as_euler("ZYX", degrees=True)
+    p = _write(tmp_path, "e.txt", "\n".join(f"{k} {pos[k, 0]} {pos[k, 1]} {pos[k, 2]} "
+                                            f"{e[k, 0]} {e[k, 1]} {e[k, 2]}" for k in range(3)))
+    traj = read_stamped_table(p, PoseFormat(rotation="euler-ZYX-deg"))
+    np.testing.assert_allclose(traj.T[:, :3, :3], rots.as_matrix(), atol=1e-9)
+    T = np.concatenate([rots.as_matrix(), pos[:, :, None]], axis=2)      # (3, 3, 4)
+    p = _write(tmp_path, "m.txt", "\n".join(f"{k} " + " ".join(map(str, T[k].ravel()))
+                                            for k in range(3)))
+    traj = read_stamped_table(p, PoseFormat(rotation="matrix"))
+    np.testing.assert_allclose(traj.T[:, :3], T, atol=1e-12)
+
+
+@pytest.mark.parametrize("content, fmt, message, line", [
+    ("0 1 2 3 0 0 0 0\n", PoseFormat(rotation="rotvec"), "must have 7 entries per row, got 8",
+     1),
+    ("0 0 0 0 1 0 0 0\n1 0 0 0 3 0 0 0\n", PoseFormat(rotation="quaternion-wxyz"),
+     "quaternion", 2),
+    ("0 1 0 0 0 1 0 0 0 0 1 0\n1 1 0 0 0 1 0 0 0 0 2 0\n", PoseFormat(rotation="matrix"),
+     "must have 13 entries", 1),
+    ("0 1 0 0 0 0 1 0 0 0 0 1 0\n1 1 0 0 0 0 2 0 0 0 0 1 0\n", PoseFormat(rotation="matrix"),
+     "expected a rotation matrix", 2),
+    ("1 0 0 0 0 0 0\n0 0 0 0 0 0 0\n", PoseFormat(rotation="rotvec"), "time stamp goes back", 2),
+])
+def test_bad_stamped_tables(tmp_path, content, fmt, message, line):
+    from multieye.io.pose_files import read_stamped_table
+
+    p = _write(tmp_path, "take.txt", content)
+    with pytest.raises(DatasetError, match=message) as info:
+        read_stamped_table(p, fmt)
+    assert info.value.line == line and str(info.value).startswith(f"{p}:{line}:")

@@ -107,6 +107,26 @@ def test_table_matched_by_image_name(rendered, tmp_path):
         (f"poses.csv line {len(rows) - n0 + 2}", "pose row without an image: img77.png")]
 
 
+def test_stamped_table_in_its_own_order(rendered, tmp_path):
+    """Motion capture paired in time, written as t qw qx qy qz x y z in millimetres."""
+    ds = tmp_path / "ds"
+    shutil.copytree(rendered, ds)
+    traj = read_tum(rendered / "mocap.txt")
+    q = Rotation.from_matrix(traj.T[:, :3, :3]).as_quat()
+    (ds / "mocap.txt").write_text("".join(
+        f"{repr(float(t))} {w!r} {x!r} {y!r} {z!r} " + " ".join(repr(float(v) * 1000)
+                                                                  for v in T[:3, 3]) + "\n"
+        for t, (x, y, z, w), T in zip(traj.stamps, q.tolist(), traj.T)))
+    text = (ds / "rig.yaml").read_text().replace(
+        "  file: mocap.txt\n", "  file: mocap.txt\n  values: [t, qw, qx, qy, qz, x, y, z]\n"
+        "  rotation: quaternion-wxyz\n  unit: mm\n")
+    assert "quaternion-wxyz" in text
+    (ds / "rig.yaml").write_text(text)
+    a, b = calibrate(rendered, processes=1), calibrate(ds, processes=1)
+    for Xa, Xb in zip(a.closed_form.X, b.closed_form.X):
+        np.testing.assert_allclose(Xa, Xb, atol=1e-6)
+
+
 def test_missing_and_orphan_pose_files_are_listed(rendered, tmp_path):
     ds = _by_name(rendered, tmp_path / "ds", '{file: "{stem}.json", key: end2base}', _json)
     (ds / "cam0" / "img3.json").unlink()
@@ -171,6 +191,10 @@ def test_bad_pose_files_exit_2_naming_the_file(tmp_path, mocap, content, expecte
     ('{file: cam0/mocap.txt, key: end2base}',
      "rig.yaml:3: mocap.key: applies to pose-files sources only (this one is tum)"),
     ('{file: "{stem}.txt", format: tum}', "mocap.format: a file name with {stem}"),
+    ('{file: cam0/mocap.txt, values: [x, y, z, qx, qy, qz, qw]}',
+     "rig.yaml:3: mocap.values: expected each of t, x, y, z, qw, qx, qy, qz once"),
+    ('{file: cam0/mocap.txt, format: csv, rotation: rotvec}',
+     "mocap.rotation: applies to pose-files, pose-table, tum sources only (this one is csv)"),
     ('{file: cam0/mocap.txt, match: name}', "rig.yaml:3: mocap.match: expected one of time, image"),
     ('{file: cam0/mocap.txt, match: image, format: tum}',
      "mocap.match: match: image reads a table with an 'image' column; leave out 'format'"),

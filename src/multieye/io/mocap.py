@@ -21,7 +21,7 @@ from pathlib import Path
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
 from multieye.io.mocap_csv import csv_flavour, read_optitrack_csv, read_pose_csv, read_vicon_csv
-from multieye.io.pose_files import STEM
+from multieye.io.pose_files import STEM, PoseFormat, read_stamped_table
 from multieye.io.rosbag import read_bag_trajectory
 from multieye.io.trajectory import Trajectory
 from multieye.io.tum import read_tum
@@ -70,7 +70,8 @@ class MocapSpec:
     key, values, rotation :
         ``pose-files`` (``file`` is a pattern with ``{stem}``, relative to each camera's image
         folder): the JSON key of the pose, the order of plain numbers and the rotation
-        convention (:mod:`multieye.io.pose_files`).
+        convention (:mod:`multieye.io.pose_files`); ``values`` and ``rotation`` also for
+        ``pose-table`` and ``tum`` (then ``values`` include ``t``).
     match : {"time", "image"}
         ``image``: ``file`` is a table whose ``image`` column names the image of each pose
         (``pose-table``); ``values``, ``rotation`` and ``unit`` read its numbers.
@@ -153,7 +154,11 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
     if fmt not in MOCAP_FORMATS:
         raise DatasetError(f"motion-capture format must be one of {', '.join(MOCAP_FORMATS)}, "
                            f"got {fmt!r}", path=spec.file)
-    if fmt == "tum":
+    if fmt == "tum" and (spec.values is not None or spec.rotation != "quaternion-xyzw"):
+        traj = read_stamped_table(spec.file, PoseFormat(spec.rotation, spec.values, None,
+                                                        spec.unit or "m"),
+                                  parent=parent, child=child, duplicates=spec.duplicates)
+    elif fmt == "tum":
         traj = read_tum(spec.file, unit=spec.unit or "m", parent=parent, child=child,
                         duplicates=spec.duplicates)
     elif fmt == "csv":

@@ -40,7 +40,7 @@ from multieye.io.textfile import length_scale
 
 __all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
            "read_pose_file", "pose_file_pattern", "poses_by_name", "read_pose_table",
-           "poses_by_table"]
+           "poses_by_table", "read_stamped_table"]
 
 #: The placeholder of ``mocap.file`` for the image's stem.
 STEM = "{stem}"
@@ -89,18 +89,21 @@ def _rotation_names(rotation: str) -> tuple[set[str], ...]:
     return tuple(names)
 
 
-def check_values(values: object, rotation: str) -> tuple[str, ...]:
-    """``values`` as a tuple of names if they fit ``rotation``; ValueError otherwise."""
+def check_values(values: object, rotation: str, *, stamped: bool = False) -> tuple[str, ...]:
+    """``values`` as a tuple of names if they fit ``rotation`` (``stamped``: with ``t``, the
+    time stamp); ValueError otherwise."""
     if rotation == "matrix":
         raise ValueError("a matrix is read as 16 (or 12) numbers, row-major; leave out "
                          "'values'")
     if not isinstance(values, (list, tuple)) or not all(isinstance(v, str) for v in values):
         raise ValueError(f"expected a list of names, got {values!r}")
     got = set(values)
+    base = {"x", "y", "z"} | ({"t"} if stamped else set())
     for rot in _rotation_names(rotation):
-        if len(values) == 3 + len(rot) and got == {"x", "y", "z"} | rot:
+        if len(values) == len(base) + len(rot) and got == base | rot:
             return tuple(values)
-    options = " or ".join("x, y, z, " + ", ".join(sorted(r)) for r in _rotation_names(rotation))
+    first = "t, x, y, z, " if stamped else "x, y, z, "
+    options = " or ".join(first + ", ".join(sorted(r)) for r in _rotation_names(rotation))
     raise ValueError(f"expected each of {options} once (for {rotation}), got "
                      f"{', '.join(map(str, values))}")
 
@@ -412,3 +415,54 @@ def poses_by_table(images: Sequence[Path], table: str | os.PathLike, fmt: PoseFo
             unmatched.append((f"{Path(table).name} line {line}",
                               f"pose row without an image: {cell}"))
     return matched, unmatched
+
+
+#: The numbers of a matrix stamped in time: ``t`` then its top three rows.
+_MATRIX_ROW = ("t",) + tuple(f"m{r}{c}" for r in range(1, 4) for c in range(1, 5))
+
+
+def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str = "world",
+                       child: str = "marker", duplicates: str = "error"):
+    """Poses stamped in time, one row of plain numbers each (a TUM-like file whose ``values``
+    include ``t``, or whose ``rotation`` is not ``quaternion-xyzw``).
+
+    ``values`` default to ``t`` then :func:`default_values`; ``rotation: matrix`` rows are
+    ``t`` then the 12 numbers of the pose's top three rows (row-major). Rows with a value that
+    is not finite or absurd are left out and listed in ``skipped`` as TUM rows are
+    (:func:`multieye.io.poserows.usable_rows`).
+
+    Raises
+    ------
+    DatasetError
+        A row with another count of numbers, a bad rotation, stamps that repeat or go back;
+        with the file and the line.
+    """
+    from multieye.io.poserows import trajectory_from_rows, usable_rows
+    from multieye.io.textfile import read_number_rows
+
+    matrix = fmt.rotation == "matrix"
+    order = _MATRIX_ROW if matrix else (
+        fmt.values if fmt.values is not None else ("t",) + default_values(fmt.rotation))
+    data, lines = read_number_rows(path, order, files=f"pose rows ({fmt.rotation})",
+                                   what="motion-capture file", finite=False)
+    scale = length_scale(fmt.unit, path=path)
+    col = {n: i for i, n in enumerate(order)}
+    xyz = ("m14", "m24", "m34") if matrix else ("x", "y", "z")
+    rot = [n for n in order if n not in xyz and n != "t"]
+    with np.errstate(over="ignore", invalid="ignore"):
+        t_xyz = data[:, [col[n] for n in xyz]] * scale
+    keep, skipped, kept = usable_rows(data[:, col["t"]], t_xyz, data[:, [col[n] for n in rot]],
+                                      path=path, lines=lines, names=("t", *xyz, *rot))
+    T = []
+    for row, line in zip(data[keep], kept):
+        try:
+            if matrix:
+                T.append(_checked(_matrix(row[1:], scale, path), path))
+            else:
+                T.append(_named(dict(zip(order, row)), PoseFormat(fmt.rotation, order, None,
+                                                                  fmt.unit), scale, path))
+        except DatasetError as exc:
+            raise DatasetError(exc.reason, path=path, line=line) from None
+    return trajectory_from_rows(data[keep, col["t"]], np.stack(T) if T else np.zeros((0, 4, 4)),
+                                path=path, lines=kept, parent=parent, child=child,
+                                duplicates=duplicates, skipped=skipped)

@@ -106,8 +106,8 @@ _TARGET_OPTIONAL = ("first_id",)
 _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-files", "pose-table"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv"),
-               "key": ("pose-files",), "values": ("pose-files", "pose-table"),
-               "rotation": ("pose-files", "pose-table")}
+               "key": ("pose-files",), "values": ("pose-files", "pose-table", "tum"),
+               "rotation": ("pose-files", "pose-table", "tum")}
 _SOURCES = ("images", "poses", "rosbag")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
@@ -373,7 +373,8 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
             raise c.error(str(exc), at("rotation")) from None
     if "values" in raw:
         try:
-            kw["values"] = check_values(raw["values"], kw.get("rotation", "quaternion-xyzw"))
+            kw["values"] = check_values(raw["values"], kw.get("rotation", "quaternion-xyzw"),
+                                        stamped=fmt == "tum")
         except ValueError as exc:
             raise c.error(str(exc), at("values")) from None
     if "key" in raw:
