@@ -196,7 +196,9 @@ def test_poses_camera_may_omit_intrinsics_and_non_finite_numbers_are_refused(dat
                                                   "cam1: {poses: cam1.txt}"))
     res = _run(["calibrate", dataset, "-o", tmp_path / "out"])
     assert res.exit_code == 0, res.stderr
-    assert "camchain.yaml not written: no intrinsics for cam1" in res.stdout
+    assert "camchain.yaml holds cam0 only; left out: cam1 (no intrinsics)" in res.stdout
+    assert (tmp_path / "out" / "camchain.yaml").read_text().startswith(
+        "# left out of this camchain: cam1 (no intrinsics)\ncam0:")
     (dataset / "rig.yaml").write_text(rig.replace("time_tolerance: 0.01", "time_tolerance: .inf"))
     _fails(dataset, tmp_path / "out2", "rig.yaml:6", "time_tolerance")
 

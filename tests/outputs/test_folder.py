@@ -118,7 +118,7 @@ def _failing_report(monkeypatch):
 
 
 def _failing_camchain(monkeypatch):
-    def broken(path, entries):
+    def broken(path, entries, **kwargs):
         Path(path).write_text("half")
         raise OSError(28, "No space left on device")
     monkeypatch.setattr(write_mod, "write_camchain", broken)

@@ -133,9 +133,11 @@ def test_estimated_intrinsics_are_written_where_people_look(rendered, tmp_path):
     written = write_outputs(run, tmp_path / "out", report=False)
     data = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert set(data["uncertainty"]) == {"T_marker_target"}
-    # Kalibr's radtan has no k3: the camchain is not written, and the note says why
+    # Kalibr's radtan has no k3: neither camera fits, the camchain is not written, and the
+    # note names each camera with the reason
     assert not (tmp_path / "out" / "camchain.yaml").exists()
-    assert any("camchain.yaml not written: cam0: Kalibr radtan" in n for n in written.notes), \
+    assert any(n.startswith("camchain.yaml not written: Kalibr cannot hold any camera: cam0 "
+                            "(Kalibr radtan") and "cam1 (" in n for n in written.notes), \
         written.notes
     for name in ("cam0", "cam1"):
         block = data["cameras"][name]["intrinsics"]
@@ -156,3 +158,22 @@ def test_estimated_intrinsics_are_written_where_people_look(rendered, tmp_path):
         fs.release()
         back = read_intrinsics(path)
         np.testing.assert_allclose(back.dist, lens.dist, rtol=1e-12)
+
+
+def test_camchain_keeps_the_cameras_kalibr_can_hold_and_names_the_others(rendered, tmp_path):
+    from multieye.io import read_camchain
+    from multieye.outputs.write import write_outputs
+
+    folder, _ = rendered
+    text = (folder / "rig.yaml").read_text().replace("intrinsics: cam0.yaml",
+                                                     "model: pinhole-radtan")
+    (folder / "rig_mixed.yaml").write_text(text)
+    run = calibrate(folder / "rig_mixed.yaml", processes=2)
+    written = write_outputs(run, tmp_path / "out", report=False)
+    chain = read_camchain(tmp_path / "out" / "camchain.yaml")
+    assert [e.name for e in chain] == ["cam1"]
+    np.testing.assert_allclose(chain[0].intrinsics.K, run.cameras["cam1"].intrinsics.K)
+    head = (tmp_path / "out" / "camchain.yaml").read_text().splitlines()[0]
+    assert head.startswith("# left out of this camchain: cam0 (Kalibr radtan holds k1 k2 p1 p2")
+    assert any(n.startswith("camchain.yaml holds cam1 only; left out: cam0 (Kalibr radtan")
+               for n in written.notes)

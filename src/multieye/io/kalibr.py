@@ -162,7 +162,8 @@ def kalibr_fields(intr: Intrinsics) -> dict:
     return fields
 
 
-def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry]) -> None:
+def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry], *,
+                   comments: Sequence[str] = ()) -> None:
     """Write a Kalibr ``camchain.yaml`` atomically, cameras in the given order.
 
     Parameters
@@ -170,8 +171,10 @@ def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry]) ->
     path : path-like
     cameras : sequence of CamchainEntry
         ``cam<n>`` is ``cameras[n]``; ``T_cn_cnm1 = inv(T_ref_cn) @ T_ref_cnm1``.
+    comments : sequence of str
+        Lines written first as YAML comments (e.g. the cameras left out, and why).
     """
-    lines = []
+    lines = [f"# {c}" for c in comments]
     for n, cam in enumerate(cameras):
         lines.append(f"cam{n}:")
         lines.append(f"  camera_name: {json.dumps(cam.name)}")  # JSON strings are YAML

@@ -106,18 +106,7 @@ def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: 
     """Write every output into ``folder``; returns the names written, notes, the details."""
     write_calibration(folder / "calibration.json", run.record)
     names, notes = ["calibration.json"], []
-    missing = [c.name for c in run.record.cameras if run.cameras[c.name].intrinsics is None]
-    if missing:
-        notes.append(f"camchain.yaml not written: no intrinsics for {', '.join(missing)}")
-    else:
-        entries = [CamchainEntry(name=c.name, intrinsics=run.cameras[c.name].intrinsics,
-                                 T_ref_cam=c.T_ref_cam) for c in run.record.cameras]
-        try:
-            write_camchain(folder / "camchain.yaml", entries)
-        except InputError as exc:
-            notes.append(f"camchain.yaml not written: {_unrepresentable(entries) or exc}")
-        else:
-            names.append("camchain.yaml")
+    notes += _camchain(run, folder, names)
     estimated = [c.name for c in run.record.cameras
                  if c.intrinsics is not None and c.intrinsics.estimated]
     if estimated:
@@ -134,14 +123,30 @@ def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: 
     return names, notes, details
 
 
-def _unrepresentable(entries) -> str:
-    """Which cameras Kalibr's camera models cannot hold, and why (empty if none)."""
+def _camchain(run: CalibrationRun, folder: Path, names: list[str]) -> list[str]:
+    """Kalibr's camchain with every camera it can hold; a camera it cannot (no intrinsics, or
+    a lens Kalibr's models do not have) is named with the reason, in a note and in a comment
+    at the top of the file, never dropped silently."""
     from multieye.io.kalibr import kalibr_fields
 
-    why = []
-    for e in entries:
+    kept, left = [], []
+    for c in run.record.cameras:
+        intr = run.cameras[c.name].intrinsics
+        if intr is None:
+            left.append(f"{c.name} (no intrinsics)")
+            continue
         try:
-            kalibr_fields(e.intrinsics)
+            kalibr_fields(intr)
         except InputError as exc:
-            why.append(f"{e.name}: {exc}")
-    return "; ".join(why)
+            left.append(f"{c.name} ({exc})")
+            continue
+        kept.append(CamchainEntry(name=c.name, intrinsics=intr, T_ref_cam=c.T_ref_cam))
+    if not kept:
+        return [f"camchain.yaml not written: Kalibr cannot hold any camera: {'; '.join(left)}"]
+    comments = ([f"left out of this camchain: {c}" for c in left] if left else [])
+    write_camchain(folder / "camchain.yaml", kept, comments=comments)
+    names.append("camchain.yaml")
+    if not left:
+        return []
+    return [f"camchain.yaml holds {', '.join(e.name for e in kept)} only; left out: "
+            + "; ".join(left)]
