@@ -154,6 +154,32 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
 
 
 @main.command()
+@click.argument("dataset", type=click.Path(path_type=Path))
+@click.option("--sample", type=click.IntRange(1), default=20, show_default=True,
+              help="Images per camera, evenly spaced, searched for the target.")
+@click.option("--processes", type=click.IntRange(1), default=None,
+              help="Detection processes (default: one per core).")
+@_user_errors
+def check(dataset: Path, sample: int, processes: int | None):
+    """Dry run: what calibrating DATASET would find, and what would go wrong.
+
+    Reads rig.yaml and the motion capture, detects the target in a sample of each camera's
+    images and pairs them with the motion capture, without solving.  Prints a table per
+    camera and the problems; exits 2, one line per reason on stderr, when calibrating would
+    fail.
+    """
+    from multieye.pipeline.check import check_dataset
+    from multieye.outputs.summary import check_table
+
+    result = check_dataset(dataset, sample=sample, processes=processes)
+    click.echo(check_table(result))
+    for reason in result.reasons:
+        click.echo(f"multieye: calibrating would fail: {reason}", err=True)
+    if not result.ok:
+        sys.exit(EXIT_USER_ERROR)
+
+
+@main.command()
 @click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
               default=Path("demo_out"), show_default=True, help="Output folder.")
 @click.option("--seed", type=int, default=0, show_default=True)

@@ -17,7 +17,8 @@ from multieye.io.calibration_json import SETUP_KEYS
 from multieye.io.run_details import TIMING_KEYS, StageTimings
 from multieye.core.metrics import extrinsic_errors, pose_row
 
-__all__ = ["format_table", "calibration_table", "comparison_table", "timings_line"]
+__all__ = ["format_table", "calibration_table", "comparison_table", "timings_line",
+           "check_table"]
 
 
 def timings_line(timings: StageTimings) -> str:
@@ -63,8 +64,9 @@ def calibration_table(rec: CalibrationRecord) -> str:
     their standard deviations, rejected items and warnings.
     """
     y_key, x_key = SETUP_KEYS[rec.setup]
-    pose_head = ["tx m", "ty m", "tz m", "yaw", "pitch", "roll", "std deg", "std mm"]
-    header = ["camera", "used", "rejected", "e_R deg", "e_t mm", "reproj px",
+    pose_head = ["tx m", "ty m", "tz m", "yaw deg", "pitch deg", "roll deg", "std deg",
+                 "std mm"]
+    header = ["camera", "used", "rejected", "loop e_R deg", "loop e_t mm", "reproj px",
               *pose_head, "offset ms"]
     rows = []
     for c in rec.cameras:
@@ -80,7 +82,7 @@ def calibration_table(rec: CalibrationRecord) -> str:
         ])
     keep = [i for i in range(len(header)) if i < 12 or any(row[i] != "-" for row in rows)]
     lines = [f"{rec.setup}, method {rec.method}, reference {rec.reference_camera}: "
-             f"e_R {rec.residuals.e_R_deg:.3f} deg, e_t {rec.residuals.e_t_m * 1e3:.2f} mm",
+             f"mean loop residual e_R {rec.residuals.e_R_deg:.3f} deg, e_t {rec.residuals.e_t_m * 1e3:.2f} mm",
              f"{x_key} of every camera:",
              format_table([header[i] for i in keep], [[row[i] for i in keep] for row in rows])]
     y_unc = None if not rec.uncertainty else rec.uncertainty.get(y_key)
@@ -131,7 +133,8 @@ def comparison_table(results: dict[str, np.ndarray], truth: np.ndarray,
     truth : ndarray, shape (m, 4, 4)
     names : sequence of str
     """
-    header = ["method", *(f"{n} deg / mm" for n in names[1:]), "mean deg", "mean mm", "max deg", "max mm"]
+    header = ["method", *(f"{n} error deg / mm" for n in names[1:]), "mean error deg",
+              "mean error mm", "max error deg", "max error mm"]
     rows = []
     for method, T in results.items():
         rot, trans = extrinsic_errors(T, truth)
@@ -139,3 +142,29 @@ def comparison_table(results: dict[str, np.ndarray], truth: np.ndarray,
         rows.append([method, *(f"{a:.4f} / {b:.3f}" for a, b in zip(rot, trans)),
                      f"{rot.mean():.4f}", f"{trans.mean():.3f}", f"{rot.max():.4f}", f"{trans.max():.3f}"])
     return format_table(header, rows)
+
+
+def check_table(check) -> str:
+    """The dry run of :func:`multieye.pipeline.check.check_dataset`: one row per camera
+    (counts of images, the share with the target found, the rotation of the paired motion in
+    degrees), then each camera's problems and the verdict."""
+    header = ["camera", "source", "images", "sampled", "target found", "found %",
+              "with mocap", "usable in sample", "about usable", "rotation range deg",
+              "RMS rot axes deg"]
+    rows = []
+    for c in check.cameras:
+        spread = ("-" if c.rotation_spread_deg is None
+                  else " / ".join(f"{v:.1f}" for v in c.rotation_spread_deg))
+        rows.append([c.name, c.source, str(c.listed), str(c.sampled), str(c.found),
+                     f"{c.found_percent:.0f}" if c.sampled else "-", str(c.with_mocap),
+                     str(c.paired), str(c.expected_usable),
+                     _f(c.rotation_range_deg, ".1f"), spread])
+    lines = [f"{check.setup}, {check.path}: dry run, nothing solved", format_table(header, rows)]
+    for c in check.cameras:
+        if c.failures:
+            lines.append(f"{c.name}: sampled images without a target pose: " + ", ".join(
+                f"{n} {kind}" for kind, n in c.failures))
+        lines.extend(f"problem: {c.name}: {p}" for p in c.problems)
+    lines.append("verdict: ok, calibrating can run" if check.ok
+                 else "verdict: calibrating would fail: " + "; ".join(check.reasons))
+    return "\n".join(lines)

@@ -1,0 +1,262 @@
+"""A dry run: what calibrating a dataset would find, and what would go wrong, without solving.
+
+:func:`check_dataset` reads ``rig.yaml`` and the motion capture, lists each camera's images
+(or poses), detects the target in an evenly spaced sample of the images, pairs the images with
+the motion capture as :func:`multieye.pipeline.camera_data.pair_camera` does, and measures the
+rotation of the paired motion. ``multieye check DATASET`` prints it (docs/outputs.md,
+section 7) and exits 2 when calibrating would fail.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from multieye.core.arguments import real_number
+from multieye.core.errors import InputError
+from multieye.estimate.diagnostics import (
+    MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG, MIN_SECOND_AXIS_DEG)
+from multieye.estimate.pairing import pair_in_time
+from multieye.io import Trajectory, list_images, load_rig, read_mocap, read_tum
+from multieye.solvers.checks import MIN_MEASUREMENTS, rotation_spread
+
+__all__ = ["CameraCheck", "DatasetCheck", "check_dataset"]
+
+#: Below this share of the sampled images with the target found, the camera is warned about.
+MIN_FOUND_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class CameraCheck:
+    """What the dry run found for one camera.
+
+    Attributes
+    ----------
+    name : str
+    source : {"images", "poses", "rosbag"}
+    listed : int
+        Images (or pose rows) of the camera.
+    sampled : int
+        Images in which the target was looked for (all pose rows for a camera given by poses).
+    found : int
+        Of those, the images with the target detected (and, with intrinsics, its pose).
+    failures : tuple of (str, int)
+        Why the others failed, by kind (``target not detected``, ``PnP failed``, ...).
+    with_mocap : int
+        Listed images with motion capture within the time tolerance.
+    paired : int
+        Sampled images with the target found and motion capture: the usable sample.
+    expected_usable : int
+        ``listed`` times the usable share of the sample: the images calibrating would use.
+    time_tolerance_s : float
+    rotation_range_deg, rotation_spread_deg : float and tuple of 3 floats, or None
+        Largest rotation between the paired motion-capture poses of the usable sample, and
+        the RMS rotation about its principal axes (descending); None below 2 such images.
+    problems : tuple of str
+        What will go wrong, or may.
+    fatal : tuple of str
+        The problems that make calibrating fail.
+    """
+
+    name: str
+    source: str
+    listed: int
+    sampled: int
+    found: int
+    failures: tuple[tuple[str, int], ...]
+    with_mocap: int
+    paired: int
+    expected_usable: int
+    time_tolerance_s: float
+    rotation_range_deg: float | None
+    rotation_spread_deg: tuple[float, float, float] | None
+    problems: tuple[str, ...]
+    fatal: tuple[str, ...]
+
+    @property
+    def found_percent(self) -> float:
+        return 100.0 * self.found / self.sampled if self.sampled else 0.0
+
+
+@dataclass(frozen=True)
+class DatasetCheck:
+    """The dry run of a whole dataset: per camera, and the verdict."""
+
+    path: str
+    setup: str
+    cameras: tuple[CameraCheck, ...]
+
+    @property
+    def reasons(self) -> tuple[str, ...]:
+        """Why calibrating would fail, ``camera: reason``; empty when it can run."""
+        return tuple(f"{c.name}: {r}" for c in self.cameras for r in c.fatal)
+
+    @property
+    def ok(self) -> bool:
+        return not self.reasons
+
+
+def _sample(n: int, k: int) -> list[int]:
+    """At most ``k`` evenly spaced indices of ``range(n)``, first and last included."""
+    if n <= k:
+        return list(range(n))
+    return sorted(set(np.linspace(0, n - 1, k).round().astype(int).tolist()))
+
+
+def _kind(reason: str) -> str:
+    return reason.split(":", 1)[0].split(" (", 1)[0]
+
+
+def _rotation(T_mocap: np.ndarray) -> tuple[float | None, tuple | None]:
+    """Largest rotation between two of the poses (degrees; at most 300 poses evenly spaced)
+    and the RMS rotation about the principal axes (degrees, descending)."""
+    if len(T_mocap) < 2:
+        return None, None
+    R = T_mocap[_sample(len(T_mocap), 300), :3, :3]
+    cos = (np.einsum("aij,bij->ab", R, R) - 1.0) / 2.0      # tr(R_a R_b^T) = sum R_a * R_b
+    range_deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max())
+    spread = tuple(float(v) for v in np.degrees(rotation_spread(T_mocap)))
+    return range_deg, spread
+
+
+def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
+    from multieye.pipeline.camera_data import _poses_by_name
+
+    spec = rig.mocap_for(name)
+    key = (str(spec.file), spec.pose, spec.format, spec.topic, spec.rigid_body)
+    problems: list[str] = []
+    fatal: list[str] = []
+    unmatched = []
+    listed = None
+    if spec.by_name:
+        traj, listed, unmatched = _poses_by_name(name, cam.images, spec)
+    else:
+        if key not in traj_cache:
+            traj_cache[key] = read_mocap(spec)
+        traj = traj_cache[key]
+    tolerance = 0.25 if spec.by_name else spec.time_tolerance
+    offset = 0.0 if spec.by_name else cam.time_offset
+    failures: dict[str, int] = {}
+    if cam.source == "poses":
+        poses = read_tum(cam.poses, parent="cam", child="target")
+        stamps = np.asarray(poses.stamps, dtype=np.float64)
+        n_listed = len(stamps) + len(poses.skipped)
+        sampled_idx = list(range(len(stamps)))
+        found_mask = np.ones(len(stamps), bool)
+        if poses.skipped:
+            failures["pose row left out"] = len(poses.skipped)
+        n_sampled = n_listed
+    elif cam.source == "images":
+        from multieye.imaging.batch import detect_and_estimate
+        from multieye.imaging.targets import target_from_spec
+        from multieye.io import read_camera_intrinsics
+
+        images = list_images(cam.images) if listed is None else listed
+        stamps = np.array([s for s, _, _ in images], dtype=np.float64)
+        n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
+        sampled_idx = _sample(len(images), sample)
+        target = target_from_spec(rig.target.as_dict(), path=rig.path)
+        intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
+        results = detect_and_estimate([images[i][2] for i in sampled_idx], target, intr,
+                                      processes=processes, progress=False)
+        found_mask = np.array([r.reason is None for r in results], bool)
+        for r in results:
+            if r.reason is not None:
+                failures[_kind(r.reason)] = failures.get(_kind(r.reason), 0) + 1
+        n_sampled = len(sampled_idx)
+    else:   # rosbag: reading the frames is the cost the dry run avoids
+        mocap_part = (f"motion capture {len(traj)} poses over "
+                      f"{traj.stamps[-1] - traj.stamps[0]:.1f} s" if len(traj) else "")
+        problems.append("images in a rosbag are not sampled by the dry run"
+                        + (f"; {mocap_part}" if mocap_part else ""))
+        return CameraCheck(name, cam.source, 0, 0, 0, (), 0, 0, 0, tolerance, None, None,
+                           tuple(problems), ())
+    if unmatched:
+        problems.append(f"{len(unmatched)} images or pose files without their partner (first "
+                        f"{unmatched[0].item}: {unmatched[0].reason})")
+    # pairing of every listed image in time (cheap), as pair_camera does
+    if len(stamps):
+        p = pair_in_time(traj.stamps, traj.T, stamps, tolerance=tolerance, offset=offset)
+        has_pose = np.zeros(len(stamps), bool)
+        has_pose[p.index] = True
+        T_at = np.full((len(stamps), 4, 4), np.nan)
+        T_at[p.index] = p.T
+    else:
+        has_pose, T_at = np.zeros(0, bool), np.zeros((0, 4, 4))
+    n_found = int(found_mask.sum())
+    usable = [i for i, f in zip(sampled_idx, found_mask) if f and has_pose[i]]
+    n_paired = len(usable)
+    expected = int(round(n_listed * n_paired / n_sampled)) if n_sampled else 0
+    expected = min(expected, int(has_pose.sum()))
+    if cam.source == "images" and n_found < MIN_FOUND_SHARE * n_sampled:
+        text = f"target found in only {n_found} of {n_sampled} sampled images"
+        if n_found == 0:
+            t = rig.target
+            text += (f"; check the target section of rig.yaml ({t.type} {t.rows}x{t.cols}, "
+                     f"spacing {t.as_dict().get('spacing', '?')} m) and the images")
+        problems.append(text)
+    n_no_pose = len(stamps) - int(has_pose.sum())
+    if n_no_pose:
+        mocap_times = np.asarray(traj.stamps, dtype=np.float64)
+        q = stamps[~has_pose] + offset
+        nearest = (np.min(np.abs(q[:, None] - mocap_times[None, :]), axis=1)
+                   if len(mocap_times) else np.full(len(q), np.inf))
+        span = (f"motion capture {mocap_times[0]:.3f} to {mocap_times[-1]:.3f} s, images "
+                f"{stamps[0] + offset:.3f} to {stamps[-1] + offset:.3f} s in its clock"
+                if len(mocap_times) else "no motion capture")
+        problems.append(f"{n_no_pose} of {len(stamps)} images have no motion capture within "
+                        f"{tolerance:g} s (nearest {np.min(nearest):.3g} to "
+                        f"{np.max(nearest):.3g} s away; {span})")
+    range_deg, spread = _rotation(T_at[usable]) if usable else (None, None)
+    if spread is not None:
+        s0, s1 = spread[:2]
+        if range_deg < MIN_ROTATION_RANGE_DEG:
+            problems.append(f"rotation range {range_deg:.1f} deg, under "
+                            f"{MIN_ROTATION_RANGE_DEG:g} deg: the extrinsic is poorly "
+                            "determined; tilt by 30 deg or more about two axes")
+        elif s1 < MIN_SECOND_AXIS_DEG or s1 < MIN_AXIS_RATIO * s0:
+            problems.append(f"rotation about one axis (RMS {s0:.1f} deg about it, {s1:.2f} deg "
+                            "about any other): rotate about a second axis")
+    if expected < MIN_MEASUREMENTS or n_paired == 0:
+        fatal.append(f"fewer than {MIN_MEASUREMENTS} usable images would remain ({n_paired} of "
+                     f"{n_sampled} sampled usable, about {expected} of {n_listed} in all)")
+        problems.append(fatal[-1])
+    return CameraCheck(name=name, source=cam.source, listed=n_listed, sampled=n_sampled,
+                       found=n_found, failures=tuple(sorted(failures.items())),
+                       with_mocap=int(has_pose.sum()), paired=n_paired,
+                       expected_usable=expected, time_tolerance_s=float(tolerance),
+                       rotation_range_deg=range_deg, rotation_spread_deg=spread,
+                       problems=tuple(problems), fatal=tuple(fatal))
+
+
+def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> DatasetCheck:
+    """Dry-run the calibration of the dataset at ``path`` (a folder or its rig.yaml).
+
+    Parameters
+    ----------
+    path : path-like
+    sample : int
+        At most this many images per camera, evenly spaced in time, are searched for the
+        target.
+    processes : int, optional
+        Detection processes (default: one per core).
+
+    Returns
+    -------
+    DatasetCheck
+
+    Raises
+    ------
+    DatasetError, InputError
+        Bad input, as for :func:`multieye.pipeline.calibrate`.
+    """
+    if isinstance(sample, bool) or not isinstance(sample, (int, np.integer)) or sample < 1:
+        raise InputError(f"sample must be a whole number of images >= 1, got {sample!r}")
+    if processes is not None:
+        real_number(processes, "processes", positive=True)
+    rig = load_rig(path)
+    cache: dict[tuple, Trajectory] = {}
+    cams = tuple(_check_camera(rig, name, cam, cache, sample=int(sample), processes=processes)
+                 for name, cam in rig.cameras.items())
+    return DatasetCheck(path=str(rig.path), setup=rig.setup, cameras=cams)

@@ -1,0 +1,109 @@
+"""The dry run (multieye check): per camera what calibrating would find, and what would fail."""
+
+from __future__ import annotations
+
+import pytest
+
+import real_datasets
+from multieye.core.errors import InputError
+from multieye.outputs.summary import check_table
+from multieye.pipeline.check import check_dataset
+from pose_dataset import write_pose_dataset
+from small_dataset import render_small
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("check") / "ds"
+    render_small(folder)
+    return folder
+
+
+def _copy(src, dst):
+    import shutil
+
+    shutil.copytree(src, dst)
+    return dst
+
+
+def test_small_rendered_dataset_is_ok(small):
+    result = check_dataset(small, processes=1)
+    assert result.ok and result.reasons == () and result.setup == "eye-to-base"
+    assert [c.name for c in result.cameras] == ["cam0", "cam1"]
+    for c in result.cameras:
+        assert (c.source, c.listed, c.sampled, c.found, c.with_mocap, c.paired,
+                c.expected_usable) == ("images", 8, 8, 8, 8, 8, 8)
+        assert c.found_percent == 100.0 and c.failures == () and c.problems == ()
+        assert c.rotation_range_deg > 30 and c.rotation_spread_deg[1] > 5
+    text = check_table(result)
+    assert "target found" in text and "rotation range deg" in text
+    assert text.splitlines()[-1] == "verdict: ok, calibrating can run"
+
+
+def test_sample_takes_evenly_spaced_images(small):
+    result = check_dataset(small, sample=3, processes=1)
+    c = result.cameras[0]
+    assert (c.listed, c.sampled, c.found, c.paired, c.expected_usable) == (8, 3, 3, 3, 8)
+    assert result.ok
+
+
+def test_truncated_motion_capture_names_the_images_without_pose(small, tmp_path):
+    folder = _copy(small, tmp_path / "ds")
+    lines = (folder / "mocap.txt").read_text().splitlines()
+    (folder / "mocap.txt").write_text("\n".join(lines[:40]) + "\n")
+    result = check_dataset(folder, processes=1)
+    assert not result.ok
+    for c in result.cameras:
+        assert c.with_mocap < 3 and c.found == 8
+        assert any(f"of 8 images have no motion capture within 0.0167 s (nearest" in p
+                   for p in c.problems)
+    assert any("fewer than 3 usable images would remain" in r for r in result.reasons)
+
+
+def test_wrong_target_size_finds_no_target(small, tmp_path):
+    folder = _copy(small, tmp_path / "ds")
+    rig = folder / "rig.yaml"
+    rig.write_text(rig.read_text().replace("rows: 6", "rows: 7"))
+    result = check_dataset(folder, processes=1)
+    assert not result.ok
+    for c in result.cameras:
+        assert c.found == 0 and c.failures == (("target not detected", 8),)
+        assert any(p.startswith("target found in only 0 of 8 sampled images")
+                   for p in c.problems)
+        assert c.fatal and "fewer than 3 usable images" in c.fatal[0]
+
+
+def test_camera_given_by_poses(tmp_path):
+    folder, _, _ = write_pose_dataset(tmp_path)
+    result = check_dataset(folder)
+    assert result.ok
+    for c in result.cameras:
+        assert (c.source, c.listed, c.sampled, c.found, c.paired) == ("poses", 12, 12, 12, 12)
+
+
+def test_bad_arguments_and_input(small, tmp_path):
+    with pytest.raises(InputError, match="sample"):
+        check_dataset(small, sample=0)
+    from multieye.core.errors import DatasetError
+
+    with pytest.raises(DatasetError):
+        check_dataset(tmp_path / "nothing")
+
+
+def test_rotation_about_one_axis_is_warned_not_fatal(shared_data, tmp_path):
+    folder = real_datasets.young_mocap_cam(shared_data, tmp_path / "young")
+    result = check_dataset(folder, sample=10)
+    c = result.cameras[0]
+    assert result.ok and (c.listed, c.sampled, c.found) == (30, 10, 10)
+    assert any("rotation about one axis" in p for p in c.problems)
+
+
+def test_rotation_about_one_axis_with_the_lens_estimated(shared_data, tmp_path):
+    """No intrinsics: detection only, the pairing and the motion as with them."""
+    folder = real_datasets.young_mocap_cam(shared_data, tmp_path / "young")
+    text = (folder / "rig.yaml").read_text().replace("intrinsics: cam0.yaml",
+                                                     "model: pinhole-radtan")
+    (folder / "rig_model.yaml").write_text(text)
+    result = check_dataset(folder / "rig_model.yaml", sample=5)
+    c = result.cameras[0]
+    assert result.ok and (c.sampled, c.found, c.paired) == (5, 5, 5)
