@@ -211,23 +211,27 @@ def report(out_dir: Path):
         click.echo(str(write_report(out_dir)))
 
 
-EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json")
+EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json", "camera-info")
 
 
 @main.command()
 @click.argument("out_dir", type=click.Path(file_okay=False, path_type=Path))
 @click.option("--format", "fmt", type=click.Choice(EXPORT_FORMATS), required=True,
               help="kalibr camchain, OpenCV FileStorage, URDF fragment, ROS 2 static "
-                   "transform publisher arguments, or compact JSON.")
+                   "transform publisher arguments, compact JSON, or one ROS camera_info "
+                   "YAML per camera.")
 @_user_errors
 def export(out_dir: Path, fmt: str):
     """Export the calibration in OUT to another tool's format (into OUT/export/)."""
     from multieye.outputs.export import export as run_export
     from multieye.outputs.folder import claim_output
 
+    notes: list[str] = []
     with claim_output(out_dir, replace=False):
-        for p in run_export(out_dir, fmt):
+        for p in run_export(out_dir, fmt, notes=notes):
             click.echo(str(p))
+    for note in notes:
+        click.echo(f"note: {note}", err=True)
 
 
 @main.command()

@@ -354,3 +354,49 @@ def test_intrinsics_object_checks(kw, expected):
     args = {"K": K, **kw}
     with pytest.raises(InputError, match=re.escape(expected)):
         Intrinsics(**args)
+
+
+@pytest.mark.parametrize("model, n, name", [
+    ("pinhole", 0, "plumb_bob"), ("pinhole", 4, "plumb_bob"), ("pinhole", 5, "plumb_bob"),
+    ("pinhole", 8, "rational_polynomial"), ("pinhole", 12, "thin_prism"),
+    ("pinhole", 14, "tilted"), ("fisheye", 4, "equidistant")])
+def test_distortion_model_name_is_the_true_name_and_reads_back(tmp_path, model, n, name):
+    from multieye.io.intrinsics import DISTORTION_MODELS, distortion_model_name
+
+    dist = np.linspace(-0.1, 0.05, n) * (0.1 if n > 8 else 1)
+    intr = Intrinsics(np.array([[400.0, 0, 320], [0, 401, 240], [0, 0, 1]]), dist, model,
+                      640, 480)
+    assert distortion_model_name(intr) == name
+    assert DISTORTION_MODELS[name] == model
+
+
+@pytest.mark.parametrize("model, dist, ros, written", [
+    ("pinhole", [0.1, -0.02, 1e-3, 2e-3], "plumb_bob", [0.1, -0.02, 1e-3, 2e-3, 0.0]),
+    ("pinhole", [], "plumb_bob", [0.0] * 5),
+    ("pinhole", [0.1, -0.02, 1e-3, 2e-3, 0.01, 0.2, 0.01, 0.001], "rational_polynomial",
+     [0.1, -0.02, 1e-3, 2e-3, 0.01, 0.2, 0.01, 0.001]),
+    ("fisheye", [0.1, -0.02, 1e-3, 2e-4], "equidistant", [0.1, -0.02, 1e-3, 2e-4])])
+def test_camera_info_text_round_trips(tmp_path, model, dist, ros, written):
+    from multieye.io.intrinsics import camera_info_text, read_camera_info
+
+    K = np.array([[400.5, 0, 320.25], [0, 401.0, 239.75], [0, 0, 1]])
+    intr = Intrinsics(K, np.array(dist, dtype=float), model, 640, 480)
+    path = tmp_path / "cam.yaml"
+    path.write_text(camera_info_text(intr, "front: left"))
+    data = yaml.safe_load(path.read_text())
+    assert data["camera_name"] == "front: left" and data["distortion_model"] == ros
+    assert data["distortion_coefficients"]["data"] == written
+    back = read_camera_info(path)
+    np.testing.assert_array_equal(back.K, K)
+    np.testing.assert_array_equal(back.dist, written)
+    assert (back.model, back.width, back.height) == (model, 640, 480)
+
+
+def test_camera_info_text_names_what_ros_cannot_hold():
+    from multieye.io.intrinsics import camera_info_text
+
+    K = np.array([[400.0, 0, 320], [0, 401, 240], [0, 0, 1]])
+    with pytest.raises(InputError, match="12 coefficients.*thin-prism"):
+        camera_info_text(Intrinsics(K, np.full(12, 1e-3), "pinhole", 640, 480), "c")
+    with pytest.raises(InputError, match="image size"):
+        camera_info_text(Intrinsics(K, np.zeros(5), "pinhole"), "c")

@@ -108,7 +108,10 @@ def _near(a, b, tol=1e-9):
 
 
 def test_format_names_are_the_cli_choices():
-    assert list(FORMATS) == ["kalibr", "opencv", "urdf", "tf-static", "json"]
+    from multieye.cli import EXPORT_FORMATS
+
+    assert list(FORMATS) == ["kalibr", "opencv", "urdf", "tf-static", "json", "camera-info"]
+    assert list(EXPORT_FORMATS) == list(FORMATS)
 
 
 def test_json_round_trips_through_read_calibration(result, tmp_path):
@@ -166,7 +169,8 @@ def test_opencv_filestorage_is_read_by_cv2(result):
             _near(node.getNode("camera_matrix").mat(),
                   [[500 + 10 * j, 0, 319.5], [0, 501 + 10 * j, 239.5], [0, 0, 1]])
             _near(node.getNode("distortion_coefficients").mat(), [[-0.2, 0.05, 1e-4, -2e-4]])
-            assert node.getNode("distortion_model").string() == "pinhole"
+            assert node.getNode("distortion_model").string() == "plumb_bob"
+            assert node.getNode("camera_model").string() == "pinhole"
             assert (node.getNode("image_width").real(), node.getNode("image_height").real()) == (
                 640, 480)
     finally:
@@ -304,3 +308,63 @@ def test_json_export_is_the_record_not_a_copy_of_the_file(result, tmp_path):
     out, _, _ = result
     (path,) = export(out, "json", dest=tmp_path)
     assert json.loads(path.read_text()) == json.loads((out / "calibration.json").read_text())
+
+
+#: The fields of ROS sensor_msgs/CameraInfo YAML as camera_calibration_parsers writes and
+#: reads them, with the shape of each matrix.
+CAMERA_INFO_SCHEMA = {"image_width": int, "image_height": int, "camera_name": str,
+                      "camera_matrix": (3, 3), "distortion_model": str,
+                      "distortion_coefficients": (1, None), "rectification_matrix": (3, 3),
+                      "projection_matrix": (3, 4)}
+
+
+def test_camera_info_per_camera_follows_ros_and_reads_back(result):
+    yaml = pytest.importorskip("yaml")
+    from multieye.io.intrinsics import read_camera_info
+
+    out, rec, _ = result
+    notes = []
+    paths = export(out, "camera-info", notes=notes)
+    assert notes == []
+    assert paths == [out / "export" / "camera_info" / f"{n}.yaml" for n in NAMES]
+    for j, (path, cam) in enumerate(zip(paths, rec.cameras)):
+        data = yaml.safe_load(path.read_text())
+        assert set(data) == set(CAMERA_INFO_SCHEMA)
+        for key, kind in CAMERA_INFO_SCHEMA.items():
+            if isinstance(kind, type):
+                assert isinstance(data[key], kind), key
+            else:
+                m = data[key]
+                assert set(m) == {"rows", "cols", "data"}
+                assert m["rows"] == kind[0] and (kind[1] is None or m["cols"] == kind[1])
+                assert len(m["data"]) == m["rows"] * m["cols"]
+        assert data["camera_name"] == cam.name
+        assert data["distortion_model"] == "plumb_bob"
+        assert data["distortion_coefficients"]["data"] == [-0.2, 0.05, 1e-4, -2e-4, 0.0]
+        K = np.reshape(data["camera_matrix"]["data"], (3, 3))
+        _near(np.reshape(data["projection_matrix"]["data"], (3, 4)), np.hstack([K, np.zeros((3, 1))]), 0)
+        _near(np.reshape(data["rectification_matrix"]["data"], (3, 3)), np.eye(3), 0)
+        back = read_camera_info(path)
+        _near(back.K, [[500 + 10 * j, 0, 319.5], [0, 501 + 10 * j, 239.5], [0, 0, 1]], 0)
+        _near(back.dist, [-0.2, 0.05, 1e-4, -2e-4, 0.0], 0)
+        assert (back.width, back.height, back.model) == (640, 480, "pinhole")
+
+
+def test_camera_info_without_details_says_so(result, tmp_path):
+    out, _, _ = result
+    (tmp_path / "calibration.json").write_bytes((out / "calibration.json").read_bytes())
+    with pytest.raises(DatasetError, match="details.json"):
+        export(tmp_path, "camera-info")
+
+
+def test_camera_info_export_through_the_cli_is_known_to_the_output_folder(result):
+    from click.testing import CliRunner
+
+    from multieye.cli import main
+    from multieye.outputs.folder import foreign_files
+
+    out, _, _ = result
+    res = CliRunner().invoke(main, ["export", str(out), "--format", "camera-info"])
+    assert res.exit_code == 0, res.output
+    assert len(res.output.splitlines()) == len(NAMES)
+    assert foreign_files(out) == []

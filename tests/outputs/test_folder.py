@@ -303,5 +303,10 @@ def test_every_file_written_outside_the_set_has_a_known_name():
     from multieye.outputs.export import FORMATS
     from multieye.outputs.report import FIGURES
 
-    assert {f"export/{name}" for name in FORMATS.values()} <= folder_mod.KNOWN_FILES
+    fixed = {f"export/{name}" for name in FORMATS.values() if "<camera>" not in name}
+    assert fixed <= folder_mod.KNOWN_FILES
+    for name in FORMATS.values():       # one file per camera: known by its pattern
+        if "<camera>" in name:
+            assert folder_mod._KNOWN_PATTERN.fullmatch(
+                "export/" + name.replace("<camera>", "front left"))
     assert {f"figures/{name}" for name in FIGURES} <= folder_mod.KNOWN_FILES

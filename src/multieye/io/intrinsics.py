@@ -21,10 +21,15 @@ fisheye.
 
 :func:`write_opencv_intrinsics` writes OpenCV FileStorage YAML (atomically, without OpenCV),
 adding ``distortion_model: fisheye`` for fisheye cameras so that the file reads back the same.
+:func:`distortion_model_name` names an intrinsics' distortion model (``plumb_bob`` for 0, 4
+or 5 coefficients, ``rational_polynomial`` for 8, ``thin_prism`` for 12, ``tilted`` for 14,
+``equidistant`` for fisheye); :func:`camera_info_text` writes ROS ``sensor_msgs/CameraInfo``
+YAML as ``camera_calibration_parsers`` does, which :func:`read_camera_info` reads back.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
 from collections.abc import Mapping
@@ -46,14 +51,22 @@ __all__ = [
     "read_camera_info",
     "read_kalibr_intrinsics",
     "write_opencv_intrinsics",
+    "distortion_model_name",
+    "camera_info_text",
 ]
 
 #: ``distortion_model`` names and the camera model they mean.
 DISTORTION_MODELS = {
     "plumb_bob": "pinhole", "rational_polynomial": "pinhole", "radtan": "pinhole",
     "pinhole": "pinhole", "equidistant": "fisheye", "fisheye": "fisheye",
-    "kannala_brandt": "fisheye",
+    "kannala_brandt": "fisheye", "thin_prism": "pinhole", "tilted": "pinhole",
 }
+
+#: Name of a pinhole camera's distortion model by its number of OpenCV coefficients.
+_PINHOLE_NAMES = {0: "plumb_bob", 4: "plumb_bob", 5: "plumb_bob", 8: "rational_polynomial",
+                  12: "thin_prism", 14: "tilted"}
+#: The distortion models ROS's camera_info (image_geometry) knows, and their coefficient count.
+_ROS_SIZES = {"plumb_bob": 5, "rational_polynomial": 8, "equidistant": 4}
 
 _FORMATS = ("expected OpenCV FileStorage (%YAML:1.0 or XML with camera_matrix), a Kalibr "
             "camchain (camera_model, intrinsics) or ROS camera_info (camera_matrix: "
@@ -228,6 +241,53 @@ def write_opencv_intrinsics(path: str | os.PathLike, intr: Intrinsics) -> None:
     if intr.model == "fisheye":
         lines.append("distortion_model: fisheye")
     write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def distortion_model_name(intr: Intrinsics) -> str:
+    """The true name of an intrinsics' distortion model: ``equidistant`` (fisheye),
+    ``plumb_bob`` (pinhole, 0/4/5 coefficients), ``rational_polynomial`` (8), ``thin_prism``
+    (12) or ``tilted`` (14); every one reads back through :data:`DISTORTION_MODELS`."""
+    if intr.model == "fisheye":
+        return "equidistant"
+    return _PINHOLE_NAMES[int(intr.dist.size)]
+
+
+def camera_info_text(intr: Intrinsics, camera_name: str) -> str:
+    """ROS ``sensor_msgs/CameraInfo`` YAML (``camera_calibration_parsers``' layout).
+
+    Keys: ``image_width``, ``image_height``, ``camera_name``, ``camera_matrix``,
+    ``distortion_model``, ``distortion_coefficients``, ``rectification_matrix`` (identity)
+    and ``projection_matrix`` (``[K | 0]``), each matrix ``{rows, cols, data}``.  A pinhole
+    lens with 0 or 4 coefficients is written as ``plumb_bob`` with the missing ones zero.
+
+    Raises
+    ------
+    InputError
+        A model ROS cannot name (12 or 14 coefficients: thin-prism or tilted sensor), or an
+        unknown image size (camera_info needs it).
+    """
+    name = distortion_model_name(intr)
+    if name not in _ROS_SIZES:
+        raise InputError(f"ROS camera_info names plumb_bob, rational_polynomial and "
+                         f"equidistant only; this lens has {intr.dist.size} coefficients "
+                         f"(OpenCV's {name.replace('_', '-')} model)")
+    if intr.width is None or intr.height is None:
+        raise InputError("ROS camera_info needs the image size, which these intrinsics do "
+                         "not know")
+    dist = np.zeros(_ROS_SIZES[name])
+    dist[: intr.dist.size] = intr.dist
+
+    def matrix(key, M):
+        M = np.atleast_2d(np.asarray(M, dtype=np.float64))
+        return [f"{key}:", f"  rows: {M.shape[0]}", f"  cols: {M.shape[1]}",
+                f"  data: {yaml_list(M.reshape(-1))}"]
+
+    lines = [f"image_width: {int(intr.width)}", f"image_height: {int(intr.height)}",
+             f"camera_name: {json.dumps(camera_name)}", *matrix("camera_matrix", intr.K),
+             f"distortion_model: {name}", *matrix("distortion_coefficients", dist),
+             *matrix("rectification_matrix", np.eye(3)),
+             *matrix("projection_matrix", np.hstack([intr.K, np.zeros((3, 1))]))]
+    return "\n".join(lines) + "\n"
 
 
 # --------------------------------------------------------------------------- YAML formats

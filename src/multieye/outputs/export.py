@@ -17,7 +17,13 @@ format         file                       content
                                           per camera; :func:`read_tf_static` reads it back
 ``json``       ``calibration.json``       compact ``calibration.json``;
                                           :func:`multieye.io.read_calibration` reads it back
+``camera-info`` ``camera_info/<cam>.yaml`` ROS ``sensor_msgs/CameraInfo`` YAML per camera;
+                                          :func:`multieye.io.read_camera_info` reads it back
 =============  =========================  ==================================================
+
+A camera a format cannot hold (Kalibr's and ROS's lens models, no intrinsics) is named with
+the reason in a note (``notes``) and, for Kalibr, in a comment in the file; never dropped
+silently.
 
 Frames.  The base frame is the one each camera's unknown X is expressed in (docs/conventions.md,
 section 2): ``world`` (motion capture) for eye-to-base, where ``X = T_world_cam``, and ``body``
@@ -56,6 +62,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.atomic import write_text_atomic
+from multieye.io.intrinsics import camera_info_text, distortion_model_name
 from multieye.io.calibration_json import SETUP_KEYS, CalibrationRecord, calibration_to_dict, read_calibration
 from multieye.io.kalibr import CamchainEntry, write_camchain
 from multieye.io.run_details import read_run_details
@@ -83,6 +90,7 @@ FORMATS = {
     "urdf": "cameras.urdf",
     "tf-static": "static_transforms.sh",
     "json": "calibration.json",
+    "camera-info": "camera_info/<camera>.yaml",
 }
 
 #: setup -> name of the frame the cameras' X is expressed in.
@@ -155,7 +163,9 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
     Layout: ``setup``, ``method``, ``reference_camera``, ``base_frame``, the shared unknown
     (``T_marker_target`` or ``T_world_target``) and ``cameras``, a sequence of maps with
     ``name``, ``T_ref_cam``, ``T_world_cam`` (or ``T_body_cam``) and, when known,
-    ``camera_matrix``, ``distortion_model`` (``pinhole`` or ``fisheye``),
+    ``camera_matrix``, ``camera_model`` (``pinhole`` or ``fisheye``), ``distortion_model``
+    (:func:`multieye.io.intrinsics.distortion_model_name`: ``plumb_bob``,
+    ``rational_polynomial``, ``thin_prism``, ``tilted`` or ``equidistant``),
     ``distortion_coefficients`` (1 x k), ``image_width`` and ``image_height``.  Read it with
     ``cv2.FileStorage(path, cv2.FILE_STORAGE_READ)``; ``fs.getNode("cameras").at(j)``.
     """
@@ -174,7 +184,8 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
         intr = intrinsics.get(cam.name)
         if intr is not None:
             lines += _opencv_matrix("camera_matrix", intr.K, ind)
-            lines.append(f"{ind}distortion_model: {json.dumps(intr.model)}")
+            lines.append(f"{ind}camera_model: {json.dumps(intr.model)}")
+            lines.append(f"{ind}distortion_model: {json.dumps(distortion_model_name(intr))}")
             if intr.dist.size:
                 lines += _opencv_matrix("distortion_coefficients", intr.dist[None], ind)
             if intr.width is not None and intr.height is not None:
@@ -346,8 +357,31 @@ def _intrinsics(out: Path, rec: CalibrationRecord, *, required: bool) -> dict:
     return found
 
 
+def _camera_infos(folder: Path, rec: CalibrationRecord, intr: dict,
+                  notes: list[str]) -> list[Path]:
+    """One camera_info YAML per camera ROS can describe; the others named in ``notes``."""
+    paths, left = [], []
+    for cam in rec.cameras:
+        if intr.get(cam.name) is None:
+            left.append(f"{cam.name} (no intrinsics)")
+            continue
+        try:
+            text = camera_info_text(intr[cam.name], cam.name)
+        except InputError as exc:
+            left.append(f"{cam.name} ({exc})")
+            continue
+        paths.append(folder / f"{cam.name}.yaml")
+        write_text_atomic(paths[-1], text)
+    if left:
+        notes.append("no camera_info for " + "; ".join(left))
+    if not paths:
+        raise InputError("ROS camera_info cannot describe any camera: " + "; ".join(left))
+    return paths
+
+
 def export(out_dir: str | os.PathLike, fmt: str, *,
-           dest: str | os.PathLike | None = None) -> list[Path]:
+           dest: str | os.PathLike | None = None,
+           notes: list[str] | None = None) -> list[Path]:
     """Write the calibration in ``out_dir`` in format ``fmt`` (see the module docstring).
 
     Parameters
@@ -358,6 +392,8 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
         One of :data:`FORMATS`.
     dest : path-like, optional
         Folder to write into (created); default ``out_dir/export``.
+    notes : list of str, optional
+        Receives one line per camera a format cannot hold, with the reason.
 
     Returns
     -------
@@ -380,6 +416,15 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise DatasetError(f"cannot create the export folder: {exc.strerror}", path=folder) from exc
+    notes = [] if notes is None else notes
+    if fmt == "camera-info":
+        sub = folder / "camera_info"
+        try:
+            sub.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise DatasetError(f"cannot create the folder: {exc.strerror}", path=sub) from exc
+        intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
+        return _camera_infos(sub, rec, intr, notes)
     path = folder / FORMATS[fmt]
     if fmt == "kalibr":
         intr = _intrinsics(out, rec, required=True)

@@ -73,10 +73,11 @@ KNOWN_FILES = frozenset({
     "export/camchain.yaml", "export/extrinsics.yaml", "export/cameras.urdf",
     "export/static_transforms.sh", "export/calibration.json",
 })
-_KNOWN_FOLDERS = frozenset({"figures", "export"})
+_KNOWN_FOLDERS = frozenset({"figures", "export", "export/camera_info"})
 #: Files multieye writes under names of the cameras: the report's per-camera figures
 #: (``multieye report`` on a folder whose manifest predates them writes them too).
-_KNOWN_PATTERN = re.compile(r"figures/camera_[A-Za-z0-9._-]+\.png")
+#: and ``multieye export --format camera-info``'s files, named after the cameras.
+_KNOWN_PATTERN = re.compile(r"figures/camera_[A-Za-z0-9._-]+\.png|export/camera_info/[^/]+\.yaml")
 #: Left by file managers, anywhere: never a reason to refuse a folder.
 _DISPOSABLE = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
 #: The temporary file of an interrupted atomic write (multieye.io.atomic).
