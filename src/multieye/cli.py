@@ -220,15 +220,23 @@ EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json", "camera-info"
               help="kalibr camchain, OpenCV FileStorage, URDF fragment, ROS 2 static "
                    "transform publisher arguments, compact JSON, or one ROS camera_info "
                    "YAML per camera.")
+@click.option("--parent-frame", default=None,
+              help="Name of the base frame in urdf, tf-static and opencv [default: world for "
+                   "eye-to-base; the tracked frame of mocap pose:, marker or body, for "
+                   "eye-on-hand].")
+@click.option("--child-frame", default=None,
+              help="Stem of each camera's frames, {camera} standing for its name: "
+                   "<stem>_link and <stem>_optical_frame [default: {camera}].")
 @_user_errors
-def export(out_dir: Path, fmt: str):
+def export(out_dir: Path, fmt: str, parent_frame: str | None, child_frame: str | None):
     """Export the calibration in OUT to another tool's format (into OUT/export/)."""
     from multieye.outputs.export import export as run_export
     from multieye.outputs.folder import claim_output
 
     notes: list[str] = []
     with claim_output(out_dir, replace=False):
-        for p in run_export(out_dir, fmt, notes=notes):
+        for p in run_export(out_dir, fmt, notes=notes, parent_frame=parent_frame,
+                            child_frame=child_frame):
             click.echo(str(p))
     for note in notes:
         click.echo(f"note: {note}", err=True)

@@ -368,3 +368,64 @@ def test_camera_info_export_through_the_cli_is_known_to_the_output_folder(result
     assert res.exit_code == 0, res.output
     assert len(res.output.splitlines()) == len(NAMES)
     assert foreign_files(out) == []
+
+
+def test_urdf_loads_in_urdf_parser_py(result):
+    urdf = pytest.importorskip("urdf_parser_py.urdf")
+    out, rec, _ = result
+    (path,) = export(out, "urdf")
+    robot = urdf.URDF.from_xml_string(path.read_bytes())
+    base = BASE_FRAME[rec.setup]
+    assert robot.get_root() == base
+    assert {j.type for j in robot.joints} == {"fixed"}
+    for cam in rec.cameras:
+        chain = robot.get_chain(base, f"{cam.name}_optical_frame", links=False)
+        T = np.eye(4)
+        for name in chain:
+            joint = robot.joint_map[name]
+            T = T @ g.make_transform(rotation_from_rpy(joint.origin.rpy), joint.origin.xyz)
+        _near(T, cam.X)
+
+
+def test_frames_overridden_by_parent_and_child_frame(result):
+    from click.testing import CliRunner
+
+    from multieye.cli import main
+
+    out, rec, _ = result
+    res = CliRunner().invoke(main, ["export", str(out), "--format", "urdf", "--parent-frame",
+                                    "base_link", "--child-frame", "rig/{camera}"])
+    assert res.exit_code == 0, res.output
+    joints = read_urdf_joints(out / "export" / "cameras.urdf")
+    (path,) = export(out, "tf-static", parent_frame="base_link", child_frame="rig/{camera}")
+    transforms = read_tf_static(path)
+    for cam in rec.cameras:
+        link, optical = f"rig/{cam.name}_link", f"rig/{cam.name}_optical_frame"
+        _near(joints[("base_link", link)] @ joints[(link, optical)], cam.X)
+        _near(transforms[("base_link", optical)], cam.X)
+    (path,) = export(out, "opencv", parent_frame="base_link")
+    assert 'base_frame: "base_link"' in path.read_text()
+
+
+@pytest.mark.parametrize("parent, child, message", [
+    ("", None, "non-empty"), ("a b", None, "white space"), ("/world", None, "leading"),
+    (None, "cam", "must contain {camera}"), ("cam0_link", None, "not unique")])
+def test_bad_frame_names_are_refused_before_writing(result, tmp_path, parent, child, message):
+    out, _, _ = result
+    with pytest.raises(InputError, match=message):
+        export(out, "urdf", dest=tmp_path / "x", parent_frame=parent, child_frame=child)
+    assert not (tmp_path / "x" / "cameras.urdf").exists()
+
+
+def test_eye_on_hand_base_is_the_tracked_frame_of_the_pose(result, tmp_path):
+    out, rec, _ = result
+    if rec.setup != "eye-on-hand":
+        pytest.skip("the base of eye-to-base is the world")
+    for name in ("calibration.json", "details.json"):
+        text = (out / name).read_text()
+        (tmp_path / name).write_text(text.replace("T_world_body", "T_world_marker"))
+    transforms = read_tf_static(export(tmp_path, "tf-static")[0])
+    assert {p for p, _ in transforms} == {"marker"}
+    (tmp_path / "details.json").unlink()
+    transforms = read_tf_static(export(tmp_path, "tf-static")[0])
+    assert {p for p, _ in transforms} == {"body"}

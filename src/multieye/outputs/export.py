@@ -26,8 +26,12 @@ the reason in a note (``notes``) and, for Kalibr, in a comment in the file; neve
 silently.
 
 Frames.  The base frame is the one each camera's unknown X is expressed in (docs/conventions.md,
-section 2): ``world`` (motion capture) for eye-to-base, where ``X = T_world_cam``, and ``body``
-(the tracked rig) for eye-on-hand, where ``X = T_body_cam``.  multieye's camera frame is the
+section 2): ``world`` (motion capture) for eye-to-base, where ``X = T_world_cam``, and the
+tracked frame of rig.yaml's ``mocap: pose:`` for eye-on-hand, where ``X = T_body_cam``:
+``marker`` for ``T_world_marker``, ``body`` for ``T_world_body`` (read from ``details.json``;
+``body`` without it).  ``parent_frame`` replaces the base frame's name; ``child_frame`` is the
+stem of each camera's frames, ``{camera}`` standing for the camera's name (default
+``{camera}``): ``<stem>_link`` and ``<stem>_optical_frame``.  multieye's camera frame is the
 optical frame of OpenCV and of ROS (REP 103: x right, y down, z forward), so in ROS terms the
 calibrated pose is that of ``<camera>_optical_frame``.  The URDF adds the usual body-convention
 link ``<camera>_link`` (x forward, y left, z up) between the base and the optical frame, with
@@ -74,6 +78,7 @@ __all__ = [
     "BASE_FRAME",
     "T_LINK_OPTICAL",
     "export",
+    "frame_names",
     "opencv_text",
     "urdf_text",
     "tf_static_text",
@@ -157,7 +162,8 @@ def _opencv_matrix(name: str, M: np.ndarray, indent: str) -> list[str]:
             f"{indent}   data: {yaml_list(M.reshape(-1))}"]
 
 
-def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]) -> str:
+def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None],
+                parent: str | None = None) -> str:
     """OpenCV FileStorage YAML of a calibration (what ``extrinsics.yaml`` holds).
 
     Layout: ``setup``, ``method``, ``reference_camera``, ``base_frame``, the shared unknown
@@ -174,7 +180,7 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
              "# multieye calibration: T_a_b maps coordinates in frame b to frame a (metres)",
              f"setup: {json.dumps(rec.setup)}", f"method: {json.dumps(rec.method)}",
              f"reference_camera: {json.dumps(rec.reference_camera)}",
-             f"base_frame: {json.dumps(BASE_FRAME[rec.setup])}",
+             f"base_frame: {json.dumps(frame_names(rec, parent)[0])}",
              *_opencv_matrix(y_key, rec.Y, ""), "cameras:"]
     ind = "      "
     for cam in rec.cameras:
@@ -207,10 +213,38 @@ def _joint(robot: ET.Element, name: str, parent: str, child: str, T: np.ndarray)
     _origin(joint, T)
 
 
-def urdf_text(rec: CalibrationRecord) -> str:
-    """A URDF ``<robot>`` with the base link, and per camera ``<camera>_link`` and
-    ``<camera>_optical_frame`` joined by fixed joints (see the module docstring)."""
-    base = BASE_FRAME[rec.setup]
+def frame_names(rec: CalibrationRecord, parent: str | None = None,
+                child: str | None = None) -> tuple[str, dict[str, str]]:
+    """The base frame and, per camera, the stem of its frames (see the module docstring).
+
+    Raises
+    ------
+    InputError
+        An empty name or one with white space, a ``child`` without ``{camera}`` for several
+        cameras, or two cameras (or a camera and the base) given the same frame.
+    """
+    parent = BASE_FRAME[rec.setup] if parent is None else parent
+    child = "{camera}" if child is None else child
+    for what, name in (("--parent-frame", parent), ("--child-frame", child)):
+        if not name or any(c.isspace() for c in name) or name.startswith("/"):
+            raise InputError(f"{what} {name!r}: a frame name must be non-empty, without white "
+                             "space and without a leading '/' (tf2)")
+    if "{camera}" not in child and len(rec.cameras) > 1:
+        raise InputError(f"--child-frame {child!r} must contain {{camera}} (the camera's name): "
+                         f"the rig has {len(rec.cameras)} cameras")
+    stems = {c.name: child.replace("{camera}", c.name) for c in rec.cameras}
+    frames = [parent] + [f"{s}{end}" for s in stems.values() for end in ("_link", "_optical_frame")]
+    if len(set(frames)) != len(frames):
+        raise InputError(f"the frame names are not unique: {', '.join(frames)}")
+    return parent, stems
+
+
+def urdf_text(rec: CalibrationRecord, parent: str | None = None,
+              child: str | None = None) -> str:
+    """A URDF ``<robot>`` with the base link, and per camera ``<stem>_link`` (body-aligned:
+    x forward, y left, z up) and ``<stem>_optical_frame`` (REP 103: z forward) joined by fixed
+    joints (see the module docstring and :func:`frame_names`)."""
+    base, stems = frame_names(rec, parent, child)
     robot = ET.Element("robot", name="multieye_cameras")
     robot.append(ET.Comment(
         f" multieye calibration ({rec.setup}, method {rec.method}, reference "
@@ -220,22 +254,24 @@ def urdf_text(rec: CalibrationRecord) -> str:
     ET.SubElement(robot, "link", name=base)
     T_optical_link = g.inv(T_LINK_OPTICAL)
     for cam in rec.cameras:
-        link, optical = f"{cam.name}_link", f"{cam.name}_optical_frame"
+        link, optical = f"{stems[cam.name]}_link", f"{stems[cam.name]}_optical_frame"
         ET.SubElement(robot, "link", name=link)
         ET.SubElement(robot, "link", name=optical)
-        _joint(robot, f"{cam.name}_joint", base, link, cam.X @ T_optical_link)
-        _joint(robot, f"{cam.name}_optical_joint", link, optical, T_LINK_OPTICAL)
+        _joint(robot, f"{stems[cam.name]}_joint", base, link, cam.X @ T_optical_link)
+        _joint(robot, f"{stems[cam.name]}_optical_joint", link, optical, T_LINK_OPTICAL)
     ET.indent(robot, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 
 
-def tf_static_text(rec: CalibrationRecord) -> str:
+def tf_static_text(rec: CalibrationRecord, parent: str | None = None,
+                   child: str | None = None) -> str:
     """One ROS 2 ``static_transform_publisher`` command per camera, base -> optical frame.
 
     Each line runs in the background (``&``) and the script waits, so that
     ``sh static_transforms.sh`` publishes every camera; each line also works on its own.
+    Frame names as :func:`frame_names` gives them.
     """
-    base = BASE_FRAME[rec.setup]
+    base, stems = frame_names(rec, parent, child)
     lines = ["#!/bin/sh",
              f"# multieye calibration ({rec.setup}, method {rec.method}): pose of each camera's "
              f"optical frame in '{base}'",
@@ -245,7 +281,7 @@ def tf_static_text(rec: CalibrationRecord) -> str:
         args = [*_TF_COMMAND,
                 "--x", _f(cam.X[0, 3]), "--y", _f(cam.X[1, 3]), "--z", _f(cam.X[2, 3]),
                 "--qx", _f(q[0]), "--qy", _f(q[1]), "--qz", _f(q[2]), "--qw", _f(q[3]),
-                "--frame-id", base, "--child-frame-id", f"{cam.name}_optical_frame"]
+                "--frame-id", base, "--child-frame-id", f"{stems[cam.name]}_optical_frame"]
         lines.append(" ".join(shlex.quote(a) for a in args) + " &")
     lines.append("wait")
     return "\n".join(lines) + "\n"
@@ -357,6 +393,17 @@ def _intrinsics(out: Path, rec: CalibrationRecord, *, required: bool) -> dict:
     return found
 
 
+def _tracked_frame(out: Path) -> str | None:
+    """``marker`` or ``body``: the tracked frame of the motion capture's ``pose:``
+    (``T_world_<frame>``) as details.json records it; None without details.json."""
+    path = out / "details.json"
+    if not path.exists():
+        return None
+    poses = {t.pose for t in read_run_details(path).trajectories}
+    frames = sorted(p.split("_", 2)[2] for p in poses if p.startswith("T_world_"))
+    return frames[0] if len(frames) == 1 else None
+
+
 def _camera_infos(folder: Path, rec: CalibrationRecord, intr: dict,
                   notes: list[str]) -> list[Path]:
     """One camera_info YAML per camera ROS can describe; the others named in ``notes``."""
@@ -381,7 +428,8 @@ def _camera_infos(folder: Path, rec: CalibrationRecord, intr: dict,
 
 def export(out_dir: str | os.PathLike, fmt: str, *,
            dest: str | os.PathLike | None = None,
-           notes: list[str] | None = None) -> list[Path]:
+           notes: list[str] | None = None, parent_frame: str | None = None,
+           child_frame: str | None = None) -> list[Path]:
     """Write the calibration in ``out_dir`` in format ``fmt`` (see the module docstring).
 
     Parameters
@@ -394,6 +442,9 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
         Folder to write into (created); default ``out_dir/export``.
     notes : list of str, optional
         Receives one line per camera a format cannot hold, with the reason.
+    parent_frame, child_frame : str, optional
+        Frame names of ``urdf``, ``tf-static`` and ``opencv`` (:func:`frame_names`); by
+        default from the setup and the motion capture's ``pose:``.
 
     Returns
     -------
@@ -417,6 +468,9 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
     except OSError as exc:
         raise DatasetError(f"cannot create the export folder: {exc.strerror}", path=folder) from exc
     notes = [] if notes is None else notes
+    if parent_frame is None and rec.setup == "eye-on-hand":
+        parent_frame = _tracked_frame(out)
+    frame_names(rec, parent_frame, child_frame)        # checked before anything is written
     if fmt == "camera-info":
         sub = folder / "camera_info"
         try:
@@ -431,11 +485,12 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
         write_camchain(path, [CamchainEntry(c.name, intr[c.name], c.T_ref_cam)
                               for c in rec.cameras])
     elif fmt == "opencv":
-        write_text_atomic(path, opencv_text(rec, _intrinsics(out, rec, required=False)))
+        write_text_atomic(path, opencv_text(rec, _intrinsics(out, rec, required=False),
+                                            parent_frame))
     elif fmt == "urdf":
-        write_text_atomic(path, urdf_text(rec))
+        write_text_atomic(path, urdf_text(rec, parent_frame, child_frame))
     elif fmt == "tf-static":
-        write_text_atomic(path, tf_static_text(rec))
+        write_text_atomic(path, tf_static_text(rec, parent_frame, child_frame))
     else:  # json
         text = json.dumps(calibration_to_dict(rec), separators=(",", ":"), allow_nan=False)
         write_text_atomic(path, text + "\n")
