@@ -400,3 +400,27 @@ def test_camera_info_text_names_what_ros_cannot_hold():
         camera_info_text(Intrinsics(K, np.full(12, 1e-3), "pinhole", 640, 480), "c")
     with pytest.raises(InputError, match="image size"):
         camera_info_text(Intrinsics(K, np.zeros(5), "pinhole"), "c")
+
+
+def test_overlaps_in_time_pairs_cameras_within_the_smaller_tolerance():
+    from multieye.io.kalibr import overlaps_in_time
+
+    stamps = [np.array([1.0, 2.0]), np.array([9.0, 2.005]), np.array([5.0]), np.array([]),
+              np.array([5.02])]
+    tol = [0.01, 0.01, 0.05, 0.01, 0.01]
+    assert overlaps_in_time(stamps, tol) == [[1], [0], [], [], []]
+    tol[4] = 0.05
+    assert overlaps_in_time(stamps, tol) == [[1], [0], [4], [], [2]]
+
+
+def test_camchain_cam_overlaps_round_trip_and_are_checked(tmp_path):
+    K = np.array([[400.0, 0, 320], [0, 401, 240], [0, 0, 1]])
+    intr = Intrinsics(K, np.zeros(4), "pinhole", 640, 480)
+    path = tmp_path / "camchain.yaml"
+    write_camchain(path, [CamchainEntry("a", intr, np.eye(4), "/a/image_raw", (1,)),
+                          CamchainEntry("b", intr, np.eye(4), None, (0,))])
+    back = read_camchain(path)
+    assert [(e.rostopic, e.cam_overlaps) for e in back] == [("/a/image_raw", (1,)), (None, (0,))]
+    path.write_text(path.read_text().replace("cam_overlaps: [1]", "cam_overlaps: [x]"))
+    with pytest.raises(DatasetError, match="cam_overlaps must be a list of camera indices"):
+        read_camchain(path)

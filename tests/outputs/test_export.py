@@ -429,3 +429,93 @@ def test_eye_on_hand_base_is_the_tracked_frame_of_the_pose(result, tmp_path):
     (tmp_path / "details.json").unlink()
     transforms = read_tf_static(export(tmp_path, "tf-static")[0])
     assert {p for p, _ in transforms} == {"body"}
+
+
+#: Kalibr's camchain keys (kalibr_common.ConfigReader.CameraParameters / CameraChainParameters)
+#: and what each holds; camera_name is multieye's own, which Kalibr ignores.
+KALIBR_SCHEMA = {"camera_model": str, "intrinsics": list, "distortion_model": str,
+                 "distortion_coeffs": list, "resolution": list, "T_cn_cnm1": list,
+                 "rostopic": str, "cam_overlaps": list, "camera_name": str}
+
+
+def _check_kalibr_schema(data: dict) -> None:
+    assert list(data) == [f"cam{n}" for n in range(len(data))]
+    for n, entry in enumerate(data.values()):
+        assert set(entry) <= set(KALIBR_SCHEMA)
+        required = {"camera_model", "intrinsics", "distortion_model", "distortion_coeffs",
+                    "rostopic", "cam_overlaps"} | ({"T_cn_cnm1"} if n else set())
+        assert required <= set(entry)
+        for key, kind in KALIBR_SCHEMA.items():
+            assert key not in entry or isinstance(entry[key], kind), key
+        assert entry["camera_model"] == "pinhole"
+        assert entry["distortion_model"] in ("radtan", "equidistant", "none")
+        assert len(entry["intrinsics"]) == 4 and len(entry["distortion_coeffs"]) == 4
+        assert entry["rostopic"].startswith("/") and " " not in entry["rostopic"]
+        assert all(isinstance(k, int) and 0 <= k < len(data) and k != n
+                   for k in entry["cam_overlaps"])
+        if n:
+            assert np.shape(entry["T_cn_cnm1"]) == (4, 4)
+
+
+def test_kalibr_camchains_follow_kalibrs_schema_with_topics_and_overlaps(result):
+    yaml = pytest.importorskip("yaml")
+    out, _, _ = result
+    (path,) = export(out, "kalibr")
+    for chain in (path, out / "camchain.yaml"):     # the export and calibrate's own
+        data = yaml.safe_load(chain.read_text())
+        _check_kalibr_schema(data)
+        assert [e["rostopic"] for e in data.values()] == [
+            "/cam0/image_raw", "/front_left/image_raw", "/rear____q_/image_raw"]
+        assert [e["cam_overlaps"] for e in data.values()] == [[], [], []]  # one at a time
+    assert [e.cam_overlaps for e in read_camchain(path)] == [(), (), ()]
+
+
+def test_kalibr_takes_topics_and_overlaps_from_details(result, tmp_path):
+    yaml = pytest.importorskip("yaml")
+    out, _, _ = result
+    details = json.loads((out / "details.json").read_text())
+    cams = details["cameras"]
+    cams["cam0"]["topic"] = "/rig/cam0/image_color"
+    cams["cam0"]["overlaps"], cams["front left"]["overlaps"] = ["front left"], ["cam0"]
+    (tmp_path / "details.json").write_text(json.dumps(details))
+    (tmp_path / "calibration.json").write_bytes((out / "calibration.json").read_bytes())
+    (path,) = export(tmp_path, "kalibr")
+    data = yaml.safe_load(path.read_text())
+    _check_kalibr_schema(data)
+    assert data["cam0"]["rostopic"] == "/rig/cam0/image_color"
+    assert [e["cam_overlaps"] for e in data.values()] == [[1], [0], []]
+    back = read_camchain(path)
+    assert [e.rostopic for e in back][0] == "/rig/cam0/image_color"
+    assert [e.cam_overlaps for e in back] == [(1,), (0,), ()]
+
+
+def test_kalibr_export_names_each_camera_it_leaves_out(result, tmp_path):
+    out, rec, _ = result
+    details = json.loads((out / "details.json").read_text())
+    del details["cameras"]["front left"]["intrinsics"]
+    details["cameras"]["front left"].pop("points", None)
+    (tmp_path / "details.json").write_text(json.dumps(details))
+    (tmp_path / "calibration.json").write_bytes((out / "calibration.json").read_bytes())
+    notes = []
+    (path,) = export(tmp_path, "kalibr", notes=notes)
+    assert [e.name for e in read_camchain(path)] == ["cam0", NAMES[2]]
+    assert path.read_text().startswith("# left out of this camchain: front left (no intrinsics)")
+    assert notes == [f"camchain.yaml holds cam0, {NAMES[2]} only; left out: front left "
+                     "(no intrinsics)"]
+
+
+def test_camera_overlaps_compare_used_images_in_the_mocap_clock():
+    from types import SimpleNamespace as NS
+
+    from multieye.outputs.details import camera_overlaps
+
+    def cam(name, stamps, offset, tol):
+        return (NS(name=name, time_offset_s=offset),
+                NS(time_offset=0.0, time_tolerance=tol),
+                NS(observations=[NS(stamp=t) for t in stamps]))
+
+    cams = [cam("a", [1.0, 2.0], 0.0, 0.01), cam("b", [11.995], -10.0, 0.01),
+            cam("c", [2.5], None, 0.01)]
+    run = NS(record=NS(cameras=[c[0] for c in cams]),
+             cameras={c[0].name: c[1] for c in cams}, paired={c[0].name: c[2] for c in cams})
+    assert camera_overlaps(run) == {"a": ("b",), "b": ("a",), "c": ()}

@@ -10,6 +10,7 @@ Layout (as Kalibr documents it): one entry per camera, keyed ``cam0``, ``cam1``,
       resolution: [width, height]
       T_cn_cnm1: [[...4x4...]]          # n >= 1
       rostopic: /cam1/image_raw         # optional
+      cam_overlaps: [0]                 # optional: cameras seeing the target at once
 
 ``T_cn_cnm1`` maps points in camera n-1 into camera n, i.e. ``T_cam<n>_cam<n-1>``; with
 poses relative to a reference camera, ``T_cn_cnm1 = inv(T_ref_cn) @ T_ref_cnm1``.
@@ -47,6 +48,7 @@ __all__ = [
     "kalibr_fields",
     "is_camchain",
     "camchain_entries",
+    "overlaps_in_time",
 ]
 
 _DISTORTION = {"radtan": "pinhole", "equidistant": "fisheye", "none": "pinhole"}
@@ -65,12 +67,16 @@ class CamchainEntry:
         Pose of the camera in the reference camera's frame (metres).  Read back from a file,
         the reference is the chain's first camera.
     rostopic : str or None
+    cam_overlaps : tuple of int, or None
+        Indices in the chain of the cameras that saw the target at the same time as this
+        one (Kalibr's ``cam_overlaps``); None leaves the key out.
     """
 
     name: str
     intrinsics: Intrinsics
     T_ref_cam: np.ndarray
     rostopic: str | None = None
+    cam_overlaps: tuple[int, ...] | None = None
 
     def __post_init__(self):
         T = np.asarray(self.T_ref_cam, dtype=np.float64)
@@ -188,6 +194,8 @@ def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry], *,
             T = geometry.inv(cam.T_ref_cam) @ cameras[n - 1].T_ref_cam
             lines.append("  T_cn_cnm1:")
             lines.extend(f"  - {yaml_list(row)}" for row in T)
+        if cam.cam_overlaps is not None:
+            lines.append(f"  cam_overlaps: [{', '.join(str(int(k)) for k in cam.cam_overlaps)}]")
         if cam.rostopic:
             lines.append(f"  rostopic: {json.dumps(cam.rostopic)}")
     write_text_atomic(path, "\n".join(lines) + "\n")
@@ -237,7 +245,31 @@ def read_camchain(path: str | os.PathLike) -> tuple[CamchainEntry, ...]:
                 raise doc.error("missing key 'T_cn_cnm1'", key)
             T_ref = T_ref @ geometry.inv(_rigid(entry["T_cn_cnm1"], doc, key, "T_cn_cnm1"))
         name = str(entry.get("camera_name", key))
-        rostopic = entry.get("rostopic")
+        rostopic, overlaps = entry.get("rostopic"), entry.get("cam_overlaps")
+        if overlaps is not None:
+            if not isinstance(overlaps, list) or not all(
+                    isinstance(k, int) and not isinstance(k, bool) for k in overlaps):
+                raise doc.error(f"cam_overlaps must be a list of camera indices, got "
+                                f"{shown(overlaps)}", key, "cam_overlaps")
+            overlaps = tuple(overlaps)
         out.append(CamchainEntry(name, intr, T_ref.copy(), None if rostopic is None else
-                                 str(rostopic)))
+                                 str(rostopic), overlaps))
     return tuple(out)
+
+
+def overlaps_in_time(stamps: Sequence[np.ndarray], tolerances: Sequence[float]) -> list[list[int]]:
+    """Per camera, the indices of the others that saw the target at the same time: a stamp
+    of each within the smaller of their time tolerances (stamps in one clock, seconds)."""
+    sorted_stamps = [np.sort(np.asarray(s, dtype=np.float64)) for s in stamps]
+    out = [[] for _ in stamps]
+    for j, sj in enumerate(sorted_stamps):
+        for k in range(j + 1, len(sorted_stamps)):
+            sk, tol = sorted_stamps[k], min(tolerances[j], tolerances[k])
+            if sj.size == 0 or sk.size == 0:
+                continue
+            pos = np.clip(np.searchsorted(sk, sj), 1, max(sk.size - 1, 1))
+            near = np.minimum(np.abs(sk[pos - 1] - sj), np.abs(sk[np.minimum(pos, sk.size - 1)] - sj))
+            if np.any(near <= tol):
+                out[j].append(k)
+                out[k].append(j)
+    return [sorted(o) for o in out]

@@ -153,6 +153,12 @@ class CameraDetails:
         estimated by the joint refinement.
     projection_std : ProjectionStd or None
         Standard deviation of the projection over the image, from that covariance.
+    topic : str or None
+        The camera's image topic in rig.yaml (a rosbag camera); None otherwise.
+    overlaps : tuple of str, or None
+        The other cameras that saw the target at the same time (a used image of each within
+        the time tolerance, in the motion-capture clock); None in files written before it
+        existed.
     """
 
     name: str
@@ -170,6 +176,8 @@ class CameraDetails:
     intrinsics_estimated: bool | None = None
     intrinsics_covariance: np.ndarray | None = None
     projection_std: ProjectionStd | None = None
+    topic: str | None = None
+    overlaps: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -308,6 +316,10 @@ def run_details_to_dict(details: RunDetails) -> dict:
             cameras[c.name]["points"] = points_to_dict(c.points)
         if c.projection_std is not None:
             cameras[c.name]["projection_std"] = projection_to_dict(c.projection_std)
+        if c.topic is not None:
+            cameras[c.name]["topic"] = c.topic
+        if c.overlaps is not None:
+            cameras[c.name]["overlaps"] = list(c.overlaps)
     out = {
         "format": FORMAT, "version": VERSION, "setup": details.setup,
         "reference_camera": details.reference_camera,
@@ -461,6 +473,13 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
         if not isinstance(diagnostics, Mapping):
             raise r.error("diagnostics must be an object", name)
         intr = _read_intrinsics(r, c.get("intrinsics"), name)
+        topic, overlaps = c.get("topic"), c.get("overlaps")
+        if topic is not None and not isinstance(topic, str):
+            raise r.error(f"topic must be a string, got {topic!r}", name)
+        if overlaps is not None and (not isinstance(overlaps, list) or not all(
+                isinstance(o, str) and o in cams_raw and o != name for o in overlaps)):
+            raise r.error(f"overlaps must be a list of the other cameras' names, got "
+                          f"{overlaps!r}", name)
         estimated, intr_cov = _read_estimated(r, c.get("intrinsics"), intr, name)
         cameras.append(CameraDetails(
             name=str(name),
@@ -470,7 +489,8 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
             trans_m=cols["trans_m"], rms_px=cols["rms_px"], T_world_target=T_wt,
             diagnostics=dict(diagnostics), points=points_from_dict(r, c.get("points"), n, name),
             intrinsics_estimated=estimated, intrinsics_covariance=intr_cov,
-            projection_std=projection_from_dict(r, c.get("projection_std"), name)))
+            projection_std=projection_from_dict(r, c.get("projection_std"), name),
+            topic=topic, overlaps=None if overlaps is None else tuple(overlaps)))
     if reference not in cams_raw:
         raise r.error(f"reference camera {reference!r} is not one of {', '.join(cams_raw)}")
     return RunDetails(setup=setup, reference_camera=reference, cameras=tuple(cameras),

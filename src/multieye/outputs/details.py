@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -26,6 +27,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian, undistort_points
 from multieye.core.metrics import loop_residuals
+from multieye.io.kalibr import overlaps_in_time
 from multieye.io.pixel_details import MAX_POINTS, ImagePoints, ProjectionStd
 from multieye.io.run_details import (
     TRAJECTORY_MARGIN_S,
@@ -221,13 +223,17 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
                                     f"diagnostics of camera {cam.name}"),
             points=image_points(run, cam.name, max_points=max_points),
             intrinsics_estimated=estimated, intrinsics_covariance=intr_cov,
-            projection_std=grid))
-    pose = "T_world_marker" if setup == "eye-to-base" else "T_world_body"
+            projection_std=grid, topic=camera_topic(run, cam.name)))
+    overlaps = camera_overlaps(run)
+    cams = [replace(c, overlaps=overlaps[c.name]) for c in cams]
+    default = "T_world_marker" if setup == "eye-to-base" else "T_world_body"
     trajectories = []
     for traj, (lo, hi) in zip(sources, spans):
         inside = (traj.stamps >= lo - TRAJECTORY_MARGIN_S) & (traj.stamps <= hi + TRAJECTORY_MARGIN_S)
         idx = _span_indices(traj.stamps, lo - TRAJECTORY_MARGIN_S, hi + TRAJECTORY_MARGIN_S,
                             max_trajectory_points)
+        pose = (f"T_world_{traj.child}" if traj.parent == "world"
+                and traj.child in ("marker", "body") else default)
         trajectories.append(TrajectoryDetails(pose=pose, stamps=traj.stamps[idx].copy(),
                                               positions=traj.T[idx, :3, 3].copy(),
                                               n_samples=int(inside.sum()) or len(traj.stamps)))
@@ -253,3 +259,23 @@ def write_run_details(path: str | os.PathLike, run: CalibrationRun, *,
                           max_trajectory_points=max_trajectory_points)
     write_details(path, details)
     return details
+
+
+def camera_overlaps(run: CalibrationRun) -> dict[str, tuple[str, ...]]:
+    """Per camera, the others that saw the target at the same time: a used image of each
+    within the smaller of their time tolerances, stamps in the motion-capture clock."""
+    names, stamps, tols = [], [], []
+    for cam in run.record.cameras:
+        data, paired = run.cameras[cam.name], run.paired[cam.name]
+        offset = data.time_offset if cam.time_offset_s is None else cam.time_offset_s
+        names.append(cam.name)
+        stamps.append(np.array([o.stamp for o in paired.observations], dtype=np.float64) + offset)
+        tols.append(data.time_tolerance)
+    found = overlaps_in_time(stamps, tols)
+    return {n: tuple(names[k] for k in found[j]) for j, n in enumerate(names)}
+
+
+def camera_topic(run: CalibrationRun, name: str) -> str | None:
+    """The camera's image topic in rig.yaml, if it has one."""
+    spec = run.rig.cameras.get(name) if run.rig is not None else None
+    return getattr(spec, "topic", None)

@@ -68,7 +68,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.io.atomic import write_text_atomic
 from multieye.io.intrinsics import camera_info_text, distortion_model_name
 from multieye.io.calibration_json import SETUP_KEYS, CalibrationRecord, calibration_to_dict, read_calibration
-from multieye.io.kalibr import CamchainEntry, write_camchain
+from multieye.io.kalibr import CamchainEntry, kalibr_fields, write_camchain
 from multieye.io.run_details import read_run_details
 from multieye.io.textfile import read_text
 from multieye.io.yamlfile import yaml_list
@@ -79,6 +79,7 @@ __all__ = [
     "T_LINK_OPTICAL",
     "export",
     "frame_names",
+    "kalibr_chain",
     "opencv_text",
     "urdf_text",
     "tf_static_text",
@@ -393,6 +394,39 @@ def _intrinsics(out: Path, rec: CalibrationRecord, *, required: bool) -> dict:
     return found
 
 
+def _topic_name(camera: str) -> str:
+    """``/<camera>/image_raw`` with characters a ROS name cannot hold replaced by ``_``."""
+    stem = "".join(ch if ch.isascii() and (ch.isalnum() or ch == "_") else "_" for ch in camera)
+    return f"/{stem if stem[:1].isalpha() else 'cam_' + stem}/image_raw"
+
+
+def kalibr_chain(rec: CalibrationRecord, intrinsics: dict, topics: dict,
+                 overlaps: dict | None) -> tuple[list[CamchainEntry], list[str]]:
+    """The camchain entries Kalibr can hold, and ``"<camera> (<reason>)"`` for the others.
+
+    ``rostopic`` is the camera's topic in ``topics`` (rig.yaml), else ``/<camera>/image_raw``;
+    ``cam_overlaps`` the chain indices of the cameras ``overlaps`` names (None: unknown, the
+    key left out).
+    """
+    kept, left = [], []
+    for c in rec.cameras:
+        if intrinsics.get(c.name) is None:
+            left.append(f"{c.name} (no intrinsics)")
+            continue
+        try:
+            kalibr_fields(intrinsics[c.name])
+        except InputError as exc:
+            left.append(f"{c.name} ({exc})")
+            continue
+        kept.append(c)
+    index = {c.name: k for k, c in enumerate(kept)}
+    entries = [CamchainEntry(
+        c.name, intrinsics[c.name], c.T_ref_cam, topics.get(c.name) or _topic_name(c.name),
+        None if overlaps is None or overlaps.get(c.name) is None else
+        tuple(sorted(index[o] for o in overlaps[c.name] if o in index))) for c in kept]
+    return entries, left
+
+
 def _tracked_frame(out: Path) -> str | None:
     """``marker`` or ``body``: the tracked frame of the motion capture's ``pose:``
     (``T_world_<frame>``) as details.json records it; None without details.json."""
@@ -481,9 +515,17 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
         return _camera_infos(sub, rec, intr, notes)
     path = folder / FORMATS[fmt]
     if fmt == "kalibr":
-        intr = _intrinsics(out, rec, required=True)
-        write_camchain(path, [CamchainEntry(c.name, intr[c.name], c.T_ref_cam)
-                              for c in rec.cameras])
+        intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
+        cams = read_run_details(out / "details.json").cameras
+        overlaps = ({c.name: c.overlaps for c in cams}
+                    if all(c.overlaps is not None for c in cams) else None)
+        kept, left = kalibr_chain(rec, intr, {c.name: c.topic for c in cams}, overlaps)
+        if not kept:
+            raise InputError("Kalibr cannot hold any camera: " + "; ".join(left))
+        write_camchain(path, kept, comments=[f"left out of this camchain: {c}" for c in left])
+        if left:
+            notes.append(f"camchain.yaml holds {', '.join(e.name for e in kept)} only; left "
+                         "out: " + "; ".join(left))
     elif fmt == "opencv":
         write_text_atomic(path, opencv_text(rec, _intrinsics(out, rec, required=False),
                                             parent_frame))

@@ -13,10 +13,10 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from multieye.core.errors import InputError
-from multieye.io import CamchainEntry, write_calibration, write_camchain, write_opencv_intrinsics
+from multieye.io import write_calibration, write_camchain, write_opencv_intrinsics
 from multieye.io.run_details import RunDetails, StageTimings, write_details
-from multieye.outputs.details import write_run_details
+from multieye.outputs.details import camera_overlaps, camera_topic, write_run_details
+from multieye.outputs.export import kalibr_chain
 from multieye.outputs.folder import staged_output
 from multieye.outputs.report import write_report
 from multieye.pipeline import CalibrationRun
@@ -127,20 +127,9 @@ def _camchain(run: CalibrationRun, folder: Path, names: list[str]) -> list[str]:
     """Kalibr's camchain with every camera it can hold; a camera it cannot (no intrinsics, or
     a lens Kalibr's models do not have) is named with the reason, in a note and in a comment
     at the top of the file, never dropped silently."""
-    from multieye.io.kalibr import kalibr_fields
-
-    kept, left = [], []
-    for c in run.record.cameras:
-        intr = run.cameras[c.name].intrinsics
-        if intr is None:
-            left.append(f"{c.name} (no intrinsics)")
-            continue
-        try:
-            kalibr_fields(intr)
-        except InputError as exc:
-            left.append(f"{c.name} ({exc})")
-            continue
-        kept.append(CamchainEntry(name=c.name, intrinsics=intr, T_ref_cam=c.T_ref_cam))
+    cams = [c.name for c in run.record.cameras]
+    kept, left = kalibr_chain(run.record, {n: run.cameras[n].intrinsics for n in cams},
+                              {n: camera_topic(run, n) for n in cams}, camera_overlaps(run))
     if not kept:
         return [f"camchain.yaml not written: Kalibr cannot hold any camera: {'; '.join(left)}"]
     comments = ([f"left out of this camchain: {c}" for c in left] if left else [])
