@@ -417,10 +417,13 @@ def test_bad_frame_names_are_refused_before_writing(result, tmp_path, parent, ch
     assert not (tmp_path / "x" / "cameras.urdf").exists()
 
 
-def test_eye_on_hand_base_is_the_tracked_frame_of_the_pose(result, tmp_path):
+def test_the_base_is_the_world_or_the_tracked_frame_of_the_pose(result, tmp_path):
     out, rec, _ = result
-    if rec.setup != "eye-on-hand":
-        pytest.skip("the base of eye-to-base is the world")
+    if rec.setup == "eye-to-base":      # static cameras: the world, whatever is tracked
+        parents = {p for p, _ in read_tf_static(export(out, "tf-static",
+                                                       dest=tmp_path / "e2b")[0])}
+        assert "world" in parents and not parents & {"marker", "body"}
+        return
     for name in ("calibration.json", "details.json"):
         text = (out / name).read_text()
         (tmp_path / name).write_text(text.replace("T_world_body", "T_world_marker"))
