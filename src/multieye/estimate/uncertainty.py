@@ -40,7 +40,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.solvers.refine_poses import relative_pose_covariance
 
 __all__ = ["RelativeUncertainty", "relative_covariance", "pose_std", "cramer_rao_bound",
-           "projection_std"]
+           "projection_std", "projection_std_at"]
 
 F64 = NDArray[np.float64]
 
@@ -190,14 +190,14 @@ def cramer_rao_bound(setup: str, observations: Sequence, intrinsics: Sequence[In
     return covariance(data.families(X, Y), data.groups(*sigmas)).kept
 
 
-def projection_std(intrinsics: Intrinsics, covariance: ArrayLike, points_cam: ArrayLike
-                   ) -> tuple[float, float]:
-    """How uncertain a camera's projection is, from the covariance of its intrinsics.
+def projection_std_at(intrinsics: Intrinsics, covariance: ArrayLike, points_cam: ArrayLike
+                      ) -> F64:
+    """How uncertain a camera's projection is at each of some camera-frame points.
 
-    For each camera-frame point (a fixed ray), the 2x2 pixel covariance
-    ``J Sigma J^T`` with ``J = d uv / d (fx fy cx cy dist...)``
-    (:func:`multieye.core.lens.project_with_jacobian`); its standard deviation is the root of
-    half its trace (the RMS over the two pixel axes).
+    For each point (a fixed ray), the 2x2 pixel covariance ``J Sigma J^T`` with
+    ``J = d uv / d (fx fy cx cy dist...)`` (:func:`multieye.core.lens.project_with_jacobian`);
+    its standard deviation is the root of half its trace (the RMS over the two pixel axes).
+    It counts the lens' uncertainty only (the camera's pose held fixed).
 
     Parameters
     ----------
@@ -205,22 +205,40 @@ def projection_std(intrinsics: Intrinsics, covariance: ArrayLike, points_cam: Ar
     covariance : array_like, shape (4 + k, 4 + k)
         Over ``Intrinsics.params``.
     points_cam : array_like, shape (P, 3)
-        Where to evaluate it: e.g. the observed target points in the camera frame.
 
     Returns
     -------
-    mean, max : float
-        Over the points, pixels.
+    ndarray, shape (P,)
+        Pixels; NaN for points the lens cannot project.
+
+    Raises
+    ------
+    InputError
+        A covariance of the wrong size or not finite.
     """
     from multieye.core.lens import project_with_jacobian
 
-    _, _, J = project_with_jacobian(np.asarray(points_cam, dtype=np.float64), intrinsics)
     C = np.asarray(covariance, dtype=np.float64)
-    if C.shape != (J.shape[2], J.shape[2]):
-        raise InputError(f"intrinsics covariance must be {J.shape[2]}x{J.shape[2]}, got "
-                         f"{C.shape}")
-    var = np.einsum("pik,kl,pil->p", J, C, J) / 2.0
-    s = np.sqrt(var[np.isfinite(var)])
+    n = intrinsics.params.size
+    if C.shape != (n, n) or not np.all(np.isfinite(C)):
+        raise InputError(f"the intrinsics covariance must be a finite {n}x{n} array, got "
+                         f"shape {C.shape}")
+    _, _, J = project_with_jacobian(np.asarray(points_cam, dtype=np.float64), intrinsics)
+    return np.sqrt(np.clip(np.einsum("pik,kl,pil->p", J, C, J) / 2.0, 0.0, None))
+
+
+def projection_std(intrinsics: Intrinsics, covariance: ArrayLike, points_cam: ArrayLike
+                   ) -> tuple[float, float]:
+    """Mean and largest :func:`projection_std_at` over ``points_cam`` (e.g. the observed
+    target points in the camera frame), pixels.
+
+    Raises
+    ------
+    InputError
+        A covariance of the wrong size, or no point the lens can project.
+    """
+    s = projection_std_at(intrinsics, covariance, points_cam)
+    s = s[np.isfinite(s)]
     if s.size == 0:
         raise InputError("no point in front of the camera to evaluate the projection at")
     return float(s.mean()), float(s.max())

@@ -25,7 +25,8 @@ import numpy as np
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.lens import project_points, project_with_jacobian, undistort_points
+from multieye.core.lens import project_points, undistort_points
+from multieye.estimate.uncertainty import projection_std_at
 from multieye.core.metrics import loop_residuals
 from multieye.io.kalibr import overlaps_in_time
 from multieye.io.pixel_details import MAX_POINTS, ImagePoints, ProjectionStd
@@ -113,11 +114,6 @@ def projection_std_grid(intrinsics: Intrinsics, covariance, *, columns: int = GR
     image is ``width x height`` (``2 cx + 1`` by ``2 cy + 1`` when the intrinsics do not say).
     NaN where the lens cannot be inverted.
     """
-    C = np.asarray(covariance, dtype=np.float64)
-    n = intrinsics.params.size
-    if C.shape != (n, n) or not np.all(np.isfinite(C)):
-        raise InputError(f"the intrinsics covariance must be a finite {n}x{n} array, got "
-                         f"shape {C.shape}")
     K = intrinsics.K
     w = intrinsics.width or max(int(round(2 * K[0, 2] + 1)), 2)
     h = intrinsics.height or max(int(round(2 * K[1, 2] + 1)), 2)
@@ -126,12 +122,8 @@ def projection_std_grid(intrinsics: Intrinsics, covariance, *, columns: int = GR
     v = (np.arange(nv) + 0.5) * h / nv - 0.5
     uu, vv = np.meshgrid(u, v)
     xy = undistort_points(np.column_stack([uu.ravel(), vv.ravel()]), intrinsics)
-    std = np.full(len(xy), np.nan)
-    ok = np.all(np.isfinite(xy), axis=1)
-    if np.any(ok):
-        _, _, J = project_with_jacobian(np.column_stack([xy[ok], np.ones(int(ok.sum()))]),
-                                        intrinsics)
-        std[ok] = np.sqrt(np.clip(np.einsum("nip,pq,niq->n", J, C, J) / 2.0, 0.0, None))
+    rays = np.column_stack([xy, np.ones(len(xy))])       # NaN rows project to NaN
+    std = projection_std_at(intrinsics, covariance, rays)
     return ProjectionStd(u=u, v=v, std_px=std.reshape(nv, nu))
 
 
