@@ -79,3 +79,33 @@ def image_msg(bag, ns, img, encoding, *, bigendian=False, pad=0):
         is_bigendian=int(bigendian), step=row + pad, data=rows.reshape(-1))
 
 
+
+
+def camera_into_bag(folder, camera, *, ros=2, image=None, shift_ns=0):
+    """Move the images of ``camera`` of a rendered dataset in ``folder`` into the image topic
+    ``/<camera>/image_raw`` (mono8) of a bag ``folder/run.bag`` (ROS 1) or ``folder/run``
+    (ROS 2), and point rig.yaml at it; the image folder is removed.
+
+    ``image(img)`` changes each image before it is written; ``shift_ns`` moves the header
+    stamps (the record times stay). Returns the header stamps written (ns)."""
+    import shutil
+
+    import cv2
+    from multieye.io import list_images
+
+    topic = f"/{camera}/image_raw"
+    bag_path = folder / ("run.bag" if ros == 1 else "run")
+    stamps = []
+    with Bag(bag_path, ros) as bag:
+        for _, ns, path in list_images(folder / camera):
+            img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            img = img if image is None else image(img)
+            stamps.append(ns + shift_ns)
+            bag.write(topic, image_msg(bag, ns + shift_ns, img, "mono8"), ns)
+    shutil.rmtree(folder / camera)
+    rig = folder / "rig.yaml"
+    text = rig.read_text()
+    line = f"    images: {camera}/"
+    assert line in text
+    rig.write_text(text.replace(line, f"    rosbag: {bag_path.name}\n    topic: {topic}"))
+    return stamps

@@ -7,6 +7,7 @@ import shutil
 from click.testing import CliRunner
 
 from multieye.cli import main
+from rosbag_writer import camera_into_bag
 from small_dataset import render_small
 
 
@@ -55,3 +56,22 @@ def test_check_wrong_target_and_bad_input(tmp_path):
     assert res.stderr.startswith("multieye: error:")
     res = _check(tmp_path / "ds", "--sample", "0")
     assert res.exit_code == 2
+
+
+def test_check_samples_a_bag_camera_and_names_a_topic_without_target(tmp_path):
+    render_small(tmp_path / "ds")
+    camera_into_bag(tmp_path / "ds", "cam1")
+    res = _check(tmp_path / "ds", "--processes", "1", "--sample", "5")
+    assert res.exit_code == 0, (res.stdout, res.stderr)
+    row = next(line for line in res.stdout.splitlines() if line.startswith("cam1 ")).split()
+    assert row[1:9] == ["rosbag", "8", "5", "5", "100", "8", "5", "8"]
+    assert "problem:" not in res.stdout
+    render_small(tmp_path / "blank")
+    camera_into_bag(tmp_path / "blank", "cam1", image=lambda img: img * 0 + 128)
+    res = _check(tmp_path / "blank", "--processes", "1")
+    assert res.exit_code == 2, res.stdout
+    assert "cam1: sampled images without a target pose: 8 target not detected" in res.stdout
+    assert "problem: cam1: target found in only 0 of 8 sampled images" in res.stdout
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        "multieye: calibrating would fail: cam1: fewer than 3 usable images would remain")

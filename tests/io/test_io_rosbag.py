@@ -8,7 +8,8 @@ import pytest
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
 from multieye.io.mocap import MocapSpec, read_mocap, sniff_mocap_format
-from multieye.io.rosbag import bag_topics, iter_bag_images, read_bag_trajectory
+from multieye.io.rosbag import (bag_image_count, bag_topics, iter_bag_images,
+                                read_bag_trajectory, sample_bag_images)
 
 from rosbag_writer import BASE_NS, Bag, image_msg
 
@@ -160,6 +161,35 @@ def test_image_topics_decode(tmp_path, rng, ros):
         list(iter_bag_images(path, "/cam/weird"))
     with pytest.raises(DatasetError, match="has type sensor_msgs/Image; expected one of"):
         read_bag_trajectory(path, "/cam/raw")
+
+
+@pytest.mark.parametrize("ros", [1, 2], ids=["ros1", "ros2"])
+def test_sample_decodes_only_the_chosen_messages_with_every_stamp(tmp_path, rng, ros):
+    path = _bag_path(tmp_path, ros)
+    imgs = rng.integers(0, 256, (7, 4, 5), dtype=np.uint8)
+    header_ns = [BASE_NS + 3 * k + (k * 999_999_937 if k % 2 else 0) for k in range(7)]
+    header_ns[4] = 0                   # never filled: the record time stands in
+    with Bag(path, ros) as bag:
+        for k, img in enumerate(imgs):
+            bag.write("/cam/raw", image_msg(bag, header_ns[k], img, "mono8"), BASE_NS + 10 * k)
+            _, png = cv2.imencode(".png", img)
+            bag.write("/cam/png", bag.t("sensor_msgs/msg/CompressedImage")(
+                header=bag.header(header_ns[k], "cam"), format="png", data=png.reshape(-1)),
+                BASE_NS + 10 * k)
+    for topic in ("/cam/raw", "/cam/png"):
+        every = list(iter_bag_images(path, topic))
+        assert bag_image_count(path, topic) == 7
+        stamps = []
+        picked = list(sample_bag_images(path, topic, [6, 0, 3], stamps=stamps))
+        assert stamps == [s for s, _ in every] and stamps[4] == BASE_NS + 40
+        assert [i for i, _, _ in picked] == [0, 3, 6]
+        for i, stamp, img in picked:
+            assert stamp == every[i][0] and np.array_equal(img, imgs[i])
+        # without stamps asked for, reading stops after the last wanted message
+        assert [i for i, _, _ in sample_bag_images(path, topic, [1, 2])] == [1, 2]
+        assert list(sample_bag_images(path, topic, [])) == []
+    with pytest.raises(DatasetError, match="not in the bag"):
+        list(sample_bag_images(path, "/cam/none", [0]))
 
 
 def test_bayer_rggb_demosaics_to_the_right_colours(tmp_path):

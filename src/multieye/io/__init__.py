@@ -38,7 +38,8 @@ from multieye.io.kalibr import CamchainEntry, read_camchain, write_camchain
 from multieye.io.mocap import MocapSpec, read_mocap, sniff_mocap_format
 from multieye.io.mocap_csv import read_optitrack_csv, read_pose_csv, read_vicon_csv
 from multieye.io.rig import CameraSpec, Rig, TargetSpec, load_rig, read_camera_intrinsics
-from multieye.io.rosbag import bag_topics, iter_bag_images, read_bag_trajectory
+from multieye.io.rosbag import (bag_image_count, bag_topics, iter_bag_images, read_bag_trajectory,
+                                sample_bag_images)
 from multieye.io.trajectory import Trajectory
 from multieye.io.tum import read_tum, write_tum
 
@@ -58,6 +59,8 @@ __all__ = [
     "list_images",
     "list_image_files",
     "iter_bag_images",
+    "sample_bag_images",
+    "bag_image_count",
     "bag_topics",
     # intrinsics and camera chains
     "read_intrinsics",

@@ -16,7 +16,9 @@ record time.  Samples are sorted by stamp; two samples with the same stamp are a
 Image topics -> ``(stamp_ns, image)`` pairs (:func:`iter_bag_images`): ``sensor_msgs/Image``
 with the encodings in :data:`IMAGE_ENCODINGS` and ``sensor_msgs/CompressedImage`` (decoded
 with ``cv2.imdecode``).  Images follow OpenCV's layout: ``(H, W)`` for grey, ``(H, W, 3)`` BGR
-for colour (``rgb8``/``rgba8``/Bayer are converted, alpha dropped).
+for colour (``rgb8``/``rgba8``/Bayer are converted, alpha dropped).  A sample of a long topic
+(:func:`sample_bag_images`, with :func:`bag_image_count`) decodes only the chosen messages and
+reads the stamp of every other one from its serialized header, one message in memory at a time.
 
 >>> from multieye.io.rosbag import read_bag_trajectory
 >>> traj = read_bag_trajectory("run.bag", "/vicon/rig/pose")   # doctest: +SKIP
@@ -27,6 +29,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import struct
 from collections.abc import Iterator
 
 import numpy as np
@@ -44,6 +47,8 @@ __all__ = [
     "bag_topics",
     "read_bag_trajectory",
     "iter_bag_images",
+    "bag_image_count",
+    "sample_bag_images",
 ]
 
 POSE_TYPES = ("geometry_msgs/PoseStamped", "geometry_msgs/TransformStamped",
@@ -253,6 +258,15 @@ def _decode_compressed(msg, where: str, path) -> np.ndarray:
     return img
 
 
+def _decode(reader, conn, msgtype: str, raw, record_ns: int, topic: str, path):
+    msg = reader.deserialize(raw, conn.msgtype)
+    stamp = _stamp_ns(msg.header, record_ns)
+    where = f"topic {topic} at {stamp} ns"
+    if msgtype == "sensor_msgs/Image":
+        return stamp, _decode_raw(msg, where, path)
+    return stamp, _decode_compressed(msg, where, path)
+
+
 def iter_bag_images(path: str | os.PathLike, topic: str) -> Iterator[tuple[int, np.ndarray]]:
     """Images of a ``sensor_msgs/Image`` or ``sensor_msgs/CompressedImage`` topic.
 
@@ -277,10 +291,90 @@ def iter_bag_images(path: str | os.PathLike, topic: str) -> Iterator[tuple[int, 
     with _reader(path) as reader:
         connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
         for conn, record_ns, raw in reader.messages(connections=connections):
-            msg = reader.deserialize(raw, conn.msgtype)
-            stamp = _stamp_ns(msg.header, record_ns)
-            where = f"topic {topic} at {stamp} ns"
-            if msgtype == "sensor_msgs/Image":
-                yield stamp, _decode_raw(msg, where, path)
-            else:
-                yield stamp, _decode_compressed(msg, where, path)
+            yield _decode(reader, conn, msgtype, raw, record_ns, topic, path)
+
+
+def bag_image_count(path: str | os.PathLike, topic: str) -> int:
+    """Messages of an image topic, as the bag's index (ROS 1) or metadata (ROS 2) states,
+    without reading a message.
+
+    Raises
+    ------
+    DatasetError
+        As :func:`iter_bag_images` for a missing bag or topic, or a topic of another type.
+    """
+    with _reader(path) as reader:
+        _connections(reader, topic, IMAGE_TYPES, path)
+        return int(reader.topics[topic].msgcount)
+
+
+def _header_stamp_ns(raw, ros2: bool) -> int | None:
+    """``header.stamp`` of a serialized message that starts with a ``std_msgs/Header``, read
+    from its first bytes (ROS 1: ``uint32 seq, uint32 secs, uint32 nsecs``, little-endian; CDR:
+    a 4-byte encapsulation header whose second byte is 1 for little-endian, then ``int32 sec,
+    uint32 nanosec``); None when the bytes are too short or of an unknown encapsulation."""
+    if len(raw) < 12:
+        return None
+    if ros2:
+        if bytes(raw[:2]) not in (b"\x00\x00", b"\x00\x01"):
+            return None
+        sec, nsec = struct.unpack_from("<iI" if raw[1] else ">iI", raw, 4)
+    else:
+        sec, nsec = struct.unpack_from("<II", raw, 4)
+    return int(sec) * 1_000_000_000 + int(nsec)
+
+
+def sample_bag_images(path: str | os.PathLike, topic: str, indices, *,
+                      stamps: list | None = None) -> Iterator[tuple[int, int, np.ndarray]]:
+    """The images at some positions of an image topic, decoding only those.
+
+    Every message of the topic is read in bag order, one at a time; only the messages at
+    ``indices`` are deserialized and decoded.  The stamp of each other message is read from
+    the first bytes of its serialized header (as :func:`iter_bag_images` would give it).
+
+    Parameters
+    ----------
+    path : path-like
+        ROS 1 ``.bag`` or ROS 2 bag.
+    topic : str
+        An image topic (:data:`IMAGE_TYPES`).
+    indices : iterable of int
+        Positions of the wanted messages in bag order (0 is the first message of the topic),
+        e.g. spread over :func:`bag_image_count`.
+    stamps : list, optional
+        When given, the stamp (ns) of every message of the topic is appended to it in bag
+        order, the decoded ones included; the bag is then read to its end, else reading stops
+        after the last wanted message.
+
+    Yields
+    ------
+    index : int
+        Position of the message in bag order.
+    stamp_ns, image
+        As :func:`iter_bag_images`.
+
+    Raises
+    ------
+    DatasetError
+        As :func:`iter_bag_images`, for the decoded messages.
+    """
+    wanted = {int(i) for i in indices}
+    last = max(wanted, default=-1)
+    if not wanted and stamps is None:
+        return
+    with _reader(path) as reader:
+        connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
+        for index, (conn, record_ns, raw) in enumerate(
+                reader.messages(connections=connections)):
+            if index in wanted:
+                stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path)
+                if stamps is not None:
+                    stamps.append(stamp)
+                yield index, stamp, image
+                if stamps is None and index >= last:
+                    return
+            elif stamps is not None:
+                ns = _header_stamp_ns(raw, reader.is2)
+                if ns is None:      # not a plain header: deserialize the message for it
+                    ns = _stamp_ns(reader.deserialize(raw, conn.msgtype).header, record_ns)
+                stamps.append(ns if ns != 0 else int(record_ns))

@@ -1,7 +1,8 @@
 """A dry run: what calibrating a dataset would find, and what would go wrong, without solving.
 
 :func:`check_dataset` reads ``rig.yaml`` and the motion capture, lists each camera's images
-(or poses), detects the target in an evenly spaced sample of the images, pairs the images with
+(or poses, or the messages of its bag's image topic), detects the target in an evenly spaced
+sample of the images (of a bag, only the sampled messages are decoded), pairs the images with
 the motion capture as :func:`multieye.pipeline.camera_data.pair_camera` does, and measures the
 rotation of the paired motion. ``multieye check DATASET`` prints it (docs/outputs.md,
 section 7) and exits 2 when calibrating would fail.
@@ -120,6 +121,45 @@ def _rotation(T_mocap: np.ndarray) -> tuple[float | None, tuple | None]:
     return range_deg, spread
 
 
+def _nearest_gap(times: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Distance of each of ``q`` to the nearest of the increasing ``times`` (inf without any),
+    in memory linear in their lengths (a long bag's images against a long motion capture)."""
+    if not len(times):
+        return np.full(len(q), np.inf)
+    i = np.searchsorted(times, q)
+    before = times[np.clip(i - 1, 0, len(times) - 1)]
+    after = times[np.clip(i, 0, len(times) - 1)]
+    return np.minimum(np.abs(q - before), np.abs(q - after))
+
+
+def _sample_bag(cam, target, intr, *, sample, processes):
+    """Detection in an evenly spaced sample of a bag's image topic, as for a folder.
+
+    The sample is drawn over the topic's messages in bag order (their count from the bag's
+    index); only the sampled messages are decoded, the stamp of every other one is read from
+    its header bytes, and the bag is read once, one message at a time (at most one batch of
+    sampled images in memory). Returns the stamps of all messages (seconds, bag order), the
+    indices of the sampled messages and their detection results.
+    """
+    from multieye.imaging.batch import detect_and_estimate_arrays
+    from multieye.io import bag_image_count, sample_bag_images
+
+    wanted = _sample(bag_image_count(cam.rosbag, cam.topic), sample)
+    stamps_ns: list[int] = []
+    picked: list[int] = []
+
+    def frames():
+        for index, stamp_ns, image in sample_bag_images(cam.rosbag, cam.topic, wanted,
+                                                        stamps=stamps_ns):
+            picked.append(index)
+            yield f"{cam.topic}@{stamp_ns}", image
+
+    results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
+                                         progress=False)
+    stamps = np.array(stamps_ns, dtype=np.int64) * 1e-9
+    return stamps, picked, results
+
+
 def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
     from multieye.pipeline.camera_data import _poses_by_name
 
@@ -147,31 +187,32 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
         if poses.skipped:
             failures["pose row left out"] = len(poses.skipped)
         n_sampled = n_listed
-    elif cam.source == "images":
-        from multieye.imaging.batch import detect_and_estimate
+    else:
         from multieye.imaging.targets import target_from_spec
         from multieye.io import read_camera_intrinsics
 
-        images = list_images(cam.images) if listed is None else listed
-        stamps = np.array([s for s, _, _ in images], dtype=np.float64)
-        n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
-        sampled_idx = _sample(len(images), sample)
         target = target_from_spec(rig.target.as_dict(), path=rig.path)
         intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
-        results = detect_and_estimate([images[i][2] for i in sampled_idx], target, intr,
-                                      processes=processes, progress=False)
+        if cam.source == "images":
+            from multieye.imaging.batch import detect_and_estimate
+
+            images = list_images(cam.images) if listed is None else listed
+            stamps = np.array([s for s, _, _ in images], dtype=np.float64)
+            n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
+            sampled_idx = _sample(len(images), sample)
+            results = detect_and_estimate([images[i][2] for i in sampled_idx], target, intr,
+                                          processes=processes, progress=False)
+        else:
+            stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,
+                                                       processes=processes)
+            n_listed = len(stamps)
+            if not n_listed:
+                problems.append(f"image topic {cam.topic} holds no images")
         found_mask = np.array([r.reason is None for r in results], bool)
         for r in results:
             if r.reason is not None:
                 failures[_kind(r.reason)] = failures.get(_kind(r.reason), 0) + 1
         n_sampled = len(sampled_idx)
-    else:   # rosbag: reading the frames is the cost the dry run avoids
-        mocap_part = (f"motion capture {len(traj)} poses over "
-                      f"{traj.stamps[-1] - traj.stamps[0]:.1f} s" if len(traj) else "")
-        problems.append("images in a rosbag are not sampled by the dry run"
-                        + (f"; {mocap_part}" if mocap_part else ""))
-        return CameraCheck(name, cam.source, 0, 0, 0, (), 0, 0, 0, tolerance, None, None,
-                           tuple(problems), ())
     if unmatched:
         problems.append(f"{len(unmatched)} images or pose files without their partner (first "
                         f"{unmatched[0].item}: {unmatched[0].reason})")
@@ -189,7 +230,7 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
     n_paired = len(usable)
     expected = int(round(n_listed * n_paired / n_sampled)) if n_sampled else 0
     expected = min(expected, int(has_pose.sum()))
-    if cam.source == "images" and n_found < MIN_FOUND_SHARE * n_sampled:
+    if cam.source != "poses" and n_found < MIN_FOUND_SHARE * n_sampled:
         text = f"target found in only {n_found} of {n_sampled} sampled images"
         if n_found == 0:
             t = rig.target
@@ -200,10 +241,9 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
     if n_no_pose:
         mocap_times = np.asarray(traj.stamps, dtype=np.float64)
         q = stamps[~has_pose] + offset
-        nearest = (np.min(np.abs(q[:, None] - mocap_times[None, :]), axis=1)
-                   if len(mocap_times) else np.full(len(q), np.inf))
+        nearest = _nearest_gap(mocap_times, q)
         span = (f"motion capture {mocap_times[0]:.3f} to {mocap_times[-1]:.3f} s, images "
-                f"{stamps[0] + offset:.3f} to {stamps[-1] + offset:.3f} s in its clock"
+                f"{stamps.min() + offset:.3f} to {stamps.max() + offset:.3f} s in its clock"
                 if len(mocap_times) else "no motion capture")
         problems.append(f"{n_no_pose} of {len(stamps)} images have no motion capture within "
                         f"{tolerance:g} s (nearest {np.min(nearest):.3g} to "
@@ -238,7 +278,9 @@ def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> Da
     path : path-like
     sample : int
         At most this many images per camera, evenly spaced in time, are searched for the
-        target.
+        target: of a folder's images sorted by time, or of a bag topic's messages in bag
+        order (only those are decoded; the stamps of the others, for the pairing, are read
+        from their header bytes).
     processes : int, optional
         Detection processes (default: one per core).
 
