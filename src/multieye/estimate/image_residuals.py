@@ -47,6 +47,8 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
 from multieye.core.lie import left_jacobian_inv, log_so3
 from multieye.core.problem import SETUPS
+from multieye.estimate.clock_residuals import (ClockData, LocalTrajectory, TimedMocapPriors,
+                                               offset_family)
 from multieye.optimize.blocks import Blocks, ResidualGroup
 
 __all__ = ["ImageData", "PixelResiduals", "MocapPriors"]
@@ -102,12 +104,19 @@ class ImageData:
         Images without motion capture that only inform a camera's intrinsics (cameras whose
         intrinsics are estimated): the target points, their pixels and a starting
         ``T_cam_target`` (PnP).  An empty list for a camera without such images.
+    clocks : sequence of (ClockData or None), optional
+        Per camera: its clock offset is an unknown (family ``dt:<camera>``) and its images'
+        motion-capture priors compare ``M_i`` with the smoothed trajectory at
+        ``t_i + delta`` (:mod:`multieye.estimate.clock_residuals`); the image stamps are the
+        camera's images in the order of ``observations[j]``.  None: the given poses are the
+        measurements (default for every camera).
     """
 
     def __init__(self, setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
                  names: Sequence[str] | None = None, *,
                  free_intrinsics: Sequence[bool] | None = None,
-                 intrinsics_observations: Sequence | None = None):
+                 intrinsics_observations: Sequence | None = None,
+                 clocks: Sequence | None = None):
         if not isinstance(setup, str) or setup not in SETUPS:
             raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
         for label, arg in (("observations", observations), ("intrinsics", intrinsics)):
@@ -168,6 +177,19 @@ class ImageData:
         if len(free) != m:
             raise InputError(f"free_intrinsics has {len(free)} entries for {m} cameras")
         self.free = tuple(free)
+        self.clocks = tuple(clocks) if clocks is not None else (None,) * m
+        if len(self.clocks) != m:
+            raise InputError(f"clocks has {len(self.clocks)} entries for {m} cameras")
+        for j, c in enumerate(self.clocks):
+            if c is not None and not isinstance(c, ClockData):
+                raise InputError(f"clocks[{j}] must be a ClockData or None, got "
+                                 f"{type(c).__name__}")
+            if c is not None and len(c.image_stamps) != counts[j]:
+                raise InputError(f"camera {self.names[j]}: {len(c.image_stamps)} image stamps "
+                                 f"for {counts[j]} images")
+        #: Per camera with a clock: its smoothed trajectory (windows centred at its offset).
+        self.trajectories: list = [None if c is None else LocalTrajectory(c)
+                                   for c in self.clocks]
         self.extra = (None if intrinsics_observations is None else
                       IntrinsicsImages(intrinsics_observations, self.names, self.free))
         if self.extra is not None and self.extra.n_images == 0:
@@ -178,13 +200,16 @@ class ImageData:
                  free_poses: F64 | None = None) -> list[Blocks]:
         """Block families: ``X`` (m), ``Y`` (1), ``M`` (one per image; default measured),
         ``K:<camera>`` for every camera whose intrinsics are estimated (:attr:`free`; values
-        from ``intrinsics``, default the given ones) and ``T`` for the intrinsics-only images
-        (``free_poses``, default their starting poses)."""
-        M = self.mocap_measured if M is None else M
+        from ``intrinsics``, default the given ones), ``dt:<camera>`` for every camera with a
+        clock (its starting offset), and ``T`` for the intrinsics-only images (``free_poses``,
+        default their starting poses).  ``M`` defaults to :meth:`mocap_start`."""
+        M = self.mocap_start() if M is None else M
         intrinsics = self.intrinsics if intrinsics is None else intrinsics
         fams = [Blocks("X", X, "se3-left"), Blocks("Y", np.asarray(Y)[None], "se3-left")]
         fams += [Blocks(intrinsics_family(n), intrinsics[j].params[None], "euclidean")
                  for j, n in enumerate(self.names) if self.free[j]]
+        fams += [Blocks(offset_family(n), np.array([[c.offset]]), "euclidean")
+                 for n, c in zip(self.names, self.clocks) if c is not None]
         fams.append(Blocks("M", M, "se3-right", eliminate=True))
         if self.extra is not None:
             T = self.extra.poses if free_poses is None else free_poses
@@ -196,9 +221,25 @@ class ImageData:
         intrinsics-only images per camera that has them, at these noise levels."""
         out: list[ResidualGroup] = [PixelResiduals(self, j, sigma_px, self.free[j])
                                     for j in range(self.m)]
-        out.append(MocapPriors(self.mocap_measured, sigma_rot, sigma_t))
+        timed = [j for j, c in enumerate(self.clocks) if c is not None]
+        plain = np.flatnonzero(~np.isin(self.cam_of_image, timed))
+        if plain.size:
+            out.append(MocapPriors(self.mocap_measured, sigma_rot, sigma_t, plain))
+        out += [TimedMocapPriors(self.names[j], np.flatnonzero(self.cam_of_image == j),
+                                 self.trajectories[j], sigma_rot, sigma_t) for j in timed]
         if self.extra is not None:
             out += self.extra.groups(self, sigma_px)
+        return out
+
+    def mocap_start(self, offsets: Sequence[float | None] | None = None) -> F64:
+        """The motion-capture poses the refinement starts from, (N, 4, 4): the given ones,
+        and for a camera with a clock the smoothed trajectory at ``t_i + offset`` (``offsets``
+        per camera, default each clock's starting offset)."""
+        out = self.mocap_measured.copy()
+        for j, traj in enumerate(self.trajectories):
+            if traj is not None:
+                d = self.clocks[j].offset if offsets is None or offsets[j] is None else offsets[j]
+                out[self.cam_of_image == j] = traj.at(float(d))[0]
         return out
 
     def split_images(self, arr: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -477,20 +518,22 @@ class MocapPriors(ResidualGroup):
     Parameters
     ----------
     measured : ndarray, shape (N, 4, 4)
-        Measured motion-capture poses.
+        Measured motion-capture poses of every image.
     sigma_rot, sigma_t : float
         Noise of each rotation-vector component (radians, marker/body frame) and of each
         position coordinate (metres, world frame).
+    images : array_like of int, shape (n,), optional
+        The images (blocks of ``M``) these priors cover; default all.
     """
 
-    def __init__(self, measured: F64, sigma_rot: float, sigma_t: float):
-        n = len(measured)
-        super().__init__(("M",), np.arange(n)[:, None], np.arange(n), 6)
-        self.measured = measured
+    def __init__(self, measured: F64, sigma_rot: float, sigma_t: float, images=None):
+        images = np.arange(len(measured)) if images is None else np.asarray(images, int)
+        super().__init__(("M",), images[:, None], np.arange(len(images)), 6)
+        self.measured = measured[images]
         self.scale = 1.0 / np.repeat([float(sigma_rot), float(sigma_t)], 3)
 
     def evaluate(self, values: Mapping[str, F64], jacobians: bool):
-        M, Mm = values["M"], self.measured
+        M, Mm = values["M"][self.index[:, 0]], self.measured
         r_rot = log_so3(np.swapaxes(Mm[:, :3, :3], 1, 2) @ M[:, :3, :3])
         r = np.concatenate([r_rot, M[:, :3, 3] - Mm[:, :3, 3]], axis=1) * self.scale
         if not jacobians:

@@ -51,6 +51,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lie import log_so3
 from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho
+from multieye.estimate.clock_residuals import ClockData, LocalTrajectory, offset_family
 from multieye.estimate.image_residuals import ImageData, intrinsics_family
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
 
@@ -81,6 +82,10 @@ _MAX_SIGMA_PASSES = 6
 _SETTLED = 0.01
 _MOCAP_SETTLED = 0.1
 _MOCAP_SIGMA_FLOOR = 1e-7
+#: Clock windows are re-centred when an offset moved by more than this share of their
+#: half-width (at most this many times).
+_RECENTRE_SHARE = 0.25
+_MAX_RECENTRES = 3
 
 
 @dataclass(frozen=True)
@@ -154,6 +159,12 @@ class RefinementResult:
         Whether the last pass met its stopping rule.
     message : str
         Why the last pass stopped.
+    time_offsets : tuple of (float or None)
+        Per camera: its clock offset (motion-capture clock minus camera clock, seconds) when
+        it was an unknown of the problem (``clocks``), else None.
+    time_offset_std_s : tuple of (float or None)
+        Its standard deviation, seconds (X, Y and the intrinsics' covariances include its
+        uncertainty).
     """
 
     X: F64
@@ -184,6 +195,8 @@ class RefinementResult:
     time_s: float
     converged: bool
     message: str
+    time_offsets: tuple = ()
+    time_offset_std_s: tuple = ()
 
 
 
@@ -229,6 +242,29 @@ def _value(fams, name: str):
     return next(f.value for f in fams if f.name == name)
 
 
+def _is_prior(group) -> bool:
+    """A group of motion-capture priors (one row of 6 per image, touching ``M`` first)."""
+    return group.slots[0] == "M"
+
+
+def _prior_residuals(data: ImageData, groups, ev) -> F64:
+    """Normalised motion-capture prior residuals of every image, (N, 6)."""
+    out = np.zeros((data.n_images, 6))
+    for grp, e in zip(groups, ev):
+        if _is_prior(grp):
+            out[grp.index[:, 0]] = e[0]
+    return out
+
+
+def _clock_noise(data: ImageData) -> tuple[float, float]:
+    """Motion-capture sample noise pooled over the clock windows' fit residuals."""
+    trajs = [t for t in data.trajectories if t is not None]
+    w = np.array([len(t.h) * t.dof for t in trajs], dtype=float)
+    rot, tr = np.array([t.noise() for t in trajs]).T
+    return (max(float(np.sqrt(w @ rot ** 2 / w.sum())), _MOCAP_SIGMA_FLOOR),
+            max(float(np.sqrt(w @ tr ** 2 / w.sum())), _MOCAP_SIGMA_FLOOR))
+
+
 def _pixel_residuals(data: ImageData, ev) -> F64:
     """Normalised pixel residuals of every motion-captured image's points, (P, 2)."""
     return np.concatenate([e[0] for e in ev[:data.m]])
@@ -240,10 +276,13 @@ def _pixel_sigma_update(data: ImageData, fams, *, s_px: float, s_rot: float, s_t
     groups = data.groups(s_px, s_rot, s_t)
     ev = evaluate(fams, groups, jacobians=True)
     cov = covariance(fams, groups, local=True, evaluated=ev)
-    Jp = ev[data.m][1]                                                    # (N, 6, 6) priors
-    h_prior = float(np.einsum("nki,nij,nkj->", Jp, cov.local[:data.n_images], Jp))
+    h_prior = 0.0
+    for grp, e in zip(groups, ev):
+        if _is_prior(grp):
+            Jp = e[1][:, :, :6]                                           # d r / d M, (n, 6, 6)
+            h_prior += float(np.einsum("nki,nij,nkj->", Jp, cov.local[grp.index[:, 0]], Jp))
     n_params = cov.layout.k + 6 * cov.layout.n_local
-    z = np.concatenate([e[0].ravel() for j, e in enumerate(ev) if j != data.m])
+    z = np.concatenate([e[0].ravel() for grp, e in zip(groups, ev) if not _is_prior(grp)])
     redundancy = z.size - (n_params - h_prior)
     w = rho((z / f_scale) ** 2, loss)[1]
     return s_px * np.sqrt(float(w @ z ** 2) / (c_w * max(redundancy, 1.0)))
@@ -257,7 +296,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
                   f_scale: float = DEFAULT_F_SCALE, names: Sequence[str] | None = None,
                   max_iter: int = 100, tol: float = 1e-8,
                   free_intrinsics: Sequence[bool] | None = None,
-                  intrinsics_observations: Sequence | None = None) -> RefinementResult:
+                  intrinsics_observations: Sequence | None = None,
+                  clocks: Sequence[ClockData | None] | None = None) -> RefinementResult:
     """Maximum-likelihood refinement of every ``X^j`` and ``Y`` from pixels and mocap poses.
 
     Parameters
@@ -301,6 +341,18 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         leaves the parameters within
         about 1 % of a standard deviation of the optimum.  While the pixel noise is still
         being estimated, passes stop at ``sqrt(tol)``.
+    free_intrinsics, intrinsics_observations
+        :class:`multieye.estimate.image_residuals.ImageData`.
+    clocks : sequence of (ClockData or None), optional
+        Per camera: estimate its clock offset in the problem, from
+        ``ClockData(image_stamps, mocap_stamps, mocap_T, offset=start)`` (the camera's image
+        stamps in the order of ``observations[j]``, its motion-capture stream and a starting
+        offset): the mocap pose of each of its images is then the locally smoothed trajectory
+        at ``t_i + offset`` (:mod:`multieye.estimate.clock_residuals`; the poses given in
+        ``observations[j]`` are not used), and the motion-capture noise is that of one
+        sample.  Unstated motion-capture noise is then estimated from the smoothing's
+        residuals.  The offsets and their standard deviations are
+        ``RefinementResult.time_offsets`` and ``time_offset_std_s``.
 
     Returns
     -------
@@ -336,7 +388,10 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 1):
         raise InputError(f"max_iter must be a whole number >= 1, got {max_iter!r}")
     data = ImageData(setup, observations, intrinsics, names, free_intrinsics=free_intrinsics,
-                     intrinsics_observations=intrinsics_observations)
+                     intrinsics_observations=intrinsics_observations, clocks=clocks)
+    timed = [j for j, c in enumerate(data.clocks) if c is not None]
+    if estimate_mocap and timed:            # one sample's noise, from the smoothing residuals
+        s_rot, s_t = _clock_noise(data)
     X0 = real_array(X0, "X0", expected=f"{data.m} finite 4x4 transforms (one per camera)")
     if X0.shape != (data.m, 4, 4) or not np.all(np.isfinite(X0)):
         raise InputError(f"X0 must be {data.m} finite 4x4 transforms (one per camera), "
@@ -359,7 +414,9 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     kappa = gaussian_kappa(loss, f_scale)
     c_w = _gaussian_scale_constant(loss, f_scale)
     iterations = evaluations = passes = 0
-    settled = not (estimate_px or estimate_mocap)
+    iterate_mocap = estimate_mocap and not timed
+    settled = not (estimate_px or iterate_mocap)
+    recentres = 0
     while True:
         final = settled or passes >= _MAX_SIGMA_PASSES
         opts = Options(loss=loss, f_scale=f_scale, max_iter=int(max_iter),
@@ -369,10 +426,23 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         passes += 1
         iterations += res.iterations
         evaluations += res.evaluations
+        moved = [j for j in timed if abs(float(_value(fams, offset_family(data.names[j]))[0, 0])
+                                         - data.trajectories[j].centre_offset)
+                 > _RECENTRE_SHARE * data.clocks[j].half_window_s]
+        if moved and recentres < _MAX_RECENTRES:
+            # an offset moved far from where its windows are centred: centre them there
+            recentres += 1
+            for j in moved:
+                d = float(_value(fams, offset_family(data.names[j]))[0, 0])
+                data.trajectories[j] = LocalTrajectory(data.clocks[j], d)
+            if estimate_mocap:
+                s_rot, s_t = _clock_noise(data)
+            if final:
+                continue
         if final:
             break
         changes = []
-        if estimate_mocap:
+        if iterate_mocap:
             new_rot, new_t = estimate_mocap_noise(data.mocap_measured, _value(fams, "M"))
             changes += [abs(new_rot / s_rot - 1.0) / _MOCAP_SETTLED,
                         abs(new_t / s_t - 1.0) / _MOCAP_SETTLED]
@@ -396,7 +466,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     per_image = np.diff(np.append(data.image_starts, data.n_points))
     img_rms = np.sqrt(np.add.reduceat(d2, data.image_starts) / per_image)
     frac_out = np.add.reduceat(point_out.astype(float), data.image_starts) / per_image
-    prior = ev[data.m][0]
+    prior = _prior_residuals(data, groups, ev)
     img_out = (frac_out > 0.5) | (np.sum(prior ** 2, axis=1) > chi2.isf(OUTLIER_PROBABILITY, 6))
     cam_rms = np.array([np.sqrt(np.mean(d2[s])) for s in data.camera_slices])
     k_xy = 6 * (data.m + 1)
@@ -413,7 +483,14 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         else:
             intr_out.append(data.intrinsics[j])
             intr_cov.append(None)
+    offsets, offset_std = [None] * data.m, [None] * data.m
+    for j in timed:
+        fam = offset_family(data.names[j])
+        o = cov.layout.offset[fam]
+        offsets[j] = float(_value(fams, fam)[0, 0])
+        offset_std[j] = float(np.sqrt(kappa * cov.kept[o, o]))
     return RefinementResult(
+        time_offsets=tuple(offsets), time_offset_std_s=tuple(offset_std),
         X=X, Y=Y, covariance=kappa * cov.kept[:k_xy, :k_xy],
         full_covariance=kappa * cov.kept, layout=cov.layout, undetermined=undetermined,
         intrinsics=tuple(intr_out), intrinsics_covariance=tuple(intr_cov),

@@ -1,0 +1,259 @@
+"""A camera's clock offset as an unknown of the image-level problem, on a smoothed trajectory.
+
+With the offset ``delta`` (motion-capture clock minus camera clock, seconds) the motion-capture
+pose of image i is the trajectory at ``t_i + delta`` (``t_i`` the image's camera-clock stamp).
+The trajectory there is not one noisy sample, nor the piecewise-linear path between two of them
+(whose value is jagged in ``delta`` and whose velocity is mostly noise), but a local cubic
+least-squares fit (:class:`LocalTrajectory`) to the ``n_w`` motion-capture samples around the
+image's time (a Savitzky-Golay smoother, default about +-50 ms): per image, rotation as the
+rotation vector ``phi(s) = Log(R_c^T R(s))`` in a chart around the window's middle sample
+``R_c`` (body frame, the frame of the noise), translation per world axis, each a cubic in
+``u = (s - c_i) / a`` (``c_i`` the window's centre, ``a`` its half-width, seconds)::
+
+    S_i(delta) = (R_c Exp(phi_i(u)), t_c + p_i(u)),      u = (t_i + delta - c_i) / a
+
+A linear smoother: with iid sample noise (``sigma_R`` per rotation-vector component,
+``sigma_t`` per coordinate) the fit's value at ``u`` carries ``sigma^2 h(u)``,
+``h(u) = e(u)^T (A^T A)^-1 e(u)`` (``A`` the window's design matrix, ``e(u) = (1, u, u^2,
+u^3)``; the hat matrix's diagonal at ``u``; about ``2.25 / n_w`` at the centre).  So the prior
+of image i, with ``h_i = h(0)`` at the window's centre::
+
+    r = (Log(S_R^T R_M) / (sigma_R sqrt(h_i)), (t_M - S_t) / (sigma_t sqrt(h_i)))
+
+and with ``omega = J_r(phi) dphi/ds`` the body-frame angular velocity and ``v = dp/ds`` the
+velocity of the fit (exact derivatives of the model)::
+
+    d r_R / d delta = -J_l^-1(r_R) omega / (sigma_R sqrt(h_i)),
+    d r_t / d delta = -v / (sigma_t sqrt(h_i)),
+    d r_R / d phi_M = J_r^-1(r_R) / (sigma_R sqrt(h_i)),   d r_t / d tau_M = I / (sigma_t sqrt(h_i))
+
+(``M`` on ``se3-right``).  The offset is an ``euclidean`` block of size 1 (family
+``dt:<camera>``), one per camera.  The windows are centred at the offset they were built at
+(:meth:`LocalTrajectory.__init__`); :func:`multieye.estimate.refine_images.refine_images`
+re-centres them when the offset moves by more than a quarter of the half-width.
+
+Assumptions: the errors of the fits at two images are independent (their windows do not
+overlap: images of one camera further apart than the window, and no two cameras imaging at
+the same motion-capture instant - the same assumption the per-image priors without a clock
+make); the trajectory is smooth at the window's scale (a cubic's bias ``~ 0.004 a^4 f''''``
+is below the noise); the sample noise is white.  The sample noise itself can be estimated
+from the fits' residuals (:meth:`LocalTrajectory.noise`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from multieye.core.errors import InputError
+from multieye.core.lie import exp_so3, left_jacobian, left_jacobian_inv, log_so3
+from multieye.optimize.blocks import ResidualGroup
+
+__all__ = ["ClockData", "LocalTrajectory", "TimedMocapPriors", "offset_family",
+           "DEFAULT_HALF_WINDOW_S", "DEGREE", "MIN_SAMPLES"]
+
+F64 = NDArray[np.float64]
+
+#: Half-width of the window of motion-capture samples fitted around each image, seconds.
+DEFAULT_HALF_WINDOW_S = 0.05
+#: Degree of the local polynomial.
+DEGREE = 3
+#: Fewest samples in a window (a slower motion capture gets a wider window).
+MIN_SAMPLES = DEGREE + 5
+
+
+def offset_family(name: str) -> str:
+    """Block-family name of a camera's clock offset."""
+    return f"dt:{name}"
+
+
+@dataclass(frozen=True)
+class ClockData:
+    """What a camera's clock offset is estimated from.
+
+    Attributes
+    ----------
+    image_stamps : ndarray, shape (N_j,)
+        Camera-clock time of each of the camera's images (in the order of its
+        observations), seconds.
+    mocap_stamps : ndarray, shape (K,)
+        Motion-capture sample times (its own clock), strictly increasing, seconds.
+    mocap_T : ndarray, shape (K, 4, 4)
+        The motion-capture trajectory (``T_world_marker`` or ``T_world_body``), metres.
+    offset : float
+        Starting offset, seconds (motion-capture clock minus camera clock).
+    half_window_s : float
+        Half-width of the window fitted around each image (:class:`LocalTrajectory`).
+    """
+
+    image_stamps: F64
+    mocap_stamps: F64
+    mocap_T: F64
+    offset: float = 0.0
+    half_window_s: float = DEFAULT_HALF_WINDOW_S
+
+    def __post_init__(self):
+        s = np.asarray(self.mocap_stamps, dtype=np.float64).reshape(-1)
+        T = np.asarray(self.mocap_T, dtype=np.float64)
+        if (len(s) < MIN_SAMPLES or T.shape != (len(s), 4, 4) or np.any(np.diff(s) <= 0)
+                or not np.all(np.isfinite(s)) or not np.all(np.isfinite(T))):
+            raise InputError(f"a clock needs at least {MIN_SAMPLES} motion-capture samples with "
+                             "finite, strictly increasing stamps and one finite 4x4 pose each")
+        t = np.asarray(self.image_stamps, dtype=np.float64).reshape(-1)
+        if not np.all(np.isfinite(t)):
+            raise InputError("image stamps must be finite")
+        if not (np.isfinite(self.offset) and np.isfinite(self.half_window_s)
+                and self.half_window_s > 0):
+            raise InputError(f"clock offset must be finite and the half window positive, got "
+                             f"{self.offset!r} and {self.half_window_s!r}")
+        object.__setattr__(self, "mocap_stamps", s)
+        object.__setattr__(self, "mocap_T", T)
+        object.__setattr__(self, "image_stamps", t)
+        object.__setattr__(self, "offset", float(self.offset))
+
+
+class LocalTrajectory:
+    """Local cubic fits of the motion-capture trajectory around each image (module docstring).
+
+    Parameters
+    ----------
+    clock : ClockData
+    centre_offset : float, optional
+        Offset at which the windows are centred (default ``clock.offset``): the window of
+        image i holds the ``n_w`` samples nearest ``t_i + centre_offset``.
+
+    Attributes
+    ----------
+    centre_offset : float
+    n_window : int
+        Samples per window.
+    h : ndarray, shape (N_j,)
+        Variance factor of each fit at its window's centre: the fit's value there has
+        variance ``h_i sigma^2`` per component for sample noise ``sigma``.
+    """
+
+    def __init__(self, clock: ClockData, centre_offset: float | None = None):
+        self.clock = clock
+        self.centre_offset = clock.offset if centre_offset is None else float(centre_offset)
+        s, T, t = clock.mocap_stamps, clock.mocap_T, clock.image_stamps
+        K = len(s)
+        dt = float(np.median(np.diff(s)))
+        n_w = min(max(2 * int(round(clock.half_window_s / dt)) + 1, MIN_SAMPLES), K)
+        self.n_window = n_w
+        c = t + self.centre_offset
+        k0 = np.clip(np.searchsorted(s, c) - n_w // 2, 0, K - n_w)
+        idx = k0[:, None] + np.arange(n_w)                                 # (N, n_w)
+        a = np.maximum(0.5 * (s[idx[:, -1]] - s[idx[:, 0]]), 1e-9)        # half-widths, s
+        u = (s[idx] - c[:, None]) / a[:, None]
+        outside = (np.abs(u[np.arange(len(c)), np.argmin(np.abs(u), axis=1)]) * a
+                   > 2.0 * dt + clock.half_window_s)
+        if np.any(outside):
+            i = int(np.argmax(outside))
+            raise InputError(f"image {i} at {t[i]:.6f} s (+ offset {self.centre_offset:+.6f} s) "
+                             "is outside the motion capture or in a gap of it")
+        near = idx[np.arange(len(c)), np.argmin(np.abs(u), axis=1)]
+        self.c, self.a = c, a
+        self.Rc, self.tc = T[near, :3, :3], T[near, :3, 3]
+        phi = log_so3(np.swapaxes(self.Rc, 1, 2)[:, None] @ T[idx, :3, :3])  # (N, n_w, 3)
+        Z = np.concatenate([phi, T[idx, :3, 3] - self.tc[:, None]], axis=2)  # (N, n_w, 6)
+        A = u[..., None] ** np.arange(DEGREE + 1)                          # (N, n_w, 4)
+        self.inv = np.linalg.inv(np.swapaxes(A, 1, 2) @ A)                 # (N, 4, 4)
+        self.coef = self.inv @ (np.swapaxes(A, 1, 2) @ Z)                  # (N, 4, 6)
+        fit = Z - A @ self.coef
+        self.rss = np.einsum("nki,nki->ni", fit, fit)                      # (N, 6)
+        self.h = self.inv[:, 0, 0].copy()
+
+    @property
+    def dof(self) -> int:
+        """Residual degrees of freedom of each window's fit."""
+        return self.n_window - DEGREE - 1
+
+    def noise(self) -> tuple[float, float]:
+        """Sample noise from the fits' residuals: RMS per rotation-vector component (radians)
+        and per coordinate (metres), pooled over the windows."""
+        n = len(self.rss) * self.dof * 3
+        return (float(np.sqrt(self.rss[:, :3].sum() / n)),
+                float(np.sqrt(self.rss[:, 3:].sum() / n)))
+
+    def at(self, delta: float) -> tuple[F64, F64, F64]:
+        """The fitted poses at offset ``delta`` and their derivatives in time.
+
+        Returns
+        -------
+        poses : ndarray, shape (N_j, 4, 4)
+            ``S_i(delta)``: the fitted pose at ``t_i + delta`` (motion-capture clock).
+        omega : ndarray, shape (N_j, 3)
+            Body-frame angular velocity ``J_r(phi) dphi/ds``, rad/s.
+        velocity : ndarray, shape (N_j, 3)
+            World-frame velocity, m/s.
+        """
+        u = (self.clock.image_stamps + delta - self.c) / self.a
+        k = np.arange(DEGREE + 1)
+        powers = u[:, None] ** k                                           # (N, 4)
+        dpowers = np.zeros_like(powers)
+        dpowers[:, 1:] = k[1:] * u[:, None] ** (k[1:] - 1) / self.a[:, None]
+        p = np.einsum("nk,nkc->nc", powers, self.coef)
+        dp = np.einsum("nk,nkc->nc", dpowers, self.coef)
+        phi = p[:, :3]
+        poses = np.tile(np.eye(4), (len(u), 1, 1))
+        poses[:, :3, :3] = self.Rc @ exp_so3(phi)
+        poses[:, :3, 3] = self.tc + p[:, 3:]
+        omega = np.einsum("nij,nj->ni", left_jacobian(-phi), dp[:, :3])    # J_r(phi) dphi/ds
+        return poses, omega, dp[:, 3:]
+
+    def variance_factor(self, delta: float) -> F64:
+        """``h(u)`` of each fit at offset ``delta``, shape (N_j,) (module docstring)."""
+        u = (self.clock.image_stamps + delta - self.c) / self.a
+        e = u[:, None] ** np.arange(DEGREE + 1)
+        return np.einsum("ni,nij,nj->n", e, self.inv, e)
+
+
+class TimedMocapPriors(ResidualGroup):
+    """The motion-capture priors of one camera's images with its clock offset free
+    (module docstring): one row of 6 per image, slots ``M`` and ``dt:<camera>``.
+
+    Parameters
+    ----------
+    name : str
+        Camera name.
+    images : ndarray of int, shape (N_j,)
+        Block of ``M`` of each of the camera's images.
+    trajectory : LocalTrajectory
+        The smoothed trajectory around each of these images.
+    sigma_rot, sigma_t : float
+        Noise of one motion-capture sample: per rotation-vector component (radians,
+        marker/body frame) and per position coordinate (metres, world frame).
+    """
+
+    def __init__(self, name: str, images, trajectory: LocalTrajectory, sigma_rot: float,
+                 sigma_t: float):
+        images = np.asarray(images, dtype=np.int64)
+        if len(images) != len(trajectory.h):
+            raise InputError(f"camera {name}: {len(trajectory.h)} image stamps for "
+                             f"{len(images)} images")
+        super().__init__(("M", offset_family(name)),
+                         np.column_stack([images, np.zeros(len(images), int)]),
+                         np.arange(len(images)), 6)
+        self.name, self.trajectory = name, trajectory
+        self.scale = (1.0 / np.sqrt(trajectory.h)[:, None]
+                      / np.repeat([float(sigma_rot), float(sigma_t)], 3))       # (N_j, 6)
+
+    def evaluate(self, values: Mapping[str, F64], jacobians: bool):
+        delta = float(values[offset_family(self.name)][0, 0])
+        S, omega, vel = self.trajectory.at(delta)
+        M = values["M"][self.index[:, 0]]
+        r_rot = log_so3(np.swapaxes(S[:, :3, :3], 1, 2) @ M[:, :3, :3])
+        r = np.concatenate([r_rot, M[:, :3, 3] - S[:, :3, 3]], axis=1) * self.scale
+        if not jacobians:
+            return r, None
+        n = len(M)
+        JM = np.zeros((n, 6, 6))
+        JM[:, :3, :3] = left_jacobian_inv(-r_rot) * self.scale[:, :1, None]   # J_r^-1(r_R)
+        JM[:, 3:, 3:] = np.eye(3) * self.scale[:, 3:4, None]
+        Jd = np.zeros((n, 6, 1))
+        Jd[:, :3, 0] = -np.einsum("nij,nj->ni", left_jacobian_inv(r_rot), omega) * self.scale[:, :3]
+        Jd[:, 3:, 0] = -vel * self.scale[:, 3:]
+        return r, [JM, Jd]
