@@ -187,13 +187,16 @@ class _Detected:
 
 def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsics | None, *,
                               processes, progress, topic: str | None = None,
-                              model: str | None = None, listed=None) -> _Detected:
+                              model: str | None = None, listed=None,
+                              extra_views=()) -> _Detected:
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
 
     Without ``intr`` (a camera whose lens is estimated), detection runs alone, the lens
     ``model`` is started from the detections (:mod:`multieye.pipeline.intrinsics`) and the
     poses follow by PnP with it; the start is then ``_Detected.intrinsics``. ``listed``:
     the images as ``(stamp, ns, path)`` instead of the folder's time-stamped names.
+    ``extra_views``: detection-only results of the camera's ``intrinsics_images``, which
+    inform the starting lens too.
     """
     from multieye.imaging.targets import target_from_spec
 
@@ -234,7 +237,7 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
             raise DatasetError(_no_usable_image(rig, [RejectedItem(lb, r.reason) for (_, lb), r
                                                       in zip(stamped, results)], len(stamped)),
                                path=source, camera=name)
-        lens = start_lens(name, model, results, source)
+        lens = start_lens(name, model, list(results) + list(extra_views), source)
         results = with_poses(results, lens.intrinsics)
     obs, rejected, warnings = [], [], list(lens.warnings if lens else ())
     for (stamp, label), res in zip(stamped, results):
@@ -254,9 +257,10 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
                      intrinsics=None if lens is None else lens.intrinsics)
 
 
-def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, *, processes, progress
-                      ) -> tuple[list[Observation], list[RejectedItem], float]:
-    """Detection and PnP over a camera's ``intrinsics_images`` (their own board if given)."""
+def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, *, processes,
+                              progress) -> tuple[list[Path], list, float]:
+    """Detection (and PnP with ``intr`` unless None) over a camera's ``intrinsics_images``
+    (their own board if given): the paths, the results and the seconds it took."""
     from multieye.imaging.batch import detect_and_estimate
     from multieye.imaging.targets import target_from_spec
     from multieye.io import list_image_files
@@ -266,6 +270,22 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, *, processes, 
     paths = list_image_files(cam.intrinsics_images)
     t0 = time.perf_counter()
     results = detect_and_estimate(paths, target, intr, processes=processes, progress=progress)
+    return paths, results, time.perf_counter() - t0
+
+
+def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, *, processes, progress,
+                      detected=None) -> tuple[list[Observation], list[RejectedItem], float]:
+    """Detection and PnP over a camera's ``intrinsics_images`` (their own board if given);
+    ``detected``: their detection-only ``(paths, results, seconds)`` already at hand, to
+    which only the PnP with ``intr`` is added."""
+    if detected is None:
+        paths, results, seconds = _detect_intrinsics_images(cam, rig, intr, processes=processes,
+                                                            progress=progress)
+    else:
+        from multieye.pipeline.intrinsics import with_poses
+
+        paths, results, seconds = detected
+        results = with_poses(results, intr)
     obs, rejected = [], []
     for path, res in zip(paths, results):
         label = f"{cam.intrinsics_images.name}/{path.name}"
@@ -276,7 +296,7 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, *, processes, 
                                    image_points=res.detection.image_points))
         else:
             rejected.append(RejectedItem(label, res.reason))
-    return obs, rejected, time.perf_counter() - t0
+    return obs, rejected, seconds
 
 
 def load_camera_data(rig: Rig, *, processes: int | None = None,
@@ -321,18 +341,23 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
 
                 intr = read_camera_intrinsics(cam)
                 check_model(name, intr, cam.model, cam.intrinsics)
+            # a lens to estimate: the intrinsics_images inform its start too
+            extra = None
+            if cam.intrinsics_images is not None and intr is None:
+                extra = _detect_intrinsics_images(cam, rig, None, processes=processes,
+                                                  progress=progress)
             det = _observations_from_images(
                 name, cam.images if cam.source == "images" else cam.rosbag, rig, intr,
                 processes=processes, progress=progress,
                 topic=None if cam.source == "images" else cam.topic, model=cam.model,
-                listed=listed)
+                listed=listed, extra_views=() if extra is None else extra[1])
             obs, rejected, n_inputs = det.observations, unmatched + det.rejected, det.n_inputs
             n_inputs += sum(r.reason.startswith("no pose file") for r in unmatched)
             warnings, seconds = det.warnings, det.seconds
             intr = intr if det.intrinsics is None else det.intrinsics
             if cam.intrinsics_images is not None:
                 views, lost, s = _intrinsics_views(name, cam, rig, intr, processes=processes,
-                                                   progress=progress)
+                                                   progress=progress, detected=extra)
                 rejected, seconds = list(rejected) + lost, seconds + s
         # motion-capture rows left out, listed with every camera that uses the file
         rejected = list(rejected) + [

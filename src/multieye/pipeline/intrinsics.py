@@ -91,7 +91,9 @@ def start_lens(name: str, model: str, results: Sequence[ImageResult], where) -> 
     try:
         start = initial_intrinsics(views, size, model, name=name)
     except InputError as exc:
-        raise DatasetError(str(exc), path=where, camera=name) from None
+        # the error names the camera already; the DatasetError adds it in its own place
+        message = str(exc).removeprefix(f"camera {name}: ")
+        raise DatasetError(message, path=where, camera=name) from None
     return LensStart(start.intrinsics, start.rms_px, len(views),
                      weak_data_warnings(name, model, views, start.T_cam_target, size))
 
