@@ -216,7 +216,7 @@ def _record(setup: str) -> CalibrationRecord:
                       width=640, height=480)
     cams = [CameraRecord(f"cam{j}", X[j], geometry.inv(X[0]) @ X[j], 30,
                          residuals=Residuals(0.01, 1e-4, 0.05, 3e-4, 0.2), time_offset_s=0.01,
-                         std_rot_deg=0.02, std_trans_m=4e-4, covariance=A @ A.T * 1e-8,
+                         time_offset_std_s=1e-4, std_rot_deg=0.02, std_trans_m=4e-4, covariance=A @ A.T * 1e-8,
                          rejected=(RejectedItem("1700000000.5.png", "no target detected"),),
                          intrinsics=IntrinsicsRecord(lens, True, np.eye(9), (0.1, 0.3)),
                          uncertainty={x_key: unc, "T_ref_cam": unc})

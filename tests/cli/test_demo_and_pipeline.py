@@ -151,6 +151,10 @@ def test_time_offset_auto_recovers_a_clock_offset_end_to_end(tmp_path):
     auto = calibrate(tmp_path / "ds", processes=1, time_offset="auto")
     for cam in auto.record.cameras:
         assert cam.time_offset_s == pytest.approx(0.040, abs=0.002), cam.name
+        # estimated in the joint refinement, with its standard deviation
+        assert 0 < cam.time_offset_std_s < 0.002, cam.name
+        assert abs(cam.time_offset_s - 0.040) < 5 * cam.time_offset_std_s, cam.name
+    assert all(c.time_offset_std_s is None for c in shifted.record.cameras)
 
     def ref_cam(run):
         return np.stack([c.T_ref_cam for c in run.record.cameras])

@@ -12,8 +12,9 @@ eye-on-hand   ``T_world_target``     ``T_body_cam``
 ============  =====================  ==================
 
 Every camera also has ``T_ref_cam`` and ``measurements_used``; optional per camera:
-``residuals``, ``time_offset_s`` (motion-capture clock minus camera clock, s), ``std_rot_deg``,
-``std_trans_m``, ``covariance`` (6x6, rotation vector then translation) and ``rejected``
+``residuals``, ``time_offset_s`` (motion-capture clock minus camera clock, s),
+``time_offset_std_s`` (its standard deviation, when estimated in the joint problem),
+``std_rot_deg``, ``std_trans_m``, ``covariance`` (6x6, rotation vector then translation) and ``rejected``
 (``[{"item", "reason"}]``).  Top level: ``setup``, ``method``, ``reference_camera``, the shared
 unknown, ``cameras`` (in order), ``residuals``, ``warnings`` and ``plausibility`` (what the
 plausibility checks doubt: ``[{"cause", "message", "camera"}]``, ``camera`` only for a
@@ -177,6 +178,8 @@ class CameraRecord:
     residuals : Residuals or None
     time_offset_s : float or None
         Motion-capture clock minus camera clock, seconds.
+    time_offset_std_s : float or None
+        Standard deviation of ``time_offset_s`` when it was estimated in the joint problem.
     std_rot_deg, std_trans_m : float or None
         Root of the trace of the rotation / translation covariance of ``T_ref_cam``.
     covariance : ndarray, shape (6, 6), or None
@@ -202,6 +205,7 @@ class CameraRecord:
     rejected: tuple[RejectedItem, ...] = ()
     intrinsics: IntrinsicsRecord | None = None
     uncertainty: Mapping | None = None
+    time_offset_std_s: float | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "X", _rigid(self.X, f"camera {self.name}: X"))
@@ -307,7 +311,7 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
                  "measurements_used": cam.measurements_used}
         if cam.residuals is not None:
             entry["residuals"] = _residuals_dict(cam.residuals)
-        for key in ("time_offset_s", "std_rot_deg", "std_trans_m"):
+        for key in ("time_offset_s", "time_offset_std_s", "std_rot_deg", "std_trans_m"):
             if getattr(cam, key) is not None:
                 entry[key] = float(getattr(cam, key))
         if cam.covariance is not None:
@@ -462,7 +466,7 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
         if not isinstance(entry, Mapping):
             raise w.error("expected an object", name)
         kw = {}
-        for key in ("time_offset_s", "std_rot_deg", "std_trans_m"):
+        for key in ("time_offset_s", "time_offset_std_s", "std_rot_deg", "std_trans_m"):
             if key in entry:
                 kw[key] = w.number(entry[key], key, name)
         if "residuals" in entry:

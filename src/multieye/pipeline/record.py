@@ -30,11 +30,13 @@ def build_record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
             refinement, unc, *, method: str, reference: str,
             warnings: list[str], time_offsets: dict[str, float], motion: dict,
             doubts: tuple[PlausibilityItem, ...] = (),
-            cameras: dict[str, CameraData] | None = None) -> CalibrationRecord:
+            cameras: dict[str, CameraData] | None = None,
+            time_offset_std: dict[str, float] | None = None) -> CalibrationRecord:
     """The record of the final result: the refinement's when it ran, else the closed form.
 
     ``unc`` is the :class:`~multieye.estimate.uncertainty.RelativeUncertainty` of the
-    refinement, or None.
+    refinement, or None; ``time_offset_std`` the standard deviation of each clock offset
+    estimated in the joint problem.
     """
     final = sol if refinement is None else refinement
     X, Y = final.X, final.Y
@@ -54,6 +56,7 @@ def build_record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
             residuals=Residuals(e_R_deg=r.e_R_deg, e_t_m=r.e_t_m, max_R_deg=r.max_R_deg,
                                 max_t_m=r.max_t_m, reprojection_rms_px=reproj_px),
             time_offset_s=time_offsets.get(name),
+            time_offset_std_s=(time_offset_std or {}).get(name),
             std_rot_deg=None if unc is None else float(unc.std_rot_deg[j]),
             std_trans_m=None if unc is None else float(unc.std_trans_m[j]),
             covariance=None if unc is None else unc.covariance[j],

@@ -386,7 +386,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     refinement, uncertainty = None, None
     if opts.refine:
         try:
-            refinement = _refine(rig, cameras, paired, sol, opts)
+            refinement = _refine(rig, cameras, paired, sol, opts, offsets)
         except CalibrationError as exc:
             warnings.append(f"refinement failed, the result is the closed form without "
                             f"uncertainty: {exc}")
@@ -398,6 +398,12 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
                 uncertainty = relative_covariance(refinement.X, refinement.covariance,
                                                   reference=names.index(reference))
     refined_at = time.perf_counter()
+    offset_std = {}
+    joint = getattr(getattr(refinement, "result", None), "time_offsets", ())
+    for j, name in enumerate(paired if joint else ()):
+        if joint[j] is not None:      # estimated in the joint problem: that estimate
+            offsets[name] = joint[j]
+            offset_std[name] = refinement.result.time_offset_std_s[j]
     unrefined = [n for n, d in cameras.items() if d.intrinsics_estimated
                  and not (refinement is not None and n in refinement.intrinsics)]
     if unrefined:
@@ -409,7 +415,8 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
                      reference=reference, warnings=warnings, time_offsets=shown,
                      motion=motion.as_dict()["cameras"],
                      doubts=tuple(PlausibilityItem(f.cause, f.message, f.camera)
-                                  for f in plausibility.findings), cameras=cameras)
+                                  for f in plausibility.findings), cameras=cameras,
+                     time_offset_std=offset_std)
     timings = StageTimings(pairing=paired_at - start, closed_form=solved_at - paired_at,
                            refinement=refined_at - solved_at,
                            total=time.perf_counter() - start)
@@ -423,8 +430,10 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
 
 
 def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
-            sol: Solution, opts: Options) -> Refinement:
-    """Image-level refinement when every camera has target points, else pose-level."""
+            sol: Solution, opts: Options, offsets: dict[str, float]) -> Refinement:
+    """Image-level refinement when every camera has target points, else pose-level; with
+    ``time_offset="auto"`` the clock offsets (starting at ``offsets``) are unknowns of the
+    image-level problem (:mod:`multieye.estimate.clock_residuals`)."""
     first = next(iter(paired))
     spec = rig.mocap_for(first) if first in rig.cameras else rig.mocap
     rot, trans = opts.mocap_rot_sigma_rad, opts.mocap_trans_sigma_m
@@ -450,8 +459,15 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
         free = [cameras[n].intrinsics_estimated for n in paired]
         views = [[(o.object_points, o.image_points, o.T_cam_target)
                   for o in cameras[n].intrinsics_views] for n in paired]
+        clocks = None
+        if opts.time_offset == "auto":
+            from multieye.estimate.clock_residuals import ClockData
+
+            clocks = [None if cameras[n].by_name else ClockData(
+                [o.stamp for o in p.observations], cameras[n].mocap.stamps, cameras[n].mocap.T,
+                offset=offsets[n]) for n, p in paired.items()]
         res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired),
-                            free_intrinsics=free,
+                            free_intrinsics=free, clocks=clocks,
                             intrinsics_observations=views if any(views) else None, **given)
         for family in res.undetermined:
             what = (f"{family[2:]}: the intrinsics" if family.startswith("K:")
