@@ -325,3 +325,46 @@ def test_list_images_duplicates_and_empty(tmp_path):
         list_images(tmp_path / "empty")
     with pytest.raises(DatasetError, match="image folder not found"):
         list_images(tmp_path / "none")
+
+
+@pytest.mark.parametrize("pose, frames, moving, role_pose, names", [
+    ("T_world_marker", None, "marker", "T_world_marker", ("world", "marker")),
+    ("T_marker_world", None, "marker", "T_marker_world", ("world", "marker")),
+    ("T_base_tool0", None, "body", "T_world_body", ("base", "tool0")),       # parent fixed
+    ("T_world_tool0", None, "body", "T_world_body", ("world", "tool0")),     # world is fixed
+    ("T_tool0_world", None, "body", "T_body_world", ("world", "tool0")),
+    ("T_body_base", None, "body", "T_body_world", ("base", "body")),         # body is tracked
+    ("T_mocap_board", None, "marker", "T_world_marker", ("mocap", "board")),
+    ("T_world_base_link", None, "body", "T_world_body", ("world", "base_link")),  # one reading names world
+    (None, ("base_link", "tool0"), "body", "T_world_body", ("base_link", "tool0")),
+    ("T_base_link_tool0", ("base_link", "tool0"), "body", "T_world_body", ("base_link", "tool0")),
+])
+def test_pose_names_give_the_roles_and_the_users_frame_names(pose, frames, moving, role_pose,
+                                                             names):
+    from multieye.io.mocap import named_pose
+
+    assert named_pose(pose, moving, frames) == (role_pose, names)
+
+
+@pytest.mark.parametrize("pose, frames, moving, message", [
+    ("T_world_marker", None, "body", "expected T_world_body (or T_body_world) for eye-on-hand"),
+    ("T_base_marker", None, "body", "expected T_world_body"),
+    ("T_base_link_tool0", None, "body", "can be read as [base, link_tool0] or [base_link, tool0]"),
+    ("T_base_tool0", ("base", "flange"), "body", "does not match frames [base, flange]"),
+    ("T_base_base", None, "body", "the same"),
+    ("base_tool0", None, "body", "T_<parent>_<child>"),
+    (None, ("base link", "tool0"), "body", "letters, digits and '_'"),
+])
+def test_bad_pose_names_are_refused(pose, frames, moving, message):
+    from multieye.io.mocap import named_pose
+
+    with pytest.raises(ValueError, match=re.escape(message)):
+        named_pose(pose, moving, frames)
+
+
+def test_cameras_naming_the_frames_differently_are_refused_at_the_camera(dataset):
+    _edit(dataset, "    mocap: cam1_mocap.txt\n",
+          "    mocap: {file: cam1_mocap.txt, pose: T_base_board}\n")
+    with pytest.raises(DatasetError, match=r"cameras\.cam1: camera cam1 names the motion "
+                                           r"capture's frames \['base', 'board'\]"):
+        load_rig(dataset)

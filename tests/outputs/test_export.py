@@ -22,6 +22,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
 from multieye.outputs.export import (
     BASE_FRAME,
+    ros_name,
     FORMATS,
     T_LINK_OPTICAL,
     export,
@@ -202,7 +203,7 @@ def test_urdf_joints_give_back_every_camera_pose(result):
     joints = read_urdf_joints(path)
     assert all(j.get("type") == "fixed" for j in root.iter("joint"))
     for cam in rec.cameras:
-        link, optical = f"{cam.name}_link", f"{cam.name}_optical_frame"
+        link, optical = f"{ros_name(cam.name)}_link", f"{ros_name(cam.name)}_optical_frame"
         assert {link, optical} <= set(links)
         T = joints[(base, link)] @ joints[(link, optical)]
         _near(T, cam.X)                            # T_world_cam (or T_body_cam)
@@ -220,9 +221,9 @@ def test_tf_static_lines_give_back_every_camera_pose(result):
     assert shlex.split(lines[0])[:4] == ["ros2", "run", "tf2_ros", "static_transform_publisher"]
     transforms = read_tf_static(path)
     base = BASE_FRAME[rec.setup]
-    assert set(transforms) == {(base, f"{c.name}_optical_frame") for c in rec.cameras}
+    assert set(transforms) == {(base, f"{ros_name(c.name)}_optical_frame") for c in rec.cameras}
     for cam in rec.cameras:
-        _near(transforms[(base, f"{cam.name}_optical_frame")], cam.X)
+        _near(transforms[(base, f"{ros_name(cam.name)}_optical_frame")], cam.X)
 
 
 def test_exports_match_the_true_rig_on_exact_data(result):
@@ -232,7 +233,7 @@ def test_exports_match_the_true_rig_on_exact_data(result):
     transforms = read_tf_static(out / "export" / "static_transforms.sh")
     base = BASE_FRAME[rec.setup]
     for j, name in enumerate(NAMES):
-        _near(transforms[(base, f"{name}_optical_frame")], truth["X"][j], 1e-8)
+        _near(transforms[(base, f"{ros_name(name)}_optical_frame")], truth["X"][j], 1e-8)
 
 
 def test_urdf_rpy_is_fixed_axis_roll_pitch_yaw():
@@ -379,7 +380,7 @@ def test_urdf_loads_in_urdf_parser_py(result):
     assert robot.get_root() == base
     assert {j.type for j in robot.joints} == {"fixed"}
     for cam in rec.cameras:
-        chain = robot.get_chain(base, f"{cam.name}_optical_frame", links=False)
+        chain = robot.get_chain(base, f"{ros_name(cam.name)}_optical_frame", links=False)
         T = np.eye(4)
         for name in chain:
             joint = robot.joint_map[name]
@@ -400,7 +401,7 @@ def test_frames_overridden_by_parent_and_child_frame(result):
     (path,) = export(out, "tf-static", parent_frame="base_link", child_frame="rig/{camera}")
     transforms = read_tf_static(path)
     for cam in rec.cameras:
-        link, optical = f"rig/{cam.name}_link", f"rig/{cam.name}_optical_frame"
+        link, optical = f"rig/{ros_name(cam.name)}_link", f"rig/{ros_name(cam.name)}_optical_frame"
         _near(joints[("base_link", link)] @ joints[(link, optical)], cam.X)
         _near(transforms[("base_link", optical)], cam.X)
     (path,) = export(out, "opencv", parent_frame="base_link")
@@ -419,19 +420,40 @@ def test_bad_frame_names_are_refused_before_writing(result, tmp_path, parent, ch
 
 def test_the_base_is_the_world_or_the_tracked_frame_of_the_pose(result, tmp_path):
     out, rec, _ = result
+    tracked = "marker" if rec.setup == "eye-to-base" else "body"
+    assert rec.frames == {"world": "world", tracked: tracked}    # rig.yaml's default pose
     if rec.setup == "eye-to-base":      # static cameras: the world, whatever is tracked
         parents = {p for p, _ in read_tf_static(export(out, "tf-static",
                                                        dest=tmp_path / "e2b")[0])}
         assert "world" in parents and not parents & {"marker", "body"}
         return
-    for name in ("calibration.json", "details.json"):
-        text = (out / name).read_text()
-        (tmp_path / name).write_text(text.replace("T_world_body", "T_world_marker"))
-    transforms = read_tf_static(export(tmp_path, "tf-static")[0])
-    assert {p for p, _ in transforms} == {"marker"}
+    data = json.loads((out / "calibration.json").read_text())
+    (tmp_path / "details.json").write_text(
+        (out / "details.json").read_text().replace("T_world_body", "T_world_marker"))
+    data["frames"] = {"world": "base", "body": "tool0"}        # rig.yaml's pose: T_base_tool0
+    (tmp_path / "calibration.json").write_text(json.dumps(data))
+    assert {p for p, _ in read_tf_static(export(tmp_path, "tf-static")[0])} == {"tool0"}
+    del data["frames"]                  # a calibration.json of an earlier version
+    (tmp_path / "calibration.json").write_text(json.dumps(data))
+    assert {p for p, _ in read_tf_static(export(tmp_path, "tf-static")[0])} == {"marker"}
     (tmp_path / "details.json").unlink()
     transforms = read_tf_static(export(tmp_path, "tf-static")[0])
     assert {p for p, _ in transforms} == {"body"}
+
+
+def test_camera_names_become_ros_frame_names():
+    assert [ros_name(n) for n in NAMES] == ["cam0", "front_left", "rear____q_"]
+    assert ros_name("0") == "cam_0" and ros_name("ü") == "cam__"
+
+
+def test_cameras_whose_names_clean_to_one_frame_are_refused(result, tmp_path):
+    out, rec, _ = result
+    data = json.loads((out / "calibration.json").read_text())
+    data["cameras"]["front_left"] = data["cameras"]["cam0"]
+    (tmp_path / "calibration.json").write_text(json.dumps(data))
+    with pytest.raises(InputError, match="not unique"):
+        export(tmp_path, "urdf")
+    assert not (tmp_path / "export" / "cameras.urdf").exists()
 
 
 #: Kalibr's camchain keys (kalibr_common.ConfigReader.CameraParameters / CameraChainParameters)

@@ -52,6 +52,8 @@ __all__ = [
     "read_calibration",
     "calibration_to_dict",
     "calibration_from_dict",
+    "ROLE_NAMES",
+    "named_keys",
 ]
 
 #: setup -> (key of the shared unknown Y, key of each camera's X).
@@ -59,6 +61,28 @@ SETUP_KEYS = {
     "eye-to-base": ("T_marker_target", "T_world_cam"),
     "eye-on-hand": ("T_world_target", "T_body_cam"),
 }
+
+#: setup -> the roles of the frames ``calibration.json``'s ``frames`` names: the motion
+#: capture's fixed frame and the tracked one.
+ROLE_NAMES = {"eye-to-base": ("world", "marker"), "eye-on-hand": ("world", "body")}
+
+
+def named_keys(setup: str, frames: Mapping[str, str] | None) -> tuple[str, str]:
+    """:data:`SETUP_KEYS` with the user's frame names (rig.yaml's ``pose:``) for the roles.
+
+    >>> named_keys("eye-on-hand", {"world": "base", "body": "tool0"})
+    ('T_base_target', 'T_tool0_cam')
+    >>> named_keys("eye-to-base", None)
+    ('T_marker_target', 'T_world_cam')
+    """
+    y_key, x_key = SETUP_KEYS[setup]
+    if not frames:
+        return y_key, x_key
+    def rename(key: str) -> str:           # T_<role>_<target or cam>
+        _, role, frame = key.split("_")
+        return f"T_{frames.get(role, role)}_{frame}"
+
+    return rename(y_key), rename(x_key)
 
 
 def _rigid(T, what: str) -> np.ndarray:
@@ -254,6 +278,10 @@ class CalibrationRecord:
         ``warnings`` too).
     uncertainty : mapping of str to PoseUncertainty, or None
         Of ``Y`` (under its key, ``T_marker_target`` or ``T_world_target``).
+    frames : mapping of str to str, or None
+        The user's names of the frames by role (``{"world": "base", "body": "tool0"}``,
+        rig.yaml's ``pose:``); None: the role names.  The keys of ``calibration.json`` keep
+        the role names; screen, report and exports use these (:func:`named_keys`).
     """
 
     setup: str
@@ -267,10 +295,19 @@ class CalibrationRecord:
     motion_diagnostics: Mapping | None = None
     plausibility: tuple[PlausibilityItem, ...] = ()
     uncertainty: Mapping | None = None
+    frames: Mapping[str, str] | None = None
 
     def __post_init__(self):
         if self.setup not in SETUP_KEYS:
             raise InputError(f"setup must be one of {', '.join(SETUP_KEYS)}, got {self.setup!r}")
+        if self.frames is not None:
+            roles = ROLE_NAMES[self.setup]
+            if (not isinstance(self.frames, Mapping) or set(self.frames) != set(roles)
+                    or not all(isinstance(v, str) and v for v in self.frames.values())
+                    or len(set(self.frames.values())) != 2):
+                raise InputError(f"frames must name the roles {', '.join(roles)} with two "
+                                 f"different names, got {self.frames!r}")
+            object.__setattr__(self, "frames", {r: self.frames[r] for r in roles})
         object.__setattr__(self, "Y", _rigid(self.Y, SETUP_KEYS[self.setup][0]))
         cams = tuple(self.cameras)
         names = [c.name for c in cams]
@@ -335,6 +372,8 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
         out["motion_diagnostics"] = dict(rec.motion_diagnostics)
     if rec.uncertainty:
         out["uncertainty"] = _uncertainty_dict(rec.uncertainty)
+    if rec.frames is not None:
+        out["frames"] = dict(rec.frames)
     return out
 
 
@@ -515,8 +554,13 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
     items = tuple(PlausibilityItem(d["cause"], d["message"], d.get("camera")) for d in doubts)
     unc = (_read_uncertainty(data["uncertainty"], w, (y_key,)) if "uncertainty" in data
            else None)
+    frames = data.get("frames")           # absent from files of older versions
+    if frames is not None and not (isinstance(frames, Mapping)
+                                   and all(isinstance(v, str) for v in frames.values())):
+        raise w.error("frames must be an object of role -> frame name")
     return w.call(CalibrationRecord, setup, data["method"], data["reference_camera"], Y,
-                  tuple(records), residuals, tuple(warnings), refinement, motion, items, unc)
+                  tuple(records), residuals, tuple(warnings), refinement, motion, items, unc,
+                  frames)
 
 
 # --------------------------------------------------------------------------- files

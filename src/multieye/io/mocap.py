@@ -26,7 +26,8 @@ from multieye.io.rosbag import read_bag_trajectory
 from multieye.io.trajectory import Trajectory
 from multieye.io.tum import read_tum
 
-__all__ = ["MOCAP_FORMATS", "MocapSpec", "read_mocap", "sniff_mocap_format", "pose_frames"]
+__all__ = ["MOCAP_FORMATS", "MocapSpec", "read_mocap", "sniff_mocap_format", "pose_frames",
+           "named_pose", "ROLE_FRAMES"]
 
 MOCAP_FORMATS = ("tum", "csv", "optitrack", "vicon", "rosbag")
 _POSE = re.compile(r"^T_([A-Za-z0-9]+)_([A-Za-z0-9]+)$")
@@ -38,6 +39,105 @@ def pose_frames(pose: str) -> tuple[str, str]:
     if not m:
         raise ValueError(f"expected a transform name T_<parent>_<child>, got {pose!r}")
     return m.group(1), m.group(2)
+
+
+#: The frames docs/conventions.md names: the motion capture's fixed frame, and the tracked
+#: frame of each setup (``marker`` eye-to-base, ``body`` eye-on-hand).
+ROLE_FRAMES = ("world", "marker", "body")
+_FRAME_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_]*$")
+
+
+def _check_frame_name(name) -> str:
+    if not isinstance(name, str) or not _FRAME_NAME.match(name):
+        raise ValueError(f"a frame name is letters, digits and '_' (starting with a letter or "
+                         f"digit), got {name!r}")
+    return name
+
+
+def named_pose(pose: str | None, moving: str,
+               frames: tuple[str, str] | None = None) -> tuple[str, tuple[str, str]]:
+    """Read rig.yaml's ``pose: T_<parent>_<child>`` with the user's own frame names.
+
+    The file holds the pose of ``child`` in ``parent``.  Which of the two is the fixed frame
+    (the role docs/conventions.md calls ``world``) and which the tracked one (``moving``:
+    ``marker`` eye-to-base, ``body`` eye-on-hand):
+
+    - a frame named ``world`` is the fixed one; a frame named ``moving`` is the tracked one;
+    - otherwise the parent is fixed and the child tracked (``T_base_tool0``: a robot's
+      base and its flange; a file holding the inverse names its frames ``T_tool0_world`` or
+      ``T_body_base``).
+
+    Parameters
+    ----------
+    pose : str or None
+        ``T_<parent>_<child>``.  With more than one ``_`` the split is ambiguous unless one
+        reading names ``world`` or ``moving``; ``frames`` then gives the two names.  None:
+        ``T_<frames[0]>_<frames[1]>`` (``frames`` required).
+    moving : {"marker", "body"}
+        The tracked frame's role in the setup.
+    frames : (str, str), optional
+        ``(parent, child)`` spelled out (names may hold ``_``); must agree with ``pose``.
+
+    Returns
+    -------
+    pose : str
+        The role form the readers use: ``T_world_<moving>``, or ``T_<moving>_world`` for a file
+        holding the inverse.
+    names : (str, str)
+        The user's names of the fixed and of the tracked frame.
+
+    Raises
+    ------
+    ValueError
+        A malformed or ambiguous name, equal names, or the other setup's role name
+        (``T_world_marker`` for eye-on-hand).
+
+    Examples
+    --------
+    >>> named_pose("T_base_tool0", "body")
+    ('T_world_body', ('base', 'tool0'))
+    >>> named_pose("T_marker_world", "marker")
+    ('T_marker_world', ('world', 'marker'))
+    >>> named_pose("T_base_link_tool0", "body", ("base_link", "tool0"))
+    ('T_world_body', ('base_link', 'tool0'))
+    """
+    roles = ("world", moving)
+    if frames is not None:
+        parent, child = (_check_frame_name(f) for f in frames)
+        if pose is not None and pose != f"T_{parent}_{child}":
+            raise ValueError(f"pose {pose!r} does not match frames [{parent}, {child}] "
+                             f"(expected T_{parent}_{child})")
+    else:
+        if not isinstance(pose, str) or not pose.startswith("T_"):
+            raise ValueError(f"expected a transform name T_<parent>_<child>, got {pose!r}")
+        parts = pose[2:].split("_")
+        splits = [("_".join(parts[:k]), "_".join(parts[k:])) for k in range(1, len(parts))]
+        splits = [s for s in splits if all(_FRAME_NAME.match(f) for f in s)]
+        if len(splits) > 1:
+            splits = [s for s in splits if s[0] in roles or s[1] in roles] or splits
+        if not splits:
+            raise ValueError(f"expected a transform name T_<parent>_<child>, got {pose!r}")
+        if len(splits) > 1:
+            readings = " or ".join(f"[{a}, {b}]" for a, b in splits)
+            raise ValueError(f"{pose!r} can be read as {readings}: give the two names as "
+                             f"frames: [parent, child]")
+        parent, child = splits[0]
+    if parent == child:
+        raise ValueError(f"the parent and child frames of {pose!r} are the same")
+    others = [f for f in ROLE_FRAMES if f not in roles]
+    if "world" in (parent, child):
+        fixed = "world"
+    elif moving in (parent, child):
+        fixed = child if parent == moving else parent
+    else:
+        fixed = parent
+    tracked = child if fixed == parent else parent
+    if tracked in others or fixed in others:
+        setup = "eye-to-base" if moving == "marker" else "eye-on-hand"
+        raise ValueError(f"expected T_world_{moving} (or T_{moving}_world) for {setup}, got "
+                         f"{pose or f'T_{parent}_{child}'!r}; your own frame names also do: "
+                         f"T_<fixed>_<tracked>, e.g. T_base_tool0")
+    return (f"T_world_{moving}" if fixed == parent else f"T_{moving}_world"), (fixed, tracked)
 
 
 @dataclass(frozen=True)
@@ -75,6 +175,9 @@ class MocapSpec:
     match : {"time", "image"}
         ``image``: ``file`` is a table whose ``image`` column names the image of each pose
         (``pose-table``); ``values``, ``rotation`` and ``unit`` read its numbers.
+    frames : (str, str) or None
+        The user's names of the fixed and of the tracked frame (rig.yaml's ``pose:``,
+        :func:`named_pose`); None: ``world`` and the role name in ``pose``.
     """
 
     file: Path
@@ -94,6 +197,7 @@ class MocapSpec:
     values: tuple[str, ...] | None = None
     rotation: str = "quaternion-xyzw"
     match: str = "time"
+    frames: tuple[str, str] | None = None
 
     @property
     def by_name(self) -> bool:
@@ -107,6 +211,12 @@ class MocapSpec:
         """The frame tracked relative to ``world`` (``marker`` or ``body``)."""
         a, b = pose_frames(self.pose)
         return b if a == "world" else a
+
+    @property
+    def frame_names(self) -> tuple[str, str]:
+        """The names outputs give the fixed and the tracked frame (``frames``, or ``world``
+        and :attr:`moving_frame`)."""
+        return self.frames if self.frames is not None else ("world", self.moving_frame)
 
 
 def sniff_mocap_format(path: str | os.PathLike) -> str:

@@ -81,7 +81,7 @@ from multieye.core.limits import (
     MAX_TRANSLATION_NOISE_M,
 )
 from multieye.io.intrinsics import read_intrinsics
-from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, pose_frames, sniff_mocap_format
+from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io.rig_checks import Checker as _Checker
@@ -114,7 +114,7 @@ _SOURCES = ("images", "poses", "rosbag")
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
 TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
 TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
-MOCAP_KEYS = ("file", "pose", "time_tolerance", "format", "rotation_noise_deg",
+MOCAP_KEYS = ("file", "pose", "frames", "time_tolerance", "format", "rotation_noise_deg",
               "translation_noise_m", "match") + tuple(_MOCAP_ONLY)
 #: Roles of ``mocap.columns`` (csv sources).
 MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
@@ -257,6 +257,15 @@ class Rig:
         own = self.cameras[camera].mocap
         return own if own is not None else self.mocap
 
+    @property
+    def frames(self) -> dict[str, str]:
+        """The user's frame names by role: ``{"world": fixed, "marker" | "body": tracked}``
+        (rig.yaml's ``pose:``; :func:`multieye.io.mocap.named_pose`)."""
+        specs = [self.mocap_for(n) for n in self.cameras] + [self.mocap]
+        names = next((m.frame_names for m in specs if m is not None),
+                     ("world", SETUPS[self.setup]))
+        return {"world": names[0], SETUPS[self.setup]: names[1]}
+
 
 def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
     c.mapping(raw, keys, TARGET_KEYS, ("type",))
@@ -322,14 +331,19 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
     if "file" not in raw:
         raise c.error("missing key 'file'", where)
     moving = SETUPS[setup]
-    pose = raw.get("pose", f"T_world_{moving}")
+    names = None
+    if "frames" in raw:
+        names = raw["frames"]
+        if not isinstance(names, list) or len(names) != 2:
+            raise c.error(f"expected the two frame names [parent, child] of 'pose', got "
+                          f"{names!r}", at("frames"))
+        names = tuple(c.string(n, at("frames")) for n in names)
+    pose = (c.string(raw["pose"], at("pose")) if "pose" in raw
+            else None if names is not None else f"T_world_{moving}")
     try:
-        frames = pose_frames(c.string(pose, at("pose")) if "pose" in raw else pose)
-    except ValueError:
-        frames = ()
-    if set(frames) != {"world", moving}:
-        raise c.error(f"expected T_world_{moving} (or T_{moving}_world) for {setup}, got "
-                      f"{pose!r}", at("pose"))
+        pose, frame_names = named_pose(pose, moving, names)
+    except ValueError as exc:
+        raise c.error(str(exc), at("pose") if "pose" in raw else at("frames")) from None
     fmt = raw.get("format")
     if fmt is not None:
         c.choice(fmt, at("format"), MOCAP_FORMATS)
@@ -395,6 +409,8 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
         kw["trans_sigma_m"] = c.number(raw["translation_noise_m"], at("translation_noise_m"),
                                        positive=True, maximum=MAX_TRANSLATION_NOISE_M,
                                        unit="metres")
+    if frame_names != ("world", moving):
+        kw["frames"] = frame_names
     return MocapSpec(file, pose, tol, fmt, **kw)
 
 
@@ -419,8 +435,8 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
         elif fmt is None:
             fmt = sniff_mocap_format(c.path(own["file"], where + ("file",), "file or bag"))
         if fmt != top_spec.format:
-            inherit = [k for k in inherit if k in ("pose", "time_tolerance", "rotation_noise_deg",
-                                                   "translation_noise_m")]
+            inherit = [k for k in inherit if k in ("pose", "frames", "time_tolerance",
+                                                   "rotation_noise_deg", "translation_noise_m")]
     merged = {**{k: top_raw[k] for k in inherit}, **own}
     origin = {**{k: ("mocap",) for k in inherit}, **{k: where for k in own}}
     return _mocap(c, merged, origin, setup, where)
@@ -544,6 +560,14 @@ def load_rig(path: str | os.PathLike) -> Rig:
                           "folder of 'images'",
                           ("cameras", name))
         cameras[cam.name] = cam
+    named = {n: (cam.mocap or mocap).frame_names for n, cam in cameras.items()}
+    if len(set(named.values())) > 1:
+        first, other = next(iter(named)), next(n for n in named
+                                                if named[n] != next(iter(named.values())))
+        raise c.error(f"camera {other} names the motion capture's frames "
+                      f"{list(named[other])}, camera {first} {list(named[first])}: one rig has "
+                      "one fixed and one tracked frame; give every camera the same 'pose'",
+                      ("cameras", other))
     target = None
     if "target" in raw:
         target = _target(c, raw["target"])

@@ -26,11 +26,13 @@ the reason in a note (``notes``) and, for Kalibr, in a comment in the file; neve
 silently.
 
 Frames.  The base frame is the one each camera's unknown X is expressed in (docs/conventions.md,
-section 2): ``world`` (motion capture) for eye-to-base, where ``X = T_world_cam``, and the
-tracked frame of rig.yaml's ``mocap: pose:`` for eye-on-hand, where ``X = T_body_cam``:
-``marker`` for ``T_world_marker``, ``body`` for ``T_world_body`` (read from ``details.json``;
-``body`` without it).  ``parent_frame`` replaces the base frame's name; ``child_frame`` is the
-stem of each camera's frames, ``{camera}`` standing for the camera's name (default
+section 2), under the name rig.yaml's ``mocap: pose:`` gives it (``calibration.json``'s
+``frames``): the fixed frame for eye-to-base, where ``X = T_world_cam`` (``world``, or
+``base`` for ``pose: T_base_marker``), and the tracked frame for eye-on-hand, where
+``X = T_body_cam`` (``body``, or ``tool0`` for ``pose: T_base_tool0``; for a calibration.json
+of an earlier version, the tracked frame details.json records).  ``parent_frame`` replaces the
+base frame's name; ``child_frame`` is the stem of each camera's frames, ``{camera}`` standing
+for the camera's name made a ROS name (:func:`ros_name`: ``front left`` -> ``front_left``; default
 ``{camera}``): ``<stem>_link`` and ``<stem>_optical_frame``.  multieye's camera frame is the
 optical frame of OpenCV and of ROS (REP 103: x right, y down, z forward), so in ROS terms the
 calibrated pose is that of ``<camera>_optical_frame``.  The URDF adds the usual body-convention
@@ -67,7 +69,8 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.atomic import write_text_atomic
 from multieye.io.intrinsics import camera_info_text, distortion_model_name
-from multieye.io.calibration_json import SETUP_KEYS, CalibrationRecord, calibration_to_dict, read_calibration
+from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict, named_keys,
+                                          read_calibration)
 from multieye.io.kalibr import CamchainEntry, kalibr_fields, write_camchain
 from multieye.io.run_details import read_run_details
 from multieye.io.textfile import read_text
@@ -76,6 +79,8 @@ from multieye.io.yamlfile import yaml_list
 __all__ = [
     "FORMATS",
     "BASE_FRAME",
+    "base_frame",
+    "ros_name",
     "T_LINK_OPTICAL",
     "export",
     "frame_names",
@@ -176,7 +181,7 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
     ``distortion_coefficients`` (1 x k), ``image_width`` and ``image_height``.  Read it with
     ``cv2.FileStorage(path, cv2.FILE_STORAGE_READ)``; ``fs.getNode("cameras").at(j)``.
     """
-    y_key, x_key = SETUP_KEYS[rec.setup]
+    y_key, x_key = named_keys(rec.setup, rec.frames)
     lines = ["%YAML:1.0", "---",
              "# multieye calibration: T_a_b maps coordinates in frame b to frame a (metres)",
              f"setup: {json.dumps(rec.setup)}", f"method: {json.dumps(rec.method)}",
@@ -214,9 +219,31 @@ def _joint(robot: ET.Element, name: str, parent: str, child: str, T: np.ndarray)
     _origin(joint, T)
 
 
+def ros_name(name: str) -> str:
+    """``name`` as a ROS graph or frame name: each character other than ASCII letters, digits
+    and ``_`` becomes ``_``, and ``cam_`` goes before a name not starting with a letter.
+
+    >>> ros_name("front left"), ros_name("0")
+    ('front_left', 'cam_0')
+    """
+    stem = "".join(ch if ch.isascii() and (ch.isalnum() or ch == "_") else "_" for ch in name)
+    return stem if stem[:1].isalpha() else "cam_" + stem
+
+
+def base_frame(rec: CalibrationRecord) -> str:
+    """The frame every camera's X is expressed in, under the user's name (rig.yaml's
+    ``pose:``, ``calibration.json``'s ``frames``): the fixed frame for eye-to-base, the
+    tracked one for eye-on-hand."""
+    role = BASE_FRAME[rec.setup]
+    return role if rec.frames is None else rec.frames[role]
+
+
 def frame_names(rec: CalibrationRecord, parent: str | None = None,
                 child: str | None = None) -> tuple[str, dict[str, str]]:
     """The base frame and, per camera, the stem of its frames (see the module docstring).
+
+    Camera names become frame names through :func:`ros_name` (``front left`` ->
+    ``front_left``).
 
     Raises
     ------
@@ -224,7 +251,7 @@ def frame_names(rec: CalibrationRecord, parent: str | None = None,
         An empty name or one with white space, a ``child`` without ``{camera}`` for several
         cameras, or two cameras (or a camera and the base) given the same frame.
     """
-    parent = BASE_FRAME[rec.setup] if parent is None else parent
+    parent = base_frame(rec) if parent is None else parent
     child = "{camera}" if child is None else child
     for what, name in (("--parent-frame", parent), ("--child-frame", child)):
         if not name or any(c.isspace() for c in name) or name.startswith("/"):
@@ -233,7 +260,7 @@ def frame_names(rec: CalibrationRecord, parent: str | None = None,
     if "{camera}" not in child and len(rec.cameras) > 1:
         raise InputError(f"--child-frame {child!r} must contain {{camera}} (the camera's name): "
                          f"the rig has {len(rec.cameras)} cameras")
-    stems = {c.name: child.replace("{camera}", c.name) for c in rec.cameras}
+    stems = {c.name: child.replace("{camera}", ros_name(c.name)) for c in rec.cameras}
     frames = [parent] + [f"{s}{end}" for s in stems.values() for end in ("_link", "_optical_frame")]
     if len(set(frames)) != len(frames):
         raise InputError(f"the frame names are not unique: {', '.join(frames)}")
@@ -396,8 +423,7 @@ def _intrinsics(out: Path, rec: CalibrationRecord, *, required: bool) -> dict:
 
 def _topic_name(camera: str) -> str:
     """``/<camera>/image_raw`` with characters a ROS name cannot hold replaced by ``_``."""
-    stem = "".join(ch if ch.isascii() and (ch.isalnum() or ch == "_") else "_" for ch in camera)
-    return f"/{stem if stem[:1].isalpha() else 'cam_' + stem}/image_raw"
+    return f"/{ros_name(camera)}/image_raw"
 
 
 def kalibr_chain(rec: CalibrationRecord, intrinsics: dict, topics: dict,
@@ -502,8 +528,8 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
     except OSError as exc:
         raise DatasetError(f"cannot create the export folder: {exc.strerror}", path=folder) from exc
     notes = [] if notes is None else notes
-    if parent_frame is None and rec.setup == "eye-on-hand":
-        parent_frame = _tracked_frame(out)
+    if parent_frame is None and rec.setup == "eye-on-hand" and rec.frames is None:
+        parent_frame = _tracked_frame(out)      # calibration.json of an earlier version
     frame_names(rec, parent_frame, child_frame)        # checked before anything is written
     if fmt == "camera-info":
         sub = folder / "camera_info"

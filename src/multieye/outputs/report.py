@@ -44,7 +44,7 @@ import numpy as np
 
 from multieye.core.errors import DatasetError
 from multieye.io.atomic import write_bytes_atomic, write_text_atomic
-from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUncertainty,
+from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUncertainty, named_keys,
                                          read_calibration)
 from multieye.io.run_details import RunDetails, read_run_details
 from multieye.core.metrics import pose_row
@@ -136,7 +136,7 @@ def _summary(rec: CalibrationRecord, out: Path) -> str:
              ("mean rotation residual", f"{rec.residuals.e_R_deg:.3f}°"),
              ("mean translation residual", f"{rec.residuals.e_t_m * 1e3:.2f} mm"),
              ("warnings", str(len(rec.warnings)))]
-    y_key = SETUP_KEYS[rec.setup][0]
+    y_key = named_keys(rec.setup, rec.frames)[0]
     cards_html = "".join(f'<div class="card"><div class="k">{escape(k)}</div>'
                          f'<div class="v">{escape(v)}</div></div>' for k, v in cards)
     sub = (f"{escape(rec.setup)} setup &middot; method <b>{escape(rec.method)}</b> &middot; "
@@ -199,9 +199,10 @@ def _pose_table(rec: CalibrationRecord, poses, key: str, ref_mark: bool) -> str:
 def _extrinsics(rec: CalibrationRecord) -> str:
     """Every camera's X and the shared Y with their σ; T_ref_cam with several cameras."""
     y_key, x_key = SETUP_KEYS[rec.setup]
+    y_name, x_name = named_keys(rec.setup, rec.frames)
     several = len(rec.cameras) > 1
     parts = ['<section id="extrinsics"><h2>Extrinsics and uncertainty</h2>',
-             f"<h3><code>{x_key}</code> of every camera</h3>",
+             f"<h3><code>{escape(x_name)}</code> of every camera</h3>",
              _pose_table(rec, [c.X for c in rec.cameras], x_key, several)]
     y_unc = None if not rec.uncertainty else rec.uncertainty.get(y_key)
     p = pose_row(rec.Y)
@@ -209,12 +210,16 @@ def _extrinsics(rec: CalibrationRecord) -> str:
               f"({', '.join(format(v, '.3f') for v in p[3:])}) deg")
     if y_unc is not None:
         y_text += (f", σ {y_unc.std_rot_deg:.3f} deg / {1e3 * y_unc.std_trans_m:.2f} mm")
-    parts.append(f"<h3><code>{y_key}</code></h3><p>{escape(y_text)}</p>")
+    parts.append(f"<h3><code>{escape(y_name)}</code></h3><p>{escape(y_text)}</p>")
     if several:
         parts += [f"<h3><code>T_ref_cam</code>, relative to {escape(rec.reference_camera)}</h3>",
                   _pose_table(rec, [c.T_ref_cam for c in rec.cameras], "T_ref_cam", True)]
-    note = (f"<code>{x_key}</code> and <code>{y_key}</code> as the setup defines them "
-            "(docs/conventions.md, section 2); <code>T_ref_cam</code> is the pose of each camera "
+    renamed = ("" if (y_name, x_name) == (y_key, x_key) else
+               f" (in calibration.json <code>{x_key}</code> and <code>{y_key}</code>, the "
+               f"frames named {escape(', '.join(f'{r} = {n}' for r, n in rec.frames.items()))} "
+               "by rig.yaml's <code>pose</code>)")
+    note = (f"<code>{escape(x_name)}</code> and <code>{escape(y_name)}</code> as the setup "
+            f"defines them (docs/conventions.md, section 2){renamed}; <code>T_ref_cam</code> is the pose of each camera "
             "in the reference camera's frame. Yaw, pitch, roll with R = Rz(yaw) Ry(pitch) "
             "Rx(roll). σ is the root of the trace of the rotation (or translation) covariance "
             "of that transform (left perturbation; with estimated intrinsics their "

@@ -13,7 +13,7 @@ import numpy as np
 
 from multieye.core.intrinsics import lens_model, parameter_names
 from multieye.io import CalibrationRecord
-from multieye.io.calibration_json import SETUP_KEYS
+from multieye.io.calibration_json import SETUP_KEYS, named_keys
 from multieye.io.run_details import TIMING_KEYS, StageTimings
 from multieye.core.metrics import extrinsic_errors, pose_row
 
@@ -52,6 +52,11 @@ def _pose_cells(T, unc) -> list[str]:
             _f(None if unc is None else unc.std_trans_m * 1e3, ".2f")]
 
 
+def _shown(key: str, name: str) -> str:
+    """A transform under the user's frame names, with calibration.json's key when it differs."""
+    return key if key == name else f"{name} (calibration.json: {key})"
+
+
 def calibration_table(rec: CalibrationRecord) -> str:
     """Per-camera summary of a calibration, with the transforms people came for.
 
@@ -64,6 +69,7 @@ def calibration_table(rec: CalibrationRecord) -> str:
     their standard deviations, rejected items and warnings.
     """
     y_key, x_key = SETUP_KEYS[rec.setup]
+    y_name, x_name = named_keys(rec.setup, rec.frames)
     pose_head = ["tx m", "ty m", "tz m", "yaw deg", "pitch deg", "roll deg", "std deg",
                  "std mm"]
     header = ["camera", "used", "rejected", "loop e_R deg", "loop e_t mm", "reproj px",
@@ -83,11 +89,11 @@ def calibration_table(rec: CalibrationRecord) -> str:
     keep = [i for i in range(len(header)) if i < 12 or any(row[i] != "-" for row in rows)]
     lines = [f"{rec.setup}, method {rec.method}, reference {rec.reference_camera}: "
              f"mean loop residual e_R {rec.residuals.e_R_deg:.3f} deg, e_t {rec.residuals.e_t_m * 1e3:.2f} mm",
-             f"{x_key} of every camera:",
+             f"{_shown(x_key, x_name)} of every camera:",
              format_table([header[i] for i in keep], [[row[i] for i in keep] for row in rows])]
     y_unc = None if not rec.uncertainty else rec.uncertainty.get(y_key)
     y_row = _pose_cells(rec.Y, y_unc)
-    lines.append(f"{y_key}: t = ({', '.join(y_row[:3])}) m, yaw pitch roll = "
+    lines.append(f"{_shown(y_key, y_name)}: t = ({', '.join(y_row[:3])}) m, yaw pitch roll = "
                  f"({', '.join(y_row[3:6])}) deg"
                  + ("" if y_unc is None else f", std {y_row[6]} deg / {y_row[7]} mm"))
     if len(rec.cameras) > 1:

@@ -75,7 +75,8 @@ def build_record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
                              motion_diagnostics=motion, plausibility=doubts,
                              uncertainty=None if unc is None else {
                                  SETUP_KEYS[rig.setup][0]: _pose_uncertainty(
-                                     refinement.covariance[-6:, -6:])})
+                                     refinement.covariance[-6:, -6:])},
+                             frames=rig.frames)
 
 
 def _pose_uncertainty(cov: np.ndarray) -> PoseUncertainty:
