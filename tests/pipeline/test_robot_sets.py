@@ -72,6 +72,7 @@ def test_open3dv_eye_in_hand(shared_data, tmp_path):
     cal, _ = _calibrate(shared_data, tmp_path, "open3dv_eih")
     cam = cal["cameras"]["cam0"]
     assert cam["measurements_used"] == 8
+    assert cal["frames"] == {"world": "base", "body": "tcp"}          # pose: T_base_tcp
     assert [r["item"] for r in cam["rejected"]] == ["param.txt"]     # a .txt without an image
     assert cal["plausibility"] == []
     assert cam["residuals"]["reprojection_rms_px"] < 0.1
@@ -103,6 +104,9 @@ def test_yizhong_eye_in_hand(shared_data, tmp_path):
     np.testing.assert_allclose(np.array(cam["T_body_cam"])[:3, 3], [0.100, -0.001, 0.145],
                                atol=0.015)
     assert "only 6 images of the target" in out
+    # the robot's frame names (pose: T_base_tool0) on screen; calibration.json keeps the keys
+    assert "T_tool0_cam (calibration.json: T_body_cam) of every camera:" in out
+    assert cal["frames"] == {"world": "base", "body": "tool0"}
 
 
 def test_yizhong_eye_to_hand_single_marker(shared_data, tmp_path):
@@ -124,3 +128,5 @@ def test_yizhong_eye_to_hand_single_marker(shared_data, tmp_path):
     np.testing.assert_allclose(np.array(cam["T_world_cam"])[:3, 3], [0.5731, 0.5736, 0.4014],
                                atol=6e-3)
     assert cam["uncertainty"]["T_world_cam"]["std_rot_deg"] < 1.0
+    assert "T_base_cam (calibration.json: T_world_cam) of every camera:" in out
+    assert "T_tool0_target (calibration.json: T_marker_target): t = (" in out
