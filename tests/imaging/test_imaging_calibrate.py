@@ -48,3 +48,44 @@ def test_refusals_name_the_camera_and_what_to_add():
     with pytest.raises(InputError, match=r"camera front: 2 image\(s\) with the target, at "
                                          r"least 3 .*add images of the target"):
         initial_intrinsics(views[:2], (1280, 960), "pinhole-radtan", name="front")
+
+
+def test_fisheye_from_four_point_views_starts_from_the_pinhole_calibration():
+    """One ArUco marker gives 4 corners per view, on which OpenCV's fisheye calibration fails
+    (an assertion inside it); the start then comes from its pinhole calibration, with the
+    radial distortion carried over, close enough for the joint refinement."""
+    lens = default_intrinsics("fisheye")
+    sc = simulate_images(5, n_cameras=1, images=30, intrinsics=[lens], pixel_sigma=0.0,
+                         mocap_rot_sigma_rad=0.0, mocap_trans_sigma_m=0.0)
+    x, y = sc.object_points[:, 0], sc.object_points[:, 1]
+    corners = [np.argmin(x + y), np.argmax(x + y), np.argmin(x - y), np.argmax(x - y)]
+    views = [(sc.object_points[corners], u[corners]) for u in sc.image_points[0]]
+    cv2 = pytest.importorskip("cv2")
+    with pytest.raises(cv2.error):      # what the fallback is for
+        cv2.fisheye.calibrate([o.reshape(-1, 1, 3) for o, _ in views],
+                              [u.reshape(-1, 1, 2) for _, u in views], (1280, 960),
+                              np.eye(3), np.zeros(4), flags=cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC)
+    start = initial_intrinsics(views, (1280, 960), "fisheye", name="cam0")
+    assert start.intrinsics.model == "fisheye" and start.intrinsics.dist.size == 4
+    assert abs(start.intrinsics.K[0, 0] / lens.K[0, 0] - 1) < 0.1
+    # the start reprojects the views to a few pixels: a start, not the answer
+    err = [np.abs(project_points(o @ T[:3, :3].T + T[:3, 3], start.intrinsics) - u).max()
+           for (o, u), T in zip(views, start.T_cam_target)]
+    assert np.median(err) < 5.0
+
+
+def test_equidistant_coefficients_bend_rays_as_the_radial_pinhole_does():
+    from multieye.imaging.calibrate import _equidistant_from_radial
+
+    K = np.array([[500.0, 0, 640], [0, 500.0, 480], [0, 0, 1]])
+    uv = np.array([[640.0, 480.0], [640 + 500 * 1.2, 480.0]])     # up to r = 1.2 (50 deg)
+    for dist in (np.zeros(5), np.array([-0.2, 0.04, 0, 0, -0.003])):
+        c = _equidistant_from_radial(dist, K, [(None, uv)])
+        t = np.linspace(0.01, 1.2, 50)
+        r_pin = t * (1 + dist[0] * t ** 2 + dist[1] * t ** 4 + dist[4] * t ** 6)
+        th = np.arctan(t)
+        r_fish = th * (1 + c[0] * th ** 2 + c[1] * th ** 4 + c[2] * th ** 6 + c[3] * th ** 8)
+        assert np.abs(r_fish - r_pin).max() < 2e-3 * r_pin.max()
+    # no distortion: tan(theta) = theta + theta^3 / 3 + 2 theta^5 / 15 + ...
+    c = _equidistant_from_radial(np.zeros(5), K, [(None, np.array([[640 + 50.0, 480.0]]))])
+    assert abs(c[0] - 1 / 3) < 0.01

@@ -63,6 +63,28 @@ def test_model_instead_of_intrinsics_recovers_lens_and_rig(rendered):
         assert g.translation_distance(T_est.T_ref_cam, T_given.T_ref_cam) < 2e-3
 
 
+def test_loop_residuals_and_image_rms_are_those_of_the_final_lens(rendered):
+    """The target poses of the final result come from the estimated lens, not from the
+    per-camera start the closed form was solved with."""
+    from multieye.core.metrics import camera_residual
+    from multieye.imaging.pnp import refit_pose
+
+    folder, _ = rendered
+    run = calibrate(_with_model(folder, "rig_model.yaml"), processes=2)
+    for j, cam in enumerate(run.record.cameras):
+        p, lens = run.paired[cam.name], run.refinement.intrinsics[cam.name]
+        assert lens is run.cameras[cam.name].intrinsics
+        for o in p.observations:
+            again = refit_pose(o.T_cam_target, o.object_points, o.image_points, lens)
+            np.testing.assert_allclose(again.T_cam_target, o.T_cam_target, atol=1e-9)
+            assert abs(again.rms_px - o.rms_px) < 1e-9
+        np.testing.assert_allclose(p.B, g.inv(np.stack([o.T_cam_target
+                                                        for o in p.observations])))
+        r = camera_residual(p.A, p.B, cam.X, run.record.Y)
+        assert cam.residuals.e_R_deg == pytest.approx(r.e_R_deg, rel=1e-12)
+        assert cam.residuals.e_t_m == pytest.approx(r.e_t_m, rel=1e-12)
+
+
 def test_intrinsics_images_join_the_joint_problem(rendered, tmp_path):
     folder, _ = rendered
     extra_dir = folder / "cam0_intrinsics"

@@ -24,8 +24,11 @@ loss for Gaussian residuals (1 for the linear loss: the Cramér-Rao bound,
 is estimated by variance-component estimation: the robust sum of squared pixel residuals over
 their redundancy ``n_pixel - (n_params - tr(H_prior cov_M))`` (the share of the parameters the
 mocap priors do not already pay for), re-solving until the estimate settles.  When the
-motion-capture noise is not given it is estimated likewise from how far the refinement moves
-the measured poses.  Like every covariance from a linearised model this one covers the
+motion-capture noise is not given, its rotation and position components are estimated the
+same way, each from its own residuals (how far the refinement moves the measured poses) over
+its own redundancy (:func:`_variance_components`; the plain RMS of the corrections, which
+shrinks with the sigma that produced it, collapsed to zero on small robot recordings:
+benchmarks/bench_mocap_noise.py).  Like every covariance from a linearised model this one covers the
 measurement noise only: not errors in the intrinsics, unsynchronised clocks, a non-rigid rig,
 or outliers that the robust loss did not catch.
 
@@ -81,6 +84,9 @@ _MAX_SIGMA_PASSES = 6
 #: Relative change of the noise estimates at which their fixed point counts as reached.
 _SETTLED = 0.01
 _MOCAP_SETTLED = 0.1
+#: Smallest redundancy a variance component is divided by (a component the data barely
+#: determine is then not blown up).
+_MIN_REDUNDANCY = 0.5
 _MOCAP_SIGMA_FLOOR = 1e-7
 #: Clock windows are re-centred when an offset moved by more than this share of their
 #: half-width (at most this many times).
@@ -226,7 +232,11 @@ def estimate_mocap_noise(measured: F64, refined: F64) -> tuple[float, float]:
     The rotation error is the rotation vector of ``R_measured^T R_refined`` (marker/body
     frame), the position error ``t_refined - t_measured``; returned as the RMS per component
     (radians, metres), the convention of :func:`refine_images`.  With many target points per
-    image the refined pose is close to the truth, so the corrections are close to the errors.
+    image the refined pose is close to the truth, so the corrections are close to the errors;
+    with few, the corrections shrink with the sigma the refinement was given, so iterating
+    this estimate drifts to zero: :func:`refine_images` divides by the redundancy instead
+    (:func:`_variance_components`).  Kept as the plain figure and for
+    benchmarks/bench_mocap_noise.py.
 
     Parameters
     ----------
@@ -270,22 +280,49 @@ def _pixel_residuals(data: ImageData, ev) -> F64:
     return np.concatenate([e[0] for e in ev[:data.m]])
 
 
-def _pixel_sigma_update(data: ImageData, fams, *, s_px: float, s_rot: float, s_t: float,
-                        loss: str, f_scale: float, c_w: float) -> float:
-    """Variance-component estimate of the pixel noise at the current optimum."""
+def _variance_components(data: ImageData, fams, *, s_px: float, s_rot: float, s_t: float,
+                         loss: str, f_scale: float, c_w: float) -> tuple[float, float, float,
+                                                                          float, float]:
+    """Variance-component estimates (Förstner) of the pixel and the motion-capture noise.
+
+    Each group of residuals ``k`` (pixels; the motion capture's rotation components; its
+    position components) gets ``sigma_k^2 * sum(w z_k^2) / (c_w r_k)``, with ``z_k`` its
+    residuals normalised by the current ``sigma_k`` and ``r_k`` its redundancy: its count of
+    residuals minus the share of the parameters it pays for, ``tr(J_k Cov J_k^T)`` at the
+    optimum.  Unlike the RMS of the corrections, which shrinks with the sigma that produced
+    them and so collapses to zero when the pixels cannot contradict the poses, this is the
+    restricted-likelihood fixed point.
+
+    Returns
+    -------
+    s_px, s_rot, s_t : float
+        The new estimates (pixels, radians, metres).
+    r_rot, r_t : float
+        The motion-capture redundancies: near 0 when the recording cannot tell the pose noise
+        apart from the pixel noise.
+    """
     groups = data.groups(s_px, s_rot, s_t)
     ev = evaluate(fams, groups, jacobians=True)
     cov = covariance(fams, groups, local=True, evaluated=ev)
     h_prior = 0.0
+    sums, red = np.zeros(2), np.zeros(2)
     for grp, e in zip(groups, ev):
         if _is_prior(grp):
             Jp = e[1][:, :, :6]                                           # d r / d M, (n, 6, 6)
-            h_prior += float(np.einsum("nki,nij,nkj->", Jp, cov.local[grp.index[:, 0]], Jp))
+            h = np.einsum("nki,nij,nkj->nk", Jp, cov.local[grp.index[:, 0]], Jp)   # (n, 6)
+            h_prior += float(h.sum())
+            w = rho((e[0] / f_scale) ** 2, loss)[1]
+            for k, sl in enumerate((slice(0, 3), slice(3, 6))):
+                sums[k] += float(np.sum(w[:, sl] * e[0][:, sl] ** 2))
+                red[k] += float(np.sum(1.0 - h[:, sl]))
     n_params = cov.layout.k + 6 * cov.layout.n_local
     z = np.concatenate([e[0].ravel() for grp, e in zip(groups, ev) if not _is_prior(grp)])
     redundancy = z.size - (n_params - h_prior)
     w = rho((z / f_scale) ** 2, loss)[1]
-    return s_px * np.sqrt(float(w @ z ** 2) / (c_w * max(redundancy, 1.0)))
+    new_px = s_px * np.sqrt(float(w @ z ** 2) / (c_w * max(redundancy, 1.0)))
+    new_rot, new_t = (max(s * np.sqrt(q / (c_w * max(r, _MIN_REDUNDANCY))), _MOCAP_SIGMA_FLOOR)
+                      for s, q, r in zip((s_rot, s_t), sums, red))
+    return float(new_px), float(new_rot), float(new_t), float(red[0]), float(red[1])
 
 
 def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
@@ -321,9 +358,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         pose, in the marker (body) frame, radians.  Default 0.1 degrees.
     mocap_trans_sigma_m : float
         Standard deviation of each coordinate of its position error, metres.  Default 0.3 mm.
-        Either mocap sigma may be None: then both are estimated from how far the refinement
-        moves the measured poses (:func:`estimate_mocap_noise`), alternating with the
-        refinement until they settle.
+        Either mocap sigma may be None: then both are estimated by variance components
+        (module docstring), alternating with the refinement until they settle.
     pixel_sigma : float, optional
         Standard deviation of each pixel coordinate of a detected target point.  Estimated
         from the data when not given (module docstring), and the covariance scaled with it.
@@ -442,16 +478,16 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         if final:
             break
         changes = []
+        new_px, new_rot, new_t, red_rot, red_t = _variance_components(
+            data, fams, s_px=s_px, s_rot=s_rot, s_t=s_t, loss=loss, f_scale=f_scale, c_w=c_w)
         if iterate_mocap:
-            new_rot, new_t = estimate_mocap_noise(data.mocap_measured, _value(fams, "M"))
             changes += [abs(new_rot / s_rot - 1.0) / _MOCAP_SETTLED,
                         abs(new_t / s_t - 1.0) / _MOCAP_SETTLED]
             s_rot, s_t = new_rot, new_t
+            mocap_redundancy = (red_rot, red_t)
         if estimate_px:
-            new = _pixel_sigma_update(data, fams, s_px=s_px, s_rot=s_rot, s_t=s_t, loss=loss,
-                                      f_scale=f_scale, c_w=c_w)
-            changes.append(abs(new / s_px - 1.0) / _SETTLED)
-            s_px = new
+            changes.append(abs(new_px / s_px - 1.0) / _SETTLED)
+            s_px = new_px
         settled = max(changes) < 1.0
 
     X, Y, M = _value(fams, "X"), _value(fams, "Y")[0], _value(fams, "M")

@@ -60,6 +60,36 @@ def _flat_guess(views, size) -> F64:
                                   [u.astype(np.float32) for u in img], size)
 
 
+def _equidistant_from_radial(dist: F64, K: F64, views) -> F64:
+    """Fisheye (equidistant) k1..k4 that bend rays as OpenCV's radial ``k1 k2 k3`` do.
+
+    Both map the angle ``theta`` of a ray off the axis to a normalised image radius: the
+    pinhole ``r = tan(theta) (1 + k1 tan^2 + k2 tan^4 + k3 tan^6)``, the equidistant
+    ``r = theta (1 + c1 theta^2 + c2 theta^4 + c3 theta^6 + c4 theta^8)``; the ``c`` are the
+    linear least-squares fit over the angles up to the largest the views show.
+
+    Parameters
+    ----------
+    dist : ndarray, shape (k,)
+        OpenCV distortion ``k1 k2 p1 p2 k3``; tangential terms ignored.
+    K : ndarray, shape (3, 3)
+    views : sequence of (object_points, image_points)
+    """
+    d = np.zeros(5)
+    d[:min(5, dist.size)] = dist[:5]
+    uv = np.concatenate([u for _, u in views])
+    xy = (uv - K[:2, 2]) / np.diag(K)[:2]
+    r_max = float(np.max(np.hypot(xy[:, 0], xy[:, 1])))
+    # the pinhole radius is monotonic up to where its derivative vanishes: stay below
+    t = np.linspace(1e-3, max(r_max, 1e-2), 200)
+    r = t * (1 + d[0] * t ** 2 + d[1] * t ** 4 + d[4] * t ** 6)
+    keep = np.concatenate([[True], np.diff(r) > 0]) & (r > 0)
+    theta = np.arctan(t[keep])
+    A = theta[:, None] * theta[:, None] ** np.array([2, 4, 6, 8])
+    c, *_ = np.linalg.lstsq(A, r[keep] - theta, rcond=None)
+    return c if np.all(np.isfinite(c)) else np.zeros(4)
+
+
 def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
                        model: str, *, name: str = "camera") -> InitialIntrinsics:
     """Intrinsics of one camera from views of a planar target (OpenCV's calibration).
@@ -103,9 +133,21 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
             img = [u.reshape(-1, 1, 2) for _, u in views]
             flags = (cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
                      | cv2.fisheye.CALIB_USE_INTRINSIC_GUESS)
-            rms, K, D, rvecs, tvecs = cv2.fisheye.calibrate(obj, img, (w, h), K0.copy(),
-                                                             np.zeros(4), flags=flags,
-                                                             criteria=_CRITERIA)
+            try:
+                rms, K, D, rvecs, tvecs = cv2.fisheye.calibrate(obj, img, (w, h), K0.copy(),
+                                                                 np.zeros(4), flags=flags,
+                                                                 criteria=_CRITERIA)
+            except cv2.error:
+                # OpenCV's fisheye start fails on views of a few points (one ArUco marker's 4
+                # corners): start from its pinhole calibration instead, with the radial
+                # distortion carried over to the equidistant model (the joint refinement
+                # then estimates the fisheye coefficients)
+                obj = [o.astype(np.float32) for o, _ in views]
+                img = [u.astype(np.float32) for _, u in views]
+                rms, K, Dp, rvecs, tvecs = cv2.calibrateCamera(
+                    obj, img, (w, h), None, None, flags=cv2.CALIB_ZERO_TANGENT_DIST,
+                    criteria=_CRITERIA)
+                D = _equidistant_from_radial(np.asarray(Dp, np.float64).reshape(-1), K, views)
         else:
             obj = [o.astype(np.float32) for o, _ in views]
             img = [u.astype(np.float32) for _, u in views]

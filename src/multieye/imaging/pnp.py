@@ -26,7 +26,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, undistort_points
 from multieye.imaging.detect import Detection
 
-__all__ = ["PoseEstimate", "estimate_pose", "reprojection_residuals"]
+__all__ = ["PoseEstimate", "estimate_pose", "refit_pose", "reprojection_residuals"]
 
 F64 = NDArray[np.float64]
 
@@ -142,6 +142,36 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
         for _ in range(2):
             img = raw - _centroid_offsets(_transform(rvec, tvec), obj, detection.circle_diameter / 2, intrinsics)
             rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
+    T = _transform(rvec, tvec)
+    err = reprojection_residuals(T, obj, img, intrinsics)
+    return PoseEstimate(T_cam_target=T, rms_px=float(np.sqrt(np.mean(err ** 2))),
+                        max_px=float(err.max()), n_points=len(obj))
+
+
+def refit_pose(T_cam_target: F64, object_points: F64, image_points: F64,
+               intrinsics: Intrinsics) -> PoseEstimate:
+    """The pose of a target refitted from a nearby one, e.g. after the intrinsics changed.
+
+    Levenberg-Marquardt on the pixel reprojection error through ``intrinsics``, started at
+    ``T_cam_target`` (no IPPE, no choice between mirrored poses: the start decides).
+
+    Parameters
+    ----------
+    T_cam_target : ndarray, shape (4, 4)
+        Starting pose, metres.
+    object_points : ndarray, shape (n, 3)
+        Target frame, metres.
+    image_points : ndarray, shape (n, 2)
+        Pixels, as the image-level refinement sees them.
+    intrinsics : Intrinsics
+    """
+    obj = np.asarray(object_points, dtype=np.float64)
+    img = np.asarray(image_points, dtype=np.float64)
+    T0 = np.asarray(T_cam_target, dtype=np.float64)
+    if len(obj) < 4:
+        raise InputError(f"PnP needs at least 4 points, got {len(obj)}")
+    rvec = cv2.Rodrigues(T0[:3, :3])[0].reshape(3)
+    rvec, tvec = _refine(obj, img, intrinsics, rvec, T0[:3, 3].copy())
     T = _transform(rvec, tvec)
     err = reprojection_residuals(T, obj, img, intrinsics)
     return PoseEstimate(T_cam_target=T, rms_px=float(np.sqrt(np.mean(err ** 2))),

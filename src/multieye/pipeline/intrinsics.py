@@ -20,7 +20,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
 from multieye.imaging.calibrate import initial_intrinsics
-from multieye.imaging.pnp import estimate_pose
+from multieye.imaging.pnp import estimate_pose, refit_pose
 
 __all__ = ["LensStart", "start_lens", "with_poses", "weak_data_warnings", "check_model",
            "RECOMMENDED_VIEWS"]
@@ -117,6 +117,32 @@ def with_poses(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
             f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px")
         out.append(replace(r, pose=pose, reason=reason))
     return out
+
+
+def refit_paired(paired, intrinsics: Intrinsics):
+    """A paired camera's target poses refitted with its estimated ``intrinsics``.
+
+    The poses (``B``, each observation's ``T_cam_target`` and ``rms_px``) came from PnP with
+    the starting lens; the loop residuals and per-image RMS reported for the final result are
+    those of the final lens.  ``A`` and the motion capture stay as they are.
+
+    Parameters
+    ----------
+    paired : multieye.pipeline.camera_data.PairedCamera
+    intrinsics : Intrinsics
+        The refined lens.
+    """
+    from multieye.core import geometry as g
+
+    obs = []
+    for o in paired.observations:
+        if o.object_points is None or o.image_points is None:
+            obs.append(o)
+            continue
+        pose = refit_pose(o.T_cam_target, o.object_points, o.image_points, intrinsics)
+        obs.append(replace(o, T_cam_target=pose.T_cam_target, rms_px=pose.rms_px))
+    B = g.inv(np.stack([o.T_cam_target for o in obs]))            # T_target_cam
+    return replace(paired, B=B, observations=tuple(obs))
 
 
 def weak_data_warnings(name: str, model: str, views, T_cam_target, size) -> tuple[str, ...]:

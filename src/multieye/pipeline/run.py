@@ -209,6 +209,10 @@ class Options:
         check_options(self)
 
 
+#: An estimated motion-capture noise below this (radians, metres) is one the recording could
+#: not resolve (its variance component went to zero).
+_UNRESOLVED_NOISE = 1e-6
+
 #: Smallest angular-speed correlation at which an automatic clock offset is trusted.
 CLOCK_MIN_SCORE = 0.5
 
@@ -410,6 +414,13 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         warnings.append(f"{', '.join(unrefined)}: the intrinsics are OpenCV's per-camera "
                         "calibration only, since the joint image-level refinement did not run "
                         "(it needs refinement and target points in every camera)")
+    if refinement is not None and refinement.intrinsics:
+        # estimated lenses: the target poses of the final result are those of the final lens
+        from multieye.pipeline.intrinsics import refit_paired
+
+        paired = {n: refit_paired(p, refinement.intrinsics[n])
+                  if cameras[n].intrinsics_estimated and n in refinement.intrinsics else p
+                  for n, p in paired.items()}
     shown = offsets if opts.time_offset != "rig" else {n: o for n, o in offsets.items() if o}
     record = build_record(rig, paired, sol, refinement, uncertainty, method=opts.method,
                      reference=reference, warnings=warnings, time_offsets=shown,
@@ -477,11 +488,17 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
                             "only); add views with more tilt and nearer the image corners, or "
                             "use a lens model with fewer coefficients")
         if res.mocap_sigma_estimated:
+            unresolved = [what for what, v in (("rotation", res.mocap_rot_sigma_rad),
+                                               ("position", res.mocap_trans_sigma_m))
+                          if v < _UNRESOLVED_NOISE]
             warnings.append(
                 f"motion-capture noise estimated from the data: "
                 f"{np.degrees(res.mocap_rot_sigma_rad):.3g} deg, "
                 f"{res.mocap_trans_sigma_m * 1e3:.3g} mm per pose (state rotation_noise_deg and "
-                "translation_noise_m under mocap in rig.yaml to fix it)")
+                "translation_noise_m under mocap in rig.yaml to fix it)"
+                + (f"; in {' and '.join(unresolved)} it is too small for this recording to "
+                   "tell apart from the pixel noise, which then carries it in the uncertainty"
+                   if unresolved else ""))
         if not res.converged:
             warnings.append(f"refinement did not converge ({res.message}); the result may be "
                             "short of the best the data allow")
