@@ -478,13 +478,12 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         if final:
             break
         changes = []
-        new_px, new_rot, new_t, red_rot, red_t = _variance_components(
+        new_px, new_rot, new_t, _, _ = _variance_components(
             data, fams, s_px=s_px, s_rot=s_rot, s_t=s_t, loss=loss, f_scale=f_scale, c_w=c_w)
         if iterate_mocap:
             changes += [abs(new_rot / s_rot - 1.0) / _MOCAP_SETTLED,
                         abs(new_t / s_t - 1.0) / _MOCAP_SETTLED]
             s_rot, s_t = new_rot, new_t
-            mocap_redundancy = (red_rot, red_t)
         if estimate_px:
             changes.append(abs(new_px / s_px - 1.0) / _SETTLED)
             s_px = new_px
