@@ -53,7 +53,12 @@ def test_local_fit_reproduces_a_cubic_and_its_velocity():
         w = log_so3(np.swapaxes(Rm, 1, 2) @ Rp) / (2 * h)
         np.testing.assert_allclose(omega, w, atol=1e-6)
     # the variance factor at the centre: about 2.25 / n_window for a cubic
-    assert np.allclose(traj.variance_factor(0.0), traj.h)
+    h, dh = traj.variance_factor(0.0)
+    assert np.allclose(h, traj.h)
+    step = 1e-6
+    np.testing.assert_allclose(dh, (traj.variance_factor(step)[0]
+                                    - traj.variance_factor(-step)[0]) / (2 * step), rtol=1e-5,
+                               atol=1e-6)
     assert 1.5 / traj.n_window < traj.h.mean() < 3.0 / traj.n_window
 
 

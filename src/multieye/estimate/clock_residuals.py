@@ -15,29 +15,36 @@ rotation vector ``phi(s) = Log(R_c^T R(s))`` in a chart around the window's midd
 A linear smoother: with iid sample noise (``sigma_R`` per rotation-vector component,
 ``sigma_t`` per coordinate) the fit's value at ``u`` carries ``sigma^2 h(u)``,
 ``h(u) = e(u)^T (A^T A)^-1 e(u)`` (``A`` the window's design matrix, ``e(u) = (1, u, u^2,
-u^3)``; the hat matrix's diagonal at ``u``; about ``2.25 / n_w`` at the centre).  So the prior
-of image i, with ``h_i = h(0)`` at the window's centre::
+u^3)``; the hat matrix's diagonal at ``u``; about ``2.25 / n_w`` at the centre).  Profiling
+the window's cubic out of its samples' likelihood leaves, exactly, the prior of image i::
 
-    r = (Log(S_R^T R_M) / (sigma_R sqrt(h_i)), (t_M - S_t) / (sigma_t sqrt(h_i)))
+    r = (Log(S_R^T R_M), t_M - S_t) / (sigma sqrt(h(u)))
 
-and with ``omega = J_r(phi) dphi/ds`` the body-frame angular velocity and ``v = dp/ds`` the
-velocity of the fit (exact derivatives of the model)::
+with ``h`` at the current ``u``: were it held at the centre, the fit's error (which moves with
+``delta``) would pull every offset towards where the fit is most precise, a bias of up to one
+standard deviation for short windows.  With ``omega = J_r(phi) dphi/ds`` the body-frame
+angular velocity and ``v = dp/ds`` the velocity of the fit (exact derivatives of the model),
+``rho = (Log(S_R^T R_M), t_M - S_t)`` and ``s = 1 / (sigma sqrt(h(u)))``::
 
-    d r_R / d delta = -J_l^-1(r_R) omega / (sigma_R sqrt(h_i)),
-    d r_t / d delta = -v / (sigma_t sqrt(h_i)),
-    d r_R / d phi_M = J_r^-1(r_R) / (sigma_R sqrt(h_i)),   d r_t / d tau_M = I / (sigma_t sqrt(h_i))
+    d r_R / d delta = -J_l^-1(rho_R) omega s_R - r_R h'(u) / (2 a h(u)),
+    d r_t / d delta = -v s_t - r_t h'(u) / (2 a h(u)),
+    d r_R / d phi_M = J_r^-1(rho_R) s_R,      d r_t / d tau_M = I s_t
 
 (``M`` on ``se3-right``).  The offset is an ``euclidean`` block of size 1 (family
 ``dt:<camera>``), one per camera.  The windows are centred at the offset they were built at
 (:meth:`LocalTrajectory.__init__`); :func:`multieye.estimate.refine_images.refine_images`
 re-centres them when the offset moves by more than a quarter of the half-width.
 
-Assumptions: the errors of the fits at two images are independent (their windows do not
-overlap: images of one camera further apart than the window, and no two cameras imaging at
-the same motion-capture instant - the same assumption the per-image priors without a clock
-make); the trajectory is smooth at the window's scale (a cubic's bias ``~ 0.004 a^4 f''''``
-is below the noise); the sample noise is white.  The sample noise itself can be estimated
-from the fits' residuals (:meth:`LocalTrajectory.noise`).
+Assumptions: the errors of the fits at two images are independent; exact when their windows
+share no sample, an approximation when they do (images of one camera closer than the window,
+or of several cameras at the same motion-capture instant: the same assumption the per-image
+priors without a clock make).  benchmarks/bench_clock_joint.py measures what it costs
+(docs/results/clock_joint.md): with 3 cameras triggered together the mean NEES of X and Y is
+about 1.2, 1.4 with nearly noise-free pixels; counting the shared error once per image
+instead (variance times the summed correlations) overshoots to 0.5-0.6.  The trajectory is
+smooth at the window's scale (a cubic's bias, about ``0.004 a^4`` times the fourth
+derivative, is below the noise); the sample noise is white.  The sample noise itself can be
+estimated from the fits' residuals (:meth:`LocalTrajectory.noise`).
 """
 
 from __future__ import annotations
@@ -204,11 +211,16 @@ class LocalTrajectory:
         omega = np.einsum("nij,nj->ni", left_jacobian(-phi), dp[:, :3])    # J_r(phi) dphi/ds
         return poses, omega, dp[:, 3:]
 
-    def variance_factor(self, delta: float) -> F64:
-        """``h(u)`` of each fit at offset ``delta``, shape (N_j,) (module docstring)."""
+    def variance_factor(self, delta: float) -> tuple[F64, F64]:
+        """``h(u)`` of each fit at offset ``delta`` (module docstring) and its derivative
+        with respect to ``delta`` (1/s), both shape (N_j,)."""
         u = (self.clock.image_stamps + delta - self.c) / self.a
-        e = u[:, None] ** np.arange(DEGREE + 1)
-        return np.einsum("ni,nij,nj->n", e, self.inv, e)
+        k = np.arange(DEGREE + 1)
+        e = u[:, None] ** k
+        de = np.zeros_like(e)
+        de[:, 1:] = k[1:] * u[:, None] ** (k[1:] - 1)
+        h = np.einsum("ni,nij,nj->n", e, self.inv, e)
+        return h, 2.0 * np.einsum("ni,nij,nj->n", de, self.inv, e) / self.a
 
 
 class TimedMocapPriors(ResidualGroup):
@@ -238,22 +250,25 @@ class TimedMocapPriors(ResidualGroup):
                          np.column_stack([images, np.zeros(len(images), int)]),
                          np.arange(len(images)), 6)
         self.name, self.trajectory = name, trajectory
-        self.scale = (1.0 / np.sqrt(trajectory.h)[:, None]
-                      / np.repeat([float(sigma_rot), float(sigma_t)], 3))       # (N_j, 6)
+        self.sigma = np.repeat([float(sigma_rot), float(sigma_t)], 3)
 
     def evaluate(self, values: Mapping[str, F64], jacobians: bool):
         delta = float(values[offset_family(self.name)][0, 0])
         S, omega, vel = self.trajectory.at(delta)
+        h, dh = self.trajectory.variance_factor(delta)
+        scale = 1.0 / np.sqrt(h)[:, None] / self.sigma        # (N_j, 6)
         M = values["M"][self.index[:, 0]]
         r_rot = log_so3(np.swapaxes(S[:, :3, :3], 1, 2) @ M[:, :3, :3])
-        r = np.concatenate([r_rot, M[:, :3, 3] - S[:, :3, 3]], axis=1) * self.scale
+        raw = np.concatenate([r_rot, M[:, :3, 3] - S[:, :3, 3]], axis=1)
+        r = raw * scale
         if not jacobians:
             return r, None
         n = len(M)
         JM = np.zeros((n, 6, 6))
-        JM[:, :3, :3] = left_jacobian_inv(-r_rot) * self.scale[:, :1, None]   # J_r^-1(r_R)
-        JM[:, 3:, 3:] = np.eye(3) * self.scale[:, 3:4, None]
+        JM[:, :3, :3] = left_jacobian_inv(-r_rot) * scale[:, :1, None]        # J_r^-1(r_R)
+        JM[:, 3:, 3:] = np.eye(3) * scale[:, 3:4, None]
         Jd = np.zeros((n, 6, 1))
-        Jd[:, :3, 0] = -np.einsum("nij,nj->ni", left_jacobian_inv(r_rot), omega) * self.scale[:, :3]
-        Jd[:, 3:, 0] = -vel * self.scale[:, 3:]
+        Jd[:, :3, 0] = -np.einsum("nij,nj->ni", left_jacobian_inv(r_rot), omega)
+        Jd[:, 3:, 0] = -vel
+        Jd[:, :, 0] = Jd[:, :, 0] * scale - 0.5 * r * (dh / h)[:, None]      # d scale / d delta
         return r, [JM, Jd]

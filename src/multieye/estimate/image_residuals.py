@@ -231,6 +231,10 @@ class ImageData:
             out += self.extra.groups(self, sigma_px)
         return out
 
+    def recentre(self, camera: int, offset: float) -> None:
+        """Centre camera ``camera``'s clock windows at ``offset`` (seconds)."""
+        self.trajectories[camera] = LocalTrajectory(self.clocks[camera], float(offset))
+
     def mocap_start(self, offsets: Sequence[float | None] | None = None) -> F64:
         """The motion-capture poses the refinement starts from, (N, 4, 4): the given ones,
         and for a camera with a clock the smoothed trajectory at ``t_i + offset`` (``offsets``

@@ -54,7 +54,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lie import log_so3
 from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho
-from multieye.estimate.clock_residuals import ClockData, LocalTrajectory, offset_family
+from multieye.estimate.clock_residuals import ClockData, offset_family
 from multieye.estimate.image_residuals import ImageData, intrinsics_family
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
 
@@ -470,7 +470,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
             recentres += 1
             for j in moved:
                 d = float(_value(fams, offset_family(data.names[j]))[0, 0])
-                data.trajectories[j] = LocalTrajectory(data.clocks[j], d)
+                data.recentre(j, d)
             if estimate_mocap:
                 s_rot, s_t = _clock_noise(data)
             if final:

@@ -472,11 +472,21 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
                   for o in cameras[n].intrinsics_views] for n in paired]
         clocks = None
         if opts.time_offset == "auto":
-            from multieye.estimate.clock_residuals import ClockData
+            from multieye.estimate.clock_residuals import ClockData, LocalTrajectory
 
-            clocks = [None if cameras[n].by_name else ClockData(
-                [o.stamp for o in p.observations], cameras[n].mocap.stamps, cameras[n].mocap.T,
-                offset=offsets[n]) for n, p in paired.items()]
+            clocks = []
+            for n, p in paired.items():
+                try:
+                    clock = None if cameras[n].by_name else ClockData(
+                        [o.stamp for o in p.observations], cameras[n].mocap.stamps,
+                        cameras[n].mocap.T, offset=offsets[n])
+                    if clock is not None:
+                        LocalTrajectory(clock)         # every image inside the motion capture
+                except InputError as exc:
+                    warnings.append(f"{n}: clock offset kept at the estimate before the solve "
+                                    f"({offsets[n]:+.4f} s), not refined with the rig: {exc}")
+                    clock = None
+                clocks.append(clock)
         res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired),
                             free_intrinsics=free, clocks=clocks,
                             intrinsics_observations=views if any(views) else None, **given)

@@ -72,13 +72,15 @@ def simulate_rig_stream(rng: np.random.Generator | int | None = None, *, n_camer
                         camera_rate_hz: float = 4.0, mocap_rate_hz: float = 200.0,
                         time_offsets_s=0.0, pixel_sigma: float = 0.5,
                         mocap_rot_sigma_rad: float = 1e-3,
-                        mocap_trans_sigma_m: float = 0.3e-3) -> RigStream:
+                        mocap_trans_sigma_m: float = 0.3e-3,
+                        interleaved: bool = True) -> RigStream:
     """A rig of ``n_cameras`` with their own clocks and one motion-capture stream.
 
     Camera 0 is the rig of :func:`multieye.sim.rigs.simulate_rig` (one camera); camera j is
     camera 0 moved by a few degrees and centimetres, so that all see the board.  The cameras
-    take images at ``camera_rate_hz`` interleaved in time (camera j a fraction ``j / m`` of a
-    period after camera 0), so no two images are taken at the same instant.
+    take images at ``camera_rate_hz``, interleaved in time (camera j a fraction ``j / m`` of a
+    period after camera 0, so no two images are taken at the same instant) or, with
+    ``interleaved=False``, all at the same instants (a hardware-triggered rig).
 
     Parameters
     ----------
@@ -96,6 +98,8 @@ def simulate_rig_stream(rng: np.random.Generator | int | None = None, *, n_camer
     mocap_rot_sigma_rad, mocap_trans_sigma_m : float
         Noise of each motion-capture sample (:class:`multieye.sim.rigs.GaussianNoise`:
         rotation in the marker/body frame, translation in the world frame).
+    interleaved : bool
+        Cameras take their images at different instants (default) or at the same ones.
 
     Returns
     -------
@@ -127,7 +131,8 @@ def simulate_rig_stream(rng: np.random.Generator | int | None = None, *, n_camer
     K = default_intrinsics("pinhole")
     observations, stamps = [], []
     for j in range(m):
-        tau = np.arange(0.0, duration_s, 1.0 / camera_rate_hz) + j / (m * camera_rate_hz)
+        tau = np.arange(0.0, duration_s, 1.0 / camera_rate_hz) + (
+            j / (m * camera_rate_hz) if interleaved else 0.0)
         P = g.inv(D[j]) @ _smooth_board_motion(tau, phases, freqs, depth)  # T_camj_target
         near = np.clip(np.searchsorted(mocap_t, tau), 0, len(mocap_t) - 1)
         obs = []
