@@ -124,6 +124,13 @@ def test_the_other_setup_or_inverted_poses(true_setup):
         assert "inverted" in f.message and f"setup: {setup}" not in f.message
         assert f"setup: {true_setup if setup == declared else declared}" in f.message
         assert "pose: T_marker_world" in f.message or "pose: T_body_world" in f.message
+    # with the user's own frame names (pose: T_base_tool0) the fix is said in those names
+    rep = check_plausibility(true_setup, [inverted], declared=Declared(
+        mocap_pose="T_world_marker" if true_setup == "eye-to-base" else "T_world_body",
+        mocap_frames=("base", "tool0")))
+    f = next(f for f in rep.findings if f.cause == "setup")
+    assert "(T_tool0_base, not T_base_tool0: pose: T_tool0_base and fixed_frame: base" \
+        in f.message, f.message
 
 
 def test_inverted_target_poses_of_one_camera_of_two():

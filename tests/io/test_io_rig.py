@@ -346,6 +346,42 @@ def test_pose_names_give_the_roles_and_the_users_frame_names(pose, frames, movin
     assert named_pose(pose, moving, frames) == (role_pose, names)
 
 
+@pytest.mark.parametrize("pose, fixed, moving, role_pose, names", [
+    ("T_tool0_base", "base", "body", "T_body_world", ("base", "tool0")),    # the inverse file
+    ("T_base_tool0", "base", "body", "T_world_body", ("base", "tool0")),
+    ("T_board_mocap", "mocap", "marker", "T_marker_world", ("mocap", "board")),
+    ("T_world_tool0", "world", "body", "T_world_body", ("world", "tool0")),
+])
+def test_fixed_frame_says_which_name_is_fixed(pose, fixed, moving, role_pose, names):
+    from multieye.io.mocap import named_pose
+
+    assert named_pose(pose, moving, None, fixed) == (role_pose, names)
+
+
+@pytest.mark.parametrize("pose, fixed, message", [
+    ("T_tool0_base", "flange", "is not one of the frames of the pose, tool0 and base"),
+    ("T_world_tool0", "tool0", "contradicts the role names"),
+    ("T_base_body", "body", "contradicts the role names"),
+])
+def test_fixed_frame_that_cannot_be_is_refused(pose, fixed, message):
+    from multieye.io.mocap import named_pose
+
+    with pytest.raises(ValueError, match=re.escape(message)):
+        named_pose(pose, "body", None, fixed)
+
+
+def test_fixed_frame_is_read_from_rig_yaml_and_its_line_named(dataset):
+    _edit(dataset, "  pose: T_world_marker\n", "  pose: T_board_mocap\n  fixed_frame: mocap\n")
+    rig = load_rig(dataset)
+    assert rig.mocap.pose == "T_marker_world" and rig.mocap.frames == ("mocap", "board")
+    assert rig.frames == {"world": "mocap", "marker": "board"}
+    (dataset / "rig.yaml").write_text((dataset / "rig.yaml").read_text().replace(
+        "fixed_frame: mocap", "fixed_frame: base"))
+    with pytest.raises(DatasetError, match=r"rig\.yaml:\d+: mocap\.fixed_frame: fixed_frame "
+                                           r"'base' is not one of"):
+        load_rig(dataset)
+
+
 @pytest.mark.parametrize("pose, frames, moving, message", [
     ("T_world_marker", None, "body", "expected T_world_body (or T_body_world) for eye-on-hand"),
     ("T_base_marker", None, "body", "expected T_world_body"),

@@ -116,6 +116,9 @@ class Declared:
         The motion capture's ``unit`` (``m`` when not stated).
     mocap_pose : str or None
         The motion capture's ``pose`` (``T_world_marker``, ``T_marker_world``, ...).
+    mocap_frames : (str, str) or None
+        The user's names of the fixed and the tracked frame (rig.yaml's ``pose:``), when
+        they are not ``world`` and the role name.
     mocap_format : str
         ``tum``, ``csv``, ``optitrack``, ``vicon`` or ``rosbag``.
     """
@@ -124,6 +127,7 @@ class Declared:
     mocap_unit: str = "m"
     mocap_pose: str | None = None
     mocap_format: str = "tum"
+    mocap_frames: tuple[str, str] | None = None
 
 
 @dataclass(frozen=True)
@@ -270,10 +274,16 @@ def _setup_finding(setup: str, before: float, after: float, declared: Declared) 
     other, meaning, pose, inverse = _SETUPS[setup]
     given = declared.mocap_pose or pose
     flipped = {pose: inverse, inverse: pose}.get(given, inverse)
+    fix = f"pose: {flipped}"
+    if declared.mocap_frames is not None:          # the user's own names (rig.yaml's pose)
+        fixed, tracked = declared.mocap_frames
+        named = {pose: f"T_{fixed}_{tracked}", inverse: f"T_{tracked}_{fixed}"}
+        given, flipped = named[given], named[flipped]
+        fix = f"pose: {flipped}" + ("" if fixed == "world" else f" and fixed_frame: {fixed}")
     return Finding("setup", f"setup or inverted poses: the motion capture fits as its inverse "
                    f"({_costs(before, after)}): either the data are {other} ({meaning}), not "
                    f"{setup} as rig.yaml says (setup: {other}), or the motion-capture poses "
-                   f"are inverted ({flipped}, not {given}: pose: {flipped} under mocap)", None,
+                   f"are inverted ({flipped}, not {given}: {fix} under mocap)", None,
                    before, after, {})
 
 

@@ -54,8 +54,8 @@ def _check_frame_name(name) -> str:
     return name
 
 
-def named_pose(pose: str | None, moving: str,
-               frames: tuple[str, str] | None = None) -> tuple[str, tuple[str, str]]:
+def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = None,
+               fixed: str | None = None) -> tuple[str, tuple[str, str]]:
     """Read rig.yaml's ``pose: T_<parent>_<child>`` with the user's own frame names.
 
     The file holds the pose of ``child`` in ``parent``.  Which of the two is the fixed frame
@@ -64,8 +64,9 @@ def named_pose(pose: str | None, moving: str,
 
     - a frame named ``world`` is the fixed one; a frame named ``moving`` is the tracked one;
     - otherwise the parent is fixed and the child tracked (``T_base_tool0``: a robot's
-      base and its flange; a file holding the inverse names its frames ``T_tool0_world`` or
-      ``T_body_base``).
+      base and its flange);
+    - ``fixed`` overrides all of these: a file holding the inverse, the base in the flange,
+      is ``T_tool0_base`` with ``fixed="base"``.
 
     Parameters
     ----------
@@ -77,6 +78,8 @@ def named_pose(pose: str | None, moving: str,
         The tracked frame's role in the setup.
     frames : (str, str), optional
         ``(parent, child)`` spelled out (names may hold ``_``); must agree with ``pose``.
+    fixed : str, optional
+        Which of the two is the fixed frame (rig.yaml's ``fixed_frame``).
 
     Returns
     -------
@@ -125,7 +128,14 @@ def named_pose(pose: str | None, moving: str,
     if parent == child:
         raise ValueError(f"the parent and child frames of {pose!r} are the same")
     others = [f for f in ROLE_FRAMES if f not in roles]
-    if "world" in (parent, child):
+    if fixed is not None:
+        if fixed not in (parent, child):
+            raise ValueError(f"fixed_frame {fixed!r} is not one of the frames of the pose, "
+                             f"{parent} and {child}")
+        if moving == fixed or (fixed != "world" and "world" in (parent, child)):
+            raise ValueError(f"fixed_frame {fixed!r} contradicts the role names: 'world' is "
+                             f"fixed and {moving!r} is tracked")
+    elif "world" in (parent, child):
         fixed = "world"
     elif moving in (parent, child):
         fixed = child if parent == moving else parent

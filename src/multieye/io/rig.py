@@ -114,8 +114,8 @@ _SOURCES = ("images", "poses", "rosbag")
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
 TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
 TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
-MOCAP_KEYS = ("file", "pose", "frames", "time_tolerance", "format", "rotation_noise_deg",
-              "translation_noise_m", "match") + tuple(_MOCAP_ONLY)
+MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
+              "rotation_noise_deg", "translation_noise_m", "match") + tuple(_MOCAP_ONLY)
 #: Roles of ``mocap.columns`` (csv sources).
 MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 #: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
@@ -340,10 +340,13 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
         names = tuple(c.string(n, at("frames")) for n in names)
     pose = (c.string(raw["pose"], at("pose")) if "pose" in raw
             else None if names is not None else f"T_world_{moving}")
+    fixed = c.string(raw["fixed_frame"], at("fixed_frame")) if "fixed_frame" in raw else None
     try:
-        pose, frame_names = named_pose(pose, moving, names)
+        pose, frame_names = named_pose(pose, moving, names, fixed)
     except ValueError as exc:
-        raise c.error(str(exc), at("pose") if "pose" in raw else at("frames")) from None
+        key = ("fixed_frame" if "fixed_frame" in str(exc) and fixed is not None
+               else "pose" if "pose" in raw else "frames")
+        raise c.error(str(exc), at(key)) from None
     fmt = raw.get("format")
     if fmt is not None:
         c.choice(fmt, at("format"), MOCAP_FORMATS)
@@ -435,8 +438,9 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
         elif fmt is None:
             fmt = sniff_mocap_format(c.path(own["file"], where + ("file",), "file or bag"))
         if fmt != top_spec.format:
-            inherit = [k for k in inherit if k in ("pose", "frames", "time_tolerance",
-                                                   "rotation_noise_deg", "translation_noise_m")]
+            inherit = [k for k in inherit if k in ("pose", "frames", "fixed_frame",
+                                                   "time_tolerance", "rotation_noise_deg",
+                                                   "translation_noise_m")]
     merged = {**{k: top_raw[k] for k in inherit}, **own}
     origin = {**{k: ("mocap",) for k in inherit}, **{k: where for k in own}}
     return _mocap(c, merged, origin, setup, where)
