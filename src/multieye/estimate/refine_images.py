@@ -16,6 +16,11 @@ parameterisation are in :mod:`multieye.estimate.image_residuals`; the minimisati
 engine's (:mod:`multieye.optimize`): Levenberg-Marquardt with the per-image motion-capture
 poses eliminated by the Schur complement, cost linear in the points.
 
+With ``clocks``, a camera's clock offset is an unknown too: its images' motion-capture
+priors compare ``M_i`` with the locally smoothed motion-capture trajectory at ``t_i + delta``
+(:mod:`multieye.estimate.clock_residuals`), so the offsets' uncertainty enters the covariance
+of X and Y.
+
 Covariance: ``kappa (J^T J)^-1`` restricted to X and Y by the Schur complement (which
 marginalises the mocap poses), with ``J`` the Jacobian of the sigma-normalised residuals at
 the optimum and ``kappa = E[psi^2] / E[psi']^2`` the asymptotic efficiency factor of the robust
@@ -29,7 +34,8 @@ same way, each from its own residuals (how far the refinement moves the measured
 its own redundancy (:func:`_variance_components`; the plain RMS of the corrections, which
 shrinks with the sigma that produced it, collapsed to zero on small robot recordings:
 benchmarks/bench_mocap_noise.py).  Like every covariance from a linearised model this one covers the
-measurement noise only: not errors in the intrinsics, unsynchronised clocks, a non-rigid rig,
+measurement noise only: not errors in the intrinsics, unsynchronised clocks (unless their
+offsets are estimated, ``clocks``), a non-rigid rig,
 or outliers that the robust loss did not catch.
 
 Synopsis
