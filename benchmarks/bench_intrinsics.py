@@ -116,7 +116,24 @@ def mrcal_intrinsics(python: str, object_points, views, size, model: str) -> Int
                       width=size[0], height=size[1])
 
 
-def trial(seed: int, images: int, mrcal_python: str | None):
+def lens_views(seed: int, n: int):
+    """``n`` extra views of the board per camera without motion capture (another scene of the
+    same lenses): what ``intrinsics_images`` adds, as ``intrinsics_observations`` (the
+    starting board pose perturbed by a few mrad / mm)."""
+    if n <= 0:
+        return None
+    sc = simulate_images(np.random.default_rng([seed, 7]), n_cameras=len(LENSES), images=n,
+                         intrinsics=LENSES, pixel_sigma=0.33,
+                         noise_rng=np.random.default_rng([seed, 8]))
+    rng = np.random.default_rng([seed, 9])
+    return [[(sc.object_points, u,
+              g.transform_from_rotvec(rng.normal(scale=3e-3, size=3),
+                                      rng.normal(scale=3e-3, size=3)) @ T)
+             for u, T in zip(sc.image_points[j], sc.truth.T_cam_target[j])]
+            for j in range(sc.n_cameras)]
+
+
+def trial(seed: int, images: int, mrcal_python: str | None, extra: int = 0):
     rng = np.random.default_rng(seed)
     sc = simulate_images(rng, n_cameras=len(LENSES), images=images, intrinsics=LENSES,
                          pixel_sigma=0.33, noise_rng=np.random.default_rng([seed, 1]))
@@ -138,6 +155,11 @@ def trial(seed: int, images: int, mrcal_python: str | None):
     joint = refine_images(sc.setup, sc.observations, cv_intr, with_cv.X, with_cv.Y,
                           free_intrinsics=[True] * m, **sigmas)
     t_joint = time.perf_counter() - t0
+    views = lens_views(seed, extra)
+    if views is not None:     # the same, with lens-only views added (intrinsics_images)
+        joint_more = refine_images(sc.setup, sc.observations, cv_intr, with_cv.X, with_cv.Y,
+                                   free_intrinsics=[True] * m, intrinsics_observations=views,
+                                   **sigmas)
     true_closed = solve(list(sc.A), list(sc.B))
     with_true = refine_images(sc.setup, sc.observations, sc.intrinsics, true_closed.X,
                               true_closed.Y, **sigmas)
@@ -158,6 +180,13 @@ def trial(seed: int, images: int, mrcal_python: str | None):
            "opencv": extrinsic_errors(with_cv.X, sc.X),
            "joint": extrinsic_errors(joint.X, sc.X),
            "true": extrinsic_errors(with_true.X, sc.X)}
+    if views is not None:
+        ext[f"joint + {extra} lens views"] = extrinsic_errors(joint_more.X, sc.X)
+        for j in range(m):
+            rays = np.concatenate([sc.object_points @ T[:3, :3].T + T[:3, 3]
+                                   for T in sc.truth.T_cam_target[j]])
+            rows[j][f"joint + {extra}"] = projection_error(joint_more.intrinsics[j],
+                                                            sc.intrinsics[j], rays)
     return rows, ext, (t_cv, t_joint)
 
 
@@ -166,6 +195,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--trials", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--images", type=int, default=50)
+    parser.add_argument("--lens-views", type=int, default=0,
+                        help="also the joint problem with this many extra views per camera "
+                             "without motion capture (intrinsics_images)")
     parser.add_argument("--mrcal-python", default="/usr/bin/python3",
                         help="a Python that can import mrcal ('' to skip)")
     args = parser.parse_args(argv)
@@ -176,7 +208,8 @@ def main(argv: list[str] | None = None) -> None:
         mrcal_python = None
     proj, ext, times = {}, {}, []
     for t in range(args.trials):
-        rows, e, tt = trial(args.seed * 1000 + t, args.images, mrcal_python)
+        rows, e, tt = trial(args.seed * 1000 + t, args.images, mrcal_python,
+                            args.lens_views)
         times.append(tt)
         for j, per in rows.items():
             for method, err in per.items():
@@ -187,7 +220,8 @@ def main(argv: list[str] | None = None) -> None:
           f"mocap 0.1 deg / 0.3 mm, {os.cpu_count()} cores")
     print("\nprojection error against the true lens over the observed area, pixels "
           "(RMS over rays and trials; max)")
-    methods = sorted({m for _, m in proj}, key=["opencv", "mrcal", "joint"].index)
+    order = ["opencv", "mrcal", "joint", f"joint + {args.lens_views}"]
+    methods = sorted({m for _, m in proj}, key=order.index)
     print(f"   {'camera':<24}" + "".join(f"{m:>22}" for m in methods))
     for j, lens in enumerate(LENSES):
         cells = []
@@ -198,6 +232,8 @@ def main(argv: list[str] | None = None) -> None:
     print("\nT_ref_cam error, RMS over trials: rotation deg / translation mm (and the joint "
           "problem's own predicted standard deviation, RMS over trials)")
     cols = ("opencv", "joint", "joint predicted", "true")
+    cols = cols[:3] + ((f"joint + {args.lens_views} lens views",) if args.lens_views else ()) \
+        + cols[3:]
     print(f"   {'camera':<24}" + "".join(f"{m:>22}" for m in cols))
     for j in range(1, len(LENSES)):
         cells = []
