@@ -82,3 +82,19 @@ def test_frame_names_that_contradict_each_other_are_refused_with_their_line(tmp_
     assert res.exit_code in (0, 3), res.output
     assert json.loads((tmp_path / "out" / "calibration.json").read_text())["frames"] == {
         "world": "base_link", "marker": "board"}
+
+
+def test_inverted_poses_are_named_in_the_users_frame_names(tmp_path):
+    """rig.yaml claims the file holds the inverse (the mocap frame in the board): the run
+    fails, and the plausibility check says why in the user's names, with the keys that fix
+    it."""
+    render_small(tmp_path / "ds")
+    rig = tmp_path / "ds" / "rig.yaml"
+    rig.write_text(rig.read_text().replace("pose: T_world_marker",
+                                           "pose: T_board_mocap\n  fixed_frame: mocap"))
+    res = CliRunner().invoke(main, ["calibrate", str(tmp_path / "ds"), "-o",
+                                    str(tmp_path / "out"), "--processes", "1"])
+    assert res.exit_code == 2, res.output          # nothing agrees: the calibration fails
+    assert not (tmp_path / "out").exists()
+    assert ("(T_mocap_board, not T_board_mocap: pose: T_mocap_board and fixed_frame: mocap "
+            "under mocap)") in res.output

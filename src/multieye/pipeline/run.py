@@ -311,6 +311,7 @@ def _plausibility(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, Pa
     declared = Declared(spacing_m=None if rig.target is None else rig.target.spacing,
                         mocap_unit=(spec.unit if spec is not None else None) or "m",
                         mocap_pose=None if spec is None else spec.pose,
+                        mocap_frames=None if spec is None else spec.frames,
                         mocap_format="tum" if spec is None else spec.format)
     return check_plausibility(rig.setup, evidence, declared=declared, mocap_rot_sigma_rad=rot,
                               mocap_trans_sigma_m=trans, clock=opts.time_offset != "auto",
