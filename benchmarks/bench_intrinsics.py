@@ -44,6 +44,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +56,7 @@ from multieye.core.metrics import relative_extrinsics
 from multieye.estimate.refine_images import refine_images
 from multieye.estimate.uncertainty import relative_covariance
 from multieye.imaging.calibrate import initial_intrinsics
+from multieye.sim.rigs import ScenarioSpec
 from multieye.sim.images import default_intrinsics, simulate_images
 from multieye.solvers import solve
 
@@ -133,10 +135,12 @@ def lens_views(seed: int, n: int):
             for j in range(sc.n_cameras)]
 
 
-def trial(seed: int, images: int, mrcal_python: str | None, extra: int = 0):
+def trial(seed: int, images: int, mrcal_python: str | None, extra: int = 0,
+          scenario=None):
     rng = np.random.default_rng(seed)
     sc = simulate_images(rng, n_cameras=len(LENSES), images=images, intrinsics=LENSES,
-                         pixel_sigma=0.33, noise_rng=np.random.default_rng([seed, 1]))
+                         pixel_sigma=0.33, noise_rng=np.random.default_rng([seed, 1]),
+                         scenario=scenario)
     m = sc.n_cameras
     size = (LENSES[0].width, LENSES[0].height)
     starts = [initial_intrinsics([(sc.object_points, u) for u in sc.image_points[j]], size,
@@ -198,6 +202,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--lens-views", type=int, default=0,
                         help="also the joint problem with this many extra views per camera "
                              "without motion capture (intrinsics_images)")
+    parser.add_argument("--max-tilt-deg", type=float, default=45.0,
+                        help="largest angle between the board's normal and the line of sight")
+    parser.add_argument("--distance", type=float, nargs=2, default=(0.5, 2.0),
+                        metavar=("NEAR", "FAR"), help="board depth range, metres")
     parser.add_argument("--mrcal-python", default="/usr/bin/python3",
                         help="a Python that can import mrcal ('' to skip)")
     args = parser.parse_args(argv)
@@ -206,10 +214,12 @@ def main(argv: list[str] | None = None) -> None:
                                        capture_output=True).returncode != 0:
         print(f"mrcal: not importable by {mrcal_python}; its column is left out")
         mrcal_python = None
+    scenario = replace(ScenarioSpec(), max_board_tilt_rad=np.radians(args.max_tilt_deg),
+                       distance_m=tuple(args.distance))
     proj, ext, times = {}, {}, []
     for t in range(args.trials):
         rows, e, tt = trial(args.seed * 1000 + t, args.images, mrcal_python,
-                            args.lens_views)
+                            args.lens_views, scenario)
         times.append(tt)
         for j, per in rows.items():
             for method, err in per.items():
@@ -217,7 +227,8 @@ def main(argv: list[str] | None = None) -> None:
         for method, err in e.items():
             ext.setdefault(method, []).append(err)
     print(f"{args.trials} rigs, {len(LENSES)} cameras x {args.images} images, 0.33 px, "
-          f"mocap 0.1 deg / 0.3 mm, {os.cpu_count()} cores")
+          f"mocap 0.1 deg / 0.3 mm, boards tilted up to {args.max_tilt_deg:g} deg at "
+          f"{args.distance[0]:g}-{args.distance[1]:g} m, {os.cpu_count()} cores")
     print("\nprojection error against the true lens over the observed area, pixels "
           "(RMS over rays and trials; max)")
     order = ["opencv", "mrcal", "joint", f"joint + {args.lens_views}"]

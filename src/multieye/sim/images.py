@@ -240,7 +240,8 @@ def simulate_images(rng: np.random.Generator | int | None = None, *, n_cameras: 
                     pixel_sigma: float = 0.3, mocap_rot_sigma_rad: float = float(np.deg2rad(0.1)),
                     mocap_trans_sigma_m: float = 0.3e-3, model: str = "pinhole",
                     intrinsics: Sequence[Intrinsics] | None = None,
-                    noise_rng: np.random.Generator | int | None = None) -> ImageScenario:
+                    noise_rng: np.random.Generator | int | None = None,
+                    scenario: sim.ScenarioSpec | None = None) -> ImageScenario:
     """Simulate a rig calibration at the image level (module docstring).
 
     Parameters
@@ -265,6 +266,9 @@ def simulate_images(rng: np.random.Generator | int | None = None, *, n_cameras: 
     noise_rng : numpy.random.Generator, int or None, optional
         Separate source of the pixel and mocap noise, so that one scene can be seen at
         several noise levels.
+    scenario : multieye.sim.rigs.ScenarioSpec, optional
+        Geometry of the rig and the board's poses (its ``board_size_m`` is replaced by the
+        default target's); default ``ScenarioSpec()``.
 
     Returns
     -------
@@ -276,7 +280,7 @@ def simulate_images(rng: np.random.Generator | int | None = None, *, n_cameras: 
                          f"{pixel_sigma} px, {mocap_rot_sigma_rad} rad, {mocap_trans_sigma_m} m")
     pts = default_target_points()
     size = (float(pts[:, 0].max()), float(pts[:, 1].max()))
-    spec = replace(sim.ScenarioSpec(), board_size_m=size)
+    spec = replace(sim.ScenarioSpec() if scenario is None else scenario, board_size_m=size)
     truth = sim.simulate_rig(rng, n_cameras=n_cameras, measurements=images, setup=setup,
                              spec=spec)
     if intrinsics is None:
