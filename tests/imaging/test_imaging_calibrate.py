@@ -19,8 +19,12 @@ RADTAN = Intrinsics(K=[[705.0, 0, 635.0], [0, 703.0, 482.0], [0, 0, 1]],
                     dist=[-0.11, 0.025, 4e-4, 2e-4, -0.003], width=1280, height=960)
 
 
-@pytest.mark.parametrize("lens", [RADTAN, RATIONAL, default_intrinsics("fisheye")],
-                         ids=["radtan", "rational", "fisheye"])
+RADTAN4 = Intrinsics(K=[[705.0, 0, 635.0], [0, 703.0, 482.0], [0, 0, 1]],
+                     dist=[-0.11, 0.025, 4e-4, 2e-4], width=1280, height=960)
+
+
+@pytest.mark.parametrize("lens", [RADTAN, RADTAN4, RATIONAL, default_intrinsics("fisheye")],
+                         ids=["radtan", "radtan4", "rational", "fisheye"])
 def test_noise_free_views_give_the_lens_back(lens):
     sc = simulate_images(2, n_cameras=1, images=25, intrinsics=[lens], pixel_sigma=0.0,
                          mocap_rot_sigma_rad=0.0, mocap_trans_sigma_m=0.0)

@@ -105,7 +105,8 @@ def test_intrinsics_images_join_the_joint_problem(rendered, tmp_path):
 
 @pytest.mark.parametrize("camera, message", [
     ("{model: kannala, images: cam0/}", r"model: expected one of pinhole-radtan, "
-                                        r"pinhole-rational, fisheye, got 'kannala'"),
+                                        r"pinhole-radtan4, pinhole-rational, fisheye, got "
+                                        r"'kannala'"),
     ("{images: cam0/}", "missing key 'intrinsics' or 'model'"),
     ("{model: fisheye, refine_intrinsics: false, images: cam0/}",
      "'refine_intrinsics: false' but no 'intrinsics' to hold fixed"),
@@ -136,7 +137,7 @@ def test_intrinsics_of_another_model_than_stated_are_refused(rendered):
         "intrinsics: cam0.yaml", "intrinsics: cam0.yaml\n    model: fisheye")
     (folder / "rig_mismatch.yaml").write_text(text)
     with pytest.raises(DatasetError, match="camera cam0.*rig.yaml says model: fisheye but the "
-                                           "intrinsics file holds a pinhole-radtan lens"):
+                                           "intrinsics file holds a pinhole-radtan4 lens"):
         calibrate(folder / "rig_mismatch.yaml", processes=1)
 
 
@@ -199,3 +200,30 @@ def test_camchain_keeps_the_cameras_kalibr_can_hold_and_names_the_others(rendere
     assert head.startswith("# left out of this camchain: cam0 (Kalibr radtan holds k1 k2 p1 p2")
     assert any(n.startswith("camchain.yaml holds cam1 only; left out: cam0 (Kalibr radtan")
                for n in written.notes)
+
+
+def test_a_lens_estimated_as_kalibrs_radtan_goes_into_the_camchain(rendered, tmp_path):
+    """model: pinhole-radtan4 estimates k1 k2 p1 p2 with k3 held at 0: the lens Kalibr's
+    radtan holds, so the camchain carries both cameras, each with its estimated lens."""
+    from multieye.io import read_camchain
+    from multieye.outputs.write import write_outputs
+
+    folder, truth = rendered
+    text = re.sub(r"intrinsics: (cam\d)\.yaml", "model: pinhole-radtan4",
+                  (folder / "rig.yaml").read_text())
+    (folder / "rig_radtan4.yaml").write_text(text)
+    run = calibrate(folder / "rig_radtan4.yaml", processes=2)
+    write_outputs(run, tmp_path / "out", report=False)
+    chain = read_camchain(tmp_path / "out" / "camchain.yaml")
+    assert [e.name for e in chain] == ["cam0", "cam1"]
+    for e in chain:
+        lens = run.cameras[e.name].intrinsics
+        assert run.cameras[e.name].intrinsics_estimated and lens.dist.size == 4
+        np.testing.assert_allclose(e.intrinsics.K, lens.K)
+        np.testing.assert_allclose(e.intrinsics.dist, lens.dist)
+        assert run.record.camera(e.name).intrinsics.covariance.shape == (8, 8)
+    import json
+    cal = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert cal["cameras"]["cam0"]["intrinsics"]["model"] == "pinhole-radtan4"
+    for T_est, T_true in zip(run.record.cameras, truth.T_ref_cam):
+        assert np.degrees(g.rotation_angle_between(T_est.T_ref_cam, T_true)) < 0.1

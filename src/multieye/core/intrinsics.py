@@ -24,6 +24,7 @@ PINHOLE_DISTORTION_SIZES = (0, 4, 5, 8, 12, 14)
 #: :class:`Intrinsics` model and the distortion coefficients, in OpenCV's order and meaning.
 LENS_MODELS = {
     "pinhole-radtan": ("pinhole", ("k1", "k2", "p1", "p2", "k3")),
+    "pinhole-radtan4": ("pinhole", ("k1", "k2", "p1", "p2")),   # Kalibr's radtan (k3 = 0)
     "pinhole-rational": ("pinhole", ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")),
     "fisheye": ("fisheye", ("k1", "k2", "k3", "k4")),
 }
@@ -32,12 +33,12 @@ _PINHOLE_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s
 
 
 def lens_model(intrinsics: Intrinsics) -> str:
-    """The rig.yaml name of an intrinsics' lens model (``pinhole-radtan`` for 0, 4 or 5
-    coefficients, ``pinhole-rational`` for 8, ``pinhole-thin-prism`` for 12,
-    ``pinhole-tilted`` for 14, ``fisheye``)."""
+    """The rig.yaml name of an intrinsics' lens model (``pinhole-radtan`` for 0 or 5
+    coefficients, ``pinhole-radtan4`` for 4 (Kalibr's ``radtan``), ``pinhole-rational`` for 8,
+    ``pinhole-thin-prism`` for 12, ``pinhole-tilted`` for 14, ``fisheye``)."""
     if intrinsics.model == "fisheye":
         return "fisheye"
-    return {0: "pinhole-radtan", 4: "pinhole-radtan", 5: "pinhole-radtan",
+    return {0: "pinhole-radtan", 4: "pinhole-radtan4", 5: "pinhole-radtan",
             8: "pinhole-rational", 12: "pinhole-thin-prism", 14: "pinhole-tilted"}[
         intrinsics.dist.size]
 

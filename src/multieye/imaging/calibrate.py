@@ -101,7 +101,7 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
         their pixels, (n, 2).
     image_size : (int, int)
         Width and height, pixels.
-    model : {"pinhole-radtan", "pinhole-rational", "fisheye"}
+    model : {"pinhole-radtan", "pinhole-radtan4", "pinhole-rational", "fisheye"}
         Lens model (:data:`multieye.core.intrinsics.LENS_MODELS`).
     name : str
         Camera name for messages.
@@ -151,7 +151,7 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
         else:
             obj = [o.astype(np.float32) for o, _ in views]
             img = [u.astype(np.float32) for _, u in views]
-            flags = cv2.CALIB_RATIONAL_MODEL if len(coefficients) == 8 else 0
+            flags = {8: cv2.CALIB_RATIONAL_MODEL, 4: cv2.CALIB_FIX_K3}.get(len(coefficients), 0)
             rms, K, D, rvecs, tvecs = cv2.calibrateCamera(obj, img, (w, h), None, None,
                                                           flags=flags, criteria=_CRITERIA)
     except cv2.error as exc:

@@ -153,7 +153,8 @@ def kalibr_fields(intr: Intrinsics) -> dict:
         coeffs[: min(4, intr.dist.size)] = intr.dist[:4]
         if np.any(intr.dist[4:] != 0):
             raise InputError("Kalibr radtan holds k1 k2 p1 p2 only; these intrinsics have "
-                             f"{intr.dist.size} non-trivial coefficients")
+                             f"{intr.dist.size} non-trivial coefficients (model: "
+                             "pinhole-radtan4 in rig.yaml estimates a lens Kalibr can hold)")
         dmodel = "radtan"
     if K[0, 1] != 0:
         raise InputError(f"Kalibr pinhole has no skew; camera matrix has skew {K[0, 1]}")

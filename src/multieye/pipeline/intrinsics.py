@@ -26,7 +26,8 @@ __all__ = ["LensStart", "start_lens", "with_poses", "weak_data_warnings", "check
            "RECOMMENDED_VIEWS"]
 
 #: Views of the target a lens model wants before its intrinsics count as well supported.
-RECOMMENDED_VIEWS = {"pinhole-radtan": 10, "pinhole-rational": 20, "fisheye": 15}
+RECOMMENDED_VIEWS = {"pinhole-radtan": 10, "pinhole-radtan4": 10, "pinhole-rational": 20,
+                     "fisheye": 15}
 #: Smallest largest tilt of the board against the line of sight, degrees.
 MIN_TILT_DEG = 20.0
 #: Smallest share of a 4 x 4 grid over the image in which the target was seen.
@@ -55,7 +56,10 @@ class LensStart:
 
 def check_model(name: str, intrinsics: Intrinsics, model: str | None, path) -> None:
     """A camera with both ``intrinsics`` and ``model``: the file's lens must be that model."""
-    if model is not None and lens_model(intrinsics) != model:
+    held = lens_model(intrinsics)
+    # OpenCV's k1 k2 p1 p2 is its 5-coefficient model with k3 = 0
+    if model is not None and held != model and {held, model} != {"pinhole-radtan",
+                                                                  "pinhole-radtan4"}:
         raise DatasetError(f"rig.yaml says model: {model} but the intrinsics file holds a "
                            f"{lens_model(intrinsics)} lens; give one or make them agree",
                            path=path, camera=name)
