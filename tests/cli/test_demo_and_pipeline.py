@@ -155,6 +155,24 @@ def test_time_offset_auto_recovers_a_clock_offset_end_to_end(tmp_path):
         assert 0 < cam.time_offset_std_s < 0.002, cam.name
         assert abs(cam.time_offset_s - 0.040) < 5 * cam.time_offset_std_s, cam.name
     assert all(c.time_offset_std_s is None for c in shifted.record.cameras)
+    # the screen table and the report show the offset with its standard deviation
+    import re as _re
+
+    from multieye.outputs.report import _extrinsics
+    from multieye.outputs.summary import calibration_table
+
+    table = calibration_table(auto.record).splitlines()
+    head = _re.split(r"\s{2,}", next(line for line in table if line.startswith("camera ")))
+    for cam in auto.record.cameras:
+        cells = _re.split(r"\s{2,}", next(line for line in table
+                                          if line.startswith(cam.name + " ")).strip())
+        assert float(cells[head.index("offset std ms")]) == pytest.approx(
+            cam.time_offset_std_s * 1e3, abs=0.006)
+        assert float(cells[head.index("offset ms")]) == pytest.approx(
+            cam.time_offset_s * 1e3, abs=0.06)
+    assert "σ offset (ms)" in _extrinsics(auto.record)
+    assert "σ offset (ms)" not in _extrinsics(shifted.record)
+    assert "offset std ms" not in calibration_table(shifted.record)
 
     def ref_cam(run):
         return np.stack([c.T_ref_cam for c in run.record.cameras])

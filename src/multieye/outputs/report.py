@@ -180,6 +180,8 @@ def _pose_table(rec: CalibrationRecord, poses, key: str, ref_mark: bool) -> str:
     header = ["camera", "tx (m)", "ty (m)", "tz (m)", "yaw (deg)", "pitch (deg)", "roll (deg)"]
     header += ["σ rot (deg)", "σ trans (mm)"] if any(unc) else []
     header += ["time offset (ms)"] if offsets else []
+    offset_std = any(c.time_offset_std_s is not None for c in cams)
+    header += ["σ offset (ms)"] if offset_std else []
     rows, classes = [], []
     for c, T, u in zip(cams, poses, unc):
         p = pose_row(T)
@@ -191,6 +193,8 @@ def _pose_table(rec: CalibrationRecord, poses, key: str, ref_mark: bool) -> str:
                     _num(None if u is None else u.std_trans_m, ".2f", 1e3)]
         if offsets:
             row.append(_num(c.time_offset_s, ".1f", 1e3))
+        if offset_std:
+            row.append(_num(c.time_offset_std_s, ".2f", 1e3))
         rows.append(row)
         classes.append(["ref" if ref else ""] + [""] * (len(header) - 1))
     return _table(header, rows, classes=classes)

@@ -73,7 +73,7 @@ def calibration_table(rec: CalibrationRecord) -> str:
     pose_head = ["tx m", "ty m", "tz m", "yaw deg", "pitch deg", "roll deg", "std deg",
                  "std mm"]
     header = ["camera", "used", "rejected", "loop e_R deg", "loop e_t mm", "reproj px",
-              *pose_head, "offset ms"]
+              *pose_head, "offset ms", "offset std ms"]
     rows = []
     for c in rec.cameras:
         r = c.residuals
@@ -85,6 +85,7 @@ def calibration_table(rec: CalibrationRecord) -> str:
             _f(r.e_R_deg if r else None, ".3f"), _f(r.e_t_m * 1e3 if r else None, ".2f"),
             _f(r.reprojection_rms_px if r else None, ".2f"), *_pose_cells(c.X, unc),
             _f(None if c.time_offset_s is None else c.time_offset_s * 1e3, ".1f"),
+            _f(None if c.time_offset_std_s is None else c.time_offset_std_s * 1e3, ".2f"),
         ])
     keep = [i for i in range(len(header)) if i < 12 or any(row[i] != "-" for row in rows)]
     lines = [f"{rec.setup}, method {rec.method}, reference {rec.reference_camera}: "
