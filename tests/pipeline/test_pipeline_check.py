@@ -107,3 +107,27 @@ def test_rotation_about_one_axis_with_the_lens_estimated(shared_data, tmp_path):
     result = check_dataset(folder / "rig_model.yaml", sample=5)
     c = result.cameras[0]
     assert result.ok and (c.sampled, c.found, c.paired) == (5, 5, 5)
+
+
+def test_a_lens_to_estimate_from_too_few_views_is_said(small, tmp_path):
+    """model: without intrinsics: the dry run counts the views the lens would be estimated
+    from against what its model needs, as calibrate will warn, without failing the check."""
+    folder = _copy(small, tmp_path / "ds")
+    text = (folder / "rig.yaml").read_text()
+    (folder / "rig.yaml").write_text(text.replace("intrinsics: cam0.yaml",
+                                                  "model: pinhole-rational"))
+    result = check_dataset(folder, processes=1)
+    cam0, cam1 = result.cameras
+    assert result.ok
+    assert any(p.startswith("lens pinhole-rational estimated from about 8 views with the "
+                            "target; 20 recommended") for p in cam0.problems), cam0.problems
+    assert cam1.problems == ()          # its intrinsics are given
+    # lens-only views count towards it
+    extra = folder / "extra"
+    extra.mkdir()
+    for k, p in enumerate(sorted((folder / "cam1").iterdir()) * 2):
+        (extra / f"{k:03d}{p.suffix}").write_bytes(p.read_bytes())
+    (folder / "rig.yaml").write_text(text.replace(
+        "intrinsics: cam0.yaml", "model: pinhole-rational\n    intrinsics_images: extra/"))
+    result = check_dataset(folder, processes=1)
+    assert not any(p.startswith("lens ") for p in result.cameras[0].problems)

@@ -160,6 +160,35 @@ def _sample_bag(cam, target, intr, *, sample, processes):
     return stamps, picked, results
 
 
+def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> list[str]:
+    """What the views of a camera whose lens is estimated lack, as calibrate will warn: too
+    few views for its model (``RECOMMENDED_VIEWS``; its ``intrinsics_images`` counted as
+    listed), the image too little covered by the sampled detections (4 x 4 cells)."""
+    from multieye.io import list_image_files
+    from multieye.pipeline.intrinsics import MIN_COVERAGE, RECOMMENDED_VIEWS
+
+    out = []
+    views = int(round(n_listed * found_mask.sum() / n_sampled)) if n_sampled else 0
+    extra = len(list_image_files(cam.intrinsics_images)) if cam.intrinsics_images else 0
+    want = RECOMMENDED_VIEWS[cam.model]
+    if views + extra < want:
+        more = f" and {extra} intrinsics_images listed" if cam.intrinsics_images else ""
+        out.append(f"lens {cam.model} estimated from about {views} views with the target"
+                   f"{more}; {want} recommended: add views with the board tilted and near "
+                   "the edges of the image (or intrinsics_images)")
+    found = [r for r, ok in zip(results, found_mask) if ok and r.detection is not None
+             and r.image_size is not None]
+    if found:
+        w, h = found[0].image_size
+        uv = np.concatenate([r.detection.image_points for r in found])
+        cells = np.unique(np.clip((uv / [w, h] * 4).astype(int), 0, 3), axis=0)
+        if len(cells) / 16.0 < MIN_COVERAGE and not cam.intrinsics_images:
+            out.append(f"the sampled views cover only {len(cells) / 16.0:.0%} of the image "
+                       "(4 x 4 cells): the lens's distortion would be extrapolated elsewhere; "
+                       "add views with the board near the edges and corners")
+    return out
+
+
 def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
     from multieye.pipeline.camera_data import _poses_by_name
 
@@ -258,6 +287,8 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
         elif s1 < MIN_SECOND_AXIS_DEG or s1 < MIN_AXIS_RATIO * s0:
             problems.append(f"rotation about one axis (RMS {s0:.1f} deg about it, {s1:.2f} deg "
                             "about any other): rotate about a second axis")
+    if cam.estimate_intrinsics and cam.source != "poses":
+        problems.extend(_lens_problems(cam, results, found_mask, n_listed, n_sampled))
     if expected < MIN_MEASUREMENTS or n_paired == 0:
         fatal.append(f"fewer than {MIN_MEASUREMENTS} usable images would remain ({n_paired} of "
                      f"{n_sampled} sampled usable, about {expected} of {n_listed} in all)")
