@@ -89,6 +89,33 @@ def test_linear_problem_solved_exactly_with_the_dense_covariance(rng):
     np.testing.assert_allclose(cov.local, blocks, rtol=1e-9, atol=1e-12)
 
 
+def test_eliminated_blocks_shared_by_several_groups_match_the_dense_solution(rng):
+    """An eliminated block touched by segments of several groups, each with other kept
+    blocks (one motion-capture pose seen by several cameras): the Schur complement's step and
+    covariance against the dense normal equations."""
+    fams, (lin, prior) = _linear_problem(rng)
+    n_local, rows = 20, 4
+    more = []
+    for _ in range(2):                  # two more "cameras" seeing every block, other globals
+        segment = np.repeat(np.arange(n_local), rows)
+        n = segment.size
+        more.append(Linear(("G", "L"), np.column_stack([rng.integers(0, 3, size=n_local),
+                                                        np.arange(n_local)]), segment,
+                           rng.normal(size=(n, 2, 2)), rng.normal(size=(n, 2, 3)),
+                           rng.normal(size=(n, 2))))
+    groups = [lin, prior] + more
+    J, r0 = _dense(fams, groups)
+    x = np.linalg.lstsq(J, -r0, rcond=None)[0]
+    res = minimize(fams, groups, Options(tol=1e-14))
+    got = np.concatenate([res.value("G").ravel(), res.value("L").ravel()])
+    np.testing.assert_allclose(got, x, atol=1e-10)
+    cov = covariance(res.families, groups, local=True)
+    full = np.linalg.inv(J.T @ J)
+    np.testing.assert_allclose(cov.kept, full[:6, :6], rtol=1e-9, atol=1e-12)
+    blocks = np.stack([full[6 + 3 * b:9 + 3 * b, 6 + 3 * b:9 + 3 * b] for b in range(20)])
+    np.testing.assert_allclose(cov.local, blocks, rtol=1e-9, atol=1e-12)
+
+
 @pytest.mark.parametrize("loss", ["huber", "soft_l1", "cauchy"])
 def test_robust_nonlinear_problem_matches_scipy(loss, rng):
     fams, groups = _linear_problem(rng, n_local=10)

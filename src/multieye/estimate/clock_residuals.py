@@ -37,14 +37,15 @@ re-centres them when the offset moves by more than a quarter of the half-width.
 
 Assumptions: the errors of the fits at two images are independent; exact when their windows
 share no sample, an approximation when they do (images of one camera closer than the window,
-or of several cameras at the same motion-capture instant: the same assumption the per-image
-priors without a clock make).  benchmarks/bench_clock_joint.py measures what it costs
-(docs/results/clock_joint.md): with 3 cameras triggered together the mean NEES of X and Y is
-about 1.2, 1.4 with nearly noise-free pixels; counting the shared error once per image
-instead (variance times the summed correlations) overshoots to 0.5-0.6.  The trajectory is
-smooth at the window's scale (a cubic's bias, about ``0.004 a^4`` times the fourth
-derivative, is below the noise); the sample noise is white.  The sample noise itself can be
-estimated from the fits' residuals (:meth:`LocalTrajectory.noise`).
+or of several cameras at the same motion-capture instant; without clocks, images paired with
+the same measurement share one block and one prior instead:
+:class:`multieye.estimate.image_residuals.ImageData`).  benchmarks/bench_clock_joint.py
+measures what it costs (docs/results/clock_joint.md): with 3 cameras triggered together the
+mean NEES of X and Y is about 1.2, 1.4 with nearly noise-free pixels; counting the shared
+error once per image instead (variance times the summed correlations) overshoots to 0.5-0.6.
+The trajectory is smooth at the window's scale (a cubic's bias, about ``0.004 a^4`` times
+the fourth derivative, is below the noise); the sample noise is white.  The sample noise
+itself can be estimated from the fits' residuals (:meth:`LocalTrajectory.noise`).
 """
 
 from __future__ import annotations

@@ -9,18 +9,27 @@ eye-to-base, ``T_world_body`` eye-on-hand)::
 
 i.e. ``T_cam_target = inv(X) inv(A) Y`` in both setups (docs/conventions.md, section 2).
 
+One motion-capture measurement is one unknown: images whose given poses are bitwise equal
+(cameras triggered together, paired with the same sample or interpolated at the same time)
+share one block ``M_k`` of one *instant* k and its one prior, so that the measurement's
+information is counted once, not once per camera (counted m times, the covariance of X and
+Y came out too small: benchmarks/bench_shared_instants.py, docs/results/shared_instants.md).
+Images of a camera whose clock offset is estimated keep a block each (their poses come from
+the smoothed trajectory at the camera's own times).  So N images map to K <= N instants
+(:attr:`ImageData.instant`).
+
 Residual groups (:class:`multieye.optimize.blocks.ResidualGroup`):
 
 - :class:`PixelResiduals`: per target point, ``(pi_j(T_cam_target_i p_k) - u_ik) / sigma_px``
-  (2 components), touching its camera's ``X``, ``Y`` and its image's ``M``; one segment per
-  image.  Jacobian: the lens model's ``d uv / d p_cam`` from OpenCV
+  (2 components), touching its camera's ``X``, ``Y`` and its image's instant ``M_k``; one
+  segment per image.  Jacobian: the lens model's ``d uv / d p_cam`` from OpenCV
   (:func:`multieye.core.lens.project_with_jacobian`) chained with the pose derivatives below.
-- :class:`MocapPriors`: per image, ``(Log(R_meas^T R_M) / sigma_R, (t_M - t_meas) / sigma_t)``
+- :class:`MocapPriors`: per instant, ``(Log(R_meas^T R_M) / sigma_R, (t_M - t_meas) / sigma_t)``
   (6 components), touching ``M``; its Jacobian is ``diag(J_r^-1(r_R) / sigma_R, I / sigma_t)``.
 
 Block families (:class:`multieye.optimize.blocks.Blocks`): ``X`` (m poses) and ``Y`` (one)
 on ``se3-left``, ``R = Exp(phi) R_hat``, ``t = t_hat + tau`` (the covariance convention of
-docs/conventions.md); ``M`` (one per image) on ``se3-right``, ``R_M = R Exp(phi)`` (rotation
+docs/conventions.md); ``M`` (one per instant) on ``se3-right``, ``R_M = R Exp(phi)`` (rotation
 noise in the marker/body frame, translation noise in the world frame: the noise model of
 :class:`multieye.sim.rigs.GaussianNoise`), eliminated by the Schur complement.
 
@@ -85,7 +94,21 @@ def _view(item, where: str, pose: str, min_points: int):
 class ImageData:
     """Target points, pixels and motion-capture poses of every image, stacked.
 
-    Images are numbered camera by camera; points image by image.
+    Images are numbered camera by camera (N in all); points image by image.  The images of
+    cameras without a clock whose motion-capture poses are bitwise equal share one instant
+    (one block of ``M``, one prior); every other image has an instant of its own, so K = N
+    when no pose is repeated (module docstring).
+
+    Attributes
+    ----------
+    instant : ndarray of int, shape (N,)
+        Block of ``M`` (instant) of each image, numbered in the order of first appearance.
+    n_instants : int
+        K, the number of blocks of ``M``.
+    instant_image : ndarray of int, shape (K,)
+        The first image of each instant.
+    mocap_measured : ndarray, shape (N, 4, 4)
+        The given motion-capture pose of each image.
 
     Parameters
     ----------
@@ -187,6 +210,7 @@ class ImageData:
             if c is not None and len(c.image_stamps) != counts[j]:
                 raise InputError(f"camera {self.names[j]}: {len(c.image_stamps)} image stamps "
                                  f"for {counts[j]} images")
+        self._instants()
         #: Per camera with a clock: its smoothed trajectory (windows centred at its offset).
         self.trajectories: list = [None if c is None else LocalTrajectory(c)
                                    for c in self.clocks]
@@ -195,10 +219,29 @@ class ImageData:
         if self.extra is not None and self.extra.n_images == 0:
             self.extra = None
 
+    def _instants(self) -> None:
+        """Number the instants: one per distinct given pose of the cameras without a clock
+        (bitwise equal 4x4), one per image of a camera with a clock."""
+        seen: dict[bytes, int] = {}
+        instant = np.empty(self.n_images, dtype=np.int64)
+        first = []
+        for i, (M, j) in enumerate(zip(self.mocap_measured, self.cam_of_image)):
+            key = None if self.clocks[j] is not None else M.tobytes()
+            k = seen.get(key) if key is not None else None
+            if k is None:
+                k = len(first)
+                first.append(i)
+                if key is not None:
+                    seen[key] = k
+            instant[i] = k
+        self.instant = instant
+        self.instant_image = np.asarray(first, dtype=np.int64)
+        self.n_instants = len(first)
+
     def families(self, X: F64, Y: F64, M: F64 | None = None, *,
                  intrinsics: Sequence[Intrinsics] | None = None,
                  free_poses: F64 | None = None) -> list[Blocks]:
-        """Block families: ``X`` (m), ``Y`` (1), ``M`` (one per image; default measured),
+        """Block families: ``X`` (m), ``Y`` (1), ``M`` (one per instant, (K, 4, 4)),
         ``K:<camera>`` for every camera whose intrinsics are estimated (:attr:`free`; values
         from ``intrinsics``, default the given ones), ``dt:<camera>`` for every camera with a
         clock (its starting offset), and ``T`` for the intrinsics-only images (``free_poses``,
@@ -222,10 +265,11 @@ class ImageData:
         out: list[ResidualGroup] = [PixelResiduals(self, j, sigma_px, self.free[j])
                                     for j in range(self.m)]
         timed = [j for j, c in enumerate(self.clocks) if c is not None]
-        plain = np.flatnonzero(~np.isin(self.cam_of_image, timed))
-        if plain.size:
-            out.append(MocapPriors(self.mocap_measured, sigma_rot, sigma_t, plain))
-        out += [TimedMocapPriors(self.names[j], np.flatnonzero(self.cam_of_image == j),
+        plain = np.flatnonzero(~np.isin(self.cam_of_image[self.instant_image], timed))
+        if plain.size:                                  # one prior per instant, not per image
+            out.append(MocapPriors(self.mocap_measured[self.instant_image], sigma_rot, sigma_t,
+                                   plain))
+        out += [TimedMocapPriors(self.names[j], self.instant[self.cam_of_image == j],
                                  self.trajectories[j], sigma_rot, sigma_t) for j in timed]
         if self.extra is not None:
             out += self.extra.groups(self, sigma_px)
@@ -236,14 +280,14 @@ class ImageData:
         self.trajectories[camera] = LocalTrajectory(self.clocks[camera], float(offset))
 
     def mocap_start(self, offsets: Sequence[float | None] | None = None) -> F64:
-        """The motion-capture poses the refinement starts from, (N, 4, 4): the given ones,
-        and for a camera with a clock the smoothed trajectory at ``t_i + offset`` (``offsets``
-        per camera, default each clock's starting offset)."""
-        out = self.mocap_measured.copy()
+        """The motion-capture poses the refinement starts from, one per instant (K, 4, 4):
+        the given ones, and for a camera with a clock the smoothed trajectory at
+        ``t_i + offset`` (``offsets`` per camera, default each clock's starting offset)."""
+        out = self.mocap_measured[self.instant_image]
         for j, traj in enumerate(self.trajectories):
             if traj is not None:
                 d = self.clocks[j].offset if offsets is None or offsets[j] is None else offsets[j]
-                out[self.cam_of_image == j] = traj.at(float(d))[0]
+                out[self.instant[self.cam_of_image == j]] = traj.at(float(d))[0]
         return out
 
     def split_images(self, arr: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -358,7 +402,8 @@ class IntrinsicsImages:
 class PixelResiduals(ResidualGroup):
     """One camera's target-point pixel residuals over ``sigma_px`` (module docstring).
 
-    Slots ``X``, ``Y``, ``M`` and, when the camera's intrinsics are estimated, its intrinsics
+    Slots ``X``, ``Y``, ``M`` (the instant of each image, :attr:`ImageData.instant`) and,
+    when the camera's intrinsics are estimated, its intrinsics
     family ``K:<camera>`` (``fx fy cx cy`` then the distortion, :attr:`Intrinsics.params`).
     The chain is evaluated image by image on zero-padded ``(n_images, n_max, 3)`` point
     arrays, so every rotation is one batched 3x3 product per image rather than per point, and
@@ -381,11 +426,12 @@ class PixelResiduals(ResidualGroup):
         slots = ("X", "Y", "M") + ((intrinsics_family(data.names[camera]),)
                                    if free_intrinsics else ())
         index = np.column_stack([np.full(images.size, camera), np.zeros(images.size, int),
-                                 images] + ([np.zeros(images.size, int)]
+                                 data.instant[images]] + ([np.zeros(images.size, int)]
                                             if free_intrinsics else []))
         super().__init__(slots, index, data.image[pts] - self.first, 2)
         self.data, self.camera, self.points = data, camera, pts
         self.images = images
+        self.blocks = data.instant[images]                          # block of M of each image
         self.sigma = float(sigma_px)
         self.free = bool(free_intrinsics)
         self._obj = np.zeros((images.size, self.longest, 3))
@@ -395,7 +441,7 @@ class PixelResiduals(ResidualGroup):
     def _chain(self, X: F64, Y: F64, M: F64):
         """Per image (n, n_max, 3): ``R_Y p``, ``p_y``, ``q``, ``d`` and ``p_cam``."""
         RX, tX = X[self.camera, :3, :3], X[self.camera, :3, 3]
-        RM, tM = M[self.images, :3, :3], M[self.images, :3, 3]
+        RM, tM = M[self.blocks, :3, :3], M[self.blocks, :3, 3]
         ry = self._obj @ Y[:3, :3].T
         py = ry + Y[:3, 3]
         if self.data.setup == "eye-to-base":
@@ -424,7 +470,7 @@ class PixelResiduals(ResidualGroup):
         Jp_pad = np.zeros((n_img, n, 2, 3))
         Jp_pad[seg, pos] = Jp / self.sigma
         RX = X[self.camera, :3, :3]
-        RM = M[self.images, :3, :3]
+        RM = M[self.blocks, :3, :3]
         G = RX.T @ (RM if self.data.setup == "eye-to-base" else RM.swapaxes(1, 2))
         flat = Jp_pad.reshape(n_img, 2 * n, 3)
         JpR = (flat @ RX.T).reshape(n_img, n, 2, 3)                     # d r / d q
@@ -517,23 +563,24 @@ class FreePoseResiduals(ResidualGroup):
 
 
 class MocapPriors(ResidualGroup):
-    """Motion-capture pose priors (module docstring), one row of 6 per image, slot M.
+    """Motion-capture pose priors (module docstring), one row of 6 per instant (one
+    measurement), slot M.
 
     Parameters
     ----------
-    measured : ndarray, shape (N, 4, 4)
-        Measured motion-capture poses of every image.
+    measured : ndarray, shape (K, 4, 4)
+        Measured motion-capture pose of every block of ``M`` (instant).
     sigma_rot, sigma_t : float
         Noise of each rotation-vector component (radians, marker/body frame) and of each
         position coordinate (metres, world frame).
-    images : array_like of int, shape (n,), optional
-        The images (blocks of ``M``) these priors cover; default all.
+    blocks : array_like of int, shape (n,), optional
+        The blocks of ``M`` (instants) these priors cover; default all.
     """
 
-    def __init__(self, measured: F64, sigma_rot: float, sigma_t: float, images=None):
-        images = np.arange(len(measured)) if images is None else np.asarray(images, int)
-        super().__init__(("M",), images[:, None], np.arange(len(images)), 6)
-        self.measured = measured[images]
+    def __init__(self, measured: F64, sigma_rot: float, sigma_t: float, blocks=None):
+        blocks = np.arange(len(measured)) if blocks is None else np.asarray(blocks, int)
+        super().__init__(("M",), blocks[:, None], np.arange(len(blocks)), 6)
+        self.measured = measured[blocks]
         self.scale = 1.0 / np.repeat([float(sigma_rot), float(sigma_t)], 3)
 
     def evaluate(self, values: Mapping[str, F64], jacobians: bool):

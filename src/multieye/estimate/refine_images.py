@@ -6,15 +6,19 @@ measured.  What is measured are the target points' pixels and the motion-capture
 module minimises exactly their negative log-likelihood (paper section IV, taken to the image
 level), jointly over every camera's ``X^j`` (``T_world_cam`` eye-to-base, ``T_body_cam``
 eye-on-hand), the shared ``Y`` (``T_marker_target`` / ``T_world_target``) and the true
-motion-capture pose ``M_i`` of every image, observed through its measurement::
+motion-capture pose ``M_k`` of every motion-capture measurement, observed through it::
 
-    min  sum_points  rho(||pi_j(T_cam_target_i p_k) - u_ik||^2 / sigma_px^2)
-       + sum_images  rho(||Log(R_meas^T R_M)||^2 / sigma_R^2) + rho(||t_M - t_meas||^2 / sigma_t^2)
+    min  sum_points   rho(||pi_j(T_cam_target_i p_k) - u_ik||^2 / sigma_px^2)
+       + sum_instants rho(||Log(R_meas^T R_M)||^2 / sigma_R^2)
+                      + rho(||t_M - t_meas||^2 / sigma_t^2)
 
-(``rho`` applied per residual component).  The residuals, their analytic Jacobians and the
-parameterisation are in :mod:`multieye.estimate.image_residuals`; the minimisation is the
-engine's (:mod:`multieye.optimize`): Levenberg-Marquardt with the per-image motion-capture
-poses eliminated by the Schur complement, cost linear in the points.
+(``rho`` applied per residual component).  Images given the same motion-capture pose
+(bitwise equal: cameras triggered together) share one ``M_k`` and its one prior, so a
+measurement counts once however many cameras saw the target at its instant
+(:class:`multieye.estimate.image_residuals.ImageData`).  The residuals, their analytic
+Jacobians and the parameterisation are in :mod:`multieye.estimate.image_residuals`; the
+minimisation is the engine's (:mod:`multieye.optimize`): Levenberg-Marquardt with the
+motion-capture poses eliminated by the Schur complement, cost linear in the points.
 
 With ``clocks``, a camera's clock offset is an unknown too: its images' motion-capture
 priors compare ``M_i`` with the locally smoothed motion-capture trajectory at ``t_i + delta``
@@ -131,10 +135,12 @@ class RefinementResult:
         Per camera: covariance of ``Intrinsics.params`` (fx fy cx cy, then the distortion)
         when estimated, else None.
     mocap_covariance : ndarray, shape (N, 6, 6)
-        Marginal covariance of each refined motion-capture pose (``se3-right``: rotation in
-        the marker/body frame, translation in the world frame), images camera by camera.
+        Marginal covariance of the refined motion-capture pose of each image (``se3-right``:
+        rotation in the marker/body frame, translation in the world frame), images camera by
+        camera; images that share a measurement (one instant) share the pose and repeat it.
     T_world_mocap : tuple of ndarray, shape (N_j, 4, 4)
-        Refined motion-capture poses (``T_world_marker`` or ``T_world_body``) per camera.
+        Refined motion-capture poses (``T_world_marker`` or ``T_world_body``) of each
+        camera's images (one pose for all the images of an instant).
     image_rms_px : tuple of ndarray, shape (N_j,)
         Reprojection RMS of every image (root mean square of the point distances), pixels.
     camera_rms_px : ndarray, shape (m,)
@@ -148,7 +154,8 @@ class RefinementResult:
         :data:`OUTLIER_PROBABILITY`.
     image_outliers : tuple of ndarray, shape (N_j,), bool
         Images with more than half their points flagged, or whose mocap pose had to move
-        further from its measurement than the chi-square (6 dof) quantile allows.
+        further from its measurement than the chi-square (6 dof) quantile allows (a shared
+        measurement flags every image of its instant).
     pixel_sigma : float
         Pixel noise used, pixels (given, or estimated from the data).
     pixel_sigma_estimated : bool
@@ -259,17 +266,18 @@ def _value(fams, name: str):
 
 
 def _is_prior(group) -> bool:
-    """A group of motion-capture priors (one row of 6 per image, touching ``M`` first)."""
+    """A group of motion-capture priors (one row of 6 per instant, touching ``M`` first)."""
     return group.slots[0] == "M"
 
 
 def _prior_residuals(data: ImageData, groups, ev) -> F64:
-    """Normalised motion-capture prior residuals of every image, (N, 6)."""
-    out = np.zeros((data.n_images, 6))
+    """Normalised motion-capture prior residuals of every image, (N, 6): each image gets its
+    instant's (the images sharing a measurement share its residual)."""
+    out = np.zeros((data.n_instants, 6))
     for grp, e in zip(groups, ev):
         if _is_prior(grp):
             out[grp.index[:, 0]] = e[0]
-    return out
+    return out[data.instant]
 
 
 def _clock_noise(data: ImageData) -> tuple[float, float]:
@@ -293,7 +301,8 @@ def _variance_components(data: ImageData, fams, *, s_px: float, s_rot: float, s_
 
     Each group of residuals ``k`` (pixels; the motion capture's rotation components; its
     position components) gets ``sigma_k^2 * sum(w z_k^2) / (c_w r_k)``, with ``z_k`` its
-    residuals normalised by the current ``sigma_k`` and ``r_k`` its redundancy: its count of
+    residuals normalised by the current ``sigma_k`` (one prior per instant: a measurement
+    shared by several images counts once) and ``r_k`` its redundancy: its count of
     residuals minus the share of the parameters it pays for, ``tr(J_k Cov J_k^T)`` at the
     optimum.  Unlike the RMS of the corrections, which shrinks with the sigma that produced
     them and so collapses to zero when the pixels cannot contradict the poses, this is the
@@ -535,8 +544,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         X=X, Y=Y, covariance=kappa * cov.kept[:k_xy, :k_xy],
         full_covariance=kappa * cov.kept, layout=cov.layout, undetermined=undetermined,
         intrinsics=tuple(intr_out), intrinsics_covariance=tuple(intr_cov),
-        mocap_covariance=kappa * cov.local[:data.n_images],
-        T_world_mocap=data.split_images(M),
+        mocap_covariance=kappa * cov.local[:data.n_instants][data.instant],
+        T_world_mocap=data.split_images(M[data.instant]),
         image_rms_px=data.split_images(img_rms), camera_rms_px=cam_rms,
         point_weights=data.split_points(w_pt, np.nan),
         point_outliers=data.split_points(point_out, False),

@@ -17,9 +17,9 @@ Manifolds (parameters per block, radians and metres):
 ===============  ===  ==========================================================================
 
 A family marked ``eliminate=True`` holds per-measurement blocks (one motion-capture pose per
-image): the engine removes them from the normal equations by a Schur complement, so each
-residual group may touch at most one such block per row, and the rows that share it must
-touch the same other blocks (an image belongs to one camera).
+measurement): the engine removes them from the normal equations by a Schur complement, so each
+residual group may touch at most one such block per row; the rows (of any groups) that share
+one may touch different other blocks (one pose seen by several cameras, each with its ``X``).
 
 Synopsis
 --------
