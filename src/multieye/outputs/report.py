@@ -186,8 +186,9 @@ def _pose_table(rec: CalibrationRecord, poses, key: str, ref_mark: bool) -> str:
     for c, T, u in zip(cams, poses, unc):
         p = pose_row(T)
         ref = ref_mark and c.name == rec.reference_camera
-        row = [c.name + (" (ref)" if ref else ""), *(format(v, ".4f") for v in p[:3]),
-               *(format(v, ".3f") for v in p[3:])]
+        row = [c.name + (" (ref)" if ref else ""),
+               *(format(round(v, 4) + 0.0, ".4f") for v in p[:3]),
+               *(format(round(v, 3) + 0.0, ".3f") for v in p[3:])]
         if any(unc):
             row += [_num(None if u is None else u.std_rot_deg, ".3f", 1.0),
                     _num(None if u is None else u.std_trans_m, ".2f", 1e3)]

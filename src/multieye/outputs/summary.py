@@ -47,7 +47,9 @@ def _f(x, fmt: str) -> str:
 
 def _pose_cells(T, unc) -> list[str]:
     p = pose_row(T)
-    return [*(format(v, ".4f") for v in p[:3]), *(format(v, ".3f") for v in p[3:]),
+    # round first and add 0.0: a rounding-size negative value prints 0.0000, not -0.0000
+    return [*(format(round(v, 4) + 0.0, ".4f") for v in p[:3]),
+            *(format(round(v, 3) + 0.0, ".3f") for v in p[3:]),
             _f(None if unc is None else unc.std_rot_deg, ".3f"),
             _f(None if unc is None else unc.std_trans_m * 1e3, ".2f")]
 
