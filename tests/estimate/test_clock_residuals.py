@@ -145,3 +145,39 @@ def test_clock_data_is_checked():
     short = ClockData(st.image_stamps[0][:-1], st.mocap_stamps, st.T_world_mocap)
     with pytest.raises(InputError, match="image stamps for"):
         ImageData(st.setup, st.observations, st.intrinsics, clocks=[short])
+
+
+def test_prior_is_the_profile_likelihood_of_the_window_away_from_its_centre():
+    """The position prior of an image at offset delta, squared and times sigma^2, is the
+    rise of the window's residual sum of squares when its cubic is forced through the pose
+    M at t_i + delta (constrained least squares, solved here on its own through the KKT
+    system). At the window's centre h(0) would do; away from it only h(u) gives this (a
+    prior with h held at the centre pulled every offset towards the centre)."""
+    rng = np.random.default_rng(3)
+    s = np.arange(0.0, 2.0, 0.005)                                  # 200 Hz
+    T = np.tile(np.eye(4), (len(s), 1, 1))
+    T[:, :3, 3] = np.column_stack([np.sin(3 * s), s ** 2, np.cos(s)]) \
+        + rng.normal(scale=3e-4, size=(len(s), 3))
+    t = np.array([0.5, 0.9, 1.3])
+    lt = LocalTrajectory(ClockData(t, s, T, offset=0.0))
+    sigma_t = 3e-4
+    prior = TimedMocapPriors("cam0", np.arange(3), lt, 1e-3, sigma_t)
+    M = np.tile(np.eye(4), (3, 1, 1))
+    M[:, :3, 3] = np.column_stack([np.sin(3 * t), t ** 2, np.cos(t)]) + 1e-3
+    for delta in (0.0, 0.017, -0.031):                              # u = 0, 0.34, -0.62
+        r, _ = prior.evaluate({"M": M, "dt:cam0": np.array([[delta]])}, False)
+        n_w = lt.n_window
+        for i in range(3):
+            k0 = int(np.clip(np.searchsorted(s, t[i]) - n_w // 2, 0, len(s) - n_w))
+            w = slice(k0, k0 + n_w)
+            u = (s[w] - lt.c[i]) / lt.a[i]
+            A = u[:, None] ** np.arange(4)
+            e = ((t[i] + delta - lt.c[i]) / lt.a[i]) ** np.arange(4)
+            for c in range(3):
+                y = T[w, c, 3] - lt.tc[i, c]
+                m = M[i, c, 3] - lt.tc[i, c]
+                free = np.linalg.lstsq(A, y, rcond=None)[0]
+                kkt = np.block([[A.T @ A, e[:, None]], [e[None, :], np.zeros((1, 1))]])
+                forced = np.linalg.solve(kkt, np.concatenate([A.T @ y, [m]]))[:4]
+                rise = np.sum((y - A @ forced) ** 2) - np.sum((y - A @ free) ** 2)
+                assert (r[i, 3 + c] * sigma_t) ** 2 == pytest.approx(rise, rel=1e-6)

@@ -131,6 +131,18 @@ def test_the_other_setup_or_inverted_poses(true_setup):
     f = next(f for f in rep.findings if f.cause == "setup")
     assert "(T_tool0_base, not T_base_tool0: pose: T_tool0_base and fixed_frame: base" \
         in f.message, f.message
+    rep = check_plausibility(true_setup, [inverted], declared=Declared(
+        mocap_pose="T_world_marker" if true_setup == "eye-to-base" else "T_world_body",
+        mocap_frames=("base_link", "tool0")))
+    f = next(f for f in rep.findings if f.cause == "setup")
+    assert ("(T_tool0_base_link, not T_base_link_tool0: frames: [tool0, base_link] and "
+            "fixed_frame: base_link under mocap)") in f.message, f.message
+    # and that advice is rig.yaml the loader takes, meaning the inverse
+    from multieye.io.mocap import named_pose
+
+    moving = "marker" if true_setup == "eye-to-base" else "body"
+    assert named_pose(None, moving, ("tool0", "base_link"), "base_link") == (
+        f"T_{moving}_world", ("base_link", "tool0"))
 
 
 def test_inverted_target_poses_of_one_camera_of_two():

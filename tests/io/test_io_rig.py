@@ -387,7 +387,11 @@ def test_fixed_frame_is_read_from_rig_yaml_and_its_line_named(dataset):
     ("T_base_marker", None, "body", "expected T_world_body"),
     ("T_base_link_tool0", None, "body", "can be read as [base, link_tool0] or [base_link, tool0]"),
     ("T_base_tool0", ("base", "flange"), "body", "does not match frames [base, flange]"),
-    ("T_base_base", None, "body", "the same"),
+    ("T_base_base", None, "body", "frames of T_base_base are the same"),
+    (None, ("tool0", "tool0"), "body", "frames of T_tool0_tool0 are the same"),
+    ("T_world_target", None, "marker", "'target' names a frame multieye's outputs already"),
+    ("T_base_cam", None, "body", "'cam' names a frame"),
+    ("T_ref_tool0", None, "body", "'ref' names a frame"),
     ("base_tool0", None, "body", "T_<parent>_<child>"),
     (None, ("base link", "tool0"), "body", "letters, digits and '_'"),
 ])

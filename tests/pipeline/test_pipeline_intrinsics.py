@@ -227,3 +227,27 @@ def test_a_lens_estimated_as_kalibrs_radtan_goes_into_the_camchain(rendered, tmp
     assert cal["cameras"]["cam0"]["intrinsics"]["model"] == "pinhole-radtan4"
     for T_est, T_true in zip(run.record.cameras, truth.T_ref_cam):
         assert np.degrees(g.rotation_angle_between(T_est.T_ref_cam, T_true)) < 0.1
+
+
+def test_radtan_and_radtan4_files_under_either_model_name():
+    """k1 k2 p1 p2 is OpenCV's 5-coefficient model with k3 = 0: a 4-coefficient file is also
+    pinhole-radtan, a 5-coefficient file with k3 = 0 also pinhole-radtan4 (then with its 4
+    coefficients, so that refining keeps k3 at 0), and a non-zero k3 is refused by name."""
+    from multieye.core.intrinsics import Intrinsics
+    from multieye.pipeline.intrinsics import check_model
+
+    K = [[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]
+    four = Intrinsics(K=K, dist=[-0.2, 0.05, 1e-3, -1e-3], width=640, height=480)
+    zero_k3 = Intrinsics(K=K, dist=[-0.2, 0.05, 1e-3, -1e-3, 0.0], width=640, height=480)
+    k3 = Intrinsics(K=K, dist=[-0.2, 0.05, 1e-3, -1e-3, 0.05], width=640, height=480)
+    assert check_model("cam0", four, "pinhole-radtan", "f.yaml") is four
+    assert check_model("cam0", four, "pinhole-radtan4", "f.yaml") is four
+    assert check_model("cam0", k3, "pinhole-radtan", "f.yaml") is k3
+    got = check_model("cam0", zero_k3, "pinhole-radtan4", "f.yaml")
+    np.testing.assert_array_equal(got.dist, four.dist)
+    np.testing.assert_array_equal(got.K, four.K)
+    with pytest.raises(DatasetError, match="model: pinhole-radtan4 but the intrinsics file "
+                                           "holds a pinhole-radtan lens with k3 = 0.05"):
+        check_model("cam0", k3, "pinhole-radtan4", "f.yaml")
+    with pytest.raises(DatasetError, match="holds a pinhole-radtan4 lens;"):
+        check_model("cam0", four, "fisheye", "f.yaml")

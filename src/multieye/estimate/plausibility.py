@@ -277,9 +277,13 @@ def _setup_finding(setup: str, before: float, after: float, declared: Declared) 
     fix = f"pose: {flipped}"
     if declared.mocap_frames is not None:          # the user's own names (rig.yaml's pose)
         fixed, tracked = declared.mocap_frames
-        named = {pose: f"T_{fixed}_{tracked}", inverse: f"T_{tracked}_{fixed}"}
-        given, flipped = named[given], named[flipped]
-        fix = f"pose: {flipped}" + ("" if fixed == "world" else f" and fixed_frame: {fixed}")
+        pairs = {pose: (fixed, tracked), inverse: (tracked, fixed)}    # (parent, child)
+        parent, child = pairs[flipped]
+        given, flipped = "T_{}_{}".format(*pairs[given]), f"T_{parent}_{child}"
+        # names holding '_' are spelled out (pose alone would be ambiguous)
+        fix = (f"frames: [{parent}, {child}]" if "_" in parent + child
+               else f"pose: {flipped}")
+        fix += "" if fixed in ("world", parent) else f" and fixed_frame: {fixed}"
     return Finding("setup", f"setup or inverted poses: the motion capture fits as its inverse "
                    f"({_costs(before, after)}): either the data are {other} ({meaning}), not "
                    f"{setup} as rig.yaml says (setup: {other}), or the motion-capture poses "

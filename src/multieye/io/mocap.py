@@ -27,7 +27,7 @@ from multieye.io.trajectory import Trajectory
 from multieye.io.tum import read_tum
 
 __all__ = ["MOCAP_FORMATS", "MocapSpec", "read_mocap", "sniff_mocap_format", "pose_frames",
-           "named_pose", "ROLE_FRAMES"]
+           "named_pose", "ROLE_FRAMES", "RESERVED_FRAMES"]
 
 MOCAP_FORMATS = ("tum", "csv", "optitrack", "vicon", "rosbag")
 _POSE = re.compile(r"^T_([A-Za-z0-9]+)_([A-Za-z0-9]+)$")
@@ -45,6 +45,9 @@ def pose_frames(pose: str) -> tuple[str, str]:
 #: frame of each setup (``marker`` eye-to-base, ``body`` eye-on-hand).
 ROLE_FRAMES = ("world", "marker", "body")
 _FRAME_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_]*$")
+#: Frame names the outputs use for frames other than the motion capture's (``T_world_target``,
+#: ``T_body_cam``, ``T_ref_cam``): refused as names of the motion capture's frames.
+RESERVED_FRAMES = ("target", "cam", "ref")
 
 
 def _check_frame_name(name) -> str:
@@ -126,7 +129,12 @@ def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = N
                              f"frames: [parent, child]")
         parent, child = splits[0]
     if parent == child:
-        raise ValueError(f"the parent and child frames of {pose!r} are the same")
+        raise ValueError(f"the parent and child frames of T_{parent}_{child} are the same")
+    for name in (parent, child):
+        if name in RESERVED_FRAMES:
+            raise ValueError(f"{name!r} names a frame multieye's outputs already have (target "
+                             "board, cameras, the reference camera): name the tracked frame "
+                             "e.g. board, flange or tool0, the fixed one e.g. base or mocap")
     others = [f for f in ROLE_FRAMES if f not in roles]
     if fixed is not None:
         if fixed not in (parent, child):

@@ -419,10 +419,10 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
 
 def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
     """A camera's own motion capture, completed from the top-level section ``top``
-    (``(raw mapping, MocapSpec)``, or ``({}, None)``): ``pose``, ``time_tolerance`` and the
-    noise keys are always inherited; the format-specific keys only when the camera's file has
-    the top-level file's format (a camera with a TUM file under a rosbag rig does not inherit
-    ``topic``)."""
+    (``(raw mapping, MocapSpec)``, or ``({}, None)``): ``pose``, ``frames``, ``fixed_frame``,
+    ``time_tolerance`` and the noise keys are always inherited; the format-specific keys only
+    when the camera's file has the top-level file's format (a camera with a TUM file under a
+    rosbag rig does not inherit ``topic``)."""
     if isinstance(own, Mapping):
         c.mapping(own, where, MOCAP_KEYS)
     else:

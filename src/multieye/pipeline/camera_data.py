@@ -339,8 +339,8 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
             if cam.intrinsics is not None:
                 from multieye.pipeline.intrinsics import check_model
 
-                intr = read_camera_intrinsics(cam)
-                check_model(name, intr, cam.model, cam.intrinsics)
+                intr = check_model(name, read_camera_intrinsics(cam), cam.model,
+                                   cam.intrinsics)
             # a lens to estimate: the intrinsics_images inform its start too
             extra = None
             if cam.intrinsics_images is not None and intr is None:

@@ -54,15 +54,34 @@ class LensStart:
     warnings: tuple[str, ...]
 
 
-def check_model(name: str, intrinsics: Intrinsics, model: str | None, path) -> None:
-    """A camera with both ``intrinsics`` and ``model``: the file's lens must be that model."""
+def check_model(name: str, intrinsics: Intrinsics, model: str | None, path) -> Intrinsics:
+    """A camera with both ``intrinsics`` and ``model``: the file's lens must be that model.
+
+    OpenCV's k1 k2 p1 p2 is its 5-coefficient model with k3 = 0, so a 4-coefficient file is
+    also ``pinhole-radtan``, and a 5-coefficient file whose k3 is 0 also ``pinhole-radtan4``
+    (returned with its 4 coefficients, so that refining it keeps k3 at 0).
+
+    Returns
+    -------
+    Intrinsics
+        ``intrinsics`` in the form ``model`` names.
+
+    Raises
+    ------
+    DatasetError
+        The file holds another model (naming both, and k3 when it is what differs).
+    """
     held = lens_model(intrinsics)
-    # OpenCV's k1 k2 p1 p2 is its 5-coefficient model with k3 = 0
-    if model is not None and held != model and {held, model} != {"pinhole-radtan",
-                                                                  "pinhole-radtan4"}:
-        raise DatasetError(f"rig.yaml says model: {model} but the intrinsics file holds a "
-                           f"{lens_model(intrinsics)} lens; give one or make them agree",
-                           path=path, camera=name)
+    if model is None or held == model or (model, held) == ("pinhole-radtan",
+                                                           "pinhole-radtan4"):
+        return intrinsics
+    k3 = intrinsics.dist[4] if model == "pinhole-radtan4" and intrinsics.dist.size == 5 \
+        else None
+    if k3 == 0:
+        return replace(intrinsics, dist=intrinsics.dist[:4])
+    what = f"{held} lens" + ("" if k3 is None else f" with k3 = {k3:g}")
+    raise DatasetError(f"rig.yaml says model: {model} but the intrinsics file holds a {what}; "
+                       "give one or make them agree", path=path, camera=name)
 
 
 def _image_size(name: str, results: Sequence[ImageResult], where) -> tuple[int, int]:
