@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 import pytest
 from synthetic import eye_on_hand, eye_to_base
@@ -25,7 +27,9 @@ def _errors(T_est, T_true):
 @pytest.mark.parametrize("method", CLOSED_FORM + ITERATIVE)
 def test_noise_free_recovery_1_to_8_cameras_unequal_counts(setup, method):
     tol = 1e-9 if method in CLOSED_FORM else 1e-5
-    rng = np.random.default_rng(abs(hash((setup.__name__, method))) % 2**32)
+    # a seed per case that is the same in every run (str hash() is salted per process, which
+    # made this test draw new rigs each run and, now and then, a degenerate one)
+    rng = np.random.default_rng(zlib.crc32(f"{setup.__name__}/{method}".encode()))
     for m in (1, 2, 4, 8):
         counts = list(rng.integers(3, 25, size=m))
         A, B, X, Y = setup(rng, counts)
