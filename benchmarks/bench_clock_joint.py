@@ -26,7 +26,12 @@ motion-capture noise estimated from the data), and where the fits' errors are no
 independent (the model's assumption): cameras at 20 Hz (each image's +-50 ms window shares
 samples with its neighbours'), and the three cameras triggered at the same instants (with
 0.5 px and with nearly noise-free 0.05 px pixels, where the motion capture's error
-dominates).  Target: every mean NEES within 0.5-2.
+dominates).  The same triggered-together rigs with the cameras on ONE clock (one true offset,
+bitwise equal stamps, ``ClockData.shared``: one offset, one pose block and one prior per
+instant), also eye-on-hand with the pipeline's defaults, and 4 cameras at 30 Hz triggered
+together with their own clocks and on one clock (each camera's windows then also overlap
+its own neighbours').  With a shared clock the offsets' NEES counts one offset per trial.
+Target: every mean NEES within 0.5-2.
 This is a script, not a test: nothing here is asserted.
 """
 
@@ -59,18 +64,23 @@ def _err(T, T_true):
 
 def trial(seed, setup: str, defaults: bool, interleaved: bool = True,
           pixel_sigma: float = PIXEL_SIGMA, rate_hz: float = 4.0,
-          half_window_s: float | None = None) -> dict:
-    """One simulated rig refined with free offsets; errors normalised by the covariance."""
+          half_window_s: float | None = None, shared: bool = False,
+          n_cameras: int = N_CAMERAS) -> dict:
+    """One simulated rig refined with free offsets; errors normalised by the covariance.
+    ``shared``: the cameras are on one clock (one offset, ``ClockData.shared``)."""
     rng = np.random.default_rng([seed, 1])
-    offsets = rng.uniform(-0.1, 0.1, N_CAMERAS)
-    st = simulate_rig_stream(seed, n_cameras=N_CAMERAS, setup=setup, duration_s=80.0 / rate_hz,
+    offsets = rng.uniform(-0.1, 0.1, n_cameras)
+    if shared:
+        offsets[:] = offsets[0]                     # one clock: bitwise equal image stamps
+    st = simulate_rig_stream(seed, n_cameras=n_cameras, setup=setup, duration_s=80.0 / rate_hz,
                              camera_rate_hz=rate_hz, time_offsets_s=offsets,
                              pixel_sigma=pixel_sigma, mocap_rot_sigma_rad=MOCAP[0],
                              mocap_trans_sigma_m=MOCAP[1], interleaved=interleaved)
     clocks = [ClockData(st.image_stamps[j], st.mocap_stamps, st.T_world_mocap,
                         offset=offsets[j] + rng.normal(scale=0.002),
-                        half_window_s=half_window_s or DEFAULT_HALF_WINDOW_S)
-              for j in range(N_CAMERAS)]
+                        half_window_s=half_window_s or DEFAULT_HALF_WINDOW_S,
+                        shared="rig" if shared else None)
+              for j in range(n_cameras)]
     X0 = np.stack([g.transform_from_rotvec(rng.normal(scale=0.005, size=3),
                                            rng.normal(scale=0.003, size=3)) @ x for x in st.X])
     if defaults:
@@ -81,11 +91,12 @@ def trial(seed, setup: str, defaults: bool, interleaved: bool = True,
     start = time.perf_counter()
     res = refine_images(setup, st.observations, st.intrinsics, X0, st.Y, clocks=clocks, **kw)
     seconds = time.perf_counter() - start
-    e = np.concatenate([_err(res.X[j], st.X[j]) for j in range(N_CAMERAS)] + [_err(res.Y, st.Y)])
-    d = np.array(res.time_offsets) - offsets
-    std = np.array(res.time_offset_std_s)
+    e = np.concatenate([_err(res.X[j], st.X[j]) for j in range(n_cameras)] + [_err(res.Y, st.Y)])
+    used = [0] if shared else list(range(n_cameras))     # one offset per clock
+    d = (np.array(res.time_offsets) - offsets)[used]
+    std = np.array(res.time_offset_std_s)[used]
     k = e.size
-    idx = list(range(k)) + [res.layout.offset[offset_family(f"cam{j}")] for j in range(N_CAMERAS)]
+    idx = list(range(k)) + [res.layout.offset[offset_family(f"cam{j}")] for j in used]
     C = res.full_covariance[np.ix_(idx, idx)]
     ed = np.concatenate([e, d])
     return dict(z=d / std, err=d, std=std, seconds=seconds,
@@ -99,7 +110,7 @@ def run(label: str, setup: str, defaults: bool, trials: int, seed: int, **kw) ->
     rows = [trial(seed + t, setup, defaults, **kw) for t in range(trials)]
     z = np.concatenate([r["z"] for r in rows])
     nd = len(z)
-    nxy = trials * 6 * (N_CAMERAS + 1)
+    nxy = trials * 6 * (kw.get("n_cameras", N_CAMERAS) + 1)
     band = lambda n: 1.96 * np.sqrt(2.0 / n)                              # noqa: E731
     sig = np.mean([r["sigma"] for r in rows], axis=0)
     print(f"| {label} | {trials} | {np.mean(z ** 2):.2f} (+-{band(nd):.2f}) "
@@ -137,6 +148,19 @@ def main() -> None:
         trials, args.seed + 50_000, interleaved=False)
     run("eye-to-base, least squares, triggered together, 0.05 px", "eye-to-base", False,
         trials, args.seed + 60_000, interleaved=False, pixel_sigma=0.05)
+    run("eye-to-base, least squares, triggered together, one shared clock", "eye-to-base",
+        False, trials, args.seed + 50_000, interleaved=False, shared=True)
+    run("eye-to-base, least squares, triggered together, 0.05 px, one shared clock",
+        "eye-to-base", False, trials, args.seed + 60_000, interleaved=False, pixel_sigma=0.05,
+        shared=True)
+    run("eye-on-hand, Huber, noise estimated, triggered together, one shared clock",
+        "eye-on-hand", True, trials, args.seed + 70_000, interleaved=False, shared=True)
+    run("eye-to-base, least squares, 4 cameras at 30 Hz triggered together, own clocks",
+        "eye-to-base", False, trials, args.seed + 80_000, interleaved=False, n_cameras=4,
+        rate_hz=30.0)
+    run("eye-to-base, least squares, 4 cameras at 30 Hz triggered together, one shared clock",
+        "eye-to-base", False, trials, args.seed + 80_000, interleaved=False, n_cameras=4,
+        rate_hz=30.0, shared=True)
     print(f"\ntotal {time.perf_counter() - t0:.0f} s")
 
 

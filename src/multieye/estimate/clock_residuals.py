@@ -31,18 +31,21 @@ angular velocity and ``v = dp/ds`` the velocity of the fit (exact derivatives of
     d r_R / d phi_M = J_r^-1(rho_R) s_R,      d r_t / d tau_M = I s_t
 
 (``M`` on ``se3-right``).  The offset is an ``euclidean`` block of size 1 (family
-``dt:<camera>``), one per camera.  The windows are centred at the offset they were built at
+``dt:<camera>``), one per camera, or one per clock shared by several cameras
+(:attr:`ClockData.shared`, family ``dt:<first of them>``, :class:`ClockUnits`): cameras
+triggered together are stamped by one clock, and their images with bitwise equal stamps are
+one instant, one block of ``M``, one window fit and one prior, so the motion capture's error
+there counts once.  The windows are centred at the offset they were built at
 (:meth:`LocalTrajectory.__init__`); :func:`multieye.estimate.refine_images.refine_images`
 re-centres them when the offset moves by more than a quarter of the half-width.
 
-Assumptions: the errors of the fits at two images are independent; exact when their windows
+Assumptions: the errors of the fits at two instants are independent; exact when their windows
 share no sample, an approximation when they do (images of one camera closer than the window,
-or of several cameras at the same motion-capture instant; without clocks, images paired with
-the same measurement share one block and one prior instead:
-:class:`multieye.estimate.image_residuals.ImageData`).  benchmarks/bench_clock_joint.py
-measures what it costs (docs/results/clock_joint.md): with 3 cameras triggered together the
-mean NEES of X and Y is about 1.2, 1.4 with nearly noise-free pixels; counting the shared
-error once per image instead (variance times the summed correlations) overshoots to 0.5-0.6.
+or cameras triggered together but each given its own clock).  benchmarks/bench_clock_joint.py
+measures what it costs (docs/results/clock_joint.md): with 3 cameras triggered together on
+their own clocks the mean NEES of X and Y is about 1.2, 1.3 with nearly noise-free pixels, and
+near 1 on one shared clock; counting the shared error once per image instead (variance times
+the summed correlations) overshoots to 0.5-0.6.
 The trajectory is smooth at the window's scale (a cubic's bias, about ``0.004 a^4`` times
 the fourth derivative, is below the noise); the sample noise is white.  The sample noise
 itself can be estimated from the fits' residuals (:meth:`LocalTrajectory.noise`).
@@ -51,17 +54,17 @@ itself can be estimated from the fits' residuals (:meth:`LocalTrajectory.noise`)
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
 from multieye.core.lie import exp_so3, left_jacobian, left_jacobian_inv, log_so3
-from multieye.optimize.blocks import ResidualGroup
+from multieye.optimize.blocks import Blocks, ResidualGroup
 
-__all__ = ["ClockData", "LocalTrajectory", "TimedMocapPriors", "offset_family",
-           "DEFAULT_HALF_WINDOW_S", "DEGREE", "MIN_SAMPLES"]
+__all__ = ["ClockData", "ClockUnits", "LocalTrajectory", "TimedMocapPriors", "offset_family",
+           "shared_clocks", "DEFAULT_HALF_WINDOW_S", "DEGREE", "MIN_SAMPLES"]
 
 F64 = NDArray[np.float64]
 
@@ -76,6 +79,30 @@ MIN_SAMPLES = DEGREE + 5
 def offset_family(name: str) -> str:
     """Block-family name of a camera's clock offset."""
     return f"dt:{name}"
+
+
+def shared_clocks(stamps) -> list[list[int]]:
+    """Cameras stamped by one clock, from their image stamps: two cameras are on one clock
+    when at least half of the images of each have an equal stamp in the other (cameras
+    triggered together); transitively.  Returns the groups of two or more cameras (indices
+    into ``stamps``, a sequence of 1-D arrays), each in ascending order."""
+    t = [np.asarray(x, dtype=np.float64).reshape(-1) for x in stamps]
+    parent = list(range(len(t)))
+
+    def root(a):
+        while parent[a] != a:
+            a = parent[a]
+        return a
+
+    for a in range(len(t)):
+        for b in range(a + 1, len(t)):
+            if (t[a].size and t[b].size and 2 * np.isin(t[a], t[b]).sum() >= t[a].size
+                    and 2 * np.isin(t[b], t[a]).sum() >= t[b].size):
+                parent[max(root(a), root(b))] = min(root(a), root(b))
+    groups: dict[int, list[int]] = {}
+    for a in range(len(t)):
+        groups.setdefault(root(a), []).append(a)
+    return [g for g in groups.values() if len(g) > 1]
 
 
 @dataclass(frozen=True)
@@ -95,6 +122,13 @@ class ClockData:
         Starting offset, seconds (motion-capture clock minus camera clock).
     half_window_s : float
         Half-width of the window fitted around each image (:class:`LocalTrajectory`).
+    shared : str or None
+        Name of a clock shared by several cameras (cameras triggered together, stamped by
+        one clock): the cameras whose ClockData carry the same name have ONE offset (family
+        ``dt:<first of them>``, :class:`ClockUnits`), started at the mean of their
+        ``offset``; their images with bitwise equal stamps are one motion-capture instant
+        (one block of ``M``, one prior, one window fit).  They must give the same motion
+        capture and ``half_window_s``.  None (default): the camera's own clock.
     """
 
     image_stamps: F64
@@ -102,6 +136,7 @@ class ClockData:
     mocap_T: F64
     offset: float = 0.0
     half_window_s: float = DEFAULT_HALF_WINDOW_S
+    shared: str | None = None
 
     def __post_init__(self):
         s = np.asarray(self.mocap_stamps, dtype=np.float64).reshape(-1)
@@ -273,3 +308,87 @@ class TimedMocapPriors(ResidualGroup):
         Jd[:, 3:, 0] = -vel
         Jd[:, :, 0] = Jd[:, :, 0] * scale - 0.5 * r * (dh / h)[:, None]      # d scale / d delta
         return r, [JM, Jd]
+
+
+class ClockUnits:
+    """The clocks of the cameras of an image-level problem: one *unit* per camera with a clock
+    of its own, one per shared clock (:attr:`ClockData.shared`), in the order of their first
+    camera.  A unit has one offset block (family ``dt:<first camera>``), one
+    :class:`LocalTrajectory` over its instants and one :class:`TimedMocapPriors`.
+
+    Parameters
+    ----------
+    clocks : sequence of (ClockData or None)
+        Per camera (checked by the caller).
+    names : sequence of str
+        Camera names.
+
+    Attributes
+    ----------
+    cameras : list of tuple of int
+        The cameras of each unit.
+    family : list of str
+        Offset family of each unit.
+    blocks : list of ndarray of int
+        Blocks of ``M`` (instants) of each unit, after :meth:`build`.
+    clock : list of ClockData
+        Per unit, over its instants' stamps (a camera's own ClockData when not shared).
+    trajectories : list of LocalTrajectory
+    """
+
+    def __init__(self, clocks, names):
+        units: dict = {}
+        for j, c in enumerate(clocks):
+            if c is not None:
+                units.setdefault(j if c.shared is None else ("shared", c.shared), []).append(j)
+        self.cameras = [tuple(v) for v in units.values()]
+        self.family = [offset_family(names[js[0]]) for js in self.cameras]
+        for js in self.cameras:
+            c0 = clocks[js[0]]
+            for j in js[1:]:
+                c = clocks[j]
+                if not (c.half_window_s == c0.half_window_s
+                        and np.array_equal(c.mocap_stamps, c0.mocap_stamps)
+                        and np.array_equal(c.mocap_T, c0.mocap_T)):
+                    raise InputError(f"cameras {names[js[0]]} and {names[j]} share the clock "
+                                     f"{c0.shared!r} but not its motion capture or half window")
+        self.clocks = tuple(clocks)
+        self.unit_of_camera = {j: u for u, js in enumerate(self.cameras) for j in js}
+
+    def key(self, camera: int, i: int):
+        """Instant key of image ``i`` of ``camera`` (a camera with a clock): None (an instant
+        of its own) unless the clock is shared, then the unit and the stamp's bits."""
+        c = self.clocks[camera]
+        if c.shared is None:
+            return None
+        return ("clock", self.unit_of_camera[camera], c.image_stamps[i].tobytes())
+
+    def build(self, instant, instant_image, cam_of_image, image_in_camera) -> None:
+        """Each unit's blocks of ``M``, its ClockData over them and its trajectory."""
+        self.blocks, self.clock, self.trajectories = [], [], []
+        for js in self.cameras:
+            c0 = self.clocks[js[0]]
+            blocks = np.unique(instant[np.isin(cam_of_image, js)])   # order of appearance
+            if c0.shared is not None:
+                first = instant_image[blocks]
+                stamps = np.array([self.clocks[cam_of_image[i]].image_stamps[image_in_camera[i]]
+                                   for i in first])
+                c0 = replace(c0, image_stamps=stamps,
+                             offset=float(np.mean([self.clocks[j].offset for j in js])))
+            self.blocks.append(blocks)
+            self.clock.append(c0)
+            self.trajectories.append(LocalTrajectory(c0))
+
+    def families(self) -> list[Blocks]:
+        """One offset block per unit, at its starting offset."""
+        return [Blocks(f, np.array([[c.offset]]), "euclidean")
+                for f, c in zip(self.family, self.clock)]
+
+    def priors(self, sigma_rot: float, sigma_t: float) -> list[TimedMocapPriors]:
+        """One group of timed priors per unit."""
+        return [TimedMocapPriors(self.family[u][3:], self.blocks[u], self.trajectories[u],
+                                 sigma_rot, sigma_t) for u in range(len(self.cameras))]
+
+    def recentre(self, unit: int, offset: float) -> None:
+        """Centre unit ``unit``'s windows at ``offset`` (seconds)."""
+        self.trajectories[unit] = LocalTrajectory(self.clock[unit], float(offset))

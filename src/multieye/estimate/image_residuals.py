@@ -15,8 +15,9 @@ share one block ``M_k`` of one *instant* k and its one prior, so that the measur
 information is counted once, not once per camera (counted m times, the covariance of X and
 Y came out too small: benchmarks/bench_shared_instants.py, docs/results/shared_instants.md).
 Images of a camera whose clock offset is estimated keep a block each (their poses come from
-the smoothed trajectory at the camera's own times).  So N images map to K <= N instants
-(:attr:`ImageData.instant`).
+the smoothed trajectory at the camera's own times), except on a clock shared by several
+cameras (:attr:`ClockData.shared`): its images with bitwise equal stamps share one.  So N
+images map to K <= N instants (:attr:`ImageData.instant`).
 
 Residual groups (:class:`multieye.optimize.blocks.ResidualGroup`):
 
@@ -56,8 +57,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
 from multieye.core.lie import left_jacobian_inv, log_so3
 from multieye.core.problem import SETUPS
-from multieye.estimate.clock_residuals import (ClockData, LocalTrajectory, TimedMocapPriors,
-                                               offset_family)
+from multieye.estimate.clock_residuals import ClockData, ClockUnits
 from multieye.optimize.blocks import Blocks, ResidualGroup
 
 __all__ = ["ImageData", "PixelResiduals", "MocapPriors"]
@@ -128,7 +128,8 @@ class ImageData:
         intrinsics are estimated): the target points, their pixels and a starting
         ``T_cam_target`` (PnP).  An empty list for a camera without such images.
     clocks : sequence of (ClockData or None), optional
-        Per camera: its clock offset is an unknown (family ``dt:<camera>``) and its images'
+        Per camera: its clock offset is an unknown (family ``dt:<camera>``, or
+        ``dt:<first camera>`` of a shared clock: :class:`ClockUnits`) and its images'
         motion-capture priors compare ``M_i`` with the smoothed trajectory at
         ``t_i + delta`` (:mod:`multieye.estimate.clock_residuals`); the image stamps are the
         camera's images in the order of ``observations[j]``.  None: the given poses are the
@@ -210,10 +211,9 @@ class ImageData:
             if c is not None and len(c.image_stamps) != counts[j]:
                 raise InputError(f"camera {self.names[j]}: {len(c.image_stamps)} image stamps "
                                  f"for {counts[j]} images")
+        #: The cameras' clocks: one offset and one trajectory per camera or shared clock.
+        self.units = ClockUnits(self.clocks, self.names)
         self._instants()
-        #: Per camera with a clock: its smoothed trajectory (windows centred at its offset).
-        self.trajectories: list = [None if c is None else LocalTrajectory(c)
-                                   for c in self.clocks]
         self.extra = (None if intrinsics_observations is None else
                       IntrinsicsImages(intrinsics_observations, self.names, self.free))
         if self.extra is not None and self.extra.n_images == 0:
@@ -221,12 +221,16 @@ class ImageData:
 
     def _instants(self) -> None:
         """Number the instants: one per distinct given pose of the cameras without a clock
-        (bitwise equal 4x4), one per image of a camera with a clock."""
-        seen: dict[bytes, int] = {}
+        (bitwise equal 4x4), one per distinct stamp of a shared clock, one per image of a
+        camera with a clock of its own."""
+        seen: dict = {}
         instant = np.empty(self.n_images, dtype=np.int64)
         first = []
+        in_camera = np.arange(self.n_images) - np.repeat(np.cumsum(self.counts) - self.counts,
+                                                         self.counts)
         for i, (M, j) in enumerate(zip(self.mocap_measured, self.cam_of_image)):
-            key = None if self.clocks[j] is not None else M.tobytes()
+            key = (M.tobytes() if self.clocks[j] is None
+                   else self.units.key(int(j), int(in_camera[i])))
             k = seen.get(key) if key is not None else None
             if k is None:
                 k = len(first)
@@ -237,6 +241,7 @@ class ImageData:
         self.instant = instant
         self.instant_image = np.asarray(first, dtype=np.int64)
         self.n_instants = len(first)
+        self.units.build(instant, self.instant_image, self.cam_of_image, in_camera)
 
     def families(self, X: F64, Y: F64, M: F64 | None = None, *,
                  intrinsics: Sequence[Intrinsics] | None = None,
@@ -251,8 +256,7 @@ class ImageData:
         fams = [Blocks("X", X, "se3-left"), Blocks("Y", np.asarray(Y)[None], "se3-left")]
         fams += [Blocks(intrinsics_family(n), intrinsics[j].params[None], "euclidean")
                  for j, n in enumerate(self.names) if self.free[j]]
-        fams += [Blocks(offset_family(n), np.array([[c.offset]]), "euclidean")
-                 for n, c in zip(self.names, self.clocks) if c is not None]
+        fams += self.units.families()
         fams.append(Blocks("M", M, "se3-right", eliminate=True))
         if self.extra is not None:
             T = self.extra.poses if free_poses is None else free_poses
@@ -269,25 +273,21 @@ class ImageData:
         if plain.size:                                  # one prior per instant, not per image
             out.append(MocapPriors(self.mocap_measured[self.instant_image], sigma_rot, sigma_t,
                                    plain))
-        out += [TimedMocapPriors(self.names[j], self.instant[self.cam_of_image == j],
-                                 self.trajectories[j], sigma_rot, sigma_t) for j in timed]
+        out += self.units.priors(sigma_rot, sigma_t)
         if self.extra is not None:
             out += self.extra.groups(self, sigma_px)
         return out
 
-    def recentre(self, camera: int, offset: float) -> None:
-        """Centre camera ``camera``'s clock windows at ``offset`` (seconds)."""
-        self.trajectories[camera] = LocalTrajectory(self.clocks[camera], float(offset))
-
     def mocap_start(self, offsets: Sequence[float | None] | None = None) -> F64:
         """The motion-capture poses the refinement starts from, one per instant (K, 4, 4):
-        the given ones, and for a camera with a clock the smoothed trajectory at
-        ``t_i + offset`` (``offsets`` per camera, default each clock's starting offset)."""
+        the given ones, and for a clock the smoothed trajectory at ``t_i + offset``
+        (``offsets`` per camera, a shared clock taking its first camera's; default each
+        clock's starting offset)."""
         out = self.mocap_measured[self.instant_image]
-        for j, traj in enumerate(self.trajectories):
-            if traj is not None:
-                d = self.clocks[j].offset if offsets is None or offsets[j] is None else offsets[j]
-                out[self.instant[self.cam_of_image == j]] = traj.at(float(d))[0]
+        for u, traj in enumerate(self.units.trajectories):
+            j = self.units.cameras[u][0]
+            d = self.units.clock[u].offset if offsets is None or offsets[j] is None else offsets[j]
+            out[self.units.blocks[u]] = traj.at(float(d))[0]
         return out
 
     def split_images(self, arr: np.ndarray) -> tuple[np.ndarray, ...]:

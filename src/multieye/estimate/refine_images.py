@@ -23,7 +23,8 @@ motion-capture poses eliminated by the Schur complement, cost linear in the poin
 With ``clocks``, a camera's clock offset is an unknown too: its images' motion-capture
 priors compare ``M_i`` with the locally smoothed motion-capture trajectory at ``t_i + delta``
 (:mod:`multieye.estimate.clock_residuals`), so the offsets' uncertainty enters the covariance
-of X and Y.
+of X and Y.  Cameras on one clock (``ClockData.shared``) share the offset and, per stamp, the
+pose and its prior.
 
 Covariance: ``kappa (J^T J)^-1`` restricted to X and Y by the Schur complement (which
 marginalises the mocap poses), with ``J`` the Jacobian of the sigma-normalised residuals at
@@ -64,7 +65,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lie import log_so3
 from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho
-from multieye.estimate.clock_residuals import ClockData, offset_family
+from multieye.estimate.clock_residuals import ClockData
 from multieye.estimate.image_residuals import ImageData, intrinsics_family
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
 
@@ -282,7 +283,7 @@ def _prior_residuals(data: ImageData, groups, ev) -> F64:
 
 def _clock_noise(data: ImageData) -> tuple[float, float]:
     """Motion-capture sample noise pooled over the clock windows' fit residuals."""
-    trajs = [t for t in data.trajectories if t is not None]
+    trajs = data.units.trajectories
     w = np.array([len(t.h) * t.dof for t in trajs], dtype=float)
     rot, tr = np.array([t.noise() for t in trajs]).T
     return (max(float(np.sqrt(w @ rot ** 2 / w.sum())), _MOCAP_SIGMA_FLOOR),
@@ -402,8 +403,12 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         at ``t_i + offset`` (:mod:`multieye.estimate.clock_residuals`; the poses given in
         ``observations[j]`` are not used), and the motion-capture noise is that of one
         sample.  Unstated motion-capture noise is then estimated from the smoothing's
-        residuals.  The offsets and their standard deviations are
-        ``RefinementResult.time_offsets`` and ``time_offset_std_s``.
+        residuals.  Cameras stamped by one clock (triggered together) pass ClockData with the
+        same ``shared`` name, each with its own image stamps: they get one offset (family
+        ``dt:<first of them>``) and their images with bitwise equal stamps one pose block
+        and one prior.  The offsets and their standard deviations are
+        ``RefinementResult.time_offsets`` and ``time_offset_std_s`` (per camera; equal on a
+        shared clock).
 
     Returns
     -------
@@ -477,15 +482,15 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         passes += 1
         iterations += res.iterations
         evaluations += res.evaluations
-        moved = [j for j in timed if abs(float(_value(fams, offset_family(data.names[j]))[0, 0])
-                                         - data.trajectories[j].centre_offset)
-                 > _RECENTRE_SHARE * data.clocks[j].half_window_s]
+        units = data.units
+        moved = [u for u, f in enumerate(units.family) if abs(float(_value(fams, f)[0, 0])
+                                                               - units.trajectories[u].centre_offset)
+                 > _RECENTRE_SHARE * units.clock[u].half_window_s]
         if moved and recentres < _MAX_RECENTRES:
             # an offset moved far from where its windows are centred: centre them there
             recentres += 1
-            for j in moved:
-                d = float(_value(fams, offset_family(data.names[j]))[0, 0])
-                data.recentre(j, d)
+            for u in moved:
+                units.recentre(u, float(_value(fams, units.family[u])[0, 0]))
             if estimate_mocap:
                 s_rot, s_t = _clock_noise(data)
             if final:
@@ -534,11 +539,11 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
             intr_out.append(data.intrinsics[j])
             intr_cov.append(None)
     offsets, offset_std = [None] * data.m, [None] * data.m
-    for j in timed:
-        fam = offset_family(data.names[j])
+    for fam, cams in zip(data.units.family, data.units.cameras):
         o = cov.layout.offset[fam]
-        offsets[j] = float(_value(fams, fam)[0, 0])
-        offset_std[j] = float(np.sqrt(kappa * cov.kept[o, o]))
+        for j in cams:                          # a shared clock: one value for its cameras
+            offsets[j] = float(_value(fams, fam)[0, 0])
+            offset_std[j] = float(np.sqrt(kappa * cov.kept[o, o]))
     return RefinementResult(
         time_offsets=tuple(offsets), time_offset_std_s=tuple(offset_std),
         X=X, Y=Y, covariance=kappa * cov.kept[:k_xy, :k_xy],
