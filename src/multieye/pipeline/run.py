@@ -488,6 +488,7 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
                                     f"({offsets[n]:+.4f} s), not refined with the rig: {exc}")
                     clock = None
                 clocks.append(clock)
+            clocks = _share_clocks(list(paired), clocks, warnings)
         res = refine_images(rig.setup, obs, intr, sol.X, sol.Y, names=list(paired),
                             free_intrinsics=free, clocks=clocks,
                             intrinsics_observations=views if any(views) else None, **given)
@@ -531,6 +532,27 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
     ref = refine_solution(sol)
     return Refinement(kind="poses", X=ref.X, Y=ref.Y, covariance=ref.covariance,
                       reprojection_rms_px={}, warnings=(), result=ref)
+
+
+def _share_clocks(names: list[str], clocks: list, warnings: list[str]) -> list:
+    """Cameras triggered together (equal stamps for at least half of each one's images,
+    :func:`multieye.estimate.clock_residuals.shared_clocks`) on one motion capture are
+    stamped by one clock: one offset for them, started at the mean of their estimates."""
+    from multieye.estimate.clock_residuals import shared_clocks
+
+    timed = [j for j, c in enumerate(clocks) if c is not None]
+    for group in shared_clocks([clocks[j].image_stamps for j in timed]):
+        js = [timed[k] for k in group]
+        c0 = clocks[js[0]]
+        if not all(np.array_equal(clocks[j].mocap_stamps, c0.mocap_stamps)
+                   and np.array_equal(clocks[j].mocap_T, c0.mocap_T) for j in js):
+            continue
+        start = float(np.mean([clocks[j].offset for j in js]))
+        for j in js:
+            clocks[j] = replace(clocks[j], offset=start, shared=names[js[0]])
+        warnings.append(f"{', '.join(names[j] for j in js)}: image stamps equal (triggered "
+                        "together), so one clock: one time offset estimated for them")
+    return clocks
 
 
 def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
