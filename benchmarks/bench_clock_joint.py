@@ -48,18 +48,15 @@ import time
 import numpy as np
 
 from multieye.core import geometry as g
-from multieye.core.lie import log_so3
 from multieye.estimate.clock_residuals import DEFAULT_HALF_WINDOW_S, ClockData, offset_family
 from multieye.estimate.refine_images import refine_images
 from multieye.sim.streams import simulate_rig_stream
+from multieye.estimate.uncertainty import pose_error
 
 N_CAMERAS = 3
 PIXEL_SIGMA = 0.5
 MOCAP = (1e-3, 0.3e-3)
 
-
-def _err(T, T_true):
-    return np.concatenate([log_so3(T[:3, :3] @ T_true[:3, :3].T), T[:3, 3] - T_true[:3, 3]])
 
 
 def trial(seed, setup: str, defaults: bool, interleaved: bool = True,
@@ -91,7 +88,7 @@ def trial(seed, setup: str, defaults: bool, interleaved: bool = True,
     start = time.perf_counter()
     res = refine_images(setup, st.observations, st.intrinsics, X0, st.Y, clocks=clocks, **kw)
     seconds = time.perf_counter() - start
-    e = np.concatenate([_err(res.X[j], st.X[j]) for j in range(n_cameras)] + [_err(res.Y, st.Y)])
+    e = np.concatenate([pose_error(res.X[j], st.X[j]) for j in range(n_cameras)] + [pose_error(res.Y, st.Y)])
     used = [0] if shared else list(range(n_cameras))     # one offset per clock
     d = (np.array(res.time_offsets) - offsets)[used]
     std = np.array(res.time_offset_std_s)[used]

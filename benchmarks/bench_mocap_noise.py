@@ -36,10 +36,10 @@ import time
 
 import numpy as np
 
-from multieye.core.lie import log_so3
 from multieye.estimate.refine_images import estimate_mocap_noise, refine_images
 from multieye.sim.images import simulate_images
 from multieye.solvers import solve
+from multieye.estimate.uncertainty import pose_error
 
 CONFIGS = (  # label, setup, cameras, images, rot noise (deg), trans noise (m)
     ("robot cell, 1 x 8, eye-on-hand", "eye-on-hand", 1, 8, 0.03, 0.2e-3),
@@ -48,13 +48,10 @@ CONFIGS = (  # label, setup, cameras, images, rot noise (deg), trans noise (m)
 )
 
 
-def _err(T, T_true):
-    return np.concatenate([log_so3(T[:3, :3] @ T_true[:3, :3].T), T[:3, 3] - T_true[:3, 3]])
-
 
 def _nees(res, sc) -> float:
-    e = np.concatenate([_err(res.X[j], sc.truth.X[j]) for j in range(sc.n_cameras)]
-                       + [_err(res.Y, sc.truth.Y)])
+    e = np.concatenate([pose_error(res.X[j], sc.truth.X[j]) for j in range(sc.n_cameras)]
+                       + [pose_error(res.Y, sc.truth.Y)])
     return float(e @ np.linalg.solve(res.covariance, e)) / e.size
 
 

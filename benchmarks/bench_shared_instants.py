@@ -46,11 +46,11 @@ import numpy as np
 
 from multieye.core import geometry as g
 from multieye.core.lens import project_points
-from multieye.core.lie import log_so3
 from multieye.estimate.refine_images import refine_images
 from multieye.sim.images import default_target_points
 from multieye.sim.rigs import GaussianNoise
 from multieye.sim.streams import simulate_rig_stream
+from multieye.estimate.uncertainty import pose_error
 
 MOCAP = (1e-3, 0.3e-3)
 RATE_HZ = 4.0
@@ -92,13 +92,10 @@ def triggered_rig(seed: int, setup: str, m: int, pixel_sigma: float, pairing: st
     return observations, st.intrinsics, st.X, st.Y
 
 
-def _err(T, T_true):
-    return np.concatenate([log_so3(T[:3, :3] @ T_true[:3, :3].T), T[:3, 3] - T_true[:3, 3]])
-
 
 def nees(res, X, Y) -> float:
     """Mean NEES per dimension of X and Y against the reported covariance."""
-    e = np.concatenate([_err(res.X[j], X[j]) for j in range(len(X))] + [_err(res.Y, Y)])
+    e = np.concatenate([pose_error(res.X[j], X[j]) for j in range(len(X))] + [pose_error(res.Y, Y)])
     return float(e @ np.linalg.solve(res.covariance, e)) / e.size
 
 
@@ -114,7 +111,7 @@ def trial(seed: int, setup: str, m: int, pixel_sigma: float, pairing: str,
     start = time.perf_counter()
     res = refine_images(setup, obs, K, X0, Y, **kw)
     seconds = time.perf_counter() - start
-    rot = np.array([_err(res.X[j], X[j])[:3] for j in range(m)])
+    rot = np.array([pose_error(res.X[j], X[j])[:3] for j in range(m)])
     std = np.sqrt(np.diag(res.covariance)).reshape(m + 1, 6)[:m, :3]
     return dict(nees=nees(res, X, Y), rot2=float(np.mean(rot ** 2)),
                 std2=float(np.mean(std ** 2)), seconds=seconds, converged=res.converged)

@@ -15,15 +15,13 @@ from multieye.estimate.image_residuals import ImageData
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.streams import simulate_rig_stream
+from multieye.estimate.uncertainty import pose_error
 
 
 def _clocks(st, start, half_window_s=0.05):
     return [ClockData(st.image_stamps[j], st.mocap_stamps, st.T_world_mocap, offset=start[j],
                       half_window_s=half_window_s) for j in range(len(st.X))]
 
-
-def _err(T, T_true):
-    return np.concatenate([log_so3(T[:3, :3] @ T_true[:3, :3].T), T[:3, 3] - T_true[:3, 3]])
 
 
 def test_local_fit_reproduces_a_cubic_and_its_velocity():
@@ -114,7 +112,7 @@ def test_offset_uncertainty_is_honest():
                             pixel_sigma=0.5, mocap_rot_sigma_rad=1e-3,
                             mocap_trans_sigma_m=3e-4, clocks=_clocks(st, offsets + 0.002))
         z += list((np.array(res.time_offsets) - offsets) / np.array(res.time_offset_std_s))
-        e = np.concatenate([_err(res.X[j], st.X[j]) for j in range(2)] + [_err(res.Y, st.Y)])
+        e = np.concatenate([pose_error(res.X[j], st.X[j]) for j in range(2)] + [pose_error(res.Y, st.Y)])
         nees.append(e @ np.linalg.solve(res.covariance, e) / e.size)
     assert 0.25 < np.mean(np.square(z)) < 3.0
     assert 0.5 < np.mean(nees) < 2.0

@@ -10,22 +10,19 @@ import pytest
 
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
-from multieye.core.lie import log_so3
 from multieye.estimate.clock_residuals import (ClockData, TimedMocapPriors, offset_family,
                                                shared_clocks)
 from multieye.estimate.image_residuals import ImageData
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.streams import simulate_rig_stream
+from multieye.estimate.uncertainty import pose_error
 
 
 def _shared(st, start, name="rig"):
     return [ClockData(st.image_stamps[j], st.mocap_stamps, st.T_world_mocap, offset=start[j],
                       shared=name) for j in range(len(st.X))]
 
-
-def _err(T, T_true):
-    return np.concatenate([log_so3(T[:3, :3] @ T_true[:3, :3].T), T[:3, 3] - T_true[:3, 3]])
 
 
 def test_cameras_on_one_clock_share_the_offset_the_instants_and_the_priors():
@@ -120,7 +117,7 @@ def test_shared_clock_nees_near_one_quick():
                             pixel_sigma=0.05, mocap_rot_sigma_rad=1e-3,
                             mocap_trans_sigma_m=3e-4, loss="linear",
                             clocks=_shared(st, [offset + 0.002] * 3))
-        e = np.concatenate([_err(res.X[j], st.X[j]) for j in range(3)] + [_err(res.Y, st.Y)])
+        e = np.concatenate([pose_error(res.X[j], st.X[j]) for j in range(3)] + [pose_error(res.Y, st.Y)])
         nees.append(e @ np.linalg.solve(res.covariance, e) / e.size)
         z.append((res.time_offsets[0] - offset) / res.time_offset_std_s[0])
     assert 0.7 < np.mean(nees) < 1.3

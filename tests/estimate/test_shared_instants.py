@@ -10,7 +10,6 @@ import pytest
 
 from multieye.core import geometry as g
 from multieye.core.lens import project_points
-from multieye.core.lie import log_so3
 from multieye.estimate.clock_residuals import ClockData, TimedMocapPriors
 from multieye.estimate.image_residuals import ImageData, MocapPriors
 from multieye.estimate.refine_images import refine_images
@@ -18,6 +17,7 @@ from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.images import default_target_points
 from multieye.sim.rigs import GaussianNoise
 from multieye.sim.streams import simulate_rig_stream
+from multieye.estimate.uncertainty import pose_error
 
 MOCAP = (1e-3, 0.3e-3)
 
@@ -46,13 +46,10 @@ def _triggered(seed, setup, m, pixel_sigma=0.5, images=40, per_image=False, moca
     return obs, st, M_true
 
 
-def _err(T, T_true):
-    return np.concatenate([log_so3(T[:3, :3] @ T_true[:3, :3].T), T[:3, 3] - T_true[:3, 3]])
-
 
 def _nees(res, st):
-    e = np.concatenate([_err(res.X[j], st.X[j]) for j in range(len(st.X))]
-                       + [_err(res.Y, st.Y)])
+    e = np.concatenate([pose_error(res.X[j], st.X[j]) for j in range(len(st.X))]
+                       + [pose_error(res.Y, st.Y)])
     return float(e @ np.linalg.solve(res.covariance, e)) / e.size
 
 

@@ -95,3 +95,15 @@ def test_relative_covariance_bad_arguments(X, C, reference, message):
     with pytest.raises(InputError) as info:
         relative_covariance(X, C, reference=reference)
     assert message in str(info.value)
+
+
+def test_pose_error_is_the_left_perturbation_of_the_covariances():
+    from multieye.core import geometry as g
+    from multieye.estimate.uncertainty import pose_error
+
+    T = g.transform_from_rotvec([0.3, -0.2, 1.1], [0.5, -1.0, 2.0])
+    phi, tau = np.array([1e-3, -2e-3, 5e-4]), np.array([1e-3, 2e-3, -3e-3])
+    T_est = T.copy()
+    T_est[:3, :3] = g.transform_from_rotvec(phi, np.zeros(3))[:3, :3] @ T[:3, :3]
+    T_est[:3, 3] += tau
+    np.testing.assert_allclose(pose_error(T_est, T), np.concatenate([phi, tau]), atol=1e-15)

@@ -37,12 +37,34 @@ from numpy.typing import ArrayLike, NDArray
 from multieye.core.arguments import real_array
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
+from multieye.core.lie import log_so3
 from multieye.solvers.refine_poses import relative_pose_covariance
 
-__all__ = ["RelativeUncertainty", "relative_covariance", "pose_std", "cramer_rao_bound",
-           "projection_std", "projection_std_at"]
+__all__ = ["RelativeUncertainty", "relative_covariance", "pose_std", "pose_error",
+           "cramer_rao_bound", "projection_std", "projection_std_at"]
 
 F64 = NDArray[np.float64]
+
+
+def pose_error(T_est: ArrayLike, T_true: ArrayLike) -> F64:
+    """The error of an estimated pose in the convention of the covariances here.
+
+    ``(phi, tau)`` with ``R_est = Exp(phi) R_true`` and ``t_est = t_true + tau`` (the
+    ``se3-left`` perturbation of :mod:`multieye.optimize.blocks`), so that ``e^T C^-1 e`` is
+    the normalised estimation error squared of a reported 6x6 covariance ``C``.
+
+    Parameters
+    ----------
+    T_est, T_true : array_like, shape (4, 4)
+
+    Returns
+    -------
+    ndarray, shape (6,)
+        Rotation vector (radians) then translation (metres).
+    """
+    T_est, T_true = np.asarray(T_est, dtype=np.float64), np.asarray(T_true, dtype=np.float64)
+    return np.concatenate([log_so3(T_est[:3, :3] @ T_true[:3, :3].T),
+                           T_est[:3, 3] - T_true[:3, 3]])
 
 
 @dataclass(frozen=True)
