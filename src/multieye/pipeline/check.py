@@ -165,7 +165,7 @@ def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> l
     few views for its model (``RECOMMENDED_VIEWS``; its ``intrinsics_images`` counted as
     listed), the image too little covered by the sampled detections (4 x 4 cells)."""
     from multieye.io import list_image_files
-    from multieye.pipeline.intrinsics import MIN_COVERAGE, RECOMMENDED_VIEWS
+    from multieye.pipeline.intrinsics import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 
     out = []
     views = int(round(n_listed * found_mask.sum() / n_sampled)) if n_sampled else 0
@@ -179,11 +179,10 @@ def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> l
     found = [r for r, ok in zip(results, found_mask) if ok and r.detection is not None
              and r.image_size is not None]
     if found:
-        w, h = found[0].image_size
-        uv = np.concatenate([r.detection.image_points for r in found])
-        cells = np.unique(np.clip((uv / [w, h] * 4).astype(int), 0, 3), axis=0)
-        if len(cells) / 16.0 < MIN_COVERAGE and not cam.intrinsics_images:
-            out.append(f"the sampled views cover only {len(cells) / 16.0:.0%} of the image "
+        coverage = image_coverage(np.concatenate([r.detection.image_points for r in found]),
+                                  found[0].image_size)
+        if coverage < MIN_COVERAGE and not cam.intrinsics_images:
+            out.append(f"the sampled views cover only {coverage:.0%} of the image "
                        "(4 x 4 cells): the lens's distortion would be extrapolated elsewhere; "
                        "add views with the board near the edges and corners")
     return out

@@ -168,6 +168,14 @@ def refit_paired(paired, intrinsics: Intrinsics):
     return replace(paired, B=B, observations=tuple(obs))
 
 
+def image_coverage(uv: np.ndarray, size: tuple[int, int]) -> float:
+    """Share of the image's 4 x 4 cells holding at least one of the points ``uv``, (n, 2)
+    pixels, in an image of ``size`` (width, height)."""
+    w, h = size
+    return len(np.unique(np.clip((np.asarray(uv) / [w, h] * 4).astype(int), 0, 3),
+                         axis=0)) / 16.0
+
+
 def weak_data_warnings(name: str, model: str, views, T_cam_target, size) -> tuple[str, ...]:
     """What the views lack for ``model``: their number, the board's tilt, the image covered.
 
@@ -193,9 +201,7 @@ def weak_data_warnings(name: str, model: str, views, T_cam_target, size) -> tupl
                    f"against the line of sight, which leaves the focal length poorly "
                    f"determined; add views with the board tilted 30-45 degrees")
     uv = np.concatenate([u for _, u in views]) if views else np.zeros((0, 2))
-    w, h = size
-    cells = np.unique(np.clip((uv / [w, h] * 4).astype(int), 0, 3), axis=0)
-    coverage = len(cells) / 16.0
+    coverage = image_coverage(uv, size)
     if coverage < MIN_COVERAGE:
         out.append(f"{name}: the target was seen in only {coverage:.0%} of the image (4 x 4 "
                    "cells); the distortion is extrapolated elsewhere; add views with the "

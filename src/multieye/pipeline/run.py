@@ -302,12 +302,7 @@ def _plausibility(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, Pa
             rms_px=np.array([o.rms_px for o in obs]) if points else None,
             mocap_stamps=d.mocap.stamps, mocap_T=d.mocap.T, time_offset=offsets[name],
             intrinsics_estimated=d.intrinsics_estimated))
-    first = next(iter(paired))
-    spec = rig.mocap_for(first) if first in rig.cameras else rig.mocap
-    rot, trans = opts.mocap_rot_sigma_rad, opts.mocap_trans_sigma_m
-    if spec is not None:
-        rot = spec.rot_sigma_rad if rot is None else rot
-        trans = spec.trans_sigma_m if trans is None else trans
+    spec, rot, trans = _mocap_noise(rig, paired, opts)
     declared = Declared(spacing_m=None if rig.target is None else rig.target.spacing,
                         mocap_unit=(spec.unit if spec is not None else None) or "m",
                         mocap_pose=None if spec is None else spec.pose,
@@ -441,17 +436,24 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
                           plausibility=plausibility)
 
 
-def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
-            sol: Solution, opts: Options, offsets: dict[str, float]) -> Refinement:
-    """Image-level refinement when every camera has target points, else pose-level; with
-    ``time_offset="auto"`` the clock offsets (starting at ``offsets``) are unknowns of the
-    image-level problem (:mod:`multieye.estimate.clock_residuals`)."""
+def _mocap_noise(rig: Rig, paired: dict[str, PairedCamera], opts: Options):
+    """The motion capture of the first paired camera and its noise per axis (radians, metres):
+    the options' where given, else rig.yaml's, else None (to be estimated)."""
     first = next(iter(paired))
     spec = rig.mocap_for(first) if first in rig.cameras else rig.mocap
     rot, trans = opts.mocap_rot_sigma_rad, opts.mocap_trans_sigma_m
     if spec is not None:
         rot = spec.rot_sigma_rad if rot is None else rot
         trans = spec.trans_sigma_m if trans is None else trans
+    return spec, rot, trans
+
+
+def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCamera],
+            sol: Solution, opts: Options, offsets: dict[str, float]) -> Refinement:
+    """Image-level refinement when every camera has target points, else pose-level; with
+    ``time_offset="auto"`` the clock offsets (starting at ``offsets``) are unknowns of the
+    image-level problem (:mod:`multieye.estimate.clock_residuals`)."""
+    _, rot, trans = _mocap_noise(rig, paired, opts)
     sigmas = {k: v for k, v in (("mocap_rot_sigma_rad", rot), ("mocap_trans_sigma_m", trans))
               if v is not None}
     have_points = all(cameras[n].intrinsics is not None and p.observations
