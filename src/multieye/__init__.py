@@ -5,8 +5,16 @@ The core is the closed-form joint solver of Wang, Jiang, Huang, Schwertfeger and
 constraint" (ICRA 2022), solving ``A_i^j X^j = Y B_i^j`` for every camera j at once.
 
 >>> import multieye
->>> sol = multieye.solve(A, B, method="joint")          # doctest: +SKIP
 >>> run = multieye.calibrate("dataset")                 # doctest: +SKIP
+>>> run.X["cam0"], run.X_std["cam0"], run.T_ref_cam["cam1"], run.warnings  # doctest: +SKIP
+>>> sol = multieye.solve(A, B, method="joint")          # doctest: +SKIP
+
+The functions are below; the classes they return or take, each with its own ``help``:
+``multieye.Options`` (how :func:`calibrate` runs), ``CalibrationRun`` (what it returns:
+``multieye.pipeline.CalibrationRun``), ``multieye.Solution`` and ``multieye.GeneralSolution``
+(what the solvers return).  Errors, all subclasses of ``multieye.CalibrationError``:
+``InputError`` (a bad argument), ``DatasetError`` (a bad file), ``TooFewMeasurementsError``,
+``DegenerateMotionError``, ``DisconnectedError``.
 
 The solvers and the pipeline are imported on first use (numpy and scipy load then), so
 that ``import multieye`` and ``multieye --help`` stay instant.
@@ -36,16 +44,9 @@ _LAZY = {
     "Options": "pipeline",
 }
 
-__all__ = [
-    "CalibrationError",
-    "DatasetError",
-    "DegenerateMotionError",
-    "DisconnectedError",
-    "InputError",
-    "TooFewMeasurementsError",
-    *_LAZY,
-    "__version__",
-]
+#: What ``help(multieye)`` documents: the functions and the method names (the classes and
+#: the errors are attributes of the package too, each with its own ``help``).
+__all__ = ["calibrate", "solve", "solve_general", "METHODS", "__version__"]
 
 
 def __getattr__(name: str):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -77,7 +78,15 @@ def _readme_python_example() -> str:
     return re.search(r"```python\n(.*?)```", section, re.S).group(1)
 
 
-def test_readme_python_example_runs_as_shown(dataset, tmp_path):
+@pytest.mark.parametrize("cameras", [2, 1])
+def test_readme_python_example_runs_as_shown(dataset, tmp_path, cameras):
+    """The README's example on the two-camera rig and on a one-camera rig (where T_ref_cam is
+    the identity, X is the answer): it prints each camera's X with its std."""
+    if cameras == 1:
+        shutil.copytree(dataset, tmp_path / "ds")
+        text = (tmp_path / "ds" / "rig.yaml").read_text()
+        (tmp_path / "ds" / "rig.yaml").write_text(text[:text.index("  cam1:")])
+        dataset = tmp_path / "ds"
     code = _readme_python_example()
     assert code.count('"DATASET"') == 1 and code.count('"OUT"') == 1
     out = tmp_path / "out"
@@ -85,6 +94,42 @@ def test_readme_python_example_runs_as_shown(dataset, tmp_path):
                       .replace('"OUT"', repr(str(out))))
     assert res.returncode == 0, res.stderr
     lines = res.stdout.splitlines()
-    assert [ln.split()[0] for ln in lines[:2]] == ["cam0", "cam1"]
-    assert lines[2].startswith("(2, 4, 4) (4, 4) [")
+    names = ["cam0", "cam1"][:cameras]
+    assert [ln.split()[0] for ln in lines[:cameras]] == names
+    truth = json.loads((dataset / "ground_truth.json").read_text())
+    data = json.loads((out / "calibration.json").read_text())
+    for line, name in zip(lines, names):
+        t = re.search(r"X: t = \[(.*?)\] m, std \((.*?)\)", line)
+        assert t, line
+        X_truth = np.array(truth["cameras"][name]["T_world_cam"])
+        assert np.linalg.norm(np.array(t.group(1).split(), float) - X_truth[:3, 3]) < 5e-3
+        std = [float(v) for v in t.group(2).split(",")]
+        x_unc = data["cameras"][name]["uncertainty"]["T_world_cam"]
+        assert std == pytest.approx([x_unc["std_rot_deg"], x_unc["std_trans_m"]], abs=1e-4)
+        assert 0 < std[0] < 1 and 0 < std[1] < 0.01
+    assert lines[cameras].startswith("Y: t = [")
+    assert [ln[len("warning: "):] for ln in lines if ln.startswith("warning: ")] == data["warnings"]
+    assert lines[-1].startswith(f"solve: ({cameras}, 4, 4) (4, 4) [")
     assert (out / "calibration.json").is_file() and (out / "details.json").is_file()
+
+
+def test_help_of_the_package_is_short_and_starts_with_the_functions():
+    """``help(multieye)``: at most 300 lines, the functions within the first 120, the classes
+    and errors named in its description (each has its own help)."""
+    res = subprocess.run([sys.executable, "-c", "import pydoc, multieye; print(pydoc.render_doc("
+                          "multieye, renderer=pydoc.plaintext))"], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.splitlines()
+    assert len(lines) <= 300
+    first = "\n".join(lines[:120])
+    for function in ("calibrate(", "solve(", "solve_general("):
+        assert f"\n    {function}" in first
+    for name in ("Options", "CalibrationRun", "Solution", "CalibrationError", "InputError",
+                 "DatasetError", "TooFewMeasurementsError", "DegenerateMotionError",
+                 "DisconnectedError"):
+        assert name in first
+    import multieye
+
+    assert issubclass(multieye.DatasetError, multieye.CalibrationError)
+    assert multieye.Options is multieye.pipeline.Options

@@ -14,6 +14,7 @@ from multieye.core import geometry
 from multieye.core.errors import DatasetError, InputError
 from multieye.io.calibration_json import (
     CalibrationRecord,
+    FORMAT_VERSION,
     CameraRecord,
     RejectedItem,
     Residuals,
@@ -45,8 +46,9 @@ def test_keys_follow_the_design(tmp_path, rng, setup, y_key, x_key):
     rec = _record(rng, setup)
     write_calibration(tmp_path / "calibration.json", rec)
     data = json.loads((tmp_path / "calibration.json").read_text())
-    assert list(data) == ["setup", "method", "reference_camera", y_key, "cameras", "residuals",
-                          "warnings", "plausibility"]
+    assert list(data) == ["format_version", "setup", "method", "reference_camera", y_key,
+                          "cameras", "residuals", "warnings", "plausibility"]
+    assert data["format_version"] == FORMAT_VERSION == 1
     assert data["plausibility"] == []
     assert data["setup"] == setup and data["reference_camera"] == "cam0"
     assert np.array_equal(np.array(data[y_key]), rec.Y)
@@ -216,3 +218,18 @@ def test_intrinsics_and_uncertainty_round_trip_exactly(tmp_path):
     with pytest.raises(DatasetError, match="uncertainty must be an object with keys among "
                                            "T_world_target"):
         read_calibration(tmp_path / "bad.json")
+
+
+def test_format_version_absent_is_read_as_the_first_and_a_newer_one_is_refused(tmp_path, rng):
+    rec = _record(rng)
+    path = tmp_path / "calibration.json"
+    write_calibration(path, rec)
+    data = json.loads(path.read_text())
+    del data["format_version"]                  # as files of earlier versions
+    path.write_text(json.dumps(data))
+    np.testing.assert_array_equal(read_calibration(path).Y, rec.Y)
+    for bad in (FORMAT_VERSION + 1, "1", 0, True):
+        path.write_text(json.dumps(data | {"format_version": bad}))
+        with pytest.raises(DatasetError, match="format_version must be an integer from 1") as e:
+            read_calibration(path)
+        assert str(path) in str(e.value) and "\n" not in str(e.value)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 
 import numpy as np
@@ -112,8 +113,10 @@ def test_run_gives_the_final_result_under_plain_names_and_the_closed_form_apart(
     rec = read_calibration(out / "calibration.json")
     assert run.refinement is not None and run.refinement.kind == "images" == rec.refinement
     # the final (refined) result is what calibration.json holds
-    np.testing.assert_allclose(run.X, np.stack([c.X for c in rec.cameras]), atol=1e-12)
-    np.testing.assert_allclose(run.X, run.refinement.X, atol=1e-12)
+    assert list(run.X) == [c.name for c in rec.cameras]
+    for j, c in enumerate(rec.cameras):
+        np.testing.assert_allclose(run.X[c.name], c.X, atol=1e-12)
+        np.testing.assert_allclose(run.X[c.name], run.refinement.X[j], atol=1e-12)
     np.testing.assert_allclose(run.Y, rec.Y, atol=1e-12)
     assert list(run.T_ref_cam) == [c.name for c in rec.cameras] == ["cam0", "cam1"]
     for c in rec.cameras:
@@ -126,13 +129,40 @@ def test_run_gives_the_final_result_under_plain_names_and_the_closed_form_apart(
     closed = solve([p.A for p in paired], [p.B for p in paired], "joint")
     np.testing.assert_allclose(run.closed_form.X, closed.X, atol=1e-9)
     np.testing.assert_allclose(run.closed_form.Y, closed.Y, atol=1e-9)
-    assert not np.allclose(run.closed_form.X, run.X, atol=1e-9)
+    assert not np.allclose(run.closed_form.X, np.stack(list(run.X.values())), atol=1e-9)
+
+
+def test_run_keys_every_per_camera_result_by_camera_name(small_run):
+    out, run = small_run
+    data = json.loads((out / "calibration.json").read_text())
+    names = list(data["cameras"])
+    assert names == ["cam0", "cam1"] and run.reference == data["reference_camera"]
+    for mapping in (run.X, run.T_ref_cam, run.X_covariance, run.X_std,
+                    run.T_ref_cam_covariance, run.T_ref_cam_std, run.intrinsics):
+        assert list(mapping) == names
+    for name, cam in data["cameras"].items():
+        x = cam["uncertainty"]["T_world_cam"]
+        np.testing.assert_allclose(run.X_covariance[name], x["covariance"], rtol=1e-12)
+        assert run.X_std[name] == pytest.approx((x["std_rot_deg"], x["std_trans_m"]), rel=1e-12)
+        np.testing.assert_allclose(run.T_ref_cam_covariance[name], cam["covariance"], rtol=1e-12)
+        assert run.T_ref_cam_std[name] == pytest.approx((cam["std_rot_deg"], cam["std_trans_m"]),
+                                                         rel=1e-12)
+        np.testing.assert_allclose(run.intrinsics[name].K, cam["intrinsics"]["K"], rtol=1e-12)
+    # the X covariance of each camera is its diagonal block of the joint covariance
+    for j, name in enumerate(names):
+        np.testing.assert_allclose(run.X_covariance[name],
+                                   run.covariance[6 * j:6 * j + 6, 6 * j:6 * j + 6], rtol=1e-9)
+    np.testing.assert_allclose(run.Y_covariance, run.covariance[-6:, -6:], rtol=1e-9)
+    y = data["uncertainty"]["T_marker_target"]
+    assert run.Y_std == pytest.approx((y["std_rot_deg"], y["std_trans_m"]), rel=1e-12)
+    assert run.warnings == tuple(data["warnings"])
 
 
 def test_run_without_refinement_is_the_closed_form(small_run):
     _, run = small_run
     plain = calibrate_rig(run.rig, run.cameras, refine=False)
     assert plain.refinement is None and plain.covariance is None
-    np.testing.assert_allclose(plain.X, plain.closed_form.X, atol=1e-12)
+    np.testing.assert_allclose(np.stack(list(plain.X.values())), plain.closed_form.X, atol=1e-12)
+    assert set(plain.X_std.values()) == {None} and plain.Y_covariance is None
     np.testing.assert_allclose(plain.Y, plain.closed_form.Y, atol=1e-12)
     np.testing.assert_allclose(plain.closed_form.X, run.closed_form.X, atol=1e-12)

@@ -40,6 +40,7 @@ from multieye.io.textfile import read_json
 from multieye.io.trajectory import RIGID_TOLERANCE
 
 __all__ = [
+    "FORMAT_VERSION",
     "SETUP_KEYS",
     "Residuals",
     "RejectedItem",
@@ -55,6 +56,10 @@ __all__ = [
     "ROLE_NAMES",
     "named_keys",
 ]
+
+#: ``format_version`` of the files this version writes: raised whenever a key changes meaning
+#: (docs/outputs.md, section 2).  Files without it are of version 1.
+FORMAT_VERSION = 1
 
 #: setup -> (key of the shared unknown Y, key of each camera's X).
 SETUP_KEYS = {
@@ -360,7 +365,8 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
         if cam.uncertainty:
             entry["uncertainty"] = _uncertainty_dict(cam.uncertainty)
         cameras[cam.name] = entry
-    out = {"setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
+    out = {"format_version": FORMAT_VERSION,
+           "setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
            y_key: _matrix(rec.Y), "cameras": cameras,
            "residuals": _residuals_dict(rec.residuals), "warnings": list(rec.warnings),
            "plausibility": [{"cause": d.cause, "message": d.message}
@@ -493,6 +499,11 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
     w = _Where(path)
     if not isinstance(data, Mapping):
         raise w.error("expected a JSON object")
+    version = data.get("format_version", 1)
+    if (isinstance(version, bool) or not isinstance(version, int)
+            or not 1 <= version <= FORMAT_VERSION):
+        raise w.error(f"format_version must be an integer from 1 to {FORMAT_VERSION} (a newer "
+                      f"multieye writes later versions), got {version!r}")
     setup = w.need(data, "setup", "the top level")
     if setup not in SETUP_KEYS:
         raise w.error(f"setup must be one of {', '.join(SETUP_KEYS)}, got {setup!r}")

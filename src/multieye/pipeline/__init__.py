@@ -4,7 +4,7 @@ Synopsis
 --------
 >>> from multieye.pipeline import calibrate
 >>> run = calibrate("dataset", method="joint")          # doctest: +SKIP
->>> run.record.cameras[0].T_ref_cam                     # doctest: +SKIP
+>>> run.T_ref_cam["cam1"]                               # doctest: +SKIP
 """
 
 from multieye.pipeline.camera_data import (
@@ -14,7 +14,9 @@ from multieye.pipeline.camera_data import (
     load_camera_data,
     pair_camera,
 )
-from multieye.pipeline.run import CalibrationRun, Options, Refinement, calibrate, calibrate_rig
+from multieye.pipeline.options import Options
+from multieye.pipeline.result import CalibrationRun, Refinement
+from multieye.pipeline.run import calibrate, calibrate_rig
 
 __all__ = ["CameraData", "Observation", "PairedCamera", "CalibrationRun", "Options",
            "Refinement", "load_camera_data", "pair_camera", "calibrate", "calibrate_rig"]

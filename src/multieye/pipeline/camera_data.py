@@ -9,16 +9,15 @@ The pipeline (:mod:`multieye.pipeline`) takes it from there.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, fields, is_dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from multieye.core import geometry as g
-from multieye.core.arguments import one_of, real_number
-from multieye.core.errors import DatasetError, InputError, TooFewMeasurementsError
-from multieye.core.limits import MAX_TIME_OFFSET_S
+from multieye.core.errors import DatasetError, TooFewMeasurementsError
 from multieye.core.intrinsics import Intrinsics
+from multieye.estimate.pairing import pair_in_time
 from multieye.io import (
     RejectedItem,
     Rig,
@@ -28,11 +27,9 @@ from multieye.io import (
     read_mocap,
     read_tum,
 )
-from multieye.estimate.pairing import pair_in_time
 from multieye.solvers.checks import MIN_MEASUREMENTS
 
-__all__ = ["Observation", "CameraData", "PairedCamera", "load_camera_data", "pair_camera",
-           "check_options", "updated_options"]
+__all__ = ["Observation", "CameraData", "PairedCamera", "load_camera_data", "pair_camera"]
 
 @dataclass(frozen=True)
 class Observation:
@@ -441,39 +438,3 @@ def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = Non
     A = g.inv(p.T) if setup == "eye-to-base" else p.T  # T_marker_world or T_world_body
     return PairedCamera(name=data.name, A=A, B=B, T_world_mocap=p.T, observations=used,
                         rejected=tuple(rejected))
-
-
-def check_options(opts) -> None:
-    """InputError for a field of :class:`multieye.pipeline.Options` that cannot be right
-    (run by ``Options`` itself, so ``calibrate(..., max_time_offset=None)`` fails at once with
-    what was expected instead of deep in the pipeline)."""
-    from multieye.solvers import METHODS
-
-    one_of(opts.method, "method", METHODS)
-    if opts.reference is not None and not isinstance(opts.reference, str):
-        raise InputError(f"reference must be a camera name, got {opts.reference!r}")
-    for name in ("refine", "robust"):
-        if not isinstance(getattr(opts, name), (bool, np.bool_)):
-            raise InputError(f"{name} must be True or False, got {getattr(opts, name)!r}")
-    if not (isinstance(opts.time_offset, str) and opts.time_offset in ("rig", "auto")):
-        if isinstance(opts.time_offset, str):
-            raise InputError(f"time_offset must be 'rig', 'auto' or a number of seconds, got "
-                             f"{opts.time_offset!r}")
-        offset = real_number(opts.time_offset, "time_offset")
-        if abs(offset) > MAX_TIME_OFFSET_S:
-            raise InputError(f"time_offset must be within {MAX_TIME_OFFSET_S:g} s, got {offset:g}")
-    real_number(opts.max_time_offset, "max_time_offset", positive=True)
-    real_number(opts.mocap_rot_sigma_rad, "mocap_rot_sigma_rad", positive=True, allow_none=True)
-    real_number(opts.mocap_trans_sigma_m, "mocap_trans_sigma_m", positive=True, allow_none=True)
-
-
-def updated_options(options, kw: dict):
-    """``options`` with the fields in ``kw`` replaced; InputError for anything else than
-    Options or for an unknown field (instead of dataclasses' TypeError)."""
-    if not is_dataclass(options) or isinstance(options, type):
-        raise InputError(f"options must be a multieye Options, got {type(options).__name__}")
-    unknown = sorted(set(kw) - {f.name for f in fields(options)})
-    if unknown:
-        raise InputError(f"unknown option {', '.join(unknown)}; the options are "
-                         f"{', '.join(f.name for f in fields(options))}")
-    return replace(options, **kw) if kw else options

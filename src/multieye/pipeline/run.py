@@ -17,28 +17,38 @@ Synopsis
 
 from __future__ import annotations
 
-import math
 import os
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
-from multieye.pipeline.camera_data import CameraData, Observation, PairedCamera, load_camera_data, pair_camera
-from multieye.pipeline.camera_data import check_options, updated_options
 from multieye.core.arguments import as_path
-from multieye.core.errors import CalibrationError, DatasetError, InputError, TooFewMeasurementsError
+from multieye.core.errors import (
+    CalibrationError,
+    DatasetError,
+    InputError,
+    TooFewMeasurementsError,
+)
 from multieye.io import (
-    CalibrationRecord,
     PlausibilityItem,
     RejectedItem,
     Rig,
     load_rig,
 )
 from multieye.io.run_details import StageTimings
+from multieye.pipeline.camera_data import (
+    CameraData,
+    Observation,
+    PairedCamera,
+    load_camera_data,
+    pair_camera,
+)
+from multieye.pipeline.options import Options, updated_options
+from multieye.pipeline.record import build_record
+from multieye.pipeline.result import CalibrationRun, Refinement
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import Measurements, check_measurements
-from multieye.pipeline.record import build_record
 
 __all__ = [
     "Observation",
@@ -53,160 +63,6 @@ __all__ = [
     "calibrate",
     "calibrate_rig",
 ]
-
-
-@dataclass(frozen=True)
-class Refinement:
-    """What the maximum-likelihood refinement after the closed form gave.
-
-    Attributes
-    ----------
-    kind : {"images", "poses"}
-        On the target points and motion-capture poses, or on the pose residuals.
-    X : ndarray, shape (m, 4, 4)
-    Y : ndarray, shape (4, 4)
-    covariance : ndarray, shape (6(m+1), 6(m+1)), or None
-        Of the perturbations of X^1..X^m then Y (rotation vector, translation; radians,
-        metres).
-    reprojection_rms_px : dict of str to float
-        Per camera, from the refined rig (image refinement only).
-    warnings : tuple of str
-    result : RefinementResult or Solution
-        The refinement's own result: :class:`multieye.estimate.refine_images.RefinementResult`
-        on images, a refined :class:`~multieye.solvers.Solution` on poses.
-    intrinsics : dict of str to Intrinsics
-        Per camera whose intrinsics were estimated: the refined lens (image refinement only).
-    intrinsics_covariance : dict of str to ndarray
-        Their covariance over ``Intrinsics.params`` (fx fy cx cy, then the distortion).
-    """
-
-    kind: str
-    X: np.ndarray
-    Y: np.ndarray
-    covariance: np.ndarray | None
-    reprojection_rms_px: dict[str, float]
-    warnings: tuple[str, ...]
-    result: object
-    intrinsics: dict = field(default_factory=dict)
-    intrinsics_covariance: dict = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class CalibrationRun:
-    """Everything a calibration produced, for writers, reports and Python users.
-
-    The final result (refined when the refinement ran, else the closed form) is ``X``,
-    ``Y``, ``T_ref_cam`` and ``covariance``; the closed form stays on ``closed_form``.
-
-    Attributes
-    ----------
-    rig : Rig
-    record : CalibrationRecord
-        The final result as written to ``calibration.json``.
-    closed_form : Solution
-        The closed form on the measurements kept (``closed_form.X``, ``closed_form.Y``).
-    cameras : dict of str to CameraData
-    paired : dict of str to PairedCamera
-        The measurements kept, per camera.
-    refinement : Refinement or None
-        The refinement, when it ran and succeeded; its own result (a
-        :class:`multieye.estimate.refine_images.RefinementResult` on images, a refined
-        :class:`~multieye.solvers.Solution` on poses) is ``refinement.result``.
-    timings : StageTimings
-        Seconds per stage; ``reading`` and ``detection`` are 0 when the cameras were loaded
-        outside :func:`calibrate`; ``outputs`` is 0: writing the files adds it to the
-        timings written into ``details.json`` (``multieye.outputs.write.write_outputs``).
-    plausibility : Plausibility or None
-        The plausibility checks after the solve
-        (:func:`multieye.estimate.plausibility.check_plausibility`); ``doubts`` lists its
-        findings.
-    doubts : tuple of Finding
-        What the plausibility checks doubt, each with its cause and message (also in
-        ``record.warnings`` and ``record.plausibility``); empty when nothing is doubted.  The
-        command line exits with status 3 when it is not empty.
-    X : ndarray, shape (m, 4, 4)
-        Final ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand), cameras in the
-        order of ``record.cameras``.
-    Y : ndarray, shape (4, 4)
-        Final ``T_marker_target`` (eye-to-base) or ``T_world_target`` (eye-on-hand).
-    T_ref_cam : dict of str to ndarray, shape (4, 4)
-        Final extrinsics relative to the reference camera, by camera name.
-    covariance : ndarray, shape (6(m+1), 6(m+1)), or None
-        Of the final X^1..X^m then Y (:attr:`Refinement.covariance`); None without
-        refinement.  Per camera, the 6x6 covariance of ``T_ref_cam`` is
-        ``record.cameras[j].covariance``.
-    """
-
-    rig: Rig
-    record: CalibrationRecord
-    closed_form: Solution
-    cameras: dict[str, CameraData]
-    paired: dict[str, PairedCamera]
-    refinement: Refinement | None = None
-    timings: StageTimings = field(default_factory=StageTimings)
-    plausibility: object | None = None
-
-    @property
-    def doubts(self) -> tuple:
-        return () if self.plausibility is None else self.plausibility.findings
-
-    @property
-    def X(self) -> np.ndarray:
-        return np.stack([c.X for c in self.record.cameras])
-
-    @property
-    def Y(self) -> np.ndarray:
-        return self.record.Y
-
-    @property
-    def T_ref_cam(self) -> dict[str, np.ndarray]:
-        return {c.name: c.T_ref_cam for c in self.record.cameras}
-
-    @property
-    def covariance(self) -> np.ndarray | None:
-        return None if self.refinement is None else self.refinement.covariance
-
-
-@dataclass(frozen=True)
-class Options:
-    """How :func:`calibrate_rig` goes from measurements to the result.
-
-    Attributes
-    ----------
-    method : str
-        Closed-form solver (:data:`multieye.METHODS`).
-    reference : str or None
-        Reference camera; default the first.
-    refine : bool
-        Follow the closed form with the maximum-likelihood refinement: on the target points
-        and motion-capture poses when every camera has images (:func:`multieye.estimate.refine_images.
-        refine_images`), else on the pose residuals (:mod:`multieye.solvers.refine_poses`).  Fills the
-        uncertainty.
-    robust : bool
-        Consensus over measurements before solving (:func:`multieye.estimate.consensus.consensus`);
-        rejected measurements are listed with the reason.
-    time_offset : "rig", "auto" or float
-        ``"rig"``: each camera's ``time_offset`` from rig.yaml; ``"auto"``: estimated per
-        camera (:func:`multieye.estimate.clock.estimate_offset`); a number: seconds for every camera.
-    max_time_offset : float
-        With ``time_offset="auto"``: offsets from ``-max_time_offset`` to ``+max_time_offset``
-        seconds are searched (an optimum at the edge of that range is refused).
-    mocap_rot_sigma_rad, mocap_trans_sigma_m : float or None
-        Motion-capture noise for the refinement; None: rig.yaml's ``rotation_noise_deg`` /
-        ``translation_noise_m``, else the defaults of :mod:`multieye.estimate.refine_images`.
-    """
-
-    method: str = "joint"
-    reference: str | None = None
-    refine: bool = True
-    robust: bool = True
-    time_offset: str | float = "rig"
-    max_time_offset: float = 0.5
-    mocap_rot_sigma_rad: float | None = None
-    mocap_trans_sigma_m: float | None = None
-
-    def __post_init__(self):
-        check_options(self)
 
 
 #: An estimated motion-capture noise below this (radians, metres) is one the recording could
@@ -231,9 +87,6 @@ def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[st
             continue
         stamps = np.array([o.stamp for o in d.observations])
         T = np.stack([o.T_cam_target for o in d.observations])
-        if not (math.isfinite(opts.max_time_offset) and opts.max_time_offset > 0):
-            raise InputError(f"max_time_offset must be a positive number of seconds, got "
-                             f"{opts.max_time_offset!r}")
         search = (-opts.max_time_offset, opts.max_time_offset)
         try:
             est = estimate_offset(stamps, T, d.mocap.stamps, d.mocap.T, setup=rig.setup,
@@ -284,7 +137,11 @@ def _plausibility(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, Pa
                   offsets: dict[str, float], opts: Options):
     """The plausibility checks on every paired measurement (the consensus outliers too: the
     checks trim their own), with the motion-capture noise rig.yaml states."""
-    from multieye.estimate.plausibility import CameraEvidence, Declared, check_plausibility
+    from multieye.estimate.plausibility import (
+        CameraEvidence,
+        Declared,
+        check_plausibility,
+    )
 
     evidence = []
     for name, p in paired.items():
