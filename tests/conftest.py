@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 # Small dense problems everywhere here: threaded BLAS only adds contention on 2 cores
 # (a 144x144 solve took 0.2 s instead of milliseconds with OpenBLAS threads on a busy machine).
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
-from pathlib import Path
 
-import numpy as np
-import pytest
+import numpy as np  # noqa: E402 (after the BLAS variables: numpy reads them on import)
+import pytest  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("MULTIEYE_SHARED_DATA", REPO.parent / "shared" / "data"))

@@ -6,7 +6,6 @@ measurements that satisfy the loop of docs/conventions.md, section 2, exactly, f
 
 from __future__ import annotations
 
-import numpy as np
 
 from multieye.core import geometry as g
 

@@ -22,15 +22,13 @@ that ``import multieye`` and ``multieye --help`` stay instant.
 
 from importlib import import_module
 
-from multieye.core.errors import (
-    CalibrationError,
-    DatasetError,
-    DegenerateMotionError,
-    DisconnectedError,
-    InputError,
-    TooFewMeasurementsError,
-)
-
+# the errors: attributes of the package (``multieye.CalibrationError``), named in the docstring
+from multieye.core.errors import CalibrationError as CalibrationError
+from multieye.core.errors import DatasetError as DatasetError
+from multieye.core.errors import DegenerateMotionError as DegenerateMotionError
+from multieye.core.errors import DisconnectedError as DisconnectedError
+from multieye.core.errors import InputError as InputError
+from multieye.core.errors import TooFewMeasurementsError as TooFewMeasurementsError
 from multieye.core.version import __version__
 
 #: Public names defined in submodules, imported when first used.

@@ -15,7 +15,6 @@ from multieye.estimate.image_residuals import ImageData, MocapPriors
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.images import default_target_points
-from multieye.sim.rigs import GaussianNoise
 from multieye.sim.streams import simulate_rig_stream
 from multieye.estimate.uncertainty import pose_error
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import ast
 import subprocess
 import sys
-import textwrap
 
 import cv2
 import numpy as np

@@ -66,7 +66,7 @@ def make_run(tmp: Path, setup: str, *, names=NAMES, counts=(6, 7, 5), seed: int 
         T_world_mocap = g.inv(A[j]) if setup == "eye-to-base" else A[j]
         t = start + 0.5 * np.arange(len(A[j]))
         start = t[-1] + 5.0   # the next camera's segment, well after this one's lonely image
-        for i, (ti, Ti) in enumerate(zip(t, T_world_mocap)):
+        for _i, (ti, Ti) in enumerate(zip(t, T_world_mocap)):
             stamps.append(ti)
             poses.append(Ti)
             for k in range(1, mocap_per_image):  # filler samples between images

@@ -55,7 +55,7 @@ def test_truncated_motion_capture_names_the_images_without_pose(small, tmp_path)
     assert not result.ok
     for c in result.cameras:
         assert c.with_mocap < 3 and c.found == 8
-        assert any(f"of 8 images have no motion capture within 0.0167 s (nearest" in p
+        assert any("of 8 images have no motion capture within 0.0167 s (nearest" in p
                    for p in c.problems)
     assert any("fewer than 3 usable images would remain" in r for r in result.reasons)
 

@@ -71,7 +71,7 @@ def test_loop_residuals_and_image_rms_are_those_of_the_final_lens(rendered):
 
     folder, _ = rendered
     run = calibrate(_with_model(folder, "rig_model.yaml"), processes=2)
-    for j, cam in enumerate(run.record.cameras):
+    for _j, cam in enumerate(run.record.cameras):
         p, lens = run.paired[cam.name], run.refinement.intrinsics[cam.name]
         assert lens is run.cameras[cam.name].intrinsics
         for o in p.observations:

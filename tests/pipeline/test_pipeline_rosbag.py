@@ -26,7 +26,7 @@ def test_bag_images_and_bag_mocap_give_the_folder_result(tmp_path):
             msg = bag.t("geometry_msgs/msg/PoseStamped")(header=bag.header(ns, "world"),
                                                         pose=bag.pose(T))
             bag.write("/mocap/marker", msg, ns)
-        for stamp, ns, path in list_images(tmp_path / "ds" / "cam1"):
+        for _stamp, ns, path in list_images(tmp_path / "ds" / "cam1"):
             img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
             bag.write("/cam1/image_raw", image_msg(bag, ns, img, "mono8"), ns)
     rig = (tmp_path / "ds" / "rig.yaml").read_text()

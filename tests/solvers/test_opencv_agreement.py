@@ -37,7 +37,7 @@ def _opencv(A, B, flag):
 def test_agreement_with_opencv_on_noisy_data(method, setup):
     rng = np.random.default_rng(2024)
     worst = 0.0
-    for trial in range(25):
+    for _trial in range(25):
         n = int(rng.integers(3, 80))
         A, B, _, _ = setup(rng, [n], rot_noise=float(rng.uniform(0, 0.1)),
                            trans_noise=float(rng.uniform(0, 0.05)))

@@ -104,7 +104,7 @@ def test_li_translation_is_not_target_frame_equivariant():
 
 def test_joint_with_one_camera_equals_shah_on_noisy_data():
     rng = np.random.default_rng(3)
-    for trial in range(20):
+    for _trial in range(20):
         A, B, _, _ = eye_on_hand(rng, [int(rng.integers(3, 60))], rot_noise=0.05, trans_noise=0.02)
         sj = solve(A, B, "joint")
         ss = solve(A, B, "shah")

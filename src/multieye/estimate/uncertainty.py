@@ -37,7 +37,10 @@ from numpy.typing import ArrayLike, NDArray
 from multieye.core.arguments import real_array
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
+from multieye.core.lens import project_with_jacobian
 from multieye.core.lie import log_so3
+from multieye.estimate.image_residuals import ImageData
+from multieye.optimize.levenberg_marquardt import covariance
 from multieye.solvers.refine_poses import relative_pose_covariance
 
 __all__ = ["RelativeUncertainty", "relative_covariance", "pose_std", "pose_error",
@@ -200,8 +203,6 @@ def cramer_rao_bound(setup: str, observations: Sequence, intrinsics: Sequence[In
         :class:`multieye.estimate.refine_images.RefinementResult`; pass it to :func:`relative_covariance` for
         the bound of every ``T_ref_cam``.
     """
-    from multieye.estimate.image_residuals import ImageData
-    from multieye.optimize.levenberg_marquardt import covariance
 
     data = ImageData(setup, observations, intrinsics)
     sigmas = np.array([pixel_sigma, mocap_rot_sigma_rad, mocap_trans_sigma_m], dtype=np.float64)
@@ -238,7 +239,6 @@ def projection_std_at(intrinsics: Intrinsics, covariance: ArrayLike, points_cam:
     InputError
         A covariance of the wrong size or not finite.
     """
-    from multieye.core.lens import project_with_jacobian
 
     C = np.asarray(covariance, dtype=np.float64)
     n = intrinsics.params.size

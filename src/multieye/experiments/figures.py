@@ -13,6 +13,7 @@ True
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from io import BytesIO
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -52,11 +53,10 @@ def sweep_png(x_label: str, panels: Sequence[tuple[str, Curves]], *, title: str 
     bytes
         The PNG file's content (the caller writes it, atomically).
     """
-    from io import BytesIO
-
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import NullLocator
+    # matplotlib loads in about a second: only when a figure is drawn
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy, see above)
+    from matplotlib.figure import Figure  # noqa: PLC0415 (heavy, see above)
+    from matplotlib.ticker import NullLocator  # noqa: PLC0415 (heavy, see above)
 
     n = len(panels)
     cols = 1 if n == 1 else 2

@@ -34,12 +34,14 @@ import numpy as np
 
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
-from multieye.sim.images import simulate_images
-from multieye.io.atomic import write_bytes_atomic, write_text_atomic
 from multieye.core.metrics import relative_extrinsics
 from multieye.estimate.refine_images import refine_images
-from multieye.solvers import solve
 from multieye.estimate.uncertainty import cramer_rao_bound, relative_covariance
+from multieye.experiments.figures import sweep_png
+from multieye.experiments.sweeps import progress_bar
+from multieye.io.atomic import write_bytes_atomic, write_text_atomic
+from multieye.sim.images import simulate_images
+from multieye.solvers import solve
 
 __all__ = ["PIXEL_NOISE_LEVELS", "METHODS", "RefineRow", "refine_trial", "refine_sweep",
            "summarize_refine", "refine_rows_to_csv", "run_refine_experiment",
@@ -182,7 +184,6 @@ def refine_sweep(trials: int = 100, seed: int = 0, *,
     tuple of RefineRow
         Ordered by trial, level, method.
     """
-    from multieye.experiments.sweeps import progress_bar
 
     if trials < 1:
         raise InputError(f"trials must be at least 1, got {trials}")
@@ -242,8 +243,6 @@ def refine_rows_to_csv(rows: Iterable[RefineRow]) -> str:
 
 
 def _figure(rows: Sequence[RefineRow]) -> bytes:
-    from multieye.experiments.figures import sweep_png
-
     summary = summarize_refine(rows)
     curves = {"rot": {}, "trans": {}}
     labels = {"joint": "joint (closed form)", "refined": "refined",

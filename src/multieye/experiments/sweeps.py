@@ -39,11 +39,13 @@ from dataclasses import astuple, dataclass, fields
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
-from multieye.sim import rigs as sim
 from multieye.core.errors import CalibrationError, InputError
-from multieye.io.atomic import write_bytes_atomic, write_text_atomic
 from multieye.core.metrics import extrinsic_errors, relative_extrinsics
+from multieye.experiments.figures import sweep_png
+from multieye.io.atomic import write_bytes_atomic, write_text_atomic
+from multieye.sim import rigs as sim
 from multieye.solvers import METHODS, solve
 
 __all__ = [
@@ -139,7 +141,7 @@ class SweepResult:
 
     @property
     def params(self) -> tuple[float, ...]:
-        return tuple(sorted(set(r.param for r in self.rows)))
+        return tuple(sorted({r.param for r in self.rows}))
 
     @property
     def failures(self) -> int:
@@ -178,7 +180,6 @@ def progress_bar(total: int, desc: str, progress: bool):
     """A tqdm bar on stderr when ``progress`` is set and stderr is a terminal, else None."""
     if not (progress and sys.stderr.isatty()):
         return None
-    from tqdm import tqdm
     return tqdm(total=total, desc=desc, unit="problem", leave=False, file=sys.stderr)
 
 
@@ -371,8 +372,6 @@ _PANELS: dict[str, tuple[tuple[str, str, float], ...]] = {
 
 
 def _figure(result: SweepResult, statistic: str) -> bytes:
-    from multieye.experiments.figures import sweep_png
-
     timing = result.name == "timing"
     x_scale, x_label = ((100.0, "noise level f (%)") if result.name == "noise"
                         else (1.0, result.param_label))

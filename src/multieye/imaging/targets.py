@@ -42,10 +42,12 @@ Synopsis
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -279,7 +281,6 @@ class Charuco(Target):
     def opencv_board(self):
         """The ``cv2.aruco.CharucoBoard`` of this target. OpenCV's board frame has its origin
         at the outer corner of the top-left square, one square from the canonical origin."""
-        import cv2
 
         dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
         board = cv2.aruco.CharucoBoard((self.cols, self.rows), self.spacing, self.marker_size, dictionary)
@@ -295,7 +296,6 @@ def aruco_dictionary_size(name: str) -> int:
     InputError
         When OpenCV has no dictionary of that name.
     """
-    import cv2
 
     code = getattr(cv2.aruco, name, None) if isinstance(name, str) and name.startswith("DICT_") else None
     if not isinstance(code, int):
@@ -456,7 +456,6 @@ class ArucoGrid(Target):
 
     def opencv_board(self):
         """The ``cv2.aruco.GridBoard`` of this target (same frame and corners)."""
-        import cv2
 
         dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
         ids = np.arange(self.first_id, self.first_id + self.rows * self.cols, dtype=np.int32)
@@ -478,8 +477,6 @@ def _marker_ids(dictionary: Any, first: Any, count: int, name: str) -> None:
 
 @lru_cache(maxsize=4)
 def _kalibr_tag_images(n: int) -> NDArray[np.float32]:
-    import cv2
-
     dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
     out = np.zeros((n, 10, 10), dtype=np.float32)
     for t in range(n):

@@ -38,7 +38,7 @@ def numerical_jacobians(families: Sequence[Blocks], group: ResidualGroup, *,
     fams = {f.name: f for f in families}
     values = {n: f.value for n, f in fams.items()}
     out = []
-    for s, name in enumerate(group.slots):
+    for name in group.slots:
         f = fams[name]
         J = np.zeros((group.n_rows, group.dim, f.size))
         for a in range(f.size):

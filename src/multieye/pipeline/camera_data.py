@@ -18,15 +18,22 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, TooFewMeasurementsError
 from multieye.core.intrinsics import Intrinsics
 from multieye.estimate.pairing import pair_in_time
+from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
+from multieye.imaging.targets import target_from_spec
 from multieye.io import (
     RejectedItem,
     Rig,
     Trajectory,
+    iter_bag_images,
+    list_image_files,
     list_images,
     read_camera_intrinsics,
     read_mocap,
     read_tum,
 )
+from multieye.io.mocap import pose_frames
+from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
+from multieye.pipeline.intrinsics import check_model, start_lens, with_poses
 from multieye.solvers.checks import MIN_MEASUREMENTS
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "load_camera_data", "pair_camera"]
@@ -195,12 +202,9 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
     ``extra_views``: detection-only results of the camera's ``intrinsics_images``, which
     inform the starting lens too.
     """
-    from multieye.imaging.targets import target_from_spec
 
     target = target_from_spec(rig.target.as_dict(), path=rig.path)
     if topic is None:
-        from multieye.imaging.batch import detect_and_estimate
-
         images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
         results = detect_and_estimate([p for _, _, p in images], target, intr,
@@ -208,9 +212,6 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
         seconds = time.perf_counter() - t0
         stamped = [(stamp, path.name) for stamp, _, path in images]
     else:
-        from multieye.imaging.batch import detect_and_estimate_arrays
-        from multieye.io import iter_bag_images
-
         stamped = []
 
         def frames():
@@ -227,8 +228,6 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
             raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
     lens = None
     if intr is None:
-        from multieye.pipeline.intrinsics import start_lens, with_poses
-
         detected = [r for r in results if r.reason is None]
         if not detected:
             raise DatasetError(_no_usable_image(rig, [RejectedItem(lb, r.reason) for (_, lb), r
@@ -258,9 +257,6 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, *, process
                               progress) -> tuple[list[Path], list, float]:
     """Detection (and PnP with ``intr`` unless None) over a camera's ``intrinsics_images``
     (their own board if given): the paths, the results and the seconds it took."""
-    from multieye.imaging.batch import detect_and_estimate
-    from multieye.imaging.targets import target_from_spec
-    from multieye.io import list_image_files
 
     spec = cam.intrinsics_target or rig.target
     target = target_from_spec(spec.as_dict(), path=rig.path)
@@ -279,8 +275,6 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, *, processes, 
         paths, results, seconds = _detect_intrinsics_images(cam, rig, intr, processes=processes,
                                                             progress=progress)
     else:
-        from multieye.pipeline.intrinsics import with_poses
-
         paths, results, seconds = detected
         results = with_poses(results, intr)
     obs, rejected = [], []
@@ -334,8 +328,6 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
         else:
             intr = None
             if cam.intrinsics is not None:
-                from multieye.pipeline.intrinsics import check_model
-
                 intr = check_model(name, read_camera_intrinsics(cam), cam.model,
                                    cam.intrinsics)
             # a lens to estimate: the intrinsics_images inform its start too
@@ -373,9 +365,6 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
 def _poses_by_name(name: str, folder: Path, spec) -> tuple[Trajectory, list, list]:
     """A by-name camera's poses (stamps 0, 1, 2, ... in name order), its images with a pose
     file as ``(stamp, ns, path)``, and what has no partner, with the reason."""
-    from multieye.io import list_image_files
-    from multieye.io.mocap import pose_frames
-    from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
 
     fmt = PoseFormat(rotation=spec.rotation, values=spec.values, key=spec.key,
                      unit=spec.unit or "m")

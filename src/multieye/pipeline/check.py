@@ -16,10 +16,23 @@ import numpy as np
 
 from multieye.core.arguments import real_number
 from multieye.core.errors import InputError
-from multieye.estimate.diagnostics import (
-    MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG, MIN_SECOND_AXIS_DEG)
+from multieye.estimate.diagnostics import MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG, MIN_SECOND_AXIS_DEG
 from multieye.estimate.pairing import pair_in_time
-from multieye.io import Trajectory, list_images, load_rig, read_mocap, read_tum
+from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
+from multieye.imaging.targets import target_from_spec
+from multieye.io import (
+    Trajectory,
+    bag_image_count,
+    list_image_files,
+    list_images,
+    load_rig,
+    read_camera_intrinsics,
+    read_mocap,
+    read_tum,
+    sample_bag_images,
+)
+from multieye.pipeline.camera_data import _poses_by_name
+from multieye.pipeline.intrinsics import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 from multieye.solvers.checks import MIN_MEASUREMENTS, rotation_spread
 
 __all__ = ["CameraCheck", "DatasetCheck", "check_dataset"]
@@ -141,8 +154,6 @@ def _sample_bag(cam, target, intr, *, sample, processes):
     sampled images in memory). Returns the stamps of all messages (seconds, bag order), the
     indices of the sampled messages and their detection results.
     """
-    from multieye.imaging.batch import detect_and_estimate_arrays
-    from multieye.io import bag_image_count, sample_bag_images
 
     wanted = _sample(bag_image_count(cam.rosbag, cam.topic), sample)
     stamps_ns: list[int] = []
@@ -164,8 +175,6 @@ def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> l
     """What the views of a camera whose lens is estimated lack, as calibrate will warn: too
     few views for its model (``RECOMMENDED_VIEWS``; its ``intrinsics_images`` counted as
     listed), the image too little covered by the sampled detections (4 x 4 cells)."""
-    from multieye.io import list_image_files
-    from multieye.pipeline.intrinsics import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 
     out = []
     views = int(round(n_listed * found_mask.sum() / n_sampled)) if n_sampled else 0
@@ -189,8 +198,6 @@ def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> l
 
 
 def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
-    from multieye.pipeline.camera_data import _poses_by_name
-
     spec = rig.mocap_for(name)
     key = (str(spec.file), spec.pose, spec.format, spec.topic, spec.rigid_body)
     problems: list[str] = []
@@ -216,14 +223,9 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
             failures["pose row left out"] = len(poses.skipped)
         n_sampled = n_listed
     else:
-        from multieye.imaging.targets import target_from_spec
-        from multieye.io import read_camera_intrinsics
-
         target = target_from_spec(rig.target.as_dict(), path=rig.path)
         intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
         if cam.source == "images":
-            from multieye.imaging.batch import detect_and_estimate
-
             images = list_images(cam.images) if listed is None else listed
             stamps = np.array([s for s, _, _ in images], dtype=np.float64)
             n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)

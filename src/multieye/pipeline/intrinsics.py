@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
@@ -155,7 +156,6 @@ def refit_paired(paired, intrinsics: Intrinsics):
     intrinsics : Intrinsics
         The refined lens.
     """
-    from multieye.core import geometry as g
 
     obs = []
     for o in paired.observations:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from multieye.core.metrics import camera_residual, relative_extrinsics
+from multieye.estimate.uncertainty import pose_std, projection_std
 from multieye.io import (
     CalibrationRecord,
     CameraRecord,
@@ -80,8 +81,6 @@ def build_record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
 
 
 def _pose_uncertainty(cov: np.ndarray) -> PoseUncertainty:
-    from multieye.estimate.uncertainty import pose_std
-
     rot, trans = pose_std(cov)
     return PoseUncertainty(float(rot), float(trans), cov)
 
@@ -97,8 +96,6 @@ def _intrinsics_record(name: str, paired: PairedCamera, cameras, refinement
     cov = None if refinement is None else refinement.intrinsics_covariance.get(name)
     proj = None
     if cov is not None:
-        from multieye.estimate.uncertainty import projection_std
-
         pts = [o.object_points @ o.T_cam_target[:3, :3].T + o.T_cam_target[:3, 3]
                for o in paired.observations if o.object_points is not None]
         if pts:

@@ -30,6 +30,13 @@ from multieye.core.errors import (
     InputError,
     TooFewMeasurementsError,
 )
+from multieye.estimate.clock import estimate_offset
+from multieye.estimate.clock_residuals import ClockData, LocalTrajectory, shared_clocks
+from multieye.estimate.consensus import consensus
+from multieye.estimate.diagnostics import motion_diagnostics
+from multieye.estimate.plausibility import CameraEvidence, Declared, check_plausibility
+from multieye.estimate.refine_images import refine_images
+from multieye.estimate.uncertainty import relative_covariance
 from multieye.io import (
     PlausibilityItem,
     RejectedItem,
@@ -44,11 +51,13 @@ from multieye.pipeline.camera_data import (
     load_camera_data,
     pair_camera,
 )
+from multieye.pipeline.intrinsics import refit_paired
 from multieye.pipeline.options import Options, updated_options
 from multieye.pipeline.record import build_record
 from multieye.pipeline.result import CalibrationRun, Refinement
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import Measurements, check_measurements
+from multieye.solvers.refine_poses import refine_solution
 
 __all__ = [
     "Observation",
@@ -78,7 +87,6 @@ def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[st
         return {n: 0.0 if d.by_name else d.time_offset for n, d in cameras.items()}
     if opts.time_offset != "auto":
         return {n: 0.0 if d.by_name else float(opts.time_offset) for n, d in cameras.items()}
-    from multieye.estimate.clock import estimate_offset
 
     out = {}
     for name, d in cameras.items():
@@ -119,7 +127,6 @@ CONSENSUS_THRESHOLDS = ((5.0, 0.05), (15.0, 0.15))
 def _consensus(meas: Measurements, warnings: list[str], labels=None):
     """RANSAC over measurements with fixed thresholds (never thresholds taken from a fit
     that the outliers themselves pulled); wider ones once if the data are noisier."""
-    from multieye.estimate.consensus import consensus
 
     for k, (rot, trans) in enumerate(CONSENSUS_THRESHOLDS):
         try:
@@ -137,11 +144,6 @@ def _plausibility(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, Pa
                   offsets: dict[str, float], opts: Options):
     """The plausibility checks on every paired measurement (the consensus outliers too: the
     checks trim their own), with the motion-capture noise rig.yaml states."""
-    from multieye.estimate.plausibility import (
-        CameraEvidence,
-        Declared,
-        check_plausibility,
-    )
 
     evidence = []
     for name, p in paired.items():
@@ -198,7 +200,6 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     options : Options
         Or its fields as keyword arguments (``method="shah", refine=False``).
     """
-    from multieye.estimate.diagnostics import motion_diagnostics
 
     start = time.perf_counter()
     opts = updated_options(options, kw)
@@ -250,8 +251,6 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         else:
             warnings.extend(refinement.warnings)
             if refinement.covariance is not None:
-                from multieye.estimate.uncertainty import relative_covariance
-
                 uncertainty = relative_covariance(refinement.X, refinement.covariance,
                                                   reference=names.index(reference))
     refined_at = time.perf_counter()
@@ -269,7 +268,6 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
                         "(it needs refinement and target points in every camera)")
     if refinement is not None and refinement.intrinsics:
         # estimated lenses: the target poses of the final result are those of the final lens
-        from multieye.pipeline.intrinsics import refit_paired
 
         paired = {n: refit_paired(p, refinement.intrinsics[n])
                   if cameras[n].intrinsics_estimated and n in refinement.intrinsics else p
@@ -318,8 +316,6 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
                       for n, p in paired.items())
     warnings = []
     if have_points:
-        from multieye.estimate.refine_images import refine_images
-
         obs = [[(o.object_points, o.image_points, T) for o, T in zip(p.observations, p.T_world_mocap)]
                for p in paired.values()]
         intr = [cameras[n].intrinsics for n in paired]
@@ -332,8 +328,6 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
                   for o in cameras[n].intrinsics_views] for n in paired]
         clocks = None
         if opts.time_offset == "auto":
-            from multieye.estimate.clock_residuals import ClockData, LocalTrajectory
-
             clocks = []
             for n, p in paired.items():
                 try:
@@ -386,7 +380,6 @@ def _refine(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, PairedCa
                           intrinsics={n: res.intrinsics[j] for n, j in estimated.items()},
                           intrinsics_covariance={n: res.intrinsics_covariance[j]
                                                  for n, j in estimated.items()})
-    from multieye.solvers.refine_poses import refine_solution
 
     ref = refine_solution(sol)
     return Refinement(kind="poses", X=ref.X, Y=ref.Y, covariance=ref.covariance,
@@ -397,7 +390,6 @@ def _share_clocks(names: list[str], clocks: list, warnings: list[str]) -> list:
     """Cameras triggered together (equal stamps for at least half of each one's images,
     :func:`multieye.estimate.clock_residuals.shared_clocks`) on one motion capture are
     stamped by one clock: one offset for them, started at the mean of their estimates."""
-    from multieye.estimate.clock_residuals import shared_clocks
 
     timed = [j for j, c in enumerate(clocks) if c is not None]
     for group in shared_clocks([clocks[j].image_stamps for j in timed]):

@@ -40,9 +40,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core import geometry as g
-from multieye.sim import rigs as sim
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
+from multieye.core.lens import project_points, project_with_jacobian
+from multieye.sim import rigs as sim
 
 __all__ = [
     "ImageScenario",
@@ -184,7 +185,6 @@ class ImageScenario:
 
 def _project(points: F64, T_cam_target: F64, intrinsics: Intrinsics) -> F64:
     """Pixels (n, 2) of target points seen from one pose (4, 4)."""
-    from multieye.core.lens import project_points
     pc = points @ T_cam_target[:3, :3].T + T_cam_target[:3, 3]
     return project_points(pc, intrinsics)
 
@@ -214,7 +214,6 @@ def estimate_target_poses(object_points: F64, image_points: F64, T_init: F64,
     ndarray, shape (N, 4, 4)
         ``T_cam_target`` minimising the sum of squared pixel residuals.
     """
-    from multieye.core.lens import project_with_jacobian
 
     T = np.array(T_init, dtype=np.float64)
     N, n = image_points.shape[:2]

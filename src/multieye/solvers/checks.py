@@ -329,7 +329,7 @@ class Measurements:
         """Split a per-row array back into per-camera arrays."""
         return np.split(arr, self.starts[1:])
 
-    def select(self, keep) -> "Measurements":
+    def select(self, keep) -> Measurements:
         """The measurements where ``keep[j]`` (a boolean mask per camera) is True.
 
         Subsets of validated transforms need no new checks; the motion of the subset is
@@ -357,20 +357,20 @@ class Measurements:
                                           counts, self.names)
 
     @classmethod
-    def from_arrays(cls, A: np.ndarray, B: np.ndarray, counts, names=None) -> "Measurements":
+    def from_arrays(cls, A: np.ndarray, B: np.ndarray, counts, names=None) -> Measurements:
         """Build from concatenated arrays ``(N, 4, 4)`` of rigid transforms (no checks)."""
         entries = transform_entries(A, B, exact_bottom=True)
         return cls._from_entries(entries, [int(c) for c in counts], names)
 
     @classmethod
     def from_cameras(cls, A: list[np.ndarray], B: list[np.ndarray],
-                     names=None) -> "Measurements":
+                     names=None) -> Measurements:
         """Build from per-camera arrays ``(N_j, 4, 4)`` of rigid transforms (no checks)."""
         entries = transform_entries(*A, *B, exact_bottom=True)
         return cls._from_entries(entries, [len(a) for a in A], names)
 
     @classmethod
-    def _from_entries(cls, entries: np.ndarray, counts: list[int], names=None) -> "Measurements":
+    def _from_entries(cls, entries: np.ndarray, counts: list[int], names=None) -> Measurements:
         """Build from :func:`transform_entries` of ``[A; B]`` with exact bottom rows."""
         names = tuple(names) if names else _default_names(len(counts))
         return cls(entries=entries, counts=np.array(counts), names=names,

@@ -69,9 +69,16 @@ from numpy.typing import NDArray
 from multieye.core.errors import DegenerateMotionError, InputError
 from multieye.core.geometry import inv, make_transform, random_transforms, transform_from_rotvec
 from multieye.solvers.checks import Measurements
+from multieye.solvers.groups import (
+    GeneralSolution,
+    MeasurementGroup,
+    as_groups,
+    assemble_solution,
+    check_connected,
+    group_names,
+)
 from multieye.solvers.kronecker import TRANSLATION_RCOND, normalize_rotation, unvec, vec
-from multieye.solvers.groups import (GeneralSolution, MeasurementGroup, as_groups, assemble_solution,
-                                   check_connected, group_names)
+from multieye.solvers.refine_poses import check_refine_options, refine_groups
 
 __all__ = [
     "MeasurementGroup",
@@ -237,8 +244,6 @@ def solve_general(groups: Iterable, method: str = "joint", refine: bool = False,
     if refine_options and not refine:
         raise InputError(f"refinement options {sorted(refine_options)} given without refine=True")
     if refine:
-        from multieye.solvers.refine_poses import check_refine_options
-
         check_refine_options(refine_options)
     groups = as_groups(groups)
     check_connected(groups)
@@ -252,7 +257,6 @@ def solve_general(groups: Iterable, method: str = "joint", refine: bool = False,
     Y = dict(zip(lay.ys, make_transform(RY, tY)))
     sol = assemble_solution(groups, X, Y, method)
     if refine:
-        from multieye.solvers.refine_poses import refine_groups
         sol = refine_groups(groups, sol, **refine_options)
     return sol
 

@@ -45,7 +45,7 @@ class Solution:
     method: str
     Y_per_camera: np.ndarray | None = None
     covariance: np.ndarray | None = None
-    measurements: "Measurements | None" = field(default=None, repr=False, compare=False)
+    measurements: Measurements | None = field(default=None, repr=False, compare=False)
 
     @cached_property
     def residuals(self) -> tuple[CameraResidual, ...]:

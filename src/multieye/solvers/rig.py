@@ -8,7 +8,6 @@ Synopsis
 ((4, 4, 4), (4, 4))
 
 Methods (docs/conventions.md, section 3):
-
 =========== ================================================================ ===========
 name        what                                                              cameras
 =========== ================================================================ ===========
@@ -28,7 +27,7 @@ per-camera estimates stay on ``Solution.Y_per_camera``.
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -43,6 +42,7 @@ from multieye.solvers.checks import (
 )
 from multieye.solvers.joint import solve_joint
 from multieye.solvers.li import solve_li_single
+from multieye.solvers.refine_poses import check_refine_options, refine_solution
 from multieye.solvers.result import CameraResidual, Solution
 from multieye.solvers.shah import solve_shah_single
 from multieye.solvers.tabb import solve_tabb_single
@@ -116,8 +116,6 @@ def solve(A: Sequence[np.ndarray] | np.ndarray | Measurements,
         raise InputError(f"refinement options {', '.join(sorted(refine_options))} given without "
                          "refine=True")
     if refine:
-        from multieye.solvers.refine_poses import check_refine_options
-
         check_refine_options(refine_options)
     joint = method in JOINT_METHODS
     if isinstance(A, Measurements):
@@ -136,6 +134,5 @@ def solve(A: Sequence[np.ndarray] | np.ndarray | Measurements,
         Y = combine_y(Y_per_camera)
     sol = Solution(X=X, Y=Y, method=method, Y_per_camera=Y_per_camera, measurements=meas)
     if refine:
-        from multieye.solvers.refine_poses import refine_solution
         sol = refine_solution(sol, **refine_options)
     return sol
