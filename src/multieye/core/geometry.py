@@ -23,6 +23,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 __all__ = [
+    "RIGID_TOLERANCE",
+    "rigidity",
+    "is_rigid",
     "inv",
     "compose",
     "make_transform",
@@ -42,6 +45,36 @@ __all__ = [
 ]
 
 F64 = NDArray[np.float64]
+
+
+#: Largest ``|R^T R - I|`` entry and ``|det R - 1|`` accepted as a rotation: the one test of a
+#: rigid transform, for every reader and record.
+RIGID_TOLERANCE = 1e-6
+
+
+def rigidity(T: ArrayLike) -> tuple[F64, F64, F64]:
+    """How far each transform of ``T`` (shape (..., 4, 4)) is from rigid.
+
+    Returns
+    -------
+    ortho : ndarray, shape (...)
+        Largest entry of ``|R^T R - I|``.
+    det : ndarray, shape (...)
+        ``det R`` (1 for a rotation).
+    last : ndarray, shape (...)
+        Largest entry of ``|T[3] - (0, 0, 0, 1)|`` (exactly 0 for a rigid transform).
+    """
+    T = np.asarray(T, dtype=np.float64)
+    R = T[..., :3, :3]
+    ortho = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-2, -1))
+    return ortho, np.linalg.det(R), np.abs(T[..., 3, :] - [0.0, 0.0, 0.0, 1.0]).max(axis=-1)
+
+
+def is_rigid(T: ArrayLike) -> NDArray[np.bool_]:
+    """Per transform of ``T`` (shape (..., 4, 4), finite): a rotation within
+    :data:`RIGID_TOLERANCE` and the last row exactly ``(0, 0, 0, 1)``."""
+    ortho, det, last = rigidity(T)
+    return (ortho <= RIGID_TOLERANCE) & (np.abs(det - 1.0) <= RIGID_TOLERANCE) & (last == 0)
 
 
 def inv(T: ArrayLike) -> F64:

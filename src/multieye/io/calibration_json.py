@@ -34,10 +34,10 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
+from multieye.core.geometry import is_rigid
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.io.atomic import write_text_atomic
 from multieye.io.textfile import read_json
-from multieye.io.trajectory import RIGID_TOLERANCE
 
 __all__ = [
     "FORMAT_VERSION",
@@ -94,10 +94,7 @@ def _rigid(T, what: str) -> np.ndarray:
     T = np.asarray(T, dtype=np.float64)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise InputError(f"{what} must be a finite 4x4 matrix, got shape {T.shape}")
-    R = T[:3, :3]
-    if (np.abs(R.T @ R - np.eye(3)).max() > RIGID_TOLERANCE
-            or abs(np.linalg.det(R) - 1.0) > RIGID_TOLERANCE
-            or np.any(T[3] != [0.0, 0.0, 0.0, 1.0])):
+    if not is_rigid(T):
         raise InputError(f"{what} is not a rigid transform")
     return T
 

@@ -37,7 +37,6 @@ from multieye.core import geometry
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.atomic import write_text_atomic
-from multieye.io.trajectory import RIGID_TOLERANCE
 from multieye.io.yamlfile import YamlDocument, load_yaml, shown, yaml_list
 
 __all__ = [
@@ -204,9 +203,7 @@ def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry], *,
 
 def _rigid(value, doc: YamlDocument, *keys) -> np.ndarray:
     T = _numbers(value, 16, "T_cn_cnm1 (4x4)", doc, *keys).reshape(4, 4)
-    R = T[:3, :3]
-    if (np.abs(R.T @ R - np.eye(3)).max() > RIGID_TOLERANCE
-            or abs(np.linalg.det(R) - 1) > RIGID_TOLERANCE or np.any(T[3] != [0, 0, 0, 1])):
+    if not geometry.is_rigid(T):
         raise doc.error("T_cn_cnm1 is not a rigid transform", *keys)
     return T
 

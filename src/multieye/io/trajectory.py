@@ -20,27 +20,21 @@ import numpy as np
 
 from multieye.core import geometry
 from multieye.core.errors import InputError
+from multieye.core.geometry import RIGID_TOLERANCE
 
 __all__ = ["Trajectory", "SkippedRow", "RIGID_TOLERANCE"]
-
-#: Largest ``|R^T R - I|`` entry and ``|det R - 1|`` accepted as a rotation.
-RIGID_TOLERANCE = 1e-6
-
 
 def _check_rigid(T: np.ndarray) -> None:
     if T.ndim != 3 or T.shape[1:] != (4, 4):
         raise InputError(f"poses must be an array of shape (N, 4, 4), got {T.shape}")
     if not np.all(np.isfinite(T)):
         raise InputError(f"pose {int(np.argwhere(~np.isfinite(T))[0, 0])} has NaN or inf entries")
-    R = T[:, :3, :3]
-    ortho = np.abs(np.swapaxes(R, 1, 2) @ R - np.eye(3)).max(axis=(1, 2))
-    det = np.linalg.det(R)
-    last = np.abs(T[:, 3, :] - [0.0, 0.0, 0.0, 1.0]).max(axis=1)
-    bad = (ortho > RIGID_TOLERANCE) | (np.abs(det - 1.0) > RIGID_TOLERANCE) | (last > 0)
+    bad = ~geometry.is_rigid(T)
     if np.any(bad):
         i = int(np.argmax(bad))
-        raise InputError(f"pose {i} is not a rigid transform (|R^T R - I| = {ortho[i]:.2e}, "
-                         f"det R = {det[i]:.6f}, last row {T[i, 3].tolist()})")
+        ortho, det, _ = geometry.rigidity(T[i])
+        raise InputError(f"pose {i} is not a rigid transform (|R^T R - I| = {ortho:.2e}, "
+                         f"det R = {det:.6f}, last row {T[i, 3].tolist()})")
 
 
 @dataclass(frozen=True)

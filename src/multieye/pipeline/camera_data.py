@@ -36,7 +36,8 @@ from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
 from multieye.pipeline.intrinsics import check_model, start_lens, with_poses
 from multieye.solvers.checks import MIN_MEASUREMENTS
 
-__all__ = ["Observation", "CameraData", "PairedCamera", "load_camera_data", "pair_camera"]
+__all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
+           "camera_motion", "pair_stamps", "pair_camera", "rejection_kind", "BY_NAME_TOLERANCE"]
 
 @dataclass(frozen=True)
 class Observation:
@@ -151,7 +152,7 @@ def _describe_target(rig: Rig) -> str:
     return f"{t.type} {t.rows}x{t.cols}" if t is not None else "target"
 
 
-def _kind(reason: str) -> str:
+def rejection_kind(reason: str) -> str:
     """The kind of an image's rejection: the reason up to its details (``unreadable file``,
     ``wrong resolution``, ``target not detected``, ``PnP failed``, ``bad fit``)."""
     return reason.split(":", 1)[0].split(" (", 1)[0]
@@ -161,7 +162,7 @@ def _no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
     """Why a camera has no usable image, by kind, naming the first image of each kind."""
     kinds: dict[str, list[RejectedItem]] = {}
     for r in rejected:
-        kinds.setdefault(_kind(r.reason), []).append(r)
+        kinds.setdefault(rejection_kind(r.reason), []).append(r)
     if set(kinds) == {"target not detected"}:
         return (f"the target ({_describe_target(rig)}) was not detected in any of the {n} "
                 "images; check the target section of rig.yaml (rows/cols count inner corners "
@@ -189,10 +190,8 @@ class _Detected:
     intrinsics: Intrinsics | None = None     # the started lens, when it was estimated
 
 
-def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsics | None, *,
-                              processes, progress, topic: str | None = None,
-                              model: str | None = None, listed=None,
-                              extra_views=()) -> _Detected:
+def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, workers: _Workers, *,
+                              listed=None, extra_views=()) -> _Detected:
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
 
     Without ``intr`` (a camera whose lens is estimated), detection runs alone, the lens
@@ -202,13 +201,14 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
     ``extra_views``: detection-only results of the camera's ``intrinsics_images``, which
     inform the starting lens too.
     """
-
+    cam = rig.cameras[name]
+    source, topic = (cam.images, None) if cam.source == "images" else (cam.rosbag, cam.topic)
     target = target_from_spec(rig.target.as_dict(), path=rig.path)
     if topic is None:
         images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
         results = detect_and_estimate([p for _, _, p in images], target, intr,
-                                      processes=processes, progress=progress)
+                                      processes=workers.processes, progress=workers.progress)
         seconds = time.perf_counter() - t0
         stamped = [(stamp, path.name) for stamp, _, path in images]
     else:
@@ -221,8 +221,9 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
                 yield label, image
 
         t0 = time.perf_counter()   # the bag is read as the frames are detected
-        results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
-                                             progress=progress)
+        results = detect_and_estimate_arrays(frames(), target, intr,
+                                             processes=workers.processes,
+                                             progress=workers.progress)
         seconds = time.perf_counter() - t0
         if not stamped:
             raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
@@ -233,7 +234,7 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
             raise DatasetError(_no_usable_image(rig, [RejectedItem(lb, r.reason) for (_, lb), r
                                                       in zip(stamped, results)], len(stamped)),
                                path=source, camera=name)
-        lens = start_lens(name, model, list(results) + list(extra_views), source)
+        lens = start_lens(name, cam.model, list(results) + list(extra_views), source)
         results = with_poses(results, lens.intrinsics)
     obs, rejected, warnings = [], [], list(lens.warnings if lens else ())
     for (stamp, label), res in zip(stamped, results):
@@ -253,8 +254,8 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
                      intrinsics=None if lens is None else lens.intrinsics)
 
 
-def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, *, processes,
-                              progress) -> tuple[list[Path], list, float]:
+def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _Workers
+                              ) -> tuple[list[Path], list, float]:
     """Detection (and PnP with ``intr`` unless None) over a camera's ``intrinsics_images``
     (their own board if given): the paths, the results and the seconds it took."""
 
@@ -262,18 +263,18 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, *, process
     target = target_from_spec(spec.as_dict(), path=rig.path)
     paths = list_image_files(cam.intrinsics_images)
     t0 = time.perf_counter()
-    results = detect_and_estimate(paths, target, intr, processes=processes, progress=progress)
+    results = detect_and_estimate(paths, target, intr, processes=workers.processes,
+                                  progress=workers.progress)
     return paths, results, time.perf_counter() - t0
 
 
-def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, *, processes, progress,
+def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: _Workers,
                       detected=None) -> tuple[list[Observation], list[RejectedItem], float]:
     """Detection and PnP over a camera's ``intrinsics_images`` (their own board if given);
     ``detected``: their detection-only ``(paths, results, seconds)`` already at hand, to
     which only the PnP with ``intr`` is added."""
     if detected is None:
-        paths, results, seconds = _detect_intrinsics_images(cam, rig, intr, processes=processes,
-                                                            progress=progress)
+        paths, results, seconds = _detect_intrinsics_images(cam, rig, intr, workers)
     else:
         paths, results, seconds = detected
         results = with_poses(results, intr)
@@ -299,67 +300,134 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
     DatasetError
         A missing or malformed file, or a camera in which the target is never detected.
     """
+    workers = _Workers(processes, progress)
     trajectories: dict[tuple, Trajectory] = {}
-    out = {}
-    for name, cam in rig.cameras.items():
-        spec = rig.mocap_for(name)
-        key = (str(spec.file), spec.pose, spec.format, spec.topic, spec.rigid_body)
-        listed, unmatched = None, []
-        if spec.by_name:
-            key = (key, name)
-            trajectories[key], listed, unmatched = _poses_by_name(name, cam.images, spec)
-        elif key not in trajectories:
-            trajectories[key] = read_mocap(spec)
-        warnings: tuple[str, ...] = ()
-        seconds = 0.0
-        views: list[Observation] = []
-        if cam.source == "poses":
-            traj = read_tum(cam.poses, parent="cam", child="target")
-            # poses keep their row number in the file (k of "pose k") when rows are left out
-            gone = {r.row for r in traj.skipped}
-            rows = [k for k in range(1, len(traj) + len(gone) + 1) if k not in gone]
-            obs = [Observation(name=f"{cam.poses.name} pose {k}", stamp=float(t), T_cam_target=T)
-                   for k, t, T in zip(rows, traj.stamps, traj.T)]
-            rejected: list[RejectedItem] = [
-                RejectedItem(f"{cam.poses.name} pose {r.row}", f"{r.where}: {r.reason}")
-                for r in traj.skipped]
-            n_inputs = len(obs) + len(rejected)
-            intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
-        else:
-            intr = None
-            if cam.intrinsics is not None:
-                intr = check_model(name, read_camera_intrinsics(cam), cam.model,
-                                   cam.intrinsics)
-            # a lens to estimate: the intrinsics_images inform its start too
-            extra = None
-            if cam.intrinsics_images is not None and intr is None:
-                extra = _detect_intrinsics_images(cam, rig, None, processes=processes,
-                                                  progress=progress)
-            det = _observations_from_images(
-                name, cam.images if cam.source == "images" else cam.rosbag, rig, intr,
-                processes=processes, progress=progress,
-                topic=None if cam.source == "images" else cam.topic, model=cam.model,
-                listed=listed, extra_views=() if extra is None else extra[1])
-            obs, rejected, n_inputs = det.observations, unmatched + det.rejected, det.n_inputs
-            n_inputs += sum(r.reason.startswith("no pose file") for r in unmatched)
-            warnings, seconds = det.warnings, det.seconds
-            intr = intr if det.intrinsics is None else det.intrinsics
-            if cam.intrinsics_images is not None:
-                views, lost, s = _intrinsics_views(name, cam, rig, intr, processes=processes,
-                                                   progress=progress, detected=extra)
-                rejected, seconds = list(rejected) + lost, seconds + s
-        # motion-capture rows left out, listed with every camera that uses the file
-        rejected = list(rejected) + [
-            RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
-            for r in trajectories[key].skipped]
-        out[name] = CameraData(name=name, intrinsics=intr, observations=tuple(obs),
-                               rejected=tuple(rejected), n_inputs=n_inputs,
-                               mocap=trajectories[key], time_offset=cam.time_offset,
-                               time_tolerance=spec.time_tolerance, warnings=warnings,
-                               detection_s=seconds,
-                               intrinsics_estimated=cam.estimate_intrinsics,
-                               intrinsics_views=tuple(views), by_name=spec.by_name)
-    return out
+    return {name: _camera_data(rig, name, camera_motion(rig, name, trajectories), workers)
+            for name in rig.cameras}
+
+
+@dataclass(frozen=True)
+class _Workers:
+    """How detection runs: worker processes (None: one per core), a progress bar."""
+
+    processes: int | None
+    progress: bool
+
+
+@dataclass(frozen=True)
+class _Seen:
+    """What one camera's own files gave: its lens (None for poses without intrinsics), the
+    observations, what was left out, and the views for its lens only."""
+
+    intrinsics: Intrinsics | None
+    observations: tuple[Observation, ...]
+    rejected: tuple[RejectedItem, ...]
+    n_inputs: int
+    warnings: tuple[str, ...] = ()
+    seconds: float = 0.0
+    views: tuple[Observation, ...] = ()
+
+
+def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -> CameraData:
+    cam, spec = rig.cameras[name], rig.mocap_for(name)
+    seen = _from_poses(cam) if cam.source == "poses" else _from_images(rig, name, motion, workers)
+    # motion-capture rows left out, listed with every camera that uses the file
+    rejected = seen.rejected + tuple(
+        RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
+        for r in motion.trajectory.skipped)
+    return CameraData(name=name, intrinsics=seen.intrinsics, observations=seen.observations,
+                      rejected=rejected, n_inputs=seen.n_inputs, mocap=motion.trajectory,
+                      time_offset=cam.time_offset, time_tolerance=spec.time_tolerance,
+                      warnings=seen.warnings, detection_s=seen.seconds,
+                      intrinsics_estimated=cam.estimate_intrinsics, intrinsics_views=seen.views,
+                      by_name=spec.by_name)
+
+
+def _from_poses(cam) -> _Seen:
+    """A camera given by precomputed ``T_cam_target`` poses."""
+    traj = read_tum(cam.poses, parent="cam", child="target")
+    # poses keep their row number in the file (k of "pose k") when rows are left out
+    gone = {r.row for r in traj.skipped}
+    rows = [k for k in range(1, len(traj) + len(gone) + 1) if k not in gone]
+    obs = tuple(Observation(name=f"{cam.poses.name} pose {k}", stamp=float(t), T_cam_target=T)
+                for k, t, T in zip(rows, traj.stamps, traj.T))
+    rejected = tuple(RejectedItem(f"{cam.poses.name} pose {r.row}", f"{r.where}: {r.reason}")
+                     for r in traj.skipped)
+    return _Seen(intrinsics=read_camera_intrinsics(cam) if cam.intrinsics is not None else None,
+                 observations=obs, rejected=rejected, n_inputs=len(obs) + len(rejected))
+
+
+def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -> _Seen:
+    """A camera given by images (a folder or a bag topic): detection, the starting lens when
+    it is estimated, PnP; its ``intrinsics_images`` as views for the lens."""
+    cam = rig.cameras[name]
+    intr = None
+    if cam.intrinsics is not None:
+        intr = check_model(name, read_camera_intrinsics(cam), cam.model, cam.intrinsics)
+    # a lens to estimate: the intrinsics_images inform its start too
+    extra = None
+    if cam.intrinsics_images is not None and intr is None:
+        extra = _detect_intrinsics_images(cam, rig, None, workers)
+    det = _observations_from_images(rig, name, intr, workers, listed=motion.listed,
+                                    extra_views=() if extra is None else extra[1])
+    rejected = list(motion.unmatched) + det.rejected
+    n_inputs = det.n_inputs + sum(r.reason.startswith("no pose file") for r in motion.unmatched)
+    intr = intr if det.intrinsics is None else det.intrinsics
+    seconds, views = det.seconds, []
+    if cam.intrinsics_images is not None:
+        views, lost, s = _intrinsics_views(name, cam, rig, intr, workers, detected=extra)
+        rejected, seconds = rejected + lost, seconds + s
+    return _Seen(intrinsics=intr, observations=tuple(det.observations), rejected=tuple(rejected),
+                 n_inputs=n_inputs, warnings=det.warnings, seconds=seconds, views=tuple(views))
+
+
+@dataclass(frozen=True)
+class CameraMotion:
+    """The motion capture one camera pairs with, as :func:`camera_motion` reads it.
+
+    Attributes
+    ----------
+    trajectory : Trajectory
+        ``T_world_marker`` / ``T_world_body`` samples (for a camera paired by name: at the
+        stamps 0, 1, 2, ... of its images with a pose file, in name order).
+    listed : list of (float, int, Path), or None
+        Paired by name: the images with a pose file as ``(stamp, ns, path)``; else None (the
+        images are listed by the detection).
+    unmatched : tuple of RejectedItem
+        Paired by name: images or pose files without their partner, and why.
+    """
+
+    trajectory: Trajectory
+    listed: list | None = None
+    unmatched: tuple[RejectedItem, ...] = ()
+
+
+#: Tolerance of the pairing of a camera paired by name (seconds): its images and poses have
+#: the same integer stamps, so any tolerance below 1 pairs exactly.
+BY_NAME_TOLERANCE = 0.25
+
+
+def camera_motion(rig: Rig, name: str, cache: dict[tuple, Trajectory]) -> CameraMotion:
+    """The motion capture of camera ``name``; a file shared by several cameras is read once
+    (``cache``, keyed by what selects its poses)."""
+    spec, cam = rig.mocap_for(name), rig.cameras[name]
+    key = (str(spec.file), spec.pose, spec.format, spec.topic, spec.rigid_body)
+    if spec.by_name:
+        traj, listed, unmatched = _poses_by_name(name, cam.images, spec)
+        cache[(key, name)] = traj
+        return CameraMotion(traj, listed, tuple(unmatched))
+    if key not in cache:
+        cache[key] = read_mocap(spec)
+    return CameraMotion(cache[key])
+
+
+def pair_stamps(mocap: Trajectory, stamps: np.ndarray, *, by_name: bool, tolerance: float,
+                offset: float):
+    """:func:`multieye.estimate.pairing.pair_in_time` of image ``stamps`` (camera clock,
+    seconds) with ``mocap``; a camera paired by name pairs stamp k with pose k exactly."""
+    if by_name:
+        return pair_in_time(mocap.stamps, mocap.T, stamps, tolerance=BY_NAME_TOLERANCE, offset=0.0)
+    return pair_in_time(mocap.stamps, mocap.T, stamps, tolerance=tolerance, offset=offset)
 
 
 def _poses_by_name(name: str, folder: Path, spec) -> tuple[Trajectory, list, list]:
@@ -404,11 +472,8 @@ def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = Non
     """
     offset = data.time_offset if time_offset is None else time_offset
     stamps = np.array([o.stamp for o in data.observations])
-    if data.by_name:     # stamp k on both sides: the exact pose of the image's own file
-        p = pair_in_time(data.mocap.stamps, data.mocap.T, stamps, tolerance=0.25, offset=0.0)
-    else:
-        p = pair_in_time(data.mocap.stamps, data.mocap.T, stamps,
-                         tolerance=data.time_tolerance, offset=offset)
+    p = pair_stamps(data.mocap, stamps, by_name=data.by_name, tolerance=data.time_tolerance,
+                    offset=offset)
     rejected = list(data.rejected)
     unpaired = [RejectedItem(data.observations[i].name,
                              f"no motion capture within {data.time_tolerance:g} s ({why})")

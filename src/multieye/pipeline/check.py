@@ -17,7 +17,6 @@ import numpy as np
 from multieye.core.arguments import real_number
 from multieye.core.errors import InputError
 from multieye.estimate.diagnostics import MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG, MIN_SECOND_AXIS_DEG
-from multieye.estimate.pairing import pair_in_time
 from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
 from multieye.imaging.targets import target_from_spec
 from multieye.io import (
@@ -27,11 +26,10 @@ from multieye.io import (
     list_images,
     load_rig,
     read_camera_intrinsics,
-    read_mocap,
     read_tum,
     sample_bag_images,
 )
-from multieye.pipeline.camera_data import _poses_by_name
+from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.intrinsics import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 from multieye.solvers.checks import MIN_MEASUREMENTS, rotation_spread
 
@@ -118,10 +116,6 @@ def _sample(n: int, k: int) -> list[int]:
     return sorted(set(np.linspace(0, n - 1, k).round().astype(int).tolist()))
 
 
-def _kind(reason: str) -> str:
-    return reason.split(":", 1)[0].split(" (", 1)[0]
-
-
 def _rotation(T_mocap: np.ndarray) -> tuple[float | None, tuple | None]:
     """Largest rotation between two of the poses (degrees; at most 300 poses evenly spaced)
     and the RMS rotation about the principal axes (degrees, descending)."""
@@ -197,21 +191,25 @@ def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> l
     return out
 
 
-def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
-    spec = rig.mocap_for(name)
-    key = (str(spec.file), spec.pose, spec.format, spec.topic, spec.rigid_body)
+@dataclass(frozen=True)
+class _Sample:
+    """A camera's listed images (or pose rows) and the detections on the sampled ones."""
+
+    stamps: np.ndarray
+    n_listed: int
+    sampled_idx: list[int]
+    found_mask: np.ndarray
+    results: list
+    failures: dict[str, int]
+    n_sampled: int
+    problems: tuple[str, ...] = ()
+
+
+def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
+    """Detection on at most ``sample`` evenly spaced images of the camera (every pose row of
+    a camera given by poses), counting the failures by kind."""
     problems: list[str] = []
-    fatal: list[str] = []
-    unmatched = []
-    listed = None
-    if spec.by_name:
-        traj, listed, unmatched = _poses_by_name(name, cam.images, spec)
-    else:
-        if key not in traj_cache:
-            traj_cache[key] = read_mocap(spec)
-        traj = traj_cache[key]
-    tolerance = 0.25 if spec.by_name else spec.time_tolerance
-    offset = 0.0 if spec.by_name else cam.time_offset
+    results: list = []
     failures: dict[str, int] = {}
     if cam.source == "poses":
         poses = read_tum(cam.poses, parent="cam", child="target")
@@ -241,14 +239,33 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
         found_mask = np.array([r.reason is None for r in results], bool)
         for r in results:
             if r.reason is not None:
-                failures[_kind(r.reason)] = failures.get(_kind(r.reason), 0) + 1
+                failures[rejection_kind(r.reason)] = failures.get(rejection_kind(r.reason), 0) + 1
         n_sampled = len(sampled_idx)
+    return _Sample(stamps=stamps, n_listed=n_listed, sampled_idx=sampled_idx,
+                   found_mask=found_mask, results=results, failures=failures,
+                   n_sampled=n_sampled, problems=tuple(problems))
+
+
+def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
+    spec = rig.mocap_for(name)
+    problems: list[str] = []
+    fatal: list[str] = []
+    motion = camera_motion(rig, name, traj_cache)
+    traj, listed, unmatched = motion.trajectory, motion.listed, motion.unmatched
+    tolerance = BY_NAME_TOLERANCE if spec.by_name else spec.time_tolerance
+    offset = 0.0 if spec.by_name else cam.time_offset
+    seen = _sampled(rig, cam, listed, unmatched, sample=sample, processes=processes)
+    stamps, n_listed, sampled_idx = seen.stamps, seen.n_listed, seen.sampled_idx
+    found_mask, results, failures, n_sampled = (seen.found_mask, seen.results, seen.failures,
+                                                seen.n_sampled)
+    problems.extend(seen.problems)
     if unmatched:
         problems.append(f"{len(unmatched)} images or pose files without their partner (first "
                         f"{unmatched[0].item}: {unmatched[0].reason})")
-    # pairing of every listed image in time (cheap), as pair_camera does
+    # pairing of every listed image in time (cheap), by calibrate's pairing
     if len(stamps):
-        p = pair_in_time(traj.stamps, traj.T, stamps, tolerance=tolerance, offset=offset)
+        p = pair_stamps(traj, stamps, by_name=spec.by_name, tolerance=spec.time_tolerance,
+                        offset=cam.time_offset)
         has_pose = np.zeros(len(stamps), bool)
         has_pose[p.index] = True
         T_at = np.full((len(stamps), 4, 4), np.nan)

@@ -18,35 +18,33 @@ from multieye.io import (
     PlausibilityItem,
     PoseUncertainty,
     Residuals,
-    Rig,
 )
 from multieye.io.calibration_json import SETUP_KEYS
 from multieye.pipeline.camera_data import CameraData, PairedCamera
-from multieye.solvers import Solution
+from multieye.pipeline.problem import Pairing, Problem
+from multieye.pipeline.refine import Refined
+from multieye.pipeline.result import Refinement
 
 __all__ = ["build_record"]
 
 
-def build_record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
-            refinement, unc, *, method: str, reference: str,
-            warnings: list[str], time_offsets: dict[str, float], motion: dict,
-            doubts: tuple[PlausibilityItem, ...] = (),
-            cameras: dict[str, CameraData] | None = None,
-            time_offset_std: dict[str, float] | None = None) -> CalibrationRecord:
-    """The record of the final result: the refinement's when it ran, else the closed form.
+def build_record(problem: Problem, pairing: Pairing, closed, plausibility, refined: Refined,
+                 warnings: list[str]) -> CalibrationRecord:
+    """The record of the final result: the refinement's when it ran, else the closed form's.
 
-    ``unc`` is the :class:`~multieye.estimate.uncertainty.RelativeUncertainty` of the
-    refinement, or None; ``time_offset_std`` the standard deviation of each clock offset
-    estimated in the joint problem.
+    ``closed`` is the closed-form stage (:class:`multieye.pipeline.run.ClosedForm`: the
+    solution and the motion diagnostics), ``plausibility`` the checks' findings.
     """
-    final = sol if refinement is None else refinement
+    refinement, unc = refined.refinement, refined.uncertainty
+    final = closed.solution if refinement is None else refinement
     X, Y = final.X, final.Y
     reproj = {} if refinement is None else refinement.reprojection_rms_px
-    names = list(paired)
-    T_ref_cam = relative_extrinsics(X, reference=names.index(reference))
+    names = list(pairing.paired)
+    T_ref_cam = relative_extrinsics(X, reference=names.index(problem.reference))
+    offsets, offset_std = _time_offsets(problem, pairing, refinement)
+    x_key, y_key = SETUP_KEYS[problem.setup][1], SETUP_KEYS[problem.setup][0]
     cams, rot_all, trans_all = [], [], []
-    for j, name in enumerate(names):
-        p = paired[name]
+    for j, (name, p) in enumerate(pairing.paired.items()):
         r = camera_residual(p.A, p.B, X[j], Y)
         rot_all.append(r.e_R_deg * r.n)
         trans_all.append(r.e_t_m * r.n)
@@ -56,28 +54,39 @@ def build_record(rig: Rig, paired: dict[str, PairedCamera], sol: Solution,
             name=name, X=X[j], T_ref_cam=T_ref_cam[j], measurements_used=r.n,
             residuals=Residuals(e_R_deg=r.e_R_deg, e_t_m=r.e_t_m, max_R_deg=r.max_R_deg,
                                 max_t_m=r.max_t_m, reprojection_rms_px=reproj_px),
-            time_offset_s=time_offsets.get(name),
-            time_offset_std_s=(time_offset_std or {}).get(name),
+            time_offset_s=offsets.get(name), time_offset_std_s=offset_std.get(name),
             std_rot_deg=None if unc is None else float(unc.std_rot_deg[j]),
             std_trans_m=None if unc is None else float(unc.std_trans_m[j]),
             covariance=None if unc is None else unc.covariance[j],
             rejected=p.rejected,
-            intrinsics=_intrinsics_record(name, p, cameras, refinement),
+            intrinsics=_intrinsics_record(problem.cameras[name], p, refinement),
             uncertainty=None if unc is None else {
-                SETUP_KEYS[rig.setup][1]: _pose_uncertainty(
-                    refinement.covariance[6 * j:6 * j + 6, 6 * j:6 * j + 6]),
+                x_key: _pose_uncertainty(refinement.covariance[6 * j:6 * j + 6, 6 * j:6 * j + 6]),
                 "T_ref_cam": _pose_uncertainty(unc.covariance[j])}))
     n = sum(c.measurements_used for c in cams)
-    return CalibrationRecord(setup=rig.setup, method=method, reference_camera=reference, Y=Y,
-                             cameras=tuple(cams),
-                             residuals=Residuals(e_R_deg=sum(rot_all) / n, e_t_m=sum(trans_all) / n),
-                             warnings=tuple(warnings),
-                             refinement=None if refinement is None else refinement.kind,
-                             motion_diagnostics=motion, plausibility=doubts,
-                             uncertainty=None if unc is None else {
-                                 SETUP_KEYS[rig.setup][0]: _pose_uncertainty(
-                                     refinement.covariance[-6:, -6:])},
-                             frames=rig.frames)
+    return CalibrationRecord(
+        setup=problem.setup, method=problem.options.method, reference_camera=problem.reference,
+        Y=Y, cameras=tuple(cams),
+        residuals=Residuals(e_R_deg=sum(rot_all) / n, e_t_m=sum(trans_all) / n),
+        warnings=tuple(warnings), refinement=None if refinement is None else refinement.kind,
+        motion_diagnostics=closed.motion.as_dict()["cameras"],
+        plausibility=tuple(PlausibilityItem(f.cause, f.message, f.camera)
+                           for f in plausibility.findings),
+        uncertainty=None if unc is None else {
+            y_key: _pose_uncertainty(refinement.covariance[-6:, -6:])},
+        frames=problem.rig.frames)
+
+
+def _time_offsets(problem: Problem, pairing: Pairing, refinement: Refinement | None
+                  ) -> tuple[dict[str, float], dict[str, float]]:
+    """Per camera, the clock offset shown (those estimated in the joint refinement replace the
+    ones paired with; with ``time_offset="rig"`` only those not zero) and, where estimated
+    in the joint refinement, its standard deviation."""
+    joint = {} if refinement is None else refinement.time_offsets
+    offsets = pairing.offsets | joint
+    if problem.options.time_offset == "rig":
+        offsets = {n: o for n, o in offsets.items() if o}
+    return offsets, {} if refinement is None else dict(refinement.time_offset_std)
 
 
 def _pose_uncertainty(cov: np.ndarray) -> PoseUncertainty:
@@ -85,15 +94,14 @@ def _pose_uncertainty(cov: np.ndarray) -> PoseUncertainty:
     return PoseUncertainty(float(rot), float(trans), cov)
 
 
-def _intrinsics_record(name: str, paired: PairedCamera, cameras, refinement
+def _intrinsics_record(data: CameraData, paired: PairedCamera, refinement: Refinement | None
                        ) -> IntrinsicsRecord | None:
     """The camera's final intrinsics, whether they were estimated, and their uncertainty."""
-    data = None if cameras is None else cameras.get(name)
-    if data is None or data.intrinsics is None:
+    if data.intrinsics is None:
         return None
     refined = {} if refinement is None else refinement.intrinsics
-    intr = refined.get(name, data.intrinsics)
-    cov = None if refinement is None else refinement.intrinsics_covariance.get(name)
+    intr = refined.get(data.name, data.intrinsics)
+    cov = None if refinement is None else refinement.intrinsics_covariance.get(data.name)
     proj = None
     if cov is not None:
         pts = [o.object_points @ o.T_cam_target[:3, :3].T + o.T_cam_target[:3, 3]

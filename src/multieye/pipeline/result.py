@@ -7,6 +7,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from multieye.core.intrinsics import Intrinsics
+from multieye.estimate.plausibility import Plausibility
+from multieye.estimate.refine_images import RefinementResult
 from multieye.io import CalibrationRecord, Rig
 from multieye.io.calibration_json import SETUP_KEYS
 from multieye.io.run_details import StageTimings
@@ -39,6 +42,9 @@ class Refinement:
         Per camera whose intrinsics were estimated: the refined lens (image refinement only).
     intrinsics_covariance : dict of str to ndarray
         Their covariance over ``Intrinsics.params`` (fx fy cx cy, then the distortion).
+    time_offsets, time_offset_std : dict of str to float
+        Per camera whose clock offset was an unknown of the image refinement
+        (``time_offset="auto"``): its estimate and standard deviation, seconds.
     """
 
     kind: str
@@ -47,9 +53,11 @@ class Refinement:
     covariance: np.ndarray | None
     reprojection_rms_px: dict[str, float]
     warnings: tuple[str, ...]
-    result: object
-    intrinsics: dict = field(default_factory=dict)
-    intrinsics_covariance: dict = field(default_factory=dict)
+    result: RefinementResult | Solution
+    intrinsics: dict[str, Intrinsics] = field(default_factory=dict)
+    intrinsics_covariance: dict[str, np.ndarray] = field(default_factory=dict)
+    time_offsets: dict[str, float] = field(default_factory=dict)
+    time_offset_std: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -125,7 +133,7 @@ class CalibrationRun:
     paired: dict[str, PairedCamera]
     refinement: Refinement | None = None
     timings: StageTimings = field(default_factory=StageTimings)
-    plausibility: object | None = None
+    plausibility: Plausibility | None = None
 
     @property
     def doubts(self) -> tuple:

@@ -1,0 +1,201 @@
+"""The refinement stage: the maximum-likelihood refinement after the closed form, fed from the
+problem at one boundary.
+
+On the target points and the motion-capture poses when every camera has target points
+(:func:`multieye.estimate.refine_images.refine_images`, which takes per-camera sequences in
+the order of the pairing: built here and nowhere else, and its per-camera results turned back
+into dicts keyed by camera name here), else on the pose residuals
+(:func:`multieye.solvers.refine_poses.refine_solution`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from multieye.core.errors import CalibrationError, InputError
+from multieye.estimate.clock_residuals import ClockData, LocalTrajectory, shared_clocks
+from multieye.estimate.refine_images import RefinementResult, refine_images
+from multieye.estimate.uncertainty import RelativeUncertainty, relative_covariance
+from multieye.io import Rig
+from multieye.pipeline.camera_data import PairedCamera
+from multieye.pipeline.options import Options
+from multieye.pipeline.problem import Pairing, Problem
+from multieye.pipeline.result import Refinement
+from multieye.solvers import Solution
+from multieye.solvers.refine_poses import refine_solution
+
+__all__ = ["Refined", "refine", "mocap_noise"]
+
+#: An estimated motion-capture noise below this (radians, metres) is one the recording could
+#: not resolve (its variance component went to zero).
+_UNRESOLVED_NOISE = 1e-6
+
+
+@dataclass(frozen=True)
+class Refined:
+    """What the refinement stage gave.
+
+    Attributes
+    ----------
+    refinement : Refinement or None
+        None when the refinement was not asked for or failed.
+    uncertainty : RelativeUncertainty or None
+        Of ``T_ref_cam`` per camera, from the refinement's covariance.
+    warnings : tuple of str
+    """
+
+    refinement: Refinement | None
+    uncertainty: RelativeUncertainty | None
+    warnings: tuple[str, ...] = ()
+
+
+def mocap_noise(rig: Rig, paired: dict[str, PairedCamera], opts: Options):
+    """The motion capture of the first paired camera and its noise per axis (radians, metres):
+    the options' where given, else rig.yaml's, else None (to be estimated)."""
+    first = next(iter(paired))
+    spec = rig.mocap_for(first) if first in rig.cameras else rig.mocap
+    rot, trans = opts.mocap_rot_sigma_rad, opts.mocap_trans_sigma_m
+    if spec is not None:
+        rot = spec.rot_sigma_rad if rot is None else rot
+        trans = spec.trans_sigma_m if trans is None else trans
+    return spec, rot, trans
+
+
+def refine(problem: Problem, pairing: Pairing, sol: Solution) -> Refined:
+    """The refinement of ``sol`` on the measurements kept, when the options ask for it; a
+    refinement that fails leaves the closed form, with a warning saying why."""
+    if not problem.options.refine:
+        return Refined(None, None)
+    try:
+        if _have_points(problem, pairing.paired):
+            refinement = _refine_images(problem, pairing, sol)
+        else:
+            ref = refine_solution(sol)
+            refinement = Refinement(kind="poses", X=ref.X, Y=ref.Y, covariance=ref.covariance,
+                                    reprojection_rms_px={}, warnings=(), result=ref)
+    except CalibrationError as exc:
+        return Refined(None, None, (f"refinement failed, the result is the closed form without "
+                                    f"uncertainty: {exc}",))
+    uncertainty = None
+    if refinement.covariance is not None:
+        uncertainty = relative_covariance(refinement.X, refinement.covariance,
+                                          reference=list(pairing.paired).index(problem.reference))
+    return Refined(refinement, uncertainty, refinement.warnings)
+
+
+def _have_points(problem: Problem, paired: dict[str, PairedCamera]) -> bool:
+    return all(problem.cameras[n].intrinsics is not None and p.observations
+               and all(o.image_points is not None for o in p.observations)
+               for n, p in paired.items())
+
+
+def _refine_images(problem: Problem, pairing: Pairing, sol: Solution) -> Refinement:
+    """Image-level refinement; with ``time_offset="auto"`` the clock offsets (starting at the
+    pairing's) are unknowns of the problem (:mod:`multieye.estimate.clock_residuals`)."""
+    paired, cameras = pairing.paired, problem.cameras
+    _, rot, trans = mocap_noise(problem.rig, paired, problem.options)
+    sigmas = {k: v for k, v in (("mocap_rot_sigma_rad", rot), ("mocap_trans_sigma_m", trans))
+              if v is not None}
+    # Motion-capture noise not stated: refine_images estimates it, like the pixel noise,
+    # from how far the refinement moves the measured poses.
+    # (one of the two stated: the other takes refine_images' default)
+    given = sigmas or {"mocap_rot_sigma_rad": None, "mocap_trans_sigma_m": None}
+    obs = [[(o.object_points, o.image_points, T) for o, T in zip(p.observations, p.T_world_mocap)]
+           for p in paired.values()]
+    views = [[(o.object_points, o.image_points, o.T_cam_target)
+              for o in cameras[n].intrinsics_views] for n in paired]
+    warnings: list[str] = []
+    clocks = _clocks(problem, pairing, warnings) if problem.options.time_offset == "auto" else None
+    res = refine_images(problem.setup, obs, [cameras[n].intrinsics for n in paired], sol.X, sol.Y,
+                        names=list(paired), free_intrinsics=[cameras[n].intrinsics_estimated
+                                                             for n in paired],
+                        clocks=clocks, intrinsics_observations=views if any(views) else None,
+                        **given)
+    warnings.extend(_image_warnings(res, paired))
+    names = list(paired)
+    estimated = [j for j, n in enumerate(names) if cameras[n].intrinsics_estimated]
+    joint = [j for j, t in enumerate(res.time_offsets) if t is not None]
+    return Refinement(kind="images", X=res.X, Y=res.Y, covariance=res.covariance,
+                      reprojection_rms_px={n: float(res.camera_rms_px[j])
+                                           for j, n in enumerate(names)},
+                      warnings=tuple(warnings), result=res,
+                      intrinsics={names[j]: res.intrinsics[j] for j in estimated},
+                      intrinsics_covariance={names[j]: res.intrinsics_covariance[j]
+                                             for j in estimated},
+                      time_offsets={names[j]: res.time_offsets[j] for j in joint},
+                      time_offset_std={names[j]: res.time_offset_std_s[j] for j in joint})
+
+
+def _image_warnings(res: RefinementResult, paired: dict[str, PairedCamera]) -> list[str]:
+    """What the image-level refinement doubts: undetermined directions, an estimated
+    motion-capture noise, no convergence, images that fit the refined rig poorly."""
+    warnings = []
+    for family in res.undetermined:
+        what = (f"{family[2:]}: the intrinsics" if family.startswith("K:")
+                else f"the {family} estimate")
+        warnings.append(f"{what} include a combination of parameters this recording does "
+                        "not determine (their uncertainty covers the other directions "
+                        "only); add views with more tilt and nearer the image corners, or "
+                        "use a lens model with fewer coefficients")
+    if res.mocap_sigma_estimated:
+        unresolved = [what for what, v in (("rotation", res.mocap_rot_sigma_rad),
+                                           ("position", res.mocap_trans_sigma_m))
+                      if v < _UNRESOLVED_NOISE]
+        warnings.append(
+            f"motion-capture noise estimated from the data: "
+            f"{np.degrees(res.mocap_rot_sigma_rad):.3g} deg, "
+            f"{res.mocap_trans_sigma_m * 1e3:.3g} mm per pose (state rotation_noise_deg and "
+            "translation_noise_m under mocap in rig.yaml to fix it)"
+            + (f"; in {' and '.join(unresolved)} it is too small for this recording to "
+               "tell apart from the pixel noise, which then carries it in the uncertainty"
+               if unresolved else ""))
+    if not res.converged:
+        warnings.append(f"refinement did not converge ({res.message}); the result may be "
+                        "short of the best the data allow")
+    for (name, p), outliers in zip(paired.items(), res.image_outliers):
+        bad = np.flatnonzero(outliers)
+        if bad.size:
+            warnings.append(f"{name}: {bad.size} image(s) fit the refined rig poorly: "
+                            + ", ".join(p.observations[i].name for i in bad[:5])
+                            + (" ..." if bad.size > 5 else ""))
+    return warnings
+
+
+def _clocks(problem: Problem, pairing: Pairing, warnings: list[str]) -> list[ClockData | None]:
+    """Per paired camera, its clock as an unknown of the image-level problem (None: paired by
+    name, or kept at the estimate before the solve, with a warning saying why)."""
+    clocks: list[ClockData | None] = []
+    for n, p in pairing.paired.items():
+        data, offset = problem.cameras[n], pairing.offsets[n]
+        try:
+            clock = None if data.by_name else ClockData(
+                [o.stamp for o in p.observations], data.mocap.stamps, data.mocap.T, offset=offset)
+            if clock is not None:
+                LocalTrajectory(clock)         # every image inside the motion capture
+        except InputError as exc:
+            warnings.append(f"{n}: clock offset kept at the estimate before the solve "
+                            f"({offset:+.4f} s), not refined with the rig: {exc}")
+            clock = None
+        clocks.append(clock)
+    return _share_clocks(list(pairing.paired), clocks, warnings)
+
+
+def _share_clocks(names: list[str], clocks: list, warnings: list[str]) -> list:
+    """Cameras triggered together (equal stamps for at least half of each one's images,
+    :func:`multieye.estimate.clock_residuals.shared_clocks`) on one motion capture are
+    stamped by one clock: one offset for them, started at the mean of their estimates."""
+    timed = [j for j, c in enumerate(clocks) if c is not None]
+    for group in shared_clocks([clocks[j].image_stamps for j in timed]):
+        js = [timed[k] for k in group]
+        c0 = clocks[js[0]]
+        if not all(np.array_equal(clocks[j].mocap_stamps, c0.mocap_stamps)
+                   and np.array_equal(clocks[j].mocap_T, c0.mocap_T) for j in js):
+            continue
+        start = float(np.mean([clocks[j].offset for j in js]))
+        for j in js:
+            clocks[j] = replace(clocks[j], offset=start, shared=names[js[0]])
+        warnings.append(f"{', '.join(names[j] for j in js)}: image stamps equal (triggered "
+                        "together), so one clock: one time offset estimated for them")
+    return clocks
