@@ -48,7 +48,8 @@ from multieye.core.errors import DegenerateMotionError, InputError, TooFewMeasur
 from multieye.core.metrics import chordal_angle, loop_residuals
 from multieye.estimate.pairing import interpolate_poses
 from multieye.core.problem import SETUPS
-from multieye.solvers.checks import Measurements, rotation_spread
+from multieye.solvers.checks import rotation_spread
+from multieye.solvers.measurements import Measurements
 from multieye.solvers.joint import solve_joint
 
 __all__ = ["ClockOffset", "estimate_offset", "angular_speed"]

@@ -45,11 +45,11 @@ from numpy.typing import NDArray
 from multieye.core.errors import InputError
 from multieye.core.problem import SETUPS
 from multieye.solvers.checks import (
-    Measurements,
     check_measurements,
     given_measurements,
     rotation_spread,
 )
+from multieye.solvers.measurements import Measurements
 
 __all__ = ["CameraMotion", "MotionDiagnostics", "motion_diagnostics",
            "MIN_ROTATION_RANGE_DEG", "MIN_SECOND_AXIS_DEG", "MIN_AXIS_RATIO",

@@ -34,7 +34,7 @@ from multieye.io import (
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
 from multieye.pipeline.intrinsics import check_model, start_lens, with_poses
-from multieye.solvers.checks import MIN_MEASUREMENTS
+from multieye.solvers.measurements import MIN_MEASUREMENTS
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
            "camera_motion", "pair_stamps", "pair_camera", "rejection_kind", "BY_NAME_TOLERANCE"]

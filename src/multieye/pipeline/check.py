@@ -31,7 +31,8 @@ from multieye.io import (
 )
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.intrinsics import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
-from multieye.solvers.checks import MIN_MEASUREMENTS, rotation_spread
+from multieye.solvers.checks import rotation_spread
+from multieye.solvers.measurements import MIN_MEASUREMENTS
 
 __all__ = ["CameraCheck", "DatasetCheck", "check_dataset"]
 

@@ -18,7 +18,7 @@ from multieye.core.errors import DatasetError
 from multieye.io import Rig
 from multieye.pipeline.camera_data import CameraData, PairedCamera
 from multieye.pipeline.options import Options
-from multieye.solvers.checks import Measurements
+from multieye.solvers.measurements import Measurements
 
 __all__ = ["Problem", "Pairing", "make_problem"]
 

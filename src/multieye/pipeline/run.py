@@ -54,7 +54,8 @@ from multieye.pipeline.record import build_record
 from multieye.pipeline.refine import Refined, mocap_noise, refine
 from multieye.pipeline.result import CalibrationRun, Refinement
 from multieye.solvers import Solution, solve
-from multieye.solvers.checks import Measurements, check_measurements
+from multieye.solvers.checks import check_measurements
+from multieye.solvers.measurements import Measurements
 
 __all__ = [
     "Observation",

@@ -7,8 +7,6 @@ what is wrong and what to do about it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from functools import cached_property, lru_cache
 from itertools import accumulate
 
 import numpy as np
@@ -16,7 +14,10 @@ import numpy as np
 from multieye.core.arguments import camera_names, real_array
 from multieye.core.errors import DegenerateMotionError, InputError, TooFewMeasurementsError
 from multieye.core.geometry import det3
-from multieye.solvers.kronecker import BOTTOM_ROWS, CameraStats, camera_stats, sym3_eigvals, transform_entries
+from multieye.solvers.kronecker import BOTTOM_ROWS, sym3_eigvals, transform_entries
+# Measurements and MIN_MEASUREMENTS live in solvers/measurements.py; named here too, since
+# the checks return them and callers import them from here
+from multieye.solvers.measurements import MIN_MEASUREMENTS, Measurements, default_names
 
 __all__ = [
     "check_transforms",
@@ -33,8 +34,6 @@ __all__ = [
     "SINGLE_AXIS_RATIO",
 ]
 
-#: Fewest measurements a camera needs.
-MIN_MEASUREMENTS = 3
 #: Largest |R^T R - I| entry, |det R - 1| and bottom-row deviation accepted as rigid.
 RIGID_TOL = 1e-5
 #: Largest translation coordinate accepted (metres): far beyond any rig, and small enough
@@ -65,11 +64,6 @@ def _as_batch(T, name: str) -> np.ndarray:
     if T.ndim != 3 or T.shape[1:] != (4, 4):
         raise InputError(f"{name} must have shape (N, 4, 4), got {T.shape}")
     return T
-
-
-@lru_cache(maxsize=64)
-def _default_names(m: int) -> tuple[str, ...]:
-    return tuple(f"cam{j}" for j in range(m))
 
 
 def _first_bad(T: np.ndarray):
@@ -256,127 +250,6 @@ def _spread_from_scatter(C: tuple[float, ...], n: int) -> list[float]:
     return s
 
 
-@dataclass(frozen=True)
-class Measurements:
-    """Validated measurements of all cameras, concatenated camera by camera.
-
-    Attributes
-    ----------
-    entries : ndarray, shape (16, 2N)
-        :func:`multieye.solvers.kronecker.transform_entries` of ``[A; B]``; bottom rows
-        exactly (0, 0, 0, 1).
-    counts : ndarray, shape (m,), int
-        Measurements per camera.
-    names : tuple of str
-        Camera names used in messages.
-    stats : CameraStats
-        Per-camera sums the closed forms need.
-    A, B : ndarray, shape (N, 4, 4)
-        The transforms (formed on first use, like everything below).
-    starts : ndarray, shape (m,), int
-        Index of each camera's first row (for ``np.add.reduceat``).
-    RA, RB, tA, tB, camera
-        Contiguous rotation blocks ``(N, 3, 3)``, translations ``(N, 3)`` in metres, and
-        the camera index of each row ``(N,)``.
-    """
-
-    entries: np.ndarray = field(repr=False)
-    counts: np.ndarray
-    names: tuple[str, ...]
-    stats: CameraStats = field(repr=False, compare=False)
-
-    @property
-    def m(self) -> int:
-        return int(self.counts.size)
-
-    @cached_property
-    def _AB(self) -> np.ndarray:
-        return np.ascontiguousarray(self.entries.T).reshape(-1, 4, 4)
-
-    @property
-    def A(self) -> np.ndarray:
-        return self._AB[:self._AB.shape[0] // 2]
-
-    @property
-    def B(self) -> np.ndarray:
-        return self._AB[self._AB.shape[0] // 2:]
-
-    @cached_property
-    def starts(self) -> np.ndarray:
-        return np.concatenate([[0], np.cumsum(self.counts[:-1])]).astype(int)
-
-    @cached_property
-    def RA(self) -> np.ndarray:
-        return np.ascontiguousarray(self.A[:, :3, :3])
-
-    @cached_property
-    def RB(self) -> np.ndarray:
-        return np.ascontiguousarray(self.B[:, :3, :3])
-
-    @cached_property
-    def tA(self) -> np.ndarray:
-        return np.ascontiguousarray(self.A[:, :3, 3])
-
-    @cached_property
-    def tB(self) -> np.ndarray:
-        return np.ascontiguousarray(self.B[:, :3, 3])
-
-    @cached_property
-    def camera(self) -> np.ndarray:
-        return np.repeat(np.arange(self.m), self.counts)
-
-    def split(self, arr: np.ndarray) -> list[np.ndarray]:
-        """Split a per-row array back into per-camera arrays."""
-        return np.split(arr, self.starts[1:])
-
-    def select(self, keep) -> Measurements:
-        """The measurements where ``keep[j]`` (a boolean mask per camera) is True.
-
-        Subsets of validated transforms need no new checks; the motion of the subset is
-        not checked here (:func:`check_motion`, which :func:`multieye.solve` runs).
-
-        Raises
-        ------
-        InputError
-            Not one mask of the camera's length per camera.
-        TooFewMeasurementsError
-            A camera left with fewer than 3 measurements.
-        """
-        masks = [np.asarray(k, dtype=bool) for k in keep]
-        if len(masks) != self.m or any(k.shape != (int(c),) for k, c in zip(masks, self.counts)):
-            raise InputError(f"select needs one boolean mask per camera of lengths "
-                             f"{self.counts.tolist()}, got shapes {[k.shape for k in masks]}")
-        counts = [int(k.sum()) for k in masks]
-        for name, n in zip(self.names, counts):
-            if n < MIN_MEASUREMENTS:
-                raise TooFewMeasurementsError(
-                    f"camera {name} keeps {n} measurements, at least {MIN_MEASUREMENTS} are needed")
-        idx = np.flatnonzero(np.concatenate(masks))
-        N = int(self.counts.sum())
-        return Measurements._from_entries(self.entries[:, np.concatenate([idx, N + idx])],
-                                          counts, self.names)
-
-    @classmethod
-    def from_arrays(cls, A: np.ndarray, B: np.ndarray, counts, names=None) -> Measurements:
-        """Build from concatenated arrays ``(N, 4, 4)`` of rigid transforms (no checks)."""
-        entries = transform_entries(A, B, exact_bottom=True)
-        return cls._from_entries(entries, [int(c) for c in counts], names)
-
-    @classmethod
-    def from_cameras(cls, A: list[np.ndarray], B: list[np.ndarray],
-                     names=None) -> Measurements:
-        """Build from per-camera arrays ``(N_j, 4, 4)`` of rigid transforms (no checks)."""
-        entries = transform_entries(*A, *B, exact_bottom=True)
-        return cls._from_entries(entries, [len(a) for a in A], names)
-
-    @classmethod
-    def _from_entries(cls, entries: np.ndarray, counts: list[int], names=None) -> Measurements:
-        """Build from :func:`transform_entries` of ``[A; B]`` with exact bottom rows."""
-        names = tuple(names) if names else _default_names(len(counts))
-        return cls(entries=entries, counts=np.array(counts), names=names,
-                   stats=camera_stats(entries, counts))
-
-
 def check_measurements(A, B, *, names: list[str] | None = None,
                        per_camera_motion: bool = True) -> Measurements:
     """Validate ``A_i^j X^j = Y B_i^j`` input for m cameras.
@@ -431,7 +304,7 @@ def check_measurements(A, B, *, names: list[str] | None = None,
         raise InputError(f"A is a list of {m} single 4x4 matrices, read as {m} cameras "
                          "with one measurement each; pass one (N, 4, 4) array per camera, e.g. "
                          "solve([np.stack(A)], [np.stack(B)])")
-    names = tuple(names) if names else _default_names(m)
+    names = tuple(names) if names else default_names(m)
     counts = []
     for j in range(m):
         Aj, Bj = A[j], B[j]

@@ -68,7 +68,7 @@ from numpy.typing import NDArray
 
 from multieye.core.errors import DegenerateMotionError, InputError
 from multieye.core.geometry import inv, make_transform, random_transforms, transform_from_rotvec
-from multieye.solvers.checks import Measurements
+from multieye.solvers.measurements import Measurements
 from multieye.solvers.groups import (
     GeneralSolution,
     MeasurementGroup,

@@ -25,7 +25,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from multieye.core.errors import DegenerateMotionError
-from multieye.solvers.checks import Measurements
+from multieye.solvers.measurements import Measurements
 from multieye.solvers.kronecker import normalize_rotation, solve_translations, unvec
 
 __all__ = ["solve_joint", "joint_rotation"]

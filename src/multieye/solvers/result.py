@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from multieye.solvers.checks import Measurements
+    from multieye.solvers.measurements import Measurements
 
 from multieye.core.metrics import CameraResidual, camera_residuals
 

@@ -34,12 +34,12 @@ import numpy as np
 from multieye.core.errors import InputError
 from multieye.core.geometry import make_transform, rotation_mean
 from multieye.solvers.checks import (
-    Measurements,
     check_measurements,
     check_motion,
     check_transforms,
     given_measurements,
 )
+from multieye.solvers.measurements import Measurements
 from multieye.solvers.joint import solve_joint
 from multieye.solvers.li import solve_li_single
 from multieye.solvers.refine_poses import check_refine_options, refine_solution

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from multieye.core.geometry import make_transform, project_to_so3
-from multieye.solvers.checks import Measurements
+from multieye.solvers.measurements import Measurements
 from multieye.solvers.kronecker import unvec
 
 __all__ = ["solve_wang2022"]
