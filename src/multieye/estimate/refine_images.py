@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -431,22 +431,54 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     (True, (18, 18))
     """
     start = time.perf_counter()
+    noise = _given_noise(loss, f_scale, mocap_rot_sigma_rad, mocap_trans_sigma_m, pixel_sigma,
+                         max_iter)
+    data = ImageData(setup, observations, intrinsics, names, free_intrinsics=free_intrinsics,
+                     intrinsics_observations=intrinsics_observations, clocks=clocks)
+    fams, noise = _start(data, X0, Y0, noise)
+    fams, noise, res, counts = _solve(data, fams, noise, loss=loss, f_scale=noise.f_scale,
+                                      max_iter=int(max_iter), tol=tol)
+    return _result(data, fams, noise, res, counts, loss=loss, start=start)
+
+
+@dataclass(frozen=True)
+class _Noise:
+    """The noise levels of one pass (pixels; radians and metres per motion-capture pose), and
+    which of them are estimated from the data."""
+
+    s_px: float | None
+    s_rot: float
+    s_t: float
+    estimate_px: bool
+    estimate_mocap: bool
+    f_scale: float
+
+
+def _given_noise(loss, f_scale, mocap_rot_sigma_rad, mocap_trans_sigma_m, pixel_sigma,
+                 max_iter) -> _Noise:
+    """The options of :func:`refine_images` checked, and the noise levels they state."""
     if not isinstance(loss, str) or loss not in LOSSES:
         raise InputError(f"unknown loss {loss!r}; expected one of {', '.join(LOSSES)}")
     f_scale = _check_sigma(f_scale, "f_scale")
-    estimate_mocap = mocap_rot_sigma_rad is None or mocap_trans_sigma_m is None
     s_rot = (DEFAULT_MOCAP_ROT_SIGMA_RAD if mocap_rot_sigma_rad is None
              else _check_sigma(mocap_rot_sigma_rad, "mocap_rot_sigma_rad"))
     s_t = (DEFAULT_MOCAP_TRANS_SIGMA_M if mocap_trans_sigma_m is None
            else _check_sigma(mocap_trans_sigma_m, "mocap_trans_sigma_m"))
-    estimate_px = pixel_sigma is None
-    s_px = None if estimate_px else _check_sigma(pixel_sigma, "pixel_sigma")
+    s_px = None if pixel_sigma is None else _check_sigma(pixel_sigma, "pixel_sigma")
     if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 1):
         raise InputError(f"max_iter must be a whole number >= 1, got {max_iter!r}")
-    data = ImageData(setup, observations, intrinsics, names, free_intrinsics=free_intrinsics,
-                     intrinsics_observations=intrinsics_observations, clocks=clocks)
+    return _Noise(s_px=s_px, s_rot=s_rot, s_t=s_t, estimate_px=pixel_sigma is None,
+                  estimate_mocap=mocap_rot_sigma_rad is None or mocap_trans_sigma_m is None,
+                  f_scale=f_scale)
+
+
+def _start(data: ImageData, X0: ArrayLike, Y0: ArrayLike, noise: _Noise):
+    """The parameter families at ``X0``, ``Y0`` (checked), and the starting noise: of one
+    motion-capture sample from the smoothing residuals on timed cameras, and of the pixels
+    from the starting residuals when not given."""
     timed = [j for j, c in enumerate(data.clocks) if c is not None]
-    if estimate_mocap and timed:            # one sample's noise, from the smoothing residuals
+    s_rot, s_t, s_px = noise.s_rot, noise.s_t, noise.s_px
+    if noise.estimate_mocap and timed:      # one sample's noise, from the smoothing residuals
         s_rot, s_t = _clock_noise(data)
     X0 = real_array(X0, "X0", expected=f"{data.m} finite 4x4 transforms (one per camera)")
     if X0.shape != (data.m, 4, 4) or not np.all(np.isfinite(X0)):
@@ -463,19 +495,28 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     if np.any(bad):
         raise InputError(f"{data.where(int(data.image[np.argmax(bad)]))}: target points project "
                          "behind the camera at the starting estimate; check X0, Y0, the setup "
-                         f"({setup}) and the direction of T_world_mocap")
-    if estimate_px:
+                         f"({data.setup}) and the direction of T_world_mocap")
+    if noise.estimate_px:
         s_px = max(1.4826 * float(np.median(np.abs(r0))), 1e-3)
+    return fams, replace(noise, s_px=s_px, s_rot=s_rot, s_t=s_t)
 
-    kappa = gaussian_kappa(loss, f_scale)
+
+def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, f_scale: float, max_iter: int,
+           tol: float):
+    """Refinement passes, alternating with the variance components of the noise levels
+    being estimated until they settle (the last pass at ``tol``, the others at its root),
+    and the clock windows recentred on offsets that moved far.  Returns the families, the
+    noise, the last pass's result and (iterations, evaluations, passes)."""
+    s_px, s_rot, s_t = noise.s_px, noise.s_rot, noise.s_t
+    timed = any(c is not None for c in data.clocks)
     c_w = _gaussian_scale_constant(loss, f_scale)
     iterations = evaluations = passes = 0
-    iterate_mocap = estimate_mocap and not timed
-    settled = not (estimate_px or iterate_mocap)
+    iterate_mocap = noise.estimate_mocap and not timed
+    settled = not (noise.estimate_px or iterate_mocap)
     recentres = 0
     while True:
         final = settled or passes >= _MAX_SIGMA_PASSES
-        opts = Options(loss=loss, f_scale=f_scale, max_iter=int(max_iter),
+        opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter,
                        tol=tol if final else np.sqrt(tol))
         res = minimize(fams, data.groups(s_px, s_rot, s_t), opts)
         fams = res.families
@@ -491,7 +532,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
             recentres += 1
             for u in moved:
                 units.recentre(u, float(_value(fams, units.family[u])[0, 0]))
-            if estimate_mocap:
+            if noise.estimate_mocap:
                 s_rot, s_t = _clock_noise(data)
             if final:
                 continue
@@ -504,11 +545,20 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
             changes += [abs(new_rot / s_rot - 1.0) / _MOCAP_SETTLED,
                         abs(new_t / s_t - 1.0) / _MOCAP_SETTLED]
             s_rot, s_t = new_rot, new_t
-        if estimate_px:
+        if noise.estimate_px:
             changes.append(abs(new_px / s_px - 1.0) / _SETTLED)
             s_px = new_px
         settled = max(changes) < 1.0
+    return (fams, replace(noise, s_px=s_px, s_rot=s_rot, s_t=s_t), res,
+            (iterations, evaluations, passes))
 
+
+def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, int], *,
+            loss: str, start: float) -> RefinementResult:
+    """The result at the optimum: covariance (scaled by the loss's kappa), per-point and
+    per-image residuals and outliers, the intrinsics and clock offsets per camera."""
+    s_px, s_rot, s_t, f_scale = noise.s_px, noise.s_rot, noise.s_t, noise.f_scale
+    kappa = gaussian_kappa(loss, f_scale)
     X, Y, M = _value(fams, "X"), _value(fams, "Y")[0], _value(fams, "M")
     groups = data.groups(s_px, s_rot, s_t)
     ev = evaluate(fams, groups, jacobians=True)
@@ -555,8 +605,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         point_weights=data.split_points(w_pt, np.nan),
         point_outliers=data.split_points(point_out, False),
         image_outliers=data.split_images(img_out), pixel_sigma=float(s_px),
-        pixel_sigma_estimated=estimate_px, mocap_rot_sigma_rad=s_rot, mocap_trans_sigma_m=s_t,
-        mocap_sigma_estimated=estimate_mocap,
-        loss=loss, f_scale=f_scale, iterations=iterations, evaluations=evaluations,
-        passes=passes, time_s=time.perf_counter() - start, converged=res.converged,
+        pixel_sigma_estimated=noise.estimate_px, mocap_rot_sigma_rad=s_rot,
+        mocap_trans_sigma_m=s_t, mocap_sigma_estimated=noise.estimate_mocap,
+        loss=loss, f_scale=f_scale, iterations=counts[0], evaluations=counts[1],
+        passes=counts[2], time_s=time.perf_counter() - start, converged=res.converged,
         message=res.message)
