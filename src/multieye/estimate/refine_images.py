@@ -63,10 +63,11 @@ from scipy.stats import chi2
 from multieye.core.arguments import real_array
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.lie import log_so3
 from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho
 from multieye.estimate.clock_residuals import ClockData
 from multieye.estimate.image_residuals import ImageData, intrinsics_family
+# estimate_mocap_noise is named here too: it is the plain form of this module's estimate
+from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR, estimate_mocap_noise
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
 
 __all__ = [
@@ -98,7 +99,6 @@ _MOCAP_SETTLED = 0.1
 #: Smallest redundancy a variance component is divided by (a component the data barely
 #: determine is then not blown up).
 _MIN_REDUNDANCY = 0.5
-_MOCAP_SIGMA_FLOOR = 1e-7
 #: Clock windows are re-centred when an offset moved by more than this share of their
 #: half-width (at most this many times).
 _RECENTRE_SHARE = 0.25
@@ -240,28 +240,6 @@ def _gaussian_scale_constant(loss: str, f_scale: float) -> float:
     return float(wq @ (w * x ** 2))
 
 
-def estimate_mocap_noise(measured: F64, refined: F64) -> tuple[float, float]:
-    """Motion-capture noise from the refinement's corrections of the measured poses.
-
-    The rotation error is the rotation vector of ``R_measured^T R_refined`` (marker/body
-    frame), the position error ``t_refined - t_measured``; returned as the RMS per component
-    (radians, metres), the convention of :func:`refine_images`.  With many target points per
-    image the refined pose is close to the truth, so the corrections are close to the errors;
-    with few, the corrections shrink with the sigma the refinement was given, so iterating
-    this estimate drifts to zero: :func:`refine_images` divides by the redundancy instead
-    (:func:`_variance_components`).  Kept as the plain figure and for
-    benchmarks/bench_mocap_noise.py.
-
-    Parameters
-    ----------
-    measured, refined : ndarray, shape (N, 4, 4)
-    """
-    dr = log_so3(np.swapaxes(measured[:, :3, :3], 1, 2) @ refined[:, :3, :3])
-    dt = refined[:, :3, 3] - measured[:, :3, 3]
-    return (max(float(np.sqrt(np.mean(dr ** 2))), _MOCAP_SIGMA_FLOOR),
-            max(float(np.sqrt(np.mean(dt ** 2))), _MOCAP_SIGMA_FLOOR))
-
-
 def _value(fams, name: str):
     return next(f.value for f in fams if f.name == name)
 
@@ -286,8 +264,8 @@ def _clock_noise(data: ImageData) -> tuple[float, float]:
     trajs = data.units.trajectories
     w = np.array([len(t.h) * t.dof for t in trajs], dtype=float)
     rot, tr = np.array([t.noise() for t in trajs]).T
-    return (max(float(np.sqrt(w @ rot ** 2 / w.sum())), _MOCAP_SIGMA_FLOOR),
-            max(float(np.sqrt(w @ tr ** 2 / w.sum())), _MOCAP_SIGMA_FLOOR))
+    return (max(float(np.sqrt(w @ rot ** 2 / w.sum())), MOCAP_SIGMA_FLOOR),
+            max(float(np.sqrt(w @ tr ** 2 / w.sum())), MOCAP_SIGMA_FLOOR))
 
 
 def _pixel_residuals(data: ImageData, ev) -> F64:
@@ -336,7 +314,7 @@ def _variance_components(data: ImageData, fams, *, s_px: float, s_rot: float, s_
     redundancy = z.size - (n_params - h_prior)
     w = rho((z / f_scale) ** 2, loss)[1]
     new_px = s_px * np.sqrt(float(w @ z ** 2) / (c_w * max(redundancy, 1.0)))
-    new_rot, new_t = (max(s * np.sqrt(q / (c_w * max(r, _MIN_REDUNDANCY))), _MOCAP_SIGMA_FLOOR)
+    new_rot, new_t = (max(s * np.sqrt(q / (c_w * max(r, _MIN_REDUNDANCY))), MOCAP_SIGMA_FLOOR)
                       for s, q, r in zip((s_rot, s_t), sums, red))
     return float(new_px), float(new_rot), float(new_t), float(red[0]), float(red[1])
 

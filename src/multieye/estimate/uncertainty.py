@@ -44,7 +44,8 @@ from multieye.optimize.levenberg_marquardt import covariance
 from multieye.solvers.refine_poses import relative_pose_covariance
 
 __all__ = ["RelativeUncertainty", "relative_covariance", "pose_std", "pose_error",
-           "cramer_rao_bound", "projection_std", "projection_std_at"]
+           "cramer_rao_bound", "projection_std", "projection_std_at", "estimate_mocap_noise",
+           "MOCAP_SIGMA_FLOOR"]
 
 F64 = NDArray[np.float64]
 
@@ -264,3 +265,29 @@ def projection_std(intrinsics: Intrinsics, covariance: ArrayLike, points_cam: Ar
     if s.size == 0:
         raise InputError("no point in front of the camera to evaluate the projection at")
     return float(s.mean()), float(s.max())
+
+
+#: Smallest motion-capture noise an estimate gives (radians, metres): never exactly zero.
+MOCAP_SIGMA_FLOOR = 1e-7
+
+
+def estimate_mocap_noise(measured: F64, refined: F64) -> tuple[float, float]:
+    """Motion-capture noise from the refinement's corrections of the measured poses.
+
+    The rotation error is the rotation vector of ``R_measured^T R_refined`` (marker/body
+    frame), the position error ``t_refined - t_measured``; returned as the RMS per component
+    (radians, metres), the convention of
+    :func:`multieye.estimate.refine_images.refine_images`.  With many target points per
+    image the refined pose is close to the truth, so the corrections are close to the errors;
+    with few, the corrections shrink with the sigma the refinement was given, so iterating
+    this estimate drifts to zero: ``refine_images`` divides by the redundancy instead.  Kept as the plain figure and for
+    benchmarks/bench_mocap_noise.py.
+
+    Parameters
+    ----------
+    measured, refined : ndarray, shape (N, 4, 4)
+    """
+    dr = log_so3(np.swapaxes(measured[:, :3, :3], 1, 2) @ refined[:, :3, :3])
+    dt = refined[:, :3, 3] - measured[:, :3, 3]
+    return (max(float(np.sqrt(np.mean(dr ** 2))), MOCAP_SIGMA_FLOOR),
+            max(float(np.sqrt(np.mean(dt ** 2))), MOCAP_SIGMA_FLOOR))
