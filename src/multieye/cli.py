@@ -168,7 +168,7 @@ def check(dataset: Path, sample: int, processes: int | None):
     camera and the problems; exits 2, one line per reason on stderr, when calibrating would
     fail.
     """
-    from multieye.pipeline.check import check_dataset
+    from multieye.pipeline.dry_run import check_dataset
     from multieye.outputs.summary import check_table
 
     result = check_dataset(dataset, sample=sample, processes=processes)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import multieye.io.rosbag as rosbag_io
-from multieye.pipeline.check import check_dataset
+from multieye.pipeline.dry_run import check_dataset
 from rosbag_writer import camera_into_bag
 from small_dataset import render_small
 

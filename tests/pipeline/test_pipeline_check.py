@@ -7,7 +7,7 @@ import pytest
 import real_datasets
 from multieye.core.errors import InputError
 from multieye.outputs.summary import check_table
-from multieye.pipeline.check import check_dataset
+from multieye.pipeline.dry_run import check_dataset
 from pose_dataset import write_pose_dataset
 from small_dataset import render_small
 

@@ -234,7 +234,7 @@ def test_radtan_and_radtan4_files_under_either_model_name():
     pinhole-radtan, a 5-coefficient file with k3 = 0 also pinhole-radtan4 (then with its 4
     coefficients, so that refining keeps k3 at 0), and a non-zero k3 is refused by name."""
     from multieye.core.intrinsics import Intrinsics
-    from multieye.pipeline.intrinsics import check_model
+    from multieye.pipeline.estimated_lens import check_model
 
     K = [[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]
     four = Intrinsics(K=K, dist=[-0.2, 0.05, 1e-3, -1e-3], width=640, height=480)

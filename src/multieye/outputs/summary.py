@@ -154,7 +154,7 @@ def comparison_table(results: dict[str, np.ndarray], truth: np.ndarray,
 
 
 def check_table(check) -> str:
-    """The dry run of :func:`multieye.pipeline.check.check_dataset`: one row per camera
+    """The dry run of :func:`multieye.pipeline.dry_run.check_dataset`: one row per camera
     (counts of images, the share with the target found, the rotation of the paired motion in
     degrees), then each camera's problems and the verdict."""
     header = ["camera", "source", "images", "sampled", "target found", "found %",

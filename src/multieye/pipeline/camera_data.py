@@ -33,7 +33,7 @@ from multieye.io import (
 )
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
-from multieye.pipeline.intrinsics import check_model, start_lens, with_poses
+from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
@@ -195,7 +195,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
 
     Without ``intr`` (a camera whose lens is estimated), detection runs alone, the lens
-    ``model`` is started from the detections (:mod:`multieye.pipeline.intrinsics`) and the
+    ``model`` is started from the detections (:mod:`multieye.pipeline.estimated_lens`) and the
     poses follow by PnP with it; the start is then ``_Detected.intrinsics``. ``listed``:
     the images as ``(stamp, ns, path)`` instead of the folder's time-stamped names.
     ``extra_views``: detection-only results of the camera's ``intrinsics_images``, which

@@ -30,7 +30,7 @@ from multieye.io import (
     sample_bag_images,
 )
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
-from multieye.pipeline.intrinsics import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
+from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 from multieye.solvers.checks import rotation_spread
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 

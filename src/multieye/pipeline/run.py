@@ -47,7 +47,7 @@ from multieye.pipeline.camera_data import (
     load_camera_data,
     pair_camera,
 )
-from multieye.pipeline.intrinsics import refit_paired
+from multieye.pipeline.estimated_lens import refit_paired
 from multieye.pipeline.options import Options, updated_options
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record

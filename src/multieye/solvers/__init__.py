@@ -1,6 +1,6 @@
 """Closed forms of the hand-eye problem and the pose-level refinement behind them.
 
-``A_i^j X^j = Y B_i^j`` for a rig (:func:`solve`, :mod:`multieye.solvers.rig`) and the general
+``A_i^j X^j = Y B_i^j`` for a rig (:func:`solve`, :mod:`multieye.solvers.registry`) and the general
 ``A_i X_a = Y_b B_i`` (:func:`solve_general`, :mod:`multieye.solvers.general`); with
 ``refine=True`` both continue with the maximum-likelihood refinement of the pose residuals
 (:mod:`multieye.solvers.refine_poses`) on the engine of :mod:`multieye.optimize`.
@@ -14,7 +14,7 @@ Synopsis
 from multieye.solvers.general import solve_general
 from multieye.solvers.groups import GeneralSolution, MeasurementGroup
 from multieye.solvers.result import CameraResidual, Solution
-from multieye.solvers.rig import (
+from multieye.solvers.registry import (
     JOINT_METHODS,
     METHODS,
     SINGLE_METHODS,
