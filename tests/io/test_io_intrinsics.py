@@ -290,10 +290,14 @@ camera_matrix: !!opencv-matrix
 
 
 @pytest.mark.parametrize("old, new, expected", [
-    ("image_width: 640", "image_width: -640", "image_width must be a positive integer, got -640"),
-    ("image_width: 640", "image_width: 640.5", "image_width must be a positive integer, got 640.5"),
-    ("image_width: 640", "image_width: wide", "image_width must be a positive integer, got wide"),
-    ("image_height: 480", "image_height: 1e30", "image_height must be a positive integer"),
+    ("image_width: 640", "image_width: -640", "cam.yaml:3: image_width: expected a positive "
+                                              "integer, got -640"),
+    ("image_width: 640", "image_width: 640.5", "image_width: expected a positive integer, got "
+                                               "640.5"),
+    ("image_width: 640", "image_width: wide", "image_width: expected a positive integer, got "
+                                              "'wide'"),
+    ("image_height: 480", "image_height: 1e30", "cam.yaml:4: image_height: expected a positive "
+                                                "integer"),
     ("image_width: 640", "image_width: 1000000", "image width must be a positive integer of "
                                                  "at most 100000 pixels"),
     ("data: [500.0", "data: [.Nan", "camera matrix must be finite"),
@@ -318,10 +322,15 @@ def test_opencv_values_are_range_checked(tmp_path, old, new, expected):
 
 @pytest.mark.parametrize("text, expected", [
     ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
-     "image_width: -640\n", "info.yaml:2: image_width: expected a positive integer, got -640"),
+     "image_width: -640\nimage_height: 480\n",
+     "info.yaml:2: image_width: expected a positive integer, got -640"),
+    ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
+     "image_width: 640\n", "info.yaml:2: image_width: without image_height: give both"),
     ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, .inf]}\n",
      "camera matrix must be finite"),
     ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500]}\n",
+     "info.yaml:1: camera_matrix: rows x cols (3 x 3) does not match the 5 numbers of data"),
+    ("camera_matrix: {rows: 1, cols: 5, data: [500, 0, 320, 0, 500]}\n",
      "info.yaml:1: camera_matrix: expected 9 numbers, got 5"),
     ("cam0: {camera_model: pinhole, intrinsics: [500, 500, 320, 240], distortion_model: none,"
      " resolution: [-640, 480]}\n", "info.yaml:1: cam0.resolution: resolution [width, height] "
