@@ -105,7 +105,7 @@ def intrinsics_from_cameramodel(text: str, path) -> Intrinsics:
                         "imagersize")
     fx, fy, cx, cy = values[:4]
     K = [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]
-    return build_intrinsics(doc, "intrinsics", K, list(values[4:]), "pinhole", width, height)
+    return build_intrinsics(doc, ("intrinsics", "intrinsics", "imagersize"), K, list(values[4:]), "pinhole", width, height)
 
 
 def _numbers(values) -> str:

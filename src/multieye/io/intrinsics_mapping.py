@@ -158,16 +158,25 @@ def _one(doc: YamlDocument, role: str, names=None) -> str | None:
     return present[0] if present else None
 
 
-def build_intrinsics(doc: YamlDocument, key: str | None, K, dist, model: str, width, height):
+def build_intrinsics(doc: YamlDocument, keys, K, dist, model: str, width, height):
     """:class:`Intrinsics` from the numbers read, checked (:func:`check_lens_bounds`); a
-    problem is a DatasetError at ``key``'s line."""
+    problem is a DatasetError at the line of the key that gave the number: ``keys`` is
+    ``(camera matrix key, distortion key, image size key)``, any of them None."""
+    k_key, d_key, s_key = keys
+
+    def where(message: str):
+        key = (d_key if message.startswith(("distortion", "pinhole distortion", "fisheye")) else
+               s_key if message.startswith("image") else k_key) or k_key or d_key
+        return doc.error(message, key) if key else DatasetError(message, path=doc.path)
+
     try:
-        intr = Intrinsics(np.asarray(K, dtype=np.float64).reshape(3, 3),
-                          np.asarray(dist, dtype=np.float64).reshape(-1), model, width, height)
+        K = np.asarray(K, dtype=np.float64).reshape(3, 3)
+        dist = np.asarray(dist, dtype=np.float64).reshape(-1)
+        Intrinsics(K, np.zeros(4 if model == "fisheye" else 0), model, width, height)
+        intr = Intrinsics(K, dist, model, width, height)
         check_lens_bounds(intr)
     except (InputError, OverflowError, TypeError, ValueError) as exc:
-        raise (doc.error(str(exc), key) if key else
-               DatasetError(str(exc), path=doc.path)) from None
+        raise where(str(exc)) from None
     return intr
 
 
@@ -275,8 +284,9 @@ def intrinsics_from_mapping(doc: YamlDocument) -> Intrinsics:
         dist = []
     width, height = _size(doc)
     _full_image(doc, width, height)
-    return build_intrinsics(doc, d_key or (flat_d[0] if flat_d else k_key), K, dist, model,
-                            width, height)
+    s_key = next((k for k in ("resolution", "image_width", "width") if k in data), None)
+    return build_intrinsics(doc, (k_key, d_key or (flat_d[0] if flat_d else None), s_key), K,
+                            dist, model, width, height)
 
 
 def _flat_distortion(doc: YamlDocument, keys: list[str], model: str) -> list[float]:
