@@ -14,6 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
@@ -37,11 +39,6 @@ def _opencv_yaml(path: Path, dist=DIST) -> Path:
     fs.write("distortion_coefficients", np.asarray(dist, dtype=np.float64).reshape(1, -1))
     fs.release()
     return path
-
-
-def _opencv_json(path: Path) -> Path:
-    """OpenCV's FileStorage JSON (type_id opencv-matrix), written by cv2."""
-    return _opencv_yaml(path)
 
 
 LAYOUTS = {
@@ -228,7 +225,8 @@ IGNORED_FILES = {
     "ROS camera_info YAML": ("cam.yaml", lambda p: p.write_text(LAYOUTS["yaml ROS camera_info"]())),
     "ROS CameraInfo message (YAML or JSON)": (
         "cam.json", lambda p: p.write_text(LAYOUTS["json ROS 1 CameraInfo message"]())),
-    "JSON and YAML layouts": ("cam.json", lambda p: p.write_text(LAYOUTS["json K/dist (issue 20)"]())),
+    "JSON and YAML layouts": ("cam.json",
+                              lambda p: p.write_text(LAYOUTS["json K/dist (issue 20)"]())),
     "Kalibr camchain entry": ("chain.yaml", lambda p: p.write_text(_KALIBR)),
     "mrcal .cameramodel": ("cam.cameramodel", lambda p: p.write_text(
         LAYOUTS["mrcal .cameramodel (multieye's)"]())),
@@ -458,3 +456,29 @@ def test_every_documented_example_reads_to_the_same_camera(tmp_path):
         np.testing.assert_array_equal(intr.K, K, err_msg=str(i))
         np.testing.assert_array_equal(intr.dist, DIST[:4 if i == 5 else 5])
         assert (intr.model, intr.width, intr.height) == ("pinhole", *SIZE)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.sampled_from([0, 4, 5, 8, 12]))
+def test_random_lenses_read_back_exactly_from_every_writable_layout(tmp_path_factory, seed, n):
+    rng = np.random.default_rng(seed)
+    w, h = int(rng.integers(64, 4000)), int(rng.integers(64, 4000))
+    f = rng.uniform(0.3, 3.0) * max(w, h)
+    Km = np.array([[f, 0.0, rng.uniform(0, w)], [0.0, f * rng.uniform(0.9, 1.1),
+                                                 rng.uniform(0, h)], [0.0, 0.0, 1.0]])
+    dist = rng.normal(scale=0.05, size=n)
+    intr = Intrinsics(Km, dist, "pinhole", w, h)
+    folder = tmp_path_factory.mktemp("rt")
+    texts = {"a.json": json.dumps({"K": Km.tolist(), "dist": dist.tolist(), "width": w,
+                                   "height": h}),
+             "b.json": json.dumps({"fx": Km[0, 0], "fy": Km[1, 1], "cx": Km[0, 2],
+                                   "cy": Km[1, 2], **dict(zip(NAMES + ("s1", "s2", "s3", "s4"),
+                                                              dist.tolist())),
+                                   "width": w, "height": h}),
+             "c.cameramodel": cameramodel_text(intr)}
+    for name, text in texts.items():
+        (folder / name).write_text(text)
+        back = read_intrinsics(folder / name)
+        np.testing.assert_array_equal(back.K, Km)
+        np.testing.assert_array_equal(back.dist, dist)
+        assert (back.width, back.height) == (w, h)

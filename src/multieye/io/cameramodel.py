@@ -105,7 +105,8 @@ def intrinsics_from_cameramodel(text: str, path) -> Intrinsics:
                         "imagersize")
     fx, fy, cx, cy = values[:4]
     K = [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]
-    return build_intrinsics(doc, ("intrinsics", "intrinsics", "imagersize"), K, list(values[4:]), "pinhole", width, height)
+    return build_intrinsics(doc, ("intrinsics", "intrinsics", "imagersize"), K,
+                            list(values[4:]), "pinhole", width, height)
 
 
 def _numbers(values) -> str:
@@ -133,7 +134,8 @@ def cameramodel_text(intr: Intrinsics, T_cam_ref=None, *, note: str | None = Non
         ``imagersize``).
     """
     if intr.model == "fisheye" or intr.dist.size not in _NAMES:
-        kind = "OpenCV's fisheye" if intr.model == "fisheye" else "a tilted sensor (14 coefficients)"
+        kind = ("OpenCV's fisheye" if intr.model == "fisheye"
+                else "a tilted sensor (14 coefficients)")
         raise InputError(f"mrcal has no lens model for {kind}")
     if intr.width is None or intr.height is None:
         raise InputError("mrcal's .cameramodel needs the image size, which these intrinsics do "

@@ -36,7 +36,8 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, check_lens_bounds
 from multieye.io.yamlfile import YamlDocument
 
-__all__ = ["DISTORTION_MODELS", "KEYS", "FLAT_KEYS", "READ_KEYS", "IGNORED_KEYS", "intrinsics_from_mapping", "has_camera_matrix",
+__all__ = ["DISTORTION_MODELS", "KEYS", "FLAT_KEYS", "READ_KEYS", "IGNORED_KEYS",
+           "intrinsics_from_mapping", "has_camera_matrix",
            "refuse_unknown", "build_intrinsics"]
 
 #: ``distortion_model`` names and the camera model they mean.
