@@ -141,7 +141,8 @@ def test_camera_info_errors_give_the_line(tmp_path):
     assert info.value.line == 9
     (tmp_path / "b.yaml").write_text(CAMERA_INFO.format(model="unified", n=4,
                                                         coeffs="0, 0, 0, 0"))
-    with pytest.raises(DatasetError, match="distortion_model 'unified' is not supported") as info:
+    with pytest.raises(DatasetError, match="distortion_model: 'unified' is not a supported "
+                       "distortion model") as info:
         read_intrinsics(tmp_path / "b.yaml")
     assert info.value.line == 8
     (tmp_path / "c.yaml").write_text("width: 3\n")

@@ -153,6 +153,12 @@ _KALIBR = ("cam0:\n  camera_model: pinhole\n  intrinsics: [500.0, 501.0, 320.0, 
            "  resolution: [640, 480]\n")
 
 
+_ASLAM = ("type: pinhole\nimage_width: 640\nimage_height: 480\nline-delay-nanoseconds: 0\n"
+          "intrinsics: {rows: 4, cols: 1, data: [500.0, 501.0, 320.0, 240.0]}\n"
+          "distortion:\n  type: radial-tangential\n"
+          "  parameters: {rows: 4, cols: 1, data: [0.1, -0.2, 0.001, -0.002]}\n")
+
+
 @pytest.mark.parametrize("name, text, key, line", [
     ("a.json", json.dumps({"K": K.tolist(), "D": [0.1, 0, 0, 0], "tangential": [0.01, 0.02]},
                           indent=1), "tangential", 25),
@@ -167,6 +173,9 @@ _KALIBR = ("cam0:\n  camera_model: pinhole\n  intrinsics: [500.0, 501.0, 320.0, 
                       "0.1, 0, 0, 0], 'imagersize': [640, 480], 'k1_fix': 0}\n", "k1_fix", None),
     ("g.yaml", "camera_matrix: {rows: 3, cols: 3, step: 24, data: [500, 0, 320, 0, 500, 240, 0,"
                " 0, 1]}\n", "camera_matrix.step", 1),
+    ("i.yaml", _ASLAM + "T_B_C: [1, 0]\n", "T_B_C", 9),
+    ("j.yaml", _ASLAM.replace("  type: radial", "  k1: 0.1\n  type: radial"), "distortion.k1",
+     7),
     ("h.json", json.dumps({"K": K.tolist(), "roi": {"x_offset": 0, "y_offset": 0, "height": 0,
                                                     "width": 0, "scale": 2}}), "roi.scale", 1),
 ])
@@ -228,6 +237,7 @@ IGNORED_FILES = {
     "JSON and YAML layouts": ("cam.json",
                               lambda p: p.write_text(LAYOUTS["json K/dist (issue 20)"]())),
     "Kalibr camchain entry": ("chain.yaml", lambda p: p.write_text(_KALIBR)),
+    "aslam_cv camera (ETH Zurich)": ("cam.yaml", lambda p: p.write_text(_ASLAM)),
     "mrcal .cameramodel": ("cam.cameramodel", lambda p: p.write_text(
         LAYOUTS["mrcal .cameramodel (multieye's)"]())),
 }
@@ -448,13 +458,14 @@ def test_every_documented_example_reads_to_the_same_camera(tmp_path):
     text = DOC.read_text().split("Complete examples, one per format", 1)[1]
     text = text.split("Image names:", 1)[0]
     blocks = re.findall(r"```(yaml|json|python)\n(.*?)```", text, re.S)
-    assert [b[0] for b in blocks] == ["yaml", "yaml", "json", "json", "json", "yaml", "python"]
+    assert [b[0] for b in blocks] == ["yaml", "yaml", "json", "json", "json", "yaml", "yaml",
+                                      "python"]
     for i, (lang, body) in enumerate(blocks):
         path = tmp_path / f"ex{i}.{ {'python': 'cameramodel'}.get(lang, lang)}"
         path.write_text(body)
         intr = read_intrinsics(path)
         np.testing.assert_array_equal(intr.K, K, err_msg=str(i))
-        np.testing.assert_array_equal(intr.dist, DIST[:4 if i == 5 else 5])
+        np.testing.assert_array_equal(intr.dist, DIST[:4 if i in (5, 6) else 5])
         assert (intr.model, intr.width, intr.height) == ("pinhole", *SIZE)
 
 
@@ -482,3 +493,42 @@ def test_random_lenses_read_back_exactly_from_every_writable_layout(tmp_path_fac
         np.testing.assert_array_equal(back.K, Km)
         np.testing.assert_array_equal(back.dist, dist)
         assert (back.width, back.height) == (w, h)
+
+
+def test_aslam_camera_yaml_reads_and_refuses_what_opencv_has_not(tmp_path):
+    path = tmp_path / "cam.yaml"
+    path.write_text(_ASLAM)
+    intr = read_intrinsics(path)
+    np.testing.assert_array_equal(intr.K, [[500.0, 0, 320.0], [0, 501.0, 240.0], [0, 0, 1]])
+    assert intr.dist.tolist() == [0.1, -0.2, 0.001, -0.002] and (intr.width, intr.height) == (
+        640, 480)
+    for old, new, message in [
+            ("type: radial-tangential", "type: fisheye", "aslam's fisheye is the FOV model"),
+            ("line-delay-nanoseconds: 0", "line-delay-nanoseconds: 30000",
+             "line-delay-nanoseconds: a rolling shutter (30000 ns per line) is not modelled"),
+            ("type: pinhole", "type: unified-projection", "camera type 'unified-projection'"),
+            ("{rows: 4, cols: 1, data: [0.1, -0.2, 0.001, -0.002]}",
+             "{rows: 2, cols: 1, data: [0.1, -0.2]}",
+             "expected 4 parameters for radial-tangential, got 2")]:
+        path.write_text(_ASLAM.replace(old, new))
+        with pytest.raises(DatasetError, match=re.escape(message)):
+            read_intrinsics(path)
+
+
+def test_eth_zurich_published_camera_files_are_read_whole(shared_data):
+    """Every camera file of ethz_handeye/hand_eye_calibration/calib, as published."""
+    import yaml
+
+    files = sorted((shared_data / "ethz_handeye" / "hand_eye_calibration" / "calib").glob(
+        "*.yaml"))
+    cameras = [f for f in files if not f.name.startswith("target_")]
+    assert len(cameras) == 7
+    for f in cameras:
+        raw = yaml.safe_load(f.read_text())
+        intr = read_intrinsics(f)
+        fu, fv, cu, cv = raw["intrinsics"]["data"]
+        np.testing.assert_array_equal(intr.K, [[fu, 0, cu], [0, fv, cv], [0, 0, 1]])
+        np.testing.assert_array_equal(intr.dist, raw["distortion"]["parameters"]["data"])
+        assert intr.model == ("fisheye" if raw["distortion"]["type"] == "equidistant"
+                              else "pinhole"), f.name
+        assert (intr.width, intr.height) == (raw["image_width"], raw["image_height"])

@@ -12,6 +12,9 @@ Kalibr camchain (``camera_model: pinhole``)
 ROS ``camera_info`` YAML, a ROS CameraInfo message, and the JSON or YAML layouts of common
 toolkits (``K`` / ``dist``, ``camera_matrix`` / ``dist_coeffs``, flat ``fx fy cx cy k1 ...``)
     :mod:`multieye.io.intrinsics_mapping`.
+aslam_cv's camera YAML (``type: pinhole``, ``intrinsics``, ``distortion: {type, parameters}``)
+    As ETH Zurich's hand_eye_calibration writes it; also in
+    :mod:`multieye.io.intrinsics_mapping`.
 mrcal ``.cameramodel`` (a Python dictionary literal with ``lensmodel``)
     :mod:`multieye.io.cameramodel`.
 
@@ -50,7 +53,9 @@ from multieye.io.intrinsics_mapping import (
     DISTORTION_MODELS,
     READ_KEYS,
     has_camera_matrix,
+    intrinsics_from_aslam,
     intrinsics_from_mapping,
+    is_aslam,
     refuse_unknown,
 )
 from multieye.io.intrinsics_mapping import IGNORED_KEYS as _MAPPING_IGNORED
@@ -96,7 +101,8 @@ _ROS_SIZES = {"plumb_bob": 5, "rational_polynomial": 8, "equidistant": 4}
 
 _FORMATS = ("expected OpenCV FileStorage (%YAML:1.0 or XML with camera_matrix), a Kalibr "
             "camchain (camera_model, intrinsics), ROS camera_info, JSON or YAML with a camera "
-            "matrix (K, camera_matrix, or fx fy cx cy) or a mrcal .cameramodel")
+            "matrix (K, camera_matrix, or fx fy cx cy), aslam_cv's camera YAML (type, "
+            "intrinsics, distortion) or a mrcal .cameramodel")
 
 
 def _read(path) -> str:
@@ -389,6 +395,8 @@ def _load(path) -> tuple[str, object]:
         return "kalibr", doc
     if has_camera_matrix(doc.data):
         return "mapping", doc
+    if is_aslam(doc.data):
+        return "aslam", doc
     raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
 
 
@@ -440,4 +448,6 @@ def read_intrinsics(path: str | os.PathLike, camera: str | None = None, *,
         return cameramodel.intrinsics_from_cameramodel(content, Path(path))
     if kind == "kalibr":
         return _kalibr(content, camera, prefer)
+    if kind == "aslam":
+        return intrinsics_from_aslam(content)
     return intrinsics_from_mapping(content)

@@ -7,6 +7,9 @@ metadata that does not change the projection is ignored on purpose (:data:`IGNOR
 the format that writes it), and any other key is refused with one line naming it, so that no
 distortion is left at zero because its key had another name.
 
+aslam_cv's camera YAML (ETH Zurich's hand-eye tools, maplab) is read by
+:func:`intrinsics_from_aslam`, with its own keys.
+
 Layouts (each one read from JSON or YAML):
 
 - a camera matrix under one of ``camera_matrix``, ``K``, ``k``, ``cameraMatrix``, ``mtx``:
@@ -38,7 +41,7 @@ from multieye.io.yamlfile import YamlDocument
 
 __all__ = ["DISTORTION_MODELS", "KEYS", "FLAT_KEYS", "READ_KEYS", "IGNORED_KEYS",
            "intrinsics_from_mapping", "has_camera_matrix",
-           "refuse_unknown", "build_intrinsics"]
+           "refuse_unknown", "build_intrinsics", "is_aslam", "intrinsics_from_aslam"]
 
 #: ``distortion_model`` names and the camera model they mean.
 DISTORTION_MODELS = {
@@ -78,8 +81,10 @@ IGNORED_KEYS = {
     "ROS camera_info YAML": ("camera_name", "rectification_matrix", "projection_matrix"),
     "ROS CameraInfo message (YAML or JSON)": ("header", "R", "P", "r", "p"),
     "JSON and YAML layouts": ("rms", "reprojection_error", "rvecs", "tvecs"),
+    "aslam_cv camera (ETH Zurich)": ("label", "id"),
 }
-_IGNORED = frozenset(k for keys in IGNORED_KEYS.values() for k in keys)
+_IGNORED = frozenset(k for fmt, keys in IGNORED_KEYS.items() for k in keys
+                     if not fmt.startswith("aslam"))
 #: Every key the mapping layouts read.
 READ_KEYS = tuple(k for names in KEYS.values() for k in names) + FLAT_KEYS
 _MATRIX_KEYS = ("rows", "cols", "data", "dt", "type_id")
@@ -187,7 +192,7 @@ def _model(doc: YamlDocument) -> str:
     if key is not None:
         name = doc.data[key]
         if not isinstance(name, str) or name.lower() not in DISTORTION_MODELS:
-            raise doc.error(f"distortion_model {name!r} is not supported; expected one of "
+            raise doc.error(f"{name!r} is not a supported distortion model; expected one of "
                             f"{', '.join(DISTORTION_MODELS)}", key)
         model = DISTORTION_MODELS[name.lower()]
     if "fisheye_model" in doc.data:
@@ -288,6 +293,56 @@ def intrinsics_from_mapping(doc: YamlDocument) -> Intrinsics:
     s_key = next((k for k in ("resolution", "image_width", "width") if k in data), None)
     return build_intrinsics(doc, (k_key, d_key or (flat_d[0] if flat_d else None), s_key), K,
                             dist, model, width, height)
+
+
+#: aslam_cv's camera YAML (ETH Zurich's hand_eye_calibration, maplab): the keys read, and
+#: its distortion types -> (model, number of coefficients).
+ASLAM_KEYS = ("type", "intrinsics", "distortion", "image_width", "image_height",
+              "line-delay-nanoseconds")
+_ASLAM_DISTORTION = {"radial-tangential": ("pinhole", 4), "equidistant": ("fisheye", 4),
+                     "none": ("pinhole", 0)}
+
+
+def is_aslam(data: Mapping) -> bool:
+    """Whether a mapping is aslam_cv's camera layout (``type``, ``intrinsics`` as a matrix
+    mapping of 4 numbers, ``distortion: {type, parameters}``)."""
+    return "type" in data and isinstance(data.get("intrinsics"), Mapping) and (
+        isinstance(data.get("distortion"), Mapping))
+
+
+def intrinsics_from_aslam(doc: YamlDocument) -> Intrinsics:
+    """Intrinsics from aslam_cv's camera YAML: ``type: pinhole``, ``intrinsics`` ``[fu, fv,
+    cu, cv]``, ``distortion: {type: radial-tangential | equidistant | none, parameters}``,
+    ``image_width``, ``image_height``; ``line-delay-nanoseconds`` must be 0 (a rolling
+    shutter is not modelled).  aslam's ``fisheye`` distortion is the FOV model, refused."""
+    data = doc.data
+    refuse_unknown(doc, data, ASLAM_KEYS, IGNORED_KEYS["aslam_cv camera (ETH Zurich)"])
+    if data["type"] != "pinhole":
+        raise doc.error(f"camera type {data['type']!r} is not supported; expected 'pinhole'",
+                        "type")
+    dist = data["distortion"]
+    refuse_unknown(doc, dist, ("type", "parameters"), (), "distortion")
+    if dist.get("type") not in _ASLAM_DISTORTION:
+        raise doc.error(f"{dist.get('type')!r} is not supported; expected one of "
+                        f"{', '.join(_ASLAM_DISTORTION)} (aslam's fisheye is the FOV model, "
+                        "which OpenCV has not)", "distortion", "type")
+    model, n = _ASLAM_DISTORTION[dist["type"]]
+    coeffs = _numbers(dist["parameters"], doc, "distortion") if n else []
+    if len(coeffs) != n:
+        raise doc.error(f"expected {n} parameters for {dist['type']}, got {len(coeffs)}",
+                        "distortion", "parameters")
+    values = _numbers(data["intrinsics"], doc, "intrinsics")
+    if len(values) != 4:
+        raise doc.error(f"expected 4 numbers [fu, fv, cu, cv], got {len(values)}", "intrinsics")
+    delay = data.get("line-delay-nanoseconds", 0)
+    if _number(delay) != 0:
+        raise doc.error(f"a rolling shutter ({delay!r} ns per line) is not modelled; give a "
+                        "global-shutter camera's intrinsics (0)", "line-delay-nanoseconds")
+    width, height = _size(doc)
+    fu, fv, cu, cv = values
+    return build_intrinsics(doc, ("intrinsics", "distortion", "image_width"),
+                            [fu, 0.0, cu, 0.0, fv, cv, 0.0, 0.0, 1.0], coeffs, model, width,
+                            height)
 
 
 def _flat_distortion(doc: YamlDocument, keys: list[str], model: str) -> list[float]:
