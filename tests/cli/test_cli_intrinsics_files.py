@@ -58,8 +58,10 @@ def test_cameramodel_and_json_calibrate_as_the_opencv_yaml(dataset, tmp_path):
 @pytest.mark.parametrize("change, expected", [
     ({"K": [[407.1, 999999.0, 315.5], [0, 408.4, 231.3], [0, 0, 1]]},
      "cam0.json:1: camera cam0: K: camera matrix has skew 999999 px"),
-    ({"distortion": [-0.21, 0.1, 0.0, 0.0]}, "cam0.json:1: camera cam0: distortion: not a key multieye reads"),
-    ({"dist": [-0.21, 1e7, 0.0, 0.0]}, "cam0.json:1: camera cam0: dist: distortion coefficient k2 = 1e+07"),
+    ({"distortion": [-0.21, 0.1, 0.0, 0.0]},
+     "cam0.json:1: camera cam0: distortion: not a key multieye reads"),
+    ({"dist": [-0.21, 1e7, 0.0, 0.0]},
+     "cam0.json:1: camera cam0: dist: distortion coefficient k2 = 1e+07"),
 ])
 def test_a_refused_intrinsics_file_is_exit_2_one_line_nothing_written(dataset, tmp_path, change,
                                                                          expected):
