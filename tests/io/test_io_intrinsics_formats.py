@@ -532,3 +532,29 @@ def test_eth_zurich_published_camera_files_are_read_whole(shared_data):
         assert intr.model == ("fisheye" if raw["distortion"]["type"] == "equidistant"
                               else "pinhole"), f.name
         assert (intr.width, intr.height) == (raw["image_width"], raw["image_height"])
+
+
+@pytest.mark.parametrize("name, text, message", [
+    ("a.json", '{"K": [[%s, 0, 1], [0, 1, 1], [0, 0, 1]]}' % ("9" * 400),
+     "a.json:1: K: camera matrix must be finite"),
+    ("b.json", '{"K": [[%s, 0, 1], [0, 1, 1], [0, 0, 1]]}' % ("9" * 5000), "b.json: invalid JSON"),
+    ("c.json", '{"K": [1e400, 0, 1, 0, 1, 1, 0, 0, 1]}', "camera matrix must be finite"),
+    ("d.json", '{"K": [NaN, 0, 1, 0, 1, 1, 0, 0, 1]}', "camera matrix must be finite"),
+    ("e.json", '{"K": [[[500]], 0, 1, 0, 1, 1, 0, 0, 1]}', "K: expected numbers"),
+    ("f.json", '{"K": ' + "[" * 40 + "]" * 40 + "}", "nested deeper than 32"),
+    ("g.cameramodel", "{'lensmodel': 'LENSMODEL_PINHOLE', 'intrinsics': [%s, 1, 1, 1], "
+                      "'imagersize': [640, 480]}" % ("9" * 400), "intrinsics: "),
+    ("h.yaml", "fx: [500, 501]\nfy: 500\ncx: 320\ncy: 240\n", "expected one number each"),
+])
+def test_hostile_numbers_are_one_line_never_a_traceback(tmp_path, name, text, message):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(DatasetError) as info:
+        read_intrinsics(path)
+    assert message in str(info.value) and "\n" not in str(info.value), str(info.value)
+
+
+def test_a_yaml_flow_mapping_with_quotes_is_not_taken_for_json(tmp_path):
+    path = tmp_path / "flow.yaml"
+    path.write_text('{K: [500, 0, 320, 0, 500, 240, 0, 0, 1], camera_name: "front"}\n')
+    assert read_intrinsics(path).K[0, 0] == 500.0

@@ -364,7 +364,12 @@ def _json(text: str, path) -> YamlDocument:
     try:
         data = json.loads(text, object_pairs_hook=pairs)
     except json.JSONDecodeError as exc:
-        raise DatasetError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
+        try:                          # a YAML flow mapping with a quoted value
+            return parse_yaml(text, path)
+        except DatasetError:
+            raise DatasetError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
+    except (ValueError, RecursionError) as exc:      # e.g. an integer of 5000 digits
+        raise DatasetError(f"invalid JSON: {str(exc)[:120]}", path=path) from None
     try:
         lines = parse_yaml(text, path).lines
     except DatasetError:

@@ -113,11 +113,13 @@ def refuse_unknown(doc: YamlDocument, keys, read, ignored, *prefix) -> None:
 
 
 def _number(v):
-    if isinstance(v, str) and _NUMBER.fullmatch(v.strip()):
-        return float(v)              # YAML 1.1 reads 1e-5 as text
-    if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool):
-        return float(v)
-    return None
+    if not (isinstance(v, str) and _NUMBER.fullmatch(v.strip())) and (
+            not isinstance(v, (int, float, np.integer, np.floating)) or isinstance(v, bool)):
+        return None
+    try:
+        return float(v)              # a string too: YAML 1.1 reads 1e-5 as text
+    except OverflowError:
+        return float("inf")          # refused as not finite
 
 
 def _numbers(value, doc: YamlDocument, key: str) -> list[float]:
