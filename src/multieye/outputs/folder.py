@@ -73,11 +73,12 @@ KNOWN_FILES = frozenset({
     "export/camchain.yaml", "export/extrinsics.yaml", "export/cameras.urdf",
     "export/static_transforms.sh", "export/calibration.json",
 })
-_KNOWN_FOLDERS = frozenset({"figures", "export", "export/camera_info"})
+_KNOWN_FOLDERS = frozenset({"figures", "export", "export/camera_info", "export/mrcal"})
 #: Files multieye writes under names of the cameras: the report's per-camera figures
 #: (``multieye report`` on a folder whose manifest predates them writes them too).
-#: and ``multieye export --format camera-info``'s files, named after the cameras.
-_KNOWN_PATTERN = re.compile(r"figures/camera_[A-Za-z0-9._-]+\.png|export/camera_info/[^/]+\.yaml")
+#: and ``multieye export --format camera-info`` and ``mrcal``'s files, named after the cameras.
+_KNOWN_PATTERN = re.compile(r"figures/camera_[A-Za-z0-9._-]+\.png|export/camera_info/[^/]+\.yaml"
+                            r"|export/mrcal/[^/]+\.cameramodel")
 #: Left by file managers, anywhere: never a reason to refuse a folder.
 _DISPOSABLE = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
 #: The temporary file of an interrupted atomic write (multieye.io.atomic).
