@@ -182,10 +182,23 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
     T = _transform(rvec, tvec)
     err = reprojection_residuals(T, obj, img, intrinsics)
     rms = float(np.sqrt(np.mean(err ** 2)))
-    alt, alt_rms = (None, None) if len(candidates) < 2 else _alternative(
-        obj, img, intrinsics, candidates[1][1:], T, rms)
+    alt, alt_rms = None, None
+    if len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
+        alt, alt_rms = _alternative(obj, img, intrinsics, candidates[1][1:], T, rms)
     return PoseEstimate(T_cam_target=T, rms_px=rms, max_px=float(err.max()), n_points=len(obj),
                         alternative=alt, alternative_rms_px=alt_rms)
+
+
+def _limit_px(rms: float, n_points: int) -> float:
+    """Largest pixel RMS of a second pose kept beside a first of ``rms`` (module docstring)."""
+    return max(ALTERNATIVE_RATIO * rms, rms + ALTERNATIVE_PX if n_points == 4 else 0.0)
+
+
+def _could_be_kept(candidates, n_points: int) -> bool:
+    """The unrefined second IPPE pose is near enough to the first's pixel RMS that, refined,
+    it might be kept (twice the limit, and a pixel: refinement moves both a little)."""
+    rms1, rms2 = (np.sqrt(c[0] / n_points) for c in candidates)
+    return bool(rms2 <= 2 * _limit_px(rms1, n_points) + 1.0)
 
 
 def _alternative(obj: F64, img: F64, intrinsics: Intrinsics, start, T: F64, rms: float):
@@ -197,8 +210,7 @@ def _alternative(obj: F64, img: F64, intrinsics: Intrinsics, start, T: F64, rms:
         return None, None                       # the refinement fell into the first pose
     err = reprojection_residuals(T2, obj, img, intrinsics)
     rms2 = float(np.sqrt(np.mean(err ** 2)))
-    limit = max(ALTERNATIVE_RATIO * rms, rms + ALTERNATIVE_PX if len(obj) == 4 else 0.0)
-    if not rms2 <= limit:
+    if not rms2 <= _limit_px(rms, len(obj)):
         return None, None
     return T2, rms2
 
