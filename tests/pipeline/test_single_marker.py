@@ -3,6 +3,8 @@ mirrored PnP pose is picked in some images; the rig chooses the right one per im
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -145,3 +147,27 @@ def test_closed_form_chooses_without_consensus(single_marker_rig):
         assert max(_angle_deg(o.T_cam_target, by_name[o.name]) for o in kept) < 5
     rot, _ = extrinsic_errors(plain.X, np.stack([truth[n][0] for n in plain.paired]))
     assert rot.max() < 2, rot
+
+
+def test_choice_swaps_the_poses_and_their_rms():
+    from multieye.pipeline.ambiguity import alternatives, with_choice
+    from multieye.pipeline.camera_data import Observation, PairedCamera
+
+    T1 = g.transform_from_rotvec([0.3, 0, 0], [0, 0, 2.0])
+    T2 = g.transform_from_rotvec([-0.3, 0, 0], [0, 0, 2.0])
+    obs = (Observation("a.png", 0.0, T1, 0.1, alternative=T2, alternative_rms_px=0.2),
+           Observation("b.png", 1.0, T1, 0.3))
+    p = PairedCamera("cam0", np.stack([np.eye(4)] * 2), g.inv(np.stack([T1, T1])),
+                     np.stack([np.eye(4)] * 2), obs, ())
+    alt = alternatives([p])[0]
+    np.testing.assert_allclose(alt[0], g.inv(T2))
+    assert np.isnan(alt[1]).all()
+    q = with_choice(p, np.array([True, False]))
+    o = q.observations[0]
+    assert np.array_equal(o.T_cam_target, T2) and np.array_equal(o.alternative, T1)
+    assert (o.rms_px, o.alternative_rms_px) == (0.2, 0.1)
+    np.testing.assert_allclose(q.B[0], g.inv(T2))
+    assert q.observations[1] is obs[1] and np.array_equal(q.B[1], p.B[1])
+    assert with_choice(p, np.array([False, False])) is p
+    single = replace(p, observations=tuple(replace(o, alternative=None) for o in obs))
+    assert alternatives([single]) is None

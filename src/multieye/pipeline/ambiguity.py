@@ -48,7 +48,8 @@ def _second_poses(p: PairedCamera) -> np.ndarray:
 
 def with_choice(p: PairedCamera, choice: np.ndarray) -> PairedCamera:
     """``p`` with the measurements where ``choice`` (shape (n,), bool) on their second pose:
-    that pose becomes ``T_cam_target`` and the row of ``B``, the first its ``alternative``."""
+    that pose (and its RMS) becomes ``T_cam_target`` and the row of ``B``, the first its
+    ``alternative``."""
     choice = np.asarray(choice, dtype=bool)
     if not choice.any():
         return p
@@ -56,7 +57,8 @@ def with_choice(p: PairedCamera, choice: np.ndarray) -> PairedCamera:
     B = p.B.copy()
     for i in np.flatnonzero(choice):
         o = obs[i]
-        obs[i] = replace(o, T_cam_target=o.alternative, alternative=o.T_cam_target)
+        obs[i] = replace(o, T_cam_target=o.alternative, alternative=o.T_cam_target,
+                         rms_px=o.alternative_rms_px, alternative_rms_px=o.rms_px)
         B[i] = g.inv(o.alternative)
     return replace(p, B=B, observations=tuple(obs))
 

@@ -54,6 +54,8 @@ class Observation:
     alternative : ndarray, shape (4, 4), or None
         The target's other PnP pose (a single marker's mirrored pose,
         :attr:`multieye.imaging.pnp.PoseEstimate.alternative`), for the consensus to choose.
+    alternative_rms_px : float or None
+        Its reprojection RMS, pixels.
     """
 
     name: str
@@ -63,6 +65,7 @@ class Observation:
     object_points: np.ndarray | None = None
     image_points: np.ndarray | None = None
     alternative: np.ndarray | None = None
+    alternative_rms_px: float | None = None
 
 
 @dataclass(frozen=True)
@@ -250,7 +253,8 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
                                    rms_px=res.pose.rms_px,
                                    object_points=res.detection.object_points,
                                    image_points=res.detection.image_points,
-                                   alternative=res.pose.alternative))
+                                   alternative=res.pose.alternative,
+                                   alternative_rms_px=res.pose.alternative_rms_px))
             warnings.extend(f"{name}/{label}: {w}" for w in res.warnings)
         else:
             rejected.append(RejectedItem(label, res.reason))
