@@ -28,17 +28,12 @@ from multieye.pipeline.camera_data import CameraData, Observation, PairedCamera,
 from multieye.pipeline.camera_data import check_options, updated_options
 from multieye.core.arguments import as_path
 from multieye.core.errors import CalibrationError, DatasetError, InputError, TooFewMeasurementsError
-from multieye.io import (
-    CalibrationRecord,
-    PlausibilityItem,
-    RejectedItem,
-    Rig,
-    load_rig,
-)
+from multieye.io import CalibrationRecord, PlausibilityItem, RejectedItem, Rig, load_rig
 from multieye.io.run_details import StageTimings
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import Measurements, check_measurements
 from multieye.pipeline.record import build_record
+from multieye.pipeline import ambiguity   # single markers: the rig chooses each image's pose
 
 __all__ = [
     "Observation",
@@ -263,14 +258,15 @@ def _offsets(rig: Rig, cameras: dict[str, CameraData], opts: Options) -> dict[st
 CONSENSUS_THRESHOLDS = ((5.0, 0.05), (15.0, 0.15))
 
 
-def _consensus(meas: Measurements, warnings: list[str], labels=None):
+def _consensus(meas: Measurements, warnings: list[str], labels=None, alternatives=None):
     """RANSAC over measurements with fixed thresholds (never thresholds taken from a fit
     that the outliers themselves pulled); wider ones once if the data are noisier."""
     from multieye.estimate.consensus import consensus
 
     for k, (rot, trans) in enumerate(CONSENSUS_THRESHOLDS):
         try:
-            return consensus(meas, threshold_rot_deg=rot, threshold_trans_m=trans, labels=labels)
+            return consensus(meas, threshold_rot_deg=rot, threshold_trans_m=trans, labels=labels,
+                             B_alternative=alternatives)
         except TooFewMeasurementsError as exc:
             if k + 1 == len(CONSENSUS_THRESHOLDS):
                 raise TooFewMeasurementsError(
@@ -364,14 +360,19 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     if opts.robust:
         try:
             cons = _consensus(meas, warnings,
-                              [[o.name for o in p.observations] for p in paired.values()])
+                              [[o.name for o in p.observations] for p in paired.values()],
+                              ambiguity.alternatives(paired.values()))
         except TooFewMeasurementsError as exc:   # almost nothing agrees: say why, if known
             raise _failed(exc, check) from None
         by_cam: dict[str, dict[int, str]] = {n: {} for n in names}
         for r in cons.rejected:
             by_cam[r.camera][r.index] = r.reason
-        paired = {n: _keep(p, cons.inliers[j], by_cam[n]) for j, (n, p) in enumerate(paired.items())}
-        meas = meas.select(cons.inliers)
+        paired = {n: _keep(ambiguity.with_choice(p, cons.alternative[j]), cons.inliers[j],
+                           by_cam[n]) for j, (n, p) in enumerate(paired.items())}
+        meas = ambiguity.kept_measurements(meas, cons, paired)
+        every = {n: ambiguity.with_choice(p, cons.alternative[j]) for j, (n, p) in enumerate(every.items())}
+    else:
+        paired, meas = ambiguity.closed_form_choice(paired, meas, opts.method)
 
     motion = motion_diagnostics(meas, setup=rig.setup)
     warnings.extend(motion.warnings)
