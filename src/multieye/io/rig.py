@@ -42,6 +42,8 @@ constants hold them, docs/rig-yaml.md documents each)::
       # key: end2base, values: [x, y, z, qx, qy, qz, qw], rotation: quaternion-xyzw | ...
       match: time | image                                    # image: a table with an image
                                                              #   column (format pose-table)
+      sensor: motion-capture | robot                         # default: from the source
+      noise_bounds: {rotation_deg: 0.1, translation_m: 0.001}   # default: the sensor's
     cameras:                                                 # required, at least one
       cam0:
         intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
@@ -115,7 +117,11 @@ _SOURCES = ("images", "poses", "rosbag")
 TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
 TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
 MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
-              "rotation_noise_deg", "translation_noise_m", "match") + tuple(_MOCAP_ONLY)
+              "rotation_noise_deg", "translation_noise_m", "match", "sensor",
+              "noise_bounds") + tuple(_MOCAP_ONLY)
+#: What ``mocap.sensor`` may name, and the keys of ``mocap.noise_bounds``.
+MOCAP_SENSORS = ("motion-capture", "robot")
+MOCAP_NOISE_BOUND_KEYS = ("rotation_deg", "translation_m")
 #: Roles of ``mocap.columns`` (csv sources).
 MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 #: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
@@ -412,6 +418,21 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
         kw["trans_sigma_m"] = c.number(raw["translation_noise_m"], at("translation_noise_m"),
                                        positive=True, maximum=MAX_TRANSLATION_NOISE_M,
                                        unit="metres")
+    if "sensor" in raw:
+        kw["sensor"] = c.choice(raw["sensor"], at("sensor"), MOCAP_SENSORS)
+    if "noise_bounds" in raw:
+        bounds = c.mapping(raw["noise_bounds"], at("noise_bounds"), MOCAP_NOISE_BOUND_KEYS)
+        if not bounds:
+            raise c.error(f"expected {' and/or '.join(MOCAP_NOISE_BOUND_KEYS)}",
+                          at("noise_bounds"))
+        here = at("noise_bounds")
+        rot = (math.radians(c.number(bounds["rotation_deg"], here + ("rotation_deg",),
+                                     positive=True, maximum=MAX_ROTATION_NOISE_DEG,
+                                     unit="degrees")) if "rotation_deg" in bounds else None)
+        trans = (c.number(bounds["translation_m"], here + ("translation_m",), positive=True,
+                          maximum=MAX_TRANSLATION_NOISE_M, unit="metres")
+                 if "translation_m" in bounds else None)
+        kw["noise_bounds"] = (rot, trans)
     if frame_names != ("world", moving):
         kw["frames"] = frame_names
     return MocapSpec(file, pose, tol, fmt, **kw)
@@ -440,7 +461,8 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
         if fmt != top_spec.format:
             inherit = [k for k in inherit if k in ("pose", "frames", "fixed_frame",
                                                    "time_tolerance", "rotation_noise_deg",
-                                                   "translation_noise_m")]
+                                                   "translation_noise_m", "sensor",
+                                                   "noise_bounds")]
     merged = {**{k: top_raw[k] for k in inherit}, **own}
     origin = {**{k: ("mocap",) for k in inherit}, **{k: where for k in own}}
     return _mocap(c, merged, origin, setup, where)
