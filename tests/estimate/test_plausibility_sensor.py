@@ -163,7 +163,8 @@ def test_a_distortion_left_out_of_the_intrinsics_is_named(distorted):
     causes = [f.cause for f in rep.findings]
     assert causes == ["intrinsics"], rep.findings
     f = rep.findings[0]
-    for w in ("cam0", "lens freed", "left out of the intrinsics file", "distortion none -> k1"):
+    for w in ("cam0", "lens freed", "left out of the intrinsics file", "distortion none -> k1",
+              "loop residuals"):
         assert w in f.message, f.message
     # the freed lens leaves about the 0.1 px of the detections, the given one more; its
     # target poses fit the loop far better (the board is small in the image: in pixels alone

@@ -314,13 +314,13 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
            "the intrinsics probably do not belong to these images (another camera or lens, "
            "a zoom or focus setting, distortion coefficients in another order or model)")
     return Finding(
-        "intrinsics", f"intrinsics: camera {cam.name}'s images fit a lens fitted to them far "
-        f"better than the given one: reprojection RMS {test.rms_given_px:.3g} px with the "
-        f"given intrinsics, {test.rms_freed_px:.3g} px with the lens freed (fx "
-        f"{given.K[0, 0]:.1f} -> {freed.K[0, 0]:.1f} px; distortion {_coefficients(given.dist)} "
-        f"-> {_coefficients(freed.dist)}); loop residuals {_times(test.cost_given)} times what "
-        f"the noise explains, {_times(test.cost_freed)} times with the freed lens: {why}; "
-        "calibrate the intrinsics again, or let multieye estimate them (model: instead of "
+        "intrinsics", f"intrinsics: camera {cam.name}'s lens freed (fitted to its own "
+        f"detections) fits better than the given intrinsics: reprojection RMS "
+        f"{test.rms_given_px:.3g} -> {test.rms_freed_px:.3g} px, loop residuals "
+        f"{_times(test.cost_given)} -> {_times(test.cost_freed)} times what the noise explains "
+        f"(fx {given.K[0, 0]:.1f} -> {freed.K[0, 0]:.1f} px; distortion "
+        f"{_coefficients(given.dist)} -> {_coefficients(freed.dist)}): {why}; calibrate the "
+        "intrinsics again, or let multieye estimate them (model: instead of intrinsics:, or "
         "intrinsics:, or refine_intrinsics: true)", cam.name, test.cost_given,
         test.cost_freed, {"rms_given_px": test.rms_given_px,
                           "rms_freed_px": test.rms_freed_px, "cost_given": test.cost_given,
