@@ -286,9 +286,11 @@ def _camera_findings(setup: str, cam: CameraEvidence, w, clock: bool, max_offset
 
 
 def _coefficients(dist: np.ndarray) -> str:
-    """k1 and k2 (the rational model's others trade off among themselves: not shown)."""
+    """k1 and k2; the rational model's trade off against its denominator: not shown."""
     if not np.any(dist):
         return "none"
+    if dist.size > 5:
+        return "fitted (rational model)"
     return ", ".join(f"{n} {v:.3g}" for n, v in zip(("k1", "k2"), dist))
 
 
@@ -321,7 +323,7 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
         f"(fx {given.K[0, 0]:.1f} -> {freed.K[0, 0]:.1f} px; distortion "
         f"{_coefficients(given.dist)} -> {_coefficients(freed.dist)}): {why}; calibrate the "
         "intrinsics again, or let multieye estimate them (model: instead of intrinsics:, or "
-        "intrinsics:, or refine_intrinsics: true)", cam.name, test.cost_given,
+        "refine_intrinsics: true)", cam.name, test.cost_given,
         test.cost_freed, {"rms_given_px": test.rms_given_px,
                           "rms_freed_px": test.rms_freed_px, "cost_given": test.cost_given,
                           "cost_freed": test.cost_freed})

@@ -52,9 +52,9 @@ constants hold them, docs/rig-yaml.md documents each)::
         rosbag: run.bag                #   image topic of a bag ...
         topic: /cam0/image_raw         #   ... given here (rosbag only)
         mocap: cam0_mocap.txt          # optional: own file, or a mapping overriding mocap
-                                       #   keys; pose, time_tolerance and the noise keys are
-                                       #   inherited, the format's keys only if the
-                                       #   format is the same
+                                       #   keys; pose, time_tolerance, the noise keys, sensor
+                                       #   and noise_bounds are inherited, the format's keys
+                                       #   only if the format is the same
         time_offset: 0.0               # seconds, motion-capture clock minus camera clock,
                                        #   |x| <= 1e10
 
@@ -86,6 +86,7 @@ from multieye.io.intrinsics import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.pose_files import STEM, check_rotation, check_values
+from multieye.io import rig_checks as _c
 from multieye.io.rig_checks import Checker as _Checker
 from multieye.io.textfile import LENGTH_UNITS
 from multieye.io.yamlfile import load_yaml, shown
@@ -119,9 +120,6 @@ TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
 MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
               "rotation_noise_deg", "translation_noise_m", "match", "sensor",
               "noise_bounds") + tuple(_MOCAP_ONLY)
-#: What ``mocap.sensor`` may name, and the keys of ``mocap.noise_bounds``.
-MOCAP_SENSORS = ("motion-capture", "robot")
-MOCAP_NOISE_BOUND_KEYS = ("rotation_deg", "translation_m")
 #: Roles of ``mocap.columns`` (csv sources).
 MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 #: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
@@ -418,21 +416,7 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
         kw["trans_sigma_m"] = c.number(raw["translation_noise_m"], at("translation_noise_m"),
                                        positive=True, maximum=MAX_TRANSLATION_NOISE_M,
                                        unit="metres")
-    if "sensor" in raw:
-        kw["sensor"] = c.choice(raw["sensor"], at("sensor"), MOCAP_SENSORS)
-    if "noise_bounds" in raw:
-        bounds = c.mapping(raw["noise_bounds"], at("noise_bounds"), MOCAP_NOISE_BOUND_KEYS)
-        if not bounds:
-            raise c.error(f"expected {' and/or '.join(MOCAP_NOISE_BOUND_KEYS)}",
-                          at("noise_bounds"))
-        here = at("noise_bounds")
-        rot = (math.radians(c.number(bounds["rotation_deg"], here + ("rotation_deg",),
-                                     positive=True, maximum=MAX_ROTATION_NOISE_DEG,
-                                     unit="degrees")) if "rotation_deg" in bounds else None)
-        trans = (c.number(bounds["translation_m"], here + ("translation_m",), positive=True,
-                          maximum=MAX_TRANSLATION_NOISE_M, unit="metres")
-                 if "translation_m" in bounds else None)
-        kw["noise_bounds"] = (rot, trans)
+    kw.update(_c.sensor_keys(c, raw, at))
     if frame_names != ("world", moving):
         kw["frames"] = frame_names
     return MocapSpec(file, pose, tol, fmt, **kw)
