@@ -56,6 +56,8 @@ _MIN_CLOCK_SCORE = 0.5
 #: Fewest views, and fewest target points per view (median), a camera's lens is freed on.
 MIN_LENS_VIEWS = 5
 _MIN_LENS_POINTS = 8
+#: Most views the lens is fitted on (evenly spaced over the recording; PnP runs on all).
+_MAX_LENS_VIEWS = 50
 
 
 @dataclass(frozen=True)
@@ -493,7 +495,9 @@ def lens_search(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTe
     intr = cam.intrinsics
     size = ((intr.width, intr.height) if intr.width is not None and intr.height is not None
             else (int(round(2 * intr.K[0, 2] + 1)), int(round(2 * intr.K[1, 2] + 1))))
-    views = list(zip(cam.object_points, cam.image_points))
+    pick = np.unique(np.linspace(0, len(cam.A) - 1, min(len(cam.A), _MAX_LENS_VIEWS)
+                                 ).round().astype(int))
+    views = [(cam.object_points[i], cam.image_points[i]) for i in pick]
     try:
         with np.errstate(all="ignore"):
             freed = initial_intrinsics(views, size, _lens_model(intr), name=cam.name).intrinsics
