@@ -110,3 +110,41 @@ def test_yizhong_single_aruco_marker_size_off(shared_data, tmp_path, size):
     if "noise" in causes:
         noise = cal["plausibility"][causes.index("noise")]["message"]
         assert "robot" in noise and "scale (above) probably explains it" in noise
+
+
+_ETHZ = {   # data set -> (hand stream, camera-from-target stream, rig.yaml's pose)
+    "robot_arm": ("robot_arm_w_color_camera_real/robot_arm/robot_arm_complete_bag_color_and_"
+                  "ir_base_link_sr300_hinge.csv", "robot_arm_w_color_camera_real/robot_arm/"
+                  "robot_arm_complete_bag_color_and_ir_target_ir.csv", "T_base_hinge"),
+    "prime_sense_1": ("prime_sense_color_w_vicon_1/prime_sense_1/2017-04-09-18-13-10_vicon_"
+                      "prime_sense.csv", "prime_sense_color_w_vicon_1/prime_sense_1/"
+                      "2017-04-09-18-13-10_W_camera_rgb_image_raw.csv", "T_world_body")}
+
+
+@pytest.mark.parametrize("name", sorted(_ETHZ))
+def test_ethz_pose_streams_raise_no_doubt(shared_data, tmp_path, name):
+    """ETHZ's unsynchronised streams (no images): the hand poses as the motion capture (a
+    headerless comma-separated TUM file), 150 camera-from-target poses (PROVENANCE.md: the
+    pose of the camera in the target frame, inverted here to T_cam_target) as a camera's
+    ``poses``. Residuals of 0.5-1.2 deg / 9-18 mm (the camera poses' own noise), exit 0."""
+    import numpy as np
+
+    from multieye.core import geometry as g
+    from multieye.io import Trajectory, write_tum
+
+    root = shared_data / "ethz_handeye" / "datasets" / "unzipped"
+    hand, eye, pose = _ETHZ[name]
+    rows = np.loadtxt(root / eye, delimiter=",")
+    k = np.linspace(0, len(rows) - 1, 150).round().astype(int)
+    T_target_cam = g.transform_from_quat(rows[k, 4:8], rows[k, 1:4])
+    write_tum(tmp_path / "cam0.txt", Trajectory(rows[k, 0], g.inv(T_target_cam),
+                                                parent="cam", child="target"))
+    (tmp_path / "rig.yaml").write_text(
+        "setup: eye-on-hand\n"
+        f"mocap: {{file: {root / hand}, pose: {pose}, time_tolerance: 0.05, format: tum, "
+        "duplicates: drop}\n"
+        "cameras:\n  cam0: {poses: cam0.txt}\n")
+    code, cal, _ = _run(tmp_path, tmp_path / "out")
+    assert code == 0 and cal["plausibility"] == [], cal["plausibility"]
+    assert cal["cameras"]["cam0"]["measurements_used"] >= 140
+    assert cal["residuals"]["e_R_deg"] < 1.5 and cal["residuals"]["e_t_m"] < 0.025
