@@ -14,12 +14,12 @@ import pytest
 from multieye.core.errors import DatasetError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points
-from multieye.estimate.plausibility import check_noise, check_plausibility
+from multieye.estimate.plausibility import Declared, check_noise, check_plausibility
 from multieye.estimate.sensor import SENSOR_BOUNDS, TYPICAL_NOISE, hypothesis_noise, sensor_bounds
 from multieye.io import load_rig
 from multieye.io.mocap import MocapSpec
 
-from test_plausibility import _board, _evidence, _stream, _with_intrinsics
+from test_plausibility import _board, _evidence, _scaled, _stream, _with_intrinsics
 
 
 # --------------------------------------------------------------------------- the sensor
@@ -172,3 +172,22 @@ def test_a_distortion_left_out_of_the_intrinsics_is_named(distorted):
     assert f.evidence["rms_freed_px"] < 0.15
     assert f.evidence["rms_given_px"] > 1.5 * f.evidence["rms_freed_px"]
     assert f.evidence["cost_given"] > 1.5 * max(f.evidence["cost_freed"], 1.0)
+
+
+# --------------------------------------------------------------------------- the marker size
+
+
+@pytest.mark.parametrize("kind, key, name", [
+    ("aruco", "marker_size", "marker size"), ("aruco-grid", "marker_size", "marker size"),
+    ("aprilgrid", "spacing", "tag size"), ("chessboard", "spacing", "target spacing")])
+def test_a_marker_size_off_is_named_with_its_key(kind, key, name):
+    """A single marker, a marker grid and an AprilGrid written 9 % too large: PnP finds every
+    translation 1.09 times the truth; the scale hypothesis names the target's own size key."""
+    st = _stream(11)
+    ev = _evidence(st, T_cam_target=_scaled(st.T_cam_target, 1.09))
+    rep = check_plausibility("eye-to-base", [ev], clock=False,
+                             declared=Declared(spacing_m=0.0578, target_kind=kind))
+    assert [f.cause for f in rep.findings] == ["scale"], rep.findings
+    message = rep.findings[0].message
+    assert f"the {name} or the motion-capture unit" in message, message
+    assert f"rig.yaml says {key}: 0.0578; 0.053 fits" in message, message
