@@ -360,7 +360,7 @@ def check_noise(report: Plausibility, refined, mocap=None, *,
                                         ("translation", trans_m, sensor.trans_m)) if v > bound]
     if not over:
         return report
-    found = [f for f in report.findings if f.cause != "noise"]
+    found = [f for f in report.findings if f.cause not in ("noise", "fit")]
     if found:
         cause = ("; " + ", ".join(sorted({f.cause for f in found})) + " (above) probably "
                  "explains it")
