@@ -299,7 +299,8 @@ def _plausibility(rig: Rig, cameras: dict[str, CameraData], paired: dict[str, Pa
             mocap_stamps=d.mocap.stamps, mocap_T=d.mocap.T, time_offset=offsets[name],
             intrinsics_estimated=d.intrinsics_estimated))
     spec, rot, trans = _mocap_noise(rig, paired, opts)
-    declared = Declared(spacing_m=None if rig.target is None else rig.target.spacing,
+    declared = Declared(spacing_m=None if rig.target is None else rig.target.spacing, mocap=spec,
+                        target_kind=None if rig.target is None else rig.target.type,
                         mocap_unit=(spec.unit if spec is not None else None) or "m",
                         mocap_pose=None if spec is None else spec.pose,
                         mocap_frames=None if spec is None else spec.frames,
@@ -338,6 +339,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         Or its fields as keyword arguments (``method="shah", refine=False``).
     """
     from multieye.estimate.diagnostics import motion_diagnostics
+    from multieye.estimate.plausibility import check_noise
 
     start = time.perf_counter()
     opts = updated_options(options, kw)
@@ -352,10 +354,8 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     # Validated here, once: consensus, the diagnostics and the solve take them as they are.
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=names, per_camera_motion=False)
-    every = paired               # before the consensus: what the plausibility checks see
-
-    def check():
-        return _plausibility(rig, cameras, every, offsets, opts)
+    def check(used=paired):      # every measurement when the consensus fails, else the kept
+        return _plausibility(rig, cameras, used, offsets, opts)
 
     if opts.robust:
         try:
@@ -381,7 +381,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         sol = solve(meas, method=opts.method)
     except CalibrationError as exc:
         raise _failed(exc, check) from None
-    plausibility = check()
+    plausibility = check(paired)
     warnings.extend(plausibility.messages)
     solved_at = time.perf_counter()
     refinement, uncertainty = None, None
@@ -393,6 +393,9 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
                             f"uncertainty: {exc}")
         else:
             warnings.extend(refinement.warnings)
+            plausibility = check_noise(plausibility, refinement.result,   # issue 20
+                                       _mocap_noise(rig, paired, opts)[0])
+            warnings.extend(m for m in plausibility.messages if m not in warnings)
             if refinement.covariance is not None:
                 from multieye.estimate.uncertainty import relative_covariance
 
