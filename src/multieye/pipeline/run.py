@@ -3,8 +3,7 @@
 ``rig.yaml`` (docs/rig-yaml.md) -> per camera: images -> target detection -> PnP (or
 precomputed ``T_cam_target`` poses) -> pairing with motion capture in time -> ``A``, ``B``
 (docs/conventions.md, section 2; all of it in :mod:`multieye.pipeline.camera_data`) ->
-clock offsets, consensus, :func:`multieye.solve`, plausibility checks
-(:mod:`multieye.estimate.plausibility`), refinement ->
+clock offsets, consensus, :func:`multieye.solve`, plausibility checks, refinement ->
 :class:`~multieye.io.CalibrationRecord` and the files written from it.
 
 Synopsis
@@ -24,8 +23,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from multieye.pipeline.camera_data import CameraData, Observation, PairedCamera, load_camera_data, pair_camera
-from multieye.pipeline.camera_data import check_options, updated_options
+from multieye.pipeline.camera_data import (CameraData, Observation, PairedCamera, check_options,
+                                           load_camera_data, pair_camera, updated_options)
 from multieye.core.arguments import as_path
 from multieye.core.errors import CalibrationError, DatasetError, InputError, TooFewMeasurementsError
 from multieye.io import CalibrationRecord, PlausibilityItem, RejectedItem, Rig, load_rig
@@ -370,7 +369,6 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         paired = {n: _keep(ambiguity.with_choice(p, cons.alternative[j]), cons.inliers[j],
                            by_cam[n]) for j, (n, p) in enumerate(paired.items())}
         meas = ambiguity.kept_measurements(meas, cons, paired)
-        every = {n: ambiguity.with_choice(p, cons.alternative[j]) for j, (n, p) in enumerate(every.items())}
     else:
         paired, meas = ambiguity.closed_form_choice(paired, meas, opts.method)
 
