@@ -175,6 +175,11 @@ def test_report_shows_every_camera_and_the_diagnostics(runs, kind):
         row = "estimated" if kind == "model" else "given"
         assert f'<td class="l">{row}</td><td>{fx:.2f}</td><td>{fy:.2f}</td>' in text
         worst = cam.names[int(np.nanargmax(cam.points.rms_px))]
+        order = [cam.names[i] for i in np.argsort(-cam.points.rms_px)[:3]]   # worst first
+        shown = re.findall(rf"<b>([^<]+)</b>: RMS [0-9.]+ px over \d+ points; residuals × "
+                           rf"[0-9.e+]+ <span class=\"note\">\(also <code>figures/image_{name}_"
+                           r"\d\.jpg", text)
+        assert shown == order
         assert f"<td class=\"l\">{worst}</td><td>{np.nanmax(cam.points.rms_px):.3f}</td>" in text
         motion = run.record.motion_diagnostics[name]
         assert f"<td>{motion['rotation_range_deg']:.1f}</td>" in text

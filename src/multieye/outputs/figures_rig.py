@@ -181,11 +181,14 @@ def place_labels(anchors: np.ndarray, sizes: np.ndarray, box: tuple[float, float
     x0, y0, x1, y1 = box
     placed: list[np.ndarray] = []            # (4,) boxes
     centres = np.zeros_like(anchors)
-    angles = np.radians([90, 270, 0, 180, 45, 135, 315, 225, 67.5, 112.5, 292.5, 247.5])
+    middle = anchors.mean(axis=0)
     for i in range(len(anchors)):
         w, h = sizes[i]
         best, best_cost = None, np.inf
-        for radius in (1.0, 2.2, 3.6, 5.5):
+        out = anchors[i] - middle            # outward from the middle of the rig first
+        first = math.atan2(out[1], out[0]) if np.hypot(*out) > 1e-9 else math.pi / 2
+        angles = first + np.radians([0, 30, -30, 60, -60, 90, -90, 120, -120, 150, -150, 180])
+        for radius in (1.0, 2.0, 3.2, 4.6, 6.4, 8.5):
             for a in angles:
                 d = np.array([math.cos(a), math.sin(a)])
                 # distance so that the label's edge is `gap * radius` from the anchor
@@ -198,6 +201,7 @@ def place_labels(anchors: np.ndarray, sizes: np.ndarray, box: tuple[float, float
                 inside = ((pts[:, 0] > b[0] - 2) & (pts[:, 0] < b[2] + 2)
                           & (pts[:, 1] > b[1] - 2) & (pts[:, 1] < b[3] + 2))
                 cost += 50.0 * float(inside.sum()) + 0.01 * radius
+                cost += 0.5 * float(b[0] < x0 or b[2] > x1 or b[1] < y0 or b[3] > y1)
                 if cost < best_cost:
                     best, best_cost = (c, b), cost
             if best_cost < 1.0:
@@ -401,7 +405,7 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
         texts = names + extra
         fs = 8.0
         k = dpi / 72.0
-        sizes = np.array([[0.62 * fs * k * len(t) + 4, 1.35 * fs * k] for t in texts])
+        sizes = np.array([[0.7 * fs * k * len(t) + 6, 1.45 * fs * k] for t in texts])
         centres = place_labels(anchors_d[:len(texts)], sizes, (bb.x0, bb.y0, bb.x1, bb.y1),
                                obstacles=obstacles, gap=4.0 * k)
         inverse = to_display.inverted()
