@@ -6,16 +6,20 @@ Run from the repository root::
         [--src other/checkout/src]
 
 1. Renders, once per size, a rig of ``N`` cameras with ``--images`` images each (800 x 600,
-   :func:`multieye.sim.dataset.render_dataset`, seed 0) into ``benchmarks/.cache/report_Nx<images>``
-   (git-ignored, reused later).
-2. Runs ``python -m multieye calibrate DATASET -o OUT --processes 2`` as a subprocess with the
-   sources of ``--src`` first on ``PYTHONPATH`` (default: this checkout's ``src``; pass the
-   ``src`` of another checkout, e.g. the main branch, to time it on the same images),
-   ``--repeats`` times per size, and prints the ``outputs`` stage of every run as the run
-   measured it (``timings_s.outputs`` of ``details.json``: calibration.json, camchain, details,
-   report.html and its figures) with the run's total, then the median per size.
+   :func:`multieye.sim.dataset.render_dataset`, seed 0) into
+   ``benchmarks/.cache/report_<N>x<images>`` (git-ignored, reused later).
+2. In a fresh interpreter with the sources of ``--src`` first on ``PYTHONPATH`` (default: this
+   checkout's ``src``; pass the ``src`` of another checkout, e.g. the main branch, to time it
+   on the same images): ``multieye.pipeline.calibrate(DATASET, processes=2)`` once, then
+   ``multieye.outputs.write.write_outputs(run, OUT)`` ``--repeats`` times into fresh folders,
+   as ``multieye calibrate`` does.  For each it prints the ``outputs`` stage as the run
+   measured it (``timings_s.outputs`` of ``details.json``: calibration.json, camchain,
+   details, report.html and its figures), the wall time and the CPU seconds of the call (this
+   process and the worker processes it waited for).  The first call imports matplotlib, as a
+   ``multieye calibrate`` command does; the later ones show the cost without that import.
 
-The times depend on the machine and on what else runs on it (read the load average printed).
+The wall times depend on what else runs on the machine (the load average is printed); the
+CPU seconds much less.
 """
 
 from __future__ import annotations
@@ -26,8 +30,6 @@ import os
 import statistics
 import subprocess
 import sys
-import tempfile
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,21 +53,37 @@ def rendered(cameras: int, images: int) -> Path:
     return folder
 
 
-def run_once(dataset: Path, src: Path, processes: int) -> dict:
-    """One ``multieye calibrate``: its timings_s and its wall time."""
-    with tempfile.TemporaryDirectory(prefix="bench_report_") as tmp:
-        out = Path(tmp) / "out"
-        env = dict(os.environ, PYTHONPATH=str(src))
-        start = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "multieye", "calibrate", str(dataset),
-                               "-o", str(out), "--processes", str(processes)],
-                              capture_output=True, text=True, env=env)
-        wall = time.perf_counter() - start
-        if proc.returncode not in (0, 3):
-            raise SystemExit(f"calibrate failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
-        timings = json.loads((out / "details.json").read_text())["timings_s"]
-        figures = sorted(p.name for p in (out / "figures").iterdir())
-    return {"wall": wall, "timings": timings, "figures": len(figures)}
+_DRIVER = r"""
+import json, resource, sys, tempfile, time
+from pathlib import Path
+from multieye.pipeline import calibrate
+from multieye.outputs.write import write_outputs
+
+def cpu():
+    own, waited = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + waited.ru_utime + waited.ru_stime
+
+run = calibrate(sys.argv[1], processes=int(sys.argv[2]))
+with tempfile.TemporaryDirectory(prefix="bench_report_") as tmp:
+    for k in range(int(sys.argv[3])):
+        out = Path(tmp) / f"out{k}"
+        c, w = cpu(), time.perf_counter()
+        write_outputs(run, out)
+        wall, used = time.perf_counter() - w, cpu() - c
+        details = json.loads((out / "details.json").read_text())
+        print(json.dumps({"outputs": details["timings_s"]["outputs"], "wall": wall, "cpu": used,
+                          "files": len(list((out / "figures").iterdir()))}), flush=True)
+"""
+
+
+def run_sizes(dataset: Path, src: Path, processes: int, repeats: int) -> list[dict]:
+    """The outputs of one calibration of ``dataset`` written ``repeats`` times."""
+    env = dict(os.environ, PYTHONPATH=str(src))
+    proc = subprocess.run([sys.executable, "-c", _DRIVER, str(dataset), str(processes),
+                           str(repeats)], capture_output=True, text=True, env=env)
+    if proc.returncode != 0:
+        raise SystemExit(f"the run failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+    return [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
 
 
 def main(argv=None) -> None:
@@ -81,16 +99,16 @@ def main(argv=None) -> None:
     print(f"sources: {src}")
     for m in args.cameras:
         dataset = rendered(m, args.images)
-        outputs = []
-        for k in range(args.repeats):
-            r = run_once(dataset, src, args.processes)
-            outputs.append(r["timings"]["outputs"])
-            print(f"{m:2d} cameras x {args.images} images, run {k + 1}: outputs "
-                  f"{r['timings']['outputs']:.2f} s of {r['timings']['total']:.2f} s measured "
-                  f"({r['wall']:.1f} s wall, {r['figures']} figure files), load "
-                  f"{os.getloadavg()[0]:.1f}", flush=True)
-        print(f"{m:2d} cameras: outputs median {statistics.median(outputs):.2f} s "
-              f"(min {min(outputs):.2f}, max {max(outputs):.2f})", flush=True)
+        rows = run_sizes(dataset, src, args.processes, args.repeats)
+        for k, r in enumerate(rows):
+            print(f"{m:2d} cameras x {args.images} images, write {k + 1}"
+                  f"{' (imports matplotlib)' if k == 0 else ''}: outputs {r['outputs']:.2f} s "
+                  f"(call {r['wall']:.2f} s wall, {r['cpu']:.2f} CPU-s, {r['files']} figure "
+                  f"files), load {os.getloadavg()[0]:.1f}", flush=True)
+        print(f"{m:2d} cameras: first {rows[0]['outputs']:.2f} s / {rows[0]['cpu']:.2f} CPU-s; "
+              f"later median {statistics.median(r['outputs'] for r in rows[1:]):.2f} s / "
+              f"{statistics.median(r['cpu'] for r in rows[1:]):.2f} CPU-s" if len(rows) > 1
+              else "", flush=True)
 
 
 if __name__ == "__main__":

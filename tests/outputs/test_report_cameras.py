@@ -284,3 +284,26 @@ def test_eye_on_hand_points_are_the_refined_rigs_residuals(tmp_path):
         assert p.source == "refined"
         np.testing.assert_allclose(p.rms_px, run.refinement.result.image_rms_px[j], rtol=1e-9)
         assert 0.2 < np.nanmedian(p.rms_px) < 0.6                    # 0.3 px per coordinate
+
+
+def test_figures_drawn_by_a_worker_are_the_same(runs, tmp_path):
+    """Two processes or one: the same figures, the same page."""
+    from multieye.outputs.report_draw import PARALLEL_FROM_S, figure_jobs
+    from multieye.outputs.report import load_details
+    from multieye.io.calibration_json import read_calibration
+
+    src = runs["model"][1]
+    pages = {}
+    for processes in (1, 2):
+        out = tmp_path / f"p{processes}" / "out"
+        out.mkdir(parents=True)
+        for name in ("calibration.json", "details.json"):
+            (out / name).write_bytes((src / name).read_bytes())
+        text = write_report(out, processes=processes).read_text()
+        pages[processes] = (text.replace(str(out), "OUT"),
+                            {p.name: p.read_bytes() for p in (out / "figures").iterdir()})
+    assert pages[1] == pages[2]
+    rec = read_calibration(src / "calibration.json")
+    details, _ = load_details(src, rec)
+    # enough to draw that the worker is used (with two cores)
+    assert sum(cost for *_, cost in figure_jobs(rec, details)) >= PARALLEL_FROM_S

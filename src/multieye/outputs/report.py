@@ -445,7 +445,8 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
 
 
 def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | None = None,
-                 images: Mapping[str, str | os.PathLike] | None = None) -> Path:
+                 images: Mapping[str, str | os.PathLike] | None = None,
+                 processes: int | None = None) -> Path:
     """Write ``OUT/report.html`` and ``OUT/figures/*`` from ``OUT/calibration.json``.
 
     Parameters
@@ -459,6 +460,10 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
         Camera name -> the folder its images were read from
         (:func:`~multieye.outputs.report_images.image_folders` of the run); without it the
         report draws no image.
+    processes : int, optional
+        At most this many processes draw the figures
+        (:func:`~multieye.outputs.report_draw.draw_figures`; default: two where two cores
+        are available and there is enough to draw).
 
     Returns
     -------
@@ -470,29 +475,14 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     DatasetError
         ``calibration.json`` is missing or invalid, or the folder is not writable.
     """
-    from multieye.outputs.figures import (
-        camera_colours, camera_png, image_rms_png, radial_png, residual_histograms_png,
-        residuals_over_time_png)
-    from multieye.outputs.figures_rig import rig_pngs
+    from multieye.outputs.report_draw import draw_figures
 
     out = Path(out_dir)
     rec = read_calibration(out / "calibration.json")
     details, notes = load_details(out, rec)
-    rig = rig_pngs(rec, details)
-    figures = dict(rig.pngs)
-    thumbnails = image_thumbnails(rec, details, images)
-    if details is not None:
-        figures["residual_histograms.png"] = residual_histograms_png(details)
-        figures["residuals_over_time.png"] = residuals_over_time_png(details)
-        if any(c.points is not None for c in details.cameras):
-            figures["image_rms.png"] = image_rms_png(details)
-            figures["residuals_by_radius.png"] = radial_png(details)
-        files = camera_figure_names(c.name for c in rec.cameras)
-        colours = camera_colours(len(rec.cameras))
-        for j, c in enumerate(rec.cameras):
-            cam = details.camera(c.name)
-            if cam.points is not None:
-                figures[files[c.name]] = camera_png(cam, colours[j])
+    figures, legend, thumbnails = draw_figures(
+        rec, details, processes=processes,
+        also=lambda: image_thumbnails(rec, details, images))
     files_written = dict(figures)
     files_written.update({t.file: t.jpeg for thumbs in thumbnails.values() for t in thumbs})
     folder = out / "figures"
@@ -509,5 +499,5 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
         ) and path.is_file():
             path.unlink()
     html = report_html(rec, details, figures, out_dir=Path(shown_as) if shown_as else out,
-                       notes=notes, thumbnails=thumbnails, rig_legend=rig.legend)
+                       notes=notes, thumbnails=thumbnails, rig_legend=legend)
     return write_text_atomic(out / "report.html", html)
