@@ -15,7 +15,9 @@ Run from the repository root::
    as ``multieye calibrate`` does.  For each it prints the ``outputs`` stage as the run
    measured it (``timings_s.outputs`` of ``details.json``: calibration.json, camchain,
    details, report.html and its figures), the wall time and the CPU seconds of the call (this
-   process and the worker processes it waited for).  The first call imports matplotlib, as a
+   process and the worker processes it waited for; not a figure-drawing worker, which the
+   fork server waits for: ``--serial`` draws everything in the main process, to count it
+   all).  The first call imports matplotlib, as a
    ``multieye calibrate`` command does; the later ones show the cost without that import.
 
 The wall times depend on what else runs on the machine (the load average is printed); the
@@ -63,6 +65,12 @@ def cpu():
     own, waited = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
     return own.ru_utime + own.ru_stime + waited.ru_utime + waited.ru_stime
 
+if sys.argv[4] == "serial":   # figures drawn by this process alone (sources that can share them)
+    try:
+        import multieye.outputs.report_draw as draw
+        draw._cores = lambda: 1
+    except ImportError:
+        pass
 run = calibrate(sys.argv[1], processes=int(sys.argv[2]))
 with tempfile.TemporaryDirectory(prefix="bench_report_") as tmp:
     for k in range(int(sys.argv[3])):
@@ -76,11 +84,12 @@ with tempfile.TemporaryDirectory(prefix="bench_report_") as tmp:
 """
 
 
-def run_sizes(dataset: Path, src: Path, processes: int, repeats: int) -> list[dict]:
+def run_sizes(dataset: Path, src: Path, processes: int, repeats: int, serial: bool) -> list[dict]:
     """The outputs of one calibration of ``dataset`` written ``repeats`` times."""
     env = dict(os.environ, PYTHONPATH=str(src))
     proc = subprocess.run([sys.executable, "-c", _DRIVER, str(dataset), str(processes),
-                           str(repeats)], capture_output=True, text=True, env=env)
+                           str(repeats), "serial" if serial else "default"],
+                          capture_output=True, text=True, env=env)
     if proc.returncode != 0:
         raise SystemExit(f"the run failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
     return [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
@@ -92,6 +101,9 @@ def main(argv=None) -> None:
     parser.add_argument("--images", type=int, default=40)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--processes", type=int, default=2)
+    parser.add_argument("--serial", action="store_true",
+                        help="draw every figure in the main process (its CPU seconds are then "
+                             "all of the drawing: a worker's are not counted)")
     parser.add_argument("--src", type=Path, default=ROOT / "src",
                         help="the sources to time (a checkout's src folder)")
     args = parser.parse_args(argv)
@@ -99,7 +111,7 @@ def main(argv=None) -> None:
     print(f"sources: {src}")
     for m in args.cameras:
         dataset = rendered(m, args.images)
-        rows = run_sizes(dataset, src, args.processes, args.repeats)
+        rows = run_sizes(dataset, src, args.processes, args.repeats, args.serial)
         for k, r in enumerate(rows):
             print(f"{m:2d} cameras x {args.images} images, write {k + 1}"
                   f"{' (imports matplotlib)' if k == 0 else ''}: outputs {r['outputs']:.2f} s "

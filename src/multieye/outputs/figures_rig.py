@@ -230,6 +230,15 @@ def _ellipse_rings(C3: np.ndarray, scale: float, n: int = 40) -> np.ndarray:
     return np.concatenate(rings)
 
 
+def _pieces(polyline: np.ndarray) -> list[np.ndarray]:
+    """The parts of a polyline between its NaN rows."""
+    ok = np.all(np.isfinite(polyline), axis=1)
+    breaks = np.flatnonzero(~ok)
+    parts = np.split(polyline, breaks)
+    return [p[np.all(np.isfinite(p), axis=1)] for p in parts
+            if np.sum(np.all(np.isfinite(p), axis=1)) >= 2]
+
+
 def _axis_angle_std(C: np.ndarray, z: np.ndarray) -> float:
     """Standard deviation of the direction of the optical axis ``z`` (radians, RMS over the
     two directions across it) from the rotation block of ``C``."""
@@ -272,8 +281,9 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    from matplotlib.patches import Wedge
+    from matplotlib.collections import LineCollection, PolyCollection
     from mpl_toolkits.mplot3d import proj3d
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
     sc = _scene(record, details)
     m = len(sc.names)
@@ -305,45 +315,60 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
             ax2.plot(d[:, 0], d[:, 1], color=_GREY, lw=0.6, alpha=0.55, zorder=1)
             everything.append(d)
     apexes = disp(sc.T_cams[:, :3, 3])
+    # every camera's lines in one collection per picture (an artist per line costs more than
+    # drawing it): (polyline in display coordinates, colour, width)
+    lines: list[tuple[np.ndarray, object, float]] = []
+    dots, dot_colours, shapes, shape_colours = [], [], [], []
     for j in range(m):
         T = sc.T_cams[j]
         col = colours[j]
         if sc.targets and len(sc.targets[j]):
             d = disp(sc.targets[j])
-            ax3.scatter(d[:, 0], d[:, 1], d[:, 2], s=5, color=col, alpha=0.5, depthshade=False)
-            ax2.scatter(d[:, 0], d[:, 1], s=5, color=col, alpha=0.5, zorder=2, lw=0)
+            dots.append(d)
+            dot_colours += [col] * len(d)
             everything.append(d)
         corners = frustum_corners(sc.intrinsics[j], depth) @ T[:3, :3].T + T[:3, 3]
         apex = T[:3, 3]
         lw = 2.0 if j == sc.reference else 1.3
-        c0, c1, c2, c3 = corners     # image rectangle and the four rays, as one polyline
-        d = disp(np.stack([c0, c1, c2, c3, c0, apex, c1, np.full(3, np.nan), c2, apex, c3]))
-        ax3.plot(d[:, 0], d[:, 1], d[:, 2], color=col, lw=lw)
-        ax2.plot(d[:, 0], d[:, 1], color=col, lw=lw, zorder=3)
-        top = disp(np.stack([corners[0], corners[1]]))          # image top edge, thick
-        ax3.plot(top[:, 0], top[:, 1], top[:, 2], color=col, lw=lw * 2.6, solid_capstyle="butt")
-        ax2.plot(top[:, 0], top[:, 1], color=col, lw=lw * 2.6, solid_capstyle="butt", zorder=3)
+        c0, c1, c2, c3 = corners     # image rectangle and the four rays
+        for poly in ([c0, c1, c2, c3, c0], [apex, c0], [apex, c1], [apex, c2], [apex, c3]):
+            lines.append((disp(np.stack(poly)), col, lw))
+        lines.append((disp(np.stack([c0, c1])), col, lw * 2.6))    # image top edge, thick
         everything.append(disp(corners))
         C = sc.covariances[j]
         if magnified is not None and C is not None:
             factor = magnified[0]
             ring = disp(_ellipse_rings(C[3:, 3:], factor) + apex)
-            ax3.plot(ring[:, 0], ring[:, 1], ring[:, 2], color=col, lw=0.9, alpha=0.9)
+            lines += [(piece, col, 0.9) for piece in _pieces(ring)]
             C2 = (P @ C[3:, 3:] @ P.T)[:2, :2]
             vals, vecs = np.linalg.eigh(C2)
             t = np.linspace(0, 2 * np.pi, 48)
             e = (vecs * (3.0 * factor * np.sqrt(np.clip(vals, 0, None)))) @ np.stack(
                 [np.cos(t), np.sin(t)])
             a2 = apexes[j]
-            ax2.fill(a2[0] + e[0], a2[1] + e[1], color=col, alpha=0.25, lw=0, zorder=2)
-            ax2.plot(a2[0] + e[0], a2[1] + e[1], color=col, lw=0.9, zorder=3)
+            shapes.append(np.column_stack([a2[0] + e[0], a2[1] + e[1]]))
+            shape_colours.append(col)
             half = math.degrees(min(3.0 * factor * _axis_angle_std(C, T[:3, 2]), math.pi / 2))
             z2 = (P @ T[:3, 2])[:2]
             if half > 0 and np.linalg.norm(z2) > 1e-6:
-                heading = math.degrees(math.atan2(z2[1], z2[0]))
-                ax2.add_patch(Wedge(a2[:2], 0.8 * depth * float(np.linalg.norm(z2)),
-                                    heading - half, heading + half, color=col, alpha=0.3,
-                                    lw=0, zorder=2))
+                heading = math.radians(math.degrees(math.atan2(z2[1], z2[0])))
+                r = 0.8 * depth * float(np.linalg.norm(z2))
+                arc = heading + np.radians(np.linspace(-half, half, 16))
+                shapes.append(np.vstack([a2[:2], a2[:2] + r * np.column_stack(
+                    [np.cos(arc), np.sin(arc)])]))
+                shape_colours.append(col)
+    if dots:
+        d = np.concatenate(dots)
+        ax3.scatter(d[:, 0], d[:, 1], d[:, 2], s=5, c=dot_colours, alpha=0.5, depthshade=False)
+        ax2.scatter(d[:, 0], d[:, 1], s=5, c=dot_colours, alpha=0.5, zorder=2, lw=0)
+    if shapes:
+        ax2.add_collection(PolyCollection(shapes, facecolors=shape_colours, edgecolors="none",
+                                          alpha=0.3, zorder=2))
+    ax3.add_collection3d(Line3DCollection([p for p, _, _ in lines], colors=[c for _, c, _ in lines],
+                                          linewidths=[w for _, _, w in lines]))
+    ax2.add_collection(LineCollection([p[:, :2] for p, _, _ in lines],
+                                      colors=[c for _, c, _ in lines],
+                                      linewidths=[w for _, _, w in lines], zorder=3))
     # reference camera axes and the frame origin
     triads = [(sc.T_cams[sc.reference], 1.0 * depth)]
     if details is not None:
@@ -365,6 +390,7 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
         ax.set_ylabel(f"{frame} {labels[1]} (m)", fontsize=8, labelpad=1)
         ax.tick_params(labelsize=7, pad=0)
     ax3.set_zlabel(f"{frame} {labels[2]} (m)", fontsize=8, labelpad=1)
+    ax2.autoscale_view()
     ax2.set_aspect("equal", adjustable="datalim")
     ax2.grid(True, alpha=0.3)
     figs["rig_top.png"].suptitle(f"from above (looking down {frame} {labels[2]})", fontsize=10,
