@@ -251,6 +251,7 @@ def test_report_holds_tables_figures_and_reasons(memory_out):
         assert w > 450 and h > 180
     # the picture before the numbers: rig, then images, then the first table
     assert text.index('id="rig"') < text.index('id="images"') < text.index("<table")
+    assert '<a href="#warnings">Warnings</a> <a href="#rig">Rig</a>' in text   # can wrap
     for cam in run.record.cameras:
         assert html.escape(cam.name) in text
         tx, ty, tz, yaw, pitch, roll = pose_row(cam.T_ref_cam)
