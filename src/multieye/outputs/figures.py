@@ -424,7 +424,7 @@ def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> byte
         ax.plot([0, longest], [y0 + _LANE * med / hi] * 2, color="black", lw=0.8, ls="--")
     ax.set_xlim(0, longest)
     ax.set_xticks([])
-    ax.set_title("reprojection RMS of every used image, in time order (dashed: the camera's "
+    ax.set_title("reprojection RMS of every used image, in their order (dashed: the camera's "
                  f"median; red: its worst, numbered)", fontsize=9, loc="left")
     ax.set_xlabel(f"used images of each camera, spread over the lane; full lane = {hi:.3g} px",
                   fontsize=8)

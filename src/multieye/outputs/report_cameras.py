@@ -174,7 +174,7 @@ def cameras_section(rec: CalibrationRecord, details: RunDetails | None,
     together = ""
     if "image_rms.png" in figures:
         together += figure(figures["image_rms.png"], "reprojection RMS of every image",
-                           "Every used image's reprojection RMS, one lane per camera, in time "
+                           "Every used image's reprojection RMS, one lane per camera, in time (or name) "
                            "order; red and numbered: each camera's worst images (drawn above, "
                            "listed below).", "image_rms.png")
     if "residuals_by_radius.png" in figures:
