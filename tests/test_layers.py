@@ -24,7 +24,7 @@ LAYERS = {
 #: datasets, nothing more).
 SIM_MAY_IMPORT = {"core", "imaging", "io", "sim"}
 CV2_ALLOWED = ("core/lens.py", "imaging/", "sim/", "io/intrinsics.py", "io/rosbag.py")
-MATPLOTLIB_ALLOWED = ("outputs/figures.py", "experiments/figures.py")
+MATPLOTLIB_ALLOWED = ("outputs/figures.py", "outputs/figures_rig.py", "experiments/figures.py")
 SIM_USERS = ("sim", "experiments", "demo", "cli")
 
 

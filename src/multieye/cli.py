@@ -211,15 +211,15 @@ def report(out_dir: Path):
         click.echo(str(write_report(out_dir)))
 
 
-EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json", "camera-info")
+EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json", "camera-info", "mrcal")
 
 
 @main.command()
 @click.argument("out_dir", type=click.Path(file_okay=False, path_type=Path))
 @click.option("--format", "fmt", type=click.Choice(EXPORT_FORMATS), required=True,
               help="kalibr camchain, OpenCV FileStorage, URDF fragment, ROS 2 static "
-                   "transform publisher arguments, compact JSON, or one ROS camera_info "
-                   "YAML per camera.")
+                   "transform publisher arguments, compact JSON, one ROS camera_info "
+                   "YAML per camera, or one mrcal .cameramodel per camera.")
 @click.option("--parent-frame", default=None,
               help="Name of the base frame in urdf, tf-static and opencv [default: world for "
                    "eye-to-base; the tracked frame of mocap pose:, marker or body, for "

@@ -129,8 +129,10 @@ def test_the_demos_own_report_renders_in_chromium_without_console_messages(demo,
     out, _ = demo
     sizes, console = probe(out / "report.html", tmp_path)
     assert console == []
-    # rig, histograms, residuals over time, then one figure per camera of the demo's four
-    assert len(sizes) == 3 + 4 and all(w > 100 and h > 100 and done for w, h, done in sizes)
+    # the rig (3D, from above), each of the demo's four cameras' three worst images,
+    # histograms, residuals over time, image RMS, residuals by radius, a figure per camera
+    assert len(sizes) == 2 + 3 * 4 + 4 + 4 and all(w > 100 and h > 100 and done
+                                                   for w, h, done in sizes)
     rgb, console = screenshot(out / "report.html", tmp_path)
     assert console == []
     assert (rgb.min(axis=2) < 235).mean() > 0.05

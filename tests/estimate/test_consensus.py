@@ -13,7 +13,7 @@ from multieye.core.errors import InputError, TooFewMeasurementsError
 from multieye.sim.images import corrupt, simulate_images
 from multieye.core.metrics import extrinsic_errors, relative_extrinsics
 from multieye.estimate.refine_images import refine_images
-from multieye.estimate.consensus import consensus, measurement_residuals
+from multieye.estimate.consensus import choose_poses, consensus, measurement_residuals
 
 from synthetic import eye_to_base
 
@@ -110,3 +110,81 @@ def test_complex_measurements_are_refused(rng):
     A, B, _, _ = eye_to_base(rng, [6, 6])
     with pytest.raises(InputError, match=r"A\[cam0\] must be real, got complex"):
         consensus([a + 0j for a in A], B)
+
+
+def _mirrored(T_cam_target: np.ndarray) -> np.ndarray:
+    """The target's pose with its normal reflected about the line of sight (the other IPPE
+    pose of a small target), about the target origin."""
+    R, t = T_cam_target[:3, :3], T_cam_target[:3, 3]
+    n, v = R[:, 2], t / np.linalg.norm(t)
+    if n @ v < 0:
+        n = -n
+    axis = np.cross(n, v)
+    angle = 2 * np.arctan2(np.linalg.norm(axis), n @ v)
+    flip = g.transform_from_rotvec(axis / np.linalg.norm(axis) * angle, [0, 0, 0])[:3, :3]
+    return g.make_transform(flip @ R, t)
+
+
+def _flipped_set(seed: int, share: float = 1 / 3):
+    """Measurements of which ``share`` carry the mirrored pose, the other in B_alternative
+    (flipped only where the mirror is more than 10 deg off, a gross error)."""
+    scene = simulate_images(seed, n_cameras=3, images=18)
+    rng = np.random.default_rng(seed)
+    B, alt, flipped = [], [], []
+    for b in scene.B:
+        T = g.inv(b)
+        mirror = g.inv(np.stack([_mirrored(t) for t in T]))
+        off = np.degrees(g.rotation_angle_between(T[:, :3, :3], g.inv(mirror)[:, :3, :3]))
+        f = (rng.random(len(b)) < share) & (off > 10)
+        B.append(np.where(f[:, None, None], mirror, b))
+        alt.append(np.where(f[:, None, None], b, mirror))
+        flipped.append(f)
+    return scene, B, alt, flipped
+
+
+def test_mirrored_poses_chosen_per_image_by_the_rig():
+    scene, B, alt, flipped = _flipped_set(41)
+    assert sum(int(f.sum()) for f in flipped) >= 12
+    # without the second poses the flipped images are outliers ...
+    plain = consensus(scene.A, B)
+    for inl, f in zip(plain.inliers, flipped):
+        np.testing.assert_array_equal(~inl, f)
+    # ... with them every image is kept, on its true pose
+    cons = consensus(scene.A, B, B_alternative=alt)
+    assert cons.rejected == ()
+    for chosen, f in zip(cons.alternative, flipped):
+        np.testing.assert_array_equal(chosen, f)
+    clean = consensus(scene.A, scene.B)
+    np.testing.assert_allclose(cons.X, clean.X, atol=1e-9)
+    np.testing.assert_allclose(cons.Y, clean.Y, atol=1e-9)
+    for r, rc in zip(cons.rot_deg, clean.rot_deg):
+        np.testing.assert_allclose(r, rc, atol=1e-9)
+    # and the choice for a given X, Y
+    for j, (a, b, al, f) in enumerate(zip(scene.A, B, alt, flipped)):
+        np.testing.assert_array_equal(choose_poses(a, b, al, clean.X[j], clean.Y), f)
+
+
+def test_second_poses_missing_or_absent():
+    scene, B, alt, flipped = _flipped_set(43)
+    # no second pose (rows of NaN) where the first is right: the same choice
+    partial = [np.where(f[:, None, None], a, np.nan) for a, f in zip(alt, flipped)]
+    cons = consensus(scene.A, B, B_alternative=partial)
+    assert cons.rejected == ()
+    assert all(np.array_equal(c, f) for c, f in zip(cons.alternative, flipped))
+    # all NaN: as without second poses
+    none = consensus(scene.A, B, B_alternative=[np.full_like(b, np.nan) for b in B])
+    plain = consensus(scene.A, B)
+    assert [r.index for r in none.rejected] == [r.index for r in plain.rejected]
+    assert not any(c.any() for c in none.alternative)
+
+
+@pytest.mark.parametrize("bad, message", [
+    (lambda alt: alt[:2], "one array per camera"),
+    (lambda alt: [a[1:] for a in alt], "must have shape"),
+    (lambda alt: [a * 2 for a in alt], "neither all NaN nor a rigid transform"),
+    (lambda alt: "poses", "one array per camera"),
+])
+def test_bad_second_poses(bad, message):
+    scene, B, alt, _ = _flipped_set(44)
+    with pytest.raises(InputError, match=message):
+        consensus(scene.A, B, B_alternative=bad(alt))

@@ -249,5 +249,5 @@ def test_every_cause_has_its_word_in_the_messages():
     # the words a user would search for (issue 13): one per cause
     words = {"scale": "spacing", "unit": "unit", "quaternion-order": "quaternion order",
              "setup": "setup", "inverted-poses": "inverted", "time-offset": "time offset",
-             "intrinsics": "intrinsics", "fit": "poor fit"}
+             "intrinsics": "intrinsics", "noise": "noise", "fit": "poor fit"}
     assert set(words) == set(CAUSES)

@@ -141,7 +141,8 @@ def test_camera_info_errors_give_the_line(tmp_path):
     assert info.value.line == 9
     (tmp_path / "b.yaml").write_text(CAMERA_INFO.format(model="unified", n=4,
                                                         coeffs="0, 0, 0, 0"))
-    with pytest.raises(DatasetError, match="distortion_model 'unified' is not supported") as info:
+    with pytest.raises(DatasetError, match="distortion_model: 'unified' is not a supported "
+                       "distortion model") as info:
         read_intrinsics(tmp_path / "b.yaml")
     assert info.value.line == 8
     (tmp_path / "c.yaml").write_text("width: 3\n")
@@ -290,10 +291,14 @@ camera_matrix: !!opencv-matrix
 
 
 @pytest.mark.parametrize("old, new, expected", [
-    ("image_width: 640", "image_width: -640", "image_width must be a positive integer, got -640"),
-    ("image_width: 640", "image_width: 640.5", "image_width must be a positive integer, got 640.5"),
-    ("image_width: 640", "image_width: wide", "image_width must be a positive integer, got wide"),
-    ("image_height: 480", "image_height: 1e30", "image_height must be a positive integer"),
+    ("image_width: 640", "image_width: -640", "cam.yaml:3: image_width: expected a positive "
+                                              "integer, got -640"),
+    ("image_width: 640", "image_width: 640.5", "image_width: expected a positive integer, got "
+                                               "640.5"),
+    ("image_width: 640", "image_width: wide", "image_width: expected a positive integer, got "
+                                              "'wide'"),
+    ("image_height: 480", "image_height: 1e30", "cam.yaml:4: image_height: expected a positive "
+                                                "integer"),
     ("image_width: 640", "image_width: 1000000", "image width must be a positive integer of "
                                                  "at most 100000 pixels"),
     ("data: [500.0", "data: [.Nan", "camera matrix must be finite"),
@@ -318,10 +323,15 @@ def test_opencv_values_are_range_checked(tmp_path, old, new, expected):
 
 @pytest.mark.parametrize("text, expected", [
     ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
-     "image_width: -640\n", "info.yaml:2: image_width: expected a positive integer, got -640"),
+     "image_width: -640\nimage_height: 480\n",
+     "info.yaml:2: image_width: expected a positive integer, got -640"),
+    ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
+     "image_width: 640\n", "info.yaml:2: image_width: without image_height: give both"),
     ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, .inf]}\n",
      "camera matrix must be finite"),
     ("camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500]}\n",
+     "info.yaml:1: camera_matrix: rows x cols (3 x 3) does not match the 5 numbers of data"),
+    ("camera_matrix: {rows: 1, cols: 5, data: [500, 0, 320, 0, 500]}\n",
      "info.yaml:1: camera_matrix: expected 9 numbers, got 5"),
     ("cam0: {camera_model: pinhole, intrinsics: [500, 500, 320, 240], distortion_model: none,"
      " resolution: [-640, 480]}\n", "info.yaml:1: cam0.resolution: resolution [width, height] "

@@ -111,7 +111,8 @@ def _near(a, b, tol=1e-9):
 def test_format_names_are_the_cli_choices():
     from multieye.cli import EXPORT_FORMATS
 
-    assert list(FORMATS) == ["kalibr", "opencv", "urdf", "tf-static", "json", "camera-info"]
+    assert list(FORMATS) == ["kalibr", "opencv", "urdf", "tf-static", "json", "camera-info",
+                             "mrcal"]
     assert list(EXPORT_FORMATS) == list(FORMATS)
 
 

@@ -62,7 +62,7 @@ def earlier(earlier_template, tmp_path):
     return out
 
 
-def _quick_report(folder, shown_as=None):
+def _quick_report(folder, shown_as=None, images=None):
     """Stands in for the report (whose figures take a second) where it is not the point."""
     (Path(folder) / "figures").mkdir()
     (Path(folder) / "figures" / "rig.png").write_bytes(b"png")
@@ -77,7 +77,8 @@ def test_a_run_writes_its_set_and_nothing_beside(run, tmp_path):
     manifest = json.loads((out / MANIFEST).read_text())
     assert manifest["files"] == sorted(
         ["calibration.json", "camchain.yaml", "details.json", "report.html",
-         "figures/rig.png", "figures/residual_histograms.png", "figures/residuals_over_time.png"])
+         "figures/rig_3d.png", "figures/rig_top.png", "figures/residual_histograms.png",
+         "figures/residuals_over_time.png"])
     assert siblings(out) == []
     assert foreign_files(out) == []
 

@@ -10,13 +10,14 @@ figure decodes at its PNG size, and the screenshot shows the figures' colours.
 
 from __future__ import annotations
 
-import base64
 import dataclasses
 import html
 import json
+import os
 import re
 import shutil
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -32,10 +33,12 @@ from multieye.io.run_details import (
 from multieye.outputs.details import write_run_details
 from multieye.outputs.figures import display_rotation, frustum_corners, outliers
 from multieye.outputs.report import FIGURES, write_report
+from multieye.outputs.report_images import image_folders
 from multieye.outputs.write import write_outputs
 from test_export import NAMES, make_run
 
-from browser import chromium, needs_chromium, probe, screenshot
+from browser import (chromium, embedded_figures, layout, needs_chromium, plain_cells, probe,
+                     screenshot, screenshot_at)
 
 SETUPS = ["eye-to-base", "eye-on-hand"]
 
@@ -43,6 +46,17 @@ SETUPS = ["eye-to-base", "eye-on-hand"]
 def _png_size(data: bytes) -> tuple[int, int]:
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     return struct.unpack(">II", data[16:24])
+
+
+def _image_size(data: bytes) -> tuple[int, int]:
+    """Width and height of a PNG or JPEG."""
+    if data[:3] == b"\xff\xd8\xff":
+        from PIL import Image
+        import io
+
+        with Image.open(io.BytesIO(data)) as im:
+            return im.size
+    return _png_size(data)
 
 
 # --------------------------------------------------------------------------- details.json
@@ -224,19 +238,20 @@ def memory_out(tmp_path_factory):
     return out, run
 
 
-def _embedded_pngs(text: str) -> list[bytes]:
-    return [base64.b64decode(m) for m in re.findall(r'src="data:image/png;base64,([^"]+)"', text)]
-
-
 def test_report_holds_tables_figures_and_reasons(memory_out):
     out, run = memory_out
-    text = (out / "report.html").read_text()
-    pngs = _embedded_pngs(text)
-    assert len(pngs) == len(FIGURES)
-    for name, png in zip(FIGURES, pngs):   # page order, and the files are the same figures
+    text = plain_cells((out / "report.html").read_text())
+    figures = embedded_figures(text)
+    # in-memory run: no target points, so no per-image figures; the rig first
+    assert [n for n, _ in figures] == [n for n in FIGURES if n not in (
+        "image_rms.png", "residuals_by_radius.png")]
+    for name, png in figures:   # the files are the same figures
         assert (out / "figures" / name).read_bytes() == png
         w, h = _png_size(png)
-        assert w > 600 and h > 300
+        assert w > 450 and h > 180
+    # the picture before the numbers: rig, then images, then the first table
+    assert text.index('id="rig"') < text.index('id="images"') < text.index("<table")
+    assert '<a href="#warnings">Warnings</a> <a href="#rig">Rig</a>' in text   # can wrap
     for cam in run.record.cameras:
         assert html.escape(cam.name) in text
         tx, ty, tz, yaw, pitch, roll = pose_row(cam.T_ref_cam)
@@ -248,7 +263,7 @@ def test_report_holds_tables_figures_and_reasons(memory_out):
     assert "rotation spread deg" in text and "<td>12</td>" in text
     # self-contained: nothing to fetch, no script, and a policy that forbids both
     assert "<script" not in text
-    assert re.findall(r'(?:src|href)="(?!data:image/png;base64,|#)', text) == []
+    assert re.findall(r'(?:src|href)="(?!data:image/(?:png|jpeg);base64,|#)', text) == []
     assert "default-src 'none'" in text
 
 
@@ -256,9 +271,10 @@ def test_report_without_details_shows_what_calibration_json_has(memory_out, tmp_
     out, run = memory_out
     (tmp_path / "calibration.json").write_bytes((out / "calibration.json").read_bytes())
     shutil.copytree(out / "figures", tmp_path / "figures")  # an earlier report's figures
-    text = write_report(tmp_path).read_text()
-    assert len(_embedded_pngs(text)) == 1
-    assert sorted(p.name for p in (tmp_path / "figures").iterdir()) == ["rig.png"]
+    text = plain_cells(write_report(tmp_path).read_text())
+    assert [n for n, _ in embedded_figures(text)] == ["rig_3d.png", "rig_top.png"]
+    assert sorted(p.name for p in (tmp_path / "figures").iterdir()) == ["rig_3d.png",
+                                                                        "rig_top.png"]
     assert "this output folder does not have" in text
     # the weak-motion diagnostics come from calibration.json: shown without details.json too
     motion = run.record.motion_diagnostics[run.record.cameras[1].name]
@@ -275,13 +291,14 @@ def test_details_of_another_run_are_left_out_with_a_note(memory_out, tmp_path):
     write_run_details(tmp_path / "details.json", other)
     text = write_report(tmp_path).read_text()
     assert "details.json left out: it belongs to another run (cameras a, b, c instead of" in text
-    assert len(_embedded_pngs(text)) == 1
+    assert len(embedded_figures(text)) == 2
 
 
 def test_write_report_returns_the_page(memory_out):
     out, _ = memory_out
     assert (out / "report.html").stat().st_size > 0
-    assert sorted(p.name for p in (out / "figures").iterdir()) == sorted(FIGURES)
+    assert sorted(p.name for p in (out / "figures").iterdir()) == sorted(
+        n for n in FIGURES if n not in ("image_rms.png", "residuals_by_radius.png"))
 
 
 def test_report_needs_calibration_json(tmp_path):
@@ -307,22 +324,59 @@ def demo_report(tmp_path_factory):
     write_outputs(run, out)
     write_run_details(out / "details.json", run,
                       diagnostics={"cam0": {"rotation_spread_deg": 31.2, "weak": False}})
-    return write_report(out)
+    return write_report(out, images=image_folders(run))
 
 
 @needs_chromium
 def test_demo_report_renders_in_chromium_without_console_messages(demo_report, tmp_path):
     sizes, console = probe(demo_report, tmp_path)
     assert console == []
-    names = list(FIGURES) + ["camera_cam0.png", "camera_cam1.png"]      # page order
-    pngs = [(demo_report.parent / "figures" / name).read_bytes() for name in names]
-    assert [tuple(s[:2]) for s in sizes] == [_png_size(p) for p in pngs]  # every figure decoded
+    figures = embedded_figures(demo_report.read_text())
+    names = [n for n, _ in figures]
+    assert names[:2] == ["rig_3d.png", "rig_top.png"]            # the rig first
+    assert [n for n in names if n.endswith(".jpg")] == [
+        f"image_cam{j}_{k}.jpg" for j in range(2) for k in (1, 2, 3)]
+    files = [(demo_report.parent / "figures" / n).read_bytes() for n in names]
+    assert files == [data for _, data in figures]
+    assert [tuple(s[:2]) for s in sizes] == [_image_size(f) for f in files]  # every one decoded
     rgb, console = screenshot(demo_report, tmp_path)
     assert console == []                   # the page itself: no script, nothing blocked
     not_white = (rgb.min(axis=2) < 235).mean()
     colourful = (rgb.max(axis=2) - rgb.min(axis=2) > 80).mean()   # figure and camera colours
     assert not_white > 0.05, not_white
     assert colourful > 0.002, colourful
+
+
+@needs_chromium
+@pytest.mark.parametrize("width", [1280, 390])
+def test_demo_report_fits_desktop_and_phone_widths(demo_report, tmp_path, width):
+    """No sideways scrolling, figures wide enough to read, the rig before the first table."""
+    page, console = layout(demo_report, tmp_path, width)
+    assert console == []
+    assert page["inner"] == width
+    assert page["scroll"] <= page["inner"], page["scroll"]
+    images = page["images"]
+    assert len(images) == len(embedded_figures(demo_report.read_text()))
+    for shown, _, natural, section in images:
+        if section == "images":                        # the drawn images, several per row
+            assert shown >= min(280, natural), (shown, natural)
+        elif width < 500:                              # a phone: every figure full width
+            assert shown >= min(350, natural) and shown >= page["main"] - 30, (shown, section)
+        else:
+            assert shown >= min(450, natural), (shown, section)
+    rig_top = min(top for _, top, _, section in images if section == "rig")
+    assert page["tables"] and rig_top < min(top for _, top in page["tables"])
+    for table_width, _ in page["tables"]:
+        assert table_width <= page["main"] + 0.5
+    shot = tmp_path / f"report_{width}.png"
+    assert screenshot_at(demo_report, shot, tmp_path, width, 2400) == []
+    from PIL import Image
+
+    with Image.open(shot) as im:
+        assert im.size == (width, 2400)
+    keep = os.environ.get("MULTIEYE_KEEP_SCREENSHOTS")
+    if keep:                                           # for people who want to look at them
+        shutil.copy(shot, Path(keep) / shot.name)
 
 
 @needs_chromium

@@ -8,7 +8,6 @@ calibrated twice: with the intrinsics files it comes with (given, held fixed) an
 
 from __future__ import annotations
 
-import base64
 import json
 import re
 
@@ -34,7 +33,7 @@ from multieye.outputs.write import write_outputs
 from multieye.pipeline import calibrate, calibrate_rig
 from small_dataset import render_small
 
-from browser import needs_chromium, probe
+from browser import embedded_figures, needs_chromium, plain_cells, probe
 
 
 @pytest.fixture(scope="module")
@@ -51,10 +50,6 @@ def runs(tmp_path_factory):
         write_outputs(run, tmp / kind)
         out[kind] = (run, tmp / kind)
     return out
-
-
-def _pngs(text: str) -> list[bytes]:
-    return [base64.b64decode(m) for m in re.findall(r'src="data:image/png;base64,([^"]+)"', text)]
 
 
 # --------------------------------------------------------------------------- details.json
@@ -164,12 +159,15 @@ def test_details_json_stays_small(runs):
 @pytest.mark.parametrize("kind", ["given", "model"])
 def test_report_shows_every_camera_and_the_diagnostics(runs, kind):
     run, out = runs[kind]
-    text = (out / "report.html").read_text()
+    text = plain_cells((out / "report.html").read_text())
     assert '<section id="cameras"><h2>Cameras: intrinsics and where the target was seen' in text
-    pngs = _pngs(text)
-    assert len(pngs) == 5                     # rig, histograms, over time, one per camera
-    for name, png in zip(("camera_cam0.png", "camera_cam1.png"), pngs[3:]):
-        assert (out / "figures" / name).read_bytes() == png
+    figures = embedded_figures(text)
+    assert [n for n, _ in figures] == [        # page order
+        "rig_3d.png", "rig_top.png", *(f"image_cam{j}_{k}.jpg" for j in (0, 1) for k in (1, 2, 3)),
+        "residual_histograms.png", "residuals_over_time.png", "image_rms.png",
+        "residuals_by_radius.png", "camera_cam0.png", "camera_cam1.png"]
+    for name, data in figures:
+        assert (out / "figures" / name).read_bytes() == data
     details = read_run_details(out / "details.json")
     for name in ("cam0", "cam1"):
         cam = details.camera(name)
@@ -177,6 +175,11 @@ def test_report_shows_every_camera_and_the_diagnostics(runs, kind):
         row = "estimated" if kind == "model" else "given"
         assert f'<td class="l">{row}</td><td>{fx:.2f}</td><td>{fy:.2f}</td>' in text
         worst = cam.names[int(np.nanargmax(cam.points.rms_px))]
+        order = [cam.names[i] for i in np.argsort(-cam.points.rms_px)[:3]]   # worst first
+        shown = re.findall(rf"<b>([^<]+)</b>: RMS [0-9.]+ px over \d+ points; residuals × "
+                           rf"[0-9.e+]+ <span class=\"note\">\(also <code>figures/image_{name}_"
+                           r"\d\.jpg", text)
+        assert shown == order
         assert f"<td class=\"l\">{worst}</td><td>{np.nanmax(cam.points.rms_px):.3f}</td>" in text
         motion = run.record.motion_diagnostics[name]
         assert f"<td>{motion['rotation_range_deg']:.1f}</td>" in text
@@ -199,7 +202,8 @@ def test_report_with_estimated_intrinsics_renders_without_console_messages(runs,
     report = runs["model"][1] / "report.html"
     sizes, console = probe(report, tmp_path)
     assert console == []
-    assert len(sizes) == 5 and all(w > 600 and h > 300 for w, h, _ in sizes)
+    assert len(sizes) == 14 and all(w > 450 and h > 180 for w, h, _ in sizes[:2] + sizes[8:])
+    assert all(w > 150 and h > 100 for w, h, _ in sizes[2:8])          # the drawn images
 
 
 def test_camera_figures_of_an_earlier_report_are_removed(runs, tmp_path):
@@ -210,10 +214,13 @@ def test_camera_figures_of_an_earlier_report_are_removed(runs, tmp_path):
     (out / "figures").mkdir()
     (out / "figures" / "camera_gone.png").write_bytes(b"old")
     (out / "figures" / "notes.txt").write_text("mine")
+    (out / "figures" / "rig.png").write_bytes(b"old")                # an earlier version's
+    (out / "figures" / "image_gone_1.jpg").write_bytes(b"old")
     write_report(out)
     assert sorted(p.name for p in (out / "figures").iterdir()) == [
-        "camera_cam0.png", "camera_cam1.png", "notes.txt", "residual_histograms.png",
-        "residuals_over_time.png", "rig.png"]
+        "camera_cam0.png", "camera_cam1.png", "image_rms.png", "notes.txt",
+        "residual_histograms.png", "residuals_by_radius.png", "residuals_over_time.png",
+        "rig_3d.png", "rig_top.png"]
     # a folder whose manifest predates the per-camera figures may still be replaced
     assert foreign_files(out) == ["figures/notes.txt"]
 
@@ -277,3 +284,26 @@ def test_eye_on_hand_points_are_the_refined_rigs_residuals(tmp_path):
         assert p.source == "refined"
         np.testing.assert_allclose(p.rms_px, run.refinement.result.image_rms_px[j], rtol=1e-9)
         assert 0.2 < np.nanmedian(p.rms_px) < 0.6                    # 0.3 px per coordinate
+
+
+def test_figures_drawn_by_a_worker_are_the_same(runs, tmp_path):
+    """Two processes or one: the same figures, the same page."""
+    from multieye.outputs.report_draw import PARALLEL_FROM_S, figure_jobs
+    from multieye.outputs.report import load_details
+    from multieye.io.calibration_json import read_calibration
+
+    src = runs["model"][1]
+    pages = {}
+    for processes in (1, 2):
+        out = tmp_path / f"p{processes}" / "out"
+        out.mkdir(parents=True)
+        for name in ("calibration.json", "details.json"):
+            (out / name).write_bytes((src / name).read_bytes())
+        text = write_report(out, processes=processes).read_text()
+        pages[processes] = (text.replace(str(out), "OUT"),
+                            {p.name: p.read_bytes() for p in (out / "figures").iterdir()})
+    assert pages[1] == pages[2]
+    rec = read_calibration(src / "calibration.json")
+    details, _ = load_details(src, rec)
+    # enough to draw that the worker is used (with two cores)
+    assert sum(cost for *_, cost in figure_jobs(rec, details)) >= PARALLEL_FROM_S

@@ -145,6 +145,9 @@ def test_yizhong_eye_to_hand_single_marker(shared_data, tmp_path):
     assert [r["item"] for r in cam["rejected"]] == ["chessboard_config.json"]
     assert "only 8 images" not in out
     assert cal["plausibility"] == []
+    # 121-202 px wide: the mirrored poses are 12-17 px off, so no ambiguity warning and no
+    # image rejected by consensus (robot_sets.md, section 5)
+    assert not any("mirrored poses" in w for w in cal["warnings"]), cal["warnings"]
     res = cam["residuals"]
     assert res["reprojection_rms_px"] < 0.5                            # 0.335 px
     # the loop residuals of the final lens (the start lens's were 0.97 deg, 5.35 mm)

@@ -13,9 +13,19 @@ import numpy as np
 
 from multieye.core.arguments import real_array
 from multieye.core.errors import InputError
-from multieye.core.limits import MAX_FOCAL_PX, MAX_IMAGE_SIDE_PX
+from multieye.core.limits import (
+    MAX_FOCAL_PX,
+    MAX_IMAGE_SIDE_PX,
+    MAX_PRINCIPAL_POINT_OUTSIDE,
+    MAX_RADIAL_DISTORTION,
+    MAX_SKEW_FRACTION,
+    MAX_TANGENTIAL_DISTORTION,
+    MAX_TILT_RAD,
+    MIN_FOCAL_FRACTION,
+)
 
-__all__ = ["Intrinsics", "PINHOLE_DISTORTION_SIZES", "LENS_MODELS", "lens_model", "parameter_names"]
+__all__ = ["Intrinsics", "PINHOLE_DISTORTION_SIZES", "LENS_MODELS", "lens_model",
+           "parameter_names", "check_lens_bounds"]
 
 #: Lengths of OpenCV's pinhole distortion vector (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]).
 PINHOLE_DISTORTION_SIZES = (0, 4, 5, 8, 12, 14)
@@ -48,6 +58,54 @@ def parameter_names(intrinsics: Intrinsics) -> tuple[str, ...]:
     dist = (("k1", "k2", "k3", "k4") if intrinsics.model == "fisheye"
             else _PINHOLE_NAMES[:intrinsics.dist.size])
     return ("fx", "fy", "cx", "cy") + dist
+
+
+def _bounds(model: str, n: int) -> list[tuple[str, float, str]]:
+    """Per distortion coefficient: its name, its bound and what kind of coefficient it is."""
+    if model == "fisheye":
+        return [(f"k{i + 1}", MAX_RADIAL_DISTORTION, "radial") for i in range(n)]
+    kinds = {"p": (MAX_TANGENTIAL_DISTORTION, "tangential"), "k": (MAX_RADIAL_DISTORTION, "radial"),
+             "s": (MAX_RADIAL_DISTORTION, "thin-prism"), "t": (MAX_TILT_RAD, "tilt (radians)")}
+    return [(name, *kinds[name[0]]) for name in _PINHOLE_NAMES[:n]]
+
+
+def check_lens_bounds(intrinsics: Intrinsics) -> None:
+    """Refuse intrinsics whose numbers no real camera has (:mod:`multieye.core.limits`).
+
+    :class:`Intrinsics` itself checks the form (finite, positive focal lengths, no skew); this
+    checks what a file may still get wrong by a unit or a corrupted number: a focal length
+    below :data:`~multieye.core.limits.MIN_FOCAL_FRACTION` of the image, a principal point
+    more than :data:`~multieye.core.limits.MAX_PRINCIPAL_POINT_OUTSIDE` image sides outside
+    the image (both only when the image size is known), and distortion coefficients beyond
+    :data:`~multieye.core.limits.MAX_RADIAL_DISTORTION` (radial, thin prism),
+    :data:`~multieye.core.limits.MAX_TANGENTIAL_DISTORTION` (tangential) or
+    :data:`~multieye.core.limits.MAX_TILT_RAD` (sensor tilt).  Readers call it where
+    intrinsics enter; estimation does not (its trial steps may pass anywhere).
+
+    Raises
+    ------
+    InputError
+        One line naming the number, its value and the bound.
+    """
+    K, w, h = intrinsics.K, intrinsics.width, intrinsics.height
+    if w is not None and h is not None:
+        side = max(w, h)
+        for name, f in (("fx", K[0, 0]), ("fy", K[1, 1])):
+            if f < MIN_FOCAL_FRACTION * side:
+                raise InputError(f"focal length {name} = {f:g} px is below "
+                                 f"{MIN_FOCAL_FRACTION:g} x the {w}x{h} image's larger side "
+                                 f"({MIN_FOCAL_FRACTION * side:g} px): a focal length in "
+                                 "pixels is expected (not millimetres)")
+        m = MAX_PRINCIPAL_POINT_OUTSIDE
+        for name, c, size in (("cx", K[0, 2], w), ("cy", K[1, 2], h)):
+            if not -m * size <= c <= (1 + m) * size:
+                raise InputError(f"principal point {name} = {c:g} px is far outside the {w}x{h} "
+                                 f"image (accepted: {-m * size:g} to {(1 + m) * size:g} px)")
+    for (name, bound, kind), value in zip(_bounds(intrinsics.model, intrinsics.dist.size),
+                                          intrinsics.dist):
+        if abs(value) > bound:
+            raise InputError(f"distortion coefficient {name} = {value:g} is beyond any real "
+                             f"lens (a {kind} coefficient's magnitude is at most {bound:g})")
 
 
 @dataclass(frozen=True)
@@ -88,6 +146,10 @@ class Intrinsics:
         if K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
             raise InputError(f"camera matrix must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]], got "
                              f"rows 2 and 3 {K[1].tolist()}, {K[2].tolist()}")
+        if abs(K[0, 1]) > MAX_SKEW_FRACTION * K[0, 0]:
+            raise InputError(f"camera matrix has skew {K[0, 1]:g} px (row 1, column 2); the lens "
+                             "models have no skew (neither has OpenCV's), so it cannot be used: "
+                             "calibrate without skew, or give 0")
         for name in ("width", "height"):
             v = getattr(self, name)
             if v is None:

@@ -14,6 +14,12 @@ __all__ = [
     "MAX_GRID_SIDE",
     "MAX_IMAGE_SIDE_PX",
     "MAX_FOCAL_PX",
+    "MIN_FOCAL_FRACTION",
+    "MAX_SKEW_FRACTION",
+    "MAX_PRINCIPAL_POINT_OUTSIDE",
+    "MAX_RADIAL_DISTORTION",
+    "MAX_TANGENTIAL_DISTORTION",
+    "MAX_TILT_RAD",
     "MAX_POSITION_M",
     "MAX_STAMP_S",
     "MAX_TIME_OFFSET_S",
@@ -30,6 +36,25 @@ MAX_GRID_SIDE = 200
 MAX_IMAGE_SIDE_PX = 100_000
 #: Largest focal length and principal point coordinate in intrinsics, pixels.
 MAX_FOCAL_PX = 1e6
+#: Smallest focal length in intrinsics that give the image size, as a fraction of the larger
+#: image side: 0.02 is a pinhole's 175 deg field of view across the image, or an equidistant
+#: fisheye's 25 rad; below it the focal length is in another unit (millimetres) or wrong.
+MIN_FOCAL_FRACTION = 0.02
+#: Largest skew ``K[0][1]`` accepted, as a fraction of ``fx`` (1e-6: a thousandth of a pixel
+#: at fx = 1000 px, a rounding in the file). The lens models have no skew (OpenCV's neither),
+#: so a larger one would be dropped without a word: it is refused instead.
+MAX_SKEW_FRACTION = 1e-6
+#: How far outside the image the principal point may lie, as a fraction of the image's width
+#: (for cx) or height (for cy), when the intrinsics give the image size: -w <= cx <= 2 w.
+MAX_PRINCIPAL_POINT_OUTSIDE = 1.0
+#: Largest magnitude of a radial (k1..k6; fisheye k1..k4) or thin-prism (s1..s4) distortion
+#: coefficient. Real lenses, even OpenCV's ill-conditioned rational fits, stay within tens.
+MAX_RADIAL_DISTORTION = 1e4
+#: Largest magnitude of a tangential coefficient (p1, p2): 1 already moves a point at 45 deg
+#: off axis by its whole distance from the centre; real lenses have about 1e-3.
+MAX_TANGENTIAL_DISTORTION = 1.0
+#: Largest sensor tilt (OpenCV's taux, tauy), radians (29 deg; real sensors: a fraction of one).
+MAX_TILT_RAD = 0.5
 #: Largest translation coordinate of a motion-capture or precomputed pose row, metres (after
 #: the unit conversion): a row beyond it is left out, with its line, as absurd.
 MAX_POSITION_M = 1e4

@@ -17,6 +17,15 @@ per camera, the closed form as the minimal solver, then a joint check with the s
    scored against that solution, and the fit is repeated on the new inliers until the set
    no longer changes.
 
+Two poses per image (``B_alternative``): a single planar marker has two poses that fit its
+four corners almost equally (:attr:`multieye.imaging.pnp.PoseEstimate.alternative`), and PnP
+picks the mirrored one in many images.  Given both, every hypothesis scores each image by
+the pose that agrees with it better, a minimal sample is solved with every combination of
+its images' poses, and the local optimisation and the joint fit use per image the pose
+chosen; :attr:`ConsensusResult.alternative` says which images took their second pose.
+:func:`choose_poses` makes that choice for a given ``X``, ``Y`` (the closed form without
+consensus uses it too).
+
 Every rejected measurement keeps its residuals and a reason, e.g.
 ``"outlier by consensus (loop residual 12.3 deg / 0.410 m above threshold 5 deg / 0.05 m)"``.
 
@@ -35,6 +44,7 @@ Synopsis
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -54,7 +64,8 @@ from multieye.solvers.checks import (
 )
 from multieye.solvers.joint import solve_joint
 
-__all__ = ["RejectedMeasurement", "ConsensusResult", "consensus", "measurement_residuals"]
+__all__ = ["RejectedMeasurement", "ConsensusResult", "consensus", "measurement_residuals",
+           "choose_poses", "check_alternatives"]
 
 F64 = NDArray[np.float64]
 
@@ -105,6 +116,9 @@ class ConsensusResult:
     threshold_rot_deg, threshold_trans_m : float
     samples : tuple of int
         Minimal samples solved per camera.
+    alternative : tuple of ndarray, shape (N_j,), bool
+        Per camera, the measurements whose second pose (``B_alternative``) was chosen, and
+        that ``rot_deg``, ``trans_m``, ``X`` and ``Y`` use; all False without alternatives.
     """
 
     inliers: tuple[NDArray[np.bool_], ...]
@@ -116,6 +130,7 @@ class ConsensusResult:
     threshold_rot_deg: float
     threshold_trans_m: float
     samples: tuple[int, ...]
+    alternative: tuple[NDArray[np.bool_], ...] = ()
 
 
 def _real(v) -> bool:
@@ -158,12 +173,102 @@ def measurement_residuals(A: F64, B: F64, X: F64, Y: F64) -> tuple[F64, F64]:
     return loop_residuals(pred, g.inv(B), np.eye(4), np.eye(4))
 
 
-def _score(A: F64, B: F64, X: F64, Y: F64, thr_rot: float, thr_t: float):
-    """Inlier mask and truncated cost (MSAC) of one camera's measurements under X, Y."""
+def check_alternatives(B_alternative, B: Sequence[F64]) -> list[F64]:
+    """Validated second poses: per camera an array like ``B[j]``, NaN where none.
+
+    Parameters
+    ----------
+    B_alternative : sequence of array_like, each shape (N_j, 4, 4), or None
+        ``T_target_cam`` as ``B``; rows entirely NaN where a measurement has no second pose.
+    B : sequence of ndarray, each shape (N_j, 4, 4)
+
+    Returns
+    -------
+    list of ndarray, each shape (N_j, 4, 4)
+
+    Raises
+    ------
+    InputError
+        Not one array per camera of the shape of ``B[j]``, or a row that is neither all NaN
+        nor a rigid transform.
+    """
+    if B_alternative is None:
+        return [np.full_like(b, np.nan) for b in B]
+    if isinstance(B_alternative, (str, bytes)) or len(B_alternative) != len(B):
+        raise InputError(f"B_alternative must hold one array per camera ({len(B)})")
+    out = []
+    for j, (alt, b) in enumerate(zip(B_alternative, B)):
+        try:
+            alt = np.array(alt, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError(f"B_alternative of camera {j} is not an array of numbers") from None
+        if alt.shape != b.shape:
+            raise InputError(f"B_alternative of camera {j} must have shape {b.shape}, got "
+                             f"{alt.shape}")
+        given = ~np.all(np.isnan(alt.reshape(len(alt), -1)), axis=1)
+        R = alt[given, :3, :3]
+        if given.any() and not (np.all(np.isfinite(alt[given]))
+                                and np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-6)
+                                and np.all(np.linalg.det(R) > 0)
+                                and np.allclose(alt[given, 3], [0, 0, 0, 1])):
+            raise InputError(f"B_alternative of camera {j}: a row is neither all NaN nor a "
+                             "rigid transform")
+        out.append(alt)
+    return out
+
+
+def _has(Balt: F64) -> NDArray[np.bool_]:
+    return ~np.isnan(Balt[:, 0, 0])
+
+
+def _chosen(B: F64, Balt: F64, choice: NDArray[np.bool_]) -> F64:
+    return np.where(choice[:, None, None], Balt, B)
+
+
+def _residuals(A: F64, B: F64, Balt: F64, X: F64, Y: F64, thr_rot: float, thr_t: float):
+    """Loop residuals (deg, m) per measurement under X, Y, of the pose that agrees better,
+    and which pose that is (True: the alternative)."""
     rot, trans = measurement_residuals(A, B, X, Y)
+    choice = np.zeros(len(A), dtype=bool)
+    has = _has(Balt)
+    if has.any():
+        r2, t2 = measurement_residuals(A[has], Balt[has], X, Y)
+        better = (r2 / thr_rot) ** 2 + (t2 / thr_t) ** 2 < \
+            (rot[has] / thr_rot) ** 2 + (trans[has] / thr_t) ** 2
+        choice[np.flatnonzero(has)[better]] = True
+        rot, trans = rot.copy(), trans.copy()
+        rot[choice], trans[choice] = r2[better], t2[better]
+    return rot, trans, choice
+
+
+def choose_poses(A: F64, B: F64, B_alternative: F64, X: F64, Y: F64, *,
+                 threshold_rot_deg: float = 5.0,
+                 threshold_trans_m: float = 0.05) -> NDArray[np.bool_]:
+    """Per measurement, whether its second pose agrees better with ``X``, ``Y``.
+
+    Parameters
+    ----------
+    A, B : ndarray, shape (N, 4, 4)
+    B_alternative : ndarray, shape (N, 4, 4)
+        Second ``T_target_cam`` per measurement, all NaN where none.
+    X, Y : ndarray, shape (4, 4)
+    threshold_rot_deg, threshold_trans_m : float
+        Scales of the rotation (degrees) and position (metres) residuals in the comparison.
+
+    Returns
+    -------
+    ndarray, shape (N,), bool
+        True where the second pose has the smaller scaled loop residual.
+    """
+    return _residuals(A, B, B_alternative, X, Y, threshold_rot_deg, threshold_trans_m)[2]
+
+
+def _score(A: F64, B: F64, X: F64, Y: F64, thr_rot: float, thr_t: float, Balt: F64):
+    """Inlier mask, truncated cost (MSAC) and pose choice of one camera's measurements."""
+    rot, trans, choice = _residuals(A, B, Balt, X, Y, thr_rot, thr_t)
     inl = (rot <= thr_rot) & (trans <= thr_t)
     cost = np.minimum((rot / thr_rot) ** 2 + (trans / thr_t) ** 2, 2.0).sum()
-    return inl, float(cost)
+    return inl, float(cost), choice
 
 
 def _fit(A: F64, B: F64) -> tuple[F64, F64]:
@@ -172,11 +277,29 @@ def _fit(A: F64, B: F64) -> tuple[F64, F64]:
     return X[0], Y
 
 
+def _sample_fits(A: F64, B: F64, Balt: F64, idx, thr_rot: float, thr_t: float):
+    """Inlier mask, cost and pose choice of the best fit of a minimal sample, over every
+    combination of its measurements' poses."""
+    amb = [k for k in idx if not np.isnan(Balt[k, 0, 0])]
+    best = None
+    for flips in itertools.product((False, True), repeat=len(amb)):
+        Bs = B.copy()
+        for k, flip in zip(amb, flips):
+            if flip:
+                Bs[k] = Balt[k]
+        inl, cost, choice = _score(A, B, *_fit(A[idx], Bs[idx]), thr_rot, thr_t, Balt)
+        if best is None or (inl.sum(), -cost) > (best[0].sum(), -best[1]):
+            best = (inl, cost, choice)
+    return best
+
+
 def _ransac_camera(A: F64, B: F64, thr_rot: float, thr_t: float, rng: np.random.Generator,
-                   max_samples: int, confidence: float):
-    """Best inlier mask of one camera (all True when no usable minimal sample exists)."""
+                   max_samples: int, confidence: float, Balt: F64):
+    """Best inlier mask and pose choice of one camera (all inliers, first poses, when no
+    usable minimal sample exists)."""
     n = len(A)
     best_inl, best_count, best_cost = np.ones(n, dtype=bool), -1, np.inf
+    best_choice = np.zeros(n, dtype=bool)
     samples = 0
     needed = max_samples
     attempts = 0
@@ -186,30 +309,33 @@ def _ransac_camera(A: F64, B: F64, thr_rot: float, thr_t: float, rng: np.random.
         if rotation_spread(A[idx])[1] < _MIN_SAMPLE_SPREAD_RAD:
             continue
         samples += 1
-        inl, cost = _score(A, B, *_fit(A[idx], B[idx]), thr_rot, thr_t)
+        inl, cost, choice = _sample_fits(A, B, Balt, idx, thr_rot, thr_t)
         count = int(inl.sum())
         if count > best_count or (count == best_count and cost < best_cost):
-            # Local optimisation: re-solve on the inliers while that gains inliers.
+            # Local optimisation: re-solve on the inliers (each with the pose chosen) while
+            # that gains inliers.
             for _ in range(3):
                 if inl.sum() < MIN_MEASUREMENTS:
                     break
-                inl2, cost2 = _score(A, B, *_fit(A[inl], B[inl]), thr_rot, thr_t)
+                inl2, cost2, choice2 = _score(A, B, *_fit(A[inl], _chosen(B, Balt, choice)[inl]),
+                                              thr_rot, thr_t, Balt)
                 if inl2.sum() < inl.sum() or (inl2.sum() == inl.sum() and cost2 >= cost):
                     break
-                inl, cost = inl2, cost2
-            best_inl, best_count, best_cost = inl, int(inl.sum()), cost
+                inl, cost, choice = inl2, cost2, choice2
+            best_inl, best_count, best_cost, best_choice = inl, int(inl.sum()), cost, choice
             w = best_count / n
             if w >= 1.0:
                 needed = samples
             elif w > 0.0:
                 needed = int(np.ceil(np.log(1.0 - confidence) / np.log(1.0 - w ** _SAMPLE)))
-    return best_inl, samples
+    return best_inl, best_choice, samples
 
 
 def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: float = 0.05,
               names: Sequence[str] | None = None, max_samples: int = 500,
               confidence: float = 0.999, seed: int | np.random.Generator | None = 0,
-              labels: Sequence[Sequence[str]] | None = None) -> ConsensusResult:
+              labels: Sequence[Sequence[str]] | None = None,
+              B_alternative: Sequence[F64] | None = None) -> ConsensusResult:
     """Find the measurements that agree with one ``X^j`` per camera and a shared ``Y``.
 
     Parameters
@@ -235,6 +361,10 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
     labels : sequence of sequence of str, optional
         Per camera, a name for each measurement (its image file), used in messages; default
         ``measurement <i>``.
+    B_alternative : sequence of array_like, each shape (N_j, 4, 4), optional
+        Per camera a second ``T_target_cam`` per measurement (the mirrored PnP pose of a
+        single marker), rows all NaN where there is none; each measurement is then counted
+        with the pose that agrees better (module docstring).
 
     Returns
     -------
@@ -268,15 +398,17 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
     names = meas.names
     labels = _labels(labels, meas)
     As, Bs = meas.split(meas.A), meas.split(meas.B)
+    Balts = check_alternatives(B_alternative, Bs)
     try:
         rng = np.random.default_rng(seed)
     except (TypeError, ValueError):
         raise InputError(f"seed must be an int, a numpy Generator or None, got {seed!r}") from None
-    inliers, samples = [], []
-    for Aj, Bj in zip(As, Bs):
-        inl, s = _ransac_camera(Aj, Bj, threshold_rot_deg, threshold_trans_m, rng,
-                                max_samples, confidence)
+    inliers, choices, samples = [], [], []
+    for Aj, Bj, Balt in zip(As, Bs, Balts):
+        inl, choice, s = _ransac_camera(Aj, Bj, threshold_rot_deg, threshold_trans_m, rng,
+                                        max_samples, confidence, Balt)
         inliers.append(inl)
+        choices.append(choice)
         samples.append(s)
 
     for _ in range(10):
@@ -289,18 +421,22 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
                     f"within {threshold_rot_deg:g} deg / {threshold_trans_m:g} m, at least "
                     f"{MIN_MEASUREMENTS} are needed (outliers: {listed}); check its detections "
                     "and time pairing, or raise the thresholds")
+        used = [_chosen(b, alt, c) for b, alt, c in zip(Bs, Balts, choices)]
         X, Y = solve_joint(Measurements.from_arrays(
             np.concatenate([a[k] for a, k in zip(As, inliers)]),
-            np.concatenate([b[k] for b, k in zip(Bs, inliers)]),
+            np.concatenate([b[k] for b, k in zip(used, inliers)]),
             [int(k.sum()) for k in inliers], names))
-        res = [measurement_residuals(a, b, X[j], Y) for j, (a, b) in enumerate(zip(As, Bs))]
-        new = [(r <= threshold_rot_deg) & (t <= threshold_trans_m) for r, t in res]
-        if all(np.array_equal(a, b) for a, b in zip(new, inliers)):
+        res = [_residuals(a, b, alt, X[j], Y, threshold_rot_deg, threshold_trans_m)
+               for j, (a, b, alt) in enumerate(zip(As, Bs, Balts))]
+        new = [(r <= threshold_rot_deg) & (t <= threshold_trans_m) for r, t, _ in res]
+        new_choices = [c for _, _, c in res]
+        if all(np.array_equal(a, b) for a, b in zip(new, inliers)) and all(
+                np.array_equal(a, b) for a, b in zip(new_choices, choices)):
             break
-        inliers = new
+        inliers, choices = new, new_choices
 
     rejected = []
-    for j, (inl, (rot, trans)) in enumerate(zip(inliers, res)):
+    for j, (inl, (rot, trans, _)) in enumerate(zip(inliers, res)):
         for i in np.flatnonzero(~inl):
             rejected.append(RejectedMeasurement(
                 camera=names[j], index=int(i), rot_deg=float(rot[i]), trans_m=float(trans[i]),
@@ -308,6 +444,8 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
                         f"{trans[i]:.3f} m above threshold {threshold_rot_deg:g} deg / "
                         f"{threshold_trans_m:g} m)")))
     return ConsensusResult(inliers=tuple(inliers), rejected=tuple(rejected), X=X, Y=Y,
-                           rot_deg=tuple(r for r, _ in res), trans_m=tuple(t for _, t in res),
+                           rot_deg=tuple(r for r, _, _ in res),
+                           trans_m=tuple(t for _, t, _ in res),
                            threshold_rot_deg=float(threshold_rot_deg),
-                           threshold_trans_m=float(threshold_trans_m), samples=tuple(samples))
+                           threshold_trans_m=float(threshold_trans_m), samples=tuple(samples),
+                           alternative=tuple(c for _, _, c in res))

@@ -28,7 +28,7 @@ from multieye.solvers.joint import solve_joint
 
 __all__ = ["CameraEvidence", "Fit", "noise", "fit", "mocap_A", "scaled_A", "scale_factor",
            "permuted", "QUATERNION_ORDERS", "focal_search", "resize_search", "clock_search",
-           "MOCAP_NOISE", "RESIZE_FACTORS"]
+           "lens_search", "LensTest", "MOCAP_NOISE", "RESIZE_FACTORS", "MIN_LENS_VIEWS"]
 
 F64 = NDArray[np.float64]
 
@@ -53,6 +53,11 @@ _MAX_MOCAP_STEP_RAD = math.radians(5.0)
 _TRIM = 4.0
 #: Smallest angular-speed correlation at which a clock offset is believed.
 _MIN_CLOCK_SCORE = 0.5
+#: Fewest views, and fewest target points per view (median), a camera's lens is freed on.
+MIN_LENS_VIEWS = 5
+_MIN_LENS_POINTS = 8
+#: Most views the lens is fitted on (evenly spaced over the recording; PnP runs on all).
+_MAX_LENS_VIEWS = 50
 
 
 @dataclass(frozen=True)
@@ -420,3 +425,90 @@ def clock_search(setup: str, cam: CameraEvidence, noise: F64, max_offset_s: floa
         T = p.T[np.searchsorted(p.index, common)]
         costs.append(fit([mocap_A(setup, T)], [cam.B[common]], [sub]).cost)
     return est.offset_s, est.std_s, costs[0], costs[1]
+
+
+# --------------------------------------------------------------------------- the lens
+
+
+@dataclass(frozen=True)
+class LensTest:
+    """The given lens against one fitted to the camera's own detections.
+
+    Attributes
+    ----------
+    intrinsics : Intrinsics
+        The lens fitted to the detections (OpenCV's calibration, the given model).
+    rms_given_px, rms_freed_px : float
+        Median over the views of the PnP reprojection RMS with each lens, pixels.
+    cost_given, cost_freed : float
+        The camera's loop cost with the target poses of each lens, both weighted with the
+        pixel noise the fitted lens leaves (the given lens's own residuals would inflate it).
+    """
+
+    intrinsics: Intrinsics
+    rms_given_px: float
+    rms_freed_px: float
+    cost_given: float
+    cost_freed: float
+
+
+def _lens_model(intr: Intrinsics) -> str:
+    """The model name of :data:`multieye.core.intrinsics.LENS_MODELS` to free ``intr`` in
+    (no distortion given: OpenCV's five coefficients)."""
+    if intr.model == "fisheye":
+        return "fisheye"
+    return {4: "pinhole-radtan4"}.get(intr.dist.size,
+                                      "pinhole-rational" if intr.dist.size >= 8
+                                      else "pinhole-radtan")
+
+
+def _pnp_with_rms(cam: CameraEvidence, intr: Intrinsics):
+    from multieye.imaging.detect import Detection
+    from multieye.imaging.pnp import estimate_pose
+
+    poses, rms = [], []
+    for obj, img in zip(cam.object_points, cam.image_points):
+        det = Detection(ids=np.arange(len(obj)), image_points=np.asarray(img, dtype=np.float64),
+                        object_points=np.asarray(obj, dtype=np.float64))
+        try:
+            est = estimate_pose(det, intr)
+        except Exception:   # noqa: BLE001 - PnP failing under a wrong hypothesis is an answer
+            return None
+        poses.append(est.T_cam_target)
+        rms.append(est.rms_px)
+    return np.stack(poses), np.asarray(rms, dtype=np.float64)
+
+
+def lens_search(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTest | None:
+    """Free the lens: fit the camera's intrinsics (the given model, every parameter) to its
+    own detections (:func:`multieye.imaging.calibrate.initial_intrinsics`) and compare the
+    reprojection and loop residuals with those of the given lens; None when the camera has
+    fewer than :data:`MIN_LENS_VIEWS` views, fewer than 8 points per view (one marker's 4
+    corners do not determine a lens), or the fit fails."""
+    from multieye.core.errors import InputError
+    from multieye.imaging.calibrate import initial_intrinsics
+
+    if not cam.has_points or len(cam.A) < MIN_LENS_VIEWS:
+        return None
+    if np.median([len(p) for p in cam.image_points]) < _MIN_LENS_POINTS:
+        return None
+    intr = cam.intrinsics
+    size = ((intr.width, intr.height) if intr.width is not None and intr.height is not None
+            else (int(round(2 * intr.K[0, 2] + 1)), int(round(2 * intr.K[1, 2] + 1))))
+    pick = np.unique(np.linspace(0, len(cam.A) - 1, min(len(cam.A), _MAX_LENS_VIEWS)
+                                 ).round().astype(int))
+    views = [(cam.object_points[i], cam.image_points[i]) for i in pick]
+    try:
+        with np.errstate(all="ignore"):
+            freed = initial_intrinsics(views, size, _lens_model(intr), name=cam.name).intrinsics
+    except InputError:
+        return None
+    given, fitted = _pnp_with_rms(cam, intr), _pnp_with_rms(cam, freed)
+    if given is None or fitted is None:
+        return None
+    # both lenses' poses weighted with the pixel noise the fitted lens leaves
+    from dataclasses import replace
+
+    w = noise(replace(cam, rms_px=fitted[1]), mocap_sigma)
+    return LensTest(freed, float(np.median(given[1])), float(np.median(fitted[1])),
+                    _cost_with(cam, given[0], w), _cost_with(cam, fitted[0], w))

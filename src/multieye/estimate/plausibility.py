@@ -29,7 +29,21 @@ solving the closed form again (:mod:`multieye.estimate.hypotheses`):
 ``intrinsics``
     Per camera with detected points, PnP run again with the focal length scaled (found by a
     search on the loop residuals), or with the camera matrix scaled by a common resize factor
-    (intrinsics calibrated on images of another size, the file stating no size).
+    (intrinsics calibrated on images of another size, the file stating no size); and the lens
+    freed (:func:`multieye.estimate.hypotheses.lens_search`: every intrinsic parameter of the
+    given model fitted to the camera's own detections): named when the given lens leaves
+    reprojection residuals at least :data:`LENS_PIXEL_GAIN` times those of the freed lens (and
+    at least :data:`MIN_LENS_EXCESS_PX` beyond them), or when the freed lens's target poses fit
+    the loop clearly better (a distortion left out of the intrinsics file, a lens of another
+    camera).  Run on every camera with given intrinsics and at least 5 views of 8 or more
+    points, whatever its loop cost: a wrong lens inflates the pixel noise the loop is weighed
+    with, and so hides itself there.
+``noise``
+    After the refinement (:func:`check_noise`): a motion-capture noise estimated from the data
+    beyond what the sensor has at most (:mod:`multieye.estimate.sensor`: a robot 0.1 degrees
+    and 1 mm, motion capture 0.5 degrees and 3 mm per pose, or rig.yaml's ``noise_bounds``):
+    the estimate has absorbed a wrong input, which the message names when a hypothesis
+    explains it.
 
 The ``cost`` of a fit (:mod:`multieye.estimate.hypotheses`) is about 1 when the noise the
 measurements carry explains the residuals.  Hypotheses that change how the data are read
@@ -40,8 +54,11 @@ each; the per-camera searches (clock, intrinsics) run on cameras whose cost is a
 :data:`CONTINUOUS_GAIN`-fold (a fitted factor or offset, which must also be clearly away
 from its neutral value), costs below 1 counting as 1: on data that fit as well as their
 noise allows nothing is reported.  The motion-capture noise is the one stated in rig.yaml,
-else 0.1 degrees and 0.3 mm, never the one the refinement estimates (a wrong input inflates
-that estimate until it hides itself).
+else the noise the sensor should have (:func:`multieye.estimate.sensor.hypothesis_noise`:
+0.1 degrees and 0.3 mm, at most the sensor's bounds), never the one the refinement estimates
+(a wrong input inflates that estimate until it hides itself).  The checks see the
+measurements the solve used: after the consensus, only those it kept (an outlier it rejected
+is no evidence against the result).
 
 When several hypotheses explain the fit, the one whose corrected cost is lowest is the
 explanation; a whole-rig one gives way to per-camera ones only when those explain most
@@ -60,7 +77,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -68,14 +84,27 @@ from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.problem import SETUPS
 from multieye.estimate import hypotheses as h
+from multieye.estimate.findings import (
+    Declared,
+    Finding,
+    Plausibility,
+    _costs,
+    _gain,
+    _quaternion_finding,
+    _scale_finding,
+    _setup_finding,
+    _times,
+)
 from multieye.estimate.hypotheses import CameraEvidence
+from multieye.estimate.sensor import SensorBounds, hypothesis_noise, sensor_bounds
 
 __all__ = ["CAUSES", "CameraEvidence", "Declared", "Finding", "Plausibility",
-           "check_plausibility", "DISCRETE_GAIN", "CONTINUOUS_GAIN", "POOR_COST"]
+           "check_plausibility", "check_noise", "DISCRETE_GAIN", "CONTINUOUS_GAIN",
+           "POOR_COST", "LENS_PIXEL_GAIN", "MIN_LENS_EXCESS_PX"]
 
 #: The causes a finding can name.
 CAUSES = ("scale", "unit", "quaternion-order", "setup", "inverted-poses", "time-offset",
-          "intrinsics", "fit")
+          "intrinsics", "noise", "fit")
 #: Fewest-fold drop of the cost for a corrected reading (quaternion order, inverted poses).
 DISCRETE_GAIN = 1.5
 #: ... for a fitted factor or offset (scale, focal length, image size, clock offset).
@@ -90,207 +119,15 @@ MIN_SCALE_ERROR = 0.015
 MIN_FOCAL_ERROR = 0.01
 #: Smallest clock-offset correction reported, seconds (and at least 4 standard deviations).
 MIN_CLOCK_CHANGE_S = 0.005
-#: Plausible median distance of the target from a camera, and the largest plausible median
-#: distance of the motion-capture positions from their median, metres: which of the two is
-#: in the wrong unit.
-_TARGET_DISTANCE_M = (0.02, 20.0)
-_MOCAP_SPREAD_M = 20.0
-#: Lengths in metres of the units rig.yaml knows.
-_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
-#: setup -> (the other setup, what it means, the pose name and its inverse).
-_SETUPS = {"eye-to-base": ("eye-on-hand", "cameras on the moved rig, target static",
-                           "T_world_marker", "T_marker_world"),
-           "eye-on-hand": ("eye-to-base", "static cameras, target moved",
-                           "T_world_body", "T_body_world")}
-
-
-@dataclass(frozen=True)
-class Declared:
-    """What rig.yaml says, for the messages.
-
-    Attributes
-    ----------
-    spacing_m : float or None
-        The target's ``spacing``.
-    mocap_unit : str
-        The motion capture's ``unit`` (``m`` when not stated).
-    mocap_pose : str or None
-        The motion capture's ``pose`` (``T_world_marker``, ``T_marker_world``, ...).
-    mocap_frames : (str, str) or None
-        The user's names of the fixed and the tracked frame (rig.yaml's ``pose:``), when
-        they are not ``world`` and the role name.
-    mocap_format : str
-        ``tum``, ``csv``, ``optitrack``, ``vicon`` or ``rosbag``.
-    """
-
-    spacing_m: float | None = None
-    mocap_unit: str = "m"
-    mocap_pose: str | None = None
-    mocap_format: str = "tum"
-    mocap_frames: tuple[str, str] | None = None
-
-
-@dataclass(frozen=True)
-class Finding:
-    """One hypothesis that explains the fit far better than the data as given.
-
-    Attributes
-    ----------
-    cause : str
-        One of :data:`CAUSES`.
-    message : str
-        What is probably wrong and what to do, in the words a user would search for; starts
-        with the cause (``scale:``, ``unit:``, ``quaternion order:``, ``setup or inverted
-        poses:``, ``inverted poses:``, ``time offset:``, ``intrinsics:``).
-    camera : str or None
-        The camera it concerns; None for the whole rig.
-    cost, corrected_cost : float
-        The fit's cost as given and with the correction (about 1: the noise explains it).
-    evidence : dict of str to float
-        The numbers behind it (the fitted factor, offset, ...).
-    """
-
-    cause: str
-    message: str
-    camera: str | None
-    cost: float
-    corrected_cost: float
-    evidence: dict = field(default_factory=dict)
-
-    @property
-    def gain(self) -> float:
-        """How many times the correction lowers the cost (costs below 1 count as 1)."""
-        return _gain(self.cost, self.corrected_cost)
-
-
-@dataclass(frozen=True)
-class Plausibility:
-    """Result of :func:`check_plausibility`.
-
-    Attributes
-    ----------
-    findings : tuple of Finding
-        The explanation (best first); empty when nothing explains the fit better.
-    cost : float
-        Cost of the data as given, all cameras solved together.
-    camera_cost : dict of str to float
-        Per camera, each solved alone.
-    tested : tuple of str
-        The hypotheses tested (a cause, ``cause:camera`` for per-camera ones that could be
-        tested).
-    """
-
-    findings: tuple[Finding, ...]
-    cost: float
-    camera_cost: dict
-    tested: tuple[str, ...]
-
-    @property
-    def doubts(self) -> bool:
-        return bool(self.findings)
-
-    @property
-    def messages(self) -> tuple[str, ...]:
-        return tuple(f.message for f in self.findings)
-
-
-def _gain(before: float, after: float) -> float:
-    return max(before, 1.0) / max(after, 1.0)
-
-
-def _times(v: float) -> str:
-    """``1000``, ``0.01``, ``1.25``: three significant digits, no exponent."""
-    return np.format_float_positional(v, precision=3, unique=False, fractional=False, trim="-")
-
-
-def _costs(before: float, after: float) -> str:
-    return (f"residuals {_times(before)} times what the noise explains, {_times(after)} times "
-            "with that correction")
-
-
-# --------------------------------------------------------------------------- messages
-
-
-def _scale_finding(s: float, rel_std: float, before: float, after: float, declared: Declared,
-                   d_pnp: float, r_mocap: float, images: bool) -> Finding:
-    """``s``: the factor the target poses need (``1/s`` the one the motion capture needs);
-    ``d_pnp``: median target distance, ``r_mocap``: spread of the motion capture, as given;
-    ``images``: whether PnP made the target poses (then focal lengths that are all off by
-    ``1/s`` would do the same, for factors a focal length can be off by)."""
-    from multieye.core.limits import MAX_SPACING_M
-
-    k = 1.0 / s
-    power = round(math.log10(s))
-    unit_like = power != 0 and abs(math.log10(s) - power) < math.log10(1.1)
-    # Which side is off: the one whose numbers are absurd as given and right once scaled.
-    pnp_fine = _TARGET_DISTANCE_M[0] <= d_pnp <= _TARGET_DISTANCE_M[1]
-    mocap_fine = r_mocap <= _MOCAP_SPREAD_M
-    spacing = declared.spacing_m
-    spacing_ok = (_TARGET_DISTANCE_M[0] <= d_pnp * s <= _TARGET_DISTANCE_M[1]
-                  and (spacing is None or 1e-3 <= spacing * s <= MAX_SPACING_M))
-    mocap_ok = r_mocap * k <= _MOCAP_SPREAD_M
-    if pnp_fine != mocap_fine:
-        spacing_ok, mocap_ok = spacing_ok and not pnp_fine, mocap_ok and not mocap_fine
-    evidence = {"scale": s, "scale_rel_std": rel_std, "target_distance_m": d_pnp,
-                "mocap_spread_m": r_mocap}
-    fits = "" if spacing is None else f" (rig.yaml says {spacing:g}; {_times(spacing * s)} fits)"
-    unit = declared.mocap_unit
-    if unit_like and mocap_ok and not spacing_ok:
-        actual = next((u for u, v in _UNITS.items()
-                       if abs(math.log10(_UNITS.get(unit, 1.0) * k / v)) < 0.04), None)
-        advice = (f"it is probably in {actual}: set unit: {actual} under mocap in rig.yaml"
-                  if actual else f"its unit is probably {_times(k)} times the declared one")
-        return Finding("unit", f"unit: the motion capture looks like it is not in {unit} as "
-                       f"declared: the target poses fit it only when scaled by x{_times(s)} "
-                       f"({_costs(before, after)}); {advice}", None, before, after, evidence)
-    if unit_like and spacing_ok and not mocap_ok:
-        return Finding("unit", f"unit: the target spacing looks like it is in the wrong unit: "
-                       f"the target poses fit the motion capture only when scaled by x{_times(s)}"
-                       f"{fits} ({_costs(before, after)}); give the target spacing in metres",
-                       None, before, after, evidence)
-    word = "unit" if unit_like else "scale"
-    focal = (f"; if both are right, the intrinsics' focal lengths may all be off by about "
-             f"x{_times(k)}" if images and not unit_like and 0.87 <= s <= 1.15 else "")
-    return Finding(word, f"{word}: the target spacing or the motion-capture unit looks off by "
-                   f"x{_times(s)}: the target poses fit the motion capture only when scaled by "
-                   f"x{_times(s)} ({_costs(before, after)}); check the target spacing{fits} and "
-                   f"the motion capture's unit ({unit}){focal}", None, before, after, evidence)
-
-
-def _quaternion_finding(desc: str, before: float, after: float, declared: Declared) -> Finding:
-    where = {"tum": "the TUM file probably has its quaternion columns in another order (TUM "
-                    "is t tx ty tz qx qy qz qw): reorder them",
-             "csv": "the CSV columns are probably named in the wrong order: check which one "
-                    "holds qw",
-             "rosbag": "the publisher probably fills the quaternion's x y z w in another "
-                       "order"}.get(declared.mocap_format,
-                                    "the file probably stores the quaternion in another order")
-    return Finding("quaternion-order", f"quaternion order: the motion-capture rotations fit "
-                   f"when their quaternions are read as {desc} ({_costs(before, after)}); "
-                   f"{where}", None, before, after, {})
-
-
-def _setup_finding(setup: str, before: float, after: float, declared: Declared) -> Finding:
-    other, meaning, pose, inverse = _SETUPS[setup]
-    given = declared.mocap_pose or pose
-    flipped = {pose: inverse, inverse: pose}.get(given, inverse)
-    fix = f"pose: {flipped}"
-    if declared.mocap_frames is not None:          # the user's own names (rig.yaml's pose)
-        fixed, tracked = declared.mocap_frames
-        pairs = {pose: (fixed, tracked), inverse: (tracked, fixed)}    # (parent, child)
-        parent, child = pairs[flipped]
-        given, flipped = "T_{}_{}".format(*pairs[given]), f"T_{parent}_{child}"
-        # names holding '_' are spelled out (pose alone would be ambiguous)
-        fix = (f"frames: [{parent}, {child}]" if "_" in parent + child
-               else f"pose: {flipped}")
-        fix += "" if fixed in ("world", parent) else f" and fixed_frame: {fixed}"
-    return Finding("setup", f"setup or inverted poses: the motion capture fits as its inverse "
-                   f"({_costs(before, after)}): either the data are {other} ({meaning}), not "
-                   f"{setup} as rig.yaml says (setup: {other}), or the motion-capture poses "
-                   f"are inverted ({flipped}, not {given}: {fix} under mocap)", None,
-                   before, after, {})
-
-
+#: Fewest-fold drop of the median reprojection RMS when the lens is freed, for the given lens
+#: to be doubted on its pixels alone (the freed lens shows the detection noise: a correct lens
+#: leaves at most about 1.5-1.8 times it on the shared recordings, docs/results/
+#: plausibility_real.md), and the smallest systematic part of the given lens's RMS, pixels.
+LENS_PIXEL_GAIN = 3.0
+MIN_LENS_EXCESS_PX = 0.2
+#: Fewest-fold drop of the median reprojection RMS with which a freed lens that fits the loop
+#: clearly better is believed.
+_LENS_LOOP_PIXEL_GAIN = 1.5
 # --------------------------------------------------------------------------- the checks
 
 
@@ -298,6 +135,7 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
                        declared: Declared = Declared(),
                        mocap_rot_sigma_rad: float | None = None,
                        mocap_trans_sigma_m: float | None = None,
+                       sensor: SensorBounds | None = None,
                        clock: bool = True, max_time_offset_s: float = 0.5) -> Plausibility:
     """Test the hypotheses that explain a poor fit; say which one fits (module docstring).
 
@@ -305,11 +143,17 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
     ----------
     setup : {"eye-to-base", "eye-on-hand"}
     cameras : sequence of CameraEvidence
-        Every camera's measurements, outliers included (the fits trim them).
+        Every camera's measurements the solve used (after the consensus: those it kept; the
+        fits trim outliers once more).
     declared : Declared
         What rig.yaml says, for the messages.
     mocap_rot_sigma_rad, mocap_trans_sigma_m : float, optional
-        Motion-capture noise per axis, as stated; default 0.1 degrees and 0.3 mm.
+        Motion-capture noise per axis, as stated; default the noise the sensor should have
+        (:func:`multieye.estimate.sensor.hypothesis_noise`: 0.1 degrees and 0.3 mm, at most
+        ``sensor``'s bounds), never an estimate.
+    sensor : SensorBounds, optional
+        The sensor's noise bounds; default :func:`multieye.estimate.sensor.sensor_bounds` of
+        ``declared.mocap``.
     clock : bool
         Test clock offsets (False when they were estimated already).
     max_time_offset_s : float
@@ -324,8 +168,13 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
     cams = list(cameras)
     if not cams:
         raise InputError("check_plausibility needs at least one camera")
-    sigma = (h.MOCAP_NOISE[0] if mocap_rot_sigma_rad is None else mocap_rot_sigma_rad,
-             h.MOCAP_NOISE[1] if mocap_trans_sigma_m is None else mocap_trans_sigma_m)
+    if sensor is None and declared.mocap is not None:
+        sensor = sensor_bounds(declared.mocap)
+    if sensor is not None:
+        sigma = hypothesis_noise(sensor, mocap_rot_sigma_rad, mocap_trans_sigma_m)
+    else:
+        sigma = (h.MOCAP_NOISE[0] if mocap_rot_sigma_rad is None else mocap_rot_sigma_rad,
+                 h.MOCAP_NOISE[1] if mocap_trans_sigma_m is None else mocap_trans_sigma_m)
     weights = [h.noise(c, sigma) for c in cams]
     A, B = [c.A for c in cams], [c.B for c in cams]
     base = h.fit(A, B, weights)
@@ -375,6 +224,11 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
         if single.cost >= POOR_COST:
             per_camera[j] = _camera_findings(setup, cam, w, clock, max_time_offset_s, tested)
     findings = _select(rig, per_camera, len(cams))
+    for cam in cams:       # the lens, on every camera: its own residuals hide it elsewhere
+        if cam.has_points and not cam.intrinsics_estimated and not any(
+                f.camera == cam.name and f.cause == "intrinsics" for f in findings):
+            lens = _lens_finding(cam, sigma, tested)
+            findings += () if lens is None else (lens,)
     if not findings:
         findings = tuple(_unexplained(c.name, f.cost, tested) for c, f in zip(cams, singles)
                          if f.cost >= UNEXPLAINED_COST)
@@ -429,6 +283,105 @@ def _camera_findings(setup: str, cam: CameraEvidence, w, clock: bool, max_offset
                 "and state image_width and image_height in the file", cam.name, before,
                 after, {"image_scale": factor}))
     return found
+
+
+def _coefficients(dist: np.ndarray) -> str:
+    """k1 and k2; the rational model's trade off against its denominator: not shown."""
+    if not np.any(dist):
+        return "none"
+    if dist.size > 5:
+        return "fitted (rational model)"
+    return ", ".join(f"{n} {v:.3g}" for n, v in zip(("k1", "k2"), dist))
+
+
+def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[str]
+                  ) -> Finding | None:
+    """The given lens against the lens freed on the camera's own detections."""
+    test = h.lens_search(cam, sigma)
+    if test is None:
+        return None
+    tested.append(f"intrinsics:{cam.name}")
+    ratio = test.rms_given_px / max(test.rms_freed_px, 1e-9)
+    excess = math.sqrt(max(test.rms_given_px ** 2 - test.rms_freed_px ** 2, 0.0))
+    pixels = ratio >= LENS_PIXEL_GAIN and excess >= MIN_LENS_EXCESS_PX
+    loop = (ratio >= _LENS_LOOP_PIXEL_GAIN and test.cost_given >= POOR_COST
+            and _gain(test.cost_given, test.cost_freed) >= CONTINUOUS_GAIN)
+    if not (pixels or loop):
+        return None
+    given, freed = cam.intrinsics, test.intrinsics
+    no_distortion = not np.any(given.dist)
+    why = ("the intrinsics give no lens distortion while these images show one: the "
+           "distortion coefficients were probably left out of the intrinsics file (or read "
+           "under another key)" if no_distortion else
+           "the intrinsics probably do not belong to these images (another camera or lens, "
+           "a zoom or focus setting, distortion coefficients in another order or model)")
+    return Finding(
+        "intrinsics", f"intrinsics: camera {cam.name}'s lens freed (fitted to its own "
+        f"detections) fits better than the given intrinsics: reprojection RMS "
+        f"{test.rms_given_px:.3g} -> {test.rms_freed_px:.3g} px, loop residuals "
+        f"{_times(test.cost_given)} -> {_times(test.cost_freed)} times what the noise explains "
+        f"(fx {given.K[0, 0]:.1f} -> {freed.K[0, 0]:.1f} px; distortion "
+        f"{_coefficients(given.dist)} -> {_coefficients(freed.dist)}): {why}; calibrate the "
+        "intrinsics again, or let multieye estimate them (model: instead of intrinsics:, or "
+        "refine_intrinsics: true)", cam.name, test.cost_given,
+        test.cost_freed, {"rms_given_px": test.rms_given_px,
+                          "rms_freed_px": test.rms_freed_px, "cost_given": test.cost_given,
+                          "cost_freed": test.cost_freed})
+
+
+def check_noise(report: Plausibility, refined, mocap=None, *,
+                sensor: SensorBounds | None = None) -> Plausibility:
+    """A motion-capture noise estimated from the data, checked against what the sensor has.
+
+    Parameters
+    ----------
+    report : Plausibility
+        The checks after the solve (:func:`check_plausibility`).
+    refined : RefinementResult or None
+        The image-level refinement (:func:`multieye.estimate.refine_images.refine_images`):
+        when its ``mocap_sigma_estimated``, its ``mocap_rot_sigma_rad`` and
+        ``mocap_trans_sigma_m`` (per pose and axis) are checked; anything else: nothing is.
+    mocap : MocapSpec, optional
+        rig.yaml's motion-capture section, for :func:`multieye.estimate.sensor.sensor_bounds`.
+    sensor : SensorBounds, optional
+        The bounds themselves (instead of ``mocap``).
+
+    Returns
+    -------
+    Plausibility
+        ``report`` with a finding of cause ``noise`` added when the estimate is beyond either
+        bound (its message names the causes found, else those tested).
+    """
+    if not getattr(refined, "mocap_sigma_estimated", False):
+        return report
+    rot_rad, trans_m = float(refined.mocap_rot_sigma_rad), float(refined.mocap_trans_sigma_m)
+    sensor = sensor_bounds(mocap) if sensor is None else sensor
+    over = [what for what, v, bound in (("rotation", rot_rad, sensor.rot_rad),
+                                        ("translation", trans_m, sensor.trans_m)) if v > bound]
+    if not over:
+        return report
+    found = [f for f in report.findings if f.cause not in ("noise", "fit")]
+    if found:
+        cause = ("; " + ", ".join(sorted({f.cause for f in found})) + " (above) probably "
+                 "explains it")
+    else:
+        causes = sorted({t.split(":")[0] for t in report.tested})
+        cause = (f"; none of the causes tested ({', '.join(causes)}) explains it: check the "
+                 "intrinsics (the lens distortion too), the target size, the time offset "
+                 "(--time-offset auto) and the motion-capture poses")
+    finding = Finding(
+        "noise", f"noise: the {sensor.name} noise estimated from the data, "
+        f"{math.degrees(rot_rad):.3g} deg and {trans_m * 1e3:.3g} mm per pose, is beyond what "
+        f"a {sensor.name} has (at most {math.degrees(sensor.rot_rad):.3g} deg and "
+        f"{sensor.trans_m * 1e3:.3g} mm; {sensor.kind}: {sensor.why}), so the residuals come "
+        f"from something the model leaves out, not from the {sensor.name}'s noise{cause}; if "
+        "this sensor really is that noisy, state it under mocap in rig.yaml (noise_bounds: "
+        "{rotation_deg, translation_m}, or rotation_noise_deg and translation_noise_m)",
+        None, report.cost, report.cost,
+        {"rot_deg": math.degrees(rot_rad), "trans_m": trans_m,
+         "bound_rot_deg": math.degrees(sensor.rot_rad), "bound_trans_m": sensor.trans_m})
+    return Plausibility(findings=report.findings + (finding,), cost=report.cost,
+                        camera_cost=report.camera_cost, tested=report.tested + ("noise",))
 
 
 def _unexplained(name: str, cost: float, tested: list[str]) -> Finding:

@@ -7,10 +7,17 @@ error through the full lens model (``cv2.solvePnPRefineLM`` for pinhole cameras,
 iteration on ``cv2.fisheye.projectPoints`` for fisheye cameras). Residuals are reported in
 pixels of the distorted image.
 
+The other IPPE pose, refined the same way, is kept as :attr:`PoseEstimate.alternative`
+when the pixels cannot rule it out: its RMS within :data:`ALTERNATIVE_RATIO` of the first's,
+or, for a target of four points (one marker), at most :data:`ALTERNATIVE_PX` above it. The pixels alone then
+cannot tell the two apart; the consensus and the closed form choose per image the one the
+rig agrees with (:mod:`multieye.estimate.consensus`).
+
 Synopsis
 --------
 >>> pose = estimate_pose(detection, intrinsics)                     # doctest: +SKIP
 >>> pose.T_cam_target, pose.rms_px, pose.max_px, pose.n_points     # doctest: +SKIP
+>>> pose.alternative, pose.alternative_rms_px, pose.ambiguous       # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -26,9 +33,23 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, undistort_points
 from multieye.imaging.detect import Detection
 
-__all__ = ["PoseEstimate", "estimate_pose", "refit_pose", "reprojection_residuals"]
+__all__ = ["PoseEstimate", "estimate_pose", "refit_pose", "reprojection_residuals",
+           "ambiguity_warning", "ALTERNATIVE_RATIO", "ALTERNATIVE_PX",
+           "AMBIGUOUS_RATIO", "AMBIGUOUS_PX"]
 
 F64 = NDArray[np.float64]
+
+#: The second IPPE pose is kept as an alternative when its pixel RMS is at most this many
+#: times the first's, or for four points (one marker, two redundant coordinates, so an RMS
+#: near zero whatever the noise) at most this many pixels above it.
+ALTERNATIVE_RATIO = 3.0
+ALTERNATIVE_PX = 1.0
+#: The two poses "fit almost equally" (:attr:`PoseEstimate.ambiguous`) when the alternative's
+#: pixel RMS is at most this many times the first's, or at most :data:`AMBIGUOUS_PX` above it.
+AMBIGUOUS_RATIO = 2.0
+AMBIGUOUS_PX = 0.3
+#: Poses closer than this (degrees) are one solution, not two.
+_DISTINCT_DEG = 0.5
 
 
 @dataclass(frozen=True)
@@ -45,12 +66,28 @@ class PoseEstimate:
         Largest reprojection error, pixels.
     n_points : int
         Points used.
+    alternative : ndarray, shape (4, 4), or None
+        The other IPPE pose (the target's tilt mirrored about the line of sight), refined,
+        when the pixels cannot rule it out (module docstring); None otherwise.
+    alternative_rms_px : float or None
+        Its root mean square reprojection error, pixels.
     """
 
     T_cam_target: F64
     rms_px: float
     max_px: float
     n_points: int
+    alternative: F64 | None = None
+    alternative_rms_px: float | None = None
+
+    @property
+    def ambiguous(self) -> bool:
+        """The two poses fit almost equally (:data:`AMBIGUOUS_RATIO`, :data:`AMBIGUOUS_PX`):
+        the image alone does not say which is right."""
+        if self.alternative_rms_px is None:
+            return False
+        return bool(self.alternative_rms_px <= max(AMBIGUOUS_RATIO * self.rms_px,
+                                                   self.rms_px + AMBIGUOUS_PX))
 
 
 def reprojection_residuals(T_cam_target: F64, object_points: F64, image_points: F64,
@@ -104,7 +141,8 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
 
     Degenerate and weak cases: with a small or distant target (weak perspective) the two
     IPPE poses mirror each other about the line of sight and fit almost equally well, so the
-    tilt can flip; the smaller pixel error decides. A target seen nearly edge-on, or points
+    tilt can flip; the smaller pixel error decides ``T_cam_target`` and the other is kept as
+    ``alternative`` (always for four points) for the rig to decide. A target seen nearly edge-on, or points
     bunched in a small part of the board, give a poorly determined pose with a small RMS;
     check ``n_points`` and the spread of the views.
     """
@@ -126,14 +164,13 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
         raise InputError(f"the {len(obj)} points lie on one line: the pose is not determined")
 
     _, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
-    best = None
+    candidates = []
     for rvec, tvec in zip(rvecs, tvecs):
         T = _transform(rvec, tvec)
         err = reprojection_residuals(T, obj, img, intrinsics)
-        cost = float(np.sum(err ** 2))
-        if best is None or cost < best[0]:
-            best = (cost, rvec.reshape(3).copy(), tvec.reshape(3).copy())
-    _, rvec, tvec = best
+        candidates.append((float(np.sum(err ** 2)), rvec.reshape(3).copy(), tvec.reshape(3).copy()))
+    candidates.sort(key=lambda c: c[0])
+    _, rvec, tvec = candidates[0]
     rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
     if detection.circle_diameter is not None:
         # blob centroids are not the images of the circle centres: model the offset at the
@@ -144,8 +181,62 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
             rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
     T = _transform(rvec, tvec)
     err = reprojection_residuals(T, obj, img, intrinsics)
-    return PoseEstimate(T_cam_target=T, rms_px=float(np.sqrt(np.mean(err ** 2))),
-                        max_px=float(err.max()), n_points=len(obj))
+    rms = float(np.sqrt(np.mean(err ** 2)))
+    alt, alt_rms = None, None
+    if len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
+        alt, alt_rms = _alternative(obj, img, intrinsics, candidates[1][1:], T, rms)
+    return PoseEstimate(T_cam_target=T, rms_px=rms, max_px=float(err.max()), n_points=len(obj),
+                        alternative=alt, alternative_rms_px=alt_rms)
+
+
+def _limit_px(rms: float, n_points: int) -> float:
+    """Largest pixel RMS of a second pose kept beside a first of ``rms`` (module docstring)."""
+    return max(ALTERNATIVE_RATIO * rms, rms + ALTERNATIVE_PX if n_points == 4 else 0.0)
+
+
+def _could_be_kept(candidates, n_points: int) -> bool:
+    """The unrefined second IPPE pose is near enough to the first's pixel RMS that, refined,
+    it might be kept (twice the limit, and a pixel: refinement moves both a little)."""
+    rms1, rms2 = (np.sqrt(c[0] / n_points) for c in candidates)
+    return bool(rms2 <= 2 * _limit_px(rms1, n_points) + 1.0)
+
+
+def _alternative(obj: F64, img: F64, intrinsics: Intrinsics, start, T: F64, rms: float):
+    """The other IPPE pose refined, and its pixel RMS, if the pixels cannot rule it out."""
+    rvec, tvec = _refine(obj, img, intrinsics, *start)
+    T2 = _transform(rvec, tvec)
+    cos = (np.trace(T[:3, :3].T @ T2[:3, :3]) - 1.0) / 2.0
+    if np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))) < _DISTINCT_DEG or T2[2, 3] <= 0:
+        return None, None                       # the refinement fell into the first pose
+    err = reprojection_residuals(T2, obj, img, intrinsics)
+    rms2 = float(np.sqrt(np.mean(err ** 2)))
+    if not rms2 <= _limit_px(rms, len(obj)):
+        return None, None
+    return T2, rms2
+
+
+def ambiguity_warning(camera: str, poses) -> str | None:
+    """A warning when the two poses fit almost equally in most of a camera's images.
+
+    Parameters
+    ----------
+    camera : str
+    poses : sequence of PoseEstimate
+        The camera's usable poses.
+
+    Returns
+    -------
+    str or None
+        None when at most half of the poses are :attr:`PoseEstimate.ambiguous`.
+    """
+    poses = list(poses)
+    n = sum(p.ambiguous for p in poses)
+    if not poses or 2 * n <= len(poses):
+        return None
+    return (f"{camera}: in {n} of {len(poses)} images the target's two mirrored poses fit "
+            "almost equally (the target is small in the image, so its perspective says little); "
+            "the motion decides between them, image by image. Use a bigger marker, bring it "
+            "closer to the camera, or use a marker grid or a board")
 
 
 def refit_pose(T_cam_target: F64, object_points: F64, image_points: F64,

@@ -3,17 +3,25 @@
 :func:`read_intrinsics` recognises the format from the content:
 
 OpenCV FileStorage (YAML starting ``%YAML:1.0``, or XML)
-    Read with ``cv2.FileStorage``, the maintained reader of that format.  Keys:
-    ``camera_matrix`` (or ``K``), ``distortion_coefficients`` (or ``D``) with 0, 4, 5, 8, 12 or
-    14 coefficients in OpenCV's order, optional ``image_width`` / ``image_height`` and an
-    optional ``distortion_model`` string (see below; without it the model is pinhole).
+    Read with ``cv2.FileStorage``, the maintained reader of that format; its keys are then
+    those of the mapping layouts below (``camera_matrix``, ``distortion_coefficients``,
+    ``image_width``, ``image_height``, ``distortion_model``, ``fisheye_model``, ...).
 Kalibr camchain (``camera_model: pinhole``)
     A single entry or a chain of ``cam0``, ``cam1``...; ``camera`` selects one by key or
     by ``camera_name`` (see :mod:`multieye.io.kalibr`).
-ROS ``camera_info`` YAML (``camera_matrix: {rows, cols, data}``)
-    ``distortion_model`` ``plumb_bob`` / ``rational_polynomial`` (pinhole) or ``equidistant``
-    (fisheye), ``distortion_coefficients: {rows, cols, data}``, ``image_width``,
-    ``image_height``.  Plain YAML with ``K`` / ``D`` lists is read the same way.
+ROS ``camera_info`` YAML, a ROS CameraInfo message, and the JSON or YAML layouts of common
+toolkits (``K`` / ``dist``, ``camera_matrix`` / ``dist_coeffs``, flat ``fx fy cx cy k1 ...``)
+    :mod:`multieye.io.intrinsics_mapping`.
+aslam_cv's camera YAML (``type: pinhole``, ``intrinsics``, ``distortion: {type, parameters}``)
+    As ETH Zurich's hand_eye_calibration writes it; also in
+    :mod:`multieye.io.intrinsics_mapping`.
+mrcal ``.cameramodel`` (a Python dictionary literal with ``lensmodel``)
+    :mod:`multieye.io.cameramodel`.
+
+Every key of every format is used or refused with one line naming it, except the metadata
+keys each format's table in :data:`IGNORED_KEYS` lists (docs/rig-yaml.md, section 5); the
+numbers are checked against :mod:`multieye.core.limits`
+(:func:`~multieye.core.intrinsics.check_lens_bounds`).
 
 ``distortion_model`` names accepted everywhere: ``plumb_bob``, ``rational_polynomial``,
 ``radtan``, ``pinhole`` -> pinhole; ``equidistant``, ``fisheye``, ``kannala_brandt`` ->
@@ -38,14 +46,27 @@ from pathlib import Path
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.intrinsics import Intrinsics
+from multieye.core.intrinsics import Intrinsics, check_lens_bounds
+from multieye.io import cameramodel
 from multieye.io.atomic import write_text_atomic
+from multieye.io.intrinsics_mapping import (
+    DISTORTION_MODELS,
+    READ_KEYS,
+    has_camera_matrix,
+    intrinsics_from_aslam,
+    intrinsics_from_mapping,
+    is_aslam,
+    refuse_unknown,
+)
+from multieye.io.intrinsics_mapping import IGNORED_KEYS as _MAPPING_IGNORED
 from multieye.io.kalibr import camchain_entries, intrinsics_from_kalibr, is_camchain
 from multieye.io.textfile import read_text
-from multieye.io.yamlfile import MAX_YAML_BYTES, YamlDocument, parse_yaml, yaml_list
+from multieye.io.yamlfile import MAX_YAML_BYTES, MAX_YAML_DEPTH, YamlDocument, parse_yaml, yaml_list
 
 __all__ = [
     "DISTORTION_MODELS",
+    "IGNORED_KEYS",
+    "MAX_INTRINSICS_BYTES",
     "read_intrinsics",
     "read_opencv_intrinsics",
     "read_camera_info",
@@ -55,11 +76,21 @@ __all__ = [
     "camera_info_text",
 ]
 
-#: ``distortion_model`` names and the camera model they mean.
-DISTORTION_MODELS = {
-    "plumb_bob": "pinhole", "rational_polynomial": "pinhole", "radtan": "pinhole",
-    "pinhole": "pinhole", "equidistant": "fisheye", "fisheye": "fisheye",
-    "kannala_brandt": "fisheye", "thin_prism": "pinhole", "tilted": "pinhole",
+#: Largest ``.cameramodel`` file read, bytes: mrcal's carries its calibration's observations
+#: (``optimization_inputs``); the other formats stop at
+#: :data:`~multieye.io.yamlfile.MAX_YAML_BYTES`.
+MAX_INTRINSICS_BYTES = 64_000_000
+
+#: Keys a Kalibr camchain entry gives that multieye reads.
+_KALIBR_READ = ("camera_model", "intrinsics", "distortion_model", "distortion_coeffs",
+                "resolution")
+#: Metadata keys ignored on purpose, per format (docs/rig-yaml.md, section 5): none changes
+#: how a point projects.
+IGNORED_KEYS = {
+    **_MAPPING_IGNORED,
+    "Kalibr camchain entry": ("T_cn_cnm1", "T_cam_imu", "timeshift_cam_imu", "rostopic",
+                              "cam_overlaps", "camera_name"),
+    "mrcal .cameramodel": cameramodel.IGNORED_KEYS,
 }
 
 #: Name of a pinhole camera's distortion model by its number of OpenCV coefficients.
@@ -69,40 +100,24 @@ _PINHOLE_NAMES = {0: "plumb_bob", 4: "plumb_bob", 5: "plumb_bob", 8: "rational_p
 _ROS_SIZES = {"plumb_bob": 5, "rational_polynomial": 8, "equidistant": 4}
 
 _FORMATS = ("expected OpenCV FileStorage (%YAML:1.0 or XML with camera_matrix), a Kalibr "
-            "camchain (camera_model, intrinsics) or ROS camera_info (camera_matrix: "
-            "{rows, cols, data})")
+            "camchain (camera_model, intrinsics), ROS camera_info, JSON or YAML with a camera "
+            "matrix (K, camera_matrix, or fx fy cx cy), aslam_cv's camera YAML (type, "
+            "intrinsics, distortion) or a mrcal .cameramodel")
 
 
-def _model(name, path, line=None) -> str:
-    if name is None:
-        return "pinhole"
-    try:
-        return DISTORTION_MODELS[str(name).lower()]
-    except KeyError:
-        raise DatasetError(f"distortion_model {name!r} is not supported; expected one of "
-                           f"{', '.join(DISTORTION_MODELS)}", path=path, line=line) from None
-
-
-def _build(K, dist, model, width, height, path, line=None) -> Intrinsics:
-    try:
-        K = np.asarray(K, dtype=np.float64).reshape(3, 3)
-    except (TypeError, ValueError):
-        count = len(K) if isinstance(K, (list, tuple, np.ndarray)) else 1
-        raise DatasetError(f"camera matrix must have 9 numbers, got {count}", path=path,
-                           line=line) from None
-    try:
-        return Intrinsics(K, np.asarray(dist, dtype=np.float64).reshape(-1), model,
-                          None if width is None else int(width),
-                          None if height is None else int(height))
-    except (InputError, TypeError, ValueError) as exc:
-        raise DatasetError(str(exc), path=path, line=line) from None
+def _read(path) -> str:
+    """The file's text: the one place an intrinsics file is read (a ``.cameramodel`` up to
+    :data:`MAX_INTRINSICS_BYTES`, any other up to :data:`~multieye.io.yamlfile.MAX_YAML_BYTES`)."""
+    limit = MAX_INTRINSICS_BYTES if str(path).endswith(".cameramodel") else MAX_YAML_BYTES
+    return read_text(path, what="intrinsics file", max_bytes=limit)
 
 
 # --------------------------------------------------------------------------- OpenCV
 
 
-#: Deepest nesting of ``[``/``{`` (YAML) or elements (XML) handed to OpenCV's FileStorage
-#: parser, which recurses without a limit (and crashes the process on tens of thousands).
+#: Deepest nesting of ``[``/``{`` (YAML, JSON) or elements (XML) handed to OpenCV's
+#: FileStorage parser, which recurses without a limit (and crashes the process on tens of
+#: thousands), or to Python's JSON parser.
 _MAX_OPENCV_NESTING = 32
 _XML_TAG = re.compile(r"<(/?)([A-Za-z_][^\s/>]*)[^>]*?(/?)>")
 _CV_WHERE = re.compile(r"\((\d+)\): (.*?)'?\s*$")
@@ -140,6 +155,79 @@ def _cv_message(exc: BaseException) -> tuple[str, int | None]:
     return text.split("error: ", 1)[-1], None
 
 
+def _key_lines(text: str) -> dict:
+    """Line of each top-level key of a FileStorage text (YAML ``key:`` at the margin, XML
+    ``<key>`` one level in), for messages."""
+    xml = text.lstrip().startswith("<")
+    pattern = re.compile(r"^ {0,4}<([A-Za-z_]\w*)[\s>/]" if xml else r"^([A-Za-z_]\w*)\s*:",
+                         re.M)
+    lines: dict = {}
+    for m in pattern.finditer(text):
+        lines.setdefault((m.group(1),), text.count("\n", 0, m.start()) + 1)
+    lines.pop(("opencv_storage",), None)
+    return lines
+
+
+def _opencv_document(text: str, p: Path) -> YamlDocument:
+    """A FileStorage text as a mapping of its read keys (matrices as ``{rows, cols, data}``);
+    the ignored keys are left unparsed and unknown keys refused."""
+    import cv2
+
+    if _nesting(text) > _MAX_OPENCV_NESTING:
+        raise DatasetError(f"FileStorage refused: nested deeper than {_MAX_OPENCV_NESTING} "
+                           "levels", path=p)
+    try:
+        fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+        opened = fs.isOpened()
+    except (cv2.error, SystemError) as exc:
+        message, line = _cv_message(exc)
+        raise DatasetError(f"OpenCV cannot parse this FileStorage file: {message}", path=p,
+                           line=line) from None
+    if not opened:
+        raise DatasetError("OpenCV cannot open this FileStorage file", path=p)
+
+    def value(n, name):
+        if n.isInt():
+            return int(n.real())
+        if n.isReal():
+            return n.real()
+        if n.isString():
+            return n.string()
+        if n.isSeq():
+            return [value(n.at(i), name) for i in range(n.size())]
+        if n.isMap():
+            keys = list(n.keys())
+            if {"rows", "cols", "data"} <= set(keys):
+                try:
+                    mat = np.asarray(n.mat(), dtype=np.float64)
+                except cv2.error as exc:
+                    raise DatasetError(f"{name}: OpenCV cannot read this matrix "
+                                       f"({_cv_message(exc)[0]}); rows x cols must match data",
+                                       path=p) from None
+                return {"rows": mat.shape[0], "cols": mat.shape[1] if mat.ndim > 1 else 1,
+                        "data": mat.reshape(-1).tolist()}
+            return {k: value(n.getNode(k), name) for k in keys}
+        return None
+
+    try:
+        root = fs.root()
+        if not root.isMap():
+            raise DatasetError("expected a FileStorage map with camera_matrix (or K)", path=p)
+        keys = list(root.keys())
+        doc = YamlDocument(p, dict.fromkeys(keys), _key_lines(text))
+        if not has_camera_matrix(doc.data):
+            raise DatasetError("no camera_matrix (or K); keys present: "
+                               f"{', '.join(keys) or 'none'}", path=p)
+        data = {k: value(fs.getNode(k), k) for k in keys if k in READ_KEYS}
+        return YamlDocument(p, {**dict.fromkeys(keys), **data}, doc.lines)
+    except (cv2.error, SystemError) as exc:
+        message, line = _cv_message(exc)
+        raise DatasetError(f"OpenCV cannot read this FileStorage file: {message}", path=p,
+                           line=line) from None
+    finally:
+        fs.release()
+
+
 def read_opencv_intrinsics(path: str | os.PathLike) -> Intrinsics:
     """Read OpenCV FileStorage YAML or XML (``camera_matrix``/``K``, ``distortion_*``/``D``).
 
@@ -148,78 +236,14 @@ def read_opencv_intrinsics(path: str | os.PathLike) -> Intrinsics:
     DatasetError
         The file is missing, larger than :data:`~multieye.io.yamlfile.MAX_YAML_BYTES`, nested
         deeper than OpenCV's parser survives, OpenCV cannot parse it, a required key is
-        missing (the message lists the keys present), or a value has the wrong type.
+        missing (the message lists the keys present), a key is neither read nor ignored (named),
+        or a value has the wrong type or range.
     """
-    import cv2
+    return _opencv(_read(path), Path(path))
 
-    p = Path(path)
-    text = read_text(p, what="intrinsics file", max_bytes=MAX_YAML_BYTES)
-    if _nesting(text) > _MAX_OPENCV_NESTING:
-        raise DatasetError(f"FileStorage refused: nested deeper than {_MAX_OPENCV_NESTING} "
-                           "levels", path=p)
-    try:
-        fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
-        opened = fs.isOpened()
-    except (cv2.error, SystemError) as exc:
-        message, line = _cv_message(exc)
-        raise DatasetError(f"OpenCV cannot parse this FileStorage file: {message}", path=p,
-                           line=line) from None
-    if not opened:
-        raise DatasetError("OpenCV cannot open this FileStorage file", path=p)
-    try:
-        root = fs.root()
-        if not root.isMap():
-            raise DatasetError("expected a FileStorage map with camera_matrix (or K)", path=p)
-        keys = list(root.keys())
 
-        def node(*names):
-            return next((fs.getNode(n) for n in names if not fs.getNode(n).empty()), None)
-
-        def numbers(n):
-            if n.isSeq():
-                items = [n.at(i) for i in range(n.size())]
-                if not all(i.isReal() or i.isInt() for i in items):
-                    raise DatasetError(f"{n.name()} must be a matrix or a list of numbers",
-                                       path=p)
-                return np.array([i.real() for i in items])
-            try:
-                mat = n.mat() if n.isMap() else None
-            except cv2.error as exc:
-                raise DatasetError(f"{n.name()}: OpenCV cannot read this matrix "
-                                   f"({_cv_message(exc)[0]}); rows x cols must match data",
-                                   path=p) from None
-            if mat is None:
-                raise DatasetError(f"{n.name()} must be a matrix or a list of numbers", path=p)
-            return np.asarray(mat, dtype=np.float64).reshape(-1)
-
-        def size(n):
-            if n is None:
-                return None
-            if not n.isInt() or n.real() <= 0:
-                shown = (n.string() if n.isString() else int(n.real()) if n.isInt()
-                         else n.real() if n.isReal() else "not a number")
-                raise DatasetError(f"{n.name()} must be a positive integer, got {shown}",
-                                   path=p)
-            return int(n.real())
-
-        k_node = node("camera_matrix", "K")
-        if k_node is None:
-            raise DatasetError("no camera_matrix (or K); keys present: "
-                               f"{', '.join(keys) or 'none'}", path=p)
-        d_node = node("distortion_coefficients", "D")
-        dist = numbers(d_node) if d_node is not None else np.zeros(0)
-        m_node = node("distortion_model", "model")
-        if m_node is not None and not m_node.isString():
-            raise DatasetError(f"{m_node.name()} must be a name such as plumb_bob", path=p)
-        model = _model(m_node.string() if m_node is not None else None, p)
-        width, height = size(node("image_width")), size(node("image_height"))
-        return _build(numbers(k_node), dist, model, width, height, p)
-    except (cv2.error, SystemError) as exc:
-        message, line = _cv_message(exc)
-        raise DatasetError(f"OpenCV cannot read this FileStorage file: {message}", path=p,
-                           line=line) from None
-    finally:
-        fs.release()
+def _opencv(text: str, p: Path) -> Intrinsics:
+    return intrinsics_from_mapping(_opencv_document(text, p))
 
 
 def write_opencv_intrinsics(path: str | os.PathLike, intr: Intrinsics) -> None:
@@ -290,43 +314,13 @@ def camera_info_text(intr: Intrinsics, camera_name: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-# --------------------------------------------------------------------------- YAML formats
-
-
-def _matrix_data(value, doc: YamlDocument, key: str) -> list:
-    """``{rows, cols, data}`` (ROS), a flat list, or a nested list -> flat list of numbers."""
-    if isinstance(value, Mapping):
-        if "data" not in value:
-            raise doc.error("expected a mapping with rows, cols and data", key)
-        value = value["data"]
-    if not isinstance(value, list):
-        raise doc.error(f"expected a list of numbers, got {value!r}", key)
-    flat = [v for row in value for v in (row if isinstance(row, list) else [row])]
-    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in flat):
-        raise doc.error(f"expected numbers, got {value!r}", key)
-    return flat
-
-
-def _camera_info(doc: YamlDocument) -> Intrinsics:
-    data = doc.data
-    k_key = "camera_matrix" if "camera_matrix" in data else "K"
-    d_key = next((k for k in ("distortion_coefficients", "D") if k in data), None)
-    K = _matrix_data(data[k_key], doc, k_key)
-    if len(K) != 9:
-        raise doc.error(f"expected 9 numbers, got {len(K)}", k_key)
-    dist = _matrix_data(data[d_key], doc, d_key) if d_key else []
-    model = _model(data.get("distortion_model"), doc.path, doc.line("distortion_model"))
-    width, height = data.get("image_width"), data.get("image_height")
-    for key, v in (("image_width", width), ("image_height", height)):
-        if v is not None and (not isinstance(v, int) or isinstance(v, bool) or v <= 0):
-            raise doc.error(f"expected a positive integer, got {v!r}", key)
-    return _build(K, dist, model, width, height, doc.path, doc.line(d_key or k_key))
+# --------------------------------------------------------------------------- YAML, JSON
 
 
 def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) -> Intrinsics:
     data = doc.data
     if "camera_model" in data:
-        return intrinsics_from_kalibr(data, doc)
+        return _kalibr_entry(data, doc)
     entries = camchain_entries(doc)
     if camera is None and prefer is not None and len(entries) > 1:
         if any(prefer in (key, entry.get("camera_name")) for key, entry in entries):
@@ -335,35 +329,89 @@ def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) ->
         if len(entries) != 1:
             raise doc.error(f"the camchain has {len(entries)} cameras "
                             f"({', '.join(k for k, _ in entries)}); choose one by name")
-        return intrinsics_from_kalibr(entries[0][1], doc, entries[0][0])
+        return _kalibr_entry(entries[0][1], doc, entries[0][0])
     for key, entry in entries:
         if camera in (key, entry.get("camera_name")):
-            return intrinsics_from_kalibr(entry, doc, key)
+            return _kalibr_entry(entry, doc, key)
     names = ", ".join(k for k, _ in entries)
     raise DatasetError(f"camera {camera!r} not in the camchain; it has {names}", path=doc.path)
 
 
-def _load(path) -> tuple[str, YamlDocument | None]:
-    text = read_text(path, what="intrinsics file", max_bytes=MAX_YAML_BYTES)
-    head = text.lstrip()[:32]
+def _kalibr_entry(entry: Mapping, doc: YamlDocument, *keys) -> Intrinsics:
+    refuse_unknown(doc, entry, _KALIBR_READ, IGNORED_KEYS["Kalibr camchain entry"], *keys)
+    intr = intrinsics_from_kalibr(entry, doc, *keys)
+    try:
+        check_lens_bounds(intr)
+    except InputError as exc:
+        key = "distortion_coeffs" if str(exc).startswith("distortion") else "intrinsics"
+        raise doc.error(str(exc), *keys, key) from None
+    return intr
+
+
+def _json(text: str, path) -> YamlDocument:
+    """A JSON text as a document (duplicate keys refused; lines from the YAML parser, which
+    reads JSON too, where it can)."""
+    def pairs(items):
+        out = {}
+        for key, value in items:
+            if key in out:
+                raise DatasetError(f"duplicate key {key!r}", path=path)
+            out[key] = value
+        return out
+
+    if _nesting(text) > MAX_YAML_DEPTH:
+        raise DatasetError(f"JSON nested deeper than {MAX_YAML_DEPTH} levels", path=path)
+    try:
+        data = json.loads(text, object_pairs_hook=pairs)
+    except json.JSONDecodeError as exc:
+        try:                          # a YAML flow mapping with a quoted value
+            return parse_yaml(text, path)
+        except DatasetError:
+            raise DatasetError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
+    except (ValueError, RecursionError) as exc:      # e.g. an integer of 5000 digits
+        raise DatasetError(f"invalid JSON: {str(exc)[:120]}", path=path) from None
+    try:
+        lines = parse_yaml(text, path).lines
+    except DatasetError:
+        lines = {}
+    return YamlDocument(Path(path), data, lines)
+
+
+_MRCAL = re.compile(r"""['"](lensmodel|lens_model)['"]\s*:|['"]distortion_model['"]\s*:\s*"""
+                    r"""['"](DISTORTION|LENSMODEL)_""")
+
+
+def _load(path) -> tuple[str, object]:
+    """The format of an intrinsics file and what its reader takes: ``("opencv", text)``,
+    ``("cameramodel", text)``, ``("kalibr", doc)`` or ``("mapping", doc)``."""
+    text = _read(path)
+    head = text.lstrip("\ufeff \t\r\n")
     if head.startswith(("%YAML", "<?xml", "<opencv_storage")):
-        return "opencv", None
-    doc = parse_yaml(text, path)
+        return "opencv", text
+    if str(path).endswith(".cameramodel") or _MRCAL.search(text[:100_000]):
+        return "cameramodel", text
+    if head.startswith("{") and '"' in head[:200]:
+        doc = _json(text.lstrip("\ufeff"), path)
+    else:
+        doc = parse_yaml(text, path)
     if not isinstance(doc.data, Mapping):
         raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
     if is_camchain(doc.data):
         return "kalibr", doc
-    if "camera_matrix" in doc.data or "K" in doc.data:
-        return "camera_info", doc
+    if has_camera_matrix(doc.data):
+        return "mapping", doc
+    if is_aslam(doc.data):
+        return "aslam", doc
     raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
 
 
 def read_camera_info(path: str | os.PathLike) -> Intrinsics:
-    """Read ROS ``camera_info`` YAML (or plain YAML with ``K`` / ``D`` lists)."""
+    """Read ROS ``camera_info`` YAML, a CameraInfo message, or another mapping layout of
+    :mod:`multieye.io.intrinsics_mapping` (YAML or JSON)."""
     kind, doc = _load(path)
-    if kind != "camera_info":
+    if kind != "mapping":
         raise DatasetError(f"not a ROS camera_info file (looks like {kind})", path=path)
-    return _camera_info(doc)
+    return intrinsics_from_mapping(doc)
 
 
 def read_kalibr_intrinsics(path: str | os.PathLike, camera: str | None = None) -> Intrinsics:
@@ -398,9 +446,13 @@ def read_intrinsics(path: str | os.PathLike, camera: str | None = None, *,
         Missing or unreadable file, unrecognised format (listing the formats), unsupported
         camera or distortion model, wrong number of coefficients; with the line where known.
     """
-    kind, doc = _load(path)
+    kind, content = _load(path)
     if kind == "opencv":
-        return read_opencv_intrinsics(path)
+        return _opencv(content, Path(path))
+    if kind == "cameramodel":
+        return cameramodel.intrinsics_from_cameramodel(content, Path(path))
     if kind == "kalibr":
-        return _kalibr(doc, camera, prefer)
-    return _camera_info(doc)
+        return _kalibr(content, camera, prefer)
+    if kind == "aslam":
+        return intrinsics_from_aslam(content)
+    return intrinsics_from_mapping(content)

@@ -196,6 +196,12 @@ class MocapSpec:
     frames : (str, str) or None
         The user's names of the fixed and of the tracked frame (rig.yaml's ``pose:``,
         :func:`named_pose`); None: ``world`` and the role name in ``pose``.
+    sensor : {"motion-capture", "robot"} or None
+        What measures the poses (rig.yaml's ``sensor``); None: not stated (inferred from the
+        source by :func:`multieye.estimate.sensor.sensor_bounds`).
+    noise_bounds : (float, float) or None
+        The largest plausible noise per pose of this sensor, rotation (radians) and
+        translation (metres) (rig.yaml's ``noise_bounds``); None for either: the sensor's.
     """
 
     file: Path
@@ -216,6 +222,8 @@ class MocapSpec:
     rotation: str = "quaternion-xyzw"
     match: str = "time"
     frames: tuple[str, str] | None = None
+    sensor: str | None = None
+    noise_bounds: tuple[float | None, float | None] | None = None
 
     @property
     def by_name(self) -> bool:

@@ -42,6 +42,8 @@ constants hold them, docs/rig-yaml.md documents each)::
       # key: end2base, values: [x, y, z, qx, qy, qz, qw], rotation: quaternion-xyzw | ...
       match: time | image                                    # image: a table with an image
                                                              #   column (format pose-table)
+      sensor: motion-capture | robot                         # default: from the source
+      noise_bounds: {rotation_deg: 0.1, translation_m: 0.001}   # default: the sensor's
     cameras:                                                 # required, at least one
       cam0:
         intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
@@ -50,9 +52,9 @@ constants hold them, docs/rig-yaml.md documents each)::
         rosbag: run.bag                #   image topic of a bag ...
         topic: /cam0/image_raw         #   ... given here (rosbag only)
         mocap: cam0_mocap.txt          # optional: own file, or a mapping overriding mocap
-                                       #   keys; pose, time_tolerance and the noise keys are
-                                       #   inherited, the format's keys only if the
-                                       #   format is the same
+                                       #   keys; pose, time_tolerance, the noise keys, sensor
+                                       #   and noise_bounds are inherited, the format's keys
+                                       #   only if the format is the same
         time_offset: 0.0               # seconds, motion-capture clock minus camera clock,
                                        #   |x| <= 1e10
 
@@ -84,6 +86,7 @@ from multieye.io.intrinsics import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.pose_files import STEM, check_rotation, check_values
+from multieye.io import rig_checks as _c
 from multieye.io.rig_checks import Checker as _Checker
 from multieye.io.textfile import LENGTH_UNITS
 from multieye.io.yamlfile import load_yaml, shown
@@ -115,7 +118,8 @@ _SOURCES = ("images", "poses", "rosbag")
 TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
 TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
 MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
-              "rotation_noise_deg", "translation_noise_m", "match") + tuple(_MOCAP_ONLY)
+              "rotation_noise_deg", "translation_noise_m", "match", "sensor",
+              "noise_bounds") + tuple(_MOCAP_ONLY)
 #: Roles of ``mocap.columns`` (csv sources).
 MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 #: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
@@ -412,6 +416,7 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
         kw["trans_sigma_m"] = c.number(raw["translation_noise_m"], at("translation_noise_m"),
                                        positive=True, maximum=MAX_TRANSLATION_NOISE_M,
                                        unit="metres")
+    kw.update(_c.sensor_keys(c, raw, at))
     if frame_names != ("world", moving):
         kw["frames"] = frame_names
     return MocapSpec(file, pose, tol, fmt, **kw)
@@ -440,7 +445,8 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
         if fmt != top_spec.format:
             inherit = [k for k in inherit if k in ("pose", "frames", "fixed_frame",
                                                    "time_tolerance", "rotation_noise_deg",
-                                                   "translation_noise_m")]
+                                                   "translation_noise_m", "sensor",
+                                                   "noise_bounds")]
     merged = {**{k: top_raw[k] for k in inherit}, **own}
     origin = {**{k: ("mocap",) for k in inherit}, **{k: where for k in own}}
     return _mocap(c, merged, origin, setup, where)

@@ -9,8 +9,13 @@ import re
 from collections.abc import Mapping
 
 from multieye.io.yamlfile import YamlDocument, shown
+from multieye.core.limits import MAX_ROTATION_NOISE_DEG, MAX_TRANSLATION_NOISE_M
 
-__all__ = ["Checker"]
+__all__ = ["Checker", "sensor_keys", "MOCAP_SENSORS", "MOCAP_NOISE_BOUND_KEYS"]
+
+#: What ``mocap.sensor`` may name, and the keys of ``mocap.noise_bounds`` (docs/rig-yaml.md).
+MOCAP_SENSORS = ("motion-capture", "robot")
+MOCAP_NOISE_BOUND_KEYS = ("rotation_deg", "translation_m")
 
 _FLOAT_TEXT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
@@ -84,3 +89,25 @@ class Checker:
         if kind == "file" and p.is_dir():
             raise self.error(f"expected a file, found a folder: {p}", keys)
         return p
+
+
+def sensor_keys(c: Checker, raw: Mapping, at) -> dict:
+    """``sensor`` and ``noise_bounds`` of a ``mocap`` mapping, checked (``at(key)``: the key
+    path of ``key``), as :class:`multieye.io.mocap.MocapSpec` fields (radians, metres)."""
+
+    kw = {}
+    if "sensor" in raw:
+        kw["sensor"] = c.choice(raw["sensor"], at("sensor"), MOCAP_SENSORS)
+    if "noise_bounds" in raw:
+        here = at("noise_bounds")
+        bounds = c.mapping(raw["noise_bounds"], here, MOCAP_NOISE_BOUND_KEYS)
+        if not bounds:
+            raise c.error(f"expected {' and/or '.join(MOCAP_NOISE_BOUND_KEYS)}", here)
+        rot = (math.radians(c.number(bounds["rotation_deg"], here + ("rotation_deg",),
+                                     positive=True, maximum=MAX_ROTATION_NOISE_DEG,
+                                     unit="degrees")) if "rotation_deg" in bounds else None)
+        trans = (c.number(bounds["translation_m"], here + ("translation_m",), positive=True,
+                          maximum=MAX_TRANSLATION_NOISE_M, unit="metres")
+                 if "translation_m" in bounds else None)
+        kw["noise_bounds"] = (rot, trans)
+    return kw

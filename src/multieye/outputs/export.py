@@ -19,6 +19,9 @@ format         file                       content
                                           :func:`multieye.io.read_calibration` reads it back
 ``camera-info`` ``camera_info/<cam>.yaml`` ROS ``sensor_msgs/CameraInfo`` YAML per camera;
                                           :func:`multieye.io.read_camera_info` reads it back
+``mrcal``      ``mrcal/<cam>.cameramodel`` mrcal camera model per camera (``rt_cam_ref``
+                                          from the reference camera); ``mrcal`` and
+                                          :func:`multieye.io.read_intrinsics` read it
 =============  =========================  ==================================================
 
 A camera a format cannot hold (Kalibr's and ROS's lens models, no intrinsics) is named with
@@ -69,6 +72,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.atomic import write_text_atomic
 from multieye.io.intrinsics import camera_info_text, distortion_model_name
+from multieye.io.cameramodel import cameramodel_text
 from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict, named_keys,
                                           read_calibration)
 from multieye.io.kalibr import CamchainEntry, kalibr_fields, write_camchain
@@ -102,6 +106,7 @@ FORMATS = {
     "tf-static": "static_transforms.sh",
     "json": "calibration.json",
     "camera-info": "camera_info/<camera>.yaml",
+    "mrcal": "mrcal/<camera>.cameramodel",
 }
 
 #: setup -> name of the frame the cameras' X is expressed in.
@@ -486,6 +491,29 @@ def _camera_infos(folder: Path, rec: CalibrationRecord, intr: dict,
     return paths
 
 
+def _cameramodels(folder: Path, rec: CalibrationRecord, intr: dict,
+                  notes: list[str]) -> list[Path]:
+    """One mrcal ``.cameramodel`` per camera mrcal can describe (``rt_cam_ref`` from the
+    reference camera's frame); the others named in ``notes``."""
+    paths, left = [], []
+    for cam in rec.cameras:
+        try:
+            if intr.get(cam.name) is None:
+                raise InputError("no intrinsics")
+            text = cameramodel_text(intr[cam.name], g.inv(cam.T_ref_cam),
+                                    note=f"{cam.name}: written by multieye export --format mrcal")
+        except InputError as exc:
+            left.append(f"{cam.name} ({exc})")
+            continue
+        paths.append(folder / f"{cam.name}.cameramodel")
+        write_text_atomic(paths[-1], text)
+    if left:
+        notes.append("no .cameramodel for " + "; ".join(left))
+    if not paths:
+        raise InputError("mrcal cannot describe any camera: " + "; ".join(left))
+    return paths
+
+
 def export(out_dir: str | os.PathLike, fmt: str, *,
            dest: str | os.PathLike | None = None,
            notes: list[str] | None = None, parent_frame: str | None = None,
@@ -531,14 +559,14 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
     if parent_frame is None and rec.setup == "eye-on-hand" and rec.frames is None:
         parent_frame = _tracked_frame(out)      # calibration.json of an earlier version
     frame_names(rec, parent_frame, child_frame)        # checked before anything is written
-    if fmt == "camera-info":
-        sub = folder / "camera_info"
+    if fmt in ("camera-info", "mrcal"):
+        sub = folder / FORMATS[fmt].split("/")[0]
         try:
             sub.mkdir(exist_ok=True)
         except OSError as exc:
             raise DatasetError(f"cannot create the folder: {exc.strerror}", path=sub) from exc
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
-        return _camera_infos(sub, rec, intr, notes)
+        return (_camera_infos if fmt == "camera-info" else _cameramodels)(sub, rec, intr, notes)
     path = folder / FORMATS[fmt]
     if fmt == "kalibr":
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())

@@ -1,17 +1,17 @@
 """Figures of the calibration report (matplotlib, Agg canvas, imported when drawing).
 
-Four figures, each returned as PNG bytes for :mod:`multieye.outputs.report` to embed and to write:
+Figures returned as PNG bytes for :mod:`multieye.outputs.report` to embed and to write (the
+rig's are in :mod:`multieye.outputs.figures_rig`).  Figures about every camera draw one lane
+per camera in one axes (an axes per camera would cost most of the time of the report):
 
-- :func:`rig_png`: the rig in 3D and seen from above: camera frustums with names, the
-  reference camera's axes, the world origin, the target at every used image and the
-  motion-capture trajectory;
 - :func:`residual_histograms_png`: per camera, histograms of the loop residuals of
   ``A_i X = Y B_i`` (rotation in degrees, translation in millimetres, paper section V-A);
 - :func:`residuals_over_time_png`: the same residuals against the camera's time;
-- :func:`camera_png`, one per camera: where the target was seen on the image, the
-  reprojection residuals over the image and by radius, every image's RMS, and the
-  projection's uncertainty from the estimated intrinsics (the numbers from
-  :mod:`multieye.outputs.image_stats`).
+- :func:`image_rms_png`: every used image's reprojection RMS, the worst marked;
+- :func:`radial_png`: the reprojection residuals by distance from the principal point;
+- :func:`camera_png`, one per camera: where the target was seen on the image and the
+  reprojection residuals over it, and the projection's uncertainty from the estimated
+  intrinsics (the numbers from :mod:`multieye.outputs.image_stats`).
 
 A camera keeps its colour in every figure.  As in :mod:`multieye.experiments.figures`, only the Agg canvas
 is used (no pyplot, no global backend switch).
@@ -26,12 +26,10 @@ a depth proportional to the size of the rig.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from multieye.core.intrinsics import Intrinsics
-from multieye.io.calibration_json import CalibrationRecord
 from multieye.io.run_details import CameraDetails, RunDetails
 
 __all__ = [
@@ -39,23 +37,32 @@ __all__ = [
     "frustum_corners",
     "display_rotation",
     "outliers",
-    "rig_png",
+    "stamps_are_indices",
+    "HIGHLIGHT",
     "residual_histograms_png",
     "residuals_over_time_png",
     "camera_png",
+    "image_rms_png",
+    "radial_png",
 ]
 
 _AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")  # x red, y green, z blue
 _GREY = "#7f7f7f"
 
 
+#: Camera colours: tab10 without its red (the "worst" highlight and the x axis) and grey
+#: (the motion capture), then the light tab20 shades of the same hues.
+_PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#bcbd22",
+            "#17becf", "#aec7e8", "#ffbb78", "#98df8a", "#c5b0d5", "#c49c94", "#f7b6d2",
+            "#dbdb8d", "#9edae5")
+#: Colour of what is flagged (worst images, high residuals, empty cells).
+HIGHLIGHT = "#d62728"
+
+
 def camera_colours(n: int) -> list[str]:
-    """One distinct matplotlib colour per camera (tab10, then tab20 for more than 10)."""
-    if n <= 10:
-        return [f"C{k}" for k in range(n)]
-    from matplotlib import colormaps
-    cmap = colormaps["tab20"]
-    return [cmap(k % 20) for k in range(n)]
+    """One colour per camera, none of them the red of :data:`HIGHLIGHT` or a grey (16
+    distinct, then repeated)."""
+    return [_PALETTE[k % len(_PALETTE)] for k in range(n)]
 
 
 def frustum_corners(intrinsics: Intrinsics | None, depth: float) -> np.ndarray:
@@ -117,6 +124,14 @@ def display_rotation(up) -> tuple[np.ndarray, list[str]]:
     return P, labels
 
 
+def stamps_are_indices(stamps) -> bool:
+    """Whether a camera's stamps are the places of its images rather than times: whole
+    numbers from 0 below 10^6 (poses matched to images by name are stamped 0, 1, 2, ...;
+    a clock in seconds starts far from 0 or has fractions)."""
+    s = np.asarray(stamps, dtype=np.float64)
+    return bool(s.size) and bool(np.all(s == np.round(s))) and s.min() >= 0 and s.max() < 1e6
+
+
 def outliers(values, factor: float = 3.0) -> np.ndarray:
     """Values above ``factor`` times their median, as a boolean mask.
 
@@ -130,209 +145,41 @@ def outliers(values, factor: float = 3.0) -> np.ndarray:
     return v > factor * np.median(v)
 
 
-# --------------------------------------------------------------------------- the rig
-
-
-@dataclass(frozen=True)
-class _Scene:
-    """What the rig figure draws, in the plotting frame (world, or ref without details)."""
-
-    frame: str
-    names: tuple[str, ...]
-    T_cams: np.ndarray                  # (m, 4, 4) T_frame_cam
-    intrinsics: tuple                   # Intrinsics or None per camera
-    reference: int
-    targets: tuple[np.ndarray, ...]     # per camera (n, 3) target origins
-    trajectories: tuple[np.ndarray, ...]  # (k, 3) each
-    trajectory_pose: str
-
-
-def _scene(record: CalibrationRecord, details: RunDetails | None) -> _Scene:
-    names = tuple(c.name for c in record.cameras)
-    ref = names.index(record.reference_camera)
-    if details is None:
-        return _Scene(frame=f"ref ({record.reference_camera})", names=names,
-                      T_cams=np.stack([c.T_ref_cam for c in record.cameras]),
-                      intrinsics=(None,) * len(names), reference=ref, targets=(),
-                      trajectories=(), trajectory_pose="")
-    cams: list[CameraDetails] = [details.camera(n) for n in names]
-    return _Scene(frame="world", names=names, T_cams=np.stack([c.T_world_cam for c in cams]),
-                  intrinsics=tuple(c.intrinsics for c in cams), reference=ref,
-                  targets=tuple(c.T_world_target[:, :3, 3] for c in cams),
-                  trajectories=tuple(_break_gaps(t.stamps, t.positions)
-                                     for t in details.trajectories),
-                  trajectory_pose=details.trajectories[0].pose if details.trajectories else "")
-
-
-def _break_gaps(stamps: np.ndarray, positions: np.ndarray) -> np.ndarray:
-    """Positions with a NaN row wherever the recording pauses (a gap over 5 x the median
-    sampling interval and over 0.5 s), so that a line is not drawn across the pause."""
-    if len(stamps) < 3:
-        return positions
-    dt = np.diff(stamps)
-    gaps = np.flatnonzero(dt > max(5.0 * float(np.median(dt)), 0.5))
-    return np.insert(positions, gaps + 1, np.nan, axis=0)
-
-
-def _frustum_depth(T_cams: np.ndarray) -> float:
-    """A depth that keeps neighbouring frustums apart: a quarter of the rig's size."""
-    c = T_cams[:, :3, 3]
-    span = float(np.max(np.linalg.norm(c[:, None] - c[None], axis=-1))) if len(c) > 1 else 0.0
-    return float(np.clip(0.25 * span, 0.05, 0.5)) if span > 0 else 0.15
-
-
-def _equal_limits(ax, points: np.ndarray, dims: int) -> np.ndarray:
-    """Limits with one scale on every axis; returns the (padded) ranges, for a 3D box aspect.
-
-    A flat scene keeps a flat box (each range at least a third of the largest), instead of
-    a cube that is mostly empty."""
-    lo, hi = points.min(axis=0)[:dims], points.max(axis=0)[:dims]
-    centre = (lo + hi) / 2
-    ranges = np.maximum(hi - lo, max(float(np.max(hi - lo)), 1e-3) / 3) * 1.08
-    setters = (ax.set_xlim, ax.set_ylim, ax.set_zlim)[:dims]
-    for k, setter in enumerate(setters):
-        setter(centre[k] - ranges[k] / 2, centre[k] + ranges[k] / 2)
-    return ranges
-
-
-def rig_png(record: CalibrationRecord, details: RunDetails | None = None, *,
-            dpi: int = 110) -> bytes:
-    """The rig in 3D (left) and from above (right), as PNG bytes.
-
-    Parameters
-    ----------
-    record : CalibrationRecord
-        ``calibration.json``.
-    details : RunDetails, optional
-        ``details.json``: with it the picture is in the world frame with frustums from the
-        intrinsics, the targets and the motion capture; without it only the cameras are drawn,
-        in the reference camera's frame (``T_ref_cam``).
-    dpi : int
-    """
-    from io import BytesIO
-
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.lines import Line2D
-
-    sc = _scene(record, details)
-    m = len(sc.names)
-    colours = camera_colours(m)
-    depth = _frustum_depth(sc.T_cams)
-    up = -sc.T_cams[:, :3, 1].sum(axis=0)     # cameras' image-up directions
-    if np.linalg.norm(up) < 0.3 * m:          # no agreement: least-spread axis of the scene
-        pts = np.concatenate([sc.T_cams[:, :3, 3], *sc.trajectories])
-        pts = pts[np.all(np.isfinite(pts), axis=1)]
-        up = np.eye(3)[int(np.argmin(pts.std(axis=0)))] if len(pts) > 1 else np.eye(3)[2]
-    P, labels = display_rotation(up)
-
-    def disp(p):  # plotting frame -> display frame, points (..., 3)
-        return np.asarray(p) @ P.T
-
-    fig = Figure(figsize=(12.0, 6.4), dpi=dpi)
-    FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(1, 2, width_ratios=(1.2, 1.0), wspace=0.3)
-    ax3 = fig.add_subplot(grid[0], projection="3d")
-    ax2 = fig.add_subplot(grid[1])
-    everything = [disp(sc.T_cams[:, :3, 3] - 0.45 * depth * sc.T_cams[:, :3, 2])]
-    for traj in sc.trajectories:
-        if len(traj):
-            d = disp(traj)  # NaN rows (pauses) break the line and are ignored by the limits
-            ax3.plot(d[:, 0], d[:, 1], d[:, 2], color=_GREY, lw=0.6, alpha=0.55, zorder=1)
-            ax2.plot(d[:, 0], d[:, 1], color=_GREY, lw=0.6, alpha=0.55, zorder=1)
-            everything.append(d)
-    for j in range(m):
-        T = sc.T_cams[j]
-        col = colours[j]
-        if sc.targets and len(sc.targets[j]):
-            d = disp(sc.targets[j])
-            ax3.scatter(d[:, 0], d[:, 1], d[:, 2], s=7, color=col, alpha=0.55, depthshade=False)
-            ax2.scatter(d[:, 0], d[:, 1], s=7, color=col, alpha=0.55, zorder=2)
-            everything.append(d)
-        corners = frustum_corners(sc.intrinsics[j], depth) @ T[:3, :3].T + T[:3, 3]
-        apex = T[:3, 3]
-        lw = 2.0 if j == sc.reference else 1.3
-        c0, c1, c2, c3 = corners     # image rectangle and the four rays, as one polyline
-        d = disp(np.stack([c0, c1, c2, c3, c0, apex, c1, np.full(3, np.nan), c2, apex, c3]))
-        ax3.plot(d[:, 0], d[:, 1], d[:, 2], color=col, lw=lw)
-        ax2.plot(d[:, 0], d[:, 1], color=col, lw=lw, zorder=3)
-        top = disp(np.stack([corners[0], corners[1]]))          # image top edge, thick
-        ax3.plot(top[:, 0], top[:, 1], top[:, 2], color=col, lw=lw * 2.6, solid_capstyle="butt")
-        ax2.plot(top[:, 0], top[:, 1], color=col, lw=lw * 2.6, solid_capstyle="butt", zorder=3)
-        label_at = disp(apex - 0.45 * depth * T[:3, 2])     # behind the camera
-        name = sc.names[j] + (" (ref)" if j == sc.reference else "")
-        for ax, pos in ((ax3, label_at), (ax2, label_at[:2])):
-            ax.text(*pos, name, color=col, fontsize=9, fontweight="bold", ha="center",
-                    va="center", zorder=5)
-        everything.append(disp(corners))
-    # reference camera axes and the frame origin
-    triads = [(sc.T_cams[sc.reference], "ref", 1.2 * depth)]
-    if sc.frame == "world":
-        triads.append((np.eye(4), "world", 1.2 * depth))
-    for T, text, length in triads:
-        o = T[:3, 3]
-        for k in range(3):
-            d = disp(np.stack([o, o + length * T[:3, k]]))
-            ax3.plot(d[:, 0], d[:, 1], d[:, 2], color=_AXIS_COLOURS[k], lw=2.2)
-            ax2.plot(d[:, 0], d[:, 1], color=_AXIS_COLOURS[k], lw=2.2, zorder=4)
-        if text == "world":
-            do = disp(o)
-            ax3.text(*do, " world", fontsize=8, color="black")
-            ax2.text(*do[:2], " world", fontsize=8, color="black")
-            everything.append(do[None])
-    pts = np.concatenate(everything)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    ax3.set_box_aspect(tuple(_equal_limits(ax3, pts, 3)), zoom=1.0)
-    ax3.view_init(elev=28, azim=-55)
-    frame = sc.frame
-    for ax, k in ((ax3, 3), (ax2, 2)):
-        ax.set_xlabel(f"{frame} {labels[0]} (m)")
-        ax.set_ylabel(f"{frame} {labels[1]} (m)")
-    ax3.set_zlabel(f"{frame} {labels[2]} (m)", labelpad=2)
-    ax3.tick_params(labelsize=7)
-    ax2.set_aspect("equal", adjustable="datalim")
-    ax2.grid(True, alpha=0.3)
-    ax2.tick_params(labelsize=8)
-    ax3.set_title("perspective", fontsize=10)
-    ax2.set_title(f"from above (looking down {frame} {labels[2]})", fontsize=10)
-    handles = [Line2D([], [], color="black", lw=1.3,
-                      label=f"camera frustum ({depth:.2f} m deep; thick edge = image top)")]
-    if sc.targets:
-        handles.append(Line2D([], [], color="black", marker="o", ls="", ms=3,
-                              label="target origin at each used image"))
-    if sc.trajectories:
-        handles.append(Line2D([], [], color=_GREY, lw=1,
-                              label=f"motion capture ({sc.trajectory_pose})"))
-    handles.append(Line2D([], [], color=_AXIS_COLOURS[0], lw=2,
-                          label="axes: x red, y green, z blue (ref camera"
-                          + (", world origin)" if frame == "world" else ")")))
-    fig.legend(handles=handles, loc="lower center", ncol=2, frameon=False, fontsize=9)
-    fig.subplots_adjust(left=0.0, right=0.97, bottom=0.16, top=0.94)
-    buffer = BytesIO()
-    fig.savefig(buffer, format="png")
-    return buffer.getvalue()
-
-
 # --------------------------------------------------------------------------- residuals
 
 
-def _grid(details: RunDetails, dpi: int):
+def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
+    """A figure of two axes (rotation, translation), one lane per camera, top to bottom:
+    two axes whatever the number of cameras (small multiples cost an axes each)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     m = len(details.cameras)
-    fig = Figure(figsize=(10.0, 0.7 + 1.9 * m), dpi=dpi)
+    fig = Figure(figsize=(10.0, 1.2 + 0.5 * max(m, 2)), dpi=dpi)
     FigureCanvasAgg(fig)
-    axes = fig.subplots(m, 2, squeeze=False)
-    return fig, axes
+    axes = fig.subplots(1, 2, sharey=True)
+    colours = camera_colours(m)
+    for ax, title in zip(axes, titles):
+        ax.set_ylim(-0.15, m)
+        ax.set_yticks(np.arange(m)[::-1] + 0.4)
+        ax.set_title(title, fontsize=9, loc="left")
+        ax.tick_params(labelsize=8, length=2)
+        ax.grid(True, axis="x", alpha=0.3)
+        for y in range(1, m):
+            ax.axhline(y - 0.07, color=_GREY, lw=0.4, alpha=0.5)
+    axes[0].set_yticklabels([c.name for c in details.cameras], fontsize=8, fontweight="bold")
+    for tick, col in zip(axes[0].get_yticklabels(), colours):
+        tick.set_color(col)
+    fig.subplots_adjust(left=0.1, right=0.98, wspace=0.06, top=1 - 0.45 / fig.get_figheight(),
+                        bottom=0.55 / fig.get_figheight())
+    return fig, axes, colours
 
 
 def _png(fig) -> bytes:
     from io import BytesIO
 
-    fig.tight_layout()
     buffer = BytesIO()
-    fig.savefig(buffer, format="png")
+    fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
     return buffer.getvalue()
 
 
@@ -340,72 +187,83 @@ _METRICS: Sequence[tuple[str, str, float, str]] = (
     ("rot_deg", "rotation residual (deg)", 1.0, "°"),
     ("trans_m", "translation residual (mm)", 1e3, " mm"),
 )
+#: Height of a camera's lane that its histogram or curve may fill.
+_LANE = 0.82
 
 
-def residual_histograms_png(details: RunDetails, *, dpi: int = 100) -> bytes:
-    """Per camera (rows), histograms of the rotation and translation residuals (columns).
+def residual_histograms_png(details: RunDetails, *, dpi: int = 90) -> bytes:
+    """Per camera (lanes), histograms of the rotation and translation residuals (columns).
 
     Each column shares its bins across cameras, so a camera that fits worse than the others
-    stands out; the median (solid) and the mean (dashed) are marked and printed.
+    stands out; bar heights are scaled to the fullest bin of the column.  The median (solid)
+    and the mean (dashed) are marked and printed.
     """
-    fig, axes = _grid(details, dpi)
-    colours = camera_colours(len(details.cameras))
-    for col, (key, label, scale, unit) in enumerate(_METRICS):
+    m = len(details.cameras)
+    fig, axes, colours = _lanes(details, dpi, [f"{label}: histogram per camera"
+                                               for _, label, _, _ in _METRICS])
+    for ax, (key, label, scale, unit) in zip(axes, _METRICS):
         hi = max(float(np.max(getattr(c, key))) * scale for c in details.cameras)
-        bins = np.linspace(0.0, hi * 1.02 if hi > 0 else 1.0, 21)
-        for row, cam in enumerate(details.cameras):
-            ax = axes[row, col]
+        bins = np.linspace(0.0, hi * 1.02 if hi > 0 else 1.0, 26)
+        counts = [np.histogram(getattr(c, key) * scale, bins=bins)[0] for c in details.cameras]
+        top = max(max(int(c.max()) for c in counts), 1)
+        medians, means = [], []
+        for row, (cam, n) in enumerate(zip(details.cameras, counts)):
+            y0 = m - 1 - row
             v = getattr(cam, key) * scale
-            ax.hist(v, bins=bins, color=colours[row], alpha=0.8, edgecolor="white", linewidth=0.5)
+            ax.stairs(y0 + _LANE * n / top, bins, baseline=y0, fill=True, color=colours[row],
+                      alpha=0.8)
             med, mean = float(np.median(v)), float(np.mean(v))
-            ax.axvline(med, color="black", lw=1.1)
-            ax.axvline(mean, color="black", lw=1.1, ls="--")
-            ax.set_title(f"{cam.name} (n={v.size}): median {med:.3g}{unit}, mean {mean:.3g}{unit}, "
-                         f"max {v.max():.3g}{unit}", fontsize=8.5, loc="left",
-                         color=colours[row])
-            ax.set_xlim(bins[0], bins[-1])
-            ax.tick_params(labelsize=8)
-            ax.set_ylabel("images", fontsize=8)
-            ax.yaxis.get_major_locator().set_params(integer=True)
-            if row == len(details.cameras) - 1:
-                ax.set_xlabel(label)
-            else:
-                ax.tick_params(labelbottom=False)
+            medians.append((med, y0))
+            means.append((mean, y0))
+            ax.text(bins[-1], y0 + _LANE, f"n={v.size}  median {med:.3g}{unit}  mean "
+                    f"{mean:.3g}{unit}  max {v.max():.3g}{unit}", ha="right", va="top",
+                    fontsize=6.5, color="black",
+                    bbox={"facecolor": "white", "alpha": 0.7, "lw": 0, "pad": 0.5})
+        for marks, style in ((medians, "-"), (means, "--")):
+            ax.vlines([x for x, _ in marks], [y for _, y in marks],
+                      [y + _LANE for _, y in marks], colors="black", lw=1.0, linestyles=style)
+        ax.set_xlim(bins[0], bins[-1])
+        ax.set_xlabel(label + f"; bar height: images, full lane = {top}", fontsize=8)
     return _png(fig)
 
 
-def residuals_over_time_png(details: RunDetails, *, dpi: int = 100) -> bytes:
-    """Per camera (rows), rotation and translation residuals against time (columns).
+def residuals_over_time_png(details: RunDetails, *, dpi: int = 90) -> bytes:
+    """Per camera (lanes), rotation and translation residuals against time (columns).
 
-    Time is the camera clock from that camera's first used image.  Measurements above three
-    times their camera's median (:func:`outliers`) are circled in red.
+    Time is the camera clock from that camera's first used image; when no camera's images
+    carry a time (:func:`stamps_are_indices`: poses matched to images by name), the images'
+    places in name order instead.  Every lane of a column has the same scale (a full lane is
+    the largest residual of the column).  Measurements above three times their camera's
+    median (:func:`outliers`) are circled in red.
     """
-    fig, axes = _grid(details, dpi)
-    colours = camera_colours(len(details.cameras))
-    for col, (key, label, scale, _) in enumerate(_METRICS):
+    m = len(details.cameras)
+    times = not all(stamps_are_indices(c.stamps) for c in details.cameras)
+    fig, axes, colours = _lanes(details, dpi, [f"{label}: over time per camera"
+                                               for _, label, _, _ in _METRICS])
+    for ax, (key, label, scale, unit) in zip(axes, _METRICS):
         hi = max(float(np.max(getattr(c, key))) * scale for c in details.cameras)
+        hi = hi if hi > 0 else 1.0
+        bad_x, bad_y = [], []
         for row, cam in enumerate(details.cameras):
-            ax = axes[row, col]
-            t = cam.stamps - cam.stamps.min()
+            y0 = m - 1 - row
+            t = cam.stamps - cam.stamps.min() if times else np.argsort(
+                np.argsort(cam.stamps)).astype(np.float64)
             v = getattr(cam, key) * scale
             order = np.argsort(t)
-            ax.plot(t[order], v[order], color=colours[row], lw=0.9, marker="o", ms=3)
+            y = y0 + _LANE * v / hi
+            ax.plot(t[order], y[order], color=colours[row], lw=0.9, marker="o", ms=2.5)
             bad = outliers(v)
+            bad_x += list(t[bad])
+            bad_y += list(y[bad])
             if np.any(bad):
-                ax.scatter(t[bad], v[bad], s=60, facecolors="none", edgecolors="#d62728",
-                           linewidths=1.3, zorder=4)
-            ax.set_ylim(0, hi * 1.1 if hi > 0 else 1.0)
-            ax.text(0.01, 0.92, cam.name + (f"  ({int(bad.sum())} high)" if np.any(bad) else ""),
-                    transform=ax.transAxes, ha="left", va="top", fontsize=8, fontweight="bold",
-                    color=colours[row])
-            ax.grid(True, alpha=0.3)
-            ax.tick_params(labelsize=8)
-            ax.set_ylabel(label.split(" residual")[0] + (" (deg)" if col == 0 else " (mm)"),
-                          fontsize=8)
-            if row == len(details.cameras) - 1:
-                ax.set_xlabel("time since the camera's first used image (s)")
-            if row == 0:
-                ax.set_title(label.split(" (")[0].capitalize(), fontsize=10)
+                ax.text(0.995, (y0 + _LANE) / m, f"{int(bad.sum())} high", ha="right",
+                        va="top", fontsize=6.5, color=HIGHLIGHT, transform=ax.transAxes)
+        if bad_x:
+            ax.scatter(bad_x, bad_y, s=40, facecolors="none", edgecolors=HIGHLIGHT,
+                       linewidths=1.2, zorder=4)
+        ax.set_xlabel(("time since the camera's first used image (s)" if times else
+                       "used image, in name order (the images carry no time)")
+                      + f"; full lane = {hi:.3g}{unit}", fontsize=8)
     return _png(fig)
 
 
@@ -422,22 +280,23 @@ def _image_axes(ax, frame, title: str) -> None:
     ax.set_xlim(-0.5 - pad, w - 0.5 + pad)
     ax.set_ylim(h - 0.5 + pad, -0.5 - pad)
     ax.set_aspect("equal")
-    ax.tick_params(labelsize=7)
+    ax.set_axis_off()           # the image frame is drawn; ticks cost more than they tell
     ax.set_title(title, fontsize=8.5, loc="left")
     if frame.cx is not None:
         ax.plot([frame.cx], [frame.cy], marker="+", ms=9, mew=1.3, color="black", zorder=6)
 
 
-def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 100) -> bytes:
+def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 90) -> bytes:
     """Where one camera saw the target and how well it fits, as PNG bytes.
 
-    Top row, on the image (principal point ``+``): the target points of every used image
-    (coverage; cells of a 4 x 4 grid without any are shaded), their reprojection residuals
-    as vectors (magnified, the key arrow labelled), and the standard deviation of the
-    projection from the intrinsics' covariance (when estimated; else the RMS residual in
-    cells of the image).  Bottom row: residual length against the distance from the
-    principal point (binned RMS and median over the points), and the RMS of every image with
-    the worst named.  Needs ``cam.points`` (:mod:`multieye.io.pixel_details`).
+    Two panels on the image (principal point ``+``): left, the target points of every used
+    image (coverage: cells of a 4 x 4 grid without any are shaded) and their reprojection
+    residuals as vectors (magnified, the key arrow labelled; their mean per cell above
+    :data:`~multieye.outputs.image_stats.MAX_ARROWS` points); right, the standard deviation
+    of the projection from the intrinsics' covariance (when estimated; else the RMS residual
+    in cells of the image).  The residuals by radius and every image's RMS are drawn for all
+    cameras at once (:func:`radial_png`, :func:`image_rms_png`).  Needs ``cam.points``
+    (:mod:`multieye.io.pixel_details`).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import LogNorm
@@ -446,21 +305,19 @@ def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 100) -> bytes:
 
     from multieye.outputs.image_stats import (
         COVERAGE_CELLS, MAX_ARROWS, arrow_scale, coverage, image_frame, mean_vectors,
-        position_bins, radial_bins, stacked, worst_images)
+        position_bins, stacked)
 
     pts = cam.points
     frame = image_frame(cam)
     uv, res = stacked(cam)
     w, h = frame.width, frame.height
-    fig = Figure(figsize=(12.0, 6.9), dpi=dpi)
+    fig = Figure(figsize=(10.0, 0.9 + 4.6 * h / w), dpi=dpi)
     FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(2, 6, height_ratios=(1.1, 1.0), hspace=0.38, wspace=0.9)
-    ax_cov, ax_vec, ax_map = (fig.add_subplot(grid[0, 2 * k:2 * k + 2]) for k in range(3))
-    ax_rad, ax_img = fig.add_subplot(grid[1, :2]), fig.add_subplot(grid[1, 2:])
+    ax_vec, ax_map = fig.subplots(1, 2)
     size_note = "" if frame.known else " (image size unknown)"
     n_img = sum(len(u) > 0 for u in pts.uv)
     sub = "" if pts.kept == pts.n_points else f", {pts.kept} drawn"
-    # coverage
+    # coverage: empty cells shaded
     cells = COVERAGE_CELLS
     if len(uv):
         idx = np.clip((uv / [w, h] * cells).astype(int), 0, cells - 1)
@@ -470,19 +327,16 @@ def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 100) -> bytes:
     for a in range(cells):
         for b in range(cells):
             if (a, b) not in seen:
-                ax_cov.add_patch(Rectangle((a * w / cells - 0.5, b * h / cells - 0.5), w / cells,
-                                           h / cells, color="#d62728", alpha=0.08, lw=0))
+                ax_vec.add_patch(Rectangle((a * w / cells - 0.5, b * h / cells - 0.5), w / cells,
+                                           h / cells, color=HIGHLIGHT, alpha=0.08, lw=0))
     for k in range(1, cells):
-        ax_cov.axvline(k * w / cells - 0.5, color=_GREY, lw=0.5, ls=":")
-        ax_cov.axhline(k * h / cells - 0.5, color=_GREY, lw=0.5, ls=":")
-    ax_cov.scatter(uv[:, 0], uv[:, 1], s=3, color=colour, alpha=0.6, lw=0)
-    _image_axes(ax_cov, frame, f"coverage: {coverage(uv, frame):.0%} of {cells} x {cells} cells\n"
-                f"{pts.n_points} points in {n_img} images{sub}{size_note}")
+        ax_vec.axvline(k * w / cells - 0.5, color=_GREY, lw=0.5, ls=":")
+        ax_vec.axhline(k * h / cells - 0.5, color=_GREY, lw=0.5, ls=":")
+    ax_vec.scatter(uv[:, 0], uv[:, 1], s=2, color=_GREY, alpha=0.5, lw=0)
     # residual vectors: per point, or their mean per cell when there are many
-    ax_vec.scatter(uv[:, 0], uv[:, 1], s=1, color=_GREY, alpha=0.3, lw=0)
     if len(uv) > MAX_ARROWS:
         at, vec, _ = mean_vectors(uv, res, frame)
-        what = "mean per cell (>= 3 points)"
+        what = "mean per cell"
     else:
         at, vec, what = uv, res, "per point"
     key, magnify = arrow_scale(vec, frame)
@@ -491,12 +345,15 @@ def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 100) -> bytes:
                           scale_units="xy", scale=1.0 / magnify, color=colour, width=0.004,
                           headwidth=3.5, headlength=4)
         times = f"{magnify:.0f}" if magnify >= 10 else f"{magnify:.2g}"
-        ax_vec.quiverkey(q, 0.02, -0.12, key, f"{key:g} px (arrows ×{times})", labelpos="E",
+        ax_vec.quiverkey(q, 0.02, -0.06, key, f"{key:g} px (arrows ×{times})", labelpos="E",
                          coordinates="axes", fontproperties={"size": 7.5})
     e = np.hypot(res[:, 0], res[:, 1])
     rms = float(np.sqrt(np.nanmean(e ** 2))) if len(e) else float("nan")
-    _image_axes(ax_vec, frame, f"residuals ({'refined rig' if pts.source == 'refined' else 'PnP'}"
-                f"): RMS {rms:.3f} px\nprojection minus detection, {what}")
+    _image_axes(ax_vec, frame,
+                f"{pts.n_points} points in {n_img} images{sub}{size_note}; coverage "
+                f"{coverage(uv, frame):.0%} of {cells} x {cells} cells\nresiduals "
+                f"({'refined rig' if pts.source == 'refined' else 'PnP'}, {what}): RMS "
+                f"{rms:.3f} px")
     # projection uncertainty, or the residuals binned by position
     if cam.projection_std is not None and np.any(np.isfinite(cam.projection_std.std_px)):
         ps = cam.projection_std
@@ -519,62 +376,88 @@ def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 100) -> bytes:
                     else "no intrinsics covariance"))
         label = "RMS (px)"
     _image_axes(ax_map, frame, title)
-    bar = fig.colorbar(im, ax=ax_map, fraction=0.046, pad=0.03)
+    bar = fig.colorbar(im, ax=ax_map, fraction=0.046, pad=0.02)
     bar.ax.tick_params(labelsize=7)
     bar.set_label(label, fontsize=7.5)
-    # residual against radius
-    edges, rms_b, med_b, count = radial_bins(uv, res, frame)
-    if len(uv):
-        r = np.hypot(uv[:, 0] - (frame.cx if frame.cx is not None else (w - 1) / 2),
-                     uv[:, 1] - (frame.cy if frame.cy is not None else (h - 1) / 2))
-        ax_rad.scatter(r, e, s=2, color=colour, alpha=0.25, lw=0, label="points")
-    mid = (edges[:-1] + edges[1:]) / 2
-    ax_rad.plot(mid, rms_b, color="black", marker="o", ms=3.5, lw=1.2, label="RMS per bin")
-    ax_rad.plot(mid, med_b, color="black", marker="s", ms=3, lw=1, ls="--", label="median")
-    for x, n in zip(mid, count):
-        if n:
-            ax_rad.text(x, 1.0, str(n), transform=ax_rad.get_xaxis_transform(), ha="center",
-                        va="bottom", fontsize=6, color=_GREY)
-    ax_rad.set_xlim(0, edges[-1])
-    ax_rad.set_ylim(0, None)
-    ax_rad.set_xlabel("distance from the principal point (px; to the farthest corner)", fontsize=8)
-    ax_rad.set_ylabel("residual length (px)", fontsize=8)
-    ax_rad.set_title("residuals by radius (grey: points per bin)", fontsize=8.5, loc="left",
-                     pad=12)
-    ax_rad.legend(fontsize=7, loc="upper left", frameon=False)
-    ax_rad.tick_params(labelsize=7)
-    ax_rad.grid(True, alpha=0.3)
-    # per-image RMS
-    rms_i = pts.rms_px
-    x = np.arange(len(rms_i))
-    worst = worst_images(cam, 3)
-    bad = [cam.names.index(n) for n, _ in worst]
-    bars = ax_img.bar(x, np.nan_to_num(rms_i), width=0.85 if len(x) < 60 else 1.0,
-                      color=colour, alpha=0.85)
-    for rank, i in enumerate(bad, 1):
-        bars[i].set_color("#d62728")
-        ax_img.text(i, rms_i[i], str(rank), ha="center", va="bottom", fontsize=7,
-                    color="#d62728", fontweight="bold")
-    ax_img.axhline(np.nanmedian(rms_i) if np.any(np.isfinite(rms_i)) else 0, color="black",
-                   lw=1, ls="--")
-    listing = "\n".join(f"{rank}  {n}  {v:.3f} px" for rank, (n, v) in enumerate(worst, 1))
-    ax_img.text(0.99, 0.97, "worst:\n" + listing, transform=ax_img.transAxes, ha="right",
-                va="top", fontsize=7, family="monospace",
-                bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": _GREY, "lw": 0.5})
-    ax_img.set_xlim(-0.6, max(len(x), 1) - 0.4)
-    ax_img.set_ylim(0, max(float(np.nanmax(rms_i)) if np.any(np.isfinite(rms_i)) else 1.0,
-                           1e-6) * 1.45)
-    ax_img.set_xlabel("used image, in time order", fontsize=8)
-    ax_img.set_ylabel("reprojection RMS (px)", fontsize=8)
-    ax_img.set_title("RMS of every image (dashed: median; red: the worst)", fontsize=8.5,
-                     loc="left", pad=12)
-    ax_img.tick_params(labelsize=7)
-    ax_img.xaxis.get_major_locator().set_params(integer=True)
-    ax_img.grid(True, axis="y", alpha=0.3)
     fig.suptitle(cam.name, x=0.01, ha="left", fontsize=11, fontweight="bold", color=colour)
-    fig.subplots_adjust(left=0.05, right=0.95, top=0.9, bottom=0.08)
-    from io import BytesIO
+    fig.subplots_adjust(left=0.01, right=0.94, top=1 - 0.75 / fig.get_figheight(),
+                        bottom=0.4 / fig.get_figheight(), wspace=0.08)
+    return _png(fig)
 
-    buffer = BytesIO()
-    fig.savefig(buffer, format="png")
-    return buffer.getvalue()
+
+def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> bytes:
+    """Per camera (lanes), the reprojection RMS of every used image, the ``worst`` marked.
+
+    One lane per camera with a bar per image in time order, heights scaled to the largest
+    RMS of all cameras (stated); the worst images of each camera red and numbered.  Cameras
+    without target points have an empty lane.
+    """
+    from multieye.outputs.image_stats import worst_images
+
+    fig, axes, colours = _lanes(details, dpi, ["", ""])
+    ax, spare = axes
+    fig.delaxes(spare)
+    fig.subplots_adjust(right=0.98)
+    ax.set_position([0.1, ax.get_position().y0, 0.88, ax.get_position().height])
+    m = len(details.cameras)
+    rms = [c.points.rms_px if c.points is not None else np.zeros(0) for c in details.cameras]
+    hi = max([float(np.nanmax(r)) for r in rms if np.any(np.isfinite(r))] + [1e-9])
+    longest = max([len(r) for r in rms] + [1])
+    for row, (cam, r) in enumerate(zip(details.cameras, rms)):
+        if not len(r):
+            continue
+        y0 = m - 1 - row
+        x = np.arange(len(r)) * (longest / len(r))     # every lane spans the axis
+        width = 0.85 * longest / len(r)
+        heights = _LANE * np.nan_to_num(r) / hi
+        bad = [cam.names.index(n) for n, _ in worst_images(cam, worst)]
+        ok = np.setdiff1d(np.arange(len(r)), bad)
+        ax.bar(x[ok], heights[ok], width=width, bottom=y0, color=colours[row], alpha=0.85,
+               align="edge", lw=0)
+        ax.bar(x[bad], heights[bad], width=width, bottom=y0, color=HIGHLIGHT, align="edge",
+               lw=0)
+        for rank, i in enumerate(bad, 1):
+            ax.text(x[i] + width / 2, y0 + heights[i], str(rank), ha="center", va="bottom",
+                    fontsize=6.5, color=HIGHLIGHT, fontweight="bold")
+        med = float(np.nanmedian(r)) if np.any(np.isfinite(r)) else 0.0
+        ax.plot([0, longest], [y0 + _LANE * med / hi] * 2, color="black", lw=0.8, ls="--")
+    ax.set_xlim(0, longest)
+    ax.set_xticks([])
+    ax.set_title("reprojection RMS of every used image, in their order (dashed: the camera's "
+                 "median; red: its worst, numbered)", fontsize=9, loc="left")
+    ax.set_xlabel(f"used images of each camera, spread over the lane; full lane = {hi:.3g} px",
+                  fontsize=8)
+    return _png(fig)
+
+
+def radial_png(details: RunDetails, *, dpi: int = 90) -> bytes:
+    """Residual length against the distance from the principal point, every camera on one
+    axes: the RMS of the residual lengths in 10 rings from the centre to the farthest corner
+    (:func:`multieye.outputs.image_stats.radial_bins`), a line per camera in its colour."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from multieye.outputs.image_stats import image_frame, radial_bins, stacked
+
+    fig = Figure(figsize=(10.0, 3.2), dpi=dpi)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    colours = camera_colours(len(details.cameras))
+    for cam, col in zip(details.cameras, colours):
+        if cam.points is None:
+            continue
+        uv, res = stacked(cam)
+        edges, rms, _, _ = radial_bins(uv, res, image_frame(cam))
+        ax.plot((edges[:-1] + edges[1:]) / 2, rms, color=col, marker="o", ms=3, lw=1.2,
+                label=cam.name)
+    ax.set_ylim(0, None)
+    ax.set_xlim(0, None)
+    ax.grid(True, alpha=0.3)
+    ax.tick_params(labelsize=8)
+    ax.set_xlabel("distance from the principal point (px)", fontsize=8)
+    ax.set_ylabel("RMS residual (px)", fontsize=8)
+    ax.set_title("reprojection residuals by radius (RMS in 10 rings to the farthest corner)",
+                 fontsize=9, loc="left")
+    ax.legend(fontsize=7, ncol=min(len(details.cameras), 8), frameon=False, loc="upper left")
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.16, top=0.9)
+    return _png(fig)

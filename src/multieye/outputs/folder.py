@@ -69,15 +69,20 @@ MANIFEST = ".multieye-manifest.json"
 #: Files multieye writes under fixed names (docs/outputs.md, section 1), relative to ``OUT``.
 KNOWN_FILES = frozenset({
     "calibration.json", "camchain.yaml", "details.json", "report.html",
-    "figures/rig.png", "figures/residual_histograms.png", "figures/residuals_over_time.png",
+    "figures/rig.png", "figures/rig_3d.png", "figures/rig_top.png",
+    "figures/residual_histograms.png", "figures/residuals_over_time.png",
+    "figures/image_rms.png", "figures/residuals_by_radius.png",
     "export/camchain.yaml", "export/extrinsics.yaml", "export/cameras.urdf",
     "export/static_transforms.sh", "export/calibration.json",
 })
-_KNOWN_FOLDERS = frozenset({"figures", "export", "export/camera_info"})
-#: Files multieye writes under names of the cameras: the report's per-camera figures
-#: (``multieye report`` on a folder whose manifest predates them writes them too).
-#: and ``multieye export --format camera-info``'s files, named after the cameras.
-_KNOWN_PATTERN = re.compile(r"figures/camera_[A-Za-z0-9._-]+\.png|export/camera_info/[^/]+\.yaml")
+_KNOWN_FOLDERS = frozenset({"figures", "export", "export/camera_info", "export/mrcal"})
+#: Files multieye writes under names of the cameras: the report's per-camera figures and
+#: drawn images (``multieye report`` on a folder whose manifest predates them writes them too),
+#: and ``multieye export --format camera-info`` and ``mrcal``'s files, named after the cameras.
+_KNOWN_PATTERN = re.compile(r"figures/camera_[A-Za-z0-9._-]+\.png"
+                            r"|figures/image_[A-Za-z0-9._-]+_\d+\.jpg"
+                            r"|export/camera_info/[^/]+\.yaml"
+                            r"|export/mrcal/[^/]+\.cameramodel")
 #: Left by file managers, anywhere: never a reason to refuse a folder.
 _DISPOSABLE = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
 #: The temporary file of an interrupted atomic write (multieye.io.atomic).

@@ -61,18 +61,31 @@ def table(header: Sequence[str], rows: Iterable[Sequence[str]], *, left: int = 1
             i += span
         top = f"<tr>{''.join(cells)}</tr>"
     head = "".join(f"<th{cls(i)}>{escape(h)}</th>" for i, h in enumerate(header))
+    # each cell names its column (group and header), shown before it where the table is
+    # laid out as one block per row (narrow screens, the report's style)
+    labels = list(header)
+    if groups:
+        i = 0
+        for label, span in groups:
+            for k in range(i, i + span):
+                if label and k < len(labels):
+                    labels[k] = f"{label}: {labels[k]}"
+            i += span
     body = []
     for r, row in enumerate(rows):
         extra = classes[r] if classes is not None else [""] * len(row)
-        body.append("<tr>" + "".join(f"<td{cls(i, extra[i])}>{escape(str(c))}</td>"
-                                     for i, c in enumerate(row)) + "</tr>")
+        body.append("<tr>" + "".join(
+            f'<td{cls(i, extra[i])} data-label="{escape(labels[i] if i < len(labels) else "")}">'
+            f"{escape(str(c))}</td>" for i, c in enumerate(row)) + "</tr>")
     return (f'<div class="wrap"><table><thead>{top}<tr>{head}</tr></thead>'
             f'<tbody>{"".join(body)}</tbody></table></div>')
 
 
-def figure(png: bytes, alt: str, caption: str, name: str) -> str:
-    """A figure embedded as a base64 PNG, its caption (HTML) and where its file is."""
-    data = base64.b64encode(png).decode("ascii")
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{escape(alt)}">'
+def figure(data: bytes, alt: str, caption: str, name: str) -> str:
+    """A figure embedded as a base64 PNG or JPEG (told by its first bytes), its caption
+    (HTML) and where its file is."""
+    mime = "image/jpeg" if data[:3] == b"\xff\xd8\xff" else "image/png"
+    encoded = base64.b64encode(data).decode("ascii")
+    return (f'<figure><img src="data:{mime};base64,{encoded}" alt="{escape(alt)}">'
             f"<figcaption>{caption} <span class=\"note\">(also <code>figures/{escape(name)}"
             "</code>)</span></figcaption></figure>")

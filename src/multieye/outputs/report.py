@@ -2,23 +2,29 @@
 
 :func:`write_report` reads ``OUT/calibration.json`` (and ``OUT/details.json`` when present,
 :mod:`multieye.io.run_details`) and writes ``OUT/report.html`` plus the figures as PNG files in
-``OUT/figures/`` for people who work from a terminal.  The page holds, in reading order:
+``OUT/figures/`` for people who work from a terminal.  The page holds, in reading order (the
+picture first, the numbers after):
 
 1. a summary (setup, method, reference camera, images used and rejected, mean residuals) and
    the warnings;
-2. the extrinsics ``T_ref_cam`` as tx ty tz yaw pitch roll with their uncertainty and time
+2. the rig in 3D and from above (:func:`multieye.outputs.figures_rig.rig_pngs`), with the
+   user's frame names and every camera's pose uncertainty drawn;
+3. per camera, its worst images with the detected points and their residuals drawn on the
+   pixels (:mod:`multieye.outputs.report_images`; when the run's image folders are known);
+4. the extrinsics ``T_ref_cam`` as tx ty tz yaw pitch roll with their uncertainty and time
    offsets when the run computed them, and the residuals per camera;
-3. the rig in 3D (:func:`multieye.outputs.figures.rig_png`);
-4. per-camera residual histograms and residuals over time;
-5. per camera, where the data was (:mod:`multieye.outputs.report_cameras`): the intrinsics
+5. per-camera residual histograms and residuals over time;
+6. per camera, where the data was (:mod:`multieye.outputs.report_cameras`): the intrinsics
    with their standard deviations when estimated, the coverage of the sensor by the target
    points, the reprojection residuals over the image and by radius, every image's RMS with
    the worst named, and the projection's uncertainty over the image (one figure per camera,
    ``figures/camera_<name>.png``, :func:`multieye.outputs.figures.camera_png`);
-6. the weak-motion diagnostics (``motion_diagnostics`` of ``calibration.json``, and the
+7. the weak-motion diagnostics (``motion_diagnostics`` of ``calibration.json``, and the
    free-form ``diagnostics`` of ``details.json``);
-7. the rejected images and measurements with their reasons.
+8. the rejected images and measurements with their reasons.
 
+The page reads on a phone as on a desktop: nothing is wider than the screen (figures take the
+full width, tables become one block per row on narrow screens).
 The page needs nothing else: figures are embedded as base64 PNG, the style is inline, there is
 no JavaScript, and a Content-Security-Policy forbids loading anything from anywhere, so a
 browser shows exactly what the file holds (and logs any attempt to load more as an error).
@@ -51,8 +57,8 @@ from multieye.core.metrics import pose_row
 from multieye.outputs.html import figure as _figure
 from multieye.outputs.html import num as _num
 from multieye.outputs.html import table as _table
+from multieye.outputs.report_images import THUMBNAIL, image_thumbnails, images_section
 from multieye.outputs.report_cameras import (
-    camera_figure_names,
     cameras_section,
     diagnostics_section,
 )
@@ -60,7 +66,11 @@ from multieye.outputs.report_cameras import (
 __all__ = ["FIGURES", "write_report", "report_html", "load_details"]
 
 #: File names of the figures in ``OUT/figures/``, in page order.
-FIGURES = ("rig.png", "residual_histograms.png", "residuals_over_time.png")
+FIGURES = ("rig_3d.png", "rig_top.png", "residual_histograms.png", "residuals_over_time.png",
+           "image_rms.png", "residuals_by_radius.png")
+
+#: Figures that earlier versions wrote (removed by a new report).
+_EARLIER_FIGURES = ("rig.png",)
 
 #: Names of the per-camera figures (:func:`~multieye.outputs.report_cameras.camera_figure_names`).
 _CAMERA_FIGURE = re.compile(r"camera_[A-Za-z0-9._-]+\.png")
@@ -74,7 +84,7 @@ _STYLE = """
 * { box-sizing: border-box; }
 body { margin: 0; color: var(--ink); background: #fff;
        font: 15px/1.5 system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif; }
-main { max-width: 1120px; margin: 0 auto; padding: 28px 32px 48px; }
+main { max-width: 1120px; margin: 0 auto; padding: 28px 32px 48px; overflow-wrap: anywhere; }
 h1 { font-size: 26px; margin: 0 0 4px; }
 h2 { font-size: 19px; margin: 36px 0 10px; padding-bottom: 4px; border-bottom: 2px solid var(--line); }
 h3 { font-size: 15px; margin: 18px 0 6px; }
@@ -85,8 +95,9 @@ p { margin: 6px 0 10px; }
 .card { background: var(--soft); border: 1px solid var(--line); border-radius: 6px; padding: 8px 12px; }
 .card .k { font-size: 12px; color: var(--muted); text-transform: uppercase; letter-spacing: .04em; }
 .card .v { font-size: 20px; font-weight: 600; font-variant-numeric: tabular-nums; }
-nav { font-size: 14px; color: var(--muted); margin: 8px 0 0; }
-nav a { color: var(--accent); text-decoration: none; margin-right: 14px; white-space: nowrap; }
+nav { font-size: 14px; color: var(--muted); margin: 8px 0 0; display: flex; flex-wrap: wrap;
+      gap: 4px 16px; }
+nav a { color: var(--accent); text-decoration: none; white-space: nowrap; }
 .box { border-left: 4px solid; border-radius: 4px; padding: 8px 14px; margin: 10px 0; }
 .box.warn { background: var(--warn-bg); border-color: var(--warn-line); }
 .box.ok { background: var(--ok-bg); border-color: var(--ok-line); }
@@ -103,7 +114,13 @@ tbody tr:nth-child(even) td { background: #fafbfc; }
 td.ref { font-weight: 600; }
 td.bad { color: #b3261e; font-weight: 600; }
 .wrap { overflow-x: auto; }
-figure { margin: 10px 0 18px; }
+figure { margin: 10px 0 18px; min-width: 0; }
+.pair { display: grid; grid-template-columns: repeat(auto-fit, minmax(min(100%, 420px), 1fr));
+        gap: 0 16px; }
+.thumbs { display: grid; grid-template-columns: repeat(auto-fill, minmax(min(100%, 300px), 1fr));
+          gap: 0 12px; }
+.thumbs figure { margin: 4px 0 10px; }
+.thumbs figure img { width: 100%; }
 figure img { display: block; max-width: 100%; height: auto; margin: 0 auto;
              border: 1px solid var(--line); border-radius: 4px; }
 figcaption { color: var(--muted); font-size: 13.5px; margin-top: 6px; }
@@ -114,6 +131,23 @@ pre.matrix { background: var(--soft); padding: 6px 10px; border-radius: 4px; fon
              overflow-x: auto; margin: 4px 0 10px; }
 footer { margin-top: 36px; padding-top: 10px; border-top: 1px solid var(--line);
          color: var(--muted); font-size: 13px; }
+@media (max-width: 640px) {
+  main { padding: 14px 12px 32px; }
+  h1 { font-size: 22px; }
+  .cards { grid-template-columns: repeat(2, minmax(0, 1fr)); }
+  .card .v { font-size: 17px; }
+  figure img { width: 100%; }
+  table { min-width: 0; width: 100%; }
+  table, tbody, tr, td { display: block; }
+  thead { display: none; }
+  tbody tr { border: 1px solid var(--line); border-radius: 4px; margin: 0 0 8px; }
+  tbody tr:nth-child(even) td { background: none; }
+  td { display: flex; justify-content: space-between; gap: 12px; text-align: right;
+       padding: 2px 8px; }
+  td::before { content: attr(data-label); color: var(--muted); text-align: left; }
+  td:first-child { background: var(--soft); font-weight: 600; }
+  td.l { text-align: right; }
+}
 @media print {
   body { font-size: 10.5pt; }
   main { max-width: none; padding: 0; }
@@ -142,10 +176,11 @@ def _summary(rec: CalibrationRecord, out: Path) -> str:
     sub = (f"{escape(rec.setup)} setup &middot; method <b>{escape(rec.method)}</b> &middot; "
            f"reference camera <b>{escape(rec.reference_camera)}</b> &middot; folder "
            f"<code>{escape(str(out))}</code>")
-    links = [("warnings", "Warnings"), ("extrinsics", "Extrinsics"), ("residuals", "Residuals"),
-             ("rig", "Rig"), ("histograms", "Histograms"), ("over-time", "Over time"),
-             ("cameras", "Cameras"), ("diagnostics", "Diagnostics"), ("rejected", "Rejected")]
-    nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in links)
+    links = [("warnings", "Warnings"), ("rig", "Rig"), ("images", "Images"),
+             ("extrinsics", "Extrinsics"), ("residuals", "Residuals"),
+             ("histograms", "Histograms"), ("over-time", "Over time"), ("cameras", "Cameras"),
+             ("diagnostics", "Diagnostics"), ("rejected", "Rejected")]
+    nav = " ".join(f'<a href="#{a}">{t}</a>' for a, t in links)
     shared = (f'<p class="note">Shared unknown <code>{escape(y_key)}</code>: translation '
               f"{_vector(pose_row(rec.Y)[:3], '.4f')} m, yaw pitch roll "
               f"{_vector(pose_row(rec.Y)[3:], '.3f')} deg.</p>")
@@ -266,9 +301,11 @@ def _residuals(rec: CalibrationRecord, details: RunDetails | None) -> str:
             "PnP of each image.</p></section>")
 
 
-def _figures(details: RunDetails | None, figures: Mapping[str, bytes]) -> str:
-    frame = "the world (motion-capture) frame" if details is not None else (
-        "the reference camera's frame (no <code>details.json</code>: cameras only)")
+def _rig(rec: CalibrationRecord, details: RunDetails | None, figures: Mapping[str, bytes],
+         legend: Sequence[str]) -> str:
+    world = (rec.frames or {}).get("world", "world")
+    frame = (f"the motion capture's frame <code>{escape(world)}</code>" if details is not None
+             else "the reference camera's frame (no <code>details.json</code>: cameras only)")
     if details is not None and details.setup == "eye-on-hand":
         where = ("The cameras move with the body and are drawn at one body pose (the reference "
                  "camera's middle image); the target estimates from every image cluster around "
@@ -276,34 +313,41 @@ def _figures(details: RunDetails | None, figures: Mapping[str, bytes]) -> str:
                  "line is the body's motion capture.")
     elif details is not None:
         where = ("The cameras are static; the dots are the target (its first corner) at every "
-                 "used image, from the motion capture and <code>T_marker_target</code>; the grey "
-                 "line is the marker body's motion capture during the images.")
+                 "used image, from the motion capture and the target's pose on the marker; the "
+                 "grey line is the marker's motion capture during the images.")
     else:
         where = ""
-    parts = ['<section id="rig"><h2>Rig</h2>',
-             _figure(figures["rig.png"], "3D plot of the camera rig",
-                     f"Camera frustums in {frame}, in 3D and seen from above. {where}",
-                     "rig.png"), "</section>"]
+    unc = "".join(f" {escape(line[0].upper() + line[1:])}." for line in legend)
+    pics = "".join(
+        _figure(figures[name], alt, cap, name) for name, alt, cap in (
+            ("rig_3d.png", "the camera rig in 3D", "In perspective."),
+            ("rig_top.png", "the camera rig seen from above", "From above.")))
+    return ('<section id="rig"><h2>Rig</h2>'
+            f'<div class="pair">{pics}</div><p class="note">Camera frustums in {frame}. '
+            f"{where}{unc}</p></section>")
+
+
+def _residual_figures(details: RunDetails | None, figures: Mapping[str, bytes]) -> str:
     if details is None:
         missing = ('<p class="note">Per-image residuals are in <code>details.json</code>, which '
                    "this output folder does not have; rerun <code>multieye calibrate</code> to "
                    "get histograms and residuals over time.</p>")
-        parts += [f'<section id="histograms"><h2>Residual histograms</h2>{missing}</section>',
-                  f'<section id="over-time"><h2>Residuals over time</h2>{missing}</section>']
-        return "".join(parts)
-    parts += ['<section id="histograms"><h2>Residual histograms</h2>',
-              _figure(figures["residual_histograms.png"], "residual histograms per camera",
-                      "Loop residuals of every used image, one row per camera; bins are shared "
-                      "down each column so that cameras compare at a glance. Solid line: "
-                      "median, dashed: mean.", "residual_histograms.png"),
-              "</section>",
-              '<section id="over-time"><h2>Residuals over time</h2>',
-              _figure(figures["residuals_over_time.png"], "residuals over time per camera",
-                      "The same residuals against each camera's time. Drifts point to a "
-                      "clock offset or a moving mount; red circles mark images above three "
-                      "times their camera's median.", "residuals_over_time.png"),
-              "</section>"]
-    return "".join(parts)
+        return (f'<section id="histograms"><h2>Residual histograms</h2>{missing}</section>'
+                f'<section id="over-time"><h2>Residuals over time</h2>{missing}</section>')
+    return "".join([
+        '<section id="histograms"><h2>Residual histograms</h2>',
+        _figure(figures["residual_histograms.png"], "residual histograms per camera",
+                "Loop residuals of every used image, one row per camera; bins are shared "
+                "down each column so that cameras compare at a glance. Solid line: "
+                "median, dashed: mean.", "residual_histograms.png"),
+        "</section>",
+        '<section id="over-time"><h2>Residuals over time</h2>',
+        _figure(figures["residuals_over_time.png"], "residuals over time per camera",
+                "The same residuals against each camera's time (against the image's place in "
+                "name order where the images carry no time, e.g. poses matched by name). "
+                "Drifts point to a clock offset or a moving mount; red circles mark images "
+                "above three times their camera's median.", "residuals_over_time.png"),
+        "</section>"])
 
 
 def _rejected(rec: CalibrationRecord) -> str:
@@ -356,7 +400,8 @@ def load_details(out_dir: str | os.PathLike,
 
 def report_html(rec: CalibrationRecord, details: RunDetails | None,
                 figures: Mapping[str, bytes], *, out_dir: str | os.PathLike = ".",
-                notes: Sequence[str] = ()) -> str:
+                notes: Sequence[str] = (), thumbnails: Mapping | None = None,
+                rig_legend: Sequence[str] = ()) -> str:
     """The report page as a string (see the module docstring).
 
     Parameters
@@ -365,18 +410,25 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
     details : RunDetails or None
     figures : mapping of str to bytes
         PNG bytes by file name (:data:`FIGURES` and the cameras' figures,
-        :func:`~multieye.outputs.report_cameras.camera_figure_names`; only ``rig.png``
+        :func:`~multieye.outputs.report_cameras.camera_figure_names`; only the rig's
         without details).
     out_dir : path-like
         Shown in the header.
     notes : sequence of str
         Shown under the warnings (e.g. why ``details.json`` was left out).
+    thumbnails : mapping, optional
+        Camera name -> its drawn images
+        (:func:`~multieye.outputs.report_images.image_thumbnails`).
+    rig_legend : sequence of str
+        What the marks of the rig pictures mean (:class:`~multieye.outputs.figures_rig.
+        RigFigures`).
     """
     from multieye.core.version import __version__
 
     body = "".join([
-        _summary(rec, Path(out_dir)), _warnings(rec, notes), _extrinsics(rec),
-        _residuals(rec, details), _figures(details, figures),
+        _summary(rec, Path(out_dir)), _warnings(rec, notes), _rig(rec, details, figures, rig_legend),
+        images_section(rec, details, thumbnails or {}), _extrinsics(rec),
+        _residuals(rec, details), _residual_figures(details, figures),
         cameras_section(rec, details, figures), diagnostics_section(rec, details),
         _rejected(rec),
         f"<footer>Written by multieye {escape(__version__)} from <code>calibration.json</code>"
@@ -391,8 +443,10 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
             f"</title><style>{_STYLE}</style></head><body><main>{body}</main></body></html>\n")
 
 
-def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | None = None) -> Path:
-    """Write ``OUT/report.html`` and ``OUT/figures/*.png`` from ``OUT/calibration.json``.
+def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | None = None,
+                 images: Mapping[str, str | os.PathLike] | None = None,
+                 processes: int | None = None) -> Path:
+    """Write ``OUT/report.html`` and ``OUT/figures/*`` from ``OUT/calibration.json``.
 
     Parameters
     ----------
@@ -401,6 +455,14 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     shown_as : path-like, optional
         The folder named on the page, when the report is built in a staging folder that is
         moved into place afterwards (``multieye.pipeline.write_outputs``).
+    images : mapping of str to path-like, optional
+        Camera name -> the folder its images were read from
+        (:func:`~multieye.outputs.report_images.image_folders` of the run); without it the
+        report draws no image.
+    processes : int, optional
+        At most this many processes draw the figures
+        (:func:`~multieye.outputs.report_draw.draw_figures`; default: two where two cores
+        are available and there is enough to draw).
 
     Returns
     -------
@@ -412,33 +474,29 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     DatasetError
         ``calibration.json`` is missing or invalid, or the folder is not writable.
     """
-    from multieye.outputs.figures import (
-        camera_colours, camera_png, residual_histograms_png, residuals_over_time_png, rig_png)
+    from multieye.outputs.report_draw import draw_figures
 
     out = Path(out_dir)
     rec = read_calibration(out / "calibration.json")
     details, notes = load_details(out, rec)
-    figures = {"rig.png": rig_png(rec, details)}
-    if details is not None:
-        figures["residual_histograms.png"] = residual_histograms_png(details)
-        figures["residuals_over_time.png"] = residuals_over_time_png(details)
-        files = camera_figure_names(c.name for c in rec.cameras)
-        colours = camera_colours(len(rec.cameras))
-        for j, c in enumerate(rec.cameras):
-            cam = details.camera(c.name)
-            if cam.points is not None:
-                figures[files[c.name]] = camera_png(cam, colours[j])
+    figures, legend, thumbnails = draw_figures(
+        rec, details, processes=processes,
+        also=lambda: image_thumbnails(rec, details, images))
+    files_written = dict(figures)
+    files_written.update({t.file: t.jpeg for thumbs in thumbnails.values() for t in thumbs})
     folder = out / "figures"
     try:
         folder.mkdir(exist_ok=True)
     except OSError as exc:
         raise DatasetError(f"cannot create the figures folder: {exc.strerror}", path=folder) from exc
-    for name, png in figures.items():
-        write_bytes_atomic(folder / name, png)
+    for name, data in files_written.items():
+        write_bytes_atomic(folder / name, data)
     for path in folder.iterdir():  # figures of an earlier report that this one does not have
-        if path.name not in figures and (path.name in FIGURES or _CAMERA_FIGURE.fullmatch(
-                path.name)) and path.is_file():
+        if path.name not in files_written and (
+                path.name in FIGURES or path.name in _EARLIER_FIGURES
+                or _CAMERA_FIGURE.fullmatch(path.name) or THUMBNAIL.fullmatch(path.name)
+        ) and path.is_file():
             path.unlink()
     html = report_html(rec, details, figures, out_dir=Path(shown_as) if shown_as else out,
-                       notes=notes)
+                       notes=notes, thumbnails=thumbnails, rig_legend=legend)
     return write_text_atomic(out / "report.html", html)

@@ -2,8 +2,8 @@
 
 - :func:`cameras_section`: per camera, the intrinsics (with their standard deviations when
   estimated, "given" otherwise), the figure of :func:`multieye.outputs.figures.camera_png`
-  (coverage over the sensor, residual vectors, projection uncertainty, residuals by radius,
-  every image's RMS) and the worst images;
+  (coverage over the sensor, residual vectors, projection uncertainty) and the worst images,
+  after two figures of all cameras (every image's RMS, residuals by radius);
 - :func:`diagnostics_section`: the weak-motion diagnostics of ``calibration.json``
   (``motion_diagnostics``), flagged where the calibration warns, and any free-form
   ``diagnostics`` of ``details.json``.
@@ -36,7 +36,7 @@ from multieye.outputs.html import figure, num, table, value_text
 from multieye.outputs.image_stats import MAX_ARROWS, worst_images
 
 __all__ = ["camera_figure_names", "cameras_section", "diagnostics_section", "intrinsics_table",
-           "WORST_IMAGES"]
+           "WORST_IMAGES", "ALL_CAMERA_FIGURES"]
 
 #: Images listed per camera under "worst images".
 WORST_IMAGES = 5
@@ -138,16 +138,16 @@ def _camera_block(rec_cam, cam: CameraDetails | None, png: bytes | None, name: s
     sub = ("" if pts.kept == pts.n_points else
            f" {pts.kept} of the {pts.n_points} points are drawn (evenly subsampled).")
     caption = (
-        f"Where {escape(cam.name)} saw the target. Top: the detected target points on the "
-        "image (+: principal point; shaded: cells of a 4 x 4 grid without any point); their "
-        f"residuals (projection by {source} minus detection) as magnified vectors, one per "
-        f"point or, above {MAX_ARROWS} points, their mean in each cell of a 16-column grid; "
+        f"Where {escape(cam.name)} saw the target. Left: the detected target points on the "
+        "image (+: principal point; shaded: cells of a 4 x 4 grid without any point) and "
+        f"their residuals (projection by {source} minus detection) as magnified vectors, one "
+        f"per point or, above {MAX_ARROWS} points, their mean in each cell of a 16-column "
+        "grid. Right: "
         + ("the standard deviation of the projection of a fixed camera-frame ray from the "
            "intrinsics' covariance, √(tr(J Σ Jᵀ)/2) with J the derivative of the pixel by "
            "the intrinsics (white: outside the lens model's invertible range)"
            if cam.projection_std is not None else "the RMS residual in cells of the image")
-        + ". Bottom: residual length against the distance from the principal point, and "
-        f"every used image's RMS.{sub}")
+        + f".{sub}")
     out.append(figure(png, f"target coverage and residuals of {cam.name}", caption, name))
     worst = worst_images(cam, WORST_IMAGES)
     if worst:
@@ -162,15 +162,30 @@ def _camera_block(rec_cam, cam: CameraDetails | None, png: bytes | None, name: s
     return "".join(out)
 
 
+#: Figures of the cameras section about every camera at once, in page order.
+ALL_CAMERA_FIGURES = ("image_rms.png", "residuals_by_radius.png")
+
+
 def cameras_section(rec: CalibrationRecord, details: RunDetails | None,
                     figures: Mapping[str, bytes]) -> str:
     """The per-camera section (module docstring); ``figures`` by file name
-    (:func:`camera_figure_names`)."""
+    (:data:`ALL_CAMERA_FIGURES` and :func:`camera_figure_names`)."""
     head = '<section id="cameras"><h2>Cameras: intrinsics and where the target was seen</h2>'
+    together = ""
+    if "image_rms.png" in figures:
+        together += figure(figures["image_rms.png"], "reprojection RMS of every image",
+                           "Every used image's reprojection RMS, one lane per camera, in time (or name) "
+                           "order; red and numbered: each camera's worst images (drawn above, "
+                           "listed below).", "image_rms.png")
+    if "residuals_by_radius.png" in figures:
+        together += figure(figures["residuals_by_radius.png"], "residuals by radius",
+                           "Reprojection residuals against the distance from the principal "
+                           "point: a lens model that does not fit grows them towards the "
+                           "corners.", "residuals_by_radius.png")
     files = camera_figure_names(c.name for c in rec.cameras)
     blocks = [_camera_block(c, None if details is None else details.camera(c.name),
                             figures.get(files[c.name]), files[c.name]) for c in rec.cameras]
-    return head + "".join(blocks) + "</section>"
+    return head + together + "".join(blocks) + "</section>"
 
 
 # --------------------------------------------------------------------------- diagnostics

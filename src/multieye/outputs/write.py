@@ -19,6 +19,7 @@ from multieye.outputs.details import camera_overlaps, camera_topic, write_run_de
 from multieye.outputs.export import kalibr_chain
 from multieye.outputs.folder import staged_output
 from multieye.outputs.report import write_report
+from multieye.outputs.report_images import image_folders
 from multieye.pipeline import CalibrationRun
 
 __all__ = ["WrittenOutputs", "write_outputs", "write_output_files"]
@@ -118,7 +119,7 @@ def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: 
     details = write_run_details(folder / "details.json", run, diagnostics=diagnostics)
     names.append("details.json")
     if report:
-        write_report(folder, shown_as=final.resolve())
+        write_report(folder, shown_as=final.resolve(), images=image_folders(run))
         names += ["report.html", "figures"]
     return names, notes, details
 

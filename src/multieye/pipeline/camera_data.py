@@ -35,6 +35,7 @@ from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
 from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
 from multieye.solvers.measurements import MIN_MEASUREMENTS
+from multieye.imaging.pnp import ambiguity_warning
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
            "camera_motion", "pair_stamps", "pair_camera", "rejection_kind", "BY_NAME_TOLERANCE"]
@@ -56,6 +57,11 @@ class Observation:
         Detected target points in the target frame, metres.
     image_points : ndarray, shape (n, 2), or None
         Their pixels.
+    alternative : ndarray, shape (4, 4), or None
+        The target's other PnP pose (a single marker's mirrored pose,
+        :attr:`multieye.imaging.pnp.PoseEstimate.alternative`), for the consensus to choose.
+    alternative_rms_px : float or None
+        Its reprojection RMS, pixels.
     """
 
     name: str
@@ -64,6 +70,8 @@ class Observation:
     rms_px: float | None = None
     object_points: np.ndarray | None = None
     image_points: np.ndarray | None = None
+    alternative: np.ndarray | None = None
+    alternative_rms_px: float | None = None
 
 
 @dataclass(frozen=True)
@@ -242,10 +250,14 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
             obs.append(Observation(name=label, stamp=stamp, T_cam_target=res.pose.T_cam_target,
                                    rms_px=res.pose.rms_px,
                                    object_points=res.detection.object_points,
-                                   image_points=res.detection.image_points))
+                                   image_points=res.detection.image_points,
+                                   alternative=res.pose.alternative,
+                                   alternative_rms_px=res.pose.alternative_rms_px))
             warnings.extend(f"{name}/{label}: {w}" for w in res.warnings)
         else:
             rejected.append(RejectedItem(label, res.reason))
+    # pose ambiguity (single marker): warn when the two poses fit alike in most images
+    warnings.extend(w for w in [ambiguity_warning(name, [r.pose for r in results if r.ok])] if w)
     if not obs:
         raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
                            camera=name)

@@ -70,8 +70,6 @@ class Pairing:
         The measurements kept (after the consensus, when it ran).
     measurements : Measurements
         The same, validated once, in the order of ``paired``: what the closed form takes.
-    every : dict of str to PairedCamera
-        Every paired measurement, before the consensus: what the plausibility checks see.
     warnings : tuple of str
         What the cameras' loading and the consensus doubt.
     """
@@ -79,5 +77,4 @@ class Pairing:
     offsets: dict[str, float]
     paired: dict[str, PairedCamera]
     measurements: Measurements
-    every: dict[str, PairedCamera]
     warnings: tuple[str, ...] = ()

@@ -8,10 +8,13 @@ Each stage is a function from typed input to typed output, keyed by camera name:
    :class:`~multieye.pipeline.problem.Problem`.
 2. pair: clock offsets, pairing with the motion capture in time -> ``A``, ``B``
    (docs/conventions.md, section 2) -> :class:`~multieye.pipeline.problem.Pairing`.
-3. consensus: the measurements that agree -> a smaller ``Pairing``.
+3. consensus: the measurements that agree, and each single marker's pose of the two PnP
+   gives (:mod:`multieye.pipeline.ambiguity`) -> a smaller ``Pairing``.
 4. closed form: :func:`multieye.solve` -> :class:`ClosedForm`.
-5. plausibility: :func:`multieye.estimate.plausibility.check_plausibility`.
-6. refine: :func:`multieye.pipeline.refine.refine` -> ``Refined``.
+5. plausibility: :func:`multieye.estimate.plausibility.check_plausibility` on the kept
+   measurements.
+6. refine: :func:`multieye.pipeline.refine.refine` -> ``Refined``; then the noise it
+   estimated checked against the sensor (:func:`multieye.estimate.plausibility.check_noise`).
 7. summarise: :func:`multieye.pipeline.record.build_record` -> :class:`CalibrationRun`,
    which ``multieye.outputs.write.write_outputs`` writes.
 
@@ -37,9 +40,16 @@ from multieye.core.errors import CalibrationError, TooFewMeasurementsError
 from multieye.estimate.clock import estimate_offset
 from multieye.estimate.consensus import consensus
 from multieye.estimate.diagnostics import MotionDiagnostics, motion_diagnostics
-from multieye.estimate.plausibility import CameraEvidence, Declared, Plausibility, check_plausibility
+from multieye.estimate.plausibility import (
+    CameraEvidence,
+    Declared,
+    Plausibility,
+    check_noise,
+    check_plausibility,
+)
 from multieye.io import RejectedItem, Rig, load_rig
 from multieye.io.run_details import StageTimings
+from multieye.pipeline import ambiguity  # single markers: the rig chooses each image's pose
 from multieye.pipeline.camera_data import (
     CameraData,
     Observation,
@@ -78,6 +88,15 @@ CLOCK_MIN_SCORE = 0.5
 #: Inlier thresholds of the consensus (loop rotation residual, target position residual),
 #: then the wider ones tried when too few measurements of a camera agree with the first.
 CONSENSUS_THRESHOLDS = ((5.0, 0.05), (15.0, 0.15))
+
+
+@dataclass(frozen=True)
+class Checks:
+    """What the plausibility checks doubt: after the closed form, and at the end (with the
+    motion-capture noise the refinement estimated checked against the sensor)."""
+
+    solved: Plausibility
+    final: Plausibility
 
 
 @dataclass(frozen=True)
@@ -144,17 +163,21 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     problem = make_problem(rig, cameras, updated_options(options, kw))
     every = pair(problem)
 
-    def check() -> Plausibility:
+    def check() -> Plausibility:      # every measurement: why a failing stage failed
         return check_pairing(problem, every)
 
-    kept = keep_consensus(problem, every, check) if problem.options.robust else every
+    if problem.options.robust:
+        kept = keep_consensus(problem, every, check)
+    else:
+        kept = choose_without_consensus(problem, every)
     clock.append(time.perf_counter())
     closed = solve_closed_form(problem, kept, check)
-    plausibility = check()
+    solved = check_pairing(problem, kept)
     clock.append(time.perf_counter())
     refined = refine(problem, kept, closed.solution)
     clock.append(time.perf_counter())
-    run = summarise(problem, kept, closed, plausibility, refined)
+    checks = Checks(solved=solved, final=check_refined(problem, kept, solved, refined))
+    run = summarise(problem, kept, closed, checks, refined)
     return replace(run, timings=StageTimings(
         pairing=clock[1] - clock[0], closed_form=clock[2] - clock[1],
         refinement=clock[3] - clock[2], total=time.perf_counter() - clock[0]))
@@ -168,7 +191,7 @@ def pair(problem: Problem) -> Pairing:
               for n, d in problem.cameras.items()}
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=list(paired), per_camera_motion=False)
-    return Pairing(offsets=offsets, paired=paired, measurements=meas, every=paired,
+    return Pairing(offsets=offsets, paired=paired, measurements=meas,
                    warnings=tuple(w for d in problem.cameras.values() for w in d.warnings))
 
 
@@ -215,24 +238,35 @@ def keep_consensus(problem: Problem, pairing: Pairing, check: Callable[[], Plaus
     warnings: list[str] = []
     try:
         cons = _consensus(pairing.measurements, warnings,
-                          [[o.name for o in p.observations] for p in pairing.paired.values()])
+                          [[o.name for o in p.observations] for p in pairing.paired.values()],
+                          ambiguity.alternatives(pairing.paired.values()))
     except TooFewMeasurementsError as exc:
         raise _failed(exc, check) from None
     by_cam: dict[str, dict[int, str]] = {n: {} for n in pairing.paired}
     for r in cons.rejected:
         by_cam[r.camera][r.index] = r.reason
-    paired = {n: _keep(p, cons.inliers[j], by_cam[n])
+    paired = {n: _keep(ambiguity.with_choice(p, cons.alternative[j]), cons.inliers[j], by_cam[n])
               for j, (n, p) in enumerate(pairing.paired.items())}
-    return replace(pairing, paired=paired, measurements=pairing.measurements.select(cons.inliers),
+    return replace(pairing, paired=paired,
+                   measurements=ambiguity.kept_measurements(pairing.measurements, cons, paired),
                    warnings=pairing.warnings + tuple(warnings))
 
 
-def _consensus(meas: Measurements, warnings: list[str], labels=None):
+def choose_without_consensus(problem: Problem, pairing: Pairing) -> Pairing:
+    """Every measurement kept; a single marker's pose of the two PnP gives chosen by the
+    closed form (:func:`multieye.pipeline.ambiguity.closed_form_choice`)."""
+    paired, meas = ambiguity.closed_form_choice(pairing.paired, pairing.measurements,
+                                                problem.options.method)
+    return replace(pairing, paired=paired, measurements=meas)
+
+
+def _consensus(meas: Measurements, warnings: list[str], labels=None, alternatives=None):
     """RANSAC over measurements with fixed thresholds (never thresholds taken from a fit
     that the outliers themselves pulled); wider ones once if the data are noisier."""
     for k, (rot, trans) in enumerate(CONSENSUS_THRESHOLDS):
         try:
-            return consensus(meas, threshold_rot_deg=rot, threshold_trans_m=trans, labels=labels)
+            return consensus(meas, threshold_rot_deg=rot, threshold_trans_m=trans, labels=labels,
+                             B_alternative=alternatives)
         except TooFewMeasurementsError as exc:
             if k + 1 == len(CONSENSUS_THRESHOLDS):
                 raise TooFewMeasurementsError(
@@ -263,13 +297,14 @@ def solve_closed_form(problem: Problem, pairing: Pairing, check: Callable[[], Pl
 
 
 def check_pairing(problem: Problem, pairing: Pairing) -> Plausibility:
-    """The plausibility checks on every paired measurement (the consensus outliers too: the
-    checks trim their own), with the motion-capture noise rig.yaml states."""
+    """The plausibility checks on the pairing's measurements (the kept ones; every one when
+    a stage failed), with the motion-capture noise rig.yaml states."""
     rig, opts = problem.rig, problem.options
     evidence = [_evidence(problem.cameras[n], p, pairing.offsets[n])
-                for n, p in pairing.every.items()]
-    spec, rot, trans = mocap_noise(rig, pairing.every, opts)
-    declared = Declared(spacing_m=None if rig.target is None else rig.target.spacing,
+                for n, p in pairing.paired.items()]
+    spec, rot, trans = mocap_noise(rig, pairing.paired, opts)
+    declared = Declared(spacing_m=None if rig.target is None else rig.target.spacing, mocap=spec,
+                        target_kind=None if rig.target is None else rig.target.type,
                         mocap_unit=(spec.unit if spec is not None else None) or "m",
                         mocap_pose=None if spec is None else spec.pose,
                         mocap_frames=None if spec is None else spec.frames,
@@ -295,6 +330,16 @@ def _evidence(d: CameraData, p: PairedCamera, offset: float) -> CameraEvidence:
         intrinsics_estimated=d.intrinsics_estimated)
 
 
+def check_refined(problem: Problem, pairing: Pairing, solved: Plausibility, refined: Refined
+                  ) -> Plausibility:
+    """``solved`` with the motion-capture noise the refinement estimated checked against what
+    the sensor has (issue 20); ``solved`` itself without a refinement."""
+    if refined.refinement is None:
+        return solved
+    return check_noise(solved, refined.refinement.result,
+                       mocap_noise(problem.rig, pairing.paired, problem.options)[0])
+
+
 def _failed(exc: CalibrationError, check: Callable[[], Plausibility]) -> CalibrationError:
     """``exc`` (no result) with the likely cause the plausibility checks find first, if any."""
     found = check()
@@ -303,7 +348,7 @@ def _failed(exc: CalibrationError, check: Callable[[], Plausibility]) -> Calibra
     return type(exc)(f"{'; '.join(found.messages)} (so the calibration failed: {exc})")
 
 
-def summarise(problem: Problem, pairing: Pairing, closed: ClosedForm, plausibility: Plausibility,
+def summarise(problem: Problem, pairing: Pairing, closed: ClosedForm, checks: Checks,
               refined: Refined) -> CalibrationRun:
     """The run: the record of the final result (refined when the refinement ran), the
     warnings of every stage in their order, and, for estimated lenses, the refined lenses
@@ -311,8 +356,9 @@ def summarise(problem: Problem, pairing: Pairing, closed: ClosedForm, plausibili
     refinement = refined.refinement
     estimated = {} if refinement is None else refinement.intrinsics
     cameras = problem.cameras
-    warnings = [*pairing.warnings, *closed.motion.warnings, *plausibility.messages,
+    warnings = [*pairing.warnings, *closed.motion.warnings, *checks.solved.messages,
                 *refined.warnings]
+    warnings.extend(m for m in checks.final.messages if m not in warnings)
     unrefined = [n for n, d in cameras.items() if d.intrinsics_estimated and n not in estimated]
     if unrefined:
         warnings.append(f"{', '.join(unrefined)}: the intrinsics are OpenCV's per-camera "
@@ -322,9 +368,9 @@ def summarise(problem: Problem, pairing: Pairing, closed: ClosedForm, plausibili
     final = replace(pairing, paired={
         n: refit_paired(p, estimated[n]) if cameras[n].intrinsics_estimated and n in estimated
         else p for n, p in pairing.paired.items()})
-    record = build_record(problem, final, closed, plausibility, refined, warnings)
+    record = build_record(problem, final, closed, checks.final, refined, warnings)
     return CalibrationRun(rig=problem.rig, record=record, closed_form=closed.solution,
                           cameras={n: replace(d, intrinsics=estimated.get(n, d.intrinsics))
                                    for n, d in cameras.items()} if estimated else cameras,
                           paired=final.paired, refinement=refinement,
-                          plausibility=plausibility)
+                          plausibility=checks.final)

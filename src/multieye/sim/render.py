@@ -40,7 +40,8 @@ from scipy import sparse
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, undistort_points
-from multieye.imaging.targets import AprilGrid, AsymmetricCircleGrid, Charuco, Chessboard, CircleGrid, Target
+from multieye.imaging.targets import (AprilGrid, ArucoMarker, AsymmetricCircleGrid, Charuco, Chessboard,
+                                     CircleGrid, Target)
 
 __all__ = ["render", "visible", "board_outline"]
 
@@ -312,6 +313,26 @@ def _(target: Charuco, x, y):
     val = np.ones(ks.shape, dtype=np.float32)
     val[in_marker] = bits[ks[in_marker], v[in_marker], u[in_marker]]
     out[sel] = val
+    return out
+
+
+@lru_cache(maxsize=16)
+def _aruco_bits(dictionary: str, marker_id: int) -> np.ndarray:
+    """One ArUco marker's cells (border included), 0 black, 1 white, float32."""
+    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
+    return cv2.aruco.generateImageMarker(d, int(marker_id), d.markerSize + 2,
+                                         borderBits=1).astype(np.float32) / 255.0
+
+
+@_reflectance.register
+def _(target: ArucoMarker, x, y):
+    bits = _aruco_bits(target.dictionary, target.id)
+    n = bits.shape[0]
+    u = np.floor(x / target.spacing * n).astype(np.int64)
+    v = np.floor(y / target.spacing * n).astype(np.int64)
+    inside = (u >= 0) & (u < n) & (v >= 0) & (v < n)
+    out = np.ones(x.shape, dtype=np.float32)
+    out[inside] = bits[v[inside], u[inside]]
     return out
 
 
