@@ -67,7 +67,8 @@ import numpy as np
 from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.io.atomic import write_text_atomic
+from multieye.core.names import file_stems
+from multieye.io.atomic import confined_to, make_folder, write_text_atomic
 from multieye.io.intrinsics import camera_info_text, distortion_model_name
 from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict, named_keys,
                                           read_calibration)
@@ -466,7 +467,10 @@ def _tracked_frame(out: Path) -> str | None:
 
 def _camera_infos(folder: Path, rec: CalibrationRecord, intr: dict,
                   notes: list[str]) -> list[Path]:
-    """One camera_info YAML per camera ROS can describe; the others named in ``notes``."""
+    """One camera_info YAML per camera ROS can describe, named by the camera's name as a file
+    name (:func:`multieye.core.names.file_stem`); the others named in ``notes``."""
+    stems = file_stems((c.name for c in rec.cameras),
+                       what="file export/camera_info/<camera>.yaml")
     paths, left = [], []
     for cam in rec.cameras:
         if intr.get(cam.name) is None:
@@ -477,7 +481,7 @@ def _camera_infos(folder: Path, rec: CalibrationRecord, intr: dict,
         except InputError as exc:
             left.append(f"{cam.name} ({exc})")
             continue
-        paths.append(folder / f"{cam.name}.yaml")
+        paths.append(folder / f"{stems[cam.name]}.yaml")
         write_text_atomic(paths[-1], text)
     if left:
         notes.append("no camera_info for " + "; ".join(left))
@@ -523,20 +527,30 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
     out = Path(out_dir)
     rec = read_calibration(out / "calibration.json")
     folder = Path(dest) if dest is not None else out / "export"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise DatasetError(f"cannot create the export folder: {exc.strerror}", path=folder) from exc
-    notes = [] if notes is None else notes
+    # Nothing written through a link below the folder the files belong in (docs/outputs.md).
+    with confined_to(out if dest is None else folder):
+        return _export(out, rec, fmt, folder, dest, [] if notes is None else notes,
+                       parent_frame, child_frame)
+
+
+def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, notes: list[str],
+            parent_frame: str | None, child_frame: str | None) -> list[Path]:
+    """:func:`export` once the calibration is read, inside its confined folder."""
+    if dest is None:
+        make_folder(folder)
+    else:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise DatasetError(f"cannot create the export folder: {exc.strerror}",
+                               path=folder) from exc
     if parent_frame is None and rec.setup == "eye-on-hand" and rec.frames is None:
         parent_frame = _tracked_frame(out)      # calibration.json of an earlier version
     frame_names(rec, parent_frame, child_frame)        # checked before anything is written
     if fmt == "camera-info":
+        file_stems((c.name for c in rec.cameras), what="file export/camera_info/<camera>.yaml")
         sub = folder / "camera_info"
-        try:
-            sub.mkdir(exist_ok=True)
-        except OSError as exc:
-            raise DatasetError(f"cannot create the folder: {exc.strerror}", path=sub) from exc
+        make_folder(sub)
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
         return _camera_infos(sub, rec, intr, notes)
     path = folder / FORMATS[fmt]
