@@ -63,6 +63,20 @@ def _echo(text: str, err: bool = False) -> None:
     click.echo(_shown(text), err=err)
 
 
+def _utf8_dataset(dataset: Path) -> None:
+    """Refuse a dataset path with bytes that are not UTF-8: OpenCV, which opens the images and
+    the FileStorage intrinsics by name, crashes on such a name (a segmentation fault)."""
+    from multieye.core.errors import DatasetError
+
+    full = os.path.abspath(dataset)
+    try:
+        os.fsencode(full).decode("utf-8")
+    except UnicodeDecodeError:
+        raise DatasetError("the path holds bytes that are not UTF-8, which OpenCV cannot open: "
+                           "rename the folder (or run from a folder whose path is UTF-8)",
+                           path=full) from None
+
+
 def _user_errors(fn):
     """Turn CalibrationError (and unreadable files) into one line on stderr and exit 2;
     SIGINT, SIGTERM and SIGHUP into one line and exit 128 + the signal number."""
@@ -153,6 +167,7 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
         if not math.isfinite(time_offset):
             raise click.BadParameter("expected rig, auto or a finite number of seconds",
                                      param_hint="--time-offset")
+    _utf8_dataset(dataset)
     with claim_output(out_dir, inputs=[dataset]):   # one run per folder, checked before work
         run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
                               robust=not no_robust, time_offset=time_offset,
@@ -188,6 +203,7 @@ def check(dataset: Path, sample: int, processes: int | None):
     from multieye.pipeline.check import check_dataset
     from multieye.outputs.summary import check_table
 
+    _utf8_dataset(dataset)
     result = check_dataset(dataset, sample=sample, processes=processes)
     _echo(check_table(result))
     for reason in result.reasons:

@@ -465,29 +465,25 @@ def _tracked_frame(out: Path) -> str | None:
     return frames[0] if len(frames) == 1 else None
 
 
-def _camera_infos(folder: Path, rec: CalibrationRecord, intr: dict,
-                  notes: list[str]) -> list[Path]:
-    """One camera_info YAML per camera ROS can describe, named by the camera's name as a file
-    name (:func:`multieye.core.names.file_stem`); the others named in ``notes``."""
+def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
+    """One camera_info YAML per camera ROS can describe, by file name (the camera's name as a
+    file name, :func:`multieye.core.names.file_stem`); the others named in ``notes``."""
     stems = file_stems((c.name for c in rec.cameras),
                        what="file export/camera_info/<camera>.yaml")
-    paths, left = [], []
+    texts, left = {}, []
     for cam in rec.cameras:
         if intr.get(cam.name) is None:
             left.append(f"{cam.name} (no intrinsics)")
             continue
         try:
-            text = camera_info_text(intr[cam.name], cam.name)
+            texts[f"{stems[cam.name]}.yaml"] = camera_info_text(intr[cam.name], cam.name)
         except InputError as exc:
             left.append(f"{cam.name} ({exc})")
-            continue
-        paths.append(folder / f"{stems[cam.name]}.yaml")
-        write_text_atomic(paths[-1], text)
     if left:
         notes.append("no camera_info for " + "; ".join(left))
-    if not paths:
+    if not texts:
         raise InputError("ROS camera_info cannot describe any camera: " + "; ".join(left))
-    return paths
+    return texts
 
 
 def export(out_dir: str | os.PathLike, fmt: str, *,
@@ -535,25 +531,19 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
 
 def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, notes: list[str],
             parent_frame: str | None, child_frame: str | None) -> list[Path]:
-    """:func:`export` once the calibration is read, inside its confined folder."""
-    if dest is None:
-        make_folder(folder)
-    else:
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise DatasetError(f"cannot create the export folder: {exc.strerror}",
-                               path=folder) from exc
+    """:func:`export` once the calibration is read, inside its confined folder: everything
+    is read and checked before the folder is created and the first file written."""
     if parent_frame is None and rec.setup == "eye-on-hand" and rec.frames is None:
         parent_frame = _tracked_frame(out)      # calibration.json of an earlier version
-    frame_names(rec, parent_frame, child_frame)        # checked before anything is written
-    if fmt == "camera-info":
-        file_stems((c.name for c in rec.cameras), what="file export/camera_info/<camera>.yaml")
-        sub = folder / "camera_info"
-        make_folder(sub)
-        intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
-        return _camera_infos(sub, rec, intr, notes)
+    frame_names(rec, parent_frame, child_frame)
     path = folder / FORMATS[fmt]
+    if fmt == "camera-info":
+        intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
+        texts = _camera_infos(rec, intr, notes)
+        _export_folder(folder, dest)
+        make_folder(folder / "camera_info")
+        return [write_text_atomic(folder / "camera_info" / name, text)
+                for name, text in texts.items()]
     if fmt == "kalibr":
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
         cams = read_run_details(out / "details.json").cameras
@@ -562,18 +552,32 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
         kept, left = kalibr_chain(rec, intr, {c.name: c.topic for c in cams}, overlaps)
         if not kept:
             raise InputError("Kalibr cannot hold any camera: " + "; ".join(left))
+        _export_folder(folder, dest)
         write_camchain(path, kept, comments=[f"left out of this camchain: {c}" for c in left])
         if left:
             notes.append(f"camchain.yaml holds {', '.join(e.name for e in kept)} only; left "
                          "out: " + "; ".join(left))
-    elif fmt == "opencv":
-        write_text_atomic(path, opencv_text(rec, _intrinsics(out, rec, required=False),
-                                            parent_frame))
+        return [path]
+    if fmt == "opencv":
+        text = opencv_text(rec, _intrinsics(out, rec, required=False), parent_frame)
     elif fmt == "urdf":
-        write_text_atomic(path, urdf_text(rec, parent_frame, child_frame))
+        text = urdf_text(rec, parent_frame, child_frame)
     elif fmt == "tf-static":
-        write_text_atomic(path, tf_static_text(rec, parent_frame, child_frame))
+        text = tf_static_text(rec, parent_frame, child_frame)
     else:  # json
-        text = json.dumps(calibration_to_dict(rec), separators=(",", ":"), allow_nan=False)
-        write_text_atomic(path, text + "\n")
+        text = json.dumps(calibration_to_dict(rec), separators=(",", ":"), allow_nan=False) + "\n"
+    _export_folder(folder, dest)
+    write_text_atomic(path, text)
     return [path]
+
+
+def _export_folder(folder: Path, dest) -> None:
+    """``OUT/export`` (never through a link), or the folder given as ``dest`` (created)."""
+    if dest is None:
+        make_folder(folder)
+        return
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"cannot create the export folder: {exc.strerror}",
+                           path=folder) from exc
