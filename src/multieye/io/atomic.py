@@ -41,8 +41,10 @@ _ROOTS: dict[Path, int] = {}
 _ROOTS_GUARD = threading.Lock()
 
 #: What the usual reasons of a failed write mean, added to the system's words.
-_HINTS = {errno.EFBIG: "over the file-size limit of this process, ulimit -f",
-          errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is used up"}
+_HINTS = {getattr(errno, name): hint for name, hint in (
+    ("EFBIG", "over the file-size limit of this process, ulimit -f"),
+    ("ENOSPC", "the disk is full"), ("EDQUOT", "the disk quota is used up"))
+    if hasattr(errno, name)}
 
 
 def write_problem(exc: OSError) -> str:
@@ -79,7 +81,7 @@ def _root_of(folder: Path) -> Path | None:
     with _ROOTS_GUARD:
         roots = list(_ROOTS)
     inside = [r for r in roots if r == folder or r in folder.parents]
-    return max(inside, key=lambda r: len(r.parts)) if inside else None
+    return min(inside, key=lambda r: len(r.parts)) if inside else None     # the outermost
 
 
 def _link_error(path: Path) -> DatasetError:

@@ -3,15 +3,20 @@
 A calibration replaces its output folder ``OUT`` as a whole (docs/outputs.md, section 1):
 
 1. **Lock.** ``OUT.multieye-lock`` beside ``OUT`` holds the process id and command line of
-   the run that holds ``OUT``, locked with ``flock`` (Windows: ``msvcrt.locking``).  The
+   the run that holds ``OUT``, locked with ``flock`` (Windows: ``msvcrt.locking``); created
+   with ``O_EXCL``, or, left by a run that ended, opened with ``O_NOFOLLOW`` and used only
+   when it is a plain file with one name (never written through a link).  The
    kernel drops the lock when that process ends, however it ends, so a lock left by a
    killed run is simply taken over; a second run into a held folder stops with one line
    naming the folder and the holder.  The holder removes the file when it lets go.
 2. **Recovery** (holding the lock, so nothing beside ``OUT`` belongs to a running process):
    ``OUT.multieye-tmp-<pid>-<hex>`` and ``OUT.multieye-old-<pid>-<hex>`` left by a killed
    run are removed, after the newest ``old`` folder is renamed back to ``OUT`` when ``OUT``
-   is missing (a run killed between the two renames of step 5).
-3. **Check**: ``OUT`` is missing, an empty folder, or holds only files multieye writes
+   is missing (a run killed between the two renames of step 5); a link of such a name is
+   neither followed, removed nor renamed.
+3. **Check**: ``OUT`` is not a symbolic link and holds none (the folders above it are
+   resolved once, :func:`_resolve`, and may be links); it is missing, an empty folder, or
+   holds only files multieye writes
    (those listed in its ``.multieye-manifest.json`` and the fixed names of section 1 of
    docs/outputs.md); anything else (a user's notes, a dataset, a file named ``figures``)
    stops the run with one line, before any work, and again just before the swap.
@@ -220,14 +225,14 @@ def _acquire(out: Path) -> bool:
         # "replace": a path given as bytes that are not UTF-8 (surrogateescape) shows as '?'
         os.write(fd, f"{os.getpid()}\n{' '.join(command.split())}\n".encode("utf-8",
                                                                              "replace"))
-        with _HELD_GUARD:
-            _HELD[out] = _Held(fd, path, threading.get_ident())
     except BaseException as exc:        # the file-size limit, a full disk, Ctrl-C: let go
         _drop_lock(fd, path)
         if isinstance(exc, OSError):
             raise DatasetError(f"cannot write the lock file: {write_problem(exc)}",
                                path=path) from exc
         raise
+    with _HELD_GUARD:
+        _HELD[out] = _Held(fd, path, threading.get_ident())
     return True
 
 
@@ -432,12 +437,14 @@ def claim_output(out_dir: str | os.PathLike, *, inputs: Iterable = (),
     Yields
     ------
     Path
-        The output folder, absolute, symbolic links resolved.
+        The output folder, absolute, the folders above it resolved (``OUT`` itself is never
+        a link: refused).
 
     Raises
     ------
     DatasetError
-        Another run holds the folder, or it cannot be replaced (one line saying why).
+        Another run holds the folder, the folder or the lock file is a link (or holds one),
+        or it cannot be replaced (one line saying why).
     """
     out = _resolve(out_dir)
     created = []
