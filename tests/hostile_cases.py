@@ -418,6 +418,20 @@ def _bytes_dataset(w: Work):
     return [b"calibrate", os.fsencode(ds), b"-o", os.fsencode(w.out)], None
 
 
+def _bytes_image(w: Work):
+    """A rendered dataset (2 cameras x 4 images) with an image and another file whose names
+    hold bytes that are not UTF-8."""
+    from multieye.sim.dataset import DatasetSpec, render_dataset
+
+    ds = w.root / "images"
+    render_dataset(ds, DatasetSpec(n_cameras=2, images_per_camera=4, width=320, height=240,
+                                   processes=1), seed=2)
+    first = sorted((ds / "cam0").iterdir())[0]
+    os.rename(first, os.fsdecode(os.fsencode(first)[:-6] + b"\xff.png"))
+    (ds / "cam1" / os.fsdecode(b"notes\xfe.txt")).write_text("not an image")
+    return ["calibrate", ds, "-o", w.out, "--processes", "1"], None
+
+
 def _calibration_text(text: str | bytes, command: str = "report", *args: str,
                       file: str = "calibration.json"):
     def prepare(w: Work):
@@ -462,6 +476,8 @@ TRACEBACK_CASES = [
          _bytes_out("export", "--format", "camera-info"), expect=(0,), subprocess=True),
     Case("dataset path not UTF-8 (OpenCV crashed on it)", "tracebacks", _bytes_dataset,
          subprocess=True, named=("not UTF-8", "d\ufffd\ufffds")),
+    Case("image file name not UTF-8", "tracebacks", _bytes_image, expect=(0, 2),
+         subprocess=True, named=("\ufffd",)),
     Case("calibration.json nested 100000 deep (report)", "tracebacks",
          _calibration_text(NESTED), named=("calibration.json", "nested")),
     Case("calibration.json nested 100000 deep (export)", "tracebacks",
