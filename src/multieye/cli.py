@@ -95,7 +95,10 @@ def _user_errors(fn):
             sys.exit(EXIT_USER_ERROR)
         except OSError as exc:   # missing, unreadable or unwritable paths the user gave
             name = getattr(exc, "filename", None)
-            where = f"{os.fsdecode(name)}: " if name not in (None, "") else ""
+            if isinstance(name, (str, bytes)) and name:
+                where = f"{os.fsdecode(name)}: "
+            else:               # no file named (the file-size limit on a descriptor, ...)
+                where = f"{name}: " if name not in (None, "") else ""
             _echo(f"multieye: error: {where}{exc.strerror or exc}", err=True)
             sys.exit(EXIT_USER_ERROR)
         finally:
