@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import signal
 import sys
 import threading
@@ -40,11 +41,40 @@ def _stop(signum, frame):
 
 
 def _stop_on_signals() -> dict:
-    """Install :func:`_stop` for SIGTERM and SIGHUP; returns the handlers it replaced."""
+    """Install :func:`_stop` for SIGTERM and SIGHUP, and ignore SIGXFSZ (a write over the
+    file-size limit is then an OSError naming the file, not a dead process); returns the
+    handlers it replaced."""
     if threading.current_thread() is not threading.main_thread():   # handlers live there
         return {}
-    return {sig: signal.signal(sig, _stop) for sig in
-            (getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n))}
+    previous = {sig: signal.signal(sig, _stop) for sig in
+                (getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n))}
+    if hasattr(signal, "SIGXFSZ"):
+        previous[signal.SIGXFSZ] = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    return previous
+
+
+def _shown(text: str) -> str:
+    """``text`` for the terminal: bytes that were not UTF-8 in a path or a name (kept as
+    surrogates, ``surrogateescape``) shown as U+FFFD instead of failing to print."""
+    return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+
+
+def _echo(text: str, err: bool = False) -> None:
+    click.echo(_shown(text), err=err)
+
+
+def _utf8_dataset(dataset: Path) -> None:
+    """Refuse a dataset path with bytes that are not UTF-8: OpenCV, which opens the images and
+    the FileStorage intrinsics by name, crashes on such a name (a segmentation fault)."""
+    from multieye.core.errors import DatasetError
+
+    full = os.path.abspath(dataset)
+    try:
+        os.fsencode(full).decode("utf-8")
+    except UnicodeDecodeError:
+        raise DatasetError("the path holds bytes that are not UTF-8, which OpenCV cannot open: "
+                           "rename the folder (or run from a folder whose path is UTF-8)",
+                           path=full) from None
 
 
 def _user_errors(fn):
@@ -61,11 +91,15 @@ def _user_errors(fn):
             click.echo(f"multieye: stopped by {signal.Signals(signum).name}", err=True)
             sys.exit(128 + signum)
         except CalibrationError as exc:
-            click.echo(f"multieye: error: {exc}", err=True)
+            _echo(f"multieye: error: {exc}", err=True)
             sys.exit(EXIT_USER_ERROR)
         except OSError as exc:   # missing, unreadable or unwritable paths the user gave
-            name = getattr(exc, "filename", None) or ""
-            click.echo(f"multieye: error: {name}: {exc.strerror or exc}", err=True)
+            name = getattr(exc, "filename", None)
+            if isinstance(name, (str, bytes)) and name:
+                where = f"{os.fsdecode(name)}: "
+            else:               # no file named (the file-size limit on a descriptor, ...)
+                where = f"{name}: " if name not in (None, "") else ""
+            _echo(f"multieye: error: {where}{exc.strerror or exc}", err=True)
             sys.exit(EXIT_USER_ERROR)
         finally:
             for sig, handler in previous.items():
@@ -136,19 +170,20 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
         if not math.isfinite(time_offset):
             raise click.BadParameter("expected rig, auto or a finite number of seconds",
                                      param_hint="--time-offset")
+    _utf8_dataset(dataset)
     with claim_output(out_dir, inputs=[dataset]):   # one run per folder, checked before work
         run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
                               robust=not no_robust, time_offset=time_offset,
                               max_time_offset=max_time_offset, processes=processes,
                               progress=_progress_enabled())
         written = write_outputs(run, out_dir)
-    click.echo(calibration_table(run.record))
+    _echo(calibration_table(run.record))
     for note in written.notes:
-        click.echo(f"note: {note}")
-    click.echo("wrote " + ", ".join(str(p) for p in written.paths))
-    click.echo(timings_line(written.timings))
+        _echo(f"note: {note}")
+    _echo("wrote " + ", ".join(str(p) for p in written.paths))
+    _echo(timings_line(written.timings))
     for doubt in run.doubts:
-        click.echo(f"multieye: written, but implausible: {doubt.message}", err=True)
+        _echo(f"multieye: written, but implausible: {doubt.message}", err=True)
     if run.doubts:
         sys.exit(EXIT_IMPLAUSIBLE)
 
@@ -171,10 +206,11 @@ def check(dataset: Path, sample: int, processes: int | None):
     from multieye.pipeline.dry_run import check_dataset
     from multieye.outputs.summary import check_table
 
+    _utf8_dataset(dataset)
     result = check_dataset(dataset, sample=sample, processes=processes)
-    click.echo(check_table(result))
+    _echo(check_table(result))
     for reason in result.reasons:
-        click.echo(f"multieye: calibrating would fail: {reason}", err=True)
+        _echo(f"multieye: calibrating would fail: {reason}", err=True)
     if not result.ok:
         sys.exit(EXIT_USER_ERROR)
 
@@ -193,7 +229,7 @@ def demo(out_dir: Path, seed: int):
     from multieye.demo import run_demo
 
     result = run_demo(out_dir, seed=seed, progress=_progress_enabled())
-    click.echo(result.text)
+    _echo(result.text)
 
 
 @main.command()
@@ -208,7 +244,7 @@ def report(out_dir: Path):
     from multieye.outputs.report import write_report
 
     with claim_output(out_dir, replace=False):
-        click.echo(str(write_report(out_dir)))
+        _echo(str(write_report(out_dir)))
 
 
 EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json", "camera-info", "mrcal")
@@ -237,9 +273,9 @@ def export(out_dir: Path, fmt: str, parent_frame: str | None, child_frame: str |
     with claim_output(out_dir, replace=False):
         for p in run_export(out_dir, fmt, notes=notes, parent_frame=parent_frame,
                             child_frame=child_frame):
-            click.echo(str(p))
+            _echo(str(p))
     for note in notes:
-        click.echo(f"note: {note}", err=True)
+        _echo(f"note: {note}", err=True)
 
 
 @main.command()
@@ -263,13 +299,13 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
 
         paths = run_refine_experiment(trials=trials, seed=seed, out_dir=out_dir,
                                       progress=_progress_enabled())
-        click.echo("wrote " + " and ".join(str(p) for p in paths))
+        _echo("wrote " + " and ".join(str(p) for p in paths))
         return
     from multieye.experiments.sweeps import run_experiment
 
     out = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
                          progress=_progress_enabled())
-    click.echo(f"wrote {out.csv_path} and {out.png_path}")
+    _echo(f"wrote {out.csv_path} and {out.png_path}")
 
 
 if __name__ == "__main__":  # pragma: no cover

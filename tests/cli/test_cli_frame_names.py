@@ -10,7 +10,7 @@ import numpy as np
 from click.testing import CliRunner
 
 from multieye.cli import main
-from multieye.outputs.export import read_tf_static
+from multieye.outputs.export_readers import read_tf_static
 from small_dataset import render_small
 
 

@@ -295,3 +295,105 @@ def test_mangled_images(image_dataset, camera, index, kind, cut, noise):
                 assert image is not None and image.shape[:2] == (240, 320), (kind, reasons)
     finally:
         shutil.rmtree(work)
+
+
+# --------------------------------------------------------------------------- issue 19
+
+
+@pytest.fixture(scope="module")
+def calibrated(pose_dataset, tmp_path_factory):
+    """The output folder of the pose dataset, calibrated once for the module."""
+    out = tmp_path_factory.mktemp("calibrated") / "out"
+    res = CliRunner().invoke(main, ["calibrate", str(pose_dataset), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    return out
+
+
+#: Values written over a JSON value of calibration.json or details.json.
+JSON_VALUES = [None, True, -1, 1e308, 10 ** 400, "x", "../../x", [], {}, [[1]], [[[[1]]]],
+               {"a": 1}, [["x"] * 6] * 6, [1] * 16, [[1, 2, 3, 4]] * 4, "\x00", "e" * 5000,
+               "[" * 3000]
+
+
+def _json_paths(obj, prefix=()):
+    yield prefix
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            yield from _json_paths(v, prefix + (k,))
+    elif isinstance(obj, list):
+        for i, v in enumerate(obj[:2]):
+            yield from _json_paths(v, prefix + (i,))
+
+
+@settings(max_examples=16, **SETTINGS)
+@given(file=st.sampled_from(["calibration.json", "details.json"]), pick=st.integers(0, 10 ** 6),
+       value=st.sampled_from(JSON_VALUES), rename=st.booleans(),
+       command=st.sampled_from([["report"], ["export", "--format", "camera-info"],
+                                ["export", "--format", "kalibr"], ["export", "--format", "urdf"],
+                                ["export", "--format", "opencv"]]))
+@example(file="calibration.json", pick=0, value="[" * 100_000, rename=False,
+         command=["report"])                              # nested deeper than the stack
+def test_mangled_calibration_json_for_report_and_export(calibrated, file, pick, value, rename,
+                                                         command):
+    """A calibration.json or details.json with a value (or a camera name) replaced: exit 0
+    or 2 with one line, no traceback, and nothing written outside OUT (issue 19, item 4)."""
+    work = Path(tempfile.mkdtemp(prefix="mangled-json-"))
+    out = work / "out"
+    shutil.copytree(calibrated, out)
+    try:
+        data = json.loads((out / file).read_text())
+        if value == "[" * 100_000:
+            text = value + "]" * 100_000
+        else:
+            paths = [p for p in _json_paths(data) if p]
+            where = paths[pick % len(paths)]
+            here = data
+            for key in where[:-1]:
+                here = here[key]
+            if rename and isinstance(here, dict):
+                here[str(value)[:6000]] = here.pop(where[-1])
+            else:
+                here[where[-1]] = value
+            text = json.dumps(data)
+        (out / file).write_text(text)
+        before = sorted(p.name for p in work.iterdir())
+        res = CliRunner().invoke(main, [command[0], str(out), *command[1:]])
+        assert res.exit_code in (0, 2), (res.exit_code, res.output, res.exception)
+        assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+        if res.exit_code == 2:
+            lines = res.stderr.strip().splitlines()
+            assert len(lines) == 1 and lines[0].startswith("multieye: error: "), res.stderr
+        assert sorted(p.name for p in work.iterdir()) == before     # nothing beside OUT
+    finally:
+        shutil.rmtree(work)
+
+
+NAME_PARTS = ["../", "/", "\\", "..", ".", "\x00", "\t", "\n", " ", "é", "e\u0301", "a", "CAM",
+              ":", "\u202e", "c" * 60]
+
+
+@settings(max_examples=8, **SETTINGS)
+@given(parts=st.lists(st.sampled_from(NAME_PARTS), min_size=1, max_size=5))
+@example(parts=["../", "../", "x"])
+@example(parts=["c" * 60, "c" * 60])
+def test_mangled_camera_names(pose_dataset, parts):
+    """A camera named from hostile pieces: refused with rig.yaml's line, or (a file name on
+    every system) calibrated with nothing written outside OUT (issue 19, item 1)."""
+    name = "".join(parts)
+
+    def rename(ds):
+        rig = ds / "rig.yaml"
+        rig.write_text(rig.read_text().replace("  cam1:", f"  ? {json.dumps(name)}\n  :"))
+
+    res, ds, out, work = _run(pose_dataset, rename)
+    try:
+        error = _check_outcome(res, out)
+        from multieye.core.names import camera_name_problem
+
+        if error is not None:
+            assert "rig.yaml:" in error and camera_name_problem(name) is not None, error
+        else:
+            assert camera_name_problem(name) is None, name
+            assert sorted(p.name for p in work.iterdir()) == ["ds", "out"]
+    finally:
+        shutil.rmtree(work)

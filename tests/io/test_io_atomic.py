@@ -42,7 +42,7 @@ def test_failing_rename_is_a_dataset_error_and_cleans_up(tmp_path, monkeypatch):
     dest = tmp_path / "out.txt"
     dest.write_text("old")
 
-    def broken_replace(src, dst):
+    def broken_replace(src, dst, **kw):
         raise PermissionError(13, "Permission denied")
 
     monkeypatch.setattr(atomic.os, "replace", broken_replace)
@@ -58,7 +58,7 @@ def test_content_is_fsynced_before_the_rename(tmp_path, monkeypatch):
     real_fsync, real_replace = os.fsync, os.replace
     monkeypatch.setattr(atomic.os, "fsync", lambda fd: (events.append("fsync"), real_fsync(fd)))
     monkeypatch.setattr(atomic.os, "replace",
-                        lambda a, b: (events.append("replace"), real_replace(a, b)))
+                        lambda a, b, **kw: (events.append("replace"), real_replace(a, b, **kw)))
     write_text_atomic(tmp_path / "x.txt", "data")
     assert events.index("fsync") < events.index("replace")
 

@@ -114,7 +114,11 @@ def test_loads_the_design_example(dataset):
      "mocap.translation_noise_m: expected a positive number of at most 1 metres, got inf"),
     ("    time_offset: -0.25", "    time_offset: -1.0e+20", 18,
      "cameras.cam1.time_offset: expected a number between -1e+10 and 1e+10 seconds, got -1e+20"),
-    ("cam1:\n", "\"cam\\n1\":\n", 15, "cameras.'cam\\n1': camera names must be printable"),
+    ("cam1:\n", "\"cam\\n1\":\n", 15, "cameras.'cam\\n1': camera name 'cam\\n1' holds '\\n'"),
+    ("cam1:\n", "\"../../x\":\n", 15, "cameras.../../x: camera name '../../x' holds '/'"),
+    ("cam1:\n", "\".hidden\":\n", 15, "camera name '.hidden' starts with '.'"),
+    ("cam1:\n", "CAM0:\n", 15, "camera name 'CAM0' would be one file with camera 'cam0'"),
+    ("cam1:\n", "c" * 101 + ":\n", 15, "is 101 characters long; a camera name is 1 to 100"),
     ("spacing: 0.033", "spacing: '3cm'", 6, "target.spacing: expected a positive number"),
     ("  cols: 8\n", "", 2, "target: missing key 'cols'"),
     ("time_tolerance: 0.02", "time_tolerance: -1", 10, "mocap.time_tolerance: expected a "

@@ -20,14 +20,13 @@ from synthetic import eye_on_hand, eye_to_base
 
 from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
+from multieye.outputs.export_readers import read_tf_static, read_urdf_joints
 from multieye.outputs.export import (
     BASE_FRAME,
     ros_name,
     FORMATS,
     T_LINK_OPTICAL,
     export,
-    read_tf_static,
-    read_urdf_joints,
     rotation_from_rpy,
     rpy_from_rotation,
 )
@@ -328,7 +327,9 @@ def test_camera_info_per_camera_follows_ros_and_reads_back(result):
     notes = []
     paths = export(out, "camera-info", notes=notes)
     assert notes == []
-    assert paths == [out / "export" / "camera_info" / f"{n}.yaml" for n in NAMES]
+    # names as file names (docs/outputs.md, section 1): < > " cannot be in a Windows file name
+    files = ["cam0.yaml", "front left.yaml", "rear_&__q_.yaml"]
+    assert paths == [out / "export" / "camera_info" / f for f in files]
     for j, (path, cam) in enumerate(zip(paths, rec.cameras)):
         data = yaml.safe_load(path.read_text())
         assert set(data) == set(CAMERA_INFO_SCHEMA)

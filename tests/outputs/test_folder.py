@@ -311,3 +311,102 @@ def test_every_file_written_outside_the_set_has_a_known_name():
             assert folder_mod._KNOWN_PATTERN.fullmatch(
                 "export/" + name.replace("<camera>", "front left"))
     assert {f"figures/{name}" for name in FIGURES} <= folder_mod.KNOWN_FILES
+
+
+# --------------------------------------------------------------------------- issue 19
+
+
+def test_the_lock_file_is_never_written_through_a_link(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("mine")
+    lock = tmp_path / "out.multieye-lock"
+    lock.symlink_to(victim)
+    with pytest.raises(DatasetError, match="lock file is a symbolic link"):
+        with claim_output(tmp_path / "out"):
+            pass
+    assert victim.read_text() == "mine" and lock.is_symlink()
+    lock.unlink()
+    os.link(victim, lock)                   # a hard link: the same file under another name
+    with pytest.raises(DatasetError, match="hard links"):
+        with claim_output(tmp_path / "out"):
+            pass
+    assert victim.read_text() == "mine"
+
+
+def test_a_linked_output_folder_or_a_link_inside_it_is_refused(run, tmp_path):
+    real = tmp_path / "real"
+    real.mkdir()
+    (tmp_path / "out").symlink_to(real)
+    with pytest.raises(DatasetError, match=r"out: is a symbolic link \(to .*real\)"):
+        write_outputs(run, tmp_path / "out", report=False)
+    assert list(real.iterdir()) == []
+    out = tmp_path / "out2"
+    write_outputs(run, out, report=False)
+    before = tree(out)
+    (out / "figures").symlink_to(real)
+    for replace in (True, False):
+        with pytest.raises(DatasetError, match="holds symbolic links \\(figures\\)"):
+            with claim_output(out, replace=replace):
+                pass
+    assert list(real.iterdir()) == [] and not (tmp_path / "out2.multieye-lock").exists()
+    (out / "figures").unlink()
+    assert tree(out) == before
+
+
+def test_folders_above_the_output_folder_may_be_links(run, tmp_path):
+    (tmp_path / "real").mkdir()
+    (tmp_path / "via").symlink_to(tmp_path / "real")
+    written = write_outputs(run, tmp_path / "via" / "out", report=False)
+    assert (tmp_path / "real" / "out" / "calibration.json").is_file()
+    assert all(p.parent == tmp_path / "real" / "out" for p in written.paths)
+
+
+def test_leftovers_that_are_links_are_neither_followed_nor_renamed(run, tmp_path):
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    (keep / "data.txt").write_text("mine")
+    for kind in ("tmp", "old"):
+        (tmp_path / f"out.multieye-{kind}-1-abcd").symlink_to(keep)
+    write_outputs(run, tmp_path / "out", report=False)
+    assert (keep / "data.txt").read_text() == "mine"
+    assert (tmp_path / "out" / "calibration.json").is_file()
+    assert all((tmp_path / f"out.multieye-{k}-1-abcd").is_symlink() for k in ("tmp", "old"))
+
+
+def test_the_lock_is_released_when_writing_it_fails(tmp_path, monkeypatch):
+    import errno
+
+    def full(fd, data):
+        raise OSError(errno.EFBIG, "File too large")
+
+    monkeypatch.setattr(folder_mod.os, "write", full)
+    with pytest.raises(DatasetError, match="out.multieye-lock: cannot write the lock file: "
+                                           "File too large .*ulimit -f"):
+        with claim_output(tmp_path / "out"):
+            pass
+    assert list(tmp_path.iterdir()) == [] and not folder_mod._HELD
+
+
+def test_a_failed_write_in_the_staging_folder_names_the_file_in_out(run, tmp_path,
+                                                                    monkeypatch):
+    import errno
+
+    from multieye.io import atomic
+
+    real = atomic.os.fdopen
+    calls = []
+
+    def fdopen(fd, *args, **kwargs):
+        calls.append(1)
+        f = real(fd, *args, **kwargs)
+        if len(calls) == 2:
+            f.close()
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return f
+
+    monkeypatch.setattr(atomic.os, "fdopen", fdopen)
+    with pytest.raises(DatasetError) as info:
+        write_outputs(run, tmp_path / "out", report=False)
+    assert info.value.path.startswith(str(tmp_path / "out") + os.sep), info.value.path
+    assert "No space left on device (the disk is full)" in str(info.value)
+    assert list(tmp_path.iterdir()) == []

@@ -408,7 +408,8 @@ def _read_uncertainty(obj, w: _Where, keys: tuple[str, ...], camera=None) -> dic
                                                   f"uncertainty.{k}.std_rot_deg", camera),
                         w.number(w.need(v, "std_trans_m", k, camera),
                                  f"uncertainty.{k}.std_trans_m", camera),
-                        np.asarray(w.need(v, "covariance", k, camera), dtype=np.float64),
+                        w.call(np.asarray, w.need(v, "covariance", k, camera),
+                               dtype=np.float64, camera=camera),
                         camera=camera)
     return out
 
@@ -467,7 +468,7 @@ class _Where:
     def call(self, fn, *args, camera=None, **kwargs):
         try:
             return fn(*args, **kwargs)
-        except (InputError, TypeError, ValueError) as exc:
+        except (InputError, TypeError, ValueError, OverflowError) as exc:
             message = str(exc).removeprefix(f"camera {camera}: ")
             raise self.error(message, camera) from None
 
@@ -502,7 +503,7 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
         raise w.error(f"format_version must be an integer from 1 to {FORMAT_VERSION} (a newer "
                       f"multieye writes later versions), got {version!r}")
     setup = w.need(data, "setup", "the top level")
-    if setup not in SETUP_KEYS:
+    if not isinstance(setup, str) or setup not in SETUP_KEYS:
         raise w.error(f"setup must be one of {', '.join(SETUP_KEYS)}, got {setup!r}")
     y_key, x_key = SETUP_KEYS[setup]
     cams = w.need(data, "cameras", "the top level")
@@ -589,4 +590,10 @@ def read_calibration(path: str | os.PathLike) -> CalibrationRecord:
         Missing file, invalid JSON (with the line), or any check of
         :func:`calibration_from_dict`.
     """
-    return calibration_from_dict(read_json(path, what="calibration file"), path)
+    data = read_json(path, what="calibration file")
+    try:
+        return calibration_from_dict(data, path)
+    except (TypeError, ValueError, OverflowError, AttributeError, KeyError, IndexError,
+            RecursionError) as exc:     # a value of a type no check above foresaw
+        raise DatasetError(f"unexpected content ({type(exc).__name__}: {exc})",
+                           path=path) from None

@@ -82,6 +82,7 @@ from multieye.core.limits import (
     MAX_TIME_TOLERANCE_S,
     MAX_TRANSLATION_NOISE_M,
 )
+from multieye.core.names import NAME_RULE, camera_name_problem
 from multieye.io.intrinsics import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
@@ -556,10 +557,11 @@ def load_rig(path: str | os.PathLike) -> Rig:
     top = (dict(raw["mocap"]) if mocap is not None else {}, mocap)
     refine_all = (c.boolean(raw["refine_intrinsics"], ("refine_intrinsics",))
                   if "refine_intrinsics" in raw else False)
-    cameras = {}
+    cameras, taken = {}, {}
     for name, cam_raw in cams_raw.items():
-        if not name.strip() or not name.isprintable():
-            raise c.error(f"camera names must be printable text, got {name!r}",
+        problem = camera_name_problem(name, taken)      # names become file names (outputs)
+        if problem is not None:
+            raise c.error(f"camera name {shown(name)} {problem}; a camera name is {NAME_RULE}",
                           ("cameras", name))
         cam = _camera(c, name, cam_raw, top, setup, refine_all)
         if cam.mocap is None and mocap is None:

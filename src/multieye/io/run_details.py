@@ -355,7 +355,7 @@ class _Reader:
         """Numbers of the given shape (``-1`` matches any length); null -> NaN if allowed."""
         try:
             a = np.array(value, dtype=np.float64)  # None -> nan
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise self.error(f"{what} must be numbers", camera) from None
         if a.ndim != len(shape) or any(s not in (-1, n) for s, n in zip(shape, a.shape)):
             want = " x ".join("n" if s == -1 else str(s) for s in shape)
@@ -516,4 +516,10 @@ def read_run_details(path: str | os.PathLike) -> RunDetails:
         Missing file, invalid JSON (with the line), or any check of
         :func:`run_details_from_dict`.
     """
-    return run_details_from_dict(read_json(path, what="details file"), path)
+    data = read_json(path, what="details file")
+    try:
+        return run_details_from_dict(data, path)
+    except (TypeError, ValueError, OverflowError, AttributeError, KeyError, IndexError,
+            RecursionError) as exc:     # a value of a type no check above foresaw
+        raise DatasetError(f"unexpected content ({type(exc).__name__}: {exc})",
+                           path=path) from None

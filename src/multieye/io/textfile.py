@@ -80,6 +80,8 @@ def read_json(path: str | os.PathLike, *, what: str = "JSON file"):
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise DatasetError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
+    except RecursionError:      # arrays or objects nested deeper than Python's stack
+        raise DatasetError("invalid JSON: nested too deeply", path=path) from None
 
 
 def data_lines(text: str) -> Iterator[tuple[int, str]]:

@@ -12,9 +12,9 @@ format         file                       content
                                           ``T_world_cam`` (or ``T_body_cam``) as 4x4
                                           ``!!opencv-matrix``, with intrinsics when known
 ``urdf``       ``cameras.urdf``           one fixed joint per camera from the base link;
-                                          :func:`read_urdf_joints` reads it back
+                                          :func:`~multieye.outputs.export_readers.read_urdf_joints` reads it back
 ``tf-static``  ``static_transforms.sh``   one ROS 2 ``static_transform_publisher`` command
-                                          per camera; :func:`read_tf_static` reads it back
+                                          per camera; :func:`~multieye.outputs.export_readers.read_tf_static` reads it back
 ``json``       ``calibration.json``       compact ``calibration.json``;
                                           :func:`multieye.io.read_calibration` reads it back
 ``camera-info`` ``camera_info/<cam>.yaml`` ROS ``sensor_msgs/CameraInfo`` YAML per camera;
@@ -70,14 +70,14 @@ import numpy as np
 from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.io.atomic import write_text_atomic
+from multieye.core.names import file_stems
+from multieye.io.atomic import confined_to, make_folder, write_text_atomic
 from multieye.io.intrinsics import camera_info_text, distortion_model_name
 from multieye.io.cameramodel import cameramodel_text
 from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict, named_keys,
                                           read_calibration)
 from multieye.io.kalibr import CamchainEntry, kalibr_fields, write_camchain
 from multieye.io.run_details import read_run_details
-from multieye.io.textfile import read_text
 from multieye.io.yamlfile import yaml_list
 
 __all__ = [
@@ -92,8 +92,6 @@ __all__ = [
     "opencv_text",
     "urdf_text",
     "tf_static_text",
-    "read_urdf_joints",
-    "read_tf_static",
     "rpy_from_rotation",
     "rotation_from_rpy",
 ]
@@ -320,93 +318,6 @@ def tf_static_text(rec: CalibrationRecord, parent: str | None = None,
     return "\n".join(lines) + "\n"
 
 
-# --------------------------------------------------------------------------- readers
-
-
-def read_urdf_joints(path: str | os.PathLike) -> dict[tuple[str, str], np.ndarray]:
-    """The fixed joints of a URDF: ``(parent, child) -> T_parent_child``.
-
-    Raises
-    ------
-    DatasetError
-        Not XML, or a joint without parent, child or a numeric ``origin``.
-    """
-    text = read_text(path, what="URDF file")
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise DatasetError(f"invalid XML: {exc}", path=path, line=exc.position[0]) from None
-    joints = {}
-    for joint in root.iter("joint"):
-        name = joint.get("name", "?")
-        parent, child = joint.find("parent"), joint.find("child")
-        if parent is None or child is None or not parent.get("link") or not child.get("link"):
-            raise DatasetError(f"joint {name!r} needs <parent link=...> and <child link=...>",
-                               path=path)
-        origin = joint.find("origin")
-        values = {"xyz": [0.0] * 3, "rpy": [0.0] * 3}
-        for key in values:
-            text_value = origin.get(key) if origin is not None else None
-            if text_value is not None:
-                try:
-                    values[key] = [float(v) for v in text_value.split()]
-                except ValueError:
-                    values[key] = []
-                if len(values[key]) != 3:
-                    raise DatasetError(f"joint {name!r}: origin {key} must be 3 numbers, got "
-                                       f"{text_value!r}", path=path)
-        joints[(parent.get("link"), child.get("link"))] = g.make_transform(
-            rotation_from_rpy(values["rpy"]), values["xyz"])
-    return joints
-
-
-def read_tf_static(path: str | os.PathLike) -> dict[tuple[str, str], np.ndarray]:
-    """The ``static_transform_publisher`` lines of a file: ``(frame_id, child) -> T``.
-
-    Accepts the flag form written by :func:`tf_static_text` (``--x ... --child-frame-id``),
-    with or without the ``ros2 run tf2_ros`` prefix and a trailing ``&``; other lines
-    (comments, ``wait``) are skipped.
-
-    Raises
-    ------
-    DatasetError
-        A publisher line with an unknown flag, a missing value, a non-number or a quaternion
-        that is not unit length, with its line number.
-    """
-    out = {}
-    numbers = ("--x", "--y", "--z", "--qx", "--qy", "--qz", "--qw")
-    for lineno, line in enumerate(read_text(path, what="tf file").splitlines(), start=1):
-        try:
-            words = shlex.split(line, comments=True)
-        except ValueError as exc:
-            raise DatasetError(f"cannot split the line: {exc}", path=path, line=lineno) from None
-        if "static_transform_publisher" not in words:
-            continue
-        words = words[words.index("static_transform_publisher") + 1:]
-        if words and words[-1] == "&":
-            words = words[:-1]
-        if len(words) % 2:
-            raise DatasetError("expected --flag value pairs", path=path, line=lineno)
-        args = dict(zip(words[::2], words[1::2]))
-        unknown = sorted(set(args) - {*numbers, "--frame-id", "--child-frame-id"})
-        if unknown or "--frame-id" not in args or "--child-frame-id" not in args:
-            raise DatasetError("expected --x --y --z --qx --qy --qz --qw --frame-id "
-                               f"--child-frame-id{'; unknown ' + ', '.join(unknown) if unknown else ''}",
-                               path=path, line=lineno)
-        try:
-            v = {k: float(args.get(k, "1" if k == "--qw" else "0")) for k in numbers}
-        except ValueError:
-            raise DatasetError("translation and quaternion values must be numbers", path=path,
-                               line=lineno) from None
-        q = np.array([v["--qx"], v["--qy"], v["--qz"], v["--qw"]])
-        if abs(np.linalg.norm(q) - 1.0) > 1e-6:
-            raise DatasetError(f"quaternion norm is {np.linalg.norm(q):.6g}, expected 1",
-                               path=path, line=lineno)
-        out[(args["--frame-id"], args["--child-frame-id"])] = g.transform_from_quat(
-            q, [v["--x"], v["--y"], v["--z"]])
-    return out
-
-
 # --------------------------------------------------------------------------- export
 
 
@@ -469,49 +380,47 @@ def _tracked_frame(out: Path) -> str | None:
     return frames[0] if len(frames) == 1 else None
 
 
-def _camera_infos(folder: Path, rec: CalibrationRecord, intr: dict,
-                  notes: list[str]) -> list[Path]:
-    """One camera_info YAML per camera ROS can describe; the others named in ``notes``."""
-    paths, left = [], []
+def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
+    """One camera_info YAML per camera ROS can describe, by file name (the camera's name as a
+    file name, :func:`multieye.core.names.file_stem`); the others named in ``notes``."""
+    stems = file_stems((c.name for c in rec.cameras),
+                       what="file export/camera_info/<camera>.yaml")
+    texts, left = {}, []
     for cam in rec.cameras:
         if intr.get(cam.name) is None:
             left.append(f"{cam.name} (no intrinsics)")
             continue
         try:
-            text = camera_info_text(intr[cam.name], cam.name)
+            texts[f"{stems[cam.name]}.yaml"] = camera_info_text(intr[cam.name], cam.name)
         except InputError as exc:
             left.append(f"{cam.name} ({exc})")
-            continue
-        paths.append(folder / f"{cam.name}.yaml")
-        write_text_atomic(paths[-1], text)
     if left:
         notes.append("no camera_info for " + "; ".join(left))
-    if not paths:
+    if not texts:
         raise InputError("ROS camera_info cannot describe any camera: " + "; ".join(left))
-    return paths
+    return texts
 
 
-def _cameramodels(folder: Path, rec: CalibrationRecord, intr: dict,
-                  notes: list[str]) -> list[Path]:
-    """One mrcal ``.cameramodel`` per camera mrcal can describe (``rt_cam_ref`` from the
-    reference camera's frame); the others named in ``notes``."""
-    paths, left = [], []
+def _cameramodels(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
+    """File name -> text of one mrcal ``.cameramodel`` per camera mrcal can describe
+    (``rt_cam_ref`` from the reference camera's frame; file names from the camera names as
+    :func:`multieye.core.names.file_stems` reduces them); the others named in ``notes``."""
+    stems = file_stems((c.name for c in rec.cameras), what="export/mrcal/<camera>.cameramodel")
+    texts, left = {}, []
     for cam in rec.cameras:
         try:
             if intr.get(cam.name) is None:
                 raise InputError("no intrinsics")
-            text = cameramodel_text(intr[cam.name], g.inv(cam.T_ref_cam),
-                                    note=f"{cam.name}: written by multieye export --format mrcal")
+            texts[f"{stems[cam.name]}.cameramodel"] = cameramodel_text(
+                intr[cam.name], g.inv(cam.T_ref_cam),
+                note=f"{cam.name}: written by multieye export --format mrcal")
         except InputError as exc:
             left.append(f"{cam.name} ({exc})")
-            continue
-        paths.append(folder / f"{cam.name}.cameramodel")
-        write_text_atomic(paths[-1], text)
     if left:
         notes.append("no .cameramodel for " + "; ".join(left))
-    if not paths:
+    if not texts:
         raise InputError("mrcal cannot describe any camera: " + "; ".join(left))
-    return paths
+    return texts
 
 
 def export(out_dir: str | os.PathLike, fmt: str, *,
@@ -551,23 +460,27 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
     out = Path(out_dir)
     rec = read_calibration(out / "calibration.json")
     folder = Path(dest) if dest is not None else out / "export"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise DatasetError(f"cannot create the export folder: {exc.strerror}", path=folder) from exc
-    notes = [] if notes is None else notes
+    # Nothing written through a link below the folder the files belong in (docs/outputs.md).
+    with confined_to(out if dest is None else folder):
+        return _export(out, rec, fmt, folder, dest, [] if notes is None else notes,
+                       parent_frame, child_frame)
+
+
+def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, notes: list[str],
+            parent_frame: str | None, child_frame: str | None) -> list[Path]:
+    """:func:`export` once the calibration is read, inside its confined folder: everything
+    is read and checked before the folder is created and the first file written."""
     if parent_frame is None and rec.setup == "eye-on-hand" and rec.frames is None:
         parent_frame = _tracked_frame(out)      # calibration.json of an earlier version
     frame_names(rec, parent_frame, child_frame)        # checked before anything is written
-    if fmt in ("camera-info", "mrcal"):
-        sub = folder / FORMATS[fmt].split("/")[0]
-        try:
-            sub.mkdir(exist_ok=True)
-        except OSError as exc:
-            raise DatasetError(f"cannot create the folder: {exc.strerror}", path=sub) from exc
-        intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
-        return (_camera_infos if fmt == "camera-info" else _cameramodels)(sub, rec, intr, notes)
     path = folder / FORMATS[fmt]
+    if fmt in ("camera-info", "mrcal"):
+        intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
+        texts = (_camera_infos if fmt == "camera-info" else _cameramodels)(rec, intr, notes)
+        sub = FORMATS[fmt].split("/")[0]
+        _export_folder(folder, dest)
+        make_folder(folder / sub)
+        return [write_text_atomic(folder / sub / name, text) for name, text in texts.items()]
     if fmt == "kalibr":
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
         cams = read_run_details(out / "details.json").cameras
@@ -576,18 +489,32 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
         kept, left = kalibr_chain(rec, intr, {c.name: c.topic for c in cams}, overlaps)
         if not kept:
             raise InputError("Kalibr cannot hold any camera: " + "; ".join(left))
+        _export_folder(folder, dest)
         write_camchain(path, kept, comments=[f"left out of this camchain: {c}" for c in left])
         if left:
             notes.append(f"camchain.yaml holds {', '.join(e.name for e in kept)} only; left "
                          "out: " + "; ".join(left))
-    elif fmt == "opencv":
-        write_text_atomic(path, opencv_text(rec, _intrinsics(out, rec, required=False),
-                                            parent_frame))
+        return [path]
+    if fmt == "opencv":
+        text = opencv_text(rec, _intrinsics(out, rec, required=False), parent_frame)
     elif fmt == "urdf":
-        write_text_atomic(path, urdf_text(rec, parent_frame, child_frame))
+        text = urdf_text(rec, parent_frame, child_frame)
     elif fmt == "tf-static":
-        write_text_atomic(path, tf_static_text(rec, parent_frame, child_frame))
+        text = tf_static_text(rec, parent_frame, child_frame)
     else:  # json
-        text = json.dumps(calibration_to_dict(rec), separators=(",", ":"), allow_nan=False)
-        write_text_atomic(path, text + "\n")
+        text = json.dumps(calibration_to_dict(rec), separators=(",", ":"), allow_nan=False) + "\n"
+    _export_folder(folder, dest)
+    write_text_atomic(path, text)
     return [path]
+
+
+def _export_folder(folder: Path, dest) -> None:
+    """``OUT/export`` (never through a link), or the folder given as ``dest`` (created)."""
+    if dest is None:
+        make_folder(folder)
+        return
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"cannot create the export folder: {exc.strerror}",
+                           path=folder) from exc

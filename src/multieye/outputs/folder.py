@@ -3,15 +3,20 @@
 A calibration replaces its output folder ``OUT`` as a whole (docs/outputs.md, section 1):
 
 1. **Lock.** ``OUT.multieye-lock`` beside ``OUT`` holds the process id and command line of
-   the run that holds ``OUT``, locked with ``flock`` (Windows: ``msvcrt.locking``).  The
+   the run that holds ``OUT``, locked with ``flock`` (Windows: ``msvcrt.locking``); created
+   with ``O_EXCL``, or, left by a run that ended, opened with ``O_NOFOLLOW`` and used only
+   when it is a plain file with one name (never written through a link).  The
    kernel drops the lock when that process ends, however it ends, so a lock left by a
    killed run is simply taken over; a second run into a held folder stops with one line
    naming the folder and the holder.  The holder removes the file when it lets go.
 2. **Recovery** (holding the lock, so nothing beside ``OUT`` belongs to a running process):
    ``OUT.multieye-tmp-<pid>-<hex>`` and ``OUT.multieye-old-<pid>-<hex>`` left by a killed
    run are removed, after the newest ``old`` folder is renamed back to ``OUT`` when ``OUT``
-   is missing (a run killed between the two renames of step 5).
-3. **Check**: ``OUT`` is missing, an empty folder, or holds only files multieye writes
+   is missing (a run killed between the two renames of step 5); a link of such a name is
+   neither followed, removed nor renamed.
+3. **Check**: ``OUT`` is not a symbolic link and holds none (the folders above it are
+   resolved once, :func:`_resolve`, and may be links); it is missing, an empty folder, or
+   holds only files multieye writes
    (those listed in its ``.multieye-manifest.json`` and the fixed names of section 1 of
    docs/outputs.md); anything else (a user's notes, a dataset, a file named ``figures``)
    stops the run with one line, before any work, and again just before the swap.
@@ -39,6 +44,7 @@ Synopsis
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import re
@@ -54,6 +60,7 @@ from pathlib import Path
 
 from multieye.core.errors import DatasetError
 from multieye.core.version import __version__
+from multieye.io.atomic import confined_to, write_problem
 
 try:
     import fcntl
@@ -88,6 +95,7 @@ _DISPOSABLE = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
 #: The temporary file of an interrupted atomic write (multieye.io.atomic).
 _ATOMIC_TMP = re.compile(r"\..+\.[0-9a-f]{32}\.tmp")
 
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 _WINDOWS_LOCK_OFFSET = 1 << 30      # msvcrt locks bytes: lock one far beyond the text
 
 
@@ -95,11 +103,13 @@ _WINDOWS_LOCK_OFFSET = 1 << 30      # msvcrt locks bytes: lock one far beyond th
 
 
 def _resolve(out: str | os.PathLike) -> Path:
-    path = Path(out).expanduser().resolve()
+    """``out`` made absolute, the folders above it resolved (once, here), ``out`` itself not:
+    a link there is refused later (:func:`_check_real_folder`)."""
+    path = Path(os.path.abspath(os.path.expanduser(os.fspath(out))))
     if path.parent == path:
         raise DatasetError("cannot use the root of a file system as the output folder",
                            path=path)
-    return path
+    return path.parent.resolve() / path.name
 
 
 def _lock_path(out: Path) -> Path:
@@ -120,13 +130,13 @@ def _leftovers(out: Path) -> tuple[list[Path], list[Path]]:
         return tmp, old
     for entry in entries:
         m = pattern.fullmatch(entry.name)
-        if m:
+        if m and entry.is_dir(follow_symlinks=False):       # never a link of that name
             (tmp if m.group(1) == "tmp" else old).append(Path(entry.path))
     return tmp, old
 
 
 def _remove(path: Path) -> None:
-    if path.is_dir() and not path.is_symlink():
+    if not path.is_symlink() and path.is_dir():
         shutil.rmtree(path, ignore_errors=True)
     else:
         with contextlib.suppress(OSError):
@@ -201,31 +211,94 @@ def _acquire(out: Path) -> bool:
             return False
     path = _lock_path(out)
     for _ in range(20):
-        try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
-        except OSError as exc:
-            raise DatasetError(f"cannot create the lock file beside the output folder: "
-                               f"{exc.strerror}", path=path) from exc
+        fd = _open_lock(path)
+        if fd is None:
+            continue                # removed between our two opens: try again
         if not _try_lock(fd):
             os.close(fd)
             raise _busy(out, _holder(path))
-        try:            # a holder that ended may have removed the file we opened: retry
-            same = os.path.samestat(os.fstat(fd), os.stat(path))
-        except OSError:
-            same = False
-        if same:
+        if _same_file(fd, path):    # a holder that ended may have removed it: retry
             break
         os.close(fd)
     else:                                                # pragma: no cover - a storm
         raise _busy(out, "processes taking and releasing it")
     command = " ".join(["multieye", *sys.argv[1:]] if sys.argv and
                        Path(sys.argv[0]).stem in ("multieye", "__main__") else sys.argv)
-    os.ftruncate(fd, 0)
-    os.lseek(fd, 0, os.SEEK_SET)
-    os.write(fd, f"{os.getpid()}\n{' '.join(command.split())}\n".encode())
+    try:
+        os.ftruncate(fd, 0)
+        os.lseek(fd, 0, os.SEEK_SET)
+        # "replace": a path given as bytes that are not UTF-8 (surrogateescape) shows as '?'
+        os.write(fd, f"{os.getpid()}\n{' '.join(command.split())}\n".encode("utf-8",
+                                                                             "replace"))
+    except BaseException as exc:        # the file-size limit, a full disk, Ctrl-C: let go
+        _drop_lock(fd, path)
+        if isinstance(exc, OSError):
+            raise DatasetError(f"cannot write the lock file: {write_problem(exc)}",
+                               path=path) from exc
+        raise
     with _HELD_GUARD:
         _HELD[out] = _Held(fd, path, threading.get_ident())
     return True
+
+
+def _open_lock(path: Path) -> int | None:
+    """Open the lock file: created exclusively, or an existing one (left by a run that
+    ended) opened without following a link; None when it went away between the two.
+
+    Raises
+    ------
+    DatasetError
+        The name is a link, a folder, a device or a file with several names (hard links):
+        multieye writes its process id only into a file of its own.
+    """
+    flags = os.O_RDWR | _NOFOLLOW | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags | os.O_CREAT | os.O_EXCL, 0o666)
+    except FileExistsError:
+        try:
+            fd = os.open(path, flags)
+        except FileNotFoundError:
+            return None
+        except OSError as exc:
+            if os.path.islink(path):
+                raise DatasetError("the lock file is a symbolic link; multieye does not write "
+                                   "through links: remove it", path=path) from exc
+            raise DatasetError(f"cannot open the lock file: {exc.strerror}", path=path) from exc
+    except OSError as exc:
+        raise DatasetError(f"cannot create the lock file beside the output folder: "
+                           f"{write_problem(exc)}", path=path) from exc
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode) or st.st_nlink != 1:
+        os.close(fd)
+        what = "has other names (hard links)" if stat.S_ISREG(st.st_mode) else "is not a file"
+        raise DatasetError(f"the lock file {what}; multieye writes its process id only into a "
+                           "file of its own: remove it", path=path)
+    return fd
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        return os.path.samestat(os.fstat(fd), os.lstat(path))
+    except OSError:
+        return False
+
+
+def _drop_lock(fd: int, path: Path) -> None:
+    """Remove the lock file (when it is still ours) while locked, then close it."""
+    if _same_file(fd, path):
+        try:
+            os.unlink(path)         # while still locked: nobody takes a file about to go
+        except OSError:
+            os.close(fd)            # Windows cannot remove an open file
+            if _same_file_path(path):
+                with contextlib.suppress(OSError):
+                    os.unlink(path)
+            return
+    os.close(fd)
+
+
+def _same_file_path(path: Path) -> bool:       # pragma: no cover - Windows
+    return os.path.isfile(path) and not os.path.islink(path)
 
 
 def _release(out: Path) -> None:
@@ -235,14 +308,7 @@ def _release(out: Path) -> None:
         if held.count:
             return
         del _HELD[out]
-    try:
-        os.unlink(held.path)        # while still locked: nobody takes a file about to go
-    except OSError:
-        os.close(held.fd)           # Windows cannot remove an open file
-        with contextlib.suppress(OSError):
-            os.unlink(held.path)
-    else:
-        os.close(held.fd)
+    _drop_lock(held.fd, held.path)
 
 
 # --------------------------------------------------------------------------- checks
@@ -291,6 +357,33 @@ def foreign_files(out: str | os.PathLike) -> list[str]:
     return sorted(foreign)
 
 
+def _links_inside(out: Path) -> list[str]:
+    """Symbolic links in ``out`` (relative, sorted), not followed."""
+    links = []
+    for root, dirs, files in os.walk(out):
+        for name in dirs + files:
+            if os.path.islink(os.path.join(root, name)):
+                links.append(Path(root, name).relative_to(out).as_posix())
+    return sorted(links)
+
+
+def _check_real_folder(out: Path) -> None:
+    """``out`` is missing or a real folder with no symbolic link in it (one line if not)."""
+    if os.path.islink(out):
+        raise DatasetError(f"is a symbolic link (to {os.readlink(out)}); multieye writes only "
+                           "into a real folder: name the folder itself", path=out)
+    if not os.path.lexists(out):
+        return
+    if not out.is_dir():
+        raise DatasetError("exists and is not a folder", path=out)
+    links = _links_inside(out)
+    if links:
+        shown = ", ".join(links[:3]) + (f" and {len(links) - 3} more" if len(links) > 3
+                                        else "")
+        raise DatasetError(f"holds symbolic links ({shown}); multieye does not write or "
+                           "delete through links in an output folder: remove them", path=out)
+
+
 def _check_replaceable(out: Path, inputs: Iterable) -> None:
     for item in inputs:
         p = Path(item).expanduser().resolve()
@@ -298,10 +391,9 @@ def _check_replaceable(out: Path, inputs: Iterable) -> None:
             raise DatasetError(f"the input {p} is inside the output folder, which a "
                                "calibration replaces as a whole: choose another output folder",
                                path=out)
+    _check_real_folder(out)
     if not os.path.lexists(out):
         return
-    if not out.is_dir():
-        raise DatasetError("exists and is not a folder", path=out)
     if os.path.ismount(out):
         raise DatasetError("is a mount point, which cannot be replaced as a whole: use a "
                            "folder inside it", path=out)
@@ -318,7 +410,7 @@ def _recover(out: Path) -> None:
     """Put back an old set a killed run left beside ``out``, remove the rest (lock held)."""
     tmp, old = _leftovers(out)
     if old and not os.path.lexists(out):
-        newest = max(old, key=lambda p: p.stat().st_mtime_ns)
+        newest = max(old, key=lambda p: p.lstat().st_mtime_ns)
         os.rename(newest, out)
         old.remove(newest)
     for p in tmp + old:
@@ -350,12 +442,14 @@ def claim_output(out_dir: str | os.PathLike, *, inputs: Iterable = (),
     Yields
     ------
     Path
-        The output folder, absolute, symbolic links resolved.
+        The output folder, absolute, the folders above it resolved (``OUT`` itself is never
+        a link: refused).
 
     Raises
     ------
     DatasetError
-        Another run holds the folder, or it cannot be replaced (one line saying why).
+        Another run holds the folder, the folder or the lock file is a link (or holds one),
+        or it cannot be replaced (one line saying why).
     """
     out = _resolve(out_dir)
     created = []
@@ -375,6 +469,8 @@ def claim_output(out_dir: str | os.PathLike, *, inputs: Iterable = (),
             _recover(out)
         if replace:
             _check_replaceable(out, inputs)
+        else:
+            _check_real_folder(out)
         yield out
     finally:
         if outermost is not None:
@@ -396,7 +492,8 @@ def _write_manifest(folder: Path) -> None:
     files = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*")
                    if not p.is_dir() and p.name != MANIFEST)
     text = json.dumps({"written_by": f"multieye {__version__}", "files": files}, indent=1)
-    with open(folder / MANIFEST, "w", encoding="utf-8", newline="\n") as f:
+    fd = os.open(folder / MANIFEST, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o666)
+    with open(fd, "w", encoding="utf-8", newline="\n") as f:
         f.write(text + "\n")
         f.flush()
         os.fsync(f.fileno())
@@ -410,6 +507,8 @@ def _swap(stage: Path, out: Path, backup: Path) -> None:
     if os.path.lexists(out):
         with contextlib.suppress(OSError):
             os.chmod(stage, stat.S_IMODE(os.stat(out).st_mode))
+        if os.path.lexists(backup):     # a fresh random name: never over something there
+            raise FileExistsError(errno.EEXIST, "the backup name is taken", str(backup))
         os.rename(out, backup)
         try:
             os.rename(stage, out)
@@ -440,16 +539,24 @@ def staged_output(out_dir: str | os.PathLike, *, inputs: Iterable = ()) -> Itera
         try:
             folder.mkdir()
         except OSError as exc:
-            raise DatasetError(f"cannot write beside the output folder: {exc.strerror}",
-                               path=folder) from exc
+            raise DatasetError(f"cannot write beside the output folder: "
+                               f"{write_problem(exc)}", path=folder) from exc
         swapped = False
         try:
-            yield Stage(folder=folder, out=out)
+            try:
+                with confined_to(folder):
+                    yield Stage(folder=folder, out=out)
+            except DatasetError as exc:         # name the file where it was to end up
+                if exc.path is None or not Path(exc.path).is_relative_to(folder):
+                    raise
+                final = out / Path(exc.path).relative_to(folder)
+                raise DatasetError(exc.reason, path=final, line=exc.line,
+                                   camera=exc.camera) from exc
             _check_replaceable(out, inputs)     # again: files may have appeared meanwhile
             try:
                 _swap(folder, out, backup)
             except OSError as exc:
-                raise DatasetError(f"cannot replace the output folder: {exc.strerror or exc}",
+                raise DatasetError(f"cannot replace the output folder: {write_problem(exc)}",
                                    path=out) from exc
             swapped = True
         finally:

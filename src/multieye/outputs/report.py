@@ -49,7 +49,8 @@ from pathlib import Path
 import numpy as np
 
 from multieye.core.errors import DatasetError
-from multieye.io.atomic import write_bytes_atomic, write_text_atomic
+from multieye.io.atomic import (confined_to, make_folder, remove_file, write_bytes_atomic,
+                                write_text_atomic)
 from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUncertainty, named_keys,
                                          read_calibration)
 from multieye.io.run_details import RunDetails, read_run_details
@@ -484,19 +485,17 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
         also=lambda: image_thumbnails(rec, details, images))
     files_written = dict(figures)
     files_written.update({t.file: t.jpeg for thumbs in thumbnails.values() for t in thumbs})
-    folder = out / "figures"
-    try:
-        folder.mkdir(exist_ok=True)
-    except OSError as exc:
-        raise DatasetError(f"cannot create the figures folder: {exc.strerror}", path=folder) from exc
-    for name, data in files_written.items():
-        write_bytes_atomic(folder / name, data)
-    for path in folder.iterdir():  # figures of an earlier report that this one does not have
-        if path.name not in files_written and (
-                path.name in FIGURES or path.name in _EARLIER_FIGURES
-                or _CAMERA_FIGURE.fullmatch(path.name) or THUMBNAIL.fullmatch(path.name)
-        ) and path.is_file():
-            path.unlink()
     html = report_html(rec, details, figures, out_dir=Path(shown_as) if shown_as else out,
                        notes=notes, thumbnails=thumbnails, rig_legend=legend)
-    return write_text_atomic(out / "report.html", html)
+    with confined_to(out):      # never written or removed through a link (docs/outputs.md)
+        folder = out / "figures"
+        make_folder(folder)
+        for name, data in files_written.items():
+            write_bytes_atomic(folder / name, data)
+        for entry in sorted(os.listdir(folder)):    # figures of an earlier report, not this one
+            if entry not in files_written and (
+                    entry in FIGURES or entry in _EARLIER_FIGURES
+                    or _CAMERA_FIGURE.fullmatch(entry) or THUMBNAIL.fullmatch(entry)):
+                remove_file(folder / entry)
+        write_text_atomic(out / "report.html", html)
+    return out / "report.html"

@@ -45,10 +45,10 @@ WORST_IMAGES = 5
 def camera_figure_names(names: Iterable[str]) -> dict[str, str]:
     """File name in ``OUT/figures/`` of each camera's figure: ``camera_<name>.png`` with
     characters other than letters, digits, ``.``, ``_`` and ``-`` replaced by ``_`` (and a
-    number added when two names become the same)."""
+    number added when two names become the same; at most 100 characters of the name)."""
     out: dict[str, str] = {}
     for name in names:
-        base = "camera_" + re.sub(r"[^A-Za-z0-9._-]", "_", name)
+        base = "camera_" + re.sub(r"[^A-Za-z0-9._-]", "_", name[:100])
         stem, k = base, 2
         while f"{stem}.png" in out.values():
             stem, k = f"{base}_{k}", k + 1
@@ -195,7 +195,10 @@ def _number(v) -> float | None:
     """A diagnostics value as a float; None (infinite, in calibration.json) stays None."""
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         return None
-    return float(v)
+    try:
+        return float(v)
+    except OverflowError:       # an integer beyond the float range: not a diagnostics value
+        return None
 
 
 def _motion_table(rec: CalibrationRecord) -> str:

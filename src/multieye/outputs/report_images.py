@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from html import escape
 from pathlib import Path
 
+from multieye.core.names import file_stem
 from multieye.io.calibration_json import CalibrationRecord
 from multieye.io.run_details import RunDetails
 from multieye.outputs.html import figure
@@ -60,7 +61,9 @@ def image_folders(run: CalibrationRun) -> dict[str, Path]:
 
 
 def _stem(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]", "_", name)
+    """The camera's name in a thumbnail's file name: :func:`multieye.core.names.file_stem`,
+    then reduced to the characters :data:`THUMBNAIL` allows."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", file_stem(name))
 
 
 def image_thumbnails(rec: CalibrationRecord, details: RunDetails | None,

@@ -13,7 +13,9 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from multieye.core.names import file_stems
 from multieye.io import write_calibration, write_camchain, write_opencv_intrinsics
+from multieye.io.atomic import confined_to, make_folder
 from multieye.io.run_details import RunDetails, StageTimings, write_details
 from multieye.outputs.details import camera_overlaps, camera_topic, write_run_details
 from multieye.outputs.export import kalibr_chain
@@ -50,7 +52,8 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
     """Write the results of a run as the new content of ``out_dir``, all or nothing.
 
     ``calibration.json`` (docs/outputs.md), Kalibr ``camchain.yaml``, ``intrinsics/<camera>.yaml``
-    for every camera whose intrinsics were estimated, ``details.json``
+    for every camera whose intrinsics were estimated (the camera's name as a file name,
+    :func:`multieye.core.names.file_stem`), ``details.json``
     (per-image residuals, target poses, trajectory; :mod:`multieye.io.run_details`) and,
     with ``report=True``, ``report.html`` with ``figures/`` (:mod:`multieye.outputs.report`).
     Everything is written into a staging folder beside ``out_dir``, which then replaces
@@ -94,11 +97,12 @@ def write_output_files(run: CalibrationRun, folder: Path, *, final: Path, report
     Returns the names written, the notes and the timings written into ``details.json``.
     """
     start = time.perf_counter() if start is None else start
-    names, notes, details = _write_all(run, folder, report=report, diagnostics=diagnostics,
-                                       final=final)
-    seconds = time.perf_counter() - start
-    timings = replace(run.timings, outputs=seconds, total=run.timings.total + seconds)
-    write_details(folder / "details.json", replace(details, timings=timings))
+    with confined_to(folder):           # nothing written through a link (docs/outputs.md)
+        names, notes, details = _write_all(run, folder, report=report,
+                                           diagnostics=diagnostics, final=final)
+        seconds = time.perf_counter() - start
+        timings = replace(run.timings, outputs=seconds, total=run.timings.total + seconds)
+        write_details(folder / "details.json", replace(details, timings=timings))
     return [n for n in names if (folder / n).exists()], notes, timings
 
 
@@ -111,9 +115,10 @@ def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: 
     estimated = [c.name for c in run.record.cameras
                  if c.intrinsics is not None and c.intrinsics.estimated]
     if estimated:
-        (folder / "intrinsics").mkdir()
+        stems = file_stems(estimated, what="file intrinsics/<camera>.yaml")
+        make_folder(folder / "intrinsics")
         for name in estimated:
-            write_opencv_intrinsics(folder / "intrinsics" / f"{name}.yaml",
+            write_opencv_intrinsics(folder / "intrinsics" / f"{stems[name]}.yaml",
                                     run.record.camera(name).intrinsics.intrinsics)
         names.append("intrinsics")
     details = write_run_details(folder / "details.json", run, diagnostics=diagnostics)
