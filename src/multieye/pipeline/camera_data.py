@@ -378,13 +378,14 @@ def _poses_by_name(name: str, folder: Path, spec) -> tuple[Trajectory, list, lis
     file as ``(stamp, ns, path)``, and what has no partner, with the reason."""
     from multieye.io import list_image_files
     from multieye.io.mocap import pose_frames
-    from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
+    from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 
     fmt = PoseFormat(rotation=spec.rotation, values=spec.values, key=spec.key,
                      unit=spec.unit or "m")
     try:
         images = list_image_files(folder)
-        matched, unmatched = (poses_by_table(images, spec.file, fmt) if spec.match == "image"
+        read = {"image": poses_by_table, "order": poses_by_order}.get(spec.match)
+        matched, unmatched = (read(images, spec.file, fmt) if read is not None
                               else poses_by_name(images, str(spec.file), fmt))
     except DatasetError as exc:
         raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=name) from None
