@@ -1,6 +1,6 @@
 """multieye's board frame against OpenCV's (issue 24, item 3): per target type, a board found
 by OpenCV's own detector and posed by ``cv2.solvePnP`` on OpenCV's own object points gives
-multieye's pose once ``T_opencv_target`` (docs/conventions.md, section 3) is applied:
+multieye's pose once ``T_opencv_target`` (docs/conventions.md, section 5) is applied:
 ``T_cam_target (multieye) == T_cam_opencv @ T_opencv_target``."""
 
 from __future__ import annotations

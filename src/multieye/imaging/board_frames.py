@@ -8,7 +8,7 @@ so that a pose from an OpenCV script compares with multieye's as
 
     ``T_cam_target (multieye) = T_cam_opencv (OpenCV's solvePnP) @ T_opencv_target``
 
-and ``T_marker_target = T_marker_opencv @ T_opencv_target``.  docs/conventions.md, section 3,
+and ``T_marker_target = T_marker_opencv @ T_opencv_target``.  docs/conventions.md, section 5,
 lists the same table; tests/imaging/test_board_frames.py applies it to OpenCV's own detectors,
 boards and ``cv2.solvePnP``.
 

@@ -159,9 +159,12 @@ def _no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
     for r in rejected:
         kinds.setdefault(_kind(r.reason), []).append(r)
     if set(kinds) == {"target not detected"}:
+        from multieye.imaging.target_hints import counting_rule
+
+        rule = counting_rule(rig.target.type) if rig.target is not None else ""
         return (f"the target ({_describe_target(rig)}) was not detected in any of the {n} "
-                "images; check the target section of rig.yaml (rows/cols count inner corners "
-                "for a chessboard) and the images")
+                f"images; check the target section of rig.yaml ({rule}) and the images; "
+                "'multieye check' searches them for what they hold")
     parts = [f"{len(items)} {kind} (first {items[0].item}: {items[0].reason})"
              for kind, items in kinds.items()]
     return f"none of the {n} images is usable: " + "; ".join(parts)
