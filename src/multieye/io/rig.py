@@ -535,7 +535,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
     p = as_path(path, "the dataset (a folder or its rig.yaml)")
     if p.is_dir():
         p = p / "rig.yaml"
-    doc = load_yaml(p.resolve(), what="rig description (rig.yaml)")
+    doc = load_yaml(p, what="rig description (rig.yaml)")     # messages name it as typed
     c = _Checker(doc)
     raw = c.mapping(doc.data if doc.data is not None else {}, (),
                     TOP_LEVEL_KEYS, ("setup", "cameras"))
@@ -581,7 +581,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
         needing = [n for n, cam in cameras.items() if cam.source != "poses"]
         raise DatasetError(f"missing key 'target': cameras with images ({', '.join(needing)}) "
                            "need the calibration board described", path=doc.path, line=1)
-    return Rig(doc.path, setup, MappingProxyType(cameras), target, mocap)
+    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap)
 
 
 def read_camera_intrinsics(camera: CameraSpec) -> Intrinsics:
