@@ -310,3 +310,19 @@ def test_every_file_written_outside_the_set_has_a_known_name():
             assert folder_mod._KNOWN_PATTERN.fullmatch(
                 "export/" + name.replace("<camera>", "front left"))
     assert {f"figures/{name}" for name in FIGURES} <= folder_mod.KNOWN_FILES
+
+
+def test_the_output_folder_is_named_as_typed(tmp_path, monkeypatch):
+    """Not resolved: ``-o out`` is ``out`` in the message, not the absolute folder."""
+    (tmp_path / "runs" / "out").mkdir(parents=True)
+    (tmp_path / "runs" / "out" / "notes.txt").write_text("mine")
+    monkeypatch.chdir(tmp_path / "runs")
+    with pytest.raises(DatasetError) as info:
+        with claim_output("out"):
+            pass
+    assert str(info.value).startswith("out: holds files multieye did not write (notes.txt)")
+    assert str(tmp_path) not in str(info.value)
+    with pytest.raises(DatasetError) as info:
+        with claim_output(Path("out") / "notes.txt" / "deeper"):
+            pass
+    assert str(info.value).startswith("out/notes.txt/deeper: cannot create the output folder")
