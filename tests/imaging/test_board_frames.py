@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from multieye.core.errors import InputError
-from multieye.core.geometry import rotation_angle_between, transform_from_rotvec, translation_distance
+from multieye.core.geometry import (
+    rotation_angle_between, transform_from_rotvec, translation_distance)
 from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.board_frames import T_opencv_target
 from multieye.imaging.detect import detect
