@@ -98,9 +98,13 @@ def test_markers_on_a_board_said_for_a_chessboard():
     sightings = markers_in(images)
     assert sightings[0].dictionary == "DICT_4X4_50" and sightings[0].ids == tuple(range(31))
     hint = suggest_target(images, {"type": "chessboard", "rows": 6, "cols": 8, "spacing": 0.04})
-    assert hint.spec is None
-    assert hint.text.startswith("the images hold ArUco markers of DICT_4X4_50 (ids 0-30), not "
-                                "the chessboard of rig.yaml: a ChArUco board? type: charuco")
+    # OpenCV's chessboard detector may or may not find the ChArUco board's squares (as 8 x 6);
+    # either way the markers are named, with the type and the counting they call for
+    note = ("hold ArUco markers of DICT_4X4_50 (ids 0-30), not the chessboard of rig.yaml: a "
+            "ChArUco board? type: charuco, with dictionary: DICT_4X4_50 (rows and cols count "
+            "the squares (not the inner corners)")
+    assert note in hint.text, hint.text
+    assert hint.spec is None or hint.spec["type"] == "chessboard"
 
 
 def test_an_aprilgrid_is_named_for_another_target():

@@ -375,26 +375,32 @@ def suggest_target(images: Sequence[Any], spec: Mapping[str, Any]) -> TargetHint
                 candidate["marker_size"] = float(f"{ratio * candidate['spacing']:.6g}")
                 why += (f", marker_size {candidate['marker_size']:g} (the markers measure "
                         f"about {ratio:.2f} of a square, rig.yaml says {given:.2f})")
+        if sightings and kind in ("chessboard", "circles", "asymmetric-circles"):
+            # a ChArUco board is a chessboard too: say what else the board holds
+            why += "; " + _markers_note(kind, sightings[0]).replace("hold", "also hold", 1)
         return TargetHint(candidate, found, len(grays), why)
     if sightings:
-        s = sightings[0]
-        what = "AprilTags" if "APRILTAG" in s.dictionary else "ArUco markers"
-        border = " with a 2-bit border (Kalibr)" if s.border_bits == 2 else ""
-        if s.family == "DICT_APRILTAG_36h11" and s.border_bits == 2 and kind != "aprilgrid":
-            return TargetHint(None, 0, len(grays),
-                              f"the images hold AprilTags 36h11 with a 2-bit border ({s.ids_text}"
-                              f"), as on Kalibr's AprilGrid, not the {kind} of rig.yaml: "
-                              f"type: aprilgrid with rows x cols = the tags of the grid, "
-                              f"spacing (tag size) and tag_spacing ({counting_rule('aprilgrid')})")
-        advice = {
-            "chessboard": "a ChArUco board? type: charuco",
-            "circles": "a ChArUco board or a marker grid? type: charuco or aruco-grid",
-            "asymmetric-circles": "a ChArUco board or a marker grid? type: charuco or aruco-grid",
-            "aprilgrid": "an aprilgrid is AprilTag 36h11 with a 2-bit border (Kalibr); for "
-                         "other tags: type: aruco-grid",
-        }.get(kind, f"type {kind}")
-        return TargetHint(None, 0, len(grays),
-                          f"the images hold {what} of {s.dictionary}{border} ({s.ids_text}), "
-                          f"not the {kind} of rig.yaml: {advice}, with dictionary: "
-                          f"{s.dictionary} ({counting_rule(kind)})")
+        return TargetHint(None, 0, len(grays), _markers_note(kind, sightings[0]))
     return None
+
+
+def _markers_note(kind: str, s: MarkerSighting) -> str:
+    """``the images hold <markers>, not the <kind> of rig.yaml: <what it may be>``."""
+    what = "AprilTags" if "APRILTAG" in s.dictionary else "ArUco markers"
+    border = " with a 2-bit border (Kalibr)" if s.border_bits == 2 else ""
+    if s.family == "DICT_APRILTAG_36h11" and s.border_bits == 2 and kind != "aprilgrid":
+        return (f"the images hold AprilTags 36h11 with a 2-bit border ({s.ids_text}), as on "
+                f"Kalibr's AprilGrid, not the {kind} of rig.yaml: type: aprilgrid with rows x "
+                f"cols = the tags of the grid, spacing (tag size) and tag_spacing "
+                f"({counting_rule('aprilgrid')})")
+    advice = {
+        "chessboard": "a ChArUco board? type: charuco",
+        "circles": "a ChArUco board or a marker grid? type: charuco or aruco-grid",
+        "asymmetric-circles": "a ChArUco board or a marker grid? type: charuco or aruco-grid",
+        "aprilgrid": "an aprilgrid is AprilTag 36h11 with a 2-bit border (Kalibr); for "
+                     "other tags: type: aruco-grid",
+    }.get(kind, f"type {kind}")
+    target = "charuco" if kind == "chessboard" else "aruco-grid" if kind == "aprilgrid" else kind
+    return (f"the images hold {what} of {s.dictionary}{border} ({s.ids_text}), not the {kind} "
+            f"of rig.yaml: {advice}, with dictionary: {s.dictionary} "
+            f"({counting_rule(target)})")
