@@ -7,7 +7,9 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
+from pathlib import Path
 
+from multieye.core.arguments import did_you_mean
 from multieye.io.yamlfile import YamlDocument, shown
 
 __all__ = ["Checker", "sensor_keys", "MOCAP_SENSORS", "MOCAP_NOISE_BOUND_KEYS"]
@@ -24,7 +26,7 @@ class Checker:
 
     def __init__(self, doc: YamlDocument):
         self.doc = doc
-        self.folder = doc.path.parent
+        self.folder = doc.path.parent.resolve()
 
     def error(self, message, keys):
         return self.doc.error(message, *keys)
@@ -34,8 +36,8 @@ class Checker:
             raise self.error(f"expected a mapping, got {type(value).__name__}", keys)
         for key in value:
             if key not in allowed:
-                raise self.error(f"unknown key; expected one of {', '.join(allowed)}",
-                                 keys + (key,))
+                raise self.error(f"unknown key{did_you_mean(key, allowed)}; expected one of "
+                                 f"{', '.join(allowed)}", keys + (key,))
         for key in required:
             if key not in value:
                 raise self.error(f"missing key {key!r}", keys)
@@ -53,7 +55,8 @@ class Checker:
 
     def choice(self, value, keys, options):
         if isinstance(value, (list, dict)) or value not in options:
-            raise self.error(f"expected one of {', '.join(options)}, got {shown(value)}", keys)
+            raise self.error(f"expected one of {', '.join(options)}, got {shown(value)}"
+                             f"{did_you_mean(value, options)}", keys)
         return value
 
     def number(self, value, keys, *, positive=False, integer=False, maximum=None, unit=""):
@@ -80,13 +83,17 @@ class Checker:
         return value if integer else float(value)
 
     def path(self, value, keys, kind):
-        p = (self.folder / self.string(value, keys)).resolve()
+        """The path ``value`` (relative to the folder of rig.yaml), resolved; messages name
+        it as the user typed it."""
+        typed = self.string(value, keys)
+        p = (self.folder / typed).resolve()
+        shown = typed if Path(typed).is_absolute() else f"{typed} (relative to rig.yaml's folder)"
         if not p.exists():
-            raise self.error(f"{kind} not found: {p}", keys)
+            raise self.error(f"{kind} not found: {shown}", keys)
         if kind == "folder" and not p.is_dir():
-            raise self.error(f"expected a folder, found a file: {p}", keys)
+            raise self.error(f"expected a folder, found a file: {shown}", keys)
         if kind == "file" and p.is_dir():
-            raise self.error(f"expected a file, found a folder: {p}", keys)
+            raise self.error(f"expected a file, found a folder: {shown}", keys)
         return p
 
 

@@ -166,9 +166,12 @@ def _no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
     for r in rejected:
         kinds.setdefault(_kind(r.reason), []).append(r)
     if set(kinds) == {"target not detected"}:
+        from multieye.imaging.target_hints import counting_rule
+
+        rule = counting_rule(rig.target.type) if rig.target is not None else ""
         return (f"the target ({_describe_target(rig)}) was not detected in any of the {n} "
-                "images; check the target section of rig.yaml (rows/cols count inner corners "
-                "for a chessboard) and the images")
+                f"images; check the target section of rig.yaml ({rule}) and the images; "
+                "'multieye check' searches them for what they hold")
     parts = [f"{len(items)} {kind} (first {items[0].item}: {items[0].reason})"
              for kind, items in kinds.items()]
     return f"none of the {n} images is usable: " + "; ".join(parts)
@@ -390,13 +393,14 @@ def _poses_by_name(name: str, folder: Path, spec) -> tuple[Trajectory, list, lis
     file as ``(stamp, ns, path)``, and what has no partner, with the reason."""
     from multieye.io import list_image_files
     from multieye.io.mocap import pose_frames
-    from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
+    from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 
     fmt = PoseFormat(rotation=spec.rotation, values=spec.values, key=spec.key,
                      unit=spec.unit or "m")
     try:
         images = list_image_files(folder)
-        matched, unmatched = (poses_by_table(images, spec.file, fmt) if spec.match == "image"
+        read = {"image": poses_by_table, "order": poses_by_order}.get(spec.match)
+        matched, unmatched = (read(images, spec.file, fmt) if read is not None
                               else poses_by_name(images, str(spec.file), fmt))
     except DatasetError as exc:
         raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=name) from None

@@ -188,6 +188,19 @@ def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> l
     return out
 
 
+def _target_hint(rig, paths, results) -> str:
+    """``; <what the images hold>`` from two of the sampled images where the target was not
+    found (:func:`multieye.imaging.target_hints.suggest_target`), or ``""``."""
+    from multieye.imaging.target_hints import suggest_target
+
+    missed = [p for p, r in zip(paths, results) if r.reason and r.reason.startswith(
+        "target not detected")]
+    if not missed:
+        return ""
+    hint = suggest_target(sorted({missed[0], missed[len(missed) // 2]}), rig.target.as_dict())
+    return f"; {hint.text}" if hint is not None else ""
+
+
 def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
     from multieye.pipeline.camera_data import _poses_by_name
 
@@ -261,9 +274,14 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
     if cam.source != "poses" and n_found < MIN_FOUND_SHARE * n_sampled:
         text = f"target found in only {n_found} of {n_sampled} sampled images"
         if n_found == 0:
+            from multieye.imaging.target_hints import counting_rule
+
             t = rig.target
             text += (f"; check the target section of rig.yaml ({t.type} {t.rows}x{t.cols}, "
-                     f"spacing {t.as_dict().get('spacing', '?')} m) and the images")
+                     f"spacing {t.as_dict().get('spacing', '?')} m: {counting_rule(t.type)}) "
+                     "and the images")
+            if cam.source == "images":
+                text += _target_hint(rig, [images[i][2] for i in sampled_idx], results)
         problems.append(text)
     n_no_pose = len(stamps) - int(has_pose.sum())
     if n_no_pose:
