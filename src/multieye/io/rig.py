@@ -40,8 +40,7 @@ constants hold them, docs/rig-yaml.md documents each)::
       duplicates: error | drop                               # tum, csv only; default error
       # file: "{stem}.json": one pose file beside each image (format pose-files), with
       # key: end2base, values: [x, y, z, qx, qy, qz, qw], rotation: quaternion-xyzw | ...
-      match: time | image | order                            # pose-table: an image column,
-                                                             #   or rows in image-name order
+      match: time | image | order    # pose-table: by an image column or rows in name order
       sensor: motion-capture | robot                         # default: from the source
       noise_bounds: {rotation_deg: 0.1, translation_m: 0.001}   # default: the sensor's
     cameras:                                                 # required, at least one
