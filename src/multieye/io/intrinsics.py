@@ -158,7 +158,7 @@ def read_opencv_intrinsics(path: str | os.PathLike) -> Intrinsics:
         raise DatasetError(f"FileStorage refused: nested deeper than {_MAX_OPENCV_NESTING} "
                            "levels", path=p)
     try:
-        fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
+        fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
         opened = fs.isOpened()
     except (cv2.error, SystemError) as exc:
         message, line = _cv_message(exc)
