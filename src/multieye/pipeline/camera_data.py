@@ -24,6 +24,7 @@ from multieye.io import (
     Rig,
     Trajectory,
     list_images,
+    skipped_entries,
     read_camera_intrinsics,
     read_mocap,
     read_tum,
@@ -249,10 +250,13 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
             warnings.extend(f"{name}/{label}: {w}" for w in res.warnings)
         else:
             rejected.append(RejectedItem(label, res.reason))
+    skipped = [] if topic is not None else [RejectedItem(n, why)
+                                            for n, why in skipped_entries(source)]
+    rejected.extend(skipped)    # links to nowhere, devices, folders named like images
     if not obs:
         raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
                            camera=name)
-    return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped),
+    return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped) + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
                      intrinsics=None if lens is None else lens.intrinsics)
 

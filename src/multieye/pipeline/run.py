@@ -28,13 +28,8 @@ from multieye.pipeline.camera_data import CameraData, Observation, PairedCamera,
 from multieye.pipeline.camera_data import check_options, updated_options
 from multieye.core.arguments import as_path
 from multieye.core.errors import CalibrationError, DatasetError, InputError, TooFewMeasurementsError
-from multieye.io import (
-    CalibrationRecord,
-    PlausibilityItem,
-    RejectedItem,
-    Rig,
-    load_rig,
-)
+from multieye.io import CalibrationRecord, PlausibilityItem, RejectedItem, Rig, load_rig
+from multieye.pipeline.sources import outside_reads
 from multieye.io.run_details import StageTimings
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import Measurements, check_measurements
@@ -594,4 +589,6 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     detection = sum(d.detection_s for d in cameras.values())
     timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
                       total=time.perf_counter() - start)
-    return replace(run, timings=timings)
+    # files read from outside the dataset folder named, first among the warnings
+    record = replace(run.record, warnings=outside_reads(rig, path) + tuple(run.record.warnings))
+    return replace(run, timings=timings, record=record)
