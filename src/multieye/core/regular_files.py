@@ -188,6 +188,18 @@ class BoundedReader:
             self._count(len(line))
             yield line
 
+    def blocks(self) -> Iterator[bytes]:
+        """The content in blocks of bytes (1 MiB)."""
+        while True:
+            try:
+                block = self._file.read(min(_CHUNK, self.max_bytes + 1 - self._read))
+            except OSError as exc:
+                raise _os_error(self.path, self.what, exc) from None
+            if not block:
+                return
+            self._count(len(block))
+            yield block
+
     def close(self) -> None:
         self._file.close()
 

@@ -222,15 +222,19 @@ class QuaternionRows:
         The 8 column names.
     scale : float
         Metres per unit of the translations.
+    capacity : int
+        Rows expected at most (the file's line count): the arrays are allocated once; more
+        rows grow them (ndarray.resize fills what it adds, so a good bound saves memory).
     """
 
-    def __init__(self, path, names: Sequence[str], scale: float):
+    def __init__(self, path, names: Sequence[str], scale: float, capacity: int = 0):
         self.path, self.names, self.scale = path, tuple(names), float(scale)
         self._n = 0           # usable rows so far
         self._rows = 0        # rows screened so far
-        self._stamps = np.empty(0)
-        self._T = np.empty((0, 4, 4))
-        self._lines = np.empty(0, dtype=np.int64)
+        # np.empty: the pages of rows never written are never resident
+        self._stamps = np.empty(capacity)
+        self._T = np.empty((capacity, 4, 4))
+        self._lines = np.empty(capacity, dtype=np.int32)   # tables are below 2 GiB
         self.skipped: list[SkippedRow] = []
 
     @property
@@ -242,7 +246,7 @@ class QuaternionRows:
         cap = len(self._stamps)
         if need <= cap:
             return
-        cap = max(need, 2 * cap, 1 << 16)
+        cap = max(need, cap + cap // 4, 1 << 16)
         # ndarray.resize reallocates in place (no second copy of the poses in memory)
         for a, shape in ((self._stamps, (cap,)), (self._T, (cap, 4, 4)),
                          (self._lines, (cap,))):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
 from array import array
 from collections.abc import Iterator, Sequence
 
@@ -28,6 +29,8 @@ __all__ = [
     "read_number_rows",
     "read_json",
     "text_lines",
+    "count_lines",
+    "line_blocks",
     "NumberTable",
     "LENGTH_UNITS",
     "length_scale",
@@ -152,8 +155,8 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
         finite number (each with the line), or no rows at all.
     """
     table = NumberTable(len(columns))
-    for number, content in text_lines(path, what=what):
-        table.add(content, number, columns, files=files, path=path, finite=finite)
+    for contents, numbers in line_blocks(path, what=what):
+        table.add_block(contents, numbers, columns, files=files, path=path, finite=finite)
     if not len(table):
         raise DatasetError(f"no rows: expected lines '{' '.join(columns)}'", path=path)
     return table.arrays()
@@ -181,6 +184,33 @@ def text_lines(path: str | os.PathLike, *, what: str = "file",
             content = text.split("#", 1)[0].strip()
             if content:
                 yield number, content
+
+
+def line_blocks(path: str | os.PathLike, *, what: str = "file", size: int = 1 << 14,
+                max_bytes: int = MAX_TABLE_BYTES) -> Iterator[tuple[list[str], list[int]]]:
+    """:func:`text_lines` gathered ``size`` at a time: ``(contents, line numbers)``."""
+    contents, numbers = [], []
+    for number, content in text_lines(path, what=what, max_bytes=max_bytes):
+        contents.append(content)
+        numbers.append(number)
+        if len(contents) == size:
+            yield contents, numbers
+            contents, numbers = [], []
+    if contents:
+        yield contents, numbers
+
+
+def count_lines(path: str | os.PathLike, *, what: str = "file",
+                max_bytes: int = MAX_TABLE_BYTES) -> int:
+    """Lines of a file (line breaks, plus one for a last line without), counted in blocks of
+    bytes: a bound on its rows before they are parsed."""
+    p = as_path(path, what)
+    n, last = 0, b"\n"
+    with open_bounded_text(p, what=what, max_bytes=max_bytes) as f:
+        for block in f.blocks():
+            n += block.count(b"\n")
+            last = block[-1:]
+    return n + (last != b"\n")
 
 
 class NumberTable:
@@ -214,6 +244,33 @@ class NumberTable:
                 parse_float(f, path=path, line=number, name=name, finite=True)
         self._values.extend(values)
         self._lines.append(number)
+
+    def add_block(self, contents: Sequence[str], numbers: Sequence[int],
+                  columns: Sequence[str], *, files: str, path, finite: bool) -> None:
+        """:meth:`add` for many lines at once: parsed by numpy's C reader when every line
+        holds ``len(columns)`` plain numbers, else line by line with Python's ``float``
+        (which names the bad line and reads what it reads)."""
+        joined = "\n".join(contents)
+        if "," in joined:
+            joined = joined.replace(",", " ")
+            ok = all(len(c.replace(",", " ").split()) == self.n for c in contents)
+        else:
+            ok = all(len(c.split()) == self.n for c in contents)
+        if ok:
+            try:
+                with warnings.catch_warnings():         # older numpy: a warning, not an error
+                    warnings.simplefilter("error")
+                    block = np.fromstring(joined, dtype=np.float64, sep=" ")
+                ok = block.size == len(contents) * self.n and (
+                    not finite or bool(np.isfinite(block).all()))
+            except (ValueError, DeprecationWarning):
+                ok = False
+        if not ok:
+            for content, number in zip(contents, numbers):
+                self.add(content, number, columns, files=files, path=path, finite=finite)
+            return
+        self._values.frombytes(block.tobytes())
+        self._lines.extend(numbers)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """``(data (N, n_columns) float64, lines (N,) int64)``; the table gives its memory to
