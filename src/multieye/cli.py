@@ -190,6 +190,8 @@ def check(dataset: Path, sample: int, processes: int | None):
     _processes_note(processes)
     result = check_dataset(dataset, sample=sample, processes=processes)
     click.echo(check_table(result))
+    for note in result.notes:
+        click.echo(f"note: {note}")
     for reason in result.reasons:
         click.echo(f"multieye: calibrating would fail: {reason}", err=True)
     if not result.ok:

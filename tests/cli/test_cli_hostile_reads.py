@@ -372,6 +372,8 @@ def test_rig_yaml_linked_into_another_dataset_is_named(pose_dataset, tmp_path):
     assert any(real in w and "symbolic link" in w for w in notes), notes
     # and the files it names, all in the other dataset, are listed too
     assert any(str((other / "mocap.txt").resolve()) in w for w in notes), notes
+    res = CliRunner().invoke(main, ["check", str(ds)])
+    assert res.exit_code == 0 and f"note: rig.yaml is a symbolic link to {real}" in res.output
 
 
 def test_dataset_folder_that_is_a_link_is_not_outside(pose_dataset, tmp_path):

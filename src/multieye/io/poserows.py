@@ -196,10 +196,10 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
         stamps, T, key = stamps[keep], np.asarray(T)[keep], key[keep]
         lines = np.asarray(lines, dtype=np.int64)[keep]
         stamps_ns = None if stamps_ns is None else key
-    steps = np.diff(key)
-    if np.any(steps <= 0):
-        i = int(np.argmax(steps <= 0))
-        what = "duplicate time stamp" if steps[i] == 0 else "time stamp goes back"
+    back = key[1:] <= key[:-1]                  # booleans: no copy of the stamps
+    if np.any(back):
+        i = int(np.argmax(back))
+        what = "duplicate time stamp" if key[i + 1] == key[i] else "time stamp goes back"
         raise DatasetError(f"{what}: {float(stamps[i + 1])!r} s after {float(stamps[i])!r} s "
                            f"on line {int(lines[i])}; stamps must be strictly increasing",
                            path=path, line=int(lines[i + 1]))

@@ -113,10 +113,11 @@ class Trajectory:
         _check_rigid(T)
         if not np.all(np.isfinite(stamps)):
             raise InputError("time stamps must be finite")
-        steps = np.diff(stamps)
-        if np.any(steps <= 0):
-            i = int(np.argmax(steps <= 0))
-            kind = "duplicate time stamp" if steps[i] == 0 else "time stamps out of order"
+        back = stamps[1:] <= stamps[:-1]           # booleans: no float copy of the stamps
+        if np.any(back):
+            i = int(np.argmax(back))
+            kind = ("duplicate time stamp" if stamps[i + 1] == stamps[i]
+                    else "time stamps out of order")
             raise InputError(f"{kind}: sample {i + 1} at {float(stamps[i + 1])!r} s follows "
                              f"sample {i} at {float(stamps[i])!r} s; stamps must be strictly "
                              "increasing")
