@@ -162,6 +162,18 @@ def test_socket_and_folder_as_mocap_refused(pose_dataset, tmp_path):
     assert "mocap.txt" in line and "folder" in line
 
 
+@pytest.mark.parametrize("which", ["mocap.txt", "cam.yaml", "rig.yaml"])
+def test_symbolic_link_loop_refused_in_one_line(pose_dataset, tmp_path, which):
+    ds = _copy(pose_dataset, tmp_path)
+    (ds / which).unlink()
+    (ds / "a").symlink_to(ds / "b")
+    (ds / "b").symlink_to(ds / "a")
+    (ds / which).symlink_to(ds / "a")
+    res = _calibrate(ds, tmp_path / "out")
+    line = _one_error(res.exit_code, res.stderr, tmp_path / "out")
+    assert "symbolic link loop" in line and (which in line or "rig.yaml" in line), line
+
+
 def test_calibration_json_as_device_refused_by_report_and_export(pose_dataset, tmp_path):
     out = tmp_path / "out"
     _ok(_calibrate(_copy(pose_dataset, tmp_path), out), out)

@@ -533,7 +533,12 @@ def load_rig(path: str | os.PathLike) -> Rig:
     p = as_path(path, "the dataset (a folder or its rig.yaml)")
     if p.is_dir():
         p = p / "rig.yaml"
-    doc = load_yaml(p.resolve(), what="rig description (rig.yaml)")
+    try:
+        real = p.resolve()
+    except (RuntimeError, OSError) as exc:          # a link loop (RuntimeError before 3.13)
+        raise DatasetError("rig.yaml is a symbolic link loop (or cannot be resolved: "
+                           f"{getattr(exc, 'strerror', None) or 'loop'})", path=p) from None
+    doc = load_yaml(real, what="rig description (rig.yaml)")
     c = _Checker(doc)
     raw = c.mapping(doc.data if doc.data is not None else {}, (),
                     TOP_LEVEL_KEYS, ("setup", "cameras"))

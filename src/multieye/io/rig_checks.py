@@ -76,7 +76,15 @@ class Checker:
         return value if integer else float(value)
 
     def path(self, value, keys, kind):
-        p = (self.folder / self.string(value, keys)).resolve()
+        named = self.folder / self.string(value, keys)
+        try:
+            p = named.resolve()
+        except (RuntimeError, OSError) as exc:     # a link loop (RuntimeError before 3.13)
+            raise self.error(f"{kind} is a symbolic link loop (or cannot be resolved: "
+                             f"{getattr(exc, 'strerror', None) or 'loop'}): {named}",
+                             keys) from None
+        except ValueError as exc:                  # a NUL byte
+            raise self.error(f"invalid path {shown(str(named))}: {exc}", keys) from None
         if not p.exists():
             raise self.error(f"{kind} not found: {p}", keys)
         if kind == "folder" and not p.is_dir():
