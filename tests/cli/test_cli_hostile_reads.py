@@ -185,6 +185,21 @@ def test_calibration_json_as_device_refused_by_report_and_export(pose_dataset, t
         assert "calibration.json" in line or "/dev/zero" in line, line
 
 
+def test_bag_files_must_be_regular(tmp_path):
+    from multieye.core.errors import DatasetError
+    from multieye.io.rosbag import bag_topics
+
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    os.mkfifo(bag / "bag_0.db3")
+    with pytest.raises(DatasetError, match="FIFO"):
+        bag_topics(bag)
+    (tmp_path / "x.bag").symlink_to("/dev/zero")
+    with pytest.raises(DatasetError, match="character device"):
+        bag_topics(tmp_path / "x.bag")
+
+
 # --- limits counted while reading ------------------------------------------------------------
 
 def test_byte_limit_is_counted_while_reading(tmp_path, monkeypatch):
