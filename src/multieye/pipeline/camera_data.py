@@ -300,6 +300,8 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, *, processes, 
                                    image_points=res.detection.image_points))
         else:
             rejected.append(RejectedItem(label, res.reason))
+    rejected.extend(RejectedItem(f"{cam.intrinsics_images.name}/{n}", why)
+                    for n, why in skipped_entries(cam.intrinsics_images))
     return obs, rejected, seconds
 
 
