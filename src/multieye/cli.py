@@ -112,6 +112,19 @@ def _progress_enabled() -> bool:
     return sys.stderr.isatty()
 
 
+def _processes_note(processes: int | None) -> None:
+    """A note when ``--processes`` asks for more workers than this process has CPUs (the
+    detection starts at most that many, and at most one per image)."""
+    if processes is None:
+        return
+    from multieye.imaging.batch import worker_count
+
+    used = worker_count(processes)
+    if used < processes:
+        click.echo(f"note: --processes {processes}: at most {used} detection process(es), "
+                   f"the CPUs this process may use (and at most one per image)")
+
+
 #: What each exit status means (docs/conventions.md, section 8).
 _EXIT_MEANINGS = {
     0: "success",
@@ -171,7 +184,8 @@ def main():
               help="Solver: joint, wang2022, shah, li, tabb-c1, tabb-c2.")
 @click.option("--reference", default=None, help="Reference camera (default: the first).")
 @click.option("--processes", type=click.IntRange(1), default=None,
-              help="Detection processes (default: one per core).")
+              help="Detection processes (default, and at most: one per core this process "
+                   "may use, one per image).")
 @click.option("--no-refine", is_flag=True,
               help="Keep the closed form (no maximum-likelihood refinement, no uncertainty).")
 @click.option("--no-robust", is_flag=True,
@@ -213,6 +227,7 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
             raise click.BadParameter("expected rig, auto or a finite number of seconds",
                                      param_hint="--time-offset")
     _utf8_dataset(dataset)
+    _processes_note(processes)
     with claim_output(out_dir, inputs=[dataset]):   # one run per folder, checked before work
         run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
                               robust=not no_robust, time_offset=time_offset,
@@ -237,7 +252,8 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
 @click.option("--sample", type=click.IntRange(1), default=20, show_default=True,
               help="Images per camera, evenly spaced, searched for the target.")
 @click.option("--processes", type=click.IntRange(1), default=None,
-              help="Detection processes (default: one per core).")
+              help="Detection processes (default, and at most: one per core this process "
+                   "may use, one per image).")
 @_user_errors
 def check(dataset: Path, sample: int, processes: int | None):
     """Dry run: what calibrating DATASET would find, and what would go wrong.
@@ -251,8 +267,11 @@ def check(dataset: Path, sample: int, processes: int | None):
     from multieye.outputs.summary import check_table
 
     _utf8_dataset(dataset)
+    _processes_note(processes)
     result = check_dataset(dataset, sample=sample, processes=processes)
     _echo(check_table(result))
+    for note in result.notes:
+        _echo(f"note: {note}")
     for reason in result.reasons:
         _echo(f"multieye: calibrating would fail: {reason}", err=True)
     if not result.ok:

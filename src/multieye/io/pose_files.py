@@ -35,7 +35,8 @@ from scipy.spatial.transform import Rotation
 
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
-from multieye.core.limits import MAX_POSITION_M
+from multieye.core.limits import MAX_POSITION_M, MAX_TABLE_BYTES, MAX_YAML_BYTES
+from multieye.core.regular_files import read_bounded
 from multieye.io.textfile import length_scale
 
 __all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
@@ -129,7 +130,8 @@ def pose_file_pattern(pattern: str, image: Path) -> Path:
 
 
 def _numbers_from_text(path: Path) -> list[float]:
-    text = path.read_text(encoding="utf-8-sig", errors="replace")
+    text = read_bounded(path, what="pose file", max_bytes=MAX_YAML_BYTES).decode(
+        "utf-8-sig", errors="replace")
     cells = [c for line in text.splitlines() for c in re.split(r"[\s,;]+", line.split("#")[0])
              if c]
     out = []
@@ -143,9 +145,12 @@ def _numbers_from_text(path: Path) -> list[float]:
 
 def _from_json(path: Path, fmt: PoseFormat):
     try:
-        data = json.loads(path.read_text(encoding="utf-8-sig"))
+        data = json.loads(read_bounded(path, what="pose file", max_bytes=MAX_YAML_BYTES
+                                       ).decode("utf-8-sig"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DatasetError(f"not a JSON file: {exc}", path=path) from None
+    except RecursionError:
+        raise DatasetError("not a JSON file: nested too deeply", path=path) from None
     if fmt.key is not None:
         for part in fmt.key.split("."):
             if not isinstance(data, Mapping) or part not in data:
@@ -363,7 +368,8 @@ def _table_rows(path: Path, fmt: PoseFormat, *, image_column: bool):
     section 4, "Pose tables")."""
     what = "the pose table" + (" (match: image)" if image_column else " (match: order)")
     try:
-        text = path.read_text(encoding="utf-8-sig", errors="replace")
+        text = read_bounded(path, what="pose table", max_bytes=MAX_TABLE_BYTES).decode(
+            "utf-8-sig", errors="replace")
     except OSError as exc:
         raise DatasetError(f"cannot read {what}: {exc.strerror or exc}", path=path) from None
     rows = [(n, line) for n, line in enumerate(text.splitlines(), 1)

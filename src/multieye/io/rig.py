@@ -73,21 +73,15 @@ from types import MappingProxyType
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
-from multieye.core.limits import (
-    MAX_GRID_SIDE,
-    MAX_ROTATION_NOISE_DEG,
-    MAX_SPACING_M,
-    MAX_TIME_OFFSET_S,
-    MAX_TIME_TOLERANCE_S,
-    MAX_TRANSLATION_NOISE_M,
-)
+from multieye.core.limits import (MAX_GRID_SIDE, MAX_ROTATION_NOISE_DEG, MAX_SPACING_M,
+                                  MAX_TIME_OFFSET_S, MAX_TIME_TOLERANCE_S, MAX_TRANSLATION_NOISE_M)
 from multieye.core.names import NAME_RULE, camera_name_problem
 from multieye.io.intrinsics import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
-from multieye.io.rig_checks import Checker as _Checker
+from multieye.io.rig_checks import no_link_loop, Checker as _Checker
 from multieye.io.textfile import LENGTH_UNITS
 from multieye.io.yamlfile import load_yaml, shown
 
@@ -541,7 +535,9 @@ def load_rig(path: str | os.PathLike) -> Rig:
     p = as_path(path, "the dataset (a folder or its rig.yaml)")
     if p.is_dir():
         p = p / "rig.yaml"
-    doc = load_yaml(p, what="rig description (rig.yaml)")     # messages name it as typed
+    no_link_loop(p)     # a rig.yaml that is a link: its paths are relative to the real file
+    doc = load_yaml(p.resolve() if p.is_symlink() else p,    # else named as typed
+                    what="rig description (rig.yaml)")
     c = _Checker(doc)
     raw = c.mapping(doc.data if doc.data is not None else {}, (),
                     TOP_LEVEL_KEYS, ("setup", "cameras"))

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from multieye.core.arguments import did_you_mean
+from multieye.core.errors import DatasetError
 from multieye.io.yamlfile import YamlDocument, shown
 
 __all__ = ["Checker", "sensor_keys", "MOCAP_SENSORS", "MOCAP_NOISE_BOUND_KEYS"]
@@ -86,8 +87,15 @@ class Checker:
         """The path ``value`` (relative to the folder of rig.yaml), resolved; messages name
         it as the user typed it."""
         typed = self.string(value, keys)
-        p = (self.folder / typed).resolve()
         shown = typed if Path(typed).is_absolute() else f"{typed} (relative to rig.yaml's folder)"
+        try:
+            p = (self.folder / typed).resolve()
+        except (RuntimeError, OSError) as exc:     # a link loop (RuntimeError before 3.13)
+            raise self.error(f"{kind} is a symbolic link loop (or cannot be resolved: "
+                             f"{getattr(exc, 'strerror', None) or 'loop'}): {shown}",
+                             keys) from None
+        except ValueError as exc:                  # a NUL byte
+            raise self.error(f"invalid path {shown!r}: {exc}", keys) from None
         if not p.exists():
             raise self.error(f"{kind} not found: {shown}", keys)
         if kind == "folder" and not p.is_dir():
@@ -118,3 +126,13 @@ def sensor_keys(c: Checker, raw: Mapping, at) -> dict:
                  if "translation_m" in bounds else None)
         kw["noise_bounds"] = (rot, trans)
     return kw
+
+
+def no_link_loop(p: Path) -> None:
+    """Refuse rig.yaml ``p`` when it is a symbolic link loop (or cannot be resolved), in one
+    line naming it as typed."""
+    try:
+        p.resolve()
+    except (RuntimeError, OSError) as exc:          # a link loop (RuntimeError before 3.13)
+        raise DatasetError("rig.yaml is a symbolic link loop (or cannot be resolved: "
+                           f"{getattr(exc, 'strerror', None) or 'loop'})", path=p) from None

@@ -24,6 +24,7 @@ from multieye.io import (
     Rig,
     Trajectory,
     list_images,
+    skipped_entries,
     read_camera_intrinsics,
     read_mocap,
     read_tum,
@@ -264,10 +265,13 @@ def _observations_from_images(name: str, source: Path, rig: Rig, intr: Intrinsic
     # pose ambiguity (single marker): warn when the two poses fit alike in most images
     from multieye.imaging.pnp import ambiguity_warning
     warnings.extend(w for w in [ambiguity_warning(name, [r.pose for r in results if r.ok])] if w)
+    skipped = [] if topic is not None else [RejectedItem(n, why)
+                                            for n, why in skipped_entries(source)]
+    rejected.extend(skipped)    # links to nowhere, devices, folders named like images
     if not obs:
         raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
                            camera=name)
-    return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped),
+    return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped) + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
                      intrinsics=None if lens is None else lens.intrinsics)
 
@@ -311,6 +315,8 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, *, processes, 
                                    image_points=res.detection.image_points))
         else:
             rejected.append(RejectedItem(label, res.reason))
+    rejected.extend(RejectedItem(f"{cam.intrinsics_images.name}/{n}", why)
+                    for n, why in skipped_entries(cam.intrinsics_images))
     return obs, rejected, seconds
 
 

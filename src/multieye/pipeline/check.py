@@ -11,6 +11,7 @@ section 7) and exits 2 when calibrating would fail.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from multieye.estimate.diagnostics import (
     MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG, MIN_SECOND_AXIS_DEG)
 from multieye.estimate.pairing import pair_in_time
 from multieye.io import Trajectory, list_images, load_rig, read_mocap, read_tum
+from multieye.pipeline.sources import outside_reads
 from multieye.solvers.checks import MIN_MEASUREMENTS, rotation_spread
 
 __all__ = ["CameraCheck", "DatasetCheck", "check_dataset"]
@@ -87,6 +89,8 @@ class DatasetCheck:
     path: str
     setup: str
     cameras: tuple[CameraCheck, ...]
+    #: Files read from outside the dataset folder named (:mod:`multieye.pipeline.sources`).
+    notes: tuple[str, ...] = ()
 
     @property
     def reasons(self) -> tuple[str, ...]:
@@ -346,7 +350,9 @@ def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> Da
     if processes is not None:
         real_number(processes, "processes", positive=True)
     rig = load_rig(path)
+    named = Path(path) / "rig.yaml" if Path(path).is_dir() else Path(path)
     cache: dict[tuple, Trajectory] = {}
     cams = tuple(_check_camera(rig, name, cam, cache, sample=int(sample), processes=processes)
                  for name, cam in rig.cameras.items())
-    return DatasetCheck(path=str(rig.path), setup=rig.setup, cameras=cams)
+    return DatasetCheck(path=str(rig.path), setup=rig.setup, cameras=cams,
+                        notes=outside_reads(rig, named))

@@ -1,8 +1,7 @@
 """From a dataset folder to rig extrinsics: the paper's Fig. 3 pipeline.
 
-``rig.yaml`` (docs/rig-yaml.md) -> per camera: images -> target detection -> PnP (or
-precomputed ``T_cam_target`` poses) -> pairing with motion capture in time -> ``A``, ``B``
-(docs/conventions.md, section 2; all of it in :mod:`multieye.pipeline.camera_data`) ->
+``rig.yaml`` -> per camera: images -> detection -> PnP (or precomputed ``T_cam_target``) ->
+pairing with motion capture in time -> ``A``, ``B`` (:mod:`multieye.pipeline.camera_data`) ->
 clock offsets, consensus, :func:`multieye.solve`, plausibility checks, refinement ->
 :class:`~multieye.io.CalibrationRecord` and the files written from it.
 
@@ -28,6 +27,7 @@ from multieye.pipeline.camera_data import (CameraData, Observation, PairedCamera
 from multieye.core.arguments import as_path
 from multieye.core.errors import CalibrationError, DatasetError, InputError, TooFewMeasurementsError
 from multieye.io import CalibrationRecord, PlausibilityItem, RejectedItem, Rig, load_rig
+from multieye.pipeline.sources import outside_reads
 from multieye.io.run_details import StageTimings
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import Measurements, check_measurements
@@ -596,4 +596,5 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     detection = sum(d.detection_s for d in cameras.values())
     timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
                       total=time.perf_counter() - start)
-    return replace(run, timings=timings)
+    record = replace(run.record, warnings=outside_reads(rig, path) + tuple(run.record.warnings))
+    return replace(run, timings=timings, record=record)
