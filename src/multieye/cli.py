@@ -112,7 +112,53 @@ def _progress_enabled() -> bool:
     return sys.stderr.isatty()
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+def _processes_note(processes: int | None) -> None:
+    """A note when ``--processes`` asks for more workers than this process has CPUs (the
+    detection starts at most that many, and at most one per image)."""
+    if processes is None:
+        return
+    from multieye.imaging.batch import worker_count
+
+    used = worker_count(processes)
+    if used < processes:
+        click.echo(f"note: --processes {processes}: at most {used} detection process(es), "
+                   f"the CPUs this process may use (and at most one per image)")
+
+
+#: What each exit status means (docs/conventions.md, section 8).
+_EXIT_MEANINGS = {
+    0: "success",
+    EXIT_USER_ERROR: "bad input or a run that cannot succeed: one line on stderr, nothing "
+                     "written",
+    EXIT_IMPLAUSIBLE: "result written, but a plausibility check doubts it (the cause on "
+                      "stderr and in calibration.json's warnings)",
+}
+
+
+def _exit_statuses(*codes: int, meanings: dict | None = None) -> str:
+    """The ``Exit status`` epilog of a command's ``--help``: ``codes`` and their meaning,
+    then the signal statuses every command shares."""
+    import textwrap
+
+    meanings = {**_EXIT_MEANINGS, **(meanings or {})}
+    rows = [(str(code), meanings[code]) for code in codes]
+    rows.append(("128+N", "stopped by signal N (130: Ctrl-C)"))
+    lines = []
+    for code, text in rows:
+        wrapped = textwrap.wrap(text, 68)
+        lines += [f"  {code:<6} {wrapped[0]}"] + [f"  {'':<6} {w}" for w in wrapped[1:]]
+    return "\b\nExit status:\n" + "\n".join(lines)
+
+
+#: The pages of ``multieye docs`` (installed with the package, from the repository's docs/).
+DOC_PAGES = {"rig-yaml": "rig.yaml, key by key: the input",
+             "outputs": "what each command writes, key by key",
+             "conventions": "frames, units, covariances, error metrics, exit statuses",
+             "architecture": "the layers of the package, where a change goes"}
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]},
+             epilog=_exit_statuses(0, EXIT_USER_ERROR, EXIT_IMPLAUSIBLE))
 @click.version_option(__version__, prog_name="multieye")
 def main():
     """Calibrate the extrinsics of a multi-camera rig from a motion-captured target.
@@ -120,19 +166,26 @@ def main():
     \b
     Quick start:
       multieye demo -o demo_out          # render, calibrate and check a synthetic rig
-      multieye calibrate DATASET -o OUT  # your rig: DATASET/rig.yaml (see docs/rig-yaml.md)
+      multieye check DATASET             # dry run: is DATASET/rig.yaml right?
+      multieye calibrate DATASET -o OUT  # your rig: DATASET/rig.yaml
+      multieye docs rig-yaml             # every key of rig.yaml; all pages: multieye docs
     """
 
 
-@main.command()
+@main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR, EXIT_IMPLAUSIBLE))
 @click.argument("dataset", type=click.Path(path_type=Path))
 @click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
-              required=True, help="Output folder for calibration.json and camchain.yaml.")
+              required=True,
+              help="Output folder, replaced as one set: calibration.json, details.json, "
+                   "camchain.yaml (when Kalibr can hold a camera), report.html, figures/, "
+                   "intrinsics/ (estimated lenses) and .multieye-manifest.json "
+                   "(multieye docs outputs).")
 @click.option("--method", default="joint", show_default=True,
               help="Solver: joint, wang2022, shah, li, tabb-c1, tabb-c2.")
 @click.option("--reference", default=None, help="Reference camera (default: the first).")
 @click.option("--processes", type=click.IntRange(1), default=None,
-              help="Detection processes (default: one per core).")
+              help="Detection processes (default, and at most: one per core this process "
+                   "may use, one per image).")
 @click.option("--no-refine", is_flag=True,
               help="Keep the closed form (no maximum-likelihood refinement, no uncertainty).")
 @click.option("--no-robust", is_flag=True,
@@ -150,8 +203,11 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
     """Calibrate the rig in DATASET (a folder with rig.yaml, or the rig.yaml itself).
 
     Closed form, consensus over measurements, then maximum-likelihood refinement with
-    uncertainty.  Writes OUT/calibration.json, OUT/camchain.yaml, OUT/details.json and
-    OUT/report.html and prints a per-camera table.
+    uncertainty.  Writes OUT/calibration.json (the result), OUT/details.json (the evidence,
+    per image), OUT/camchain.yaml (Kalibr; a note names each camera it cannot hold),
+    OUT/report.html with OUT/figures/, and OUT/intrinsics/<camera>.yaml for every lens
+    estimated from the recording; prints a per-camera table.  rig.yaml: multieye docs
+    rig-yaml; the files: multieye docs outputs.
     """
     from multieye.pipeline import calibrate as run_calibration
     from multieye.outputs.folder import claim_output
@@ -171,6 +227,7 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
             raise click.BadParameter("expected rig, auto or a finite number of seconds",
                                      param_hint="--time-offset")
     _utf8_dataset(dataset)
+    _processes_note(processes)
     with claim_output(out_dir, inputs=[dataset]):   # one run per folder, checked before work
         run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
                               robust=not no_robust, time_offset=time_offset,
@@ -188,36 +245,43 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
         sys.exit(EXIT_IMPLAUSIBLE)
 
 
-@main.command()
+@main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR, meanings={
+    0: "calibrating can run (warnings included)",
+    EXIT_USER_ERROR: "calibrating would fail (one line per reason on stderr), or bad input"}))
 @click.argument("dataset", type=click.Path(path_type=Path))
 @click.option("--sample", type=click.IntRange(1), default=20, show_default=True,
               help="Images per camera, evenly spaced, searched for the target.")
 @click.option("--processes", type=click.IntRange(1), default=None,
-              help="Detection processes (default: one per core).")
+              help="Detection processes (default, and at most: one per core this process "
+                   "may use, one per image).")
 @_user_errors
 def check(dataset: Path, sample: int, processes: int | None):
     """Dry run: what calibrating DATASET would find, and what would go wrong.
 
     Reads rig.yaml and the motion capture, detects the target in a sample of each camera's
     images and pairs them with the motion capture, without solving.  Prints a table per
-    camera and the problems; exits 2, one line per reason on stderr, when calibrating would
-    fail.
+    camera and the problems; when a camera's images show no target, says what they hold
+    and what to write in rig.yaml.  Writes nothing.
     """
     from multieye.pipeline.dry_run import check_dataset
     from multieye.outputs.summary import check_table
 
     _utf8_dataset(dataset)
+    _processes_note(processes)
     result = check_dataset(dataset, sample=sample, processes=processes)
     _echo(check_table(result))
+    for note in result.notes:
+        _echo(f"note: {note}")
     for reason in result.reasons:
         _echo(f"multieye: calibrating would fail: {reason}", err=True)
     if not result.ok:
         sys.exit(EXIT_USER_ERROR)
 
 
-@main.command()
+@main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR))
 @click.option("-o", "--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("demo_out"), show_default=True, help="Output folder.")
+              default=Path("demo_out"), show_default=True,
+              help="Output folder: dataset/ and the files of calibrate -o.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @_user_errors
 def demo(out_dir: Path, seed: int):
@@ -232,7 +296,7 @@ def demo(out_dir: Path, seed: int):
     _echo(result.text)
 
 
-@main.command()
+@main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR))
 @click.argument("out_dir", type=click.Path(file_okay=False, path_type=Path))
 @_user_errors
 def report(out_dir: Path):
@@ -250,22 +314,26 @@ def report(out_dir: Path):
 EXPORT_FORMATS = ("kalibr", "opencv", "urdf", "tf-static", "json", "camera-info", "mrcal")
 
 
-@main.command()
+@main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR))
 @click.argument("out_dir", type=click.Path(file_okay=False, path_type=Path))
 @click.option("--format", "fmt", type=click.Choice(EXPORT_FORMATS), required=True,
               help="kalibr camchain, OpenCV FileStorage, URDF fragment, ROS 2 static "
                    "transform publisher arguments, compact JSON, one ROS camera_info "
                    "YAML per camera, or one mrcal .cameramodel per camera.")
 @click.option("--parent-frame", default=None,
-              help="Name of the base frame in urdf, tf-static and opencv [default: world for "
-                   "eye-to-base; the tracked frame of mocap pose:, marker or body, for "
-                   "eye-on-hand].")
+              help="Name of the base frame in urdf, tf-static and opencv [default: the frame "
+                   "the cameras are calibrated in, named as in rig.yaml's mocap pose: the "
+                   "fixed frame for eye-to-base (world, or base for pose: T_base_tool0), the "
+                   "tracked frame for eye-on-hand (body, or tool0)].")
 @click.option("--child-frame", default=None,
               help="Stem of each camera's frames, {camera} standing for its name: "
                    "<stem>_link and <stem>_optical_frame [default: {camera}].")
 @_user_errors
 def export(out_dir: Path, fmt: str, parent_frame: str | None, child_frame: str | None):
-    """Export the calibration in OUT to another tool's format (into OUT/export/)."""
+    """Export the calibration in OUT to another tool's format (into OUT/export/).
+
+    The files and their frames: multieye docs outputs (section 6).
+    """
     from multieye.outputs.export import export as run_export
     from multieye.outputs.folder import claim_output
 
@@ -278,7 +346,7 @@ def export(out_dir: Path, fmt: str, parent_frame: str | None, child_frame: str |
         _echo(f"note: {note}", err=True)
 
 
-@main.command()
+@main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR))
 @click.argument("name", type=click.Choice(["noise", "cameras", "measurements", "timing", "refine"]))
 @click.option("--trials", type=click.IntRange(1), default=100, show_default=True,
               help="Monte Carlo trials per parameter value.")
@@ -306,6 +374,26 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
     out = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
                          progress=_progress_enabled())
     _echo(f"wrote {out.csv_path} and {out.png_path}")
+
+
+@main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR, meanings={
+    EXIT_USER_ERROR: "no such page"}))
+@click.argument("name", required=False, type=click.Choice(sorted(DOC_PAGES)))
+def docs(name: str | None):
+    """Print a documentation page, installed with the package (Markdown).
+
+    Without NAME, list the pages: rig-yaml (the input, key by key), outputs (what each
+    command writes), conventions (frames, units, exit statuses), architecture.
+    """
+    from importlib.resources import files
+
+    if name is None:
+        width = max(map(len, DOC_PAGES))
+        for page, what in DOC_PAGES.items():
+            click.echo(f"{page:<{width}}  {what}  (multieye docs {page})")
+        return
+    click.echo((files("multieye") / "docs" / f"{name}.md").read_text(encoding="utf-8"),
+               nl=False)
 
 
 if __name__ == "__main__":  # pragma: no cover

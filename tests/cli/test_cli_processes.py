@@ -1,7 +1,8 @@
 """`multieye calibrate` stopped during detection: no orphans, no leftovers, one run per folder.
 
 The runs are real processes.  Detection is slowed down by a ``sitecustomize`` module on
-``PYTHONPATH`` (written here, nothing in the package) that makes ``cv2.imread`` sleep, so
+``PYTHONPATH`` (written here, nothing in the package) that makes ``cv2.imread`` and
+``cv2.imdecode`` (image files are read as bytes, then decoded) sleep, so
 every run is in detection, with its worker processes, for a few seconds.  The run is started
 in its own process group; its workers are found in /proc by that group.
 """
@@ -26,13 +27,15 @@ _delay = float(os.environ.get("MULTIEYE_TEST_IMREAD_DELAY_S") or 0)
 if _delay > 0:
     import time
     import cv2
-    _imread = cv2.imread
 
-    def _slow_imread(*args, **kwargs):
-        time.sleep(_delay)
-        return _imread(*args, **kwargs)
+    def _slowed(read):
+        def slow(*args, **kwargs):
+            time.sleep(_delay)
+            return read(*args, **kwargs)
+        return slow
 
-    cv2.imread = _slow_imread
+    cv2.imread = _slowed(cv2.imread)
+    cv2.imdecode = _slowed(cv2.imdecode)
 """
 
 

@@ -48,8 +48,8 @@ def check(results, image_files):
     order, truth = image_files
     assert [r.path for r in results] == [str(p) for p in order]
     reasons = [r.reason for r in results]
-    assert reasons == [None, "unreadable file: not an image OpenCV can decode (truncated or "
-                       "corrupt?)", None, "target not detected (chessboard 5x7)", None,
+    assert reasons == [None, "unreadable file: not a PNG, JPEG, BMP, TIFF, PGM/PPM/PBM or WebP "
+                       "image (or its header is cut short)", None, "target not detected (chessboard 5x7)", None,
                        "unreadable file: not found", None, "unreadable file: empty (0 bytes)"]
     good = [r for r in results if r.ok]
     for r, T in zip(good, truth):

@@ -163,6 +163,44 @@ def test_pose_table_matched_by_image_name(tmp_path):
     np.testing.assert_allclose(read_pose_table(t, PoseFormat())["3"][0], T_TRUE, atol=1e-9)
 
 
+def test_pose_table_in_image_order(tmp_path):
+    """match: order: KUKA's RobotPosesVec.txt (no header, 16 numbers a row, mm), or a header
+    naming the columns of values; rows follow the images in natural name order."""
+    from multieye.io.pose_files import poses_by_order, read_order_table
+
+    others = [Rotation.from_rotvec(v) for v in ([0.1, 0.2, 0.3], [-1.0, 0.5, 2.0])]
+    poses = [T_TRUE] + [np.r_[np.c_[r.as_matrix(), [0.1 * k, 0.2, -0.3]], [[0, 0, 0, 1]]]
+                        for k, r in enumerate(others)]
+    mm = [T.ravel() * np.where(np.isin(np.arange(16), (3, 7, 11)), 1000, 1) for T in poses]
+    t = _write(tmp_path, "RobotPosesVec.txt", "# KUKA\n" + "".join(
+        " ".join(f"{v:.15g}" for v in row) + "\n" for row in mm))
+    rows = read_order_table(t, PoseFormat(unit="mm"))
+    assert [n for _, n in rows] == [2, 3, 4]
+    for (T, _), want in zip(rows, poses):
+        np.testing.assert_allclose(T, want, atol=1e-12)
+    images = [tmp_path / n for n in ("pos10.png", "pos2.png", "pos9.png")]
+    matched, unmatched = poses_by_order(images, t, PoseFormat(unit="mm"))
+    assert [p.name for p, _ in matched] == ["pos2.png", "pos9.png", "pos10.png"]
+    assert unmatched == []
+    for (_, T), want in zip(matched, poses):
+        np.testing.assert_allclose(T, want, atol=1e-12)
+    # a header names the columns (any order); values without a header give the order
+    q = [Rotation.from_matrix(T[:3, :3]).as_quat() for T in poses]
+    t.write_text("qw;x;y;z;qx;qy;qz\n" + "".join(
+        f"{w:.17g};{T[0, 3]:.17g};{T[1, 3]:.17g};{T[2, 3]:.17g};{x:.17g};{y:.17g};{z:.17g}\n"
+        for (x, y, z, w), T in zip(q, poses)))
+    for (T, _), want in zip(read_order_table(t, PoseFormat()), poses):
+        np.testing.assert_allclose(T, want, atol=1e-12)
+    t.write_text("".join(" ".join(repr(float(v)) for v in [*qq[[3, 0, 1, 2]], *T[:3, 3]])
+                         + "\n" for qq, T in zip(q, poses)))
+    fmt = PoseFormat(rotation="quaternion-wxyz", values=("qw", "qx", "qy", "qz", "x", "y", "z"))
+    for (T, _), want in zip(read_order_table(t, fmt), poses):
+        np.testing.assert_allclose(T, want, atol=1e-12)
+    with pytest.raises(DatasetError, match="table has 3 pose rows and test_pose.*0/ 2 images") as e:
+        poses_by_order(images[:2], t, fmt)
+    assert "\n" not in str(e.value) and str(e.value).startswith(str(t))
+
+
 @pytest.mark.parametrize("content, message, line", [
     ("name x y z qx qy qz qw\n", "expected a header with a column 'image'", 1),
     ("image x y z qx qy qz qw\na 1 2 3 0 0 0\n", "expected 8 cells", 2),

@@ -152,6 +152,45 @@ def test_bad_rig_files_name_line_and_expectation(dataset, old, new, line, messag
     assert info.value.line == line
 
 
+@pytest.mark.parametrize("old, new, message", [
+    ("spacing: 0.033", "spaceing: 0.033", "target.spaceing: unknown key (did you mean "
+     "'spacing'?); expected one of type, rows"),
+    ("type: chessboard", "type: Chessboard", "target.type: expected one of chessboard, circles, "
+     "asymmetric-circles, charuco, aprilgrid, aruco, aruco-grid, got 'Chessboard' (did you "
+     "mean 'chessboard'?)"),
+    ("time_tolerance: 0.02", "time_tolerence: 0.02", "mocap.time_tolerence: unknown key (did "
+     "you mean 'time_tolerance'?)"),
+    ("intrinsics: cam0.yaml", "intrinsic: cam0.yaml", "cameras.cam0.intrinsic: unknown key "
+     "(did you mean 'intrinsics'?)"),
+    ("setup: eye-to-base", "setup: eye_to_base", "got 'eye_to_base' (did you mean "
+     "'eye-to-base'?)"),
+])
+def test_typos_get_a_did_you_mean(dataset, old, new, message):
+    with pytest.raises(DatasetError, match=re.escape(message)):
+        load_rig(_edit(dataset, old, new))
+
+
+def test_unrelated_keys_get_no_guess(dataset):
+    with pytest.raises(DatasetError) as info:
+        load_rig(_edit(dataset, "spacing: 0.033", "colour: 0.033"))
+    assert "unknown key; expected one of" in str(info.value)
+
+
+def test_paths_in_messages_are_as_typed(dataset, monkeypatch):
+    """Not resolved: the rig.yaml as given on the command line, a file as rig.yaml says it."""
+    path = _edit(dataset, "images: cam0/", "images: ../elsewhere/cam0/")
+    monkeypatch.chdir(dataset.parent)
+    with pytest.raises(DatasetError) as info:
+        load_rig(dataset.name)
+    assert str(info.value) == (f"{dataset.name}/rig.yaml:14: cameras.cam0.images: folder not "
+                               "found: ../elsewhere/cam0/ (relative to rig.yaml's folder)")
+    assert str(dataset.parent) not in str(info.value)
+    # the dataset loaded from a relative path still gives absolute paths to work with
+    _edit(dataset, "images: ../elsewhere/cam0/", "images: cam0/")
+    rig = load_rig(dataset.name)
+    assert rig.path == path.resolve() and rig.cameras["cam0"].images.is_absolute()
+
+
 def test_duplicate_keys_and_yaml_syntax(dataset):
     path = _edit(dataset, "  rows: 7\n", "  rows: 7\n  rows: 6\n")
     with pytest.raises(DatasetError, match="duplicate key 'rows' \\(first on line 4\\)") as info:

@@ -531,6 +531,31 @@ def test_kalibr_export_names_each_camera_it_leaves_out(result, tmp_path):
                      "(no intrinsics)"]
 
 
+def test_one_note_per_cause_naming_every_camera_it_holds(result, tmp_path):
+    """Two cameras whose lens Kalibr cannot hold and one without intrinsics: one entry per
+    cause (not one per camera), in the note and in the file's comment."""
+    out, rec, _ = result
+    details = json.loads((out / "details.json").read_text())
+    del details["cameras"]["front left"]["intrinsics"]
+    details["cameras"]["front left"].pop("points", None)
+    for name in ("cam0", NAMES[2]):
+        intr = details["cameras"][name]["intrinsics"]
+        intr["dist"] = [0.01, -0.02, 0.0, 0.0, 0.001, 0.002, 0.0, 0.0]
+    (tmp_path / "details.json").write_text(json.dumps(details))
+    (tmp_path / "calibration.json").write_bytes((out / "calibration.json").read_bytes())
+    with pytest.raises(InputError) as info:
+        export(tmp_path, "kalibr")
+    text = str(info.value)
+    assert text.count("Kalibr radtan holds k1 k2 p1 p2 only") == 1, text
+    assert text.startswith(f"Kalibr cannot hold any camera: cam0, {NAMES[2]} (Kalibr radtan "
+                           "holds k1 k2 p1 p2 only; these intrinsics have 8 non-trivial "
+                           "coefficients"), text
+    assert text.endswith("; front left (no intrinsics)"), text
+    notes = []
+    export(tmp_path, "camera-info", notes=notes)
+    assert notes == ["no camera_info for front left (no intrinsics)"]
+
+
 def test_camera_overlaps_compare_used_images_in_the_mocap_clock():
     from types import SimpleNamespace as NS
 

@@ -410,3 +410,19 @@ def test_a_failed_write_in_the_staging_folder_names_the_file_in_out(run, tmp_pat
     assert info.value.path.startswith(str(tmp_path / "out") + os.sep), info.value.path
     assert "No space left on device (the disk is full)" in str(info.value)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_output_folder_is_named_as_typed(tmp_path, monkeypatch):
+    """Not resolved: ``-o out`` is ``out`` in the message, not the absolute folder."""
+    (tmp_path / "runs" / "out").mkdir(parents=True)
+    (tmp_path / "runs" / "out" / "notes.txt").write_text("mine")
+    monkeypatch.chdir(tmp_path / "runs")
+    with pytest.raises(DatasetError) as info:
+        with claim_output("out"):
+            pass
+    assert str(info.value).startswith("out: holds files multieye did not write (notes.txt)")
+    assert str(tmp_path) not in str(info.value)
+    with pytest.raises(DatasetError) as info:
+        with claim_output(Path("out") / "notes.txt" / "deeper"):
+            pass
+    assert str(info.value).startswith("out/notes.txt/deeper: cannot create the output folder")

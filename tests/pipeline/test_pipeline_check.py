@@ -71,6 +71,11 @@ def test_wrong_target_size_finds_no_target(small, tmp_path):
         assert any(p.startswith("target found in only 0 of 8 sampled images")
                    for p in c.problems)
         assert c.fatal and "fewer than 3 usable images" in c.fatal[0]
+        # the images were searched: what to write in rig.yaml, in the chessboard's terms
+        hint = next(p for p in c.problems if p.startswith("target found in only"))
+        assert ("rows and cols count the inner corners" in hint
+                and "write in rig.yaml target: {type: chessboard, rows: 6, cols: 9, "
+                "spacing: 0.05}" in hint), hint
 
 
 def test_camera_given_by_poses(tmp_path):

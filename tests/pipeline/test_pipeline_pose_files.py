@@ -107,6 +107,47 @@ def test_table_matched_by_image_name(rendered, tmp_path):
         (f"poses.csv line {len(rows) - n0 + 2}", "pose row without an image: img77.png")]
 
 
+def test_table_in_image_order_as_kuka_writes_it(rendered, tmp_path):
+    """KUKA's RobotPosesVec.txt: no header, no image names, one row per image in the images'
+    name order (img2 before img10), 16 numbers of a row-major 4x4 in mm (``match: order``);
+    the same rows matched by an image column, and the poses paired in time, give one answer."""
+    poses = {}
+    ds = _by_name(rendered, tmp_path / "order", "{file: cam0/RobotPosesVec.txt, match: order, "
+                  "unit: mm}", lambda path, T: poses.__setitem__(path, T))
+    text = (ds / "rig.yaml").read_text().replace(
+        "images: cam1/}", "images: cam1/, mocap: {file: cam1/RobotPosesVec.txt}}")
+    (ds / "rig.yaml").write_text(text)
+    mine = {}
+    for cam in ("cam0", "cam1"):           # img0 img5 img10 ...: name order is not the order
+        stems = sorted((p for p in poses if p.parent.name == cam), key=lambda p: int(p.name[3:]))
+        mine[cam] = [ds / cam / f"img{5 * k}" for k in range(len(stems))]     # of characters
+        for k, stem in reversed(list(enumerate(stems))):
+            stem.with_suffix(".png").rename(mine[cam][k].with_suffix(".png"))
+        mine[cam] = [(p, poses[stem]) for p, stem in zip(mine[cam], stems)]
+        assert sorted(p.name for p, _ in mine[cam]) != [p.name for p, _ in mine[cam]]
+    by_image = tmp_path / "image"
+    shutil.copytree(ds, by_image)
+    (by_image / "rig.yaml").write_text(text.replace("RobotPosesVec.txt", "poses.txt").replace(
+        "match: order", "match: image"))
+    for cam in ("cam0", "cam1"):
+        mm = [T.ravel() * np.where(np.isin(np.arange(16), (3, 7, 11)), 1000, 1)
+              for _, T in mine[cam]]                                             # t in mm
+        (ds / cam / "RobotPosesVec.txt").write_text(
+            "".join(" ".join(f"{v:.12g}" for v in row) + "\n" for row in mm))
+        (by_image / cam / "poses.txt").write_text(
+            "image " + " ".join(f"m{k}" for k in range(16)) + "\n" + "".join(
+                f"{p.name}.png " + " ".join(f"{v:.12g}" for v in row) + "\n"
+                for (p, _), row in reversed(list(zip(mine[cam], mm)))))
+    in_time = calibrate(rendered, processes=1)
+    by_order, matched = calibrate(ds, processes=1), calibrate(by_image, processes=1)
+    for a, b, c in zip(in_time.closed_form.X, by_order.closed_form.X, matched.closed_form.X):
+        np.testing.assert_allclose(b, c, atol=1e-12)
+        np.testing.assert_allclose(a, b, atol=1e-6)
+    assert [c.measurements_used for c in by_order.record.cameras] == [
+        c.measurements_used for c in in_time.record.cameras]
+    assert all(c.rejected == () for c in by_order.record.cameras)
+
+
 def test_stamped_table_in_its_own_order(rendered, tmp_path):
     """Motion capture paired in time, written as t qw qx qy qz x y z in millimetres."""
     ds = tmp_path / "ds"
@@ -195,15 +236,30 @@ def test_bad_pose_files_exit_2_naming_the_file(tmp_path, mocap, content, expecte
      "rig.yaml:3: mocap.values: expected each of t, x, y, z, qw, qx, qy, qz once"),
     ('{file: cam0/mocap.txt, format: csv, rotation: rotvec}',
      "mocap.rotation: applies to pose-files, pose-table, tum sources only (this one is csv)"),
-    ('{file: cam0/mocap.txt, match: name}', "rig.yaml:3: mocap.match: expected one of time, image"),
+    ('{file: cam0/mocap.txt, match: name}',
+     "rig.yaml:3: mocap.match: expected one of time, image, order"),
     ('{file: cam0/mocap.txt, match: image, format: tum}',
      "mocap.match: match: image reads a table with an 'image' column; leave out 'format'"),
     ('{file: cam0/mocap.txt, match: image}',
      "cam0/mocap.txt:1: camera cam0: expected a header with a column 'image' (match: image)"),
+    ('{file: cam0/mocap.txt, match: order, format: tum}',
+     "mocap.match: match: order reads a table in image-name order; leave out 'format'"),
+    ('{file: cam0/mocap.txt, match: order}',
+     "cam0/mocap.txt:1: camera cam0: expected the numbers x, y, z, qx, qy, qz, qw (rotation "
+     "quaternion-xyzw), or 16 numbers of a 4x4 matrix, got 8 numbers"),
+    ('{file: cam0/mocap.txt, match: order, rotation: matrix}',
+     "cam0/mocap.txt:1: camera cam0: expected 16 numbers (a 4x4 pose, row-major) or 12, got 8"),
 ])
 def test_bad_pose_file_keys_exit_2_at_their_line(tmp_path, mocap, expected):
     ds = _bad_dataset(tmp_path, mocap, {"mocap.txt": "0 0 0 0 0 0 0 1\n"})
     _fails(ds, tmp_path / "out", expected)
+
+
+def test_order_table_with_another_count_of_rows_exit_2_naming_both(tmp_path):
+    ds = _bad_dataset(tmp_path, "{file: cam0/RobotPosesVec.txt, match: order}",
+                      {"RobotPosesVec.txt": "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\n" * 2})
+    _fails(ds, tmp_path / "out", "cam0/RobotPosesVec.txt: camera cam0: match: order pairs row "
+           "k with image k, but the table has 2 pose rows and cam0/ 3 images")
 
 
 # --------------------------------------------------------------------------- published data

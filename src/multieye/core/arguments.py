@@ -15,8 +15,10 @@ from typing import Any
 import numpy as np
 
 from multieye.core.errors import InputError
+import difflib
 
-__all__ = ["real_array", "real_number", "positive_int", "camera_names", "one_of", "as_path"]
+__all__ = ["real_array", "real_number", "positive_int", "camera_names", "one_of", "as_path",
+           "did_you_mean"]
 
 
 def _kind(value: Any) -> str:
@@ -108,8 +110,23 @@ def camera_names(names: Any, count: int, what: str = "cameras") -> tuple[str, ..
 def one_of(value: Any, name: str, options: Sequence[str]) -> str:
     """``value`` if it is one of ``options`` (strings), else an InputError listing them."""
     if not isinstance(value, str) or value not in options:
-        raise InputError(f"{name} must be one of {', '.join(options)}, got {value!r}")
+        raise InputError(f"{name} must be one of {', '.join(options)}, got {value!r}"
+                         f"{did_you_mean(value, options)}")
     return value
+
+
+def did_you_mean(word: Any, options: Sequence[str]) -> str:
+    """``" (did you mean 'spacing'?)"`` when one of ``options`` is close to ``word`` (a typo,
+    another case, ``_`` for ``-``), else ``""``; by :func:`difflib.get_close_matches`."""
+
+    if not isinstance(word, str) or not word:
+        return ""
+    by_folded = {o.lower().replace("-", "_"): o for o in options}
+    folded = word.lower().replace("-", "_")
+    if folded in by_folded and by_folded[folded] != word:
+        return f" (did you mean {by_folded[folded]!r}?)"
+    close = difflib.get_close_matches(folded, list(by_folded), n=1, cutoff=0.75)
+    return f" (did you mean {by_folded[close[0]]!r}?)" if close else ""
 
 
 def as_path(value: Any, name: str = "path") -> Path:

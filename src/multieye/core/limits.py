@@ -1,5 +1,6 @@
 """Bounds on the numbers multieye accepts where they enter: rig.yaml, intrinsics files,
-motion-capture and pose rows (docs/rig-yaml.md, section 1).
+motion-capture and pose rows, and on the size of the files it reads (docs/rig-yaml.md,
+section 1).
 
 Each bound is far beyond any real rig, board, camera or recording, and close enough that a
 value past it is a mistake (a unit read wrong, a corrupted cell, a test value) rather than a
@@ -26,6 +27,11 @@ __all__ = [
     "MAX_TIME_TOLERANCE_S",
     "MAX_ROTATION_NOISE_DEG",
     "MAX_TRANSLATION_NOISE_M",
+    "MAX_YAML_BYTES",
+    "MAX_TABLE_BYTES",
+    "MAX_JSON_BYTES",
+    "MAX_IMAGE_BYTES",
+    "MAX_IMAGE_PIXELS",
 ]
 
 #: Largest target ``spacing`` (and ``marker_size``), metres.
@@ -68,3 +74,18 @@ MAX_TIME_TOLERANCE_S = 10.0
 #: Largest stated motion-capture noise: ``rotation_noise_deg`` and ``translation_noise_m``.
 MAX_ROTATION_NOISE_DEG = 30.0
 MAX_TRANSLATION_NOISE_M = 1.0
+
+# Sizes of the files read (counted while reading, :mod:`multieye.core.regular_files`).
+#: Largest YAML or small text file: rig.yaml, intrinsics, a pose file beside an image, bytes.
+MAX_YAML_BYTES = 1_000_000
+#: Largest table of rows: motion capture (TUM, CSV, OptiTrack, Vicon), pose tables, bytes
+#: (about 14 million TUM rows; tables are read line by line into arrays, about 170 bytes of
+#: memory per row).
+MAX_TABLE_BYTES = 512 * 2**20
+#: Largest JSON file read back (calibration.json, details.json), bytes.
+MAX_JSON_BYTES = 256 * 2**20
+#: Largest image file, bytes.
+MAX_IMAGE_BYTES = 512 * 2**20
+#: Largest image, pixels (width x height, from the file's header, checked before decoding);
+#: each side is bound by :data:`MAX_IMAGE_SIDE_PX` too.
+MAX_IMAGE_PIXELS = 100_000_000

@@ -26,7 +26,8 @@ import sys
 import threading
 import warnings
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Iterable
 
@@ -36,11 +37,12 @@ from multieye.core.arguments import positive_int
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.detect import Detection, detect
+from multieye.imaging.image_file import read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.targets import Target
 from multieye.imaging.workers import worker_pool
 
-__all__ = ["ImageResult", "detect_and_estimate", "detect_and_estimate_arrays", "process_image",
+__all__ = ["ImageResult", "detect_and_estimate", "worker_count", "detect_and_estimate_arrays", "process_image",
            "process_array", "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
 
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
@@ -101,17 +103,27 @@ def process_image(path, target: Target, intrinsics: Intrinsics | None, *,
     Returns
     -------
     ImageResult
-        Never raises for a bad image (missing, unreadable, empty, another size than the
-        intrinsics state, no target, degenerate points); programming errors still raise.
+        Never raises for a bad image (missing, not a regular file, unreadable, empty, a
+        header stating more pixels than :data:`~multieye.core.limits.MAX_IMAGE_PIXELS`,
+        another size than the intrinsics state, no target, degenerate points); the file is
+        read by :func:`multieye.imaging.image_file.read_gray` (size checked before decoding,
+        EXIF orientation ignored, with a warning).
     """
     path = str(path)
-    image = cv2.imread(path, cv2.IMREAD_GRAYSCALE) if os.path.isfile(path) else None
-    if image is None or image.size == 0:
-        reason = ("unreadable file: not found" if not os.path.exists(path) else
-                  "unreadable file: empty (0 bytes)" if os.path.getsize(path) == 0 else
-                  "unreadable file: not an image OpenCV can decode (truncated or corrupt?)")
+    image, reason, notes = read_gray(path)
+    if image is None:
         return ImageResult(path, None, None, reason)
-    return process_array(image, path, target, intrinsics, max_rms_px=max_rms_px)
+    res = process_array(image, path, target, intrinsics, max_rms_px=max_rms_px)
+    return replace(res, warnings=notes + res.warnings) if notes else res
+
+
+def _guarded(work, item, name: str) -> ImageResult:
+    """``work(item)``; an exception (MemoryError included) is the image's reason."""
+    try:
+        return work(item)
+    except Exception as exc:                    # noqa: BLE001 - one image, never the run
+        return ImageResult(name, None, None, f"failed while reading or detecting: "
+                           f"{type(exc).__name__}: {_first_line(exc)}")
 
 
 def process_array(image, name: str, target: Target, intrinsics: Intrinsics | None, *,
@@ -173,13 +185,15 @@ def _init_worker(target: Target, intrinsics: Intrinsics | None, max_rms_px: floa
 
 
 def _work(path: str) -> ImageResult:
-    return process_image(path, _WORKER["target"], _WORKER["intrinsics"], max_rms_px=_WORKER["max_rms_px"])
+    return _guarded(lambda p: process_image(p, _WORKER["target"], _WORKER["intrinsics"],
+                                            max_rms_px=_WORKER["max_rms_px"]), path, path)
 
 
 def _work_array(item) -> ImageResult:
     name, image = item
-    return process_array(image, name, _WORKER["target"], _WORKER["intrinsics"],
-                         max_rms_px=_WORKER["max_rms_px"])
+    return _guarded(lambda im: process_array(im, name, _WORKER["target"],
+                                             _WORKER["intrinsics"],
+                                             max_rms_px=_WORKER["max_rms_px"]), image, name)
 
 
 def _available_cores() -> int:
@@ -314,8 +328,8 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics 
     intrinsics : Intrinsics or None
         None: detection only, no pose (a camera whose intrinsics are still to be estimated).
     processes : int, optional
-        Worker processes; default the cores this process may use, at most one per image.
-        1 runs in this process.
+        Worker processes; default the cores this process may use; never more than those
+        cores nor one per image (:func:`worker_count`).  1 runs in this process.
     progress : bool, optional
         Show a tqdm progress bar on stderr; default only when stderr is a terminal.
     max_rms_px : float
@@ -334,49 +348,89 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics 
     server (spawn where there is none): its first start in a session costs about a second,
     later pools start in milliseconds.  Workers end with this process however it ends, and at
     once when an exception (Ctrl-C included) leaves the pool (:mod:`multieye.imaging.workers`).
+    A failure inside a worker is that image's reason, never the run's end: an exception
+    (``MemoryError`` included) is caught around each image, and when a worker dies (a crash
+    in a decoder, killed for memory) the images not yet done run again one per worker, so
+    that only the image that killed it is rejected.
     Workers import the main script again; when it calls
     this at its top level, outside ``if __name__ == "__main__":``, detection runs in threads
     of this process instead, with a warning (:func:`main_reimport_problem`).
     """
     paths = [str(p) for p in paths]
-    if processes is not None:
-        processes = positive_int(processes, "processes")
-    n_workers = min(_available_cores() if processes is None else int(processes), max(len(paths), 1))
+    n_workers = worker_count(processes, len(paths))
     show = sys.stderr.isatty() if progress is None else bool(progress)
     bar = None
     if show:
         from tqdm import tqdm
 
         bar = tqdm(total=len(paths), desc=f"detecting {target.kind}", unit="img", file=sys.stderr)
+
+    def one(p):
+        return _guarded(lambda q: process_image(q, target, intrinsics, max_rms_px=max_rms_px),
+                        p, p)
+
+    results: list[ImageResult] = []
     try:
         if n_workers <= 1:
-            results = []
             for p in paths:
-                results.append(process_image(p, target, intrinsics, max_rms_px=max_rms_px))
+                results.append(one(p))
                 if bar is not None:
                     bar.update(1)
             return results
         if _threads_instead(n_workers):
             with ThreadPoolExecutor(n_workers) as pool:
-                results = []
-                for r in pool.map(lambda p: process_image(p, target, intrinsics,
-                                                          max_rms_px=max_rms_px), paths):
+                for r in pool.map(one, paths):
                     results.append(r)
                     if bar is not None:
                         bar.update(1)
                 return results
         chunksize = max(1, math.ceil(len(paths) / (n_workers * _CHUNKS_PER_WORKER)))
-        with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_worker,
-                         initargs=(target, intrinsics, max_rms_px)) as pool:
-            results = []
-            for r in pool.map(_work, paths, chunksize=chunksize):
-                results.append(r)
+        initargs = (target, intrinsics, max_rms_px)
+        try:
+            with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_worker,
+                             initargs=initargs) as pool:
+                for r in pool.map(_work, paths, chunksize=chunksize):
+                    results.append(r)
+                    if bar is not None:
+                        bar.update(1)
+        except BrokenProcessPool:
+            # a worker died (a crash in a decoder, killed for memory): the images not yet
+            # done run one by one, each in a worker of its own, so only the culprit is lost
+            for p in paths[len(results):]:
+                results.append(_isolated(_work, p, p, initargs))
                 if bar is not None:
                     bar.update(1)
-            return results
+        return results
     finally:
         if bar is not None:
             bar.close()
+
+
+def _isolated(work, item, name: str, initargs: tuple) -> ImageResult:
+    """``work(item)`` in a worker process of its own; its crash is the item's reason."""
+    try:
+        with worker_pool(1, mp_context=_mp_context(), initializer=_init_worker,
+                         initargs=initargs) as pool:
+            return pool.submit(work, item).result()
+    except BrokenProcessPool:
+        return ImageResult(name, None, None, "failed while reading or detecting: the worker "
+                           "process ended abruptly (a crash, or killed for lack of memory)")
+
+
+def worker_count(processes: int | None, n_items: int | None = None) -> int:
+    """Worker processes to start: the request (default: all), at most the CPUs this process
+    may use (``os.sched_getaffinity``) and one per item.
+
+    Raises
+    ------
+    InputError
+        ``processes`` is not a positive integer.
+    """
+    cores = _available_cores()
+    n = cores if processes is None else min(positive_int(processes, "processes"), cores)
+    if n_items is not None:
+        n = min(n, max(int(n_items), 1))
+    return max(n, 1)
 
 
 def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intrinsics | None,
@@ -401,9 +455,7 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
     list of ImageResult
         In input order.
     """
-    if processes is not None:
-        processes = positive_int(processes, "processes")
-    n_workers = _available_cores() if processes is None else int(processes)
+    n_workers = worker_count(processes)
     show = sys.stderr.isatty() if progress is None else bool(progress)
     bar = None
     if show:
@@ -412,11 +464,15 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
         bar = tqdm(desc=f"detecting {target.kind}", unit="img", file=sys.stderr)
     results: list[ImageResult] = []
     it = iter(items)
+
+    def one(item):
+        return _guarded(lambda im: process_array(im, item[0], target, intrinsics,
+                                                 max_rms_px=max_rms_px), item[1], item[0])
+
     try:
         if n_workers <= 1:
-            for name, image in it:
-                results.append(process_array(image, name, target, intrinsics,
-                                             max_rms_px=max_rms_px))
+            for item in it:
+                results.append(one(item))
                 if bar is not None:
                     bar.update(1)
             return results
@@ -426,18 +482,26 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
                     chunk = [item for _, item in zip(range(batch), it)]
                     if not chunk:
                         return results
-                    results.extend(pool.map(lambda item: process_array(
-                        item[1], item[0], target, intrinsics, max_rms_px=max_rms_px), chunk))
+                    results.extend(pool.map(one, chunk))
                     if bar is not None:
                         bar.update(len(chunk))
-        with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_worker,
-                         initargs=(target, intrinsics, max_rms_px)) as pool:
-            while True:
-                chunk = [item for _, item in zip(range(batch), it)]
-                if not chunk:
-                    return results
-                results.extend(pool.map(_work_array, chunk,
-                                        chunksize=max(1, len(chunk) // (2 * n_workers))))
+        initargs = (target, intrinsics, max_rms_px)
+        chunk: list = []
+        while True:                     # a new pool after a worker died
+            try:
+                with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_worker,
+                                 initargs=initargs) as pool:
+                    while True:
+                        chunk = [item for _, item in zip(range(batch), it)]
+                        if not chunk:
+                            return results
+                        results.extend(pool.map(_work_array, chunk,
+                                                chunksize=max(1, len(chunk) // (2 * n_workers))))
+                        if bar is not None:
+                            bar.update(len(chunk))
+            except BrokenProcessPool:
+                results.extend(_isolated(_work_array, item, item[0], initargs)
+                               for item in chunk)
                 if bar is not None:
                     bar.update(len(chunk))
     finally:

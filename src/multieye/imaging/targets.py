@@ -51,6 +51,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from multieye.core.arguments import did_you_mean
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.limits import MAX_GRID_SIDE, MAX_SPACING_M
 
@@ -537,11 +538,13 @@ def target_from_spec(spec: Mapping[str, Any], *, path=None, line: int | None = N
         fail(f"expected a mapping with type, rows, cols, spacing; got {type(spec).__name__}")
     kind = spec.get("type")
     if kind not in TARGET_TYPES:
-        fail(f"unknown type {kind!r}; expected one of {', '.join(TARGET_TYPES)}")
+        fail(f"unknown type {kind!r}{did_you_mean(kind, TARGET_TYPES)}; expected one of "
+             f"{', '.join(TARGET_TYPES)}")
     allowed = _SPEC_KEYS[kind]
     unknown = sorted(set(spec) - set(allowed) - {"type"}, key=str)
     if unknown:
-        fail(f"unknown key {unknown[0]!r} for type {kind}; expected keys: type, {', '.join(allowed)}")
+        fail(f"unknown key {unknown[0]!r}{did_you_mean(unknown[0], list(allowed))} for type "
+             f"{kind}; expected keys: type, {', '.join(allowed)}")
     missing = [k for k, v in allowed.items() if v is None and k not in spec]
     if missing:
         fail(f"{kind} needs key {missing[0]!r} (keys: type, {', '.join(allowed)})")

@@ -21,6 +21,8 @@ import os
 import cv2
 import numpy as np
 
+from multieye.imaging.image_file import checked_bytes, decode_gray
+
 __all__ = ["residual_thumbnail", "crop_box", "POINT_BGR", "RESIDUAL_BGR"]
 
 #: Colour of the detected points (cyan) and of the residual lines (magenta), BGR.
@@ -29,27 +31,22 @@ RESIDUAL_BGR = (255, 0, 230)
 
 
 def _read_reduced(path: str, max_width: int) -> tuple[np.ndarray, float] | None:
-    """The image in grayscale at a reduced size, and the factor from full-size pixels to it.
+    """The image in grayscale at a reduced size, and the factor from full-size pixels to it;
+    read with the same bounds and header checks as detection (:mod:`multieye.imaging.image_file`).
 
     JPEG decoders scale by 2, 4 or 8 while decoding (much faster than a full decode); the
     reduction is chosen so that the decoded image stays at least ``max_width`` wide.
     """
-    full = cv2.imread(path, cv2.IMREAD_GRAYSCALE) if path.lower().endswith(
-        (".png", ".pgm", ".bmp", ".tif", ".tiff", ".ppm")) else None
-    if full is None:
-        header = cv2.imread(path, cv2.IMREAD_REDUCED_GRAYSCALE_8)
-        if header is None:
-            return None
-        width8 = header.shape[1]     # width / 8, rounded up
-        for factor, flag in ((4, cv2.IMREAD_REDUCED_GRAYSCALE_4),
-                             (2, cv2.IMREAD_REDUCED_GRAYSCALE_2)):
-            if width8 * 8 / factor >= max_width:
-                image = cv2.imread(path, flag)
-                return (None if image is None else (image, image.shape[1] / (width8 * 8)))
-        full = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
-        if full is None:
-            return None
-    return full, 1.0
+    data, header, reason = checked_bytes(path)
+    if reason is not None:
+        return None
+    reduce = 1
+    if header.format == "JPEG":
+        reduce = next((f for f in (8, 4, 2) if header.width / f >= max_width), 1)
+    image, reason = decode_gray(data, reduce)
+    if image is None:
+        return None
+    return image, image.shape[1] / header.width
 
 
 def crop_box(uv: np.ndarray, width: float, height: float, margin: float = 0.25,

@@ -26,7 +26,7 @@ from multieye.io.calibration_json import (
     read_calibration,
     write_calibration,
 )
-from multieye.io.image_folder import list_image_files, list_images
+from multieye.io.image_folder import list_image_files, list_images, skipped_entries
 from multieye.io.intrinsics import (
     read_camera_info,
     read_intrinsics,
@@ -58,6 +58,7 @@ __all__ = [
     # images
     "list_images",
     "list_image_files",
+    "skipped_entries",
     "iter_bag_images",
     "sample_bag_images",
     "bag_image_count",

@@ -11,21 +11,29 @@ Rule for a file name's stem (the name without its extension):
   apart from the others), is an error naming the file.
 
 Only files with an image extension (:data:`IMAGE_EXTENSIONS`, any case) are considered; other
-files (notes, hidden files) are ignored.  Stamps are also returned as exact integer
+files (notes, hidden files) and sub-folders are ignored.  An entry with an image extension
+that is not a regular file (a folder, a device, a FIFO, a socket), and a symbolic link of any
+name that does not lead to a regular file (dangling, a loop, to a device), is skipped and
+listed by :func:`skipped_entries` with the reason.  Links to regular files elsewhere are
+followed (datasets link to shared recordings).  Stamps are also returned as exact integer
 nanoseconds (seconds with more than 9 decimals are rounded to the nearest nanosecond).
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import re
+import stat
 from decimal import ROUND_HALF_EVEN, Decimal
 from pathlib import Path
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
+from multieye.core.regular_files import file_kind
 
-__all__ = ["IMAGE_EXTENSIONS", "list_images", "list_image_files", "stamp_from_name"]
+__all__ = ["IMAGE_EXTENSIONS", "list_images", "list_image_files", "stamp_from_name",
+           "skipped_entries"]
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 
@@ -89,7 +97,7 @@ def list_images(folder: str | os.PathLike) -> list[tuple[float, int, Path]]:
             raise DatasetError(f"same time stamp as {found[ns].name}", path=p)
         found[ns] = p
     if not found:
-        raise DatasetError(f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder", path=root)
+        raise DatasetError(_none_found(root), path=root)
     return [(ns / 1e9, ns, found[ns]) for ns in sorted(found)]
 
 
@@ -108,5 +116,52 @@ def list_image_files(folder: str | os.PathLike) -> list[Path]:
     found = [p for p in sorted(root.iterdir())
              if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS]
     if not found:
-        raise DatasetError(f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder", path=root)
+        raise DatasetError(_none_found(root), path=root)
     return found
+
+
+def _none_found(root: Path) -> str:
+    skipped = skipped_entries(root)
+    first = f"; {len(skipped)} skipped, first {skipped[0][0]}: {skipped[0][1]}" if skipped else ""
+    return f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder{first}"
+
+
+def _entry_problem(p: Path) -> str | None:
+    """Why an entry is not a regular file (following links), or None when it is one."""
+    try:
+        st = os.stat(p)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            return "a symbolic link loop"
+        if exc.errno == errno.ENOENT and os.path.islink(p):
+            return f"a dangling symbolic link (to {os.readlink(p)})"
+        return f"cannot be read: {exc.strerror or exc}"
+    if stat.S_ISREG(st.st_mode):
+        return None
+    kind = file_kind(st.st_mode)
+    if os.path.islink(p):
+        return f"a symbolic link to {kind}, not to a regular file ({os.path.realpath(p)})"
+    return f"{kind}, not a regular file"
+
+
+def skipped_entries(folder: str | os.PathLike) -> list[tuple[str, str]]:
+    """Entries of an image folder that are skipped, as ``(name, reason)`` sorted by name.
+
+    An entry named like an image (:data:`IMAGE_EXTENSIONS`) that is not a regular file, and
+    any symbolic link that does not lead to a regular file: a dangling link, a link loop, a
+    folder, a device, a FIFO or a socket.  Sub-folders and other files are not images and are
+    not listed.
+    """
+    root = Path(folder)
+    out = []
+    try:
+        entries = sorted(root.iterdir())
+    except OSError:
+        return []
+    for p in entries:
+        if p.suffix.lower() not in IMAGE_EXTENSIONS and not p.is_symlink():
+            continue
+        problem = _entry_problem(p)
+        if problem is not None:
+            out.append((p.name, f"skipped: {problem}"))
+    return out

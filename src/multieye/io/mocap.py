@@ -190,9 +190,10 @@ class MocapSpec:
         folder): the JSON key of the pose, the order of plain numbers and the rotation
         convention (:mod:`multieye.io.pose_files`); ``values`` and ``rotation`` also for
         ``pose-table`` and ``tum`` (then ``values`` include ``t``).
-    match : {"time", "image"}
-        ``image``: ``file`` is a table whose ``image`` column names the image of each pose
-        (``pose-table``); ``values``, ``rotation`` and ``unit`` read its numbers.
+    match : {"time", "image", "order"}
+        ``image``: ``file`` is a table whose ``image`` column names the image of each pose;
+        ``order``: a table whose rows follow the images sorted by name (both ``pose-table``);
+        ``values``, ``rotation`` and ``unit`` read its numbers.
     frames : (str, str) or None
         The user's names of the fixed and of the tracked frame (rig.yaml's ``pose:``,
         :func:`named_pose`); None: ``world`` and the role name in ``pose``.
@@ -228,9 +229,9 @@ class MocapSpec:
     @property
     def by_name(self) -> bool:
         """Paired with the images by name: one pose file beside each image (``file`` holds
-        ``{stem}``), or a table with an ``image`` column (``match == "image"``);
+        ``{stem}``), or a table with an ``image`` column or in image order (``match``);
         :mod:`multieye.io.pose_files` reads them, not :func:`read_mocap`."""
-        return STEM in str(self.file) or self.match == "image"
+        return STEM in str(self.file) or self.match in ("image", "order")
 
     @property
     def moving_frame(self) -> str:

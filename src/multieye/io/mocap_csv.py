@@ -46,7 +46,7 @@ import numpy as np
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
 from multieye.io.poserows import quaternion_poses, trajectory_from_rows, usable_rows
-from multieye.io.textfile import LENGTH_UNITS, parse_float, read_text
+from multieye.io.textfile import LENGTH_UNITS, parse_float, read_text, text_lines
 from multieye.io.trajectory import Trajectory
 
 __all__ = [
@@ -433,7 +433,7 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
 
 def csv_flavour(path: str | os.PathLike) -> str:
     """``"optitrack"``, ``"vicon"`` or ``"csv"`` from the first non-blank line of a CSV file."""
-    for line in read_text(path, what="CSV file").splitlines():
+    for _, line in text_lines(path, what="CSV file"):
         if line.strip():
             first = line.split(",")[0].strip()
             if first == "Format Version":

@@ -35,12 +35,14 @@ from scipy.spatial.transform import Rotation
 
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
-from multieye.core.limits import MAX_POSITION_M
+from multieye.core.limits import MAX_POSITION_M, MAX_TABLE_BYTES, MAX_YAML_BYTES
+from multieye.core.regular_files import read_bounded
 from multieye.io.textfile import length_scale
 
 __all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
            "read_pose_file", "pose_file_pattern", "poses_by_name", "read_pose_table",
-           "poses_by_table", "read_stamped_table"]
+           "poses_by_table", "read_order_table", "poses_by_order",
+           "read_stamped_table"]
 
 #: The placeholder of ``mocap.file`` for the image's stem.
 STEM = "{stem}"
@@ -128,7 +130,8 @@ def pose_file_pattern(pattern: str, image: Path) -> Path:
 
 
 def _numbers_from_text(path: Path) -> list[float]:
-    text = path.read_text(encoding="utf-8-sig", errors="replace")
+    text = read_bounded(path, what="pose file", max_bytes=MAX_YAML_BYTES).decode(
+        "utf-8-sig", errors="replace")
     cells = [c for line in text.splitlines() for c in re.split(r"[\s,;]+", line.split("#")[0])
              if c]
     out = []
@@ -142,9 +145,12 @@ def _numbers_from_text(path: Path) -> list[float]:
 
 def _from_json(path: Path, fmt: PoseFormat):
     try:
-        data = json.loads(path.read_text(encoding="utf-8-sig"))
+        data = json.loads(read_bounded(path, what="pose file", max_bytes=MAX_YAML_BYTES
+                                       ).decode("utf-8-sig"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DatasetError(f"not a JSON file: {exc}", path=path) from None
+    except RecursionError:
+        raise DatasetError("not a JSON file: nested too deeply", path=path) from None
     if fmt.key is not None:
         for part in fmt.key.split("."):
             if not isinstance(data, Mapping) or part not in data:
@@ -331,40 +337,78 @@ def read_pose_table(path: str | os.PathLike, fmt: PoseFormat) -> dict[str, tuple
         No ``image`` column, the wrong count of cells, a bad pose or an image named twice;
         the message names the file and the line.
     """
-    path = Path(path)
+    out: dict[str, tuple[np.ndarray, int]] = {}
+    for image, T, n in _table_rows(Path(path), fmt, image_column=True):
+        if image in out:
+            raise DatasetError(f"image {image} has a pose on line {out[image][1]} already",
+                               path=path, line=n)
+        out[image] = (T, n)
+    return out
+
+
+def read_order_table(path: str | os.PathLike, fmt: PoseFormat) -> list[tuple[np.ndarray, int]]:
+    """A table of poses whose rows follow the images sorted by name (``match: order``, as
+    KUKA's ``RobotPosesVec.txt``): ``(pose, line)`` per row, in file order.
+
+    A header is optional: a first line (not a ``#`` comment) with a cell that is not a
+    number is the header, and its cells name the columns as in :func:`read_pose_table`
+    (without ``image``); without one, each row holds 16 (or 12) numbers of a matrix
+    (row-major) when ``values`` is not given, else the numbers in the order of ``values``.
+
+    Raises
+    ------
+    DatasetError
+        The wrong count of cells or a bad pose, naming the file and the line.
+    """
+    return [(T, n) for _, T, n in _table_rows(Path(path), fmt, image_column=False)]
+
+
+def _table_rows(path: Path, fmt: PoseFormat, *, image_column: bool):
+    """``(image or None, pose, line)`` for each row of a pose table (docs/rig-yaml.md,
+    section 4, "Pose tables")."""
+    what = "the pose table" + (" (match: image)" if image_column else " (match: order)")
     try:
-        text = path.read_text(encoding="utf-8-sig", errors="replace")
+        text = read_bounded(path, what="pose table", max_bytes=MAX_TABLE_BYTES).decode(
+            "utf-8-sig", errors="replace")
     except OSError as exc:
-        raise DatasetError(f"cannot read the pose table: {exc.strerror or exc}",
-                           path=path) from None
+        raise DatasetError(f"cannot read {what}: {exc.strerror or exc}", path=path) from None
     rows = [(n, line) for n, line in enumerate(text.splitlines(), 1)
             if line.strip() and not line.lstrip().startswith("#")]
     if not rows:
-        raise DatasetError("empty pose table: expected a header with an 'image' column",
-                           path=path)
+        expected = ("a header with an 'image' column" if image_column
+                    else "one row of numbers per image")
+        raise DatasetError(f"empty pose table: expected {expected}", path=path)
     head_line, head = rows[0]
     sep = "," if "," in head else ";" if ";" in head else None
     names = [c.strip().lower() for c in (head.split(sep) if sep else head.split())]
-    if "image" not in names:
-        raise DatasetError(f"expected a header with a column 'image' (match: image), got "
-                           f"{', '.join(names)}", path=path, line=head_line)
-    col = names.index("image")
-    others = [n for i, n in enumerate(names) if i != col]
-    by_name = set(fmt.order) <= set(others) and fmt.rotation != "matrix"
-    out: dict[str, tuple[np.ndarray, int]] = {}
+    col = None
+    if image_column:
+        if "image" not in names:
+            raise DatasetError(f"expected a header with a column 'image' (match: image), got "
+                               f"{', '.join(names)}", path=path, line=head_line)
+        col = names.index("image")
+        body = rows[1:]
+    elif all(_is_number(c) for c in names):
+        names, body = None, rows                    # no header: numbers from the first line
+    else:
+        body = rows[1:]
+    others = None if names is None else [n for i, n in enumerate(names) if i != col]
+    by_name = (others is not None and set(fmt.order) <= set(others)
+               and fmt.rotation != "matrix")
     scale = length_scale(fmt.unit)
-    for n, line in rows[1:]:
+    for n, line in body:
         cells = [c.strip() for c in (line.split(sep) if sep else line.split())]
-        if len(cells) != len(names):
+        if names is not None and len(cells) != len(names):
             raise DatasetError(f"expected {len(names)} cells ({', '.join(names)}), got "
                                f"{len(cells)}", path=path, line=n)
-        image = cells.pop(col)
+        image = cells.pop(col) if col is not None else None
         try:
             numbers = [float(c) for c in cells]
         except ValueError:
             bad = next(c for c in cells if not _is_number(c))
-            raise DatasetError(f"expected numbers besides the image name, got {bad!r}",
-                               path=path, line=n) from None
+            besides = " besides the image name" if col is not None else ""
+            raise DatasetError(f"expected numbers{besides}, got {bad!r}", path=path,
+                               line=n) from None
         try:
             if by_name:
                 T = _named(dict(zip(others, numbers)), fmt, scale, path)
@@ -374,18 +418,17 @@ def read_pose_table(path: str | os.PathLike, fmt: PoseFormat) -> dict[str, tuple
                                        f"{len(numbers)}", path=path)
                 T = _checked(_matrix(numbers, scale, path), path)
             elif len(numbers) != len(fmt.order):
-                raise DatasetError(f"expected the columns {', '.join(fmt.order)} besides "
-                                   f"image (rotation {fmt.rotation}), got {', '.join(others)}",
-                                   path=path)
+                kind, got = (("columns", ", ".join(others)) if others is not None
+                             else ("numbers", f"{len(numbers)} numbers"))
+                besides = " besides image" if col is not None else ""
+                raise DatasetError(f"expected the {kind} {', '.join(fmt.order)}{besides} "
+                                   f"(rotation {fmt.rotation}), or 16 numbers of a 4x4 "
+                                   f"matrix, got {got}", path=path)
             else:
                 T = _named(dict(zip(fmt.order, numbers)), fmt, scale, path)
         except DatasetError as exc:
             raise DatasetError(exc.reason, path=path, line=n) from None
-        if image in out:
-            raise DatasetError(f"image {image} has a pose on line {out[image][1]} already",
-                               path=path, line=n)
-        out[image] = (T, n)
-    return out
+        yield image, T, n
 
 
 def _is_number(cell: str) -> bool:
@@ -415,6 +458,28 @@ def poses_by_table(images: Sequence[Path], table: str | os.PathLike, fmt: PoseFo
             unmatched.append((f"{Path(table).name} line {line}",
                               f"pose row without an image: {cell}"))
     return matched, unmatched
+
+
+def poses_by_order(images: Sequence[Path], table: str | os.PathLike, fmt: PoseFormat
+                   ) -> tuple[list[tuple[Path, np.ndarray]], list[tuple[str, str]]]:
+    """Each image, in natural name order (``pos2`` before ``pos10``), with the row of
+    ``table`` at its place (``match: order``); returns what :func:`poses_by_name` returns
+    (nothing is unmatched).
+
+    Raises
+    ------
+    DatasetError
+        A bad row (:func:`read_order_table`), or as many rows as images not: one line naming
+        both counts.
+    """
+    rows = read_order_table(table, fmt)
+    ordered = sorted(images, key=_natural)
+    if len(rows) != len(ordered):
+        folder = ordered[0].parent.name + "/" if ordered else "the camera's folder"
+        raise DatasetError(f"match: order pairs row k with image k, but the table has "
+                           f"{len(rows)} pose rows and {folder} {len(ordered)} images; give "
+                           f"one row per image, in the images' name order", path=table)
+    return [(image, T) for image, (T, _) in zip(ordered, rows)], []
 
 
 #: The numbers of a matrix stamped in time: ``t`` then its top three rows.

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -22,7 +23,7 @@ from multieye.core.limits import MAX_POSITION_M, MAX_STAMP_S
 from multieye.io.trajectory import SkippedRow, Trajectory
 
 __all__ = ["QUATERNION_TOLERANCE", "quaternion_poses", "trajectory_from_rows", "screen_rows",
-           "usable_rows"]
+           "usable_rows", "QuaternionRows"]
 
 #: Largest accepted ``| ||q|| - 1 |`` before a quaternion is rejected.
 QUATERNION_TOLERANCE = 1e-3
@@ -60,7 +61,7 @@ def quaternion_poses(t_xyz: np.ndarray, q_xyzw: np.ndarray, *, path: str | os.Pa
         where = what if lines is not None else f"{what}sample {i}: "
         raise DatasetError(f"{where}quaternion (qx qy qz qw) must have unit norm, got norm "
                            f"{norms[i]:.6g} (tolerance {tolerance:g})", path=path,
-                           line=None if lines is None else lines[i])
+                           line=None if lines is None else int(lines[i]))
     return geometry.transform_from_quat(q / norms[:, None], t_xyz)
 
 
@@ -152,7 +153,7 @@ def usable_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
         first = skipped[0]
         raise DatasetError(f"{what}no usable pose: all {len(keep)} rows left out; "
                            f"{first.where}: {first.reason}", path=path, line=first.line)
-    kept_lines = None if lines is None else [ln for ln, k in zip(lines, keep) if k]
+    kept_lines = None if lines is None else np.asarray(lines, dtype=np.int64)[keep]
     return keep, skipped, kept_lines
 
 
@@ -193,13 +194,91 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
     if duplicates == "drop":
         keep = np.r_[True, np.diff(key) != 0]
         stamps, T, key = stamps[keep], np.asarray(T)[keep], key[keep]
-        lines = [line for line, k in zip(lines, keep) if k]
+        lines = np.asarray(lines, dtype=np.int64)[keep]
         stamps_ns = None if stamps_ns is None else key
-    steps = np.diff(key)
-    if np.any(steps <= 0):
-        i = int(np.argmax(steps <= 0))
-        what = "duplicate time stamp" if steps[i] == 0 else "time stamp goes back"
+    back = key[1:] <= key[:-1]                  # booleans: no copy of the stamps
+    if np.any(back):
+        i = int(np.argmax(back))
+        what = "duplicate time stamp" if key[i + 1] == key[i] else "time stamp goes back"
         raise DatasetError(f"{what}: {float(stamps[i + 1])!r} s after {float(stamps[i])!r} s "
-                           f"on line {lines[i]}; stamps must be strictly increasing",
-                           path=path, line=lines[i + 1])
+                           f"on line {int(lines[i])}; stamps must be strictly increasing",
+                           path=path, line=int(lines[i + 1]))
     return Trajectory(stamps, T, parent, child, stamps_ns, skipped)
+
+
+class QuaternionRows:
+    """Rows ``t tx ty tz qx qy qz qw`` turned into poses block by block, for tables of millions
+    of rows: only the usable rows' stamps, poses and lines are kept (about 180 bytes a row),
+    never the table of numbers whole.
+
+    Each block goes through :func:`screen_rows` and :func:`quaternion_poses` as a whole file
+    would; :meth:`trajectory` then checks the stamps (:func:`trajectory_from_rows`).
+
+    Parameters
+    ----------
+    path : path-like
+        The file, for messages.
+    names : sequence of str
+        The 8 column names.
+    scale : float
+        Metres per unit of the translations.
+    capacity : int
+        Rows expected at most (the file's line count): the arrays are allocated once; more
+        rows grow them (ndarray.resize fills what it adds, so a good bound saves memory).
+    """
+
+    def __init__(self, path, names: Sequence[str], scale: float, capacity: int = 0):
+        self.path, self.names, self.scale = path, tuple(names), float(scale)
+        self._n = 0           # usable rows so far
+        self._rows = 0        # rows screened so far
+        # np.empty: the pages of rows never written are never resident
+        self._stamps = np.empty(capacity)
+        self._T = np.empty((capacity, 4, 4))
+        self._lines = np.empty(capacity, dtype=np.int32)   # tables are below 2 GiB
+        self.skipped: list[SkippedRow] = []
+
+    @property
+    def screened(self) -> int:
+        """Rows screened so far, usable or not."""
+        return self._rows
+
+    def _grow(self, need: int) -> None:
+        cap = len(self._stamps)
+        if need <= cap:
+            return
+        cap = max(need, cap + cap // 4, 1 << 16)
+        # ndarray.resize reallocates in place (no second copy of the poses in memory)
+        for a, shape in ((self._stamps, (cap,)), (self._T, (cap, 4, 4)),
+                         (self._lines, (cap,))):
+            a.resize(shape, refcheck=False)
+
+    def add(self, data: np.ndarray, lines: np.ndarray) -> None:
+        """Screen and convert one block: ``data`` (k, 8) as the file gives it, ``lines`` (k,)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            t = data[:, 1:4] * self.scale
+        keep, skipped = screen_rows(data[:, 0], t, data[:, 4:8], names=self.names,
+                                    lines=lines)
+        self.skipped.extend(replace(r, row=r.row + self._rows) for r in skipped)
+        self._rows += len(data)
+        kept_lines = lines[keep]
+        T = quaternion_poses(t[keep], data[keep, 4:8], path=self.path, lines=kept_lines)
+        m = len(T)
+        self._grow(self._n + m)
+        self._stamps[self._n:self._n + m] = data[keep, 0]
+        self._T[self._n:self._n + m] = T
+        self._lines[self._n:self._n + m] = kept_lines
+        self._n += m
+
+    def trajectory(self, *, parent: str, child: str, duplicates: str = "error") -> Trajectory:
+        """The usable rows as a :class:`Trajectory` (DatasetError: no rows, none usable, or
+        stamps that repeat or go back)."""
+        if self._rows and not self._n:
+            first = self.skipped[0]
+            raise DatasetError(f"no usable pose: all {self._rows} rows left out; "
+                               f"{first.where}: {first.reason}", path=self.path, line=first.line)
+        n = self._n
+        for a, shape in ((self._stamps, (n,)), (self._T, (n, 4, 4)), (self._lines, (n,))):
+            a.resize(shape, refcheck=False)
+        return trajectory_from_rows(self._stamps, self._T, path=self.path, lines=self._lines,
+                                    parent=parent, child=child, duplicates=duplicates,
+                                    skipped=tuple(self.skipped))

@@ -40,8 +40,7 @@ constants hold them, docs/rig-yaml.md documents each)::
       duplicates: error | drop                               # tum, csv only; default error
       # file: "{stem}.json": one pose file beside each image (format pose-files), with
       # key: end2base, values: [x, y, z, qx, qy, qz, qw], rotation: quaternion-xyzw | ...
-      match: time | image                                    # image: a table with an image
-                                                             #   column (format pose-table)
+      match: time | image | order    # pose-table: by an image column or rows in name order
       sensor: motion-capture | robot                         # default: from the source
       noise_bounds: {rotation_deg: 0.1, translation_m: 0.001}   # default: the sensor's
     cameras:                                                 # required, at least one
@@ -74,21 +73,15 @@ from types import MappingProxyType
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
-from multieye.core.limits import (
-    MAX_GRID_SIDE,
-    MAX_ROTATION_NOISE_DEG,
-    MAX_SPACING_M,
-    MAX_TIME_OFFSET_S,
-    MAX_TIME_TOLERANCE_S,
-    MAX_TRANSLATION_NOISE_M,
-)
+from multieye.core.limits import (MAX_GRID_SIDE, MAX_ROTATION_NOISE_DEG, MAX_SPACING_M,
+                                  MAX_TIME_OFFSET_S, MAX_TIME_TOLERANCE_S, MAX_TRANSLATION_NOISE_M)
 from multieye.core.names import NAME_RULE, camera_name_problem
 from multieye.io.intrinsics import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
-from multieye.io.rig_checks import Checker as _Checker
+from multieye.io.rig_checks import no_link_loop, Checker as _Checker
 from multieye.io.textfile import LENGTH_UNITS
 from multieye.io.yamlfile import load_yaml, shown
 
@@ -360,10 +353,12 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
             raise c.error("a file name with {stem} is one pose file beside each image; leave "
                           "out 'format'", at("format"))
         fmt, file = "pose-files", Path(c.string(raw["file"], at("file")))
-    if c.choice(raw.get("match", "time"), at("match") if "match" in raw else where,
-                ("time", "image")) == "image":
+    match = c.choice(raw.get("match", "time"), at("match") if "match" in raw else where,
+                     ("time", "image", "order"))
+    if match != "time":
         if fmt is not None:
-            raise c.error(f"match: image reads a table with an 'image' column; leave out "
+            table = "with an 'image' column" if match == "image" else "in image-name order"
+            raise c.error(f"match: {match} reads a table {table}; leave out "
                           f"'format'{' and {stem}' if fmt == 'pose-files' else ''}", at("match"))
         fmt, file = "pose-table", c.path(raw["file"], at("file"), "file")
     elif fmt == "pose-files":
@@ -374,7 +369,7 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
         file = c.path(raw["file"], at("file"), "file")
     if fmt is None:
         fmt = sniff_mocap_format(file)
-    kw = {"match": "image"} if fmt == "pose-table" else {}
+    kw = {"match": match} if fmt == "pose-table" else {}
     for key, formats in _MOCAP_ONLY.items():
         if key in raw and fmt not in formats:
             raise c.error(f"applies to {', '.join(formats)} sources only (this one is {fmt})",
@@ -439,7 +434,7 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
         fmt = own.get("format")
         if STEM in str(own["file"]):
             fmt = "pose-files"
-        elif own.get("match", top_raw.get("match")) == "image":   # a table like the rig's
+        elif own.get("match", top_raw.get("match")) in ("image", "order"):   # a table
             fmt = "pose-table"
         elif fmt is None:
             fmt = sniff_mocap_format(c.path(own["file"], where + ("file",), "file or bag"))
@@ -540,7 +535,9 @@ def load_rig(path: str | os.PathLike) -> Rig:
     p = as_path(path, "the dataset (a folder or its rig.yaml)")
     if p.is_dir():
         p = p / "rig.yaml"
-    doc = load_yaml(p.resolve(), what="rig description (rig.yaml)")
+    no_link_loop(p)     # a rig.yaml that is a link: its paths are relative to the real file
+    doc = load_yaml(p.resolve() if p.is_symlink() else p,    # else named as typed
+                    what="rig description (rig.yaml)")
     c = _Checker(doc)
     raw = c.mapping(doc.data if doc.data is not None else {}, (),
                     TOP_LEVEL_KEYS, ("setup", "cameras"))
@@ -568,8 +565,8 @@ def load_rig(path: str | os.PathLike) -> Rig:
             raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
                           "key to this camera", ("cameras", name))
         if (cam.mocap or mocap).by_name and cam.source != "images":
-            raise c.error("poses matched by image name ({stem} or match: image) need a "
-                          "folder of 'images'",
+            raise c.error("poses matched by image name ({stem}, match: image or order) need "
+                          "a folder of 'images'",
                           ("cameras", name))
         cameras[cam.name] = cam
     named = {n: (cam.mocap or mocap).frame_names for n, cam in cameras.items()}
@@ -587,7 +584,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
         needing = [n for n, cam in cameras.items() if cam.source != "poses"]
         raise DatasetError(f"missing key 'target': cameras with images ({', '.join(needing)}) "
                            "need the calibration board described", path=doc.path, line=1)
-    return Rig(doc.path, setup, MappingProxyType(cameras), target, mocap)
+    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap)
 
 
 def read_camera_intrinsics(camera: CameraSpec) -> Intrinsics:

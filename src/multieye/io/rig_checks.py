@@ -7,7 +7,10 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
+from pathlib import Path
 
+from multieye.core.arguments import did_you_mean
+from multieye.core.errors import DatasetError
 from multieye.io.yamlfile import YamlDocument, shown
 from multieye.core.limits import MAX_ROTATION_NOISE_DEG, MAX_TRANSLATION_NOISE_M
 
@@ -25,7 +28,7 @@ class Checker:
 
     def __init__(self, doc: YamlDocument):
         self.doc = doc
-        self.folder = doc.path.parent
+        self.folder = doc.path.parent.resolve()
 
     def error(self, message, keys):
         return self.doc.error(message, *keys)
@@ -35,8 +38,8 @@ class Checker:
             raise self.error(f"expected a mapping, got {type(value).__name__}", keys)
         for key in value:
             if key not in allowed:
-                raise self.error(f"unknown key; expected one of {', '.join(allowed)}",
-                                 keys + (key,))
+                raise self.error(f"unknown key{did_you_mean(key, allowed)}; expected one of "
+                                 f"{', '.join(allowed)}", keys + (key,))
         for key in required:
             if key not in value:
                 raise self.error(f"missing key {key!r}", keys)
@@ -54,7 +57,8 @@ class Checker:
 
     def choice(self, value, keys, options):
         if isinstance(value, (list, dict)) or value not in options:
-            raise self.error(f"expected one of {', '.join(options)}, got {shown(value)}", keys)
+            raise self.error(f"expected one of {', '.join(options)}, got {shown(value)}"
+                             f"{did_you_mean(value, options)}", keys)
         return value
 
     def number(self, value, keys, *, positive=False, integer=False, maximum=None, unit=""):
@@ -81,13 +85,24 @@ class Checker:
         return value if integer else float(value)
 
     def path(self, value, keys, kind):
-        p = (self.folder / self.string(value, keys)).resolve()
+        """The path ``value`` (relative to the folder of rig.yaml), resolved; messages name
+        it as the user typed it."""
+        typed = self.string(value, keys)
+        shown = typed if Path(typed).is_absolute() else f"{typed} (relative to rig.yaml's folder)"
+        try:
+            p = (self.folder / typed).resolve()
+        except (RuntimeError, OSError) as exc:     # a link loop (RuntimeError before 3.13)
+            raise self.error(f"{kind} is a symbolic link loop (or cannot be resolved: "
+                             f"{getattr(exc, 'strerror', None) or 'loop'}): {shown}",
+                             keys) from None
+        except ValueError as exc:                  # a NUL byte
+            raise self.error(f"invalid path {shown!r}: {exc}", keys) from None
         if not p.exists():
-            raise self.error(f"{kind} not found: {p}", keys)
+            raise self.error(f"{kind} not found: {shown}", keys)
         if kind == "folder" and not p.is_dir():
-            raise self.error(f"expected a folder, found a file: {p}", keys)
+            raise self.error(f"expected a folder, found a file: {shown}", keys)
         if kind == "file" and p.is_dir():
-            raise self.error(f"expected a file, found a folder: {p}", keys)
+            raise self.error(f"expected a file, found a folder: {shown}", keys)
         return p
 
 
@@ -111,3 +126,13 @@ def sensor_keys(c: Checker, raw: Mapping, at) -> dict:
                  if "translation_m" in bounds else None)
         kw["noise_bounds"] = (rot, trans)
     return kw
+
+
+def no_link_loop(p: Path) -> None:
+    """Refuse rig.yaml ``p`` when it is a symbolic link loop (or cannot be resolved), in one
+    line naming it as typed."""
+    try:
+        p.resolve()
+    except (RuntimeError, OSError) as exc:          # a link loop (RuntimeError before 3.13)
+        raise DatasetError("rig.yaml is a symbolic link loop (or cannot be resolved: "
+                           f"{getattr(exc, 'strerror', None) or 'loop'})", path=p) from None

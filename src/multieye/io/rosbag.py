@@ -31,11 +31,13 @@ import functools
 import os
 import struct
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
+from multieye.core.limits import MAX_YAML_BYTES
 from multieye.io.poserows import quaternion_poses, usable_rows
 from multieye.io.textfile import length_scale
 from multieye.io.trajectory import Trajectory
@@ -83,6 +85,20 @@ def _default_typestore():
     return get_typestore(Stores.LATEST)
 
 
+def _check_bag_files(p: Path) -> None:
+    """A bag file, or every file of a ROS 2 bag folder, is a regular file of bounded size:
+    the bag library opens them by path (no device, FIFO or socket is handed to it)."""
+    from multieye.core.regular_files import check_regular
+
+    if p.is_dir():
+        check_regular(p / "metadata.yaml", what="bag metadata", max_bytes=MAX_YAML_BYTES)
+        for entry in sorted(p.iterdir()):
+            if entry.suffix in (".db3", ".mcap", ".yaml"):
+                check_regular(entry, what="bag file")
+    else:
+        check_regular(p, what="bag")
+
+
 @contextlib.contextmanager
 def _reader(path: str | os.PathLike):
     from rosbags.highlevel import AnyReader, AnyReaderError
@@ -90,6 +106,7 @@ def _reader(path: str | os.PathLike):
     p = as_path(path, "bag")
     if not p.exists():
         raise DatasetError("bag not found", path=p)
+    _check_bag_files(p)
     if p.is_file() and p.suffix in (".db3", ".mcap"):
         p = p.parent  # a ROS 2 bag is its folder (with metadata.yaml)
     try:

@@ -10,12 +10,16 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
+from array import array
 from collections.abc import Iterator, Sequence
 
 import numpy as np
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
+from multieye.core.limits import MAX_JSON_BYTES, MAX_TABLE_BYTES
+from multieye.core.regular_files import open_bounded_text, read_bounded
 
 __all__ = [
     "read_text",
@@ -23,6 +27,11 @@ __all__ = [
     "split_fields",
     "parse_float",
     "read_number_rows",
+    "read_json",
+    "text_lines",
+    "count_lines",
+    "line_blocks",
+    "NumberTable",
     "LENGTH_UNITS",
     "length_scale",
 ]
@@ -34,7 +43,7 @@ _FIELD_SEP = re.compile(r"[,\s]+")
 
 
 def read_text(path: str | os.PathLike, *, what: str = "file",
-              max_bytes: int | None = None) -> str:
+              max_bytes: int = MAX_TABLE_BYTES) -> str:
     """Whole content of a UTF-8 text file (a BOM is dropped).
 
     Parameters
@@ -42,40 +51,32 @@ def read_text(path: str | os.PathLike, *, what: str = "file",
     path : path-like
     what : str
         How the message names the file when it is missing (``"trajectory file"``).
-    max_bytes : int, optional
-        Refuse a larger file before reading it (small formats such as YAML).
+    max_bytes : int
+        Refuse a larger file, counted while reading (default
+        :data:`~multieye.core.limits.MAX_TABLE_BYTES`; small formats such as YAML pass less).
 
     Raises
     ------
     DatasetError
-        Missing file, a folder, unreadable, larger than ``max_bytes``, or not UTF-8 (with the
-        1-based line of the first bad byte).
+        Missing file, not a regular file (a folder, a device, a FIFO, a socket), unreadable,
+        larger than ``max_bytes``, or not UTF-8 (with the 1-based line of the first bad byte).
     """
     p = as_path(path, what)
-    if not p.exists():
-        raise DatasetError(f"{what} not found", path=p)
-    if p.is_dir():
-        raise DatasetError(f"expected a {what}, found a folder", path=p)
-    try:
-        if max_bytes is not None and p.stat().st_size > max_bytes:
-            raise DatasetError(f"{what} is {p.stat().st_size} bytes, more than the {max_bytes} "
-                               "accepted for it", path=p)
-        data = p.read_bytes()
-    except OSError as exc:
-        raise DatasetError(f"cannot read {what}: {exc.strerror}", path=p) from exc
+    data = read_bounded(p, what=what, max_bytes=max_bytes)
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
         raise DatasetError(f"not a UTF-8 text file (byte 0x{data[exc.start]:02x})",
-                           path=p, line=line) from exc
+                           path=p, line=line) from None
 
 
-def read_json(path: str | os.PathLike, *, what: str = "JSON file"):
+def read_json(path: str | os.PathLike, *, what: str = "JSON file",
+              max_bytes: int = MAX_JSON_BYTES):
     """Parse a JSON file; a syntax error becomes a DatasetError with its line."""
     import json
 
-    text = read_text(path, what=what)
+    text = read_text(path, what=what, max_bytes=max_bytes)
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
@@ -124,8 +125,9 @@ def parse_float(token: str, *, path: str | os.PathLike | None, line: int | None,
 
 
 def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: str,
-                     what: str = "file", finite: bool = True) -> tuple[np.ndarray, list[int]]:
-    """Rows of numbers separated by commas and/or spaces, with ``#`` comments and blank lines.
+                     what: str = "file", finite: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of numbers separated by commas and/or spaces, with ``#`` comments and blank lines,
+    read line by line into arrays (a table of millions of rows never exists as Python objects).
 
     Parameters
     ----------
@@ -143,7 +145,7 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
     Returns
     -------
     data : ndarray, shape (N, len(columns)), float64
-    lines : list of int
+    lines : ndarray, shape (N,), int64
         1-based line of each row.
 
     Raises
@@ -152,19 +154,130 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
         Missing or unreadable file, a row with another number of entries, a cell that is not a
         finite number (each with the line), or no rows at all.
     """
-    rows, lines = [], []
-    for number, content in data_lines(read_text(path, what=what)):
+    table = NumberTable(len(columns))
+    for contents, numbers in line_blocks(path, what=what):
+        table.add_block(contents, numbers, columns, files=files, path=path, finite=finite)
+    if not len(table):
+        raise DatasetError(f"no rows: expected lines '{' '.join(columns)}'", path=path)
+    return table.arrays()
+
+
+def text_lines(path: str | os.PathLike, *, what: str = "file",
+               max_bytes: int = MAX_TABLE_BYTES) -> Iterator[tuple[int, str]]:
+    """:func:`data_lines` of a file read line by line (never the whole text in memory).
+
+    Raises
+    ------
+    DatasetError
+        As :func:`read_text`, the bound counted as the lines are read.
+    """
+    p = as_path(path, what)
+    with open_bounded_text(p, what=what, max_bytes=max_bytes) as lines:
+        for number, raw in enumerate(lines, start=1):
+            if number == 1 and raw.startswith(b"\xef\xbb\xbf"):
+                raw = raw[3:]
+            try:
+                text = raw.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                raise DatasetError(f"not a UTF-8 text file (byte 0x{raw[exc.start]:02x})",
+                                   path=p, line=number) from None
+            content = text.split("#", 1)[0].strip()
+            if content:
+                yield number, content
+
+
+def line_blocks(path: str | os.PathLike, *, what: str = "file", size: int = 1 << 14,
+                max_bytes: int = MAX_TABLE_BYTES) -> Iterator[tuple[list[str], list[int]]]:
+    """:func:`text_lines` gathered ``size`` at a time: ``(contents, line numbers)``."""
+    contents, numbers = [], []
+    for number, content in text_lines(path, what=what, max_bytes=max_bytes):
+        contents.append(content)
+        numbers.append(number)
+        if len(contents) == size:
+            yield contents, numbers
+            contents, numbers = [], []
+    if contents:
+        yield contents, numbers
+
+
+def count_lines(path: str | os.PathLike, *, what: str = "file",
+                max_bytes: int = MAX_TABLE_BYTES) -> int:
+    """Lines of a file (line breaks, plus one for a last line without), counted in blocks of
+    bytes: a bound on its rows before they are parsed."""
+    p = as_path(path, what)
+    n, last = 0, b"\n"
+    with open_bounded_text(p, what=what, max_bytes=max_bytes) as f:
+        for block in f.blocks():
+            n += block.count(b"\n")
+            last = block[-1:]
+    return n + (last != b"\n")
+
+
+class NumberTable:
+    """Rows of numbers gathered into flat arrays (8 bytes a number, no Python object per
+    row), for tables of millions of rows."""
+
+    def __init__(self, n_columns: int):
+        self.n = int(n_columns)
+        self._values = array("d")
+        self._lines = array("q")
+
+    def __len__(self) -> int:
+        return len(self._lines)
+
+    def add(self, content: str, number: int, columns: Sequence[str], *, files: str,
+            path, finite: bool) -> None:
+        """Parse one data line (comments removed) and append it; DatasetError naming the line
+        when it does not hold ``len(columns)`` numbers."""
         fields = split_fields(content)
-        if len(fields) != len(columns):
+        if len(fields) != self.n:
             raise DatasetError(f"{files} must have {len(columns)} entries per row, got "
                                f"{len(fields)} (expected {' '.join(columns)})",
                                path=path, line=number)
-        rows.append([parse_float(f, path=path, line=number, name=name, finite=finite)
-                     for f, name in zip(fields, columns)])
-        lines.append(number)
-    if not rows:
-        raise DatasetError(f"no rows: expected lines '{' '.join(columns)}'", path=path)
-    return np.asarray(rows), lines
+        try:
+            values = [float(f) for f in fields]
+        except ValueError:
+            values = [parse_float(f, path=path, line=number, name=name, finite=finite)
+                      for f, name in zip(fields, columns)]
+        if finite and not all(map(math.isfinite, values)):
+            for f, name in zip(fields, columns):
+                parse_float(f, path=path, line=number, name=name, finite=True)
+        self._values.extend(values)
+        self._lines.append(number)
+
+    def add_block(self, contents: Sequence[str], numbers: Sequence[int],
+                  columns: Sequence[str], *, files: str, path, finite: bool) -> None:
+        """:meth:`add` for many lines at once: parsed by numpy's C reader when every line
+        holds ``len(columns)`` plain numbers, else line by line with Python's ``float``
+        (which names the bad line and reads what it reads)."""
+        joined = "\n".join(contents)
+        if "," in joined:
+            joined = joined.replace(",", " ")
+            ok = all(len(c.replace(",", " ").split()) == self.n for c in contents)
+        else:
+            ok = all(len(c.split()) == self.n for c in contents)
+        if ok:
+            try:
+                with warnings.catch_warnings():         # older numpy: a warning, not an error
+                    warnings.simplefilter("error")
+                    block = np.fromstring(joined, dtype=np.float64, sep=" ")
+                ok = block.size == len(contents) * self.n and (
+                    not finite or bool(np.isfinite(block).all()))
+            except (ValueError, DeprecationWarning):
+                ok = False
+        if not ok:
+            for content, number in zip(contents, numbers):
+                self.add(content, number, columns, files=files, path=path, finite=finite)
+            return
+        self._values.frombytes(block.tobytes())
+        self._lines.extend(numbers)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(data (N, n_columns) float64, lines (N,) int64)``; the table gives its memory to
+        them."""
+        data = np.frombuffer(self._values, dtype=np.float64).reshape(-1, self.n)
+        lines = np.frombuffer(self._lines, dtype=np.int64)
+        return data, lines
 
 
 def length_scale(unit: str, *, path: str | os.PathLike | None = None,

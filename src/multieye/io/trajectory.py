@@ -24,17 +24,24 @@ from multieye.core.geometry import RIGID_TOLERANCE
 
 __all__ = ["Trajectory", "SkippedRow", "RIGID_TOLERANCE"]
 
-def _check_rigid(T: np.ndarray) -> None:
+
+def _check_rigid(T: np.ndarray, block: int = 1 << 16) -> None:
     if T.ndim != 3 or T.shape[1:] != (4, 4):
         raise InputError(f"poses must be an array of shape (N, 4, 4), got {T.shape}")
+    for start in range(0, len(T), block):       # blocks: no (N, 3, 3) temporaries
+        _check_rigid_block(T[start:start + block], start)
+
+
+def _check_rigid_block(T: np.ndarray, start: int) -> None:
     if not np.all(np.isfinite(T)):
-        raise InputError(f"pose {int(np.argwhere(~np.isfinite(T))[0, 0])} has NaN or inf entries")
+        raise InputError(f"pose {start + int(np.argwhere(~np.isfinite(T))[0, 0])} has NaN or "
+                         "inf entries")
     bad = ~geometry.is_rigid(T)
     if np.any(bad):
         i = int(np.argmax(bad))
         ortho, det, _ = geometry.rigidity(T[i])
-        raise InputError(f"pose {i} is not a rigid transform (|R^T R - I| = {ortho:.2e}, "
-                         f"det R = {det:.6f}, last row {T[i, 3].tolist()})")
+        raise InputError(f"pose {start + i} is not a rigid transform (|R^T R - I| = "
+                         f"{ortho:.2e}, det R = {det:.6f}, last row {T[i, 3].tolist()})")
 
 
 @dataclass(frozen=True)
@@ -101,10 +108,11 @@ class Trajectory:
         _check_rigid(T)
         if not np.all(np.isfinite(stamps)):
             raise InputError("time stamps must be finite")
-        steps = np.diff(stamps)
-        if np.any(steps <= 0):
-            i = int(np.argmax(steps <= 0))
-            kind = "duplicate time stamp" if steps[i] == 0 else "time stamps out of order"
+        back = stamps[1:] <= stamps[:-1]           # booleans: no float copy of the stamps
+        if np.any(back):
+            i = int(np.argmax(back))
+            kind = ("duplicate time stamp" if stamps[i + 1] == stamps[i]
+                    else "time stamps out of order")
             raise InputError(f"{kind}: sample {i + 1} at {float(stamps[i + 1])!r} s follows "
                              f"sample {i} at {float(stamps[i])!r} s; stamps must be strictly "
                              "increasing")

@@ -25,6 +25,7 @@ from typing import Any
 import yaml
 
 from multieye.core.errors import DatasetError
+from multieye.core.limits import MAX_YAML_BYTES  # largest YAML file read: a rig.yaml is a few kB
 from multieye.io.textfile import read_text
 
 __all__ = ["YamlDocument", "load_yaml", "parse_yaml", "shown", "yaml_float", "yaml_list",
@@ -32,8 +33,6 @@ __all__ = ["YamlDocument", "load_yaml", "parse_yaml", "shown", "yaml_float", "ya
 
 KeyPath = tuple[Any, ...]
 
-#: Largest YAML file read, bytes (a rig.yaml or a camchain is a few kilobytes).
-MAX_YAML_BYTES = 1_000_000
 #: Deepest nesting of mappings and sequences, aliases expanded (rig.yaml needs 5).
 MAX_YAML_DEPTH = 32
 #: Most aliases (``*name``) in one file.

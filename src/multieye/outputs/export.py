@@ -344,7 +344,8 @@ def _topic_name(camera: str) -> str:
 
 def kalibr_chain(rec: CalibrationRecord, intrinsics: dict, topics: dict,
                  overlaps: dict | None) -> tuple[list[CamchainEntry], list[str]]:
-    """The camchain entries Kalibr can hold, and ``"<camera> (<reason>)"`` for the others.
+    """The camchain entries Kalibr can hold, and ``"<camera>, <camera> (<reason>)"`` for the
+    others, one entry per reason (:func:`by_reason`).
 
     ``rostopic`` is the camera's topic in ``topics`` (rig.yaml), else ``/<camera>/image_raw``;
     ``cam_overlaps`` the chain indices of the cameras ``overlaps`` names (None: unknown, the
@@ -353,20 +354,31 @@ def kalibr_chain(rec: CalibrationRecord, intrinsics: dict, topics: dict,
     kept, left = [], []
     for c in rec.cameras:
         if intrinsics.get(c.name) is None:
-            left.append(f"{c.name} (no intrinsics)")
+            left.append((c.name, "no intrinsics"))
             continue
         try:
             kalibr_fields(intrinsics[c.name])
         except InputError as exc:
-            left.append(f"{c.name} ({exc})")
+            left.append((c.name, str(exc)))
             continue
         kept.append(c)
+    left = by_reason(left)
     index = {c.name: k for k, c in enumerate(kept)}
     entries = [CamchainEntry(
         c.name, intrinsics[c.name], c.T_ref_cam, topics.get(c.name) or _topic_name(c.name),
         None if overlaps is None or overlaps.get(c.name) is None else
         tuple(sorted(index[o] for o in overlaps[c.name] if o in index))) for c in kept]
     return entries, left
+
+
+def by_reason(left: list[tuple[str, str]]) -> list[str]:
+    """``"a, b (reason)"`` per reason of ``(camera, reason)`` pairs, in first-seen order: one
+    note per cause, however many cameras share it (eight cameras whose lens Kalibr cannot
+    hold make one line)."""
+    groups: dict[str, list[str]] = {}
+    for name, reason in left:
+        groups.setdefault(reason, []).append(name)
+    return [f"{', '.join(names)} ({reason})" for reason, names in groups.items()]
 
 
 def _tracked_frame(out: Path) -> str | None:
@@ -388,12 +400,13 @@ def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[
     texts, left = {}, []
     for cam in rec.cameras:
         if intr.get(cam.name) is None:
-            left.append(f"{cam.name} (no intrinsics)")
+            left.append((cam.name, "no intrinsics"))
             continue
         try:
             texts[f"{stems[cam.name]}.yaml"] = camera_info_text(intr[cam.name], cam.name)
         except InputError as exc:
-            left.append(f"{cam.name} ({exc})")
+            left.append((cam.name, str(exc)))
+    left = by_reason(left)
     if left:
         notes.append("no camera_info for " + "; ".join(left))
     if not texts:
@@ -415,7 +428,8 @@ def _cameramodels(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[
                 intr[cam.name], g.inv(cam.T_ref_cam),
                 note=f"{cam.name}: written by multieye export --format mrcal")
         except InputError as exc:
-            left.append(f"{cam.name} ({exc})")
+            left.append((cam.name, str(exc)))
+    left = by_reason(left)
     if left:
         notes.append("no .cameramodel for " + "; ".join(left))
     if not texts:

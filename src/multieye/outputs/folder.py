@@ -112,6 +112,19 @@ def _resolve(out: str | os.PathLike) -> Path:
     return path.parent.resolve() / path.name
 
 
+def _as_typed(exc: DatasetError, out: Path, typed: str | os.PathLike) -> DatasetError:
+    """``exc`` with a path inside the resolved output folder ``out`` named from ``typed``,
+    the folder as the user gave it."""
+    if exc.path is None:
+        return exc
+    try:
+        inside = Path(exc.path).relative_to(out)
+    except ValueError:
+        return exc
+    shown = Path(typed) if inside == Path(".") else Path(typed) / inside
+    return DatasetError(exc.reason, path=shown, line=exc.line, camera=exc.camera)
+
+
 def _lock_path(out: Path) -> Path:
     return out.parent / f"{out.name}.multieye-lock"
 
@@ -461,16 +474,19 @@ def claim_output(out_dir: str | os.PathLike, *, inputs: Iterable = (),
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise DatasetError(f"cannot create the output folder: {exc.strerror}",
-                           path=out) from exc
+                           path=out_dir) from exc
     outermost = None
     try:
-        outermost = _acquire(out)
-        if outermost:
-            _recover(out)
-        if replace:
-            _check_replaceable(out, inputs)
-        else:
-            _check_real_folder(out)
+        try:
+            outermost = _acquire(out)
+            if outermost:
+                _recover(out)
+            if replace:
+                _check_replaceable(out, inputs)
+            else:
+                _check_real_folder(out)
+        except DatasetError as exc:         # the folder named as the user typed it
+            raise _as_typed(exc, out, out_dir) from None
         yield out
     finally:
         if outermost is not None:

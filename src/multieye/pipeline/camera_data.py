@@ -27,15 +27,17 @@ from multieye.io import (
     iter_bag_images,
     list_image_files,
     list_images,
+    skipped_entries,
     read_camera_intrinsics,
     read_mocap,
     read_tum,
 )
 from multieye.io.mocap import pose_frames
-from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_table
+from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
+from multieye.imaging.target_hints import counting_rule
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
            "camera_motion", "pair_stamps", "pair_camera", "rejection_kind", "BY_NAME_TOLERANCE"]
@@ -172,9 +174,11 @@ def _no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
     for r in rejected:
         kinds.setdefault(rejection_kind(r.reason), []).append(r)
     if set(kinds) == {"target not detected"}:
+
+        rule = counting_rule(rig.target.type) if rig.target is not None else ""
         return (f"the target ({_describe_target(rig)}) was not detected in any of the {n} "
-                "images; check the target section of rig.yaml (rows/cols count inner corners "
-                "for a chessboard) and the images")
+                f"images; check the target section of rig.yaml ({rule}) and the images; "
+                "'multieye check' searches them for what they hold")
     parts = [f"{len(items)} {kind} (first {items[0].item}: {items[0].reason})"
              for kind, items in kinds.items()]
     return f"none of the {n} images is usable: " + "; ".join(parts)
@@ -258,10 +262,13 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
             rejected.append(RejectedItem(label, res.reason))
     # pose ambiguity (single marker): warn when the two poses fit alike in most images
     warnings.extend(w for w in [ambiguity_warning(name, [r.pose for r in results if r.ok])] if w)
+    skipped = [] if topic is not None else [RejectedItem(n, why)
+                                            for n, why in skipped_entries(source)]
+    rejected.extend(skipped)    # links to nowhere, devices, folders named like images
     if not obs:
         raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
                            camera=name)
-    return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped),
+    return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped) + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
                      intrinsics=None if lens is None else lens.intrinsics)
 
@@ -300,6 +307,8 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: _Work
                                    image_points=res.detection.image_points))
         else:
             rejected.append(RejectedItem(label, res.reason))
+    rejected.extend(RejectedItem(f"{cam.intrinsics_images.name}/{n}", why)
+                    for n, why in skipped_entries(cam.intrinsics_images))
     return obs, rejected, seconds
 
 
@@ -450,7 +459,8 @@ def _poses_by_name(name: str, folder: Path, spec) -> tuple[Trajectory, list, lis
                      unit=spec.unit or "m")
     try:
         images = list_image_files(folder)
-        matched, unmatched = (poses_by_table(images, spec.file, fmt) if spec.match == "image"
+        read = {"image": poses_by_table, "order": poses_by_order}.get(spec.match)
+        matched, unmatched = (read(images, spec.file, fmt) if read is not None
                               else poses_by_name(images, str(spec.file), fmt))
     except DatasetError as exc:
         raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=name) from None

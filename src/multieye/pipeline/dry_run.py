@@ -11,6 +11,7 @@ section 7) and exits 2 when calibrating would fail.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from multieye.core.arguments import real_number
 from multieye.core.errors import InputError
 from multieye.estimate.diagnostics import MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG, MIN_SECOND_AXIS_DEG
 from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
+from multieye.imaging.target_hints import counting_rule, suggest_target
 from multieye.imaging.targets import target_from_spec
 from multieye.io import (
     Trajectory,
@@ -31,6 +33,7 @@ from multieye.io import (
 )
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
+from multieye.pipeline.sources import outside_reads
 from multieye.solvers.checks import rotation_spread
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 
@@ -99,6 +102,8 @@ class DatasetCheck:
     path: str
     setup: str
     cameras: tuple[CameraCheck, ...]
+    #: Files read from outside the dataset folder named (:mod:`multieye.pipeline.sources`).
+    notes: tuple[str, ...] = ()
 
     @property
     def reasons(self) -> tuple[str, ...]:
@@ -192,6 +197,17 @@ def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> l
     return out
 
 
+def _target_hint(rig, paths, results) -> str:
+    """``; <what the images hold>`` from two of the sampled images where the target was not
+    found (:func:`multieye.imaging.target_hints.suggest_target`), or ``""``."""
+    missed = [p for p, r in zip(paths, results) if r.reason and r.reason.startswith(
+        "target not detected")]
+    if not missed:
+        return ""
+    hint = suggest_target(sorted({missed[0], missed[len(missed) // 2]}), rig.target.as_dict())
+    return f"; {hint.text}" if hint is not None else ""
+
+
 @dataclass(frozen=True)
 class _Sample:
     """A camera's listed images (or pose rows) and the detections on the sampled ones."""
@@ -204,6 +220,7 @@ class _Sample:
     failures: dict[str, int]
     n_sampled: int
     problems: tuple[str, ...] = ()
+    paths: tuple = ()           # the sampled images' files (a folder of images only)
 
 
 def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
@@ -211,6 +228,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
     a camera given by poses), counting the failures by kind."""
     problems: list[str] = []
     results: list = []
+    paths: list = []
     failures: dict[str, int] = {}
     if cam.source == "poses":
         poses = read_tum(cam.poses, parent="cam", child="target")
@@ -229,7 +247,8 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
             stamps = np.array([s for s, _, _ in images], dtype=np.float64)
             n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
             sampled_idx = _sample(len(images), sample)
-            results = detect_and_estimate([images[i][2] for i in sampled_idx], target, intr,
+            paths = [images[i][2] for i in sampled_idx]
+            results = detect_and_estimate(paths, target, intr,
                                           processes=processes, progress=False)
         else:
             stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,
@@ -244,7 +263,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
         n_sampled = len(sampled_idx)
     return _Sample(stamps=stamps, n_listed=n_listed, sampled_idx=sampled_idx,
                    found_mask=found_mask, results=results, failures=failures,
-                   n_sampled=n_sampled, problems=tuple(problems))
+                   n_sampled=n_sampled, problems=tuple(problems), paths=tuple(paths))
 
 
 def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
@@ -283,7 +302,10 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
         if n_found == 0:
             t = rig.target
             text += (f"; check the target section of rig.yaml ({t.type} {t.rows}x{t.cols}, "
-                     f"spacing {t.as_dict().get('spacing', '?')} m) and the images")
+                     f"spacing {t.as_dict().get('spacing', '?')} m: {counting_rule(t.type)}) "
+                     "and the images")
+            if cam.source == "images":
+                text += _target_hint(rig, seen.paths, results)
         problems.append(text)
     n_no_pose = len(stamps) - int(has_pose.sum())
     if n_no_pose:
@@ -351,4 +373,6 @@ def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> Da
     cache: dict[tuple, Trajectory] = {}
     cams = tuple(_check_camera(rig, name, cam, cache, sample=int(sample), processes=processes)
                  for name, cam in rig.cameras.items())
-    return DatasetCheck(path=str(rig.path), setup=rig.setup, cameras=cams)
+    named = Path(path) / "rig.yaml" if Path(path).is_dir() else Path(path)
+    return DatasetCheck(path=str(rig.path), setup=rig.setup, cameras=cams,
+                        notes=outside_reads(rig, named))

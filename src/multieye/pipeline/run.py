@@ -63,6 +63,7 @@ from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.refine import Refined, mocap_noise, refine
 from multieye.pipeline.result import CalibrationRun, Refinement
+from multieye.pipeline.sources import outside_reads
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import check_measurements
 from multieye.solvers.measurements import Measurements
@@ -137,14 +138,17 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     """
     start = time.perf_counter()
     path = as_path(dataset, "dataset (a folder with rig.yaml, or the rig.yaml)")
-    rig = load_rig(path / "rig.yaml" if path.is_dir() else path)
+    path = path / "rig.yaml" if path.is_dir() else path
+    rig = load_rig(path)
     cameras = load_camera_data(rig, processes=processes, progress=progress)
     loaded = time.perf_counter() - start
     run = calibrate_rig(rig, cameras, options, **kw)
     detection = sum(d.detection_s for d in cameras.values())
     timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
                       total=time.perf_counter() - start)
-    return replace(run, timings=timings)
+    # files read from outside the dataset folder named, first among the warnings
+    record = replace(run.record, warnings=outside_reads(rig, path) + tuple(run.record.warnings))
+    return replace(run, timings=timings, record=record)
 
 
 def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = Options(), **kw

@@ -1,0 +1,89 @@
+"""Where a run's input files really are: every file read from outside the dataset folder.
+
+A dataset may link to files elsewhere (the shared robot recordings do: images and motion
+capture are symbolic links into a common folder), and multieye follows such links to regular
+files (:mod:`multieye.core.regular_files`).  So that a result never silently rests on another
+dataset's files, :func:`outside_reads` lists every file read from outside the folder named on
+the command line (that folder itself is resolved once: a dataset folder that is a link is
+fine), the run puts the list in its warnings (on screen, and in ``details.json`` and
+``calibration.json``), and a ``rig.yaml`` that is itself a link names the real file, whose
+folder its paths are relative to.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from multieye.io import Rig
+from multieye.io.image_folder import IMAGE_EXTENSIONS
+
+__all__ = ["outside_reads"]
+
+
+def _inside(path: Path, root: Path) -> bool:
+    return path == root or root in path.parents
+
+
+def _images(folder: Path) -> list[Path]:
+    try:
+        entries = sorted(folder.iterdir())
+    except OSError:
+        return []
+    return [p for p in entries if p.suffix.lower() in IMAGE_EXTENSIONS and p.is_file()]
+
+
+def outside_reads(rig: Rig, named: str | os.PathLike) -> tuple[str, ...]:
+    """Notes naming each file a run of ``rig`` reads from outside the dataset folder.
+
+    Parameters
+    ----------
+    rig : Rig
+        As loaded (its paths are absolute and resolved).
+    named : path-like
+        The ``rig.yaml`` as named on the command line (its folder is the dataset folder).
+
+    Returns
+    -------
+    tuple of str
+        One note for a ``rig.yaml`` that is a link out of the folder, then one per file read
+        from outside it (intrinsics, motion capture, poses, bag), and one per camera listing
+        its images read from outside it.
+    """
+    named = Path(os.path.abspath(named))
+    root = Path(os.path.realpath(named.parent))
+    where = f"outside the dataset folder {root}"
+    notes = []
+    real_rig = Path(os.path.realpath(named))
+    if not _inside(real_rig, root):
+        notes.append(f"{named.name} is a symbolic link to {real_rig}, {where}: the rig "
+                     f"described there is calibrated, its paths relative to {real_rig.parent}")
+    seen: set[Path] = set()
+
+    def note(kind: str, path: Path | None) -> None:
+        if path is None:
+            return
+        real = Path(os.path.realpath(path))
+        if real in seen or _inside(real, root):
+            return
+        seen.add(real)
+        notes.append(f"{kind} read from {where}: {real}")
+
+    for name, cam in rig.cameras.items():
+        spec = rig.mocap_for(name)
+        note("intrinsics", cam.intrinsics)
+        note("precomputed poses", cam.poses)
+        note("bag", cam.rosbag)
+        if spec is not None and "{stem}" not in str(spec.file):
+            note("motion capture", spec.file)
+        for kind, folder in (("images", cam.images), ("intrinsics images",
+                                                      cam.intrinsics_images)):
+            if folder is None:
+                continue
+            away = [Path(os.path.realpath(p)) for p in _images(folder)]
+            away = [p for p in away if not _inside(p, root) and p not in seen]
+            seen.update(away)
+            if away:
+                notes.append(f"camera {name}: {len(away)} {kind} read from {where}: "
+                             + ", ".join(str(p) for p in away))
+    return tuple(notes)
