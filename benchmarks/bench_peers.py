@@ -195,7 +195,7 @@ def run_all(args, known: Path, unknown: Path, tmp: Path) -> None:
           f"load average {os.getloadavg()[0]:.2f} at start; "
           f"mrcal: {'skipped: ' + why_not if why_not else args.mrcal_python}", flush=True)
     times = {k: [] for k in commands}
-    for r in range(0 if args.accuracy_only else args.runs):                 # in turn: A B C ... A B C ...
+    for r in range(0 if args.accuracy_only else args.runs):    # in turn: A B C, A B C, ...
         for name, (cmd, out) in commands.items():
             if out.is_dir():
                 shutil.rmtree(out)
