@@ -12,9 +12,12 @@ CAMERASxIMAGES; the rendered datasets are kept under ``--cache`` (default
 ``benchmarks/.cache``) so a second run does not render again.  It prints, per rig, the
 points refined, the seconds the pipeline's ``refinement`` stage took (its ``timings_s``: the
 image-level refinement with the pixel noise estimated, and the uncertainty), the median of
-``--repeat`` runs, and the seconds per 1000 images, whose constancy over the sizes shows the
+``--repeat`` runs, the seconds per 1000 images, whose constancy over the sizes shows the
 time growing linearly with the images; once with the motion-capture noise stated in rig.yaml
-(as the renderer writes it) and once with it left out, so that it is estimated too.
+(as the renderer writes it) and once with it left out, so that it is estimated too; and the
+CPU seconds of the whole ``calibrate_rig`` call (every thread of the process: pairing, closed
+form, refinement), which show the BLAS threads' cost. The BLAS threads outside the refinement
+follow ``OMP_NUM_THREADS`` / ``OPENBLAS_NUM_THREADS`` (1 unless set).
 
 Otherwise it prints, in one run on one machine:
 
@@ -72,7 +75,7 @@ def stage(sizes: list[tuple[int, int]], cache: Path, repeat: int) -> None:
     print(f"0. refinement stage of the pipeline on rendered rigs, {os.cpu_count()} cores, "
           f"OMP_NUM_THREADS={os.environ['OMP_NUM_THREADS']}, median of {repeat}:")
     print(f"   {'rig':>8} {'images':>7} {'points':>8} {'mocap noise':>10} {'refinement s':>13} "
-          f"{'s / 1000 images':>16} {'iterations':>11} {'passes':>7}")
+          f"{'s / 1000 images':>16} {'iterations':>11} {'passes':>7} {'CPU s':>6}")
     for m, n in sizes:
         folder = cache / f"rendered_{m}x{n}"
         if not (folder / "rig.yaml").exists():
@@ -86,14 +89,19 @@ def stage(sizes: list[tuple[int, int]], cache: Path, repeat: int) -> None:
         cameras = load_camera_data(load_rig(folder / "rig.yaml"))
         for label, path in (("stated", folder / "rig.yaml"), ("estimated", unstated)):
             rig = load_rig(path)
-            runs = [calibrate_rig(rig, cameras) for _ in range(repeat)]
+            runs, cpu = [], []
+            for _ in range(repeat):
+                c0 = time.process_time()          # every thread of the process
+                runs.append(calibrate_rig(rig, cameras))
+                cpu.append(time.process_time() - c0)
             t = statistics.median(r.timings.refinement for r in runs)
             res = runs[0].refinement.result
             images = sum(len(p.observations) for p in runs[0].paired.values())
             points = sum(o.image_points.shape[0] for p in runs[0].paired.values()
                          for o in p.observations)
             print(f"   {m:>3} x {n:<4}{images:>7} {points:>8} {label:>10} {t:13.2f} "
-                  f"{1e3 * t / images:16.2f} {res.iterations:>11} {res.passes:>7}")
+                  f"{1e3 * t / images:16.2f} {res.iterations:>11} {res.passes:>7} "
+                  f"{statistics.median(cpu):6.2f}")
 
 
 def timing(seed: int, setup: str) -> None:

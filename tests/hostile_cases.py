@@ -29,8 +29,7 @@ from multieye.cli import main
 #: Runs the command line after a fault injected in the process (see ``ENOSPC``).
 _MAIN = "from multieye.cli import main\nmain(prog_name='multieye')\n"
 
-#: Fault injection: the third file multieye writes atomically fails with ENOSPC half-way
-#: (``os.fdopen`` is patched for the whole process: only opens for writing count).
+#: Fault injection: the third file multieye writes atomically fails with ENOSPC half-way.
 ENOSPC = """
 import errno, os
 import multieye.io.atomic as _atomic
@@ -42,10 +41,10 @@ class _Full:
     def __getattr__(self, name): return getattr(self._f, name)
     def __enter__(self): return self
     def __exit__(self, *a): return self._f.__exit__(*a)
-def _fdopen(fd, mode="r", *a, **k):
-    f = _real_fdopen(fd, mode, *a, **k)
-    if "w" not in mode:            # a read (core.regular_files opens by descriptor too)
-        return f
+def _fdopen(fd, *a, **k):
+    f = _real_fdopen(fd, *a, **k)
+    if not set(a[0] if a else k.get("mode", "r")) & set("wax+"):
+        return f                      # files read (regular_files opens them the same way)
     _count[0] += 1
     return _Full(f) if _count[0] == 3 else f
 _atomic.os.fdopen = _fdopen

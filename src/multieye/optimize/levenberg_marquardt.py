@@ -39,6 +39,7 @@ from multieye.optimize.normal_equations import (
     marginal_covariance,
     solve_step,
 )
+from multieye.optimize.threads import threads_for
 
 __all__ = ["Options", "Result", "Covariance", "minimize", "covariance", "evaluate"]
 
@@ -190,13 +191,17 @@ def minimize(families: Sequence[Blocks], groups: Sequence[ResidualGroup],
     Result
     """
     families = tuple(families)
-    layout = Layout.of(families)
+    layout = Layout.of(families)  # BLAS threads for its size: multieye.optimize.threads
     by_name = {f.name: f for f in families}
     for grp in groups:
         missing = [s for s in grp.slots if s not in by_name]
         if missing:
             raise InputError(f"residual group refers to unknown block families {missing}")
-    opts = options
+    with threads_for(layout.k):
+        return _minimize(families, groups, options, layout, by_name)
+
+
+def _minimize(families, groups, opts: Options, layout: Layout, by_name) -> Result:
     ev = evaluate(families, groups, jacobians=True)
     cost = _cost(ev, opts)
     if not np.isfinite(cost):
@@ -251,6 +256,7 @@ def covariance(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,
     families = tuple(families)
     layout = Layout.of(families)
     ev = evaluated if evaluated is not None else evaluate(families, groups, jacobians=True)
-    ne = assemble(layout, {f.name: f for f in families}, groups, ev)
-    kept, loc, undetermined = marginal_covariance(ne, local=local)
+    with threads_for(layout.k):
+        ne = assemble(layout, {f.name: f for f in families}, groups, ev)
+        kept, loc, undetermined = marginal_covariance(ne, local=local)
     return Covariance(kept, loc, layout, undetermined)

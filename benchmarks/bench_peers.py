@@ -1,0 +1,241 @@
+"""multieye against its peers on the same rendered images: wall time and accuracy (issue 21).
+
+Run from the repository root::
+
+    python benchmarks/bench_peers.py [--runs 3] [--processes 2]
+        [--mrcal-python /tmp/venv-mrcal/bin/python]
+
+1. Renders, once, a 4-camera rig with 100 images per camera (800 x 600, pinhole with OpenCV's
+   5 radial-tangential coefficients, blur and sensor noise, motion capture 0.03 deg / 0.1 mm;
+   :func:`multieye.sim.dataset.render_dataset`, seed 0) into ``benchmarks/.cache/peers_4x100``
+   (git-ignored), and a copy of its rig whose cameras have ``model: pinhole-radtan`` instead
+   of ``intrinsics:`` (``peers_4x100_model``: the lenses unknown, the same images linked).
+2. Runs, in turn, ``--runs`` times each, every command as a separate process (interpreter
+   start and imports included), and takes its wall time and CPU time (user + system of the
+   process and its children):
+
+   - ``multieye known`` / ``multieye unknown``: ``python -m multieye calibrate DATASET -o OUT
+     --processes P`` (outputs included: report, figures, exports);
+   - ``opencv known`` / ``opencv unknown``: ``benchmarks/peers/opencv_script.py`` (its
+     docstring: findChessboardCorners + cornerSubPix, calibrateCamera when the lenses are
+     unknown, solvePnP, calibrateRobotWorldHandEye per camera, one process);
+   - ``mrcal unknown``: ``benchmarks/peers/mrcal_script.py`` run by ``--mrcal-python`` (mrcal
+     per camera from the corners OpenCV's detector found, then the hand-eye as above); mrcal's
+     detector is not on the package index, so its time starts from the corners (the
+     detection time of ``opencv`` is to be added for a whole run). Skipped, with a note,
+     when that interpreter cannot import mrcal.
+
+3. Accuracy against the truth (``ground_truth.json``, the rendered ``cam*.yaml``): per camera,
+   the error of ``T_ref_cam`` (rotation degrees, translation millimetres; camera 0 the
+   reference), and with the lenses unknown the projection error of the estimated lens over
+   the observed area: the camera-frame rays of every detected corner (unprojected through the
+   true lens), projected through the estimated lens against the true pixel, RMS; also after
+   the rotation between the two camera frames that fits best (what mrcal's
+   ``projection_diff`` fits: a lens whose principal point is off by ``d`` px looks like the
+   camera turned by ``d / f``, which the extrinsics absorb).
+
+Prints markdown tables (docs/results/peers.md keeps the figures with the commands). Wall
+times depend on the load of the machine: the load average is printed with every run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+CACHE = ROOT / "benchmarks" / ".cache"
+PEERS = ROOT / "benchmarks" / "peers"
+sys.path.insert(0, str(PEERS))
+from lens_error import lens_errors  # noqa: E402  (benchmarks/peers/lens_error.py)
+
+CAMERAS, IMAGES, SEED = 4, 100, 0
+
+
+def rendered() -> tuple[Path, Path]:
+    """The rendering (lenses given) and its copy with ``model:`` (lenses unknown)."""
+    folder = CACHE / f"peers_{CAMERAS}x{IMAGES}"
+    if not (folder / ".complete").exists():
+        from multieye.sim.dataset import DatasetSpec, render_dataset
+
+        shutil.rmtree(folder, ignore_errors=True)
+        print(f"rendering {CAMERAS} x {IMAGES} images into {folder} (once) ...", flush=True)
+        render_dataset(folder, DatasetSpec(n_cameras=CAMERAS, images_per_camera=IMAGES),
+                       seed=SEED)
+        (folder / ".complete").write_text("complete\n")
+    model = CACHE / f"{folder.name}_model"
+    if not (model / ".complete").exists():
+        shutil.rmtree(model, ignore_errors=True)
+        model.mkdir(parents=True)
+        for p in folder.iterdir():
+            if p.is_dir() or p.name == "mocap.txt":
+                (model / p.name).symlink_to(p)
+        lines = [line.replace("intrinsics: ", "model: pinhole-radtan  # was ")
+                 if line.strip().startswith("intrinsics:") else line
+                 for line in (folder / "rig.yaml").read_text().splitlines()]
+        (model / "rig.yaml").write_text("\n".join(lines) + "\n")
+        (model / ".complete").write_text("complete\n")
+    return folder, model
+
+
+def timed(cmd: list[str]) -> tuple[float, float]:
+    """Wall and CPU seconds (user + system, children included) of one subprocess."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    run = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if run.returncode not in (0, 3):          # 3: calibrate's doubts, the outputs are written
+        raise SystemExit(f"{' '.join(cmd)} failed ({run.returncode}): "
+                         f"{run.stderr.strip()[-2000:]}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu
+
+
+def mrcal_usable(python: str) -> str | None:
+    """None when ``python`` imports mrcal and OpenCV, else why not."""
+    if not python:
+        return "no --mrcal-python given"
+    try:
+        run = subprocess.run([python, "-c", "import mrcal, cv2"], capture_output=True,
+                             text=True, timeout=120)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f"{python}: {exc}"
+    return None if run.returncode == 0 else \
+        f"{python} cannot import mrcal and cv2: {run.stderr.strip().splitlines()[-1:]}"
+
+
+def read_truth(folder: Path):
+    from multieye.io.intrinsics import read_intrinsics
+
+    truth = json.loads((folder / "ground_truth.json").read_text())
+    names = sorted(truth["cameras"])
+    T = {n: np.array(truth["cameras"][n]["T_ref_cam"]) for n in names}
+    lens = {n: read_intrinsics(folder / f"{n}.yaml") for n in names}
+    return names, T, lens
+
+
+def read_multieye(out: Path) -> dict:
+    cal = json.loads((out / "calibration.json").read_text())
+    return {n: {"T_ref_cam": c["T_ref_cam"], "K": c["intrinsics"]["K"],
+                "dist": c["intrinsics"]["distortion"]} for n, c in cal["cameras"].items()}
+
+
+def pose_errors(est: dict, T_true: dict) -> dict:
+    from multieye.core import geometry as g
+
+    return {n: (float(np.degrees(g.rotation_angle_between(np.array(est[n]["T_ref_cam"]), T))),
+                1e3 * float(g.translation_distance(np.array(est[n]["T_ref_cam"]), T)))
+            for n, T in T_true.items()}
+
+
+def stats(values) -> str:
+    v = np.asarray(values)
+    return f"{v.min():.2f} / {np.median(v):.2f} / {v.max():.2f}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--processes", type=int, default=2)
+    ap.add_argument("--mrcal-python", default="/tmp/venv-mrcal/bin/python")
+    ap.add_argument("--keep", type=Path, help="keep every command's outputs in this folder "
+                    "(default: a temporary folder, removed)")
+    ap.add_argument("--accuracy-only", action="store_true",
+                    help="no runs: the accuracy of the outputs already in --keep")
+    args = ap.parse_args()
+    known, unknown = rendered()
+    tmp = args.keep or Path(tempfile.mkdtemp(prefix="bench_peers_"))
+    tmp.mkdir(parents=True, exist_ok=True)
+    try:
+        run_all(args, known, unknown, tmp)
+    finally:
+        if args.keep is None:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def run_all(args, known: Path, unknown: Path, tmp: Path) -> None:
+    py = sys.executable
+    # the corners mrcal starts from: OpenCV's detector on the same images (not timed)
+    corners = tmp / "corners.npz"
+    if not args.accuracy_only:
+        subprocess.run([py, str(PEERS / "opencv_script.py"), str(known), "--out",
+                        str(tmp / "warm.json"), "--corners-out", str(corners)], check=True)
+    commands = {
+        "multieye known": ([py, "-m", "multieye", "calibrate", str(known), "-o",
+                            str(tmp / "me_known"), "--processes", str(args.processes)],
+                           tmp / "me_known"),
+        "multieye unknown": ([py, "-m", "multieye", "calibrate", str(unknown), "-o",
+                              str(tmp / "me_unknown"), "--processes", str(args.processes)],
+                             tmp / "me_unknown"),
+        "opencv known": ([py, str(PEERS / "opencv_script.py"), str(known), "--out",
+                          str(tmp / "cv_known.json")], tmp / "cv_known.json"),
+        "opencv unknown": ([py, str(PEERS / "opencv_script.py"), str(known), "--out",
+                            str(tmp / "cv_unknown.json"), "--unknown-lenses"],
+                           tmp / "cv_unknown.json"),
+    }
+    why_not = mrcal_usable(args.mrcal_python)
+    if why_not is None:
+        commands["mrcal unknown (from corners)"] = (
+            [args.mrcal_python, str(PEERS / "mrcal_script.py"), str(corners),
+             str(known / "mocap.txt"), "--out", str(tmp / "mrcal.json")], tmp / "mrcal.json")
+    cores = len(os.sched_getaffinity(0))
+    print(f"machine: {platform.machine()}, {cores} cores, Python {platform.python_version()}, "
+          f"load average {os.getloadavg()[0]:.2f} at start; "
+          f"mrcal: {'skipped: ' + why_not if why_not else args.mrcal_python}", flush=True)
+    times = {k: [] for k in commands}
+    for r in range(0 if args.accuracy_only else args.runs):    # in turn: A B C, A B C, ...
+        for name, (cmd, out) in commands.items():
+            if out.is_dir():
+                shutil.rmtree(out)
+            wall, cpu = timed(cmd)
+            times[name].append((wall, cpu))
+            print(f"  run {r + 1} {name:30s} {wall:6.2f} s wall {cpu:6.2f} CPU-s  "
+                  f"load {os.getloadavg()[0]:.1f}", flush=True)
+    names, T_true, lens_true = read_truth(known)
+    data = np.load(corners)
+    print("\n| command | wall s min / median / max | CPU s median |")
+    print("|---|---|---|")
+    for name, tc in times.items():
+        if not tc:
+            continue
+        print(f"| {name} | {stats([w for w, _ in tc])} | {np.median([c for _, c in tc]):.2f} |")
+    print("\nT_ref_cam error, rotation deg / translation mm (camera 0 the reference):\n")
+    print("| command | " + " | ".join(names[1:]) + " |")
+    print("|---" * len(names) + "|")
+    results = {}
+    for name, (_, out) in commands.items():
+        est = read_multieye(out) if out.is_dir() else json.loads(out.read_text())["cameras"]
+        results[name] = est
+        err = pose_errors(est, {n: T_true[n] for n in names[1:]})
+        print(f"| {name} | " + " | ".join(f"{err[n][0]:.4f} / {err[n][1]:.3f}"
+                                          for n in names[1:]) + " |")
+    print("\nLens projection error over the observed area, px RMS (after the fitted rotation "
+          "between camera frames), lenses unknown:\n")
+    print("| command | " + " | ".join(names) + " |")
+    print("|---" * (len(names) + 1) + "|")
+    for name, est in results.items():
+        if "unknown" not in name:
+            continue
+        cells = []
+        for n in names:
+            raw, fitted = lens_errors(est[n]["K"], est[n]["dist"], lens_true[n].K,
+                                      lens_true[n].dist, data[f"{n}_corners"].reshape(-1, 2))
+            cells.append(f"{raw:.4f} ({fitted:.4f})")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+    print(f"\nload average at the end: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,53 @@
+"""BLAS threads chosen for the size of the reduced system.
+
+The refinement's linear algebra is a Schur-complement system (:mod:`normal_equations`): the
+eliminated blocks are small (6 x 6 per board pose) and the reduced system ``S`` has ``k``
+unknowns, a few hundred for a rig of 16 cameras with free lenses. On problems of that size a
+multi-threaded BLAS spends more time starting and synchronising its threads than it saves:
+issue 21 measured 8 cameras x 100 images at 1.65 s wall / 2.2 CPU-s with OpenBLAS on 2
+threads against 1.12 s / 1.24 CPU-s on one. A dense Cholesky of ``S`` costs ``k^3 / 3``
+floating-point operations; threads only pay once that is in the billions.
+
+Rule: one BLAS thread while ``k < PARALLEL_FROM`` (2000 unknowns, about 2.7 GFLOP per
+factorisation), otherwise the library's own choice (left as it is). A fixed thread count also
+makes reruns give the same digits: a threaded BLAS may sum in a different order from run to
+run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager, nullcontext
+
+from threadpoolctl import threadpool_limits
+
+PARALLEL_FROM = 2000
+
+
+def blas_threads(k: int) -> int | None:
+    """BLAS threads for a reduced system of ``k`` unknowns.
+
+    Parameters
+    ----------
+    k : int
+        Unknowns of the reduced (Schur-complement) system.
+
+    Returns
+    -------
+    int or None
+        1 below :data:`PARALLEL_FROM`, None (the library's default) from there on.
+    """
+    return 1 if k < PARALLEL_FROM else None
+
+
+@contextmanager
+def threads_for(k: int) -> Iterator[None]:
+    """Limit the BLAS libraries loaded in this process to :func:`blas_threads` ``(k)`` threads
+    for the duration of the ``with`` block (restored afterwards)."""
+    limit = blas_threads(k)
+    if limit is None:
+        context = nullcontext()
+    else:
+        context = threadpool_limits(limits=limit, user_api="blas")
+    with context:
+        yield

@@ -1,0 +1,78 @@
+"""BLAS threads for the refinement (issue 21, item 3): one thread on small reduced systems,
+restored afterwards; no scipy.stats on the refinement's import path; its quantiles exact."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
+
+from multieye.core import geometry as g
+from multieye.estimate import refine_images as ri
+from multieye.optimize import levenberg_marquardt as lm
+from multieye.optimize.threads import PARALLEL_FROM, blas_threads, threads_for
+from multieye.sim.images import simulate_images
+from multieye.solvers import solve
+
+
+def _blas_threads() -> list[int]:
+    return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+
+
+def test_rule_switches_at_parallel_from():
+    assert blas_threads(48) == 1
+    assert blas_threads(PARALLEL_FROM - 1) == 1
+    assert blas_threads(PARALLEL_FROM) is None
+
+
+@pytest.mark.skipif(not _blas_threads(), reason="no BLAS library that threadpoolctl controls")
+def test_threads_for_limits_small_systems_and_restores():
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        with threads_for(300):
+            assert set(_blas_threads()) == {1}
+        assert _blas_threads() == before
+        with threads_for(PARALLEL_FROM + 1):
+            assert _blas_threads() == before
+
+
+@pytest.mark.skipif(not _blas_threads(), reason="no BLAS library that threadpoolctl controls")
+def test_refinement_solves_on_one_thread_and_gives_the_same_digits(monkeypatch):
+    seen = []
+    solve_step = lm.solve_step
+
+    def recording(*args, **kwargs):
+        seen.append(max(_blas_threads()))
+        return solve_step(*args, **kwargs)
+
+    monkeypatch.setattr(lm, "solve_step", recording)
+    sc = simulate_images(3, n_cameras=2, images=12)
+    closed = solve(list(sc.A), [g.inv(T) for T in sc.T_cam_target])
+    with threadpool_limits(limits=2, user_api="blas"):
+        runs = [ri.refine_images(sc.setup, sc.observations, sc.intrinsics, closed.X, closed.Y)
+                for _ in range(2)]
+        assert max(_blas_threads()) == 2                      # restored after the refinement
+    assert seen and set(seen) == {1}
+    np.testing.assert_array_equal(runs[0].X, runs[1].X)
+    np.testing.assert_array_equal(runs[0].covariance, runs[1].covariance)
+
+
+def test_outlier_thresholds_are_the_chi_square_quantiles():
+    from scipy.special import chdtri
+    from scipy.stats import chi2
+
+    p = ri.OUTLIER_PROBABILITY
+    assert chdtri(2, p) == pytest.approx(chi2.isf(p, 2), rel=1e-12)
+    assert chdtri(2, p) == pytest.approx(-2 * np.log(p), rel=1e-12)
+    assert chdtri(6, p) == pytest.approx(chi2.isf(p, 6), rel=1e-12)
+
+
+def test_no_scipy_stats_on_the_calibrate_path():
+    code = ("import sys, multieye.cli, multieye.pipeline.run, multieye.estimate.refine_images; "
+            "print(sorted(m for m in sys.modules if m.startswith('scipy.stats')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "[]"
