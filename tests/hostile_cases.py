@@ -42,8 +42,10 @@ class _Full:
     def __enter__(self): return self
     def __exit__(self, *a): return self._f.__exit__(*a)
 def _fdopen(fd, *a, **k):
-    _count[0] += 1
     f = _real_fdopen(fd, *a, **k)
+    if not any(c in (a[0] if a else k.get("mode", "r")) for c in "wax+"):
+        return f            # a file read (core.regular_files opens them with os.fdopen too)
+    _count[0] += 1
     return _Full(f) if _count[0] == 3 else f
 _atomic.os.fdopen = _fdopen
 """
