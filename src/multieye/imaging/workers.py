@@ -127,11 +127,18 @@ def _quiet_forkserver(mp_context) -> int | None:
             return None         # already running, started by someone else
         import tempfile
 
-        log = tempfile.TemporaryFile(prefix="multieye-workers-")
-        fd = os.dup(log.fileno())
-        log.close()
-        sys.stderr.flush()
-        saved = os.dup(2)
+        try:
+            with tempfile.TemporaryFile(prefix="multieye-workers-") as log:
+                fd = os.dup(log.fileno())
+        except OSError:         # no usable temporary folder: workers write where we do
+            return None
+        try:
+            saved = os.dup(2)
+        except OSError:         # no standard error at all: nothing to protect
+            os.close(fd)
+            return None
+        if sys.stderr is not None:
+            sys.stderr.flush()
         try:
             os.dup2(fd, 2)      # inherited by the fork server, so by every worker
             forkserver.ensure_running()
@@ -144,7 +151,7 @@ def _quiet_forkserver(mp_context) -> int | None:
 
 def _relay(fd: int | None, start: int) -> None:
     """Copy what the workers wrote to ``fd`` since offset ``start`` to standard error."""
-    if fd is None:
+    if fd is None or sys.stderr is None:
         return
     with contextlib.suppress(OSError):
         end = os.fstat(fd).st_size
