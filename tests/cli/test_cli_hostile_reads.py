@@ -383,6 +383,9 @@ def test_image_linked_from_outside_the_dataset_is_named(image_dataset, tmp_path)
     assert str(elsewhere / image.name) in res.output
     assert any(str(elsewhere / image.name) in w and "outside the dataset folder" in w
                for w in _warnings(out))
+    # details.json carries the same warnings (the report and later readers see them too)
+    details = json.loads((out / "details.json").read_text())
+    assert details["warnings"] == _warnings(out)
 
 
 def test_rig_yaml_linked_into_another_dataset_is_named(pose_dataset, tmp_path):
@@ -397,6 +400,7 @@ def test_rig_yaml_linked_into_another_dataset_is_named(pose_dataset, tmp_path):
     assert real in res.output
     notes = _warnings(out)
     assert any(real in w and "symbolic link" in w for w in notes), notes
+    assert json.loads((out / "details.json").read_text())["warnings"] == notes
     # and the files it names, all in the other dataset, are listed too
     assert any(str((other / "mocap.txt").resolve()) in w for w in notes), notes
     res = CliRunner().invoke(main, ["check", str(ds)])

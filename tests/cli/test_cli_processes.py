@@ -142,3 +142,41 @@ def test_after_sigkill_workers_end_within_5_s_and_the_next_run_leaves_no_leftove
         ".multieye-manifest.json", "calibration.json", "camchain.yaml", "details.json",
         "figures", "report.html"]
     assert (out / "calibration.json").read_bytes() != before["calibration.json"][1]
+
+
+def _busy_loops(n):
+    """``n`` processes spinning on the CPU (a ``stress``-like load), to be killed by the test."""
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+
+
+@pytest.mark.parametrize("to_group", [False, True], ids=["main-process", "terminal-group"])
+def test_sigint_while_workers_start_never_shows_a_traceback(dataset, slow_env, tmp_path,
+                                                            to_group):
+    """Ctrl-C at any moment of the pool's start, under CPU load: one line, no traceback.
+
+    A worker still being started by the fork server when the main process ends used to print
+    a traceback (FileNotFoundError from SemLock._rebuild) to the shared standard error.  The
+    signal goes early (as soon as the first worker exists, while the second may still be
+    unpickling its queues), repeatedly, with 3 busy loops competing for the 2 cores; with
+    ``to_group`` to the whole process group, as a terminal's Ctrl-C does.
+    """
+    load = _busy_loops(3)
+    try:
+        for k in range(4):
+            out = tmp_path / f"run{k}" / "out"
+            before = _earlier_output(out)
+            proc = _in_detection(dataset, out, slow_env)
+            if to_group:
+                os.killpg(proc.pid, signal.SIGINT)
+                stdout, stderr = proc.communicate(timeout=30)
+                assert proc.returncode == 128 + signal.SIGINT, (proc.returncode, stderr)
+                assert stderr.strip().splitlines()[-1] == "multieye: stopped by SIGINT", stderr
+                assert "Traceback" not in stderr and "Error" not in stderr, stderr
+                assert wait_until(lambda: not group_members(proc.pid), timeout=5.0) is not None
+                assert _tree(out) == before and _beside(out) == []
+            else:
+                _stopped_cleanly(proc, signal.SIGINT, out, before)
+    finally:
+        for p in load:
+            p.kill()
+            p.wait()

@@ -58,3 +58,32 @@ def test_leaving_the_pool_by_an_exception_ends_the_workers_at_once():
 def test_a_pool_left_normally_finishes_its_work():
     with worker_pool(2) as pool:
         assert list(pool.map(abs, [-1, -2, 3])) == [1, 2, 3]
+
+
+WRITER = """
+import multiprocessing, os
+from concurrent.futures.process import BrokenProcessPool
+from multieye.imaging.workers import worker_pool
+ctx = multiprocessing.get_context("forkserver")
+with worker_pool(1, mp_context=ctx) as pool:
+    pool.submit(os.write, 2, b"noise of a healthy worker\\n").result()
+print("first pool done", flush=True)
+try:
+    with worker_pool(1, mp_context=ctx) as pool:
+        pool.submit(os.write, 2, b"last words of a worker\\n").result()
+        pool.submit(os._exit, 3).result()
+except BrokenProcessPool:
+    print("broken", flush=True)
+"""
+
+
+@needs_proc
+def test_workers_stderr_is_shown_only_when_a_worker_ends_abruptly():
+    """Workers (and the fork server) write to a file of the main process, not the terminal:
+    nothing of theirs reaches standard error unless a worker died, then their last words."""
+    res = subprocess.run([sys.executable, "-c", WRITER], capture_output=True, text=True,
+                         timeout=120)
+    assert res.stdout.split() == ["first", "pool", "done", "broken"], res
+    assert "noise of a healthy worker" not in res.stderr
+    assert res.stderr.splitlines() == ["multieye: a worker process ended abruptly; it wrote:",
+                                       "last words of a worker"], res.stderr

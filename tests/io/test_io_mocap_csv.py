@@ -314,3 +314,97 @@ def test_duplicates_option_is_an_input_error(tmp_path):
     (tmp_path / "m.txt").write_text("0 0 0 0 0 0 0 1\n")
     with pytest.raises(InputError, match="duplicates must be 'error' or 'drop', got 'x'"):
         read_tum(tmp_path / "m.txt", duplicates="x")
+
+
+# --------------------------------------------------------------------------- large tables
+
+
+def _quaternion_rows(n, seed=0):
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return np.column_stack([12.0 + np.arange(n) * 0.001, rng.normal(size=(n, 3)), q])
+
+
+def test_large_csv_is_read_line_by_line_into_arrays(tmp_path):
+    """300 000 rows, more than a dozen blocks: no text held whole, no Python object per row."""
+    import tracemalloc
+
+    n = 300_000
+    rows = _quaternion_rows(n)
+    path = tmp_path / "big.csv"
+    with open(path, "w") as f:
+        f.write("t,tx,ty,tz,qx,qy,qz,qw\n")
+        np.savetxt(f, rows, fmt="%.9f", delimiter=",")
+    size = path.stat().st_size
+    tracemalloc.start()
+    traj = read_pose_csv(path)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert len(traj) == n
+    np.testing.assert_allclose(traj.stamps, rows[:, 0], atol=1e-9)
+    np.testing.assert_allclose(traj.T[:, :3, 3], rows[:, 1:4], atol=1e-9)
+    q = geometry.quat_from_transform(traj.T)                  # sign: w >= 0 on both sides
+    np.testing.assert_allclose(q * np.sign(q[:, 3:4]), rows[:, 4:8] * np.sign(rows[:, 7:8]),
+                               atol=1e-8)
+    # the poses are 136 bytes a row and the line numbers 4; the text alone would be about 95
+    # bytes a row and a list of rows of Python floats over 400
+    assert peak / n < 250 and peak < size * 2.5, (peak / n, size)
+
+
+def test_large_csv_errors_name_their_line_beyond_the_first_blocks(tmp_path):
+    n = 40_000
+    rows = _quaternion_rows(n)
+    text = ["t,tx,ty,tz,qx,qy,qz,qw"] + [",".join(f"{v:.9f}" for v in r) for r in rows]
+    path = tmp_path / "big.csv"
+    bad = list(text)
+    bad[35_000] = bad[35_000].replace(",", ",x", 1)          # line 35 001: t then 'x...'
+    path.write_text("\n".join(bad) + "\n")
+    with pytest.raises(DatasetError, match=r"big\.csv:35001: expected a number for tx"):
+        read_pose_csv(path)
+    bad = list(text)
+    bad[33_333] = bad[33_333].rsplit(",", 1)[0] + ",3.5"      # qw: not a unit quaternion
+    path.write_text("\n".join(bad) + "\n")
+    with pytest.raises(DatasetError, match=r"big\.csv:33334: .*quaternion"):
+        read_pose_csv(path)
+    bad = list(text)
+    bad[20_001] = bad[20_000]                                 # a repeated stamp
+    path.write_text("\n".join(bad) + "\n")
+    with pytest.raises(DatasetError, match=r"big\.csv:2000[12]"):
+        read_pose_csv(path)
+
+
+def test_large_optitrack_export_read_in_blocks(tmp_path, rng):
+    n = 40_000
+    stamps = np.round(np.arange(n) / 120.0, 6)
+    T = geometry.random_transforms(rng, n)
+    path = tmp_path / "take.csv"
+    _optitrack(path, stamps, T, blank=(17_000,))
+    traj = read_optitrack_csv(path, "Target")
+    assert len(traj) == n - 1 and 17_000 / 120.0 not in traj.stamps
+    np.testing.assert_allclose(traj.T[:, :3, 3], np.delete(T[:, :3, 3], 17_000, 0), atol=1e-6)
+
+
+def test_vicon_segments_after_a_long_section(tmp_path, rng):
+    """The Segments section after 50 000 rows of another section: found, lines right."""
+    frames = np.arange(1, 21)
+    T = geometry.random_transforms(rng, len(frames))
+    seg = tmp_path / "seg.csv"
+    _vicon(seg, frames, T)
+    joints = ["Joints", "100", ",,Rig:J1,,", "Frame,Sub Frame,RX,RY,RZ", ",,deg,deg,deg"]
+    joints += [f"{k},0,1,2,3" for k in range(1, 50_001)] + [""]
+    path = tmp_path / "nexus.csv"
+    lines = seg.read_text().split("\n")
+    good = lines[5 + 7]
+    cells = good.split(",")
+    cells[11] = "zero"                                        # the Marker's TX of frame 8
+    lines[5 + 7] = ",".join(cells)
+    path.write_text("\n".join(joints + lines))
+    with pytest.raises(DatasetError, match=rf"nexus\.csv:{len(joints) + 13}: expected a number "
+                                           r"for TX, got 'zero'"):
+        read_vicon_csv(path, "Marker")
+    lines[5 + 7] = good
+    path.write_text("\n".join(joints + lines))
+    traj = read_vicon_csv(path, "Marker")
+    np.testing.assert_allclose(traj.stamps, frames / 100.0)
+    np.testing.assert_allclose(traj.T[:, :3, 3], T[:, :3, 3], atol=1e-9)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import struct
+
 import cv2
 import numpy as np
 import pytest
@@ -207,3 +209,67 @@ def test_bayer_rggb_demosaics_to_the_right_colours(tmp_path):
     (_, img), = iter_bag_images(path, "/cam")
     assert img.shape == (8, 8, 3)
     assert np.abs(img[2:-2, 2:-2].astype(int) - [30, 120, 220]).max() <= 1
+
+
+def _exif_orientation(jpeg: bytes, orientation: int) -> bytes:
+    """A JPEG with an APP1 Exif segment holding one IFD entry: Orientation (0x0112)."""
+    tiff = b"II*\x00" + struct.pack("<I", 8) + struct.pack("<H", 1) + struct.pack(
+        "<HHIHH", 0x0112, 3, 1, orientation, 0) + struct.pack("<I", 0)
+    body = b"Exif\x00\x00" + tiff
+    return jpeg[:2] + b"\xff\xe1" + struct.pack(">H", len(body) + 2) + body + jpeg[2:]
+
+
+def _compressed(bag, data, fmt):
+    return bag.t("sensor_msgs/msg/CompressedImage")(
+        header=bag.header(0, "cam"), format=fmt, data=np.frombuffer(data, np.uint8))
+
+
+@pytest.mark.parametrize("ros", [1, 2], ids=["ros1", "ros2"])
+def test_image_sizes_checked_before_decoding(tmp_path, rng, ros, monkeypatch):
+    path = _bag_path(tmp_path, ros)
+    img = rng.integers(0, 256, (6, 8), dtype=np.uint8)
+    _, png = cv2.imencode(".png", img)
+    huge_png = bytearray(png.tobytes())
+    huge_png[16:24] = struct.pack(">II", 60000, 60000)        # IHDR width, height
+    with Bag(path, ros) as bag:
+        bag.write("/raw/huge", bag.t("sensor_msgs/msg/Image")(
+            header=bag.header(0, "cam"), height=60000, width=60000, encoding="mono8",
+            is_bigendian=0, step=60000, data=img.reshape(-1)), BASE_NS)
+        bag.write("/raw/empty", bag.t("sensor_msgs/msg/Image")(
+            header=bag.header(0, "cam"), height=0, width=8, encoding="mono8",
+            is_bigendian=0, step=8, data=img.reshape(-1)), BASE_NS)
+        bag.write("/png/huge", _compressed(bag, bytes(huge_png), "png"), BASE_NS)
+        bag.write("/png/garbage", _compressed(bag, b"not an image at all", "png"), BASE_NS)
+
+    def never(*args, **kwargs):
+        raise AssertionError("decoded before the size was checked")
+
+    monkeypatch.setattr(cv2, "imdecode", never)
+    where = rf"topic /raw/huge at {BASE_NS} ns: the message states 60000 x 60000 pixels, more "
+    with pytest.raises(DatasetError, match=where + r"than the 100 megapixels"):
+        list(iter_bag_images(path, "/raw/huge"))
+    with pytest.raises(DatasetError, match=r"the message states 8 x 0 pixels"):
+        list(iter_bag_images(path, "/raw/empty"))
+    with pytest.raises(DatasetError, match=r"/png/huge at .* ns: the PNG header states 60000 x "
+                                           r"60000 pixels, more than the 100 megapixels"):
+        list(iter_bag_images(path, "/png/huge"))
+    with pytest.raises(DatasetError, match=r"the compressed image \(format 'png'\) is not a "
+                                           r"PNG, JPEG, .* stream"):
+        list(sample_bag_images(path, "/png/garbage", [0]))
+
+
+@pytest.mark.parametrize("ros", [1, 2], ids=["ros1", "ros2"])
+def test_exif_orientation_of_compressed_images_ignored(tmp_path, ros):
+    path = _bag_path(tmp_path, ros)
+    img = np.zeros((48, 64), np.uint8)
+    img[:16, :16] = 255                                       # a bright top-left corner
+    _, jpg = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 100])
+    rotated = _exif_orientation(jpg.tobytes(), 3)             # "rotate 180 deg to view"
+    # OpenCV's default decoding applies the orientation: the corner moves
+    shown = cv2.imdecode(np.frombuffer(rotated, np.uint8), cv2.IMREAD_GRAYSCALE)
+    assert shown[-8:, -8:].mean() > 200 and shown[:8, :8].mean() < 50
+    with Bag(path, ros) as bag:
+        bag.write("/cam/jpeg", _compressed(bag, rotated, "jpeg"), BASE_NS)
+    (_, decoded), = iter_bag_images(path, "/cam/jpeg")
+    assert decoded.shape == (48, 64)
+    assert decoded[:8, :8].mean() > 200 and decoded[-8:, -8:].mean() < 50   # as stored

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -65,4 +66,25 @@ def test_bad_timings_are_refused_with_the_key(tmp_path, mutate, message):
     data["timings_s"] = [1, 2]
     (tmp_path / "details.json").write_text(json.dumps(data))
     with pytest.raises(DatasetError, match="timings_s must be an object"):
+        read_run_details(tmp_path / "details.json")
+
+
+def test_warnings_round_trip_and_older_files_read_with_none(tmp_path):
+    notes = ("cam1: 2 images read from outside the dataset folder /data: /x/a.png, /x/b.png",
+             "weak motion: rotation spread 3 deg")
+    write_details(tmp_path / "details.json", replace(_details(), warnings=notes))
+    data = json.loads((tmp_path / "details.json").read_text())
+    assert data["warnings"] == list(notes)
+    assert read_run_details(tmp_path / "details.json").warnings == notes
+    data.pop("warnings")
+    (tmp_path / "details.json").write_text(json.dumps(data))
+    assert read_run_details(tmp_path / "details.json").warnings == ()
+
+
+@pytest.mark.parametrize("bad", ["one string", [1, 2], {"a": "b"}, ["ok", None]])
+def test_bad_warnings_are_refused(tmp_path, bad):
+    data = run_details_to_dict(_details())
+    data["warnings"] = bad
+    (tmp_path / "details.json").write_text(json.dumps(data))
+    with pytest.raises(DatasetError, match=r"details\.json: warnings must be a list of strings"):
         read_run_details(tmp_path / "details.json")

@@ -18,6 +18,17 @@ from ``SIGINT``, the exception the command line raises on ``SIGTERM``, an error)
 queued work is cancelled and its workers are terminated at once instead of finishing the
 work already queued.
 
+A worker's standard error is not the terminal's.  A worker forked by the fork server runs
+before any code of multieye does: it unpickles its queues, whose semaphores the main
+process removes when it ends.  A ``SIGINT`` while the pool is still starting workers (or a
+``Ctrl-C``, which reaches every process of the terminal's group, a starting worker
+included) thus made a starting worker print a traceback (``FileNotFoundError`` from
+``SemLock._rebuild``, or ``KeyboardInterrupt``) under the main process's one line.  So the
+fork server, and every worker it forks, is started with its standard error on an unnamed
+temporary file that the main process owns (:func:`_quiet_forkserver`); what workers wrote
+there is shown only when a worker ended abruptly (``BrokenProcessPool``), after the pool
+is torn down.
+
 Synopsis
 --------
 >>> from multieye.imaging.workers import worker_pool
@@ -35,6 +46,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 __all__ = ["worker_pool", "die_with", "stop_workers"]
 
@@ -94,6 +106,64 @@ def die_with(main_pid: int, *, poll_s: float = POLL_S) -> None:
     threading.Thread(target=watch, name="multieye-main-watchdog", daemon=True).start()
 
 
+#: Most bytes of the workers' standard error shown after a worker ended abruptly.
+RELAY_BYTES = 4000
+
+#: The file the fork server's (and its workers') standard error is written to, once started.
+_WORKER_STDERR: dict[str, int] = {}
+
+
+def _quiet_forkserver(mp_context) -> int | None:
+    """Start the fork server of ``mp_context`` (once a process) with its standard error on
+    an unnamed temporary file; returns that file's descriptor (None for other start methods
+    or when the fork server was started elsewhere, with the terminal's standard error)."""
+    if mp_context is None or mp_context.get_start_method() != "forkserver":
+        return None
+    from multiprocessing import forkserver
+
+    if "fd" not in _WORKER_STDERR:
+        server = getattr(forkserver, "_forkserver", None)
+        if getattr(server, "_forkserver_pid", None) is not None:
+            return None         # already running, started by someone else
+        import tempfile
+
+        try:
+            with tempfile.TemporaryFile(prefix="multieye-workers-") as log:
+                fd = os.dup(log.fileno())
+        except OSError:         # no usable temporary folder: workers write where we do
+            return None
+        try:
+            saved = os.dup(2)
+        except OSError:         # no standard error at all: nothing to protect
+            os.close(fd)
+            return None
+        if sys.stderr is not None:
+            sys.stderr.flush()
+        try:
+            os.dup2(fd, 2)      # inherited by the fork server, so by every worker
+            forkserver.ensure_running()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        _WORKER_STDERR["fd"] = fd
+    return _WORKER_STDERR["fd"]
+
+
+def _relay(fd: int | None, start: int) -> None:
+    """Copy what the workers wrote to ``fd`` since offset ``start`` to standard error."""
+    if fd is None or sys.stderr is None:
+        return
+    with contextlib.suppress(OSError):
+        end = os.fstat(fd).st_size
+        if end <= start:
+            return
+        data = os.pread(fd, min(end - start, RELAY_BYTES), max(start, end - RELAY_BYTES))
+        if data.strip():
+            sys.stderr.write("multieye: a worker process ended abruptly; it wrote:\n"
+                             + data.decode("utf-8", "replace"))
+            sys.stderr.flush()
+
+
 def _start_worker(main_pid: int, initializer: Callable | None, initargs: tuple) -> None:
     die_with(main_pid)
     if initializer is not None:
@@ -135,11 +205,15 @@ def worker_pool(max_workers: int, *, mp_context=None, initializer: Callable | No
         exception (``KeyboardInterrupt`` included) its queued work is cancelled and its
         workers are terminated before the exception propagates.
     """
+    log = _quiet_forkserver(mp_context)
+    start = os.fstat(log).st_size if log is not None else 0
     pool = ProcessPoolExecutor(max_workers, mp_context=mp_context, initializer=_start_worker,
                                initargs=(os.getpid(), initializer, tuple(initargs)))
     try:
         yield pool
-    except BaseException:
+    except BaseException as exc:
         stop_workers(pool)
+        if isinstance(exc, BrokenProcessPool):
+            _relay(log, start)
         raise
     pool.shutdown(wait=True)

@@ -32,21 +32,33 @@ Vicon Nexus CSV export (:func:`read_vicon_csv`)
     faster than the cameras, is ignored; segment rows have one row per frame); frames with a
     blank pose cell (segment not reconstructed) are skipped.  ``Trajectories`` holds marker
     positions only, so a file without a ``Segments`` section is rejected with that reason.
+
+Every file is read line by line (never held whole), each line split with :mod:`csv` and its
+numbers gathered in flat arrays; generic CSV (stamps in seconds, milliseconds or
+microseconds) and OptiTrack rows are turned into poses 16 384 rows at a time
+(:class:`~multieye.io.poserows.QuaternionRows`, as TUM files), so only the usable rows' stamps,
+poses and lines stay (about 140 bytes a row): a 5-million-row CSV calibrates within 1 GB.
+Errors name the file and the 1-based line as before.
 """
 
 from __future__ import annotations
 
 import csv
+import itertools
 import os
 import re
-from collections.abc import Mapping, Sequence
+from array import array
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
 from multieye.core import geometry
+from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
-from multieye.io.poserows import quaternion_poses, trajectory_from_rows, usable_rows
-from multieye.io.textfile import LENGTH_UNITS, parse_float, read_text, text_lines
+from multieye.core.limits import MAX_TABLE_BYTES
+from multieye.core.regular_files import open_bounded_text
+from multieye.io.poserows import QuaternionRows, trajectory_from_rows, usable_rows
+from multieye.io.textfile import LENGTH_UNITS, count_lines, parse_float, text_lines
 from multieye.io.trajectory import Trajectory
 
 __all__ = [
@@ -79,22 +91,63 @@ _VICON_SECTIONS = ("Segments", "Trajectories", "Model Outputs", "Joints", "Devic
 _MAX_ROTVEC_RAD = 1e3
 
 
-def _rows(text: str, delimiter: str = ",") -> list[list[str]]:
-    # One physical line per row (exports never quote newlines), so index + 1 is the line.
-    return [next(csv.reader([line], delimiter=delimiter), []) for line in text.splitlines()]
+#: Rows turned into poses at a time (:class:`~multieye.io.poserows.QuaternionRows`): the
+#: table of numbers is never held whole.
+_BLOCK = 1 << 14
+#: Most lines above the first data row of an OptiTrack export that are kept (Motive writes 7).
+_MAX_HEADER_ROWS = 1000
+
+
+def _lines(path, what: str) -> Iterator[tuple[int, str]]:
+    """Every physical line of a UTF-8 text file as ``(1-based number, text)``, read one at a
+    time (the file is never held whole: a 5-million-row export stays within a few hundred
+    MB); the byte bound :data:`~multieye.core.limits.MAX_TABLE_BYTES` counted while reading."""
+    p = as_path(path, what)
+    with open_bounded_text(p, what=what, max_bytes=MAX_TABLE_BYTES) as f:
+        for number, raw in enumerate(f, start=1):
+            if number == 1 and raw.startswith(b"\xef\xbb\xbf"):
+                raw = raw[3:]
+            try:
+                text = raw.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                raise DatasetError(f"not a UTF-8 text file (byte 0x{raw[exc.start]:02x})",
+                                   path=p, line=number) from None
+            yield number, text.rstrip("\r\n")
+
+
+def _rows(lines: Iterable[tuple[int, str]], delimiter: str | None = ",",
+          ) -> Iterator[tuple[int, list[str]]]:
+    """``(line, cells)`` of each line: one physical line per row (exports never quote
+    newlines), split with :mod:`csv` (``delimiter`` None: on white space)."""
+    for number, line in lines:
+        if delimiter is None:
+            yield number, line.split()
+        else:
+            yield number, next(csv.reader([line], delimiter=delimiter), [])
+
+
+def _numbers(cells: Sequence[str], names: Sequence[str], path, line: int) -> list[float]:
+    try:
+        return [float(c) for c in cells]
+    except ValueError:
+        return [parse_float(c, path=path, line=line, name=n, finite=False)
+                for c, n in zip(cells, names)]
 
 
 def _blank(row: Sequence[str]) -> bool:
     return all(not c.strip() for c in row)
 
 
-def _complete_rows(rows, start: int, columns: Sequence[int], names: Sequence[str], path, *,
-                   section_ends_at_blank: bool, missing: str):
-    """Numbers of ``columns`` in the rows from ``start`` on, skipping rows with a blank cell
-    (an occluded sample); returns ``(array (N, len(columns)), 1-based lines)``."""
-    values, lines = [], []
-    for i in range(start, len(rows)):
-        row = rows[i]
+def _complete_rows(rows: Iterable[tuple[int, list[str]]], columns: Sequence[int],
+                   names: Sequence[str], path, *, section_ends_at_blank: bool, missing: str,
+                   sink: QuaternionRows | None = None):
+    """Numbers of ``columns`` in ``rows`` (``(line, cells)``, read one at a time), skipping
+    rows with a blank cell (an occluded sample); returns ``(array (N, len(columns)),
+    1-based lines)``, gathered in flat arrays (8 bytes a number).  With ``sink``, each block
+    of :data:`_BLOCK` rows goes to ``sink.add`` instead (turned into poses at once) and the
+    result is ``(None, None)``."""
+    values, lines, seen = array("d"), array("q"), 0
+    for number, row in rows:
         if _blank(row):
             if section_ends_at_blank:
                 break
@@ -102,12 +155,25 @@ def _complete_rows(rows, start: int, columns: Sequence[int], names: Sequence[str
         cells = [row[j].strip() if j < len(row) else "" for j in columns]
         if not all(cells):
             continue
-        values.append([parse_float(c, path=path, line=i + 1, name=n, finite=False)
-                       for c, n in zip(cells, names)])
-        lines.append(i + 1)
-    if not values:
+        values.extend(_numbers(cells, names, path, number))
+        lines.append(number)
+        seen += 1
+        if sink is not None and len(lines) == _BLOCK:
+            sink.add(*_block(values, lines, len(columns)))
+            values, lines = array("d"), array("q")
+    if not seen:
         raise DatasetError(missing, path=path)
-    return np.asarray(values), lines
+    if sink is not None:
+        if lines:
+            sink.add(*_block(values, lines, len(columns)))
+        return None, None
+    return _block(values, lines, len(columns))
+
+
+def _block(values: array, lines: array, n_columns: int) -> tuple[np.ndarray, np.ndarray]:
+    """Flat arrays as ``(data (N, n_columns), lines (N,))`` without copying."""
+    return (np.frombuffer(values, dtype=np.float64).reshape(-1, n_columns),
+            np.frombuffer(lines, dtype=np.int64))
 
 
 def _screened(stamps, t, rotation, names, path, lines, max_rotation=None):
@@ -192,62 +258,71 @@ def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None 
         is not a number, a non-unit quaternion, stamps not strictly increasing.  Rows with a
         blank pose cell are skipped (an occluded sample).
     """
-    text = read_text(path, what="CSV file")
-    first = next((i for i, line in enumerate(text.splitlines()) if line.strip()), None)
+    lines_in = _lines(path, "CSV file")
+    first, header_line = next(((i, line) for i, line in lines_in if line.strip()), (None, ""))
     if first is None:
         raise DatasetError("empty CSV file: expected a header row", path=path)
-    header_line = text.splitlines()[first]
     delimiter = "," if "," in header_line else ";" if ";" in header_line else None
-    if delimiter is None:
-        rows = [line.split() for line in text.splitlines()]
-    else:
-        rows = _rows(text, delimiter)
-    found, names = _find_columns(rows[first], columns, path, first + 1)
+    (_, header), = _rows([(first, header_line)], delimiter)
+    found, names = _find_columns(header, columns, path, first)
     unit = _unit_from_header(names, found, ("tx", "ty", "tz"), unit, LENGTH_UNITS, path,
-                             first + 1) or "m"
+                             first) or "m"
     time_unit = _unit_from_header(names, found, ("t",), time_unit, _TIME_UNITS, path,
-                                  first + 1) or "s"
+                                  first) or "s"
     order = [found[r] for r in DEFAULT_COLUMNS]
-    values, stamps_ns, lines = [], [], []
-    for i in range(first + 1, len(rows)):
-        row = rows[i]
+    values, stamps_ns, lines = array("d"), array("q"), array("q")
+    seconds = _TIME_UNITS[time_unit]
+    sink = QuaternionRows(path, tuple(DEFAULT_COLUMNS), LENGTH_UNITS[unit],
+                          capacity=count_lines(path, what="CSV file"))
+
+    def flush():
+        data, numbers = _block(values, lines, len(DEFAULT_COLUMNS))
+        if time_unit == "ns":
+            ns = np.frombuffer(stamps_ns, dtype=np.int64)
+            data[:, 0] = ns / 1e9
+            sink.add(data, numbers, ns)
+        else:
+            sink.add(*_seconds((data, numbers), seconds))
+
+    for number, row in _rows(lines_in, delimiter):
         if _blank(row) or row[0].lstrip().startswith("#"):
             continue
         if len(row) <= max(order):
-            raise DatasetError(f"row has {len(row)} cells, the header has {len(rows[first])}",
-                               path=path, line=i + 1)
+            raise DatasetError(f"row has {len(row)} cells, the header has {len(header)}",
+                               path=path, line=number)
         cells = [row[j].strip() for j in order]
         if not all(cells):
             continue
         if time_unit == "ns":
             try:
-                stamps_ns.append(int(cells[0]))
+                ns_value = int(cells[0])
             except ValueError:
                 raise DatasetError(f"expected integer nanoseconds for t, got {cells[0]!r}",
-                                   path=path, line=i + 1) from None
+                                   path=path, line=number) from None
+            if abs(ns_value) >= 2 ** 63:
+                raise DatasetError(f"time stamp {ns_value} ns does not fit 64 bits", path=path,
+                                   line=number)
+            stamps_ns.append(ns_value)
             cells[0] = "0"
-        values.append([parse_float(c, path=path, line=i + 1, name=role, finite=False)
-                       for c, role in zip(cells, DEFAULT_COLUMNS)])
-        lines.append(i + 1)
-    if not values:
+        values.extend(_numbers(cells, DEFAULT_COLUMNS, path, number))
+        lines.append(number)
+        if len(lines) == _BLOCK:
+            flush()
+            values, stamps_ns, lines = array("d"), array("q"), array("q")
+    if lines:
+        flush()
+    if not sink.screened:
         raise DatasetError("no poses found below the header", path=path)
-    data = np.asarray(values)
-    if time_unit == "ns":
-        if any(abs(v) >= 2 ** 63 for v in stamps_ns):
-            i = next(k for k, v in enumerate(stamps_ns) if abs(v) >= 2 ** 63)
-            raise DatasetError(f"time stamp {stamps_ns[i]} ns does not fit 64 bits", path=path,
-                               line=lines[i])
-        ns = np.asarray(stamps_ns, dtype=np.int64)
-    else:
-        ns = None
-    with np.errstate(over="ignore", invalid="ignore"):
-        stamps = ns / 1e9 if ns is not None else data[:, 0] * _TIME_UNITS[time_unit]
-        t = data[:, 1:4] * LENGTH_UNITS[unit]
-    keep, skipped, lines = _screened(stamps, t, data[:, 4:8], tuple(DEFAULT_COLUMNS), path, lines)
-    T = quaternion_poses(t[keep], data[keep, 4:8], path=path, lines=lines)
-    return trajectory_from_rows(stamps[keep], T, path=path, lines=lines, parent=parent,
-                                child=child, stamps_ns=None if ns is None else ns[keep],
-                                duplicates=duplicates, skipped=skipped)
+    return sink.trajectory(parent=parent, child=child, duplicates=duplicates)
+
+
+def _seconds(block: tuple[np.ndarray, np.ndarray], seconds: float):
+    """A block with its stamps (column 0) converted to seconds, in place."""
+    data, lines = block
+    if seconds != 1.0:
+        with np.errstate(over="ignore", invalid="ignore"):
+            data[:, 0] *= seconds
+    return data, lines
 
 
 # --------------------------------------------------------------------------- OptiTrack
@@ -299,7 +374,12 @@ def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *
         Not a Motive export, Euler rotations, unknown length unit, rigid body missing (listing
         those present), malformed cells (with the line).
     """
-    rows = _rows(read_text(path, what="OptiTrack CSV export"))
+    stream = _rows(_lines(path, "OptiTrack CSV export"))
+    rows = []       # the header rows, up to the 'Frame' row; the data rows are read one by one
+    for _, row in stream:
+        rows.append(row)
+        if (row and row[0].strip() == "Frame") or len(rows) >= _MAX_HEADER_ROWS:
+            break
     if not rows or rows[0][0].strip() != "Format Version":
         raise DatasetError("not an OptiTrack Motive CSV export: the first cell should be "
                            "'Format Version' (export with header information)", path=path, line=1)
@@ -340,15 +420,11 @@ def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *
         raise DatasetError("no 'Time (Seconds)' column", path=path, line=frame_row + 1)
     order = [time_col] + [cols[w] for w in wanted]
     cell_names = ["Time (Seconds)"] + [f"{body} {q} {a}" for q, a in wanted]
-    data, lines = _complete_rows(rows, frame_row + 1, order, cell_names, path,
-                                 section_ends_at_blank=False,
-                                 missing=f"rigid body {body!r} is not tracked in any frame")
-    with np.errstate(over="ignore", invalid="ignore"):
-        t = data[:, 1:4] * scale
-    keep, skipped, lines = _screened(data[:, 0], t, data[:, 4:8], cell_names, path, lines)
-    T = quaternion_poses(t[keep], data[keep, 4:8], path=path, lines=lines)
-    return trajectory_from_rows(data[keep, 0], T, path=path, lines=lines, parent=parent,
-                                child=child, skipped=skipped)
+    sink = QuaternionRows(path, cell_names, scale,
+                          capacity=count_lines(path, what="OptiTrack CSV export"))
+    _complete_rows(stream, order, cell_names, path, section_ends_at_blank=False,
+                   missing=f"rigid body {body!r} is not tracked in any frame", sink=sink)
+    return sink.trajectory(parent=parent, child=child)
 
 
 # --------------------------------------------------------------------------- Vicon
@@ -373,22 +449,27 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
         No ``Segments`` section, bad frame rate, unknown units, segment missing (listing those
         present), malformed cells (with the line).
     """
-    rows = _rows(read_text(path, what="Vicon CSV export"))
-    heads = {r[0].strip(): i for i, r in enumerate(rows)
-             if r and r[0].strip() in _VICON_SECTIONS and _blank(r[1:])}
+    stream = _rows(_lines(path, "Vicon CSV export"))
+    heads = set()   # sections seen, up to Segments; other sections' rows are not kept
+    for number, r in stream:
+        if r and r[0].strip() in _VICON_SECTIONS and _blank(r[1:]):
+            heads.add(r[0].strip())
+            if r[0].strip() == "Segments":
+                break
     if "Segments" not in heads:
         reason = ("it has only marker Trajectories, which carry no orientation; export the "
                   "Segments section" if "Trajectories" in heads else
                   "expected a section line 'Segments' as Vicon Nexus writes it")
         raise DatasetError(f"no Segments section: {reason}", path=path)
-    s = heads["Segments"]
-    if s + 4 >= len(rows):
+    s = number - 1                              # 0-based index of the section line
+    below = [r for _, r in itertools.islice(stream, 5)]
+    if len(below) < 4:
         raise DatasetError("Segments section is truncated", path=path, line=s + 1)
-    rate = parse_float(rows[s + 1][0] if rows[s + 1] else "", path=path, line=s + 2,
+    rate = parse_float(below[0][0] if below[0] else "", path=path, line=s + 2,
                        name="the frame rate (Hz)")
     if rate <= 0:
         raise DatasetError(f"frame rate must be positive, got {rate}", path=path, line=s + 2)
-    names, labels, units = rows[s + 2], rows[s + 3], rows[s + 4]
+    names, labels, units = below[1], below[2], below[3]
     if [c.strip() for c in labels[:2]] != ["Frame", "Sub Frame"]:
         raise DatasetError("expected the labels row 'Frame,Sub Frame,RX,RY,RZ,TX,TY,TZ,...'",
                            path=path, line=s + 4)
@@ -419,7 +500,8 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
                            f"{sorted(length)}", path=path, line=s + 5)
     to_rad = np.pi / 180.0 if angle == {"deg"} else 1.0
     scale = LENGTH_UNITS[length.pop()]
-    data, lines = _complete_rows(rows, s + 5, [0, *order], ("Frame",) + wanted, path,
+    data, lines = _complete_rows(itertools.chain([(s + 6, r) for r in below[4:]], stream), [0, *order],
+                                 ("Frame",) + wanted, path,
                                  section_ends_at_blank=True,
                                  missing=f"segment {name!r} has no frame with a complete pose")
     with np.errstate(over="ignore", invalid="ignore"):

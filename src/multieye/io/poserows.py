@@ -236,6 +236,7 @@ class QuaternionRows:
         self._T = np.empty((capacity, 4, 4))
         self._lines = np.empty(capacity, dtype=np.int32)   # tables are below 2 GiB
         self.skipped: list[SkippedRow] = []
+        self._ns: list[np.ndarray] = []      # integer-nanosecond stamps of the usable rows
 
     @property
     def screened(self) -> int:
@@ -252,8 +253,11 @@ class QuaternionRows:
                          (self._lines, (cap,))):
             a.resize(shape, refcheck=False)
 
-    def add(self, data: np.ndarray, lines: np.ndarray) -> None:
-        """Screen and convert one block: ``data`` (k, 8) as the file gives it, ``lines`` (k,)."""
+    def add(self, data: np.ndarray, lines: np.ndarray, stamps_ns: np.ndarray | None = None
+            ) -> None:
+        """Screen and convert one block: ``data`` (k, 8) as the file gives it (stamps in
+        seconds), ``lines`` (k,); ``stamps_ns`` (k,) int64, the exact stamps where the file
+        gives integer nanoseconds (every block then has them)."""
         with np.errstate(over="ignore", invalid="ignore"):
             t = data[:, 1:4] * self.scale
         keep, skipped = screen_rows(data[:, 0], t, data[:, 4:8], names=self.names,
@@ -261,6 +265,8 @@ class QuaternionRows:
         self.skipped.extend(replace(r, row=r.row + self._rows) for r in skipped)
         self._rows += len(data)
         kept_lines = lines[keep]
+        if stamps_ns is not None:
+            self._ns.append(np.asarray(stamps_ns, dtype=np.int64)[keep])
         T = quaternion_poses(t[keep], data[keep, 4:8], path=self.path, lines=kept_lines)
         m = len(T)
         self._grow(self._n + m)
@@ -279,6 +285,7 @@ class QuaternionRows:
         n = self._n
         for a, shape in ((self._stamps, (n,)), (self._T, (n, 4, 4)), (self._lines, (n,))):
             a.resize(shape, refcheck=False)
+        ns = np.concatenate(self._ns) if self._ns else None
         return trajectory_from_rows(self._stamps, self._T, path=self.path, lines=self._lines,
                                     parent=parent, child=child, duplicates=duplicates,
-                                    skipped=tuple(self.skipped))
+                                    skipped=tuple(self.skipped), stamps_ns=ns)

@@ -15,7 +15,12 @@ record time.  Samples are sorted by stamp; two samples with the same stamp are a
 
 Image topics -> ``(stamp_ns, image)`` pairs (:func:`iter_bag_images`): ``sensor_msgs/Image``
 with the encodings in :data:`IMAGE_ENCODINGS` and ``sensor_msgs/CompressedImage`` (decoded
-with ``cv2.imdecode``).  Images follow OpenCV's layout: ``(H, W)`` for grey, ``(H, W, 3)`` BGR
+with ``cv2.imdecode``).  The size an image states is checked before it is decoded or
+converted (:func:`multieye.core.image_header.size_problem`): ``width``, ``height`` and
+``step`` of a ``sensor_msgs/Image`` against its data length, and the header of a compressed
+image's bytes (:func:`multieye.core.image_header.image_header`); an EXIF orientation in a
+compressed image is ignored (the pixels as the sensor wrote them, like image files).
+Images follow OpenCV's layout: ``(H, W)`` for grey, ``(H, W, 3)`` BGR
 for colour (``rgb8``/``rgba8``/Bayer are converted, alpha dropped).  A sample of a long topic
 (:func:`sample_bag_images`, with :func:`bag_image_count`) decodes only the chosen messages and
 reads the stamp of every other one from its serialized header, one message in memory at a time.
@@ -37,6 +42,7 @@ import numpy as np
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
+from multieye.core.image_header import FORMATS, image_header, size_problem
 from multieye.core.limits import MAX_YAML_BYTES
 from multieye.io.poserows import quaternion_poses, usable_rows
 from multieye.io.textfile import length_scale
@@ -233,6 +239,9 @@ def read_bag_trajectory(path: str | os.PathLike, topic: str, *,
 def _decode_raw(msg, where: str, path) -> np.ndarray:
     enc = msg.encoding
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    problem = size_problem(w, h, "message")
+    if problem is not None:
+        raise DatasetError(f"{where}: {problem}", path=path)
     data = np.asarray(msg.data, dtype=np.uint8)
     if enc in _BAYER:
         dtype, channels, convert = "u1", 1, enc
@@ -266,7 +275,15 @@ def _decode_compressed(msg, where: str, path) -> np.ndarray:
     import cv2
 
     buf = np.asarray(msg.data, dtype=np.uint8)
-    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED) if buf.size else None
+    header = image_header(buf.tobytes()) if buf.size else None
+    if header is None:
+        raise DatasetError(f"{where}: the compressed image (format {msg.format!r}) is not a "
+                           f"{FORMATS} stream, or its header is cut short", path=path)
+    problem = size_problem(header.width, header.height, f"{header.format} header")
+    if problem is not None:
+        raise DatasetError(f"{where}: {problem}", path=path)
+    # IMREAD_UNCHANGED (-1) includes IMREAD_IGNORE_ORIENTATION: the pixels as stored
+    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED | cv2.IMREAD_IGNORE_ORIENTATION)
     if img is None:
         raise DatasetError(f"{where}: cannot decode the compressed image (format "
                            f"{msg.format!r}); expected a JPEG or PNG stream", path=path)

@@ -13,6 +13,9 @@ without the dataset:
   subsampled to at most a few thousand points;
 - ``timings_s``: seconds spent per stage of the run (:class:`StageTimings`); files written
   before it existed do not have it;
+- ``warnings``: the run's warnings, the same list as in ``calibration.json`` (among them the
+  files read from outside the dataset folder); files written before it existed read with
+  none;
 - per camera, where the target was seen and how well it fits (the target points of every used
   image and their reprojection residuals), the intrinsics' covariance when they were
   estimated and the projection's uncertainty over the image (:mod:`multieye.io.pixel_details`);
@@ -235,6 +238,9 @@ class RunDetails:
         Eye-on-hand: the body pose at which the cameras are drawn; None for eye-to-base.
     timings : StageTimings or None
         None when the file has no ``timings_s`` (written before it existed).
+    warnings : tuple of str
+        The run's warnings, as in ``calibration.json`` (files read from outside the dataset
+        folder among them); empty for files written before ``details.json`` had them.
     """
 
     setup: str
@@ -243,6 +249,7 @@ class RunDetails:
     trajectories: tuple[TrajectoryDetails, ...]
     T_world_body_shown: np.ndarray | None = None
     timings: StageTimings | None = None
+    warnings: tuple[str, ...] = ()
 
     def camera(self, name: str) -> CameraDetails:
         """The details of camera ``name``."""
@@ -328,6 +335,7 @@ def run_details_to_dict(details: RunDetails) -> dict:
         "trajectories": [{"pose": t.pose, "n_samples": t.n_samples, "stamp": _floats(t.stamps),
                           "position": _floats(t.positions)} for t in details.trajectories],
         "cameras": cameras,
+        "warnings": list(details.warnings),
     }
     if details.timings is not None:
         out["timings_s"] = details.timings.as_dict()
@@ -493,9 +501,13 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
             topic=topic, overlaps=None if overlaps is None else tuple(overlaps)))
     if reference not in cams_raw:
         raise r.error(f"reference camera {reference!r} is not one of {', '.join(cams_raw)}")
+    warnings = data.get("warnings", [])
+    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
+        raise r.error("warnings must be a list of strings")
     return RunDetails(setup=setup, reference_camera=reference, cameras=tuple(cameras),
                       trajectories=tuple(trajectories), T_world_body_shown=shown,
-                      timings=_read_timings(r, data.get("timings_s")))
+                      timings=_read_timings(r, data.get("timings_s")),
+                      warnings=tuple(warnings))
 
 
 # --------------------------------------------------------------------------- files

@@ -231,7 +231,7 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
                                               n_samples=int(inside.sum()) or len(traj.stamps)))
     return RunDetails(setup=setup, reference_camera=rec.reference_camera, cameras=tuple(cams),
                       trajectories=tuple(trajectories), T_world_body_shown=T_shown,
-                      timings=run.timings)
+                      timings=run.timings, warnings=tuple(rec.warnings))
 
 
 def write_run_details(path: str | os.PathLike, run: CalibrationRun, *,
