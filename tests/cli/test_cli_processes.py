@@ -172,7 +172,7 @@ def test_sigint_while_workers_start_never_shows_a_traceback(dataset, slow_env, t
                 assert proc.returncode == 128 + signal.SIGINT, (proc.returncode, stderr)
                 assert stderr.strip().splitlines()[-1] == "multieye: stopped by SIGINT", stderr
                 assert "Traceback" not in stderr and "Error" not in stderr, stderr
-                assert wait_until(lambda: not group_members(proc.pid), timeout=5.0) is not None
+                assert wait_until(lambda p=proc: not group_members(p.pid), timeout=5.0) is not None
                 assert _tree(out) == before and _beside(out) == []
             else:
                 _stopped_cleanly(proc, signal.SIGINT, out, before)

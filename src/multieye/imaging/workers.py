@@ -119,13 +119,13 @@ def _quiet_forkserver(mp_context) -> int | None:
     or when the fork server was started elsewhere, with the terminal's standard error)."""
     if mp_context is None or mp_context.get_start_method() != "forkserver":
         return None
-    from multiprocessing import forkserver
+    from multiprocessing import forkserver  # noqa: PLC0415 (only where the forkserver is used)
 
     if "fd" not in _WORKER_STDERR:
         server = getattr(forkserver, "_forkserver", None)
         if getattr(server, "_forkserver_pid", None) is not None:
             return None         # already running, started by someone else
-        import tempfile
+        import tempfile  # noqa: PLC0415 (only once, when the forkserver first starts)
 
         try:
             with tempfile.TemporaryFile(prefix="multieye-workers-") as log:

@@ -451,7 +451,7 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
     """
     stream = _rows(_lines(path, "Vicon CSV export"))
     heads = set()   # sections seen, up to Segments; other sections' rows are not kept
-    for number, r in stream:
+    for number, r in stream:  # noqa: B007 (number is read after the loop)
         if r and r[0].strip() in _VICON_SECTIONS and _blank(r[1:]):
             heads.add(r[0].strip())
             if r[0].strip() == "Segments":
