@@ -37,7 +37,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.geometry import is_rigid
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.io.atomic import write_text_atomic
-from multieye.io.textfile import read_json
+from multieye.io.textfile import read_json_as
 
 __all__ = [
     "FORMAT_VERSION",
@@ -590,10 +590,4 @@ def read_calibration(path: str | os.PathLike) -> CalibrationRecord:
         Missing file, invalid JSON (with the line), or any check of
         :func:`calibration_from_dict`.
     """
-    data = read_json(path, what="calibration file")
-    try:
-        return calibration_from_dict(data, path)
-    except (TypeError, ValueError, OverflowError, AttributeError, KeyError, IndexError,
-            RecursionError) as exc:     # a value of a type no check above foresaw
-        raise DatasetError(f"unexpected content ({type(exc).__name__}: {exc})",
-                           path=path) from None
+    return read_json_as(path, calibration_from_dict, what="calibration file")

@@ -53,12 +53,10 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 import numpy as np
 
 from multieye.core import geometry
-from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_TABLE_BYTES
-from multieye.core.regular_files import open_bounded_text
 from multieye.io.poserows import QuaternionRows, trajectory_from_rows, usable_rows
-from multieye.io.textfile import LENGTH_UNITS, count_lines, parse_float, text_lines
+from multieye.io.textfile import LENGTH_UNITS, count_lines, parse_float, physical_lines, text_lines
 from multieye.io.trajectory import Trajectory
 
 __all__ = [
@@ -99,20 +97,10 @@ _MAX_HEADER_ROWS = 1000
 
 
 def _lines(path, what: str) -> Iterator[tuple[int, str]]:
-    """Every physical line of a UTF-8 text file as ``(1-based number, text)``, read one at a
-    time (the file is never held whole: a 5-million-row export stays within a few hundred
-    MB); the byte bound :data:`~multieye.core.limits.MAX_TABLE_BYTES` counted while reading."""
-    p = as_path(path, what)
-    with open_bounded_text(p, what=what, max_bytes=MAX_TABLE_BYTES) as f:
-        for number, raw in enumerate(f, start=1):
-            if number == 1 and raw.startswith(b"\xef\xbb\xbf"):
-                raw = raw[3:]
-            try:
-                text = raw.decode("utf-8")
-            except UnicodeDecodeError as exc:
-                raise DatasetError(f"not a UTF-8 text file (byte 0x{raw[exc.start]:02x})",
-                                   path=p, line=number) from None
-            yield number, text.rstrip("\r\n")
+    """Every physical line of the export, one at a time (the file is never held whole: a
+    5-million-row export stays within a few hundred MB), within
+    :data:`~multieye.core.limits.MAX_TABLE_BYTES` (:func:`multieye.io.textfile.physical_lines`)."""
+    return physical_lines(path, what=what, max_bytes=MAX_TABLE_BYTES)
 
 
 def _rows(lines: Iterable[tuple[int, str]], delimiter: str | None = ",",

@@ -69,7 +69,7 @@ from multieye.io.pixel_details import (
     projection_from_dict,
     projection_to_dict,
 )
-from multieye.io.textfile import read_json
+from multieye.io.textfile import read_json_as
 
 __all__ = [
     "FORMAT",
@@ -528,10 +528,4 @@ def read_run_details(path: str | os.PathLike) -> RunDetails:
         Missing file, invalid JSON (with the line), or any check of
         :func:`run_details_from_dict`.
     """
-    data = read_json(path, what="details file")
-    try:
-        return run_details_from_dict(data, path)
-    except (TypeError, ValueError, OverflowError, AttributeError, KeyError, IndexError,
-            RecursionError) as exc:     # a value of a type no check above foresaw
-        raise DatasetError(f"unexpected content ({type(exc).__name__}: {exc})",
-                           path=path) from None
+    return read_json_as(path, run_details_from_dict, what="details file")

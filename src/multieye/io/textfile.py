@@ -85,6 +85,24 @@ def read_json(path: str | os.PathLike, *, what: str = "JSON file",
         raise DatasetError("invalid JSON: nested too deeply", path=path) from None
 
 
+def read_json_as(path: str | os.PathLike, parse, *, what: str = "JSON file"):
+    """``parse(data, path)`` of a JSON file (:func:`read_json`), where a value of a type the
+    parser's own checks did not foresee becomes one line naming the file, never a traceback.
+
+    Raises
+    ------
+    DatasetError
+        As :func:`read_json` and ``parse``, or ``unexpected content (...)``.
+    """
+    data = read_json(path, what=what)
+    try:
+        return parse(data, path)
+    except (TypeError, ValueError, OverflowError, AttributeError, KeyError, IndexError,
+            RecursionError) as exc:     # a value of a type no check of ``parse`` foresaw
+        raise DatasetError(f"unexpected content ({type(exc).__name__}: {exc})",
+                           path=path) from None
+
+
 def data_lines(text: str) -> Iterator[tuple[int, str]]:
     """Non-empty lines with ``#`` comments removed, as ``(1-based line number, content)``."""
     for number, raw in enumerate(text.splitlines(), start=1):
@@ -162,14 +180,16 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
     return table.arrays()
 
 
-def text_lines(path: str | os.PathLike, *, what: str = "file",
-               max_bytes: int = MAX_TABLE_BYTES) -> Iterator[tuple[int, str]]:
-    """:func:`data_lines` of a file read line by line (never the whole text in memory).
+def physical_lines(path: str | os.PathLike, *, what: str = "file",
+                   max_bytes: int = MAX_TABLE_BYTES) -> Iterator[tuple[int, str]]:
+    """Every physical line of a UTF-8 text file as ``(1-based number, text without its line
+    break)``, read one at a time (never the whole text in memory; a leading BOM dropped).
 
     Raises
     ------
     DatasetError
-        As :func:`read_text`, the bound counted as the lines are read.
+        As :func:`read_text`, the bound counted as the lines are read; a line that is not
+        UTF-8, with its number.
     """
     p = as_path(path, what)
     with open_bounded_text(p, what=what, max_bytes=max_bytes) as lines:
@@ -181,9 +201,23 @@ def text_lines(path: str | os.PathLike, *, what: str = "file",
             except UnicodeDecodeError as exc:
                 raise DatasetError(f"not a UTF-8 text file (byte 0x{raw[exc.start]:02x})",
                                    path=p, line=number) from None
-            content = text.split("#", 1)[0].strip()
-            if content:
-                yield number, content
+            yield number, text.rstrip("\r\n")
+
+
+def text_lines(path: str | os.PathLike, *, what: str = "file",
+               max_bytes: int = MAX_TABLE_BYTES) -> Iterator[tuple[int, str]]:
+    """:func:`data_lines` of a file read line by line (never the whole text in memory):
+    :func:`physical_lines` without ``#`` comments, white space and empty lines.
+
+    Raises
+    ------
+    DatasetError
+        As :func:`physical_lines`.
+    """
+    for number, text in physical_lines(path, what=what, max_bytes=max_bytes):
+        content = text.split("#", 1)[0].strip()
+        if content:
+            yield number, content
 
 
 def line_blocks(path: str | os.PathLike, *, what: str = "file", size: int = 1 << 14,

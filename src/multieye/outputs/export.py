@@ -392,49 +392,47 @@ def _tracked_frame(out: Path) -> str | None:
     return frames[0] if len(frames) == 1 else None
 
 
-def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
-    """One camera_info YAML per camera ROS can describe, by file name (the camera's name as a
-    file name, :func:`multieye.core.names.file_stem`); the others named in ``notes``."""
-    stems = file_stems((c.name for c in rec.cameras),
-                       what="file export/camera_info/<camera>.yaml")
-    texts, left = {}, []
-    for cam in rec.cameras:
-        if intr.get(cam.name) is None:
-            left.append((cam.name, "no intrinsics"))
-            continue
-        try:
-            texts[f"{stems[cam.name]}.yaml"] = camera_info_text(intr[cam.name], cam.name)
-        except InputError as exc:
-            left.append((cam.name, str(exc)))
-    left = by_reason(left)
-    if left:
-        notes.append("no camera_info for " + "; ".join(left))
-    if not texts:
-        raise InputError("ROS camera_info cannot describe any camera: " + "; ".join(left))
-    return texts
-
-
-def _cameramodels(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
-    """File name -> text of one mrcal ``.cameramodel`` per camera mrcal can describe
-    (``rt_cam_ref`` from the reference camera's frame; file names from the camera names as
-    :func:`multieye.core.names.file_stems` reduces them); the others named in ``notes``."""
-    stems = file_stems((c.name for c in rec.cameras), what="export/mrcal/<camera>.cameramodel")
+def _per_camera_files(rec: CalibrationRecord, intr: dict, notes: list[str], *, stems_what: str,
+                      suffix: str, note: str, refusal: str, text_of) -> dict[str, str]:
+    """File name -> text of one file per camera a tool can describe, named ``<stem><suffix>``
+    with the stems of :func:`multieye.core.names.file_stems` (``stems_what`` in its message);
+    ``text_of(camera, intrinsics)`` gives the text or an InputError saying why not. The
+    cameras left out go into ``notes`` after ``note``, one group per reason; none left raises
+    InputError after ``refusal``."""
+    stems = file_stems((c.name for c in rec.cameras), what=stems_what)
     texts, left = {}, []
     for cam in rec.cameras:
         try:
             if intr.get(cam.name) is None:
                 raise InputError("no intrinsics")
-            texts[f"{stems[cam.name]}.cameramodel"] = cameramodel_text(
-                intr[cam.name], g.inv(cam.T_ref_cam),
-                note=f"{cam.name}: written by multieye export --format mrcal")
+            texts[stems[cam.name] + suffix] = text_of(cam, intr[cam.name])
         except InputError as exc:
             left.append((cam.name, str(exc)))
     left = by_reason(left)
     if left:
-        notes.append("no .cameramodel for " + "; ".join(left))
+        notes.append(note + "; ".join(left))
     if not texts:
-        raise InputError("mrcal cannot describe any camera: " + "; ".join(left))
+        raise InputError(refusal + "; ".join(left))
     return texts
+
+
+def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
+    """One ROS camera_info YAML per camera ROS can describe (:func:`_per_camera_files`)."""
+    return _per_camera_files(
+        rec, intr, notes, stems_what="file export/camera_info/<camera>.yaml", suffix=".yaml",
+        note="no camera_info for ", refusal="ROS camera_info cannot describe any camera: ",
+        text_of=lambda cam, k: camera_info_text(k, cam.name))
+
+
+def _cameramodels(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
+    """One mrcal ``.cameramodel`` per camera mrcal can describe, ``rt_cam_ref`` from the
+    reference camera's frame (:func:`_per_camera_files`)."""
+    return _per_camera_files(
+        rec, intr, notes, stems_what="export/mrcal/<camera>.cameramodel",
+        suffix=".cameramodel", note="no .cameramodel for ",
+        refusal="mrcal cannot describe any camera: ",
+        text_of=lambda cam, k: cameramodel_text(
+            k, g.inv(cam.T_ref_cam), note=f"{cam.name}: written by multieye export --format mrcal"))
 
 
 def export(out_dir: str | os.PathLike, fmt: str, *,
