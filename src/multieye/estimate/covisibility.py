@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core import geometry as g
-from multieye.core.errors import InputError
+from multieye.core.errors import DisconnectedError, InputError
 
 __all__ = ["Covisibility", "covisibility", "spanning_tree", "link_groups", "unlinked_message",
            "relative_pose", "RigStart", "initial_rig"]
@@ -241,9 +241,9 @@ def initial_rig(T_cam_target, camera, instant, m: int, reference: int = 0,
 
     Raises
     ------
-    InputError
+    DisconnectedError
         When some camera shares no instant with the reference camera's group
-        (:func:`unlinked_message`).
+        (:func:`unlinked_message`; ``names`` holds the cameras outside that group).
     """
     T = np.asarray(T_cam_target, dtype=np.float64).reshape(-1, 4, 4)
     camera = np.asarray(camera, dtype=np.int64)
@@ -252,7 +252,8 @@ def initial_rig(T_cam_target, camera, instant, m: int, reference: int = 0,
     groups = link_groups(cov.shared > 0, [False] * m)
     if len(groups) > 1:
         names = list(names) if names is not None else [f"cam{j}" for j in range(m)]
-        raise InputError(unlinked_message(names, groups))
+        apart = [names[j] for grp in groups if reference not in grp for j in grp]
+        raise DisconnectedError(unlinked_message(names, groups), tuple(apart))
     parent = spanning_tree(cov.shared, reference)
     n_inst = len(cov.instant_cameras)
     view = np.full((n_inst, m), -1, dtype=np.int64)

@@ -29,7 +29,7 @@ Synopsis
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -47,7 +47,10 @@ __all__ = ["RigResult", "refine_rig"]
 F64 = NDArray[np.float64]
 
 _MAX_SIGMA_PASSES = 4
-_SETTLED = 0.01
+#: Relative change of the pixel noise at which its estimate counts as settled.
+_SETTLED = 0.02
+#: Stopping tolerance of the passes after the first (relative decrease of the cost).
+_LATER_TOL = 1e-7
 
 
 @dataclass(frozen=True)
@@ -137,9 +140,10 @@ def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = Non
     opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter)
     c_w = _scale_constant(loss, f_scale)
     iterations, converged = 0, True
-    for _ in range(_MAX_SIGMA_PASSES):
+    for k in range(_MAX_SIGMA_PASSES):
         groups = views.groups(sigma)
-        res = minimize(fams, groups, opts)
+        # after the first pass only the loss's scale moved: a looser stop is enough
+        res = minimize(fams, groups, opts if k == 0 else replace(opts, tol=_LATER_TOL))
         fams, iterations, converged = res.families, iterations + res.iterations, res.converged
         if pixel_sigma is not None:
             break
@@ -147,7 +151,11 @@ def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = Non
         n_params = sum(f.count * f.size for f in fams)
         w = rho((z / f_scale) ** 2, loss)[1]
         new = sigma * np.sqrt(float(w @ z ** 2) / (c_w * max(z.size - n_params, 1)))
-        settled = abs(new - sigma) <= _SETTLED * sigma
+        # settled; or every residual within the loss's quadratic zone at both scales (the
+        # optimum is then the least-squares one, whatever the scale)
+        quadratic = (loss == "linear"
+                     or float(np.abs(z).max()) <= f_scale * min(1.0, new / sigma))
+        settled = abs(new - sigma) <= _SETTLED * sigma or quadratic
         sigma = max(float(new), 1e-6)
         if settled:
             break
