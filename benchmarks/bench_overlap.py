@@ -80,6 +80,15 @@ def corners(data: Path) -> Path:
     inst, _ = instants_from_stamps(stamps, default_sync_tolerance(stamps))
     for name, i in zip(names, inst):
         arrays[f"{name}_instants"] = i
+    # the board's motion capture at each instant (for multieye with --mocap): 0.03 deg and
+    # 0.1 mm per axis, as the rendered rig of bench_peers.py
+    rng = np.random.default_rng(7)
+    T_ref_target = np.asarray(truth["T_ref_target"])
+    T_world_ref = g.transform_from_rotvec([0, 0, 0.4], [0.5, -0.2, 1.0])
+    T_marker_target = g.transform_from_rotvec([0.1, -0.2, 0.3], [0.05, 0.02, -0.03])
+    noise = g.transform_from_rotvec(rng.normal(scale=np.radians(0.03), size=(len(T_ref_target), 3)),
+                                    rng.normal(scale=1e-4, size=(len(T_ref_target), 3)))
+    arrays["mocap_T"] = T_world_ref @ T_ref_target @ g.inv(T_marker_target) @ noise
     np.savez(out, cameras=np.array(names), spacing=SPEC.target["spacing"],
              size=np.array([SPEC.width, SPEC.height]), **arrays)
     print(f"corners: {dict(zip(names, found))} full boards")
@@ -119,6 +128,8 @@ def main(argv=None) -> None:
     names = list(truth["T_ref_cam"])
     c = np.load(npz)
     peers = {"multieye": [sys.executable, str(PEERS / "overlap_multieye.py"), str(npz)],
+             "multieye + mocap": [sys.executable, str(PEERS / "overlap_multieye.py"), str(npz),
+                                  "--mocap"],
              "mrcal": [args.mrcal_python, str(PEERS / "overlap_mrcal.py"), str(npz)],
              "opencv": [sys.executable, str(PEERS / "overlap_opencv.py"), str(npz)]}
     times = {p: [] for p in peers}
@@ -126,7 +137,7 @@ def main(argv=None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(args.runs):
             for peer, cmd in peers.items():
-                res, wall, cpu = run(cmd, Path(tmp) / f"{peer}.json")
+                res, wall, cpu = run(cmd, Path(tmp) / f"{peer.replace(' + ', '_')}.json")
                 results[peer] = res
                 times[peer].append((wall, cpu))
     shared = {n: int(np.isin(c[f"{names[0]}_instants"], c[f"{n}_instants"]).sum())

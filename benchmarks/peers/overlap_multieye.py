@@ -10,6 +10,12 @@ without motion capture: each lens started by OpenCV
 ``T_cam_target``), then the joint problem of every lens, every ``T_ref_cam`` and one board pose
 per instant (:func:`multieye.estimate.refine_rig.refine_rig`, started from the co-visibility
 graph).  Writes per camera ``K``, ``dist``, ``fisheye``, ``T_ref_cam`` and its ``std``.
+
+With ``--mocap`` the board's motion capture (``mocap_T``: ``T_world_marker`` per instant, in
+the npz) is added: the mixed problem of the image-level refinement
+(:func:`multieye.estimate.refine_images.refine_images`), where every image of one instant
+shares that instant's motion-capture pose, started from the closed form
+(:func:`multieye.solve`) on the PnP poses.
 """
 
 from __future__ import annotations
@@ -26,7 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
+from multieye.core import geometry as g
+from multieye.estimate.refine_images import refine_images
 from multieye.estimate.refine_rig import refine_rig
+from multieye.estimate.uncertainty import relative_covariance
 from multieye.estimate.rig_residuals import RigViews
 from multieye.imaging.calibrate import initial_intrinsics
 
@@ -35,6 +44,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("corners", type=Path)
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--mocap", action="store_true", help="use the npz's motion capture too")
     args = ap.parse_args(argv)
     data = np.load(args.corners)
     names = [str(n) for n in data["cameras"]]
@@ -50,8 +60,11 @@ def main(argv=None) -> None:
         lenses.append(start.intrinsics)
         views.append([(obj, u, int(t)) for u, t in zip(c, data[f"{name}_instants"])])
         poses.append(start.T_cam_target)
-    rv = RigViews(views, lenses, names, free_intrinsics=[True] * len(names))
-    res = refine_rig(rv, np.concatenate(poses))
+    if args.mocap:
+        res = with_mocap(data, names, views, lenses, poses)
+    else:
+        rv = RigViews(views, lenses, names, free_intrinsics=[True] * len(names))
+        res = refine_rig(rv, np.concatenate(poses))
     out = {}
     for j, name in enumerate(names):
         lens = res.intrinsics[j]
@@ -61,6 +74,30 @@ def main(argv=None) -> None:
                      "std_rot_deg": float(np.degrees(np.sqrt(np.trace(cov[:3, :3])))),
                      "std_trans_m": float(np.sqrt(np.trace(cov[3:, 3:])))}
     args.out.write_text(json.dumps({"cameras": out, "pixel_sigma": res.pixel_sigma}))
+
+
+class _Mixed:
+    """refine_images' result in refine_rig's names."""
+
+    def __init__(self, ref, names):
+        X = np.asarray(ref.X)
+        self.T_ref_cam = g.inv(X[0]) @ X
+        self.intrinsics = [ref.intrinsics[j] for j in range(len(names))]
+        self.covariance = relative_covariance(X, ref.covariance).covariance
+        self.pixel_sigma = ref.pixel_sigma
+
+
+def with_mocap(data, names, views, lenses, poses):
+    """The mixed problem: pixels and motion capture, one mocap pose per instant."""
+    from multieye.solvers import solve  # noqa: PLC0415 (only with --mocap)
+    M = data["mocap_T"]
+    A = [g.inv(M[[t for *_, t in v]]) for v in views]
+    B = [g.inv(T) for T in poses]
+    sol = solve(A, B, method="joint")
+    obs = [[(o, u, M[t]) for o, u, t in v] for v in views]
+    ref = refine_images("eye-to-base", obs, lenses, sol.X, sol.Y, mocap_rot_sigma_rad=None,
+                        mocap_trans_sigma_m=None, free_intrinsics=[True] * len(names))
+    return _Mixed(ref, names)
 
 
 if __name__ == "__main__":
