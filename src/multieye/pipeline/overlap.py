@@ -1,0 +1,208 @@
+"""The rig linked by what its cameras see together, without motion capture (issue 23).
+
+Stages, each keyed by camera name like the rest of the pipeline:
+
+1. instants: every camera's images with a target pose grouped into instants (equal stamps
+   within ``sync_tolerance``, docs/rig-yaml.md, section 2), each image of a camera's
+   ``intrinsics_images`` an instant of its own (it informs that camera's lens only);
+2. links: the co-visibility graph; cameras in groups that nothing links are refused with one
+   line naming the groups (:func:`multieye.estimate.covisibility.unlinked_message`);
+3. solve: every ``T_ref_cam``, the lenses estimated from the recording (``model:`` or
+   ``refine_intrinsics``) and one target pose per instant, started from the graph and
+   refined on the pixels (:func:`multieye.estimate.refine_rig.refine_rig`);
+4. checks: a camera whose pixels fit the rig far worse than they fit its own PnP poses is
+   doubted (cause ``fit``: cameras not synchronised, a rig that moved, a wrong lens).
+
+Synopsis
+--------
+>>> sol = solve_overlap(cameras, reference="cam0")         # doctest: +SKIP
+>>> sol.result.T_ref_cam, sol.links["cam1"].overlap       # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from multieye.core.errors import DatasetError, DisconnectedError, TooFewMeasurementsError
+from multieye.estimate.covisibility import covisibility, link_groups, unlinked_message
+from multieye.estimate.findings import Finding
+from multieye.estimate.instants import default_sync_tolerance, instants_from_stamps
+from multieye.estimate.refine_rig import RigResult, refine_rig
+from multieye.estimate.rig_residuals import RigViews
+from multieye.pipeline.camera_data import CameraData, Observation
+
+__all__ = ["CameraLinks", "OverlapSolution", "solve_overlap", "observation_instants",
+           "UNEXPLAINED_RATIO"]
+
+#: A camera is doubted (cause ``fit``) when its pixel residuals in the rig are this many times
+#: (in variance) those of its own PnP poses.
+UNEXPLAINED_RATIO = 10.0
+
+
+@dataclass(frozen=True)
+class CameraLinks:
+    """What ties one camera to the others.
+
+    Attributes
+    ----------
+    overlap : dict of str to int
+        Other cameras sharing instants with it, and how many.
+    mocap : bool
+        Paired with motion capture.
+    """
+
+    overlap: dict
+    mocap: bool = False
+
+    def describe(self) -> str:
+        """``overlap with cam1 (31 instants), cam2 (28)``, ``motion capture``, or both."""
+        parts = []
+        if self.overlap:
+            items = [f"{n} ({k}{' instants' if i == 0 else ''})"
+                     for i, (n, k) in enumerate(self.overlap.items())]
+            parts.append("overlap with " + ", ".join(items))
+        if self.mocap:
+            parts.append("motion capture")
+        return "; ".join(parts) or "nothing"
+
+
+@dataclass(frozen=True)
+class OverlapSolution:
+    """The rig solved from co-observations.
+
+    Attributes
+    ----------
+    names : tuple of str
+    reference : str
+    result : RigResult
+        ``T_ref_cam``, lenses, target poses, covariances, residuals (cameras in ``names``'
+        order).
+    used : dict of str to tuple of Observation
+        Per camera the images used (with a target pose), in time order.
+    instants : dict of str to ndarray of int
+        The instant of each used image.
+    links : dict of str to CameraLinks
+    sync_tolerance : float
+        Seconds.
+    findings : tuple of Finding
+        What the checks doubt (empty when nothing).
+    """
+
+    names: tuple[str, ...]
+    reference: str
+    result: RigResult
+    used: dict
+    instants: dict
+    links: dict
+    sync_tolerance: float
+    findings: tuple = ()
+
+
+def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | None
+                         ) -> tuple[dict[str, NDArray[np.int64]], int, float]:
+    """The instant of every observation of every camera, their count, and the tolerance used
+    (``sync_tolerance``, or the default: :func:`multieye.estimate.instants.default_sync_tolerance`).
+    Each camera's ``time_offset`` is applied to its stamps first."""
+    stamps = [np.array([o.stamp for o in d.observations], dtype=np.float64) + d.time_offset
+              for d in cameras.values()]
+    tol = default_sync_tolerance(stamps) if sync_tolerance is None else float(sync_tolerance)
+    inst, k = instants_from_stamps(stamps, tol)
+    return dict(zip(cameras, inst)), k, tol
+
+
+def _check_images(cameras: Mapping[str, CameraData]) -> None:
+    for name, d in cameras.items():
+        if d.intrinsics is None or any(o.image_points is None for o in d.observations):
+            raise DatasetError("a rig without motion capture is linked by the target points "
+                               "its cameras see together; this camera gives poses, not images "
+                               "(give it images:, or add mocap:)", camera=name)
+        if not d.observations:
+            raise TooFewMeasurementsError(f"camera {name}: no image with the target detected")
+
+
+def _links(names, shared) -> dict[str, CameraLinks]:
+    return {n: CameraLinks({names[k]: int(shared[j, k]) for k in np.flatnonzero(shared[j])
+                            if k != j}) for j, n in enumerate(names)}
+
+
+def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
+                  sync_tolerance: float | None = None, robust: bool = True) -> OverlapSolution:
+    """Calibrate the rig from the views its cameras share (module docstring).
+
+    Parameters
+    ----------
+    cameras : mapping of str to CameraData
+        Cameras with images (target points), in rig.yaml's order; no motion capture.
+    reference : str
+        The camera whose frame is ``ref``.
+    sync_tolerance : float, optional
+        Seconds; default a quarter of the shortest interval between two images of a camera.
+    robust : bool
+        Huber loss on the pixels (else least squares).
+
+    Raises
+    ------
+    DatasetError
+        A camera given by poses (no target points).
+    DisconnectedError
+        Cameras in groups that share no instant (one line naming the groups).
+    """
+    _check_images(cameras)
+    names = tuple(cameras)
+    inst, n_inst, tol = observation_instants(cameras, sync_tolerance)
+    cams = [np.full(len(inst[n]), j) for j, n in enumerate(names)]
+    cov = covisibility(np.concatenate(cams), np.concatenate([inst[n] for n in names]),
+                       len(names))
+    groups = link_groups(cov.shared > 0, [False] * len(names))
+    if len(groups) > 1:
+        raise DisconnectedError(unlinked_message(names, groups),
+                                tuple(n for g in groups[1:] for n in (names[j] for j in g)))
+    views, poses, extra = [], [], n_inst
+    for n in names:
+        d = cameras[n]
+        vs = [(o.object_points, o.image_points, int(t)) for o, t in zip(d.observations, inst[n])]
+        poses += [o.T_cam_target for o in d.observations]
+        for o in (d.intrinsics_views if d.intrinsics_estimated else ()):
+            vs.append((o.object_points, o.image_points, extra))
+            poses.append(o.T_cam_target)
+            extra += 1
+        views.append(vs)
+    rv = RigViews(views, [cameras[n].intrinsics for n in names], names,
+                  names.index(reference),
+                  free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
+    result = refine_rig(rv, np.stack(poses), loss="huber" if robust else "linear")
+    used = {n: cameras[n].observations for n in names}
+    return OverlapSolution(names=names, reference=reference, result=result, used=used,
+                           instants=inst, links=_links(names, cov.shared), sync_tolerance=tol,
+                           findings=_fit_findings(names, cameras, rv, result))
+
+
+def _fit_findings(names, cameras: Mapping[str, CameraData], views: RigViews,
+                  result: RigResult) -> tuple[Finding, ...]:
+    """Cameras whose pixels fit the rig far worse than their own PnP poses."""
+    out = []
+    cam_of_point = views.camera[views.view]
+    for j, n in enumerate(names):
+        own = [o.rms_px for o in cameras[n].observations if o.rms_px is not None]
+        if not own:
+            continue
+        r = result.residuals_px[cam_of_point == j]
+        n_obs = len(cameras[n].observations)
+        rig_ms = float(np.mean(np.sum(r[:sum(len(o.image_points) for o in
+                                             cameras[n].observations)] ** 2, axis=1)))
+        own_ms = max(float(np.mean(np.square(own))), 1e-6)
+        ratio = rig_ms / own_ms
+        if ratio >= UNEXPLAINED_RATIO and n_obs:
+            out.append(Finding(
+                "fit", f"poor fit: camera {n}'s target points are {np.sqrt(ratio):.0f} times "
+                f"further from the rig's projection (RMS {np.sqrt(rig_ms):.2f} px) than from "
+                f"its own PnP poses ({np.sqrt(own_ms):.2f} px): the images of one instant do "
+                "not show the target at one pose; check that the cameras are synchronised "
+                "(sync_tolerance, time_offset), that the rig did not move, and its lens", n,
+                ratio, 1.0, {"rig_rms_px": float(np.sqrt(rig_ms)),
+                             "pnp_rms_px": float(np.sqrt(own_ms))}))
+    return tuple(out)

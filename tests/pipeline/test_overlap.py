@@ -1,0 +1,80 @@
+"""The no-mocap stage of the pipeline (issue 23): instants from stamps, links, refusal of
+groups nothing links, the rig within its predicted uncertainty, and the fit check."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from multieye.core import geometry as g
+from multieye.core.errors import DatasetError, DisconnectedError
+from multieye.core.lie import log_so3
+from multieye.pipeline.camera_data import CameraData, Observation
+from multieye.pipeline.overlap import solve_overlap
+from multieye.sim.overlap import OverlapSpec, pixel_views, simulate_overlap
+
+SIGMA = 0.3
+
+
+def _cameras(seed=0, shift=None, n=20, jitter=0.001):
+    sc = simulate_overlap(np.random.default_rng(seed), OverlapSpec(n_instants=n))
+    rng = np.random.default_rng(seed + 1)
+    views = pixel_views(sc, SIGMA, rng)
+    shift = shift or {}
+    cams = {}
+    for j, vs in enumerate(views):
+        obs = []
+        for o, u, t in vs:
+            tt = shift.get(j, lambda x: x)(t)
+            T = g.inv(sc.T_ref_cam[j]) @ sc.T_ref_target[t]
+            T = T @ g.transform_from_rotvec(rng.normal(scale=0.01, size=3),
+                                            rng.normal(scale=0.005, size=3))
+            obs.append(Observation(name=f"{t}.png", stamp=100 + 0.25 * tt
+                                   + rng.uniform(-jitter, jitter), T_cam_target=T,
+                                   rms_px=SIGMA, object_points=o, image_points=u))
+        cams[f"cam{j}"] = CameraData(name=f"cam{j}", intrinsics=sc.intrinsics[j],
+                                     observations=tuple(obs), rejected=(), n_inputs=len(obs),
+                                     mocap=None, time_offset=0.0, time_tolerance=0.03)
+    return sc, cams
+
+
+def test_the_rig_is_recovered_within_its_uncertainty_with_its_links():
+    sc, cams = _cameras()
+    sol = solve_overlap(cams, "cam0")
+    assert sol.sync_tolerance == 0.01          # a quarter of 0.25 s, capped at 0.01 s
+    res = sol.result
+    for j in (1, 2):
+        e = np.concatenate([log_so3(res.T_ref_cam[j, :3, :3] @ sc.T_ref_cam[j, :3, :3].T),
+                            res.T_ref_cam[j, :3, 3] - sc.T_ref_cam[j, :3, 3]])
+        assert float(e @ np.linalg.solve(res.covariance[j], e)) < 30      # chi2(6) tail
+    both = int(np.sum(sc.seen[:, 0] & sc.seen[:, 1]))
+    assert sol.links["cam0"].overlap["cam1"] == both == sol.links["cam1"].overlap["cam0"]
+    assert "overlap with cam1" in sol.links["cam0"].describe()
+    assert sol.findings == ()
+    assert abs(res.pixel_sigma - SIGMA) < 0.05
+
+
+def test_cameras_nothing_links_are_refused_naming_the_groups():
+    # cam2's clock 10 s away: its images share no instant with the others
+    _, cams = _cameras(shift={2: lambda t: t + 40})
+    with pytest.raises(DisconnectedError, match=r"2 groups .*\{cam0, cam1\} and \{cam2\}.*"
+                                                r"sync_tolerance.*mocap"):
+        solve_overlap(cams, "cam0")
+
+
+def test_a_camera_off_by_one_frame_is_doubted():
+    # cam2's images stamped one frame late: its views pair with the wrong instants
+    _, cams = _cameras(shift={2: lambda t: t + 1}, n=30)
+    sol = solve_overlap(cams, "cam0")
+    assert [f.camera for f in sol.findings if f.cause == "fit"] != []
+    assert "synchronised" in sol.findings[0].message
+
+
+def test_a_camera_given_by_poses_is_refused():
+    _, cams = _cameras()
+    d = cams["cam1"]
+    cams["cam1"] = CameraData(name="cam1", intrinsics=None, observations=tuple(
+        Observation(o.name, o.stamp, o.T_cam_target) for o in d.observations), rejected=(),
+        n_inputs=d.n_inputs, mocap=None, time_offset=0.0, time_tolerance=0.03)
+    with pytest.raises(DatasetError, match="gives poses, not images"):
+        solve_overlap(cams, "cam0")
