@@ -2,10 +2,10 @@
 
 Run from the repository root::
 
-    python benchmarks/bench_overlap.py [--data /tmp/bench_overlap] [--runs 3]
+    python benchmarks/bench_overlap.py [--data /tmp/bench_overlap] [--seeds 5] [--runs 3]
         [--mrcal-python /tmp/venv-h-bench-mrcal/bin/python]
 
-The rig (:func:`multieye.sim.overlap.render_overlap_dataset`, seed 0): three cameras on an
+The rig (:func:`multieye.sim.overlap.render_overlap_dataset`, seeds 0 .. --seeds - 1): three cameras on an
 arc 34 degrees apart, 1.2 m from the centre of the work volume, two radial-tangential lenses
 (k1 k2 p1 p2) and one equidistant fisheye, 800 x 600; a 6 x 9 chessboard shown at 50 instants,
 rendered (blur 0.7 px, sensor noise 2 grey levels), no motion capture.  The corners are
@@ -22,8 +22,9 @@ own process (``benchmarks/peers/overlap_*.py``; imports included in the time):
 
 Reported per peer and camera: the lens's projection error over the observed corners (px, RMS;
 raw and after the best-fitting rotation, ``benchmarks/peers/lens_error.py``), the error of
-``T_ref_cam`` against the truth (deg, mm), and per peer the wall and CPU time (median over
-``--runs``, the peers interleaved so that they see the same load).  Nothing is asserted.
+``T_ref_cam`` against the truth (deg, mm), RMS over the rigs, and per peer the wall and CPU
+time (median over every run, the peers interleaved so that they see the same load).  Nothing
+is asserted.
 """
 
 from __future__ import annotations
@@ -114,58 +115,75 @@ def lens_error(est: dict, true: dict, pixels: np.ndarray) -> tuple[float, float]
     return errors(lambda r: project(r, est["K"], est["dist"], est["fisheye"]), rays, truth)
 
 
+def evaluate(results: dict, truth: dict, c) -> dict:
+    """peer -> camera -> (lens raw, lens after rotation, deg, mm)."""
+    names = list(truth["T_ref_cam"])
+    out = {}
+    for peer, res in results.items():
+        out[peer] = {}
+        for name in names:
+            est = res["cameras"][name]
+            raw, rot = lens_error(est, truth["intrinsics"][name],
+                                  c[f"{name}_corners"].reshape(-1, 2))
+            T, Tt = np.asarray(est["T_ref_cam"]), np.asarray(truth["T_ref_cam"][name])
+            out[peer][name] = (raw, rot, np.degrees(g.rotation_angle_between(T, Tt)),
+                               1e3 * g.translation_distance(T, Tt))
+    return out
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=Path("/tmp/bench_overlap"))
-    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--seeds", type=int, default=1, help="rendered rigs (seeds 0, 1, ...)")
+    ap.add_argument("--runs", type=int, default=3, help="timed runs of each peer per rig")
     ap.add_argument("--mrcal-python", default="/tmp/venv-h-bench-mrcal/bin/python")
     ap.add_argument("--processes", type=int, default=2)
     args = ap.parse_args(argv)
-    if not (args.data / "ground_truth.json").exists():
-        render_overlap_dataset(args.data, SPEC, seed=0, models=True, processes=args.processes)
-    npz = corners(args.data)
-    truth = json.loads((args.data / "ground_truth.json").read_text())
-    names = list(truth["T_ref_cam"])
-    c = np.load(npz)
-    peers = {"multieye": [sys.executable, str(PEERS / "overlap_multieye.py"), str(npz)],
-             "multieye + mocap": [sys.executable, str(PEERS / "overlap_multieye.py"), str(npz),
-                                  "--mocap"],
-             "mrcal": [args.mrcal_python, str(PEERS / "overlap_mrcal.py"), str(npz)],
-             "opencv": [sys.executable, str(PEERS / "overlap_opencv.py"), str(npz)]}
-    times = {p: [] for p in peers}
-    results = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        for _ in range(args.runs):
-            for peer, cmd in peers.items():
-                res, wall, cpu = run(cmd, Path(tmp) / f"{peer.replace(' + ', '_')}.json")
-                results[peer] = res
-                times[peer].append((wall, cpu))
-    shared = {n: int(np.isin(c[f"{names[0]}_instants"], c[f"{n}_instants"]).sum())
-              for n in names[1:]}
-    print(f"shared instants with {names[0]}: {shared}; images: "
-          f"{ {n: len(c[f'{n}_instants']) for n in names} }")
+    times, errs = {}, []
+    for seed in range(args.seeds):
+        data = args.data / f"seed{seed}"
+        if not (data / "ground_truth.json").exists():
+            render_overlap_dataset(data, SPEC, seed=seed, models=True, processes=args.processes)
+        npz = corners(data)
+        truth = json.loads((data / "ground_truth.json").read_text())
+        names = list(truth["T_ref_cam"])
+        c = np.load(npz)
+        peers = {"multieye": [sys.executable, str(PEERS / "overlap_multieye.py"), str(npz)],
+                 "multieye + mocap": [sys.executable, str(PEERS / "overlap_multieye.py"),
+                                      str(npz), "--mocap"],
+                 "mrcal": [args.mrcal_python, str(PEERS / "overlap_mrcal.py"), str(npz)],
+                 "opencv": [sys.executable, str(PEERS / "overlap_opencv.py"), str(npz)]}
+        results = {}
+        with tempfile.TemporaryDirectory() as tmp:
+            for _ in range(args.runs):
+                for peer, cmd in peers.items():
+                    res, wall, cpu = run(cmd, Path(tmp) / f"{peer.replace(' + ', '_')}.json")
+                    results[peer] = res
+                    times.setdefault(peer, []).append((wall, cpu))
+        shared = {n: int(np.isin(c[f"{names[0]}_instants"], c[f"{n}_instants"]).sum())
+                  for n in names[1:]}
+        print(f"seed {seed}: images { {n: len(c[f'{n}_instants']) for n in names} }, "
+              f"shared with {names[0]}: {shared}")
+        if "multieye" in results:
+            std = {n: (round(v.get("std_rot_deg", 0), 4), round(1e3 * v.get("std_trans_m", 0), 3))
+                   for n, v in results["multieye"]["cameras"].items()}
+            print(f"  multieye predicted std (deg, mm): {std}; pixel sigma "
+                  f"{results['multieye']['pixel_sigma']:.3f} px")
+        errs.append(evaluate(results, truth, c))
+    names = list(errs[0][next(iter(errs[0]))])
+    print(f"RMS over {args.seeds} rig(s):")
     print("| peer | camera | lens px | lens px after rotation | T_ref_cam deg | T_ref_cam mm |")
     print("|---|---|---|---|---|---|")
-    for peer, res in results.items():
+    for peer in errs[0]:
         for name in names:
-            est = res["cameras"][name]
-            px = c[f"{name}_corners"].reshape(-1, 2)
-            raw, rot = lens_error(est, truth["intrinsics"][name], px)
-            T, Tt = np.asarray(est["T_ref_cam"]), np.asarray(truth["T_ref_cam"][name])
-            ext = ("-", "-") if name == names[0] else (
-                f"{np.degrees(g.rotation_angle_between(T, Tt)):.4f}",
-                f"{1e3 * g.translation_distance(T, Tt):.3f}")
-            print(f"| {peer} | {name} | {raw:.3f} | {rot:.3f} | {ext[0]} | {ext[1]} |")
+            v = np.sqrt(np.mean(np.square([e[peer][name] for e in errs]), axis=0))
+            ext = ("-", "-") if name == names[0] else (f"{v[2]:.4f}", f"{v[3]:.3f}")
+            print(f"| {peer} | {name} | {v[0]:.3f} | {v[1]:.3f} | {ext[0]} | {ext[1]} |")
     print("| peer | wall s (median) | CPU s (median) |")
     print("|---|---|---|")
     for peer, ts in times.items():
         w, cpu = np.median(np.asarray(ts), axis=0)
         print(f"| {peer} | {w:.2f} | {cpu:.2f} |")
-    if "multieye" in results:
-        std = {n: (round(v.get("std_rot_deg", 0), 4), round(1e3 * v.get("std_trans_m", 0), 3))
-               for n, v in results["multieye"]["cameras"].items()}
-        print(f"multieye predicted std (deg, mm): {std}; pixel sigma "
-              f"{results['multieye']['pixel_sigma']:.3f} px")
 
 
 if __name__ == "__main__":
