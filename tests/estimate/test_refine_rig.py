@@ -162,3 +162,15 @@ def test_covariance_of_t_ref_cam_is_honest_over_simulated_rigs(free):
     assert 0.5 < mean < 2.0, mean
     if free:
         assert 0.5 < float(np.mean(lens)) < 2.0, np.mean(lens)
+
+
+def test_one_wrong_pnp_pose_does_not_pull_an_instants_start():
+    sc = _scenario(0)
+    views = pixel_views(sc)
+    rv = RigViews(views, sc.intrinsics, ["a", "b", "c"])
+    T = _pnp_like(sc, views, np.random.default_rng(0), 0, 0)
+    both = np.flatnonzero(sc.seen.all(axis=1))[0]
+    wrong = np.flatnonzero((rv.camera == 2) & (rv.instant == both))[0]
+    T[wrong] = T[wrong] @ g.transform_from_rotvec([0.6, 0, 0], [0, 0, 0])
+    start = initial_rig(T, rv.camera, rv.instant, 3)
+    assert g.rotation_angle_between(start.T_ref_target[both], sc.T_ref_target[both]) < 1e-9

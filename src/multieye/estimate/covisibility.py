@@ -12,7 +12,8 @@ strongest links first: the maximum spanning tree of the graph, walked from the r
 camera, places each camera relative to its tree parent by the relative pose averaged over
 their shared instants (chordal L2 mean of the rotations, per-axis median of the
 translations, both robust to a few wrong PnP poses), and each instant's ``T_ref_target``
-starts from the mean of its cameras' ``T_ref_cam @ T_cam_target``.
+starts from the mean of its cameras' ``T_ref_cam @ T_cam_target`` that agree with their
+medoid (one wrong PnP pose does not pull it).
 
 Cameras that share no instant, directly or through others, fall into *groups* that nothing in
 the images links; only motion capture can (every camera with motion capture is linked to every
@@ -270,10 +271,19 @@ def initial_rig(T_cam_target, camera, instant, m: int, reference: int = 0,
             T_p_j = relative_pose(T[view[both, p]], T[view[both, j]])
             T_ref_cam[j] = T_ref_cam[p] @ T_p_j
             placed[j] = True
-    T_ref_target = np.empty((n_inst, 4, 4))
     in_ref = T_ref_cam[camera] @ T                                   # (n_views, 4, 4)
-    for t in range(n_inst):
-        vs = view[t][view[t] >= 0]
-        T_ref_target[t] = g.make_transform(g.rotation_mean(in_ref[vs, :3, :3]),
-                                           in_ref[vs, :3, 3].mean(axis=0))
+    T_ref_target = np.stack([_consensus_pose(in_ref[view[t][view[t] >= 0]])
+                             for t in range(n_inst)])
     return RigStart(T_ref_cam, T_ref_target, parent)
+
+
+def _consensus_pose(T: F64) -> F64:
+    """One pose from a few estimates of it (n, 4, 4): the mean of those within 2 degrees of
+    the medoid (the estimate nearest the others in rotation), so that one wrong PnP pose (a
+    board's mirrored solution) does not pull the start."""
+    if len(T) == 1:
+        return T[0]
+    R = T[:, :3, :3]
+    angle = g.rotation_angle(np.swapaxes(R, 1, 2)[:, None] @ R[None])          # (n, n)
+    near = angle[int(np.argmin(angle.sum(axis=1)))] <= np.radians(2.0)
+    return g.make_transform(g.rotation_mean(R[near]), T[near, :3, 3].mean(axis=0))
