@@ -73,6 +73,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.names import file_stems
 from multieye.io.atomic import confined_to, make_folder, write_text_atomic
 from multieye.io.intrinsics import camera_info_text, distortion_model_name
+from multieye.outputs.stereo import opencv_stereo_lines, per_camera, stereo_pairs
 from multieye.io.cameramodel import cameramodel_text
 from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict, named_keys,
                                           read_calibration)
@@ -416,12 +417,26 @@ def _per_camera_files(rec: CalibrationRecord, intr: dict, notes: list[str], *, s
     return texts
 
 
-def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
-    """One ROS camera_info YAML per camera ROS can describe (:func:`_per_camera_files`)."""
+def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str],
+                  overlaps: dict | None = None) -> dict[str, str]:
+    """One ROS camera_info YAML per camera ROS can describe (:func:`_per_camera_files`), a
+    camera of a stereo pair with its rectification (:mod:`multieye.outputs.stereo`)."""
+    pairs, stereo_notes = stereo_pairs(rec, intr, overlaps)
+    notes += stereo_notes
+    rect = per_camera(pairs)
     return _per_camera_files(
         rec, intr, notes, stems_what="file export/camera_info/<camera>.yaml", suffix=".yaml",
         note="no camera_info for ", refusal="ROS camera_info cannot describe any camera: ",
-        text_of=lambda cam, k: camera_info_text(k, cam.name))
+        text_of=lambda cam, k: camera_info_text(k, cam.name, rect.get(cam.name)))
+
+
+def _overlaps(out: Path) -> dict | None:
+    """details.json's ``overlaps`` per camera, when it has them for every camera."""
+    if not (out / "details.json").exists():
+        return None
+    cams = read_run_details(out / "details.json").cameras
+    return ({c.name: c.overlaps for c in cams} if all(c.overlaps is not None for c in cams)
+            else None)
 
 
 def _cameramodels(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
@@ -488,7 +503,8 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
     path = folder / FORMATS[fmt]
     if fmt in ("camera-info", "mrcal"):
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
-        texts = (_camera_infos if fmt == "camera-info" else _cameramodels)(rec, intr, notes)
+        texts = (_camera_infos(rec, intr, notes, _overlaps(out)) if fmt == "camera-info"
+                 else _cameramodels(rec, intr, notes))
         sub = FORMATS[fmt].split("/")[0]
         _export_folder(folder, dest)
         make_folder(folder / sub)
@@ -496,9 +512,7 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
     if fmt == "kalibr":
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
         cams = read_run_details(out / "details.json").cameras
-        overlaps = ({c.name: c.overlaps for c in cams}
-                    if all(c.overlaps is not None for c in cams) else None)
-        kept, left = kalibr_chain(rec, intr, {c.name: c.topic for c in cams}, overlaps)
+        kept, left = kalibr_chain(rec, intr, {c.name: c.topic for c in cams}, _overlaps(out))
         if not kept:
             raise InputError("Kalibr cannot hold any camera: " + "; ".join(left))
         _export_folder(folder, dest)
@@ -508,7 +522,11 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
                          "out: " + "; ".join(left))
         return [path]
     if fmt == "opencv":
-        text = opencv_text(rec, _intrinsics(out, rec, required=False), parent_frame)
+        intr = _intrinsics(out, rec, required=False)
+        pairs, stereo_notes = stereo_pairs(rec, intr, _overlaps(out))
+        notes += stereo_notes
+        text = opencv_text(rec, intr, parent_frame) + "".join(
+            line + "\n" for line in opencv_stereo_lines(pairs, _opencv_matrix))
     elif fmt == "urdf":
         text = urdf_text(rec, parent_frame, child_frame)
     elif fmt == "tf-static":
