@@ -33,7 +33,7 @@ from multieye.estimate.findings import Finding
 from multieye.estimate.instants import default_sync_tolerance, instants_from_stamps
 from multieye.estimate.refine_rig import RigResult, refine_rig
 from multieye.estimate.rig_residuals import RigViews
-from multieye.pipeline.camera_data import CameraData, Observation
+from multieye.pipeline.camera_data import CameraData
 
 __all__ = ["CameraLinks", "OverlapSolution", "solve_overlap", "observation_instants",
            "UNEXPLAINED_RATIO"]
