@@ -29,7 +29,7 @@ import json
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import fields
 
 import numpy as np
 
@@ -141,7 +141,7 @@ def _intrinsics_dict(r: IntrinsicsRecord) -> dict:
                 "mean": float(r.projection_std_px[0]), "max": float(r.projection_std_px[1])}}
 
 
-def _read_uncertainty(obj, w: "_Where", keys: tuple[str, ...], camera=None) -> dict:
+def _read_uncertainty(obj, w: _Where, keys: tuple[str, ...], camera=None) -> dict:
     if not isinstance(obj, Mapping) or not set(obj) <= set(keys):
         raise w.error(f"uncertainty must be an object with keys among {', '.join(keys)}",
                       camera)
@@ -159,7 +159,7 @@ def _read_uncertainty(obj, w: "_Where", keys: tuple[str, ...], camera=None) -> d
     return out
 
 
-def _read_intrinsics(obj, w: "_Where", camera) -> IntrinsicsRecord:
+def _read_intrinsics(obj, w: _Where, camera) -> IntrinsicsRecord:
     if not isinstance(obj, Mapping):
         raise w.error("intrinsics must be an object", camera)
     model = w.need(obj, "model", "intrinsics", camera)
@@ -190,7 +190,7 @@ def _read_intrinsics(obj, w: "_Where", camera) -> IntrinsicsRecord:
     return IntrinsicsRecord(intr, estimated, cov, proj)
 
 
-def _read_links(obj, w: "_Where", camera) -> CameraLinks:
+def _read_links(obj, w: _Where, camera) -> CameraLinks:
     if not isinstance(obj, Mapping) or not isinstance(obj.get("overlap", {}), Mapping):
         raise w.error('links must be {"overlap": {camera: instants}, "mocap": true/false}',
                       camera)
