@@ -109,7 +109,7 @@ _SOURCES = ("images", "poses", "rosbag")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
-TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
+TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics", "sync_tolerance")
 TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
 MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
               "rotation_noise_deg", "translation_noise_m", "match", "sensor",
@@ -237,7 +237,10 @@ class Rig:
     target : TargetSpec or None
         None when no camera has images.
     mocap : MocapSpec or None
-        None when every camera has its own.
+        None when every camera has its own, or when the rig has no motion capture.
+    sync_tolerance : float or None
+        Seconds: images of different cameras this close in time are one instant (None: the
+        default, a quarter of the shortest interval between two images of a camera).
     """
 
     path: Path
@@ -245,6 +248,13 @@ class Rig:
     cameras: Mapping[str, CameraSpec]
     target: TargetSpec | None = None
     mocap: MocapSpec | None = field(default=None)
+    sync_tolerance: float | None = None
+
+    @property
+    def has_mocap(self) -> bool:
+        """Motion capture links the rig (rig.yaml's ``mocap:``, or each camera's own); without
+        it the cameras are linked by the views they share (docs/rig-yaml.md, section 2)."""
+        return self.mocap is not None or any(c.mocap is not None for c in self.cameras.values())
 
     @property
     def folder(self) -> Path:
@@ -539,9 +549,17 @@ def load_rig(path: str | os.PathLike) -> Rig:
     doc = load_yaml(p.resolve() if p.is_symlink() else p,    # else named as typed
                     what="rig description (rig.yaml)")
     c = _Checker(doc)
-    raw = c.mapping(doc.data if doc.data is not None else {}, (),
-                    TOP_LEVEL_KEYS, ("setup", "cameras"))
-    setup = c.choice(raw["setup"], ("setup",), tuple(SETUPS))
+    raw = c.mapping(doc.data if doc.data is not None else {}, (), TOP_LEVEL_KEYS, ("cameras",))
+    any_mocap = "mocap" in raw or any(isinstance(cam, Mapping) and "mocap" in cam for cam in (
+        raw["cameras"].values() if isinstance(raw["cameras"], Mapping) else ()))
+    if "setup" not in raw and any_mocap:
+        raise c.error("missing key 'setup' (eye-to-base or eye-on-hand: what the motion "
+                      "capture tracks)", ())
+    # without motion capture the setup names nothing the calibration uses
+    setup = c.choice(raw.get("setup", "eye-to-base"), ("setup",), tuple(SETUPS))
+    sync = (c.number(raw["sync_tolerance"], ("sync_tolerance",), positive=True,
+                     maximum=MAX_TIME_TOLERANCE_S, unit="seconds")
+            if "sync_tolerance" in raw else None)
     cams_raw = raw["cameras"]
     if not isinstance(cams_raw, Mapping) or not cams_raw:
         raise c.error("expected a mapping of camera name -> camera, with at least one camera",
@@ -561,15 +579,21 @@ def load_rig(path: str | os.PathLike) -> Rig:
             raise c.error(f"camera name {shown(name)} {problem}; a camera name is {NAME_RULE}",
                           ("cameras", name))
         cam = _camera(c, name, cam_raw, top, setup, refine_all)
-        if cam.mocap is None and mocap is None:
+        if cam.mocap is None and mocap is None and any_mocap:
             raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
-                          "key to this camera", ("cameras", name))
-        if (cam.mocap or mocap).by_name and cam.source != "images":
+                          "key to this camera (a rig has motion capture for every camera, "
+                          "or none)", ("cameras", name))
+        if not any_mocap and cam.source == "poses":
+            raise c.error("a rig without motion capture is linked by the target points its "
+                          "cameras see together; a camera given by 'poses' has none (give it "
+                          "'images' or 'rosbag', or add 'mocap')", ("cameras", name))
+        if any_mocap and (cam.mocap or mocap).by_name and cam.source != "images":
             raise c.error("poses matched by image name ({stem}, match: image or order) need "
                           "a folder of 'images'",
                           ("cameras", name))
         cameras[cam.name] = cam
-    named = {n: (cam.mocap or mocap).frame_names for n, cam in cameras.items()}
+    named = {n: (cam.mocap or mocap).frame_names for n, cam in cameras.items()
+             if any_mocap}
     if len(set(named.values())) > 1:
         first, other = next(iter(named)), next(n for n in named
                                                 if named[n] != next(iter(named.values())))
@@ -584,7 +608,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
         needing = [n for n, cam in cameras.items() if cam.source != "poses"]
         raise DatasetError(f"missing key 'target': cameras with images ({', '.join(needing)}) "
                            "need the calibration board described", path=doc.path, line=1)
-    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap)
+    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap, sync)
 
 
 def read_camera_intrinsics(camera: CameraSpec) -> Intrinsics:

@@ -109,7 +109,7 @@ FORMATS = {
 }
 
 #: setup -> name of the frame the cameras' X is expressed in.
-BASE_FRAME = {"eye-to-base": "world", "eye-on-hand": "body"}
+BASE_FRAME = {"eye-to-base": "world", "eye-on-hand": "body", "overlap": "ref"}
 
 _TF_COMMAND = ("ros2", "run", "tf2_ros", "static_transform_publisher")
 
@@ -185,18 +185,18 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
     ``distortion_coefficients`` (1 x k), ``image_width`` and ``image_height``.  Read it with
     ``cv2.FileStorage(path, cv2.FILE_STORAGE_READ)``; ``fs.getNode("cameras").at(j)``.
     """
-    y_key, x_key = named_keys(rec.setup, rec.frames)
+    y_key, x_key = named_keys(rec.setup, rec.frames) if rec.mocap else (None, None)
     lines = ["%YAML:1.0", "---",
              "# multieye calibration: T_a_b maps coordinates in frame b to frame a (metres)",
              f"setup: {json.dumps(rec.setup)}", f"method: {json.dumps(rec.method)}",
              f"reference_camera: {json.dumps(rec.reference_camera)}",
              f"base_frame: {json.dumps(frame_names(rec, parent)[0])}",
-             *_opencv_matrix(y_key, rec.Y, ""), "cameras:"]
+             *(_opencv_matrix(y_key, rec.Y, "") if rec.mocap else []), "cameras:"]
     ind = "      "
     for cam in rec.cameras:
         lines += ["   -", f"{ind}name: {json.dumps(cam.name)}",
                   *_opencv_matrix("T_ref_cam", cam.T_ref_cam, ind),
-                  *_opencv_matrix(x_key, cam.X, ind)]
+                  *(_opencv_matrix(x_key, cam.X, ind) if cam.X is not None else [])]
         intr = intrinsics.get(cam.name)
         if intr is not None:
             lines += _opencv_matrix("camera_matrix", intr.K, ind)
@@ -240,6 +240,11 @@ def base_frame(rec: CalibrationRecord) -> str:
     tracked one for eye-on-hand."""
     role = BASE_FRAME[rec.setup]
     return role if rec.frames is None else rec.frames[role]
+
+
+def base_pose(cam) -> np.ndarray:
+    """The camera's pose in the base frame: its X, or without motion capture ``T_ref_cam``."""
+    return cam.T_ref_cam if cam.X is None else cam.X
 
 
 def frame_names(rec: CalibrationRecord, parent: str | None = None,
@@ -289,7 +294,7 @@ def urdf_text(rec: CalibrationRecord, parent: str | None = None,
         link, optical = f"{stems[cam.name]}_link", f"{stems[cam.name]}_optical_frame"
         ET.SubElement(robot, "link", name=link)
         ET.SubElement(robot, "link", name=optical)
-        _joint(robot, f"{stems[cam.name]}_joint", base, link, cam.X @ T_optical_link)
+        _joint(robot, f"{stems[cam.name]}_joint", base, link, base_pose(cam) @ T_optical_link)
         _joint(robot, f"{stems[cam.name]}_optical_joint", link, optical, T_LINK_OPTICAL)
     ET.indent(robot, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
@@ -309,9 +314,10 @@ def tf_static_text(rec: CalibrationRecord, parent: str | None = None,
              f"optical frame in '{base}'",
              "# (x right, y down, z forward); ROS 2 static_transform_publisher, metres."]
     for cam in rec.cameras:
-        q = g.quat_from_transform(cam.X)  # (qx, qy, qz, qw), qw >= 0
+        X = base_pose(cam)
+        q = g.quat_from_transform(X)  # (qx, qy, qz, qw), qw >= 0
         args = [*_TF_COMMAND,
-                "--x", _f(cam.X[0, 3]), "--y", _f(cam.X[1, 3]), "--z", _f(cam.X[2, 3]),
+                "--x", _f(X[0, 3]), "--y", _f(X[1, 3]), "--z", _f(X[2, 3]),
                 "--qx", _f(q[0]), "--qy", _f(q[1]), "--qz", _f(q[2]), "--qw", _f(q[3]),
                 "--frame-id", base, "--child-frame-id", f"{stems[cam.name]}_optical_frame"]
         lines.append(" ".join(shlex.quote(a) for a in args) + " &")

@@ -91,8 +91,9 @@ class CameraData:
         Images left out, and why.
     n_inputs : int
         Images (or pose rows) read.
-    mocap : Trajectory
-        ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand).
+    mocap : Trajectory or None
+        ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand); None for a rig
+        without motion capture.
     time_offset : float
         Motion-capture clock minus camera clock, seconds.
     time_tolerance : float
@@ -118,7 +119,7 @@ class CameraData:
     observations: tuple[Observation, ...]
     rejected: tuple[RejectedItem, ...]
     n_inputs: int
-    mocap: Trajectory
+    mocap: Trajectory | None
     time_offset: float
     time_tolerance: float
     warnings: tuple[str, ...] = ()
@@ -323,7 +324,8 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
     """
     workers = _Workers(processes, progress)
     trajectories: dict[tuple, Trajectory] = {}
-    return {name: _camera_data(rig, name, camera_motion(rig, name, trajectories), workers)
+    return {name: _camera_data(rig, name, camera_motion(rig, name, trajectories)
+                               if rig.has_mocap else CameraMotion(None), workers)
             for name in rig.cameras}
 
 
@@ -355,13 +357,14 @@ def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -
     # motion-capture rows left out, listed with every camera that uses the file
     rejected = seen.rejected + tuple(
         RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
-        for r in motion.trajectory.skipped)
+        for r in (motion.trajectory.skipped if spec is not None else ()))
     return CameraData(name=name, intrinsics=seen.intrinsics, observations=seen.observations,
                       rejected=rejected, n_inputs=seen.n_inputs, mocap=motion.trajectory,
-                      time_offset=cam.time_offset, time_tolerance=spec.time_tolerance,
+                      time_offset=cam.time_offset,
+                      time_tolerance=0.0 if spec is None else spec.time_tolerance,
                       warnings=seen.warnings, detection_s=seen.seconds,
                       intrinsics_estimated=cam.estimate_intrinsics, intrinsics_views=seen.views,
-                      by_name=spec.by_name)
+                      by_name=spec is not None and spec.by_name)
 
 
 def _from_poses(cam) -> _Seen:
@@ -408,9 +411,10 @@ class CameraMotion:
 
     Attributes
     ----------
-    trajectory : Trajectory
+    trajectory : Trajectory or None
         ``T_world_marker`` / ``T_world_body`` samples (for a camera paired by name: at the
-        stamps 0, 1, 2, ... of its images with a pose file, in name order).
+        stamps 0, 1, 2, ... of its images with a pose file, in name order); None for a rig
+        without motion capture.
     listed : list of (float, int, Path), or None
         Paired by name: the images with a pose file as ``(stamp, ns, path)``; else None (the
         images are listed by the detection).
@@ -418,7 +422,7 @@ class CameraMotion:
         Paired by name: images or pose files without their partner, and why.
     """
 
-    trajectory: Trajectory
+    trajectory: Trajectory | None
     listed: list | None = None
     unmatched: tuple[RejectedItem, ...] = ()
 

@@ -59,6 +59,7 @@ from multieye.pipeline.camera_data import (
 )
 from multieye.pipeline.estimated_lens import refit_paired
 from multieye.pipeline.options import Options, updated_options
+from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.refine import Refined, mocap_noise, refine
@@ -165,6 +166,10 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     """
     clock = [time.perf_counter()]
     problem = make_problem(rig, cameras, updated_options(options, kw))
+    if not rig.has_mocap:               # linked by the views the cameras share (issue 23)
+        run = calibrate_overlap(check_overlap_options(problem))
+        return replace(run, timings=StageTimings(refinement=time.perf_counter() - clock[0],
+                                                 total=time.perf_counter() - clock[0]))
     every = pair(problem)
 
     def check() -> Plausibility:      # every measurement: why a failing stage failed
