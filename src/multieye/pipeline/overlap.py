@@ -30,44 +30,23 @@ from numpy.typing import NDArray
 from multieye.core.errors import DatasetError, DisconnectedError, TooFewMeasurementsError
 from multieye.estimate.covisibility import covisibility, link_groups, unlinked_message
 from multieye.estimate.findings import Finding
-from multieye.estimate.instants import default_sync_tolerance, instants_from_stamps
+from multieye.io.calibration_json import CameraLinks
+from multieye.core import geometry as g
+from multieye.estimate.instants import (
+    default_sync_tolerance,
+    instants_from_names,
+    instants_from_stamps,
+)
 from multieye.estimate.refine_rig import RigResult, refine_rig
 from multieye.estimate.rig_residuals import RigViews
-from multieye.pipeline.camera_data import CameraData
+from multieye.pipeline.camera_data import CameraData, PairedCamera
 
 __all__ = ["CameraLinks", "OverlapSolution", "solve_overlap", "observation_instants",
-           "UNEXPLAINED_RATIO"]
+           "paired_instants", "share_instants", "UNEXPLAINED_RATIO"]
 
 #: A camera is doubted (cause ``fit``) when its pixel residuals in the rig are this many times
 #: (in variance) those of its own PnP poses.
 UNEXPLAINED_RATIO = 10.0
-
-
-@dataclass(frozen=True)
-class CameraLinks:
-    """What ties one camera to the others.
-
-    Attributes
-    ----------
-    overlap : dict of str to int
-        Other cameras sharing instants with it, and how many.
-    mocap : bool
-        Paired with motion capture.
-    """
-
-    overlap: dict
-    mocap: bool = False
-
-    def describe(self) -> str:
-        """``overlap with cam1 (31 instants), cam2 (28)``, ``motion capture``, or both."""
-        parts = []
-        if self.overlap:
-            items = [f"{n} ({k}{' instants' if i == 0 else ''})"
-                     for i, (n, k) in enumerate(self.overlap.items())]
-            parts.append("overlap with " + ", ".join(items))
-        if self.mocap:
-            parts.append("motion capture")
-        return "; ".join(parts) or "nothing"
 
 
 @dataclass(frozen=True)
@@ -206,3 +185,46 @@ def _fit_findings(names, cameras: Mapping[str, CameraData], views: RigViews,
                 ratio, 1.0, {"rig_rms_px": float(np.sqrt(rig_ms)),
                              "pnp_rms_px": float(np.sqrt(own_ms))}))
     return tuple(out)
+
+
+def paired_instants(paired: Mapping[str, PairedCamera], cameras: Mapping[str, CameraData],
+                    offsets: Mapping[str, float], sync_tolerance: float | None
+                    ) -> tuple[dict[str, NDArray[np.int64]], dict[str, CameraLinks]]:
+    """The instant of every paired image of a rig with motion capture, and what links each
+    camera: images of different cameras whose stamps (motion-capture clock: plus each
+    camera's offset) are within ``sync_tolerance``, or, when every camera is paired by name,
+    whose names' stems are equal, are one instant."""
+    names = list(paired)
+    if all(cameras[n].by_name for n in names):
+        stems = [[o.name.rsplit(".", 1)[0] for o in paired[n].observations] for n in names]
+        inst, _ = instants_from_names(stems)
+    else:
+        stamps = [np.array([o.stamp for o in paired[n].observations], dtype=np.float64)
+                  + offsets[n] for n in names]
+        tol = default_sync_tolerance(stamps) if sync_tolerance is None else sync_tolerance
+        inst, _ = instants_from_stamps(stamps, tol)
+    cams = np.concatenate([np.full(len(i), j) for j, i in enumerate(inst)])
+    shared = covisibility(cams, np.concatenate(inst), len(names)).shared
+    links = {n: CameraLinks(l.overlap, True) for n, l in _links(tuple(names), shared).items()}
+    return dict(zip(names, inst)), links
+
+
+def share_instants(setup: str, paired: Mapping[str, PairedCamera],
+                   instants: Mapping[str, NDArray[np.int64]]) -> dict[str, PairedCamera]:
+    """Every image of one instant given one motion-capture pose (the first camera's, in rig
+    order), so that the image-level refinement holds one pose of the target per instant
+    (its images share one block and one prior:
+    :class:`multieye.estimate.image_residuals.ImageData`), however far within the tolerance
+    their stamps were."""
+    first: dict[int, np.ndarray] = {}
+    for n, p in paired.items():
+        for k, M in zip(instants[n], p.T_world_mocap):
+            first.setdefault(int(k), M)
+    out = {}
+    for n, p in paired.items():
+        M = np.stack([first[int(k)] for k in instants[n]]) if len(p.T_world_mocap) else \
+            p.T_world_mocap
+        A = g.inv(M) if setup == "eye-to-base" else M
+        out[n] = PairedCamera(name=p.name, A=A, B=p.B, T_world_mocap=M,
+                              observations=p.observations, rejected=p.rejected)
+    return out

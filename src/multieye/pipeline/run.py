@@ -59,6 +59,7 @@ from multieye.pipeline.camera_data import (
 )
 from multieye.pipeline.estimated_lens import refit_paired
 from multieye.pipeline.options import Options, updated_options
+from multieye.pipeline.overlap import paired_instants, share_instants
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
@@ -198,6 +199,10 @@ def pair(problem: Problem) -> Pairing:
     offsets = _offsets(problem)
     paired = {n: pair_camera(problem.setup, d, time_offset=offsets[n])
               for n, d in problem.cameras.items()}
+    if problem.options.time_offset != "auto":    # cameras that see the target together
+        instants, _ = paired_instants(paired, problem.cameras, offsets,
+                                      problem.rig.sync_tolerance)
+        paired = share_instants(problem.setup, paired, instants)
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=list(paired), per_camera_motion=False)
     return Pairing(offsets=offsets, paired=paired, measurements=meas,

@@ -1,0 +1,103 @@
+"""Rigs linked by what the cameras see together, end to end (issue 23): a rendered rig of three
+cameras without motion capture, the same rig with the board's motion capture (a mixed rig),
+and a rig whose cameras nothing links."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from multieye.cli import main
+from multieye.core import geometry as g
+from multieye.core.lie import log_so3
+from multieye.sim.overlap import OverlapSpec, render_overlap_dataset
+
+SPEC = OverlapSpec(n_instants=16, width=640, height=480)
+
+
+def _calibrate(ds: Path, out: Path, *extra: str):
+    return CliRunner().invoke(main, ["calibrate", str(ds), "-o", str(out), "--processes", "1",
+                                     *extra])
+
+
+def _truth(ds: Path) -> dict:
+    return json.loads((ds / "ground_truth.json").read_text())
+
+
+def _within_uncertainty(data: dict, truth: dict) -> None:
+    """Every T_ref_cam within 4 sigma of the truth in each of rotation and translation (the
+    covariance the run reports, from the pixel noise it estimated)."""
+    for name, cam in data["cameras"].items():
+        T, Tt = np.asarray(cam["T_ref_cam"]), np.asarray(truth["T_ref_cam"][name])
+        if name == data["reference_camera"]:
+            assert np.allclose(T, np.eye(4))
+            continue
+        cov = np.asarray(cam["covariance"])
+        e = np.concatenate([log_so3(T[:3, :3] @ Tt[:3, :3].T), T[:3, 3] - Tt[:3, 3]])
+        assert float(e @ np.linalg.solve(cov, e)) < 30, name          # chi2(6) far tail
+        assert np.degrees(g.rotation_angle_between(T, Tt)) < 0.5
+        assert g.translation_distance(T, Tt) < 0.005
+
+
+@pytest.mark.parametrize("models", [False, True], ids=["lenses-given", "lenses-estimated"])
+def test_a_rig_without_motion_capture_is_calibrated_from_its_shared_views(tmp_path, models):
+    ds = tmp_path / "ds"
+    sc = render_overlap_dataset(ds, SPEC, seed=1, models=models)
+    assert "mocap" not in (ds / "rig.yaml").read_text()
+    res = _calibrate(ds, tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    data = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert data["format_version"] == 2 and data["setup"] == "overlap"
+    assert "T_marker_target" not in data and "T_world_target" not in data
+    truth = _truth(ds)
+    _within_uncertainty(data, truth)
+    shared = (sc.seen[:, :, None] & sc.seen[:, None, :]).sum(axis=0)
+    for j, (name, cam) in enumerate(data["cameras"].items()):
+        assert "T_world_cam" not in cam
+        assert cam["links"]["mocap"] is False
+        assert cam["links"]["overlap"] == {f"cam{k}": int(shared[j, k]) for k in range(3)
+                                          if k != j and shared[j, k]}
+        assert cam["intrinsics"]["estimated"] is models
+    # the screen says what links each camera
+    assert "overlap with cam1" in res.output
+    assert (tmp_path / "out" / "details.json").is_file()
+    assert (tmp_path / "out" / "report.html").is_file()
+
+
+def test_a_mixed_rig_is_one_problem_with_both_links(tmp_path):
+    ds = tmp_path / "ds"
+    render_overlap_dataset(ds, SPEC, seed=2, mocap=True)
+    res = _calibrate(ds, tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    data = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert data["setup"] == "eye-to-base" and "T_marker_target" in data
+    _within_uncertainty(data, _truth(ds))
+    for cam in data["cameras"].values():
+        assert cam["links"]["mocap"] is True
+        assert cam["links"]["overlap"]
+
+
+def test_cameras_that_nothing_links_are_refused_in_one_line(tmp_path):
+    ds = tmp_path / "ds"
+    render_overlap_dataset(ds, SPEC, seed=3)
+    for p in sorted((ds / "cam2").iterdir()):          # cam2's clock 100 s late
+        p.rename(p.with_name(f"{float(p.stem) + 100:.6f}.png"))
+    res = _calibrate(ds, tmp_path / "out")
+    assert res.exit_code == 2, res.output
+    lines = [line for line in res.output.splitlines() if line.strip()]
+    assert len(lines) == 1, res.output
+    assert "{cam0, cam1} and {cam2}" in lines[0]
+    assert "sync_tolerance" in lines[0] and "mocap" in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_check_works_on_a_rig_without_motion_capture(tmp_path):
+    ds = tmp_path / "ds"
+    render_overlap_dataset(ds, SPEC, seed=1)
+    res = CliRunner().invoke(main, ["check", str(ds), "--processes", "1"])
+    assert res.exit_code == 0, res.output
+    assert "verdict" in res.output
