@@ -9,11 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from click.testing import CliRunner
 
 from multieye.cli import main
 from multieye.core import geometry as g
 from multieye.core.lie import log_so3
+from multieye.io.run_details import read_run_details
 from multieye.sim.overlap import OverlapSpec, render_overlap_dataset
 
 SPEC = OverlapSpec(n_instants=16, width=640, height=480)
@@ -64,8 +66,28 @@ def test_a_rig_without_motion_capture_is_calibrated_from_its_shared_views(tmp_pa
         assert cam["intrinsics"]["estimated"] is models
     # the screen says what links each camera
     assert "overlap with cam1" in res.output
-    assert (tmp_path / "out" / "details.json").is_file()
-    assert (tmp_path / "out" / "report.html").is_file()
+    # the evidence: every used image's points fit the solution to a fraction of a pixel
+    details = read_run_details(tmp_path / "out" / "details.json")
+    for cam in details.cameras:
+        assert cam.points is not None and cam.points.source == "refined"
+        assert np.all(np.isfinite(cam.points.rms_px)) and np.max(cam.points.rms_px) < 0.5
+        assert np.all(cam.rot_deg < 0.5) and np.all(cam.trans_m < 0.01)
+    assert details.trajectories[0].pose == "T_ref_target"
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert "What links each camera" in html and "No motion capture" in html
+    # exports: the pinhole pair (cam0, cam1) rectified, cam2 (fisheye with pinholes) not
+    res = CliRunner().invoke(main, ["export", str(tmp_path / "out"), "--format", "camera-info"])
+    assert res.exit_code == 0, res.output
+    assert "no stereo rectification for" not in res.output or "cam2" in res.output
+    info = {n: yaml.safe_load((tmp_path / "out" / "export" / "camera_info" / f"{n}.yaml")
+                              .read_text()) for n in ("cam0", "cam1")}
+    R0 = np.reshape(info["cam0"]["rectification_matrix"]["data"], (3, 3))
+    P1 = np.reshape(info["cam1"]["projection_matrix"]["data"], (3, 4))
+    P0 = np.reshape(info["cam0"]["projection_matrix"]["data"], (3, 4))
+    assert not np.allclose(R0, np.eye(3))
+    baseline = g.translation_distance(np.asarray(truth["T_ref_cam"]["cam0"]),
+                                      np.asarray(truth["T_ref_cam"]["cam1"]))
+    assert abs(-min(P0[0, 3], P1[0, 3]) / P1[0, 0] - baseline) < 0.005
 
 
 def test_a_mixed_rig_is_one_problem_with_both_links(tmp_path):
@@ -93,6 +115,9 @@ def test_cameras_that_nothing_links_are_refused_in_one_line(tmp_path):
     assert "{cam0, cam1} and {cam2}" in lines[0]
     assert "sync_tolerance" in lines[0] and "mocap" in lines[0]
     assert not (tmp_path / "out").exists()
+    res = CliRunner().invoke(main, ["check", str(ds), "--processes", "1"])
+    assert res.exit_code == 2, res.output
+    assert "{cam0, cam1} and {cam2}" in res.output
 
 
 def test_check_works_on_a_rig_without_motion_capture(tmp_path):

@@ -73,7 +73,7 @@ def image_points(run: CalibrationRun, name: str, *, max_points: int = MAX_POINTS
         j = _camera_index(run, name)
         res = ref.result
         intr, X, Y, M = res.intrinsics[j], res.X[j], res.Y, res.T_world_mocap[j]
-        eye_to_base = run.record.setup == "eye-to-base"
+        eye_to_base = run.record.setup != "eye-on-hand"     # overlap: as eye-to-base
         poses = [g.inv(X) @ (M[i] if eye_to_base else g.inv(M[i])) @ Y for i in range(len(obs))]
         source = "refined"
     else:
@@ -273,8 +273,12 @@ def write_run_details(path: str | os.PathLike, run: CalibrationRun, *,
 
 
 def camera_overlaps(run: CalibrationRun) -> dict[str, tuple[str, ...]]:
-    """Per camera, the others that saw the target at the same time: a used image of each
-    within the smaller of their time tolerances, stamps in the motion-capture clock."""
+    """Per camera, the others that saw the target at the same time: those its ``links`` name
+    (images at one instant, docs/rig-yaml.md, section 2); for a record without links, a used
+    image of each within the smaller of their time tolerances, stamps in the motion-capture
+    clock."""
+    if all(c.links is not None for c in run.record.cameras):
+        return {c.name: tuple(c.links.overlap) for c in run.record.cameras}
     names, stamps, tols = [], [], []
     for cam in run.record.cameras:
         data, paired = run.cameras[cam.name], run.paired[cam.name]

@@ -167,8 +167,8 @@ def check_table(check) -> str:
     (counts of images, the share with the target found, the rotation of the paired motion in
     degrees), then each camera's problems and the verdict."""
     header = ["camera", "source", "images", "sampled", "target found", "found %",
-              "with mocap", "usable in sample", "about usable", "rotation range deg",
-              "RMS rot axes deg"]
+              "with mocap" if check.setup != "overlap" else "seen together",
+              "usable in sample", "about usable", "rotation range deg", "RMS rot axes deg"]
     rows = []
     for c in check.cameras:
         spread = ("-" if c.rotation_spread_deg is None
