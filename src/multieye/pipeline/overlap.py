@@ -193,11 +193,14 @@ def paired_instants(paired: Mapping[str, PairedCamera], cameras: Mapping[str, Ca
     """The instant of every paired image of a rig with motion capture, and what links each
     camera: images of different cameras whose stamps (motion-capture clock: plus each
     camera's offset) are within ``sync_tolerance``, or, when every camera is paired by name,
-    whose names' stems are equal, are one instant."""
+    whose names' stems are equal and whose given poses are too, are one instant (images of
+    two cameras named alike but posed apart were taken at different instants)."""
     names = list(paired)
     if all(cameras[n].by_name for n in names):
-        stems = [[o.name.rsplit(".", 1)[0] for o in paired[n].observations] for n in names]
-        inst, _ = instants_from_names(stems)
+        keys = [[f"{o.name.rsplit('.', 1)[0]}|{M.tobytes().hex()}"
+                 for o, M in zip(paired[n].observations, paired[n].T_world_mocap)]
+                for n in names]
+        inst, _ = instants_from_names(keys)
     else:
         stamps = [np.array([o.stamp for o in paired[n].observations], dtype=np.float64)
                   + offsets[n] for n in names]

@@ -167,7 +167,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     """
     clock = [time.perf_counter()]
     problem = make_problem(rig, cameras, updated_options(options, kw))
-    if not rig.has_mocap:               # linked by the views the cameras share (issue 23)
+    if all(d.mocap is None for d in cameras.values()):   # linked by shared views (issue 23)
         run = calibrate_overlap(check_overlap_options(problem))
         return replace(run, timings=StageTimings(refinement=time.perf_counter() - clock[0],
                                                  total=time.perf_counter() - clock[0]))
