@@ -81,7 +81,7 @@ from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
-from multieye.io.rig_checks import no_link_loop, Checker as _Checker
+from multieye.io.rig_checks import camera_link, links_keys, no_link_loop, Checker as _Checker
 from multieye.io.textfile import LENGTH_UNITS
 from multieye.io.yamlfile import load_yaml, shown
 
@@ -239,8 +239,7 @@ class Rig:
     mocap : MocapSpec or None
         None when every camera has its own, or when the rig has no motion capture.
     sync_tolerance : float or None
-        Seconds: images of different cameras this close in time are one instant (None: the
-        default, a quarter of the shortest interval between two images of a camera).
+        Seconds within which images of different cameras are one instant (None: default).
     """
 
     path: Path
@@ -251,9 +250,7 @@ class Rig:
     sync_tolerance: float | None = None
 
     @property
-    def has_mocap(self) -> bool:
-        """Motion capture links the rig (rig.yaml's ``mocap:``, or each camera's own); without
-        it the cameras are linked by the views they share (docs/rig-yaml.md, section 2)."""
+    def has_mocap(self) -> bool:      # else the views the cameras share link the rig
         return self.mocap is not None or any(c.mocap is not None for c in self.cameras.values())
 
     @property
@@ -550,16 +547,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
                     what="rig description (rig.yaml)")
     c = _Checker(doc)
     raw = c.mapping(doc.data if doc.data is not None else {}, (), TOP_LEVEL_KEYS, ("cameras",))
-    any_mocap = "mocap" in raw or any(isinstance(cam, Mapping) and "mocap" in cam for cam in (
-        raw["cameras"].values() if isinstance(raw["cameras"], Mapping) else ()))
-    if "setup" not in raw and any_mocap:
-        raise c.error("missing key 'setup' (eye-to-base or eye-on-hand: what the motion "
-                      "capture tracks)", ())
-    # without motion capture the setup names nothing the calibration uses
-    setup = c.choice(raw.get("setup", "eye-to-base"), ("setup",), tuple(SETUPS))
-    sync = (c.number(raw["sync_tolerance"], ("sync_tolerance",), positive=True,
-                     maximum=MAX_TIME_TOLERANCE_S, unit="seconds")
-            if "sync_tolerance" in raw else None)
+    setup, sync, any_mocap = links_keys(c, raw, tuple(SETUPS))
     cams_raw = raw["cameras"]
     if not isinstance(cams_raw, Mapping) or not cams_raw:
         raise c.error("expected a mapping of camera name -> camera, with at least one camera",
@@ -579,21 +567,13 @@ def load_rig(path: str | os.PathLike) -> Rig:
             raise c.error(f"camera name {shown(name)} {problem}; a camera name is {NAME_RULE}",
                           ("cameras", name))
         cam = _camera(c, name, cam_raw, top, setup, refine_all)
-        if cam.mocap is None and mocap is None and any_mocap:
-            raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
-                          "key to this camera (a rig has motion capture for every camera, "
-                          "or none)", ("cameras", name))
-        if not any_mocap and cam.source == "poses":
-            raise c.error("a rig without motion capture is linked by the target points its "
-                          "cameras see together; a camera given by 'poses' has none (give it "
-                          "'images' or 'rosbag', or add 'mocap')", ("cameras", name))
+        camera_link(c, name, cam.mocap or mocap, cam.source, any_mocap)
         if any_mocap and (cam.mocap or mocap).by_name and cam.source != "images":
             raise c.error("poses matched by image name ({stem}, match: image or order) need "
                           "a folder of 'images'",
                           ("cameras", name))
         cameras[cam.name] = cam
-    named = {n: (cam.mocap or mocap).frame_names for n, cam in cameras.items()
-             if any_mocap}
+    named = {n: (cs.mocap or mocap).frame_names for n, cs in cameras.items() if any_mocap}
     if len(set(named.values())) > 1:
         first, other = next(iter(named)), next(n for n in named
                                                 if named[n] != next(iter(named.values())))
