@@ -166,13 +166,16 @@ def link_groups(linked, mocap: Sequence[bool]) -> list[tuple[int, ...]]:
     return [tuple(int(j) for j in np.flatnonzero(label == s)) for s in np.unique(label)]
 
 
-def unlinked_message(names: Sequence[str], groups: Sequence[Sequence[int]]) -> str:
-    """One line saying that ``groups`` (two or more) are not linked, and what would link them."""
+def unlinked_message(names: Sequence[str], groups: Sequence[Sequence[int]],
+                     tolerance: float | None = None) -> str:
+    """One line saying that ``groups`` (two or more) are not linked, and what would link them
+    (``tolerance``: the ``sync_tolerance`` used, seconds, named when given)."""
     shown = [("{" + ", ".join(names[j] for j in grp) + "}") for grp in groups]
     listing = ", ".join(shown[:-1]) + " and " + shown[-1]
+    within = "" if tolerance is None else f" = {tolerance:g} s"
     return (f"cameras fall into {len(groups)} groups that nothing links: {listing}; give them "
-            "images taken at the same instants (stamps within sync_tolerance, or equal image "
-            "names), or motion capture (mocap: in rig.yaml)")
+            f"images taken at the same instants (stamps within sync_tolerance{within}), or "
+            "motion capture (mocap: in rig.yaml)")
 
 
 def relative_pose(T_a_target, T_b_target) -> F64:

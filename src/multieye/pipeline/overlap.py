@@ -138,7 +138,7 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
                        len(names))
     groups = link_groups(cov.shared > 0, [False] * len(names))
     if len(groups) > 1:
-        raise DisconnectedError(unlinked_message(names, groups),
+        raise DisconnectedError(unlinked_message(names, groups, tol),
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))
     views, poses, extra = [], [], n_inst
     for n in names:
