@@ -78,3 +78,33 @@ def test_a_camera_given_by_poses_is_refused():
         n_inputs=d.n_inputs, mocap=None, time_offset=0.0, time_tolerance=0.03)
     with pytest.raises(DatasetError, match="gives poses, not images"):
         solve_overlap(cams, "cam0")
+
+
+def test_images_of_one_instant_share_the_motion_capture_pose_only_when_it_agrees():
+    from multieye.pipeline.camera_data import PairedCamera
+    from multieye.pipeline.overlap import paired_instants, share_instants
+
+    rng = np.random.default_rng(4)
+    M = g.random_transforms(rng, 3)
+    near = M[0] @ g.transform_from_rotvec([1e-5, 0, 0], [2e-5, 0, 0])   # 1 ms later, still
+    far = M[1] @ g.transform_from_rotvec([0.01, 0, 0], [0.004, 0, 0])    # moved meanwhile
+
+    def cam(name, stamps, poses):
+        obs = tuple(Observation(f"{t}.png", t, np.eye(4)) for t in stamps)
+        paired = PairedCamera(name=name, A=g.inv(poses), B=np.tile(np.eye(4), (len(obs), 1, 1)),
+                              T_world_mocap=np.asarray(poses), observations=obs, rejected=())
+        data = CameraData(name=name, intrinsics=None, observations=obs, rejected=(),
+                          n_inputs=len(obs), mocap=None, time_offset=0.0, time_tolerance=0.01)
+        return paired, data
+
+    a = cam("a", [1.0, 2.0, 3.0], M)
+    b = cam("b", [1.001, 2.002, 5.0], np.stack([near, far, M[2]]))
+    paired, data = {"a": a[0], "b": b[0]}, {"a": a[1], "b": b[1]}
+    inst, links = paired_instants(paired, data, {"a": 0.0, "b": 0.0}, None)
+    assert inst["a"].tolist() == [0, 1, 2] and inst["b"].tolist() == [0, 1, 3]
+    assert links["a"].overlap == {"b": 2} and links["a"].mocap
+    shared = share_instants("eye-to-base", paired, inst, (np.radians(0.1), 3e-4))
+    assert np.array_equal(shared["b"].T_world_mocap[0], M[0])        # one pose, one block
+    assert np.array_equal(shared["b"].A[0], g.inv(M[0]))
+    assert np.array_equal(shared["b"].T_world_mocap[1], far)         # kept its own
+    assert np.array_equal(shared["b"].T_world_mocap[2], M[2])

@@ -213,20 +213,30 @@ def paired_instants(paired: Mapping[str, PairedCamera], cameras: Mapping[str, Ca
 
 
 def share_instants(setup: str, paired: Mapping[str, PairedCamera],
-                   instants: Mapping[str, NDArray[np.int64]]) -> dict[str, PairedCamera]:
+                   instants: Mapping[str, NDArray[np.int64]], noise: tuple[float, float]
+                   ) -> dict[str, PairedCamera]:
     """Every image of one instant given one motion-capture pose (the first camera's, in rig
     order), so that the image-level refinement holds one pose of the target per instant
     (its images share one block and one prior:
-    :class:`multieye.estimate.image_residuals.ImageData`), however far within the tolerance
-    their stamps were."""
+    :class:`multieye.estimate.image_residuals.ImageData`).
+
+    An image keeps its own pose when the one it would take differs from it by more than the
+    motion capture's noise ``noise`` (per axis: radians, metres): its camera was not triggered
+    with the first one closely enough for the target to be at one pose (a free-running camera
+    whose stamp falls within ``sync_tolerance`` by chance), and sharing would bias the
+    result; the two stay linked by the motion capture."""
     first: dict[int, np.ndarray] = {}
     for n, p in paired.items():
         for k, M in zip(instants[n], p.T_world_mocap):
             first.setdefault(int(k), M)
     out = {}
     for n, p in paired.items():
-        M = np.stack([first[int(k)] for k in instants[n]]) if len(p.T_world_mocap) else \
-            p.T_world_mocap
+        M = p.T_world_mocap.copy()
+        for i, k in enumerate(instants[n]):
+            F = first[int(k)]
+            if (g.rotation_angle_between(F, M[i]) <= noise[0]
+                    and g.translation_distance(F, M[i]) <= noise[1]):
+                M[i] = F
         A = g.inv(M) if setup == "eye-to-base" else M
         out[n] = PairedCamera(name=p.name, A=A, B=p.B, T_world_mocap=M,
                               observations=p.observations, rejected=p.rejected)

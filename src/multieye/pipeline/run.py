@@ -59,6 +59,7 @@ from multieye.pipeline.camera_data import (
 )
 from multieye.pipeline.estimated_lens import refit_paired
 from multieye.pipeline.options import Options, updated_options
+from multieye.estimate.refine_images import DEFAULT_MOCAP_ROT_SIGMA_RAD, DEFAULT_MOCAP_TRANS_SIGMA_M
 from multieye.pipeline.overlap import paired_instants, share_instants
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
 from multieye.pipeline.problem import Pairing, Problem, make_problem
@@ -202,7 +203,10 @@ def pair(problem: Problem) -> Pairing:
     if problem.options.time_offset != "auto":    # cameras that see the target together
         instants, _ = paired_instants(paired, problem.cameras, offsets,
                                       problem.rig.sync_tolerance)
-        paired = share_instants(problem.setup, paired, instants)
+        _, rot, trans = mocap_noise(problem.rig, paired, problem.options)
+        paired = share_instants(problem.setup, paired, instants, (
+            DEFAULT_MOCAP_ROT_SIGMA_RAD if rot is None else rot,
+            DEFAULT_MOCAP_TRANS_SIGMA_M if trans is None else trans))
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=list(paired), per_camera_motion=False)
     return Pairing(offsets=offsets, paired=paired, measurements=meas,
