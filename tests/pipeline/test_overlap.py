@@ -108,3 +108,21 @@ def test_images_of_one_instant_share_the_motion_capture_pose_only_when_it_agrees
     assert np.array_equal(shared["b"].A[0], g.inv(M[0]))
     assert np.array_equal(shared["b"].T_world_mocap[1], far)         # kept its own
     assert np.array_equal(shared["b"].T_world_mocap[2], M[2])
+
+
+def test_the_python_face_of_a_run_without_motion_capture(tmp_path):
+    """multieye.calibrate on a rendered rig without motion capture: every per-camera result by
+    name, no X and no Y, links."""
+    import multieye
+    from multieye.sim.overlap import render_overlap_dataset
+
+    sc = render_overlap_dataset(tmp_path / "ds", OverlapSpec(n_instants=12, width=640,
+                                                             height=480), seed=5)
+    run = multieye.calibrate(tmp_path / "ds", processes=1)
+    assert run.X == {"cam0": None, "cam1": None, "cam2": None} and run.Y is None
+    assert run.closed_form is None and run.Y_std is None and run.X_std["cam1"] is None
+    for j, n in enumerate(("cam1", "cam2"), 1):
+        assert g.rotation_angle_between(run.T_ref_cam[n], sc.T_ref_cam[j]) < np.radians(0.5)
+        assert 0 < run.T_ref_cam_std[n][0] < 0.5
+    assert run.links["cam0"].overlap and not run.links["cam0"].mocap
+    assert run.doubts == ()
