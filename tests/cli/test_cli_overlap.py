@@ -126,3 +126,17 @@ def test_check_works_on_a_rig_without_motion_capture(tmp_path):
     res = CliRunner().invoke(main, ["check", str(ds), "--processes", "1"])
     assert res.exit_code == 0, res.output
     assert "verdict" in res.output
+
+
+def test_a_camera_a_frame_late_is_written_but_doubted(tmp_path):
+    """cam2's stamps one frame late: its images pair with the wrong board poses; the result is
+    written, the fit check names cam2 and the exit status is 3."""
+    ds = tmp_path / "ds"
+    render_overlap_dataset(ds, SPEC, seed=1)
+    for p in sorted((ds / "cam2").iterdir(), reverse=True):
+        p.rename(p.with_name(f"{float(p.stem) + SPEC.frame_interval_s:.6f}.png"))
+    res = _calibrate(ds, tmp_path / "out")
+    assert res.exit_code == 3, res.output
+    data = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert [(d["cause"], d.get("camera")) for d in data["plausibility"]] == [("fit", "cam2")]
+    assert "synchronised" in res.output

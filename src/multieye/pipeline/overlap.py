@@ -22,12 +22,17 @@ Synopsis
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from multieye.core.errors import DatasetError, DisconnectedError, TooFewMeasurementsError
+from multieye.core.errors import (
+    CalibrationError,
+    DatasetError,
+    DisconnectedError,
+    TooFewMeasurementsError,
+)
 from multieye.estimate.covisibility import covisibility, link_groups, unlinked_message
 from multieye.estimate.findings import Finding
 from multieye.io.calibration_json import CameraLinks
@@ -109,7 +114,8 @@ def _links(names, shared) -> dict[str, CameraLinks]:
 
 
 def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
-                  sync_tolerance: float | None = None, robust: bool = True) -> OverlapSolution:
+                  sync_tolerance: float | None = None, robust: bool = True,
+                  isolate: bool = True) -> OverlapSolution:
     """Calibrate the rig from the views its cameras share (module docstring).
 
     Parameters
@@ -122,6 +128,9 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
         Seconds; default a quarter of the shortest interval between two images of a camera.
     robust : bool
         Huber loss on the pixels (else least squares).
+    isolate : bool
+        When several cameras are doubted, look for the one without which the others fit
+        (solving without each in turn) and doubt that one alone.
 
     Raises
     ------
@@ -155,9 +164,32 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
                   free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
     result = refine_rig(rv, np.stack(poses), loss="huber" if robust else "linear")
     used = {n: cameras[n].observations for n in names}
+    findings = _fit_findings(names, cameras, rv, result)
+    if isolate and len(findings) > 1:
+        findings = _culprit(cameras, reference, tol, robust, findings)
     return OverlapSolution(names=names, reference=reference, result=result, used=used,
                            instants=inst, links=_links(names, cov.shared), sync_tolerance=tol,
-                           findings=_fit_findings(names, cameras, rv, result))
+                           findings=findings)
+
+
+def _culprit(cameras: Mapping[str, CameraData], reference: str, tol: float, robust: bool,
+             findings: tuple[Finding, ...]) -> tuple[Finding, ...]:
+    """One camera that does not fit pulls the whole rig (its views tie the others): of the
+    doubted cameras, worst first, the first without which the others fit together is named
+    alone; else every doubt stays."""
+    for f in sorted(findings, key=lambda f: -f.cost):
+        rest = {n: d for n, d in cameras.items() if n != f.camera}
+        if len(rest) < 2:
+            continue
+        try:
+            sub = solve_overlap(rest, reference if reference in rest else next(iter(rest)),
+                                sync_tolerance=tol, robust=robust, isolate=False)
+        except CalibrationError:
+            continue
+        if not sub.findings:
+            return (replace(f, message=f"{f.message} (the other cameras fit together "
+                                       "without it)"),)
+    return findings
 
 
 def _fit_findings(names, cameras: Mapping[str, CameraData], views: RigViews,
