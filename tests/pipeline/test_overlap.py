@@ -127,3 +127,17 @@ def test_the_python_face_of_a_run_without_motion_capture(tmp_path):
         assert 0 < run.T_ref_cam_std[n][0] < 0.5
     assert run.links["cam0"].overlap and not run.links["cam0"].mocap
     assert run.doubts == ()
+
+
+def test_an_image_with_points_off_is_named_among_the_warnings():
+    from dataclasses import replace
+
+    _, cams = _cameras(seed=6)
+    obs = list(cams["cam1"].observations)
+    uv = obs[2].image_points.copy()
+    uv[:3] += 4.0                                     # three corners 13 sigma off
+    obs[2] = replace(obs[2], image_points=uv)
+    cams["cam1"] = replace(cams["cam1"], observations=tuple(obs))
+    sol = solve_overlap(cams, "cam0")
+    poor = [w for w in sol.warnings if "fit the rig poorly" in w]
+    assert poor == [f"cam1: 1 image(s) fit the rig poorly: {obs[2].name}"]

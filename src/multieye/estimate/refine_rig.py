@@ -80,6 +80,9 @@ class RigResult:
     covisibility : Covisibility
     iterations : int
     converged : bool
+    undetermined : tuple of str
+        Families (``C``, ``K:<camera>``) with a direction the data do not determine (their
+        covariance then covers the other directions only).
     """
 
     T_ref_cam: F64
@@ -95,6 +98,7 @@ class RigResult:
     covisibility: Covisibility
     iterations: int
     converged: bool
+    undetermined: tuple[str, ...] = ()
 
 
 def _scale_constant(loss: str, f_scale: float) -> float:
@@ -189,4 +193,6 @@ def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = Non
                      pixel_sigma=float(sigma), residuals_px=resid, camera_rms_px=rms,
                      start=start, covisibility=covisibility(views.camera, views.instant,
                                                             views.m),
-                     iterations=iterations, converged=converged)
+                     iterations=iterations, converged=converged,
+                     undetermined=tuple(f.name for f in fams if not f.eliminate
+                                        and cov.undetermined_in(f.name, f.count, f.size)))

@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.special import chdtri
 
 from multieye.core.errors import (
     CalibrationError,
@@ -35,6 +36,7 @@ from multieye.core.errors import (
 )
 from multieye.estimate.covisibility import covisibility, link_groups, unlinked_message
 from multieye.estimate.findings import Finding
+from multieye.estimate.refine_images import OUTLIER_PROBABILITY
 from multieye.io.calibration_json import CameraLinks
 from multieye.core import geometry as g
 from multieye.estimate.instants import (
@@ -74,6 +76,8 @@ class OverlapSolution:
         Seconds.
     findings : tuple of Finding
         What the checks doubt (empty when nothing).
+    warnings : tuple of str
+        Images that fit the rig poorly, undetermined directions, no convergence.
     """
 
     names: tuple[str, ...]
@@ -84,6 +88,7 @@ class OverlapSolution:
     links: dict
     sync_tolerance: float
     findings: tuple = ()
+    warnings: tuple = ()
 
 
 def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | None
@@ -169,7 +174,34 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
         findings = _culprit(cameras, reference, tol, robust, findings)
     return OverlapSolution(names=names, reference=reference, result=result, used=used,
                            instants=inst, links=_links(names, cov.shared), sync_tolerance=tol,
-                           findings=findings)
+                           findings=findings, warnings=_rig_warnings(cameras, rv, result))
+
+
+def _rig_warnings(cameras: Mapping[str, CameraData], views: RigViews, result: RigResult
+                  ) -> tuple[str, ...]:
+    """What the solve doubts: images with a point far beyond the pixel noise (its squared
+    normalised residual over the chi-square quantile of 2 degrees of freedom at
+    :data:`OUTLIER_PROBABILITY`), directions the data do not determine, no convergence."""
+    out = []
+    limit = float(chdtri(2, OUTLIER_PROBABILITY))
+    z2 = np.sum((result.residuals_px / result.pixel_sigma) ** 2, axis=1)
+    for j, n in enumerate(views.names):
+        own = np.flatnonzero(views.camera == j)[:len(cameras[n].observations)]
+        bad = [cameras[n].observations[i].name for i, v in enumerate(own)
+               if np.any(z2[views.view == v] > limit)]
+        if bad:
+            out.append(f"{n}: {len(bad)} image(s) fit the rig poorly: " + ", ".join(bad[:5])
+                       + (" ..." if len(bad) > 5 else ""))
+    for family in result.undetermined:
+        what = (f"{family[2:]}: the intrinsics" if family.startswith("K:")
+                else "the cameras' T_ref_cam")
+        out.append(f"{what} include a combination of parameters this recording does not "
+                   "determine (their uncertainty covers the other directions only); add "
+                   "views seen together with more tilt and nearer the image corners")
+    if not result.converged:
+        out.append("the refinement did not converge; the result may be short of the best the "
+                   "data allow")
+    return tuple(out)
 
 
 def _culprit(cameras: Mapping[str, CameraData], reference: str, tol: float, robust: bool,

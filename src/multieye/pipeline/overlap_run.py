@@ -112,7 +112,7 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
     plaus = Plausibility(findings=sol.findings, cost=float("nan"), camera_cost={},
                          tested=("fit",))
     warnings = tuple(w for d in problem.cameras.values() for w in d.warnings)
-    warnings += tuple(f.message for f in sol.findings)
+    warnings += sol.warnings + tuple(f.message for f in sol.findings)
     record = _record(problem, sol, paired, rms, warnings)
     cameras = {n: replace(d, intrinsics=estimated.get(n, d.intrinsics))
                for n, d in problem.cameras.items()}
