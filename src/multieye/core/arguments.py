@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +19,7 @@ from multieye.core.errors import InputError
 import difflib
 
 __all__ = ["real_array", "real_number", "positive_int", "camera_names", "one_of", "as_path",
-           "did_you_mean"]
+           "did_you_mean", "with_fields"]
 
 
 def _kind(value: Any) -> str:
@@ -136,3 +137,19 @@ def as_path(value: Any, name: str = "path") -> Path:
         if isinstance(text, str) and text and "\0" not in text:
             return Path(text)
     raise InputError(f"{name} must be a path (str or os.PathLike), got {value!r}")
+
+
+def with_fields(options: Any, kw: Mapping[str, Any], kind: type, what: str) -> Any:
+    """``options`` (a frozen dataclass of type ``kind``) with the fields in ``kw`` replaced:
+    the one way a public function takes its options as an object or as keyword arguments.
+    InputError for anything else than a ``kind`` or for an unknown field (instead of
+    dataclasses' TypeError), naming ``what``."""
+    if not isinstance(options, kind) or not is_dataclass(options):
+        raise InputError(f"{what} must be a multieye {kind.__name__}, got "
+                         f"{type(options).__name__}")
+    names = [f.name for f in fields(options)]
+    unknown = sorted(set(kw) - set(names))
+    if unknown:
+        raise InputError(f"unknown option {', '.join(unknown)}; the options are "
+                         f"{', '.join(names)}")
+    return replace(options, **kw) if kw else options

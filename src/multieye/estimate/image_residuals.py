@@ -47,6 +47,7 @@ Pose derivatives at zero perturbation, with ``p_y = R_Y p + t_Y`` (marker or wor
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,10 +58,11 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
 from multieye.core.lie import left_jacobian_inv, log_so3
 from multieye.core.problem import SETUPS
-from multieye.estimate.clock_residuals import ClockData, ClockUnits
+from multieye.estimate.clock_residuals import ClockData, ClockUnits, clock_units
 from multieye.optimize.blocks import Blocks, ResidualGroup
 
-__all__ = ["ImageData", "PixelResiduals", "MocapPriors"]
+__all__ = ["ImageData", "image_data", "PointStack", "IntrinsicsImages", "intrinsics_images",
+           "PixelResiduals", "MocapPriors"]
 
 F64 = NDArray[np.float64]
 
@@ -91,8 +93,10 @@ def _view(item, where: str, pose: str, min_points: int):
     return o, u, _as_pose(T, f"{where}: {pose}"), ok
 
 
+@dataclass(frozen=True)
 class ImageData:
-    """Target points, pixels and motion-capture poses of every image, stacked.
+    """Target points, pixels and motion-capture poses of every image, stacked; built by
+    :func:`image_data`, never changed after (:meth:`recentred` returns a new one).
 
     Images are numbered camera by camera (N in all); points image by image.  The images of
     cameras without a clock whose motion-capture poses are bitwise equal share one instant
@@ -101,147 +105,59 @@ class ImageData:
 
     Attributes
     ----------
-    instant : ndarray of int, shape (N,)
-        Block of ``M`` (instant) of each image, numbered in the order of first appearance.
-    n_instants : int
-        K, the number of blocks of ``M``.
-    instant_image : ndarray of int, shape (K,)
-        The first image of each instant.
+    setup : {"eye-to-base", "eye-on-hand"}
+    names : tuple of str
+        Camera names (m).
+    intrinsics : tuple of Intrinsics
+    free : tuple of bool
+        Per camera: its intrinsics are estimated.
+    clocks : tuple of (ClockData or None)
+        Per camera.
+    points : PointStack
+        Every image's target points and pixels, and what indexes them.
     mocap_measured : ndarray, shape (N, 4, 4)
         The given motion-capture pose of each image.
-
-    Parameters
-    ----------
-    setup : {"eye-to-base", "eye-on-hand"}
-    observations : sequence over cameras of sequence of (object_points, image_points, T_world_mocap)
-        ``observations[j][i]``: target points of image i of camera j, (n, 3), metres in the
-        ``target`` frame; their pixels, (n, 2); the motion-capture pose at that image's
-        time, (4, 4).  Points with non-finite coordinates are left out.
-    intrinsics : sequence of Intrinsics
-        One per camera.
-    names : sequence of str, optional
-        Camera names for messages.
-    free_intrinsics : sequence of bool, optional
-        Per camera: estimate its intrinsics (default: all held fixed).
-    intrinsics_observations : sequence over cameras of sequence of (object_points, image_points, T_cam_target), optional
-        Images without motion capture that only inform a camera's intrinsics (cameras whose
-        intrinsics are estimated): the target points, their pixels and a starting
-        ``T_cam_target`` (PnP).  An empty list for a camera without such images.
-    clocks : sequence of (ClockData or None), optional
-        Per camera: its clock offset is an unknown (family ``dt:<camera>``, or
-        ``dt:<first camera>`` of a shared clock: :class:`ClockUnits`) and its images'
-        motion-capture priors compare ``M_i`` with the smoothed trajectory at
-        ``t_i + delta`` (:mod:`multieye.estimate.clock_residuals`); the image stamps are the
-        camera's images in the order of ``observations[j]``.  None: the given poses are the
-        measurements (default for every camera).
+    instant : ndarray of int, shape (N,)
+        Block of ``M`` (instant) of each image, numbered in the order of first appearance.
+    instant_image : ndarray of int, shape (K,)
+        The first image of each instant.
+    units : ClockUnits
+        The cameras' clocks: one offset and one trajectory per camera or shared clock.
+    extra : IntrinsicsImages or None
+        The images that only inform the intrinsics.
     """
 
-    def __init__(self, setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
-                 names: Sequence[str] | None = None, *,
-                 free_intrinsics: Sequence[bool] | None = None,
-                 intrinsics_observations: Sequence | None = None,
-                 clocks: Sequence | None = None):
-        if not isinstance(setup, str) or setup not in SETUPS:
-            raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
-        for label, arg in (("observations", observations), ("intrinsics", intrinsics)):
-            if arg is None or isinstance(arg, (str, bytes)) or not hasattr(arg, "__iter__"):
-                raise InputError(f"{label} must be a list with one entry per camera, got "
-                                 f"{type(arg).__name__}")
-        observations = list(observations)
-        intrinsics = list(intrinsics)
-        m = len(observations)
-        if m == 0:
-            raise InputError("no cameras given: observations is empty")
-        if len(intrinsics) != m:
-            raise InputError(f"{m} cameras of observations but {len(intrinsics)} intrinsics; "
-                             "give one Intrinsics per camera")
-        bad = [j for j, c in enumerate(intrinsics) if not isinstance(c, Intrinsics)]
-        if bad:
-            raise InputError(f"intrinsics[{bad[0]}] must be a multieye Intrinsics, got "
-                             f"{type(intrinsics[bad[0]]).__name__}")
-        names = camera_names(names, m)
-        self.names = names if names is not None else tuple(f"cam{j}" for j in range(m))
-        self.setup = setup
-        self.intrinsics = tuple(intrinsics)
-        self.m = m
-        obj, uv, mocap, img_of_point, cam_of_image, counts, keep = [], [], [], [], [], [], []
-        for j, images in enumerate(observations):
-            if images is None or isinstance(images, (str, bytes)) or not hasattr(images,
-                                                                                  "__iter__"):
-                raise InputError(f"observations[{j}] must be a list of (object_points, "
-                                 f"image_points, T_world_mocap), got {type(images).__name__}")
-            images = list(images)
-            if not images:
-                raise InputError(f"camera {self.names[j]} has no images")
-            counts.append(len(images))
-            for i, item in enumerate(images):
-                where = f"camera {self.names[j]}, image {i}"
-                o, u, M, ok = _view(item, where, "T_world_mocap", 1)
-                obj.append(o[ok])
-                uv.append(u[ok])
-                keep.append(ok)
-                mocap.append(M)
-                img_of_point.append(np.full(int(ok.sum()), len(mocap) - 1))
-                cam_of_image.append(j)
-        self.keep = keep                                       # finite points of each image
-        self.object_points = np.concatenate(obj)
-        self.image_points = np.concatenate(uv)
-        self.mocap_measured = np.stack(mocap)
-        self.image = np.concatenate(img_of_point)              # (P,) image of each point
-        self.cam_of_image = np.asarray(cam_of_image)           # (N,)
-        self.camera = self.cam_of_image[self.image]            # (P,)
-        self.counts = np.asarray(counts)                       # images per camera
-        self.n_images = len(mocap)
-        self.n_points = len(self.object_points)
-        self.image_starts = np.flatnonzero(np.diff(self.image, prepend=-1))     # (N,)
-        self.camera_slices = [slice(int(a), int(b)) for a, b in zip(
-            np.searchsorted(self.camera, np.arange(m)),
-            np.searchsorted(self.camera, np.arange(m), side="right"))]
-        free = [False] * m if free_intrinsics is None else [bool(f) for f in free_intrinsics]
-        if len(free) != m:
-            raise InputError(f"free_intrinsics has {len(free)} entries for {m} cameras")
-        self.free = tuple(free)
-        self.clocks = tuple(clocks) if clocks is not None else (None,) * m
-        if len(self.clocks) != m:
-            raise InputError(f"clocks has {len(self.clocks)} entries for {m} cameras")
-        for j, c in enumerate(self.clocks):
-            if c is not None and not isinstance(c, ClockData):
-                raise InputError(f"clocks[{j}] must be a ClockData or None, got "
-                                 f"{type(c).__name__}")
-            if c is not None and len(c.image_stamps) != counts[j]:
-                raise InputError(f"camera {self.names[j]}: {len(c.image_stamps)} image stamps "
-                                 f"for {counts[j]} images")
-        #: The cameras' clocks: one offset and one trajectory per camera or shared clock.
-        self.units = ClockUnits(self.clocks, self.names)
-        self._instants()
-        self.extra = (None if intrinsics_observations is None else
-                      IntrinsicsImages(intrinsics_observations, self.names, self.free))
-        if self.extra is not None and self.extra.n_images == 0:
-            self.extra = None
+    setup: str
+    names: tuple[str, ...]
+    intrinsics: tuple[Intrinsics, ...]
+    free: tuple[bool, ...]
+    clocks: tuple
+    points: PointStack
+    mocap_measured: F64
+    instant: np.ndarray
+    instant_image: np.ndarray
+    units: ClockUnits
+    extra: IntrinsicsImages | None
 
-    def _instants(self) -> None:
-        """Number the instants: one per distinct given pose of the cameras without a clock
-        (bitwise equal 4x4), one per distinct stamp of a shared clock, one per image of a
-        camera with a clock of its own."""
-        seen: dict = {}
-        instant = np.empty(self.n_images, dtype=np.int64)
-        first = []
-        in_camera = np.arange(self.n_images) - np.repeat(np.cumsum(self.counts) - self.counts,
-                                                         self.counts)
-        for i, (M, j) in enumerate(zip(self.mocap_measured, self.cam_of_image)):
-            key = (M.tobytes() if self.clocks[j] is None
-                   else self.units.key(int(j), int(in_camera[i])))
-            k = seen.get(key) if key is not None else None
-            if k is None:
-                k = len(first)
-                first.append(i)
-                if key is not None:
-                    seen[key] = k
-            instant[i] = k
-        self.instant = instant
-        self.instant_image = np.asarray(first, dtype=np.int64)
-        self.n_instants = len(first)
-        self.units.build(instant, self.instant_image, self.cam_of_image, in_camera)
+    # the stacked points' indices, as the residual groups read them
+    m = property(lambda self: len(self.names))
+    object_points = property(lambda self: self.points.object_points)
+    image_points = property(lambda self: self.points.image_points)
+    image = property(lambda self: self.points.image)
+    keep = property(lambda self: self.points.keep)
+    cam_of_image = property(lambda self: self.points.cam_of_image)
+    camera = property(lambda self: self.points.camera)
+    counts = property(lambda self: self.points.counts)
+    image_starts = property(lambda self: self.points.image_starts)
+    camera_slices = property(lambda self: self.points.camera_slices)
+    n_images = property(lambda self: len(self.mocap_measured))
+    n_points = property(lambda self: len(self.points.object_points))
+    n_instants = property(lambda self: len(self.instant_image))
+
+    def recentred(self, offsets: Mapping[int, float]) -> ImageData:
+        """This problem with the windows of each clock unit in ``offsets`` centred at its
+        offset (seconds)."""
+        return replace(self, units=self.units.recentred(offsets))
 
     def families(self, X: F64, Y: F64, M: F64 | None = None, *,
                  intrinsics: Sequence[Intrinsics] | None = None,
@@ -313,6 +229,181 @@ class ImageData:
         return f"camera {self.names[j]}, image {image - int(np.sum(self.counts[:j]))}"
 
 
+
+@dataclass(frozen=True)
+class PointStack:
+    """The target points of every image, stacked image by image (P in all), and what
+    indexes them.
+
+    Attributes
+    ----------
+    object_points, image_points : ndarray, shape (P, 3), (P, 2)
+    image : ndarray of int, shape (P,)
+        Image of each point.
+    keep : tuple of ndarray of bool
+        Per image, which of its input points are finite (and stacked).
+    cam_of_image : ndarray of int, shape (N,)
+    camera : ndarray of int, shape (P,)
+        Camera of each point.
+    counts : ndarray of int, shape (m,)
+        Images per camera.
+    image_starts : ndarray of int, shape (N,)
+        First point of each image.
+    camera_slices : tuple of slice
+        Points of each camera.
+    """
+
+    object_points: F64
+    image_points: F64
+    image: np.ndarray
+    keep: tuple[np.ndarray, ...]
+    cam_of_image: np.ndarray
+    camera: np.ndarray
+    counts: np.ndarray
+    image_starts: np.ndarray
+    camera_slices: tuple[slice, ...]
+
+
+def _camera_list(arg, label: str) -> list:
+    if arg is None or isinstance(arg, (str, bytes)) or not hasattr(arg, "__iter__"):
+        raise InputError(f"{label} must be a list with one entry per camera, got "
+                         f"{type(arg).__name__}")
+    return list(arg)
+
+
+def _stack(observations: list, names: tuple[str, ...]) -> tuple[PointStack, F64]:
+    """The images' points stacked, and their motion-capture poses (N, 4, 4)."""
+    obj, uv, mocap, img_of_point, cam_of_image, counts, keep = [], [], [], [], [], [], []
+    for j, images in enumerate(observations):
+        if images is None or isinstance(images, (str, bytes)) or not hasattr(images,
+                                                                              "__iter__"):
+            raise InputError(f"observations[{j}] must be a list of (object_points, "
+                             f"image_points, T_world_mocap), got {type(images).__name__}")
+        images = list(images)
+        if not images:
+            raise InputError(f"camera {names[j]} has no images")
+        counts.append(len(images))
+        for i, item in enumerate(images):
+            o, u, M, ok = _view(item, f"camera {names[j]}, image {i}", "T_world_mocap", 1)
+            obj.append(o[ok])
+            uv.append(u[ok])
+            keep.append(ok)
+            mocap.append(M)
+            img_of_point.append(np.full(int(ok.sum()), len(mocap) - 1))
+            cam_of_image.append(j)
+    image = np.concatenate(img_of_point)
+    cam_of_image = np.asarray(cam_of_image)
+    camera = cam_of_image[image]
+    m = len(names)
+    return PointStack(
+        object_points=np.concatenate(obj), image_points=np.concatenate(uv), image=image,
+        keep=tuple(keep), cam_of_image=cam_of_image, camera=camera, counts=np.asarray(counts),
+        image_starts=np.flatnonzero(np.diff(image, prepend=-1)),
+        camera_slices=tuple(slice(int(a), int(b)) for a, b in zip(
+            np.searchsorted(camera, np.arange(m)),
+            np.searchsorted(camera, np.arange(m), side="right")))), np.stack(mocap)
+
+
+def _checked_clocks(clocks, names: tuple[str, ...], counts: np.ndarray) -> tuple:
+    m = len(names)
+    clocks = tuple(clocks) if clocks is not None else (None,) * m
+    if len(clocks) != m:
+        raise InputError(f"clocks has {len(clocks)} entries for {m} cameras")
+    for j, c in enumerate(clocks):
+        if c is not None and not isinstance(c, ClockData):
+            raise InputError(f"clocks[{j}] must be a ClockData or None, got "
+                             f"{type(c).__name__}")
+        if c is not None and len(c.image_stamps) != counts[j]:
+            raise InputError(f"camera {names[j]}: {len(c.image_stamps)} image stamps "
+                             f"for {counts[j]} images")
+    return clocks
+
+
+def _instants(points: PointStack, mocap: F64, clocks: tuple, units: ClockUnits):
+    """Number the instants: one per distinct given pose of the cameras without a clock
+    (bitwise equal 4x4), one per distinct stamp of a shared clock, one per image of a
+    camera with a clock of its own.  Returns the instant of each image, the first image of
+    each instant and the units built over them."""
+    seen: dict = {}
+    n_images = len(mocap)
+    instant = np.empty(n_images, dtype=np.int64)
+    first = []
+    counts = points.counts
+    in_camera = np.arange(n_images) - np.repeat(np.cumsum(counts) - counts, counts)
+    for i, (M, j) in enumerate(zip(mocap, points.cam_of_image)):
+        key = M.tobytes() if clocks[j] is None else units.key(int(j), int(in_camera[i]))
+        k = seen.get(key) if key is not None else None
+        if k is None:
+            k = len(first)
+            first.append(i)
+            if key is not None:
+                seen[key] = k
+        instant[i] = k
+    instant_image = np.asarray(first, dtype=np.int64)
+    return instant, instant_image, units.built(instant, instant_image, points.cam_of_image,
+                                               in_camera)
+
+
+def image_data(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
+               names: Sequence[str] | None = None, *,
+               free_intrinsics: Sequence[bool] | None = None,
+               intrinsics_observations: Sequence | None = None,
+               clocks: Sequence | None = None) -> ImageData:
+    """The image-level problem's data, checked and stacked (:class:`ImageData`).
+
+    Parameters
+    ----------
+    setup : {"eye-to-base", "eye-on-hand"}
+    observations : sequence over cameras of sequence of (object_points, image_points, T_world_mocap)
+        ``observations[j][i]``: target points of image i of camera j, (n, 3), metres in the
+        ``target`` frame; their pixels, (n, 2); the motion-capture pose at that image's
+        time, (4, 4).  Points with non-finite coordinates are left out.
+    intrinsics : sequence of Intrinsics
+        One per camera.
+    names : sequence of str, optional
+        Camera names for messages.
+    free_intrinsics : sequence of bool, optional
+        Per camera: estimate its intrinsics (default: all held fixed).
+    intrinsics_observations : sequence over cameras of sequence of (object_points, image_points, T_cam_target), optional
+        Images without motion capture that only inform a camera's intrinsics (cameras whose
+        intrinsics are estimated): the target points, their pixels and a starting
+        ``T_cam_target`` (PnP).  An empty list for a camera without such images.
+    clocks : sequence of (ClockData or None), optional
+        Per camera: its clock offset is an unknown (family ``dt:<camera>``, or
+        ``dt:<first camera>`` of a shared clock: :class:`ClockUnits`) and its images'
+        motion-capture priors compare ``M_i`` with the smoothed trajectory at
+        ``t_i + delta`` (:mod:`multieye.estimate.clock_residuals`); the image stamps are the
+        camera's images in the order of ``observations[j]``.  None: the given poses are the
+        measurements (default for every camera).
+    """
+    if not isinstance(setup, str) or setup not in SETUPS:
+        raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
+    observations = _camera_list(observations, "observations")
+    intrinsics = _camera_list(intrinsics, "intrinsics")
+    m = len(observations)
+    if m == 0:
+        raise InputError("no cameras given: observations is empty")
+    if len(intrinsics) != m:
+        raise InputError(f"{m} cameras of observations but {len(intrinsics)} intrinsics; "
+                         "give one Intrinsics per camera")
+    bad = [j for j, c in enumerate(intrinsics) if not isinstance(c, Intrinsics)]
+    if bad:
+        raise InputError(f"intrinsics[{bad[0]}] must be a multieye Intrinsics, got "
+                         f"{type(intrinsics[bad[0]]).__name__}")
+    names = camera_names(names, m) or tuple(f"cam{j}" for j in range(m))
+    points, mocap = _stack(observations, names)
+    free = (False,) * m if free_intrinsics is None else tuple(bool(f) for f in free_intrinsics)
+    if len(free) != m:
+        raise InputError(f"free_intrinsics has {len(free)} entries for {m} cameras")
+    clocks = _checked_clocks(clocks, names, points.counts)
+    instant, instant_image, units = _instants(points, mocap, clocks, clock_units(clocks, names))
+    extra = (None if intrinsics_observations is None else
+             intrinsics_images(intrinsics_observations, names, free))
+    return ImageData(setup=setup, names=names, intrinsics=tuple(intrinsics), free=free,
+                     clocks=clocks, points=points, mocap_measured=mocap, instant=instant,
+                     instant_image=instant_image, units=units,
+                     extra=None if extra is None or extra.n_images == 0 else extra)
+
 def _cross(a: F64, v: F64) -> F64:
     """Row-wise ``a x v`` for a (..., k, 3) against v (..., 3): ``a^T [v]_x`` per row."""
     v = v[..., None, :]
@@ -344,11 +435,15 @@ def _current_intrinsics(values: Mapping[str, F64], name: str, fixed: Intrinsics,
         return None
 
 
+@dataclass(frozen=True)
 class IntrinsicsImages:
-    """Images without motion capture that only inform the intrinsics, stacked camera by camera.
+    """Images without motion capture that only inform the intrinsics, stacked camera by
+    camera; built by :func:`intrinsics_images`.
 
     Attributes
     ----------
+    names : tuple of str
+    n_images : int
     poses : ndarray, shape (n_images, 4, 4)
         Starting ``T_cam_target`` of each image.
     camera : ndarray of int, shape (n_images,)
@@ -357,35 +452,13 @@ class IntrinsicsImages:
         Image of each point.
     """
 
-    def __init__(self, per_camera: Sequence, names: Sequence[str], free: Sequence[bool]):
-        per_camera = list(per_camera)
-        if len(per_camera) != len(names):
-            raise InputError(f"intrinsics_observations has {len(per_camera)} entries for "
-                             f"{len(names)} cameras (give an empty list for a camera without "
-                             "such images)")
-        poses, cams, obj, uv, img = [], [], [], [], []
-        for j, images in enumerate(per_camera):
-            images = list(images or ())
-            if images and not free[j]:
-                raise InputError(f"camera {names[j]}: images for the intrinsics given, but its "
-                                 "intrinsics are not estimated")
-            for i, item in enumerate(images):
-                where = f"camera {names[j]}, intrinsics image {i}"
-                o, u, T, ok = _view(item, where, "T_cam_target", 4)
-                obj.append(o[ok])
-                uv.append(u[ok])
-                img.append(np.full(int(ok.sum()), len(poses)))
-                poses.append(T)
-                cams.append(j)
-        self.names = tuple(names)
-        self.n_images = len(poses)
-        if not poses:
-            return
-        self.poses = np.stack(poses)
-        self.camera = np.asarray(cams)
-        self.object_points = np.concatenate(obj)
-        self.image_points = np.concatenate(uv)
-        self.image = np.concatenate(img)
+    names: tuple[str, ...]
+    n_images: int
+    poses: F64 | None = None
+    camera: np.ndarray | None = None
+    object_points: F64 | None = None
+    image_points: F64 | None = None
+    image: np.ndarray | None = None
 
     def groups(self, data: ImageData, sigma_px: float) -> list[ResidualGroup]:
         """One :class:`FreePoseResiduals` per camera that has such images."""
@@ -397,6 +470,37 @@ class IntrinsicsImages:
                                          self.object_points[pts], self.image_points[pts],
                                          self.image[pts], first, sigma_px))
         return out
+
+
+
+def intrinsics_images(per_camera: Sequence, names: Sequence[str], free: Sequence[bool]
+                      ) -> IntrinsicsImages:
+    """The intrinsics-only images (``intrinsics_observations`` of :func:`image_data`),
+    checked and stacked."""
+    per_camera = list(per_camera)
+    if len(per_camera) != len(names):
+        raise InputError(f"intrinsics_observations has {len(per_camera)} entries for "
+                         f"{len(names)} cameras (give an empty list for a camera without "
+                         "such images)")
+    poses, cams, obj, uv, img = [], [], [], [], []
+    for j, images in enumerate(per_camera):
+        images = list(images or ())
+        if images and not free[j]:
+            raise InputError(f"camera {names[j]}: images for the intrinsics given, but its "
+                             "intrinsics are not estimated")
+        for i, item in enumerate(images):
+            o, u, T, ok = _view(item, f"camera {names[j]}, intrinsics image {i}",
+                                "T_cam_target", 4)
+            obj.append(o[ok])
+            uv.append(u[ok])
+            img.append(np.full(int(ok.sum()), len(poses)))
+            poses.append(T)
+            cams.append(j)
+    if not poses:
+        return IntrinsicsImages(names=tuple(names), n_images=0)
+    return IntrinsicsImages(names=tuple(names), n_images=len(poses), poses=np.stack(poses),
+                            camera=np.asarray(cams), object_points=np.concatenate(obj),
+                            image_points=np.concatenate(uv), image=np.concatenate(img))
 
 
 class PixelResiduals(ResidualGroup):

@@ -16,7 +16,7 @@ import numpy as np
 
 from multieye.core.errors import CalibrationError, InputError
 from multieye.estimate.clock_residuals import ClockData, LocalTrajectory, shared_clocks
-from multieye.estimate.refine_images import RefinementResult, refine_images
+from multieye.estimate.refine_images import RefinementResult, RefineOptions, refine_images
 from multieye.estimate.uncertainty import RelativeUncertainty, relative_covariance
 from multieye.io import Rig
 from multieye.pipeline.camera_data import PairedCamera
@@ -108,11 +108,11 @@ def _refine_images(problem: Problem, pairing: Pairing, sol: Solution) -> Refinem
               for o in cameras[n].intrinsics_views] for n in paired]
     warnings: list[str] = []
     clocks = _clocks(problem, pairing, warnings) if problem.options.time_offset == "auto" else None
+    options = RefineOptions(names=list(paired), clocks=clocks,
+                            free_intrinsics=[cameras[n].intrinsics_estimated for n in paired],
+                            intrinsics_observations=views if any(views) else None, **given)
     res = refine_images(problem.setup, obs, [cameras[n].intrinsics for n in paired], sol.X, sol.Y,
-                        names=list(paired), free_intrinsics=[cameras[n].intrinsics_estimated
-                                                             for n in paired],
-                        clocks=clocks, intrinsics_observations=views if any(views) else None,
-                        **given)
+                        options)
     warnings.extend(_image_warnings(res, paired))
     names = list(paired)
     estimated = [j for j, n in enumerate(names) if cameras[n].intrinsics_estimated]
