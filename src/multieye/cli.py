@@ -10,7 +10,6 @@ the same, the cause named on stderr).  Heavy modules are imported inside the com
 from __future__ import annotations
 
 import functools
-import math
 import os
 import signal
 import sys
@@ -108,6 +107,15 @@ def _user_errors(fn):
     return wrapper
 
 
+def _number_or_word(text: str) -> str | float:
+    """``--time-offset``'s text as Options takes it: a number of seconds where it reads as
+    one, else the word (``rig``, ``auto``, or what Options then refuses)."""
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
 def _progress_enabled() -> bool:
     return sys.stderr.isatty()
 
@@ -197,9 +205,7 @@ def main():
               show_default=True, metavar="SECONDS",
               help="With --time-offset auto: search offsets up to this many seconds either way.")
 @_user_errors
-def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
-              processes: int | None, no_refine: bool, no_robust: bool, time_offset: str,
-              max_time_offset: float):
+def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     """Calibrate the rig in DATASET (a folder with rig.yaml, or the rig.yaml itself).
 
     Closed form, consensus over measurements, then maximum-likelihood refinement with
@@ -209,29 +215,20 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
     estimated from the recording; prints a per-camera table.  rig.yaml: multieye docs
     rig-yaml; the files: multieye docs outputs.
     """
-    from multieye.pipeline import calibrate as run_calibration
+    from multieye.pipeline import Options, calibrate as run_calibration
     from multieye.outputs.folder import claim_output
     from multieye.outputs.write import write_outputs
-    from multieye.solvers import METHODS
     from multieye.outputs.summary import calibration_table, timings_line
 
-    if method not in METHODS:
-        raise click.BadParameter(f"{method!r}; choose one of {', '.join(METHODS)}",
-                                 param_hint="--method")
-    if time_offset not in ("rig", "auto"):
-        try:
-            time_offset = float(time_offset)
-        except ValueError:
-            time_offset = float("nan")
-        if not math.isfinite(time_offset):
-            raise click.BadParameter("expected rig, auto or a finite number of seconds",
-                                     param_hint="--time-offset")
+    # Options checks every flag, once (an InputError: one line, exit 2, nothing written)
+    options = Options(method=flags["method"], reference=flags["reference"],
+                      refine=not flags["no_refine"], robust=not flags["no_robust"],
+                      time_offset=_number_or_word(flags["time_offset"]),
+                      max_time_offset=flags["max_time_offset"])
     _utf8_dataset(dataset)
     _processes_note(processes)
     with claim_output(out_dir, inputs=[dataset]):   # one run per folder, checked before work
-        run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
-                              robust=not no_robust, time_offset=time_offset,
-                              max_time_offset=max_time_offset, processes=processes,
+        run = run_calibration(dataset, options, processes=processes,
                               progress=_progress_enabled())
         written = write_outputs(run, out_dir)
     _echo(calibration_table(run.record))

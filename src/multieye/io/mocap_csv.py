@@ -55,7 +55,7 @@ import numpy as np
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_TABLE_BYTES
-from multieye.io.poserows import QuaternionRows, trajectory_from_rows, usable_rows
+from multieye.io.poserows import QuaternionRows, RowPlace, trajectory_from_rows, usable_rows
 from multieye.io.textfile import LENGTH_UNITS, count_lines, parse_float, physical_lines, text_lines
 from multieye.io.trajectory import Trajectory
 
@@ -166,7 +166,7 @@ def _block(values: array, lines: array, n_columns: int) -> tuple[np.ndarray, np.
 
 def _screened(stamps, t, rotation, names, path, lines, max_rotation=None):
     """:func:`usable_rows` on the converted numbers: ``(keep, skipped, kept lines)``."""
-    return usable_rows(stamps, t, rotation, path=path, lines=lines, names=names,
+    return usable_rows(stamps, t, rotation, where=RowPlace(path, lines), names=names,
                        max_rotation=max_rotation)
 
 
@@ -497,8 +497,8 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
     keep, skipped, lines = _screened(stamps, t, rotvec, ("Frame",) + wanted, path, lines,
                                      max_rotation=_MAX_ROTVEC_RAD)
     T = geometry.transform_from_rotvec(rotvec[keep], t[keep])
-    return trajectory_from_rows(stamps[keep], T, path=path, lines=lines, parent=parent,
-                                child=child, skipped=skipped)
+    return trajectory_from_rows(stamps[keep], T, path=path, lines=lines, frames=(parent, child),
+                                skipped=skipped)
 
 
 def csv_flavour(path: str | os.PathLike) -> str:

@@ -502,7 +502,7 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
         A row with another count of numbers, a bad rotation, stamps that repeat or go back;
         with the file and the line.
     """
-    from multieye.io.poserows import trajectory_from_rows, usable_rows
+    from multieye.io.poserows import RowPlace, trajectory_from_rows, usable_rows
     from multieye.io.textfile import read_number_rows
 
     matrix = fmt.rotation == "matrix"
@@ -517,7 +517,7 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
     with np.errstate(over="ignore", invalid="ignore"):
         t_xyz = data[:, [col[n] for n in xyz]] * scale
     keep, skipped, kept = usable_rows(data[:, col["t"]], t_xyz, data[:, [col[n] for n in rot]],
-                                      path=path, lines=lines, names=("t", *xyz, *rot))
+                                      where=RowPlace(path, lines), names=("t", *xyz, *rot))
     T = []
     for row, line in zip(data[keep], kept):
         try:
@@ -529,5 +529,5 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
         except DatasetError as exc:
             raise DatasetError(exc.reason, path=path, line=line) from None
     return trajectory_from_rows(data[keep, col["t"]], np.stack(T) if T else np.zeros((0, 4, 4)),
-                                path=path, lines=kept, parent=parent, child=child,
+                                path=path, lines=kept, frames=(parent, child),
                                 duplicates=duplicates, skipped=skipped)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -23,7 +23,7 @@ from multieye.core.limits import MAX_POSITION_M, MAX_STAMP_S
 from multieye.io.trajectory import SkippedRow, Trajectory
 
 __all__ = ["QUATERNION_TOLERANCE", "quaternion_poses", "trajectory_from_rows", "screen_rows",
-           "usable_rows", "QuaternionRows"]
+           "usable_rows", "RowPlace", "QuaternionRows"]
 
 #: Largest accepted ``| ||q|| - 1 |`` before a quaternion is rejected.
 QUATERNION_TOLERANCE = 1e-3
@@ -129,11 +129,21 @@ def screen_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
     return ~bad, tuple(skipped)
 
 
+@dataclass(frozen=True)
+class RowPlace:
+    """Where rows of poses come from, for messages: the file, the 1-based line of each row
+    (or a label of each row, such as a bag topic and stamp) and what to say before."""
+
+    path: str | os.PathLike
+    lines: Sequence[int] | None = None
+    labels: Sequence[str] | None = None
+    what: str = ""
+
+
 def usable_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
-                path: str | os.PathLike, names: Sequence[str], lines: Sequence[int] | None = None,
-                labels: Sequence[str] | None = None, what: str = "",
-                max_rotation: float | None = None):
-    """:func:`screen_rows`, then the usable rows only.
+                where: RowPlace, names: Sequence[str], max_rotation: float | None = None):
+    """:func:`screen_rows`, then the usable rows only (``names``: the columns; ``where``:
+    the file and the rows' lines or labels).
 
     Returns
     -------
@@ -147,8 +157,9 @@ def usable_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
     DatasetError
         No usable row at all (naming the first row and why).
     """
+    path, lines, what = where.path, where.lines, where.what
     keep, skipped = screen_rows(stamps, t_xyz, rotation, names=names, lines=lines,
-                                labels=labels, max_rotation=max_rotation)
+                                labels=where.labels, max_rotation=max_rotation)
     if len(keep) and not keep.any():
         first = skipped[0]
         raise DatasetError(f"{what}no usable pose: all {len(keep)} rows left out; "
@@ -158,7 +169,7 @@ def usable_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
 
 
 def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.PathLike,
-                         lines: Sequence[int], parent: str, child: str,
+                         lines: Sequence[int], frames: tuple[str, str],
                          stamps_ns: np.ndarray | None = None,
                          duplicates: str = "error",
                          skipped: tuple[SkippedRow, ...] = ()) -> Trajectory:
@@ -171,7 +182,8 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
     T : ndarray, shape (N, 4, 4)
         ``T_parent_child`` of each row, metres.
     path, lines : the file and the 1-based line of each row.
-    parent, child : frame names.
+    frames : (str, str)
+        The parent and child frame names.
     stamps_ns : ndarray, shape (N,), int64, optional
     duplicates : {"error", "drop"}
         What to do with a row whose stamp equals the previous row's: raise, or keep only the
@@ -203,7 +215,7 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
         raise DatasetError(f"{what}: {float(stamps[i + 1])!r} s after {float(stamps[i])!r} s "
                            f"on line {int(lines[i])}; stamps must be strictly increasing",
                            path=path, line=int(lines[i + 1]))
-    return Trajectory(stamps, T, parent, child, stamps_ns, skipped)
+    return Trajectory(stamps, T, *frames, stamps_ns, skipped)
 
 
 class QuaternionRows:
@@ -287,5 +299,5 @@ class QuaternionRows:
             a.resize(shape, refcheck=False)
         ns = np.concatenate(self._ns) if self._ns else None
         return trajectory_from_rows(self._stamps, self._T, path=self.path, lines=self._lines,
-                                    parent=parent, child=child, duplicates=duplicates,
+                                    frames=(parent, child), duplicates=duplicates,
                                     skipped=tuple(self.skipped), stamps_ns=ns)

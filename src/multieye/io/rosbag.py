@@ -44,7 +44,7 @@ from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.image_header import FORMATS, image_header, size_problem
 from multieye.core.limits import MAX_YAML_BYTES
-from multieye.io.poserows import quaternion_poses, usable_rows
+from multieye.io.poserows import RowPlace, quaternion_poses, usable_rows
 from multieye.io.textfile import length_scale
 from multieye.io.trajectory import Trajectory
 
@@ -225,9 +225,9 @@ def read_bag_trajectory(path: str | os.PathLike, topic: str, *,
     with np.errstate(over="ignore", invalid="ignore"):
         t = np.array([r[3] for r in keep], dtype=np.float64).reshape(-1, 3) * scale
     q = np.array([r[4] for r in keep], dtype=np.float64).reshape(-1, 4)
-    ok, skipped, _ = usable_rows(ns / 1e9, t, q, path=path, what=f"topic {topic}: ",
-                                 names=("stamp", "x", "y", "z", "qx", "qy", "qz", "qw"),
-                                 labels=[f"{topic}@{n}" for n in ns])
+    ok, skipped, _ = usable_rows(ns / 1e9, t, q, where=RowPlace(
+        path, labels=[f"{topic}@{n}" for n in ns], what=f"topic {topic}: "),
+        names=("stamp", "x", "y", "z", "qx", "qy", "qz", "qw"))
     T = quaternion_poses(t[ok], q[ok], path=path, lines=None, what=f"topic {topic}: ")
     try:
         return Trajectory.from_unsorted(ns[ok] / 1e9, T, parent, child, stamps_ns=ns[ok],

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
+from multieye.core.arguments import with_fields
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, undistort_points
@@ -391,11 +392,25 @@ def _board_roi(target: Target, intrinsics: Intrinsics, T: F64, w: int, h: int, m
     return (ua, va, ub, vb)
 
 
-def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike, *,
-           width: int | None = None, height: int | None = None,
-           rng: np.random.Generator | None = None, supersample: int = 3,
-           blur_sigma: float = 0.6, noise_sigma: float = 1.5, margin: float | None = None,
-           inverted: bool = False, black: float = 25.0, white: float = 225.0) -> NDArray[np.uint8]:
+@dataclass(frozen=True)
+class RenderStyle:
+    """The options of :func:`render` (see there), taken as one argument or as
+    keyword arguments."""
+
+    width: int | None = None
+    height: int | None = None
+    rng: np.random.Generator | None = None
+    supersample: int = 3
+    blur_sigma: float = 0.6
+    noise_sigma: float = 1.5
+    margin: float | None = None
+    inverted: bool = False
+    black: float = 25.0
+    white: float = 225.0
+
+
+def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike,
+           style: RenderStyle = RenderStyle(), **kw) -> NDArray[np.uint8]:
     """Render a grayscale image of ``target`` at pose ``T_cam_target``.
 
     Parameters
@@ -436,6 +451,10 @@ def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike, *,
     whose ray cannot be traced back through the lens model (outside the field of a fisheye,
     or where a polynomial model folds) show background.
     """
+    o = with_fields(style, kw, RenderStyle, "style")
+    width, height, rng, supersample = o.width, o.height, o.rng, o.supersample
+    blur_sigma, noise_sigma, margin, inverted = o.blur_sigma, o.noise_sigma, o.margin, o.inverted
+    black, white = o.black, o.white
     T = _check_pose(T_cam_target)
     w, h = _image_size(intrinsics, width, height)
     if int(supersample) < 1:
