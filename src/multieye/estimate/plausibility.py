@@ -76,6 +76,7 @@ Synopsis
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from collections.abc import Sequence
 
 import numpy as np
@@ -180,11 +181,12 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
     base = h.fit(A, B, weights)
     singles = [h.fit([c.A], [c.B], [w]) for c, w in zip(cams, weights)]
     tested: list[str] = []
-    rig = _rig_findings(setup, cams, weights, base, declared, tested)
+    declared = replace(declared, setup=setup)
+    rig = _rig_findings(cams, weights, base, declared, tested)
     per_camera = {}
     for j, (cam, w, single) in enumerate(zip(cams, weights, singles)):
         if single.cost >= POOR_COST:
-            per_camera[j] = _camera_findings(setup, cam, w, clock, max_time_offset_s, tested)
+            per_camera[j] = _camera_findings(cam, w, declared, clock, max_time_offset_s, tested)
     findings = _select(rig, per_camera, len(cams))
     for cam in cams:       # the lens, on every camera: its own residuals hide it elsewhere
         if cam.has_points and not cam.intrinsics_estimated and not any(
@@ -199,12 +201,12 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
                         tested=tuple(tested))
 
 
-def _rig_findings(setup: str, cams: list[CameraEvidence], weights, base: h.Fit,
-                  declared: Declared, tested: list[str]) -> list[tuple[Finding, tuple]]:
+def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: Declared,
+                  tested: list[str]) -> list[tuple[Finding, tuple]]:
     """The whole-rig hypotheses (scale, quaternion order, setup, inverted poses) that fit
     better than ``base``, with their per-camera costs; each hypothesis tested is added to
     ``tested``."""
-    A, B = [c.A for c in cams], [c.B for c in cams]
+    A, B, setup = [c.A for c in cams], [c.B for c in cams], declared.setup
     rig: list[tuple[Finding, tuple]] = []     # whole-rig findings, with their per-camera costs
 
     def consider(fit: h.Fit, make, gain: float) -> None:
@@ -232,7 +234,7 @@ def _rig_findings(setup: str, cams: list[CameraEvidence], weights, base: h.Fit,
                  DISCRETE_GAIN)
     tested.append("setup")
     consider(h.fit([g.inv(a) for a in A], B, weights),
-             lambda b, a: _setup_finding(setup, b, a, declared), DISCRETE_GAIN)
+             lambda b, a: _setup_finding(b, a, declared), DISCRETE_GAIN)
     posed = [j for j, c in enumerate(cams) if c.image_points is None]
     if posed:
         tested.append("inverted-poses")
@@ -246,12 +248,12 @@ def _rig_findings(setup: str, cams: list[CameraEvidence], weights, base: h.Fit,
     return rig
 
 
-def _camera_findings(setup: str, cam: CameraEvidence, w, clock: bool, max_offset_s: float,
-                     tested: list[str]) -> list[Finding]:
+def _camera_findings(cam: CameraEvidence, w, declared: Declared, clock: bool,
+                     max_offset_s: float, tested: list[str]) -> list[Finding]:
     """The per-camera hypotheses: clock offset, focal length, image size."""
     found = []
     if clock:
-        res = h.clock_search(setup, cam, w, max_offset_s)
+        res = h.clock_search(declared.setup, cam, w, max_offset_s)
         if res is not None:
             tested.append(f"time-offset:{cam.name}")
             off, std, before, after = res

@@ -517,7 +517,7 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
     with np.errstate(over="ignore", invalid="ignore"):
         t_xyz = data[:, [col[n] for n in xyz]] * scale
     keep, skipped, kept = usable_rows(data[:, col["t"]], t_xyz, data[:, [col[n] for n in rot]],
-                                      where=RowPlace(path, lines), names=("t", *xyz, *rot))
+                                      where=RowPlace(path, lines), columns=("t", *xyz, *rot))
     T = []
     for row, line in zip(data[keep], kept):
         try:

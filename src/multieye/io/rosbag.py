@@ -227,7 +227,7 @@ def read_bag_trajectory(path: str | os.PathLike, topic: str, *,
     q = np.array([r[4] for r in keep], dtype=np.float64).reshape(-1, 4)
     ok, skipped, _ = usable_rows(ns / 1e9, t, q, where=RowPlace(
         path, labels=[f"{topic}@{n}" for n in ns], what=f"topic {topic}: "),
-        names=("stamp", "x", "y", "z", "qx", "qy", "qz", "qw"))
+        columns=("stamp", "x", "y", "z", "qx", "qy", "qz", "qw"))
     T = quaternion_poses(t[ok], q[ok], path=path, lines=None, what=f"topic {topic}: ")
     try:
         return Trajectory.from_unsorted(ns[ok] / 1e9, T, parent, child, stamps_ns=ns[ok],
