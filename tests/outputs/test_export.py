@@ -27,9 +27,8 @@ from multieye.outputs.export import (
     FORMATS,
     T_LINK_OPTICAL,
     export,
-    rotation_from_rpy,
-    rpy_from_rotation,
 )
+from multieye.core.geometry import rotation_from_rpy, rpy_from_rotation
 from multieye.core.intrinsics import Intrinsics
 from multieye.io import RejectedItem, Trajectory, read_calibration, read_camchain
 from multieye.io.rig import Rig
