@@ -11,7 +11,7 @@ from multieye.core.errors import InputError
 from multieye.core.lie import log_so3
 from multieye.estimate.clock_residuals import (ClockData, LocalTrajectory, TimedMocapPriors,
                                                offset_family)
-from multieye.estimate.image_residuals import image_data
+from multieye.estimate.image_data import image_data
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.streams import simulate_rig_stream

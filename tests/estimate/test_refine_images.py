@@ -12,7 +12,7 @@ from multieye.core.errors import InputError
 from multieye.sim.images import simulate_images
 from multieye.core.metrics import relative_extrinsics
 from multieye.core.lens import project_with_jacobian
-from multieye.estimate.image_residuals import image_data
+from multieye.estimate.image_data import image_data
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.estimate.uncertainty import cramer_rao_bound, relative_covariance

@@ -10,7 +10,8 @@ import multieye
 from multieye.core import geometry as g
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points
-from multieye.estimate.image_residuals import image_data, intrinsics_family
+from multieye.estimate.image_data import image_data
+from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.images import simulate_images

@@ -12,7 +12,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.estimate.clock_residuals import (ClockData, TimedMocapPriors, offset_family,
                                                shared_clocks)
-from multieye.estimate.image_residuals import image_data
+from multieye.estimate.image_data import image_data
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.streams import simulate_rig_stream

@@ -11,7 +11,8 @@ import pytest
 from multieye.core import geometry as g
 from multieye.core.lens import project_points
 from multieye.estimate.clock_residuals import ClockData, TimedMocapPriors
-from multieye.estimate.image_residuals import image_data, MocapPriors
+from multieye.estimate.image_data import image_data
+from multieye.estimate.image_residuals import MocapPriors
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.images import default_target_points

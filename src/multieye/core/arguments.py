@@ -15,11 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from multieye.core.errors import InputError
 import difflib
 
+from multieye.core.errors import InputError
+from multieye.core.geometry import is_rigid
+
 __all__ = ["real_array", "real_number", "positive_int", "camera_names", "one_of", "as_path",
-           "did_you_mean", "with_fields"]
+           "did_you_mean", "with_fields", "transform"]
 
 
 def _kind(value: Any) -> str:
@@ -153,3 +155,28 @@ def with_fields(options: Any, kw: Mapping[str, Any], kind: type, what: str) -> A
         raise InputError(f"unknown option {', '.join(unknown)}; the options are "
                          f"{', '.join(names)}")
     return replace(options, **kw) if kw else options
+
+
+def transform(value: Any, what: str, *, count: int | None = None, rigid: bool = False
+              ) -> np.ndarray:
+    """``value`` as a finite 4x4 transform (or ``count`` of them, one per camera), or an
+    InputError naming ``what``: the one check of a transform a caller passes in.
+
+    Parameters
+    ----------
+    value : array_like, shape (4, 4), or (count, 4, 4) with ``count``
+    what : str
+        How the message names the argument.
+    count : int, optional
+        The number of transforms expected (one per camera).
+    rigid : bool
+        Also require rigid transforms (:func:`multieye.core.geometry.is_rigid`).
+    """
+    want = ("a finite 4x4 transform" if count is None
+            else f"{count} finite 4x4 transforms (one per camera)")
+    T = real_array(value, what, expected=want)
+    if T.shape != ((4, 4) if count is None else (count, 4, 4)) or not np.all(np.isfinite(T)):
+        raise InputError(f"{what} must be {want}, got shape {T.shape}")
+    if rigid and not np.all(is_rigid(T)):
+        raise InputError(f"{what} is not a rigid transform")
+    return T

@@ -15,7 +15,7 @@ motion-capture pose ``M_k`` of every motion-capture measurement, observed throug
 (``rho`` applied per residual component).  Images given the same motion-capture pose
 (bitwise equal: cameras triggered together) share one ``M_k`` and its one prior, so a
 measurement counts once however many cameras saw the target at its instant
-(:class:`multieye.estimate.image_residuals.ImageData`).  The residuals, their analytic
+(:class:`multieye.estimate.image_data.ImageData`).  The residuals, their analytic
 Jacobians and the parameterisation are in :mod:`multieye.estimate.image_residuals`; the
 minimisation is the engine's (:mod:`multieye.optimize`): Levenberg-Marquardt with the
 motion-capture poses eliminated by the Schur complement, cost linear in the points.
@@ -60,12 +60,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import chdtri  # chi-square quantiles; scipy.stats costs 0.66 s to import
 
-from multieye.core.arguments import real_array, with_fields
+from multieye.core.arguments import transform, with_fields
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho
 from multieye.estimate.clock_residuals import ClockData
-from multieye.estimate.image_residuals import ImageData, image_data, intrinsics_family
+from multieye.estimate.image_data import ImageData, image_data
+from multieye.estimate.image_residuals import intrinsics_family
 # estimate_mocap_noise is named here too: it is the plain form of this module's estimate
 from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR, estimate_mocap_noise
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
@@ -344,13 +345,11 @@ class RefineOptions:
     max_iter : int
         Levenberg-Marquardt iterations per pass at most.
     tol : float
-        Stop when an iteration lowers the cost by less than ``tol`` times the cost; 1e-8
-        leaves the parameters within about 1 % of a standard deviation of the optimum.  While
-        the pixel noise is still being estimated, passes stop at ``sqrt(tol)``.
-    names : sequence of str, optional
-        Camera names for messages.
-    free_intrinsics, intrinsics_observations
-        :func:`multieye.estimate.image_residuals.image_data`.
+        Stop when an iteration lowers the cost by less than ``tol`` times the cost (1e-8:
+        within about 1 % of a standard deviation of the optimum; ``sqrt(tol)`` while the
+        pixel noise is still being estimated).
+    names, free_intrinsics, intrinsics_observations
+        :func:`multieye.estimate.image_data.image_data`.
     clocks : sequence of (ClockData or None), optional
         Per camera: estimate its clock offset in the problem, from
         ``ClockData(image_stamps, mocap_stamps, mocap_T, offset=start)`` (the camera's image
@@ -476,13 +475,8 @@ def _start(data: ImageData, X0: ArrayLike, Y0: ArrayLike, noise: _Noise):
     s_rot, s_t, s_px = noise.s_rot, noise.s_t, noise.s_px
     if noise.estimate_mocap and timed:      # one sample's noise, from the smoothing residuals
         s_rot, s_t = _clock_noise(data)
-    X0 = real_array(X0, "X0", expected=f"{data.m} finite 4x4 transforms (one per camera)")
-    if X0.shape != (data.m, 4, 4) or not np.all(np.isfinite(X0)):
-        raise InputError(f"X0 must be {data.m} finite 4x4 transforms (one per camera), "
-                         f"got shape {X0.shape}")
-    Y0 = real_array(Y0, "Y0", expected="a finite 4x4 transform")
-    if Y0.shape != (4, 4) or not np.all(np.isfinite(Y0)):
-        raise InputError(f"Y0 must be a finite 4x4 transform, got shape {Y0.shape}")
+    X0 = transform(X0, "X0", count=data.m)
+    Y0 = transform(Y0, "Y0")
     fams = data.families(X0, Y0)
     values = {f.name: f.value for f in fams}
     r0 = np.concatenate([g_.evaluate(values, False)[0] for g_ in data.groups(1.0, s_rot, s_t)

@@ -39,7 +39,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_with_jacobian
 from multieye.core.lie import log_so3
-from multieye.estimate.image_residuals import image_data
+from multieye.estimate.image_data import image_data
 from multieye.optimize.levenberg_marquardt import covariance
 from multieye.solvers.refine_poses import relative_pose_covariance
 
