@@ -300,7 +300,7 @@ def ypr_from_rotation(R: ArrayLike) -> F64:
     -------
     ndarray, shape (..., 3)
     """
-    return rpy_from_rotation(R)[..., ::-1]
+    return rpy_from_rotation(R)[..., ::-1] + 0.0     # + 0.0: no -0.0 in the tables
 
 
 def rotation_mean(Rs: ArrayLike) -> F64:

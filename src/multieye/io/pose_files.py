@@ -38,6 +38,8 @@ from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_POSITION_M, MAX_TABLE_BYTES, MAX_YAML_BYTES
 from multieye.core.regular_files import read_bounded
 from multieye.io.textfile import length_scale
+from multieye.io.poserows import RowPlace, trajectory_from_rows, usable_rows
+from multieye.io.textfile import read_number_rows
 
 __all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
            "read_pose_file", "pose_file_pattern", "poses_by_name", "read_pose_table",
@@ -502,8 +504,6 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
         A row with another count of numbers, a bad rotation, stamps that repeat or go back;
         with the file and the line.
     """
-    from multieye.io.poserows import RowPlace, trajectory_from_rows, usable_rows
-    from multieye.io.textfile import read_number_rows
 
     matrix = fmt.rotation == "matrix"
     order = _MATRIX_ROW if matrix else (
