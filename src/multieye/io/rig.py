@@ -66,7 +66,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 
@@ -76,6 +76,8 @@ from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.core.limits import (MAX_GRID_SIDE, MAX_ROTATION_NOISE_DEG, MAX_SPACING_M,
                                   MAX_TIME_OFFSET_S, MAX_TIME_TOLERANCE_S, MAX_TRANSLATION_NOISE_M)
 from multieye.core.names import NAME_RULE, camera_name_problem
+from multieye.core import target_spec
+from multieye.core.target_spec import TARGET_KEYS, TARGET_TYPES, TYPE_KEYS, TargetSpec, grid_keys
 from multieye.io.intrinsics import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
@@ -91,15 +93,9 @@ __all__ = ["SETUPS", "TARGET_TYPES", "TOP_LEVEL_KEYS", "TARGET_KEYS", "MOCAP_KEY
 
 #: setup -> the frame motion capture tracks.
 SETUPS = {"eye-to-base": "marker", "eye-on-hand": "body"}
-TARGET_TYPES = ("chessboard", "circles", "asymmetric-circles", "charuco", "aprilgrid", "aruco",
-                "aruco-grid")
-_TARGET_ONLY = {"marker_size": ("charuco", "aruco", "aruco-grid"),
-                "dictionary": ("charuco", "aruco", "aruco-grid"), "tag_spacing": ("aprilgrid",),
-                "marker_separation": ("aruco-grid",), "id": ("aruco",), "first_id": ("aruco-grid",)}
-#: Keys each target type requires besides ``type`` and the keys of :data:`_TARGET_ONLY` it
-#: owns (``first_id`` is optional).
-_TARGET_GRID = {"aruco": (), "aruco-grid": ("rows", "cols")}
-_TARGET_OPTIONAL = ("first_id",)
+#: The target keys beyond rows, cols, spacing, with the types that take them (the schema is
+#: :mod:`multieye.core.target_spec`).
+_TARGET_ONLY = {k: target_spec.owners(k) for k in TARGET_KEYS[4:]}
 _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-files", "pose-table"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv"),
@@ -110,7 +106,6 @@ _SOURCES = ("images", "poses", "rosbag")
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
 TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
-TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
 MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
               "rotation_noise_deg", "translation_noise_m", "match", "sensor",
               "noise_bounds") + tuple(_MOCAP_ONLY)
@@ -120,56 +115,6 @@ MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 CAMERA_KEYS = ("intrinsics", "model", "images", "poses", "rosbag", "topic", "mocap",
                "time_offset", "intrinsics_images", "intrinsics_target", "refine_intrinsics")
 CAMERA_INTRINSICS_KEYS = ("file", "camera")
-
-
-@dataclass(frozen=True)
-class TargetSpec:
-    """The calibration board (docs/rig-yaml.md, section 3; metres).
-
-    Attributes
-    ----------
-    type : {"chessboard", "circles", "asymmetric-circles", "charuco", "aprilgrid"}
-    rows, cols : int
-        Along the board's y and x axes, counted as the board's own tools count them.
-    spacing : float
-        Square size, circle centre distance, or tag size (aprilgrid), metres.
-    marker_size : float or None
-        ChArUco marker side, metres.
-    dictionary : str or None
-        ChArUco OpenCV dictionary name (``DICT_5X5_100``).
-    tag_spacing : float or None
-        AprilGrid gap between tags as a fraction of the tag size (Kalibr's ratio).
-    marker_separation : float or None
-        ``aruco-grid``: the gap between markers, metres.
-    id : int or None
-        ``aruco``: the marker's id.
-    first_id : int or None
-        ``aruco-grid``: the id of the first marker (default 0).
-
-    ``aruco`` targets have ``rows = cols = 1``; for ``aruco`` and ``aruco-grid`` ``spacing`` is
-    the marker side (``marker_size``), which rig.yaml gives instead.
-    """
-
-    type: str
-    rows: int
-    cols: int
-    spacing: float
-    marker_size: float | None = None
-    dictionary: str | None = None
-    tag_spacing: float | None = None
-    marker_separation: float | None = None
-    id: int | None = None
-    first_id: int | None = None
-
-    def as_dict(self) -> dict:
-        """The fields that are set, as a plain dict (the ``target:`` mapping)."""
-        out = {f.name: getattr(self, f.name) for f in fields(self)
-               if getattr(self, f.name) is not None}
-        if self.type in _TARGET_GRID:
-            out.pop("spacing")
-            if self.type == "aruco":
-                del out["rows"], out["cols"]
-        return out
 
 
 @dataclass(frozen=True)
@@ -268,10 +213,10 @@ class Rig:
 def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
     c.mapping(raw, keys, TARGET_KEYS, ("type",))
     kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
-    for key in _TARGET_GRID.get(kind, ("rows", "cols", "spacing")):
+    for key in grid_keys(kind):
         if key not in raw:
             raise c.error(f"missing key {key!r}", keys)
-    if kind in _TARGET_GRID and "spacing" in raw:
+    if "spacing" not in TYPE_KEYS[kind] and "spacing" in raw:
         raise c.error(f"{kind} targets give the marker side as 'marker_size'", keys + ("spacing",))
     if kind == "aruco" and ("rows" in raw or "cols" in raw):
         raise c.error("a single marker has no rows and cols (use aruco-grid for a board)",
@@ -280,7 +225,7 @@ def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
         if key in raw and kind not in owners:
             raise c.error(f"applies to {', '.join(owners)} targets only (this target is {kind})",
                           keys + (key,))
-        if key not in raw and kind in owners and key not in _TARGET_OPTIONAL:
+        if key not in raw and kind in owners and TYPE_KEYS[kind][key] is None:
             raise c.error(f"missing key {key!r} (required for {kind} targets)", keys)
     extra = {}
     if "marker_size" in raw:
@@ -307,7 +252,7 @@ def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
             raise c.error(f"expected an OpenCV dictionary name such as DICT_5X5_100, got "
                           f"{name!r}", keys + ("dictionary",))
         extra["dictionary"] = name
-    if kind in _TARGET_GRID:
+    if "spacing" not in TYPE_KEYS[kind]:
         spacing = extra["marker_size"]
     else:
         spacing = c.number(raw["spacing"], keys + ("spacing",), positive=True,

@@ -231,7 +231,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     """
     cam = rig.cameras[name]
     source, topic = (cam.images, None) if cam.source == "images" else (cam.rosbag, cam.topic)
-    target = target_from_spec(rig.target.as_dict(), path=rig.path)
+    target = target_from_spec(rig.target, path=rig.path)
     if topic is None:
         images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
@@ -295,7 +295,7 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _
     (their own board if given): the paths, the results and the seconds it took."""
 
     spec = cam.intrinsics_target or rig.target
-    target = target_from_spec(spec.as_dict(), path=rig.path)
+    target = target_from_spec(spec, path=rig.path)
     paths = list_image_files(cam.intrinsics_images)
     t0 = time.perf_counter()
     results = detect_and_estimate(paths, target, intr, processes=workers.processes,
