@@ -530,8 +530,9 @@ def target_from_spec(spec: TargetSpec | Mapping[str, Any], *, path=None,
     def fail(message: str):
         raise DatasetError(f"target: {message}", path=path, line=line)
 
-    if isinstance(spec, TargetSpec):
-        spec = spec.as_dict()
+    if isinstance(spec, TargetSpec):     # its fields that the type takes, as the mapping
+        spec = {"type": spec.type, **{k: getattr(spec, k) for k in TYPE_KEYS[spec.type]
+                                      if getattr(spec, k) is not None}}
 
     if not isinstance(spec, Mapping):
         fail(f"expected a mapping with type, rows, cols, spacing; got {type(spec).__name__}")

@@ -477,7 +477,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
     DatasetError
         The first problem found, naming the file, the line of the key and what was expected.
     """
-    p = as_path(path, "the dataset (a folder or its rig.yaml)")
+    p = as_path(path, "dataset (a folder with rig.yaml, or the rig.yaml)")
     if p.is_dir():
         p = p / "rig.yaml"
     no_link_loop(p)     # a rig.yaml that is a link: its paths are relative to the real file
