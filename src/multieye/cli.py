@@ -361,7 +361,7 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
     the maximum-likelihood refinement and the Cramer-Rao bound.
     """
     if name == "refine":
-        from multieye.experiments.refine import run_refine_experiment  # noqa: PLC0415 (instant start-up of multieye --help)
+        from multieye.experiments.refine_sweep import run_refine_experiment  # noqa: PLC0415 (instant start-up of multieye --help)
 
         paths = run_refine_experiment(trials=trials, seed=seed, out_dir=out_dir,
                                       progress=_progress_enabled())

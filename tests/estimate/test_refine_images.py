@@ -227,7 +227,7 @@ def test_error_messages_name_what_is_wrong():
 
 
 def test_refine_experiment_writes_csv_and_png(tmp_path):
-    from multieye.experiments.refine import (COLUMNS, METHODS, run_refine_experiment,
+    from multieye.experiments.refine_sweep import (COLUMNS, METHODS, run_refine_experiment,
                                              summarize_refine, refine_sweep)
     paths = run_refine_experiment(1, 3, tmp_path, progress=False, levels=(0.5,), n_cameras=2,
                                   images=6)

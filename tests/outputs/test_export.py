@@ -320,7 +320,7 @@ CAMERA_INFO_SCHEMA = {"image_width": int, "image_height": int, "camera_name": st
 
 def test_camera_info_per_camera_follows_ros_and_reads_back(result):
     yaml = pytest.importorskip("yaml")
-    from multieye.io.intrinsics import read_camera_info
+    from multieye.io.intrinsics_files import read_camera_info
 
     out, rec, _ = result
     notes = []

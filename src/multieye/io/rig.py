@@ -78,7 +78,7 @@ from multieye.core.limits import (MAX_GRID_SIDE, MAX_ROTATION_NOISE_DEG, MAX_SPA
 from multieye.core.names import NAME_RULE, camera_name_problem
 from multieye.core import target_spec
 from multieye.core.target_spec import TARGET_KEYS, TARGET_TYPES, TYPE_KEYS, TargetSpec, grid_keys
-from multieye.io.intrinsics import read_intrinsics
+from multieye.io.intrinsics_files import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.pose_files import STEM, check_rotation, check_values

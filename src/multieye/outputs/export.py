@@ -72,7 +72,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.names import file_stems
 from multieye.io.atomic import confined_to, make_folder, write_text_atomic
-from multieye.io.intrinsics import camera_info_text, distortion_model_name
+from multieye.io.intrinsics_files import camera_info_text, distortion_model_name
 from multieye.io.cameramodel import cameramodel_text
 from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict, named_keys,
                                           read_calibration)
@@ -139,7 +139,7 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
     (``T_marker_target`` or ``T_world_target``) and ``cameras``, a sequence of maps with
     ``name``, ``T_ref_cam``, ``T_world_cam`` (or ``T_body_cam``) and, when known,
     ``camera_matrix``, ``camera_model`` (``pinhole`` or ``fisheye``), ``distortion_model``
-    (:func:`multieye.io.intrinsics.distortion_model_name`: ``plumb_bob``,
+    (:func:`multieye.io.intrinsics_files.distortion_model_name`: ``plumb_bob``,
     ``rational_polynomial``, ``thin_prism``, ``tilted`` or ``equidistant``),
     ``distortion_coefficients`` (1 x k), ``image_width`` and ``image_height``.  Read it with
     ``cv2.FileStorage(path, cv2.FILE_STORAGE_READ)``; ``fs.getNode("cameras").at(j)``.

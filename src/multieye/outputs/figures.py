@@ -1,4 +1,5 @@
-"""Figures of the calibration report (matplotlib, Agg canvas, imported when drawing).
+"""Figures of the calibration report (matplotlib, Agg canvas, imported when drawing); the
+same kind of module as :mod:`multieye.experiments.figures`, which draws the experiments'.
 
 Figures returned as PNG bytes for :mod:`multieye.outputs.report` to embed and to write (the
 rig's are in :mod:`multieye.outputs.figures_rig`).  Figures about every camera draw one lane

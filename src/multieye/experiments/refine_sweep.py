@@ -18,7 +18,7 @@ bound itself in both.  Trial ``t`` draws its scene from ``default_rng([seed, t])
 noise from ``default_rng([seed, t, k])`` at the k-th level, so every level sees the same
 scenes.
 
->>> from multieye.experiments.refine import run_refine_experiment
+>>> from multieye.experiments.refine_sweep import run_refine_experiment
 >>> paths = run_refine_experiment(100, 0, "docs/experiments", progress=False)  # doctest: +SKIP
 """
 
