@@ -423,9 +423,8 @@ def consensus(A, B=None, options: ConsensusOptions = ConsensusOptions(), **kw
         inliers.append(inl)
         choices.append(choice)
         samples.append(s)
-    inliers, X, Y, res = _settle(As, Bs, Balts, inliers, choices, thr, meas.names, labels)
-    return ConsensusResult(inliers=tuple(inliers),
-                           rejected=_rejected(inliers, res, thr, meas.names),
+    inliers, X, Y, res = _settle(meas, As, Bs, Balts, inliers, choices, thr, labels)
+    return ConsensusResult(inliers=tuple(inliers), rejected=_rejected(inliers, res, thr, meas),
                            X=X, Y=Y, rot_deg=tuple(r for r, _, _ in res),
                            trans_m=tuple(t for _, t, _ in res),
                            threshold_rot_deg=float(thr[0]), threshold_trans_m=float(thr[1]),
@@ -447,11 +446,12 @@ def _check_options(opts: ConsensusOptions) -> None:
         raise InputError(f"max_samples must be a positive integer, got {max_samples!r}")
 
 
-def _settle(As, Bs, Balts, inliers, choices, thr, names, labels):
+def _settle(meas: Measurements, As, Bs, Balts, inliers, choices, thr, labels):
     """Refit on the inliers of every camera together and rescore until the inliers (and
     the poses chosen) no longer change (10 rounds at most).  Returns the inliers, ``X``,
     ``Y`` and per camera the residuals (rotation, translation, choice)."""
     threshold_rot_deg, threshold_trans_m = thr
+    names = meas.names
     for _ in range(10):
         for j, inl in enumerate(inliers):
             if inl.sum() < MIN_MEASUREMENTS:
@@ -478,8 +478,8 @@ def _settle(As, Bs, Balts, inliers, choices, thr, names, labels):
     return inliers, X, Y, res
 
 
-def _rejected(inliers, res, thr, names) -> tuple[RejectedMeasurement, ...]:
-    rejected = []
+def _rejected(inliers, res, thr, meas: Measurements) -> tuple[RejectedMeasurement, ...]:
+    rejected, names = [], meas.names
     for j, (inl, (rot, trans, _)) in enumerate(zip(inliers, res)):
         for i in np.flatnonzero(~inl):
             rejected.append(RejectedMeasurement(

@@ -66,6 +66,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
+from typing import NamedTuple
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -264,16 +265,28 @@ def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
     return TargetSpec(kind, rows, cols, spacing, **extra)
 
 
-def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
-           where: tuple) -> MocapSpec:
+class _RigWide(NamedTuple):
+    """What the reading of one rig.yaml knows beyond the mapping at hand: its checker (the
+    document, for messages), the setup, the top-level ``mocap`` (``(raw mapping,
+    MocapSpec)``, or ``({}, None)``) and the top-level ``refine_intrinsics``."""
+
+    checker: _Checker
+    setup: str
+    top: tuple = ({}, None)
+    refine_all: bool = False
+
+
+def _mocap(rw: _RigWide, raw: Mapping, origin: Mapping[str, tuple], where: tuple) -> MocapSpec:
     """Build a MocapSpec from ``raw`` (written at ``where``); ``origin[key]`` is the key path
     of the mapping each key came from (a camera's own or the top-level ``mocap``)."""
+    c = rw.checker
+
     def at(key):
         return origin[key] + (key,)
 
     if "file" not in raw:
         raise c.error("missing key 'file'", where)
-    moving = SETUPS[setup]
+    moving = SETUPS[rw.setup]
     names = None
     if "frames" in raw:
         names = raw["frames"]
@@ -363,17 +376,18 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
     return MocapSpec(file, pose, tol, fmt, **kw)
 
 
-def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
-    """A camera's own motion capture, completed from the top-level section ``top``
-    (``(raw mapping, MocapSpec)``, or ``({}, None)``): ``pose``, ``frames``, ``fixed_frame``,
+def _camera_mocap(rw: _RigWide, own, where: tuple) -> MocapSpec:
+    """A camera's own motion capture, completed from the top-level section ``rw.top``:
+    ``pose``, ``frames``, ``fixed_frame``,
     ``time_tolerance`` and the noise keys are always inherited; the format-specific keys only
     when the camera's file has the top-level file's format (a camera with a TUM file under a
     rosbag rig does not inherit ``topic``)."""
+    c = rw.checker
     if isinstance(own, Mapping):
         c.mapping(own, where, MOCAP_KEYS)
     else:
         own = {"file": c.string(own, where)}
-    top_raw, top_spec = top
+    top_raw, top_spec = rw.top
     inherit = [k for k in top_raw if k not in own]
     if "file" in own and top_spec is not None:
         fmt = own.get("format")
@@ -390,11 +404,11 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
                                                    "noise_bounds")]
     merged = {**{k: top_raw[k] for k in inherit}, **own}
     origin = {**{k: ("mocap",) for k in inherit}, **{k: where for k in own}}
-    return _mocap(c, merged, origin, setup, where)
+    return _mocap(rw, merged, origin, where)
 
 
-def _camera(c: _Checker, name, raw, top_mocap, setup, refine_all=False) -> CameraSpec:
-    keys = ("cameras", name)
+def _camera(rw: _RigWide, name, raw) -> CameraSpec:
+    c, keys = rw.checker, ("cameras", name)
     c.mapping(raw, keys, CAMERA_KEYS)
     sources = [s for s in _SOURCES if s in raw]
     if len(sources) != 1:
@@ -402,7 +416,7 @@ def _camera(c: _Checker, name, raw, top_mocap, setup, refine_all=False) -> Camer
                       f"{', '.join(sources) or 'none'}", keys)
     if ("topic" in raw) != ("rosbag" in raw):
         raise c.error("'topic' goes with 'rosbag' (the image topic of the bag)", keys)
-    lens = _lens(c, raw, keys, sources[0], refine_all)
+    lens = _lens(c, raw, keys, sources[0], rw.refine_all)
     if "intrinsics" not in raw and "model" not in raw and sources[0] != "poses":
         raise c.error("missing key 'intrinsics' or 'model' (intrinsics to find the target in "
                       "the images, or the lens model to estimate them in; only a camera "
@@ -428,7 +442,7 @@ def _camera(c: _Checker, name, raw, top_mocap, setup, refine_all=False) -> Camer
         kw["time_offset"] = c.number(raw["time_offset"], keys + ("time_offset",),
                                      maximum=MAX_TIME_OFFSET_S, unit="seconds")
     if "mocap" in raw:
-        kw["mocap"] = _camera_mocap(c, raw["mocap"], keys + ("mocap",), top_mocap, setup)
+        kw["mocap"] = _camera_mocap(rw, raw["mocap"], keys + ("mocap",))
     return CameraSpec(str(name), intr_path, **kw, **lens)
 
 
@@ -494,10 +508,10 @@ def load_rig(path: str | os.PathLike) -> Rig:
     mocap = None
     if "mocap" in raw:
         c.mapping(raw["mocap"], ("mocap",), MOCAP_KEYS, ("file",))
-        mocap = _mocap(c, raw["mocap"], {k: ("mocap",) for k in raw["mocap"]}, setup,
+        mocap = _mocap(_RigWide(c, setup), raw["mocap"], {k: ("mocap",) for k in raw["mocap"]},
                        ("mocap",))
-    top = (dict(raw["mocap"]) if mocap is not None else {}, mocap)
-    refine_all = (c.boolean(raw["refine_intrinsics"], ("refine_intrinsics",))
+    rw = _RigWide(c, setup, (dict(raw["mocap"]) if mocap is not None else {}, mocap),
+                  c.boolean(raw["refine_intrinsics"], ("refine_intrinsics",))
                   if "refine_intrinsics" in raw else False)
     cameras, taken = {}, {}
     for name, cam_raw in cams_raw.items():
@@ -505,7 +519,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
         if problem is not None:
             raise c.error(f"camera name {shown(name)} {problem}; a camera name is {NAME_RULE}",
                           ("cameras", name))
-        cam = _camera(c, name, cam_raw, top, setup, refine_all)
+        cam = _camera(rw, name, cam_raw)
         if cam.mocap is None and mocap is None:
             raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
                           "key to this camera", ("cameras", name))
