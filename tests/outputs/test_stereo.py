@@ -7,7 +7,7 @@ import yaml
 
 from multieye.core import geometry as g
 from multieye.io.calibration_json import CalibrationRecord, CameraRecord, Residuals
-from multieye.io.intrinsics import camera_info_text
+from multieye.io.intrinsics_files import camera_info_text
 from multieye.outputs.stereo import opencv_stereo_lines, per_camera, stereo_pairs
 from multieye.sim.overlap import OverlapSpec, overlap_rig
 from multieye.sim.dataset import default_intrinsics

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from multieye.core.errors import InputError
-from multieye.core.geometry import is_rigid
+from multieye.core.arguments import transform
 from multieye.core.intrinsics import Intrinsics
 
 __all__ = [
@@ -72,12 +72,7 @@ def named_keys(setup: str, frames: Mapping[str, str] | None) -> tuple[str, str]:
 
 
 def _rigid(T, what: str) -> np.ndarray:
-    T = np.asarray(T, dtype=np.float64)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"{what} must be a finite 4x4 matrix, got shape {T.shape}")
-    if not is_rigid(T):
-        raise InputError(f"{what} is not a rigid transform")
-    return T
+    return transform(T, what, rigid=True)
 
 
 @dataclass(frozen=True)
