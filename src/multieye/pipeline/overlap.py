@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,7 +50,7 @@ from multieye.estimate.rig_residuals import RigViews
 from multieye.pipeline.camera_data import CameraData, PairedCamera
 
 __all__ = ["CameraLinks", "OverlapSolution", "solve_overlap", "observation_instants",
-           "paired_instants", "share_instants", "UNEXPLAINED_RATIO"]
+           "assign_instants", "paired_instants", "share_instants", "UNEXPLAINED_RATIO"]
 
 #: A camera is doubted (cause ``fit``) when its pixel residuals in the rig are this many times
 #: (in variance) those of its own PnP poses.
@@ -95,12 +96,43 @@ def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: floa
                          ) -> tuple[dict[str, NDArray[np.int64]], int, float]:
     """The instant of every observation of every camera, their count, and the tolerance used
     (``sync_tolerance``, or the default: :func:`multieye.estimate.instants.default_sync_tolerance`).
-    Each camera's ``time_offset`` is applied to its stamps first."""
+
+    Images of different cameras are one instant when their stamps (each camera's
+    ``time_offset`` applied) are within the tolerance; when every camera is paired by name,
+    when their names' stems are equal and their given poses too (cameras named alike but
+    posed apart were not triggered together)."""
+    if cameras and all(d.by_name and d.mocap is not None for d in cameras.values()):
+        keys = [[f"{Path(o.name).stem}|{_pose_at(d, o.stamp)}" for o in d.observations]
+                for d in cameras.values()]
+        inst, k = instants_from_names(keys)
+        return dict(zip(cameras, inst)), k, 0.0
     stamps = [np.array([o.stamp for o in d.observations], dtype=np.float64) + d.time_offset
               for d in cameras.values()]
     tol = default_sync_tolerance(stamps) if sync_tolerance is None else float(sync_tolerance)
     inst, k = instants_from_stamps(stamps, tol)
     return dict(zip(cameras, inst)), k, tol
+
+
+def _pose_at(data: CameraData, stamp: float) -> str:
+    """A by-name camera's given pose of the image with this stamp (its place in name order),
+    as hex bytes ('' when it has none)."""
+    i = np.flatnonzero(data.mocap.stamps == stamp)
+    return data.mocap.T[i[0]].tobytes().hex() if i.size else ""
+
+
+def assign_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | None
+                    ) -> dict[str, CameraData]:
+    """Every observation's :attr:`~multieye.pipeline.camera_data.Observation.instant` set to
+    its instant's key (:func:`observation_instants`): the camera-clock stamp (``repr``) of the
+    instant's first image, or its first image's name stem for cameras paired by name."""
+    inst, _, _ = observation_instants(cameras, sync_tolerance)
+    first: dict[int, str] = {}
+    for n, d in cameras.items():
+        for o, k in zip(d.observations, inst[n]):
+            first.setdefault(int(k), Path(o.name).stem if d.by_name else repr(float(o.stamp)))
+    return {n: replace(d, observations=tuple(replace(o, instant=first[int(k)]) for o, k in
+                                             zip(d.observations, inst[n])))
+            for n, d in cameras.items()}
 
 
 def _check_images(cameras: Mapping[str, CameraData]) -> None:
@@ -260,11 +292,10 @@ def paired_instants(paired: Mapping[str, PairedCamera], cameras: Mapping[str, Ca
     whose names' stems are equal and whose given poses are too, are one instant (images of
     two cameras named alike but posed apart were taken at different instants)."""
     names = list(paired)
-    if all(cameras[n].by_name for n in names):
-        keys = [[f"{o.name.rsplit('.', 1)[0]}|{M.tobytes().hex()}"
-                 for o, M in zip(paired[n].observations, paired[n].T_world_mocap)]
-                for n in names]
-        inst, _ = instants_from_names(keys)
+    if all(o.instant for n in names for o in paired[n].observations):
+        # the problem's instants (make_problem: assign_instants), as every stage sees them
+        inst, _ = instants_from_names([[o.instant for o in paired[n].observations]
+                                       for n in names])
     else:
         stamps = [np.array([o.stamp for o in paired[n].observations], dtype=np.float64)
                   + offsets[n] for n in names]
