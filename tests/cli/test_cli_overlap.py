@@ -140,3 +140,18 @@ def test_a_camera_a_frame_late_is_written_but_doubted(tmp_path):
     data = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert [(d["cause"], d.get("camera")) for d in data["plausibility"]] == [("fit", "cam2")]
     assert "synchronised" in res.output
+
+
+def test_a_camera_recorded_in_a_bag_is_linked_by_its_stamps(tmp_path):
+    """Kalibr's input: one camera's images in a ROS bag topic, the others in folders; the
+    bag's header stamps make the instants."""
+    from rosbag_writer import camera_into_bag
+
+    ds = tmp_path / "ds"
+    render_overlap_dataset(ds, SPEC, seed=1)
+    camera_into_bag(ds, "cam1", ros=1)
+    res = _calibrate(ds, tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    data = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    _within_uncertainty(data, _truth(ds))
+    assert data["cameras"]["cam1"]["links"]["overlap"]["cam0"] > 5
