@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -403,7 +403,8 @@ def consensus(A, B=None, options: ConsensusOptions = ConsensusOptions(), **kw
     opts = with_fields(options, kw, ConsensusOptions, "options")
     _check_options(opts)
     if isinstance(A, Measurements):
-        meas = given_measurements(A, B, opts.names)
+        meas = given_measurements(A, B)
+        check_names(opts.names, meas)
     else:
         meas = check_measurements(A, B, names=check_names(opts.names, A),
                                   per_camera_motion=False)
@@ -463,10 +464,10 @@ def _settle(meas: Measurements, As, Bs, Balts, inliers, choices, thr, labels):
                     f"{MIN_MEASUREMENTS} are needed (outliers: {listed}); check its detections "
                     "and time pairing, or raise the thresholds")
         used = [_chosen(b, alt, c) for b, alt, c in zip(Bs, Balts, choices)]
-        X, Y = solve_joint(Measurements.from_arrays(
+        X, Y = solve_joint(replace(Measurements.from_arrays(
             np.concatenate([a[k] for a, k in zip(As, inliers)]),
             np.concatenate([b[k] for b, k in zip(used, inliers)]),
-            [int(k.sum()) for k in inliers], names))
+            [int(k.sum()) for k in inliers]), names=tuple(names)))
         res = [_residuals(a, b, alt, X[j], Y, threshold_rot_deg, threshold_trans_m)
                for j, (a, b, alt) in enumerate(zip(As, Bs, Balts))]
         new = [(r <= threshold_rot_deg) & (t <= threshold_trans_m) for r, t, _ in res]

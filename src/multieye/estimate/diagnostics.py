@@ -42,16 +42,18 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from multieye.core.arguments import with_fields
 from multieye.core.errors import InputError
 from multieye.core.problem import SETUPS
 from multieye.solvers.checks import (
     check_measurements,
+    check_names,
     given_measurements,
     rotation_spread,
 )
 from multieye.solvers.measurements import Measurements
 
-__all__ = ["CameraMotion", "MotionDiagnostics", "motion_diagnostics",
+__all__ = ["CameraMotion", "MotionDiagnostics", "MotionOptions", "motion_diagnostics",
            "MIN_ROTATION_RANGE_DEG", "MIN_SECOND_AXIS_DEG", "MIN_AXIS_RATIO",
            "MAX_CONDITION"]
 
@@ -152,31 +154,17 @@ def _camera_motion(name: str, RA: F64, RB: F64, A: F64) -> CameraMotion:
                         translation_condition=_ratio(n, max(mu[0], 0.0)))
 
 
-def _advice(name: str, setup: str, what: str) -> str:
-    """``what`` done to the target in front of the camera, or to the rig while it sees it."""
-    if setup == "eye-to-base":
-        return f"{what.format(thing='the target')} in front of {name}"
-    return f"{what.format(thing='the rig')} while {name} sees the target"
+@dataclass(frozen=True)
+class MotionOptions:
+    """What :func:`motion_diagnostics` calls weak motion, and how it advises.
 
-
-def motion_diagnostics(A, B=None, names: Sequence[str] | None = None, *,
-                       setup: str = "eye-to-base",
-                       min_range_deg: float = MIN_ROTATION_RANGE_DEG,
-                       min_second_axis_deg: float = MIN_SECOND_AXIS_DEG,
-                       min_axis_ratio: float = MIN_AXIS_RATIO,
-                       max_condition: float = MAX_CONDITION) -> MotionDiagnostics:
-    """Measure every camera's motion and warn, with advice, where it is weak.
-
-    Parameters
+    Attributes
     ----------
-    A, B : sequence of array_like, each shape (N_j, 4, 4)
-        One entry per camera, as for :func:`multieye.solve` (docs/conventions.md, section 2);
-        or ``A`` is a :class:`~multieye.solvers.checks.Measurements` validated before and
-        ``B`` is omitted (no checks run again).
-    names : sequence of str, optional
-        Camera names; default ``cam0, cam1, ...``.
     setup : {"eye-to-base", "eye-on-hand"}
         Only changes the advice (move the target, or move the rig).
+    names : sequence of str, optional
+        Camera names for arrays ``A, B``; default ``cam0, cam1, ...`` (validated
+        :class:`Measurements` bring their own).
     min_range_deg : float
         Warn below this rotation range.
     min_second_axis_deg, min_axis_ratio : float
@@ -186,6 +174,37 @@ def motion_diagnostics(A, B=None, names: Sequence[str] | None = None, *,
     max_condition : float
         Warn above this condition of the reduced rotation or translation system (when no
         other warning already explains it).
+    """
+
+    setup: str = "eye-to-base"
+    names: Sequence[str] | None = None
+    min_range_deg: float = MIN_ROTATION_RANGE_DEG
+    min_second_axis_deg: float = MIN_SECOND_AXIS_DEG
+    min_axis_ratio: float = MIN_AXIS_RATIO
+    max_condition: float = MAX_CONDITION
+
+
+def _advice(name: str, opts: MotionOptions, what: str) -> str:
+    """``what`` done to the target in front of the camera, or to the rig while it sees it."""
+    if opts.setup == "eye-to-base":
+        return f"{what.format(thing='the target')} in front of {name}"
+    return f"{what.format(thing='the rig')} while {name} sees the target"
+
+
+def motion_diagnostics(A, B=None, options: MotionOptions = MotionOptions(),
+                       **kw) -> MotionDiagnostics:
+    """Measure every camera's motion and warn, with advice, where it is weak.
+
+    Parameters
+    ----------
+    A, B : sequence of array_like, each shape (N_j, 4, 4)
+        One entry per camera, as for :func:`multieye.solve` (docs/conventions.md, section 2);
+        or ``A`` is a :class:`~multieye.solvers.checks.Measurements` validated before and
+        ``B`` is omitted (no checks run again).
+    options : MotionOptions
+        The setup, the camera names and the thresholds.
+    **kw
+        Or :class:`MotionOptions`' fields as keyword arguments (``setup="eye-on-hand"``).
 
     Returns
     -------
@@ -198,13 +217,17 @@ def motion_diagnostics(A, B=None, names: Sequence[str] | None = None, *,
         transforms, fewer than 3 measurements for a camera).  Weak or degenerate motion is
         reported, not raised.
     """
+    opts = with_fields(options, kw, MotionOptions, "options")
+    setup, min_range_deg, max_condition = opts.setup, opts.min_range_deg, opts.max_condition
+    min_second_axis_deg, min_axis_ratio = opts.min_second_axis_deg, opts.min_axis_ratio
     if setup not in SETUPS:
         raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
     if isinstance(A, Measurements):
-        meas = given_measurements(A, B, names)
+        meas = given_measurements(A, B)
+        check_names(opts.names, meas)
     else:
-        meas = check_measurements(A, B, names=list(names) if names is not None else None,
-                                  per_camera_motion=False)
+        meas = check_measurements(A, B, names=list(opts.names) if opts.names is not None
+                                  else None, per_camera_motion=False)
     cameras, warnings = [], []
     for j, (RA, RB, Aj) in enumerate(zip(meas.split(meas.RA), meas.split(meas.RB),
                                           meas.split(meas.A))):
@@ -217,7 +240,7 @@ def motion_diagnostics(A, B=None, names: Sequence[str] | None = None, *,
             warnings.append(
                 f"{name}: rotation range {cam.rotation_range_deg:.1f} deg < {min_range_deg:g} "
                 f"deg, so its extrinsic is poorly determined; "
-                + _advice(name, setup, "tilt {thing} by 30 deg or more about two axes"))
+                + _advice(name, opts, "tilt {thing} by 30 deg or more about two axes"))
         elif s1 < min_second_axis_deg or s1 < min_axis_ratio * s0:
             why = (f"so {name} alone does not determine its extrinsic and it rests on the "
                    f"other cameras' estimate of {shared}" if meas.m > 1
@@ -225,12 +248,12 @@ def motion_diagnostics(A, B=None, names: Sequence[str] | None = None, *,
             warnings.append(
                 f"{name}: all rotations are about one axis (RMS {s0:.1f} deg about it, "
                 f"{s1:.2f} deg about any other), {why}; "
-                + _advice(name, setup, "rotate {thing} about a second axis"))
+                + _advice(name, opts, "rotate {thing} about a second axis"))
         elif max(cam.rotation_condition, cam.translation_condition) > max_condition:
             warnings.append(
                 f"{name}: the rotations are small (RMS {s0:.1f}, {s1:.1f}, "
                 f"{cam.rotation_spread_deg[2]:.1f} deg about the principal axes; conditions "
                 f"{cam.rotation_condition:.3g} rotation, {cam.translation_condition:.3g} "
                 f"translation > {max_condition:g}), so its extrinsic is poorly determined; "
-                + _advice(name, setup, "turn {thing} further, by 30 deg or more about two axes"))
+                + _advice(name, opts, "turn {thing} further, by 30 deg or more about two axes"))
     return MotionDiagnostics(cameras=tuple(cameras), warnings=tuple(warnings))

@@ -68,8 +68,9 @@ def kept_measurements(meas: Measurements, cons, paired: dict[str, PairedCamera])
     the cameras after :func:`with_choice` and the inlier selection)."""
     if not any(c.any() for c in cons.alternative):
         return meas.select(cons.inliers)
-    return Measurements.from_cameras([p.A for p in paired.values()],
-                                     [p.B for p in paired.values()], list(paired))
+    return replace(Measurements.from_cameras([p.A for p in paired.values()],
+                                             [p.B for p in paired.values()]),
+                   names=tuple(paired))
 
 
 def closed_form_choice(paired: dict[str, PairedCamera], meas: Measurements, method: str,
@@ -106,6 +107,7 @@ def closed_form_choice(paired: dict[str, PairedCamera], meas: Measurements, meth
                 changed = True
         if not changed:
             break
-        meas = Measurements.from_cameras([paired[n].A for n in names],
-                                         [paired[n].B for n in names], names)
+        meas = replace(Measurements.from_cameras([paired[n].A for n in names],
+                                                 [paired[n].B for n in names]),
+                       names=tuple(names))
     return paired, meas

@@ -153,18 +153,19 @@ def _surely_rigid(entries: np.ndarray) -> bool:
                 and t_ss <= MAX_TRANSLATION ** 2)
 
 
-def _raise_first_bad(AB: np.ndarray, counts: list[int], names: tuple[str, ...]) -> None:
-    """Raise InputError naming the first bad transform of ``[A; B]``, if there is one."""
+def _first_bad_place(AB: np.ndarray, counts: list[int]) -> tuple[str, int, int, str] | None:
+    """Where the first bad transform of ``[A; B]`` is: ``("A" or "B", camera index, index in
+    the camera, what is wrong)``, or None when all are rigid."""
     bad = _first_bad(AB)
     if bad is None:
-        return
+        return None
     N = AB.shape[0] // 2
     i, label = (bad[0], "A") if bad[0] < N else (bad[0] - N, "B")
     j = 0
     while i >= counts[j]:
         i -= counts[j]
         j += 1
-    raise InputError(f"{label}[{names[j]}][{i}]: {bad[1]}")
+    return label, j, i, bad[1]
 
 
 def check_transforms(T, name: str = "T") -> np.ndarray:
@@ -323,9 +324,11 @@ def check_measurements(A, B, *, names: list[str] | None = None,
         counts.append(n)
     entries = transform_entries(*A, *B)
     if not _surely_rigid(entries):
-        _raise_first_bad(entries.T.reshape(-1, 4, 4), counts, names)
+        bad = _first_bad_place(entries.T.reshape(-1, 4, 4), counts)
+        if bad is not None:
+            raise InputError(f"{bad[0]}[{names[bad[1]]}][{bad[2]}]: {bad[3]}")
         entries[12:] = BOTTOM_ROWS       # within tolerance of (0, 0, 0, 1): make it exact
-    meas = Measurements._from_entries(entries, counts, names)
+    meas = Measurements(entries=entries, counts=np.array(counts), names=names)
     check_motion(meas, per_camera_motion=per_camera_motion)
     return meas
 
@@ -361,9 +364,15 @@ def check_motion(meas: Measurements, *, per_camera_motion: bool = True) -> None:
 
 def check_names(names, A) -> list[str] | None:
     """``names`` for :func:`check_measurements` (one distinct string per camera of ``A``), or
-    None; an InputError otherwise.  The number of cameras is counted as there."""
+    None; an InputError otherwise.  The number of cameras is counted as there; when ``A``
+    is validated :class:`Measurements`, given ``names`` must be its own."""
     if names is None:
         return None
+    if isinstance(A, Measurements):
+        if tuple(names) != A.names:
+            raise InputError(f"names {list(names)} differ from the measurements' names "
+                             f"{list(A.names)}")
+        return list(names)
     if isinstance(A, np.ndarray) and A.ndim == 3:
         m = 1
     else:
@@ -374,19 +383,17 @@ def check_names(names, A) -> list[str] | None:
     return list(camera_names(names, m))
 
 
-def given_measurements(meas: Measurements, B=None, names=None) -> Measurements:
-    """``meas`` as passed in place of ``A, B`` to a function that takes either (no new checks).
+def given_measurements(meas: Measurements, B=None) -> Measurements:
+    """``meas`` as passed in place of ``A, B`` to a function that takes either (no new checks;
+    :func:`check_names` checks names given with it).
 
     Raises
     ------
     InputError
-        ``B`` given as well, or ``names`` that differ from the measurements' own.
+        ``B`` given as well.
     """
     if B is not None:
         raise InputError("give either validated Measurements or A and B, not both")
-    if names is not None and tuple(names) != meas.names:
-        raise InputError(f"names {list(names)} differ from the measurements' names "
-                         f"{list(meas.names)}")
     return meas
 
 

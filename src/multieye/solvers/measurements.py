@@ -38,7 +38,7 @@ class Measurements:
     names : tuple of str
         Camera names used in messages.
     stats : CameraStats
-        Per-camera sums the closed forms need.
+        Per-camera sums the closed forms need (formed on first use).
     A, B : ndarray, shape (N, 4, 4)
         The transforms (formed on first use, like everything below).
     starts : ndarray, shape (m,), int
@@ -51,7 +51,10 @@ class Measurements:
     entries: np.ndarray = field(repr=False)
     counts: np.ndarray
     names: tuple[str, ...]
-    stats: CameraStats = field(repr=False, compare=False)
+
+    @cached_property
+    def stats(self) -> CameraStats:
+        return camera_stats(self.entries, [int(c) for c in self.counts])
 
     @property
     def m(self) -> int:
@@ -121,25 +124,19 @@ class Measurements:
                     f"camera {name} keeps {n} measurements, at least {MIN_MEASUREMENTS} are needed")
         idx = np.flatnonzero(np.concatenate(masks))
         N = int(self.counts.sum())
-        return Measurements._from_entries(self.entries[:, np.concatenate([idx, N + idx])],
-                                          counts, self.names)
+        return Measurements(entries=self.entries[:, np.concatenate([idx, N + idx])],
+                            counts=np.array(counts), names=self.names)
 
     @classmethod
-    def from_arrays(cls, A: np.ndarray, B: np.ndarray, counts, names=None) -> Measurements:
-        """Build from concatenated arrays ``(N, 4, 4)`` of rigid transforms (no checks)."""
-        entries = transform_entries(A, B, exact_bottom=True)
-        return cls._from_entries(entries, [int(c) for c in counts], names)
+    def from_arrays(cls, A: np.ndarray, B: np.ndarray, counts) -> Measurements:
+        """Build from concatenated arrays ``(N, 4, 4)`` of rigid transforms (no checks), the
+        cameras named ``cam0, cam1, ...`` (``dataclasses.replace(meas, names=...)`` renames)."""
+        return cls(entries=transform_entries(A, B, exact_bottom=True),
+                   counts=np.array([int(c) for c in counts]), names=default_names(len(counts)))
 
     @classmethod
-    def from_cameras(cls, A: list[np.ndarray], B: list[np.ndarray],
-                     names=None) -> Measurements:
-        """Build from per-camera arrays ``(N_j, 4, 4)`` of rigid transforms (no checks)."""
-        entries = transform_entries(*A, *B, exact_bottom=True)
-        return cls._from_entries(entries, [len(a) for a in A], names)
-
-    @classmethod
-    def _from_entries(cls, entries: np.ndarray, counts: list[int], names=None) -> Measurements:
-        """Build from :func:`transform_entries` of ``[A; B]`` with exact bottom rows."""
-        names = tuple(names) if names else default_names(len(counts))
-        return cls(entries=entries, counts=np.array(counts), names=names,
-                   stats=camera_stats(entries, counts))
+    def from_cameras(cls, A: list[np.ndarray], B: list[np.ndarray]) -> Measurements:
+        """Build from per-camera arrays ``(N_j, 4, 4)`` of rigid transforms (no checks), the
+        cameras named ``cam0, cam1, ...`` (``dataclasses.replace(meas, names=...)`` renames)."""
+        return cls(entries=transform_entries(*A, *B, exact_bottom=True),
+                   counts=np.array([len(a) for a in A]), names=default_names(len(A)))

@@ -36,6 +36,7 @@ from multieye.core.geometry import make_transform, rotation_mean
 from multieye.solvers.checks import (
     check_measurements,
     check_motion,
+    check_names,
     check_transforms,
     given_measurements,
 )
@@ -119,7 +120,8 @@ def solve(A: Sequence[np.ndarray] | np.ndarray | Measurements,
         check_refine_options(refine_options)
     joint = method in JOINT_METHODS
     if isinstance(A, Measurements):
-        meas = given_measurements(A, B, names)
+        meas = given_measurements(A, B)
+        check_names(names, meas)
         check_motion(meas, per_camera_motion=not joint)
     else:
         meas = check_measurements(A, B, names=names, per_camera_motion=not joint)
