@@ -3,12 +3,15 @@ groups nothing links, the rig within its predicted uncertainty, and the fit chec
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, DisconnectedError
 from multieye.core.lie import log_so3
+from multieye.io import Rig
 from multieye.pipeline.camera_data import CameraData, Observation
 from multieye.pipeline.overlap import solve_overlap
 from multieye.sim.overlap import OverlapSpec, pixel_views, simulate_overlap
@@ -104,7 +107,8 @@ def test_images_of_one_instant_share_the_motion_capture_pose_only_when_it_agrees
     inst, links = paired_instants(paired, data, {"a": 0.0, "b": 0.0}, None)
     assert inst["a"].tolist() == [0, 1, 2] and inst["b"].tolist() == [0, 1, 3]
     assert links["a"].overlap == {"b": 2} and links["a"].mocap
-    shared = share_instants("eye-to-base", paired, inst, (np.radians(0.1), 3e-4))
+    rig = Rig(path=Path("rig.yaml"), setup="eye-to-base", cameras={})
+    shared = share_instants(rig, paired, inst, (np.radians(0.1), 3e-4))
     assert np.array_equal(shared["b"].T_world_mocap[0], M[0])        # one pose, one block
     assert np.array_equal(shared["b"].A[0], g.inv(M[0]))
     assert np.array_equal(shared["b"].T_world_mocap[1], far)         # kept its own

@@ -224,7 +224,7 @@ def _correlate(cam_t, P, mocap_t, M, baseline, search, step):
 class _LoopProfile:
     """Chi-square of the closed form's loop residuals as a function of the offset."""
 
-    def __init__(self, cam_t, B, mocap_t, mocap_T, setup, window):
+    def __init__(self, cam_t, B, mocap_t, mocap_T, opts: OffsetSearch, window):
         lo, hi = window
         max_gap = 3.0 * float(np.median(np.diff(mocap_t)))
         # Images whose interpolation interval stays inside the recording, without gaps,
@@ -237,7 +237,7 @@ class _LoopProfile:
         cum_bad = np.concatenate([[0], np.cumsum(gaps > max_gap)])
         ok &= (cum_bad[last] - cum_bad[first]) == 0
         self.cam_t, self.B = cam_t[ok], B[ok]
-        self.mocap_t, self.mocap_T, self.setup = mocap_t, mocap_T, setup
+        self.mocap_t, self.mocap_T, self.setup = mocap_t, mocap_T, opts.setup
         self.keep = np.ones(int(ok.sum()), dtype=bool)
         self.s_rot = self.s_t = 1.0
 
@@ -357,7 +357,7 @@ def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps
     half = max(3.0 * step, camera_dt, 0.03)
     mocap_dt = float(np.median(np.diff(mocap_t)))
     fit_half = _FIT_PERIODS * mocap_dt
-    profile = _LoopProfile(cam_t, g.inv(P), mocap_t, M, setup,
+    profile = _LoopProfile(cam_t, g.inv(P), mocap_t, M, opts,
                            (coarse - half - 2.0 * fit_half, coarse + half + 2.0 * fit_half))
     if profile.keep.sum() < _MIN_PAIRS:
         return ClockOffset(coarse, nan, score, coarse, method, pairs, nan, nan)

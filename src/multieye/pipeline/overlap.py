@@ -38,6 +38,7 @@ from multieye.core.errors import (
 from multieye.estimate.covisibility import covisibility, link_groups, unlinked_message
 from multieye.estimate.findings import Finding
 from multieye.estimate.refine_images import OUTLIER_PROBABILITY
+from multieye.io import Rig
 from multieye.io.calibration_json import CameraLinks
 from multieye.core import geometry as g
 from multieye.estimate.instants import (
@@ -145,7 +146,10 @@ def _check_images(cameras: Mapping[str, CameraData]) -> None:
             raise TooFewMeasurementsError(f"camera {name}: no image with the target detected")
 
 
-def _links(names, shared) -> dict[str, CameraLinks]:
+def _links(cameras: Mapping, shared) -> dict[str, CameraLinks]:
+    """What links each camera of ``cameras`` (keyed by name, in the order of ``shared``'s
+    rows): the images it shares with each other camera."""
+    names = tuple(cameras)
     return {n: CameraLinks({names[k]: int(shared[j, k]) for k in np.flatnonzero(shared[j])
                             if k != j}) for j, n in enumerate(names)}
 
@@ -201,11 +205,11 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
                   free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
     result = refine_rig(rv, np.stack(poses), loss="huber" if robust else "linear")
     used = {n: cameras[n].observations for n in names}
-    findings = _fit_findings(names, cameras, rv, result)
+    findings = _fit_findings(cameras, rv, result)
     if isolate and len(findings) > 1:
         findings = _culprit(cameras, reference, tol, robust, findings)
     return OverlapSolution(names=names, reference=reference, result=result, used=used,
-                           instants=inst, links=_links(names, cov.shared), sync_tolerance=tol,
+                           instants=inst, links=_links(cameras, cov.shared), sync_tolerance=tol,
                            findings=findings, warnings=_rig_warnings(cameras, rv, result))
 
 
@@ -256,12 +260,13 @@ def _culprit(cameras: Mapping[str, CameraData], reference: str, tol: float, robu
     return findings
 
 
-def _fit_findings(names, cameras: Mapping[str, CameraData], views: RigViews,
+def _fit_findings(cameras: Mapping[str, CameraData], views: RigViews,
                   result: RigResult) -> tuple[Finding, ...]:
-    """Cameras whose pixels fit the rig far worse than their own PnP poses."""
+    """Cameras whose pixels fit the rig far worse than their own PnP poses (``views`` holds
+    the cameras in the order of ``cameras``)."""
     out = []
     cam_of_point = views.camera[views.view]
-    for j, n in enumerate(names):
+    for j, n in enumerate(cameras):
         own = [o.rms_px for o in cameras[n].observations if o.rms_px is not None]
         if not own:
             continue
@@ -303,11 +308,11 @@ def paired_instants(paired: Mapping[str, PairedCamera], cameras: Mapping[str, Ca
         inst, _ = instants_from_stamps(stamps, tol)
     cams = np.concatenate([np.full(len(i), j) for j, i in enumerate(inst)])
     shared = covisibility(cams, np.concatenate(inst), len(names)).shared
-    links = {n: CameraLinks(l.overlap, True) for n, l in _links(tuple(names), shared).items()}
+    links = {n: CameraLinks(l.overlap, True) for n, l in _links(paired, shared).items()}
     return dict(zip(names, inst)), links
 
 
-def share_instants(setup: str, paired: Mapping[str, PairedCamera],
+def share_instants(rig: Rig, paired: Mapping[str, PairedCamera],
                    instants: Mapping[str, NDArray[np.int64]], noise: tuple[float, float]
                    ) -> dict[str, PairedCamera]:
     """Every image of one instant given one motion-capture pose (the first camera's, in rig
@@ -332,7 +337,7 @@ def share_instants(setup: str, paired: Mapping[str, PairedCamera],
             if (g.rotation_angle_between(F, M[i]) <= noise[0]
                     and g.translation_distance(F, M[i]) <= noise[1]):
                 M[i] = F
-        A = g.inv(M) if setup == "eye-to-base" else M
+        A = g.inv(M) if rig.setup == "eye-to-base" else M
         out[n] = PairedCamera(name=p.name, A=A, B=p.B, T_world_mocap=M,
                               observations=p.observations, rejected=p.rejected)
     return out

@@ -201,7 +201,7 @@ def pair(problem: Problem) -> Pairing:
         instants, _ = paired_instants(paired, problem.cameras, offsets,
                                       problem.rig.sync_tolerance)
         _, rot, trans = mocap_noise(problem.rig, paired, problem.options)
-        paired = share_instants(problem.setup, paired, instants, (
+        paired = share_instants(problem.rig, paired, instants, (
             DEFAULT_MOCAP_ROT_SIGMA_RAD if rot is None else rot,
             DEFAULT_MOCAP_TRANS_SIGMA_M if trans is None else trans))
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],

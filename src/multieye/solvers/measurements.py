@@ -38,7 +38,7 @@ class Measurements:
     names : tuple of str
         Camera names used in messages.
     stats : CameraStats
-        Per-camera sums the closed forms need (formed on first use).
+        Per-camera sums the closed forms need (formed by the constructor).
     A, B : ndarray, shape (N, 4, 4)
         The transforms (formed on first use, like everything below).
     starts : ndarray, shape (m,), int
@@ -51,10 +51,11 @@ class Measurements:
     entries: np.ndarray = field(repr=False)
     counts: np.ndarray
     names: tuple[str, ...]
+    stats: CameraStats = field(init=False, repr=False, compare=False)
 
-    @cached_property
-    def stats(self) -> CameraStats:
-        return camera_stats(self.entries, [int(c) for c in self.counts])
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "stats", camera_stats(self.entries,
+                                                       [int(c) for c in self.counts]))
 
     @property
     def m(self) -> int:
