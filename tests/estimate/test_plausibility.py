@@ -64,7 +64,7 @@ def stream():
 def test_good_streams_raise_no_doubt(setup):
     for seed in range(3):
         st = _stream(20 + seed, setup)
-        rep = check_plausibility(setup, [_evidence(st)])
+        rep = check_plausibility([_evidence(st)], declared=Declared(setup=setup))
         assert rep.findings == () and not rep.doubts, rep.findings
         assert 0.5 < rep.cost < 1.5            # the noise explains the residuals
 
@@ -78,7 +78,7 @@ def _scaled(T, k):
 def test_target_spacing_off_is_a_scale_with_the_spacing_that_fits(stream):
     # spacing written 0.04 where the board has 0.05: PnP translations are 0.8 times the truth
     ev = _evidence(stream, T_cam_target=_scaled(stream.T_cam_target, 0.8))
-    rep = check_plausibility("eye-to-base", [ev], declared=Declared(spacing_m=0.04))
+    rep = check_plausibility([ev], declared=Declared(spacing_m=0.04))
     f = _only(rep, "scale", "spacing", "unit", "x1.25")
     assert "0.0499 fits" in f.message or "0.05 fits" in f.message
     assert f.evidence["scale"] == pytest.approx(1.25, rel=0.01)
@@ -87,13 +87,13 @@ def test_target_spacing_off_is_a_scale_with_the_spacing_that_fits(stream):
 
 def test_motion_capture_in_millimetres_is_a_unit(stream):
     ev = _evidence(stream, mocap=_scaled(stream.T_world_mocap, 1000.0))
-    f = _only(check_plausibility("eye-to-base", [ev]), "unit", "unit: mm under mocap")
+    f = _only(check_plausibility([ev]), "unit", "unit: mm under mocap")
     assert f.evidence["scale"] == pytest.approx(1000.0, rel=0.01)
 
 
 def test_target_spacing_in_centimetres_is_a_unit_of_the_spacing(stream):
     ev = _evidence(stream, T_cam_target=_scaled(stream.T_cam_target, 100.0))
-    rep = check_plausibility("eye-to-base", [ev], declared=Declared(spacing_m=5.0))
+    rep = check_plausibility([ev], declared=Declared(spacing_m=5.0))
     f = _only(rep, "unit", "target spacing", "in metres")
     assert "0.0499 fits" in f.message or "0.05 fits" in f.message
 
@@ -106,7 +106,7 @@ def test_quaternions_in_the_other_order(stream, order, read_as):
     M = stream.T_world_mocap
     q = g.quat_from_transform(M)[:, list(order)]
     wrong = g.transform_from_quat(q, M[:, :3, 3])
-    rep = check_plausibility("eye-to-base", [_evidence(stream, mocap=wrong)])
+    rep = check_plausibility([_evidence(stream, mocap=wrong)])
     _only(rep, "quaternion-order", "quaternion order", read_as, "TUM")
 
 
@@ -116,7 +116,7 @@ def test_the_other_setup_or_inverted_poses(true_setup):
     declared = "eye-on-hand" if true_setup == "eye-to-base" else "eye-to-base"
     inverted = _evidence(st, mocap=g.inv(st.T_world_mocap))    # the same algebra
     for setup, ev in ((declared, _evidence(st, setup=declared)), (true_setup, inverted)):
-        rep = check_plausibility(setup, [ev])
+        rep = check_plausibility([ev], declared=Declared(setup=setup))
         # one camera given by poses: A inverted and B inverted are the same hypothesis (X and
         # Y swap roles), so both are named; with several cameras sharing Y they are not
         assert {f.cause for f in rep.findings} == {"setup", "inverted-poses"}, rep.findings
@@ -125,13 +125,13 @@ def test_the_other_setup_or_inverted_poses(true_setup):
         assert f"setup: {true_setup if setup == declared else declared}" in f.message
         assert "pose: T_marker_world" in f.message or "pose: T_body_world" in f.message
     # with the user's own frame names (pose: T_base_tool0) the fix is said in those names
-    rep = check_plausibility(true_setup, [inverted], declared=Declared(
+    rep = check_plausibility([inverted], declared=Declared(setup=true_setup,
         mocap_pose="T_world_marker" if true_setup == "eye-to-base" else "T_world_body",
         mocap_frames=("base", "tool0")))
     f = next(f for f in rep.findings if f.cause == "setup")
     assert "(T_tool0_base, not T_base_tool0: pose: T_tool0_base and fixed_frame: base" \
         in f.message, f.message
-    rep = check_plausibility(true_setup, [inverted], declared=Declared(
+    rep = check_plausibility([inverted], declared=Declared(setup=true_setup,
         mocap_pose="T_world_marker" if true_setup == "eye-to-base" else "T_world_body",
         mocap_frames=("base_link", "tool0")))
     f = next(f for f in rep.findings if f.cause == "setup")
@@ -150,22 +150,22 @@ def test_inverted_target_poses_of_one_camera_of_two():
     # one rig: the second camera's stream re-expressed with the first stream's Y
     good = _evidence(a)
     flipped = _evidence(a, name="cam1", T_cam_target=g.inv(a.T_cam_target))
-    rep = check_plausibility("eye-to-base", [good, flipped])
+    rep = check_plausibility([good, flipped])
     f = _only(rep, "inverted-poses", "inverted poses", "cam1", "T_target_cam")
     assert "cam0" not in f.message
-    assert check_plausibility("eye-to-base", [good, _evidence(a, name="cam1")]).findings == ()
+    assert check_plausibility([good, _evidence(a, name="cam1")]).findings == ()
     del b
 
 
 @pytest.mark.parametrize("offset", [0.1, -0.03])
 def test_clock_offset_points_to_time_offset_auto(offset):
     st = _stream(51, offset=offset)
-    rep = check_plausibility("eye-to-base", [_evidence(st, used_offset=0.0)])
+    rep = check_plausibility([_evidence(st, used_offset=0.0)])
     f = _only(rep, "time-offset", "time offset", "--time-offset auto", f"{offset:+.3f} s")
     assert f.camera == "cam0"
     assert f.evidence["time_offset_s"] == pytest.approx(offset, abs=0.003)
     # not tested when the offsets were estimated (--time-offset auto): then nothing explains it
-    rep = check_plausibility("eye-to-base", [_evidence(st, used_offset=0.0)], clock=False)
+    rep = check_plausibility([_evidence(st, used_offset=0.0)], clock=False)
     assert all(f.cause != "time-offset" for f in rep.findings)
 
 
@@ -173,7 +173,7 @@ def test_a_fit_far_beyond_the_noise_is_doubted_even_without_a_cause(stream):
     rng = np.random.default_rng(3)
     T = stream.T_cam_target @ g.transform_from_rotvec(rng.normal(scale=0.2, size=(len(
         stream.T_cam_target), 3)), rng.normal(scale=0.05, size=(len(stream.T_cam_target), 3)))
-    f = _only(check_plausibility("eye-to-base", [_evidence(stream, T_cam_target=T)],
+    f = _only(check_plausibility([_evidence(stream, T_cam_target=T)],
                                  clock=False), "fit", "poor fit", "cam0")
     assert f.cost >= 10
 
@@ -210,7 +210,7 @@ def _with_intrinsics(st, obj, img, intr: Intrinsics) -> CameraEvidence:
 
 
 def test_true_intrinsics_raise_no_doubt(pixels):
-    rep = check_plausibility("eye-to-base", [_with_intrinsics(*pixels, _TRUE)], clock=False)
+    rep = check_plausibility([_with_intrinsics(*pixels, _TRUE)], clock=False)
     assert rep.findings == ()
 
 
@@ -220,7 +220,7 @@ def test_focal_length_off_names_the_intrinsics(pixels, error):
     K[0, 0] *= error
     K[1, 1] *= error
     wrong = Intrinsics(K=K, dist=np.zeros(4), width=640, height=480)
-    rep = check_plausibility("eye-to-base", [_with_intrinsics(*pixels, wrong)], clock=False)
+    rep = check_plausibility([_with_intrinsics(*pixels, wrong)], clock=False)
     f = _only(rep, "intrinsics", "intrinsics", "focal length", "cam0")
     assert f.evidence["focal_scale"] == pytest.approx(1 / error, rel=0.01)
 
@@ -229,7 +229,7 @@ def test_images_resized_after_calibrating_the_intrinsics(pixels):
     st, obj, img = pixels
     half = [(p + 0.5) * 0.5 - 0.5 for p in img]             # the images at half size
     sizeless = Intrinsics(K=_K, dist=np.zeros(4))             # and no size in the file
-    rep = check_plausibility("eye-to-base", [_with_intrinsics(st, obj, half, sizeless)],
+    rep = check_plausibility([_with_intrinsics(st, obj, half, sizeless)],
                              clock=False)
     f = _only(rep, "intrinsics", "intrinsics image size", "resized", "x0.5")
     assert f.evidence["image_scale"] == 0.5
@@ -240,9 +240,9 @@ def test_images_resized_after_calibrating_the_intrinsics(pixels):
 
 def test_bad_arguments(stream):
     with pytest.raises(InputError, match="setup"):
-        check_plausibility("eye-to-hand", [_evidence(stream)])
+        check_plausibility([_evidence(stream)], declared=Declared(setup="eye-to-hand"))
     with pytest.raises(InputError, match="at least one camera"):
-        check_plausibility("eye-to-base", [])
+        check_plausibility([])
 
 
 def test_every_cause_has_its_word_in_the_messages():

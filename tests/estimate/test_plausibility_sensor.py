@@ -105,7 +105,7 @@ class _Refined:
 @pytest.fixture(scope="module")
 def good_report():
     st = _stream(21)
-    return check_plausibility("eye-to-base", [_evidence(st)])
+    return check_plausibility([_evidence(st)])
 
 
 def test_an_estimated_noise_beyond_the_robot_is_doubted(good_report):
@@ -152,14 +152,14 @@ def distorted():
 
 
 def test_the_right_lens_raises_no_doubt(distorted):
-    rep = check_plausibility("eye-to-base", [_with_intrinsics(*distorted, _LENS)], clock=False)
+    rep = check_plausibility([_with_intrinsics(*distorted, _LENS)], clock=False)
     assert rep.findings == ()
     assert "intrinsics:cam0" in rep.tested          # the lens was freed and found right
 
 
 def test_a_distortion_left_out_of_the_intrinsics_is_named(distorted):
     only_K = Intrinsics(K=_K, dist=np.zeros(5), width=640, height=480)
-    rep = check_plausibility("eye-to-base", [_with_intrinsics(*distorted, only_K)], clock=False)
+    rep = check_plausibility([_with_intrinsics(*distorted, only_K)], clock=False)
     causes = [f.cause for f in rep.findings]
     assert causes == ["intrinsics"], rep.findings
     f = rep.findings[0]
@@ -185,7 +185,7 @@ def test_a_marker_size_off_is_named_with_its_key(kind, key, name):
     translation 1.09 times the truth; the scale hypothesis names the target's own size key."""
     st = _stream(11)
     ev = _evidence(st, T_cam_target=_scaled(st.T_cam_target, 1.09))
-    rep = check_plausibility("eye-to-base", [ev], clock=False,
+    rep = check_plausibility([ev], clock=False,
                              declared=Declared(spacing_m=0.0578, target_kind=kind))
     assert [f.cause for f in rep.findings] == ["scale"], rep.findings
     message = rep.findings[0].message

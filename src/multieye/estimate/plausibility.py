@@ -69,14 +69,13 @@ its noise for a reason the checks cannot name.
 Synopsis
 --------
 >>> from multieye.estimate.plausibility import CameraEvidence, check_plausibility
->>> report = check_plausibility("eye-to-base", [CameraEvidence("cam0", A, B, T)])  # doctest: +SKIP
+>>> report = check_plausibility([CameraEvidence("cam0", A, B, T)])  # doctest: +SKIP
 >>> [(f.cause, f.message) for f in report.findings]                                 # doctest: +SKIP
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from collections.abc import Sequence
 
 import numpy as np
@@ -132,7 +131,7 @@ _LENS_LOOP_PIXEL_GAIN = 1.5
 # --------------------------------------------------------------------------- the checks
 
 
-def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
+def check_plausibility(cameras: Sequence[CameraEvidence], *,
                        declared: Declared = Declared(),
                        mocap_rot_sigma_rad: float | None = None,
                        mocap_trans_sigma_m: float | None = None,
@@ -142,12 +141,12 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
 
     Parameters
     ----------
-    setup : {"eye-to-base", "eye-on-hand"}
     cameras : sequence of CameraEvidence
         Every camera's measurements the solve used (after the consensus: those it kept; the
         fits trim outliers once more).
     declared : Declared
-        What rig.yaml says, for the messages.
+        What rig.yaml says: its setup (``declared.setup``, the one the hypotheses start
+        from) and, for the messages, the rest.
     mocap_rot_sigma_rad, mocap_trans_sigma_m : float, optional
         Motion-capture noise per axis, as stated; default the noise the sensor should have
         (:func:`multieye.estimate.sensor.hypothesis_noise`: 0.1 degrees and 0.3 mm, at most
@@ -164,6 +163,7 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
     -------
     Plausibility
     """
+    setup = declared.setup
     if not isinstance(setup, str) or setup not in SETUPS:
         raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
     cams = list(cameras)
@@ -181,7 +181,6 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
     base = h.fit(A, B, weights)
     singles = [h.fit([c.A], [c.B], [w]) for c, w in zip(cams, weights)]
     tested: list[str] = []
-    declared = replace(declared, setup=setup)
     rig = _rig_findings(cams, weights, base, declared, tested)
     per_camera = {}
     for j, (cam, w, single) in enumerate(zip(cams, weights, singles)):

@@ -49,7 +49,6 @@ from multieye.io.calibration_record import (
     PoseUncertainty,
     RejectedItem,
     Residuals,
-    named_keys,
 )
 from multieye.io.textfile import read_json_as
 
@@ -68,7 +67,6 @@ __all__ = [
     "calibration_to_dict",
     "calibration_from_dict",
     "ROLE_NAMES",
-    "named_keys",
     "OVERLAP",
     "CameraLinks",
 ]

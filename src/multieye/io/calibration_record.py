@@ -23,7 +23,6 @@ __all__ = [
     "SETUP_KEYS",
     "OVERLAP",
     "ROLE_NAMES",
-    "named_keys",
     "Residuals",
     "RejectedItem",
     "PlausibilityItem",
@@ -51,24 +50,6 @@ SETUP_KEYS = {
 #: setup -> the roles of the frames ``calibration.json``'s ``frames`` names: the motion
 #: capture's fixed frame and the tracked one.
 ROLE_NAMES = {"eye-to-base": ("world", "marker"), "eye-on-hand": ("world", "body")}
-
-
-def named_keys(setup: str, frames: Mapping[str, str] | None) -> tuple[str, str]:
-    """:data:`SETUP_KEYS` with the user's frame names (rig.yaml's ``pose:``) for the roles.
-
-    >>> named_keys("eye-on-hand", {"world": "base", "body": "tool0"})
-    ('T_base_target', 'T_tool0_cam')
-    >>> named_keys("eye-to-base", None)
-    ('T_marker_target', 'T_world_cam')
-    """
-    y_key, x_key = SETUP_KEYS[setup]
-    if not frames:
-        return y_key, x_key
-    def rename(key: str) -> str:           # T_<role>_<target or cam>
-        _, role, frame = key.split("_")
-        return f"T_{frames.get(role, role)}_{frame}"
-
-    return rename(y_key), rename(x_key)
 
 
 def _rigid(T, what: str) -> np.ndarray:
@@ -305,7 +286,7 @@ class CalibrationRecord:
     frames : mapping of str to str, or None
         The user's names of the frames by role (``{"world": "base", "body": "tool0"}``,
         rig.yaml's ``pose:``); None: the role names.  The keys of ``calibration.json`` keep
-        the role names; screen, report and exports use these (:func:`named_keys`).
+        the role names; screen, report and exports use these (:meth:`CalibrationRecord.named_keys`).
     """
 
     setup: str
@@ -357,6 +338,22 @@ class CalibrationRecord:
     def mocap(self) -> bool:
         """Motion capture links the rig (``Y`` and every ``X`` exist)."""
         return self.setup != OVERLAP
+
+    def named_keys(self) -> tuple[str, str]:
+        """:data:`SETUP_KEYS` of the record's setup with the user's frame names (rig.yaml's
+        ``pose:``, :attr:`frames`) for the roles: ``("T_base_target", "T_tool0_cam")`` for
+        eye-on-hand with ``frames={"world": "base", "body": "tool0"}``,
+        ``("T_marker_target", "T_world_cam")`` for eye-to-base without frames."""
+        y_key, x_key = SETUP_KEYS[self.setup]
+        frames = self.frames
+        if not frames:
+            return y_key, x_key
+
+        def rename(key: str) -> str:           # T_<role>_<target or cam>
+            _, role, frame = key.split("_")
+            return f"T_{frames.get(role, role)}_{frame}"
+
+        return rename(y_key), rename(x_key)
 
     def camera(self, name: str) -> CameraRecord:
         """The record of camera ``name``."""

@@ -75,7 +75,7 @@ from multieye.io.atomic import confined_to, make_folder, write_text_atomic
 from multieye.io.intrinsics_files import camera_info_text, distortion_model_name
 from multieye.outputs.stereo import opencv_stereo_lines, per_camera, stereo_pairs
 from multieye.io.cameramodel import cameramodel_text
-from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict, named_keys,
+from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict,
                                           read_calibration)
 from multieye.io.kalibr import CamchainEntry, kalibr_fields, write_camchain
 from multieye.io.run_details import read_run_details
@@ -145,7 +145,7 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
     ``distortion_coefficients`` (1 x k), ``image_width`` and ``image_height``.  Read it with
     ``cv2.FileStorage(path, cv2.FILE_STORAGE_READ)``; ``fs.getNode("cameras").at(j)``.
     """
-    y_key, x_key = named_keys(rec.setup, rec.frames) if rec.mocap else (None, None)
+    y_key, x_key = rec.named_keys() if rec.mocap else (None, None)
     lines = ["%YAML:1.0", "---",
              "# multieye calibration: T_a_b maps coordinates in frame b to frame a (metres)",
              f"setup: {json.dumps(rec.setup)}", f"method: {json.dumps(rec.method)}",

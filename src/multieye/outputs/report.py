@@ -51,7 +51,7 @@ import numpy as np
 from multieye.core.errors import DatasetError
 from multieye.io.atomic import (confined_to, make_folder, remove_file, write_bytes_atomic,
                                 write_text_atomic)
-from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUncertainty, named_keys,
+from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUncertainty,
                                          read_calibration)
 from multieye.io.run_details import RunDetails, read_run_details
 from multieye.core.metrics import pose_row
@@ -185,7 +185,7 @@ def _summary(rec: CalibrationRecord, out: Path) -> str:
     shared = ('<p class="note">No motion capture: the cameras are linked by the views they '
               "share.</p>" if not rec.mocap else
               f'<p class="note">Shared unknown <code>'
-              f"{escape(named_keys(rec.setup, rec.frames)[0])}</code>: translation "
+              f"{escape(rec.named_keys()[0])}</code>: translation "
               f"{_vector(pose_row(rec.Y)[:3], '.4f')} m, yaw pitch roll "
               f"{_vector(pose_row(rec.Y)[3:], '.3f')} deg.</p>")
     return (f"<header><h1>Calibration report</h1><p class=\"sub\">{sub}</p>"
@@ -253,7 +253,7 @@ def _extrinsics(rec: CalibrationRecord) -> str:
     if not rec.mocap:
         return _extrinsics_overlap(rec)
     y_key, x_key = SETUP_KEYS[rec.setup]
-    y_name, x_name = named_keys(rec.setup, rec.frames)
+    y_name, x_name = rec.named_keys()
     several = len(rec.cameras) > 1
     parts = ['<section id="extrinsics"><h2>Extrinsics and uncertainty</h2>',
              f"<h3><code>{escape(x_name)}</code> of every camera</h3>",

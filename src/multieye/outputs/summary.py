@@ -13,7 +13,7 @@ import numpy as np
 
 from multieye.core.intrinsics import lens_model, parameter_names
 from multieye.io import CalibrationRecord
-from multieye.io.calibration_json import SETUP_KEYS, named_keys
+from multieye.io.calibration_json import SETUP_KEYS
 from multieye.io.run_details import TIMING_KEYS, StageTimings
 from multieye.core.metrics import extrinsic_errors, pose_row
 
@@ -72,7 +72,7 @@ def calibration_table(rec: CalibrationRecord) -> str:
     """
     if rec.mocap:
         y_key, x_key = SETUP_KEYS[rec.setup]
-        y_name, x_name = named_keys(rec.setup, rec.frames)
+        y_name, x_name = rec.named_keys()
     else:                         # no motion capture: T_ref_cam is each camera's result
         y_key, x_key = None, "T_ref_cam"
         y_name, x_name = None, "T_ref_cam"

@@ -318,13 +318,14 @@ def check_pairing(problem: Problem, pairing: Pairing) -> Plausibility:
     evidence = [_evidence(problem.cameras[n], p, pairing.offsets[n])
                 for n, p in pairing.paired.items()]
     spec, rot, trans = mocap_noise(rig, pairing.paired, opts)
-    declared = Declared(spacing_m=None if rig.target is None else rig.target.spacing, mocap=spec,
+    declared = Declared(setup=rig.setup,
+                        spacing_m=None if rig.target is None else rig.target.spacing, mocap=spec,
                         target_kind=None if rig.target is None else rig.target.type,
                         mocap_unit=(spec.unit if spec is not None else None) or "m",
                         mocap_pose=None if spec is None else spec.pose,
                         mocap_frames=None if spec is None else spec.frames,
                         mocap_format="tum" if spec is None else spec.format)
-    return check_plausibility(rig.setup, evidence, declared=declared, mocap_rot_sigma_rad=rot,
+    return check_plausibility(evidence, declared=declared, mocap_rot_sigma_rad=rot,
                               mocap_trans_sigma_m=trans, clock=opts.time_offset != "auto",
                               max_time_offset_s=opts.max_time_offset)
 
