@@ -35,12 +35,13 @@ import io
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import astuple, dataclass, fields
+from dataclasses import astuple, dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
+from multieye.core.arguments import with_fields
 from multieye.core.errors import CalibrationError, InputError
 from multieye.core.metrics import extrinsic_errors, relative_extrinsics
 from multieye.experiments.figures import sweep_png
@@ -50,6 +51,7 @@ from multieye.solvers import METHODS, solve
 
 __all__ = [
     "EXPERIMENTS",
+    "SweepScene",
     "METHODS",
     "NOISE_LEVELS",
     "CAMERA_COUNTS",
@@ -213,18 +215,45 @@ def _sweep(name: str, param_label: str, params: Sequence[float], problem: Proble
     return SweepResult(name=name, param_label=param_label, rows=tuple(rows))
 
 
-def _scenario(scene_rng: np.random.Generator, noise_rng: np.random.Generator, *, n_cameras: int,
-              measurements: int, noise: float, setup: sim.Setup) -> sim.RigScenario:
-    """A simulated rig with the paper's multiplicative noise of level ``noise`` on both streams."""
-    clean = sim.simulate_rig(scene_rng, n_cameras=n_cameras, measurements=measurements,
-                             setup=setup)
-    return sim.add_noise(clean, sim.MultiplicativeNoise(noise), noise_rng)
+@dataclass(frozen=True)
+class SweepScene:
+    """The simulated rig of a sweep, at every value but the one the sweep varies.
+
+    Attributes
+    ----------
+    n_cameras, measurements : int
+        Rig size and measurements per camera.
+    noise : float
+        Level f of the paper's multiplicative noise (fraction, e.g. 0.05 for 5 %).
+    setup : {"eye-to-base", "eye-on-hand"}
+    """
+
+    n_cameras: int = 4
+    measurements: int = 40
+    noise: float = 0.05
+    setup: sim.Setup = "eye-to-base"
+
+
+def _scene(scene: SweepScene, kw: dict, swept: str) -> SweepScene:
+    """``scene`` with the fields given as keywords, refusing the one the sweep varies."""
+    if swept in kw:
+        raise InputError(f"{swept} is what this experiment varies; give its values instead")
+    return with_fields(scene, kw, SweepScene, "scene")
+
+
+def _scenario(scene_rng: np.random.Generator, noise_rng: np.random.Generator,
+              scene: SweepScene) -> sim.RigScenario:
+    """A simulated rig with the paper's multiplicative noise of level ``scene.noise`` on both
+    streams."""
+    clean = sim.simulate_rig(scene_rng, n_cameras=scene.n_cameras,
+                             measurements=scene.measurements, setup=scene.setup)
+    return sim.add_noise(clean, sim.MultiplicativeNoise(scene.noise), noise_rng)
 
 
 def noise_experiment(trials: int = 100, seed: int = 0, *,
-                     levels: Sequence[float] = NOISE_LEVELS, n_cameras: int = 4,
-                     measurements: int = 40, setup: sim.Setup = "eye-to-base",
-                     methods: Sequence[str] = METHODS, progress: bool = False) -> SweepResult:
+                     levels: Sequence[float] = NOISE_LEVELS, methods: Sequence[str] = METHODS,
+                     progress: bool = False, scene: SweepScene = SweepScene(),
+                     **kw) -> SweepResult:
     """Errors against the noise level f of the paper's multiplicative model (paper Fig. 4).
 
     Parameters
@@ -234,39 +263,43 @@ def noise_experiment(trials: int = 100, seed: int = 0, *,
     seed : int
     levels : sequence of float
         Noise levels f (fractions, e.g. 0.05 for 5 %).
-    n_cameras, measurements : int
-        Rig size and measurements per camera.
-    setup : {"eye-to-base", "eye-on-hand"}
     methods : sequence of str
         Solver names (:data:`multieye.solvers.METHODS`).
     progress : bool
         Show a progress bar on stderr if it is a terminal.
+    scene : SweepScene
+        The rig (camera count, measurements per camera, setup); its ``noise`` is varied.
+    **kw
+        Or :class:`SweepScene`'s fields as keyword arguments (``n_cameras=2``,
+        ``setup="eye-on-hand"``).
 
     Returns
     -------
     SweepResult
         ``param`` is f.
     """
+    scene = _scene(scene, kw, "noise")
+
     def problem(f, scene_rng, noise_rng):
-        return _scenario(scene_rng, noise_rng, n_cameras=n_cameras, measurements=measurements,
-                         noise=f, setup=setup)
+        return _scenario(scene_rng, noise_rng, replace(scene, noise=f))
 
     return _sweep("noise", "noise level f", [float(f) for f in levels], problem, trials=trials,
                   seed=seed, methods=methods, progress=progress)
 
 
 def cameras_experiment(trials: int = 100, seed: int = 0, *,
-                       counts: Sequence[int] = CAMERA_COUNTS, measurements: int = 40,
-                       noise: float = 0.05, setup: sim.Setup = "eye-to-base",
-                       methods: Sequence[str] = METHODS, progress: bool = False) -> SweepResult:
+                       counts: Sequence[int] = CAMERA_COUNTS, methods: Sequence[str] = METHODS,
+                       progress: bool = False, scene: SweepScene = SweepScene(),
+                       **kw) -> SweepResult:
     """Errors against the number of cameras on the rig (a ring of m cameras).
 
-    Parameters are as for :func:`noise_experiment`; ``counts`` are the camera counts m and
-    ``noise`` the fixed level f. ``param`` is m.
+    Parameters are as for :func:`noise_experiment`; ``counts`` are the camera counts m (the
+    scene's ``n_cameras`` is varied, its ``noise`` is the fixed level f). ``param`` is m.
     """
+    scene = _scene(scene, kw, "n_cameras")
+
     def problem(m, scene_rng, noise_rng):
-        return _scenario(scene_rng, noise_rng, n_cameras=int(m), measurements=measurements,
-                         noise=noise, setup=setup)
+        return _scenario(scene_rng, noise_rng, replace(scene, n_cameras=int(m)))
 
     return _sweep("cameras", "number of cameras (at 1: error of X itself)",
                   [float(m) for m in counts], problem,
@@ -274,35 +307,34 @@ def cameras_experiment(trials: int = 100, seed: int = 0, *,
 
 
 def measurements_experiment(trials: int = 100, seed: int = 0, *,
-                            counts: Sequence[int] = MEASUREMENT_COUNTS, n_cameras: int = 4,
-                            noise: float = 0.05, setup: sim.Setup = "eye-to-base",
-                            methods: Sequence[str] = METHODS,
-                            progress: bool = False) -> SweepResult:
+                            counts: Sequence[int] = MEASUREMENT_COUNTS,
+                            methods: Sequence[str] = METHODS, progress: bool = False,
+                            scene: SweepScene = SweepScene(), **kw) -> SweepResult:
     """Errors against the number of measurements per camera.
 
     Parameters are as for :func:`noise_experiment`; ``counts`` are the measurements per
-    camera. ``param`` is that count.
+    camera (the scene's ``measurements`` is varied). ``param`` is that count.
     """
+    scene = _scene(scene, kw, "measurements")
+
     def problem(n, scene_rng, noise_rng):
-        return _scenario(scene_rng, noise_rng, n_cameras=n_cameras, measurements=int(n),
-                         noise=noise, setup=setup)
+        return _scenario(scene_rng, noise_rng, replace(scene, measurements=int(n)))
 
     return _sweep("measurements", "measurements per camera", [float(n) for n in counts],
                   problem, trials=trials, seed=seed, methods=methods, progress=progress)
 
 
 def timing_experiment(trials: int = 100, seed: int = 0, *,
-                      counts: Sequence[int] = TIMING_COUNTS, n_cameras: int = 4,
-                      noise: float = 0.05, setup: sim.Setup = "eye-to-base",
-                      methods: Sequence[str] = METHODS, progress: bool = False) -> SweepResult:
+                      counts: Sequence[int] = TIMING_COUNTS, methods: Sequence[str] = METHODS,
+                      progress: bool = False, scene: SweepScene = SweepScene(),
+                      **kw) -> SweepResult:
     """Solve time against the number of measurements per camera.
 
     As :func:`measurements_experiment` over larger counts; the figure shows ``time_s``. Wall
     times depend on the machine and its load: compare methods within one run.
     """
-    result = measurements_experiment(trials, seed, counts=counts, n_cameras=n_cameras,
-                                     noise=noise, setup=setup, methods=methods,
-                                     progress=progress)
+    result = measurements_experiment(trials, seed, counts=counts, methods=methods,
+                                     progress=progress, scene=_scene(scene, kw, "measurements"))
     return SweepResult(name="timing", param_label=result.param_label, rows=result.rows)
 
 
