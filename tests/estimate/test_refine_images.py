@@ -12,7 +12,7 @@ from multieye.core.errors import InputError
 from multieye.sim.images import simulate_images
 from multieye.core.metrics import relative_extrinsics
 from multieye.core.lens import project_with_jacobian
-from multieye.estimate.image_data import image_data
+from multieye.estimate.image_data import ImageProblem, image_data
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.estimate.uncertainty import cramer_rao_bound, relative_covariance
@@ -40,7 +40,7 @@ def test_jacobians_match_central_differences(setup, model, rng):
     """Pixel and motion-capture-prior Jacobians against central differences on the manifolds,
     away from the truth (every pose perturbed)."""
     sc = simulate_images(3, n_cameras=2, images=3, setup=setup, model=model)
-    data = image_data(setup, sc.observations, sc.intrinsics)
+    data = image_data(ImageProblem(setup, sc.observations, sc.intrinsics))
     M = _perturbed(data.mocap_measured, rng, rot=0.02, trans=0.01)
     fams = data.families(_perturbed(sc.X, rng), _perturbed(sc.Y, rng), M)
     values = {f.name: f.value for f in fams}
@@ -94,7 +94,7 @@ def test_more_accurate_than_joint_and_near_the_cramer_rao_bound():
         err_joint.append(_relative_sq_errors(sol.X, sc.X))
         err_ref.append(_relative_sq_errors(res.X, sc.X))
         crb = relative_covariance(sc.X, cramer_rao_bound(
-            sc.setup, sc.true_observations, sc.intrinsics, sc.X, sc.Y,
+            ImageProblem(sc.setup, sc.true_observations, sc.intrinsics), sc.X, sc.Y,
             pixel_sigma=sc.pixel_sigma, mocap_rot_sigma_rad=sc.mocap_rot_sigma_rad,
             mocap_trans_sigma_m=sc.mocap_trans_sigma_m))
         crb_rot.append(np.radians(crb.std_rot_deg[1:]) ** 2)
@@ -169,7 +169,7 @@ def test_scipy_least_squares_reaches_the_same_optimum():
     sig = (0.3, float(np.deg2rad(0.1)), 0.3e-3)
     a = refine_images(sc.setup, sc.observations, sc.intrinsics, sol.X, sol.Y, loss="linear",
                       pixel_sigma=sig[0], mocap_rot_sigma_rad=sig[1], mocap_trans_sigma_m=sig[2])
-    data = image_data(sc.setup, sc.observations, sc.intrinsics)
+    data = image_data(ImageProblem(sc.setup, sc.observations, sc.intrinsics))
     start = data.families(sol.X, sol.Y)
     groups = data.groups(*sig)
 

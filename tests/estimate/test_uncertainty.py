@@ -8,6 +8,7 @@ import pytest
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.sim.images import simulate_images
+from multieye.estimate.image_data import ImageProblem
 from multieye.estimate.refine_images import refine_images
 from multieye.estimate.uncertainty import cramer_rao_bound, pose_std, relative_covariance
 
@@ -66,14 +67,15 @@ def test_crb_equals_the_refinement_covariance_at_the_truth():
     kw = dict(pixel_sigma=0.5, mocap_rot_sigma_rad=2e-3, mocap_trans_sigma_m=1e-3)
     res = refine_images(sc.setup, sc.observations, sc.intrinsics, sc.X, sc.Y, loss="linear",
                         **kw)
-    crb = cramer_rao_bound(sc.setup, sc.true_observations, sc.intrinsics, sc.X, sc.Y, **kw)
+    problem = ImageProblem(sc.setup, sc.true_observations, sc.intrinsics)
+    crb = cramer_rao_bound(problem, sc.X, sc.Y, **kw)
     np.testing.assert_allclose(res.covariance, crb, rtol=1e-6, atol=1e-16)
     # The bound scales with the noise variance.
-    crb2 = cramer_rao_bound(sc.setup, sc.true_observations, sc.intrinsics, sc.X, sc.Y,
+    crb2 = cramer_rao_bound(problem, sc.X, sc.Y,
                             **{k: 2 * v for k, v in kw.items()})
     np.testing.assert_allclose(crb2, 4 * crb, rtol=1e-9, atol=1e-18)
     with pytest.raises(InputError, match="noise levels must be positive"):
-        cramer_rao_bound(sc.setup, sc.true_observations, sc.intrinsics, sc.X, sc.Y,
+        cramer_rao_bound(problem, sc.X, sc.Y,
                          pixel_sigma=0.0, mocap_rot_sigma_rad=1e-3, mocap_trans_sigma_m=1e-3)
 
 

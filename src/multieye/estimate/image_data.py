@@ -30,7 +30,7 @@ from multieye.estimate.image_residuals import (
 )
 from multieye.optimize.blocks import Blocks, ResidualGroup
 
-__all__ = ["ImageData", "image_data", "PointStack", "IntrinsicsImages", "intrinsics_images"]
+__all__ = ["ImageData", "ImageProblem", "image_data", "PointStack", "IntrinsicsImages", "intrinsics_images"]
 
 F64 = NDArray[np.float64]
 
@@ -232,8 +232,10 @@ def _camera_list(arg, label: str) -> list:
     return list(arg)
 
 
-def _stack(observations: list, names: tuple[str, ...]) -> tuple[PointStack, F64]:
-    """The images' points stacked, and their motion-capture poses (N, 4, 4)."""
+def _stack(given: ImageProblem) -> tuple[PointStack, F64]:
+    """The images' points stacked, and their motion-capture poses (N, 4, 4) (``given``: the
+    observations a list per camera, the names a tuple)."""
+    observations, names = given.observations, given.names
     obj, uv, mocap, img_of_point, cam_of_image, counts, keep = [], [], [], [], [], [], []
     for j, images in enumerate(observations):
         if images is None or isinstance(images, (str, bytes)) or not hasattr(images,
@@ -265,7 +267,8 @@ def _stack(observations: list, names: tuple[str, ...]) -> tuple[PointStack, F64]
             np.searchsorted(camera, np.arange(m), side="right")))), np.stack(mocap)
 
 
-def _checked_clocks(clocks, names: tuple[str, ...], counts: np.ndarray) -> tuple:
+def _checked_clocks(given: ImageProblem, counts: np.ndarray) -> tuple:
+    names, clocks = given.names, given.clocks
     m = len(names)
     clocks = tuple(clocks) if clocks is not None else (None,) * m
     if len(clocks) != m:
@@ -305,14 +308,11 @@ def _instants(points: PointStack, mocap: F64, clocks: tuple, units: ClockUnits):
                                                in_camera)
 
 
-def image_data(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
-               names: Sequence[str] | None = None, *,
-               free_intrinsics: Sequence[bool] | None = None,
-               intrinsics_observations: Sequence | None = None,
-               clocks: Sequence | None = None) -> ImageData:
-    """The image-level problem's data, checked and stacked (:class:`ImageData`).
+@dataclass(frozen=True)
+class ImageProblem:
+    """The image-level problem as given: what :func:`image_data` checks and stacks.
 
-    Parameters
+    Attributes
     ----------
     setup : {"eye-to-base", "eye-on-hand"}
     observations : sequence over cameras of sequence of (object_points, image_points, T_world_mocap)
@@ -337,10 +337,24 @@ def image_data(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsi
         camera's images in the order of ``observations[j]``.  None: the given poses are the
         measurements (default for every camera).
     """
+
+    setup: str
+    observations: Sequence
+    intrinsics: Sequence[Intrinsics]
+    names: Sequence[str] | None = None
+    free_intrinsics: Sequence[bool] | None = None
+    intrinsics_observations: Sequence | None = None
+    clocks: Sequence | None = None
+
+
+def image_data(problem: ImageProblem) -> ImageData:
+    """The image-level problem's data (:class:`ImageProblem`), checked and stacked
+    (:class:`ImageData`)."""
+    setup = problem.setup
     if not isinstance(setup, str) or setup not in SETUPS:
         raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
-    observations = _camera_list(observations, "observations")
-    intrinsics = _camera_list(intrinsics, "intrinsics")
+    observations = _camera_list(problem.observations, "observations")
+    intrinsics = _camera_list(problem.intrinsics, "intrinsics")
     m = len(observations)
     if m == 0:
         raise InputError("no cameras given: observations is empty")
@@ -351,15 +365,17 @@ def image_data(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsi
     if bad:
         raise InputError(f"intrinsics[{bad[0]}] must be a multieye Intrinsics, got "
                          f"{type(intrinsics[bad[0]]).__name__}")
-    names = camera_names(names, m) or tuple(f"cam{j}" for j in range(m))
-    points, mocap = _stack(observations, names)
+    names = camera_names(problem.names, m) or tuple(f"cam{j}" for j in range(m))
+    given = replace(problem, observations=observations, intrinsics=intrinsics, names=names)
+    points, mocap = _stack(given)
+    free_intrinsics = problem.free_intrinsics
     free = (False,) * m if free_intrinsics is None else tuple(bool(f) for f in free_intrinsics)
     if len(free) != m:
         raise InputError(f"free_intrinsics has {len(free)} entries for {m} cameras")
-    clocks = _checked_clocks(clocks, names, points.counts)
+    clocks = _checked_clocks(given, points.counts)
     instant, instant_image, units = _instants(points, mocap, clocks, clock_units(clocks, names))
-    extra = (None if intrinsics_observations is None else
-             intrinsics_images(intrinsics_observations, names, free))
+    extra = (None if problem.intrinsics_observations is None else
+             intrinsics_images(replace(given, free_intrinsics=free)))
     return ImageData(setup=setup, names=names, intrinsics=tuple(intrinsics), free=free,
                      clocks=clocks, points=points, mocap_measured=mocap, instant=instant,
                      instant_image=instant_image, units=units,
@@ -403,11 +419,11 @@ class IntrinsicsImages:
 
 
 
-def intrinsics_images(per_camera: Sequence, names: Sequence[str], free: Sequence[bool]
-                      ) -> IntrinsicsImages:
-    """The intrinsics-only images (``intrinsics_observations`` of :func:`image_data`),
-    checked and stacked."""
-    per_camera = list(per_camera)
+def intrinsics_images(given: ImageProblem) -> IntrinsicsImages:
+    """The intrinsics-only images (``intrinsics_observations`` of :class:`ImageProblem`),
+    checked and stacked (``given``: the names a tuple, ``free_intrinsics`` one per camera)."""
+    names, free = given.names, given.free_intrinsics
+    per_camera = list(given.intrinsics_observations)
     if len(per_camera) != len(names):
         raise InputError(f"intrinsics_observations has {len(per_camera)} entries for "
                          f"{len(names)} cameras (give an empty list for a camera without "

@@ -65,7 +65,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho
 from multieye.estimate.clock_residuals import ClockData
-from multieye.estimate.image_data import ImageData, image_data
+from multieye.estimate.image_data import ImageData, ImageProblem, image_data
 from multieye.estimate.image_residuals import intrinsics_family
 # estimate_mocap_noise is named here too: it is the plain form of this module's estimate
 from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR, estimate_mocap_noise
@@ -428,9 +428,10 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     start = time.perf_counter()
     opts = with_fields(options, kw, RefineOptions, "options")
     noise = _given_noise(opts)
-    data = image_data(setup, observations, intrinsics, opts.names,
-                      free_intrinsics=opts.free_intrinsics,
-                      intrinsics_observations=opts.intrinsics_observations, clocks=opts.clocks)
+    data = image_data(ImageProblem(setup, observations, intrinsics, opts.names,
+                                   free_intrinsics=opts.free_intrinsics,
+                                   intrinsics_observations=opts.intrinsics_observations,
+                                   clocks=opts.clocks))
     fams, noise = _start(data, X0, Y0, noise)
     data, fams, noise, res, counts = _solve(data, fams, noise, loss=opts.loss,
                                             max_iter=int(opts.max_iter), tol=opts.tol)

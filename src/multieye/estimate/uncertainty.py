@@ -28,7 +28,6 @@ Synopsis
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,7 +38,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_with_jacobian
 from multieye.core.lie import log_so3
-from multieye.estimate.image_data import image_data
+from multieye.estimate.image_data import ImageProblem, image_data
 from multieye.optimize.levenberg_marquardt import covariance
 from multieye.solvers.refine_poses import relative_pose_covariance
 
@@ -170,8 +169,7 @@ def relative_covariance(X: ArrayLike, covariance: ArrayLike, reference: int = 0
                                std_trans_m=std_trans)
 
 
-def cramer_rao_bound(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
-                     X: ArrayLike, Y: ArrayLike, *, pixel_sigma: float,
+def cramer_rao_bound(problem: ImageProblem, X: ArrayLike, Y: ArrayLike, *, pixel_sigma: float,
                      mocap_rot_sigma_rad: float, mocap_trans_sigma_m: float) -> F64:
     """Cramér-Rao bound of X and Y for the image-level problem of :mod:`multieye.estimate.refine_images`.
 
@@ -182,12 +180,11 @@ def cramer_rao_bound(setup: str, observations: Sequence, intrinsics: Sequence[In
 
     Parameters
     ----------
-    setup : {"eye-to-base", "eye-on-hand"}
-    observations : sequence over cameras of sequence of (object_points, image_points, T_world_mocap)
-        As for :func:`multieye.estimate.refine_images.refine_images`, with the *true* motion-capture poses
-        (the image points are not used): e.g.
+    problem : ImageProblem
+        The setup, the observations and the intrinsics, as for
+        :func:`multieye.estimate.refine_images.refine_images`, with the *true* motion-capture
+        poses (the image points are not used): e.g.
         :attr:`multieye.sim.images.ImageScenario.true_observations`.
-    intrinsics : sequence of Intrinsics
     X : array_like, shape (m, 4, 4)
         True ``T_world_cam`` / ``T_body_cam``.
     Y : array_like, shape (4, 4)
@@ -205,7 +202,7 @@ def cramer_rao_bound(setup: str, observations: Sequence, intrinsics: Sequence[In
         the bound of every ``T_ref_cam``.
     """
 
-    data = image_data(setup, observations, intrinsics)
+    data = image_data(problem)
     sigmas = np.array([pixel_sigma, mocap_rot_sigma_rad, mocap_trans_sigma_m], dtype=np.float64)
     if not np.all(np.isfinite(sigmas) & (sigmas > 0)):
         raise InputError(f"noise levels must be positive, got {sigmas.tolist()}")

@@ -36,6 +36,7 @@ from multieye.core.arguments import with_fields
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.metrics import relative_extrinsics
+from multieye.estimate.image_data import ImageProblem
 from multieye.estimate.refine_images import refine_images
 from multieye.estimate.uncertainty import cramer_rao_bound, relative_covariance
 from multieye.experiments.figures import sweep_png
@@ -167,7 +168,8 @@ def refine_trial(pixel_sigma: float, scene_rng, noise_rng, spec: TrialSpec = Tri
     rows.append(RefineRow(pixel_sigma, trial, "refined", *relative_rms_errors(res.X, sc.X),
                           *_predicted(res.X, res.covariance), res.time_s))
     start = time.perf_counter()
-    crb = cramer_rao_bound(sc.setup, sc.true_observations, sc.intrinsics, sc.X, sc.Y,
+    crb = cramer_rao_bound(ImageProblem(sc.setup, sc.true_observations, sc.intrinsics),
+                           sc.X, sc.Y,
                            pixel_sigma=pixel_sigma, mocap_rot_sigma_rad=mocap_rot_sigma_rad,
                            mocap_trans_sigma_m=mocap_trans_sigma_m)
     bound = _predicted(sc.X, crb)
