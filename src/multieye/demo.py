@@ -88,7 +88,7 @@ def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, spec: DatasetSpec = D
         calibration_table(run.record),
         "Error of T_ref_cam against ground truth (rotation deg / translation mm); the closed "
         "forms on the same measurements below the final result:\n"
-        + comparison_table(results, truth.T_ref_cam, truth.names),
+        + comparison_table(results, dict(zip(truth.names, truth.T_ref_cam))),
         "Wrote " + ", ".join(str(p) for p in outputs),
         *notes,
     ])

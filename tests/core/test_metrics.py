@@ -41,7 +41,7 @@ def test_error_table_and_pose_row():
     T = g.make_transform(R, [0.1, -0.2, 0.3])
     np.testing.assert_allclose(pose_row(T), [0.1, -0.2, 0.3, 30, -10, 5], atol=1e-12)
     T2 = T @ g.transform_from_rotvec([0, 0, np.radians(1)], [0, 0, 0.002])
-    rows = error_table(np.stack([np.eye(4), T2]), np.stack([np.eye(4), T]), names=["a", "b"])
+    rows = error_table({"a": np.eye(4), "b": T2}, {"a": np.eye(4), "b": T})
     assert rows[1].camera == "b"
     assert rows[1].rot_err_deg == pytest.approx(1.0)
     assert rows[1].trans_err_m == pytest.approx(0.002)

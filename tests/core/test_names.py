@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from types import SimpleNamespace
 
 import pytest
 from hypothesis import given, settings
@@ -53,8 +54,11 @@ def test_the_safe_form_of_paths():
 
 
 def test_two_names_reducing_to_one_file_are_refused():
-    assert file_stems(["a/b", "c"]) == {"a/b": "a_b", "c": "c"}
+    def cams(*names):
+        return [SimpleNamespace(name=n) for n in names]
+
+    assert file_stems(cams("a/b", "c")) == {"a/b": "a_b", "c": "c"}
     with pytest.raises(InputError, match="cameras 'a/b' and 'a_b' would be one"):
-        file_stems(["a/b", "a_b"])
+        file_stems(cams("a/b", "a_b"))
     with pytest.raises(InputError, match="'Cam' and 'cam'"):
-        file_stems(["Cam", "cam"])
+        file_stems(cams("Cam", "cam"))

@@ -16,6 +16,7 @@ import pytest
 
 from multieye.core import geometry as g
 from multieye.core.lens import project_points, undistort_points
+from multieye.io.calibration_record import CameraRecord
 from multieye.io.run_details import read_run_details
 from multieye.outputs.details import image_points, projection_std_grid
 from multieye.outputs.folder import foreign_files
@@ -229,7 +230,9 @@ def test_camera_figures_of_an_earlier_report_are_removed(runs, tmp_path):
 
 
 def test_camera_figure_names_are_safe_and_distinct():
-    assert camera_figure_names(["cam0", "front left", "front_left", "a/b", "rear<&>"]) == {
+    cameras = [CameraRecord(n, None, np.eye(4), 3)
+               for n in ("cam0", "front left", "front_left", "a/b", "rear<&>")]
+    assert camera_figure_names(cameras) == {
         "cam0": "camera_cam0.png", "front left": "camera_front_left.png",
         "front_left": "camera_front_left_2.png", "a/b": "camera_a_b.png",
         "rear<&>": "camera_rear___.png"}

@@ -8,6 +8,7 @@ Synopsis
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -176,21 +177,26 @@ def pose_row(T: ArrayLike) -> np.ndarray:
     return np.concatenate([T[..., :3, 3], np.degrees(g.ypr_from_rotation(T))], axis=-1)
 
 
-def error_table(T_est: ArrayLike, T_true: ArrayLike | None = None,
-                names: list[str] | None = None) -> list[PoseErrorRow]:
+def error_table(T_est: Mapping[str, ArrayLike] | ArrayLike,
+                T_true: Mapping[str, ArrayLike] | ArrayLike | None = None) -> list[PoseErrorRow]:
     """The paper's tx ty tz yaw pitch roll table for ``T_ref_cam`` of every camera.
 
     Parameters
     ----------
-    T_est : array_like, shape (m, 4, 4)
-    T_true : array_like, shape (m, 4, 4), optional
-        Ground truth; fills the error columns.
-    names : list of str, optional
-        Camera names; default ``cam0, cam1, ...``.
+    T_est : mapping of str to array_like, shape (4, 4), or array_like, shape (m, 4, 4)
+        By camera name (``run.T_ref_cam``); an array names the cameras ``cam0, cam1, ...``.
+    T_true : the same, optional
+        Ground truth (a mapping: by the same names); fills the error columns.
     """
-    T_est = np.asarray(T_est, dtype=np.float64)
+    if isinstance(T_est, Mapping):
+        names = list(T_est)
+        T_est = np.stack([np.asarray(T_est[n], dtype=np.float64) for n in names])
+    else:
+        T_est = np.asarray(T_est, dtype=np.float64)
+        names = [f"cam{j}" for j in range(T_est.shape[0])]
+    if isinstance(T_true, Mapping):
+        T_true = np.stack([np.asarray(T_true[n], dtype=np.float64) for n in names])
     m = T_est.shape[0]
-    names = names or [f"cam{j}" for j in range(m)]
     rows = []
     errs = extrinsic_errors(T_est, T_true) if T_true is not None else None
     for j in range(m):

@@ -19,10 +19,11 @@ from __future__ import annotations
 import re
 import unicodedata
 from collections.abc import Iterable
+from typing import Protocol
 
 from multieye.core.errors import InputError
 
-__all__ = ["MAX_NAME_CHARS", "MAX_NAME_BYTES", "NAME_RULE", "camera_name_problem",
+__all__ = ["MAX_NAME_CHARS", "MAX_NAME_BYTES", "NAME_RULE", "Named", "camera_name_problem",
            "file_stem", "file_stems", "same_file_key"]
 
 #: Longest camera name, in characters and in bytes of UTF-8 (file names hold 255 bytes).
@@ -111,12 +112,18 @@ def same_file_key(name: str) -> str:
     return unicodedata.normalize("NFC", name).casefold()
 
 
-def file_stems(names: Iterable[str], *, what: str = "file") -> dict[str, str]:
-    """:func:`file_stem` of every name, refusing two names that would be one file.
+class Named(Protocol):
+    """Anything with a ``name`` (a camera's record, its data, its rig.yaml entry)."""
+
+    name: str
+
+
+def file_stems(cameras: Iterable[Named], *, what: str = "file") -> dict[str, str]:
+    """:func:`file_stem` of every camera's name, refusing two names that would be one file.
 
     Parameters
     ----------
-    names : iterable of str
+    cameras : iterable of objects with a ``name`` (str)
     what : str
         What the files are, for the message (``"export/camera_info/<camera>.yaml"``).
 
@@ -132,7 +139,7 @@ def file_stems(names: Iterable[str], *, what: str = "file") -> dict[str, str]:
     """
     stems: dict[str, str] = {}
     seen: dict[str, str] = {}
-    for name in names:
+    for name in (c.name for c in cameras):
         stem = file_stem(name)
         key = same_file_key(stem)
         if key in seen:

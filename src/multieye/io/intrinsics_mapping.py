@@ -158,9 +158,9 @@ def _integer(value, doc: YamlDocument, key: str, *, minimum: int = 1) -> int:
     return int(value)
 
 
-def _one(doc: YamlDocument, role: str, names=None) -> str | None:
+def _one(doc: YamlDocument, role: str) -> str | None:
     """The key of ``role`` present in the file, None if none; refused when several are."""
-    present = [k for k in (names or KEYS[role]) if k in doc.data]
+    present = [k for k in KEYS[role] if k in doc.data]
     if len(present) > 1:
         raise doc.error(f"{' and '.join(present)} both give the {role}; keep one", present[1])
     return present[0] if present else None

@@ -366,7 +366,7 @@ def _per_camera_files(rec: CalibrationRecord, intr: dict, notes: list[str], *, s
     ``text_of(camera, intrinsics)`` gives the text or an InputError saying why not. The
     cameras left out go into ``notes`` after ``note``, one group per reason; none left raises
     InputError after ``refusal``."""
-    stems = file_stems((c.name for c in rec.cameras), what=stems_what)
+    stems = file_stems(rec.cameras, what=stems_what)
     texts, left = {}, []
     for cam in rec.cameras:
         try:

@@ -11,7 +11,8 @@
 Synopsis
 --------
 >>> from multieye.outputs.report_cameras import camera_figure_names
->>> camera_figure_names(["cam0", "front left"])
+>>> from multieye.io.calibration_record import CameraRecord
+>>> camera_figure_names([CameraRecord(n, None, np.eye(4), 3) for n in ("cam0", "front left")])
 {'cam0': 'camera_cam0.png', 'front left': 'camera_front_left.png'}
 """
 
@@ -30,7 +31,7 @@ from multieye.estimate.diagnostics import (
     MIN_ROTATION_RANGE_DEG,
     MIN_SECOND_AXIS_DEG,
 )
-from multieye.io.calibration_json import CalibrationRecord
+from multieye.io.calibration_json import CalibrationRecord, CameraRecord
 from multieye.io.run_details import CameraDetails, RunDetails
 from multieye.outputs.html import figure, num, table, value_text
 from multieye.outputs.image_stats import MAX_ARROWS, worst_images
@@ -42,12 +43,13 @@ __all__ = ["camera_figure_names", "cameras_section", "diagnostics_section", "int
 WORST_IMAGES = 5
 
 
-def camera_figure_names(names: Iterable[str]) -> dict[str, str]:
-    """File name in ``OUT/figures/`` of each camera's figure: ``camera_<name>.png`` with
-    characters other than letters, digits, ``.``, ``_`` and ``-`` replaced by ``_`` (and a
-    number added when two names become the same; at most 100 characters of the name)."""
+def camera_figure_names(cameras: Iterable[CameraRecord]) -> dict[str, str]:
+    """File name in ``OUT/figures/`` of each camera's figure (by camera name):
+    ``camera_<name>.png`` with characters other than letters, digits, ``.``, ``_`` and ``-``
+    replaced by ``_`` (and a number added when two names become the same; at most 100
+    characters of the name)."""
     out: dict[str, str] = {}
-    for name in names:
+    for name in (c.name for c in cameras):
         base = "camera_" + re.sub(r"[^A-Za-z0-9._-]", "_", name[:100])
         stem, k = base, 2
         while f"{stem}.png" in out.values():
@@ -182,7 +184,7 @@ def cameras_section(rec: CalibrationRecord, details: RunDetails | None,
                            "Reprojection residuals against the distance from the principal "
                            "point: a lens model that does not fit grows them towards the "
                            "corners.", "residuals_by_radius.png")
-    files = camera_figure_names(c.name for c in rec.cameras)
+    files = camera_figure_names(rec.cameras)
     blocks = [_camera_block(c, None if details is None else details.camera(c.name),
                             figures.get(files[c.name]), files[c.name]) for c in rec.cameras]
     return head + together + "".join(blocks) + "</section>"

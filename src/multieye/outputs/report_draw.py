@@ -49,7 +49,7 @@ def figure_jobs(rec: CalibrationRecord, details: RunDetails | None
     if any(c.points is not None for c in details.cameras):
         jobs += [("image_rms.png", f.image_rms_png, (details,), 0.08 + 0.006 * m),
                  ("residuals_by_radius.png", f.radial_png, (details,), 0.07 + 0.002 * m)]
-    files = camera_figure_names(c.name for c in rec.cameras)
+    files = camera_figure_names(rec.cameras)
     colours = f.camera_colours(len(rec.cameras))
     for j, c in enumerate(rec.cameras):
         cam = details.camera(c.name)

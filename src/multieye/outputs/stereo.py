@@ -41,8 +41,11 @@ class StereoPair:
     rectification: Rectification
 
 
-def _matching(names: list[str], overlaps: Mapping[str, tuple[str, ...] | None]
+def _matching(rec: CalibrationRecord, overlaps: Mapping[str, tuple[str, ...] | None]
               ) -> list[tuple[str, str]]:
+    """Pairs of the record's cameras that see the target together, each camera in one pair
+    at most (in the record's camera order)."""
+    names = [c.name for c in rec.cameras]
     taken: set[str] = set()
     out = []
     for a in names:
@@ -72,7 +75,7 @@ def stereo_pairs(rec: CalibrationRecord, intrinsics: Mapping, overlaps: Mapping 
         return [], []
     T = {c.name: c.T_ref_cam for c in rec.cameras}
     pairs, notes = [], []
-    for a, b in _matching([c.name for c in rec.cameras], overlaps):
+    for a, b in _matching(rec, overlaps):
         T_a_b = g.inv(T[a]) @ T[b]
         if T_a_b[0, 3] < 0:                          # b left of a: a is the right camera
             a, b, T_a_b = b, a, g.inv(T_a_b)

@@ -7,7 +7,7 @@ uncertainty when known, and every warning.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -140,17 +140,18 @@ def _intrinsics_line(c) -> str:
     return f"{c.name} intrinsics (estimated, {lens_model(ir.intrinsics)}): {cells}{proj}"
 
 
-def comparison_table(results: dict[str, np.ndarray], truth: np.ndarray,
-                     names: Sequence[str]) -> str:
+def comparison_table(results: dict[str, np.ndarray], truth: Mapping[str, np.ndarray]) -> str:
     """Errors of ``T_ref_cam`` against ground truth, one row per method and camera.
 
     Parameters
     ----------
     results : dict of str to ndarray, shape (m, 4, 4)
-        ``T_ref_cam`` of every camera per method.
-    truth : ndarray, shape (m, 4, 4)
-    names : sequence of str
+        ``T_ref_cam`` of every camera per method, in the order of ``truth``.
+    truth : mapping of str to ndarray, shape (4, 4)
+        The true ``T_ref_cam`` by camera name.
     """
+    names = list(truth)
+    truth = np.stack([truth[n] for n in names])
     header = ["method", *(f"{n} error deg / mm" for n in names[1:]), "mean error deg",
               "mean error mm", "max error deg", "max error mm"]
     rows = []

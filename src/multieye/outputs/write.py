@@ -111,15 +111,17 @@ def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: 
     """Write every output into ``folder``; returns the names written, notes, the details."""
     write_calibration(folder / "calibration.json", run.record)
     names, notes = ["calibration.json"], []
-    notes += _camchain(run, folder, names)
-    estimated = [c.name for c in run.record.cameras
+    written, camchain_notes = _camchain(run, folder)
+    names += ["camchain.yaml"] if written else []
+    notes += camchain_notes
+    estimated = [c for c in run.record.cameras
                  if c.intrinsics is not None and c.intrinsics.estimated]
     if estimated:
         stems = file_stems(estimated, what="file intrinsics/<camera>.yaml")
         make_folder(folder / "intrinsics")
-        for name in estimated:
-            write_opencv_intrinsics(folder / "intrinsics" / f"{stems[name]}.yaml",
-                                    run.record.camera(name).intrinsics.intrinsics)
+        for cam in estimated:
+            write_opencv_intrinsics(folder / "intrinsics" / f"{stems[cam.name]}.yaml",
+                                    cam.intrinsics.intrinsics)
         names.append("intrinsics")
     details = write_run_details(folder / "details.json", run, diagnostics=diagnostics)
     names.append("details.json")
@@ -129,19 +131,20 @@ def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: 
     return names, notes, details
 
 
-def _camchain(run: CalibrationRun, folder: Path, names: list[str]) -> list[str]:
+def _camchain(run: CalibrationRun, folder: Path) -> tuple[bool, list[str]]:
     """Kalibr's camchain with every camera it can hold; a camera it cannot (no intrinsics, or
     a lens Kalibr's models do not have) is named with the reason, in a note and in a comment
-    at the top of the file, never dropped silently."""
+    at the top of the file, never dropped silently.  Returns whether it was written, and
+    the notes."""
     cams = [c.name for c in run.record.cameras]
     kept, left = kalibr_chain(run.record, {n: run.cameras[n].intrinsics for n in cams},
                               {n: camera_topic(run, n) for n in cams}, camera_overlaps(run))
     if not kept:
-        return [f"camchain.yaml not written: Kalibr cannot hold any camera: {'; '.join(left)}"]
+        return False, [f"camchain.yaml not written: Kalibr cannot hold any camera: "
+                       f"{'; '.join(left)}"]
     comments = ([f"left out of this camchain: {c}" for c in left] if left else [])
     write_camchain(folder / "camchain.yaml", kept, comments=comments)
-    names.append("camchain.yaml")
     if not left:
-        return []
-    return [f"camchain.yaml holds {', '.join(e.name for e in kept)} only; left out: "
-            + "; ".join(left)]
+        return True, []
+    return True, [f"camchain.yaml holds {', '.join(e.name for e in kept)} only; left out: "
+                  + "; ".join(left)]
