@@ -35,10 +35,10 @@ def test_default_tolerance_is_a_quarter_of_the_shortest_frame_interval():
 
 
 def test_equal_names_are_one_instant():
-    inst, k = instants_from_names([["f2", "f1"], ["f1", "f3"]])
-    assert [i.tolist() for i in inst] == [[1, 0], [0, 2]] and k == 3
-    with pytest.raises(InputError, match="two images named 'f1'"):
-        instants_from_names([["f1", "f1"]])
+    inst, k = instants_from_names({"a": ["f2", "f1"], "b": ["f1", "f3"]})
+    assert {c: i.tolist() for c, i in inst.items()} == {"a": [1, 0], "b": [0, 2]} and k == 3
+    with pytest.raises(InputError, match="camera a: two images named 'f1'"):
+        instants_from_names({"a": ["f1", "f1"]})
 
 
 def test_bad_stamps_and_tolerances_are_refused():

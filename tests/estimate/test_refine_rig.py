@@ -50,7 +50,7 @@ def test_groups_that_nothing_links_are_named_with_what_would_link_them():
     groups = link_groups(cov.shared > 0, [False] * 3)
     assert groups == [(0, 1), (2,)]
     assert link_groups(cov.shared > 0, [True, False, True]) == [(0, 1, 2)]
-    msg = unlinked_message(["left", "right", "rear"], groups)
+    msg = unlinked_message([["left", "right"], ["rear"]])
     assert "2 groups" in msg and "{left, right} and {rear}" in msg
     assert "sync_tolerance" in msg and "mocap" in msg and "\n" not in msg
     with pytest.raises(DisconnectedError, match=r"\{cam0, cam1\} and \{cam2\}"):

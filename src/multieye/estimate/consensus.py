@@ -59,8 +59,6 @@ from multieye.solvers.checks import (
     MIN_MEASUREMENTS,
     Measurements,
     check_measurements,
-    check_names,
-    given_measurements,
     rotation_spread,
 )
 from multieye.solvers.joint import solve_joint
@@ -402,12 +400,7 @@ def consensus(A, B=None, options: ConsensusOptions = ConsensusOptions(), **kw
     """
     opts = with_fields(options, kw, ConsensusOptions, "options")
     _check_options(opts)
-    if isinstance(A, Measurements):
-        meas = given_measurements(A, B)
-        check_names(opts.names, meas)
-    else:
-        meas = check_measurements(A, B, names=check_names(opts.names, A),
-                                  per_camera_motion=False)
+    meas = check_measurements(A, B, names=opts.names, per_camera_motion=False)
     labels = _labels(opts.labels, meas)
     As, Bs = meas.split(meas.A), meas.split(meas.B)
     Balts = check_alternatives(opts.B_alternative, Bs)

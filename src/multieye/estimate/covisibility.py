@@ -166,11 +166,11 @@ def link_groups(linked, mocap: Sequence[bool]) -> list[tuple[int, ...]]:
     return [tuple(int(j) for j in np.flatnonzero(label == s)) for s in np.unique(label)]
 
 
-def unlinked_message(names: Sequence[str], groups: Sequence[Sequence[int]],
-                     tolerance: float | None = None) -> str:
-    """One line saying that ``groups`` (two or more) are not linked, and what would link them
-    (``tolerance``: the ``sync_tolerance`` used, seconds, named when given)."""
-    shown = [("{" + ", ".join(names[j] for j in grp) + "}") for grp in groups]
+def unlinked_message(groups: Sequence[Sequence[str]], tolerance: float | None = None) -> str:
+    """One line saying that ``groups`` (two or more, each of camera names) are not linked,
+    and what would link them (``tolerance``: the ``sync_tolerance`` used, seconds, named when
+    given)."""
+    shown = [("{" + ", ".join(grp) + "}") for grp in groups]
     listing = ", ".join(shown[:-1]) + " and " + shown[-1]
     within = "" if tolerance is None else f" = {tolerance:g} s"
     return (f"cameras fall into {len(groups)} groups that nothing links: {listing}; give them "
@@ -257,7 +257,8 @@ def initial_rig(T_cam_target, camera, instant, m: int, reference: int = 0,
     if len(groups) > 1:
         names = list(names) if names is not None else [f"cam{j}" for j in range(m)]
         apart = [names[j] for grp in groups if reference not in grp for j in grp]
-        raise DisconnectedError(unlinked_message(names, groups), tuple(apart))
+        raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups]),
+                                tuple(apart))
     parent = spanning_tree(cov.shared, reference)
     n_inst = len(cov.instant_cameras)
     view = np.full((n_inst, m), -1, dtype=np.int64)

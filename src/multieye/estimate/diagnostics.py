@@ -47,11 +47,8 @@ from multieye.core.errors import InputError
 from multieye.core.problem import SETUPS
 from multieye.solvers.checks import (
     check_measurements,
-    check_names,
-    given_measurements,
     rotation_spread,
 )
-from multieye.solvers.measurements import Measurements
 
 __all__ = ["CameraMotion", "MotionDiagnostics", "MotionOptions", "motion_diagnostics",
            "MIN_ROTATION_RANGE_DEG", "MIN_SECOND_AXIS_DEG", "MIN_AXIS_RATIO",
@@ -222,12 +219,8 @@ def motion_diagnostics(A, B=None, options: MotionOptions = MotionOptions(),
     min_second_axis_deg, min_axis_ratio = opts.min_second_axis_deg, opts.min_axis_ratio
     if setup not in SETUPS:
         raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
-    if isinstance(A, Measurements):
-        meas = given_measurements(A, B)
-        check_names(opts.names, meas)
-    else:
-        meas = check_measurements(A, B, names=list(opts.names) if opts.names is not None
-                                  else None, per_camera_motion=False)
+    meas = check_measurements(A, B, names=list(opts.names) if opts.names is not None
+                              else None, per_camera_motion=False)
     cameras, warnings = [], []
     for j, (RA, RB, Aj) in enumerate(zip(meas.split(meas.RA), meas.split(meas.RB),
                                           meas.split(meas.A))):

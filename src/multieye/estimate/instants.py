@@ -14,7 +14,7 @@ Synopsis
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -90,25 +90,28 @@ def instants_from_stamps(stamps: Sequence, tolerance: float
     return [instant[a:b] for a, b in zip(bounds[:-1], bounds[1:])], k + 1
 
 
-def instants_from_names(names: Sequence[Sequence[str]]) -> tuple[list[NDArray[np.int64]], int]:
+def instants_from_names(images: Mapping[str, Sequence[str]]
+                        ) -> tuple[dict[str, NDArray[np.int64]], int]:
     """Number the instants of images by their names (stems): equal names, one instant.
 
     Parameters
     ----------
-    names : sequence over cameras of sequence of str
+    images : mapping of camera name to sequence of str
         Each image's name without its extension; unique within a camera.
 
     Returns
     -------
-    instants : list of ndarray of int, shape (n_j,)
+    instants : dict of camera name to ndarray of int, shape (n_j,)
         Numbered 0..K-1 in the order of the sorted names.
     K : int
     """
-    names = [list(n) for n in _check_camera_count(names, "names")]
-    for j, ns in enumerate(names):
+    _check_camera_count(images, "images")
+    images = {cam: list(ns) for cam, ns in images.items()}
+    for cam, ns in images.items():
         if len(set(ns)) != len(ns):
             dup = next(n for n in ns if ns.count(n) > 1)
-            raise InputError(f"camera {j}: two images named {dup!r}; names must be unique "
+            raise InputError(f"camera {cam}: two images named {dup!r}; names must be unique "
                              "within a camera to be matched across cameras")
-    key = {n: k for k, n in enumerate(sorted(set().union(*names)))}
-    return [np.asarray([key[n] for n in ns], dtype=np.int64) for ns in names], len(key)
+    key = {n: k for k, n in enumerate(sorted(set().union(*images.values())))}
+    return ({cam: np.asarray([key[n] for n in ns], dtype=np.int64)
+             for cam, ns in images.items()}, len(key))

@@ -397,7 +397,7 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[CameraCheck, ...]:
         shared = int(np.isin(inst[j], others).sum())
         fatal = c.fatal
         if len(groups) > 1 and j not in groups[0]:
-            fatal += (unlinked_message([x.name for x in cams], groups, tol),)
+            fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol),)
         out.append(replace(c, with_mocap=shared, fatal=fatal,
                            problems=c.problems + fatal[len(c.fatal):]))
     return tuple(out)

@@ -103,10 +103,10 @@ def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: floa
     when their names' stems are equal and their given poses too (cameras named alike but
     posed apart were not triggered together)."""
     if cameras and all(d.by_name and d.mocap is not None for d in cameras.values()):
-        keys = [[f"{Path(o.name).stem}|{_pose_at(d, o.stamp)}" for o in d.observations]
-                for d in cameras.values()]
+        keys = {n: [f"{Path(o.name).stem}|{_pose_at(d, o.stamp)}" for o in d.observations]
+                for n, d in cameras.items()}
         inst, k = instants_from_names(keys)
-        return dict(zip(cameras, inst)), k, 0.0
+        return inst, k, 0.0
     stamps = [np.array([o.stamp for o in d.observations], dtype=np.float64) + d.time_offset
               for d in cameras.values()]
     tol = default_sync_tolerance(stamps) if sync_tolerance is None else float(sync_tolerance)
@@ -188,7 +188,7 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
                        len(names))
     groups = link_groups(cov.shared > 0, [False] * len(names))
     if len(groups) > 1:
-        raise DisconnectedError(unlinked_message(names, groups, tol),
+        raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol),
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))
     views, poses, extra = [], [], n_inst
     for n in names:
@@ -299,8 +299,9 @@ def paired_instants(paired: Mapping[str, PairedCamera], cameras: Mapping[str, Ca
     names = list(paired)
     if all(o.instant for n in names for o in paired[n].observations):
         # the problem's instants (make_problem: assign_instants), as every stage sees them
-        inst, _ = instants_from_names([[o.instant for o in paired[n].observations]
-                                       for n in names])
+        by_name, _ = instants_from_names({n: [o.instant for o in paired[n].observations]
+                                          for n in names})
+        inst = [by_name[n] for n in names]
     else:
         stamps = [np.array([o.stamp for o in paired[n].observations], dtype=np.float64)
                   + offsets[n] for n in names]

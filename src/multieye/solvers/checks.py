@@ -24,7 +24,6 @@ __all__ = [
     "check_measurements",
     "check_motion",
     "given_measurements",
-    "check_names",
     "Measurements",
     "rotation_spread",
     "MIN_MEASUREMENTS",
@@ -258,7 +257,9 @@ def check_measurements(A, B, *, names: list[str] | None = None,
     Parameters
     ----------
     A, B : sequence of array_like, each shape (N_j, 4, 4)
-        One entry per camera (a single (N, 4, 4) array is taken as one camera).
+        One entry per camera (a single (N, 4, 4) array is taken as one camera); or ``A`` is
+        :class:`Measurements` validated before and ``B`` is omitted: returned as they are
+        (no check runs again, not even the motion's: :func:`check_motion`).
     names : list of str, optional
         Camera names for messages; default ``cam0, cam1, ...``.
     per_camera_motion : bool
@@ -281,11 +282,20 @@ def check_measurements(A, B, *, names: list[str] | None = None,
     DegenerateMotionError
         Rotations about a single axis (or none at all).
     """
+    if isinstance(A, Measurements):
+        meas = given_measurements(A, B)
+        if names is not None and tuple(names) != meas.names:
+            raise InputError(f"names {list(names)} differ from the measurements' names "
+                             f"{list(meas.names)}")
+        return meas
     if A is None:
         raise InputError("A is None: give one (N, 4, 4) array of transforms per camera")
     if B is None:
         raise InputError("B is missing: give one B batch per A batch")
-    names = check_names(names, A)
+    if names is not None:
+        m = _camera_count(A)
+        names = list(camera_names(names, m if m is not None else
+                                  len(names) if hasattr(names, "__len__") else 0))
     if isinstance(A, np.ndarray) and A.ndim == 3:
         A = [A]
     if isinstance(B, np.ndarray) and B.ndim == 3:
@@ -362,30 +372,22 @@ def check_motion(meas: Measurements, *, per_camera_motion: bool = True) -> None:
                       "the rig (all cameras together)")
 
 
-def check_names(names, A) -> list[str] | None:
-    """``names`` for :func:`check_measurements` (one distinct string per camera of ``A``), or
-    None; an InputError otherwise.  The number of cameras is counted as there; when ``A``
-    is validated :class:`Measurements`, given ``names`` must be its own."""
-    if names is None:
-        return None
+def _camera_count(A) -> int | None:
+    """The number of cameras of ``A`` as :func:`check_measurements` reads it (a single
+    (N, 4, 4) array is one camera), or None when ``A`` has no length."""
     if isinstance(A, Measurements):
-        if tuple(names) != A.names:
-            raise InputError(f"names {list(names)} differ from the measurements' names "
-                             f"{list(A.names)}")
-        return list(names)
+        return A.m
     if isinstance(A, np.ndarray) and A.ndim == 3:
-        m = 1
-    else:
-        try:
-            m = len(A)
-        except TypeError:
-            return list(camera_names(names, len(names) if hasattr(names, "__len__") else 0))
-    return list(camera_names(names, m))
+        return 1
+    try:
+        return len(A)
+    except TypeError:
+        return None
 
 
 def given_measurements(meas: Measurements, B=None) -> Measurements:
-    """``meas`` as passed in place of ``A, B`` to a function that takes either (no new checks;
-    :func:`check_names` checks names given with it).
+    """``meas`` as passed in place of ``A, B`` to a function that takes either (no new
+    checks).
 
     Raises
     ------

@@ -36,9 +36,7 @@ from multieye.core.geometry import make_transform, rotation_mean
 from multieye.solvers.checks import (
     check_measurements,
     check_motion,
-    check_names,
     check_transforms,
-    given_measurements,
 )
 from multieye.solvers.measurements import Measurements
 from multieye.solvers.joint import solve_joint
@@ -119,12 +117,9 @@ def solve(A: Sequence[np.ndarray] | np.ndarray | Measurements,
     if refine:
         check_refine_options(refine_options)
     joint = method in JOINT_METHODS
-    if isinstance(A, Measurements):
-        meas = given_measurements(A, B)
-        check_names(names, meas)
+    meas = check_measurements(A, B, names=names, per_camera_motion=not joint)
+    if isinstance(A, Measurements):     # validated before: only the motion test is new
         check_motion(meas, per_camera_motion=not joint)
-    else:
-        meas = check_measurements(A, B, names=names, per_camera_motion=not joint)
     Y_per_camera = None
     if joint:
         X, Y = JOINT_METHODS[method](meas)
