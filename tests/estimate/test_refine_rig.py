@@ -76,7 +76,7 @@ def test_relative_pose_is_robust_to_a_wrong_view():
 def test_start_from_the_covisibility_graph_is_exact_on_exact_poses():
     sc = _scenario(0)
     views = pixel_views(sc)
-    rv = RigViews(views, sc.intrinsics, ["a", "b", "c"])
+    rv = RigViews(dict(zip("abc", views)), sc.intrinsics)
     start = initial_rig(_pnp_like(sc, views, np.random.default_rng(0), 0, 0), rv.camera,
                         rv.instant, 3)
     assert np.allclose(start.T_ref_cam, sc.T_ref_cam, atol=1e-9)
@@ -88,7 +88,7 @@ def test_start_from_the_covisibility_graph_is_exact_on_exact_poses():
 def test_pixel_jacobians_match_central_differences(free, reference):
     sc = _scenario(2, n=6)
     views = pixel_views(sc, 0.3, np.random.default_rng(3))
-    rv = RigViews(views, sc.intrinsics, ["a", "b", "c"], reference,
+    rv = RigViews(dict(zip("abc", views)), sc.intrinsics, reference,
                   free_intrinsics=[free] * 3)
     rng = np.random.default_rng(4)
     T_ref_cam = g.inv(sc.T_ref_cam[reference]) @ sc.T_ref_cam
@@ -118,7 +118,7 @@ def test_noise_free_pixels_give_the_rig_back_exactly(free):
     views = pixel_views(sc)
     start_lens = [i.with_params(i.params * (1 + 0.01 * (np.arange(i.params.size) < 2)))
                   for i in sc.intrinsics] if free else list(sc.intrinsics)
-    rv = RigViews(views, start_lens, ["a", "b", "c"], free_intrinsics=[free] * 3)
+    rv = RigViews(dict(zip("abc", views)), start_lens, free_intrinsics=[free] * 3)
     res = refine_rig(rv, _pnp_like(sc, views, np.random.default_rng(6)), pixel_sigma=0.5,
                      loss="linear")
     assert np.max(g.rotation_angle(np.swapaxes(res.T_ref_cam[:, :3, :3], 1, 2)
@@ -151,7 +151,7 @@ def test_covariance_of_t_ref_cam_is_honest_over_simulated_rigs(free):
         sc = _scenario(100 + trial, n=16)
         rng = np.random.default_rng(trial)
         views = pixel_views(sc, 0.4, rng)
-        rv = RigViews(views, sc.intrinsics, ["a", "b", "c"], free_intrinsics=[free] * 3)
+        rv = RigViews(dict(zip("abc", views)), sc.intrinsics, free_intrinsics=[free] * 3)
         res = refine_rig(rv, _pnp_like(sc, views, rng))      # sigma estimated, huber
         assert abs(res.pixel_sigma - 0.4) < 0.05
         nees += _nees(res, sc)
@@ -167,7 +167,7 @@ def test_covariance_of_t_ref_cam_is_honest_over_simulated_rigs(free):
 def test_one_wrong_pnp_pose_does_not_pull_an_instants_start():
     sc = _scenario(0)
     views = pixel_views(sc)
-    rv = RigViews(views, sc.intrinsics, ["a", "b", "c"])
+    rv = RigViews(dict(zip("abc", views)), sc.intrinsics)
     T = _pnp_like(sc, views, np.random.default_rng(0), 0, 0)
     both = np.flatnonzero(sc.seen.all(axis=1))[0]
     wrong = np.flatnonzero((rv.camera == 2) & (rv.instant == both))[0]

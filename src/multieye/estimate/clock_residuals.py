@@ -388,16 +388,15 @@ class ClockUnits:
         return replace(self, trajectories=tuple(trajectories))
 
 
-def clock_units(clocks, names) -> ClockUnits:
+def clock_units(clocks: Mapping[str, ClockData | None]) -> ClockUnits:
     """The units of the cameras' clocks (:class:`ClockUnits`), before their blocks are known.
 
     Parameters
     ----------
-    clocks : sequence of (ClockData or None)
-        Per camera (checked by the caller).
-    names : sequence of str
-        Camera names.
+    clocks : mapping of camera name to (ClockData or None)
+        Every camera's, in camera order (checked by the caller).
     """
+    names, clocks = list(clocks), list(clocks.values())
     units: dict = {}
     for j, c in enumerate(clocks):
         if c is not None:

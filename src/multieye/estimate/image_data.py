@@ -373,7 +373,7 @@ def image_data(problem: ImageProblem) -> ImageData:
     if len(free) != m:
         raise InputError(f"free_intrinsics has {len(free)} entries for {m} cameras")
     clocks = _checked_clocks(given, points.counts)
-    instant, instant_image, units = _instants(points, mocap, clocks, clock_units(clocks, names))
+    instant, instant_image, units = _instants(points, mocap, clocks, clock_units(dict(zip(names, clocks))))
     extra = (None if problem.intrinsics_observations is None else
              intrinsics_images(replace(given, free_intrinsics=free)))
     return ImageData(setup=setup, names=names, intrinsics=tuple(intrinsics), free=free,

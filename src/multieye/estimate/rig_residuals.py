@@ -62,13 +62,13 @@ class RigViews:
 
     Parameters
     ----------
-    views : sequence over cameras of sequence of (object_points, image_points, instant)
-        ``views[j][i]``: target points of image i of camera j, (n, 3), metres in the
+    views : mapping of camera name to sequence of (object_points, image_points, instant)
+        ``views[name][i]``: target points of image i of that camera, (n, 3), metres in the
         ``target`` frame; their pixels, (n, 2); the instant (0..K-1) the image belongs to.
         Points with non-finite coordinates are left out; a camera sees an instant once.
+        Camera j is the mapping's j-th.
     intrinsics : sequence of Intrinsics
-        One per camera (the starting values of the estimated ones).
-    names : sequence of str
+        One per camera, in the order of ``views`` (the starting values of the estimated ones).
     reference : int
         The camera whose frame is ``ref``.
     free_intrinsics : sequence of bool, optional
@@ -83,14 +83,16 @@ class RigViews:
         View of each point.
     """
 
-    def __init__(self, views: Sequence, intrinsics: Sequence[Intrinsics],
-                 names: Sequence[str], reference: int = 0, *,
-                 free_intrinsics: Sequence[bool] | None = None):
-        views, intrinsics, names = list(views), list(intrinsics), tuple(names)
+    def __init__(self, views: Mapping[str, Sequence], intrinsics: Sequence[Intrinsics],
+                 reference: int = 0, *, free_intrinsics: Sequence[bool] | None = None):
+        if not isinstance(views, Mapping):
+            raise InputError(f"views must be a mapping of camera name to views, got "
+                             f"{type(views).__name__}")
+        names, views, intrinsics = tuple(views), list(views.values()), list(intrinsics)
         m = len(views)
-        if m == 0 or len(intrinsics) != m or len(names) != m:
-            raise InputError(f"{m} cameras of views, {len(intrinsics)} intrinsics and "
-                             f"{len(names)} names; give one of each per camera")
+        if m == 0 or len(intrinsics) != m:
+            raise InputError(f"{m} cameras of views and {len(intrinsics)} intrinsics; give "
+                             "one of each per camera")
         if not 0 <= int(reference) < m:
             raise InputError(f"reference camera {reference} is not one of the {m} cameras")
         self.m, self.names, self.reference = m, names, int(reference)

@@ -200,7 +200,7 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
             poses.append(o.T_cam_target)
             extra += 1
         views.append(vs)
-    rv = RigViews(views, [cameras[n].intrinsics for n in names], names,
+    rv = RigViews(dict(zip(names, views)), [cameras[n].intrinsics for n in names],
                   names.index(reference),
                   free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
     result = refine_rig(rv, np.stack(poses), loss="huber" if robust else "linear")
