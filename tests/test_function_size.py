@@ -4,6 +4,14 @@ counted) and 8 parameters (``self``/``cls`` not counted, ``*args`` and ``**kw`` 
 one each); the stages of ``pipeline/run.py`` at most 60 lines.  Options that would take more
 parameters go into a frozen dataclass taken as one argument (``Options``, ``RefineOptions``,
 ``ConsensusOptions``), its fields also accepted as keywords.
+
+The setup and the camera names are not threaded through the package (issue 18): a function
+gets them from the typed object it already has (the pipeline's ``Problem`` and its ``Rig``,
+``Measurements``, ``ImageProblem``, a record, an options object, a mapping keyed by camera
+name).  At most a handful of signatures take them as a parameter of their own (named
+``setup`` / ``setup_name`` or ``names`` / ``camera_names``): the public entry points whose
+array contract has them (``solve``, ``check_measurements``, ``refine_images``, the
+simulators) and the few the parallel work still holds.
 """
 
 from __future__ import annotations
@@ -16,6 +24,10 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "multieye"
 MAX_LINES = 100
 MAX_PARAMETERS = 8
 MAX_STAGE_LINES = 60
+#: Parameters that carry the setup string or a sequence of camera names, and how many
+#: functions may take each kind at most.
+THREADED = {"setup": ("setup", "setup_name"), "names": ("names", "camera_names")}
+MAX_THREADED = 5
 
 
 def _functions(path: Path):
@@ -52,6 +64,24 @@ def test_no_function_over_8_parameters():
     assert wide == []
 
 
+def _threaded(paths) -> dict[str, list[str]]:
+    """Per kind of :data:`THREADED`, the functions with a parameter of that kind."""
+    out: dict[str, list[str]] = {kind: [] for kind in THREADED}
+    for p in paths:
+        for fn in _functions(p):
+            params = set(_parameters(fn))
+            for kind, spellings in THREADED.items():
+                if params & set(spellings):
+                    out[kind].append(_where(p, fn) if p.is_relative_to(SRC)
+                                     else f"{p.name}:{fn.lineno} {fn.name}")
+    return out
+
+
+def test_setup_and_camera_names_are_not_threaded_through_the_package():
+    found = _threaded(sorted(SRC.rglob("*.py")))
+    assert {k: v for k, v in found.items() if len(v) > MAX_THREADED} == {}, found
+
+
 def test_pipeline_stages_are_short():
     path = SRC / "pipeline" / "run.py"
     long = [f"{_where(path, fn)} ({_lines(fn)} lines)" for fn in _functions(path)
@@ -69,3 +99,16 @@ def test_the_checks_see_a_long_and_a_wide_function(tmp_path):
     fns = {fn.name: fn for fn in _functions(src)}
     assert _lines(fns["long"]) == 101
     assert len(_parameters(fns["wide"])) == 10
+
+
+def test_the_count_of_threaded_parameters_sees_every_spelling(tmp_path):
+    """``setup``, ``setup_name``, ``names`` and ``camera_names`` count, keyword-only and
+    positional alike, once per function; other parameters do not."""
+    src = tmp_path / "m.py"
+    src.write_text("def a(setup, names): pass\n"
+                   "def b(x, *, setup_name='eye-to-base'): pass\n"
+                   "class C:\n    def c(self, camera_names=None, names=None): pass\n"
+                   "def d(rig, problem, name): pass\n")
+    found = _threaded([src])
+    assert [w.rsplit(" ", 1)[1] for w in found["setup"]] == ["a", "b"]
+    assert sorted(w.rsplit(" ", 1)[1] for w in found["names"]) == ["a", "c"]

@@ -429,9 +429,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     opts = with_fields(options, kw, RefineOptions, "options")
     noise = _given_noise(opts)
     data = image_data(ImageProblem(setup, observations, intrinsics, opts.names,
-                                   free_intrinsics=opts.free_intrinsics,
-                                   intrinsics_observations=opts.intrinsics_observations,
-                                   clocks=opts.clocks))
+                                   opts.free_intrinsics, opts.intrinsics_observations, opts.clocks))
     fams, noise = _start(data, X0, Y0, noise)
     data, fams, noise, res, counts = _solve(data, fams, noise, loss=opts.loss,
                                             max_iter=int(opts.max_iter), tol=opts.tol)
