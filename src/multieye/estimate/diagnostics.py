@@ -30,7 +30,7 @@ the shared ``Y`` that the other cameras determine; the warning says so.
 Synopsis
 --------
 >>> from multieye.estimate.diagnostics import motion_diagnostics
->>> diag = motion_diagnostics(A, B, ["cam0", "cam1"])     # doctest: +SKIP
+>>> diag = motion_diagnostics(A, B, names=["cam0", "cam1"])     # doctest: +SKIP
 >>> for w in diag.warnings: print(w)                       # doctest: +SKIP
 """
 
