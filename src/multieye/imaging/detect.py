@@ -3,9 +3,9 @@
 =================== ==================================================================
 target              detector
 =================== ==================================================================
-chessboard          ``cv2.findChessboardCornersSB`` (at half size first on images of
-                    640 px and more), fallback ``cv2.findChessboardCorners``; then
-                    ``cv2.cornerSubPix`` at full size
+chessboard          ``cv2.findChessboardCorners`` (the classic detector), where it fails
+                    ``cv2.findChessboardCornersSB`` (at half size first on images of
+                    640 px and more); then ``cv2.cornerSubPix`` at full size
 circles             ``cv2.findCirclesGrid`` on the image and on its negative (dark
 asymmetric-circles  circles on light and light on dark), default blob detector, then a
                     permissive one, then clustering
@@ -154,35 +154,57 @@ def detect(image: ArrayLike, target: Target) -> Detection | None:
 
 # --------------------------------------------------------------------------- grids
 
-#: Images whose longer side has at least this many pixels are searched at half size first
-#: (2.5-4x faster;
-#: the corners are then refined at full size, so accuracy is unchanged).
+#: Images whose longer side has at least this many pixels are searched by
+#: ``findChessboardCornersSB`` at half size first (2.5-4x faster; the corners are then refined
+#: at full size, so accuracy is unchanged).
 _HALF_SIZE_SEARCH_ABOVE_PX = 640
+
+#: The classic detector's flags: adaptive threshold on the normalised image (OpenCV's
+#: default).  ``CALIB_CB_FAST_CHECK`` is not set: it rejects an image without a board faster,
+#: but costs 2.5x on the images that show one (800 x 600 rendered images: 5.7 against 2.2 ms),
+#: and calibration images nearly all show the board.
+_CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 
 
 def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection | None:
-    """findChessboardCornersSB (half size first on large images), then the classic detector;
-    corners refined with cornerSubPix at full size in a window of 40 % of a square.
+    """The classic ``findChessboardCorners`` first, ``findChessboardCornersSB`` (half size
+    first on large images, then full size) only where it fails; the corners refined with
+    ``cornerSubPix`` at full size in a window of 40 % of a square, then put in the canonical
+    order (:func:`_canonical`), so that the order and ids do not depend on the detector that
+    found them (the two start from opposite corners of some boards).
 
+    The classic detector is about 10x faster than SB (2.2 against 22 ms on the rendered
+    800 x 600 images of benchmarks/bench_detection.py) and, once both are refined by
+    ``cornerSubPix``, as accurate (docs/results/detection_speed.md).  SB finds boards the
+    classic misses (strong blur, boards at the image border), so it stays as the fallback.
     SB's own CALIB_CB_ACCURACY costs 4x the time and gained nothing over cornerSubPix on its
     corners (PnP RMS on the young_mocap_cam images)."""
+    corners = _find_chessboard(gray, target)
+    if corners is None:
+        return None
+    corners = _refine_corners(gray, corners, _corner_window(corners, target))
+    return _canonical(gray, target, corners)
+
+
+def _find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
+                     detector: str | None = None) -> F64 | None:
+    """Unrefined inner corners, shape (rows * cols, 2), in the order of the detector that
+    found them: classic, then SB at half size (large images), then SB at full size.
+    ``detector`` ("classic" or "sb"): that one only (for tests and benchmarks)."""
     size = (target.cols, target.rows)
-    corners = None
+    if detector in (None, "classic"):
+        found, full = cv2.findChessboardCorners(gray, size, flags=_CLASSIC_FLAGS)
+        if found:
+            return full.reshape(-1, 2).astype(np.float64)
+        if detector == "classic":
+            return None
     if max(gray.shape) >= _HALF_SIZE_SEARCH_ABOVE_PX:
         half = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
         found, small = cv2.findChessboardCornersSB(half, size, flags=0)
         if found:
-            corners = 2.0 * small.reshape(-1, 2).astype(np.float64) + 0.5   # pixel centres
-    if corners is None:
-        found, full = cv2.findChessboardCornersSB(gray, size, flags=0)
-        if not found:
-            found, full = cv2.findChessboardCorners(
-                gray, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
-            if not found:
-                return None
-        corners = full.reshape(-1, 2).astype(np.float64)
-    corners = _refine_corners(gray, corners, _corner_window(corners, target))
-    return _canonical(gray, target, corners)
+            return 2.0 * small.reshape(-1, 2).astype(np.float64) + 0.5   # pixel centres
+    found, full = cv2.findChessboardCornersSB(gray, size, flags=0)
+    return full.reshape(-1, 2).astype(np.float64) if found else None
 
 
 def _corner_window(points: F64, target: Target) -> int:
