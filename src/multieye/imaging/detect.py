@@ -4,8 +4,8 @@
 target              detector
 =================== ==================================================================
 chessboard          ``cv2.findChessboardCorners`` (the classic detector), where it fails
-                    ``cv2.findChessboardCornersSB`` (at half size first on images of
-                    640 px and more); then ``cv2.cornerSubPix`` at full size
+                    ``cv2.findChessboardCornersSB``, each at half size first on images
+                    of 640 px and more; then ``cv2.cornerSubPix`` at full size
 circles             ``cv2.findCirclesGrid`` on the image and on its negative (dark
 asymmetric-circles  circles on light and light on dark), default blob detector, then a
                     permissive one, then clustering
@@ -154,31 +154,32 @@ def detect(image: ArrayLike, target: Target) -> Detection | None:
 
 # --------------------------------------------------------------------------- grids
 
-#: Images whose longer side has at least this many pixels are searched by
-#: ``findChessboardCornersSB`` at half size first (2.5-4x faster; the corners are then refined
-#: at full size, so accuracy is unchanged).
+#: Images whose longer side has at least this many pixels are searched at half size first,
+#: by either detector (the classic one 1.5x faster on 800 x 600 images, 5x on 1280 x 720;
+#: SB 2.5-4x); the corners are then refined at full size, so accuracy is unchanged.
 _HALF_SIZE_SEARCH_ABOVE_PX = 640
 
 #: The classic detector's flags: adaptive threshold on the normalised image (OpenCV's
 #: default).  ``CALIB_CB_FAST_CHECK`` is not set: it rejects an image without a board faster,
-#: but costs 2.5x on the images that show one (800 x 600 rendered images: 5.7 against 2.2 ms),
-#: and calibration images nearly all show the board.
+#: but costs 2.5x on the images that show one (800 x 600 rendered images: 5.7 against 2.2 ms)
+#: and, at half size, missed the board in 44 % of them; calibration images nearly all show
+#: the board.
 _CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 
 
 def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection | None:
-    """The classic ``findChessboardCorners`` first, ``findChessboardCornersSB`` (half size
-    first on large images, then full size) only where it fails; the corners refined with
+    """The classic ``findChessboardCorners`` first, ``findChessboardCornersSB`` only where it
+    fails (each at half size first on large images); the corners refined with
     ``cornerSubPix`` at full size in a window of 40 % of a square, then put in the canonical
     order (:func:`_canonical`), so that the order and ids do not depend on the detector that
     found them (the two start from opposite corners of some boards).
 
-    The classic detector is about 10x faster than SB (2.2 against 22 ms on the rendered
-    800 x 600 images of benchmarks/bench_detection.py) and, once both are refined by
-    ``cornerSubPix``, as accurate (docs/results/detection_speed.md).  SB finds boards the
-    classic misses (strong blur, boards at the image border), so it stays as the fallback.
-    SB's own CALIB_CB_ACCURACY costs 4x the time and gained nothing over cornerSubPix on its
-    corners (PnP RMS on the young_mocap_cam images)."""
+    The classic detector is much faster than SB (1.6 against 22 ms per 800 x 600 rendered
+    image at half size; docs/results/detection_speed.md) and, once both are refined by
+    ``cornerSubPix``, as accurate. SB finds boards the classic misses (strong blur, boards
+    at the image border), so it stays as the fallback. SB's own CALIB_CB_ACCURACY costs 4x
+    the time and gained nothing over cornerSubPix on its corners (PnP RMS on the
+    young_mocap_cam images)."""
     corners = _find_chessboard(gray, target)
     if corners is None:
         return None
@@ -188,23 +189,25 @@ def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection
 
 def _find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
                      detector: str | None = None) -> F64 | None:
-    """Unrefined inner corners, shape (rows * cols, 2), in the order of the detector that
-    found them: classic, then SB at half size (large images), then SB at full size.
+    """Unrefined inner corners, shape (rows * cols, 2), full-size pixels, in the order of the
+    detector that found them: classic, then SB, each at half size first on large images.
     ``detector`` ("classic" or "sb"): that one only (for tests and benchmarks)."""
     size = (target.cols, target.rows)
-    if detector in (None, "classic"):
-        found, full = cv2.findChessboardCorners(gray, size, flags=_CLASSIC_FLAGS)
+    half = None
+    if max(gray.shape) >= _HALF_SIZE_SEARCH_ABOVE_PX:
+        half = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2),
+                          interpolation=cv2.INTER_AREA)
+    searches = {"classic": lambda img: cv2.findChessboardCorners(img, size, flags=_CLASSIC_FLAGS),
+                "sb": lambda img: cv2.findChessboardCornersSB(img, size, flags=0)}
+    for name in (("classic", "sb") if detector is None else (detector,)):
+        if half is not None:
+            found, small = searches[name](half)
+            if found:
+                return 2.0 * small.reshape(-1, 2).astype(np.float64) + 0.5   # pixel centres
+        found, full = searches[name](gray)
         if found:
             return full.reshape(-1, 2).astype(np.float64)
-        if detector == "classic":
-            return None
-    if max(gray.shape) >= _HALF_SIZE_SEARCH_ABOVE_PX:
-        half = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
-        found, small = cv2.findChessboardCornersSB(half, size, flags=0)
-        if found:
-            return 2.0 * small.reshape(-1, 2).astype(np.float64) + 0.5   # pixel centres
-    found, full = cv2.findChessboardCornersSB(gray, size, flags=0)
-    return full.reshape(-1, 2).astype(np.float64) if found else None
+    return None
 
 
 def _corner_window(points: F64, target: Target) -> int:
@@ -345,12 +348,19 @@ def _dark_squares(source: NDArray[np.int64], target: Chessboard) -> frozenset:
     return frozenset(frozenset(row) for row in sq[_expected_black(target)].tolist())
 
 
+#: Offsets of a 3 x 3 box of pixels, shape (9, 2).
+_BOX_OFFSETS = np.stack(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]), axis=-1).reshape(9, 2)
+
+
 def _colour_score(gray: NDArray[np.uint8], ordered: F64, target: Chessboard) -> float:
     """Mean grey of the squares expected white minus that of those expected black."""
-    centres = ordered[_square_corners(target)].mean(axis=1).astype(np.float32)
-    blurred = cv2.blur(gray, (3, 3)).astype(np.float32)
-    values = cv2.remap(blurred, centres[:, 0].reshape(1, -1), centres[:, 1].reshape(1, -1),
-                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).ravel()
+    centres = ordered[_square_corners(target)].mean(axis=1)
+    # the mean of a 3 x 3 box around each centre, read bilinearly: the same as sampling the
+    # image blurred by a 3 x 3 box, without blurring the whole image
+    pts = (centres[:, None, :] + _BOX_OFFSETS[None]).reshape(1, -1, 2).astype(np.float32)
+    samples = cv2.remap(gray, pts[..., 0], pts[..., 1], cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_REPLICATE)
+    values = samples.reshape(len(centres), 9).astype(np.float64).mean(axis=1)
     black = _expected_black(target)
     return float(values[~black].mean() - values[black].mean())
 
