@@ -42,8 +42,9 @@ from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.targets import Target
 from multieye.imaging.workers import worker_pool
 
-__all__ = ["ImageResult", "ImageJob", "detect_and_estimate", "detect_and_estimate_jobs", "worker_count", "detect_and_estimate_arrays", "process_image",
-           "process_array", "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
+__all__ = ["ImageResult", "ImageJob", "detect_and_estimate", "detect_and_estimate_jobs",
+           "worker_count", "detect_and_estimate_arrays", "process_image", "process_array",
+           "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
 
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
 DEFAULT_MAX_RMS_PX = 2.0
