@@ -44,6 +44,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.batch import ImageJob, _mp_context, detect_and_estimate_jobs
 from multieye.imaging.targets import Chessboard, target_from_spec
 from multieye.imaging.workers import worker_pool
@@ -104,8 +105,6 @@ def dataset_jobs() -> list[tuple[str, list[ImageJob]]]:
     sets = [("rendered 4 x 100, 800 x 600 PNG, chessboard 6x9", jobs)]
     images = YOUNG / "rgb_images"
     if images.is_dir():
-        from multieye.core.intrinsics import Intrinsics
-
         lens = Intrinsics(K=[[607.88, 0, 641.875], [0, 607.966, 365.585], [0, 0, 1]],
                           dist=[0.458331, -2.87024, 0.00048617, -9.82262e-05, 1.74446,
                                 0.331466, -2.66947, 1.65473], width=1280, height=720)
