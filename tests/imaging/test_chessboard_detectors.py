@@ -120,3 +120,29 @@ def test_other_targets_do_not_use_the_chessboard_detectors(target, monkeypatch):
     assert det is not None and len(det) >= 4
     err = np.linalg.norm(det.image_points - _truth(target, T)[det.ids], axis=1)
     assert err.max() < 0.5
+
+
+def test_small_squares_keep_their_accuracy():
+    """640 x 480 images where the board's squares are 17-40 px: searched at half size they
+    would be 8-20 px, where the classic detector misplaced a corner by 5 px in one of these
+    40 views; every corner stays within 0.4 px of the truth, as with SB."""
+    camera = Intrinsics(K=[[480, 0, 319.5], [0, 480, 239.5], [0, 0, 1]],
+                        dist=[-0.2, 0.05, 0.0005, -0.0005, 0], width=640, height=480)
+    board = Chessboard(rows=6, cols=9, spacing=0.05)
+    rng = np.random.default_rng(3)
+    x0, x1, y0, y1 = board.bounds()
+    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2, 0.0])
+    worst, views = [], 0
+    while views < 40:
+        T = facing_pose(board, rng.normal(0, 0.35, 3), 1.0)
+        T[:3, 3] = -T[:3, :3] @ centre + [*rng.normal(0, 0.1, 2), rng.uniform(0.7, 1.5)]
+        if not visible(board, camera, T):
+            continue
+        views += 1
+        image = render(board, camera, T, rng=rng, blur_sigma=0.7, noise_sigma=2.0)
+        det = detect(image, board)
+        assert det is not None
+        P = board.object_points()
+        truth = project_points(P @ T[:3, :3].T + T[:3, 3], camera)
+        worst.append(np.linalg.norm(det.image_points - truth[det.ids], axis=1).max())
+    assert max(worst) < 0.4, sorted(worst)[-3:]

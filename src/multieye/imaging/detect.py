@@ -166,6 +166,12 @@ _HALF_SIZE_SEARCH_ABOVE_PX = 640
 #: the board.
 _CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 
+#: Smallest side of a square, half-size pixels, at which the classic detector's corners at
+#: half size are kept: on smaller squares it misplaced a corner by a few pixels now and then
+#: (5 px, where squares were 8.6 half-size pixels; cornerSubPix at full size did not bring it
+#: back), so the board is searched at full size instead.
+_MIN_HALF_SIZE_SQUARE_PX = 12.0
+
 
 def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection | None:
     """The classic ``findChessboardCorners`` first, ``findChessboardCornersSB`` only where it
@@ -202,12 +208,21 @@ def _find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
     for name in (("classic", "sb") if detector is None else (detector,)):
         if half is not None:
             found, small = searches[name](half)
-            if found:
+            if found and (name == "sb" or _min_spacing(small.reshape(-1, 2), target)
+                          >= _MIN_HALF_SIZE_SQUARE_PX):
                 return 2.0 * small.reshape(-1, 2).astype(np.float64) + 0.5   # pixel centres
         found, full = searches[name](gray)
         if found:
             return full.reshape(-1, 2).astype(np.float64)
     return None
+
+
+def _min_spacing(points: NDArray, target: Target) -> float:
+    """Smallest distance between neighbouring grid points, pixels."""
+    rows, cols = target.grid_shape()
+    grid = np.asarray(points, dtype=np.float64).reshape(rows, cols, 2)
+    return float(min(np.linalg.norm(np.diff(grid, axis=0), axis=2).min(),
+                     np.linalg.norm(np.diff(grid, axis=1), axis=2).min()))
 
 
 def _corner_window(points: F64, target: Target) -> int:
