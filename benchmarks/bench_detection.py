@@ -49,7 +49,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.batch import ImageJob, _mp_context, detect_and_estimate_jobs
 from multieye.imaging.targets import Chessboard, target_from_spec
 from multieye.imaging.workers import worker_pool
-from multieye.io.intrinsics import read_intrinsics
+from multieye.io import read_intrinsics
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))

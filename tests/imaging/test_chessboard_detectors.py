@@ -146,3 +146,34 @@ def test_small_squares_keep_their_accuracy():
         truth = project_points(P @ T[:3, :3].T + T[:3, 3], camera)
         worst.append(np.linalg.norm(det.image_points - truth[det.ids], axis=1).max())
     assert max(worst) < 0.4, sorted(worst)[-3:]
+
+
+@pytest.mark.parametrize("board", BOARDS[:2], ids=lambda b: f"{b.rows}x{b.cols}")
+def test_a_corner_off_the_grid_sends_the_board_to_sb(board, monkeypatch):
+    """A corner the classic detector misplaces (it put one 12 px off on a blurred JPEG of
+    yizhong_toolkit) breaks the smoothness of the grid: SB searches again and its corners
+    are kept."""
+    T = _views(board)[2]
+    image = render(board, CAMERA, T, rng=np.random.default_rng(9))
+    truth = _truth(board, T)
+    good = detect_module._find_chessboard(image, board, detector="classic")
+    good = detect_module._refine_corners(image, good, detect_module._corner_window(good, board))
+    assert detect_module._consistent_grid(good, board)
+    for k in (0, len(good) // 2, len(good) - 1):      # a corner, the middle, the last
+        off = good.copy()
+        off[k] += [2.5, -1.5]
+        assert not detect_module._consistent_grid(off, board), k
+    # the classic detector returns the grid with one corner far off: SB's result is kept
+    real = detect_module._find_chessboard
+
+    def misplaced(img, target, *, detector=None):
+        found = real(img, target, detector=detector)
+        if detector == "classic":
+            found = found.copy()
+            found[len(found) // 2] += [12.0, 0.0]
+        return found
+
+    monkeypatch.setattr(detect_module, "_find_chessboard", misplaced)
+    det = detect(image, board)
+    err = np.linalg.norm(det.image_points - truth[det.ids], axis=1)
+    assert err.max() < 0.6
