@@ -9,6 +9,7 @@ import pytest
 
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points
+from multieye.imaging import chessboard_corners as cc
 from multieye.imaging import detect as detect_module
 from multieye.imaging.detect import detect
 from multieye.imaging.targets import AprilGrid, AsymmetricCircleGrid, Charuco, Chessboard
@@ -43,9 +44,9 @@ def _truth(board, T):
 
 
 def _canonical_from(image, board, detector):
-    raw = detect_module._find_chessboard(image, board, detector=detector)
+    raw = cc.find_chessboard(image, board, detector=detector)
     assert raw is not None, detector
-    refined = detect_module._refine_corners(image, raw, detect_module._corner_window(raw, board))
+    refined = cc.refine_corners(image, raw, cc.corner_window(raw, board))
     return raw, detect_module._canonical(image, board, refined)
 
 
@@ -156,15 +157,15 @@ def test_a_corner_off_the_grid_sends_the_board_to_sb(board, monkeypatch):
     T = _views(board)[2]
     image = render(board, CAMERA, T, rng=np.random.default_rng(9))
     truth = _truth(board, T)
-    good = detect_module._find_chessboard(image, board, detector="classic")
-    good = detect_module._refine_corners(image, good, detect_module._corner_window(good, board))
-    assert detect_module._consistent_grid(good, board)
+    good = cc.find_chessboard(image, board, detector="classic")
+    good = cc.refine_corners(image, good, cc.corner_window(good, board))
+    assert cc.consistent_grid(good, board)
     for k in (0, len(good) // 2, len(good) - 1):      # a corner, the middle, the last
         off = good.copy()
         off[k] += [2.5, -1.5]
-        assert not detect_module._consistent_grid(off, board), k
+        assert not cc.consistent_grid(off, board), k
     # the classic detector returns the grid with one corner far off: SB's result is kept
-    real = detect_module._find_chessboard
+    real = cc.find_chessboard
 
     def misplaced(img, target, *, detector=None):
         found = real(img, target, detector=detector)
@@ -173,7 +174,7 @@ def test_a_corner_off_the_grid_sends_the_board_to_sb(board, monkeypatch):
             found[len(found) // 2] += [12.0, 0.0]
         return found
 
-    monkeypatch.setattr(detect_module, "_find_chessboard", misplaced)
+    monkeypatch.setattr(cc, "find_chessboard", misplaced)
     det = detect(image, board)
     err = np.linalg.norm(det.image_points - truth[det.ids], axis=1)
     assert err.max() < 0.6

@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from multieye.core.errors import InputError
+from multieye.imaging import chessboard_corners as cc
 from multieye.imaging.targets import (
     AprilGrid,
     ArucoGrid,
@@ -154,25 +155,6 @@ def detect(image: ArrayLike, target: Target) -> Detection | None:
 
 # --------------------------------------------------------------------------- grids
 
-#: Images whose longer side has at least this many pixels are searched at half size first,
-#: by either detector (the classic one 1.5x faster on 800 x 600 images, 5x on 1280 x 720;
-#: SB 2.5-4x); the corners are then refined at full size, so accuracy is unchanged.
-_HALF_SIZE_SEARCH_ABOVE_PX = 640
-
-#: The classic detector's flags: adaptive threshold on the normalised image (OpenCV's
-#: default).  ``CALIB_CB_FAST_CHECK`` is not set: it rejects an image without a board faster,
-#: but costs 2.5x on the images that show one (800 x 600 rendered images: 5.7 against 2.2 ms)
-#: and, at half size, missed the board in 44 % of them; calibration images nearly all show
-#: the board.
-_CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-
-#: Smallest side of a square, half-size pixels, at which the classic detector's corners at
-#: half size are kept: on smaller squares it misplaced a corner by a few pixels now and then
-#: (5 px, where squares were 8.6 half-size pixels; cornerSubPix at full size did not bring it
-#: back), so the board is searched at full size instead.
-_MIN_HALF_SIZE_SQUARE_PX = 12.0
-
-
 def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection | None:
     """The classic ``findChessboardCorners`` first, ``findChessboardCornersSB`` only where it
     fails (each at half size first on large images); the corners refined with
@@ -186,93 +168,17 @@ def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection
     at the image border), so it stays as the fallback. SB's own CALIB_CB_ACCURACY costs 4x
     the time and gained nothing over cornerSubPix on its corners (PnP RMS on the
     young_mocap_cam images)."""
-    corners = _find_chessboard(gray, target, detector="classic")
+    corners = cc.find_chessboard(gray, target, detector="classic")
     if corners is not None:
-        corners = _refine_corners(gray, corners, _corner_window(corners, target))
-        if not _consistent_grid(corners, target):
+        corners = cc.refine_corners(gray, corners, cc.corner_window(corners, target))
+        if not cc.consistent_grid(corners, target):
             corners = None          # a corner off the grid: SB decides
     if corners is None:
-        corners = _find_chessboard(gray, target, detector="sb")
+        corners = cc.find_chessboard(gray, target, detector="sb")
         if corners is None:
             return None
-        corners = _refine_corners(gray, corners, _corner_window(corners, target))
+        corners = cc.refine_corners(gray, corners, cc.corner_window(corners, target))
     return _canonical(gray, target, corners)
-
-
-#: Largest departure of a corner's second difference along its row or column from the
-#: median of that row's (column's), as a fraction of the median spacing (at least 1 px), in a
-#: grid the classic detector found; beyond it, SB searches the image again.
-_MAX_SECOND_DIFFERENCE = 0.05
-
-
-def _consistent_grid(points: F64, target: Target) -> bool:
-    """Whether refined grid corners lie on a smooth grid: along every row and column the
-    second differences ``p[j-1] - 2 p[j] + p[j+1]`` (which perspective and lens distortion
-    change slowly) stay within :data:`_MAX_SECOND_DIFFERENCE` of the spacing of their median.
-
-    A corner off by ``e`` moves the second differences around it by ``e`` to ``2 e``: the
-    classic detector put a corner 12 px off on a blurred JPEG (yizhong_toolkit's 16.jpg, squares of
-    20 px) where SB found it. A departure flagged wrongly only costs SB's search."""
-    rows, cols = target.grid_shape()
-    grid = points.reshape(rows, cols, 2)
-    spacing = float(np.median(np.linalg.norm(np.diff(grid, axis=1), axis=2)))
-    limit = max(1.0, _MAX_SECOND_DIFFERENCE * spacing)
-    for g in (grid, grid.transpose(1, 0, 2)):
-        if g.shape[1] < 3:
-            continue
-        d2 = g[:, :-2] - 2.0 * g[:, 1:-1] + g[:, 2:]
-        departure = np.linalg.norm(d2 - np.median(d2, axis=1, keepdims=True), axis=2)
-        if departure.max() > limit:
-            return False
-    return True
-
-
-def _find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
-                     detector: str | None = None) -> F64 | None:
-    """Unrefined inner corners, shape (rows * cols, 2), full-size pixels, in the order of the
-    detector that found them: classic, then SB, each at half size first on large images.
-    ``detector`` ("classic" or "sb"): that one only (for tests and benchmarks)."""
-    size = (target.cols, target.rows)
-    half = None
-    if max(gray.shape) >= _HALF_SIZE_SEARCH_ABOVE_PX:
-        half = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2),
-                          interpolation=cv2.INTER_AREA)
-    searches = {"classic": lambda img: cv2.findChessboardCorners(img, size, flags=_CLASSIC_FLAGS),
-                "sb": lambda img: cv2.findChessboardCornersSB(img, size, flags=0)}
-    for name in (("classic", "sb") if detector is None else (detector,)):
-        if half is not None:
-            found, small = searches[name](half)
-            if found and (name == "sb" or _min_spacing(small.reshape(-1, 2), target)
-                          >= _MIN_HALF_SIZE_SQUARE_PX):
-                return 2.0 * small.reshape(-1, 2).astype(np.float64) + 0.5   # pixel centres
-        found, full = searches[name](gray)
-        if found:
-            return full.reshape(-1, 2).astype(np.float64)
-    return None
-
-
-def _min_spacing(points: NDArray, target: Target) -> float:
-    """Smallest distance between neighbouring grid points, pixels."""
-    rows, cols = target.grid_shape()
-    grid = np.asarray(points, dtype=np.float64).reshape(rows, cols, 2)
-    return float(min(np.linalg.norm(np.diff(grid, axis=0), axis=2).min(),
-                     np.linalg.norm(np.diff(grid, axis=1), axis=2).min()))
-
-
-def _corner_window(points: F64, target: Target) -> int:
-    """Half-size of the cornerSubPix window: 40 % of the smallest neighbour distance."""
-    rows, cols = target.grid_shape()
-    grid = points.reshape(rows, cols, 2)
-    d = np.concatenate([np.linalg.norm(np.diff(grid, axis=0), axis=2).ravel(),
-                        np.linalg.norm(np.diff(grid, axis=1), axis=2).ravel()])
-    return int(np.clip(0.4 * np.min(d), 2, 11))
-
-
-def _refine_corners(gray: NDArray[np.uint8], points: F64, half: int) -> F64:
-    pts = points.astype(np.float32).reshape(-1, 1, 2)
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
-    cv2.cornerSubPix(gray, pts, (half, half), (-1, -1), criteria)
-    return pts.reshape(-1, 2).astype(np.float64)
 
 
 #: Per circle target, whether its circles were last found light on dark: tried first next
@@ -541,7 +447,7 @@ def _refine_tag(gray, target: AprilGrid, expected: NDArray, tag: int, quad: F64)
     half = int(np.clip(np.floor(0.8 * min(0.2, target.tag_spacing) * side), 2, 15))
     if np.any(quad < half + 1) or np.any(quad[:, 0] > w - half - 2) or np.any(quad[:, 1] > h - half - 2):
         return None
-    refined = _refine_corners(gray, quad, half)
+    refined = cc.refine_corners(gray, quad, half)
     if np.any(np.linalg.norm(refined - quad, axis=1) >= half):
         return None
     return refined if _tag_matches(gray, target, expected, tag, refined) else None
