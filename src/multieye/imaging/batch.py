@@ -29,7 +29,7 @@ from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Iterable
+from collections.abc import Iterable
 
 import cv2
 
@@ -41,6 +41,7 @@ from multieye.imaging.image_file import read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.targets import Target
 from multieye.imaging.workers import worker_pool
+from multieye.imaging.detect import to_gray
 
 __all__ = ["ImageResult", "ImageJob", "detect_and_estimate", "detect_and_estimate_jobs",
            "worker_count", "detect_and_estimate_arrays", "process_image", "process_array",
@@ -142,8 +143,6 @@ def process_array(image, name: str, target: Target, intrinsics: Intrinsics | Non
     """
     path = name
     if image.ndim == 3:
-        from multieye.imaging.detect import to_gray
-
         image = to_gray(image)
     shape = (int(image.shape[1]), int(image.shape[0]))
     size = (None, None) if intrinsics is None else (intrinsics.width, intrinsics.height)
@@ -382,7 +381,7 @@ def _bar(total: int | None, desc: str, progress: bool | None):
     show = sys.stderr.isatty() if progress is None else bool(progress)
     if not show:
         return None
-    from tqdm import tqdm  # noqa: PLC0415 (optional: only when a bar is shown)
+    from tqdm import tqdm  # noqa: PLC0415 (tqdm only when a progress bar is shown)
 
     return tqdm(total=total, desc=desc, unit="img", file=sys.stderr)
 

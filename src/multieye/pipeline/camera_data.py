@@ -45,6 +45,7 @@ from multieye.imaging.pnp import ambiguity_warning
 from multieye.imaging.target_hints import counting_rule
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
+           "instant_key",
            "camera_motion", "pair_stamps", "pair_camera", "rejection_kind", "BY_NAME_TOLERANCE"]
 
 @dataclass(frozen=True)
@@ -69,6 +70,12 @@ class Observation:
         :attr:`multieye.imaging.pnp.PoseEstimate.alternative`), for the consensus to choose.
     alternative_rms_px : float or None
         Its reprojection RMS, pixels.
+    instant : str
+        The instant the image was taken, as a key that images of other cameras taken at the
+        same instant share (the target then has one pose for all of them): today the key of
+        the pairing, the camera-clock ``stamp`` (``repr``) or, for a camera paired by name,
+        the image's name without its suffix (:func:`instant_key`).  The problem groups the
+        images by it (:attr:`multieye.pipeline.problem.Problem.instants`).
     """
 
     name: str
@@ -79,6 +86,13 @@ class Observation:
     image_points: np.ndarray | None = None
     alternative: np.ndarray | None = None
     alternative_rms_px: float | None = None
+    instant: str = ""
+
+
+def instant_key(observation: Observation, by_name: bool) -> str:
+    """The :attr:`Observation.instant` of an image: its name without the suffix when the
+    camera is paired by name, else its camera-clock stamp (``repr``, exact)."""
+    return Path(observation.name).stem if by_name else repr(float(observation.stamp))
 
 
 @dataclass(frozen=True)
@@ -96,8 +110,10 @@ class CameraData:
         Images left out, and why.
     n_inputs : int
         Images (or pose rows) read.
-    mocap : Trajectory
-        ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand).
+    mocap : Trajectory or None
+        ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand).  None is a
+        camera without motion capture (a rig linked by cameras that see the target together;
+        rig.yaml still requires ``mocap:`` for every camera today).
     time_offset : float
         Motion-capture clock minus camera clock, seconds.
     time_tolerance : float
@@ -123,7 +139,7 @@ class CameraData:
     observations: tuple[Observation, ...]
     rejected: tuple[RejectedItem, ...]
     n_inputs: int
-    mocap: Trajectory
+    mocap: Trajectory | None
     time_offset: float
     time_tolerance: float
     warnings: tuple[str, ...] = ()
@@ -220,7 +236,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     """
     cam = rig.cameras[name]
     source, topic = (cam.images, None) if cam.source == "images" else (cam.rosbag, cam.topic)
-    target = target_from_spec(rig.target.as_dict(), path=rig.path)
+    target = target_from_spec(rig.target, path=rig.path)
     if topic is None:
         images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
@@ -287,7 +303,7 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _
     (their own board if given): the paths, the results and the seconds it took."""
 
     spec = cam.intrinsics_target or rig.target
-    target = target_from_spec(spec.as_dict(), path=rig.path)
+    target = target_from_spec(spec, path=rig.path)
     paths = list_image_files(cam.intrinsics_images)
     key = (cam.name, "intrinsics_images")
     if key in workers.detected:
@@ -364,7 +380,7 @@ def _detect_all(rig: Rig, motions: dict[str, CameraMotion], workers: _Workers) -
         intr = None
         if cam.intrinsics is not None:
             intr = check_model(name, read_camera_intrinsics(cam), cam.model, cam.intrinsics)
-        target = target_from_spec(rig.target.as_dict(), path=rig.path)
+        target = target_from_spec(rig.target, path=rig.path)
         listed = motions[name].listed
         images = list_images(cam.images) if listed is None else listed
         keys.append((name, "images"))
@@ -373,7 +389,7 @@ def _detect_all(rig: Rig, motions: dict[str, CameraMotion], workers: _Workers) -
             spec = cam.intrinsics_target or rig.target
             keys.append((name, "intrinsics_images"))
             jobs.append(ImageJob(tuple(str(p) for p in list_image_files(cam.intrinsics_images)),
-                                 target_from_spec(spec.as_dict(), path=rig.path), intr))
+                                 target_from_spec(spec, path=rig.path), intr))
     if not jobs:
         return workers
     t0 = time.perf_counter()
@@ -406,7 +422,9 @@ def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -
     rejected = seen.rejected + tuple(
         RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
         for r in motion.trajectory.skipped)
-    return CameraData(name=name, intrinsics=seen.intrinsics, observations=seen.observations,
+    observations = tuple(replace(o, instant=instant_key(o, spec.by_name))
+                         for o in seen.observations)
+    return CameraData(name=name, intrinsics=seen.intrinsics, observations=observations,
                       rejected=rejected, n_inputs=seen.n_inputs, mocap=motion.trajectory,
                       time_offset=cam.time_offset, time_tolerance=spec.time_tolerance,
                       warnings=seen.warnings, detection_s=seen.seconds,
