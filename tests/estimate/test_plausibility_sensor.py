@@ -188,10 +188,10 @@ def test_the_lens_is_freed_only_when_a_finding_could_follow(distorted, monkeypat
     right = _with_intrinsics(*distorted, _LENS)
     rms, cost = hypotheses.lens_bound(right, hypotheses.MOCAP_NOISE)
     assert rms < 0.2 and cost < 1.5
-    rep = check_plausibility("eye-to-base", [right], clock=False)
+    rep = check_plausibility([right], clock=False)
     assert rep.findings == () and "intrinsics:cam0" in rep.tested and freed == []
     only_K = Intrinsics(K=_K, dist=np.zeros(5), width=640, height=480)
-    rep = check_plausibility("eye-to-base", [_with_intrinsics(*distorted, only_K)], clock=False)
+    rep = check_plausibility([_with_intrinsics(*distorted, only_K)], clock=False)
     assert freed == ["cam0"] and [f.cause for f in rep.findings] == ["intrinsics"]
 
 
