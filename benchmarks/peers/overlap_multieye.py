@@ -33,9 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from multieye.core import geometry as g
-from multieye.estimate.refine_images import refine_images
 from multieye.estimate.refine_rig import refine_rig
-from multieye.estimate.uncertainty import relative_covariance
 from multieye.estimate.rig_residuals import RigViews
 from multieye.imaging.calibrate import initial_intrinsics
 
@@ -80,6 +78,7 @@ class _Mixed:
     """refine_images' result in refine_rig's names."""
 
     def __init__(self, ref, names):
+        from multieye.estimate.uncertainty import relative_covariance  # noqa: PLC0415 (only with --mocap)
         X = np.asarray(ref.X)
         self.T_ref_cam = g.inv(X[0]) @ X
         self.intrinsics = [ref.intrinsics[j] for j in range(len(names))]
@@ -89,6 +88,7 @@ class _Mixed:
 
 def with_mocap(data, names, views, lenses, poses):
     """The mixed problem: pixels and motion capture, one mocap pose per instant."""
+    from multieye.estimate.refine_images import refine_images  # noqa: PLC0415 (only with --mocap)
     from multieye.solvers import solve  # noqa: PLC0415 (only with --mocap)
     M = data["mocap_T"]
     A = [g.inv(M[[t for *_, t in v]]) for v in views]

@@ -8,6 +8,8 @@ functions and the covariance correction factor of an M-estimator.
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -47,8 +49,10 @@ def psi(f: F64, loss: str, scale: float) -> tuple[F64, F64]:
     return f * d1, d1 + 2.0 * z * d2
 
 
+@cache
 def gaussian_kappa(loss: str, scale: float) -> float:
-    """``E[psi^2] / E[psi']^2`` for standard normal residuals (Gauss-Hermite quadrature)."""
+    """``E[psi^2] / E[psi']^2`` for standard normal residuals (Gauss-Hermite quadrature;
+    cached: the 201-point rule costs a few ms, and refinements ask for the same few losses)."""
     if loss == "linear":
         return 1.0
     x, wq = np.polynomial.hermite_e.hermegauss(201)

@@ -30,6 +30,7 @@ Synopsis
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,6 +102,7 @@ class RigResult:
     undetermined: tuple[str, ...] = ()
 
 
+@cache
 def _scale_constant(loss: str, f_scale: float) -> float:
     """``E[w(x) x^2]`` for standard normal x, with the IRLS weight ``w = rho'(x^2 / f^2)``."""
     if loss == "linear":
@@ -108,6 +110,27 @@ def _scale_constant(loss: str, f_scale: float) -> float:
     x, wq = np.polynomial.hermite_e.hermegauss(201)
     wq = wq / wq.sum()
     return float(wq @ (rho((x / f_scale) ** 2, loss)[1] * x ** 2))
+
+
+def _settled_scale(e: F64, sigma: float, loss: str, f_scale: float, denominator: float) -> float:
+    """The pixel noise ``s = sqrt(sum(w(e / s) (e / s)^2) s^2 / denominator)`` on fixed
+    residuals ``e`` (pixels), iterated from ``sigma`` to its fixed point.
+
+    One step of it from the scale a pass was solved with is the estimate of the module
+    docstring; its fixed point on the same residuals is where the passes end up, since the
+    optimum hardly moves when only the loss's scale changes.  Taking it at once saves a
+    re-solve (on ``benchmarks/bench_overlap.py``: two passes instead of three).
+    """
+    s = sigma
+    for _ in range(50):
+        z = e / s
+        w = rho((z / f_scale) ** 2, loss)[1]
+        new = s * float(np.sqrt(float(w @ z ** 2) / denominator))
+        done = abs(new - s) <= 1e-4 * s
+        s = max(new, 1e-12)
+        if done or loss == "linear":
+            break
+    return s
 
 
 def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = None,
@@ -153,8 +176,7 @@ def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = Non
             break
         z = np.concatenate([e[0].ravel() for e in evaluate(fams, groups, False)])
         n_params = sum(f.count * f.size for f in fams)
-        w = rho((z / f_scale) ** 2, loss)[1]
-        new = sigma * np.sqrt(float(w @ z ** 2) / (c_w * max(z.size - n_params, 1)))
+        new = _settled_scale(z * sigma, sigma, loss, f_scale, c_w * max(z.size - n_params, 1))
         # settled; or every residual within the loss's quadratic zone at both scales (the
         # optimum is then the least-squares one, whatever the scale)
         quadratic = (loss == "linear"
