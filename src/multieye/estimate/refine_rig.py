@@ -42,6 +42,7 @@ from multieye.estimate.covisibility import Covisibility, RigStart, covisibility,
 from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.rig_residuals import RigViews
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
+from multieye.optimize.threads import threads_for
 
 __all__ = ["RigResult", "refine_rig"]
 
@@ -156,6 +157,19 @@ def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = Non
         Cameras that share no instant (one line naming the groups), or a refinement that
         leaves the lens models' valid range.
     """
+    # the BLAS threads of the reduced system's size for the whole refinement, not only in
+    # the solves: the residuals' and Jacobians' products and the covariance use BLAS too,
+    # and on a small problem OpenBLAS's threads cost more than they give (optimize/threads.py;
+    # on benchmarks/bench_overlap.py 0.1 CPU-s of 0.4)
+    k = 6 * (views.m - 1) + sum(views.intrinsics[j].params.size
+                                for j in range(views.m) if views.free[j])
+    with threads_for(k):
+        return _refine_rig(views, T_cam_target, pixel_sigma, loss, f_scale, max_iter)
+
+
+def _refine_rig(views: RigViews, T_cam_target, pixel_sigma: float | None, loss: str,
+                f_scale: float, max_iter: int) -> RigResult:
+    """:func:`refine_rig` within its BLAS thread limit."""
     T = np.asarray(T_cam_target, dtype=np.float64).reshape(-1, 4, 4)
     if len(T) != views.n_views:
         raise InputError(f"{len(T)} starting poses for {views.n_views} views")
