@@ -30,14 +30,13 @@ Synopsis
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.robust_loss import gaussian_kappa, rho
+from multieye.core.robust_loss import gaussian_kappa, gaussian_scale_constant, rho
 from multieye.estimate.covisibility import Covisibility, RigStart, covisibility, initial_rig
 from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.rig_residuals import RigViews
@@ -101,16 +100,6 @@ class RigResult:
     iterations: int
     converged: bool
     undetermined: tuple[str, ...] = ()
-
-
-@cache
-def _scale_constant(loss: str, f_scale: float) -> float:
-    """``E[w(x) x^2]`` for standard normal x, with the IRLS weight ``w = rho'(x^2 / f^2)``."""
-    if loss == "linear":
-        return 1.0
-    x, wq = np.polynomial.hermite_e.hermegauss(201)
-    wq = wq / wq.sum()
-    return float(wq @ (rho((x / f_scale) ** 2, loss)[1] * x ** 2))
 
 
 def _settled_scale(e: F64, sigma: float, loss: str, f_scale: float, denominator: float) -> float:
@@ -179,7 +168,7 @@ def _refine_rig(views: RigViews, T_cam_target, pixel_sigma: float | None, loss: 
     if not (np.isfinite(sigma) and sigma > 0):
         raise InputError(f"pixel_sigma must be a positive number, got {pixel_sigma!r}")
     opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter)
-    c_w = _scale_constant(loss, f_scale)
+    c_w = gaussian_scale_constant(loss, f_scale)
     iterations, converged = 0, True
     for k in range(_MAX_SIGMA_PASSES):
         groups = views.groups(sigma)
