@@ -70,6 +70,7 @@ from multieye.estimate.image_residuals import intrinsics_family
 # estimate_mocap_noise is named here too: it is the plain form of this module's estimate
 from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR, estimate_mocap_noise
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
+from multieye.optimize.threads import threads_for
 
 __all__ = [
     "refine_images",
@@ -422,9 +423,11 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
                       free_intrinsics=opts.free_intrinsics,
                       intrinsics_observations=opts.intrinsics_observations, clocks=opts.clocks)
     fams, noise = _start(data, X0, Y0, noise)
-    data, fams, noise, res, counts = _solve(data, fams, noise, loss=opts.loss,
-                                            max_iter=int(opts.max_iter), tol=opts.tol)
-    return _result(data, fams, noise, res, counts, loss=opts.loss, start=start)
+    # BLAS threads for the reduced system's size over the whole solve (refine_rig's reason)
+    with threads_for(sum(f.count * f.size for f in fams if not f.eliminate)):
+        data, fams, noise, res, counts = _solve(data, fams, noise, loss=opts.loss,
+                                                max_iter=int(opts.max_iter), tol=opts.tol)
+        return _result(data, fams, noise, res, counts, loss=opts.loss, start=start)
 
 
 @dataclass(frozen=True)
