@@ -183,7 +183,7 @@ def main(argv=None) -> None:
         for name in names:
             v = np.sqrt(np.mean(np.square([e[peer][name] for e in errs]), axis=0))
             ext = ("-", "-") if name == names[0] else (f"{v[2]:.4f}", f"{v[3]:.3f}")
-            print(f"| {peer} | {name} | {v[0]:.3f} | {v[1]:.3f} | {ext[0]} | {ext[1]} |")
+            print(f"| {peer} | {name} | {v[0]:.3f} | {v[1]:.4f} | {ext[0]} | {ext[1]} |")
     print_spread(errs, names)
     print("| peer | process wall s | process CPU s | CPU s from the corners |")
     print("|---|---|---|---|")
@@ -203,8 +203,11 @@ def print_spread(errs: list[dict], names: list[str]) -> None:
         for name in names:
             a = np.array([e[peer][name][1] for e in errs])
             d = a - np.array([e["mrcal"][name][1] for e in errs])
-            cells.append(f"{name} " + " ".join(f"{v:.4f}" for v in a)
-                         + ("" if peer == "mrcal" else f" (diff {d.mean():+.4f} +- {d.std(ddof=1) if len(d) > 1 else 0:.4f})"))
+            sd = d.std(ddof=1) if len(d) > 1 else 0.0
+            wins = int(np.sum(d < 0))
+            cells.append(f"{name} " + " ".join(f"{v:.4f}" for v in a) + (
+                "" if peer == "mrcal" else f" (diff {d.mean():+.4f} +- {sd:.4f}, standard error "
+                f"{sd / np.sqrt(len(d)):.4f}; below mrcal on {wins} of {len(d)})"))
         print(f"  {peer}: " + "; ".join(cells))
 
 
