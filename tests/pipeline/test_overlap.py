@@ -135,7 +135,7 @@ def test_an_image_with_points_off_is_named_among_the_warnings():
     _, cams = _cameras(seed=6)
     obs = list(cams["cam1"].observations)
     uv = obs[2].image_points.copy()
-    uv[:3] += 4.0                                     # three corners 13 sigma off
+    uv[:len(uv) // 2 + 1] += 4.0                      # most of its corners 13 sigma off
     obs[2] = replace(obs[2], image_points=uv)
     cams["cam1"] = replace(cams["cam1"], observations=tuple(obs))
     sol = solve_overlap(cams, "cam0")

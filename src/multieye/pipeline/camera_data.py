@@ -9,7 +9,7 @@ The pipeline (:mod:`multieye.pipeline`) takes it from there.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +18,12 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, TooFewMeasurementsError
 from multieye.core.intrinsics import Intrinsics
 from multieye.estimate.pairing import pair_in_time
-from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
+from multieye.imaging.batch import (
+    ImageJob,
+    detect_and_estimate,
+    detect_and_estimate_arrays,
+    detect_and_estimate_jobs,
+)
 from multieye.imaging.targets import target_from_spec
 from multieye.io import (
     RejectedItem,
@@ -235,9 +240,12 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     if topic is None:
         images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
-        results = detect_and_estimate([p for _, _, p in images], target, intr,
-                                      processes=workers.processes, progress=workers.progress)
-        seconds = time.perf_counter() - t0
+        results = workers.detected.get((name, "images"))
+        if results is None:
+            results = detect_and_estimate([p for _, _, p in images], target, intr,
+                                          processes=workers.processes,
+                                          progress=workers.progress)
+        seconds = workers.seconds.get((name, "images"), time.perf_counter() - t0)
         stamped = [(stamp, path.name) for stamp, _, path in images]
     else:
         stamped = []
@@ -297,6 +305,9 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _
     spec = cam.intrinsics_target or rig.target
     target = target_from_spec(spec, path=rig.path)
     paths = list_image_files(cam.intrinsics_images)
+    key = (cam.name, "intrinsics_images")
+    if key in workers.detected:
+        return paths, workers.detected[key], workers.seconds[key]
     t0 = time.perf_counter()
     results = detect_and_estimate(paths, target, intr, processes=workers.processes,
                                   progress=workers.progress)
@@ -337,19 +348,58 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
     DatasetError
         A missing or malformed file, or a camera in which the target is never detected.
     """
-    workers = _Workers(processes, progress)
     trajectories: dict[tuple, Trajectory] = {}
-    return {name: _camera_data(rig, name, camera_motion(rig, name, trajectories)
-                               if rig.has_mocap else CameraMotion(None), workers)
-            for name in rig.cameras}
+    motions = {name: camera_motion(rig, name, trajectories) if rig.has_mocap
+               else CameraMotion(None) for name in rig.cameras}
+    workers = _detect_all(rig, motions, _Workers(processes, progress))
+    return {name: _camera_data(rig, name, motions[name], workers) for name in rig.cameras}
 
 
 @dataclass(frozen=True)
 class _Workers:
-    """How detection runs: worker processes (None: one per core), a progress bar."""
+    """How detection runs: worker processes (None: one per core), a progress bar; and the
+    results of the image files already detected (:func:`_detect_all`), keyed by camera and
+    ``"images"`` or ``"intrinsics_images"``, with the seconds they took."""
 
     processes: int | None
     progress: bool
+    detected: dict = field(default_factory=dict)
+    seconds: dict = field(default_factory=dict)
+
+
+def _detect_all(rig: Rig, motions: dict[str, CameraMotion], workers: _Workers) -> _Workers:
+    """Every camera's image files (folders, not bags) detected on one pool of workers, with
+    PnP in the worker where the lens is given; a camera's ``intrinsics_images`` too.
+
+    One pool for the rig keeps every core busy to the last image (a pool per camera left
+    one idle at the end of each camera). The seconds are shared out by image count.
+    """
+    keys, jobs = [], []
+    for name, cam in rig.cameras.items():
+        if cam.source != "images":
+            continue
+        intr = None
+        if cam.intrinsics is not None:
+            intr = check_model(name, read_camera_intrinsics(cam), cam.model, cam.intrinsics)
+        target = target_from_spec(rig.target, path=rig.path)
+        listed = motions[name].listed
+        images = list_images(cam.images) if listed is None else listed
+        keys.append((name, "images"))
+        jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
+        if cam.intrinsics_images is not None:
+            spec = cam.intrinsics_target or rig.target
+            keys.append((name, "intrinsics_images"))
+            jobs.append(ImageJob(tuple(str(p) for p in list_image_files(cam.intrinsics_images)),
+                                 target_from_spec(spec, path=rig.path), intr))
+    if not jobs:
+        return workers
+    t0 = time.perf_counter()
+    results = detect_and_estimate_jobs(jobs, processes=workers.processes,
+                                       progress=workers.progress)
+    seconds = time.perf_counter() - t0
+    total = max(sum(len(job.paths) for job in jobs), 1)
+    return replace(workers, detected=dict(zip(keys, results)),
+                   seconds={k: seconds * len(job.paths) / total for k, job in zip(keys, jobs)})
 
 
 @dataclass(frozen=True)

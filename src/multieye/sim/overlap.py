@@ -243,8 +243,10 @@ def render_overlap_dataset(out_dir: str | os.PathLike, spec: OverlapSpec = Overl
                          seed * 100003 + j * 1000 + int(t), out / name / f"{stamp:.6f}.png"))
     with worker_pool(processes) as pool:
         list(pool.map(_render_one, jobs))
-    lines = ["# multieye overlapping rig (rendered by multieye.sim.overlap)",
-             "setup: eye-to-base", "target:"]
+    # setup names the motion capture's role: without motion capture there is none to name
+    lines = ["# multieye overlapping rig (rendered by multieye.sim.overlap)"]
+    lines += ["setup: eye-to-base"] if mocap else []
+    lines += ["target:"]
     lines += [f"  {k}: {v}" for k, v in spec.target.items()]
     if mocap:
         T_world_ref = g.transform_from_rotvec([0, 0, 0.4], [0.5, -0.2, 1.0])
