@@ -33,7 +33,7 @@ F64 = NDArray[np.float64]
 MIN_VIEWS = 3
 _CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
 #: Views (at most) that OpenCV's calibration starts a lens from (:func:`_fisheye_start`).
-START_VIEWS = 10
+START_VIEWS = 20
 
 
 @dataclass(frozen=True)
@@ -124,7 +124,7 @@ def _fisheye_start(obj, img, size, views, flags: int):
 
     OpenCV's fisheye calibration re-estimates every view's pose at each of its iterations:
     on the 40 views of a camera of ``benchmarks/bench_overlap.py`` it took 0.2-0.3 CPU-s, as
-    long as the whole joint refinement; on 10 views 0.05-0.1 CPU-s.  The start only has to
+    long as the whole joint refinement; on 20 views about 0.1 CPU-s.  The start only has to
     bring the joint problem into the basin of its optimum, which then uses every view (the
     benchmark's lenses and ``T_ref_cam`` came out the same to the digits it reports).  Same
     return values as ``cv2.fisheye.calibrate`` (the RMS over the calibrated views).
