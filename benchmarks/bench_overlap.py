@@ -11,7 +11,10 @@ arc 34 degrees apart, 1.2 m from the centre of the work volume, two radial-tange
 rendered (blur 0.7 px, sensor noise 2 grey levels), no motion capture.  The corners are
 detected once by multieye's detector (full boards only) and the same corners, with each
 image's instant (stamps within the default ``sync_tolerance``), go to every peer, each in its
-own process (``benchmarks/peers/overlap_*.py``; imports included in the time):
+own process (``benchmarks/peers/overlap_*.py``), timed two ways, the same for every peer: the
+whole process (interpreter start, imports, reading the corners, solving, writing; CPU time of
+the child from ``resource.getrusage``, and wall time), and in the process from the corners in
+memory to the result (``time.process_time``, which the peer reports; imports excluded):
 
 - ``multieye``: OpenCV's per-camera start, then the joint problem of every lens (the right
   model per camera), every ``T_ref_cam`` and one board pose per instant;
@@ -23,8 +26,10 @@ own process (``benchmarks/peers/overlap_*.py``; imports included in the time):
 Reported per peer and camera: the lens's projection error over the observed corners (px, RMS;
 raw and after the best-fitting rotation, ``benchmarks/peers/lens_error.py``), the error of
 ``T_ref_cam`` against the truth (deg, mm), RMS over the rigs, and per peer the wall and CPU
-time (median over every run, the peers interleaved so that they see the same load).  Nothing
-is asserted.
+times (median over every run, the peers interleaved so that they see the same load).  Since
+the lens figures differ between rigs by more than between peers, the lens error after the
+rotation is also listed per rig, with the mean and the standard deviation over the rigs of
+each peer's difference from mrcal's (paired: the same rig).  Nothing is asserted.
 """
 
 from __future__ import annotations
@@ -159,7 +164,7 @@ def main(argv=None) -> None:
                 for peer, cmd in peers.items():
                     res, wall, cpu = run(cmd, Path(tmp) / f"{peer.replace(' + ', '_')}.json")
                     results[peer] = res
-                    times.setdefault(peer, []).append((wall, cpu))
+                    times.setdefault(peer, []).append((wall, cpu, res["cpu_s"]))
         shared = {n: int(np.isin(c[f"{names[0]}_instants"], c[f"{n}_instants"]).sum())
                   for n in names[1:]}
         print(f"seed {seed}: images { {n: len(c[f'{n}_instants']) for n in names} }, "
@@ -178,12 +183,32 @@ def main(argv=None) -> None:
         for name in names:
             v = np.sqrt(np.mean(np.square([e[peer][name] for e in errs]), axis=0))
             ext = ("-", "-") if name == names[0] else (f"{v[2]:.4f}", f"{v[3]:.3f}")
-            print(f"| {peer} | {name} | {v[0]:.3f} | {v[1]:.3f} | {ext[0]} | {ext[1]} |")
-    print("| peer | wall s (median) | CPU s (median) |")
-    print("|---|---|---|")
+            print(f"| {peer} | {name} | {v[0]:.3f} | {v[1]:.4f} | {ext[0]} | {ext[1]} |")
+    print_spread(errs, names)
+    print("| peer | process wall s | process CPU s | CPU s from the corners |")
+    print("|---|---|---|---|")
     for peer, ts in times.items():
-        w, cpu = np.median(np.asarray(ts), axis=0)
-        print(f"| {peer} | {w:.2f} | {cpu:.2f} |")
+        w, cpu, inner = np.median(np.asarray(ts), axis=0)
+        print(f"| {peer} | {w:.2f} | {cpu:.2f} | {inner:.2f} |")
+
+
+def print_spread(errs: list[dict], names: list[str]) -> None:
+    """Per rig, each peer's lens error after the rotation; the mean and standard deviation
+    over the rigs of its difference from mrcal's."""
+    if "mrcal" not in errs[0]:
+        return
+    print("lens px after rotation, per rig; difference from mrcal: mean +- std over the rigs")
+    for peer in errs[0]:
+        cells = []
+        for name in names:
+            a = np.array([e[peer][name][1] for e in errs])
+            d = a - np.array([e["mrcal"][name][1] for e in errs])
+            sd = d.std(ddof=1) if len(d) > 1 else 0.0
+            wins = int(np.sum(d < 0))
+            cells.append(f"{name} " + " ".join(f"{v:.4f}" for v in a) + (
+                "" if peer == "mrcal" else f" (diff {d.mean():+.4f} +- {sd:.4f}, standard error "
+                f"{sd / np.sqrt(len(d)):.4f}; below mrcal on {wins} of {len(d)})"))
+        print(f"  {peer}: " + "; ".join(cells))
 
 
 if __name__ == "__main__":

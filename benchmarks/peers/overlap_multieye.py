@@ -9,7 +9,8 @@ without motion capture: each lens started by OpenCV
 (:func:`multieye.imaging.calibrate.initial_intrinsics`, which also gives each view's
 ``T_cam_target``), then the joint problem of every lens, every ``T_ref_cam`` and one board pose
 per instant (:func:`multieye.estimate.refine_rig.refine_rig`, started from the co-visibility
-graph).  Writes per camera ``K``, ``dist``, ``fisheye``, ``T_ref_cam`` and its ``std``.
+graph).  Writes per camera ``K``, ``dist``, ``fisheye``, ``T_ref_cam`` and its ``std``, and ``cpu_s``:
+the CPU time from the corners in memory to the result (imports and file reading excluded).
 
 With ``--mocap`` the board's motion capture (``mocap_T``: ``T_world_marker`` per instant, in
 the npz) is added: the mixed problem of the image-level refinement
@@ -20,22 +21,16 @@ shares that instant's motion-capture pose, started from the closed form
 
 from __future__ import annotations
 
-import os
-
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # before numpy is imported
-
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
 from multieye.core import geometry as g
-from multieye.estimate.refine_images import refine_images
 from multieye.estimate.refine_rig import refine_rig
-from multieye.estimate.uncertainty import relative_covariance
 from multieye.estimate.rig_residuals import RigViews
 from multieye.imaging.calibrate import initial_intrinsics
 
@@ -46,7 +41,12 @@ def main(argv=None) -> None:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--mocap", action="store_true", help="use the npz's motion capture too")
     args = ap.parse_args(argv)
-    data = np.load(args.corners)
+    if args.mocap:      # its imports before the clock starts, as the others' (module doc)
+        import multieye.estimate.refine_images  # noqa: F401, PLC0415 (only with --mocap)
+        import multieye.estimate.uncertainty  # noqa: F401, PLC0415 (only with --mocap)
+        import multieye.solvers  # noqa: F401, PLC0415 (only with --mocap)
+    data = dict(np.load(args.corners))
+    t0 = time.process_time()                  # from the corners in memory to the result
     names = [str(n) for n in data["cameras"]]
     spacing, size = float(data["spacing"]), tuple(int(s) for s in data["size"])
     rows, cols = data[f"{names[0]}_corners"].shape[1:3]
@@ -73,13 +73,15 @@ def main(argv=None) -> None:
                      "fisheye": lens.model == "fisheye", "T_ref_cam": res.T_ref_cam[j].tolist(),
                      "std_rot_deg": float(np.degrees(np.sqrt(np.trace(cov[:3, :3])))),
                      "std_trans_m": float(np.sqrt(np.trace(cov[3:, 3:])))}
-    args.out.write_text(json.dumps({"cameras": out, "pixel_sigma": res.pixel_sigma}))
+    cpu = time.process_time() - t0
+    args.out.write_text(json.dumps({"cameras": out, "pixel_sigma": res.pixel_sigma, "cpu_s": cpu}))
 
 
 class _Mixed:
     """refine_images' result in refine_rig's names."""
 
     def __init__(self, ref, names):
+        from multieye.estimate.uncertainty import relative_covariance  # noqa: PLC0415 (only with --mocap)
         X = np.asarray(ref.X)
         self.T_ref_cam = g.inv(X[0]) @ X
         self.intrinsics = [ref.intrinsics[j] for j in range(len(names))]
@@ -89,6 +91,7 @@ class _Mixed:
 
 def with_mocap(data, names, views, lenses, poses):
     """The mixed problem: pixels and motion capture, one mocap pose per instant."""
+    from multieye.estimate.refine_images import refine_images  # noqa: PLC0415 (only with --mocap)
     from multieye.solvers import solve  # noqa: PLC0415 (only with --mocap)
     M = data["mocap_T"]
     A = [g.inv(M[[t for *_, t in v]]) for v in views]

@@ -4,7 +4,10 @@ Conventions (docs/conventions.md, section 1): ``T_a_b`` maps coordinates of a po
 frame ``b`` into frame ``a`` (``p_a = T_a_b @ p_b``); products chain when the
 inner names match, ``T_a_c = T_a_b @ T_b_c``.  Metres and radians inside.
 Quaternions are converted here, with :class:`scipy.spatial.transform.Rotation`,
-and nowhere else; the order is stated by every function that takes one.
+and nowhere else; the order is stated by every function that takes one.  Rotation vectors
+are converted here too, with numpy (through the unit quaternion, as ``Rotation`` does):
+they are on every refinement's path, and importing ``scipy.spatial`` costs about 0.1 CPU-s
+at start-up, so ``Rotation`` is imported only by the functions that need it.
 
 Synopsis
 --------
@@ -20,7 +23,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 __all__ = [
     "RIGID_TOLERANCE",
@@ -36,6 +38,7 @@ __all__ = [
     "transform_from_quat",
     "quat_from_transform",
     "transform_from_rotvec",
+    "rotation_from_rotvec",
     "rotvec_from_transform",
     "ypr_from_rotation",
     "rpy_from_rotation",
@@ -204,6 +207,7 @@ def transform_from_quat(q: ArrayLike, t: ArrayLike, *, scalar_first: bool = Fals
     if scalar_first:
         q = np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
     shape = q.shape[:-1]
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial, about 0.1 CPU-s at start-up)
     R = Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(shape + (3, 3))
     return make_transform(R, t)
 
@@ -212,6 +216,7 @@ def quat_from_transform(T: ArrayLike, *, scalar_first: bool = False) -> F64:
     """Unit quaternions ``(..., 4)`` of transforms, ``(qx, qy, qz, qw)`` with ``qw >= 0``."""
     T = np.asarray(T, dtype=np.float64)
     shape = T.shape[:-2]
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial, about 0.1 CPU-s at start-up)
     q = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_quat(canonical=True)
     q = q.reshape(shape + (4,))
     if scalar_first:
@@ -221,17 +226,70 @@ def quat_from_transform(T: ArrayLike, *, scalar_first: bool = False) -> F64:
 
 def transform_from_rotvec(r: ArrayLike, t: ArrayLike) -> F64:
     """Transforms from rotation vectors ``(..., 3)`` (radians) and translations ``(..., 3)``."""
-    r = np.asarray(r, dtype=np.float64)
-    shape = r.shape[:-1]
-    R = Rotation.from_rotvec(r.reshape(-1, 3)).as_matrix().reshape(shape + (3, 3))
-    return make_transform(R, t)
+    return make_transform(rotation_from_rotvec(r), t)
 
 
 def rotvec_from_transform(T: ArrayLike) -> F64:
     """Rotation vectors ``(..., 3)`` in radians of transforms or rotations."""
     T = np.asarray(T, dtype=np.float64)
-    shape = T.shape[:-2]
-    return Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec().reshape(shape + (3,))
+    q = _quat_of_matrix(T[..., :3, :3])
+    n = np.linalg.norm(q[..., :3], axis=-1)
+    angle = 2.0 * np.arctan2(n, q[..., 3])
+    small = angle <= 1e-3
+    a2 = angle * angle
+    # angle / sin(angle / 2), its series near 0 (the factor from the quaternion's vector part)
+    scale = np.where(small, 2.0 + a2 / 12.0 + 7.0 * a2 * a2 / 2880.0,
+                     angle / np.sin(np.where(small, 1.0, angle) / 2.0))
+    return scale[..., None] * q[..., :3]
+
+
+def rotation_from_rotvec(r: ArrayLike) -> F64:
+    """Rotation matrices ``(..., 3, 3)`` of rotation vectors ``(..., 3)`` (radians)."""
+    r = np.asarray(r, dtype=np.float64)
+    angle = np.linalg.norm(r, axis=-1)
+    small = angle <= 1e-3
+    a2 = angle * angle
+    # sin(angle / 2) / angle, its series near 0
+    scale = np.where(small, 0.5 - a2 / 48.0 + a2 * a2 / 3840.0,
+                     np.sin(angle / 2.0) / np.where(small, 1.0, angle))
+    x, y, z = np.moveaxis(scale[..., None] * r, -1, 0)
+    w = np.cos(angle / 2.0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=-2)
+
+
+def _quat_of_matrix(R: F64) -> F64:
+    """Unit quaternions ``(..., 4)``, ``(x, y, z, w)`` with ``w >= 0``, of matrices
+    ``(..., 3, 3)`` (Shepperd's method: from the largest of the trace and the diagonal).  As
+    ``Rotation.from_matrix``, a matrix that is not orthogonal (to 1e-12) stands for its
+    nearest rotation (:func:`project_to_so3`)."""
+    R = np.asarray(R, dtype=np.float64)
+    off = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max(axis=(-2, -1))
+    if np.any(off > 1e-12):
+        R = np.where((off > 1e-12)[..., None, None], project_to_so3(R), R)
+    d = np.stack([R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]], axis=-1)
+    tr = d.sum(axis=-1)
+    choice = np.argmax(np.concatenate([d, tr[..., None]], axis=-1), axis=-1)
+    q = np.empty(R.shape[:-2] + (4,))
+    for i in range(3):                         # the i-th diagonal entry is the largest
+        j, k = (i + 1) % 3, (i + 2) % 3
+        m = choice == i
+        Rm = R[m]
+        q[m, i] = 1 - tr[m] + 2 * Rm[:, i, i]
+        q[m, j] = Rm[:, j, i] + Rm[:, i, j]
+        q[m, k] = Rm[:, k, i] + Rm[:, i, k]
+        q[m, 3] = Rm[:, k, j] - Rm[:, j, k]
+    m = choice == 3                            # the trace is the largest
+    Rm = R[m]
+    q[m, 0] = Rm[:, 2, 1] - Rm[:, 1, 2]
+    q[m, 1] = Rm[:, 0, 2] - Rm[:, 2, 0]
+    q[m, 2] = Rm[:, 1, 0] - Rm[:, 0, 1]
+    q[m, 3] = 1 + tr[m]
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., 3:] < 0, -q, q)
 
 
 def rpy_from_rotation(R: ArrayLike) -> F64:
@@ -313,6 +371,7 @@ def random_transforms(rng: np.random.Generator, n: int | None = None, *,
                       translation_scale: float = 1.0) -> F64:
     """Uniformly random rotations with Gaussian translations of the given scale (metres)."""
     k = 1 if n is None else n
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial, about 0.1 CPU-s at start-up)
     R = Rotation.random(k, random_state=rng).as_matrix()
     t = rng.normal(scale=translation_scale, size=(k, 3))
     T = make_transform(R, t)

@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
-
-from multieye.core.geometry import skew
+from multieye.core.geometry import rotation_from_rotvec, rotvec_from_transform, skew
 
 __all__ = ["exp_so3", "log_so3", "left_jacobian", "left_jacobian_inv"]
 
@@ -42,9 +40,9 @@ def left_jacobian_inv(phi: F64) -> F64:
 
 def exp_so3(phi: F64) -> F64:
     """Rotation matrices ``(..., 3, 3)`` of rotation vectors ``(..., 3)``."""
-    return Rotation.from_rotvec(phi.reshape(-1, 3)).as_matrix().reshape(phi.shape + (3,))
+    return rotation_from_rotvec(phi)
 
 
 def log_so3(R: F64) -> F64:
     """Rotation vectors ``(..., 3)`` of rotation matrices ``(..., 3, 3)``."""
-    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(R.shape[:-1])
+    return rotvec_from_transform(R)

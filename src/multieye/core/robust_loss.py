@@ -8,10 +8,13 @@ functions and the covariance correction factor of an M-estimator.
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["LOSSES", "rho", "robust_cost", "psi", "gaussian_kappa", "sample_kappa"]
+__all__ = ["LOSSES", "rho", "robust_cost", "psi", "gaussian_kappa", "gaussian_scale_constant",
+           "sample_kappa"]
 
 F64 = NDArray[np.float64]
 
@@ -47,14 +50,37 @@ def psi(f: F64, loss: str, scale: float) -> tuple[F64, F64]:
     return f * d1, d1 + 2.0 * z * d2
 
 
+@cache
+def _normal_rule() -> tuple[F64, F64]:
+    """Nodes and weights (summing to 1) of expectations over a standard normal variable: the
+    midpoint rule on [-12, 12], step 0.001.  The losses' weights have kinks (Huber's at the
+    scale), where a Gauss-Hermite rule converges slowly: its 201 points gave Huber's kappa at
+    scale 2 as 0.9901, below the bound 1 of any M-estimator (exactly 1.0104; this rule
+    1.0104), and it costs an eigenvalue problem of size 201 (0.1 s with threaded BLAS)."""
+    x = np.arange(-12.0 + 0.0005, 12.0, 0.001)
+    w = np.exp(-0.5 * x * x)
+    return x, w / w.sum()
+
+
+@cache
 def gaussian_kappa(loss: str, scale: float) -> float:
-    """``E[psi^2] / E[psi']^2`` for standard normal residuals (Gauss-Hermite quadrature)."""
+    """``E[psi^2] / E[psi']^2`` for standard normal residuals (:func:`_normal_rule`)."""
     if loss == "linear":
         return 1.0
-    x, wq = np.polynomial.hermite_e.hermegauss(201)
-    wq = wq / wq.sum()
+    x, wq = _normal_rule()
     p, dp = psi(x, loss, scale)
     return float((wq @ p ** 2) / (wq @ dp) ** 2)
+
+
+@cache
+def gaussian_scale_constant(loss: str, scale: float) -> float:
+    """``E[w(x) x^2]`` for standard normal x, with the IRLS weight ``w = rho'(x^2 / scale^2)``:
+    the expectation of the weighted squared residuals, by which the pixel noise estimate
+    ``sum(w r^2) / (n - p)`` is divided (:func:`_normal_rule`)."""
+    if loss == "linear":
+        return 1.0
+    x, wq = _normal_rule()
+    return float(wq @ (rho((x / scale) ** 2, loss)[1] * x ** 2))
 
 
 def sample_kappa(f: F64, loss: str, scale: float, n_params: int) -> float:

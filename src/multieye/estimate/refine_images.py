@@ -63,13 +63,14 @@ from scipy.special import chdtri  # chi-square quantiles; scipy.stats costs 0.66
 from multieye.core.arguments import transform, with_fields
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho
+from multieye.core.robust_loss import LOSSES, gaussian_kappa, gaussian_scale_constant, rho
 from multieye.estimate.clock_residuals import ClockData
 from multieye.estimate.image_data import ImageData, ImageProblem, image_data
 from multieye.estimate.image_residuals import intrinsics_family
 # estimate_mocap_noise is named here too: it is the plain form of this module's estimate
 from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR, estimate_mocap_noise
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
+from multieye.optimize.threads import threads_for
 
 __all__ = [
     "refine_images",
@@ -230,16 +231,6 @@ def _check_sigma(value, name: str) -> float:
     if not (np.isfinite(v) and v > 0):
         raise InputError(f"{name} must be a positive number, got {value!r}")
     return v
-
-
-def _gaussian_scale_constant(loss: str, f_scale: float) -> float:
-    """``E[w(x) x^2]`` for standard normal x, with the IRLS weight ``w = rho'(x^2 / f^2)``."""
-    if loss == "linear":
-        return 1.0
-    x, wq = np.polynomial.hermite_e.hermegauss(201)
-    wq = wq / wq.sum()
-    w = rho((x / f_scale) ** 2, loss)[1]
-    return float(wq @ (w * x ** 2))
 
 
 def _value(fams, name: str):
@@ -431,9 +422,11 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     data = image_data(ImageProblem(setup, observations, intrinsics, opts.names,
                                    opts.free_intrinsics, opts.intrinsics_observations, opts.clocks))
     fams, noise = _start(data, X0, Y0, noise)
-    data, fams, noise, res, counts = _solve(data, fams, noise, loss=opts.loss,
-                                            max_iter=int(opts.max_iter), tol=opts.tol)
-    return _result(data, fams, noise, res, counts, loss=opts.loss, start=start)
+    # BLAS threads for the reduced system's size over the whole solve (refine_rig's reason)
+    with threads_for(sum(f.count * f.size for f in fams if not f.eliminate)):
+        data, fams, noise, res, counts = _solve(data, fams, noise, loss=opts.loss,
+                                                max_iter=int(opts.max_iter), tol=opts.tol)
+        return _result(data, fams, noise, res, counts, loss=opts.loss, start=start)
 
 
 @dataclass(frozen=True)
@@ -497,7 +490,7 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
     the families, the noise, the last pass's result and (iterations, evaluations, passes)."""
     s_px, s_rot, s_t, f_scale = noise.s_px, noise.s_rot, noise.s_t, noise.f_scale
     timed = any(c is not None for c in data.clocks)
-    c_w = _gaussian_scale_constant(loss, f_scale)
+    c_w = gaussian_scale_constant(loss, f_scale)
     iterations = evaluations = passes = 0
     iterate_mocap = noise.estimate_mocap and not timed
     settled = not (noise.estimate_px or iterate_mocap)

@@ -36,11 +36,12 @@ from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.robust_loss import gaussian_kappa, rho
+from multieye.core.robust_loss import gaussian_kappa, gaussian_scale_constant, rho
 from multieye.estimate.covisibility import Covisibility, RigStart, covisibility, initial_rig
 from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.rig_residuals import RigViews
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
+from multieye.optimize.threads import threads_for
 
 __all__ = ["RigResult", "refine_rig"]
 
@@ -101,13 +102,25 @@ class RigResult:
     undetermined: tuple[str, ...] = ()
 
 
-def _scale_constant(loss: str, f_scale: float) -> float:
-    """``E[w(x) x^2]`` for standard normal x, with the IRLS weight ``w = rho'(x^2 / f^2)``."""
-    if loss == "linear":
-        return 1.0
-    x, wq = np.polynomial.hermite_e.hermegauss(201)
-    wq = wq / wq.sum()
-    return float(wq @ (rho((x / f_scale) ** 2, loss)[1] * x ** 2))
+def _settled_scale(e: F64, sigma: float, loss: str, f_scale: float, denominator: float) -> float:
+    """The pixel noise ``s = sqrt(sum(w(e / s) (e / s)^2) s^2 / denominator)`` on fixed
+    residuals ``e`` (pixels), iterated from ``sigma`` to its fixed point.
+
+    One step of it from the scale a pass was solved with is the estimate of the module
+    docstring; its fixed point on the same residuals is where the passes end up, since the
+    optimum hardly moves when only the loss's scale changes.  Taking it at once saves a
+    re-solve (on ``benchmarks/bench_overlap.py``: two passes instead of three).
+    """
+    s = sigma
+    for _ in range(50):
+        z = e / s
+        w = rho((z / f_scale) ** 2, loss)[1]
+        new = s * float(np.sqrt(float(w @ z ** 2) / denominator))
+        done = abs(new - s) <= 1e-4 * s
+        s = max(new, 1e-12)
+        if done or loss == "linear":
+            break
+    return s
 
 
 def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = None,
@@ -133,6 +146,19 @@ def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = Non
         Cameras that share no instant (one line naming the groups), or a refinement that
         leaves the lens models' valid range.
     """
+    # the BLAS threads of the reduced system's size for the whole refinement, not only in
+    # the solves: the residuals' and Jacobians' products and the covariance use BLAS too,
+    # and on a small problem OpenBLAS's threads cost more than they give (optimize/threads.py;
+    # on benchmarks/bench_overlap.py 0.1 CPU-s of 0.4)
+    k = 6 * (views.m - 1) + sum(views.intrinsics[j].params.size
+                                for j in range(views.m) if views.free[j])
+    with threads_for(k):
+        return _refine_rig(views, T_cam_target, pixel_sigma, loss, f_scale, max_iter)
+
+
+def _refine_rig(views: RigViews, T_cam_target, pixel_sigma: float | None, loss: str,
+                f_scale: float, max_iter: int) -> RigResult:
+    """:func:`refine_rig` within its BLAS thread limit."""
     T = np.asarray(T_cam_target, dtype=np.float64).reshape(-1, 4, 4)
     if len(T) != views.n_views:
         raise InputError(f"{len(T)} starting poses for {views.n_views} views")
@@ -142,7 +168,7 @@ def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = Non
     if not (np.isfinite(sigma) and sigma > 0):
         raise InputError(f"pixel_sigma must be a positive number, got {pixel_sigma!r}")
     opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter)
-    c_w = _scale_constant(loss, f_scale)
+    c_w = gaussian_scale_constant(loss, f_scale)
     iterations, converged = 0, True
     for k in range(_MAX_SIGMA_PASSES):
         groups = views.groups(sigma)
@@ -153,8 +179,7 @@ def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = Non
             break
         z = np.concatenate([e[0].ravel() for e in evaluate(fams, groups, False)])
         n_params = sum(f.count * f.size for f in fams)
-        w = rho((z / f_scale) ** 2, loss)[1]
-        new = sigma * np.sqrt(float(w @ z ** 2) / (c_w * max(z.size - n_params, 1)))
+        new = _settled_scale(z * sigma, sigma, loss, f_scale, c_w * max(z.size - n_params, 1))
         # settled; or every residual within the loss's quadratic zone at both scales (the
         # optimum is then the least-squares one, whatever the scale)
         quadratic = (loss == "linear"

@@ -4,7 +4,8 @@ The joint problem (:func:`multieye.estimate.refine_images.refine_images` with
 ``free_intrinsics``) estimates every camera's intrinsics together with the extrinsics and the
 motion capture; it needs a start.  That start is what a user would get from
 ``cv2.calibrateCamera`` (pinhole models) or ``cv2.fisheye.calibrate`` (equidistant fisheye)
-on the same detected points, camera by camera.
+on the same detected points, camera by camera (on at most :data:`START_VIEWS` of them, which
+is enough for a start and several times faster; the other views' poses follow by PnP).
 
 Synopsis
 --------
@@ -31,6 +32,8 @@ F64 = NDArray[np.float64]
 #: Views of the target below which a camera's intrinsics are not estimated at all.
 MIN_VIEWS = 3
 _CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+#: Views (at most) that OpenCV's calibration starts a lens from (:func:`_fisheye_start`).
+START_VIEWS = 20
 
 
 @dataclass(frozen=True)
@@ -43,7 +46,9 @@ class InitialIntrinsics:
     T_cam_target : ndarray, shape (n_views, 4, 4)
         The pose of the target in each view, as OpenCV estimated it with these intrinsics.
     rms_px : float
-        OpenCV's RMS reprojection error, pixels.
+        OpenCV's RMS reprojection error over the views it calibrated from (at most
+        :data:`START_VIEWS`, spread over the recording; the others' poses are PnP with the
+        lens found), pixels.
     """
 
     intrinsics: Intrinsics
@@ -90,6 +95,56 @@ def _equidistant_from_radial(dist: F64, K: F64, views) -> F64:
     return c if np.all(np.isfinite(c)) else np.zeros(4)
 
 
+def _spread(n: int, k: int) -> NDArray[np.int64]:
+    """``min(n, k)`` indices evenly spread over ``0 .. n - 1``."""
+    return np.unique(np.linspace(0, n - 1, min(n, k)).round().astype(np.int64))
+
+
+def _pinhole_start(obj, img, size, flags: int):
+    """``cv2.calibrateCamera`` on at most :data:`START_VIEWS` views spread over the
+    recording, then every other view's pose by ``cv2.solvePnP`` with that lens (same return
+    values; the RMS over the calibrated views).  See :func:`_fisheye_start`."""
+    pick = _spread(len(obj), START_VIEWS)
+    rms, K, D, rv, tv = cv2.calibrateCamera([obj[i] for i in pick], [img[i] for i in pick],
+                                            size, None, None, flags=flags, criteria=_CRITERIA)
+    rvecs, tvecs = [None] * len(obj), [None] * len(obj)
+    for i, r, t in zip(pick, rv, tv):
+        rvecs[i], tvecs[i] = r, t
+    for i in np.setdiff1d(np.arange(len(obj)), pick):
+        ok, rvecs[i], tvecs[i] = cv2.solvePnP(obj[i], img[i], K, D)
+        if not ok:
+            raise cv2.error(f"no pose of view {i} with the start lens")
+    return rms, K, D, rvecs, tvecs
+
+
+def _fisheye_start(obj, img, size, views, flags: int):
+    """``cv2.fisheye.calibrate`` on at most :data:`START_VIEWS` views spread over the
+    recording (started from Zhang's closed form on those views), then every other view's
+    pose by PnP on its points undistorted with that lens.
+
+    OpenCV's fisheye calibration re-estimates every view's pose at each of its iterations:
+    on the 40 views of a camera of ``benchmarks/bench_overlap.py`` it took 0.2-0.3 CPU-s, as
+    long as the whole joint refinement; on 20 views about 0.1 CPU-s.  The start only has to
+    bring the joint problem into the basin of its optimum, which then uses every view (the
+    benchmark's lenses and ``T_ref_cam`` came out the same to the digits it reports).  Same
+    return values as ``cv2.fisheye.calibrate`` (the RMS over the calibrated views).
+    """
+    pick = _spread(len(obj), START_VIEWS)
+    K0 = _flat_guess([views[i] for i in pick], size)
+    rms, K, D, rv, tv = cv2.fisheye.calibrate([obj[i] for i in pick], [img[i] for i in pick],
+                                               size, K0, np.zeros(4), flags=flags,
+                                               criteria=_CRITERIA)
+    rvecs, tvecs = [None] * len(obj), [None] * len(obj)
+    for i, r, t in zip(pick, rv, tv):
+        rvecs[i], tvecs[i] = r, t
+    for i in np.setdiff1d(np.arange(len(obj)), pick):
+        xy = cv2.fisheye.undistortPoints(img[i], K, D)
+        ok, rvecs[i], tvecs[i] = cv2.solvePnP(obj[i], xy, np.eye(3), None)
+        if not ok:
+            raise cv2.error(f"no pose of view {i} with the start lens")
+    return rms, K, D, rvecs, tvecs
+
+
 def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
                        model: str, *, name: str = "camera") -> InitialIntrinsics:
     """Intrinsics of one camera from views of a planar target (OpenCV's calibration).
@@ -126,7 +181,6 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
                          "the target at different tilts, or give intrinsics:)")
     w, h = int(image_size[0]), int(image_size[1])
     kind, coefficients = LENS_MODELS[model]
-    K0 = _flat_guess(views, (w, h))
     try:
         if kind == "fisheye":
             obj = [o.reshape(-1, 1, 3) for o, _ in views]
@@ -134,9 +188,7 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
             flags = (cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
                      | cv2.fisheye.CALIB_USE_INTRINSIC_GUESS)
             try:
-                rms, K, D, rvecs, tvecs = cv2.fisheye.calibrate(obj, img, (w, h), K0.copy(),
-                                                                 np.zeros(4), flags=flags,
-                                                                 criteria=_CRITERIA)
+                rms, K, D, rvecs, tvecs = _fisheye_start(obj, img, (w, h), views, flags)
             except cv2.error:
                 # OpenCV's fisheye start fails on views of a few points (one ArUco marker's 4
                 # corners): start from its pinhole calibration instead, with the radial
@@ -152,8 +204,7 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
             obj = [o.astype(np.float32) for o, _ in views]
             img = [u.astype(np.float32) for _, u in views]
             flags = {8: cv2.CALIB_RATIONAL_MODEL, 4: cv2.CALIB_FIX_K3}.get(len(coefficients), 0)
-            rms, K, D, rvecs, tvecs = cv2.calibrateCamera(obj, img, (w, h), None, None,
-                                                          flags=flags, criteria=_CRITERIA)
+            rms, K, D, rvecs, tvecs = _pinhole_start(obj, img, (w, h), flags)
     except cv2.error as exc:
         raise InputError(f"camera {name}: OpenCV could not calibrate its intrinsics from "
                          f"{len(views)} images ({str(exc).strip().splitlines()[-1]}); add "

@@ -12,16 +12,27 @@ Rule: one BLAS thread while ``k < PARALLEL_FROM`` (2000 unknowns, about 2.7 GFLO
 factorisation), otherwise the library's own choice (left as it is). A fixed thread count also
 makes reruns give the same digits: a threaded BLAS may sum in a different order from run to
 run.
+
+The libraries are looked up once per process (threadpoolctl scans the loaded shared objects,
+about 10 ms a time; a refinement limits the threads several times).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager, nullcontext
+from functools import cache
 
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 PARALLEL_FROM = 2000
+
+
+
+@cache
+def _controller() -> ThreadpoolController:
+    """The BLAS libraries of this process, looked up at the first refinement (module doc)."""
+    return ThreadpoolController()
 
 
 def blas_threads(k: int) -> int | None:
@@ -48,6 +59,6 @@ def threads_for(k: int) -> Iterator[None]:
     if limit is None:
         context = nullcontext()
     else:
-        context = threadpool_limits(limits=limit, user_api="blas")
+        context = _controller().limit(limits=limit, user_api="blas")
     with context:
         yield
