@@ -245,6 +245,83 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
         sys.exit(EXIT_IMPLAUSIBLE)
 
 
+def _time_offset_value(time_offset: str) -> str | float:
+    """``--time-offset``: rig, auto or a finite number of seconds."""
+    if time_offset in ("rig", "auto"):
+        return time_offset
+    try:
+        value = float(time_offset)
+    except ValueError:
+        value = float("nan")
+    if not math.isfinite(value):
+        raise click.BadParameter("expected rig, auto or a finite number of seconds",
+                                 param_hint="--time-offset")
+    return value
+
+
+@main.command("calibrate-many", epilog=_exit_statuses(0, EXIT_USER_ERROR, EXIT_IMPLAUSIBLE,
+                                                       meanings={
+    0: "every dataset calibrated",
+    EXIT_USER_ERROR: "a dataset failed (its line on stderr; the others are written), or bad "
+                     "options",
+    EXIT_IMPLAUSIBLE: "every dataset written, a plausibility check doubts one or more"}))
+@click.argument("datasets", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--out-root", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Folder of the output folders: OUT_ROOT/<dataset folder name>, each as "
+                   "calibrate -o writes it.")
+@click.option("--engine", type=click.Choice(["local", "dask"]), default="local",
+              show_default=True,
+              help="Where the calibrations run: worker processes of this machine, or Dask "
+                   "distributed (pip install \"multieye[distributed]\").")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="With --engine dask: a running scheduler (tcp://host:8786) whose workers see "
+                   "the same paths; default a local cluster, closed at the end.")
+@click.option("--workers", type=click.IntRange(1), default=None,
+              help="Calibrations at once (local processes or local Dask workers; default one "
+                   "per core).")
+@click.option("--method", default="joint", show_default=True,
+              help="Solver: joint, wang2022, shah, li, tabb-c1, tabb-c2.")
+@click.option("--no-refine", is_flag=True, help="Keep the closed form.")
+@click.option("--no-robust", is_flag=True, help="Use every measurement (no consensus).")
+@click.option("--time-offset", default="rig", show_default=True, metavar="rig|auto|SECONDS",
+              help="Motion-capture clock minus camera clock, for every dataset.")
+@_user_errors
+def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, engine: str,
+                           scheduler: str | None, workers: int | None, method: str,
+                           no_refine: bool, no_robust: bool, time_offset: str):
+    """Calibrate every DATASET, each into OUT_ROOT/<its folder name>.
+
+    Each calibration is one task (the local process pool, or Dask distributed with
+    --engine dask), written under the rules of calibrate -o; a failing dataset does not
+    stop the others.  Prints one line per dataset as it finishes; the exit status is the
+    worst of them.  multieye docs rig-yaml, "Long recordings and many datasets".
+    """
+    from multieye.many import calibrate_many, worst_status
+    from multieye.pipeline.options import Options
+
+    for d in datasets:
+        _utf8_dataset(d)
+    options = Options(method=method, refine=not no_refine, robust=not no_robust,
+                      time_offset=_time_offset_value(time_offset))
+    if scheduler is not None and engine != "dask":
+        raise click.BadParameter("a scheduler needs --engine dask", param_hint="--scheduler")
+
+    def done(o):
+        line = f"{o.dataset}: " + {0: "ok", 3: "written, but implausible", 2: "error"}[o.status]
+        line += f" ({o.seconds:.1f} s) -> {o.out}" if o.status != 2 else f": {o.message}"
+        if o.status == 3:
+            line += f": {o.message}"
+        _echo(line, err=o.status != 0)
+
+    result = calibrate_many(datasets, out_root, options, engine=engine, scheduler=scheduler,
+                            workers=workers, on_done=done)
+    _echo(f"{sum(o.status != 2 for o in result.outcomes)} of {len(result.outcomes)} datasets "
+          f"written ({result.engine} engine)")
+    status = worst_status([o.status for o in result.outcomes])
+    if status:
+        sys.exit(status)
+
+
 @main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR, meanings={
     0: "calibrating can run (warnings included)",
     EXIT_USER_ERROR: "calibrating would fail (one line per reason on stderr), or bad input"}))
