@@ -154,7 +154,8 @@ def _exit_statuses(*codes: int, meanings: dict | None = None) -> str:
 DOC_PAGES = {"rig-yaml": "rig.yaml, key by key: the input",
              "outputs": "what each command writes, key by key",
              "conventions": "frames, units, covariances, error metrics, exit statuses",
-             "architecture": "the layers of the package, where a change goes"}
+             "architecture": "the layers of the package, where a change goes",
+             "recordings": "long recordings (image selection) and many datasets (engines)"}
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]},
@@ -294,7 +295,7 @@ def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, engine: s
     Each calibration is one task (the local process pool, or Dask distributed with
     --engine dask), written under the rules of calibrate -o; a failing dataset does not
     stop the others.  Prints one line per dataset as it finishes; the exit status is the
-    worst of them.  multieye docs rig-yaml, "Long recordings and many datasets".
+    worst of them.  multieye docs recordings.
     """
     from multieye.many import calibrate_many, worst_status
     from multieye.pipeline.options import Options

@@ -64,8 +64,7 @@ __all__ = ["Selection", "DEFAULT_BUDGET", "SIGMA_ROT_RAD", "SIGMA_TRANS_M", "KEP
 
 F64 = NDArray[np.float64]
 
-#: Images per camera kept when a camera has more (docs/rig-yaml.md, "Long recordings"); 0 or
-#: None turns the selection off.
+#: Images per camera kept when a camera has more (docs/recordings.md, section 1).
 DEFAULT_BUDGET = 300
 #: Rotation and translation noise that weight the rows of the information proxy (radians,
 #: metres): a PnP pose of a board at about 1 m.

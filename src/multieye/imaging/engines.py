@@ -7,7 +7,7 @@ what outgrows one machine, the same tasks run on Dask distributed (``pip install
 "multieye[distributed]"``): on the scheduler at a given address (``dask scheduler`` and
 ``dask worker ADDRESS`` started by the user on the machines that share the files), or on a
 local cluster of worker processes that this process starts and closes
-(docs/rig-yaml.md, "Long recordings and many datasets").  No scheduler of our own: Dask
+(docs/recordings.md, section 3).  No scheduler of our own: Dask
 places the tasks, retries them on a lost worker and reports their errors.
 
 Tasks are sent in chunks (a few per worker) so that a task's overhead (a few milliseconds
