@@ -197,10 +197,15 @@ def main():
 @click.option("--max-time-offset", type=click.FloatRange(min=0, min_open=True), default=0.5,
               show_default=True, metavar="SECONDS",
               help="With --time-offset auto: search offsets up to this many seconds either way.")
+@click.option("--select", type=click.IntRange(3), default=300, show_default=True, metavar="N",
+              help="A camera with more than N images keeps N, chosen by what they add to the "
+                   "calibration (before decoding, from the motion capture; multieye docs "
+                   "recordings).")
+@click.option("--no-select", is_flag=True, help="Keep every image (no selection).")
 @_user_errors
 def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
               processes: int | None, no_refine: bool, no_robust: bool, time_offset: str,
-              max_time_offset: float):
+              max_time_offset: float, select: int, no_select: bool):
     """Calibrate the rig in DATASET (a folder with rig.yaml, or the rig.yaml itself).
 
     Closed form, consensus over measurements, then maximum-likelihood refinement with
@@ -233,9 +238,13 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
         run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
                               robust=not no_robust, time_offset=time_offset,
                               max_time_offset=max_time_offset, processes=processes,
-                              progress=_progress_enabled())
+                              progress=_progress_enabled(),
+                              select=None if no_select else select)
         written = write_outputs(run, out_dir)
     _echo(calibration_table(run.record))
+    for name, data in run.cameras.items():
+        if data.selection is not None:
+            _echo(f"selected: {data.selection.line(name)}")
     for note in written.notes:
         _echo(f"note: {note}")
     _echo("wrote " + ", ".join(str(p) for p in written.paths))
@@ -286,10 +295,14 @@ def _time_offset_value(time_offset: str) -> str | float:
 @click.option("--no-robust", is_flag=True, help="Use every measurement (no consensus).")
 @click.option("--time-offset", default="rig", show_default=True, metavar="rig|auto|SECONDS",
               help="Motion-capture clock minus camera clock, for every dataset.")
+@click.option("--select", type=click.IntRange(3), default=300, show_default=True, metavar="N",
+              help="Images kept per camera above N, as for calibrate.")
+@click.option("--no-select", is_flag=True, help="Keep every image.")
 @_user_errors
 def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, engine: str,
                            scheduler: str | None, workers: int | None, method: str,
-                           no_refine: bool, no_robust: bool, time_offset: str):
+                           no_refine: bool, no_robust: bool, time_offset: str, select: int,
+                           no_select: bool):
     """Calibrate every DATASET, each into OUT_ROOT/<its folder name>.
 
     Each calibration is one task (the local process pool, or Dask distributed with
@@ -303,7 +316,8 @@ def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, engine: s
     for d in datasets:
         _utf8_dataset(d)
     options = Options(method=method, refine=not no_refine, robust=not no_robust,
-                      time_offset=_time_offset_value(time_offset))
+                      time_offset=_time_offset_value(time_offset),
+                      select=None if no_select else select)
     if scheduler is not None and engine != "dask":
         raise click.BadParameter("a scheduler needs --engine dask", param_hint="--scheduler")
 

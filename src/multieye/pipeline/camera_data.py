@@ -35,6 +35,7 @@ from multieye.io import (
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
+from multieye.pipeline.selection import SelectionSummary, preselect
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
 from multieye.imaging.target_hints import counting_rule
@@ -111,6 +112,9 @@ class CameraData:
         Paired by name (one pose file beside each image): the images with a pose file have
         the stamps 0, 1, 2, ... in name order and ``mocap`` holds their poses at the same
         stamps; :func:`pair_camera` pairs them exactly, without clock offset.
+    selection : SelectionSummary or None
+        What the image selection did (:mod:`multieye.pipeline.selection`); None when it did
+        not choose among this camera's images.
     """
 
     name: str
@@ -126,6 +130,7 @@ class CameraData:
     intrinsics_estimated: bool = False
     intrinsics_views: tuple[Observation, ...] = ()
     by_name: bool = False
+    selection: SelectionSummary | None = None
 
 
 @dataclass(frozen=True)
@@ -312,9 +317,23 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: _Work
     return obs, rejected, seconds
 
 
-def load_camera_data(rig: Rig, *, processes: int | None = None,
-                     progress: bool = False) -> dict[str, CameraData]:
+def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool = False,
+                     select: int | None = None, time_offset: str | float = "rig"
+                     ) -> dict[str, CameraData]:
     """Read, detect and estimate every camera's target poses and its motion capture.
+
+    Parameters
+    ----------
+    rig : Rig
+    processes, progress
+        Detection processes, progress bar.
+    select : int, optional
+        Image budget per camera: a camera with images (a folder) and more than this many
+        detects only as many, chosen before decoding (:func:`multieye.pipeline.selection.
+        preselect`); None detects every image.
+    time_offset : "rig", "auto" or float
+        The clock offset the selection pairs with (``Options.time_offset``); with "auto"
+        nothing is chosen before decoding.
 
     Raises
     ------
@@ -323,8 +342,30 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
     """
     workers = _Workers(processes, progress)
     trajectories: dict[tuple, Trajectory] = {}
-    return {name: _camera_data(rig, name, camera_motion(rig, name, trajectories), workers)
+    motions = {name: camera_motion(rig, name, trajectories) for name in rig.cameras}
+    chosen = _preselected(rig, motions, select, time_offset)
+    return {name: _camera_data(rig, name, motions[name], workers, chosen.get(name))
             for name in rig.cameras}
+
+
+def _preselected(rig: Rig, motions: dict, select: int | None, time_offset) -> dict:
+    """The images chosen before decoding, for the cameras (a folder of images) with more
+    than ``select`` (twice that for a lens to estimate)."""
+    if not select or time_offset == "auto":
+        return {}
+    listings, offsets = {}, {}
+    for name, cam in rig.cameras.items():
+        if cam.source != "images":
+            continue
+        listed = motions[name].listed
+        listed = list_images(cam.images) if listed is None else listed
+        if len(listed) > select * (2 if cam.estimate_intrinsics else 1):
+            listings[name] = listed
+            offsets[name] = (0.0 if rig.mocap_for(name).by_name else
+                             cam.time_offset if time_offset == "rig" else float(time_offset))
+    if not listings:
+        return {}
+    return preselect(rig, listings, motions, int(select), offsets, pair_stamps)
 
 
 @dataclass(frozen=True)
@@ -349,9 +390,11 @@ class _Seen:
     views: tuple[Observation, ...] = ()
 
 
-def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -> CameraData:
+def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers,
+                 chosen=None) -> CameraData:
     cam, spec = rig.cameras[name], rig.mocap_for(name)
-    seen = _from_poses(cam) if cam.source == "poses" else _from_images(rig, name, motion, workers)
+    seen = (_from_poses(cam) if cam.source == "poses"
+            else _from_images(rig, name, motion, workers, chosen))
     # motion-capture rows left out, listed with every camera that uses the file
     rejected = seen.rejected + tuple(
         RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
@@ -361,7 +404,7 @@ def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -
                       time_offset=cam.time_offset, time_tolerance=spec.time_tolerance,
                       warnings=seen.warnings, detection_s=seen.seconds,
                       intrinsics_estimated=cam.estimate_intrinsics, intrinsics_views=seen.views,
-                      by_name=spec.by_name)
+                      by_name=spec.by_name, selection=None if chosen is None else chosen[2])
 
 
 def _from_poses(cam) -> _Seen:
@@ -378,9 +421,11 @@ def _from_poses(cam) -> _Seen:
                  observations=obs, rejected=rejected, n_inputs=len(obs) + len(rejected))
 
 
-def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -> _Seen:
+def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: _Workers,
+                 chosen=None) -> _Seen:
     """A camera given by images (a folder or a bag topic): detection, the starting lens when
-    it is estimated, PnP; its ``intrinsics_images`` as views for the lens."""
+    it is estimated, PnP; its ``intrinsics_images`` as views for the lens.  ``chosen``: the
+    images selected before decoding, those left out and the summary (:func:`preselect`)."""
     cam = rig.cameras[name]
     intr = None
     if cam.intrinsics is not None:
@@ -389,10 +434,12 @@ def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -
     extra = None
     if cam.intrinsics_images is not None and intr is None:
         extra = _detect_intrinsics_images(cam, rig, None, workers)
-    det = _observations_from_images(rig, name, intr, workers, listed=motion.listed,
+    listed, left = (motion.listed, []) if chosen is None else chosen[:2]
+    det = _observations_from_images(rig, name, intr, workers, listed=listed,
                                     extra_views=() if extra is None else extra[1])
-    rejected = list(motion.unmatched) + det.rejected
-    n_inputs = det.n_inputs + sum(r.reason.startswith("no pose file") for r in motion.unmatched)
+    rejected = list(motion.unmatched) + det.rejected + list(left)
+    n_inputs = (det.n_inputs + len(left)
+                + sum(r.reason.startswith("no pose file") for r in motion.unmatched))
     intr = intr if det.intrinsics is None else det.intrinsics
     seconds, views = det.seconds, []
     if cam.intrinsics_images is not None:

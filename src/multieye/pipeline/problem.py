@@ -12,7 +12,7 @@ The array-level description the solvers share (setups, measurement groups) is
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from multieye.core.errors import DatasetError
 from multieye.io import Rig
@@ -72,9 +72,13 @@ class Pairing:
         The same, validated once, in the order of ``paired``: what the closed form takes.
     warnings : tuple of str
         What the cameras' loading and the consensus doubt.
+    selection : dict of str to SelectionSummary
+        The cameras whose paired images were chosen among after detection
+        (:func:`multieye.pipeline.selection.select_paired`).
     """
 
     offsets: dict[str, float]
     paired: dict[str, PairedCamera]
     measurements: Measurements
     warnings: tuple[str, ...] = ()
+    selection: dict = field(default_factory=dict)

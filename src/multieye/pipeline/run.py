@@ -63,6 +63,7 @@ from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.refine import Refined, mocap_noise, refine
 from multieye.pipeline.result import CalibrationRun, Refinement
+from multieye.pipeline.selection import merged, select_paired
 from multieye.pipeline.sources import outside_reads
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import check_measurements
@@ -140,9 +141,11 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     path = as_path(dataset, "dataset (a folder with rig.yaml, or the rig.yaml)")
     path = path / "rig.yaml" if path.is_dir() else path
     rig = load_rig(path)
-    cameras = load_camera_data(rig, processes=processes, progress=progress)
+    options = updated_options(options, kw)
+    cameras = load_camera_data(rig, processes=processes, progress=progress,
+                               select=options.select, time_offset=options.time_offset)
     loaded = time.perf_counter() - start
-    run = calibrate_rig(rig, cameras, options, **kw)
+    run = calibrate_rig(rig, cameras, options)
     detection = sum(d.detection_s for d in cameras.values())
     timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
                       total=time.perf_counter() - start)
@@ -193,10 +196,18 @@ def pair(problem: Problem) -> Pairing:
     offsets = _offsets(problem)
     paired = {n: pair_camera(problem.setup, d, time_offset=offsets[n])
               for n, d in problem.cameras.items()}
+    selection = {}
+    if problem.options.select:      # the images of cameras still over their budget, chosen
+        images = {n: p for n, p in paired.items() if problem.cameras[n].intrinsics is not None
+                  and p.observations[0].object_points is not None}
+        chosen, selection = select_paired(images, problem.cameras, problem.options.select)
+        paired.update({n: _keep(paired[n], mask, reasons)
+                       for n, (mask, reasons) in chosen.items()})
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=list(paired), per_camera_motion=False)
     return Pairing(offsets=offsets, paired=paired, measurements=meas,
-                   warnings=tuple(w for d in problem.cameras.values() for w in d.warnings))
+                   warnings=tuple(w for d in problem.cameras.values() for w in d.warnings),
+                   selection=selection)
 
 
 def _offsets(problem: Problem) -> dict[str, float]:
@@ -373,6 +384,8 @@ def summarise(problem: Problem, pairing: Pairing, closed: ClosedForm, checks: Ch
         n: refit_paired(p, estimated[n]) if cameras[n].intrinsics_estimated and n in estimated
         else p for n, p in pairing.paired.items()})
     record = build_record(problem, final, closed, checks.final, refined, warnings)
+    cameras = {n: replace(d, selection=merged(d.selection, pairing.selection[n]))
+               if n in pairing.selection else d for n, d in cameras.items()}
     return CalibrationRun(rig=problem.rig, record=record, closed_form=closed.solution,
                           cameras={n: replace(d, intrinsics=estimated.get(n, d.intrinsics))
                                    for n, d in cameras.items()} if estimated else cameras,
