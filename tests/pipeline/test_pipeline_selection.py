@@ -90,6 +90,8 @@ def test_written_and_shown(dataset, tmp_path):
     cal = json.loads((tmp_path / "out" / "calibration.json").read_text())
     reasons = [r["reason"] for r in cal["cameras"]["cam1"]["rejected"]]
     assert sum(r.startswith("not selected: adds little") for r in reasons) == n1 - 6
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert "<h3>Image selection</h3>" in html and "before decoding" in html
     from multieye.io.run_details import read_run_details
 
     assert read_run_details(tmp_path / "out" / "details.json").camera("cam0").selection["kept"] == 6
@@ -99,6 +101,7 @@ def test_no_select_flag_and_bad_budget(dataset, tmp_path):
     res = CliRunner().invoke(main, ["calibrate", str(dataset), "-o", str(tmp_path / "o2"),
                                     "--no-select", "--processes", "1"])
     assert res.exit_code in (0, 3) and "selected:" not in res.output
+    assert "Image selection" not in (tmp_path / "o2" / "report.html").read_text()
     with pytest.raises(InputError, match="select must be a whole number"):
         Options(select=2)
     with pytest.raises(InputError, match="select must be a whole number"):
