@@ -46,10 +46,11 @@ constants hold them, docs/rig-yaml.md documents each)::
     cameras:                                                 # required, at least one
       cam0:
         intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
-        images: cam0/                  # exactly one of images, poses, rosbag
+        images: cam0/                  # exactly one of images, poses, rosbag, video
         poses: cam0_target.txt         #   precomputed T_cam_target, TUM format
         rosbag: run.bag                #   image topic of a bag ...
         topic: /cam0/image_raw         #   ... given here (rosbag only)
+        video: cam0.mp4                #   a video file; stamps: FILE or start_time: SECONDS
         mocap: cam0_mocap.txt          # optional: own file, or a mapping overriding mocap
                                        #   keys; pose, time_tolerance, the noise keys, sensor
                                        #   and noise_bounds are inherited, the format's keys
@@ -79,6 +80,7 @@ from multieye.core.names import NAME_RULE, camera_name_problem
 from multieye.io.intrinsics import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
+from multieye.io.rig_checks import video_keys
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
 from multieye.io.rig_checks import no_link_loop, Checker as _Checker
@@ -105,7 +107,7 @@ _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-file
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv"),
                "key": ("pose-files",), "values": ("pose-files", "pose-table", "tum"),
                "rotation": ("pose-files", "pose-table", "tum")}
-_SOURCES = ("images", "poses", "rosbag")
+_SOURCES = ("images", "poses", "rosbag", "video")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
@@ -117,8 +119,9 @@ MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format
 #: Roles of ``mocap.columns`` (csv sources).
 MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 #: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
-CAMERA_KEYS = ("intrinsics", "model", "images", "poses", "rosbag", "topic", "mocap",
-               "time_offset", "intrinsics_images", "intrinsics_target", "refine_intrinsics")
+CAMERA_KEYS = ("intrinsics", "model", "images", "poses", "rosbag", "topic", "video", "stamps",
+               "start_time", "mocap", "time_offset", "intrinsics_images", "intrinsics_target",
+               "refine_intrinsics")
 CAMERA_INTRINSICS_KEYS = ("file", "camera")
 
 
@@ -183,10 +186,12 @@ class CameraSpec:
         None only for a camera given by precomputed ``poses``.
     intrinsics_camera : str or None
         Entry of a Kalibr camchain (``cam1``) when the intrinsics file holds several.
-    images, poses, rosbag : Path or None
+    images, poses, rosbag, video : Path or None
         Exactly one is set: a folder of time-stamped images, a TUM file of ``T_cam_target``,
-        or a bag whose ``topic`` holds the images.
-    topic : str or None
+        a bag whose ``topic`` holds the images, or a video file.
+    topic, stamps, start_time : str or None, Path or None, float
+        A bag's image topic; a video's frame stamps file (:mod:`multieye.io.frame_stamps`),
+        or else its first frame's stamp (seconds, the others at its frame rate).
     mocap : MocapSpec or None
         This camera's own motion capture (otherwise the rig's).
     time_offset : float
@@ -210,6 +215,9 @@ class CameraSpec:
     poses: Path | None = None
     rosbag: Path | None = None
     topic: str | None = None
+    video: Path | None = None
+    stamps: Path | None = None
+    start_time: float = 0.0
     mocap: MocapSpec | None = None
     time_offset: float = 0.0
     model: str | None = None
@@ -219,7 +227,7 @@ class CameraSpec:
 
     @property
     def source(self) -> str:
-        """``"images"``, ``"poses"`` or ``"rosbag"``."""
+        """``"images"``, ``"poses"``, ``"rosbag"`` or ``"video"``."""
         return next(s for s in _SOURCES if getattr(self, s) is not None)
 
 
@@ -479,6 +487,7 @@ def _camera(c: _Checker, name, raw, top_mocap, setup, refine_all=False) -> Camer
     kw[source] = c.path(raw[source], keys + (source,), kind)
     if "topic" in raw:
         kw["topic"] = c.string(raw["topic"], keys + ("topic",))
+    kw.update(video_keys(c, raw, keys))
     if "time_offset" in raw:
         kw["time_offset"] = c.number(raw["time_offset"], keys + ("time_offset",),
                                      maximum=MAX_TIME_OFFSET_S, unit="seconds")
@@ -533,17 +542,14 @@ def load_rig(path: str | os.PathLike) -> Rig:
         The first problem found, naming the file, the line of the key and what was expected.
     """
     p = as_path(path, "the dataset (a folder or its rig.yaml)")
-    if p.is_dir():
-        p = p / "rig.yaml"
+    p = p / "rig.yaml" if p.is_dir() else p
     no_link_loop(p)     # a rig.yaml that is a link: its paths are relative to the real file
     doc = load_yaml(p.resolve() if p.is_symlink() else p,    # else named as typed
                     what="rig description (rig.yaml)")
     c = _Checker(doc)
-    raw = c.mapping(doc.data if doc.data is not None else {}, (),
-                    TOP_LEVEL_KEYS, ("setup", "cameras"))
+    raw = c.mapping(doc.data if doc.data is not None else {}, (), TOP_LEVEL_KEYS, ("setup", "cameras"))
     setup = c.choice(raw["setup"], ("setup",), tuple(SETUPS))
-    cams_raw = raw["cameras"]
-    if not isinstance(cams_raw, Mapping) or not cams_raw:
+    if not isinstance(cams_raw := raw["cameras"], Mapping) or not cams_raw:
         raise c.error("expected a mapping of camera name -> camera, with at least one camera",
                       ("cameras",))
     mocap = None
@@ -552,8 +558,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
         mocap = _mocap(c, raw["mocap"], {k: ("mocap",) for k in raw["mocap"]}, setup,
                        ("mocap",))
     top = (dict(raw["mocap"]) if mocap is not None else {}, mocap)
-    refine_all = (c.boolean(raw["refine_intrinsics"], ("refine_intrinsics",))
-                  if "refine_intrinsics" in raw else False)
+    refine_all = "refine_intrinsics" in raw and c.boolean(raw["refine_intrinsics"], ("refine_intrinsics",))
     cameras, taken = {}, {}
     for name, cam_raw in cams_raw.items():
         problem = camera_name_problem(name, taken)      # names become file names (outputs)
@@ -566,8 +571,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
                           "key to this camera", ("cameras", name))
         if (cam.mocap or mocap).by_name and cam.source != "images":
             raise c.error("poses matched by image name ({stem}, match: image or order) need "
-                          "a folder of 'images'",
-                          ("cameras", name))
+                          "a folder of 'images'", ("cameras", name))
         cameras[cam.name] = cam
     named = {n: (cam.mocap or mocap).frame_names for n, cam in cameras.items()}
     if len(set(named.values())) > 1:

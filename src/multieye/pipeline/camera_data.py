@@ -36,6 +36,7 @@ from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
 from multieye.pipeline.selection import SelectionSummary, preselect
+from multieye.pipeline.video_frames import video_frames, video_listing
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
 from multieye.imaging.target_hints import counting_rule
@@ -219,9 +220,18 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     inform the starting lens too.
     """
     cam = rig.cameras[name]
-    source, topic = (cam.images, None) if cam.source == "images" else (cam.rosbag, cam.topic)
+    source = {"images": cam.images, "rosbag": cam.rosbag, "video": cam.video}[cam.source]
+    topic = cam.topic
     target = target_from_spec(rig.target.as_dict(), path=rig.path)
-    if topic is None:
+    lost: list = []
+    if cam.source == "video":
+        stamped = []
+        t0 = time.perf_counter()   # the video is read as the frames are detected
+        results = detect_and_estimate_arrays(
+            video_frames(cam, video_listing(cam) if listed is None else listed, stamped, lost),
+            target, intr, processes=workers.processes, progress=workers.progress)
+        seconds = time.perf_counter() - t0
+    elif topic is None:
         images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
         results = detect_and_estimate([p for _, _, p in images], target, intr,
@@ -267,9 +277,10 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
             rejected.append(RejectedItem(label, res.reason))
     # pose ambiguity (single marker): warn when the two poses fit alike in most images
     warnings.extend(w for w in [ambiguity_warning(name, [r.pose for r in results if r.ok])] if w)
-    skipped = [] if topic is not None else [RejectedItem(n, why)
-                                            for n, why in skipped_entries(source)]
-    rejected.extend(skipped)    # links to nowhere, devices, folders named like images
+    skipped = [RejectedItem(n, why) for n, why in lost]
+    if cam.source == "images":      # links to nowhere, devices, folders named like images
+        skipped += [RejectedItem(n, why) for n, why in skipped_entries(source)]
+    rejected.extend(skipped)
     if not obs:
         raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
                            camera=name)
@@ -355,10 +366,13 @@ def _preselected(rig: Rig, motions: dict, select: int | None, time_offset) -> di
         return {}
     listings, offsets = {}, {}
     for name, cam in rig.cameras.items():
-        if cam.source != "images":
+        if cam.source not in ("images", "video"):
             continue
         listed = motions[name].listed
-        listed = list_images(cam.images) if listed is None else listed
+        if cam.source == "video":
+            listed = video_listing(cam)
+        elif listed is None:
+            listed = list_images(cam.images)
         if len(listed) > select * (2 if cam.estimate_intrinsics else 1):
             listings[name] = listed
             offsets[name] = (0.0 if rig.mocap_for(name).by_name else
