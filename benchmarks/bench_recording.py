@@ -11,7 +11,8 @@ squares, blur 0.7 px and sensor noise 2 grey levels, JPEG at quality 92 (every f
 rendered on its own: no image reused), motion capture at 120 Hz with 0.03 deg / 0.1 mm
 noise.  ``run`` calibrates each with ``multieye calibrate DATASET -o OUT`` in a child
 process, with the image selection on (the default) and off (``--no-select``), and prints
-per run: wall seconds, CPU seconds of the process tree (``getrusage`` of the children),
+per run: wall seconds, CPU seconds of the process tree (``getrusage`` of the children, and
+the sum over the tree's processes sampled from ``/proc``),
 peak resident memory of the process tree (the sum of the RSS of the process and its
 descendants, sampled every 0.05 s from ``/proc``), images detected, and the ``T_ref_cam``
 error against ``ground_truth.json`` (RMS over the non-reference cameras, degrees and
@@ -52,10 +53,12 @@ def render(cache: Path, sizes: list[int], processes: int | None) -> None:
         print(f"{folder}: {sum(truth.images_written)} images in {time.perf_counter() - t0:.0f} s")
 
 
-def _tree_rss(pid: int) -> int:
-    """Resident bytes of ``pid`` and its descendants (from /proc)."""
+def _tree_rss(pid: int, cpu: dict[int, float] | None = None) -> int:
+    """Resident bytes of ``pid`` and its descendants (from /proc); ``cpu``: each one's CPU
+    seconds so far (user + system), updated."""
     parents: dict[int, int] = {}
     rss: dict[int, int] = {}
+    ticks: dict[int, float] = {}
     for name in os.listdir("/proc"):
         if not name.isdigit():
             continue
@@ -65,12 +68,15 @@ def _tree_rss(pid: int) -> int:
             fields = stat[stat.rindex(b")") + 2:].split()
             parents[int(name)] = int(fields[1])
             rss[int(name)] = int(fields[21]) * os.sysconf("SC_PAGE_SIZE")
+            ticks[int(name)] = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
         except (OSError, ValueError, IndexError):
             continue
     total, todo = 0, [pid]
     while todo:
         p = todo.pop()
         total += rss.get(p, 0)
+        if cpu is not None and p in ticks:
+            cpu[p] = max(cpu.get(p, 0.0), ticks[p])
         todo.extend(c for c, q in parents.items() if q == p)
     return total
 
@@ -97,11 +103,12 @@ def run_one(dataset: Path, out: Path, select: bool) -> dict:
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     peak = [0]
+    tree_cpu: dict[int, float] = {}
     stop = threading.Event()
 
     def sample():
         while not stop.is_set():
-            peak[0] = max(peak[0], _tree_rss(proc.pid))
+            peak[0] = max(peak[0], _tree_rss(proc.pid, tree_cpu))
             stop.wait(0.05)
 
     watcher = threading.Thread(target=sample, daemon=True)
@@ -112,12 +119,15 @@ def run_one(dataset: Path, out: Path, select: bool) -> dict:
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    # CPU: the children's rusage, and the tree's sampled from /proc (workers whose end the
+    # rusage does not see are counted there; the last 0.05 s of each process may be missed)
     row = {"dataset": dataset.name, "select": select, "status": proc.returncode, "wall_s": wall,
-           "cpu_s": cpu, "peak_rss_mb": peak[0] / 2**20}
+           "cpu_s": cpu, "cpu_tree_s": sum(tree_cpu.values()), "peak_rss_mb": peak[0] / 2**20}
     if proc.returncode in (0, 3):
         details = json.loads((out / "details.json").read_text())
         row["timings_s"] = details.get("timings_s", {})
-        row["selection"] = details.get("selection")
+        row["selection"] = {n: c.get("selection") for n, c in details["cameras"].items()}
+        row["images_used"] = sum(len(c["measurements"]["name"]) for c in details["cameras"].values())
         row.update(zip(("err_rot_deg", "err_trans_mm", "std_rot_deg", "std_trans_mm"),
                        _errors(out, dataset)))
     else:
