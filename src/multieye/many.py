@@ -116,37 +116,12 @@ def calibrate_many(datasets: Sequence[str | os.PathLike], out_root: str | os.Pat
                    options: Options = Options(), *, engine: str = "local",
                    scheduler: str | None = None, workers: int | None = None,
                    on_done: Callable[[DatasetOutcome], None] | None = None) -> ManyOutcome:
-    """Calibrate every dataset, each into ``out_root/<dataset folder name>``.
-
-    Parameters
-    ----------
-    datasets : sequence of path-like
-        Dataset folders (or their ``rig.yaml``).
-    out_root : path-like
-        Folder of the output folders (created).
-    options : Options
-        For every calibration.
-    engine : {"local", "dask"}
-        Worker processes of this machine, or Dask distributed
-        (:mod:`multieye.imaging.engines`).
-    scheduler : str, optional
-        ``dask``: a running scheduler's address (its workers must see the dataset and output
-        paths); None starts a local cluster, closed at the end.
-    workers : int, optional
-        Calibrations at once (local processes, or workers of the local Dask cluster);
-        default one per core.
-    on_done : callable, optional
-        Called with each outcome as it finishes (in the main process).
-
-    Returns
-    -------
-    ManyOutcome
-
-    Raises
-    ------
-    InputError
-        No dataset, two datasets with the same folder name, an unknown engine, Dask missing
-        or its scheduler unreachable.
+    """Calibrate every dataset (folder or rig.yaml) into ``out_root/<its folder name>``
+    with ``options``, each a task of ``engine`` ("local" process pool or "dask": a local
+    cluster of ``workers``, or the ``scheduler`` at an address, whose workers see the same
+    paths); ``on_done(outcome)`` as each finishes.  Returns a :class:`ManyOutcome` (the
+    module docstring).  InputError: no dataset, two with the same folder name, an unknown
+    engine, Dask missing or its scheduler unreachable.
     """
     paths = [Path(os.fspath(d)) for d in datasets]
     if not paths:
