@@ -104,12 +104,16 @@ def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dic
         The images to detect, those left out with their reason, and the summary.
     """
     stamps, paired, poses, why = {}, {}, {}, {}
+    names: dict[str, int] = {}          # paired by name: one instant per image name
     for name, listed in listings.items():
         spec = rig.mocap_for(name)
         st = np.array([s for s, _, _ in listed], dtype=np.float64)
         p = pair_stamps(motions[name].trajectory, st, by_name=spec.by_name,
                         tolerance=spec.time_tolerance, offset=offsets[name])
-        stamps[name], paired[name], poses[name] = st, np.asarray(p.index, dtype=int), p.T
+        paired[name], poses[name] = np.asarray(p.index, dtype=int), p.T
+        # what makes an instant: equal stamps, or for cameras paired by name equal names
+        stamps[name] = st if not spec.by_name else -1.0 - np.array(
+            [names.setdefault(f.name, len(names)) for _, _, f in listed], dtype=np.float64)
         why[name] = f"no motion capture within {spec.time_tolerance:g} s (not decoded)"
     budgets = {n: budget * (2 if rig.cameras[n].estimate_intrinsics else 1) for n in listings}
     out = {}
