@@ -24,6 +24,7 @@ from multieye.io import (
     RejectedItem,
     Rig,
     Trajectory,
+    bag_image_count,
     iter_bag_images,
     list_image_files,
     list_images,
@@ -36,7 +37,7 @@ from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
 from multieye.pipeline.selection import SelectionSummary, preselect
-from multieye.pipeline.video_frames import video_frames, video_listing
+from multieye.pipeline.frames import bag_frames, bag_listing, video_frames, video_listing
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
 from multieye.imaging.target_hints import counting_rule
@@ -248,7 +249,8 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
                 yield label, image
 
         t0 = time.perf_counter()   # the bag is read as the frames are detected
-        results = detect_and_estimate_arrays(frames(), target, intr,
+        chosen = frames() if listed is None else bag_frames(cam, listed, stamped)
+        results = detect_and_estimate_arrays(chosen, target, intr,
                                              processes=workers.processes,
                                              progress=workers.progress)
         seconds = time.perf_counter() - t0
@@ -360,20 +362,22 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
 
 
 def _preselected(rig: Rig, motions: dict, select: int | None, time_offset) -> dict:
-    """The images chosen before decoding, for the cameras (a folder of images) with more
-    than ``select`` (twice that for a lens to estimate)."""
+    """The images chosen before decoding, for the cameras with images (a folder, a video, a
+    bag's topic) with more than ``select`` (twice that for a lens to estimate)."""
     if not select or time_offset == "auto":
         return {}
     listings, offsets = {}, {}
     for name, cam in rig.cameras.items():
-        if cam.source not in ("images", "video"):
-            continue
+        limit = select * (2 if cam.estimate_intrinsics else 1)
+        if cam.source == "poses" or (cam.source == "rosbag"
+                                     and bag_image_count(cam.rosbag, cam.topic) <= limit):
+            continue        # (a bag's stamps need a pass over it: only when over the budget)
         listed = motions[name].listed
-        if cam.source == "video":
-            listed = video_listing(cam)
+        if cam.source != "images":
+            listed = video_listing(cam) if cam.source == "video" else bag_listing(cam)
         elif listed is None:
             listed = list_images(cam.images)
-        if len(listed) > select * (2 if cam.estimate_intrinsics else 1):
+        if len(listed) > limit:
             listings[name] = listed
             offsets[name] = (0.0 if rig.mocap_for(name).by_name else
                              cam.time_offset if time_offset == "rig" else float(time_offset))

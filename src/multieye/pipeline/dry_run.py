@@ -34,7 +34,7 @@ from multieye.io import (
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 from multieye.pipeline.sources import outside_reads
-from multieye.pipeline.video_frames import video_frames, video_listing
+from multieye.pipeline.frames import video_frames, video_listing
 from multieye.solvers.checks import rotation_spread
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 

@@ -1,7 +1,8 @@
-"""A camera whose images are a video file (rig.yaml ``video:``), as the pipeline lists and
-reads it: every frame listed with its stamp before any is decoded (so that the selection,
-:mod:`multieye.pipeline.selection`, can choose among them), then the chosen frames read in
-order, one at a time (:func:`multieye.imaging.video.iter_video_frames`)."""
+"""Cameras whose images are a video file (rig.yaml ``video:``) or a bag's image topic, as
+the pipeline lists and reads them: every frame listed with its stamp before any is decoded
+(so that the selection, :mod:`multieye.pipeline.selection`, can choose among them), then the
+chosen frames read in order, one at a time (:func:`multieye.imaging.video.iter_video_frames`,
+:func:`multieye.io.rosbag.sample_bag_images`)."""
 
 from __future__ import annotations
 
@@ -9,10 +10,10 @@ from collections.abc import Iterator
 from typing import NamedTuple
 
 from multieye.imaging.video import iter_video_frames, video_stamps
-from multieye.io import CameraSpec
+from multieye.io import CameraSpec, sample_bag_images
 from multieye.io.frame_stamps import read_frame_stamps
 
-__all__ = ["VideoFrame", "video_listing", "video_frames"]
+__all__ = ["VideoFrame", "video_listing", "video_frames", "bag_listing", "bag_frames"]
 
 
 class VideoFrame(NamedTuple):
@@ -45,3 +46,22 @@ def video_frames(cam: CameraSpec, listed, stamped: list, lost: list) -> Iterator
         yield label, image
     lost.extend((label, "unreadable frame: the video ended before it")
                 for _, label in by_index.values())
+
+
+def bag_listing(cam: CameraSpec) -> list[tuple[float, int, VideoFrame]]:
+    """Every message of the camera's image topic as ``(stamp_s, stamp_ns, VideoFrame)`` in
+    bag order, its stamp read from the header bytes without decoding the image."""
+    stamps: list[int] = []
+    for _ in sample_bag_images(cam.rosbag, cam.topic, (), stamps=stamps):
+        pass
+    return [(ns * 1e-9, ns, VideoFrame(f"{cam.topic}@{ns}", k)) for k, ns in enumerate(stamps)]
+
+
+def bag_frames(cam: CameraSpec, listed, stamped: list) -> Iterator[tuple]:
+    """``(label, image)`` of the messages ``listed`` (items of :func:`bag_listing`), decoded
+    in bag order one at a time; each appended to ``stamped`` as ``(stamp, label)``."""
+    wanted = [f.index for _, _, f in listed]
+    for _, stamp_ns, image in sample_bag_images(cam.rosbag, cam.topic, wanted):
+        label = f"{cam.topic}@{stamp_ns}"
+        stamped.append((stamp_ns * 1e-9, label))
+        yield label, image
