@@ -202,10 +202,18 @@ def main():
                    "calibration (before decoding, from the motion capture; multieye docs "
                    "recordings).")
 @click.option("--no-select", is_flag=True, help="Keep every image (no selection).")
+@click.option("--engine", type=click.Choice(["local", "dask"]), default="local",
+              show_default=True,
+              help="Where detection runs: worker processes of this machine, or Dask "
+                   "distributed (pip install \"multieye[distributed]\").")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="With --engine dask: a running scheduler whose workers see the image "
+                   "paths; default a local cluster of --processes workers.")
 @_user_errors
 def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
               processes: int | None, no_refine: bool, no_robust: bool, time_offset: str,
-              max_time_offset: float, select: int, no_select: bool):
+              max_time_offset: float, select: int, no_select: bool, engine: str,
+              scheduler: str | None):
     """Calibrate the rig in DATASET (a folder with rig.yaml, or the rig.yaml itself).
 
     Closed form, consensus over measurements, then maximum-likelihood refinement with
@@ -239,7 +247,8 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
                               robust=not no_robust, time_offset=time_offset,
                               max_time_offset=max_time_offset, processes=processes,
                               progress=_progress_enabled(),
-                              select=None if no_select else select)
+                              select=None if no_select else select, engine=engine,
+                              scheduler=scheduler)
         written = write_outputs(run, out_dir)
     _echo(calibration_table(run.record))
     for name, data in run.cameras.items():

@@ -23,6 +23,7 @@ Synopsis
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import math
 import os
@@ -30,9 +31,13 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 from multieye.core.errors import InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult, process_array, process_image
+from multieye.imaging.targets import Target
 from multieye.imaging.workers import worker_pool
 
-__all__ = ["ENGINES", "Engine", "LocalEngine", "DaskEngine", "open_engine", "DASK_MISSING"]
+__all__ = ["ENGINES", "Engine", "LocalEngine", "DaskEngine", "open_engine", "DASK_MISSING",
+           "detect_on", "detect_arrays_on"]
 
 #: The engines by name (``--engine``).
 ENGINES = ("local", "dask")
@@ -232,3 +237,57 @@ def open_engine(name: str = "local", *, processes: int | None = None,
         cores = _cores()
         return LocalEngine(processes=max(1, min(processes or cores, cores)))
     return DaskEngine(scheduler, workers=workers)
+
+
+def _guarded(work, item, name: str) -> ImageResult:
+    """``work(item)``; an exception is the image's reason, never the run's end."""
+    try:
+        return work(item)
+    except Exception as exc:                    # noqa: BLE001 - one image, never the run
+        text = str(exc).strip().splitlines()
+        return ImageResult(name, None, None, f"failed while reading or detecting: "
+                           f"{type(exc).__name__}: {text[0] if text else ''}")
+
+
+def _image_task(path: str, target: Target, intrinsics: Intrinsics | None,
+                max_rms_px: float) -> ImageResult:
+    import cv2  # noqa: PLC0415 (heavy: a Dask worker imports it on its first task)
+
+    cv2.setNumThreads(1)            # one task per worker thread: no nested thread pools
+    return _guarded(lambda p: process_image(p, target, intrinsics, max_rms_px=max_rms_px),
+                    path, path)
+
+
+def _array_task(item, target: Target, intrinsics: Intrinsics | None,
+                max_rms_px: float) -> ImageResult:
+    name, image = item
+    return _guarded(lambda im: process_array(im, name, target, intrinsics,
+                                             max_rms_px=max_rms_px), image, name)
+
+
+def detect_on(engine: Engine, paths, target: Target, intrinsics: Intrinsics | None, *,
+              max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
+    """:func:`multieye.imaging.batch.detect_and_estimate` as tasks of ``engine`` (the
+    workers read the image files themselves: on Dask they must see the same paths).
+
+    Returns
+    -------
+    list of ImageResult
+        One per path, in input order; a failed image carries its reason.
+    """
+    work = functools.partial(_image_task, target=target, intrinsics=intrinsics,
+                             max_rms_px=max_rms_px)
+    return list(engine.map(work, [str(p) for p in paths]))
+
+
+def detect_arrays_on(engine: Engine, items, target: Target, intrinsics: Intrinsics | None, *,
+                     max_rms_px: float = DEFAULT_MAX_RMS_PX, batch: int = 64
+                     ) -> list[ImageResult]:
+    """:func:`multieye.imaging.batch.detect_and_estimate_arrays` as tasks of ``engine``: the
+    ``(name, image)`` stream consumed ``batch`` at a time, each batch sent to the workers."""
+    work = functools.partial(_array_task, target=target, intrinsics=intrinsics,
+                             max_rms_px=max_rms_px)
+    it, results = iter(items), []
+    while chunk := [item for _, item in zip(range(batch), it)]:
+        results.extend(engine.map(work, chunk))
+    return results

@@ -19,6 +19,7 @@ from multieye.core.errors import DatasetError, TooFewMeasurementsError
 from multieye.core.intrinsics import Intrinsics
 from multieye.estimate.pairing import pair_in_time
 from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
+from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.imaging.targets import target_from_spec
 from multieye.io import (
     RejectedItem,
@@ -228,15 +229,14 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     if cam.source == "video":
         stamped = []
         t0 = time.perf_counter()   # the video is read as the frames are detected
-        results = detect_and_estimate_arrays(
+        results = workers.detect_arrays(
             video_frames(cam, video_listing(cam) if listed is None else listed, stamped, lost),
-            target, intr, processes=workers.processes, progress=workers.progress)
+            target, intr)
         seconds = time.perf_counter() - t0
     elif topic is None:
         images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
-        results = detect_and_estimate([p for _, _, p in images], target, intr,
-                                      processes=workers.processes, progress=workers.progress)
+        results = workers.detect([p for _, _, p in images], target, intr)
         seconds = time.perf_counter() - t0
         stamped = [(stamp, path.name) for stamp, _, path in images]
     else:
@@ -250,9 +250,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
 
         t0 = time.perf_counter()   # the bag is read as the frames are detected
         chosen = frames() if listed is None else bag_frames(cam, listed, stamped)
-        results = detect_and_estimate_arrays(chosen, target, intr,
-                                             processes=workers.processes,
-                                             progress=workers.progress)
+        results = workers.detect_arrays(chosen, target, intr)
         seconds = time.perf_counter() - t0
         if not stamped:
             raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
@@ -300,8 +298,7 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _
     target = target_from_spec(spec.as_dict(), path=rig.path)
     paths = list_image_files(cam.intrinsics_images)
     t0 = time.perf_counter()
-    results = detect_and_estimate(paths, target, intr, processes=workers.processes,
-                                  progress=workers.progress)
+    results = workers.detect(paths, target, intr)
     return paths, results, time.perf_counter() - t0
 
 
@@ -331,8 +328,8 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: _Work
 
 
 def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool = False,
-                     select: int | None = None, time_offset: str | float = "rig"
-                     ) -> dict[str, CameraData]:
+                     select: int | None = None, time_offset: str | float = "rig",
+                     engine: Engine | None = None) -> dict[str, CameraData]:
     """Read, detect and estimate every camera's target poses and its motion capture.
 
     Parameters
@@ -347,13 +344,16 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     time_offset : "rig", "auto" or float
         The clock offset the selection pairs with (``Options.time_offset``); with "auto"
         nothing is chosen before decoding.
+    engine : Engine, optional
+        Detection as tasks of this engine (:func:`multieye.imaging.engines.open_engine`)
+        instead of the local worker processes.
 
     Raises
     ------
     DatasetError
         A missing or malformed file, or a camera in which the target is never detected.
     """
-    workers = _Workers(processes, progress)
+    workers = _Workers(processes, progress, engine)
     trajectories: dict[tuple, Trajectory] = {}
     motions = {name: camera_motion(rig, name, trajectories) for name in rig.cameras}
     chosen = _preselected(rig, motions, select, time_offset)
@@ -388,10 +388,24 @@ def _preselected(rig: Rig, motions: dict, select: int | None, time_offset) -> di
 
 @dataclass(frozen=True)
 class _Workers:
-    """How detection runs: worker processes (None: one per core), a progress bar."""
+    """How detection runs: worker processes (None: one per core), a progress bar; or the
+    tasks of an engine (Dask distributed, :mod:`multieye.imaging.engines`)."""
 
     processes: int | None
     progress: bool
+    engine: Engine | None = None
+
+    def detect(self, paths, target, intr) -> list:
+        if self.engine is not None:
+            return detect_on(self.engine, paths, target, intr)
+        return detect_and_estimate(paths, target, intr, processes=self.processes,
+                                   progress=self.progress)
+
+    def detect_arrays(self, items, target, intr) -> list:
+        if self.engine is not None:
+            return detect_arrays_on(self.engine, items, target, intr)
+        return detect_and_estimate_arrays(items, target, intr, processes=self.processes,
+                                          progress=self.progress)
 
 
 @dataclass(frozen=True)

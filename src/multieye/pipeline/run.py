@@ -28,6 +28,7 @@ Synopsis
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Callable
@@ -47,6 +48,7 @@ from multieye.estimate.plausibility import (
     check_noise,
     check_plausibility,
 )
+from multieye.imaging.engines import open_engine
 from multieye.io import RejectedItem, Rig, load_rig
 from multieye.io.run_details import StageTimings
 from multieye.pipeline import ambiguity  # single markers: the rig chooses each image's pose
@@ -111,7 +113,8 @@ class ClosedForm:
 
 
 def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
-              processes: int | None = None, progress: bool = False, **kw) -> CalibrationRun:
+              processes: int | None = None, progress: bool = False, engine: str = "local",
+              scheduler: str | None = None, **kw) -> CalibrationRun:
     """Calibrate the rig described by a dataset folder (or its ``rig.yaml``).
 
     Parameters
@@ -128,6 +131,10 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
         ``if __name__ == "__main__":`` (:func:`multieye.imaging.batch.main_reimport_problem`).
     progress : bool
         Show a progress bar (only sensible on a terminal).
+    engine : {"local", "dask"}
+        Where detection runs: the local worker processes, or tasks on Dask distributed
+        (docs/recordings.md, section 3): the ``scheduler`` at an address (its workers must
+        see the image paths), or a local cluster of ``processes`` workers.
 
     Returns
     -------
@@ -142,8 +149,12 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     path = path / "rig.yaml" if path.is_dir() else path
     rig = load_rig(path)
     options = updated_options(options, kw)
-    cameras = load_camera_data(rig, processes=processes, progress=progress,
-                               select=options.select, time_offset=options.time_offset)
+    with contextlib.ExitStack() as stack:
+        eng = None if engine == "local" and scheduler is None else stack.enter_context(
+            open_engine(engine, scheduler=scheduler, workers=processes))
+        cameras = load_camera_data(rig, processes=processes, progress=progress,
+                                   select=options.select, time_offset=options.time_offset,
+                                   engine=eng)
     loaded = time.perf_counter() - start
     run = calibrate_rig(rig, cameras, options)
     detection = sum(d.detection_s for d in cameras.values())
