@@ -106,3 +106,15 @@ def test_no_select_flag_and_bad_budget(dataset, tmp_path):
         Options(select=2)
     with pytest.raises(InputError, match="select must be a whole number"):
         Options(select=np.float64(10.0))
+
+
+def test_a_camera_without_motion_capture_fails_as_without_selection(dataset):
+    """Every image out of the motion capture's reach (a wrong clock offset): the selection
+    leaves the camera alone and the pairing names the cause, as without it."""
+    from multieye.core.errors import TooFewMeasurementsError
+
+    with pytest.raises(TooFewMeasurementsError, match="without motion capture") as chosen:
+        calibrate(dataset, select=6, time_offset=300.0)
+    with pytest.raises(TooFewMeasurementsError, match="without motion capture") as every:
+        calibrate(dataset, select=None, time_offset=300.0)
+    assert str(chosen.value) == str(every.value)

@@ -262,93 +262,106 @@ def select_images(jacobians: Mapping[str, F64], stamps: Mapping[str, F64], budge
     """
     if int(budget) != budget or budget < 1:
         raise InputError(f"the image budget must be a whole number >= 1, got {budget!r}")
-    budget = int(budget)
-    names = list(jacobians)
-    for name in names:
+    for name in jacobians:
         if len(jacobians[name]) != len(stamps[name]):
             raise InputError(f"camera {name}: {len(jacobians[name])} Jacobians for "
                              f"{len(stamps[name])} stamps")
-    groups = _instants({n: np.asarray(stamps[n], dtype=np.float64) for n in names},
-                       sync_tolerance)
-    keep = {n: np.zeros(len(stamps[n]), dtype=bool) for n in names}
-    reasons = {n: [""] * len(stamps[n]) for n in names}
-    state = {}
-    for n in names:
-        k = jacobians[n].shape[-1] if len(jacobians[n]) else 1
-        state[n] = _CameraState(info=_RIDGE * np.eye(k), cov=np.eye(k) / _RIDGE)
-    small = {n for n in names if len(stamps[n]) <= budget}
+    greedy = _Greedy(jacobians, {n: np.asarray(stamps[n], dtype=np.float64) for n in jacobians},
+                     int(budget), sync_tolerance)
+    greedy.search(greedy.seed(first, first_reason))
+    return greedy.selections()
 
-    def shared(group, name):
-        others = sorted({c for c, _ in group if c != name})
-        return f" (instant shared with {', '.join(others)})" if others else ""
 
-    def accept(group, why: str):
+class _Greedy:
+    """The lazy greedy search of :func:`select_images`: per camera the information so far,
+    the images kept and why; instants (groups of ``(camera, image)``) kept whole."""
+
+    def __init__(self, jacobians, stamps, budget: int, sync_tolerance: float):
+        self.jac, self.budget = jacobians, budget
+        self.groups = _instants(stamps, sync_tolerance)
+        self.keep = {n: np.zeros(len(stamps[n]), dtype=bool) for n in jacobians}
+        self.reasons = {n: [""] * len(stamps[n]) for n in jacobians}
+        self.state = {}
+        for n in jacobians:
+            k = jacobians[n].shape[-1] if len(jacobians[n]) else 1
+            self.state[n] = _CameraState(info=_RIDGE * np.eye(k), cov=np.eye(k) / _RIDGE)
+        self.small = {n for n in jacobians if len(stamps[n]) <= budget}
+
+    def is_open(self, name: str) -> bool:
+        return name not in self.small and self.state[name].kept < self.budget
+
+    def accept(self, group, why: str) -> None:
         for name, i in group:
-            keep[name][i] = True
-            reasons[name][i] = why + shared(group, name)
+            others = sorted({c for c, _ in group if c != name})
+            self.keep[name][i] = True
+            self.reasons[name][i] = why + (f" (instant shared with {', '.join(others)})"
+                                           if others else "")
         for name in {c for c, _ in group}:
             rows = [i for c, i in group if c == name]
-            state[name].add(jacobians[name][rows].reshape(-1, jacobians[name].shape[-1]))
-            state[name].kept += len(rows)
+            self.state[name].add(self.jac[name][rows].reshape(-1, self.jac[name].shape[-1]))
+            self.state[name].kept += len(rows)
 
-    def open_cameras(group):
-        return [c for c, _ in group if c not in small and state[c].kept < budget]
-
-    def gains(gids: list[int]) -> F64:
+    def gains(self, gids: list[int]) -> F64:
         """Each group's gain (a group holds at most one image per camera), batched by camera."""
         out = np.zeros(len(gids))
         by_cam: dict[str, tuple[list[int], list[int]]] = {}
         for k, gi in enumerate(gids):
-            for name, i in groups[gi]:
-                if name not in small and state[name].kept < budget:
+            for name, i in self.groups[gi]:
+                if self.is_open(name):
                     slots, rows = by_cam.setdefault(name, ([], []))
                     slots.append(k)
                     rows.append(i)
         for name, (slots, rows) in by_cam.items():
-            np.add.at(out, slots, state[name].gains(jacobians[name][rows]))
+            np.add.at(out, slots, self.state[name].gains(self.jac[name][rows]))
         return out
 
-    # cameras at or under the budget keep everything; their instants come along whole
-    pending = []
-    for gi, group in enumerate(groups):
-        if any(c in small for c, _ in group):
-            accept(group, f"{KEPT}: the camera has no more than {budget} images")
-        elif first is not None and any(first.get(c, np.zeros(0, bool))[i] for c, i in group):
-            if open_cameras(group):
-                accept(group, f"{KEPT}: {first_reason}")
+    def seed(self, first, first_reason: str) -> list[int]:
+        """Keep what is kept whatever happens (cameras at or under the budget, with their
+        instants; the ``first`` images); the other groups' numbers."""
+        pending = []
+        for gi, group in enumerate(self.groups):
+            if any(c in self.small for c, _ in group):
+                self.accept(group, f"{KEPT}: the camera has no more than {self.budget} images")
+            elif (first is not None and any(first.get(c, np.zeros(0, bool))[i] for c, i in group)
+                  and any(self.is_open(c) for c, _ in group)):
+                self.accept(group, f"{KEPT}: {first_reason}")
             else:
                 pending.append(gi)
-        else:
-            pending.append(gi)
-    heap = list(zip((-gains(pending)).tolist(), pending)) if pending else []
-    heapq.heapify(heap)
-    rank = 0
-    while heap:
-        # lazy greedy: bring the best bounds up to date (gains only shrink as images are
-        # kept); the best fresh gain that beats every remaining bound is the greedy choice
-        batch = []
-        while heap and len(batch) < _BATCH:
-            gi = heapq.heappop(heap)[1]
-            if open_cameras(groups[gi]):
-                batch.append(gi)
-        if not batch:
-            break
-        fresh = gains(batch)
-        best = int(np.argmax(fresh))
-        bound = -heap[0][0] if heap else -np.inf
-        for k, gi in enumerate(batch):
-            if k != best or fresh[best] < bound:
-                heapq.heappush(heap, (-float(fresh[k]), gi))
-        if fresh[best] >= bound:
-            rank += 1
-            accept(groups[batch[best]],
-                   f"{KEPT}: informative (choice {rank}, adds {fresh[best]:.2g} nats)")
-    for n in names:
-        for i in np.flatnonzero(~keep[n]):
-            reasons[n][i] = (f"{LEFT_OUT}: adds little beyond the {budget} images kept of "
-                             "this camera")
-    return {n: Selection(keep=keep[n], reasons=tuple(reasons[n]), budget=budget)
-            for n in names}
+        return pending
+
+    def search(self, pending: list[int]) -> None:
+        """Lazy greedy: bring the best bounds up to date (gains only shrink as images are
+        kept); the best fresh gain that beats every remaining bound is the greedy choice."""
+        heap = list(zip((-self.gains(pending)).tolist(), pending)) if pending else []
+        heapq.heapify(heap)
+        rank = 0
+        while heap:
+            batch = []
+            while heap and len(batch) < _BATCH:
+                gi = heapq.heappop(heap)[1]
+                if any(self.is_open(c) for c, _ in self.groups[gi]):
+                    batch.append(gi)
+            if not batch:
+                break
+            fresh = self.gains(batch)
+            best = int(np.argmax(fresh))
+            bound = -heap[0][0] if heap else -np.inf
+            for k, gi in enumerate(batch):
+                if k != best or fresh[best] < bound:
+                    heapq.heappush(heap, (-float(fresh[k]), gi))
+            if fresh[best] >= bound:
+                rank += 1
+                self.accept(self.groups[batch[best]],
+                            f"{KEPT}: informative (choice {rank}, adds {fresh[best]:.2g} nats)")
+
+    def selections(self) -> dict[str, Selection]:
+        out = {}
+        for n, keep in self.keep.items():
+            for i in np.flatnonzero(~keep):
+                self.reasons[n][i] = (f"{LEFT_OUT}: adds little beyond the {self.budget} "
+                                      "images kept of this camera")
+            out[n] = Selection(keep=keep, reasons=tuple(self.reasons[n]), budget=self.budget)
+        return out
 
 
 def select_before_decoding(stamps: Mapping[str, F64], paired: Mapping[str, NDArray[np.int_]],

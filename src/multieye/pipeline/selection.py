@@ -32,6 +32,7 @@ from multieye.estimate.selection import (
     select_before_decoding,
 )
 from multieye.io import RejectedItem, Rig
+from multieye.solvers.measurements import MIN_MEASUREMENTS
 
 __all__ = ["SelectionSummary", "preselect", "select_paired", "merged"]
 
@@ -101,20 +102,25 @@ def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dic
     Returns
     -------
     dict of camera name to (list, list of RejectedItem, SelectionSummary)
-        The images to detect, those left out with their reason, and the summary.
+        The images to detect, those left out with their reason, and the summary; a camera
+        with fewer than 3 images paired is not in it (it detects every image, and the
+        pairing says why it fails).
     """
     stamps, paired, poses, why = {}, {}, {}, {}
-    names: dict[str, int] = {}          # paired by name: one instant per image name
+    name_ids: dict[str, int] = {}       # paired by name: one instant per image name
     for name, listed in listings.items():
         spec = rig.mocap_for(name)
         st = np.array([s for s, _, _ in listed], dtype=np.float64)
         p = pair_stamps(motions[name].trajectory, st, by_name=spec.by_name,
                         tolerance=spec.time_tolerance, offset=offsets[name])
+        if len(p.index) < MIN_MEASUREMENTS:
+            continue        # the pairing will say why this camera cannot be calibrated
         paired[name], poses[name] = np.asarray(p.index, dtype=int), p.T
         # what makes an instant: equal stamps, or for cameras paired by name equal names
         stamps[name] = st if not spec.by_name else -1.0 - np.array(
-            [names.setdefault(f.name, len(names)) for _, _, f in listed], dtype=np.float64)
+            [name_ids.setdefault(f.name, len(name_ids)) for _, _, f in listed], dtype=np.float64)
         why[name] = f"no motion capture within {spec.time_tolerance:g} s (not decoded)"
+    listings = {n: v for n, v in listings.items() if n in paired}
     budgets = {n: budget * (2 if rig.cameras[n].estimate_intrinsics else 1) for n in listings}
     out = {}
     # cameras with the same budget are chosen together, so that shared instants stay whole

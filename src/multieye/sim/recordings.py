@@ -19,7 +19,7 @@ Synopsis
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +36,7 @@ from multieye.sim.images import (
     estimate_target_poses,
 )
 
-__all__ = ["RecordingScenario", "simulate_recording"]
+__all__ = ["RecordingScenario", "RecordingSpec", "simulate_recording"]
 
 F64 = NDArray[np.float64]
 
@@ -114,17 +114,12 @@ def _envelope(t: F64, duration: float, rich_fraction: float, rng: np.random.Gene
     return ramp
 
 
-def simulate_recording(rng: np.random.Generator | int | None = None, *, n_cameras: int = 3,
-                       images: int = 600, rate_hz: float = 30.0, rich_fraction: float = 0.2,
-                       rich_rot_deg: float = 30.0, rich_shift_m: float = 0.15,
-                       dull_rot_deg: float = 3.0, dull_shift_m: float = 0.03,
-                       pixel_sigma: float = 0.3, mocap_rot_sigma_rad: float = float(np.deg2rad(0.1)),
-                       mocap_trans_sigma_m: float = 0.3e-3) -> RecordingScenario:
-    """An uneven recording of ``images`` per camera at ``rate_hz`` (module docstring).
+@dataclass(frozen=True)
+class RecordingSpec:
+    """What :func:`simulate_recording` makes.
 
-    Parameters
+    Attributes
     ----------
-    rng : numpy.random.Generator, int or None
     n_cameras : int
     images : int
         Images per camera.
@@ -136,11 +131,33 @@ def simulate_recording(rng: np.random.Generator | int | None = None, *, n_camera
         Amplitudes of the turns (degrees, about each axis) and of the shifts (metres).
     pixel_sigma, mocap_rot_sigma_rad, mocap_trans_sigma_m : float
         Noise levels.
+    """
+
+    n_cameras: int = 3
+    images: int = 600
+    rate_hz: float = 30.0
+    rich_fraction: float = 0.2
+    rich_rot_deg: float = 30.0
+    rich_shift_m: float = 0.15
+    dull_rot_deg: float = 3.0
+    dull_shift_m: float = 0.03
+    pixel_sigma: float = 0.3
+    mocap_rot_sigma_rad: float = float(np.deg2rad(0.1))
+    mocap_trans_sigma_m: float = 0.3e-3
+
+
+def simulate_recording(rng: np.random.Generator | int | None = None,
+                       spec: RecordingSpec = RecordingSpec(), **kw) -> RecordingScenario:
+    """An uneven recording (module docstring) as ``spec`` says, its fields replaced by ``kw``.
 
     Returns
     -------
     RecordingScenario
     """
+    spec = replace(spec, **kw)
+    n_cameras, images, rate_hz, rich_fraction = (spec.n_cameras, spec.images, spec.rate_hz,
+                                                 spec.rich_fraction)
+    pixel_sigma = spec.pixel_sigma
     rng = np.random.default_rng(rng)
     if images < 3 or n_cameras < 1 or not 0 < rich_fraction <= 1 or rate_hz <= 0:
         raise InputError(f"a recording needs >= 3 images per camera, >= 1 camera, a rich "
@@ -151,7 +168,7 @@ def simulate_recording(rng: np.random.Generator | int | None = None, *, n_camera
     pts = default_target_points()
     centre = np.array([pts[:, 0].max() / 2, pts[:, 1].max() / 2, 0.0])
     K = default_intrinsics("pinhole")
-    noise = sim.GaussianNoise(mocap_rot_sigma_rad, mocap_trans_sigma_m)
+    noise = sim.GaussianNoise(spec.mocap_rot_sigma_rad, spec.mocap_trans_sigma_m)
     duration = images / rate_hz
     stamps, mocap, poses, uvs, rich = [], [], [], [], []
     t0 = 0.0
@@ -161,8 +178,8 @@ def simulate_recording(rng: np.random.Generator | int | None = None, *, n_camera
         freqs = rng.uniform(0.1, 0.5, size=6)
         phases = rng.uniform(0, 2 * np.pi, size=6)
         s = np.sin(2 * np.pi * freqs * t[:, None] + phases)                  # (N, 6)
-        rot_amp = np.deg2rad(dull_rot_deg + env * (rich_rot_deg - dull_rot_deg))
-        shift_amp = dull_shift_m + env * (rich_shift_m - dull_shift_m)
+        rot_amp = np.deg2rad(spec.dull_rot_deg + env * (spec.rich_rot_deg - spec.dull_rot_deg))
+        shift_amp = spec.dull_shift_m + env * (spec.rich_shift_m - spec.dull_shift_m)
         rot = rot_amp[:, None] * s[:, :3]
         shift = shift_amp[:, None] * s[:, 3:] * np.array([1.0, 1.0, 1.3])
         R = g.transform_from_rotvec(rot, np.zeros_like(rot))[:, :3, :3]
@@ -180,5 +197,5 @@ def simulate_recording(rng: np.random.Generator | int | None = None, *, n_camera
                              T_cam_target=tuple(poses), object_points=pts,
                              image_points=tuple(uvs), intrinsics=(K,) * n_cameras,
                              rich=tuple(rich), pixel_sigma=float(pixel_sigma),
-                             mocap_rot_sigma_rad=float(mocap_rot_sigma_rad),
-                             mocap_trans_sigma_m=float(mocap_trans_sigma_m))
+                             mocap_rot_sigma_rad=float(spec.mocap_rot_sigma_rad),
+                             mocap_trans_sigma_m=float(spec.mocap_trans_sigma_m))
