@@ -116,12 +116,9 @@ def calibrate_many(datasets: Sequence[str | os.PathLike], out_root: str | os.Pat
                    options: Options = Options(), *, engine: str = "local",
                    scheduler: str | None = None, workers: int | None = None,
                    on_done: Callable[[DatasetOutcome], None] | None = None) -> ManyOutcome:
-    """Calibrate every dataset (folder or rig.yaml) into ``out_root/<its folder name>``
-    with ``options``, each a task of ``engine`` ("local" process pool or "dask": a local
-    cluster of ``workers``, or the ``scheduler`` at an address, whose workers see the same
-    paths); ``on_done(outcome)`` as each finishes.  Returns a :class:`ManyOutcome` (the
-    module docstring).  InputError: no dataset, two with the same folder name, an unknown
-    engine, Dask missing or its scheduler unreachable.
+    """Calibrate every dataset into ``out_root/<its folder name>``, each a task of ``engine``
+    ("local" or "dask": a local cluster of ``workers``, or the ``scheduler`` at an address);
+    ``on_done(outcome)`` as each finishes; a :class:`ManyOutcome` (module docstring).
     """
     paths = [Path(os.fspath(d)) for d in datasets]
     if not paths:

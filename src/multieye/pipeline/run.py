@@ -131,10 +131,8 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
         ``if __name__ == "__main__":`` (:func:`multieye.imaging.batch.main_reimport_problem`).
     progress : bool
         Show a progress bar (only sensible on a terminal).
-    engine : {"local", "dask"}
-        Where detection runs: the local worker processes, or tasks on Dask distributed
-        (docs/recordings.md, section 3): the ``scheduler`` at an address (its workers must
-        see the image paths), or a local cluster of ``processes`` workers.
+    engine, scheduler : {"local", "dask"}, str or None
+        Detection on Dask: at a scheduler's address, or a local cluster (docs/recordings.md).
 
     Returns
     -------
