@@ -23,7 +23,7 @@ LAYERS = {
 #: What the simulation layer may use, although it sits above them (it renders and writes
 #: datasets, nothing more).
 SIM_MAY_IMPORT = {"core", "imaging", "io", "sim"}
-CV2_ALLOWED = ("core/lens.py", "imaging/", "sim/", "io/intrinsics.py", "io/rosbag.py")
+CV2_ALLOWED = ("core/lens.py", "imaging/", "sim/", "io/intrinsics_files.py", "io/rosbag.py")
 MATPLOTLIB_ALLOWED = ("outputs/figures.py", "outputs/figures_rig.py", "experiments/figures.py")
 SIM_USERS = ("sim", "experiments", "demo", "cli")
 

@@ -10,7 +10,6 @@ the same, the cause named on stderr).  Heavy modules are imported inside the com
 from __future__ import annotations
 
 import functools
-import math
 import os
 import signal
 import sys
@@ -21,6 +20,9 @@ import click
 
 from multieye.core.version import __version__
 from multieye.core.errors import CalibrationError
+from multieye.core.errors import DatasetError
+import textwrap
+from importlib.resources import files
 
 EXIT_USER_ERROR = 2
 #: The result is written, but a plausibility check doubts it (docs/conventions.md, section 8).
@@ -66,7 +68,6 @@ def _echo(text: str, err: bool = False) -> None:
 def _utf8_dataset(dataset: Path) -> None:
     """Refuse a dataset path with bytes that are not UTF-8: OpenCV, which opens the images and
     the FileStorage intrinsics by name, crashes on such a name (a segmentation fault)."""
-    from multieye.core.errors import DatasetError
 
     full = os.path.abspath(dataset)
     try:
@@ -108,6 +109,15 @@ def _user_errors(fn):
     return wrapper
 
 
+def _number_or_word(text: str) -> str | float:
+    """``--time-offset``'s text as Options takes it: a number of seconds where it reads as
+    one, else the word (``rig``, ``auto``, or what Options then refuses)."""
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
 def _progress_enabled() -> bool:
     return sys.stderr.isatty()
 
@@ -117,7 +127,7 @@ def _processes_note(processes: int | None) -> None:
     detection starts at most that many, and at most one per image)."""
     if processes is None:
         return
-    from multieye.imaging.batch import worker_count
+    from multieye.imaging.batch import worker_count  # noqa: PLC0415 (heavy: OpenCV; instant start-up of multieye --help)
 
     used = worker_count(processes)
     if used < processes:
@@ -138,7 +148,6 @@ _EXIT_MEANINGS = {
 def _exit_statuses(*codes: int, meanings: dict | None = None) -> str:
     """The ``Exit status`` epilog of a command's ``--help``: ``codes`` and their meaning,
     then the signal statuses every command shares."""
-    import textwrap
 
     meanings = {**_EXIT_MEANINGS, **(meanings or {})}
     rows = [(str(code), meanings[code]) for code in codes]
@@ -210,10 +219,7 @@ def main():
               help="With --engine dask: a running scheduler whose workers see the image "
                    "paths; default a local cluster of --processes workers.")
 @_user_errors
-def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
-              processes: int | None, no_refine: bool, no_robust: bool, time_offset: str,
-              max_time_offset: float, select: int, no_select: bool, engine: str,
-              scheduler: str | None):
+def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     """Calibrate the rig in DATASET (a folder with rig.yaml, or the rig.yaml itself).
 
     Closed form, consensus over measurements, then maximum-likelihood refinement with
@@ -223,32 +229,23 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
     estimated from the recording; prints a per-camera table.  rig.yaml: multieye docs
     rig-yaml; the files: multieye docs outputs.
     """
-    from multieye.pipeline import calibrate as run_calibration
-    from multieye.outputs.folder import claim_output
-    from multieye.outputs.write import write_outputs
-    from multieye.solvers import METHODS
-    from multieye.outputs.summary import calibration_table, timings_line
+    from multieye.pipeline import Options, calibrate as run_calibration  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.outputs.write import write_outputs  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.outputs.summary import calibration_table, timings_line  # noqa: PLC0415 (instant start-up of multieye --help)
 
-    if method not in METHODS:
-        raise click.BadParameter(f"{method!r}; choose one of {', '.join(METHODS)}",
-                                 param_hint="--method")
-    if time_offset not in ("rig", "auto"):
-        try:
-            time_offset = float(time_offset)
-        except ValueError:
-            time_offset = float("nan")
-        if not math.isfinite(time_offset):
-            raise click.BadParameter("expected rig, auto or a finite number of seconds",
-                                     param_hint="--time-offset")
+    # Options checks every flag, once (an InputError: one line, exit 2, nothing written)
+    options = Options(method=flags["method"], reference=flags["reference"],
+                      refine=not flags["no_refine"], robust=not flags["no_robust"],
+                      time_offset=_number_or_word(flags["time_offset"]),
+                      max_time_offset=flags["max_time_offset"],
+                      select=None if flags["no_select"] else flags["select"])
     _utf8_dataset(dataset)
     _processes_note(processes)
     with claim_output(out_dir, inputs=[dataset]):   # one run per folder, checked before work
-        run = run_calibration(dataset, method=method, reference=reference, refine=not no_refine,
-                              robust=not no_robust, time_offset=time_offset,
-                              max_time_offset=max_time_offset, processes=processes,
-                              progress=_progress_enabled(),
-                              select=None if no_select else select, engine=engine,
-                              scheduler=scheduler)
+        run = run_calibration(dataset, options, processes=processes,
+                              progress=_progress_enabled(), engine=flags["engine"],
+                              scheduler=flags["scheduler"])
         written = write_outputs(run, out_dir)
     _echo(calibration_table(run.record))
     for name, data in run.cameras.items():
@@ -262,20 +259,6 @@ def calibrate(dataset: Path, out_dir: Path, method: str, reference: str | None,
         _echo(f"multieye: written, but implausible: {doubt.message}", err=True)
     if run.doubts:
         sys.exit(EXIT_IMPLAUSIBLE)
-
-
-def _time_offset_value(time_offset: str) -> str | float:
-    """``--time-offset``: rig, auto or a finite number of seconds."""
-    if time_offset in ("rig", "auto"):
-        return time_offset
-    try:
-        value = float(time_offset)
-    except ValueError:
-        value = float("nan")
-    if not math.isfinite(value):
-        raise click.BadParameter("expected rig, auto or a finite number of seconds",
-                                 param_hint="--time-offset")
-    return value
 
 
 @main.command("calibrate-many", epilog=_exit_statuses(0, EXIT_USER_ERROR, EXIT_IMPLAUSIBLE,
@@ -308,10 +291,7 @@ def _time_offset_value(time_offset: str) -> str | float:
               help="Images kept per camera above N, as for calibrate.")
 @click.option("--no-select", is_flag=True, help="Keep every image.")
 @_user_errors
-def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, engine: str,
-                           scheduler: str | None, workers: int | None, method: str,
-                           no_refine: bool, no_robust: bool, time_offset: str, select: int,
-                           no_select: bool):
+def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, **flags):
     """Calibrate every DATASET, each into OUT_ROOT/<its folder name>.
 
     Each calibration is one task (the local process pool, or Dask distributed with
@@ -319,15 +299,17 @@ def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, engine: s
     stop the others.  Prints one line per dataset as it finishes; the exit status is the
     worst of them.  multieye docs recordings.
     """
-    from multieye.many import calibrate_many, worst_status
-    from multieye.pipeline.options import Options
+    from multieye.many import calibrate_many, worst_status  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.pipeline.options import Options  # noqa: PLC0415 (instant start-up of multieye --help)
 
     for d in datasets:
         _utf8_dataset(d)
-    options = Options(method=method, refine=not no_refine, robust=not no_robust,
-                      time_offset=_time_offset_value(time_offset),
-                      select=None if no_select else select)
-    if scheduler is not None and engine != "dask":
+    # Options checks every flag, once (an InputError: one line, exit 2, nothing written)
+    options = Options(method=flags["method"], refine=not flags["no_refine"],
+                      robust=not flags["no_robust"],
+                      time_offset=_number_or_word(flags["time_offset"]),
+                      select=None if flags["no_select"] else flags["select"])
+    if flags["scheduler"] is not None and flags["engine"] != "dask":
         raise click.BadParameter("a scheduler needs --engine dask", param_hint="--scheduler")
 
     def done(o):
@@ -337,8 +319,8 @@ def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, engine: s
             line += f": {o.message}"
         _echo(line, err=o.status != 0)
 
-    result = calibrate_many(datasets, out_root, options, engine=engine, scheduler=scheduler,
-                            workers=workers, on_done=done)
+    result = calibrate_many(datasets, out_root, options, engine=flags["engine"],
+                            scheduler=flags["scheduler"], workers=flags["workers"], on_done=done)
     _echo(f"{sum(o.status != 2 for o in result.outcomes)} of {len(result.outcomes)} datasets "
           f"written ({result.engine} engine)")
     status = worst_status([o.status for o in result.outcomes])
@@ -364,8 +346,8 @@ def check(dataset: Path, sample: int, processes: int | None):
     camera and the problems; when a camera's images show no target, says what they hold
     and what to write in rig.yaml.  Writes nothing.
     """
-    from multieye.pipeline.dry_run import check_dataset
-    from multieye.outputs.summary import check_table
+    from multieye.pipeline.dry_run import check_dataset  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.outputs.summary import check_table  # noqa: PLC0415 (instant start-up of multieye --help)
 
     _utf8_dataset(dataset)
     _processes_note(processes)
@@ -391,7 +373,7 @@ def demo(out_dir: Path, seed: int):
     OUT/dataset is a complete dataset (rig.yaml, images, mocap.txt, intrinsics,
     ground_truth.json) that `multieye calibrate OUT/dataset -o ...` also accepts.
     """
-    from multieye.demo import run_demo
+    from multieye.demo import run_demo  # noqa: PLC0415 (instant start-up of multieye --help)
 
     result = run_demo(out_dir, seed=seed, progress=_progress_enabled())
     _echo(result.text)
@@ -405,8 +387,8 @@ def report(out_dir: Path):
 
     Reads OUT/calibration.json and, when present, OUT/details.json.
     """
-    from multieye.outputs.folder import claim_output
-    from multieye.outputs.report import write_report
+    from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.outputs.report import write_report  # noqa: PLC0415 (instant start-up of multieye --help)
 
     with claim_output(out_dir, replace=False):
         _echo(str(write_report(out_dir)))
@@ -435,8 +417,8 @@ def export(out_dir: Path, fmt: str, parent_frame: str | None, child_frame: str |
 
     The files and their frames: multieye docs outputs (section 6).
     """
-    from multieye.outputs.export import export as run_export
-    from multieye.outputs.folder import claim_output
+    from multieye.outputs.export import export as run_export  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
 
     notes: list[str] = []
     with claim_output(out_dir, replace=False):
@@ -464,13 +446,13 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
     the maximum-likelihood refinement and the Cramer-Rao bound.
     """
     if name == "refine":
-        from multieye.experiments.refine import run_refine_experiment
+        from multieye.experiments.refine_sweep import run_refine_experiment  # noqa: PLC0415 (instant start-up of multieye --help)
 
         paths = run_refine_experiment(trials=trials, seed=seed, out_dir=out_dir,
                                       progress=_progress_enabled())
         _echo("wrote " + " and ".join(str(p) for p in paths))
         return
-    from multieye.experiments.sweeps import run_experiment
+    from multieye.experiments.sweeps import run_experiment  # noqa: PLC0415 (instant start-up of multieye --help)
 
     out = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
                          progress=_progress_enabled())
@@ -486,7 +468,6 @@ def docs(name: str | None):
     Without NAME, list the pages: rig-yaml (the input, key by key), outputs (what each
     command writes), conventions (frames, units, exit statuses), architecture.
     """
-    from importlib.resources import files
 
     if name is None:
         width = max(map(len, DOC_PAGES))

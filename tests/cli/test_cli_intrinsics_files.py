@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 from multieye.cli import main
 from multieye.io.cameramodel import cameramodel_text
-from multieye.io.intrinsics import read_intrinsics
+from multieye.io.intrinsics_files import read_intrinsics
 from small_dataset import render_small
 
 

@@ -11,7 +11,7 @@ from multieye.core.errors import InputError
 from multieye.core.lie import log_so3
 from multieye.estimate.clock_residuals import (ClockData, LocalTrajectory, TimedMocapPriors,
                                                offset_family)
-from multieye.estimate.image_residuals import ImageData
+from multieye.estimate.image_data import image_data
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.streams import simulate_rig_stream
@@ -64,7 +64,7 @@ def test_local_fit_reproduces_a_cubic_and_its_velocity():
 def test_timed_prior_jacobian_matches_central_differences(setup):
     st = simulate_rig_stream(3, n_cameras=2, setup=setup, duration_s=6.0,
                              time_offsets_s=[0.03, -0.05])
-    data = ImageData(setup, st.observations, st.intrinsics,
+    data = image_data(setup, st.observations, st.intrinsics,
                      clocks=_clocks(st, [0.0313, -0.0441]))
     rng = np.random.default_rng(0)
     M = g.transform_from_rotvec(rng.normal(scale=0.01, size=(data.n_images, 3)),
@@ -142,7 +142,7 @@ def test_clock_data_is_checked():
     st = simulate_rig_stream(2, n_cameras=1, duration_s=3.0)
     short = ClockData(st.image_stamps[0][:-1], st.mocap_stamps, st.T_world_mocap)
     with pytest.raises(InputError, match="image stamps for"):
-        ImageData(st.setup, st.observations, st.intrinsics, clocks=[short])
+        image_data(st.setup, st.observations, st.intrinsics, clocks=[short])
 
 
 def test_prior_is_the_profile_likelihood_of_the_window_away_from_its_centre():

@@ -12,7 +12,7 @@ from multieye.core.errors import InputError
 from multieye.sim.images import simulate_images
 from multieye.core.metrics import relative_extrinsics
 from multieye.core.lens import project_with_jacobian
-from multieye.estimate.image_residuals import ImageData
+from multieye.estimate.image_data import image_data
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.estimate.uncertainty import cramer_rao_bound, relative_covariance
@@ -40,7 +40,7 @@ def test_jacobians_match_central_differences(setup, model, rng):
     """Pixel and motion-capture-prior Jacobians against central differences on the manifolds,
     away from the truth (every pose perturbed)."""
     sc = simulate_images(3, n_cameras=2, images=3, setup=setup, model=model)
-    data = ImageData(setup, sc.observations, sc.intrinsics)
+    data = image_data(setup, sc.observations, sc.intrinsics)
     M = _perturbed(data.mocap_measured, rng, rot=0.02, trans=0.01)
     fams = data.families(_perturbed(sc.X, rng), _perturbed(sc.Y, rng), M)
     values = {f.name: f.value for f in fams}
@@ -169,7 +169,7 @@ def test_scipy_least_squares_reaches_the_same_optimum():
     sig = (0.3, float(np.deg2rad(0.1)), 0.3e-3)
     a = refine_images(sc.setup, sc.observations, sc.intrinsics, sol.X, sol.Y, loss="linear",
                       pixel_sigma=sig[0], mocap_rot_sigma_rad=sig[1], mocap_trans_sigma_m=sig[2])
-    data = ImageData(sc.setup, sc.observations, sc.intrinsics)
+    data = image_data(sc.setup, sc.observations, sc.intrinsics)
     start = data.families(sol.X, sol.Y)
     groups = data.groups(*sig)
 
@@ -227,7 +227,7 @@ def test_error_messages_name_what_is_wrong():
 
 
 def test_refine_experiment_writes_csv_and_png(tmp_path):
-    from multieye.experiments.refine import (COLUMNS, METHODS, run_refine_experiment,
+    from multieye.experiments.refine_sweep import (COLUMNS, METHODS, run_refine_experiment,
                                              summarize_refine, refine_sweep)
     paths = run_refine_experiment(1, 3, tmp_path, progress=False, levels=(0.5,), n_cameras=2,
                                   images=6)

@@ -10,7 +10,8 @@ import multieye
 from multieye.core import geometry as g
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points
-from multieye.estimate.image_residuals import ImageData, intrinsics_family
+from multieye.estimate.image_data import image_data
+from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.images import simulate_images
@@ -51,7 +52,7 @@ def test_jacobians_with_intrinsics_match_central_differences(setup, rng):
     fisheye = simulate_images(3, n_cameras=1, images=3, setup=setup, model="fisheye")
     for scene in (sc, fisheye):
         extra = [_free_images(scene, j, 2, rng) for j in range(scene.n_cameras)]
-        data = ImageData(setup, scene.observations, scene.intrinsics,
+        data = image_data(setup, scene.observations, scene.intrinsics,
                          free_intrinsics=[True] * scene.n_cameras, intrinsics_observations=extra)
         fams = data.families(_moved(scene.X, rng), _moved(scene.Y, rng),
                              _moved(data.mocap_measured, rng),

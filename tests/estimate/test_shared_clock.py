@@ -12,7 +12,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.estimate.clock_residuals import (ClockData, TimedMocapPriors, offset_family,
                                                shared_clocks)
-from multieye.estimate.image_residuals import ImageData
+from multieye.estimate.image_data import image_data
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.streams import simulate_rig_stream
@@ -29,7 +29,7 @@ def test_cameras_on_one_clock_share_the_offset_the_instants_and_the_priors():
     st = simulate_rig_stream(4, n_cameras=3, duration_s=5.0, time_offsets_s=0.04,
                              interleaved=False)
     assert all(np.array_equal(t, st.image_stamps[0]) for t in st.image_stamps)
-    data = ImageData(st.setup, st.observations, st.intrinsics,
+    data = image_data(st.setup, st.observations, st.intrinsics,
                      clocks=_shared(st, [0.041, 0.043, 0.045]))
     n = len(st.image_stamps[0])
     assert data.n_images == 3 * n and data.n_instants == n
@@ -56,7 +56,7 @@ def test_a_camera_with_extra_images_shares_the_common_instants():
               ClockData(st.image_stamps[1][keep], st.mocap_stamps, st.T_world_mocap, 0.02,
                         shared="a"),
               ClockData(st.image_stamps[2], st.mocap_stamps, st.T_world_mocap, 0.02)]
-    data = ImageData(st.setup, obs, st.intrinsics, clocks=clocks)
+    data = image_data(st.setup, obs, st.intrinsics, clocks=clocks)
     n = len(st.image_stamps[0])
     assert data.n_instants == 2 * n
     assert np.array_equal(data.instant[data.cam_of_image == 1], np.flatnonzero(keep))
@@ -89,7 +89,7 @@ def test_shared_offset_and_rig_recovered_exactly_without_noise(setup):
 def test_shared_timed_prior_jacobian_matches_central_differences(setup):
     st = simulate_rig_stream(3, n_cameras=3, setup=setup, duration_s=6.0,
                              time_offsets_s=0.03, interleaved=False)
-    data = ImageData(setup, st.observations, st.intrinsics,
+    data = image_data(setup, st.observations, st.intrinsics,
                      clocks=_shared(st, [0.0313] * 3))
     rng = np.random.default_rng(0)
     M = g.transform_from_rotvec(rng.normal(scale=0.01, size=(data.n_instants, 3)),
@@ -131,7 +131,7 @@ def test_shared_clock_is_checked_and_grouped_by_stamps():
     clocks = [ClockData(st.image_stamps[0], st.mocap_stamps, st.T_world_mocap, shared="a"),
               ClockData(st.image_stamps[1], st.mocap_stamps, other, shared="a")]
     with pytest.raises(InputError, match="share the clock 'a' but not its motion capture"):
-        ImageData(st.setup, st.observations, st.intrinsics, clocks=clocks)
+        image_data(st.setup, st.observations, st.intrinsics, clocks=clocks)
     t = np.arange(10.0)
     assert shared_clocks([t, t.copy(), t + 0.5]) == [[0, 1]]
     assert shared_clocks([t, t[:5], t[5:]]) == [[0, 1, 2]]        # transitively, via camera 0

@@ -11,7 +11,8 @@ import pytest
 from multieye.core import geometry as g
 from multieye.core.lens import project_points
 from multieye.estimate.clock_residuals import ClockData, TimedMocapPriors
-from multieye.estimate.image_residuals import ImageData, MocapPriors
+from multieye.estimate.image_data import image_data
+from multieye.estimate.image_residuals import MocapPriors
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize.gradient_check import numerical_jacobians
 from multieye.sim.images import default_target_points
@@ -54,7 +55,7 @@ def _nees(res, st):
 
 def test_images_with_the_same_pose_share_an_instant_and_one_prior():
     obs, st, _ = _triggered(1, "eye-to-base", 3, images=6)
-    data = ImageData("eye-to-base", obs, st.intrinsics)
+    data = image_data("eye-to-base", obs, st.intrinsics)
     assert data.n_images == 18 and data.n_instants == 6
     np.testing.assert_array_equal(data.instant, np.tile(np.arange(6), 3))
     np.testing.assert_array_equal(data.instant_image, np.arange(6))
@@ -64,12 +65,12 @@ def test_images_with_the_same_pose_share_an_instant_and_one_prior():
     # one camera's repeated pose is one measurement too; anything else stays apart
     obs[0][3] = (obs[0][3][0], obs[0][3][1], obs[0][2][2])
     obs[2][5] = (obs[2][5][0], obs[2][5][1], obs[2][5][2] + np.finfo(float).eps)
-    data = ImageData("eye-to-base", obs, st.intrinsics)
+    data = image_data("eye-to-base", obs, st.intrinsics)
     assert data.instant[3] == data.instant[2] == 2
     assert data.instant[17] != data.instant[5]
     # no repeated pose: one instant per image, numbered as the images
     obs, st, _ = _triggered(1, "eye-to-base", 3, images=6, per_image=True)
-    data = ImageData("eye-to-base", obs, st.intrinsics)
+    data = image_data("eye-to-base", obs, st.intrinsics)
     np.testing.assert_array_equal(data.instant, np.arange(18))
 
 
@@ -77,7 +78,7 @@ def test_a_camera_with_a_clock_keeps_its_own_blocks():
     obs, st, _ = _triggered(2, "eye-on-hand", 3, images=8)
     clocks = [None, ClockData(st.image_stamps[1], st.mocap_stamps, st.T_world_mocap,
                               offset=0.0), None]
-    data = ImageData("eye-on-hand", obs, st.intrinsics, clocks=clocks)
+    data = image_data("eye-on-hand", obs, st.intrinsics, clocks=clocks)
     assert data.n_instants == 16
     np.testing.assert_array_equal(data.instant[:8], data.instant[16:])
     assert len(set(data.instant[8:16]) | set(data.instant[:8])) == 16
@@ -95,7 +96,7 @@ def test_a_camera_with_a_clock_keeps_its_own_blocks():
 @pytest.mark.parametrize("setup", ["eye-to-base", "eye-on-hand"])
 def test_jacobians_with_shared_instants(setup, rng):
     obs, st, _ = _triggered(3, setup, 3, images=3)
-    data = ImageData(setup, obs, st.intrinsics, free_intrinsics=[True, False, False])
+    data = image_data(setup, obs, st.intrinsics, free_intrinsics=[True, False, False])
     M = g.transform_from_rotvec(rng.normal(scale=0.02, size=(data.n_instants, 3)),
                                 rng.normal(scale=0.01, size=(data.n_instants, 3))
                                 ) @ data.mocap_start()
@@ -172,7 +173,7 @@ def test_pairing_at_the_same_time_gives_bitwise_equal_poses():
                      tolerance=0.01, offset=0.0123)
     assert a.interpolated.all()
     np.testing.assert_array_equal(b.T, np.concatenate([a.T[5:17], a.T[::3]]))
-    data = ImageData("eye-to-base", [[(np.zeros((1, 3)), np.zeros((1, 2)), T) for T in a.T],
+    data = image_data("eye-to-base", [[(np.zeros((1, 3)), np.zeros((1, 2)), T) for T in a.T],
                                      [(np.zeros((1, 3)), np.zeros((1, 2)), T) for T in b.T]],
                      st.intrinsics * 2)
     assert data.n_instants == len(t)

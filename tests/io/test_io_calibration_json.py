@@ -123,7 +123,7 @@ def _write_json(path, data):
     (lambda d: d["cameras"]["cam1"]["T_ref_cam"][0].__setitem__(0, 1.5),
      ": camera cam1: T_ref_cam is not a rigid transform$"),
     (lambda d: d.__setitem__("T_marker_target", [[1, 0], [0, 1]]),
-     "T_marker_target must be a finite 4x4 matrix, got shape \\(2, 2\\)"),
+     "T_marker_target must be a finite 4x4 transform, got shape \\(2, 2\\)"),
     (lambda d: d["cameras"]["cam1"].__setitem__("covariance", [[0.0] * 6] * 5),
      "covariance must be a finite 6x6 matrix"),
     (lambda d: d["cameras"]["cam1"].__setitem__("std_rot_deg", "small"),

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from multieye.core import geometry
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.io.intrinsics import (
+from multieye.io.intrinsics_files import (
     read_camera_info,
     read_intrinsics,
     read_kalibr_intrinsics,
@@ -371,7 +371,7 @@ def test_intrinsics_object_checks(kw, expected):
     ("pinhole", 8, "rational_polynomial"), ("pinhole", 12, "thin_prism"),
     ("pinhole", 14, "tilted"), ("fisheye", 4, "equidistant")])
 def test_distortion_model_name_is_the_true_name_and_reads_back(tmp_path, model, n, name):
-    from multieye.io.intrinsics import DISTORTION_MODELS, distortion_model_name
+    from multieye.io.intrinsics_files import DISTORTION_MODELS, distortion_model_name
 
     dist = np.linspace(-0.1, 0.05, n) * (0.1 if n > 8 else 1)
     intr = Intrinsics(np.array([[400.0, 0, 320], [0, 401, 240], [0, 0, 1]]), dist, model,
@@ -387,7 +387,7 @@ def test_distortion_model_name_is_the_true_name_and_reads_back(tmp_path, model, 
      [0.1, -0.02, 1e-3, 2e-3, 0.01, 0.2, 0.01, 0.001]),
     ("fisheye", [0.1, -0.02, 1e-3, 2e-4], "equidistant", [0.1, -0.02, 1e-3, 2e-4])])
 def test_camera_info_text_round_trips(tmp_path, model, dist, ros, written):
-    from multieye.io.intrinsics import camera_info_text, read_camera_info
+    from multieye.io.intrinsics_files import camera_info_text, read_camera_info
 
     K = np.array([[400.5, 0, 320.25], [0, 401.0, 239.75], [0, 0, 1]])
     intr = Intrinsics(K, np.array(dist, dtype=float), model, 640, 480)
@@ -403,7 +403,7 @@ def test_camera_info_text_round_trips(tmp_path, model, dist, ros, written):
 
 
 def test_camera_info_text_names_what_ros_cannot_hold():
-    from multieye.io.intrinsics import camera_info_text
+    from multieye.io.intrinsics_files import camera_info_text
 
     K = np.array([[400.0, 0, 320], [0, 401, 240], [0, 0, 1]])
     with pytest.raises(InputError, match="12 coefficients.*thin-prism"):

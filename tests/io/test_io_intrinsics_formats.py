@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.cameramodel import cameramodel_text
-from multieye.io.intrinsics import IGNORED_KEYS, read_intrinsics
+from multieye.io.intrinsics_files import IGNORED_KEYS, read_intrinsics
 
 K = np.array([[1052.25, 0.0, 641.75], [0.0, 1049.5, 362.125], [0.0, 0.0, 1.0]])
 DIST = np.array([-0.118, 0.179, 1.25e-3, -6.5e-4, -0.0625, 0.0312, 0.0188, -0.0041])

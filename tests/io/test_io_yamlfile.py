@@ -8,7 +8,7 @@ import time
 import pytest
 
 from multieye.core.errors import DatasetError
-from multieye.io.intrinsics import read_intrinsics
+from multieye.io.intrinsics_files import read_intrinsics
 from multieye.io.kalibr import read_camchain
 from multieye.io.rig import load_rig
 from multieye.io.yamlfile import (

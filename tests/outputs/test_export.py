@@ -27,9 +27,8 @@ from multieye.outputs.export import (
     FORMATS,
     T_LINK_OPTICAL,
     export,
-    rotation_from_rpy,
-    rpy_from_rotation,
 )
+from multieye.core.geometry import rotation_from_rpy, rpy_from_rotation
 from multieye.core.intrinsics import Intrinsics
 from multieye.io import RejectedItem, Trajectory, read_calibration, read_camchain
 from multieye.io.rig import Rig
@@ -321,7 +320,7 @@ CAMERA_INFO_SCHEMA = {"image_width": int, "image_height": int, "camera_name": st
 
 def test_camera_info_per_camera_follows_ros_and_reads_back(result):
     yaml = pytest.importorskip("yaml")
-    from multieye.io.intrinsics import read_camera_info
+    from multieye.io.intrinsics_files import read_camera_info
 
     out, rec, _ = result
     notes = []

@@ -14,7 +14,7 @@ import pytest
 
 from multieye.core import geometry as g
 from multieye.core.intrinsics import Intrinsics
-from multieye.io.intrinsics import read_intrinsics
+from multieye.io.intrinsics_files import read_intrinsics
 from multieye.outputs.details import write_run_details
 from multieye.outputs.export import export
 from multieye.outputs.write import write_outputs

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 
 from multieye.cli import main
 from multieye.core import geometry as g
-from multieye.io.intrinsics import read_intrinsics
+from multieye.io.intrinsics_files import read_intrinsics
 
 sys.path.insert(0, os.path.dirname(__file__))
 from test_robot_sets import published_with_rig  # noqa: E402

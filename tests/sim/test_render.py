@@ -103,7 +103,7 @@ def test_bad_input():
     no_size = Intrinsics(K=CAMERA.K)
     with pytest.raises(InputError, match="image size unknown"):
         render(BOARD, no_size, pose())
-    with pytest.raises(InputError, match="not a rotation"):
+    with pytest.raises(InputError, match="not a rigid transform"):
         render(BOARD, CAMERA, np.diag([1.0, 1.0, -1.0, 1.0]))
     with pytest.raises(InputError, match="4x4"):
         visible(BOARD, CAMERA, np.eye(3))

@@ -8,17 +8,20 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from multieye.core.errors import InputError
 import difflib
 
+from multieye.core.errors import InputError
+from multieye.core.geometry import is_rigid
+
 __all__ = ["real_array", "real_number", "positive_int", "camera_names", "one_of", "as_path",
-           "did_you_mean"]
+           "did_you_mean", "with_fields", "transform"]
 
 
 def _kind(value: Any) -> str:
@@ -136,3 +139,44 @@ def as_path(value: Any, name: str = "path") -> Path:
         if isinstance(text, str) and text and "\0" not in text:
             return Path(text)
     raise InputError(f"{name} must be a path (str or os.PathLike), got {value!r}")
+
+
+def with_fields(options: Any, kw: Mapping[str, Any], kind: type, what: str) -> Any:
+    """``options`` (a frozen dataclass of type ``kind``) with the fields in ``kw`` replaced:
+    the one way a public function takes its options as an object or as keyword arguments.
+    InputError for anything else than a ``kind`` or for an unknown field (instead of
+    dataclasses' TypeError), naming ``what``."""
+    if not isinstance(options, kind) or not is_dataclass(options):
+        raise InputError(f"{what} must be a multieye {kind.__name__}, got "
+                         f"{type(options).__name__}")
+    names = [f.name for f in fields(options)]
+    unknown = sorted(set(kw) - set(names))
+    if unknown:
+        raise InputError(f"unknown option {', '.join(unknown)}; the options are "
+                         f"{', '.join(names)}")
+    return replace(options, **kw) if kw else options
+
+
+def transform(value: Any, what: str, *, count: int | None = None, rigid: bool = False
+              ) -> np.ndarray:
+    """``value`` as a finite 4x4 transform (or ``count`` of them, one per camera), or an
+    InputError naming ``what``: the one check of a transform a caller passes in.
+
+    Parameters
+    ----------
+    value : array_like, shape (4, 4), or (count, 4, 4) with ``count``
+    what : str
+        How the message names the argument.
+    count : int, optional
+        The number of transforms expected (one per camera).
+    rigid : bool
+        Also require rigid transforms (:func:`multieye.core.geometry.is_rigid`).
+    """
+    want = ("a finite 4x4 transform" if count is None
+            else f"{count} finite 4x4 transforms (one per camera)")
+    T = real_array(value, what, expected=want)
+    if T.shape != ((4, 4) if count is None else (count, 4, 4)) or not np.all(np.isfinite(T)):
+        raise InputError(f"{what} must be {want}, got shape {T.shape}")
+    if rigid and not np.all(is_rigid(T)):
+        raise InputError(f"{what} is not a rigid transform")
+    return T

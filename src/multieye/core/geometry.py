@@ -38,6 +38,8 @@ __all__ = [
     "transform_from_rotvec",
     "rotvec_from_transform",
     "ypr_from_rotation",
+    "rpy_from_rotation",
+    "rotation_from_rpy",
     "rotation_mean",
     "random_transforms",
     "skew",
@@ -232,10 +234,17 @@ def rotvec_from_transform(T: ArrayLike) -> F64:
     return Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec().reshape(shape + (3,))
 
 
-def ypr_from_rotation(R: ArrayLike) -> F64:
-    """Yaw, pitch, roll in radians, ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
+def rpy_from_rotation(R: ArrayLike) -> F64:
+    """Roll, pitch, yaw in radians with ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (URDF's fixed-axis
+    ``rpy``; the same angles as :func:`ypr_from_rotation`, in the other order).
 
-    This is the convention of the paper's tx ty tz yaw pitch roll tables.
+    Accurate to rounding everywhere, gimbal lock included (pitch = +-90 degrees, a camera
+    looking straight up or down): pitch comes from ``atan2(-R20, hypot(R00, R10))``, yaw from
+    the first column, and roll from what is left once yaw and pitch are undone, so that an
+    ill-determined yaw near the lock is compensated by roll instead of leaking into the
+    rotation (at the lock only ``roll - yaw`` or ``roll + yaw`` is defined).  scipy's
+    ``Rotation.as_euler`` sets one angle to zero near the lock, and its angles then give the
+    rotation back only to about 2e-7.
 
     Parameters
     ----------
@@ -247,7 +256,51 @@ def ypr_from_rotation(R: ArrayLike) -> F64:
     """
     R = np.asarray(R, dtype=np.float64)[..., :3, :3]
     shape = R.shape[:-2]
-    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_euler("ZYX").reshape(shape + (3,))
+    R = R.reshape(-1, 3, 3)
+    pitch = np.arctan2(-R[:, 2, 0], np.hypot(R[:, 0, 0], R[:, 1, 0]))
+    yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
+    undone = np.swapaxes(_about(1, pitch), 1, 2) @ np.swapaxes(_about(2, yaw), 1, 2)
+    M = undone @ R                              # = Rx(roll) up to rounding
+    roll = np.arctan2(M[:, 2, 1], M[:, 1, 1])
+    return np.column_stack([roll, pitch, yaw]).reshape(shape + (3,))
+
+
+def rotation_from_rpy(rpy: ArrayLike) -> F64:
+    """``R = Rz(yaw) Ry(pitch) Rx(roll)`` of roll, pitch, yaw in radians, shape (..., 3)
+    (URDF's fixed-axis ``rpy``; inverse of :func:`rpy_from_rotation`).  Built from the
+    three elementary rotations, so that right angles give exact zeros and ones (scipy's
+    ``Rotation.from_euler`` goes through a quaternion and leaves 2e-16 there)."""
+    rpy = np.asarray(rpy, dtype=np.float64)
+    shape = rpy.shape[:-1]
+    roll, pitch, yaw = rpy.reshape(-1, 3).T
+    return (_about(2, yaw) @ _about(1, pitch) @ _about(0, roll)).reshape(shape + (3, 3))
+
+
+def _about(axis: int, angle: F64) -> F64:
+    """Rotations by ``angle`` (n,) radians about the x, y or z axis (0, 1, 2): (n, 3, 3)."""
+    c, s = np.cos(angle), np.sin(angle)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    R = np.zeros((len(angle), 3, 3))
+    R[:, axis, axis] = 1.0
+    R[:, i, i], R[:, i, j], R[:, j, i], R[:, j, j] = c, -s, s, c
+    return R
+
+
+def ypr_from_rotation(R: ArrayLike) -> F64:
+    """Yaw, pitch, roll in radians, ``R = Rz(yaw) Ry(pitch) Rx(roll)``
+    (:func:`rpy_from_rotation` in the other order).
+
+    This is the convention of the paper's tx ty tz yaw pitch roll tables.
+
+    Parameters
+    ----------
+    R : array_like, shape (..., 3, 3) or (..., 4, 4)
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    return rpy_from_rotation(R)[..., ::-1] + 0.0     # + 0.0: no -0.0 in the tables
 
 
 def rotation_mean(Rs: ArrayLike) -> F64:

@@ -1,6 +1,6 @@
 """Camera intrinsics as plain data (no OpenCV here).
 
-File readers (``multieye.io.intrinsics``) produce :class:`Intrinsics`; camera models on the
+File readers (``multieye.io.intrinsics_files``) produce :class:`Intrinsics`; camera models on the
 image side (``multieye.imaging``) consume it.
 """
 

@@ -2,6 +2,8 @@
 
 docs/conventions.md, section 2: both setups are ``A_i^j X^j = Y B_i^j``; the
 general problem tags each measurement with one unknown on each side, ``A_i X_a = Y_b B_i``.
+:mod:`multieye.pipeline.problem` is the same kind of thing one layer up: the problem model the
+pipeline's stages pass down, keyed by camera name.
 """
 
 from __future__ import annotations

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from multieye.core.arguments import real_array, real_number
+from multieye.core.arguments import real_array, real_number, with_fields
 from multieye.core import geometry as g
 from multieye.core.errors import DegenerateMotionError, InputError, TooFewMeasurementsError
 from multieye.core.metrics import chordal_angle, loop_residuals
@@ -52,7 +52,7 @@ from multieye.solvers.checks import rotation_spread
 from multieye.solvers.measurements import Measurements
 from multieye.solvers.joint import solve_joint
 
-__all__ = ["ClockOffset", "estimate_offset", "angular_speed"]
+__all__ = ["ClockOffset", "OffsetSearch", "estimate_offset", "angular_speed"]
 
 F64 = NDArray[np.float64]
 
@@ -268,22 +268,12 @@ class _LoopProfile:
         return float(np.sum((rot / self.s_rot) ** 2) + np.sum((trans / self.s_t) ** 2))
 
 
-def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps: ArrayLike,
-                    T_world_mocap: ArrayLike, *, search_s: tuple[float, float] = (-0.5, 0.5),
-                    setup: str = "eye-to-base", baseline_s: float = 0.5,
-                    step_s: float | None = None, refine: bool = True) -> ClockOffset:
-    """Clock offset between one camera and the motion capture (module docstring).
+@dataclass(frozen=True)
+class OffsetSearch:
+    """How :func:`estimate_offset` searches.
 
-    Parameters
+    Attributes
     ----------
-    cam_stamps : array_like, shape (K,)
-        Image times in the camera clock, seconds, increasing.
-    T_cam_target : array_like, shape (K, 4, 4)
-        Target pose in each image (PnP), metres.
-    mocap_stamps : array_like, shape (L,)
-        Motion-capture times in its own clock, seconds, increasing.
-    T_world_mocap : array_like, shape (L, 4, 4)
-        ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand).
     search_s : (float, float)
         Range of offsets searched, seconds.
     setup : {"eye-to-base", "eye-on-hand"}
@@ -298,6 +288,32 @@ def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps
     refine : bool
         Run the fine step (loop residuals); when False, or when the camera's rotations do
         not determine X and Y (about a single axis), the coarse offset is returned.
+    """
+
+    search_s: tuple[float, float] = (-0.5, 0.5)
+    setup: str = "eye-to-base"
+    baseline_s: float = 0.5
+    step_s: float | None = None
+    refine: bool = True
+
+
+def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps: ArrayLike,
+                    T_world_mocap: ArrayLike, search: OffsetSearch = OffsetSearch(), **kw
+                    ) -> ClockOffset:
+    """Clock offset between one camera and the motion capture (module docstring).
+
+    Parameters
+    ----------
+    cam_stamps : array_like, shape (K,)
+        Image times in the camera clock, seconds, increasing.
+    T_cam_target : array_like, shape (K, 4, 4)
+        Target pose in each image (PnP), metres.
+    mocap_stamps : array_like, shape (L,)
+        Motion-capture times in its own clock, seconds, increasing.
+    T_world_mocap : array_like, shape (L, 4, 4)
+        ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand).
+    search : OffsetSearch
+        Or its fields as keyword arguments (``search_s=(-0.5, 0.5), setup="eye-on-hand"``).
 
     Returns
     -------
@@ -313,6 +329,8 @@ def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps
     DegenerateMotionError
         The target (or rig) never turns, so angular speeds carry no timing.
     """
+    opts = with_fields(search, kw, OffsetSearch, "search")
+    setup, search_s, refine = opts.setup, opts.search_s, opts.refine
     if not isinstance(setup, str) or setup not in SETUPS:
         raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
     search = real_array(search_s, "search_s", shape=(2,),
@@ -320,8 +338,8 @@ def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps
     lo, hi = (float(v) for v in search)
     if not (np.isfinite(search).all() and hi > lo):
         raise InputError(f"search_s must be (low, high) with low < high, got {search_s}")
-    baseline_s = real_number(baseline_s, "baseline_s", positive=True)
-    step_s = real_number(step_s, "step_s", positive=True, allow_none=True)
+    baseline_s = real_number(opts.baseline_s, "baseline_s", positive=True)
+    step_s = real_number(opts.step_s, "step_s", positive=True, allow_none=True)
     cam_t, P = _check_stream(cam_stamps, T_cam_target, "camera stream")
     mocap_t, M = _check_stream(mocap_stamps, T_world_mocap, "motion-capture stream")
     camera_dt = float(np.median(np.diff(cam_t)))

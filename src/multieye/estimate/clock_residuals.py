@@ -63,7 +63,7 @@ from multieye.core.errors import InputError
 from multieye.core.lie import exp_so3, left_jacobian, left_jacobian_inv, log_so3
 from multieye.optimize.blocks import Blocks, ResidualGroup
 
-__all__ = ["ClockData", "ClockUnits", "LocalTrajectory", "TimedMocapPriors", "offset_family",
+__all__ = ["ClockData", "ClockUnits", "clock_units", "LocalTrajectory", "TimedMocapPriors", "offset_family",
            "shared_clocks", "DEFAULT_HALF_WINDOW_S", "DEGREE", "MIN_SAMPLES"]
 
 F64 = NDArray[np.float64]
@@ -310,50 +310,38 @@ class TimedMocapPriors(ResidualGroup):
         return r, [JM, Jd]
 
 
+@dataclass(frozen=True)
 class ClockUnits:
     """The clocks of the cameras of an image-level problem: one *unit* per camera with a clock
     of its own, one per shared clock (:attr:`ClockData.shared`), in the order of their first
     camera.  A unit has one offset block (family ``dt:<first camera>``), one
-    :class:`LocalTrajectory` over its instants and one :class:`TimedMocapPriors`.
-
-    Parameters
-    ----------
-    clocks : sequence of (ClockData or None)
-        Per camera (checked by the caller).
-    names : sequence of str
-        Camera names.
+    :class:`LocalTrajectory` over its instants and one :class:`TimedMocapPriors`.  Built in
+    two steps, both returning a new value: :func:`clock_units` (the units, before the
+    instants are numbered), then :meth:`built` (their blocks and trajectories).
 
     Attributes
     ----------
-    cameras : list of tuple of int
+    clocks : tuple of (ClockData or None)
+        Per camera.
+    cameras : tuple of tuple of int
         The cameras of each unit.
-    family : list of str
+    family : tuple of str
         Offset family of each unit.
-    blocks : list of ndarray of int
-        Blocks of ``M`` (instants) of each unit, after :meth:`build`.
-    clock : list of ClockData
+    unit_of_camera : dict of int to int
+    blocks : tuple of ndarray of int
+        Blocks of ``M`` (instants) of each unit, after :meth:`built`.
+    clock : tuple of ClockData
         Per unit, over its instants' stamps (a camera's own ClockData when not shared).
-    trajectories : list of LocalTrajectory
+    trajectories : tuple of LocalTrajectory
     """
 
-    def __init__(self, clocks, names):
-        units: dict = {}
-        for j, c in enumerate(clocks):
-            if c is not None:
-                units.setdefault(j if c.shared is None else ("shared", c.shared), []).append(j)
-        self.cameras = [tuple(v) for v in units.values()]
-        self.family = [offset_family(names[js[0]]) for js in self.cameras]
-        for js in self.cameras:
-            c0 = clocks[js[0]]
-            for j in js[1:]:
-                c = clocks[j]
-                if not (c.half_window_s == c0.half_window_s
-                        and np.array_equal(c.mocap_stamps, c0.mocap_stamps)
-                        and np.array_equal(c.mocap_T, c0.mocap_T)):
-                    raise InputError(f"cameras {names[js[0]]} and {names[j]} share the clock "
-                                     f"{c0.shared!r} but not its motion capture or half window")
-        self.clocks = tuple(clocks)
-        self.unit_of_camera = {j: u for u, js in enumerate(self.cameras) for j in js}
+    clocks: tuple
+    cameras: tuple[tuple[int, ...], ...]
+    family: tuple[str, ...]
+    unit_of_camera: dict[int, int]
+    blocks: tuple[np.ndarray, ...] = ()
+    clock: tuple[ClockData, ...] = ()
+    trajectories: tuple[LocalTrajectory, ...] = ()
 
     def key(self, camera: int, i: int):
         """Instant key of image ``i`` of ``camera`` (a camera with a clock): None (an instant
@@ -363,21 +351,23 @@ class ClockUnits:
             return None
         return ("clock", self.unit_of_camera[camera], c.image_stamps[i].tobytes())
 
-    def build(self, instant, instant_image, cam_of_image, image_in_camera) -> None:
-        """Each unit's blocks of ``M``, its ClockData over them and its trajectory."""
-        self.blocks, self.clock, self.trajectories = [], [], []
+    def built(self, instant, instant_image, cam_of_image, image_in_camera) -> ClockUnits:
+        """These units with each unit's blocks of ``M``, its ClockData over them and its
+        trajectory."""
+        blocks, clock = [], []
         for js in self.cameras:
             c0 = self.clocks[js[0]]
-            blocks = np.unique(instant[np.isin(cam_of_image, js)])   # order of appearance
+            b = np.unique(instant[np.isin(cam_of_image, js)])   # order of appearance
             if c0.shared is not None:
-                first = instant_image[blocks]
+                first = instant_image[b]
                 stamps = np.array([self.clocks[cam_of_image[i]].image_stamps[image_in_camera[i]]
                                    for i in first])
                 c0 = replace(c0, image_stamps=stamps,
                              offset=float(np.mean([self.clocks[j].offset for j in js])))
-            self.blocks.append(blocks)
-            self.clock.append(c0)
-            self.trajectories.append(LocalTrajectory(c0))
+            blocks.append(b)
+            clock.append(c0)
+        return replace(self, blocks=tuple(blocks), clock=tuple(clock),
+                       trajectories=tuple(LocalTrajectory(c) for c in clock))
 
     def families(self) -> list[Blocks]:
         """One offset block per unit, at its starting offset."""
@@ -389,6 +379,39 @@ class ClockUnits:
         return [TimedMocapPriors(self.family[u][3:], self.blocks[u], self.trajectories[u],
                                  sigma_rot, sigma_t) for u in range(len(self.cameras))]
 
-    def recentre(self, unit: int, offset: float) -> None:
-        """Centre unit ``unit``'s windows at ``offset`` (seconds)."""
-        self.trajectories[unit] = LocalTrajectory(self.clock[unit], float(offset))
+    def recentred(self, offsets: Mapping[int, float]) -> ClockUnits:
+        """These units with the windows of each unit in ``offsets`` centred at its offset
+        (seconds)."""
+        trajectories = list(self.trajectories)
+        for unit, offset in offsets.items():
+            trajectories[unit] = LocalTrajectory(self.clock[unit], float(offset))
+        return replace(self, trajectories=tuple(trajectories))
+
+
+def clock_units(clocks, names) -> ClockUnits:
+    """The units of the cameras' clocks (:class:`ClockUnits`), before their blocks are known.
+
+    Parameters
+    ----------
+    clocks : sequence of (ClockData or None)
+        Per camera (checked by the caller).
+    names : sequence of str
+        Camera names.
+    """
+    units: dict = {}
+    for j, c in enumerate(clocks):
+        if c is not None:
+            units.setdefault(j if c.shared is None else ("shared", c.shared), []).append(j)
+    cameras = tuple(tuple(v) for v in units.values())
+    for js in cameras:
+        c0 = clocks[js[0]]
+        for j in js[1:]:
+            c = clocks[j]
+            if not (c.half_window_s == c0.half_window_s
+                    and np.array_equal(c.mocap_stamps, c0.mocap_stamps)
+                    and np.array_equal(c.mocap_T, c0.mocap_T)):
+                raise InputError(f"cameras {names[js[0]]} and {names[j]} share the clock "
+                                 f"{c0.shared!r} but not its motion capture or half window")
+    return ClockUnits(clocks=tuple(clocks), cameras=cameras,
+                      family=tuple(offset_family(names[js[0]]) for js in cameras),
+                      unit_of_camera={j: u for u, js in enumerate(cameras) for j in js})

@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core import geometry as g
+from multieye.core.arguments import with_fields
 from multieye.core.errors import InputError, TooFewMeasurementsError
 from multieye.core.metrics import loop_residuals
 from multieye.solvers.checks import (
@@ -64,7 +65,7 @@ from multieye.solvers.checks import (
 )
 from multieye.solvers.joint import solve_joint
 
-__all__ = ["RejectedMeasurement", "ConsensusResult", "consensus", "measurement_residuals",
+__all__ = ["RejectedMeasurement", "ConsensusResult", "ConsensusOptions", "consensus", "measurement_residuals",
            "choose_poses", "check_alternatives"]
 
 F64 = NDArray[np.float64]
@@ -331,19 +332,12 @@ def _ransac_camera(A: F64, B: F64, thr_rot: float, thr_t: float, rng: np.random.
     return best_inl, best_choice, samples
 
 
-def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: float = 0.05,
-              names: Sequence[str] | None = None, max_samples: int = 500,
-              confidence: float = 0.999, seed: int | np.random.Generator | None = 0,
-              labels: Sequence[Sequence[str]] | None = None,
-              B_alternative: Sequence[F64] | None = None) -> ConsensusResult:
-    """Find the measurements that agree with one ``X^j`` per camera and a shared ``Y``.
+@dataclass(frozen=True)
+class ConsensusOptions:
+    """How :func:`consensus` samples and what it calls agreement.
 
-    Parameters
+    Attributes
     ----------
-    A, B : sequence of array_like, each shape (N_j, 4, 4)
-        One entry per camera, as for :func:`multieye.solve` (docs/conventions.md, section 2);
-        or ``A`` is a :class:`~multieye.solvers.checks.Measurements` validated before and
-        ``B`` is omitted (no checks run again).
     threshold_rot_deg : float
         Largest loop rotation residual of an inlier, degrees.
     threshold_trans_m : float
@@ -365,6 +359,32 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
         Per camera a second ``T_target_cam`` per measurement (the mirrored PnP pose of a
         single marker), rows all NaN where there is none; each measurement is then counted
         with the pose that agrees better (module docstring).
+    """
+
+    threshold_rot_deg: float = 5.0
+    threshold_trans_m: float = 0.05
+    names: Sequence[str] | None = None
+    max_samples: int = 500
+    confidence: float = 0.999
+    seed: int | np.random.Generator | None = 0
+    labels: Sequence[Sequence[str]] | None = None
+    B_alternative: Sequence[F64] | None = None
+
+
+def consensus(A, B=None, options: ConsensusOptions = ConsensusOptions(), **kw
+              ) -> ConsensusResult:
+    """Find the measurements that agree with one ``X^j`` per camera and a shared ``Y``.
+
+    Parameters
+    ----------
+    A, B : sequence of array_like, each shape (N_j, 4, 4)
+        One entry per camera, as for :func:`multieye.solve` (docs/conventions.md, section 2);
+        or ``A`` is a :class:`~multieye.solvers.checks.Measurements` validated before and
+        ``B`` is omitted (no checks run again).
+    options : ConsensusOptions
+        Or its fields as keyword arguments (``threshold_rot_deg=5.0, names=[...]``): the
+        thresholds, the sampling, the camera names, the measurements' labels and a single
+        marker's second pose.
 
     Returns
     -------
@@ -380,37 +400,58 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
     DegenerateMotionError
         The pooled rotations of all cameras are about a single axis.
     """
-    for name, v in (("threshold_rot_deg", threshold_rot_deg),
-                    ("threshold_trans_m", threshold_trans_m), ("confidence", confidence)):
+    opts = with_fields(options, kw, ConsensusOptions, "options")
+    _check_options(opts)
+    if isinstance(A, Measurements):
+        meas = given_measurements(A, B, opts.names)
+    else:
+        meas = check_measurements(A, B, names=check_names(opts.names, A),
+                                  per_camera_motion=False)
+    labels = _labels(opts.labels, meas)
+    As, Bs = meas.split(meas.A), meas.split(meas.B)
+    Balts = check_alternatives(opts.B_alternative, Bs)
+    try:
+        rng = np.random.default_rng(opts.seed)
+    except (TypeError, ValueError):
+        raise InputError(f"seed must be an int, a numpy Generator or None, got {opts.seed!r}"
+                         ) from None
+    thr = (opts.threshold_rot_deg, opts.threshold_trans_m)
+    inliers, choices, samples = [], [], []
+    for Aj, Bj, Balt in zip(As, Bs, Balts):
+        inl, choice, s = _ransac_camera(Aj, Bj, *thr, rng, opts.max_samples, opts.confidence,
+                                        Balt)
+        inliers.append(inl)
+        choices.append(choice)
+        samples.append(s)
+    inliers, X, Y, res = _settle(meas, As, Bs, Balts, inliers, choices, thr, labels)
+    return ConsensusResult(inliers=tuple(inliers), rejected=_rejected(inliers, res, thr, meas),
+                           X=X, Y=Y, rot_deg=tuple(r for r, _, _ in res),
+                           trans_m=tuple(t for _, t, _ in res),
+                           threshold_rot_deg=float(thr[0]), threshold_trans_m=float(thr[1]),
+                           samples=tuple(samples), alternative=tuple(c for _, _, c in res))
+
+
+def _check_options(opts: ConsensusOptions) -> None:
+    for name in ("threshold_rot_deg", "threshold_trans_m", "confidence"):
+        v = getattr(opts, name)
         if not _real(v):
             raise InputError(f"{name} must be a real number, got {v!r}")
         if name != "confidence" and not (np.isfinite(v) and v > 0):
             raise InputError(f"{name} must be a positive number, got {v!r}")
-    if not 0.0 < confidence < 1.0:
-        raise InputError(f"confidence must be in (0, 1), got {confidence}")
+    if not 0.0 < opts.confidence < 1.0:
+        raise InputError(f"confidence must be in (0, 1), got {opts.confidence}")
+    max_samples = opts.max_samples
     if isinstance(max_samples, bool) or not isinstance(max_samples, (int, np.integer)) \
             or max_samples < 1:
         raise InputError(f"max_samples must be a positive integer, got {max_samples!r}")
-    if isinstance(A, Measurements):
-        meas = given_measurements(A, B, names)
-    else:
-        meas = check_measurements(A, B, names=check_names(names, A), per_camera_motion=False)
-    names = meas.names
-    labels = _labels(labels, meas)
-    As, Bs = meas.split(meas.A), meas.split(meas.B)
-    Balts = check_alternatives(B_alternative, Bs)
-    try:
-        rng = np.random.default_rng(seed)
-    except (TypeError, ValueError):
-        raise InputError(f"seed must be an int, a numpy Generator or None, got {seed!r}") from None
-    inliers, choices, samples = [], [], []
-    for Aj, Bj, Balt in zip(As, Bs, Balts):
-        inl, choice, s = _ransac_camera(Aj, Bj, threshold_rot_deg, threshold_trans_m, rng,
-                                        max_samples, confidence, Balt)
-        inliers.append(inl)
-        choices.append(choice)
-        samples.append(s)
 
+
+def _settle(meas: Measurements, As, Bs, Balts, inliers, choices, thr, labels):
+    """Refit on the inliers of every camera together and rescore until the inliers (and
+    the poses chosen) no longer change (10 rounds at most).  Returns the inliers, ``X``,
+    ``Y`` and per camera the residuals (rotation, translation, choice)."""
+    threshold_rot_deg, threshold_trans_m = thr
+    names = meas.names
     for _ in range(10):
         for j, inl in enumerate(inliers):
             if inl.sum() < MIN_MEASUREMENTS:
@@ -434,18 +475,15 @@ def consensus(A, B=None, *, threshold_rot_deg: float = 5.0, threshold_trans_m: f
                 np.array_equal(a, b) for a, b in zip(new_choices, choices)):
             break
         inliers, choices = new, new_choices
+    return inliers, X, Y, res
 
-    rejected = []
+
+def _rejected(inliers, res, thr, meas: Measurements) -> tuple[RejectedMeasurement, ...]:
+    rejected, names = [], meas.names
     for j, (inl, (rot, trans, _)) in enumerate(zip(inliers, res)):
         for i in np.flatnonzero(~inl):
             rejected.append(RejectedMeasurement(
                 camera=names[j], index=int(i), rot_deg=float(rot[i]), trans_m=float(trans[i]),
                 reason=(f"outlier by consensus (loop residual {rot[i]:.1f} deg / "
-                        f"{trans[i]:.3f} m above threshold {threshold_rot_deg:g} deg / "
-                        f"{threshold_trans_m:g} m)")))
-    return ConsensusResult(inliers=tuple(inliers), rejected=tuple(rejected), X=X, Y=Y,
-                           rot_deg=tuple(r for r, _, _ in res),
-                           trans_m=tuple(t for _, t, _ in res),
-                           threshold_rot_deg=float(threshold_rot_deg),
-                           threshold_trans_m=float(threshold_trans_m), samples=tuple(samples),
-                           alternative=tuple(c for _, _, c in res))
+                        f"{trans[i]:.3f} m above threshold {thr[0]:g} deg / {thr[1]:g} m)")))
+    return tuple(rejected)

@@ -30,10 +30,12 @@ _SETUPS = {"eye-to-base": ("eye-on-hand", "cameras on the moved rig, target stat
 
 @dataclass(frozen=True)
 class Declared:
-    """What rig.yaml says, for the messages.
+    """What rig.yaml says, for the messages and the hypotheses.
 
     Attributes
     ----------
+    setup : {"eye-to-base", "eye-on-hand"}
+        rig.yaml's ``setup``.
     spacing_m : float or None
         The target's ``spacing``.
     mocap_unit : str
@@ -52,6 +54,7 @@ class Declared:
         :func:`multieye.estimate.sensor.sensor_bounds`).
     """
 
+    setup: str = "eye-to-base"
     spacing_m: float | None = None
     mocap_unit: str = "m"
     mocap_pose: str | None = None
@@ -217,7 +220,8 @@ def _quaternion_finding(desc: str, before: float, after: float, declared: Declar
                    f"{where}", None, before, after, {})
 
 
-def _setup_finding(setup: str, before: float, after: float, declared: Declared) -> Finding:
+def _setup_finding(before: float, after: float, declared: Declared) -> Finding:
+    setup = declared.setup
     other, meaning, pose, inverse = _SETUPS[setup]
     given = declared.mocap_pose or pose
     flipped = {pose: inverse, inverse: pose}.get(given, inverse)

@@ -25,6 +25,12 @@ from multieye.core.errors import CalibrationError
 from multieye.core.intrinsics import Intrinsics
 from multieye.solvers.checks import Measurements
 from multieye.solvers.joint import solve_joint
+from scipy.spatial.transform import Rotation
+from multieye.core.metrics import chordal_angle
+from multieye.estimate.clock import estimate_offset
+from multieye.estimate.pairing import pair_in_time
+from multieye.core.errors import InputError
+from dataclasses import replace
 
 __all__ = ["CameraEvidence", "Fit", "noise", "fit", "mocap_A", "scaled_A", "scale_factor",
            "permuted", "QUATERNION_ORDERS", "focal_search", "resize_search", "clock_search",
@@ -159,7 +165,6 @@ def noise(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> F64:
 def _residual(A: F64, B: F64, X: F64, Y: F64) -> F64:
     """The predicted target pose ``inv(X) inv(A_i) Y`` against the measured ``inv(B_i)`` as
     a left perturbation in the camera frame: (n, 6), rotation vector then translation."""
-    from scipy.spatial.transform import Rotation
 
     pred = g.inv(X) @ g.inv(A) @ Y
     meas = g.inv(B)
@@ -285,8 +290,8 @@ QUATERNION_ORDERS = (((1, 2, 3, 0), "w x y z (scalar first) where x y z w (scala
 
 def _pnp_poses(cam: CameraEvidence, intr: Intrinsics) -> F64 | None:
     """T_cam_target of every measurement by PnP with other intrinsics (None if one fails)."""
-    from multieye.imaging.detect import Detection
-    from multieye.imaging.pnp import estimate_pose
+    from multieye.imaging.detect import Detection  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
+    from multieye.imaging.pnp import estimate_pose  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
 
     out = []
     for obj, img in zip(cam.object_points, cam.image_points):
@@ -349,7 +354,6 @@ def focal_search(cam: CameraEvidence, noise: F64) -> tuple[float, float, float] 
 
 def _log(T: F64) -> F64:
     """Twists (rotation vector, translation) of transforms near the identity."""
-    from scipy.spatial.transform import Rotation
 
     return np.concatenate([Rotation.from_matrix(T[:, :3, :3]).as_rotvec(), T[:, :3, 3]], axis=1)
 
@@ -385,9 +389,6 @@ def clock_search(setup: str, cam: CameraEvidence, noise: F64, max_offset_s: floa
     offset cannot be estimated (too few images, motion capture sparser than the images or
     not a continuous motion, pose pairs recorded together, a weak correlation, an optimum at
     the edge of the search)."""
-    from multieye.core.metrics import chordal_angle
-    from multieye.estimate.clock import estimate_offset
-    from multieye.estimate.pairing import pair_in_time
 
     if cam.stamps is None or cam.mocap_stamps is None or len(cam.stamps) < 10:
         return None
@@ -463,8 +464,8 @@ def _lens_model(intr: Intrinsics) -> str:
 
 
 def _pnp_with_rms(cam: CameraEvidence, intr: Intrinsics):
-    from multieye.imaging.detect import Detection
-    from multieye.imaging.pnp import estimate_pose
+    from multieye.imaging.detect import Detection  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
+    from multieye.imaging.pnp import estimate_pose  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
 
     poses, rms = [], []
     for obj, img in zip(cam.object_points, cam.image_points):
@@ -485,8 +486,7 @@ def lens_search(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTe
     reprojection and loop residuals with those of the given lens; None when the camera has
     fewer than :data:`MIN_LENS_VIEWS` views, fewer than 8 points per view (one marker's 4
     corners do not determine a lens), or the fit fails."""
-    from multieye.core.errors import InputError
-    from multieye.imaging.calibrate import initial_intrinsics
+    from multieye.imaging.calibrate import initial_intrinsics  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
 
     if not cam.has_points or len(cam.A) < MIN_LENS_VIEWS:
         return None
@@ -507,7 +507,6 @@ def lens_search(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTe
     if given is None or fitted is None:
         return None
     # both lenses' poses weighted with the pixel noise the fitted lens leaves
-    from dataclasses import replace
 
     w = noise(replace(cam, rms_px=fitted[1]), mocap_sigma)
     return LensTest(freed, float(np.median(given[1])), float(np.median(fitted[1])),

@@ -46,271 +46,20 @@ Pose derivatives at zero perturbation, with ``p_y = R_Y p + t_Y`` (marker or wor
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import NDArray
 
-from multieye.core.arguments import camera_names, real_array
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
 from multieye.core.lie import left_jacobian_inv, log_so3
-from multieye.core.problem import SETUPS
-from multieye.estimate.clock_residuals import ClockData, ClockUnits
-from multieye.optimize.blocks import Blocks, ResidualGroup, SegmentRange
+from multieye.optimize.blocks import ResidualGroup, SegmentRange
 
-__all__ = ["ImageData", "PixelResiduals", "MocapPriors"]
+__all__ = ["PixelResiduals", "FreePoseResiduals", "MocapPriors", "intrinsics_family"]
 
 F64 = NDArray[np.float64]
-
-
-def _as_pose(T, what: str) -> F64:
-    T = real_array(T, what, expected="a finite 4x4 transform")
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"{what} must be a finite 4x4 transform, got shape {T.shape}")
-    return T
-
-
-def _view(item, where: str, pose: str, min_points: int):
-    """One image's (object_points, image_points, pose), checked: the arrays, their shapes, the
-    finite points (at least ``min_points``) and the pose; returns them and the finite mask."""
-    try:
-        o, u, T = item
-    except (TypeError, ValueError):
-        raise InputError(f"{where}: expected (object_points, image_points, {pose})") from None
-    o = real_array(o, f"{where}: object points", expected="an array (n, 3)")
-    u = real_array(u, f"{where}: image points", expected="an array (n, 2)")
-    if o.ndim != 2 or o.shape[1] != 3 or u.shape != (len(o), 2):
-        raise InputError(f"{where}: object points must be (n, 3) and image points "
-                         f"(n, 2), got {o.shape} and {u.shape}")
-    ok = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(u), axis=1)
-    if ok.sum() < min_points:
-        raise InputError(f"{where}: " + ("no finite target point" if min_points == 1 else
-                                         f"fewer than {min_points} finite target points"))
-    return o, u, _as_pose(T, f"{where}: {pose}"), ok
-
-
-class ImageData:
-    """Target points, pixels and motion-capture poses of every image, stacked.
-
-    Images are numbered camera by camera (N in all); points image by image.  The images of
-    cameras without a clock whose motion-capture poses are bitwise equal share one instant
-    (one block of ``M``, one prior); every other image has an instant of its own, so K = N
-    when no pose is repeated (module docstring).
-
-    Attributes
-    ----------
-    instant : ndarray of int, shape (N,)
-        Block of ``M`` (instant) of each image, numbered in the order of first appearance.
-    n_instants : int
-        K, the number of blocks of ``M``.
-    instant_image : ndarray of int, shape (K,)
-        The first image of each instant.
-    mocap_measured : ndarray, shape (N, 4, 4)
-        The given motion-capture pose of each image.
-
-    Parameters
-    ----------
-    setup : {"eye-to-base", "eye-on-hand"}
-    observations : sequence over cameras of sequence of (object_points, image_points, T_world_mocap)
-        ``observations[j][i]``: target points of image i of camera j, (n, 3), metres in the
-        ``target`` frame; their pixels, (n, 2); the motion-capture pose at that image's
-        time, (4, 4).  Points with non-finite coordinates are left out.
-    intrinsics : sequence of Intrinsics
-        One per camera.
-    names : sequence of str, optional
-        Camera names for messages.
-    free_intrinsics : sequence of bool, optional
-        Per camera: estimate its intrinsics (default: all held fixed).
-    intrinsics_observations : sequence over cameras of sequence of (object_points, image_points, T_cam_target), optional
-        Images without motion capture that only inform a camera's intrinsics (cameras whose
-        intrinsics are estimated): the target points, their pixels and a starting
-        ``T_cam_target`` (PnP).  An empty list for a camera without such images.
-    clocks : sequence of (ClockData or None), optional
-        Per camera: its clock offset is an unknown (family ``dt:<camera>``, or
-        ``dt:<first camera>`` of a shared clock: :class:`ClockUnits`) and its images'
-        motion-capture priors compare ``M_i`` with the smoothed trajectory at
-        ``t_i + delta`` (:mod:`multieye.estimate.clock_residuals`); the image stamps are the
-        camera's images in the order of ``observations[j]``.  None: the given poses are the
-        measurements (default for every camera).
-    """
-
-    def __init__(self, setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
-                 names: Sequence[str] | None = None, *,
-                 free_intrinsics: Sequence[bool] | None = None,
-                 intrinsics_observations: Sequence | None = None,
-                 clocks: Sequence | None = None):
-        if not isinstance(setup, str) or setup not in SETUPS:
-            raise InputError(f"setup must be one of {SETUPS}, got {setup!r}")
-        for label, arg in (("observations", observations), ("intrinsics", intrinsics)):
-            if arg is None or isinstance(arg, (str, bytes)) or not hasattr(arg, "__iter__"):
-                raise InputError(f"{label} must be a list with one entry per camera, got "
-                                 f"{type(arg).__name__}")
-        observations = list(observations)
-        intrinsics = list(intrinsics)
-        m = len(observations)
-        if m == 0:
-            raise InputError("no cameras given: observations is empty")
-        if len(intrinsics) != m:
-            raise InputError(f"{m} cameras of observations but {len(intrinsics)} intrinsics; "
-                             "give one Intrinsics per camera")
-        bad = [j for j, c in enumerate(intrinsics) if not isinstance(c, Intrinsics)]
-        if bad:
-            raise InputError(f"intrinsics[{bad[0]}] must be a multieye Intrinsics, got "
-                             f"{type(intrinsics[bad[0]]).__name__}")
-        names = camera_names(names, m)
-        self.names = names if names is not None else tuple(f"cam{j}" for j in range(m))
-        self.setup = setup
-        self.intrinsics = tuple(intrinsics)
-        self.m = m
-        obj, uv, mocap, img_of_point, cam_of_image, counts, keep = [], [], [], [], [], [], []
-        for j, images in enumerate(observations):
-            if images is None or isinstance(images, (str, bytes)) or not hasattr(images,
-                                                                                  "__iter__"):
-                raise InputError(f"observations[{j}] must be a list of (object_points, "
-                                 f"image_points, T_world_mocap), got {type(images).__name__}")
-            images = list(images)
-            if not images:
-                raise InputError(f"camera {self.names[j]} has no images")
-            counts.append(len(images))
-            for i, item in enumerate(images):
-                where = f"camera {self.names[j]}, image {i}"
-                o, u, M, ok = _view(item, where, "T_world_mocap", 1)
-                obj.append(o[ok])
-                uv.append(u[ok])
-                keep.append(ok)
-                mocap.append(M)
-                img_of_point.append(np.full(int(ok.sum()), len(mocap) - 1))
-                cam_of_image.append(j)
-        self.keep = keep                                       # finite points of each image
-        self.object_points = np.concatenate(obj)
-        self.image_points = np.concatenate(uv)
-        self.mocap_measured = np.stack(mocap)
-        self.image = np.concatenate(img_of_point)              # (P,) image of each point
-        self.cam_of_image = np.asarray(cam_of_image)           # (N,)
-        self.camera = self.cam_of_image[self.image]            # (P,)
-        self.counts = np.asarray(counts)                       # images per camera
-        self.n_images = len(mocap)
-        self.n_points = len(self.object_points)
-        self.image_starts = np.flatnonzero(np.diff(self.image, prepend=-1))     # (N,)
-        self.camera_slices = [slice(int(a), int(b)) for a, b in zip(
-            np.searchsorted(self.camera, np.arange(m)),
-            np.searchsorted(self.camera, np.arange(m), side="right"))]
-        free = [False] * m if free_intrinsics is None else [bool(f) for f in free_intrinsics]
-        if len(free) != m:
-            raise InputError(f"free_intrinsics has {len(free)} entries for {m} cameras")
-        self.free = tuple(free)
-        self.clocks = tuple(clocks) if clocks is not None else (None,) * m
-        if len(self.clocks) != m:
-            raise InputError(f"clocks has {len(self.clocks)} entries for {m} cameras")
-        for j, c in enumerate(self.clocks):
-            if c is not None and not isinstance(c, ClockData):
-                raise InputError(f"clocks[{j}] must be a ClockData or None, got "
-                                 f"{type(c).__name__}")
-            if c is not None and len(c.image_stamps) != counts[j]:
-                raise InputError(f"camera {self.names[j]}: {len(c.image_stamps)} image stamps "
-                                 f"for {counts[j]} images")
-        #: The cameras' clocks: one offset and one trajectory per camera or shared clock.
-        self.units = ClockUnits(self.clocks, self.names)
-        self._instants()
-        self.extra = (None if intrinsics_observations is None else
-                      IntrinsicsImages(intrinsics_observations, self.names, self.free))
-        if self.extra is not None and self.extra.n_images == 0:
-            self.extra = None
-
-    def _instants(self) -> None:
-        """Number the instants: one per distinct given pose of the cameras without a clock
-        (bitwise equal 4x4), one per distinct stamp of a shared clock, one per image of a
-        camera with a clock of its own."""
-        seen: dict = {}
-        instant = np.empty(self.n_images, dtype=np.int64)
-        first = []
-        in_camera = np.arange(self.n_images) - np.repeat(np.cumsum(self.counts) - self.counts,
-                                                         self.counts)
-        for i, (M, j) in enumerate(zip(self.mocap_measured, self.cam_of_image)):
-            key = (M.tobytes() if self.clocks[j] is None
-                   else self.units.key(int(j), int(in_camera[i])))
-            k = seen.get(key) if key is not None else None
-            if k is None:
-                k = len(first)
-                first.append(i)
-                if key is not None:
-                    seen[key] = k
-            instant[i] = k
-        self.instant = instant
-        self.instant_image = np.asarray(first, dtype=np.int64)
-        self.n_instants = len(first)
-        self.units.build(instant, self.instant_image, self.cam_of_image, in_camera)
-
-    def families(self, X: F64, Y: F64, M: F64 | None = None, *,
-                 intrinsics: Sequence[Intrinsics] | None = None,
-                 free_poses: F64 | None = None) -> list[Blocks]:
-        """Block families: ``X`` (m), ``Y`` (1), ``M`` (one per instant, (K, 4, 4)),
-        ``K:<camera>`` for every camera whose intrinsics are estimated (:attr:`free`; values
-        from ``intrinsics``, default the given ones), ``dt:<camera>`` for every camera with a
-        clock (its starting offset), and ``T`` for the intrinsics-only images (``free_poses``,
-        default their starting poses).  ``M`` defaults to :meth:`mocap_start`."""
-        M = self.mocap_start() if M is None else M
-        intrinsics = self.intrinsics if intrinsics is None else intrinsics
-        fams = [Blocks("X", X, "se3-left"), Blocks("Y", np.asarray(Y)[None], "se3-left")]
-        fams += [Blocks(intrinsics_family(n), intrinsics[j].params[None], "euclidean")
-                 for j, n in enumerate(self.names) if self.free[j]]
-        fams += self.units.families()
-        fams.append(Blocks("M", M, "se3-right", eliminate=True))
-        if self.extra is not None:
-            T = self.extra.poses if free_poses is None else free_poses
-            fams.append(Blocks("T", T, "se3-left", eliminate=True))
-        return fams
-
-    def groups(self, sigma_px: float, sigma_rot: float, sigma_t: float) -> list[ResidualGroup]:
-        """One pixel group per camera, the motion-capture priors, then one group of
-        intrinsics-only images per camera that has them, at these noise levels."""
-        out: list[ResidualGroup] = [PixelResiduals(self, j, sigma_px, self.free[j])
-                                    for j in range(self.m)]
-        timed = [j for j, c in enumerate(self.clocks) if c is not None]
-        plain = np.flatnonzero(~np.isin(self.cam_of_image[self.instant_image], timed))
-        if plain.size:                                  # one prior per instant, not per image
-            out.append(MocapPriors(self.mocap_measured[self.instant_image], sigma_rot, sigma_t,
-                                   plain))
-        out += self.units.priors(sigma_rot, sigma_t)
-        if self.extra is not None:
-            out += self.extra.groups(self, sigma_px)
-        return out
-
-    def mocap_start(self, offsets: Sequence[float | None] | None = None) -> F64:
-        """The motion-capture poses the refinement starts from, one per instant (K, 4, 4):
-        the given ones, and for a clock the smoothed trajectory at ``t_i + offset``
-        (``offsets`` per camera, a shared clock taking its first camera's; default each
-        clock's starting offset)."""
-        out = self.mocap_measured[self.instant_image]
-        for u, traj in enumerate(self.units.trajectories):
-            j = self.units.cameras[u][0]
-            d = self.units.clock[u].offset if offsets is None or offsets[j] is None else offsets[j]
-            out[self.units.blocks[u]] = traj.at(float(d))[0]
-        return out
-
-    def split_images(self, arr: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Per-image array (N, ...) to one array per camera."""
-        return tuple(np.split(arr, np.cumsum(self.counts)[:-1]))
-
-    def split_points(self, arr: np.ndarray, fill) -> tuple[tuple[np.ndarray, ...], ...]:
-        """Per-point array (P,) to per camera, per image arrays over the input's points.
-
-        Points left out for non-finite coordinates get ``fill``.
-        """
-        per_image = []
-        for values, ok in zip(np.split(arr, self.image_starts[1:]), self.keep):
-            full = np.full(ok.shape, fill, dtype=arr.dtype)
-            full[ok] = values
-            per_image.append(full)
-        bounds = np.concatenate([[0], np.cumsum(self.counts)])
-        return tuple(tuple(per_image[bounds[j]:bounds[j + 1]]) for j in range(self.m))
-
-    def where(self, image: int) -> str:
-        """``camera NAME, image I`` of a global image number."""
-        j = int(self.cam_of_image[image])
-        return f"camera {self.names[j]}, image {image - int(np.sum(self.counts[:j]))}"
 
 
 def _cross(a: F64, v: F64) -> F64:
@@ -344,61 +93,6 @@ def _current_intrinsics(values: Mapping[str, F64], name: str, fixed: Intrinsics,
         return None
 
 
-class IntrinsicsImages:
-    """Images without motion capture that only inform the intrinsics, stacked camera by camera.
-
-    Attributes
-    ----------
-    poses : ndarray, shape (n_images, 4, 4)
-        Starting ``T_cam_target`` of each image.
-    camera : ndarray of int, shape (n_images,)
-    object_points, image_points : ndarray, shape (P, 3), (P, 2)
-    image : ndarray of int, shape (P,)
-        Image of each point.
-    """
-
-    def __init__(self, per_camera: Sequence, names: Sequence[str], free: Sequence[bool]):
-        per_camera = list(per_camera)
-        if len(per_camera) != len(names):
-            raise InputError(f"intrinsics_observations has {len(per_camera)} entries for "
-                             f"{len(names)} cameras (give an empty list for a camera without "
-                             "such images)")
-        poses, cams, obj, uv, img = [], [], [], [], []
-        for j, images in enumerate(per_camera):
-            images = list(images or ())
-            if images and not free[j]:
-                raise InputError(f"camera {names[j]}: images for the intrinsics given, but its "
-                                 "intrinsics are not estimated")
-            for i, item in enumerate(images):
-                where = f"camera {names[j]}, intrinsics image {i}"
-                o, u, T, ok = _view(item, where, "T_cam_target", 4)
-                obj.append(o[ok])
-                uv.append(u[ok])
-                img.append(np.full(int(ok.sum()), len(poses)))
-                poses.append(T)
-                cams.append(j)
-        self.names = tuple(names)
-        self.n_images = len(poses)
-        if not poses:
-            return
-        self.poses = np.stack(poses)
-        self.camera = np.asarray(cams)
-        self.object_points = np.concatenate(obj)
-        self.image_points = np.concatenate(uv)
-        self.image = np.concatenate(img)
-
-    def groups(self, data: ImageData, sigma_px: float) -> list[ResidualGroup]:
-        """One :class:`FreePoseResiduals` per camera that has such images."""
-        out = []
-        for j in np.unique(self.camera):
-            pts = self.camera[self.image] == j
-            first = int(np.flatnonzero(self.camera == j)[0])
-            out.append(FreePoseResiduals(self.names[j], data.intrinsics[j],
-                                         self.object_points[pts], self.image_points[pts],
-                                         self.image[pts], first, sigma_px))
-        return out
-
-
 class PixelResiduals(ResidualGroup):
     """One camera's target-point pixel residuals over ``sigma_px`` (module docstring).
 
@@ -418,7 +112,7 @@ class PixelResiduals(ResidualGroup):
         Estimate the camera's intrinsics (a slot of their own).
     """
 
-    def __init__(self, data: ImageData, camera: int, sigma_px: float,
+    def __init__(self, data, camera: int, sigma_px: float,
                  free_intrinsics: bool = False):
         images = np.flatnonzero(data.cam_of_image == camera)
         self.first = int(images[0])

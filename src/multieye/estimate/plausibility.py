@@ -76,6 +76,7 @@ Synopsis
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from collections.abc import Sequence
 
 import numpy as np
@@ -180,6 +181,32 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
     base = h.fit(A, B, weights)
     singles = [h.fit([c.A], [c.B], [w]) for c, w in zip(cams, weights)]
     tested: list[str] = []
+    declared = replace(declared, setup=setup)
+    rig = _rig_findings(cams, weights, base, declared, tested)
+    per_camera = {}
+    for j, (cam, w, single) in enumerate(zip(cams, weights, singles)):
+        if single.cost >= POOR_COST:
+            per_camera[j] = _camera_findings(cam, w, declared, clock, max_time_offset_s, tested)
+    findings = _select(rig, per_camera, len(cams))
+    for cam in cams:       # the lens, on every camera: its own residuals hide it elsewhere
+        if cam.has_points and not cam.intrinsics_estimated and not any(
+                f.camera == cam.name and f.cause == "intrinsics" for f in findings):
+            lens = _lens_finding(cam, sigma, tested)
+            findings += () if lens is None else (lens,)
+    if not findings:
+        findings = tuple(_unexplained(c.name, f.cost, tested) for c, f in zip(cams, singles)
+                         if f.cost >= UNEXPLAINED_COST)
+    return Plausibility(findings=findings, cost=base.cost,
+                        camera_cost={c.name: s.cost for c, s in zip(cams, singles)},
+                        tested=tuple(tested))
+
+
+def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: Declared,
+                  tested: list[str]) -> list[tuple[Finding, tuple]]:
+    """The whole-rig hypotheses (scale, quaternion order, setup, inverted poses) that fit
+    better than ``base``, with their per-camera costs; each hypothesis tested is added to
+    ``tested``."""
+    A, B, setup = [c.A for c in cams], [c.B for c in cams], declared.setup
     rig: list[tuple[Finding, tuple]] = []     # whole-rig findings, with their per-camera costs
 
     def consider(fit: h.Fit, make, gain: float) -> None:
@@ -207,7 +234,7 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
                  DISCRETE_GAIN)
     tested.append("setup")
     consider(h.fit([g.inv(a) for a in A], B, weights),
-             lambda b, a: _setup_finding(setup, b, a, declared), DISCRETE_GAIN)
+             lambda b, a: _setup_finding(b, a, declared), DISCRETE_GAIN)
     posed = [j for j, c in enumerate(cams) if c.image_points is None]
     if posed:
         tested.append("inverted-poses")
@@ -218,31 +245,15 @@ def check_plausibility(setup: str, cameras: Sequence[CameraEvidence], *,
                 "inverted-poses", f"inverted poses: the precomputed target poses of {names} "
                 f"fit as their inverses ({_costs(b, a)}): the poses file probably holds "
                 "T_target_cam, not T_cam_target; invert them", None, b, a, {}), DISCRETE_GAIN)
-
-    per_camera = {}
-    for j, (cam, w, single) in enumerate(zip(cams, weights, singles)):
-        if single.cost >= POOR_COST:
-            per_camera[j] = _camera_findings(setup, cam, w, clock, max_time_offset_s, tested)
-    findings = _select(rig, per_camera, len(cams))
-    for cam in cams:       # the lens, on every camera: its own residuals hide it elsewhere
-        if cam.has_points and not cam.intrinsics_estimated and not any(
-                f.camera == cam.name and f.cause == "intrinsics" for f in findings):
-            lens = _lens_finding(cam, sigma, tested)
-            findings += () if lens is None else (lens,)
-    if not findings:
-        findings = tuple(_unexplained(c.name, f.cost, tested) for c, f in zip(cams, singles)
-                         if f.cost >= UNEXPLAINED_COST)
-    return Plausibility(findings=findings, cost=base.cost,
-                        camera_cost={c.name: s.cost for c, s in zip(cams, singles)},
-                        tested=tuple(tested))
+    return rig
 
 
-def _camera_findings(setup: str, cam: CameraEvidence, w, clock: bool, max_offset_s: float,
-                     tested: list[str]) -> list[Finding]:
+def _camera_findings(cam: CameraEvidence, w, declared: Declared, clock: bool,
+                     max_offset_s: float, tested: list[str]) -> list[Finding]:
     """The per-camera hypotheses: clock offset, focal length, image size."""
     found = []
     if clock:
-        res = h.clock_search(setup, cam, w, max_offset_s)
+        res = h.clock_search(declared.setup, cam, w, max_offset_s)
         if res is not None:
             tested.append(f"time-offset:{cam.name}")
             off, std, before, after = res

@@ -15,7 +15,7 @@ motion-capture pose ``M_k`` of every motion-capture measurement, observed throug
 (``rho`` applied per residual component).  Images given the same motion-capture pose
 (bitwise equal: cameras triggered together) share one ``M_k`` and its one prior, so a
 measurement counts once however many cameras saw the target at its instant
-(:class:`multieye.estimate.image_residuals.ImageData`).  The residuals, their analytic
+(:class:`multieye.estimate.image_data.ImageData`).  The residuals, their analytic
 Jacobians and the parameterisation are in :mod:`multieye.estimate.image_residuals`; the
 minimisation is the engine's (:mod:`multieye.optimize`): Levenberg-Marquardt with the
 motion-capture poses eliminated by the Schur complement, cost linear in the points.
@@ -60,18 +60,20 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import chdtri  # chi-square quantiles; scipy.stats costs 0.66 s to import
 
-from multieye.core.arguments import real_array
+from multieye.core.arguments import transform, with_fields
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.robust_loss import LOSSES, gaussian_kappa, rho
 from multieye.estimate.clock_residuals import ClockData
-from multieye.estimate.image_residuals import ImageData, intrinsics_family
+from multieye.estimate.image_data import ImageData, image_data
+from multieye.estimate.image_residuals import intrinsics_family
 # estimate_mocap_noise is named here too: it is the plain form of this module's estimate
 from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR, estimate_mocap_noise
 from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
 
 __all__ = [
     "refine_images",
+    "RefineOptions",
     "RefinementResult",
     "estimate_mocap_noise",
     "DEFAULT_MOCAP_ROT_SIGMA_RAD",
@@ -320,16 +322,67 @@ def _variance_components(data: ImageData, fams, *, s_px: float, s_rot: float, s_
     return float(new_px), float(new_rot), float(new_t), float(red[0]), float(red[1])
 
 
+@dataclass(frozen=True)
+class RefineOptions:
+    """How :func:`refine_images` refines, and what it knows per camera besides the images.
+
+    Attributes
+    ----------
+    mocap_rot_sigma_rad : float or None
+        Standard deviation of each component of the rotation-vector error of a motion-capture
+        pose, in the marker (body) frame, radians.  Default 0.1 degrees.
+    mocap_trans_sigma_m : float or None
+        Standard deviation of each coordinate of its position error, metres.  Default 0.3 mm.
+        Either mocap sigma may be None: then both are estimated by variance components
+        (module docstring), alternating with the refinement until they settle.
+    pixel_sigma : float, optional
+        Standard deviation of each pixel coordinate of a detected target point.  Estimated
+        from the data when not given (module docstring), and the covariance scaled with it.
+    loss : {"huber", "linear", "soft_l1", "cauchy", "arctan"}
+        scipy's robust loss, applied to every normalised residual component.
+    f_scale : float
+        Threshold of the loss in standard deviations (default 2: 99 % efficient on Gaussian
+        noise, so the covariance stays within 1 % of the Cramér-Rao bound).
+    max_iter : int
+        Levenberg-Marquardt iterations per pass at most.
+    tol : float
+        Stop when an iteration lowers the cost by less than ``tol`` times the cost (1e-8:
+        within about 1 % of a standard deviation of the optimum; ``sqrt(tol)`` while the
+        pixel noise is still being estimated).
+    names, free_intrinsics, intrinsics_observations
+        :func:`multieye.estimate.image_data.image_data`.
+    clocks : sequence of (ClockData or None), optional
+        Per camera: estimate its clock offset in the problem, from
+        ``ClockData(image_stamps, mocap_stamps, mocap_T, offset=start)`` (the camera's image
+        stamps in the order of ``observations[j]``, its motion-capture stream and a starting
+        offset): the mocap pose of each of its images is then the locally smoothed trajectory
+        at ``t_i + offset`` (:mod:`multieye.estimate.clock_residuals`; the poses given in
+        ``observations[j]`` are not used), and the motion-capture noise is that of one
+        sample.  Unstated motion-capture noise is then estimated from the smoothing's
+        residuals.  Cameras stamped by one clock (triggered together) pass ClockData with the
+        same ``shared`` name, each with its own image stamps: they get one offset (family
+        ``dt:<first of them>``) and their images with bitwise equal stamps one pose block
+        and one prior.  The offsets and their standard deviations are
+        ``RefinementResult.time_offsets`` and ``time_offset_std_s`` (per camera; equal on a
+        shared clock).
+    """
+
+    mocap_rot_sigma_rad: float | None = DEFAULT_MOCAP_ROT_SIGMA_RAD
+    mocap_trans_sigma_m: float | None = DEFAULT_MOCAP_TRANS_SIGMA_M
+    pixel_sigma: float | None = None
+    loss: str = "huber"
+    f_scale: float = DEFAULT_F_SCALE
+    max_iter: int = 100
+    tol: float = 1e-8
+    names: Sequence[str] | None = None
+    free_intrinsics: Sequence[bool] | None = None
+    intrinsics_observations: Sequence | None = None
+    clocks: Sequence[ClockData | None] | None = None
+
+
 def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
-                  X0: ArrayLike, Y0: ArrayLike, *,
-                  mocap_rot_sigma_rad: float | None = DEFAULT_MOCAP_ROT_SIGMA_RAD,
-                  mocap_trans_sigma_m: float | None = DEFAULT_MOCAP_TRANS_SIGMA_M,
-                  pixel_sigma: float | None = None, loss: str = "huber",
-                  f_scale: float = DEFAULT_F_SCALE, names: Sequence[str] | None = None,
-                  max_iter: int = 100, tol: float = 1e-8,
-                  free_intrinsics: Sequence[bool] | None = None,
-                  intrinsics_observations: Sequence | None = None,
-                  clocks: Sequence[ClockData | None] | None = None) -> RefinementResult:
+                  X0: ArrayLike, Y0: ArrayLike, options: RefineOptions = RefineOptions(),
+                  **kw) -> RefinementResult:
     """Maximum-likelihood refinement of every ``X^j`` and ``Y`` from pixels and mocap poses.
 
     Parameters
@@ -348,46 +401,10 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
         Starting ``T_world_cam`` / ``T_body_cam`` (the closed form, :func:`multieye.solve`).
     Y0 : array_like, shape (4, 4)
         Starting ``T_marker_target`` / ``T_world_target``.
-    mocap_rot_sigma_rad : float
-        Standard deviation of each component of the rotation-vector error of a motion-capture
-        pose, in the marker (body) frame, radians.  Default 0.1 degrees.
-    mocap_trans_sigma_m : float
-        Standard deviation of each coordinate of its position error, metres.  Default 0.3 mm.
-        Either mocap sigma may be None: then both are estimated by variance components
-        (module docstring), alternating with the refinement until they settle.
-    pixel_sigma : float, optional
-        Standard deviation of each pixel coordinate of a detected target point.  Estimated
-        from the data when not given (module docstring), and the covariance scaled with it.
-    loss : {"huber", "linear", "soft_l1", "cauchy", "arctan"}
-        scipy's robust loss, applied to every normalised residual component.
-    f_scale : float
-        Threshold of the loss in standard deviations (default 2: 99 % efficient on Gaussian
-        noise, so the covariance stays within 1 % of the Cramér-Rao bound).
-    names : sequence of str, optional
-        Camera names for messages.
-    max_iter : int
-        Levenberg-Marquardt iterations per pass at most.
-    tol : float
-        Stop when an iteration lowers the cost by less than ``tol`` times the cost; 1e-8
-        leaves the parameters within
-        about 1 % of a standard deviation of the optimum.  While the pixel noise is still
-        being estimated, passes stop at ``sqrt(tol)``.
-    free_intrinsics, intrinsics_observations
-        :class:`multieye.estimate.image_residuals.ImageData`.
-    clocks : sequence of (ClockData or None), optional
-        Per camera: estimate its clock offset in the problem, from
-        ``ClockData(image_stamps, mocap_stamps, mocap_T, offset=start)`` (the camera's image
-        stamps in the order of ``observations[j]``, its motion-capture stream and a starting
-        offset): the mocap pose of each of its images is then the locally smoothed trajectory
-        at ``t_i + offset`` (:mod:`multieye.estimate.clock_residuals`; the poses given in
-        ``observations[j]`` are not used), and the motion-capture noise is that of one
-        sample.  Unstated motion-capture noise is then estimated from the smoothing's
-        residuals.  Cameras stamped by one clock (triggered together) pass ClockData with the
-        same ``shared`` name, each with its own image stamps: they get one offset (family
-        ``dt:<first of them>``) and their images with bitwise equal stamps one pose block
-        and one prior.  The offsets and their standard deviations are
-        ``RefinementResult.time_offsets`` and ``time_offset_std_s`` (per camera; equal on a
-        shared clock).
+    options : RefineOptions
+        Or its fields as keyword arguments (``pixel_sigma=0.3, clocks=...``): the noise
+        levels, the loss, the stopping rule, and per camera its name, whether its intrinsics
+        are estimated (with its intrinsics-only images) and its clock.
 
     Returns
     -------
@@ -410,14 +427,15 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     (True, (18, 18))
     """
     start = time.perf_counter()
-    noise = _given_noise(loss, f_scale, mocap_rot_sigma_rad, mocap_trans_sigma_m, pixel_sigma,
-                         max_iter)
-    data = ImageData(setup, observations, intrinsics, names, free_intrinsics=free_intrinsics,
-                     intrinsics_observations=intrinsics_observations, clocks=clocks)
+    opts = with_fields(options, kw, RefineOptions, "options")
+    noise = _given_noise(opts)
+    data = image_data(setup, observations, intrinsics, opts.names,
+                      free_intrinsics=opts.free_intrinsics,
+                      intrinsics_observations=opts.intrinsics_observations, clocks=opts.clocks)
     fams, noise = _start(data, X0, Y0, noise)
-    fams, noise, res, counts = _solve(data, fams, noise, loss=loss, f_scale=noise.f_scale,
-                                      max_iter=int(max_iter), tol=tol)
-    return _result(data, fams, noise, res, counts, loss=loss, start=start)
+    data, fams, noise, res, counts = _solve(data, fams, noise, loss=opts.loss,
+                                            max_iter=int(opts.max_iter), tol=opts.tol)
+    return _result(data, fams, noise, res, counts, loss=opts.loss, start=start)
 
 
 @dataclass(frozen=True)
@@ -433,22 +451,21 @@ class _Noise:
     f_scale: float
 
 
-def _given_noise(loss, f_scale, mocap_rot_sigma_rad, mocap_trans_sigma_m, pixel_sigma,
-                 max_iter) -> _Noise:
+def _given_noise(opts: RefineOptions) -> _Noise:
     """The options of :func:`refine_images` checked, and the noise levels they state."""
+    loss, max_iter = opts.loss, opts.max_iter
     if not isinstance(loss, str) or loss not in LOSSES:
         raise InputError(f"unknown loss {loss!r}; expected one of {', '.join(LOSSES)}")
-    f_scale = _check_sigma(f_scale, "f_scale")
-    s_rot = (DEFAULT_MOCAP_ROT_SIGMA_RAD if mocap_rot_sigma_rad is None
-             else _check_sigma(mocap_rot_sigma_rad, "mocap_rot_sigma_rad"))
-    s_t = (DEFAULT_MOCAP_TRANS_SIGMA_M if mocap_trans_sigma_m is None
-           else _check_sigma(mocap_trans_sigma_m, "mocap_trans_sigma_m"))
-    s_px = None if pixel_sigma is None else _check_sigma(pixel_sigma, "pixel_sigma")
+    f_scale = _check_sigma(opts.f_scale, "f_scale")
+    rot, trans, px = opts.mocap_rot_sigma_rad, opts.mocap_trans_sigma_m, opts.pixel_sigma
+    s_rot = DEFAULT_MOCAP_ROT_SIGMA_RAD if rot is None else _check_sigma(rot, "mocap_rot_sigma_rad")
+    s_t = DEFAULT_MOCAP_TRANS_SIGMA_M if trans is None else _check_sigma(trans,
+                                                                        "mocap_trans_sigma_m")
+    s_px = None if px is None else _check_sigma(px, "pixel_sigma")
     if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 1):
         raise InputError(f"max_iter must be a whole number >= 1, got {max_iter!r}")
-    return _Noise(s_px=s_px, s_rot=s_rot, s_t=s_t, estimate_px=pixel_sigma is None,
-                  estimate_mocap=mocap_rot_sigma_rad is None or mocap_trans_sigma_m is None,
-                  f_scale=f_scale)
+    return _Noise(s_px=s_px, s_rot=s_rot, s_t=s_t, estimate_px=px is None,
+                  estimate_mocap=rot is None or trans is None, f_scale=f_scale)
 
 
 def _start(data: ImageData, X0: ArrayLike, Y0: ArrayLike, noise: _Noise):
@@ -459,13 +476,8 @@ def _start(data: ImageData, X0: ArrayLike, Y0: ArrayLike, noise: _Noise):
     s_rot, s_t, s_px = noise.s_rot, noise.s_t, noise.s_px
     if noise.estimate_mocap and timed:      # one sample's noise, from the smoothing residuals
         s_rot, s_t = _clock_noise(data)
-    X0 = real_array(X0, "X0", expected=f"{data.m} finite 4x4 transforms (one per camera)")
-    if X0.shape != (data.m, 4, 4) or not np.all(np.isfinite(X0)):
-        raise InputError(f"X0 must be {data.m} finite 4x4 transforms (one per camera), "
-                         f"got shape {X0.shape}")
-    Y0 = real_array(Y0, "Y0", expected="a finite 4x4 transform")
-    if Y0.shape != (4, 4) or not np.all(np.isfinite(Y0)):
-        raise InputError(f"Y0 must be a finite 4x4 transform, got shape {Y0.shape}")
+    X0 = transform(X0, "X0", count=data.m)
+    Y0 = transform(Y0, "Y0")
     fams = data.families(X0, Y0)
     values = {f.name: f.value for f in fams}
     r0 = np.concatenate([g_.evaluate(values, False)[0] for g_ in data.groups(1.0, s_rot, s_t)
@@ -480,13 +492,12 @@ def _start(data: ImageData, X0: ArrayLike, Y0: ArrayLike, noise: _Noise):
     return fams, replace(noise, s_px=s_px, s_rot=s_rot, s_t=s_t)
 
 
-def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, f_scale: float, max_iter: int,
-           tol: float):
+def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, tol: float):
     """Refinement passes, alternating with the variance components of the noise levels
     being estimated until they settle (the last pass at ``tol``, the others at its root),
-    and the clock windows recentred on offsets that moved far.  Returns the families, the
-    noise, the last pass's result and (iterations, evaluations, passes)."""
-    s_px, s_rot, s_t = noise.s_px, noise.s_rot, noise.s_t
+    and the clock windows recentred on offsets that moved far.  Returns the data (recentred),
+    the families, the noise, the last pass's result and (iterations, evaluations, passes)."""
+    s_px, s_rot, s_t, f_scale = noise.s_px, noise.s_rot, noise.s_t, noise.f_scale
     timed = any(c is not None for c in data.clocks)
     c_w = _gaussian_scale_constant(loss, f_scale)
     iterations = evaluations = passes = 0
@@ -509,8 +520,7 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, f_scale: float, m
         if moved and recentres < _MAX_RECENTRES:
             # an offset moved far from where its windows are centred: centre them there
             recentres += 1
-            for u in moved:
-                units.recentre(u, float(_value(fams, units.family[u])[0, 0]))
+            data = data.recentred({u: float(_value(fams, units.family[u])[0, 0]) for u in moved})
             if noise.estimate_mocap:
                 s_rot, s_t = _clock_noise(data)
             if final:
@@ -528,7 +538,7 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, f_scale: float, m
             changes.append(abs(new_px / s_px - 1.0) / _SETTLED)
             s_px = new_px
         settled = max(changes) < 1.0
-    return (fams, replace(noise, s_px=s_px, s_rot=s_rot, s_t=s_t), res,
+    return (data, fams, replace(noise, s_px=s_px, s_rot=s_rot, s_t=s_t), res,
             (iterations, evaluations, passes))
 
 

@@ -39,7 +39,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_with_jacobian
 from multieye.core.lie import log_so3
-from multieye.estimate.image_residuals import ImageData
+from multieye.estimate.image_data import image_data
 from multieye.optimize.levenberg_marquardt import covariance
 from multieye.solvers.refine_poses import relative_pose_covariance
 
@@ -205,7 +205,7 @@ def cramer_rao_bound(setup: str, observations: Sequence, intrinsics: Sequence[In
         the bound of every ``T_ref_cam``.
     """
 
-    data = ImageData(setup, observations, intrinsics)
+    data = image_data(setup, observations, intrinsics)
     sigmas = np.array([pixel_sigma, mocap_rot_sigma_rad, mocap_trans_sigma_m], dtype=np.float64)
     if not np.all(np.isfinite(sigmas) & (sigmas > 0)):
         raise InputError(f"noise levels must be positive, got {sigmas.tolist()}")

@@ -1,4 +1,6 @@
-"""Figures of the synthetic experiments (the only module that imports matplotlib).
+"""Figures of the synthetic experiments (the only module of ``experiments`` that imports
+matplotlib); the same kind of module as :mod:`multieye.outputs.figures`, which draws the
+calibration report's.
 
 matplotlib is imported when a figure is drawn, not when this module is imported, and only its
 Agg canvas is used (no pyplot, no global backend switch), so drawing works without a display

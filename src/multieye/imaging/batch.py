@@ -29,7 +29,7 @@ from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Iterable
+from collections.abc import Iterable
 
 import cv2
 
@@ -41,6 +41,7 @@ from multieye.imaging.image_file import read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.targets import Target
 from multieye.imaging.workers import worker_pool
+from multieye.imaging.detect import to_gray
 
 __all__ = ["ImageResult", "detect_and_estimate", "worker_count", "detect_and_estimate_arrays", "process_image",
            "process_array", "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
@@ -141,8 +142,6 @@ def process_array(image, name: str, target: Target, intrinsics: Intrinsics | Non
     """
     path = name
     if image.ndim == 3:
-        from multieye.imaging.detect import to_gray
-
         image = to_gray(image)
     shape = (int(image.shape[1]), int(image.shape[0]))
     size = (None, None) if intrinsics is None else (intrinsics.width, intrinsics.height)
@@ -361,7 +360,7 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics 
     show = sys.stderr.isatty() if progress is None else bool(progress)
     bar = None
     if show:
-        from tqdm import tqdm
+        from tqdm import tqdm  # noqa: PLC0415 (tqdm only when a progress bar is shown)
 
         bar = tqdm(total=len(paths), desc=f"detecting {target.kind}", unit="img", file=sys.stderr)
 
@@ -459,7 +458,7 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
     show = sys.stderr.isatty() if progress is None else bool(progress)
     bar = None
     if show:
-        from tqdm import tqdm
+        from tqdm import tqdm  # noqa: PLC0415 (tqdm only when a progress bar is shown)
 
         bar = tqdm(desc=f"detecting {target.kind}", unit="img", file=sys.stderr)
     results: list[ImageResult] = []

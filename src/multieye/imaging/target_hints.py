@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
+from multieye.core.target_spec import TargetSpec
 from multieye.imaging.detect import detect, to_gray
 from multieye.imaging.targets import target_from_spec
 
@@ -331,7 +332,8 @@ def _read(image) -> np.ndarray | None:
     return cv2.imread(str(image), cv2.IMREAD_GRAYSCALE)
 
 
-def suggest_target(images: Sequence[Any], spec: Mapping[str, Any]) -> TargetHint | None:
+def suggest_target(images: Sequence[Any], spec: TargetSpec | Mapping[str, Any]
+                   ) -> TargetHint | None:
     """Search the images for the board rig.yaml's ``target:`` (``spec``) fails to find.
 
     Parameters
@@ -339,7 +341,7 @@ def suggest_target(images: Sequence[Any], spec: Mapping[str, Any]) -> TargetHint
     images : sequence of ndarray or path-like
         One or two images of a camera (grayscale or BGR arrays, or image files) in which
         ``spec`` found nothing.
-    spec : mapping
+    spec : TargetSpec or mapping
         rig.yaml's ``target:`` mapping (docs/rig-yaml.md, section 3).
 
     Returns
@@ -353,7 +355,7 @@ def suggest_target(images: Sequence[Any], spec: Mapping[str, Any]) -> TargetHint
     grays = [g for g in grays if g is not None]
     if not grays:
         return None
-    spec = dict(spec)
+    spec = spec.as_dict() if isinstance(spec, TargetSpec) else dict(spec)
     kind = spec.get("type")
     sightings = markers_in(grays[:1], min_markers=1 if kind == "aruco" else MIN_MARKERS)
     best = None

@@ -54,6 +54,7 @@ from numpy.typing import NDArray
 from multieye.core.arguments import did_you_mean
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.limits import MAX_GRID_SIDE, MAX_SPACING_M
+from multieye.core.target_spec import PYTHON_ONLY_KEYS, TYPE_KEYS, TargetSpec
 
 __all__ = [
     "Target",
@@ -491,26 +492,21 @@ TARGET_TYPES: dict[str, type[Target]] = {
                               ArucoMarker, ArucoGrid)
 }
 
-#: rig.yaml keys per type (besides ``type``), mapped to dataclass fields; None = required.
+#: The keys per type (besides ``type``), mapped to dataclass fields; None = required: rig.yaml's
+#: schema (:mod:`multieye.core.target_spec`) and the keys only a Python caller gives.
 _SPEC_KEYS: dict[str, dict[str, Any]] = {
-    "chessboard": {"rows": None, "cols": None, "spacing": None},
-    "circles": {"rows": None, "cols": None, "spacing": None, "diameter": "optional"},
-    "asymmetric-circles": {"rows": None, "cols": None, "spacing": None, "diameter": "optional"},
-    "charuco": {"rows": None, "cols": None, "spacing": None, "marker_size": None,
-                "dictionary": None, "legacy": "optional"},
-    "aprilgrid": {"rows": None, "cols": None, "spacing": None, "tag_spacing": None},
-    "aruco": {"marker_size": None, "dictionary": None, "id": None},
-    "aruco-grid": {"rows": None, "cols": None, "marker_size": None, "marker_separation": None,
-                   "dictionary": None, "first_id": "optional"},
-}
+    kind: {**TYPE_KEYS[kind], **PYTHON_ONLY_KEYS.get(kind, {})} for kind in TYPE_KEYS}
 
 
-def target_from_spec(spec: Mapping[str, Any], *, path=None, line: int | None = None) -> Target:
-    """Build a target from the ``target:`` mapping of a rig.yaml (docs/rig-yaml.md, section 3).
+def target_from_spec(spec: TargetSpec | Mapping[str, Any], *, path=None,
+                     line: int | None = None) -> Target:
+    """Build a target from rig.yaml's target (a :class:`~multieye.core.target_spec.TargetSpec`
+    as :func:`multieye.io.load_rig` reads it) or from the same ``target:`` mapping
+    (docs/rig-yaml.md, section 3).
 
     Parameters
     ----------
-    spec : mapping
+    spec : TargetSpec or mapping
         ``type`` (chessboard | circles | asymmetric-circles | charuco | aprilgrid), ``rows``,
         ``cols``, ``spacing`` (metres); charuco also ``marker_size`` (metres) and
         ``dictionary`` (OpenCV name, e.g. ``DICT_5X5_100``), optionally ``legacy``; aprilgrid
@@ -533,6 +529,10 @@ def target_from_spec(spec: Mapping[str, Any], *, path=None, line: int | None = N
     """
     def fail(message: str):
         raise DatasetError(f"target: {message}", path=path, line=line)
+
+    if isinstance(spec, TargetSpec):     # its fields that the type takes, as the mapping
+        spec = {"type": spec.type, **{k: getattr(spec, k) for k in TYPE_KEYS[spec.type]
+                                      if getattr(spec, k) is not None}}
 
     if not isinstance(spec, Mapping):
         fail(f"expected a mapping with type, rows, cols, spacing; got {type(spec).__name__}")

@@ -27,7 +27,7 @@ from multieye.io.calibration_json import (
     write_calibration,
 )
 from multieye.io.image_folder import list_image_files, list_images, skipped_entries
-from multieye.io.intrinsics import (
+from multieye.io.intrinsics_files import (
     read_camera_info,
     read_intrinsics,
     read_kalibr_intrinsics,

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.geometry import is_rigid
+from multieye.core.arguments import transform
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.io.atomic import write_text_atomic
 from multieye.io.textfile import read_json_as
@@ -91,12 +91,7 @@ def named_keys(setup: str, frames: Mapping[str, str] | None) -> tuple[str, str]:
 
 
 def _rigid(T, what: str) -> np.ndarray:
-    T = np.asarray(T, dtype=np.float64)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"{what} must be a finite 4x4 matrix, got shape {T.shape}")
-    if not is_rigid(T):
-        raise InputError(f"{what} is not a rigid transform")
-    return T
+    return transform(T, what, rigid=True)
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Intrinsics files that are one mapping of keys: ROS ``camera_info`` YAML, a ROS CameraInfo
 message, the JSON or YAML layouts of common toolkits, and OpenCV FileStorage (whose keys
-:mod:`multieye.io.intrinsics` hands over as the same mapping).
+:mod:`multieye.io.intrinsics_files` hands over as the same mapping).
 
 Every key is read or refused: a key that gives a lens number is used (:data:`KEYS`), a key of
 metadata that does not change the projection is ignored on purpose (:data:`IGNORED_KEYS`, by

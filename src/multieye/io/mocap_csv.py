@@ -55,7 +55,7 @@ import numpy as np
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_TABLE_BYTES
-from multieye.io.poserows import QuaternionRows, trajectory_from_rows, usable_rows
+from multieye.io.poserows import QuaternionRows, RowPlace, trajectory_from_rows, usable_rows
 from multieye.io.textfile import LENGTH_UNITS, count_lines, parse_float, physical_lines, text_lines
 from multieye.io.trajectory import Trajectory
 
@@ -114,12 +114,12 @@ def _rows(lines: Iterable[tuple[int, str]], delimiter: str | None = ",",
             yield number, next(csv.reader([line], delimiter=delimiter), [])
 
 
-def _numbers(cells: Sequence[str], names: Sequence[str], path, line: int) -> list[float]:
+def _numbers(cells: Sequence[str], columns: Sequence[str], path, line: int) -> list[float]:
     try:
         return [float(c) for c in cells]
     except ValueError:
         return [parse_float(c, path=path, line=line, name=n, finite=False)
-                for c, n in zip(cells, names)]
+                for c, n in zip(cells, columns)]
 
 
 def _blank(row: Sequence[str]) -> bool:
@@ -127,9 +127,10 @@ def _blank(row: Sequence[str]) -> bool:
 
 
 def _complete_rows(rows: Iterable[tuple[int, list[str]]], columns: Sequence[int],
-                   names: Sequence[str], path, *, section_ends_at_blank: bool, missing: str,
+                   headers: Sequence[str], path, *, section_ends_at_blank: bool, missing: str,
                    sink: QuaternionRows | None = None):
-    """Numbers of ``columns`` in ``rows`` (``(line, cells)``, read one at a time), skipping
+    """Numbers of ``columns`` (named ``headers`` in messages) in ``rows`` (``(line, cells)``,
+    read one at a time), skipping
     rows with a blank cell (an occluded sample); returns ``(array (N, len(columns)),
     1-based lines)``, gathered in flat arrays (8 bytes a number).  With ``sink``, each block
     of :data:`_BLOCK` rows goes to ``sink.add`` instead (turned into poses at once) and the
@@ -143,7 +144,7 @@ def _complete_rows(rows: Iterable[tuple[int, list[str]]], columns: Sequence[int]
         cells = [row[j].strip() if j < len(row) else "" for j in columns]
         if not all(cells):
             continue
-        values.extend(_numbers(cells, names, path, number))
+        values.extend(_numbers(cells, headers, path, number))
         lines.append(number)
         seen += 1
         if sink is not None and len(lines) == _BLOCK:
@@ -164,9 +165,9 @@ def _block(values: array, lines: array, n_columns: int) -> tuple[np.ndarray, np.
             np.frombuffer(lines, dtype=np.int64))
 
 
-def _screened(stamps, t, rotation, names, path, lines, max_rotation=None):
+def _screened(stamps, t, rotation, columns, path, lines, max_rotation=None):
     """:func:`usable_rows` on the converted numbers: ``(keep, skipped, kept lines)``."""
-    return usable_rows(stamps, t, rotation, path=path, lines=lines, names=names,
+    return usable_rows(stamps, t, rotation, where=RowPlace(path, lines), columns=columns,
                        max_rotation=max_rotation)
 
 
@@ -183,11 +184,11 @@ def _header_name(cell: str) -> tuple[str, str | None]:
 
 
 def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, line):
-    names = [_header_name(c) for c in header]
+    headers = [_header_name(c) for c in header]
     found = {}
     for role, candidates in DEFAULT_COLUMNS.items():
         wanted = (columns[role].strip().lower(),) if columns and role in columns else candidates
-        hits = [j for j, (n, _) in enumerate(names) if n in wanted]
+        hits = [j for j, (n, _) in enumerate(headers) if n in wanted]
         if len(hits) != 1:
             have = ", ".join(repr(c.strip()) for c in header)
             problem = "no column" if not hits else "several columns"
@@ -199,11 +200,11 @@ def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, li
         if unknown:
             raise DatasetError(f"unknown column roles {sorted(unknown)}; roles are "
                                f"{', '.join(DEFAULT_COLUMNS)}", path=path)
-    return found, names
+    return found, headers
 
 
-def _unit_from_header(names, found, roles, default, known, path, line):
-    units = {names[found[r]][1] for r in roles} - {None}
+def _unit_from_header(headers, found, roles, default, known, path, line):
+    units = {headers[found[r]][1] for r in roles} - {None}
     if len(units) > 1:
         raise DatasetError(f"columns {', '.join(roles)} have different units {sorted(units)}",
                            path=path, line=line)
@@ -497,8 +498,8 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
     keep, skipped, lines = _screened(stamps, t, rotvec, ("Frame",) + wanted, path, lines,
                                      max_rotation=_MAX_ROTVEC_RAD)
     T = geometry.transform_from_rotvec(rotvec[keep], t[keep])
-    return trajectory_from_rows(stamps[keep], T, path=path, lines=lines, parent=parent,
-                                child=child, skipped=skipped)
+    return trajectory_from_rows(stamps[keep], T, path=path, lines=lines, frames=(parent, child),
+                                skipped=skipped)
 
 
 def csv_flavour(path: str | os.PathLike) -> str:

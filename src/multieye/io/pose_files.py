@@ -38,6 +38,8 @@ from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_POSITION_M, MAX_TABLE_BYTES, MAX_YAML_BYTES
 from multieye.core.regular_files import read_bounded
 from multieye.io.textfile import length_scale
+from multieye.io.poserows import RowPlace, trajectory_from_rows, usable_rows
+from multieye.io.textfile import read_number_rows
 
 __all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
            "read_pose_file", "pose_file_pattern", "poses_by_name", "read_pose_table",
@@ -502,8 +504,6 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
         A row with another count of numbers, a bad rotation, stamps that repeat or go back;
         with the file and the line.
     """
-    from multieye.io.poserows import trajectory_from_rows, usable_rows
-    from multieye.io.textfile import read_number_rows
 
     matrix = fmt.rotation == "matrix"
     order = _MATRIX_ROW if matrix else (
@@ -517,7 +517,7 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
     with np.errstate(over="ignore", invalid="ignore"):
         t_xyz = data[:, [col[n] for n in xyz]] * scale
     keep, skipped, kept = usable_rows(data[:, col["t"]], t_xyz, data[:, [col[n] for n in rot]],
-                                      path=path, lines=lines, names=("t", *xyz, *rot))
+                                      where=RowPlace(path, lines), columns=("t", *xyz, *rot))
     T = []
     for row, line in zip(data[keep], kept):
         try:
@@ -529,5 +529,5 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
         except DatasetError as exc:
             raise DatasetError(exc.reason, path=path, line=line) from None
     return trajectory_from_rows(data[keep, col["t"]], np.stack(T) if T else np.zeros((0, 4, 4)),
-                                path=path, lines=kept, parent=parent, child=child,
+                                path=path, lines=kept, frames=(parent, child),
                                 duplicates=duplicates, skipped=skipped)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -23,7 +23,7 @@ from multieye.core.limits import MAX_POSITION_M, MAX_STAMP_S
 from multieye.io.trajectory import SkippedRow, Trajectory
 
 __all__ = ["QUATERNION_TOLERANCE", "quaternion_poses", "trajectory_from_rows", "screen_rows",
-           "usable_rows", "QuaternionRows"]
+           "usable_rows", "RowPlace", "QuaternionRows"]
 
 #: Largest accepted ``| ||q|| - 1 |`` before a quaternion is rejected.
 QUATERNION_TOLERANCE = 1e-3
@@ -66,7 +66,7 @@ def quaternion_poses(t_xyz: np.ndarray, q_xyzw: np.ndarray, *, path: str | os.Pa
 
 
 def screen_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
-                names: Sequence[str], lines: Sequence[int] | None = None,
+                columns: Sequence[str], lines: Sequence[int] | None = None,
                 labels: Sequence[str] | None = None, max_rotation: float | None = None
                 ) -> tuple[np.ndarray, tuple[SkippedRow, ...]]:
     """Which pose rows are usable, and why the others are not.
@@ -79,7 +79,7 @@ def screen_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
         Translations in metres (after the unit conversion).
     rotation : ndarray, shape (N, k)
         The rotation's numbers as the file gives them (quaternion, rotation vector).
-    names : sequence of str
+    columns : sequence of str
         Names of the ``1 + 3 + k`` columns, for the reasons (``t tx ty tz qx qy qz qw``).
     lines : sequence of int, optional
         1-based line of each row (text files).
@@ -110,17 +110,17 @@ def screen_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
     for i in np.flatnonzero(bad):
         if not finite[i].all():
             j = int(np.argmin(finite[i]))
-            reason = f"not a finite number: {names[j]} = {float(values[i, j])!r}"
+            reason = f"not a finite number: {columns[j]} = {float(values[i, j])!r}"
         elif late[i]:
-            reason = (f"absurd time stamp: {names[0]} = {stamps[i]:g} s, beyond "
+            reason = (f"absurd time stamp: {columns[0]} = {stamps[i]:g} s, beyond "
                       f"{MAX_STAMP_S:g} s")
         elif turned[i].any():
             j = int(np.argmax(turned[i]))
-            reason = (f"absurd rotation: {names[4 + j]} = {rotation[i, j]:g} rad, beyond "
+            reason = (f"absurd rotation: {columns[4 + j]} = {rotation[i, j]:g} rad, beyond "
                       f"{max_rotation:g} rad")
         else:
             j = int(np.argmax(far[i]))
-            reason = (f"absurd position: {names[1 + j]} = {t_xyz[i, j]:g} m, beyond "
+            reason = (f"absurd position: {columns[1 + j]} = {t_xyz[i, j]:g} m, beyond "
                       f"{MAX_POSITION_M:g} m")
         line = None if lines is None else int(lines[i])
         where = f"line {line}" if line is not None else (
@@ -129,11 +129,21 @@ def screen_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
     return ~bad, tuple(skipped)
 
 
+@dataclass(frozen=True)
+class RowPlace:
+    """Where rows of poses come from, for messages: the file, the 1-based line of each row
+    (or a label of each row, such as a bag topic and stamp) and what to say before."""
+
+    path: str | os.PathLike
+    lines: Sequence[int] | None = None
+    labels: Sequence[str] | None = None
+    what: str = ""
+
+
 def usable_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
-                path: str | os.PathLike, names: Sequence[str], lines: Sequence[int] | None = None,
-                labels: Sequence[str] | None = None, what: str = "",
-                max_rotation: float | None = None):
-    """:func:`screen_rows`, then the usable rows only.
+                where: RowPlace, columns: Sequence[str], max_rotation: float | None = None):
+    """:func:`screen_rows`, then the usable rows only (``columns``: their names; ``where``:
+    the file and the rows' lines or labels).
 
     Returns
     -------
@@ -147,8 +157,9 @@ def usable_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
     DatasetError
         No usable row at all (naming the first row and why).
     """
-    keep, skipped = screen_rows(stamps, t_xyz, rotation, names=names, lines=lines,
-                                labels=labels, max_rotation=max_rotation)
+    path, lines, what = where.path, where.lines, where.what
+    keep, skipped = screen_rows(stamps, t_xyz, rotation, columns=columns, lines=lines,
+                                labels=where.labels, max_rotation=max_rotation)
     if len(keep) and not keep.any():
         first = skipped[0]
         raise DatasetError(f"{what}no usable pose: all {len(keep)} rows left out; "
@@ -158,7 +169,7 @@ def usable_rows(stamps: np.ndarray, t_xyz: np.ndarray, rotation: np.ndarray, *,
 
 
 def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.PathLike,
-                         lines: Sequence[int], parent: str, child: str,
+                         lines: Sequence[int], frames: tuple[str, str],
                          stamps_ns: np.ndarray | None = None,
                          duplicates: str = "error",
                          skipped: tuple[SkippedRow, ...] = ()) -> Trajectory:
@@ -171,7 +182,8 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
     T : ndarray, shape (N, 4, 4)
         ``T_parent_child`` of each row, metres.
     path, lines : the file and the 1-based line of each row.
-    parent, child : frame names.
+    frames : (str, str)
+        The parent and child frame names.
     stamps_ns : ndarray, shape (N,), int64, optional
     duplicates : {"error", "drop"}
         What to do with a row whose stamp equals the previous row's: raise, or keep only the
@@ -203,7 +215,7 @@ def trajectory_from_rows(stamps: np.ndarray, T: np.ndarray, *, path: str | os.Pa
         raise DatasetError(f"{what}: {float(stamps[i + 1])!r} s after {float(stamps[i])!r} s "
                            f"on line {int(lines[i])}; stamps must be strictly increasing",
                            path=path, line=int(lines[i + 1]))
-    return Trajectory(stamps, T, parent, child, stamps_ns, skipped)
+    return Trajectory(stamps, T, *frames, stamps_ns, skipped)
 
 
 class QuaternionRows:
@@ -218,7 +230,7 @@ class QuaternionRows:
     ----------
     path : path-like
         The file, for messages.
-    names : sequence of str
+    columns : sequence of str
         The 8 column names.
     scale : float
         Metres per unit of the translations.
@@ -227,8 +239,8 @@ class QuaternionRows:
         rows grow them (ndarray.resize fills what it adds, so a good bound saves memory).
     """
 
-    def __init__(self, path, names: Sequence[str], scale: float, capacity: int = 0):
-        self.path, self.names, self.scale = path, tuple(names), float(scale)
+    def __init__(self, path, columns: Sequence[str], scale: float, capacity: int = 0):
+        self.path, self.columns, self.scale = path, tuple(columns), float(scale)
         self._n = 0           # usable rows so far
         self._rows = 0        # rows screened so far
         # np.empty: the pages of rows never written are never resident
@@ -260,7 +272,7 @@ class QuaternionRows:
         gives integer nanoseconds (every block then has them)."""
         with np.errstate(over="ignore", invalid="ignore"):
             t = data[:, 1:4] * self.scale
-        keep, skipped = screen_rows(data[:, 0], t, data[:, 4:8], names=self.names,
+        keep, skipped = screen_rows(data[:, 0], t, data[:, 4:8], columns=self.columns,
                                     lines=lines)
         self.skipped.extend(replace(r, row=r.row + self._rows) for r in skipped)
         self._rows += len(data)
@@ -287,5 +299,5 @@ class QuaternionRows:
             a.resize(shape, refcheck=False)
         ns = np.concatenate(self._ns) if self._ns else None
         return trajectory_from_rows(self._stamps, self._T, path=self.path, lines=self._lines,
-                                    parent=parent, child=child, duplicates=duplicates,
+                                    frames=(parent, child), duplicates=duplicates,
                                     skipped=tuple(self.skipped), stamps_ns=ns)

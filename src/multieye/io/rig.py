@@ -67,7 +67,8 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from typing import NamedTuple
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 
@@ -77,7 +78,9 @@ from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.core.limits import (MAX_GRID_SIDE, MAX_ROTATION_NOISE_DEG, MAX_SPACING_M,
                                   MAX_TIME_OFFSET_S, MAX_TIME_TOLERANCE_S, MAX_TRANSLATION_NOISE_M)
 from multieye.core.names import NAME_RULE, camera_name_problem
-from multieye.io.intrinsics import read_intrinsics
+from multieye.core import target_spec
+from multieye.core.target_spec import TARGET_KEYS, TARGET_TYPES, TYPE_KEYS, TargetSpec, grid_keys
+from multieye.io.intrinsics_files import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.rig_checks import video_keys
@@ -93,15 +96,9 @@ __all__ = ["SETUPS", "TARGET_TYPES", "TOP_LEVEL_KEYS", "TARGET_KEYS", "MOCAP_KEY
 
 #: setup -> the frame motion capture tracks.
 SETUPS = {"eye-to-base": "marker", "eye-on-hand": "body"}
-TARGET_TYPES = ("chessboard", "circles", "asymmetric-circles", "charuco", "aprilgrid", "aruco",
-                "aruco-grid")
-_TARGET_ONLY = {"marker_size": ("charuco", "aruco", "aruco-grid"),
-                "dictionary": ("charuco", "aruco", "aruco-grid"), "tag_spacing": ("aprilgrid",),
-                "marker_separation": ("aruco-grid",), "id": ("aruco",), "first_id": ("aruco-grid",)}
-#: Keys each target type requires besides ``type`` and the keys of :data:`_TARGET_ONLY` it
-#: owns (``first_id`` is optional).
-_TARGET_GRID = {"aruco": (), "aruco-grid": ("rows", "cols")}
-_TARGET_OPTIONAL = ("first_id",)
+#: The target keys beyond rows, cols, spacing, with the types that take them (the schema is
+#: :mod:`multieye.core.target_spec`).
+_TARGET_ONLY = {k: target_spec.owners(k) for k in TARGET_KEYS[4:]}
 _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-files", "pose-table"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv"),
@@ -112,7 +109,6 @@ _SOURCES = ("images", "poses", "rosbag", "video")
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
 TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
-TARGET_KEYS = ("type", "rows", "cols", "spacing") + tuple(_TARGET_ONLY)
 MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
               "rotation_noise_deg", "translation_noise_m", "match", "sensor",
               "noise_bounds") + tuple(_MOCAP_ONLY)
@@ -123,56 +119,6 @@ CAMERA_KEYS = ("intrinsics", "model", "images", "poses", "rosbag", "topic", "vid
                "start_time", "mocap", "time_offset", "intrinsics_images", "intrinsics_target",
                "refine_intrinsics")
 CAMERA_INTRINSICS_KEYS = ("file", "camera")
-
-
-@dataclass(frozen=True)
-class TargetSpec:
-    """The calibration board (docs/rig-yaml.md, section 3; metres).
-
-    Attributes
-    ----------
-    type : {"chessboard", "circles", "asymmetric-circles", "charuco", "aprilgrid"}
-    rows, cols : int
-        Along the board's y and x axes, counted as the board's own tools count them.
-    spacing : float
-        Square size, circle centre distance, or tag size (aprilgrid), metres.
-    marker_size : float or None
-        ChArUco marker side, metres.
-    dictionary : str or None
-        ChArUco OpenCV dictionary name (``DICT_5X5_100``).
-    tag_spacing : float or None
-        AprilGrid gap between tags as a fraction of the tag size (Kalibr's ratio).
-    marker_separation : float or None
-        ``aruco-grid``: the gap between markers, metres.
-    id : int or None
-        ``aruco``: the marker's id.
-    first_id : int or None
-        ``aruco-grid``: the id of the first marker (default 0).
-
-    ``aruco`` targets have ``rows = cols = 1``; for ``aruco`` and ``aruco-grid`` ``spacing`` is
-    the marker side (``marker_size``), which rig.yaml gives instead.
-    """
-
-    type: str
-    rows: int
-    cols: int
-    spacing: float
-    marker_size: float | None = None
-    dictionary: str | None = None
-    tag_spacing: float | None = None
-    marker_separation: float | None = None
-    id: int | None = None
-    first_id: int | None = None
-
-    def as_dict(self) -> dict:
-        """The fields that are set, as a plain dict (the ``target:`` mapping)."""
-        out = {f.name: getattr(self, f.name) for f in fields(self)
-               if getattr(self, f.name) is not None}
-        if self.type in _TARGET_GRID:
-            out.pop("spacing")
-            if self.type == "aruco":
-                del out["rows"], out["cols"]
-        return out
 
 
 @dataclass(frozen=True)
@@ -276,10 +222,10 @@ class Rig:
 def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
     c.mapping(raw, keys, TARGET_KEYS, ("type",))
     kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
-    for key in _TARGET_GRID.get(kind, ("rows", "cols", "spacing")):
+    for key in grid_keys(kind):
         if key not in raw:
             raise c.error(f"missing key {key!r}", keys)
-    if kind in _TARGET_GRID and "spacing" in raw:
+    if "spacing" not in TYPE_KEYS[kind] and "spacing" in raw:
         raise c.error(f"{kind} targets give the marker side as 'marker_size'", keys + ("spacing",))
     if kind == "aruco" and ("rows" in raw or "cols" in raw):
         raise c.error("a single marker has no rows and cols (use aruco-grid for a board)",
@@ -288,7 +234,7 @@ def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
         if key in raw and kind not in owners:
             raise c.error(f"applies to {', '.join(owners)} targets only (this target is {kind})",
                           keys + (key,))
-        if key not in raw and kind in owners and key not in _TARGET_OPTIONAL:
+        if key not in raw and kind in owners and TYPE_KEYS[kind][key] is None:
             raise c.error(f"missing key {key!r} (required for {kind} targets)", keys)
     extra = {}
     if "marker_size" in raw:
@@ -315,7 +261,7 @@ def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
             raise c.error(f"expected an OpenCV dictionary name such as DICT_5X5_100, got "
                           f"{name!r}", keys + ("dictionary",))
         extra["dictionary"] = name
-    if kind in _TARGET_GRID:
+    if "spacing" not in TYPE_KEYS[kind]:
         spacing = extra["marker_size"]
     else:
         spacing = c.number(raw["spacing"], keys + ("spacing",), positive=True,
@@ -327,16 +273,28 @@ def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
     return TargetSpec(kind, rows, cols, spacing, **extra)
 
 
-def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
-           where: tuple) -> MocapSpec:
+class _RigWide(NamedTuple):
+    """What the reading of one rig.yaml knows beyond the mapping at hand: its checker (the
+    document, for messages), the setup, the top-level ``mocap`` (``(raw mapping,
+    MocapSpec)``, or ``({}, None)``) and the top-level ``refine_intrinsics``."""
+
+    checker: _Checker
+    setup: str
+    top: tuple = ({}, None)
+    refine_all: bool = False
+
+
+def _mocap(rw: _RigWide, raw: Mapping, origin: Mapping[str, tuple], where: tuple) -> MocapSpec:
     """Build a MocapSpec from ``raw`` (written at ``where``); ``origin[key]`` is the key path
     of the mapping each key came from (a camera's own or the top-level ``mocap``)."""
+    c = rw.checker
+
     def at(key):
         return origin[key] + (key,)
 
     if "file" not in raw:
         raise c.error("missing key 'file'", where)
-    moving = SETUPS[setup]
+    moving = SETUPS[rw.setup]
     names = None
     if "frames" in raw:
         names = raw["frames"]
@@ -426,17 +384,18 @@ def _mocap(c: _Checker, raw: Mapping, origin: Mapping[str, tuple], setup: str,
     return MocapSpec(file, pose, tol, fmt, **kw)
 
 
-def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
-    """A camera's own motion capture, completed from the top-level section ``top``
-    (``(raw mapping, MocapSpec)``, or ``({}, None)``): ``pose``, ``frames``, ``fixed_frame``,
+def _camera_mocap(rw: _RigWide, own, where: tuple) -> MocapSpec:
+    """A camera's own motion capture, completed from the top-level section ``rw.top``:
+    ``pose``, ``frames``, ``fixed_frame``,
     ``time_tolerance`` and the noise keys are always inherited; the format-specific keys only
     when the camera's file has the top-level file's format (a camera with a TUM file under a
     rosbag rig does not inherit ``topic``)."""
+    c = rw.checker
     if isinstance(own, Mapping):
         c.mapping(own, where, MOCAP_KEYS)
     else:
         own = {"file": c.string(own, where)}
-    top_raw, top_spec = top
+    top_raw, top_spec = rw.top
     inherit = [k for k in top_raw if k not in own]
     if "file" in own and top_spec is not None:
         fmt = own.get("format")
@@ -453,11 +412,11 @@ def _camera_mocap(c: _Checker, own, where: tuple, top, setup: str) -> MocapSpec:
                                                    "noise_bounds")]
     merged = {**{k: top_raw[k] for k in inherit}, **own}
     origin = {**{k: ("mocap",) for k in inherit}, **{k: where for k in own}}
-    return _mocap(c, merged, origin, setup, where)
+    return _mocap(rw, merged, origin, where)
 
 
-def _camera(c: _Checker, name, raw, top_mocap, setup, refine_all=False) -> CameraSpec:
-    keys = ("cameras", name)
+def _camera(rw: _RigWide, name, raw) -> CameraSpec:
+    c, keys = rw.checker, ("cameras", name)
     c.mapping(raw, keys, CAMERA_KEYS)
     sources = [s for s in _SOURCES if s in raw]
     if len(sources) != 1:
@@ -465,7 +424,7 @@ def _camera(c: _Checker, name, raw, top_mocap, setup, refine_all=False) -> Camer
                       f"{', '.join(sources) or 'none'}", keys)
     if ("topic" in raw) != ("rosbag" in raw):
         raise c.error("'topic' goes with 'rosbag' (the image topic of the bag)", keys)
-    lens = _lens(c, raw, keys, sources[0], refine_all)
+    lens = _lens(c, raw, keys, sources[0], rw.refine_all)
     if "intrinsics" not in raw and "model" not in raw and sources[0] != "poses":
         raise c.error("missing key 'intrinsics' or 'model' (intrinsics to find the target in "
                       "the images, or the lens model to estimate them in; only a camera "
@@ -492,7 +451,7 @@ def _camera(c: _Checker, name, raw, top_mocap, setup, refine_all=False) -> Camer
         kw["time_offset"] = c.number(raw["time_offset"], keys + ("time_offset",),
                                      maximum=MAX_TIME_OFFSET_S, unit="seconds")
     if "mocap" in raw:
-        kw["mocap"] = _camera_mocap(c, raw["mocap"], keys + ("mocap",), top_mocap, setup)
+        kw["mocap"] = _camera_mocap(rw, raw["mocap"], keys + ("mocap",))
     return CameraSpec(str(name), intr_path, **kw, **lens)
 
 
@@ -541,8 +500,9 @@ def load_rig(path: str | os.PathLike) -> Rig:
     DatasetError
         The first problem found, naming the file, the line of the key and what was expected.
     """
-    p = as_path(path, "the dataset (a folder or its rig.yaml)")
-    p = p / "rig.yaml" if p.is_dir() else p
+    p = as_path(path, "dataset (a folder with rig.yaml, or the rig.yaml)")
+    if p.is_dir():
+        p = p / "rig.yaml"
     no_link_loop(p)     # a rig.yaml that is a link: its paths are relative to the real file
     doc = load_yaml(p.resolve() if p.is_symlink() else p,    # else named as typed
                     what="rig description (rig.yaml)")
@@ -555,17 +515,18 @@ def load_rig(path: str | os.PathLike) -> Rig:
     mocap = None
     if "mocap" in raw:
         c.mapping(raw["mocap"], ("mocap",), MOCAP_KEYS, ("file",))
-        mocap = _mocap(c, raw["mocap"], {k: ("mocap",) for k in raw["mocap"]}, setup,
+        mocap = _mocap(_RigWide(c, setup), raw["mocap"], {k: ("mocap",) for k in raw["mocap"]},
                        ("mocap",))
-    top = (dict(raw["mocap"]) if mocap is not None else {}, mocap)
-    refine_all = "refine_intrinsics" in raw and c.boolean(raw["refine_intrinsics"], ("refine_intrinsics",))
+    rw = _RigWide(c, setup, (dict(raw["mocap"]) if mocap is not None else {}, mocap),
+                  c.boolean(raw["refine_intrinsics"], ("refine_intrinsics",))
+                  if "refine_intrinsics" in raw else False)
     cameras, taken = {}, {}
     for name, cam_raw in cams_raw.items():
         problem = camera_name_problem(name, taken)      # names become file names (outputs)
         if problem is not None:
             raise c.error(f"camera name {shown(name)} {problem}; a camera name is {NAME_RULE}",
                           ("cameras", name))
-        cam = _camera(c, name, cam_raw, top, setup, refine_all)
+        cam = _camera(rw, name, cam_raw)
         if cam.mocap is None and mocap is None:
             raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
                           "key to this camera", ("cameras", name))

@@ -44,9 +44,10 @@ from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.image_header import FORMATS, image_header, size_problem
 from multieye.core.limits import MAX_YAML_BYTES
-from multieye.io.poserows import quaternion_poses, usable_rows
+from multieye.io.poserows import RowPlace, quaternion_poses, usable_rows
 from multieye.io.textfile import length_scale
 from multieye.io.trajectory import Trajectory
+from multieye.core.regular_files import check_regular
 
 __all__ = [
     "POSE_TYPES",
@@ -86,7 +87,7 @@ def _short_type(msgtype: str) -> str:
 @functools.lru_cache(maxsize=1)
 def _default_typestore():
     """Message types for ROS 2 bags that do not store their definitions (built once)."""
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415 (heavy: rosbags, only for bag files)
 
     return get_typestore(Stores.LATEST)
 
@@ -94,7 +95,6 @@ def _default_typestore():
 def _check_bag_files(p: Path) -> None:
     """A bag file, or every file of a ROS 2 bag folder, is a regular file of bounded size:
     the bag library opens them by path (no device, FIFO or socket is handed to it)."""
-    from multieye.core.regular_files import check_regular
 
     if p.is_dir():
         check_regular(p / "metadata.yaml", what="bag metadata", max_bytes=MAX_YAML_BYTES)
@@ -107,7 +107,7 @@ def _check_bag_files(p: Path) -> None:
 
 @contextlib.contextmanager
 def _reader(path: str | os.PathLike):
-    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.highlevel import AnyReader, AnyReaderError  # noqa: PLC0415 (heavy: rosbags, only for bag files)
 
     p = as_path(path, "bag")
     if not p.exists():
@@ -225,9 +225,9 @@ def read_bag_trajectory(path: str | os.PathLike, topic: str, *,
     with np.errstate(over="ignore", invalid="ignore"):
         t = np.array([r[3] for r in keep], dtype=np.float64).reshape(-1, 3) * scale
     q = np.array([r[4] for r in keep], dtype=np.float64).reshape(-1, 4)
-    ok, skipped, _ = usable_rows(ns / 1e9, t, q, path=path, what=f"topic {topic}: ",
-                                 names=("stamp", "x", "y", "z", "qx", "qy", "qz", "qw"),
-                                 labels=[f"{topic}@{n}" for n in ns])
+    ok, skipped, _ = usable_rows(ns / 1e9, t, q, where=RowPlace(
+        path, labels=[f"{topic}@{n}" for n in ns], what=f"topic {topic}: "),
+        columns=("stamp", "x", "y", "z", "qx", "qy", "qz", "qw"))
     T = quaternion_poses(t[ok], q[ok], path=path, lines=None, what=f"topic {topic}: ")
     try:
         return Trajectory.from_unsorted(ns[ok] / 1e9, T, parent, child, stamps_ns=ns[ok],
@@ -265,14 +265,14 @@ def _decode_raw(msg, where: str, path) -> np.ndarray:
     if convert == "bgra":
         return np.ascontiguousarray(img[..., :3])
     if convert in _BAYER:
-        import cv2
+        import cv2  # noqa: PLC0415 (heavy: OpenCV, only to demosaic Bayer images)
 
         return cv2.cvtColor(img, getattr(cv2, _BAYER[convert]))
     return img
 
 
 def _decode_compressed(msg, where: str, path) -> np.ndarray:
-    import cv2
+    import cv2  # noqa: PLC0415 (heavy: OpenCV, only to demosaic Bayer images)
 
     buf = np.asarray(msg.data, dtype=np.uint8)
     header = image_header(buf.tobytes()) if buf.size else None

@@ -20,6 +20,7 @@ from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_JSON_BYTES, MAX_TABLE_BYTES
 from multieye.core.regular_files import open_bounded_text, read_bounded
+import json
 
 __all__ = [
     "read_text",
@@ -74,7 +75,6 @@ def read_text(path: str | os.PathLike, *, what: str = "file",
 def read_json(path: str | os.PathLike, *, what: str = "JSON file",
               max_bytes: int = MAX_JSON_BYTES):
     """Parse a JSON file; a syntax error becomes a DatasetError with its line."""
-    import json
 
     text = read_text(path, what=what, max_bytes=max_bytes)
     try:

@@ -72,7 +72,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.names import file_stems
 from multieye.io.atomic import confined_to, make_folder, write_text_atomic
-from multieye.io.intrinsics import camera_info_text, distortion_model_name
+from multieye.io.intrinsics_files import camera_info_text, distortion_model_name
 from multieye.io.cameramodel import cameramodel_text
 from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict, named_keys,
                                           read_calibration)
@@ -92,8 +92,6 @@ __all__ = [
     "opencv_text",
     "urdf_text",
     "tf_static_text",
-    "rpy_from_rotation",
-    "rotation_from_rpy",
 ]
 
 #: Format names of ``multieye export --format``, and the file each writes in ``OUT/export/``.
@@ -113,47 +111,9 @@ BASE_FRAME = {"eye-to-base": "world", "eye-on-hand": "body"}
 _TF_COMMAND = ("ros2", "run", "tf2_ros", "static_transform_publisher")
 
 
-def _rx(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def _ry(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _rz(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def rotation_from_rpy(rpy) -> np.ndarray:
-    """URDF's fixed-axis roll, pitch, yaw (radians) -> ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
-    roll, pitch, yaw = (float(a) for a in rpy)
-    return _rz(yaw) @ _ry(pitch) @ _rx(roll)
-
-
-def rpy_from_rotation(R) -> np.ndarray:
-    """Inverse of :func:`rotation_from_rpy`: ``(roll, pitch, yaw)``, radians.
-
-    Accurate to rounding everywhere, gimbal lock included (pitch = +-90 degrees, a camera
-    looking straight up or down): pitch comes from ``atan2(-R20, hypot(R00, R10))``, yaw from
-    the first column, and roll from what is left once yaw and pitch are undone, so that an
-    ill-determined yaw near the lock is compensated by roll instead of leaking into the
-    rotation (at the lock only ``roll - yaw`` or ``roll + yaw`` is defined).
-    """
-    R = np.asarray(R, dtype=np.float64)[:3, :3]
-    pitch = np.arctan2(-R[2, 0], np.hypot(R[0, 0], R[1, 0]))
-    yaw = np.arctan2(R[1, 0], R[0, 0])
-    M = _ry(pitch).T @ _rz(yaw).T @ R          # = Rx(roll) up to rounding
-    roll = np.arctan2(M[2, 1], M[1, 1])
-    return np.array([roll, pitch, yaw])
-
-
 #: Pose of the ROS optical frame (x right, y down, z forward) in the body-convention camera
 #: link (x forward, y left, z up): rpy (-pi/2, 0, -pi/2).
-T_LINK_OPTICAL = g.make_transform(rotation_from_rpy((-np.pi / 2, 0.0, -np.pi / 2)), np.zeros(3))
+T_LINK_OPTICAL = g.make_transform(g.rotation_from_rpy((-np.pi / 2, 0.0, -np.pi / 2)), np.zeros(3))
 
 
 def _f(x: float) -> str:
@@ -179,7 +139,7 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
     (``T_marker_target`` or ``T_world_target``) and ``cameras``, a sequence of maps with
     ``name``, ``T_ref_cam``, ``T_world_cam`` (or ``T_body_cam``) and, when known,
     ``camera_matrix``, ``camera_model`` (``pinhole`` or ``fisheye``), ``distortion_model``
-    (:func:`multieye.io.intrinsics.distortion_model_name`: ``plumb_bob``,
+    (:func:`multieye.io.intrinsics_files.distortion_model_name`: ``plumb_bob``,
     ``rational_polynomial``, ``thin_prism``, ``tilted`` or ``equidistant``),
     ``distortion_coefficients`` (1 x k), ``image_width`` and ``image_height``.  Read it with
     ``cv2.FileStorage(path, cv2.FILE_STORAGE_READ)``; ``fs.getNode("cameras").at(j)``.
@@ -211,7 +171,7 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
 
 def _origin(parent: ET.Element, T: np.ndarray) -> None:
     xyz = " ".join(_f(v) for v in T[:3, 3])
-    rpy = " ".join(_f(v) for v in rpy_from_rotation(T[:3, :3]))
+    rpy = " ".join(_f(v) for v in g.rpy_from_rotation(T[:3, :3]))
     ET.SubElement(parent, "origin", xyz=xyz, rpy=rpy)
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from multieye.core import geometry as g
 from multieye.core.errors import DatasetError
 from multieye.io.textfile import read_text
-from multieye.outputs.export import rotation_from_rpy
+from multieye.core.geometry import rotation_from_rpy
 
 __all__ = ["read_urdf_joints", "read_tf_static"]
 

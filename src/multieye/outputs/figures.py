@@ -1,4 +1,5 @@
-"""Figures of the calibration report (matplotlib, Agg canvas, imported when drawing).
+"""Figures of the calibration report (matplotlib, Agg canvas, imported when drawing); the
+same kind of module as :mod:`multieye.experiments.figures`, which draws the experiments'.
 
 Figures returned as PNG bytes for :mod:`multieye.outputs.report` to embed and to write (the
 rig's are in :mod:`multieye.outputs.figures_rig`).  Figures about every camera draw one lane
@@ -31,6 +32,10 @@ import numpy as np
 
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.run_details import CameraDetails, RunDetails
+from io import BytesIO
+from multieye.outputs.image_stats import (
+    COVERAGE_CELLS, MAX_ARROWS, arrow_scale, coverage, image_frame, mean_vectors,
+    position_bins, radial_bins, stacked, worst_images)
 
 __all__ = [
     "camera_colours",
@@ -151,8 +156,8 @@ def outliers(values, factor: float = 3.0) -> np.ndarray:
 def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
     """A figure of two axes (rotation, translation), one lane per camera, top to bottom:
     two axes whatever the number of cameras (small multiples cost an axes each)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     m = len(details.cameras)
     fig = Figure(figsize=(10.0, 1.2 + 0.5 * max(m, 2)), dpi=dpi)
@@ -176,7 +181,6 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
 
 
 def _png(fig) -> bytes:
-    from io import BytesIO
 
     buffer = BytesIO()
     fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
@@ -272,7 +276,7 @@ def residuals_over_time_png(details: RunDetails, *, dpi: int = 90) -> bytes:
 
 def _image_axes(ax, frame, title: str) -> None:
     """Image coordinates (y down), the image frame drawn, equal scale."""
-    from matplotlib.patches import Rectangle
+    from matplotlib.patches import Rectangle  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     w, h = frame.width, frame.height
     ax.add_patch(Rectangle((-0.5, -0.5), w, h, fill=False, lw=1.4, color="black", zorder=5))
@@ -298,14 +302,11 @@ def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 90) -> bytes:
     cameras at once (:func:`radial_png`, :func:`image_rms_png`).  Needs ``cam.points``
     (:mod:`multieye.io.pixel_details`).
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import LogNorm
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Rectangle
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.colors import LogNorm  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.patches import Rectangle  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
-    from multieye.outputs.image_stats import (
-        COVERAGE_CELLS, MAX_ARROWS, arrow_scale, coverage, image_frame, mean_vectors,
-        position_bins, stacked)
 
     pts = cam.points
     frame = image_frame(cam)
@@ -392,7 +393,6 @@ def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> byte
     RMS of all cameras (stated); the worst images of each camera red and numbered.  Cameras
     without target points have an empty lane.
     """
-    from multieye.outputs.image_stats import worst_images
 
     fig, axes, colours = _lanes(details, dpi, ["", ""])
     ax, spare = axes
@@ -434,10 +434,9 @@ def radial_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     """Residual length against the distance from the principal point, every camera on one
     axes: the RMS of the residual lengths in 10 rings from the centre to the farthest corner
     (:func:`multieye.outputs.image_stats.radial_bins`), a line per camera in its colour."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
-    from multieye.outputs.image_stats import image_frame, radial_bins, stacked
 
     fig = Figure(figsize=(10.0, 3.2), dpi=dpi)
     FigureCanvasAgg(fig)

@@ -315,8 +315,87 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
             ax2.plot(d[:, 0], d[:, 1], color=_GREY, lw=0.6, alpha=0.55, zorder=1)
             everything.append(d)
     apexes = disp(sc.T_cams[:, :3, 3])
-    # every camera's lines in one collection per picture (an artist per line costs more than
-    # drawing it): (polyline in display coordinates, colour, width)
+    lines, dots, dot_colours, shapes, shape_colours = _camera_marks(
+        sc, colours, depth, magnified, P, everything)
+    if dots:
+        d = np.concatenate(dots)
+        ax3.scatter(d[:, 0], d[:, 1], d[:, 2], s=5, c=dot_colours, alpha=0.5, depthshade=False)
+        ax2.scatter(d[:, 0], d[:, 1], s=5, c=dot_colours, alpha=0.5, zorder=2, lw=0)
+    if shapes:
+        ax2.add_collection(PolyCollection(shapes, facecolors=shape_colours, edgecolors="none",
+                                          alpha=0.3, zorder=2))
+    ax3.add_collection3d(Line3DCollection([p for p, _, _ in lines], colors=[c for _, c, _ in lines],
+                                          linewidths=[w for _, _, w in lines]))
+    ax2.add_collection(LineCollection([p[:, :2] for p, _, _ in lines],
+                                      colors=[c for _, c, _ in lines],
+                                      linewidths=[w for _, _, w in lines], zorder=3))
+    # reference camera axes and the frame origin
+    triads = [(sc.T_cams[sc.reference], 1.0 * depth)]
+    if details is not None:
+        triads.append((np.eye(4), 1.0 * depth))
+        everything.append(disp(np.zeros((1, 3))))
+    for T, length in triads:
+        o = T[:3, 3]
+        for k in range(3):
+            d = disp(np.stack([o, o + length * T[:3, k]]))
+            ax3.plot(d[:, 0], d[:, 1], d[:, 2], color=_AXIS_COLOURS[k], lw=2.0)
+            ax2.plot(d[:, 0], d[:, 1], color=_AXIS_COLOURS[k], lw=2.0, zorder=4)
+    pts = np.concatenate(everything)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    ax3.set_box_aspect(tuple(_equal_limits(ax3, pts, 3)), zoom=0.92)
+    ax3.view_init(elev=28, azim=-55)
+    frame = sc.frame
+    _label_axes(figs, ax3, ax2, frame, labels)
+    legend = _legend(sc, depth, magnified, details is not None)
+    figs["rig_3d.png"].subplots_adjust(left=0.0, right=0.97, bottom=0.03, top=1.0)
+    figs["rig_top.png"].subplots_adjust(left=0.13, right=0.98, bottom=0.1, top=0.93)
+    names = [n + (" (ref)" if j == sc.reference else "") for j, n in enumerate(sc.names)]
+    extra = [f"{frame}"] if details is not None else []
+    texts = names + extra
+    origin = disp(np.zeros(3))
+    for ax in (ax3, ax2):
+        if ax is ax3:
+            M = ax3.get_proj()
+            x, y, _ = proj3d.proj_transform(*np.concatenate([apexes, origin[None]]).T, M)
+            where = np.column_stack([x, y])
+        else:
+            ax2.apply_aspect()
+            where = np.concatenate([apexes[:, :2], origin[None, :2]])
+        _annotate(ax, where, texts, colours[:m], dpi)
+    return RigFigures({name: _png(fig) for name, fig in figs.items()}, tuple(legend))
+
+
+def _png(fig) -> bytes:
+    buffer = BytesIO()
+    fig.savefig(buffer, format="png")
+    return buffer.getvalue()
+
+
+def _label_axes(figs: dict, ax3, ax2, frame: str, labels) -> None:
+    """Axis names in the fixed frame, ticks, the top view's equal aspect, grid and title."""
+    for ax in (ax3, ax2):
+        ax.set_xlabel(f"{frame} {labels[0]} (m)", fontsize=8, labelpad=1)
+        ax.set_ylabel(f"{frame} {labels[1]} (m)", fontsize=8, labelpad=1)
+        ax.tick_params(labelsize=7, pad=0)
+    ax3.set_zlabel(f"{frame} {labels[2]} (m)", fontsize=8, labelpad=1)
+    ax2.autoscale_view()
+    ax2.set_aspect("equal", adjustable="datalim")
+    ax2.grid(True, alpha=0.3)
+    figs["rig_top.png"].suptitle(f"from above (looking down {frame} {labels[2]})", fontsize=10,
+                                 y=0.99)
+
+
+def _camera_marks(sc, colours, depth: float, magnified, P: np.ndarray, everything: list):
+    """Per camera its frustum (lines), the target's origin at its images (dots) and its
+    uncertainty (rings, and from above an ellipse and a wedge): every camera's lines in one
+    collection per picture (an artist per line costs more than drawing it), as (polyline in
+    display coordinates, colour, width).  The points drawn are added to ``everything``."""
+
+    def disp(p):  # plotting frame -> display frame, points (..., 3)
+        return np.asarray(p) @ P.T
+
+    m = len(sc.names)
+    apexes = disp(sc.T_cams[:, :3, 3])
     lines: list[tuple[np.ndarray, object, float]] = []
     dots, dot_colours, shapes, shape_colours = [], [], [], []
     for j in range(m):
@@ -357,51 +436,19 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
                 shapes.append(np.vstack([a2[:2], a2[:2] + r * np.column_stack(
                     [np.cos(arc), np.sin(arc)])]))
                 shape_colours.append(col)
-    if dots:
-        d = np.concatenate(dots)
-        ax3.scatter(d[:, 0], d[:, 1], d[:, 2], s=5, c=dot_colours, alpha=0.5, depthshade=False)
-        ax2.scatter(d[:, 0], d[:, 1], s=5, c=dot_colours, alpha=0.5, zorder=2, lw=0)
-    if shapes:
-        ax2.add_collection(PolyCollection(shapes, facecolors=shape_colours, edgecolors="none",
-                                          alpha=0.3, zorder=2))
-    ax3.add_collection3d(Line3DCollection([p for p, _, _ in lines], colors=[c for _, c, _ in lines],
-                                          linewidths=[w for _, _, w in lines]))
-    ax2.add_collection(LineCollection([p[:, :2] for p, _, _ in lines],
-                                      colors=[c for _, c, _ in lines],
-                                      linewidths=[w for _, _, w in lines], zorder=3))
-    # reference camera axes and the frame origin
-    triads = [(sc.T_cams[sc.reference], 1.0 * depth)]
-    if details is not None:
-        triads.append((np.eye(4), 1.0 * depth))
-        everything.append(disp(np.zeros((1, 3))))
-    for T, length in triads:
-        o = T[:3, 3]
-        for k in range(3):
-            d = disp(np.stack([o, o + length * T[:3, k]]))
-            ax3.plot(d[:, 0], d[:, 1], d[:, 2], color=_AXIS_COLOURS[k], lw=2.0)
-            ax2.plot(d[:, 0], d[:, 1], color=_AXIS_COLOURS[k], lw=2.0, zorder=4)
-    pts = np.concatenate(everything)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    ax3.set_box_aspect(tuple(_equal_limits(ax3, pts, 3)), zoom=0.92)
-    ax3.view_init(elev=28, azim=-55)
+    return lines, dots, dot_colours, shapes, shape_colours
+
+
+def _legend(sc, depth: float, magnified, in_fixed_frame: bool) -> list[str]:
+    """One sentence per kind of mark of :func:`rig_pngs`."""
     frame = sc.frame
-    for ax in (ax3, ax2):
-        ax.set_xlabel(f"{frame} {labels[0]} (m)", fontsize=8, labelpad=1)
-        ax.set_ylabel(f"{frame} {labels[1]} (m)", fontsize=8, labelpad=1)
-        ax.tick_params(labelsize=7, pad=0)
-    ax3.set_zlabel(f"{frame} {labels[2]} (m)", fontsize=8, labelpad=1)
-    ax2.autoscale_view()
-    ax2.set_aspect("equal", adjustable="datalim")
-    ax2.grid(True, alpha=0.3)
-    figs["rig_top.png"].suptitle(f"from above (looking down {frame} {labels[2]})", fontsize=10,
-                                 y=0.99)
     legend = [f"frustums {depth:.2f} m deep, the thick edge at the image top"]
     if sc.targets:
         legend.append("dots: the target's origin at each used image")
     if sc.trajectories:
         legend.append(f"grey line: the motion capture ({sc.trajectory_pose})")
     legend.append("axes x red, y green, z blue: the reference camera's"
-                  + (f" and the origin of {frame}" if details is not None else ""))
+                  + (f" and the origin of {frame}" if in_fixed_frame else ""))
     if magnified is not None:
         factor, t3, r3 = magnified
         times = f"magnified {factor:g} times" if factor > 1 else "to scale"
@@ -410,46 +457,32 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
                       f"largest: {t3 * 1e3:.2g} mm and {r3:.2g}°")
     else:
         legend.append("no uncertainty drawn: the run computed no covariance")
-    figs["rig_3d.png"].subplots_adjust(left=0.0, right=0.97, bottom=0.03, top=1.0)
-    figs["rig_top.png"].subplots_adjust(left=0.13, right=0.98, bottom=0.1, top=0.93)
-    names = [n + (" (ref)" if j == sc.reference else "") for j, n in enumerate(sc.names)]
-    extra = [f"{frame}"] if details is not None else []
-    origin = disp(np.zeros(3))
-    for name, ax in (("rig_3d.png", ax3), ("rig_top.png", ax2)):
-        fig = figs[name]
-        if ax is ax3:
-            M = ax3.get_proj()
-            x, y, _ = proj3d.proj_transform(*np.concatenate([apexes, origin[None]]).T, M)
-            where = np.column_stack([x, y])
-        else:
-            ax2.apply_aspect()
-            where = np.concatenate([apexes[:, :2], origin[None, :2]])
-        to_display = ax.transData
-        anchors_d = to_display.transform(where)
-        bb = ax.bbox
-        obstacles = to_display.transform(where[:m])
-        texts = names + extra
-        fs = 8.0
-        k = dpi / 72.0
-        sizes = np.array([[0.7 * fs * k * len(t) + 6, 1.45 * fs * k] for t in texts])
-        centres = place_labels(anchors_d[:len(texts)], sizes, (bb.x0, bb.y0, bb.x1, bb.y1),
-                               obstacles=obstacles, gap=4.0 * k)
-        inverse = to_display.inverted()
-        for i, text in enumerate(texts):
-            col = colours[i] if i < m else "black"
-            target = inverse.transform(centres[i])
-            moved = np.linalg.norm(centres[i] - anchors_d[i]) > 0.5 * sizes[i].max() + 10 * k
-            ax.annotate(text, xy=tuple(where[i]), xytext=tuple(target), textcoords="data",
-                        xycoords="data", color=col, fontsize=fs, ha="center", va="center",
-                        fontweight="bold" if i < m else "normal", zorder=6,
-                        annotation_clip=False,
-                        arrowprops=({"arrowstyle": "-", "color": col, "lw": 0.6, "alpha": 0.7,
-                                     "shrinkA": 0, "shrinkB": 2} if moved else None),
-                        bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
-                              "alpha": 0.7})
-    out = {}
-    for name, fig in figs.items():
-        buffer = BytesIO()
-        fig.savefig(buffer, format="png")
-        out[name] = buffer.getvalue()
-    return RigFigures(out, tuple(legend))
+    return legend
+
+
+def _annotate(ax, where: np.ndarray, texts: list[str], colours, dpi: int) -> None:
+    """Label the cameras (then the frame origin, in black) at ``where`` (data coordinates),
+    moved apart where they would overlap, with a thin line back when moved far."""
+    m = len(colours)
+    to_display = ax.transData
+    anchors_d = to_display.transform(where)
+    bb = ax.bbox
+    obstacles = to_display.transform(where[:m])
+    fs = 8.0
+    k = dpi / 72.0
+    sizes = np.array([[0.7 * fs * k * len(t) + 6, 1.45 * fs * k] for t in texts])
+    centres = place_labels(anchors_d[:len(texts)], sizes, (bb.x0, bb.y0, bb.x1, bb.y1),
+                           obstacles=obstacles, gap=4.0 * k)
+    inverse = to_display.inverted()
+    for i, text in enumerate(texts):
+        col = colours[i] if i < m else "black"
+        target = inverse.transform(centres[i])
+        moved = np.linalg.norm(centres[i] - anchors_d[i]) > 0.5 * sizes[i].max() + 10 * k
+        ax.annotate(text, xy=tuple(where[i]), xytext=tuple(target), textcoords="data",
+                    xycoords="data", color=col, fontsize=fs, ha="center", va="center",
+                    fontweight="bold" if i < m else "normal", zorder=6,
+                    annotation_clip=False,
+                    arrowprops=({"arrowstyle": "-", "color": col, "lw": 0.6, "alpha": 0.7,
+                                 "shrinkA": 0, "shrinkB": 2} if moved else None),
+                    bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
+                          "alpha": 0.7})

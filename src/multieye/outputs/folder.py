@@ -185,7 +185,7 @@ def _try_lock(fd: int) -> bool:
         if fcntl is not None:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         else:                                            # pragma: no cover - Windows
-            import msvcrt
+            import msvcrt  # noqa: PLC0415 (Windows only)
 
             os.lseek(fd, _WINDOWS_LOCK_OFFSET, os.SEEK_SET)
             msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)

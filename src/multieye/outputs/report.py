@@ -63,6 +63,7 @@ from multieye.outputs.report_cameras import (
     cameras_section,
     diagnostics_section,
 )
+from multieye.core.version import __version__
 
 __all__ = ["FIGURES", "write_report", "report_html", "load_details"]
 
@@ -438,7 +439,6 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
         What the marks of the rig pictures mean (:class:`~multieye.outputs.figures_rig.
         RigFigures`).
     """
-    from multieye.core.version import __version__
 
     body = "".join([
         _summary(rec, Path(out_dir)), _warnings(rec, notes), _rig(rec, details, figures, rig_legend),
@@ -489,7 +489,7 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     DatasetError
         ``calibration.json`` is missing or invalid, or the folder is not writable.
     """
-    from multieye.outputs.report_draw import draw_figures
+    from multieye.outputs.report_draw import draw_figures  # noqa: PLC0415 (heavy: matplotlib and OpenCV, only when figures are drawn)
 
     out = Path(out_dir)
     rec = read_calibration(out / "calibration.json")

@@ -9,7 +9,7 @@ The pipeline (:mod:`multieye.pipeline`) takes it from there.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +25,6 @@ from multieye.io import (
     RejectedItem,
     Rig,
     Trajectory,
-    bag_image_count,
     iter_bag_images,
     list_image_files,
     list_images,
@@ -37,13 +36,14 @@ from multieye.io import (
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
-from multieye.pipeline.selection import SelectionSummary, preselect
-from multieye.pipeline.frames import bag_frames, bag_listing, video_frames, video_listing
+from multieye.pipeline.selection import SelectionSummary, preselected
+from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
 from multieye.imaging.target_hints import counting_rule
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
+           "instant_key",
            "camera_motion", "pair_stamps", "pair_camera", "rejection_kind", "BY_NAME_TOLERANCE"]
 
 @dataclass(frozen=True)
@@ -68,6 +68,12 @@ class Observation:
         :attr:`multieye.imaging.pnp.PoseEstimate.alternative`), for the consensus to choose.
     alternative_rms_px : float or None
         Its reprojection RMS, pixels.
+    instant : str
+        The instant the image was taken, as a key that images of other cameras taken at the
+        same instant share (the target then has one pose for all of them): today the key of
+        the pairing, the camera-clock ``stamp`` (``repr``) or, for a camera paired by name,
+        the image's name without its suffix (:func:`instant_key`).  The problem groups the
+        images by it (:attr:`multieye.pipeline.problem.Problem.instants`).
     """
 
     name: str
@@ -78,6 +84,13 @@ class Observation:
     image_points: np.ndarray | None = None
     alternative: np.ndarray | None = None
     alternative_rms_px: float | None = None
+    instant: str = ""
+
+
+def instant_key(observation: Observation, by_name: bool) -> str:
+    """The :attr:`Observation.instant` of an image: its name without the suffix when the
+    camera is paired by name, else its camera-clock stamp (``repr``, exact)."""
+    return Path(observation.name).stem if by_name else repr(float(observation.stamp))
 
 
 @dataclass(frozen=True)
@@ -95,8 +108,10 @@ class CameraData:
         Images left out, and why.
     n_inputs : int
         Images (or pose rows) read.
-    mocap : Trajectory
-        ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand).
+    mocap : Trajectory or None
+        ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand).  None is a
+        camera without motion capture (a rig linked by cameras that see the target together;
+        rig.yaml still requires ``mocap:`` for every camera today).
     time_offset : float
         Motion-capture clock minus camera clock, seconds.
     time_tolerance : float
@@ -125,7 +140,7 @@ class CameraData:
     observations: tuple[Observation, ...]
     rejected: tuple[RejectedItem, ...]
     n_inputs: int
-    mocap: Trajectory
+    mocap: Trajectory | None
     time_offset: float
     time_tolerance: float
     warnings: tuple[str, ...] = ()
@@ -224,7 +239,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     cam = rig.cameras[name]
     source = {"images": cam.images, "rosbag": cam.rosbag, "video": cam.video}[cam.source]
     topic = cam.topic
-    target = target_from_spec(rig.target.as_dict(), path=rig.path)
+    target = target_from_spec(rig.target, path=rig.path)
     lost: list = []
     if cam.source == "video":
         stamped = []
@@ -295,7 +310,7 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _
     (their own board if given): the paths, the results and the seconds it took."""
 
     spec = cam.intrinsics_target or rig.target
-    target = target_from_spec(spec.as_dict(), path=rig.path)
+    target = target_from_spec(spec, path=rig.path)
     paths = list_image_files(cam.intrinsics_images)
     t0 = time.perf_counter()
     results = workers.detect(paths, target, intr)
@@ -356,34 +371,9 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     workers = _Workers(processes, progress, engine)
     trajectories: dict[tuple, Trajectory] = {}
     motions = {name: camera_motion(rig, name, trajectories) for name in rig.cameras}
-    chosen = _preselected(rig, motions, select, time_offset)
+    chosen = preselected(rig, motions, select, time_offset, pair_stamps)
     return {name: _camera_data(rig, name, motions[name], workers, chosen.get(name))
             for name in rig.cameras}
-
-
-def _preselected(rig: Rig, motions: dict, select: int | None, time_offset) -> dict:
-    """The images chosen before decoding, for the cameras with images (a folder, a video, a
-    bag's topic) with more than ``select`` (twice that for a lens to estimate)."""
-    if not select or time_offset == "auto":
-        return {}
-    listings, offsets = {}, {}
-    for name, cam in rig.cameras.items():
-        limit = select * (2 if cam.estimate_intrinsics else 1)
-        if cam.source == "poses" or (cam.source == "rosbag"
-                                     and bag_image_count(cam.rosbag, cam.topic) <= limit):
-            continue        # (a bag's stamps need a pass over it: only when over the budget)
-        listed = motions[name].listed
-        if cam.source != "images":
-            listed = video_listing(cam) if cam.source == "video" else bag_listing(cam)
-        elif listed is None:
-            listed = list_images(cam.images)
-        if len(listed) > limit:
-            listings[name] = listed
-            offsets[name] = (0.0 if rig.mocap_for(name).by_name else
-                             cam.time_offset if time_offset == "rig" else float(time_offset))
-    if not listings:
-        return {}
-    return preselect(rig, listings, motions, int(select), offsets, pair_stamps)
 
 
 @dataclass(frozen=True)
@@ -431,7 +421,9 @@ def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers,
     rejected = seen.rejected + tuple(
         RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
         for r in motion.trajectory.skipped)
-    return CameraData(name=name, intrinsics=seen.intrinsics, observations=seen.observations,
+    observations = tuple(replace(o, instant=instant_key(o, spec.by_name))
+                         for o in seen.observations)
+    return CameraData(name=name, intrinsics=seen.intrinsics, observations=observations,
                       rejected=rejected, n_inputs=seen.n_inputs, mocap=motion.trajectory,
                       time_offset=cam.time_offset, time_tolerance=spec.time_tolerance,
                       warnings=seen.warnings, detection_s=seen.seconds,

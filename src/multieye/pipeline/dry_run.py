@@ -205,7 +205,7 @@ def _target_hint(rig, paths, results) -> str:
         "target not detected")]
     if not missed:
         return ""
-    hint = suggest_target(sorted({missed[0], missed[len(missed) // 2]}), rig.target.as_dict())
+    hint = suggest_target(sorted({missed[0], missed[len(missed) // 2]}), rig.target)
     return f"; {hint.text}" if hint is not None else ""
 
 
@@ -241,7 +241,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
             failures["pose row left out"] = len(poses.skipped)
         n_sampled = n_listed
     else:
-        target = target_from_spec(rig.target.as_dict(), path=rig.path)
+        target = target_from_spec(rig.target, path=rig.path)
         intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
         if cam.source == "images":
             images = list_images(cam.images) if listed is None else listed

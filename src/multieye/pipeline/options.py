@@ -7,11 +7,11 @@ the stages take the fields as they are.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, is_dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from multieye.core.arguments import one_of, real_number
+from multieye.core.arguments import one_of, real_number, with_fields
 from multieye.core.errors import InputError
 from multieye.core.limits import MAX_TIME_OFFSET_S
 from multieye.estimate.selection import DEFAULT_BUDGET
@@ -99,10 +99,4 @@ def _check(opts: Options) -> None:
 def updated_options(options: Options, kw: dict) -> Options:
     """``options`` with the fields in ``kw`` replaced; InputError for anything else than
     Options or for an unknown field (instead of dataclasses' TypeError)."""
-    if not is_dataclass(options) or isinstance(options, type):
-        raise InputError(f"options must be a multieye Options, got {type(options).__name__}")
-    unknown = sorted(set(kw) - {f.name for f in fields(options)})
-    if unknown:
-        raise InputError(f"unknown option {', '.join(unknown)}; the options are "
-                         f"{', '.join(f.name for f in fields(options))}")
-    return replace(options, **kw) if kw else options
+    return with_fields(options, kw, Options, "options")

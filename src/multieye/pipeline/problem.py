@@ -13,6 +13,7 @@ The array-level description the solvers share (setups, measurement groups) is
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from multieye.core.errors import DatasetError
 from multieye.io import Rig
@@ -20,7 +21,30 @@ from multieye.pipeline.camera_data import CameraData, PairedCamera
 from multieye.pipeline.options import Options
 from multieye.solvers.measurements import Measurements
 
-__all__ = ["Problem", "Pairing", "make_problem"]
+__all__ = ["Problem", "Pairing", "Instant", "View", "make_problem", "group_instants"]
+
+
+class View(NamedTuple):
+    """One camera's image: ``problem.cameras[camera].observations[index]``."""
+
+    camera: str
+    index: int
+
+
+@dataclass(frozen=True)
+class Instant:
+    """The images of every camera taken at one instant (one :attr:`Observation.instant`
+    key): the target has one pose for all of them.
+
+    Attributes
+    ----------
+    key : str
+    views : tuple of View
+        In rig.yaml's camera order, then image order.
+    """
+
+    key: str
+    views: tuple[View, ...]
 
 
 @dataclass(frozen=True)
@@ -30,18 +54,32 @@ class Problem:
     Attributes
     ----------
     rig : Rig
-        rig.yaml as read: setup, target, frames, motion capture, cameras.
+        rig.yaml as read: setup, target, frames, motion capture (``rig.mocap``; None when
+        every camera names its own), cameras.
     cameras : dict of str to CameraData
-        Per camera, in rig.yaml's order.
+        Per camera, in rig.yaml's order: what it observed (target points per image, image
+        names, stamps and instants, the lens or its model, the clock, the motion capture it
+        pairs with, None for none).
     options : Options
     reference : str
         The camera whose frame is ``ref``.
+    instants : dict of str to Instant
+        The images of every camera grouped by :attr:`Observation.instant`, in the order of
+        first appearance.  Today no stage reads it (each camera is paired and solved on its
+        own); it is where cameras that see the target together share one target pose.
+    unknown_x : dict of str to (str or None)
+        Per camera, the unknown ``X`` its measurements determine: its own name (every camera
+        today, ``MeasurementGroup.x_name`` of :mod:`multieye.core.problem`); None for a
+        camera without an ``X`` of its own, placed only through the instants it shares with
+        cameras that have one.
     """
 
     rig: Rig
     cameras: dict[str, CameraData]
     options: Options
     reference: str
+    instants: dict[str, Instant] = field(default_factory=dict)
+    unknown_x: dict[str, str | None] = field(default_factory=dict)
 
     @property
     def setup(self) -> str:
@@ -49,12 +87,23 @@ class Problem:
 
 
 def make_problem(rig: Rig, cameras: dict[str, CameraData], options: Options) -> Problem:
-    """The problem, with the reference camera checked against the cameras."""
+    """The problem, with the reference camera checked against the cameras, the images
+    grouped by instant, and each camera its own ``X``."""
     reference = options.reference or next(iter(cameras))
     if reference not in cameras:
         raise DatasetError(f"reference camera {reference!r} is not in rig.yaml (cameras: "
                            f"{', '.join(cameras)})", path=rig.path)
-    return Problem(rig=rig, cameras=cameras, options=options, reference=reference)
+    return Problem(rig=rig, cameras=cameras, options=options, reference=reference,
+                   instants=group_instants(cameras), unknown_x={n: n for n in cameras})
+
+
+def group_instants(cameras: dict[str, CameraData]) -> dict[str, Instant]:
+    """Every camera's images grouped by :attr:`Observation.instant`."""
+    views: dict[str, list[View]] = {}
+    for name, data in cameras.items():
+        for k, o in enumerate(data.observations):
+            views.setdefault(o.instant, []).append(View(name, k))
+    return {key: Instant(key, tuple(v)) for key, v in views.items()}
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ import numpy as np
 
 from multieye.core.errors import CalibrationError, InputError
 from multieye.estimate.clock_residuals import ClockData, LocalTrajectory, shared_clocks
-from multieye.estimate.refine_images import RefinementResult, refine_images
+from multieye.estimate.refine_images import RefinementResult, RefineOptions, refine_images
 from multieye.estimate.uncertainty import RelativeUncertainty, relative_covariance
 from multieye.io import Rig
 from multieye.pipeline.camera_data import PairedCamera
@@ -108,11 +108,11 @@ def _refine_images(problem: Problem, pairing: Pairing, sol: Solution) -> Refinem
               for o in cameras[n].intrinsics_views] for n in paired]
     warnings: list[str] = []
     clocks = _clocks(problem, pairing, warnings) if problem.options.time_offset == "auto" else None
+    options = RefineOptions(names=list(paired), clocks=clocks,
+                            free_intrinsics=[cameras[n].intrinsics_estimated for n in paired],
+                            intrinsics_observations=views if any(views) else None, **given)
     res = refine_images(problem.setup, obs, [cameras[n].intrinsics for n in paired], sol.X, sol.Y,
-                        names=list(paired), free_intrinsics=[cameras[n].intrinsics_estimated
-                                                             for n in paired],
-                        clocks=clocks, intrinsics_observations=views if any(views) else None,
-                        **given)
+                        options)
     warnings.extend(_image_warnings(res, paired))
     names = list(paired)
     estimated = [j for j, n in enumerate(names) if cameras[n].intrinsics_estimated]
@@ -166,7 +166,7 @@ def _image_warnings(res: RefinementResult, paired: dict[str, PairedCamera]) -> l
 def _clocks(problem: Problem, pairing: Pairing, warnings: list[str]) -> list[ClockData | None]:
     """Per paired camera, its clock as an unknown of the image-level problem (None: paired by
     name, or kept at the estimate before the solve, with a warning saying why)."""
-    clocks: list[ClockData | None] = []
+    clocks: dict[str, ClockData | None] = {}
     for n, p in pairing.paired.items():
         data, offset = problem.cameras[n], pairing.offsets[n]
         try:
@@ -178,14 +178,16 @@ def _clocks(problem: Problem, pairing: Pairing, warnings: list[str]) -> list[Clo
             warnings.append(f"{n}: clock offset kept at the estimate before the solve "
                             f"({offset:+.4f} s), not refined with the rig: {exc}")
             clock = None
-        clocks.append(clock)
-    return _share_clocks(list(pairing.paired), clocks, warnings)
+        clocks[n] = clock
+    return list(_share_clocks(clocks, warnings).values())
 
 
-def _share_clocks(names: list[str], clocks: list, warnings: list[str]) -> list:
+def _share_clocks(by_camera: dict[str, ClockData | None], warnings: list[str]
+                  ) -> dict[str, ClockData | None]:
     """Cameras triggered together (equal stamps for at least half of each one's images,
     :func:`multieye.estimate.clock_residuals.shared_clocks`) on one motion capture are
     stamped by one clock: one offset for them, started at the mean of their estimates."""
+    names, clocks = list(by_camera), list(by_camera.values())
     timed = [j for j, c in enumerate(clocks) if c is not None]
     for group in shared_clocks([clocks[j].image_stamps for j in timed]):
         js = [timed[k] for k in group]
@@ -198,4 +200,4 @@ def _share_clocks(names: list[str], clocks: list, warnings: list[str]) -> list:
             clocks[j] = replace(clocks[j], offset=start, shared=names[js[0]])
         warnings.append(f"{', '.join(names[j] for j in js)}: image stamps equal (triggered "
                         "together), so one clock: one time offset estimated for them")
-    return clocks
+    return dict(zip(names, clocks))

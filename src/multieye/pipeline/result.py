@@ -1,5 +1,6 @@
 """What a calibration run produced: :class:`CalibrationRun` (every per-camera result keyed by
-camera name) and the :class:`Refinement` after the closed form."""
+camera name) and the :class:`Refinement` after the closed form; the same kind of module as
+:mod:`multieye.solvers.result`, which holds one solve's :class:`~multieye.solvers.Solution`."""
 
 from __future__ import annotations
 

@@ -36,7 +36,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from multieye.core.arguments import as_path
 from multieye.core.errors import CalibrationError, TooFewMeasurementsError
 from multieye.estimate.clock import estimate_offset
 from multieye.estimate.consensus import consensus
@@ -143,9 +142,7 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
         checks doubt as ``run.doubts`` (empty when nothing).
     """
     start = time.perf_counter()
-    path = as_path(dataset, "dataset (a folder with rig.yaml, or the rig.yaml)")
-    path = path / "rig.yaml" if path.is_dir() else path
-    rig = load_rig(path)
+    rig = load_rig(dataset)                 # a folder or its rig.yaml, checked where it enters
     options = updated_options(options, kw)
     with contextlib.ExitStack() as stack:
         eng = None if engine == "local" and scheduler is None else stack.enter_context(
@@ -159,7 +156,7 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
                       total=time.perf_counter() - start)
     # files read from outside the dataset folder named, first among the warnings
-    record = replace(run.record, warnings=outside_reads(rig, path) + tuple(run.record.warnings))
+    record = replace(run.record, warnings=outside_reads(rig, dataset) + tuple(run.record.warnings))
     return replace(run, timings=timings, record=record)
 
 

@@ -31,10 +31,11 @@ from multieye.estimate.selection import (
     select_after_detection,
     select_before_decoding,
 )
-from multieye.io import RejectedItem, Rig
+from multieye.io import RejectedItem, Rig, bag_image_count, list_images
+from multieye.pipeline.frames import bag_listing, video_listing
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 
-__all__ = ["SelectionSummary", "preselect", "select_paired", "merged"]
+__all__ = ["SelectionSummary", "preselect", "preselected", "select_paired", "merged"]
 
 
 @dataclass(frozen=True)
@@ -139,6 +140,34 @@ def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dic
                 budget=b, seen=len(listed), kept=len(kept), stage="before decoding",
                 without_mocap=len(listed) - len(paired[n])))
     return out
+
+
+def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_stamps) -> dict:
+    """The images chosen before decoding, for the cameras with images (a folder, a video, a
+    bag's topic) with more than ``select`` (twice that for a lens to estimate), by
+    camera name as :func:`preselect` gives them; nothing with ``time_offset="auto"``.
+    ``pair_stamps``: :func:`multieye.pipeline.camera_data.pair_stamps`."""
+    if not select or time_offset == "auto":
+        return {}
+    listings, offsets = {}, {}
+    for name, cam in rig.cameras.items():
+        limit = select * (2 if cam.estimate_intrinsics else 1)
+        if cam.source == "poses" or (cam.source == "rosbag"
+                                     and bag_image_count(cam.rosbag, cam.topic) <= limit):
+            continue        # (a bag's stamps need a pass over it: only when over the budget)
+        listed = motions[name].listed
+        if cam.source != "images":
+            listed = video_listing(cam) if cam.source == "video" else bag_listing(cam)
+        elif listed is None:
+            listed = list_images(cam.images)
+        if len(listed) > limit:
+            listings[name] = listed
+            offsets[name] = (0.0 if rig.mocap_for(name).by_name else
+                             cam.time_offset if time_offset == "rig" else float(time_offset))
+    if not listings:
+        return {}
+    return preselect(rig, listings, motions, int(select), offsets, pair_stamps)
+
 
 
 def _lens_information(observations, intrinsics) -> np.ndarray:

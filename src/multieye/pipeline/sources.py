@@ -41,7 +41,8 @@ def outside_reads(rig: Rig, named: str | os.PathLike) -> tuple[str, ...]:
     rig : Rig
         As loaded (its paths are absolute and resolved).
     named : path-like
-        The ``rig.yaml`` as named on the command line (its folder is the dataset folder).
+        The dataset as named on the command line: its folder (holding ``rig.yaml``) or the
+        ``rig.yaml`` (whose folder is the dataset folder).
 
     Returns
     -------
@@ -51,6 +52,7 @@ def outside_reads(rig: Rig, named: str | os.PathLike) -> tuple[str, ...]:
         its images read from outside it.
     """
     named = Path(os.path.abspath(named))
+    named = named / "rig.yaml" if named.is_dir() else named
     root = Path(os.path.realpath(named.parent))
     where = f"outside the dataset folder {root}"
     notes = []

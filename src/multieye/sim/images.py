@@ -39,6 +39,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from multieye.core.arguments import with_fields
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
@@ -234,13 +235,25 @@ def estimate_target_poses(object_points: F64, image_points: F64, T_init: F64,
     return T
 
 
-def simulate_images(rng: np.random.Generator | int | None = None, *, n_cameras: int = 4,
-                    images: int | Sequence[int] = 40, setup: sim.Setup = "eye-to-base",
-                    pixel_sigma: float = 0.3, mocap_rot_sigma_rad: float = float(np.deg2rad(0.1)),
-                    mocap_trans_sigma_m: float = 0.3e-3, model: str = "pinhole",
-                    intrinsics: Sequence[Intrinsics] | None = None,
-                    noise_rng: np.random.Generator | int | None = None,
-                    scenario: sim.ScenarioSpec | None = None) -> ImageScenario:
+@dataclass(frozen=True)
+class ImageSpec:
+    """The options of :func:`simulate_images` (see there), taken as one argument or as
+    keyword arguments."""
+
+    n_cameras: int = 4
+    images: int | Sequence[int] = 40
+    setup: sim.Setup = "eye-to-base"
+    pixel_sigma: float = 0.3
+    mocap_rot_sigma_rad: float = float(np.deg2rad(0.1))
+    mocap_trans_sigma_m: float = 0.3e-3
+    model: str = "pinhole"
+    intrinsics: Sequence[Intrinsics] | None = None
+    noise_rng: np.random.Generator | int | None = None
+    scenario: sim.ScenarioSpec | None = None
+
+
+def simulate_images(rng: np.random.Generator | int | None = None,
+                    spec: ImageSpec = ImageSpec(), **kw) -> ImageScenario:
     """Simulate a rig calibration at the image level (module docstring).
 
     Parameters
@@ -273,6 +286,11 @@ def simulate_images(rng: np.random.Generator | int | None = None, *, n_cameras: 
     -------
     ImageScenario
     """
+    o = with_fields(spec, kw, ImageSpec, "spec")
+    n_cameras, images, setup, pixel_sigma = o.n_cameras, o.images, o.setup, o.pixel_sigma
+    mocap_rot_sigma_rad, mocap_trans_sigma_m = o.mocap_rot_sigma_rad, o.mocap_trans_sigma_m
+    model, intrinsics = o.model, o.intrinsics
+    noise_rng, scenario = o.noise_rng, o.scenario
     rng = np.random.default_rng(rng)
     if pixel_sigma < 0 or mocap_rot_sigma_rad < 0 or mocap_trans_sigma_m < 0:
         raise InputError("noise standard deviations must be >= 0, got "
@@ -419,14 +437,25 @@ def _smooth_board_motion(t: F64, phases: F64, freqs: F64, depth: float) -> F64:
     return g.make_transform(R, position - R @ centre)
 
 
-def simulate_stream(rng: np.random.Generator | int | None = None, *,
-                    setup: sim.Setup = "eye-to-base", duration_s: float = 60.0,
-                    camera_rate_hz: float = 20.0, mocap_rate_hz: float = 200.0,
-                    time_offset_s: float = 0.0, drop_fraction: float = 0.05,
-                    cam_rot_sigma_rad: float = float(np.deg2rad(0.1)),
-                    cam_trans_sigma_m: float = 1e-3,
-                    mocap_rot_sigma_rad: float = float(np.deg2rad(0.1)),
-                    mocap_trans_sigma_m: float = 0.3e-3) -> StreamScenario:
+@dataclass(frozen=True)
+class StreamSpec:
+    """The options of :func:`simulate_stream` (see there), taken as one argument or as
+    keyword arguments."""
+
+    setup: sim.Setup = "eye-to-base"
+    duration_s: float = 60.0
+    camera_rate_hz: float = 20.0
+    mocap_rate_hz: float = 200.0
+    time_offset_s: float = 0.0
+    drop_fraction: float = 0.05
+    cam_rot_sigma_rad: float = float(np.deg2rad(0.1))
+    cam_trans_sigma_m: float = 1e-3
+    mocap_rot_sigma_rad: float = float(np.deg2rad(0.1))
+    mocap_trans_sigma_m: float = 0.3e-3
+
+
+def simulate_stream(rng: np.random.Generator | int | None = None,
+                    spec: StreamSpec = StreamSpec(), **kw) -> StreamScenario:
     """One camera and a motion capture recording continuous motion, with a clock offset.
 
     The board moves smoothly in front of the camera (eye-to-base: the board carries the
@@ -456,6 +485,12 @@ def simulate_stream(rng: np.random.Generator | int | None = None, *,
     -------
     StreamScenario
     """
+    o = with_fields(spec, kw, StreamSpec, "spec")
+    setup, duration_s = o.setup, o.duration_s
+    camera_rate_hz, mocap_rate_hz = o.camera_rate_hz, o.mocap_rate_hz
+    time_offset_s, drop_fraction = o.time_offset_s, o.drop_fraction
+    cam_rot_sigma_rad, cam_trans_sigma_m = o.cam_rot_sigma_rad, o.cam_trans_sigma_m
+    mocap_rot_sigma_rad, mocap_trans_sigma_m = o.mocap_rot_sigma_rad, o.mocap_trans_sigma_m
     rng = np.random.default_rng(rng)
     if duration_s <= 0 or camera_rate_hz <= 0 or mocap_rate_hz <= 0:
         raise InputError("duration and rates must be positive, got "

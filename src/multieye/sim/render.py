@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
+from multieye.core.arguments import transform, with_fields
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, undistort_points
@@ -59,16 +60,6 @@ def _image_size(intrinsics: Intrinsics, width, height) -> tuple[int, int]:
     if int(w) <= 0 or int(h) <= 0:
         raise InputError(f"image size must be positive, got {w}x{h}")
     return int(w), int(h)
-
-
-def _check_pose(T_cam_target: ArrayLike) -> F64:
-    T = np.asarray(T_cam_target, dtype=np.float64)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"T_cam_target must be a finite 4x4 transform, got shape {T.shape}")
-    R = T[:3, :3]
-    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) <= 0:
-        raise InputError("T_cam_target rotation is not a rotation matrix")
-    return T
 
 
 def _default_margin(target: Target) -> float:
@@ -109,7 +100,7 @@ def visible(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike, *,
     the board inside, except for lenses whose distortion folds (outline points whose ray
     cannot be traced back are then counted as outside).
     """
-    T = _check_pose(T_cam_target)
+    T = transform(T_cam_target, "T_cam_target", rigid=True)
     w, h = _image_size(intrinsics, width, height)
     outline = board_outline(target, margin=margin)
     P = outline @ T[:3, :3].T + T[:3, 3]
@@ -391,11 +382,25 @@ def _board_roi(target: Target, intrinsics: Intrinsics, T: F64, w: int, h: int, m
     return (ua, va, ub, vb)
 
 
-def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike, *,
-           width: int | None = None, height: int | None = None,
-           rng: np.random.Generator | None = None, supersample: int = 3,
-           blur_sigma: float = 0.6, noise_sigma: float = 1.5, margin: float | None = None,
-           inverted: bool = False, black: float = 25.0, white: float = 225.0) -> NDArray[np.uint8]:
+@dataclass(frozen=True)
+class RenderStyle:
+    """The options of :func:`render` (see there), taken as one argument or as
+    keyword arguments."""
+
+    width: int | None = None
+    height: int | None = None
+    rng: np.random.Generator | None = None
+    supersample: int = 3
+    blur_sigma: float = 0.6
+    noise_sigma: float = 1.5
+    margin: float | None = None
+    inverted: bool = False
+    black: float = 25.0
+    white: float = 225.0
+
+
+def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike,
+           style: RenderStyle = RenderStyle(), **kw) -> NDArray[np.uint8]:
     """Render a grayscale image of ``target`` at pose ``T_cam_target``.
 
     Parameters
@@ -436,7 +441,11 @@ def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike, *,
     whose ray cannot be traced back through the lens model (outside the field of a fisheye,
     or where a polynomial model folds) show background.
     """
-    T = _check_pose(T_cam_target)
+    o = with_fields(style, kw, RenderStyle, "style")
+    width, height, rng, supersample = o.width, o.height, o.rng, o.supersample
+    blur_sigma, noise_sigma, margin, inverted = o.blur_sigma, o.noise_sigma, o.margin, o.inverted
+    black, white = o.black, o.white
+    T = transform(T_cam_target, "T_cam_target", rigid=True)
     w, h = _image_size(intrinsics, width, height)
     if int(supersample) < 1:
         raise InputError(f"supersample must be a positive integer, got {supersample}")

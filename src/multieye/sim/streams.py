@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from multieye.core.arguments import with_fields
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
@@ -67,13 +68,25 @@ class RigStream:
     time_offsets_s: F64
 
 
-def simulate_rig_stream(rng: np.random.Generator | int | None = None, *, n_cameras: int = 2,
-                        setup: sim.Setup = "eye-to-base", duration_s: float = 20.0,
-                        camera_rate_hz: float = 4.0, mocap_rate_hz: float = 200.0,
-                        time_offsets_s=0.0, pixel_sigma: float = 0.5,
-                        mocap_rot_sigma_rad: float = 1e-3,
-                        mocap_trans_sigma_m: float = 0.3e-3,
-                        interleaved: bool = True) -> RigStream:
+@dataclass(frozen=True)
+class RigStreamSpec:
+    """The options of :func:`simulate_rig_stream` (see there), taken as one argument or as
+    keyword arguments."""
+
+    n_cameras: int = 2
+    setup: sim.Setup = "eye-to-base"
+    duration_s: float = 20.0
+    camera_rate_hz: float = 4.0
+    mocap_rate_hz: float = 200.0
+    time_offsets_s: object = 0.0
+    pixel_sigma: float = 0.5
+    mocap_rot_sigma_rad: float = 1e-3
+    mocap_trans_sigma_m: float = 0.3e-3
+    interleaved: bool = True
+
+
+def simulate_rig_stream(rng: np.random.Generator | int | None = None,
+                        spec: RigStreamSpec = RigStreamSpec(), **kw) -> RigStream:
     """A rig of ``n_cameras`` with their own clocks and one motion-capture stream.
 
     Camera 0 is the rig of :func:`multieye.sim.rigs.simulate_rig` (one camera); camera j is
@@ -105,6 +118,12 @@ def simulate_rig_stream(rng: np.random.Generator | int | None = None, *, n_camer
     -------
     RigStream
     """
+    o = with_fields(spec, kw, RigStreamSpec, "spec")
+    n_cameras, setup = o.n_cameras, o.setup
+    duration_s, camera_rate_hz = o.duration_s, o.camera_rate_hz
+    mocap_rate_hz, time_offsets_s = o.mocap_rate_hz, o.time_offsets_s
+    pixel_sigma, mocap_rot_sigma_rad = o.pixel_sigma, o.mocap_rot_sigma_rad
+    mocap_trans_sigma_m, interleaved = o.mocap_trans_sigma_m, o.interleaved
     rng = np.random.default_rng(rng)
     m = int(n_cameras)
     offsets = np.broadcast_to(np.asarray(time_offsets_s, dtype=np.float64), (m,)).copy()

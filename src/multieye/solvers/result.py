@@ -1,4 +1,5 @@
-"""The result of a closed-form or refined solve."""
+"""The result of a closed-form or refined solve (:class:`Solution`); the same kind of module
+as :mod:`multieye.pipeline.result`, which holds the result of a whole calibration run."""
 
 from __future__ import annotations
 

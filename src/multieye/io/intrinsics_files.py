@@ -144,7 +144,7 @@ def _nesting(text: str) -> int:
 def _cv_message(exc: BaseException) -> tuple[str, int | None]:
     """What OpenCV says is wrong, and the line it names, from a cv2.error (or the SystemError
     its bindings wrap one in)."""
-    import cv2
+    import cv2  # noqa: PLC0415 (heavy: OpenCV, only for OpenCV FileStorage files)
 
     cause = exc if isinstance(exc, cv2.error) else (exc.__cause__ or exc.__context__ or exc)
     lines = str(cause).strip().splitlines()
@@ -171,7 +171,7 @@ def _key_lines(text: str) -> dict:
 def _opencv_document(text: str, p: Path) -> YamlDocument:
     """A FileStorage text as a mapping of its read keys (matrices as ``{rows, cols, data}``);
     the ignored keys are left unparsed and unknown keys refused."""
-    import cv2
+    import cv2  # noqa: PLC0415 (heavy: OpenCV, only for OpenCV FileStorage files)
 
     if _nesting(text) > _MAX_OPENCV_NESTING:
         raise DatasetError(f"FileStorage refused: nested deeper than {_MAX_OPENCV_NESTING} "

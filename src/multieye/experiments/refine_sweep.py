@@ -18,7 +18,7 @@ bound itself in both.  Trial ``t`` draws its scene from ``default_rng([seed, t])
 noise from ``default_rng([seed, t, k])`` at the k-th level, so every level sees the same
 scenes.
 
->>> from multieye.experiments.refine import run_refine_experiment
+>>> from multieye.experiments.refine_sweep import run_refine_experiment
 >>> paths = run_refine_experiment(100, 0, "docs/experiments", progress=False)  # doctest: +SKIP
 """
 
@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from multieye.core.arguments import with_fields
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.metrics import relative_extrinsics
@@ -113,10 +114,21 @@ def _predicted(X, covariance) -> tuple[float, float]:
             float(np.sqrt(np.mean(rel.std_trans_m[1:] ** 2))))
 
 
-def refine_trial(pixel_sigma: float, scene_rng, noise_rng, *, trial: int = 0,
-                 n_cameras: int = 4, images: int = 40, setup: str = "eye-to-base",
-                 mocap_rot_sigma_rad: float = float(np.deg2rad(0.1)),
-                 mocap_trans_sigma_m: float = 0.3e-3) -> list[RefineRow]:
+@dataclass(frozen=True)
+class TrialSpec:
+    """The options of :func:`refine_trial` (see there), taken as one argument or as
+    keyword arguments."""
+
+    trial: int = 0
+    n_cameras: int = 4
+    images: int = 40
+    setup: str = "eye-to-base"
+    mocap_rot_sigma_rad: float = float(np.deg2rad(0.1))
+    mocap_trans_sigma_m: float = 0.3e-3
+
+
+def refine_trial(pixel_sigma: float, scene_rng, noise_rng, spec: TrialSpec = TrialSpec(),
+                 **kw) -> list[RefineRow]:
     """Simulate one rig and score ``joint``, ``refined`` and the bound on it.
 
     Parameters
@@ -138,6 +150,9 @@ def refine_trial(pixel_sigma: float, scene_rng, noise_rng, *, trial: int = 0,
     list of RefineRow
         One per method of :data:`METHODS`.
     """
+    o = with_fields(spec, kw, TrialSpec, "spec")
+    trial, n_cameras, images, setup = o.trial, o.n_cameras, o.images, o.setup
+    mocap_rot_sigma_rad, mocap_trans_sigma_m = o.mocap_rot_sigma_rad, o.mocap_trans_sigma_m
     sc = simulate_images(scene_rng, n_cameras=n_cameras, images=images, setup=setup,
                          pixel_sigma=pixel_sigma, mocap_rot_sigma_rad=mocap_rot_sigma_rad,
                          mocap_trans_sigma_m=mocap_trans_sigma_m, noise_rng=noise_rng)
