@@ -298,9 +298,8 @@ def _variance_components(data: ImageData, fams, *, s_px: float, s_rot: float, s_
         apart from the pixel noise.
     """
     groups = data.groups(s_px, s_rot, s_t)
-    ev = evaluate(fams, groups, jacobians=False)        # residuals; the normal equations are
-    cov = covariance(fams, groups, local=True)          # summed chunk by chunk
-    values = {f.name: f.value for f in fams}
+    ev = evaluate(fams, groups, jacobians=False)   # residuals; J^T J summed chunk by chunk
+    cov, values = covariance(fams, groups, local=True), {f.name: f.value for f in fams}
     h_prior = 0.0
     sums, red = np.zeros(2), np.zeros(2)
     for grp, e in zip(groups, ev):
