@@ -2,11 +2,12 @@
 
 Run from the repository root::
 
-    PYTHONPATH=src python benchmarks/bench_selection.py [IMAGES BUDGET SEEDS]   # default 900 100 5
+    PYTHONPATH=src python benchmarks/bench_selection.py [IMAGES BUDGET SEEDS [RICH_PERCENT]]
+    # default 900 100 5 20
 
 On uneven recordings (``multieye.sim.recordings.simulate_recording``: 3 cameras x IMAGES at
-30 Hz, the board waved richly in a fifth of each camera's segment, slowly the rest of the
-time; 0.3 px pixel noise, motion capture 0.1 deg / 0.3 mm), each of SEEDS recordings is
+30 Hz, the board waved richly in RICH_PERCENT (20) % of each camera's segment, slowly the
+rest of the time; 0.3 px pixel noise, motion capture 0.1 deg / 0.3 mm), each of SEEDS recordings is
 calibrated (closed form, then the image-level refinement with the noise given) from all
 images, from BUDGET images per camera chosen before decoding
 (``multieye.estimate.selection.select_before_decoding``, motion-capture poses only) and from
@@ -47,10 +48,11 @@ def calibrated(rec, keep):
     return [float(np.sqrt(np.mean(x ** 2))) for x in parts]
 
 
-def main(n: int, budget: int, seeds: int) -> None:
+def main(n: int, budget: int, seeds: int, rich_percent: int = 20) -> None:
     rows = []
     for seed in range(seeds):
-        rec = simulate_recording(seed, n_cameras=len(NAMES), images=n)
+        rec = simulate_recording(seed, n_cameras=len(NAMES), images=n,
+                                 rich_fraction=rich_percent / 100)
         sel = select_before_decoding({c: rec.stamps[j] for j, c in enumerate(NAMES)},
                                      {c: np.arange(n) for c in NAMES},
                                      {c: rec.T_world_mocap[j] for j, c in enumerate(NAMES)}, budget)
@@ -58,7 +60,8 @@ def main(n: int, budget: int, seeds: int) -> None:
                 ("stride", [stride_selection(n, budget)] * len(NAMES)))
         for label, keep in runs:
             rows.append((seed, label, *calibrated(rec, keep)))
-    print(f"{len(NAMES)} cameras x {n} images, {budget} per camera selected or strided")
+    print(f"{len(NAMES)} cameras x {n} images, {budget} per camera selected or strided, "
+          f"{rich_percent} % rich")
     print("| run | seed | error rot deg | error trans mm | predicted std rot deg | predicted std trans mm |")
     print("|---|---|---|---|---|---|")
     for r in rows:
@@ -71,5 +74,5 @@ def main(n: int, budget: int, seeds: int) -> None:
 
 
 if __name__ == "__main__":
-    args = [int(a) for a in sys.argv[1:4]] or [900, 100, 5]
+    args = [int(a) for a in sys.argv[1:5]] or [900, 100, 5]
     main(*args)
