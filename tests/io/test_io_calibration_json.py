@@ -48,7 +48,7 @@ def test_keys_follow_the_design(tmp_path, rng, setup, y_key, x_key):
     data = json.loads((tmp_path / "calibration.json").read_text())
     assert list(data) == ["format_version", "setup", "method", "reference_camera", y_key,
                           "cameras", "residuals", "warnings", "plausibility"]
-    assert data["format_version"] == FORMAT_VERSION == 1
+    assert data["format_version"] == FORMAT_VERSION == 2
     assert data["plausibility"] == []
     assert data["setup"] == setup and data["reference_camera"] == "cam0"
     assert np.array_equal(np.array(data[y_key]), rec.Y)
@@ -233,3 +233,38 @@ def test_format_version_absent_is_read_as_the_first_and_a_newer_one_is_refused(t
         with pytest.raises(DatasetError, match="format_version must be an integer from 1") as e:
             read_calibration(path)
         assert str(path) in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_rig_without_motion_capture_has_no_x_and_no_y_and_round_trips(tmp_path, rng):
+    """Issue 23: setup overlap, T_ref_cam with its covariance, links per camera."""
+    from multieye.io.calibration_json import CameraLinks
+    T = geometry.random_transforms(rng, 3)
+    T[0] = np.eye(4)
+    A = rng.normal(size=(6, 6))
+    cams = [CameraRecord(f"cam{j}", None, T[j], 30, covariance=A @ A.T * 1e-8 * (j > 0),
+                         links=CameraLinks({f"cam{k}": 10 + j + k for k in range(3) if k != j}))
+            for j in range(3)]
+    rec = CalibrationRecord("overlap", "covisibility", "cam0", None, cams, Residuals(0.01, 1e-4))
+    path = tmp_path / "calibration.json"
+    write_calibration(path, rec)
+    data = json.loads(path.read_text())
+    assert data["format_version"] == 2 and data["setup"] == "overlap"
+    assert "T_marker_target" not in data and "T_world_target" not in data
+    assert set(data["cameras"]["cam1"]) >= {"T_ref_cam", "links", "covariance"}
+    assert "T_world_cam" not in data["cameras"]["cam1"]
+    assert data["cameras"]["cam1"]["links"] == {"overlap": {"cam0": 11, "cam2": 13},
+                                                "mocap": False}
+    back = read_calibration(path)
+    assert back.Y is None and not back.mocap
+    assert back.camera("cam2").links == cams[2].links
+    assert np.array_equal(back.camera("cam2").T_ref_cam, T[2])
+    assert cams[1].links.describe() == "overlap with cam0 (11 instants), cam2 (13)"
+    # a version-1 file cannot say overlap; X or Y where they cannot be are refused
+    path.write_text(json.dumps(data | {"format_version": 1}))
+    with pytest.raises(DatasetError, match="setup must be one of"):
+        read_calibration(path)
+    with pytest.raises(InputError, match="no Y and no X"):
+        CalibrationRecord("overlap", "covisibility", "cam0", np.eye(4), cams,
+                          Residuals(0.0, 0.0))
+    with pytest.raises(InputError, match="Y and every camera's X are needed"):
+        CalibrationRecord("eye-to-base", "joint", "cam0", np.eye(4), cams, Residuals(0.0, 0.0))

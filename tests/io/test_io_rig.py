@@ -451,3 +451,35 @@ def test_cameras_naming_the_frames_differently_are_refused_at_the_camera(dataset
     with pytest.raises(DatasetError, match=r"cameras\.cam1: camera cam1 names the motion "
                                            r"capture's frames \['base', 'board'\]"):
         load_rig(dataset)
+
+
+def test_a_rig_without_motion_capture_is_accepted_and_its_keys_checked(tmp_path):
+    """Issue 23: mocap optional (setup then optional), sync_tolerance checked where it is,
+    motion capture for every camera or for none, and no camera given by poses."""
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "cam.yaml").write_text("%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n"
+                                       "   rows: 3\n   cols: 3\n   dt: d\n"
+                                       "   data: [500., 0., 320., 0., 500., 240., 0., 0., 1.]\n")
+    target = "target: {type: chessboard, rows: 6, cols: 9, spacing: 0.05}\n"
+    cams = "cameras:\n  a: {intrinsics: cam.yaml, images: a/}\n  b: {model: fisheye, images: b/}\n"
+    (tmp_path / "rig.yaml").write_text(target + "sync_tolerance: 0.004\n" + cams)
+    rig = load_rig(tmp_path)
+    assert not rig.has_mocap and rig.mocap is None and rig.sync_tolerance == 0.004
+    for bad, where in (("sync_tolerance: -1\n", ":2:"), ("sync_tolerance: 11\n", ":2:")):
+        (tmp_path / "rig.yaml").write_text(target + bad + cams)
+        with pytest.raises(DatasetError, match=f"{where}.*sync_tolerance"):
+            load_rig(tmp_path)
+    (tmp_path / "m.txt").write_text("0 0 0 0 0 0 0 1\n")
+    (tmp_path / "rig.yaml").write_text(target + cams.replace("images: a/}", "images: a/, "
+                                                             "mocap: m.txt}"))
+    with pytest.raises(DatasetError, match="missing key 'setup'"):
+        load_rig(tmp_path)
+    (tmp_path / "rig.yaml").write_text("setup: eye-to-base\n" + target + cams.replace(
+        "images: a/}", "images: a/, mocap: m.txt}"))
+    with pytest.raises(DatasetError, match="cameras.b.*for every camera, or none"):
+        load_rig(tmp_path)
+    (tmp_path / "p.txt").write_text("0 0 0 1 0 0 0 1\n")
+    (tmp_path / "rig.yaml").write_text(target + cams + "  c: {poses: p.txt}\n")
+    with pytest.raises(DatasetError, match="cameras.c.*'poses' has none"):
+        load_rig(tmp_path)

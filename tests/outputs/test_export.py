@@ -561,7 +561,7 @@ def test_camera_overlaps_compare_used_images_in_the_mocap_clock():
     from multieye.outputs.details import camera_overlaps
 
     def cam(name, stamps, offset, tol):
-        return (NS(name=name, time_offset_s=offset),
+        return (NS(name=name, time_offset_s=offset, links=None),   # a record of version 1
                 NS(time_offset=0.0, time_tolerance=tol),
                 NS(observations=[NS(stamp=t) for t in stamps]))
 

@@ -29,14 +29,28 @@ import json
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import fields
 
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.arguments import transform
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.io.atomic import write_text_atomic
+from multieye.io.calibration_record import (
+    FORMAT_VERSION,
+    OVERLAP,
+    ROLE_NAMES,
+    SETUP_KEYS,
+    CalibrationRecord,
+    CameraLinks,
+    CameraRecord,
+    IntrinsicsRecord,
+    PlausibilityItem,
+    PoseUncertainty,
+    RejectedItem,
+    Residuals,
+    named_keys,
+)
 from multieye.io.textfile import read_json_as
 
 __all__ = [
@@ -55,275 +69,9 @@ __all__ = [
     "calibration_from_dict",
     "ROLE_NAMES",
     "named_keys",
+    "OVERLAP",
+    "CameraLinks",
 ]
-
-#: ``format_version`` of the files this version writes: raised whenever a key changes meaning
-#: (docs/outputs.md, section 2).  Files without it are of version 1.
-FORMAT_VERSION = 1
-
-#: setup -> (key of the shared unknown Y, key of each camera's X).
-SETUP_KEYS = {
-    "eye-to-base": ("T_marker_target", "T_world_cam"),
-    "eye-on-hand": ("T_world_target", "T_body_cam"),
-}
-
-#: setup -> the roles of the frames ``calibration.json``'s ``frames`` names: the motion
-#: capture's fixed frame and the tracked one.
-ROLE_NAMES = {"eye-to-base": ("world", "marker"), "eye-on-hand": ("world", "body")}
-
-
-def named_keys(setup: str, frames: Mapping[str, str] | None) -> tuple[str, str]:
-    """:data:`SETUP_KEYS` with the user's frame names (rig.yaml's ``pose:``) for the roles.
-
-    >>> named_keys("eye-on-hand", {"world": "base", "body": "tool0"})
-    ('T_base_target', 'T_tool0_cam')
-    >>> named_keys("eye-to-base", None)
-    ('T_marker_target', 'T_world_cam')
-    """
-    y_key, x_key = SETUP_KEYS[setup]
-    if not frames:
-        return y_key, x_key
-    def rename(key: str) -> str:           # T_<role>_<target or cam>
-        _, role, frame = key.split("_")
-        return f"T_{frames.get(role, role)}_{frame}"
-
-    return rename(y_key), rename(x_key)
-
-
-def _rigid(T, what: str) -> np.ndarray:
-    return transform(T, what, rigid=True)
-
-
-@dataclass(frozen=True)
-class Residuals:
-    """Residuals of the loop ``A_i X = Y B_i`` (paper section V-A; docs/conventions.md, section 7).
-
-    Attributes
-    ----------
-    e_R_deg : float
-        Mean rotation residual, degrees.
-    e_t_m : float
-        Mean translation residual, metres.
-    max_R_deg, max_t_m : float or None
-        Worst measurement.
-    reprojection_rms_px : float or None
-        RMS reprojection error of the target points, pixels (image pipeline).
-    """
-
-    e_R_deg: float
-    e_t_m: float
-    max_R_deg: float | None = None
-    max_t_m: float | None = None
-    reprojection_rms_px: float | None = None
-
-
-@dataclass(frozen=True)
-class RejectedItem:
-    """An image or measurement left out, and why (``item`` is e.g. the image file name)."""
-
-    item: str
-    reason: str
-
-
-@dataclass(frozen=True)
-class PlausibilityItem:
-    """What a plausibility check doubts (:mod:`multieye.estimate.plausibility`): its
-    ``cause`` (``scale``, ``unit``, ``quaternion-order``, ``setup``, ``inverted-poses``,
-    ``time-offset``, ``intrinsics``, ``fit``), the ``message`` and, for a per-camera doubt, the
-    ``camera``."""
-
-    cause: str
-    message: str
-    camera: str | None = None
-
-
-@dataclass(frozen=True)
-class PoseUncertainty:
-    """Uncertainty of one transform (docs/conventions.md, covariance convention).
-
-    Attributes
-    ----------
-    std_rot_deg, std_trans_m : float
-        Root of the trace of the rotation / translation block of ``covariance``.
-    covariance : ndarray, shape (6, 6)
-        Rotation vector (rad) then translation (m), perturbation ``R = Exp(phi) R_hat``,
-        ``t = t_hat + tau``, in the frame the transform maps into.
-    """
-
-    std_rot_deg: float
-    std_trans_m: float
-    covariance: np.ndarray
-
-    def __post_init__(self):
-        C = np.asarray(self.covariance, dtype=np.float64)
-        if C.shape != (6, 6) or not np.all(np.isfinite(C)):
-            raise InputError(f"a pose covariance must be a finite 6x6 matrix, got shape {C.shape}")
-        object.__setattr__(self, "covariance", C)
-
-
-@dataclass(frozen=True)
-class IntrinsicsRecord:
-    """A camera's intrinsics as calibration.json states them.
-
-    Attributes
-    ----------
-    intrinsics : Intrinsics
-    estimated : bool
-        Estimated (or refined) from the recording; False: given and held fixed.
-    covariance : ndarray, shape (4 + k, 4 + k), or None
-        Over fx fy cx cy then the distortion coefficients (OpenCV order), when estimated.
-    projection_std_px : (float, float) or None
-        Mean and largest standard deviation of the projection of a fixed camera-frame ray
-        over the observed target points (root of half the trace of the 2x2 pixel covariance
-        from ``covariance``), pixels.
-    """
-
-    intrinsics: Intrinsics
-    estimated: bool = False
-    covariance: np.ndarray | None = None
-    projection_std_px: tuple[float, float] | None = None
-
-
-@dataclass(frozen=True)
-class CameraRecord:
-    """One camera of a calibration result.
-
-    Attributes
-    ----------
-    name : str
-    X : ndarray, shape (4, 4)
-        ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand), metres.
-    T_ref_cam : ndarray, shape (4, 4)
-        Pose of the camera in the reference camera's frame.
-    measurements_used : int
-    residuals : Residuals or None
-    time_offset_s : float or None
-        Motion-capture clock minus camera clock, seconds.
-    time_offset_std_s : float or None
-        Standard deviation of ``time_offset_s`` when it was estimated in the joint problem.
-    std_rot_deg, std_trans_m : float or None
-        Root of the trace of the rotation / translation covariance of ``T_ref_cam``.
-    covariance : ndarray, shape (6, 6), or None
-        Covariance of ``T_ref_cam``: rotation vector (rad) then translation (m), both in the
-        reference camera's frame, for the perturbation ``R = Exp(phi) R_hat``,
-        ``t = t_hat + tau`` (left, not the camera-frame convention some tools use).
-    rejected : tuple of RejectedItem
-    intrinsics : IntrinsicsRecord or None
-        None for a camera given by precomputed poses without intrinsics.
-    uncertainty : mapping of str to PoseUncertainty, or None
-        Of ``X`` (under its key, ``T_world_cam`` or ``T_body_cam``) and of ``T_ref_cam``.
-    """
-
-    name: str
-    X: np.ndarray
-    T_ref_cam: np.ndarray
-    measurements_used: int
-    residuals: Residuals | None = None
-    time_offset_s: float | None = None
-    std_rot_deg: float | None = None
-    std_trans_m: float | None = None
-    covariance: np.ndarray | None = None
-    rejected: tuple[RejectedItem, ...] = ()
-    intrinsics: IntrinsicsRecord | None = None
-    uncertainty: Mapping | None = None
-    time_offset_std_s: float | None = None
-
-    def __post_init__(self):
-        object.__setattr__(self, "X", _rigid(self.X, f"camera {self.name}: X"))
-        object.__setattr__(self, "T_ref_cam", _rigid(self.T_ref_cam,
-                                                     f"camera {self.name}: T_ref_cam"))
-        if self.covariance is not None:
-            C = np.asarray(self.covariance, dtype=np.float64)
-            if C.shape != (6, 6) or not np.all(np.isfinite(C)):
-                raise InputError(f"camera {self.name}: covariance must be a finite 6x6 matrix, "
-                                 f"got shape {C.shape}")
-            object.__setattr__(self, "covariance", C)
-        n = self.measurements_used
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
-            raise InputError(f"camera {self.name}: measurements_used must be a non-negative "
-                             f"integer, got {n!r}")
-        object.__setattr__(self, "measurements_used", int(n))
-        object.__setattr__(self, "rejected", tuple(self.rejected))
-
-
-@dataclass(frozen=True)
-class CalibrationRecord:
-    """Everything ``calibration.json`` holds.
-
-    Attributes
-    ----------
-    setup : {"eye-to-base", "eye-on-hand"}
-    method : str
-        Solver registry name.
-    reference_camera : str
-        Name of the camera whose frame is ``ref``; one of ``cameras``.
-    Y : ndarray, shape (4, 4)
-        ``T_marker_target`` (eye-to-base) or ``T_world_target`` (eye-on-hand), metres.
-    cameras : tuple of CameraRecord
-        In output order.
-    residuals : Residuals
-        Over all cameras.
-    warnings : tuple of str
-    refinement : str or None
-        What followed the closed form: ``"images"`` (maximum likelihood on the target points
-        and the motion capture), ``"poses"`` (on the pose residuals), or None.
-    motion_diagnostics : mapping or None
-        Per camera, the numbers of :func:`multieye.estimate.diagnostics.motion_diagnostics` (rotation
-        range, spread of rotation axes, conditions), plain JSON values.
-    plausibility : tuple of PlausibilityItem
-        What the plausibility checks doubt; empty when nothing (their messages are among
-        ``warnings`` too).
-    uncertainty : mapping of str to PoseUncertainty, or None
-        Of ``Y`` (under its key, ``T_marker_target`` or ``T_world_target``).
-    frames : mapping of str to str, or None
-        The user's names of the frames by role (``{"world": "base", "body": "tool0"}``,
-        rig.yaml's ``pose:``); None: the role names.  The keys of ``calibration.json`` keep
-        the role names; screen, report and exports use these (:func:`named_keys`).
-    """
-
-    setup: str
-    method: str
-    reference_camera: str
-    Y: np.ndarray
-    cameras: tuple[CameraRecord, ...]
-    residuals: Residuals
-    warnings: tuple[str, ...] = field(default=())
-    refinement: str | None = None
-    motion_diagnostics: Mapping | None = None
-    plausibility: tuple[PlausibilityItem, ...] = ()
-    uncertainty: Mapping | None = None
-    frames: Mapping[str, str] | None = None
-
-    def __post_init__(self):
-        if self.setup not in SETUP_KEYS:
-            raise InputError(f"setup must be one of {', '.join(SETUP_KEYS)}, got {self.setup!r}")
-        if self.frames is not None:
-            roles = ROLE_NAMES[self.setup]
-            if (not isinstance(self.frames, Mapping) or set(self.frames) != set(roles)
-                    or not all(isinstance(v, str) and v for v in self.frames.values())
-                    or len(set(self.frames.values())) != 2):
-                raise InputError(f"frames must name the roles {', '.join(roles)} with two "
-                                 f"different names, got {self.frames!r}")
-            object.__setattr__(self, "frames", {r: self.frames[r] for r in roles})
-        object.__setattr__(self, "Y", _rigid(self.Y, SETUP_KEYS[self.setup][0]))
-        cams = tuple(self.cameras)
-        names = [c.name for c in cams]
-        if len(set(names)) != len(names):
-            raise InputError(f"camera names must be unique, got {names}")
-        if self.reference_camera not in names:
-            raise InputError(f"reference camera {self.reference_camera!r} is not one of "
-                             f"{names}")
-        object.__setattr__(self, "cameras", cams)
-        object.__setattr__(self, "warnings", tuple(self.warnings))
-        object.__setattr__(self, "plausibility", tuple(self.plausibility))
-
-    def camera(self, name: str) -> CameraRecord:
-        """The record of camera ``name``."""
-        for cam in self.cameras:
-            if cam.name == name:
-                return cam
-        raise KeyError(name)
-
 
 # --------------------------------------------------------------------------- to / from dict
 
@@ -338,11 +86,11 @@ def _residuals_dict(r: Residuals) -> dict:
 
 def calibration_to_dict(rec: CalibrationRecord) -> dict:
     """The JSON object of a record (key order of docs/outputs.md, section 2)."""
-    y_key, x_key = SETUP_KEYS[rec.setup]
+    y_key, x_key = SETUP_KEYS.get(rec.setup, (None, None))
     cameras = {}
     for cam in rec.cameras:
-        entry = {x_key: _matrix(cam.X), "T_ref_cam": _matrix(cam.T_ref_cam),
-                 "measurements_used": cam.measurements_used}
+        entry = ({} if cam.X is None else {x_key: _matrix(cam.X)}) | {
+            "T_ref_cam": _matrix(cam.T_ref_cam), "measurements_used": cam.measurements_used}
         if cam.residuals is not None:
             entry["residuals"] = _residuals_dict(cam.residuals)
         for key in ("time_offset_s", "time_offset_std_s", "std_rot_deg", "std_trans_m"):
@@ -356,10 +104,12 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
             entry["intrinsics"] = _intrinsics_dict(cam.intrinsics)
         if cam.uncertainty:
             entry["uncertainty"] = _uncertainty_dict(cam.uncertainty)
+        if cam.links is not None:
+            entry["links"] = {"overlap": dict(cam.links.overlap), "mocap": cam.links.mocap}
         cameras[cam.name] = entry
     out = {"format_version": FORMAT_VERSION,
            "setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
-           y_key: _matrix(rec.Y), "cameras": cameras,
+           **({} if rec.Y is None else {y_key: _matrix(rec.Y)}), "cameras": cameras,
            "residuals": _residuals_dict(rec.residuals), "warnings": list(rec.warnings),
            "plausibility": [{"cause": d.cause, "message": d.message}
                             | ({} if d.camera is None else {"camera": d.camera})
@@ -440,6 +190,14 @@ def _read_intrinsics(obj, w: _Where, camera) -> IntrinsicsRecord:
     return IntrinsicsRecord(intr, estimated, cov, proj)
 
 
+def _read_links(obj, w: _Where, camera) -> CameraLinks:
+    if not isinstance(obj, Mapping) or not isinstance(obj.get("overlap", {}), Mapping):
+        raise w.error('links must be {"overlap": {camera: instants}, "mocap": true/false}',
+                      camera)
+    return w.call(CameraLinks, dict(obj.get("overlap", {})), obj.get("mocap", False),
+                  camera=camera)
+
+
 class _Where:
     """Builds DatasetErrors for one file."""
 
@@ -498,9 +256,11 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
         raise w.error(f"format_version must be an integer from 1 to {FORMAT_VERSION} (a newer "
                       f"multieye writes later versions), got {version!r}")
     setup = w.need(data, "setup", "the top level")
-    if not isinstance(setup, str) or setup not in SETUP_KEYS:
-        raise w.error(f"setup must be one of {', '.join(SETUP_KEYS)}, got {setup!r}")
-    y_key, x_key = SETUP_KEYS[setup]
+    if not isinstance(setup, str) or (setup not in SETUP_KEYS and (setup != OVERLAP
+                                                                     or version < 2)):
+        raise w.error(f"setup must be one of {', '.join(SETUP_KEYS)}" + (
+            f" or {OVERLAP}" if version >= 2 else "") + f", got {setup!r}")
+    y_key, x_key = SETUP_KEYS.get(setup, (None, None))
     cams = w.need(data, "cameras", "the top level")
     if not isinstance(cams, Mapping) or not cams:
         raise w.error("cameras must be a non-empty object of camera name -> result")
@@ -526,15 +286,19 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
         if "intrinsics" in entry and entry["intrinsics"] is not None:
             kw["intrinsics"] = _read_intrinsics(entry["intrinsics"], w, name)
         if "uncertainty" in entry:
-            kw["uncertainty"] = _read_uncertainty(entry["uncertainty"], w,
-                                                  (x_key, "T_ref_cam"), name)
-        X = w.call(np.asarray, w.need(entry, x_key, f"camera {name}", name), dtype=np.float64,
-                   camera=name)
+            kw["uncertainty"] = _read_uncertainty(entry["uncertainty"], w, tuple(
+                k for k in (x_key, "T_ref_cam") if k is not None), name)
+        if "links" in entry:
+            kw["links"] = _read_links(entry["links"], w, name)
+        X = None if x_key is None else w.call(
+            np.asarray, w.need(entry, x_key, f"camera {name}", name), dtype=np.float64,
+            camera=name)
         T_ref = w.call(np.asarray, w.need(entry, "T_ref_cam", f"camera {name}", name),
                        dtype=np.float64, camera=name)
         used = w.need(entry, "measurements_used", f"camera {name}", name)
         records.append(w.call(CameraRecord, str(name), X, T_ref, used, camera=name, **kw))
-    Y = w.call(np.asarray, w.need(data, y_key, "the top level"), dtype=np.float64)
+    Y = None if y_key is None else w.call(np.asarray, w.need(data, y_key, "the top level"),
+                                          dtype=np.float64)
     warnings = data.get("warnings", [])
     if not isinstance(warnings, list) or not all(isinstance(s, str) for s in warnings):
         raise w.error("warnings must be a list of strings")
@@ -556,8 +320,8 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
         raise w.error('plausibility must be a list of {"cause": str, "message": str, '
                       '"camera": str (optional)}')
     items = tuple(PlausibilityItem(d["cause"], d["message"], d.get("camera")) for d in doubts)
-    unc = (_read_uncertainty(data["uncertainty"], w, (y_key,)) if "uncertainty" in data
-           else None)
+    unc = (_read_uncertainty(data["uncertainty"], w, (y_key,) if y_key else ())
+           if "uncertainty" in data else None)
     frames = data.get("frames")           # absent from files of older versions
     if frames is not None and not (isinstance(frames, Mapping)
                                    and all(isinstance(v, str) for v in frames.values())):

@@ -276,13 +276,15 @@ def distortion_model_name(intr: Intrinsics) -> str:
     return _PINHOLE_NAMES[int(intr.dist.size)]
 
 
-def camera_info_text(intr: Intrinsics, camera_name: str) -> str:
+def camera_info_text(intr: Intrinsics, camera_name: str, rectification=None) -> str:
     """ROS ``sensor_msgs/CameraInfo`` YAML (``camera_calibration_parsers``' layout).
 
     Keys: ``image_width``, ``image_height``, ``camera_name``, ``camera_matrix``,
     ``distortion_model``, ``distortion_coefficients``, ``rectification_matrix`` (identity)
     and ``projection_matrix`` (``[K | 0]``), each matrix ``{rows, cols, data}``.  A pinhole
     lens with 0 or 4 coefficients is written as ``plumb_bob`` with the missing ones zero.
+    ``rectification``, ``(R, P)`` (3x3, 3x4): the camera's stereo rectification instead of
+    the identity and ``[K | 0]``.
 
     Raises
     ------
@@ -309,8 +311,10 @@ def camera_info_text(intr: Intrinsics, camera_name: str) -> str:
     lines = [f"image_width: {int(intr.width)}", f"image_height: {int(intr.height)}",
              f"camera_name: {json.dumps(camera_name)}", *matrix("camera_matrix", intr.K),
              f"distortion_model: {name}", *matrix("distortion_coefficients", dist),
-             *matrix("rectification_matrix", np.eye(3)),
-             *matrix("projection_matrix", np.hstack([intr.K, np.zeros((3, 1))]))]
+             *matrix("rectification_matrix", np.eye(3) if rectification is None
+                     else rectification[0]),
+             *matrix("projection_matrix", np.hstack([intr.K, np.zeros((3, 1))])
+                     if rectification is None else rectification[1])]
     return "\n".join(lines) + "\n"
 
 

@@ -86,7 +86,7 @@ from multieye.io.mocap_csv import DEFAULT_COLUMNS
 from multieye.io.rig_checks import video_keys
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
-from multieye.io.rig_checks import no_link_loop, Checker as _Checker
+from multieye.io.rig_checks import camera_link, links_keys, no_link_loop, Checker as _Checker
 from multieye.io.textfile import LENGTH_UNITS
 from multieye.io.yamlfile import load_yaml, shown
 
@@ -108,7 +108,7 @@ _SOURCES = ("images", "poses", "rosbag", "video")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
-TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics")
+TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics", "sync_tolerance")
 MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
               "rotation_noise_deg", "translation_noise_m", "match", "sensor",
               "noise_bounds") + tuple(_MOCAP_ONLY)
@@ -191,7 +191,9 @@ class Rig:
     target : TargetSpec or None
         None when no camera has images.
     mocap : MocapSpec or None
-        None when every camera has its own.
+        None when every camera has its own, or when the rig has no motion capture.
+    sync_tolerance : float or None
+        Seconds within which images of different cameras are one instant (None: default).
     """
 
     path: Path
@@ -199,6 +201,11 @@ class Rig:
     cameras: Mapping[str, CameraSpec]
     target: TargetSpec | None = None
     mocap: MocapSpec | None = field(default=None)
+    sync_tolerance: float | None = None
+
+    @property
+    def has_mocap(self) -> bool:      # else the views the cameras share link the rig
+        return self.mocap is not None or any(c.mocap is not None for c in self.cameras.values())
 
     @property
     def folder(self) -> Path:
@@ -507,9 +514,10 @@ def load_rig(path: str | os.PathLike) -> Rig:
     doc = load_yaml(p.resolve() if p.is_symlink() else p,    # else named as typed
                     what="rig description (rig.yaml)")
     c = _Checker(doc)
-    raw = c.mapping(doc.data if doc.data is not None else {}, (), TOP_LEVEL_KEYS, ("setup", "cameras"))
-    setup = c.choice(raw["setup"], ("setup",), tuple(SETUPS))
-    if not isinstance(cams_raw := raw["cameras"], Mapping) or not cams_raw:
+    raw = c.mapping(doc.data if doc.data is not None else {}, (), TOP_LEVEL_KEYS, ("cameras",))
+    setup, sync, any_mocap = links_keys(c, raw, tuple(SETUPS))
+    cams_raw = raw["cameras"]
+    if not isinstance(cams_raw, Mapping) or not cams_raw:
         raise c.error("expected a mapping of camera name -> camera, with at least one camera",
                       ("cameras",))
     mocap = None
@@ -527,14 +535,12 @@ def load_rig(path: str | os.PathLike) -> Rig:
             raise c.error(f"camera name {shown(name)} {problem}; a camera name is {NAME_RULE}",
                           ("cameras", name))
         cam = _camera(rw, name, cam_raw)
-        if cam.mocap is None and mocap is None:
-            raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' "
-                          "key to this camera", ("cameras", name))
-        if (cam.mocap or mocap).by_name and cam.source != "images":
+        camera_link(c, name, cam.mocap or mocap, cam.source, any_mocap)
+        if any_mocap and (cam.mocap or mocap).by_name and cam.source != "images":
             raise c.error("poses matched by image name ({stem}, match: image or order) need "
                           "a folder of 'images'", ("cameras", name))
         cameras[cam.name] = cam
-    named = {n: (cam.mocap or mocap).frame_names for n, cam in cameras.items()}
+    named = {n: (cs.mocap or mocap).frame_names for n, cs in cameras.items() if any_mocap}
     if len(set(named.values())) > 1:
         first, other = next(iter(named)), next(n for n in named
                                                 if named[n] != next(iter(named.values())))
@@ -549,7 +555,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
         needing = [n for n, cam in cameras.items() if cam.source != "poses"]
         raise DatasetError(f"missing key 'target': cameras with images ({', '.join(needing)}) "
                            "need the calibration board described", path=doc.path, line=1)
-    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap)
+    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap, sync)
 
 
 def read_camera_intrinsics(camera: CameraSpec) -> Intrinsics:

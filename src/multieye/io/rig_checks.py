@@ -12,9 +12,11 @@ from pathlib import Path
 from multieye.core.arguments import did_you_mean
 from multieye.core.errors import DatasetError
 from multieye.io.yamlfile import YamlDocument, shown
-from multieye.core.limits import MAX_ROTATION_NOISE_DEG, MAX_STAMP_S, MAX_TRANSLATION_NOISE_M
+from multieye.core.limits import (MAX_ROTATION_NOISE_DEG, MAX_STAMP_S, MAX_TIME_TOLERANCE_S,
+                                  MAX_TRANSLATION_NOISE_M)
 
-__all__ = ["Checker", "sensor_keys", "video_keys", "MOCAP_SENSORS", "MOCAP_NOISE_BOUND_KEYS"]
+__all__ = ["Checker", "sensor_keys", "links_keys", "camera_link", "video_keys", "MOCAP_SENSORS",
+           "MOCAP_NOISE_BOUND_KEYS"]
 
 #: What ``mocap.sensor`` may name, and the keys of ``mocap.noise_bounds`` (docs/rig-yaml.md).
 MOCAP_SENSORS = ("motion-capture", "robot")
@@ -159,3 +161,35 @@ def no_link_loop(p: Path) -> None:
     except (RuntimeError, OSError) as exc:          # a link loop (RuntimeError before 3.13)
         raise DatasetError("rig.yaml is a symbolic link loop (or cannot be resolved: "
                            f"{getattr(exc, 'strerror', None) or 'loop'})", path=p) from None
+
+
+def links_keys(c: Checker, raw: Mapping, setups: tuple[str, ...]
+               ) -> tuple[str, float | None, bool]:
+    """The top-level keys that say how the rig is linked: ``setup`` (required with motion
+    capture; without it the setup names nothing the calibration uses, and defaults to the
+    first of ``setups``), ``sync_tolerance`` (seconds, or None for the default) and whether
+    any motion capture is given (top-level ``mocap`` or a camera's own)."""
+    cams = raw.get("cameras")
+    any_mocap = "mocap" in raw or any(isinstance(cam, Mapping) and "mocap" in cam for cam in (
+        cams.values() if isinstance(cams, Mapping) else ()))
+    if "setup" not in raw and any_mocap:
+        raise c.error("missing key 'setup' (eye-to-base or eye-on-hand: what the motion "
+                      "capture tracks)", ())
+    setup = c.choice(raw.get("setup", setups[0]), ("setup",), setups)
+    sync = (c.number(raw["sync_tolerance"], ("sync_tolerance",), positive=True,
+                     maximum=MAX_TIME_TOLERANCE_S, unit="seconds")
+            if "sync_tolerance" in raw else None)
+    return setup, sync, any_mocap
+
+
+def camera_link(c: Checker, name: str, mocap, source: str, any_mocap: bool) -> None:
+    """A rig has motion capture for every camera or for none; without it a camera needs
+    target points (images), which ``poses`` do not give."""
+    if mocap is None and any_mocap:
+        raise c.error("no motion capture: add a top-level 'mocap' section or a 'mocap' key to "
+                      "this camera (a rig has motion capture for every camera, or none)",
+                      ("cameras", name))
+    if not any_mocap and source == "poses":
+        raise c.error("a rig without motion capture is linked by the target points its "
+                      "cameras see together; a camera given by 'poses' has none (give it "
+                      "'images' or 'rosbag', or add 'mocap')", ("cameras", name))

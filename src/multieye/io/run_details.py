@@ -29,7 +29,13 @@ setup         ``T_world_target[i]``                       ``T_world_cam`` drawn
 eye-to-base   ``T_world_marker[i] @ T_marker_target``     ``T_world_cam`` (static)
 eye-on-hand   ``T_world_body[i] @ T_body_cam @            ``T_world_body_shown @ T_body_cam``
               T_cam_target[i]``
+overlap       ``T_ref_target`` of the image's instant     ``T_ref_cam``
 ============  ==========================================  ===================================
+
+Without motion capture (setup ``overlap``) the ``world`` of these pictures is the reference
+camera's frame, the loop residuals are those of each image's PnP pose against the solution's
+``inv(T_ref_cam) @ T_ref_target`` and the one trajectory is the target's origin at every
+instant (``pose`` ``T_ref_target``).
 
 In eye-to-base the target moves and the motion capture says where it was.  In eye-on-hand the
 target is static at ``T_world_target`` and every measurement gives one estimate of it through
@@ -60,7 +66,7 @@ import numpy as np
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, parameter_names
 from multieye.io.atomic import write_text_atomic
-from multieye.io.calibration_json import SETUP_KEYS
+from multieye.io.calibration_json import OVERLAP, SETUP_KEYS
 from multieye.io.pixel_details import (
     ImagePoints,
     ProjectionStd,
@@ -449,8 +455,9 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
         raise r.error(f"details version {data.get('version')!r} is not supported; expected "
                       f"{VERSION} (rerun `multieye calibrate`)")
     setup = r.get(data, "setup", "the top level")
-    if setup not in SETUP_KEYS:
-        raise r.error(f"setup must be one of {', '.join(SETUP_KEYS)}, got {setup!r}")
+    if setup not in SETUP_KEYS and setup != OVERLAP:
+        raise r.error(f"setup must be one of {', '.join(SETUP_KEYS)} or {OVERLAP}, got "
+                      f"{setup!r}")
     reference = r.get(data, "reference_camera", "the top level")
     shown = data.get("T_world_body_shown")
     shown = None if shown is None else r.array(shown, (4, 4), "T_world_body_shown")

@@ -73,7 +73,7 @@ def image_points(run: CalibrationRun, name: str, *, max_points: int = MAX_POINTS
         j = _camera_index(run, name)
         res = ref.result
         intr, X, Y, M = res.intrinsics[j], res.X[j], res.Y, res.T_world_mocap[j]
-        eye_to_base = run.record.setup == "eye-to-base"
+        eye_to_base = run.record.setup != "eye-on-hand"     # overlap: as eye-to-base
         poses = [g.inv(X) @ (M[i] if eye_to_base else g.inv(M[i])) @ Y for i in range(len(obs))]
         source = "refined"
     else:
@@ -185,6 +185,9 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
     traj_index: dict[int, int] = {}
     sources, spans = [], []
     cams = []
+    # without motion capture: world = ref, X = T_ref_cam, Y = I, "mocap" = T_ref_target
+    # (multieye.pipeline.overlap_run), drawn as eye-to-base
+    Y = rec.Y if rec.mocap else np.eye(4)
     for cam in rec.cameras:
         data, paired = run.cameras[cam.name], run.paired[cam.name]
         key = id(data.mocap)
@@ -196,10 +199,11 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
         stamps = np.array([o.stamp for o in paired.observations], dtype=np.float64)
         offset = data.time_offset if cam.time_offset_s is None else cam.time_offset_s
         spans[k] = [min(spans[k][0], stamps.min() + offset), max(spans[k][1], stamps.max() + offset)]
-        rot, trans = loop_residuals(paired.A, paired.B, cam.X, rec.Y)
-        if setup == "eye-to-base":   # T_world_marker[i] @ T_marker_target
-            T_world_target = paired.T_world_mocap @ rec.Y
-            T_world_cam = cam.X
+        X = cam.T_ref_cam if cam.X is None else cam.X
+        rot, trans = loop_residuals(paired.A, paired.B, X, Y)
+        if setup != "eye-on-hand":   # T_world_marker[i] @ T_marker_target
+            T_world_target = paired.T_world_mocap @ Y
+            T_world_cam = X
         else:                        # T_world_body[i] @ T_body_cam @ T_cam_target[i]
             T_cam_target = np.stack([o.T_cam_target for o in paired.observations])
             T_world_target = paired.T_world_mocap @ cam.X @ T_cam_target
@@ -220,8 +224,8 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
     overlaps = camera_overlaps(run)
     cams = [replace(c, overlaps=overlaps[c.name]) for c in cams]
     default = "T_world_marker" if setup == "eye-to-base" else "T_world_body"
-    trajectories = []
-    for traj, (lo, hi) in zip(sources, spans):
+    trajectories = [] if rec.mocap else [_target_path(run)]
+    for traj, (lo, hi) in zip(sources if rec.mocap else (), spans):
         inside = (traj.stamps >= lo - TRAJECTORY_MARGIN_S) & (traj.stamps <= hi + TRAJECTORY_MARGIN_S)
         idx = _span_indices(traj.stamps, lo - TRAJECTORY_MARGIN_S, hi + TRAJECTORY_MARGIN_S,
                             max_trajectory_points)
@@ -233,6 +237,21 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
     return RunDetails(setup=setup, reference_camera=rec.reference_camera, cameras=tuple(cams),
                       trajectories=tuple(trajectories), T_world_body_shown=T_shown,
                       timings=run.timings, warnings=tuple(rec.warnings))
+
+
+def _target_path(run: CalibrationRun) -> TrajectoryDetails:
+    """A rig without motion capture: the target's origin at every instant, in ``ref``, at
+    the mean stamp of the instant's images (``pose`` ``T_ref_target``)."""
+    sol = run.refinement.result.solution
+    T = sol.result.T_ref_target
+    sums, counts = np.zeros(len(T)), np.zeros(len(T))
+    for n in sol.names:
+        d = run.cameras[n]
+        np.add.at(sums, sol.instants[n], [o.stamp + d.time_offset for o in sol.used[n]])
+        np.add.at(counts, sol.instants[n], 1)
+    order = np.argsort(sums / counts)
+    return TrajectoryDetails(pose="T_ref_target", stamps=(sums / counts)[order],
+                             positions=T[order, :3, 3].copy(), n_samples=len(T))
 
 
 def write_run_details(path: str | os.PathLike, run: CalibrationRun, *,
@@ -255,8 +274,12 @@ def write_run_details(path: str | os.PathLike, run: CalibrationRun, *,
 
 
 def camera_overlaps(run: CalibrationRun) -> dict[str, tuple[str, ...]]:
-    """Per camera, the others that saw the target at the same time: a used image of each
-    within the smaller of their time tolerances, stamps in the motion-capture clock."""
+    """Per camera, the others that saw the target at the same time: those its ``links`` name
+    (images at one instant, docs/rig-yaml.md, section 2); for a record without links, a used
+    image of each within the smaller of their time tolerances, stamps in the motion-capture
+    clock."""
+    if all(c.links is not None for c in run.record.cameras):
+        return {c.name: tuple(c.links.overlap) for c in run.record.cameras}
     names, stamps, tols = [], [], []
     for cam in run.record.cameras:
         data, paired = run.cameras[cam.name], run.paired[cam.name]

@@ -73,6 +73,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.names import file_stems
 from multieye.io.atomic import confined_to, make_folder, write_text_atomic
 from multieye.io.intrinsics_files import camera_info_text, distortion_model_name
+from multieye.outputs.stereo import opencv_stereo_lines, per_camera, stereo_pairs
 from multieye.io.cameramodel import cameramodel_text
 from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict, named_keys,
                                           read_calibration)
@@ -106,7 +107,7 @@ FORMATS = {
 }
 
 #: setup -> name of the frame the cameras' X is expressed in.
-BASE_FRAME = {"eye-to-base": "world", "eye-on-hand": "body"}
+BASE_FRAME = {"eye-to-base": "world", "eye-on-hand": "body", "overlap": "ref"}
 
 _TF_COMMAND = ("ros2", "run", "tf2_ros", "static_transform_publisher")
 
@@ -144,18 +145,18 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
     ``distortion_coefficients`` (1 x k), ``image_width`` and ``image_height``.  Read it with
     ``cv2.FileStorage(path, cv2.FILE_STORAGE_READ)``; ``fs.getNode("cameras").at(j)``.
     """
-    y_key, x_key = named_keys(rec.setup, rec.frames)
+    y_key, x_key = named_keys(rec.setup, rec.frames) if rec.mocap else (None, None)
     lines = ["%YAML:1.0", "---",
              "# multieye calibration: T_a_b maps coordinates in frame b to frame a (metres)",
              f"setup: {json.dumps(rec.setup)}", f"method: {json.dumps(rec.method)}",
              f"reference_camera: {json.dumps(rec.reference_camera)}",
              f"base_frame: {json.dumps(frame_names(rec, parent)[0])}",
-             *_opencv_matrix(y_key, rec.Y, ""), "cameras:"]
+             *(_opencv_matrix(y_key, rec.Y, "") if rec.mocap else []), "cameras:"]
     ind = "      "
     for cam in rec.cameras:
         lines += ["   -", f"{ind}name: {json.dumps(cam.name)}",
                   *_opencv_matrix("T_ref_cam", cam.T_ref_cam, ind),
-                  *_opencv_matrix(x_key, cam.X, ind)]
+                  *(_opencv_matrix(x_key, cam.X, ind) if cam.X is not None else [])]
         intr = intrinsics.get(cam.name)
         if intr is not None:
             lines += _opencv_matrix("camera_matrix", intr.K, ind)
@@ -199,6 +200,11 @@ def base_frame(rec: CalibrationRecord) -> str:
     tracked one for eye-on-hand."""
     role = BASE_FRAME[rec.setup]
     return role if rec.frames is None else rec.frames[role]
+
+
+def base_pose(cam) -> np.ndarray:
+    """The camera's pose in the base frame: its X, or without motion capture ``T_ref_cam``."""
+    return cam.T_ref_cam if cam.X is None else cam.X
 
 
 def frame_names(rec: CalibrationRecord, parent: str | None = None,
@@ -248,7 +254,7 @@ def urdf_text(rec: CalibrationRecord, parent: str | None = None,
         link, optical = f"{stems[cam.name]}_link", f"{stems[cam.name]}_optical_frame"
         ET.SubElement(robot, "link", name=link)
         ET.SubElement(robot, "link", name=optical)
-        _joint(robot, f"{stems[cam.name]}_joint", base, link, cam.X @ T_optical_link)
+        _joint(robot, f"{stems[cam.name]}_joint", base, link, base_pose(cam) @ T_optical_link)
         _joint(robot, f"{stems[cam.name]}_optical_joint", link, optical, T_LINK_OPTICAL)
     ET.indent(robot, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
@@ -268,9 +274,10 @@ def tf_static_text(rec: CalibrationRecord, parent: str | None = None,
              f"optical frame in '{base}'",
              "# (x right, y down, z forward); ROS 2 static_transform_publisher, metres."]
     for cam in rec.cameras:
-        q = g.quat_from_transform(cam.X)  # (qx, qy, qz, qw), qw >= 0
+        X = base_pose(cam)
+        q = g.quat_from_transform(X)  # (qx, qy, qz, qw), qw >= 0
         args = [*_TF_COMMAND,
-                "--x", _f(cam.X[0, 3]), "--y", _f(cam.X[1, 3]), "--z", _f(cam.X[2, 3]),
+                "--x", _f(X[0, 3]), "--y", _f(X[1, 3]), "--z", _f(X[2, 3]),
                 "--qx", _f(q[0]), "--qy", _f(q[1]), "--qz", _f(q[2]), "--qw", _f(q[3]),
                 "--frame-id", base, "--child-frame-id", f"{stems[cam.name]}_optical_frame"]
         lines.append(" ".join(shlex.quote(a) for a in args) + " &")
@@ -376,12 +383,26 @@ def _per_camera_files(rec: CalibrationRecord, intr: dict, notes: list[str], *, s
     return texts
 
 
-def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
-    """One ROS camera_info YAML per camera ROS can describe (:func:`_per_camera_files`)."""
+def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str],
+                  overlaps: dict | None = None) -> dict[str, str]:
+    """One ROS camera_info YAML per camera ROS can describe (:func:`_per_camera_files`), a
+    camera of a stereo pair with its rectification (:mod:`multieye.outputs.stereo`)."""
+    pairs, stereo_notes = stereo_pairs(rec, intr, overlaps)
+    notes += stereo_notes
+    rect = per_camera(pairs)
     return _per_camera_files(
         rec, intr, notes, stems_what="file export/camera_info/<camera>.yaml", suffix=".yaml",
         note="no camera_info for ", refusal="ROS camera_info cannot describe any camera: ",
-        text_of=lambda cam, k: camera_info_text(k, cam.name))
+        text_of=lambda cam, k: camera_info_text(k, cam.name, rect.get(cam.name)))
+
+
+def _overlaps(out: Path) -> dict | None:
+    """details.json's ``overlaps`` per camera, when it has them for every camera."""
+    if not (out / "details.json").exists():
+        return None
+    cams = read_run_details(out / "details.json").cameras
+    return ({c.name: c.overlaps for c in cams} if all(c.overlaps is not None for c in cams)
+            else None)
 
 
 def _cameramodels(rec: CalibrationRecord, intr: dict, notes: list[str]) -> dict[str, str]:
@@ -448,7 +469,8 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
     path = folder / FORMATS[fmt]
     if fmt in ("camera-info", "mrcal"):
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
-        texts = (_camera_infos if fmt == "camera-info" else _cameramodels)(rec, intr, notes)
+        texts = (_camera_infos(rec, intr, notes, _overlaps(out)) if fmt == "camera-info"
+                 else _cameramodels(rec, intr, notes))
         sub = FORMATS[fmt].split("/")[0]
         _export_folder(folder, dest)
         make_folder(folder / sub)
@@ -456,9 +478,7 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
     if fmt == "kalibr":
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())
         cams = read_run_details(out / "details.json").cameras
-        overlaps = ({c.name: c.overlaps for c in cams}
-                    if all(c.overlaps is not None for c in cams) else None)
-        kept, left = kalibr_chain(rec, intr, {c.name: c.topic for c in cams}, overlaps)
+        kept, left = kalibr_chain(rec, intr, {c.name: c.topic for c in cams}, _overlaps(out))
         if not kept:
             raise InputError("Kalibr cannot hold any camera: " + "; ".join(left))
         _export_folder(folder, dest)
@@ -468,7 +488,11 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
                          "out: " + "; ".join(left))
         return [path]
     if fmt == "opencv":
-        text = opencv_text(rec, _intrinsics(out, rec, required=False), parent_frame)
+        intr = _intrinsics(out, rec, required=False)
+        pairs, stereo_notes = stereo_pairs(rec, intr, _overlaps(out))
+        notes += stereo_notes
+        text = opencv_text(rec, intr, parent_frame) + "".join(
+            line + "\n" for line in opencv_stereo_lines(pairs, _opencv_matrix))
     elif fmt == "urdf":
         text = urdf_text(rec, parent_frame, child_frame)
     elif fmt == "tf-static":

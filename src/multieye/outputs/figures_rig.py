@@ -70,8 +70,11 @@ def _scene(record: CalibrationRecord, details: RunDetails | None) -> _Scene:
                       intrinsics=(None,) * len(names), reference=ref, targets=(),
                       trajectories=(), trajectory_pose="", covariances=covs)
     frames = record.frames or {}
-    world = frames.get(ROLE_NAMES[record.setup][0], "world")
-    x_key = SETUP_KEYS[record.setup][1]
+    if record.mocap:
+        world = frames.get(ROLE_NAMES[record.setup][0], "world")
+        x_key = SETUP_KEYS[record.setup][1]
+    else:                  # no motion capture: drawn in the reference camera's frame
+        world, x_key = f"{record.reference_camera} (ref)", "T_ref_cam"
     # X's covariance is in the frame X maps into: the world (eye-to-base) or the body, drawn
     # at T_world_body_shown (eye-on-hand): rotate it into the world
     R = np.eye(6)

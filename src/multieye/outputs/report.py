@@ -172,7 +172,6 @@ def _summary(rec: CalibrationRecord, out: Path) -> str:
              ("mean rotation residual", f"{rec.residuals.e_R_deg:.3f}°"),
              ("mean translation residual", f"{rec.residuals.e_t_m * 1e3:.2f} mm"),
              ("warnings", str(len(rec.warnings)))]
-    y_key = named_keys(rec.setup, rec.frames)[0]
     cards_html = "".join(f'<div class="card"><div class="k">{escape(k)}</div>'
                          f'<div class="v">{escape(v)}</div></div>' for k, v in cards)
     sub = (f"{escape(rec.setup)} setup &middot; method <b>{escape(rec.method)}</b> &middot; "
@@ -183,7 +182,10 @@ def _summary(rec: CalibrationRecord, out: Path) -> str:
              ("histograms", "Histograms"), ("over-time", "Over time"), ("cameras", "Cameras"),
              ("diagnostics", "Diagnostics"), ("rejected", "Rejected")]
     nav = " ".join(f'<a href="#{a}">{t}</a>' for a, t in links)
-    shared = (f'<p class="note">Shared unknown <code>{escape(y_key)}</code>: translation '
+    shared = ('<p class="note">No motion capture: the cameras are linked by the views they '
+              "share.</p>" if not rec.mocap else
+              f'<p class="note">Shared unknown <code>'
+              f"{escape(named_keys(rec.setup, rec.frames)[0])}</code>: translation "
               f"{_vector(pose_row(rec.Y)[:3], '.4f')} m, yaw pitch roll "
               f"{_vector(pose_row(rec.Y)[3:], '.3f')} deg.</p>")
     return (f"<header><h1>Calibration report</h1><p class=\"sub\">{sub}</p>"
@@ -238,8 +240,18 @@ def _pose_table(rec: CalibrationRecord, poses, key: str, ref_mark: bool) -> str:
     return _table(header, rows, classes=classes)
 
 
+def _links(rec: CalibrationRecord) -> str:
+    """What links each camera (shared views, motion capture), when any camera shares views."""
+    if not any(c.links is not None and c.links.overlap for c in rec.cameras):
+        return ""
+    rows = [[c.name, c.links.describe()] for c in rec.cameras if c.links is not None]
+    return "<h3>What links each camera</h3>" + _table(["camera", "linked by"], rows)
+
+
 def _extrinsics(rec: CalibrationRecord) -> str:
     """Every camera's X and the shared Y with their σ; T_ref_cam with several cameras."""
+    if not rec.mocap:
+        return _extrinsics_overlap(rec)
     y_key, x_key = SETUP_KEYS[rec.setup]
     y_name, x_name = named_keys(rec.setup, rec.frames)
     several = len(rec.cameras) > 1
@@ -269,9 +281,28 @@ def _extrinsics(rec: CalibrationRecord) -> str:
     matrices = "".join(
         f"<h3>{escape(c.name)}</h3><pre class=\"matrix\">{escape(_matrix_text(c.T_ref_cam))}</pre>"
         for c in rec.cameras)
-    parts += [f'<p class="note">{note}</p>',
+    parts += [_links(rec), f'<p class="note">{note}</p>',
               f"<details><summary>T_ref_cam matrices</summary>{matrices}</details></section>"]
     return "".join(parts)
+
+
+def _extrinsics_overlap(rec: CalibrationRecord) -> str:
+    """A rig without motion capture: every camera's T_ref_cam with its σ, and its links."""
+    matrices = "".join(
+        f"<h3>{escape(c.name)}</h3><pre class=\"matrix\">{escape(_matrix_text(c.T_ref_cam))}</pre>"
+        for c in rec.cameras)
+    note = ("No motion capture: <code>T_ref_cam</code>, the pose of each camera in the "
+            "reference camera's frame, is estimated with the lenses and one target pose per "
+            "instant from the views the cameras share (docs/outputs.md, section 2). Yaw, "
+            "pitch, roll with R = Rz(yaw) Ry(pitch) Rx(roll). σ is the root of the trace of "
+            "the rotation (or translation) covariance (left perturbation; with estimated "
+            "intrinsics their uncertainty is included).")
+    return "".join([
+        '<section id="extrinsics"><h2>Extrinsics and uncertainty</h2>',
+        f"<h3><code>T_ref_cam</code>, relative to {escape(rec.reference_camera)}</h3>",
+        _pose_table(rec, [c.T_ref_cam for c in rec.cameras], "T_ref_cam", True), _links(rec),
+        f'<p class="note">{note}</p>',
+        f"<details><summary>T_ref_cam matrices</summary>{matrices}</details></section>"])
 
 
 def _matrix_text(T: np.ndarray) -> str:
@@ -297,18 +328,27 @@ def _residuals(rec: CalibrationRecord, details: RunDetails | None) -> str:
                      _num(r and r.reprojection_rms_px, ".3f")])
     return (f'<section id="residuals"><h2>Residuals per camera</h2>'
             f"{_table(header, rows, groups=groups)}"
-            '<p class="note">Loop residuals of <code>A_i X = Y B_i</code> over the used images '
-            "(paper section V-A): the angle of (R_Y R_B)<sup>T</sup> R_A R_X and the distance "
-            "between the two sides' translations; reprojection RMS of the target points in the "
-            "PnP of each image.</p></section>")
+            + ('<p class="note">Pose residuals over the used images: the angle and distance '
+               "between each image's PnP pose of the target and the solution's "
+               "(<code>inv(T_ref_cam) T_ref_target</code> of its instant); reprojection RMS "
+               "of the target points in the solution.</p></section>" if not rec.mocap else
+               '<p class="note">Loop residuals of <code>A_i X = Y B_i</code> over the used '
+               "images (paper section V-A): the angle of (R_Y R_B)<sup>T</sup> R_A R_X and the "
+               "distance between the two sides' translations; reprojection RMS of the target "
+               "points in the PnP of each image.</p></section>"))
 
 
 def _rig(rec: CalibrationRecord, details: RunDetails | None, figures: Mapping[str, bytes],
          legend: Sequence[str]) -> str:
     world = (rec.frames or {}).get("world", "world")
     frame = (f"the motion capture's frame <code>{escape(world)}</code>" if details is not None
-             else "the reference camera's frame (no <code>details.json</code>: cameras only)")
-    if details is not None and details.setup == "eye-on-hand":
+             and rec.mocap else "the reference camera's frame" + (
+                 "" if details is not None else " (no <code>details.json</code>: cameras only)"))
+    if details is not None and not rec.mocap:
+        where = ("The cameras are drawn where the co-observations place them; the dots are the "
+                 "target (its first corner) at every instant, the grey line joins them in "
+                 "time.")
+    elif details is not None and details.setup == "eye-on-hand":
         where = ("The cameras move with the body and are drawn at one body pose (the reference "
                  "camera's middle image); the target estimates from every image cluster around "
                  "the static target, their spread showing the residuals in space; the grey "

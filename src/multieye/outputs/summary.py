@@ -70,8 +70,12 @@ def calibration_table(rec: CalibrationRecord) -> str:
     cameras, ``T_ref_cam`` relative to the reference camera; then estimated intrinsics with
     their standard deviations, rejected items and warnings.
     """
-    y_key, x_key = SETUP_KEYS[rec.setup]
-    y_name, x_name = named_keys(rec.setup, rec.frames)
+    if rec.mocap:
+        y_key, x_key = SETUP_KEYS[rec.setup]
+        y_name, x_name = named_keys(rec.setup, rec.frames)
+    else:                         # no motion capture: T_ref_cam is each camera's result
+        y_key, x_key = None, "T_ref_cam"
+        y_name, x_name = None, "T_ref_cam"
     pose_head = ["tx m", "ty m", "tz m", "yaw deg", "pitch deg", "roll deg", "std deg",
                  "std mm"]
     header = ["camera", "used", "rejected", "loop e_R deg", "loop e_t mm", "reproj px",
@@ -85,7 +89,8 @@ def calibration_table(rec: CalibrationRecord) -> str:
                       else ""),
             str(c.measurements_used), str(len(c.rejected)),
             _f(r.e_R_deg if r else None, ".3f"), _f(r.e_t_m * 1e3 if r else None, ".2f"),
-            _f(r.reprojection_rms_px if r else None, ".2f"), *_pose_cells(c.X, unc),
+            _f(r.reprojection_rms_px if r else None, ".2f"),
+            *_pose_cells(c.T_ref_cam if c.X is None else c.X, unc),
             _f(None if c.time_offset_s is None else c.time_offset_s * 1e3, ".1f"),
             _f(None if c.time_offset_std_s is None else c.time_offset_std_s * 1e3, ".2f"),
         ])
@@ -94,12 +99,16 @@ def calibration_table(rec: CalibrationRecord) -> str:
              f"mean loop residual e_R {rec.residuals.e_R_deg:.3f} deg, e_t {rec.residuals.e_t_m * 1e3:.2f} mm",
              f"{_shown(x_key, x_name)} of every camera:",
              format_table([header[i] for i in keep], [[row[i] for i in keep] for row in rows])]
-    y_unc = None if not rec.uncertainty else rec.uncertainty.get(y_key)
-    y_row = _pose_cells(rec.Y, y_unc)
-    lines.append(f"{_shown(y_key, y_name)}: t = ({', '.join(y_row[:3])}) m, yaw pitch roll = "
-                 f"({', '.join(y_row[3:6])}) deg"
-                 + ("" if y_unc is None else f", std {y_row[6]} deg / {y_row[7]} mm"))
-    if len(rec.cameras) > 1:
+    if rec.mocap:
+        y_unc = None if not rec.uncertainty else rec.uncertainty.get(y_key)
+        y_row = _pose_cells(rec.Y, y_unc)
+        lines.append(f"{_shown(y_key, y_name)}: t = ({', '.join(y_row[:3])}) m, yaw pitch "
+                     f"roll = ({', '.join(y_row[3:6])}) deg"
+                     + ("" if y_unc is None else f", std {y_row[6]} deg / {y_row[7]} mm"))
+    if any(c.links is not None and c.links.overlap for c in rec.cameras):
+        lines += [f"{c.name} linked by: {c.links.describe()}" for c in rec.cameras
+                  if c.links is not None]
+    if len(rec.cameras) > 1 and rec.mocap:
         rel = [[c.name + (" (ref)" if c.name == rec.reference_camera else ""),
                 *_pose_cells(c.T_ref_cam, None if not c.uncertainty
                              else c.uncertainty.get("T_ref_cam"))] for c in rec.cameras]
@@ -158,8 +167,8 @@ def check_table(check) -> str:
     (counts of images, the share with the target found, the rotation of the paired motion in
     degrees), then each camera's problems and the verdict."""
     header = ["camera", "source", "images", "sampled", "target found", "found %",
-              "with mocap", "usable in sample", "about usable", "rotation range deg",
-              "RMS rot axes deg"]
+              "with mocap" if check.setup != "overlap" else "seen together",
+              "usable in sample", "about usable", "rotation range deg", "RMS rot axes deg"]
     rows = []
     for c in check.cameras:
         spread = ("-" if c.rotation_spread_deg is None

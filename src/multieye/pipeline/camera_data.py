@@ -110,8 +110,8 @@ class CameraData:
         Images (or pose rows) read.
     mocap : Trajectory or None
         ``T_world_marker`` (eye-to-base) or ``T_world_body`` (eye-on-hand).  None is a
-        camera without motion capture (a rig linked by cameras that see the target together;
-        rig.yaml still requires ``mocap:`` for every camera today).
+        camera without motion capture (a rig linked by the cameras that see the target
+        together: rig.yaml without ``mocap:``, docs/rig-yaml.md, section 2).
     time_offset : float
         Motion-capture clock minus camera clock, seconds.
     time_tolerance : float
@@ -370,7 +370,8 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     """
     workers = _Workers(processes, progress, engine)
     trajectories: dict[tuple, Trajectory] = {}
-    motions = {name: camera_motion(rig, name, trajectories) for name in rig.cameras}
+    motions = {name: camera_motion(rig, name, trajectories) if rig.has_mocap
+               else CameraMotion(None) for name in rig.cameras}
     chosen = preselected(rig, motions, select, time_offset, pair_stamps)
     return {name: _camera_data(rig, name, motions[name], workers, chosen.get(name))
             for name in rig.cameras}
@@ -420,15 +421,17 @@ def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers,
     # motion-capture rows left out, listed with every camera that uses the file
     rejected = seen.rejected + tuple(
         RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
-        for r in motion.trajectory.skipped)
-    observations = tuple(replace(o, instant=instant_key(o, spec.by_name))
+        for r in (motion.trajectory.skipped if spec is not None else ()))
+    observations = tuple(replace(o, instant=instant_key(o, spec is not None and spec.by_name))
                          for o in seen.observations)
     return CameraData(name=name, intrinsics=seen.intrinsics, observations=observations,
                       rejected=rejected, n_inputs=seen.n_inputs, mocap=motion.trajectory,
-                      time_offset=cam.time_offset, time_tolerance=spec.time_tolerance,
+                      time_offset=cam.time_offset,
+                      time_tolerance=0.0 if spec is None else spec.time_tolerance,
                       warnings=seen.warnings, detection_s=seen.seconds,
                       intrinsics_estimated=cam.estimate_intrinsics, intrinsics_views=seen.views,
-                      by_name=spec.by_name, selection=None if chosen is None else chosen[2])
+                      by_name=spec is not None and spec.by_name,
+                      selection=None if chosen is None else chosen[2])
 
 
 def _from_poses(cam) -> _Seen:
@@ -479,9 +482,10 @@ class CameraMotion:
 
     Attributes
     ----------
-    trajectory : Trajectory
+    trajectory : Trajectory or None
         ``T_world_marker`` / ``T_world_body`` samples (for a camera paired by name: at the
-        stamps 0, 1, 2, ... of its images with a pose file, in name order).
+        stamps 0, 1, 2, ... of its images with a pose file, in name order); None for a rig
+        without motion capture.
     listed : list of (float, int, Path), or None
         Paired by name: the images with a pose file as ``(stamp, ns, path)``; else None (the
         images are listed by the detection).
@@ -489,7 +493,7 @@ class CameraMotion:
         Paired by name: images or pose files without their partner, and why.
     """
 
-    trajectory: Trajectory
+    trajectory: Trajectory | None
     listed: list | None = None
     unmatched: tuple[RejectedItem, ...] = ()
 

@@ -10,14 +10,16 @@ section 7) and exits 2 when calibrating would fail.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from multieye.core.arguments import real_number
 from multieye.core.errors import InputError
+from multieye.estimate.covisibility import covisibility, link_groups, unlinked_message
 from multieye.estimate.diagnostics import MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG, MIN_SECOND_AXIS_DEG
+from multieye.estimate.instants import default_sync_tolerance, instants_from_stamps
 from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
 from multieye.imaging.target_hints import counting_rule, suggest_target
 from multieye.imaging.targets import target_from_spec
@@ -33,6 +35,7 @@ from multieye.io import (
 )
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
+from multieye.io.calibration_json import OVERLAP
 from multieye.pipeline.sources import outside_reads
 from multieye.pipeline.frames import video_frames, video_listing
 from multieye.solvers.checks import rotation_spread
@@ -61,7 +64,8 @@ class CameraCheck:
     failures : tuple of (str, int)
         Why the others failed, by kind (``target not detected``, ``PnP failed``, ...).
     with_mocap : int
-        Listed images with motion capture within the time tolerance.
+        Listed images with motion capture within the time tolerance; without motion
+        capture, listed images that share an instant with another camera's.
     paired : int
         Sampled images with the target found and motion capture: the usable sample.
     expected_usable : int
@@ -74,6 +78,8 @@ class CameraCheck:
         What will go wrong, or may.
     fatal : tuple of str
         The problems that make calibrating fail.
+    stamps : tuple of float
+        Without motion capture: every listed image's stamp plus the camera's time offset.
     """
 
     name: str
@@ -90,6 +96,7 @@ class CameraCheck:
     rotation_spread_deg: tuple[float, float, float] | None
     problems: tuple[str, ...]
     fatal: tuple[str, ...]
+    stamps: tuple[float, ...] = ()
 
     @property
     def found_percent(self) -> float:
@@ -279,6 +286,8 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
 
 def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
     spec = rig.mocap_for(name)
+    if spec is None:                 # no motion capture: linked by the views (check_dataset)
+        return _check_unpaired(rig, name, cam, sample=sample, processes=processes)
     problems: list[str] = []
     fatal: list[str] = []
     motion = camera_motion(rig, name, traj_cache)
@@ -353,6 +362,58 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
                        problems=tuple(problems), fatal=tuple(fatal))
 
 
+def _check_unpaired(rig, name, cam, *, sample, processes) -> CameraCheck:
+    """A camera of a rig without motion capture: every image with the target is usable; the
+    links between cameras are checked over the rig (:func:`_linked`)."""
+    seen = _sampled(rig, cam, None, (), sample=sample, processes=processes)
+    problems = list(seen.problems)
+    n_found = int(seen.found_mask.sum())
+    expected = int(round(seen.n_listed * n_found / seen.n_sampled)) if seen.n_sampled else 0
+    if n_found < MIN_FOUND_SHARE * seen.n_sampled:
+        problems.append(f"target found in only {n_found} of {seen.n_sampled} sampled images"
+                        + (_target_hint(rig, seen.paths, seen.results)
+                           if n_found == 0 and cam.source == "images" else ""))
+    if cam.estimate_intrinsics:
+        problems.extend(_lens_problems(cam, seen.results, seen.found_mask, seen.n_listed,
+                                       seen.n_sampled))
+    fatal = []
+    if expected < MIN_MEASUREMENTS or n_found == 0:
+        fatal.append(f"fewer than {MIN_MEASUREMENTS} usable images would remain ({n_found} of "
+                     f"{seen.n_sampled} sampled usable, about {expected} of {seen.n_listed} in "
+                     "all)")
+        problems.append(fatal[-1])
+    return CameraCheck(name=name, source=cam.source, listed=seen.n_listed,
+                       sampled=seen.n_sampled, found=n_found,
+                       failures=tuple(sorted(seen.failures.items())), with_mocap=0,
+                       paired=n_found, expected_usable=expected, time_tolerance_s=0.0,
+                       rotation_range_deg=None, rotation_spread_deg=None,
+                       problems=tuple(problems), fatal=tuple(fatal),
+                       stamps=tuple(float(t) + cam.time_offset for t in seen.stamps))
+
+
+def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[CameraCheck, ...]:
+    """A rig without motion capture: per camera, ``with_mocap`` becomes its listed images
+    that share an instant with another camera's (docs/rig-yaml.md, section 2), and cameras
+    in groups that nothing links get the refusal calibrating would give."""
+    stamps = [np.asarray(c.stamps, dtype=np.float64) for c in cams]
+    tol = (default_sync_tolerance(stamps) if rig.sync_tolerance is None
+           else rig.sync_tolerance)
+    inst, _ = instants_from_stamps(stamps, tol)
+    allc = np.concatenate([np.full(len(i), j) for j, i in enumerate(inst)])
+    cov = covisibility(allc, np.concatenate(inst), len(cams))
+    groups = link_groups(cov.shared > 0, [False] * len(cams))
+    out = []
+    for j, c in enumerate(cams):
+        others = np.concatenate([i for k, i in enumerate(inst) if k != j] or [np.zeros(0)])
+        shared = int(np.isin(inst[j], others).sum())
+        fatal = c.fatal
+        if len(groups) > 1 and j not in groups[0]:
+            fatal += (unlinked_message([x.name for x in cams], groups, tol),)
+        out.append(replace(c, with_mocap=shared, fatal=fatal,
+                           problems=c.problems + fatal[len(c.fatal):]))
+    return tuple(out)
+
+
 def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> DatasetCheck:
     """Dry-run the calibration of the dataset at ``path`` (a folder or its rig.yaml).
 
@@ -384,6 +445,8 @@ def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> Da
     cache: dict[tuple, Trajectory] = {}
     cams = tuple(_check_camera(rig, name, cam, cache, sample=int(sample), processes=processes)
                  for name, cam in rig.cameras.items())
+    if not rig.has_mocap:
+        cams = _linked(rig, cams)
     named = Path(path) / "rig.yaml" if Path(path).is_dir() else Path(path)
-    return DatasetCheck(path=str(rig.path), setup=rig.setup, cameras=cams,
-                        notes=outside_reads(rig, named))
+    return DatasetCheck(path=str(rig.path), setup=rig.setup if rig.has_mocap else OVERLAP,
+                        cameras=cams, notes=outside_reads(rig, named))

@@ -19,6 +19,7 @@ from multieye.core.errors import DatasetError
 from multieye.io import Rig
 from multieye.pipeline.camera_data import CameraData, PairedCamera
 from multieye.pipeline.options import Options
+from multieye.pipeline.overlap import assign_instants
 from multieye.solvers.measurements import Measurements
 
 __all__ = ["Problem", "Pairing", "Instant", "View", "make_problem", "group_instants"]
@@ -65,8 +66,9 @@ class Problem:
         The camera whose frame is ``ref``.
     instants : dict of str to Instant
         The images of every camera grouped by :attr:`Observation.instant`, in the order of
-        first appearance.  Today no stage reads it (each camera is paired and solved on its
-        own); it is where cameras that see the target together share one target pose.
+        first appearance (keys set by :func:`multieye.pipeline.overlap.assign_instants`:
+        stamps within ``sync_tolerance``): where cameras that see the target together share
+        one target pose (the pairing's shared motion-capture pose, the record's links).
     unknown_x : dict of str to (str or None)
         Per camera, the unknown ``X`` its measurements determine: its own name (every camera
         today, ``MeasurementGroup.x_name`` of :mod:`multieye.core.problem`); None for a
@@ -93,6 +95,7 @@ def make_problem(rig: Rig, cameras: dict[str, CameraData], options: Options) -> 
     if reference not in cameras:
         raise DatasetError(f"reference camera {reference!r} is not in rig.yaml (cameras: "
                            f"{', '.join(cameras)})", path=rig.path)
+    cameras = assign_instants(cameras, rig.sync_tolerance)   # within sync_tolerance
     return Problem(rig=rig, cameras=cameras, options=options, reference=reference,
                    instants=group_instants(cameras), unknown_x={n: n for n in cameras})
 

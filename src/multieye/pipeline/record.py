@@ -21,6 +21,7 @@ from multieye.io import (
 )
 from multieye.io.calibration_json import SETUP_KEYS
 from multieye.pipeline.camera_data import CameraData, PairedCamera
+from multieye.pipeline.overlap import paired_instants
 from multieye.pipeline.problem import Pairing, Problem
 from multieye.pipeline.refine import Refined
 from multieye.pipeline.result import Refinement
@@ -43,6 +44,8 @@ def build_record(problem: Problem, pairing: Pairing, closed, plausibility, refin
     T_ref_cam = relative_extrinsics(X, reference=names.index(problem.reference))
     offsets, offset_std = _time_offsets(problem, pairing, refinement)
     x_key, y_key = SETUP_KEYS[problem.setup][1], SETUP_KEYS[problem.setup][0]
+    links = paired_instants(pairing.paired, problem.cameras, pairing.offsets,
+                            problem.rig.sync_tolerance)[1]
     cams, rot_all, trans_all = [], [], []
     for j, (name, p) in enumerate(pairing.paired.items()):
         r = camera_residual(p.A, p.B, X[j], Y)
@@ -62,7 +65,8 @@ def build_record(problem: Problem, pairing: Pairing, closed, plausibility, refin
             intrinsics=_intrinsics_record(problem.cameras[name], p, refinement),
             uncertainty=None if unc is None else {
                 x_key: _pose_uncertainty(refinement.covariance[6 * j:6 * j + 6, 6 * j:6 * j + 6]),
-                "T_ref_cam": _pose_uncertainty(unc.covariance[j])}))
+                "T_ref_cam": _pose_uncertainty(unc.covariance[j])},
+            links=links[name]))
     n = sum(c.measurements_used for c in cams)
     return CalibrationRecord(
         setup=problem.setup, method=problem.options.method, reference_camera=problem.reference,

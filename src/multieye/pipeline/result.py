@@ -79,9 +79,9 @@ class CalibrationRun:
     rig : Rig
     record : CalibrationRecord
         The final result as written to ``calibration.json``.
-    closed_form : Solution
+    closed_form : Solution or None
         The closed form on the measurements kept (``closed_form.X`` in camera order,
-        ``closed_form.Y``).
+        ``closed_form.Y``); None without motion capture (no closed form).
     cameras : dict of str to CameraData
         The inputs, per camera.
     paired : dict of str to PairedCamera
@@ -105,10 +105,14 @@ class CalibrationRun:
         What the plausibility checks doubt, each with its cause and message (also in
         ``warnings`` and ``record.plausibility``); empty when nothing is doubted.  The
         command line exits with status 3 when it is not empty.
-    X : dict of str to ndarray, shape (4, 4)
-        Per camera, final ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand).
-    Y : ndarray, shape (4, 4)
-        Final ``T_marker_target`` (eye-to-base) or ``T_world_target`` (eye-on-hand).
+    X : dict of str to (ndarray, shape (4, 4), or None)
+        Per camera, final ``T_world_cam`` (eye-to-base) or ``T_body_cam`` (eye-on-hand); None
+        without motion capture (setup ``overlap``).
+    Y : ndarray, shape (4, 4), or None
+        Final ``T_marker_target`` (eye-to-base) or ``T_world_target`` (eye-on-hand); None
+        without motion capture.
+    links : dict of str to CameraLinks
+        Per camera, what links it to the others (shared views, motion capture).
     T_ref_cam : dict of str to ndarray, shape (4, 4)
         Per camera, final extrinsics relative to the reference camera.
     X_covariance, T_ref_cam_covariance : dict of str to (ndarray, shape (6, 6)) or None
@@ -129,7 +133,7 @@ class CalibrationRun:
 
     rig: Rig
     record: CalibrationRecord
-    closed_form: Solution
+    closed_form: Solution | None
     cameras: dict[str, CameraData]
     paired: dict[str, PairedCamera]
     refinement: Refinement | None = None
@@ -165,15 +169,20 @@ class CalibrationRun:
 
     @property
     def X_covariance(self) -> dict[str, np.ndarray | None]:
-        x_key = SETUP_KEYS[self.record.setup][1]
+        x_key = SETUP_KEYS.get(self.record.setup, (None, None))[1]     # overlap: no X
         return {n: None if u is None else u.covariance
                 for n, u in self._uncertainty(x_key).items()}
 
     @property
     def X_std(self) -> dict[str, tuple[float, float] | None]:
-        x_key = SETUP_KEYS[self.record.setup][1]
+        x_key = SETUP_KEYS.get(self.record.setup, (None, None))[1]
         return {n: None if u is None else (u.std_rot_deg, u.std_trans_m)
                 for n, u in self._uncertainty(x_key).items()}
+
+    @property
+    def links(self) -> dict:
+        """Per camera, what links it (:class:`multieye.io.calibration_json.CameraLinks`)."""
+        return {c.name: c.links for c in self.record.cameras}
 
     @property
     def T_ref_cam_covariance(self) -> dict[str, np.ndarray | None]:
@@ -186,12 +195,12 @@ class CalibrationRun:
 
     @property
     def Y_covariance(self) -> np.ndarray | None:
-        u = (self.record.uncertainty or {}).get(SETUP_KEYS[self.record.setup][0])
+        u = (self.record.uncertainty or {}).get(SETUP_KEYS.get(self.record.setup, (None,))[0])
         return None if u is None else u.covariance
 
     @property
     def Y_std(self) -> tuple[float, float] | None:
-        u = (self.record.uncertainty or {}).get(SETUP_KEYS[self.record.setup][0])
+        u = (self.record.uncertainty or {}).get(SETUP_KEYS.get(self.record.setup, (None,))[0])
         return None if u is None else (u.std_rot_deg, u.std_trans_m)
 
     @property

@@ -60,6 +60,9 @@ from multieye.pipeline.camera_data import (
 )
 from multieye.pipeline.estimated_lens import refit_paired
 from multieye.pipeline.options import Options, updated_options
+from multieye.estimate.refine_images import DEFAULT_MOCAP_ROT_SIGMA_RAD, DEFAULT_MOCAP_TRANS_SIGMA_M
+from multieye.pipeline.overlap import paired_instants, share_instants
+from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.refine import Refined, mocap_noise, refine
@@ -174,6 +177,10 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     """
     clock = [time.perf_counter()]
     problem = make_problem(rig, cameras, updated_options(options, kw))
+    if all(d.mocap is None for d in cameras.values()):   # linked by shared views (issue 23)
+        run = calibrate_overlap(check_overlap_options(problem))
+        return replace(run, timings=StageTimings(refinement=time.perf_counter() - clock[0],
+                                                 total=time.perf_counter() - clock[0]))
     every = pair(problem)
 
     def check() -> Plausibility:      # every measurement: why a failing stage failed
@@ -206,9 +213,17 @@ def pair(problem: Problem) -> Pairing:
     if problem.options.select:      # the images of cameras still over their budget, chosen
         images = {n: p for n, p in paired.items() if problem.cameras[n].intrinsics is not None
                   and p.observations[0].object_points is not None}
-        chosen, selection = select_paired(images, problem.cameras, problem.options.select)
+        chosen, selection = select_paired(images, problem.cameras, problem.options.select,
+                                          problem.rig.sync_tolerance, offsets)
         paired.update({n: _keep(paired[n], mask, reasons)
                        for n, (mask, reasons) in chosen.items()})
+    if problem.options.time_offset != "auto":    # cameras that see the target together
+        instants, _ = paired_instants(paired, problem.cameras, offsets,
+                                      problem.rig.sync_tolerance)
+        _, rot, trans = mocap_noise(problem.rig, paired, problem.options)
+        paired = share_instants(problem.setup, paired, instants, (
+            DEFAULT_MOCAP_ROT_SIGMA_RAD if rot is None else rot,
+            DEFAULT_MOCAP_TRANS_SIGMA_M if trans is None else trans))
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=list(paired), per_camera_motion=False)
     return Pairing(offsets=offsets, paired=paired, measurements=meas,

@@ -19,11 +19,13 @@ left out is a :class:`~multieye.io.RejectedItem` with its reason.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from multieye.core import geometry as g
 from multieye.core.lens import project_with_jacobian
+from multieye.estimate.instants import default_sync_tolerance
 from multieye.estimate.selection import (
     LEFT_OUT,
     grid_cells,
@@ -73,6 +75,14 @@ class SelectionSummary:
                 f"(budget {self.budget}{extra})")
 
 
+def _tolerance(rig: Rig, stamps: list) -> float:
+    """rig.yaml's ``sync_tolerance``, else the default of :mod:`multieye.estimate.instants`
+    (a quarter of the shortest interval between two images of one camera)."""
+    if rig.sync_tolerance is not None:
+        return float(rig.sync_tolerance)
+    return default_sync_tolerance([t for t in stamps if len(t) and t[0] > -1e11])
+
+
 def merged(before: SelectionSummary | None, after: SelectionSummary) -> SelectionSummary:
     """One camera's summary of both passes (``before`` None when only the second ran)."""
     if before is None:
@@ -108,7 +118,7 @@ def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dic
         pairing says why it fails).
     """
     stamps, paired, poses, why = {}, {}, {}, {}
-    name_ids: dict[str, int] = {}       # paired by name: one instant per image name
+    name_ids: dict[str, int] = {}       # paired by name: one instant per image name (stem)
     for name, listed in listings.items():
         spec = rig.mocap_for(name)
         st = np.array([s for s, _, _ in listed], dtype=np.float64)
@@ -117,9 +127,11 @@ def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dic
         if len(p.index) < MIN_MEASUREMENTS:
             continue        # the pairing will say why this camera cannot be calibrated
         paired[name], poses[name] = np.asarray(p.index, dtype=int), p.T
-        # what makes an instant: equal stamps, or for cameras paired by name equal names
-        stamps[name] = st if not spec.by_name else -1.0 - np.array(
-            [name_ids.setdefault(f.name, len(name_ids)) for _, _, f in listed], dtype=np.float64)
+        # what makes an instant (estimate.instants): stamps on the motion-capture clock within
+        # the sync tolerance, or for cameras paired by name equal name stems
+        stamps[name] = st + offsets[name] if not spec.by_name else -1e12 - 1e3 * np.array(
+            [name_ids.setdefault(Path(f.name).stem, len(name_ids)) for _, _, f in listed],
+            dtype=np.float64)
         why[name] = f"no motion capture within {spec.time_tolerance:g} s (not decoded)"
     listings = {n: v for n, v in listings.items() if n in paired}
     budgets = {n: budget * (2 if rig.cameras[n].estimate_intrinsics else 1) for n in listings}
@@ -130,7 +142,8 @@ def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dic
         chosen = select_before_decoding({n: stamps[n] for n in names},
                                         {n: paired[n] for n in names},
                                         {n: poses[n] for n in names}, b,
-                                        unpaired_reason=why)
+                                        unpaired_reason=why,
+                                        sync_tolerance=_tolerance(rig, [stamps[n] for n in names]))
         for n in names:
             sel, listed = chosen[n], listings[n]
             kept = [item for item, k in zip(listed, sel.keep) if k]
@@ -152,6 +165,8 @@ def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_s
     listings, offsets = {}, {}
     for name, cam in rig.cameras.items():
         limit = select * (2 if cam.estimate_intrinsics else 1)
+        if motions[name].trajectory is None:
+            continue        # no motion capture: nothing to choose by before decoding
         if cam.source == "poses" or (cam.source == "rosbag"
                                      and bag_image_count(cam.rosbag, cam.topic) <= limit):
             continue        # (a bag's stamps need a pass over it: only when over the budget)
@@ -183,7 +198,8 @@ def _lens_information(observations, intrinsics) -> np.ndarray:
     return np.stack(out)
 
 
-def select_paired(paired: dict, cameras: dict, budget: int) -> tuple[dict, dict]:
+def select_paired(paired: dict, cameras: dict, budget: int, sync_tolerance: float | None = None,
+                  offsets: dict | None = None) -> tuple[dict, dict]:
     """Choose among the detected and paired images of the cameras over their budget.
 
     Parameters
@@ -191,6 +207,11 @@ def select_paired(paired: dict, cameras: dict, budget: int) -> tuple[dict, dict]
     paired : dict of camera name to PairedCamera
     cameras : dict of camera name to CameraData
     budget : int
+    sync_tolerance : float, optional
+        Seconds within which images of different cameras are one instant (their stamps plus
+        ``offsets``); None: the default of :mod:`multieye.estimate.instants`.
+    offsets : dict of camera name to float, optional
+        Clock offsets the cameras were paired with (seconds).
 
     Returns
     -------
@@ -211,10 +232,11 @@ def select_paired(paired: dict, cameras: dict, budget: int) -> tuple[dict, dict]
                 cells[n] = grid_cells([o.image_points for o in obs], data.intrinsics.width,
                                       data.intrinsics.height)
                 lens[n] = _lens_information(obs, data.intrinsics)
-    chosen = select_after_detection(
-        {n: np.array([o.stamp for o in paired[n].observations]) for n in over},
-        {n: paired[n].T_world_mocap for n in over}, budget, cells=cells or None,
-        lens=lens or None)
+    stamps = {n: np.array([o.stamp for o in paired[n].observations]) + (offsets or {}).get(n, 0.0)
+              for n in over}
+    tol = default_sync_tolerance(list(stamps.values())) if sync_tolerance is None else sync_tolerance
+    chosen = select_after_detection(stamps, {n: paired[n].T_world_mocap for n in over}, budget,
+                                    cells=cells or None, lens=lens or None, sync_tolerance=tol)
     keep, summaries = {}, {}
     for n in over:
         sel = chosen[n]

@@ -1,0 +1,190 @@
+"""An overlapping rig without motion capture: multieye against mrcal and OpenCV (issue 23).
+
+Run from the repository root::
+
+    python benchmarks/bench_overlap.py [--data /tmp/bench_overlap] [--seeds 5] [--runs 3]
+        [--mrcal-python /tmp/venv-h-bench-mrcal/bin/python]
+
+The rig (:func:`multieye.sim.overlap.render_overlap_dataset`, seeds 0 .. --seeds - 1): three cameras on an
+arc 34 degrees apart, 1.2 m from the centre of the work volume, two radial-tangential lenses
+(k1 k2 p1 p2) and one equidistant fisheye, 800 x 600; a 6 x 9 chessboard shown at 50 instants,
+rendered (blur 0.7 px, sensor noise 2 grey levels), no motion capture.  The corners are
+detected once by multieye's detector (full boards only) and the same corners, with each
+image's instant (stamps within the default ``sync_tolerance``), go to every peer, each in its
+own process (``benchmarks/peers/overlap_*.py``; imports included in the time):
+
+- ``multieye``: OpenCV's per-camera start, then the joint problem of every lens (the right
+  model per camera), every ``T_ref_cam`` and one board pose per instant;
+- ``mrcal``: ``mrcal-calibrate-cameras``' joint solve (one lens model for all cameras:
+  ``LENSMODEL_OPENCV8``; mrcal has no equidistant model);
+- ``opencv``: ``calibrateCamera`` / ``fisheye.calibrate`` per camera, then
+  ``stereoCalibrate`` of each camera with camera 0.
+
+Reported per peer and camera: the lens's projection error over the observed corners (px, RMS;
+raw and after the best-fitting rotation, ``benchmarks/peers/lens_error.py``), the error of
+``T_ref_cam`` against the truth (deg, mm), RMS over the rigs, and per peer the wall and CPU
+time (median over every run, the peers interleaved so that they see the same load).  Nothing
+is asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from multieye.core import geometry as g
+from multieye.estimate.instants import default_sync_tolerance, instants_from_stamps
+from multieye.imaging.detect import detect
+from multieye.imaging.image_file import read_gray
+from multieye.imaging.targets import target_from_spec
+from multieye.sim.overlap import OverlapSpec, render_overlap_dataset
+
+PEERS = Path(__file__).resolve().parent / "peers"
+sys.path.insert(0, str(PEERS))
+from lens_error import errors, project, unproject  # noqa: E402
+
+SPEC = OverlapSpec()
+
+
+def corners(data: Path) -> Path:
+    """Detect once; write ``corners.npz`` (the peers' input)."""
+    out = data / "corners.npz"
+    if out.exists():
+        return out
+    target = target_from_spec(SPEC.target)
+    truth = json.loads((data / "ground_truth.json").read_text())
+    names = list(truth["T_ref_cam"])
+    rows, cols = SPEC.target["rows"], SPEC.target["cols"]
+    arrays, stamps, found = {}, [], []
+    for name in names:
+        cs, ts = [], []
+        for path in sorted((data / name).glob("*.png")):
+            gray = read_gray(path)[0]
+            det = detect(gray, target)
+            if det is None or len(det) != rows * cols:
+                continue
+            cs.append(det.image_points[np.argsort(det.ids)].reshape(rows, cols, 2))
+            ts.append(float(path.stem))
+        arrays[f"{name}_corners"] = np.asarray(cs)
+        arrays[f"{name}_model"] = np.array(truth["intrinsics"][name]["model"] == "fisheye"
+                                           and "fisheye" or "pinhole-radtan")
+        stamps.append(np.asarray(ts))
+        found.append(len(cs))
+    inst, _ = instants_from_stamps(stamps, default_sync_tolerance(stamps))
+    for name, i in zip(names, inst):
+        arrays[f"{name}_instants"] = i
+    # the board's motion capture at each instant (for multieye with --mocap): 0.03 deg and
+    # 0.1 mm per axis, as the rendered rig of bench_peers.py
+    rng = np.random.default_rng(7)
+    T_ref_target = np.asarray(truth["T_ref_target"])
+    T_world_ref = g.transform_from_rotvec([0, 0, 0.4], [0.5, -0.2, 1.0])
+    T_marker_target = g.transform_from_rotvec([0.1, -0.2, 0.3], [0.05, 0.02, -0.03])
+    noise = g.transform_from_rotvec(rng.normal(scale=np.radians(0.03), size=(len(T_ref_target), 3)),
+                                    rng.normal(scale=1e-4, size=(len(T_ref_target), 3)))
+    arrays["mocap_T"] = T_world_ref @ T_ref_target @ g.inv(T_marker_target) @ noise
+    np.savez(out, cameras=np.array(names), spacing=SPEC.target["spacing"],
+             size=np.array([SPEC.width, SPEC.height]), **arrays)
+    print(f"corners: {dict(zip(names, found))} full boards")
+    return out
+
+
+def run(cmd: list[str], out: Path) -> tuple[dict, float, float]:
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd + ["--out", str(out)], capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{cmd[1]} failed: {proc.stderr.strip().splitlines()[-3:]}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return json.loads(out.read_text()), wall, cpu
+
+
+def lens_error(est: dict, true: dict, pixels: np.ndarray) -> tuple[float, float]:
+    tf = true["model"] == "fisheye"
+    rays = unproject(pixels, true["K"], true["dist"], tf)
+    truth = project(rays, true["K"], true["dist"], tf)
+    return errors(lambda r: project(r, est["K"], est["dist"], est["fisheye"]), rays, truth)
+
+
+def evaluate(results: dict, truth: dict, c) -> dict:
+    """peer -> camera -> (lens raw, lens after rotation, deg, mm)."""
+    names = list(truth["T_ref_cam"])
+    out = {}
+    for peer, res in results.items():
+        out[peer] = {}
+        for name in names:
+            est = res["cameras"][name]
+            raw, rot = lens_error(est, truth["intrinsics"][name],
+                                  c[f"{name}_corners"].reshape(-1, 2))
+            T, Tt = np.asarray(est["T_ref_cam"]), np.asarray(truth["T_ref_cam"][name])
+            out[peer][name] = (raw, rot, np.degrees(g.rotation_angle_between(T, Tt)),
+                               1e3 * g.translation_distance(T, Tt))
+    return out
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", type=Path, default=Path("/tmp/bench_overlap"))
+    ap.add_argument("--seeds", type=int, default=1, help="rendered rigs (seeds 0, 1, ...)")
+    ap.add_argument("--runs", type=int, default=3, help="timed runs of each peer per rig")
+    ap.add_argument("--mrcal-python", default="/tmp/venv-h-bench-mrcal/bin/python")
+    ap.add_argument("--processes", type=int, default=2)
+    args = ap.parse_args(argv)
+    times, errs = {}, []
+    for seed in range(args.seeds):
+        data = args.data / f"seed{seed}"
+        if not (data / "ground_truth.json").exists():
+            render_overlap_dataset(data, SPEC, seed=seed, models=True, processes=args.processes)
+        npz = corners(data)
+        truth = json.loads((data / "ground_truth.json").read_text())
+        names = list(truth["T_ref_cam"])
+        c = np.load(npz)
+        peers = {"multieye": [sys.executable, str(PEERS / "overlap_multieye.py"), str(npz)],
+                 "multieye + mocap": [sys.executable, str(PEERS / "overlap_multieye.py"),
+                                      str(npz), "--mocap"],
+                 "mrcal": [args.mrcal_python, str(PEERS / "overlap_mrcal.py"), str(npz)],
+                 "opencv": [sys.executable, str(PEERS / "overlap_opencv.py"), str(npz)]}
+        results = {}
+        with tempfile.TemporaryDirectory() as tmp:
+            for _ in range(args.runs):
+                for peer, cmd in peers.items():
+                    res, wall, cpu = run(cmd, Path(tmp) / f"{peer.replace(' + ', '_')}.json")
+                    results[peer] = res
+                    times.setdefault(peer, []).append((wall, cpu))
+        shared = {n: int(np.isin(c[f"{names[0]}_instants"], c[f"{n}_instants"]).sum())
+                  for n in names[1:]}
+        print(f"seed {seed}: images { {n: len(c[f'{n}_instants']) for n in names} }, "
+              f"shared with {names[0]}: {shared}")
+        if "multieye" in results:
+            std = {n: (round(v.get("std_rot_deg", 0), 4), round(1e3 * v.get("std_trans_m", 0), 3))
+                   for n, v in results["multieye"]["cameras"].items()}
+            print(f"  multieye predicted std (deg, mm): {std}; pixel sigma "
+                  f"{results['multieye']['pixel_sigma']:.3f} px")
+        errs.append(evaluate(results, truth, c))
+    names = list(errs[0][next(iter(errs[0]))])
+    print(f"RMS over {args.seeds} rig(s):")
+    print("| peer | camera | lens px | lens px after rotation | T_ref_cam deg | T_ref_cam mm |")
+    print("|---|---|---|---|---|---|")
+    for peer in errs[0]:
+        for name in names:
+            v = np.sqrt(np.mean(np.square([e[peer][name] for e in errs]), axis=0))
+            ext = ("-", "-") if name == names[0] else (f"{v[2]:.4f}", f"{v[3]:.3f}")
+            print(f"| {peer} | {name} | {v[0]:.3f} | {v[1]:.3f} | {ext[0]} | {ext[1]} |")
+    print("| peer | wall s (median) | CPU s (median) |")
+    print("|---|---|---|")
+    for peer, ts in times.items():
+        w, cpu = np.median(np.asarray(ts), axis=0)
+        print(f"| {peer} | {w:.2f} | {cpu:.2f} |")
+
+
+if __name__ == "__main__":
+    main()

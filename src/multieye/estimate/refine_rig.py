@@ -1,0 +1,198 @@
+"""Maximum likelihood of a rig linked by co-observations: ``T_ref_cam``, lenses, target poses.
+
+Without motion capture, what ties cameras together is the target seen by several of them at
+one instant (docs/rig-yaml.md, section 2).  This module minimises the pixels' negative
+log-likelihood::
+
+    min  sum_points rho(||pi_j(inv(T_ref_cam^j) T_ref_target(t) p_k) - u||^2 / sigma_px^2)
+
+over every ``T_ref_cam^j`` (the reference camera fixed at the identity), every instant's
+``T_ref_target(t)`` and the estimated lenses (residuals and Jacobians:
+:mod:`multieye.estimate.rig_residuals`), started from the co-visibility graph
+(:func:`multieye.estimate.covisibility.initial_rig`, strongest links first), on the engine:
+Levenberg-Marquardt with the target poses eliminated by the Schur complement.
+
+Covariance of ``T_ref_cam`` and the lenses: ``kappa sigma^2 (J^T J)^-1`` of the reduced
+system (the target poses marginalised), ``kappa`` the efficiency factor of the robust loss
+for Gaussian residuals.  When the pixel noise is not given it is estimated as
+``sigma^2 = sum(w r^2) / (c_w (n - p))`` (``w`` the loss's IRLS weights, ``c_w`` their
+expectation for Gaussian residuals, ``n - p`` the redundancy), re-solving until it settles.
+As any linearised covariance it covers the pixel noise only (not a wrong lens model or a
+board that is not flat).
+
+Synopsis
+--------
+>>> views = RigViews(per_camera, intrinsics, names, free_intrinsics=free)   # doctest: +SKIP
+>>> res = refine_rig(views, T_cam_target)                                    # doctest: +SKIP
+>>> res.T_ref_cam, res.covariance                                            # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from multieye.core.errors import InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.core.robust_loss import gaussian_kappa, rho
+from multieye.estimate.covisibility import Covisibility, RigStart, covisibility, initial_rig
+from multieye.estimate.image_residuals import intrinsics_family
+from multieye.estimate.rig_residuals import RigViews
+from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
+
+__all__ = ["RigResult", "refine_rig"]
+
+F64 = NDArray[np.float64]
+
+_MAX_SIGMA_PASSES = 4
+#: Relative change of the pixel noise at which its estimate counts as settled.
+_SETTLED = 0.02
+#: Stopping tolerance of the passes after the first (relative decrease of the cost).
+_LATER_TOL = 1e-7
+
+
+@dataclass(frozen=True)
+class RigResult:
+    """What :func:`refine_rig` reached.
+
+    Attributes
+    ----------
+    T_ref_cam : ndarray, shape (m, 4, 4)
+    T_ref_target : ndarray, shape (K, 4, 4)
+        The target at each instant, in ``ref``.
+    intrinsics : tuple of Intrinsics
+        Every camera's lens (the estimated ones at the optimum).
+    covariance : ndarray, shape (m, 6, 6)
+        Of each ``T_ref_cam``: rotation vector then translation, left perturbation in ``ref``,
+        radians and metres (zeros for the reference camera).
+    intrinsics_covariance : tuple of (ndarray or None)
+        Per camera, over ``fx fy cx cy`` then the distortion (None for a fixed lens).
+    joint_covariance : ndarray, shape (k, k)
+        Over every kept unknown (``C`` then each ``K:<camera>``, the engine's layout).
+    pixel_sigma : float
+        The pixel noise used (estimated when not given), pixels.
+    residuals_px : ndarray, shape (P, 2)
+        Pixel residuals of every point at the optimum (point order of the views).
+    camera_rms_px : ndarray, shape (m,)
+    start : RigStart
+    covisibility : Covisibility
+    iterations : int
+    converged : bool
+    undetermined : tuple of str
+        Families (``C``, ``K:<camera>``) with a direction the data do not determine (their
+        covariance then covers the other directions only).
+    """
+
+    T_ref_cam: F64
+    T_ref_target: F64
+    intrinsics: tuple[Intrinsics, ...]
+    covariance: F64
+    intrinsics_covariance: tuple
+    joint_covariance: F64
+    pixel_sigma: float
+    residuals_px: F64
+    camera_rms_px: F64
+    start: RigStart
+    covisibility: Covisibility
+    iterations: int
+    converged: bool
+    undetermined: tuple[str, ...] = ()
+
+
+def _scale_constant(loss: str, f_scale: float) -> float:
+    """``E[w(x) x^2]`` for standard normal x, with the IRLS weight ``w = rho'(x^2 / f^2)``."""
+    if loss == "linear":
+        return 1.0
+    x, wq = np.polynomial.hermite_e.hermegauss(201)
+    wq = wq / wq.sum()
+    return float(wq @ (rho((x / f_scale) ** 2, loss)[1] * x ** 2))
+
+
+def refine_rig(views: RigViews, T_cam_target, *, pixel_sigma: float | None = None,
+               loss: str = "huber", f_scale: float = 2.0, max_iter: int = 100) -> RigResult:
+    """Refine the rig on the pixels from PnP starting poses (module docstring).
+
+    Parameters
+    ----------
+    views : RigViews
+    T_cam_target : array_like, shape (n_views, 4, 4)
+        Starting pose of the target in the camera of each view (PnP with the starting lens).
+    pixel_sigma : float, optional
+        Pixel noise; estimated when not given.
+    loss : str
+        Robust loss on every pixel residual (scipy's names).
+    f_scale : float
+        Where the loss departs from least squares, in sigmas.
+    max_iter : int
+
+    Raises
+    ------
+    InputError
+        Cameras that share no instant (one line naming the groups), or a refinement that
+        leaves the lens models' valid range.
+    """
+    T = np.asarray(T_cam_target, dtype=np.float64).reshape(-1, 4, 4)
+    if len(T) != views.n_views:
+        raise InputError(f"{len(T)} starting poses for {views.n_views} views")
+    start = initial_rig(T, views.camera, views.instant, views.m, views.reference, views.names)
+    fams = views.families(start.T_ref_cam, start.T_ref_target)
+    sigma = 1.0 if pixel_sigma is None else float(pixel_sigma)
+    if not (np.isfinite(sigma) and sigma > 0):
+        raise InputError(f"pixel_sigma must be a positive number, got {pixel_sigma!r}")
+    opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter)
+    c_w = _scale_constant(loss, f_scale)
+    iterations, converged = 0, True
+    for k in range(_MAX_SIGMA_PASSES):
+        groups = views.groups(sigma)
+        # after the first pass only the loss's scale moved: a looser stop is enough
+        res = minimize(fams, groups, opts if k == 0 else replace(opts, tol=_LATER_TOL))
+        fams, iterations, converged = res.families, iterations + res.iterations, res.converged
+        if pixel_sigma is not None:
+            break
+        z = np.concatenate([e[0].ravel() for e in evaluate(fams, groups, False)])
+        n_params = sum(f.count * f.size for f in fams)
+        w = rho((z / f_scale) ** 2, loss)[1]
+        new = sigma * np.sqrt(float(w @ z ** 2) / (c_w * max(z.size - n_params, 1)))
+        # settled; or every residual within the loss's quadratic zone at both scales (the
+        # optimum is then the least-squares one, whatever the scale)
+        quadratic = (loss == "linear"
+                     or float(np.abs(z).max()) <= f_scale * min(1.0, new / sigma))
+        settled = abs(new - sigma) <= _SETTLED * sigma or quadratic
+        sigma = max(float(new), 1e-6)
+        if settled:
+            break
+    groups = views.groups(sigma)
+    ev = evaluate(fams, groups, True)
+    cov = covariance(fams, groups, evaluated=ev)
+    kept = cov.kept * gaussian_kappa(loss, f_scale)
+    values = {f.name: f.value for f in fams}
+    T_ref_cam = views.T_ref_cam(values)
+    cam_cov = np.zeros((views.m, 6, 6))
+    if views.m > 1:
+        o = cov.layout.offset["C"]
+        for b, j in enumerate(views.others):
+            s = o + 6 * b
+            cam_cov[j] = kept[s:s + 6, s:s + 6]
+    k_cov = []
+    for j, name in enumerate(views.names):
+        fam = intrinsics_family(name)
+        if views.free[j]:
+            o, n = cov.layout.offset[fam], views.intrinsics[j].params.size
+            k_cov.append(kept[o:o + n, o:o + n])
+        else:
+            k_cov.append(None)
+    resid = np.concatenate([e[0] for e in ev]) * sigma     # groups camera by camera, as points
+    cam_of_point = views.camera[views.view]
+    rms = np.array([float(np.sqrt(np.mean(np.sum(resid[cam_of_point == j] ** 2, axis=1))))
+                    if views.counts[j] else float("nan") for j in range(views.m)])
+    return RigResult(T_ref_cam=T_ref_cam, T_ref_target=values["S"],
+                     intrinsics=views.current_intrinsics(values), covariance=cam_cov,
+                     intrinsics_covariance=tuple(k_cov), joint_covariance=kept,
+                     pixel_sigma=float(sigma), residuals_px=resid, camera_rms_px=rms,
+                     start=start, covisibility=covisibility(views.camera, views.instant,
+                                                            views.m),
+                     iterations=iterations, converged=converged,
+                     undetermined=tuple(f.name for f in fams if not f.eliminate
+                                        and cov.undetermined_in(f.name, f.count, f.size)))

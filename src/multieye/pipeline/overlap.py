@@ -1,0 +1,342 @@
+"""The rig linked by what its cameras see together, without motion capture (issue 23).
+
+Stages, each keyed by camera name like the rest of the pipeline:
+
+1. instants: every camera's images with a target pose grouped into instants (equal stamps
+   within ``sync_tolerance``, docs/rig-yaml.md, section 2), each image of a camera's
+   ``intrinsics_images`` an instant of its own (it informs that camera's lens only);
+2. links: the co-visibility graph; cameras in groups that nothing links are refused with one
+   line naming the groups (:func:`multieye.estimate.covisibility.unlinked_message`);
+3. solve: every ``T_ref_cam``, the lenses estimated from the recording (``model:`` or
+   ``refine_intrinsics``) and one target pose per instant, started from the graph and
+   refined on the pixels (:func:`multieye.estimate.refine_rig.refine_rig`);
+4. checks: a camera whose pixels fit the rig far worse than they fit its own PnP poses is
+   doubted (cause ``fit``: cameras not synchronised, a rig that moved, a wrong lens).
+
+Synopsis
+--------
+>>> sol = solve_overlap(cameras, reference="cam0")         # doctest: +SKIP
+>>> sol.result.T_ref_cam, sol.links["cam1"].overlap       # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.special import chdtri
+
+from multieye.core.errors import (
+    CalibrationError,
+    DatasetError,
+    DisconnectedError,
+    TooFewMeasurementsError,
+)
+from multieye.estimate.covisibility import covisibility, link_groups, unlinked_message
+from multieye.estimate.findings import Finding
+from multieye.estimate.refine_images import OUTLIER_PROBABILITY
+from multieye.io.calibration_json import CameraLinks
+from multieye.core import geometry as g
+from multieye.estimate.instants import (
+    default_sync_tolerance,
+    instants_from_names,
+    instants_from_stamps,
+)
+from multieye.estimate.refine_rig import RigResult, refine_rig
+from multieye.estimate.rig_residuals import RigViews
+from multieye.pipeline.camera_data import CameraData, PairedCamera
+
+__all__ = ["CameraLinks", "OverlapSolution", "solve_overlap", "observation_instants",
+           "assign_instants", "paired_instants", "share_instants", "UNEXPLAINED_RATIO"]
+
+#: A camera is doubted (cause ``fit``) when its pixel residuals in the rig are this many times
+#: (in variance) those of its own PnP poses.
+UNEXPLAINED_RATIO = 10.0
+
+
+@dataclass(frozen=True)
+class OverlapSolution:
+    """The rig solved from co-observations.
+
+    Attributes
+    ----------
+    names : tuple of str
+    reference : str
+    result : RigResult
+        ``T_ref_cam``, lenses, target poses, covariances, residuals (cameras in ``names``'
+        order).
+    used : dict of str to tuple of Observation
+        Per camera the images used (with a target pose), in time order.
+    instants : dict of str to ndarray of int
+        The instant of each used image.
+    links : dict of str to CameraLinks
+    sync_tolerance : float
+        Seconds.
+    findings : tuple of Finding
+        What the checks doubt (empty when nothing).
+    warnings : tuple of str
+        Images that fit the rig poorly, undetermined directions, no convergence.
+    """
+
+    names: tuple[str, ...]
+    reference: str
+    result: RigResult
+    used: dict
+    instants: dict
+    links: dict
+    sync_tolerance: float
+    findings: tuple = ()
+    warnings: tuple = ()
+
+
+def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | None
+                         ) -> tuple[dict[str, NDArray[np.int64]], int, float]:
+    """The instant of every observation of every camera, their count, and the tolerance used
+    (``sync_tolerance``, or the default: :func:`multieye.estimate.instants.default_sync_tolerance`).
+
+    Images of different cameras are one instant when their stamps (each camera's
+    ``time_offset`` applied) are within the tolerance; when every camera is paired by name,
+    when their names' stems are equal and their given poses too (cameras named alike but
+    posed apart were not triggered together)."""
+    if cameras and all(d.by_name and d.mocap is not None for d in cameras.values()):
+        keys = [[f"{Path(o.name).stem}|{_pose_at(d, o.stamp)}" for o in d.observations]
+                for d in cameras.values()]
+        inst, k = instants_from_names(keys)
+        return dict(zip(cameras, inst)), k, 0.0
+    stamps = [np.array([o.stamp for o in d.observations], dtype=np.float64) + d.time_offset
+              for d in cameras.values()]
+    tol = default_sync_tolerance(stamps) if sync_tolerance is None else float(sync_tolerance)
+    inst, k = instants_from_stamps(stamps, tol)
+    return dict(zip(cameras, inst)), k, tol
+
+
+def _pose_at(data: CameraData, stamp: float) -> str:
+    """A by-name camera's given pose of the image with this stamp (its place in name order),
+    as hex bytes ('' when it has none)."""
+    i = np.flatnonzero(data.mocap.stamps == stamp)
+    return data.mocap.T[i[0]].tobytes().hex() if i.size else ""
+
+
+def assign_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | None
+                    ) -> dict[str, CameraData]:
+    """Every observation's :attr:`~multieye.pipeline.camera_data.Observation.instant` set to
+    its instant's key (:func:`observation_instants`): the camera-clock stamp (``repr``) of the
+    instant's first image, or its first image's name stem for cameras paired by name."""
+    inst, _, _ = observation_instants(cameras, sync_tolerance)
+    first: dict[int, str] = {}
+    for n, d in cameras.items():
+        for o, k in zip(d.observations, inst[n]):
+            first.setdefault(int(k), Path(o.name).stem if d.by_name else repr(float(o.stamp)))
+    return {n: replace(d, observations=tuple(replace(o, instant=first[int(k)]) for o, k in
+                                             zip(d.observations, inst[n])))
+            for n, d in cameras.items()}
+
+
+def _check_images(cameras: Mapping[str, CameraData]) -> None:
+    for name, d in cameras.items():
+        if d.intrinsics is None or any(o.image_points is None for o in d.observations):
+            raise DatasetError("a rig without motion capture is linked by the target points "
+                               "its cameras see together; this camera gives poses, not images "
+                               "(give it images:, or add mocap:)", camera=name)
+        if not d.observations:
+            raise TooFewMeasurementsError(f"camera {name}: no image with the target detected")
+
+
+def _links(names, shared) -> dict[str, CameraLinks]:
+    return {n: CameraLinks({names[k]: int(shared[j, k]) for k in np.flatnonzero(shared[j])
+                            if k != j}) for j, n in enumerate(names)}
+
+
+def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
+                  sync_tolerance: float | None = None, robust: bool = True,
+                  isolate: bool = True) -> OverlapSolution:
+    """Calibrate the rig from the views its cameras share (module docstring).
+
+    Parameters
+    ----------
+    cameras : mapping of str to CameraData
+        Cameras with images (target points), in rig.yaml's order; no motion capture.
+    reference : str
+        The camera whose frame is ``ref``.
+    sync_tolerance : float, optional
+        Seconds; default a quarter of the shortest interval between two images of a camera.
+    robust : bool
+        Huber loss on the pixels (else least squares).
+    isolate : bool
+        When several cameras are doubted, look for the one without which the others fit
+        (solving without each in turn) and doubt that one alone.
+
+    Raises
+    ------
+    DatasetError
+        A camera given by poses (no target points).
+    DisconnectedError
+        Cameras in groups that share no instant (one line naming the groups).
+    """
+    _check_images(cameras)
+    names = tuple(cameras)
+    inst, n_inst, tol = observation_instants(cameras, sync_tolerance)
+    cams = [np.full(len(inst[n]), j) for j, n in enumerate(names)]
+    cov = covisibility(np.concatenate(cams), np.concatenate([inst[n] for n in names]),
+                       len(names))
+    groups = link_groups(cov.shared > 0, [False] * len(names))
+    if len(groups) > 1:
+        raise DisconnectedError(unlinked_message(names, groups, tol),
+                                tuple(n for g in groups[1:] for n in (names[j] for j in g)))
+    views, poses, extra = [], [], n_inst
+    for n in names:
+        d = cameras[n]
+        vs = [(o.object_points, o.image_points, int(t)) for o, t in zip(d.observations, inst[n])]
+        poses += [o.T_cam_target for o in d.observations]
+        for o in (d.intrinsics_views if d.intrinsics_estimated else ()):
+            vs.append((o.object_points, o.image_points, extra))
+            poses.append(o.T_cam_target)
+            extra += 1
+        views.append(vs)
+    rv = RigViews(views, [cameras[n].intrinsics for n in names], names,
+                  names.index(reference),
+                  free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
+    result = refine_rig(rv, np.stack(poses), loss="huber" if robust else "linear")
+    used = {n: cameras[n].observations for n in names}
+    findings = _fit_findings(names, cameras, rv, result)
+    if isolate and len(findings) > 1:
+        findings = _culprit(cameras, reference, tol, robust, findings)
+    return OverlapSolution(names=names, reference=reference, result=result, used=used,
+                           instants=inst, links=_links(names, cov.shared), sync_tolerance=tol,
+                           findings=findings, warnings=_rig_warnings(cameras, rv, result))
+
+
+def _rig_warnings(cameras: Mapping[str, CameraData], views: RigViews, result: RigResult
+                  ) -> tuple[str, ...]:
+    """What the solve doubts: images most of whose points lie far beyond the pixel noise
+    (more than half of them with a squared normalised residual over the chi-square quantile
+    of 2 degrees of freedom at :data:`OUTLIER_PROBABILITY`: the rule of the motion-capture
+    refinement, :func:`multieye.estimate.refine_images.refine_images`; a rule on any one
+    point, or on an image's sum, flagged a third of the images of a clean rendered rig,
+    whose corner errors are correlated within an image), directions the data do not
+    determine, no convergence."""
+    out = []
+    limit = float(chdtri(2, OUTLIER_PROBABILITY))
+    z2 = np.sum((result.residuals_px / result.pixel_sigma) ** 2, axis=1)
+    for j, n in enumerate(views.names):
+        own = np.flatnonzero(views.camera == j)[:len(cameras[n].observations)]
+        bad = [cameras[n].observations[i].name for i, v in enumerate(own)
+               if np.mean(z2[views.view == v] > limit) > 0.5]
+        if bad:
+            out.append(f"{n}: {len(bad)} image(s) fit the rig poorly: " + ", ".join(bad[:5])
+                       + (" ..." if len(bad) > 5 else ""))
+    for family in result.undetermined:
+        what = (f"{family[2:]}: the intrinsics" if family.startswith("K:")
+                else "the cameras' T_ref_cam")
+        out.append(f"{what} include a combination of parameters this recording does not "
+                   "determine (their uncertainty covers the other directions only); add "
+                   "views seen together with more tilt and nearer the image corners")
+    if not result.converged:
+        out.append("the refinement did not converge; the result may be short of the best the "
+                   "data allow")
+    return tuple(out)
+
+
+def _culprit(cameras: Mapping[str, CameraData], reference: str, tol: float, robust: bool,
+             findings: tuple[Finding, ...]) -> tuple[Finding, ...]:
+    """One camera that does not fit pulls the whole rig (its views tie the others): of the
+    doubted cameras, worst first, the first without which the others fit together is named
+    alone; else every doubt stays."""
+    for f in sorted(findings, key=lambda f: -f.cost):
+        rest = {n: d for n, d in cameras.items() if n != f.camera}
+        if len(rest) < 2:
+            continue
+        try:
+            sub = solve_overlap(rest, reference if reference in rest else next(iter(rest)),
+                                sync_tolerance=tol, robust=robust, isolate=False)
+        except CalibrationError:
+            continue
+        if not sub.findings:
+            return (replace(f, message=f"{f.message} (the other cameras fit together "
+                                       "without it)"),)
+    return findings
+
+
+def _fit_findings(names, cameras: Mapping[str, CameraData], views: RigViews,
+                  result: RigResult) -> tuple[Finding, ...]:
+    """Cameras whose pixels fit the rig far worse than their own PnP poses."""
+    out = []
+    cam_of_point = views.camera[views.view]
+    for j, n in enumerate(names):
+        own = [o.rms_px for o in cameras[n].observations if o.rms_px is not None]
+        if not own:
+            continue
+        r = result.residuals_px[cam_of_point == j]
+        n_obs = len(cameras[n].observations)
+        rig_ms = float(np.mean(np.sum(r[:sum(len(o.image_points) for o in
+                                             cameras[n].observations)] ** 2, axis=1)))
+        own_ms = max(float(np.mean(np.square(own))), 1e-6)
+        ratio = rig_ms / own_ms
+        if ratio >= UNEXPLAINED_RATIO and n_obs:
+            out.append(Finding(
+                "fit", f"poor fit: camera {n}'s target points are {np.sqrt(ratio):.0f} times "
+                f"further from the rig's projection (RMS {np.sqrt(rig_ms):.2f} px) than from "
+                f"its own PnP poses ({np.sqrt(own_ms):.2f} px): the images of one instant do "
+                "not show the target at one pose; check that the cameras are synchronised "
+                "(sync_tolerance, time_offset), that the rig did not move, and its lens", n,
+                ratio, 1.0, {"rig_rms_px": float(np.sqrt(rig_ms)),
+                             "pnp_rms_px": float(np.sqrt(own_ms))}))
+    return tuple(out)
+
+
+def paired_instants(paired: Mapping[str, PairedCamera], cameras: Mapping[str, CameraData],
+                    offsets: Mapping[str, float], sync_tolerance: float | None
+                    ) -> tuple[dict[str, NDArray[np.int64]], dict[str, CameraLinks]]:
+    """The instant of every paired image of a rig with motion capture, and what links each
+    camera: images of different cameras whose stamps (motion-capture clock: plus each
+    camera's offset) are within ``sync_tolerance``, or, when every camera is paired by name,
+    whose names' stems are equal and whose given poses are too, are one instant (images of
+    two cameras named alike but posed apart were taken at different instants)."""
+    names = list(paired)
+    if all(o.instant for n in names for o in paired[n].observations):
+        # the problem's instants (make_problem: assign_instants), as every stage sees them
+        inst, _ = instants_from_names([[o.instant for o in paired[n].observations]
+                                       for n in names])
+    else:
+        stamps = [np.array([o.stamp for o in paired[n].observations], dtype=np.float64)
+                  + offsets[n] for n in names]
+        tol = default_sync_tolerance(stamps) if sync_tolerance is None else sync_tolerance
+        inst, _ = instants_from_stamps(stamps, tol)
+    cams = np.concatenate([np.full(len(i), j) for j, i in enumerate(inst)])
+    shared = covisibility(cams, np.concatenate(inst), len(names)).shared
+    links = {n: CameraLinks(l.overlap, True) for n, l in _links(tuple(names), shared).items()}
+    return dict(zip(names, inst)), links
+
+
+def share_instants(setup: str, paired: Mapping[str, PairedCamera],
+                   instants: Mapping[str, NDArray[np.int64]], noise: tuple[float, float]
+                   ) -> dict[str, PairedCamera]:
+    """Every image of one instant given one motion-capture pose (the first camera's, in rig
+    order), so that the image-level refinement holds one pose of the target per instant
+    (its images share one block and one prior:
+    :class:`multieye.estimate.image_residuals.ImageData`).
+
+    An image keeps its own pose when the one it would take differs from it by more than the
+    motion capture's noise ``noise`` (per axis: radians, metres): its camera was not triggered
+    with the first one closely enough for the target to be at one pose (a free-running camera
+    whose stamp falls within ``sync_tolerance`` by chance), and sharing would bias the
+    result; the two stay linked by the motion capture."""
+    first: dict[int, np.ndarray] = {}
+    for n, p in paired.items():
+        for k, M in zip(instants[n], p.T_world_mocap):
+            first.setdefault(int(k), M)
+    out = {}
+    for n, p in paired.items():
+        M = p.T_world_mocap.copy()
+        for i, k in enumerate(instants[n]):
+            F = first[int(k)]
+            if (g.rotation_angle_between(F, M[i]) <= noise[0]
+                    and g.translation_distance(F, M[i]) <= noise[1]):
+                M[i] = F
+        A = g.inv(M) if setup == "eye-to-base" else M
+        out[n] = PairedCamera(name=p.name, A=A, B=p.B, T_world_mocap=M,
+                              observations=p.observations, rejected=p.rejected)
+    return out

@@ -1,0 +1,176 @@
+"""A rig without motion capture, from the problem to the run the writers take (issue 23).
+
+:func:`calibrate_overlap` runs :func:`multieye.pipeline.overlap.solve_overlap` on the problem
+and states the result as every run is stated (:class:`~multieye.pipeline.result.CalibrationRun`
+with its :class:`~multieye.io.CalibrationRecord`, setup ``overlap``: docs/outputs.md,
+section 2).  The evidence is laid out as the writers already read it, in the reference
+camera's frame: per camera ``X = T_ref_cam``, ``Y`` the identity, and per image the "motion
+capture" ``M_i = T_ref_target`` of its instant, so that ``A_i = inv(M_i)``, ``B_i =
+inv(T_cam_target_i)`` and the loop ``A_i X = Y B_i`` is each image's PnP pose against the
+solution's ``inv(T_ref_cam) @ T_ref_target``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from multieye.core import geometry as g
+from multieye.core.errors import DatasetError
+from multieye.core.metrics import camera_residual
+from multieye.estimate.findings import Plausibility
+from multieye.estimate.uncertainty import pose_std, projection_std
+from multieye.io import (
+    CalibrationRecord,
+    CameraRecord,
+    IntrinsicsRecord,
+    PlausibilityItem,
+    PoseUncertainty,
+    Residuals,
+)
+from multieye.io.calibration_json import OVERLAP, CameraLinks
+from multieye.pipeline.camera_data import PairedCamera
+from multieye.pipeline.overlap import OverlapSolution, solve_overlap
+from multieye.pipeline.problem import Problem
+from multieye.pipeline.result import CalibrationRun, Refinement
+
+__all__ = ["calibrate_overlap", "check_overlap_options", "OverlapImages", "METHOD"]
+
+#: ``method`` of a rig without motion capture: the start from the co-visibility graph.
+METHOD = "covisibility"
+
+
+@dataclass(frozen=True)
+class OverlapImages:
+    """The refined rig in the per-camera layout the image-level writers read
+    (:func:`multieye.outputs.details.image_points`): ``X[j] = T_ref_cam``, ``Y`` the identity,
+    ``T_world_mocap[j][i] = T_ref_target`` of image i's instant, the final lenses; and the
+    solution itself."""
+
+    X: np.ndarray
+    Y: np.ndarray
+    T_world_mocap: tuple
+    intrinsics: tuple
+    solution: OverlapSolution
+
+
+def check_overlap_options(problem: Problem) -> Problem:
+    """The problem, once its options are checked against a rig without motion capture.
+
+    Raises
+    ------
+    DatasetError
+        Options that need motion capture (``time_offset="auto"``, a closed-form ``method``
+        other than the default) or the refinement turned off (it is the solve here).
+    """
+    opts, where = problem.options, problem.rig.path
+    if opts.time_offset == "auto":
+        raise DatasetError("--time-offset auto estimates each camera's clock against the "
+                           "motion capture, which this rig has none of; give each camera's "
+                           "time_offset in rig.yaml", path=where)
+    if not opts.refine:
+        raise DatasetError("--no-refine: a rig without motion capture has no closed form; it "
+                           "is solved by the refinement on the views its cameras share",
+                           path=where)
+    if opts.method != "joint":
+        raise DatasetError(f"--method {opts.method}: the hand-eye solvers need motion "
+                           "capture; a rig without it is started from the views its cameras "
+                           "share", path=where)
+    return problem
+
+
+def calibrate_overlap(problem: Problem) -> CalibrationRun:
+    """Calibrate a rig without motion capture (module docstring).
+
+    Raises
+    ------
+    DatasetError, DisconnectedError
+        As :func:`multieye.pipeline.overlap.solve_overlap`.
+    """
+    sol = solve_overlap(problem.cameras, problem.reference,
+                        sync_tolerance=problem.rig.sync_tolerance,
+                        robust=problem.options.robust)
+    res = sol.result
+    names = sol.names
+    M = tuple(res.T_ref_target[sol.instants[n]] for n in names)
+    paired = {n: PairedCamera(
+        name=n, A=g.inv(M[j]), T_world_mocap=M[j],
+        B=g.inv(np.stack([o.T_cam_target for o in sol.used[n]])),
+        observations=tuple(sol.used[n]), rejected=problem.cameras[n].rejected)
+        for j, n in enumerate(names)}
+    estimated = {n: res.intrinsics[j] for j, n in enumerate(names)
+                 if problem.cameras[n].intrinsics_estimated}
+    rms = _camera_rms(sol)
+    refinement = Refinement(
+        kind="images", X=res.T_ref_cam, Y=np.eye(4), covariance=None,
+        reprojection_rms_px=rms, warnings=(),
+        result=OverlapImages(res.T_ref_cam, np.eye(4), M, res.intrinsics, sol),
+        intrinsics=estimated,
+        intrinsics_covariance={n: res.intrinsics_covariance[j] for j, n in enumerate(names)
+                               if problem.cameras[n].intrinsics_estimated})
+    plaus = Plausibility(findings=sol.findings, cost=float("nan"), camera_cost={},
+                         tested=("fit",))
+    warnings = tuple(w for d in problem.cameras.values() for w in d.warnings)
+    warnings += sol.warnings + tuple(f.message for f in sol.findings)
+    record = _record(problem, sol, paired, rms, warnings)
+    cameras = {n: replace(d, intrinsics=estimated.get(n, d.intrinsics))
+               for n, d in problem.cameras.items()}
+    return CalibrationRun(rig=problem.rig, record=record, closed_form=None, cameras=cameras,
+                          paired=paired, refinement=refinement, plausibility=plaus)
+
+
+def _camera_rms(sol: OverlapSolution) -> dict[str, float]:
+    res = sol.result
+    return {n: float(res.camera_rms_px[j]) for j, n in enumerate(sol.names)}
+
+
+def _pose_uncertainty(cov: np.ndarray) -> PoseUncertainty:
+    rot, trans = pose_std(cov)
+    return PoseUncertainty(float(rot), float(trans), cov)
+
+
+def _record(problem: Problem, sol: OverlapSolution, paired: dict, rms: dict,
+            warnings: tuple[str, ...]) -> CalibrationRecord:
+    res = sol.result
+    cams, rot_all, trans_all = [], [], []
+    for j, n in enumerate(sol.names):
+        p = paired[n]
+        r = camera_residual(p.A, p.B, res.T_ref_cam[j], np.eye(4))
+        rot_all.append(r.e_R_deg * r.n)
+        trans_all.append(r.e_t_m * r.n)
+        unc = _pose_uncertainty(res.covariance[j])
+        cams.append(CameraRecord(
+            name=n, X=None, T_ref_cam=res.T_ref_cam[j], measurements_used=r.n,
+            residuals=Residuals(e_R_deg=r.e_R_deg, e_t_m=r.e_t_m, max_R_deg=r.max_R_deg,
+                                max_t_m=r.max_t_m, reprojection_rms_px=rms[n]),
+            std_rot_deg=unc.std_rot_deg, std_trans_m=unc.std_trans_m,
+            covariance=res.covariance[j], rejected=p.rejected,
+            intrinsics=_intrinsics_record(problem, sol, j, p),
+            uncertainty={"T_ref_cam": unc},
+            links=CameraLinks(dict(sol.links[n].overlap), False)))
+    used = sum(c.measurements_used for c in cams)
+    return CalibrationRecord(
+        setup=OVERLAP, method=METHOD, reference_camera=problem.reference, Y=None,
+        cameras=tuple(cams),
+        residuals=Residuals(e_R_deg=sum(rot_all) / used, e_t_m=sum(trans_all) / used),
+        warnings=warnings, refinement="images",
+        plausibility=tuple(PlausibilityItem(f.cause, f.message, f.camera)
+                           for f in sol.findings))
+
+
+def _intrinsics_record(problem: Problem, sol: OverlapSolution, j: int, p: PairedCamera
+                       ) -> IntrinsicsRecord:
+    """The camera's final lens, whether it was estimated, its covariance and the projection's
+    standard deviation over the target points (in the solution's target poses)."""
+    res, name = sol.result, sol.names[j]
+    data = problem.cameras[name]
+    intr = res.intrinsics[j]
+    cov = res.intrinsics_covariance[j]
+    proj = None
+    if cov is not None:
+        T = g.inv(res.T_ref_cam[j]) @ p.T_world_mocap
+        pts = [o.object_points @ Tc[:3, :3].T + Tc[:3, 3]
+               for o, Tc in zip(p.observations, T)]
+        proj = projection_std(intr, cov, np.concatenate(pts))
+    return IntrinsicsRecord(intr, data.intrinsics_estimated, cov, proj)
