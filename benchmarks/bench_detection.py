@@ -1,147 +1,186 @@
-"""Detection throughput: ``detect_and_estimate`` on 2 processes against a plain OpenCV loop.
+"""Detection + PnP throughput against the decode floor and the OpenCV script (issue 21, item 1).
 
 Run from the repository root::
 
-    PYTHONPATH=src python benchmarks/bench_detection.py [--images 80] [--processes 2] [--seed 0]
+    python benchmarks/bench_detection.py [--runs 3] [--processes 2]
 
-It prints, in one run on one machine:
+On the 4 x 100 rendered images of ``benchmarks/bench_peers.py`` (800 x 600 PNG, rendered once
+into ``benchmarks/.cache/peers_4x100``), and on the 30 real 1280 x 720 images of
+``young_mocap_cam`` when the shared data are there (``MULTIEYE_SHARED_DATA`` or
+``../shared/data``), it times, in turn (A B C D, A B C D, ...), ``--runs`` times each:
 
-1. the time (wall and CPU) to render the synthetic chessboard images (800x600, lens
-   distortion, blur and noise; :func:`multieye.sim.render`) in this one process, and what
-   that means for the demo's 4 cameras x 40 images on 2 cores;
-2. for those images and, when ``../shared/data/young_mocap_cam`` is present, its 30 real
-   1280x720 images: images per second of
+A. ``imread``: ``cv2.imread(path, cv2.IMREAD_GRAYSCALE)`` alone, on ``--processes`` worker
+   processes from the same pool as B (:func:`multieye.imaging.workers.worker_pool`, the same
+   fork server, the same chunks, pool start included): the floor, since every image must be
+   decoded once;
+B. ``multieye``: :func:`multieye.imaging.batch.detect_and_estimate_jobs`, one job per camera
+   on one pool of ``--processes`` workers (pool start included): bounded read, gray decode,
+   ``findChessboardCorners`` (SB where it fails), ``cornerSubPix``, canonical order, PnP
+   (IPPE + Levenberg-Marquardt) with the camera's lens;
+C. ``opencv loop``: the detection loop of ``benchmarks/peers/opencv_script.py`` (``imread``,
+   ``findChessboardCorners``, ``cornerSubPix``), in this one process as the script runs it;
+D. ``opencv loop, N processes``: the same loop split over ``--processes`` workers of the pool.
 
-   - the baseline: one process, ``cv2.imread`` + ``cv2.findChessboardCorners`` with default
-     flags, nothing else;
-   - :func:`multieye.imaging.batch.detect_and_estimate` with ``--processes`` workers (pool
-     start-up included; the fork server's one-off start in a session is timed separately
-     first) and with 1 process: read, ``findChessboardCornersSB`` (classic fallback),
-     ``cornerSubPix``, canonical order, IPPE + Levenberg-Marquardt PnP;
+For each: images per second (median of the runs, wall), CPU seconds (this process, and its
+workers once the pool has joined them: they are the fork server's children, whose collected
+CPU time ``/proc/<fork server>/stat`` gives), how many images gave a result; and the ratio B / A of the time per
+image, the goal of issue 21 being at most 1.5. The first pool of a session also starts the
+fork server (imports numpy and OpenCV): timed once, separately, before the runs.
 
-   and the ratio of ours on ``--processes`` cores to the baseline, plus how many images each
-   found the board in.
-
-The two do different amounts of work: the baseline stops at integer-ish corners, ours ends at a
-sub-pixel pose. Times depend on the machine and its load (other processes on the same cores
-slow both); the ratio less so. This is a script, not a test: nothing here is asserted.
+Times depend on the load of the machine (other processes on the same cores): the load
+average is printed with each run. This is a script, not a test: nothing here is asserted.
 """
 
 from __future__ import annotations
 
 import argparse
-import tempfile
+import os
+from multiprocessing import forkserver
+import platform
+import resource
+import sys
 import time
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from multieye.core.geometry import transform_from_rotvec
-from multieye.imaging.batch import detect_and_estimate
-from multieye.sim.render import render, visible
-from multieye.imaging.targets import Chessboard
 from multieye.core.intrinsics import Intrinsics
+from multieye.imaging.batch import ImageJob, _mp_context, detect_and_estimate_jobs
+from multieye.imaging.targets import Chessboard, target_from_spec
+from multieye.imaging.workers import worker_pool
+from multieye.io import read_intrinsics
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from bench_peers import rendered  # noqa: E402  (the peers' rendering, cached)
 
-SYNTHETIC_CAMERA = Intrinsics(K=[[600.0, 0, 399.5], [0, 600.0, 299.5], [0, 0, 1]],
-                              dist=[-0.28, 0.09, 0.0008, -0.0005, -0.015], width=800, height=600)
-SYNTHETIC_BOARD = Chessboard(rows=6, cols=9, spacing=0.04)
-
-YOUNG_CAMERA = Intrinsics(K=[[607.88, 0, 641.875], [0, 607.966, 365.585], [0, 0, 1]],
-                          dist=[0.458331, -2.87024, 0.00048617, -9.82262e-05, 1.74446, 0.331466,
-                                -2.66947, 1.65473], width=1280, height=720)
+SHARED = Path(os.environ.get("MULTIEYE_SHARED_DATA", ROOT.parent / "shared" / "data"))
+YOUNG = SHARED / "young_mocap_cam" / "example_dataset"
 YOUNG_BOARD = Chessboard(rows=8, cols=11, spacing=0.03)
 
 
-def random_views(n: int, rng: np.random.Generator) -> list[np.ndarray]:
-    """``n`` poses T_cam_target of the synthetic board, whole board in view."""
-    x0, x1, y0, y1 = SYNTHETIC_BOARD.bounds()
-    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2, 0.0])
-    views = []
-    while len(views) < n:
-        T = transform_from_rotvec(rng.normal(0, 0.3, 3), np.zeros(3))
-        T[:3, 3] = -T[:3, :3] @ centre + [*rng.normal(0, 0.08, 2), rng.uniform(0.55, 1.1)]
-        if visible(SYNTHETIC_BOARD, SYNTHETIC_CAMERA, T):
-            views.append(T)
-    return views
+def _cpu() -> float:
+    """CPU seconds of this process, its collected children and the fork server's collected
+    children (the workers are the fork server's children, not ours)."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    total = own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+    pid = getattr(getattr(forkserver, "_forkserver", None), "_forkserver_pid", None)
+    if pid is not None:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        # fields 14-17 of proc(5): utime, stime, cutime, cstime (fields[0] is field 3)
+        total += sum(int(x) for x in fields[11:15]) / os.sysconf("SC_CLK_TCK")
+    return total
 
 
-def render_images(folder: Path, n: int, seed: int) -> tuple[list[Path], float, float]:
-    """Write ``n`` rendered views; return the paths and the render wall and CPU time."""
-    rng = np.random.default_rng(seed)
-    views = random_views(n, rng)
-    render(SYNTHETIC_BOARD, SYNTHETIC_CAMERA, views[0])        # ray grid of the camera, once
-    paths, wall, cpu = [], 0.0, 0.0
-    for k, T in enumerate(views):
-        start, start_cpu = time.perf_counter(), time.process_time()
-        image = render(SYNTHETIC_BOARD, SYNTHETIC_CAMERA, T, rng=rng)
-        wall += time.perf_counter() - start
-        cpu += time.process_time() - start_cpu
-        path = folder / f"{k:04d}.png"
-        cv2.imwrite(str(path), image)
-        paths.append(path)
-    return paths, wall, cpu
+def _imread(path: str) -> bool:
+    return cv2.imread(path, cv2.IMREAD_GRAYSCALE) is not None
 
 
-def baseline(paths: list[Path], board: Chessboard) -> tuple[float, int]:
-    """Plain loop: read and findChessboardCorners, default flags, this process."""
-    start = time.perf_counter()
-    found = 0
-    for p in paths:
-        image = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
-        ok, _ = cv2.findChessboardCorners(image, (board.cols, board.rows))
-        found += bool(ok)
-    return time.perf_counter() - start, found
+_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 1e-3)
 
 
-def ours(paths: list[Path], board: Chessboard, camera: Intrinsics, processes: int) -> tuple[float, int]:
-    start = time.perf_counter()
-    results = detect_and_estimate(paths, board, camera, processes=processes, progress=False)
-    return time.perf_counter() - start, sum(r.ok for r in results)
+def _opencv_one(item: tuple[str, int, int]) -> bool:
+    """One image of opencv_script.py's detection loop."""
+    path, rows, cols = item
+    gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+    found, c = cv2.findChessboardCorners(gray, (cols, rows), cv2.CALIB_CB_ADAPTIVE_THRESH
+                                         + cv2.CALIB_CB_NORMALIZE_IMAGE)
+    if found:
+        cv2.cornerSubPix(gray, c, (5, 5), (-1, -1), _CRITERIA)
+    return bool(found)
 
 
-def compare(name: str, paths: list[Path], board: Chessboard, camera: Intrinsics, processes: int) -> None:
+def _single_thread() -> None:
+    cv2.setNumThreads(1)
+
+
+def _pool_map(fn, items: list, processes: int) -> list:
+    """``fn`` over ``items`` on a fresh pool from multieye's fork server, chunked as
+    multieye chunks (about four chunks per worker)."""
+    chunk = max(1, -(-len(items) // (processes * 4)))
+    with worker_pool(processes, mp_context=_mp_context(), initializer=_single_thread) as pool:
+        return list(pool.map(fn, items, chunksize=chunk))
+
+
+def dataset_jobs() -> list[tuple[str, list[ImageJob]]]:
+    """The image sets: per camera one job (paths, target, lens)."""
+    folder, _ = rendered()
+    board = target_from_spec({"type": "chessboard", "rows": 6, "cols": 9, "spacing": 0.05})
+    jobs = [ImageJob(tuple(str(p) for p in sorted((folder / cam).glob("*.png"))), board,
+                     read_intrinsics(folder / f"{cam}.yaml"))
+            for cam in sorted(p.name for p in folder.iterdir() if p.is_dir())]
+    sets = [("rendered 4 x 100, 800 x 600 PNG, chessboard 6x9", jobs)]
+    images = YOUNG / "rgb_images"
+    if images.is_dir():
+        lens = Intrinsics(K=[[607.88, 0, 641.875], [0, 607.966, 365.585], [0, 0, 1]],
+                          dist=[0.458331, -2.87024, 0.00048617, -9.82262e-05, 1.74446,
+                                0.331466, -2.66947, 1.65473], width=1280, height=720)
+        sets.append(("young_mocap_cam, 30 real 1280 x 720 PNG, chessboard 8x11",
+                     [ImageJob(tuple(str(p) for p in sorted(images.glob("*.png"))),
+                               YOUNG_BOARD, lens)]))
+    else:
+        print(f"{images} not found: the real images are skipped")
+    return sets
+
+
+def measure(name: str, jobs: list[ImageJob], runs: int, processes: int) -> None:
+    paths = [p for job in jobs for p in job.paths]
     n = len(paths)
-    t_base, f_base = baseline(paths, board)
-    t_par, f_par = ours(paths, board, camera, processes)
-    t_one, f_one = ours(paths, board, camera, 1)
-    print(f"\n{name}: {n} images")
-    print(f"  {'method':58s} {'img/s':>7s} {'found':>7s}")
-    print(f"  {'baseline: imread + findChessboardCorners, 1 process':58s} {n / t_base:7.1f} {f_base:4d}/{n}")
-    print(f"  {f'detect_and_estimate, {processes} processes (pool start included)':58s} {n / t_par:7.1f} {f_par:4d}/{n}")
-    print(f"  {'detect_and_estimate, 1 process':58s} {n / t_one:7.1f} {f_one:4d}/{n}")
-    print(f"  ratio ours ({processes} processes) / baseline: {t_base / t_par:.2f}   "
-          f"(1 process: {t_base / t_one:.2f})")
+    board = jobs[0].target
+    loop_items = [(p, board.rows, board.cols) for p in paths]
+    methods = {
+        "imread (gray), the floor": lambda: _pool_map(_imread, paths, processes),
+        "multieye: detection + PnP": lambda: [
+            r.ok for rs in detect_and_estimate_jobs(jobs, processes=processes, progress=False)
+            for r in rs],
+        "OpenCV script's loop, 1 process": lambda: [_opencv_one(i) for i in loop_items],
+        "OpenCV script's loop": lambda: _pool_map(_opencv_one, loop_items, processes),
+    }
+    procs = {"OpenCV script's loop, 1 process": 1}
+    times = {k: [] for k in methods}
+    cpus = {k: [] for k in methods}
+    found = {}
+    for r in range(runs):
+        for key, fn in methods.items():
+            cpu0, t0 = _cpu(), time.perf_counter()
+            out = fn()
+            times[key].append(time.perf_counter() - t0)
+            cpus[key].append(_cpu() - cpu0)
+            found[key] = sum(bool(x) for x in out)
+        print(f"  run {r + 1}/{runs} done, load average {os.getloadavg()[0]:.2f}", flush=True)
+    print(f"\n{name}: {n} images, {runs} runs each, in turn\n")
+    print("| method | processes | ms per image (wall, median) | images/s | CPU ms per image "
+          "(median) | with a result | time / imread's |")
+    print("|---|---|---|---|---|---|---|")
+    floor = float(np.median(times["imread (gray), the floor"]))
+    for key in methods:
+        wall = float(np.median(times[key]))
+        print(f"| {key} | {procs.get(key, processes)} | {1e3 * wall / n:.2f} | {n / wall:.0f} | "
+              f"{1e3 * float(np.median(cpus[key])) / n:.2f} | {found[key]}/{n} | "
+              f"{wall / floor:.2f} |")
+    ours = np.array(times["multieye: detection + PnP"])
+    base = np.array(times["imread (gray), the floor"])
+    print(f"\nmultieye / imread, run by run: {', '.join(f'{x:.2f}' for x in ours / base)}")
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--images", type=int, default=80, help="rendered images (default 80)")
-    parser.add_argument("--processes", type=int, default=2, help="worker processes (default 2)")
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args()
-
-    print(f"OpenCV {cv2.__version__}, cv2.getNumThreads() = {cv2.getNumThreads()} in this process")
-    with tempfile.TemporaryDirectory() as tmp:
-        paths, wall, cpu = render_images(Path(tmp), args.images, args.seed)
-        per_image = wall / len(paths)
-        print(f"\nrender: {len(paths)} images of 800x600, {per_image * 1e3:.0f} ms each "
-              f"({cpu / len(paths) * 1e3:.0f} ms CPU; 1 process); the demo's 4 x 40 = 160 images: "
-              f"{160 * per_image:.1f} s on 1 core, about {160 * per_image / 2:.1f} s on 2")
-        start = time.perf_counter()
-        detect_and_estimate(paths[:args.processes], SYNTHETIC_BOARD, SYNTHETIC_CAMERA,
-                            processes=args.processes, progress=False)
-        print(f"first pool of the session (fork server start, {args.processes} images): "
-              f"{time.perf_counter() - start:.2f} s; the pools timed below start warm")
-        compare("rendered chessboard 6x9, 800x600", paths, SYNTHETIC_BOARD, SYNTHETIC_CAMERA, args.processes)
-    young = SHARED / "young_mocap_cam" / "example_dataset" / "rgb_images"
-    if young.is_dir():
-        compare("young_mocap_cam, real 1280x720, chessboard 8x11", sorted(young.glob("*.png")),
-                YOUNG_BOARD, YOUNG_CAMERA, args.processes)
-    else:
-        print(f"\n{young} not found: real images skipped")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--processes", type=int, default=2)
+    args = ap.parse_args()
+    sets = dataset_jobs()
+    print(f"machine: {platform.machine()}, {len(os.sched_getaffinity(0))} cores, Python "
+          f"{platform.python_version()}, OpenCV {cv2.__version__}, numpy {np.__version__}; "
+          f"load average {os.getloadavg()[0]:.2f} at start")
+    t0 = time.perf_counter()
+    _pool_map(_imread, list(sets[0][1][0].paths[:args.processes]), args.processes)
+    print(f"first pool of the session (fork server start: numpy, OpenCV, multieye.imaging): "
+          f"{time.perf_counter() - t0:.2f} s; the pools timed below start warm")
+    for name, jobs in sets:
+        measure(name, jobs, args.runs, args.processes)
 
 
 if __name__ == "__main__":

@@ -117,7 +117,7 @@ def mrcal_usable(python: str) -> str | None:
 
 
 def read_truth(folder: Path):
-    from multieye.io.intrinsics import read_intrinsics
+    from multieye.io import read_intrinsics
 
     truth = json.loads((folder / "ground_truth.json").read_text())
     names = sorted(truth["cameras"])

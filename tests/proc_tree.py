@@ -49,3 +49,14 @@ def wait_until(condition, timeout: float, step: float = 0.05) -> float | None:
         if time.monotonic() - start > timeout:
             return None
         time.sleep(step)
+
+
+def group_processes(pgid: int) -> dict[int, str]:
+    """Every process of process group ``pgid``, defunct ones (zombies) included: pid -> state."""
+    members = {}
+    for name in os.listdir("/proc"):
+        if name.isdigit():
+            st = _stat(int(name))
+            if st is not None and st[2] == pgid:
+                members[int(name)] = st[0]
+    return members

@@ -16,7 +16,7 @@ import subprocess
 import sys
 
 import pytest
-from proc_tree import group_members, needs_proc, wait_until
+from proc_tree import group_members, group_processes, needs_proc, wait_until
 from small_dataset import render_small
 
 pytestmark = needs_proc
@@ -91,12 +91,19 @@ def _earlier_output(out):
     return _tree(out)
 
 
-def _stopped_cleanly(proc, signum, out, before):
+def _stopped_cleanly(proc, signum, out, before, *, collected=True):
+    """``collected``: the run's workers and helpers were all collected before it returned
+    (a signal while a worker is still being started can leave that worker to end just after
+    the main process, collected by init instead)."""
     proc.send_signal(signum)                    # to the main process only
     stdout, stderr = proc.communicate(timeout=30)
     assert proc.returncode == 128 + signum, (proc.returncode, stderr)
     assert stderr.strip().splitlines()[-1] == f"multieye: stopped by {signum.name}", stderr
     assert "Traceback" not in stderr
+    # the command has collected its helpers and workers before it returned: nothing of its
+    # group is left, not even a defunct process
+    if collected:
+        assert group_processes(proc.pid) == {}
     took = wait_until(lambda: not group_members(proc.pid), timeout=5.0)
     assert took is not None, f"still running: {group_members(proc.pid)}"
     assert _tree(out) == before
@@ -144,6 +151,30 @@ def test_after_sigkill_workers_end_within_5_s_and_the_next_run_leaves_no_leftove
     assert (out / "calibration.json").read_bytes() != before["calibration.json"][1]
 
 
+@pytest.mark.parametrize("how", ["success", "error"])
+def test_a_finished_run_leaves_no_process_behind(dataset, tmp_path, how):
+    """Once ``multieye calibrate`` has returned, with its results (0) or with an error found
+    after detection (2: the target never detected), no process of its group is left, not
+    even defunct: the workers, the fork server and the resource tracker were collected."""
+    ds = dataset
+    if how == "error":
+        ds = tmp_path / "ds"
+        ds.mkdir()
+        for p in dataset.iterdir():
+            (ds / p.name).symlink_to(p)
+        (ds / "rig.yaml").unlink()
+        text = (dataset / "rig.yaml").read_text()
+        assert "rows: 6" in text
+        (ds / "rig.yaml").write_text(text.replace("rows: 6", "rows: 5"))
+    proc = _calibrate(ds, tmp_path / "out", start_new_session=True)
+    stdout, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == (0 if how == "success" else 2), stderr
+    if how == "error":
+        (line,) = stderr.strip().splitlines()
+        assert line.startswith("multieye: error: camera cam0") and "not detected" in line, line
+    assert group_processes(proc.pid) == {}
+
+
 def _busy_loops(n):
     """``n`` processes spinning on the CPU (a ``stress``-like load), to be killed by the test."""
     return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
@@ -175,7 +206,7 @@ def test_sigint_while_workers_start_never_shows_a_traceback(dataset, slow_env, t
                 assert wait_until(lambda p=proc: not group_members(p.pid), timeout=5.0) is not None
                 assert _tree(out) == before and _beside(out) == []
             else:
-                _stopped_cleanly(proc, signal.SIGINT, out, before)
+                _stopped_cleanly(proc, signal.SIGINT, out, before, collected=False)
     finally:
         for p in load:
             p.kill()

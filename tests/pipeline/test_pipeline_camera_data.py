@@ -122,3 +122,33 @@ def test_calibrate_arguments(tmp_path):
     rig = load_rig(ds)
     with pytest.raises(InputError, match="options must be a multieye Options, got NoneType"):
         calibrate_rig(rig, load_camera_data(rig), None)
+
+
+def test_every_camera_is_detected_on_one_pool(tmp_path, monkeypatch):
+    """One worker pool for the whole rig (issue 21: a pool per camera left a core idle at the
+    end of each camera), and the results are those of detecting camera by camera."""
+    import multieye.imaging.batch as batch
+    from small_dataset import render_small
+
+    ds = tmp_path / "ds"
+    render_small(ds, images_per_camera=6)
+    rig = load_rig(ds / "rig.yaml")
+    pools = []
+    real = batch.worker_pool
+
+    def counted(*args, **kwargs):
+        pools.append(args)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(batch, "worker_pool", counted)
+    together = load_camera_data(rig, processes=2)
+    assert len(pools) == 1 and len(together) == 2
+    alone = load_camera_data(rig, processes=1)         # this process, no pool
+    assert len(pools) == 1
+    for name, cam in together.items():
+        other = alone[name]
+        assert [o.name for o in cam.observations] == [o.name for o in other.observations]
+        for a, b in zip(cam.observations, other.observations):
+            assert np.array_equal(a.image_points, b.image_points)
+            assert np.allclose(a.T_cam_target, b.T_cam_target)
+        assert cam.detection_s > 0

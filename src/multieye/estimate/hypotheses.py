@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,11 +30,11 @@ from multieye.core.metrics import chordal_angle
 from multieye.estimate.clock import estimate_offset
 from multieye.estimate.pairing import pair_in_time
 from multieye.core.errors import InputError
-from dataclasses import replace
 
 __all__ = ["CameraEvidence", "Fit", "noise", "fit", "mocap_A", "scaled_A", "scale_factor",
            "permuted", "QUATERNION_ORDERS", "focal_search", "resize_search", "clock_search",
-           "lens_search", "LensTest", "MOCAP_NOISE", "RESIZE_FACTORS", "MIN_LENS_VIEWS"]
+           "lens_search", "LensTest", "MOCAP_NOISE", "RESIZE_FACTORS", "MIN_LENS_VIEWS",
+           "lens_bound"]
 
 F64 = NDArray[np.float64]
 
@@ -480,6 +480,24 @@ def _pnp_with_rms(cam: CameraEvidence, intr: Intrinsics):
     return np.stack(poses), np.asarray(rms, dtype=np.float64)
 
 
+def lens_bound(cam: CameraEvidence, mocap_sigma: tuple[float, float]
+               ) -> tuple[float, float] | None:
+    """What a freed lens could at most show, without freeing it (:func:`lens_search` costs
+    0.2-1 s a camera): the median over the views of the given lens's reprojection RMS, and
+    the camera's loop cost with its target poses weighted as if the pixel noise were at its
+    floor (0.05 px, the least the PnP noise is predicted from).
+
+    A freed lens fits the pixels at best to the noise, so the given lens's RMS bounds the
+    systematic part it could reveal; and :func:`lens_search` weighs the given lens's poses
+    with the pixel noise the freed lens leaves, at least that floor, so the cost here bounds
+    the loop cost it reports for them.  None without points or reprojection RMS.
+    """
+    if not cam.has_points or cam.rms_px is None:
+        return None
+    floor = noise(replace(cam, rms_px=np.full(len(cam.A), _MIN_RMS_PX)), mocap_sigma)
+    return float(np.median(cam.rms_px)), fit([cam.A], [cam.B], [floor]).cost
+
+
 def lens_search(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTest | None:
     """Free the lens: fit the camera's intrinsics (the given model, every parameter) to its
     own detections (:func:`multieye.imaging.calibrate.initial_intrinsics`) and compare the
@@ -507,7 +525,6 @@ def lens_search(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTe
     if given is None or fitted is None:
         return None
     # both lenses' poses weighted with the pixel noise the fitted lens leaves
-
     w = noise(replace(cam, rms_px=fitted[1]), mocap_sigma)
     return LensTest(freed, float(np.median(given[1])), float(np.median(fitted[1])),
                     _cost_with(cam, given[0], w), _cost_with(cam, fitted[0], w))

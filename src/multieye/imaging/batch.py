@@ -43,8 +43,9 @@ from multieye.imaging.targets import Target
 from multieye.imaging.workers import worker_pool
 from multieye.imaging.detect import to_gray
 
-__all__ = ["ImageResult", "detect_and_estimate", "worker_count", "detect_and_estimate_arrays", "process_image",
-           "process_array", "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
+__all__ = ["ImageResult", "ImageJob", "detect_and_estimate", "detect_and_estimate_jobs",
+           "worker_count", "detect_and_estimate_arrays", "process_image", "process_array",
+           "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
 
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
 DEFAULT_MAX_RMS_PX = 2.0
@@ -174,24 +175,33 @@ def _first_line(exc: Exception) -> str:
     return text[-1].strip() if text else type(exc).__name__
 
 
-# Per-worker state, set once by the pool initializer so that tasks carry only a path.
+# Per-worker state, set once by the pool initializer so that tasks carry only a path (and the
+# index of its job: the target and intrinsics it is detected with).
 _WORKER: dict = {}
 
 
-def _init_worker(target: Target, intrinsics: Intrinsics | None, max_rms_px: float) -> None:
+def _init_jobs(jobs: tuple, max_rms_px: float) -> None:
+    """Worker state for :func:`detect_and_estimate_jobs`: ``jobs`` holds a
+    ``(target, intrinsics)`` pair per job."""
     cv2.setNumThreads(1)            # one process per core: no nested thread pools
-    _WORKER.update(target=target, intrinsics=intrinsics, max_rms_px=max_rms_px)
+    _WORKER.update(jobs=tuple(jobs), max_rms_px=max_rms_px)
 
 
-def _work(path: str) -> ImageResult:
-    return _guarded(lambda p: process_image(p, _WORKER["target"], _WORKER["intrinsics"],
+def _init_worker(target: Target, intrinsics: Intrinsics | None, max_rms_px: float) -> None:
+    _init_jobs(((target, intrinsics),), max_rms_px)
+
+
+def _work_item(item: tuple[int, str]) -> ImageResult:
+    job, path = item
+    target, intrinsics = _WORKER["jobs"][job]
+    return _guarded(lambda p: process_image(p, target, intrinsics,
                                             max_rms_px=_WORKER["max_rms_px"]), path, path)
 
 
 def _work_array(item) -> ImageResult:
     name, image = item
-    return _guarded(lambda im: process_array(im, name, _WORKER["target"],
-                                             _WORKER["intrinsics"],
+    target, intrinsics = _WORKER["jobs"][0]
+    return _guarded(lambda im: process_array(im, name, target, intrinsics,
                                              max_rms_px=_WORKER["max_rms_px"]), image, name)
 
 
@@ -314,6 +324,23 @@ def _threads_instead(n_workers: int) -> bool:
     return True
 
 
+@dataclass(frozen=True)
+class ImageJob:
+    """Image files to detect one target in, with one camera's lens.
+
+    Attributes
+    ----------
+    paths : tuple of str
+    target : Target
+    intrinsics : Intrinsics or None
+        None: detection only (a lens still to be estimated).
+    """
+
+    paths: tuple[str, ...]
+    target: Target
+    intrinsics: Intrinsics | None
+
+
 def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics | None, *,
                         processes: int | None = None, progress: bool | None = None,
                         max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
@@ -341,74 +368,118 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics 
 
     Notes
     -----
-    Paths go to the workers in chunks (about four per worker) so that process start-up and
-    inter-process traffic stay small next to detection; each worker holds the target and
-    intrinsics from its start and runs OpenCV single-threaded. Workers come from a fork
-    server (spawn where there is none): its first start in a session costs about a second,
-    later pools start in milliseconds.  Workers end with this process however it ends, and at
-    once when an exception (Ctrl-C included) leaves the pool (:mod:`multieye.imaging.workers`).
-    A failure inside a worker is that image's reason, never the run's end: an exception
-    (``MemoryError`` included) is caught around each image, and when a worker dies (a crash
-    in a decoder, killed for memory) the images not yet done run again one per worker, so
-    that only the image that killed it is rejected.
-    Workers import the main script again; when it calls
-    this at its top level, outside ``if __name__ == "__main__":``, detection runs in threads
-    of this process instead, with a warning (:func:`main_reimport_problem`).
+    :func:`detect_and_estimate_jobs` with one job: see there.
     """
-    paths = [str(p) for p in paths]
-    n_workers = worker_count(processes, len(paths))
+    job = ImageJob(tuple(str(p) for p in paths), target, intrinsics)
+    return detect_and_estimate_jobs([job], processes=processes, progress=progress,
+                                    max_rms_px=max_rms_px)[0]
+
+
+def _bar(total: int | None, desc: str, progress: bool | None):
+    """A tqdm bar on stderr (None when ``progress`` is false, or None and stderr is not a
+    terminal)."""
     show = sys.stderr.isatty() if progress is None else bool(progress)
-    bar = None
-    if show:
-        from tqdm import tqdm  # noqa: PLC0415 (tqdm only when a progress bar is shown)
+    if not show:
+        return None
+    from tqdm import tqdm  # noqa: PLC0415 (tqdm only when a progress bar is shown)
 
-        bar = tqdm(total=len(paths), desc=f"detecting {target.kind}", unit="img", file=sys.stderr)
+    return tqdm(total=total, desc=desc, unit="img", file=sys.stderr)
 
-    def one(p):
-        return _guarded(lambda q: process_image(q, target, intrinsics, max_rms_px=max_rms_px),
-                        p, p)
 
-    results: list[ImageResult] = []
+def detect_and_estimate_jobs(jobs: Iterable[ImageJob], *, processes: int | None = None,
+                             progress: bool | None = None,
+                             max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[list[ImageResult]]:
+    """:func:`detect_and_estimate` for several jobs (e.g. every camera of a rig) on one pool
+    of worker processes.
+
+    Parameters
+    ----------
+    jobs : iterable of ImageJob
+    processes, progress, max_rms_px
+        As for :func:`detect_and_estimate`; one progress bar counts every job's images.
+
+    Returns
+    -------
+    list of list of ImageResult
+        Per job, one result per path, in input order.
+
+    Notes
+    -----
+    Every image is read once, as gray (:func:`multieye.imaging.image_file.read_gray`), and
+    detection and PnP run in the worker that read it, so only paths go to the workers and
+    results come back.  Paths go in chunks (about four per worker) so that inter-process
+    traffic stays small next to detection; each worker holds the jobs' targets and
+    intrinsics from its start and runs OpenCV single-threaded.  One pool serves every job,
+    so the workers start once and stay busy across the jobs' boundaries (a pool per
+    camera left a core idle at the end of each camera).  Workers come from a fork server
+    (spawn where there is none): its first start in a session costs about a second, later
+    pools start in milliseconds.  Workers end with this process however it ends, and at
+    once when an exception (Ctrl-C included) leaves the pool; they are joined before this
+    returns (:mod:`multieye.imaging.workers`).  A failure inside a worker is that image's
+    reason, never the run's end: an exception (``MemoryError`` included) is caught around
+    each image, and when a worker dies (a crash in a decoder, killed for memory) the images
+    not yet done run again one per worker, so that only the image that killed it is
+    rejected.  Workers import the main script again; when it calls this at its top level,
+    outside ``if __name__ == "__main__":``, detection runs in threads of this process
+    instead, with a warning (:func:`main_reimport_problem`).
+    """
+    jobs = list(jobs)
+    items = [(j, p) for j, job in enumerate(jobs) for p in job.paths]
+    kinds = sorted({job.target.kind for job in jobs})
+    n_workers = worker_count(processes, len(items))
+    bar = _bar(len(items), f"detecting {', '.join(kinds) or 'targets'}", progress)
+    configs = tuple((job.target, job.intrinsics) for job in jobs)
+
+    def one(item):
+        j, p = item
+        return _guarded(lambda q: process_image(q, jobs[j].target, jobs[j].intrinsics,
+                                                max_rms_px=max_rms_px), p, p)
+
+    flat: list[ImageResult] = []
     try:
         if n_workers <= 1:
-            for p in paths:
-                results.append(one(p))
+            for item in items:
+                flat.append(one(item))
                 if bar is not None:
                     bar.update(1)
-            return results
-        if _threads_instead(n_workers):
+        elif _threads_instead(n_workers):
             with ThreadPoolExecutor(n_workers) as pool:
-                for r in pool.map(one, paths):
-                    results.append(r)
+                for r in pool.map(one, items):
+                    flat.append(r)
                     if bar is not None:
                         bar.update(1)
-                return results
-        chunksize = max(1, math.ceil(len(paths) / (n_workers * _CHUNKS_PER_WORKER)))
-        initargs = (target, intrinsics, max_rms_px)
-        try:
-            with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_worker,
-                             initargs=initargs) as pool:
-                for r in pool.map(_work, paths, chunksize=chunksize):
-                    results.append(r)
+        else:
+            chunksize = max(1, math.ceil(len(items) / (n_workers * _CHUNKS_PER_WORKER)))
+            initargs = (configs, max_rms_px)
+            try:
+                with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_jobs,
+                                 initargs=initargs) as pool:
+                    for r in pool.map(_work_item, items, chunksize=chunksize):
+                        flat.append(r)
+                        if bar is not None:
+                            bar.update(1)
+            except BrokenProcessPool:
+                # a worker died (a crash in a decoder, killed for memory): the images not
+                # yet done run one by one, each in a worker of its own, so only the culprit
+                # is lost
+                for item in items[len(flat):]:
+                    flat.append(_isolated(_work_item, item, item[1], initargs,
+                                          initializer=_init_jobs))
                     if bar is not None:
                         bar.update(1)
-        except BrokenProcessPool:
-            # a worker died (a crash in a decoder, killed for memory): the images not yet
-            # done run one by one, each in a worker of its own, so only the culprit is lost
-            for p in paths[len(results):]:
-                results.append(_isolated(_work, p, p, initargs))
-                if bar is not None:
-                    bar.update(1)
-        return results
     finally:
         if bar is not None:
             bar.close()
+    out: list[list[ImageResult]] = [[] for _ in jobs]
+    for (j, _), r in zip(items, flat):
+        out[j].append(r)
+    return out
 
 
-def _isolated(work, item, name: str, initargs: tuple) -> ImageResult:
+def _isolated(work, item, name: str, initargs: tuple, *, initializer=_init_worker) -> ImageResult:
     """``work(item)`` in a worker process of its own; its crash is the item's reason."""
     try:
-        with worker_pool(1, mp_context=_mp_context(), initializer=_init_worker,
+        with worker_pool(1, mp_context=_mp_context(), initializer=initializer,
                          initargs=initargs) as pool:
             return pool.submit(work, item).result()
     except BrokenProcessPool:
@@ -455,12 +526,7 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
         In input order.
     """
     n_workers = worker_count(processes)
-    show = sys.stderr.isatty() if progress is None else bool(progress)
-    bar = None
-    if show:
-        from tqdm import tqdm  # noqa: PLC0415 (tqdm only when a progress bar is shown)
-
-        bar = tqdm(desc=f"detecting {target.kind}", unit="img", file=sys.stderr)
+    bar = _bar(None, f"detecting {target.kind}", progress)
     results: list[ImageResult] = []
     it = iter(items)
 

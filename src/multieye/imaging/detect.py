@@ -3,9 +3,9 @@
 =================== ==================================================================
 target              detector
 =================== ==================================================================
-chessboard          ``cv2.findChessboardCornersSB`` (at half size first on images of
-                    640 px and more), fallback ``cv2.findChessboardCorners``; then
-                    ``cv2.cornerSubPix`` at full size
+chessboard          ``cv2.findChessboardCorners`` (the classic detector), where it fails
+                    ``cv2.findChessboardCornersSB``, each at half size first on images
+                    of 640 px and more; then ``cv2.cornerSubPix`` at full size
 circles             ``cv2.findCirclesGrid`` on the image and on its negative (dark
 asymmetric-circles  circles on light and light on dark), default blob detector, then a
                     permissive one, then clustering
@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from multieye.core.errors import InputError
+from multieye.imaging import chessboard_corners as cc
 from multieye.imaging.targets import (
     AprilGrid,
     ArucoGrid,
@@ -154,51 +155,30 @@ def detect(image: ArrayLike, target: Target) -> Detection | None:
 
 # --------------------------------------------------------------------------- grids
 
-#: Images whose longer side has at least this many pixels are searched at half size first
-#: (2.5-4x faster;
-#: the corners are then refined at full size, so accuracy is unchanged).
-_HALF_SIZE_SEARCH_ABOVE_PX = 640
-
-
 def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection | None:
-    """findChessboardCornersSB (half size first on large images), then the classic detector;
-    corners refined with cornerSubPix at full size in a window of 40 % of a square.
+    """The classic ``findChessboardCorners`` first, ``findChessboardCornersSB`` only where it
+    fails (each at half size first on large images); the corners refined with
+    ``cornerSubPix`` at full size in a window of 40 % of a square, then put in the canonical
+    order (:func:`_canonical`), so that the order and ids do not depend on the detector that
+    found them (the two start from opposite corners of some boards).
 
-    SB's own CALIB_CB_ACCURACY costs 4x the time and gained nothing over cornerSubPix on its
-    corners (PnP RMS on the young_mocap_cam images)."""
-    size = (target.cols, target.rows)
-    corners = None
-    if max(gray.shape) >= _HALF_SIZE_SEARCH_ABOVE_PX:
-        half = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
-        found, small = cv2.findChessboardCornersSB(half, size, flags=0)
-        if found:
-            corners = 2.0 * small.reshape(-1, 2).astype(np.float64) + 0.5   # pixel centres
+    The classic detector is much faster than SB (1.6 against 22 ms per 800 x 600 rendered
+    image at half size; docs/results/detection_speed.md) and, once both are refined by
+    ``cornerSubPix``, as accurate. SB finds boards the classic misses (strong blur, boards
+    at the image border), so it stays as the fallback. SB's own CALIB_CB_ACCURACY costs 4x
+    the time and gained nothing over cornerSubPix on its corners (PnP RMS on the
+    young_mocap_cam images)."""
+    corners = cc.find_chessboard(gray, target, detector="classic")
+    if corners is not None:
+        corners = cc.refine_corners(gray, corners, cc.corner_window(corners, target))
+        if not cc.consistent_grid(corners, target):
+            corners = None          # a corner off the grid: SB decides
     if corners is None:
-        found, full = cv2.findChessboardCornersSB(gray, size, flags=0)
-        if not found:
-            found, full = cv2.findChessboardCorners(
-                gray, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
-            if not found:
-                return None
-        corners = full.reshape(-1, 2).astype(np.float64)
-    corners = _refine_corners(gray, corners, _corner_window(corners, target))
+        corners = cc.find_chessboard(gray, target, detector="sb")
+        if corners is None:
+            return None
+        corners = cc.refine_corners(gray, corners, cc.corner_window(corners, target))
     return _canonical(gray, target, corners)
-
-
-def _corner_window(points: F64, target: Target) -> int:
-    """Half-size of the cornerSubPix window: 40 % of the smallest neighbour distance."""
-    rows, cols = target.grid_shape()
-    grid = points.reshape(rows, cols, 2)
-    d = np.concatenate([np.linalg.norm(np.diff(grid, axis=0), axis=2).ravel(),
-                        np.linalg.norm(np.diff(grid, axis=1), axis=2).ravel()])
-    return int(np.clip(0.4 * np.min(d), 2, 11))
-
-
-def _refine_corners(gray: NDArray[np.uint8], points: F64, half: int) -> F64:
-    pts = points.astype(np.float32).reshape(-1, 1, 2)
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
-    cv2.cornerSubPix(gray, pts, (half, half), (-1, -1), criteria)
-    return pts.reshape(-1, 2).astype(np.float64)
 
 
 #: Per circle target, whether its circles were last found light on dark: tried first next
@@ -323,12 +303,19 @@ def _dark_squares(source: NDArray[np.int64], target: Chessboard) -> frozenset:
     return frozenset(frozenset(row) for row in sq[_expected_black(target)].tolist())
 
 
+#: Offsets of a 3 x 3 box of pixels, shape (9, 2).
+_BOX_OFFSETS = np.stack(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]), axis=-1).reshape(9, 2)
+
+
 def _colour_score(gray: NDArray[np.uint8], ordered: F64, target: Chessboard) -> float:
     """Mean grey of the squares expected white minus that of those expected black."""
-    centres = ordered[_square_corners(target)].mean(axis=1).astype(np.float32)
-    blurred = cv2.blur(gray, (3, 3)).astype(np.float32)
-    values = cv2.remap(blurred, centres[:, 0].reshape(1, -1), centres[:, 1].reshape(1, -1),
-                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).ravel()
+    centres = ordered[_square_corners(target)].mean(axis=1)
+    # the mean of a 3 x 3 box around each centre, read bilinearly: the same as sampling the
+    # image blurred by a 3 x 3 box, without blurring the whole image
+    pts = (centres[:, None, :] + _BOX_OFFSETS[None]).reshape(1, -1, 2).astype(np.float32)
+    samples = cv2.remap(gray, pts[..., 0], pts[..., 1], cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_REPLICATE)
+    values = samples.reshape(len(centres), 9).astype(np.float64).mean(axis=1)
     black = _expected_black(target)
     return float(values[~black].mean() - values[black].mean())
 
@@ -460,7 +447,7 @@ def _refine_tag(gray, target: AprilGrid, expected: NDArray, tag: int, quad: F64)
     half = int(np.clip(np.floor(0.8 * min(0.2, target.tag_spacing) * side), 2, 15))
     if np.any(quad < half + 1) or np.any(quad[:, 0] > w - half - 2) or np.any(quad[:, 1] > h - half - 2):
         return None
-    refined = _refine_corners(gray, quad, half)
+    refined = cc.refine_corners(gray, quad, half)
     if np.any(np.linalg.norm(refined - quad, axis=1) >= half):
         return None
     return refined if _tag_matches(gray, target, expected, tag, refined) else None

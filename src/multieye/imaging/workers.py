@@ -18,6 +18,14 @@ from ``SIGINT``, the exception the command line raises on ``SIGTERM``, an error)
 queued work is cancelled and its workers are terminated at once instead of finishing the
 work already queued.
 
+When this process ends (normally, by ``sys.exit``, on an exception, ``KeyboardInterrupt``
+included), :func:`stop_helpers` stops multiprocessing's helper processes, the fork server
+and the resource tracker, and waits for them (at most :data:`HELPER_WAIT_S` each): left to
+themselves they end only after this process, which then cannot collect them, so they and
+the workers they had not yet collected lingered as defunct processes after the command
+returned, and their processor time was missing from this process's accounting
+(``getrusage(RUSAGE_CHILDREN)`` of whoever ran it).
+
 A worker's standard error is not the terminal's.  A worker forked by the fork server runs
 before any code of multieye does: it unpickles its queues, whose semaphores the main
 process removes when it ends.  A ``SIGINT`` while the pool is still starting workers (or a
@@ -38,6 +46,7 @@ Synopsis
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import select
@@ -48,7 +57,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
-__all__ = ["worker_pool", "die_with", "stop_workers"]
+__all__ = ["worker_pool", "die_with", "stop_workers", "stop_helpers"]
 
 #: Seconds between two checks where the main process cannot be waited for (no pidfd).
 POLL_S = 0.5
@@ -185,6 +194,70 @@ def stop_workers(pool: ProcessPoolExecutor) -> None:
                 p.kill()
 
 
+#: Seconds :func:`stop_helpers` waits for each helper process to end before leaving it.
+HELPER_WAIT_S = 2.0
+
+
+def _wait_for(pid: int, timeout_s: float) -> bool:
+    """Collect child ``pid`` once it ends, waiting at most ``timeout_s``; True when it did."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            done, _ = os.waitpid(pid, os.WNOHANG)
+        except ChildProcessError:       # not ours, or already collected
+            return True
+        if done:
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.01)
+
+
+def stop_helpers(timeout_s: float = HELPER_WAIT_S) -> None:
+    """Stop this process's fork server and resource tracker (multiprocessing's helper
+    processes) and collect them, each within ``timeout_s``.
+
+    Both end when the pipe this process holds to them closes; the fork server first
+    collects the workers it forked.  Called at exit (registered by :func:`worker_pool`);
+    harmless when they never started or were stopped already.  A pool started afterwards
+    starts them again.
+    """
+    from multiprocessing import forkserver, resource_tracker, util  # noqa: PLC0415 (at exit only)
+
+    server = getattr(forkserver, "_forkserver", None)
+    pid, fd = getattr(server, "_forkserver_pid", None), getattr(server, "_forkserver_alive_fd", None)
+    if pid is not None and fd is not None:
+        with server._lock:
+            with contextlib.suppress(OSError):
+                os.close(fd)
+            server._forkserver_alive_fd = None
+            if _wait_for(pid, timeout_s):
+                server._forkserver_pid = None
+                address = getattr(server, "_forkserver_address", None)
+                if address and not util.is_abstract_socket_namespace(address):
+                    with contextlib.suppress(OSError):
+                        os.unlink(address)
+                server._forkserver_address = None
+    tracker = getattr(resource_tracker, "_resource_tracker", None)
+    pid, fd = getattr(tracker, "_pid", None), getattr(tracker, "_fd", None)
+    if pid is not None and fd is not None:
+        with tracker._lock:
+            with contextlib.suppress(OSError):
+                os.close(fd)
+            tracker._fd = None
+            if _wait_for(pid, timeout_s):
+                tracker._pid = None
+
+
+_AT_EXIT: list[bool] = []
+
+
+def _stop_helpers_at_exit() -> None:
+    if not _AT_EXIT:
+        atexit.register(stop_helpers)
+        _AT_EXIT.append(True)
+
+
 @contextlib.contextmanager
 def worker_pool(max_workers: int, *, mp_context=None, initializer: Callable | None = None,
                 initargs: tuple = ()) -> Iterator[ProcessPoolExecutor]:
@@ -205,6 +278,7 @@ def worker_pool(max_workers: int, *, mp_context=None, initializer: Callable | No
         exception (``KeyboardInterrupt`` included) its queued work is cancelled and its
         workers are terminated before the exception propagates.
     """
+    _stop_helpers_at_exit()
     log = _quiet_forkserver(mp_context)
     start = os.fstat(log).st_size if log is not None else 0
     pool = ProcessPoolExecutor(max_workers, mp_context=mp_context, initializer=_start_worker,

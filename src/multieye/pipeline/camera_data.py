@@ -18,8 +18,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, TooFewMeasurementsError
 from multieye.core.intrinsics import Intrinsics
 from multieye.estimate.pairing import pair_in_time
-from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
-from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
+from multieye.imaging.engines import Engine
 from multieye.imaging.targets import target_from_spec
 from multieye.io import (
     RejectedItem,
@@ -35,6 +34,7 @@ from multieye.io import (
 )
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
+from multieye.pipeline.detection import Workers, detect_all
 from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
 from multieye.pipeline.selection import SelectionSummary, preselected
 from multieye.pipeline.frames import bag_frames, video_frames, video_listing
@@ -225,7 +225,7 @@ class _Detected:
     intrinsics: Intrinsics | None = None     # the started lens, when it was estimated
 
 
-def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, workers: _Workers, *,
+def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, workers: Workers, *,
                               listed=None, extra_views=()) -> _Detected:
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
 
@@ -251,8 +251,10 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     elif topic is None:
         images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
-        results = workers.detect([p for _, _, p in images], target, intr)
-        seconds = time.perf_counter() - t0
+        results = workers.detected.get((name, "images"))
+        if results is None:
+            results = workers.detect([p for _, _, p in images], target, intr)
+        seconds = workers.seconds.get((name, "images"), time.perf_counter() - t0)
         stamped = [(stamp, path.name) for stamp, _, path in images]
     else:
         stamped = []
@@ -304,7 +306,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
                      intrinsics=None if lens is None else lens.intrinsics)
 
 
-def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _Workers
+def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: Workers
                               ) -> tuple[list[Path], list, float]:
     """Detection (and PnP with ``intr`` unless None) over a camera's ``intrinsics_images``
     (their own board if given): the paths, the results and the seconds it took."""
@@ -312,12 +314,15 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _
     spec = cam.intrinsics_target or rig.target
     target = target_from_spec(spec, path=rig.path)
     paths = list_image_files(cam.intrinsics_images)
+    key = (cam.name, "intrinsics_images")
+    if key in workers.detected:
+        return paths, workers.detected[key], workers.seconds[key]
     t0 = time.perf_counter()
     results = workers.detect(paths, target, intr)
     return paths, results, time.perf_counter() - t0
 
 
-def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: _Workers,
+def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: Workers,
                       detected=None) -> tuple[list[Observation], list[RejectedItem], float]:
     """Detection and PnP over a camera's ``intrinsics_images`` (their own board if given);
     ``detected``: their detection-only ``(paths, results, seconds)`` already at hand, to
@@ -368,35 +373,13 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     DatasetError
         A missing or malformed file, or a camera in which the target is never detected.
     """
-    workers = _Workers(processes, progress, engine)
     trajectories: dict[tuple, Trajectory] = {}
     motions = {name: camera_motion(rig, name, trajectories) if rig.has_mocap
                else CameraMotion(None) for name in rig.cameras}
     chosen = preselected(rig, motions, select, time_offset, pair_stamps)
+    workers = detect_all(rig, motions, Workers(processes, progress, engine), chosen)
     return {name: _camera_data(rig, name, motions[name], workers, chosen.get(name))
             for name in rig.cameras}
-
-
-@dataclass(frozen=True)
-class _Workers:
-    """How detection runs: worker processes (None: one per core), a progress bar; or the
-    tasks of an engine (Dask distributed, :mod:`multieye.imaging.engines`)."""
-
-    processes: int | None
-    progress: bool
-    engine: Engine | None = None
-
-    def detect(self, paths, target, intr) -> list:
-        if self.engine is not None:
-            return detect_on(self.engine, paths, target, intr)
-        return detect_and_estimate(paths, target, intr, processes=self.processes,
-                                   progress=self.progress)
-
-    def detect_arrays(self, items, target, intr) -> list:
-        if self.engine is not None:
-            return detect_arrays_on(self.engine, items, target, intr)
-        return detect_and_estimate_arrays(items, target, intr, processes=self.processes,
-                                          progress=self.progress)
 
 
 @dataclass(frozen=True)
@@ -413,7 +396,7 @@ class _Seen:
     views: tuple[Observation, ...] = ()
 
 
-def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers,
+def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
                  chosen=None) -> CameraData:
     cam, spec = rig.cameras[name], rig.mocap_for(name)
     seen = (_from_poses(cam) if cam.source == "poses"
@@ -448,7 +431,7 @@ def _from_poses(cam) -> _Seen:
                  observations=obs, rejected=rejected, n_inputs=len(obs) + len(rejected))
 
 
-def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: _Workers,
+def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
                  chosen=None) -> _Seen:
     """A camera given by images (a folder or a bag topic): detection, the starting lens when
     it is estimated, PnP; its ``intrinsics_images`` as views for the lens.  ``chosen``: the
