@@ -17,7 +17,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "multieye"
 #: Layer of each subpackage or top-level module (docs/architecture.md).
 LAYERS = {
     "core": 0, "optimize": 1, "imaging": 1, "io": 1, "solvers": 2, "estimate": 3,
-    "pipeline": 4, "outputs": 5, "sim": 5, "experiments": 6, "demo": 6, "cli": 7,
+    "pipeline": 4, "outputs": 5, "sim": 5, "experiments": 6, "demo": 6, "many": 6, "cli": 7,
     "__main__": 8,
 }
 #: What the simulation layer may use, although it sits above them (it renders and writes

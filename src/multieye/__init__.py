@@ -40,11 +40,12 @@ _LAZY = {
     "GeneralSolution": "solvers",
     "calibrate": "pipeline",
     "Options": "pipeline",
+    "calibrate_many": "many",
 }
 
 #: What ``help(multieye)`` documents: the functions and the method names (the classes and
 #: the errors are attributes of the package too, each with its own ``help``).
-__all__ = ["calibrate", "solve", "solve_general", "METHODS", "__version__"]
+__all__ = ["calibrate", "calibrate_many", "solve", "solve_general", "METHODS", "__version__"]
 
 
 def __getattr__(name: str):

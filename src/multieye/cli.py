@@ -163,7 +163,8 @@ def _exit_statuses(*codes: int, meanings: dict | None = None) -> str:
 DOC_PAGES = {"rig-yaml": "rig.yaml, key by key: the input",
              "outputs": "what each command writes, key by key",
              "conventions": "frames, units, covariances, error metrics, exit statuses",
-             "architecture": "the layers of the package, where a change goes"}
+             "architecture": "the layers of the package, where a change goes",
+             "recordings": "long recordings (image selection) and many datasets (engines)"}
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]},
@@ -205,6 +206,18 @@ def main():
 @click.option("--max-time-offset", type=click.FloatRange(min=0, min_open=True), default=0.5,
               show_default=True, metavar="SECONDS",
               help="With --time-offset auto: search offsets up to this many seconds either way.")
+@click.option("--select", type=click.IntRange(3), default=300, show_default=True, metavar="N",
+              help="A camera with more than N images keeps N, chosen by what they add to the "
+                   "calibration (before decoding, from the motion capture; multieye docs "
+                   "recordings).")
+@click.option("--no-select", is_flag=True, help="Keep every image (no selection).")
+@click.option("--engine", type=click.Choice(["local", "dask"]), default="local",
+              show_default=True,
+              help="Where detection runs: worker processes of this machine, or Dask "
+                   "distributed (pip install \"multieye[distributed]\").")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="With --engine dask: a running scheduler whose workers see the image "
+                   "paths; default a local cluster of --processes workers.")
 @_user_errors
 def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     """Calibrate the rig in DATASET (a folder with rig.yaml, or the rig.yaml itself).
@@ -225,14 +238,19 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     options = Options(method=flags["method"], reference=flags["reference"],
                       refine=not flags["no_refine"], robust=not flags["no_robust"],
                       time_offset=_number_or_word(flags["time_offset"]),
-                      max_time_offset=flags["max_time_offset"])
+                      max_time_offset=flags["max_time_offset"],
+                      select=None if flags["no_select"] else flags["select"])
     _utf8_dataset(dataset)
     _processes_note(processes)
     with claim_output(out_dir, inputs=[dataset]):   # one run per folder, checked before work
         run = run_calibration(dataset, options, processes=processes,
-                              progress=_progress_enabled())
+                              progress=_progress_enabled(), engine=flags["engine"],
+                              scheduler=flags["scheduler"])
         written = write_outputs(run, out_dir)
     _echo(calibration_table(run.record))
+    for name, data in run.cameras.items():
+        if data.selection is not None:
+            _echo(f"selected: {data.selection.line(name)}")
     for note in written.notes:
         _echo(f"note: {note}")
     _echo("wrote " + ", ".join(str(p) for p in written.paths))
@@ -241,6 +259,73 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
         _echo(f"multieye: written, but implausible: {doubt.message}", err=True)
     if run.doubts:
         sys.exit(EXIT_IMPLAUSIBLE)
+
+
+@main.command("calibrate-many", epilog=_exit_statuses(0, EXIT_USER_ERROR, EXIT_IMPLAUSIBLE,
+                                                       meanings={
+    0: "every dataset calibrated",
+    EXIT_USER_ERROR: "a dataset failed (its line on stderr; the others are written), or bad "
+                     "options",
+    EXIT_IMPLAUSIBLE: "every dataset written, a plausibility check doubts one or more"}))
+@click.argument("datasets", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--out-root", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Folder of the output folders: OUT_ROOT/<dataset folder name>, each as "
+                   "calibrate -o writes it.")
+@click.option("--engine", type=click.Choice(["local", "dask"]), default="local",
+              show_default=True,
+              help="Where the calibrations run: worker processes of this machine, or Dask "
+                   "distributed (pip install \"multieye[distributed]\").")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="With --engine dask: a running scheduler (tcp://host:8786) whose workers see "
+                   "the same paths; default a local cluster, closed at the end.")
+@click.option("--workers", type=click.IntRange(1), default=None,
+              help="Calibrations at once (local processes or local Dask workers; default one "
+                   "per core).")
+@click.option("--method", default="joint", show_default=True,
+              help="Solver: joint, wang2022, shah, li, tabb-c1, tabb-c2.")
+@click.option("--no-refine", is_flag=True, help="Keep the closed form.")
+@click.option("--no-robust", is_flag=True, help="Use every measurement (no consensus).")
+@click.option("--time-offset", default="rig", show_default=True, metavar="rig|auto|SECONDS",
+              help="Motion-capture clock minus camera clock, for every dataset.")
+@click.option("--select", type=click.IntRange(3), default=300, show_default=True, metavar="N",
+              help="Images kept per camera above N, as for calibrate.")
+@click.option("--no-select", is_flag=True, help="Keep every image.")
+@_user_errors
+def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, **flags):
+    """Calibrate every DATASET, each into OUT_ROOT/<its folder name>.
+
+    Each calibration is one task (the local process pool, or Dask distributed with
+    --engine dask), written under the rules of calibrate -o; a failing dataset does not
+    stop the others.  Prints one line per dataset as it finishes; the exit status is the
+    worst of them.  multieye docs recordings.
+    """
+    from multieye.many import calibrate_many, worst_status  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.pipeline.options import Options  # noqa: PLC0415 (instant start-up of multieye --help)
+
+    for d in datasets:
+        _utf8_dataset(d)
+    # Options checks every flag, once (an InputError: one line, exit 2, nothing written)
+    options = Options(method=flags["method"], refine=not flags["no_refine"],
+                      robust=not flags["no_robust"],
+                      time_offset=_number_or_word(flags["time_offset"]),
+                      select=None if flags["no_select"] else flags["select"])
+    if flags["scheduler"] is not None and flags["engine"] != "dask":
+        raise click.BadParameter("a scheduler needs --engine dask", param_hint="--scheduler")
+
+    def done(o):
+        line = f"{o.dataset}: " + {0: "ok", 3: "written, but implausible", 2: "error"}[o.status]
+        line += f" ({o.seconds:.1f} s) -> {o.out}" if o.status != 2 else f": {o.message}"
+        if o.status == 3:
+            line += f": {o.message}"
+        _echo(line, err=o.status != 0)
+
+    result = calibrate_many(datasets, out_root, options, engine=flags["engine"],
+                            scheduler=flags["scheduler"], workers=flags["workers"], on_done=done)
+    _echo(f"{sum(o.status != 2 for o in result.outcomes)} of {len(result.outcomes)} datasets "
+          f"written ({result.engine} engine)")
+    status = worst_status([o.status for o in result.outcomes])
+    if status:
+        sys.exit(status)
 
 
 @main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR, meanings={

@@ -129,7 +129,7 @@ def test_loads_the_design_example(dataset):
     ("images: cam0/", "images: nowhere/", 14, "cameras.cam0.images: folder not found"),
     ("images: cam0/", "images: mocap.txt", 14, "expected a folder, found a file"),
     ("    images: cam0/\n", "", 12, "cameras.cam0: expected exactly one of images, poses, "
-     "rosbag, got none"),
+     "rosbag, video, got none"),
     ("    poses: cam1_target.txt\n", "    poses: cam1_target.txt\n    images: cam0/\n", 15,
      "got images, poses"),
     ("intrinsics: cam0.yaml", "intrinsic: cam0.yaml", 13, "cameras.cam0.intrinsic: unknown key"),

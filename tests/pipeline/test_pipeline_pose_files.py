@@ -333,3 +333,17 @@ def test_yizhong_eye_to_hand_single_aruco_marker(shared_data, tmp_path):
     assert run.record.residuals.e_R_deg < 0.5 and run.record.residuals.e_t_m < 2.5e-3
     lens = run.refinement.intrinsics["cam0"]
     assert abs(lens.K[0, 0] / 988 - 1) < 0.05                        # PROVENANCE.md: ~988
+
+
+def test_selection_keeps_images_of_one_name_together(rendered, tmp_path):
+    """Poses matched by name: images of the same name in several cameras are one instant,
+    kept or left out together by the image selection (issue 22)."""
+    ds = _by_name(rendered, tmp_path / "ds", '{file: "{stem}.json", key: end2base}', _json)
+    run = calibrate(ds, processes=1, select=4)
+    kept = {}
+    for cam in ("cam0", "cam1"):
+        left = {r.item for r in run.cameras[cam].rejected if r.reason.startswith("not selected")}
+        kept[cam] = {p.name for p in (ds / cam).glob("*.png")} - left
+        assert run.cameras[cam].selection.kept == len(kept[cam]) >= 4
+    assert kept["cam0"] == kept["cam1"]
+    assert len(kept["cam0"]) < len(list((ds / "cam0").glob("*.png")))

@@ -34,10 +34,21 @@ def test_bag_images_and_bag_mocap_give_the_folder_result(tmp_path):
     rig = rig.replace("  file: mocap.txt", "  file: run\n  format: rosbag\n  topic: /mocap/marker")
     (tmp_path / "ds" / "rig.yaml").write_text(rig)
 
-    bag_run = calibrate(tmp_path / "ds", processes=2)   # bag frames go to worker processes
+    bag_run = calibrate(tmp_path / "ds", processes=2, select=None)   # frames to the workers
     assert bag_run.record.camera("cam1").measurements_used == truth.images_written[1]
     assert bag_run.cameras["cam1"].observations[0].name.startswith("/cam1/image_raw@")
     np.testing.assert_allclose(bag_run.closed_form.X, folder_run.closed_form.X, atol=1e-6)
     T = np.stack([c.T_ref_cam for c in bag_run.record.cameras])
     rot, trans = extrinsic_errors(T, truth.T_ref_cam)
     assert rot.max() < 0.1 and trans.max() < 3e-3
+
+    # the image selection (issue 22): the bag's stamps read from the header bytes, only the
+    # chosen messages decoded, the folder camera chosen the same way
+    chosen = calibrate(tmp_path / "ds", processes=1, select=4)
+    cam1 = chosen.cameras["cam1"]
+    assert cam1.selection.stage == "before decoding" and cam1.selection.kept == 4
+    assert cam1.selection.seen == truth.images_written[1] and len(cam1.observations) == 4
+    assert all(o.name.startswith("/cam1/image_raw@") for o in cam1.observations)
+    left = [r.item for r in cam1.rejected if r.reason.startswith("not selected")]
+    assert len(left) == truth.images_written[1] - 4
+    assert not {o.name for o in cam1.observations} & set(left)

@@ -55,7 +55,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
 from multieye.core.lie import left_jacobian_inv, log_so3
-from multieye.optimize.blocks import ResidualGroup
+from multieye.optimize.blocks import ResidualGroup, SegmentRange
 
 __all__ = ["PixelResiduals", "FreePoseResiduals", "MocapPriors", "intrinsics_family"]
 
@@ -132,11 +132,12 @@ class PixelResiduals(ResidualGroup):
         self._obj[self.segment, self.position] = data.object_points[pts]
         self._uv = data.image_points[pts]
 
-    def _chain(self, X: F64, Y: F64, M: F64):
+    def _chain(self, X: F64, Y: F64, M: F64, images: slice = slice(None)):
         """Per image (n, n_max, 3): ``R_Y p``, ``p_y``, ``q``, ``d`` and ``p_cam``."""
         RX, tX = X[self.camera, :3, :3], X[self.camera, :3, 3]
-        RM, tM = M[self.blocks, :3, :3], M[self.blocks, :3, 3]
-        ry = self._obj @ Y[:3, :3].T
+        blocks = self.blocks[images]
+        RM, tM = M[blocks, :3, :3], M[blocks, :3, 3]
+        ry = self._obj[images] @ Y[:3, :3].T
         py = ry + Y[:3, 3]
         if self.data.setup == "eye-to-base":
             q = py @ np.swapaxes(RM, 1, 2) + tM[:, None]                # R_M p_y + t_M
@@ -153,18 +154,18 @@ class PixelResiduals(ResidualGroup):
         return _current_intrinsics(values, self.data.names[self.camera],
                                    self.data.intrinsics[self.camera], self.free)
 
-    def _linear(self, values: Mapping[str, F64]):
-        X, Y, M = values["X"], values["Y"][0], values["M"]
-        intr = self._intrinsics(values)
-        ry, py, q, d, pc = self._chain(X, Y, M)
-        seg, pos = self.segment, self.position
+    def _linear(self, values: Mapping[str, F64], part: SegmentRange):
+        """Residuals and per-image Jacobian blocks of the images of ``part``."""
+        X, Y, M, intr = values["X"], values["Y"][0], values["M"], self._intrinsics(values)
+        images, seg, pos = slice(*part.index_range), part.segment, part.position
+        ry, py, q, d, pc = self._chain(X, Y, M, images)
         uv, Jp, Jk = _pixels(pc[seg, pos], intr, True)
-        r = (uv - self._uv) / self.sigma
-        n_img, n = len(self.images), self.longest
+        r = (uv - self._uv[part.rows]) / self.sigma
+        n_img, n = len(self.blocks[images]), self.longest
         Jp_pad = np.zeros((n_img, n, 2, 3))
         Jp_pad[seg, pos] = Jp / self.sigma
         RX = X[self.camera, :3, :3]
-        RM = M[self.blocks, :3, :3]
+        RM = M[self.blocks[images], :3, :3]
         G = RX.T @ (RM if self.data.setup == "eye-to-base" else RM.swapaxes(1, 2))
         flat = Jp_pad.reshape(n_img, 2 * n, 3)
         JpR = (flat @ RX.T).reshape(n_img, n, 2, 3)                     # d r / d q
@@ -181,19 +182,23 @@ class PixelResiduals(ResidualGroup):
         return r, np.concatenate(parts, axis=3)                          # (n_img, n, 2, c)
 
     def linearize(self, values: Mapping[str, F64]):
+        return next(self.linearize_chunks(values, len(self.images)))[1:]
+
+    def linearize_chunks(self, values: Mapping[str, F64], max_segments: int):
+        """:meth:`linearize` ``max_segments`` images at a time (so the whole Jacobian is never held)."""
         if self._intrinsics(values) is None:
-            raise InputError(f"camera {self.data.names[self.camera]}: intrinsics outside the "
-                             "model's valid range")
-        r, blocks = self._linear(values)
-        n_img, n, _, c = blocks.shape
-        return r, blocks.reshape(n_img, 2 * n, c), self.pad(r)
+            raise InputError(f"camera {self.data.names[self.camera]}: intrinsics outside the model's valid range")
+        for lo in range(0, len(self.images), max(int(max_segments), 1)):
+            part = SegmentRange(self, lo, min(lo + max_segments, len(self.images)))
+            r, blocks = self._linear(values, part)
+            yield part, r, blocks.reshape(len(blocks), -1, blocks.shape[-1]), part.pad(r)
 
     def evaluate(self, values: Mapping[str, F64], jacobians: bool):
         intr = self._intrinsics(values)
         if intr is None:
             return np.full((self.n_rows, 2), np.nan), None
         if jacobians:
-            r, blocks = self._linear(values)
+            r, blocks = self._linear(values, SegmentRange(self, 0, len(self.images)))
             rows = blocks[self.segment, self.position]                   # (P_j, 2, c)
             cuts = np.cumsum([0, 6, 6, 6] + ([rows.shape[2] - 18] if self.free else []))
             return r, [rows[:, :, a:b] for a, b in zip(cuts[:-1], cuts[1:])]

@@ -289,13 +289,13 @@ def _variance_components(data: ImageData, fams, *, s_px: float, s_rot: float, s_
         apart from the pixel noise.
     """
     groups = data.groups(s_px, s_rot, s_t)
-    ev = evaluate(fams, groups, jacobians=True)
-    cov = covariance(fams, groups, local=True, evaluated=ev)
+    ev = evaluate(fams, groups, jacobians=False)   # residuals; J^T J summed chunk by chunk
+    cov, values = covariance(fams, groups, local=True), {f.name: f.value for f in fams}
     h_prior = 0.0
     sums, red = np.zeros(2), np.zeros(2)
     for grp, e in zip(groups, ev):
         if _is_prior(grp):
-            Jp = e[1][:, :, :6]                                           # d r / d M, (n, 6, 6)
+            Jp = grp.evaluate(values, True)[1][0]                         # d r / d M, (n, 6, 6)
             h = np.einsum("nki,nij,nkj->nk", Jp, cov.local[grp.index[:, 0]], Jp)   # (n, 6)
             h_prior += float(h.sum())
             w = rho((e[0] / f_scale) ** 2, loss)[1]
@@ -541,8 +541,8 @@ def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, i
     kappa = gaussian_kappa(loss, f_scale)
     X, Y, M = _value(fams, "X"), _value(fams, "Y")[0], _value(fams, "M")
     groups = data.groups(s_px, s_rot, s_t)
-    ev = evaluate(fams, groups, jacobians=True)
-    cov = covariance(fams, groups, local=True, evaluated=ev)
+    ev = evaluate(fams, groups, jacobians=False)
+    cov = covariance(fams, groups, local=True)
     z_pix = _pixel_residuals(data, ev)
     r_pix = z_pix * s_px                                                  # (P, 2) pixels
     w_pt = rho((z_pix / f_scale) ** 2, loss)[1].min(axis=1)

@@ -46,10 +46,11 @@ constants hold them, docs/rig-yaml.md documents each)::
     cameras:                                                 # required, at least one
       cam0:
         intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
-        images: cam0/                  # exactly one of images, poses, rosbag
+        images: cam0/                  # exactly one of images, poses, rosbag, video
         poses: cam0_target.txt         #   precomputed T_cam_target, TUM format
         rosbag: run.bag                #   image topic of a bag ...
         topic: /cam0/image_raw         #   ... given here (rosbag only)
+        video: cam0.mp4                #   a video file; stamps: FILE or start_time: SECONDS
         mocap: cam0_mocap.txt          # optional: own file, or a mapping overriding mocap
                                        #   keys; pose, time_tolerance, the noise keys, sensor
                                        #   and noise_bounds are inherited, the format's keys
@@ -82,6 +83,7 @@ from multieye.core.target_spec import TARGET_KEYS, TARGET_TYPES, TYPE_KEYS, Targ
 from multieye.io.intrinsics_files import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
+from multieye.io.rig_checks import video_keys
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
 from multieye.io.rig_checks import camera_link, links_keys, no_link_loop, Checker as _Checker
@@ -102,7 +104,7 @@ _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-file
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv"),
                "key": ("pose-files",), "values": ("pose-files", "pose-table", "tum"),
                "rotation": ("pose-files", "pose-table", "tum")}
-_SOURCES = ("images", "poses", "rosbag")
+_SOURCES = ("images", "poses", "rosbag", "video")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
@@ -113,8 +115,9 @@ MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format
 #: Roles of ``mocap.columns`` (csv sources).
 MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 #: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
-CAMERA_KEYS = ("intrinsics", "model", "images", "poses", "rosbag", "topic", "mocap",
-               "time_offset", "intrinsics_images", "intrinsics_target", "refine_intrinsics")
+CAMERA_KEYS = ("intrinsics", "model", "images", "poses", "rosbag", "topic", "video", "stamps",
+               "start_time", "mocap", "time_offset", "intrinsics_images", "intrinsics_target",
+               "refine_intrinsics")
 CAMERA_INTRINSICS_KEYS = ("file", "camera")
 
 
@@ -129,10 +132,12 @@ class CameraSpec:
         None only for a camera given by precomputed ``poses``.
     intrinsics_camera : str or None
         Entry of a Kalibr camchain (``cam1``) when the intrinsics file holds several.
-    images, poses, rosbag : Path or None
+    images, poses, rosbag, video : Path or None
         Exactly one is set: a folder of time-stamped images, a TUM file of ``T_cam_target``,
-        or a bag whose ``topic`` holds the images.
-    topic : str or None
+        a bag whose ``topic`` holds the images, or a video file.
+    topic, stamps, start_time : str or None, Path or None, float
+        A bag's image topic; a video's frame stamps file (:mod:`multieye.io.frame_stamps`),
+        or else its first frame's stamp (seconds, the others at its frame rate).
     mocap : MocapSpec or None
         This camera's own motion capture (otherwise the rig's).
     time_offset : float
@@ -156,6 +161,9 @@ class CameraSpec:
     poses: Path | None = None
     rosbag: Path | None = None
     topic: str | None = None
+    video: Path | None = None
+    stamps: Path | None = None
+    start_time: float = 0.0
     mocap: MocapSpec | None = None
     time_offset: float = 0.0
     model: str | None = None
@@ -165,7 +173,7 @@ class CameraSpec:
 
     @property
     def source(self) -> str:
-        """``"images"``, ``"poses"`` or ``"rosbag"``."""
+        """``"images"``, ``"poses"``, ``"rosbag"`` or ``"video"``."""
         return next(s for s in _SOURCES if getattr(self, s) is not None)
 
 
@@ -445,6 +453,7 @@ def _camera(rw: _RigWide, name, raw) -> CameraSpec:
     kw[source] = c.path(raw[source], keys + (source,), kind)
     if "topic" in raw:
         kw["topic"] = c.string(raw["topic"], keys + ("topic",))
+    kw.update(video_keys(c, raw, keys))
     if "time_offset" in raw:
         kw["time_offset"] = c.number(raw["time_offset"], keys + ("time_offset",),
                                      maximum=MAX_TIME_OFFSET_S, unit="seconds")
@@ -529,8 +538,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
         camera_link(c, name, cam.mocap or mocap, cam.source, any_mocap)
         if any_mocap and (cam.mocap or mocap).by_name and cam.source != "images":
             raise c.error("poses matched by image name ({stem}, match: image or order) need "
-                          "a folder of 'images'",
-                          ("cameras", name))
+                          "a folder of 'images'", ("cameras", name))
         cameras[cam.name] = cam
     named = {n: (cs.mocap or mocap).frame_names for n, cs in cameras.items() if any_mocap}
     if len(set(named.values())) > 1:

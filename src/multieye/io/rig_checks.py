@@ -12,10 +12,10 @@ from pathlib import Path
 from multieye.core.arguments import did_you_mean
 from multieye.core.errors import DatasetError
 from multieye.io.yamlfile import YamlDocument, shown
-from multieye.core.limits import (MAX_ROTATION_NOISE_DEG, MAX_TIME_TOLERANCE_S,
+from multieye.core.limits import (MAX_ROTATION_NOISE_DEG, MAX_STAMP_S, MAX_TIME_TOLERANCE_S,
                                   MAX_TRANSLATION_NOISE_M)
 
-__all__ = ["Checker", "sensor_keys", "links_keys", "camera_link", "MOCAP_SENSORS",
+__all__ = ["Checker", "sensor_keys", "links_keys", "camera_link", "video_keys", "MOCAP_SENSORS",
            "MOCAP_NOISE_BOUND_KEYS"]
 
 #: What ``mocap.sensor`` may name, and the keys of ``mocap.noise_bounds`` (docs/rig-yaml.md).
@@ -128,6 +128,29 @@ def sensor_keys(c: Checker, raw: Mapping, at) -> dict:
                  if "translation_m" in bounds else None)
         kw["noise_bounds"] = (rot, trans)
     return kw
+
+
+def video_keys(c: Checker, raw: Mapping, keys) -> dict:
+    """A video camera's ``stamps`` (a frame stamps file) or ``start_time`` (seconds, the
+    first frame's stamp), each only with ``video`` and not both."""
+    for key in ("stamps", "start_time"):
+        if key in raw and "video" not in raw:
+            raise c.error(f"'{key}' goes with 'video' (the frame stamps of a video file)",
+                          keys + (key,))
+    if "stamps" in raw and "start_time" in raw:
+        raise c.error("give either 'stamps' (a stamp per frame) or 'start_time' (the first "
+                      "frame's, the others at the video's frame rate), not both", keys)
+    out: dict = {}
+    if "stamps" in raw:
+        out["stamps"] = c.path(raw["stamps"], keys + ("stamps",), "file")
+    if "start_time" in raw:
+        start = c.number(raw["start_time"], keys + ("start_time",), maximum=MAX_STAMP_S,
+                         unit="seconds")
+        if start < 0:
+            raise c.error(f"expected a time stamp >= 0 seconds, got {start}",
+                          keys + ("start_time",))
+        out["start_time"] = float(start)
+    return out
 
 
 def no_link_loop(p: Path) -> None:

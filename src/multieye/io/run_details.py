@@ -168,6 +168,10 @@ class CameraDetails:
         The other cameras that saw the target at the same time (a used image of each within
         the time tolerance, in the motion-capture clock); None in files written before it
         existed.
+    selection : dict or None
+        What the image selection did (docs/recordings.md, section 1): ``budget``, ``seen``,
+        ``kept``, ``stage``, ``without_mocap``; None when it did not choose among this
+        camera's images.
     """
 
     name: str
@@ -187,6 +191,11 @@ class CameraDetails:
     projection_std: ProjectionStd | None = None
     topic: str | None = None
     overlaps: tuple[str, ...] | None = None
+    selection: Mapping[str, Any] | None = None
+
+
+#: Keys of a camera's ``selection`` and their types.
+SELECTION_KEYS = {"budget": int, "seen": int, "kept": int, "stage": str, "without_mocap": int}
 
 
 @dataclass(frozen=True)
@@ -333,6 +342,8 @@ def run_details_to_dict(details: RunDetails) -> dict:
             cameras[c.name]["topic"] = c.topic
         if c.overlaps is not None:
             cameras[c.name]["overlaps"] = list(c.overlaps)
+        if c.selection is not None:
+            cameras[c.name]["selection"] = dict(c.selection)
     out = {
         "format": FORMAT, "version": VERSION, "setup": details.setup,
         "reference_camera": details.reference_camera,
@@ -496,6 +507,13 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
             raise r.error(f"overlaps must be a list of the other cameras' names, got "
                           f"{overlaps!r}", name)
         estimated, intr_cov = _read_estimated(r, c.get("intrinsics"), intr, name)
+        selection = c.get("selection")
+        if selection is not None and not (
+                isinstance(selection, Mapping) and set(selection) == set(SELECTION_KEYS)
+                and all(isinstance(selection[k], t) and not isinstance(selection[k], bool)
+                        for k, t in SELECTION_KEYS.items())):
+            raise r.error(f"selection must be an object with {', '.join(SELECTION_KEYS)}, got "
+                          f"{selection!r}", name)
         cameras.append(CameraDetails(
             name=str(name),
             T_world_cam=r.array(r.get(c, "T_world_cam", where, name), (4, 4), "T_world_cam", name),
@@ -505,7 +523,8 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
             diagnostics=dict(diagnostics), points=points_from_dict(r, c.get("points"), n, name),
             intrinsics_estimated=estimated, intrinsics_covariance=intr_cov,
             projection_std=projection_from_dict(r, c.get("projection_std"), name),
-            topic=topic, overlaps=None if overlaps is None else tuple(overlaps)))
+            topic=topic, overlaps=None if overlaps is None else tuple(overlaps),
+            selection=None if selection is None else dict(selection)))
     if reference not in cams_raw:
         raise r.error(f"reference camera {reference!r} is not one of {', '.join(cams_raw)}")
     warnings = data.get("warnings", [])

@@ -42,7 +42,7 @@ from multieye.core.errors import InputError
 from multieye.core.geometry import make_transform
 from multieye.core.lie import exp_so3
 
-__all__ = ["MANIFOLDS", "Blocks", "ResidualGroup"]
+__all__ = ["SegmentRange", "MANIFOLDS", "Blocks", "ResidualGroup"]
 
 F64 = NDArray[np.float64]
 
@@ -172,6 +172,17 @@ class ResidualGroup(ABC):
         r, jac = self.evaluate(values, True)
         return r, self.pad(np.concatenate(jac, axis=2)), self.pad(r)
 
+    def linearize_chunks(self, values: Mapping[str, F64], max_segments: int):
+        """:meth:`linearize` a piece at a time, for the engine to sum the normal equations
+        without holding the whole Jacobian.
+
+        Yields ``(piece, residuals, blocks, padded)``: ``piece`` has this group's ``slots``,
+        ``index``, ``n_rows`` and ``pad`` for its segments (the group itself, or a
+        :class:`SegmentRange`).  The default yields the whole group as one piece; a group
+        whose rows can be computed for a range of segments alone overrides it.
+        """
+        yield (self, *self.linearize(values))
+
     @abstractmethod
     def evaluate(self, values: Mapping[str, F64], jacobians: bool
                  ) -> tuple[F64, list[F64] | None]:
@@ -191,3 +202,29 @@ class ResidualGroup(ABC):
         jacobians : list of ndarray, shape (n_rows, dim, size of slot k), or None
             Derivative with respect to each slot's block perturbation at its current value.
         """
+
+
+class SegmentRange:
+    """Segments ``lo:hi`` of a residual group, as the engine's assembly sees them (the
+    ``slots``, ``index``, ``n_rows`` and ``pad`` of those segments alone)."""
+
+    def __init__(self, group: ResidualGroup, lo: int, hi: int):
+        starts = np.searchsorted(group.segment, [lo, hi])
+        rows = slice(int(starts[0]), int(starts[1]))
+        self.slots, self.dim, self.longest = group.slots, group.dim, group.longest
+        self.index = group.index[lo:hi]
+        self.index_range = (lo, hi)
+        self.segment = group.segment[rows] - lo
+        self.position = group.position[rows]
+        self.rows = rows
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.segment.size)
+
+    def pad(self, rows: F64) -> F64:
+        """As :meth:`ResidualGroup.pad`, for these segments' rows."""
+        S, m = len(self.index), self.longest
+        out = np.zeros((S, m) + rows.shape[1:])
+        out[self.segment, self.position] = rows
+        return out.reshape((S, m * self.dim) + rows.shape[2:])

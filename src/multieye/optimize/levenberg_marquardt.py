@@ -3,10 +3,13 @@
 The cost is scipy's: ``sum f_scale^2 rho(r^2 / f_scale^2) / 2`` over every residual component
 ``r`` of every group (:mod:`multieye.core.robust_loss`).  Each iteration
 
-1. evaluates every group's residuals and Jacobians at the current values,
+1. evaluates every group's residuals and Jacobians at the current values, a chunk of
+   :data:`CHUNK_SEGMENTS` segments at a time (:meth:`~multieye.optimize.blocks.ResidualGroup.
+   linearize_chunks`),
 2. weights them by the loss's IRLS weights ``rho'`` (which makes the weighted Gauss-Newton step
    a descent direction of the robust cost; its stationary points are the robust cost's),
-3. forms the normal equations, eliminates the per-measurement blocks by the Schur complement
+3. sums each chunk into the normal equations and lets its Jacobian go (so the memory holds the
+   normal equations, not the Jacobian of every residual), eliminates the per-measurement blocks by the Schur complement
    (:mod:`multieye.optimize.normal_equations`) and solves the damped system,
 4. moves every block on its manifold (:meth:`multieye.optimize.blocks.Blocks.retract`) and
    keeps the step if the cost went down (damping / 10), else retries with damping x 10.
@@ -34,14 +37,20 @@ from multieye.core.errors import InputError
 from multieye.core.robust_loss import LOSSES, rho
 from multieye.optimize.blocks import Blocks, ResidualGroup
 from multieye.optimize.normal_equations import (
+    Assembly,
     Layout,
+    NormalEquations,
     assemble,
     marginal_covariance,
     solve_step,
 )
 from multieye.optimize.threads import threads_for
 
-__all__ = ["Options", "Result", "Covariance", "minimize", "covariance", "evaluate"]
+__all__ = ["Options", "Result", "Covariance", "minimize", "covariance", "evaluate",
+           "normal_equations", "CHUNK_SEGMENTS"]
+
+#: Segments (images) linearised at once when the normal equations are summed.
+CHUNK_SEGMENTS = 256
 
 F64 = NDArray[np.float64]
 
@@ -155,6 +164,20 @@ def evaluate(families: Sequence[Blocks], groups: Sequence[ResidualGroup], jacobi
     return [grp.evaluate(values, False) for grp in groups]
 
 
+def normal_equations(families: Sequence[Blocks], groups: Sequence[ResidualGroup], layout: Layout,
+                     opts: Options | None = None) -> NormalEquations:
+    """``J^T J`` and ``J^T r`` at the families' values, summed chunk by chunk
+    (:data:`CHUNK_SEGMENTS` segments at a time), weighted by the loss of ``opts`` (unweighted
+    when None)."""
+    values = {f.name: f.value for f in families}
+    acc = Assembly(layout, {f.name: f for f in families})
+    for grp in groups:
+        for piece, r, B, rb in grp.linearize_chunks(values, CHUNK_SEGMENTS):
+            w = None if opts is None else rho((r / opts.f_scale) ** 2, opts.loss)[1]
+            acc.add(piece, B, rb, w)
+    return acc.result()
+
+
 def _cost(evaluated, opts: Options) -> float:
     total = 0.0
     for r, *_ in evaluated:
@@ -198,19 +221,17 @@ def minimize(families: Sequence[Blocks], groups: Sequence[ResidualGroup],
         if missing:
             raise InputError(f"residual group refers to unknown block families {missing}")
     with threads_for(layout.k):
-        return _minimize(families, groups, options, layout, by_name)
+        return _minimize(families, groups, options, layout)
 
 
-def _minimize(families, groups, opts: Options, layout: Layout, by_name) -> Result:
-    ev = evaluate(families, groups, jacobians=True)
-    cost = _cost(ev, opts)
+def _minimize(families, groups, opts: Options, layout: Layout) -> Result:
+    cost = _cost(evaluate(families, groups, jacobians=False), opts)
     if not np.isfinite(cost):
         raise InputError("the residuals are not finite at the starting point")
     lam = opts.initial_damping
     evaluations, iterations = 1, 0
     for iterations in range(1, opts.max_iter + 1):
-        weights = [rho((e[0] / opts.f_scale) ** 2, opts.loss)[1] for e in ev]
-        ne = assemble(layout, by_name, groups, ev, weights)
+        ne = normal_equations(families, groups, layout, opts)
         while True:
             step = solve_step(ne, lam)
             if step is not None:
@@ -226,12 +247,10 @@ def _minimize(families, groups, opts: Options, layout: Layout, by_name) -> Resul
                               "no further decrease of the cost")
         decrease = cost - cost_new
         families, cost = trial, cost_new
-        by_name = {f.name: f for f in families}
         lam = max(lam / 10.0, 1e-12)
         if decrease <= opts.tol * cost:
             return Result(families, cost, iterations, evaluations, True,
                           "relative decrease of the cost below tol")
-        ev = evaluate(families, groups, jacobians=True)
     return Result(families, cost, iterations, evaluations, False,
                   f"stopped after {opts.max_iter} iterations")
 
@@ -251,12 +270,15 @@ def covariance(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,
     local : bool
         Also the marginal covariance of each eliminated block.
     evaluated : list, optional
-        :func:`evaluate` with ``jacobians=True`` at these values, if already at hand.
+        :func:`evaluate` with ``jacobians=True`` at these values, if already at hand; else the
+        normal equations are summed chunk by chunk (:func:`normal_equations`).
     """
     families = tuple(families)
     layout = Layout.of(families)
-    ev = evaluated if evaluated is not None else evaluate(families, groups, jacobians=True)
     with threads_for(layout.k):
-        ne = assemble(layout, {f.name: f for f in families}, groups, ev)
+        if evaluated is not None:
+            ne = assemble(layout, {f.name: f for f in families}, groups, evaluated)
+        else:
+            ne = normal_equations(families, groups, layout)
         kept, loc, undetermined = marginal_covariance(ne, local=local)
     return Covariance(kept, loc, layout, undetermined)

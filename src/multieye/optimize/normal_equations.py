@@ -17,7 +17,9 @@ block of ``(J^T J)^-1`` is ``S^-1`` and each eliminated block's marginal covaria
 
 Everything is formed segment by segment (:class:`~multieye.optimize.blocks.ResidualGroup`):
 per segment one small Gram matrix, summed into ``U``, ``V`` and the sparse ``W`` by index,
-so the cost is linear in the residual rows.
+so the cost is linear in the residual rows; and piece by piece (:class:`Assembly`: a group's
+segments a chunk at a time, :meth:`~multieye.optimize.blocks.ResidualGroup.linearize_chunks`),
+so the memory holds the normal equations and one chunk's Jacobian, not the whole Jacobian.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve, eigh
 from multieye.core.errors import InputError
 from multieye.optimize.blocks import Blocks, ResidualGroup
 
-__all__ = ["Layout", "NormalEquations", "assemble", "solve_step", "marginal_covariance"]
+__all__ = ["Layout", "NormalEquations", "Assembly", "assemble", "solve_step", "marginal_covariance"]
 
 F64 = NDArray[np.float64]
 
@@ -125,6 +127,79 @@ def _columns(layout: Layout, families: dict[str, Blocks], group: ResidualGroup):
     return cols, (np.concatenate(gpos) if gpos else np.zeros(0, int)), lblock, lpos
 
 
+class Assembly:
+    """``J^T J`` and ``J^T r`` summed piece by piece, so that no more than one piece's Jacobian
+    is held at a time (the pieces of a group: :meth:`~multieye.optimize.blocks.ResidualGroup.
+    linearize_chunks`).
+
+    Parameters
+    ----------
+    layout : Layout
+    families : dict of str to Blocks
+    """
+
+    def __init__(self, layout: Layout, families: dict[str, Blocks]):
+        self.layout, self.families = layout, families
+        k, L, d = layout.k, layout.n_local, layout.d
+        self.U = np.zeros(k * k)
+        self.g = np.zeros(k)
+        self.V = np.zeros(L * d * d)
+        self.gl = np.zeros(L * d)
+        self._w: list[sp.csr_matrix] = []
+        self._wr: list[F64] = []
+        self._wc: list[F64] = []
+        self._wd: list[F64] = []
+
+    def add(self, group, B: F64, rb: F64, weights: F64 | None = None) -> None:
+        """Add one piece: ``group`` (or a :class:`~multieye.optimize.blocks.SegmentRange` of
+        it), its Jacobian blocks ``B`` (S, m dim, c) and padded residuals ``rb`` (S, m dim),
+        with per-component weights (n_rows, dim) if given."""
+        layout = self.layout
+        k, L, d = layout.k, layout.n_local, layout.d
+        if group.n_rows == 0:
+            return
+        if weights is not None:
+            sw = group.pad(np.sqrt(weights))
+            B = B * sw[:, :, None]
+            rb = rb * sw
+        S = len(group.index)
+        Bt = np.swapaxes(B, 1, 2)
+        G = Bt @ B                                                        # (S, c, c)
+        gs = (Bt @ rb[:, :, None])[:, :, 0]                               # (S, c)
+        cols, gpos, lblock, lpos = _columns(layout, self.families, group)
+        if cols.shape[1]:
+            Ugg = G[:, gpos][:, :, gpos]
+            self.U += np.bincount((cols[:, :, None] * k + cols[:, None, :]).ravel(), Ugg.ravel(),
+                                  minlength=k * k)
+            self.g += np.bincount(cols.ravel(), gs[:, gpos].ravel(), minlength=k)
+        if lblock is not None:
+            Vll = G[:, lpos][:, :, lpos]
+            self.V += np.bincount((lblock[:, None] * d * d + np.arange(d * d)).ravel(),
+                                  Vll.ravel(), minlength=L * d * d)
+            lcols = lblock[:, None] * d + np.arange(d)                    # (S, d)
+            self.gl += np.bincount(lcols.ravel(), gs[:, lpos].ravel(), minlength=L * d)
+            if cols.shape[1]:
+                self._wr.append(np.broadcast_to(cols[:, :, None], (S, cols.shape[1], d)).ravel())
+                self._wc.append(np.broadcast_to(lcols[:, None, :], (S, cols.shape[1], d)).ravel())
+                self._wd.append(G[:, gpos][:, :, lpos].ravel())
+                if sum(a.size for a in self._wd) > 4_000_000:     # keep W's triplets bounded
+                    self._collapse()
+
+    def _collapse(self) -> None:
+        k, L, d = self.layout.k, self.layout.n_local, self.layout.d
+        if self._wd:
+            self._w.append(sp.csr_matrix((np.concatenate(self._wd), (np.concatenate(self._wr),
+                                          np.concatenate(self._wc))), shape=(k, L * d)))
+            self._wr, self._wc, self._wd = [], [], []
+
+    def result(self) -> NormalEquations:
+        k, L, d = self.layout.k, self.layout.n_local, self.layout.d
+        self._collapse()
+        W = sum(self._w[1:], self._w[0]) if self._w else sp.csr_matrix((k, L * d))
+        return NormalEquations(self.U.reshape(k, k), self.g, self.V.reshape(L, d, d),
+                               self.gl.reshape(L, d), sp.csr_matrix(W))
+
+
 def assemble(layout: Layout, families: dict[str, Blocks], groups: Sequence[ResidualGroup],
              linearized: Sequence[tuple[F64, F64, F64]], weights: Sequence[F64] | None = None
              ) -> NormalEquations:
@@ -140,45 +215,10 @@ def assemble(layout: Layout, families: dict[str, Blocks], groups: Sequence[Resid
     weights : sequence of ndarray, shape (n, dim), optional
         Per-component weights (the robust loss's IRLS weights); 1 when not given.
     """
-    k, L, d = layout.k, layout.n_local, layout.d
-    U = np.zeros(k * k)
-    g = np.zeros(k)
-    V = np.zeros(L * d * d)
-    gl = np.zeros(L * d)
-    w_rows, w_cols, w_data = [], [], []
+    acc = Assembly(layout, families)
     for n, (group, (_, B, rb)) in enumerate(zip(groups, linearized)):
-        if group.n_rows == 0:
-            continue
-        if weights is not None:
-            sw = group.pad(np.sqrt(weights[n]))
-            B = B * sw[:, :, None]
-            rb = rb * sw
-        S = len(group.index)
-        Bt = np.swapaxes(B, 1, 2)
-        G = Bt @ B                                                        # (S, c, c)
-        gs = (Bt @ rb[:, :, None])[:, :, 0]                               # (S, c)
-        cols, gpos, lblock, lpos = _columns(layout, families, group)
-        if cols.shape[1]:
-            Ugg = G[:, gpos][:, :, gpos]
-            U += np.bincount((cols[:, :, None] * k + cols[:, None, :]).ravel(), Ugg.ravel(),
-                             minlength=k * k)
-            g += np.bincount(cols.ravel(), gs[:, gpos].ravel(), minlength=k)
-        if lblock is not None:
-            Vll = G[:, lpos][:, :, lpos]
-            V += np.bincount((lblock[:, None] * d * d + np.arange(d * d)).ravel(), Vll.ravel(),
-                             minlength=L * d * d)
-            lcols = lblock[:, None] * d + np.arange(d)                    # (S, d)
-            gl += np.bincount(lcols.ravel(), gs[:, lpos].ravel(), minlength=L * d)
-            if cols.shape[1]:
-                w_rows.append(np.broadcast_to(cols[:, :, None], (S, cols.shape[1], d)).ravel())
-                w_cols.append(np.broadcast_to(lcols[:, None, :], (S, cols.shape[1], d)).ravel())
-                w_data.append(G[:, gpos][:, :, lpos].ravel())
-    if w_data:
-        W = sp.csr_matrix((np.concatenate(w_data), (np.concatenate(w_rows),
-                                                    np.concatenate(w_cols))), shape=(k, L * d))
-    else:
-        W = sp.csr_matrix((k, L * d))
-    return NormalEquations(U.reshape(k, k), g, V.reshape(L, d, d), gl.reshape(L, d), W)
+        acc.add(group, B, rb, None if weights is None else weights[n])
+    return acc.result()
 
 
 #: Relative eigenvalue of the Jacobi-scaled reduced system below which a direction counts as

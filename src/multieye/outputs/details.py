@@ -219,7 +219,8 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
                                     f"diagnostics of camera {cam.name}"),
             points=image_points(run, cam.name, max_points=max_points),
             intrinsics_estimated=estimated, intrinsics_covariance=intr_cov,
-            projection_std=grid, topic=camera_topic(run, cam.name)))
+            projection_std=grid, topic=camera_topic(run, cam.name),
+            selection=None if data.selection is None else data.selection.as_dict()))
     overlaps = camera_overlaps(run)
     cams = [replace(c, overlaps=overlaps[c.name]) for c in cams]
     default = "T_world_marker" if setup == "eye-to-base" else "T_world_body"

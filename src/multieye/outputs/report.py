@@ -392,8 +392,22 @@ def _residual_figures(details: RunDetails | None, figures: Mapping[str, bytes]) 
         "</section>"])
 
 
-def _rejected(rec: CalibrationRecord) -> str:
-    head = '<section id="rejected"><h2>Rejected images and measurements</h2>'
+def _selection(details: RunDetails | None) -> str:
+    """The image selection per camera (docs/recordings.md, section 1), when it chose."""
+    rows = [[c.name, str(c.selection["seen"]), str(c.selection["kept"]),
+             str(c.selection["budget"]), str(c.selection["without_mocap"]), c.selection["stage"]]
+            for c in (details.cameras if details is not None else ()) if c.selection]
+    if not rows:
+        return ""
+    return ("<h3>Image selection</h3><p>Cameras with more images than the budget keep the "
+            "ones that add most to the calibration; the others are listed below as not "
+            "selected.</p>" + _table(["camera", "images", "kept", "budget",
+                                      "without motion capture", "chosen"], rows, left=1))
+
+
+def _rejected(rec: CalibrationRecord, details: RunDetails | None = None) -> str:
+    head = ('<section id="rejected"><h2>Rejected images and measurements</h2>'
+            + _selection(details))
     items = [(c.name, r.item, r.reason) for c in rec.cameras for r in c.rejected]
     if not items:
         return f'{head}<div class="box ok">Every image was used.</div></section>'
@@ -471,7 +485,7 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
         images_section(rec, details, thumbnails or {}), _extrinsics(rec),
         _residuals(rec, details), _residual_figures(details, figures),
         cameras_section(rec, details, figures), diagnostics_section(rec, details),
-        _rejected(rec),
+        _rejected(rec, details),
         f"<footer>Written by multieye {escape(__version__)} from <code>calibration.json</code>"
         + (" and <code>details.json</code>" if details is not None else "")
         + ". Frames: <code>T_a_b</code> maps coordinates in b to a; metres, degrees in tables."

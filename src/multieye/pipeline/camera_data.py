@@ -9,7 +9,7 @@ The pipeline (:mod:`multieye.pipeline`) takes it from there.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -18,12 +18,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, TooFewMeasurementsError
 from multieye.core.intrinsics import Intrinsics
 from multieye.estimate.pairing import pair_in_time
-from multieye.imaging.batch import (
-    ImageJob,
-    detect_and_estimate,
-    detect_and_estimate_arrays,
-    detect_and_estimate_jobs,
-)
+from multieye.imaging.engines import Engine
 from multieye.imaging.targets import target_from_spec
 from multieye.io import (
     RejectedItem,
@@ -39,7 +34,10 @@ from multieye.io import (
 )
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
+from multieye.pipeline.detection import Workers, detect_all
 from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
+from multieye.pipeline.selection import SelectionSummary, preselected
+from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
 from multieye.imaging.target_hints import counting_rule
@@ -132,6 +130,9 @@ class CameraData:
         Paired by name (one pose file beside each image): the images with a pose file have
         the stamps 0, 1, 2, ... in name order and ``mocap`` holds their poses at the same
         stamps; :func:`pair_camera` pairs them exactly, without clock offset.
+    selection : SelectionSummary or None
+        What the image selection did (:mod:`multieye.pipeline.selection`); None when it did
+        not choose among this camera's images.
     """
 
     name: str
@@ -147,6 +148,7 @@ class CameraData:
     intrinsics_estimated: bool = False
     intrinsics_views: tuple[Observation, ...] = ()
     by_name: bool = False
+    selection: SelectionSummary | None = None
 
 
 @dataclass(frozen=True)
@@ -223,7 +225,7 @@ class _Detected:
     intrinsics: Intrinsics | None = None     # the started lens, when it was estimated
 
 
-def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, workers: _Workers, *,
+def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, workers: Workers, *,
                               listed=None, extra_views=()) -> _Detected:
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
 
@@ -235,16 +237,23 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     inform the starting lens too.
     """
     cam = rig.cameras[name]
-    source, topic = (cam.images, None) if cam.source == "images" else (cam.rosbag, cam.topic)
+    source = {"images": cam.images, "rosbag": cam.rosbag, "video": cam.video}[cam.source]
+    topic = cam.topic
     target = target_from_spec(rig.target, path=rig.path)
-    if topic is None:
+    lost: list = []
+    if cam.source == "video":
+        stamped = []
+        t0 = time.perf_counter()   # the video is read as the frames are detected
+        results = workers.detect_arrays(
+            video_frames(cam, video_listing(cam) if listed is None else listed, stamped, lost),
+            target, intr)
+        seconds = time.perf_counter() - t0
+    elif topic is None:
         images = list_images(source) if listed is None else listed
         t0 = time.perf_counter()
         results = workers.detected.get((name, "images"))
         if results is None:
-            results = detect_and_estimate([p for _, _, p in images], target, intr,
-                                          processes=workers.processes,
-                                          progress=workers.progress)
+            results = workers.detect([p for _, _, p in images], target, intr)
         seconds = workers.seconds.get((name, "images"), time.perf_counter() - t0)
         stamped = [(stamp, path.name) for stamp, _, path in images]
     else:
@@ -257,9 +266,8 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
                 yield label, image
 
         t0 = time.perf_counter()   # the bag is read as the frames are detected
-        results = detect_and_estimate_arrays(frames(), target, intr,
-                                             processes=workers.processes,
-                                             progress=workers.progress)
+        chosen = frames() if listed is None else bag_frames(cam, listed, stamped)
+        results = workers.detect_arrays(chosen, target, intr)
         seconds = time.perf_counter() - t0
         if not stamped:
             raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
@@ -286,9 +294,10 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
             rejected.append(RejectedItem(label, res.reason))
     # pose ambiguity (single marker): warn when the two poses fit alike in most images
     warnings.extend(w for w in [ambiguity_warning(name, [r.pose for r in results if r.ok])] if w)
-    skipped = [] if topic is not None else [RejectedItem(n, why)
-                                            for n, why in skipped_entries(source)]
-    rejected.extend(skipped)    # links to nowhere, devices, folders named like images
+    skipped = [RejectedItem(n, why) for n, why in lost]
+    if cam.source == "images":      # links to nowhere, devices, folders named like images
+        skipped += [RejectedItem(n, why) for n, why in skipped_entries(source)]
+    rejected.extend(skipped)
     if not obs:
         raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
                            camera=name)
@@ -297,7 +306,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
                      intrinsics=None if lens is None else lens.intrinsics)
 
 
-def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _Workers
+def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: Workers
                               ) -> tuple[list[Path], list, float]:
     """Detection (and PnP with ``intr`` unless None) over a camera's ``intrinsics_images``
     (their own board if given): the paths, the results and the seconds it took."""
@@ -309,12 +318,11 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: _
     if key in workers.detected:
         return paths, workers.detected[key], workers.seconds[key]
     t0 = time.perf_counter()
-    results = detect_and_estimate(paths, target, intr, processes=workers.processes,
-                                  progress=workers.progress)
+    results = workers.detect(paths, target, intr)
     return paths, results, time.perf_counter() - t0
 
 
-def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: _Workers,
+def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: Workers,
                       detected=None) -> tuple[list[Observation], list[RejectedItem], float]:
     """Detection and PnP over a camera's ``intrinsics_images`` (their own board if given);
     ``detected``: their detection-only ``(paths, results, seconds)`` already at hand, to
@@ -339,9 +347,26 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: _Work
     return obs, rejected, seconds
 
 
-def load_camera_data(rig: Rig, *, processes: int | None = None,
-                     progress: bool = False) -> dict[str, CameraData]:
+def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool = False,
+                     select: int | None = None, time_offset: str | float = "rig",
+                     engine: Engine | None = None) -> dict[str, CameraData]:
     """Read, detect and estimate every camera's target poses and its motion capture.
+
+    Parameters
+    ----------
+    rig : Rig
+    processes, progress
+        Detection processes, progress bar.
+    select : int, optional
+        Image budget per camera: a camera with images (a folder) and more than this many
+        detects only as many, chosen before decoding (:func:`multieye.pipeline.selection.
+        preselect`); None detects every image.
+    time_offset : "rig", "auto" or float
+        The clock offset the selection pairs with (``Options.time_offset``); with "auto"
+        nothing is chosen before decoding.
+    engine : Engine, optional
+        Detection as tasks of this engine (:func:`multieye.imaging.engines.open_engine`)
+        instead of the local worker processes.
 
     Raises
     ------
@@ -351,55 +376,10 @@ def load_camera_data(rig: Rig, *, processes: int | None = None,
     trajectories: dict[tuple, Trajectory] = {}
     motions = {name: camera_motion(rig, name, trajectories) if rig.has_mocap
                else CameraMotion(None) for name in rig.cameras}
-    workers = _detect_all(rig, motions, _Workers(processes, progress))
-    return {name: _camera_data(rig, name, motions[name], workers) for name in rig.cameras}
-
-
-@dataclass(frozen=True)
-class _Workers:
-    """How detection runs: worker processes (None: one per core), a progress bar; and the
-    results of the image files already detected (:func:`_detect_all`), keyed by camera and
-    ``"images"`` or ``"intrinsics_images"``, with the seconds they took."""
-
-    processes: int | None
-    progress: bool
-    detected: dict = field(default_factory=dict)
-    seconds: dict = field(default_factory=dict)
-
-
-def _detect_all(rig: Rig, motions: dict[str, CameraMotion], workers: _Workers) -> _Workers:
-    """Every camera's image files (folders, not bags) detected on one pool of workers, with
-    PnP in the worker where the lens is given; a camera's ``intrinsics_images`` too.
-
-    One pool for the rig keeps every core busy to the last image (a pool per camera left
-    one idle at the end of each camera). The seconds are shared out by image count.
-    """
-    keys, jobs = [], []
-    for name, cam in rig.cameras.items():
-        if cam.source != "images":
-            continue
-        intr = None
-        if cam.intrinsics is not None:
-            intr = check_model(name, read_camera_intrinsics(cam), cam.model, cam.intrinsics)
-        target = target_from_spec(rig.target, path=rig.path)
-        listed = motions[name].listed
-        images = list_images(cam.images) if listed is None else listed
-        keys.append((name, "images"))
-        jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
-        if cam.intrinsics_images is not None:
-            spec = cam.intrinsics_target or rig.target
-            keys.append((name, "intrinsics_images"))
-            jobs.append(ImageJob(tuple(str(p) for p in list_image_files(cam.intrinsics_images)),
-                                 target_from_spec(spec, path=rig.path), intr))
-    if not jobs:
-        return workers
-    t0 = time.perf_counter()
-    results = detect_and_estimate_jobs(jobs, processes=workers.processes,
-                                       progress=workers.progress)
-    seconds = time.perf_counter() - t0
-    total = max(sum(len(job.paths) for job in jobs), 1)
-    return replace(workers, detected=dict(zip(keys, results)),
-                   seconds={k: seconds * len(job.paths) / total for k, job in zip(keys, jobs)})
+    chosen = preselected(rig, motions, select, time_offset, pair_stamps)
+    workers = detect_all(rig, motions, Workers(processes, progress, engine), chosen)
+    return {name: _camera_data(rig, name, motions[name], workers, chosen.get(name))
+            for name in rig.cameras}
 
 
 @dataclass(frozen=True)
@@ -416,9 +396,11 @@ class _Seen:
     views: tuple[Observation, ...] = ()
 
 
-def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -> CameraData:
+def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
+                 chosen=None) -> CameraData:
     cam, spec = rig.cameras[name], rig.mocap_for(name)
-    seen = _from_poses(cam) if cam.source == "poses" else _from_images(rig, name, motion, workers)
+    seen = (_from_poses(cam) if cam.source == "poses"
+            else _from_images(rig, name, motion, workers, chosen))
     # motion-capture rows left out, listed with every camera that uses the file
     rejected = seen.rejected + tuple(
         RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
@@ -431,7 +413,8 @@ def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -
                       time_tolerance=0.0 if spec is None else spec.time_tolerance,
                       warnings=seen.warnings, detection_s=seen.seconds,
                       intrinsics_estimated=cam.estimate_intrinsics, intrinsics_views=seen.views,
-                      by_name=spec is not None and spec.by_name)
+                      by_name=spec is not None and spec.by_name,
+                      selection=None if chosen is None else chosen[2])
 
 
 def _from_poses(cam) -> _Seen:
@@ -448,9 +431,11 @@ def _from_poses(cam) -> _Seen:
                  observations=obs, rejected=rejected, n_inputs=len(obs) + len(rejected))
 
 
-def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -> _Seen:
+def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
+                 chosen=None) -> _Seen:
     """A camera given by images (a folder or a bag topic): detection, the starting lens when
-    it is estimated, PnP; its ``intrinsics_images`` as views for the lens."""
+    it is estimated, PnP; its ``intrinsics_images`` as views for the lens.  ``chosen``: the
+    images selected before decoding, those left out and the summary (:func:`preselect`)."""
     cam = rig.cameras[name]
     intr = None
     if cam.intrinsics is not None:
@@ -459,10 +444,12 @@ def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: _Workers) -
     extra = None
     if cam.intrinsics_images is not None and intr is None:
         extra = _detect_intrinsics_images(cam, rig, None, workers)
-    det = _observations_from_images(rig, name, intr, workers, listed=motion.listed,
+    listed, left = (motion.listed, []) if chosen is None else chosen[:2]
+    det = _observations_from_images(rig, name, intr, workers, listed=listed,
                                     extra_views=() if extra is None else extra[1])
-    rejected = list(motion.unmatched) + det.rejected
-    n_inputs = det.n_inputs + sum(r.reason.startswith("no pose file") for r in motion.unmatched)
+    rejected = list(motion.unmatched) + det.rejected + list(left)
+    n_inputs = (det.n_inputs + len(left)
+                + sum(r.reason.startswith("no pose file") for r in motion.unmatched))
     intr = intr if det.intrinsics is None else det.intrinsics
     seconds, views = det.seconds, []
     if cam.intrinsics_images is not None:

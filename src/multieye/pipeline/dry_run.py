@@ -37,6 +37,7 @@ from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 from multieye.io.calibration_json import OVERLAP
 from multieye.pipeline.sources import outside_reads
+from multieye.pipeline.frames import video_frames, video_listing
 from multieye.solvers.checks import rotation_spread
 from multieye.solvers.measurements import MIN_MEASUREMENTS
 
@@ -53,7 +54,7 @@ class CameraCheck:
     Attributes
     ----------
     name : str
-    source : {"images", "poses", "rosbag"}
+    source : {"images", "poses", "rosbag", "video"}
     listed : int
         Images (or pose rows) of the camera.
     sampled : int
@@ -257,6 +258,16 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
             paths = [images[i][2] for i in sampled_idx]
             results = detect_and_estimate(paths, target, intr,
                                           processes=processes, progress=False)
+        elif cam.source == "video":
+            listing = video_listing(cam)
+            stamps = np.array([s for s, _, _ in listing], dtype=np.float64)
+            n_listed, read, lost = len(listing), [], []
+            sampled = [listing[i] for i in _sample(len(listing), sample)]
+            results = detect_and_estimate_arrays(video_frames(cam, sampled, read, lost), target,
+                                                 intr, processes=processes, progress=False)
+            got = {label for _, label in read}
+            sampled_idx = [f.index for _, _, f in sampled if f.name in got]
+            problems.extend(f"{label}: {why}" for label, why in lost)
         else:
             stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,
                                                        processes=processes)

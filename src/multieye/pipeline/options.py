@@ -14,7 +14,9 @@ import numpy as np
 from multieye.core.arguments import one_of, real_number, with_fields
 from multieye.core.errors import InputError
 from multieye.core.limits import MAX_TIME_OFFSET_S
+from multieye.estimate.selection import DEFAULT_BUDGET
 from multieye.solvers import METHODS
+from multieye.solvers.measurements import MIN_MEASUREMENTS
 
 __all__ = ["Options", "updated_options"]
 
@@ -46,6 +48,11 @@ class Options:
     mocap_rot_sigma_rad, mocap_trans_sigma_m : float or None
         Motion-capture noise for the refinement; None: rig.yaml's ``rotation_noise_deg`` /
         ``translation_noise_m``, else the defaults of :mod:`multieye.estimate.refine_images`.
+    select : int or None
+        Image budget per camera (docs/recordings.md, section 1): a camera with more images
+        keeps this many, chosen by what they add (before decoding, and after detection);
+        default :data:`multieye.estimate.selection.DEFAULT_BUDGET` (300); None keeps every
+        image.
     """
 
     method: str = "joint"
@@ -56,6 +63,7 @@ class Options:
     max_time_offset: float = 0.5
     mocap_rot_sigma_rad: float | None = None
     mocap_trans_sigma_m: float | None = None
+    select: int | None = DEFAULT_BUDGET
 
     def __post_init__(self):
         _check(self)
@@ -81,6 +89,11 @@ def _check(opts: Options) -> None:
     real_number(opts.max_time_offset, "max_time_offset", positive=True)
     real_number(opts.mocap_rot_sigma_rad, "mocap_rot_sigma_rad", positive=True, allow_none=True)
     real_number(opts.mocap_trans_sigma_m, "mocap_trans_sigma_m", positive=True, allow_none=True)
+    if opts.select is not None and (isinstance(opts.select, (bool, np.bool_))
+                                    or not isinstance(opts.select, (int, np.integer))
+                                    or opts.select < MIN_MEASUREMENTS):
+        raise InputError(f"select must be a whole number of images per camera >= "
+                         f"{MIN_MEASUREMENTS}, or None to keep every image; got {opts.select!r}")
 
 
 def updated_options(options: Options, kw: dict) -> Options:

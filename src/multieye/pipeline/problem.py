@@ -124,9 +124,13 @@ class Pairing:
         The same, validated once, in the order of ``paired``: what the closed form takes.
     warnings : tuple of str
         What the cameras' loading and the consensus doubt.
+    selection : dict of str to SelectionSummary
+        The cameras whose paired images were chosen among after detection
+        (:func:`multieye.pipeline.selection.select_paired`).
     """
 
     offsets: dict[str, float]
     paired: dict[str, PairedCamera]
     measurements: Measurements
     warnings: tuple[str, ...] = ()
+    selection: dict = field(default_factory=dict)

@@ -28,6 +28,7 @@ Synopsis
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Callable
@@ -46,6 +47,7 @@ from multieye.estimate.plausibility import (
     check_noise,
     check_plausibility,
 )
+from multieye.imaging.engines import open_engine
 from multieye.io import RejectedItem, Rig, load_rig
 from multieye.io.run_details import StageTimings
 from multieye.pipeline import ambiguity  # single markers: the rig chooses each image's pose
@@ -65,6 +67,7 @@ from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.refine import Refined, mocap_noise, refine
 from multieye.pipeline.result import CalibrationRun, Refinement
+from multieye.pipeline.selection import merged, select_paired
 from multieye.pipeline.sources import outside_reads
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import check_measurements
@@ -112,7 +115,8 @@ class ClosedForm:
 
 
 def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
-              processes: int | None = None, progress: bool = False, **kw) -> CalibrationRun:
+              processes: int | None = None, progress: bool = False, engine: str = "local",
+              scheduler: str | None = None, **kw) -> CalibrationRun:
     """Calibrate the rig described by a dataset folder (or its ``rig.yaml``).
 
     Parameters
@@ -129,6 +133,8 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
         ``if __name__ == "__main__":`` (:func:`multieye.imaging.batch.main_reimport_problem`).
     progress : bool
         Show a progress bar (only sensible on a terminal).
+    engine, scheduler : {"local", "dask"}, str or None
+        Detection on Dask: at a scheduler's address, or a local cluster (docs/recordings.md).
 
     Returns
     -------
@@ -140,9 +146,15 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     """
     start = time.perf_counter()
     rig = load_rig(dataset)                 # a folder or its rig.yaml, checked where it enters
-    cameras = load_camera_data(rig, processes=processes, progress=progress)
+    options = updated_options(options, kw)
+    with contextlib.ExitStack() as stack:
+        eng = None if engine == "local" and scheduler is None else stack.enter_context(
+            open_engine(engine, scheduler=scheduler, workers=processes))
+        cameras = load_camera_data(rig, processes=processes, progress=progress,
+                                   select=options.select, time_offset=options.time_offset,
+                                   engine=eng)
     loaded = time.perf_counter() - start
-    run = calibrate_rig(rig, cameras, options, **kw)
+    run = calibrate_rig(rig, cameras, options)
     detection = sum(d.detection_s for d in cameras.values())
     timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
                       total=time.perf_counter() - start)
@@ -197,6 +209,14 @@ def pair(problem: Problem) -> Pairing:
     offsets = _offsets(problem)
     paired = {n: pair_camera(problem.setup, d, time_offset=offsets[n])
               for n, d in problem.cameras.items()}
+    selection = {}
+    if problem.options.select:      # the images of cameras still over their budget, chosen
+        images = {n: p for n, p in paired.items() if problem.cameras[n].intrinsics is not None
+                  and p.observations[0].object_points is not None}
+        chosen, selection = select_paired(images, problem.cameras, problem.options.select,
+                                          problem.rig.sync_tolerance, offsets)
+        paired.update({n: _keep(paired[n], mask, reasons)
+                       for n, (mask, reasons) in chosen.items()})
     if problem.options.time_offset != "auto":    # cameras that see the target together
         instants, _ = paired_instants(paired, problem.cameras, offsets,
                                       problem.rig.sync_tolerance)
@@ -207,7 +227,8 @@ def pair(problem: Problem) -> Pairing:
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=list(paired), per_camera_motion=False)
     return Pairing(offsets=offsets, paired=paired, measurements=meas,
-                   warnings=tuple(w for d in problem.cameras.values() for w in d.warnings))
+                   warnings=tuple(w for d in problem.cameras.values() for w in d.warnings),
+                   selection=selection)
 
 
 def _offsets(problem: Problem) -> dict[str, float]:
@@ -385,6 +406,8 @@ def summarise(problem: Problem, pairing: Pairing, closed: ClosedForm, checks: Ch
         n: refit_paired(p, estimated[n]) if cameras[n].intrinsics_estimated and n in estimated
         else p for n, p in pairing.paired.items()})
     record = build_record(problem, final, closed, checks.final, refined, warnings)
+    cameras = {n: replace(d, selection=merged(d.selection, pairing.selection[n]))
+               if n in pairing.selection else d for n, d in cameras.items()}
     return CalibrationRun(rig=problem.rig, record=record, closed_form=closed.solution,
                           cameras={n: replace(d, intrinsics=estimated.get(n, d.intrinsics))
                                    for n, d in cameras.items()} if estimated else cameras,

@@ -76,6 +76,8 @@ def outside_reads(rig: Rig, named: str | os.PathLike) -> tuple[str, ...]:
         note("intrinsics", cam.intrinsics)
         note("precomputed poses", cam.poses)
         note("bag", cam.rosbag)
+        note("video", cam.video)
+        note("frame stamps", cam.stamps)
         if spec is not None and "{stem}" not in str(spec.file):
             note("motion capture", spec.file)
         for kind, folder in (("images", cam.images), ("intrinsics images",

@@ -105,6 +105,9 @@ class DatasetSpec:
         Extra motion-capture samples far (> 5 s) from any image, which pairing must ignore.
     processes : int or None
         Rendering processes (default: one per core).
+    image_format : {"png", "jpg"}
+        Image files written: PNG (lossless), or JPEG at quality 92 (a third of the bytes, for
+        long recordings).
     """
 
     n_cameras: int = 4
@@ -125,6 +128,7 @@ class DatasetSpec:
     start_time_s: float = 1_700_000_000.0
     decoy_samples: int = 0
     processes: int | None = None
+    image_format: str = "png"
 
 
 @dataclass(frozen=True)
@@ -181,7 +185,8 @@ def _render_one(args):
     target = target_from_spec(target_spec)
     img = render(target, intr, T, rng=np.random.default_rng(seed), blur_sigma=blur,
                  noise_sigma=noise)
-    ok, buf = cv2.imencode(".png", img)
+    params = [cv2.IMWRITE_JPEG_QUALITY, 92] if path.suffix == ".jpg" else []
+    ok, buf = cv2.imencode(path.suffix, img, params)
     if not ok:  # pragma: no cover - cv2 failure
         raise RuntimeError(f"could not encode {path}")
     write_bytes_atomic(path, buf.tobytes())
@@ -238,7 +243,7 @@ def render_dataset(out_dir: str | os.PathLike, spec: DatasetSpec = DatasetSpec()
         for k, (t, T) in enumerate(zip(t_img, T_ct)):
             if not visible(target, intr[j], T, border_px=8):
                 continue
-            path = out / name / f"{_stamp_name(t0 + t, spec.nanosecond_names)}.png"
+            path = out / name / f"{_stamp_name(t0 + t, spec.nanosecond_names)}.{spec.image_format}"
             jobs.append((spec.target, intr[j], T, seed * 100003 + j * 1000 + k, spec.blur_sigma,
                          spec.noise_sigma, path))
             n_ok += 1

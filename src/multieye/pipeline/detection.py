@@ -1,0 +1,85 @@
+"""Detection of a rig's images: one pool of worker processes for every camera's image files
+(issue 21), or the tasks of an engine (Dask distributed, issue 22); used by
+:mod:`multieye.pipeline.camera_data`."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+from multieye.imaging.batch import (
+    ImageJob,
+    detect_and_estimate,
+    detect_and_estimate_arrays,
+    detect_and_estimate_jobs,
+)
+from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
+from multieye.imaging.targets import target_from_spec
+from multieye.io import Rig, list_image_files, list_images, read_camera_intrinsics
+from multieye.pipeline.estimated_lens import check_model
+
+__all__ = ["Workers", "detect_all"]
+
+
+@dataclass(frozen=True)
+class Workers:
+    """How detection runs: worker processes (None: one per core), a progress bar, or the
+    tasks of an engine (Dask, :mod:`multieye.imaging.engines`); and the results of the image
+    files already detected (:func:`detect_all`), keyed by camera and ``"images"`` or
+    ``"intrinsics_images"``, with the seconds they took."""
+
+    processes: int | None
+    progress: bool
+    engine: Engine | None = None
+    detected: dict = field(default_factory=dict)
+    seconds: dict = field(default_factory=dict)
+
+    def detect(self, paths, target, intr) -> list:
+        if self.engine is not None:
+            return detect_on(self.engine, paths, target, intr)
+        return detect_and_estimate(paths, target, intr, processes=self.processes,
+                                   progress=self.progress)
+
+    def detect_arrays(self, items, target, intr) -> list:
+        if self.engine is not None:
+            return detect_arrays_on(self.engine, items, target, intr)
+        return detect_and_estimate_arrays(items, target, intr, processes=self.processes,
+                                          progress=self.progress)
+
+
+def detect_all(rig: Rig, motions: dict, workers: Workers,
+                chosen: dict) -> Workers:
+    """Every camera's image files (folders, not bags; those ``chosen`` before decoding)
+    detected on one pool of workers, with PnP in the worker where the lens is given; a
+    camera's ``intrinsics_images`` too.  On an engine, each camera's own detection runs
+    its tasks instead.
+
+    One pool for the rig keeps every core busy to the last image (a pool per camera left
+    one idle at the end of each camera). The seconds are shared out by image count.
+    """
+    keys, jobs = [], []
+    for name, cam in rig.cameras.items() if workers.engine is None else ():
+        if cam.source != "images":
+            continue
+        intr = None
+        if cam.intrinsics is not None:
+            intr = check_model(name, read_camera_intrinsics(cam), cam.model, cam.intrinsics)
+        target = target_from_spec(rig.target, path=rig.path)
+        listed = chosen[name][0] if name in chosen else motions[name].listed
+        images = list_images(cam.images) if listed is None else listed
+        keys.append((name, "images"))
+        jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
+        if cam.intrinsics_images is not None:
+            spec = cam.intrinsics_target or rig.target
+            keys.append((name, "intrinsics_images"))
+            jobs.append(ImageJob(tuple(str(p) for p in list_image_files(cam.intrinsics_images)),
+                                 target_from_spec(spec, path=rig.path), intr))
+    if not jobs:
+        return workers
+    t0 = time.perf_counter()
+    results = detect_and_estimate_jobs(jobs, processes=workers.processes,
+                                       progress=workers.progress)
+    seconds = time.perf_counter() - t0
+    total = max(sum(len(job.paths) for job in jobs), 1)
+    return replace(workers, detected=dict(zip(keys, results)),
+                   seconds={k: seconds * len(job.paths) / total for k, job in zip(keys, jobs)})

@@ -1,0 +1,55 @@
+"""The normal equations summed chunk by chunk (optimize.normal_equations.Assembly,
+ResidualGroup.linearize_chunks): the same system as from the whole Jacobian, and a
+refinement whose memory holds one chunk's Jacobian, not every image's."""
+
+from __future__ import annotations
+
+import tracemalloc
+
+import numpy as np
+import pytest
+
+import multieye
+from multieye.estimate.image_data import image_data
+from multieye.estimate.refine_images import refine_images
+from multieye.optimize import levenberg_marquardt as lm
+from multieye.optimize.normal_equations import Layout, assemble
+from multieye.sim.images import simulate_images
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 1000])
+def test_chunks_give_the_normal_equations_of_the_whole_jacobian(chunk, monkeypatch):
+    sc = simulate_images(1, n_cameras=3, images=[40, 25, 33])
+    data = image_data(sc.setup, sc.observations, sc.intrinsics)
+    fams = data.families(sc.X, sc.Y, data.mocap_measured)
+    groups = data.groups(0.3, 1e-3, 3e-4)
+    layout = Layout.of(fams)
+    whole = assemble(layout, {f.name: f for f in fams}, groups, lm.evaluate(fams, groups, True))
+    monkeypatch.setattr(lm, "CHUNK_SEGMENTS", chunk)
+    pieces = lm.normal_equations(fams, groups, layout)
+    for a, b in ((pieces.U, whole.U), (pieces.V, whole.V), (pieces.g, whole.g),
+                 (pieces.g_local, whole.g_local), (pieces.W.toarray(), whole.W.toarray())):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+
+
+def _peak_bytes(sc, sol) -> int:
+    tracemalloc.start()
+    try:
+        refine_images(sc.setup, sc.observations, sc.intrinsics, sol.X, sol.Y, pixel_sigma=0.3,
+                      mocap_rot_sigma_rad=sc.mocap_rot_sigma_rad,
+                      mocap_trans_sigma_m=sc.mocap_trans_sigma_m, max_iter=3)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_refinement_memory_does_not_hold_every_jacobian(monkeypatch):
+    """2 cameras x 1500 images: the peak of the refinement with 256-image chunks is well
+    under that with the whole Jacobian at once (one chunk per camera)."""
+    sc = simulate_images(2, n_cameras=2, images=1500)
+    sol = multieye.solve(sc.A, sc.B)
+    chunked = _peak_bytes(sc, sol)
+    monkeypatch.setattr(lm, "CHUNK_SEGMENTS", 10**9)
+    whole = _peak_bytes(sc, sol)
+    print(f"peak {chunked / 2**20:.0f} MB chunked, {whole / 2**20:.0f} MB whole")
+    assert chunked < 0.5 * whole, (chunked / 2**20, whole / 2**20)

@@ -1,0 +1,54 @@
+"""Detection of a calibration on Dask distributed (calibrate(engine="dask"),
+``multieye calibrate --engine dask``): the local pool's result, no worker left behind."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import psutil
+import pytest
+from click.testing import CliRunner
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from small_dataset import render_small  # noqa: E402
+
+from multieye.cli import main  # noqa: E402
+from multieye.core.errors import InputError  # noqa: E402
+from multieye.pipeline import calibrate  # noqa: E402
+
+pytest.importorskip("distributed", reason="the distributed extra is not installed")
+
+_HELPERS = ("multiprocessing.resource_tracker", "multiprocessing.forkserver")
+
+
+def _children() -> set[int]:
+    out = set()
+    for p in psutil.Process().children(recursive=True):
+        try:
+            if p.status() != psutil.STATUS_ZOMBIE and not any(
+                    h in " ".join(p.cmdline()) for h in _HELPERS):
+                out.add(p.pid)
+        except psutil.NoSuchProcess:
+            pass
+    return out
+
+
+def test_detection_on_a_local_dask_cluster_gives_the_local_result(tmp_path):
+    render_small(tmp_path / "d")
+    here = calibrate(tmp_path / "d", processes=1)
+    before = _children()
+    there = calibrate(tmp_path / "d", processes=2, engine="dask")
+    assert not _children() - before
+    for name in here.cameras:
+        assert [o.name for o in there.cameras[name].observations] == \
+            [o.name for o in here.cameras[name].observations]
+        np.testing.assert_allclose(there.T_ref_cam[name], here.T_ref_cam[name], atol=1e-9)
+    with pytest.raises(InputError, match="needs the dask engine"):
+        calibrate(tmp_path / "d", scheduler="tcp://127.0.0.1:8786")
+    res = CliRunner().invoke(main, ["calibrate", str(tmp_path / "d"), "-o", str(tmp_path / "o"),
+                                    "--engine", "dask", "--processes", "2"])
+    assert res.exit_code in (0, 3), res.output
+    assert (tmp_path / "o" / "calibration.json").is_file()
+    assert not _children() - before
