@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import multieye
-from multieye.estimate.image_data import image_data
+from multieye.estimate.image_data import ImageProblem, image_data
 from multieye.estimate.refine_images import refine_images
 from multieye.optimize import levenberg_marquardt as lm
 from multieye.optimize.normal_equations import Layout, assemble
@@ -20,7 +20,7 @@ from multieye.sim.images import simulate_images
 @pytest.mark.parametrize("chunk", [1, 7, 1000])
 def test_chunks_give_the_normal_equations_of_the_whole_jacobian(chunk, monkeypatch):
     sc = simulate_images(1, n_cameras=3, images=[40, 25, 33])
-    data = image_data(sc.setup, sc.observations, sc.intrinsics)
+    data = image_data(ImageProblem(sc.setup, sc.observations, sc.intrinsics))
     fams = data.families(sc.X, sc.Y, data.mocap_measured)
     groups = data.groups(0.3, 1e-3, 3e-4)
     layout = Layout.of(fams)
