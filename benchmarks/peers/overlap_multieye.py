@@ -63,7 +63,7 @@ def main(argv=None) -> None:
     if args.mocap:
         res = with_mocap(data, names, views, lenses, poses)
     else:
-        rv = RigViews(views, lenses, names, free_intrinsics=[True] * len(names))
+        rv = RigViews(dict(zip(names, views)), lenses, free_intrinsics=[True] * len(names))
         res = refine_rig(rv, np.concatenate(poses))
     out = {}
     for j, name in enumerate(names):

@@ -22,7 +22,7 @@ board that is not flat).
 
 Synopsis
 --------
->>> views = RigViews(per_camera, intrinsics, names, free_intrinsics=free)   # doctest: +SKIP
+>>> views = RigViews(views_by_name, intrinsics, free_intrinsics=free)      # doctest: +SKIP
 >>> res = refine_rig(views, T_cam_target)                                    # doctest: +SKIP
 >>> res.T_ref_cam, res.covariance                                            # doctest: +SKIP
 """
