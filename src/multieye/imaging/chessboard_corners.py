@@ -2,16 +2,18 @@
 
 ``cv2.findChessboardCorners`` (the classic detector) and ``cv2.findChessboardCornersSB``
 return the corners in their own orders (the two start from opposite corners of some boards);
-:func:`multieye.imaging.detect.detect` refines them (:func:`refine_corners`), checks the
-classic detector's grid (:func:`consistent_grid`) and puts them in the canonical order, so
-that the ids do not depend on the detector.  OpenCV's frames for each detector's order:
+:func:`locate` runs them in turn (:func:`search_order`), refines the corners at full size
+(:func:`refine_grid`) and checks the classic detector's grid (:func:`consistent_grid`);
+:func:`multieye.imaging.detect.detect` then puts them in the canonical order, so that the ids
+do not depend on the detector.  OpenCV's frames for each detector's order:
 :mod:`multieye.imaging.board_frames`.
 
 Synopsis
 --------
->>> raw = find_chessboard(gray, board, detector="classic")          # doctest: +SKIP
->>> refined = refine_corners(gray, raw, corner_window(raw, board))  # doctest: +SKIP
->>> consistent_grid(refined, board)                                 # doctest: +SKIP
+>>> corners = locate(gray, board)                                           # doctest: +SKIP
+>>> raw = find_chessboard(gray, board, detector="classic", half=False)      # doctest: +SKIP
+>>> refined = refine_grid(gray, raw, board)                                 # doctest: +SKIP
+>>> consistent_grid(refined, board)                                         # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -22,9 +24,9 @@ from numpy.typing import NDArray
 
 from multieye.imaging.targets import Chessboard, Target
 
-__all__ = ["find_chessboard", "refine_corners", "corner_window", "consistent_grid", "min_spacing",
-           "CLASSIC_FLAGS", "HALF_SIZE_SEARCH_ABOVE_PX", "MIN_HALF_SIZE_SQUARE_PX",
-           "MAX_SECOND_DIFFERENCE"]
+__all__ = ["locate", "search_order", "find_chessboard", "refine_grid", "refine_corners",
+           "corner_window", "consistent_grid", "min_spacing", "CLASSIC_FLAGS",
+           "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE"]
 
 F64 = NDArray[np.float64]
 
@@ -39,14 +41,6 @@ HALF_SIZE_SEARCH_ABOVE_PX = 640
 #: and, at half size, missed the board in 44 % of them; calibration images nearly all show
 #: the board.
 CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-
-#: Smallest side of a square, half-size pixels, at which the classic detector's corners at
-#: half size are kept: on smaller squares it misplaced a corner by a few pixels now and then
-#: (5 px, where squares were 8.6 half-size pixels; cornerSubPix at full size did not bring it
-#: back), so the board is searched at full size instead.
-MIN_HALF_SIZE_SQUARE_PX = 12.0
-
-
 
 #: Largest departure of a corner's second difference along its row or column from the
 #: median of that row's (column's), as a fraction of the median spacing (at least 1 px), in a
@@ -76,27 +70,54 @@ def consistent_grid(points: F64, target: Target) -> bool:
     return True
 
 
+def search_order(gray: NDArray[np.uint8]) -> tuple[tuple[str, bool], ...]:
+    """The searches :func:`locate` makes, in order: ``(detector, at half size)``; the classic
+    detector before SB, each at half size first on images of
+    :data:`HALF_SIZE_SEARCH_ABOVE_PX` and more."""
+    halves = (True, False) if max(gray.shape) >= HALF_SIZE_SEARCH_ABOVE_PX else (False,)
+    return tuple((detector, half) for detector in ("classic", "sb") for half in halves)
+
+
 def find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
-                     detector: str | None = None) -> F64 | None:
+                    detector: str | None = None, half: bool | None = None) -> F64 | None:
     """Unrefined inner corners, shape (rows * cols, 2), full-size pixels, in the order of the
-    detector that found them: classic, then SB, each at half size first on large images.
-    ``detector`` ("classic" or "sb"): that one only (for tests and benchmarks)."""
+    detector that found them.
+
+    ``detector`` ("classic" or "sb") and ``half`` (search the image halved) restrict the
+    searches of :func:`search_order` to those; the first that finds the board wins."""
     size = (target.cols, target.rows)
-    half = None
-    if max(gray.shape) >= HALF_SIZE_SEARCH_ABOVE_PX:
-        half = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2),
-                          interpolation=cv2.INTER_AREA)
-    searches = {"classic": lambda img: cv2.findChessboardCorners(img, size, flags=CLASSIC_FLAGS),
-                "sb": lambda img: cv2.findChessboardCornersSB(img, size, flags=0)}
-    for name in (("classic", "sb") if detector is None else (detector,)):
-        if half is not None:
-            found, small = searches[name](half)
-            if found and (name == "sb" or min_spacing(small.reshape(-1, 2), target)
-                          >= MIN_HALF_SIZE_SQUARE_PX):
-                return 2.0 * small.reshape(-1, 2).astype(np.float64) + 0.5   # pixel centres
-        found, full = searches[name](gray)
+    for name, at_half in search_order(gray):
+        if (detector is not None and name != detector) or (half is not None and at_half != half):
+            continue
+        image = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2),
+                           interpolation=cv2.INTER_AREA) if at_half else gray
+        if name == "classic":
+            found, corners = cv2.findChessboardCorners(image, size, flags=CLASSIC_FLAGS)
+        else:
+            found, corners = cv2.findChessboardCornersSB(image, size, flags=0)
         if found:
-            return full.reshape(-1, 2).astype(np.float64)
+            corners = corners.reshape(-1, 2).astype(np.float64)
+            return 2.0 * corners + 0.5 if at_half else corners     # pixel centres
+    return None
+
+
+def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
+    """The board's inner corners refined at full size (:func:`refine_grid`), in the order of
+    the detector that found them, or None.
+
+    The searches of :func:`search_order` run until one finds the board; the classic
+    detector's corners are kept only on a smooth grid (:func:`consistent_grid`), else the
+    next search runs (SB's are kept as found).  A board the classic detector finds at half
+    size is not searched again at full size, however small its squares: a corner it
+    misplaces there (5 px on 640 x 480 images with squares of 8.6 half-size pixels) breaks
+    the grid, and the full-size search follows."""
+    for detector, half in search_order(gray):
+        raw = find_chessboard(gray, target, detector=detector, half=half)
+        if raw is None:
+            continue
+        corners = refine_grid(gray, raw, target)
+        if detector == "sb" or consistent_grid(corners, target):
+            return corners
     return None
 
 
@@ -117,7 +138,18 @@ def corner_window(points: F64, target: Target) -> int:
     return int(np.clip(0.4 * np.min(d), 2, 11))
 
 
+def refine_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> F64:
+    """Grid corners refined by ``cornerSubPix`` in a window of 40 % of the smallest square
+    (:func:`corner_window`), measured on the refined corners: when the unrefined corners
+    (found at half size, say) gave another window, they are refined again in that one."""
+    window = corner_window(points, target)
+    refined = refine_corners(gray, points, window)
+    again = corner_window(refined, target)
+    return refined if again == window else refine_corners(gray, refined, again)
+
+
 def refine_corners(gray: NDArray[np.uint8], points: F64, half: int) -> F64:
+    """``cv2.cornerSubPix`` of ``points`` (N, 2), pixels, in a (2 half + 1) px window."""
     pts = points.astype(np.float32).reshape(-1, 1, 2)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
     cv2.cornerSubPix(gray, pts, (half, half), (-1, -1), criteria)

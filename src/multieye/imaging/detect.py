@@ -157,8 +157,9 @@ def detect(image: ArrayLike, target: Target) -> Detection | None:
 
 def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection | None:
     """The classic ``findChessboardCorners`` first, ``findChessboardCornersSB`` only where it
-    fails (each at half size first on large images); the corners refined with
-    ``cornerSubPix`` at full size in a window of 40 % of a square, then put in the canonical
+    fails or leaves a corner off the grid (each at half size first on large images); the
+    corners refined with ``cornerSubPix`` at full size in a window of 40 % of a square
+    (:func:`multieye.imaging.chessboard_corners.locate`), then put in the canonical
     order (:func:`_canonical`), so that the order and ids do not depend on the detector that
     found them (the two start from opposite corners of some boards).
 
@@ -168,17 +169,8 @@ def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection
     at the image border), so it stays as the fallback. SB's own CALIB_CB_ACCURACY costs 4x
     the time and gained nothing over cornerSubPix on its corners (PnP RMS on the
     young_mocap_cam images)."""
-    corners = cc.find_chessboard(gray, target, detector="classic")
-    if corners is not None:
-        corners = cc.refine_corners(gray, corners, cc.corner_window(corners, target))
-        if not cc.consistent_grid(corners, target):
-            corners = None          # a corner off the grid: SB decides
-    if corners is None:
-        corners = cc.find_chessboard(gray, target, detector="sb")
-        if corners is None:
-            return None
-        corners = cc.refine_corners(gray, corners, cc.corner_window(corners, target))
-    return _canonical(gray, target, corners)
+    corners = cc.locate(gray, target)
+    return None if corners is None else _canonical(gray, target, corners)
 
 
 #: Per circle target, whether its circles were last found light on dark: tried first next
