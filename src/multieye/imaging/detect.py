@@ -235,12 +235,53 @@ def _symmetries(target: Target) -> tuple[tuple[NDArray[np.int64], bool], ...]:
     return tuple(out)
 
 
-def _affine(obj_xy: F64, img: F64) -> F64:
+@dataclass(frozen=True)
+class _Orders:
+    """What :func:`_canonical` needs of a grid target, computed once per target.
+
+    Attributes
+    ----------
+    object_points : ndarray, shape (N, 3)
+    pinv : ndarray, shape (2, N)
+        Pseudo-inverse of the centred board (x, y): ``(pinv @ centred pixels).T`` is the
+        linear part of the least-squares affine map from the board to the pixels.
+    sources : tuple of (ndarray, bool)
+        Per symmetry of the board (:func:`_symmetries`): ``source`` with ``source[c]`` the
+        detected index that lands on canonical point c, and whether it is a rotation.
+    squares : ndarray, shape (S, 4)
+        Inner squares of the grid as indices of their corners (of the detected grid, which
+        OpenCV returns row by row like the canonical one).
+    black : tuple of ndarray
+        Chessboards: per symmetry, the squares (rows of ``squares``) that its order expects
+        black; empty otherwise.
+    """
+
+    object_points: F64
+    pinv: F64
+    sources: tuple[tuple[NDArray[np.int64], bool], ...]
+    squares: NDArray[np.int64]
+    black: tuple[NDArray[np.int64], ...]
+
+
+@lru_cache(maxsize=32)
+def _orders(target: Target) -> _Orders:
+    obj = target.object_points()
+    obj.setflags(write=False)
+    xy = obj[:, :2] - obj[:, :2].mean(axis=0)
+    sources = tuple((np.argsort(perm), proper) for perm, proper in _symmetries(target))
+    if not isinstance(target, Chessboard):
+        return _Orders(obj, np.linalg.pinv(xy), sources, np.zeros((0, 4), np.int64), ())
+    squares = _square_corners(target)
+    index = {frozenset(corners): k for k, corners in enumerate(squares.tolist())}
+    expected = squares[_expected_black(target)]
+    black = tuple(np.array(sorted(index[frozenset(c)] for c in src[expected].tolist()))
+                  for src, _ in sources)
+    return _Orders(obj, np.linalg.pinv(xy), sources, squares, black)
+
+
+def _affine(orders: _Orders, img: F64) -> F64:
     """2x2 linear part of the least-squares affine map from board (x, y) to pixels."""
-    A = obj_xy - obj_xy.mean(axis=0)
-    B = img - img.mean(axis=0)
-    M, *_ = np.linalg.lstsq(A, B, rcond=None)
-    return M.T
+    return (orders.pinv @ (img - img.mean(axis=0))).T
 
 
 def _canonical(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detection:
@@ -251,28 +292,34 @@ def _canonical(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detect
     image best; ties left by the board's symmetry are broken by the direction of the x
     axis in the image and reported.
     """
-    obj = target.object_points()
-    proper_id = np.linalg.det(_affine(obj[:, :2], detected)) > 0
+    orders = _orders(target)
+    proper_id = np.linalg.det(_affine(orders, detected)) > 0
     # source[c] = detected index that lands on canonical point c
-    sources = [np.argsort(perm) for perm, proper in _symmetries(target) if proper == proper_id]
+    kept = [k for k, (_, proper) in enumerate(orders.sources) if proper == proper_id]
     warnings: tuple[str, ...] = ()
     if isinstance(target, Chessboard):
-        signature = [_dark_squares(src, target) for src in sources]
-        scores = [_colour_score(gray, detected[src], target) for src in sources]
-        best = signature[int(np.argmax(scores))]
-        sources = [src for src, sig in zip(sources, signature) if sig == best]
+        grey = _square_greys(gray, detected, orders.squares)
+        total = grey.sum()
+        scores = []
+        for k in kept:                          # white minus black, in mean grey
+            black = orders.black[k]
+            dark = grey[black].sum()
+            scores.append((total - dark) / (len(grey) - len(black)) - dark / len(black))
+        best = orders.black[kept[int(np.argmax(scores))]]
+        kept = [k for k in kept if np.array_equal(orders.black[k], best)]
+    sources = [orders.sources[k][0] for k in kept]
     if len(sources) > 1:
         right = []
         for src in sources:
-            x_dir = _affine(obj[:, :2], detected[src])[:, 0]
+            x_dir = _affine(orders, detected[src])[:, 0]
             right.append(x_dir[0] / np.linalg.norm(x_dir))
         sources = [sources[int(np.argmax(right))]]
         warnings = (f"{target.kind} {target.rows}x{target.cols} looks the same after a turn, so its "
                     "point order cannot be told from the image; the order whose x axis points right "
                     "in the image was taken (use a board without that symmetry, e.g. a chessboard "
                     "with rows + cols odd, to make poses comparable across images)",)
-    return Detection(ids=np.arange(len(obj)), image_points=detected[sources[0]],
-                     object_points=obj, warnings=warnings,
+    return Detection(ids=np.arange(len(orders.object_points)), image_points=detected[sources[0]],
+                     object_points=orders.object_points.copy(), warnings=warnings,
                      circle_diameter=getattr(target, "diameter", None))
 
 
@@ -289,27 +336,19 @@ def _expected_black(target: Chessboard) -> NDArray[np.bool_]:
     return (r + c) % 2 == 0
 
 
-def _dark_squares(source: NDArray[np.int64], target: Chessboard) -> frozenset:
-    """The physical squares (as sets of detected corner indices) an order expects black."""
-    sq = source[_square_corners(target)]
-    return frozenset(frozenset(row) for row in sq[_expected_black(target)].tolist())
-
-
 #: Offsets of a 3 x 3 box of pixels, shape (9, 2).
 _BOX_OFFSETS = np.stack(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]), axis=-1).reshape(9, 2)
 
 
-def _colour_score(gray: NDArray[np.uint8], ordered: F64, target: Chessboard) -> float:
-    """Mean grey of the squares expected white minus that of those expected black."""
-    centres = ordered[_square_corners(target)].mean(axis=1)
-    # the mean of a 3 x 3 box around each centre, read bilinearly: the same as sampling the
-    # image blurred by a 3 x 3 box, without blurring the whole image
+def _square_greys(gray: NDArray[np.uint8], corners: F64, squares: NDArray[np.int64]) -> F64:
+    """Mean grey of a 3 x 3 box at the centre of every square (its 4 corners' mean), read
+    bilinearly: the same as sampling the image blurred by a 3 x 3 box, without blurring the
+    whole image.  Shape (S,)."""
+    centres = corners[squares].mean(axis=1)
     pts = (centres[:, None, :] + _BOX_OFFSETS[None]).reshape(1, -1, 2).astype(np.float32)
     samples = cv2.remap(gray, pts[..., 0], pts[..., 1], cv2.INTER_LINEAR,
                         borderMode=cv2.BORDER_REPLICATE)
-    values = samples.reshape(len(centres), 9).astype(np.float64).mean(axis=1)
-    black = _expected_black(target)
-    return float(values[~black].mean() - values[black].mean())
+    return samples.reshape(len(centres), 9).astype(np.float64).mean(axis=1)
 
 
 # --------------------------------------------------------------------------- markers

@@ -150,25 +150,24 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
     img = np.asarray(detection.image_points, dtype=np.float64)
     if len(obj) < 4:
         raise InputError(f"PnP needs at least 4 points, got {len(obj)}")
-    if not np.allclose(obj[:, 2], 0.0):
+    if not np.abs(obj[:, 2]).max() <= 1e-8:           # np.allclose(z, 0), 10x faster
         raise InputError("PnP here is for planar targets: object points must have z = 0")
     xy = undistort_points(img, intrinsics)
-    ok = np.all(np.isfinite(xy), axis=1)
-    if ok.sum() < 4:
-        raise InputError(f"only {int(ok.sum())} of {len(obj)} points lie where the lens model can "
-                         "be inverted; PnP needs 4")
-    obj, img, xy = obj[ok], img[ok], xy[ok]
-    centred = obj[:, :2] - obj[:, :2].mean(axis=0)
-    sv = np.linalg.svd(centred, compute_uv=False)
-    if sv[1] <= 1e-6 * sv[0]:
+    ok = np.isfinite(xy).all(axis=1)
+    if not ok.all():
+        if ok.sum() < 4:
+            raise InputError(f"only {int(ok.sum())} of {len(obj)} points lie where the lens "
+                             "model can be inverted; PnP needs 4")
+        obj, img, xy = obj[ok], img[ok], xy[ok]
+    if _collinear(obj[:, :2]):
         raise InputError(f"the {len(obj)} points lie on one line: the pose is not determined")
 
     _, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
     candidates = []
     for rvec, tvec in zip(rvecs, tvecs):
-        T = _transform(rvec, tvec)
-        err = reprojection_residuals(T, obj, img, intrinsics)
-        candidates.append((float(np.sum(err ** 2)), rvec.reshape(3).copy(), tvec.reshape(3).copy()))
+        rvec, tvec = rvec.reshape(3).copy(), tvec.reshape(3).copy()
+        err = _pixel_errors(obj, img, intrinsics, rvec, tvec)
+        candidates.append((float(np.sum(err ** 2)), rvec, tvec))
     candidates.sort(key=lambda c: c[0])
     _, rvec, tvec = candidates[0]
     rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
@@ -180,13 +179,37 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
             img = raw - _centroid_offsets(_transform(rvec, tvec), obj, detection.circle_diameter / 2, intrinsics)
             rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
     T = _transform(rvec, tvec)
-    err = reprojection_residuals(T, obj, img, intrinsics)
+    err = _pixel_errors(obj, img, intrinsics, rvec, tvec)
     rms = float(np.sqrt(np.mean(err ** 2)))
     alt, alt_rms = None, None
     if len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
         alt, alt_rms = _alternative(obj, img, intrinsics, candidates[1][1:], T, rms)
     return PoseEstimate(T_cam_target=T, rms_px=rms, max_px=float(err.max()), n_points=len(obj),
                         alternative=alt, alternative_rms_px=alt_rms)
+
+
+def _collinear(xy: F64) -> bool:
+    """Whether planar points lie on one line: the smaller singular value of the centred
+    points at most 1e-6 of the larger (from the 2 x 2 scatter matrix, in closed form)."""
+    c = xy - xy.mean(axis=0)
+    a, b, d = float(c[:, 0] @ c[:, 0]), float(c[:, 0] @ c[:, 1]), float(c[:, 1] @ c[:, 1])
+    mean, spread = (a + d) / 2, float(np.hypot((a - d) / 2, b))
+    return bool(mean - spread <= 1e-12 * (mean + spread))
+
+
+def _pixel_errors(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F64) -> F64:
+    """:func:`reprojection_residuals` at the pose ``(rvec, tvec)``, without its checks of the
+    input: pixel distance per point, inf for points not in front of the camera."""
+    rvec, tvec = rvec.reshape(3, 1), tvec.reshape(3, 1)
+    z = obj @ cv2.Rodrigues(rvec)[0][2] + tvec[2, 0]
+    pts = obj.reshape(-1, 1, 3)
+    if intrinsics.model == "fisheye":
+        uv, _ = cv2.fisheye.projectPoints(pts, rvec, tvec, intrinsics.K, intrinsics.dist)
+    else:
+        uv, _ = cv2.projectPoints(pts, rvec, tvec, intrinsics.K, intrinsics.dist)
+    d = uv.reshape(-1, 2) - img
+    err = np.sqrt(np.einsum("ij,ij->i", d, d))
+    return np.where((z > 0) & np.isfinite(err), err, np.inf)
 
 
 def _limit_px(rms: float, n_points: int) -> float:
@@ -208,8 +231,7 @@ def _alternative(obj: F64, img: F64, intrinsics: Intrinsics, start, T: F64, rms:
     cos = (np.trace(T[:3, :3].T @ T2[:3, :3]) - 1.0) / 2.0
     if np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))) < _DISTINCT_DEG or T2[2, 3] <= 0:
         return None, None                       # the refinement fell into the first pose
-    err = reprojection_residuals(T2, obj, img, intrinsics)
-    rms2 = float(np.sqrt(np.mean(err ** 2)))
+    rms2 = float(np.sqrt(np.mean(_pixel_errors(obj, img, intrinsics, rvec, tvec) ** 2)))
     if not rms2 <= _limit_px(rms, len(obj)):
         return None, None
     return T2, rms2
