@@ -181,3 +181,30 @@ def test_pnp_is_exact_on_exact_points(rng):
         pose = estimate_pose(Detection(np.arange(35), pts, board.object_points()), camera)
         np.testing.assert_allclose(pose.T_cam_target, T, atol=1e-8)
         assert pose.rms_px < 1e-6 and pose.max_px < 1e-5
+
+
+def test_pnp_pixel_errors_are_the_reprojection_residuals(rng):
+    """estimate_pose scores its candidates and reports its RMS with cv2.projectPoints at the
+    pose (pnp._pixel_errors, issue 21: less Python per image); it must give
+    reprojection_residuals' figures, inf for a point behind the camera included."""
+    from multieye.imaging import pnp
+    from multieye.imaging.pnp import reprojection_residuals
+
+    board = Chessboard(rows=5, cols=7, spacing=0.05)
+    obj = board.object_points()
+    for camera in (PINHOLE, FISHEYE):
+        T = facing_pose(board, rng.normal(0, 0.3, 3), 0.6)
+        pts = true_pixels(board, camera, T, np.arange(35)) + rng.normal(0, 0.3, (35, 2))
+        rvec, tvec = cv2.Rodrigues(T[:3, :3])[0].ravel(), T[:3, 3].copy()
+        fast = pnp._pixel_errors(obj, pts, camera, rvec, tvec)
+        assert np.allclose(fast, reprojection_residuals(T, obj, pts, camera), rtol=1e-9, atol=1e-9)
+        pose = estimate_pose(Detection(np.arange(35), pts, obj), camera)
+        slow = reprojection_residuals(pose.T_cam_target, obj, pts, camera)
+        assert abs(pose.rms_px - np.sqrt(np.mean(slow ** 2))) < 1e-9
+        assert abs(pose.max_px - slow.max()) < 1e-9
+        behind = T.copy()
+        behind[2, 3] = -0.05                 # the board through the camera's plane
+        slow = reprojection_residuals(behind, obj, pts, camera)
+        fast = pnp._pixel_errors(obj, pts, camera, rvec, behind[:3, 3])
+        assert np.isinf(slow).any() and np.array_equal(np.isinf(fast), np.isinf(slow))
+        assert np.allclose(fast[np.isfinite(slow)], slow[np.isfinite(slow)], atol=1e-9)

@@ -200,7 +200,8 @@ def _collinear(xy: F64) -> bool:
 def _pixel_errors(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F64) -> F64:
     """:func:`reprojection_residuals` at the pose ``(rvec, tvec)``, without its checks of the
     input: pixel distance per point, inf for points not in front of the camera."""
-    rvec, tvec = rvec.reshape(3, 1), tvec.reshape(3, 1)
+    rvec = np.ascontiguousarray(rvec, dtype=np.float64).reshape(3, 1)
+    tvec = np.ascontiguousarray(tvec, dtype=np.float64).reshape(3, 1)
     z = obj @ cv2.Rodrigues(rvec)[0][2] + tvec[2, 0]
     pts = obj.reshape(-1, 1, 3)
     if intrinsics.model == "fisheye":
