@@ -58,16 +58,28 @@ def consistent_grid(points: F64, target: Target) -> bool:
     20 px) where SB found it. A departure flagged wrongly only costs SB's search."""
     rows, cols = target.grid_shape()
     grid = points.reshape(rows, cols, 2)
-    spacing = float(np.median(np.linalg.norm(np.diff(grid, axis=1), axis=2)))
+    spacing = float(_median(_lengths(grid[:, 1:] - grid[:, :-1]).ravel(), 0))
     limit = max(1.0, MAX_SECOND_DIFFERENCE * spacing)
     for g in (grid, grid.transpose(1, 0, 2)):
         if g.shape[1] < 3:
             continue
         d2 = g[:, :-2] - 2.0 * g[:, 1:-1] + g[:, 2:]
-        departure = np.linalg.norm(d2 - np.median(d2, axis=1, keepdims=True), axis=2)
-        if departure.max() > limit:
+        if _lengths(d2 - _median(d2, 1)[:, None]).max() > limit:
             return False
     return True
+
+
+def _median(a: F64, axis: int) -> F64:
+    """``np.median(a, axis)`` by a sort (the same values, less overhead on small arrays)."""
+    s = np.sort(a, axis=axis)
+    n = s.shape[axis]
+    return (s.take((n - 1) // 2, axis=axis) + s.take(n // 2, axis=axis)) / 2
+
+
+def _lengths(v: F64) -> F64:
+    """Lengths of the 2-vectors along the last axis (``np.linalg.norm(v, axis=-1)``, with
+    less overhead on the small arrays of one board)."""
+    return np.sqrt(np.einsum("...i,...i->...", v, v))
 
 
 def search_order(gray: NDArray[np.uint8]) -> tuple[tuple[str, bool], ...]:
@@ -125,17 +137,12 @@ def min_spacing(points: NDArray, target: Target) -> float:
     """Smallest distance between neighbouring grid points, pixels."""
     rows, cols = target.grid_shape()
     grid = np.asarray(points, dtype=np.float64).reshape(rows, cols, 2)
-    return float(min(np.linalg.norm(np.diff(grid, axis=0), axis=2).min(),
-                     np.linalg.norm(np.diff(grid, axis=1), axis=2).min()))
+    return float(min(_lengths(grid[1:] - grid[:-1]).min(), _lengths(grid[:, 1:] - grid[:, :-1]).min()))
 
 
 def corner_window(points: F64, target: Target) -> int:
     """Half-size of the cornerSubPix window: 40 % of the smallest neighbour distance."""
-    rows, cols = target.grid_shape()
-    grid = points.reshape(rows, cols, 2)
-    d = np.concatenate([np.linalg.norm(np.diff(grid, axis=0), axis=2).ravel(),
-                        np.linalg.norm(np.diff(grid, axis=1), axis=2).ravel()])
-    return int(np.clip(0.4 * np.min(d), 2, 11))
+    return int(np.clip(0.4 * min_spacing(points, target), 2, 11))
 
 
 def refine_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> F64:
