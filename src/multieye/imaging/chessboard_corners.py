@@ -44,7 +44,8 @@ CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 
 #: Largest departure of a corner's second difference along its row or column from the
 #: median of that row's (column's), as a fraction of the median spacing (at least 1 px), in a
-#: grid the classic detector found; beyond it, SB searches the image again.
+#: grid the classic detector found; beyond it, the next search of :func:`search_order` runs
+#: (the classic detector at full size after half size, then SB).
 MAX_SECOND_DIFFERENCE = 0.05
 
 
@@ -55,7 +56,7 @@ def consistent_grid(points: F64, target: Target) -> bool:
 
     A corner off by ``e`` moves the second differences around it by ``e`` to ``2 e``: the
     classic detector put a corner 12 px off on a blurred JPEG (yizhong_toolkit's 16.jpg, squares of
-    20 px) where SB found it. A departure flagged wrongly only costs SB's search."""
+    20 px) where SB found it. A departure flagged wrongly only costs the next search."""
     rows, cols = target.grid_shape()
     grid = points.reshape(rows, cols, 2)
     spacing = float(_median(_lengths(grid[:, 1:] - grid[:, :-1]).ravel(), 0))
