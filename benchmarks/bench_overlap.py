@@ -86,23 +86,34 @@ def corners(data: Path) -> Path:
     inst, _ = instants_from_stamps(stamps, default_sync_tolerance(stamps))
     for name, i in zip(names, inst):
         arrays[f"{name}_instants"] = i
-    save_corners(out, names, arrays, np.asarray(truth["T_ref_target"]))
+    save_corners(out, names, arrays)
     print(f"corners: {dict(zip(names, found))} full boards")
     return out
 
 
-def save_corners(out: Path, names: list[str], arrays: dict, T_ref_target: np.ndarray) -> None:
-    """Write the peers' ``corners.npz``, with the board's motion capture at each instant (for
-    multieye with --mocap): 0.03 deg and 0.1 mm per axis, as the rendered rig of
-    bench_peers.py."""
-    rng = np.random.default_rng(7)
+def save_corners(out: Path, names: list[str], arrays: dict) -> None:
+    """Write the peers' ``corners.npz`` (the board's motion capture: :func:`add_mocap`)."""
+    np.savez(out, cameras=np.array(names), spacing=SPEC.target["spacing"],
+             size=np.array([SPEC.width, SPEC.height]), **arrays)
+
+
+def add_mocap(npz: Path, truth: dict, seed: int) -> None:
+    """Put the board's motion capture at each instant into ``npz`` (for multieye with
+    --mocap), unless it is there for this rig: 0.03 deg and 0.1 mm per axis (as the rendered
+    rig of bench_peers.py), drawn for each rig from its own seed, so that the rigs also
+    sample the motion capture's noise (they all shared one draw before)."""
+    c = dict(np.load(npz))
+    if int(c.get("mocap_seed", -1)) == seed:
+        return
+    T_ref_target = np.asarray(truth["T_ref_target"])
+    rng = np.random.default_rng([seed, 7])
     T_world_ref = g.transform_from_rotvec([0, 0, 0.4], [0.5, -0.2, 1.0])
     T_marker_target = g.transform_from_rotvec([0.1, -0.2, 0.3], [0.05, 0.02, -0.03])
     noise = g.transform_from_rotvec(rng.normal(scale=np.radians(0.03), size=(len(T_ref_target), 3)),
                                     rng.normal(scale=1e-4, size=(len(T_ref_target), 3)))
-    arrays["mocap_T"] = T_world_ref @ T_ref_target @ g.inv(T_marker_target) @ noise
-    np.savez(out, cameras=np.array(names), spacing=SPEC.target["spacing"],
-             size=np.array([SPEC.width, SPEC.height]), **arrays)
+    c["mocap_T"] = T_world_ref @ T_ref_target @ g.inv(T_marker_target) @ noise
+    c["mocap_seed"] = np.array(seed)
+    np.savez(npz, **c)
 
 
 def simulated_corners(data: Path, seed: int, sigma_px: float) -> Path:
@@ -131,7 +142,7 @@ def simulated_corners(data: Path, seed: int, sigma_px: float) -> Path:
                                 "dist": sc.intrinsics[j].dist.tolist(),
                                 "model": sc.intrinsics[j].model} for j, n in enumerate(names)}}
     (data / "ground_truth.json").write_text(json.dumps(truth))
-    save_corners(out, names, arrays, sc.T_ref_target)
+    save_corners(out, names, arrays)
     return out
 
 
@@ -195,6 +206,7 @@ def main(argv=None) -> None:
                                        processes=args.processes)
             npz = corners(data)
         truth = json.loads((data / "ground_truth.json").read_text())
+        add_mocap(npz, truth, seed)
         names = list(truth["T_ref_cam"])
         c = np.load(npz)
         peers = {"multieye": [sys.executable, str(PEERS / "overlap_multieye.py"), str(npz)],
