@@ -2,22 +2,29 @@
 
 Run from the repository root::
 
-    python benchmarks/bench_overlap.py [--data /tmp/bench_overlap] [--seeds 5] [--runs 3]
+    python benchmarks/bench_overlap.py [--data /tmp/bench_overlap] [--seeds 40] [--runs 1]
+        [--first-seed 0] [--pixel-noise PX] [--peers multieye,mrcal]
         [--mrcal-python /tmp/venv-h-bench-mrcal/bin/python]
 
-The rig (:func:`multieye.sim.overlap.render_overlap_dataset`, seeds 0 .. --seeds - 1): three cameras on an
-arc 34 degrees apart, 1.2 m from the centre of the work volume, two radial-tangential lenses
-(k1 k2 p1 p2) and one equidistant fisheye, 800 x 600; a 6 x 9 chessboard shown at 50 instants,
-rendered (blur 0.7 px, sensor noise 2 grey levels), no motion capture.  The corners are
-detected once by multieye's detector (full boards only) and the same corners, with each
-image's instant (stamps within the default ``sync_tolerance``), go to every peer, each in its
-own process (``benchmarks/peers/overlap_*.py``), timed two ways, the same for every peer: the
-whole process (interpreter start, imports, reading the corners, solving, writing; CPU time of
-the child from ``resource.getrusage``, and wall time), and in the process from the corners in
-memory to the result (``time.process_time``, which the peer reports; imports excluded):
+The rig (:func:`multieye.sim.overlap.render_overlap_dataset`, seeds --first-seed ..
+--first-seed + --seeds - 1): three cameras on an arc 34 degrees apart, 1.2 m from the centre
+of the work volume, two radial-tangential lenses (k1 k2 p1 p2) and one equidistant fisheye,
+800 x 600; a 6 x 9 chessboard shown at 50 instants, rendered (blur 0.7 px, sensor noise 2 grey
+levels), no motion capture.  The corners are detected once by multieye's detector (full
+boards only) and the same corners, with each image's instant (stamps within the default
+``sync_tolerance``), go to every peer, each in its own process
+(``benchmarks/peers/overlap_*.py``).  With ``--pixel-noise PX`` nothing is rendered: the
+corners are the true ones with Gaussian noise of PX pixels per coordinate, which compares the
+estimators without the renderer's and the detector's errors.  For ``multieye + mocap`` the
+board's motion capture at each instant is drawn per rig (0.03 deg and 0.1 mm per axis).
+Every peer is timed two ways, the same for each: the whole process (interpreter start,
+imports, reading the corners, solving, writing; CPU time of the child from
+``resource.getrusage``, and wall time), and in the process from the corners in memory to the
+result (``time.process_time``, which the peer reports; imports excluded):
 
 - ``multieye``: OpenCV's per-camera start, then the joint problem of every lens (the right
   model per camera), every ``T_ref_cam`` and one board pose per instant;
+- ``multieye + mocap``: the same with the board's motion capture (the mixed problem);
 - ``mrcal``: ``mrcal-calibrate-cameras``' joint solve (one lens model for all cameras:
   ``LENSMODEL_OPENCV8``; mrcal has no equidistant model);
 - ``opencv``: ``calibrateCamera`` / ``fisheye.calibrate`` per camera, then
@@ -28,8 +35,9 @@ raw and after the best-fitting rotation, ``benchmarks/peers/lens_error.py``), th
 ``T_ref_cam`` against the truth (deg, mm), RMS over the rigs, and per peer the wall and CPU
 times (median over every run, the peers interleaved so that they see the same load).  Since
 the lens figures differ between rigs by more than between peers, the lens error after the
-rotation is also listed per rig, with the mean and the standard deviation over the rigs of
-each peer's difference from mrcal's (paired: the same rig).  Nothing is asserted.
+rotation is also listed per rig, with each peer's paired difference from mrcal's on the same
+rig (and multieye + mocap's from multieye's): mean, standard deviation and standard error
+over the rigs, and on how many rigs it is below.  Nothing is asserted.
 """
 
 from __future__ import annotations
@@ -184,7 +192,7 @@ def evaluate(results: dict, truth: dict, c) -> dict:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=Path("/tmp/bench_overlap"))
-    ap.add_argument("--seeds", type=int, default=1, help="rendered rigs (seeds 0, 1, ...)")
+    ap.add_argument("--seeds", type=int, default=1, help="rigs (seeds --first-seed, --first-seed + 1, ...)")
     ap.add_argument("--runs", type=int, default=3, help="timed runs of each peer per rig")
     ap.add_argument("--mrcal-python", default="/tmp/venv-h-bench-mrcal/bin/python")
     ap.add_argument("--processes", type=int, default=2)
