@@ -192,7 +192,8 @@ def evaluate(results: dict, truth: dict, c) -> dict:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=Path("/tmp/bench_overlap"))
-    ap.add_argument("--seeds", type=int, default=1, help="rigs (seeds --first-seed, --first-seed + 1, ...)")
+    ap.add_argument("--seeds", type=int, default=1,
+                    help="rigs (seeds --first-seed, --first-seed + 1, ...)")
     ap.add_argument("--runs", type=int, default=3, help="timed runs of each peer per rig")
     ap.add_argument("--mrcal-python", default="/tmp/venv-h-bench-mrcal/bin/python")
     ap.add_argument("--processes", type=int, default=2)
