@@ -18,17 +18,13 @@ Synopsis
 
 from __future__ import annotations
 
-import ast
 import math
 import multiprocessing
 import os
 import sys
-import threading
-import warnings
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
-from functools import lru_cache
 from collections.abc import Iterable
 
 import cv2
@@ -40,12 +36,13 @@ from multieye.imaging.detect import Detection, detect
 from multieye.imaging.image_file import read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.targets import Target
-from multieye.imaging.workers import worker_pool
+from multieye.imaging.main_script import main_reimport_problem, threads_instead
+from multieye.imaging.workers import start_forkserver, worker_pool
 from multieye.imaging.detect import to_gray
 
 __all__ = ["ImageResult", "ImageJob", "detect_and_estimate", "detect_and_estimate_jobs",
            "worker_count", "detect_and_estimate_arrays", "process_image", "process_array",
-           "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
+           "main_reimport_problem", "DEFAULT_MAX_RMS_PX", "prestart_workers"]
 
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
 DEFAULT_MAX_RMS_PX = 2.0
@@ -225,103 +222,25 @@ def _mp_context():
     return ctx
 
 
-def _is_main_guard(test: ast.expr) -> bool:
-    """``__name__ == "__main__"`` (either side), alone or as a term of an ``and``."""
-    if isinstance(test, ast.BoolOp) and isinstance(test.op, ast.And):
-        return any(_is_main_guard(v) for v in test.values)
-    if not (isinstance(test, ast.Compare) and len(test.ops) == 1
-            and isinstance(test.ops[0], ast.Eq)):
-        return False
-    sides = [test.left, test.comparators[0]]
-    return (any(isinstance(x, ast.Name) and x.id == "__name__" for x in sides)
-            and any(isinstance(x, ast.Constant) and x.value == "__main__" for x in sides))
+def prestart_workers(processes: int | None = None) -> bool:
+    """Start, now, the fork server that :func:`detect_and_estimate_jobs` takes its worker
+    processes from, when it will use some (more than one worker, forkserver available, the
+    main script safe to import again).
 
-
-@lru_cache(maxsize=8)
-def _guarded_lines(path: str, mtime_ns: int) -> tuple[tuple[int, int], ...] | None:
-    """Line ranges of the bodies of the ``if __name__ == "__main__":`` blocks of a script;
-    None when its source cannot be read or parsed."""
-    try:
-        with open(path, "rb") as f:
-            tree = ast.parse(f.read(), filename=path)
-    except (OSError, SyntaxError, ValueError):
-        return None
-    return tuple((node.body[0].lineno, node.body[-1].end_lineno) for node in ast.walk(tree)
-                 if isinstance(node, ast.If) and _is_main_guard(node.test))
-
-
-def _main_module_frame(main):
-    """The frame running the main script's top level: in this thread, else the main thread."""
-    candidates = [sys._getframe()]
-    main_thread = sys._current_frames().get(threading.main_thread().ident)
-    if main_thread is not None:
-        candidates.append(main_thread)
-    for frame in candidates:
-        while frame is not None:
-            if frame.f_globals is main.__dict__ and frame.f_code.co_name == "<module>":
-                return frame
-            frame = frame.f_back
-    return None
-
-
-def main_reimport_problem() -> str | None:
-    """Why worker processes cannot be started safely now, or None when they can.
-
-    Workers started by ``spawn`` or ``forkserver`` import the main script again (as
-    ``__mp_main__``), so that what it defines can be unpickled.  That is harmless when the
-    script's top level only defines things and calls multieye under
-    ``if __name__ == "__main__":``; when the call runs at the top level itself, every worker
-    would run it again (and multiprocessing stops it with an error).  There is no main
-    script to import in an interactive session, a notebook or ``python -c``.
+    Its imports (numpy, OpenCV: about a quarter of a CPU second) then run on the other core
+    while the caller imports and reads the rest, instead of between reading the dataset and
+    the first detection.  Nothing else changes: the pool forks its workers from it later,
+    and it is stopped and collected when this process ends.
 
     Returns
     -------
-    str or None
-        What is wrong, for a message: the call at the script's top level, outside
-        ``if __name__ == "__main__":``, or a script whose source cannot be read to tell.
+    bool
+        Whether a fork server is running for the workers.
     """
-    main = sys.modules.get("__main__")
-    if main is None:
-        return None
-    path = getattr(main, "__file__", None)
-    spec = getattr(main, "__spec__", None)
-    if path is None or (spec is None and os.path.splitext(os.path.basename(path))[0] == "ipython"):
-        return None       # multiprocessing imports nothing as the main module then
-    frame = _main_module_frame(main)
-    if frame is None:
-        return (f"the main script {path} is not running this call from its top level, so "
-                "whether importing it again would run it cannot be told")
-    try:
-        guarded = _guarded_lines(os.path.abspath(path), os.stat(path).st_mtime_ns)
-    except OSError:
-        guarded = None
-    if guarded is None:
-        return f"the main script {path} cannot be read to tell whether it is safe to import"
-    line = frame.f_lineno
-    if any(lo <= line <= hi for lo, hi in guarded):
-        return None
-    return (f"{path} calls multieye at its top level (line {line}), outside "
-            "`if __name__ == \"__main__\":`, and worker processes would run it again")
-
-
-def _threads_instead(n_workers: int) -> bool:
-    """True, with a warning saying why, when worker processes must not be started."""
-    if n_workers <= 1:
+    if worker_count(processes) <= 1 or main_reimport_problem() is not None:
         return False
-    problem = main_reimport_problem()
-    if problem is None:
-        return False
-    # point the warning at the script's line that called multieye
-    main = sys.modules["__main__"]
-    frame, level = sys._getframe(), 1
-    while frame is not None and not (frame.f_globals is main.__dict__
-                                     and frame.f_code.co_name == "<module>"):
-        frame, level = frame.f_back, level + 1
-    warnings.warn(f"multieye: detecting in {n_workers} threads of this process instead of "
-                  f"worker processes: {problem}. Put the call under "
-                  "`if __name__ == \"__main__\":` to detect in worker processes.",
-                  RuntimeWarning, stacklevel=level if frame is not None else 2)
-    return True
+    ctx = _mp_context()
+    return ctx.get_start_method() == "forkserver" and start_forkserver(ctx)
 
 
 @dataclass(frozen=True)
@@ -442,7 +361,7 @@ def detect_and_estimate_jobs(jobs: Iterable[ImageJob], *, processes: int | None 
                 flat.append(one(item))
                 if bar is not None:
                     bar.update(1)
-        elif _threads_instead(n_workers):
+        elif threads_instead(n_workers):
             with ThreadPoolExecutor(n_workers) as pool:
                 for r in pool.map(one, items):
                     flat.append(r)
@@ -541,7 +460,7 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
                 if bar is not None:
                     bar.update(1)
             return results
-        if _threads_instead(n_workers):
+        if threads_instead(n_workers):
             with ThreadPoolExecutor(n_workers) as pool:
                 while True:
                     chunk = [item for _, item in zip(range(batch), it)]
