@@ -22,10 +22,13 @@ import math
 import multiprocessing
 import os
 import sys
+from collections import deque
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
 from collections.abc import Iterable
+from typing import Any
 
 import cv2
 
@@ -42,7 +45,8 @@ from multieye.imaging.detect import to_gray
 
 __all__ = ["ImageResult", "ImageJob", "detect_and_estimate", "detect_and_estimate_jobs",
            "worker_count", "detect_and_estimate_arrays", "process_image", "process_array",
-           "main_reimport_problem", "DEFAULT_MAX_RMS_PX", "prestart_workers"]
+           "main_reimport_problem", "DEFAULT_MAX_RMS_PX", "prestart_workers",
+           "detect_jobs_then"]
 
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
 DEFAULT_MAX_RMS_PX = 2.0
@@ -342,41 +346,71 @@ def detect_and_estimate_jobs(jobs: Iterable[ImageJob], *, processes: int | None 
     outside ``if __name__ == "__main__":``, detection runs in threads of this process
     instead, with a warning (:func:`main_reimport_problem`).
     """
-    jobs = list(jobs)
+    return detect_jobs_then(jobs, processes=processes, progress=progress,
+                            max_rms_px=max_rms_px)[0]
+
+
+def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None = None, *,
+                     processes: int | None = None, progress: bool | None = None,
+                     max_rms_px: float = DEFAULT_MAX_RMS_PX
+                     ) -> tuple[list[list[ImageResult]], dict[int, Any]]:
+    """:func:`detect_and_estimate_jobs`, then per job a task on that job's results, run by
+    the same workers as soon as the job's images are detected (while the others' are).
+
+    Parameters
+    ----------
+    jobs : iterable of ImageJob
+    then : dict of int to callable, optional
+        By job index, a picklable function of the job's results (a list of ImageResult),
+        e.g. a camera's lens start (:func:`multieye.imaging.calibrate.start_from_detections`).
+        Run in a worker process, or in this one when detection runs here.
+    processes, progress, max_rms_px
+        As for :func:`detect_and_estimate`.
+
+    Returns
+    -------
+    results : list of list of ImageResult
+        Per job, one result per path, in input order.
+    done : dict of int to object
+        What ``then[j]`` returned, for every ``j`` of ``then``.
+
+    Notes
+    -----
+    The paths go to the workers in chunks, at most one more chunk than there are workers
+    at a time, so that a job's task, submitted once its last image is back, waits behind a
+    few chunks only instead of behind every image still to detect (with a camera's lens
+    estimated, its lens start and PnP ran after the whole rig's detection, one camera after
+    another in this process).  A worker that dies takes the pool down: the images not yet
+    done then run one per worker, and the tasks not yet done in this process.
+    """
+    jobs, then = list(jobs), dict(then or {})
     items = [(j, p) for j, job in enumerate(jobs) for p in job.paths]
-    kinds = sorted({job.target.kind for job in jobs})
     n_workers = worker_count(processes, len(items))
-    bar = _bar(len(items), f"detecting {', '.join(kinds) or 'targets'}", progress)
-    configs = tuple((job.target, job.intrinsics) for job in jobs)
+    bar = _bar(len(items), f"detecting {', '.join(sorted({j.target.kind for j in jobs})) or 'targets'}",
+               progress)
+    initargs = (tuple((job.target, job.intrinsics) for job in jobs), max_rms_px)
+    flat: list[ImageResult] = []
+    done: dict[int, Any] = {}
 
     def one(item):
         j, p = item
         return _guarded(lambda q: process_image(q, jobs[j].target, jobs[j].intrinsics,
                                                 max_rms_px=max_rms_px), p, p)
 
-    flat: list[ImageResult] = []
+    def per_job() -> list[list[ImageResult]]:
+        out: list[list[ImageResult]] = [[] for _ in jobs]
+        for (j, _), r in zip(items, flat):
+            out[j].append(r)
+        return out
+
     try:
-        if n_workers <= 1:
-            for item in items:
-                flat.append(one(item))
-                if bar is not None:
-                    bar.update(1)
-        elif threads_instead(n_workers):
-            with ThreadPoolExecutor(n_workers) as pool:
-                for r in pool.map(one, items):
-                    flat.append(r)
-                    if bar is not None:
-                        bar.update(1)
+        if n_workers <= 1 or threads_instead(n_workers):
+            _here(one, items, n_workers, flat, bar)
         else:
-            chunksize = max(1, math.ceil(len(items) / (n_workers * _CHUNKS_PER_WORKER)))
-            initargs = (configs, max_rms_px)
             try:
                 with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_jobs,
                                  initargs=initargs) as pool:
-                    for r in pool.map(_work_item, items, chunksize=chunksize):
-                        flat.append(r)
-                        if bar is not None:
-                            bar.update(1)
+                    done.update(_on_pool(pool, items, jobs, then, flat, bar, n_workers))
             except BrokenProcessPool:
                 # a worker died (a crash in a decoder, killed for memory): the images not
                 # yet done run one by one, each in a worker of its own, so only the culprit
@@ -389,10 +423,62 @@ def detect_and_estimate_jobs(jobs: Iterable[ImageJob], *, processes: int | None 
     finally:
         if bar is not None:
             bar.close()
-    out: list[list[ImageResult]] = [[] for _ in jobs]
-    for (j, _), r in zip(items, flat):
-        out[j].append(r)
-    return out
+    results = per_job()
+    done.update({j: task(results[j]) for j, task in then.items() if j not in done})
+    return results, done
+
+
+def _here(one, items, n_workers: int, flat: list, bar) -> None:
+    """Detection in this process: one image after another, or in ``n_workers`` threads."""
+    if n_workers <= 1:
+        for item in items:
+            flat.append(one(item))
+            if bar is not None:
+                bar.update(1)
+        return
+    with ThreadPoolExecutor(n_workers) as pool:
+        for r in pool.map(one, items):
+            flat.append(r)
+            if bar is not None:
+                bar.update(1)
+
+
+def _work_chunk(chunk: list) -> list[ImageResult]:
+    return [_work_item(item) for item in chunk]
+
+
+def _on_pool(pool, items, jobs, then, flat: list, bar, n_workers: int) -> dict:
+    """Detection of ``items`` on ``pool`` (of ``n_workers``), in chunks (about
+    :data:`_CHUNKS_PER_WORKER` per worker) with at most one more chunk submitted than there
+    are workers; each job's ``then`` task submitted once its last result is back.  Returns
+    what the tasks returned, by job."""
+    chunksize = max(1, math.ceil(len(items) / (n_workers * _CHUNKS_PER_WORKER)))
+    in_flight = n_workers + 1
+    chunks = [items[i:i + chunksize] for i in range(0, len(items), chunksize)]
+    left = [len(job.paths) for job in jobs]
+    tasks = {j: pool.submit(task, []) for j, task in then.items() if left[j] == 0}
+    first = [0]                     # where the job being collected starts in ``flat``
+
+    def collect(future) -> None:
+        for r in future.result():
+            flat.append(r)
+            j = items[len(flat) - 1][0]
+            left[j] -= 1
+            if left[j] == 0:        # the job's last image: its task goes next
+                if j in then:
+                    tasks[j] = pool.submit(then[j], flat[first[0]:])
+                first[0] = len(flat)
+            if bar is not None:
+                bar.update(1)
+
+    pending: deque = deque()
+    for chunk in chunks:
+        pending.append(pool.submit(_work_chunk, chunk))
+        if len(pending) >= in_flight:
+            collect(pending.popleft())
+    while pending:
+        collect(pending.popleft())
+    return {j: f.result() for j, f in tasks.items()}
 
 
 def _isolated(work, item, name: str, initargs: tuple, *, initializer=_init_worker) -> ImageResult:
