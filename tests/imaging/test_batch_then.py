@@ -8,6 +8,7 @@ import sys
 import textwrap
 
 import pytest
+from proc_tree import group_processes, needs_proc
 from test_imaging_batch import BOARD, CAMERA, check, image_files  # noqa: F401 (fixture)
 
 from multieye.imaging.batch import ImageJob, detect_jobs_then
@@ -80,3 +81,23 @@ def test_calibrate_starts_the_fork_server_before_importing_the_pipeline(tmp_path
                          capture_output=True, text=True, timeout=300)
     assert one.returncode == 0, one.stderr
     assert "prestart False False None" in one.stderr
+
+
+@needs_proc
+def test_an_error_before_detection_leaves_no_early_fork_server_behind(tmp_path):
+    """The fork server started before the pipeline's imports is stopped and collected when
+    the run fails before detection (exit 2: a rig.yaml the reader refuses)."""
+    from small_dataset import render_small
+
+    ds = tmp_path / "ds"
+    render_small(ds, images_per_camera=4)
+    (ds / "rig.yaml").write_text((ds / "rig.yaml").read_text() + "\nunknown_key: 1\n")
+    proc = subprocess.Popen([sys.executable, "-m", "multieye", "calibrate", str(ds), "-o",
+                             str(tmp_path / "out"), "--processes", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    _, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 2, stderr
+    assert len(stderr.strip().splitlines()) == 1 and "unknown_key" in stderr, stderr
+    assert group_processes(proc.pid) == {}
+    assert not (tmp_path / "out").exists()
