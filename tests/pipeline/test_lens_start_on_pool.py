@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from multieye.core.errors import DatasetError
 from multieye.imaging.batch import detect_and_estimate
 from multieye.imaging.targets import target_from_spec
 from multieye.io import list_images, load_rig
@@ -76,3 +77,31 @@ def test_without_workers_the_start_is_the_same(rig, monkeypatch):
     for name in rig.cameras:
         assert np.array_equal(here[name].intrinsics.K, pooled[name].intrinsics.K)
         assert len(here[name].observations) == len(pooled[name].observations)
+
+
+def test_a_lens_that_cannot_start_fails_as_in_the_main_process(rig, tmp_path):
+    """Too few views (2 images) for the lens start: the workers give no start, and the run
+    fails with the main process's own error (the camera, the count, what to add)."""
+    folder = rig.path.parent if rig.path.is_file() else rig.path
+    copy = tmp_path / "two"
+    copy.mkdir()
+    for p in folder.iterdir():
+        if p.suffix == ".yaml":
+            (copy / p.name).write_text(p.read_text())
+        elif p.name != "cam0":
+            (copy / p.name).symlink_to(p)
+    (copy / "cam0").mkdir()
+    for image in sorted((folder / "cam0").iterdir())[:2]:
+        (copy / "cam0" / image.name).symlink_to(image)
+    small = load_rig(copy / "rig_model.yaml")
+    cam = small.cameras["cam0"]
+    assert len(list_images(cam.images)) == 2
+    found = detect_and_estimate([p for _, _, p in list_images(cam.images)],
+                                target_from_spec(small.target, path=small.path), None,
+                                processes=1)
+    with pytest.raises(DatasetError) as expected:
+        start_lens("cam0", cam.model, found, cam.images)
+    assert "at least 3" in str(expected.value)
+    with pytest.raises(DatasetError) as raised:
+        camera_data.load_camera_data(small, processes=2)
+    assert str(raised.value) == str(expected.value)
