@@ -136,6 +136,14 @@ def _processes_note(processes: int | None) -> None:
                    f"the CPUs this process may use (and at most one per image)")
 
 
+def _prestart_workers(processes: int | None) -> None:
+    """The detection's fork server started before the pipeline is imported, so that its own
+    imports (numpy, OpenCV) run on the other core meanwhile (issue 21)."""
+    from multieye.imaging.batch import prestart_workers  # noqa: PLC0415 (heavy: OpenCV; instant start-up of multieye --help)
+
+    prestart_workers(processes)
+
+
 #: What each exit status means (docs/conventions.md, section 8).
 _EXIT_MEANINGS = {
     0: "success",
@@ -232,6 +240,8 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     estimated from the recording; prints a per-camera table.  rig.yaml: multieye docs
     rig-yaml; the files: multieye docs outputs.
     """
+    if flags["engine"] == "local" and flags["scheduler"] is None and os.path.exists(dataset):
+        _prestart_workers(processes)
     from multieye.pipeline import Options, calibrate as run_calibration  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.write import write_outputs  # noqa: PLC0415 (instant start-up of multieye --help)
