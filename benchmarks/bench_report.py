@@ -20,6 +20,15 @@ Run from the repository root::
    all).  The first call imports matplotlib, as a
    ``multieye calibrate`` command does; the later ones show the cost without that import.
 
+3. With ``--command`` (what issue 21 asks about): the whole command, ``multieye calibrate
+   DATASET -o OUT`` in a fresh interpreter, ``--repeats`` times with the report and as many
+   without it (``write_outputs(..., report=False)``: calibration.json, camchain, details.json
+   only), taken in turn so that both see the same load.  For each it prints the wall time of
+   the command, its CPU seconds (the command and every process it waited for: detection
+   workers, the figure worker and the fork server) and ``timings_s.outputs``; the medians'
+   differences are what the report adds, matplotlib's import included.  ``--dataset`` adds
+   another rendered folder (e.g. ``benchmarks/.cache/peers_4x100``).
+
 The wall times depend on what else runs on the machine (the load average is printed); the
 CPU seconds much less.
 """
@@ -29,9 +38,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
+import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -44,8 +57,6 @@ def rendered(cameras: int, images: int) -> Path:
     folder = CACHE / f"report_{cameras}x{images}"
     if (folder / ".complete").exists():
         return folder
-    import shutil
-
     from multieye.sim.dataset import DatasetSpec, render_dataset
 
     shutil.rmtree(folder, ignore_errors=True)
@@ -95,9 +106,59 @@ def run_sizes(dataset: Path, src: Path, processes: int, repeats: int, serial: bo
     return [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
 
 
+_COMMAND = r"""
+import sys
+import multieye.outputs.write as w
+if sys.argv.pop(1) == "no-report":
+    plain = w.write_outputs
+    w.write_outputs = lambda run, out, **kw: plain(run, out, **{**kw, "report": False})
+from multieye.cli import main
+main()
+"""
+
+
+def _command(dataset: Path, src: Path, out: Path, report: bool) -> dict:
+    """One ``multieye calibrate`` (with or without the report): wall, CPU-s, outputs stage."""
+    def children() -> float:
+        u = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return u.ru_utime + u.ru_stime
+
+    shutil.rmtree(out, ignore_errors=True)
+    env = dict(os.environ, PYTHONPATH=str(src))
+    c, w = children(), time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", _COMMAND, "report" if report else "no-report",
+                           "calibrate", str(dataset), "-o", str(out)],
+                          capture_output=True, text=True, env=env)
+    wall, cpu = time.perf_counter() - w, children() - c
+    if proc.returncode not in (0, 3):
+        raise SystemExit(f"the command failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+    outputs = json.loads((out / "details.json").read_text())["timings_s"]["outputs"]
+    return {"wall": wall, "cpu": cpu, "outputs": outputs, "load": os.getloadavg()[0]}
+
+
+def run_commands(dataset: Path, src: Path, repeats: int) -> None:
+    """The whole command with and without the report, in turn; prints what the report adds."""
+    rows: dict[bool, list[dict]] = {True: [], False: []}
+    with tempfile.TemporaryDirectory(prefix="bench_report_cmd_") as tmp:
+        for k in range(repeats):
+            for report in ((True, False) if k % 2 == 0 else (False, True)):
+                r = _command(dataset, src, Path(tmp) / "out", report)
+                rows[report].append(r)
+                print(f"{dataset.name}: {'with' if report else 'without'} the report: "
+                      f"{r['wall']:.2f} s wall, {r['cpu']:.2f} CPU-s, outputs stage "
+                      f"{r['outputs']:.2f} s, load {r['load']:.1f}", flush=True)
+    med = {k: {q: statistics.median(r[q] for r in v) for q in ("wall", "cpu", "outputs")}
+           for k, v in rows.items()}
+    print(f"{dataset.name}: the report adds {med[True]['wall'] - med[False]['wall']:.2f} s wall "
+          f"(medians {med[True]['wall']:.2f} / {med[False]['wall']:.2f}), "
+          f"{med[True]['cpu'] - med[False]['cpu']:.2f} CPU-s "
+          f"({med[True]['cpu']:.2f} / {med[False]['cpu']:.2f}), outputs stage "
+          f"{med[True]['outputs']:.2f} / {med[False]['outputs']:.2f} s", flush=True)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--cameras", type=int, nargs="+", default=[4, 16])
+    parser.add_argument("--cameras", type=int, nargs="*", default=[4, 16])
     parser.add_argument("--images", type=int, default=40)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--processes", type=int, default=2)
@@ -106,9 +167,17 @@ def main(argv=None) -> None:
                              "all of the drawing: a worker's are not counted)")
     parser.add_argument("--src", type=Path, default=ROOT / "src",
                         help="the sources to time (a checkout's src folder)")
+    parser.add_argument("--command", action="store_true",
+                        help="time the whole `multieye calibrate` with and without the report")
+    parser.add_argument("--dataset", type=Path, nargs="*", default=[],
+                        help="with --command: more rendered datasets to time")
     args = parser.parse_args(argv)
     src = args.src.resolve()
     print(f"sources: {src}")
+    if args.command:
+        for dataset in [rendered(m, args.images) for m in args.cameras] + args.dataset:
+            run_commands(dataset, src, args.repeats)
+        return
     for m in args.cameras:
         dataset = rendered(m, args.images)
         rows = run_sizes(dataset, src, args.processes, args.repeats, args.serial)
