@@ -23,11 +23,14 @@ Run from the repository root::
 3. With ``--command`` (what issue 21 asks about): the whole command, ``multieye calibrate
    DATASET -o OUT`` in a fresh interpreter, ``--repeats`` times with the report and as many
    without it (``write_outputs(..., report=False)``: calibration.json, camchain, details.json
-   only), taken in turn so that both see the same load.  For each it prints the wall time of
-   the command, its CPU seconds (the command and every process it waited for: detection
-   workers, the figure worker and the fork server) and ``timings_s.outputs``; the medians'
-   differences are what the report adds, matplotlib's import included.  ``--dataset`` adds
-   another rendered folder (e.g. ``benchmarks/.cache/peers_4x100``).
+   only) and, with ``--serial``, with every figure drawn in the main process; taken in turn
+   so that all see the same load.  For each it prints the command's wall time and CPU
+   seconds (the command and every process it waited for), and the outputs stage's wall time
+   and CPU seconds (the main process, and the figure worker's own, which it reports before
+   it ends).  The medians' differences are what the report adds, matplotlib's import
+   included; the outputs stage's are the precise ones (the whole command's also vary with
+   the detection).  ``--dataset`` adds another rendered folder (e.g.
+   ``benchmarks/.cache/peers_4x100``).
 
 The wall times depend on what else runs on the machine (the load average is printed); the
 CPU seconds much less.
@@ -107,18 +110,46 @@ def run_sizes(dataset: Path, src: Path, processes: int, repeats: int, serial: bo
 
 
 _COMMAND = r"""
-import sys
+import contextlib, json, resource, sys, time
 import multieye.outputs.write as w
-if sys.argv.pop(1) == "no-report":
-    plain = w.write_outputs
-    w.write_outputs = lambda run, out, **kw: plain(run, out, **{**kw, "report": False})
+import multieye.outputs.report_draw as draw
+
+def cpu():
+    own, waited = (resource.getrusage(k) for k in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + waited.ru_utime + waited.ru_stime
+
+worker_cpu = []
+real_pool = draw.worker_pool
+
+@contextlib.contextmanager
+def counted_pool(*args, **kwargs):    # the figure worker's CPU-s, asked of it before it ends
+    with real_pool(*args, **kwargs) as pool:
+        yield pool
+        used = pool.submit(resource.getrusage, resource.RUSAGE_SELF).result()
+        worker_cpu.append(used.ru_utime + used.ru_stime)
+
+draw.worker_pool = counted_pool
+mode = sys.argv.pop(1)
+if mode == "serial":        # every figure in this process
+    draw._cores = lambda: 1
+plain = w.write_outputs
+
+def timed(run, out, **kw):
+    c, t = cpu(), time.perf_counter()
+    written = plain(run, out, **{**kw, "report": mode != "no-report"})
+    print("BENCH " + json.dumps({"stage_wall": time.perf_counter() - t, "stage_cpu": cpu() - c,
+                                 "worker_cpu": sum(worker_cpu)}), file=sys.stderr)
+    return written
+
+w.write_outputs = timed
 from multieye.cli import main
 main()
 """
 
 
-def _command(dataset: Path, src: Path, out: Path, report: bool) -> dict:
-    """One ``multieye calibrate`` (with or without the report): wall, CPU-s, outputs stage."""
+def _command(dataset: Path, src: Path, out: Path, mode: str) -> dict:
+    """One ``multieye calibrate`` (``mode``: report, serial or no-report): wall, CPU-s, the
+    outputs stage."""
     def children() -> float:
         u = resource.getrusage(resource.RUSAGE_CHILDREN)
         return u.ru_utime + u.ru_stime
@@ -126,34 +157,46 @@ def _command(dataset: Path, src: Path, out: Path, report: bool) -> dict:
     shutil.rmtree(out, ignore_errors=True)
     env = dict(os.environ, PYTHONPATH=str(src))
     c, w = children(), time.perf_counter()
-    proc = subprocess.run([sys.executable, "-c", _COMMAND, "report" if report else "no-report",
+    proc = subprocess.run([sys.executable, "-c", _COMMAND, mode,
                            "calibrate", str(dataset), "-o", str(out)],
                           capture_output=True, text=True, env=env)
     wall, cpu = time.perf_counter() - w, children() - c
     if proc.returncode not in (0, 3):
         raise SystemExit(f"the command failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
-    outputs = json.loads((out / "details.json").read_text())["timings_s"]["outputs"]
-    return {"wall": wall, "cpu": cpu, "outputs": outputs, "load": os.getloadavg()[0]}
+    stage = [json.loads(line[6:]) for line in proc.stderr.splitlines()
+             if line.startswith("BENCH ")][-1]
+    return {"wall": wall, "cpu": cpu, "stage_wall": stage["stage_wall"],
+            "stage_cpu": stage["stage_cpu"] + stage["worker_cpu"],
+            "worker_cpu": stage["worker_cpu"], "load": os.getloadavg()[0]}
 
 
-def run_commands(dataset: Path, src: Path, repeats: int) -> None:
-    """The whole command with and without the report, in turn; prints what the report adds."""
-    rows: dict[bool, list[dict]] = {True: [], False: []}
+def run_commands(dataset: Path, src: Path, repeats: int, serial: bool) -> None:
+    """The whole command with and without the report (and with its figures drawn in one
+    process, ``serial``), in turn; prints what the report adds."""
+    modes = ["report", "no-report"] + (["serial"] if serial else [])
+    rows: dict[str, list[dict]] = {m: [] for m in modes}
     with tempfile.TemporaryDirectory(prefix="bench_report_cmd_") as tmp:
         for k in range(repeats):
-            for report in ((True, False) if k % 2 == 0 else (False, True)):
-                r = _command(dataset, src, Path(tmp) / "out", report)
-                rows[report].append(r)
-                print(f"{dataset.name}: {'with' if report else 'without'} the report: "
-                      f"{r['wall']:.2f} s wall, {r['cpu']:.2f} CPU-s, outputs stage "
-                      f"{r['outputs']:.2f} s, load {r['load']:.1f}", flush=True)
-    med = {k: {q: statistics.median(r[q] for r in v) for q in ("wall", "cpu", "outputs")}
-           for k, v in rows.items()}
-    print(f"{dataset.name}: the report adds {med[True]['wall'] - med[False]['wall']:.2f} s wall "
-          f"(medians {med[True]['wall']:.2f} / {med[False]['wall']:.2f}), "
-          f"{med[True]['cpu'] - med[False]['cpu']:.2f} CPU-s "
-          f"({med[True]['cpu']:.2f} / {med[False]['cpu']:.2f}), outputs stage "
-          f"{med[True]['outputs']:.2f} / {med[False]['outputs']:.2f} s", flush=True)
+            for mode in (modes if k % 2 == 0 else modes[::-1]):
+                r = _command(dataset, src, Path(tmp) / "out", mode)
+                rows[mode].append(r)
+                print(f"{dataset.name} {mode}: command {r['wall']:.2f} s wall, "
+                      f"{r['cpu']:.2f} CPU-s; outputs stage {r['stage_wall']:.2f} s wall, "
+                      f"{r['stage_cpu']:.2f} CPU-s (figure worker {r['worker_cpu']:.2f}), "
+                      f"load {r['load']:.1f}", flush=True)
+    keys = ("wall", "cpu", "stage_wall", "stage_cpu")
+    med = {m: {q: statistics.median(r[q] for r in v) for q in keys} for m, v in rows.items()}
+    base = med["no-report"]
+    for mode in modes:
+        if mode != "no-report":
+            d = {q: med[mode][q] - base[q] for q in keys}
+            print(f"{dataset.name}: the report ({mode}) adds, medians of {repeats}: outputs "
+                  f"stage {d['stage_wall']:.2f} s wall ({med[mode]['stage_wall']:.2f} - "
+                  f"{base['stage_wall']:.2f}), {d['stage_cpu']:.2f} CPU-s "
+                  f"({med[mode]['stage_cpu']:.2f} - {base['stage_cpu']:.2f}); whole command "
+                  f"{d['wall']:.2f} s wall ({med[mode]['wall']:.2f} - {base['wall']:.2f}), "
+                  f"{d['cpu']:.2f} CPU-s ({med[mode]['cpu']:.2f} - {base['cpu']:.2f})",
+                  flush=True)
 
 
 def main(argv=None) -> None:
@@ -164,7 +207,8 @@ def main(argv=None) -> None:
     parser.add_argument("--processes", type=int, default=2)
     parser.add_argument("--serial", action="store_true",
                         help="draw every figure in the main process (its CPU seconds are then "
-                             "all of the drawing: a worker's are not counted)")
+                             "all of the drawing: a worker's are not counted); with "
+                             "--command, time that too")
     parser.add_argument("--src", type=Path, default=ROOT / "src",
                         help="the sources to time (a checkout's src folder)")
     parser.add_argument("--command", action="store_true",
@@ -176,7 +220,7 @@ def main(argv=None) -> None:
     print(f"sources: {src}")
     if args.command:
         for dataset in [rendered(m, args.images) for m in args.cameras] + args.dataset:
-            run_commands(dataset, src, args.repeats)
+            run_commands(dataset, src, args.repeats, args.serial)
         return
     for m in args.cameras:
         dataset = rendered(m, args.images)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import re
+import time
 
 import numpy as np
 import pytest
@@ -33,7 +34,7 @@ from multieye.outputs.image_stats import (
     radial_bins,
 )
 from multieye.outputs.report import load_details, write_report
-from multieye.outputs.report_draw import figure_jobs
+from multieye.outputs.report_draw import FigureWorker, figure_jobs
 from multieye.outputs.report_cameras import camera_figure_names
 from multieye.outputs.write import write_outputs
 from multieye.pipeline import calibrate, calibrate_rig
@@ -311,7 +312,7 @@ def test_figures_drawn_by_a_worker_are_the_same(runs, tmp_path):
             page = write_report(out, processes=1)
         else:
             with worker_pool(1, mp_context=multiprocessing.get_context("forkserver")) as pool:
-                page = write_report(out, worker=pool)
+                page = write_report(out, worker=FigureWorker(pool, time.perf_counter()))
         pages[processes] = (page.read_text().replace(str(out), "OUT"),
                             {p.name: p.read_bytes() for p in (out / "figures").iterdir()})
     assert pages[1] == pages[2]

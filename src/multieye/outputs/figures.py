@@ -160,6 +160,7 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
     """A figure of two axes (rotation, translation), one lane per camera, top to bottom:
     two axes whatever the number of cameras (small multiples cost an axes each)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.collections import LineCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     m = len(details.cameras)
@@ -173,8 +174,10 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
         ax.set_title(title, fontsize=9, loc="left", y=1.0)
         ax.tick_params(labelsize=8, length=2)
         ax.grid(True, axis="x", alpha=0.3)
-        for y in range(1, m):
-            ax.axhline(y - 0.07, color=_GREY, lw=0.4, alpha=0.5)
+        # the lines between lanes, across the axes: one collection (an artist each costs)
+        ax.add_collection(LineCollection([[(0, y - 0.07), (1, y - 0.07)] for y in range(1, m)],
+                                         transform=ax.get_yaxis_transform(), colors=_GREY,
+                                         lw=0.4, alpha=0.5, zorder=2), autolim=False)
     axes[0].set_yticklabels([c.name for c in details.cameras], fontsize=8, fontweight="bold")
     for tick, col in zip(axes[0].get_yticklabels(), colours):
         tick.set_color(col)

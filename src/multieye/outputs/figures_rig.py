@@ -370,7 +370,7 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
 
 def _png(fig) -> bytes:
     buffer = BytesIO()
-    fig.savefig(buffer, format="png")
+    fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
     return buffer.getvalue()
 
 

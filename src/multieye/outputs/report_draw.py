@@ -22,8 +22,11 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import sys
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any
 
 from multieye.io.calibration_json import CalibrationRecord
@@ -34,10 +37,14 @@ from multieye.outputs.figures_rig import rig_pngs
 from multieye.imaging.batch import main_reimport_problem
 from multieye.imaging.workers import worker_pool
 
-__all__ = ["draw_figures", "figure_jobs", "figure_worker", "figures_cost", "PARALLEL_FROM_S"]
+__all__ = ["draw_figures", "figure_jobs", "figure_worker", "figures_cost", "FigureWorker",
+           "PARALLEL_FROM_S"]
 
-#: Rough CPU seconds of matplotlib's import in a worker: what a worker costs before drawing.
-_IMPORT_S = 0.45
+#: Rough CPU seconds of a worker's imports (matplotlib, and multieye.io for the details
+#: it is sent): what a worker costs before drawing (0.6 measured in a command's worker).
+_IMPORT_S = 0.6
+#: Rough CPU seconds of matplotlib's import in this process.
+_MAIN_IMPORT_S = 0.3
 #: Share the figures with a worker when they would take this many CPU seconds or more.
 PARALLEL_FROM_S = 0.6
 #: Rough CPU seconds of the rig's pictures in this process, and per camera.
@@ -109,9 +116,17 @@ def _shared(cost: float, processes: int | None) -> bool:
     return allowed >= 2 and cost >= PARALLEL_FROM_S and main_reimport_problem() is None
 
 
+@dataclass(frozen=True)
+class FigureWorker:
+    """A worker process drawing figures, and when it started (``time.perf_counter()``)."""
+
+    pool: Any
+    started: float
+
+
 @contextmanager
 def figure_worker(n_cameras: int, *, processes: int | None = None
-                  ) -> Iterator[Any | None]:
+                  ) -> Iterator[FigureWorker | None]:
     """A worker process for :func:`draw_figures`, started now: it imports matplotlib while
     this process goes on (writing the other outputs).  None when one process is better (one
     core, ``processes=1``, fewer figures than :data:`PARALLEL_FROM_S` CPU seconds for
@@ -122,12 +137,12 @@ def figure_worker(n_cameras: int, *, processes: int | None = None
         return
     with worker_pool(1, mp_context=_context()) as pool:
         pool.submit(f.warm_up)
-        yield pool
+        yield FigureWorker(pool, time.perf_counter())
 
 
 def draw_figures(rec: CalibrationRecord, details: RunDetails | None, *,
                  processes: int | None = None, also: Callable[[], Any] | None = None,
-                 worker: Any | None = None
+                 worker: FigureWorker | None = None
                  ) -> tuple[dict[str, bytes], tuple[str, ...], Any]:
     """Every figure of the report as PNG bytes by file name, the rig's legend, and what
     ``also`` returns (run in this process while a worker draws; None without it).
@@ -142,22 +157,26 @@ def draw_figures(rec: CalibrationRecord, details: RunDetails | None, *,
         would take about :data:`PARALLEL_FROM_S` CPU seconds or more.
     also : callable, optional
         More work for this process (the report's images: about 25 ms per camera).
-    worker : optional
-        The pool of :func:`figure_worker` (already importing matplotlib), used when given.
+    worker : FigureWorker, optional
+        The worker of :func:`figure_worker` (already importing), used when given.
     """
     jobs = figure_jobs(rec, details)
     if worker is None and _shared(sum(cost for *_, cost in jobs), processes):
         with worker_pool(1, mp_context=_context()) as pool:
-            return draw_figures(rec, details, also=also, worker=pool)
+            pool.submit(f.warm_up)
+            return draw_figures(rec, details, also=also,
+                                worker=FigureWorker(pool, time.perf_counter()))
     if worker is None:
         rig = rig_pngs(rec, details)
         figures = {**rig.pngs, **f.draw_jobs(jobs)}
         return figures, rig.legend, None if also is None else also()
 
-    # share: the worker may still be importing; this process imports, draws the rig
+    # share so that both end together: the worker may still be importing (it started
+    # `elapsed` seconds ago); this process may import matplotlib, draws the rig and `also`
     mine, theirs = [], []
-    here = _RIG_S + (0.035 if also is not None else _RIG_PER_CAMERA_S) * len(rec.cameras)
-    there = _IMPORT_S / 2
+    here = (_RIG_S + (0.035 if also is not None else _RIG_PER_CAMERA_S) * len(rec.cameras)
+            + (0.0 if "matplotlib.figure" in sys.modules else _MAIN_IMPORT_S))
+    there = max(0.0, _IMPORT_S - (time.perf_counter() - worker.started))
     for job in sorted(jobs, key=lambda j: -j[3]):     # each side makes one camera figure
         if here <= there:
             here += job[3] + (_CAMERA_FIGURE_S if _first_camera(job, mine) else 0.0)
@@ -165,7 +184,7 @@ def draw_figures(rec: CalibrationRecord, details: RunDetails | None, *,
         else:
             there += job[3] + (_CAMERA_FIGURE_S if _first_camera(job, theirs) else 0.0)
             theirs.append(job)
-    pending = worker.submit(f.draw_jobs, theirs) if theirs else None
+    pending = worker.pool.submit(f.draw_jobs, theirs) if theirs else None
     rig = rig_pngs(rec, details)
     result = None if also is None else also()
     figures = {**rig.pngs, **f.draw_jobs(mine)}
