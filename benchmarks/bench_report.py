@@ -23,7 +23,8 @@ Run from the repository root::
 3. With ``--command`` (what issue 21 asks about): the whole command, ``multieye calibrate
    DATASET -o OUT`` in a fresh interpreter, ``--repeats`` times with the report and as many
    without it (``write_outputs(..., report=False)``: calibration.json, camchain, details.json
-   only) and, with ``--serial``, with every figure drawn in the main process; taken in turn
+   only) and, with ``--serial``, with every figure drawn in the main process and with a
+   figure worker whatever the load (by default one is used only with a core free); in turn
    so that all see the same load.  For each it prints the command's wall time and CPU
    seconds (the command and every process it waited for), and the outputs stage's wall time
    and CPU seconds (the main process, and the figure worker's own, which it reports before
@@ -132,6 +133,8 @@ draw.worker_pool = counted_pool
 mode = sys.argv.pop(1)
 if mode == "serial":        # every figure in this process
     draw._cores = lambda: 1
+elif mode == "worker":      # a figure worker whatever the load
+    draw._free_core = lambda: True
 plain = w.write_outputs
 
 def timed(run, out, **kw):
@@ -148,8 +151,8 @@ main()
 
 
 def _command(dataset: Path, src: Path, out: Path, mode: str) -> dict:
-    """One ``multieye calibrate`` (``mode``: report, serial or no-report): wall, CPU-s, the
-    outputs stage."""
+    """One ``multieye calibrate`` (``mode``: report, no-report, serial or worker): wall,
+    CPU-s, the outputs stage."""
     def children() -> float:
         u = resource.getrusage(resource.RUSAGE_CHILDREN)
         return u.ru_utime + u.ru_stime
@@ -173,7 +176,7 @@ def _command(dataset: Path, src: Path, out: Path, mode: str) -> dict:
 def run_commands(dataset: Path, src: Path, repeats: int, serial: bool) -> None:
     """The whole command with and without the report (and with its figures drawn in one
     process, ``serial``), in turn; prints what the report adds."""
-    modes = ["report", "no-report"] + (["serial"] if serial else [])
+    modes = ["report", "no-report"] + (["serial", "worker"] if serial else [])
     rows: dict[str, list[dict]] = {m: [] for m in modes}
     with tempfile.TemporaryDirectory(prefix="bench_report_cmd_") as tmp:
         for k in range(repeats):
@@ -208,7 +211,7 @@ def main(argv=None) -> None:
     parser.add_argument("--serial", action="store_true",
                         help="draw every figure in the main process (its CPU seconds are then "
                              "all of the drawing: a worker's are not counted); with "
-                             "--command, time that too")
+                             "--command, time that and a worker whatever the load too")
     parser.add_argument("--src", type=Path, default=ROOT / "src",
                         help="the sources to time (a checkout's src folder)")
     parser.add_argument("--command", action="store_true",

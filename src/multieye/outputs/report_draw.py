@@ -1,7 +1,7 @@
 """Drawing the report's figures, on two processes when there is enough to draw.
 
-matplotlib takes most of the time of the report (its import alone about 0.3-0.45 CPU-s).  With
-several cameras the figures are shared with one worker process
+matplotlib takes most of the time of the report (its import alone about 0.3 CPU-s).  With
+several cameras, and a core free for it, the figures are shared with one worker process
 (:func:`multieye.imaging.workers.worker_pool`: it ends with this process).
 :func:`figure_worker` starts it before the other outputs are written, so that it imports
 matplotlib while this process writes ``calibration.json`` and ``details.json``; then
@@ -109,11 +109,24 @@ def _context():
     return ctx
 
 
+def _free_core() -> bool:
+    """Whether another core is free for a worker: the load average (1 minute) below the
+    cores this process may use plus a half.  This run's own detection counts in it (at most
+    one per core); on a machine busy with other work, a worker only adds its imports (about
+    0.6 CPU-s) to what the cores must do, and the report takes longer (measured under load:
+    docs/results/report_speed.md)."""
+    try:
+        return os.getloadavg()[0] < _cores() + 0.5
+    except OSError:                 # no load average on this system
+        return True
+
+
 def _shared(cost: float, processes: int | None) -> bool:
-    """Whether figures of ``cost`` CPU-s are worth a worker (two cores, and a main script
-    that a worker would not run again)."""
+    """Whether figures of ``cost`` CPU-s are worth a worker (two cores, one of them free,
+    and a main script that a worker would not run again)."""
     allowed = min(2, _cores()) if processes is None else max(1, min(int(processes), 2))
-    return allowed >= 2 and cost >= PARALLEL_FROM_S and main_reimport_problem() is None
+    return (allowed >= 2 and cost >= PARALLEL_FROM_S and _free_core()
+            and main_reimport_problem() is None)
 
 
 @dataclass(frozen=True)
@@ -129,9 +142,9 @@ def figure_worker(n_cameras: int, *, processes: int | None = None
                   ) -> Iterator[FigureWorker | None]:
     """A worker process for :func:`draw_figures`, started now: it imports matplotlib while
     this process goes on (writing the other outputs).  None when one process is better (one
-    core, ``processes=1``, fewer figures than :data:`PARALLEL_FROM_S` CPU seconds for
-    ``n_cameras`` cameras, or a main script that a worker would run again).  The worker ends
-    with the block."""
+    core or no free core, ``processes=1``, fewer figures than :data:`PARALLEL_FROM_S` CPU
+    seconds for ``n_cameras`` cameras, or a main script that a worker would run again).  The
+    worker ends with the block."""
     if not _shared(figures_cost(n_cameras), processes):
         yield None
         return
@@ -153,8 +166,8 @@ def draw_figures(rec: CalibrationRecord, details: RunDetails | None, *,
         ``calibration.json`` and ``details.json`` (None without it).
     processes : int, optional
         At most this many processes draw (1: this one only); default two where two cores are
-        available.  Without ``worker``, one is started only when the figures besides the rig
-        would take about :data:`PARALLEL_FROM_S` CPU seconds or more.
+        available and one is free.  Without ``worker``, one is started only when the figures
+        besides the rig would take about :data:`PARALLEL_FROM_S` CPU seconds or more.
     also : callable, optional
         More work for this process (the report's images: about 25 ms per camera).
     worker : FigureWorker, optional
