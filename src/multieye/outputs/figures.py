@@ -197,6 +197,8 @@ _METRICS: Sequence[tuple[str, str, float, str]] = (
     ("rot_deg", "rotation residual (deg)", 1.0, "°"),
     ("trans_m", "translation residual (mm)", 1e3, " mm"),
 )
+#: At most this many bars per lane of :func:`image_rms_png` (about its width in pixels).
+_MAX_BARS = 800
 #: Height of a camera's lane that its histogram or curve may fill.
 _LANE = 0.82
 
@@ -453,7 +455,9 @@ def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> byte
 
     One lane per camera with a bar per image in time order, heights scaled to the largest
     RMS of all cameras (stated); the worst images of each camera red and numbered.  Cameras
-    without target points have an empty lane.
+    without target points have an empty lane.  A camera with more than ``_MAX_BARS`` images
+    (bars narrower than a pixel) has a bar for each run of consecutive images as tall as
+    the tallest of them, so that the cost is bounded and no peak is lost.
     """
 
     from matplotlib.collections import PolyCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
@@ -478,21 +482,31 @@ def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> byte
         heights = _LANE * np.nan_to_num(r) / hi
         bad = [cam.names.index(n) for n, _ in worst_images(cam, worst)]
         ok = np.setdiff1d(np.arange(len(r)), bad)
-        for chosen, colour in ((ok, to_rgba(colours[row], 0.85)), (bad, HIGHLIGHT)):
-            left, top = x[chosen], y0 + heights[chosen]
-            bars.append(np.stack([np.column_stack([left, np.full(len(left), y0)]),
-                                  np.column_stack([left + width, np.full(len(left), y0)]),
-                                  np.column_stack([left + width, top]),
-                                  np.column_stack([left, top])], axis=1))
-            bar_colours += [colour] * len(chosen)
+        spans = [(x[ok], x[ok] + width, heights[ok], to_rgba(colours[row], 0.85))]
+        if len(r) > _MAX_BARS:      # narrower than a pixel: the tallest of each 1/_MAX_BARS,
+            groups = np.array_split(np.arange(len(r)), _MAX_BARS)       # as one outline
+            edges = np.append(x[[g[0] for g in groups]], longest)
+            tops = y0 + np.repeat([heights[g].max() for g in groups], 2)
+            bars.append(np.vstack([[edges[0], y0], np.column_stack(
+                [np.repeat(edges, 2)[1:-1], tops]), [edges[-1], y0]]))
+            bar_colours.append(spans.pop()[3])
+            width = max(width, longest / _MAX_BARS)
+        spans.append((x[bad], x[bad] + width, heights[bad], HIGHLIGHT))
+        for left, right, top, colour in spans:
+            top = y0 + top
+            bars += list(np.stack([np.column_stack([left, np.full(len(left), y0)]),
+                                   np.column_stack([right, np.full(len(left), y0)]),
+                                   np.column_stack([right, top]),
+                                   np.column_stack([left, top])], axis=1))
+            bar_colours += [colour] * len(left)
         for rank, i in enumerate(bad, 1):
             ax.text(x[i] + width / 2, y0 + heights[i], str(rank), ha="center", va="bottom",
                     fontsize=6.5, color=HIGHLIGHT, fontweight="bold")
         med = float(np.nanmedian(r)) if np.any(np.isfinite(r)) else 0.0
         ax.plot([0, longest], [y0 + _LANE * med / hi] * 2, color="black", lw=0.8, ls="--")
     if bars:
-        ax.add_collection(PolyCollection(np.concatenate(bars), facecolors=bar_colours,
-                                         edgecolors="none", lw=0), autolim=False)
+        ax.add_collection(PolyCollection(bars, facecolors=bar_colours, edgecolors="none",
+                                         lw=0), autolim=False)
     ax.set_xlim(0, longest)
     ax.set_xticks([])
     ax.set_title("reprojection RMS of every used image, in their order (dashed: the camera's "
