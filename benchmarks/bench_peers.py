@@ -10,9 +10,10 @@ Run from the repository root::
    :func:`multieye.sim.dataset.render_dataset`, seed 0) into ``benchmarks/.cache/peers_4x100``
    (git-ignored), and a copy of its rig whose cameras have ``model: pinhole-radtan`` instead
    of ``intrinsics:`` (``peers_4x100_model``: the lenses unknown, the same images linked).
-2. Runs, in turn, ``--runs`` times each, every command as a separate process (interpreter
-   start and imports included), and takes its wall time and CPU time (user + system of the
-   process and its children):
+2. Byte-compiles the multieye package the commands import (as ``pip install`` does;
+   :func:`compile_package`), then runs, in turn, ``--runs`` times each, every command as a
+   separate process (interpreter start and imports included), and takes its wall time and
+   CPU time (user + system of the process and its children):
 
    - ``multieye known`` / ``multieye unknown``: ``python -m multieye calibrate DATASET -o OUT
      --processes P`` (outputs included: report, figures, exports);
@@ -165,8 +166,25 @@ def main() -> None:
             shutil.rmtree(tmp, ignore_errors=True)
 
 
+def compile_package(py: str) -> str:
+    """Byte-compile the multieye package the commands import, once, as ``pip install`` does.
+
+    Python caches a module's bytecode beside it when it first imports it, unless
+    ``PYTHONDONTWRITEBYTECODE`` is set (as in the sessions these benchmarks were first run
+    in): then every ``multieye calibrate`` compiled its 120-odd modules from source, about
+    0.2 CPU-s in the main process and more in its workers, which an installed package (and
+    numpy, scipy and OpenCV here) never pays.  Returns the package's folder."""
+    where = subprocess.run([py, "-c", "import multieye, os; print(os.path.dirname("
+                            "multieye.__file__))"], capture_output=True, text=True, check=True)
+    folder = where.stdout.strip()
+    subprocess.run([py, "-m", "compileall", "-q", folder], check=True)
+    return folder
+
+
 def run_all(args, known: Path, unknown: Path, tmp: Path) -> None:
     py = sys.executable
+    if not args.accuracy_only:
+        print(f"byte-compiled {compile_package(py)} (as an installed package is)", flush=True)
     # the corners mrcal starts from: OpenCV's detector on the same images (not timed)
     corners = tmp / "corners.npz"
     if not args.accuracy_only:

@@ -60,3 +60,24 @@ def group_processes(pgid: int) -> dict[int, str]:
             if st is not None and st[2] == pgid:
                 members[int(name)] = st[0]
     return members
+
+
+#: multiprocessing's own helpers, which outlive a pool by design until the interpreter exits:
+#: not workers of a pool or a cluster.
+MULTIPROCESSING_HELPERS = ("multiprocessing.resource_tracker", "multiprocessing.forkserver")
+
+
+def working_descendants() -> set[int]:
+    """Running descendants of this process (psutil), multiprocessing's own helpers left aside:
+    the workers a pool or a local cluster would leave behind."""
+    import psutil  # noqa: PLC0415 (only the tests that need it import this; the test extra has it)
+
+    out = set()
+    for p in psutil.Process().children(recursive=True):
+        try:
+            if p.status() != psutil.STATUS_ZOMBIE and not any(
+                    h in " ".join(p.cmdline()) for h in MULTIPROCESSING_HELPERS):
+                out.add(p.pid)
+        except psutil.NoSuchProcess:
+            pass
+    return out

@@ -1,4 +1,5 @@
-"""multieye: extrinsic calibration of multi-camera rigs from a motion-captured target.
+"""multieye: calibration of multi-camera rigs from a target tracked by motion capture or a robot,
+or seen by cameras that overlap.
 
 Every command is a thin layer over a library function a Python user can call directly.
 Errors the user can fix (bad files, weak motion) print one line on stderr and exit with
@@ -135,6 +136,14 @@ def _processes_note(processes: int | None) -> None:
                    f"the CPUs this process may use (and at most one per image)")
 
 
+def _prestart_workers(processes: int | None) -> None:
+    """The detection's fork server started before the pipeline is imported, so that its own
+    imports (numpy, OpenCV) run on the other core meanwhile (issue 21)."""
+    from multieye.imaging.batch import prestart_workers  # noqa: PLC0415 (heavy: OpenCV; instant start-up of multieye --help)
+
+    prestart_workers(processes)
+
+
 #: What each exit status means (docs/conventions.md, section 8).
 _EXIT_MEANINGS = {
     0: "success",
@@ -171,11 +180,13 @@ DOC_PAGES = {"rig-yaml": "rig.yaml, key by key: the input",
              epilog=_exit_statuses(0, EXIT_USER_ERROR, EXIT_IMPLAUSIBLE))
 @click.version_option(__version__, prog_name="multieye")
 def main():
-    """Calibrate the extrinsics of a multi-camera rig from a motion-captured target.
+    """Calibrate a multi-camera rig: extrinsics and lenses, from a target tracked by motion
+    capture or a robot, or seen by cameras that overlap.
 
     \b
     Quick start:
       multieye demo -o demo_out          # render, calibrate and check a synthetic rig
+      multieye demo --rig overlap -o o2  # ... cameras that overlap, no motion capture
       multieye check DATASET             # dry run: is DATASET/rig.yaml right?
       multieye calibrate DATASET -o OUT  # your rig: DATASET/rig.yaml
       multieye docs rig-yaml             # every key of rig.yaml; all pages: multieye docs
@@ -229,6 +240,8 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     estimated from the recording; prints a per-camera table.  rig.yaml: multieye docs
     rig-yaml; the files: multieye docs outputs.
     """
+    if flags["engine"] == "local" and flags["scheduler"] is None and os.path.exists(dataset):
+        _prestart_workers(processes)
     from multieye.pipeline import Options, calibrate as run_calibration  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.write import write_outputs  # noqa: PLC0415 (instant start-up of multieye --help)
@@ -366,16 +379,23 @@ def check(dataset: Path, sample: int, processes: int | None):
               default=Path("demo_out"), show_default=True,
               help="Output folder: dataset/ and the files of calibrate -o.")
 @click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--rig", type=click.Choice(["surround", "overlap"]), default="surround",
+              show_default=True,
+              help="surround: 4 cameras that do not overlap, a motion-captured board, lenses "
+                   "known; overlap: 3 cameras that see the board together, no motion "
+                   "capture, every lens unknown (what Kalibr and mrcal calibrate).")
 @_user_errors
-def demo(out_dir: Path, seed: int):
-    """Render a synthetic 4-camera surround rig, calibrate it and compare with ground truth.
+def demo(out_dir: Path, seed: int, rig: str):
+    """Render a synthetic rig, calibrate it and compare with ground truth.
 
-    OUT/dataset is a complete dataset (rig.yaml, images, mocap.txt, intrinsics,
-    ground_truth.json) that `multieye calibrate OUT/dataset -o ...` also accepts.
+    OUT/dataset is a complete dataset (rig.yaml, images, intrinsics or lens models, mocap.txt
+    for the surround rig, ground_truth.json) that `multieye calibrate OUT/dataset -o ...` also
+    accepts.
     """
-    from multieye.demo import run_demo  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.demo import run_demo, run_overlap_demo  # noqa: PLC0415 (instant start-up of multieye --help)
 
-    result = run_demo(out_dir, seed=seed, progress=_progress_enabled())
+    run = run_overlap_demo if rig == "overlap" else run_demo
+    result = run(out_dir, seed=seed, progress=_progress_enabled())
     _echo(result.text)
 
 

@@ -10,11 +10,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import psutil
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from pose_dataset import write_pose_dataset  # noqa: E402
+from proc_tree import working_descendants  # noqa: E402
 
 from multieye.core import geometry as g  # noqa: E402
 from multieye.core.errors import InputError  # noqa: E402
@@ -36,24 +36,6 @@ def _datasets(tmp_path: Path):
     return good, bad
 
 
-#: multiprocessing's helpers, one per main process for its whole life (they end with it):
-#: not workers of a pool or a cluster.
-_HELPERS = ("multiprocessing.resource_tracker", "multiprocessing.forkserver")
-
-
-def _children() -> set[int]:
-    """Running descendants of this process, multiprocessing's own helpers left aside."""
-    out = set()
-    for p in psutil.Process().children(recursive=True):
-        try:
-            if p.status() != psutil.STATUS_ZOMBIE and not any(
-                    h in " ".join(p.cmdline()) for h in _HELPERS):
-                out.add(p.pid)
-        except psutil.NoSuchProcess:
-            pass
-    return out
-
-
 def _check(outcome, good, bad, out_root):
     assert [o.status for o in outcome.outcomes] == [0, 0, 2]
     assert outcome.status == 2
@@ -70,7 +52,7 @@ def _check(outcome, good, bad, out_root):
 @pytest.mark.parametrize("engine", ["local", "dask"])
 def test_many_datasets_each_to_its_own_folder(tmp_path, engine):
     good, bad = _datasets(tmp_path)
-    before = _children()
+    before = working_descendants()
     seen = []
     out = calibrate_many([good[0][0], good[1][0], bad], tmp_path / "out", engine=engine,
                          workers=2, on_done=seen.append)
@@ -78,7 +60,7 @@ def test_many_datasets_each_to_its_own_folder(tmp_path, engine):
     assert sorted(o.dataset for o in seen) == sorted(o.dataset for o in out.outcomes)
     # the pool's or the cluster's worker processes are gone once the call returns
     assert out.engine == engine
-    assert not _children() - before
+    assert not working_descendants() - before
 
 
 def test_worst_status_orders_failure_over_doubt():
@@ -98,11 +80,11 @@ def test_same_folder_name_is_refused(tmp_path):
 def test_unreachable_scheduler_is_one_line():
     from multieye.imaging.engines import DaskEngine
 
-    before = _children()
+    before = working_descendants()
     with pytest.raises(InputError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9") as e:
         DaskEngine("tcp://127.0.0.1:9", timeout_s=2)
     assert "\n" not in str(e.value)
-    assert not _children() - before
+    assert not working_descendants() - before
 
 
 def test_command_line_prints_each_dataset_and_exits_with_the_worst(tmp_path):

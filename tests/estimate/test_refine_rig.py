@@ -174,3 +174,37 @@ def test_one_wrong_pnp_pose_does_not_pull_an_instants_start():
     T[wrong] = T[wrong] @ g.transform_from_rotvec([0.6, 0, 0], [0, 0, 0])
     start = initial_rig(T, rv.camera, rv.instant, 3)
     assert g.rotation_angle_between(start.T_ref_target[both], sc.T_ref_target[both]) < 1e-9
+
+
+def test_motion_capture_that_says_nothing_gives_the_co_observation_problem_back():
+    """The mixed problem (pixels and the board's motion capture, one motion-capture pose per
+    instant shared by the cameras that see it, refine_images) with motion capture 1e4 times
+    noisier than the pixels' board poses is the co-observation problem (refine_rig): the same
+    unknowns per instant, the same lens parameters, the same optimum.  A per-image board
+    pose, a lens parameter held in one path only or a different loss would each move the
+    lenses by about their standard deviation."""
+    from multieye.estimate.refine_images import refine_images  # noqa: PLC0415 (one test)
+    sc = _scenario(11, n=16)
+    rng = np.random.default_rng(3)
+    views = pixel_views(sc, 0.3, rng)
+    start = [i.with_params(i.params * (1 + 0.01 * (np.arange(i.params.size) < 2)))
+             for i in sc.intrinsics]
+    rig = refine_rig(RigViews(dict(zip("abc", views)), start, free_intrinsics=[True] * 3),
+                     _pnp_like(sc, views, rng), pixel_sigma=0.3)
+    T_world_ref = g.transform_from_rotvec([0, 0, 0.4], [0.5, -0.2, 1.0])
+    T_marker_target = g.transform_from_rotvec([0.1, -0.2, 0.3], [0.05, 0.02, -0.03])
+    M = T_world_ref @ sc.T_ref_target @ g.inv(T_marker_target)
+    obs = [[(o, u, M[t]) for o, u, t in vs] for vs in views]
+    X0 = T_world_ref @ sc.T_ref_cam @ g.transform_from_rotvec([0.01, 0, 0], [0.01, 0, 0])
+    mixed = refine_images("eye-to-base", obs, start, X0, T_marker_target, pixel_sigma=0.3,
+                          mocap_rot_sigma_rad=np.radians(30.0), mocap_trans_sigma_m=1.0,
+                          free_intrinsics=[True] * 3, tol=1e-12)
+    for j in range(3):
+        d = mixed.intrinsics[j].params - rig.intrinsics[j].params
+        z = d / np.sqrt(np.diag(rig.intrinsics_covariance[j]))
+        assert np.max(np.abs(z)) < 0.01, (j, z)
+    T_ref_cam = g.inv(mixed.X[0]) @ mixed.X
+    for j in (1, 2):                # within 1 % of a standard deviation (the stopping rule's)
+        dR = T_ref_cam[j, :3, :3] @ rig.T_ref_cam[j, :3, :3].T
+        e = np.concatenate([log_so3(dR), T_ref_cam[j, :3, 3] - rig.T_ref_cam[j, :3, 3]])
+        assert float(np.sqrt(e @ np.linalg.solve(rig.covariance[j], e))) < 0.01, (j, e)

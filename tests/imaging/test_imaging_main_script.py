@@ -12,7 +12,7 @@ import pytest
 
 from multieye.core.geometry import transform_from_rotvec
 from multieye.core.intrinsics import Intrinsics
-from multieye.imaging.batch import _is_main_guard, main_reimport_problem
+from multieye.imaging.main_script import _is_main_guard, main_reimport_problem
 from multieye.imaging.targets import Chessboard
 from multieye.sim.render import render
 

@@ -7,11 +7,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import psutil
 import pytest
 from click.testing import CliRunner
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from proc_tree import working_descendants  # noqa: E402
 from small_dataset import render_small  # noqa: E402
 
 from multieye.cli import main  # noqa: E402
@@ -20,27 +20,13 @@ from multieye.pipeline import calibrate  # noqa: E402
 
 pytest.importorskip("distributed", reason="the distributed extra is not installed")
 
-_HELPERS = ("multiprocessing.resource_tracker", "multiprocessing.forkserver")
-
-
-def _children() -> set[int]:
-    out = set()
-    for p in psutil.Process().children(recursive=True):
-        try:
-            if p.status() != psutil.STATUS_ZOMBIE and not any(
-                    h in " ".join(p.cmdline()) for h in _HELPERS):
-                out.add(p.pid)
-        except psutil.NoSuchProcess:
-            pass
-    return out
-
 
 def test_detection_on_a_local_dask_cluster_gives_the_local_result(tmp_path):
     render_small(tmp_path / "d")
     here = calibrate(tmp_path / "d", processes=1)
-    before = _children()
+    before = working_descendants()
     there = calibrate(tmp_path / "d", processes=2, engine="dask")
-    assert not _children() - before
+    assert not working_descendants() - before
     for name in here.cameras:
         assert [o.name for o in there.cameras[name].observations] == \
             [o.name for o in here.cameras[name].observations]
@@ -51,4 +37,4 @@ def test_detection_on_a_local_dask_cluster_gives_the_local_result(tmp_path):
                                     "--engine", "dask", "--processes", "2"])
     assert res.exit_code in (0, 3), res.output
     assert (tmp_path / "o" / "calibration.json").is_file()
-    assert not _children() - before
+    assert not working_descendants() - before

@@ -77,6 +77,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -97,6 +98,9 @@ from multieye.estimate.findings import (
 )
 from multieye.estimate.hypotheses import CameraEvidence
 from multieye.estimate.sensor import SensorBounds, hypothesis_noise, sensor_bounds
+
+if TYPE_CHECKING:  # the refinement's result type, for the annotation only
+    from multieye.estimate.refine_images import RefinementResult
 
 __all__ = ["CAUSES", "CameraEvidence", "Declared", "Finding", "Plausibility",
            "check_plausibility", "check_noise", "DISCRETE_GAIN", "CONTINUOUS_GAIN",
@@ -348,7 +352,7 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
                           "cost_freed": test.cost_freed})
 
 
-def check_noise(report: Plausibility, refined, mocap=None, *,
+def check_noise(report: Plausibility, refined: RefinementResult | None, mocap=None, *,
                 sensor: SensorBounds | None = None) -> Plausibility:
     """A motion-capture noise estimated from the data, checked against what the sensor has.
 
@@ -359,7 +363,8 @@ def check_noise(report: Plausibility, refined, mocap=None, *,
     refined : RefinementResult or None
         The image-level refinement (:func:`multieye.estimate.refine_images.refine_images`):
         when its ``mocap_sigma_estimated``, its ``mocap_rot_sigma_rad`` and
-        ``mocap_trans_sigma_m`` (per pose and axis) are checked; anything else: nothing is.
+        ``mocap_trans_sigma_m`` (per pose and axis) are checked; None (no image-level
+        refinement, so no estimated noise): nothing is.
     mocap : MocapSpec, optional
         rig.yaml's motion-capture section, for :func:`multieye.estimate.sensor.sensor_bounds`.
     sensor : SensorBounds, optional
@@ -371,7 +376,7 @@ def check_noise(report: Plausibility, refined, mocap=None, *,
         ``report`` with a finding of cause ``noise`` added when the estimate is beyond either
         bound (its message names the causes found, else those tested).
     """
-    if not getattr(refined, "mocap_sigma_estimated", False):
+    if refined is None or not refined.mocap_sigma_estimated:
         return report
     rot_rad, trans_m = float(refined.mocap_rot_sigma_rad), float(refined.mocap_trans_sigma_m)
     sensor = sensor_bounds(mocap) if sensor is None else sensor

@@ -18,18 +18,17 @@ Synopsis
 
 from __future__ import annotations
 
-import ast
 import math
 import multiprocessing
 import os
 import sys
-import threading
-import warnings
+from collections import deque
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
-from functools import lru_cache
 from collections.abc import Iterable
+from typing import Any
 
 import cv2
 
@@ -40,12 +39,14 @@ from multieye.imaging.detect import Detection, detect
 from multieye.imaging.image_file import read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.targets import Target
-from multieye.imaging.workers import worker_pool
+from multieye.imaging.main_script import main_reimport_problem, threads_instead
+from multieye.imaging.workers import start_forkserver, worker_pool
 from multieye.imaging.detect import to_gray
 
 __all__ = ["ImageResult", "ImageJob", "detect_and_estimate", "detect_and_estimate_jobs",
            "worker_count", "detect_and_estimate_arrays", "process_image", "process_array",
-           "main_reimport_problem", "DEFAULT_MAX_RMS_PX"]
+           "main_reimport_problem", "DEFAULT_MAX_RMS_PX", "prestart_workers",
+           "detect_jobs_then"]
 
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
 DEFAULT_MAX_RMS_PX = 2.0
@@ -225,103 +226,25 @@ def _mp_context():
     return ctx
 
 
-def _is_main_guard(test: ast.expr) -> bool:
-    """``__name__ == "__main__"`` (either side), alone or as a term of an ``and``."""
-    if isinstance(test, ast.BoolOp) and isinstance(test.op, ast.And):
-        return any(_is_main_guard(v) for v in test.values)
-    if not (isinstance(test, ast.Compare) and len(test.ops) == 1
-            and isinstance(test.ops[0], ast.Eq)):
-        return False
-    sides = [test.left, test.comparators[0]]
-    return (any(isinstance(x, ast.Name) and x.id == "__name__" for x in sides)
-            and any(isinstance(x, ast.Constant) and x.value == "__main__" for x in sides))
+def prestart_workers(processes: int | None = None) -> bool:
+    """Start, now, the fork server that :func:`detect_and_estimate_jobs` takes its worker
+    processes from, when it will use some (more than one worker, forkserver available, the
+    main script safe to import again).
 
-
-@lru_cache(maxsize=8)
-def _guarded_lines(path: str, mtime_ns: int) -> tuple[tuple[int, int], ...] | None:
-    """Line ranges of the bodies of the ``if __name__ == "__main__":`` blocks of a script;
-    None when its source cannot be read or parsed."""
-    try:
-        with open(path, "rb") as f:
-            tree = ast.parse(f.read(), filename=path)
-    except (OSError, SyntaxError, ValueError):
-        return None
-    return tuple((node.body[0].lineno, node.body[-1].end_lineno) for node in ast.walk(tree)
-                 if isinstance(node, ast.If) and _is_main_guard(node.test))
-
-
-def _main_module_frame(main):
-    """The frame running the main script's top level: in this thread, else the main thread."""
-    candidates = [sys._getframe()]
-    main_thread = sys._current_frames().get(threading.main_thread().ident)
-    if main_thread is not None:
-        candidates.append(main_thread)
-    for frame in candidates:
-        while frame is not None:
-            if frame.f_globals is main.__dict__ and frame.f_code.co_name == "<module>":
-                return frame
-            frame = frame.f_back
-    return None
-
-
-def main_reimport_problem() -> str | None:
-    """Why worker processes cannot be started safely now, or None when they can.
-
-    Workers started by ``spawn`` or ``forkserver`` import the main script again (as
-    ``__mp_main__``), so that what it defines can be unpickled.  That is harmless when the
-    script's top level only defines things and calls multieye under
-    ``if __name__ == "__main__":``; when the call runs at the top level itself, every worker
-    would run it again (and multiprocessing stops it with an error).  There is no main
-    script to import in an interactive session, a notebook or ``python -c``.
+    Its imports (numpy, OpenCV: about a quarter of a CPU second) then run on the other core
+    while the caller imports and reads the rest, instead of between reading the dataset and
+    the first detection.  Nothing else changes: the pool forks its workers from it later,
+    and it is stopped and collected when this process ends.
 
     Returns
     -------
-    str or None
-        What is wrong, for a message: the call at the script's top level, outside
-        ``if __name__ == "__main__":``, or a script whose source cannot be read to tell.
+    bool
+        Whether a fork server is running for the workers.
     """
-    main = sys.modules.get("__main__")
-    if main is None:
-        return None
-    path = getattr(main, "__file__", None)
-    spec = getattr(main, "__spec__", None)
-    if path is None or (spec is None and os.path.splitext(os.path.basename(path))[0] == "ipython"):
-        return None       # multiprocessing imports nothing as the main module then
-    frame = _main_module_frame(main)
-    if frame is None:
-        return (f"the main script {path} is not running this call from its top level, so "
-                "whether importing it again would run it cannot be told")
-    try:
-        guarded = _guarded_lines(os.path.abspath(path), os.stat(path).st_mtime_ns)
-    except OSError:
-        guarded = None
-    if guarded is None:
-        return f"the main script {path} cannot be read to tell whether it is safe to import"
-    line = frame.f_lineno
-    if any(lo <= line <= hi for lo, hi in guarded):
-        return None
-    return (f"{path} calls multieye at its top level (line {line}), outside "
-            "`if __name__ == \"__main__\":`, and worker processes would run it again")
-
-
-def _threads_instead(n_workers: int) -> bool:
-    """True, with a warning saying why, when worker processes must not be started."""
-    if n_workers <= 1:
+    if worker_count(processes) <= 1 or main_reimport_problem() is not None:
         return False
-    problem = main_reimport_problem()
-    if problem is None:
-        return False
-    # point the warning at the script's line that called multieye
-    main = sys.modules["__main__"]
-    frame, level = sys._getframe(), 1
-    while frame is not None and not (frame.f_globals is main.__dict__
-                                     and frame.f_code.co_name == "<module>"):
-        frame, level = frame.f_back, level + 1
-    warnings.warn(f"multieye: detecting in {n_workers} threads of this process instead of "
-                  f"worker processes: {problem}. Put the call under "
-                  "`if __name__ == \"__main__\":` to detect in worker processes.",
-                  RuntimeWarning, stacklevel=level if frame is not None else 2)
-    return True
+    ctx = _mp_context()
+    return ctx.get_start_method() == "forkserver" and start_forkserver(ctx)
 
 
 @dataclass(frozen=True)
@@ -423,41 +346,71 @@ def detect_and_estimate_jobs(jobs: Iterable[ImageJob], *, processes: int | None 
     outside ``if __name__ == "__main__":``, detection runs in threads of this process
     instead, with a warning (:func:`main_reimport_problem`).
     """
-    jobs = list(jobs)
+    return detect_jobs_then(jobs, processes=processes, progress=progress,
+                            max_rms_px=max_rms_px)[0]
+
+
+def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None = None, *,
+                     processes: int | None = None, progress: bool | None = None,
+                     max_rms_px: float = DEFAULT_MAX_RMS_PX
+                     ) -> tuple[list[list[ImageResult]], dict[int, Any]]:
+    """:func:`detect_and_estimate_jobs`, then per job a task on that job's results, run by
+    the same workers as soon as the job's images are detected (while the others' are).
+
+    Parameters
+    ----------
+    jobs : iterable of ImageJob
+    then : dict of int to callable, optional
+        By job index, a picklable function of the job's results (a list of ImageResult),
+        e.g. a camera's lens start (:func:`multieye.imaging.calibrate.start_from_detections`).
+        Run in a worker process, or in this one when detection runs here.
+    processes, progress, max_rms_px
+        As for :func:`detect_and_estimate`.
+
+    Returns
+    -------
+    results : list of list of ImageResult
+        Per job, one result per path, in input order.
+    done : dict of int to object
+        What ``then[j]`` returned, for every ``j`` of ``then``.
+
+    Notes
+    -----
+    The paths go to the workers in chunks, at most one more chunk than there are workers
+    at a time, so that a job's task, submitted once its last image is back, waits behind a
+    few chunks only instead of behind every image still to detect (with a camera's lens
+    estimated, its lens start and PnP ran after the whole rig's detection, one camera after
+    another in this process).  A worker that dies takes the pool down: the images not yet
+    done then run one per worker, and the tasks not yet done in this process.
+    """
+    jobs, then = list(jobs), dict(then or {})
     items = [(j, p) for j, job in enumerate(jobs) for p in job.paths]
-    kinds = sorted({job.target.kind for job in jobs})
     n_workers = worker_count(processes, len(items))
-    bar = _bar(len(items), f"detecting {', '.join(kinds) or 'targets'}", progress)
-    configs = tuple((job.target, job.intrinsics) for job in jobs)
+    bar = _bar(len(items), f"detecting {', '.join(sorted({j.target.kind for j in jobs})) or 'targets'}",
+               progress)
+    initargs = (tuple((job.target, job.intrinsics) for job in jobs), max_rms_px)
+    flat: list[ImageResult] = []
+    done: dict[int, Any] = {}
 
     def one(item):
         j, p = item
         return _guarded(lambda q: process_image(q, jobs[j].target, jobs[j].intrinsics,
                                                 max_rms_px=max_rms_px), p, p)
 
-    flat: list[ImageResult] = []
+    def per_job() -> list[list[ImageResult]]:
+        out: list[list[ImageResult]] = [[] for _ in jobs]
+        for (j, _), r in zip(items, flat):
+            out[j].append(r)
+        return out
+
     try:
-        if n_workers <= 1:
-            for item in items:
-                flat.append(one(item))
-                if bar is not None:
-                    bar.update(1)
-        elif _threads_instead(n_workers):
-            with ThreadPoolExecutor(n_workers) as pool:
-                for r in pool.map(one, items):
-                    flat.append(r)
-                    if bar is not None:
-                        bar.update(1)
+        if n_workers <= 1 or threads_instead(n_workers):
+            _here(one, items, n_workers, flat, bar)
         else:
-            chunksize = max(1, math.ceil(len(items) / (n_workers * _CHUNKS_PER_WORKER)))
-            initargs = (configs, max_rms_px)
             try:
                 with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_jobs,
                                  initargs=initargs) as pool:
-                    for r in pool.map(_work_item, items, chunksize=chunksize):
-                        flat.append(r)
-                        if bar is not None:
-                            bar.update(1)
+                    done.update(_on_pool(pool, items, jobs, then, flat, bar, n_workers))
             except BrokenProcessPool:
                 # a worker died (a crash in a decoder, killed for memory): the images not
                 # yet done run one by one, each in a worker of its own, so only the culprit
@@ -470,10 +423,62 @@ def detect_and_estimate_jobs(jobs: Iterable[ImageJob], *, processes: int | None 
     finally:
         if bar is not None:
             bar.close()
-    out: list[list[ImageResult]] = [[] for _ in jobs]
-    for (j, _), r in zip(items, flat):
-        out[j].append(r)
-    return out
+    results = per_job()
+    done.update({j: task(results[j]) for j, task in then.items() if j not in done})
+    return results, done
+
+
+def _here(one, items, n_workers: int, flat: list, bar) -> None:
+    """Detection in this process: one image after another, or in ``n_workers`` threads."""
+    if n_workers <= 1:
+        for item in items:
+            flat.append(one(item))
+            if bar is not None:
+                bar.update(1)
+        return
+    with ThreadPoolExecutor(n_workers) as pool:
+        for r in pool.map(one, items):
+            flat.append(r)
+            if bar is not None:
+                bar.update(1)
+
+
+def _work_chunk(chunk: list) -> list[ImageResult]:
+    return [_work_item(item) for item in chunk]
+
+
+def _on_pool(pool, items, jobs, then, flat: list, bar, n_workers: int) -> dict:
+    """Detection of ``items`` on ``pool`` (of ``n_workers``), in chunks (about
+    :data:`_CHUNKS_PER_WORKER` per worker) with at most one more chunk submitted than there
+    are workers; each job's ``then`` task submitted once its last result is back.  Returns
+    what the tasks returned, by job."""
+    chunksize = max(1, math.ceil(len(items) / (n_workers * _CHUNKS_PER_WORKER)))
+    in_flight = n_workers + 1
+    chunks = [items[i:i + chunksize] for i in range(0, len(items), chunksize)]
+    left = [len(job.paths) for job in jobs]
+    tasks = {j: pool.submit(task, []) for j, task in then.items() if left[j] == 0}
+    first = [0]                     # where the job being collected starts in ``flat``
+
+    def collect(future) -> None:
+        for r in future.result():
+            flat.append(r)
+            j = items[len(flat) - 1][0]
+            left[j] -= 1
+            if left[j] == 0:        # the job's last image: its task goes next
+                if j in then:
+                    tasks[j] = pool.submit(then[j], flat[first[0]:])
+                first[0] = len(flat)
+            if bar is not None:
+                bar.update(1)
+
+    pending: deque = deque()
+    for chunk in chunks:
+        pending.append(pool.submit(_work_chunk, chunk))
+        if len(pending) >= in_flight:
+            collect(pending.popleft())
+    while pending:
+        collect(pending.popleft())
+    return {j: f.result() for j, f in tasks.items()}
 
 
 def _isolated(work, item, name: str, initargs: tuple, *, initializer=_init_worker) -> ImageResult:
@@ -541,7 +546,7 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
                 if bar is not None:
                     bar.update(1)
             return results
-        if _threads_instead(n_workers):
+        if threads_instead(n_workers):
             with ThreadPoolExecutor(n_workers) as pool:
                 while True:
                     chunk = [item for _, item in zip(range(batch), it)]

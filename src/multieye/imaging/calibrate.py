@@ -16,7 +16,7 @@ Synopsis
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -24,8 +24,11 @@ from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
+from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
+from multieye.imaging.pnp import estimate_pose
 
-__all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS"]
+__all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS", "StartedLens",
+           "start_from_detections", "poses_from_detections"]
 
 F64 = NDArray[np.float64]
 
@@ -227,3 +230,76 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
         T[k, :3, :3] = cv2.Rodrigues(np.asarray(r, np.float64).reshape(3))[0]
         T[k, :3, 3] = np.asarray(t, np.float64).reshape(3)
     return InitialIntrinsics(intrinsics=intr, T_cam_target=T, rms_px=float(rms))
+
+
+@dataclass(frozen=True)
+class StartedLens:
+    """A camera's starting lens from its detections, and their poses by PnP with it.
+
+    Attributes
+    ----------
+    start : InitialIntrinsics
+    results : tuple of ImageResult
+        The detections, completed with their pose (:func:`poses_from_detections`).
+    """
+
+    start: InitialIntrinsics
+    results: tuple[ImageResult, ...]
+
+
+def start_from_detections(results: Sequence[ImageResult], model: str, name: str = "camera", *,
+                          max_rms_px: float = DEFAULT_MAX_RMS_PX) -> StartedLens | None:
+    """:func:`initial_intrinsics` from one camera's detection-only results, then every
+    detection's pose with that lens: a camera's whole lens start as one task, which a
+    worker process runs as soon as the camera's images are detected
+    (:func:`multieye.imaging.batch.detect_jobs_then`).
+
+    Parameters
+    ----------
+    results : sequence of ImageResult
+        Detection only (no intrinsics), one per image of the camera.
+    model : str
+        Lens model (:data:`multieye.core.intrinsics.LENS_MODELS`).
+    name : str
+        Camera name for messages.
+    max_rms_px : float
+        As for :func:`poses_from_detections`.
+
+    Returns
+    -------
+    StartedLens or None
+        None when no start can be made (no image read, images of different sizes, too few
+        views, OpenCV failing): the caller then starts the lens itself, to say why.
+    """
+    sizes = {r.image_size for r in results if r.image_size is not None}
+    if len(sizes) != 1:
+        return None
+    views = [(r.detection.object_points, r.detection.image_points) for r in results
+             if r.detection is not None and r.reason is None]
+    try:
+        start = initial_intrinsics(views, sizes.pop(), model, name=name)
+    except InputError:
+        return None
+    return StartedLens(start, tuple(poses_from_detections(results, start.intrinsics,
+                                                          max_rms_px=max_rms_px)))
+
+
+def poses_from_detections(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
+                          max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
+    """Detection-only results completed with the target pose by PnP with ``intrinsics``
+    (the same rules as detection with known intrinsics: a failed PnP or a bad fit becomes the
+    image's reason)."""
+    out = []
+    for r in results:
+        if r.detection is None or r.reason is not None:
+            out.append(r)
+            continue
+        try:
+            pose = estimate_pose(r.detection, intrinsics)
+        except InputError as exc:
+            out.append(replace(r, reason=f"PnP failed: {exc}"))
+            continue
+        reason = None if pose.rms_px <= max_rms_px else (
+            f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px")
+        out.append(replace(r, pose=pose, reason=reason))
+    return out

@@ -57,7 +57,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
-__all__ = ["worker_pool", "die_with", "stop_workers", "stop_helpers"]
+__all__ = ["worker_pool", "die_with", "stop_workers", "stop_helpers", "start_forkserver"]
 
 #: Seconds between two checks where the main process cannot be waited for (no pidfd).
 POLL_S = 0.5
@@ -256,6 +256,19 @@ def _stop_helpers_at_exit() -> None:
     if not _AT_EXIT:
         atexit.register(stop_helpers)
         _AT_EXIT.append(True)
+
+
+def start_forkserver(mp_context) -> bool:
+    """Start the fork server of ``mp_context`` now, as :func:`worker_pool` would at its
+    first pool (standard error on the workers' file, stopped and collected at exit).
+
+    A fork server imports its preload modules (numpy, OpenCV) once; started early, that runs
+    while this process goes on with its own work (imports, reading the dataset) instead of
+    before the first worker can start.  True when a fork server of this process is running
+    (started now or before); False for other start methods.
+    """
+    _stop_helpers_at_exit()
+    return _quiet_forkserver(mp_context) is not None
 
 
 @contextlib.contextmanager

@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
@@ -203,6 +202,8 @@ def _matrix(numbers: Sequence[float], scale: float, path: Path) -> np.ndarray:
 
 
 def _rotation(rotation: str, v: Mapping[str, float], path: Path) -> np.ndarray:
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial, 0.2-0.3 CPU-s for every process that imports multieye.io, the report's figure worker included)
+
     if rotation.startswith("quaternion"):
         q = np.array([v["qx"], v["qy"], v["qz"], v["qw"]])
         norm = float(np.linalg.norm(q))

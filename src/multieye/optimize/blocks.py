@@ -149,10 +149,7 @@ class ResidualGroup(ABC):
 
     def pad(self, rows: F64) -> F64:
         """Per-row array (n_rows, dim, ...) to zero-padded segment blocks (S, longest * dim, ...)."""
-        S, m = len(self.index), self.longest
-        out = np.zeros((S, m) + rows.shape[1:])
-        out[self.segment, self.position] = rows
-        return out.reshape((S, m * self.dim) + rows.shape[2:])
+        return _pad(self, rows)
 
     def linearize(self, values: Mapping[str, F64]) -> tuple[F64, F64, F64]:
         """Residuals and their Jacobian laid out per segment, as the engine consumes them.
@@ -224,7 +221,13 @@ class SegmentRange:
 
     def pad(self, rows: F64) -> F64:
         """As :meth:`ResidualGroup.pad`, for these segments' rows."""
-        S, m = len(self.index), self.longest
-        out = np.zeros((S, m) + rows.shape[1:])
-        out[self.segment, self.position] = rows
-        return out.reshape((S, m * self.dim) + rows.shape[2:])
+        return _pad(self, rows)
+
+
+def _pad(layout: ResidualGroup | SegmentRange, rows: F64) -> F64:
+    """``rows`` (n_rows, dim, ...) of ``layout`` (its ``index``, ``segment``, ``position``,
+    ``longest`` and ``dim``) to zero-padded segment blocks (S, longest * dim, ...)."""
+    S, m = len(layout.index), layout.longest
+    out = np.zeros((S, m) + rows.shape[1:])
+    out[layout.segment, layout.position] = rows
+    return out.reshape((S, m * layout.dim) + rows.shape[2:])

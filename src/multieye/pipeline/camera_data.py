@@ -35,7 +35,7 @@ from multieye.io import (
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.detection import Workers, detect_all
-from multieye.pipeline.estimated_lens import check_model, start_lens, with_poses
+from multieye.pipeline.estimated_lens import check_model, lens_start, start_lens, with_poses
 from multieye.pipeline.selection import SelectionSummary, preselected
 from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.solvers.measurements import MIN_MEASUREMENTS
@@ -278,8 +278,13 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
             raise DatasetError(_no_usable_image(rig, [RejectedItem(lb, r.reason) for (_, lb), r
                                                       in zip(stamped, results)], len(stamped)),
                                path=source, camera=name)
-        lens = start_lens(name, cam.model, list(results) + list(extra_views), source)
-        results = with_poses(results, lens.intrinsics)
+        started = None if extra_views else workers.started.get(name)
+        if started is not None:     # started by the detection's workers (detect_all)
+            lens = lens_start(name, cam.model, results, started.start)
+            results = list(started.results)
+        else:
+            lens = start_lens(name, cam.model, list(results) + list(extra_views), source)
+            results = with_poses(results, lens.intrinsics)
     obs, rejected, warnings = [], [], list(lens.warnings if lens else ())
     for (stamp, label), res in zip(stamped, results):
         if res.ok:

@@ -6,13 +6,15 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 from multieye.imaging.batch import (
     ImageJob,
     detect_and_estimate,
     detect_and_estimate_arrays,
-    detect_and_estimate_jobs,
+    detect_jobs_then,
 )
+from multieye.imaging.calibrate import start_from_detections
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.imaging.targets import target_from_spec
 from multieye.io import Rig, list_image_files, list_images, read_camera_intrinsics
@@ -26,13 +28,17 @@ class Workers:
     """How detection runs: worker processes (None: one per core), a progress bar, or the
     tasks of an engine (Dask, :mod:`multieye.imaging.engines`); and the results of the image
     files already detected (:func:`detect_all`), keyed by camera and ``"images"`` or
-    ``"intrinsics_images"``, with the seconds they took."""
+    ``"intrinsics_images"``, with the seconds they took; and, by camera name, the lens
+    started from them where it is estimated (a
+    :class:`~multieye.imaging.calibrate.StartedLens`, or None when no start could be made),
+    made by the workers as soon as the camera's images were detected."""
 
     processes: int | None
     progress: bool
     engine: Engine | None = None
     detected: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
+    started: dict = field(default_factory=dict)
 
     def detect(self, paths, target, intr) -> list:
         if self.engine is not None:
@@ -55,9 +61,12 @@ def detect_all(rig: Rig, motions: dict, workers: Workers,
     its tasks instead.
 
     One pool for the rig keeps every core busy to the last image (a pool per camera left
-    one idle at the end of each camera). The seconds are shared out by image count.
+    one idle at the end of each camera). The seconds are shared out by image count.  A
+    camera whose lens is estimated (``model:`` without ``intrinsics:`` nor
+    ``intrinsics_images``) gets its lens start and its poses from the workers too, as soon
+    as its images are detected (``Workers.started``).
     """
-    keys, jobs = [], []
+    keys, jobs, then = [], [], {}
     for name, cam in rig.cameras.items() if workers.engine is None else ():
         if cam.source != "images":
             continue
@@ -67,6 +76,9 @@ def detect_all(rig: Rig, motions: dict, workers: Workers,
         target = target_from_spec(rig.target, path=rig.path)
         listed = chosen[name][0] if name in chosen else motions[name].listed
         images = list_images(cam.images) if listed is None else listed
+        if intr is None and cam.model is not None and cam.intrinsics_images is None:
+            # the lens start and every pose with it, in a worker once the images are in
+            then[len(jobs)] = partial(start_from_detections, model=cam.model, name=name)
         keys.append((name, "images"))
         jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
         if cam.intrinsics_images is not None:
@@ -77,9 +89,10 @@ def detect_all(rig: Rig, motions: dict, workers: Workers,
     if not jobs:
         return workers
     t0 = time.perf_counter()
-    results = detect_and_estimate_jobs(jobs, processes=workers.processes,
-                                       progress=workers.progress)
+    results, started = detect_jobs_then(jobs, then, processes=workers.processes,
+                                        progress=workers.progress)
     seconds = time.perf_counter() - t0
     total = max(sum(len(job.paths) for job in jobs), 1)
     return replace(workers, detected=dict(zip(keys, results)),
-                   seconds={k: seconds * len(job.paths) / total for k, job in zip(keys, jobs)})
+                   seconds={k: seconds * len(job.paths) / total for k, job in zip(keys, jobs)},
+                   started={keys[j][0]: lens for j, lens in started.items()})

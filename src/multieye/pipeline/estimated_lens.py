@@ -20,10 +20,10 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
-from multieye.imaging.calibrate import initial_intrinsics
-from multieye.imaging.pnp import estimate_pose, refit_pose
+from multieye.imaging.calibrate import InitialIntrinsics, initial_intrinsics, poses_from_detections
+from multieye.imaging.pnp import refit_pose
 
-__all__ = ["LensStart", "start_lens", "with_poses", "weak_data_warnings", "check_model",
+__all__ = ["LensStart", "start_lens", "lens_start", "with_poses", "weak_data_warnings", "check_model",
            "RECOMMENDED_VIEWS"]
 
 #: Views of the target a lens model wants before its intrinsics count as well supported.
@@ -110,14 +110,27 @@ def start_lens(name: str, model: str, results: Sequence[ImageResult], where) -> 
         camera and what to add.
     """
     size = _image_size(name, results, where)
-    views = [(r.detection.object_points, r.detection.image_points) for r in results
-             if r.detection is not None and r.reason is None]
     try:
-        start = initial_intrinsics(views, size, model, name=name)
+        start = initial_intrinsics(_views(results), size, model, name=name)
     except InputError as exc:
         # the error names the camera already; the DatasetError adds it in its own place
         message = str(exc).removeprefix(f"camera {name}: ")
         raise DatasetError(message, path=where, camera=name) from None
+    return lens_start(name, model, results, start)
+
+
+def _views(results: Sequence[ImageResult]) -> list:
+    return [(r.detection.object_points, r.detection.image_points) for r in results
+            if r.detection is not None and r.reason is None]
+
+
+def lens_start(name: str, model: str, results: Sequence[ImageResult],
+               start: InitialIntrinsics) -> LensStart:
+    """The :class:`LensStart` of OpenCV's calibration ``start`` from ``results`` (made by
+    :func:`start_lens`, or by a worker process: :func:`multieye.imaging.calibrate.
+    start_from_detections`), with what the views lack for ``model``."""
+    views = _views(results)
+    size = next(r.image_size for r in results if r.image_size is not None)
     return LensStart(start.intrinsics, start.rms_px, len(views),
                      weak_data_warnings(name, model, views, start.T_cam_target, size))
 
@@ -125,22 +138,9 @@ def start_lens(name: str, model: str, results: Sequence[ImageResult], where) -> 
 def with_poses(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
                max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
     """Detection-only results completed with the target pose by PnP with ``intrinsics``
-    (the same rules as detection with known intrinsics: a failed PnP or a bad fit becomes the
-    image's reason)."""
-    out = []
-    for r in results:
-        if r.detection is None or r.reason is not None:
-            out.append(r)
-            continue
-        try:
-            pose = estimate_pose(r.detection, intrinsics)
-        except InputError as exc:
-            out.append(replace(r, reason=f"PnP failed: {exc}"))
-            continue
-        reason = None if pose.rms_px <= max_rms_px else (
-            f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px")
-        out.append(replace(r, pose=pose, reason=reason))
-    return out
+    (:func:`multieye.imaging.calibrate.poses_from_detections`: a failed PnP or a bad fit
+    becomes the image's reason)."""
+    return poses_from_detections(results, intrinsics, max_rms_px=max_rms_px)
 
 
 def refit_paired(paired, intrinsics: Intrinsics):

@@ -60,7 +60,11 @@ from multieye.pipeline.camera_data import (
 )
 from multieye.pipeline.estimated_lens import refit_paired
 from multieye.pipeline.options import Options, updated_options
-from multieye.estimate.refine_images import DEFAULT_MOCAP_ROT_SIGMA_RAD, DEFAULT_MOCAP_TRANS_SIGMA_M
+from multieye.estimate.refine_images import (
+    DEFAULT_MOCAP_ROT_SIGMA_RAD,
+    DEFAULT_MOCAP_TRANS_SIGMA_M,
+    RefinementResult,
+)
 from multieye.pipeline.overlap import paired_instants, share_instants
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
 from multieye.pipeline.problem import Pairing, Problem, make_problem
@@ -371,8 +375,8 @@ def check_refined(problem: Problem, pairing: Pairing, solved: Plausibility, refi
                   ) -> Plausibility:
     """``solved`` with the motion-capture noise the refinement estimated checked against what
     the sensor has (issue 20); ``solved`` itself without a refinement."""
-    if refined.refinement is None:
-        return solved
+    if refined.refinement is None or not isinstance(refined.refinement.result, RefinementResult):
+        return solved               # only the image-level refinement estimates the noise
     return check_noise(solved, refined.refinement.result,
                        mocap_noise(problem.rig, pairing.paired, problem.options)[0])
 

@@ -17,7 +17,6 @@ parameterisation stays far from gimbal lock).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from multieye.core.geometry import make_transform
@@ -34,6 +33,8 @@ def _euler(e: np.ndarray) -> np.ndarray:
 
 def solve_tabb_single(A: np.ndarray, B: np.ndarray, cost: str = "c1"):
     """Solve one camera with cost ``"c1"`` or ``"c2"``. A, B: (N, 4, 4). Returns X, Y."""
+    from scipy.optimize import least_squares  # noqa: PLC0415 (heavy: 0.1-0.3 CPU-s of start-up for every calibrate; only the tabb methods use it)
+
     X0, Y0 = solve_shah_single(A, B)
     RA, tA = A[:, :3, :3], A[:, :3, 3]
     RB, tB = B[:, :3, :3], B[:, :3, 3]

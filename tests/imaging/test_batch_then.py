@@ -1,0 +1,103 @@
+"""Tasks on a job's results run by the detection's workers (issue 21: a camera's lens start
+and its poses on the pool, as soon as its images are in), and the fork server started early."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import pytest
+from proc_tree import group_processes, needs_proc
+from test_imaging_batch import BOARD, CAMERA, check, image_files  # noqa: F401 (fixture)
+
+from multieye.imaging.batch import ImageJob, detect_jobs_then
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_each_jobs_task_gets_exactly_that_jobs_results(image_files, processes):  # noqa: F811
+    order, _ = image_files
+    paths = tuple(str(p) for p in order)
+    # four jobs: two parts, an empty one, the whole list (16 images: chunks of 2, so job
+    # boundaries fall inside chunks)
+    jobs = [ImageJob(paths[:3], BOARD, CAMERA), ImageJob(paths[3:], BOARD, CAMERA),
+            ImageJob((), BOARD, CAMERA), ImageJob(paths, BOARD, CAMERA)]
+    results, done = detect_jobs_then(jobs, {0: len, 1: len, 2: len, 3: len},
+                                     processes=processes, progress=False)
+    assert [len(r) for r in results] == [3, len(paths) - 3, 0, len(paths)]
+    check(results[0] + results[1], image_files)
+    check(results[3], image_files)
+    assert done == {0: 3, 1: len(paths) - 3, 2: 0, 3: len(paths)}
+    # a task only where asked
+    results, done = detect_jobs_then(jobs[:2], {1: len}, processes=processes, progress=False)
+    assert done == {1: len(paths) - 3}
+
+
+SPY = textwrap.dedent("""
+    import sys
+    from multiprocessing import forkserver
+    from multieye.imaging import batch
+
+    started = batch.prestart_workers
+
+    def spy(processes):
+        running = started(processes)
+        print("prestart", running, "multieye.pipeline" in sys.modules,
+              forkserver._forkserver._forkserver_pid, file=sys.stderr)
+        return running
+
+    batch.prestart_workers = spy
+
+    if __name__ == "__main__":
+        from multieye.cli import main
+        try:
+            main(sys.argv[1:], standalone_mode=False)
+        finally:
+            print("server", forkserver._forkserver._forkserver_pid, file=sys.stderr)
+""")
+
+
+def test_calibrate_starts_the_fork_server_before_importing_the_pipeline(tmp_path):
+    """The fork server's imports overlap the main process's: started before
+    ``multieye.pipeline`` is imported, and the one the detection's workers come from."""
+    from small_dataset import render_small
+
+    ds = tmp_path / "ds"
+    render_small(ds, images_per_camera=6)
+    script = tmp_path / "spy.py"
+    script.write_text(SPY)
+    run = subprocess.run([sys.executable, str(script), "calibrate", str(ds), "-o",
+                          str(tmp_path / "out"), "--processes", "2"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    lines = [line.split() for line in run.stderr.splitlines()
+             if line.startswith(("prestart", "server"))]
+    (_, running, imported, pid), (_, after) = lines
+    assert (running, imported) == ("True", "False")
+    assert pid == after != "None"        # not started again for the detection; still running
+    # with one process there are no workers: nothing is started
+    one = subprocess.run([sys.executable, str(script), "calibrate", str(ds), "-o",
+                          str(tmp_path / "out1"), "--processes", "1"],
+                         capture_output=True, text=True, timeout=300)
+    assert one.returncode == 0, one.stderr
+    assert "prestart False False None" in one.stderr
+
+
+@needs_proc
+def test_an_error_before_detection_leaves_no_early_fork_server_behind(tmp_path):
+    """The fork server started before the pipeline's imports is stopped and collected when
+    the run fails before detection (exit 2: a rig.yaml the reader refuses)."""
+    from small_dataset import render_small
+
+    ds = tmp_path / "ds"
+    render_small(ds, images_per_camera=4)
+    (ds / "rig.yaml").write_text((ds / "rig.yaml").read_text() + "\nunknown_key: 1\n")
+    proc = subprocess.Popen([sys.executable, "-m", "multieye", "calibrate", str(ds), "-o",
+                             str(tmp_path / "out"), "--processes", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    _, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 2, stderr
+    assert len(stderr.strip().splitlines()) == 1 and "unknown_key" in stderr, stderr
+    assert group_processes(proc.pid) == {}
+    assert not (tmp_path / "out").exists()
