@@ -40,9 +40,10 @@ from multieye.imaging.workers import worker_pool
 __all__ = ["draw_figures", "figure_jobs", "figure_worker", "figures_cost", "FigureWorker",
            "PARALLEL_FROM_S"]
 
-#: Rough CPU seconds of a worker's imports (matplotlib, and multieye.io for the details
-#: it is sent): what a worker costs before drawing (0.6 measured in a command's worker).
-_IMPORT_S = 0.6
+#: Rough CPU seconds of a worker's imports (matplotlib 0.3, multieye.io for the details it
+#: is sent 0.08): what a worker costs before drawing (measured in a worker of the fork
+#: server that a calibration starts).
+_IMPORT_S = 0.4
 #: Rough CPU seconds of matplotlib's import in this process.
 _MAIN_IMPORT_S = 0.3
 #: Share the figures with a worker when they would take this many CPU seconds or more.
@@ -113,7 +114,7 @@ def _free_core() -> bool:
     """Whether another core is free for a worker: the load average (1 minute) below the
     cores this process may use plus a half.  This run's own detection counts in it (at most
     one per core); on a machine busy with other work, a worker only adds its imports (about
-    0.6 CPU-s) to what the cores must do, and the report takes longer (measured under load:
+    0.4 CPU-s) to what the cores must do, and the report takes longer (measured under load:
     docs/results/report_speed.md)."""
     try:
         return os.getloadavg()[0] < _cores() + 0.5
