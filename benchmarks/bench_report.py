@@ -20,6 +20,19 @@ Run from the repository root::
    all).  The first call imports matplotlib, as a
    ``multieye calibrate`` command does; the later ones show the cost without that import.
 
+3. With ``--command`` (what issue 21 asks about): the whole command, ``multieye calibrate
+   DATASET -o OUT`` in a fresh interpreter, ``--repeats`` times with the report and as many
+   without it (``write_outputs(..., report=False)``: calibration.json, camchain, details.json
+   only) and, with ``--serial``, with every figure drawn in the main process and with a
+   figure worker whatever the load (by default one is used only with a core free); in turn
+   so that all see the same load.  For each it prints the command's wall time and CPU
+   seconds (the command and every process it waited for), and the outputs stage's wall time
+   and CPU seconds (the main process, and the figure worker's own, which it reports before
+   it ends).  The medians' differences are what the report adds, matplotlib's import
+   included; the outputs stage's are the precise ones (the whole command's also vary with
+   the detection).  ``--dataset`` adds another rendered folder (e.g.
+   ``benchmarks/.cache/peers_4x100``).
+
 The wall times depend on what else runs on the machine (the load average is printed); the
 CPU seconds much less.
 """
@@ -29,9 +42,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
+import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -44,8 +61,6 @@ def rendered(cameras: int, images: int) -> Path:
     folder = CACHE / f"report_{cameras}x{images}"
     if (folder / ".complete").exists():
         return folder
-    import shutil
-
     from multieye.sim.dataset import DatasetSpec, render_dataset
 
     shutil.rmtree(folder, ignore_errors=True)
@@ -95,20 +110,121 @@ def run_sizes(dataset: Path, src: Path, processes: int, repeats: int, serial: bo
     return [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
 
 
+_COMMAND = r"""
+import contextlib, json, resource, sys, time
+import multieye.outputs.write as w
+import multieye.outputs.report_draw as draw
+
+def cpu():
+    own, waited = (resource.getrusage(k) for k in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + waited.ru_utime + waited.ru_stime
+
+worker_cpu = []
+real_pool = draw.worker_pool
+
+@contextlib.contextmanager
+def counted_pool(*args, **kwargs):    # the figure worker's CPU-s, asked of it before it ends
+    with real_pool(*args, **kwargs) as pool:
+        yield pool
+        used = pool.submit(resource.getrusage, resource.RUSAGE_SELF).result()
+        worker_cpu.append(used.ru_utime + used.ru_stime)
+
+draw.worker_pool = counted_pool
+mode = sys.argv.pop(1)
+if mode == "serial":        # every figure in this process
+    draw._cores = lambda: 1
+elif mode == "worker":      # a figure worker whatever the load
+    draw._free_core = lambda: True
+plain = w.write_outputs
+
+def timed(run, out, **kw):
+    c, t = cpu(), time.perf_counter()
+    written = plain(run, out, **{**kw, "report": mode != "no-report"})
+    print("BENCH " + json.dumps({"stage_wall": time.perf_counter() - t, "stage_cpu": cpu() - c,
+                                 "worker_cpu": sum(worker_cpu)}), file=sys.stderr)
+    return written
+
+w.write_outputs = timed
+from multieye.cli import main
+main()
+"""
+
+
+def _command(dataset: Path, src: Path, out: Path, mode: str) -> dict:
+    """One ``multieye calibrate`` (``mode``: report, no-report, serial or worker): wall,
+    CPU-s, the outputs stage."""
+    def children() -> float:
+        u = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return u.ru_utime + u.ru_stime
+
+    shutil.rmtree(out, ignore_errors=True)
+    env = dict(os.environ, PYTHONPATH=str(src))
+    c, w = children(), time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", _COMMAND, mode,
+                           "calibrate", str(dataset), "-o", str(out)],
+                          capture_output=True, text=True, env=env)
+    wall, cpu = time.perf_counter() - w, children() - c
+    if proc.returncode not in (0, 3):
+        raise SystemExit(f"the command failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+    stage = [json.loads(line[6:]) for line in proc.stderr.splitlines()
+             if line.startswith("BENCH ")][-1]
+    return {"wall": wall, "cpu": cpu, "stage_wall": stage["stage_wall"],
+            "stage_cpu": stage["stage_cpu"] + stage["worker_cpu"],
+            "worker_cpu": stage["worker_cpu"], "load": os.getloadavg()[0]}
+
+
+def run_commands(dataset: Path, src: Path, repeats: int, serial: bool) -> None:
+    """The whole command with and without the report (and with its figures drawn in one
+    process, ``serial``), in turn; prints what the report adds."""
+    modes = ["report", "no-report"] + (["serial", "worker"] if serial else [])
+    rows: dict[str, list[dict]] = {m: [] for m in modes}
+    with tempfile.TemporaryDirectory(prefix="bench_report_cmd_") as tmp:
+        for k in range(repeats):
+            for mode in (modes if k % 2 == 0 else modes[::-1]):
+                r = _command(dataset, src, Path(tmp) / "out", mode)
+                rows[mode].append(r)
+                print(f"{dataset.name} {mode}: command {r['wall']:.2f} s wall, "
+                      f"{r['cpu']:.2f} CPU-s; outputs stage {r['stage_wall']:.2f} s wall, "
+                      f"{r['stage_cpu']:.2f} CPU-s (figure worker {r['worker_cpu']:.2f}), "
+                      f"load {r['load']:.1f}", flush=True)
+    keys = ("wall", "cpu", "stage_wall", "stage_cpu")
+    med = {m: {q: statistics.median(r[q] for r in v) for q in keys} for m, v in rows.items()}
+    base = med["no-report"]
+    for mode in modes:
+        if mode != "no-report":
+            d = {q: med[mode][q] - base[q] for q in keys}
+            print(f"{dataset.name}: the report ({mode}) adds, medians of {repeats}: outputs "
+                  f"stage {d['stage_wall']:.2f} s wall ({med[mode]['stage_wall']:.2f} - "
+                  f"{base['stage_wall']:.2f}), {d['stage_cpu']:.2f} CPU-s "
+                  f"({med[mode]['stage_cpu']:.2f} - {base['stage_cpu']:.2f}); whole command "
+                  f"{d['wall']:.2f} s wall ({med[mode]['wall']:.2f} - {base['wall']:.2f}), "
+                  f"{d['cpu']:.2f} CPU-s ({med[mode]['cpu']:.2f} - {base['cpu']:.2f})",
+                  flush=True)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--cameras", type=int, nargs="+", default=[4, 16])
+    parser.add_argument("--cameras", type=int, nargs="*", default=[4, 16])
     parser.add_argument("--images", type=int, default=40)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--processes", type=int, default=2)
     parser.add_argument("--serial", action="store_true",
                         help="draw every figure in the main process (its CPU seconds are then "
-                             "all of the drawing: a worker's are not counted)")
+                             "all of the drawing: a worker's are not counted); with "
+                             "--command, time that and a worker whatever the load too")
     parser.add_argument("--src", type=Path, default=ROOT / "src",
                         help="the sources to time (a checkout's src folder)")
+    parser.add_argument("--command", action="store_true",
+                        help="time the whole `multieye calibrate` with and without the report")
+    parser.add_argument("--dataset", type=Path, nargs="*", default=[],
+                        help="with --command: more rendered datasets to time")
     args = parser.parse_args(argv)
     src = args.src.resolve()
     print(f"sources: {src}")
+    if args.command:
+        for dataset in [rendered(m, args.images) for m in args.cameras] + args.dataset:
+            run_commands(dataset, src, args.repeats, args.serial)
+        return
     for m in args.cameras:
         dataset = rendered(m, args.images)
         rows = run_sizes(dataset, src, args.processes, args.repeats, args.serial)

@@ -62,7 +62,7 @@ def earlier(earlier_template, tmp_path):
     return out
 
 
-def _quick_report(folder, shown_as=None, images=None):
+def _quick_report(folder, shown_as=None, images=None, worker=None):
     """Stands in for the report (whose figures take a second) where it is not the point."""
     (Path(folder) / "figures").mkdir()
     (Path(folder) / "figures" / "rig.png").write_bytes(b"png")

@@ -9,7 +9,9 @@ calibrated twice: with the intrinsics files it comes with (given, held fixed) an
 from __future__ import annotations
 
 import json
+import multiprocessing
 import re
+import time
 
 import numpy as np
 import pytest
@@ -18,6 +20,9 @@ from multieye.core import geometry as g
 from multieye.core.lens import project_points, undistort_points
 from multieye.io.calibration_record import CameraRecord
 from multieye.io.run_details import read_run_details
+from multieye.imaging.workers import worker_pool
+from multieye.io.calibration_json import read_calibration
+from multieye.outputs import figures as f
 from multieye.outputs.details import image_points, projection_std_grid
 from multieye.outputs.folder import foreign_files
 from multieye.outputs.image_stats import (
@@ -28,7 +33,8 @@ from multieye.outputs.image_stats import (
     position_bins,
     radial_bins,
 )
-from multieye.outputs.report import write_report
+from multieye.outputs.report import load_details, write_report
+from multieye.outputs.report_draw import FigureWorker, figure_jobs
 from multieye.outputs.report_cameras import camera_figure_names
 from multieye.outputs.write import write_outputs
 from multieye.pipeline import calibrate, calibrate_rig
@@ -290,23 +296,36 @@ def test_eye_on_hand_points_are_the_refined_rigs_residuals(tmp_path):
 
 
 def test_figures_drawn_by_a_worker_are_the_same(runs, tmp_path):
-    """Two processes or one: the same figures, the same page."""
-    from multieye.outputs.report_draw import PARALLEL_FROM_S, figure_jobs
-    from multieye.outputs.report import load_details
-    from multieye.io.calibration_json import read_calibration
-
+    """Two processes or one: the same figures, the same page (the cameras' figures drawn on
+    one figure reused, on either side)."""
     src = runs["model"][1]
+    rec = read_calibration(src / "calibration.json")
+    details, _ = load_details(src, rec)
+    assert sum(job[1] is f.camera_png for job in figure_jobs(rec, details)) >= 2
     pages = {}
     for processes in (1, 2):
         out = tmp_path / f"p{processes}" / "out"
         out.mkdir(parents=True)
         for name in ("calibration.json", "details.json"):
             (out / name).write_bytes((src / name).read_bytes())
-        text = write_report(out, processes=processes).read_text()
-        pages[processes] = (text.replace(str(out), "OUT"),
+        if processes == 1:
+            page = write_report(out, processes=1)
+        else:
+            with worker_pool(1, mp_context=multiprocessing.get_context("forkserver")) as pool:
+                page = write_report(out, worker=FigureWorker(pool, time.perf_counter()))
+        pages[processes] = (page.read_text().replace(str(out), "OUT"),
                             {p.name: p.read_bytes() for p in (out / "figures").iterdir()})
     assert pages[1] == pages[2]
+
+
+def test_camera_figures_drawn_on_one_figure_are_the_same_as_alone(runs):
+    """A camera's figure drawn after another's on the figure reused is the figure drawn
+    alone: nothing of the camera before is left."""
+    src = runs["model"][1]
     rec = read_calibration(src / "calibration.json")
     details, _ = load_details(src, rec)
-    # enough to draw that the worker is used (with two cores)
-    assert sum(cost for *_, cost in figure_jobs(rec, details)) >= PARALLEL_FROM_S
+    cams = [details.camera(c.name) for c in rec.cameras]
+    colours = f.camera_colours(len(cams))
+    alone = [f.camera_png(c, col) for c, col in zip(cams, colours)]
+    assert len(set(alone)) == len(cams)
+    assert f.camera_pngs(cams[::-1], colours[::-1]) == alone[::-1]

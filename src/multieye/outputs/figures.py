@@ -47,6 +47,9 @@ __all__ = [
     "residual_histograms_png",
     "residuals_over_time_png",
     "camera_png",
+    "camera_pngs",
+    "draw_jobs",
+    "warm_up",
     "image_rms_png",
     "radial_png",
 ]
@@ -157,6 +160,7 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
     """A figure of two axes (rotation, translation), one lane per camera, top to bottom:
     two axes whatever the number of cameras (small multiples cost an axes each)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.collections import LineCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     m = len(details.cameras)
@@ -167,11 +171,13 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
     for ax, title in zip(axes, titles):
         ax.set_ylim(-0.15, m)
         ax.set_yticks(np.arange(m)[::-1] + 0.4)
-        ax.set_title(title, fontsize=9, loc="left")
+        ax.set_title(title, fontsize=9, loc="left", y=1.0)
         ax.tick_params(labelsize=8, length=2)
         ax.grid(True, axis="x", alpha=0.3)
-        for y in range(1, m):
-            ax.axhline(y - 0.07, color=_GREY, lw=0.4, alpha=0.5)
+        # the lines between lanes, across the axes: one collection (an artist each costs)
+        ax.add_collection(LineCollection([[(0, y - 0.07), (1, y - 0.07)] for y in range(1, m)],
+                                         transform=ax.get_yaxis_transform(), colors=_GREY,
+                                         lw=0.4, alpha=0.5, zorder=2), autolim=False)
     axes[0].set_yticklabels([c.name for c in details.cameras], fontsize=8, fontweight="bold")
     for tick, col in zip(axes[0].get_yticklabels(), colours):
         tick.set_color(col)
@@ -191,6 +197,8 @@ _METRICS: Sequence[tuple[str, str, float, str]] = (
     ("rot_deg", "rotation residual (deg)", 1.0, "°"),
     ("trans_m", "translation residual (mm)", 1e3, " mm"),
 )
+#: At most this many bars per lane of :func:`image_rms_png` (about its width in pixels).
+_MAX_BARS = 800
 #: Height of a camera's lane that its histogram or curve may fill.
 _LANE = 0.82
 
@@ -285,7 +293,7 @@ def _image_axes(ax, frame, title: str) -> None:
     ax.set_ylim(h - 0.5 + pad, -0.5 - pad)
     ax.set_aspect("equal")
     ax.set_axis_off()           # the image frame is drawn; ticks cost more than they tell
-    ax.set_title(title, fontsize=8.5, loc="left")
+    ax.set_title(title, fontsize=8.5, loc="left", y=1.0)
     if frame.cx is not None:
         ax.plot([frame.cx], [frame.cy], marker="+", ms=9, mew=1.3, color="black", zorder=6)
 
@@ -302,19 +310,69 @@ def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 90) -> bytes:
     cameras at once (:func:`radial_png`, :func:`image_rms_png`).  Needs ``cam.points``
     (:mod:`multieye.io.pixel_details`).
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
-    from matplotlib.colors import LogNorm  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
-    from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    return camera_pngs([cam], [colour], dpi=dpi)[0]
+
+
+def camera_pngs(cams: Sequence[CameraDetails], colours: Sequence, *, dpi: int = 90
+                ) -> list[bytes]:
+    """:func:`camera_png` of each camera (same bytes), drawn on one figure while the images
+    keep their shape: the axes and the colour bar are made once and only the data is
+    replaced (making an axes costs more than drawing the camera's data)."""
+    canvas, out = None, []
+    for cam, colour in zip(cams, colours):
+        frame = image_frame(cam)
+        size = (10.0, 0.9 + 4.6 * frame.height / frame.width)
+        if canvas is None or canvas.size != size:
+            canvas = _CameraCanvas(size, dpi)
+        out.append(canvas.png(cam, colour))
+    return out
+
+
+class _CameraCanvas:
+    """The figure of :func:`camera_png` for images of one shape, drawn again per camera."""
+
+    def __init__(self, size: tuple[float, float], dpi: int):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+        from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
+        self.size = size
+        self.fig = Figure(figsize=size, dpi=dpi)
+        FigureCanvasAgg(self.fig)
+        self.ax_vec, self.ax_map = self.fig.subplots(1, 2)
+        self.bar = None
+
+    def png(self, cam: CameraDetails, colour) -> bytes:
+        """The camera's figure: the last camera's data removed, this one's drawn."""
+        fig, ax_vec, ax_map = self.fig, self.ax_vec, self.ax_map
+        for ax in (ax_vec, ax_map):
+            for artist in [*ax.patches, *ax.lines, *ax.collections, *ax.images, *ax.texts,
+                           *ax.artists]:
+                artist.remove()
+        frame = image_frame(cam)
+        uv, res = stacked(cam)
+        _vectors_panel(ax_vec, cam, frame, uv, res, colour)
+        im, label = _map_panel(ax_map, cam, frame, uv, res)
+        if self.bar is None:
+            self.bar = fig.colorbar(im, ax=ax_map, fraction=0.046, pad=0.02)
+        else:
+            self.bar.update_normal(im)
+        self.bar.ax.tick_params(labelsize=7)
+        self.bar.set_label(label, fontsize=7.5)
+        fig.suptitle(cam.name, x=0.01, ha="left", fontsize=11, fontweight="bold",
+                     color=colour)
+        fig.subplots_adjust(left=0.01, right=0.94, top=1 - 0.75 / fig.get_figheight(),
+                            bottom=0.4 / fig.get_figheight(), wspace=0.08)
+        return _png(fig)
+
+
+def _vectors_panel(ax_vec, cam: CameraDetails, frame, uv: np.ndarray, res: np.ndarray,
+                   colour) -> None:
+    """The left panel of :func:`camera_png`: coverage, points and residual vectors."""
+    from matplotlib.collections import LineCollection, PatchCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.patches import Rectangle  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
-
     pts = cam.points
-    frame = image_frame(cam)
-    uv, res = stacked(cam)
     w, h = frame.width, frame.height
-    fig = Figure(figsize=(10.0, 0.9 + 4.6 * h / w), dpi=dpi)
-    FigureCanvasAgg(fig)
-    ax_vec, ax_map = fig.subplots(1, 2)
     size_note = "" if frame.known else " (image size unknown)"
     n_img = sum(len(u) > 0 for u in pts.uv)
     sub = "" if pts.kept == pts.n_points else f", {pts.kept} drawn"
@@ -325,14 +383,19 @@ def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 90) -> bytes:
         seen = {tuple(c) for c in np.unique(idx, axis=0)}
     else:
         seen = set()
-    for a in range(cells):
-        for b in range(cells):
-            if (a, b) not in seen:
-                ax_vec.add_patch(Rectangle((a * w / cells - 0.5, b * h / cells - 0.5), w / cells,
-                                           h / cells, color=HIGHLIGHT, alpha=0.08, lw=0))
-    for k in range(1, cells):
-        ax_vec.axvline(k * w / cells - 0.5, color=_GREY, lw=0.5, ls=":")
-        ax_vec.axhline(k * h / cells - 0.5, color=_GREY, lw=0.5, ls=":")
+    # the empty cells and the grid as one collection each (an artist each costs ~1 ms)
+    empty = [Rectangle((a * w / cells - 0.5, b * h / cells - 0.5), w / cells, h / cells)
+             for a in range(cells) for b in range(cells) if (a, b) not in seen]
+    if empty:
+        ax_vec.add_collection(PatchCollection(empty, facecolors=HIGHLIGHT, alpha=0.08, lw=0,
+                                              edgecolors="none"), autolim=False)
+    pad = 0.03 * max(w, h)
+    grid = [[(k * w / cells - 0.5, -0.5 - pad), (k * w / cells - 0.5, h - 0.5 + pad)]
+            for k in range(1, cells)]
+    grid += [[(-0.5 - pad, k * h / cells - 0.5), (w - 0.5 + pad, k * h / cells - 0.5)]
+             for k in range(1, cells)]
+    ax_vec.add_collection(LineCollection(grid, colors=_GREY, lw=0.5, linestyles=":", zorder=2),
+                          autolim=False)
     ax_vec.scatter(uv[:, 0], uv[:, 1], s=2, color=_GREY, alpha=0.5, lw=0)
     # residual vectors: per point, or their mean per cell when there are many
     if len(uv) > MAX_ARROWS:
@@ -355,7 +418,14 @@ def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 90) -> bytes:
                 f"{coverage(uv, frame):.0%} of {cells} x {cells} cells\nresiduals "
                 f"({'refined rig' if pts.source == 'refined' else 'PnP'}, {what}): RMS "
                 f"{rms:.3f} px")
-    # projection uncertainty, or the residuals binned by position
+
+
+def _map_panel(ax_map, cam: CameraDetails, frame, uv: np.ndarray, res: np.ndarray):
+    """The right panel of :func:`camera_png`: the projection's σ from the intrinsics (or the
+    residuals binned by position).  Returns the image drawn and its colour bar's label."""
+    from matplotlib.colors import LogNorm  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
+    w, h = frame.width, frame.height
     if cam.projection_std is not None and np.any(np.isfinite(cam.projection_std.std_px)):
         ps = cam.projection_std
         s = ps.std_px
@@ -377,13 +447,7 @@ def camera_png(cam: CameraDetails, colour="C0", *, dpi: int = 90) -> bytes:
                     else "no intrinsics covariance"))
         label = "RMS (px)"
     _image_axes(ax_map, frame, title)
-    bar = fig.colorbar(im, ax=ax_map, fraction=0.046, pad=0.02)
-    bar.ax.tick_params(labelsize=7)
-    bar.set_label(label, fontsize=7.5)
-    fig.suptitle(cam.name, x=0.01, ha="left", fontsize=11, fontweight="bold", color=colour)
-    fig.subplots_adjust(left=0.01, right=0.94, top=1 - 0.75 / fig.get_figheight(),
-                        bottom=0.4 / fig.get_figheight(), wspace=0.08)
-    return _png(fig)
+    return im, label
 
 
 def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> bytes:
@@ -391,8 +455,13 @@ def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> byte
 
     One lane per camera with a bar per image in time order, heights scaled to the largest
     RMS of all cameras (stated); the worst images of each camera red and numbered.  Cameras
-    without target points have an empty lane.
+    without target points have an empty lane.  A camera with more than ``_MAX_BARS`` images
+    (bars narrower than a pixel) has a bar for each run of consecutive images as tall as
+    the tallest of them, so that the cost is bounded and no peak is lost.
     """
+
+    from matplotlib.collections import PolyCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.colors import to_rgba  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     fig, axes, colours = _lanes(details, dpi, ["", ""])
     ax, spare = axes
@@ -403,6 +472,7 @@ def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> byte
     rms = [c.points.rms_px if c.points is not None else np.zeros(0) for c in details.cameras]
     hi = max([float(np.nanmax(r)) for r in rms if np.any(np.isfinite(r))] + [1e-9])
     longest = max([len(r) for r in rms] + [1])
+    bars, bar_colours = [], []      # every bar in one collection: a patch each costs ~1 ms
     for row, (cam, r) in enumerate(zip(details.cameras, rms)):
         if not len(r):
             continue
@@ -412,19 +482,35 @@ def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> byte
         heights = _LANE * np.nan_to_num(r) / hi
         bad = [cam.names.index(n) for n, _ in worst_images(cam, worst)]
         ok = np.setdiff1d(np.arange(len(r)), bad)
-        ax.bar(x[ok], heights[ok], width=width, bottom=y0, color=colours[row], alpha=0.85,
-               align="edge", lw=0)
-        ax.bar(x[bad], heights[bad], width=width, bottom=y0, color=HIGHLIGHT, align="edge",
-               lw=0)
+        spans = [(x[ok], x[ok] + width, heights[ok], to_rgba(colours[row], 0.85))]
+        if len(r) > _MAX_BARS:      # narrower than a pixel: the tallest of each 1/_MAX_BARS,
+            groups = np.array_split(np.arange(len(r)), _MAX_BARS)       # as one outline
+            edges = np.append(x[[g[0] for g in groups]], longest)
+            tops = y0 + np.repeat([heights[g].max() for g in groups], 2)
+            bars.append(np.vstack([[edges[0], y0], np.column_stack(
+                [np.repeat(edges, 2)[1:-1], tops]), [edges[-1], y0]]))
+            bar_colours.append(spans.pop()[3])
+            width = max(width, longest / _MAX_BARS)
+        spans.append((x[bad], x[bad] + width, heights[bad], HIGHLIGHT))
+        for left, right, top, colour in spans:
+            top = y0 + top
+            bars += list(np.stack([np.column_stack([left, np.full(len(left), y0)]),
+                                   np.column_stack([right, np.full(len(left), y0)]),
+                                   np.column_stack([right, top]),
+                                   np.column_stack([left, top])], axis=1))
+            bar_colours += [colour] * len(left)
         for rank, i in enumerate(bad, 1):
             ax.text(x[i] + width / 2, y0 + heights[i], str(rank), ha="center", va="bottom",
                     fontsize=6.5, color=HIGHLIGHT, fontweight="bold")
         med = float(np.nanmedian(r)) if np.any(np.isfinite(r)) else 0.0
         ax.plot([0, longest], [y0 + _LANE * med / hi] * 2, color="black", lw=0.8, ls="--")
+    if bars:
+        ax.add_collection(PolyCollection(bars, facecolors=bar_colours, edgecolors="none",
+                                         lw=0), autolim=False)
     ax.set_xlim(0, longest)
     ax.set_xticks([])
     ax.set_title("reprojection RMS of every used image, in their order (dashed: the camera's "
-                 "median; red: its worst, numbered)", fontsize=9, loc="left")
+                 "median; red: its worst, numbered)", fontsize=9, loc="left", y=1.0)
     ax.set_xlabel(f"used images of each camera, spread over the lane; full lane = {hi:.3g} px",
                   fontsize=8)
     return _png(fig)
@@ -456,7 +542,31 @@ def radial_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     ax.set_xlabel("distance from the principal point (px)", fontsize=8)
     ax.set_ylabel("RMS residual (px)", fontsize=8)
     ax.set_title("reprojection residuals by radius (RMS in 10 rings to the farthest corner)",
-                 fontsize=9, loc="left")
+                 fontsize=9, loc="left", y=1.0)
     ax.legend(fontsize=7, ncol=min(len(details.cameras), 8), frameon=False, loc="upper left")
     fig.subplots_adjust(left=0.07, right=0.98, bottom=0.16, top=0.9)
     return _png(fig)
+
+
+# --------------------------------------------------------------------------- in a worker
+
+
+def draw_jobs(jobs: Sequence[tuple]) -> dict[str, bytes]:
+    """PNG bytes by file name of ``(file name, function of this module, arguments, cost)``
+    jobs (:func:`multieye.outputs.report_draw.figure_jobs`), drawn in this process, the
+    cameras' figures on one figure reused (:func:`camera_pngs`).  Here rather than in
+    :mod:`~multieye.outputs.report_draw` so that a worker imports only this module."""
+    cameras = [(name, args) for name, func, args, _ in jobs if func is camera_png]
+    drawn = dict(zip([name for name, _ in cameras],
+                     camera_pngs([a[0] for _, a in cameras], [a[1] for _, a in cameras])))
+    for name, func, args, _ in jobs:
+        if func is not camera_png:
+            drawn[name] = func(*args)
+    return {name: drawn[name] for name, *_ in jobs}
+
+
+def warm_up() -> None:
+    """Import what drawing needs (a figure worker's first task, while the main process
+    writes the other outputs)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415, F401 (heavy: matplotlib, imported ahead of drawing)
+    from matplotlib.figure import Figure  # noqa: PLC0415, F401 (heavy: matplotlib, imported ahead of drawing)

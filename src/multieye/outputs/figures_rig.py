@@ -33,6 +33,9 @@ __all__ = ["RIG_FIGURES", "RigFigures", "rig_pngs", "uncertainty_magnification",
 RIG_FIGURES = ("rig_3d.png", "rig_top.png")
 #: Size of each picture (inches) and its resolution.
 _SIZE = (5.6, 4.9)
+#: At most this many target dots per camera (evenly spread over its images): above some
+#: thousands they only overlap, and drawing them costs in proportion.
+MAX_DOTS = 2000
 _DPI = 100
 
 
@@ -303,11 +306,9 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
     def disp(p):  # plotting frame -> display frame, points (..., 3)
         return np.asarray(p) @ P.T
 
-    figs = {}
-    for name in RIG_FIGURES:
-        fig = Figure(figsize=_SIZE, dpi=dpi)
+    figs = {name: Figure(figsize=_SIZE, dpi=dpi) for name in RIG_FIGURES}
+    for fig in figs.values():
         FigureCanvasAgg(fig)
-        figs[name] = fig
     ax3 = figs["rig_3d.png"].add_subplot(projection="3d")
     ax2 = figs["rig_top.png"].add_subplot()
     everything = [disp(sc.T_cams[:, :3, 3])]
@@ -370,7 +371,7 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
 
 def _png(fig) -> bytes:
     buffer = BytesIO()
-    fig.savefig(buffer, format="png")
+    fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
     return buffer.getvalue()
 
 
@@ -394,6 +395,8 @@ def _camera_marks(sc, colours, depth: float, magnified, P: np.ndarray, everythin
     collection per picture (an artist per line costs more than drawing it), as (polyline in
     display coordinates, colour, width).  The points drawn are added to ``everything``."""
 
+    from matplotlib.colors import to_rgba_array  # noqa: PLC0415 (heavy: loads when a figure is drawn)
+
     def disp(p):  # plotting frame -> display frame, points (..., 3)
         return np.asarray(p) @ P.T
 
@@ -406,9 +409,10 @@ def _camera_marks(sc, colours, depth: float, magnified, P: np.ndarray, everythin
         col = colours[j]
         if sc.targets and len(sc.targets[j]):
             d = disp(sc.targets[j])
+            everything.append(d)                    # the limits: every image
+            d = d[_even_sample(len(d), MAX_DOTS)]   # the dots: a bounded cost
             dots.append(d)
-            dot_colours += [col] * len(d)
-            everything.append(d)
+            dot_colours.append(np.full(len(d), j))       # the camera of each dot
         corners = frustum_corners(sc.intrinsics[j], depth) @ T[:3, :3].T + T[:3, 3]
         apex = T[:3, 3]
         lw = 2.0 if j == sc.reference else 1.3
@@ -439,7 +443,14 @@ def _camera_marks(sc, colours, depth: float, magnified, P: np.ndarray, everythin
                 shapes.append(np.vstack([a2[:2], a2[:2] + r * np.column_stack(
                     [np.cos(arc), np.sin(arc)])]))
                 shape_colours.append(col)
+    if dots:        # RGBA per dot: a colour name per dot costs a parse each
+        dot_colours = to_rgba_array(colours)[np.concatenate(dot_colours)]
     return lines, dots, dot_colours, shapes, shape_colours
+
+
+def _even_sample(n: int, k: int) -> np.ndarray:
+    """Indices of ``min(n, k)`` of ``n`` items spread evenly, first and last included."""
+    return np.arange(n) if n <= k else np.unique(np.linspace(0, n - 1, k).round().astype(int))
 
 
 def _legend(sc, depth: float, magnified, in_fixed_frame: bool) -> list[str]:
@@ -447,7 +458,10 @@ def _legend(sc, depth: float, magnified, in_fixed_frame: bool) -> list[str]:
     frame = sc.frame
     legend = [f"frustums {depth:.2f} m deep, the thick edge at the image top"]
     if sc.targets:
-        legend.append("dots: the target's origin at each used image")
+        many = max(len(t) for t in sc.targets) > MAX_DOTS
+        legend.append("dots: the target's origin at each used image"
+                      + (f" ({MAX_DOTS} spread evenly over a camera's images where it has "
+                         "more)" if many else ""))
     if sc.trajectories:
         legend.append(f"grey line: the motion capture ({sc.trajectory_pose})")
     legend.append("axes x red, y green, z blue: the reference camera's"

@@ -500,7 +500,7 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
 
 def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | None = None,
                  images: Mapping[str, str | os.PathLike] | None = None,
-                 processes: int | None = None) -> Path:
+                 processes: int | None = None, worker=None) -> Path:
     """Write ``OUT/report.html`` and ``OUT/figures/*`` from ``OUT/calibration.json``.
 
     Parameters
@@ -518,6 +518,9 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
         At most this many processes draw the figures
         (:func:`~multieye.outputs.report_draw.draw_figures`; default: two where two cores
         are available and there is enough to draw).
+    worker : optional
+        A figure worker already started
+        (:func:`~multieye.outputs.report_draw.figure_worker`), to draw part of the figures.
 
     Returns
     -------
@@ -535,7 +538,7 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     rec = read_calibration(out / "calibration.json")
     details, notes = load_details(out, rec)
     figures, legend, thumbnails = draw_figures(
-        rec, details, processes=processes,
+        rec, details, processes=processes, worker=worker,
         also=lambda: image_thumbnails(rec, details, images))
     files_written = dict(figures)
     files_written.update({t.file: t.jpeg for thumbs in thumbnails.values() for t in thumbs})

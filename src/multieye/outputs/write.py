@@ -108,7 +108,20 @@ def write_output_files(run: CalibrationRun, folder: Path, *, final: Path, report
 
 def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: dict | None,
                final: Path) -> tuple[list[str], list[str], RunDetails]:
-    """Write every output into ``folder``; returns the names written, notes, the details."""
+    """Write every output into ``folder``; returns the names written, notes, the details.
+
+    With the report, a figure worker (:func:`~multieye.outputs.report_draw.figure_worker`)
+    is started first: it imports matplotlib while this process writes the other files."""
+    from multieye.outputs.report_draw import figure_worker  # noqa: PLC0415 (heavy: matplotlib's modules, only with the report)
+
+    with figure_worker(len(run.record.cameras) if report else 0) as worker:
+        return _write_files(run, folder, report=report, diagnostics=diagnostics, final=final,
+                            worker=worker)
+
+
+def _write_files(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: dict | None,
+                 final: Path, worker) -> tuple[list[str], list[str], RunDetails]:
+    """:func:`_write_all` with the figure worker (or None)."""
     write_calibration(folder / "calibration.json", run.record)
     names, notes = ["calibration.json"], []
     written, camchain_notes = _camchain(run, folder)
@@ -126,7 +139,8 @@ def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: 
     details = write_run_details(folder / "details.json", run, diagnostics=diagnostics)
     names.append("details.json")
     if report:
-        write_report(folder, shown_as=final.resolve(), images=image_folders(run))
+        write_report(folder, shown_as=final.resolve(), images=image_folders(run),
+                     worker=worker)
         names += ["report.html", "figures"]
     return names, notes, details
 
