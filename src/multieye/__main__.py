@@ -1,6 +1,6 @@
 """``python -m multieye``: the command line (:mod:`multieye.cli`)."""
 
-from multieye.cli import main
+from multieye.cli import run
 
 if __name__ == "__main__":
-    main()
+    run()
