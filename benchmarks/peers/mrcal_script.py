@@ -37,6 +37,53 @@ import numpysane as nps
 from opencv_script import hand_eye, nearest, read_mocap
 
 
+def calibrate_cameras(corners: np.ndarray, ifc: np.ndarray, sizes, spacing: float,
+                      lensmodel: str, focal: float):
+    """mrcal's solve as ``mrcal-calibrate-cameras`` runs it, for one camera or several.
+
+    ``seed_stereographic`` of every camera and frame, two preliminary ``mrcal.optimize``
+    (geometry, then the stereographic core), then ``lensmodel`` with every extrinsic and
+    board pose, mrcal's outlier rejection and regularisation (board warp not estimated).
+
+    Parameters
+    ----------
+    corners : (k, rows, cols, 2)
+        Every observation's corner pixels, sorted by frame then camera.
+    ifc : (k, 2) int32
+        mrcal's ``indices_frame_camera`` of each observation.
+    sizes : sequence of (width, height), one per camera
+    spacing, lensmodel, focal
+        Corner spacing (metres), mrcal's lens model, seed focal length (pixels).
+
+    Returns
+    -------
+    intrinsics : (m, p), rt_cam_ref : (m - 1, 6), rt_ref_frame : (frames, 6)
+    """
+    obs = nps.glue(corners, np.ones(corners.shape[:-1] + (1,)), axis=-1)
+    imagersizes = np.array(sizes, dtype=np.int32)
+    intr, rt_cam_ref, rt_ref_frame = mrcal.seed_stereographic(
+        imagersizes=imagersizes, focal_estimate=focal, indices_frame_camera=ifc,
+        observations=obs, object_spacing=spacing)
+    idx = nps.glue(ifc, ifc[:, (1,)] - 1, axis=-1)
+    common = dict(observations_board=obs, indices_frame_camintrinsics_camextrinsics=idx,
+                  imagersizes=imagersizes, calibration_object_spacing=spacing,
+                  do_optimize_calobject_warp=False, verbose=False)
+    for core in (False, True):
+        mrcal.optimize(intrinsics=intr, rt_cam_ref=rt_cam_ref, rt_ref_frame=rt_ref_frame,
+                       lensmodel="LENSMODEL_STEREOGRAPHIC", do_optimize_intrinsics_core=core,
+                       do_optimize_intrinsics_distortions=False,
+                       do_apply_outlier_rejection=False, do_apply_regularization=False,
+                       **common)
+    extra = mrcal.lensmodel_num_params(lensmodel) - intr.shape[-1]
+    intr = nps.glue(intr, np.zeros((len(imagersizes), extra)), axis=-1)
+    mrcal.optimize(intrinsics=intr, rt_cam_ref=rt_cam_ref, rt_ref_frame=rt_ref_frame,
+                   lensmodel=lensmodel, do_optimize_intrinsics_core=True,
+                   do_optimize_intrinsics_distortions=True, do_optimize_extrinsics=True,
+                   do_optimize_frames=True, do_apply_outlier_rejection=True,
+                   do_apply_regularization=True, **common)
+    return intr, rt_cam_ref, rt_ref_frame
+
+
 def calibrate_camera(corners: np.ndarray, spacing: float, size, lensmodel: str,
                      focal: float = 700.0):
     """mrcal's monocular calibration.
@@ -58,29 +105,9 @@ def calibrate_camera(corners: np.ndarray, spacing: float, size, lensmodel: str,
     T_cam_target : (n, 4, 4)
     """
     n = len(corners)
-    obs = nps.glue(np.asarray(corners, float), np.ones(corners.shape[:-1] + (1,)), axis=-1)
     ifc = np.column_stack([np.arange(n), np.zeros(n)]).astype(np.int32)
-    imagersizes = np.array([size], dtype=np.int32)
-    intr, rt_cam_ref, rt_ref_frame = mrcal.seed_stereographic(
-        imagersizes=imagersizes, focal_estimate=focal, indices_frame_camera=ifc,
-        observations=obs, object_spacing=spacing)
-    idx = nps.glue(ifc, ifc[:, (1,)] - 1, axis=-1)
-    common = dict(observations_board=obs, indices_frame_camintrinsics_camextrinsics=idx,
-                  imagersizes=imagersizes, calibration_object_spacing=spacing,
-                  do_optimize_calobject_warp=False, verbose=False)
-    for core in (False, True):
-        mrcal.optimize(intrinsics=intr, rt_cam_ref=rt_cam_ref, rt_ref_frame=rt_ref_frame,
-                       lensmodel="LENSMODEL_STEREOGRAPHIC", do_optimize_intrinsics_core=core,
-                       do_optimize_intrinsics_distortions=False,
-                       do_apply_outlier_rejection=False, do_apply_regularization=False,
-                       **common)
-    extra = mrcal.lensmodel_num_params(lensmodel) - intr.shape[-1]
-    intr = nps.glue(intr, np.zeros((1, extra)), axis=-1)
-    mrcal.optimize(intrinsics=intr, rt_cam_ref=rt_cam_ref, rt_ref_frame=rt_ref_frame,
-                   lensmodel=lensmodel, do_optimize_intrinsics_core=True,
-                   do_optimize_intrinsics_distortions=True, do_optimize_extrinsics=True,
-                   do_optimize_frames=True, do_apply_outlier_rejection=True,
-                   do_apply_regularization=True, **common)
+    intr, _, rt_ref_frame = calibrate_cameras(np.asarray(corners, float), ifc, [size], spacing,
+                                              lensmodel, focal)
     Rt = mrcal.Rt_from_rt(rt_ref_frame)                  # (n, 4, 3): R then t
     T = np.tile(np.eye(4), (n, 1, 1))
     T[:, :3, :3], T[:, :3, 3] = Rt[:, :3, :], Rt[:, 3, :]

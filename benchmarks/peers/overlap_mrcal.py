@@ -26,7 +26,8 @@ from pathlib import Path
 
 import mrcal
 import numpy as np
-import numpysane as nps
+
+from mrcal_script import calibrate_cameras  # benchmarks/peers: the same solve
 
 
 def main(argv=None) -> None:
@@ -49,29 +50,8 @@ def main(argv=None) -> None:
     frame_index = {f: i for i, f in enumerate(frames)}
     ifc = np.array([[frame_index[f], j] for f, j, _ in rows], dtype=np.int32)
     corners = np.stack([c for *_, c in rows])
-    obs = nps.glue(corners, np.ones(corners.shape[:-1] + (1,)), axis=-1)
-    m = len(names)
-    imagersizes = np.array([size] * m, dtype=np.int32)
-    intr, rt_cam_ref, rt_ref_frame = mrcal.seed_stereographic(
-        imagersizes=imagersizes, focal_estimate=args.focal, indices_frame_camera=ifc,
-        observations=obs, object_spacing=spacing)
-    idx = nps.glue(ifc, ifc[:, (1,)] - 1, axis=-1)
-    common = dict(observations_board=obs, indices_frame_camintrinsics_camextrinsics=idx,
-                  imagersizes=imagersizes, calibration_object_spacing=spacing,
-                  do_optimize_calobject_warp=False, verbose=False)
-    for core in (False, True):
-        mrcal.optimize(intrinsics=intr, rt_cam_ref=rt_cam_ref, rt_ref_frame=rt_ref_frame,
-                       lensmodel="LENSMODEL_STEREOGRAPHIC", do_optimize_intrinsics_core=core,
-                       do_optimize_intrinsics_distortions=False,
-                       do_apply_outlier_rejection=False, do_apply_regularization=False,
-                       **common)
-    extra = mrcal.lensmodel_num_params(args.lensmodel) - intr.shape[-1]
-    intr = nps.glue(intr, np.zeros((m, extra)), axis=-1)
-    mrcal.optimize(intrinsics=intr, rt_cam_ref=rt_cam_ref, rt_ref_frame=rt_ref_frame,
-                   lensmodel=args.lensmodel, do_optimize_intrinsics_core=True,
-                   do_optimize_intrinsics_distortions=True, do_optimize_extrinsics=True,
-                   do_optimize_frames=True, do_apply_outlier_rejection=True,
-                   do_apply_regularization=True, **common)
+    intr, rt_cam_ref, _ = calibrate_cameras(corners, ifc, [size] * len(names), spacing,
+                                            args.lensmodel, args.focal)
     result = {}
     for j, name in enumerate(names):
         T = np.eye(4)
