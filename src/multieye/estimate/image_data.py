@@ -35,13 +35,15 @@ __all__ = ["ImageData", "ImageProblem", "image_data", "PointStack", "IntrinsicsI
 F64 = NDArray[np.float64]
 
 
-def _view(item, where: str, pose: str, min_points: int):
-    """One image's (object_points, image_points, pose), checked: the arrays, their shapes, the
-    finite points (at least ``min_points``) and the pose; returns them and the finite mask."""
+def view_points(item, where: str, third: str, min_points: int):
+    """One image's ``(object_points, image_points, third)``, its points checked: the arrays,
+    their shapes and the finite points (at least ``min_points``).  Returns the two arrays,
+    the third item as given (a pose, an instant: the caller checks it) and the finite mask.
+    ``third`` names it in the messages; ``where`` names the image."""
     try:
-        o, u, T = item
+        o, u, x = item
     except (TypeError, ValueError):
-        raise InputError(f"{where}: expected (object_points, image_points, {pose})") from None
+        raise InputError(f"{where}: expected (object_points, image_points, {third})") from None
     o = real_array(o, f"{where}: object points", expected="an array (n, 3)")
     u = real_array(u, f"{where}: image points", expected="an array (n, 2)")
     if o.ndim != 2 or o.shape[1] != 3 or u.shape != (len(o), 2):
@@ -51,6 +53,13 @@ def _view(item, where: str, pose: str, min_points: int):
     if ok.sum() < min_points:
         raise InputError(f"{where}: " + ("no finite target point" if min_points == 1 else
                                          f"fewer than {min_points} finite target points"))
+    return o, u, x, ok
+
+
+def _view(item, where: str, pose: str, min_points: int):
+    """One image's (object_points, image_points, pose), checked (:func:`view_points`, then
+    the pose as a 4x4 transform); returns them and the finite mask."""
+    o, u, T, ok = view_points(item, where, pose, min_points)
     return o, u, transform(T, f"{where}: {pose}"), ok
 
 

@@ -62,7 +62,7 @@ __all__ = ["PixelResiduals", "FreePoseResiduals", "MocapPriors", "intrinsics_fam
 F64 = NDArray[np.float64]
 
 
-def _cross(a: F64, v: F64) -> F64:
+def cross_rows(a: F64, v: F64) -> F64:
     """Row-wise ``a x v`` for a (..., k, 3) against v (..., 3): ``a^T [v]_x`` per row."""
     v = v[..., None, :]
     return np.stack([a[..., 1] * v[..., 2] - a[..., 2] * v[..., 1],
@@ -171,10 +171,10 @@ class PixelResiduals(ResidualGroup):
         JpR = (flat @ RX.T).reshape(n_img, n, 2, 3)                     # d r / d q
         JpG = (flat @ G).reshape(n_img, n, 2, 3)                        # d r / d p_y
         if self.data.setup == "eye-to-base":
-            JM = [-_cross(JpG, py), JpR]
+            JM = [-cross_rows(JpG, py), JpR]
         else:
-            JM = [_cross(JpR, q), -JpG]
-        parts = [_cross(JpR, d), -JpR, -_cross(JpG, ry), JpG] + JM
+            JM = [cross_rows(JpR, q), -JpG]
+        parts = [cross_rows(JpR, d), -JpR, -cross_rows(JpG, ry), JpG] + JM
         if self.free:
             Jk_pad = np.zeros((n_img, n, 2, Jk.shape[2]))
             Jk_pad[seg, pos] = Jk / self.sigma
@@ -257,7 +257,7 @@ class FreePoseResiduals(ResidualGroup):
         if not jacobians:
             return r, None
         Jp = Jp / self.sigma
-        JT = np.concatenate([-_cross(Jp, rp[seg, pos]), Jp], axis=2)
+        JT = np.concatenate([-cross_rows(Jp, rp[seg, pos]), Jp], axis=2)
         return r, [JT, Jk / self.sigma]
 
 

@@ -35,24 +35,16 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from multieye.core.arguments import real_array
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
-from multieye.estimate.image_residuals import intrinsics_family
+from multieye.estimate.image_data import view_points
+from multieye.estimate.image_residuals import cross_rows, intrinsics_family
 from multieye.optimize.blocks import Blocks, ResidualGroup
 
 __all__ = ["RigViews", "RigPixelResiduals"]
 
 F64 = NDArray[np.float64]
-
-
-def _cross(a: F64, v: F64) -> F64:
-    """Row-wise ``a x v`` for a (..., k, 3) against v (..., 3): ``a^T [v]_x`` per row."""
-    v = v[..., None, :]
-    return np.stack([a[..., 1] * v[..., 2] - a[..., 2] * v[..., 1],
-                     a[..., 2] * v[..., 0] - a[..., 0] * v[..., 2],
-                     a[..., 0] * v[..., 1] - a[..., 1] * v[..., 0]], axis=-1)
 
 
 class RigViews:
@@ -105,19 +97,7 @@ class RigViews:
         for j, images in enumerate(views):
             for i, item in enumerate(images):
                 where = f"camera {names[j]}, image {i}"
-                try:
-                    o, u, t = item
-                except (TypeError, ValueError):
-                    raise InputError(f"{where}: expected (object_points, image_points, "
-                                     "instant)") from None
-                o = real_array(o, f"{where}: object points", expected="an array (n, 3)")
-                u = real_array(u, f"{where}: image points", expected="an array (n, 2)")
-                if o.ndim != 2 or o.shape[1] != 3 or u.shape != (len(o), 2):
-                    raise InputError(f"{where}: object points must be (n, 3) and image points "
-                                     f"(n, 2), got {o.shape} and {u.shape}")
-                ok = np.all(np.isfinite(o), axis=1) & np.all(np.isfinite(u), axis=1)
-                if ok.sum() < 4:
-                    raise InputError(f"{where}: fewer than 4 finite target points")
+                o, u, t, ok = view_points(item, where, "instant", 4)
                 if isinstance(t, bool) or not isinstance(t, (int, np.integer)) or t < 0:
                     raise InputError(f"{where}: instant must be a whole number >= 0, got {t!r}")
                 obj.append(o[ok])
@@ -244,8 +224,8 @@ class RigPixelResiduals(ResidualGroup):
         Jp_pad = np.zeros((n_img, n, 2, 3))
         Jp_pad[seg, pos] = Jp / self.sigma
         JpR = (Jp_pad.reshape(n_img, 2 * n, 3) @ C[:3, :3].T).reshape(n_img, n, 2, 3)
-        parts = [] if self.is_ref else [_cross(JpR, d), -JpR]
-        parts += [-_cross(JpR, rs), JpR]
+        parts = [] if self.is_ref else [cross_rows(JpR, d), -JpR]
+        parts += [-cross_rows(JpR, rs), JpR]
         if self.free:
             Jk_pad = np.zeros((n_img, n, 2, Jk.shape[2]))
             Jk_pad[seg, pos] = Jk / self.sigma
