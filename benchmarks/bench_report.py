@@ -33,6 +33,15 @@ Run from the repository root::
    the detection).  ``--dataset`` adds another rendered folder (e.g.
    ``benchmarks/.cache/peers_4x100``).
 
+4. With ``--against OTHER_SRC`` (issue 21's goal: the time from the detection's end to the
+   command's): the plain command ``python -m multieye calibrate DATASET -o OUT --processes
+   2`` with this checkout's sources and with ``OTHER_SRC``, alternately (A B B A ...),
+   ``--repeats`` times each, on every ``--dataset`` (default ``benchmarks/.cache/
+   peers_4x100``).  For each it prints the command's wall time and CPU seconds (it and every
+   process it waited for), and from ``details.json`` the ``outputs`` stage and the tail:
+   ``total - reading - detection`` (pairing, closed form, refinement and outputs: from the
+   end of the detection to the outputs written), then the medians.
+
 The wall times depend on what else runs on the machine (the load average is printed); the
 CPU seconds much less.
 """
@@ -202,6 +211,46 @@ def run_commands(dataset: Path, src: Path, repeats: int, serial: bool) -> None:
                   flush=True)
 
 
+def _plain_command(dataset: Path, src: Path, out: Path) -> dict:
+    """One plain ``multieye calibrate DATASET -o OUT --processes 2``: wall, CPU-s, and the
+    stages of its ``details.json``."""
+    shutil.rmtree(out, ignore_errors=True)
+    env = dict(os.environ, PYTHONPATH=str(src))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    w = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "multieye", "calibrate", str(dataset), "-o",
+                           str(out), "--processes", "2"], capture_output=True, text=True,
+                          env=env)
+    wall = time.perf_counter() - w
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode not in (0, 3):
+        raise SystemExit(f"the command failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+    t = json.loads((out / "details.json").read_text())["timings_s"]
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    return {"wall": wall, "cpu": cpu, "outputs": t["outputs"], "refinement": t["refinement"],
+            "tail": t["total"] - t["reading"] - t["detection"], "load": os.getloadavg()[0]}
+
+
+def run_against(datasets: list[Path], srcs: dict[str, Path], repeats: int) -> None:
+    """The plain command with each of ``srcs``, alternately; prints each run and the medians."""
+    keys = ("wall", "cpu", "tail", "refinement", "outputs")
+    with tempfile.TemporaryDirectory(prefix="bench_report_ab_") as tmp:
+        for dataset in datasets:
+            rows: dict[str, list[dict]] = {name: [] for name in srcs}
+            for k in range(repeats):
+                for name in (list(srcs) if k % 2 == 0 else list(srcs)[::-1]):
+                    r = _plain_command(dataset, srcs[name], Path(tmp) / "out")
+                    rows[name].append(r)
+                    print(f"{dataset.name} {name}: command {r['wall']:.2f} s, {r['cpu']:.2f} "
+                          f"CPU-s; tail {r['tail']:.2f} s (refinement {r['refinement']:.2f}, "
+                          f"outputs {r['outputs']:.2f}); load {r['load']:.1f}", flush=True)
+            for name, v in rows.items():
+                med = {q: statistics.median(r[q] for r in v) for q in keys}
+                print(f"{dataset.name} {name}, medians of {repeats}: command {med['wall']:.2f} s, "
+                      f"{med['cpu']:.2f} CPU-s; tail {med['tail']:.2f} s (refinement "
+                      f"{med['refinement']:.2f}, outputs {med['outputs']:.2f})", flush=True)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", type=int, nargs="*", default=[4, 16])
@@ -218,9 +267,16 @@ def main(argv=None) -> None:
                         help="time the whole `multieye calibrate` with and without the report")
     parser.add_argument("--dataset", type=Path, nargs="*", default=[],
                         help="with --command: more rendered datasets to time")
+    parser.add_argument("--against", type=Path, default=None, metavar="OTHER_SRC",
+                        help="time the plain command with --src and with OTHER_SRC, "
+                             "alternately, on --dataset (default peers_4x100)")
     args = parser.parse_args(argv)
     src = args.src.resolve()
     print(f"sources: {src}")
+    if args.against is not None:
+        run_against(args.dataset or [CACHE / "peers_4x100"],
+                    {"this": src, "other": args.against.resolve()}, args.repeats)
+        return
     if args.command:
         for dataset in [rendered(m, args.images) for m in args.cameras] + args.dataset:
             run_commands(dataset, src, args.repeats, args.serial)

@@ -245,6 +245,7 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     from multieye.pipeline import Options, calibrate as run_calibration  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.write import write_outputs  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.outputs.report_draw import figure_workers  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.summary import calibration_table, timings_line  # noqa: PLC0415 (instant start-up of multieye --help)
 
     # Options checks every flag, once (an InputError: one line, exit 2, nothing written)
@@ -255,11 +256,11 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
                       select=None if flags["no_select"] else flags["select"])
     _utf8_dataset(dataset)
     _processes_note(processes)
-    with claim_output(out_dir, inputs=[dataset]):   # one run per folder, checked before work
+    with claim_output(out_dir, inputs=[dataset]), figure_workers(processes) as workers:
         run = run_calibration(dataset, options, processes=processes,
                               progress=_progress_enabled(), engine=flags["engine"],
-                              scheduler=flags["scheduler"])
-        written = write_outputs(run, out_dir)
+                              scheduler=flags["scheduler"], on_detected=workers.start)
+        written = write_outputs(run, out_dir, processes=processes, workers=workers)
     _echo(calibration_table(run.record))
     for name, data in run.cameras.items():
         if data.selection is not None:

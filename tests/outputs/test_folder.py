@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 from multieye.core.errors import DatasetError
 from multieye.outputs import folder as folder_mod
+from multieye.outputs import report_draw
 from multieye.outputs import write as write_mod
 from multieye.outputs.export import export
 from multieye.outputs.folder import MANIFEST, claim_output, foreign_files, staged_output
@@ -62,11 +63,18 @@ def earlier(earlier_template, tmp_path):
     return out
 
 
-def _quick_report(folder, shown_as=None, images=None, worker=None):
+def _quick_report(folder, rec, details, figures, **kwargs):
     """Stands in for the report (whose figures take a second) where it is not the point."""
+    assert figures() == ({}, ())
     (Path(folder) / "figures").mkdir()
     (Path(folder) / "figures" / "rig.png").write_bytes(b"png")
     (Path(folder) / "report.html").write_text("<html>")
+
+
+def _quick(monkeypatch):
+    """No figures drawn (no worker started) and :func:`_quick_report` for the report."""
+    monkeypatch.setattr(report_draw, "submit_figures", lambda *a, **k: (lambda: ({}, ())))
+    monkeypatch.setattr(write_mod, "write_report_from", _quick_report)
 
 
 def test_a_run_writes_its_set_and_nothing_beside(run, tmp_path):
@@ -115,7 +123,7 @@ def _file_named_figures(out):
 def _failing_report(monkeypatch):
     def broken(*args, **kwargs):
         raise DatasetError("the report failed")
-    monkeypatch.setattr(write_mod, "write_report", broken)
+    monkeypatch.setattr(write_mod, "write_report_from", broken)
 
 
 def _failing_camchain(monkeypatch):
@@ -128,7 +136,7 @@ def _failing_camchain(monkeypatch):
 def _interrupted_details(monkeypatch):
     def broken(*args, **kwargs):
         raise KeyboardInterrupt
-    monkeypatch.setattr(write_mod, "write_details", broken)
+    monkeypatch.setattr(write_mod, "write_details_text", broken)
 
 
 def _failing_manifest(monkeypatch):
@@ -177,7 +185,7 @@ def _interrupted_just_after_the_first_rename(monkeypatch):
 def test_a_failed_run_leaves_the_folder_exactly_as_it_was(run, earlier, monkeypatch, inject,
                                                            error):
     if inject is not _failing_report:
-        monkeypatch.setattr(write_mod, "write_report", _quick_report)
+        _quick(monkeypatch)
     if inject in (_user_notes, _file_named_figures):
         inject(earlier)
     else:
@@ -190,7 +198,7 @@ def test_a_failed_run_leaves_the_folder_exactly_as_it_was(run, earlier, monkeypa
 
 
 def test_refusals_are_one_line_naming_the_folder(run, earlier, tmp_path, monkeypatch):
-    monkeypatch.setattr(write_mod, "write_report", _quick_report)
+    _quick(monkeypatch)
     _file_named_figures(earlier)
     with pytest.raises(DatasetError) as info:
         write_outputs(run, earlier)

@@ -90,6 +90,8 @@ __all__ = [
     "run_details_to_dict",
     "run_details_from_dict",
     "write_details",
+    "details_head",
+    "write_details_text",
     "json_value",
     "read_run_details",
 ]
@@ -541,8 +543,25 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
 
 def write_details(path: str | os.PathLike, details: RunDetails) -> None:
     """Write ``details`` as ``details.json`` atomically (:func:`run_details_to_dict`)."""
-    text = json.dumps(run_details_to_dict(details), allow_nan=False, separators=(",", ":"))
-    write_text_atomic(path, text + "\n")
+    write_details_text(path, details_head(run_details_to_dict(details)), details.timings)
+
+
+def details_head(data: Mapping) -> str:
+    """The text of ``details.json`` for ``data`` (:func:`run_details_to_dict`) but its
+    ``timings_s``, which ends the object: made while the run is still being written, and
+    completed by :func:`write_details_text` once the timings are known."""
+    text = json.dumps({k: v for k, v in data.items() if k != "timings_s"}, allow_nan=False,
+                      separators=(",", ":"))
+    return text[:-1]
+
+
+def write_details_text(path: str | os.PathLike, head: str, timings: StageTimings | None
+                       ) -> None:
+    """Write ``details.json`` atomically: :func:`details_head` with ``timings_s`` (the same
+    bytes as :func:`write_details` of the details with those timings)."""
+    tail = ("" if timings is None else ',"timings_s":' + json.dumps(
+        timings.as_dict(), allow_nan=False, separators=(",", ":")))
+    write_text_atomic(path, head + tail + "}\n")
 
 
 def read_run_details(path: str | os.PathLike) -> RunDetails:

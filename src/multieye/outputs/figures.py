@@ -49,7 +49,6 @@ __all__ = [
     "camera_png",
     "camera_pngs",
     "draw_jobs",
-    "warm_up",
     "image_rms_png",
     "radial_png",
 ]
@@ -563,10 +562,3 @@ def draw_jobs(jobs: Sequence[tuple]) -> dict[str, bytes]:
         if func is not camera_png:
             drawn[name] = func(*args)
     return {name: drawn[name] for name, *_ in jobs}
-
-
-def warm_up() -> None:
-    """Import what drawing needs (a figure worker's first task, while the main process
-    writes the other outputs)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415, F401 (heavy: matplotlib, imported ahead of drawing)
-    from matplotlib.figure import Figure  # noqa: PLC0415, F401 (heavy: matplotlib, imported ahead of drawing)

@@ -27,7 +27,8 @@ from multieye.outputs.figures import (_AXIS_COLOURS, _GREY, camera_colours, disp
                                       frustum_corners)
 from io import BytesIO
 
-__all__ = ["RIG_FIGURES", "RigFigures", "rig_pngs", "uncertainty_magnification", "place_labels"]
+__all__ = ["RIG_FIGURES", "RigFigures", "rig_pngs", "uncertainty_magnification", "place_labels",
+           "warm_up"]
 
 #: File names of the two rig pictures, in page order.
 RIG_FIGURES = ("rig_3d.png", "rig_top.png")
@@ -503,3 +504,16 @@ def _annotate(ax, where: np.ndarray, texts: list[str], colours, dpi: int) -> Non
                                  "shrinkA": 0, "shrinkB": 2} if moved else None),
                     bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
                           "alpha": 0.7})
+
+
+def warm_up() -> None:
+    """Import and load what drawing needs: matplotlib's modules, the 3D axes of the rig,
+    the fonts and the PNG writer, by drawing a tiny figure (a figure worker's first work,
+    while the main process refines or writes; :mod:`multieye.outputs.report_draw`)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, imported ahead of drawing)
+    from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, imported ahead of drawing)
+
+    fig = Figure(figsize=(1.0, 1.0), dpi=10)
+    FigureCanvasAgg(fig)
+    fig.add_subplot(projection="3d").set_title("x", fontweight="bold")
+    _png(fig)

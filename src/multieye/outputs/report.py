@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from html import escape
 from pathlib import Path
 
@@ -65,7 +65,7 @@ from multieye.outputs.report_cameras import (
 )
 from multieye.core.version import __version__
 
-__all__ = ["FIGURES", "write_report", "report_html", "load_details"]
+__all__ = ["FIGURES", "write_report", "write_report_from", "report_html", "load_details"]
 
 #: File names of the figures in ``OUT/figures/``, in page order.
 FIGURES = ("rig_3d.png", "rig_top.png", "residual_histograms.png", "residuals_over_time.png",
@@ -500,7 +500,7 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
 
 def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | None = None,
                  images: Mapping[str, str | os.PathLike] | None = None,
-                 processes: int | None = None, worker=None) -> Path:
+                 processes: int | None = None) -> Path:
     """Write ``OUT/report.html`` and ``OUT/figures/*`` from ``OUT/calibration.json``.
 
     Parameters
@@ -509,18 +509,15 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
         The output folder of ``multieye calibrate``.
     shown_as : path-like, optional
         The folder named on the page, when the report is built in a staging folder that is
-        moved into place afterwards (``multieye.pipeline.write_outputs``).
+        moved into place afterwards.
     images : mapping of str to path-like, optional
         Camera name -> the folder its images were read from
         (:func:`~multieye.outputs.report_images.image_folders` of the run); without it the
         report draws no image.
     processes : int, optional
         At most this many processes draw the figures
-        (:func:`~multieye.outputs.report_draw.draw_figures`; default: two where two cores
-        are available and there is enough to draw).
-    worker : optional
-        A figure worker already started
-        (:func:`~multieye.outputs.report_draw.figure_worker`), to draw part of the figures.
+        (:func:`~multieye.outputs.report_draw.worker_count`; default: worker processes where
+        two cores are available).
 
     Returns
     -------
@@ -532,17 +529,31 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     DatasetError
         ``calibration.json`` is missing or invalid, or the folder is not writable.
     """
-    from multieye.outputs.report_draw import draw_figures  # noqa: PLC0415 (heavy: matplotlib and OpenCV, only when figures are drawn)
+    from multieye.outputs.report_draw import figure_workers, submit_figures  # noqa: PLC0415 (heavy: the figure modules and OpenCV, only when figures are drawn)
 
     out = Path(out_dir)
     rec = read_calibration(out / "calibration.json")
     details, notes = load_details(out, rec)
-    figures, legend, thumbnails = draw_figures(
-        rec, details, processes=processes, worker=worker,
-        also=lambda: image_thumbnails(rec, details, images))
-    files_written = dict(figures)
+    with figure_workers(processes) as workers:
+        return write_report_from(out, rec, details, submit_figures(rec, details, workers),
+                                 notes=notes, shown_as=shown_as, images=images)
+
+
+def write_report_from(out_dir: str | os.PathLike, rec: CalibrationRecord,
+                      details: RunDetails | None, figures: Callable, *,
+                      notes: Sequence[str] = (), shown_as: str | os.PathLike | None = None,
+                      images: Mapping[str, str | os.PathLike] | None = None) -> Path:
+    """:func:`write_report` of ``calibration.json`` and ``details.json`` as ``rec`` and
+    ``details`` (what the files hold, not read back: :func:`multieye.outputs.write.
+    write_outputs`), with ``figures`` the function that waits for the figures
+    (:func:`~multieye.outputs.report_draw.submit_figures`).  The images with the
+    detections are drawn in this process meanwhile."""
+    out = Path(out_dir)
+    thumbnails = image_thumbnails(rec, details, images)
+    figures_drawn, legend = figures()
+    files_written = dict(figures_drawn)
     files_written.update({t.file: t.jpeg for thumbs in thumbnails.values() for t in thumbs})
-    html = report_html(rec, details, figures, out_dir=Path(shown_as) if shown_as else out,
+    html = report_html(rec, details, figures_drawn, out_dir=Path(shown_as) if shown_as else out,
                        notes=notes, thumbnails=thumbnails, rig_legend=legend)
     with confined_to(out):      # never written or removed through a link (docs/outputs.md)
         folder = out / "figures"

@@ -1,54 +1,51 @@
-"""Drawing the report's figures, on two processes when there is enough to draw.
+"""Drawing the report's figures, in worker processes where there are two cores.
 
-matplotlib takes most of the time of the report (its import alone about 0.3 CPU-s).  With
-several cameras, and a core free for it, the figures are shared with one worker process
-(:func:`multieye.imaging.workers.worker_pool`: it ends with this process).
-:func:`figure_worker` starts it before the other outputs are written, so that it imports
-matplotlib while this process writes ``calibration.json`` and ``details.json``; then
-:func:`draw_figures` hands it part of the figures while this process imports matplotlib too,
-draws the rig and the rest.  The figures are shared so that both sides finish together (by a
-rough cost of each figure, measured on 4- and 16-camera rigs), and the cameras' figures of one
-process are drawn on one figure reused (:func:`multieye.outputs.figures.camera_pngs`).  The
-figures are the same bytes either way: only where they are drawn changes.
+matplotlib takes most of the time of the report: its import (about 0.45 CPU-s) and about a
+CPU second of drawing for four cameras.  Where two cores may be used, every figure is drawn
+by worker processes (:class:`FigureWorkers`; :func:`multieye.imaging.workers.worker_pool`:
+they end with this process) and this process never imports matplotlib: it makes the details,
+writes the other files and the page meanwhile.  ``multieye calibrate`` starts the workers
+when the detection is done (:func:`figure_workers`, :meth:`FigureWorkers.start`), so that
+they import matplotlib while the refinement runs on one core; they are forked from the
+detection's fork server (numpy and OpenCV already imported).  Two workers when a core is
+free (the 1-minute load average below the cores plus a half), else one, so that the figures
+cost no more CPU than drawing them here; none with one core, ``processes=1``, or a main
+script that a worker would run again: then this process draws them.
+
+The figures are handed out as tasks, the costliest first (:func:`submit_figures`): the rig's
+pictures, the all-camera figures, and the cameras' figures in one batch per worker (drawn on
+one figure reused, :func:`multieye.outputs.figures.camera_pngs`); a worker takes the next
+task when it is done with one, so both end together.  The figures are the same bytes
+whichever process draws them.
 
 Synopsis
 --------
->>> from multieye.outputs.report_draw import draw_figures, figure_worker
->>> with figure_worker(4) as worker:                                 # doctest: +SKIP
-...     pngs, legend, _ = draw_figures(rec, details, worker=worker)
+>>> from multieye.outputs.report_draw import figure_workers, submit_figures
+>>> with figure_workers() as workers:                                  # doctest: +SKIP
+...     workers.start()
+...     wait = submit_figures(rec, details, workers)
+...     pngs, legend = wait()
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
-import sys
-import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass
-from typing import Any
 
 from multieye.io.calibration_json import CalibrationRecord
 from multieye.io.run_details import RunDetails
 from multieye.outputs.report_cameras import camera_figure_names
 from multieye.outputs import figures as f
-from multieye.outputs.figures_rig import rig_pngs
+from multieye.outputs.figures_rig import rig_pngs, warm_up
 from multieye.imaging.batch import main_reimport_problem
 from multieye.imaging.workers import worker_pool
 
-__all__ = ["draw_figures", "figure_jobs", "figure_worker", "figures_cost", "FigureWorker",
-           "PARALLEL_FROM_S"]
+__all__ = ["draw_figures", "figure_jobs", "figure_workers", "submit_figures", "FigureWorkers",
+           "worker_count"]
 
-#: Rough CPU seconds of a worker's imports (matplotlib 0.3, multieye.io for the details it
-#: is sent 0.08): what a worker costs before drawing (measured in a worker of the fork
-#: server that a calibration starts).
-_IMPORT_S = 0.4
-#: Rough CPU seconds of matplotlib's import in this process.
-_MAIN_IMPORT_S = 0.3
-#: Share the figures with a worker when they would take this many CPU seconds or more.
-PARALLEL_FROM_S = 0.6
-#: Rough CPU seconds of the rig's pictures in this process, and per camera.
+#: Rough CPU seconds of the rig's pictures, and per camera (what orders the tasks).
 _RIG_S, _RIG_PER_CAMERA_S = 0.15, 0.01
 #: Rough CPU seconds of a camera's figure on a figure reused, and of making that figure.
 _CAMERA_S, _CAMERA_FIGURE_S = 0.08, 0.05
@@ -60,12 +57,6 @@ def _lane_costs(m: int) -> dict[str, float]:
             "residuals_over_time.png": 0.07 + 0.008 * m,
             "image_rms.png": 0.05 + 0.006 * m,
             "residuals_by_radius.png": 0.06 + 0.003 * m}
-
-
-def figures_cost(n_cameras: int) -> float:
-    """Rough CPU seconds of every figure besides the rig's for ``n_cameras`` cameras with
-    target points (what :func:`figure_worker` decides by before the details are known)."""
-    return sum(_lane_costs(n_cameras).values()) + _CAMERA_S * n_cameras + _CAMERA_FIGURE_S
 
 
 def figure_jobs(rec: CalibrationRecord, details: RunDetails | None
@@ -100,114 +91,133 @@ def _cores() -> int:
 
 
 def _context():
-    """forkserver where there is one (the detection's, already running after a calibration;
-    when it is not, started with the figures module preloaded), spawn elsewhere: never a plain fork
-    of a process with OpenCV's and OpenBLAS's threads."""
+    """forkserver where there is one (the detection's, already running in a calibration;
+    when it is not, started with the figures module preloaded), spawn elsewhere: never a plain
+    fork of a process with OpenCV's and OpenBLAS's threads."""
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload([f.__name__])
+    ctx.set_forkserver_preload([warm_up.__module__])
     return ctx
 
 
 def _free_core() -> bool:
-    """Whether another core is free for a worker: the load average (1 minute) below the
-    cores this process may use plus a half.  This run's own detection counts in it (at most
-    one per core); on a machine busy with other work, a worker only adds its imports (about
-    0.4 CPU-s) to what the cores must do, and the report takes longer (measured under load:
-    docs/results/report_speed.md)."""
+    """Whether another core is free for a second worker: the load average (1 minute) below
+    the cores this process may use plus a half.  On a machine busy with other work a second
+    worker only adds its imports (about 0.45 CPU-s) to what the cores must do."""
     try:
         return os.getloadavg()[0] < _cores() + 0.5
     except OSError:                 # no load average on this system
         return True
 
 
-def _shared(cost: float, processes: int | None) -> bool:
-    """Whether figures of ``cost`` CPU-s are worth a worker (two cores, one of them free,
-    and a main script that a worker would not run again)."""
+def worker_count(processes: int | None = None) -> int:
+    """Figure workers to use: 2 with two cores (``processes`` unset or 2 and more) and one
+    of them free, 1 with two cores busy, 0 (this process draws) with one core,
+    ``processes=1`` or a main script that a worker would run again
+    (:func:`~multieye.imaging.batch.main_reimport_problem`)."""
     allowed = min(2, _cores()) if processes is None else max(1, min(int(processes), 2))
-    return (allowed >= 2 and cost >= PARALLEL_FROM_S and _free_core()
-            and main_reimport_problem() is None)
+    if allowed < 2 or main_reimport_problem() is not None:
+        return 0
+    return 2 if _free_core() else 1
 
 
-@dataclass(frozen=True)
-class FigureWorker:
-    """A worker process drawing figures, and when it started (``time.perf_counter()``)."""
+class FigureWorkers:
+    """The worker processes that draw the report's figures (:func:`figure_workers`).
 
-    pool: Any
-    started: float
+    Attributes
+    ----------
+    count : int
+        Workers to start (:func:`worker_count`); 0: this process draws.
+    pool : ProcessPoolExecutor or None
+        Once :meth:`start` has started them.
+    """
+
+    def __init__(self, count: int, stack: contextlib.ExitStack):
+        self.count = count
+        self.pool = None
+        self._stack = stack
+
+    def start(self) -> None:
+        """Start the workers now (once; nothing with ``count`` 0): each imports matplotlib
+        and the figure modules (:func:`multieye.outputs.figures_rig.warm_up`) while this process
+        goes on.  Called by a calibration when its detection is done."""
+        if self.pool is None and self.count:
+            self.pool = self._stack.enter_context(
+                worker_pool(self.count, mp_context=_context(), initializer=warm_up))
+            first = self.pool.submit(os.getpid)     # a task: the pool starts a process now
+            if self.count > 1:          # the next once the first has imported: one core each
+                first.add_done_callback(self._another)
+
+    def _another(self, _) -> None:
+        """Start one more worker (called by the pool's thread when a worker is ready)."""
+        with contextlib.suppress(RuntimeError):     # the pool was shut down meanwhile
+            self.pool.submit(os.getpid)
 
 
-@contextmanager
-def figure_worker(n_cameras: int, *, processes: int | None = None
-                  ) -> Iterator[FigureWorker | None]:
-    """A worker process for :func:`draw_figures`, started now: it imports matplotlib while
-    this process goes on (writing the other outputs).  None when one process is better (one
-    core or no free core, ``processes=1``, fewer figures than :data:`PARALLEL_FROM_S` CPU
-    seconds for ``n_cameras`` cameras, or a main script that a worker would run again).  The
-    worker ends with the block."""
-    if not _shared(figures_cost(n_cameras), processes):
-        yield None
-        return
-    with worker_pool(1, mp_context=_context()) as pool:
-        pool.submit(f.warm_up)
-        yield FigureWorker(pool, time.perf_counter())
+@contextlib.contextmanager
+def figure_workers(processes: int | None = None) -> Iterator[FigureWorkers]:
+    """Figure workers (:class:`FigureWorkers`, not started yet) that end with the block: at
+    once on an exception (``KeyboardInterrupt`` included), after their work otherwise."""
+    with contextlib.ExitStack() as stack:
+        yield FigureWorkers(worker_count(processes), stack)
 
 
-def draw_figures(rec: CalibrationRecord, details: RunDetails | None, *,
-                 processes: int | None = None, also: Callable[[], Any] | None = None,
-                 worker: FigureWorker | None = None
-                 ) -> tuple[dict[str, bytes], tuple[str, ...], Any]:
-    """Every figure of the report as PNG bytes by file name, the rig's legend, and what
-    ``also`` returns (run in this process while a worker draws; None without it).
+def _tasks(rec: CalibrationRecord, details: RunDetails | None, batches: int
+           ) -> list[tuple[float, Callable, tuple]]:
+    """The figures as ``(rough CPU-s, function, arguments)`` tasks, costliest first: the
+    rig's pictures, each all-camera figure, the cameras' figures in ``batches`` batches."""
+    jobs = figure_jobs(rec, details)
+    cameras = [job for job in jobs if job[1] is f.camera_png]
+    tasks = [(_RIG_S + _RIG_PER_CAMERA_S * len(rec.cameras), rig_pngs, (rec, details))]
+    tasks += [(job[3], f.draw_jobs, ([job],)) for job in jobs if job[1] is not f.camera_png]
+    for k in range(min(batches, len(cameras))):
+        batch = cameras[k::batches]
+        tasks.append((_CAMERA_FIGURE_S + sum(job[3] for job in batch), f.draw_jobs, (batch,)))
+    return sorted(tasks, key=lambda t: -t[0])
+
+
+def submit_figures(rec: CalibrationRecord, details: RunDetails | None,
+                   workers: FigureWorkers | None = None
+                   ) -> Callable[[], tuple[dict[str, bytes], tuple[str, ...]]]:
+    """Hand every figure of the report to the workers now (started here if they were not);
+    returns the function that waits for them: PNG bytes by file name in page order (the
+    rig's, then :func:`figure_jobs`'), and the rig's legend.  Without workers (None, or
+    ``count`` 0) that function draws them in this process.
 
     Parameters
     ----------
     rec, details
-        ``calibration.json`` and ``details.json`` (None without it).
-    processes : int, optional
-        At most this many processes draw (1: this one only); default two where two cores are
-        available and one is free.  Without ``worker``, one is started only when the figures
-        besides the rig would take about :data:`PARALLEL_FROM_S` CPU seconds or more.
-    also : callable, optional
-        More work for this process (the report's images: about 25 ms per camera).
-    worker : FigureWorker, optional
-        The worker of :func:`figure_worker` (already importing), used when given.
+        ``calibration.json`` and ``details.json`` (None without it), as the files hold them.
+    workers : FigureWorkers, optional
     """
-    jobs = figure_jobs(rec, details)
-    if worker is None and _shared(sum(cost for *_, cost in jobs), processes):
-        with worker_pool(1, mp_context=_context()) as pool:
-            pool.submit(f.warm_up)
-            return draw_figures(rec, details, also=also,
-                                worker=FigureWorker(pool, time.perf_counter()))
-    if worker is None:
-        rig = rig_pngs(rec, details)
-        figures = {**rig.pngs, **f.draw_jobs(jobs)}
-        return figures, rig.legend, None if also is None else also()
+    order = [name for name, *_ in figure_jobs(rec, details)]
+    if workers is None or not workers.count:
+        def here():
+            rig = rig_pngs(rec, details)
+            return {**rig.pngs, **f.draw_jobs(figure_jobs(rec, details))}, rig.legend
+        return here
+    workers.start()
+    pending = [workers.pool.submit(func, *args)
+               for _, func, args in _tasks(rec, details, workers.count)]
 
-    # share so that both end together: the worker may still be importing (it started
-    # `elapsed` seconds ago); this process may import matplotlib, draws the rig and `also`
-    mine, theirs = [], []
-    here = (_RIG_S + (0.035 if also is not None else _RIG_PER_CAMERA_S) * len(rec.cameras)
-            + (0.0 if "matplotlib.figure" in sys.modules else _MAIN_IMPORT_S))
-    there = max(0.0, _IMPORT_S - (time.perf_counter() - worker.started))
-    for job in sorted(jobs, key=lambda j: -j[3]):     # each side makes one camera figure
-        if here <= there:
-            here += job[3] + (_CAMERA_FIGURE_S if _first_camera(job, mine) else 0.0)
-            mine.append(job)
-        else:
-            there += job[3] + (_CAMERA_FIGURE_S if _first_camera(job, theirs) else 0.0)
-            theirs.append(job)
-    pending = worker.pool.submit(f.draw_jobs, theirs) if theirs else None
-    rig = rig_pngs(rec, details)
-    result = None if also is None else also()
-    figures = {**rig.pngs, **f.draw_jobs(mine)}
-    if pending is not None:
-        figures.update(pending.result())
-    order = list(rig.pngs) + [name for name, *_ in jobs]
-    return {n: figures[n] for n in order}, rig.legend, result
+    def wait():
+        drawn: dict[str, bytes] = {}
+        rig = None
+        for future in pending:
+            result = future.result()
+            if isinstance(result, dict):
+                drawn.update(result)
+            else:
+                rig = result
+        return {**rig.pngs, **{name: drawn[name] for name in order}}, rig.legend
+    return wait
 
 
-def _first_camera(job, side: list) -> bool:
-    """Whether ``job`` is the first camera figure of a side (which makes the figure)."""
-    return job[1] is f.camera_png and not any(j[1] is f.camera_png for j in side)
+def draw_figures(rec: CalibrationRecord, details: RunDetails | None, *,
+                 processes: int | None = None
+                 ) -> tuple[dict[str, bytes], tuple[str, ...]]:
+    """Every figure of the report as PNG bytes by file name, and the rig's legend: drawn by
+    workers of :func:`figure_workers` (``processes``: see :func:`worker_count`), or here."""
+    with figure_workers(processes) as workers:
+        return submit_figures(rec, details, workers)()

@@ -8,21 +8,27 @@ Synopsis
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from multieye.core.names import file_stems
 from multieye.io import write_calibration, write_camchain, write_opencv_intrinsics
 from multieye.io.atomic import confined_to, make_folder
-from multieye.io.run_details import RunDetails, StageTimings, write_details
-from multieye.outputs.details import camera_overlaps, camera_topic, write_run_details
+from multieye.io.run_details import (StageTimings, details_head, run_details_from_dict,
+                                     run_details_to_dict, write_details_text)
+from multieye.outputs.details import camera_overlaps, camera_topic, run_details
 from multieye.outputs.export import kalibr_chain
 from multieye.outputs.folder import staged_output
-from multieye.outputs.report import write_report
+from multieye.outputs.report import write_report_from
 from multieye.outputs.report_images import image_folders
 from multieye.pipeline import CalibrationRun
+
+if TYPE_CHECKING:
+    from multieye.outputs.report_draw import FigureWorkers
 
 __all__ = ["WrittenOutputs", "write_outputs", "write_output_files"]
 
@@ -48,7 +54,8 @@ class WrittenOutputs:
 
 
 def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bool = True,
-                  diagnostics: dict | None = None) -> WrittenOutputs:
+                  diagnostics: dict | None = None, processes: int | None = None,
+                  workers: FigureWorkers | None = None) -> WrittenOutputs:
     """Write the results of a run as the new content of ``out_dir``, all or nothing.
 
     ``calibration.json`` (docs/outputs.md), Kalibr ``camchain.yaml``, ``intrinsics/<camera>.yaml``
@@ -62,10 +69,13 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
     leaves ``out_dir`` exactly as it was.  ``out_dir`` must be missing, empty or hold only
     files multieye wrote, and no other run may hold it.
 
-    The time spent writing is the ``outputs`` stage of the run's timings
-    (:class:`~multieye.io.run_details.StageTimings`); ``details.json`` is written again with
-    it once everything else is written (the report reads the first version), so the file
-    holds the final numbers.
+    The figures are drawn by worker processes while this process writes the rest
+    (:mod:`multieye.outputs.report_draw`): ``workers`` when given (a calibration's, already
+    started), else workers started here (``processes``: at most this many processes draw;
+    1: this one).  The report is made from the record and the details as the files hold
+    them, not read back.  The time spent writing is the ``outputs`` stage of the run's
+    timings (:class:`~multieye.io.run_details.StageTimings`), measured before
+    ``details.json``, which holds it, is written last.
 
     Returns
     -------
@@ -83,12 +93,14 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
     with staged_output(out_dir, inputs=inputs) as stage:
         names, notes, timings = write_output_files(run, stage.folder, final=stage.out,
                                                    report=report, diagnostics=diagnostics,
-                                                   start=start)
+                                                   start=start, processes=processes,
+                                                   workers=workers)
     return WrittenOutputs(paths=[stage.out / n for n in names], notes=notes, timings=timings)
 
 
 def write_output_files(run: CalibrationRun, folder: Path, *, final: Path, report: bool = True,
-                       diagnostics: dict | None = None, start: float | None = None
+                       diagnostics: dict | None = None, start: float | None = None,
+                       processes: int | None = None, workers: FigureWorkers | None = None
                        ) -> tuple[list[str], list[str], StageTimings]:
     """Write the files of :func:`write_outputs` into ``folder`` (a staging folder).
 
@@ -96,32 +108,31 @@ def write_output_files(run: CalibrationRun, folder: Path, *, final: Path, report
     ``time.perf_counter()`` value, where the ``outputs`` stage began (default: now).
     Returns the names written, the notes and the timings written into ``details.json``.
     """
+    from multieye.outputs.report_draw import figure_workers  # noqa: PLC0415 (heavy: the figure modules and OpenCV, only with the report)
+
     start = time.perf_counter() if start is None else start
     with confined_to(folder):           # nothing written through a link (docs/outputs.md)
-        names, notes, details = _write_all(run, folder, report=report,
-                                           diagnostics=diagnostics, final=final)
+        with (contextlib.nullcontext(workers) if workers is not None or not report
+              else figure_workers(processes)) as drawing:
+            names, notes, head = _write_files(run, folder, report=report,
+                                              diagnostics=diagnostics, final=final,
+                                              workers=drawing)
         seconds = time.perf_counter() - start
         timings = replace(run.timings, outputs=seconds, total=run.timings.total + seconds)
-        write_details(folder / "details.json", replace(details, timings=timings))
+        write_details_text(folder / "details.json", head, timings)
     return [n for n in names if (folder / n).exists()], notes, timings
 
 
-def _write_all(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: dict | None,
-               final: Path) -> tuple[list[str], list[str], RunDetails]:
-    """Write every output into ``folder``; returns the names written, notes, the details.
-
-    With the report, a figure worker (:func:`~multieye.outputs.report_draw.figure_worker`)
-    is started first: it imports matplotlib while this process writes the other files."""
-    from multieye.outputs.report_draw import figure_worker  # noqa: PLC0415 (heavy: matplotlib's modules, only with the report)
-
-    with figure_worker(len(run.record.cameras) if report else 0) as worker:
-        return _write_files(run, folder, report=report, diagnostics=diagnostics, final=final,
-                            worker=worker)
-
-
 def _write_files(run: CalibrationRun, folder: Path, *, report: bool, diagnostics: dict | None,
-                 final: Path, worker) -> tuple[list[str], list[str], RunDetails]:
-    """:func:`_write_all` with the figure worker (or None)."""
+                 final: Path, workers: FigureWorkers | None) -> tuple[list[str], list[str], str]:
+    """Every output but ``details.json``, whose text but the timings is returned
+    (:func:`~multieye.io.run_details.details_head`): the figures handed to the workers
+    first, the other files written while they draw."""
+    from multieye.outputs.report_draw import submit_figures  # noqa: PLC0415 (heavy: the figure modules and OpenCV, only with the report)
+
+    data = run_details_to_dict(run_details(run, diagnostics=diagnostics))
+    shown = run_details_from_dict(data)     # as details.json holds them: what the report shows
+    figures = submit_figures(run.record, shown, workers) if report else None
     write_calibration(folder / "calibration.json", run.record)
     names, notes = ["calibration.json"], []
     written, camchain_notes = _camchain(run, folder)
@@ -136,13 +147,13 @@ def _write_files(run: CalibrationRun, folder: Path, *, report: bool, diagnostics
             write_opencv_intrinsics(folder / "intrinsics" / f"{stems[cam.name]}.yaml",
                                     cam.intrinsics.intrinsics)
         names.append("intrinsics")
-    details = write_run_details(folder / "details.json", run, diagnostics=diagnostics)
+    head = details_head(data)
     names.append("details.json")
     if report:
-        write_report(folder, shown_as=final.resolve(), images=image_folders(run),
-                     worker=worker)
+        write_report_from(folder, run.record, shown, figures, shown_as=final.resolve(),
+                          images=image_folders(run))
         names += ["report.html", "figures"]
-    return names, notes, details
+    return names, notes, head
 
 
 def _camchain(run: CalibrationRun, folder: Path) -> tuple[bool, list[str]]:

@@ -120,7 +120,8 @@ class ClosedForm:
 
 def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
               processes: int | None = None, progress: bool = False, engine: str = "local",
-              scheduler: str | None = None, **kw) -> CalibrationRun:
+              scheduler: str | None = None, on_detected: Callable[[], object] | None = None,
+              **kw) -> CalibrationRun:
     """Calibrate the rig described by a dataset folder (or its ``rig.yaml``).
 
     Parameters
@@ -139,6 +140,10 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
         Show a progress bar (only sensible on a terminal).
     engine, scheduler : {"local", "dask"}, str or None
         Detection on Dask: at a scheduler's address, or a local cluster (docs/recordings.md).
+    on_detected : callable, optional
+        Called without arguments once the detection is done and its workers have ended
+        (``multieye calibrate`` starts the report's figure workers then, while the
+        refinement runs on one core).
 
     Returns
     -------
@@ -158,6 +163,8 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
                                    select=options.select, time_offset=options.time_offset,
                                    engine=eng)
     loaded = time.perf_counter() - start
+    if on_detected is not None:
+        on_detected()
     run = calibrate_rig(rig, cameras, options)
     detection = sum(d.detection_s for d in cameras.values())
     timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
