@@ -259,7 +259,7 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     with claim_output(out_dir, inputs=[dataset]), figure_workers(processes) as workers:
         run = run_calibration(dataset, options, processes=processes,
                               progress=_progress_enabled(), engine=flags["engine"],
-                              scheduler=flags["scheduler"], on_detected=workers.start)
+                              scheduler=flags["scheduler"], on_detected=workers.start_early)
         written = write_outputs(run, out_dir, processes=processes, workers=workers)
     _echo(calibration_table(run.record))
     for name, data in run.cameras.items():

@@ -87,7 +87,7 @@ def _calibrate_one(dataset: str, out: str, options: Options) -> DatasetOutcome:
     try:
         with claim_output(out, inputs=[dataset]):
             run = calibrate(dataset, options, processes=1, progress=False)
-            write_outputs(run, out)
+            write_outputs(run, out, processes=1)     # figures drawn here too
     except CalibrationError as exc:
         return DatasetOutcome(dataset, out, 2, str(exc), time.perf_counter() - start)
     except OSError as exc:

@@ -27,13 +27,15 @@ pytestmark = [needs_proc, pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2,
 
 #: argv[1]: "plain" (record what the figure workers were), "slow" (the solve after the
 #: detection waits 60 s: the figure workers are up meanwhile), or "fail" (it raises a
-#: CalibrationError then); the rest: the command's arguments.
+#: CalibrationError then); the rest: the command's arguments.  The workers start when the
+#: detection is done, as on a machine with a free core.
 DRIVER = r"""
 import contextlib, sys, time
 import multieye.outputs.report_draw as draw
 import multieye.pipeline.run as run
 
 mode = sys.argv.pop(1)
+draw._free_core = lambda: True          # the workers start when the detection is done
 real_pool = draw.worker_pool
 pids = []
 

@@ -5,12 +5,14 @@ CPU second of drawing for four cameras.  Where two cores may be used, every figu
 by worker processes (:class:`FigureWorkers`; :func:`multieye.imaging.workers.worker_pool`:
 they end with this process) and this process never imports matplotlib: it makes the details,
 writes the other files and the page meanwhile.  ``multieye calibrate`` starts the workers
-when the detection is done (:func:`figure_workers`, :meth:`FigureWorkers.start`), so that
-they import matplotlib while the refinement runs on one core; they are forked from the
-detection's fork server (numpy and OpenCV already imported).  Two workers when a core is
-free (the 1-minute load average below the cores plus a half), else one, so that the figures
-cost no more CPU than drawing them here; none with one core, ``processes=1``, or a main
-script that a worker would run again: then this process draws them.
+when the detection is done (:func:`figure_workers`, :meth:`FigureWorkers.start_early`) if a
+core is free then, so that they import matplotlib while the refinement runs on one core
+(on a busy machine they would slow the refinement down instead, and start when the figures
+are handed to them); they are forked from the detection's fork server (numpy and OpenCV
+already imported).  The second worker starts
+once the first has imported, so that the two imports take the core the refinement leaves
+free in turn instead of taking a share of the refinement's.  No worker with one core,
+``processes=1``, or a main script that a worker would run again: then this process draws.
 
 The figures are handed out as tasks, the costliest first (:func:`submit_figures`): the rig's
 pictures, the all-camera figures, and the cameras' figures in one batch per worker (drawn on
@@ -102,24 +104,23 @@ def _context():
 
 
 def _free_core() -> bool:
-    """Whether another core is free for a second worker: the load average (1 minute) below
-    the cores this process may use plus a half.  On a machine busy with other work a second
-    worker only adds its imports (about 0.45 CPU-s) to what the cores must do."""
+    """Whether a core is free now: the load average (1 minute) below the cores this process
+    may use less a half (this process, refining, is one of them).  On a busy machine
+    workers started during the refinement take a share of its core instead (measured at a
+    load of 3-4 on 2 cores: the refinement 2.2 s instead of 1.0, docs/results/
+    report_speed.md)."""
     try:
-        return os.getloadavg()[0] < _cores() + 0.5
+        return os.getloadavg()[0] < _cores() - 0.5
     except OSError:                 # no load average on this system
         return True
 
 
 def worker_count(processes: int | None = None) -> int:
-    """Figure workers to use: 2 with two cores (``processes`` unset or 2 and more) and one
-    of them free, 1 with two cores busy, 0 (this process draws) with one core,
-    ``processes=1`` or a main script that a worker would run again
-    (:func:`~multieye.imaging.batch.main_reimport_problem`)."""
+    """Figure workers to use: 2 where two cores may be used (``processes`` unset, or 2 and
+    more), else 0 (this process draws: one core, ``processes=1``, or a main script that a
+    worker would run again, :func:`~multieye.imaging.batch.main_reimport_problem`)."""
     allowed = min(2, _cores()) if processes is None else max(1, min(int(processes), 2))
-    if allowed < 2 or main_reimport_problem() is not None:
-        return 0
-    return 2 if _free_core() else 1
+    return 2 if allowed >= 2 and main_reimport_problem() is None else 0
 
 
 class FigureWorkers:
@@ -128,26 +129,46 @@ class FigureWorkers:
     Attributes
     ----------
     count : int
-        Workers to start (:func:`worker_count`); 0: this process draws.
+        At most this many workers (:func:`worker_count`); 0: this process draws.
     pool : ProcessPoolExecutor or None
-        Once :meth:`start` has started them.
+        Once :meth:`start_early` or :meth:`start` has started them.
+    size : int
+        Workers started: ``count`` with a core free when they started, else one (on a busy
+        machine a second worker adds its imports and draws little sooner).
     """
 
     def __init__(self, count: int, stack: contextlib.ExitStack):
         self.count = count
         self.pool = None
+        self.size = 0
         self._stack = stack
 
+    def start_early(self) -> None:
+        """Start the workers now if a core is free (a calibration calls this when its
+        detection is done): the first imports matplotlib and the figure modules
+        (:func:`multieye.outputs.figures_rig.warm_up`) on the core the refinement leaves
+        free, the second once the first is ready, so that the two imports take that core in
+        turn.  On a busy machine they would take a share of the refinement's core instead,
+        and start when the figures are handed to them (:meth:`start`)."""
+        if self.count and _free_core():
+            self._start(self.count, one_at_a_time=True)
+
     def start(self) -> None:
-        """Start the workers now (once; nothing with ``count`` 0): each imports matplotlib
-        and the figure modules (:func:`multieye.outputs.figures_rig.warm_up`) while this process
-        goes on.  Called by a calibration when its detection is done."""
-        if self.pool is None and self.count:
-            self.pool = self._stack.enter_context(
-                worker_pool(self.count, mp_context=_context(), initializer=warm_up))
-            first = self.pool.submit(os.getpid)     # a task: the pool starts a process now
-            if self.count > 1:          # the next once the first has imported: one core each
+        """Start the workers now, both at once (once; nothing with ``count`` 0)."""
+        self._start(self.count if _free_core() else min(self.count, 1), one_at_a_time=False)
+
+    def _start(self, size: int, *, one_at_a_time: bool) -> None:
+        if self.pool is not None or not size:
+            return
+        self.size = size
+        self.pool = self._stack.enter_context(
+            worker_pool(size, mp_context=_context(), initializer=warm_up))
+        first = self.pool.submit(os.getpid)         # a task: the pool starts a process now
+        for _ in range(size - 1):
+            if one_at_a_time:
                 first.add_done_callback(self._another)
+            else:
+                self.pool.submit(os.getpid)
 
     def _another(self, _) -> None:
         """Start one more worker (called by the pool's thread when a worker is ready)."""
@@ -192,14 +213,15 @@ def submit_figures(rec: CalibrationRecord, details: RunDetails | None,
     workers : FigureWorkers, optional
     """
     order = [name for name, *_ in figure_jobs(rec, details)]
-    if workers is None or not workers.count:
+    if workers is not None:
+        workers.start()
+    if workers is None or not workers.size:
         def here():
             rig = rig_pngs(rec, details)
             return {**rig.pngs, **f.draw_jobs(figure_jobs(rec, details))}, rig.legend
         return here
-    workers.start()
     pending = [workers.pool.submit(func, *args)
-               for _, func, args in _tasks(rec, details, workers.count)]
+               for _, func, args in _tasks(rec, details, workers.size)]
 
     def wait():
         drawn: dict[str, bytes] = {}
