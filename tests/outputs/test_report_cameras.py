@@ -34,6 +34,7 @@ from multieye.outputs.report import load_details, write_report
 from multieye.outputs import report_draw
 from multieye.outputs.report_draw import figure_jobs
 from multieye.outputs.report_cameras import camera_figure_names
+from multieye.outputs.report_images import image_folders
 from multieye.outputs.write import write_outputs
 from multieye.pipeline import calibrate, calibrate_rig
 from small_dataset import render_small
@@ -209,6 +210,23 @@ def test_report_with_estimated_intrinsics_renders_without_console_messages(runs,
     assert console == []
     assert len(sizes) == 14 and all(w > 450 and h > 180 for w, h, _ in sizes[:2] + sizes[8:])
     assert all(w > 150 and h > 100 for w, h, _ in sizes[2:8])          # the drawn images
+
+
+@pytest.mark.parametrize("kind", ["given", "model"])
+def test_the_report_of_a_run_is_the_report_of_its_files(runs, tmp_path, kind):
+    """``write_outputs`` makes the report from the record and details in memory; made again
+    from calibration.json and details.json alone (``multieye report``, with the same image
+    folders) it is the same page and the same figure bytes: nothing differs from the files."""
+    run, src = runs[kind]
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("calibration.json", "details.json"):
+        (out / name).write_bytes((src / name).read_bytes())
+    write_report(out, shown_as=src, images=image_folders(run))
+    assert (out / "report.html").read_text() == (src / "report.html").read_text()
+    figures = {p.name: p.read_bytes() for p in (src / "figures").iterdir()}
+    assert len(figures) >= 10
+    assert {p.name: p.read_bytes() for p in (out / "figures").iterdir()} == figures
 
 
 def test_camera_figures_of_an_earlier_report_are_removed(runs, tmp_path):
