@@ -114,6 +114,8 @@ def write_output_files(run: CalibrationRun, folder: Path, *, final: Path, report
     with confined_to(folder):           # nothing written through a link (docs/outputs.md)
         with (contextlib.nullcontext(workers) if workers is not None or not report
               else figure_workers(processes)) as drawing:
+            if drawing is not None:     # importing while this process makes the details
+                drawing.start()
             names, notes, head = _write_files(run, folder, report=report,
                                               diagnostics=diagnostics, final=final,
                                               workers=drawing)
@@ -131,8 +133,9 @@ def _write_files(run: CalibrationRun, folder: Path, *, report: bool, diagnostics
     from multieye.outputs.report_draw import submit_figures  # noqa: PLC0415 (heavy: the figure modules and OpenCV, only with the report)
 
     data = run_details_to_dict(run_details(run, diagnostics=diagnostics))
-    shown = run_details_from_dict(data)     # as details.json holds them: what the report shows
-    figures = submit_figures(run.record, shown, workers) if report else None
+    if report:      # the details as details.json holds them (rounded): what the report shows
+        shown = run_details_from_dict(data)
+        figures = submit_figures(run.record, shown, workers)
     write_calibration(folder / "calibration.json", run.record)
     names, notes = ["calibration.json"], []
     written, camchain_notes = _camchain(run, folder)
