@@ -6,12 +6,11 @@ by worker processes (:class:`FigureWorkers`; :func:`multieye.imaging.workers.wor
 they end with this process) and this process never imports matplotlib: it makes the details,
 writes the other files and the page meanwhile.  ``multieye calibrate`` starts the workers
 when the detection is done (:func:`figure_workers`, :meth:`FigureWorkers.start_early`) if a
-core is free then, so that they import matplotlib while the refinement runs on one core
-(on a busy machine they would slow the refinement down instead, and start when the figures
-are handed to them); they are forked from the detection's fork server (numpy and OpenCV
-already imported).  The second worker starts
-once the first has imported, so that the two imports take the core the refinement leaves
-free in turn instead of taking a share of the refinement's.  No worker with one core,
+core is free then (the load average below the cores), so that they import matplotlib while
+the refinement runs on one core: the second once the first has imported, so that the two
+imports take the free core in turn.  On a busy machine they would slow the refinement down
+instead, and start with the outputs (:meth:`FigureWorkers.start`).  They are forked from the
+detection's fork server (numpy and OpenCV already imported).  No worker with one core,
 ``processes=1``, or a main script that a worker would run again: then this process draws.
 
 The figures are handed out as tasks, the costliest first (:func:`submit_figures`): the rig's
@@ -105,12 +104,12 @@ def _context():
 
 def _free_core() -> bool:
     """Whether a core is free now: the load average (1 minute) below the cores this process
-    may use less a half (this process, refining, is one of them).  On a busy machine
+    may use (this process is one of the runnable ones it counts).  On a busy machine
     workers started during the refinement take a share of its core instead (measured at a
-    load of 3-4 on 2 cores: the refinement 2.2 s instead of 1.0, docs/results/
+    load of 3.5-4 on 2 cores: the refinement 2.2 s instead of 1.0, docs/results/
     report_speed.md)."""
     try:
-        return os.getloadavg()[0] < _cores() - 0.5
+        return os.getloadavg()[0] < _cores()
     except OSError:                 # no load average on this system
         return True
 
