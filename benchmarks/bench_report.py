@@ -23,12 +23,13 @@ Run from the repository root::
 3. With ``--command`` (what issue 21 asks about): the whole command, ``multieye calibrate
    DATASET -o OUT`` in a fresh interpreter, ``--repeats`` times with the report and as many
    without it (``write_outputs(..., report=False)``: calibration.json, camchain, details.json
-   only) and, with ``--serial``, with every figure drawn in the main process and with a
-   figure worker whatever the load (by default one is used only with a core free); in turn
-   so that all see the same load.  For each it prints the command's wall time and CPU
-   seconds (the command and every process it waited for), and the outputs stage's wall time
-   and CPU seconds (the main process, and the figure worker's own, which it reports before
-   it ends).  The medians' differences are what the report adds, matplotlib's import
+   only) and, with ``--serial``, with every figure drawn in the main process and with the
+   figure workers started at the detection's end whatever the load (by default only with a
+   core free); in turn so that all see the same load.  For each it prints the command's
+   wall time and CPU seconds (the command and every process it waited for), and the outputs
+   stage's wall time and CPU seconds (the main process, and the figure workers' own, read
+   from /proc before they end: their imports included, also when they ran during the
+   refinement).  The medians' differences are what the report adds, matplotlib's import
    included; the outputs stage's are the precise ones (the whole command's also vary with
    the detection).  ``--dataset`` adds another rendered folder (e.g.
    ``benchmarks/.cache/peers_4x100``).
@@ -120,7 +121,7 @@ def run_sizes(dataset: Path, src: Path, processes: int, repeats: int, serial: bo
 
 
 _COMMAND = r"""
-import contextlib, json, resource, sys, time
+import contextlib, json, os, resource, sys, time
 import multieye.outputs.write as w
 import multieye.outputs.report_draw as draw
 
@@ -131,12 +132,23 @@ def cpu():
 worker_cpu = []
 real_pool = draw.worker_pool
 
+def proc_cpu(pid):          # CPU-s of a running process, from /proc (Linux)
+    with open(f"/proc/{pid}/stat") as fh:
+        fields = fh.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+live = []
+
+def workers_cpu():          # of the pools still running
+    return sum(proc_cpu(pid) for pool in live for pid in list(pool._processes))
+
 @contextlib.contextmanager
-def counted_pool(*args, **kwargs):    # the figure worker's CPU-s, asked of it before it ends
+def counted_pool(*args, **kwargs):    # the figure workers' CPU-s, read before they end
     with real_pool(*args, **kwargs) as pool:
+        live.append(pool)
         yield pool
-        used = pool.submit(resource.getrusage, resource.RUSAGE_SELF).result()
-        worker_cpu.append(used.ru_utime + used.ru_stime)
+        worker_cpu.append(workers_cpu())
+        live.remove(pool)
 
 draw.worker_pool = counted_pool
 mode = sys.argv.pop(1)
@@ -150,7 +162,8 @@ def timed(run, out, **kw):
     c, t = cpu(), time.perf_counter()
     written = plain(run, out, **{**kw, "report": mode != "no-report"})
     print("BENCH " + json.dumps({"stage_wall": time.perf_counter() - t, "stage_cpu": cpu() - c,
-                                 "worker_cpu": sum(worker_cpu)}), file=sys.stderr)
+                                 "worker_cpu": sum(worker_cpu) + workers_cpu()}),
+          file=sys.stderr)
     return written
 
 w.write_outputs = timed

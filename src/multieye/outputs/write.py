@@ -114,7 +114,7 @@ def write_output_files(run: CalibrationRun, folder: Path, *, final: Path, report
     with confined_to(folder):           # nothing written through a link (docs/outputs.md)
         with (contextlib.nullcontext(workers) if workers is not None or not report
               else figure_workers(processes)) as drawing:
-            if drawing is not None:     # importing while this process makes the details
+            if report and drawing is not None:   # importing while the details are made
                 drawing.start()
             names, notes, head = _write_files(run, folder, report=report,
                                               diagnostics=diagnostics, final=final,
