@@ -312,9 +312,17 @@ def test_eye_on_hand_points_are_the_refined_rigs_residuals(tmp_path):
 
 
 @pytest.mark.skipif(report_draw.worker_count(2) == 0, reason="figure workers need two cores")
-def test_figures_drawn_by_a_worker_are_the_same(runs, tmp_path):
+def test_figures_drawn_by_a_worker_are_the_same(runs, tmp_path, monkeypatch):
     """Workers or this process: the same figures, the same page (the cameras' figures drawn
     on one figure reused, in one batch per worker)."""
+    monkeypatch.setattr(report_draw, "_free_core", lambda: True)    # whatever the load
+    sizes = []
+    real_pool = report_draw.worker_pool
+
+    def counted(size, **kwargs):
+        sizes.append(size)
+        return real_pool(size, **kwargs)
+    monkeypatch.setattr(report_draw, "worker_pool", counted)
     src = runs["model"][1]
     rec = read_calibration(src / "calibration.json")
     details, _ = load_details(src, rec)
@@ -328,7 +336,19 @@ def test_figures_drawn_by_a_worker_are_the_same(runs, tmp_path):
         page = write_report(out, processes=processes)
         pages[processes] = (page.read_text().replace(str(out), "OUT"),
                             {p.name: p.read_bytes() for p in (out / "figures").iterdir()})
+    assert sizes == [2]                 # two workers drew with processes=2, none with 1
     assert pages[1] == pages[2]
+
+
+@pytest.mark.parametrize("free, processes", [(False, 2), (False, None), (True, 1)])
+def test_no_figure_worker_on_a_busy_machine_or_with_one_process(monkeypatch, free, processes):
+    """No core free (the refinement would lose a share of its core, and a worker only adds
+    its imports) or ``processes=1``: no worker starts, early or late; this process draws."""
+    monkeypatch.setattr(report_draw, "_free_core", lambda: free)
+    with report_draw.figure_workers(processes) as workers:
+        workers.start_early()
+        workers.start()
+        assert workers.pool is None and workers.size == 0
 
 
 def test_camera_figures_drawn_on_one_figure_are_the_same_as_alone(runs):

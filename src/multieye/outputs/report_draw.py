@@ -1,17 +1,18 @@
 """Drawing the report's figures, in worker processes where there are two cores.
 
 matplotlib takes most of the time of the report: its import (about 0.45 CPU-s) and about a
-CPU second of drawing for four cameras.  Where two cores may be used, every figure is drawn
-by worker processes (:class:`FigureWorkers`; :func:`multieye.imaging.workers.worker_pool`:
-they end with this process) and this process never imports matplotlib: it makes the details,
-writes the other files and the page meanwhile.  ``multieye calibrate`` starts the workers
-when the detection is done (:func:`figure_workers`, :meth:`FigureWorkers.start_early`) if a
-core is free then (the load average below the cores), so that they import matplotlib while
-the refinement runs on one core: the second once the first has imported, so that the two
-imports take the free core in turn.  On a busy machine they would slow the refinement down
-instead, and start with the outputs (:meth:`FigureWorkers.start`).  They are forked from the
-detection's fork server (numpy and OpenCV already imported).  No worker with one core,
-``processes=1``, or a main script that a worker would run again: then this process draws.
+CPU second of drawing for four cameras.  Where two cores may be used and one is free (the
+1-minute load average below the cores), every figure is drawn by worker processes
+(:class:`FigureWorkers`; :func:`multieye.imaging.workers.worker_pool`: they end with this
+process) and this process never imports matplotlib: it makes the details, writes the other
+files and the page meanwhile.  ``multieye calibrate`` starts the workers when the detection
+is done (:func:`figure_workers`, :meth:`FigureWorkers.start_early`), so that they import
+matplotlib while the refinement runs on one core, the second once the first has imported
+(the two imports take the free core in turn); otherwise they start with the outputs
+(:meth:`FigureWorkers.start`).  They are forked from the detection's fork server (numpy and
+OpenCV already imported).  This process draws everything with one core, ``processes=1``, a
+main script that a worker would run again, or on a busy machine (no core free), where
+workers slowed the refinement or the outputs down (docs/results/report_speed.md).
 
 The figures are handed out as tasks, the costliest first (:func:`submit_figures`): the rig's
 pictures, the all-camera figures, and the cameras' figures in one batch per worker (drawn on
@@ -132,8 +133,7 @@ class FigureWorkers:
     pool : ProcessPoolExecutor or None
         Once :meth:`start_early` or :meth:`start` has started them.
     size : int
-        Workers started: ``count`` with a core free when they started, else one (on a busy
-        machine a second worker adds its imports and draws little sooner).
+        Workers started: ``count`` with a core free when they started, else none.
     """
 
     def __init__(self, count: int, stack: contextlib.ExitStack):
@@ -153,8 +153,11 @@ class FigureWorkers:
             self._start(self.count, one_at_a_time=True)
 
     def start(self) -> None:
-        """Start the workers now, both at once (once; nothing with ``count`` 0)."""
-        self._start(self.count if _free_core() else min(self.count, 1), one_at_a_time=False)
+        """Start the workers now, both at once, if a core is free (once; nothing with
+        ``count`` 0).  On a busy machine this process draws: one worker drawing while it
+        waits made the outputs 0.6 s longer at a load of 3.3-3.8 on 2 cores (medians of 6,
+        docs/results/report_speed.md)."""
+        self._start(self.count if _free_core() else 0, one_at_a_time=False)
 
     def _start(self, size: int, *, one_at_a_time: bool) -> None:
         if self.pool is not None or not size:
