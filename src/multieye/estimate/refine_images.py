@@ -497,8 +497,11 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
     recentres = 0
     while True:
         final = settled or passes >= _MAX_SIGMA_PASSES
+        # the last pass with the robust cost's curvature near its optimum (Options), from its
+        # start when it starts at an earlier pass's optimum
         opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter,
-                       tol=tol if final else np.sqrt(tol))
+                       tol=tol if final else np.sqrt(tol),
+                       newton_below=(np.inf if passes else np.sqrt(tol)) if final else 0.0)
         res = minimize(fams, data.groups(s_px, s_rot, s_t), opts)
         fams = res.families
         passes += 1
