@@ -174,3 +174,14 @@ def test_points_behind_the_camera_have_no_pixel_nor_jacobian(rng):
     good = project_with_jacobian(P[~bad], cam)
     for a, b in zip((uv, J_point, J_intr), good):
         np.testing.assert_array_equal(a[~bad], b)
+
+
+@pytest.mark.parametrize("cam", [Intrinsics(K=K, dist=PINHOLE_DIST[5]), FISHEYE])
+def test_the_lens_jacobian_is_left_out_when_not_asked_for(cam, rng):
+    P = np.column_stack([rng.uniform(-0.5, 0.5, (20, 2)), rng.uniform(0.8, 3.0, 20)])
+    P[3, 2] = -1.0
+    full = project_with_jacobian(P, cam)
+    uv, J_point, J_intr = project_with_jacobian(P, cam, lens_jacobian=False)
+    assert J_intr is None
+    np.testing.assert_array_equal(uv, full[0])
+    np.testing.assert_array_equal(J_point, full[1])

@@ -105,8 +105,8 @@ def _in_front(P: F64) -> NDArray[np.bool_]:
     return np.all(np.isfinite(P), axis=1) & (P[:, 2] > 0)
 
 
-def project_with_jacobian(points_cam: ArrayLike, intrinsics: Intrinsics
-                          ) -> tuple[F64, F64, F64]:
+def project_with_jacobian(points_cam: ArrayLike, intrinsics: Intrinsics, *,
+                          lens_jacobian: bool = True) -> tuple[F64, F64, F64 | None]:
     """Pixels of camera-frame points with their derivatives, from OpenCV's own Jacobians.
 
     ``cv2.projectPoints`` / ``cv2.fisheye.projectPoints`` are called with a zero pose, so the
@@ -118,6 +118,8 @@ def project_with_jacobian(points_cam: ArrayLike, intrinsics: Intrinsics
     points_cam : array_like, shape (P, 3)
         Points in the camera frame (x right, y down, z forward), metres, ``z > 0``.
     intrinsics : Intrinsics
+    lens_jacobian : bool
+        Also ``J_intrinsics`` (else None: a lens held fixed needs no derivative by it).
 
     Returns
     -------
@@ -125,7 +127,7 @@ def project_with_jacobian(points_cam: ArrayLike, intrinsics: Intrinsics
         Pixels, as :func:`project_points` (NaN on or behind the camera plane).
     J_point : ndarray, shape (P, 2, 3)
         ``d uv / d points_cam``, pixels per metre (NaN where ``uv`` is).
-    J_intrinsics : ndarray, shape (P, 2, 4 + len(dist))
+    J_intrinsics : ndarray, shape (P, 2, 4 + len(dist)), or None
         ``d uv / d (fx, fy, cx, cy, dist...)``: the distortion coefficients in OpenCV's order
         (pinhole k1 k2 p1 p2 [k3 [k4 k5 k6 ...]]; fisheye k1..k4).
     """
@@ -134,14 +136,16 @@ def project_with_jacobian(points_cam: ArrayLike, intrinsics: Intrinsics
     ok = _in_front(P)
     every = bool(ok.all())
     if every and _numpy_pinhole(intrinsics):
-        return _pinhole_points(P, intrinsics)
+        return _pinhole_points(P, intrinsics, lens_jacobian)
     uv = np.full((n, 2), np.nan)
     J_point = np.full((n, 2, 3), np.nan)
-    J_intr = np.full((n, 2, 4 + nd), np.nan)
+    J_intr = np.full((n, 2, 4 + nd), np.nan) if lens_jacobian else None
     if not np.any(ok):
         return uv, J_point, J_intr
     if _numpy_pinhole(intrinsics):
-        uv[ok], J_point[ok], J_intr[ok] = _pinhole_points(P[ok], intrinsics)
+        uv[ok], J_point[ok], ji = _pinhole_points(P[ok], intrinsics, lens_jacobian)
+        if lens_jacobian:
+            J_intr[ok] = ji
         return uv, J_point, J_intr
     obj = P[ok].reshape(-1, 1, 3)
     zero = np.zeros(3)
@@ -155,7 +159,8 @@ def project_with_jacobian(points_cam: ArrayLike, intrinsics: Intrinsics
         jp, ji = jac[:, :, 3:6], jac[:, :, 6:10 + nd]
     uv[ok] = out.reshape(-1, 2)
     J_point[ok] = jp
-    J_intr[ok] = ji
+    if lens_jacobian:
+        J_intr[ok] = ji
     return uv, J_point, J_intr
 
 
@@ -164,7 +169,8 @@ def _numpy_pinhole(intrinsics: Intrinsics) -> bool:
     return intrinsics.model != "fisheye" and intrinsics.dist.size <= 12
 
 
-def _pinhole(xy: F64, intrinsics: Intrinsics, jacobians: bool = False):
+def _pinhole(xy: F64, intrinsics: Intrinsics, jacobians: bool = False,
+             lens_jacobian: bool = True):
     """OpenCV's pinhole model (``cvProjectPoints2``) on normalised coordinates, in numpy.
 
     With ``x, y`` the normalised coordinates, ``r2 = x^2 + y^2`` and the coefficients
@@ -182,7 +188,8 @@ def _pinhole(xy: F64, intrinsics: Intrinsics, jacobians: bool = False):
     intrinsics : Intrinsics
         Pinhole, at most 12 distortion coefficients.
     jacobians : bool
-        Also return the derivatives.
+        Also return the derivatives (``J_intrinsics`` only with ``lens_jacobian``).
+    lens_jacobian : bool
 
     Returns
     -------
@@ -222,6 +229,8 @@ def _pinhole(xy: F64, intrinsics: Intrinsics, jacobians: bool = False):
     J_xy[:, 0, 1] = fx * (xy2 * dc + 2.0 * p1 * x + 2.0 * p2 * y + 2.0 * sx * y)
     J_xy[:, 1, 0] = fy * (xy2 * dc + 2.0 * p1 * x + 2.0 * p2 * y + 2.0 * sy * x)
     J_xy[:, 1, 1] = fy * (c + 2.0 * y2 * dc + 6.0 * p1 * y + 2.0 * p2 * x + 2.0 * sy * y)
+    if not lens_jacobian:
+        return uv, J_xy, None
     J_k = np.zeros((len(xy), 2, 4 + nd))
     J_k[:, 0, 0], J_k[:, 1, 1] = xd, yd
     J_k[:, 0, 2] = J_k[:, 1, 3] = 1.0
@@ -245,12 +254,13 @@ def _pinhole(xy: F64, intrinsics: Intrinsics, jacobians: bool = False):
     return uv, J_xy, J_k
 
 
-def _pinhole_points(P: F64, intrinsics: Intrinsics) -> tuple[F64, F64, F64]:
+def _pinhole_points(P: F64, intrinsics: Intrinsics, lens_jacobian: bool = True
+                    ) -> tuple[F64, F64, F64 | None]:
     """:func:`project_with_jacobian` of points in front of a pinhole camera, by
     :func:`_pinhole`: ``d xy / d p = [[1, 0, -x], [0, 1, -y]] / z``."""
     inv_z = 1.0 / P[:, 2]
     xy = P[:, :2] * inv_z[:, None]
-    uv, jx, ji = _pinhole(xy, intrinsics, jacobians=True)
+    uv, jx, ji = _pinhole(xy, intrinsics, jacobians=True, lens_jacobian=lens_jacobian)
     jp = np.empty((len(P), 2, 3))
     jp[:, :, :2] = jx * inv_z[:, None, None]
     jp[:, :, 2] = -(jp[:, :, 0] * xy[:, 0:1] + jp[:, :, 1] * xy[:, 1:2])

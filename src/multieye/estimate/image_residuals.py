@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
+from multieye.core.geometry import skew
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
 from multieye.core.lie import left_jacobian_inv, log_so3
@@ -78,10 +79,11 @@ def intrinsics_family(name: str) -> str:
     return f"K:{name}"
 
 
-def _pixels(pc: F64, intr: Intrinsics, with_jacobian: bool):
-    """Pixels of camera-frame points and, when asked, d uv / d pc and d uv / d intrinsics."""
+def _pixels(pc: F64, intr: Intrinsics, with_jacobian: bool, lens: bool = True):
+    """Pixels of camera-frame points and, when asked, d uv / d pc and (with ``lens``)
+    d uv / d intrinsics."""
     if with_jacobian:
-        return project_with_jacobian(pc, intr)
+        return project_with_jacobian(pc, intr, lens_jacobian=lens)
     return project_points(pc, intr), None, None
 
 
@@ -162,7 +164,7 @@ class PixelResiduals(ResidualGroup):
         X, Y, M, intr = values["X"], values["Y"][0], values["M"], self._intrinsics(values)
         images = slice(*part.index_range)
         ry, py, q, d, pc = self._chain(X, Y, M, images)
-        uv, Jp, Jk = _pixels(part.gather(pc), intr, True)
+        uv, Jp, Jk = _pixels(part.gather(pc), intr, True, self.free)
         r = (uv - self._uv[part.rows]) / self.sigma
         n_img, n = len(self.blocks[images]), self.longest
         RX = X[self.camera, :3, :3]
@@ -173,17 +175,19 @@ class PixelResiduals(ResidualGroup):
         JpG = (flat @ G).reshape(n_img, n, 2, 3)                        # d r / d p_y
         c = 18 + (Jk.shape[2] if self.free else 0)
         out = np.empty((n_img, n, 2, c))                                # (n_img, n, 2, c)
-        cross_rows(JpR, d, out=out[..., 0:3])
+        # two row-wise cross products; the third differs from one of them by a constant
+        # vector, a^T [v + t]_x = a^T [v]_x + a^T [t]_x (one matrix product)
         np.negative(JpR, out=out[..., 3:6])
         cross_rows(JpG, ry, out=out[..., 6:9])
         np.negative(out[..., 6:9], out=out[..., 6:9])
         out[..., 9:12] = JpG
-        if self.data.setup == "eye-to-base":
-            cross_rows(JpG, py, out=out[..., 12:15])
-            np.negative(out[..., 12:15], out=out[..., 12:15])
+        if self.data.setup == "eye-to-base":                 # p_y = R_Y p + t_Y
+            cross_rows(JpR, d, out=out[..., 0:3])
+            np.subtract(out[..., 6:9], JpG @ skew(Y[:3, 3]), out=out[..., 12:15])
             out[..., 15:18] = JpR
-        else:
+        else:                                                # d = q - t_X
             cross_rows(JpR, q, out=out[..., 12:15])
+            np.subtract(out[..., 12:15], JpR @ skew(X[self.camera, :3, 3]), out=out[..., 0:3])
             np.negative(JpG, out=out[..., 15:18])
         if self.free:
             out[..., 18:] = part.pad(Jk / self.sigma).reshape(n_img, n, 2, -1)
