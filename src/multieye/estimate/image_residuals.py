@@ -183,11 +183,13 @@ class PixelResiduals(ResidualGroup):
         out[..., 9:12] = JpG
         if self.data.setup == "eye-to-base":                 # p_y = R_Y p + t_Y
             cross_rows(JpR, d, out=out[..., 0:3])
-            np.subtract(out[..., 6:9], JpG @ skew(Y[:3, 3]), out=out[..., 12:15])
+            np.subtract(out[..., 6:9], (flat @ (G @ skew(Y[:3, 3]))).reshape(JpG.shape),
+                        out=out[..., 12:15])
             out[..., 15:18] = JpR
         else:                                                # d = q - t_X
             cross_rows(JpR, q, out=out[..., 12:15])
-            np.subtract(out[..., 12:15], JpR @ skew(X[self.camera, :3, 3]), out=out[..., 0:3])
+            np.subtract(out[..., 12:15], (flat @ (RX.T @ skew(X[self.camera, :3, 3])))
+                        .reshape(JpR.shape), out=out[..., 0:3])
             np.negative(JpG, out=out[..., 15:18])
         if self.free:
             out[..., 18:] = part.pad(Jk / self.sigma).reshape(n_img, n, 2, -1)
