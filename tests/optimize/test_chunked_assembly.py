@@ -80,3 +80,21 @@ def test_segment_ranges_pad_and_gather_their_rows(counts, rng):
         np.testing.assert_array_equal(padded, expected)
         assert part.full == all(counts[s] == group.longest for s in range(lo, hi))
         np.testing.assert_array_equal(part.gather(padded), mine)
+
+
+@pytest.mark.parametrize("chunk", [7, 1000])
+def test_covariance_and_residuals_from_one_linearisation(chunk, monkeypatch):
+    """covariance_and_residuals: covariance() and evaluate() at once, the residuals joined
+    from the chunks they were linearised in."""
+    sc = simulate_images(2, n_cameras=2, images=[20, 13])
+    data = image_data(ImageProblem(sc.setup, sc.observations, sc.intrinsics))
+    fams = data.families(sc.X, sc.Y, data.mocap_measured)
+    groups = data.groups(0.3, 1e-3, 3e-4)
+    monkeypatch.setattr(lm, "CHUNK_SEGMENTS", chunk)
+    cov, ev = lm.covariance_and_residuals(fams, groups, local=True)
+    ref = lm.covariance(fams, groups, local=True)
+    np.testing.assert_allclose(cov.kept, ref.kept, rtol=1e-12)
+    np.testing.assert_allclose(cov.local, ref.local, rtol=1e-12)
+    for (r, none), (r_ref, _) in zip(ev, lm.evaluate(fams, groups, jacobians=False)):
+        assert none is None and r.shape == r_ref.shape
+        np.testing.assert_allclose(r, r_ref, rtol=1e-12, atol=1e-12)

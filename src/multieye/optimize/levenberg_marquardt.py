@@ -54,7 +54,7 @@ from multieye.optimize.normal_equations import (
 from multieye.optimize.threads import threads_for
 
 __all__ = ["Options", "Result", "Covariance", "minimize", "covariance", "evaluate",
-           "normal_equations", "CHUNK_SEGMENTS"]
+           "covariance_and_residuals", "normal_equations", "CHUNK_SEGMENTS"]
 
 #: Segments (images) linearised at once when the normal equations are summed.
 CHUNK_SEGMENTS = 256
@@ -182,10 +182,21 @@ def normal_equations(families: Sequence[Blocks], groups: Sequence[ResidualGroup]
     (:data:`CHUNK_SEGMENTS` segments at a time), weighted by the loss of ``opts`` (unweighted
     when None): by its IRLS weights ``rho'``, or with ``newton`` the Hessian by the robust
     cost's curvature ``rho' + 2 z rho''`` (at least 0) and the gradient by ``rho'``."""
+    return _linearized(families, groups, layout, opts, newton)[0]
+
+
+def _linearized(families: Sequence[Blocks], groups: Sequence[ResidualGroup], layout: Layout,
+                opts: Options | None = None, newton: bool = False):
+    """:func:`normal_equations`, and the residuals they were formed from: each group's
+    ``(residuals (n_rows, dim), None)`` as :func:`evaluate` gives them (its chunks joined),
+    so that a caller needing both linearises once."""
     values = {f.name: f.value for f in families}
     acc = Assembly(layout, {f.name: f for f in families})
+    residuals = []
     for grp in groups:
+        rows = []
         for piece, r, B, rb in grp.linearize_chunks(values, CHUNK_SEGMENTS):
+            rows.append(r)
             if opts is None:
                 acc.add(piece, B, rb)
                 continue
@@ -195,7 +206,8 @@ def normal_equations(families: Sequence[Blocks], groups: Sequence[ResidualGroup]
                 acc.add(piece, B, rb, np.maximum(slope + 2.0 * z * curvature, 0.0), slope)
             else:
                 acc.add(piece, B, rb, slope)
-    return acc.result()
+        residuals.append((rows[0] if len(rows) == 1 else np.concatenate(rows), None))
+    return acc.result(), residuals
 
 
 def _cost(evaluated, opts: Options) -> float:
@@ -245,14 +257,19 @@ def minimize(families: Sequence[Blocks], groups: Sequence[ResidualGroup],
 
 
 def _minimize(families, groups, opts: Options, layout: Layout) -> Result:
-    cost = _cost(evaluate(families, groups, jacobians=False), opts)
+    newton = opts.newton_below == np.inf
+    try:            # the starting cost from the residuals of the first linearisation
+        ne, evaluated = _linearized(families, groups, layout, opts, newton)
+        cost = _cost(evaluated, opts)
+    except InputError:                 # e.g. a lens outside its model: no Jacobian to take
+        ne, cost = None, _cost(evaluate(families, groups, jacobians=False), opts)
     if not np.isfinite(cost):
         raise InputError("the residuals are not finite at the starting point")
     lam = opts.initial_damping
     evaluations, iterations = 1, 0
-    newton = opts.newton_below == np.inf
     for iterations in range(1, opts.max_iter + 1):
-        ne = normal_equations(families, groups, layout, opts, newton)
+        if iterations > 1 or ne is None:
+            ne = normal_equations(families, groups, layout, opts, newton)
         while True:
             step = solve_step(ne, lam)
             if step is not None:
@@ -275,6 +292,18 @@ def _minimize(families, groups, opts: Options, layout: Layout) -> Result:
                           "relative decrease of the cost below tol")
     return Result(families, cost, iterations, evaluations, False,
                   f"stopped after {opts.max_iter} iterations")
+
+
+def covariance_and_residuals(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,
+                             local: bool = False) -> tuple[Covariance, list]:
+    """:func:`covariance` and :func:`evaluate` (``jacobians=False``) at the families' values,
+    from one linearisation."""
+    families = tuple(families)
+    layout = Layout.of(families)
+    with threads_for(layout.k):
+        ne, evaluated = _linearized(families, groups, layout)
+        kept, loc, undetermined = marginal_covariance(ne, local=local)
+    return Covariance(kept, loc, layout, undetermined), evaluated
 
 
 def covariance(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,
