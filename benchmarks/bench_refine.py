@@ -59,7 +59,7 @@ import numpy as np
 
 from multieye.core import geometry as g
 from multieye.estimate.clock import estimate_offset
-from multieye.experiments.refine import refine_trial, relative_rms_errors, summarize_refine
+from multieye.experiments.refine_sweep import refine_trial, relative_rms_errors, summarize_refine
 from multieye.sim.images import corrupt, simulate_images, simulate_stream
 from multieye.core.metrics import extrinsic_errors
 from multieye.estimate.pairing import pair_in_time
