@@ -268,3 +268,9 @@ def test_far_from_the_optimum_the_irls_steps_are_kept_until_the_switch(rng):
     assert a.iterations == b.iterations
     for name in ("G", "L"):
         np.testing.assert_array_equal(a.value(name), b.value(name))
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), "1e-3", None])
+def test_newton_below_must_be_a_non_negative_number(bad):
+    with pytest.raises(InputError, match="newton_below"):
+        Options(newton_below=bad)

@@ -98,6 +98,10 @@ class Options:
             raise InputError(f"max_iter must be a whole number >= 1, got {self.max_iter!r}")
         if not real_number(self.tol, "tol") >= 0:
             raise InputError(f"tol must be a non-negative number, got {self.tol!r}")
+        if not (isinstance(self.newton_below, (int, float, np.floating))
+                and self.newton_below >= 0):
+            raise InputError("newton_below must be a non-negative number (inf: from the first "
+                             f"step), got {self.newton_below!r}")
 
 
 @dataclass(frozen=True)
