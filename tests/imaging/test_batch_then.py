@@ -36,17 +36,17 @@ def test_each_jobs_task_gets_exactly_that_jobs_results(image_files, processes): 
 SPY = textwrap.dedent("""
     import sys
     from multiprocessing import forkserver
-    from multieye.imaging import batch
+    from multieye.imaging import workers
 
-    started = batch.prestart_workers
+    started = workers.prestart_workers
 
     def spy(processes):
         running = started(processes)
-        print("prestart", running, "multieye.pipeline" in sys.modules,
+        print("prestart", running, "multieye.pipeline" in sys.modules, "cv2" in sys.modules,
               forkserver._forkserver._forkserver_pid, file=sys.stderr)
         return running
 
-    batch.prestart_workers = spy
+    workers.prestart_workers = spy
 
     if __name__ == "__main__":
         from multieye.cli import main
@@ -59,7 +59,8 @@ SPY = textwrap.dedent("""
 
 def test_calibrate_starts_the_fork_server_before_importing_the_pipeline(tmp_path):
     """The fork server's imports overlap the main process's: started before
-    ``multieye.pipeline`` is imported, and the one the detection's workers come from."""
+    ``multieye.pipeline`` and OpenCV are imported, and the one the detection's workers come
+    from."""
     from small_dataset import render_small
 
     ds = tmp_path / "ds"
@@ -72,15 +73,15 @@ def test_calibrate_starts_the_fork_server_before_importing_the_pipeline(tmp_path
     assert run.returncode == 0, run.stderr
     lines = [line.split() for line in run.stderr.splitlines()
              if line.startswith(("prestart", "server"))]
-    (_, running, imported, pid), (_, after) = lines
-    assert (running, imported) == ("True", "False")
+    (_, running, imported, opencv, pid), (_, after) = lines
+    assert (running, imported, opencv) == ("True", "False", "False")
     assert pid == after != "None"        # not started again for the detection; still running
     # with one process there are no workers: nothing is started
     one = subprocess.run([sys.executable, str(script), "calibrate", str(ds), "-o",
                           str(tmp_path / "out1"), "--processes", "1"],
                          capture_output=True, text=True, timeout=300)
     assert one.returncode == 0, one.stderr
-    assert "prestart False False None" in one.stderr
+    assert "prestart False False False None" in one.stderr
 
 
 @needs_proc
