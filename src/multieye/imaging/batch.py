@@ -55,8 +55,12 @@ __all__ = ["ImageResult", "ImageJob", "detect_and_estimate", "detect_and_estimat
 #: Images whose PnP reprojection RMS exceeds this many pixels are left out by default.
 DEFAULT_MAX_RMS_PX = 2.0
 
-#: Chunks per worker: enough for load balance, few enough that start-up and pickling stay small.
+#: Chunks per worker at the start (:func:`_chunks`; smaller ones follow): enough for load
+#: balance, few enough that start-up and pickling stay small.
 _CHUNKS_PER_WORKER = 4
+
+#: Fewest images in a chunk (:func:`_chunks`), unless a chunk of the start holds fewer.
+_MIN_CHUNK = 4
 
 
 @dataclass(frozen=True)
@@ -293,8 +297,9 @@ def detect_and_estimate_jobs(jobs: Iterable[ImageJob], *, processes: int | None 
     -----
     Every image is read once, as gray (:func:`multieye.imaging.image_file.read_gray`), and
     detection and PnP run in the worker that read it, so only paths go to the workers and
-    results come back.  Paths go in chunks (about four per worker) so that inter-process
-    traffic stays small next to detection; each worker holds the jobs' targets and
+    results come back.  Paths go in chunks (about four per worker, then smaller ones:
+    :func:`_chunks`) so that inter-process traffic stays small next to detection and the
+    workers end together; each worker holds the jobs' targets and
     intrinsics from its start and runs OpenCV single-threaded.  One pool serves every job,
     so the workers start once and stay busy across the jobs' boundaries (a pool per
     camera left a core idle at the end of each camera).  Workers come from a fork server
@@ -418,15 +423,29 @@ def _work_chunk(chunk: list) -> list[ImageResult]:
     return [_work_item(item) for item in chunk]
 
 
+def _chunks(items: list, n_workers: int) -> list[list]:
+    """``items`` cut in chunks that shrink as the work ends (guided scheduling): each holds a
+    ``1 / (2 n_workers)`` share of the items left, at most a ``1 / (n_workers *``
+    :data:`_CHUNKS_PER_WORKER` ``)`` share of all and at least :data:`_MIN_CHUNK`, so that the
+    workers end within a few images of each other (equal chunks of 50 images left one of 2
+    cores idle 0.01-0.22 s at the end of a 4 x 100 rig, 0.11 s on average)."""
+    cap = max(1, math.ceil(len(items) / (n_workers * _CHUNKS_PER_WORKER)))
+    chunks, start = [], 0
+    while start < len(items):
+        size = min(cap, max(_MIN_CHUNK, math.ceil((len(items) - start) / (2 * n_workers))))
+        chunks.append(items[start:start + size])
+        start += size
+    return chunks
+
+
 def _on_pool(pool, items, jobs, then, flat: list, bar, n_workers: int,
              sent: Callable[[], None]) -> dict:
-    """Detection of ``items`` on ``pool`` (of ``n_workers``), in chunks (about
-    :data:`_CHUNKS_PER_WORKER` per worker) with at most one more chunk submitted than there
+    """Detection of ``items`` on ``pool`` (of ``n_workers``), in chunks (:func:`_chunks`)
+    with at most one more chunk submitted than there
     are workers; each job's ``then`` task submitted once its last result is back; ``sent()``
     called once the first chunks are submitted.  Returns what the tasks returned, by job."""
-    chunksize = max(1, math.ceil(len(items) / (n_workers * _CHUNKS_PER_WORKER)))
     in_flight = n_workers + 1
-    chunks = [items[i:i + chunksize] for i in range(0, len(items), chunksize)]
+    chunks = _chunks(items, n_workers)
     left = [len(job.paths) for job in jobs]
     tasks = {j: pool.submit(task, []) for j, task in then.items() if left[j] == 0}
     first = [0]                     # where the job being collected starts in ``flat``
