@@ -39,7 +39,6 @@ from multieye.imaging.targets import Target
 from multieye.imaging.main_script import main_reimport_problem, threads_instead
 from multieye.core.arguments import positive_int
 from multieye.imaging.workers import (  # re-exported: where they were
-    Alongside,
     mp_context as _mp_context,
     available_cores,
     prestart_workers,
@@ -321,7 +320,7 @@ def detect_and_estimate_jobs(jobs: Iterable[ImageJob], *, processes: int | None 
 def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None = None, *,
                      processes: int | None = None, progress: bool | None = None,
                      max_rms_px: float = DEFAULT_MAX_RMS_PX,
-                     meanwhile: Callable[[], object] | None = None
+                     on_sent: Callable[[], object] | None = None
                      ) -> tuple[list[list[ImageResult]], dict[int, Any]]:
     """:func:`detect_and_estimate_jobs`, then per job a task on that job's results, run by
     the same workers as soon as the job's images are detected (while the others' are).
@@ -335,10 +334,11 @@ def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None 
         Run in a worker process, or in this one when detection runs here.
     processes, progress, max_rms_px
         As for :func:`detect_and_estimate`.
-    meanwhile : callable, optional
-        Run on a thread of this process once the first images are sent to the workers,
-        waited for before this returns (:class:`multieye.imaging.workers.Alongside`): e.g.
-        the caller's imports, while the workers detect.
+    on_sent : callable, optional
+        Called once, when the first images are sent to the workers (when detection runs in
+        this process: before it starts), e.g. ``Alongside.start``
+        (:class:`multieye.imaging.workers.Alongside`): the caller's imports on a thread
+        while the workers detect.
 
     Returns
     -------
@@ -376,32 +376,42 @@ def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None 
             out[j].append(r)
         return out
 
-    with Alongside(meanwhile) as aside:
-        try:
-            if n_workers <= 1 or threads_instead(n_workers):
-                aside.start()
-                _here(one, items, n_workers, flat, bar)
-            else:
-                try:
-                    with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_jobs,
-                                     initargs=initargs) as pool:
-                        done.update(_on_pool(pool, items, jobs, then, flat, bar, n_workers,
-                                             aside.start))
-                except BrokenProcessPool:
-                    # a worker died (a crash in a decoder, killed for memory): the images not
-                    # yet done run one by one, each in a worker of its own, so only the culprit
-                    # is lost
-                    for item in items[len(flat):]:
-                        flat.append(_isolated(_work_item, item, item[1], initargs,
-                                              initializer=_init_jobs))
-                        if bar is not None:
-                            bar.update(1)
-        finally:
-            if bar is not None:
-                bar.close()
-        results = per_job()
-        done.update({j: task(results[j]) for j, task in then.items() if j not in done})
+    sent = _once(on_sent)
+    try:
+        if n_workers <= 1 or threads_instead(n_workers):
+            sent()
+            _here(one, items, n_workers, flat, bar)
+        else:
+            try:
+                with worker_pool(n_workers, mp_context=_mp_context(), initializer=_init_jobs,
+                                 initargs=initargs) as pool:
+                    done.update(_on_pool(pool, items, jobs, then, flat, bar, n_workers, sent))
+            except BrokenProcessPool:
+                # a worker died (a crash in a decoder, killed for memory): the images not
+                # yet done run one by one, each in a worker of its own, so only the culprit
+                # is lost
+                for item in items[len(flat):]:
+                    flat.append(_isolated(_work_item, item, item[1], initargs,
+                                          initializer=_init_jobs))
+                    if bar is not None:
+                        bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    results = per_job()
+    done.update({j: task(results[j]) for j, task in then.items() if j not in done})
     return results, done
+
+
+def _once(call: Callable[[], object] | None) -> Callable[[], None]:
+    """``call``, called at most once (nothing for None)."""
+    pending = [] if call is None else [call]
+
+    def once() -> None:
+        while pending:
+            pending.pop()()
+
+    return once
 
 
 def _here(one, items, n_workers: int, flat: list, bar) -> None:

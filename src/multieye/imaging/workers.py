@@ -310,8 +310,9 @@ def worker_pool(max_workers: int, *, mp_context=None, initializer: Callable | No
     pool.shutdown(wait=True)
 
 #: What the fork server imports once, before it forks any worker: the detection (numpy,
-#: OpenCV), so that each worker starts in milliseconds.
-FORKSERVER_PRELOAD = ("multieye.imaging.batch",)
+#: OpenCV), so that each worker starts in milliseconds; then what ends the server without
+#: the interpreter's teardown (:mod:`multieye.imaging.forkserver_exit`).
+FORKSERVER_PRELOAD = ("multieye.imaging.batch", "multieye.imaging.forkserver_exit")
 
 
 def mp_context():

@@ -2,11 +2,12 @@
 images listed and detection started before the later stages are imported.
 
 The later stages (:mod:`multieye.pipeline.run`: pairing, consensus, the solvers, the
-refinement) import SciPy's spatial, sparse and dense linear algebra: about 0.4-0.6 CPU-s.
+refinement) import SciPy's spatial, sparse and dense linear algebra: 0.3-0.4 CPU-s.
 Imported before the detection starts, as they were, they held back the first image by as
 much while the detection's fork server, done with its own imports, waited.  Here the
-images go to the workers first, and this process imports those stages while the workers
-detect (issue 21; ``tests/test_start_up_imports.py`` checks the order).
+images go to the workers first, and this process imports those stages on a thread while
+the workers detect (issue 21; ``tests/pipeline/test_detection_first.py`` checks the order,
+``tests/test_start_up_imports.py`` what is imported before).
 
 Synopsis
 --------
@@ -26,6 +27,7 @@ from importlib import import_module
 from typing import TYPE_CHECKING
 
 from multieye.imaging.engines import open_engine
+from multieye.imaging.workers import Alongside
 from multieye.io import load_rig
 from multieye.pipeline.camera_data import load_camera_data
 from multieye.pipeline.options import Options, updated_options
@@ -84,13 +86,16 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     start = time.perf_counter()
     rig = load_rig(dataset)                 # a folder or its rig.yaml, checked where it enters
     options = updated_options(options, kw)
-    with contextlib.ExitStack() as stack:
+    # the later stages imported on a thread once the first images are sent (at the end of
+    # the block when none are: poses only, an engine), waited for after the detection
+    with Alongside(partial(_import_later_stages, meanwhile)) as aside, \
+            contextlib.ExitStack() as stack:
         eng = None if engine == "local" and scheduler is None else stack.enter_context(
             open_engine(engine, scheduler=scheduler, workers=processes))
         cameras = load_camera_data(rig, processes=processes, progress=progress,
                                    select=options.select, time_offset=options.time_offset,
-                                   engine=eng, meanwhile=partial(_import_later_stages, meanwhile))
-    loaded = time.perf_counter() - start
+                                   engine=eng, on_sent=aside.start)
+        loaded = time.perf_counter() - start
     from multieye.pipeline.run import calibrate_rig  # noqa: PLC0415 (heavy: SciPy and the solvers, imported while the images are detected, _import_later_stages)
 
     run = calibrate_rig(rig, cameras, options)

@@ -356,7 +356,7 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: Worke
 def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool = False,
                      select: int | None = None, time_offset: str | float = "rig",
                      engine: Engine | None = None,
-                     meanwhile: Callable[[], object] | None = None) -> dict[str, CameraData]:
+                     on_sent: Callable[[], object] | None = None) -> dict[str, CameraData]:
     """Read, detect and estimate every camera's target poses and its motion capture.
 
     Parameters
@@ -374,8 +374,8 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     engine : Engine, optional
         Detection as tasks of this engine (:func:`multieye.imaging.engines.open_engine`)
         instead of the local worker processes.
-    meanwhile : callable, optional
-        Run on a thread of this process while the local workers detect the image files
+    on_sent : callable, optional
+        Called once the first image files are sent to the local workers
         (:func:`multieye.imaging.batch.detect_jobs_then`); not called when none are.
 
     Raises
@@ -388,7 +388,7 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
                else CameraMotion(None) for name in rig.cameras}
     chosen = preselected(rig, motions, select, time_offset, pair_stamps)
     workers = detect_all(rig, motions, Workers(processes, progress, engine), chosen,
-                         meanwhile=meanwhile)
+                         on_sent=on_sent)
     return {name: _camera_data(rig, name, motions[name], workers, chosen.get(name))
             for name in rig.cameras}
 

@@ -55,7 +55,7 @@ class Workers:
 
 
 def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
-               meanwhile: Callable[[], object] | None = None) -> Workers:
+               on_sent: Callable[[], object] | None = None) -> Workers:
     """Every camera's image files (folders, not bags; those ``chosen`` before decoding)
     detected on one pool of workers, with PnP in the worker where the lens is given; a
     camera's ``intrinsics_images`` too.  On an engine, each camera's own detection runs
@@ -65,8 +65,8 @@ def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
     one idle at the end of each camera). The seconds are shared out by image count.  A
     camera whose lens is estimated (``model:`` without ``intrinsics:`` nor
     ``intrinsics_images``) gets its lens start and its poses from the workers too, as soon
-    as its images are detected (``Workers.started``).  ``meanwhile`` runs on a thread of
-    this process while the images are detected (not when there are none here).
+    as its images are detected (``Workers.started``).  ``on_sent()`` is called once the
+    first images are sent to the workers (not when none are).
     """
     keys, jobs, then = [], [], {}
     for name, cam in rig.cameras.items() if workers.engine is None else ():
@@ -92,7 +92,7 @@ def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
         return workers
     t0 = time.perf_counter()
     results, started = detect_jobs_then(jobs, then, processes=workers.processes,
-                                        progress=workers.progress, meanwhile=meanwhile)
+                                        progress=workers.progress, on_sent=on_sent)
     seconds = time.perf_counter() - t0
     total = max(sum(len(job.paths) for job in jobs), 1)
     return replace(workers, detected=dict(zip(keys, results)),
