@@ -118,3 +118,21 @@ def test_alongside_runs_its_work_once_and_raises_its_error_at_the_end():
             raise KeyError("the block's")
     with Alongside(None) as aside:        # nothing to run
         aside.start()
+
+
+def test_the_lazy_packages_still_give_their_names_and_submodules():
+    """pipeline, solvers and imaging import their names on first use (so that the detection
+    starts first); a name, or a submodule read as an attribute, is there as it was."""
+    code = ("import multieye.pipeline as p, multieye.solvers as s, multieye.imaging as i\n"
+            "from multieye.pipeline import Options, calibrate, calibrate_rig, CalibrationRun\n"
+            "from multieye.solvers import METHODS, solve\n"
+            "from multieye.imaging import target_from_spec, detect_and_estimate\n"
+            "assert p.run.calibrate_rig is calibrate_rig and s.registry.solve is solve\n"
+            "assert i.batch.detect_and_estimate is detect_and_estimate\n"
+            "assert calibrate.__module__ == 'multieye.pipeline.calibrate_dataset'\n"
+            "for pkg in (p, s, i):\n"
+            "    assert not hasattr(pkg, 'no_such_name') and not hasattr(pkg, '_private')\n"
+            "print('ok')")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert run.stdout.split() == ["ok"], run.stderr
