@@ -37,6 +37,11 @@ temporary file that the main process owns (:func:`_quiet_forkserver`); what work
 there is shown only when a worker ended abruptly (``BrokenProcessPool``), after the pool
 is torn down.
 
+This module imports neither numpy nor OpenCV, so that a command can start the detection's
+fork server (:func:`prestart_workers`, :data:`FORKSERVER_PRELOAD`) before it imports them
+itself, and both import at once on two cores (issue 21); :class:`Alongside` runs work (the
+later stages' imports) on a thread of this process while the workers detect.
+
 Synopsis
 --------
 >>> from multieye.imaging.workers import worker_pool
