@@ -4,6 +4,8 @@ Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_refine.py [--trials 100] [--seed 0] [--quick]
     PYTHONPATH=src python benchmarks/bench_refine.py --stage 8x25,8x50,8x100,8x200,16x500
+    PYTHONPATH=src python benchmarks/bench_refine.py --rig benchmarks/.cache/peers_4x100 \
+        benchmarks/.cache/peers_4x100_model --repeat 5
 
 ``--stage`` measures only the refinement stage of the pipeline (section 0) on rendered rigs
 (``multieye.sim.dataset.render_dataset``: chessboard images with blur and sensor noise,
@@ -57,7 +59,7 @@ import numpy as np
 
 from multieye.core import geometry as g
 from multieye.estimate.clock import estimate_offset
-from multieye.experiments.refine import refine_trial, relative_rms_errors, summarize_refine
+from multieye.experiments.refine_sweep import refine_trial, relative_rms_errors, summarize_refine
 from multieye.sim.images import corrupt, simulate_images, simulate_stream
 from multieye.core.metrics import extrinsic_errors
 from multieye.estimate.pairing import pair_in_time
@@ -102,6 +104,33 @@ def stage(sizes: list[tuple[int, int]], cache: Path, repeat: int) -> None:
             print(f"   {m:>3} x {n:<4}{images:>7} {points:>8} {label:>10} {t:13.2f} "
                   f"{1e3 * t / images:16.2f} {res.iterations:>11} {res.passes:>7} "
                   f"{statistics.median(cpu):6.2f}")
+
+
+def rig_stages(folders: list[Path], repeat: int) -> None:
+    """Section 0 on given datasets (e.g. benchmarks/.cache/peers_4x100): the stages of
+    ``calibrate_rig`` after detection, median wall time of each over ``repeat`` runs, and the
+    CPU seconds of the whole call (detection is done once, before)."""
+    from multieye.io import load_rig
+    from multieye.pipeline import calibrate_rig, load_camera_data
+
+    print(f"0. calibrate_rig on given rigs, {os.cpu_count()} cores, median of {repeat} "
+          "(seconds; closed form includes the plausibility checks, refinement the uncertainty):")
+    print(f"   {'rig':>24} {'pairing':>8} {'closed form':>12} {'refinement':>11} "
+          f"{'total':>6} {'CPU s':>6} {'iterations':>11} {'passes':>7}")
+    for folder in folders:
+        rig = load_rig(folder / "rig.yaml")
+        cameras = load_camera_data(rig, processes=2)
+        runs, cpu = [], []
+        for _ in range(repeat):
+            c0 = time.process_time()
+            runs.append(calibrate_rig(rig, cameras))
+            cpu.append(time.process_time() - c0)
+        med = {k: statistics.median(getattr(r.timings, k) for r in runs)
+               for k in ("pairing", "closed_form", "refinement", "total")}
+        res = runs[0].refinement.result
+        print(f"   {folder.name:>24} {med['pairing']:8.3f} {med['closed_form']:12.3f} "
+              f"{med['refinement']:11.3f} {med['total']:6.3f} {statistics.median(cpu):6.3f} "
+              f"{res.iterations:>11} {res.passes:>7}")
 
 
 def timing(seed: int, setup: str) -> None:
@@ -206,7 +235,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--cache", type=Path, default=Path(__file__).parent / ".cache",
                         help="where rendered datasets are kept between runs")
     parser.add_argument("--repeat", type=int, default=3, help="runs per rig in section 0")
+    parser.add_argument("--rig", type=Path, nargs="+", metavar="FOLDER",
+                        help="only section 0 on these datasets: the stages of calibrate_rig "
+                             "after detection, e.g. benchmarks/.cache/peers_4x100")
     args = parser.parse_args(argv)
+    if args.rig:
+        rig_stages(args.rig, args.repeat)
+        return
     if args.stage:
         sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.stage.split(",")]
         stage(sizes, args.cache, args.repeat)

@@ -91,11 +91,12 @@ def cpu():
     return own.ru_utime + own.ru_stime + waited.ru_utime + waited.ru_stime
 
 if sys.argv[4] == "serial":   # figures drawn by this process alone (sources that can share them)
-    try:
-        import multieye.outputs.report_draw as draw
-        draw._cores = lambda: 1
-    except ImportError:
-        pass
+    for name in ("multieye.outputs.figure_workers", "multieye.outputs.report_draw"):
+        try:
+            __import__(name)
+            sys.modules[name]._cores = lambda: 1
+        except ImportError:
+            pass
 run = calibrate(sys.argv[1], processes=int(sys.argv[2]))
 with tempfile.TemporaryDirectory(prefix="bench_report_") as tmp:
     for k in range(int(sys.argv[3])):
@@ -123,7 +124,10 @@ def run_sizes(dataset: Path, src: Path, processes: int, repeats: int, serial: bo
 _COMMAND = r"""
 import contextlib, json, os, resource, sys, time
 import multieye.outputs.write as w
-import multieye.outputs.report_draw as draw
+try:                            # where the figure workers are managed (since session 8)
+    import multieye.outputs.figure_workers as draw
+except ImportError:
+    import multieye.outputs.report_draw as draw
 
 def cpu():
     own, waited = (resource.getrusage(k) for k in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))

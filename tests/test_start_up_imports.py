@@ -15,7 +15,21 @@ CASES = {
     # matplotlib only when the figures are drawn, scipy.optimize only for the Tabb solvers
     "main": ("multieye.pipeline, multieye.outputs.write, multieye.outputs.summary",
              ["matplotlib", "scipy.optimize", "scipy.stats"]),
-    # the fork server the detection's workers come from (imaging.batch._mp_context)
+    # the command before its fork server starts (cli._prestart_workers): not even numpy, so
+    # that the server's imports of numpy and OpenCV run while this process imports its own
+    "fork server start": ("multieye.cli, multieye.imaging.workers",
+                          ["numpy", "cv2", "multieye.pipeline", "multieye.imaging.batch"]),
+    # what the command imports before it sends the first image to the workers: the later
+    # stages (SciPy, the solvers, the refinement, the writers) are imported while they detect
+    # (tests/pipeline/test_detection_first.py checks the order in a real run)
+    "before detection": ("multieye.cli, multieye.imaging.batch, multieye.pipeline.options, "
+                         "multieye.pipeline.calibrate_dataset, multieye.pipeline.camera_data, "
+                         "multieye.pipeline.detection, multieye.outputs.folder, "
+                         "multieye.outputs.figure_workers",
+                         ["scipy", "multieye.pipeline.run", "multieye.solvers.registry",
+                          "multieye.optimize", "multieye.estimate.plausibility",
+                          "multieye.outputs.write", "matplotlib"]),
+    # the fork server the detection's workers come from (imaging.workers.mp_context)
     "fork server": ("multieye.imaging.batch", ["scipy", "matplotlib", "multieye.pipeline"]),
     # the report's figure worker, forked from that fork server: the figure modules
     "figure worker": ("multieye.imaging.batch, multieye.outputs.figures, "

@@ -23,6 +23,7 @@ from multieye.core.version import __version__
 from multieye.core.errors import CalibrationError
 from multieye.core.errors import DatasetError
 import textwrap
+from importlib import import_module
 from importlib.resources import files
 
 EXIT_USER_ERROR = 2
@@ -136,10 +137,18 @@ def _processes_note(processes: int | None) -> None:
                    f"the CPUs this process may use (and at most one per image)")
 
 
+def _import_writers() -> None:
+    """The output writers imported (on a thread, while the workers detect the images)."""
+    for name in ("multieye.outputs.write", "multieye.outputs.summary",
+                 "multieye.outputs.report_draw"):
+        import_module(name)
+
+
 def _prestart_workers(processes: int | None) -> None:
-    """The detection's fork server started before the pipeline is imported, so that its own
-    imports (numpy, OpenCV) run on the other core meanwhile (issue 21)."""
-    from multieye.imaging.batch import prestart_workers  # noqa: PLC0415 (heavy: OpenCV; instant start-up of multieye --help)
+    """The detection's fork server started before this process imports numpy, OpenCV and the
+    pipeline, so that the server's own imports of them run on the other core meanwhile
+    (issue 21)."""
+    from multieye.imaging.workers import prestart_workers  # noqa: PLC0415 (instant start-up of multieye --help; no OpenCV: the server imports it first)
 
     prestart_workers(processes)
 
@@ -242,11 +251,11 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     """
     if flags["engine"] == "local" and flags["scheduler"] is None and os.path.exists(dataset):
         _prestart_workers(processes)
+    # what the detection needs only: the rest is imported while the images are detected
     from multieye.pipeline import Options, calibrate as run_calibration  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
-    from multieye.outputs.write import write_outputs  # noqa: PLC0415 (instant start-up of multieye --help)
-    from multieye.outputs.report_draw import figure_workers  # noqa: PLC0415 (instant start-up of multieye --help)
-    from multieye.outputs.summary import calibration_table, timings_line  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.pipeline.calibrate_dataset import Hooks  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.outputs.figure_workers import figure_workers  # noqa: PLC0415 (instant start-up of multieye --help; light: no numpy)
 
     # Options checks every flag, once (an InputError: one line, exit 2, nothing written)
     options = Options(method=flags["method"], reference=flags["reference"],
@@ -259,7 +268,12 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     with claim_output(out_dir, inputs=[dataset]), figure_workers(processes) as workers:
         run = run_calibration(dataset, options, processes=processes,
                               progress=_progress_enabled(), engine=flags["engine"],
-                              scheduler=flags["scheduler"], on_detected=workers.start_early)
+                              scheduler=flags["scheduler"],
+                              hooks=Hooks(meanwhile=_import_writers,
+                                          on_detected=workers.start_early))
+        from multieye.outputs.write import write_outputs  # noqa: PLC0415 (imported while the images were detected, _import_writers)
+        from multieye.outputs.summary import calibration_table, timings_line  # noqa: PLC0415 (imported while the images were detected, likewise)
+
         written = write_outputs(run, out_dir, processes=processes, workers=workers)
     _echo(calibration_table(run.record))
     for name, data in run.cameras.items():

@@ -31,7 +31,7 @@ pytestmark = [needs_proc, pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2,
 #: detection is done, as on a machine with a free core.
 DRIVER = r"""
 import contextlib, sys, time
-import multieye.outputs.report_draw as draw
+import multieye.outputs.figure_workers as draw
 import multieye.pipeline.run as run
 
 mode = sys.argv.pop(1)

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -106,3 +110,26 @@ def test_skew_is_cross_product():
     rng = np.random.default_rng(1)
     a, b = rng.normal(size=(2, 3))
     np.testing.assert_allclose(g.skew(a) @ b, np.cross(a, b), atol=1e-15)
+
+
+def test_rotation_from_quat_gives_scipys_bits_without_importing_scipy():
+    """The motion capture is read before the detection starts (issue 21): its quaternions
+    become matrices by SciPy's operations in SciPy's order, without scipy.spatial."""
+    rng = np.random.default_rng(7)
+    q = np.concatenate([rng.normal(size=(5000, 4)) * rng.uniform(1e-3, 1e3, (5000, 1)),
+                        [[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, -1.0], [1.0, 0.0, 0.0, 0.0]]])
+    assert np.array_equal(g.rotation_from_quat(q), Rotation.from_quat(q).as_matrix())
+    T = g.transform_from_quat(q[:6].reshape(2, 3, 4), np.ones((2, 3, 3)))
+    assert T.shape == (2, 3, 4, 4)
+    assert np.array_equal(T[1, 2, :3, :3], Rotation.from_quat(q[5]).as_matrix())
+    for bad in ([0.0, 0.0, 0.0, 0.0], [np.nan, 0.0, 0.0, 1.0]):   # refused as SciPy does
+        with pytest.raises(ValueError, match="zero norm"):
+            Rotation.from_quat(bad)
+        with pytest.raises(ValueError, match="zero norm"):
+            g.transform_from_quat(bad, [0.0, 0.0, 0.0])
+    code = ("import sys\nfrom multieye.core import geometry as g\n"
+            "g.transform_from_quat([[0.1, 0.2, 0.3, 0.9]], [[0, 0, 0]])\n"
+            "print('scipy' in sys.modules)")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert run.stdout.split() == ["False"], run.stderr

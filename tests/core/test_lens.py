@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from multieye.core.errors import InputError
-from multieye.core.lens import distort_points, project_points, undistort_points
+from multieye.core.lens import (
+    distort_points,
+    project_points,
+    project_with_jacobian,
+    undistort_points,
+)
 from multieye.core.intrinsics import Intrinsics
 
 K = np.array([[610.0, 0.0, 402.3], [0.0, 605.0, 297.8], [0.0, 0.0, 1.0]])
@@ -117,3 +123,65 @@ def test_round_trip_property(x, y, k1, k2):
     # in this range the model is one-to-one, so the ray must come back
     np.testing.assert_allclose(back, [[x, y]], atol=1e-9)
     assert np.linalg.norm(distort_points(back, cam) - uv) < 1e-6
+
+
+@pytest.mark.parametrize("n_coeffs", [0, 4, 5, 8, 12, 14])
+def test_project_with_jacobian_matches_opencv(n_coeffs, rng):
+    """The pinhole model in numpy (up to 12 coefficients; 14 with tilt is OpenCV's) gives
+    OpenCV's pixels and Jacobians to rounding."""
+    dist = np.asarray(PINHOLE_DIST.get(n_coeffs, []), dtype=float)
+    cam = Intrinsics(K=K, dist=dist)
+    P = np.column_stack([rng.uniform(-0.6, 0.6, (300, 2)), rng.uniform(0.8, 3.0, 300)])
+    uv, J_point, J_intr = project_with_jacobian(P, cam)
+    out, jac = cv2.projectPoints(P.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, dist)
+    jac = jac.reshape(-1, 2, jac.shape[-1])
+    np.testing.assert_allclose(uv, out.reshape(-1, 2), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(J_point, jac[:, :, 3:6], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(J_intr, jac[:, :, 6:10 + n_coeffs], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(project_points(P, cam), uv, rtol=0, atol=1e-9)
+
+
+def test_pinhole_jacobians_match_central_differences(rng):
+    dist = np.asarray(PINHOLE_DIST[12])
+    cam = Intrinsics(K=K, dist=dist)
+    P = np.column_stack([rng.uniform(-0.5, 0.5, (50, 2)), rng.uniform(0.8, 3.0, 50)])
+    _, J_point, J_intr = project_with_jacobian(P, cam)
+    h = 1e-6
+    for a in range(3):
+        e = np.zeros(3)
+        e[a] = h
+        d = (project_points(P + e, cam) - project_points(P - e, cam)) / (2 * h)
+        np.testing.assert_allclose(J_point[:, :, a], d, rtol=1e-6, atol=1e-4)
+    params = cam.params
+    for a in range(params.size):
+        step = h * max(1.0, abs(params[a]))
+        e = np.zeros(params.size)
+        e[a] = step
+        d = (project_points(P, cam.with_params(params + e))
+             - project_points(P, cam.with_params(params - e))) / (2 * step)
+        np.testing.assert_allclose(J_intr[:, :, a], d, rtol=1e-6, atol=1e-5)
+
+
+def test_points_behind_the_camera_have_no_pixel_nor_jacobian(rng):
+    cam = Intrinsics(K=K, dist=PINHOLE_DIST[5])
+    P = np.column_stack([rng.uniform(-0.5, 0.5, (6, 2)), rng.uniform(0.8, 3.0, 6)])
+    P[1, 2] = -1.0
+    P[4, 0] = np.nan
+    uv, J_point, J_intr = project_with_jacobian(P, cam)
+    bad = np.isin(np.arange(6), [1, 4])
+    assert np.all(np.isnan(uv[bad])) and np.all(np.isnan(J_point[bad]))
+    assert np.all(np.isnan(J_intr[bad]))
+    good = project_with_jacobian(P[~bad], cam)
+    for a, b in zip((uv, J_point, J_intr), good):
+        np.testing.assert_array_equal(a[~bad], b)
+
+
+@pytest.mark.parametrize("cam", [Intrinsics(K=K, dist=PINHOLE_DIST[5]), FISHEYE])
+def test_the_lens_jacobian_is_left_out_when_not_asked_for(cam, rng):
+    P = np.column_stack([rng.uniform(-0.5, 0.5, (20, 2)), rng.uniform(0.8, 3.0, 20)])
+    P[3, 2] = -1.0
+    full = project_with_jacobian(P, cam)
+    uv, J_point, J_intr = project_with_jacobian(P, cam, lens_jacobian=False)
+    assert J_intr is None
+    np.testing.assert_array_equal(uv, full[0])
+    np.testing.assert_array_equal(J_point, full[1])

@@ -11,6 +11,7 @@ import pytest
 from proc_tree import group_processes, needs_proc
 from test_imaging_batch import BOARD, CAMERA, check, image_files  # noqa: F401 (fixture)
 
+from multieye.imaging import batch
 from multieye.imaging.batch import ImageJob, detect_jobs_then
 
 
@@ -36,17 +37,17 @@ def test_each_jobs_task_gets_exactly_that_jobs_results(image_files, processes): 
 SPY = textwrap.dedent("""
     import sys
     from multiprocessing import forkserver
-    from multieye.imaging import batch
+    from multieye.imaging import workers
 
-    started = batch.prestart_workers
+    started = workers.prestart_workers
 
     def spy(processes):
         running = started(processes)
-        print("prestart", running, "multieye.pipeline" in sys.modules,
+        print("prestart", running, "multieye.pipeline" in sys.modules, "cv2" in sys.modules,
               forkserver._forkserver._forkserver_pid, file=sys.stderr)
         return running
 
-    batch.prestart_workers = spy
+    workers.prestart_workers = spy
 
     if __name__ == "__main__":
         from multieye.cli import main
@@ -59,7 +60,8 @@ SPY = textwrap.dedent("""
 
 def test_calibrate_starts_the_fork_server_before_importing_the_pipeline(tmp_path):
     """The fork server's imports overlap the main process's: started before
-    ``multieye.pipeline`` is imported, and the one the detection's workers come from."""
+    ``multieye.pipeline`` and OpenCV are imported, and the one the detection's workers come
+    from."""
     from small_dataset import render_small
 
     ds = tmp_path / "ds"
@@ -72,15 +74,15 @@ def test_calibrate_starts_the_fork_server_before_importing_the_pipeline(tmp_path
     assert run.returncode == 0, run.stderr
     lines = [line.split() for line in run.stderr.splitlines()
              if line.startswith(("prestart", "server"))]
-    (_, running, imported, pid), (_, after) = lines
-    assert (running, imported) == ("True", "False")
+    (_, running, imported, opencv, pid), (_, after) = lines
+    assert (running, imported, opencv) == ("True", "False", "False")
     assert pid == after != "None"        # not started again for the detection; still running
     # with one process there are no workers: nothing is started
     one = subprocess.run([sys.executable, str(script), "calibrate", str(ds), "-o",
                           str(tmp_path / "out1"), "--processes", "1"],
                          capture_output=True, text=True, timeout=300)
     assert one.returncode == 0, one.stderr
-    assert "prestart False False None" in one.stderr
+    assert "prestart False False False None" in one.stderr
 
 
 @needs_proc
@@ -101,3 +103,21 @@ def test_an_error_before_detection_leaves_no_early_fork_server_behind(tmp_path):
     assert len(stderr.strip().splitlines()) == 1 and "unknown_key" in stderr, stderr
     assert group_processes(proc.pid) == {}
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("n_items", "n_workers"), [(400, 2), (1000, 2), (400, 8), (16, 2),
+                                                    (3, 2), (7, 4)])
+def test_chunks_shrink_towards_the_end_so_the_workers_end_together(n_items, n_workers):
+    """Guided chunks (issue 21): every item once, in order; no chunk larger than the first,
+    none larger than the one before; the last ones a few images, so that no worker waits a
+    whole chunk for the others (equal chunks of 50 left a core idle 0.1 s on average)."""
+    items = list(range(n_items))
+    chunks = batch._chunks(items, n_workers)
+    assert [i for c in chunks for i in c] == items
+    sizes = [len(c) for c in chunks]
+    assert all(a >= b for a, b in zip(sizes, sizes[1:]))
+    assert sizes[0] <= max(1, -(-n_items // (n_workers * batch._CHUNKS_PER_WORKER)))
+    assert sizes[-1] <= batch._MIN_CHUNK
+    if n_items >= 400:       # long runs: the last chunks far smaller than the first
+        assert max(sizes[-n_workers:]) <= max(batch._MIN_CHUNK, sizes[0] // 8)
+        assert len(chunks) <= 8 * n_workers * batch._CHUNKS_PER_WORKER

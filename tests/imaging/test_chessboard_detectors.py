@@ -230,3 +230,11 @@ def test_a_corner_off_the_grid_sends_the_board_to_sb(board, monkeypatch):
     assert searches == [("classic", True), ("classic", False), ("sb", True)]
     err = np.linalg.norm(det.image_points - truth[det.ids], axis=1)
     assert err.max() < 0.6
+
+
+def test_an_unknown_detector_name_is_an_error_not_a_board_not_found():
+    board = BOARDS[0]
+    image = render(board, CAMERA, _views(board)[0])
+    with pytest.raises(ValueError, match="'classic' or 'sb'"):
+        cc.find_chessboard(image, board, detector="SB")
+    assert cc.find_chessboard(image, board, detector="sb") is not None

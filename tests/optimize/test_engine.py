@@ -3,6 +3,8 @@ dense normal equations, robust losses against scipy, manifolds, and its error me
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -216,3 +218,59 @@ def test_parameters_the_data_cannot_tell_apart_are_named_not_hidden(rng):
     # the sum's variance is the least-squares one
     s = np.array([1.0, 1.0])
     assert s @ cov.kept @ s == pytest.approx(1.0 / np.sum(A ** 2), rel=1e-9)
+
+
+def _robust_problem(rng, nonlinear=0.0):
+    """Small residuals (the target pixels' kind: the model nearly linear at their scale)
+    and outliers beyond the loss's threshold."""
+    fams, groups = _linear_problem(rng, n_local=30)
+    groups[0].b *= 0.1
+    groups[0].nonlinear = nonlinear
+    groups[0].b[::5] += 6.0
+    return fams, groups
+
+
+@pytest.mark.parametrize("loss", ["huber", "soft_l1"])
+def test_steps_with_the_robust_curvature_reach_the_same_optimum_sooner(loss, rng):
+    """Near the optimum the steps on the robust cost's own curvature (Options.newton_below)
+    converge faster than the IRLS steps, to the same minimum (lower or equal cost at the same
+    stopping rule).  Only the convex losses: the others' negative curvature is clipped at 0,
+    so no faster convergence is claimed for them."""
+    fams, groups = _robust_problem(rng)
+    near = minimize(fams, groups, Options(loss=loss, f_scale=1.0, tol=1e-4))
+    opts = Options(loss=loss, f_scale=1.0, tol=1e-10)
+    irls = minimize(near.families, groups, opts)
+    newton = minimize(near.families, groups, replace(opts, newton_below=np.inf))
+    exact = minimize(newton.families, groups, replace(opts, tol=0.0, max_iter=50,
+                                                      newton_below=np.inf))
+    assert newton.converged
+    assert newton.iterations < irls.iterations
+    assert newton.cost - exact.cost <= irls.cost - exact.cost
+    for name in ("G", "L"):
+        np.testing.assert_allclose(newton.value(name), exact.value(name), atol=1e-6)
+        np.testing.assert_allclose(irls.value(name), exact.value(name), atol=1e-3)
+
+
+def test_far_from_the_optimum_the_irls_steps_are_kept_until_the_switch(rng):
+    """From a far start, newton_below switches only once the IRLS steps have nearly stopped
+    lowering the cost; the result is the optimum either way, and the linear loss (no
+    curvature to correct) is untouched."""
+    fams, groups = _robust_problem(rng)
+    opts = Options(loss="huber", f_scale=1.0, tol=1e-12, max_iter=200)
+    switched = minimize(fams, groups, replace(opts, newton_below=1e-3))
+    plain = minimize(fams, groups, opts)
+    assert switched.converged and switched.iterations <= plain.iterations
+    for name in ("G", "L"):
+        np.testing.assert_allclose(switched.value(name), plain.value(name), atol=1e-4)
+    lin = Options(loss="linear", tol=1e-12)
+    a = minimize(fams, groups, lin)
+    b = minimize(fams, groups, replace(lin, newton_below=np.inf))
+    assert a.iterations == b.iterations
+    for name in ("G", "L"):
+        np.testing.assert_array_equal(a.value(name), b.value(name))
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), "1e-3", None])
+def test_newton_below_must_be_a_non_negative_number(bad):
+    with pytest.raises(InputError, match="newton_below"):
+        Options(newton_below=bad)

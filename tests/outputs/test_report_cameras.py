@@ -31,7 +31,7 @@ from multieye.outputs.image_stats import (
     radial_bins,
 )
 from multieye.outputs.report import load_details, write_report
-from multieye.outputs import report_draw
+from multieye.outputs import figure_workers
 from multieye.outputs.report_draw import figure_jobs
 from multieye.outputs.report_cameras import camera_figure_names
 from multieye.outputs.report_images import image_folders
@@ -311,18 +311,18 @@ def test_eye_on_hand_points_are_the_refined_rigs_residuals(tmp_path):
         assert 0.2 < np.nanmedian(p.rms_px) < 0.6                    # 0.3 px per coordinate
 
 
-@pytest.mark.skipif(report_draw.worker_count(2) == 0, reason="figure workers need two cores")
+@pytest.mark.skipif(figure_workers.worker_count(2) == 0, reason="figure workers need two cores")
 def test_figures_drawn_by_a_worker_are_the_same(runs, tmp_path, monkeypatch):
     """Workers or this process: the same figures, the same page (the cameras' figures drawn
     on one figure reused, in one batch per worker)."""
-    monkeypatch.setattr(report_draw, "_free_core", lambda: True)    # whatever the load
+    monkeypatch.setattr(figure_workers, "_free_core", lambda: True)    # whatever the load
     sizes = []
-    real_pool = report_draw.worker_pool
+    real_pool = figure_workers.worker_pool
 
     def counted(size, **kwargs):
         sizes.append(size)
         return real_pool(size, **kwargs)
-    monkeypatch.setattr(report_draw, "worker_pool", counted)
+    monkeypatch.setattr(figure_workers, "worker_pool", counted)
     src = runs["model"][1]
     rec = read_calibration(src / "calibration.json")
     details, _ = load_details(src, rec)
@@ -344,8 +344,8 @@ def test_figures_drawn_by_a_worker_are_the_same(runs, tmp_path, monkeypatch):
 def test_no_figure_worker_on_a_busy_machine_or_with_one_process(monkeypatch, free, processes):
     """No core free (the refinement would lose a share of its core, and a worker only adds
     its imports) or ``processes=1``: no worker starts, early or late; this process draws."""
-    monkeypatch.setattr(report_draw, "_free_core", lambda: free)
-    with report_draw.figure_workers(processes) as workers:
+    monkeypatch.setattr(figure_workers, "_free_core", lambda: free)
+    with figure_workers.figure_workers(processes) as workers:
         workers.start_early()
         workers.start()
         assert workers.pool is None and workers.size == 0

@@ -11,7 +11,7 @@ from synthetic import eye_on_hand, eye_to_base
 import multieye
 from multieye.core import geometry as g
 from multieye.core.metrics import relative_extrinsics
-from multieye.solvers import JOINT_METHODS, METHODS, SINGLE_METHODS, solve
+from multieye.solvers import JOINT_METHODS, METHODS, SINGLE_METHODS, methods, registry, solve
 
 CLOSED_FORM = ["joint", "wang2022", "shah", "li"]
 ITERATIVE = ["tabb-c1", "tabb-c2"]
@@ -207,3 +207,11 @@ def test_joint_memory_grows_at_most_linearly_with_measurements():
     small, large = peak(500), peak(4000)
     assert large / small <= 8.0 * 1.05        # 8x the measurements, at most 8x the memory
     assert large / (4 * 4000) < 2000           # bytes per measurement
+
+
+def test_the_method_names_known_without_the_solvers_are_the_registrys():
+    """Options are checked against multieye.solvers.methods before the solvers are imported
+    (issue 21): the same names, in the same order, as the registry solves."""
+    assert methods.JOINT_METHOD_NAMES == tuple(registry.JOINT_METHODS)
+    assert methods.SINGLE_METHOD_NAMES == tuple(registry.SINGLE_METHODS)
+    assert methods.METHODS == registry.METHODS

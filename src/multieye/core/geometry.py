@@ -31,6 +31,7 @@ __all__ = [
     "inv",
     "compose",
     "make_transform",
+    "rotation_from_quat",
     "project_to_so3",
     "rotation_angle",
     "rotation_angle_between",
@@ -207,9 +208,35 @@ def transform_from_quat(q: ArrayLike, t: ArrayLike, *, scalar_first: bool = Fals
     if scalar_first:
         q = np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
     shape = q.shape[:-1]
-    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial, about 0.1 CPU-s at start-up)
-    R = Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(shape + (3, 3))
-    return make_transform(R, t)
+    return make_transform(rotation_from_quat(q.reshape(-1, 4)).reshape(shape + (3, 3)), t)
+
+
+def rotation_from_quat(q: ArrayLike) -> F64:
+    """Rotation matrices ``(n, 3, 3)`` of quaternions ``(n, 4)``, ``(qx, qy, qz, qw)``,
+    normalised here.
+
+    The same operations, in the same order, as SciPy's ``Rotation.from_quat(q).as_matrix()``
+    (the same bits), without importing scipy.spatial (0.2-0.3 CPU-s): reading a motion
+    capture file happens before the detection starts (issue 21).
+
+    Raises
+    ------
+    ValueError
+        A quaternion of norm zero or NaN (as SciPy does).
+    """
+    q = np.asarray(q, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):   # inf in, NaN out, without a warning
+        x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+        norm = np.sqrt(x * x + y * y + z * z + w * w)
+        if not np.all(norm > 0):
+            raise ValueError("Found zero norm quaternions in `quat`.")
+        x, y, z, w = x / norm, y / norm, z / norm, w / norm
+        x2, y2, z2, w2 = x * x, y * y, z * z, w * w
+        xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+        R = np.stack([x2 - y2 - z2 + w2, 2 * (xy - zw), 2 * (xz + yw),
+                      2 * (xy + zw), -x2 + y2 - z2 + w2, 2 * (yz - xw),
+                      2 * (xz - yw), 2 * (yz + xw), -x2 - y2 + z2 + w2], axis=-1)
+    return R.reshape(-1, 3, 3)
 
 
 def quat_from_transform(T: ArrayLike, *, scalar_first: bool = False) -> F64:

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -113,48 +114,101 @@ class CameraEvidence:
         return (self.intrinsics is not None and self.image_points is not None
                 and self.object_points is not None and len(self.image_points) == len(self.A))
 
+    @cached_property
+    def pnp_unit_covariance(self) -> F64:
+        """``(J^T J)^-1`` of every PnP pose at unit pixel noise (:func:`pnp_information`),
+        (n, 6, 6), infinite where undetermined; computed once, however many noise levels
+        the checks weigh the poses with (requires :attr:`has_points`)."""
+        return _inverse_or_infinite(pnp_information(g.inv(self.B), self.object_points,
+                                                    self.intrinsics))
 
 
 # --------------------------------------------------------------------------- noise and fits
 
 
-def _pnp_covariance(T_cam_target: F64, obj: F64, intr: Intrinsics, rms_px: float) -> F64:
-    """Covariance (6, 6) of one PnP pose under the left perturbation ``T = Exp(phi, tau) T_hat``
-    in the camera frame (rotation vector, then translation), to first order from the point
-    geometry (pinhole approximation) and the pixel noise; infinite when undetermined."""
-    obj = np.asarray(obj, dtype=np.float64)
-    p = obj @ T_cam_target[:3, :3].T + T_cam_target[:3, 3]
-    z = np.maximum(p[:, 2], 1e-9)
+def pnp_information(T_cam_target: F64, object_points: Sequence[F64], intr: Intrinsics) -> F64:
+    """``J^T J`` of every PnP pose at unit pixel noise, under the left perturbation
+    ``T = Exp(phi, tau) T_hat`` in the camera frame (rotation vector, then translation), to
+    first order from the point geometry (pinhole approximation).
+
+    Parameters
+    ----------
+    T_cam_target : ndarray, shape (n, 4, 4)
+    object_points : sequence of n ndarray, shape (n_i, 3)
+        Each pose's target points, metres in the target frame.
+    intr : Intrinsics
+        Its focal lengths are used.
+
+    Returns
+    -------
+    ndarray, shape (n, 6, 6)
+        Per pose, the sum over its points of ``J_k^T J_k`` with
+        ``J_k = d(pixel)/d(p) [-[p]x | I]`` (2 x 6), all the poses at once on points padded
+        to the longest pose (padding rows are zero).
+    """
+    n = len(T_cam_target)
+    counts = np.array([len(o) for o in object_points], dtype=int)
+    longest = int(counts.max(initial=0))
+    real = np.arange(longest) < counts[:, None]                              # (n, longest)
+    obj = np.zeros((n, longest, 3))
+    if n and longest:
+        obj[real] = np.concatenate([np.asarray(o, dtype=np.float64).reshape(-1, 3)
+                                    for o in object_points])
+    p = obj @ np.swapaxes(T_cam_target[:, :3, :3], 1, 2) + T_cam_target[:, None, :3, 3]
+    z = np.maximum(p[..., 2], 1e-9)
     fx, fy = intr.K[0, 0], intr.K[1, 1]
-    # d(pixel)/d(p) times d(p)/d(phi, tau) = [-[p]x | I]
-    J = np.zeros((2 * len(p), 6))
-    du = np.stack([fx / z, np.zeros_like(z), -fx * p[:, 0] / z ** 2], axis=1)
-    dv = np.stack([np.zeros_like(z), fy / z, -fy * p[:, 1] / z ** 2], axis=1)
-    for rows, d in ((slice(0, None, 2), du), (slice(1, None, 2), dv)):
-        J[rows, :3] = -np.cross(d, p)
-        J[rows, 3:] = d
-    n = len(p)
-    sigma2 = max(rms_px, _MIN_RMS_PX) ** 2 / 2.0 * (2 * n / max(2 * n - 6, 1))
+    zero = np.zeros_like(z)
+    J = np.empty((n, longest, 2, 6))
+    J[:, :, 0, 3:] = np.stack([fx / z, zero, -fx * p[..., 0] / z ** 2], axis=-1)   # d u / d p
+    J[:, :, 1, 3:] = np.stack([zero, fy / z, -fy * p[..., 1] / z ** 2], axis=-1)   # d v / d p
+    J[:, :, :, :3] = -np.cross(J[:, :, :, 3:], p[:, :, None, :])
+    J *= real[:, :, None, None]
+    J = J.reshape(n, 2 * longest, 6)
+    return np.swapaxes(J, 1, 2) @ J
+
+
+def _pnp_covariances(cam: CameraEvidence, rms_px: F64) -> F64:
+    """Covariance (n, 6, 6) of every PnP pose of ``cam`` (:func:`pnp_information`) for the
+    reprojection RMS ``rms_px`` of each (pixels, at least :data:`_MIN_RMS_PX`); a pose
+    whose information is singular gets infinite variances."""
+    unit = cam.pnp_unit_covariance
+    n_pts = np.array([len(o) for o in cam.object_points], dtype=float)
+    sigma2 = (np.maximum(rms_px, _MIN_RMS_PX) ** 2 / 2.0
+              * (2 * n_pts / np.maximum(2 * n_pts - 6, 1)))
+    return sigma2[:, None, None] * unit
+
+
+def _inverse_or_infinite(info: F64) -> F64:
+    """Inverses of (n, 6, 6) information matrices; infinite variances for a singular one."""
     try:
-        return sigma2 * np.linalg.inv(J.T @ J)
+        return np.linalg.inv(info)
     except np.linalg.LinAlgError:
-        return np.diag(np.full(6, np.inf))
+        out = np.empty_like(info)
+        for i, m in enumerate(info):
+            try:
+                out[i] = np.linalg.inv(m)
+            except np.linalg.LinAlgError:
+                out[i] = np.diag(np.full(6, np.inf))
+        return out
 
 
-def noise(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> F64:
+def noise(cam: CameraEvidence, mocap_sigma: tuple[float, float], rms_px: F64 | None = None
+          ) -> F64:
     """Per measurement, the information matrix (6, 6) of the residual of
-    :func:`_residual`: the inverse of the PnP covariance plus the motion-capture noise."""
+    :func:`_residual`: the inverse of the PnP covariance plus the motion-capture noise.
+
+    ``rms_px`` (n,) replaces the camera's reprojection RMS in the PnP covariance (the point
+    geometry, :attr:`CameraEvidence.pnp_unit_covariance`, is computed once per camera)."""
     n = len(cam.A)
     T_ct = g.inv(cam.B)
     if cam.has_points:
-        rms = cam.rms_px if cam.rms_px is not None else np.full(n, _MIN_RMS_PX)
-        C = np.stack([_pnp_covariance(T_ct[i], cam.object_points[i], cam.intrinsics,
-                                      float(rms[i])) for i in range(n)])
+        if rms_px is None:
+            rms_px = cam.rms_px if cam.rms_px is not None else np.full(n, _MIN_RMS_PX)
+        C = _pnp_covariances(cam, np.asarray(rms_px, dtype=np.float64))
     else:
         C = np.tile(np.diag([_POSE_NOISE[0] ** 2] * 3 + [_POSE_NOISE[1] ** 2] * 3), (n, 1, 1))
     sr, st = mocap_sigma
     lever2 = np.sum(T_ct[:, :3, 3] ** 2, axis=1)        # target origin from the camera
-    C = C.copy()
     C[:, :3, :3] += sr ** 2 * np.eye(3)
     C[:, 3:, 3:] += (st ** 2 + sr ** 2 * lever2)[:, None, None] * np.eye(3)
     with np.errstate(all="ignore"):
@@ -494,7 +548,7 @@ def lens_bound(cam: CameraEvidence, mocap_sigma: tuple[float, float]
     """
     if not cam.has_points or cam.rms_px is None:
         return None
-    floor = noise(replace(cam, rms_px=np.full(len(cam.A), _MIN_RMS_PX)), mocap_sigma)
+    floor = noise(cam, mocap_sigma, rms_px=np.full(len(cam.A), _MIN_RMS_PX))
     return float(np.median(cam.rms_px)), fit([cam.A], [cam.B], [floor]).cost
 
 
@@ -525,6 +579,6 @@ def lens_search(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTe
     if given is None or fitted is None:
         return None
     # both lenses' poses weighted with the pixel noise the fitted lens leaves
-    w = noise(replace(cam, rms_px=fitted[1]), mocap_sigma)
+    w = noise(cam, mocap_sigma, rms_px=fitted[1])
     return LensTest(freed, float(np.median(given[1])), float(np.median(fitted[1])),
                     _cost_with(cam, given[0], w), _cost_with(cam, fitted[0], w))

@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
+from multieye.core.geometry import skew
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
 from multieye.core.lie import left_jacobian_inv, log_so3
@@ -62,12 +63,15 @@ __all__ = ["PixelResiduals", "FreePoseResiduals", "MocapPriors", "intrinsics_fam
 F64 = NDArray[np.float64]
 
 
-def cross_rows(a: F64, v: F64) -> F64:
-    """Row-wise ``a x v`` for a (..., k, 3) against v (..., 3): ``a^T [v]_x`` per row."""
+def cross_rows(a: F64, v: F64, out: F64 | None = None) -> F64:
+    """Row-wise ``a x v`` for a (..., k, 3) against v (..., 3): ``a^T [v]_x`` per row
+    (written into ``out``, shaped like ``a``, when given)."""
     v = v[..., None, :]
-    return np.stack([a[..., 1] * v[..., 2] - a[..., 2] * v[..., 1],
-                     a[..., 2] * v[..., 0] - a[..., 0] * v[..., 2],
-                     a[..., 0] * v[..., 1] - a[..., 1] * v[..., 0]], axis=-1)
+    if out is None:
+        out = np.empty(np.broadcast_shapes(a.shape, v.shape))
+    for i, (j, k) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.subtract(a[..., j] * v[..., k], a[..., k] * v[..., j], out=out[..., i])
+    return out
 
 
 def intrinsics_family(name: str) -> str:
@@ -75,10 +79,11 @@ def intrinsics_family(name: str) -> str:
     return f"K:{name}"
 
 
-def _pixels(pc: F64, intr: Intrinsics, with_jacobian: bool):
-    """Pixels of camera-frame points and, when asked, d uv / d pc and d uv / d intrinsics."""
+def _pixels(pc: F64, intr: Intrinsics, with_jacobian: bool, lens: bool = True):
+    """Pixels of camera-frame points and, when asked, d uv / d pc and (with ``lens``)
+    d uv / d intrinsics."""
     if with_jacobian:
-        return project_with_jacobian(pc, intr)
+        return project_with_jacobian(pc, intr, lens_jacobian=lens)
     return project_points(pc, intr), None, None
 
 
@@ -157,29 +162,38 @@ class PixelResiduals(ResidualGroup):
     def _linear(self, values: Mapping[str, F64], part: SegmentRange):
         """Residuals and per-image Jacobian blocks of the images of ``part``."""
         X, Y, M, intr = values["X"], values["Y"][0], values["M"], self._intrinsics(values)
-        images, seg, pos = slice(*part.index_range), part.segment, part.position
+        images = slice(*part.index_range)
         ry, py, q, d, pc = self._chain(X, Y, M, images)
-        uv, Jp, Jk = _pixels(pc[seg, pos], intr, True)
+        uv, Jp, Jk = _pixels(part.gather(pc), intr, True, self.free)
         r = (uv - self._uv[part.rows]) / self.sigma
         n_img, n = len(self.blocks[images]), self.longest
-        Jp_pad = np.zeros((n_img, n, 2, 3))
-        Jp_pad[seg, pos] = Jp / self.sigma
         RX = X[self.camera, :3, :3]
         RM = M[self.blocks[images], :3, :3]
         G = RX.T @ (RM if self.data.setup == "eye-to-base" else RM.swapaxes(1, 2))
-        flat = Jp_pad.reshape(n_img, 2 * n, 3)
+        flat = part.pad(Jp / self.sigma).reshape(n_img, 2 * n, 3)
         JpR = (flat @ RX.T).reshape(n_img, n, 2, 3)                     # d r / d q
         JpG = (flat @ G).reshape(n_img, n, 2, 3)                        # d r / d p_y
-        if self.data.setup == "eye-to-base":
-            JM = [-cross_rows(JpG, py), JpR]
-        else:
-            JM = [cross_rows(JpR, q), -JpG]
-        parts = [cross_rows(JpR, d), -JpR, -cross_rows(JpG, ry), JpG] + JM
+        c = 18 + (Jk.shape[2] if self.free else 0)
+        out = np.empty((n_img, n, 2, c))                                # (n_img, n, 2, c)
+        # two row-wise cross products; the third differs from one of them by a constant
+        # vector, a^T [v + t]_x = a^T [v]_x + a^T [t]_x (one matrix product)
+        np.negative(JpR, out=out[..., 3:6])
+        cross_rows(JpG, ry, out=out[..., 6:9])
+        np.negative(out[..., 6:9], out=out[..., 6:9])
+        out[..., 9:12] = JpG
+        if self.data.setup == "eye-to-base":                 # p_y = R_Y p + t_Y
+            cross_rows(JpR, d, out=out[..., 0:3])
+            np.subtract(out[..., 6:9], (flat @ (G @ skew(Y[:3, 3]))).reshape(JpG.shape),
+                        out=out[..., 12:15])
+            out[..., 15:18] = JpR
+        else:                                                # d = q - t_X
+            cross_rows(JpR, q, out=out[..., 12:15])
+            np.subtract(out[..., 12:15], (flat @ (RX.T @ skew(X[self.camera, :3, 3])))
+                        .reshape(JpR.shape), out=out[..., 0:3])
+            np.negative(JpG, out=out[..., 15:18])
         if self.free:
-            Jk_pad = np.zeros((n_img, n, 2, Jk.shape[2]))
-            Jk_pad[seg, pos] = Jk / self.sigma
-            parts.append(Jk_pad)
-        return r, np.concatenate(parts, axis=3)                          # (n_img, n, 2, c)
+            out[..., 18:] = part.pad(Jk / self.sigma).reshape(n_img, n, 2, -1)
+        return r, out
 
     def linearize(self, values: Mapping[str, F64]):
         return next(self.linearize_chunks(values, len(self.images)))[1:]

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial.transform import Rotation
 
 from multieye.core.arguments import real_array, real_number
 from multieye.core.errors import InputError
@@ -65,6 +64,8 @@ def interpolate_poses(T0: ArrayLike, T1: ArrayLike, alpha: ArrayLike) -> np.ndar
     alpha : array_like, shape (K,)
         0 gives ``T0``, 1 gives ``T1``.
     """
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial with scipy.sparse, 0.2-0.3 CPU-s; the detection's set-up, which pairs before decoding, imports this module)
+
     T0 = np.asarray(T0, dtype=np.float64)
     T1 = np.asarray(T1, dtype=np.float64)
     alpha = np.asarray(alpha, dtype=np.float64)

@@ -69,7 +69,7 @@ from multieye.estimate.image_data import ImageData, ImageProblem, image_data
 from multieye.estimate.image_residuals import intrinsics_family
 # estimate_mocap_noise is named here too: it is the plain form of this module's estimate
 from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR, estimate_mocap_noise
-from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
+from multieye.optimize.levenberg_marquardt import Options, covariance_and_residuals, minimize
 from multieye.optimize.threads import threads_for
 
 __all__ = [
@@ -289,8 +289,8 @@ def _variance_components(data: ImageData, fams, *, s_px: float, s_rot: float, s_
         apart from the pixel noise.
     """
     groups = data.groups(s_px, s_rot, s_t)
-    ev = evaluate(fams, groups, jacobians=False)   # residuals; J^T J summed chunk by chunk
-    cov, values = covariance(fams, groups, local=True), {f.name: f.value for f in fams}
+    cov, ev = covariance_and_residuals(fams, groups, local=True)   # J^T J chunk by chunk
+    values = {f.name: f.value for f in fams}
     h_prior = 0.0
     sums, red = np.zeros(2), np.zeros(2)
     for grp, e in zip(groups, ev):
@@ -497,8 +497,11 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
     recentres = 0
     while True:
         final = settled or passes >= _MAX_SIGMA_PASSES
+        # the last pass with the robust cost's curvature near its optimum (Options), from its
+        # start when it starts at an earlier pass's optimum
         opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter,
-                       tol=tol if final else np.sqrt(tol))
+                       tol=tol if final else np.sqrt(tol),
+                       newton_below=(np.inf if passes else np.sqrt(tol)) if final else 0.0)
         res = minimize(fams, data.groups(s_px, s_rot, s_t), opts)
         fams = res.families
         passes += 1
@@ -541,8 +544,7 @@ def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, i
     kappa = gaussian_kappa(loss, f_scale)
     X, Y, M = _value(fams, "X"), _value(fams, "Y")[0], _value(fams, "M")
     groups = data.groups(s_px, s_rot, s_t)
-    ev = evaluate(fams, groups, jacobians=False)
-    cov = covariance(fams, groups, local=True)
+    cov, ev = covariance_and_residuals(fams, groups, local=True)
     z_pix = _pixel_residuals(data, ev)
     r_pix = z_pix * s_px                                                  # (P, 2) pixels
     w_pt = rho((z_pix / f_scale) ** 2, loss)[1].min(axis=1)

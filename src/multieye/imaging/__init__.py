@@ -16,20 +16,25 @@ Synopsis
 >>> results = detect_and_estimate(paths, board, intrinsics)              # doctest: +SKIP
 """
 
-from multieye.imaging.batch import ImageResult, detect_and_estimate, process_image
-from multieye.core.lens import distort_points, project_points, undistort_points
-from multieye.imaging.detect import Detection
-from multieye.imaging.pnp import PoseEstimate, estimate_pose, reprojection_residuals
-from multieye.imaging.targets import (
-    AprilGrid,
-    AsymmetricCircleGrid,
-    Charuco,
-    Chessboard,
-    CircleGrid,
-    Target,
-    TARGET_TYPES,
-    target_from_spec,
-)
+from importlib import import_module
+
+#: Public names and the module that defines each, imported when first used: OpenCV loads
+#: then, so that the detection's fork server can be started (``multieye.imaging.workers``)
+#: before this process imports it (issue 21).
+_LAZY = {
+    "ImageResult": "multieye.imaging.batch",
+    "detect_and_estimate": "multieye.imaging.batch",
+    "process_image": "multieye.imaging.batch",
+    "distort_points": "multieye.core.lens",
+    "project_points": "multieye.core.lens",
+    "undistort_points": "multieye.core.lens",
+    "Detection": "multieye.imaging.detect",
+    "PoseEstimate": "multieye.imaging.pnp",
+    "estimate_pose": "multieye.imaging.pnp",
+    "reprojection_residuals": "multieye.imaging.pnp",
+    **dict.fromkeys(("AprilGrid", "AsymmetricCircleGrid", "Charuco", "Chessboard", "CircleGrid",
+                     "Target", "TARGET_TYPES", "target_from_spec"), "multieye.imaging.targets"),
+}
 
 __all__ = [
     "AprilGrid",
@@ -51,3 +56,21 @@ __all__ = [
     "target_from_spec",
     "undistort_points",
 ]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    if not name.startswith("_"):   # a submodule, as when this package imported them all
+        try:
+            return import_module(f".{name}", __name__)
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":
+                raise
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

@@ -97,7 +97,15 @@ def find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
     detector that found them.
 
     ``detector`` ("classic" or "sb") and ``half`` (search the image halved) restrict the
-    searches of :func:`search_order` to those; the first that finds the board wins."""
+    searches of :func:`search_order` to those; the first that finds the board wins.
+
+    Raises
+    ------
+    ValueError
+        ``detector`` is neither "classic" nor "sb" (a restriction that matches no search
+        would otherwise read as a board not found)."""
+    if detector not in (None, "classic", "sb"):
+        raise ValueError(f"detector must be 'classic' or 'sb', not {detector!r}")
     size = (target.cols, target.rows)
     for name, at_half in search_order(gray):
         if (detector is not None and name != detector) or (half is not None and at_half != half):

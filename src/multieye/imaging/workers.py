@@ -37,6 +37,11 @@ temporary file that the main process owns (:func:`_quiet_forkserver`); what work
 there is shown only when a worker ended abruptly (``BrokenProcessPool``), after the pool
 is torn down.
 
+This module imports neither numpy nor OpenCV, so that a command can start the detection's
+fork server (:func:`prestart_workers`, :data:`FORKSERVER_PRELOAD`) before it imports them
+itself, and both import at once on two cores (issue 21); :class:`Alongside` runs work (the
+later stages' imports) on a thread of this process while the workers detect.
+
 Synopsis
 --------
 >>> from multieye.imaging.workers import worker_pool
@@ -48,6 +53,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import multiprocessing
 import os
 import select
 import sys
@@ -57,7 +63,10 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
-__all__ = ["worker_pool", "die_with", "stop_workers", "stop_helpers", "start_forkserver"]
+from multieye.imaging.main_script import main_reimport_problem
+
+__all__ = ["worker_pool", "die_with", "stop_workers", "stop_helpers", "start_forkserver",
+           "Alongside", "FORKSERVER_PRELOAD", "mp_context", "prestart_workers", "available_cores"]
 
 #: Seconds between two checks where the main process cannot be waited for (no pidfd).
 POLL_S = 0.5
@@ -304,3 +313,97 @@ def worker_pool(max_workers: int, *, mp_context=None, initializer: Callable | No
             _relay(log, start)
         raise
     pool.shutdown(wait=True)
+
+#: What the fork server imports once, before it forks any worker: the detection (numpy,
+#: OpenCV), so that each worker starts in milliseconds; then what ends the server without
+#: the interpreter's teardown (:mod:`multieye.imaging.forkserver_exit`).
+FORKSERVER_PRELOAD = ("multieye.imaging.batch", "multieye.imaging.forkserver_exit")
+
+
+def mp_context():
+    """forkserver where it exists, spawn elsewhere: workers never inherit OpenCV's threads.
+
+    The fork server imports :data:`FORKSERVER_PRELOAD` once, so that each worker it forks
+    starts in milliseconds; without that preload every worker would import them again.
+    """
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(list(FORKSERVER_PRELOAD))
+    return ctx
+
+
+def prestart_workers(processes: int | None = None) -> bool:
+    """Start, now, the fork server that the detection
+    (:func:`multieye.imaging.batch.detect_and_estimate_jobs`) takes its worker processes
+    from, when it will use some (more than one worker, forkserver available, the main
+    script safe to import again).
+
+    Its imports (numpy, OpenCV: about a quarter of a CPU second) then run on the other core
+    while the caller imports and reads the rest, instead of between reading the dataset and
+    the first detection; this module imports neither, so the server starts before the
+    caller imports them too.  Nothing else changes: the pool forks its workers from it
+    later, and it is stopped and collected when this process ends.
+
+    Returns
+    -------
+    bool
+        Whether a fork server is running for the workers (not for ``processes`` other than
+        None or an integer above 1: the detection says what is wrong with it).
+    """
+    wanted = available_cores() if processes is None else processes
+    if (isinstance(wanted, bool) or not isinstance(wanted, int)
+            or min(wanted, available_cores()) <= 1 or main_reimport_problem() is not None):
+        return False
+    ctx = mp_context()
+    return ctx.get_start_method() == "forkserver" and start_forkserver(ctx)
+
+
+def available_cores() -> int:
+    """The CPUs this process may use (``os.sched_getaffinity``; the CPU count elsewhere)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:          # not on Linux
+        return os.cpu_count() or 1
+
+
+class Alongside:
+    """Work for a thread of this process while the block runs, e.g. imports while the workers
+    detect: started by :meth:`start` (at most once; at the block's end when never started),
+    waited for when the block ends, and its exception raised then, when the block itself
+    raised none.
+
+    >>> with Alongside(work) as meanwhile:      # doctest: +SKIP
+    ...     send_the_first_images()
+    ...     meanwhile.start()                    # work() runs while the workers detect
+    ...     collect_the_results()
+    """
+
+    def __init__(self, work: Callable[[], object] | None):
+        self._work = work
+        self._thread: threading.Thread | None = None
+        self._failed: list[BaseException] = []
+
+    def _run(self) -> None:
+        try:
+            self._work()
+        except BaseException as exc:    # noqa: BLE001 - raised in the caller's thread, __exit__
+            self._failed.append(exc)
+
+    def start(self) -> None:
+        """Start the work on its thread, unless started already (or there is none)."""
+        if self._work is not None and self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="multieye-alongside",
+                                            daemon=True)
+            self._thread.start()
+
+    def __enter__(self) -> Alongside:
+        return self
+
+    def __exit__(self, kind, exc, tb) -> None:
+        if kind is None:
+            self.start()
+        if self._thread is not None:
+            self._thread.join()
+        if kind is None and self._failed:
+            raise self._failed[0]

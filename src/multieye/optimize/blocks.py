@@ -214,6 +214,14 @@ class SegmentRange:
         self.segment = group.segment[rows] - lo
         self.position = group.position[rows]
         self.rows = rows
+        #: Every segment has ``longest`` rows (no padding: the padded layout is a reshape).
+        self.full = self.segment.size == (hi - lo) * self.longest
+
+    def gather(self, padded: F64) -> F64:
+        """The rows (n_rows, ...) of a padded (S, longest, ...) array."""
+        if self.full:
+            return padded.reshape((-1,) + padded.shape[2:])
+        return padded[self.segment, self.position]
 
     @property
     def n_rows(self) -> int:
@@ -228,6 +236,8 @@ def _pad(layout: ResidualGroup | SegmentRange, rows: F64) -> F64:
     """``rows`` (n_rows, dim, ...) of ``layout`` (its ``index``, ``segment``, ``position``,
     ``longest`` and ``dim``) to zero-padded segment blocks (S, longest * dim, ...)."""
     S, m = len(layout.index), layout.longest
+    if rows.shape[0] == S * m:                        # every segment full: no padding
+        return rows.reshape((S, m * layout.dim) + rows.shape[2:])
     out = np.zeros((S, m) + rows.shape[1:])
     out[layout.segment, layout.position] = rows
     return out.reshape((S, m * layout.dim) + rows.shape[2:])

@@ -150,22 +150,30 @@ class Assembly:
         self._wc: list[F64] = []
         self._wd: list[F64] = []
 
-    def add(self, group, B: F64, rb: F64, weights: F64 | None = None) -> None:
+    def add(self, group, B: F64, rb: F64, weights: F64 | None = None,
+            gradient_weights: F64 | None = None) -> None:
         """Add one piece: ``group`` (or a :class:`~multieye.optimize.blocks.SegmentRange` of
         it), its Jacobian blocks ``B`` (S, m dim, c) and padded residuals ``rb`` (S, m dim),
-        with per-component weights (n_rows, dim) if given."""
+        with per-component weights (n_rows, dim) if given: ``J^T diag(w) J`` and
+        ``J^T diag(w) r``; or, with ``gradient_weights`` too, ``J^T diag(w) J`` and
+        ``J^T diag(gradient_weights) r`` (a robust loss's curvature and its slope)."""
         layout = self.layout
         k, L, d = layout.k, layout.n_local, layout.d
         if group.n_rows == 0:
             return
-        if weights is not None:
-            sw = group.pad(np.sqrt(weights))
-            B = B * sw[:, :, None]
-            rb = rb * sw
         S = len(group.index)
-        Bt = np.swapaxes(B, 1, 2)
+        if gradient_weights is not None:
+            gs = (np.swapaxes(B, 1, 2) @ (rb * group.pad(gradient_weights))[:, :, None])[:, :, 0]
+            B = B * group.pad(np.sqrt(weights))[:, :, None]
+            Bt = np.swapaxes(B, 1, 2)
+        else:
+            if weights is not None:
+                sw = group.pad(np.sqrt(weights))
+                B = B * sw[:, :, None]
+                rb = rb * sw
+            Bt = np.swapaxes(B, 1, 2)
+            gs = (Bt @ rb[:, :, None])[:, :, 0]                           # (S, c)
         G = Bt @ B                                                        # (S, c, c)
-        gs = (Bt @ rb[:, :, None])[:, :, 0]                               # (S, c)
         cols, gpos, lblock, lpos = _columns(layout, self.families, group)
         if cols.shape[1]:
             Ugg = G[:, gpos][:, :, gpos]

@@ -9,6 +9,7 @@ The pipeline (:mod:`multieye.pipeline`) takes it from there.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -38,7 +39,7 @@ from multieye.pipeline.detection import Workers, detect_all
 from multieye.pipeline.estimated_lens import check_model, lens_start, start_lens, with_poses
 from multieye.pipeline.selection import SelectionSummary, preselected
 from multieye.pipeline.frames import bag_frames, video_frames, video_listing
-from multieye.solvers.measurements import MIN_MEASUREMENTS
+from multieye.solvers.methods import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
 from multieye.imaging.target_hints import counting_rule
 
@@ -354,7 +355,8 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: Worke
 
 def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool = False,
                      select: int | None = None, time_offset: str | float = "rig",
-                     engine: Engine | None = None) -> dict[str, CameraData]:
+                     engine: Engine | None = None,
+                     on_sent: Callable[[], object] | None = None) -> dict[str, CameraData]:
     """Read, detect and estimate every camera's target poses and its motion capture.
 
     Parameters
@@ -372,6 +374,9 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     engine : Engine, optional
         Detection as tasks of this engine (:func:`multieye.imaging.engines.open_engine`)
         instead of the local worker processes.
+    on_sent : callable, optional
+        Called once the first image files are sent to the local workers
+        (:func:`multieye.imaging.batch.detect_jobs_then`); not called when none are.
 
     Raises
     ------
@@ -382,7 +387,8 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     motions = {name: camera_motion(rig, name, trajectories) if rig.has_mocap
                else CameraMotion(None) for name in rig.cameras}
     chosen = preselected(rig, motions, select, time_offset, pair_stamps)
-    workers = detect_all(rig, motions, Workers(processes, progress, engine), chosen)
+    workers = detect_all(rig, motions, Workers(processes, progress, engine), chosen,
+                         on_sent=on_sent)
     return {name: _camera_data(rig, name, motions[name], workers, chosen.get(name))
             for name in rig.cameras}
 

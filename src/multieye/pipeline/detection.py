@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import partial
 
@@ -53,8 +54,8 @@ class Workers:
                                           progress=self.progress)
 
 
-def detect_all(rig: Rig, motions: dict, workers: Workers,
-                chosen: dict) -> Workers:
+def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
+               on_sent: Callable[[], object] | None = None) -> Workers:
     """Every camera's image files (folders, not bags; those ``chosen`` before decoding)
     detected on one pool of workers, with PnP in the worker where the lens is given; a
     camera's ``intrinsics_images`` too.  On an engine, each camera's own detection runs
@@ -64,7 +65,8 @@ def detect_all(rig: Rig, motions: dict, workers: Workers,
     one idle at the end of each camera). The seconds are shared out by image count.  A
     camera whose lens is estimated (``model:`` without ``intrinsics:`` nor
     ``intrinsics_images``) gets its lens start and its poses from the workers too, as soon
-    as its images are detected (``Workers.started``).
+    as its images are detected (``Workers.started``).  ``on_sent()`` is called once the
+    first images are sent to the workers (not when none are).
     """
     keys, jobs, then = [], [], {}
     for name, cam in rig.cameras.items() if workers.engine is None else ():
@@ -90,7 +92,7 @@ def detect_all(rig: Rig, motions: dict, workers: Workers,
         return workers
     t0 = time.perf_counter()
     results, started = detect_jobs_then(jobs, then, processes=workers.processes,
-                                        progress=workers.progress)
+                                        progress=workers.progress, on_sent=on_sent)
     seconds = time.perf_counter() - t0
     total = max(sum(len(job.paths) for job in jobs), 1)
     return replace(workers, detected=dict(zip(keys, results)),

@@ -39,7 +39,7 @@ from multieye.io.calibration_json import OVERLAP
 from multieye.pipeline.sources import outside_reads
 from multieye.pipeline.frames import video_frames, video_listing
 from multieye.solvers.checks import rotation_spread
-from multieye.solvers.measurements import MIN_MEASUREMENTS
+from multieye.solvers.methods import MIN_MEASUREMENTS
 
 __all__ = ["CameraCheck", "DatasetCheck", "check_dataset"]
 

@@ -15,8 +15,7 @@ from multieye.core.arguments import one_of, real_number, with_fields
 from multieye.core.errors import InputError
 from multieye.core.limits import MAX_TIME_OFFSET_S
 from multieye.estimate.selection import DEFAULT_BUDGET
-from multieye.solvers import METHODS
-from multieye.solvers.measurements import MIN_MEASUREMENTS
+from multieye.solvers.methods import METHODS, MIN_MEASUREMENTS
 
 __all__ = ["Options", "updated_options"]
 

@@ -28,8 +28,6 @@ Synopsis
 
 from __future__ import annotations
 
-import contextlib
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -47,8 +45,7 @@ from multieye.estimate.plausibility import (
     check_noise,
     check_plausibility,
 )
-from multieye.imaging.engines import open_engine
-from multieye.io import RejectedItem, Rig, load_rig
+from multieye.io import RejectedItem, Rig
 from multieye.io.run_details import StageTimings
 from multieye.pipeline import ambiguity  # single markers: the rig chooses each image's pose
 from multieye.pipeline.camera_data import (
@@ -72,7 +69,6 @@ from multieye.pipeline.record import build_record
 from multieye.pipeline.refine import Refined, mocap_noise, refine
 from multieye.pipeline.result import CalibrationRun, Refinement
 from multieye.pipeline.selection import merged, select_paired
-from multieye.pipeline.sources import outside_reads
 from multieye.solvers import Solution, solve
 from multieye.solvers.checks import check_measurements
 from multieye.solvers.measurements import Measurements
@@ -88,7 +84,6 @@ __all__ = [
     "StageTimings",
     "load_camera_data",
     "pair_camera",
-    "calibrate",
     "calibrate_rig",
 ]
 
@@ -116,62 +111,6 @@ class ClosedForm:
 
     solution: Solution
     motion: MotionDiagnostics
-
-
-def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
-              processes: int | None = None, progress: bool = False, engine: str = "local",
-              scheduler: str | None = None, on_detected: Callable[[], object] | None = None,
-              **kw) -> CalibrationRun:
-    """Calibrate the rig described by a dataset folder (or its ``rig.yaml``).
-
-    Parameters
-    ----------
-    dataset : path-like
-        Folder holding ``rig.yaml``, or the file itself.
-    options : Options
-        Or its fields as keyword arguments: ``method`` (solver name, :data:`multieye.METHODS`),
-        ``reference`` (camera whose frame is ``ref``; default the first of ``rig.yaml``),
-        ``refine``, ``robust``, ``time_offset``, ``max_time_offset``.
-    processes : int, optional
-        Worker processes for detection; default one per core.  Threads of this process
-        instead, with a warning, when the calling script runs this at its top level, outside
-        ``if __name__ == "__main__":`` (:func:`multieye.imaging.batch.main_reimport_problem`).
-    progress : bool
-        Show a progress bar (only sensible on a terminal).
-    engine, scheduler : {"local", "dask"}, str or None
-        Detection on Dask: at a scheduler's address, or a local cluster (docs/recordings.md).
-    on_detected : callable, optional
-        Called without arguments once the detection is done and its workers have ended
-        (``multieye calibrate`` starts the report's figure workers then, while the
-        refinement runs on one core).
-
-    Returns
-    -------
-    CalibrationRun
-        The final result per camera name as ``run.X``, ``run.T_ref_cam`` (with their
-        ``_std`` and ``_covariance``), ``run.Y``; the closed form as ``run.closed_form``;
-        ``run.warnings``; seconds per stage as ``run.timings``; what the plausibility
-        checks doubt as ``run.doubts`` (empty when nothing).
-    """
-    start = time.perf_counter()
-    rig = load_rig(dataset)                 # a folder or its rig.yaml, checked where it enters
-    options = updated_options(options, kw)
-    with contextlib.ExitStack() as stack:
-        eng = None if engine == "local" and scheduler is None else stack.enter_context(
-            open_engine(engine, scheduler=scheduler, workers=processes))
-        cameras = load_camera_data(rig, processes=processes, progress=progress,
-                                   select=options.select, time_offset=options.time_offset,
-                                   engine=eng)
-    loaded = time.perf_counter() - start
-    if on_detected is not None:
-        on_detected()
-    run = calibrate_rig(rig, cameras, options)
-    detection = sum(d.detection_s for d in cameras.values())
-    timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
-                      total=time.perf_counter() - start)
-    # files read from outside the dataset folder named, first among the warnings
-    record = replace(run.record, warnings=outside_reads(rig, dataset) + tuple(run.record.warnings))
-    return replace(run, timings=timings, record=record)
 
 
 def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = Options(), **kw

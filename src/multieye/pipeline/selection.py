@@ -35,7 +35,7 @@ from multieye.estimate.selection import (
 )
 from multieye.io import RejectedItem, Rig, bag_image_count, list_images
 from multieye.pipeline.frames import bag_listing, video_listing
-from multieye.solvers.measurements import MIN_MEASUREMENTS
+from multieye.solvers.methods import MIN_MEASUREMENTS
 
 __all__ = ["SelectionSummary", "preselect", "preselected", "select_paired", "merged"]
 

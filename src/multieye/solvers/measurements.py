@@ -11,12 +11,9 @@ import numpy as np
 
 from multieye.core.errors import InputError, TooFewMeasurementsError
 from multieye.solvers.kronecker import CameraStats, camera_stats, transform_entries
+from multieye.solvers.methods import MIN_MEASUREMENTS
 
 __all__ = ["Measurements", "MIN_MEASUREMENTS", "default_names"]
-
-#: Fewest measurements a camera needs.
-MIN_MEASUREMENTS = 3
-
 
 @lru_cache(maxsize=64)
 def default_names(m: int) -> tuple[str, ...]:

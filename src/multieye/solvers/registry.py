@@ -62,7 +62,8 @@ SINGLE_METHODS: dict[str, Callable[[np.ndarray, np.ndarray], tuple]] = {
     "tabb-c2": lambda A, B: solve_tabb_single(A, B, "c2"),
 }
 
-#: Every method name accepted by :func:`solve`.
+#: Every method name accepted by :func:`solve` (:mod:`multieye.solvers.methods`, which names
+#: them without importing the solvers, in the same order).
 METHODS: tuple[str, ...] = tuple(JOINT_METHODS) + tuple(SINGLE_METHODS)
 
 

@@ -1,0 +1,141 @@
+"""The worker processes that draw the report's figures, and when they start.
+
+Light to import (no numpy, OpenCV or matplotlib: the command line creates them before the
+detection, :func:`figure_workers`); what they draw is :mod:`multieye.outputs.report_draw`'s.
+Two workers where two cores may be used and one is free (the 1-minute load average below
+the cores); ``multieye calibrate`` starts them when the detection is done
+(:meth:`FigureWorkers.start_early`), so that they import matplotlib while the refinement
+runs on one core, the second once the first has imported (the two imports take the free
+core in turn); otherwise they start with the outputs (:meth:`FigureWorkers.start`).  They
+are forked from the detection's fork server (numpy and OpenCV already imported) and end
+with this process (:func:`multieye.imaging.workers.worker_pool`).  None with one core,
+``processes=1``, a main script that a worker would run again, or on a busy machine (no core
+free), where workers slowed the refinement or the outputs down
+(docs/results/report_speed.md): the main process draws then.
+
+Synopsis
+--------
+>>> from multieye.outputs.figure_workers import figure_workers
+>>> with figure_workers() as workers:                                  # doctest: +SKIP
+...     workers.start_early()
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+from collections.abc import Iterator
+
+from multieye.imaging.main_script import main_reimport_problem
+from multieye.imaging.workers import available_cores, worker_pool
+
+__all__ = ["FigureWorkers", "figure_workers", "worker_count", "FIGURE_MODULE"]
+
+#: The module a figure worker imports first (:func:`multieye.outputs.figures_rig.warm_up`).
+FIGURE_MODULE = "multieye.outputs.figures_rig"
+
+
+def _warm_up() -> None:
+    """A figure worker's first work: :func:`multieye.outputs.figures_rig.warm_up`."""
+    from multieye.outputs.figures_rig import warm_up  # noqa: PLC0415 (heavy: matplotlib, in the worker only)
+
+    warm_up()
+
+
+def _cores() -> int:
+    return available_cores()
+
+
+def _context():
+    """forkserver where there is one (the detection's, already running in a calibration;
+    when it is not, started with the figure modules preloaded), spawn elsewhere: never a
+    plain fork of a process with OpenCV's and OpenBLAS's threads."""
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload([FIGURE_MODULE])
+    return ctx
+
+
+def _free_core() -> bool:
+    """Whether a core is free now: the load average (1 minute) below the cores this process
+    may use (this process is one of the runnable ones it counts).  On a busy machine
+    workers started during the refinement take a share of its core instead (measured at a
+    load of 3.5-4 on 2 cores: the refinement 2.2 s instead of 1.0, docs/results/
+    report_speed.md)."""
+    try:
+        return os.getloadavg()[0] < _cores()
+    except OSError:                 # no load average on this system
+        return True
+
+
+def worker_count(processes: int | None = None) -> int:
+    """Figure workers to use: 2 where two cores may be used (``processes`` unset, or 2 and
+    more), else 0 (this process draws: one core, ``processes=1``, or a main script that a
+    worker would run again, :func:`~multieye.imaging.main_script.main_reimport_problem`)."""
+    allowed = min(2, _cores()) if processes is None else max(1, min(int(processes), 2))
+    return 2 if allowed >= 2 and main_reimport_problem() is None else 0
+
+
+class FigureWorkers:
+    """The worker processes that draw the report's figures (:func:`figure_workers`).
+
+    Attributes
+    ----------
+    count : int
+        At most this many workers (:func:`worker_count`); 0: this process draws.
+    pool : ProcessPoolExecutor or None
+        Once :meth:`start_early` or :meth:`start` has started them.
+    size : int
+        Workers started: ``count`` with a core free when they started, else none.
+    """
+
+    def __init__(self, count: int, stack: contextlib.ExitStack):
+        self.count = count
+        self.pool = None
+        self.size = 0
+        self._stack = stack
+
+    def start_early(self) -> None:
+        """Start the workers now if a core is free (a calibration calls this when its
+        detection is done): the first imports matplotlib and the figure modules
+        (:func:`multieye.outputs.figures_rig.warm_up`) on the core the refinement leaves
+        free, the second once the first is ready, so that the two imports take that core in
+        turn.  On a busy machine they would take a share of the refinement's core instead,
+        and start when the figures are handed to them (:meth:`start`)."""
+        if self.count and _free_core():
+            self._start(self.count, one_at_a_time=True)
+
+    def start(self) -> None:
+        """Start the workers now, both at once, if a core is free (once; nothing with
+        ``count`` 0).  On a busy machine this process draws: one worker drawing while it
+        waits made the outputs 0.6 s longer at a load of 3.3-3.8 on 2 cores (medians of 6,
+        docs/results/report_speed.md)."""
+        self._start(self.count if _free_core() else 0, one_at_a_time=False)
+
+    def _start(self, size: int, *, one_at_a_time: bool) -> None:
+        if self.pool is not None or not size:
+            return
+        self.size = size
+        self.pool = self._stack.enter_context(
+            worker_pool(size, mp_context=_context(), initializer=_warm_up))
+        first = self.pool.submit(os.getpid)         # a task: the pool starts a process now
+        for _ in range(size - 1):
+            if one_at_a_time:
+                first.add_done_callback(self._another)
+            else:
+                self.pool.submit(os.getpid)
+
+    def _another(self, _) -> None:
+        """Start one more worker (called by the pool's thread when a worker is ready)."""
+        with contextlib.suppress(RuntimeError):     # the pool was shut down meanwhile
+            self.pool.submit(os.getpid)
+
+
+@contextlib.contextmanager
+def figure_workers(processes: int | None = None) -> Iterator[FigureWorkers]:
+    """Figure workers (:class:`FigureWorkers`, not started yet) that end with the block: at
+    once on an exception (``KeyboardInterrupt`` included), after their work otherwise."""
+    with contextlib.ExitStack() as stack:
+        yield FigureWorkers(worker_count(processes), stack)
