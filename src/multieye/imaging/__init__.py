@@ -16,7 +16,7 @@ Synopsis
 >>> results = detect_and_estimate(paths, board, intrinsics)              # doctest: +SKIP
 """
 
-from importlib import import_module
+from multieye.core.lazy_names import lazy_names
 
 #: Public names and the module that defines each, imported when first used: OpenCV loads
 #: then, so that the detection's fork server can be started (``multieye.imaging.workers``)
@@ -58,19 +58,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        value = getattr(import_module(_LAZY[name]), name)
-        globals()[name] = value
-        return value
-    if not name.startswith("_"):   # a submodule, as when this package imported them all
-        try:
-            return import_module(f".{name}", __name__)
-        except ModuleNotFoundError as exc:
-            if exc.name != f"{__name__}.{name}":
-                raise
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY)

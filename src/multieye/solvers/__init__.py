@@ -11,25 +11,25 @@ Synopsis
 >>> sol = solve(A, B, method="joint")                  # doctest: +SKIP
 """
 
-from importlib import import_module
+from multieye.core.lazy_names import lazy_names
 
 #: Public names and the submodule that defines each, imported when first used: the solvers
 #: import SciPy's sparse and dense linear algebra, which a command imports while its images
 #: are detected, not before (issue 21; :mod:`multieye.solvers.methods` names the methods
 #: without them).
 _LAZY = {
-    "solve_general": "general",
-    "GeneralSolution": "groups",
-    "MeasurementGroup": "groups",
-    "CameraResidual": "result",
-    "Solution": "result",
-    "JOINT_METHODS": "registry",
-    "METHODS": "registry",
-    "SINGLE_METHODS": "registry",
-    "check_measurements": "registry",
-    "check_transforms": "registry",
-    "combine_y": "registry",
-    "solve": "registry",
+    "solve_general": ".general",
+    "GeneralSolution": ".groups",
+    "MeasurementGroup": ".groups",
+    "CameraResidual": ".result",
+    "Solution": ".result",
+    "JOINT_METHODS": ".registry",
+    "METHODS": ".registry",
+    "SINGLE_METHODS": ".registry",
+    "check_measurements": ".registry",
+    "check_transforms": ".registry",
+    "combine_y": ".registry",
+    "solve": ".registry",
 }
 
 __all__ = ["solve", "solve_general", "METHODS", "JOINT_METHODS", "SINGLE_METHODS", "Solution",
@@ -37,19 +37,4 @@ __all__ = ["solve", "solve_general", "METHODS", "JOINT_METHODS", "SINGLE_METHODS
            "check_transforms", "combine_y"]
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    if not name.startswith("_"):   # a submodule, as when this package imported them all
-        try:
-            return import_module(f".{name}", __name__)
-        except ModuleNotFoundError as exc:
-            if exc.name != f"{__name__}.{name}":
-                raise
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY)
