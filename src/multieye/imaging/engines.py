@@ -26,7 +26,6 @@ import contextlib
 import functools
 import itertools
 import math
-import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
@@ -34,7 +33,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult, process_array, process_image
 from multieye.imaging.targets import Target
-from multieye.imaging.workers import worker_pool
+from multieye.imaging.workers import available_cores, worker_pool
 
 __all__ = ["ENGINES", "Engine", "LocalEngine", "DaskEngine", "open_engine", "DASK_MISSING",
            "detect_on", "detect_arrays_on"]
@@ -46,13 +45,6 @@ DASK_MISSING = ('the dask engine needs Dask distributed: pip install "multieye[d
                 '(or pip install distributed)')
 #: Chunks per worker.
 _CHUNKS_PER_WORKER = 4
-
-
-def _cores() -> int:
-    """The cores this process may use."""
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1
 
 
 def _chunks(items: Sequence, n_workers: int, chunksize: int | None) -> list[list]:
@@ -156,7 +148,7 @@ class DaskEngine(Engine):
             raise InputError(DASK_MISSING) from None
         self._cluster = None
         if scheduler is None:
-            n = workers or _cores()
+            n = workers or available_cores()
             self._cluster = distributed.LocalCluster(
                 n_workers=int(n), threads_per_worker=1, processes=processes,
                 dashboard_address=None, silence_logs=50)
@@ -234,7 +226,7 @@ def open_engine(name: str = "local", *, processes: int | None = None,
     if name == "local":
         if scheduler is not None:
             raise InputError("a scheduler address needs the dask engine (--engine dask)")
-        cores = _cores()
+        cores = available_cores()
         return LocalEngine(processes=max(1, min(processes or cores, cores)))
     return DaskEngine(scheduler, workers=workers)
 

@@ -43,10 +43,6 @@ def _warm_up() -> None:
     warm_up()
 
 
-def _cores() -> int:
-    return available_cores()
-
-
 def _context():
     """forkserver where there is one (the detection's, already running in a calibration;
     when it is not, started with the figure modules preloaded), spawn elsewhere: never a
@@ -65,7 +61,7 @@ def _free_core() -> bool:
     load of 3.5-4 on 2 cores: the refinement 2.2 s instead of 1.0, docs/results/
     report_speed.md)."""
     try:
-        return os.getloadavg()[0] < _cores()
+        return os.getloadavg()[0] < available_cores()
     except OSError:                 # no load average on this system
         return True
 
@@ -74,7 +70,7 @@ def worker_count(processes: int | None = None) -> int:
     """Figure workers to use: 2 where two cores may be used (``processes`` unset, or 2 and
     more), else 0 (this process draws: one core, ``processes=1``, or a main script that a
     worker would run again, :func:`~multieye.imaging.main_script.main_reimport_problem`)."""
-    allowed = min(2, _cores()) if processes is None else max(1, min(int(processes), 2))
+    allowed = min(2, available_cores()) if processes is None else max(1, min(int(processes), 2))
     return 2 if allowed >= 2 and main_reimport_problem() is None else 0
 
 

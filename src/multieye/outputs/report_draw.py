@@ -74,11 +74,11 @@ def figure_jobs(rec: CalibrationRecord, details: RunDetails | None
     return jobs
 
 
-def _tasks(rec: CalibrationRecord, details: RunDetails | None, batches: int
+def _tasks(rec: CalibrationRecord, details: RunDetails | None, jobs: list, batches: int
            ) -> list[tuple[float, Callable, tuple]]:
     """The figures as ``(rough CPU-s, function, arguments)`` tasks, costliest first: the
-    rig's pictures, each all-camera figure, the cameras' figures in ``batches`` batches."""
-    jobs = figure_jobs(rec, details)
+    rig's pictures, each all-camera figure of ``jobs`` (:func:`figure_jobs`), the cameras'
+    figures in ``batches`` batches."""
     cameras = [job for job in jobs if job[1] is f.camera_png]
     tasks = [(_RIG_S + _RIG_PER_CAMERA_S * len(rec.cameras), rig_pngs, (rec, details))]
     tasks += [(job[3], f.draw_jobs, ([job],)) for job in jobs if job[1] is not f.camera_png]
@@ -102,16 +102,17 @@ def submit_figures(rec: CalibrationRecord, details: RunDetails | None,
         ``calibration.json`` and ``details.json`` (None without it), as the files hold them.
     workers : FigureWorkers, optional
     """
-    order = [name for name, *_ in figure_jobs(rec, details)]
+    jobs = figure_jobs(rec, details)
     if workers is not None:
         workers.start()
     if workers is None or not workers.size:
         def here():
             rig = rig_pngs(rec, details)
-            return {**rig.pngs, **f.draw_jobs(figure_jobs(rec, details))}, rig.legend
+            return {**rig.pngs, **f.draw_jobs(jobs)}, rig.legend
         return here
+    order = [name for name, *_ in jobs]
     pending = [workers.pool.submit(func, *args)
-               for _, func, args in _tasks(rec, details, workers.size)]
+               for _, func, args in _tasks(rec, details, jobs, workers.size)]
 
     def wait():
         drawn: dict[str, bytes] = {}
