@@ -26,32 +26,22 @@ a depth proportional to the size of the rig.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
+from io import BytesIO
 
 import numpy as np
 
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.run_details import CameraDetails, RunDetails
-from io import BytesIO
 from multieye.outputs.image_stats import (
     COVERAGE_CELLS, MAX_ARROWS, arrow_scale, coverage, image_frame, mean_vectors,
     position_bins, radial_bins, stacked, worst_images)
 
-__all__ = [
-    "camera_colours",
-    "frustum_corners",
-    "display_rotation",
-    "outliers",
-    "stamps_are_indices",
-    "HIGHLIGHT",
-    "residual_histograms_png",
-    "residuals_over_time_png",
-    "camera_png",
-    "camera_pngs",
-    "draw_jobs",
-    "image_rms_png",
-    "radial_png",
-]
+__all__ = ["camera_colours", "frustum_corners", "display_rotation", "outliers",
+           "stamps_are_indices", "HIGHLIGHT", "residual_histograms_png",
+           "residuals_over_time_png", "camera_png", "camera_pngs", "draw_jobs",
+           "image_rms_png", "radial_png"]
 
 _AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")  # x red, y green, z blue
 _GREY = "#7f7f7f"
@@ -156,8 +146,12 @@ def outliers(values, factor: float = 3.0) -> np.ndarray:
 
 
 def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
-    """A figure of two axes (rotation, translation), one lane per camera, top to bottom:
-    two axes whatever the number of cameras (small multiples cost an axes each)."""
+    """A figure of an axes per title (rotation, translation), one lane per camera, top to
+    bottom: as many axes whatever the number of cameras (small multiples cost an axes each).
+
+    Ticks cost an artist each (and their labels a glyph each): the cameras' names are the
+    first axes' only vertical ticks, and every axes has at most 6 ticks across
+    (:data:`_TICKS`)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.collections import LineCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
@@ -165,11 +159,12 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
     m = len(details.cameras)
     fig = Figure(figsize=(10.0, 1.2 + 0.5 * max(m, 2)), dpi=dpi)
     FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2, sharey=True)
+    axes = list(fig.subplots(1, len(titles), squeeze=False)[0])
     colours = camera_colours(m)
-    for ax, title in zip(axes, titles):
+    for k, (ax, title) in enumerate(zip(axes, titles)):
         ax.set_ylim(-0.15, m)
-        ax.set_yticks(np.arange(m)[::-1] + 0.4)
+        ax.set_yticks(np.arange(m)[::-1] + 0.4 if k == 0 else [])
+        ax.xaxis.set_major_locator(_locator())
         ax.set_title(title, fontsize=9, loc="left", y=1.0)
         ax.tick_params(labelsize=8, length=2)
         ax.grid(True, axis="x", alpha=0.3)
@@ -185,10 +180,32 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
     return fig, axes, colours
 
 
+#: At most this many intervals between the ticks of an axis (MaxNLocator's ``nbins``).
+_TICKS = 5
+
+
+def _locator(nbins: int = _TICKS):
+    """At most ``nbins + 1`` ticks at round numbers (1, 2, 2.5 or 5 times a power of ten, as
+    matplotlib's default): a tick costs two artists and its label a glyph per character."""
+    from matplotlib.ticker import MaxNLocator  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
+    return MaxNLocator(nbins=nbins, steps=[1, 2, 2.5, 5, 10])
+
+
+#: matplotlib settings of the report's figures while they are drawn (:func:`_png`): glyphs
+#: rendered without hinting (matplotlib renders text glyph by glyph, hinted glyphs cost 1.6x
+#: as much; at 90-100 dpi the text looks the same, docs/results/report_speed.md).
+_RC = {"text.hinting": "no_hinting"}
+
+
 def _png(fig) -> bytes:
+    """The figure drawn with the settings :data:`_RC` and encoded as PNG (zlib level 3: these
+    figures come out no larger than at the default level 6, in two thirds of its time)."""
+    from matplotlib import rc_context  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     buffer = BytesIO()
-    fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
+    with rc_context(_RC):
+        fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
     return buffer.getvalue()
 
 
@@ -317,14 +334,21 @@ def camera_pngs(cams: Sequence[CameraDetails], colours: Sequence, *, dpi: int = 
     """:func:`camera_png` of each camera (same bytes), drawn on one figure while the images
     keep their shape: the axes and the colour bar are made once and only the data is
     replaced (making an axes costs more than drawing the camera's data)."""
-    canvas, out = None, []
+    out = []
     for cam, colour in zip(cams, colours):
         frame = image_frame(cam)
-        size = (10.0, 0.9 + 4.6 * frame.height / frame.width)
-        if canvas is None or canvas.size != size:
-            canvas = _CameraCanvas(size, dpi)
-        out.append(canvas.png(cam, colour))
+        out.append(_camera_canvas((10.0, 0.9 + 4.6 * frame.height / frame.width), dpi)
+                   .png(cam, colour))
     return out
+
+
+@functools.lru_cache(maxsize=1)
+def _camera_canvas(size: tuple[float, float], dpi: int) -> _CameraCanvas:
+    """The figure of :func:`camera_png` for images of one shape, kept for the next camera
+    drawn by this process (making it, its axes and its colour bar, costs a third of a
+    camera's figure): one figure, whatever the calls (:func:`camera_pngs` per batch,
+    :func:`camera_png` per camera).  Not for threads (nor is matplotlib)."""
+    return _CameraCanvas(size, dpi)
 
 
 class _CameraCanvas:
@@ -355,6 +379,7 @@ class _CameraCanvas:
             self.bar = fig.colorbar(im, ax=ax_map, fraction=0.046, pad=0.02)
         else:
             self.bar.update_normal(im)
+        _colour_bar_ticks(self.bar)
         self.bar.ax.tick_params(labelsize=7)
         self.bar.set_label(label, fontsize=7.5)
         fig.suptitle(cam.name, x=0.01, ha="left", fontsize=11, fontweight="bold",
@@ -362,6 +387,21 @@ class _CameraCanvas:
         fig.subplots_adjust(left=0.01, right=0.94, top=1 - 0.75 / fig.get_figheight(),
                             bottom=0.4 / fig.get_figheight(), wspace=0.08)
         return _png(fig)
+
+
+def _colour_bar_ticks(bar) -> None:
+    """At most 6 ticks on a linear colour bar; on a logarithmic one 1, 2 and 5 times the
+    powers of ten as plain numbers, no minor ticks (matplotlib's ``10^k`` in mathtext with
+    unlabelled minor ticks costs as much as the rest of the figure the first time)."""
+    from matplotlib.colors import LogNorm  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.ticker import FormatStrFormatter, LogLocator  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
+    if isinstance(bar.norm, LogNorm):
+        bar.locator = LogLocator(subs=(1.0, 2.0, 5.0))
+        bar.formatter = FormatStrFormatter("%g")
+        bar.minorticks_off()
+    else:
+        bar.locator = _locator()
 
 
 def _vectors_panel(ax_vec, cam: CameraDetails, frame, uv: np.ndarray, res: np.ndarray,
@@ -377,14 +417,13 @@ def _vectors_panel(ax_vec, cam: CameraDetails, frame, uv: np.ndarray, res: np.nd
     sub = "" if pts.kept == pts.n_points else f", {pts.kept} drawn"
     # coverage: empty cells shaded
     cells = COVERAGE_CELLS
+    seen = np.zeros((cells, cells), dtype=bool)         # [column, row] of the grid
     if len(uv):
         idx = np.clip((uv / [w, h] * cells).astype(int), 0, cells - 1)
-        seen = {tuple(c) for c in np.unique(idx, axis=0)}
-    else:
-        seen = set()
+        seen[idx[:, 0], idx[:, 1]] = True
     # the empty cells and the grid as one collection each (an artist each costs ~1 ms)
     empty = [Rectangle((a * w / cells - 0.5, b * h / cells - 0.5), w / cells, h / cells)
-             for a in range(cells) for b in range(cells) if (a, b) not in seen]
+             for a in range(cells) for b in range(cells) if not seen[a, b]]
     if empty:
         ax_vec.add_collection(PatchCollection(empty, facecolors=HIGHLIGHT, alpha=0.08, lw=0,
                                               edgecolors="none"), autolim=False)
@@ -462,11 +501,7 @@ def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> byte
     from matplotlib.collections import PolyCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.colors import to_rgba  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
-    fig, axes, colours = _lanes(details, dpi, ["", ""])
-    ax, spare = axes
-    fig.delaxes(spare)
-    fig.subplots_adjust(right=0.98)
-    ax.set_position([0.1, ax.get_position().y0, 0.88, ax.get_position().height])
+    fig, (ax,), colours = _lanes(details, dpi, [""])
     m = len(details.cameras)
     rms = [c.points.rms_px if c.points is not None else np.zeros(0) for c in details.cameras]
     hi = max([float(np.nanmax(r)) for r in rms if np.any(np.isfinite(r))] + [1e-9])
@@ -522,7 +557,6 @@ def radial_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
-
     fig = Figure(figsize=(10.0, 3.2), dpi=dpi)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
@@ -536,6 +570,8 @@ def radial_png(details: RunDetails, *, dpi: int = 90) -> bytes:
                 label=cam.name)
     ax.set_ylim(0, None)
     ax.set_xlim(0, None)
+    ax.xaxis.set_major_locator(_locator())
+    ax.yaxis.set_major_locator(_locator(4))
     ax.grid(True, alpha=0.3)
     ax.tick_params(labelsize=8)
     ax.set_xlabel("distance from the principal point (px)", fontsize=8)

@@ -16,6 +16,7 @@ axis closest to the cameras' mean "up"; rotated, never mirrored.
 
 from __future__ import annotations
 
+import gc
 import math
 from dataclasses import dataclass
 
@@ -23,9 +24,8 @@ import numpy as np
 
 from multieye.io.calibration_json import ROLE_NAMES, SETUP_KEYS, CalibrationRecord
 from multieye.io.run_details import CameraDetails, RunDetails
-from multieye.outputs.figures import (_AXIS_COLOURS, _GREY, camera_colours, display_rotation,
-                                      frustum_corners)
-from io import BytesIO
+from multieye.outputs.figures import (_AXIS_COLOURS, _GREY, _locator, _png, camera_colours,
+                                      display_rotation, frustum_corners)
 
 __all__ = ["RIG_FIGURES", "RigFigures", "rig_pngs", "uncertainty_magnification", "place_labels",
            "warm_up"]
@@ -370,12 +370,6 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
     return RigFigures({name: _png(fig) for name, fig in figs.items()}, tuple(legend))
 
 
-def _png(fig) -> bytes:
-    buffer = BytesIO()
-    fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
-    return buffer.getvalue()
-
-
 def _label_axes(figs: dict, ax3, ax2, frame: str, labels) -> None:
     """Axis names in the fixed frame, ticks, the top view's equal aspect, grid and title."""
     for ax in (ax3, ax2):
@@ -383,6 +377,8 @@ def _label_axes(figs: dict, ax3, ax2, frame: str, labels) -> None:
         ax.set_ylabel(f"{frame} {labels[1]} (m)", fontsize=8, labelpad=1)
         ax.tick_params(labelsize=7, pad=0)
     ax3.set_zlabel(f"{frame} {labels[2]} (m)", fontsize=8, labelpad=1)
+    for axis in (ax3.xaxis, ax3.yaxis, ax3.zaxis, ax2.xaxis, ax2.yaxis):
+        axis.set_major_locator(_locator(4))      # at most 5 ticks: an artist each
     ax2.autoscale_view()
     ax2.set_aspect("equal", adjustable="datalim")
     ax2.grid(True, alpha=0.3)
@@ -507,9 +503,17 @@ def _annotate(ax, where: np.ndarray, texts: list[str], colours, dpi: int) -> Non
 
 
 def warm_up() -> None:
-    """Import and load what drawing needs: matplotlib's modules, the 3D axes of the rig,
-    the fonts and the PNG writer, by drawing a tiny figure (a figure worker's first work,
-    while the main process refines or writes; :mod:`multieye.outputs.report_draw`)."""
+    """Import and load what drawing needs, once for the figures a process draws after it
+    (and for the processes it forks: call it in the fork server of the figure workers).
+
+    matplotlib's modules, the 3D axes of the rig, the fonts and the PNG writer, by drawing a
+    tiny figure (the figures drawn next are then no slower the first time than later:
+    docs/results/report_speed.md); then :func:`gc.freeze`: everything made so far (modules,
+    classes, fonts, caches: about 10^5 objects) is left out of the garbage collector's full
+    collections, which then look only at what the figures make (60-100 ms a full collection
+    before, a few after; a forked worker also keeps sharing those pages with its parent
+    instead of copying them when the collector would touch them).
+    :mod:`multieye.outputs.report_draw`."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, imported ahead of drawing)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, imported ahead of drawing)
 
@@ -517,3 +521,4 @@ def warm_up() -> None:
     FigureCanvasAgg(fig)
     fig.add_subplot(projection="3d").set_title("x", fontweight="bold")
     _png(fig)
+    gc.freeze()
