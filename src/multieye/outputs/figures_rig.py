@@ -377,8 +377,9 @@ def _label_axes(figs: dict, ax3, ax2, frame: str, labels) -> None:
         ax.set_ylabel(f"{frame} {labels[1]} (m)", fontsize=8, labelpad=1)
         ax.tick_params(labelsize=7, pad=0)
     ax3.set_zlabel(f"{frame} {labels[2]} (m)", fontsize=8, labelpad=1)
-    for axis in (ax3.xaxis, ax3.yaxis, ax3.zaxis, ax2.xaxis, ax2.yaxis):
-        axis.set_major_locator(_locator(4))      # at most 5 ticks: an artist each
+    for axis, nbins in ((ax3.xaxis, 4), (ax3.yaxis, 4), (ax3.zaxis, 4), (ax2.xaxis, 5),
+                        (ax2.yaxis, 5)):
+        axis.set_major_locator(_locator(nbins))      # a tick costs artists: 4-6 of them
     ax2.autoscale_view()
     ax2.set_aspect("equal", adjustable="datalim")
     ax2.grid(True, alpha=0.3)
