@@ -16,12 +16,6 @@ per camera in one axes (an axes per camera would cost most of the time of the re
 
 A camera keeps its colour in every figure.  As in :mod:`multieye.experiments.figures`, only the Agg canvas
 is used (no pyplot, no global backend switch).
-
-Drawing conventions: the vertical of the pictures is the world axis closest to the cameras'
-mean "up" (their ``-y`` axis, image up), so that a y-up motion-capture world is not drawn lying
-on its side; the pictures are rotated (never mirrored) for that, and the axis labels say which
-world axis is shown.  Frustums use the pinhole part of the intrinsics (distortion ignored) and
-a depth proportional to the size of the rig.
 """
 
 from __future__ import annotations
@@ -32,14 +26,12 @@ from io import BytesIO
 
 import numpy as np
 
-from multieye.core.intrinsics import Intrinsics
 from multieye.io.run_details import CameraDetails, RunDetails
 from multieye.outputs.image_stats import (
     COVERAGE_CELLS, MAX_ARROWS, arrow_scale, coverage, image_frame, mean_vectors,
     position_bins, radial_bins, stacked, worst_images)
 
-__all__ = ["camera_colours", "frustum_corners", "display_rotation", "outliers",
-           "stamps_are_indices", "HIGHLIGHT", "residual_histograms_png",
+__all__ = ["camera_colours", "outliers", "stamps_are_indices", "HIGHLIGHT", "residual_histograms_png",
            "residuals_over_time_png", "camera_png", "camera_pngs", "draw_jobs",
            "image_rms_png", "radial_png"]
 
@@ -60,65 +52,6 @@ def camera_colours(n: int) -> list[str]:
     """One colour per camera, none of them the red of :data:`HIGHLIGHT` or a grey (16
     distinct, then repeated)."""
     return [_PALETTE[k % len(_PALETTE)] for k in range(n)]
-
-
-def frustum_corners(intrinsics: Intrinsics | None, depth: float) -> np.ndarray:
-    """Image corners at ``depth`` in the camera frame (x right, y down, z forward).
-
-    Parameters
-    ----------
-    intrinsics : Intrinsics or None
-        Pinhole part only (distortion ignored).  The image is ``width x height`` pixels, or
-        ``2 cx + 1`` by ``2 cy + 1`` when the size is unknown; None draws a 60 x 45 degree
-        field of view.
-    depth : float
-        Metres along the optical axis.
-
-    Returns
-    -------
-    ndarray, shape (4, 3)
-        Top-left, top-right, bottom-right, bottom-left, metres.
-    """
-    if intrinsics is None:
-        hx, hy = np.tan(np.radians(30.0)), np.tan(np.radians(22.5))
-        rays = np.array([[-hx, -hy, 1], [hx, -hy, 1], [hx, hy, 1], [-hx, hy, 1]])
-    else:
-        K = intrinsics.K
-        w = intrinsics.width if intrinsics.width is not None else 2 * K[0, 2] + 1
-        h = intrinsics.height if intrinsics.height is not None else 2 * K[1, 2] + 1
-        pix = np.array([[-0.5, -0.5, 1], [w - 0.5, -0.5, 1], [w - 0.5, h - 0.5, 1],
-                        [-0.5, h - 0.5, 1]])
-        rays = pix @ np.linalg.inv(K).T
-        rays /= rays[:, 2:3]
-    return rays * depth
-
-
-def display_rotation(up) -> tuple[np.ndarray, list[str]]:
-    """Rotation from the plotting frame to the display frame whose z is closest to ``up``.
-
-    Parameters
-    ----------
-    up : array_like, shape (3,)
-        The up direction in the plotting frame (need not be unit).
-
-    Returns
-    -------
-    P : ndarray, shape (3, 3)
-        Signed permutation with ``det P = +1`` (a rotation, never a mirror); display
-        coordinates are ``P @ p``.
-    labels : list of str
-        Which plotting axis each display axis shows, e.g. ``["y", "z", "x"]`` or ``["-y", ...]``.
-    """
-    up = np.asarray(up, dtype=np.float64)
-    a = int(np.argmax(np.abs(up)))
-    s = 1.0 if up[a] >= 0 else -1.0
-    b, c = (a + 1) % 3, (a + 2) % 3          # (b, c, a) is a cyclic order: det +1
-    P = np.zeros((3, 3))
-    P[0, b], P[1, c], P[2, a] = s, 1.0, s    # s * s = 1 keeps det +1
-    names = "xyz"
-    labels = [("-" if P[i].sum() < 0 else "") + names[int(np.flatnonzero(P[i])[0])]
-              for i in range(3)]
-    return P, labels
 
 
 def stamps_are_indices(stamps) -> bool:
@@ -226,6 +159,8 @@ def residual_histograms_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     stands out; bar heights are scaled to the fullest bin of the column.  The median (solid)
     and the mean (dashed) are marked and printed.
     """
+    from matplotlib.collections import PolyCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
     m = len(details.cameras)
     fig, axes, colours = _lanes(details, dpi, [f"{label}: histogram per camera"
                                                for _, label, _, _ in _METRICS])
@@ -234,12 +169,12 @@ def residual_histograms_png(details: RunDetails, *, dpi: int = 90) -> bytes:
         bins = np.linspace(0.0, hi * 1.02 if hi > 0 else 1.0, 26)
         counts = [np.histogram(getattr(c, key) * scale, bins=bins)[0] for c in details.cameras]
         top = max(max(int(c.max()) for c in counts), 1)
-        medians, means = [], []
+        medians, means, outlines = [], [], []
         for row, (cam, n) in enumerate(zip(details.cameras, counts)):
             y0 = m - 1 - row
             v = getattr(cam, key) * scale
-            ax.stairs(y0 + _LANE * n / top, bins, baseline=y0, fill=True, color=colours[row],
-                      alpha=0.8)
+            outlines.append(np.column_stack([np.repeat(bins, 2), np.concatenate(
+                [[y0], np.repeat(y0 + _LANE * n / top, 2), [y0]])]))   # the bars' outline
             med, mean = float(np.median(v)), float(np.mean(v))
             medians.append((med, y0))
             means.append((mean, y0))
@@ -247,6 +182,9 @@ def residual_histograms_png(details: RunDetails, *, dpi: int = 90) -> bytes:
                     f"{mean:.3g}{unit}  max {v.max():.3g}{unit}", ha="right", va="top",
                     fontsize=6.5, color="black",
                     bbox={"facecolor": "white", "alpha": 0.7, "lw": 0, "pad": 0.5})
+        # every camera's bars as one collection (a patch each costs ~2 ms to make)
+        ax.add_collection(PolyCollection(outlines, facecolors=colours, edgecolors="none",
+                                         lw=0, alpha=0.8), autolim=False)
         for marks, style in ((medians, "-"), (means, "--")):
             ax.vlines([x for x, _ in marks], [y for _, y in marks],
                       [y + _LANE for _, y in marks], colors="black", lw=1.0, linestyles=style)
@@ -264,6 +202,9 @@ def residuals_over_time_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     the largest residual of the column).  Measurements above three times their camera's
     median (:func:`outliers`) are circled in red.
     """
+    from matplotlib.collections import LineCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.colors import to_rgba_array  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
     m = len(details.cameras)
     times = not all(stamps_are_indices(c.stamps) for c in details.cameras)
     fig, axes, colours = _lanes(details, dpi, [f"{label}: over time per camera"
@@ -271,7 +212,7 @@ def residuals_over_time_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     for ax, (key, label, scale, unit) in zip(axes, _METRICS):
         hi = max(float(np.max(getattr(c, key))) * scale for c in details.cameras)
         hi = hi if hi > 0 else 1.0
-        bad_x, bad_y = [], []
+        curves, bad_x, bad_y = [], [], []
         for row, cam in enumerate(details.cameras):
             y0 = m - 1 - row
             t = cam.stamps - cam.stamps.min() if times else np.argsort(
@@ -279,13 +220,18 @@ def residuals_over_time_png(details: RunDetails, *, dpi: int = 90) -> bytes:
             v = getattr(cam, key) * scale
             order = np.argsort(t)
             y = y0 + _LANE * v / hi
-            ax.plot(t[order], y[order], color=colours[row], lw=0.9, marker="o", ms=2.5)
+            curves.append(np.column_stack([t[order], y[order]]))
             bad = outliers(v)
             bad_x += list(t[bad])
             bad_y += list(y[bad])
             if np.any(bad):
                 ax.text(0.995, (y0 + _LANE) / m, f"{int(bad.sum())} high", ha="right",
                         va="top", fontsize=6.5, color=HIGHLIGHT, transform=ax.transAxes)
+        # every camera's line, and its dots, as one collection (a line each costs more)
+        ax.add_collection(LineCollection(curves, colors=colours, lw=0.9))
+        dots = np.concatenate(curves)
+        ax.scatter(dots[:, 0], dots[:, 1], s=12, lw=0, c=np.repeat(
+            to_rgba_array(colours), [len(c) for c in curves], axis=0))
         if bad_x:
             ax.scatter(bad_x, bad_y, s=40, facecolors="none", edgecolors=HIGHLIGHT,
                        linewidths=1.2, zorder=4)
@@ -303,7 +249,7 @@ def _image_axes(ax, frame, title: str) -> None:
     from matplotlib.patches import Rectangle  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     w, h = frame.width, frame.height
-    ax.add_patch(Rectangle((-0.5, -0.5), w, h, fill=False, lw=1.4, color="black", zorder=5))
+    ax.add_artist(Rectangle((-0.5, -0.5), w, h, fill=False, lw=1.4, color="black", zorder=5))
     pad = 0.03 * max(w, h)
     ax.set_xlim(-0.5 - pad, w - 0.5 + pad)
     ax.set_ylim(h - 0.5 + pad, -0.5 - pad)
@@ -407,8 +353,7 @@ def _colour_bar_ticks(bar) -> None:
 def _vectors_panel(ax_vec, cam: CameraDetails, frame, uv: np.ndarray, res: np.ndarray,
                    colour) -> None:
     """The left panel of :func:`camera_png`: coverage, points and residual vectors."""
-    from matplotlib.collections import LineCollection, PatchCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
-    from matplotlib.patches import Rectangle  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.collections import LineCollection, PolyCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     pts = cam.points
     w, h = frame.width, frame.height
@@ -422,11 +367,12 @@ def _vectors_panel(ax_vec, cam: CameraDetails, frame, uv: np.ndarray, res: np.nd
         idx = np.clip((uv / [w, h] * cells).astype(int), 0, cells - 1)
         seen[idx[:, 0], idx[:, 1]] = True
     # the empty cells and the grid as one collection each (an artist each costs ~1 ms)
-    empty = [Rectangle((a * w / cells - 0.5, b * h / cells - 0.5), w / cells, h / cells)
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]]) * [w / cells, h / cells] - 0.5
+    empty = [corners + [a * w / cells, b * h / cells]
              for a in range(cells) for b in range(cells) if not seen[a, b]]
     if empty:
-        ax_vec.add_collection(PatchCollection(empty, facecolors=HIGHLIGHT, alpha=0.08, lw=0,
-                                              edgecolors="none"), autolim=False)
+        ax_vec.add_collection(PolyCollection(empty, facecolors=HIGHLIGHT, alpha=0.08, lw=0,
+                                             edgecolors="none"), autolim=False)
     pad = 0.03 * max(w, h)
     grid = [[(k * w / cells - 0.5, -0.5 - pad), (k * w / cells - 0.5, h - 0.5 + pad)]
             for k in range(1, cells)]
@@ -588,13 +534,7 @@ def radial_png(details: RunDetails, *, dpi: int = 90) -> bytes:
 
 def draw_jobs(jobs: Sequence[tuple]) -> dict[str, bytes]:
     """PNG bytes by file name of ``(file name, function of this module, arguments, cost)``
-    jobs (:func:`multieye.outputs.report_draw.figure_jobs`), drawn in this process, the
-    cameras' figures on one figure reused (:func:`camera_pngs`).  Here rather than in
+    jobs (:func:`multieye.outputs.report_draw.figure_jobs`), drawn in this process (the
+    cameras' figures on one figure reused, :func:`_camera_canvas`).  Here rather than in
     :mod:`~multieye.outputs.report_draw` so that a worker imports only this module."""
-    cameras = [(name, args) for name, func, args, _ in jobs if func is camera_png]
-    drawn = dict(zip([name for name, _ in cameras],
-                     camera_pngs([a[0] for _, a in cameras], [a[1] for _, a in cameras])))
-    for name, func, args, _ in jobs:
-        if func is not camera_png:
-            drawn[name] = func(*args)
-    return {name: drawn[name] for name, *_ in jobs}
+    return {name: func(*args) for name, func, args, _ in jobs}
