@@ -29,6 +29,7 @@ from multieye.outputs.image_stats import (
     ImageFrame,
     arrow_scale,
     coverage,
+    image_frame,
     mean_vectors,
     position_bins,
     radial_bins,
@@ -482,6 +483,14 @@ def test_log_colour_bar_ticks_are_plain_numbers(runs, monkeypatch):
         assert round(x / 10 ** np.floor(np.log10(x)), 6) in (1.0, 2.0, 5.0)
     assert {1.0, 10.0} <= {x for x, _ in ticks}
     assert len(bar.yaxis.get_minorticklocs()) == 0
+    # the figure reused by a camera drawn next, on a linear scale: as if drawn alone
+    linear = dataclasses.replace(details.cameras[1], projection_std=None)
+    frames = [image_frame(c) for c in (cam, linear)]
+    assert {(fr.width, fr.height) for fr in frames} == {(frames[0].width, frames[0].height)}
+    after_log = f.camera_png(linear)
+    assert figs[-1].axes[-1].get_yscale() == "linear"
+    f._camera_canvas.cache_clear()
+    assert f.camera_png(linear) == after_log
 
 
 def test_warm_up_loads_matplotlib_and_freezes_what_it_made():
