@@ -82,9 +82,9 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
     """A figure of an axes per title (rotation, translation), one lane per camera, top to
     bottom: as many axes whatever the number of cameras (small multiples cost an axes each).
 
-    Ticks cost an artist each (and their labels a glyph each): the cameras' names are the
-    first axes' only vertical ticks, and every axes has at most 6 ticks across
-    (:data:`_TICKS`)."""
+    Ticks cost three artists each (and their labels a glyph per character): the cameras'
+    names are texts left of the first axes, and every axes has at most 6 ticks across
+    (:data:`_TICKS`), none up."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.collections import LineCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
@@ -94,9 +94,9 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
     FigureCanvasAgg(fig)
     axes = list(fig.subplots(1, len(titles), squeeze=False)[0])
     colours = camera_colours(m)
-    for k, (ax, title) in enumerate(zip(axes, titles)):
+    for ax, title in zip(axes, titles):
         ax.set_ylim(-0.15, m)
-        ax.set_yticks(np.arange(m)[::-1] + 0.4 if k == 0 else [])
+        ax.set_yticks([])
         ax.xaxis.set_major_locator(_locator())
         ax.set_title(title, fontsize=9, loc="left", y=1.0)
         ax.tick_params(labelsize=8, length=2)
@@ -105,9 +105,9 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
         ax.add_collection(LineCollection([[(0, y - 0.07), (1, y - 0.07)] for y in range(1, m)],
                                          transform=ax.get_yaxis_transform(), colors=_GREY,
                                          lw=0.4, alpha=0.5, zorder=2), autolim=False)
-    axes[0].set_yticklabels([c.name for c in details.cameras], fontsize=8, fontweight="bold")
-    for tick, col in zip(axes[0].get_yticklabels(), colours):
-        tick.set_color(col)
+    for row, (cam, colour) in enumerate(zip(details.cameras, colours)):   # texts, not ticks
+        axes[0].text(-0.005, m - 0.6 - row, cam.name, transform=axes[0].get_yaxis_transform(),
+                     ha="right", va="center", fontsize=8, fontweight="bold", color=colour)
     fig.subplots_adjust(left=0.1, right=0.98, wspace=0.06, top=1 - 0.45 / fig.get_figheight(),
                         bottom=0.55 / fig.get_figheight())
     return fig, axes, colours
