@@ -31,9 +31,9 @@ from multieye.outputs.image_stats import (
     COVERAGE_CELLS, MAX_ARROWS, arrow_scale, coverage, image_frame, mean_vectors,
     position_bins, radial_bins, stacked, worst_images)
 
-__all__ = ["camera_colours", "outliers", "stamps_are_indices", "HIGHLIGHT", "residual_histograms_png",
-           "residuals_over_time_png", "camera_png", "camera_pngs", "draw_jobs",
-           "image_rms_png", "radial_png"]
+__all__ = ["camera_colours", "outliers", "stamps_are_indices", "HIGHLIGHT",
+           "residual_histograms_png", "residuals_over_time_png", "camera_png", "camera_pngs",
+           "draw_jobs", "image_rms_png", "radial_png"]
 
 _AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")  # x red, y green, z blue
 _GREY = "#7f7f7f"
