@@ -43,6 +43,17 @@ Run from the repository root::
    ``total - reading - detection`` (pairing, closed form, refinement and outputs: from the
    end of the detection to the outputs written), then the medians.
 
+5. With ``--figures OUT`` (an output folder of a finished run: its calibration.json and
+   details.json): the CPU seconds (``time.process_time``) of every figure, in a fresh
+   interpreter that imports what the detection's fork server has (numpy, OpenCV, the
+   imaging modules), then matplotlib's modules and :func:`multieye.outputs.figures_rig.
+   warm_up`, then draws each job of :func:`multieye.outputs.report_draw.figure_jobs` and
+   the rig's pictures once (``job:``, each camera's figure on its own), then the figure
+   workers' tasks (``task:``, :func:`multieye.outputs.report_draw._tasks` with 2 batches
+   of cameras: what the two workers draw, in one process here) twice, and the images with
+   their detections (``thumbnails``, from the folders of ``--dataset``).  ``--repeats``
+   interpreters per source, alternately with ``--against OTHER_SRC``; medians.
+
 The wall times depend on what else runs on the machine (the load average is printed); the
 CPU seconds much less.
 """
@@ -268,6 +279,64 @@ def run_against(datasets: list[Path], srcs: dict[str, Path], repeats: int) -> No
                       f"{med['refinement']:.2f}, outputs {med['outputs']:.2f})", flush=True)
 
 
+_FIGURES = r"""
+import json, sys, time
+import multieye.imaging.batch                   # what the detection's fork server imported
+from multieye.io.calibration_json import read_calibration
+from multieye.io.run_details import read_run_details
+from multieye.outputs import report_draw, report_images
+out, dataset = sys.argv[1], sys.argv[2]
+t = {}
+c = time.process_time()
+import matplotlib.figure, matplotlib.backends.backend_agg  # noqa: F401
+t["import matplotlib"] = time.process_time() - c
+from multieye.outputs import figures_rig
+c = time.process_time()
+figures_rig.warm_up()
+t["warm_up"] = time.process_time() - c
+rec = read_calibration(f"{out}/calibration.json")
+details = read_run_details(f"{out}/details.json")
+jobs = report_draw.figure_jobs(rec, details)
+for name, func, args, _ in jobs:
+    c = time.process_time(); func(*args); t["job: " + name] = time.process_time() - c
+c = time.process_time(); figures_rig.rig_pngs(rec, details)
+t["job: rig_3d.png + rig_top.png"] = time.process_time() - c
+t["job: all"] = sum(v for k, v in t.items() if k.startswith("job: "))
+for rerun in ("", " again"):
+    for k, (_, func, args) in enumerate(report_draw._tasks(rec, details, jobs, 2)):
+        c = time.process_time(); drawn = func(*args)
+        names = "rig" if func is figures_rig.rig_pngs else " + ".join(drawn)
+        t[f"task{rerun}: {k} {names}"] = time.process_time() - c
+    t[f"task{rerun}: all"] = sum(v for k, v in t.items() if k.startswith(f"task{rerun}: "))
+folders = {c.name: f"{dataset}/{c.name}" for c in rec.cameras}
+c = time.process_time(); report_images.image_thumbnails(rec, details, folders)
+t["thumbnails"] = time.process_time() - c
+print(json.dumps(t))
+"""
+
+
+def run_figures(out: Path, dataset: Path, srcs: dict[str, Path], repeats: int) -> None:
+    """Every figure's CPU seconds (``--figures``), each source in a fresh interpreter in
+    turn; prints each run's total and every figure's median."""
+    rows: dict[str, list[dict]] = {name: [] for name in srcs}
+    for k in range(repeats):
+        for name in (list(srcs) if k % 2 == 0 else list(srcs)[::-1]):
+            env = dict(os.environ, PYTHONPATH=str(srcs[name]))
+            proc = subprocess.run([sys.executable, "-c", _FIGURES, str(out), str(dataset)],
+                                  capture_output=True, text=True, env=env, cwd=ROOT)
+            if proc.returncode != 0:
+                raise SystemExit(f"drawing failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+            rows[name].append(json.loads(proc.stdout.splitlines()[-1]))
+            r = rows[name][-1]
+            print(f"{name}: jobs {r['job: all']:.3f} CPU-s, tasks {r['task: all']:.3f} "
+                  f"(again {r['task again: all']:.3f}), warm_up {r['warm_up']:.3f}, "
+                  f"load {os.getloadavg()[0]:.1f}", flush=True)
+    print(f"CPU-s, medians of {repeats}: " + " | ".join(srcs))
+    for key in rows[next(iter(srcs))][-1]:
+        print(f"  {key:60s} " + "  ".join(
+            f"{statistics.median(r.get(key, float('nan')) for r in rows[n]):7.3f}" for n in srcs))
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cameras", type=int, nargs="*", default=[4, 16])
@@ -287,9 +356,18 @@ def main(argv=None) -> None:
     parser.add_argument("--against", type=Path, default=None, metavar="OTHER_SRC",
                         help="time the plain command with --src and with OTHER_SRC, "
                              "alternately, on --dataset (default peers_4x100)")
+    parser.add_argument("--figures", type=Path, default=None, metavar="OUT",
+                        help="every figure's CPU seconds, from OUT's calibration.json and "
+                             "details.json (the images of --dataset, default peers_4x100)")
     args = parser.parse_args(argv)
     src = args.src.resolve()
     print(f"sources: {src}")
+    if args.figures is not None:
+        srcs = {"this": src} if args.against is None else {"this": src,
+                                                            "other": args.against.resolve()}
+        run_figures(args.figures.resolve(), (args.dataset or [CACHE / "peers_4x100"])[0],
+                    srcs, args.repeats)
+        return
     if args.against is not None:
         run_against(args.dataset or [CACHE / "peers_4x100"],
                     {"this": src, "other": args.against.resolve()}, args.repeats)

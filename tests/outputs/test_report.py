@@ -31,7 +31,8 @@ from multieye.io.run_details import (
     run_details_to_dict,
 )
 from multieye.outputs.details import write_run_details
-from multieye.outputs.figures import display_rotation, frustum_corners, outliers
+from multieye.outputs.figures import outliers
+from multieye.outputs.figures_rig import display_rotation, frustum_corners
 from multieye.outputs.report import FIGURES, write_report
 from multieye.outputs.report_images import image_folders
 from multieye.outputs.write import write_outputs

@@ -8,8 +8,11 @@ calibrated twice: with the intrinsics files it comes with (given, held fixed) an
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -26,12 +29,15 @@ from multieye.outputs.image_stats import (
     ImageFrame,
     arrow_scale,
     coverage,
+    image_frame,
     mean_vectors,
     position_bins,
     radial_bins,
+    stacked,
 )
 from multieye.outputs.report import load_details, write_report
 from multieye.outputs import figure_workers
+from multieye.outputs.figures_rig import rig_pngs
 from multieye.outputs.report_draw import figure_jobs
 from multieye.outputs.report_cameras import camera_figure_names
 from multieye.outputs.report_images import image_folders
@@ -359,6 +365,146 @@ def test_camera_figures_drawn_on_one_figure_are_the_same_as_alone(runs):
     details, _ = load_details(src, rec)
     cams = [details.camera(c.name) for c in rec.cameras]
     colours = f.camera_colours(len(cams))
-    alone = [f.camera_png(c, col) for c, col in zip(cams, colours)]
+    alone = []
+    for c, col in zip(cams, colours):
+        f._camera_canvas.cache_clear()          # a figure of its own
+        alone.append(f.camera_png(c, col))
     assert len(set(alone)) == len(cams)
     assert f.camera_pngs(cams[::-1], colours[::-1]) == alone[::-1]
+    assert [f.camera_png(c, col) for c, col in zip(cams, colours)] == alone
+
+
+# --------------------------------------------------------------------------- what is drawn
+
+
+def _drawn(monkeypatch) -> list:
+    """The matplotlib figures that the figure functions encode next, in order."""
+    from multieye.outputs import figures_rig
+
+    figs, encode = [], f._png
+
+    def keep(fig):
+        figs.append(fig)
+        return encode(fig)
+    monkeypatch.setattr(f, "_png", keep)
+    monkeypatch.setattr(figures_rig, "_png", keep)
+    return figs
+
+
+def _texts(fig) -> list[str]:
+    """Every visible text of a figure: titles, labels, tick labels, annotations, legends."""
+    from matplotlib.quiver import QuiverKey
+    from matplotlib.text import Text
+
+    texts = [*fig.findobj(Text), *(key.text for key in fig.findobj(QuiverKey))]
+    return [t.get_text() for t in texts if t.get_visible() and t.get_text()]
+
+
+def test_figures_carry_their_statistics_and_labels(runs, monkeypatch):
+    """Cheaper figures (fewer ticks, text without hinting, one canvas for the cameras) still
+    say the same: per camera its name in its colour and its statistics, the axis labels, the
+    numbered worst images, the colour bar's label, the rig's camera labels."""
+    import matplotlib
+
+    src = runs["model"][1]
+    rec = read_calibration(src / "calibration.json")
+    details, _ = load_details(src, rec)
+    colours = f.camera_colours(len(details.cameras))
+    figs = _drawn(monkeypatch)
+    hinting = matplotlib.rcParams["text.hinting"]
+    f.residual_histograms_png(details)
+    f.residuals_over_time_png(details)
+    f.image_rms_png(details)
+    f.radial_png(details)
+    assert matplotlib.rcParams["text.hinting"] == hinting       # set while drawing only
+    hist, over_time, rms, radial = (_texts(fig) for fig in figs)
+    for cam, colour in zip(details.cameras, colours):
+        for values, unit in ((cam.rot_deg, "°"), (cam.trans_m * 1e3, " mm")):
+            stats = (f"n={values.size}  median {np.median(values):.3g}{unit}  mean "
+                     f"{np.mean(values):.3g}{unit}  max {np.max(values):.3g}{unit}")
+            assert stats in hist
+        for fig in figs[:3]:          # the lanes' names, in the cameras' colours
+            names = [t for t in fig.axes[0].texts if t.get_text() == cam.name]
+            assert len(names) == 1 and names[0].get_color() == colour
+            assert names[0].get_fontweight() == "bold"
+        assert cam.name in radial                                  # the legend
+    for title in ("rotation residual (deg): histogram per camera",
+                  "translation residual (mm): histogram per camera"):
+        assert title in hist
+    hi = max(float(np.max(c.rot_deg)) for c in details.cameras)
+    assert (f"time since the camera's first used image (s); full lane = {hi:.3g}°"
+            in over_time)
+    assert rms.count("1") >= len(details.cameras) and "3" in rms      # worst, numbered
+    assert "RMS residual (px)" in radial
+    for fig in figs[:2]:          # ticks across: at most 6 in view, numbers at round steps
+        for ax in fig.axes:
+            lo, hi = ax.get_xlim()
+            shown = [x for x in ax.get_xticks() if lo <= x <= hi]
+            assert 3 <= len(shown) <= 6, shown
+    figs.clear()
+    cam = details.cameras[0]
+    f.camera_png(cam, colours[0])
+    texts = _texts(figs[0])
+    _, res = stacked(cam)
+    rms_px = float(np.sqrt(np.nanmean(np.sum(res ** 2, axis=1))))
+    assert cam.name in texts
+    assert any(f"RMS {rms_px:.3f} px" in t for t in texts)
+    assert any("px (arrows ×" in t for t in texts)                 # the arrows' key
+    assert "σ (px)" in texts                                        # the colour bar's label
+    figs.clear()
+    rig = rig_pngs(rec, details)
+    assert len(figs) == 2 and sorted(rig.pngs) == ["rig_3d.png", "rig_top.png"]
+    for fig in figs:
+        texts = _texts(fig)
+        for c in rec.cameras:
+            assert any(t.startswith(c.name) for t in texts)
+        assert sum(t.endswith("(m)") for t in texts) >= 2           # the axes' names
+
+
+def test_log_colour_bar_ticks_are_plain_numbers(runs, monkeypatch):
+    """A projection σ spanning decades is drawn on a log scale whose ticks are numbers at
+    1, 2 and 5 times a power of ten, without mathtext (``10^k``) or minor ticks."""
+    src = runs["model"][1]
+    rec = read_calibration(src / "calibration.json")
+    details, _ = load_details(src, rec)
+    cam = details.cameras[0]
+    ps = cam.projection_std
+    spread = np.geomspace(0.05, 30.0, ps.std_px.size).reshape(ps.std_px.shape)
+    cam = dataclasses.replace(cam, projection_std=dataclasses.replace(ps, std_px=spread))
+    figs = _drawn(monkeypatch)
+    f.camera_png(cam)
+    bar = figs[0].axes[-1]                                          # the colour bar's axes
+    assert bar.get_yscale() == "log"
+    lo, hi = sorted(bar.get_ylim())
+    ticks = [(x, t.get_text()) for x, t in zip(bar.get_yticks(), bar.get_yticklabels())
+             if lo <= x <= hi]
+    assert len(ticks) >= 5
+    for x, text in ticks:
+        assert "$" not in text and float(text) == pytest.approx(x)
+        assert round(x / 10 ** np.floor(np.log10(x)), 6) in (1.0, 2.0, 5.0)
+    assert {1.0, 10.0} <= {x for x, _ in ticks}
+    assert len(bar.yaxis.get_minorticklocs()) == 0
+    # the figure reused by a camera drawn next, on a linear scale: as if drawn alone
+    linear = dataclasses.replace(details.cameras[1], projection_std=None)
+    frames = [image_frame(c) for c in (cam, linear)]
+    assert {(fr.width, fr.height) for fr in frames} == {(frames[0].width, frames[0].height)}
+    after_log = f.camera_png(linear)
+    assert figs[-1].axes[-1].get_yscale() == "linear"
+    f._camera_canvas.cache_clear()
+    assert f.camera_png(linear) == after_log
+
+
+def test_warm_up_loads_matplotlib_and_freezes_what_it_made():
+    """After :func:`~multieye.outputs.figures_rig.warm_up` the figure modules' imports are
+    done and the objects made so far are out of the garbage collector's full collections
+    (what a figure worker forked after it inherits)."""
+    code = ("import gc, sys\nfrom multieye.outputs.figures_rig import warm_up\n"
+            "before = gc.get_freeze_count()\nwarm_up()\n"
+            "print(before, gc.get_freeze_count(), 'matplotlib.figure' in sys.modules, "
+            "'mpl_toolkits.mplot3d' in sys.modules)")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    before, after, figure, axes3d = run.stdout.split()
+    assert int(before) == 0 and int(after) > 10_000
+    assert figure == axes3d == "True"

@@ -16,42 +16,24 @@ per camera in one axes (an axes per camera would cost most of the time of the re
 
 A camera keeps its colour in every figure.  As in :mod:`multieye.experiments.figures`, only the Agg canvas
 is used (no pyplot, no global backend switch).
-
-Drawing conventions: the vertical of the pictures is the world axis closest to the cameras'
-mean "up" (their ``-y`` axis, image up), so that a y-up motion-capture world is not drawn lying
-on its side; the pictures are rotated (never mirrored) for that, and the axis labels say which
-world axis is shown.  Frustums use the pinhole part of the intrinsics (distortion ignored) and
-a depth proportional to the size of the rig.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
+from io import BytesIO
 
 import numpy as np
 
-from multieye.core.intrinsics import Intrinsics
 from multieye.io.run_details import CameraDetails, RunDetails
-from io import BytesIO
 from multieye.outputs.image_stats import (
     COVERAGE_CELLS, MAX_ARROWS, arrow_scale, coverage, image_frame, mean_vectors,
     position_bins, radial_bins, stacked, worst_images)
 
-__all__ = [
-    "camera_colours",
-    "frustum_corners",
-    "display_rotation",
-    "outliers",
-    "stamps_are_indices",
-    "HIGHLIGHT",
-    "residual_histograms_png",
-    "residuals_over_time_png",
-    "camera_png",
-    "camera_pngs",
-    "draw_jobs",
-    "image_rms_png",
-    "radial_png",
-]
+__all__ = ["camera_colours", "outliers", "stamps_are_indices", "HIGHLIGHT",
+           "residual_histograms_png", "residuals_over_time_png", "camera_png", "camera_pngs",
+           "draw_jobs", "image_rms_png", "radial_png"]
 
 _AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")  # x red, y green, z blue
 _GREY = "#7f7f7f"
@@ -70,65 +52,6 @@ def camera_colours(n: int) -> list[str]:
     """One colour per camera, none of them the red of :data:`HIGHLIGHT` or a grey (16
     distinct, then repeated)."""
     return [_PALETTE[k % len(_PALETTE)] for k in range(n)]
-
-
-def frustum_corners(intrinsics: Intrinsics | None, depth: float) -> np.ndarray:
-    """Image corners at ``depth`` in the camera frame (x right, y down, z forward).
-
-    Parameters
-    ----------
-    intrinsics : Intrinsics or None
-        Pinhole part only (distortion ignored).  The image is ``width x height`` pixels, or
-        ``2 cx + 1`` by ``2 cy + 1`` when the size is unknown; None draws a 60 x 45 degree
-        field of view.
-    depth : float
-        Metres along the optical axis.
-
-    Returns
-    -------
-    ndarray, shape (4, 3)
-        Top-left, top-right, bottom-right, bottom-left, metres.
-    """
-    if intrinsics is None:
-        hx, hy = np.tan(np.radians(30.0)), np.tan(np.radians(22.5))
-        rays = np.array([[-hx, -hy, 1], [hx, -hy, 1], [hx, hy, 1], [-hx, hy, 1]])
-    else:
-        K = intrinsics.K
-        w = intrinsics.width if intrinsics.width is not None else 2 * K[0, 2] + 1
-        h = intrinsics.height if intrinsics.height is not None else 2 * K[1, 2] + 1
-        pix = np.array([[-0.5, -0.5, 1], [w - 0.5, -0.5, 1], [w - 0.5, h - 0.5, 1],
-                        [-0.5, h - 0.5, 1]])
-        rays = pix @ np.linalg.inv(K).T
-        rays /= rays[:, 2:3]
-    return rays * depth
-
-
-def display_rotation(up) -> tuple[np.ndarray, list[str]]:
-    """Rotation from the plotting frame to the display frame whose z is closest to ``up``.
-
-    Parameters
-    ----------
-    up : array_like, shape (3,)
-        The up direction in the plotting frame (need not be unit).
-
-    Returns
-    -------
-    P : ndarray, shape (3, 3)
-        Signed permutation with ``det P = +1`` (a rotation, never a mirror); display
-        coordinates are ``P @ p``.
-    labels : list of str
-        Which plotting axis each display axis shows, e.g. ``["y", "z", "x"]`` or ``["-y", ...]``.
-    """
-    up = np.asarray(up, dtype=np.float64)
-    a = int(np.argmax(np.abs(up)))
-    s = 1.0 if up[a] >= 0 else -1.0
-    b, c = (a + 1) % 3, (a + 2) % 3          # (b, c, a) is a cyclic order: det +1
-    P = np.zeros((3, 3))
-    P[0, b], P[1, c], P[2, a] = s, 1.0, s    # s * s = 1 keeps det +1
-    names = "xyz"
-    labels = [("-" if P[i].sum() < 0 else "") + names[int(np.flatnonzero(P[i])[0])]
-              for i in range(3)]
-    return P, labels
 
 
 def stamps_are_indices(stamps) -> bool:
@@ -156,8 +79,12 @@ def outliers(values, factor: float = 3.0) -> np.ndarray:
 
 
 def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
-    """A figure of two axes (rotation, translation), one lane per camera, top to bottom:
-    two axes whatever the number of cameras (small multiples cost an axes each)."""
+    """A figure of an axes per title (rotation, translation), one lane per camera, top to
+    bottom: as many axes whatever the number of cameras (small multiples cost an axes each).
+
+    Ticks cost three artists each (and their labels a glyph per character): the cameras'
+    names are texts left of the first axes, and every axes has at most 6 ticks across
+    (:data:`_TICKS`), none up."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.collections import LineCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
@@ -165,11 +92,12 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
     m = len(details.cameras)
     fig = Figure(figsize=(10.0, 1.2 + 0.5 * max(m, 2)), dpi=dpi)
     FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2, sharey=True)
+    axes = list(fig.subplots(1, len(titles), squeeze=False)[0])
     colours = camera_colours(m)
     for ax, title in zip(axes, titles):
         ax.set_ylim(-0.15, m)
-        ax.set_yticks(np.arange(m)[::-1] + 0.4)
+        ax.set_yticks([])
+        ax.xaxis.set_major_locator(_locator())
         ax.set_title(title, fontsize=9, loc="left", y=1.0)
         ax.tick_params(labelsize=8, length=2)
         ax.grid(True, axis="x", alpha=0.3)
@@ -177,18 +105,40 @@ def _lanes(details: RunDetails, dpi: int, titles: Sequence[str]):
         ax.add_collection(LineCollection([[(0, y - 0.07), (1, y - 0.07)] for y in range(1, m)],
                                          transform=ax.get_yaxis_transform(), colors=_GREY,
                                          lw=0.4, alpha=0.5, zorder=2), autolim=False)
-    axes[0].set_yticklabels([c.name for c in details.cameras], fontsize=8, fontweight="bold")
-    for tick, col in zip(axes[0].get_yticklabels(), colours):
-        tick.set_color(col)
+    for row, (cam, colour) in enumerate(zip(details.cameras, colours)):   # texts, not ticks
+        axes[0].text(-0.005, m - 0.6 - row, cam.name, transform=axes[0].get_yaxis_transform(),
+                     ha="right", va="center", fontsize=8, fontweight="bold", color=colour)
     fig.subplots_adjust(left=0.1, right=0.98, wspace=0.06, top=1 - 0.45 / fig.get_figheight(),
                         bottom=0.55 / fig.get_figheight())
     return fig, axes, colours
 
 
+#: At most this many intervals between the ticks of an axis (MaxNLocator's ``nbins``).
+_TICKS = 5
+
+
+def _locator(nbins: int = _TICKS):
+    """At most ``nbins + 1`` ticks at round numbers (1, 2, 2.5 or 5 times a power of ten, as
+    matplotlib's default): a tick costs two artists and its label a glyph per character."""
+    from matplotlib.ticker import MaxNLocator  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
+    return MaxNLocator(nbins=nbins, steps=[1, 2, 2.5, 5, 10])
+
+
+#: matplotlib settings of the report's figures while they are drawn (:func:`_png`): glyphs
+#: rendered without hinting (matplotlib renders text glyph by glyph, hinted glyphs cost 1.6x
+#: as much; at 90-100 dpi the text looks the same, docs/results/report_speed.md).
+_RC = {"text.hinting": "no_hinting"}
+
+
 def _png(fig) -> bytes:
+    """The figure drawn with the settings :data:`_RC` and encoded as PNG (zlib level 3: these
+    figures come out no larger than at the default level 6, in two thirds of its time)."""
+    from matplotlib import rc_context  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     buffer = BytesIO()
-    fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
+    with rc_context(_RC):
+        fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
     return buffer.getvalue()
 
 
@@ -209,6 +159,8 @@ def residual_histograms_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     stands out; bar heights are scaled to the fullest bin of the column.  The median (solid)
     and the mean (dashed) are marked and printed.
     """
+    from matplotlib.collections import PolyCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
     m = len(details.cameras)
     fig, axes, colours = _lanes(details, dpi, [f"{label}: histogram per camera"
                                                for _, label, _, _ in _METRICS])
@@ -217,12 +169,12 @@ def residual_histograms_png(details: RunDetails, *, dpi: int = 90) -> bytes:
         bins = np.linspace(0.0, hi * 1.02 if hi > 0 else 1.0, 26)
         counts = [np.histogram(getattr(c, key) * scale, bins=bins)[0] for c in details.cameras]
         top = max(max(int(c.max()) for c in counts), 1)
-        medians, means = [], []
+        medians, means, outlines = [], [], []
         for row, (cam, n) in enumerate(zip(details.cameras, counts)):
             y0 = m - 1 - row
             v = getattr(cam, key) * scale
-            ax.stairs(y0 + _LANE * n / top, bins, baseline=y0, fill=True, color=colours[row],
-                      alpha=0.8)
+            outlines.append(np.column_stack([np.repeat(bins, 2), np.concatenate(
+                [[y0], np.repeat(y0 + _LANE * n / top, 2), [y0]])]))   # the bars' outline
             med, mean = float(np.median(v)), float(np.mean(v))
             medians.append((med, y0))
             means.append((mean, y0))
@@ -230,6 +182,9 @@ def residual_histograms_png(details: RunDetails, *, dpi: int = 90) -> bytes:
                     f"{mean:.3g}{unit}  max {v.max():.3g}{unit}", ha="right", va="top",
                     fontsize=6.5, color="black",
                     bbox={"facecolor": "white", "alpha": 0.7, "lw": 0, "pad": 0.5})
+        # every camera's bars as one collection (a patch each costs ~2 ms to make)
+        ax.add_collection(PolyCollection(outlines, facecolors=colours, edgecolors="none",
+                                         lw=0, alpha=0.8), autolim=False)
         for marks, style in ((medians, "-"), (means, "--")):
             ax.vlines([x for x, _ in marks], [y for _, y in marks],
                       [y + _LANE for _, y in marks], colors="black", lw=1.0, linestyles=style)
@@ -247,6 +202,9 @@ def residuals_over_time_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     the largest residual of the column).  Measurements above three times their camera's
     median (:func:`outliers`) are circled in red.
     """
+    from matplotlib.collections import LineCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.colors import to_rgba_array  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
     m = len(details.cameras)
     times = not all(stamps_are_indices(c.stamps) for c in details.cameras)
     fig, axes, colours = _lanes(details, dpi, [f"{label}: over time per camera"
@@ -254,7 +212,7 @@ def residuals_over_time_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     for ax, (key, label, scale, unit) in zip(axes, _METRICS):
         hi = max(float(np.max(getattr(c, key))) * scale for c in details.cameras)
         hi = hi if hi > 0 else 1.0
-        bad_x, bad_y = [], []
+        curves, bad_x, bad_y = [], [], []
         for row, cam in enumerate(details.cameras):
             y0 = m - 1 - row
             t = cam.stamps - cam.stamps.min() if times else np.argsort(
@@ -262,13 +220,18 @@ def residuals_over_time_png(details: RunDetails, *, dpi: int = 90) -> bytes:
             v = getattr(cam, key) * scale
             order = np.argsort(t)
             y = y0 + _LANE * v / hi
-            ax.plot(t[order], y[order], color=colours[row], lw=0.9, marker="o", ms=2.5)
+            curves.append(np.column_stack([t[order], y[order]]))
             bad = outliers(v)
             bad_x += list(t[bad])
             bad_y += list(y[bad])
             if np.any(bad):
                 ax.text(0.995, (y0 + _LANE) / m, f"{int(bad.sum())} high", ha="right",
                         va="top", fontsize=6.5, color=HIGHLIGHT, transform=ax.transAxes)
+        # every camera's line, and its dots, as one collection (a line each costs more)
+        ax.add_collection(LineCollection(curves, colors=colours, lw=0.9))
+        dots = np.concatenate(curves)
+        ax.scatter(dots[:, 0], dots[:, 1], s=12, lw=0, c=np.repeat(
+            to_rgba_array(colours), [len(c) for c in curves], axis=0))
         if bad_x:
             ax.scatter(bad_x, bad_y, s=40, facecolors="none", edgecolors=HIGHLIGHT,
                        linewidths=1.2, zorder=4)
@@ -286,7 +249,7 @@ def _image_axes(ax, frame, title: str) -> None:
     from matplotlib.patches import Rectangle  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     w, h = frame.width, frame.height
-    ax.add_patch(Rectangle((-0.5, -0.5), w, h, fill=False, lw=1.4, color="black", zorder=5))
+    ax.add_artist(Rectangle((-0.5, -0.5), w, h, fill=False, lw=1.4, color="black", zorder=5))
     pad = 0.03 * max(w, h)
     ax.set_xlim(-0.5 - pad, w - 0.5 + pad)
     ax.set_ylim(h - 0.5 + pad, -0.5 - pad)
@@ -317,14 +280,21 @@ def camera_pngs(cams: Sequence[CameraDetails], colours: Sequence, *, dpi: int = 
     """:func:`camera_png` of each camera (same bytes), drawn on one figure while the images
     keep their shape: the axes and the colour bar are made once and only the data is
     replaced (making an axes costs more than drawing the camera's data)."""
-    canvas, out = None, []
+    out = []
     for cam, colour in zip(cams, colours):
         frame = image_frame(cam)
-        size = (10.0, 0.9 + 4.6 * frame.height / frame.width)
-        if canvas is None or canvas.size != size:
-            canvas = _CameraCanvas(size, dpi)
-        out.append(canvas.png(cam, colour))
+        out.append(_camera_canvas((10.0, 0.9 + 4.6 * frame.height / frame.width), dpi)
+                   .png(cam, colour))
     return out
+
+
+@functools.lru_cache(maxsize=1)
+def _camera_canvas(size: tuple[float, float], dpi: int) -> _CameraCanvas:
+    """The figure of :func:`camera_png` for images of one shape, kept for the next camera
+    drawn by this process (making it, its axes and its colour bar, costs a third of a
+    camera's figure): one figure, whatever the calls (:func:`camera_pngs` per batch,
+    :func:`camera_png` per camera).  Not for threads (nor is matplotlib)."""
+    return _CameraCanvas(size, dpi)
 
 
 class _CameraCanvas:
@@ -355,6 +325,7 @@ class _CameraCanvas:
             self.bar = fig.colorbar(im, ax=ax_map, fraction=0.046, pad=0.02)
         else:
             self.bar.update_normal(im)
+        _colour_bar_ticks(self.bar)
         self.bar.ax.tick_params(labelsize=7)
         self.bar.set_label(label, fontsize=7.5)
         fig.suptitle(cam.name, x=0.01, ha="left", fontsize=11, fontweight="bold",
@@ -364,11 +335,25 @@ class _CameraCanvas:
         return _png(fig)
 
 
+def _colour_bar_ticks(bar) -> None:
+    """At most 6 ticks on a linear colour bar; on a logarithmic one 1, 2 and 5 times the
+    powers of ten as plain numbers, no minor ticks (matplotlib's ``10^k`` in mathtext with
+    unlabelled minor ticks costs as much as the rest of the figure the first time)."""
+    from matplotlib.colors import LogNorm  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.ticker import FormatStrFormatter, LogLocator  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+
+    if isinstance(bar.norm, LogNorm):
+        bar.locator = LogLocator(subs=(1.0, 2.0, 5.0))
+        bar.formatter = FormatStrFormatter("%g")
+        bar.minorticks_off()
+    else:
+        bar.locator = _locator()
+
+
 def _vectors_panel(ax_vec, cam: CameraDetails, frame, uv: np.ndarray, res: np.ndarray,
                    colour) -> None:
     """The left panel of :func:`camera_png`: coverage, points and residual vectors."""
-    from matplotlib.collections import LineCollection, PatchCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
-    from matplotlib.patches import Rectangle  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
+    from matplotlib.collections import LineCollection, PolyCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
     pts = cam.points
     w, h = frame.width, frame.height
@@ -377,17 +362,17 @@ def _vectors_panel(ax_vec, cam: CameraDetails, frame, uv: np.ndarray, res: np.nd
     sub = "" if pts.kept == pts.n_points else f", {pts.kept} drawn"
     # coverage: empty cells shaded
     cells = COVERAGE_CELLS
+    seen = np.zeros((cells, cells), dtype=bool)         # [column, row] of the grid
     if len(uv):
         idx = np.clip((uv / [w, h] * cells).astype(int), 0, cells - 1)
-        seen = {tuple(c) for c in np.unique(idx, axis=0)}
-    else:
-        seen = set()
+        seen[idx[:, 0], idx[:, 1]] = True
     # the empty cells and the grid as one collection each (an artist each costs ~1 ms)
-    empty = [Rectangle((a * w / cells - 0.5, b * h / cells - 0.5), w / cells, h / cells)
-             for a in range(cells) for b in range(cells) if (a, b) not in seen]
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]]) * [w / cells, h / cells] - 0.5
+    empty = [corners + [a * w / cells, b * h / cells]
+             for a in range(cells) for b in range(cells) if not seen[a, b]]
     if empty:
-        ax_vec.add_collection(PatchCollection(empty, facecolors=HIGHLIGHT, alpha=0.08, lw=0,
-                                              edgecolors="none"), autolim=False)
+        ax_vec.add_collection(PolyCollection(empty, facecolors=HIGHLIGHT, alpha=0.08, lw=0,
+                                             edgecolors="none"), autolim=False)
     pad = 0.03 * max(w, h)
     grid = [[(k * w / cells - 0.5, -0.5 - pad), (k * w / cells - 0.5, h - 0.5 + pad)]
             for k in range(1, cells)]
@@ -462,11 +447,7 @@ def image_rms_png(details: RunDetails, *, dpi: int = 90, worst: int = 3) -> byte
     from matplotlib.collections import PolyCollection  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.colors import to_rgba  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
-    fig, axes, colours = _lanes(details, dpi, ["", ""])
-    ax, spare = axes
-    fig.delaxes(spare)
-    fig.subplots_adjust(right=0.98)
-    ax.set_position([0.1, ax.get_position().y0, 0.88, ax.get_position().height])
+    fig, (ax,), colours = _lanes(details, dpi, [""])
     m = len(details.cameras)
     rms = [c.points.rms_px if c.points is not None else np.zeros(0) for c in details.cameras]
     hi = max([float(np.nanmax(r)) for r in rms if np.any(np.isfinite(r))] + [1e-9])
@@ -522,7 +503,6 @@ def radial_png(details: RunDetails, *, dpi: int = 90) -> bytes:
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, only when a figure is drawn)
 
-
     fig = Figure(figsize=(10.0, 3.2), dpi=dpi)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
@@ -536,6 +516,8 @@ def radial_png(details: RunDetails, *, dpi: int = 90) -> bytes:
                 label=cam.name)
     ax.set_ylim(0, None)
     ax.set_xlim(0, None)
+    ax.xaxis.set_major_locator(_locator())
+    ax.yaxis.set_major_locator(_locator(4))
     ax.grid(True, alpha=0.3)
     ax.tick_params(labelsize=8)
     ax.set_xlabel("distance from the principal point (px)", fontsize=8)
@@ -552,13 +534,7 @@ def radial_png(details: RunDetails, *, dpi: int = 90) -> bytes:
 
 def draw_jobs(jobs: Sequence[tuple]) -> dict[str, bytes]:
     """PNG bytes by file name of ``(file name, function of this module, arguments, cost)``
-    jobs (:func:`multieye.outputs.report_draw.figure_jobs`), drawn in this process, the
-    cameras' figures on one figure reused (:func:`camera_pngs`).  Here rather than in
+    jobs (:func:`multieye.outputs.report_draw.figure_jobs`), drawn in this process (the
+    cameras' figures on one figure reused, :func:`_camera_canvas`).  Here rather than in
     :mod:`~multieye.outputs.report_draw` so that a worker imports only this module."""
-    cameras = [(name, args) for name, func, args, _ in jobs if func is camera_png]
-    drawn = dict(zip([name for name, _ in cameras],
-                     camera_pngs([a[0] for _, a in cameras], [a[1] for _, a in cameras])))
-    for name, func, args, _ in jobs:
-        if func is not camera_png:
-            drawn[name] = func(*args)
-    return {name: drawn[name] for name, *_ in jobs}
+    return {name: func(*args) for name, func, args, _ in jobs}

@@ -10,25 +10,29 @@ translation as a 3-sigma ellipsoid (an ellipse from above) and the direction of 
 axis as a 3-sigma cone (a wedge from above), both magnified by one stated factor so that they
 can be seen at the scale of the rig.
 
-Drawing conventions as in :mod:`multieye.outputs.figures`: the vertical of the pictures is the
-axis closest to the cameras' mean "up"; rotated, never mirrored.
+Drawing conventions: the vertical of the pictures is the world axis closest to the cameras'
+mean "up" (their ``-y`` axis, image up), so that a y-up motion-capture world is not drawn lying
+on its side; the pictures are rotated (never mirrored) for that, and the axis labels say which
+world axis is shown (:func:`display_rotation`).  Frustums use the pinhole part of the
+intrinsics (distortion ignored) and a depth proportional to the size of the rig
+(:func:`frustum_corners`).
 """
 
 from __future__ import annotations
 
+import gc
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from multieye.core.intrinsics import Intrinsics
 from multieye.io.calibration_json import ROLE_NAMES, SETUP_KEYS, CalibrationRecord
 from multieye.io.run_details import CameraDetails, RunDetails
-from multieye.outputs.figures import (_AXIS_COLOURS, _GREY, camera_colours, display_rotation,
-                                      frustum_corners)
-from io import BytesIO
+from multieye.outputs.figures import _AXIS_COLOURS, _GREY, _locator, _png, camera_colours
 
 __all__ = ["RIG_FIGURES", "RigFigures", "rig_pngs", "uncertainty_magnification", "place_labels",
-           "warm_up"]
+           "warm_up", "frustum_corners", "display_rotation"]
 
 #: File names of the two rig pictures, in page order.
 RIG_FIGURES = ("rig_3d.png", "rig_top.png")
@@ -105,6 +109,65 @@ def _break_gaps(stamps: np.ndarray, positions: np.ndarray) -> np.ndarray:
     dt = np.diff(stamps)
     gaps = np.flatnonzero(dt > max(5.0 * float(np.median(dt)), 0.5))
     return np.insert(positions, gaps + 1, np.nan, axis=0)
+
+
+def frustum_corners(intrinsics: Intrinsics | None, depth: float) -> np.ndarray:
+    """Image corners at ``depth`` in the camera frame (x right, y down, z forward).
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics or None
+        Pinhole part only (distortion ignored).  The image is ``width x height`` pixels, or
+        ``2 cx + 1`` by ``2 cy + 1`` when the size is unknown; None draws a 60 x 45 degree
+        field of view.
+    depth : float
+        Metres along the optical axis.
+
+    Returns
+    -------
+    ndarray, shape (4, 3)
+        Top-left, top-right, bottom-right, bottom-left, metres.
+    """
+    if intrinsics is None:
+        hx, hy = np.tan(np.radians(30.0)), np.tan(np.radians(22.5))
+        rays = np.array([[-hx, -hy, 1], [hx, -hy, 1], [hx, hy, 1], [-hx, hy, 1]])
+    else:
+        K = intrinsics.K
+        w = intrinsics.width if intrinsics.width is not None else 2 * K[0, 2] + 1
+        h = intrinsics.height if intrinsics.height is not None else 2 * K[1, 2] + 1
+        pix = np.array([[-0.5, -0.5, 1], [w - 0.5, -0.5, 1], [w - 0.5, h - 0.5, 1],
+                        [-0.5, h - 0.5, 1]])
+        rays = pix @ np.linalg.inv(K).T
+        rays /= rays[:, 2:3]
+    return rays * depth
+
+
+def display_rotation(up) -> tuple[np.ndarray, list[str]]:
+    """Rotation from the plotting frame to the display frame whose z is closest to ``up``.
+
+    Parameters
+    ----------
+    up : array_like, shape (3,)
+        The up direction in the plotting frame (need not be unit).
+
+    Returns
+    -------
+    P : ndarray, shape (3, 3)
+        Signed permutation with ``det P = +1`` (a rotation, never a mirror); display
+        coordinates are ``P @ p``.
+    labels : list of str
+        Which plotting axis each display axis shows, e.g. ``["y", "z", "x"]`` or ``["-y", ...]``.
+    """
+    up = np.asarray(up, dtype=np.float64)
+    a = int(np.argmax(np.abs(up)))
+    s = 1.0 if up[a] >= 0 else -1.0
+    b, c = (a + 1) % 3, (a + 2) % 3          # (b, c, a) is a cyclic order: det +1
+    P = np.zeros((3, 3))
+    P[0, b], P[1, c], P[2, a] = s, 1.0, s    # s * s = 1 keeps det +1
+    names = "xyz"
+    labels = [("-" if P[i].sum() < 0 else "") + names[int(np.flatnonzero(P[i])[0])]
+              for i in range(3)]
+    return P, labels
 
 
 def _frustum_depth(T_cams: np.ndarray) -> float:
@@ -329,22 +392,18 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
     if shapes:
         ax2.add_collection(PolyCollection(shapes, facecolors=shape_colours, edgecolors="none",
                                           alpha=0.3, zorder=2))
+    # the reference camera's axes and the frame origin's, drawn over the cameras' lines in
+    # the same collection (a line each cost more than drawing them)
+    triads = [sc.T_cams[sc.reference]] + ([np.eye(4)] if details is not None else [])
+    if details is not None:
+        everything.append(disp(np.zeros((1, 3))))
+    lines += [(disp(np.stack([T[:3, 3], T[:3, 3] + depth * T[:3, k]])), _AXIS_COLOURS[k], 2.0)
+              for T in triads for k in range(3)]
     ax3.add_collection3d(Line3DCollection([p for p, _, _ in lines], colors=[c for _, c, _ in lines],
                                           linewidths=[w for _, _, w in lines]))
     ax2.add_collection(LineCollection([p[:, :2] for p, _, _ in lines],
                                       colors=[c for _, c, _ in lines],
                                       linewidths=[w for _, _, w in lines], zorder=3))
-    # reference camera axes and the frame origin
-    triads = [(sc.T_cams[sc.reference], 1.0 * depth)]
-    if details is not None:
-        triads.append((np.eye(4), 1.0 * depth))
-        everything.append(disp(np.zeros((1, 3))))
-    for T, length in triads:
-        o = T[:3, 3]
-        for k in range(3):
-            d = disp(np.stack([o, o + length * T[:3, k]]))
-            ax3.plot(d[:, 0], d[:, 1], d[:, 2], color=_AXIS_COLOURS[k], lw=2.0)
-            ax2.plot(d[:, 0], d[:, 1], color=_AXIS_COLOURS[k], lw=2.0, zorder=4)
     pts = np.concatenate(everything)
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     ax3.set_box_aspect(tuple(_equal_limits(ax3, pts, 3)), zoom=0.92)
@@ -370,12 +429,6 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
     return RigFigures({name: _png(fig) for name, fig in figs.items()}, tuple(legend))
 
 
-def _png(fig) -> bytes:
-    buffer = BytesIO()
-    fig.savefig(buffer, format="png", pil_kwargs={"compress_level": 3})
-    return buffer.getvalue()
-
-
 def _label_axes(figs: dict, ax3, ax2, frame: str, labels) -> None:
     """Axis names in the fixed frame, ticks, the top view's equal aspect, grid and title."""
     for ax in (ax3, ax2):
@@ -383,6 +436,9 @@ def _label_axes(figs: dict, ax3, ax2, frame: str, labels) -> None:
         ax.set_ylabel(f"{frame} {labels[1]} (m)", fontsize=8, labelpad=1)
         ax.tick_params(labelsize=7, pad=0)
     ax3.set_zlabel(f"{frame} {labels[2]} (m)", fontsize=8, labelpad=1)
+    for axis, nbins in ((ax3.xaxis, 4), (ax3.yaxis, 4), (ax3.zaxis, 4), (ax2.xaxis, 5),
+                        (ax2.yaxis, 5)):
+        axis.set_major_locator(_locator(nbins))      # a tick costs artists: 4-6 of them
     ax2.autoscale_view()
     ax2.set_aspect("equal", adjustable="datalim")
     ax2.grid(True, alpha=0.3)
@@ -507,9 +563,17 @@ def _annotate(ax, where: np.ndarray, texts: list[str], colours, dpi: int) -> Non
 
 
 def warm_up() -> None:
-    """Import and load what drawing needs: matplotlib's modules, the 3D axes of the rig,
-    the fonts and the PNG writer, by drawing a tiny figure (a figure worker's first work,
-    while the main process refines or writes; :mod:`multieye.outputs.report_draw`)."""
+    """Import and load what drawing needs, once for the figures a process draws after it
+    (and for the processes it forks: call it in the fork server of the figure workers).
+
+    matplotlib's modules, the 3D axes of the rig, the fonts and the PNG writer, by drawing a
+    tiny figure (the figures drawn next are then no slower the first time than later:
+    docs/results/report_speed.md); then :func:`gc.freeze`: everything made so far (modules,
+    classes, fonts, caches: about 10^5 objects) is left out of the garbage collector's full
+    collections, which then look only at what the figures make (60-100 ms a full collection
+    before, a few after; a forked worker also keeps sharing those pages with its parent
+    instead of copying them when the collector would touch them).
+    :mod:`multieye.outputs.report_draw`."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, imported ahead of drawing)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, imported ahead of drawing)
 
@@ -517,3 +581,4 @@ def warm_up() -> None:
     FigureCanvasAgg(fig)
     fig.add_subplot(projection="3d").set_title("x", fontweight="bold")
     _png(fig)
+    gc.freeze()

@@ -81,7 +81,7 @@ def coverage(uv: np.ndarray, frame: ImageFrame, cells: int = COVERAGE_CELLS) -> 
     if len(uv) == 0:
         return 0.0
     idx = np.clip((uv / [frame.width, frame.height] * cells).astype(int), 0, cells - 1)
-    return len(np.unique(idx, axis=0)) / cells ** 2
+    return len(np.unique(idx[:, 0] * cells + idx[:, 1])) / cells ** 2
 
 
 def radial_bins(uv: np.ndarray, residual: np.ndarray, frame: ImageFrame, bins: int = 10

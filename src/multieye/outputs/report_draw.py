@@ -37,17 +37,18 @@ __all__ = ["draw_figures", "figure_jobs", "figure_workers", "submit_figures", "F
            "worker_count"]     # the last three from multieye.outputs.figure_workers
 
 #: Rough CPU seconds of the rig's pictures, and per camera (what orders the tasks).
-_RIG_S, _RIG_PER_CAMERA_S = 0.15, 0.01
+_RIG_S, _RIG_PER_CAMERA_S = 0.08, 0.007
 #: Rough CPU seconds of a camera's figure on a figure reused, and of making that figure.
-_CAMERA_S, _CAMERA_FIGURE_S = 0.08, 0.05
+_CAMERA_S, _CAMERA_FIGURE_S = 0.045, 0.025
 
 
 def _lane_costs(m: int) -> dict[str, float]:
-    """Rough CPU-s of the all-camera figures for ``m`` cameras (measured, 2.4 GHz core)."""
-    return {"residual_histograms.png": 0.10 + 0.022 * m,
-            "residuals_over_time.png": 0.07 + 0.008 * m,
-            "image_rms.png": 0.05 + 0.006 * m,
-            "residuals_by_radius.png": 0.06 + 0.003 * m}
+    """Rough CPU-s of the all-camera figures for ``m`` cameras (measured on 4 and 16 cameras,
+    ``benchmarks/bench_report.py --figures``, docs/results/report_speed.md)."""
+    return {"residual_histograms.png": 0.05 + 0.011 * m,
+            "residuals_over_time.png": 0.045 + 0.0045 * m,
+            "image_rms.png": 0.027 + 0.004 * m,
+            "residuals_by_radius.png": 0.04 + 0.002 * m}
 
 
 def figure_jobs(rec: CalibrationRecord, details: RunDetails | None
