@@ -15,7 +15,8 @@ from multieye.imaging.batch import (
     detect_and_estimate_arrays,
     detect_jobs_then,
 )
-from multieye.imaging.calibrate import start_from_detections
+from multieye.imaging.pool_tasks import SplitTask
+from multieye.imaging.calibrate import lens_from_detections, poses_with_start, started_lens
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.imaging.targets import target_from_spec
 from multieye.io import Rig, list_image_files, list_images, read_camera_intrinsics
@@ -83,7 +84,8 @@ def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
         images = list_images(cam.images) if listed is None else listed
         if intr is None and cam.model is not None and cam.intrinsics_images is None:
             # the lens start and every pose with it, in a worker once the images are in
-            then[len(jobs)] = partial(start_from_detections, model=cam.model, name=name)
+            then[len(jobs)] = SplitTask(partial(lens_from_detections, model=cam.model,
+                                                name=name), poses_with_start, started_lens)
         keys.append((name, "images"))
         jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
         if cam.intrinsics_images is not None:
