@@ -147,10 +147,12 @@ def _import_writers() -> None:
 def _prestart_workers(processes: int | None) -> None:
     """The detection's fork server started before this process imports numpy, OpenCV and the
     pipeline, so that the server's own imports of them run on the other core meanwhile
-    (issue 21)."""
+    (issue 21); it imports the figure modules once the detection is done, for both figure
+    workers (:mod:`multieye.outputs.figure_workers`)."""
     from multieye.imaging.workers import prestart_workers  # noqa: PLC0415 (instant start-up of multieye --help; no OpenCV: the server imports it first)
+    from multieye.outputs.figure_workers import PRELOAD  # noqa: PLC0415 (instant start-up of multieye --help; light: no numpy)
 
-    prestart_workers(processes)
+    prestart_workers(processes, preload=(PRELOAD,))
 
 
 #: What each exit status means (docs/conventions.md, section 8).

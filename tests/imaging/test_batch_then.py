@@ -41,10 +41,10 @@ SPY = textwrap.dedent("""
 
     started = workers.prestart_workers
 
-    def spy(processes):
-        running = started(processes)
+    def spy(processes, **kw):
+        running = started(processes, **kw)
         print("prestart", running, "multieye.pipeline" in sys.modules, "cv2" in sys.modules,
-              forkserver._forkserver._forkserver_pid, file=sys.stderr)
+              forkserver._forkserver._forkserver_pid, *kw.get("preload", ()), file=sys.stderr)
         return running
 
     workers.prestart_workers = spy
@@ -74,15 +74,16 @@ def test_calibrate_starts_the_fork_server_before_importing_the_pipeline(tmp_path
     assert run.returncode == 0, run.stderr
     lines = [line.split() for line in run.stderr.splitlines()
              if line.startswith(("prestart", "server"))]
-    (_, running, imported, opencv, pid), (_, after) = lines
+    (_, running, imported, opencv, pid, *preload), (_, after) = lines
     assert (running, imported, opencv) == ("True", "False", "False")
+    assert preload == ["multieye.outputs.figure_workers"]   # it imports the figure modules later
     assert pid == after != "None"        # not started again for the detection; still running
     # with one process there are no workers: nothing is started
     one = subprocess.run([sys.executable, str(script), "calibrate", str(ds), "-o",
                           str(tmp_path / "out1"), "--processes", "1"],
                          capture_output=True, text=True, timeout=300)
     assert one.returncode == 0, one.stderr
-    assert "prestart False False False None" in one.stderr
+    assert "prestart False False False None multieye.outputs.figure_workers" in one.stderr
 
 
 @needs_proc

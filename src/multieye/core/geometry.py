@@ -3,11 +3,12 @@
 Conventions (docs/conventions.md, section 1): ``T_a_b`` maps coordinates of a point in
 frame ``b`` into frame ``a`` (``p_a = T_a_b @ p_b``); products chain when the
 inner names match, ``T_a_c = T_a_b @ T_b_c``.  Metres and radians inside.
-Quaternions are converted here, with :class:`scipy.spatial.transform.Rotation`,
-and nowhere else; the order is stated by every function that takes one.  Rotation vectors
-are converted here too, with numpy (through the unit quaternion, as ``Rotation`` does):
-they are on every refinement's path, and importing ``scipy.spatial`` costs about 0.1 CPU-s
-at start-up, so ``Rotation`` is imported only by the functions that need it.
+Quaternions are converted here and nowhere else; the order is stated by every function
+that takes one.  Quaternions and rotation vectors are converted with numpy, the same
+operations in the same order as :class:`scipy.spatial.transform.Rotation` (the same bits for
+quaternions; rotation vectors through the unit quaternion, as ``Rotation`` does): they are
+on every calibration's path, and importing ``scipy.spatial`` costs about 0.1 CPU-s at
+start-up, so ``Rotation`` is imported only by the functions that need it.
 
 Synopsis
 --------
@@ -240,11 +241,19 @@ def rotation_from_quat(q: ArrayLike) -> F64:
 
 
 def quat_from_transform(T: ArrayLike, *, scalar_first: bool = False) -> F64:
-    """Unit quaternions ``(..., 4)`` of transforms, ``(qx, qy, qz, qw)`` with ``qw >= 0``."""
+    """Unit quaternions ``(..., 4)`` of transforms, ``(qx, qy, qz, qw)`` with ``qw >= 0``
+    (where ``qw = 0``, the first non-zero of ``qx, qy, qz`` positive).
+
+    SciPy's ``Rotation.from_matrix(R).as_quat(canonical=True)``, the same bits (Shepperd's
+    method, :func:`_quat_of_matrix`), without importing scipy.spatial (about 0.1 CPU-s)."""
     T = np.asarray(T, dtype=np.float64)
     shape = T.shape[:-2]
-    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial, about 0.1 CPU-s at start-up)
-    q = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_quat(canonical=True)
+    q = _quat_of_matrix(T[..., :3, :3].reshape(-1, 3, 3))
+    half_turn = q[:, 3] == 0.0
+    if np.any(half_turn):           # canonical as SciPy's: the first non-zero part positive
+        v = q[half_turn, :3]
+        first = v[np.arange(len(v)), np.argmax(v != 0.0, axis=1)]
+        q[half_turn] = np.where(first[:, None] < 0.0, -q[half_turn], q[half_turn])
     q = q.reshape(shape + (4,))
     if scalar_first:
         q = np.concatenate([q[..., 3:], q[..., :3]], axis=-1)

@@ -26,7 +26,6 @@ from multieye.core.errors import CalibrationError
 from multieye.core.intrinsics import Intrinsics
 from multieye.solvers.checks import Measurements
 from multieye.solvers.joint import solve_joint
-from scipy.spatial.transform import Rotation
 from multieye.core.metrics import chordal_angle
 from multieye.estimate.clock import estimate_offset
 from multieye.estimate.pairing import pair_in_time
@@ -223,7 +222,7 @@ def _residual(A: F64, B: F64, X: F64, Y: F64) -> F64:
     pred = g.inv(X) @ g.inv(A) @ Y
     meas = g.inv(B)
     dR = pred[:, :3, :3] @ np.swapaxes(meas[:, :3, :3], 1, 2)
-    phi = Rotation.from_matrix(dR).as_rotvec()
+    phi = g.rotvec_from_transform(dR)
     tau = pred[:, :3, 3] - np.einsum("nij,nj->ni", dR, meas[:, :3, 3])
     return np.concatenate([phi, tau], axis=1)
 
@@ -409,7 +408,7 @@ def focal_search(cam: CameraEvidence, noise: F64) -> tuple[float, float, float] 
 def _log(T: F64) -> F64:
     """Twists (rotation vector, translation) of transforms near the identity."""
 
-    return np.concatenate([Rotation.from_matrix(T[:, :3, :3]).as_rotvec(), T[:, :3, 3]], axis=1)
+    return np.concatenate([g.rotvec_from_transform(T), T[:, :3, 3]], axis=1)
 
 
 def _exp(xi: F64) -> F64:

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike
 
 from multieye.core.arguments import real_array, real_number
 from multieye.core.errors import InputError
-from multieye.core.geometry import make_transform
+from multieye.core.geometry import make_transform, rotation_from_rotvec, rotvec_from_transform
 from multieye.core.limits import MAX_TIME_OFFSET_S
 
 __all__ = ["Pairing", "pair_in_time", "interpolate_poses"]
@@ -64,14 +64,12 @@ def interpolate_poses(T0: ArrayLike, T1: ArrayLike, alpha: ArrayLike) -> np.ndar
     alpha : array_like, shape (K,)
         0 gives ``T0``, 1 gives ``T1``.
     """
-    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial with scipy.sparse, 0.2-0.3 CPU-s; the detection's set-up, which pairs before decoding, imports this module)
-
     T0 = np.asarray(T0, dtype=np.float64)
     T1 = np.asarray(T1, dtype=np.float64)
     alpha = np.asarray(alpha, dtype=np.float64)
     R0 = T0[:, :3, :3]
     rel = np.swapaxes(R0, 1, 2) @ T1[:, :3, :3]
-    step = Rotation.from_rotvec(Rotation.from_matrix(rel).as_rotvec() * alpha[:, None]).as_matrix()
+    step = rotation_from_rotvec(rotvec_from_transform(rel) * alpha[:, None])
     t = (1.0 - alpha)[:, None] * T0[:, :3, 3] + alpha[:, None] * T1[:, :3, 3]
     return make_transform(R0 @ step, t)
 

@@ -14,19 +14,10 @@ from __future__ import annotations
 import atexit
 import os
 import sys
-from multiprocessing import forkserver
+
+from multieye.imaging.forkserver_later import in_fork_server
 
 __all__ = ["ENDS_AT_ONCE"]
-
-
-def _in_fork_server() -> bool:
-    """Whether this import runs in a fork server's preload (its ``main`` is on the stack)."""
-    frame = sys._getframe()
-    while frame is not None:
-        if frame.f_code is forkserver.main.__code__:
-            return True
-        frame = frame.f_back
-    return False
 
 
 def _end_now() -> None:
@@ -39,7 +30,7 @@ def _end_now() -> None:
 
 
 #: Whether this process is a fork server that ends at its first exit function.
-ENDS_AT_ONCE = _in_fork_server()
+ENDS_AT_ONCE = in_fork_server()
 
 if ENDS_AT_ONCE:
     atexit.register(_end_now)

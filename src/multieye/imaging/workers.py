@@ -66,7 +66,8 @@ from concurrent.futures.process import BrokenProcessPool
 from multieye.imaging.main_script import main_reimport_problem
 
 __all__ = ["worker_pool", "die_with", "stop_workers", "stop_helpers", "start_forkserver",
-           "Alongside", "FORKSERVER_PRELOAD", "mp_context", "prestart_workers", "available_cores"]
+           "Alongside", "FORKSERVER_PRELOAD", "mp_context", "prestart_workers", "available_cores",
+           "ask_fork_server"]
 
 #: Seconds between two checks where the main process cannot be waited for (no pidfd).
 POLL_S = 0.5
@@ -129,6 +130,8 @@ RELAY_BYTES = 4000
 
 #: The file the fork server's (and its workers') standard error is written to, once started.
 _WORKER_STDERR: dict[str, int] = {}
+#: The modules the fork server this process started imported first (its preload).
+_PRELOADED: list[str] = []
 
 
 def _quiet_forkserver(mp_context) -> int | None:
@@ -164,6 +167,7 @@ def _quiet_forkserver(mp_context) -> int | None:
             os.dup2(saved, 2)
             os.close(saved)
         _WORKER_STDERR["fd"] = fd
+        _PRELOADED.extend(getattr(server, "_preload_modules", None) or ())
     return _WORKER_STDERR["fd"]
 
 
@@ -320,20 +324,44 @@ def worker_pool(max_workers: int, *, mp_context=None, initializer: Callable | No
 FORKSERVER_PRELOAD = ("multieye.imaging.batch", "multieye.imaging.forkserver_exit")
 
 
-def mp_context():
+def mp_context(preload: tuple[str, ...] = ()):
     """forkserver where it exists, spawn elsewhere: workers never inherit OpenCV's threads.
 
     The fork server imports :data:`FORKSERVER_PRELOAD` once, so that each worker it forks
     starts in milliseconds; without that preload every worker would import them again.
+    ``preload``: more modules for it to import (before the last of them), e.g. one that
+    registers work for later (:mod:`multieye.imaging.forkserver_later`); only a server not
+    yet running takes them.
     """
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(list(FORKSERVER_PRELOAD))
+    ctx.set_forkserver_preload([*FORKSERVER_PRELOAD[:-1], *preload, FORKSERVER_PRELOAD[-1]])
     return ctx
 
 
-def prestart_workers(processes: int | None = None) -> bool:
+def ask_fork_server(module: str) -> bool:
+    """Ask the fork server for the work that ``module`` registered when the server imported
+    it (:func:`multieye.imaging.forkserver_later.when_asked`): done before the server forks
+    again, so the workers forked afterwards start with it.
+
+    Returns
+    -------
+    bool
+        Whether it was asked: a fork server this process started is running and imported
+        ``module`` first; otherwise (no server, another's, or without ``module``) nothing.
+    """
+    from multiprocessing import forkserver  # noqa: PLC0415 (only where the forkserver is used)
+
+    from multieye.imaging.forkserver_later import ask  # noqa: PLC0415 (only where the forkserver is used)
+
+    pid = getattr(getattr(forkserver, "_forkserver", None), "_forkserver_pid", None)
+    if pid is None or "fd" not in _WORKER_STDERR or module not in _PRELOADED:
+        return False
+    return ask(pid)
+
+
+def prestart_workers(processes: int | None = None, preload: tuple[str, ...] = ()) -> bool:
     """Start, now, the fork server that the detection
     (:func:`multieye.imaging.batch.detect_and_estimate_jobs`) takes its worker processes
     from, when it will use some (more than one worker, forkserver available, the main
@@ -343,7 +371,8 @@ def prestart_workers(processes: int | None = None) -> bool:
     while the caller imports and reads the rest, instead of between reading the dataset and
     the first detection; this module imports neither, so the server starts before the
     caller imports them too.  Nothing else changes: the pool forks its workers from it
-    later, and it is stopped and collected when this process ends.
+    later, and it is stopped and collected when this process ends.  ``preload``: more
+    modules for the server to import first (:func:`mp_context`).
 
     Returns
     -------
@@ -355,7 +384,7 @@ def prestart_workers(processes: int | None = None) -> bool:
     if (isinstance(wanted, bool) or not isinstance(wanted, int)
             or min(wanted, available_cores()) <= 1 or main_reimport_problem() is not None):
         return False
-    ctx = mp_context()
+    ctx = mp_context(preload)
     return ctx.get_start_method() == "forkserver" and start_forkserver(ctx)
 
 

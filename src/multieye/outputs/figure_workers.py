@@ -4,9 +4,11 @@ Light to import (no numpy, OpenCV or matplotlib: the command line creates them b
 detection, :func:`figure_workers`); what they draw is :mod:`multieye.outputs.report_draw`'s.
 Two workers where two cores may be used and one is free (the 1-minute load average below
 the cores); ``multieye calibrate`` starts them when the detection is done
-(:meth:`FigureWorkers.start_early`), so that they import matplotlib while the refinement
-runs on one core, the second once the first has imported (the two imports take the free
-core in turn); otherwise they start with the outputs (:meth:`FigureWorkers.start`).  They
+(:meth:`FigureWorkers.start_early`), so that matplotlib is imported while the refinement
+runs on one core: once, by the detection's fork server, which then forks both workers
+ready to draw (it imported this module first, :data:`PRELOAD`, and does that when asked,
+:mod:`multieye.imaging.forkserver_later`); else by each worker, the second once the first
+has imported.  Otherwise they start with the outputs (:meth:`FigureWorkers.start`).  They
 are forked from the detection's fork server (numpy and OpenCV already imported) and end
 with this process (:func:`multieye.imaging.workers.worker_pool`).  None with one core,
 ``processes=1``, a main script that a worker would run again, or on a busy machine (no core
@@ -27,20 +29,36 @@ import multiprocessing
 import os
 from collections.abc import Iterator
 
+from multieye.imaging.forkserver_later import when_asked
 from multieye.imaging.main_script import main_reimport_problem
-from multieye.imaging.workers import available_cores, worker_pool
+from multieye.imaging.workers import ask_fork_server, available_cores, worker_pool
 
-__all__ = ["FigureWorkers", "figure_workers", "worker_count", "FIGURE_MODULE"]
+__all__ = ["FigureWorkers", "figure_workers", "worker_count", "FIGURE_MODULE", "PRELOAD"]
 
 #: The module a figure worker imports first (:func:`multieye.outputs.figures_rig.warm_up`).
 FIGURE_MODULE = "multieye.outputs.figures_rig"
+#: This module, for the detection's fork server to import first
+#: (:func:`multieye.imaging.workers.prestart_workers`): it then imports the figure modules
+#: once the detection is done, when asked (:meth:`FigureWorkers.start_early`).
+PRELOAD = __name__
+
+_READY: list[bool] = []
 
 
 def _warm_up() -> None:
-    """A figure worker's first work: :func:`multieye.outputs.figures_rig.warm_up`."""
+    """A figure worker's first work: :func:`multieye.outputs.figures_rig.warm_up`, unless
+    the process it was forked from did it already."""
+    if _READY:
+        return
     from multieye.outputs.figures_rig import warm_up  # noqa: PLC0415 (heavy: matplotlib, in the worker only)
 
     warm_up()
+    _READY.append(True)
+
+
+# In the detection's fork server (imported with its preload): the figure modules imported
+# when the command asks, for every figure worker it forks afterwards.
+when_asked(_warm_up)
 
 
 def _context():
@@ -95,13 +113,17 @@ class FigureWorkers:
 
     def start_early(self) -> None:
         """Start the workers now if a core is free (a calibration calls this when its
-        detection is done): the first imports matplotlib and the figure modules
-        (:func:`multieye.outputs.figures_rig.warm_up`) on the core the refinement leaves
-        free, the second once the first is ready, so that the two imports take that core in
-        turn.  On a busy machine they would take a share of the refinement's core instead,
-        and start when the figures are handed to them (:meth:`start`)."""
+        detection is done).  Matplotlib and the figure modules
+        (:func:`multieye.outputs.figures_rig.warm_up`) are imported on the core the
+        refinement leaves free: once, by the detection's fork server, where it imported this
+        module first (:data:`PRELOAD`), and both workers are forked from it ready to draw;
+        otherwise by the first worker, and the second starts once the first is ready, so
+        that the two imports take that core in turn.  On a busy machine they would take a
+        share of the refinement's core instead, and start when the figures are handed to
+        them (:meth:`start`)."""
         if self.count and _free_core():
-            self._start(self.count, one_at_a_time=True)
+            warm = ask_fork_server(PRELOAD)
+            self._start(self.count, one_at_a_time=not warm)
 
     def start(self) -> None:
         """Start the workers now, both at once, if a core is free (once; nothing with

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.sparse.csgraph import connected_components
 
 from multieye.core.arguments import real_array
 from multieye.core.errors import DisconnectedError, InputError, TooFewMeasurementsError
@@ -171,6 +170,8 @@ def check_connected(groups: tuple[MeasurementGroup, ...]) -> None:
     cols = [iy[g.y_name] for g in groups]
     n = len(xs) + len(ys)
     adj = sp.coo_matrix((np.ones(len(groups)), (rows, cols)), shape=(n, n))
+    from scipy.sparse.csgraph import connected_components  # noqa: PLC0415 (heavy: it imports scipy.sparse.linalg, about 0.05 CPU-s; general rigs only)
+
     ncomp, label = connected_components(adj, directed=False)
     if ncomp == 1:
         return

@@ -17,7 +17,6 @@ parameterisation stays far from gimbal lock).
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from multieye.core.geometry import make_transform
 from multieye.solvers.shah import solve_shah_single
@@ -28,6 +27,8 @@ _TOL = dict(xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200)
 
 
 def _euler(e: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial, about 0.1 CPU-s for every calibrate; only the tabb methods use it)
+
     return Rotation.from_euler("xyz", e).as_matrix()
 
 
