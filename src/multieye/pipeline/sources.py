@@ -16,7 +16,7 @@ import os
 from pathlib import Path
 
 from multieye.io import Rig
-from multieye.io.image_folder import IMAGE_EXTENSIONS
+from multieye.io.image_folder import IMAGE_EXTENSIONS, is_file_entry, sorted_entries
 
 __all__ = ["outside_reads"]
 
@@ -31,12 +31,11 @@ def _real_images(folder: Path) -> list[str]:
     path gives, without resolving the folder's path again for each of them: 17 of the
     23 ms this module took on a 4 x 100 rig)."""
     try:
-        with os.scandir(folder) as it:
-            entries = sorted(it, key=lambda e: e.name)
+        entries = sorted_entries(folder)
         real = os.path.realpath(folder)
         return [os.path.realpath(e.path) if e.is_symlink() else os.path.join(real, e.name)
                 for e in entries
-                if os.path.splitext(e.name)[1].lower() in IMAGE_EXTENSIONS and e.is_file()]
+                if Path(e.name).suffix.lower() in IMAGE_EXTENSIONS and is_file_entry(e)]
     except OSError:
         return []
 
