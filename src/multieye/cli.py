@@ -19,6 +19,7 @@ from pathlib import Path
 
 import click
 
+from multieye.core.cpus import one_blas_thread
 from multieye.core.version import __version__
 from multieye.core.errors import CalibrationError
 from multieye.core.errors import DatasetError
@@ -202,6 +203,7 @@ def main():
       multieye calibrate DATASET -o OUT  # your rig: DATASET/rig.yaml
       multieye docs rig-yaml             # every key of rig.yaml; all pages: multieye docs
     """
+    one_blas_thread()       # before numpy is imported: no BLAS threads spinning for nothing
 
 
 @main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR, EXIT_IMPLAUSIBLE))

@@ -3,6 +3,7 @@ restored afterwards; no scipy.stats on the refinement's import path; its quantil
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -11,6 +12,7 @@ import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from multieye.core import geometry as g
+from multieye.core.cpus import BLAS_THREAD_VARIABLES, available_cores, one_blas_thread
 from multieye.estimate import refine_images as ri
 from multieye.optimize import levenberg_marquardt as lm
 from multieye.optimize.threads import PARALLEL_FROM, blas_threads, threads_for
@@ -22,10 +24,54 @@ def _blas_threads() -> list[int]:
     return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
 
 
-def test_rule_switches_at_parallel_from():
+def test_rule_switches_at_parallel_from(monkeypatch):
+    """One thread below PARALLEL_FROM; from there on every core, unless the user chose a
+    number (then it is left as it is); the command line's own one thread is not a choice."""
+    for name in BLAS_THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
     assert blas_threads(48) == 1
     assert blas_threads(PARALLEL_FROM - 1) == 1
+    assert blas_threads(PARALLEL_FROM) == available_cores()
+    assert one_blas_thread()
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "1"
+    assert not one_blas_thread()                    # set already
+    assert blas_threads(PARALLEL_FROM) == available_cores()
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")  # the user's choice stands
+    assert blas_threads(PARALLEL_FROM) is None and blas_threads(48) == 1
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS")
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
     assert blas_threads(PARALLEL_FROM) is None
+    assert not one_blas_thread() and "OPENBLAS_NUM_THREADS" not in os.environ
+
+
+CLI_THREADS = """
+import sys
+from multieye.cli import main
+main(sys.argv[1:], standalone_mode=False)
+from threadpoolctl import threadpool_info
+print("BLAS", sorted({lib["num_threads"] for lib in threadpool_info()
+                      if lib["user_api"] == "blas"}), flush=True)
+"""
+
+
+def test_the_command_line_starts_with_one_blas_thread(tmp_path):
+    """`multieye calibrate` imports numpy with OPENBLAS_NUM_THREADS=1 unless the user set a
+    number (their number stands): no pool of BLAS threads spinning after each small call."""
+    from small_dataset import render_small
+
+    ds = tmp_path / "ds"
+    render_small(ds, images_per_camera=6)
+    env = {k: v for k, v in os.environ.items() if k not in BLAS_THREAD_VARIABLES
+           and k != "MULTIEYE_ONE_BLAS_THREAD"}
+    seen = []
+    for extra in ({}, {"OPENBLAS_NUM_THREADS": "2"}):
+        run = subprocess.run([sys.executable, "-c", CLI_THREADS, "calibrate", str(ds), "-o",
+                              str(tmp_path / f"out{len(seen)}"), "--processes", "1"],
+                             capture_output=True, text=True, timeout=300, env={**env, **extra})
+        assert run.returncode == 0, run.stderr
+        seen.append([line for line in run.stdout.splitlines() if line.startswith("BLAS")])
+    assert seen[0] == ["BLAS [1]"]
+    assert seen[1] == ["BLAS [2]"]
 
 
 @pytest.mark.skipif(not _blas_threads(), reason="no BLAS library that threadpoolctl controls")
@@ -35,8 +81,10 @@ def test_threads_for_limits_small_systems_and_restores():
         with threads_for(300):
             assert set(_blas_threads()) == {1}
         assert _blas_threads() == before
+    with threadpool_limits(limits=1, user_api="blas"):
         with threads_for(PARALLEL_FROM + 1):
-            assert _blas_threads() == before
+            assert set(_blas_threads()) == {blas_threads(PARALLEL_FROM + 1) or 1}
+        assert set(_blas_threads()) == {1}
 
 
 @pytest.mark.skipif(not _blas_threads(), reason="no BLAS library that threadpoolctl controls")

@@ -63,6 +63,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
+from multieye.core.cpus import available_cores
 from multieye.imaging.main_script import main_reimport_problem
 
 __all__ = ["worker_pool", "die_with", "stop_workers", "stop_helpers", "start_forkserver",
@@ -386,14 +387,6 @@ def prestart_workers(processes: int | None = None, preload: tuple[str, ...] = ()
         return False
     ctx = mp_context(preload)
     return ctx.get_start_method() == "forkserver" and start_forkserver(ctx)
-
-
-def available_cores() -> int:
-    """The CPUs this process may use (``os.sched_getaffinity``; the CPU count elsewhere)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:          # not on Linux
-        return os.cpu_count() or 1
 
 
 class Alongside:

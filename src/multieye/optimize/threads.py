@@ -9,7 +9,9 @@ threads against 1.12 s / 1.24 CPU-s on one. A dense Cholesky of ``S`` costs ``k^
 floating-point operations; threads only pay once that is in the billions.
 
 Rule: one BLAS thread while ``k < PARALLEL_FROM`` (2000 unknowns, about 2.7 GFLOP per
-factorisation), otherwise the library's own choice (left as it is). A fixed thread count also
+factorisation), otherwise one per core this process may use, or the user's choice where
+``OPENBLAS_NUM_THREADS`` (or ``OMP_NUM_THREADS``) states one (left as it is).  The command
+line starts every process with one BLAS thread (:func:`multieye.core.cpus.one_blas_thread`). A fixed thread count also
 makes reruns give the same digits: a threaded BLAS may sum in a different order from run to
 run.
 
@@ -25,8 +27,9 @@ from functools import cache
 
 from threadpoolctl import ThreadpoolController
 
-PARALLEL_FROM = 2000
+from multieye.core.cpus import available_cores, blas_threads_chosen
 
+PARALLEL_FROM = 2000
 
 
 @cache
@@ -46,9 +49,13 @@ def blas_threads(k: int) -> int | None:
     Returns
     -------
     int or None
-        1 below :data:`PARALLEL_FROM`, None (the library's default) from there on.
+        1 below :data:`PARALLEL_FROM`; from there on the cores this process may use, or
+        None (left as it is) where the user chose the BLAS threads
+        (:func:`multieye.core.cpus.blas_threads_chosen`).
     """
-    return 1 if k < PARALLEL_FROM else None
+    if k < PARALLEL_FROM:
+        return 1
+    return None if blas_threads_chosen() else available_cores()
 
 
 @contextmanager

@@ -27,6 +27,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import threading
 from collections.abc import Iterator
 
 from multieye.imaging.forkserver_later import when_asked
@@ -110,27 +111,53 @@ class FigureWorkers:
         self.pool = None
         self.size = 0
         self._stack = stack
+        self._starter: threading.Thread | None = None
+        self._failed: list[BaseException] = []
 
     def start_early(self) -> None:
         """Start the workers now if a core is free (a calibration calls this when its
         detection is done).  Matplotlib and the figure modules
         (:func:`multieye.outputs.figures_rig.warm_up`) are imported on the core the
         refinement leaves free: once, by the detection's fork server, where it imported this
-        module first (:data:`PRELOAD`), and both workers are forked from it ready to draw;
-        otherwise by the first worker, and the second starts once the first is ready, so
-        that the two imports take that core in turn.  On a busy machine they would take a
-        share of the refinement's core instead, and start when the figures are handed to
-        them (:meth:`start`)."""
-        if self.count and _free_core():
-            warm = ask_fork_server(PRELOAD)
-            self._start(self.count, one_at_a_time=not warm)
+        module first (:data:`PRELOAD`), and both workers are forked from it ready to draw
+        (requested from a thread: a fork request waits for the server, which answers once it
+        has imported, and this process goes on meanwhile); otherwise by the first worker,
+        and the second starts once the first is ready, so that the two imports take that
+        core in turn.  On a busy machine they would take a share of the refinement's core
+        instead, and start when the figures are handed to them (:meth:`start`)."""
+        if not (self.count and _free_core()):
+            return
+        if ask_fork_server(PRELOAD):
+            # a fork request waits for the server's answer, which comes once it has imported
+            # (about half a second): requested from a thread, while this process refines
+            self._starter = threading.Thread(target=self._start_aside, daemon=True,
+                                             name="multieye-figure-workers")
+            self._starter.start()
+        else:
+            self._start(self.count, one_at_a_time=True)
 
     def start(self) -> None:
         """Start the workers now, both at once, if a core is free (once; nothing with
-        ``count`` 0).  On a busy machine this process draws: one worker drawing while it
-        waits made the outputs 0.6 s longer at a load of 3.3-3.8 on 2 cores (medians of 6,
+        ``count`` 0; a start begun by :meth:`start_early` is waited for, and its error
+        raised).  On a busy machine this process draws: one worker drawing while it waits
+        made the outputs 0.6 s longer at a load of 3.3-3.8 on 2 cores (medians of 6,
         docs/results/report_speed.md)."""
+        self.join()
+        if self._failed:
+            raise self._failed[0]
         self._start(self.count if _free_core() else 0, one_at_a_time=False)
+
+    def join(self) -> None:
+        """Wait for a start begun by :meth:`start_early` on its thread (none: nothing)."""
+        if self._starter is not None:
+            self._starter.join()
+            self._starter = None
+
+    def _start_aside(self) -> None:
+        try:
+            self._start(self.count, one_at_a_time=False)
+        except BaseException as exc:    # noqa: BLE001 - raised in the caller's thread, start()
+            self._failed.append(exc)
 
     def _start(self, size: int, *, one_at_a_time: bool) -> None:
         if self.pool is not None or not size:
@@ -156,4 +183,8 @@ def figure_workers(processes: int | None = None) -> Iterator[FigureWorkers]:
     """Figure workers (:class:`FigureWorkers`, not started yet) that end with the block: at
     once on an exception (``KeyboardInterrupt`` included), after their work otherwise."""
     with contextlib.ExitStack() as stack:
-        yield FigureWorkers(worker_count(processes), stack)
+        workers = FigureWorkers(worker_count(processes), stack)
+        try:
+            yield workers
+        finally:
+            workers.join()          # a start under way ends before the workers are ended

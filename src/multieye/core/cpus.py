@@ -1,0 +1,50 @@
+"""The processors this process may use, and the BLAS threads of the command line (issue 21).
+
+numpy's and SciPy's OpenBLAS start a pool of threads when they load, one per processor, and
+those threads spin for a while after each call before they sleep: 0.06-0.13 CPU-s per
+process that imports numpy, and again after each BLAS call, for work whose matrices here
+are small (a 6 x 6 block per board pose; the refinement's reduced system has a few hundred
+unknowns).  The command line therefore starts with one BLAS thread per process
+(:func:`one_blas_thread`, before numpy is imported; its worker processes inherit it), unless
+the user chose a number; :mod:`multieye.optimize.threads` raises it for the problems large
+enough to gain from more.
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["available_cores", "one_blas_thread", "blas_threads_chosen", "BLAS_THREAD_VARIABLES"]
+
+#: The environment variables by which OpenBLAS is told its number of threads (the first set wins).
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
+#: Set beside ``OPENBLAS_NUM_THREADS`` by :func:`one_blas_thread`: the one thread is multieye's
+#: choice, not the user's (inherited by the worker processes, as the variable is).
+_OURS = "MULTIEYE_ONE_BLAS_THREAD"
+
+
+def available_cores() -> int:
+    """The CPUs this process may use (``os.sched_getaffinity``; the CPU count elsewhere)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:          # not on Linux
+        return os.cpu_count() or 1
+
+
+def one_blas_thread() -> bool:
+    """Have OpenBLAS start with one thread in this process and the processes it starts,
+    unless one of :data:`BLAS_THREAD_VARIABLES` is set already (the user's choice stands).
+    Takes effect only where numpy is imported afterwards.  Returns whether it was set."""
+    if any(os.environ.get(name) for name in BLAS_THREAD_VARIABLES):
+        return False
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    os.environ[_OURS] = "1"
+    return True
+
+
+def blas_threads_chosen() -> bool:
+    """Whether the user chose the BLAS threads (one of :data:`BLAS_THREAD_VARIABLES` set, not
+    by :func:`one_blas_thread`)."""
+    if os.environ.get(_OURS) == "1" and os.environ.get("OPENBLAS_NUM_THREADS") == "1":
+        return False
+    return any(os.environ.get(name) for name in BLAS_THREAD_VARIABLES)
