@@ -18,6 +18,7 @@ left out is a :class:`~multieye.io.RejectedItem` with its reason.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -175,8 +176,19 @@ def motion_first(rig: Rig, select: int | None, time_offset) -> bool:
     if not select or time_offset == "auto":
         return False
     return any(cam.source in ("rosbag", "video")
-               or (cam.source == "images" and len(list_images(cam.images)) > _budget(cam, select))
+               or (cam.source == "images" and _over(cam.images, _budget(cam, select)))
                for cam in rig.cameras.values())
+
+
+def _over(folder, budget: int) -> bool:
+    """Whether an image folder holds more images than ``budget``; not listed when it holds
+    no more entries than that (a folder that cannot be read is listed: its error then)."""
+    try:
+        if len(os.listdir(folder)) <= budget:
+            return False
+    except OSError:
+        pass
+    return len(list_images(folder)) > budget
 
 
 def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_stamps) -> dict:
