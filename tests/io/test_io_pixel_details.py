@@ -12,7 +12,7 @@ import pytest
 
 from multieye.core.errors import DatasetError
 from multieye.core.intrinsics import Intrinsics
-from multieye.io.pixel_details import ImagePoints, ProjectionStd, rounded
+from multieye.io.pixel_details import ImagePoints, ProjectionStd, plain, rounded
 from multieye.io.run_details import (
     CameraDetails,
     RunDetails,
@@ -145,6 +145,26 @@ def test_rounded_is_compact_and_keeps_nan_as_null():
     assert rounded(np.array([[0.0004, -2.5]]), 3) == [[0.0, -2.5]]
     assert rounded(float("inf"), 2) is None
     assert json.dumps(rounded([123.456789], 2)) == "[123.46]"
+
+
+def test_plain_gives_every_float_at_full_precision_and_nan_or_inf_as_null():
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(3, 4, 4)) * 10.0 ** rng.integers(-20, 20, size=(3, 4, 4))
+    a[1, 2, 3], a[2, 0, 0], a[0, 1, 1] = np.nan, np.inf, -0.0
+
+    def by_element(x):      # the reference: one element at a time
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim == 0:
+            return float(x) if np.isfinite(x) else None
+        return [by_element(y) for y in x]
+
+    for x in (a, a[0], a[0, 0], a[1], a[0, 0, 0], a[2, 0, 0], np.zeros((0, 4, 4)),
+              [1, 2], 7):
+        got = plain(x)
+        assert got == by_element(x)
+        assert json.dumps(got) == json.dumps(by_element(x))     # -0.0 and types too
+    assert plain(a)[0][1][1] == 0.0 and str(plain(a)[0][1][1]) == "-0.0"
+    assert type(plain(np.float32(0.1))) is float and plain(np.float32(0.1)) == float(np.float32(0.1))
 
 
 def test_outputs_doc_names_every_new_details_key():

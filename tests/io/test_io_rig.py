@@ -358,6 +358,31 @@ def test_list_images_rejects_names_that_are_not_stamps(tmp_path, name, message):
     assert info.value.path == str(tmp_path / name)
 
 
+def test_entries_are_files_as_path_is_file_says(tmp_path):
+    """list_images takes an entry's type from the folder's listing (no stat of each image):
+    every kind of entry is a file or not as ``Path.is_file`` says, links followed."""
+    import os
+
+    from multieye.io.image_folder import is_file_entry, sorted_entries
+
+    (tmp_path / "1.png").write_bytes(b"")
+    (tmp_path / "dir.png").mkdir()
+    os.mkfifo(tmp_path / "fifo.png")
+    (tmp_path / "2.png").symlink_to(tmp_path / "1.png")
+    (tmp_path / "3.png").symlink_to(tmp_path / "dir.png")
+    (tmp_path / "4.png").symlink_to(tmp_path / "gone.png")
+    (tmp_path / "5.png").symlink_to(tmp_path / "6.png")
+    (tmp_path / "6.png").symlink_to(tmp_path / "5.png")          # a loop
+    entries = sorted_entries(tmp_path)
+    assert [e.name for e in entries] == [p.name for p in sorted(tmp_path.iterdir())]
+    assert {e.name: is_file_entry(e) for e in entries} == {
+        p.name: p.is_file() for p in tmp_path.iterdir()}
+    assert [p.name for _, _, p in list_images(tmp_path)] == ["1.png", "2.png"]
+    (tmp_path / "..png").write_bytes(b"")       # ".png" its suffix, as Path says: not a stamp
+    with pytest.raises(DatasetError, match="expected a time stamp"):
+        list_images(tmp_path)
+
+
 def test_list_images_duplicates_and_empty(tmp_path):
     (tmp_path / "1700000000.5.png").write_bytes(b"")
     (tmp_path / "1700000000.500.jpg").write_bytes(b"")

@@ -206,3 +206,58 @@ def test_write_read_round_trip(tmp_path_factory, seed, n, unit):
     assert np.array_equal(back.stamps, traj.stamps)  # repr is exact
     assert np.abs(back.T - traj.T).max() < 1e-12 * max(1.0, np.abs(T).max())
     assert back.name == "T_cam_target"
+
+
+# --------------------------------------------------------------------------- lines in blocks
+
+
+def _line_blocks_one_by_one(path, size):
+    """The reference: :func:`text_lines` (a line at a time) gathered ``size`` at a time."""
+    from multieye.io.textfile import text_lines
+
+    contents, numbers = [], []
+    for number, content in text_lines(path):
+        contents.append(content)
+        numbers.append(number)
+        if len(contents) == size:
+            yield contents, numbers
+            contents, numbers = [], []
+    if contents:
+        yield contents, numbers
+
+
+def _outcome(blocks):
+    """Every block given, then the error's text (or None)."""
+    got = []
+    try:
+        for block in blocks:
+            got.append(block)
+    except DatasetError as exc:
+        return got, str(exc)
+    return got, None
+
+
+LONG = "1.5 " * 40_000     # lines of 160 kB: a file over several blocks of bytes
+
+
+@pytest.mark.parametrize("body", [
+    b"\xef\xbb\xbf# header\r\n1 2 3\r\n\r\n   \n4 5 6 # note\n\t7 8 9\t\n10 11 12",
+    b"1 2\n# only a comment\n\n3 4\n",
+    b"",
+    b"\n\n#\n",
+    (LONG + "\n") .encode() * 20 + b"# end\n9 9\n",
+    b"1 2\n3 4\n5 \xff 6\n7 8\n",                             # not UTF-8 on line 3
+    (LONG + "\n").encode() * 10 + b"1 \xe2\x82\n2\n",        # ... far into the file
+    b"1 2\n\xe2\x82\xac 3 # a euro sign\n",
+])
+@pytest.mark.parametrize("size", [1, 2, 3, 1 << 14])
+def test_line_blocks_read_in_blocks_of_bytes_give_what_line_by_line_gives(tmp_path, body,
+                                                                          size):
+    from multieye.io.textfile import line_blocks
+
+    path = tmp_path / "t.txt"
+    path.write_bytes(body)
+    fast = _outcome(line_blocks(path, size=size))
+    assert fast == _outcome(_line_blocks_one_by_one(path, size))
+    if b"\xff" in body or b"\xe2\x82\n" in body:     # the error names its line
+        assert fast[1] is not None and "not a UTF-8 text file" in fast[1]

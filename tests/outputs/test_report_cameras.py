@@ -155,6 +155,19 @@ def test_points_are_subsampled_evenly_and_the_rms_counts_them_all(runs):
         np.testing.assert_array_equal(s[rows], r)
 
 
+def test_the_residuals_are_each_images_own_projection(runs):
+    """All images' points are projected at once: the same numbers as image by image."""
+    run, _ = runs["given"]
+    res, j = run.refinement.result, list(run.paired).index("cam1")
+    p = image_points(run, "cam1")
+    for i, o in enumerate(run.paired["cam1"].observations):
+        T = g.inv(res.X[j]) @ res.T_world_mocap[j][i] @ res.Y
+        own = project_points(o.object_points @ T[:3, :3].T + T[:3, 3],
+                             res.intrinsics[j]) - o.image_points
+        np.testing.assert_array_equal(p.residual_px[i], own)
+        assert p.rms_px[i] == np.sqrt(np.nanmean(np.sum(own ** 2, axis=1)))
+
+
 def test_details_json_stays_small(runs):
     for kind in ("given", "model"):
         out = runs[kind][1]

@@ -118,3 +118,34 @@ def test_a_camera_without_motion_capture_fails_as_without_selection(dataset):
     with pytest.raises(TooFewMeasurementsError, match="without motion capture") as every:
         calibrate(dataset, select=None, time_offset=300.0)
     assert str(chosen.value) == str(every.value)
+
+
+def test_the_motion_capture_comes_first_only_where_the_detection_needs_it(tmp_path):
+    """``motion_first``: a camera paired by name, or images the budget may choose among
+    (more in a folder than the budget, twice it for a lens to estimate; any bag or video)."""
+    from types import SimpleNamespace
+
+    from multieye.core.errors import DatasetError
+    from multieye.pipeline.selection import motion_first
+
+    folder = tmp_path / "cam0"
+    folder.mkdir()
+    for k in range(6):
+        (folder / f"{1700000000 + k}.png").write_bytes(b"")
+    (folder / "notes.txt").write_text("")       # an entry, not an image
+
+    def rig(source="images", by_name=False, lens=False, mocap=True):
+        cam = SimpleNamespace(source=source, images=folder, estimate_intrinsics=lens)
+        return SimpleNamespace(has_mocap=mocap, cameras={"cam0": cam},
+                               mocap_for=lambda name: SimpleNamespace(by_name=by_name))
+
+    assert motion_first(rig(), 5, "rig")                      # 6 images, budget 5
+    assert not motion_first(rig(), 6, 0.0)                    # 7 entries, 6 images: not over
+    assert not motion_first(rig(lens=True), 5, "rig")         # a lens: budget 10
+    assert not motion_first(rig(), None, "rig") and not motion_first(rig(), 5, "auto")
+    assert motion_first(rig(source="rosbag"), 500, "rig")
+    assert motion_first(rig(by_name=True), None, "rig")
+    assert not motion_first(rig(by_name=True, mocap=False), 5, "rig")
+    (folder / "x.png").write_bytes(b"")                       # not a stamp: the listing's error
+    with pytest.raises(DatasetError, match="not a time stamp"):
+        motion_first(rig(), 5, "rig")

@@ -35,6 +35,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.detect import Detection, detect
 from multieye.imaging.image_file import read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
+from multieye.imaging.pool_tasks import OnPool, SplitTask
 from multieye.imaging.targets import Target
 from multieye.imaging.main_script import main_reimport_problem, threads_instead
 from multieye.core.arguments import positive_int
@@ -331,7 +332,8 @@ def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None 
     then : dict of int to callable, optional
         By job index, a picklable function of the job's results (a list of ImageResult),
         e.g. a camera's lens start (:func:`multieye.imaging.calibrate.start_from_detections`).
-        Run in a worker process, or in this one when detection runs here.
+        Run in a worker process, or in this one when detection runs here; a
+        :class:`~multieye.imaging.pool_tasks.SplitTask` on every worker at once.
     processes, progress, max_rms_px
         As for :func:`detect_and_estimate`.
     on_sent : callable, optional
@@ -466,7 +468,9 @@ def _on_pool(pool, items, jobs, then, flat: list, bar, n_workers: int,
             j = items[len(flat) - 1][0]
             left[j] -= 1
             if left[j] == 0:        # the job's last image: its task goes next
-                if j in then:
+                if isinstance(then.get(j), SplitTask):      # on every worker at its end
+                    tasks[j] = OnPool(pool, then[j], flat[first[0]:], n_workers)
+                elif j in then:
                     tasks[j] = pool.submit(then[j], flat[first[0]:])
                 first[0] = len(flat)
             if bar is not None:

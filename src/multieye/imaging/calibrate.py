@@ -28,7 +28,8 @@ from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
 from multieye.imaging.pnp import estimate_pose
 
 __all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS", "StartedLens",
-           "start_from_detections", "poses_from_detections"]
+           "start_from_detections", "poses_from_detections", "lens_from_detections",
+           "poses_with_start", "started_lens"]
 
 F64 = NDArray[np.float64]
 
@@ -271,17 +272,37 @@ def start_from_detections(results: Sequence[ImageResult], model: str, name: str 
         None when no start can be made (no image read, images of different sizes, too few
         views, OpenCV failing): the caller then starts the lens itself, to say why.
     """
+    start = lens_from_detections(results, model, name)
+    if start is None:
+        return None
+    return started_lens(start, poses_with_start(start, results, max_rms_px=max_rms_px))
+
+
+def lens_from_detections(results: Sequence[ImageResult], model: str, name: str = "camera"
+                         ) -> InitialIntrinsics | None:
+    """The first step of :func:`start_from_detections`: :func:`initial_intrinsics` from
+    one camera's detection-only results (None where no start can be made)."""
     sizes = {r.image_size for r in results if r.image_size is not None}
     if len(sizes) != 1:
         return None
     views = [(r.detection.object_points, r.detection.image_points) for r in results
              if r.detection is not None and r.reason is None]
     try:
-        start = initial_intrinsics(views, sizes.pop(), model, name=name)
+        return initial_intrinsics(views, sizes.pop(), model, name=name)
     except InputError:
         return None
-    return StartedLens(start, tuple(poses_from_detections(results, start.intrinsics,
-                                                          max_rms_px=max_rms_px)))
+
+
+def poses_with_start(start: InitialIntrinsics, results: Sequence[ImageResult], *,
+                     max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
+    """The second step of :func:`start_from_detections`, for any part of the results: each
+    one's pose with the lens ``start`` (:func:`poses_from_detections`)."""
+    return poses_from_detections(results, start.intrinsics, max_rms_px=max_rms_px)
+
+
+def started_lens(start: InitialIntrinsics, results: Sequence[ImageResult]) -> StartedLens:
+    """The last step of :func:`start_from_detections`: the :class:`StartedLens`."""
+    return StartedLens(start, tuple(results))
 
 
 def poses_from_detections(results: Sequence[ImageResult], intrinsics: Intrinsics, *,

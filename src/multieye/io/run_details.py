@@ -69,6 +69,7 @@ from multieye.io.atomic import write_text_atomic
 from multieye.io.calibration_json import OVERLAP, SETUP_KEYS
 from multieye.io.pixel_details import (
     ImagePoints,
+    plain,
     ProjectionStd,
     points_from_dict,
     points_to_dict,
@@ -301,10 +302,7 @@ def json_value(value, where: str):
 
 def _floats(a) -> list:
     """Nested lists of Python floats (NaN -> None), full precision."""
-    a = np.asarray(a, dtype=np.float64)
-    if a.ndim == 0:
-        return None if not math.isfinite(a) else float(a)
-    return [_floats(x) for x in a]
+    return plain(a)
 
 
 def _intrinsics_dict(c: CameraDetails):

@@ -7,6 +7,7 @@ kind of message: ``path:line: what was expected, what was found``.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import re
@@ -220,16 +221,60 @@ def text_lines(path: str | os.PathLike, *, what: str = "file",
             yield number, content
 
 
+def _decoded_lines(path: str | os.PathLike, *, what: str, max_bytes: int
+                   ) -> Iterator[tuple[int, list[str]]]:
+    """:func:`physical_lines` a block of bytes (1 MiB) at a time, as ``(number of the first
+    line, lines)``, each line without its ``\\n``.  A line that is not UTF-8 raises as
+    :func:`physical_lines` does, once the lines before it are given."""
+    p = as_path(path, what)
+    first, rest = 1, b""
+    with open_bounded_text(p, what=what, max_bytes=max_bytes) as f:
+        for block in itertools.chain(f.blocks(), [None]):
+            if block is None:           # the end: a last line without its line break
+                data, rest = rest, b""
+            else:
+                data = rest + block
+                cut = data.rfind(b"\n") + 1
+                data, rest = data[:cut], data[cut:]
+            if not data:
+                continue
+            if first == 1 and data.startswith(b"\xef\xbb\xbf"):
+                data = data[3:]
+            try:
+                text = data.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                good = data[:exc.start].count(b"\n")     # the lines before the bad one
+                yield first, data[:data.rfind(b"\n", 0, exc.start) + 1].decode("utf-8").split(
+                    "\n")[:good]
+                raise DatasetError(f"not a UTF-8 text file (byte 0x{data[exc.start]:02x})",
+                                   path=p, line=first + good) from None
+            lines = text.split("\n")
+            if lines[-1] == "":
+                lines.pop()
+            yield first, lines
+            first += len(lines)
+
+
 def line_blocks(path: str | os.PathLike, *, what: str = "file", size: int = 1 << 14,
                 max_bytes: int = MAX_TABLE_BYTES) -> Iterator[tuple[list[str], list[int]]]:
-    """:func:`text_lines` gathered ``size`` at a time: ``(contents, line numbers)``."""
-    contents, numbers = [], []
-    for number, content in text_lines(path, what=what, max_bytes=max_bytes):
-        contents.append(content)
-        numbers.append(number)
-        if len(contents) == size:
-            yield contents, numbers
-            contents, numbers = [], []
+    """:func:`text_lines` gathered ``size`` at a time: ``(contents, line numbers)``; read a
+    block of bytes at a time (line by line, 8 of the 52 ms that read_tum took for 12,193
+    rows went to reading the lines)."""
+    contents: list[str] = []
+    numbers: list[int] = []
+    for first, lines in _decoded_lines(path, what=what, max_bytes=max_bytes):
+        stripped = [line.split("#", 1)[0].strip() if "#" in line else line.strip()
+                    for line in lines]
+        if all(stripped):
+            contents += stripped
+            numbers += range(first, first + len(stripped))
+        else:
+            kept = [k for k, c in enumerate(stripped) if c]
+            contents += [stripped[k] for k in kept]
+            numbers += [first + k for k in kept]
+        while len(contents) >= size:
+            yield contents[:size], numbers[:size]
+            contents, numbers = contents[size:], numbers[size:]
     if contents:
         yield contents, numbers
 

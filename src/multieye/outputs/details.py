@@ -74,22 +74,28 @@ def image_points(run: CalibrationRun, name: str, *, max_points: int = MAX_POINTS
         res = ref.result
         intr, X, Y, M = res.intrinsics[j], res.X[j], res.Y, res.T_world_mocap[j]
         eye_to_base = run.record.setup != "eye-on-hand"     # overlap: as eye-to-base
-        poses = [g.inv(X) @ (M[i] if eye_to_base else g.inv(M[i])) @ Y for i in range(len(obs))]
+        X_inv = g.inv(X)
+        poses = [X_inv @ (M[i] if eye_to_base else g.inv(M[i])) @ Y for i in range(len(obs))]
         source = "refined"
     else:
         intr, poses, source = data.intrinsics, [o.T_cam_target for o in obs], "pnp"
-    uv, resid, rms = [], [], np.full(len(obs), np.nan)
-    for i, (o, T) in enumerate(zip(obs, poses)):
+    uv, points = [], []
+    for o, T in zip(obs, poses):
         P = np.asarray(o.object_points, dtype=np.float64)
         u = np.asarray(o.image_points, dtype=np.float64).reshape(-1, 2)
         ok = np.all(np.isfinite(P), axis=1) & np.all(np.isfinite(u), axis=1)
-        r = project_points(P[ok] @ T[:3, :3].T + T[:3, 3], intr) - u[ok]
         uv.append(u[ok])
-        resid.append(r)
+        points.append(P[ok] @ T[:3, :3].T + T[:3, 3])
+    counts = np.array([len(u) for u in uv])
+    # every image's points projected at once (point by point: the same numbers as image by
+    # image, in a tenth of the time)
+    resid = np.split(project_points(np.concatenate(points), intr) - np.concatenate(uv),
+                     np.cumsum(counts)[:-1]) if counts.sum() else [np.zeros((0, 2))] * len(obs)
+    rms = np.full(len(obs), np.nan)
+    for i, r in enumerate(resid):
         d2 = np.sum(r ** 2, axis=1)
         if np.any(np.isfinite(d2)):
             rms[i] = float(np.sqrt(np.nanmean(d2)))
-    counts = np.array([len(u) for u in uv])
     total = int(counts.sum())
     if total > max_points:
         keep = np.unique(np.linspace(0, total - 1, max_points).round().astype(int))

@@ -37,7 +37,7 @@ from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.detection import Workers, detect_all
 from multieye.pipeline.estimated_lens import check_model, lens_start, start_lens, with_poses
-from multieye.pipeline.selection import SelectionSummary, preselected
+from multieye.pipeline.selection import SelectionSummary, motion_first, preselected
 from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.solvers.methods import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
@@ -384,11 +384,26 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
         A missing or malformed file, or a camera in which the target is never detected.
     """
     trajectories: dict[tuple, Trajectory] = {}
-    motions = {name: camera_motion(rig, name, trajectories) if rig.has_mocap
-               else CameraMotion(None) for name in rig.cameras}
-    chosen = preselected(rig, motions, select, time_offset, pair_stamps)
+    motions: dict[str, CameraMotion] = {}
+
+    def read_motions() -> None:     # once; in rig.cameras order, as the errors come
+        motions.update({} if motions else {
+            name: camera_motion(rig, name, trajectories) if rig.has_mocap
+            else CameraMotion(None) for name in rig.cameras})
+
+    def sent() -> None:             # the first images are with the workers: read it now
+        if on_sent is not None:
+            on_sent()
+        read_motions()
+
+    # the motion capture before the detection only where it chooses or lists the images
+    first = motion_first(rig, select, time_offset)
+    if first:
+        read_motions()
+    chosen = preselected(rig, motions, select, time_offset, pair_stamps) if first else {}
     workers = detect_all(rig, motions, Workers(processes, progress, engine), chosen,
-                         on_sent=on_sent)
+                         on_sent=on_sent if first else sent)
+    read_motions()                  # when no image went to workers
     return {name: _camera_data(rig, name, motions[name], workers, chosen.get(name))
             for name in rig.cameras}
 

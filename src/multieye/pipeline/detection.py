@@ -15,7 +15,8 @@ from multieye.imaging.batch import (
     detect_and_estimate_arrays,
     detect_jobs_then,
 )
-from multieye.imaging.calibrate import start_from_detections
+from multieye.imaging.pool_tasks import SplitTask
+from multieye.imaging.calibrate import lens_from_detections, poses_with_start, started_lens
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.imaging.targets import target_from_spec
 from multieye.io import Rig, list_image_files, list_images, read_camera_intrinsics
@@ -66,7 +67,9 @@ def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
     camera whose lens is estimated (``model:`` without ``intrinsics:`` nor
     ``intrinsics_images``) gets its lens start and its poses from the workers too, as soon
     as its images are detected (``Workers.started``).  ``on_sent()`` is called once the
-    first images are sent to the workers (not when none are).
+    first images are sent to the workers (not when none are).  ``motions``: by camera, its
+    :class:`~multieye.pipeline.camera_data.CameraMotion` where the images to detect are
+    those with a pose file (paired by name); a camera not in it detects its folder's images.
     """
     keys, jobs, then = [], [], {}
     for name, cam in rig.cameras.items() if workers.engine is None else ():
@@ -76,11 +79,13 @@ def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
         if cam.intrinsics is not None:
             intr = check_model(name, read_camera_intrinsics(cam), cam.model, cam.intrinsics)
         target = target_from_spec(rig.target, path=rig.path)
-        listed = chosen[name][0] if name in chosen else motions[name].listed
+        listed = (chosen[name][0] if name in chosen
+                  else getattr(motions.get(name), "listed", None))
         images = list_images(cam.images) if listed is None else listed
         if intr is None and cam.model is not None and cam.intrinsics_images is None:
             # the lens start and every pose with it, in a worker once the images are in
-            then[len(jobs)] = partial(start_from_detections, model=cam.model, name=name)
+            then[len(jobs)] = SplitTask(partial(lens_from_detections, model=cam.model,
+                                                name=name), poses_with_start, started_lens)
         keys.append((name, "images"))
         jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
         if cam.intrinsics_images is not None:

@@ -16,7 +16,7 @@ import os
 from pathlib import Path
 
 from multieye.io import Rig
-from multieye.io.image_folder import IMAGE_EXTENSIONS
+from multieye.io.image_folder import IMAGE_EXTENSIONS, is_file_entry, sorted_entries
 
 __all__ = ["outside_reads"]
 
@@ -25,12 +25,19 @@ def _inside(path: Path, root: Path) -> bool:
     return path == root or root in path.parents
 
 
-def _images(folder: Path) -> list[Path]:
+def _real_images(folder: Path) -> list[str]:
+    """The real path of each image file of ``folder``, in name order: the folder's own real
+    path and the name, for an entry that is not a link (what ``os.path.realpath`` of its
+    path gives, without resolving the folder's path again for each of them: 17 of the
+    23 ms this module took on a 4 x 100 rig)."""
     try:
-        entries = sorted(folder.iterdir())
+        entries = sorted_entries(folder)
+        real = os.path.realpath(folder)
+        return [os.path.realpath(e.path) if e.is_symlink() else os.path.join(real, e.name)
+                for e in entries
+                if Path(e.name).suffix.lower() in IMAGE_EXTENSIONS and is_file_entry(e)]
     except OSError:
         return []
-    return [p for p in entries if p.suffix.lower() in IMAGE_EXTENSIONS and p.is_file()]
 
 
 def outside_reads(rig: Rig, named: str | os.PathLike) -> tuple[str, ...]:
@@ -84,7 +91,8 @@ def outside_reads(rig: Rig, named: str | os.PathLike) -> tuple[str, ...]:
                                                       cam.intrinsics_images)):
             if folder is None:
                 continue
-            away = [Path(os.path.realpath(p)) for p in _images(folder)]
+            inside = str(root).rstrip(os.sep) + os.sep
+            away = [Path(p) for p in _real_images(folder) if not p.startswith(inside)]
             away = [p for p in away if not _inside(p, root) and p not in seen]
             seen.update(away)
             if away:
