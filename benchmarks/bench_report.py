@@ -105,7 +105,7 @@ if sys.argv[4] == "serial":   # figures drawn by this process alone (sources tha
     for name in ("multieye.outputs.figure_workers", "multieye.outputs.report_draw"):
         try:
             __import__(name)
-            sys.modules[name]._cores = lambda: 1
+            sys.modules[name].worker_count = lambda processes=None: 0
         except ImportError:
             pass
 run = calibrate(sys.argv[1], processes=int(sys.argv[2]))
@@ -168,7 +168,7 @@ def counted_pool(*args, **kwargs):    # the figure workers' CPU-s, read before t
 draw.worker_pool = counted_pool
 mode = sys.argv.pop(1)
 if mode == "serial":        # every figure in this process
-    draw._cores = lambda: 1
+    draw.worker_count = lambda processes=None: 0
 elif mode == "worker":      # a figure worker whatever the load
     draw._free_core = lambda: True
 plain = w.write_outputs
