@@ -331,7 +331,7 @@ def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None 
     jobs : iterable of ImageJob
     then : dict of int to callable, optional
         By job index, a picklable function of the job's results (a list of ImageResult),
-        e.g. a camera's lens start (:func:`multieye.imaging.calibrate.start_from_detections`).
+        e.g. a camera's lens start (:func:`multieye.imaging.calibrate.lens_start_task`).
         Run in a worker process, or in this one when detection runs here; a
         :class:`~multieye.imaging.pool_tasks.SplitTask` on every worker at once.
     processes, progress, max_rms_px

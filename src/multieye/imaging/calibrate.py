@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
 import cv2
 import numpy as np
@@ -26,9 +27,10 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
 from multieye.imaging.pnp import estimate_pose
+from multieye.imaging.pool_tasks import SplitTask
 
 __all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS", "StartedLens",
-           "start_from_detections", "poses_from_detections", "lens_from_detections",
+           "lens_start_task", "poses_from_detections", "lens_from_detections",
            "poses_with_start", "started_lens"]
 
 F64 = NDArray[np.float64]
@@ -248,39 +250,31 @@ class StartedLens:
     results: tuple[ImageResult, ...]
 
 
-def start_from_detections(results: Sequence[ImageResult], model: str, name: str = "camera", *,
-                          max_rms_px: float = DEFAULT_MAX_RMS_PX) -> StartedLens | None:
-    """:func:`initial_intrinsics` from one camera's detection-only results, then every
-    detection's pose with that lens: a camera's whole lens start as one task, which a
-    worker process runs as soon as the camera's images are detected
-    (:func:`multieye.imaging.batch.detect_jobs_then`).
+def lens_start_task(model: str, name: str = "camera") -> SplitTask:
+    """A camera's whole lens start from its detection-only results, as a task that a worker
+    pool runs as soon as the camera's images are detected
+    (:func:`multieye.imaging.batch.detect_jobs_then`): :func:`initial_intrinsics`
+    (:func:`lens_from_detections`) on one worker, then every detection's pose with that lens
+    (:func:`poses_with_start`) in parts on every worker, joined as a :class:`StartedLens`
+    (:func:`started_lens`).  Called on the results (a sequence of :class:`ImageResult`,
+    detection only), it runs here; its result is None when no start can be made (no image
+    read, images of different sizes, too few views, OpenCV failing): the caller then starts
+    the lens itself, to say why.
 
     Parameters
     ----------
-    results : sequence of ImageResult
-        Detection only (no intrinsics), one per image of the camera.
     model : str
         Lens model (:data:`multieye.core.intrinsics.LENS_MODELS`).
     name : str
         Camera name for messages.
-    max_rms_px : float
-        As for :func:`poses_from_detections`.
-
-    Returns
-    -------
-    StartedLens or None
-        None when no start can be made (no image read, images of different sizes, too few
-        views, OpenCV failing): the caller then starts the lens itself, to say why.
     """
-    start = lens_from_detections(results, model, name)
-    if start is None:
-        return None
-    return started_lens(start, poses_with_start(start, results, max_rms_px=max_rms_px))
+    return SplitTask(partial(lens_from_detections, model=model, name=name), poses_with_start,
+                     started_lens)
 
 
 def lens_from_detections(results: Sequence[ImageResult], model: str, name: str = "camera"
                          ) -> InitialIntrinsics | None:
-    """The first step of :func:`start_from_detections`: :func:`initial_intrinsics` from
+    """The first step of :func:`lens_start_task`: :func:`initial_intrinsics` from
     one camera's detection-only results (None where no start can be made)."""
     sizes = {r.image_size for r in results if r.image_size is not None}
     if len(sizes) != 1:
@@ -295,13 +289,13 @@ def lens_from_detections(results: Sequence[ImageResult], model: str, name: str =
 
 def poses_with_start(start: InitialIntrinsics, results: Sequence[ImageResult], *,
                      max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
-    """The second step of :func:`start_from_detections`, for any part of the results: each
+    """The second step of :func:`lens_start_task`, for any part of the results: each
     one's pose with the lens ``start`` (:func:`poses_from_detections`)."""
     return poses_from_detections(results, start.intrinsics, max_rms_px=max_rms_px)
 
 
 def started_lens(start: InitialIntrinsics, results: Sequence[ImageResult]) -> StartedLens:
-    """The last step of :func:`start_from_detections`: the :class:`StartedLens`."""
+    """The last step of :func:`lens_start_task`: the :class:`StartedLens`."""
     return StartedLens(start, tuple(results))
 
 

@@ -9,7 +9,7 @@ the pose of every image by PnP with the lens found taking more than half of it).
 
 Synopsis
 --------
->>> task = SplitTask(lens_from_detections, poses_with_start, started_lens)   # doctest: +SKIP
+>>> task = lens_start_task("pinhole-radtan", "cam0")    # a SplitTask   # doctest: +SKIP
 >>> task(results)                       # the same, in this process   # doctest: +SKIP
 """
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from functools import partial
 
 from multieye.imaging.batch import (
     ImageJob,
@@ -15,8 +14,7 @@ from multieye.imaging.batch import (
     detect_and_estimate_arrays,
     detect_jobs_then,
 )
-from multieye.imaging.pool_tasks import SplitTask
-from multieye.imaging.calibrate import lens_from_detections, poses_with_start, started_lens
+from multieye.imaging.calibrate import lens_start_task
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.imaging.targets import target_from_spec
 from multieye.io import Rig, list_image_files, list_images, read_camera_intrinsics
@@ -84,8 +82,7 @@ def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
         images = list_images(cam.images) if listed is None else listed
         if intr is None and cam.model is not None and cam.intrinsics_images is None:
             # the lens start and every pose with it, in a worker once the images are in
-            then[len(jobs)] = SplitTask(partial(lens_from_detections, model=cam.model,
-                                                name=name), poses_with_start, started_lens)
+            then[len(jobs)] = lens_start_task(cam.model, name)
         keys.append((name, "images"))
         jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
         if cam.intrinsics_images is not None:

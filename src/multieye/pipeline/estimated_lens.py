@@ -128,7 +128,7 @@ def lens_start(name: str, model: str, results: Sequence[ImageResult],
                start: InitialIntrinsics) -> LensStart:
     """The :class:`LensStart` of OpenCV's calibration ``start`` from ``results`` (made by
     :func:`start_lens`, or by a worker process: :func:`multieye.imaging.calibrate.
-    start_from_detections`), with what the views lack for ``model``."""
+    lens_start_task`), with what the views lack for ``model``."""
     views = _views(results)
     size = next(r.image_size for r in results if r.image_size is not None)
     return LensStart(start.intrinsics, start.rms_px, len(views),
