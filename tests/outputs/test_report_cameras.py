@@ -370,6 +370,25 @@ def test_no_figure_worker_on_a_busy_machine_or_with_one_process(monkeypatch, fre
         assert workers.pool is None and workers.size == 0
 
 
+def test_no_figure_worker_late_when_none_could_start_early(monkeypatch):
+    """A machine busy when the detection ended and free when the figures are handed over:
+    still no worker (each would import matplotlib itself beside this process's writing,
+    instead of the fork server once); without the early start, a free core at the outputs
+    starts them."""
+    answers = iter([False, True])
+    monkeypatch.setattr(figure_workers, "_free_core", lambda: next(answers))
+    with figure_workers.figure_workers(2) as workers:
+        workers.start_early()
+        workers.start()
+        assert workers.pool is None and workers.size == 0
+    if figure_workers.worker_count(2) == 0:
+        return                          # one core: never a worker
+    monkeypatch.setattr(figure_workers, "_free_core", lambda: True)
+    with figure_workers.figure_workers(2) as workers:
+        workers.start()
+        assert workers.size == 2
+
+
 def test_camera_figures_drawn_on_one_figure_are_the_same_as_alone(runs):
     """A camera's figure drawn after another's on the figure reused is the figure drawn
     alone: nothing of the camera before is left."""

@@ -121,6 +121,7 @@ class FigureWorkers:
         self._stack = stack
         self._starter: threading.Thread | None = None
         self._failed: list[BaseException] = []
+        self._busy = False          # start_early found no core free: this process draws
 
     def start_early(self) -> None:
         """Start the workers now if a core is free (a calibration calls this when its
@@ -132,8 +133,11 @@ class FigureWorkers:
         has imported, and this process goes on meanwhile); otherwise by the first worker,
         and the second starts once the first is ready, so that the two imports take that
         core in turn.  On a busy machine they would take a share of the refinement's core
-        instead, and start when the figures are handed to them (:meth:`start`)."""
-        if not (self.count and _free_core()):
+        instead, and this process draws (:meth:`start` then starts none)."""
+        if not self.count:
+            return
+        if not _free_core():
+            self._busy = True
             return
         if ask_fork_server(PRELOAD):
             # a fork request waits for the server's answer, which comes once it has imported
@@ -149,11 +153,14 @@ class FigureWorkers:
         ``count`` 0; a start begun by :meth:`start_early` is waited for, and its error
         raised).  On a busy machine this process draws: one worker drawing while it waits
         made the outputs 0.6 s longer at a load of 3.3-3.8 on 2 cores (medians of 6,
-        docs/results/report_speed.md)."""
+        docs/results/report_speed.md).  Nor after :meth:`start_early` found no core free:
+        workers started now would each import matplotlib (0.35-0.45 CPU-s apiece) beside
+        this process's writing, where the detection's fork server would have imported it
+        once, and a momentary load at either moment would otherwise decide."""
         self.join()
         if self._failed:
             raise self._failed[0]
-        self._start(self.count if _free_core() else 0, one_at_a_time=False)
+        self._start(self.count if not self._busy and _free_core() else 0, one_at_a_time=False)
 
     def join(self) -> None:
         """Wait for a start begun by :meth:`start_early` on its thread (none: nothing)."""
