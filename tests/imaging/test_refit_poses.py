@@ -1,6 +1,7 @@
 """Many target poses refitted at once (Gauss-Newton over all views in numpy) land where
 OpenCV's Levenberg-Marquardt of one view at a time lands, for pinhole and fisheye lenses,
-with views of different point counts, and hand a view it cannot fit to that one-view fit."""
+with views of different point counts, and hand a view it cannot fit to that one-view fit;
+PnP of many views together gives what PnP of each alone gives."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import pytest
 
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
+from multieye.core.lens import project_points
 from multieye.imaging.pnp import refit_pose, refit_poses
 from multieye.sim.images import default_intrinsics, simulate_images
 
@@ -79,3 +81,46 @@ def test_refusals():
         refit_poses(starts[:2], [obj[0], obj[1][:3]], [uvs[0], uvs[1][:3]], lens)
     with pytest.raises(InputError, match="one of each per view"):
         refit_poses(starts[:2], obj[:3], uvs[:3], lens)
+
+
+def test_many_views_posed_together_as_each_alone():
+    """estimate_poses: boards together (the pose estimate_pose finds, to 1e-7 where the noise
+    moves it by 1e-4), and every view it cannot do together (a single marker whose mirrored
+    pose is kept, a circle grid, too few points, points on a line, off the plane) exactly as
+    estimate_pose does it, error included."""
+    from multieye.imaging.detect import Detection
+    from multieye.imaging.pnp import estimate_pose, estimate_poses
+
+    starts, obj, uvs, lens = _views("pinhole", sigma=0.2)
+    rng = np.random.default_rng(8)
+    dets = [Detection(np.arange(len(o)), u, o) for o, u in zip(obj, uvs)]
+    # a 5 cm marker 2 m away: its mirrored pose fits too, and is kept
+    square = np.array([[0, 0, 0], [0.05, 0, 0], [0.05, 0.05, 0], [0, 0.05, 0]], dtype=float)
+    T = g.transform_from_rotvec([np.radians(25.0), 0, 0], [0, 0, 2.0])
+    marker = Detection(np.arange(4), project_points(square @ T[:3, :3].T + T[:3, 3], lens) + rng.normal(0, 0.3, (4, 2)),
+                       square)
+    circles = replace(dets[2], circle_diameter=0.01)
+    line = Detection(np.arange(5), uvs[0][:5] * [1, 0] + [0, 400.0],
+                     np.column_stack([np.linspace(0, 0.2, 5), np.zeros(5), np.zeros(5)]))
+    bumpy = obj[1].copy()
+    bumpy[3, 2] = 0.01
+    dets += [marker, circles, line, Detection(np.arange(3), uvs[0][:3], obj[0][:3]),
+             Detection(np.arange(len(bumpy)), uvs[1], bumpy)]
+    together = estimate_poses(dets, lens)
+    assert len(together) == len(dets)
+    for det, pose in zip(dets, together):
+        try:
+            alone = estimate_pose(det, lens)
+        except InputError as exc:
+            assert isinstance(pose, InputError) and str(pose) == str(exc)
+            continue
+        assert isinstance(pose, type(alone))
+        assert np.abs(pose.T_cam_target - alone.T_cam_target).max() < 1e-7
+        assert abs(pose.rms_px - alone.rms_px) < 1e-9
+        assert pose.n_points == alone.n_points
+        assert (pose.alternative is None) == (alone.alternative is None)
+    assert together[30].alternative is not None                 # the marker kept both
+    np.testing.assert_array_equal(together[31].T_cam_target,    # the circles: alone
+                                  estimate_pose(circles, lens).T_cam_target)
+    assert [type(p) for p in together[32:]] == [InputError] * 3
+    assert estimate_poses([], lens) == []

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
-from multieye.imaging.pnp import estimate_pose
+from multieye.imaging.pnp import estimate_poses
 from multieye.imaging.pool_tasks import SplitTask
 
 __all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS", "StartedLens",
@@ -349,18 +349,15 @@ def poses_from_detections(results: Sequence[ImageResult], intrinsics: Intrinsics
                           max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
     """Detection-only results completed with the target pose by PnP with ``intrinsics``
     (the same rules as detection with known intrinsics: a failed PnP or a bad fit becomes the
-    image's reason)."""
-    out = []
-    for r in results:
-        if r.detection is None or r.reason is not None:
-            out.append(r)
-            continue
-        try:
-            pose = estimate_pose(r.detection, intrinsics)
-        except InputError as exc:
-            out.append(replace(r, reason=f"PnP failed: {exc}"))
+    image's reason), every view together (:func:`multieye.imaging.pnp.estimate_poses`)."""
+    todo = [k for k, r in enumerate(results) if r.detection is not None and r.reason is None]
+    poses = estimate_poses([results[k].detection for k in todo], intrinsics)
+    out = list(results)
+    for k, pose in zip(todo, poses):
+        if isinstance(pose, InputError):
+            out[k] = replace(results[k], reason=f"PnP failed: {pose}")
             continue
         reason = None if pose.rms_px <= max_rms_px else (
             f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px")
-        out.append(replace(r, pose=pose, reason=reason))
+        out[k] = replace(results[k], pose=pose, reason=reason)
     return out
