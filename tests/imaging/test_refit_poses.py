@@ -83,7 +83,8 @@ def test_refusals():
         refit_poses(starts[:2], obj[:3], uvs[:3], lens)
 
 
-def test_many_views_posed_together_as_each_alone():
+@pytest.mark.parametrize("model", ["pinhole", "fisheye"])
+def test_many_views_posed_together_as_each_alone(model):
     """estimate_poses: boards together (the pose estimate_pose finds, to 1e-7 where the noise
     moves it by 1e-4), and every view it cannot do together (a single marker whose mirrored
     pose is kept, a circle grid, too few points, points on a line, off the plane) exactly as
@@ -91,7 +92,7 @@ def test_many_views_posed_together_as_each_alone():
     from multieye.imaging.detect import Detection
     from multieye.imaging.pnp import estimate_pose, estimate_poses
 
-    starts, obj, uvs, lens = _views("pinhole", sigma=0.2)
+    starts, obj, uvs, lens = _views(model, sigma=0.2)
     rng = np.random.default_rng(8)
     dets = [Detection(np.arange(len(o)), u, o) for o, u in zip(obj, uvs)]
     # a 5 cm marker 2 m away: its mirrored pose fits too, and is kept
