@@ -125,3 +125,18 @@ def test_many_views_posed_together_as_each_alone(model):
                                   estimate_pose(circles, lens).T_cam_target)
     assert [type(p) for p in together[32:]] == [InputError] * 3
     assert estimate_poses([], lens) == []
+
+
+def test_many_views_in_parts_as_in_one(monkeypatch):
+    """Above a number of views the fit goes in parts (memory bounded): the same poses."""
+    from multieye.imaging import pnp
+
+    starts, obj, uvs, lens = _views("pinhole", sigma=0.2)
+    whole = refit_poses(starts, obj, uvs, lens)
+    monkeypatch.setattr(pnp, "_REFIT_VIEWS", 7)
+    parts = refit_poses(starts, obj, uvs, lens)
+    assert len(parts) == len(whole) == 30
+    for a, b in zip(whole, parts):
+        # (the padding to the part's largest view may change the sums' rounding)
+        np.testing.assert_allclose(a.T_cam_target, b.T_cam_target, rtol=0, atol=1e-12)
+        assert abs(a.rms_px - b.rms_px) < 1e-12

@@ -54,6 +54,8 @@ AMBIGUOUS_PX = 0.3
 #: :func:`refit_poses` stops when no view's step is larger (radians, metres): the iteration
 #: converges linearly at a rate of about 1e-2 there, so the pose is then within 1e-12.
 _REFIT_STEP = 1e-10
+#: :func:`refit_poses` fits at most this many views at once (its arrays are views x points).
+_REFIT_VIEWS = 256
 #: Poses closer than this (degrees) are one solution, not two.
 _DISTINCT_DEG = 0.5
 
@@ -361,7 +363,7 @@ def refit_poses(T_cam_target: F64, object_points, image_points, intrinsics: Intr
     Each view's pose is updated on the left, ``T <- [exp(w) | v] T``, from its 6 x 6 normal
     equations, all views in one numpy pass per iteration (the lens' projection and Jacobian,
     :func:`multieye.core.lens.project_with_jacobian`; the views padded to one number of
-    points), until no step is above :data:`_REFIT_STEP` or after ``iterations``; a view
+    points, :data:`_REFIT_VIEWS` at a time), until no step is above :data:`_REFIT_STEP` or after ``iterations``; a view
     whose fit does not end finite and converged is refitted alone by :func:`refit_pose`.
     From poses near the optimum (the same views with a slightly different lens) four
     iterations reach the minimum ``cv2.solvePnPRefineLM`` finds (to 2e-9 in the poses' terms
@@ -394,6 +396,12 @@ def refit_poses(T_cam_target: F64, object_points, image_points, intrinsics: Intr
         return []
     if counts.min() < 4:
         raise InputError(f"PnP needs at least 4 points, got {int(counts.min())}")
+    if len(T0) > _REFIT_VIEWS:                 # bounded memory: the views in parts
+        return [pose for a in range(0, len(T0), _REFIT_VIEWS)
+                for pose in refit_poses(T0[a:a + _REFIT_VIEWS],
+                                        object_points[a:a + _REFIT_VIEWS],
+                                        image_points[a:a + _REFIT_VIEWS], intrinsics,
+                                        iterations=iterations)]
     n, k = len(T0), int(counts.max())
     # every view padded to k points (copies of its first point, weighed 0): one batch
     pad = np.minimum(np.arange(k), counts[:, None] - 1)                    # (n, k)
