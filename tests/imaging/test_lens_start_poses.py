@@ -108,3 +108,14 @@ def test_a_view_pnp_failed_on_is_posed_by_opencv():
     assert calibrate._pnp_pose(results[1].detection.object_points[:3],
                                results[1].detection.image_points[:3],
                                start.intrinsics).shape == (4, 4)
+
+
+def test_a_view_without_pose_leaves_the_tilt_check_to_the_others():
+    results = _results(10.0)
+    views = [(r.detection.object_points, r.detection.image_points) for r in results
+             if r.detection is not None]
+    T = initial_intrinsics(views, (1280, 960), "pinhole-radtan").T_cam_target
+    said = weak_data_warnings("cam0", "pinhole-radtan", views, T, (1280, 960))
+    T[3, :3] = np.nan
+    assert weak_data_warnings("cam0", "pinhole-radtan", views, T, (1280, 960)) == said
+    assert any("never tilted more than" in w for w in said)

@@ -185,7 +185,7 @@ def weak_data_warnings(name: str, model: str, views, T_cam_target, size) -> tupl
     ----------
     views : sequence of (object_points, image_points)
     T_cam_target : ndarray, shape (n, 4, 4)
-        The board's pose in each view.
+        The board's pose in each view (NaN where none was found).
     size : (int, int)
     """
     out = []
@@ -198,6 +198,7 @@ def weak_data_warnings(name: str, model: str, views, T_cam_target, size) -> tupl
     line = np.asarray(T_cam_target)[:, :3, 3]
     cos = np.abs(np.einsum("ij,ij->i", normal, line)) / np.linalg.norm(line, axis=1)
     tilt = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
+    tilt = tilt[np.isfinite(tilt)]                # a view no PnP could pose says nothing
     if tilt.size and tilt.max() < MIN_TILT_DEG:
         out.append(f"{name}: the board is never tilted more than {tilt.max():.0f} degrees "
                    f"against the line of sight, which leaves the focal length poorly "
