@@ -13,8 +13,11 @@ enough to gain from more.
 from __future__ import annotations
 
 import os
+import statistics
+import time
 
-__all__ = ["available_cores", "one_blas_thread", "blas_threads_chosen", "BLAS_THREAD_VARIABLES"]
+__all__ = ["available_cores", "one_blas_thread", "blas_threads_chosen", "BLAS_THREAD_VARIABLES",
+           "runnable_elsewhere"]
 
 #: The environment variables by which OpenBLAS is told its number of threads (the first set wins).
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
@@ -29,6 +32,39 @@ def available_cores() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:          # not on Linux
         return os.cpu_count() or 1
+
+
+def runnable_elsewhere(samples: int = 5, pause_s: float = 0.002, *,
+                       stat: str = "/proc/stat") -> float | None:
+    """Tasks ready to run on this process's cores now, besides the calling thread.
+
+    The median of ``samples`` readings, ``pause_s`` apart, of the kernel's count of runnable
+    tasks (``procs_running`` of ``/proc/stat``, which counts the caller), less one, scaled by
+    the share of the machine's processors this process may use (a container pinned to 2 of a
+    host's 64 sees the host's count).  Unlike the load average, which follows the last
+    minute, this sees the machine as it is: right after multieye's own detection workers
+    have kept both cores busy for seconds, the one-minute load average is near 2 on an
+    otherwise idle 2-core machine.
+
+    Returns
+    -------
+    float or None
+        None where the count cannot be read (not Linux).
+    """
+    counts = []
+    for k in range(samples):
+        if k:
+            time.sleep(pause_s)
+        try:
+            with open(stat, "rb") as f:
+                line = next((ln for ln in f if ln.startswith(b"procs_running ")), None)
+        except OSError:
+            return None
+        if line is None:
+            return None
+        counts.append(int(line.split()[1]))
+    machine = os.cpu_count() or 1
+    return max(statistics.median(counts) - 1.0, 0.0) * min(available_cores() / machine, 1.0)
 
 
 def one_blas_thread() -> bool:

@@ -36,7 +36,7 @@ their redundancy ``n_pixel - (n_params - tr(H_prior cov_M))`` (the share of the 
 mocap priors do not already pay for), re-solving until the estimate settles.  When the
 motion-capture noise is not given, its rotation and position components are estimated the
 same way, each from its own residuals (how far the refinement moves the measured poses) over
-its own redundancy (:func:`_variance_components`; the plain RMS of the corrections, which
+its own redundancy (:mod:`multieye.estimate.variance_components`; the plain RMS of the corrections, which
 shrinks with the sigma that produced it, collapsed to zero on small robot recordings:
 benchmarks/bench_mocap_noise.py).  Like every covariance from a linearised model this one covers the
 measurement noise only: not errors in the intrinsics, unsynchronised clocks (unless their
@@ -64,6 +64,7 @@ from multieye.core.arguments import transform, with_fields
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.robust_loss import LOSSES, gaussian_kappa, gaussian_scale_constant, rho
+from multieye.estimate import variance_components as vc
 from multieye.estimate.clock_residuals import ClockData
 from multieye.estimate.image_data import ImageData, ImageProblem, image_data
 from multieye.estimate.image_residuals import intrinsics_family
@@ -99,9 +100,15 @@ _MAX_SIGMA_PASSES = 6
 #: Relative change of the noise estimates at which their fixed point counts as reached.
 _SETTLED = 0.01
 _MOCAP_SETTLED = 0.1
-#: Smallest redundancy a variance component is divided by (a component the data barely
-#: determine is then not blown up).
-_MIN_REDUNDANCY = 0.5
+#: The redundancies of the noise estimate are taken again from a covariance at the end of a
+#: pass whose sigmas are more than this far (log ratio, about 10 %) from those they were taken
+#: at (the priors' share of the parameters moves with the ratio of the sigmas).
+_STALE = np.log(1.1)
+#: An estimate extrapolated to the fixed point (:func:`~multieye.estimate.variance_components.
+#: secant`) from a step that moved the sigmas by less than this many settled shares goes to
+#: the final pass at once (whose covariance checks it: on the rendered 4 x 100 rig the
+#: extrapolation from a 1.5 % step landed within 0.05 % of the fixed point).
+_EXTRAPOLATED = 5.0
 #: Clock windows are re-centred when an offset moved by more than this share of their
 #: half-width (at most this many times).
 _RECENTRE_SHARE = 0.25
@@ -237,17 +244,12 @@ def _value(fams, name: str):
     return next(f.value for f in fams if f.name == name)
 
 
-def _is_prior(group) -> bool:
-    """A group of motion-capture priors (one row of 6 per instant, touching ``M`` first)."""
-    return group.slots[0] == "M"
-
-
 def _prior_residuals(data: ImageData, groups, ev) -> F64:
     """Normalised motion-capture prior residuals of every image, (N, 6): each image gets its
     instant's (the images sharing a measurement share its residual)."""
     out = np.zeros((data.n_instants, 6))
     for grp, e in zip(groups, ev):
-        if _is_prior(grp):
+        if vc.is_prior(grp):
             out[grp.index[:, 0]] = e[0]
     return out[data.instant]
 
@@ -264,52 +266,6 @@ def _clock_noise(data: ImageData) -> tuple[float, float]:
 def _pixel_residuals(data: ImageData, ev) -> F64:
     """Normalised pixel residuals of every motion-captured image's points, (P, 2)."""
     return np.concatenate([e[0] for e in ev[:data.m]])
-
-
-def _variance_components(data: ImageData, fams, *, s_px: float, s_rot: float, s_t: float,
-                         loss: str, f_scale: float, c_w: float) -> tuple[float, float, float,
-                                                                          float, float]:
-    """Variance-component estimates (Förstner) of the pixel and the motion-capture noise.
-
-    Each group of residuals ``k`` (pixels; the motion capture's rotation components; its
-    position components) gets ``sigma_k^2 * sum(w z_k^2) / (c_w r_k)``, with ``z_k`` its
-    residuals normalised by the current ``sigma_k`` (one prior per instant: a measurement
-    shared by several images counts once) and ``r_k`` its redundancy: its count of
-    residuals minus the share of the parameters it pays for, ``tr(J_k Cov J_k^T)`` at the
-    optimum.  Unlike the RMS of the corrections, which shrinks with the sigma that produced
-    them and so collapses to zero when the pixels cannot contradict the poses, this is the
-    restricted-likelihood fixed point.
-
-    Returns
-    -------
-    s_px, s_rot, s_t : float
-        The new estimates (pixels, radians, metres).
-    r_rot, r_t : float
-        The motion-capture redundancies: near 0 when the recording cannot tell the pose noise
-        apart from the pixel noise.
-    """
-    groups = data.groups(s_px, s_rot, s_t)
-    cov, ev = covariance_and_residuals(fams, groups, local=True)   # J^T J chunk by chunk
-    values = {f.name: f.value for f in fams}
-    h_prior = 0.0
-    sums, red = np.zeros(2), np.zeros(2)
-    for grp, e in zip(groups, ev):
-        if _is_prior(grp):
-            Jp = grp.evaluate(values, True)[1][0]                         # d r / d M, (n, 6, 6)
-            h = np.einsum("nki,nij,nkj->nk", Jp, cov.local[grp.index[:, 0]], Jp)   # (n, 6)
-            h_prior += float(h.sum())
-            w = rho((e[0] / f_scale) ** 2, loss)[1]
-            for k, sl in enumerate((slice(0, 3), slice(3, 6))):
-                sums[k] += float(np.sum(w[:, sl] * e[0][:, sl] ** 2))
-                red[k] += float(np.sum(1.0 - h[:, sl]))
-    n_params = cov.layout.k + 6 * cov.layout.n_local
-    z = np.concatenate([e[0].ravel() for grp, e in zip(groups, ev) if not _is_prior(grp)])
-    redundancy = z.size - (n_params - h_prior)
-    w = rho((z / f_scale) ** 2, loss)[1]
-    new_px = s_px * np.sqrt(float(w @ z ** 2) / (c_w * max(redundancy, 1.0)))
-    new_rot, new_t = (max(s * np.sqrt(q / (c_w * max(r, _MIN_REDUNDANCY))), MOCAP_SIGMA_FLOOR)
-                      for s, q, r in zip((s_rot, s_t), sums, red))
-    return float(new_px), float(new_rot), float(new_t), float(red[0]), float(red[1])
 
 
 @dataclass(frozen=True)
@@ -424,9 +380,9 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     fams, noise = _start(data, X0, Y0, noise)
     # BLAS threads for the reduced system's size over the whole solve (refine_rig's reason)
     with threads_for(sum(f.count * f.size for f in fams if not f.eliminate)):
-        data, fams, noise, res, counts = _solve(data, fams, noise, loss=opts.loss,
-                                                max_iter=int(opts.max_iter), tol=opts.tol)
-        return _result(data, fams, noise, res, counts, loss=opts.loss, start=start)
+        data, fams, noise, res, counts, at = _solve(data, fams, noise, loss=opts.loss,
+                                                    max_iter=int(opts.max_iter), tol=opts.tol)
+        return _result(data, fams, noise, res, counts, at, loss=opts.loss, start=start)
 
 
 @dataclass(frozen=True)
@@ -483,68 +439,108 @@ def _start(data: ImageData, X0: ArrayLike, Y0: ArrayLike, noise: _Noise):
     return fams, replace(noise, s_px=s_px, s_rot=s_rot, s_t=s_t)
 
 
+def _pass_options(stage: str, loss: str, f_scale: float, max_iter: int, tol: float,
+                  first: bool) -> Options:
+    """Levenberg-Marquardt's options of a pass: ``first`` from the closed form (to ``sqrt(tol)``
+    while the noise is being estimated, the robust cost's curvature only near the optimum);
+    ``step``, one step (the robust cost's curvature) from an earlier pass's optimum, only to
+    re-estimate the noise there; ``final`` to ``tol`` with the robust cost's curvature
+    (:class:`~multieye.optimize.levenberg_marquardt.Options`), from its start when it starts at
+    an earlier pass's optimum."""
+    if stage == "step":
+        return Options(loss=loss, f_scale=f_scale, max_iter=1, tol=np.sqrt(tol),
+                       newton_below=np.inf)
+    if stage == "first":
+        return Options(loss=loss, f_scale=f_scale, max_iter=max_iter, tol=np.sqrt(tol))
+    return Options(loss=loss, f_scale=f_scale, max_iter=max_iter, tol=tol,
+                   newton_below=np.sqrt(tol) if first else np.inf)
+
+
+def _recentre(data: ImageData, fams, noise: _Noise, sigmas: F64, recentres: int):
+    """The data with the clock windows recentred on the offsets that moved far from where
+    they are centred (at most :data:`_MAX_RECENTRES` times in all), the sigmas (the motion
+    capture's from the new windows when estimated), and whether anything moved."""
+    units = data.units
+    moved = [u for u, f in enumerate(units.family) if abs(float(_value(fams, f)[0, 0])
+                                                           - units.trajectories[u].centre_offset)
+             > _RECENTRE_SHARE * units.clock[u].half_window_s]
+    if not moved or recentres >= _MAX_RECENTRES:
+        return data, sigmas, False
+    data = data.recentred({u: float(_value(fams, units.family[u])[0, 0]) for u in moved})
+    if noise.estimate_mocap:
+        sigmas = np.array([sigmas[0], *_clock_noise(data)])
+    return data, sigmas, True
+
+
 def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, tol: float):
-    """Refinement passes, alternating with the variance components of the noise levels
-    being estimated until they settle (the last pass at ``tol``, the others at its root),
-    and the clock windows recentred on offsets that moved far.  Returns the data (recentred),
-    the families, the noise, the last pass's result and (iterations, evaluations, passes)."""
-    s_px, s_rot, s_t, f_scale = noise.s_px, noise.s_rot, noise.s_t, noise.f_scale
-    timed = any(c is not None for c in data.clocks)
+    """The refinement, alternating with the variance components of the noise levels being
+    estimated (:mod:`multieye.estimate.variance_components`) until they settle, and the
+    clock windows recentred on offsets that moved far.
+
+    1. ``first`` pass from the closed form; the noise estimated at its optimum from its
+       covariance (the redundancies) and residuals.
+    2. While the estimate moves by more than :data:`_SETTLED` (pixels; the motion capture's
+       :data:`_MOCAP_SETTLED`): one ``step`` from there with the new noise, and the estimate
+       at its end from its residuals and the last redundancies, extrapolated to the fixed
+       point from the last two (:func:`~multieye.estimate.variance_components.secant`).
+    3. ``final`` pass to ``tol``; its covariance (which the result needs anyway) checks the
+       estimate there: another final pass if it moved by more than the settled share.
+
+    Returns the data (recentred), the families, the noise, the last pass's result,
+    (iterations, evaluations, passes) and the covariance and residuals at the optimum."""
+    f_scale = noise.f_scale
+    s = np.array([noise.s_px, noise.s_rot, noise.s_t], dtype=np.float64)
+    iterate_mocap = noise.estimate_mocap and not any(c is not None for c in data.clocks)
+    free = np.array([noise.estimate_px, iterate_mocap, iterate_mocap])
+    share = np.array([_SETTLED, _MOCAP_SETTLED, _MOCAP_SETTLED])
     c_w = gaussian_scale_constant(loss, f_scale)
-    iterations = evaluations = passes = 0
-    iterate_mocap = noise.estimate_mocap and not timed
-    settled = not (noise.estimate_px or iterate_mocap)
-    recentres = 0
+    counts = np.zeros(3, dtype=np.int64)          # iterations, evaluations, passes
+    stage, red, red_at, previous, recentres, estimates = (
+        "final" if not free.any() else "first", None, s, None, 0, 0)
     while True:
-        final = settled or passes >= _MAX_SIGMA_PASSES
-        # the last pass with the robust cost's curvature near its optimum (Options), from its
-        # start when it starts at an earlier pass's optimum
-        opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter,
-                       tol=tol if final else np.sqrt(tol),
-                       newton_below=(np.inf if passes else np.sqrt(tol)) if final else 0.0)
-        res = minimize(fams, data.groups(s_px, s_rot, s_t), opts)
+        groups = data.groups(*s)
+        res = minimize(fams, groups, _pass_options(stage, loss, f_scale, max_iter, tol,
+                                                   first=counts[2] == 0))
         fams = res.families
-        passes += 1
-        iterations += res.iterations
-        evaluations += res.evaluations
-        units = data.units
-        moved = [u for u, f in enumerate(units.family) if abs(float(_value(fams, f)[0, 0])
-                                                               - units.trajectories[u].centre_offset)
-                 > _RECENTRE_SHARE * units.clock[u].half_window_s]
-        if moved and recentres < _MAX_RECENTRES:
-            # an offset moved far from where its windows are centred: centre them there
+        counts += (res.iterations, res.evaluations, 1)
+        data, s, recentred = _recentre(data, fams, noise, s, recentres)
+        if recentred:
             recentres += 1
-            data = data.recentred({u: float(_value(fams, units.family[u])[0, 0]) for u in moved})
-            if noise.estimate_mocap:
-                s_rot, s_t = _clock_noise(data)
-            if final:
+            red, previous, groups = None, None, data.groups(*s)
+            if stage == "final":
                 continue
-        if final:
+        if stage == "final" or red is None or np.any(np.abs(np.log(s / red_at)) > _STALE):
+            cov, ev = covariance_and_residuals(fams, groups, local=True)
+            if not free.any():
+                break
+            sums = vc.weighted_sums(groups, ev, loss, f_scale)
+            red, red_at, previous = vc.redundancy(data, fams, groups, cov, sums.n_pixels), s, None
+        else:
+            sums = vc.weighted_sums(groups, res.residuals, loss, f_scale)
+        new = vc.estimate(s, sums, red, c_w)
+        estimates += 1
+        moved = float(np.max(np.abs(new / s - 1.0)[free] / share[free]))
+        if stage == "final" and (moved < 1.0 or estimates > _MAX_SIGMA_PASSES):
             break
-        changes = []
-        new_px, new_rot, new_t, _, _ = _variance_components(
-            data, fams, s_px=s_px, s_rot=s_rot, s_t=s_t, loss=loss, f_scale=f_scale, c_w=c_w)
-        if iterate_mocap:
-            changes += [abs(new_rot / s_rot - 1.0) / _MOCAP_SETTLED,
-                        abs(new_t / s_t - 1.0) / _MOCAP_SETTLED]
-            s_rot, s_t = new_rot, new_t
-        if noise.estimate_px:
-            changes.append(abs(new_px / s_px - 1.0) / _SETTLED)
-            s_px = new_px
-        settled = max(changes) < 1.0
-    return (data, fams, replace(noise, s_px=s_px, s_rot=s_rot, s_t=s_t), res,
-            (iterations, evaluations, passes))
+        following, extrapolated = vc.secant(s, new, previous, free)
+        previous, s = (s, new), following
+        if stage != "final":
+            near = moved < 1.0 or (extrapolated and moved < _EXTRAPOLATED)
+            stage = "final" if near or estimates >= _MAX_SIGMA_PASSES else "step"
+    return (data, fams, replace(noise, s_px=float(s[0]), s_rot=float(s[1]), s_t=float(s[2])),
+            res, tuple(int(c) for c in counts), (cov, ev))
 
 
-def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, int], *,
+def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, int], at, *,
             loss: str, start: float) -> RefinementResult:
     """The result at the optimum: covariance (scaled by the loss's kappa), per-point and
-    per-image residuals and outliers, the intrinsics and clock offsets per camera."""
+    per-image residuals and outliers, the intrinsics and clock offsets per camera; ``at``:
+    the covariance and residuals there (with every pose's marginal covariance)."""
     s_px, s_rot, s_t, f_scale = noise.s_px, noise.s_rot, noise.s_t, noise.f_scale
     kappa = gaussian_kappa(loss, f_scale)
     X, Y, M = _value(fams, "X"), _value(fams, "Y")[0], _value(fams, "M")
     groups = data.groups(s_px, s_rot, s_t)
-    cov, ev = covariance_and_residuals(fams, groups, local=True)
+    cov, ev = at
     z_pix = _pixel_residuals(data, ev)
     r_pix = z_pix * s_px                                                  # (P, 2) pixels
     w_pt = rho((z_pix / f_scale) ** 2, loss)[1].min(axis=1)

@@ -120,6 +120,10 @@ class Result:
         Residual evaluations.
     converged : bool
     message : str
+    residuals : list
+        Each group's ``(residuals (n_rows, dim), None)`` at ``families``, as :func:`evaluate`
+        (``jacobians=False``) gives them: the last evaluation's, so that a caller needing
+        them does not evaluate again.
     """
 
     families: tuple[Blocks, ...]
@@ -128,6 +132,7 @@ class Result:
     evaluations: int
     converged: bool
     message: str
+    residuals: list | None = None
 
     def value(self, name: str) -> F64:
         """Values of the family called ``name``."""
@@ -264,9 +269,9 @@ def _minimize(families, groups, opts: Options, layout: Layout) -> Result:
     newton = opts.newton_below == np.inf
     try:            # the starting cost from the residuals of the first linearisation
         ne, evaluated = _linearized(families, groups, layout, opts, newton)
-        cost = _cost(evaluated, opts)
     except InputError:                 # e.g. a lens outside its model: no Jacobian to take
-        ne, cost = None, _cost(evaluate(families, groups, jacobians=False), opts)
+        ne, evaluated = None, evaluate(families, groups, jacobians=False)
+    cost = _cost(evaluated, opts)
     if not np.isfinite(cost):
         raise InputError("the residuals are not finite at the starting point")
     lam = opts.initial_damping
@@ -286,16 +291,16 @@ def _minimize(families, groups, opts: Options, layout: Layout) -> Result:
             lam *= 10.0
             if lam > 1e10:
                 return Result(families, cost, iterations, evaluations, True,
-                              "no further decrease of the cost")
+                              "no further decrease of the cost", evaluated)
         decrease = cost - cost_new
-        families, cost = trial, cost_new
+        families, cost, evaluated = trial, cost_new, ev_new
         lam = max(lam / 10.0, 1e-12)
         newton = newton or decrease < opts.newton_below * cost
         if decrease <= opts.tol * cost:
             return Result(families, cost, iterations, evaluations, True,
-                          "relative decrease of the cost below tol")
+                          "relative decrease of the cost below tol", evaluated)
     return Result(families, cost, iterations, evaluations, False,
-                  f"stopped after {opts.max_iter} iterations")
+                  f"stopped after {opts.max_iter} iterations", evaluated)
 
 
 def covariance_and_residuals(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,

@@ -32,6 +32,7 @@ from collections.abc import Iterator
 
 from multieye.imaging.forkserver_later import when_asked
 from multieye.imaging.main_script import main_reimport_problem
+from multieye.core.cpus import runnable_elsewhere
 from multieye.imaging.workers import ask_fork_server, available_cores, worker_pool
 
 __all__ = ["FigureWorkers", "figure_workers", "worker_count", "FIGURE_MODULE", "PRELOAD"]
@@ -74,11 +75,18 @@ def _context():
 
 
 def _free_core() -> bool:
-    """Whether a core is free now: the load average (1 minute) below the cores this process
-    may use (this process is one of the runnable ones it counts).  On a busy machine
-    workers started during the refinement take a share of its core instead (measured at a
-    load of 3.5-4 on 2 cores: the refinement 2.2 s instead of 1.0, docs/results/
-    report_speed.md)."""
+    """Whether a core is free now for workers beside this process: fewer tasks ready to run
+    elsewhere than the cores this process may use, less its own
+    (:func:`~multieye.core.cpus.runnable_elsewhere`; where that count cannot be read, the
+    one-minute load average below the cores, this process being one of the runnable ones it
+    counts).  On a busy machine workers started during the refinement take a share of its
+    core instead (measured at a load of 3.5-4 on 2 cores: the refinement 2.2 s instead of 1.0,
+    docs/results/report_speed.md).  The load average alone followed the last minute: after the
+    detection's own workers it was near 2 on an idle 2-core machine, and the figures were drawn
+    here, one after the other (outputs 1.0-1.1 s instead of 0.5)."""
+    others = runnable_elsewhere()
+    if others is not None:
+        return others < available_cores() - 1
     try:
         return os.getloadavg()[0] < available_cores()
     except OSError:                 # no load average on this system
