@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
-from multieye.imaging.pnp import estimate_pose
+from multieye.imaging.pnp import estimate_poses
 from multieye.imaging.pool_tasks import SplitTask
 
 __all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS", "StartedLens",
@@ -50,7 +50,9 @@ class InitialIntrinsics:
     ----------
     intrinsics : Intrinsics
     T_cam_target : ndarray, shape (n_views, 4, 4)
-        The pose of the target in each view, as OpenCV estimated it with these intrinsics.
+        The pose of the target in each view, as OpenCV estimated it with these intrinsics
+        (NaN rows for the views not calibrated from, when asked for no others: see
+        :func:`initial_intrinsics`' ``all_poses``).
     rms_px : float
         OpenCV's RMS reprojection error over the views it calibrated from (at most
         :data:`START_VIEWS`, spread over the recording; the others' poses are PnP with the
@@ -106,27 +108,28 @@ def _spread(n: int, k: int) -> NDArray[np.int64]:
     return np.unique(np.linspace(0, n - 1, min(n, k)).round().astype(np.int64))
 
 
-def _pinhole_start(obj, img, size, flags: int):
+def _pinhole_start(obj, img, size, flags: int, all_poses: bool = True):
     """``cv2.calibrateCamera`` on at most :data:`START_VIEWS` views spread over the
-    recording, then every other view's pose by ``cv2.solvePnP`` with that lens (same return
-    values; the RMS over the calibrated views).  See :func:`_fisheye_start`."""
+    recording, then (``all_poses``) every other view's pose by ``cv2.solvePnP`` with that
+    lens (same return values, None for a view not posed; the RMS over the calibrated views).
+    See :func:`_fisheye_start`."""
     pick = _spread(len(obj), START_VIEWS)
     rms, K, D, rv, tv = cv2.calibrateCamera([obj[i] for i in pick], [img[i] for i in pick],
                                             size, None, None, flags=flags, criteria=_CRITERIA)
     rvecs, tvecs = [None] * len(obj), [None] * len(obj)
     for i, r, t in zip(pick, rv, tv):
         rvecs[i], tvecs[i] = r, t
-    for i in np.setdiff1d(np.arange(len(obj)), pick):
+    for i in np.setdiff1d(np.arange(len(obj)), pick) if all_poses else ():
         ok, rvecs[i], tvecs[i] = cv2.solvePnP(obj[i], img[i], K, D)
         if not ok:
             raise cv2.error(f"no pose of view {i} with the start lens")
     return rms, K, D, rvecs, tvecs
 
 
-def _fisheye_start(obj, img, size, views, flags: int):
+def _fisheye_start(obj, img, size, views, flags: int, all_poses: bool = True):
     """``cv2.fisheye.calibrate`` on at most :data:`START_VIEWS` views spread over the
-    recording (started from Zhang's closed form on those views), then every other view's
-    pose by PnP on its points undistorted with that lens.
+    recording (started from Zhang's closed form on those views), then (``all_poses``) every
+    other view's pose by PnP on its points undistorted with that lens.
 
     OpenCV's fisheye calibration re-estimates every view's pose at each of its iterations:
     on the 40 views of a camera of ``benchmarks/bench_overlap.py`` it took 0.2-0.3 CPU-s, as
@@ -143,7 +146,7 @@ def _fisheye_start(obj, img, size, views, flags: int):
     rvecs, tvecs = [None] * len(obj), [None] * len(obj)
     for i, r, t in zip(pick, rv, tv):
         rvecs[i], tvecs[i] = r, t
-    for i in np.setdiff1d(np.arange(len(obj)), pick):
+    for i in np.setdiff1d(np.arange(len(obj)), pick) if all_poses else ():
         xy = cv2.fisheye.undistortPoints(img[i], K, D)
         ok, rvecs[i], tvecs[i] = cv2.solvePnP(obj[i], xy, np.eye(3), None)
         if not ok:
@@ -152,7 +155,8 @@ def _fisheye_start(obj, img, size, views, flags: int):
 
 
 def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
-                       model: str, *, name: str = "camera") -> InitialIntrinsics:
+                       model: str, *, name: str = "camera", all_poses: bool = True
+                       ) -> InitialIntrinsics:
     """Intrinsics of one camera from views of a planar target (OpenCV's calibration).
 
     Parameters
@@ -166,6 +170,10 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
         Lens model (:data:`multieye.core.intrinsics.LENS_MODELS`).
     name : str
         Camera name for messages.
+    all_poses : bool
+        Pose every view with the lens found; False: only the views OpenCV calibrated from
+        (the others' rows of ``T_cam_target`` are NaN), for a caller that poses every view
+        anyway (:func:`lens_start_task`).
 
     Returns
     -------
@@ -194,7 +202,8 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
             flags = (cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
                      | cv2.fisheye.CALIB_USE_INTRINSIC_GUESS)
             try:
-                rms, K, D, rvecs, tvecs = _fisheye_start(obj, img, (w, h), views, flags)
+                rms, K, D, rvecs, tvecs = _fisheye_start(obj, img, (w, h), views, flags,
+                                                         all_poses)
             except cv2.error:
                 # OpenCV's fisheye start fails on views of a few points (one ArUco marker's 4
                 # corners): start from its pinhole calibration instead, with the radial
@@ -210,7 +219,7 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
             obj = [o.astype(np.float32) for o, _ in views]
             img = [u.astype(np.float32) for _, u in views]
             flags = {8: cv2.CALIB_RATIONAL_MODEL, 4: cv2.CALIB_FIX_K3}.get(len(coefficients), 0)
-            rms, K, D, rvecs, tvecs = _pinhole_start(obj, img, (w, h), flags)
+            rms, K, D, rvecs, tvecs = _pinhole_start(obj, img, (w, h), flags, all_poses)
     except cv2.error as exc:
         raise InputError(f"camera {name}: OpenCV could not calibrate its intrinsics from "
                          f"{len(views)} images ({str(exc).strip().splitlines()[-1]}); add "
@@ -230,6 +239,9 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
     T = np.zeros((len(views), 4, 4))
     T[:, 3, 3] = 1.0
     for k, (r, t) in enumerate(zip(rvecs, tvecs)):
+        if r is None:
+            T[k, :3] = np.nan
+            continue
         T[k, :3, :3] = cv2.Rodrigues(np.asarray(r, np.float64).reshape(3))[0]
         T[k, :3, 3] = np.asarray(t, np.float64).reshape(3)
     return InitialIntrinsics(intrinsics=intr, T_cam_target=T, rms_px=float(rms))
@@ -242,6 +254,7 @@ class StartedLens:
     Attributes
     ----------
     start : InitialIntrinsics
+        With every view's pose (those of ``results`` where OpenCV did not calibrate from it).
     results : tuple of ImageResult
         The detections, completed with their pose (:func:`poses_from_detections`).
     """
@@ -282,7 +295,7 @@ def lens_from_detections(results: Sequence[ImageResult], model: str, name: str =
     views = [(r.detection.object_points, r.detection.image_points) for r in results
              if r.detection is not None and r.reason is None]
     try:
-        return initial_intrinsics(views, sizes.pop(), model, name=name)
+        return initial_intrinsics(views, sizes.pop(), model, name=name, all_poses=False)
     except InputError:
         return None
 
@@ -295,26 +308,56 @@ def poses_with_start(start: InitialIntrinsics, results: Sequence[ImageResult], *
 
 
 def started_lens(start: InitialIntrinsics, results: Sequence[ImageResult]) -> StartedLens:
-    """The last step of :func:`lens_start_task`: the :class:`StartedLens`."""
-    return StartedLens(start, tuple(results))
+    """The last step of :func:`lens_start_task`: the :class:`StartedLens`, its start's poses
+    of the views OpenCV did not calibrate from (:func:`lens_from_detections` leaves them out)
+    those of ``results`` (PnP with the start lens); ``cv2.solvePnP`` where PnP failed."""
+    # the first step's views: the detection-only results with a detection (PnP keeps it)
+    views = [r for r in results if r.detection is not None]
+    T = start.T_cam_target.copy()
+    missing = np.flatnonzero(np.isnan(T[:, 0, 0]))
+    for k in missing:
+        d = views[k].detection
+        T[k] = views[k].pose.T_cam_target if views[k].pose is not None else _pnp_pose(
+            d.object_points, d.image_points, start.intrinsics)
+    return StartedLens(replace(start, T_cam_target=T) if missing.size else start,
+                       tuple(results))
+
+
+def _pnp_pose(object_points: F64, image_points: F64, intrinsics: Intrinsics) -> F64:
+    """``T_cam_target`` by ``cv2.solvePnP`` (on the undistorted points for a fisheye lens), as
+    :func:`initial_intrinsics` poses a view; NaN where OpenCV finds none."""
+    obj = np.asarray(object_points, np.float64).reshape(-1, 1, 3)
+    img = np.asarray(image_points, np.float64).reshape(-1, 1, 2)
+    try:
+        if intrinsics.model == "fisheye":
+            ok, r, t = cv2.solvePnP(obj, cv2.fisheye.undistortPoints(img, intrinsics.K,
+                                                                     intrinsics.dist),
+                                    np.eye(3), None)
+        else:
+            ok, r, t = cv2.solvePnP(obj.astype(np.float32), img.astype(np.float32),
+                                    intrinsics.K, intrinsics.dist)
+    except cv2.error:
+        ok = False
+    T = np.full((4, 4), np.nan)
+    if ok:
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = cv2.Rodrigues(r)[0], t.reshape(3)
+    return T
 
 
 def poses_from_detections(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
                           max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
     """Detection-only results completed with the target pose by PnP with ``intrinsics``
     (the same rules as detection with known intrinsics: a failed PnP or a bad fit becomes the
-    image's reason)."""
-    out = []
-    for r in results:
-        if r.detection is None or r.reason is not None:
-            out.append(r)
-            continue
-        try:
-            pose = estimate_pose(r.detection, intrinsics)
-        except InputError as exc:
-            out.append(replace(r, reason=f"PnP failed: {exc}"))
+    image's reason), every view together (:func:`multieye.imaging.pnp.estimate_poses`)."""
+    todo = [k for k, r in enumerate(results) if r.detection is not None and r.reason is None]
+    poses = estimate_poses([results[k].detection for k in todo], intrinsics)
+    out = list(results)
+    for k, pose in zip(todo, poses):
+        if isinstance(pose, InputError):
+            out[k] = replace(results[k], reason=f"PnP failed: {pose}")
             continue
         reason = None if pose.rms_px <= max_rms_px else (
             f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px")
-        out.append(replace(r, pose=pose, reason=reason))
+        out[k] = replace(results[k], pose=pose, reason=reason)
     return out

@@ -21,7 +21,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
 from multieye.imaging.calibrate import InitialIntrinsics, initial_intrinsics, poses_from_detections
-from multieye.imaging.pnp import refit_pose
+from multieye.imaging.pnp import refit_poses
 
 __all__ = ["LensStart", "start_lens", "lens_start", "with_poses", "weak_data_warnings", "check_model",
            "RECOMMENDED_VIEWS"]
@@ -148,7 +148,8 @@ def refit_paired(paired, intrinsics: Intrinsics):
 
     The poses (``B``, each observation's ``T_cam_target`` and ``rms_px``) came from PnP with
     the starting lens; the loop residuals and per-image RMS reported for the final result are
-    those of the final lens.  ``A`` and the motion capture stay as they are.
+    those of the final lens (all views refitted together, :func:`multieye.imaging.pnp.
+    refit_poses`).  ``A`` and the motion capture stay as they are.
 
     Parameters
     ----------
@@ -157,13 +158,14 @@ def refit_paired(paired, intrinsics: Intrinsics):
         The refined lens.
     """
 
-    obs = []
-    for o in paired.observations:
-        if o.object_points is None or o.image_points is None:
-            obs.append(o)
-            continue
-        pose = refit_pose(o.T_cam_target, o.object_points, o.image_points, intrinsics)
-        obs.append(replace(o, T_cam_target=pose.T_cam_target, rms_px=pose.rms_px))
+    fit = [k for k, o in enumerate(paired.observations)
+           if o.object_points is not None and o.image_points is not None]
+    poses = refit_poses(np.array([paired.observations[k].T_cam_target for k in fit]),
+                        [paired.observations[k].object_points for k in fit],
+                        [paired.observations[k].image_points for k in fit], intrinsics)
+    obs = list(paired.observations)
+    for k, pose in zip(fit, poses):
+        obs[k] = replace(obs[k], T_cam_target=pose.T_cam_target, rms_px=pose.rms_px)
     B = g.inv(np.stack([o.T_cam_target for o in obs]))            # T_target_cam
     return replace(paired, B=B, observations=tuple(obs))
 
@@ -183,7 +185,7 @@ def weak_data_warnings(name: str, model: str, views, T_cam_target, size) -> tupl
     ----------
     views : sequence of (object_points, image_points)
     T_cam_target : ndarray, shape (n, 4, 4)
-        The board's pose in each view.
+        The board's pose in each view (NaN where none was found).
     size : (int, int)
     """
     out = []
@@ -196,6 +198,7 @@ def weak_data_warnings(name: str, model: str, views, T_cam_target, size) -> tupl
     line = np.asarray(T_cam_target)[:, :3, 3]
     cos = np.abs(np.einsum("ij,ij->i", normal, line)) / np.linalg.norm(line, axis=1)
     tilt = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
+    tilt = tilt[np.isfinite(tilt)]                # a view no PnP could pose says nothing
     if tilt.size and tilt.max() < MIN_TILT_DEG:
         out.append(f"{name}: the board is never tilted more than {tilt.max():.0f} degrees "
                    f"against the line of sight, which leaves the focal length poorly "
