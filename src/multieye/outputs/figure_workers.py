@@ -162,6 +162,15 @@ class FigureWorkers:
             raise self._failed[0]
         self._start(self.count if not self._busy and _free_core() else 0, one_at_a_time=False)
 
+    def begin(self) -> None:
+        """:meth:`start`, unless a start begun by :meth:`start_early` is under way: that one
+        is waited for when the figures are handed over (:meth:`start` again), and this
+        process meanwhile makes what they are drawn from instead of waiting (0.03-0.13 s
+        on the 4 x 100 rig with the lenses known, where the fork server's imports outlast
+        the refinement)."""
+        if self._starter is None:
+            self.start()
+
     def join(self) -> None:
         """Wait for a start begun by :meth:`start_early` on its thread (none: nothing)."""
         if self._starter is not None:

@@ -115,7 +115,7 @@ def write_output_files(run: CalibrationRun, folder: Path, *, final: Path, report
         with (contextlib.nullcontext(workers) if workers is not None or not report
               else figure_workers(processes)) as drawing:
             if report and drawing is not None:   # importing while the details are made
-                drawing.start()
+                drawing.begin()
             names, notes, head = _write_files(run, folder, report=report,
                                               diagnostics=diagnostics, final=final,
                                               workers=drawing)
