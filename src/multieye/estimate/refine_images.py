@@ -104,6 +104,11 @@ _MOCAP_SETTLED = 0.1
 #: pass whose sigmas are more than this far (log ratio, about 10 %) from those they were taken
 #: at (the priors' share of the parameters moves with the ratio of the sigmas).
 _STALE = np.log(1.1)
+#: Stopping tolerance of the first pass while the noise is being estimated (relative decrease
+#: of the cost): the noise estimated there moves by about as little, and the steps and the
+#: final pass go on from its optimum (on the 4 x 100 rig its last iteration lowered the cost
+#: by 2e-4 of it, and moved the estimate by less than 0.01 %).
+_FIRST_TOL = 1e-3
 #: An estimate extrapolated to the fixed point (:func:`~multieye.estimate.variance_components.
 #: secant`) from a step that moved the sigmas by less than this many settled shares goes to
 #: the final pass at once (whose covariance checks it: on the rendered 4 x 100 rig the
@@ -441,17 +446,19 @@ def _start(data: ImageData, X0: ArrayLike, Y0: ArrayLike, noise: _Noise):
 
 def _pass_options(stage: str, loss: str, f_scale: float, max_iter: int, tol: float,
                   first: bool) -> Options:
-    """Levenberg-Marquardt's options of a pass: ``first`` from the closed form (to ``sqrt(tol)``
-    while the noise is being estimated, the robust cost's curvature only near the optimum);
-    ``step``, one step (the robust cost's curvature) from an earlier pass's optimum, only to
-    re-estimate the noise there; ``final`` to ``tol`` with the robust cost's curvature
-    (:class:`~multieye.optimize.levenberg_marquardt.Options`), from its start when it starts at
-    an earlier pass's optimum."""
+    """Levenberg-Marquardt's options of a pass: ``first`` from the closed form (to
+    :data:`_FIRST_TOL` or ``sqrt(tol)``, the looser, while the noise is being estimated, the
+    robust cost's curvature only near the optimum); ``step``, one step (the robust cost's
+    curvature) from an earlier pass's optimum, only to re-estimate the noise there; ``final``
+    to ``tol`` with the robust cost's curvature
+    (:class:`~multieye.optimize.levenberg_marquardt.Options`), from its start when it starts
+    at an earlier pass's optimum."""
     if stage == "step":
         return Options(loss=loss, f_scale=f_scale, max_iter=1, tol=np.sqrt(tol),
                        newton_below=np.inf)
     if stage == "first":
-        return Options(loss=loss, f_scale=f_scale, max_iter=max_iter, tol=np.sqrt(tol))
+        return Options(loss=loss, f_scale=f_scale, max_iter=max_iter,
+                       tol=max(np.sqrt(tol), _FIRST_TOL))
     return Options(loss=loss, f_scale=f_scale, max_iter=max_iter, tol=tol,
                    newton_below=np.sqrt(tol) if first else np.inf)
 
