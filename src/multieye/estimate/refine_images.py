@@ -109,6 +109,13 @@ _STALE = np.log(1.1)
 #: final pass go on from its optimum (on the 4 x 100 rig its last iteration lowered the cost
 #: by 2e-4 of it, and moved the estimate by less than 0.01 %).
 _FIRST_TOL = 1e-3
+#: Levenberg-Marquardt's starting damping of the passes that start at an earlier pass's
+#: optimum (the first pass's, from the closed form, is the engine's 1e-4).  Marquardt's damping
+#: of 1e-4 of the diagonal, divided by 10 per iteration, shortened the steps along the lenses'
+#: ill-determined directions (k3 against k1 and k2): the last pass took 5 iterations on the
+#: 4 x 100 rig with the lenses unknown and stopped 1e-7 above the minimum; from 1e-8, 2
+#: iterations to 2e-10 of it (a step that raises the cost still raises the damping).
+_NEAR_DAMPING = 1e-8
 #: An estimate extrapolated to the fixed point (:func:`~multieye.estimate.variance_components.
 #: secant`) from a step that moved the sigmas by less than this many settled shares goes to
 #: the final pass at once (whose covariance checks it: on the rendered 4 x 100 rig the
@@ -455,12 +462,13 @@ def _pass_options(stage: str, loss: str, f_scale: float, max_iter: int, tol: flo
     at an earlier pass's optimum."""
     if stage == "step":
         return Options(loss=loss, f_scale=f_scale, max_iter=1, tol=np.sqrt(tol),
-                       newton_below=np.inf)
+                       newton_below=np.inf, initial_damping=_NEAR_DAMPING)
     if stage == "first":
         return Options(loss=loss, f_scale=f_scale, max_iter=max_iter,
                        tol=max(np.sqrt(tol), _FIRST_TOL))
     return Options(loss=loss, f_scale=f_scale, max_iter=max_iter, tol=tol,
-                   newton_below=np.sqrt(tol) if first else np.inf)
+                   newton_below=np.sqrt(tol) if first else np.inf,
+                   initial_damping=1e-4 if first else _NEAR_DAMPING)
 
 
 def _recentre(data: ImageData, fams, noise: _Noise, sigmas: F64, recentres: int):
