@@ -104,17 +104,12 @@ _MOCAP_SETTLED = 0.1
 #: pass whose sigmas are more than this far (log ratio, about 10 %) from those they were taken
 #: at (the priors' share of the parameters moves with the ratio of the sigmas).
 _STALE = np.log(1.1)
-#: Stopping tolerance of the first pass while the noise is being estimated (relative decrease
-#: of the cost): the noise estimated there moves by about as little, and the steps and the
-#: final pass go on from its optimum (on the 4 x 100 rig its last iteration lowered the cost
-#: by 2e-4 of it, and moved the estimate by less than 0.01 %).
+#: Stopping tolerance of the first pass while the noise is estimated: the steps and the final
+#: pass go on from there (4 x 100 rig: the estimate moved by < 0.01 % in the iteration saved).
 _FIRST_TOL = 1e-3
-#: Levenberg-Marquardt's starting damping of the passes that start at an earlier pass's
-#: optimum (the first pass's, from the closed form, is the engine's 1e-4).  Marquardt's damping
-#: of 1e-4 of the diagonal, divided by 10 per iteration, shortened the steps along the lenses'
-#: ill-determined directions (k3 against k1 and k2): the last pass took 5 iterations on the
-#: 4 x 100 rig with the lenses unknown and stopped 1e-7 above the minimum; from 1e-8, 2
-#: iterations to 2e-10 of it (a step that raises the cost still raises the damping).
+#: Starting damping of the passes from an earlier pass's optimum (the engine's 1e-4 shortened
+#: the steps along the lenses' ill-determined directions: 5 iterations to 1e-7 above the
+#: minimum on the 4 x 100 rig with the lenses unknown, against 2 to 2e-10 from 1e-8).
 _NEAR_DAMPING = 1e-8
 #: An estimate extrapolated to the fixed point (:func:`~multieye.estimate.variance_components.
 #: secant`) from a step that moved the sigmas by less than this many settled shares goes to
