@@ -97,13 +97,6 @@ DEFAULT_F_SCALE = 2.0
 #: squared normalised residual exceeds the chi-square quantile of this tail probability.
 OUTLIER_PROBABILITY = 1e-4
 _MAX_SIGMA_PASSES = 6
-#: Relative change of the noise estimates at which their fixed point counts as reached.
-_SETTLED = 0.01
-_MOCAP_SETTLED = 0.1
-#: The redundancies of the noise estimate are taken again from a covariance at the end of a
-#: pass whose sigmas are more than this far (log ratio, about 10 %) from those they were taken
-#: at (the priors' share of the parameters moves with the ratio of the sigmas).
-_STALE = np.log(1.1)
 #: Stopping tolerance of the first pass while the noise is estimated: the steps and the final
 #: pass go on from there (4 x 100 rig: the estimate moved by < 0.01 % in the iteration saved).
 _FIRST_TOL = 1e-3
@@ -111,11 +104,6 @@ _FIRST_TOL = 1e-3
 #: the steps along the lenses' ill-determined directions: 5 iterations to 1e-7 above the
 #: minimum on the 4 x 100 rig with the lenses unknown, against 2 to 2e-10 from 1e-8).
 _NEAR_DAMPING = 1e-8
-#: An estimate extrapolated to the fixed point (:func:`~multieye.estimate.variance_components.
-#: secant`) from a step that moved the sigmas by less than this many settled shares goes to
-#: the final pass at once (whose covariance checks it: on the rendered 4 x 100 rig the
-#: extrapolation from a 1.5 % step landed within 0.05 % of the fixed point).
-_EXTRAPOLATED = 5.0
 #: Clock windows are re-centred when an offset moved by more than this share of their
 #: half-width (at most this many times).
 _RECENTRE_SHARE = 0.25
@@ -489,12 +477,14 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
 
     1. ``first`` pass from the closed form; the noise estimated at its optimum from its
        covariance (the redundancies) and residuals.
-    2. While the estimate moves by more than :data:`_SETTLED` (pixels; the motion capture's
-       :data:`_MOCAP_SETTLED`): one ``step`` from there with the new noise, and the estimate
+    2. While the estimate moves by more than the settled share (``SETTLED``, the motion
+       capture's ``MOCAP_SETTLED``, :mod:`~multieye.estimate.variance_components`): one
+       ``step`` from there with the new noise, and the estimate
        at its end from its residuals and the last redundancies, extrapolated to the fixed
        point from the last two (:func:`~multieye.estimate.variance_components.secant`).
     3. ``final`` pass to ``tol``; its covariance (which the result needs anyway) checks the
-       estimate there: another final pass if it moved by more than the settled share.
+       estimate there: another final pass if it moved by more than a tenth of the settled
+       share (:data:`~multieye.estimate.variance_components.FINAL_SHARE`).
 
     Returns the data (recentred), the families, the noise, the last pass's result,
     (iterations, evaluations, passes) and the covariance and residuals at the optimum."""
@@ -502,7 +492,7 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
     s = np.array([noise.s_px, noise.s_rot, noise.s_t], dtype=np.float64)
     iterate_mocap = noise.estimate_mocap and not any(c is not None for c in data.clocks)
     free = np.array([noise.estimate_px, iterate_mocap, iterate_mocap])
-    share = np.array([_SETTLED, _MOCAP_SETTLED, _MOCAP_SETTLED])
+    share = np.array([vc.SETTLED, vc.MOCAP_SETTLED, vc.MOCAP_SETTLED])
     c_w = gaussian_scale_constant(loss, f_scale)
     counts = np.zeros(3, dtype=np.int64)          # iterations, evaluations, passes
     stage, red, red_at, previous, recentres, estimates = (
@@ -519,7 +509,7 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
             red, previous, groups = None, None, data.groups(*s)
             if stage == "final":
                 continue
-        if stage == "final" or red is None or np.any(np.abs(np.log(s / red_at)) > _STALE):
+        if stage == "final" or red is None or np.any(np.abs(np.log(s / red_at)) > vc.STALE):
             cov, ev = covariance_and_residuals(fams, groups, local=True)
             if not free.any():
                 break
@@ -530,12 +520,12 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
         new = vc.estimate(s, sums, red, c_w)
         estimates += 1
         moved = float(np.max(np.abs(new / s - 1.0)[free] / share[free]))
-        if stage == "final" and (moved < 1.0 or estimates > _MAX_SIGMA_PASSES):
+        if stage == "final" and (moved < vc.FINAL_SHARE or estimates > _MAX_SIGMA_PASSES):
             break
         following, extrapolated = vc.secant(s, new, previous, free)
         previous, s = (s, new), following
         if stage != "final":
-            near = moved < 1.0 or (extrapolated and moved < _EXTRAPOLATED)
+            near = moved < 1.0 or (extrapolated and moved < vc.EXTRAPOLATED)
             stage = "final" if near or estimates >= _MAX_SIGMA_PASSES else "step"
     return (data, fams, replace(noise, s_px=float(s[0]), s_rot=float(s[1]), s_t=float(s[2])),
             res, tuple(int(c) for c in counts), (cov, ev))

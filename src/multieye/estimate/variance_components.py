@@ -37,13 +37,34 @@ from multieye.estimate.image_data import ImageData
 from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR
 
 __all__ = ["Sums", "Redundancy", "weighted_sums", "redundancy", "estimate", "secant",
-           "is_prior", "MIN_REDUNDANCY"]
+           "is_prior", "MIN_REDUNDANCY", "SETTLED", "MOCAP_SETTLED", "FINAL_SHARE", "STALE",
+           "EXTRAPOLATED"]
 
 F64 = NDArray[np.float64]
 
 #: Smallest redundancy a variance component is divided by (a component the data barely
 #: determine is then not blown up).
 MIN_REDUNDANCY = 0.5
+
+#: Relative change of the noise estimates (pixels; the motion capture's) at which their fixed
+#: point counts as reached: the passes between the first and the last run until then.
+SETTLED = 0.01
+MOCAP_SETTLED = 0.1
+#: The last pass's estimate is accepted within this share of those (0.1 % for the pixels, 1 %
+#: for the motion capture), else another last pass follows.  The former scheme ended one
+#: contraction step inside them; on benchmarks/bench_mocap_noise.py's 4 x 40 mocap rig (40
+#: rigs, medians) a whole share left the motion capture's estimate 3-6 % above that scheme's,
+#: a quarter 1-3 %, a tenth 1-2 % (estimate / truth 1.02 and 1.02 against 1.01 and 1.00).
+FINAL_SHARE = 0.1
+#: The redundancies are taken again from a covariance at the end of a pass whose sigmas are
+#: more than this far (log ratio, about 10 %) from those they were taken at (the priors' share
+#: of the parameters moves with the ratio of the sigmas).
+STALE = float(np.log(1.1))
+#: An estimate extrapolated to the fixed point (:func:`secant`) from a step that moved the
+#: sigmas by less than this many settled shares goes to the last pass at once (whose
+#: covariance checks it: on the rendered 4 x 100 rig the extrapolation from a 1.5 % step
+#: landed within 0.05 % of the fixed point).
+EXTRAPOLATED = 5.0
 
 #: Range of the slope of the fixed-point map (per component, in log sigma) within which
 #: :func:`secant` extrapolates (its step then at most 3x the plain one); outside it (two steps
