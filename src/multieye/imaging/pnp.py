@@ -170,13 +170,7 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
     if _collinear(obj[:, :2]):
         raise InputError(f"the {len(obj)} points lie on one line: the pose is not determined")
 
-    _, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
-    candidates = []
-    for rvec, tvec in zip(rvecs, tvecs):
-        rvec, tvec = rvec.reshape(3).copy(), tvec.reshape(3).copy()
-        err = _pixel_errors(obj, img, intrinsics, rvec, tvec)
-        candidates.append((float(np.sum(err ** 2)), rvec, tvec))
-    candidates.sort(key=lambda c: c[0])
+    candidates = _ippe_candidates(obj, img, xy, intrinsics)
     _, rvec, tvec = candidates[0]
     rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
     if detection.circle_diameter is not None:
@@ -225,14 +219,7 @@ def estimate_poses(detections: Sequence[Detection], intrinsics: Intrinsics
         xy_k, at = every[at:at + len(img)], at + len(img)
         if not np.isfinite(xy_k).all() or _collinear(obj[:, :2]):
             continue                                # alone: fewer points, or its error
-        _, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, xy_k, np.eye(3), None,
-                                                 flags=cv2.SOLVEPNP_IPPE)
-        candidates = []
-        for rvec, tvec in zip(rvecs, tvecs):
-            rvec, tvec = rvec.reshape(3).copy(), tvec.reshape(3).copy()
-            err = _pixel_errors(obj, img, intrinsics, rvec, tvec)
-            candidates.append((float(np.sum(err ** 2)), rvec, tvec))
-        candidates.sort(key=lambda c: c[0])
+        candidates = _ippe_candidates(obj, img, xy_k, intrinsics)
         if len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
             continue                                # alone: it may keep the alternative
         chosen.append(k)
@@ -250,6 +237,19 @@ def estimate_poses(detections: Sequence[Detection], intrinsics: Intrinsics
             except InputError as exc:
                 out[k] = exc
     return out
+
+
+def _ippe_candidates(obj: F64, img: F64, xy: F64, intrinsics: Intrinsics) -> list:
+    """IPPE's poses of planar points ``obj`` (z = 0) from their undistorted normalised
+    coordinates ``xy``, as ``(sum of squared pixel errors against img, rvec, tvec)``, the
+    better fit first."""
+    _, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
+    candidates = []
+    for rvec, tvec in zip(rvecs, tvecs):
+        rvec, tvec = rvec.reshape(3).copy(), tvec.reshape(3).copy()
+        err = _pixel_errors(obj, img, intrinsics, rvec, tvec)
+        candidates.append((float(np.sum(err ** 2)), rvec, tvec))
+    return sorted(candidates, key=lambda c: c[0])
 
 
 def _collinear(xy: F64) -> bool:
