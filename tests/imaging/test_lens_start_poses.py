@@ -93,13 +93,15 @@ def test_a_view_pnp_failed_on_is_posed_by_opencv():
 
     results = _results(30.0)
     task = lens_start_task("pinhole-radtan", "cam0")
-    start = task.first(results)
+    first = task.first(results)
+    start = first.start
     missing = np.flatnonzero(np.isnan(start.T_cam_target[:, 0, 0]))
-    posed = task.each(start, results)
+    posed = task.each(first, results)
     k = int(missing[0])
-    index = [i for i, r in enumerate(posed) if r.detection is not None][k]
+    index = first.views[k]              # the result whose view is the start's k-th
+    assert index == [i for i, r in enumerate(results) if r.detection is not None][k]
     posed[index] = replace(posed[index], pose=None, reason="PnP failed: made up")
-    joined = task.join(start, posed)
+    joined = task.join(first, posed)
     own = initial_intrinsics([(r.detection.object_points, r.detection.image_points)
                               for r in results if r.detection is not None], (1280, 960),
                              "pinhole-radtan")

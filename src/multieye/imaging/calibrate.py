@@ -30,7 +30,7 @@ from multieye.imaging.pnp import estimate_poses
 from multieye.imaging.pool_tasks import SplitTask
 
 __all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS", "StartedLens",
-           "lens_start_task", "poses_from_detections", "lens_from_detections",
+           "LensFromViews", "lens_start_task", "poses_from_detections", "lens_from_detections",
            "poses_with_start", "started_lens"]
 
 F64 = NDArray[np.float64]
@@ -285,40 +285,56 @@ def lens_start_task(model: str, name: str = "camera") -> SplitTask:
                      started_lens)
 
 
+@dataclass(frozen=True)
+class LensFromViews:
+    """The first step's result of :func:`lens_start_task`: OpenCV's start, and which of the
+    results its views are (``start.T_cam_target[k]`` is the view of ``results[views[k]]``).
+
+    Attributes
+    ----------
+    start : InitialIntrinsics
+    views : tuple of int
+    """
+
+    start: InitialIntrinsics
+    views: tuple[int, ...]
+
+
 def lens_from_detections(results: Sequence[ImageResult], model: str, name: str = "camera"
-                         ) -> InitialIntrinsics | None:
+                         ) -> LensFromViews | None:
     """The first step of :func:`lens_start_task`: :func:`initial_intrinsics` from
     one camera's detection-only results (None where no start can be made)."""
     sizes = {r.image_size for r in results if r.image_size is not None}
     if len(sizes) != 1:
         return None
-    views = [(r.detection.object_points, r.detection.image_points) for r in results
-             if r.detection is not None and r.reason is None]
+    used = tuple(k for k, r in enumerate(results) if r.detection is not None and r.reason is None)
+    views = [(results[k].detection.object_points, results[k].detection.image_points)
+             for k in used]
     try:
-        return initial_intrinsics(views, sizes.pop(), model, name=name, all_poses=False)
+        start = initial_intrinsics(views, sizes.pop(), model, name=name, all_poses=False)
     except InputError:
         return None
+    return LensFromViews(start, used)
 
 
-def poses_with_start(start: InitialIntrinsics, results: Sequence[ImageResult], *,
+def poses_with_start(first: LensFromViews, results: Sequence[ImageResult], *,
                      max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
     """The second step of :func:`lens_start_task`, for any part of the results: each
-    one's pose with the lens ``start`` (:func:`poses_from_detections`)."""
-    return poses_from_detections(results, start.intrinsics, max_rms_px=max_rms_px)
+    one's pose with the start's lens (:func:`poses_from_detections`)."""
+    return poses_from_detections(results, first.start.intrinsics, max_rms_px=max_rms_px)
 
 
-def started_lens(start: InitialIntrinsics, results: Sequence[ImageResult]) -> StartedLens:
+def started_lens(first: LensFromViews, results: Sequence[ImageResult]) -> StartedLens:
     """The last step of :func:`lens_start_task`: the :class:`StartedLens`, its start's poses
     of the views OpenCV did not calibrate from (:func:`lens_from_detections` leaves them out)
     those of ``results`` (PnP with the start lens); ``cv2.solvePnP`` where PnP failed."""
-    # the first step's views: the detection-only results with a detection (PnP keeps it)
-    views = [r for r in results if r.detection is not None]
+    start = first.start
     T = start.T_cam_target.copy()
     missing = np.flatnonzero(np.isnan(T[:, 0, 0]))
     for k in missing:
-        d = views[k].detection
-        T[k] = views[k].pose.T_cam_target if views[k].pose is not None else _pnp_pose(
-            d.object_points, d.image_points, start.intrinsics)
+        r = results[first.views[k]]
+        T[k] = r.pose.T_cam_target if r.pose is not None else _pnp_pose(
+            r.detection.object_points, r.detection.image_points, start.intrinsics)
     return StartedLens(replace(start, T_cam_target=T) if missing.size else start,
                        tuple(results))
 
