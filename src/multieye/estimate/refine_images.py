@@ -70,7 +70,8 @@ from multieye.estimate.image_data import ImageData, ImageProblem, image_data
 from multieye.estimate.image_residuals import intrinsics_family
 # estimate_mocap_noise is named here too: it is the plain form of this module's estimate
 from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR, estimate_mocap_noise
-from multieye.optimize.levenberg_marquardt import Options, covariance_and_residuals, minimize
+from multieye.optimize.levenberg_marquardt import (NEAR_DAMPING, Options,
+                                                   covariance_and_residuals, minimize)
 from multieye.optimize.threads import threads_for
 
 __all__ = [
@@ -100,10 +101,6 @@ _MAX_SIGMA_PASSES = 6
 #: Stopping tolerance of the first pass while the noise is estimated: the steps and the final
 #: pass go on from there (4 x 100 rig: the estimate moved by < 0.01 % in the iteration saved).
 _FIRST_TOL = 1e-3
-#: Starting damping of the passes from an earlier pass's optimum (the engine's 1e-4 shortened
-#: the steps along the lenses' ill-determined directions: 5 iterations to 1e-7 above the
-#: minimum on the 4 x 100 rig with the lenses unknown, against 2 to 2e-10 from 1e-8).
-_NEAR_DAMPING = 1e-8
 #: Clock windows are re-centred when an offset moved by more than this share of their
 #: half-width (at most this many times).
 _RECENTRE_SHARE = 0.25
@@ -445,13 +442,13 @@ def _pass_options(stage: str, loss: str, f_scale: float, max_iter: int, tol: flo
     at an earlier pass's optimum."""
     if stage == "step":
         return Options(loss=loss, f_scale=f_scale, max_iter=1, tol=np.sqrt(tol),
-                       newton_below=np.inf, initial_damping=_NEAR_DAMPING)
+                       newton_below=np.inf, initial_damping=NEAR_DAMPING)
     if stage == "first":
         return Options(loss=loss, f_scale=f_scale, max_iter=max_iter,
                        tol=max(np.sqrt(tol), _FIRST_TOL))
     return Options(loss=loss, f_scale=f_scale, max_iter=max_iter, tol=tol,
                    newton_below=np.sqrt(tol) if first else np.inf,
-                   initial_damping=1e-4 if first else _NEAR_DAMPING)
+                   initial_damping=1e-4 if first else NEAR_DAMPING)
 
 
 def _recentre(data: ImageData, fams, noise: _Noise, sigmas: F64, recentres: int):

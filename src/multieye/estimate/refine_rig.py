@@ -40,7 +40,8 @@ from multieye.core.robust_loss import gaussian_kappa, gaussian_scale_constant, r
 from multieye.estimate.covisibility import Covisibility, RigStart, covisibility, initial_rig
 from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.rig_residuals import RigViews
-from multieye.optimize.levenberg_marquardt import Options, covariance, evaluate, minimize
+from multieye.optimize.levenberg_marquardt import (NEAR_DAMPING, Options, covariance, evaluate,
+                                                   minimize)
 from multieye.optimize.threads import threads_for
 
 __all__ = ["RigResult", "refine_rig"]
@@ -55,8 +56,6 @@ _LATER_TOL = 1e-7
 #: Relative decrease of the cost below which the first pass steps on the robust cost's own
 #: curvature (:class:`~multieye.optimize.levenberg_marquardt.Options`).
 _NEWTON_BELOW = 1e-5
-#: Starting damping of the passes after the first (they start at its optimum).
-_NEAR_DAMPING = 1e-8
 
 
 @dataclass(frozen=True)
@@ -175,10 +174,9 @@ def _refine_rig(views: RigViews, T_cam_target, pixel_sigma: float | None, loss: 
     # the robust cost's own curvature near the optimum (IRLS converges only linearly there),
     # and from the start of the passes after the first, which start at its optimum with a
     # damping that does not shorten the lenses' ill-determined directions
-    # (refine_images._NEAR_DAMPING): on benchmarks/bench_overlap.py's rig 6 + 5 iterations
-    # became 5 + 2
+    # (NEAR_DAMPING): on benchmarks/bench_overlap.py's seed 0, 6 + 5 iterations became 6 + 3
     opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter, newton_below=_NEWTON_BELOW)
-    later = replace(opts, tol=_LATER_TOL, newton_below=np.inf, initial_damping=_NEAR_DAMPING)
+    later = replace(opts, tol=_LATER_TOL, newton_below=np.inf, initial_damping=NEAR_DAMPING)
     c_w = gaussian_scale_constant(loss, f_scale)
     iterations, converged = 0, True
     for k in range(_MAX_SIGMA_PASSES):

@@ -54,10 +54,17 @@ from multieye.optimize.normal_equations import (
 from multieye.optimize.threads import threads_for
 
 __all__ = ["Options", "Result", "Covariance", "minimize", "covariance", "evaluate",
-           "covariance_and_residuals", "normal_equations", "CHUNK_SEGMENTS"]
+           "covariance_and_residuals", "normal_equations", "CHUNK_SEGMENTS", "NEAR_DAMPING"]
 
 #: Segments (images) linearised at once when the normal equations are summed.
 CHUNK_SEGMENTS = 256
+#: ``Options.initial_damping`` for a minimisation that starts at an earlier one's optimum (a
+#: problem whose weights or noise levels moved a little): the default 1e-4 of the diagonal,
+#: divided by 10 per accepted step, shortened the steps along ill-determined directions (a
+#: lens's k3 against k1, k2): 5 iterations to 1e-7 above the minimum on the 4 x 100 rig of
+#: benchmarks/bench_peers.py with the lenses unknown, against 2 to 2e-10 from this.  A step
+#: that raises the cost still raises the damping.
+NEAR_DAMPING = 1e-8
 
 F64 = NDArray[np.float64]
 
@@ -77,6 +84,8 @@ class Options:
     tol : float
         Stop when an accepted step lowers the cost by less than ``tol`` times the cost.
     initial_damping : float
+        Marquardt's damping of the first step, as a share of the diagonal
+        (:data:`NEAR_DAMPING` from an earlier optimum).
     newton_below : float
         Relative decrease of the cost (of an accepted step) below which the steps use the
         robust cost's own curvature (module docstring, step 2); 0 (the default): never, inf:
