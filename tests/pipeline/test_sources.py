@@ -60,3 +60,38 @@ def test_images_linked_from_outside_are_named_as_resolving_each_path_gives(tmp_p
         assert notes == _reference_notes(rig, named / "rig.yaml")
         # elsewhere/0.0.png named once, with the camera that read it first
         assert len(notes) == 2 and "cam0: 2 images" in notes[0] and "cam1: 2 images" in notes[1]
+
+
+def test_many_files_from_outside_are_named_by_their_folder_or_the_first_few(tmp_path):
+    """A camera folder linked to another disk: its images named by their one folder, not one by
+    one (thousands on the terminal and in the report); spread over folders, the first five
+    and how many more. Every file still counted."""
+    far, farther = tmp_path / "far", tmp_path / "farther"
+    far.mkdir()
+    farther.mkdir()
+    for k in range(12):
+        (far / f"{k:02d}.0.png").write_bytes(b"x")
+        (farther / f"{k:02d}.5.png").write_bytes(b"x")
+    data = tmp_path / "data"
+    (data / "mixed").mkdir(parents=True)
+    (data / "cam0").symlink_to(far)
+    for k in range(3):
+        (data / "mixed" / f"{k}.1.png").symlink_to(far / f"{k:02d}.0.png")
+        (data / "mixed" / f"{k}.2.png").symlink_to(farther / f"{k:02d}.5.png")
+    (data / "rig.yaml").write_text("")
+    rig = SimpleNamespace(cameras={"cam0": _camera(data / "cam0"),
+                                   "cam1": _camera(data / "mixed")}, mocap_for=lambda name: None)
+    notes = outside_reads(rig, data)
+    assert notes[0].endswith(f": all in {far.resolve()} (00.0.png ... 11.0.png)"), notes[0]
+    assert "cam0: 12 images" in notes[0]
+    # cam1's links into far were read by cam0 already; its three into farther are named
+    assert "cam1: 3 images" in notes[1] and notes[1].count(str(farther.resolve())) == 3
+    (data / "more").mkdir()
+    for k in range(4, 12):
+        (data / "more" / f"{k}.1.png").symlink_to(far / f"{k:02d}.0.png")
+        (data / "more" / f"{k}.2.png").symlink_to(farther / f"{k:02d}.5.png")
+    rig = SimpleNamespace(cameras={"cam2": _camera(data / "more")}, mocap_for=lambda name: None)
+    (note,) = outside_reads(rig, data)
+    assert "cam2: 16 images" in note and note.endswith(" and 11 more"), note
+    assert (note.count(f"{far.resolve()}{os.sep}")
+            + note.count(f"{farther.resolve()}{os.sep}")) == 5       # the first five files

@@ -97,5 +97,23 @@ def outside_reads(rig: Rig, named: str | os.PathLike) -> tuple[str, ...]:
             seen.update(away)
             if away:
                 notes.append(f"camera {name}: {len(away)} {kind} read from {where}: "
-                             + ", ".join(str(p) for p in away))
+                             + _listed(away))
     return tuple(notes)
+
+
+#: At most this many files are named one by one in a note of :func:`outside_reads`.
+NAMED_FILES = 5
+
+
+def _listed(paths: list[Path]) -> str:
+    """``paths`` named for a note: each, up to :data:`NAMED_FILES`; beyond, their one folder
+    (``all in FOLDER``) or the first few and how many more (a camera whose image folder is a
+    link to another disk named its thousands of images one by one, on the terminal and in
+    the report)."""
+    if len(paths) <= NAMED_FILES:
+        return ", ".join(str(p) for p in paths)
+    folders = {p.parent for p in paths}
+    if len(folders) == 1:
+        return f"all in {folders.pop()} ({paths[0].name} ... {paths[-1].name})"
+    return (", ".join(str(p) for p in paths[:NAMED_FILES])
+            + f" and {len(paths) - NAMED_FILES} more")
