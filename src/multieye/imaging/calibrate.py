@@ -24,7 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
-from multieye.core.intrinsics import LENS_MODELS, Intrinsics
+from multieye.core.intrinsics import LENS_MODELS, WIDE_MODELS, Intrinsics
+from multieye.core.lens import undistort_points
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
 from multieye.imaging.pnp import estimate_poses
 from multieye.imaging.pool_tasks import SplitTask
@@ -195,6 +196,10 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
                          "the target at different tilts, or give intrinsics:)")
     w, h = int(image_size[0]), int(image_size[1])
     kind, coefficients = LENS_MODELS[model]
+    if kind in WIDE_MODELS:         # OpenCV calibrates none of them (helper hE's lens start)
+        raise InputError(f"camera {name}: no lens start for the {model} model yet; give its "
+                         "intrinsics (intrinsics: a Kalibr camchain, calibration.json or "
+                         "BoofCV file) to refine them")
     try:
         if kind == "fisheye":
             obj = [o.reshape(-1, 1, 3) for o, _ in views]
@@ -345,7 +350,12 @@ def _pnp_pose(object_points: F64, image_points: F64, intrinsics: Intrinsics) -> 
     obj = np.asarray(object_points, np.float64).reshape(-1, 1, 3)
     img = np.asarray(image_points, np.float64).reshape(-1, 1, 2)
     try:
-        if intrinsics.model == "fisheye":
+        if intrinsics.model in WIDE_MODELS:       # the rays in front of the camera
+            xy = undistort_points(img.reshape(-1, 2), intrinsics)
+            keep = np.isfinite(xy).all(axis=1)
+            ok, r, t = cv2.solvePnP(obj[keep], xy[keep].reshape(-1, 1, 2), np.eye(3), None) \
+                if keep.sum() >= 4 else (False, None, None)
+        elif intrinsics.model == "fisheye":
             ok, r, t = cv2.solvePnP(obj, cv2.fisheye.undistortPoints(img, intrinsics.K,
                                                                      intrinsics.dist),
                                     np.eye(3), None)

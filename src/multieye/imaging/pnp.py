@@ -4,8 +4,11 @@ IPPE (``cv2.solvePnPGeneric`` with ``SOLVEPNP_IPPE``) on the undistorted, normal
 points gives the two candidate poses of a planar target; the one with the smaller
 reprojection error in pixels is refined by Levenberg-Marquardt on the pixel reprojection
 error through the full lens model (``cv2.solvePnPRefineLM`` for pinhole cameras, the same
-iteration on ``cv2.fisheye.projectPoints`` for fisheye cameras). Residuals are reported in
-pixels of the distorted image.
+iteration on ``cv2.fisheye.projectPoints`` for fisheye cameras, and on
+:func:`multieye.core.lens.project_with_jacobian` for the wide-angle models, whose IPPE start
+uses the points whose rays are in front of the camera and whose refinement uses every point
+the model places, rays beyond 90 degrees too). Residuals are reported in pixels of the
+distorted image.
 
 The other IPPE pose, refined the same way, is kept as :attr:`PoseEstimate.alternative`
 when the pixels cannot rule it out: its RMS within :data:`ALTERNATIVE_RATIO` of the first's,
@@ -30,10 +33,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
-from multieye.core.intrinsics import Intrinsics
+from multieye.core.intrinsics import WIDE_MODELS, Intrinsics
 from multieye.core.geometry import rotation_from_rotvec
-from multieye.core.lens import project_points, project_with_jacobian, undistort_points
+from multieye.core.lens import (
+    project_points, project_with_jacobian, undistort_points, unproject_points)
 from multieye.imaging.detect import Detection
+from multieye.imaging.pnp_refine import refine_fisheye, refine_wide
 
 __all__ = ["PoseEstimate", "estimate_pose", "estimate_poses", "refit_pose", "refit_poses",
            "reprojection_residuals",
@@ -160,8 +165,7 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
         raise InputError(f"PnP needs at least 4 points, got {len(obj)}")
     if not np.abs(obj[:, 2]).max() <= 1e-8:           # np.allclose(z, 0), 10x faster
         raise InputError("PnP here is for planar targets: object points must have z = 0")
-    xy = undistort_points(img, intrinsics)
-    ok = np.isfinite(xy).all(axis=1)
+    xy, ok = _normalised(img, intrinsics)
     if not ok.all():
         if ok.sum() < 4:
             raise InputError(f"only {int(ok.sum())} of {len(obj)} points lie where the lens "
@@ -169,8 +173,14 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
         obj, img, xy = obj[ok], img[ok], xy[ok]
     if _collinear(obj[:, :2]):
         raise InputError(f"the {len(obj)} points lie on one line: the pose is not determined")
-
-    candidates = _ippe_candidates(obj, img, xy, intrinsics)
+    front = np.isfinite(xy).all(axis=1)
+    if not front.all():             # a wide lens: IPPE on the rays in front of the camera
+        if front.sum() < 4 or _collinear(obj[front, :2]):
+            raise InputError(f"only {int(front.sum())} of {len(obj)} points' rays are in "
+                             "front of the camera (not on one line): PnP's start needs 4")
+        candidates = _ippe_candidates(obj[front], img[front], xy[front], intrinsics)
+    else:
+        candidates = _ippe_candidates(obj, img, xy, intrinsics)
     _, rvec, tvec = candidates[0]
     rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
     if detection.circle_diameter is not None:
@@ -252,6 +262,16 @@ def _ippe_candidates(obj: F64, img: F64, xy: F64, intrinsics: Intrinsics) -> lis
     return sorted(candidates, key=lambda c: c[0])
 
 
+def _normalised(img: F64, intrinsics: Intrinsics) -> tuple[F64, NDArray[np.bool_]]:
+    """Normalised coordinates of pixels for IPPE, and which points the lens model places
+    (:func:`multieye.core.lens.undistort_points`; a wide-angle model also places rays with
+    ``z <= 0``, whose normalised coordinates are NaN: they join the refinement only)."""
+    xy = undistort_points(img, intrinsics)
+    if intrinsics.model not in WIDE_MODELS:
+        return xy, np.isfinite(xy).all(axis=1)
+    return xy, np.isfinite(unproject_points(img, intrinsics)).all(axis=1)
+
+
 def _collinear(xy: F64) -> bool:
     """Whether planar points lie on one line: the smaller singular value of the centred
     points at most 1e-6 of the larger (from the 2 x 2 scatter matrix, in closed form)."""
@@ -266,6 +286,10 @@ def _pixel_errors(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F
     input: pixel distance per point, inf for points not in front of the camera."""
     rvec = np.ascontiguousarray(rvec, dtype=np.float64).reshape(3, 1)
     tvec = np.ascontiguousarray(tvec, dtype=np.float64).reshape(3, 1)
+    if intrinsics.model in WIDE_MODELS:             # NaN outside the model's region
+        d = project_points(obj @ cv2.Rodrigues(rvec)[0].T + tvec[:, 0], intrinsics) - img
+        err = np.sqrt(np.einsum("ij,ij->i", d, d))
+        return np.where(np.isfinite(err), err, np.inf)
     z = obj @ cv2.Rodrigues(rvec)[0][2] + tvec[2, 0]
     pts = obj.reshape(-1, 1, 3)
     if intrinsics.model == "fisheye":
@@ -423,7 +447,7 @@ def refit_poses(T_cam_target: F64, object_points, image_points, intrinsics: Intr
         converged[act] = (np.abs(step).max(axis=1) <= _REFIT_STEP) & ~bad
     P = (obj @ R.transpose(0, 2, 1) + t[:, None, :]).reshape(-1, 3)
     err = np.linalg.norm(project_points(P, intrinsics) - img.reshape(-1, 2), axis=1)
-    err = np.where(np.isfinite(err) & (P[:, 2] > 0), err, np.inf).reshape(n, k) * used
+    err = np.where(np.isfinite(err), err, np.inf).reshape(n, k) * used   # NaN: not projected
     rms = np.sqrt((err ** 2).sum(axis=1) / counts)
     worst = err.max(axis=1)
     out = []
@@ -475,7 +499,9 @@ def _transform(rvec, tvec) -> F64:
 def _refine(obj: F64, img: F64, intrinsics: Intrinsics, rvec, tvec) -> tuple[F64, F64]:
     """Levenberg-Marquardt on the pixel reprojection error through the lens model."""
     if intrinsics.model == "fisheye":
-        return _refine_fisheye(obj, img, intrinsics, rvec, tvec)
+        return refine_fisheye(obj, img, intrinsics, rvec, tvec)
+    if intrinsics.model in WIDE_MODELS:
+        return refine_wide(obj, img, intrinsics, rvec, tvec)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-12)
     rvec, tvec = cv2.solvePnPRefineLM(obj, img, intrinsics.K, intrinsics.dist,
                                       np.asarray(rvec, dtype=np.float64).reshape(3, 1),
@@ -517,34 +543,3 @@ def _centroid_offsets(T_cam_target: F64, centres: F64, radius: float, intrinsics
         centroid = np.column_stack([((x + x1) * cross).sum(axis=1), ((y + y1) * cross).sum(axis=1)]) / (6 * area[:, None])
     offset = centroid - centre_px
     return np.where(np.isfinite(offset), offset, 0.0)
-
-
-def _refine_fisheye(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F64,
-                    iterations: int = 50) -> tuple[F64, F64]:
-    """Levenberg-Marquardt on the pixel reprojection error of the equidistant model."""
-    pts = obj.reshape(-1, 1, 3)
-
-    def residual(r, t):
-        proj, jac = cv2.fisheye.projectPoints(pts, r, t, intrinsics.K, intrinsics.dist)
-        return (img - proj.reshape(-1, 2)).ravel(), jac[:, 8:14]   # d/d(rvec, tvec)
-
-    x = np.concatenate([rvec, tvec]).astype(np.float64)
-    res, J = residual(x[:3], x[3:])
-    cost = float(res @ res)
-    damping = 1e-3
-    for _ in range(iterations):
-        H = J.T @ J
-        step = np.linalg.solve(H + damping * np.diag(np.diag(H)), J.T @ res)
-        candidate = x + step
-        new_res, new_J = residual(candidate[:3], candidate[3:])
-        new_cost = float(new_res @ new_res)
-        if new_cost < cost:
-            x, res, J, cost = candidate, new_res, new_J, new_cost
-            damping = max(damping / 10, 1e-12)
-            if np.linalg.norm(step) < 1e-12 * (1 + np.linalg.norm(x)):
-                break
-        else:
-            damping *= 10
-            if damping > 1e8:
-                break
-    return x[:3], x[3:]

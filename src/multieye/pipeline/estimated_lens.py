@@ -28,7 +28,7 @@ __all__ = ["LensStart", "start_lens", "lens_start", "with_poses", "weak_data_war
 
 #: Views of the target a lens model wants before its intrinsics count as well supported.
 RECOMMENDED_VIEWS = {"pinhole-radtan": 10, "pinhole-radtan4": 10, "pinhole-rational": 20,
-                     "fisheye": 15}
+                     "fisheye": 15, "unified": 15, "double-sphere": 15, "eucm": 15}
 #: Smallest largest tilt of the board against the line of sight, degrees.
 MIN_TILT_DEG = 20.0
 #: Smallest share of a 4 x 4 grid over the image in which the target was seen.
