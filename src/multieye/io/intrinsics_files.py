@@ -283,8 +283,7 @@ def write_opencv_intrinsics(path: str | os.PathLike, intr: Intrinsics) -> None:
 
 def _no_wide(intr: Intrinsics, fmt: str) -> None:
     if intr.model in WIDE_MODELS:
-        raise InputError(f"{fmt} has no {intr.model} lens model (OpenCV's models are pinhole "
-                         "and fisheye)")
+        raise InputError(f"{fmt} has no {intr.model} lens model")
 
 
 def write_intrinsics_file(path: str | os.PathLike, intr: Intrinsics) -> None:
