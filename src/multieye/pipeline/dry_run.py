@@ -419,7 +419,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         shared = int(np.isin(inst[j], others).sum())
         fatal = c.fatal
         if len(groups) > 1 and j not in groups[0]:
-            fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol),)
+            fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol,
+                                       rig.sync),)
         out.append(replace(c, with_mocap=shared, fatal=fatal,
                            problems=c.problems + fatal[len(c.fatal):]))
     return tuple(out), _link_lines(rig, [c.name for c in cams], inst, n_inst, cov.shared, tol)

@@ -196,7 +196,8 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
                        len(names))
     groups = link_groups(cov.shared > 0, [False] * len(names))
     if len(groups) > 1:
-        raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol),
+        raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol,
+                                                 sync),
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))
     views, poses, extra = [], [], n_inst
     for n in names:
