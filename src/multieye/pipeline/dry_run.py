@@ -423,7 +423,7 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
                                        rig.sync),)
         out.append(replace(c, with_mocap=shared, fatal=fatal,
                            problems=c.problems + fatal[len(c.fatal):]))
-    return tuple(out), _link_lines(rig, [c.name for c in cams], inst, n_inst, cov.shared, tol)
+    return tuple(out), _link_lines(rig, cams, inst, n_inst, cov.shared, tol)
 
 
 #: How each ``sync`` makes images of different cameras one instant, for the dry run's lines.
@@ -432,16 +432,17 @@ _SYNC_RULE = {"name": "equal names without the extension",
               "order": "the same place in each camera's name order"}
 
 
-def _link_lines(rig, names, inst, n_inst: int, shared, tol: float) -> tuple[str, ...]:
+def _link_lines(rig, cams, inst, n_inst: int, shared, tol: float) -> tuple[str, ...]:
     """``instants: ...`` and ``<camera> linked by: ...`` lines of a rig without motion
-    capture (listed images, before detection)."""
+    capture (listed images, before detection; ``cams``: the CameraChecks)."""
+    labels = [c.name for c in cams]
     rule = (f"sync: {rig.sync}, {_SYNC_RULE[rig.sync]}" if rig.sync != "time"
             else f"stamps within sync_tolerance = {tol:g} s")
     counts = np.bincount(np.concatenate([np.unique(i) for i in inst]), minlength=n_inst)
     lines = [f"instants: {n_inst} found by {rule}; {int((counts > 1).sum())} of them seen by "
              "more than one camera"]
-    for j, n in enumerate(names):
-        with_ = [f"{names[k]} ({int(shared[j, k])} instants)" for k in range(len(names))
+    for j, n in enumerate(labels):
+        with_ = [f"{labels[k]} ({int(shared[j, k])} instants)" for k in range(len(labels))
                  if k != j and shared[j, k]]
         lines.append(f"{n} linked by: " + (", ".join(with_) if with_ else "nothing"))
     return tuple(lines)
