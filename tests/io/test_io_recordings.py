@@ -203,3 +203,19 @@ def test_stem_pattern_in_a_folder_of_the_dataset(tmp_path, T):
     with pytest.raises(DatasetError, match="folder of the dataset"):
         _rig(tmp_path, "setup: eye-on-hand\nmocap: {file: '../poses/{stem}.yaml'}\n"
              "cameras:\n  cam: {model: fisheye, images: images/}\n")
+
+
+def test_folder_entries_are_bounded(tmp_path, monkeypatch):
+    import multieye.io.image_folder as image_folder
+
+    _touch(tmp_path, "a1.png", "a2.png", "a3.png")
+    monkeypatch.setattr(image_folder, "MAX_FOLDER_ENTRIES", 2)
+    with pytest.raises(DatasetError, match="3 entries, more than 2 in one image folder"):
+        list_images(tmp_path, "a*", "number")
+
+
+def test_pattern_skips_entries_that_are_not_regular_files(tmp_path):
+    _touch(tmp_path, "a1.png")
+    (tmp_path / "a2.png").mkdir()
+    os.symlink(tmp_path / "nowhere.png", tmp_path / "a3.png")
+    assert [p.name for _, _, p in list_images(tmp_path, "a*.png", "number")] == ["a1.png"]

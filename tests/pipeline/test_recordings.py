@@ -140,3 +140,13 @@ def test_targets_and_lenses_built_once(rendered, monkeypatch):
     rig = load_rig(rendered)
     assert model.target.rows == rig.target.rows and model.target.cols == rig.target.cols
     assert set(model.lenses) == {"cam0", "cam1"}
+
+
+def test_check_says_what_links_each_camera_with_motion_capture(rendered):
+    from multieye.pipeline.dry_run import check_dataset
+
+    check = check_dataset(rendered, sample=2, processes=1)
+    assert [line.split(" (")[0] for line in check.links] == [
+        "cam0 linked by: motion capture", "cam1 linked by: motion capture"]
+    assert all(f"({c.with_mocap} of {c.listed} images with it)" in line
+               for c, line in zip(check.cameras, check.links))
