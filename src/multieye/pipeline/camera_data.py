@@ -70,7 +70,8 @@ class Observation:
         The instant the image was taken, as a key that images of other cameras taken at the
         same instant share (the target then has one pose for all of them): today the key of
         the pairing, the camera-clock ``stamp`` (``repr``) or, for a camera paired by name,
-        the image's name without its suffix (:func:`instant_key`).  The problem groups the
+        the image's name without its suffix; with rig.yaml's ``sync`` other than ``time``,
+        the key its name gives (:func:`instant_key`).  The problem groups the
         images by it (:attr:`multieye.pipeline.problem.Problem.instants`).
     """
 

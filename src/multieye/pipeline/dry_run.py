@@ -25,7 +25,7 @@ from multieye.imaging.target_hints import counting_rule, suggest_target
 from multieye.estimate.instants import instants_from_names
 from multieye.io import Trajectory, bag_image_count, list_image_files, load_rig, read_tum
 from multieye.io import sample_bag_images
-from multieye.pipeline.recordings import check_sync, listed_images, sync_instant
+from multieye.pipeline.recordings import check_sync, image_notes, listed_images, sync_instant
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
@@ -269,7 +269,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
                                                  intr, processes=processes, progress=False)
             got = {label for _, label in read}
             sampled_idx = [f.index for _, _, f in sampled if f.name in got]
-            problems.extend(f"{label}: {why}" for label, why in lost)
+            problems.extend(image_notes(lost))         # one line per cause
         else:
             stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,
                                                        processes=processes)
