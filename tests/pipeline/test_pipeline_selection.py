@@ -135,7 +135,7 @@ def test_the_motion_capture_comes_first_only_where_the_detection_needs_it(tmp_pa
     (folder / "notes.txt").write_text("")       # an entry, not an image
 
     def rig(source="images", by_name=False, lens=False, mocap=True):
-        cam = SimpleNamespace(source=source, images=folder, estimate_intrinsics=lens)
+        cam = SimpleNamespace(source=source, images=folder, images_pattern=None, estimate_intrinsics=lens)
         return SimpleNamespace(has_mocap=mocap, cameras={"cam0": cam},
                                mocap_for=lambda name: SimpleNamespace(by_name=by_name))
 

@@ -29,7 +29,7 @@ def _reference_notes(rig, named: Path) -> tuple[str, ...]:
 
 
 def _camera(folder: Path):
-    return SimpleNamespace(images=folder, intrinsics=None, poses=None, rosbag=None,
+    return SimpleNamespace(images=folder, images_pattern=None, intrinsics=None, poses=None, rosbag=None,
                            video=None, stamps=None, intrinsics_images=None)
 
 

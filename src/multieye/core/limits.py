@@ -34,6 +34,7 @@ __all__ = [
     "MAX_JSON_BYTES",
     "MAX_IMAGE_BYTES",
     "MAX_IMAGE_PIXELS",
+    "MAX_FOLDER_ENTRIES",
 ]
 
 #: Largest target ``spacing`` (and ``marker_size``), metres.
@@ -97,3 +98,6 @@ MAX_IMAGE_BYTES = 512 * 2**20
 #: Largest image, pixels (width x height, from the file's header, checked before decoding);
 #: each side is bound by :data:`MAX_IMAGE_SIDE_PX` too.
 MAX_IMAGE_PIXELS = 100_000_000
+#: Most entries of one folder of images (or of the entries an ``images:`` pattern is matched
+#: against) that are listed; beyond it the folder is refused, naming it.
+MAX_FOLDER_ENTRIES = 1_000_000

@@ -166,16 +166,19 @@ def link_groups(linked, mocap: Sequence[bool]) -> list[tuple[int, ...]]:
     return [tuple(int(j) for j in np.flatnonzero(label == s)) for s in np.unique(label)]
 
 
-def unlinked_message(groups: Sequence[Sequence[str]], tolerance: float | None = None) -> str:
+def unlinked_message(groups: Sequence[Sequence[str]], tolerance: float | None = None,
+                     sync: str = "time") -> str:
     """One line saying that ``groups`` (two or more, each of camera names) are not linked,
     and what would link them (``tolerance``: the ``sync_tolerance`` used, seconds, named when
-    given)."""
+    given; ``sync``: rig.yaml's, when images pair by name)."""
     shown = [("{" + ", ".join(grp) + "}") for grp in groups]
     listing = ", ".join(shown[:-1]) + " and " + shown[-1]
     within = "" if tolerance is None else f" = {tolerance:g} s"
+    how = (f"stamps within sync_tolerance{within}" if sync == "time"
+           else f"names that pair under sync: {sync}")
     return (f"cameras fall into {len(groups)} groups that nothing links: {listing}; give them "
-            f"images taken at the same instants (stamps within sync_tolerance{within}), or "
-            "motion capture (mocap: in rig.yaml)")
+            f"images taken at the same instants ({how}), or motion capture (mocap: in "
+            "rig.yaml)")
 
 
 def relative_pose(T_a_target, T_b_target) -> F64:

@@ -17,11 +17,20 @@ name that does not lead to a regular file (dangling, a loop, to a device), is sk
 listed by :func:`skipped_entries` with the reason.  Links to regular files elsewhere are
 followed (datasets link to shared recordings).  Stamps are also returned as exact integer
 nanoseconds (seconds with more than 9 decimals are rounded to the nearest nanosecond).
+
+Recordings as users lay them out (rig.yaml's ``sync:``, docs/recordings.md): with ``sync``
+other than ``time`` the names need not be stamps.  The images are then in natural name order
+(``left2`` before ``left10``) and their stamps are their places in it (0, 1, 2, ... seconds);
+what pairs them across cameras is their key (:func:`sync_key`): the stem (``name``), the last
+integer in the stem (``number``: ``left01`` and ``right1`` have the key ``1``) or the place
+(``order``).  ``images:`` may be a pattern (:func:`check_pattern`: ``left*.jpg``) matched
+against the names of the one folder's entries, never a path.
 """
 
 from __future__ import annotations
 
 import errno
+import fnmatch
 import os
 import re
 import stat
@@ -30,10 +39,16 @@ from pathlib import Path
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
+from multieye.core.limits import MAX_FOLDER_ENTRIES
 from multieye.core.regular_files import file_kind
 
-__all__ = ["IMAGE_EXTENSIONS", "list_images", "list_image_files", "stamp_from_name",
-           "skipped_entries", "sorted_entries", "is_file_entry"]
+__all__ = ["IMAGE_EXTENSIONS", "SYNC_MODES", "list_images", "list_image_files",
+           "stamp_from_name", "skipped_entries", "sorted_entries", "is_file_entry",
+           "check_pattern", "natural_key", "number_in_name", "sync_key"]
+
+#: How images of different cameras are taken to be of one instant (rig.yaml's ``sync``).
+SYNC_MODES = ("time", "name", "number", "order")
+_NUMBER = re.compile(r"(\d+)(?!.*\d)")
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 
@@ -64,12 +79,64 @@ def stamp_from_name(stem: str) -> int:
                      "nanoseconds (1700000000123456789)")
 
 
-def list_images(folder: str | os.PathLike) -> list[tuple[float, int, Path]]:
-    """Images of a folder sorted by the time stamp in their names.
+def check_pattern(pattern: str) -> str:
+    """``pattern`` if it is a file-name pattern (``fnmatch``: ``*``, ``?``, ``[...]``) for the
+    entries of one folder; ValueError saying what was expected (a path, a folder part, ``..``,
+    an empty pattern)."""
+    if (not isinstance(pattern, str) or not pattern or "/" in pattern or "\\" in pattern
+            or pattern in (".", "..") or "\0" in pattern):
+        raise ValueError(f"expected a file-name pattern such as 'left*.jpg' (matched in one "
+                         f"folder: no '/', no '..'), got {pattern!r}")
+    return pattern
+
+
+def natural_key(name: str) -> tuple:
+    """Sort key of a file name in natural order: ``left2`` before ``left10``."""
+    return tuple((0, int(t), "") if t.isdigit() else (1, 0, t)
+                 for t in re.split(r"(\d+)", name) if t)
+
+
+def number_in_name(stem: str) -> int | None:
+    """The last integer in a file name's stem (``left01`` -> 1, ``frame_000123`` -> 123), or
+    None when it has no digit."""
+    m = _NUMBER.search(stem)
+    return int(m.group(1)) if m else None
+
+
+def sync_key(stem: str, sync: str, place: int) -> str:
+    """The key images of different cameras taken at one instant share under ``sync`` (not
+    ``time``): the stem, its last integer, or the image's ``place`` in its camera's natural
+    name order."""
+    if sync == "name":
+        return stem
+    if sync == "number":
+        return str(number_in_name(stem))
+    return str(place)
+
+
+def _matching(root: Path, pattern: str | None) -> list[Path]:
+    """The regular files (links to them followed) of ``root`` with an image extension whose
+    names fit ``pattern``, in name order; at most :data:`MAX_FOLDER_ENTRIES` entries."""
+    entries = sorted_entries(root)
+    if len(entries) > MAX_FOLDER_ENTRIES:
+        raise DatasetError(f"{len(entries)} entries, more than {MAX_FOLDER_ENTRIES} in one image "
+                           "folder", path=root)
+    return [root / e.name for e in entries
+            if Path(e.name).suffix.lower() in IMAGE_EXTENSIONS
+            and (pattern is None or fnmatch.fnmatchcase(e.name, pattern)) and is_file_entry(e)]
+
+
+def list_images(folder: str | os.PathLike, pattern: str | None = None, sync: str = "time"
+                ) -> list[tuple[float, int, Path]]:
+    """Images of a folder sorted by the time stamp in their names (``sync`` ``time``), else in
+    natural name order with their places as stamps.
 
     Parameters
     ----------
     folder : path-like
+    pattern : str, optional
+        Only the entries whose names fit this file-name pattern (:func:`check_pattern`).
+    sync : {"time", "name", "number", "order"}
 
     Returns
     -------
@@ -80,26 +147,46 @@ def list_images(folder: str | os.PathLike) -> list[tuple[float, int, Path]]:
     ------
     DatasetError
         Missing folder, no images, a name that is not a time stamp, two images with the same
-        stamp (naming both).
+        stamp (or, with ``sync: number``, the same number; naming both).
     """
     root = as_path(folder, "image folder")
     if not root.is_dir():
         raise DatasetError("image folder not found", path=root)
+    paths = _matching(root, pattern)
+    if not paths:
+        raise DatasetError(_none_found(root, pattern), path=root)
+    if sync != "time":
+        paths = sorted(paths, key=lambda p: natural_key(p.name))
+        if sync in ("number", "name"):
+            _unique_keys(paths, sync)
+        return [(float(k), k * 1_000_000_000, p) for k, p in enumerate(paths)]
     found: dict[int, Path] = {}
-    for entry in sorted_entries(root):
-        p = root / entry.name
-        if p.suffix.lower() not in IMAGE_EXTENSIONS or not is_file_entry(entry):
-            continue
+    for p in paths:
         try:
             ns = stamp_from_name(p.stem)
         except ValueError as exc:
-            raise DatasetError(f"image name is not a time stamp: {exc}", path=p) from None
+            raise DatasetError(f"image name is not a time stamp: {exc} (or give rig.yaml's "
+                               "'sync: name | number | order' to pair images by name)",
+                               path=p) from None
         if ns in found:
             raise DatasetError(f"same time stamp as {found[ns].name}", path=p)
         found[ns] = p
-    if not found:
-        raise DatasetError(_none_found(root), path=root)
     return [(ns / 1e9, ns, found[ns]) for ns in sorted(found)]
+
+
+def _unique_keys(paths: list[Path], sync: str) -> None:
+    """Refuse two images of one camera with one key under ``sync`` (name or number)."""
+    seen: dict[str, Path] = {}
+    for p in paths:
+        if sync == "number" and number_in_name(p.stem) is None:
+            raise DatasetError("sync: number pairs images by the last integer in their names; "
+                               "this name has none", path=p)
+        key = sync_key(p.stem, sync, 0)
+        if key in seen:
+            what = f"number {key}" if sync == "number" else f"name {key}"
+            raise DatasetError(f"same {what} as {seen[key].name} in this camera's images "
+                               f"(sync: {sync} pairs one image per camera and {what})", path=p)
+        seen[key] = p
 
 
 #: What ``Path.is_file`` takes for "not a file" rather than an error.
@@ -125,9 +212,9 @@ def is_file_entry(entry: os.DirEntry) -> bool:
         raise
 
 
-def list_image_files(folder: str | os.PathLike) -> list[Path]:
-    """Every image of a folder, sorted by name, whatever the names (images that carry no
-    time, e.g. ``intrinsics_images``).
+def list_image_files(folder: str | os.PathLike, pattern: str | None = None) -> list[Path]:
+    """Every image of a folder (whose name fits ``pattern`` if given), sorted by name,
+    whatever the names (images that carry no time, e.g. ``intrinsics_images``).
 
     Raises
     ------
@@ -137,16 +224,17 @@ def list_image_files(folder: str | os.PathLike) -> list[Path]:
     root = as_path(folder, "image folder")
     if not root.is_dir():
         raise DatasetError("image folder not found", path=root)
-    found = [p for p in sorted(root.iterdir())
-             if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS]
+    found = _matching(root, pattern)
     if not found:
-        raise DatasetError(_none_found(root), path=root)
+        raise DatasetError(_none_found(root, pattern), path=root)
     return found
 
 
-def _none_found(root: Path) -> str:
-    skipped = skipped_entries(root)
+def _none_found(root: Path, pattern: str | None = None) -> str:
+    skipped = skipped_entries(root, pattern)
     first = f"; {len(skipped)} skipped, first {skipped[0][0]}: {skipped[0][1]}" if skipped else ""
+    if pattern is not None:
+        return f"no image ({', '.join(IMAGE_EXTENSIONS)}) named {pattern} in the folder{first}"
     return f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder{first}"
 
 
@@ -168,8 +256,10 @@ def _entry_problem(p: Path) -> str | None:
     return f"{kind}, not a regular file"
 
 
-def skipped_entries(folder: str | os.PathLike) -> list[tuple[str, str]]:
-    """Entries of an image folder that are skipped, as ``(name, reason)`` sorted by name.
+def skipped_entries(folder: str | os.PathLike, pattern: str | None = None
+                    ) -> list[tuple[str, str]]:
+    """Entries of an image folder (whose names fit ``pattern`` if given) that are skipped, as
+    ``(name, reason)`` sorted by name.
 
     An entry named like an image (:data:`IMAGE_EXTENSIONS`) that is not a regular file, and
     any symbolic link that does not lead to a regular file: a dangling link, a link loop, a
@@ -184,6 +274,8 @@ def skipped_entries(folder: str | os.PathLike) -> list[tuple[str, str]]:
         return []
     for p in entries:
         if p.suffix.lower() not in IMAGE_EXTENSIONS and not p.is_symlink():
+            continue
+        if pattern is not None and not fnmatch.fnmatchcase(p.name, pattern):
             continue
         problem = _entry_problem(p)
         if problem is not None:

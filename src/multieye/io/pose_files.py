@@ -1,10 +1,11 @@
 """One pose file beside each image: ``pos3.bmp`` + ``pos3.txt``, ``12.jpg`` + ``12.json``.
 
 Robot toolkits store the pose of each image in a file of the same stem. ``rig.yaml``'s
-``mocap.file`` names them with ``{stem}`` (``"{stem}.json"``); docs/rig-yaml.md, section 4,
-describes the keys this module reads:
+``mocap.file`` names them with ``{stem}`` (``"{stem}.json"`` beside each image, or
+``"poses/{stem}.yaml"`` in a folder of the dataset, as ROS-industrial stores them);
+docs/rig-yaml.md, section 4, describes the keys this module reads:
 
-- ``key`` (JSON files): the key that holds the pose (a dotted path such as ``pose.matrix``
+- ``key`` (JSON and YAML files): the key that holds the pose (a dotted path such as ``pose.matrix``
   goes into nested objects);
 - ``rotation``: ``quaternion-xyzw`` (default), ``quaternion-wxyz``, ``matrix``, ``rotvec``,
   ``euler-<axes>-deg`` or ``euler-<axes>-rad`` (axes as scipy's ``Rotation.from_euler``
@@ -16,8 +17,12 @@ describes the keys this module reads:
 - ``unit``: ``m`` (default), ``cm`` or ``mm`` for the translation.
 
 A pose stored as 16 numbers (or 12, the top three rows), or as a JSON 4x4 (or 3x4) array,
-is ``rotation: matrix`` (row-major, translation in the last column). A JSON object of
-numbers (``{"x": 0.5, ..., "rx": 0.1, ...}``) gives the values by name. Every problem is a
+is ``rotation: matrix`` (row-major, translation in the last column). A JSON or YAML mapping
+of numbers (``{"x": 0.5, ..., "qx": 0.1, ...}``) gives the values by name, its rotation by
+the names (unless ``rotation`` or ``values`` say otherwise): ``qx qy qz qw`` a quaternion,
+``rx ry rz`` a rotation vector; a ROS ``geometry_msgs/Pose`` mapping (``position: {x, y,
+z}``, ``orientation: {x, y, z, w}``) a quaternion.  Both quaternion and rotation-vector
+names, or a key that is none of these, is refused naming the key. Every problem is a
 :class:`DatasetError` naming the pose file and what was expected.
 """
 
@@ -27,7 +32,7 @@ import json
 import os
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +44,7 @@ from multieye.core.regular_files import read_bounded
 from multieye.io.textfile import length_scale
 from multieye.io.poserows import RowPlace, trajectory_from_rows, usable_rows
 from multieye.io.textfile import read_number_rows
+from multieye.io.yamlfile import load_yaml
 
 __all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
            "read_pose_file", "pose_file_pattern", "poses_by_name", "read_pose_table",
@@ -126,8 +132,16 @@ class PoseFormat:
 
 
 def pose_file_pattern(pattern: str, image: Path) -> Path:
-    """The pose file of an image: ``pattern`` with ``{stem}`` replaced, beside the image."""
-    return image.parent / pattern.replace(STEM, image.stem)
+    """The pose file of an image: ``pattern`` with ``{stem}`` replaced, beside the image (or,
+    for an absolute ``pattern``, in its folder)."""
+    folder, name = _pattern_place(pattern, image.parent)
+    return folder / name.replace(STEM, image.stem)
+
+
+def _pattern_place(pattern: str, image_folder: Path) -> tuple[Path, str]:
+    """The folder a ``{stem}`` pattern's files are in and their name pattern."""
+    p = Path(pattern)
+    return (p.parent, p.name) if p.is_absolute() else (image_folder, pattern)
 
 
 def _numbers_from_text(path: Path) -> list[float]:
@@ -144,14 +158,18 @@ def _numbers_from_text(path: Path) -> list[float]:
     return out
 
 
-def _from_json(path: Path, fmt: PoseFormat):
-    try:
-        data = json.loads(read_bounded(path, what="pose file", max_bytes=MAX_YAML_BYTES
-                                       ).decode("utf-8-sig"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DatasetError(f"not a JSON file: {exc}", path=path) from None
-    except RecursionError:
-        raise DatasetError("not a JSON file: nested too deeply", path=path) from None
+def _from_document(path: Path, fmt: PoseFormat):
+    """The value of a JSON or YAML pose file that holds the pose (under ``fmt.key``)."""
+    if path.suffix.lower() in (".yaml", ".yml"):
+        data = load_yaml(path, what="pose file").data
+    else:
+        try:
+            data = json.loads(read_bounded(path, what="pose file", max_bytes=MAX_YAML_BYTES
+                                           ).decode("utf-8-sig"))
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise DatasetError(f"not a JSON file: {exc}", path=path) from None
+        except RecursionError:
+            raise DatasetError("not a JSON file: nested too deeply", path=path) from None
     if fmt.key is not None:
         for part in fmt.key.split("."):
             if not isinstance(data, Mapping) or part not in data:
@@ -159,10 +177,51 @@ def _from_json(path: Path, fmt: PoseFormat):
                         else "")
                 raise DatasetError(f"no key {fmt.key!r} (mocap.key){have}", path=path)
             data = data[part]
-    elif isinstance(data, Mapping) and not _numeric_mapping(data):
-        raise DatasetError(f"a JSON object: give mocap.key, the key that holds the pose "
-                           f"(keys: {', '.join(map(str, data))})", path=path)
+    elif (isinstance(data, Mapping) and not _ros_pose(data)
+          and not any(isinstance(k, str) and k in _NAMED for k in data)):
+        raise DatasetError(f"a mapping without named numbers (x y z ...): give mocap.key, the "
+                           f"key that holds the pose (keys: {', '.join(map(str, data))})",
+                           path=path)
     return data
+
+
+#: The names a mapping of named numbers may use.
+_NAMED = ("x", "y", "z", "qx", "qy", "qz", "qw", "rx", "ry", "rz", "a1", "a2", "a3")
+
+
+def _ros_pose(data: Mapping) -> bool:
+    """A ROS ``geometry_msgs/Pose``: ``position: {x, y, z}``, ``orientation: {x, y, z, w}``."""
+    return (set(data) == {"position", "orientation"}
+            and all(isinstance(data[k], Mapping) for k in data))
+
+
+def _mapping_pose(data: Mapping, fmt: PoseFormat, scale: float, path: Path) -> np.ndarray:
+    """The pose of a mapping of named numbers (module docstring), its form checked."""
+    if _ros_pose(data):
+        pos, ori = data["position"], data["orientation"]
+        for key, part, names in (("position", pos, "xyz"), ("orientation", ori, "xyzw")):
+            if set(part) != set(names):
+                raise DatasetError(f"key {key!r}: expected the numbers {', '.join(names)}, got "
+                                   f"{', '.join(map(str, part))}", path=path)
+        values = {"x": pos["x"], "y": pos["y"], "z": pos["z"], "qx": ori["x"], "qy": ori["y"],
+                  "qz": ori["z"], "qw": ori["w"]}
+        return _named(values, PoseFormat("quaternion-xyzw", None, None, fmt.unit), scale, path)
+    if fmt.values is None and fmt.rotation == "quaternion-xyzw":
+        quat = [k for k in ("qx", "qy", "qz", "qw") if k in data]
+        rvec = [k for k in ("rx", "ry", "rz") if k in data]
+        if quat and rvec:
+            raise DatasetError(f"keys {', '.join(quat + rvec)}: both a quaternion and a rotation "
+                               "vector; keep one (or give mocap.rotation)", path=path)
+        fmt = replace(fmt, rotation="rotvec" if rvec else "quaternion-xyzw")
+    for key, value in data.items():
+        if key not in fmt.order:
+            raise DatasetError(f"key {key!r}: not one of the pose's numbers "
+                               f"{' '.join(fmt.order)} (rotation {fmt.rotation}); give "
+                               "mocap.key for a pose under a key", path=path)
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise DatasetError(f"key {key!r}: expected a number, got {str(value)[:40]!r}",
+                               path=path)
+    return _named(data, fmt, scale, path)
 
 
 def _numeric_mapping(data: Mapping) -> bool:
@@ -234,10 +293,13 @@ def read_pose_file(path: str | os.PathLike, fmt: PoseFormat) -> np.ndarray:
     path = Path(path)
     scale = length_scale(fmt.unit)
     try:
-        if path.suffix.lower() == ".json":
-            data = _from_json(path, fmt)
+        if path.suffix.lower() in (".json", ".yaml", ".yml"):
+            data = _from_document(path, fmt)
             if isinstance(data, Mapping):
-                return _named(data, fmt, scale, path)
+                if fmt.rotation == "matrix":
+                    raise DatasetError("expected a 4x4 array or 16 numbers for rotation: "
+                                       "matrix, got a mapping of named numbers", path=path)
+                return _mapping_pose(data, fmt, scale, path)
             numbers, rows = _flat_numbers(data, path)
         else:
             numbers, rows = _numbers_from_text(path), False
@@ -309,19 +371,20 @@ def poses_by_name(images: Sequence[Path], pattern: str, fmt: PoseFormat
     """
     matched, unmatched, stems = [], [], set()
     for image in sorted(images, key=_natural):
-        stems.add((image.parent, image.stem))
+        stems.add(image.stem)
         pose = pose_file_pattern(pattern, image)
         if pose.is_file():
             matched.append((image, read_pose_file(pose, fmt)))
         else:
             unmatched.append((image.name, f"no pose file {pose.name}"))
-    head, _, tail = pattern.partition(STEM)
-    fits = re.compile(re.escape(head) + "(.+)" + re.escape(tail.replace(STEM, "*")) + "$")
     for folder in sorted({image.parent for image in images}):
-        for p in sorted(folder.glob(pattern.replace(STEM, "*")), key=_natural):
+        folder, name = _pattern_place(pattern, folder)
+        head, _, tail = name.partition(STEM)
+        fits = re.compile(re.escape(head) + "(.+)" + re.escape(tail.replace(STEM, "*")) + "$")
+        for p in sorted(folder.glob(name.replace(STEM, "*")), key=_natural):
             rel = p.relative_to(folder).as_posix()
             m = fits.match(rel)
-            if p.is_file() and m and (folder, m.group(1)) not in stems:
+            if p.is_file() and m and m.group(1) not in stems:
                 unmatched.append((rel, f"pose file without an image {m.group(1)}.*"))
     return matched, unmatched
 

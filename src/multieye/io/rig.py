@@ -38,15 +38,18 @@ constants hold them, docs/rig-yaml.md documents each)::
       child_frame: rig                                       # rosbag only
       columns: {t: time, tx: x, ...}                         # csv only
       duplicates: error | drop                               # tum, csv only; default error
-      # file: "{stem}.json": one pose file beside each image (format pose-files), with
+      # file: "{stem}.json": one pose file beside each image (format pose-files), or in a
+      # folder of the dataset: "poses/{stem}.yaml"; with
       # key: end2base, values: [x, y, z, qx, qy, qz, qw], rotation: quaternion-xyzw | ...
       match: time | image | order    # pose-table: by an image column or rows in name order
       sensor: motion-capture | robot                         # default: from the source
       noise_bounds: {rotation_deg: 0.1, translation_m: 0.001}   # default: the sensor's
+    sync: time | name | number | order                       # default time
     cameras:                                                 # required, at least one
       cam0:
         intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
-        images: cam0/                  # exactly one of images, poses, rosbag, video
+        images: cam0/                  # exactly one of images, poses, rosbag, video;
+                                       #   images also a pattern: "left*.jpg"
         poses: cam0_target.txt         #   precomputed T_cam_target, TUM format
         rosbag: run.bag                #   image topic of a bag ...
         topic: /cam0/image_raw         #   ... given here (rosbag only)
@@ -87,6 +90,7 @@ from multieye.io.rig_checks import video_keys
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
 from multieye.io.rig_checks import camera_link, links_keys, no_link_loop, Checker as _Checker
+from multieye.io.rig_checks import images_key, stem_pattern, sync_keys
 from multieye.io.textfile import LENGTH_UNITS
 from multieye.io.yamlfile import load_yaml, shown
 
@@ -108,7 +112,8 @@ _SOURCES = ("images", "poses", "rosbag", "video")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
-TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics", "sync_tolerance")
+TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics", "sync_tolerance",
+                  "sync")
 MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
               "rotation_noise_deg", "translation_noise_m", "match", "sensor",
               "noise_bounds") + tuple(_MOCAP_ONLY)
@@ -152,6 +157,8 @@ class CameraSpec:
         A folder of images without motion capture that only inform the intrinsics.
     intrinsics_target : TargetSpec or None
         Their board, when it is not the rig's ``target``.
+    images_pattern : str or None
+        Only the images of ``images`` whose names fit this pattern (``left*.jpg``).
     """
 
     name: str
@@ -170,6 +177,7 @@ class CameraSpec:
     estimate_intrinsics: bool = False
     intrinsics_images: Path | None = None
     intrinsics_target: TargetSpec | None = None
+    images_pattern: str | None = None
 
     @property
     def source(self) -> str:
@@ -194,6 +202,10 @@ class Rig:
         None when every camera has its own, or when the rig has no motion capture.
     sync_tolerance : float or None
         Seconds within which images of different cameras are one instant (None: default).
+    sync : {"time", "name", "number", "order"}
+        What makes images of different cameras one instant (docs/recordings.md): their stamps
+        (within ``sync_tolerance``; or, for cameras paired by name, today's rule), or their
+        names (equal stems, the last integer in the stem, the place in name order).
     """
 
     path: Path
@@ -202,6 +214,7 @@ class Rig:
     target: TargetSpec | None = None
     mocap: MocapSpec | None = field(default=None)
     sync_tolerance: float | None = None
+    sync: str = "time"
 
     @property
     def has_mocap(self) -> bool:      # else the views the cameras share link the rig
@@ -325,7 +338,8 @@ def _mocap(rw: _RigWide, raw: Mapping, origin: Mapping[str, tuple], where: tuple
         if fmt is not None:
             raise c.error("a file name with {stem} is one pose file beside each image; leave "
                           "out 'format'", at("format"))
-        fmt, file = "pose-files", Path(c.string(raw["file"], at("file")))
+        fmt, file = "pose-files", stem_pattern(c, c.string(raw["file"], at("file")),
+                                               at("file"))
     match = c.choice(raw.get("match", "time"), at("match") if "match" in raw else where,
                      ("time", "image", "order"))
     if match != "time":
@@ -450,7 +464,10 @@ def _camera(rw: _RigWide, name, raw) -> CameraSpec:
     kw = {"intrinsics_camera": camera}
     source = sources[0]
     kind = "folder" if source == "images" else "file or bag" if source == "rosbag" else "file"
-    kw[source] = c.path(raw[source], keys + (source,), kind)
+    if source == "images":
+        kw["images"], kw["images_pattern"] = images_key(c, raw["images"], keys + ("images",))
+    else:
+        kw[source] = c.path(raw[source], keys + (source,), kind)
     if "topic" in raw:
         kw["topic"] = c.string(raw["topic"], keys + ("topic",))
     kw.update(video_keys(c, raw, keys))
@@ -555,7 +572,8 @@ def load_rig(path: str | os.PathLike) -> Rig:
         needing = [n for n, cam in cameras.items() if cam.source != "poses"]
         raise DatasetError(f"missing key 'target': cameras with images ({', '.join(needing)}) "
                            "need the calibration board described", path=doc.path, line=1)
-    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap, sync)
+    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap, sync,
+               sync_keys(c, raw, cameras, mocap))
 
 
 def read_camera_intrinsics(camera: CameraSpec) -> Intrinsics:

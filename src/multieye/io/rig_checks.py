@@ -11,12 +11,14 @@ from pathlib import Path
 
 from multieye.core.arguments import did_you_mean
 from multieye.core.errors import DatasetError
+from multieye.io.image_folder import SYNC_MODES, check_pattern
+from multieye.io.pose_files import STEM
 from multieye.io.yamlfile import YamlDocument, shown
 from multieye.core.limits import (MAX_ROTATION_NOISE_DEG, MAX_STAMP_S, MAX_TIME_TOLERANCE_S,
                                   MAX_TRANSLATION_NOISE_M)
 
 __all__ = ["Checker", "sensor_keys", "links_keys", "camera_link", "video_keys", "MOCAP_SENSORS",
-           "MOCAP_NOISE_BOUND_KEYS"]
+           "MOCAP_NOISE_BOUND_KEYS", "images_key", "stem_pattern", "sync_keys"]
 
 #: What ``mocap.sensor`` may name, and the keys of ``mocap.noise_bounds`` (docs/rig-yaml.md).
 MOCAP_SENSORS = ("motion-capture", "robot")
@@ -193,3 +195,68 @@ def camera_link(c: Checker, name: str, mocap, source: str, any_mocap: bool) -> N
         raise c.error("a rig without motion capture is linked by the target points its "
                       "cameras see together; a camera given by 'poses' has none (give it "
                       "'images' or 'rosbag', or add 'mocap')", ("cameras", name))
+
+
+_GLOB = set("*?[")
+
+
+def _inside(c: Checker, typed: str, keys, what: str) -> Path:
+    """The folder ``typed`` (a folder part of a pattern), which must lie in rig.yaml's folder:
+    relative, without ``..``, not leaving it through a link."""
+    if Path(typed).is_absolute() or ".." in Path(typed).parts or _GLOB & set(typed):
+        raise c.error(f"{what}: the folder of a pattern is a folder of the dataset (relative to "
+                      f"rig.yaml, no '..', no pattern in it), got {typed!r}; give a folder "
+                      "path without a pattern instead", keys)
+    folder = c.path(typed or ".", keys, "folder")
+    if not folder.is_relative_to(c.folder):
+        raise c.error(f"{what}: folder {typed!r} leads out of the dataset folder (a link to "
+                      f"{folder})", keys)
+    return folder
+
+
+def images_key(c: Checker, value, keys) -> tuple[Path, str | None]:
+    """A camera's ``images``: a folder, or a file-name pattern (``left*.jpg``, or
+    ``raw/left*.jpg`` in a folder of the dataset) as ``(folder, pattern)``."""
+    typed = c.string(value, keys)
+    head, _, name = typed.rstrip("/").rpartition("/")
+    if not _GLOB & set(typed):
+        return c.path(typed, keys, "folder"), None
+    try:
+        pattern = check_pattern(name)
+    except ValueError as exc:
+        raise c.error(str(exc), keys) from None
+    return _inside(c, head, keys, "images"), pattern
+
+
+def stem_pattern(c: Checker, typed: str, keys) -> Path:
+    """A ``{stem}`` pose-file name: beside each image (no folder, kept relative), or in a
+    folder of the dataset (``poses/{stem}.yaml``: that folder, absolute, and the name)."""
+    head, _, name = typed.rpartition("/")
+    if STEM in head or STEM not in name:
+        raise c.error(f"expected a pose-file name with {STEM} in its name "
+                      f"(\"{STEM}.yaml\", or \"poses/{STEM}.yaml\" in a folder of the dataset), "
+                      f"got {typed!r}", keys)
+    return Path(name) if not head else _inside(c, head, keys, "file") / name
+
+
+def sync_keys(c: Checker, raw: Mapping, cameras: Mapping, mocap) -> str:
+    """``sync`` (default ``time``), checked against the cameras (``CameraSpec`` by name;
+    ``mocap``: the top-level ``MocapSpec`` or None): pairing by name needs images in folders,
+    and cameras paired with motion capture in time need stamps in their names."""
+    if "sync" not in raw:
+        return "time"
+    sync = c.choice(raw["sync"], ("sync",), SYNC_MODES)
+    if sync == "time":
+        return sync
+    for name, cam in cameras.items():
+        if cam.source != "images":
+            raise c.error(f"sync: {sync} pairs images by their file names; camera {name} has "
+                          f"{cam.source}, not images (leave out 'sync' to pair by time)",
+                          ("sync",))
+        spec = cam.mocap if cam.mocap is not None else mocap
+        if spec is not None and not spec.by_name:
+            raise c.error(f"sync: {sync} names images without time stamps, but camera {name} "
+                          "pairs with motion capture in time (its image names are its stamps); "
+                          "leave out 'sync', or match its poses by name", ("sync",))
+    return sync
+

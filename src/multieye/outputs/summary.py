@@ -184,6 +184,7 @@ def check_table(check) -> str:
             lines.append(f"{c.name}: sampled images without a target pose: " + ", ".join(
                 f"{n} {kind}" for kind, n in c.failures))
         lines.extend(f"problem: {c.name}: {p}" for p in c.problems)
+    lines.extend(getattr(check, "links", ()))
     lines.append("verdict: ok, calibrating can run" if check.ok
                  else "verdict: calibrating would fail: " + "; ".join(check.reasons))
     return "\n".join(lines)

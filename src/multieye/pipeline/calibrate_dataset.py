@@ -31,6 +31,7 @@ from multieye.imaging.workers import Alongside
 from multieye.io import load_rig
 from multieye.pipeline.camera_data import load_camera_data
 from multieye.pipeline.options import Options, updated_options
+from multieye.pipeline.rig_model import build_rig_model
 from multieye.pipeline.sources import outside_reads
 
 if TYPE_CHECKING:                 # the result's module imports the later stages' types
@@ -100,6 +101,7 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
     """
     start = time.perf_counter()
     rig = load_rig(dataset)                 # a folder or its rig.yaml, checked where it enters
+    model = build_rig_model(rig)            # its targets and given lenses, built once
     options = updated_options(options, kw)
     # the later stages imported on a thread once the first images are sent (at the end of
     # the block when none are: poses only, an engine), waited for after the detection
@@ -109,13 +111,13 @@ def calibrate(dataset: str | os.PathLike, options: Options = Options(), *,
             open_engine(engine, scheduler=scheduler, workers=processes))
         cameras = load_camera_data(rig, processes=processes, progress=progress,
                                    select=options.select, time_offset=options.time_offset,
-                                   engine=eng, on_sent=aside.start)
+                                   engine=eng, on_sent=aside.start, model=model)
         loaded = time.perf_counter() - start
     if hooks.on_detected is not None:
         hooks.on_detected()
     from multieye.pipeline.run import calibrate_rig  # noqa: PLC0415 (heavy: SciPy and the solvers, imported while the images are detected, _import_later_stages)
 
-    run = calibrate_rig(rig, cameras, options)
+    run = calibrate_rig(rig, cameras, options, model=model)
     detection = sum(d.detection_s for d in cameras.values())
     timings = replace(run.timings, reading=max(loaded - detection, 0.0), detection=detection,
                       total=time.perf_counter() - start)

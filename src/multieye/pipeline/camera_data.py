@@ -20,23 +20,20 @@ from multieye.core.errors import DatasetError, TooFewMeasurementsError
 from multieye.core.intrinsics import Intrinsics
 from multieye.estimate.pairing import pair_in_time
 from multieye.imaging.engines import Engine
-from multieye.imaging.targets import target_from_spec
 from multieye.io import (
     RejectedItem,
     Rig,
     Trajectory,
     iter_bag_images,
     list_image_files,
-    list_images,
     skipped_entries,
-    read_camera_intrinsics,
     read_mocap,
     read_tum,
 )
-from multieye.io.mocap import pose_frames
-from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.detection import Workers, detect_all
-from multieye.pipeline.estimated_lens import check_model, lens_start, start_lens, with_poses
+from multieye.pipeline.estimated_lens import lens_start, start_lens, with_poses
+from multieye.pipeline.recordings import check_sync, listed_images, poses_by_name_of, sync_instant
+from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.selection import SelectionSummary, motion_first, preselected
 from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.solvers.methods import MIN_MEASUREMENTS
@@ -73,7 +70,8 @@ class Observation:
         The instant the image was taken, as a key that images of other cameras taken at the
         same instant share (the target then has one pose for all of them): today the key of
         the pairing, the camera-clock ``stamp`` (``repr``) or, for a camera paired by name,
-        the image's name without its suffix (:func:`instant_key`).  The problem groups the
+        the image's name without its suffix; with rig.yaml's ``sync`` other than ``time``,
+        the key its name gives (:func:`instant_key`).  The problem groups the
         images by it (:attr:`multieye.pipeline.problem.Problem.instants`).
     """
 
@@ -88,9 +86,13 @@ class Observation:
     instant: str = ""
 
 
-def instant_key(observation: Observation, by_name: bool) -> str:
-    """The :attr:`Observation.instant` of an image: its name without the suffix when the
-    camera is paired by name, else its camera-clock stamp (``repr``, exact)."""
+def instant_key(observation: Observation, by_name: bool, sync: str = "time") -> str:
+    """The :attr:`Observation.instant` of an image: under rig.yaml's ``sync`` other than
+    ``time`` the key its name gives (:func:`multieye.pipeline.recordings.sync_instant`); else
+    its name without the suffix when the camera is paired by name, else its camera-clock
+    stamp (``repr``, exact)."""
+    if sync != "time":
+        return sync_instant(observation.name, observation.stamp, sync)
     return Path(observation.name).stem if by_name else repr(float(observation.stamp))
 
 
@@ -134,6 +136,9 @@ class CameraData:
     selection : SelectionSummary or None
         What the image selection did (:mod:`multieye.pipeline.selection`); None when it did
         not choose among this camera's images.
+    image_notes : tuple of (str, str)
+        Notes about single images, ``(camera/image, cause)``, gathered over the rig into one
+        line per cause (:func:`multieye.pipeline.recordings.camera_warnings`).
     """
 
     name: str
@@ -150,6 +155,7 @@ class CameraData:
     intrinsics_views: tuple[Observation, ...] = ()
     by_name: bool = False
     selection: SelectionSummary | None = None
+    image_notes: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -224,10 +230,11 @@ class _Detected:
     warnings: tuple[str, ...]
     seconds: float
     intrinsics: Intrinsics | None = None     # the started lens, when it was estimated
+    notes: tuple[tuple[str, str], ...] = ()  # (camera/image, cause)
 
 
-def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, workers: Workers, *,
-                              listed=None, extra_views=()) -> _Detected:
+def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrinsics | None,
+                              workers: Workers, *, listed=None, extra_views=()) -> _Detected:
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
 
     Without ``intr`` (a camera whose lens is estimated), detection runs alone, the lens
@@ -240,7 +247,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     cam = rig.cameras[name]
     source = {"images": cam.images, "rosbag": cam.rosbag, "video": cam.video}[cam.source]
     topic = cam.topic
-    target = target_from_spec(rig.target, path=rig.path)
+    target = model.target
     lost: list = []
     if cam.source == "video":
         stamped = []
@@ -250,7 +257,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
             target, intr)
         seconds = time.perf_counter() - t0
     elif topic is None:
-        images = list_images(source) if listed is None else listed
+        images = listed_images(rig, name) if listed is None else listed
         t0 = time.perf_counter()
         results = workers.detected.get((name, "images"))
         if results is None:
@@ -286,7 +293,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
         else:
             lens = start_lens(name, cam.model, list(results) + list(extra_views), source)
             results = with_poses(results, lens.intrinsics)
-    obs, rejected, warnings = [], [], list(lens.warnings if lens else ())
+    obs, rejected, warnings, notes = [], [], list(lens.warnings if lens else ()), []
     for (stamp, label), res in zip(stamped, results):
         if res.ok:
             obs.append(Observation(name=label, stamp=stamp, T_cam_target=res.pose.T_cam_target,
@@ -295,30 +302,29 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
                                    image_points=res.detection.image_points,
                                    alternative=res.pose.alternative,
                                    alternative_rms_px=res.pose.alternative_rms_px))
-            warnings.extend(f"{name}/{label}: {w}" for w in res.warnings)
+            notes.extend((f"{name}/{label}", w) for w in res.warnings)
         else:
             rejected.append(RejectedItem(label, res.reason))
     # pose ambiguity (single marker): warn when the two poses fit alike in most images
     warnings.extend(w for w in [ambiguity_warning(name, [r.pose for r in results if r.ok])] if w)
     skipped = [RejectedItem(n, why) for n, why in lost]
     if cam.source == "images":      # links to nowhere, devices, folders named like images
-        skipped += [RejectedItem(n, why) for n, why in skipped_entries(source)]
+        skipped += [RejectedItem(n, why) for n, why in skipped_entries(source, cam.images_pattern)]
     rejected.extend(skipped)
     if not obs:
         raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
                            camera=name)
     return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped) + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
-                     intrinsics=None if lens is None else lens.intrinsics)
+                     intrinsics=None if lens is None else lens.intrinsics, notes=tuple(notes))
 
 
-def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: Workers
+def _detect_intrinsics_images(cam, model: RigModel, intr: Intrinsics | None, workers: Workers
                               ) -> tuple[list[Path], list, float]:
     """Detection (and PnP with ``intr`` unless None) over a camera's ``intrinsics_images``
     (their own board if given): the paths, the results and the seconds it took."""
 
-    spec = cam.intrinsics_target or rig.target
-    target = target_from_spec(spec, path=rig.path)
+    target = model.intrinsics_target(cam.name)
     paths = list_image_files(cam.intrinsics_images)
     key = (cam.name, "intrinsics_images")
     if key in workers.detected:
@@ -328,13 +334,13 @@ def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: W
     return paths, results, time.perf_counter() - t0
 
 
-def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: Workers,
+def _intrinsics_views(cam, model: RigModel, intr: Intrinsics, workers: Workers,
                       detected=None) -> tuple[list[Observation], list[RejectedItem], float]:
     """Detection and PnP over a camera's ``intrinsics_images`` (their own board if given);
     ``detected``: their detection-only ``(paths, results, seconds)`` already at hand, to
     which only the PnP with ``intr`` is added."""
     if detected is None:
-        paths, results, seconds = _detect_intrinsics_images(cam, rig, intr, workers)
+        paths, results, seconds = _detect_intrinsics_images(cam, model, intr, workers)
     else:
         paths, results, seconds = detected
         results = with_poses(results, intr)
@@ -355,8 +361,8 @@ def _intrinsics_views(name: str, cam, rig: Rig, intr: Intrinsics, workers: Worke
 
 def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool = False,
                      select: int | None = None, time_offset: str | float = "rig",
-                     engine: Engine | None = None,
-                     on_sent: Callable[[], object] | None = None) -> dict[str, CameraData]:
+                     engine: Engine | None = None, on_sent: Callable[[], object] | None = None,
+                     model: RigModel | None = None) -> dict[str, CameraData]:
     """Read, detect and estimate every camera's target poses and its motion capture.
 
     Parameters
@@ -377,6 +383,9 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     on_sent : callable, optional
         Called once the first image files are sent to the local workers
         (:func:`multieye.imaging.batch.detect_jobs_then`); not called when none are.
+    model : RigModel, optional
+        The targets and given lenses, built once (:func:`multieye.pipeline.rig_model.
+        build_rig_model`; built here when not given).
 
     Raises
     ------
@@ -385,6 +394,8 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     """
     trajectories: dict[tuple, Trajectory] = {}
     motions: dict[str, CameraMotion] = {}
+    model = build_rig_model(rig) if model is None else model
+    check_sync(rig)                 # sync: order, cameras with as many images
 
     def read_motions() -> None:     # once; in rig.cameras order, as the errors come
         motions.update({} if motions else {
@@ -401,10 +412,10 @@ def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool =
     if first:
         read_motions()
     chosen = preselected(rig, motions, select, time_offset, pair_stamps) if first else {}
-    workers = detect_all(rig, motions, Workers(processes, progress, engine), chosen,
+    workers = detect_all(rig, model, motions, Workers(processes, progress, engine), chosen,
                          on_sent=on_sent if first else sent)
     read_motions()                  # when no image went to workers
-    return {name: _camera_data(rig, name, motions[name], workers, chosen.get(name))
+    return {name: _camera_data(rig, model, name, motions[name], workers, chosen.get(name))
             for name in rig.cameras}
 
 
@@ -420,18 +431,20 @@ class _Seen:
     warnings: tuple[str, ...] = ()
     seconds: float = 0.0
     views: tuple[Observation, ...] = ()
+    notes: tuple[tuple[str, str], ...] = ()
 
 
-def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
+def _camera_data(rig: Rig, model: RigModel, name: str, motion: CameraMotion, workers: Workers,
                  chosen=None) -> CameraData:
     cam, spec = rig.cameras[name], rig.mocap_for(name)
-    seen = (_from_poses(cam) if cam.source == "poses"
-            else _from_images(rig, name, motion, workers, chosen))
+    seen = (_from_poses(cam, model.lenses[name]) if cam.source == "poses"
+            else _from_images(rig, model, name, motion, workers, chosen))
     # motion-capture rows left out, listed with every camera that uses the file
     rejected = seen.rejected + tuple(
         RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
         for r in (motion.trajectory.skipped if spec is not None else ()))
-    observations = tuple(replace(o, instant=instant_key(o, spec is not None and spec.by_name))
+    by_name = spec is not None and spec.by_name
+    observations = tuple(replace(o, instant=instant_key(o, by_name, rig.sync))
                          for o in seen.observations)
     return CameraData(name=name, intrinsics=seen.intrinsics, observations=observations,
                       rejected=rejected, n_inputs=seen.n_inputs, mocap=motion.trajectory,
@@ -439,11 +452,11 @@ def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
                       time_tolerance=0.0 if spec is None else spec.time_tolerance,
                       warnings=seen.warnings, detection_s=seen.seconds,
                       intrinsics_estimated=cam.estimate_intrinsics, intrinsics_views=seen.views,
-                      by_name=spec is not None and spec.by_name,
+                      by_name=by_name, image_notes=seen.notes,
                       selection=None if chosen is None else chosen[2])
 
 
-def _from_poses(cam) -> _Seen:
+def _from_poses(cam, lens: Intrinsics | None) -> _Seen:
     """A camera given by precomputed ``T_cam_target`` poses."""
     traj = read_tum(cam.poses, parent="cam", child="target")
     # poses keep their row number in the file (k of "pose k") when rows are left out
@@ -453,25 +466,22 @@ def _from_poses(cam) -> _Seen:
                 for k, t, T in zip(rows, traj.stamps, traj.T))
     rejected = tuple(RejectedItem(f"{cam.poses.name} pose {r.row}", f"{r.where}: {r.reason}")
                      for r in traj.skipped)
-    return _Seen(intrinsics=read_camera_intrinsics(cam) if cam.intrinsics is not None else None,
-                 observations=obs, rejected=rejected, n_inputs=len(obs) + len(rejected))
+    return _Seen(intrinsics=lens, observations=obs, rejected=rejected, n_inputs=len(obs) + len(rejected))
 
 
-def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
+def _from_images(rig: Rig, model: RigModel, name: str, motion: CameraMotion, workers: Workers,
                  chosen=None) -> _Seen:
     """A camera given by images (a folder or a bag topic): detection, the starting lens when
     it is estimated, PnP; its ``intrinsics_images`` as views for the lens.  ``chosen``: the
     images selected before decoding, those left out and the summary (:func:`preselect`)."""
     cam = rig.cameras[name]
-    intr = None
-    if cam.intrinsics is not None:
-        intr = check_model(name, read_camera_intrinsics(cam), cam.model, cam.intrinsics)
+    intr = model.lenses[name]
     # a lens to estimate: the intrinsics_images inform its start too
     extra = None
     if cam.intrinsics_images is not None and intr is None:
-        extra = _detect_intrinsics_images(cam, rig, None, workers)
+        extra = _detect_intrinsics_images(cam, model, None, workers)
     listed, left = (motion.listed, []) if chosen is None else chosen[:2]
-    det = _observations_from_images(rig, name, intr, workers, listed=listed,
+    det = _observations_from_images(rig, model, name, intr, workers, listed=listed,
                                     extra_views=() if extra is None else extra[1])
     rejected = list(motion.unmatched) + det.rejected + list(left)
     n_inputs = (det.n_inputs + len(left)
@@ -479,10 +489,11 @@ def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
     intr = intr if det.intrinsics is None else det.intrinsics
     seconds, views = det.seconds, []
     if cam.intrinsics_images is not None:
-        views, lost, s = _intrinsics_views(name, cam, rig, intr, workers, detected=extra)
+        views, lost, s = _intrinsics_views(cam, model, intr, workers, detected=extra)
         rejected, seconds = rejected + lost, seconds + s
     return _Seen(intrinsics=intr, observations=tuple(det.observations), rejected=tuple(rejected),
-                 n_inputs=n_inputs, warnings=det.warnings, seconds=seconds, views=tuple(views))
+                 n_inputs=n_inputs, warnings=det.warnings, seconds=seconds, views=tuple(views),
+                 notes=det.notes)
 
 
 @dataclass(frozen=True)
@@ -518,7 +529,7 @@ def camera_motion(rig: Rig, name: str, cache: dict[tuple, Trajectory]) -> Camera
     spec, cam = rig.mocap_for(name), rig.cameras[name]
     key = (str(spec.file), spec.pose, spec.format, spec.topic, spec.rigid_body)
     if spec.by_name:
-        traj, listed, unmatched = _poses_by_name(name, cam.images, spec)
+        traj, listed, unmatched = poses_by_name_of(name, cam, spec, rig.sync)
         cache[(key, name)] = traj
         return CameraMotion(traj, listed, tuple(unmatched))
     if key not in cache:
@@ -533,32 +544,6 @@ def pair_stamps(mocap: Trajectory, stamps: np.ndarray, *, by_name: bool, toleran
     if by_name:
         return pair_in_time(mocap.stamps, mocap.T, stamps, tolerance=BY_NAME_TOLERANCE, offset=0.0)
     return pair_in_time(mocap.stamps, mocap.T, stamps, tolerance=tolerance, offset=offset)
-
-
-def _poses_by_name(name: str, folder: Path, spec) -> tuple[Trajectory, list, list]:
-    """A by-name camera's poses (stamps 0, 1, 2, ... in name order), its images with a pose
-    file as ``(stamp, ns, path)``, and what has no partner, with the reason."""
-
-    fmt = PoseFormat(rotation=spec.rotation, values=spec.values, key=spec.key,
-                     unit=spec.unit or "m")
-    try:
-        images = list_image_files(folder)
-        read = {"image": poses_by_table, "order": poses_by_order}.get(spec.match)
-        matched, unmatched = (read(images, spec.file, fmt) if read is not None
-                              else poses_by_name(images, str(spec.file), fmt))
-    except DatasetError as exc:
-        raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=name) from None
-    rejected = [RejectedItem(item, reason) for item, reason in unmatched]
-    if not matched:
-        raise DatasetError(f"no image has its pose in {spec.file}"
-                           + (f" (first: {rejected[0].item}: {rejected[0].reason})"
-                              if rejected else ""), path=folder, camera=name)
-    parent, child = pose_frames(spec.pose)
-    stamps = np.arange(len(matched), dtype=np.float64)
-    traj = Trajectory(stamps, np.stack([T for _, T in matched]), parent, child)
-    traj = traj if parent == "world" else traj.inverted()
-    listed = [(float(k), k * 1_000_000_000, image) for k, (image, _) in enumerate(matched)]
-    return traj, listed, rejected
 
 
 def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = None) -> PairedCamera:

@@ -16,9 +16,9 @@ from multieye.imaging.batch import (
 )
 from multieye.imaging.calibrate import lens_start_task
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
-from multieye.imaging.targets import target_from_spec
-from multieye.io import Rig, list_image_files, list_images, read_camera_intrinsics
-from multieye.pipeline.estimated_lens import check_model
+from multieye.io import Rig, list_image_files
+from multieye.pipeline.recordings import listed_images
+from multieye.pipeline.rig_model import RigModel
 
 __all__ = ["Workers", "detect_all"]
 
@@ -53,7 +53,7 @@ class Workers:
                                           progress=self.progress)
 
 
-def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
+def detect_all(rig: Rig, model: RigModel, motions: dict, workers: Workers, chosen: dict, *,
                on_sent: Callable[[], object] | None = None) -> Workers:
     """Every camera's image files (folders, not bags; those ``chosen`` before decoding)
     detected on one pool of workers, with PnP in the worker where the lens is given; a
@@ -68,28 +68,25 @@ def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
     first images are sent to the workers (not when none are).  ``motions``: by camera, its
     :class:`~multieye.pipeline.camera_data.CameraMotion` where the images to detect are
     those with a pose file (paired by name); a camera not in it detects its folder's images.
+    ``model``: the targets and the given lenses, built once.
     """
     keys, jobs, then = [], [], {}
     for name, cam in rig.cameras.items() if workers.engine is None else ():
         if cam.source != "images":
             continue
-        intr = None
-        if cam.intrinsics is not None:
-            intr = check_model(name, read_camera_intrinsics(cam), cam.model, cam.intrinsics)
-        target = target_from_spec(rig.target, path=rig.path)
+        intr, target = model.lenses[name], model.target
         listed = (chosen[name][0] if name in chosen
                   else getattr(motions.get(name), "listed", None))
-        images = list_images(cam.images) if listed is None else listed
+        images = listed_images(rig, name) if listed is None else listed
         if intr is None and cam.model is not None and cam.intrinsics_images is None:
             # the lens start and every pose with it, in a worker once the images are in
             then[len(jobs)] = lens_start_task(cam.model, name)
         keys.append((name, "images"))
         jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
         if cam.intrinsics_images is not None:
-            spec = cam.intrinsics_target or rig.target
             keys.append((name, "intrinsics_images"))
             jobs.append(ImageJob(tuple(str(p) for p in list_image_files(cam.intrinsics_images)),
-                                 target_from_spec(spec, path=rig.path), intr))
+                                 model.intrinsics_target(name), intr))
     if not jobs:
         return workers
     t0 = time.perf_counter()

@@ -22,17 +22,11 @@ from multieye.estimate.diagnostics import MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG
 from multieye.estimate.instants import default_sync_tolerance, instants_from_stamps
 from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
 from multieye.imaging.target_hints import counting_rule, suggest_target
-from multieye.imaging.targets import target_from_spec
-from multieye.io import (
-    Trajectory,
-    bag_image_count,
-    list_image_files,
-    list_images,
-    load_rig,
-    read_camera_intrinsics,
-    read_tum,
-    sample_bag_images,
-)
+from multieye.estimate.instants import instants_from_names
+from multieye.io import Trajectory, bag_image_count, list_image_files, load_rig, read_tum
+from multieye.io import sample_bag_images
+from multieye.pipeline.recordings import check_sync, image_notes, listed_images, sync_instant
+from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 from multieye.io.calibration_json import OVERLAP
@@ -80,6 +74,8 @@ class CameraCheck:
         The problems that make calibrating fail.
     stamps : tuple of float
         Without motion capture: every listed image's stamp plus the camera's time offset.
+    keys : tuple of str
+        With rig.yaml's ``sync`` other than ``time``: every listed image's instant key.
     """
 
     name: str
@@ -97,6 +93,7 @@ class CameraCheck:
     problems: tuple[str, ...]
     fatal: tuple[str, ...]
     stamps: tuple[float, ...] = ()
+    keys: tuple[str, ...] = ()
 
     @property
     def found_percent(self) -> float:
@@ -112,6 +109,8 @@ class DatasetCheck:
     cameras: tuple[CameraCheck, ...]
     #: Files read from outside the dataset folder named (:mod:`multieye.pipeline.sources`).
     notes: tuple[str, ...] = ()
+    #: The instants found and what links each camera, one line each.
+    links: tuple[str, ...] = ()
 
     @property
     def reasons(self) -> tuple[str, ...]:
@@ -229,14 +228,17 @@ class _Sample:
     n_sampled: int
     problems: tuple[str, ...] = ()
     paths: tuple = ()           # the sampled images' files (a folder of images only)
+    names: tuple = ()           # every listed image's file name (a folder of images only)
 
 
-def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
+def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
+             model: RigModel) -> _Sample:
     """Detection on at most ``sample`` evenly spaced images of the camera (every pose row of
     a camera given by poses), counting the failures by kind."""
     problems: list[str] = []
     results: list = []
     paths: list = []
+    names: tuple = ()
     failures: dict[str, int] = {}
     if cam.source == "poses":
         poses = read_tum(cam.poses, parent="cam", child="target")
@@ -248,10 +250,10 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
             failures["pose row left out"] = len(poses.skipped)
         n_sampled = n_listed
     else:
-        target = target_from_spec(rig.target, path=rig.path)
-        intr = read_camera_intrinsics(cam) if cam.intrinsics is not None else None
+        target, intr = model.target, model.lenses[cam.name]
         if cam.source == "images":
-            images = list_images(cam.images) if listed is None else listed
+            images = listed_images(rig, cam.name) if listed is None else listed
+            names = tuple(p.name for _, _, p in images)
             stamps = np.array([s for s, _, _ in images], dtype=np.float64)
             n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
             sampled_idx = _sample(len(images), sample)
@@ -267,7 +269,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
                                                  intr, processes=processes, progress=False)
             got = {label for _, label in read}
             sampled_idx = [f.index for _, _, f in sampled if f.name in got]
-            problems.extend(f"{label}: {why}" for label, why in lost)
+            problems.extend(image_notes(lost))         # one line per cause
         else:
             stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,
                                                        processes=processes)
@@ -281,20 +283,22 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes) -> _Sample:
         n_sampled = len(sampled_idx)
     return _Sample(stamps=stamps, n_listed=n_listed, sampled_idx=sampled_idx,
                    found_mask=found_mask, results=results, failures=failures,
-                   n_sampled=n_sampled, problems=tuple(problems), paths=tuple(paths))
+                   n_sampled=n_sampled, problems=tuple(problems), paths=tuple(paths),
+                   names=names)
 
 
-def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraCheck:
+def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> CameraCheck:
     spec = rig.mocap_for(name)
     if spec is None:                 # no motion capture: linked by the views (check_dataset)
-        return _check_unpaired(rig, name, cam, sample=sample, processes=processes)
+        return _check_unpaired(rig, name, cam, sample=sample, processes=processes, model=model)
     problems: list[str] = []
     fatal: list[str] = []
     motion = camera_motion(rig, name, traj_cache)
     traj, listed, unmatched = motion.trajectory, motion.listed, motion.unmatched
     tolerance = BY_NAME_TOLERANCE if spec.by_name else spec.time_tolerance
     offset = 0.0 if spec.by_name else cam.time_offset
-    seen = _sampled(rig, cam, listed, unmatched, sample=sample, processes=processes)
+    seen = _sampled(rig, cam, listed, unmatched, sample=sample, processes=processes,
+                    model=model)
     stamps, n_listed, sampled_idx = seen.stamps, seen.n_listed, seen.sampled_idx
     found_mask, results, failures, n_sampled = (seen.found_mask, seen.results, seen.failures,
                                                 seen.n_sampled)
@@ -362,10 +366,10 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes) -> CameraChe
                        problems=tuple(problems), fatal=tuple(fatal))
 
 
-def _check_unpaired(rig, name, cam, *, sample, processes) -> CameraCheck:
+def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
     """A camera of a rig without motion capture: every image with the target is usable; the
     links between cameras are checked over the rig (:func:`_linked`)."""
-    seen = _sampled(rig, cam, None, (), sample=sample, processes=processes)
+    seen = _sampled(rig, cam, None, (), sample=sample, processes=processes, model=model)
     problems = list(seen.problems)
     n_found = int(seen.found_mask.sum())
     expected = int(round(seen.n_listed * n_found / seen.n_sampled)) if seen.n_sampled else 0
@@ -388,17 +392,24 @@ def _check_unpaired(rig, name, cam, *, sample, processes) -> CameraCheck:
                        paired=n_found, expected_usable=expected, time_tolerance_s=0.0,
                        rotation_range_deg=None, rotation_spread_deg=None,
                        problems=tuple(problems), fatal=tuple(fatal),
-                       stamps=tuple(float(t) + cam.time_offset for t in seen.stamps))
+                       stamps=tuple(float(t) + cam.time_offset for t in seen.stamps),
+                       keys=tuple(sync_instant(n, t, rig.sync) for n, t in
+                                  zip(seen.names, seen.stamps)) if rig.sync != "time" else ())
 
 
-def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[CameraCheck, ...]:
+def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...], tuple]:
     """A rig without motion capture: per camera, ``with_mocap`` becomes its listed images
     that share an instant with another camera's (docs/rig-yaml.md, section 2), and cameras
-    in groups that nothing links get the refusal calibrating would give."""
-    stamps = [np.asarray(c.stamps, dtype=np.float64) for c in cams]
-    tol = (default_sync_tolerance(stamps) if rig.sync_tolerance is None
-           else rig.sync_tolerance)
-    inst, _ = instants_from_stamps(stamps, tol)
+    in groups that nothing links get the refusal calibrating would give; with the lines
+    that say the instants found and what links each camera."""
+    if rig.sync != "time":
+        by_key, n_inst = instants_from_names({c.name: list(c.keys) for c in cams})
+        inst, tol = [by_key[c.name] for c in cams], 0.0
+    else:
+        stamps = [np.asarray(c.stamps, dtype=np.float64) for c in cams]
+        tol = (default_sync_tolerance(stamps) if rig.sync_tolerance is None
+               else rig.sync_tolerance)
+        inst, n_inst = instants_from_stamps(stamps, tol)
     allc = np.concatenate([np.full(len(i), j) for j, i in enumerate(inst)])
     cov = covisibility(allc, np.concatenate(inst), len(cams))
     groups = link_groups(cov.shared > 0, [False] * len(cams))
@@ -408,10 +419,33 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[CameraCheck, ...]:
         shared = int(np.isin(inst[j], others).sum())
         fatal = c.fatal
         if len(groups) > 1 and j not in groups[0]:
-            fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol),)
+            fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol,
+                                       rig.sync),)
         out.append(replace(c, with_mocap=shared, fatal=fatal,
                            problems=c.problems + fatal[len(c.fatal):]))
-    return tuple(out)
+    return tuple(out), _link_lines(rig, cams, inst, n_inst, cov.shared, tol)
+
+
+#: How each ``sync`` makes images of different cameras one instant, for the dry run's lines.
+_SYNC_RULE = {"name": "equal names without the extension",
+              "number": "the same last number in their names",
+              "order": "the same place in each camera's name order"}
+
+
+def _link_lines(rig, cams, inst, n_inst: int, shared, tol: float) -> tuple[str, ...]:
+    """``instants: ...`` and ``<camera> linked by: ...`` lines of a rig without motion
+    capture (listed images, before detection; ``cams``: the CameraChecks)."""
+    labels = [c.name for c in cams]
+    rule = (f"sync: {rig.sync}, {_SYNC_RULE[rig.sync]}" if rig.sync != "time"
+            else f"stamps within sync_tolerance = {tol:g} s")
+    counts = np.bincount(np.concatenate([np.unique(i) for i in inst]), minlength=n_inst)
+    lines = [f"instants: {n_inst} found by {rule}; {int((counts > 1).sum())} of them seen by "
+             "more than one camera"]
+    for j, n in enumerate(labels):
+        with_ = [f"{labels[k]} ({int(shared[j, k])} instants)" for k in range(len(labels))
+                 if k != j and shared[j, k]]
+        lines.append(f"{n} linked by: " + (", ".join(with_) if with_ else "nothing"))
+    return tuple(lines)
 
 
 def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> DatasetCheck:
@@ -442,11 +476,15 @@ def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> Da
     if processes is not None:
         real_number(processes, "processes", positive=True)
     rig = load_rig(path)
+    model = build_rig_model(rig)
+    check_sync(rig)
     cache: dict[tuple, Trajectory] = {}
-    cams = tuple(_check_camera(rig, name, cam, cache, sample=int(sample), processes=processes)
-                 for name, cam in rig.cameras.items())
+    cams = tuple(_check_camera(rig, name, cam, cache, sample=int(sample), processes=processes,
+                               model=model) for name, cam in rig.cameras.items())
+    links: tuple = tuple(f"{c.name} linked by: motion capture ({c.with_mocap} of {c.listed} "
+                         "images with it)" for c in cams)
     if not rig.has_mocap:
-        cams = _linked(rig, cams)
+        cams, links = _linked(rig, cams)
     named = Path(path) / "rig.yaml" if Path(path).is_dir() else Path(path)
     return DatasetCheck(path=str(rig.path), setup=rig.setup if rig.has_mocap else OVERLAP,
-                        cameras=cams, notes=outside_reads(rig, named))
+                        cameras=cams, notes=outside_reads(rig, named), links=links)

@@ -93,15 +93,20 @@ class OverlapSolution:
     warnings: tuple = ()
 
 
-def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | None
-                         ) -> tuple[dict[str, NDArray[np.int64]], int, float]:
+def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | None,
+                         sync: str = "time") -> tuple[dict[str, NDArray[np.int64]], int, float]:
     """The instant of every observation of every camera, their count, and the tolerance used
     (``sync_tolerance``, or the default: :func:`multieye.estimate.instants.default_sync_tolerance`).
 
     Images of different cameras are one instant when their stamps (each camera's
     ``time_offset`` applied) are within the tolerance; when every camera is paired by name,
     when their names' stems are equal and their given poses too (cameras named alike but
-    posed apart were not triggered together)."""
+    posed apart were not triggered together).  With ``sync`` other than ``time`` (rig.yaml),
+    images are one instant when their :attr:`Observation.instant` keys are equal."""
+    if sync != "time":
+        inst, k = instants_from_names({n: [o.instant for o in d.observations]
+                                       for n, d in cameras.items()})
+        return inst, k, 0.0
     if cameras and all(d.by_name and d.mocap is not None for d in cameras.values()):
         keys = {n: [f"{Path(o.name).stem}|{_pose_at(d, o.stamp)}" for o in d.observations]
                 for n, d in cameras.items()}
@@ -156,7 +161,7 @@ def _links(cameras: Mapping, shared) -> dict[str, CameraLinks]:
 
 def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
                   sync_tolerance: float | None = None, robust: bool = True,
-                  isolate: bool = True) -> OverlapSolution:
+                  isolate: bool = True, sync: str = "time") -> OverlapSolution:
     """Calibrate the rig from the views its cameras share (module docstring).
 
     Parameters
@@ -172,6 +177,9 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     isolate : bool
         When several cameras are doubted, look for the one without which the others fit
         (solving without each in turn) and doubt that one alone.
+    sync : str
+        rig.yaml's ``sync``: other than ``time``, the instants are the images'
+        :attr:`Observation.instant` keys (:func:`observation_instants`).
 
     Raises
     ------
@@ -182,13 +190,14 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     """
     _check_images(cameras)
     names = tuple(cameras)
-    inst, n_inst, tol = observation_instants(cameras, sync_tolerance)
+    inst, n_inst, tol = observation_instants(cameras, sync_tolerance, sync)
     cams = [np.full(len(inst[n]), j) for j, n in enumerate(names)]
     cov = covisibility(np.concatenate(cams), np.concatenate([inst[n] for n in names]),
                        len(names))
     groups = link_groups(cov.shared > 0, [False] * len(names))
     if len(groups) > 1:
-        raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol),
+        raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol,
+                                                 sync),
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))
     views, poses, extra = [], [], n_inst
     for n in names:
@@ -207,7 +216,7 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     used = {n: cameras[n].observations for n in names}
     findings = _fit_findings(cameras, rv, result)
     if isolate and len(findings) > 1:
-        findings = _culprit(cameras, reference, tol, robust, findings)
+        findings = _culprit(cameras, reference, (tol, sync), robust, findings)
     return OverlapSolution(names=names, reference=reference, result=result, used=used,
                            instants=inst, links=_links(cameras, cov.shared), sync_tolerance=tol,
                            findings=findings, warnings=_rig_warnings(cameras, rv, result))
@@ -244,8 +253,8 @@ def _rig_warnings(cameras: Mapping[str, CameraData], views: RigViews, result: Ri
     return tuple(out)
 
 
-def _culprit(cameras: Mapping[str, CameraData], reference: str, tol: float, robust: bool,
-             findings: tuple[Finding, ...]) -> tuple[Finding, ...]:
+def _culprit(cameras: Mapping[str, CameraData], reference: str, sync: tuple[float, str],
+             robust: bool, findings: tuple[Finding, ...]) -> tuple[Finding, ...]:
     """One camera that does not fit pulls the whole rig (its views tie the others): of the
     doubted cameras, worst first, the first without which the others fit together is named
     alone; else every doubt stays."""
@@ -255,7 +264,8 @@ def _culprit(cameras: Mapping[str, CameraData], reference: str, tol: float, robu
             continue
         try:
             sub = solve_overlap(rest, reference if reference in rest else next(iter(rest)),
-                                sync_tolerance=tol, robust=robust, isolate=False)
+                                sync_tolerance=sync[0], robust=robust, isolate=False,
+                                sync=sync[1])
         except CalibrationError:
             continue
         if not sub.findings:

@@ -32,6 +32,7 @@ from multieye.io import (
 from multieye.io.calibration_json import OVERLAP, CameraLinks
 from multieye.pipeline.camera_data import PairedCamera
 from multieye.pipeline.overlap import OverlapSolution, solve_overlap
+from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.problem import Problem
 from multieye.pipeline.result import CalibrationRun, Refinement
 
@@ -89,7 +90,7 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         As :func:`multieye.pipeline.overlap.solve_overlap`.
     """
     sol = solve_overlap(problem.cameras, problem.reference,
-                        sync_tolerance=problem.rig.sync_tolerance,
+                        sync_tolerance=problem.rig.sync_tolerance, sync=problem.rig.sync,
                         robust=problem.options.robust)
     res = sol.result
     names = sol.names
@@ -111,7 +112,7 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
                                if problem.cameras[n].intrinsics_estimated})
     plaus = Plausibility(findings=sol.findings, cost=float("nan"), camera_cost={},
                          tested=("fit",))
-    warnings = tuple(w for d in problem.cameras.values() for w in d.warnings)
+    warnings = camera_warnings(problem.cameras)
     warnings += sol.warnings + tuple(f.message for f in sol.findings)
     record = _record(problem, sol, paired, rms, warnings)
     cameras = {n: replace(d, intrinsics=estimated.get(n, d.intrinsics))

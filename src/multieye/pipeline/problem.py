@@ -20,6 +20,7 @@ from multieye.io import Rig
 from multieye.pipeline.camera_data import CameraData, PairedCamera
 from multieye.pipeline.options import Options
 from multieye.pipeline.overlap import assign_instants
+from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.solvers.measurements import Measurements
 
 __all__ = ["Problem", "Pairing", "Instant", "View", "make_problem", "group_instants"]
@@ -74,6 +75,9 @@ class Problem:
         today, ``MeasurementGroup.x_name`` of :mod:`multieye.core.problem`); None for a
         camera without an ``X`` of its own, placed only through the instants it shares with
         cameras that have one.
+    model : RigModel
+        The targets and given lenses, built once from rig.yaml
+        (:func:`multieye.pipeline.rig_model.build_rig_model`) and carried here.
     """
 
     rig: Rig
@@ -82,22 +86,28 @@ class Problem:
     reference: str
     instants: dict[str, Instant] = field(default_factory=dict)
     unknown_x: dict[str, str | None] = field(default_factory=dict)
+    model: RigModel = field(default_factory=RigModel)
 
     @property
     def setup(self) -> str:
         return self.rig.setup
 
 
-def make_problem(rig: Rig, cameras: dict[str, CameraData], options: Options) -> Problem:
+def make_problem(rig: Rig, cameras: dict[str, CameraData], options: Options,
+                 model: RigModel | None = None) -> Problem:
     """The problem, with the reference camera checked against the cameras, the images
-    grouped by instant, and each camera its own ``X``."""
+    grouped by instant (by stamp within ``sync_tolerance``; with rig.yaml's ``sync`` other
+    than ``time``, by the keys their names gave), each camera its own ``X``, and the targets
+    and lenses ``model`` (the one the cameras were loaded with; built when not given)."""
     reference = options.reference or next(iter(cameras))
     if reference not in cameras:
         raise DatasetError(f"reference camera {reference!r} is not in rig.yaml (cameras: "
                            f"{', '.join(cameras)})", path=rig.path)
-    cameras = assign_instants(cameras, rig.sync_tolerance)   # within sync_tolerance
+    if rig.sync == "time":
+        cameras = assign_instants(cameras, rig.sync_tolerance)   # within sync_tolerance
     return Problem(rig=rig, cameras=cameras, options=options, reference=reference,
-                   instants=group_instants(cameras), unknown_x={n: n for n in cameras})
+                   instants=group_instants(cameras), unknown_x={n: n for n in cameras},
+                   model=build_rig_model(rig) if model is None else model)
 
 
 def group_instants(cameras: dict[str, CameraData]) -> dict[str, Instant]:

@@ -63,9 +63,11 @@ from multieye.estimate.refine_images import (
     RefinementResult,
 )
 from multieye.pipeline.overlap import paired_instants, share_instants
+from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
+from multieye.pipeline.rig_model import RigModel
 from multieye.pipeline.refine import Refined, mocap_noise, refine
 from multieye.pipeline.result import CalibrationRun, Refinement
 from multieye.pipeline.selection import merged, select_paired
@@ -113,8 +115,8 @@ class ClosedForm:
     motion: MotionDiagnostics
 
 
-def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = Options(), **kw
-                  ) -> CalibrationRun:
+def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = Options(), *,
+                  model: RigModel | None = None, **kw) -> CalibrationRun:
     """Pair, check, solve, refine and summarise already loaded camera data.
 
     Parameters
@@ -124,9 +126,11 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         From :func:`load_camera_data`.
     options : Options
         Or its fields as keyword arguments (``method="shah", refine=False``).
+    model : RigModel, optional
+        The targets and given lenses the cameras were loaded with (built when not given).
     """
     clock = [time.perf_counter()]
-    problem = make_problem(rig, cameras, updated_options(options, kw))
+    problem = make_problem(rig, cameras, updated_options(options, kw), model)
     if all(d.mocap is None for d in cameras.values()):   # linked by shared views (issue 23)
         run = calibrate_overlap(check_overlap_options(problem))
         return replace(run, timings=StageTimings(refinement=time.perf_counter() - clock[0],
@@ -177,7 +181,7 @@ def pair(problem: Problem) -> Pairing:
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=list(paired), per_camera_motion=False)
     return Pairing(offsets=offsets, paired=paired, measurements=meas,
-                   warnings=tuple(w for d in problem.cameras.values() for w in d.warnings),
+                   warnings=camera_warnings(problem.cameras),
                    selection=selection)
 
 

@@ -176,19 +176,20 @@ def motion_first(rig: Rig, select: int | None, time_offset) -> bool:
     if not select or time_offset == "auto":
         return False
     return any(cam.source in ("rosbag", "video")
-               or (cam.source == "images" and _over(cam.images, _budget(cam, select)))
+               or (cam.source == "images" and _over(cam, _budget(cam, select)))
                for cam in rig.cameras.values())
 
 
-def _over(folder, budget: int) -> bool:
-    """Whether an image folder holds more images than ``budget``; not listed when it holds
-    no more entries than that (a folder that cannot be read is listed: its error then)."""
+def _over(cam, budget: int) -> bool:
+    """Whether a camera's image folder holds more images than ``budget``; not listed when it
+    holds no more entries than that (a folder that cannot be read is listed: its error
+    then)."""
     try:
-        if len(os.listdir(folder)) <= budget:
+        if len(os.listdir(cam.images)) <= budget:
             return False
     except OSError:
         pass
-    return len(list_images(folder)) > budget
+    return len(list_images(cam.images, cam.images_pattern)) > budget
 
 
 def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_stamps) -> dict:
@@ -210,7 +211,7 @@ def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_s
         if cam.source != "images":
             listed = video_listing(cam) if cam.source == "video" else bag_listing(cam)
         elif listed is None:
-            listed = list_images(cam.images)
+            listed = list_images(cam.images, cam.images_pattern)
         if len(listed) > limit:
             listings[name] = listed
             offsets[name] = (0.0 if rig.mocap_for(name).by_name else

@@ -1,0 +1,112 @@
+"""Recordings as users lay them out: each camera's images as rig.yaml names them (a folder or a
+pattern, ``sync``), the key that makes images of different cameras one instant, and the notes
+about single images gathered into one line per cause (docs/recordings.md).
+
+Synopsis
+--------
+>>> images = listed_images(rig, "left")          # doctest: +SKIP
+>>> image_notes([("left/01.jpg", "blurred"), ("right/01.jpg", "blurred")])
+('blurred (2 images: left/01.jpg, right/01.jpg)',)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from multieye.core.errors import DatasetError
+from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, list_images
+from multieye.io.image_folder import sync_key
+from multieye.io.mocap import pose_frames
+from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
+
+__all__ = ["listed_images", "check_sync", "sync_instant", "image_notes", "camera_warnings",
+           "poses_by_name_of", "FIRST_NAMED"]
+
+#: How many image names a note names before ``and N more``.
+FIRST_NAMED = 3
+
+
+def listed_images(rig: Rig, name: str) -> list[tuple[float, int, Path]]:
+    """A camera's images as ``(stamp_s, stamp_ns, path)`` (:func:`multieye.io.list_images`
+    with its ``images`` pattern and the rig's ``sync``): by the stamps in their names, or,
+    with ``sync`` other than ``time``, in natural name order with their places as stamps."""
+    cam = rig.cameras[name]
+    return list_images(cam.images, cam.images_pattern, rig.sync)
+
+
+def check_sync(rig: Rig) -> dict[str, int]:
+    """The count of images per camera with images, checked against ``sync``: with ``order``
+    (the k-th image of each camera is one instant) every camera must have as many, else one
+    line naming each camera's count (a missing image would shift every later pair)."""
+    counts = {n: len(listed_images(rig, n)) for n, c in rig.cameras.items()
+              if c.source == "images" and rig.sync != "time"}
+    if rig.sync == "order" and len(set(counts.values())) > 1:
+        shown = ", ".join(f"{n} {k}" for n, k in counts.items())
+        raise DatasetError(f"sync: order pairs the k-th image of each camera, but the cameras "
+                           f"have different counts of images ({shown}); give every camera the "
+                           "same images, or sync: number (the number in each name)",
+                           path=rig.path)
+    return counts
+
+
+def sync_instant(label: str, stamp: float, sync: str) -> str:
+    """The instant key of an image named ``label`` listed with ``stamp`` under ``sync`` (not
+    ``time``): its stem, the last integer in it, or its place (the stamp)."""
+    return sync_key(Path(label).stem, sync, int(stamp))
+
+
+def image_notes(notes: Iterable[tuple[str, str]], limit: int = FIRST_NAMED
+                ) -> tuple[str, ...]:
+    """Notes about single images, ``(image, cause)``, as one line per cause in order of first
+    appearance: ``cause (N images: a, b, c and N-3 more)``; a cause of one image stays
+    ``image: cause``."""
+    by_cause: dict[str, list[str]] = {}
+    for image, cause in notes:
+        by_cause.setdefault(cause, []).append(image)
+    out = []
+    for cause, images in by_cause.items():
+        if len(images) == 1:
+            out.append(f"{images[0]}: {cause}")
+            continue
+        named = ", ".join(images[:limit])
+        more = f" and {len(images) - limit} more" if len(images) > limit else ""
+        out.append(f"{cause} ({len(images)} images: {named}{more})")
+    return tuple(out)
+
+
+def camera_warnings(cameras: Mapping) -> tuple[str, ...]:
+    """Every camera's warnings (``CameraData`` by name), then the notes about its single
+    images gathered over the cameras (:func:`image_notes`)."""
+    own = tuple(w for d in cameras.values() for w in d.warnings)
+    return own + image_notes(n for d in cameras.values() for n in d.image_notes)
+
+
+def poses_by_name_of(name: str, cam, spec, sync: str = "time") -> tuple[Trajectory, list, list]:
+    """A by-name camera's poses (stamps 0, 1, 2, ... in name order; ``cam`` its
+    ``CameraSpec``, ``spec`` its ``MocapSpec``), its images with a pose file as ``(stamp, ns,
+    path)``, and what has no partner, with the reason."""
+    fmt = PoseFormat(rotation=spec.rotation, values=spec.values, key=spec.key,
+                     unit=spec.unit or "m")
+    folder = cam.images
+    try:
+        images = (list_image_files(folder, cam.images_pattern) if sync == "time"
+                  else [p for _, _, p in list_images(folder, cam.images_pattern, sync)])
+        read = {"image": poses_by_table, "order": poses_by_order}.get(spec.match)
+        matched, unmatched = (read(images, spec.file, fmt) if read is not None
+                              else poses_by_name(images, str(spec.file), fmt))
+    except DatasetError as exc:
+        raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=name) from None
+    rejected = [RejectedItem(item, reason) for item, reason in unmatched]
+    if not matched:
+        raise DatasetError(f"no image has its pose in {spec.file}"
+                           + (f" (first: {rejected[0].item}: {rejected[0].reason})"
+                              if rejected else ""), path=folder, camera=name)
+    parent, child = pose_frames(spec.pose)
+    stamps = np.arange(len(matched), dtype=np.float64)
+    traj = Trajectory(stamps, np.stack([T for _, T in matched]), parent, child)
+    traj = traj if parent == "world" else traj.inverted()
+    listed = [(float(k), k * 1_000_000_000, image) for k, (image, _) in enumerate(matched)]
+    return traj, listed, rejected
