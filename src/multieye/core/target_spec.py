@@ -23,7 +23,7 @@ TYPE_KEYS: dict[str, dict[str, str | None]] = {
     "circles": {"rows": None, "cols": None, "spacing": None},
     "asymmetric-circles": {"rows": None, "cols": None, "spacing": None},
     "charuco": {"rows": None, "cols": None, "spacing": None, "marker_size": None,
-                "dictionary": None},
+                "dictionary": None, "first_id": "optional"},
     "aprilgrid": {"rows": None, "cols": None, "spacing": None, "tag_spacing": None},
     "aruco": {"marker_size": None, "dictionary": None, "id": None},
     "aruco-grid": {"rows": None, "cols": None, "marker_size": None, "marker_separation": None,
@@ -77,7 +77,8 @@ class TargetSpec:
     id : int or None
         ``aruco``: the marker's id.
     first_id : int or None
-        ``aruco-grid``: the id of the first marker (default 0).
+        ``aruco-grid``, ``charuco``: the id of the first marker (default 0); boards of
+        several ``targets:`` in one dictionary tell themselves apart by their id ranges.
 
     ``aruco`` targets have ``rows = cols = 1``; for ``aruco`` and ``aruco-grid`` ``spacing`` is
     the marker side (``marker_size``), which rig.yaml gives instead.
