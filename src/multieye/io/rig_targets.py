@@ -127,7 +127,7 @@ def marker_ids(spec: TargetSpec) -> tuple[str, range] | None:
 
 
 def _entry_keys(c: Checker, raw, keys: tuple, many: bool, taken: dict,
-                camera_names: tuple[str, ...]) -> dict:
+                known: tuple[str, ...]) -> dict:
     """The ``name``, ``cameras`` and ``pose`` of one entry of ``targets:``, checked."""
     if not isinstance(raw, Mapping):
         raise c.error(f"expected a mapping (a target with its name), got {type(raw).__name__}",
@@ -149,8 +149,8 @@ def _entry_keys(c: Checker, raw, keys: tuple, many: bool, taken: dict,
             raise c.error(f"expected a list of camera names, got {shown(cams)}",
                           keys + ("cameras",))
         for cam in cams:
-            if not isinstance(cam, str) or cam not in camera_names:
-                raise c.error(f"no camera {shown(cam)} in cameras ({', '.join(camera_names)})",
+            if not isinstance(cam, str) or cam not in known:
+                raise c.error(f"no camera {shown(cam)} in cameras ({', '.join(known)})",
                               keys + ("cameras",))
         out["cameras"] = tuple(dict.fromkeys(cams))
     if "pose" in raw:
