@@ -64,6 +64,7 @@ from multieye.estimate.refine_images import (
 )
 from multieye.pipeline.overlap import paired_instants, share_instants
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
+from multieye.pipeline.boards import refuse_several_boards
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.refine import Refined, mocap_noise, refine
@@ -126,6 +127,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         Or its fields as keyword arguments (``method="shah", refine=False``).
     """
     clock = [time.perf_counter()]
+    refuse_several_boards(rig)           # until their estimation (board-to-board poses) lands
     problem = make_problem(rig, cameras, updated_options(options, kw))
     if all(d.mocap is None for d in cameras.values()):   # linked by shared views (issue 23)
         run = calibrate_overlap(check_overlap_options(problem))
