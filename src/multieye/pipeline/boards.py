@@ -44,7 +44,7 @@ def camera_boards(rig: Rig, camera: str) -> tuple[Target | Boards, tuple[str, ..
             tuple(specs))
 
 
-def per_board(stamped: list, results: list[ImageResult], names: tuple[str, ...]
+def per_board(stamped: list, results: list[ImageResult], looked_for: tuple[str, ...]
               ) -> tuple[list, list[ImageResult], list[str | None]]:
     """One entry per (image, board) from one result per image.
 
@@ -54,8 +54,8 @@ def per_board(stamped: list, results: list[ImageResult], names: tuple[str, ...]
         Per image its stamp and label.
     results : list of ImageResult
         Per image its result; with several boards (``parts``), one per board inside.
-    names : tuple of str
-        The boards looked for (:func:`camera_boards`).
+    looked_for : tuple of str
+        The names of the boards looked for (:func:`camera_boards`).
 
     Returns
     -------
@@ -64,8 +64,8 @@ def per_board(stamped: list, results: list[ImageResult], names: tuple[str, ...]
         found and then refused: PnP failed, bad fit); an image with none keeps its own
         result and board None.  A single board keeps the lists as they are, board its name.
     """
-    if len(names) == 1 and not any(r.parts for r in results):
-        return list(stamped), list(results), [names[0]] * len(results)
+    if len(looked_for) == 1 and not any(r.parts for r in results):
+        return list(stamped), list(results), [looked_for[0]] * len(results)
     out_stamped, out_results, boards = [], [], []
     for st, r in zip(stamped, results):
         found = [(n, p) for n, p in r.parts if p.detection is not None]
