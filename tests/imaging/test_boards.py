@@ -80,3 +80,19 @@ def test_boards_need_distinct_names():
         Boards((("a", board), ("a", board)))
     with pytest.raises(InputError):
         Boards(())
+
+
+def test_two_aprilgrids_told_apart_by_first_id():
+    spec = {"type": "aprilgrid", "rows": 3, "cols": 4, "spacing": 0.05, "tag_spacing": 0.3}
+    boards = {"a": target_from_spec(spec), "b": target_from_spec({**spec, "first_id": 12})}
+    poses = {"a": g.transform_from_rotvec([np.pi, 0.2, 0.0], [-0.35, 0.1, 1.0]),
+             "b": g.transform_from_rotvec([np.pi, -0.2, 0.0], [0.08, 0.1, 1.0])}
+    image = render_boards([(boards[n], poses[n]) for n in boards], CAM,
+                          rng=np.random.default_rng(3), blur_sigma=0.7, noise_sigma=2.0)
+    parts = dict(process_array(image, "april.png", Boards.of(boards), CAM).parts)
+    for name in boards:
+        assert parts[name].ok, parts[name].reason
+        assert len(parts[name].detection) == 48                     # every tag corner
+        assert _pixel_error(parts[name].detection, poses[name]) < 1.0
+    # a grid of ids 24-35 is not in the image
+    assert detect(image, target_from_spec({**spec, "first_id": 24})) is None
