@@ -37,7 +37,7 @@ def test_charuco_walls_render_and_each_camera_sees_a_board_in_most_instants(tmp_
     sc = render_wall_dataset(tmp_path, WallSpec(n_instants=8), seed=0)
     rig = load_rig(tmp_path)
     assert not rig.has_mocap and list(rig.targets) == ["north", "west", "south"]
-    assert [t.first_id for t in rig.targets.values()] == [0, 20, 40]
+    assert [t.first_id for t in rig.targets.values()] == [0, 32, 64]
     data = load_camera_data(rig, processes=1)
     share = _check_identities(tmp_path, data)
     assert min(share.values()) >= 0.5, share
