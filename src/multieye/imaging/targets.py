@@ -246,13 +246,15 @@ class Charuco(Target):
     (row-major from the corner next to the top-left square); the origin is corner id 0, one
     square in from the board's outer corner. Markers of ``marker_size`` metres from the
     OpenCV dictionary ``dictionary`` (e.g. ``"DICT_5X5_100"``) sit in the white squares, ids
-    from 0. ``legacy=True`` selects the layout OpenCV used before 4.6 (it differs when
+    from ``first_id`` (default 0; boards that share a dictionary are told apart by their id
+    ranges). ``legacy=True`` selects the layout OpenCV used before 4.6 (it differs when
     ``rows`` is even).
     """
 
     marker_size: float = 0.0
     dictionary: str = "DICT_5X5_100"
     legacy: bool = False
+    first_id: int = 0
     kind: ClassVar[str] = "charuco"
 
     def __post_init__(self):
@@ -268,6 +270,12 @@ class Charuco(Target):
         if n_markers > available:
             raise InputError(f"charuco {self.rows}x{self.cols} needs {n_markers} markers but "
                              f"{self.dictionary} has only {available}")
+        _marker_ids(self.dictionary, self.first_id, n_markers, "charuco first_id")
+
+    @property
+    def marker_ids(self) -> range:
+        """The ids of the board's markers."""
+        return range(self.first_id, self.first_id + (self.rows * self.cols) // 2)
 
     def object_points(self) -> F64:
         r, c = _grid(self.rows - 1, self.cols - 1)
@@ -285,7 +293,9 @@ class Charuco(Target):
         at the outer corner of the top-left square, one square from the canonical origin."""
 
         dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
-        board = cv2.aruco.CharucoBoard((self.cols, self.rows), self.spacing, self.marker_size, dictionary)
+        ids = np.asarray(self.marker_ids, dtype=np.int32)
+        board = cv2.aruco.CharucoBoard((self.cols, self.rows), self.spacing, self.marker_size,
+                                       dictionary, ids)
         board.setLegacyPattern(self.legacy)
         return board
 
@@ -314,10 +324,13 @@ class AprilGrid(Target):
     corner, and tags have a 2-bit black border, as ``kalibr_create_target_pdf`` draws them.
 
     Points: Kalibr's ``2*rows`` x ``2*cols`` tag corners (see the module docstring); partial
-    views are fine since tag ids give the correspondences.
+    views are fine since tag ids give the correspondences.  ``first_id`` (default 0, Kalibr's
+    grids) shifts the tags' codes: grid tag t carries code ``first_id + t``, so that several
+    grids in one room are told apart by their id ranges.
     """
 
     tag_spacing: float = 0.0
+    first_id: int = 0
     kind: ClassVar[str] = "aprilgrid"
     min_size: ClassVar[int] = 1
     z_into_board: ClassVar[bool] = False
@@ -332,6 +345,8 @@ class AprilGrid(Target):
         if self.rows * self.cols > APRILTAG_36H11_SIZE:
             raise InputError(f"aprilgrid {self.rows}x{self.cols} needs {self.rows * self.cols} tags "
                              f"but AprilTag 36h11 has {APRILTAG_36H11_SIZE}")
+        _marker_ids("DICT_APRILTAG_36h11", self.first_id, self.rows * self.cols,
+                    "aprilgrid first_id")
 
     @property
     def pitch(self) -> float:
@@ -359,7 +374,7 @@ class AprilGrid(Target):
         ``cv2.aruco.generateImageMarker`` of ``DICT_APRILTAG_36h11`` id t (checked against
         the code table of ``kalibr_create_target_pdf`` for several ids).
         """
-        return _kalibr_tag_images(self.rows * self.cols).copy()
+        return _kalibr_tag_images(self.first_id + self.rows * self.cols)[self.first_id:].copy()
 
     def tag_corners(self, tag_id: int) -> F64:
         """Board (x, y) of a tag's corners, metres, shape (4, 2), in Kalibr's order:

@@ -8,6 +8,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
+from multieye.imaging.boards import Boards
 from multieye.imaging.batch import (
     ImageJob,
     detect_and_estimate,
@@ -17,6 +18,7 @@ from multieye.imaging.batch import (
 from multieye.imaging.calibrate import lens_start_task
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.io import Rig, list_image_files
+from multieye.pipeline.boards import camera_boards
 from multieye.pipeline.recordings import listed_images
 from multieye.pipeline.rig_model import RigModel
 
@@ -74,11 +76,13 @@ def detect_all(rig: Rig, model: RigModel, motions: dict, workers: Workers, chose
     for name, cam in rig.cameras.items() if workers.engine is None else ():
         if cam.source != "images":
             continue
-        intr, target = model.lenses[name], model.target
+        intr = model.lenses[name]
+        target, _ = camera_boards(rig, name, model.targets)
         listed = (chosen[name][0] if name in chosen
                   else getattr(motions.get(name), "listed", None))
         images = listed_images(rig, name) if listed is None else listed
-        if intr is None and cam.model is not None and cam.intrinsics_images is None:
+        if (intr is None and cam.model is not None and cam.intrinsics_images is None
+                and not isinstance(target, Boards)):     # several boards: started later
             # the lens start and every pose with it, in a worker once the images are in
             then[len(jobs)] = lens_start_task(cam.model, name)
         keys.append((name, "images"))

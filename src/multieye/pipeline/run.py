@@ -65,6 +65,7 @@ from multieye.estimate.refine_images import (
 from multieye.pipeline.overlap import paired_instants, share_instants
 from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
+from multieye.pipeline.boards import refuse_several_boards
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.rig_model import RigModel
@@ -130,6 +131,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         The targets and given lenses the cameras were loaded with (built when not given).
     """
     clock = [time.perf_counter()]
+    refuse_several_boards(rig)           # until their estimation (board-to-board poses) lands
     problem = make_problem(rig, cameras, updated_options(options, kw), model)
     if all(d.mocap is None for d in cameras.values()):   # linked by shared views (issue 23)
         run = calibrate_overlap(check_overlap_options(problem))
