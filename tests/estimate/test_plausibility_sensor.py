@@ -19,7 +19,7 @@ from multieye.estimate.sensor import SENSOR_BOUNDS, TYPICAL_NOISE, hypothesis_no
 from multieye.io import load_rig
 from multieye.io.mocap import MocapSpec
 
-from test_plausibility import _board, _evidence, _scaled, _stream, _with_intrinsics
+from plausibility_cases import _board, _evidence, _scaled, _stream, _with_intrinsics
 
 
 # --------------------------------------------------------------------------- the sensor

@@ -24,7 +24,7 @@ from multieye.outputs import write as write_mod
 from multieye.outputs.export import export
 from multieye.outputs.folder import MANIFEST, claim_output, foreign_files, staged_output
 from multieye.outputs.write import write_outputs
-from test_export import make_run
+from export_runs import make_run
 
 
 @pytest.fixture(scope="module")

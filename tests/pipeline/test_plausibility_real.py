@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import real_datasets
 from click.testing import CliRunner
-from test_robot_sets import published_with_rig
+from robot_sets import published_with_rig
 
 from multieye.cli import main
 
