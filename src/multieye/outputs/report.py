@@ -55,6 +55,7 @@ from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUnc
                                          read_calibration)
 from multieye.io.run_details import RunDetails, read_run_details
 from multieye.core.metrics import pose_row
+from multieye.outputs.folder import claim_output
 from multieye.outputs.html import figure as _figure
 from multieye.outputs.html import num as _num
 from multieye.outputs.html import table as _table
@@ -527,16 +528,20 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     Raises
     ------
     DatasetError
-        ``calibration.json`` is missing or invalid, or the folder is not writable.
+        ``calibration.json`` is missing or invalid, the folder is not writable, or another
+        multieye run holds it (:func:`~multieye.outputs.folder.claim_output`).
     """
     from multieye.outputs.report_draw import figure_workers, submit_figures  # noqa: PLC0415 (heavy: the figure modules and OpenCV, only when figures are drawn)
 
     out = Path(out_dir)
-    rec = read_calibration(out / "calibration.json")
-    details, notes = load_details(out, rec)
-    with figure_workers(processes) as workers:
-        return write_report_from(out, rec, details, submit_figures(rec, details, workers),
-                                 notes=notes, shown_as=shown_as, images=images)
+    # held as a calibration holds it: refused while one runs, whose swap would remove the
+    # report (issue 32); re-entrant, so a caller holding it already goes on
+    with claim_output(out, replace=False):
+        rec = read_calibration(out / "calibration.json")
+        details, notes = load_details(out, rec)
+        with figure_workers(processes) as workers:
+            return write_report_from(out, rec, details, submit_figures(rec, details, workers),
+                                     notes=notes, shown_as=shown_as, images=images)
 
 
 def write_report_from(out_dir: str | os.PathLike, rec: CalibrationRecord,
