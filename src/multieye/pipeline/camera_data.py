@@ -25,9 +25,7 @@ from multieye.io import (
     RejectedItem,
     Rig,
     Trajectory,
-    iter_bag_images,
     list_image_files,
-    list_images,
     skipped_entries,
     read_camera_intrinsics,
     read_mocap,
@@ -35,10 +33,10 @@ from multieye.io import (
 )
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
-from multieye.pipeline.detection import Workers, detect_all
+from multieye.pipeline.detection import Workers, detect_all, detect_listed
 from multieye.pipeline.estimated_lens import check_model, lens_start, start_lens, with_poses
-from multieye.pipeline.selection import SelectionSummary, motion_first, preselected
-from multieye.pipeline.frames import bag_frames, video_frames, video_listing
+from multieye.pipeline.selection import (Chosen, SelectionSummary, motion_first, preselected,
+                                         with_refills)
 from multieye.solvers.methods import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
 from multieye.imaging.target_hints import counting_rule
@@ -224,10 +222,12 @@ class _Detected:
     warnings: tuple[str, ...]
     seconds: float
     intrinsics: Intrinsics | None = None     # the started lens, when it was estimated
+    chosen: Chosen | None = None             # the choice before decoding, with its refills
 
 
 def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, workers: Workers, *,
-                              listed=None, extra_views=()) -> _Detected:
+                              listed=None, extra_views=(), chosen: Chosen | None = None
+                              ) -> _Detected:
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
 
     Without ``intr`` (a camera whose lens is estimated), detection runs alone, the lens
@@ -235,43 +235,20 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     poses follow by PnP with it; the start is then ``_Detected.intrinsics``. ``listed``:
     the images as ``(stamp, ns, path)`` instead of the folder's time-stamped names.
     ``extra_views``: detection-only results of the camera's ``intrinsics_images``, which
-    inform the starting lens too.
+    inform the starting lens too.  ``chosen``: the images chosen before decoding (then
+    ``listed``), to which more are added while chosen ones prove unusable
+    (:func:`~multieye.pipeline.selection.with_refills`).
     """
     cam = rig.cameras[name]
     source = {"images": cam.images, "rosbag": cam.rosbag, "video": cam.video}[cam.source]
-    topic = cam.topic
-    target = target_from_spec(rig.target, path=rig.path)
     lost: list = []
-    if cam.source == "video":
-        stamped = []
-        t0 = time.perf_counter()   # the video is read as the frames are detected
-        results = workers.detect_arrays(
-            video_frames(cam, video_listing(cam) if listed is None else listed, stamped, lost),
-            target, intr)
-        seconds = time.perf_counter() - t0
-    elif topic is None:
-        images = list_images(source) if listed is None else listed
-        t0 = time.perf_counter()
-        results = workers.detected.get((name, "images"))
-        if results is None:
-            results = workers.detect([p for _, _, p in images], target, intr)
-        seconds = workers.seconds.get((name, "images"), time.perf_counter() - t0)
-        stamped = [(stamp, path.name) for stamp, _, path in images]
-    else:
-        stamped = []
-
-        def frames():
-            for stamp_ns, image in iter_bag_images(source, topic):
-                label = f"{topic}@{stamp_ns}"
-                stamped.append((stamp_ns * 1e-9, label))
-                yield label, image
-
-        t0 = time.perf_counter()   # the bag is read as the frames are detected
-        chosen = frames() if listed is None else bag_frames(cam, listed, stamped)
-        results = workers.detect_arrays(chosen, target, intr)
-        seconds = time.perf_counter() - t0
-        if not stamped:
-            raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
+    stamped, results, seconds = detect_listed(rig, name, intr, workers, listed, lost)
+    t0, n_first = time.perf_counter(), len(results)
+    stamped, results, chosen = with_refills(
+        chosen, (stamped, results),
+        lambda items: detect_listed(rig, name, intr, workers, items, lost, fresh=True)[:2],
+        usable=lambda r: r.ok if intr is not None else r.reason is None)
+    seconds += time.perf_counter() - t0
     lens = None
     if intr is None:
         detected = [r for r in results if r.reason is None]
@@ -279,7 +256,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
             raise DatasetError(_no_usable_image(rig, [RejectedItem(lb, r.reason) for (_, lb), r
                                                       in zip(stamped, results)], len(stamped)),
                                path=source, camera=name)
-        started = None if extra_views else workers.started.get(name)
+        started = None if extra_views or len(results) > n_first else workers.started.get(name)
         if started is not None:     # started by the detection's workers (detect_all)
             lens = lens_start(name, cam.model, results, started.start)
             results = list(started.results)
@@ -309,7 +286,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
                            camera=name)
     return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped) + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
-                     intrinsics=None if lens is None else lens.intrinsics)
+                     intrinsics=None if lens is None else lens.intrinsics, chosen=chosen)
 
 
 def _detect_intrinsics_images(cam, rig: Rig, intr: Intrinsics | None, workers: Workers
@@ -420,6 +397,7 @@ class _Seen:
     warnings: tuple[str, ...] = ()
     seconds: float = 0.0
     views: tuple[Observation, ...] = ()
+    selection: SelectionSummary | None = None
 
 
 def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
@@ -440,7 +418,7 @@ def _camera_data(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
                       warnings=seen.warnings, detection_s=seen.seconds,
                       intrinsics_estimated=cam.estimate_intrinsics, intrinsics_views=seen.views,
                       by_name=spec is not None and spec.by_name,
-                      selection=None if chosen is None else chosen[2])
+                      selection=seen.selection)
 
 
 def _from_poses(cam) -> _Seen:
@@ -470,9 +448,10 @@ def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
     extra = None
     if cam.intrinsics_images is not None and intr is None:
         extra = _detect_intrinsics_images(cam, rig, None, workers)
-    listed, left = (motion.listed, []) if chosen is None else chosen[:2]
-    det = _observations_from_images(rig, name, intr, workers, listed=listed,
-                                    extra_views=() if extra is None else extra[1])
+    det = _observations_from_images(rig, name, intr, workers,
+                                    listed=motion.listed if chosen is None else chosen.kept,
+                                    extra_views=() if extra is None else extra[1], chosen=chosen)
+    left = [] if det.chosen is None else det.chosen.left
     rejected = list(motion.unmatched) + det.rejected + list(left)
     n_inputs = (det.n_inputs + len(left)
                 + sum(r.reason.startswith("no pose file") for r in motion.unmatched))
@@ -482,7 +461,8 @@ def _from_images(rig: Rig, name: str, motion: CameraMotion, workers: Workers,
         views, lost, s = _intrinsics_views(name, cam, rig, intr, workers, detected=extra)
         rejected, seconds = rejected + lost, seconds + s
     return _Seen(intrinsics=intr, observations=tuple(det.observations), rejected=tuple(rejected),
-                 n_inputs=n_inputs, warnings=det.warnings, seconds=seconds, views=tuple(views))
+                 n_inputs=n_inputs, warnings=det.warnings, seconds=seconds, views=tuple(views),
+                 selection=None if det.chosen is None else det.chosen.summary)
 
 
 @dataclass(frozen=True)
