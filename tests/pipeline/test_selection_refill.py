@@ -4,13 +4,19 @@ for a folder and a bag; a recording where half the frames are usable needs few m
 
 from __future__ import annotations
 
+import json
+
 import cv2
 import numpy as np
 import pytest
 from rosbag_writer import camera_into_bag
+from click.testing import CliRunner
 from small_dataset import render_small
 
+from multieye.cli import main
+from multieye.core.errors import DatasetError
 from multieye.io import list_images
+from multieye.io.run_details import read_run_details
 from multieye.pipeline import calibrate
 
 WRONG_SIZE = "wrong resolution (8 x 8, intrinsics say 640 x 480)"
@@ -54,6 +60,30 @@ def test_a_camera_with_few_usable_images_among_many_unusable_calibrates(mostly_u
     assert run.cameras["cam1"].selection.refilled == 0     # every chosen image was usable
     every = calibrate(mostly_unusable, select=None)       # every usable image is decoded
     assert 8 <= len(_usable(run, "cam0")) <= len(every.cameras["cam0"].observations)
+
+
+def test_the_command_calibrates_and_says_so(mostly_unusable, tmp_path):
+    """Exit 2 before (the camera's few usable images were not among those chosen); now exit
+    0, the counts on screen and in details.json (read back by the report)."""
+    res = CliRunner().invoke(main, ["calibrate", str(mostly_unusable), "-o", str(tmp_path / "o"),
+                                    "--select", "8", "--processes", "1"])
+    assert res.exit_code == 0, res.output
+    sel = json.loads((tmp_path / "o" / "details.json").read_text())["cameras"]["cam0"]["selection"]
+    assert sel["refilled"] > 0 and sel["unusable"] > 0 and sel["kept"] == 8 + sel["refilled"]
+    assert (f"selected: cam0: {sel['kept']} of {sel['seen']} images selected before decoding "
+            f"(budget 8; {sel['unusable']} of the images chosen proved unusable, so "
+            f"{sel['refilled']} more were chosen from the rest)\n") in res.output
+    # details.json of an earlier version (without the two counts) is read as before
+    details = json.loads((tmp_path / "o" / "details.json").read_text())
+    for c in details["cameras"].values():
+        for key in ("unusable", "refilled"):
+            (c.get("selection") or {}).pop(key, None)
+    (tmp_path / "old.json").write_text(json.dumps(details))
+    assert read_run_details(tmp_path / "old.json").camera("cam0").selection["kept"] == sel["kept"]
+    details["cameras"]["cam0"]["selection"]["refilled"] = "many"
+    (tmp_path / "bad.json").write_text(json.dumps(details))
+    with pytest.raises(DatasetError, match="selection must be an object"):
+        read_run_details(tmp_path / "bad.json")
 
 
 def test_half_usable_needs_a_refill_not_the_whole_recording(tmp_path):

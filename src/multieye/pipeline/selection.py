@@ -82,11 +82,9 @@ class SelectionSummary:
     refilled: int = 0
 
     def as_dict(self) -> dict:
-        out = {"budget": self.budget, "seen": self.seen, "kept": self.kept, "stage": self.stage,
-               "without_mocap": self.without_mocap}
-        if self.unusable or self.refilled:
-            out.update(unusable=self.unusable, refilled=self.refilled)
-        return out
+        return {"budget": self.budget, "seen": self.seen, "kept": self.kept, "stage": self.stage,
+                "without_mocap": self.without_mocap, "unusable": self.unusable,
+                "refilled": self.refilled}
 
     def line(self, camera: str) -> str:
         """``cam0: 300 of 5400 images selected before decoding (budget 300)``, and how many
