@@ -61,7 +61,7 @@ def lacks_distortion(intr: Intrinsics) -> bool:
 
 
 def _with_radial(intr: Intrinsics, k: F64) -> Intrinsics:
-    dist = np.zeros(max(intr.dist.size, _RADIAL_FIRST[intr.model]))
+    dist = np.zeros(_RADIAL_FIRST[intr.model])      # OpenCV's 5 (pinhole), or 4 (fisheye)
     dist[:2] = k
     return Intrinsics(K=intr.K, dist=dist, model=intr.model, width=intr.width,
                       height=intr.height)

@@ -343,7 +343,7 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
         "intrinsics", f"intrinsics: camera {cam.name}'s lens freed (fitted to its own "
         f"detections) fits better than the given intrinsics: reprojection RMS "
         f"{test.rms_given_px:.3g} -> {test.rms_freed_px:.3g} px, mean loop residual "
-        f"{_loop(test.loop_given)} -> {_loop(test.loop_freed)}, "
+        f"{_loop(test.loop_given)} -> {_loop(test.loop_freed)}, loop residuals "
         f"{_times(test.cost_given)} -> {_times(test.cost_freed)} times what the noise explains "
         f"(fx {given.K[0, 0]:.1f} -> {freed.K[0, 0]:.1f} px; distortion "
         f"{_coefficients(given.dist)} -> {_coefficients(freed.dist)}): {why}; calibrate the "
