@@ -121,3 +121,19 @@ def test_a_video_camera_is_refilled_when_its_frames_show_no_target(tmp_path):
     assert len(_usable(run, "cam0")) >= 8 and sel.refilled > 0
     assert sum(r.reason.startswith("target not detected")
                for r in run.cameras["cam0"].rejected) == sel.unusable > 0
+
+
+def test_a_camera_whose_lens_is_estimated_is_refilled_and_its_lens_started_from_all(tmp_path):
+    """The lens started from the detections of every image tried (the chosen ones and those
+    added), not from the first choice the workers started it on."""
+    folder = _recording(tmp_path / "d", 6, unusable=np.full((480, 640), 128, np.uint8))
+    rig = (folder / "rig.yaml").read_text()
+    (folder / "rig.yaml").write_text(rig.replace("    intrinsics: cam0.yaml\n",
+                                                 "    model: pinhole-radtan\n", 1))
+    run = calibrate(folder, select=4)            # twice the budget for a lens to estimate
+    sel = run.cameras["cam0"].selection
+    assert run.cameras["cam0"].intrinsics_estimated
+    assert sel.stage == "before decoding and after detection" and sel.kept == 4
+    assert len(_usable(run, "cam0")) >= 8 and sel.refilled > 0
+    assert sum(r.reason.startswith("target not detected") for r in run.cameras["cam0"].rejected
+               ) == sel.unusable > 0
