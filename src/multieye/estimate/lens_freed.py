@@ -26,9 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.sparse import lil_matrix
-from scipy.spatial.transform import Rotation
 
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
@@ -87,6 +85,8 @@ def free_distortion(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
         The camera matrix of ``intr`` with the fitted k1, k2 (the other coefficients zero);
         None with fewer than :data:`MIN_DISTORTION_VIEWS` views or when the fit fails.
     """
+    from scipy.optimize import least_squares  # noqa: PLC0415 (heavy: it imports scipy.spatial, which nothing else on a calibration's path needs; only when a lens is freed)
+
     n = len(views)
     if n < MIN_DISTORTION_VIEWS or not lacks_distortion(intr):
         return None
@@ -96,11 +96,11 @@ def free_distortion(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
     P = np.concatenate(obj)
     T = np.asarray(T_cam_target, dtype=np.float64)
     x0 = np.concatenate([np.zeros(2), np.concatenate(
-        [Rotation.from_matrix(T[:, :3, :3]).as_rotvec(), T[:, :3, 3]], axis=1).ravel()])
+        [g.rotvec_from_transform(T), T[:, :3, 3]], axis=1).ravel()])
 
     def residuals(x: F64) -> F64:
         pose = x[2:].reshape(n, 6)
-        R = Rotation.from_rotvec(pose[:, :3]).as_matrix()[which]
+        R = g.rotation_from_rotvec(pose[:, :3])[which]
         Pc = np.einsum("nij,nj->ni", R, P) + pose[which, 3:]
         r = (project_points(Pc, _with_radial(intr, x[:2])) - img).ravel()
         return np.where(np.isfinite(r), r, 1e3)       # a point thrown behind: far off
