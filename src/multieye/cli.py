@@ -484,17 +484,22 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
     and OUT/NAME.png.  refine: image-level simulation over pixel noise, closed form against
     the maximum-likelihood refinement and the Cramer-Rao bound.
     """
-    if name == "refine":
-        from multieye.experiments.refine_sweep import run_refine_experiment  # noqa: PLC0415 (instant start-up of multieye --help)
+    from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
 
-        paths = run_refine_experiment(trials=trials, seed=seed, out_dir=out_dir,
-                                      progress=_progress_enabled())
-        _echo("wrote " + " and ".join(str(p) for p in paths))
-        return
-    from multieye.experiments.sweeps import run_experiment  # noqa: PLC0415 (instant start-up of multieye --help)
+    # held as every command that writes into a folder holds it (refused while a calibration
+    # writes there: issue 32)
+    with claim_output(out_dir, replace=False):
+        if name == "refine":
+            from multieye.experiments.refine_sweep import run_refine_experiment  # noqa: PLC0415 (instant start-up of multieye --help)
 
-    out = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
-                         progress=_progress_enabled())
+            paths = run_refine_experiment(trials=trials, seed=seed, out_dir=out_dir,
+                                          progress=_progress_enabled())
+            _echo("wrote " + " and ".join(str(p) for p in paths))
+            return
+        from multieye.experiments.sweeps import run_experiment  # noqa: PLC0415 (instant start-up of multieye --help)
+
+        out = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
+                             progress=_progress_enabled())
     _echo(f"wrote {out.csv_path} and {out.png_path}")
 
 

@@ -212,6 +212,26 @@ def test_experiment_command_writes_csv_and_png(tmp_path):
         assert col in header
 
 
+def test_experiment_is_refused_while_another_run_holds_its_folder(tmp_path):
+    """Issue 32: every command that writes into an existing folder takes its lock (a
+    calibration holding the folder would refuse to replace it, or remove what was written)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from multieye.outputs.folder import claim_output\n"
+         "with claim_output(sys.argv[1]):\n print('held', flush=True)\n sys.stdin.read()",
+         str(out)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        res = _run(["experiment", "measurements", "--trials", "1", "-o", out])
+    finally:
+        holder.communicate("")
+    assert res.exit_code == 2
+    assert res.stderr.startswith(f"multieye: error: {out}: in use by another multieye run "
+                                 f"(process {holder.pid}: "), res.stderr
+    assert list(out.iterdir()) == []
+
+
 def test_import_and_help_do_not_load_the_numerical_stack():
     code = ("import sys, multieye, multieye.cli; "
             "heavy = [m for m in ('numpy', 'scipy', 'cv2', 'matplotlib') if m in sys.modules]; "

@@ -5,7 +5,8 @@ freed among the plausibility hypotheses (a distortion left out of the intrinsics
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,7 @@ from multieye.estimate.sensor import SENSOR_BOUNDS, TYPICAL_NOISE, hypothesis_no
 from multieye.io import load_rig
 from multieye.io.mocap import MocapSpec
 
-from test_plausibility import _board, _evidence, _scaled, _stream, _with_intrinsics
+from plausibility_cases import _board, _evidence, _scaled, _stream, _with_intrinsics
 
 
 # --------------------------------------------------------------------------- the sensor
@@ -179,20 +180,58 @@ def test_the_lens_is_freed_only_when_a_finding_could_follow(distorted, monkeypat
     under 0.2 px and its poses fit the loop even at the pixel-noise floor, as the right lens
     does here (the noise is 0.1 px); run, and the fault named, for a lens without its
     distortion."""
-    from multieye.estimate import hypotheses
+    from multieye.estimate import hypotheses, lens_freed
 
     freed = []
-    search = hypotheses.lens_search
-    monkeypatch.setattr(hypotheses, "lens_search",
+    search = lens_freed.lens_search
+    monkeypatch.setattr(lens_freed, "lens_search",
                         lambda cam, sigma: freed.append(cam.name) or search(cam, sigma))
     right = _with_intrinsics(*distorted, _LENS)
-    rms, cost = hypotheses.lens_bound(right, hypotheses.MOCAP_NOISE)
+    rms, cost = lens_freed.lens_bound(right, hypotheses.MOCAP_NOISE)
     assert rms < 0.2 and cost < 1.5
     rep = check_plausibility([right], clock=False)
     assert rep.findings == () and "intrinsics:cam0" in rep.tested and freed == []
     only_K = Intrinsics(K=_K, dist=np.zeros(5), width=640, height=480)
     rep = check_plausibility([_with_intrinsics(*distorted, only_K)], clock=False)
     assert freed == ["cam0"] and [f.cause for f in rep.findings] == ["intrinsics"]
+
+
+_K13 = Intrinsics(K=_K, dist=[-0.13, 0.05, 0.0, 0.0, 0.0], width=640, height=480)
+
+
+@pytest.mark.parametrize("views, given", [(4, np.zeros(5)), (16, np.zeros(5)), (4, np.zeros(0)),
+                                          (16, np.zeros(4))])
+def test_a_lens_given_without_its_distortion_is_named_from_few_views(views, given):
+    """Issue 33: a lens of k1 = -0.13 given without distortion (none, or zeros), seen in a
+    few views (a robot set's 16 images, or fewer kept by the consensus): its camera matrix
+    kept, k1 and k2 are freed and found, and the cause is named with the figures before and
+    after (the reprojection RMS and the mean loop residual)."""
+    st = _stream(61)
+    rng = np.random.default_rng(3)
+    obj = _board()
+    img = [project_points(obj @ T[:3, :3].T + T[:3, 3], _K13) + rng.normal(scale=0.1,
+                                                                           size=(len(obj), 2))
+           for T in st.T_cam_target]
+    only_K = Intrinsics(K=_K, dist=given, width=640, height=480)
+    cam = _with_intrinsics(st, obj, img, only_K)
+    pick = np.linspace(0, len(cam.A) - 1, views).round().astype(int)
+    few = replace(cam, A=cam.A[pick], B=cam.B[pick], T_world_mocap=cam.T_world_mocap[pick],
+                  stamps=cam.stamps[pick], rms_px=cam.rms_px[pick],
+                  object_points=tuple(cam.object_points[i] for i in pick),
+                  image_points=tuple(cam.image_points[i] for i in pick))
+    rep = check_plausibility([few], clock=False)
+    assert [f.cause for f in rep.findings] == ["intrinsics"], rep.findings
+    f = rep.findings[0]
+    k = re.search(r"distortion none -> k1 (\S+), k2 (\S+)\)", f.message)
+    assert k is not None, f.message
+    assert abs(float(k[1]) + 0.13) < 0.01 and abs(float(k[2]) - 0.05) < 0.03
+    assert "fx 600.0 -> 600.0 px" in f.message and "left out of the intrinsics file" in f.message
+    loop = re.search(r"mean loop residual (\S+) deg / (\S+) mm -> (\S+) deg / (\S+) mm",
+                     f.message)
+    assert loop is not None, f.message
+    assert float(loop[3]) < float(loop[1]) and float(loop[4]) < float(loop[2])
+    assert f.evidence["loop_freed_m"] == pytest.approx(float(loop[4]) / 1e3, rel=1e-2)
+    assert f.evidence["rms_freed_px"] < 0.15 < f.evidence["rms_given_px"]
 
 
 # --------------------------------------------------------------------------- the marker size

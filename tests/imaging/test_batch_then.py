@@ -9,14 +9,18 @@ import textwrap
 
 import pytest
 from proc_tree import group_processes, needs_proc
-from test_imaging_batch import BOARD, CAMERA, check, image_files  # noqa: F401 (fixture)
+from batch_images import BOARD, CAMERA, check, render_image_files
 
 from multieye.imaging import batch
 from multieye.imaging.batch import ImageJob, detect_jobs_then
 
 
+#: four rendered views, a corrupt file, a blank image and a missing path, with the truth
+image_files = pytest.fixture(scope="module", name="image_files")(render_image_files)
+
+
 @pytest.mark.parametrize("processes", [1, 2])
-def test_each_jobs_task_gets_exactly_that_jobs_results(image_files, processes):  # noqa: F811
+def test_each_jobs_task_gets_exactly_that_jobs_results(image_files, processes):
     order, _ = image_files
     paths = tuple(str(p) for p in order)
     # four jobs: two parts, an empty one, the whole list (16 images: chunks of 2, so job

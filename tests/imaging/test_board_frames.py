@@ -5,12 +5,11 @@ multieye's pose once ``T_opencv_target`` (docs/conventions.md, section 5) is app
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from board_poses import PINHOLE, facing_pose
 
 from multieye.core.errors import InputError
 from multieye.core.geometry import (
@@ -23,8 +22,6 @@ from multieye.imaging.targets import (
     AprilGrid, ArucoGrid, ArucoMarker, AsymmetricCircleGrid, Charuco, Chessboard, CircleGrid)
 from multieye.sim.render import render
 
-sys.path.insert(0, str(Path(__file__).parent))
-from test_imaging_detect_pnp import PINHOLE, facing_pose  # noqa: E402
 
 CAMERA = Intrinsics(K=PINHOLE.K, dist=np.zeros(5), width=800, height=600)
 

@@ -8,6 +8,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 import pytest
+from board_poses import facing_pose
 
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points
@@ -16,7 +17,6 @@ from multieye.imaging import detect as detect_module
 from multieye.imaging.detect import detect
 from multieye.imaging.targets import AprilGrid, AsymmetricCircleGrid, Charuco, Chessboard
 from multieye.sim.render import render, visible
-from tests.imaging.test_imaging_detect_pnp import facing_pose
 
 CAMERA = Intrinsics(K=[[600, 0, 399.5], [0, 600, 299.5], [0, 0, 1]],
                     dist=[-0.28, 0.09, 0.0008, -0.0005, -0.015], width=800, height=600)

@@ -8,16 +8,15 @@ import numpy as np
 import pytest
 
 from multieye.core.errors import InputError
-from multieye.core.geometry import rotation_angle_between, transform_from_rotvec, translation_distance
+from multieye.core.geometry import rotation_angle_between, translation_distance
 from multieye.core.lens import project_points
 from multieye.imaging.detect import Detection, detect
 from multieye.imaging.pnp import estimate_pose
 from multieye.sim.render import render, visible
 from multieye.imaging.targets import AprilGrid, AsymmetricCircleGrid, Charuco, Chessboard, CircleGrid
 from multieye.core.intrinsics import Intrinsics
+from board_poses import PINHOLE, facing_pose
 
-PINHOLE = Intrinsics(K=[[600, 0, 399.5], [0, 600, 299.5], [0, 0, 1]],
-                     dist=[-0.3, 0.1, 0.001, -0.001, -0.02], width=800, height=600)
 FISHEYE = Intrinsics(K=[[300, 0, 399.5], [0, 300, 299.5], [0, 0, 1]],
                      dist=[-0.02, 0.005, -0.001, 0.0002], model="fisheye", width=800, height=600)
 CAMERAS = {"pinhole": (PINHOLE, 0.5), "fisheye": (FISHEYE, 0.3)}    # camera, board distance (m)
@@ -29,18 +28,6 @@ TARGETS = {
     "charuco": Charuco(rows=7, cols=9, spacing=0.04, marker_size=0.028, dictionary="DICT_5X5_100"),
     "aprilgrid": AprilGrid(rows=5, cols=6, spacing=0.04, tag_spacing=0.3),
 }
-
-
-def facing_pose(target, rotvec, distance, offset=(0.0, 0.0)):
-    """T_cam_target with the board centre ``distance`` in front of the camera, tilted by
-    ``rotvec`` from facing the camera (printed side towards it)."""
-    x0, x1, y0, y1 = target.bounds()
-    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2, 0.0])
-    T = transform_from_rotvec(rotvec, np.zeros(3))
-    if not target.z_into_board:                  # AprilGrid: z comes out of the printed face
-        T = T @ np.diag([1.0, -1.0, -1.0, 1.0])
-    T[:3, 3] = -T[:3, :3] @ centre + [offset[0], offset[1], distance]
-    return T
 
 
 def true_pixels(target, camera, T, ids):

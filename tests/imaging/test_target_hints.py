@@ -4,20 +4,18 @@ terms of its target type."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from board_poses import PINHOLE, facing_pose
 
 from multieye.imaging.detect import detect
 from multieye.imaging.target_hints import counting_rule, markers_in, suggest_target
 from multieye.imaging.targets import ArucoGrid, target_from_spec
 from multieye.sim.render import render
 
-sys.path.insert(0, str(Path(__file__).parent))
-from test_imaging_detect_pnp import PINHOLE, facing_pose  # noqa: E402
 
 CHARUCO = {"type": "charuco", "rows": 7, "cols": 9, "spacing": 0.04, "marker_size": 0.02,
            "dictionary": "DICT_4X4_50"}

@@ -19,8 +19,7 @@ from multieye.outputs.details import write_run_details
 from multieye.outputs.export import export
 from multieye.outputs.write import write_outputs
 
-sys.path.insert(0, os.path.dirname(__file__))
-from test_export import NAMES, make_run  # noqa: E402
+from export_runs import NAMES, make_run  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -22,9 +22,11 @@ from multieye.outputs import folder as folder_mod
 from multieye.outputs import report_draw
 from multieye.outputs import write as write_mod
 from multieye.outputs.export import export
+from multieye.outputs import report as report_mod
+from multieye.outputs.report import write_report
 from multieye.outputs.folder import MANIFEST, claim_output, foreign_files, staged_output
 from multieye.outputs.write import write_outputs
-from test_export import make_run
+from export_runs import make_run
 
 
 @pytest.fixture(scope="module")
@@ -306,6 +308,40 @@ def test_a_second_process_is_refused_while_the_first_holds_the_folder(tmp_path):
         (stage.folder / "calibration.json").write_text("{}")
     assert (out / "calibration.json").read_text() == "{}"
     assert siblings(out) == []
+
+
+def _holding(out: Path) -> subprocess.Popen:
+    """Another process holding ``out`` (as a running calibration does) until its stdin ends."""
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time; from multieye.outputs.folder import "
+         "claim_output\nwith claim_output(sys.argv[1]):\n print('held', flush=True)\n"
+         " sys.stdin.read()", str(out)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline() == "held\n"
+    return holder
+
+
+@pytest.mark.parametrize("write", ["export", "report"])
+def test_export_and_report_are_refused_while_another_process_holds_the_folder(earlier, write,
+                                                                               monkeypatch):
+    """Issue 32: ``export`` (and ``write_report``) into a folder a calibration holds wrote
+    files that the calibration's swap then removed; they take the folder's lock themselves."""
+    _quick(monkeypatch)
+    monkeypatch.setattr(report_mod, "write_report_from", _quick_report)
+    shutil.rmtree(earlier / "export")
+    shutil.rmtree(earlier / "figures")
+    before = tree(earlier)
+    holder = _holding(earlier)
+    try:
+        with pytest.raises(DatasetError) as info:
+            export(earlier, "json") if write == "export" else write_report(earlier)
+        assert str(info.value).startswith(f"{earlier}: in use by another multieye run "
+                                          f"(process {holder.pid}: ")
+        assert tree(earlier) == before
+    finally:
+        holder.communicate("")
+    export(earlier, "json") if write == "export" else write_report(earlier)   # free again
+    assert tree(earlier) != before and siblings(earlier) == []
 
 
 def test_every_file_written_outside_the_set_has_a_known_name():

@@ -36,7 +36,7 @@ from multieye.outputs.figures_rig import display_rotation, frustum_corners
 from multieye.outputs.report import FIGURES, write_report
 from multieye.outputs.report_images import image_folders
 from multieye.outputs.write import write_outputs
-from test_export import NAMES, make_run
+from export_runs import NAMES, make_run
 
 from browser import (chromium, embedded_figures, layout, needs_chromium, plain_cells, probe,
                      screenshot, screenshot_at)

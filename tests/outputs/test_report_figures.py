@@ -15,7 +15,7 @@ from multieye.outputs.details import write_run_details
 from multieye.outputs.figures import HIGHLIGHT, camera_colours, stamps_are_indices
 from multieye.outputs.figures_rig import (_overlap, _scene, place_labels, rig_pngs,
                                           uncertainty_magnification)
-from test_export import make_run
+from export_runs import make_run
 
 
 def test_labels_do_not_overlap_each_other_or_the_anchors():

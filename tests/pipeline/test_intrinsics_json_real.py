@@ -6,8 +6,6 @@ camera, which is what the dropped key cost."""
 from __future__ import annotations
 
 import json
-import os
-import sys
 
 import numpy as np
 from click.testing import CliRunner
@@ -16,8 +14,7 @@ from multieye.cli import main
 from multieye.core import geometry as g
 from multieye.io.intrinsics_files import read_intrinsics
 
-sys.path.insert(0, os.path.dirname(__file__))
-from test_robot_sets import published_with_rig  # noqa: E402
+from robot_sets import published_with_rig  # noqa: E402
 
 
 def _run(shared, tmp_path, name, intrinsics_text=None):

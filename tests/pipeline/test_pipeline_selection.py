@@ -86,7 +86,8 @@ def test_written_and_shown(dataset, tmp_path):
             "motion capture not decoded)") in res.output
     details = json.loads((tmp_path / "out" / "details.json").read_text())
     assert details["cameras"]["cam0"]["selection"] == {
-        "budget": 6, "seen": n0, "kept": 6, "stage": "before decoding", "without_mocap": 3}
+        "budget": 6, "seen": n0, "kept": 6, "stage": "before decoding", "without_mocap": 3,
+        "unusable": 0, "refilled": 0}
     cal = json.loads((tmp_path / "out" / "calibration.json").read_text())
     reasons = [r["reason"] for r in cal["cameras"]["cam1"]["rejected"]]
     assert sum(r.startswith("not selected: adds little") for r in reasons) == n1 - 6

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import real_datasets
 from click.testing import CliRunner
-from test_robot_sets import published_with_rig
+from robot_sets import published_with_rig
 
 from multieye.cli import main
 
@@ -148,3 +148,43 @@ def test_ethz_pose_streams_raise_no_doubt(shared_data, tmp_path, name):
     assert code == 0 and cal["plausibility"] == [], cal["plausibility"]
     assert cal["cameras"]["cam0"]["measurements_used"] >= 140
     assert cal["residuals"]["e_R_deg"] < 1.5 and cal["residuals"]["e_t_m"] < 0.025
+
+
+#: The lens multieye estimates from yizhong's 6 eye-in-hand images (k1 -0.37, k2 0.15), its
+#: camera matrix only: an intrinsics file without distortion.
+_YIZHONG_K_ONLY = """%YAML:1.0
+---
+image_width: 960
+image_height: 540
+camera_matrix: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [641.907, 0.0, 474.833, 0.0, 641.510, 290.272, 0.0, 0.0, 1.0]
+"""
+
+
+def test_yizhong_lens_given_without_distortion_is_named(shared_data, tmp_path):
+    """Issue 33: the robot set with intrinsics that give no distortion exited 3 with "none
+    of the causes tested (intrinsics, ...) explains it": the consensus keeps 3 of its 6
+    views, too few to free every parameter of the lens. Its camera matrix kept, k1 and k2
+    are freed from them, and the cause is named with the figures before and after."""
+    dataset = published_with_rig(shared_data, tmp_path / "data", "yizhong_eye_in_hand")
+    (dataset / "cam0_k.yaml").write_text(_YIZHONG_K_ONLY)
+    rig = (dataset / "rig.yaml").read_text()
+    assert "cam0: {model: pinhole-radtan, images: .}" in rig
+    (dataset / "rig.yaml").write_text(rig.replace("cam0: {model: pinhole-radtan, images: .}",
+                                                  "cam0: {intrinsics: cam0_k.yaml, images: .}"))
+    code, cal, out = _run(dataset, tmp_path / "out")
+    assert code == 3
+    causes = [d["cause"] for d in cal["plausibility"]]
+    assert causes[0] == "intrinsics" and set(causes) <= {"intrinsics", "noise"}, causes
+    message = cal["plausibility"][0]["message"]
+    assert "left out of the intrinsics file" in message and message in out
+    assert "none of the causes tested" not in out
+    k1 = float(re.search(r"distortion none -> k1 (\S+),", message)[1])
+    assert -0.40 < k1 < -0.32
+    rms = re.search(r"reprojection RMS (\S+) -> (\S+) px", message)
+    assert float(rms[1]) > 10 * float(rms[2])
+    loop = re.search(r"mean loop residual (\S+) deg / (\S+) mm -> (\S+) deg / (\S+) mm", message)
+    assert float(loop[3]) < 0.2 * float(loop[1]) and float(loop[4]) < 0.2 * float(loop[2])

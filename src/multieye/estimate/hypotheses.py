@@ -29,12 +29,10 @@ from multieye.solvers.joint import solve_joint
 from multieye.core.metrics import chordal_angle
 from multieye.estimate.clock import estimate_offset
 from multieye.estimate.pairing import pair_in_time
-from multieye.core.errors import InputError
 
 __all__ = ["CameraEvidence", "Fit", "noise", "fit", "mocap_A", "scaled_A", "scale_factor",
            "permuted", "QUATERNION_ORDERS", "focal_search", "resize_search", "clock_search",
-           "lens_search", "LensTest", "MOCAP_NOISE", "RESIZE_FACTORS", "MIN_LENS_VIEWS",
-           "lens_bound"]
+           "MOCAP_NOISE", "RESIZE_FACTORS", "cost_with", "loop_residuals", "MIN_RMS_PX"]
 
 F64 = NDArray[np.float64]
 
@@ -50,7 +48,7 @@ _MEDIAN_E2 = 5.348
 #: translation (m) per axis.
 _POSE_NOISE = (math.radians(0.1), 1e-3)
 #: Smallest reprojection RMS the PnP noise is predicted from, pixels.
-_MIN_RMS_PX = 0.05
+MIN_RMS_PX = 0.05
 #: Largest median rotation between consecutive motion-capture samples of a trajectory the
 #: clock can be estimated on (larger: poses recorded one by one, not a continuous motion).
 _MAX_MOCAP_STEP_RAD = math.radians(5.0)
@@ -59,11 +57,6 @@ _MAX_MOCAP_STEP_RAD = math.radians(5.0)
 _TRIM = 4.0
 #: Smallest angular-speed correlation at which a clock offset is believed.
 _MIN_CLOCK_SCORE = 0.5
-#: Fewest views, and fewest target points per view (median), a camera's lens is freed on.
-MIN_LENS_VIEWS = 5
-_MIN_LENS_POINTS = 8
-#: Most views the lens is fitted on (evenly spaced over the recording; PnP runs on all).
-_MAX_LENS_VIEWS = 50
 
 
 @dataclass(frozen=True)
@@ -168,11 +161,11 @@ def pnp_information(T_cam_target: F64, object_points: Sequence[F64], intr: Intri
 
 def _pnp_covariances(cam: CameraEvidence, rms_px: F64) -> F64:
     """Covariance (n, 6, 6) of every PnP pose of ``cam`` (:func:`pnp_information`) for the
-    reprojection RMS ``rms_px`` of each (pixels, at least :data:`_MIN_RMS_PX`); a pose
+    reprojection RMS ``rms_px`` of each (pixels, at least :data:`MIN_RMS_PX`); a pose
     whose information is singular gets infinite variances."""
     unit = cam.pnp_unit_covariance
     n_pts = np.array([len(o) for o in cam.object_points], dtype=float)
-    sigma2 = (np.maximum(rms_px, _MIN_RMS_PX) ** 2 / 2.0
+    sigma2 = (np.maximum(rms_px, MIN_RMS_PX) ** 2 / 2.0
               * (2 * n_pts / np.maximum(2 * n_pts - 6, 1)))
     return sigma2[:, None, None] * unit
 
@@ -194,7 +187,7 @@ def _inverse_or_infinite(info: F64) -> F64:
 def noise(cam: CameraEvidence, mocap_sigma: tuple[float, float], rms_px: F64 | None = None
           ) -> F64:
     """Per measurement, the information matrix (6, 6) of the residual of
-    :func:`_residual`: the inverse of the PnP covariance plus the motion-capture noise.
+    :func:`loop_residuals`: the inverse of the PnP covariance plus the motion-capture noise.
 
     ``rms_px`` (n,) replaces the camera's reprojection RMS in the PnP covariance (the point
     geometry, :attr:`CameraEvidence.pnp_unit_covariance`, is computed once per camera)."""
@@ -202,7 +195,7 @@ def noise(cam: CameraEvidence, mocap_sigma: tuple[float, float], rms_px: F64 | N
     T_ct = g.inv(cam.B)
     if cam.has_points:
         if rms_px is None:
-            rms_px = cam.rms_px if cam.rms_px is not None else np.full(n, _MIN_RMS_PX)
+            rms_px = cam.rms_px if cam.rms_px is not None else np.full(n, MIN_RMS_PX)
         C = _pnp_covariances(cam, np.asarray(rms_px, dtype=np.float64))
     else:
         C = np.tile(np.diag([_POSE_NOISE[0] ** 2] * 3 + [_POSE_NOISE[1] ** 2] * 3), (n, 1, 1))
@@ -215,7 +208,7 @@ def noise(cam: CameraEvidence, mocap_sigma: tuple[float, float], rms_px: F64 | N
     return np.where(np.isfinite(W), W, 0.0)
 
 
-def _residual(A: F64, B: F64, X: F64, Y: F64) -> F64:
+def loop_residuals(A: F64, B: F64, X: F64, Y: F64) -> F64:
     """The predicted target pose ``inv(X) inv(A_i) Y`` against the measured ``inv(B_i)`` as
     a left perturbation in the camera frame: (n, 6), rotation vector then translation."""
 
@@ -247,7 +240,7 @@ def _cost(e2: F64) -> float:
 
 def _e2(A, B, X, Y, W) -> F64:
     with np.errstate(all="ignore"):
-        r = _residual(A, B, X, Y)
+        r = loop_residuals(A, B, X, Y)
         e2 = np.einsum("ni,nij,nj->n", r, W, r)
     return np.where(np.isfinite(e2), e2, np.inf)
 
@@ -367,7 +360,7 @@ def _scaled_intrinsics(intr: Intrinsics, focal: float = 1.0, image: float = 1.0)
     return Intrinsics(K=K, dist=intr.dist, model=intr.model)
 
 
-def _cost_with(cam: CameraEvidence, T_cam_target: F64, noise: F64) -> float:
+def cost_with(cam: CameraEvidence, T_cam_target: F64, noise: F64) -> float:
     """Cost of the camera alone with other target poses."""
     return fit([cam.A], [g.inv(T_cam_target)], [noise]).cost
 
@@ -386,7 +379,7 @@ def focal_search(cam: CameraEvidence, noise: F64) -> tuple[float, float, float] 
     xi = _log(moved @ g.inv(base)) / math.log(step)
 
     def model_cost(log_k: float) -> float:
-        return _cost_with(cam, _exp(log_k * xi) @ base, noise)
+        return cost_with(cam, _exp(log_k * xi) @ base, noise)
 
     grid = np.linspace(math.log(0.7), math.log(1.4), 29)
     costs = [model_cost(v) for v in grid]
@@ -402,7 +395,7 @@ def focal_search(cam: CameraEvidence, noise: F64) -> tuple[float, float, float] 
     poses = _pnp_poses(cam, _scaled_intrinsics(cam.intrinsics, focal=factor))
     if poses is None:
         return None
-    return factor, _cost_with(cam, base, noise), _cost_with(cam, poses, noise)
+    return factor, cost_with(cam, base, noise), cost_with(cam, poses, noise)
 
 
 def _log(T: F64) -> F64:
@@ -426,12 +419,12 @@ def resize_search(cam: CameraEvidence, noise: F64) -> tuple[float, float, float]
         poses = _pnp_poses(cam, _scaled_intrinsics(cam.intrinsics, image=r))
         if poses is None:
             continue
-        c = _cost_with(cam, poses, noise)
+        c = cost_with(cam, poses, noise)
         if best is None or c < best[1]:
             best = (r, c)
     if best is None:
         return None
-    return best[0], _cost_with(cam, base, noise), best[1]
+    return best[0], cost_with(cam, base, noise), best[1]
 
 
 def clock_search(setup: str, cam: CameraEvidence, noise: F64, max_offset_s: float
@@ -479,105 +472,3 @@ def clock_search(setup: str, cam: CameraEvidence, noise: F64, max_offset_s: floa
         T = p.T[np.searchsorted(p.index, common)]
         costs.append(fit([mocap_A(setup, T)], [cam.B[common]], [sub]).cost)
     return est.offset_s, est.std_s, costs[0], costs[1]
-
-
-# --------------------------------------------------------------------------- the lens
-
-
-@dataclass(frozen=True)
-class LensTest:
-    """The given lens against one fitted to the camera's own detections.
-
-    Attributes
-    ----------
-    intrinsics : Intrinsics
-        The lens fitted to the detections (OpenCV's calibration, the given model).
-    rms_given_px, rms_freed_px : float
-        Median over the views of the PnP reprojection RMS with each lens, pixels.
-    cost_given, cost_freed : float
-        The camera's loop cost with the target poses of each lens, both weighted with the
-        pixel noise the fitted lens leaves (the given lens's own residuals would inflate it).
-    """
-
-    intrinsics: Intrinsics
-    rms_given_px: float
-    rms_freed_px: float
-    cost_given: float
-    cost_freed: float
-
-
-def _lens_model(intr: Intrinsics) -> str:
-    """The model name of :data:`multieye.core.intrinsics.LENS_MODELS` to free ``intr`` in
-    (no distortion given: OpenCV's five coefficients)."""
-    if intr.model != "pinhole":
-        return intr.model                       # fisheye and the wide-angle models
-    return {4: "pinhole-radtan4"}.get(intr.dist.size,
-                                      "pinhole-rational" if intr.dist.size >= 8
-                                      else "pinhole-radtan")
-
-
-def _pnp_with_rms(cam: CameraEvidence, intr: Intrinsics):
-    from multieye.imaging.detect import Detection  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
-    from multieye.imaging.pnp import estimate_pose  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
-
-    poses, rms = [], []
-    for obj, img in zip(cam.object_points, cam.image_points):
-        det = Detection(ids=np.arange(len(obj)), image_points=np.asarray(img, dtype=np.float64),
-                        object_points=np.asarray(obj, dtype=np.float64))
-        try:
-            est = estimate_pose(det, intr)
-        except Exception:   # noqa: BLE001 - PnP failing under a wrong hypothesis is an answer
-            return None
-        poses.append(est.T_cam_target)
-        rms.append(est.rms_px)
-    return np.stack(poses), np.asarray(rms, dtype=np.float64)
-
-
-def lens_bound(cam: CameraEvidence, mocap_sigma: tuple[float, float]
-               ) -> tuple[float, float] | None:
-    """What a freed lens could at most show, without freeing it (:func:`lens_search` costs
-    0.2-1 s a camera): the median over the views of the given lens's reprojection RMS, and
-    the camera's loop cost with its target poses weighted as if the pixel noise were at its
-    floor (0.05 px, the least the PnP noise is predicted from).
-
-    A freed lens fits the pixels at best to the noise, so the given lens's RMS bounds the
-    systematic part it could reveal; and :func:`lens_search` weighs the given lens's poses
-    with the pixel noise the freed lens leaves, at least that floor, so the cost here bounds
-    the loop cost it reports for them.  None without points or reprojection RMS.
-    """
-    if not cam.has_points or cam.rms_px is None:
-        return None
-    floor = noise(cam, mocap_sigma, rms_px=np.full(len(cam.A), _MIN_RMS_PX))
-    return float(np.median(cam.rms_px)), fit([cam.A], [cam.B], [floor]).cost
-
-
-def lens_search(cam: CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTest | None:
-    """Free the lens: fit the camera's intrinsics (the given model, every parameter) to its
-    own detections (:func:`multieye.imaging.calibrate.initial_intrinsics`) and compare the
-    reprojection and loop residuals with those of the given lens; None when the camera has
-    fewer than :data:`MIN_LENS_VIEWS` views, fewer than 8 points per view (one marker's 4
-    corners do not determine a lens), or the fit fails."""
-    from multieye.imaging.calibrate import initial_intrinsics  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
-
-    if not cam.has_points or len(cam.A) < MIN_LENS_VIEWS:
-        return None
-    if np.median([len(p) for p in cam.image_points]) < _MIN_LENS_POINTS:
-        return None
-    intr = cam.intrinsics
-    size = ((intr.width, intr.height) if intr.width is not None and intr.height is not None
-            else (int(round(2 * intr.K[0, 2] + 1)), int(round(2 * intr.K[1, 2] + 1))))
-    pick = np.unique(np.linspace(0, len(cam.A) - 1, min(len(cam.A), _MAX_LENS_VIEWS)
-                                 ).round().astype(int))
-    views = [(cam.object_points[i], cam.image_points[i]) for i in pick]
-    try:
-        with np.errstate(all="ignore"):
-            freed = initial_intrinsics(views, size, _lens_model(intr), name=cam.name).intrinsics
-    except InputError:
-        return None
-    given, fitted = _pnp_with_rms(cam, intr), _pnp_with_rms(cam, freed)
-    if given is None or fitted is None:
-        return None
-    # both lenses' poses weighted with the pixel noise the fitted lens leaves
-    w = noise(cam, mocap_sigma, rms_px=fitted[1])
-    return LensTest(freed, float(np.median(given[1])), float(np.median(fitted[1])),
-                    _cost_with(cam, given[0], w), _cost_with(cam, fitted[0], w))

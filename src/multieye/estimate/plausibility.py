@@ -30,7 +30,7 @@ solving the closed form again (:mod:`multieye.estimate.hypotheses`):
     Per camera with detected points, PnP run again with the focal length scaled (found by a
     search on the loop residuals), or with the camera matrix scaled by a common resize factor
     (intrinsics calibrated on images of another size, the file stating no size); and the lens
-    freed (:func:`multieye.estimate.hypotheses.lens_search`: every intrinsic parameter of the
+    freed (:func:`multieye.estimate.lens_freed.lens_search`: every intrinsic parameter of the
     given model fitted to the camera's own detections): named when the given lens leaves
     reprojection residuals at least :data:`LENS_PIXEL_GAIN` times those of the freed lens (and
     at least :data:`MIN_LENS_EXCESS_PX` beyond them), or when the freed lens's target poses fit
@@ -85,6 +85,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.problem import SETUPS
 from multieye.estimate import hypotheses as h
+from multieye.estimate import lens_freed as lf
 from multieye.estimate.findings import (
     Declared,
     Finding,
@@ -315,12 +316,12 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
     Not freed (it costs 0.2-1 s a camera) when neither finding could follow: the given lens
     leaves less than :data:`MIN_LENS_EXCESS_PX` of reprojection RMS (so no systematic part
     that large) and its poses fit the loop even weighted as if the pixel noise were at its
-    floor (:func:`multieye.estimate.hypotheses.lens_bound`)."""
-    bound = h.lens_bound(cam, sigma)
+    floor (:func:`multieye.estimate.lens_freed.lens_bound`)."""
+    bound = lf.lens_bound(cam, sigma)
     if bound is not None and bound[0] < MIN_LENS_EXCESS_PX and bound[1] < POOR_COST:
         tested.append(f"intrinsics:{cam.name}")
         return None
-    test = h.lens_search(cam, sigma)
+    test = lf.lens_search(cam, sigma)
     if test is None:
         return None
     tested.append(f"intrinsics:{cam.name}")
@@ -341,7 +342,8 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
     return Finding(
         "intrinsics", f"intrinsics: camera {cam.name}'s lens freed (fitted to its own "
         f"detections) fits better than the given intrinsics: reprojection RMS "
-        f"{test.rms_given_px:.3g} -> {test.rms_freed_px:.3g} px, loop residuals "
+        f"{test.rms_given_px:.3g} -> {test.rms_freed_px:.3g} px, mean loop residual "
+        f"{_loop(test.loop_given)} -> {_loop(test.loop_freed)}, loop residuals "
         f"{_times(test.cost_given)} -> {_times(test.cost_freed)} times what the noise explains "
         f"(fx {given.K[0, 0]:.1f} -> {freed.K[0, 0]:.1f} px; distortion "
         f"{_coefficients(given.dist)} -> {_coefficients(freed.dist)}): {why}; calibrate the "
@@ -349,7 +351,15 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
         "refine_intrinsics: true)", cam.name, test.cost_given,
         test.cost_freed, {"rms_given_px": test.rms_given_px,
                           "rms_freed_px": test.rms_freed_px, "cost_given": test.cost_given,
-                          "cost_freed": test.cost_freed})
+                          "cost_freed": test.cost_freed,
+                          "loop_given_deg": test.loop_given[0], "loop_given_m": test.loop_given[1],
+                          "loop_freed_deg": test.loop_freed[0],
+                          "loop_freed_m": test.loop_freed[1]})
+
+
+def _loop(residual: tuple[float, float]) -> str:
+    """``1.03 deg / 14.5 mm``."""
+    return f"{residual[0]:.3g} deg / {1e3 * residual[1]:.3g} mm"
 
 
 def check_noise(report: Plausibility, refined: RefinementResult | None, mocap=None, *,

@@ -173,8 +173,8 @@ class CameraDetails:
         existed.
     selection : dict or None
         What the image selection did (docs/recordings.md, section 1): ``budget``, ``seen``,
-        ``kept``, ``stage``, ``without_mocap``; None when it did not choose among this
-        camera's images.
+        ``kept``, ``stage``, ``without_mocap``, and ``unusable``, ``refilled`` (absent in files
+        of earlier versions); None when it did not choose among this camera's images.
     """
 
     name: str
@@ -199,6 +199,9 @@ class CameraDetails:
 
 #: Keys of a camera's ``selection`` and their types.
 SELECTION_KEYS = {"budget": int, "seen": int, "kept": int, "stage": str, "without_mocap": int}
+#: ... and those files of earlier versions lack (chosen images that proved unusable, and the
+#: images chosen again in their place).
+SELECTION_LATER_KEYS = {"unusable": int, "refilled": int}
 
 
 @dataclass(frozen=True)
@@ -508,10 +511,12 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
                           f"{overlaps!r}", name)
         estimated, intr_cov = _read_estimated(r, c.get("intrinsics"), intr, name)
         selection = c.get("selection")
+        types = {**SELECTION_KEYS, **SELECTION_LATER_KEYS}
         if selection is not None and not (
-                isinstance(selection, Mapping) and set(selection) == set(SELECTION_KEYS)
-                and all(isinstance(selection[k], t) and not isinstance(selection[k], bool)
-                        for k, t in SELECTION_KEYS.items())):
+                isinstance(selection, Mapping) and set(SELECTION_KEYS) <= set(selection)
+                and set(selection) <= set(types)
+                and all(isinstance(v, types[k]) and not isinstance(v, bool)
+                        for k, v in selection.items())):
             raise r.error(f"selection must be an object with {', '.join(SELECTION_KEYS)}, got "
                           f"{selection!r}", name)
         cameras.append(CameraDetails(

@@ -73,6 +73,7 @@ from multieye.core.intrinsics import WIDE_MODELS, Intrinsics
 from multieye.core.names import file_stems
 from multieye.io.atomic import confined_to, make_folder, write_text_atomic
 from multieye.io.intrinsics_files import camera_info_text, distortion_model_name
+from multieye.outputs.folder import claim_output
 from multieye.outputs.stereo import opencv_stereo_lines, per_camera, stereo_pairs
 from multieye.io.cameramodel import cameramodel_text
 from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict,
@@ -446,17 +447,21 @@ def export(out_dir: str | os.PathLike, fmt: str, *,
     InputError
         Unknown format, or intrinsics that Kalibr's models cannot hold.
     DatasetError
-        ``calibration.json`` missing or invalid; ``details.json`` missing for ``kalibr``.
+        ``calibration.json`` missing or invalid; ``details.json`` missing for ``kalibr``;
+        another multieye run holds ``out_dir`` (:func:`~multieye.outputs.folder.claim_output`).
     """
     if fmt not in FORMATS:
         raise InputError(f"unknown export format {fmt!r}; expected one of {', '.join(FORMATS)}")
     out = Path(out_dir)
-    rec = read_calibration(out / "calibration.json")
-    folder = Path(dest) if dest is not None else out / "export"
-    # Nothing written through a link below the folder the files belong in (docs/outputs.md).
-    with confined_to(out if dest is None else folder):
-        return _export(out, rec, fmt, folder, dest, [] if notes is None else notes,
-                       parent_frame, child_frame)
+    # Holding OUT as a calibration does (refused while one runs: its swap would remove these
+    # files, issue 32); re-entrant, so a caller holding it already goes on.
+    with claim_output(out, replace=False):
+        rec = read_calibration(out / "calibration.json")
+        folder = Path(dest) if dest is not None else out / "export"
+        # Nothing written through a link below the folder the files belong in (docs/outputs.md).
+        with confined_to(out if dest is None else folder):
+            return _export(out, rec, fmt, folder, dest, [] if notes is None else notes,
+                           parent_frame, child_frame)
 
 
 def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, notes: list[str],

@@ -55,6 +55,8 @@ from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUnc
                                          read_calibration)
 from multieye.io.run_details import RunDetails, read_run_details
 from multieye.core.metrics import pose_row
+from multieye.outputs.folder import claim_output
+from multieye.outputs.summary import lens_sigmas, pose_sigmas, reprojection_rms_px
 from multieye.outputs.html import figure as _figure
 from multieye.outputs.html import num as _num
 from multieye.outputs.html import table as _table
@@ -164,14 +166,30 @@ footer { margin-top: 36px; padding-top: 10px; border-top: 1px solid var(--line);
 # --------------------------------------------------------------------------- sections
 
 
+def _headline_cards(rec: CalibrationRecord) -> tuple[list[tuple[str, str]], str]:
+    """The figures that say how good the result is, by setup (:func:`multieye.outputs.
+    summary.headline`): the loop residual where motion capture links the cameras; else the
+    reprojection RMS and each camera's sigma, with the pose residuals as a note below."""
+    loop = [("mean rotation residual", f"{rec.residuals.e_R_deg:.3f}°"),
+            ("mean translation residual", f"{rec.residuals.e_t_m * 1e3:.2f} mm")]
+    if rec.mocap:
+        return loop, ""
+    rms = reprojection_rms_px(rec)
+    cards = [("reprojection RMS", "-" if rms is None else f"{rms:.2f} px")]
+    cards += [(f"σ {n}", f"{d:.3f}° / {m * 1e3:.2f} mm") for n, d, m in pose_sigmas(rec)]
+    cards += [(f"σ lens {n}", f"{s:.2f} px") for n, s in lens_sigmas(rec)]
+    note = ('<p class="note">Pose residuals, a diagnostic (each view\'s target pose against the '
+            f"rig's; not the accuracy): mean rotation {escape(loop[0][1])}, translation "
+            f"{escape(loop[1][1])}.</p>")
+    return cards, note
+
+
 def _summary(rec: CalibrationRecord, out: Path) -> str:
     used = sum(c.measurements_used for c in rec.cameras)
     rejected = sum(len(c.rejected) for c in rec.cameras)
+    figures, diagnostic = _headline_cards(rec)
     cards = [("cameras", str(len(rec.cameras))), ("images used", str(used)),
-             ("rejected", str(rejected)),
-             ("mean rotation residual", f"{rec.residuals.e_R_deg:.3f}°"),
-             ("mean translation residual", f"{rec.residuals.e_t_m * 1e3:.2f} mm"),
-             ("warnings", str(len(rec.warnings)))]
+             ("rejected", str(rejected)), *figures, ("warnings", str(len(rec.warnings)))]
     cards_html = "".join(f'<div class="card"><div class="k">{escape(k)}</div>'
                          f'<div class="v">{escape(v)}</div></div>' for k, v in cards)
     sub = (f"{escape(rec.setup)} setup &middot; method <b>{escape(rec.method)}</b> &middot; "
@@ -189,7 +207,7 @@ def _summary(rec: CalibrationRecord, out: Path) -> str:
               f"{_vector(pose_row(rec.Y)[:3], '.4f')} m, yaw pitch roll "
               f"{_vector(pose_row(rec.Y)[3:], '.3f')} deg.</p>")
     return (f"<header><h1>Calibration report</h1><p class=\"sub\">{sub}</p>"
-            f'<div class="cards">{cards_html}</div>{shared}<nav>{nav}</nav></header>')
+            f'<div class="cards">{cards_html}</div>{diagnostic}{shared}<nav>{nav}</nav></header>')
 
 
 def _vector(v, fmt: str) -> str:
@@ -527,16 +545,20 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
     Raises
     ------
     DatasetError
-        ``calibration.json`` is missing or invalid, or the folder is not writable.
+        ``calibration.json`` is missing or invalid, the folder is not writable, or another
+        multieye run holds it (:func:`~multieye.outputs.folder.claim_output`).
     """
     from multieye.outputs.report_draw import figure_workers, submit_figures  # noqa: PLC0415 (heavy: the figure modules and OpenCV, only when figures are drawn)
 
     out = Path(out_dir)
-    rec = read_calibration(out / "calibration.json")
-    details, notes = load_details(out, rec)
-    with figure_workers(processes) as workers:
-        return write_report_from(out, rec, details, submit_figures(rec, details, workers),
-                                 notes=notes, shown_as=shown_as, images=images)
+    # held as a calibration holds it: refused while one runs, whose swap would remove the
+    # report (issue 32); re-entrant, so a caller holding it already goes on
+    with claim_output(out, replace=False):
+        rec = read_calibration(out / "calibration.json")
+        details, notes = load_details(out, rec)
+        with figure_workers(processes) as workers:
+            return write_report_from(out, rec, details, submit_figures(rec, details, workers),
+                                     notes=notes, shown_as=shown_as, images=images)
 
 
 def write_report_from(out_dir: str | os.PathLike, rec: CalibrationRecord,

@@ -18,7 +18,7 @@ from multieye.io.run_details import TIMING_KEYS, StageTimings
 from multieye.core.metrics import extrinsic_errors, pose_row
 
 __all__ = ["format_table", "calibration_table", "comparison_table", "timings_line",
-           "check_table"]
+           "check_table", "headline", "reprojection_rms_px", "pose_sigmas", "lens_sigmas"]
 
 
 def timings_line(timings: StageTimings) -> str:
@@ -59,10 +59,67 @@ def _shown(key: str, name: str) -> str:
     return key if key == name else f"{name} (calibration.json: {key})"
 
 
+def reprojection_rms_px(rec: CalibrationRecord) -> float | None:
+    """The reprojection RMS over every camera's used images (each camera's RMS weighted by
+    its images), pixels; None when no camera has one."""
+    cams = [(c.measurements_used, c.residuals.reprojection_rms_px) for c in rec.cameras
+            if c.residuals is not None and c.residuals.reprojection_rms_px is not None]
+    n = sum(k for k, _ in cams)
+    return None if not n else float(np.sqrt(sum(k * r * r for k, r in cams) / n))
+
+
+def pose_sigmas(rec: CalibrationRecord) -> list[tuple[str, float, float]]:
+    """``(camera, std deg, std m)`` of ``T_ref_cam`` of every camera but the reference (whose
+    pose is the identity), where the uncertainty is known."""
+    out = []
+    for c in rec.cameras:
+        unc = None if not c.uncertainty else c.uncertainty.get("T_ref_cam")
+        if c.name != rec.reference_camera and unc is not None:
+            out.append((c.name, unc.std_rot_deg, unc.std_trans_m))
+    return out
+
+
+def lens_sigmas(rec: CalibrationRecord) -> list[tuple[str, float]]:
+    """``(camera, px)``: the mean standard deviation of the projection of every estimated
+    lens whose uncertainty is known."""
+    return [(c.name, c.intrinsics.projection_std_px[0]) for c in rec.cameras
+            if c.intrinsics is not None and c.intrinsics.estimated
+            and c.intrinsics.projection_std_px is not None]
+
+
+def headline(rec: CalibrationRecord) -> list[str]:
+    """The first lines of the summary: the figures that say how good the result is, by setup.
+
+    Cameras linked by motion capture: the mean loop residual of ``A_i X = Y B_i`` (the hand-eye
+    fit).  One camera, or cameras linked only by the views they share (no motion capture):
+    the reprojection RMS and each camera's sigma (its pose relative to the reference, its
+    lens when estimated); the pose residuals there compare each view's target pose with the
+    rig's, which the estimated lens and the board poses absorb, so they are a diagnostic on
+    a line of their own below, not the accuracy.
+    """
+    head = f"{rec.setup}, method {rec.method}, reference {rec.reference_camera}: "
+    loop = (f"mean e_R {rec.residuals.e_R_deg:.3f} deg, e_t {rec.residuals.e_t_m * 1e3:.2f} "
+            "mm")
+    if rec.mocap:
+        return [head + "mean loop residual " + loop.removeprefix("mean ")]
+    rms = reprojection_rms_px(rec)
+    parts = ["reprojection RMS " + ("-" if rms is None else f"{rms:.2f} px")]
+    poses = pose_sigmas(rec)
+    if poses:
+        parts.append("sigma of T_ref_cam " + ", ".join(
+            f"{n} {d:.3f} deg / {m * 1e3:.2f} mm" for n, d, m in poses))
+    lenses = lens_sigmas(rec)
+    if lenses:
+        parts.append("sigma of the projection " + ", ".join(f"{n} {s:.2f} px"
+                                                           for n, s in lenses))
+    return [head + "; ".join(parts),
+            f"pose residuals (a diagnostic, not the accuracy): {loop}"]
+
+
 def calibration_table(rec: CalibrationRecord) -> str:
     """Per-camera summary of a calibration, with the transforms people came for.
 
-    First every camera's own unknown ``X`` (``T_world_cam`` or ``T_body_cam``) as tx ty tz
+    After the :func:`headline`, every camera's own unknown ``X`` (``T_world_cam`` or ``T_body_cam``) as tx ty tz
     (metres) and yaw pitch roll (degrees, ``R = Rz(yaw) Ry(pitch) Rx(roll)``) with its
     standard deviations (root of the trace of its rotation and translation covariance) and
     the measurements used and rejected, mean loop residuals (degrees, millimetres) and
@@ -95,9 +152,7 @@ def calibration_table(rec: CalibrationRecord) -> str:
             _f(None if c.time_offset_std_s is None else c.time_offset_std_s * 1e3, ".2f"),
         ])
     keep = [i for i in range(len(header)) if i < 12 or any(row[i] != "-" for row in rows)]
-    lines = [f"{rec.setup}, method {rec.method}, reference {rec.reference_camera}: "
-             f"mean loop residual e_R {rec.residuals.e_R_deg:.3f} deg, e_t {rec.residuals.e_t_m * 1e3:.2f} mm",
-             f"{_shown(x_key, x_name)} of every camera:",
+    lines = [*headline(rec), f"{_shown(x_key, x_name)} of every camera:",
              format_table([header[i] for i in keep], [[row[i] for i in keep] for row in rows])]
     if rec.mocap:
         y_unc = None if not rec.uncertainty else rec.uncertainty.get(y_key)

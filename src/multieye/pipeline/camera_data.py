@@ -24,7 +24,6 @@ from multieye.io import (
     RejectedItem,
     Rig,
     Trajectory,
-    iter_bag_images,
     list_image_files,
     skipped_entries,
     read_mocap,
@@ -32,12 +31,12 @@ from multieye.io import (
 )
 from multieye.pipeline.boards import camera_boards, no_usable_image as _no_usable_image, per_board
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
-from multieye.pipeline.detection import Workers, detect_all
+from multieye.pipeline.detection import Workers, detect_all, detect_listed
 from multieye.pipeline.estimated_lens import lens_start, start_lens, with_poses
-from multieye.pipeline.recordings import check_sync, listed_images, poses_by_name_of, sync_instant
+from multieye.pipeline.recordings import check_sync, poses_by_name_of, sync_instant
 from multieye.pipeline.rig_model import RigModel, build_rig_model
-from multieye.pipeline.selection import SelectionSummary, motion_first, preselected
-from multieye.pipeline.frames import bag_frames, video_frames, video_listing
+from multieye.pipeline.selection import (Chosen, SelectionSummary, motion_first, preselected,
+                                         with_refills)
 from multieye.solvers.methods import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
 
@@ -210,10 +209,12 @@ class _Detected:
     seconds: float
     intrinsics: Intrinsics | None = None     # the started lens, when it was estimated
     notes: tuple[tuple[str, str], ...] = ()  # (camera/image, cause)
+    chosen: Chosen | None = None             # the choice before decoding, with its refills
 
 
 def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrinsics | None,
-                              workers: Workers, *, listed=None, extra_views=()) -> _Detected:
+                              workers: Workers, *, listed=None, extra_views=(),
+                              chosen: Chosen | None = None) -> _Detected:
     """Detection and PnP over a folder of time-stamped images, or a bag's image topic.
 
     Without ``intr`` (a camera whose lens is estimated), detection runs alone, the lens
@@ -221,43 +222,21 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
     poses follow by PnP with it; the start is then ``_Detected.intrinsics``. ``listed``:
     the images as ``(stamp, ns, path)`` instead of the folder's time-stamped names.
     ``extra_views``: detection-only results of the camera's ``intrinsics_images``, which
-    inform the starting lens too.
+    inform the starting lens too.  ``chosen``: the images chosen before decoding (then
+    ``listed``), to which more are added while chosen ones prove unusable
+    (:func:`~multieye.pipeline.selection.with_refills`).
     """
     cam = rig.cameras[name]
     source = {"images": cam.images, "rosbag": cam.rosbag, "video": cam.video}[cam.source]
-    topic = cam.topic
     target, boards = camera_boards(rig, name, model.targets)
     lost: list = []
-    if cam.source == "video":
-        stamped = []
-        t0 = time.perf_counter()   # the video is read as the frames are detected
-        results = workers.detect_arrays(
-            video_frames(cam, video_listing(cam) if listed is None else listed, stamped, lost),
-            target, intr)
-        seconds = time.perf_counter() - t0
-    elif topic is None:
-        images = listed_images(rig, name) if listed is None else listed
-        t0 = time.perf_counter()
-        results = workers.detected.get((name, "images"))
-        if results is None:
-            results = workers.detect([p for _, _, p in images], target, intr)
-        seconds = workers.seconds.get((name, "images"), time.perf_counter() - t0)
-        stamped = [(stamp, path.name) for stamp, _, path in images]
-    else:
-        stamped = []
-
-        def frames():
-            for stamp_ns, image in iter_bag_images(source, topic):
-                label = f"{topic}@{stamp_ns}"
-                stamped.append((stamp_ns * 1e-9, label))
-                yield label, image
-
-        t0 = time.perf_counter()   # the bag is read as the frames are detected
-        chosen = frames() if listed is None else bag_frames(cam, listed, stamped)
-        results = workers.detect_arrays(chosen, target, intr)
-        seconds = time.perf_counter() - t0
-        if not stamped:
-            raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
+    stamped, results, seconds = detect_listed(rig, model, name, intr, workers, listed, lost)
+    t0, n_first = time.perf_counter(), len(results)
+    stamped, results, chosen = with_refills(
+        chosen, (stamped, results),
+        lambda items: detect_listed(rig, model, name, intr, workers, items, lost, fresh=True)[:2],
+        usable=lambda r: r.ok if intr is not None else r.reason is None)
+    seconds += time.perf_counter() - t0
     lens, n_images = None, len(stamped)
     stamped, results, boards = per_board(stamped, results, boards)    # one per (image, board)
     if intr is None:
@@ -266,7 +245,7 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
             raise DatasetError(_no_usable_image(rig, [RejectedItem(lb, r.reason) for (_, lb), r
                                                       in zip(stamped, results)], n_images),
                                path=source, camera=name)
-        started = None if extra_views else workers.started.get(name)
+        started = None if extra_views or len(results) > n_first else workers.started.get(name)
         if started is not None:     # started by the detection's workers (detect_all)
             lens = lens_start(name, cam.model, results, started.start)
             results = list(started.results)
@@ -296,7 +275,8 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
         raise DatasetError(_no_usable_image(rig, rejected, n_images), path=source, camera=name)
     return _Detected(observations=obs, rejected=rejected, n_inputs=n_images + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
-                     intrinsics=None if lens is None else lens.intrinsics, notes=tuple(notes))
+                     intrinsics=None if lens is None else lens.intrinsics, notes=tuple(notes),
+                     chosen=chosen)
 
 
 def _detect_intrinsics_images(cam, model: RigModel, intr: Intrinsics | None, workers: Workers
@@ -412,6 +392,7 @@ class _Seen:
     seconds: float = 0.0
     views: tuple[Observation, ...] = ()
     notes: tuple[tuple[str, str], ...] = ()
+    selection: SelectionSummary | None = None
 
 
 def _camera_data(rig: Rig, model: RigModel, name: str, motion: CameraMotion, workers: Workers,
@@ -433,7 +414,7 @@ def _camera_data(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
                       warnings=seen.warnings, detection_s=seen.seconds,
                       intrinsics_estimated=cam.estimate_intrinsics, intrinsics_views=seen.views,
                       by_name=by_name, image_notes=seen.notes,
-                      selection=None if chosen is None else chosen[2])
+                      selection=seen.selection)
 
 
 def _from_poses(cam, lens: Intrinsics | None) -> _Seen:
@@ -460,9 +441,10 @@ def _from_images(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
     extra = None
     if cam.intrinsics_images is not None and intr is None:
         extra = _detect_intrinsics_images(cam, model, None, workers)
-    listed, left = (motion.listed, []) if chosen is None else chosen[:2]
-    det = _observations_from_images(rig, model, name, intr, workers, listed=listed,
-                                    extra_views=() if extra is None else extra[1])
+    det = _observations_from_images(rig, model, name, intr, workers,
+                                    listed=motion.listed if chosen is None else chosen.kept,
+                                    extra_views=() if extra is None else extra[1], chosen=chosen)
+    left = [] if det.chosen is None else det.chosen.left
     rejected = list(motion.unmatched) + det.rejected + list(left)
     n_inputs = (det.n_inputs + len(left)
                 + sum(r.reason.startswith("no pose file") for r in motion.unmatched))
@@ -473,7 +455,7 @@ def _from_images(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
         rejected, seconds = rejected + lost, seconds + s
     return _Seen(intrinsics=intr, observations=tuple(det.observations), rejected=tuple(rejected),
                  n_inputs=n_inputs, warnings=det.warnings, seconds=seconds, views=tuple(views),
-                 notes=det.notes)
+                 notes=det.notes, selection=None if det.chosen is None else det.chosen.summary)
 
 
 @dataclass(frozen=True)

@@ -17,12 +17,14 @@ from multieye.imaging.batch import (
 )
 from multieye.imaging.calibrate import lens_start_task
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
-from multieye.io import Rig, list_image_files
+from multieye.core.errors import DatasetError
+from multieye.io import Rig, iter_bag_images, list_image_files
 from multieye.pipeline.boards import camera_boards
+from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.pipeline.recordings import listed_images
 from multieye.pipeline.rig_model import RigModel
 
-__all__ = ["Workers", "detect_all"]
+__all__ = ["Workers", "detect_all", "detect_listed"]
 
 
 @dataclass(frozen=True)
@@ -78,7 +80,7 @@ def detect_all(rig: Rig, model: RigModel, motions: dict, workers: Workers, chose
             continue
         intr = model.lenses[name]
         target, _ = camera_boards(rig, name, model.targets)
-        listed = (chosen[name][0] if name in chosen
+        listed = (chosen[name].kept if name in chosen
                   else getattr(motions.get(name), "listed", None))
         images = listed_images(rig, name) if listed is None else listed
         if (intr is None and cam.model is not None and cam.intrinsics_images is None
@@ -101,3 +103,54 @@ def detect_all(rig: Rig, model: RigModel, motions: dict, workers: Workers, chose
     return replace(workers, detected=dict(zip(keys, results)),
                    seconds={k: seconds * len(job.paths) / total for k, job in zip(keys, jobs)},
                    started={keys[j][0]: lens for j, lens in started.items()})
+
+
+def detect_listed(rig: Rig, model: RigModel, name: str, intr, workers: Workers, listed,
+                  lost: list, *, fresh: bool = False) -> tuple[list, list, float]:
+    """Detection (and PnP with ``intr`` unless None) of one camera's images: its folder's
+    time-stamped images, its video's frames or its bag's image topic, or only those
+    ``listed`` as ``(stamp, ns, item)``.  The folder's images come from the detection of
+    :func:`detect_all` unless ``fresh`` (images chosen again after the first ones proved
+    unusable, :func:`multieye.pipeline.selection.with_refills`).  Video frames that could
+    not be decoded are appended to ``lost`` as ``(label, reason)``.
+
+    Returns
+    -------
+    stamped : list of (float, str)
+        Per image detected: its stamp (camera clock, seconds) and label.
+    results : list of ImageResult
+        In the same order.
+    seconds : float
+    """
+    cam = rig.cameras[name]
+    target, _ = camera_boards(rig, name, model.targets)
+    t0 = time.perf_counter()
+    if cam.source == "video":
+        stamped: list = []         # the video is read as the frames are detected
+        results = workers.detect_arrays(
+            video_frames(cam, video_listing(cam) if listed is None else listed, stamped, lost),
+            target, intr)
+        return stamped, results, time.perf_counter() - t0
+    if cam.topic is None:
+        images = listed_images(rig, name) if listed is None else listed
+        results = None if fresh else workers.detected.get((name, "images"))
+        if results is None:
+            results = workers.detect([p for _, _, p in images], target, intr)
+        seconds = time.perf_counter() - t0 if fresh else workers.seconds.get(
+            (name, "images"), time.perf_counter() - t0)
+        return [(stamp, path.name) for stamp, _, path in images], results, seconds
+    stamped = []
+
+    def frames():
+        for stamp_ns, image in iter_bag_images(cam.rosbag, cam.topic):
+            label = f"{cam.topic}@{stamp_ns}"
+            stamped.append((stamp_ns * 1e-9, label))
+            yield label, image
+
+    # the bag is read as the frames are detected
+    chosen = frames() if listed is None else bag_frames(cam, listed, stamped)
+    results = workers.detect_arrays(chosen, target, intr)
+    if not stamped and not fresh:
+        raise DatasetError(f"image topic {cam.topic} holds no images", path=cam.rosbag,
+                           camera=name)
+    return stamped, results, time.perf_counter() - t0

@@ -12,14 +12,22 @@ After detection (:func:`select_paired`): per camera still over its budget once p
 images that add most (:func:`multieye.estimate.selection.select_after_detection`), for a
 camera whose lens is estimated with the coverage of the image and the lens's information.
 
+Chosen images that prove unusable once decoded (the wrong size, undecodable, no target
+detected, a bad PnP fit) are chosen again from the rest (:func:`with_refills`): more of the
+paired images not chosen, the most informative first, until the camera has its budget of
+usable images or none is left; in a recording where most frames do not show the target, the
+first choice alone could leave a camera too few images to calibrate.
+
 Each camera's :class:`SelectionSummary` goes to ``details.json`` and the screen; each image
 left out is a :class:`~multieye.io.RejectedItem` with its reason.
 """
 
 from __future__ import annotations
 
+import math
 import os
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -38,8 +46,8 @@ from multieye.io import RejectedItem, Rig, bag_image_count, list_images
 from multieye.pipeline.frames import bag_listing, video_listing
 from multieye.solvers.methods import MIN_MEASUREMENTS
 
-__all__ = ["SelectionSummary", "preselect", "preselected", "motion_first", "select_paired",
-           "merged"]
+__all__ = ["SelectionSummary", "Chosen", "preselect", "preselected", "motion_first",
+           "select_paired", "merged", "with_refills"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +65,12 @@ class SelectionSummary:
         ``"before decoding"`` or ``"after detection"``.
     without_mocap : int
         Images left out before decoding for want of a motion-capture pose.
+    unusable : int
+        Images chosen before decoding that proved unusable once decoded (counted in
+        ``kept``).
+    refilled : int
+        Images chosen again from the rest because chosen ones proved unusable (counted in
+        ``kept``; :func:`with_refills`).
     """
 
     budget: int
@@ -64,17 +78,51 @@ class SelectionSummary:
     kept: int
     stage: str
     without_mocap: int = 0
+    unusable: int = 0
+    refilled: int = 0
 
     def as_dict(self) -> dict:
         return {"budget": self.budget, "seen": self.seen, "kept": self.kept, "stage": self.stage,
-                "without_mocap": self.without_mocap}
+                "without_mocap": self.without_mocap, "unusable": self.unusable,
+                "refilled": self.refilled}
 
     def line(self, camera: str) -> str:
-        """``cam0: 300 of 5400 images selected before decoding (budget 300)``."""
+        """``cam0: 300 of 5400 images selected before decoding (budget 300)``, and how many
+        chosen images proved unusable and were replaced."""
         extra = (f"; {self.without_mocap} without motion capture not decoded"
                  if self.without_mocap else "")
+        if self.refilled:
+            extra += (f"; {self.unusable} of the images chosen proved unusable, so "
+                      f"{self.refilled} more were chosen from the rest")
+        elif self.unusable:
+            extra += f"; {self.unusable} of the images chosen proved unusable, none left to add"
         return (f"{camera}: {self.kept} of {self.seen} images selected {self.stage} "
                 f"(budget {self.budget}{extra})")
+
+
+@dataclass(frozen=True)
+class Chosen:
+    """One camera's images chosen before decoding (:func:`preselect`).
+
+    Attributes
+    ----------
+    kept : list of (float, int, item)
+        The images to detect, as listed (``item`` a path or a video / bag frame).
+    left : list of RejectedItem
+        The images left out, with their reason.
+    summary : SelectionSummary
+    spare : list of (float, int, item)
+        The images paired with the motion capture but not chosen: where :func:`with_refills`
+        chooses from when chosen images prove unusable.
+    spare_T : ndarray, shape (len(spare), 4, 4)
+        Their motion-capture poses.
+    """
+
+    kept: list
+    left: list
+    summary: SelectionSummary
+    spare: list = field(default_factory=list)
+    spare_T: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
 
 
 def _tolerance(rig: Rig, stamps: list) -> float:
@@ -91,7 +139,8 @@ def merged(before: SelectionSummary | None, after: SelectionSummary) -> Selectio
         return after
     return SelectionSummary(budget=after.budget, seen=before.seen, kept=after.kept,
                             stage="before decoding and after detection",
-                            without_mocap=before.without_mocap)
+                            without_mocap=before.without_mocap, unusable=before.unusable,
+                            refilled=before.refilled)
 
 
 def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dict,
@@ -114,10 +163,11 @@ def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dic
 
     Returns
     -------
-    dict of camera name to (list, list of RejectedItem, SelectionSummary)
-        The images to detect, those left out with their reason, and the summary; a camera
-        with fewer than 3 images paired is not in it (it detects every image, and the
-        pairing says why it fails).
+    dict of camera name to Chosen
+        The images to detect, those left out with their reason, the summary, and the paired
+        images to choose from when chosen ones prove unusable; a camera with fewer than 3
+        images paired is not in it (it detects every image, and the pairing says why it
+        fails).
     """
     stamps, paired, poses, why = {}, {}, {}, {}
     name_ids: dict[str, int] = {}       # paired by name: one instant per image name (stem)
@@ -151,10 +201,75 @@ def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dic
             kept = [item for item, k in zip(listed, sel.keep) if k]
             left = [RejectedItem(path.name, reason)
                     for (_, _, path), k, reason in zip(listed, sel.keep, sel.reasons) if not k]
-            out[n] = (kept, left, SelectionSummary(
+            spare = [k for k, i in enumerate(paired[n]) if not sel.keep[i]]
+            out[n] = Chosen(kept, left, SelectionSummary(
                 budget=b, seen=len(listed), kept=len(kept), stage="before decoding",
-                without_mocap=len(listed) - len(paired[n])))
+                without_mocap=len(listed) - len(paired[n])),
+                spare=[listed[paired[n][k]] for k in spare], spare_T=poses[n][spare])
     return out
+
+
+def with_refills(chosen: Chosen | None, first: tuple[list, list],
+                 detect: Callable[[list], tuple[list, list]],
+                 usable: Callable[[object], bool]) -> tuple[list, list, Chosen | None]:
+    """The detections of a camera's chosen images, and of more chosen from the rest while
+    fewer than the budget proved usable (module docstring).
+
+    Each round chooses, among the paired images not yet tried, the most informative
+    (:func:`multieye.estimate.selection.select_before_decoding`), as many as the images
+    still wanted divided by the share of usable ones so far (Laplace's estimate), so that a
+    recording where half the frames show the target needs one round and one where almost
+    none does is decoded whole; the second pass (:func:`select_paired`) trims a camera
+    that ends over its budget.
+
+    Parameters
+    ----------
+    chosen : Chosen or None
+        The camera's choice before decoding (None: nothing was chosen, nothing to add).
+    first : (list, list)
+        ``stamped`` and ``results`` of the chosen images (:func:`multieye.pipeline.
+        detection.detect_listed`).
+    detect : callable
+        ``detect(items) -> (stamped, results)`` for more listed items.
+    usable : callable
+        Whether an image's result counts towards the budget.
+
+    Returns
+    -------
+    stamped, results : list
+        Of every image detected, the chosen ones first.
+    chosen : Chosen or None
+        With ``left`` and ``summary`` saying what was added (unchanged when nothing was).
+    """
+    stamped, results = list(first[0]), list(first[1])
+    if chosen is None:
+        return stamped, results, chosen
+    budget, tried = chosen.summary.budget, len(chosen.kept)
+    good = sum(1 for r in results if usable(r))
+    spare, added = np.arange(len(chosen.spare)), []
+    while good < budget and len(spare):
+        rate = (good + 1) / (tried + 2)
+        ask = min(len(spare), math.ceil((budget - good) / rate))
+        if ask < len(spare):
+            sel = select_before_decoding({"c": np.zeros(len(spare))},
+                                         {"c": np.arange(len(spare))},
+                                         {"c": chosen.spare_T[spare]}, ask)["c"]
+            pick, spare = spare[sel.keep], spare[~sel.keep]
+        else:
+            pick, spare = spare, spare[:0]
+        batch = [chosen.spare[i] for i in pick]
+        s, r = detect(batch)
+        stamped += s
+        results += r
+        added += batch
+        tried += len(batch)
+        good += sum(1 for x in r if usable(x))
+    if not added and good >= budget:
+        return stamped, results, chosen
+    names = {item.name for _, _, item in added}
+    summary = replace(chosen.summary, kept=tried, refilled=len(added), unusable=tried - good)
+    return stamped, results, replace(chosen, left=[r for r in chosen.left if r.item not in names],
+                                     summary=summary)
 
 
 def _budget(cam, select: int) -> int:

@@ -1,0 +1,259 @@
+"""The lens freed: the plausibility's hypothesis that the given intrinsics do not belong to
+the images (:mod:`multieye.estimate.plausibility` decides what it means), the lens fitted to
+the camera's own detections (:func:`lens_search`) and compared with the given one, in pixels
+and in the loop residuals of the hand-eye fit (:mod:`multieye.estimate.hypotheses`).
+
+A lens given without distortion
+-------------------------------
+An intrinsics file that states a camera matrix and no distortion (or zeros) is a common
+mistake: the coefficients were left out, or read under another key.  Freeing every parameter
+of the lens needs many views (OpenCV's calibration from a handful of views trades the focal
+length against the distortion); the camera matrix given is usually right, so here only the
+radial coefficients k1 and k2 are freed, with the pose of every view, by least squares on the
+pixels::
+
+    min over k1, k2, T_1..T_n of  sum_i sum_p || project(T_i P_p; K, k1, k2) - u_ip ||^2
+
+which a few views of a board determine (the coefficients move the pixels by ``r^2`` and
+``r^4`` of the normalised radius ``r``, which every view of a board spans).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import lil_matrix
+
+from multieye.core import geometry as g
+from multieye.core.errors import InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.core.lens import project_points
+from multieye.estimate import hypotheses as h
+
+__all__ = ["MIN_DISTORTION_VIEWS", "MIN_LENS_VIEWS", "LensTest", "lacks_distortion",
+           "free_distortion", "lens_bound", "lens_search"]
+
+F64 = NDArray[np.float64]
+
+#: Fewest views the distortion is freed on (the camera matrix kept).
+MIN_DISTORTION_VIEWS = 3
+#: Fewest views, and fewest target points per view (median), every parameter of a camera's
+#: lens is freed on.
+MIN_LENS_VIEWS = 5
+_MIN_LENS_POINTS = 8
+#: Most views the lens is fitted on (evenly spaced over the recording; PnP runs on all).
+_MAX_LENS_VIEWS = 50
+#: Models whose first two coefficients are the radial k1 and k2 (OpenCV's pinhole and
+#: fisheye).
+_RADIAL_FIRST = {"pinhole": 5, "fisheye": 4}
+
+
+def lacks_distortion(intr: Intrinsics) -> bool:
+    """Whether ``intr`` is a pinhole or fisheye lens given without distortion (none, or
+    every coefficient zero)."""
+    return intr.model in _RADIAL_FIRST and not np.any(intr.dist)
+
+
+def _with_radial(intr: Intrinsics, k: F64) -> Intrinsics:
+    dist = np.zeros(_RADIAL_FIRST[intr.model])      # OpenCV's 5 (pinhole), or 4 (fisheye)
+    dist[:2] = k
+    return Intrinsics(K=intr.K, dist=dist, model=intr.model, width=intr.width,
+                      height=intr.height)
+
+
+def free_distortion(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
+                    intr: Intrinsics) -> Intrinsics | None:
+    """``intr`` with k1 and k2 fitted to the views (module docstring).
+
+    Parameters
+    ----------
+    views : sequence of (object_points, image_points)
+        Per view: the target points (n, 3), metres, in the target frame, and their pixels
+        (n, 2).
+    T_cam_target : ndarray, shape (len(views), 4, 4)
+        Starting pose of each view (PnP with ``intr``).
+    intr : Intrinsics
+        The given lens (:func:`lacks_distortion`); its camera matrix is kept.
+
+    Returns
+    -------
+    Intrinsics or None
+        The camera matrix of ``intr`` with the fitted k1, k2 (the other coefficients zero);
+        None with fewer than :data:`MIN_DISTORTION_VIEWS` views or when the fit fails.
+    """
+    from scipy.optimize import least_squares  # noqa: PLC0415 (heavy: it imports scipy.spatial, which nothing else on a calibration's path needs; only when a lens is freed)
+
+    n = len(views)
+    if n < MIN_DISTORTION_VIEWS or not lacks_distortion(intr):
+        return None
+    obj = [np.asarray(o, dtype=np.float64) for o, _ in views]
+    img = np.concatenate([np.asarray(u, dtype=np.float64) for _, u in views])
+    which = np.repeat(np.arange(n), [len(o) for o in obj])
+    P = np.concatenate(obj)
+    T = np.asarray(T_cam_target, dtype=np.float64)
+    x0 = np.concatenate([np.zeros(2), np.concatenate(
+        [g.rotvec_from_transform(T), T[:, :3, 3]], axis=1).ravel()])
+
+    def residuals(x: F64) -> F64:
+        pose = x[2:].reshape(n, 6)
+        R = g.rotation_from_rotvec(pose[:, :3])[which]
+        Pc = np.einsum("nij,nj->ni", R, P) + pose[which, 3:]
+        r = (project_points(Pc, _with_radial(intr, x[:2])) - img).ravel()
+        return np.where(np.isfinite(r), r, 1e3)       # a point thrown behind: far off
+
+    sparsity = lil_matrix((2 * len(P), 2 + 6 * n), dtype=int)
+    sparsity[:, :2] = 1
+    for i in range(n):
+        rows = np.flatnonzero(np.repeat(which == i, 2))
+        sparsity[rows[0]:rows[-1] + 1, 2 + 6 * i:8 + 6 * i] = 1
+    try:
+        with np.errstate(all="ignore"):
+            sol = least_squares(residuals, x0, jac_sparsity=sparsity, x_scale="jac",
+                                method="trf", max_nfev=100)
+        return _with_radial(intr, sol.x[:2]) if np.all(np.isfinite(sol.x[:2])) else None
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+
+
+# --------------------------------------------------------------------------- the test
+
+
+@dataclass(frozen=True)
+class LensTest:
+    """The given lens against one fitted to the camera's own detections.
+
+    Attributes
+    ----------
+    intrinsics : Intrinsics
+        The lens fitted to the detections (OpenCV's calibration, the given model).
+    rms_given_px, rms_freed_px : float
+        Median over the views of the PnP reprojection RMS with each lens, pixels.
+    cost_given, cost_freed : float
+        The camera's loop cost with the target poses of each lens, both weighted with the
+        pixel noise the fitted lens leaves (the given lens's own residuals would inflate it).
+    loop_given, loop_freed : (float, float)
+        The camera's mean loop residual with the target poses of each lens: rotation
+        (degrees) and translation (metres).
+    """
+
+    intrinsics: Intrinsics
+    rms_given_px: float
+    rms_freed_px: float
+    cost_given: float
+    cost_freed: float
+    loop_given: tuple[float, float] = (math.nan, math.nan)
+    loop_freed: tuple[float, float] = (math.nan, math.nan)
+
+
+def _lens_model(intr: Intrinsics) -> str:
+    """The model name of :data:`multieye.core.intrinsics.LENS_MODELS` to free ``intr`` in
+    (no distortion given: OpenCV's five coefficients)."""
+    if intr.model != "pinhole":
+        return intr.model                       # fisheye and the wide-angle models
+    return {4: "pinhole-radtan4"}.get(intr.dist.size,
+                                      "pinhole-rational" if intr.dist.size >= 8
+                                      else "pinhole-radtan")
+
+
+def _pnp_with_rms(cam: h.CameraEvidence, intr: Intrinsics):
+    from multieye.imaging.detect import Detection  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
+    from multieye.imaging.pnp import estimate_pose  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
+
+    poses, rms = [], []
+    for obj, img in zip(cam.object_points, cam.image_points):
+        det = Detection(ids=np.arange(len(obj)), image_points=np.asarray(img, dtype=np.float64),
+                        object_points=np.asarray(obj, dtype=np.float64))
+        try:
+            est = estimate_pose(det, intr)
+        except Exception:   # noqa: BLE001 - PnP failing under a wrong hypothesis is an answer
+            return None
+        poses.append(est.T_cam_target)
+        rms.append(est.rms_px)
+    return np.stack(poses), np.asarray(rms, dtype=np.float64)
+
+
+def lens_bound(cam: h.CameraEvidence, mocap_sigma: tuple[float, float]
+               ) -> tuple[float, float] | None:
+    """What a freed lens could at most show, without freeing it (:func:`lens_search` costs
+    0.2-1 s a camera): the median over the views of the given lens's reprojection RMS, and
+    the camera's loop cost with its target poses weighted as if the pixel noise were at its
+    floor (0.05 px, the least the PnP noise is predicted from).
+
+    A freed lens fits the pixels at best to the noise, so the given lens's RMS bounds the
+    systematic part it could reveal; and :func:`lens_search` weighs the given lens's poses
+    with the pixel noise the freed lens leaves, at least that floor, so the cost here bounds
+    the loop cost it reports for them.  None without points or reprojection RMS.
+    """
+    if not cam.has_points or cam.rms_px is None:
+        return None
+    floor = h.noise(cam, mocap_sigma, rms_px=np.full(len(cam.A), h.MIN_RMS_PX))
+    return float(np.median(cam.rms_px)), h.fit([cam.A], [cam.B], [floor]).cost
+
+
+def _loop_residual(cam: h.CameraEvidence, T_cam_target: F64) -> tuple[float, float]:
+    """Mean loop residual of the camera alone with these target poses: degrees, metres."""
+    f = h.fit([cam.A], [g.inv(T_cam_target)], [np.tile(np.eye(6), (len(cam.A), 1, 1))])
+    with np.errstate(all="ignore"):
+        r = h.loop_residuals(cam.A, g.inv(T_cam_target), f.X[0], f.Y)
+    return (float(np.degrees(np.mean(np.linalg.norm(r[:, :3], axis=1)))),
+            float(np.mean(np.linalg.norm(r[:, 3:], axis=1))))
+
+
+def lens_search(cam: h.CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTest | None:
+    """Free the lens: fit the camera's intrinsics to its own detections and compare the
+    reprojection and loop residuals with those of the given lens.  A lens given without
+    distortion keeps its camera matrix and gets k1 and k2 (:func:`multieye.estimate.
+    lens_freed.free_distortion`, from 3 views); any other, every parameter of its model
+    (:func:`multieye.imaging.calibrate.initial_intrinsics`, from :data:`MIN_LENS_VIEWS`).
+    None with too few views, fewer than 8 points per view (one marker's 4 corners do not
+    determine a lens), or when the fit fails."""
+    if not cam.has_points:
+        return None
+    if np.median([len(p) for p in cam.image_points]) < _MIN_LENS_POINTS:
+        return None
+    intr = cam.intrinsics
+    if lacks_distortion(intr):
+        given = _pnp_with_rms(cam, intr)
+        freed = None if given is None else free_distortion(
+            list(zip(cam.object_points, cam.image_points)), given[0], intr)
+        return None if freed is None else _lens_test(cam, mocap_sigma, given, freed)
+    if len(cam.A) < MIN_LENS_VIEWS:
+        return None
+    return _lens_test(cam, mocap_sigma, None, _all_parameters(cam, intr))
+
+
+def _all_parameters(cam: h.CameraEvidence, intr: Intrinsics) -> Intrinsics | None:
+    """Every parameter of ``intr``'s model fitted to (up to 50 of) the camera's views."""
+    from multieye.imaging.calibrate import initial_intrinsics  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
+
+    size = ((intr.width, intr.height) if intr.width is not None and intr.height is not None
+            else (int(round(2 * intr.K[0, 2] + 1)), int(round(2 * intr.K[1, 2] + 1))))
+    pick = np.unique(np.linspace(0, len(cam.A) - 1, min(len(cam.A), _MAX_LENS_VIEWS)
+                                 ).round().astype(int))
+    views = [(cam.object_points[i], cam.image_points[i]) for i in pick]
+    try:
+        with np.errstate(all="ignore"):
+            return initial_intrinsics(views, size, _lens_model(intr), name=cam.name).intrinsics
+    except InputError:
+        return None
+
+
+def _lens_test(cam: h.CameraEvidence, mocap_sigma: tuple[float, float], given,
+               freed: Intrinsics | None) -> LensTest | None:
+    """The given lens (its PnP poses and RMS ``given``, None: computed here) against
+    ``freed``."""
+    if freed is None:
+        return None
+    given = _pnp_with_rms(cam, cam.intrinsics) if given is None else given
+    fitted = _pnp_with_rms(cam, freed)
+    if given is None or fitted is None:
+        return None
+    # both lenses' poses weighted with the pixel noise the fitted lens leaves
+    w = h.noise(cam, mocap_sigma, rms_px=fitted[1])
+    return LensTest(freed, float(np.median(given[1])), float(np.median(fitted[1])),
+                    h.cost_with(cam, given[0], w), h.cost_with(cam, fitted[0], w),
+                    _loop_residual(cam, given[0]), _loop_residual(cam, fitted[0]))
