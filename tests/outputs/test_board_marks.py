@@ -13,7 +13,7 @@ from multieye.io.calibration_json import PoseUncertainty
 from multieye.outputs.board_marks import board_legend, board_lines, board_mark
 from multieye.outputs.details import write_run_details
 from multieye.outputs.figures_rig import rig_pngs
-from test_export import make_run
+from export_runs import make_run
 
 CHESS = TargetSpec("chessboard", 6, 9, 0.1)
 APRIL = TargetSpec("aprilgrid", 4, 5, 0.05, tag_spacing=0.3)
