@@ -1,10 +1,11 @@
 """Pose of a planar target from one detection (perspective-n-point).
 
-IPPE (``cv2.solvePnPGeneric`` with ``SOLVEPNP_IPPE``) on the undistorted, normalised
-points gives the two candidate poses of a planar target; the one with the smaller
+IPPE (``cv2.solvePnPGeneric`` with ``SOLVEPNP_IPPE``) on the points' viewing rays (turned
+into a virtual camera looking along them when they are far off the lens axis:
+:func:`multieye.imaging.rays.ippe_on_rays`) gives the two candidate poses of a planar target; the one with the smaller
 reprojection error in pixels is refined by Levenberg-Marquardt on the pixel reprojection
 error through the full lens model (``cv2.solvePnPRefineLM`` for pinhole cameras, the same
-iteration on ``cv2.fisheye.projectPoints`` for fisheye cameras). Residuals are reported in
+iteration on the lens' own projection and Jacobian for the other models). Residuals are reported in
 pixels of the distorted image.
 
 The other IPPE pose, refined the same way, is kept as :attr:`PoseEstimate.alternative`
@@ -32,8 +33,9 @@ from numpy.typing import NDArray
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.geometry import rotation_from_rotvec
-from multieye.core.lens import project_points, project_with_jacobian, undistort_points
+from multieye.core.lens import project_points, project_with_jacobian
 from multieye.imaging.detect import Detection
+from multieye.imaging.rays import bearings, ippe_on_rays
 
 __all__ = ["PoseEstimate", "estimate_pose", "estimate_poses", "refit_pose", "refit_poses",
            "reprojection_residuals",
@@ -160,7 +162,7 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
         raise InputError(f"PnP needs at least 4 points, got {len(obj)}")
     if not np.abs(obj[:, 2]).max() <= 1e-8:           # np.allclose(z, 0), 10x faster
         raise InputError("PnP here is for planar targets: object points must have z = 0")
-    xy = undistort_points(img, intrinsics)
+    xy = bearings(img, intrinsics)
     ok = np.isfinite(xy).all(axis=1)
     if not ok.all():
         if ok.sum() < 4:
@@ -171,6 +173,9 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
         raise InputError(f"the {len(obj)} points lie on one line: the pose is not determined")
 
     candidates = _ippe_candidates(obj, img, xy, intrinsics)
+    if not candidates:
+        raise InputError(f"the {len(obj)} points' rays span more than a half-space: no "
+                         "planar pose")
     _, rvec, tvec = candidates[0]
     rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
     if detection.circle_diameter is not None:
@@ -211,7 +216,7 @@ def estimate_poses(detections: Sequence[Detection], intrinsics: Intrinsics
               np.asarray(d.image_points, dtype=np.float64)) for d in detections]
     batch = [k for k, (obj, _) in enumerate(views) if detections[k].circle_diameter is None
              and len(obj) >= 4 and np.abs(obj[:, 2]).max() <= 1e-8]
-    every = undistort_points(np.concatenate([views[k][1] for k in batch]), intrinsics) \
+    every = bearings(np.concatenate([views[k][1] for k in batch]), intrinsics) \
         if batch else None
     chosen, starts, at = [], [], 0
     for k in batch:
@@ -220,7 +225,7 @@ def estimate_poses(detections: Sequence[Detection], intrinsics: Intrinsics
         if not np.isfinite(xy_k).all() or _collinear(obj[:, :2]):
             continue                                # alone: fewer points, or its error
         candidates = _ippe_candidates(obj, img, xy_k, intrinsics)
-        if len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
+        if not candidates or len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
             continue                                # alone: it may keep the alternative
         chosen.append(k)
         starts.append(_transform(*candidates[0][1:]))
@@ -239,14 +244,12 @@ def estimate_poses(detections: Sequence[Detection], intrinsics: Intrinsics
     return out
 
 
-def _ippe_candidates(obj: F64, img: F64, xy: F64, intrinsics: Intrinsics) -> list:
-    """IPPE's poses of planar points ``obj`` (z = 0) from their undistorted normalised
-    coordinates ``xy``, as ``(sum of squared pixel errors against img, rvec, tvec)``, the
-    better fit first."""
-    _, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
+def _ippe_candidates(obj: F64, img: F64, rays: F64, intrinsics: Intrinsics) -> list:
+    """IPPE's poses of planar points ``obj`` (z = 0) from their unit viewing ``rays``
+    (:func:`multieye.imaging.rays.ippe_on_rays`), as ``(sum of squared pixel errors against
+    img, rvec, tvec)``, the better fit first (empty when IPPE has none)."""
     candidates = []
-    for rvec, tvec in zip(rvecs, tvecs):
-        rvec, tvec = rvec.reshape(3).copy(), tvec.reshape(3).copy()
+    for rvec, tvec in ippe_on_rays(obj, rays):
         err = _pixel_errors(obj, img, intrinsics, rvec, tvec)
         candidates.append((float(np.sum(err ** 2)), rvec, tvec))
     return sorted(candidates, key=lambda c: c[0])
@@ -270,8 +273,11 @@ def _pixel_errors(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F
     pts = obj.reshape(-1, 1, 3)
     if intrinsics.model == "fisheye":
         uv, _ = cv2.fisheye.projectPoints(pts, rvec, tvec, intrinsics.K, intrinsics.dist)
-    else:
+    elif intrinsics.model == "pinhole":
         uv, _ = cv2.projectPoints(pts, rvec, tvec, intrinsics.K, intrinsics.dist)
+    else:                       # the wide models: their own region, which admits z <= 0
+        uv = project_points(obj @ cv2.Rodrigues(rvec)[0].T + tvec.reshape(3), intrinsics)
+        z = np.ones(len(obj))
     d = uv.reshape(-1, 2) - img
     err = np.sqrt(np.einsum("ij,ij->i", d, d))
     return np.where((z > 0) & np.isfinite(err), err, np.inf)
@@ -474,7 +480,7 @@ def _transform(rvec, tvec) -> F64:
 
 def _refine(obj: F64, img: F64, intrinsics: Intrinsics, rvec, tvec) -> tuple[F64, F64]:
     """Levenberg-Marquardt on the pixel reprojection error through the lens model."""
-    if intrinsics.model == "fisheye":
+    if intrinsics.model != "pinhole":
         return _refine_fisheye(obj, img, intrinsics, rvec, tvec)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-12)
     rvec, tvec = cv2.solvePnPRefineLM(obj, img, intrinsics.K, intrinsics.dist,
@@ -521,10 +527,13 @@ def _centroid_offsets(T_cam_target: F64, centres: F64, radius: float, intrinsics
 
 def _refine_fisheye(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F64,
                     iterations: int = 50) -> tuple[F64, F64]:
-    """Levenberg-Marquardt on the pixel reprojection error of the equidistant model."""
+    """Levenberg-Marquardt on the pixel reprojection error of the equidistant model (and of
+    the wide models, through their own projection and Jacobian)."""
     pts = obj.reshape(-1, 1, 3)
 
     def residual(r, t):
+        if intrinsics.model != "fisheye":
+            return _wide_residual(obj, img, intrinsics, r, t)
         proj, jac = cv2.fisheye.projectPoints(pts, r, t, intrinsics.K, intrinsics.dist)
         return (img - proj.reshape(-1, 2)).ravel(), jac[:, 8:14]   # d/d(rvec, tvec)
 
@@ -548,3 +557,16 @@ def _refine_fisheye(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec:
             if damping > 1e8:
                 break
     return x[:3], x[3:]
+
+
+def _wide_residual(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F64):
+    """``img - uv`` and ``d uv / d (rvec, tvec)`` (2n x 6) through
+    :func:`multieye.core.lens.project_with_jacobian` (0 where a point does not project)."""
+    R, dR = cv2.Rodrigues(np.asarray(rvec, np.float64).reshape(3, 1))
+    P = obj @ R.T + np.asarray(tvec, np.float64).reshape(3)
+    uv, Jp, _ = project_with_jacobian(P, intrinsics, lens_jacobian=False)
+    dP = np.einsum("kij,nj->nik", dR.reshape(3, 3, 3), obj)             # (n, 3, 3)
+    J = np.concatenate([Jp @ dP, Jp], axis=2).reshape(-1, 6)
+    res = (img - uv).ravel()
+    bad = ~np.isfinite(res) | ~np.isfinite(J).all(axis=1)
+    return np.where(bad, 0.0, res), np.where(bad[:, None], 0.0, J)

@@ -37,6 +37,7 @@ from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.detection import Workers, detect_all
 from multieye.pipeline.estimated_lens import check_model, lens_start, start_lens, with_poses
+from multieye.pipeline.estimated_lens import posed_on_refined_lens
 from multieye.pipeline.selection import SelectionSummary, motion_first, preselected
 from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.solvers.methods import MIN_MEASUREMENTS
@@ -285,7 +286,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
             results = list(started.results)
         else:
             lens = start_lens(name, cam.model, list(results) + list(extra_views), source)
-            results = with_poses(results, lens.intrinsics)
+            lens, results = posed_on_refined_lens(lens, results)
     obs, rejected, warnings = [], [], list(lens.warnings if lens else ())
     for (stamp, label), res in zip(stamped, results):
         if res.ok:

@@ -20,11 +20,16 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
-from multieye.imaging.calibrate import InitialIntrinsics, initial_intrinsics, poses_from_detections
+from multieye.imaging.calibrate import (
+    InitialIntrinsics,
+    accept_on_refined_lens,
+    initial_intrinsics,
+    poses_from_detections,
+)
 from multieye.imaging.pnp import refit_poses
 
 __all__ = ["LensStart", "start_lens", "lens_start", "with_poses", "weak_data_warnings", "check_model",
-           "RECOMMENDED_VIEWS"]
+           "RECOMMENDED_VIEWS", "posed_on_refined_lens"]
 
 #: Views of the target a lens model wants before its intrinsics count as well supported.
 RECOMMENDED_VIEWS = {"pinhole-radtan": 10, "pinhole-radtan4": 10, "pinhole-rational": 20,
@@ -141,6 +146,19 @@ def with_poses(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
     (:func:`multieye.imaging.calibrate.poses_from_detections`: a failed PnP or a bad fit
     becomes the image's reason)."""
     return poses_from_detections(results, intrinsics, max_rms_px=max_rms_px)
+
+
+def posed_on_refined_lens(lens: LensStart, results: Sequence[ImageResult], *,
+                          max_rms_px: float = DEFAULT_MAX_RMS_PX
+                          ) -> tuple[LensStart, list[ImageResult]]:
+    """Detection-only results posed with the starting lens, then judged on the refined one
+    (:func:`multieye.imaging.calibrate.accept_on_refined_lens`: an image rejected as a bad
+    fit with the start is taken back when it fits the lens refined on it); the
+    :class:`LensStart` carries the lens the images were judged on."""
+    posed = poses_from_detections(results, lens.intrinsics, max_rms_px=max_rms_px)
+    intrinsics, accepted = accept_on_refined_lens(posed, lens.intrinsics, max_rms_px=max_rms_px)
+    return (lens if intrinsics is lens.intrinsics else replace(lens, intrinsics=intrinsics),
+            accepted)
 
 
 def refit_paired(paired, intrinsics: Intrinsics):
