@@ -20,12 +20,14 @@ from multieye.core.limits import (
     MAX_RADIAL_DISTORTION,
     MAX_SKEW_FRACTION,
     MAX_TANGENTIAL_DISTORTION,
+    MAX_EUCM_BETA,
     MAX_TILT_RAD,
+    MAX_XI,
     MIN_FOCAL_FRACTION,
 )
 
-__all__ = ["Intrinsics", "PINHOLE_DISTORTION_SIZES", "LENS_MODELS", "lens_model",
-           "parameter_names", "check_lens_bounds"]
+__all__ = ["Intrinsics", "PINHOLE_DISTORTION_SIZES", "LENS_MODELS", "WIDE_MODELS",
+           "lens_model", "parameter_names", "check_lens_bounds"]
 
 #: Lengths of OpenCV's pinhole distortion vector (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]).
 PINHOLE_DISTORTION_SIZES = (0, 4, 5, 8, 12, 14)
@@ -37,7 +39,13 @@ LENS_MODELS = {
     "pinhole-radtan4": ("pinhole", ("k1", "k2", "p1", "p2")),   # Kalibr's radtan (k3 = 0)
     "pinhole-rational": ("pinhole", ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")),
     "fisheye": ("fisheye", ("k1", "k2", "k3", "k4")),
+    "unified": ("unified", ("xi", "k1", "k2", "p1", "p2")),      # Mei-Rives; Kalibr omni-radtan
+    "double-sphere": ("double-sphere", ("xi", "alpha")),         # Usenko et al. 2018; Kalibr ds
+    "eucm": ("eucm", ("alpha", "beta")),                         # Khomutenko et al. 2016
 }
+#: The wide-angle models (:mod:`multieye.core.lens_wide`): the :class:`Intrinsics` model is
+#: the rig.yaml name, and the model's parameters come first in ``dist``.
+WIDE_MODELS = ("unified", "double-sphere", "eucm")
 _PINHOLE_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
                   "taux", "tauy")
 
@@ -45,9 +53,10 @@ _PINHOLE_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s
 def lens_model(intrinsics: Intrinsics) -> str:
     """The rig.yaml name of an intrinsics' lens model (``pinhole-radtan`` for 0 or 5
     coefficients, ``pinhole-radtan4`` for 4 (Kalibr's ``radtan``), ``pinhole-rational`` for 8,
-    ``pinhole-thin-prism`` for 12, ``pinhole-tilted`` for 14, ``fisheye``)."""
-    if intrinsics.model == "fisheye":
-        return "fisheye"
+    ``pinhole-thin-prism`` for 12, ``pinhole-tilted`` for 14, ``fisheye``, ``unified``,
+    ``double-sphere``, ``eucm``)."""
+    if intrinsics.model != "pinhole":
+        return intrinsics.model
     return {0: "pinhole-radtan", 4: "pinhole-radtan4", 5: "pinhole-radtan",
             8: "pinhole-rational", 12: "pinhole-thin-prism", 14: "pinhole-tilted"}[
         intrinsics.dist.size]
@@ -55,7 +64,7 @@ def lens_model(intrinsics: Intrinsics) -> str:
 
 def parameter_names(intrinsics: Intrinsics) -> tuple[str, ...]:
     """Names of :attr:`Intrinsics.params` in order: fx fy cx cy, then the distortion."""
-    dist = (("k1", "k2", "k3", "k4") if intrinsics.model == "fisheye"
+    dist = (LENS_MODELS[intrinsics.model][1] if intrinsics.model != "pinhole"
             else _PINHOLE_NAMES[:intrinsics.dist.size])
     return ("fx", "fy", "cx", "cy") + dist
 
@@ -64,8 +73,15 @@ def _bounds(model: str, n: int) -> list[tuple[str, float, str]]:
     """Per distortion coefficient: its name, its bound and what kind of coefficient it is."""
     if model == "fisheye":
         return [(f"k{i + 1}", MAX_RADIAL_DISTORTION, "radial") for i in range(n)]
+    if model == "double-sphere":
+        return [("xi", MAX_XI, "double-sphere xi"), ("alpha", 1.0, "double-sphere alpha")]
+    if model == "eucm":
+        return [("alpha", 1.0, "EUCM alpha"), ("beta", MAX_EUCM_BETA, "EUCM beta")]
     kinds = {"p": (MAX_TANGENTIAL_DISTORTION, "tangential"), "k": (MAX_RADIAL_DISTORTION, "radial"),
              "s": (MAX_RADIAL_DISTORTION, "thin-prism"), "t": (MAX_TILT_RAD, "tilt (radians)")}
+    if model == "unified":
+        return [("xi", MAX_XI, "unified xi (mirror offset)")] + [
+            (name, *kinds[name[0]]) for name in ("k1", "k2", "p1", "p2")]
     return [(name, *kinds[name[0]]) for name in _PINHOLE_NAMES[:n]]
 
 
@@ -78,8 +94,10 @@ def check_lens_bounds(intrinsics: Intrinsics) -> None:
     more than :data:`~multieye.core.limits.MAX_PRINCIPAL_POINT_OUTSIDE` image sides outside
     the image (both only when the image size is known), and distortion coefficients beyond
     :data:`~multieye.core.limits.MAX_RADIAL_DISTORTION` (radial, thin prism),
-    :data:`~multieye.core.limits.MAX_TANGENTIAL_DISTORTION` (tangential) or
-    :data:`~multieye.core.limits.MAX_TILT_RAD` (sensor tilt).  Readers call it where
+    :data:`~multieye.core.limits.MAX_TANGENTIAL_DISTORTION` (tangential),
+    :data:`~multieye.core.limits.MAX_TILT_RAD` (sensor tilt), and a wide-angle model's
+    ``xi`` beyond :data:`~multieye.core.limits.MAX_XI` or EUCM ``beta`` beyond
+    :data:`~multieye.core.limits.MAX_EUCM_BETA`.  Readers call it where
     intrinsics enter; estimation does not (its trial steps may pass anywhere).
 
     Raises
@@ -104,8 +122,31 @@ def check_lens_bounds(intrinsics: Intrinsics) -> None:
     for (name, bound, kind), value in zip(_bounds(intrinsics.model, intrinsics.dist.size),
                                           intrinsics.dist):
         if abs(value) > bound:
-            raise InputError(f"distortion coefficient {name} = {value:g} is beyond any real "
-                             f"lens (a {kind} coefficient's magnitude is at most {bound:g})")
+            raise InputError(f"{_coefficient(intrinsics.model)} {name} = {value:g} is beyond any "
+                             f"real lens (a {kind} coefficient's magnitude is at most {bound:g})")
+
+
+def _coefficient(model: str) -> str:
+    return "lens parameter" if model in WIDE_MODELS else "distortion coefficient"
+
+
+def _check_wide(model: str, dist: np.ndarray) -> None:
+    """The form of a wide-angle model's parameters (:data:`WIDE_MODELS`)."""
+    names = LENS_MODELS[model][1]
+    if dist.size != len(names):
+        raise InputError(f"{model} lens parameters must be {len(names)} numbers "
+                         f"({', '.join(names)}), got {dist.size}")
+    if not np.all(np.isfinite(dist)):
+        raise InputError(f"{model} lens parameters must be finite")
+    if model == "unified" and not dist[0] >= 0:
+        raise InputError(f"unified xi (mirror offset) must be >= 0, got {dist[0]:g}")
+    if model == "double-sphere" and not dist[0] > -1:
+        raise InputError(f"double-sphere xi must be > -1, got {dist[0]:g}")
+    alpha = dist[1] if model == "double-sphere" else dist[0]
+    if model != "unified" and not 0 <= alpha <= 1:
+        raise InputError(f"{model} alpha must be within [0, 1], got {alpha:g}")
+    if model == "eucm" and not dist[1] > 0:
+        raise InputError(f"eucm beta must be > 0, got {dist[1]:g}")
 
 
 @dataclass(frozen=True)
@@ -119,14 +160,20 @@ class Intrinsics:
     dist : ndarray, shape (k,)
         ``model="pinhole"``: OpenCV's coefficients, k in (0, 4, 5, 8, 12, 14).
         ``model="fisheye"``: equidistant k1..k4 (OpenCV ``cv2.fisheye``, Kalibr ``equidistant``).
-    model : {"pinhole", "fisheye"}
+        ``model="unified"``: (xi, k1, k2, p1, p2), Mei-Rives (Kalibr ``omni`` + ``radtan``,
+        BoofCV ``mirror_offset``; xi >= 0).
+        ``model="double-sphere"``: (xi, alpha), Usenko et al. 2018 (Kalibr ``ds``; xi > -1,
+        alpha in [0, 1]).
+        ``model="eucm"``: (alpha, beta), Khomutenko et al. 2016 (Kalibr ``eucm``; alpha in
+        [0, 1], beta > 0).  :mod:`multieye.core.lens_wide` gives the formulas.
+    model : {"pinhole", "fisheye", "unified", "double-sphere", "eucm"}
     width, height : int or None
         Image size in pixels, when the file gives it.
     """
 
     K: np.ndarray
     dist: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    model: Literal["pinhole", "fisheye"] = "pinhole"
+    model: Literal["pinhole", "fisheye", "unified", "double-sphere", "eucm"] = "pinhole"
     width: int | None = None
     height: int | None = None
 
@@ -168,8 +215,11 @@ class Intrinsics:
                 raise InputError(f"fisheye (equidistant) distortion must have 4 coefficients, got {dist.size}")
             if dist.size == 0:
                 dist = np.zeros(4)
+        elif self.model in WIDE_MODELS:
+            _check_wide(self.model, dist)
         else:
-            raise InputError(f"camera model must be 'pinhole' or 'fisheye', got {self.model!r}")
+            raise InputError("camera model must be 'pinhole', 'fisheye', 'unified', "
+                             f"'double-sphere' or 'eucm', got {self.model!r}")
         if not np.all(np.isfinite(dist)):
             raise InputError("distortion coefficients must be finite")
         object.__setattr__(self, "K", K)

@@ -1,6 +1,9 @@
-"""Projection and undistortion for :class:`multieye.core.intrinsics.Intrinsics` (OpenCV models).
+"""Projection and undistortion for :class:`multieye.core.intrinsics.Intrinsics`: the one lens
+module the engine calls.
 
-Two models, both as OpenCV defines them:
+The wide-angle models (``"unified"``, ``"double-sphere"``, ``"eucm"``) are evaluated by
+:mod:`multieye.core.lens_wide`, which defines them and their valid regions; the two OpenCV
+models as OpenCV defines them:
 
 - ``"pinhole"``: ``cv2.projectPoints`` with 0, 4, 5, 8, 12 or 14 coefficients
   (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tauX tauY]]]]);  OpenCV's formula is evaluated
@@ -30,10 +33,12 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from multieye.core import lens_wide
 from multieye.core.errors import InputError
-from multieye.core.intrinsics import Intrinsics
+from multieye.core.intrinsics import WIDE_MODELS, Intrinsics
 
-__all__ = ["project_points", "project_with_jacobian", "distort_points", "undistort_points"]
+__all__ = ["project_points", "project_with_jacobian", "distort_points", "undistort_points",
+           "unproject_points", "projectable"]
 
 F64 = NDArray[np.float64]
 
@@ -80,8 +85,9 @@ def project_points(points_cam: ArrayLike, intrinsics: Intrinsics) -> F64:
     Returns
     -------
     ndarray, shape (N, 2)
-        Pixels. Points on or behind the camera plane (``Z <= 0``) and non-finite points give
-        NaN: neither model defines their projection (the pinhole formula would mirror them).
+        Pixels. Points outside the model's valid region (:func:`projectable`) and non-finite
+        points give NaN: for the pinhole and fisheye models points on or behind the camera
+        plane (``Z <= 0``; the pinhole formula would mirror them).
 
     Notes
     -----
@@ -90,6 +96,8 @@ def project_points(points_cam: ArrayLike, intrinsics: Intrinsics) -> F64:
     detects that case on the way back.
     """
     P = _as_points(points_cam, 3, "camera-frame points")
+    if intrinsics.model in WIDE_MODELS:
+        return lens_wide.project(P, intrinsics)[0]
     ok = _in_front(P)
     if ok.all():
         return _project_normalised(P[:, :2] / P[:, 2:3], intrinsics)
@@ -103,6 +111,57 @@ def project_points(points_cam: ArrayLike, intrinsics: Intrinsics) -> F64:
 def _in_front(P: F64) -> NDArray[np.bool_]:
     """Finite points in front of the camera plane (``z > 0``)."""
     return np.all(np.isfinite(P), axis=1) & (P[:, 2] > 0)
+
+
+def projectable(points_cam: ArrayLike, intrinsics: Intrinsics) -> NDArray[np.bool_]:
+    """Which points the lens model projects: its valid region.
+
+    Parameters
+    ----------
+    points_cam : array_like, shape (N, 3)
+        Points in the camera frame (x right, y down, z forward).
+    intrinsics : Intrinsics
+
+    Returns
+    -------
+    ndarray, shape (N,), bool
+        Pinhole and fisheye: finite points with ``z > 0``. Unified, double-sphere, eucm: the
+        model's own region (:func:`multieye.core.lens_wide.projectable`), which admits rays
+        beyond 90 degrees (``z <= 0``) for a wide lens.  :func:`project_points` and
+        :func:`project_with_jacobian` give NaN exactly where this is False.
+    """
+    P = _as_points(points_cam, 3, "camera-frame points")
+    if intrinsics.model in WIDE_MODELS:
+        return lens_wide.projectable(P, intrinsics)
+    return _in_front(P)
+
+
+def unproject_points(pixels: ArrayLike, intrinsics: Intrinsics, *, tol_px: float = 1e-6,
+                     max_newton: int = 8) -> F64:
+    """Unit viewing rays of pixels, every model.
+
+    Parameters
+    ----------
+    pixels : array_like, shape (N, 2)
+        Pixel coordinates.
+    intrinsics : Intrinsics
+    tol_px, max_newton : float, int
+        As :func:`undistort_points` (pinhole, fisheye, the unified model's distortion; the
+        unified model takes at least 20 Newton steps).
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        Unit rays in the camera frame; NaN where the pixel has no ray in the model's valid
+        region (:func:`projectable`) or the distortion cannot be inverted to ``tol_px``.
+    """
+    uv = _as_points(pixels, 2, "pixels")
+    if intrinsics.model in WIDE_MODELS:
+        return lens_wide.unproject(uv, intrinsics, tol_px=tol_px,
+                                   max_newton=max(max_newton, 20))
+    xy = undistort_points(uv, intrinsics, tol_px=tol_px, max_newton=max_newton)
+    ray = np.column_stack([xy, np.ones(len(xy))])
+    return ray / np.linalg.norm(ray, axis=1)[:, None]
 
 
 def project_with_jacobian(points_cam: ArrayLike, intrinsics: Intrinsics, *,
@@ -129,9 +188,13 @@ def project_with_jacobian(points_cam: ArrayLike, intrinsics: Intrinsics, *,
         ``d uv / d points_cam``, pixels per metre (NaN where ``uv`` is).
     J_intrinsics : ndarray, shape (P, 2, 4 + len(dist)), or None
         ``d uv / d (fx, fy, cx, cy, dist...)``: the distortion coefficients in OpenCV's order
-        (pinhole k1 k2 p1 p2 [k3 [k4 k5 k6 ...]]; fisheye k1..k4).
+        (pinhole k1 k2 p1 p2 [k3 [k4 k5 k6 ...]]; fisheye k1..k4); the wide-angle models'
+        parameters in :attr:`Intrinsics.dist`'s order (analytic derivatives,
+        :func:`multieye.core.lens_wide.project`).
     """
     P = _as_points(points_cam, 3, "camera-frame points")
+    if intrinsics.model in WIDE_MODELS:
+        return lens_wide.project(P, intrinsics, jacobians=True, lens_jacobian=lens_jacobian)
     n, nd = len(P), intrinsics.dist.size
     ok = _in_front(P)
     every = bool(ok.all())
@@ -308,9 +371,16 @@ def undistort_points(pixels: ArrayLike, intrinsics: Intrinsics, *, tol_px: float
         ``(X / Z, Y / Z)`` of the viewing ray of each pixel. NaN where the distortion model
         cannot be inverted to ``tol_px`` (pixels outside the region where the model is
         one-to-one, e.g. image corners of a strongly distorted lens with a polynomial model),
-        and for non-finite input.
+        for non-finite input, and, for the wide-angle models, where the ray has ``Z <= 0``
+        (:func:`unproject_points` gives those rays).
     """
     uv = _as_points(pixels, 2, "pixels")
+    if intrinsics.model in WIDE_MODELS:
+        ray = unproject_points(uv, intrinsics, tol_px=tol_px, max_newton=max_newton)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            xy = ray[:, :2] / ray[:, 2:3]
+        xy[~(ray[:, 2] > 0)] = np.nan
+        return xy
     out = np.full((len(uv), 2), np.nan)
     ok = np.all(np.isfinite(uv), axis=1)
     if not np.any(ok):

@@ -21,6 +21,8 @@ __all__ = [
     "MAX_RADIAL_DISTORTION",
     "MAX_TANGENTIAL_DISTORTION",
     "MAX_TILT_RAD",
+    "MAX_XI",
+    "MAX_EUCM_BETA",
     "MAX_POSITION_M",
     "MAX_STAMP_S",
     "MAX_TIME_OFFSET_S",
@@ -61,6 +63,12 @@ MAX_RADIAL_DISTORTION = 1e4
 MAX_TANGENTIAL_DISTORTION = 1.0
 #: Largest sensor tilt (OpenCV's taux, tauy), radians (29 deg; real sensors: a fraction of one).
 MAX_TILT_RAD = 0.5
+#: Largest magnitude of a unified (Mei-Rives ``xi``, BoofCV's ``mirror_offset``) or
+#: double-sphere ``xi``: real lenses have 0 to about 3 (unified) or -1 to 1 (double sphere); at
+#: 100 a unified lens is a pinhole of focal length f / 100 over a few degrees.
+MAX_XI = 100.0
+#: Largest extended-unified (EUCM) ``beta``: real lenses have about 0.5 to 2.
+MAX_EUCM_BETA = 100.0
 #: Largest translation coordinate of a motion-capture or precomputed pose row, metres (after
 #: the unit conversion): a row beyond it is left out, with its line, as absurd.
 MAX_POSITION_M = 1e4
