@@ -318,10 +318,11 @@ def _levenberg_marquardt(prob: _Problem, x: F64, huber_px: float | None, max_ite
         J = prob.jacobian(x)
         Jw = J * w[:, None]
         H, g = Jw.T @ J, Jw.T @ r
-        d = np.maximum(np.diag(H), 1e-12)
+        s = 1.0 / np.sqrt(np.maximum(np.diag(H), 1e-300))   # Jacobi scaling: H's diagonal 1
+        Hs, gs = H * s[:, None] * s[None, :], g * s
         while damping <= 1e10:
             try:
-                step = -np.linalg.solve(H + damping * np.diag(d), g)
+                step = -s * np.linalg.solve(Hs + damping * np.eye(len(s)), gs)
             except np.linalg.LinAlgError:
                 damping *= 10
                 continue
