@@ -392,7 +392,9 @@ def poses_from_detections(results: Sequence[ImageResult], intrinsics: Intrinsics
             continue
         reason = None if pose.rms_px <= max_rms_px else (
             f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px")
-        out[k] = _projected_only(replace(results[k], pose=pose, reason=reason), intrinsics)
+        out[k] = replace(results[k], pose=pose, reason=reason)
+        if pose.n_points < len(results[k].detection) or not np.isfinite(pose.rms_px):
+            out[k] = _projected_only(out[k], intrinsics)    # PnP left points out
     return out
 
 
