@@ -36,8 +36,7 @@ from multieye.io import (
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 from multieye.pipeline.detection import Workers, detect_all
-from multieye.pipeline.estimated_lens import check_model, lens_start, start_lens, with_poses
-from multieye.pipeline.estimated_lens import posed_on_refined_lens
+from multieye.pipeline.estimated_lens import check_model, lens_start, posed_on_refined_lens, start_lens, with_poses
 from multieye.pipeline.selection import SelectionSummary, motion_first, preselected
 from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.solvers.methods import MIN_MEASUREMENTS
