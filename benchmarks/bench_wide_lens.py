@@ -3,7 +3,7 @@
 Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_wide_lens.py [--trials 20] [--seed 0]
-        [--skip boofcv,sim,timing]
+        [--skip boofcv,sim,mixed,timing]
 
 1. ``boofcv``: ``../shared/data/boofcv_fisheye`` (26 images of a fisheye of about 180
    degrees, BoofCV's unified-model calibration as reference; ``MULTIEYE_SHARED_DATA``) with
@@ -22,7 +22,11 @@ Run from the repository root::
    the lens NEES / dim: the parameters' error in the covariance of the fit (sigma^2 times
    the lens block of (J^T J)^-1), and the error of the pixels of three rays in theirs,
    averaged over the trials (1 when the covariance is right).
-3. ``timing``: CPU seconds of :func:`multieye.imaging.calibrate.initial_intrinsics` and of
+3. ``mixed``: ``--trials // 2`` rigs of two pinhole cameras and one wide camera of each
+   model seeing the board together: the NEES / 6 of ``T_ref_cam`` (cameras 1 and 2), the
+   largest error of any of its six coordinates in its own standard deviations, and the wide
+   lens' NEES / dim (:func:`mixed_rig`).
+4. ``timing``: CPU seconds of :func:`multieye.imaging.calibrate.initial_intrinsics` and of
    :func:`multieye.imaging.calibrate.poses_from_detections` on 40 views of a pinhole lens
    (median of 5); run it with ``PYTHONPATH`` on another source tree for the before/after.
 
@@ -119,18 +123,18 @@ def _lens_covariance(views, fit, sigma: float) -> np.ndarray:
     return sigma ** 2 * np.linalg.inv(J.T @ J)[:prob.n_lens, :prob.n_lens]
 
 
-def _nees(fit, true, C: np.ndarray, fov: float) -> tuple[float, float]:
+def _nees(est: Intrinsics, true: Intrinsics, C: np.ndarray, fov: float) -> tuple[float, float]:
     """The lens' NEES / dim in its parameters, and in the pixels of three rays (at 0.3,
     0.6 and 0.9 of the half field of view, azimuths 0, 120 and 240 degrees), whose
     covariance is ``J C J^T`` (meaningful where the parameters have a flat valley)."""
     from multieye.core.lens import project_points, project_with_jacobian  # noqa: PLC0415
 
-    e = fit.intrinsics.params - true.params
+    e = est.params - true.params
     par = float(e @ np.linalg.solve(C, e)) / len(e)
     a = np.radians(fov / 2) * np.array([0.3, 0.6, 0.9])
     phi = np.radians([0.0, 120.0, 240.0])
     rays = np.column_stack([np.sin(a) * np.cos(phi), np.sin(a) * np.sin(phi), np.cos(a)])
-    uv, _, Ji = project_with_jacobian(rays, fit.intrinsics)
+    uv, _, Ji = project_with_jacobian(rays, est)
     d = (uv - project_points(rays, true)).ravel()
     J = Ji.reshape(-1, Ji.shape[-1])
     return par, float(d @ np.linalg.solve(J @ C @ J.T, d)) / len(d)
@@ -162,11 +166,66 @@ def simulated(trials: int, seed: int) -> None:
             uv = np.concatenate([u for _, u in views])
             d = lens_difference_px(fit.intrinsics, true, uv)
             errors.append(float(np.sqrt(np.nanmean(d ** 2))))
-            nees.append(_nees(fit, true, _lens_covariance(views, fit, 0.2), fov))
+            nees.append(_nees(fit.intrinsics, true, _lens_covariance(views, fit, 0.2), fov))
         print(f"{model:<14} {fov:>7.0f}  {hits:>8} of {trials:<5}  "
               f"{np.median(errors):>13.3f} / {np.max(errors):.3f}  "
               f"{np.mean([n[0] for n in nees]):>15.2f}  {np.mean([n[1] for n in nees]):>6.2f}  "
               f"{np.median(cpu):>11.2f}")
+
+
+def mixed_rig(trials: int, seed: int) -> None:
+    """Three cameras on an arc (two pinhole, one wide lens of each model at 190 degrees)
+    seeing a board together (:mod:`multieye.sim.overlap`, pixels projected with 0.3 px
+    noise), the wide one also in 12 views of its own over its whole field; every lens started as the pipeline starts it
+    (:func:`multieye.imaging.calibrate.initial_intrinsics`: OpenCV's for the pinholes, the
+    generic start for the wide one) and refined with the rig
+    (:func:`multieye.estimate.refine_rig.refine_rig`, lenses free)."""
+    from multieye.core import geometry as g  # noqa: PLC0415
+    from multieye.core.lie import log_so3  # noqa: PLC0415
+    from multieye.estimate.refine_rig import refine_rig  # noqa: PLC0415
+    from multieye.estimate.rig_residuals import RigViews  # noqa: PLC0415
+    from multieye.imaging.calibrate import initial_intrinsics  # noqa: PLC0415
+    from multieye.sim.dataset import default_intrinsics  # noqa: PLC0415
+    from multieye.sim.overlap import OverlapSpec, pixel_views, simulate_overlap  # noqa: PLC0415
+    from multieye.sim.wide_lens import IMAGE_SIDE, board_views, wide_lens  # noqa: PLC0415
+
+    print(f"\n4. mixed rig: 2 pinhole + 1 wide camera (190 deg), {trials} rigs of 30 instants, "
+          "0.3 px; T_ref_cam error in its covariance")
+    print("wide model     NEES/6 cams 1,2  largest |error| / sigma  wide lens NEES/dim params  "
+          "pixels")
+    spec = OverlapSpec(n_instants=30, width=IMAGE_SIDE, height=IMAGE_SIDE, fisheye=())
+    for model in ("unified", "double-sphere", "eucm"):
+        nees, worst, lens_nees = [], [], []
+        for t in range(trials):
+            rng = np.random.default_rng([seed, t, 4])
+            pin = default_intrinsics(2, IMAGE_SIDE, IMAGE_SIDE, fisheye=(), rng=rng)
+            sc = simulate_overlap(rng, spec, intrinsics=[*pin, wide_lens(model, 190.0)])
+            views = pixel_views(sc, 0.3, rng)
+            # the arc's boards fill only the middle of the wide lens: 12 more views of the
+            # board over its whole field, seen by it alone (as intrinsics_images would be)
+            own, _ = board_views(sc.intrinsics[2], 190.0, 12, rng, noise_px=0.3)
+            views[2] = views[2] + [(o, u, len(sc.T_ref_target) + k) for k, (o, u) in
+                                   enumerate(own)]
+            starts, T0 = [], []
+            for j, vs in enumerate(views):
+                kind = model if j == 2 else "pinhole-radtan4"
+                st = initial_intrinsics([(o, u) for o, u, _ in vs], (IMAGE_SIDE, IMAGE_SIDE),
+                                        kind)
+                starts.append(st.intrinsics)
+                T0.extend(st.T_cam_target)
+            rv = RigViews(dict(zip("abc", views)), starts, free_intrinsics=[True] * 3)
+            res = refine_rig(rv, np.array(T0), pixel_sigma=0.3)
+            for j in (1, 2):
+                dR = res.T_ref_cam[j, :3, :3] @ sc.T_ref_cam[j, :3, :3].T
+                e = np.concatenate([log_so3(dR), res.T_ref_cam[j, :3, 3] - sc.T_ref_cam[j, :3, 3]])
+                C = res.covariance[j]
+                nees.append(float(e @ np.linalg.solve(C, e)) / 6)
+                worst.append(float(np.max(np.abs(e) / np.sqrt(np.diag(C)))))
+            lens_nees.append(_nees(res.intrinsics[2], sc.intrinsics[2],
+                                   res.intrinsics_covariance[2], 190.0))
+        print(f"{model:<14} {np.mean(nees):>15.2f}  {np.max(worst):>23.2f}  "
+              f"{np.mean([n[0] for n in lens_nees]):>18.2f}  "
+              f"{np.mean([n[1] for n in lens_nees]):>6.2f}")
 
 
 def timing() -> None:
@@ -218,6 +277,8 @@ def main() -> None:
             print(f"1. boofcv_fisheye: not found under {shared} (set MULTIEYE_SHARED_DATA)")
     if "sim" not in skip:
         simulated(args.trials, args.seed)
+    if "mixed" not in skip:
+        mixed_rig(max(args.trials // 2, 1), args.seed)
     if "timing" not in skip:
         timing()
 
