@@ -189,7 +189,7 @@ def mixed_rig(trials: int, seed: int) -> None:
     from multieye.sim.overlap import OverlapSpec, pixel_views, simulate_overlap  # noqa: PLC0415
     from multieye.sim.wide_lens import IMAGE_SIDE, board_views, wide_lens  # noqa: PLC0415
 
-    print(f"\n4. mixed rig: 2 pinhole + 1 wide camera (190 deg), {trials} rigs of 30 instants, "
+    print(f"\n3. mixed rig: 2 pinhole + 1 wide camera (190 deg), {trials} rigs of 30 instants, "
           "0.3 px; T_ref_cam error in its covariance")
     print("wide model     NEES/6 cams 1,2  largest |error| / sigma  wide lens NEES/dim params  "
           "pixels")
@@ -250,7 +250,7 @@ def timing() -> None:
             views.append((obj, uv + rng.normal(0, 0.3, uv.shape)))
     results = [ImageResult(f"{k}.png", None, Detection(np.arange(48), u, o), None,
                            image_size=(1280, 960)) for k, (o, u) in enumerate(views)]
-    print("\n3. pinhole lens start, 40 views of 48 corners, CPU seconds (median of 5)")
+    print("\n4. pinhole lens start, 40 views of 48 corners, CPU seconds (median of 5)")
     for name, call in (("initial_intrinsics", lambda: initial_intrinsics(
             views, (1280, 960), "pinhole-radtan")),
             ("poses_from_detections", lambda: poses_from_detections(results, lens))):
