@@ -25,7 +25,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.lens import project_points, undistort_points
+from multieye.core.lens import project_points, unproject_points
 from multieye.core.metrics import extrinsic_errors
 from multieye.sim.dataset import DatasetSpec, GroundTruth, render_dataset
 from multieye.sim.overlap import OverlapSpec, render_overlap_dataset
@@ -120,7 +120,7 @@ def lens_error_px(estimated: Intrinsics, true: Intrinsics, pixels: np.ndarray
     estimated, true : Intrinsics
     pixels : ndarray, shape (n, 2)
         Where to compare: the true lens's rays through these pixels (unprojected by
-        :func:`undistort_points`) are projected by ``estimated``.  Pass the corners that were
+        :func:`unproject_points`) are projected by ``estimated``.  Pass the corners that were
         observed: outside them a lens is extrapolated, and no calibration is told about it.
 
     Returns
@@ -131,8 +131,7 @@ def lens_error_px(estimated: Intrinsics, true: Intrinsics, pixels: np.ndarray
         extrinsics estimated with that lens absorb (what mrcal's ``projection_diff`` fits).
     """
     pixels = np.asarray(pixels, dtype=float).reshape(-1, 2)
-    xy = undistort_points(pixels, true)
-    rays = np.column_stack([xy, np.ones(len(xy))])
+    rays = unproject_points(pixels, true)
 
     def residuals(rotvec: np.ndarray) -> np.ndarray:
         return (project_points(rays @ Rotation.from_rotvec(rotvec).as_matrix().T, estimated)

@@ -22,11 +22,16 @@ RATIONAL = Intrinsics(K=[[700.0, 0, 640.5], [0, 702.0, 478.0], [0, 0, 1]],
 
 
 def _wrong(intr: Intrinsics, rng, focal=0.02, centre=5.0) -> Intrinsics:
-    """Intrinsics a few percent and pixels off, distortion zeroed."""
+    """Intrinsics a few percent and pixels off, distortion zeroed (a wide-angle model's own
+    parameters a tenth off instead)."""
     p = intr.params.copy()
     p[:2] *= 1 + rng.uniform(-focal, focal, 2)
     p[2:4] += rng.uniform(-centre, centre, 2)
-    p[4:] = 0.0
+    if intr.model in ("double-sphere", "eucm"):
+        p[4:] *= 0.9
+    else:
+        p[4 + (intr.model == "unified"):] = 0.0
+        p[4] *= 0.9 if intr.model == "unified" else 1.0
     return intr.with_params(p)
 
 
@@ -50,7 +55,9 @@ def test_jacobians_with_intrinsics_match_central_differences(setup, rng):
     sc = simulate_images(3, n_cameras=2, images=3, setup=setup,
                          intrinsics=[RATIONAL, simulate_images(0).intrinsics[0]])
     fisheye = simulate_images(3, n_cameras=1, images=3, setup=setup, model="fisheye")
-    for scene in (sc, fisheye):
+    wide = simulate_images(3, n_cameras=3, images=3, setup=setup, intrinsics=[
+        simulate_images(0, model=m).intrinsics[0] for m in ("unified", "double-sphere", "eucm")])
+    for scene in (sc, fisheye, wide):
         extra = [_free_images(scene, j, 2, rng) for j in range(scene.n_cameras)]
         data = image_data(ImageProblem(setup, scene.observations, scene.intrinsics,
                          free_intrinsics=[True] * scene.n_cameras, intrinsics_observations=extra))
@@ -68,7 +75,10 @@ def test_jacobians_with_intrinsics_match_central_differences(setup, rng):
 
 
 @pytest.mark.parametrize("setup, model", [("eye-to-base", "pinhole"), ("eye-on-hand", "fisheye"),
-                                          ("eye-to-base", "rational")])
+                                          ("eye-to-base", "rational"),
+                                          ("eye-to-base", "unified"),
+                                          ("eye-on-hand", "double-sphere"),
+                                          ("eye-to-base", "eucm")])
 def test_exact_recovery_of_intrinsics_and_extrinsics_from_a_wrong_start(setup, model, rng):
     kw = dict(intrinsics=[RATIONAL] * 3) if model == "rational" else dict(model=model)
     sc = simulate_images(5, n_cameras=3, images=15, setup=setup, pixel_sigma=0.0,

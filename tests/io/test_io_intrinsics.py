@@ -205,11 +205,14 @@ def test_kalibr_camchain_entries(tmp_path):
 
 
 def test_kalibr_errors_give_the_line(tmp_path):
-    (tmp_path / "omni.yaml").write_text(CAMCHAIN.replace("model: pinhole", "model: omni", 1))
-    with pytest.raises(DatasetError, match="cam0.camera_model: camera_model 'omni' is not "
+    (tmp_path / "fov.yaml").write_text(CAMCHAIN.replace("model: pinhole", "model: fov", 1))
+    with pytest.raises(DatasetError, match="cam0.camera_model: camera_model 'fov' is not "
                        "supported") as info:
-        read_intrinsics(tmp_path / "omni.yaml", "cam0")
+        read_intrinsics(tmp_path / "fov.yaml", "cam0")
     assert info.value.line == 2
+    (tmp_path / "omni.yaml").write_text(CAMCHAIN.replace("model: pinhole", "model: omni", 1))
+    with pytest.raises(DatasetError, match=r"intrinsics \[xi, fu, fv, pu, pv\] must be 5 "):
+        read_intrinsics(tmp_path / "omni.yaml", "cam0")
     (tmp_path / "short.yaml").write_text(CAMCHAIN.replace("[0.01, 0.02, 0.03, 0.04]", "[0.01]"))
     with pytest.raises(DatasetError, match="distortion_coeffs must be 4 finite numbers") as info:
         read_intrinsics(tmp_path / "short.yaml", "cam1")

@@ -540,3 +540,20 @@ def test_warm_up_loads_matplotlib_and_freezes_what_it_made():
     before, after, figure, axes3d = run.stdout.split()
     assert int(before) == 0 and int(after) > 10_000
     assert figure == axes3d == "True"
+
+
+def test_wide_lens_rows_and_projection_grid():
+    """The report's lens line and table name a wide-angle model and its parameters; the
+    projection's standard deviation covers the rays beyond 90 degrees a wide lens sees."""
+    from multieye.core.intrinsics import Intrinsics
+    from multieye.outputs.report_cameras import _lens_note, intrinsics_table
+
+    lens = Intrinsics(K=[[250.0, 0, 320], [0, 250.0, 240], [0, 0, 1]], dist=[0.3, 0.6],
+                      model="double-sphere", width=640, height=480)
+    html = intrinsics_table(lens, True, np.diag([1.0, 1.0, 0.5, 0.5, 1e-4, 1e-4]))
+    assert re.search(r">xi<.*>alpha<", html)
+    assert "0.30000" in html and "0.60000" in html
+    assert _lens_note(None, None, lens, False, None).startswith("Lens double-sphere, 640 x 480")
+    grid = projection_std_grid(lens, np.diag([1.0, 1.0, 0.5, 0.5, 1e-4, 1e-4]), columns=16)
+    corner = grid.std_px[0, 0]               # its ray is beyond 90 degrees: not NaN any more
+    assert np.isfinite(corner) and corner > 0

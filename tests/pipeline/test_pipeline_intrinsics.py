@@ -105,8 +105,8 @@ def test_intrinsics_images_join_the_joint_problem(rendered, tmp_path):
 
 @pytest.mark.parametrize("camera, message", [
     ("{model: kannala, images: cam0/}", r"model: expected one of pinhole-radtan, "
-                                        r"pinhole-radtan4, pinhole-rational, fisheye, got "
-                                        r"'kannala'"),
+                                        r"pinhole-radtan4, pinhole-rational, fisheye, unified, "
+                                        r"double-sphere, eucm, got 'kannala'"),
     ("{images: cam0/}", "missing key 'intrinsics' or 'model'"),
     ("{model: fisheye, refine_intrinsics: false, images: cam0/}",
      "'refine_intrinsics: false' but no 'intrinsics' to hold fixed"),

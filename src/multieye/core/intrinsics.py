@@ -122,12 +122,14 @@ def check_lens_bounds(intrinsics: Intrinsics) -> None:
     for (name, bound, kind), value in zip(_bounds(intrinsics.model, intrinsics.dist.size),
                                           intrinsics.dist):
         if abs(value) > bound:
-            raise InputError(f"{_coefficient(intrinsics.model)} {name} = {value:g} is beyond any "
+            raise InputError(f"{_coefficient(intrinsics.model, name)} {name} = {value:g} is beyond any "
                              f"real lens (a {kind} coefficient's magnitude is at most {bound:g})")
 
 
-def _coefficient(model: str) -> str:
-    return "lens parameter" if model in WIDE_MODELS else "distortion coefficient"
+def _coefficient(model: str, name: str) -> str:
+    """What a coefficient is called in messages (readers point at their key by it)."""
+    wide = model in WIDE_MODELS and name[0] not in "kp"       # not the unified's radtan
+    return "lens parameter" if wide else "distortion coefficient"
 
 
 def _check_wide(model: str, dist: np.ndarray) -> None:

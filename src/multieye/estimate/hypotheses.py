@@ -509,8 +509,8 @@ class LensTest:
 def _lens_model(intr: Intrinsics) -> str:
     """The model name of :data:`multieye.core.intrinsics.LENS_MODELS` to free ``intr`` in
     (no distortion given: OpenCV's five coefficients)."""
-    if intr.model == "fisheye":
-        return "fisheye"
+    if intr.model != "pinhole":
+        return intr.model                       # fisheye and the wide-angle models
     return {4: "pinhole-radtan4"}.get(intr.dist.size,
                                       "pinhole-rational" if intr.dist.size >= 8
                                       else "pinhole-radtan")

@@ -5,7 +5,9 @@ into a virtual camera looking along them when they are far off the lens axis:
 :func:`multieye.imaging.rays.ippe_on_rays`) gives the two candidate poses of a planar target; the one with the smaller
 reprojection error in pixels is refined by Levenberg-Marquardt on the pixel reprojection
 error through the full lens model (``cv2.solvePnPRefineLM`` for pinhole cameras, the same
-iteration on the lens' own projection and Jacobian for the other models). Residuals are reported in
+iteration on ``cv2.fisheye.projectPoints`` for fisheye cameras, and on
+:func:`multieye.core.lens.project_with_jacobian` for the wide-angle models, whose refinement
+uses every point the model places, rays beyond 90 degrees too). Residuals are reported in
 pixels of the distorted image.
 
 The other IPPE pose, refined the same way, is kept as :attr:`PoseEstimate.alternative`
@@ -31,10 +33,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
-from multieye.core.intrinsics import Intrinsics
+from multieye.core.intrinsics import WIDE_MODELS, Intrinsics
 from multieye.core.geometry import rotation_from_rotvec
 from multieye.core.lens import project_points, project_with_jacobian
 from multieye.imaging.detect import Detection
+from multieye.imaging.pnp_refine import refine_fisheye, refine_wide
 from multieye.imaging.rays import bearings, ippe_on_rays
 
 __all__ = ["PoseEstimate", "estimate_pose", "estimate_poses", "refit_pose", "refit_poses",
@@ -269,15 +272,16 @@ def _pixel_errors(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F
     input: pixel distance per point, inf for points not in front of the camera."""
     rvec = np.ascontiguousarray(rvec, dtype=np.float64).reshape(3, 1)
     tvec = np.ascontiguousarray(tvec, dtype=np.float64).reshape(3, 1)
+    if intrinsics.model in WIDE_MODELS:             # NaN outside the model's region
+        d = project_points(obj @ cv2.Rodrigues(rvec)[0].T + tvec[:, 0], intrinsics) - img
+        err = np.sqrt(np.einsum("ij,ij->i", d, d))
+        return np.where(np.isfinite(err), err, np.inf)
     z = obj @ cv2.Rodrigues(rvec)[0][2] + tvec[2, 0]
     pts = obj.reshape(-1, 1, 3)
     if intrinsics.model == "fisheye":
         uv, _ = cv2.fisheye.projectPoints(pts, rvec, tvec, intrinsics.K, intrinsics.dist)
-    elif intrinsics.model == "pinhole":
+    else:
         uv, _ = cv2.projectPoints(pts, rvec, tvec, intrinsics.K, intrinsics.dist)
-    else:                       # the wide models: their own region, which admits z <= 0
-        uv = project_points(obj @ cv2.Rodrigues(rvec)[0].T + tvec.reshape(3), intrinsics)
-        z = np.ones(len(obj))
     d = uv.reshape(-1, 2) - img
     err = np.sqrt(np.einsum("ij,ij->i", d, d))
     return np.where((z > 0) & np.isfinite(err), err, np.inf)
@@ -429,7 +433,7 @@ def refit_poses(T_cam_target: F64, object_points, image_points, intrinsics: Intr
         converged[act] = (np.abs(step).max(axis=1) <= _REFIT_STEP) & ~bad
     P = (obj @ R.transpose(0, 2, 1) + t[:, None, :]).reshape(-1, 3)
     err = np.linalg.norm(project_points(P, intrinsics) - img.reshape(-1, 2), axis=1)
-    err = np.where(np.isfinite(err) & (P[:, 2] > 0), err, np.inf).reshape(n, k) * used
+    err = np.where(np.isfinite(err), err, np.inf).reshape(n, k) * used   # NaN: not projected
     rms = np.sqrt((err ** 2).sum(axis=1) / counts)
     worst = err.max(axis=1)
     out = []
@@ -480,8 +484,10 @@ def _transform(rvec, tvec) -> F64:
 
 def _refine(obj: F64, img: F64, intrinsics: Intrinsics, rvec, tvec) -> tuple[F64, F64]:
     """Levenberg-Marquardt on the pixel reprojection error through the lens model."""
-    if intrinsics.model != "pinhole":
-        return _refine_fisheye(obj, img, intrinsics, rvec, tvec)
+    if intrinsics.model == "fisheye":
+        return refine_fisheye(obj, img, intrinsics, rvec, tvec)
+    if intrinsics.model in WIDE_MODELS:
+        return refine_wide(obj, img, intrinsics, rvec, tvec)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-12)
     rvec, tvec = cv2.solvePnPRefineLM(obj, img, intrinsics.K, intrinsics.dist,
                                       np.asarray(rvec, dtype=np.float64).reshape(3, 1),
@@ -523,50 +529,3 @@ def _centroid_offsets(T_cam_target: F64, centres: F64, radius: float, intrinsics
         centroid = np.column_stack([((x + x1) * cross).sum(axis=1), ((y + y1) * cross).sum(axis=1)]) / (6 * area[:, None])
     offset = centroid - centre_px
     return np.where(np.isfinite(offset), offset, 0.0)
-
-
-def _refine_fisheye(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F64,
-                    iterations: int = 50) -> tuple[F64, F64]:
-    """Levenberg-Marquardt on the pixel reprojection error of the equidistant model (and of
-    the wide models, through their own projection and Jacobian)."""
-    pts = obj.reshape(-1, 1, 3)
-
-    def residual(r, t):
-        if intrinsics.model != "fisheye":
-            return _wide_residual(obj, img, intrinsics, r, t)
-        proj, jac = cv2.fisheye.projectPoints(pts, r, t, intrinsics.K, intrinsics.dist)
-        return (img - proj.reshape(-1, 2)).ravel(), jac[:, 8:14]   # d/d(rvec, tvec)
-
-    x = np.concatenate([rvec, tvec]).astype(np.float64)
-    res, J = residual(x[:3], x[3:])
-    cost = float(res @ res)
-    damping = 1e-3
-    for _ in range(iterations):
-        H = J.T @ J
-        step = np.linalg.solve(H + damping * np.diag(np.diag(H)), J.T @ res)
-        candidate = x + step
-        new_res, new_J = residual(candidate[:3], candidate[3:])
-        new_cost = float(new_res @ new_res)
-        if new_cost < cost:
-            x, res, J, cost = candidate, new_res, new_J, new_cost
-            damping = max(damping / 10, 1e-12)
-            if np.linalg.norm(step) < 1e-12 * (1 + np.linalg.norm(x)):
-                break
-        else:
-            damping *= 10
-            if damping > 1e8:
-                break
-    return x[:3], x[3:]
-
-
-def _wide_residual(obj: F64, img: F64, intrinsics: Intrinsics, rvec: F64, tvec: F64):
-    """``img - uv`` and ``d uv / d (rvec, tvec)`` (2n x 6) through
-    :func:`multieye.core.lens.project_with_jacobian` (0 where a point does not project)."""
-    R, dR = cv2.Rodrigues(np.asarray(rvec, np.float64).reshape(3, 1))
-    P = obj @ R.T + np.asarray(tvec, np.float64).reshape(3)
-    uv, Jp, _ = project_with_jacobian(P, intrinsics, lens_jacobian=False)
-    dP = np.einsum("kij,nj->nik", dR.reshape(3, 3, 3), obj)             # (n, 3, 3)
-    J = np.concatenate([Jp @ dP, Jp], axis=2).reshape(-1, 6)
-    res = (img - uv).ravel()
-    bad = ~np.isfinite(res) | ~np.isfinite(J).all(axis=1)
-    return np.where(bad, 0.0, res), np.where(bad[:, None], 0.0, J)

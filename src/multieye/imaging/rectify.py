@@ -75,6 +75,9 @@ def stereo_rectification(lens_a: Intrinsics, lens_b: Intrinsics, T_a_b: F64) -> 
     InputError
         Different models, an unknown or different image size, or a zero baseline.
     """
+    for lens in (lens_a, lens_b):
+        if lens.model not in ("pinhole", "fisheye"):
+            raise InputError(f"no rectification for a {lens.model} lens (OpenCV has none)")
     if lens_a.model != lens_b.model:
         raise InputError(f"no rectification for a {lens_a.model} lens paired with a "
                          f"{lens_b.model} one (OpenCV has none)")

@@ -32,6 +32,7 @@ from multieye.io.intrinsics_files import (
     read_intrinsics,
     read_kalibr_intrinsics,
     read_opencv_intrinsics,
+    write_intrinsics_file,
     write_opencv_intrinsics,
 )
 from multieye.io.kalibr import CamchainEntry, read_camchain, write_camchain
@@ -69,6 +70,7 @@ __all__ = [
     "read_camera_info",
     "read_kalibr_intrinsics",
     "write_opencv_intrinsics",
+    "write_intrinsics_file",
     "CamchainEntry",
     "read_camchain",
     "write_camchain",

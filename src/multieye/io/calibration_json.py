@@ -34,11 +34,12 @@ from dataclasses import fields
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.intrinsics import Intrinsics, lens_model
+from multieye.core.intrinsics import WIDE_MODELS, Intrinsics, lens_model
 from multieye.io.atomic import write_text_atomic
 from multieye.io.calibration_record import (
     FORMAT_VERSION,
     OVERLAP,
+    WIDE_LENS_VERSION,
     ROLE_NAMES,
     SETUP_KEYS,
     CalibrationRecord,
@@ -105,7 +106,9 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
         if cam.links is not None:
             entry["links"] = {"overlap": dict(cam.links.overlap), "mocap": cam.links.mocap}
         cameras[cam.name] = entry
-    out = {"format_version": FORMAT_VERSION,
+    wide = any(c.intrinsics is not None and c.intrinsics.intrinsics.model in WIDE_MODELS
+               for c in rec.cameras)
+    out = {"format_version": WIDE_LENS_VERSION if wide else WIDE_LENS_VERSION - 1,   # 2: as before
            "setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
            **({} if rec.Y is None else {y_key: _matrix(rec.Y)}), "cameras": cameras,
            "residuals": _residuals_dict(rec.residuals), "warnings": list(rec.warnings),
@@ -157,11 +160,14 @@ def _read_uncertainty(obj, w: _Where, keys: tuple[str, ...], camera=None) -> dic
     return out
 
 
-def _read_intrinsics(obj, w: _Where, camera) -> IntrinsicsRecord:
+def _read_intrinsics(obj, w: _Where, camera, version: int) -> IntrinsicsRecord:
     if not isinstance(obj, Mapping):
         raise w.error("intrinsics must be an object", camera)
     model = w.need(obj, "model", "intrinsics", camera)
-    kind = "fisheye" if model == "fisheye" else "pinhole"
+    if model in WIDE_MODELS and version < WIDE_LENS_VERSION:
+        raise w.error(f"intrinsics.model {model} needs format_version {WIDE_LENS_VERSION} or "
+                      f"later, the file says {version}", camera)
+    kind = model if model in WIDE_MODELS else "fisheye" if model == "fisheye" else "pinhole"
     size = obj.get("image_size")
     if size is not None and (not isinstance(size, list) or len(size) != 2):
         raise w.error("intrinsics.image_size must be [width, height] or null", camera)
@@ -282,7 +288,7 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
             raise w.error("rejected must be a list of {\"item\": str, \"reason\": str}", name)
         kw["rejected"] = tuple(RejectedItem(r["item"], r["reason"]) for r in rejected)
         if "intrinsics" in entry and entry["intrinsics"] is not None:
-            kw["intrinsics"] = _read_intrinsics(entry["intrinsics"], w, name)
+            kw["intrinsics"] = _read_intrinsics(entry["intrinsics"], w, name, version)
         if "uncertainty" in entry:
             kw["uncertainty"] = _read_uncertainty(entry["uncertainty"], w, tuple(
                 k for k in (x_key, "T_ref_cam") if k is not None), name)

@@ -20,6 +20,7 @@ from multieye.core.intrinsics import Intrinsics
 
 __all__ = [
     "FORMAT_VERSION",
+    "WIDE_LENS_VERSION",
     "SETUP_KEYS",
     "OVERLAP",
     "ROLE_NAMES",
@@ -33,10 +34,16 @@ __all__ = [
     "CalibrationRecord",
 ]
 
-#: ``format_version`` of the files this version writes: raised whenever a key changes meaning
-#: (docs/outputs.md, section 2).  Files without it are of version 1.  Version 2: ``setup`` may
-#: be ``overlap`` (no motion capture: no ``Y``, no ``X``), and every camera has ``links``.
-FORMAT_VERSION = 2
+#: Newest ``format_version`` this version writes and reads: raised whenever a key changes
+#: meaning (docs/outputs.md, section 2).  Files without it are of version 1.  Version 2:
+#: ``setup`` may be ``overlap`` (no motion capture: no ``Y``, no ``X``), and every camera has
+#: ``links``.  Version 3: a camera's ``intrinsics.model`` may be ``unified``,
+#: ``double-sphere`` or ``eucm``, whose ``distortion`` holds that model's parameters (a
+#: version-2 reader would take them for OpenCV's coefficients); a file is written as version
+#: 3 only when it has such a lens (:data:`WIDE_LENS_VERSION`), else as version 2.
+FORMAT_VERSION = 3
+#: The first version whose cameras may have a wide-angle lens.
+WIDE_LENS_VERSION = 3
 
 #: The setup of a rig linked by co-observations only (no motion capture).
 OVERLAP = "overlap"

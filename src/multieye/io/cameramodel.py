@@ -130,12 +130,15 @@ def cameramodel_text(intr: Intrinsics, T_cam_ref=None, *, note: str | None = Non
     Raises
     ------
     InputError
-        A lens mrcal has no model for (fisheye, tilted sensor), or no image size (mrcal needs
+        A lens mrcal has no model for (fisheye, tilted sensor, unified, double-sphere, eucm),
+        or no image size (mrcal needs
         ``imagersize``).
     """
-    if intr.model == "fisheye" or intr.dist.size not in _NAMES:
+    if intr.model != "pinhole" or intr.dist.size not in _NAMES:
         kind = ("OpenCV's fisheye" if intr.model == "fisheye"
-                else "a tilted sensor (14 coefficients)")
+                else "a tilted sensor (14 coefficients)" if intr.model == "pinhole"
+                else f"the {intr.model} lens (only its own splined or CAHVORE models, which "
+                     "this lens is not)")
         raise InputError(f"mrcal has no lens model for {kind}")
     if intr.width is None or intr.height is None:
         raise InputError("mrcal's .cameramodel needs the image size, which these intrinsics do "

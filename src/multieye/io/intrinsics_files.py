@@ -17,6 +17,9 @@ aslam_cv's camera YAML (``type: pinhole``, ``intrinsics``, ``distortion: {type, 
     :mod:`multieye.io.intrinsics_mapping`.
 mrcal ``.cameramodel`` (a Python dictionary literal with ``lensmodel``)
     :mod:`multieye.io.cameramodel`.
+BoofCV's camera YAML (``pinhole: {fx, ...}``, ``model: pinhole_radial_tangential`` or
+``omnidirectional_universal``)
+    :mod:`multieye.io.boofcv` (the unified model of Mei and Rives with ``mirror_offset``).
 
 Every key of every format is used or refused with one line naming it, except the metadata
 keys each format's table in :data:`IGNORED_KEYS` lists (docs/rig-yaml.md, section 5); the
@@ -25,7 +28,8 @@ numbers are checked against :mod:`multieye.core.limits`
 
 ``distortion_model`` names accepted everywhere: ``plumb_bob``, ``rational_polynomial``,
 ``radtan``, ``pinhole`` -> pinhole; ``equidistant``, ``fisheye``, ``kannala_brandt`` ->
-fisheye.
+fisheye.  The wide-angle models (unified, double-sphere, eucm) come from Kalibr camchains
+(``omni``, ``ds``, ``eucm``), BoofCV files (unified) and multieye's own calibration.json.
 
 :func:`write_opencv_intrinsics` writes OpenCV FileStorage YAML (atomically, without OpenCV),
 adding ``distortion_model: fisheye`` for fisheye cameras so that the file reads back the same.
@@ -46,8 +50,9 @@ from pathlib import Path
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.intrinsics import Intrinsics, check_lens_bounds
+from multieye.core.intrinsics import WIDE_MODELS, Intrinsics, check_lens_bounds
 from multieye.io import cameramodel
+from multieye.io.boofcv import intrinsics_from_boofcv, is_boofcv
 from multieye.io.atomic import write_text_atomic
 from multieye.io.intrinsics_mapping import (
     DISTORTION_MODELS,
@@ -59,7 +64,8 @@ from multieye.io.intrinsics_mapping import (
     refuse_unknown,
 )
 from multieye.io.intrinsics_mapping import IGNORED_KEYS as _MAPPING_IGNORED
-from multieye.io.kalibr import camchain_entries, intrinsics_from_kalibr, is_camchain
+from multieye.io.kalibr import (
+    CamchainEntry, camchain_entries, intrinsics_from_kalibr, is_camchain, write_camchain)
 from multieye.io.textfile import read_text
 from multieye.io.yamlfile import MAX_YAML_BYTES, MAX_YAML_DEPTH, YamlDocument, parse_yaml, yaml_list
 
@@ -72,6 +78,7 @@ __all__ = [
     "read_camera_info",
     "read_kalibr_intrinsics",
     "write_opencv_intrinsics",
+    "write_intrinsics_file",
     "distortion_model_name",
     "camera_info_text",
 ]
@@ -102,7 +109,7 @@ _ROS_SIZES = {"plumb_bob": 5, "rational_polynomial": 8, "equidistant": 4}
 _FORMATS = ("expected OpenCV FileStorage (%YAML:1.0 or XML with camera_matrix), a Kalibr "
             "camchain (camera_model, intrinsics), ROS camera_info, JSON or YAML with a camera "
             "matrix (K, camera_matrix, or fx fy cx cy), aslam_cv's camera YAML (type, "
-            "intrinsics, distortion) or a mrcal .cameramodel")
+            "intrinsics, distortion), a mrcal .cameramodel or a BoofCV camera YAML")
 
 
 def _read(path) -> str:
@@ -251,7 +258,14 @@ def write_opencv_intrinsics(path: str | os.PathLike, intr: Intrinsics) -> None:
 
     Keys: ``image_width``, ``image_height`` (when known), ``camera_matrix``,
     ``distortion_coefficients`` and, for fisheye cameras, ``distortion_model: fisheye``.
+
+    Raises
+    ------
+    InputError
+        A wide-angle lens (unified, double-sphere, eucm): OpenCV has no such model
+        (:func:`write_intrinsics_file` writes it as a Kalibr camchain).
     """
+    _no_wide(intr, "OpenCV FileStorage")
     def matrix(name, values, rows, cols):
         return [f"{name}: !!opencv-matrix", f"   rows: {rows}", f"   cols: {cols}",
                 "   dt: d", f"   data: {yaml_list(values)}"]
@@ -267,12 +281,32 @@ def write_opencv_intrinsics(path: str | os.PathLike, intr: Intrinsics) -> None:
     write_text_atomic(path, "\n".join(lines) + "\n")
 
 
+def _no_wide(intr: Intrinsics, fmt: str) -> None:
+    if intr.model in WIDE_MODELS:
+        raise InputError(f"{fmt} has no {intr.model} lens model")
+
+
+def write_intrinsics_file(path: str | os.PathLike, intr: Intrinsics) -> None:
+    """Write a lens in a file that :func:`read_intrinsics` reads back as the same lens: OpenCV
+    FileStorage (:func:`write_opencv_intrinsics`) for pinhole and fisheye lenses, a Kalibr
+    camchain of one camera ``cam0`` for the wide-angle models (``omni``, ``ds``, ``eucm``;
+    OpenCV has none of them)."""
+    if intr.model in WIDE_MODELS:
+        write_camchain(path, [CamchainEntry("cam0", intr, np.eye(4))],
+                       comments=[f"{intr.model} lens written by multieye (Kalibr camchain: "
+                                 "OpenCV FileStorage has no such model)"])
+    else:
+        write_opencv_intrinsics(path, intr)
+
+
 def distortion_model_name(intr: Intrinsics) -> str:
     """The true name of an intrinsics' distortion model: ``equidistant`` (fisheye),
     ``plumb_bob`` (pinhole, 0/4/5 coefficients), ``rational_polynomial`` (8), ``thin_prism``
     (12) or ``tilted`` (14); every one reads back through :data:`DISTORTION_MODELS`."""
     if intr.model == "fisheye":
         return "equidistant"
+    if intr.model in WIDE_MODELS:
+        return intr.model
     return _PINHOLE_NAMES[int(intr.dist.size)]
 
 
@@ -289,9 +323,10 @@ def camera_info_text(intr: Intrinsics, camera_name: str, rectification=None) -> 
     Raises
     ------
     InputError
-        A model ROS cannot name (12 or 14 coefficients: thin-prism or tilted sensor), or an
-        unknown image size (camera_info needs it).
+        A model ROS cannot name (12 or 14 coefficients: thin-prism or tilted sensor; unified,
+        double-sphere, eucm), or an unknown image size (camera_info needs it).
     """
+    _no_wide(intr, "ROS camera_info")
     name = distortion_model_name(intr)
     if name not in _ROS_SIZES:
         raise InputError(f"ROS camera_info names plumb_bob, rational_polynomial and "
@@ -402,6 +437,8 @@ def _load(path) -> tuple[str, object]:
         raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
     if is_camchain(doc.data):
         return "kalibr", doc
+    if is_boofcv(doc.data):
+        return "boofcv", doc
     if has_camera_matrix(doc.data):
         return "mapping", doc
     if is_aslam(doc.data):
@@ -459,4 +496,6 @@ def read_intrinsics(path: str | os.PathLike, camera: str | None = None, *,
         return _kalibr(content, camera, prefer)
     if kind == "aslam":
         return intrinsics_from_aslam(content)
+    if kind == "boofcv":
+        return intrinsics_from_boofcv(content)
     return intrinsics_from_mapping(content)

@@ -15,10 +15,20 @@ Layout (as Kalibr documents it): one entry per camera, keyed ``cam0``, ``cam1``,
 ``T_cn_cnm1`` maps points in camera n-1 into camera n, i.e. ``T_cam<n>_cam<n-1>``; with
 poses relative to a reference camera, ``T_cn_cnm1 = inv(T_ref_cn) @ T_ref_cnm1``.
 
-Mapping to :class:`~multieye.core.intrinsics.Intrinsics`: ``radtan`` is OpenCV's pinhole model
-with 4 coefficients ``k1 k2 p1 p2``; ``equidistant`` is the fisheye model ``k1..k4``; a
-``none`` distortion model is a pinhole without distortion.  Kalibr's other models (``omni``,
-``ds``, ``eucm``, ``fov``) are rejected with a message.
+Mapping to :class:`~multieye.core.intrinsics.Intrinsics`: ``camera_model: pinhole`` with
+``radtan`` is OpenCV's pinhole model with 4 coefficients ``k1 k2 p1 p2``, with
+``equidistant`` the fisheye model ``k1..k4``, with ``none`` a pinhole without distortion.
+The wide-angle models (:mod:`multieye.core.lens_wide`), their parameters first in
+``intrinsics``::
+
+    camera_model: omni    intrinsics: [xi, fu, fv, pu, pv]            -> unified
+                          distortion_model: radtan (k1 k2 r1 r2) or none
+    camera_model: ds      intrinsics: [xi, alpha, fu, fv, pu, pv]     -> double-sphere
+                          distortion_model: none
+    camera_model: eucm    intrinsics: [alpha, beta, fu, fv, pu, pv]   -> eucm
+                          distortion_model: none
+
+Kalibr's ``fov`` distortion and any other pairing are rejected with a message.
 
 Choices: multieye's camera names are kept in an extra ``camera_name`` field (Kalibr ignores
 unknown fields); ``resolution`` is written only when the intrinsics know the image size.
@@ -51,6 +61,13 @@ __all__ = [
 ]
 
 _DISTORTION = {"radtan": "pinhole", "equidistant": "fisheye", "none": "pinhole"}
+#: Kalibr camera model -> (Intrinsics model, its parameters before fu fv pu pv, the
+#: distortion models Kalibr pairs it with here).
+_CAMERAS = {"pinhole": ("pinhole", (), ("radtan", "equidistant", "none")),
+            "omni": ("unified", ("xi",), ("radtan", "none")),
+            "ds": ("double-sphere", ("xi", "alpha"), ("none",)),
+            "eucm": ("eucm", ("alpha", "beta"), ("none",))}
+_KALIBR_NAME = {"unified": "omni", "double-sphere": "ds", "eucm": "eucm"}
 
 
 @dataclass(frozen=True)
@@ -105,18 +122,20 @@ def _numbers(value, n: int | None, what: str, doc: YamlDocument, *keys) -> np.nd
 def intrinsics_from_kalibr(entry: Mapping, doc: YamlDocument, *keys) -> Intrinsics:
     """Intrinsics from one Kalibr camera entry (``doc`` and ``keys`` locate it for messages)."""
     model = entry.get("camera_model")
-    if model != "pinhole":
-        raise doc.error(f"camera_model {model!r} is not supported; expected 'pinhole'",
-                        *keys, "camera_model")
+    if not isinstance(model, str) or model not in _CAMERAS:
+        raise doc.error(f"camera_model {shown(model)} is not supported; expected pinhole, "
+                        "omni, ds or eucm", *keys, "camera_model")
+    kind, first, dmodels = _CAMERAS[model]
     for key in ("intrinsics", "distortion_model"):
         if key not in entry:
             raise doc.error(f"missing key {key!r}", *keys)
-    fu, fv, pu, pv = _numbers(entry["intrinsics"], 4, "intrinsics [fu, fv, pu, pv]", doc,
-                              *keys, "intrinsics")
+    names = ", ".join(first + ("fu", "fv", "pu", "pv"))
+    *params, fu, fv, pu, pv = _numbers(entry["intrinsics"], 4 + len(first),
+                                       f"intrinsics [{names}]", doc, *keys, "intrinsics")
     dmodel = entry["distortion_model"]
-    if dmodel not in _DISTORTION:
-        raise doc.error(f"distortion_model {dmodel!r} is not supported; expected radtan, "
-                        "equidistant or none", *keys, "distortion_model")
+    if not isinstance(dmodel, str) or dmodel not in dmodels:
+        raise doc.error(f"distortion_model {shown(dmodel)} is not supported with camera_model "
+                        f"{model}; expected {' or '.join(dmodels)}", *keys, "distortion_model")
     n = 0 if dmodel == "none" else 4
     coeffs = _numbers(entry.get("distortion_coeffs", [0.0] * n), n, "distortion_coeffs",
                       doc, *keys, "distortion_coeffs")
@@ -129,8 +148,13 @@ def intrinsics_from_kalibr(entry: Mapping, doc: YamlDocument, *keys) -> Intrinsi
                             f"{res.tolist()}", *keys, "resolution")
         width, height = int(res[0]), int(res[1])
     K = np.array([[fu, 0.0, pu], [0.0, fv, pv], [0.0, 0.0, 1.0]])
+    if kind == "unified":
+        coeffs = np.concatenate([params, coeffs if n else np.zeros(4)])
+    elif kind != "pinhole":
+        coeffs = np.asarray(params, dtype=np.float64)
     try:
-        return Intrinsics(K, coeffs, _DISTORTION[dmodel], width, height)
+        return Intrinsics(K, coeffs, _DISTORTION[dmodel] if kind == "pinhole" else kind,
+                          width, height)
     except InputError as exc:
         raise doc.error(str(exc), *keys) from None
 
@@ -145,8 +169,13 @@ def kalibr_fields(intr: Intrinsics) -> dict:
         cannot hold them).
     """
     K = intr.K
+    first: list[float] = []
     if intr.model == "fisheye":
         dmodel, coeffs = "equidistant", intr.dist[:4]
+    elif intr.model == "unified":
+        first, dmodel, coeffs = [float(intr.dist[0])], "radtan", intr.dist[1:]
+    elif intr.model in _KALIBR_NAME:
+        first, dmodel, coeffs = [float(v) for v in intr.dist], "none", intr.dist[:0]
     else:
         coeffs = np.zeros(4)
         coeffs[: min(4, intr.dist.size)] = intr.dist[:4]
@@ -156,10 +185,11 @@ def kalibr_fields(intr: Intrinsics) -> dict:
                              "pinhole-radtan4 in rig.yaml estimates a lens Kalibr can hold)")
         dmodel = "radtan"
     if K[0, 1] != 0:
-        raise InputError(f"Kalibr pinhole has no skew; camera matrix has skew {K[0, 1]}")
+        raise InputError(f"Kalibr's camera models have no skew; camera matrix has skew "
+                         f"{K[0, 1]}")
     fields = {
-        "camera_model": "pinhole",
-        "intrinsics": [float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])],
+        "camera_model": _KALIBR_NAME.get(intr.model, "pinhole"),
+        "intrinsics": first + [float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])],
         "distortion_model": dmodel,
         "distortion_coeffs": [float(c) for c in coeffs],
     }

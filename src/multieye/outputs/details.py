@@ -25,7 +25,7 @@ import numpy as np
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.lens import project_points, undistort_points
+from multieye.core.lens import project_points, unproject_points
 from multieye.estimate.uncertainty import projection_std_at
 from multieye.core.metrics import loop_residuals
 from multieye.io.kalibr import overlaps_in_time
@@ -127,8 +127,8 @@ def projection_std_grid(intrinsics: Intrinsics, covariance, *, columns: int = GR
     u = (np.arange(nu) + 0.5) * w / nu - 0.5
     v = (np.arange(nv) + 0.5) * h / nv - 0.5
     uu, vv = np.meshgrid(u, v)
-    xy = undistort_points(np.column_stack([uu.ravel(), vv.ravel()]), intrinsics)
-    rays = np.column_stack([xy, np.ones(len(xy))])       # NaN rows project to NaN
+    # unit rays (a wide lens's beyond 90 degrees too); NaN rows project to NaN
+    rays = unproject_points(np.column_stack([uu.ravel(), vv.ravel()]), intrinsics)
     std = projection_std_at(intrinsics, covariance, rays)
     return ProjectionStd(u=u, v=v, std_px=std.reshape(nv, nu))
 

@@ -69,7 +69,7 @@ import numpy as np
 
 from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.intrinsics import Intrinsics
+from multieye.core.intrinsics import WIDE_MODELS, Intrinsics
 from multieye.core.names import file_stems
 from multieye.io.atomic import confined_to, make_folder, write_text_atomic
 from multieye.io.intrinsics_files import camera_info_text, distortion_model_name
@@ -488,7 +488,7 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
                          "out: " + "; ".join(left))
         return [path]
     if fmt == "opencv":
-        intr = _intrinsics(out, rec, required=False)
+        intr = _without_wide(_intrinsics(out, rec, required=False), notes)
         pairs, stereo_notes = stereo_pairs(rec, intr, _overlaps(out))
         notes += stereo_notes
         text = opencv_text(rec, intr, parent_frame) + "".join(
@@ -502,6 +502,17 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
     _export_folder(folder, dest)
     write_text_atomic(path, text)
     return [path]
+
+
+def _without_wide(intr: dict, notes: list[str]) -> dict:
+    """The lenses OpenCV FileStorage can describe; a wide-angle lens (unified, double-sphere,
+    eucm: OpenCV has no such model) is left out with a note naming the camera, never written
+    as a different lens."""
+    wide = {n: k.model for n, k in intr.items() if k is not None and k.model in WIDE_MODELS}
+    for name, model in wide.items():
+        notes.append(f"extrinsics.yaml gives no lens for {name} (OpenCV has no {model} model; "
+                     "calibration.json and camchain.yaml hold it)")
+    return {n: (None if n in wide else k) for n, k in intr.items()}
 
 
 def _export_folder(folder: Path, dest) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from multieye.core.names import file_stems
-from multieye.io import write_calibration, write_camchain, write_opencv_intrinsics
+from multieye.io import write_calibration, write_camchain, write_intrinsics_file
 from multieye.io.atomic import confined_to, make_folder
 from multieye.io.run_details import (StageTimings, details_head, run_details_from_dict,
                                      run_details_to_dict, write_details_text)
@@ -147,7 +147,7 @@ def _write_files(run: CalibrationRun, folder: Path, *, report: bool, diagnostics
         stems = file_stems(estimated, what="file intrinsics/<camera>.yaml")
         make_folder(folder / "intrinsics")
         for cam in estimated:
-            write_opencv_intrinsics(folder / "intrinsics" / f"{stems[cam.name]}.yaml",
+            write_intrinsics_file(folder / "intrinsics" / f"{stems[cam.name]}.yaml",
                                     cam.intrinsics.intrinsics)
         names.append("intrinsics")
     head = details_head(data)

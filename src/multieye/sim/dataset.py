@@ -35,7 +35,7 @@ from multieye.io import (
     Trajectory,
     write_bytes_atomic,
     write_calibration,
-    write_opencv_intrinsics,
+    write_intrinsics_file,
     write_text_atomic,
     write_tum,
 )
@@ -272,7 +272,7 @@ def render_dataset(out_dir: str | os.PathLike, spec: DatasetSpec = DatasetSpec()
 
     write_tum(out / "mocap.txt", Trajectory(t_all, T_all, parent="world", child="marker"))
     for j, name in enumerate(names):
-        write_opencv_intrinsics(out / f"{name}.yaml", intr[j])
+        write_intrinsics_file(out / f"{name}.yaml", intr[j])
     rig_lines = ["# multieye synthetic dataset (rendered by multieye.sim.dataset)",
                  "setup: eye-to-base", "target:"]
     rig_lines += [f"  {k}: {v}" for k, v in spec.target.items()]

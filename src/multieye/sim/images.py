@@ -84,7 +84,17 @@ def default_intrinsics(model: str = "pinhole") -> Intrinsics:
 
     ``"pinhole"``: f = 700 px and mild barrel distortion (k1 = -0.1, k2 = 0.02).
     ``"fisheye"``: equidistant, f = 450 px, k1..k4 = (0.02, -0.01, 0.003, -0.001).
+    The wide-angle models, about 450 px per radian at the centre like the fisheye:
+    ``"unified"``: xi = 0.9, f = 855 px, k1 k2 p1 p2 = (-0.05, 0.01, 0.0005, -0.0003);
+    ``"double-sphere"``: xi = -0.17, alpha = 0.59 (TUM VI's lenses), f = 375 px;
+    ``"eucm"``: alpha = 0.6, beta = 1.1, f = 450 px.
     """
+    wide = {"unified": (855.0, [0.9, -0.05, 0.01, 0.0005, -0.0003]),
+            "double-sphere": (375.0, [-0.17, 0.59]), "eucm": (450.0, [0.6, 1.1])}
+    if model in wide:
+        f, dist = wide[model]
+        return Intrinsics(K=[[f, 0, 639.5], [0, f, 479.5], [0, 0, 1]], dist=dist, model=model,
+                          width=1280, height=960)
     if model == "pinhole":
         return Intrinsics(K=[[700.0, 0, 639.5], [0, 700.0, 479.5], [0, 0, 1]],
                           dist=[-0.1, 0.02, 0.0, 0.0], width=1280, height=960)
@@ -92,7 +102,8 @@ def default_intrinsics(model: str = "pinhole") -> Intrinsics:
         return Intrinsics(K=[[450.0, 0, 639.5], [0, 450.0, 479.5], [0, 0, 1]],
                           dist=[0.02, -0.01, 0.003, -0.001], model="fisheye",
                           width=1280, height=960)
-    raise InputError(f"camera model must be 'pinhole' or 'fisheye', got {model!r}")
+    raise InputError("camera model must be 'pinhole', 'fisheye', 'unified', 'double-sphere' "
+                     f"or 'eucm', got {model!r}")
 
 
 @dataclass(frozen=True)
@@ -271,7 +282,7 @@ def simulate_images(rng: np.random.Generator | int | None = None,
         Standard deviation of each rotation-vector component of the mocap error, radians.
     mocap_trans_sigma_m : float
         Standard deviation of each coordinate of the mocap position error, metres.
-    model : {"pinhole", "fisheye"}
+    model : {"pinhole", "fisheye", "unified", "double-sphere", "eucm"}
         Camera model of :func:`default_intrinsics` (ignored when ``intrinsics`` is given).
     intrinsics : sequence of Intrinsics, optional
         One per camera; must cover +-40 x +-30 degrees.

@@ -36,7 +36,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points
 from multieye.imaging.targets import target_from_spec
 from multieye.imaging.workers import worker_pool
-from multieye.io import Trajectory, write_bytes_atomic, write_opencv_intrinsics, write_text_atomic
+from multieye.io import Trajectory, write_bytes_atomic, write_intrinsics_file, write_text_atomic
 from multieye.io import write_tum
 from multieye.sim.dataset import default_intrinsics
 from multieye.sim.render import render, visible
@@ -259,10 +259,11 @@ def render_overlap_dataset(out_dir: str | os.PathLike, spec: OverlapSpec = Overl
     lines.append("cameras:")
     for j, name in enumerate(names):
         if models:
-            model = "fisheye" if sc.intrinsics[j].model == "fisheye" else "pinhole-radtan"
+            model = ("pinhole-radtan" if sc.intrinsics[j].model == "pinhole"
+                     else sc.intrinsics[j].model)
             lines += [f"  {name}:", f"    model: {model}", f"    images: {name}/"]
         else:
-            write_opencv_intrinsics(out / f"{name}.yaml", sc.intrinsics[j])
+            write_intrinsics_file(out / f"{name}.yaml", sc.intrinsics[j])
             lines += [f"  {name}:", f"    intrinsics: {name}.yaml", f"    images: {name}/"]
     write_text_atomic(out / "rig.yaml", "\n".join(lines) + "\n")
     truth = {"T_ref_cam": {n: sc.T_ref_cam[j].tolist() for j, n in enumerate(names)},

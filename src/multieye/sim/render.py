@@ -39,8 +39,8 @@ from scipy import sparse
 
 from multieye.core.arguments import transform, with_fields
 from multieye.core.errors import InputError
-from multieye.core.intrinsics import Intrinsics
-from multieye.core.lens import project_points, undistort_points
+from multieye.core.intrinsics import WIDE_MODELS, Intrinsics
+from multieye.core.lens import project_points, projectable, undistort_points, unproject_points
 from multieye.imaging.targets import (AprilGrid, ArucoMarker, AsymmetricCircleGrid, Charuco, Chessboard,
                                      CircleGrid, Target)
 
@@ -104,7 +104,7 @@ def visible(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike, *,
     w, h = _image_size(intrinsics, width, height)
     outline = board_outline(target, margin=margin)
     P = outline @ T[:3, :3].T + T[:3, 3]
-    if np.any(P[:, 2] <= 0):
+    if not np.all(projectable(P, intrinsics)):      # pinhole, fisheye: z > 0
         return False
     # camera centre in the target frame: its z sign says which face it sees
     cam_z = -(T[:3, :3].T @ T[:3, 3])[2]
@@ -115,6 +115,9 @@ def visible(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike, *,
               & (uv[:, 1] >= border_px - 0.5) & (uv[:, 1] <= h - 0.5 - border_px))
     if not np.all(inside):
         return False
+    if intrinsics.model in WIDE_MODELS:             # rays beyond 90 degrees: compare rays
+        back = unproject_points(uv, intrinsics, tol_px=1e-3)
+        return bool(np.allclose(back, P / np.linalg.norm(P, axis=1)[:, None], atol=1e-6))
     back = undistort_points(uv, intrinsics, tol_px=1e-3)
     return bool(np.allclose(back, P[:, :2] / P[:, 2:3], atol=1e-6))
 
@@ -139,9 +142,7 @@ def _coarse_rays(key: tuple) -> tuple[NDArray[np.float32], float, float]:
     us = u0 + g * np.arange(int(np.ceil((w + 4 * g) / g)) + 1)
     vs = v0 + g * np.arange(int(np.ceil((h + 4 * g) / g)) + 1)
     uu, vv = np.meshgrid(us, vs)
-    xy = undistort_points(np.column_stack([uu.ravel(), vv.ravel()]), intrinsics, tol_px=1e-4)
-    rays = np.column_stack([xy, np.ones(len(xy))])
-    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    rays = unproject_points(np.column_stack([uu.ravel(), vv.ravel()]), intrinsics, tol_px=1e-4)
     return rays.reshape(len(vs), len(us), 3).astype(np.float32), u0, v0
 
 
@@ -368,8 +369,8 @@ def _board_roi(target: Target, intrinsics: Intrinsics, T: F64, w: int, h: int, m
     """Pixel rectangle that holds the board's image, or None when it is not in view."""
     outline = board_outline(target, margin=margin, per_edge=64)
     P = outline @ T[:3, :3].T + T[:3, 3]
-    if np.any(P[:, 2] <= 0):
-        return (0, 0, w, h)       # board crosses the camera plane: trace every pixel
+    if not np.all(projectable(P, intrinsics)):
+        return (0, 0, w, h)       # board leaves the lens's valid region: trace every pixel
     uv = project_points(P, intrinsics)
     if not np.all(np.isfinite(uv)):
         return (0, 0, w, h)

@@ -1,0 +1,122 @@
+"""BoofCV's camera YAML (``CalibrationIO``) -> :class:`~multieye.core.intrinsics.Intrinsics`.
+
+Layout, as BoofCV writes it (one camera per file)::
+
+    pinhole: {fx, fy, cx, cy, width, height, skew}
+    model: pinhole_radial_tangential       # or omnidirectional_universal
+    radial_tangential: {radial: [k1, k2 (, k3)], t1, t2}
+    mirror_offset: 1.13                    # omnidirectional_universal only
+    version: 0
+
+``pinhole_radial_tangential`` is OpenCV's pinhole model (BoofCV's ``t1 t2`` are OpenCV's
+``p1 p2``; ``radial`` gives k1 k2 and optionally k3, the others zero):
+``k1 k2 p1 p2`` (at most two radial) or ``k1 k2 p1 p2 k3``.  ``omnidirectional_universal``
+is Mei and Rives' unified model: ``xi`` is ``mirror_offset`` and the distortion of the
+normalised point ``k1 k2 p1 p2`` (at most two radial coefficients;
+:mod:`multieye.core.lens_wide`).  BoofCV's other models (``kannala_brandt``, stereo files)
+are refused with a message; every key is read or refused.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from multieye.core.errors import InputError
+from multieye.core.intrinsics import Intrinsics, check_lens_bounds
+from multieye.io.intrinsics_mapping import refuse_unknown
+from multieye.io.yamlfile import YamlDocument, shown
+
+__all__ = ["is_boofcv", "intrinsics_from_boofcv", "BOOFCV_MODELS"]
+
+#: BoofCV's camera models read, and the Intrinsics model of each.
+BOOFCV_MODELS = {"pinhole_radial_tangential": "pinhole", "omnidirectional_universal": "unified"}
+_TOP = ("pinhole", "model", "radial_tangential", "mirror_offset", "version")
+_PINHOLE = ("fx", "fy", "cx", "cy", "width", "height", "skew")
+_RADTAN = ("radial", "t1", "t2")
+_OTHER_MODELS = ("kannala_brandt", "stereo_camera")
+
+
+def is_boofcv(data) -> bool:
+    """A BoofCV camera file: a ``pinhole`` mapping and a ``model`` name of BoofCV's."""
+    return (isinstance(data, Mapping) and isinstance(data.get("pinhole"), Mapping)
+            and data.get("model") in (*BOOFCV_MODELS, *_OTHER_MODELS))
+
+
+def _number(doc: YamlDocument, value, *keys) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not np.isfinite(value):
+        raise doc.error(f"expected a finite number, got {shown(value)}", *keys)
+    return float(value)
+
+
+def _distortion(doc: YamlDocument, rt, kind: str) -> np.ndarray:
+    """``k1 k2 p1 p2`` (``k3`` appended when the pinhole file gives it) from
+    ``radial_tangential``."""
+    if rt is None:
+        return np.zeros(4)
+    if not isinstance(rt, Mapping):
+        raise doc.error("expected a mapping with radial, t1, t2", "radial_tangential")
+    refuse_unknown(doc, rt, _RADTAN, (), "radial_tangential")
+    radial = rt.get("radial") or []
+    if not isinstance(radial, list):
+        raise doc.error(f"expected a list of numbers, got {shown(radial)}",
+                        "radial_tangential", "radial")
+    k = [_number(doc, v, "radial_tangential", "radial", i) for i, v in enumerate(radial)]
+    most = 2 if kind == "unified" else 3
+    if any(k[most:]):
+        raise doc.error(f"{len(k)} radial coefficients; multieye's {kind} model holds "
+                        f"{most} (k1 .. k{most})", "radial_tangential", "radial")
+    k = (k + [0.0, 0.0, 0.0])[:most]
+    out = k[:2] + [_number(doc, rt.get(key, 0.0), "radial_tangential", key)
+                   for key in ("t1", "t2")]
+    if kind == "pinhole" and len(radial) >= 3:
+        out.append(k[2])
+    return np.array(out)
+
+
+def intrinsics_from_boofcv(doc: YamlDocument) -> Intrinsics:
+    """Intrinsics from a BoofCV camera YAML (module docstring).
+
+    Raises
+    ------
+    DatasetError
+        An unknown or unsupported key or model, a missing number, more radial coefficients
+        than the model holds, or numbers no real camera has; with the key's line.
+    """
+    data = doc.data
+    refuse_unknown(doc, data, _TOP, ())
+    model = data["model"]
+    if model not in BOOFCV_MODELS:
+        raise doc.error(f"BoofCV model {model!r} is not supported; expected "
+                        f"{' or '.join(BOOFCV_MODELS)}", "model")
+    kind = BOOFCV_MODELS[model]
+    pin = data["pinhole"]
+    refuse_unknown(doc, pin, _PINHOLE, (), "pinhole")
+    fx, fy, cx, cy = (_number(doc, pin.get(k), "pinhole", k) for k in ("fx", "fy", "cx", "cy"))
+    skew = _number(doc, pin.get("skew", 0.0), "pinhole", "skew")
+    size = []
+    for key in ("width", "height"):
+        v = pin.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int)):
+            raise doc.error(f"expected a whole number of pixels, got {shown(v)}", "pinhole", key)
+        size.append(v)
+    dist = _distortion(doc, data.get("radial_tangential"), kind)
+    if kind == "unified":
+        if "mirror_offset" not in data:
+            raise doc.error("missing key 'mirror_offset' (the unified model's xi)")
+        dist = np.concatenate([[_number(doc, data["mirror_offset"], "mirror_offset")], dist])
+    elif "mirror_offset" in data:
+        raise doc.error(f"mirror_offset belongs to omnidirectional_universal, not {model}",
+                        "mirror_offset")
+    version = data.get("version", 0)
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise doc.error(f"expected a whole number, got {shown(version)}", "version")
+    K = np.array([[fx, skew, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    try:
+        intr = Intrinsics(K, dist, kind, *size)
+        check_lens_bounds(intr)
+    except InputError as exc:
+        raise doc.error(str(exc)) from None
+    return intr
