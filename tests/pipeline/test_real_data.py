@@ -91,3 +91,19 @@ def test_boofcv_fisheye_of_180_degrees_uses_every_detected_image(shared_data, tm
     near = np.hypot(*(uv - ref.K[:2, 2]).T) <= 250
     d = lens_difference_px(run.cameras["fish"].intrinsics, ref, uv[near])
     assert np.sqrt(np.mean(d ** 2)) < 0.8
+
+
+def test_boofcv_fisheye_check_and_calibrate_name_the_model_that_fits_more(shared_data, tmp_path):
+    """Issue 33, item 3: the fisheye model leaves the corners beyond 90 degrees off the axis
+    without a projection, which the unified model projects with the same held-out RMS; the
+    dry run and the calibration say so, with the figures."""
+    from multieye.pipeline.dry_run import check_dataset   # noqa: PLC0415
+
+    folder = real_datasets.boofcv_fisheye(shared_data, tmp_path / "fish")
+    found = check_dataset(folder)
+    said = [p for c in found.cameras for p in c.problems if "consider model" in p]
+    assert len(said) == 1 and said[0].endswith("consider model: unified")
+    assert "held-out reprojection RMS" in said[0] and found.ok
+    run = calibrate(folder)
+    warned = [w for w in run.record.warnings if "consider model" in w]
+    assert len(warned) == 1 and warned[0].startswith("fish: the fisheye lens model leaves ")
