@@ -120,3 +120,27 @@ def yizhong_eye_in_hand(shared: Path, out: Path) -> Path:
         "mocap: {file: mocap.txt, pose: T_world_body, time_tolerance: 0.01}\n"
         "cameras:\n  cam0: {model: pinhole-radtan, images: cam0/}\n")
     return out
+
+
+#: BoofCV's calibration of ``boofcv_fisheye`` (its ``fisheye.yaml``): the unified model
+#: (Mei-Rives) with two radial coefficients, tangential zero.
+BOOFCV_FISHEYE_REFERENCE = Intrinsics(
+    K=np.array([[398.77492706579216, 0.0, 319.17879590584187],
+                [0.0, 398.7685638672075, 319.71743712432686], [0.0, 0.0, 1.0]]),
+    dist=np.array([1.1331346732794045, -0.24972089525362837, 0.009672326567075125, 0.0, 0.0]),
+    model="unified", width=640, height=720)
+
+
+def boofcv_fisheye(shared: Path, out: Path, model: str = "fisheye") -> Path:
+    """26 images of one fisheye of about 180 degrees, no stamps, no motion capture: the
+    images linked under their names (1.jpg ... 26.jpg, times 1 ... 26 s) and a rig.yaml for
+    one camera whose lens ``model`` is estimated; the board has 4 x 6 inner corners, the
+    square is 1 unit (``calibration_target.yaml``: 5 columns x 7 rows of squares)."""
+    src = shared / "boofcv_fisheye"
+    (out / "images").mkdir(parents=True)
+    for k in range(1, 27):
+        _link(src / f"{k}.jpg", out / "images" / f"{k}.jpg")
+    (out / "rig.yaml").write_text(
+        "target: {type: chessboard, rows: 6, cols: 4, spacing: 1.0}\n"
+        f"cameras:\n  fish: {{model: {model}, images: images/}}\n")
+    return out

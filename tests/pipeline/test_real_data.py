@@ -73,3 +73,37 @@ def test_yizhong_eye_in_hand_without_published_intrinsics(shared_data, tmp_path)
     assert run.record.residuals.e_R_deg < 0.5 and run.record.residuals.e_t_m < 2e-3
     # six views are fewer than the model wants: said, with what to add
     assert any("only 6 images of the target" in w for w in run.record.warnings)
+
+
+def test_boofcv_fisheye_of_180_degrees_uses_every_detected_image(shared_data, tmp_path):
+    """Issue 33: the lens started from a generic model and the images judged on the refined
+    lens: all 24 images where the board is detected are used (before: 6 of 26, the others
+    rejected as a bad fit on OpenCV's start), and the lens is within 0.8 px of BoofCV's
+    within 250 px of the centre (measured 0.67 px; before: 3.2 px)."""
+    from multieye.core.lens_compare import lens_difference_px   # noqa: PLC0415
+
+    run = calibrate(real_datasets.boofcv_fisheye(shared_data, tmp_path / "fish"))
+    cam = run.record.cameras[0]
+    assert cam.measurements_used == 24
+    assert {r.item for r in cam.rejected} == {"20.jpg", "22.jpg"}   # board not detected
+    ref = real_datasets.BOOFCV_FISHEYE_REFERENCE
+    uv = np.concatenate([o.image_points for o in run.paired["fish"].observations])
+    near = np.hypot(*(uv - ref.K[:2, 2]).T) <= 250
+    d = lens_difference_px(run.cameras["fish"].intrinsics, ref, uv[near])
+    assert np.sqrt(np.mean(d ** 2)) < 0.8
+
+
+def test_boofcv_fisheye_check_and_calibrate_name_the_model_that_fits_more(shared_data, tmp_path):
+    """Issue 33, item 3: the fisheye model leaves the corners beyond 90 degrees off the axis
+    without a projection, which the unified model projects with the same held-out RMS; the
+    dry run and the calibration say so, with the figures."""
+    from multieye.pipeline.dry_run import check_dataset   # noqa: PLC0415
+
+    folder = real_datasets.boofcv_fisheye(shared_data, tmp_path / "fish")
+    found = check_dataset(folder)
+    said = [p for c in found.cameras for p in c.problems if "consider model" in p]
+    assert len(said) == 1 and said[0].endswith("consider model: unified")
+    assert "held-out reprojection RMS" in said[0] and found.ok
+    run = calibrate(folder)
+    warned = [w for w in run.record.warnings if "consider model" in w]
+    assert len(warned) == 1 and warned[0].startswith("fish: the fisheye lens model leaves ")

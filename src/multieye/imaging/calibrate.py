@@ -24,15 +24,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core.errors import InputError
-from multieye.core.intrinsics import LENS_MODELS, WIDE_MODELS, Intrinsics
-from multieye.core.lens import undistort_points
+from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
-from multieye.imaging.pnp import estimate_poses
+from multieye.core.lens import project_points
+from multieye.imaging.generic_start import fit_lens, generic_start
+from multieye.imaging.detect import Detection
+from multieye.imaging.pnp import estimate_pose, estimate_poses
+from multieye.imaging.rays import bearings
 from multieye.imaging.pool_tasks import SplitTask
 
 __all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS", "StartedLens",
            "LensFromViews", "lens_start_task", "poses_from_detections", "lens_from_detections",
-           "poses_with_start", "started_lens"]
+           "poses_with_start", "started_lens", "accept_on_refined_lens"]
 
 F64 = NDArray[np.float64]
 
@@ -127,32 +130,32 @@ def _pinhole_start(obj, img, size, flags: int, all_poses: bool = True):
     return rms, K, D, rvecs, tvecs
 
 
-def _fisheye_start(obj, img, size, views, flags: int, all_poses: bool = True):
-    """``cv2.fisheye.calibrate`` on at most :data:`START_VIEWS` views spread over the
-    recording (started from Zhang's closed form on those views), then (``all_poses``) every
-    other view's pose by PnP on its points undistorted with that lens.
+def _generic_start(views, size, model: str, name: str, all_poses: bool) -> InitialIntrinsics:
+    """A lens of a fisheye or wide model from at most :data:`START_VIEWS` views spread over
+    the recording, started from a generic lens (:func:`multieye.imaging.generic_start.
+    generic_start`: no OpenCV calibration, any field of view), then (``all_poses``) every
+    other view's pose by PnP with it (NaN rows for the views not posed).
 
-    OpenCV's fisheye calibration re-estimates every view's pose at each of its iterations:
-    on the 40 views of a camera of ``benchmarks/bench_overlap.py`` it took 0.2-0.3 CPU-s, as
-    long as the whole joint refinement; on 20 views about 0.1 CPU-s.  The start only has to
-    bring the joint problem into the basin of its optimum, which then uses every view (the
-    benchmark's lenses and ``T_ref_cam`` came out the same to the digits it reports).  Same
-    return values as ``cv2.fisheye.calibrate`` (the RMS over the calibrated views).
+    On 20 views of ``boofcv_fisheye`` (about 180 degrees) it takes about 0.3 CPU-s and
+    leaves 0.1-0.3 px per view, where ``cv2.fisheye.calibrate`` left 2-5 px or failed.
     """
-    pick = _spread(len(obj), START_VIEWS)
-    K0 = _flat_guess([views[i] for i in pick], size)
-    rms, K, D, rv, tv = cv2.fisheye.calibrate([obj[i] for i in pick], [img[i] for i in pick],
-                                               size, K0, np.zeros(4), flags=flags,
-                                               criteria=_CRITERIA)
-    rvecs, tvecs = [None] * len(obj), [None] * len(obj)
-    for i, r, t in zip(pick, rv, tv):
-        rvecs[i], tvecs[i] = r, t
-    for i in np.setdiff1d(np.arange(len(obj)), pick) if all_poses else ():
-        xy = cv2.fisheye.undistortPoints(img[i], K, D)
-        ok, rvecs[i], tvecs[i] = cv2.solvePnP(obj[i], xy, np.eye(3), None)
-        if not ok:
-            raise cv2.error(f"no pose of view {i} with the start lens")
-    return rms, K, D, rvecs, tvecs
+    pick = _spread(len(views), START_VIEWS)
+    try:
+        fit = generic_start([views[i] for i in pick], size, model)
+    except (InputError, np.linalg.LinAlgError) as exc:
+        raise InputError(f"camera {name}: no lens start from {len(views)} images ({exc}); "
+                         "add images with the whole target in view at different tilts"
+                         ) from None
+    T = np.full((len(views), 4, 4), np.nan)
+    T[pick] = fit.T_cam_target
+    rms = fit.rms_px[np.isfinite(fit.rms_px)]
+    if rms.size < MIN_VIEWS:
+        raise InputError(f"camera {name}: only {rms.size} of {len(pick)} images fit a lens; "
+                         f"at least {MIN_VIEWS} are needed (add images of the whole target)")
+    rest = np.setdiff1d(np.arange(len(views)), pick) if all_poses else ()
+    for i in rest:
+        T[i] = _pnp_pose(*views[i], fit.intrinsics)
+    return InitialIntrinsics(fit.intrinsics, T, float(np.sqrt(np.mean(rms ** 2))))
 
 
 def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
@@ -196,24 +199,16 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
                          "the target at different tilts, or give intrinsics:)")
     w, h = int(image_size[0]), int(image_size[1])
     kind, coefficients = LENS_MODELS[model]
-    if kind in WIDE_MODELS:         # OpenCV calibrates none of them (helper hE's lens start)
-        raise InputError(f"camera {name}: no lens start for the {model} model yet; give its "
-                         "intrinsics (intrinsics: a Kalibr camchain, calibration.json or "
-                         "BoofCV file) to refine them")
     try:
-        if kind == "fisheye":
-            obj = [o.reshape(-1, 1, 3) for o, _ in views]
-            img = [u.reshape(-1, 1, 2) for _, u in views]
-            flags = (cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
-                     | cv2.fisheye.CALIB_USE_INTRINSIC_GUESS)
+        if kind != "pinhole":
             try:
-                rms, K, D, rvecs, tvecs = _fisheye_start(obj, img, (w, h), views, flags,
-                                                         all_poses)
-            except cv2.error:
-                # OpenCV's fisheye start fails on views of a few points (one ArUco marker's 4
-                # corners): start from its pinhole calibration instead, with the radial
-                # distortion carried over to the equidistant model (the joint refinement
-                # then estimates the fisheye coefficients)
+                return _generic_start(views, (w, h), model, name, all_poses)
+            except InputError:
+                if kind != "fisheye":
+                    raise
+                # views of a few points (one ArUco marker's 4 corners) may give no start:
+                # OpenCV's pinhole calibration then, its radial distortion carried over to
+                # the equidistant model (the joint refinement estimates the fisheye's)
                 obj = [o.astype(np.float32) for o, _ in views]
                 img = [u.astype(np.float32) for _, u in views]
                 rms, K, Dp, rvecs, tvecs = cv2.calibrateCamera(
@@ -340,28 +335,32 @@ def started_lens(first: LensFromViews, results: Sequence[ImageResult]) -> Starte
         r = results[first.views[k]]
         T[k] = r.pose.T_cam_target if r.pose is not None else _pnp_pose(
             r.detection.object_points, r.detection.image_points, start.intrinsics)
-    return StartedLens(replace(start, T_cam_target=T) if missing.size else start,
-                       tuple(results))
+    start = replace(start, T_cam_target=T) if missing.size else start
+    refined, accepted = accept_on_refined_lens(results, start.intrinsics)
+    if refined is not start.intrinsics:       # every view's pose with the refined lens
+        T = start.T_cam_target.copy()
+        for k, j in enumerate(first.views):
+            pose = accepted[j].pose
+            T[k] = np.nan if pose is None else pose.T_cam_target
+        start = replace(start, intrinsics=refined, T_cam_target=T)
+    return StartedLens(start, tuple(accepted))
 
 
 def _pnp_pose(object_points: F64, image_points: F64, intrinsics: Intrinsics) -> F64:
-    """``T_cam_target`` by ``cv2.solvePnP`` (on the undistorted points for a fisheye lens), as
-    :func:`initial_intrinsics` poses a view; NaN where OpenCV finds none."""
-    obj = np.asarray(object_points, np.float64).reshape(-1, 1, 3)
-    img = np.asarray(image_points, np.float64).reshape(-1, 1, 2)
+    """``T_cam_target`` by ``cv2.solvePnP`` (pinhole lenses, as :func:`initial_intrinsics`
+    poses a view) or :func:`multieye.imaging.pnp.estimate_pose` (on the viewing rays: every
+    other model); NaN where none is found."""
+    obj = np.asarray(object_points, np.float64).reshape(-1, 3)
+    img = np.asarray(image_points, np.float64).reshape(-1, 2)
+    if intrinsics.model != "pinhole":
+        try:
+            return estimate_pose(Detection(np.arange(len(obj)), img, obj), intrinsics
+                                 ).T_cam_target
+        except InputError:
+            return np.full((4, 4), np.nan)
     try:
-        if intrinsics.model in WIDE_MODELS:       # the rays in front of the camera
-            xy = undistort_points(img.reshape(-1, 2), intrinsics)
-            keep = np.isfinite(xy).all(axis=1)
-            ok, r, t = cv2.solvePnP(obj[keep], xy[keep].reshape(-1, 1, 2), np.eye(3), None) \
-                if keep.sum() >= 4 else (False, None, None)
-        elif intrinsics.model == "fisheye":
-            ok, r, t = cv2.solvePnP(obj, cv2.fisheye.undistortPoints(img, intrinsics.K,
-                                                                     intrinsics.dist),
-                                    np.eye(3), None)
-        else:
-            ok, r, t = cv2.solvePnP(obj.astype(np.float32), img.astype(np.float32),
-                                    intrinsics.K, intrinsics.dist)
+        ok, r, t = cv2.solvePnP(obj.astype(np.float32), img.astype(np.float32),
+                                intrinsics.K, intrinsics.dist)
     except cv2.error:
         ok = False
     T = np.full((4, 4), np.nan)
@@ -375,10 +374,18 @@ def poses_from_detections(results: Sequence[ImageResult], intrinsics: Intrinsics
                           max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
     """Detection-only results completed with the target pose by PnP with ``intrinsics``
     (the same rules as detection with known intrinsics: a failed PnP or a bad fit becomes the
-    image's reason), every view together (:func:`multieye.imaging.pnp.estimate_poses`)."""
-    todo = [k for k, r in enumerate(results) if r.detection is not None and r.reason is None]
-    poses = estimate_poses([results[k].detection for k in todo], intrinsics)
+    image's reason), every view together (:func:`multieye.imaging.pnp.estimate_poses`).
+
+    Points the lens model does not project at the pose found (a fisheye lens' points beyond
+    90 degrees off its axis) are left out of the detection, with a warning, so that every
+    point the later stages see has a pixel in the model."""
     out = list(results)
+    if intrinsics.model != "pinhole":   # pixels without a ray in the model: left out first
+        out = [_projected_only(r, intrinsics) if r.detection is not None and r.reason is None
+               else r for r in out]
+    todo = [k for k, r in enumerate(out) if r.detection is not None and r.reason is None]
+    results = list(out)
+    poses = estimate_poses([results[k].detection for k in todo], intrinsics)
     for k, pose in zip(todo, poses):
         if isinstance(pose, InputError):
             out[k] = replace(results[k], reason=f"PnP failed: {pose}")
@@ -386,4 +393,81 @@ def poses_from_detections(results: Sequence[ImageResult], intrinsics: Intrinsics
         reason = None if pose.rms_px <= max_rms_px else (
             f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px")
         out[k] = replace(results[k], pose=pose, reason=reason)
+        if pose.n_points < len(results[k].detection) or not np.isfinite(pose.rms_px):
+            out[k] = _projected_only(out[k], intrinsics)    # PnP left points out
     return out
+
+
+def _projected_only(result: ImageResult, intrinsics: Intrinsics) -> ImageResult:
+    """``result`` with its detection's points that ``intrinsics`` does not project at its
+    pose (without a pose: whose pixels it has no ray for) left out; a warning names how
+    many; fewer than 4 left: PnP failed."""
+    det = result.detection
+    if result.pose is None:
+        keep = np.isfinite(bearings(det.image_points, intrinsics)).all(axis=1)
+    else:
+        T = result.pose.T_cam_target
+        uv = project_points(det.object_points @ T[:3, :3].T + T[:3, 3], intrinsics)
+        keep = np.isfinite(uv).all(axis=1)
+    if keep.all():
+        return result
+    if keep.sum() < 4:
+        return replace(result, reason=f"PnP failed: only {int(keep.sum())} of {len(keep)} "
+                       f"points lie where the {intrinsics.model} lens projects")
+    note = (f"{int((~keep).sum())} of {len(keep)} target points lie outside what the "
+            f"{intrinsics.model} lens model projects (beyond 90 degrees off its axis for "
+            "pinhole and fisheye); left out")
+    return replace(result, detection=replace(det, ids=det.ids[keep],
+                                             image_points=det.image_points[keep],
+                                             object_points=det.object_points[keep]),
+                   warnings=result.warnings + (note,))
+
+
+def accept_on_refined_lens(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
+                           max_rms_px: float = DEFAULT_MAX_RMS_PX
+                           ) -> tuple[Intrinsics, list[ImageResult]]:
+    """Images judged on the refined lens, not on the start: those rejected as a bad fit
+    with the starting lens are taken back when they fit the lens refined on them.
+
+    When no image was rejected as a bad fit, nothing is done (``intrinsics`` and ``results``
+    are returned as they are).  Otherwise the lens is fitted again with its views' poses
+    (:func:`multieye.imaging.generic_start.fit_lens`, Huber loss, so that a truly bad view
+    does not pull it) on at most :data:`START_VIEWS` accepted views spread over the
+    recording and at most as many rejected ones, and every view is posed again with the
+    refined lens: each image is accepted or rejected (RMS above ``max_rms_px``) on it.
+
+    Parameters
+    ----------
+    results : sequence of ImageResult
+        Posed with ``intrinsics`` (:func:`poses_from_detections`).
+    intrinsics : Intrinsics
+        The starting lens.
+    max_rms_px : float
+
+    Returns
+    -------
+    intrinsics : Intrinsics
+        The refined lens (the start itself when no image was rejected or the refit did not
+        lower the views' cost).
+    results : list of ImageResult
+        Every image posed with it.
+    """
+    early = [k for k, r in enumerate(results) if r.pose is not None and r.reason is not None
+             and r.reason.startswith("bad fit")]
+    if not early:
+        return intrinsics, list(results)
+    kept = [k for k, r in enumerate(results) if r.ok]
+    fitted = [kept[i] for i in _spread(len(kept), START_VIEWS)] + early[:START_VIEWS]
+    views = [(results[k].detection.object_points, results[k].detection.image_points)
+             for k in fitted]
+    T0 = np.stack([results[k].pose.T_cam_target for k in fitted])
+    try:
+        fit = fit_lens(views, intrinsics, T0)
+    except (InputError, np.linalg.LinAlgError):
+        return intrinsics, list(results)
+    before = np.array([results[k].pose.rms_px for k in fitted])
+    if not np.sum(np.minimum(fit.rms_px, 1e6) ** 2) < np.sum(before ** 2):
+        return intrinsics, list(results)
+    again = [replace(r, reason=None, pose=None) if k in early else r
+             for k, r in enumerate(results)]
+    return fit.intrinsics, poses_from_detections(again, fit.intrinsics, max_rms_px=max_rms_px)

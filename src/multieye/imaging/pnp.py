@@ -1,14 +1,14 @@
 """Pose of a planar target from one detection (perspective-n-point).
 
-IPPE (``cv2.solvePnPGeneric`` with ``SOLVEPNP_IPPE``) on the undistorted, normalised
-points gives the two candidate poses of a planar target; the one with the smaller
+IPPE (``cv2.solvePnPGeneric`` with ``SOLVEPNP_IPPE``) on the points' viewing rays (turned
+into a virtual camera looking along them when they are far off the lens axis:
+:func:`multieye.imaging.rays.ippe_on_rays`) gives the two candidate poses of a planar target; the one with the smaller
 reprojection error in pixels is refined by Levenberg-Marquardt on the pixel reprojection
 error through the full lens model (``cv2.solvePnPRefineLM`` for pinhole cameras, the same
 iteration on ``cv2.fisheye.projectPoints`` for fisheye cameras, and on
-:func:`multieye.core.lens.project_with_jacobian` for the wide-angle models, whose IPPE start
-uses the points whose rays are in front of the camera and whose refinement uses every point
-the model places, rays beyond 90 degrees too). Residuals are reported in pixels of the
-distorted image.
+:func:`multieye.core.lens.project_with_jacobian` for the wide-angle models, whose refinement
+uses every point the model places, rays beyond 90 degrees too). Residuals are reported in
+pixels of the distorted image.
 
 The other IPPE pose, refined the same way, is kept as :attr:`PoseEstimate.alternative`
 when the pixels cannot rule it out: its RMS within :data:`ALTERNATIVE_RATIO` of the first's,
@@ -35,10 +35,10 @@ from numpy.typing import NDArray
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import WIDE_MODELS, Intrinsics
 from multieye.core.geometry import rotation_from_rotvec
-from multieye.core.lens import (
-    project_points, project_with_jacobian, undistort_points, unproject_points)
+from multieye.core.lens import project_points, project_with_jacobian
 from multieye.imaging.detect import Detection
 from multieye.imaging.pnp_refine import refine_fisheye, refine_wide
+from multieye.imaging.rays import bearings, ippe_on_rays
 
 __all__ = ["PoseEstimate", "estimate_pose", "estimate_poses", "refit_pose", "refit_poses",
            "reprojection_residuals",
@@ -165,7 +165,8 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
         raise InputError(f"PnP needs at least 4 points, got {len(obj)}")
     if not np.abs(obj[:, 2]).max() <= 1e-8:           # np.allclose(z, 0), 10x faster
         raise InputError("PnP here is for planar targets: object points must have z = 0")
-    xy, ok = _normalised(img, intrinsics)
+    xy = bearings(img, intrinsics)
+    ok = np.isfinite(xy).all(axis=1)
     if not ok.all():
         if ok.sum() < 4:
             raise InputError(f"only {int(ok.sum())} of {len(obj)} points lie where the lens "
@@ -173,14 +174,11 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
         obj, img, xy = obj[ok], img[ok], xy[ok]
     if _collinear(obj[:, :2]):
         raise InputError(f"the {len(obj)} points lie on one line: the pose is not determined")
-    front = np.isfinite(xy).all(axis=1)
-    if not front.all():             # a wide lens: IPPE on the rays in front of the camera
-        if front.sum() < 4 or _collinear(obj[front, :2]):
-            raise InputError(f"only {int(front.sum())} of {len(obj)} points' rays are in "
-                             "front of the camera (not on one line): PnP's start needs 4")
-        candidates = _ippe_candidates(obj[front], img[front], xy[front], intrinsics)
-    else:
-        candidates = _ippe_candidates(obj, img, xy, intrinsics)
+
+    candidates = _ippe_candidates(obj, img, xy, intrinsics)
+    if not candidates:
+        raise InputError(f"the {len(obj)} points' rays span more than a half-space: no "
+                         "planar pose")
     _, rvec, tvec = candidates[0]
     rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
     if detection.circle_diameter is not None:
@@ -221,7 +219,7 @@ def estimate_poses(detections: Sequence[Detection], intrinsics: Intrinsics
               np.asarray(d.image_points, dtype=np.float64)) for d in detections]
     batch = [k for k, (obj, _) in enumerate(views) if detections[k].circle_diameter is None
              and len(obj) >= 4 and np.abs(obj[:, 2]).max() <= 1e-8]
-    every = undistort_points(np.concatenate([views[k][1] for k in batch]), intrinsics) \
+    every = bearings(np.concatenate([views[k][1] for k in batch]), intrinsics) \
         if batch else None
     chosen, starts, at = [], [], 0
     for k in batch:
@@ -230,7 +228,7 @@ def estimate_poses(detections: Sequence[Detection], intrinsics: Intrinsics
         if not np.isfinite(xy_k).all() or _collinear(obj[:, :2]):
             continue                                # alone: fewer points, or its error
         candidates = _ippe_candidates(obj, img, xy_k, intrinsics)
-        if len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
+        if not candidates or len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
             continue                                # alone: it may keep the alternative
         chosen.append(k)
         starts.append(_transform(*candidates[0][1:]))
@@ -249,27 +247,15 @@ def estimate_poses(detections: Sequence[Detection], intrinsics: Intrinsics
     return out
 
 
-def _ippe_candidates(obj: F64, img: F64, xy: F64, intrinsics: Intrinsics) -> list:
-    """IPPE's poses of planar points ``obj`` (z = 0) from their undistorted normalised
-    coordinates ``xy``, as ``(sum of squared pixel errors against img, rvec, tvec)``, the
-    better fit first."""
-    _, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
+def _ippe_candidates(obj: F64, img: F64, rays: F64, intrinsics: Intrinsics) -> list:
+    """IPPE's poses of planar points ``obj`` (z = 0) from their unit viewing ``rays``
+    (:func:`multieye.imaging.rays.ippe_on_rays`), as ``(sum of squared pixel errors against
+    img, rvec, tvec)``, the better fit first (empty when IPPE has none)."""
     candidates = []
-    for rvec, tvec in zip(rvecs, tvecs):
-        rvec, tvec = rvec.reshape(3).copy(), tvec.reshape(3).copy()
+    for rvec, tvec in ippe_on_rays(obj, rays):
         err = _pixel_errors(obj, img, intrinsics, rvec, tvec)
         candidates.append((float(np.sum(err ** 2)), rvec, tvec))
     return sorted(candidates, key=lambda c: c[0])
-
-
-def _normalised(img: F64, intrinsics: Intrinsics) -> tuple[F64, NDArray[np.bool_]]:
-    """Normalised coordinates of pixels for IPPE, and which points the lens model places
-    (:func:`multieye.core.lens.undistort_points`; a wide-angle model also places rays with
-    ``z <= 0``, whose normalised coordinates are NaN: they join the refinement only)."""
-    xy = undistort_points(img, intrinsics)
-    if intrinsics.model not in WIDE_MODELS:
-        return xy, np.isfinite(xy).all(axis=1)
-    return xy, np.isfinite(unproject_points(img, intrinsics)).all(axis=1)
 
 
 def _collinear(xy: F64) -> bool:

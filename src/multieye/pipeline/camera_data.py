@@ -32,7 +32,7 @@ from multieye.io import (
 from multieye.pipeline.boards import camera_boards, no_usable_image as _no_usable_image, per_board
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
 from multieye.pipeline.detection import Workers, detect_all, detect_listed
-from multieye.pipeline.estimated_lens import lens_start, start_lens, with_poses
+from multieye.pipeline.estimated_lens import lens_start, posed_on_refined_lens, start_lens, with_poses
 from multieye.pipeline.recordings import check_sync, poses_by_name_of, sync_instant
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.selection import (Chosen, SelectionSummary, motion_first, preselected,
@@ -251,7 +251,7 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
             results = list(started.results)
         else:
             lens = start_lens(name, cam.model, list(results) + list(extra_views), source)
-            results = with_poses(results, lens.intrinsics)
+            lens, results = posed_on_refined_lens(lens, results)
     obs, rejected, warnings, notes = [], [], list(lens.warnings if lens else ()), []
     for (stamp, label), res, board in zip(stamped, results, boards):
         if res.ok:

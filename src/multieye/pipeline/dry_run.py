@@ -29,6 +29,7 @@ from multieye.pipeline.recordings import check_sync, image_notes, listed_images,
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
+from multieye.pipeline.estimated_lens import model_warnings
 from multieye.io.calibration_json import OVERLAP
 from multieye.pipeline.sources import outside_reads
 from multieye.pipeline.frames import video_frames, video_listing
@@ -201,6 +202,10 @@ def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> l
             out.append(f"the sampled views cover only {coverage:.0%} of the image "
                        "(4 x 4 cells): the lens's distortion would be extrapolated elsewhere; "
                        "add views with the board near the edges and corners")
+        # a fisheye or wide model: another that the sampled views fit clearly better
+        out.extend(w.removeprefix(f"{cam.name}: ") for w in model_warnings(
+            cam.name, cam.model, [(r.detection.object_points, r.detection.image_points)
+                                  for r in found], found[0].image_size))
     return out
 
 

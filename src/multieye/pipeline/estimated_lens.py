@@ -18,17 +18,25 @@ import numpy as np
 
 from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.intrinsics import Intrinsics, lens_model
+from multieye.core.intrinsics import LENS_MODELS, Intrinsics, lens_model
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
-from multieye.imaging.calibrate import InitialIntrinsics, initial_intrinsics, poses_from_detections
+from multieye.imaging.calibrate import (
+    InitialIntrinsics,
+    accept_on_refined_lens,
+    initial_intrinsics,
+    poses_from_detections,
+)
+from multieye.imaging.model_choice import compare_models
 from multieye.imaging.pnp import refit_poses
 
 __all__ = ["LensStart", "start_lens", "lens_start", "with_poses", "weak_data_warnings", "check_model",
-           "RECOMMENDED_VIEWS"]
+           "RECOMMENDED_VIEWS", "posed_on_refined_lens", "model_warnings"]
 
 #: Views of the target a lens model wants before its intrinsics count as well supported.
 RECOMMENDED_VIEWS = {"pinhole-radtan": 10, "pinhole-radtan4": 10, "pinhole-rational": 20,
                      "fisheye": 15, "unified": 15, "double-sphere": 15, "eucm": 15}
+#: Fewest views on which lens models are compared (4 folds of at least 2 views).
+MIN_COMPARED_VIEWS = 8
 #: Smallest largest tilt of the board against the line of sight, degrees.
 MIN_TILT_DEG = 20.0
 #: Smallest share of a 4 x 4 grid over the image in which the target was seen.
@@ -131,8 +139,19 @@ def lens_start(name: str, model: str, results: Sequence[ImageResult],
     lens_start_task`), with what the views lack for ``model``."""
     views = _views(results)
     size = next(r.image_size for r in results if r.image_size is not None)
+    warnings = weak_data_warnings(name, model, views, start.T_cam_target, size)
     return LensStart(start.intrinsics, start.rms_px, len(views),
-                     weak_data_warnings(name, model, views, start.T_cam_target, size))
+                     warnings + model_warnings(name, model, views, size))
+
+
+def model_warnings(name: str, model: str, views, size) -> tuple[str, ...]:
+    """For a fisheye or wide lens model: the model the same views fit clearly better, with
+    the figures (:func:`multieye.imaging.model_choice.compare_models`: held-out reprojection
+    by radius), or nothing; pinhole models are not compared (their path stays as fast)."""
+    if LENS_MODELS[model][0] == "pinhole" or len(views) < MIN_COMPARED_VIEWS:
+        return ()
+    message = compare_models(views, size, model).message(name)
+    return () if message is None else (message,)
 
 
 def with_poses(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
@@ -141,6 +160,19 @@ def with_poses(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
     (:func:`multieye.imaging.calibrate.poses_from_detections`: a failed PnP or a bad fit
     becomes the image's reason)."""
     return poses_from_detections(results, intrinsics, max_rms_px=max_rms_px)
+
+
+def posed_on_refined_lens(lens: LensStart, results: Sequence[ImageResult], *,
+                          max_rms_px: float = DEFAULT_MAX_RMS_PX
+                          ) -> tuple[LensStart, list[ImageResult]]:
+    """Detection-only results posed with the starting lens, then judged on the refined one
+    (:func:`multieye.imaging.calibrate.accept_on_refined_lens`: an image rejected as a bad
+    fit with the start is taken back when it fits the lens refined on it); the
+    :class:`LensStart` carries the lens the images were judged on."""
+    posed = poses_from_detections(results, lens.intrinsics, max_rms_px=max_rms_px)
+    intrinsics, accepted = accept_on_refined_lens(posed, lens.intrinsics, max_rms_px=max_rms_px)
+    return (lens if intrinsics is lens.intrinsics else replace(lens, intrinsics=intrinsics),
+            accepted)
 
 
 def refit_paired(paired, intrinsics: Intrinsics):

@@ -1,0 +1,206 @@
+"""Which lens model the views support: held-out reprojection by radius, per candidate model.
+
+A lens model that does not fit the lens leaves residuals that grow towards the edge of the
+image; the same views fitted with another model say whether it does better.  The criterion
+is the reprojection of views the lens was not fitted on (k-fold cross-validation over the
+views: each fold's views posed with the lens fitted on the others, the lens held), so that a
+model with more parameters gains nothing by fitting the noise.  Another model is named
+(:attr:`ModelComparison.better`) only when it is clearly better: its held-out RMS in the outer
+quarter of the observed radii at most :data:`CLEARLY` times the requested model's and at
+least :data:`MIN_GAIN_PX` lower, and lower overall too; or it projects more of the corners
+seen (:data:`LOST_SHARE` of them: a fisheye lens cannot project rays beyond 90 degrees off its
+axis) and fits them as well (issue 33).
+
+Synopsis
+--------
+>>> cmp = compare_models(views, (640, 720), "fisheye")                  # doctest: +SKIP
+>>> cmp.better, cmp.message("cam0")                                      # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from multieye.core.errors import InputError
+from multieye.core.intrinsics import LENS_MODELS
+from multieye.core.lens import project_points
+from multieye.imaging.generic_start import fit_lens, generic_start
+from multieye.imaging.pnp import refit_poses
+
+__all__ = ["ModelScore", "ModelComparison", "compare_models", "CANDIDATES", "CLEARLY",
+           "MIN_GAIN_PX"]
+
+F64 = NDArray[np.float64]
+
+#: The models a fisheye or wide lens is compared in.
+CANDIDATES = ("fisheye", "unified", "double-sphere", "eucm")
+#: Another model is clearly better when its outer held-out RMS is at most this share ...
+CLEARLY = 0.75
+#: ... and at least this many pixels below the requested model's.
+MIN_GAIN_PX = 0.05
+#: ... or projects more of the corners seen by this share of them (and fits as well).
+LOST_SHARE = 0.02
+#: Views the comparison uses at most (spread over those given), and its folds.
+MAX_VIEWS = 20
+FOLDS = 4
+
+
+@dataclass(frozen=True)
+class ModelScore:
+    """One model's held-out reprojection.
+
+    Attributes
+    ----------
+    model : str
+    rms_px : float
+        Over every held-out point both compared sets share, pixels.
+    outer_rms_px : float
+        Over those beyond ``outer_from_px`` from the image centre (the outer quarter).
+    by_radius : tuple of (float, float, float)
+        ``(from_px, to_px, rms_px)`` per band of 100 px from the image centre.
+    lost : int
+        Held-out points the model does not project (a fisheye lens: beyond 90 degrees off
+        its axis), of those some model projects.
+    """
+
+    model: str
+    rms_px: float
+    outer_rms_px: float
+    by_radius: tuple[tuple[float, float, float], ...]
+    lost: int = 0
+
+
+@dataclass(frozen=True)
+class ModelComparison:
+    """The requested model against the others on the same views (module docstring).
+
+    Attributes
+    ----------
+    requested : str
+    scores : dict of str to ModelScore
+        The models that could be fitted.
+    outer_from_px : float
+        Where the outer quarter of the observed radii starts, pixels from the centre.
+    views : int
+    better : str or None
+        The clearly better model, if any.
+    """
+
+    requested: str
+    scores: dict[str, ModelScore]
+    outer_from_px: float
+    views: int
+    better: str | None
+
+    def message(self, camera: str) -> str | None:
+        """The warning that names the better model with the figures, or None."""
+        if self.better is None:
+            return None
+        a, b = self.scores[self.requested], self.scores[self.better]
+        if a.lost > b.lost:
+            return (f"{camera}: the {self.requested} lens model leaves {a.lost} of the corners "
+                    "seen without a projection (beyond 90 degrees off its axis, or in views it "
+                    f"cannot pose because of such points); {self.better} projects "
+                    f"{a.lost - b.lost} more of them, with {b.rms_px:.2f} px of held-out "
+                    f"reprojection RMS ({self.requested} {a.rms_px:.2f} px on the corners it "
+                    f"projects; {FOLDS}-fold cross-validation on {self.views} views): "
+                    f"consider model: {self.better}")
+        return (f"{camera}: the {self.requested} lens leaves {a.outer_rms_px:.2f} px of "
+                f"held-out reprojection RMS beyond {self.outer_from_px:.0f} px from the image "
+                f"centre, {self.better} {b.outer_rms_px:.2f} px ({a.rms_px:.2f} against "
+                f"{b.rms_px:.2f} px over the image; {FOLDS}-fold cross-validation on "
+                f"{self.views} views): consider model: {self.better}")
+
+
+def _spread(n: int, k: int) -> NDArray[np.int64]:
+    return np.unique(np.linspace(0, n - 1, min(n, k)).round().astype(np.int64))
+
+
+def _held_out(views, size, model: str) -> F64 | None:
+    """Per point of ``views`` (stacked), its held-out reprojection error in ``model``,
+    pixels (NaN where the model does not project it); None when no lens can be fitted."""
+    try:
+        full = generic_start(views, size, model)
+    except (InputError, np.linalg.LinAlgError):
+        return None
+    counts = [len(o) for o, _ in views]
+    at = np.concatenate([[0], np.cumsum(counts)])
+    err = np.full(at[-1], np.nan)
+    posed = np.flatnonzero(np.isfinite(full.rms_px))
+    for fold in range(FOLDS):
+        test = posed[fold::FOLDS]
+        train = np.setdiff1d(posed, test)
+        if len(train) < 3 or not len(test):
+            continue
+        try:
+            lens = fit_lens([views[i] for i in train], full.intrinsics,
+                            full.T_cam_target[train], max_iterations=50).intrinsics
+            poses = refit_poses(full.T_cam_target[test], [views[i][0] for i in test],
+                                [views[i][1] for i in test], lens)
+        except (InputError, np.linalg.LinAlgError):
+            continue
+        for i, pose in zip(test, poses):
+            obj, uv = views[i]
+            T = pose.T_cam_target
+            d = project_points(obj @ T[:3, :3].T + T[:3, 3], lens) - uv
+            err[at[i]:at[i + 1]] = np.hypot(d[:, 0], d[:, 1])
+    return err
+
+
+def _score(model: str, err: F64, radius: F64, outer_from: float, lost: int) -> ModelScore:
+    def rms(mask):
+        return float(np.sqrt(np.mean(err[mask] ** 2))) if mask.any() else float("nan")
+
+    bands = tuple((lo, lo + 100.0, rms((radius >= lo) & (radius < lo + 100.0)))
+                  for lo in np.arange(0.0, radius.max() + 1e-9, 100.0))
+    return ModelScore(model, rms(np.ones_like(radius, bool)), rms(radius >= outer_from),
+                      tuple(b for b in bands if np.isfinite(b[2])), lost)
+
+
+def compare_models(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
+                   requested: str, *, candidates: Sequence[str] = CANDIDATES
+                   ) -> ModelComparison:
+    """The held-out reprojection of each candidate model on the same views.
+
+    Parameters
+    ----------
+    views : sequence of (object_points (n, 3), image_points (n, 2))
+        At most :data:`MAX_VIEWS` of them are used, spread over the sequence.
+    image_size : (int, int)
+    requested : str
+        The rig.yaml model asked for (:data:`multieye.core.intrinsics.LENS_MODELS`).
+    candidates : sequence of str
+
+    Returns
+    -------
+    ModelComparison
+        Scored over the points every fitted model projects (a fisheye lens none beyond 90
+        degrees off its axis).
+    """
+    views = [(np.asarray(o, np.float64), np.asarray(u, np.float64)) for o, u in views]
+    views = [views[i] for i in _spread(len(views), MAX_VIEWS)]
+    size = (int(image_size[0]), int(image_size[1]))
+    models = [requested] + [m for m in candidates if m != requested]
+    errors = {m: e for m in models if m in LENS_MODELS
+              for e in [_held_out(views, size, m)] if e is not None}
+    uv = np.concatenate([u for _, u in views]) if views else np.zeros((0, 2))
+    common = np.all([np.isfinite(e) for e in errors.values()], axis=0) if errors else []
+    if requested not in errors or not np.any(common):
+        return ModelComparison(requested, {}, float("nan"), len(views), None)
+    centre = (np.array(size, np.float64) - 1) / 2
+    radius = np.hypot(*(uv[common] - centre).T)
+    outer_from = float(np.quantile(radius, 0.75))
+    some = np.any([np.isfinite(e) for e in errors.values()], axis=0)
+    scores = {m: _score(m, e[common], radius, outer_from, int(np.sum(some & ~np.isfinite(e))))
+              for m, e in errors.items()}
+    mine = scores[requested]
+    better = [s for m, s in scores.items() if m != requested and (
+        s.outer_rms_px <= CLEARLY * mine.outer_rms_px
+        and s.outer_rms_px <= mine.outer_rms_px - MIN_GAIN_PX and s.rms_px < mine.rms_px
+        or mine.lost - s.lost > LOST_SHARE * some.sum() and s.rms_px < mine.rms_px + MIN_GAIN_PX)]
+    best = min(better, key=lambda s: (s.lost, s.outer_rms_px)).model if better else None
+    return ModelComparison(requested, scores, outer_from, len(views), best)
