@@ -1,0 +1,81 @@
+"""The start of a rig linked by its motion in front of boards on the walls (issue 34, item 1):
+exact on noise-free poses, the same whatever the room's frame or the reference camera, the
+single-axis hand-eye, and cameras nothing links named."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from wall_rig import wall_rig
+
+from multieye.core import geometry as g
+from multieye.core.errors import DisconnectedError
+from multieye.estimate.motion_links import motion_start, single_axis_hand_eye
+
+
+def _start(s, reference=0, T=None):
+    return motion_start(s.T_cam_board() if T is None else T, s.camera, s.instant, s.board,
+                        len(s.T_ref_cam), reference)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_noise_free_poses_give_rig_boards_and_motion_exactly(seed):
+    s = wall_rig(seed)
+    st = _start(s)
+    assert np.abs(st.T_ref_cam - s.T_ref_cam).max() < 1e-9
+    assert np.abs(st.T_world_board - s.T_world_board).max() < 1e-9
+    assert np.abs(st.T_world_rig - s.T_world_rig).max() < 1e-9
+    assert st.links[0].kind == "reference"
+    assert {lk.kind for lk in st.links[1:]} == {"motion"}      # no two cameras see one board
+    assert st.single_axis == ()
+
+
+def test_the_start_does_not_depend_on_the_room_frame_or_the_reference_camera():
+    s = wall_rig(3)
+    st = _start(s)
+    G = g.random_transforms(np.random.default_rng(0))
+    moved = type(s)(s.T_ref_cam, G @ s.T_room_board, G @ s.T_room_rig, s.intrinsics,
+                    s.object_points, s.camera, s.instant, s.board)
+    assert np.abs(_start(moved).T_ref_cam - st.T_ref_cam).max() < 1e-9
+    assert np.abs(_start(moved).T_world_board - st.T_world_board).max() < 1e-9
+    st2 = _start(s, reference=2)
+    assert np.abs(st2.T_ref_cam - g.inv(s.T_ref_cam[2]) @ s.T_ref_cam).max() < 1e-9
+    assert np.abs(st2.T_world_board - s.T_world_board).max() < 1e-9
+
+
+def test_a_camera_that_never_sees_a_board_with_a_linked_camera_is_named():
+    s = wall_rig(0)
+    T = s.T_cam_board()
+    # camera 3's views moved to instants of their own: nothing else is seen then
+    inst = s.instant.copy()
+    three = s.camera == 3
+    inst[three] = s.instant.max() + 1 + np.arange(three.sum())
+    with pytest.raises(DisconnectedError, match="cam3 are linked to the reference camera cam0 "
+                       "neither") as e:
+        motion_start(T, s.camera, inst, s.board, 4)
+    assert e.value.names == ("cam3",)
+
+
+def test_single_axis_hand_eye_is_exact_but_along_the_axis():
+    rng = np.random.default_rng(4)
+    X, Y = g.random_transforms(rng, 2)
+    k = np.array([0.0, 0.0, 1.0])
+    A = np.stack([g.make_transform(g.rotation_from_rotvec(a * k), [x, y, 0.3])
+                  for a, x, y in rng.uniform(-3, 3, (12, 3))])
+    B = g.inv(Y) @ A @ X
+    Xe, Ye = single_axis_hand_eye(A, B)
+    assert g.rotation_angle_between(Xe, X) < 1e-7
+    along = (Xe[:3, 3] - X[:3, 3]) @ k
+    assert np.linalg.norm(Xe[:3, 3] - X[:3, 3] - along * k) < 1e-7
+    assert abs(Xe[2, 3]) < 1e-9                       # the undetermined part left at zero
+    assert np.abs(A @ Xe - Ye @ B).max() < 1e-7      # fits every loop exactly
+
+
+def test_planar_motion_starts_the_cameras_hand_eye_cannot():
+    s = wall_rig(0, motion="planar", yaw_deg=(-25, 115))
+    st = _start(s)
+    assert st.single_axis                              # solve_general refused the rotations
+    R_err = g.rotation_angle_between(st.T_ref_cam, s.T_ref_cam)
+    assert R_err.max() < 1e-7
+    d = st.T_ref_cam[:, :3, 3] - s.T_ref_cam[:, :3, 3]
+    assert np.abs(d[:, [0, 2]]).max() < 1e-7             # only along the rig's vertical (y)
