@@ -29,7 +29,8 @@ class WallRig:
     """The truth and the views.
 
     T_ref_cam (m, 4, 4); T_room_board (nb, 4, 4); T_room_rig (K, 4, 4); views: camera,
-    instant, board (each (n_views,) int), instants numbered 0..K-1 each with a view.
+    instant, board (each (n_views,) int), camera by camera; instants numbered 0..K-1 each
+    with a view.
     """
 
     T_ref_cam: F64
@@ -147,5 +148,6 @@ def wall_rig(seed: int, *, n_instants: int = 40, m: int = 4, motion: str = "6dof
             insts.append(len(poses))
             bds.append(b)
         poses.append(T_room_rig)
-    return WallRig(T_ref_cam, boards, np.stack(poses), intr, pts, np.asarray(cams),
-                   np.asarray(insts), np.asarray(bds))
+    order = np.argsort(cams, kind="stable")          # views camera by camera, as MotionViews
+    return WallRig(T_ref_cam, boards, np.stack(poses), intr, pts, np.asarray(cams)[order],
+                   np.asarray(insts)[order], np.asarray(bds)[order])

@@ -169,7 +169,10 @@ class _Growth:
                 if len(part) != 1:
                     continue
                 (j, b), = part
-                X0, Y0 = single_axis_hand_eye(gs[0][2], gs[0][3])
+                try:
+                    X0, Y0 = single_axis_hand_eye(gs[0][2], gs[0][3])
+                except DegenerateMotionError:          # too few poses: maybe a later round
+                    continue
                 X, Y = {j: X0}, {b: Y0}
                 self.single_axis.append(j)
             for j, T in X.items():
