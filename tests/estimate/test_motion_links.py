@@ -11,11 +11,19 @@ from wall_rig import wall_rig
 from multieye.core import geometry as g
 from multieye.core.errors import DisconnectedError
 from multieye.estimate.motion_links import motion_start, single_axis_hand_eye
+from multieye.estimate.motion_residuals import MotionViews
 
 
-def _start(s, reference=0, T=None):
-    return motion_start(s.T_cam_board() if T is None else T, s.camera, s.instant, s.board,
-                        len(s.T_ref_cam), reference)
+def _start(s, reference=0):
+    return motion_start(_views(s, reference), s.T_cam_board())
+
+
+def _views(s, reference=0, instant=None):
+    inst = s.instant if instant is None else instant
+    views = {f"cam{j}": [] for j in range(len(s.T_ref_cam))}
+    for v, uv in enumerate(s.pixels()):
+        views[f"cam{s.camera[v]}"].append((s.object_points, uv, int(inst[v]), int(s.board[v])))
+    return MotionViews(views, s.intrinsics, reference)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -45,14 +53,14 @@ def test_the_start_does_not_depend_on_the_room_frame_or_the_reference_camera():
 
 def test_a_camera_that_never_sees_a_board_with_a_linked_camera_is_named():
     s = wall_rig(0)
-    T = s.T_cam_board()
     # camera 3's views moved to instants of their own: nothing else is seen then
     inst = s.instant.copy()
     three = s.camera == 3
     inst[three] = s.instant.max() + 1 + np.arange(three.sum())
+    inst = np.unique(inst, return_inverse=True)[1]
     with pytest.raises(DisconnectedError, match="cam3 are linked to the reference camera cam0 "
                        "neither") as e:
-        motion_start(T, s.camera, inst, s.board, 4)
+        motion_start(_views(s, instant=inst), s.T_cam_board())
     assert e.value.names == ("cam3",)
 
 

@@ -30,13 +30,12 @@ refinement, :mod:`multieye.estimate.motion_residuals`).  Exact on noise-free pos
 
 Synopsis
 --------
->>> st = motion_start(T_cam_board, camera, instant, board, m=4)      # doctest: +SKIP
+>>> st = motion_start(views, T_cam_board)                             # doctest: +SKIP
 >>> st.T_ref_cam, st.T_world_board, st.links[2]                       # doctest: +SKIP
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -206,20 +205,16 @@ def _components(pairs: list[tuple[int, int]]) -> list[list[tuple[int, int]]]:
     return out
 
 
-def motion_start(T_cam_board, camera, instant, board, m: int, reference: int = 0,
-                 names: Sequence[str] | None = None) -> MotionStart:
+def motion_start(views, T_cam_board) -> MotionStart:
     """Start every ``T_ref_cam``, board pose and rig pose (module docstring).
 
     Parameters
     ----------
+    views : MotionViews
+        Camera, instant and board of every view, the reference camera and the cameras' names
+        (:class:`multieye.estimate.motion_residuals.MotionViews`).
     T_cam_board : array_like, shape (n_views, 4, 4)
         The board in the camera of each view (PnP).
-    camera, instant, board : array_like of int, shape (n_views,)
-        Camera (0..m-1), instant (0..K-1) and board (0..nb-1) of each view.
-    m : int
-    reference : int
-    names : sequence of str, optional
-        Camera names for the message when cameras are not linked.
 
     Raises
     ------
@@ -229,24 +224,26 @@ def motion_start(T_cam_board, camera, instant, board, m: int, reference: int = 0
         them.
     """
     T = np.asarray(T_cam_board, dtype=np.float64).reshape(-1, 4, 4)
-    camera, instant, board = (np.asarray(a, dtype=np.int64).reshape(-1)
-                              for a in (camera, instant, board))
-    if not (len(T) == camera.size == instant.size == board.size) or len(T) == 0:
-        raise InputError(f"{len(T)} poses for {camera.size} cameras, {instant.size} instants "
-                         f"and {board.size} boards of views")
-    names = list(names) if names is not None else [f"cam{j}" for j in range(m)]
-    own = board[camera == reference]
+    camera, instant, board, m = views.camera, views.instant, views.board, views.m
+    ref, label = views.reference, views.names
+    if len(T) != camera.size:
+        raise InputError(f"{len(T)} poses for {camera.size} views")
+    own = board[camera == ref]
     if own.size == 0:
-        raise DisconnectedError(f"the reference camera {names[reference]} sees no board",
-                                (names[reference],))
-    grow = _Growth(T, camera, instant, board, m, reference, int(np.bincount(own).argmax()))
+        raise DisconnectedError(f"the reference camera {label[ref]} sees no board",
+                                (label[ref],))
+    grow = _Growth(T, camera, instant, board, m, ref, int(np.bincount(own).argmax()))
     while True:
         grow.chain()
         if len(grow.cams) == m or not grow.hand_eye():
             break
-    apart = [j for j in range(m) if j not in grow.cams]
+    apart = [label[j] for j in range(m) if j not in grow.cams]
     if apart:
-        raise DisconnectedError(_unlinked(names, grow, apart), tuple(names[j] for j in apart))
+        raise DisconnectedError(
+            f"cameras {', '.join(apart)} are linked to the reference camera {label[ref]} "
+            "neither by views they share nor by the rig's motion: give them images of a board "
+            "taken at instants (synchronised or stamped) when a linked camera sees a board, or "
+            "motion capture (mocap: in rig.yaml)", tuple(apart))
     nb, K = int(board.max()) + 1, int(instant.max()) + 1
     missing = [f"board {b}" for b in range(nb) if b not in grow.boards] + [
         f"instant {t}" for t in range(K) if t not in grow.insts]
@@ -259,14 +256,6 @@ def motion_start(T_cam_board, camera, instant, board, m: int, reference: int = 0
         T_world_board=np.stack([to_world @ grow.boards[b] for b in range(nb)]),
         T_world_rig=np.stack([to_world @ grow.insts[t] for t in range(K)]),
         links=tuple(grow.links[j] for j in range(m)), single_axis=tuple(grow.single_axis))
-
-
-def _unlinked(names, grow: _Growth, apart: list[int]) -> str:
-    listing = ", ".join(names[j] for j in apart)
-    return (f"cameras {listing} are linked to the reference camera {names[next(iter(grow.cams))]}"
-            " neither by views they share nor by the rig's motion: give them images of a board"
-            " taken at instants (synchronised or stamped) when a linked camera sees a board, or"
-            " motion capture (mocap: in rig.yaml)")
 
 
 def single_axis_hand_eye(A, B) -> tuple[F64, F64]:

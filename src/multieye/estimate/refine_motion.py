@@ -84,6 +84,9 @@ class MotionResult:
     converged : bool
     undetermined : tuple of str
         Families with a direction the data do not determine at all (numerically singular).
+    null_space : ndarray, shape (m, 6, r)
+        Per camera its part of those directions (zeros for the reference camera; r = 0 in a
+        regular problem), for :func:`multieye.estimate.observability.observability`.
     """
 
     T_ref_cam: F64
@@ -102,6 +105,7 @@ class MotionResult:
     iterations: int
     converged: bool
     undetermined: tuple[str, ...] = ()
+    null_space: F64 | None = None
 
 
 def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None = None,
@@ -136,8 +140,7 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
     if not (np.isfinite(sigma) and sigma > 0):
         raise InputError(f"pixel_sigma must be a positive number, got {pixel_sigma!r}")
     if start is None:
-        start = motion_start(T, views.camera, views.instant, views.board, views.m,
-                             views.reference, views.names)
+        start = motion_start(views, T)
     k = 6 * (views.m - 1 + views.n_boards - 1) + sum(
         views.intrinsics[j].params.size for j in range(views.m) if views.free[j])
     with threads_for(k):
@@ -191,6 +194,10 @@ def _result(views: MotionViews, start: MotionStart, fams, sigma: float, loss: st
     board_cov = np.zeros((views.n_boards, 6, 6))
     if views.n_boards > 1:
         board_cov[1:] = _blocks(kept, offsets["W"], views.n_boards - 1, 6)
+    und = cov.undetermined if cov.undetermined is not None else np.zeros((len(kept), 0))
+    null = np.zeros((views.m, 6, und.shape[1]))
+    for b, j in enumerate(views.others):
+        null[j] = und[offsets["C"] + 6 * b:offsets["C"] + 6 * b + 6]
     k_cov = []
     for j, name in enumerate(views.names):
         if views.free[j]:
@@ -213,6 +220,6 @@ def _result(views: MotionViews, start: MotionStart, fams, sigma: float, loss: st
         covariance=cam_cov, board_covariance=board_cov, intrinsics_covariance=tuple(k_cov),
         joint_covariance=kept, offsets={n: int(o) for n, o in offsets.items()},
         pixel_sigma=float(sigma), residuals_px=resid, camera_rms_px=rms, start=start,
-        iterations=iterations, converged=converged,
+        iterations=iterations, converged=converged, null_space=null,
         undetermined=tuple(f.name for f in fams if not f.eliminate
                            and cov.undetermined_in(f.name, f.count, f.size)))
