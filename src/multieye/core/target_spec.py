@@ -23,7 +23,7 @@ TYPE_KEYS: dict[str, dict[str, str | None]] = {
     "circles": {"rows": None, "cols": None, "spacing": None},
     "asymmetric-circles": {"rows": None, "cols": None, "spacing": None},
     "charuco": {"rows": None, "cols": None, "spacing": None, "marker_size": None,
-                "dictionary": None},
+                "dictionary": None, "first_id": "optional"},
     "aprilgrid": {"rows": None, "cols": None, "spacing": None, "tag_spacing": None},
     "aruco": {"marker_size": None, "dictionary": None, "id": None},
     "aruco-grid": {"rows": None, "cols": None, "marker_size": None, "marker_separation": None,
@@ -77,7 +77,15 @@ class TargetSpec:
     id : int or None
         ``aruco``: the marker's id.
     first_id : int or None
-        ``aruco-grid``: the id of the first marker (default 0).
+        ``aruco-grid``, ``charuco``: the id of the first marker (default 0); boards of
+        several ``targets:`` in one dictionary tell themselves apart by their id ranges.
+
+    name : str
+        The board's name: ``targets:``'s ``name``, or ``"target"`` (rig.yaml's ``target:``).
+    cameras : tuple of str or None
+        The cameras that see this board (``targets:``'s ``cameras``); None: any camera.
+    pose : tuple of 4 tuples of 4 floats, or None
+        The board's given pose in the first board's frame (``T_<first>_<name>``, metres).
 
     ``aruco`` targets have ``rows = cols = 1``; for ``aruco`` and ``aruco-grid`` ``spacing`` is
     the marker side (``marker_size``), which rig.yaml gives instead.
@@ -93,6 +101,13 @@ class TargetSpec:
     marker_separation: float | None = None
     id: int | None = None
     first_id: int | None = None
+    name: str = "target"
+    cameras: tuple[str, ...] | None = None
+    pose: tuple[tuple[float, ...], ...] | None = None
+
+    def sees(self, camera: str) -> bool:
+        """Whether ``camera`` may see this board (its ``cameras``, else every camera)."""
+        return self.cameras is None or camera in self.cameras
 
     def as_dict(self) -> dict:
         """The fields that are set, as rig.yaml's ``target:`` mapping writes them."""

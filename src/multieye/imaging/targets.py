@@ -246,13 +246,15 @@ class Charuco(Target):
     (row-major from the corner next to the top-left square); the origin is corner id 0, one
     square in from the board's outer corner. Markers of ``marker_size`` metres from the
     OpenCV dictionary ``dictionary`` (e.g. ``"DICT_5X5_100"``) sit in the white squares, ids
-    from 0. ``legacy=True`` selects the layout OpenCV used before 4.6 (it differs when
+    from ``first_id`` (default 0; boards that share a dictionary are told apart by their id
+    ranges). ``legacy=True`` selects the layout OpenCV used before 4.6 (it differs when
     ``rows`` is even).
     """
 
     marker_size: float = 0.0
     dictionary: str = "DICT_5X5_100"
     legacy: bool = False
+    first_id: int = 0
     kind: ClassVar[str] = "charuco"
 
     def __post_init__(self):
@@ -268,6 +270,12 @@ class Charuco(Target):
         if n_markers > available:
             raise InputError(f"charuco {self.rows}x{self.cols} needs {n_markers} markers but "
                              f"{self.dictionary} has only {available}")
+        _marker_ids(self.dictionary, self.first_id, n_markers, "charuco first_id")
+
+    @property
+    def marker_ids(self) -> range:
+        """The ids of the board's markers."""
+        return range(self.first_id, self.first_id + (self.rows * self.cols) // 2)
 
     def object_points(self) -> F64:
         r, c = _grid(self.rows - 1, self.cols - 1)
@@ -285,7 +293,9 @@ class Charuco(Target):
         at the outer corner of the top-left square, one square from the canonical origin."""
 
         dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
-        board = cv2.aruco.CharucoBoard((self.cols, self.rows), self.spacing, self.marker_size, dictionary)
+        ids = np.asarray(self.marker_ids, dtype=np.int32)
+        board = cv2.aruco.CharucoBoard((self.cols, self.rows), self.spacing, self.marker_size,
+                                       dictionary, ids)
         board.setLegacyPattern(self.legacy)
         return board
 

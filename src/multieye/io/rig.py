@@ -75,11 +75,10 @@ from types import MappingProxyType
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
-from multieye.core.limits import (MAX_GRID_SIDE, MAX_ROTATION_NOISE_DEG, MAX_SPACING_M,
-                                  MAX_TIME_OFFSET_S, MAX_TIME_TOLERANCE_S, MAX_TRANSLATION_NOISE_M)
+from multieye.core.limits import (MAX_ROTATION_NOISE_DEG, MAX_TIME_OFFSET_S, MAX_TIME_TOLERANCE_S,
+                                  MAX_TRANSLATION_NOISE_M)
 from multieye.core.names import NAME_RULE, camera_name_problem
-from multieye.core import target_spec
-from multieye.core.target_spec import TARGET_KEYS, TARGET_TYPES, TYPE_KEYS, TargetSpec, grid_keys
+from multieye.core.target_spec import TARGET_KEYS, TARGET_TYPES, TargetSpec
 from multieye.io.intrinsics_files import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
@@ -87,6 +86,7 @@ from multieye.io.rig_checks import video_keys
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
 from multieye.io.rig_checks import camera_link, links_keys, no_link_loop, Checker as _Checker
+from multieye.io.rig_targets import read_target as _target, read_targets
 from multieye.io.textfile import LENGTH_UNITS
 from multieye.io.yamlfile import load_yaml, shown
 
@@ -96,9 +96,6 @@ __all__ = ["SETUPS", "TARGET_TYPES", "TOP_LEVEL_KEYS", "TARGET_KEYS", "MOCAP_KEY
 
 #: setup -> the frame motion capture tracks.
 SETUPS = {"eye-to-base": "marker", "eye-on-hand": "body"}
-#: The target keys beyond rows, cols, spacing, with the types that take them (the schema is
-#: :mod:`multieye.core.target_spec`).
-_TARGET_ONLY = {k: target_spec.owners(k) for k in TARGET_KEYS[4:]}
 _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-files", "pose-table"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
                "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv"),
@@ -108,7 +105,8 @@ _SOURCES = ("images", "poses", "rosbag", "video")
 
 #: The keys each mapping of rig.yaml accepts, in the order error messages list them; any other
 #: key is rejected at its line.  docs/rig-yaml.md documents every one (tests/test_docs.py).
-TOP_LEVEL_KEYS = ("setup", "target", "mocap", "cameras", "refine_intrinsics", "sync_tolerance")
+TOP_LEVEL_KEYS = ("setup", "target", "targets", "mocap", "cameras", "refine_intrinsics",
+                  "sync_tolerance")
 MOCAP_KEYS = ("file", "pose", "frames", "fixed_frame", "time_tolerance", "format",
               "rotation_noise_deg", "translation_noise_m", "match", "sensor",
               "noise_bounds") + tuple(_MOCAP_ONLY)
@@ -189,11 +187,15 @@ class Rig:
     cameras : mapping of str to CameraSpec
         In file order (read-only).
     target : TargetSpec or None
-        None when no camera has images.
+        The first (or only) board; None when no camera has images.
     mocap : MocapSpec or None
         None when every camera has its own, or when the rig has no motion capture.
     sync_tolerance : float or None
         Seconds within which images of different cameras are one instant (None: default).
+    targets : mapping of str to TargetSpec
+        Every board by name, in file order (read-only): ``targets:``, or ``target:`` as the
+        one board named ``"target"`` (:mod:`multieye.io.rig_targets`).  Left out, it is
+        ``{"target": target}`` (empty without a target).
     """
 
     path: Path
@@ -202,6 +204,12 @@ class Rig:
     target: TargetSpec | None = None
     mocap: MocapSpec | None = field(default=None)
     sync_tolerance: float | None = None
+    targets: Mapping[str, TargetSpec] | None = None
+
+    def __post_init__(self):
+        if self.targets is None:
+            one = {} if self.target is None else {self.target.name: self.target}
+            object.__setattr__(self, "targets", MappingProxyType(one))
 
     @property
     def has_mocap(self) -> bool:      # else the views the cameras share link the rig
@@ -224,60 +232,6 @@ class Rig:
         names = next((m.frame_names for m in specs if m is not None),
                      ("world", SETUPS[self.setup]))
         return {"world": names[0], SETUPS[self.setup]: names[1]}
-
-
-def _target(c: _Checker, raw, keys=("target",)) -> TargetSpec:
-    c.mapping(raw, keys, TARGET_KEYS, ("type",))
-    kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
-    for key in grid_keys(kind):
-        if key not in raw:
-            raise c.error(f"missing key {key!r}", keys)
-    if "spacing" not in TYPE_KEYS[kind] and "spacing" in raw:
-        raise c.error(f"{kind} targets give the marker side as 'marker_size'", keys + ("spacing",))
-    if kind == "aruco" and ("rows" in raw or "cols" in raw):
-        raise c.error("a single marker has no rows and cols (use aruco-grid for a board)",
-                      keys + ("rows" if "rows" in raw else "cols",))
-    for key, owners in _TARGET_ONLY.items():
-        if key in raw and kind not in owners:
-            raise c.error(f"applies to {', '.join(owners)} targets only (this target is {kind})",
-                          keys + (key,))
-        if key not in raw and kind in owners and TYPE_KEYS[kind][key] is None:
-            raise c.error(f"missing key {key!r} (required for {kind} targets)", keys)
-    extra = {}
-    if "marker_size" in raw:
-        extra["marker_size"] = c.number(raw["marker_size"], keys + ("marker_size",),
-                                        positive=True, maximum=MAX_SPACING_M, unit="metres")
-    if "marker_separation" in raw:
-        extra["marker_separation"] = c.number(raw["marker_separation"],
-                                              keys + ("marker_separation",), positive=True,
-                                              maximum=MAX_SPACING_M, unit="metres")
-    for key in ("id", "first_id"):
-        if key in raw:
-            value = raw[key]
-            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-                raise c.error(f"expected a marker id (an integer >= 0), got {shown(value)}",
-                              keys + (key,))
-            extra[key] = value
-    if "tag_spacing" in raw:
-        extra["tag_spacing"] = c.number(raw["tag_spacing"], keys + ("tag_spacing",),
-                                        positive=True, maximum=1.0,
-                                        unit="(a fraction of the tag size)")
-    if "dictionary" in raw:
-        name = c.string(raw["dictionary"], keys + ("dictionary",))
-        if not name.startswith("DICT_"):
-            raise c.error(f"expected an OpenCV dictionary name such as DICT_5X5_100, got "
-                          f"{name!r}", keys + ("dictionary",))
-        extra["dictionary"] = name
-    if "spacing" not in TYPE_KEYS[kind]:
-        spacing = extra["marker_size"]
-    else:
-        spacing = c.number(raw["spacing"], keys + ("spacing",), positive=True,
-                           maximum=MAX_SPACING_M, unit="metres")
-    if kind == "charuco" and extra["marker_size"] >= spacing:
-        raise c.error(f"must be smaller than spacing ({spacing})", keys + ("marker_size",))
-    rows, cols = (c.number(raw[k], keys + (k,), positive=True, integer=True,
-                           maximum=MAX_GRID_SIDE) if k in raw else 1 for k in ("rows", "cols"))
-    return TargetSpec(kind, rows, cols, spacing, **extra)
 
 
 class _RigWide(NamedTuple):
@@ -548,14 +502,14 @@ def load_rig(path: str | os.PathLike) -> Rig:
                       f"{list(named[other])}, camera {first} {list(named[first])}: one rig has "
                       "one fixed and one tracked frame; give every camera the same 'pose'",
                       ("cameras", other))
-    target = None
-    if "target" in raw:
-        target = _target(c, raw["target"])
-    elif any(cam.source != "poses" for cam in cameras.values()):
+    targets = read_targets(c, raw, cameras)
+    if not targets and any(cam.source != "poses" for cam in cameras.values()):
         needing = [n for n, cam in cameras.items() if cam.source != "poses"]
         raise DatasetError(f"missing key 'target': cameras with images ({', '.join(needing)}) "
                            "need the calibration board described", path=doc.path, line=1)
-    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap, sync)
+    target = next(iter(targets.values()), None)
+    return Rig(doc.path.resolve(), setup, MappingProxyType(cameras), target, mocap, sync,
+               MappingProxyType(targets))
 
 
 def read_camera_intrinsics(camera: CameraSpec) -> Intrinsics:
