@@ -107,6 +107,12 @@ class MotionResult:
     undetermined: tuple[str, ...] = ()
     null_space: F64 | None = None
 
+    @property
+    def T_ref_target(self) -> F64:
+        """The first board (the world) in the rig at every instant, (K, 4, 4): with one
+        board, :class:`~multieye.estimate.refine_rig.RigResult`'s target poses."""
+        return g.inv(self.T_world_rig)
+
 
 def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None = None,
                   loss: str = "huber", f_scale: float = 2.0, max_iter: int = 100,

@@ -41,6 +41,7 @@ from multieye.io.calibration_record import (
     OVERLAP,
     ROLE_NAMES,
     SETUP_KEYS,
+    BoardRecord,
     CalibrationRecord,
     CameraLinks,
     CameraRecord,
@@ -69,6 +70,7 @@ __all__ = [
     "ROLE_NAMES",
     "OVERLAP",
     "CameraLinks",
+    "BoardRecord",
 ]
 
 # --------------------------------------------------------------------------- to / from dict
@@ -104,6 +106,9 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
             entry["uncertainty"] = _uncertainty_dict(cam.uncertainty)
         if cam.links is not None:
             entry["links"] = {"overlap": dict(cam.links.overlap), "mocap": cam.links.mocap}
+            if cam.links.motion:
+                entry["links"]["motion"] = {"cameras": list(cam.links.motion[0]),
+                                            "boards": list(cam.links.motion[1])}
         cameras[cam.name] = entry
     out = {"format_version": FORMAT_VERSION,
            "setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
@@ -120,6 +125,10 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
         out["uncertainty"] = _uncertainty_dict(rec.uncertainty)
     if rec.frames is not None:
         out["frames"] = dict(rec.frames)
+    if rec.boards:
+        out["boards"] = {k: {"T_world_board": _matrix(b.T_world_board)} | (
+            {} if b.uncertainty is None else _uncertainty_dict({"u": b.uncertainty})["u"])
+            for k, b in rec.boards.items()}
     return out
 
 
@@ -192,7 +201,12 @@ def _read_links(obj, w: _Where, camera) -> CameraLinks:
     if not isinstance(obj, Mapping) or not isinstance(obj.get("overlap", {}), Mapping):
         raise w.error('links must be {"overlap": {camera: instants}, "mocap": true/false}',
                       camera)
+    motion = obj.get("motion")
+    if motion is not None and not (isinstance(motion, Mapping) and set(motion) == {
+            "cameras", "boards"}):
+        raise w.error('links.motion must be {"cameras": [...], "boards": [...]}', camera)
     return w.call(CameraLinks, dict(obj.get("overlap", {})), obj.get("mocap", False),
+                  () if motion is None else (motion["cameras"], motion["boards"]),
                   camera=camera)
 
 
@@ -326,7 +340,20 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
         raise w.error("frames must be an object of role -> frame name")
     return w.call(CalibrationRecord, setup, data["method"], data["reference_camera"], Y,
                   tuple(records), residuals, tuple(warnings), refinement, motion, items, unc,
-                  frames)
+                  frames, _read_boards(data["boards"], w) if "boards" in data else None)
+
+
+def _read_boards(obj, w: _Where) -> dict:
+    """``boards``: name -> ``{"T_world_board", "std_rot_deg", "std_trans_m", "covariance"}``."""
+    if not isinstance(obj, Mapping) or not all(isinstance(v, Mapping) for v in obj.values()):
+        raise w.error("boards must be an object of board name -> {T_world_board, ...}")
+    out = {}
+    for k, v in obj.items():
+        T = w.call(np.asarray, w.need(v, "T_world_board", f"board {k}"), dtype=np.float64)
+        rest = {x: y for x, y in v.items() if x != "T_world_board"}
+        unc = _read_uncertainty({k: rest}, w, (k,))[k] if rest else None
+        out[str(k)] = w.call(BoardRecord, T, unc)
+    return out
 
 
 # --------------------------------------------------------------------------- files

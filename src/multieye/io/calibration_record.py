@@ -27,6 +27,7 @@ __all__ = [
     "RejectedItem",
     "PlausibilityItem",
     "PoseUncertainty",
+    "BoardRecord",
     "IntrinsicsRecord",
     "CameraLinks",
     "CameraRecord",
@@ -124,6 +125,25 @@ class PoseUncertainty:
 
 
 @dataclass(frozen=True)
+class BoardRecord:
+    """A board's pose in the world of a rig linked by its motion (world = the first board;
+    issue 34).
+
+    Attributes
+    ----------
+    T_world_board : ndarray, shape (4, 4)
+    uncertainty : PoseUncertainty or None
+        Left perturbation in the world (zero for the first board).
+    """
+
+    T_world_board: np.ndarray
+    uncertainty: PoseUncertainty | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "T_world_board", _rigid(self.T_world_board, "T_world_board"))
+
+
+@dataclass(frozen=True)
 class IntrinsicsRecord:
     """A camera's intrinsics as calibration.json states them.
 
@@ -156,10 +176,15 @@ class CameraLinks:
         The other cameras it saw the target together with, and at how many instants.
     mocap : bool
         Paired with motion capture.
+    motion : tuple of (tuple of str, tuple of str)
+        Linked through the rig's motion (no motion capture, issue 34): the cameras whose
+        boards gave the rig's pose at the instants that placed it, and those boards; empty
+        when not.
     """
 
     overlap: Mapping = field(default_factory=dict)
     mocap: bool = False
+    motion: tuple = ()
 
     def __post_init__(self):
         if not isinstance(self.overlap, Mapping) or not all(
@@ -170,14 +195,26 @@ class CameraLinks:
         if not isinstance(self.mocap, bool):
             raise InputError(f"links.mocap must be true or false, got {self.mocap!r}")
         object.__setattr__(self, "overlap", {k: int(v) for k, v in self.overlap.items()})
+        if self.motion:
+            parts = tuple(self.motion) if isinstance(self.motion, (tuple, list)) else ()
+            if not (len(parts) == 2 and all(isinstance(p, (tuple, list)) and p and all(
+                    isinstance(x, str) for x in p) for p in parts)):
+                raise InputError("links.motion must name the cameras and the boards it came "
+                                 f"through, got {self.motion!r}")
+            object.__setattr__(self, "motion", (tuple(parts[0]), tuple(parts[1])))
 
     def describe(self) -> str:
-        """``overlap with cam1 (31 instants), cam2 (28); motion capture`` (what links it)."""
+        """``overlap with cam1 (31 instants), cam2 (28); motion via cam0 and board north;
+        motion capture`` (what links it)."""
         parts = []
         if self.overlap:
             parts.append("overlap with " + ", ".join(
                 f"{n} ({k}{' instants' if i == 0 else ''})"
                 for i, (n, k) in enumerate(self.overlap.items())))
+        if self.motion:
+            via, boards = self.motion
+            parts.append(f"motion via {', '.join(via)} and board{'s' * (len(boards) > 1)} "
+                         f"{', '.join(boards)}")
         if self.mocap:
             parts.append("motion capture")
         return "; ".join(parts) or "nothing"
@@ -287,6 +324,9 @@ class CalibrationRecord:
         The user's names of the frames by role (``{"world": "base", "body": "tool0"}``,
         rig.yaml's ``pose:``); None: the role names.  The keys of ``calibration.json`` keep
         the role names; screen, report and exports use these (:meth:`CalibrationRecord.named_keys`).
+    boards : mapping of str to BoardRecord, or None
+        Setup ``overlap`` with several boards: every board's pose in the world (the first
+        board's frame), by name.
     """
 
     setup: str
@@ -301,8 +341,13 @@ class CalibrationRecord:
     plausibility: tuple[PlausibilityItem, ...] = ()
     uncertainty: Mapping | None = None
     frames: Mapping[str, str] | None = None
+    boards: Mapping | None = None
 
     def __post_init__(self):
+        if self.boards is not None and not (isinstance(self.boards, Mapping) and all(
+                isinstance(k, str) and isinstance(v, BoardRecord)
+                for k, v in self.boards.items())):
+            raise InputError("boards must map board names to their poses")
         if self.setup not in SETUP_KEYS and self.setup != OVERLAP:
             raise InputError(f"setup must be one of {', '.join(SETUP_KEYS)} or {OVERLAP}, got "
                              f"{self.setup!r}")
