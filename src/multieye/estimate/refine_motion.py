@@ -38,6 +38,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.robust_loss import gaussian_kappa, gaussian_scale_constant
 from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.motion_links import MotionStart, motion_start
+from multieye.estimate.motion_mocap import MocapPoseResiduals, RigMocap, mocap_families
 from multieye.estimate.motion_residuals import MotionViews
 from multieye.estimate.refine_rig import _settled_scale
 from multieye.optimize.levenberg_marquardt import (NEAR_DAMPING, Options, covariance, evaluate,
@@ -87,6 +88,8 @@ class MotionResult:
     null_space : ndarray, shape (m, 6, r)
         Per camera its part of those directions (zeros for the reference camera; r = 0 in a
         regular problem), for :func:`multieye.estimate.observability.observability`.
+    T_mocap_world, T_rig_marker : ndarray, shape (4, 4), or None
+        With motion capture: its frame's pose in the world, the marker's in the rig.
     """
 
     T_ref_cam: F64
@@ -106,6 +109,8 @@ class MotionResult:
     converged: bool
     undetermined: tuple[str, ...] = ()
     null_space: F64 | None = None
+    T_mocap_world: F64 | None = None
+    T_rig_marker: F64 | None = None
 
     @property
     def T_ref_target(self) -> F64:
@@ -116,7 +121,8 @@ class MotionResult:
 
 def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None = None,
                   loss: str = "huber", f_scale: float = 2.0, max_iter: int = 100,
-                  start: MotionStart | None = None) -> MotionResult:
+                  start: MotionStart | None = None, mocap: RigMocap | None = None
+                  ) -> MotionResult:
     """Refine the rig, the boards and the lenses on the pixels (module docstring).
 
     Parameters
@@ -131,6 +137,10 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
     max_iter : int
     start : MotionStart, optional
         Instead of :func:`~multieye.estimate.motion_links.motion_start` on ``T_cam_board``.
+    mocap : RigMocap, optional
+        The rig's motion capture, in the same problem
+        (:mod:`multieye.estimate.motion_mocap`; the pixel noise is estimated from the pixels
+        alone, the motion capture's is taken as given).
 
     Raises
     ------
@@ -150,26 +160,35 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
     k = 6 * (views.m - 1 + views.n_boards - 1) + sum(
         views.intrinsics[j].params.size for j in range(views.m) if views.free[j])
     with threads_for(k):
-        fams, sigma, iterations, converged = _solve(views, start, pixel_sigma, sigma, loss,
-                                                    f_scale, max_iter)
-        return _result(views, start, fams, sigma, loss, f_scale, iterations, converged)
+        fams, sigma, iterations, converged = _solve(
+            views, start, pixel_sigma, sigma, (loss, f_scale, max_iter), mocap)
+        return _result(views, start, fams, sigma, loss, f_scale, iterations, converged, mocap)
+
+
+def _groups(views: MotionViews, sigma: float, mocap: RigMocap | None) -> list:
+    return views.groups(sigma) + ([] if mocap is None else [MocapPoseResiduals(mocap)])
 
 
 def _solve(views: MotionViews, start: MotionStart, given: float | None, sigma: float,
-           loss: str, f_scale: float, max_iter: int):
-    """The passes of the refinement, the pixel noise re-estimated between them."""
+           settings: tuple, mocap: RigMocap | None):
+    """The passes of the refinement, the pixel noise re-estimated between them (from the
+    pixels alone)."""
+    loss, f_scale, max_iter = settings
     fams = views.families(start.T_ref_cam, start.T_world_board, g.inv(start.T_world_rig))
+    if mocap is not None:
+        fams = fams[:-1] + mocap_families(mocap, start.T_world_rig) + fams[-1:]
     opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter, newton_below=_NEWTON_BELOW)
     later = replace(opts, tol=_LATER_TOL, newton_below=np.inf, initial_damping=NEAR_DAMPING)
     c_w = gaussian_scale_constant(loss, f_scale)
     iterations, converged = 0, True
     for k in range(_MAX_SIGMA_PASSES):
-        groups = views.groups(sigma)
+        groups = _groups(views, sigma, mocap)
         res = minimize(fams, groups, opts if k == 0 else later)
         fams, iterations, converged = res.families, iterations + res.iterations, res.converged
         if given is not None:
             break
-        z = np.concatenate([e[0].ravel() for e in evaluate(fams, groups, False)])
+        pixels = groups[:len(groups) - (mocap is not None)]
+        z = np.concatenate([e[0].ravel() for e in evaluate(fams, pixels, False)])
         n_params = sum(f.count * f.size for f in fams)
         new = _settled_scale(z * sigma, sigma, loss, f_scale, c_w * max(z.size - n_params, 1))
         quadratic = (loss == "linear"
@@ -187,8 +206,9 @@ def _blocks(kept: F64, offset: int, count: int, n: int) -> F64:
 
 
 def _result(views: MotionViews, start: MotionStart, fams, sigma: float, loss: str,
-            f_scale: float, iterations: int, converged: bool) -> MotionResult:
-    groups = views.groups(sigma)
+            f_scale: float, iterations: int, converged: bool, mocap: RigMocap | None
+            ) -> MotionResult:
+    groups = _groups(views, sigma, mocap)
     ev = evaluate(fams, groups, True)
     cov = covariance(fams, groups, evaluated=ev)
     kept = cov.kept * gaussian_kappa(loss, f_scale)
@@ -213,7 +233,7 @@ def _result(views: MotionViews, start: MotionStart, fams, sigma: float, loss: st
             k_cov.append(None)
     # residuals back in point order (the groups hold each camera's views in two parts)
     resid = np.zeros((len(views.view), 2))
-    for grp, e in zip(groups, ev):
+    for grp, e in zip(groups[:len(groups) - (mocap is not None)], ev):
         mine = np.flatnonzero((views.camera[views.view] == grp.camera)
                               & ((views.board[views.view] > 0) == grp.moved))
         resid[mine] = e[0] * sigma
@@ -227,5 +247,7 @@ def _result(views: MotionViews, start: MotionStart, fams, sigma: float, loss: st
         joint_covariance=kept, offsets={n: int(o) for n, o in offsets.items()},
         pixel_sigma=float(sigma), residuals_px=resid, camera_rms_px=rms, start=start,
         iterations=iterations, converged=converged, null_space=null,
+        T_mocap_world=None if mocap is None else values["Ym"][0],
+        T_rig_marker=None if mocap is None else values["Xm"][0],
         undetermined=tuple(f.name for f in fams if not f.eliminate
                            and cov.undetermined_in(f.name, f.count, f.size)))
