@@ -87,3 +87,32 @@ def test_planar_motion_starts_the_cameras_hand_eye_cannot():
     assert R_err.max() < 1e-7
     d = st.T_ref_cam[:, :3, 3] - s.T_ref_cam[:, :3, 3]
     assert np.abs(d[:, [0, 2]]).max() < 1e-7             # only along the rig's vertical (y)
+
+
+
+def test_a_floor_driven_rig_is_started_about_its_turn_axis_not_by_the_joint_answer():
+    """The joint hand-eye problem of a rig driven on a floor is undetermined about the turn
+    axis, and with PnP noise it answered 52 degrees off with its loops closed (seed 3 of
+    the planar ChArUco rigs of benchmarks/bench_motion_links.py): the refinement then started
+    with board points behind a camera.  Started about the axis it is within a few degrees."""
+    import cv2
+
+    from multieye.core.lens import undistort_points
+    from multieye.sim.wall_boards import WallSpec, noisy_views, simulate_walls
+
+    sc = simulate_walls(np.random.default_rng(3), WallSpec(n_instants=40, motion="planar"))
+    boards = list(sc.targets)
+    views = sorted(noisy_views(sc, 0.3, np.random.default_rng(10)), key=lambda v: v.camera)
+    used = {t: k for k, t in enumerate(sorted({v.instant for v in views}))}
+    per, T = {n: [] for n in sc.cameras}, []
+    for v in views:
+        per[sc.cameras[v.camera]].append((v.object_points, v.image_points, used[v.instant],
+                                          boards.index(v.target)))
+        xy = undistort_points(v.image_points, sc.intrinsics[v.camera])
+        _, r, t = cv2.solvePnP(v.object_points, xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
+        _, r, t = cv2.solvePnP(v.object_points, xy, np.eye(3), None, r, t, True,
+                               flags=cv2.SOLVEPNP_ITERATIVE)
+        T.append(g.transform_from_rotvec(r.ravel(), t.ravel()))
+    st = motion_start(MotionViews(per, sc.intrinsics), np.stack(T))
+    assert st.single_axis
+    assert np.max(g.rotation_angle_between(st.T_ref_cam, sc.T_ref_cam)) < np.radians(8)

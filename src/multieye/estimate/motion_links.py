@@ -46,11 +46,20 @@ from multieye.core import geometry as g
 from multieye.core.errors import DegenerateMotionError, DisconnectedError, InputError
 from multieye.core.lie import exp_so3, log_so3
 from multieye.estimate.covisibility import relative_pose
+from multieye.estimate.observability import turn_axis
 from multieye.solvers.general import solve_general
 
 __all__ = ["MotionStart", "motion_start", "single_axis_hand_eye", "Link"]
 
 F64 = NDArray[np.float64]
+
+#: The joint hand-eye answer of a part is taken when its loops close to within this (mean
+#: rotation residual of every group, degrees; PnP poses are good to a fraction of it).
+LOOP_LIMIT_DEG = 5.0
+#: A group's poses turned about one axis, for the start, when their turns' second singular
+#: value is below this fraction of the first (PnP poses: 0.3 degrees of tilt noise gave 0.026
+#: on a rig driven on a floor; 6-DoF motion with 12 degrees of tilt about 0.15).
+START_SPREAD = 0.06
 
 
 @dataclass(frozen=True)
@@ -158,22 +167,10 @@ class _Growth:
             groups.setdefault((int(self.cam[v]), int(self.board[v])), []).append(v)
         placed = False
         for part in _components(list(groups)):
-            gs = [(f"c{j}", f"b{b}", np.stack([self.insts[self.inst[v]] for v in groups[j, b]]),
-                   np.stack([g.inv(self.T[v]) for v in groups[j, b]])) for j, b in part]
-            try:
-                sol = solve_general(gs)
-                X = {int(k[1:]): T for k, T in sol.X.items()}
-                Y = {int(k[1:]): T for k, T in sol.Y.items()}
-            except DegenerateMotionError:
-                if len(part) != 1:
-                    continue
-                (j, b), = part
-                try:
-                    X0, Y0 = single_axis_hand_eye(gs[0][2], gs[0][3])
-                except DegenerateMotionError:          # too few poses: maybe a later round
-                    continue
-                X, Y = {j: X0}, {b: Y0}
-                self.single_axis.append(j)
+            solved = self._solve(part, groups)
+            if solved is None:
+                continue
+            X, Y = solved
             for j, T in X.items():
                 self.cams[j] = T
                 vs = [v for (c, _), vv in groups.items() if c == j for v in vv]
@@ -181,6 +178,36 @@ class _Growth:
             self.boards.update(Y)
             placed = True
         return placed
+
+    def _group(self, j: int, b: int, vs: list[int]):
+        return (f"c{j}", f"b{b}", np.stack([self.insts[self.inst[v]] for v in vs]),
+                np.stack([g.inv(self.T[v]) for v in vs]))
+
+    def _solve(self, part, groups):
+        """One connected part's cameras and boards ``({camera: T_ref_cam}, {board: pose})``
+        all at once by the joint hand-eye problem (its loops closed to within
+        :data:`LOOP_LIMIT_DEG`).  When the rig turned about one axis only, to within the
+        poses' noise (:data:`START_SPREAD`), that problem's rotations are undetermined
+        about the axis (noise can make a wrong answer look determined, its loops closed):
+        the part's largest group alone is then started by :func:`single_axis_hand_eye` and
+        the chaining places the rest.  None when neither gives them (maybe a later round)."""
+        gs = {p: self._group(*p, groups[p]) for p in part}
+        if turn_axis(np.concatenate([x[2] for x in gs.values()]), START_SPREAD) is None:
+            try:
+                sol = solve_general(list(gs.values()))
+            except DegenerateMotionError:
+                return None
+            if max(r.e_R_deg for r in sol.residuals.values()) > LOOP_LIMIT_DEG:
+                return None
+            return ({int(k[1:]): T for k, T in sol.X.items()},
+                    {int(k[1:]): T for k, T in sol.Y.items()})
+        j, b = max(part, key=lambda p: len(groups[p]))
+        try:
+            X0, Y0 = single_axis_hand_eye(*gs[j, b][2:])
+        except DegenerateMotionError:                  # too few poses
+            return None
+        self.single_axis.append(j)
+        return {j: X0}, {b: Y0}
 
 
 def _components(pairs: list[tuple[int, int]]) -> list[list[tuple[int, int]]]:

@@ -90,20 +90,22 @@ class Observability:
         return tuple(dict.fromkeys(u.camera for u in self.undetermined))
 
 
-def turn_axis(T_world_rig) -> F64 | None:
+def turn_axis(T_world_rig, spread: float = SINGLE_AXIS_SPREAD) -> F64 | None:
     """The one axis (rig frame, unit) the rig turned about, or None when it turned about
-    two or more (:data:`SINGLE_AXIS_SPREAD`).
+    two or more (the second singular value of its turns' rotation vectors above ``spread``
+    times the first).
 
     Parameters
     ----------
     T_world_rig : array_like, shape (K, 4, 4)
+    spread : float
     """
     R = np.asarray(T_world_rig, dtype=np.float64)[:, :3, :3]
     w = np.array([log_so3(R[0].T @ Rk) for Rk in R[1:]])
     if len(w) == 0 or not np.any(w):
         return None
     _, s, Vt = np.linalg.svd(w, full_matrices=False)
-    if len(s) > 1 and s[1] > SINGLE_AXIS_SPREAD * s[0]:
+    if len(s) > 1 and s[1] > spread * s[0]:
         return None
     return Vt[0] * np.sign(Vt[0][np.argmax(np.abs(Vt[0]))])
 
