@@ -116,3 +116,26 @@ def test_a_floor_driven_rig_is_started_about_its_turn_axis_not_by_the_joint_answ
     st = motion_start(MotionViews(per, sc.intrinsics), np.stack(T))
     assert st.single_axis
     assert np.max(g.rotation_angle_between(st.T_ref_cam, sc.T_ref_cam)) < np.radians(8)
+
+
+
+def test_a_camera_seen_with_the_rig_at_too_few_instants_is_named_as_undetermined():
+    """Camera 3 sees its own board (no other camera does) at two instants when others see
+    theirs: linked, but two rig poses do not determine its pose; said so, not 'nothing links
+    it'."""
+    from multieye.core.errors import DegenerateMotionError
+    from multieye.sim.wall_boards import WallSpec, simulate_walls
+
+    sc = simulate_walls(np.random.default_rng(0), WallSpec(boards="chessboard"))
+    boards = list(sc.targets)
+    three = sorted({v.instant for v in sc.views if v.camera == 3})[:2]
+    views = [v for v in sc.views if v.camera != 3 or v.instant in three]
+    used = {t: k for k, t in enumerate(sorted({v.instant for v in views}))}
+    per, T = {n: [] for n in sc.cameras}, []
+    for v in sorted(views, key=lambda v: v.camera):
+        b = boards.index(v.target)
+        per[sc.cameras[v.camera]].append((v.object_points, v.image_points, used[v.instant], b))
+        T.append(g.inv(sc.T_world_ref[v.instant] @ sc.T_ref_cam[v.camera]) @ sc.T_world_board[b])
+    with pytest.raises(DegenerateMotionError, match="cameras cam3 see boards while a linked "
+                       "camera does, but the rig's motion at those instants does not"):
+        motion_start(MotionViews(per, sc.intrinsics), np.stack(T))

@@ -60,6 +60,9 @@ LOOP_LIMIT_DEG = 5.0
 #: value is below this fraction of the first (PnP poses: 0.3 degrees of tilt noise gave 0.026
 #: on a rig driven on a floor; 6-DoF motion with 12 degrees of tilt about 0.15).
 START_SPREAD = 0.06
+#: ... and when the joint problem fails, this (a rig on a floor whose PnP poses tilt by half
+#: a degree: 0.08).
+FALLBACK_SPREAD = 0.25
 
 
 @dataclass(frozen=True)
@@ -188,20 +191,23 @@ class _Growth:
         all at once by the joint hand-eye problem (its loops closed to within
         :data:`LOOP_LIMIT_DEG`).  When the rig turned about one axis only, to within the
         poses' noise (:data:`START_SPREAD`), that problem's rotations are undetermined
-        about the axis (noise can make a wrong answer look determined, its loops closed):
-        the part's largest group alone is then started by :func:`single_axis_hand_eye` and
-        the chaining places the rest.  None when neither gives them (maybe a later round)."""
+        about the axis (noise can make a wrong answer look determined, its loops closed),
+        and when the joint problem fails on a part that turned mostly about one axis
+        (:data:`FALLBACK_SPREAD`), the part's largest group alone is started by
+        :func:`single_axis_hand_eye` and the chaining places the rest.  None when nothing
+        gives them (maybe a later round)."""
         gs = {p: self._group(*p, groups[p]) for p in part}
+        j, b = max(part, key=lambda p: len(groups[p]))
         if turn_axis(np.concatenate([x[2] for x in gs.values()]), START_SPREAD) is None:
             try:
                 sol = solve_general(list(gs.values()))
+                if max(r.e_R_deg for r in sol.residuals.values()) <= LOOP_LIMIT_DEG:
+                    return ({int(k[1:]): T for k, T in sol.X.items()},
+                            {int(k[1:]): T for k, T in sol.Y.items()})
             except DegenerateMotionError:
+                pass
+            if turn_axis(gs[j, b][2], FALLBACK_SPREAD) is None:
                 return None
-            if max(r.e_R_deg for r in sol.residuals.values()) > LOOP_LIMIT_DEG:
-                return None
-            return ({int(k[1:]): T for k, T in sol.X.items()},
-                    {int(k[1:]): T for k, T in sol.Y.items()})
-        j, b = max(part, key=lambda p: len(groups[p]))
         try:
             X0, Y0 = single_axis_hand_eye(*gs[j, b][2:])
         except DegenerateMotionError:                  # too few poses
@@ -265,6 +271,13 @@ def motion_start(views, T_cam_board) -> MotionStart:
         if len(grow.cams) == m or not grow.hand_eye():
             break
     apart = [label[j] for j in range(m) if j not in grow.cams]
+    tried = {label[grow.cam[v]] for v in grow._views(False, True, False)}
+    if apart and tried:
+        raise DegenerateMotionError(
+            f"cameras {', '.join(sorted(tried))} see boards while a linked camera does, but "
+            "the rig's motion at those instants does not determine their poses (it turned "
+            "about one axis only, too little, or at too few instants): turn the rig about two "
+            "different axes while they see boards")
     if apart:
         raise DisconnectedError(
             f"cameras {', '.join(apart)} are linked to the reference camera {label[ref]} "
