@@ -162,7 +162,8 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
     with threads_for(k):
         fams, sigma, iterations, converged = _solve(
             views, start, pixel_sigma, sigma, (loss, f_scale, max_iter), mocap)
-        return _result(views, start, fams, sigma, loss, f_scale, iterations, converged, mocap)
+        return _result(views, start, fams, sigma, (loss, f_scale), iterations, converged,
+                       mocap)
 
 
 def _groups(views: MotionViews, sigma: float, mocap: RigMocap | None) -> list:
@@ -205,9 +206,10 @@ def _blocks(kept: F64, offset: int, count: int, n: int) -> F64:
                      for b in range(count)]) if count else np.zeros((0, n, n))
 
 
-def _result(views: MotionViews, start: MotionStart, fams, sigma: float, loss: str,
-            f_scale: float, iterations: int, converged: bool, mocap: RigMocap | None
-            ) -> MotionResult:
+def _result(views: MotionViews, start: MotionStart, fams, sigma: float, robust: tuple,
+            iterations: int, converged: bool, mocap: RigMocap | None) -> MotionResult:
+    """The result at the optimum; ``robust`` is ``(loss, f_scale)``."""
+    loss, f_scale = robust
     groups = _groups(views, sigma, mocap)
     ev = evaluate(fams, groups, True)
     cov = covariance(fams, groups, evaluated=ev)
