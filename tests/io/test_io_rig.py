@@ -260,7 +260,7 @@ def test_aruco_targets(dataset):
     ("type: aruco-grid\n  rows: 2\n  cols: 2\n  marker_size: 0.05\n  marker_separation: 0.01\n"
      "  dictionary: DICT_6X6_250\n  id: 3", "target.id: applies to aruco targets only"),
     ("type: chessboard\n  rows: 7\n  cols: 8\n  spacing: 0.03\n  first_id: 3",
-     "target.first_id: applies to charuco, aruco-grid targets only"),
+     "target.first_id: applies to charuco, aprilgrid, aruco-grid targets only"),
 ])
 def test_bad_aruco_targets(dataset, body, message):
     path = _edit(dataset, _TARGET, "  " + body + "\n")

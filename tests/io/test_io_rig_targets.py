@@ -88,6 +88,10 @@ def _entry(name: str, extra: str = "", kind: str = CHARUCO) -> str:
      "targets.1", "targets a and b overlap in marker ids (ids 0-16 and ids 3-6 of 4X4)"),
     (_entry("a") + _entry("b", ", id: 16", "{type: aruco, marker_size: 0.1, dictionary: DICT_4X4_1000"),
      "targets.1", "overlap in marker ids (ids 0-16 and id 16 of 4X4)"),
+    (_entry("a", "", "{type: aprilgrid, rows: 4, cols: 4, spacing: 0.05, tag_spacing: 0.3")
+     + _entry("b", ", first_id: 15", "{type: aprilgrid, rows: 2, cols: 2, spacing: 0.05, "
+              "tag_spacing: 0.3"), "targets.1",
+     "targets a and b overlap in marker ids (ids 0-15 and ids 15-18 of APRILTAG_36h11)"),
     (_entry("a") + _entry("a", ", first_id: 20"), "targets.1.name", "target name 'a'"),
     (_entry("a") + "  - {" + CHARUCO[1:] + ", first_id: 20}\n", "targets.1", "missing key 'name'"),
     (_entry("a") + _entry("c", "", CHESS), "targets.1",

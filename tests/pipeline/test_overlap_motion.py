@@ -5,7 +5,6 @@ finding) naming the direction it leaves undetermined."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,14 +23,6 @@ from multieye.sim.wall_boards import WallSpec, noisy_views, simulate_walls
 SIGMA = 0.3
 
 
-@dataclass(frozen=True)
-class _Seen(Observation):
-    """An observation naming its board (``Observation.target``, which helper hH1 adds to
-    ``Observation`` itself; the same field here so that this test runs with or without)."""
-
-    target: str = "target"
-
-
 def _cameras(seed=0, **spec):
     sc = simulate_walls(np.random.default_rng(seed), WallSpec(n_instants=30, **spec))
     rng = np.random.default_rng(seed + 1)
@@ -42,7 +33,7 @@ def _cameras(seed=0, **spec):
         T = g.inv(sc.T_world_ref[v.instant] @ sc.T_ref_cam[v.camera]) @ sc.T_world_board[b]
         T = T @ g.transform_from_rotvec(rng.normal(scale=0.01, size=3),
                                         rng.normal(scale=0.005, size=3))
-        obs[sc.cameras[v.camera]].append(_Seen(
+        obs[sc.cameras[v.camera]].append(Observation(
             name=f"{v.instant:04d}.png", stamp=100 + 0.25 * v.instant + jitter[v.instant, v.camera],
             T_cam_target=T, rms_px=SIGMA, object_points=v.object_points,
             image_points=v.image_points, target=v.target))
@@ -68,19 +59,28 @@ def test_cameras_that_share_no_instant_go_through_linked_by_the_motion():
         e = np.concatenate([log_so3(T[:3, :3] @ sc.T_ref_cam[j, :3, :3].T),
                             T[:3, 3] - sc.T_ref_cam[j, :3, 3]])
         assert float(e @ np.linalg.solve(cov[n], e)) < 30                     # chi2(6) tail
-    first = next(iter(rec.boards))
+    first = next(iter(rec.targets))
     T_world = g.inv(sc.board_pose(first)) @ sc.T_world_board
     for k, b in enumerate(sc.targets):
-        assert g.translation_distance(rec.boards[b].T_world_board, T_world[k]) < 0.01
-    assert np.all(rec.boards[first].uncertainty.covariance == 0)
-    assert all(rec.boards[b].uncertainty.std_trans_m > 0 for b in rec.boards if b != first)
+        assert g.translation_distance(rec.targets[b].T_world_target, T_world[k]) < 0.01
+        seen = {n: sum(o.target == b for o in cams[n].observations) for n in cams}
+        assert rec.targets[b].cameras == {n: v for n, v in seen.items() if v}
+        assert rec.targets[b].views == sum(seen.values()) and not rec.targets[b].given
+    assert np.all(rec.targets[first].uncertainty.covariance == 0)
+    assert all(rec.targets[b].uncertainty.std_trans_m > 0 for b in rec.targets if b != first)
     links = {c.name: c.links for c in rec.cameras}
     assert any(lk.motion for lk in links.values())
+    assert links["cam1"].boards == {b: v for b in sc.targets
+                                    if (v := sum(o.target == b
+                                                 for o in cams["cam1"].observations))}
     assert all(lk.describe().startswith(("overlap", "motion via cam"))
                for n, lk in links.items() if n != "cam0")
     back = calibration_from_dict(calibration_to_dict(rec))
     assert {c.name: c.links for c in back.cameras} == links
-    assert np.allclose(back.boards[first].T_world_board, rec.boards[first].T_world_board)
+    assert back.targets.keys() == rec.targets.keys()
+    assert np.allclose(back.targets["west"].uncertainty.covariance,
+                       rec.targets["west"].uncertainty.covariance)
+    assert back.targets["west"].cameras == rec.targets["west"].cameras
 
 
 def test_one_image_with_two_boards_is_one_instant():

@@ -26,16 +26,18 @@ def test_views_are_the_projection_of_the_stated_frames(boards):
 
 def test_charuco_walls_each_camera_sees_a_board_in_most_instants_some_images_two():
     sc = simulate_walls(np.random.default_rng(0), WallSpec(n_instants=60))
-    assert sc.seen().mean(axis=0).min() > 0.55      # 3 walls of 4 hold a board: at most 0.75
+    assert sc.seen().mean(axis=0).min() > 0.6       # 3 walls of 4 hold a board: at most 0.75
     per_image = {}
     for v in sc.views:
         per_image.setdefault((v.instant, v.camera), []).append(v.target)
     assert any(len(t) == 2 for t in per_image.values())
-    # no camera overlaps another: no board is seen by two cameras at one instant
+    # no camera overlaps another: no board point is seen by two cameras at one instant (a
+    # wide board may show its two ends to two neighbours)
     per_board = {}
     for v in sc.views:
-        per_board.setdefault((v.instant, v.target), []).append(v.camera)
-    assert all(len(c) == 1 for c in per_board.values())
+        per_board.setdefault((v.instant, v.target), []).append(set(v.ids.tolist()))
+    for seen in per_board.values():
+        assert sum(len(ids) for ids in seen) == len(set().union(*seen))
     ids = {n: s["first_id"] for n, s in sc.targets.items()}
     assert len(set(ids.values())) == 3
 

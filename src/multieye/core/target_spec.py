@@ -24,7 +24,8 @@ TYPE_KEYS: dict[str, dict[str, str | None]] = {
     "asymmetric-circles": {"rows": None, "cols": None, "spacing": None},
     "charuco": {"rows": None, "cols": None, "spacing": None, "marker_size": None,
                 "dictionary": None, "first_id": "optional"},
-    "aprilgrid": {"rows": None, "cols": None, "spacing": None, "tag_spacing": None},
+    "aprilgrid": {"rows": None, "cols": None, "spacing": None, "tag_spacing": None,
+                  "first_id": "optional"},
     "aruco": {"marker_size": None, "dictionary": None, "id": None},
     "aruco-grid": {"rows": None, "cols": None, "marker_size": None, "marker_separation": None,
                    "dictionary": None, "first_id": "optional"},
@@ -77,7 +78,7 @@ class TargetSpec:
     id : int or None
         ``aruco``: the marker's id.
     first_id : int or None
-        ``aruco-grid``, ``charuco``: the id of the first marker (default 0); boards of
+        ``aruco-grid``, ``charuco``, ``aprilgrid``: the id of the first marker (default 0); boards of
         several ``targets:`` in one dictionary tell themselves apart by their id ranges.
 
     name : str

@@ -32,6 +32,7 @@ import cv2
 
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
+from multieye.imaging.boards import Boards, combined_reason
 from multieye.imaging.detect import Detection, detect
 from multieye.imaging.image_file import read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
@@ -84,6 +85,9 @@ class ImageResult:
         From the detector (e.g. an ambiguous point order).
     image_size : (int, int) or None
         Width and height of the image read, pixels (None when it could not be read).
+    parts : tuple of (str, ImageResult)
+        Several boards (:class:`~multieye.imaging.boards.Boards`): each board's own result
+        in this image, by name (``pose`` and ``detection`` are then None; usable when one is).
     """
 
     path: str
@@ -92,6 +96,7 @@ class ImageResult:
     reason: str | None
     warnings: tuple[str, ...] = ()
     image_size: tuple[int, int] | None = None
+    parts: tuple[tuple[str, ImageResult], ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -137,7 +142,7 @@ def _guarded(work, item, name: str) -> ImageResult:
                            f"{type(exc).__name__}: {_first_line(exc)}")
 
 
-def process_array(image, name: str, target: Target, intrinsics: Intrinsics | None, *,
+def process_array(image, name: str, target: Target | Boards, intrinsics: Intrinsics | None, *,
                   max_rms_px: float = DEFAULT_MAX_RMS_PX) -> ImageResult:
     """:func:`process_image` for an image already in memory (e.g. from a ROS bag).
 
@@ -158,6 +163,12 @@ def process_array(image, name: str, target: Target, intrinsics: Intrinsics | Non
     if None not in size and shape != size:
         return ImageResult(path, None, None, f"wrong resolution ({shape[0]} x {shape[1]}, "
                            f"intrinsics say {size[0]} x {size[1]})", image_size=shape)
+    if isinstance(target, Boards):      # each board in the one decoded image
+        parts = tuple((n, process_array(image, name, b, intrinsics, max_rms_px=max_rms_px))
+                      for n, b in target.boards)
+        reason = None if any(r.ok for _, r in parts) else combined_reason(
+            target, {n: r.reason for n, r in parts})
+        return ImageResult(path, None, None, reason, image_size=shape, parts=parts)
     try:
         detection = detect(image, target)
     except (InputError, cv2.error) as exc:

@@ -447,13 +447,14 @@ def _detect_aprilgrid(gray: NDArray[np.uint8], target: AprilGrid) -> Detection |
                     "on the grid is in view); dropped",)
     images = target.tag_images()
     found: dict[int, F64] = {}
-    for t, quad in zip(ids, corners):
-        if t < target.rows * target.cols and t not in repeated:
+    for code, quad in zip(ids, corners):
+        t = int(code) - target.first_id               # the grid's tag (ids from first_id)
+        if 0 <= t < target.rows * target.cols and code not in repeated:
             kalibr = np.empty((4, 2))
             kalibr[list(_KALIBR_CORNER_OF_CV)] = quad
-            refined = _refine_tag(gray, target, images[t], int(t), kalibr)
+            refined = _refine_tag(gray, target, images[t], t, kalibr)
             if refined is not None:
-                found[int(t)] = refined
+                found[t] = refined
     _grow_aprilgrid(gray, target, images, found)
     _check_against_neighbours(gray, target, images, found)
     if not found:

@@ -324,10 +324,13 @@ class AprilGrid(Target):
     corner, and tags have a 2-bit black border, as ``kalibr_create_target_pdf`` draws them.
 
     Points: Kalibr's ``2*rows`` x ``2*cols`` tag corners (see the module docstring); partial
-    views are fine since tag ids give the correspondences.
+    views are fine since tag ids give the correspondences.  ``first_id`` (default 0, Kalibr's
+    grids) shifts the tags' codes: grid tag t carries code ``first_id + t``, so that several
+    grids in one room are told apart by their id ranges.
     """
 
     tag_spacing: float = 0.0
+    first_id: int = 0
     kind: ClassVar[str] = "aprilgrid"
     min_size: ClassVar[int] = 1
     z_into_board: ClassVar[bool] = False
@@ -342,6 +345,8 @@ class AprilGrid(Target):
         if self.rows * self.cols > APRILTAG_36H11_SIZE:
             raise InputError(f"aprilgrid {self.rows}x{self.cols} needs {self.rows * self.cols} tags "
                              f"but AprilTag 36h11 has {APRILTAG_36H11_SIZE}")
+        _marker_ids("DICT_APRILTAG_36h11", self.first_id, self.rows * self.cols,
+                    "aprilgrid first_id")
 
     @property
     def pitch(self) -> float:
@@ -369,7 +374,7 @@ class AprilGrid(Target):
         ``cv2.aruco.generateImageMarker`` of ``DICT_APRILTAG_36h11`` id t (checked against
         the code table of ``kalibr_create_target_pdf`` for several ids).
         """
-        return _kalibr_tag_images(self.rows * self.cols).copy()
+        return _kalibr_tag_images(self.first_id + self.rows * self.cols)[self.first_id:].copy()
 
     def tag_corners(self, tag_id: int) -> F64:
         """Board (x, y) of a tag's corners, metres, shape (4, 2), in Kalibr's order:

@@ -109,6 +109,8 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
             if cam.links.motion:
                 entry["links"]["motion"] = {"cameras": list(cam.links.motion[0]),
                                             "boards": list(cam.links.motion[1])}
+            if cam.links.boards:
+                entry["links"]["boards"] = dict(cam.links.boards)
         cameras[cam.name] = entry
     out = {"format_version": FORMAT_VERSION,
            "setup": rec.setup, "method": rec.method, "reference_camera": rec.reference_camera,
@@ -125,10 +127,11 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
         out["uncertainty"] = _uncertainty_dict(rec.uncertainty)
     if rec.frames is not None:
         out["frames"] = dict(rec.frames)
-    if rec.boards:
-        out["boards"] = {k: {"T_world_board": _matrix(b.T_world_board)} | (
+    if rec.targets:
+        out["targets"] = {k: {"T_world_target": _matrix(b.T_world_target), "given": b.given,
+                              "views": b.views, "cameras": dict(b.cameras)} | (
             {} if b.uncertainty is None else _uncertainty_dict({"u": b.uncertainty})["u"])
-            for k, b in rec.boards.items()}
+            for k, b in rec.targets.items()}
     return out
 
 
@@ -205,9 +208,12 @@ def _read_links(obj, w: _Where, camera) -> CameraLinks:
     if motion is not None and not (isinstance(motion, Mapping) and set(motion) == {
             "cameras", "boards"}):
         raise w.error('links.motion must be {"cameras": [...], "boards": [...]}', camera)
+    boards = obj.get("boards", {})
+    if not isinstance(boards, Mapping):
+        raise w.error('links.boards must be {board: views}', camera)
     return w.call(CameraLinks, dict(obj.get("overlap", {})), obj.get("mocap", False),
                   () if motion is None else (motion["cameras"], motion["boards"]),
-                  camera=camera)
+                  dict(boards), camera=camera)
 
 
 class _Where:
@@ -340,22 +346,26 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
         raise w.error("frames must be an object of role -> frame name")
     return w.call(CalibrationRecord, setup, data["method"], data["reference_camera"], Y,
                   tuple(records), residuals, tuple(warnings), refinement, motion, items, unc,
-                  frames, _read_boards(data["boards"], w) if "boards" in data else None)
+                  frames, _read_targets(data["targets"], w) if "targets" in data else None)
 
 
-def _read_boards(obj, w: _Where) -> dict:
-    """``boards``: name -> ``{"T_world_board", "std_rot_deg", "std_trans_m", "covariance"}``."""
+def _read_targets(obj, w: _Where) -> dict:
+    """``targets``: name -> ``{"T_world_target", "given", "views", "cameras", "std_rot_deg",
+    "std_trans_m", "covariance"}``."""
     if not isinstance(obj, Mapping) or not all(isinstance(v, Mapping) for v in obj.values()):
-        raise w.error("boards must be an object of board name -> {T_world_board, ...}")
+        raise w.error("targets must be an object of board name -> {T_world_target, ...}")
     out = {}
     for k, v in obj.items():
-        T = w.call(np.asarray, w.need(v, "T_world_board", f"board {k}"), dtype=np.float64)
-        rest = {x: y for x, y in v.items() if x != "T_world_board"}
+        T = w.call(np.asarray, w.need(v, "T_world_target", f"target {k}"), dtype=np.float64)
+        rest = {x: y for x, y in v.items() if x in ("std_rot_deg", "std_trans_m",
+                                                     "covariance")}
         unc = _read_uncertainty({k: rest}, w, (k,))[k] if rest else None
-        out[str(k)] = w.call(BoardRecord, T, unc)
+        cams = v.get("cameras", {})
+        if not isinstance(cams, Mapping):
+            raise w.error(f"targets.{k}.cameras must be an object of camera name -> views")
+        out[str(k)] = w.call(BoardRecord, T, v.get("given", False), v.get("views", 0),
+                             dict(cams), unc)
     return out
-
-
 # --------------------------------------------------------------------------- files
 
 

@@ -126,21 +126,42 @@ class PoseUncertainty:
 
 @dataclass(frozen=True)
 class BoardRecord:
-    """A board's pose in the world of a rig linked by its motion (world = the first board;
-    issue 34).
+    """One board of a rig with several (rig.yaml's ``targets:``; issue 34).
 
     Attributes
     ----------
-    T_world_board : ndarray, shape (4, 4)
+    T_world_target : ndarray, shape (4, 4)
+        The board's pose; without motion capture in the first board's frame (the identity
+        for the first board).
+    given : bool
+        The pose is rig.yaml's ``pose:`` (held fixed), not estimated.
+    views : int
+        Views of this board used, over every camera.
+    cameras : mapping of str to int
+        Camera name -> views of this board it contributed (cameras with at least one).
     uncertainty : PoseUncertainty or None
-        Left perturbation in the world (zero for the first board).
+        Left perturbation in the fixed frame (zero for the first board without motion
+        capture and for a given pose).
     """
 
-    T_world_board: np.ndarray
+    T_world_target: np.ndarray
+    given: bool = False
+    views: int = 0
+    cameras: Mapping = field(default_factory=dict)
     uncertainty: PoseUncertainty | None = None
 
     def __post_init__(self):
-        object.__setattr__(self, "T_world_board", _rigid(self.T_world_board, "T_world_board"))
+        object.__setattr__(self, "T_world_target", _rigid(self.T_world_target,
+                                                          "T_world_target"))
+        counts = [self.views, *dict(self.cameras).values()] if isinstance(
+            self.cameras, Mapping) else [None]
+        if not isinstance(self.given, bool) or not all(
+                isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0
+                for v in counts):
+            raise InputError("a target's given must be true or false, its views and the "
+                             "views per camera whole numbers >= 0")
+        object.__setattr__(self, "views", int(self.views))
+        object.__setattr__(self, "cameras", {str(k): int(v) for k, v in self.cameras.items()})
 
 
 @dataclass(frozen=True)
@@ -180,11 +201,14 @@ class CameraLinks:
         Linked through the rig's motion (no motion capture, issue 34): the cameras whose
         boards gave the rig's pose at the instants that placed it, and those boards; empty
         when not.
+    boards : mapping of str to int
+        With several boards: the boards the camera saw, with its views of each.
     """
 
     overlap: Mapping = field(default_factory=dict)
     mocap: bool = False
     motion: tuple = ()
+    boards: Mapping = field(default_factory=dict)
 
     def __post_init__(self):
         if not isinstance(self.overlap, Mapping) or not all(
@@ -195,6 +219,12 @@ class CameraLinks:
         if not isinstance(self.mocap, bool):
             raise InputError(f"links.mocap must be true or false, got {self.mocap!r}")
         object.__setattr__(self, "overlap", {k: int(v) for k, v in self.overlap.items()})
+        if not isinstance(self.boards, Mapping) or not all(
+                isinstance(k, str) and isinstance(v, (int, np.integer)) and not
+                isinstance(v, bool) and v > 0 for k, v in self.boards.items()):
+            raise InputError(f"links.boards must map board names to positive counts, got "
+                             f"{self.boards!r}")
+        object.__setattr__(self, "boards", {k: int(v) for k, v in self.boards.items()})
         if self.motion:
             parts = tuple(self.motion) if isinstance(self.motion, (tuple, list)) else ()
             if not (len(parts) == 2 and all(isinstance(p, (tuple, list)) and p and all(
@@ -324,9 +354,8 @@ class CalibrationRecord:
         The user's names of the frames by role (``{"world": "base", "body": "tool0"}``,
         rig.yaml's ``pose:``); None: the role names.  The keys of ``calibration.json`` keep
         the role names; screen, report and exports use these (:meth:`CalibrationRecord.named_keys`).
-    boards : mapping of str to BoardRecord, or None
-        Setup ``overlap`` with several boards: every board's pose in the world (the first
-        board's frame), by name.
+    targets : mapping of str to BoardRecord, or None
+        With several boards: every board by name, in rig.yaml's order.
     """
 
     setup: str
@@ -341,13 +370,13 @@ class CalibrationRecord:
     plausibility: tuple[PlausibilityItem, ...] = ()
     uncertainty: Mapping | None = None
     frames: Mapping[str, str] | None = None
-    boards: Mapping | None = None
+    targets: Mapping | None = None
 
     def __post_init__(self):
-        if self.boards is not None and not (isinstance(self.boards, Mapping) and all(
+        if self.targets is not None and not (isinstance(self.targets, Mapping) and all(
                 isinstance(k, str) and isinstance(v, BoardRecord)
-                for k, v in self.boards.items())):
-            raise InputError("boards must map board names to their poses")
+                for k, v in self.targets.items())):
+            raise InputError("targets must map board names to their records")
         if self.setup not in SETUP_KEYS and self.setup != OVERLAP:
             raise InputError(f"setup must be one of {', '.join(SETUP_KEYS)} or {OVERLAP}, got "
                              f"{self.setup!r}")

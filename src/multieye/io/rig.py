@@ -20,6 +20,10 @@ constants hold them, docs/rig-yaml.md documents each)::
       tag_spacing: 0 < number <= 1                           # aprilgrid only (required)
       # aruco: marker_size, dictionary, id (no rows, cols, spacing)
       # aruco-grid: rows, cols, marker_size, marker_separation, dictionary, first_id (0)
+    targets:                                                 # instead of target: several
+      - {name: north, type: charuco, ..., first_id: 0}       #   boards, each named, told apart
+      - {name: door, type: chessboard, ..., cameras: [cam1]} #   by ids or cameras; optional
+                                                             #   pose: (io/rig_targets.py)
     mocap:                                                   # optional if every camera has one
       file: path                                             # required
       pose: T_world_marker                                   # default: T_world_marker

@@ -7,7 +7,7 @@ Schema of ``targets:`` (a list; each entry a ``target:`` mapping plus)::
       - name: north                 # required when more than one; unique; a file-name-safe
         type: charuco               #   name (the board's key in calibration.json)
         ...                         # the target keys of ``target:``
-        first_id: 0                 # charuco, aruco-grid: boards of one marker family are
+        first_id: 0                 # charuco, aruco-grid, aprilgrid: boards of one family are
                                     #   told apart by their ids: the ranges must not overlap
         cameras: [cam0]             # the cameras that see this board; required for boards
                                     #   without ids (chessboard, circles) when there are
@@ -112,13 +112,14 @@ def marker_ids(spec: TargetSpec) -> tuple[str, range] | None:
 
     The family is what one detector reads: OpenCV's ``DICT_<n>X<n>_<size>`` dictionaries of
     one marker size share their first codes, so they are one family; AprilGrids use
-    AprilTag 36h11 (``DICT_APRILTAG_36h11``)."""
+    AprilTag 36h11 (``DICT_APRILTAG_36h11``, the same codes)."""
     if spec.type in _NO_IDS:
         return None
     if spec.type == "aprilgrid":
-        return "APRILTAG_36h11", range(0, spec.rows * spec.cols)
+        first = spec.first_id or 0
+        return "APRILTAG_36h11", range(first, first + spec.rows * spec.cols)
     family = re.sub(r"^DICT_(\d+X\d+)_\d+$", r"\1", spec.dictionary)
-    family = family.replace("DICT_", "")
+    family = family.replace("DICT_", "")       # APRILTAG_36h11 as the AprilGrids' family
     if spec.type == "aruco":
         return family, range(spec.id, spec.id + 1)
     first = spec.first_id or 0

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import gc
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +30,7 @@ import numpy as np
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.calibration_json import ROLE_NAMES, SETUP_KEYS, CalibrationRecord
 from multieye.io.run_details import CameraDetails, RunDetails
+from multieye.outputs.board_marks import BoardMark, board_legend, board_lines
 from multieye.outputs.figures import _AXIS_COLOURS, _GREY, _locator, _png, camera_colours
 
 __all__ = ["RIG_FIGURES", "RigFigures", "rig_pngs", "uncertainty_magnification", "place_labels",
@@ -334,7 +336,7 @@ class RigFigures:
 
 
 def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
-             dpi: int = _DPI) -> RigFigures:
+             dpi: int = _DPI, boards: Sequence[BoardMark] = ()) -> RigFigures:
     """The rig in 3D and from above, with the legend as text (:class:`RigFigures`).
 
     Parameters
@@ -347,12 +349,14 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
         motion capture; without it only the cameras are drawn, in the reference camera's frame
         (``T_ref_cam``).
     dpi : int
+    boards : sequence of BoardMark
+        A rig with several boards (:mod:`multieye.outputs.board_marks`): each board, posed in
+        the frame the pictures are drawn in, drawn and named.
     """
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: loads when a figure is drawn)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: loads when a figure is drawn)
     from matplotlib.collections import LineCollection, PolyCollection  # noqa: PLC0415 (heavy: loads when a figure is drawn)
-    from mpl_toolkits.mplot3d import proj3d  # noqa: PLC0415 (heavy: loads when a figure is drawn)
     from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: PLC0415 (heavy: loads when a figure is drawn)
 
     sc = _scene(record, details)
@@ -365,7 +369,7 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
         pts = pts[np.all(np.isfinite(pts), axis=1)]
         up = np.eye(3)[int(np.argmin(pts.std(axis=0)))] if len(pts) > 1 else np.eye(3)[2]
     P, labels = display_rotation(up)
-    magnified = uncertainty_magnification(sc.covariances, depth)
+    magnified = uncertainty_magnification([*sc.covariances, *(b.covariance for b in boards)], depth)
 
     def disp(p):  # plotting frame -> display frame, points (..., 3)
         return np.asarray(p) @ P.T
@@ -385,6 +389,9 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
     apexes = disp(sc.T_cams[:, :3, 3])
     lines, dots, dot_colours, shapes, shape_colours = _camera_marks(
         sc, colours, depth, magnified, P, everything)
+    marks, shown = board_lines(boards, disp, None if magnified is None else
+                               (lambda C: _ellipse_rings(C, magnified[0])))
+    lines, everything = lines + marks, everything + shown
     if dots:
         d = np.concatenate(dots)
         ax3.scatter(d[:, 0], d[:, 1], d[:, 2], s=5, c=dot_colours, alpha=0.5, depthshade=False)
@@ -410,23 +417,29 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
     ax3.view_init(elev=28, azim=-55)
     frame = sc.frame
     _label_axes(figs, ax3, ax2, frame, labels)
-    legend = _legend(sc, depth, magnified, details is not None)
+    legend = _legend(sc, depth, magnified, details is not None) + board_legend(boards)
     figs["rig_3d.png"].subplots_adjust(left=0.0, right=0.97, bottom=0.03, top=1.0)
     figs["rig_top.png"].subplots_adjust(left=0.13, right=0.98, bottom=0.1, top=0.93)
     names = [n + (" (ref)" if j == sc.reference else "") for j, n in enumerate(sc.names)]
-    extra = [f"{frame}"] if details is not None else []
-    texts = names + extra
+    texts = names + ([f"{frame}"] if details is not None else []) + [b.name for b in boards]
     origin = disp(np.zeros(3))
-    for ax in (ax3, ax2):
-        if ax is ax3:
-            M = ax3.get_proj()
-            x, y, _ = proj3d.proj_transform(*np.concatenate([apexes, origin[None]]).T, M)
-            where = np.column_stack([x, y])
-        else:
-            ax2.apply_aspect()
-            where = np.concatenate([apexes[:, :2], origin[None, :2]])
-        _annotate(ax, where, texts, colours[:m], dpi)
+    anchors = np.concatenate([apexes, origin[None], disp(np.array([b.centre() for b in boards]))
+                              if boards else np.zeros((0, 3))])
+    if details is None:
+        anchors = np.delete(anchors, m, axis=0)     # no frame origin named
+    _label_marks(ax3, ax2, anchors, texts, colours[:m], dpi)
     return RigFigures({name: _png(fig) for name, fig in figs.items()}, tuple(legend))
+
+
+def _label_marks(ax3, ax2, anchors: np.ndarray, texts: list[str], colours, dpi: int) -> None:
+    """The cameras', the frame origin's and the boards' names at ``anchors`` (display frame)
+    in both pictures (:func:`_annotate`)."""
+    from mpl_toolkits.mplot3d import proj3d  # noqa: PLC0415 (heavy: loads when a figure is drawn)
+
+    x, y, _ = proj3d.proj_transform(*anchors.T, ax3.get_proj())
+    _annotate(ax3, np.column_stack([x, y]), texts, colours, dpi)
+    ax2.apply_aspect()
+    _annotate(ax2, anchors[:, :2], texts, colours, dpi)
 
 
 def _label_axes(figs: dict, ax3, ax2, frame: str, labels) -> None:

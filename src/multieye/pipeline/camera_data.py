@@ -35,13 +35,14 @@ from multieye.io import (
 )
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
+from multieye.pipeline.boards import camera_boards, no_usable_image as _no_usable_image, per_board
+from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
 from multieye.pipeline.detection import Workers, detect_all
 from multieye.pipeline.estimated_lens import check_model, lens_start, start_lens, with_poses
 from multieye.pipeline.selection import SelectionSummary, motion_first, preselected
 from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.solvers.methods import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
-from multieye.imaging.target_hints import counting_rule
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
            "instant_key",
@@ -69,6 +70,10 @@ class Observation:
         :attr:`multieye.imaging.pnp.PoseEstimate.alternative`), for the consensus to choose.
     alternative_rms_px : float or None
         Its reprojection RMS, pixels.
+    target : str
+        The name of the board the view shows (rig.yaml's ``targets:``; ``"target"`` for
+        ``target:``).  An image showing two boards gives two observations, one per board,
+        with the same ``name`` and ``instant`` (:mod:`multieye.pipeline.boards`).
     instant : str
         The instant the image was taken, as a key that images of other cameras taken at the
         same instant share (the target then has one pose for all of them): today the key of
@@ -86,6 +91,7 @@ class Observation:
     alternative: np.ndarray | None = None
     alternative_rms_px: float | None = None
     instant: str = ""
+    target: str = "target"
 
 
 def instant_key(observation: Observation, by_name: bool) -> str:
@@ -181,33 +187,6 @@ class PairedCamera:
 _MOCAP_ROW = "motion-capture row left out"
 
 
-def _describe_target(rig: Rig) -> str:
-    t = rig.target
-    return f"{t.type} {t.rows}x{t.cols}" if t is not None else "target"
-
-
-def rejection_kind(reason: str) -> str:
-    """The kind of an image's rejection: the reason up to its details (``unreadable file``,
-    ``wrong resolution``, ``target not detected``, ``PnP failed``, ``bad fit``)."""
-    return reason.split(":", 1)[0].split(" (", 1)[0]
-
-
-def _no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
-    """Why a camera has no usable image, by kind, naming the first image of each kind."""
-    kinds: dict[str, list[RejectedItem]] = {}
-    for r in rejected:
-        kinds.setdefault(rejection_kind(r.reason), []).append(r)
-    if set(kinds) == {"target not detected"}:
-
-        rule = counting_rule(rig.target.type) if rig.target is not None else ""
-        return (f"the target ({_describe_target(rig)}) was not detected in any of the {n} "
-                f"images; check the target section of rig.yaml ({rule}) and the images; "
-                "'multieye check' searches them for what they hold")
-    parts = [f"{len(items)} {kind} (first {items[0].item}: {items[0].reason})"
-             for kind, items in kinds.items()]
-    return f"none of the {n} images is usable: " + "; ".join(parts)
-
-
 def _listed(items: list[RejectedItem], limit: int = 3) -> str:
     """``a.png (reason), b.png (reason) and 5 more`` for a message."""
     text = ", ".join(f"{r.item} ({r.reason})" for r in items[:limit])
@@ -240,7 +219,7 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
     cam = rig.cameras[name]
     source = {"images": cam.images, "rosbag": cam.rosbag, "video": cam.video}[cam.source]
     topic = cam.topic
-    target = target_from_spec(rig.target, path=rig.path)
+    target, boards = camera_boards(rig, name)
     lost: list = []
     if cam.source == "video":
         stamped = []
@@ -272,12 +251,13 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
         seconds = time.perf_counter() - t0
         if not stamped:
             raise DatasetError(f"image topic {topic} holds no images", path=source, camera=name)
-    lens = None
+    lens, n_images = None, len(stamped)
+    stamped, results, boards = per_board(stamped, results, boards)    # one per (image, board)
     if intr is None:
         detected = [r for r in results if r.reason is None]
         if not detected:
             raise DatasetError(_no_usable_image(rig, [RejectedItem(lb, r.reason) for (_, lb), r
-                                                      in zip(stamped, results)], len(stamped)),
+                                                      in zip(stamped, results)], n_images),
                                path=source, camera=name)
         started = None if extra_views else workers.started.get(name)
         if started is not None:     # started by the detection's workers (detect_all)
@@ -287,17 +267,18 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
             lens = start_lens(name, cam.model, list(results) + list(extra_views), source)
             results = with_poses(results, lens.intrinsics)
     obs, rejected, warnings = [], [], list(lens.warnings if lens else ())
-    for (stamp, label), res in zip(stamped, results):
+    for (stamp, label), res, board in zip(stamped, results, boards):
         if res.ok:
             obs.append(Observation(name=label, stamp=stamp, T_cam_target=res.pose.T_cam_target,
                                    rms_px=res.pose.rms_px,
                                    object_points=res.detection.object_points,
                                    image_points=res.detection.image_points,
                                    alternative=res.pose.alternative,
-                                   alternative_rms_px=res.pose.alternative_rms_px))
+                                   alternative_rms_px=res.pose.alternative_rms_px, target=board))
             warnings.extend(f"{name}/{label}: {w}" for w in res.warnings)
         else:
-            rejected.append(RejectedItem(label, res.reason))
+            shown = label if board is None or len(set(boards)) == 1 else f"{label} ({board})"
+            rejected.append(RejectedItem(shown, res.reason))
     # pose ambiguity (single marker): warn when the two poses fit alike in most images
     warnings.extend(w for w in [ambiguity_warning(name, [r.pose for r in results if r.ok])] if w)
     skipped = [RejectedItem(n, why) for n, why in lost]
@@ -305,9 +286,8 @@ def _observations_from_images(rig: Rig, name: str, intr: Intrinsics | None, work
         skipped += [RejectedItem(n, why) for n, why in skipped_entries(source)]
     rejected.extend(skipped)
     if not obs:
-        raise DatasetError(_no_usable_image(rig, rejected, len(stamped)), path=source,
-                           camera=name)
-    return _Detected(observations=obs, rejected=rejected, n_inputs=len(stamped) + len(skipped),
+        raise DatasetError(_no_usable_image(rig, rejected, n_images), path=source, camera=name)
+    return _Detected(observations=obs, rejected=rejected, n_inputs=n_images + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
                      intrinsics=None if lens is None else lens.intrinsics)
 

@@ -8,6 +8,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
+from multieye.imaging.boards import Boards
 from multieye.imaging.batch import (
     ImageJob,
     detect_and_estimate,
@@ -18,6 +19,7 @@ from multieye.imaging.calibrate import lens_start_task
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.imaging.targets import target_from_spec
 from multieye.io import Rig, list_image_files, list_images, read_camera_intrinsics
+from multieye.pipeline.boards import camera_boards
 from multieye.pipeline.estimated_lens import check_model
 
 __all__ = ["Workers", "detect_all"]
@@ -76,11 +78,12 @@ def detect_all(rig: Rig, motions: dict, workers: Workers, chosen: dict, *,
         intr = None
         if cam.intrinsics is not None:
             intr = check_model(name, read_camera_intrinsics(cam), cam.model, cam.intrinsics)
-        target = target_from_spec(rig.target, path=rig.path)
+        target, _ = camera_boards(rig, name)
         listed = (chosen[name][0] if name in chosen
                   else getattr(motions.get(name), "listed", None))
         images = list_images(cam.images) if listed is None else listed
-        if intr is None and cam.model is not None and cam.intrinsics_images is None:
+        if (intr is None and cam.model is not None and cam.intrinsics_images is None
+                and not isinstance(target, Boards)):     # several boards: started later
             # the lens start and every pose with it, in a worker once the images are in
             then[len(jobs)] = lens_start_task(cam.model, name)
         keys.append((name, "images"))

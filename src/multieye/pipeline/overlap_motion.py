@@ -51,7 +51,7 @@ __all__ = ["MotionSolution", "solve_motion", "target_of", "board_order"]
 
 def target_of(observation) -> str:
     """The board an observation shows (``"target"`` for rig.yaml's one ``target:``)."""
-    return getattr(observation, "target", "target")
+    return observation.target
 
 
 def board_order(cameras: Mapping[str, CameraData], declared: Sequence[str] = ()) -> tuple:
@@ -124,7 +124,9 @@ def _links(sol_views: MotionViews, result: MotionResult, boards: Sequence[str]
         link = result.start.links[j]
         motion = ((tuple(names[c] for c in link.cameras), tuple(boards[b] for b in link.boards))
                   if link.kind == "motion" and link.cameras else ())
-        out[n] = CameraLinks(shared, False, motion)
+        mine = np.bincount(v.board[v.camera == j], minlength=len(boards))
+        out[n] = CameraLinks(shared, False, motion,
+                             {boards[b]: int(c) for b, c in enumerate(mine) if c})
     return out
 
 

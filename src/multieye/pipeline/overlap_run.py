@@ -137,13 +137,19 @@ def _by_motion(sol) -> bool:
     return isinstance(sol, MotionSolution)
 
 
-def _boards(sol) -> dict | None:
-    """Every board's pose in the world (the first board) with its uncertainty, by name."""
+def _targets(sol) -> dict | None:
+    """Every board's pose in the world (the first board) with its uncertainty and views, by
+    name (docs/outputs.md, several boards)."""
     if not _by_motion(sol):
         return None
     res = sol.result
-    return {b: BoardRecord(res.T_world_board[k], _pose_uncertainty(res.board_covariance[k]))
-            for k, b in enumerate(sol.boards)}
+    out = {}
+    for k, b in enumerate(sol.boards):
+        per = {n: int(np.sum(sol.board[n] == k)) for n in sol.names}
+        per = {n: v for n, v in per.items() if v}
+        out[b] = BoardRecord(res.T_world_board[k], False, sum(per.values()), per,
+                             _pose_uncertainty(res.board_covariance[k]))
+    return out
 
 
 def _camera_rms(sol: OverlapSolution) -> dict[str, float]:
@@ -174,11 +180,12 @@ def _record(problem: Problem, sol: OverlapSolution, paired: dict, rms: dict,
             covariance=res.covariance[j], rejected=p.rejected,
             intrinsics=_intrinsics_record(problem, sol, j, p),
             uncertainty={"T_ref_cam": unc},
-            links=CameraLinks(dict(sol.links[n].overlap), False, sol.links[n].motion)))
+            links=CameraLinks(dict(sol.links[n].overlap), False, sol.links[n].motion,
+                              sol.links[n].boards)))
     used = sum(c.measurements_used for c in cams)
     return CalibrationRecord(
         setup=OVERLAP, method=MOTION_METHOD if _by_motion(sol) else METHOD,
-        reference_camera=problem.reference, Y=None, boards=_boards(sol),
+        reference_camera=problem.reference, Y=None, targets=_targets(sol),
         cameras=tuple(cams),
         residuals=Residuals(e_R_deg=sum(rot_all) / used, e_t_m=sum(trans_all) / used),
         warnings=warnings, refinement="images",

@@ -64,6 +64,7 @@ from multieye.estimate.refine_images import (
 )
 from multieye.pipeline.overlap import paired_instants, share_instants
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
+from multieye.pipeline.boards import refuse_several_boards
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.refine import Refined, mocap_noise, refine
@@ -128,9 +129,10 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     clock = [time.perf_counter()]
     problem = make_problem(rig, cameras, updated_options(options, kw))
     if all(d.mocap is None for d in cameras.values()):   # linked by shared views (issue 23)
-        run = calibrate_overlap(check_overlap_options(problem))
+        run = calibrate_overlap(check_overlap_options(problem))      # and by motion (34)
         return replace(run, timings=StageTimings(refinement=time.perf_counter() - clock[0],
                                                  total=time.perf_counter() - clock[0]))
+    refuse_several_boards(rig)           # with motion capture: until their estimation lands
     every = pair(problem)
 
     def check() -> Plausibility:      # every measurement: why a failing stage failed

@@ -44,7 +44,7 @@ from multieye.core.lens import project_points, undistort_points
 from multieye.imaging.targets import (AprilGrid, ArucoMarker, AsymmetricCircleGrid, Charuco, Chessboard,
                                      CircleGrid, Target)
 
-__all__ = ["render", "visible", "board_outline"]
+__all__ = ["render", "render_boards", "visible", "board_outline"]
 
 F64 = NDArray[np.float64]
 
@@ -441,19 +441,49 @@ def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike,
     whose ray cannot be traced back through the lens model (outside the field of a fisheye,
     or where a polynomial model folds) show background.
     """
-    o = with_fields(style, kw, RenderStyle, "style")
-    width, height, rng, supersample = o.width, o.height, o.rng, o.supersample
-    blur_sigma, noise_sigma, margin, inverted = o.blur_sigma, o.noise_sigma, o.margin, o.inverted
-    black, white = o.black, o.white
-    T = transform(T_cam_target, "T_cam_target", rigid=True)
-    w, h = _image_size(intrinsics, width, height)
-    if int(supersample) < 1:
-        raise InputError(f"supersample must be a positive integer, got {supersample}")
-    ss = int(supersample)
-    rng = np.random.default_rng(0) if rng is None else rng
-    m = _default_margin(target) if margin is None else float(margin)
+    return render_boards([(target, T_cam_target)], intrinsics, style, **kw)
 
+
+def render_boards(boards, intrinsics: Intrinsics, style: RenderStyle = RenderStyle(),
+                  **kw) -> NDArray[np.uint8]:
+    """:func:`render` of several boards in one image (boards on the walls of a room).
+
+    Parameters
+    ----------
+    boards : sequence of (Target, array_like (4, 4))
+        Each board and its ``T_cam_target``; drawn farthest first, so a nearer board hides
+        a farther one.
+    intrinsics, style, **kw
+        As for :func:`render`.
+
+    Returns
+    -------
+    ndarray, shape (height, width), uint8
+    """
+    o = with_fields(style, kw, RenderStyle, "style")
+    w, h = _image_size(intrinsics, o.width, o.height)
+    if int(o.supersample) < 1:
+        raise InputError(f"supersample must be a positive integer, got {o.supersample}")
+    rng = np.random.default_rng(0) if o.rng is None else o.rng
+    posed = [(t, transform(T, "T_cam_target", rigid=True)) for t, T in boards]
+    posed.sort(key=lambda tT: -np.linalg.norm(tT[1][:3, 3]))
     image = _background(rng, w, h)
+    for target, T in posed:
+        _draw_board(image, target, intrinsics, T, o, rng)
+    if o.blur_sigma > 0:
+        image = cv2.GaussianBlur(image, (0, 0), o.blur_sigma)
+    if o.noise_sigma > 0:
+        image += o.noise_sigma * rng.standard_normal(size=image.shape, dtype=np.float32)
+    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+
+
+def _draw_board(image: NDArray[np.float32], target: Target, intrinsics: Intrinsics, T: F64,
+                style: RenderStyle, rng: np.random.Generator) -> None:
+    """Draw one board into ``image`` (in place), its illumination drawn from ``rng``."""
+    h, w = image.shape
+    ss = int(style.supersample)
+    m = _default_margin(target) if style.margin is None else float(style.margin)
+    black, white = style.black, style.white
     roi = _board_roi(target, intrinsics, T, w, h, m)
     if roi is not None:
         ua, va, ub, vb = roi
@@ -474,7 +504,7 @@ def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike,
         # box filter over the sub-pixels: exact block means for an integer factor
         cover = cv2.resize(on_board.astype(np.float32), size, interpolation=cv2.INTER_AREA)
         white_part = cv2.resize(refl, size, interpolation=cv2.INTER_AREA)
-        if inverted:
+        if style.inverted:
             white_part = cover - white_part
         # illumination: a gentle gradient across the image
         gx, gy = rng.uniform(-0.1, 0.1, size=2) / max(w, h)
@@ -482,8 +512,3 @@ def render(target: Target, intrinsics: Intrinsics, T_cam_target: ArrayLike,
         light = (0.95 + gx * uu + gy * vv).astype(np.float32)
         board = (black * cover + (white - black) * white_part) * light
         image[va:vb, ua:ub] = board + (1.0 - cover) * image[va:vb, ua:ub]
-    if blur_sigma > 0:
-        image = cv2.GaussianBlur(image, (0, 0), blur_sigma)
-    if noise_sigma > 0:
-        image += noise_sigma * rng.standard_normal(size=image.shape, dtype=np.float32)
-    return np.clip(np.rint(image), 0, 255).astype(np.uint8)

@@ -15,7 +15,9 @@ frame (:mod:`multieye.imaging.targets`).  Every instant ``i`` has one rig pose
 
 Variants (:class:`WallSpec`): ``boards="charuco"`` (default, three ChArUco boards of one
 dictionary with disjoint id ranges on the north, west and south walls; the rig turns
-freely, so each camera sees several boards over the recording and some images show two),
+freely, so each camera sees several boards over the recording and some images show two; no
+point is seen by two cameras, but a wide board may show its two ends to two neighbouring
+cameras at one instant),
 ``boards="chessboard"`` (one chessboard per camera on the wall it faces; the rig turns
 only ``yaw_range_deg`` either way, so each board is seen by one known camera: rig.yaml's
 ``cameras:`` of a target); ``motion="6dof"`` (turns about every axis, moves in 3-D) or
@@ -71,8 +73,9 @@ class WallSpec:
     n_instants : int
         Rig poses (instants).
     boards : {"charuco", "chessboard"}
-        Three ChArUco boards (north, west, south walls; ids 0-16, 20-36, 40-56 of
-        DICT_4X4_100), or one 6 x 9 chessboard per camera on the wall it faces at yaw 0.
+        Three 6 x 9 ChArUco boards of 0.16 m squares (north, west, south walls; ids 0-26,
+        32-58, 64-90 of DICT_4X4_100), or one 6 x 9 chessboard of 0.1 m squares per camera
+        on the wall it faces at yaw 0.
     motion : {"6dof", "planar"}
         6-DoF motion, or driven on the floor (yaw only, constant height).
     room_half_m : float
@@ -82,7 +85,7 @@ class WallSpec:
     travel_m : float
         Half-range of the rig's horizontal position about the centre, metres.
     yaw_range_deg : float or None
-        Half-range of the rig's yaw about 0; None: it turns freely (uniform over the
+        Half-range of the rig's yaw about 0; None: it turns freely (spread evenly over the
         circle) with ChArUco boards, 20 degrees with chessboards (each seen by one camera).
     tilt_deg : float
         ``6dof`` only: half-range of roll and pitch, degrees (and of the height change,
@@ -203,9 +206,9 @@ class WallScenario:
 def wall_targets(spec: WallSpec) -> dict:
     """Board name -> rig.yaml target mapping (chessboards with their ``cameras``)."""
     if spec.boards == "charuco":
-        base = {"type": "charuco", "rows": 5, "cols": 7, "spacing": 0.16,
+        base = {"type": "charuco", "rows": 6, "cols": 9, "spacing": 0.16,
                 "marker_size": 0.12, "dictionary": "DICT_4X4_100"}
-        return {wall: {**base, "first_id": 20 * k}
+        return {wall: {**base, "first_id": 32 * k}
                 for k, wall in enumerate(("north", "west", "south"))}
     walls = list(WALL_DIRECTIONS)
     return {walls[j]: {"type": "chessboard", "rows": 6, "cols": 9, "spacing": 0.1,
@@ -250,8 +253,8 @@ def _body_poses(spec: WallSpec, rng: np.random.Generator) -> F64:
     limit = spec.yaw_range_deg
     if limit is None and spec.boards == "chessboard":
         limit = 20.0
-    if limit is None:
-        yaw = rng.uniform(-np.pi, np.pi, K)
+    if limit is None:       # spread evenly over the circle (stratified), in random order
+        yaw = rng.permutation(2 * np.pi * (np.arange(K) + rng.uniform(0, 1, K)) / K - np.pi)
     else:
         yaw = np.radians(limit) * rng.uniform(-1, 1, K)
     xy = spec.travel_m * rng.uniform(-1, 1, (K, 2))

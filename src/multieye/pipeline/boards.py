@@ -1,0 +1,129 @@
+"""The boards each camera of a rig looks for (rig.yaml's ``target:`` or ``targets:``,
+docs/rig-yaml.md, section 3.1), and the detection results of several boards turned into one
+result per (image, board) for :mod:`multieye.pipeline.camera_data`.
+
+A camera that may see one board detects it as before (a
+:class:`~multieye.imaging.targets.Target`); a camera that may see several detects them all
+in each image (:class:`~multieye.imaging.boards.Boards`), and an image showing two boards
+gives two views, one per board, at the same instant (:attr:`Observation.target
+<multieye.pipeline.camera_data.Observation.target>`).
+"""
+
+from __future__ import annotations
+
+from multieye.core.errors import DatasetError
+from multieye.imaging.batch import ImageResult
+from multieye.imaging.boards import Boards
+from multieye.imaging.target_hints import counting_rule
+from multieye.imaging.targets import Target, target_from_spec
+from multieye.io import RejectedItem, Rig
+
+__all__ = ["camera_boards", "per_board", "no_usable_image", "rejection_kind",
+           "refuse_several_boards"]
+
+
+def camera_boards(rig: Rig, camera: str) -> tuple[Target | Boards, tuple[str, ...]]:
+    """What camera ``camera`` looks for in its images, and the names of those boards: its one
+    board (a Target), or every board it may see (Boards, those whose ``cameras`` name it or
+    that name none).
+
+    Raises
+    ------
+    DatasetError
+        No board of rig.yaml is for this camera (every one names other ``cameras``).
+    """
+    specs = {n: s for n, s in rig.targets.items() if s.sees(camera)}
+    if not specs:
+        raise DatasetError("no target of rig.yaml is seen by this camera (each names other "
+                           "'cameras'); add it to the 'cameras' of the board it sees",
+                           path=rig.path, camera=camera)
+    if len(specs) == 1:
+        name, spec = next(iter(specs.items()))
+        return target_from_spec(spec, path=rig.path), (name,)
+    return (Boards.of({n: target_from_spec(s, path=rig.path) for n, s in specs.items()}),
+            tuple(specs))
+
+
+def per_board(stamped: list, results: list[ImageResult], looked_for: tuple[str, ...]
+              ) -> tuple[list, list[ImageResult], list[str | None]]:
+    """One entry per (image, board) from one result per image.
+
+    Parameters
+    ----------
+    stamped : list of (float, str)
+        Per image its stamp and label.
+    results : list of ImageResult
+        Per image its result; with several boards (``parts``), one per board inside.
+    looked_for : tuple of str
+        The names of the boards looked for (:func:`camera_boards`).
+
+    Returns
+    -------
+    stamped, results, boards : lists of equal length
+        An image with a usable board gives an entry per board that was found (usable, or
+        found and then refused: PnP failed, bad fit); an image with none keeps its own
+        result and board None.  A single board keeps the lists as they are, board its name.
+    """
+    if len(looked_for) == 1 and not any(r.parts for r in results):
+        return list(stamped), list(results), [looked_for[0]] * len(results)
+    out_stamped, out_results, boards = [], [], []
+    for st, r in zip(stamped, results):
+        found = [(n, p) for n, p in r.parts if p.detection is not None]
+        if not r.ok or not found:
+            out_stamped.append(st)
+            out_results.append(r)
+            boards.append(None)
+            continue
+        for n, p in found:
+            out_stamped.append(st)
+            out_results.append(p)
+            boards.append(n)
+    return out_stamped, out_results, boards
+
+
+def rejection_kind(reason: str) -> str:
+    """The kind of an image's rejection: the reason up to its details (``unreadable file``,
+    ``wrong resolution``, ``target not detected``, ``PnP failed``, ``bad fit``)."""
+    return reason.split(":", 1)[0].split(" (", 1)[0]
+
+
+def _describe(rig: Rig) -> str:
+    if not rig.targets:
+        return "target"
+    return ", ".join(f"{t.type} {t.rows}x{t.cols}" + (f" {n}" if len(rig.targets) > 1 else "")
+                     for n, t in rig.targets.items())
+
+
+def no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
+    """Why a camera has no usable image, by kind, naming the first image of each kind."""
+    kinds: dict[str, list[RejectedItem]] = {}
+    for r in rejected:
+        kinds.setdefault(rejection_kind(r.reason), []).append(r)
+    if set(kinds) == {"target not detected"}:
+        rule = "; ".join(dict.fromkeys(counting_rule(t.type) for t in rig.targets.values()))
+        what = "target" if len(rig.targets) <= 1 else "targets"
+        return (f"the {what} ({_describe(rig)}) was not detected in any of the {n} "
+                f"images; check the target section of rig.yaml ({rule}) and the images; "
+                "'multieye check' searches them for what they hold")
+    parts = [f"{len(items)} {kind} (first {items[0].item}: {items[0].reason})"
+             for kind, items in kinds.items()]
+    return f"none of the {n} images is usable: " + "; ".join(parts)
+
+
+def refuse_several_boards(rig: Rig) -> None:
+    """Several boards are read and detected, one view per (image, board); with motion
+    capture the calibration that estimates the boards' poses from them is not in this
+    version (without it: :mod:`multieye.pipeline.overlap_motion`): refuse, rather than take
+    views of different boards for views of one.
+
+    Raises
+    ------
+    DatasetError
+        rig.yaml has more than one target.
+    """
+    if len(rig.targets) > 1:
+        raise DatasetError(f"targets: {len(rig.targets)} boards ({', '.join(rig.targets)}) are "
+                           "read and detected, but their calibration with motion capture "
+                           "(each board's pose estimated with the rig) is not in this "
+                           "version; give one target, or calibrate without mocap:",
+                           path=rig.path)
