@@ -3,14 +3,17 @@
 Run from the repository root::
 
     python benchmarks/bench_motion_links.py [--rigs 20] [--first-seed 0] [--pixel-noise 0.3]
-        [--instants 40]
+        [--instants 40] [--rendered DIR]
 
 The rigs (:func:`multieye.sim.wall_boards.simulate_walls`, seeds --first-seed ..
 --first-seed + --rigs - 1): four cameras 90 degrees apart about the vertical (none
 overlapping, 80 degree field of view, 800 x 600, slight radial distortion), moved in front of
 three ChArUco boards on the north, west and south walls of a 4 m room, --instants poses.
 Array level: the boards' true corners seen at each instant with Gaussian pixel noise
-(--pixel-noise per coordinate), no rendering, no detection.  Every view's starting pose is
+(--pixel-noise per coordinate), no rendering, no detection; with ``--rendered DIR`` each rig
+is rendered (:func:`multieye.sim.wall_dataset.render_wall_dataset`: blur, sensor noise) and
+its boards detected by multieye (``load_camera_data``), and those corners are used (the
+observability part is then skipped).  Every view's starting pose is
 OpenCV's PnP (IPPE, then iterative) with the starting lens.  Per rig, four solves on the same
 pixels:
 
@@ -41,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -53,7 +57,10 @@ from multieye.estimate.motion_mocap import RigMocap
 from multieye.estimate.motion_residuals import MotionViews
 from multieye.estimate.observability import observability
 from multieye.estimate.refine_motion import refine_motion
-from multieye.sim.wall_boards import WallSpec, noisy_views, simulate_walls
+from multieye.io import load_rig
+from multieye.pipeline.camera_data import load_camera_data
+from multieye.sim.wall_boards import WallSpec, WallView, noisy_views, simulate_walls
+from multieye.sim.wall_dataset import render_wall_dataset
 
 LIMIT = float(chi2.ppf(0.9973, 6))
 
@@ -121,10 +128,26 @@ def _errors(res, sc):
     return out
 
 
-def _rig(seed: int, noise: float, n: int) -> dict:
-    sc = simulate_walls(np.random.default_rng(seed), WallSpec(n_instants=n))
-    rng = np.random.default_rng(10_000 + seed)
-    views = noisy_views(sc, noise, rng)
+def _detected(folder: Path, seed: int, n: int):
+    """Render the rig (once) and detect its boards as the pipeline does: the truth and the
+    views (``WallView`` of the detected corners, instant from the frame-numbered name)."""
+    ds = folder / f"rig{seed:03d}"
+    sc = render_wall_dataset(ds, WallSpec(n_instants=n), seed=seed) if not (
+        ds / "rig.yaml").exists() else simulate_walls(np.random.default_rng(seed),
+                                                      WallSpec(n_instants=n))
+    data = load_camera_data(load_rig(ds), processes=1)
+    views = [WallView(sc.cameras.index(cam), int(o.name.removesuffix(".png")), o.target,
+                      np.arange(len(o.object_points)), o.object_points, o.image_points)
+             for cam, d in data.items() for o in d.observations]
+    return sc, views
+
+
+def _rig(seed: int, noise: float, n: int, rendered: Path | None = None) -> dict:
+    if rendered is None:
+        sc = simulate_walls(np.random.default_rng(seed), WallSpec(n_instants=n))
+        views = noisy_views(sc, noise, np.random.default_rng(10_000 + seed))
+    else:
+        sc, views = _detected(rendered, seed, n)
     mocap_rng = np.random.default_rng(20_000 + seed)
     out = {}
     for free in (False, True):
@@ -188,11 +211,15 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--pixel-noise", type=float, default=0.3)
     ap.add_argument("--instants", type=int, default=40)
+    ap.add_argument("--rendered", type=Path, default=None,
+                    help="render each rig into this folder (kept) and use the corners "
+                         "multieye detects instead of the true ones with noise")
     a = ap.parse_args()
     seeds = range(a.first_seed, a.first_seed + a.rigs)
-    runs = [_rig(s, a.pixel_noise, a.instants) for s in seeds]
-    print(f"{a.rigs} rigs, {a.instants} instants, {a.pixel_noise} px; 3 cameras per rig "
-          f"(cam1..cam3 against cam0)\n")
+    runs = [_rig(s, a.pixel_noise, a.instants, a.rendered) for s in seeds]
+    print(f"{a.rigs} rigs, {a.instants} instants, "
+          + (f"rendered into {a.rendered}" if a.rendered else f"{a.pixel_noise} px")
+          + "; 3 cameras per rig (cam1..cam3 against cam0)\n")
     print("| solve | rot RMS (deg) | trans RMS (mm) | predicted rot (deg) | predicted trans "
           "(mm) | NEES mean [10 %, 90 %] | within 3 sigma |")
     print("|---|---|---|---|---|---|---|")
@@ -202,7 +229,8 @@ def main() -> None:
         cpu = np.median([r[(lens, False)][1] for r in runs])
         print(f"| ratio without / with mocap, {lens} | {no[0] / yes[0]:.2f} | "
               f"{no[1] / yes[1]:.2f} | | | median CPU {cpu:.2f} s | |")
-    _planar(seeds, a.pixel_noise, a.instants)
+    if a.rendered is None:
+        _planar(seeds, a.pixel_noise, a.instants)
 
 
 if __name__ == "__main__":

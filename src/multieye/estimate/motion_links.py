@@ -60,6 +60,9 @@ LOOP_LIMIT_DEG = 5.0
 #: value is below this fraction of the first (PnP poses: 0.3 degrees of tilt noise gave 0.026
 #: on a rig driven on a floor; 6-DoF motion with 12 degrees of tilt about 0.15).
 START_SPREAD = 0.06
+#: Singular values of the single-axis translation system below this fraction of the
+#: largest are taken as the axis (a turn's noise tilt: 0.005 against 1.4 on a planar rig).
+_AXIS_RCOND = 0.05
 #: ... and when the joint problem fails, this (a rig on a floor whose PnP poses tilt by half
 #: a degree: 0.08).
 FALLBACK_SPREAD = 0.25
@@ -333,7 +336,8 @@ def single_axis_hand_eye(A, B) -> tuple[F64, F64]:
         R = exp_so3(theta * kP) @ R0
         M = (P[:, :3, :3] - np.eye(3)).reshape(-1, 3)
         rhs = (Q[:, :3, 3] @ R.T - P[:, :3, 3]).reshape(-1)
-        t = np.linalg.lstsq(M, rhs, rcond=1e-9)[0]
+        # the axis's singular value is the poses' tilt noise, not information: left out
+        t = np.linalg.lstsq(M, rhs, rcond=_AXIS_RCOND)[0]
         return float(np.sum((M @ t - rhs) ** 2)), g.make_transform(R, t)
 
     grid = np.radians(np.arange(-180.0, 180.0, 1.0))
