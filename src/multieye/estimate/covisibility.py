@@ -174,8 +174,9 @@ def unlinked_message(groups: Sequence[Sequence[str]], tolerance: float | None = 
     listing = ", ".join(shown[:-1]) + " and " + shown[-1]
     within = "" if tolerance is None else f" = {tolerance:g} s"
     return (f"cameras fall into {len(groups)} groups that nothing links: {listing}; give them "
-            f"images taken at the same instants (stamps within sync_tolerance{within}), or "
-            "motion capture (mocap: in rig.yaml)")
+            f"images taken at the same instants (stamps within sync_tolerance{within}), "
+            "motion capture (mocap: in rig.yaml), or several boards standing still "
+            "(targets: in rig.yaml) that the cameras see while the rig moves")
 
 
 def relative_pose(T_a_target, T_b_target) -> F64:

@@ -394,7 +394,8 @@ def _check_unpaired(rig, name, cam, *, sample, processes) -> CameraCheck:
 def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[CameraCheck, ...]:
     """A rig without motion capture: per camera, ``with_mocap`` becomes its listed images
     that share an instant with another camera's (docs/rig-yaml.md, section 2), and cameras
-    in groups that nothing links get the refusal calibrating would give."""
+    in groups that nothing links get the refusal calibrating would give (with one board:
+    with several the rig's motion may link them, issue 34)."""
     stamps = [np.asarray(c.stamps, dtype=np.float64) for c in cams]
     tol = (default_sync_tolerance(stamps) if rig.sync_tolerance is None
            else rig.sync_tolerance)
@@ -407,7 +408,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[CameraCheck, ...]:
         others = np.concatenate([i for k, i in enumerate(inst) if k != j] or [np.zeros(0)])
         shared = int(np.isin(inst[j], others).sum())
         fatal = c.fatal
-        if len(groups) > 1 and j not in groups[0]:
+        # several boards: the rig's motion may link them (which the detections decide)
+        if len(groups) > 1 and j not in groups[0] and len(rig.targets or {}) <= 1:
             fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol),)
         out.append(replace(c, with_mocap=shared, fatal=fatal,
                            problems=c.problems + fatal[len(c.fatal):]))
