@@ -75,6 +75,8 @@ def test_cameras_that_share_no_instant_go_through_linked_by_the_motion():
                                                  for o in cams["cam1"].observations))}
     assert all(lk.describe().startswith(("overlap", "motion via cam"))
                for n, lk in links.items() if n != "cam0")
+    from multieye.outputs.summary import calibration_table
+    assert "cam1 linked by: " in calibration_table(rec)
     back = calibration_from_dict(calibration_to_dict(rec))
     assert {c.name: c.links for c in back.cameras} == links
     assert back.targets.keys() == rec.targets.keys()
