@@ -3,7 +3,14 @@
 Run from the repository root::
 
     python benchmarks/bench_peers.py [--runs 3] [--processes 2]
-        [--mrcal-python /tmp/venv-mrcal/bin/python]
+        [--mrcal-python /tmp/venv-mrcal/bin/python] [--variant NAME|all|key=value,...]
+
+``--variant`` (repeatable) renders and times other data than the base rig below: image size,
+PNG or JPEG, board size, lens family, images per camera, and the images made by a second
+renderer (``renderer=warp``: a board picture warped through its homography and the lens over
+a cluttered scene, :mod:`multieye.sim.warped`); the presets are :data:`VARIANTS`. With
+variants a last table gives, per variant, the wall-time ratio multieye / OpenCV script
+(median of the runs, and each run's own ratio: the commands run in turn) and the worst.
 
 1. Renders, once, a 4-camera rig with 100 images per camera (800 x 600, pinhole with OpenCV's
    5 radial-tangential coefficients, blur and sensor noise, motion capture 0.03 deg / 0.1 mm;

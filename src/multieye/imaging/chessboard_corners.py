@@ -18,6 +18,8 @@ Synopsis
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -26,7 +28,7 @@ from multieye.imaging.targets import Chessboard, Target
 
 __all__ = ["locate", "search_order", "find_chessboard", "refine_grid", "refine_corners",
            "corner_window", "consistent_grid", "min_spacing", "CLASSIC_FLAGS",
-           "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE"]
+           "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE", "MIN_DEPARTURE_PX"]
 
 F64 = NDArray[np.float64]
 
@@ -44,36 +46,72 @@ HALF_SIZE_SEARCH_ABOVE_PX = 640
 CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 
 #: Largest departure of a corner's second difference along its row or column from the
-#: median of that row's (column's), as a fraction of the median spacing (at least 1 px), in
-#: a grid either detector found (SB's at half size only: :func:`locate`); beyond it, the
-#: next search of :func:`search_order` runs.
+#: smooth surface the others follow (:func:`consistent_grid`), as a fraction of the median
+#: spacing (at least :data:`MIN_DEPARTURE_PX`), in a grid either detector found (SB's at
+#: half size only: :func:`locate`); beyond it, the next search of :func:`search_order` runs.
 MAX_SECOND_DIFFERENCE = 0.05
+
+#: The least departure :func:`consistent_grid` flags, pixels: a right grid of small squares
+#: (12-16 px) with blurred corners departed by up to 0.92 px on the renders of issue 32.
+MIN_DEPARTURE_PX = 1.5
 
 
 def consistent_grid(points: F64, target: Target) -> bool:
-    """Whether refined grid corners lie on a smooth grid: along every row and column the
-    second differences ``p[j-1] - 2 p[j] + p[j+1]`` (which perspective and lens distortion
-    change slowly) stay within :data:`MAX_SECOND_DIFFERENCE` of the spacing of their median.
+    """Whether refined grid corners lie on a smooth grid.
+
+    The second differences ``p[j-1] - 2 p[j] + p[j+1]`` along the rows form a field over
+    (row, column) that perspective and lens distortion change smoothly in both directions
+    (the columns' likewise).  Each value is compared with the quadratic surface in (row,
+    column) fitted to the field's other values (:func:`_surface_departures`); none may
+    depart by more than :data:`MAX_SECOND_DIFFERENCE` of the median spacing (at least
+    :data:`MIN_DEPARTURE_PX`).  Fields of 7 values or fewer are compared with their row's
+    median instead.
 
     A corner off by ``e`` moves the second differences around it by ``e`` to ``2 e``: the
-    classic detector put a corner 12 px off on a blurred JPEG (yizhong_toolkit's 16.jpg, squares of
-    20 px) where SB found it; SB at half size put corners 5-9 px off on blurred rendered
-    views (issue 32).  On a board seen close and steeply (squares of 17-50 px, a lens with
-    k1 = -0.3) the second differences of a right grid drift along a row by 6-15 % of the
-    spacing: such a board goes on to the next search (a straight-line trend instead of the
-    median took those, but missed a corner 2.9 px off at the end of a row of 36 px
-    squares).  A departure flagged wrongly only costs the next search."""
+    classic detector put a corner 12 px off on a blurred JPEG (yizhong_toolkit's 16.jpg,
+    squares of 20 px) where SB found it; SB at half size put corners 5-9 px off on blurred
+    rendered views (issue 32).  Until issue 32 each value was compared with its row's median:
+    on a board seen close and steeply (squares of 17-50 px, a lens with k1 = -0.3) the
+    second differences of a right grid drift along a row by 6-15 % of the spacing, and such
+    boards went on to slower searches.  On the views rendered for that issue the surface
+    leaves right grids within 1 px (4.6 % of the spacing at most where it exceeds 20 px) and
+    misplaced ones 5 px and more off.  A departure flagged wrongly only costs the next
+    search."""
     rows, cols = target.grid_shape()
     grid = points.reshape(rows, cols, 2)
     spacing = float(_median(_lengths(grid[:, 1:] - grid[:, :-1]).ravel(), 0))
-    limit = max(1.0, MAX_SECOND_DIFFERENCE * spacing)
+    limit = max(MIN_DEPARTURE_PX, MAX_SECOND_DIFFERENCE * spacing)
     for g in (grid, grid.transpose(1, 0, 2)):
         if g.shape[1] < 3:
             continue
         d2 = g[:, :-2] - 2.0 * g[:, 1:-1] + g[:, 2:]
-        if _lengths(d2 - _median(d2, 1)[:, None]).max() > limit:
+        if _surface_departures(d2).max() > limit:
             return False
     return True
+
+
+def _surface_departures(d2: F64) -> F64:
+    """Per value of the field ``d2`` (R, n, 2): its distance from the quadratic surface in
+    (row, column) fitted by least squares to the other values (the leave-one-out residual
+    ``r / (1 - h)``, ``h`` the fit's leverage); from its row's median where the field has
+    7 values or fewer.  Shape (R, n)."""
+    R, n = d2.shape[:2]
+    if R * n <= 7:
+        return _lengths(d2 - _median(d2, 1)[:, None])
+    hat, leverage = _quadratic_hat(R, n)
+    y = d2.reshape(R * n, 2)
+    return (_lengths(y - hat @ y) / (1.0 - leverage)).reshape(R, n)
+
+
+@lru_cache(maxsize=32)
+def _quadratic_hat(R: int, n: int) -> tuple[F64, F64]:
+    """The hat matrix of a least-squares quadratic in (row, column) over an R x n grid of
+    values, and its diagonal (the leverages)."""
+    r, j = np.meshgrid(np.arange(R) - (R - 1) / 2, np.arange(n) - (n - 1) / 2, indexing="ij")
+    r, j = r.ravel(), j.ravel()
+    A = np.column_stack([np.ones_like(r), r, j, r * r, r * j, j * j])
+    hat = A @ np.linalg.pinv(A)
+    return hat, np.diag(hat).copy()
 
 
 def _median(a: F64, axis: int) -> F64:
