@@ -105,6 +105,9 @@ def main() -> None:
     ap.add_argument("--views", type=int, default=40)
     ap.add_argument("--before", type=Path, help="src folder of the checkout to compare with")
     ap.add_argument("--variant", action="append", help="only these (names of VARIANTS)")
+    ap.add_argument("--dataset", type=Path, action="append", default=[],
+                    help="also the images of a rendered dataset folder (bench_peers.py's "
+                         "cache): time and the two codes' corner difference (no truth here)")
     args = ap.parse_args()
     codes = {"this": cc}
     if args.before:
@@ -131,7 +134,39 @@ def main() -> None:
             print(f"| {name} | {code} | {len(errs[code])}/{len(images)} | {t.mean():.1f} / "
                   f"{np.median(t):.1f} / {t.max():.0f} | {np.sqrt(np.mean(e ** 2)):.3f} / "
                   f"{e.max():.2f} |", flush=True)
+    for folder in args.dataset:
+        dataset(folder, codes)
     print(f"\nload average at the end: {os.getloadavg()[0]:.2f}")
+
+
+def dataset(folder: Path, codes: dict) -> None:
+    """Every image of a rendered dataset through each code's ``locate``, in turn: CPU ms per
+    image and the largest difference between the codes' corners (either order)."""
+    import re
+
+    text = (folder / "rig.yaml").read_text()
+    rows, cols = (int(re.search(rf"{k}: (\d+)", text).group(1)) for k in ("rows", "cols"))
+    board = Chessboard(rows=rows, cols=cols, spacing=0.05)
+    paths = sorted(p for p in folder.glob("cam*/*") if p.suffix in (".png", ".jpg"))
+    times = {c: [] for c in codes}
+    found = {c: 0 for c in codes}
+    apart = 0.0
+    for path in paths:
+        img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        out = {}
+        for code, module in codes.items():
+            start = time.process_time()
+            out[code] = module.locate(img, board)
+            times[code].append(1e3 * (time.process_time() - start))
+            found[code] += out[code] is not None
+        got = [c for c in out.values() if c is not None]
+        if len(got) == 2:
+            apart = max(apart, float(error(got[0], got[1]).max()))
+    for code in codes:
+        t = np.array(times[code])
+        print(f"| {folder.name} | {code} | {found[code]}/{len(paths)} | {t.mean():.1f} / "
+              f"{np.median(t):.1f} / {t.max():.0f} | corners of the two codes {apart:.3f} px "
+              "apart at most |", flush=True)
 
 
 if __name__ == "__main__":
