@@ -268,9 +268,10 @@ def test_sb_at_half_size_is_checked_like_the_classic_detector(monkeypatch):
 
 
 def test_a_board_the_quick_check_misses_is_still_found(monkeypatch):
-    """The full-size classic search runs with OpenCV's quick check first (a bounded cost
-    where it finds nothing), and without it last: a board only the plain classic detector
-    finds at full size is found, so the quick check loses no board."""
+    """The full-size classic search runs behind OpenCV's quick check (a bounded cost where
+    it finds nothing), and without it last, only where the check turned the image down: a
+    board only the plain classic detector finds at full size is found, so the quick check
+    loses no board; where the check passed, the failed search is not made twice."""
     board = BOARDS[0]
     T = _views(board)[0]
     image = render(board, CAMERA, T, rng=np.random.default_rng(4))
@@ -285,9 +286,16 @@ def test_a_board_the_quick_check_misses_is_still_found(monkeypatch):
         return None
 
     monkeypatch.setattr(cc, "find_chessboard", only_plain_full)
+    monkeypatch.setattr(cc, "quick_check", lambda gray, target: False)
     det = detect(image, board)
     assert searches[-1] == ("classic", False) and len(searches) == 5
     assert np.linalg.norm(det.image_points - truth[det.ids], axis=1).max() < 0.6
+    searches.clear()
+    monkeypatch.setattr(cc, "find_chessboard", lambda img, target, *, detector=None,
+                        half=None: searches.append((detector, half)))
+    monkeypatch.setattr(cc, "quick_check", lambda gray, target: True)
+    assert detect(image, board) is None
+    assert searches == [("classic", True), ("quick", False), ("sb", True), ("sb", False)]
 
 
 def test_a_steep_close_board_is_a_smooth_grid_and_a_corner_off_it_is_not():

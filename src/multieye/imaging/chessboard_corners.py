@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from multieye.imaging.targets import Chessboard, Target
 
-__all__ = ["locate", "search_order", "find_chessboard", "refine_grid", "refine_corners",
+__all__ = ["locate", "search_order", "quick_check", "find_chessboard", "refine_grid", "refine_corners",
            "corner_window", "consistent_grid", "min_spacing", "CLASSIC_FLAGS",
            "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE", "MIN_DEPARTURE_PX"]
 
@@ -131,9 +131,10 @@ def search_order(gray: NDArray[np.uint8]) -> tuple[tuple[str, bool], ...]:
     """The searches :func:`locate` makes, in order: ``(detector, at half size)``.
 
     On images of :data:`HALF_SIZE_SEARCH_ABOVE_PX` and more: the classic detector at half
-    size; where it fails, the classic detector at full size with OpenCV's quick check first
-    (``"quick"``: ``CALIB_CB_FAST_CHECK``), SB at half and at full size, and last the classic
-    detector at full size without the quick check.  The quick check bounds the cost of a
+    size; where it fails, the classic detector at full size behind OpenCV's quick check
+    (``"quick"``: ``cv2.checkChessboard``, :func:`quick_check`), SB at half and at full size,
+    and last the classic detector at full size, only where the quick check turned the image
+    down (:func:`locate`).  The quick check bounds the cost of a
     full-size classic search that finds nothing: on blurred, steep or small boards among
     clutter it took 60-650 ms per 960 x 720 image before giving up (the quick check 4-9 ms),
     where SB then found the board in 40-70 ms; where the quick check rejects a board the
@@ -149,7 +150,8 @@ def find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
     """Unrefined inner corners, shape (rows * cols, 2), full-size pixels, in the order of the
     detector that found them.
 
-    ``detector`` ("classic", "quick": the classic one with ``CALIB_CB_FAST_CHECK``, or "sb")
+    ``detector`` ("classic", "quick": the classic one where :func:`quick_check` passes, or
+    "sb")
     and ``half`` (search the image halved) restrict the searches of :func:`search_order` to
     those; the first that finds the board wins.
 
@@ -168,13 +170,21 @@ def find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
                            interpolation=cv2.INTER_AREA) if at_half else gray
         if name == "sb":
             found, corners = cv2.findChessboardCornersSB(image, size, flags=0)
+        elif name == "quick" and not quick_check(image, target):
+            continue
         else:
-            flags = CLASSIC_FLAGS | (cv2.CALIB_CB_FAST_CHECK if name == "quick" else 0)
-            found, corners = cv2.findChessboardCorners(image, size, flags=flags)
+            found, corners = cv2.findChessboardCorners(image, size, flags=CLASSIC_FLAGS)
         if found:
             corners = corners.reshape(-1, 2).astype(np.float64)
             return 2.0 * corners + 0.5 if at_half else corners     # pixel centres
     return None
+
+
+def quick_check(gray: NDArray[np.uint8], target: Chessboard) -> bool:
+    """OpenCV's quick test whether the image may show the board (``cv2.checkChessboard``,
+    the test ``CALIB_CB_FAST_CHECK`` makes): a few ms, where a full-size classic search that
+    finds nothing can take seconds on 1920 x 1080 images."""
+    return bool(cv2.checkChessboard(gray, (target.cols, target.rows)))
 
 
 def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
@@ -191,7 +201,11 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
     half size is not searched again at full size, however small its squares: a corner it
     misplaces there (5 px on 640 x 480 images with squares of 8.6 half-size pixels) breaks
     the grid, and the full-size search follows."""
-    for detector, half in search_order(gray):
+    order = search_order(gray)
+    for detector, half in order:
+        if (detector, half) == ("classic", False) and ("quick", False) in order \
+                and quick_check(gray, target):
+            continue                  # the quick search ran this one already
         raw = find_chessboard(gray, target, detector=detector, half=half)
         if raw is None:
             continue
