@@ -11,7 +11,7 @@ from multieye.core.errors import InputError
 from multieye.core.lens import project_points
 from multieye.imaging.detect import detect
 from multieye.imaging.targets import Charuco, Chessboard
-from multieye.sim.dataset import DatasetSpec, default_intrinsics, render_dataset
+from multieye.sim.dataset import DatasetSpec, default_intrinsics
 from multieye.sim.render import visible
 from multieye.sim.warped import render_warped
 
@@ -55,4 +55,4 @@ def test_only_chessboards_and_known_renderers():
         render_warped(Charuco(rows=5, cols=7, spacing=0.04, marker_size=0.03,
                               dictionary="DICT_4X4_50"), intr, np.eye(4))
     with pytest.raises(InputError, match="renderer"):
-        render_dataset("unused", DatasetSpec(renderer="paint"))
+        DatasetSpec(renderer="paint")

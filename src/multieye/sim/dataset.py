@@ -139,6 +139,10 @@ class DatasetSpec:
     image_format: str = "png"
     renderer: str = "rays"
 
+    def __post_init__(self) -> None:
+        if self.renderer not in ("rays", "warp"):
+            raise InputError(f"renderer must be 'rays' or 'warp', not {self.renderer!r}")
+
 
 @dataclass(frozen=True)
 class GroundTruth:
@@ -219,8 +223,6 @@ def render_dataset(out_dir: str | os.PathLike, spec: DatasetSpec = DatasetSpec()
     intrinsics : list of Intrinsics, optional
         One per camera; default :func:`default_intrinsics`.
     """
-    if spec.renderer not in ("rays", "warp"):
-        raise InputError(f"renderer must be 'rays' or 'warp', not {spec.renderer!r}")
     rng = np.random.default_rng(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
