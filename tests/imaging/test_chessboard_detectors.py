@@ -170,6 +170,9 @@ def test_a_board_found_at_half_size_is_not_searched_again(monkeypatch):
     cornerSubPix one pixel wider or narrower moves them by up to 0.06 px) and their RMS to
     the truth no worse than 1.02x that of the full-size search's."""
     board = SMALL_BOARD
+    # 640 x 480 images are searched at full size first since issue 32; the half-size search
+    # of larger images is what this test holds to its accuracy, on these small squares
+    monkeypatch.setattr(cc, "HALF_SIZE_SEARCH_ABOVE_PX", 640)
     searches = []
     real = cv2.findChessboardCorners
 
@@ -322,3 +325,12 @@ def test_a_steep_close_board_is_a_smooth_grid_and_a_corner_off_it_is_not():
             off = uv.copy()
             off[k] += [2.0, -1.5]
             assert not cc.consistent_grid(off, board), k
+
+
+def test_640_by_480_is_searched_at_full_size_first():
+    """On 640 x 480 images the half-size search was the slower one (the squares small at
+    half size): they are searched at full size first since issue 32; 800 x 600 and larger
+    at half size first."""
+    assert cc.search_order(np.zeros((480, 640), np.uint8))[0] == ("classic", False)
+    assert cc.search_order(np.zeros((600, 800), np.uint8))[0] == ("classic", True)
+    assert cc.search_order(np.zeros((1080, 1920), np.uint8))[0] == ("classic", True)
