@@ -288,13 +288,18 @@ class MocapPriors(ResidualGroup):
         position coordinate (metres, world frame).
     blocks : array_like of int, shape (n,), optional
         The blocks of ``M`` (instants) these priors cover; default all.
+    factors : array_like, shape (n,), optional
+        Per prior, its noise over ``sigma_rot, sigma_t`` (a pose interpolated between two
+        samples is less noisy than one); default 1.
     """
 
-    def __init__(self, measured: F64, sigma_rot: float, sigma_t: float, blocks=None):
+    def __init__(self, measured: F64, sigma_rot: float, sigma_t: float, blocks=None,
+                 factors=None):
         blocks = np.arange(len(measured)) if blocks is None else np.asarray(blocks, int)
         super().__init__(("M",), blocks[:, None], np.arange(len(blocks)), 6)
         self.measured = measured[blocks]
-        self.scale = 1.0 / np.repeat([float(sigma_rot), float(sigma_t)], 3)
+        f = np.ones(len(blocks)) if factors is None else np.asarray(factors, float)
+        self.scale = 1.0 / (np.repeat([float(sigma_rot), float(sigma_t)], 3) * f[:, None])
 
     def evaluate(self, values: Mapping[str, F64], jacobians: bool):
         M, Mm = values["M"][self.index[:, 0]], self.measured
@@ -303,6 +308,6 @@ class MocapPriors(ResidualGroup):
         if not jacobians:
             return r, None
         J = np.zeros((len(M), 6, 6))
-        J[:, :3, :3] = left_jacobian_inv(-r_rot) * self.scale[0]        # J_r^-1(r_rot)
-        J[:, 3:, 3:] = np.eye(3) * self.scale[3]
+        J[:, :3, :3] = left_jacobian_inv(-r_rot) * self.scale[:, :1, None]  # J_r^-1(r_rot)
+        J[:, 3:, 3:] = np.eye(3) * self.scale[:, 3:4, None]
         return r, [J]

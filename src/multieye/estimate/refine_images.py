@@ -303,6 +303,11 @@ class RefineOptions:
         and one prior.  The offsets and their standard deviations are
         ``RefinementResult.time_offsets`` and ``time_offset_std_s`` (per camera; equal on a
         shared clock).
+    mocap_noise_scale : sequence over cameras of sequence of float, optional
+        Per camera, per image: its motion-capture pose's noise over the stated (or
+        estimated) noise of one sample, in (0, 1]: ``sqrt(a^2 + (1 - a)^2)`` for a pose
+        interpolated at ``a`` between two samples
+        (:attr:`multieye.estimate.pairing.Pairing.noise_scale`).  Default 1.
     """
 
     mocap_rot_sigma_rad: float | None = DEFAULT_MOCAP_ROT_SIGMA_RAD
@@ -316,6 +321,7 @@ class RefineOptions:
     free_intrinsics: Sequence[bool] | None = None
     intrinsics_observations: Sequence | None = None
     clocks: Sequence[ClockData | None] | None = None
+    mocap_noise_scale: Sequence | None = None
 
 
 def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
@@ -368,7 +374,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     opts = with_fields(options, kw, RefineOptions, "options")
     noise = _given_noise(opts)
     data = image_data(ImageProblem(setup, observations, intrinsics, opts.names,
-                                   opts.free_intrinsics, opts.intrinsics_observations, opts.clocks))
+                                   opts.free_intrinsics, opts.intrinsics_observations, opts.clocks,
+                                   opts.mocap_noise_scale))
     fams, noise = _start(data, X0, Y0, noise)
     # BLAS threads for the reduced system's size over the whole solve (refine_rig's reason)
     with threads_for(sum(f.count * f.size for f in fams if not f.eliminate)):
