@@ -98,6 +98,9 @@ class ImageData:
     mocap_noise_scale : ndarray, shape (N,), or None
         Per image: the noise of its motion-capture pose over the stated one (below 1 for a
         pose interpolated between two samples); None: 1 for every image.
+    image_noise : ndarray, shape (N,), or None
+        Per image: its pixel noise over the pixel sigma the groups are made with (estimated
+        by :func:`multieye.estimate.variance_components.image_noise`); None: 1 for every image.
     """
 
     setup: str
@@ -112,6 +115,7 @@ class ImageData:
     units: ClockUnits
     extra: IntrinsicsImages | None
     mocap_noise_scale: F64 | None = None
+    image_noise: F64 | None = None
 
     # the stacked points' indices, as the residual groups read them
     m = property(lambda self: len(self.names))
