@@ -3,7 +3,8 @@
 ``cv2.findChessboardCorners`` (the classic detector) and ``cv2.findChessboardCornersSB``
 return the corners in their own orders (the two start from opposite corners of some boards);
 :func:`locate` runs them in turn (:func:`search_order`), refines the corners at full size
-(:func:`refine_grid`) and checks the classic detector's grid (:func:`consistent_grid`);
+(:func:`refine_grid`), checks that every corner is a saddle of the image (:func:`saddle_grid`)
+and that the classic detector's grid is smooth (:func:`consistent_grid`);
 :func:`multieye.imaging.detect.detect` then puts them in the canonical order, so that the ids
 do not depend on the detector.  OpenCV's frames for each detector's order:
 :mod:`multieye.imaging.board_frames`.
@@ -14,6 +15,7 @@ Synopsis
 >>> raw = find_chessboard(gray, board, detector="classic", half=False)      # doctest: +SKIP
 >>> refined = refine_grid(gray, raw, board)                                 # doctest: +SKIP
 >>> consistent_grid(refined, board)                                         # doctest: +SKIP
+>>> saddle_grid(gray, refined, board)                                       # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from numpy.typing import NDArray
 from multieye.imaging.targets import Chessboard, Target
 
 __all__ = ["locate", "search_order", "find_chessboard", "refine_grid", "refine_corners",
-           "corner_window", "consistent_grid", "min_spacing", "CLASSIC_FLAGS",
+           "corner_window", "consistent_grid", "saddle_grid", "min_spacing", "CLASSIC_FLAGS",
            "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE"]
 
 F64 = NDArray[np.float64]
@@ -48,6 +50,15 @@ CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 #: (the classic detector at full size after half size, then SB).
 MAX_SECOND_DIFFERENCE = 0.05
 
+#: :func:`saddle_grid`: the circle a corner is checked on has this fraction of the distance
+#: to its nearest grid neighbour as its radius (at least :data:`SADDLE_MIN_RADIUS_PX`), and
+#: is sampled at :data:`SADDLE_SAMPLES` points.
+SADDLE_RADIUS = 0.3
+SADDLE_MIN_RADIUS_PX = 2.0
+SADDLE_SAMPLES = 64
+#: Least correlation of a corner's circle of greys with itself turned by half a turn.
+SADDLE_MIN_CORRELATION = 0.3
+
 
 def consistent_grid(points: F64, target: Target) -> bool:
     """Whether refined grid corners lie on a smooth grid: along every row and column the
@@ -68,6 +79,37 @@ def consistent_grid(points: F64, target: Target) -> bool:
         if _lengths(d2 - _median(d2, 1)[:, None]).max() > limit:
             return False
     return True
+
+
+def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
+    """Whether every corner is a saddle of the image, as a chessboard's inner corner is: on
+    a circle around it (radius :data:`SADDLE_RADIUS` of the distance to its nearest grid
+    neighbour) the grey repeats itself after a half turn (the squares across the corner have
+    the same colour), which the correlation of the circle's greys with themselves turned by
+    half a turn measures: at least :data:`SADDLE_MIN_CORRELATION` at every corner.  A point
+    on an edge (the two sides differ: near -1) or inside a square (noise: near 0) fails it.
+
+    Unlike :func:`consistent_grid` this holds however bent the board's image is (a fisheye
+    near 180 degrees: 0.6 and more at every corner of boofcv_fisheye's grids, real and
+    rendered), and it catches what SB finds wrong there: a row of corners put on the edge
+    between the squares and the board's margin, 21 px off, on rendered 190-degree views
+    (-0.37; ``benchmarks/bench_boofcv_reference.py``)."""
+    rows, cols = target.grid_shape()
+    grid = points.reshape(rows, cols, 2)
+    near = np.full((rows, cols), np.inf)
+    down, right = _lengths(grid[1:] - grid[:-1]), _lengths(grid[:, 1:] - grid[:, :-1])
+    near[1:], near[:-1] = np.minimum(near[1:], down), np.minimum(near[:-1], down)
+    near[:, 1:], near[:, :-1] = np.minimum(near[:, 1:], right), np.minimum(near[:, :-1], right)
+    radius = np.maximum(SADDLE_RADIUS * near.ravel(), SADDLE_MIN_RADIUS_PX)
+    phi = np.linspace(0.0, 2 * np.pi, SADDLE_SAMPLES, endpoint=False)
+    u = (points[:, :1] + radius[:, None] * np.cos(phi)).astype(np.float32)
+    v = (points[:, 1:] + radius[:, None] * np.sin(phi)).astype(np.float32)
+    ring = cv2.remap(gray.astype(np.float32), u, v, cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+    ring -= ring.mean(axis=1, keepdims=True)
+    turned = np.roll(ring, SADDLE_SAMPLES // 2, axis=1)
+    power = np.maximum(np.einsum("ij,ij->i", ring, ring), 1e-9)
+    return bool(np.all(np.einsum("ij,ij->i", ring, turned) / power >= SADDLE_MIN_CORRELATION))
 
 
 def _median(a: F64, axis: int) -> F64:
@@ -126,20 +168,27 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
     """The board's inner corners refined at full size (:func:`refine_grid`), in the order of
     the detector that found them, or None.
 
-    The searches of :func:`search_order` run until one finds the board; the classic
-    detector's corners are kept only on a smooth grid (:func:`consistent_grid`), else the
-    next search runs (SB's are kept as found).  A board the classic detector finds at half
-    size is not searched again at full size, however small its squares: a corner it
-    misplaces there (5 px on 640 x 480 images with squares of 8.6 half-size pixels) breaks
-    the grid, and the full-size search follows."""
+    The searches of :func:`search_order` run until one finds the board; either detector's
+    corners are kept only if every one is a saddle of the image (:func:`saddle_grid`), the
+    classic detector's only on a smooth grid too (:func:`consistent_grid`), else the next
+    search runs.  A board the classic detector finds at half size is not searched again at
+    full size, however small its squares: a corner it misplaces there (5 px on 640 x 480
+    images with squares of 8.6 half-size pixels) breaks the grid, and the full-size search
+    follows.  When no search gives a grid that passes its checks, the first classic grid of
+    saddles that only the smoothness check refused is taken: a board bent by a lens near
+    180 degrees (boofcv_fisheye's 20.jpg and 22.jpg, which SB does not find)."""
+    bent = None
     for detector, half in search_order(gray):
         raw = find_chessboard(gray, target, detector=detector, half=half)
         if raw is None:
             continue
         corners = refine_grid(gray, raw, target)
+        if not saddle_grid(gray, corners, target):
+            continue
         if detector == "sb" or consistent_grid(corners, target):
             return corners
-    return None
+        bent = corners if bent is None else bent
+    return bent
 
 
 def min_spacing(points: NDArray, target: Target) -> float:
