@@ -264,6 +264,18 @@ def boofcv(jar: Path, shared: Path, ours: dict, folder: Path, truth: dict) -> No
                   f"{_posed_rms(lens, corners):.3f}); vs BoofCV's lens "
                   f"{within(mine, lens, uv, 250):.3f}, vs {against} "
                   f"{within(mine, other, uv, 250):.3f} within 250 px")
+            if label == "real" and detector == "x":
+                _ours_against(list(ours.values()), lens, uv_ours)
+
+
+def _ours_against(views, lens: Intrinsics, uv: np.ndarray) -> None:
+    """multieye's lens fitted to its own corners against BoofCV's, within 150 / 250 px."""
+    for model, tangential in (("unified", True), ("unified", False), ("fisheye", True),
+                              ("eucm", True), ("double-sphere", True)):
+        mine, _, _ = fit(views, model, tangential)
+        name = model + ("" if tangential else " (p1 = p2 = 0)")
+        print(f"      multieye's {name:<22} on its own corners vs BoofCV's lens within "
+              f"150 / 250 px: {within(mine, lens, uv, 150):.3f} / {within(mine, lens, uv, 250):.3f}")
 
 
 def _posed_rms(lens: Intrinsics, corners: dict) -> float:
