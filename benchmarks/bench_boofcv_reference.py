@@ -259,7 +259,8 @@ def boofcv(jar: Path, shared: Path, ours: dict, folder: Path, truth: dict) -> No
             print(f"      its corners vs {'the truth' if label == 'rendered' else 'multieye'}"
                   f"'s (after -{BOOFCV_PIXEL_OFFSET} px): {corner_errors(found, near)}")
             mine, _, rms = fit(list(corners.values()), tangential=False)
-            print(f"      multieye's unified fit (p1 = p2 = 0) on its corners: reprojection "
+            print(f"      multieye's unified fit (p1 = p2 = 0) on its corners (fx "
+                  f"{mine.params[0]:.1f}, xi {mine.params[4]:.3f}): reprojection "
                   f"{rms:.3f} px (BoofCV's lens, poses refitted: "
                   f"{_posed_rms(lens, corners):.3f}); vs BoofCV's lens "
                   f"{within(mine, lens, uv, 250):.3f}, vs {against} "
@@ -270,12 +271,14 @@ def boofcv(jar: Path, shared: Path, ours: dict, folder: Path, truth: dict) -> No
 
 def _ours_against(views, lens: Intrinsics, uv: np.ndarray) -> None:
     """multieye's lens fitted to its own corners against BoofCV's, within 150 / 250 px."""
+    n = 2 * len(uv)
     for model, tangential in (("unified", True), ("unified", False), ("fisheye", True),
                               ("eucm", True), ("double-sphere", True)):
-        mine, _, _ = fit(views, model, tangential)
+        mine, _, rms = fit(views, model, tangential)
         name = model + ("" if tangential else " (p1 = p2 = 0)")
-        print(f"      multieye's {name:<22} on its own corners vs BoofCV's lens within "
-              f"150 / 250 px: {within(mine, lens, uv, 150):.3f} / {within(mine, lens, uv, 250):.3f}")
+        print(f"      multieye's {name:<22} on its own corners (reprojection {rms:.4f} px, "
+              f"{n} residuals) vs BoofCV's lens within 150 / 250 px: "
+              f"{within(mine, lens, uv, 150):.3f} / {within(mine, lens, uv, 250):.3f}")
 
 
 def _posed_rms(lens: Intrinsics, corners: dict) -> float:

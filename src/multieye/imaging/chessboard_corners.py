@@ -104,7 +104,7 @@ def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     phi = np.linspace(0.0, 2 * np.pi, SADDLE_SAMPLES, endpoint=False)
     u = (points[:, :1] + radius[:, None] * np.cos(phi)).astype(np.float32)
     v = (points[:, 1:] + radius[:, None] * np.sin(phi)).astype(np.float32)
-    ring = cv2.remap(gray.astype(np.float32), u, v, cv2.INTER_LINEAR,
+    ring = cv2.remap(gray, u, v, cv2.INTER_LINEAR,       # whole greys: enough for the sign
                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
     ring -= ring.mean(axis=1, keepdims=True)
     turned = np.roll(ring, SADDLE_SAMPLES // 2, axis=1)
