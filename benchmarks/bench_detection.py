@@ -2,10 +2,12 @@
 
 Run from the repository root::
 
-    python benchmarks/bench_detection.py [--runs 3] [--processes 2]
+    python benchmarks/bench_detection.py [--runs 3] [--processes 2] [--variant NAME ...]
+        [--no-real]
 
 On the 4 x 100 rendered images of ``benchmarks/bench_peers.py`` (800 x 600 PNG, rendered once
-into ``benchmarks/.cache/peers_4x100``), and on the 30 real 1280 x 720 images of
+into ``benchmarks/.cache/peers_4x100``; ``--variant`` names its other renderings: sizes,
+JPEG, boards, lenses, a second renderer), and on the 30 real 1280 x 720 images of
 ``young_mocap_cam`` when the shared data are there (``MULTIEYE_SHARED_DATA`` or
 ``../shared/data``), it times, in turn (A B C D, A B C D, ...), ``--runs`` times each:
 
@@ -53,7 +55,7 @@ from multieye.io import read_intrinsics
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from bench_peers import rendered  # noqa: E402  (the peers' rendering, cached)
+from bench_peers import VARIANTS, rendered, variant_settings  # noqa: E402  (cached renders)
 
 SHARED = Path(os.environ.get("MULTIEYE_SHARED_DATA", ROOT.parent / "shared" / "data"))
 YOUNG = SHARED / "young_mocap_cam" / "example_dataset"
@@ -105,15 +107,25 @@ def _pool_map(fn, items: list, processes: int) -> list:
         return list(pool.map(fn, items, chunksize=chunk))
 
 
-def dataset_jobs() -> list[tuple[str, list[ImageJob]]]:
-    """The image sets: per camera one job (paths, target, lens)."""
-    folder, _ = rendered()
-    board = target_from_spec({"type": "chessboard", "rows": 6, "cols": 9, "spacing": 0.05})
-    jobs = [ImageJob(tuple(str(p) for p in sorted((folder / cam).glob("*.png"))), board,
-                     read_intrinsics(folder / f"{cam}.yaml"))
-            for cam in sorted(p.name for p in folder.iterdir() if p.is_dir())]
-    sets = [("rendered 4 x 100, 800 x 600 PNG, chessboard 6x9", jobs)]
+def dataset_jobs(variants: list[str], real: bool = True) -> list[tuple[str, list[ImageJob]]]:
+    """The image sets: per camera one job (paths, target, lens); ``variants`` name the
+    renderings of ``bench_peers.py`` (its ``VARIANTS`` or ``key=value`` lists)."""
+    sets = []
+    for name in variants:
+        v = variant_settings(name)
+        folder, _ = rendered(v)
+        rows, cols = (int(x) for x in v["board"].split("x"))
+        board = target_from_spec({"type": "chessboard", "rows": rows, "cols": cols,
+                                  "spacing": 0.05 if rows * cols <= 60 else 0.035})
+        jobs = [ImageJob(tuple(str(p) for p in sorted((folder / cam).iterdir())
+                               if p.suffix in (".png", ".jpg")), board,
+                         read_intrinsics(folder / f"{cam}.yaml"))
+                for cam in sorted(p.name for p in folder.iterdir() if p.is_dir())]
+        sets.append((f"rendered {name}: {v['images']} images x 4, {v['size']} {v['format']}, "
+                     f"{v['renderer']}, chessboard {v['board']}, {v['lens']}", jobs))
     images = YOUNG / "rgb_images"
+    if not real:
+        return sets
     if images.is_dir():
         lens = Intrinsics(K=[[607.88, 0, 641.875], [0, 607.966, 365.585], [0, 0, 1]],
                           dist=[0.458331, -2.87024, 0.00048617, -9.82262e-05, 1.74446,
@@ -170,8 +182,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--processes", type=int, default=2)
+    ap.add_argument("--variant", action="append", default=[],
+                    help="renderings of bench_peers.py: " + ", ".join(VARIANTS) + ", 'all' or "
+                    "key=value,... (repeat; default: base)")
+    ap.add_argument("--no-real", action="store_true", help="leave out the real images")
     args = ap.parse_args()
-    sets = dataset_jobs()
+    names = [n for v in (args.variant or ["base"]) for n in (VARIANTS if v == "all" else [v])]
+    sets = dataset_jobs(names, real=not args.no_real)
     print(f"machine: {platform.machine()}, {len(os.sched_getaffinity(0))} cores, Python "
           f"{platform.python_version()}, OpenCV {cv2.__version__}, numpy {np.__version__}; "
           f"load average {os.getloadavg()[0]:.2f} at start")

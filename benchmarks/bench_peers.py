@@ -3,7 +3,14 @@
 Run from the repository root::
 
     python benchmarks/bench_peers.py [--runs 3] [--processes 2]
-        [--mrcal-python /tmp/venv-mrcal/bin/python]
+        [--mrcal-python /tmp/venv-mrcal/bin/python] [--variant NAME|all|key=value,...]
+
+``--variant`` (repeatable) renders and times other data than the base rig below: image size,
+PNG or JPEG, board size, lens family, images per camera, and the images made by a second
+renderer (``renderer=warp``: a board picture warped through its homography and the lens over
+a cluttered scene, :mod:`multieye.sim.warped`); the presets are :data:`VARIANTS`. With
+variants a last table gives, per variant, the wall-time ratio multieye / OpenCV script
+(median of the runs, and each run's own ratio: the commands run in turn) and the worst.
 
 1. Renders, once, a 4-camera rig with 100 images per camera (800 x 600, pinhole with OpenCV's
    5 radial-tangential coefficients, blur and sensor noise, motion capture 0.03 deg / 0.1 mm;
@@ -63,26 +70,72 @@ from lens_error import lens_errors  # noqa: E402  (benchmarks/peers/lens_error.p
 
 CAMERAS, IMAGES, SEED = 4, 100, 0
 
+#: The data variants ``--variant`` names (``all``: every one, in this order).  Each is a
+#: comma-separated ``key=value`` list over :data:`BASE`: ``renderer`` (``rays``: the sim's
+#: ray tracer; ``warp``: a picture of the board resampled through its homography and the
+#: lens over a cluttered scene, :mod:`multieye.sim.warped`), ``size`` (WxH), ``format``
+#: (png / jpg), ``board`` (ROWSxCOLS inner corners of a chessboard; the OpenCV script reads
+#: chessboards only), ``lens`` (pinhole: OpenCV's radial-tangential; fisheye: equidistant,
+#: ``model: fisheye`` when unknown), ``images`` (per camera), ``blur`` (px).
+BASE = {"renderer": "rays", "size": "800x600", "format": "png", "board": "6x9",
+        "lens": "pinhole", "images": str(IMAGES), "blur": "0.7"}
+VARIANTS = {
+    "base": "",
+    "warp960": "renderer=warp,size=960x720",
+    "warp640jpg": "renderer=warp,size=640x480,format=jpg,board=5x7",
+    "warp1920": "renderer=warp,size=1920x1080,board=8x11,blur=1.2",
+    "rays1280jpg": "size=1280x720,format=jpg,board=7x10",
+    "fisheye960": "renderer=warp,size=960x720,lens=fisheye",
+    "warp960x12": "renderer=warp,size=960x720,images=12",
+}
 
-def rendered() -> tuple[Path, Path]:
+
+def variant_settings(text: str) -> dict:
+    """:data:`BASE` updated by a preset name of :data:`VARIANTS` or a ``key=value`` list."""
+    text = VARIANTS.get(text, text)
+    out = dict(BASE)
+    for item in filter(None, (t.strip() for t in text.split(","))):
+        key, _, value = item.partition("=")
+        if key not in BASE or not value:
+            raise SystemExit(f"--variant: {item!r} is not one of {sorted(BASE)} = value")
+        out[key] = value
+    return out
+
+
+def variant_name(v: dict) -> str:
+    """The cache folder's name of a variant (the base keeps today's ``peers_4x100``)."""
+    extra = "_".join(f"{k}-{v[k]}" for k in BASE if k != "images" and v[k] != BASE[k])
+    return f"peers_{CAMERAS}x{v['images']}" + (f"_{extra}" if extra else "")
+
+
+def rendered(variant: dict | None = None) -> tuple[Path, Path]:
     """The rendering (lenses given) and its copy with ``model:`` (lenses unknown)."""
-    folder = CACHE / f"peers_{CAMERAS}x{IMAGES}"
+    v = variant or dict(BASE)
+    folder = CACHE / variant_name(v)
     if not (folder / ".complete").exists():
         from multieye.sim.dataset import DatasetSpec, render_dataset
 
         shutil.rmtree(folder, ignore_errors=True)
-        print(f"rendering {CAMERAS} x {IMAGES} images into {folder} (once) ...", flush=True)
-        render_dataset(folder, DatasetSpec(n_cameras=CAMERAS, images_per_camera=IMAGES),
-                       seed=SEED)
+        rows, cols = (int(x) for x in v["board"].split("x"))
+        width, height = (int(x) for x in v["size"].split("x"))
+        spec = DatasetSpec(n_cameras=CAMERAS, images_per_camera=int(v["images"]), width=width,
+                           height=height, image_format=v["format"], renderer=v["renderer"],
+                           blur_sigma=float(v["blur"]),
+                           target={"type": "chessboard", "rows": rows, "cols": cols,
+                                   "spacing": 0.05 if rows * cols <= 60 else 0.035},
+                           fisheye=tuple(range(CAMERAS)) if v["lens"] == "fisheye" else ())
+        print(f"rendering {CAMERAS} x {v['images']} images into {folder} (once) ...", flush=True)
+        render_dataset(folder, spec, seed=SEED)
         (folder / ".complete").write_text("complete\n")
     model = CACHE / f"{folder.name}_model"
+    lens_model = "fisheye" if v["lens"] == "fisheye" else "pinhole-radtan"
     if not (model / ".complete").exists():
         shutil.rmtree(model, ignore_errors=True)
         model.mkdir(parents=True)
         for p in folder.iterdir():
             if p.is_dir() or p.name == "mocap.txt":
                 (model / p.name).symlink_to(p)
-        lines = [line.replace("intrinsics: ", "model: pinhole-radtan  # was ")
+        lines = [line.replace("intrinsics: ", f"model: {lens_model}  # was ")
                  if line.strip().startswith("intrinsics:") else line
                  for line in (folder / "rig.yaml").read_text().splitlines()]
         (model / "rig.yaml").write_text("\n".join(lines) + "\n")
@@ -155,15 +208,50 @@ def main() -> None:
                     "(default: a temporary folder, removed)")
     ap.add_argument("--accuracy-only", action="store_true",
                     help="no runs: the accuracy of the outputs already in --keep")
+    ap.add_argument("--variant", action="append", default=[],
+                    help="the data: a name of VARIANTS (" + ", ".join(VARIANTS) + "), 'all', "
+                    "or key=value,... over " + ",".join(f"{k}={v}" for k, v in BASE.items())
+                    + "; repeat for several (default: base)")
     args = ap.parse_args()
-    known, unknown = rendered()
-    tmp = args.keep or Path(tempfile.mkdtemp(prefix="bench_peers_"))
-    tmp.mkdir(parents=True, exist_ok=True)
-    try:
-        run_all(args, known, unknown, tmp)
-    finally:
-        if args.keep is None:
-            shutil.rmtree(tmp, ignore_errors=True)
+    names = [n for v in (args.variant or ["base"]) for n in (VARIANTS if v == "all" else [v])]
+    summary = {}
+    for name in names:
+        v = variant_settings(name)
+        known, unknown = rendered(v)
+        print(f"\n## variant {name}: {', '.join(f'{k}={x}' for k, x in v.items())}", flush=True)
+        tmp = (args.keep / variant_name(v)) if args.keep else \
+            Path(tempfile.mkdtemp(prefix="bench_peers_"))
+        tmp.mkdir(parents=True, exist_ok=True)
+        try:
+            summary[name] = run_all(args, known, unknown, tmp, fisheye=v["lens"] == "fisheye")
+        finally:
+            if args.keep is None:
+                shutil.rmtree(tmp, ignore_errors=True)
+    if len(summary) > 1 or args.variant:
+        print_summary(summary)
+
+
+def print_summary(summary: dict) -> None:
+    """Per variant: the wall-time ratio multieye / OpenCV script (median over the runs and
+    each run's own ratio, the commands run side by side), lenses known and unknown."""
+    print("\n| variant | images found (me / cv) | multieye / OpenCV, known: median (runs min-max) "
+          "| unknown: median (runs min-max) |")
+    print("|---|---|---|---|")
+    worst = {"known": 0.0, "unknown": 0.0}
+    for name, res in summary.items():
+        times, found = res["times"], res["found"]
+        cells = []
+        for case in ("known", "unknown"):
+            me = np.array([w for w, _ in times[f"multieye {case}"]])
+            cv = np.array([w for w, _ in times[f"opencv {case}"]])
+            if not len(me):
+                cells.append("-")
+                continue
+            ratio, per_run = np.median(me) / np.median(cv), me / cv
+            worst[case] = max(worst[case], ratio)
+            cells.append(f"{ratio:.2f} ({per_run.min():.2f}-{per_run.max():.2f})")
+        print(f"| {name} | {found} | " + " | ".join(cells) + " |")
+    print(f"\nworst median ratio: known {worst['known']:.2f}, unknown {worst['unknown']:.2f}")
 
 
 def compile_package(py: str) -> str:
@@ -181,7 +269,9 @@ def compile_package(py: str) -> str:
     return folder
 
 
-def run_all(args, known: Path, unknown: Path, tmp: Path) -> None:
+def run_all(args, known: Path, unknown: Path, tmp: Path, *, fisheye: bool = False) -> dict:
+    """Times every command ``--runs`` times in turn and prints the tables of one variant;
+    returns ``{"times": {command: [(wall, cpu), ...]}, "found": "me / cv"}``."""
     py = sys.executable
     if not args.accuracy_only:
         print(f"byte-compiled {compile_package(py)} (as an installed package is)", flush=True)
@@ -203,7 +293,8 @@ def run_all(args, known: Path, unknown: Path, tmp: Path) -> None:
                             str(tmp / "cv_unknown.json"), "--unknown-lenses"],
                            tmp / "cv_unknown.json"),
     }
-    why_not = mrcal_usable(args.mrcal_python)
+    why_not = "a fisheye variant (mrcal's script fits OpenCV5)" if fisheye else \
+        mrcal_usable(args.mrcal_python)
     if why_not is None:
         commands["mrcal unknown (from corners)"] = (
             [args.mrcal_python, str(PEERS / "mrcal_script.py"), str(corners),
@@ -249,10 +340,22 @@ def run_all(args, known: Path, unknown: Path, tmp: Path) -> None:
         cells = []
         for n in names:
             raw, fitted = lens_errors(est[n]["K"], est[n]["dist"], lens_true[n].K,
-                                      lens_true[n].dist, data[f"{n}_corners"].reshape(-1, 2))
+                                      lens_true[n].dist, data[f"{n}_corners"].reshape(-1, 2),
+                                      fisheye=lens_true[n].model == "fisheye")
             cells.append(f"{raw:.4f} ({fitted:.4f})")
         print(f"| {name} | " + " | ".join(cells) + " |")
     print(f"\nload average at the end: {os.getloadavg()[0]:.2f}")
+    return {"times": times, "found": images_found(commands)}
+
+
+def images_found(commands: dict) -> str:
+    """Images used by multieye (lenses known: details.json's per-camera count) and by the
+    OpenCV script (its boards found and paired), summed over the cameras."""
+    me_out, cv_out = commands["multieye known"][1], commands["opencv known"][1]
+    cv = sum(c["used"] for c in json.loads(cv_out.read_text())["cameras"].values())
+    cal = json.loads((me_out / "calibration.json").read_text())
+    me = sum(c.get("measurements_used", 0) for c in cal["cameras"].values())
+    return f"{me} / {cv}"
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_refine.py [--trials 100] [--seed 0] [--quick]
     PYTHONPATH=src python benchmarks/bench_refine.py --stage 8x25,8x50,8x100,8x200,16x500
+        [--lens mixed|pinhole|fisheye] [--size 800x600]
     PYTHONPATH=src python benchmarks/bench_refine.py --rig benchmarks/.cache/peers_4x100 \
         benchmarks/.cache/peers_4x100_model --repeat 5
 
@@ -68,20 +69,30 @@ from multieye.estimate.consensus import consensus
 from multieye.solvers import solve
 
 
-def stage(sizes: list[tuple[int, int]], cache: Path, repeat: int) -> None:
-    """Section 0: the pipeline's refinement stage on rendered rigs."""
+def stage(sizes: list[tuple[int, int]], cache: Path, repeat: int, lens: str = "mixed",
+          image_size: str = "800x600") -> None:
+    """Section 0: the pipeline's refinement stage on rendered rigs (``lens``: ``mixed`` one
+    fisheye camera and the others pinhole, ``pinhole`` or ``fisheye`` every camera;
+    ``image_size`` WxH)."""
     from multieye.io import load_rig
     from multieye.pipeline import calibrate_rig, load_camera_data
     from multieye.sim.dataset import DatasetSpec, render_dataset
 
     print(f"0. refinement stage of the pipeline on rendered rigs, {os.cpu_count()} cores, "
           f"OMP_NUM_THREADS={os.environ['OMP_NUM_THREADS']}, median of {repeat}:")
-    print(f"   {'rig':>8} {'images':>7} {'points':>8} {'mocap noise':>10} {'refinement s':>13} "
+    print(f"   {'rig':>8} {'variant':>10}{'images':>7} {'points':>8} {'mocap noise':>10} "
+          f"{'refinement s':>13} "
           f"{'s / 1000 images':>16} {'iterations':>11} {'passes':>7} {'CPU s':>6}")
     for m, n in sizes:
-        folder = cache / f"rendered_{m}x{n}"
+        extra = ("" if lens == "mixed" else f"_{lens}") + \
+            ("" if image_size == "800x600" else f"_{image_size}")
+        folder = cache / f"rendered_{m}x{n}{extra}"
         if not (folder / "rig.yaml").exists():
-            spec = DatasetSpec(n_cameras=m, images_per_camera=n, fisheye=(1,) if m > 1 else ())
+            fisheye = {"mixed": (1,) if m > 1 else (), "pinhole": (),
+                       "fisheye": tuple(range(m))}[lens]
+            w, h = (int(x) for x in image_size.split("x"))
+            spec = DatasetSpec(n_cameras=m, images_per_camera=n, fisheye=fisheye, width=w,
+                               height=h)
             render_dataset(folder, spec, seed=0)
         # the same rig with the motion-capture noise not stated, so that it is estimated
         text = (folder / "rig.yaml").read_text()
@@ -101,7 +112,7 @@ def stage(sizes: list[tuple[int, int]], cache: Path, repeat: int) -> None:
             images = sum(len(p.observations) for p in runs[0].paired.values())
             points = sum(o.image_points.shape[0] for p in runs[0].paired.values()
                          for o in p.observations)
-            print(f"   {m:>3} x {n:<4}{images:>7} {points:>8} {label:>10} {t:13.2f} "
+            print(f"   {m:>3} x {n:<4}{extra:>10}{images:>7} {points:>8} {label:>10} {t:13.2f} "
                   f"{1e3 * t / images:16.2f} {res.iterations:>11} {res.passes:>7} "
                   f"{statistics.median(cpu):6.2f}")
 
@@ -235,6 +246,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--cache", type=Path, default=Path(__file__).parent / ".cache",
                         help="where rendered datasets are kept between runs")
     parser.add_argument("--repeat", type=int, default=3, help="runs per rig in section 0")
+    parser.add_argument("--lens", choices=("mixed", "pinhole", "fisheye"), default="mixed",
+                        help="--stage's lenses: one fisheye camera (mixed), or every one "
+                             "pinhole or fisheye")
+    parser.add_argument("--size", default="800x600", help="--stage's image size, WxH")
     parser.add_argument("--rig", type=Path, nargs="+", metavar="FOLDER",
                         help="only section 0 on these datasets: the stages of calibrate_rig "
                              "after detection, e.g. benchmarks/.cache/peers_4x100")
@@ -244,7 +259,7 @@ def main(argv: list[str] | None = None) -> None:
         return
     if args.stage:
         sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.stage.split(",")]
-        stage(sizes, args.cache, args.repeat)
+        stage(sizes, args.cache, args.repeat, args.lens, args.size)
         return
     trials = 10 if args.quick else args.trials
     timing(args.seed, args.setup)

@@ -6,7 +6,7 @@ Run::
         [--corners-out corners.npz]
 
 ``DATASET`` is a folder rendered by :func:`multieye.sim.dataset.render_dataset` (eye-to-base:
-fixed cameras, a motion-captured chessboard): ``cam*/<seconds>.png``, ``cam*.yaml`` (OpenCV
+fixed cameras, a motion-captured chessboard): ``cam*/<seconds>.png`` (or ``.jpg``), ``cam*.yaml`` (OpenCV
 FileStorage intrinsics), ``mocap.txt`` (TUM: ``t tx ty tz qx qy qz qw``, ``T_world_marker``)
 and ``rig.yaml`` (read here only for the board's size). Per camera, in one process:
 
@@ -14,8 +14,9 @@ and ``rig.yaml`` (read here only for the board's size). Per camera, in one proce
    the board's (first corner the upper-left one: the boards face the camera upright within
    about 30 degrees, so this fixes the half turn of OpenCV's ordering);
 2. with ``--unknown-lenses``: ``cv2.calibrateCamera`` (pinhole, 5 radial-tangential
-   coefficients) on those corners; otherwise the lens is read from ``cam*.yaml``;
-3. ``cv2.solvePnP`` per image (iterative), the motion-capture pose nearest in time (within
+   coefficients; ``cv2.fisheye.calibrate``, 4, where ``cam*.yaml`` says the lens is a
+   fisheye) on those corners; otherwise the lens is read from ``cam*.yaml``;
+3. ``cv2.solvePnP`` (``cv2.fisheye.solvePnP``) per image (iterative), the motion-capture pose nearest in time (within
    half a sample period, no interpolation: what such a script does);
 4. ``cv2.calibrateRobotWorldHandEye`` (Shah's method) on the pairs: the camera in the
    motion-capture world, ``T_world_cam``.
@@ -50,11 +51,14 @@ def object_points(rows: int, cols: int, spacing: float) -> np.ndarray:
     return np.column_stack([grid, np.zeros(len(grid))]).astype(np.float32)
 
 
-def read_lens(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def read_lens(path: Path) -> tuple[np.ndarray, np.ndarray, bool]:
+    """K, the distortion coefficients and whether the lens is a fisheye
+    (``distortion_model: fisheye``, OpenCV's equidistant model)."""
     fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     K, dist = fs.getNode("camera_matrix").mat(), fs.getNode("distortion_coefficients").mat()
+    fisheye = fs.getNode("distortion_model").string() == "fisheye"
     fs.release()
-    return K, dist.ravel()
+    return K, dist.ravel(), fisheye
 
 
 def read_mocap(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -119,6 +123,29 @@ def pose(rvec, tvec) -> np.ndarray:
     return T
 
 
+def calibrate(obj: np.ndarray, corners: np.ndarray, size, fisheye: bool):
+    """``cv2.calibrateCamera`` (5 coefficients) or ``cv2.fisheye.calibrate`` (4): K, the
+    coefficients and the board poses ``T_cam_target``."""
+    if fisheye:
+        flags = cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
+        _, K, dist, rvecs, tvecs = cv2.fisheye.calibrate(
+            [obj.reshape(-1, 1, 3).astype(np.float64)] * len(corners),
+            [c.reshape(-1, 1, 2).astype(np.float64) for c in corners], size, None, None,
+            flags=flags)
+    else:
+        _, K, dist, rvecs, tvecs = cv2.calibrateCamera([obj] * len(corners), list(corners),
+                                                       size, None, None)
+    return K, dist.ravel(), np.array([pose(r, t) for r, t in zip(rvecs, tvecs)])
+
+
+def solve_pnp(obj: np.ndarray, c: np.ndarray, K, dist, fisheye: bool) -> np.ndarray:
+    """``T_cam_target`` of one view: ``cv2.solvePnP`` or ``cv2.fisheye.solvePnP``."""
+    if fisheye:
+        return pose(*cv2.fisheye.solvePnP(obj.reshape(-1, 1, 3), c.reshape(-1, 1, 2), K,
+                                          dist)[1:3])
+    return pose(*cv2.solvePnP(obj, c, K, dist)[1:])
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("dataset", type=Path)
@@ -133,21 +160,18 @@ def main(argv=None) -> None:
                      re.fullmatch(r"cam\d+", p.name))
     result, saved = {}, {}
     for name in cameras:
-        paths = sorted((args.dataset / name).glob("*.png"))
+        paths = sorted(p for p in (args.dataset / name).iterdir()
+                       if p.suffix in (".png", ".jpg"))
         corners, stamps, size = detect(paths, rows, cols)
         saved[f"{name}_corners"], saved[f"{name}_stamps"] = corners, stamps
+        K, dist, fisheye = read_lens(args.dataset / f"{name}.yaml")   # the model's name
         if args.unknown_lenses:
-            _, K, dist, rvecs, tvecs = cv2.calibrateCamera([obj] * len(corners), list(corners),
-                                                           size, None, None)
-            dist = dist.ravel()
-            T_cam_target = np.array([pose(r, t) for r, t in zip(rvecs, tvecs)])
+            K, dist, T_cam_target = calibrate(obj, corners, size, fisheye)
         else:
-            K, dist = read_lens(args.dataset / f"{name}.yaml")
-            T_cam_target = np.array([pose(*cv2.solvePnP(obj, c, K, dist)[1:])
-                                     for c in corners])
+            T_cam_target = np.array([solve_pnp(obj, c, K, dist, fisheye) for c in corners])
         i, ok = nearest(t_mocap, stamps)
         T_world_cam = hand_eye(T_mocap[i[ok]], T_cam_target[ok])
-        result[name] = {"T_world_cam": T_world_cam, "K": K.tolist(),
+        result[name] = {"T_world_cam": T_world_cam, "K": K.tolist(), "fisheye": fisheye,
                         "dist": np.ravel(dist).tolist(), "size": list(size),
                         "used": int(ok.sum())}
     T_ref = np.linalg.inv(result[cameras[0]]["T_world_cam"])

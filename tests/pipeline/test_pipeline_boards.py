@@ -1,6 +1,6 @@
 """Several boards through the camera data (multieye.pipeline.boards): one Observation per
 (image, board), the board's name in Observation.target, the same instant for both boards of
-one image; what is refused until their estimation lands."""
+one image; several boards calibrated without motion capture."""
 
 import cv2
 import numpy as np
@@ -79,11 +79,19 @@ def test_a_camera_no_board_is_for(dataset):
     assert e.value.camera == "cam0"
 
 
-def test_calibrating_several_boards_is_refused_until_their_estimation(dataset, tmp_path):
+def test_several_boards_without_motion_capture_are_calibrated_with_their_poses(dataset,
+                                                                               tmp_path):
+    """(Refused until their estimation landed: issue 34.)  The boards seen get their poses in
+    the first one's frame; the board no image shows is not stated."""
+    import json
+
     out = tmp_path / "out"
     res = CliRunner().invoke(main, ["calibrate", str(dataset), "-o", str(out), "--processes",
                                     "1"])
-    assert res.exit_code == 2, (res.stdout, res.stderr)
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and "3 boards (left, right, far)" in lines[0], res.stderr
-    assert not (out / "calibration.json").exists()
+    assert res.exit_code == 0, (res.stdout, res.stderr)
+    rec = json.loads((out / "calibration.json").read_text())
+    assert rec["method"] == "motion-links" and list(rec["targets"]) == ["left", "right"]
+    T = np.array(rec["targets"]["right"]["T_world_target"])
+    true = g.inv(LEFT) @ RIGHT
+    assert np.linalg.norm(T[:3, 3] - true[:3, 3]) < 0.01
+    assert rec["targets"]["right"]["cameras"] == {"cam0": 2}

@@ -4,7 +4,7 @@
 return the corners in their own orders (the two start from opposite corners of some boards);
 :func:`locate` runs them in turn (:func:`search_order`), refines the corners at full size
 (:func:`refine_grid`), checks that every corner is a saddle of the image (:func:`saddle_grid`)
-and that the classic detector's grid is smooth (:func:`consistent_grid`);
+and that each detector's grid is smooth (:func:`consistent_grid`);
 :func:`multieye.imaging.detect.detect` then puts them in the canonical order, so that the ids
 do not depend on the detector.  OpenCV's frames for each detector's order:
 :mod:`multieye.imaging.board_frames`.
@@ -20,35 +20,46 @@ Synopsis
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from multieye.imaging.targets import Chessboard, Target
 
-__all__ = ["locate", "search_order", "find_chessboard", "refine_grid", "refine_corners",
-           "corner_window", "consistent_grid", "saddle_grid", "min_spacing", "CLASSIC_FLAGS",
-           "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE"]
+__all__ = ["locate", "search_order", "quick_check", "find_chessboard", "refine_grid",
+           "refine_corners", "corner_window", "consistent_grid", "saddle_grid", "min_spacing",
+           "CLASSIC_FLAGS", "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE",
+           "MIN_DEPARTURE_PX"]
 
 F64 = NDArray[np.float64]
 
 #: Images whose longer side has at least this many pixels are searched at half size first,
 #: by either detector (the classic one 1.5x faster on 800 x 600 images, 5x on 1280 x 720;
-#: SB 2.5-4x); the corners are then refined at full size, so accuracy is unchanged.
-HALF_SIZE_SEARCH_ABOVE_PX = 640
+#: SB 2.5-4x); the corners are then refined at full size, so accuracy is unchanged.  Until
+#: issue 32 it was 640: on 640 x 480 images the half-size search is the slower (0.98 against
+#: 2.5 CPU-ms per image on 400 rendered JPEGs with a 5 x 7 board; 4.8 against 6.0 on 40
+#: hard views), the squares there being small, for the same boards and corners.
+HALF_SIZE_SEARCH_ABOVE_PX = 800
 
 #: The classic detector's flags: adaptive threshold on the normalised image (OpenCV's
-#: default).  ``CALIB_CB_FAST_CHECK`` is not set: it rejects an image without a board faster,
-#: but costs 2.5x on the images that show one (800 x 600 rendered images: 5.7 against 2.2 ms)
-#: and, at half size, missed the board in 44 % of them; calibration images nearly all show
-#: the board.
+#: default).  ``CALIB_CB_FAST_CHECK`` is not set for the first search: it rejects an image
+#: without a board faster, but costs 2.5x on the images that show one (800 x 600 rendered
+#: images: 5.7 against 2.2 ms) and, at half size, missed the board in 44 % of them;
+#: calibration images nearly all show the board.  The second search sets it
+#: (:func:`search_order`).
 CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 
 #: Largest departure of a corner's second difference along its row or column from the
-#: median of that row's (column's), as a fraction of the median spacing (at least 1 px), in a
-#: grid the classic detector found; beyond it, the next search of :func:`search_order` runs
-#: (the classic detector at full size after half size, then SB).
+#: smooth surface the others follow (:func:`consistent_grid`), as a fraction of the median
+#: spacing (at least :data:`MIN_DEPARTURE_PX`), in a grid either detector found (SB's at
+#: half size only: :func:`locate`); beyond it, the next search of :func:`search_order` runs.
 MAX_SECOND_DIFFERENCE = 0.05
+
+#: The least departure :func:`consistent_grid` flags, pixels: a right grid of small squares
+#: (12-16 px) with blurred corners departed by up to 0.92 px on the renders of issue 32.
+MIN_DEPARTURE_PX = 1.5
 
 #: :func:`saddle_grid`: the circle a corner is checked on has this fraction of the distance
 #: to its nearest grid neighbour as its radius (at least :data:`SADDLE_MIN_RADIUS_PX`), and
@@ -61,22 +72,35 @@ SADDLE_MIN_CORRELATION = 0.3
 
 
 def consistent_grid(points: F64, target: Target) -> bool:
-    """Whether refined grid corners lie on a smooth grid: along every row and column the
-    second differences ``p[j-1] - 2 p[j] + p[j+1]`` (which perspective and lens distortion
-    change slowly) stay within :data:`MAX_SECOND_DIFFERENCE` of the spacing of their median.
+    """Whether refined grid corners lie on a smooth grid.
+
+    The second differences ``p[j-1] - 2 p[j] + p[j+1]`` along the rows form a field over
+    (row, column) that perspective and lens distortion change smoothly in both directions
+    (the columns' likewise).  Each value is compared with the quadratic surface in (row,
+    column) fitted to the field's other values (:func:`_surface_departures`); none may
+    depart by more than :data:`MAX_SECOND_DIFFERENCE` of the median spacing (at least
+    :data:`MIN_DEPARTURE_PX`).  Fields of 7 values or fewer are compared with their row's
+    median instead.
 
     A corner off by ``e`` moves the second differences around it by ``e`` to ``2 e``: the
-    classic detector put a corner 12 px off on a blurred JPEG (yizhong_toolkit's 16.jpg, squares of
-    20 px) where SB found it. A departure flagged wrongly only costs the next search."""
+    classic detector put a corner 12 px off on a blurred JPEG (yizhong_toolkit's 16.jpg,
+    squares of 20 px) where SB found it; SB at half size put corners 5-9 px off on blurred
+    rendered views (issue 32).  Until issue 32 each value was compared with its row's median:
+    on a board seen close and steeply (squares of 17-50 px, a lens with k1 = -0.3) the
+    second differences of a right grid drift along a row by 6-15 % of the spacing, and such
+    boards went on to slower searches.  On the views rendered for that issue the surface
+    leaves right grids within 1 px (4.6 % of the spacing at most where it exceeds 20 px) and
+    misplaced ones 5 px and more off.  A departure flagged wrongly only costs the next
+    search."""
     rows, cols = target.grid_shape()
     grid = points.reshape(rows, cols, 2)
     spacing = float(_median(_lengths(grid[:, 1:] - grid[:, :-1]).ravel(), 0))
-    limit = max(1.0, MAX_SECOND_DIFFERENCE * spacing)
+    limit = max(MIN_DEPARTURE_PX, MAX_SECOND_DIFFERENCE * spacing)
     for g in (grid, grid.transpose(1, 0, 2)):
         if g.shape[1] < 3:
             continue
         d2 = g[:, :-2] - 2.0 * g[:, 1:-1] + g[:, 2:]
-        if _lengths(d2 - _median(d2, 1)[:, None]).max() > limit:
+        if _surface_departures(d2).max() > limit:
             return False
     return True
 
@@ -112,6 +136,30 @@ def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     return bool(np.all(np.einsum("ij,ij->i", ring, turned) / power >= SADDLE_MIN_CORRELATION))
 
 
+def _surface_departures(d2: F64) -> F64:
+    """Per value of the field ``d2`` (R, n, 2): its distance from the quadratic surface in
+    (row, column) fitted by least squares to the other values (the leave-one-out residual
+    ``r / (1 - h)``, ``h`` the fit's leverage); from its row's median where the field has
+    7 values or fewer.  Shape (R, n)."""
+    R, n = d2.shape[:2]
+    if R * n <= 7:
+        return _lengths(d2 - _median(d2, 1)[:, None])
+    hat, leverage = _quadratic_hat(R, n)
+    y = d2.reshape(R * n, 2)
+    return (_lengths(y - hat @ y) / (1.0 - leverage)).reshape(R, n)
+
+
+@lru_cache(maxsize=32)
+def _quadratic_hat(R: int, n: int) -> tuple[F64, F64]:
+    """The hat matrix of a least-squares quadratic in (row, column) over an R x n grid of
+    values, and its diagonal (the leverages)."""
+    r, j = np.meshgrid(np.arange(R) - (R - 1) / 2, np.arange(n) - (n - 1) / 2, indexing="ij")
+    r, j = r.ravel(), j.ravel()
+    A = np.column_stack([np.ones_like(r), r, j, r * r, r * j, j * j])
+    hat = A @ np.linalg.pinv(A)
+    return hat, np.diag(hat).copy()
+
+
 def _median(a: F64, axis: int) -> F64:
     """``np.median(a, axis)`` by a sort (the same values, less overhead on small arrays)."""
     s = np.sort(a, axis=axis)
@@ -126,11 +174,21 @@ def _lengths(v: F64) -> F64:
 
 
 def search_order(gray: NDArray[np.uint8]) -> tuple[tuple[str, bool], ...]:
-    """The searches :func:`locate` makes, in order: ``(detector, at half size)``; the classic
-    detector before SB, each at half size first on images of
-    :data:`HALF_SIZE_SEARCH_ABOVE_PX` and more."""
-    halves = (True, False) if max(gray.shape) >= HALF_SIZE_SEARCH_ABOVE_PX else (False,)
-    return tuple((detector, half) for detector in ("classic", "sb") for half in halves)
+    """The searches :func:`locate` makes, in order: ``(detector, at half size)``.
+
+    On images of :data:`HALF_SIZE_SEARCH_ABOVE_PX` and more: the classic detector at half
+    size; where it fails, the classic detector at full size behind OpenCV's quick check
+    (``"quick"``: ``cv2.checkChessboard``, :func:`quick_check`), SB at half and at full size,
+    and last the classic detector at full size, only where the quick check turned the image
+    down (:func:`locate`).  The quick check bounds the cost of a
+    full-size classic search that finds nothing: on blurred, steep or small boards among
+    clutter it took 60-650 ms per 960 x 720 image before giving up (the quick check 4-9 ms),
+    where SB then found the board in 40-70 ms; where the quick check rejects a board the
+    classic detector would find, SB or the last search finds it, so no board is lost.
+    Smaller images: the classic detector, then SB, at full size."""
+    if max(gray.shape) < HALF_SIZE_SEARCH_ABOVE_PX:
+        return (("classic", False), ("sb", False))
+    return (("classic", True), ("quick", False), ("sb", True), ("sb", False), ("classic", False))
 
 
 def find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
@@ -138,54 +196,75 @@ def find_chessboard(gray: NDArray[np.uint8], target: Chessboard, *,
     """Unrefined inner corners, shape (rows * cols, 2), full-size pixels, in the order of the
     detector that found them.
 
-    ``detector`` ("classic" or "sb") and ``half`` (search the image halved) restrict the
-    searches of :func:`search_order` to those; the first that finds the board wins.
+    ``detector`` ("classic", "quick": the classic one where :func:`quick_check` passes, or
+    "sb")
+    and ``half`` (search the image halved) restrict the searches of :func:`search_order` to
+    those; the first that finds the board wins.
 
     Raises
     ------
     ValueError
-        ``detector`` is neither "classic" nor "sb" (a restriction that matches no search
-        would otherwise read as a board not found)."""
-    if detector not in (None, "classic", "sb"):
-        raise ValueError(f"detector must be 'classic' or 'sb', not {detector!r}")
+        ``detector`` is none of those (a restriction that matches no search would otherwise
+        read as a board not found)."""
+    if detector not in (None, "classic", "quick", "sb"):
+        raise ValueError(f"detector must be 'classic', 'quick' or 'sb', not {detector!r}")
     size = (target.cols, target.rows)
     for name, at_half in search_order(gray):
         if (detector is not None and name != detector) or (half is not None and at_half != half):
             continue
         image = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2),
                            interpolation=cv2.INTER_AREA) if at_half else gray
-        if name == "classic":
-            found, corners = cv2.findChessboardCorners(image, size, flags=CLASSIC_FLAGS)
-        else:
+        if name == "sb":
             found, corners = cv2.findChessboardCornersSB(image, size, flags=0)
+        elif name == "quick" and not quick_check(image, target):
+            continue
+        else:
+            found, corners = cv2.findChessboardCorners(image, size, flags=CLASSIC_FLAGS)
         if found:
             corners = corners.reshape(-1, 2).astype(np.float64)
             return 2.0 * corners + 0.5 if at_half else corners     # pixel centres
     return None
 
 
+def quick_check(gray: NDArray[np.uint8], target: Chessboard) -> bool:
+    """OpenCV's quick test whether the image may show the board (``cv2.checkChessboard``,
+    the test ``CALIB_CB_FAST_CHECK`` makes): a few ms, where a full-size classic search that
+    finds nothing can take seconds on 1920 x 1080 images."""
+    return bool(cv2.checkChessboard(gray, (target.cols, target.rows)))
+
+
 def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
     """The board's inner corners refined at full size (:func:`refine_grid`), in the order of
     the detector that found them, or None.
 
-    The searches of :func:`search_order` run until one finds the board; either detector's
-    corners are kept only if every one is a saddle of the image (:func:`saddle_grid`), the
-    classic detector's only on a smooth grid too (:func:`consistent_grid`), else the next
-    search runs.  A board the classic detector finds at half size is not searched again at
-    full size, however small its squares: a corner it misplaces there (5 px on 640 x 480
-    images with squares of 8.6 half-size pixels) breaks the grid, and the full-size search
-    follows.  When no search gives a grid that passes its checks, the first classic grid of
-    saddles that only the smoothness check refused is taken: a board bent by a lens near
-    180 degrees (boofcv_fisheye's 20.jpg and 22.jpg, which SB does not find)."""
+    The searches of :func:`search_order` run until one finds the board on a smooth grid
+    (:func:`consistent_grid`) of saddles of the image (:func:`saddle_grid`, every grid); a
+    grid of saddles that is not smooth sends the search on, whichever search found it but SB
+    at full size, whose corners are kept (SB's were all kept until issue 32: at half size,
+    on blurred rendered views of 960 x 720, it put corners 5-9 px off, which the grid check
+    sees; at full size its corners stayed within 0.5 px on every view rendered for that
+    issue, also on squares of 8 px, whose corner noise the check's 1 px can take for a
+    misplaced corner; on rendered views of a 190-degree lens it put a row on the edge of the
+    board's margin, 21 px off, which the saddle check sees).  A board the classic detector
+    finds at half size is not searched again at full size, however small its squares: a
+    corner it misplaces there (5 px on 640 x 480 images with squares of 8.6 half-size
+    pixels) breaks the grid, and the full-size search follows.  When no search gives a grid
+    that passes both checks, the first grid of saddles that only the smoothness check
+    refused is taken: a board bent by a lens near 180 degrees (boofcv_fisheye's 20.jpg and
+    22.jpg, which SB does not find)."""
+    order = search_order(gray)
     bent = None
-    for detector, half in search_order(gray):
+    for detector, half in order:
+        if (detector, half) == ("classic", False) and ("quick", False) in order \
+                and quick_check(gray, target):
+            continue                  # the quick search ran this one already
         raw = find_chessboard(gray, target, detector=detector, half=half)
         if raw is None:
             continue
         corners = refine_grid(gray, raw, target)
         if not saddle_grid(gray, corners, target):
             continue
-        if detector == "sb" or consistent_grid(corners, target):
+        if (detector == "sb" and not half) or consistent_grid(corners, target):
             return corners
         bent = corners if bent is None else bent
     return bent

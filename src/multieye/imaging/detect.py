@@ -5,7 +5,8 @@ target              detector
 =================== ==================================================================
 chessboard          ``cv2.findChessboardCorners`` (the classic detector), where it fails
                     ``cv2.findChessboardCornersSB``, each at half size first on images
-                    of 640 px and more; then ``cv2.cornerSubPix`` at full size
+                    of 800 px and more (the order: ``chessboard_corners.search_order``);
+                    then ``cv2.cornerSubPix`` at full size, the grid checked
 circles             ``cv2.findCirclesGrid`` on the image and on its negative (dark
 asymmetric-circles  circles on light and light on dark), default blob detector, then a
                     permissive one, then clustering

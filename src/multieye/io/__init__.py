@@ -16,6 +16,7 @@ function needs them.
 
 from multieye.io.atomic import atomic_output, write_bytes_atomic, write_text_atomic
 from multieye.io.calibration_json import (
+    BoardRecord,
     CalibrationRecord,
     CameraRecord,
     IntrinsicsRecord,
@@ -82,6 +83,7 @@ __all__ = [
     "read_camera_intrinsics",
     # results
     "CalibrationRecord",
+    "BoardRecord",
     "CameraRecord",
     "Residuals",
     "PlausibilityItem",

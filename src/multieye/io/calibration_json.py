@@ -42,6 +42,7 @@ from multieye.io.calibration_record import (
     WIDE_LENS_VERSION,
     ROLE_NAMES,
     SETUP_KEYS,
+    BoardRecord,
     CalibrationRecord,
     CameraLinks,
     CameraRecord,
@@ -70,6 +71,7 @@ __all__ = [
     "ROLE_NAMES",
     "OVERLAP",
     "CameraLinks",
+    "BoardRecord",
 ]
 
 # --------------------------------------------------------------------------- to / from dict
@@ -105,6 +107,11 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
             entry["uncertainty"] = _uncertainty_dict(cam.uncertainty)
         if cam.links is not None:
             entry["links"] = {"overlap": dict(cam.links.overlap), "mocap": cam.links.mocap}
+            if cam.links.motion:
+                entry["links"]["motion"] = {"cameras": list(cam.links.motion[0]),
+                                            "boards": list(cam.links.motion[1])}
+            if cam.links.boards:
+                entry["links"]["boards"] = dict(cam.links.boards)
         cameras[cam.name] = entry
     wide = any(c.intrinsics is not None and c.intrinsics.intrinsics.model in WIDE_MODELS
                for c in rec.cameras)
@@ -123,6 +130,11 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
         out["uncertainty"] = _uncertainty_dict(rec.uncertainty)
     if rec.frames is not None:
         out["frames"] = dict(rec.frames)
+    if rec.targets:
+        out["targets"] = {k: {"T_world_target": _matrix(b.T_world_target), "given": b.given,
+                              "views": b.views, "cameras": dict(b.cameras)} | (
+            {} if b.uncertainty is None else _uncertainty_dict({"u": b.uncertainty})["u"])
+            for k, b in rec.targets.items()}
     return out
 
 
@@ -198,8 +210,16 @@ def _read_links(obj, w: _Where, camera) -> CameraLinks:
     if not isinstance(obj, Mapping) or not isinstance(obj.get("overlap", {}), Mapping):
         raise w.error('links must be {"overlap": {camera: instants}, "mocap": true/false}',
                       camera)
+    motion = obj.get("motion")
+    if motion is not None and not (isinstance(motion, Mapping) and set(motion) == {
+            "cameras", "boards"}):
+        raise w.error('links.motion must be {"cameras": [...], "boards": [...]}', camera)
+    boards = obj.get("boards", {})
+    if not isinstance(boards, Mapping):
+        raise w.error('links.boards must be {board: views}', camera)
     return w.call(CameraLinks, dict(obj.get("overlap", {})), obj.get("mocap", False),
-                  camera=camera)
+                  () if motion is None else (motion["cameras"], motion["boards"]),
+                  dict(boards), camera=camera)
 
 
 class _Where:
@@ -332,9 +352,26 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
         raise w.error("frames must be an object of role -> frame name")
     return w.call(CalibrationRecord, setup, data["method"], data["reference_camera"], Y,
                   tuple(records), residuals, tuple(warnings), refinement, motion, items, unc,
-                  frames)
+                  frames, _read_targets(data["targets"], w) if "targets" in data else None)
 
 
+def _read_targets(obj, w: _Where) -> dict:
+    """``targets``: name -> ``{"T_world_target", "given", "views", "cameras", "std_rot_deg",
+    "std_trans_m", "covariance"}``."""
+    if not isinstance(obj, Mapping) or not all(isinstance(v, Mapping) for v in obj.values()):
+        raise w.error("targets must be an object of board name -> {T_world_target, ...}")
+    out = {}
+    for k, v in obj.items():
+        T = w.call(np.asarray, w.need(v, "T_world_target", f"target {k}"), dtype=np.float64)
+        rest = {x: y for x, y in v.items() if x in ("std_rot_deg", "std_trans_m",
+                                                     "covariance")}
+        unc = _read_uncertainty({k: rest}, w, (k,))[k] if rest else None
+        cams = v.get("cameras", {})
+        if not isinstance(cams, Mapping):
+            raise w.error(f"targets.{k}.cameras must be an object of camera name -> views")
+        out[str(k)] = w.call(BoardRecord, T, v.get("given", False), v.get("views", 0),
+                             dict(cams), unc)
+    return out
 # --------------------------------------------------------------------------- files
 
 

@@ -28,6 +28,7 @@ __all__ = [
     "RejectedItem",
     "PlausibilityItem",
     "PoseUncertainty",
+    "BoardRecord",
     "IntrinsicsRecord",
     "CameraLinks",
     "CameraRecord",
@@ -131,6 +132,46 @@ class PoseUncertainty:
 
 
 @dataclass(frozen=True)
+class BoardRecord:
+    """One board of a rig with several (rig.yaml's ``targets:``; issue 34).
+
+    Attributes
+    ----------
+    T_world_target : ndarray, shape (4, 4)
+        The board's pose; without motion capture in the first board's frame (the identity
+        for the first board).
+    given : bool
+        The pose is rig.yaml's ``pose:`` (held fixed), not estimated.
+    views : int
+        Views of this board used, over every camera.
+    cameras : mapping of str to int
+        Camera name -> views of this board it contributed (cameras with at least one).
+    uncertainty : PoseUncertainty or None
+        Left perturbation in the fixed frame (zero for the first board without motion
+        capture and for a given pose).
+    """
+
+    T_world_target: np.ndarray
+    given: bool = False
+    views: int = 0
+    cameras: Mapping = field(default_factory=dict)
+    uncertainty: PoseUncertainty | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "T_world_target", _rigid(self.T_world_target,
+                                                          "T_world_target"))
+        counts = [self.views, *dict(self.cameras).values()] if isinstance(
+            self.cameras, Mapping) else [None]
+        if not isinstance(self.given, bool) or not all(
+                isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0
+                for v in counts):
+            raise InputError("a target's given must be true or false, its views and the "
+                             "views per camera whole numbers >= 0")
+        object.__setattr__(self, "views", int(self.views))
+        object.__setattr__(self, "cameras", {str(k): int(v) for k, v in self.cameras.items()})
+
+
+@dataclass(frozen=True)
 class IntrinsicsRecord:
     """A camera's intrinsics as calibration.json states them.
 
@@ -163,10 +204,18 @@ class CameraLinks:
         The other cameras it saw the target together with, and at how many instants.
     mocap : bool
         Paired with motion capture.
+    motion : tuple of (tuple of str, tuple of str)
+        Linked through the rig's motion (no motion capture, issue 34): the cameras whose
+        boards gave the rig's pose at the instants that placed it, and those boards; empty
+        when not.
+    boards : mapping of str to int
+        With several boards: the boards the camera saw, with its views of each.
     """
 
     overlap: Mapping = field(default_factory=dict)
     mocap: bool = False
+    motion: tuple = ()
+    boards: Mapping = field(default_factory=dict)
 
     def __post_init__(self):
         if not isinstance(self.overlap, Mapping) or not all(
@@ -177,14 +226,32 @@ class CameraLinks:
         if not isinstance(self.mocap, bool):
             raise InputError(f"links.mocap must be true or false, got {self.mocap!r}")
         object.__setattr__(self, "overlap", {k: int(v) for k, v in self.overlap.items()})
+        if not isinstance(self.boards, Mapping) or not all(
+                isinstance(k, str) and isinstance(v, (int, np.integer)) and not
+                isinstance(v, bool) and v > 0 for k, v in self.boards.items()):
+            raise InputError(f"links.boards must map board names to positive counts, got "
+                             f"{self.boards!r}")
+        object.__setattr__(self, "boards", {k: int(v) for k, v in self.boards.items()})
+        if self.motion:
+            parts = tuple(self.motion) if isinstance(self.motion, (tuple, list)) else ()
+            if not (len(parts) == 2 and all(isinstance(p, (tuple, list)) and p and all(
+                    isinstance(x, str) for x in p) for p in parts)):
+                raise InputError("links.motion must name the cameras and the boards it came "
+                                 f"through, got {self.motion!r}")
+            object.__setattr__(self, "motion", (tuple(parts[0]), tuple(parts[1])))
 
     def describe(self) -> str:
-        """``overlap with cam1 (31 instants), cam2 (28); motion capture`` (what links it)."""
+        """``overlap with cam1 (31 instants), cam2 (28); motion via cam0 and board north;
+        motion capture`` (what links it)."""
         parts = []
         if self.overlap:
             parts.append("overlap with " + ", ".join(
                 f"{n} ({k}{' instants' if i == 0 else ''})"
                 for i, (n, k) in enumerate(self.overlap.items())))
+        if self.motion:
+            via, boards = self.motion
+            parts.append(f"motion via {', '.join(via)} and board{'s' * (len(boards) > 1)} "
+                         f"{', '.join(boards)}")
         if self.mocap:
             parts.append("motion capture")
         return "; ".join(parts) or "nothing"
@@ -294,6 +361,8 @@ class CalibrationRecord:
         The user's names of the frames by role (``{"world": "base", "body": "tool0"}``,
         rig.yaml's ``pose:``); None: the role names.  The keys of ``calibration.json`` keep
         the role names; screen, report and exports use these (:meth:`CalibrationRecord.named_keys`).
+    targets : mapping of str to BoardRecord, or None
+        With several boards: every board by name, in rig.yaml's order.
     """
 
     setup: str
@@ -308,8 +377,13 @@ class CalibrationRecord:
     plausibility: tuple[PlausibilityItem, ...] = ()
     uncertainty: Mapping | None = None
     frames: Mapping[str, str] | None = None
+    targets: Mapping | None = None
 
     def __post_init__(self):
+        if self.targets is not None and not (isinstance(self.targets, Mapping) and all(
+                isinstance(k, str) and isinstance(v, BoardRecord)
+                for k, v in self.targets.items())):
+            raise InputError("targets must map board names to their records")
         if self.setup not in SETUP_KEYS and self.setup != OVERLAP:
             raise InputError(f"setup must be one of {', '.join(SETUP_KEYS)} or {OVERLAP}, got "
                              f"{self.setup!r}")

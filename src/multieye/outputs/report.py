@@ -201,7 +201,9 @@ def _summary(rec: CalibrationRecord, out: Path) -> str:
              ("diagnostics", "Diagnostics"), ("rejected", "Rejected")]
     nav = " ".join(f'<a href="#{a}">{t}</a>' for a, t in links)
     shared = ('<p class="note">No motion capture: the cameras are linked by the views they '
-              "share.</p>" if not rec.mocap else
+              "share" + (" and by the rig's motion before the boards"
+                         if rec.method == "motion-links" else "") + ".</p>"
+              if not rec.mocap else
               f'<p class="note">Shared unknown <code>'
               f"{escape(rec.named_keys()[0])}</code>: translation "
               f"{_vector(pose_row(rec.Y)[:3], '.4f')} m, yaw pitch roll "

@@ -160,7 +160,7 @@ def calibration_table(rec: CalibrationRecord) -> str:
         lines.append(f"{_shown(y_key, y_name)}: t = ({', '.join(y_row[:3])}) m, yaw pitch "
                      f"roll = ({', '.join(y_row[3:6])}) deg"
                      + ("" if y_unc is None else f", std {y_row[6]} deg / {y_row[7]} mm"))
-    if any(c.links is not None and c.links.overlap for c in rec.cameras):
+    if any(c.links is not None and (c.links.overlap or c.links.motion) for c in rec.cameras):
         lines += [f"{c.name} linked by: {c.links.describe()}" for c in rec.cameras
                   if c.links is not None]
     if len(rec.cameras) > 1 and rec.mocap:

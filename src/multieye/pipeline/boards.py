@@ -116,9 +116,10 @@ def no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
 
 
 def refuse_several_boards(rig: Rig) -> None:
-    """Several boards are read and detected, one view per (image, board); the calibration
-    that estimates the boards' poses from them is not in this version: refuse, rather than
-    take views of different boards for views of one.
+    """Several boards are read and detected, one view per (image, board); with motion
+    capture the calibration that estimates the boards' poses from them is not in this
+    version (without it: :mod:`multieye.pipeline.overlap_motion`): refuse, rather than take
+    views of different boards for views of one.
 
     Raises
     ------
@@ -127,6 +128,7 @@ def refuse_several_boards(rig: Rig) -> None:
     """
     if len(rig.targets) > 1:
         raise DatasetError(f"targets: {len(rig.targets)} boards ({', '.join(rig.targets)}) are "
-                           "read and detected, but their calibration (each board's pose "
-                           "estimated with the rig) is not in this version; give one target",
+                           "read and detected, but their calibration with motion capture "
+                           "(each board's pose estimated with the rig) is not in this "
+                           "version; give one target, or calibrate without mocap:",
                            path=rig.path)

@@ -405,8 +405,9 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
 def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...], tuple]:
     """A rig without motion capture: per camera, ``with_mocap`` becomes its listed images
     that share an instant with another camera's (docs/rig-yaml.md, section 2), and cameras
-    in groups that nothing links get the refusal calibrating would give; with the lines
-    that say the instants found and what links each camera."""
+    in groups that nothing links get the refusal calibrating would give (with one board:
+    with several the rig's motion may link them, issue 34); with the lines that say the
+    instants found and what links each camera."""
     if rig.sync != "time":
         by_key, n_inst = instants_from_names({c.name: list(c.keys) for c in cams})
         inst, tol = [by_key[c.name] for c in cams], 0.0
@@ -423,7 +424,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         others = np.concatenate([i for k, i in enumerate(inst) if k != j] or [np.zeros(0)])
         shared = int(np.isin(inst[j], others).sum())
         fatal = c.fatal
-        if len(groups) > 1 and j not in groups[0]:
+        # several boards: the rig's motion may link them (which the detections decide)
+        if len(groups) > 1 and j not in groups[0] and len(rig.targets or {}) <= 1:
             fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol,
                                        rig.sync),)
         out.append(replace(c, with_mocap=shared, fatal=fatal,

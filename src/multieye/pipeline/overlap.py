@@ -103,20 +103,26 @@ def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: floa
     when their names' stems are equal and their given poses too (cameras named alike but
     posed apart were not triggered together).  With ``sync`` other than ``time`` (rig.yaml),
     images are one instant when their :attr:`Observation.instant` keys are equal."""
+    # one image showing several boards gives one observation per board: the image, not
+    # the observation, is what joins an instant (its stamp or name, once per camera)
     if sync != "time":
-        inst, k = instants_from_names({n: [o.instant for o in d.observations]
-                                       for n, d in cameras.items()})
-        return inst, k, 0.0
+        once = {n: np.unique(np.asarray([o.instant for o in d.observations], dtype=str),
+                             return_inverse=True) for n, d in cameras.items()}
+        inst, k = instants_from_names({n: [str(x) for x in u] for n, (u, _) in once.items()})
+        return {n: inst[n][np.ravel(once[n][1])] for n in cameras}, k, 0.0
     if cameras and all(d.by_name and d.mocap is not None for d in cameras.values()):
         keys = {n: [f"{Path(o.name).stem}|{_pose_at(d, o.stamp)}" for o in d.observations]
                 for n, d in cameras.items()}
-        inst, k = instants_from_names(keys)
-        return inst, k, 0.0
+        once = {n: np.unique(np.asarray(k, dtype=object), return_inverse=True)
+                for n, k in keys.items()}
+        inst, k = instants_from_names({n: [str(x) for x in u] for n, (u, _) in once.items()})
+        return {n: inst[n][once[n][1]] for n in cameras}, k, 0.0
     stamps = [np.array([o.stamp for o in d.observations], dtype=np.float64) + d.time_offset
               for d in cameras.values()]
     tol = default_sync_tolerance(stamps) if sync_tolerance is None else float(sync_tolerance)
-    inst, k = instants_from_stamps(stamps, tol)
-    return dict(zip(cameras, inst)), k, tol
+    once = [np.unique(s, return_inverse=True) for s in stamps]
+    inst, k = instants_from_stamps([u for u, _ in once], tol)
+    return {n: i[back] for n, i, (_, back) in zip(cameras, inst, once)}, k, tol
 
 
 def _pose_at(data: CameraData, stamp: float) -> str:

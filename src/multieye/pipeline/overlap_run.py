@@ -22,6 +22,7 @@ from multieye.core.metrics import camera_residual
 from multieye.estimate.findings import Plausibility
 from multieye.estimate.uncertainty import pose_std, projection_std
 from multieye.io import (
+    BoardRecord,
     CalibrationRecord,
     CameraRecord,
     IntrinsicsRecord,
@@ -32,14 +33,19 @@ from multieye.io import (
 from multieye.io.calibration_json import OVERLAP, CameraLinks
 from multieye.pipeline.camera_data import PairedCamera
 from multieye.pipeline.overlap import OverlapSolution, solve_overlap
+from multieye.pipeline.overlap_motion import MotionSolution, board_order, solve_motion
 from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.problem import Problem
 from multieye.pipeline.result import CalibrationRun, Refinement
 
-__all__ = ["calibrate_overlap", "check_overlap_options", "OverlapImages", "METHOD"]
+__all__ = ["calibrate_overlap", "check_overlap_options", "OverlapImages", "METHOD",
+           "MOTION_METHOD"]
 
 #: ``method`` of a rig without motion capture: the start from the co-visibility graph.
 METHOD = "covisibility"
+#: ... with several boards: the start from the loops the views close and the joint hand-eye
+#: problem with the rig's own motion (:mod:`multieye.estimate.motion_links`).
+MOTION_METHOD = "motion-links"
 
 
 @dataclass(frozen=True)
@@ -89,12 +95,19 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
     DatasetError, DisconnectedError
         As :func:`multieye.pipeline.overlap.solve_overlap`.
     """
-    sol = solve_overlap(problem.cameras, problem.reference,
-                        sync_tolerance=problem.rig.sync_tolerance, sync=problem.rig.sync,
-                        robust=problem.options.robust)
+    declared = tuple(getattr(problem.rig, "targets", None) or ())
+    if len(board_order(problem.cameras, declared)) > 1:      # linked by motion too (issue 34)
+        sol = solve_motion(problem.cameras, problem.reference,
+                           sync_tolerance=problem.rig.sync_tolerance, sync=problem.rig.sync,
+                           robust=problem.options.robust, boards=declared)
+        M = tuple(sol.T_ref_target(n) for n in sol.names)
+    else:
+        sol = solve_overlap(problem.cameras, problem.reference,
+                            sync_tolerance=problem.rig.sync_tolerance, sync=problem.rig.sync,
+                            robust=problem.options.robust)
+        M = tuple(sol.result.T_ref_target[sol.instants[n]] for n in sol.names)
     res = sol.result
     names = sol.names
-    M = tuple(res.T_ref_target[sol.instants[n]] for n in names)
     paired = {n: PairedCamera(
         name=n, A=g.inv(M[j]), T_world_mocap=M[j],
         B=g.inv(np.stack([o.T_cam_target for o in sol.used[n]])),
@@ -111,7 +124,7 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         intrinsics_covariance={n: res.intrinsics_covariance[j] for j, n in enumerate(names)
                                if problem.cameras[n].intrinsics_estimated})
     plaus = Plausibility(findings=sol.findings, cost=float("nan"), camera_cost={},
-                         tested=("fit",))
+                         tested=("fit", "observability") if _by_motion(sol) else ("fit",))
     warnings = camera_warnings(problem.cameras)
     warnings += sol.warnings + tuple(f.message for f in sol.findings)
     record = _record(problem, sol, paired, rms, warnings)
@@ -119,6 +132,25 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
                for n, d in problem.cameras.items()}
     return CalibrationRun(rig=problem.rig, record=record, closed_form=None, cameras=cameras,
                           paired=paired, refinement=refinement, plausibility=plaus)
+
+
+def _by_motion(sol) -> bool:
+    return isinstance(sol, MotionSolution)
+
+
+def _targets(sol) -> dict | None:
+    """Every board's pose in the world (the first board) with its uncertainty and views, by
+    name (docs/outputs.md, several boards)."""
+    if not _by_motion(sol):
+        return None
+    res = sol.result
+    out = {}
+    for k, b in enumerate(sol.boards):
+        per = {n: int(np.sum(sol.board[n] == k)) for n in sol.names}
+        per = {n: v for n, v in per.items() if v}
+        out[b] = BoardRecord(res.T_world_board[k], False, sum(per.values()), per,
+                             _pose_uncertainty(res.board_covariance[k]))
+    return out
 
 
 def _camera_rms(sol: OverlapSolution) -> dict[str, float]:
@@ -149,10 +181,12 @@ def _record(problem: Problem, sol: OverlapSolution, paired: dict, rms: dict,
             covariance=res.covariance[j], rejected=p.rejected,
             intrinsics=_intrinsics_record(problem, sol, j, p),
             uncertainty={"T_ref_cam": unc},
-            links=CameraLinks(dict(sol.links[n].overlap), False)))
+            links=CameraLinks(dict(sol.links[n].overlap), False, sol.links[n].motion,
+                              sol.links[n].boards)))
     used = sum(c.measurements_used for c in cams)
     return CalibrationRecord(
-        setup=OVERLAP, method=METHOD, reference_camera=problem.reference, Y=None,
+        setup=OVERLAP, method=MOTION_METHOD if _by_motion(sol) else METHOD,
+        reference_camera=problem.reference, Y=None, targets=_targets(sol),
         cameras=tuple(cams),
         residuals=Residuals(e_R_deg=sum(rot_all) / used, e_t_m=sum(trans_all) / used),
         warnings=warnings, refinement="images",

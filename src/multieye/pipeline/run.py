@@ -131,12 +131,12 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         The targets and given lenses the cameras were loaded with (built when not given).
     """
     clock = [time.perf_counter()]
-    refuse_several_boards(rig)           # until their estimation (board-to-board poses) lands
     problem = make_problem(rig, cameras, updated_options(options, kw), model)
     if all(d.mocap is None for d in cameras.values()):   # linked by shared views (issue 23)
-        run = calibrate_overlap(check_overlap_options(problem))
+        run = calibrate_overlap(check_overlap_options(problem))      # and by motion (34)
         return replace(run, timings=StageTimings(refinement=time.perf_counter() - clock[0],
                                                  total=time.perf_counter() - clock[0]))
+    refuse_several_boards(rig)           # with motion capture: until their estimation lands
     every = pair(problem)
 
     def check() -> Plausibility:      # every measurement: why a failing stage failed

@@ -28,6 +28,7 @@ import numpy as np
 
 from multieye.core import geometry as g
 from multieye.core.intrinsics import Intrinsics
+from multieye.core.errors import InputError
 from multieye.io import (
     CalibrationRecord,
     CameraRecord,
@@ -42,6 +43,7 @@ from multieye.io import (
 from multieye.core.metrics import relative_extrinsics
 from multieye.sim.rigs import surround_rig
 from multieye.sim.render import render, visible
+from multieye.sim.warped import render_warped
 from multieye.imaging.targets import target_from_spec
 from multieye.imaging.workers import worker_pool
 
@@ -108,6 +110,12 @@ class DatasetSpec:
     image_format : {"png", "jpg"}
         Image files written: PNG (lossless), or JPEG at quality 92 (a third of the bytes, for
         long recordings).
+    renderer : {"rays", "warp"}
+        How the images are made: ``"rays"`` traces every sub-pixel to the board
+        (:func:`multieye.sim.render.render`); ``"warp"`` resamples a picture of the board
+        through its homography and the lens, over a cluttered scene
+        (:func:`multieye.sim.warped.render_warped`, chessboards only): another look, for
+        benchmarks and tests that must not depend on one renderer.
     """
 
     n_cameras: int = 4
@@ -129,6 +137,11 @@ class DatasetSpec:
     decoy_samples: int = 0
     processes: int | None = None
     image_format: str = "png"
+    renderer: str = "rays"
+
+    def __post_init__(self) -> None:
+        if self.renderer not in ("rays", "warp"):
+            raise InputError(f"renderer must be 'rays' or 'warp', not {self.renderer!r}")
 
 
 @dataclass(frozen=True)
@@ -181,10 +194,11 @@ def _centered_board(target, distance: float) -> np.ndarray:
 
 
 def _render_one(args):
-    target_spec, intr, T, seed, blur, noise, path = args
+    target_spec, intr, T, seed, blur, noise, path, renderer = args
     target = target_from_spec(target_spec)
-    img = render(target, intr, T, rng=np.random.default_rng(seed), blur_sigma=blur,
-                 noise_sigma=noise)
+    draw = render_warped if renderer == "warp" else render
+    img = draw(target, intr, T, rng=np.random.default_rng(seed), blur_sigma=blur,
+               noise_sigma=noise)
     params = [cv2.IMWRITE_JPEG_QUALITY, 92] if path.suffix == ".jpg" else []
     ok, buf = cv2.imencode(path.suffix, img, params)
     if not ok:  # pragma: no cover - cv2 failure
@@ -245,7 +259,7 @@ def render_dataset(out_dir: str | os.PathLike, spec: DatasetSpec = DatasetSpec()
                 continue
             path = out / name / f"{_stamp_name(t0 + t, spec.nanosecond_names)}.{spec.image_format}"
             jobs.append((spec.target, intr[j], T, seed * 100003 + j * 1000 + k, spec.blur_sigma,
-                         spec.noise_sigma, path))
+                         spec.noise_sigma, path, spec.renderer))
             n_ok += 1
         written.append(n_ok)
         # motion capture of the marker body during this camera's segment, own rate and phase

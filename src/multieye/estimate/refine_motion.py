@@ -1,0 +1,255 @@
+"""Maximum likelihood of a rig linked by its motion in front of still boards (issue 34).
+
+Minimises the pixels' negative log-likelihood::
+
+    min  sum_points rho(||pi_j(inv(T_ref_cam^j) S(t) T_world_board^b p_k) - u||^2 / sigma_px^2)
+
+over every ``T_ref_cam^j`` (the reference camera's the identity), every board pose
+``T_world_board^b`` (board 0 is the world), the world in the rig at every instant
+``S(t) = inv(T_world_rig(t))`` and the estimated lenses (residuals and Jacobians:
+:mod:`multieye.estimate.motion_residuals`), from the start of
+:func:`multieye.estimate.motion_links.motion_start`, on the engine (Levenberg-Marquardt,
+the instants' poses eliminated by the Schur complement).  Overlap (two cameras seeing one
+board at one instant) and motion links are the same residuals here: one problem.
+
+Covariance of ``T_ref_cam``, the boards and the lenses: ``kappa sigma^2 (J^T J)^-1`` of the
+reduced system, ``kappa`` the robust loss's efficiency for Gaussian residuals; the pixel
+noise, when not given, estimated as in :mod:`multieye.estimate.refine_rig` (its fixed point
+on the residuals, re-solving until it settles).  What the data leave undetermined (planar
+motion) is found from this covariance by :mod:`multieye.estimate.observability`.
+
+Synopsis
+--------
+>>> views = MotionViews(views_by_name, intrinsics, free_intrinsics=free)     # doctest: +SKIP
+>>> res = refine_motion(views, T_cam_board)                                   # doctest: +SKIP
+>>> res.T_ref_cam, res.covariance, res.T_world_board                          # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from multieye.core import geometry as g
+from multieye.core.errors import InputError
+from multieye.core.intrinsics import Intrinsics
+from multieye.core.robust_loss import gaussian_kappa, gaussian_scale_constant
+from multieye.estimate.image_residuals import intrinsics_family
+from multieye.estimate.motion_links import MotionStart, motion_start
+from multieye.estimate.motion_mocap import MocapPoseResiduals, RigMocap, mocap_families
+from multieye.estimate.motion_residuals import MotionViews
+from multieye.estimate.refine_rig import _settled_scale
+from multieye.optimize.levenberg_marquardt import (NEAR_DAMPING, Options, covariance, evaluate,
+                                                   minimize)
+from multieye.optimize.threads import threads_for
+
+__all__ = ["MotionResult", "refine_motion"]
+
+F64 = NDArray[np.float64]
+
+_MAX_SIGMA_PASSES = 4
+_SETTLED = 0.02
+_LATER_TOL = 1e-7
+_NEWTON_BELOW = 1e-5
+
+
+@dataclass(frozen=True)
+class MotionResult:
+    """What :func:`refine_motion` reached.
+
+    Attributes
+    ----------
+    T_ref_cam : ndarray, shape (m, 4, 4)
+    T_world_board : ndarray, shape (nb, 4, 4)
+        World = board 0 (its pose the identity).
+    T_world_rig : ndarray, shape (K, 4, 4)
+        The rig (reference camera) at every instant.
+    intrinsics : tuple of Intrinsics
+    covariance : ndarray, shape (m, 6, 6)
+        Of each ``T_ref_cam``: rotation vector then translation, left perturbation in the
+        rig's frame, radians and metres (zeros for the reference camera).
+    board_covariance : ndarray, shape (nb, 6, 6)
+        Of each ``T_world_board``, left perturbation in the world (zeros for board 0).
+    intrinsics_covariance : tuple of (ndarray or None)
+    joint_covariance : ndarray, shape (k, k)
+        Over ``C`` (m - 1 cameras), ``W`` (nb - 1 boards), each ``K:<camera>``.
+    offsets : dict of str to int
+        Where each family starts in ``joint_covariance``.
+    pixel_sigma : float
+    residuals_px : ndarray, shape (P, 2)
+    camera_rms_px : ndarray, shape (m,)
+    start : MotionStart
+    iterations : int
+    converged : bool
+    undetermined : tuple of str
+        Families with a direction the data do not determine at all (numerically singular).
+    null_space : ndarray, shape (m, 6, r)
+        Per camera its part of those directions (zeros for the reference camera; r = 0 in a
+        regular problem), for :func:`multieye.estimate.observability.observability`.
+    T_mocap_world, T_rig_marker : ndarray, shape (4, 4), or None
+        With motion capture: its frame's pose in the world, the marker's in the rig.
+    """
+
+    T_ref_cam: F64
+    T_world_board: F64
+    T_world_rig: F64
+    intrinsics: tuple[Intrinsics, ...]
+    covariance: F64
+    board_covariance: F64
+    intrinsics_covariance: tuple
+    joint_covariance: F64
+    offsets: dict
+    pixel_sigma: float
+    residuals_px: F64
+    camera_rms_px: F64
+    start: MotionStart
+    iterations: int
+    converged: bool
+    undetermined: tuple[str, ...] = ()
+    null_space: F64 | None = None
+    T_mocap_world: F64 | None = None
+    T_rig_marker: F64 | None = None
+
+    @property
+    def T_ref_target(self) -> F64:
+        """The first board (the world) in the rig at every instant, (K, 4, 4): with one
+        board, :class:`~multieye.estimate.refine_rig.RigResult`'s target poses."""
+        return g.inv(self.T_world_rig)
+
+
+def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None = None,
+                  loss: str = "huber", f_scale: float = 2.0, max_iter: int = 100,
+                  start: MotionStart | None = None, mocap: RigMocap | None = None
+                  ) -> MotionResult:
+    """Refine the rig, the boards and the lenses on the pixels (module docstring).
+
+    Parameters
+    ----------
+    views : MotionViews
+    T_cam_board : array_like, shape (n_views, 4, 4)
+        PnP pose of the board in the camera of each view (for the start).
+    pixel_sigma : float, optional
+        Pixel noise; estimated when not given.
+    loss : str
+    f_scale : float
+    max_iter : int
+    start : MotionStart, optional
+        Instead of :func:`~multieye.estimate.motion_links.motion_start` on ``T_cam_board``.
+    mocap : RigMocap, optional
+        The rig's motion capture, in the same problem
+        (:mod:`multieye.estimate.motion_mocap`; the pixel noise is estimated from the pixels
+        alone, the motion capture's is taken as given).
+
+    Raises
+    ------
+    DisconnectedError
+        Cameras nothing links (:func:`~multieye.estimate.motion_links.motion_start`).
+    InputError
+        Malformed input, or a refinement that leaves the lens models' valid range.
+    """
+    T = np.asarray(T_cam_board, dtype=np.float64).reshape(-1, 4, 4)
+    if len(T) != views.n_views:
+        raise InputError(f"{len(T)} starting poses for {views.n_views} views")
+    sigma = 1.0 if pixel_sigma is None else float(pixel_sigma)
+    if not (np.isfinite(sigma) and sigma > 0):
+        raise InputError(f"pixel_sigma must be a positive number, got {pixel_sigma!r}")
+    if start is None:
+        start = motion_start(views, T)
+    k = 6 * (views.m - 1 + views.n_boards - 1) + sum(
+        views.intrinsics[j].params.size for j in range(views.m) if views.free[j])
+    with threads_for(k):
+        fams, sigma, iterations, converged = _solve(
+            views, start, pixel_sigma, sigma, (loss, f_scale, max_iter), mocap)
+        return _result(views, start, fams, sigma, (loss, f_scale), iterations, converged,
+                       mocap)
+
+
+def _groups(views: MotionViews, sigma: float, mocap: RigMocap | None) -> list:
+    return views.groups(sigma) + ([] if mocap is None else [MocapPoseResiduals(mocap)])
+
+
+def _solve(views: MotionViews, start: MotionStart, given: float | None, sigma: float,
+           settings: tuple, mocap: RigMocap | None):
+    """The passes of the refinement, the pixel noise re-estimated between them (from the
+    pixels alone)."""
+    loss, f_scale, max_iter = settings
+    fams = views.families(start.T_ref_cam, start.T_world_board, g.inv(start.T_world_rig))
+    if mocap is not None:
+        fams = fams[:-1] + mocap_families(mocap, start.T_world_rig) + fams[-1:]
+    opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter, newton_below=_NEWTON_BELOW)
+    later = replace(opts, tol=_LATER_TOL, newton_below=np.inf, initial_damping=NEAR_DAMPING)
+    c_w = gaussian_scale_constant(loss, f_scale)
+    iterations, converged = 0, True
+    for k in range(_MAX_SIGMA_PASSES):
+        groups = _groups(views, sigma, mocap)
+        res = minimize(fams, groups, opts if k == 0 else later)
+        fams, iterations, converged = res.families, iterations + res.iterations, res.converged
+        if given is not None:
+            break
+        pixels = groups[:len(groups) - (mocap is not None)]
+        z = np.concatenate([e[0].ravel() for e in evaluate(fams, pixels, False)])
+        n_params = sum(f.count * f.size for f in fams)
+        new = _settled_scale(z * sigma, sigma, loss, f_scale, c_w * max(z.size - n_params, 1))
+        quadratic = (loss == "linear"
+                     or float(np.abs(z).max()) <= f_scale * min(1.0, new / sigma))
+        settled = abs(new - sigma) <= _SETTLED * sigma or quadratic
+        sigma = max(float(new), 1e-6)
+        if settled:
+            break
+    return fams, sigma, iterations, converged
+
+
+def _blocks(kept: F64, offset: int, count: int, n: int) -> F64:
+    return np.stack([kept[offset + n * b:offset + n * (b + 1), offset + n * b:offset + n * (b + 1)]
+                     for b in range(count)]) if count else np.zeros((0, n, n))
+
+
+def _result(views: MotionViews, start: MotionStart, fams, sigma: float, robust: tuple,
+            iterations: int, converged: bool, mocap: RigMocap | None) -> MotionResult:
+    """The result at the optimum; ``robust`` is ``(loss, f_scale)``."""
+    loss, f_scale = robust
+    groups = _groups(views, sigma, mocap)
+    ev = evaluate(fams, groups, True)
+    cov = covariance(fams, groups, evaluated=ev)
+    kept = cov.kept * gaussian_kappa(loss, f_scale)
+    values = {f.name: f.value for f in fams}
+    offsets = dict(cov.layout.offset)
+    cam_cov = np.zeros((views.m, 6, 6))
+    if views.m > 1:
+        cam_cov[views.others] = _blocks(kept, offsets["C"], views.m - 1, 6)
+    board_cov = np.zeros((views.n_boards, 6, 6))
+    if views.n_boards > 1:
+        board_cov[1:] = _blocks(kept, offsets["W"], views.n_boards - 1, 6)
+    und = cov.undetermined if cov.undetermined is not None else np.zeros((len(kept), 0))
+    null = np.zeros((views.m, 6, und.shape[1]))
+    for b, j in enumerate(views.others):
+        null[j] = und[offsets["C"] + 6 * b:offsets["C"] + 6 * b + 6]
+    k_cov = []
+    for j, name in enumerate(views.names):
+        if views.free[j]:
+            o, n = offsets[intrinsics_family(name)], views.intrinsics[j].params.size
+            k_cov.append(kept[o:o + n, o:o + n])
+        else:
+            k_cov.append(None)
+    # residuals back in point order (the groups hold each camera's views in two parts)
+    resid = np.zeros((len(views.view), 2))
+    for grp, e in zip(groups[:len(groups) - (mocap is not None)], ev):
+        mine = np.flatnonzero((views.camera[views.view] == grp.camera)
+                              & ((views.board[views.view] > 0) == grp.moved))
+        resid[mine] = e[0] * sigma
+    cam_of_point = views.camera[views.view]
+    rms = np.array([float(np.sqrt(np.mean(np.sum(resid[cam_of_point == j] ** 2, axis=1))))
+                    if views.counts[j] else float("nan") for j in range(views.m)])
+    return MotionResult(
+        T_ref_cam=views.T_ref_cam(values), T_world_board=views.T_world_board(values),
+        T_world_rig=g.inv(values["S"]), intrinsics=views.current_intrinsics(values),
+        covariance=cam_cov, board_covariance=board_cov, intrinsics_covariance=tuple(k_cov),
+        joint_covariance=kept, offsets={n: int(o) for n, o in offsets.items()},
+        pixel_sigma=float(sigma), residuals_px=resid, camera_rms_px=rms, start=start,
+        iterations=iterations, converged=converged, null_space=null,
+        T_mocap_world=None if mocap is None else values["Ym"][0],
+        T_rig_marker=None if mocap is None else values["Xm"][0],
+        undetermined=tuple(f.name for f in fams if not f.eliminate
+                           and cov.undetermined_in(f.name, f.count, f.size)))

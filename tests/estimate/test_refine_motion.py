@@ -1,0 +1,103 @@
+"""The refinement of a rig linked by its motion (issue 34, item 1): residual Jacobians against
+central differences, exact recovery without noise, one board = the overlap problem, and
+honest covariance (NEES) over simulated rigs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from wall_rig import wall_rig
+
+from multieye.core import geometry as g
+from multieye.core.lie import log_so3
+from multieye.estimate.motion_residuals import MotionViews
+from multieye.estimate.refine_motion import refine_motion
+from multieye.estimate.refine_rig import refine_rig
+from multieye.estimate.rig_residuals import RigViews
+from multieye.optimize.gradient_check import numerical_jacobians
+from multieye.sim.overlap import OverlapSpec, pixel_views, simulate_overlap
+
+
+def _disturbed(T, rng, rot=0.01, trans=0.01):
+    return T @ g.transform_from_rotvec(rng.normal(scale=rot, size=(len(T), 3)),
+                                       rng.normal(scale=trans, size=(len(T), 3)))
+
+
+def _lens_start(intr, free):
+    return [i.with_params(i.params * (1 + 0.01 * (np.arange(i.params.size) < 2)))
+            for i in intr] if free else list(intr)
+
+
+@pytest.mark.parametrize("free", [False, True])
+@pytest.mark.parametrize("reference", [0, 2])
+def test_pixel_jacobians_match_central_differences(free, reference):
+    s = wall_rig(1, n_instants=8)
+    rng = np.random.default_rng(2)
+    mv = MotionViews(s.views(0.3, rng), s.intrinsics, reference, free_intrinsics=[free] * 4)
+    T_ref_cam = _disturbed(g.inv(s.T_ref_cam[reference]) @ s.T_ref_cam, rng)
+    T_ref_cam[reference] = np.eye(4)
+    W = _disturbed(s.T_world_board, rng)
+    S = _disturbed(g.inv(s.T_world_rig @ s.T_ref_cam[reference]), rng)
+    fams = mv.families(T_ref_cam, W, S)
+    values = {f.name: f.value for f in fams}
+    groups = mv.groups(0.5)
+    assert sum("W" in grp.slots for grp in groups) >= 3
+    for grp in groups:
+        analytic = grp.evaluate(values, True)[1]
+        numeric = numerical_jacobians(fams, grp)
+        assert len(analytic) == len(numeric) == len(grp.slots)
+        for a, n in zip(analytic, numeric):
+            assert np.abs(a - n).max() < 1e-5 * max(1.0, float(np.abs(n).max()))
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_noise_free_pixels_give_rig_and_boards_back_exactly(free):
+    s = wall_rig(5)
+    rng = np.random.default_rng(6)
+    mv = MotionViews(s.views(), _lens_start(s.intrinsics, free), free_intrinsics=[free] * 4)
+    res = refine_motion(mv, _disturbed(s.T_cam_board(), rng), pixel_sigma=0.5, loss="linear")
+    assert np.max(g.rotation_angle_between(res.T_ref_cam, s.T_ref_cam)) < 1e-8
+    assert np.abs(res.T_ref_cam[:, :3, 3] - s.T_ref_cam[:, :3, 3]).max() < 1e-8
+    assert np.abs(res.T_world_board - s.T_world_board).max() < 1e-8
+    assert np.abs(res.T_world_rig - s.T_world_rig).max() < 1e-8
+    for est, true in zip(res.intrinsics, s.intrinsics):
+        assert np.allclose(est.params, true.params, rtol=1e-8, atol=1e-8)
+    assert np.all(res.camera_rms_px < 1e-6)
+    assert np.all(res.covariance[0] == 0) and np.all(res.board_covariance[0] == 0)
+    assert np.all(np.linalg.eigvalsh(res.board_covariance[1:]) > 0)
+
+
+def test_with_one_board_it_is_the_overlap_problem():
+    """One board: S(t) is the board in the rig, the problem of refine_rig to the digit."""
+    sc = simulate_overlap(np.random.default_rng(0), OverlapSpec(n_instants=15))
+    views = pixel_views(sc, 0.3, np.random.default_rng(1))
+    T = np.stack([g.inv(sc.T_ref_cam[j]) @ sc.T_ref_target[t]
+                  for j, vs in enumerate(views) for _, _, t in vs])
+    a = refine_rig(RigViews(dict(zip("abc", views)), sc.intrinsics), T, pixel_sigma=0.3)
+    mv = MotionViews({n: [(o, u, t, 0) for o, u, t in vs] for n, vs in zip("abc", views)},
+                     sc.intrinsics)
+    b = refine_motion(mv, T, pixel_sigma=0.3)
+    assert np.abs(a.T_ref_cam - b.T_ref_cam).max() < 1e-9
+    assert np.abs(a.covariance - b.covariance).max() < 1e-6 * np.abs(a.covariance).max()
+    assert b.start.links[1].kind == "overlap" and b.start.links[1].cameras == (0,)
+
+
+def _nees(res, s) -> list[float]:
+    out = []
+    for j in range(1, len(s.T_ref_cam)):
+        e = np.concatenate([log_so3(res.T_ref_cam[j, :3, :3] @ s.T_ref_cam[j, :3, :3].T),
+                            res.T_ref_cam[j, :3, 3] - s.T_ref_cam[j, :3, 3]])
+        out.append(float(e @ np.linalg.solve(res.covariance[j], e)) / 6)
+    return out
+
+
+def test_covariance_of_t_ref_cam_is_honest_over_simulated_rigs():
+    """NEES per degree of freedom over 8 rigs (3 cameras each), lenses given, 0.3 px noise:
+    near 1 (measured 0.92 over 20 rigs with the lenses given, 0.91 over 10 estimated)."""
+    nees = []
+    for seed in range(8):
+        s = wall_rig(seed, n_instants=30)
+        rng = np.random.default_rng(100 + seed)
+        mv = MotionViews(s.views(0.3, rng), s.intrinsics)
+        nees += _nees(refine_motion(mv, _disturbed(s.T_cam_board(), rng)), s)
+    assert 0.5 < np.mean(nees) < 1.6

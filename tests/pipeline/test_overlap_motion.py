@@ -1,0 +1,116 @@
+"""A rig without motion capture moved before boards on the walls (issue 34): the pipeline
+takes the cameras that share no instant through the rig's motion instead of refusing them,
+states the links and the boards' poses, and doubts a rig driven on a floor (exit status 3's
+finding) naming the direction it leaves undetermined."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from multieye.core import geometry as g
+from multieye.core.errors import DisconnectedError
+from multieye.core.lie import log_so3
+from multieye.io import Rig
+from multieye.io.calibration_json import calibration_from_dict, calibration_to_dict
+from multieye.pipeline.camera_data import CameraData, Observation
+from multieye.pipeline.overlap_motion import solve_motion
+from multieye.pipeline.run import calibrate_rig
+from multieye.sim.wall_boards import WallSpec, noisy_views, simulate_walls
+
+SIGMA = 0.3
+
+
+def _cameras(seed=0, **spec):
+    sc = simulate_walls(np.random.default_rng(seed), WallSpec(n_instants=30, **spec))
+    rng = np.random.default_rng(seed + 1)
+    obs = {n: [] for n in sc.cameras}
+    jitter = rng.uniform(-1e-3, 1e-3, (len(sc.T_world_body), len(sc.cameras)))   # per image
+    for v in noisy_views(sc, SIGMA, rng):
+        b = list(sc.targets).index(v.target)
+        T = g.inv(sc.T_world_ref[v.instant] @ sc.T_ref_cam[v.camera]) @ sc.T_world_board[b]
+        T = T @ g.transform_from_rotvec(rng.normal(scale=0.01, size=3),
+                                        rng.normal(scale=0.005, size=3))
+        obs[sc.cameras[v.camera]].append(Observation(
+            name=f"{v.instant:04d}.png", stamp=100 + 0.25 * v.instant + jitter[v.instant, v.camera],
+            T_cam_target=T, rms_px=SIGMA, object_points=v.object_points,
+            image_points=v.image_points, target=v.target))
+    cams = {n: CameraData(name=n, intrinsics=sc.intrinsics[j], observations=tuple(obs[n]),
+                          rejected=(), n_inputs=len(obs[n]), mocap=None, time_offset=0.0,
+                          time_tolerance=0.03) for j, n in enumerate(sc.cameras)}
+    return sc, cams
+
+
+def _rig():
+    return Rig(path=Path("rig.yaml"), setup="eye-to-base", cameras={})
+
+
+def test_cameras_that_share_no_instant_go_through_linked_by_the_motion():
+    sc, cams = _cameras()
+    run = calibrate_rig(_rig(), cams)
+    assert run.doubts == ()
+    rec = run.record
+    assert rec.method == "motion-links" and rec.setup == "overlap"
+    cov = {c.name: c.covariance for c in rec.cameras}
+    for j, n in enumerate(sc.cameras[1:], 1):
+        T = run.T_ref_cam[n]
+        e = np.concatenate([log_so3(T[:3, :3] @ sc.T_ref_cam[j, :3, :3].T),
+                            T[:3, 3] - sc.T_ref_cam[j, :3, 3]])
+        assert float(e @ np.linalg.solve(cov[n], e)) < 30                     # chi2(6) tail
+    first = next(iter(rec.targets))
+    T_world = g.inv(sc.board_pose(first)) @ sc.T_world_board
+    for k, b in enumerate(sc.targets):
+        assert g.translation_distance(rec.targets[b].T_world_target, T_world[k]) < 0.01
+        seen = {n: sum(o.target == b for o in cams[n].observations) for n in cams}
+        assert rec.targets[b].cameras == {n: v for n, v in seen.items() if v}
+        assert rec.targets[b].views == sum(seen.values()) and not rec.targets[b].given
+    assert np.all(rec.targets[first].uncertainty.covariance == 0)
+    assert all(rec.targets[b].uncertainty.std_trans_m > 0 for b in rec.targets if b != first)
+    links = {c.name: c.links for c in rec.cameras}
+    assert any(lk.motion for lk in links.values())
+    assert links["cam1"].boards == {b: v for b in sc.targets
+                                    if (v := sum(o.target == b
+                                                 for o in cams["cam1"].observations))}
+    assert all(lk.describe().startswith(("overlap", "motion via cam"))
+               for n, lk in links.items() if n != "cam0")
+    from multieye.outputs.summary import calibration_table
+    assert "cam1 linked by: " in calibration_table(rec)
+    back = calibration_from_dict(calibration_to_dict(rec))
+    assert {c.name: c.links for c in back.cameras} == links
+    assert back.targets.keys() == rec.targets.keys()
+    assert np.allclose(back.targets["west"].uncertainty.covariance,
+                       rec.targets["west"].uncertainty.covariance)
+    assert back.targets["west"].cameras == rec.targets["west"].cameras
+
+
+def test_one_image_with_two_boards_is_one_instant():
+    _, cams = _cameras()
+    sol = solve_motion(cams, "cam0")
+    for n, d in cams.items():
+        names = [o.name for o in d.observations]
+        for name in set(names):
+            assert len({int(sol.instants[n][i]) for i, x in enumerate(names) if x == name}) == 1
+
+
+def test_a_rig_driven_on_a_floor_is_doubted_naming_the_direction():
+    _, cams = _cameras(boards="chessboard", motion="planar")
+    run = calibrate_rig(_rig(), cams)
+    causes = {(d.cause, d.camera) for d in run.plausibility.findings}
+    assert causes == {("observability", "cam1"), ("observability", "cam2"),
+                      ("observability", "cam3")}
+    assert all("translation along the axis the rig turned about" in d.message
+               and "tilt the rig" in d.message for d in run.doubts)
+    assert [p.cause for p in run.record.plausibility] == ["observability"] * 3
+
+
+def test_a_camera_the_motion_does_not_link_is_refused_naming_it():
+    _, cams = _cameras()
+    d = cams["cam2"]
+    from dataclasses import replace
+    cams["cam2"] = replace(d, observations=tuple(replace(o, stamp=o.stamp + 1000.0)
+                                                 for o in d.observations))
+    with pytest.raises(DisconnectedError, match="cam2 are linked to the reference camera cam0 "
+                                                "neither by views they share nor by the rig's"):
+        calibrate_rig(_rig(), cams)
