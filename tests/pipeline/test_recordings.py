@@ -111,7 +111,14 @@ def test_ros_industrial_layout_gives_the_time_paired_result(rendered, tmp_path):
     in_time = calibrate(_one_camera(rendered, tmp_path / "time"), processes=1)
     ros = calibrate(_ros_industrial(rendered, tmp_path / "ros"), processes=1)
     np.testing.assert_allclose(ros.closed_form.X[0], in_time.closed_form.X[0], atol=1e-6)
-    np.testing.assert_allclose(ros.X["cam0"], in_time.X["cam0"], atol=1e-6)
+    # the refined X differs by the weights alone: a pose given per image is one motion-capture
+    # sample, one interpolated between two samples carries less noise (issue 32): far below
+    # the predicted uncertainty: within half a standard deviation (measured: 0.2 in rotation)
+    std_t = np.sqrt(np.diag(in_time.X_covariance["cam0"])[3:])
+    assert np.all(np.abs(ros.X["cam0"][:3, 3] - in_time.X["cam0"][:3, 3]) < 0.5 * std_t)
+    std_r = np.sqrt(np.diag(in_time.X_covariance["cam0"])[:3])
+    dR = ros.X["cam0"][:3, :3].T @ in_time.X["cam0"][:3, :3]
+    assert np.arccos(np.clip((np.trace(dR) - 1) / 2, -1, 1)) < 0.5 * np.linalg.norm(std_r)
     assert ros.record.cameras[0].measurements_used == in_time.record.cameras[0].measurements_used
     assert ros.record.cameras[0].rejected == ()
 
