@@ -46,8 +46,13 @@ def test_mocap_and_several_boards_are_one_problem(tmp_path):
     Y = np.array(rec["T_world_target"])
     assert g.translation_distance(Y, np.array(truth["T_world_board"][first])) < 0.005
     for board, t in rec["targets"].items():
-        assert g.translation_distance(np.array(t["T_world_target"]),
-                                      np.array(truth["T_world_board"][board])) < 0.005, board
+        e = _error(np.array(t["T_world_target"]), np.array(truth["T_world_board"][board]))
+        assert np.linalg.norm(e[3:]) < 0.005, board
+        assert float(e @ np.linalg.solve(np.array(t["covariance"]), e)) < 30, board
+    details = json.loads((tmp_path / "out" / "details.json").read_text())
+    for name, cam in details["cameras"].items():       # the residuals the refinement minimised
+        assert cam["points"]["source"] == "refined"
+        assert 0 < np.nanmax(cam["points"]["rms_px"]) < 1.0, name
 
 
 def test_eye_to_base_with_several_boards_is_refused_in_one_line(tmp_path):

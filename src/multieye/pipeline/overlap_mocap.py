@@ -17,7 +17,8 @@ A rig.yaml with ``mocap:`` and several ``targets:`` is calibrated as one problem
 - :func:`with_mocap`: the record stated in the eye-on-hand contract (docs/outputs.md,
   section 2): per camera ``X = T_body_cam = inv(T_ref_body) @ T_ref_cam``, ``Y =
   T_world_target`` of the first board (``T_mocap_world``, the world being the first board),
-  every board in the motion capture's frame, each with its covariance from the joint one.
+  every board in the motion capture's frame, each with its covariance from the joint one;
+  :func:`eye_on_hand_layout`: the evidence in the eye-on-hand layout the writers read.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ from multieye.pipeline.camera_data import pair_camera
 from multieye.pipeline.problem import Problem
 from multieye.pipeline.refine import mocap_noise
 
-__all__ = ["refuse_eye_to_base", "rig_mocap", "with_mocap", "has_mocap"]
+__all__ = ["refuse_eye_to_base", "rig_mocap", "with_mocap", "has_mocap", "eye_on_hand_layout"]
 
 EYE_ON_HAND = "eye-on-hand"
 
@@ -149,3 +150,22 @@ def with_mocap(record: CalibrationRecord, sol, problem: Problem) -> CalibrationR
                    uncertainty={"T_world_target": _uncertainty(
                        _propagated(cov, off, [("Ym", 0, np.eye(6))]))},
                    frames=problem.rig.frames)
+
+
+def eye_on_hand_layout(paired: dict, refinement, sol) -> tuple[dict, object]:
+    """The paired cameras and the refinement of the reference camera's layout
+    (:mod:`multieye.pipeline.overlap_run`: ``X = T_ref_cam``, ``Y = I``, ``M_i =
+    T_ref_target``) in the eye-on-hand one: ``X = T_body_cam``, ``Y = T_world_target`` (the
+    first board) and per view ``A_i = M_i = Y @ inv(T_ref_target_i) @ T_ref_body``: for a view
+    of the first board the refined motion-capture pose of its instant, for a view of another
+    board the body's pose relative to that board placed at the first board's pose, so that
+    ``inv(X) @ inv(M_i) @ Y`` is the view's refined board pose (the residuals the refinement
+    minimised, docs/outputs.md, section 3)."""
+    res = sol.result
+    Xm, Y = res.T_rig_marker, res.T_mocap_world
+    X = g.inv(Xm)[None] @ res.T_ref_cam
+    M = {n: Y @ g.inv(p.T_world_mocap) @ Xm for n, p in paired.items()}
+    out = {n: replace(p, A=M[n], T_world_mocap=M[n]) for n, p in paired.items()}
+    layout = replace(refinement.result, X=X, Y=Y,
+                     T_world_mocap=tuple(M[n] for n in sol.names))
+    return out, replace(refinement, X=X, Y=Y, result=layout)

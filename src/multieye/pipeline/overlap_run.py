@@ -33,7 +33,8 @@ from multieye.io import (
 from multieye.io.calibration_json import OVERLAP, CameraLinks
 from multieye.pipeline.camera_data import PairedCamera
 from multieye.pipeline.overlap import OverlapSolution, solve_overlap
-from multieye.pipeline.overlap_mocap import has_mocap, rig_mocap, with_mocap
+from multieye.pipeline.overlap_mocap import (eye_on_hand_layout, has_mocap, rig_mocap,
+                                           with_mocap)
 from multieye.pipeline.overlap_motion import MotionSolution, board_order, solve_motion
 from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.problem import Problem
@@ -137,6 +138,7 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
                                "one of them; give that one as rig.yaml's target:",
                                path=problem.rig.path)
         record = with_mocap(record, sol, problem)
+        paired, refinement = eye_on_hand_layout(paired, refinement, sol)
     cameras = {n: replace(d, intrinsics=estimated.get(n, d.intrinsics))
                for n, d in problem.cameras.items()}
     return CalibrationRun(rig=problem.rig, record=record, closed_form=None, cameras=cameras,
