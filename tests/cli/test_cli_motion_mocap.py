@@ -66,3 +66,12 @@ def test_eye_to_base_with_several_boards_is_refused_in_one_line(tmp_path):
     lines = [line for line in res.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "eye-to-base" in lines[0] and "eye-on-hand" in lines[0]
     assert not (tmp_path / "out" / "calibration.json").exists()
+
+
+def test_options_this_path_does_not_take_are_refused_in_one_line(tmp_path):
+    render_wall_dataset(tmp_path / "ds", WallSpec(n_instants=4, width=320, height=240),
+                        seed=0, mocap=True)
+    res = CliRunner().invoke(main, ["calibrate", str(tmp_path / "ds"), "-o",
+                                    str(tmp_path / "out"), "--time-offset", "auto"])
+    assert res.exit_code == 2, (res.stdout, res.stderr)
+    assert "with motion capture and 3 targets the clocks are not estimated" in res.stderr

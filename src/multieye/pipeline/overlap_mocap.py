@@ -35,12 +35,12 @@ from multieye.estimate.refine_images import (
     DEFAULT_MOCAP_TRANS_SIGMA_M,
 )
 from multieye.estimate.uncertainty import pose_std
-from multieye.io import BoardRecord, CalibrationRecord, PoseUncertainty, Rig
+from multieye.io import CalibrationRecord, PoseUncertainty, Rig
 from multieye.pipeline.camera_data import pair_camera
 from multieye.pipeline.problem import Problem
 from multieye.pipeline.refine import mocap_noise
 
-__all__ = ["refuse_eye_to_base", "rig_mocap", "with_mocap", "has_mocap", "eye_on_hand_layout"]
+__all__ = ["refuse_eye_to_base", "check_mocap_options", "rig_mocap", "with_mocap", "has_mocap", "eye_on_hand_layout"]
 
 EYE_ON_HAND = "eye-on-hand"
 
@@ -64,6 +64,31 @@ def refuse_eye_to_base(rig: Rig) -> None:
             "one moved board while the cameras stand still, so still boards add no motion to "
             "calibrate with; give one target (the tracked board), or put the marker on the "
             "rig (setup: eye-on-hand)", path=rig.path)
+
+
+def check_mocap_options(problem: Problem) -> Problem:
+    """The problem, once its options are checked against this path.
+
+    Raises
+    ------
+    DatasetError
+        ``time_offset="auto"`` (the clocks are not estimated here), ``--no-refine`` (the
+        refinement is the solve) or another closed-form ``method`` (the start is the rig's
+        motion's, :mod:`multieye.estimate.motion_links`).
+    """
+    opts, where, n = problem.options, problem.rig.path, len(problem.rig.targets)
+    if opts.time_offset == "auto":
+        raise DatasetError(f"--time-offset auto: with motion capture and {n} targets the "
+                           "clocks are not estimated; give each camera's time_offset in "
+                           "rig.yaml", path=where)
+    if not opts.refine:
+        raise DatasetError(f"--no-refine: with motion capture and {n} targets the rig is "
+                           "solved by the refinement on the views and the motion capture",
+                           path=where)
+    if opts.method != "joint":
+        raise DatasetError(f"--method {opts.method}: with motion capture and {n} targets the "
+                           "rig is started from its own motion before the boards", path=where)
+    return problem
 
 
 def rig_mocap(problem: Problem, instants: dict) -> RigMocap:
