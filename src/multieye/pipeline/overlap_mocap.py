@@ -40,7 +40,8 @@ from multieye.pipeline.camera_data import pair_camera
 from multieye.pipeline.problem import Problem
 from multieye.pipeline.refine import mocap_noise
 
-__all__ = ["refuse_eye_to_base", "check_mocap_options", "rig_mocap", "with_mocap", "has_mocap", "eye_on_hand_layout"]
+__all__ = ["refuse_eye_to_base", "check_mocap_options", "rig_mocap", "with_mocap", "has_mocap", "eye_on_hand_layout",
+           "body_cam_jacobians", "board_jacobians"]
 
 EYE_ON_HAND = "eye-on-hand"
 
@@ -126,10 +127,29 @@ def rig_mocap(problem: Problem, instants: dict) -> RigMocap:
                     DEFAULT_MOCAP_TRANS_SIGMA_M if trans is None else trans)
 
 
-def _adjoint(T: np.ndarray) -> np.ndarray:
-    """The 6x6 adjoint of ``T`` for left perturbations ordered rotation then translation."""
-    R, t = T[:3, :3], T[:3, 3]
-    return np.block([[R, np.zeros((3, 3))], [g.skew(t) @ R, R]])
+def body_cam_jacobians(T_rig_marker: np.ndarray, T_ref_cam: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of ``X = inv(T_rig_marker) @ T_ref_cam`` with respect to both, (6, 6) each.
+
+    Every pose perturbed as the engine's ``se3-left`` blocks
+    (:mod:`multieye.optimize.blocks`): ``R <- Exp(phi) R``, ``t <- t + tau``, rotation then
+    translation; X's perturbation likewise.
+    """
+    Rm, tm = T_rig_marker[:3, :3], T_rig_marker[:3, 3]
+    z = np.zeros((3, 3))
+    j_c = np.block([[Rm.T, z], [z, Rm.T]])
+    j_m = np.block([[-Rm.T, z], [Rm.T @ g.skew(T_ref_cam[:3, 3] - tm), -Rm.T]])
+    return j_m, j_c
+
+
+def board_jacobians(T_mocap_world: np.ndarray, T_world_board: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of ``T_mocap_world @ T_world_board`` with respect to both, (6, 6) each
+    (perturbations as :func:`body_cam_jacobians`)."""
+    Ry = T_mocap_world[:3, :3]
+    z, eye = np.zeros((3, 3)), np.eye(3)
+    j_y = np.block([[eye, z], [-g.skew(Ry @ T_world_board[:3, 3]), eye]])
+    return j_y, np.block([[Ry, z], [z, Ry]])
 
 
 def _propagated(cov: np.ndarray, offsets: dict, parts: list) -> np.ndarray:
@@ -156,19 +176,19 @@ def with_mocap(record: CalibrationRecord, sol, problem: Problem) -> CalibrationR
     Xm, Ym = res.T_rig_marker, res.T_mocap_world
     cov, off = res.joint_covariance, res.offsets
     inv_x = g.inv(Xm)
-    ad_inv_x = _adjoint(inv_x)
     others = {j: b for b, j in enumerate(sol.views.others)}
     cams = []
     for j, cam in enumerate(record.cameras):
-        X = inv_x @ res.T_ref_cam[j]          # T_body_cam: dX = Ad(inv Xm) (dC - dXm)
-        parts = [("Xm", 0, -ad_inv_x)] + ([("C", others[j], ad_inv_x)] if j in others else [])
+        X = inv_x @ res.T_ref_cam[j]                                  # T_body_cam
+        j_m, j_c = body_cam_jacobians(Xm, res.T_ref_cam[j])
+        parts = [("Xm", 0, j_m)] + ([("C", others[j], j_c)] if j in others else [])
         unc = dict(cam.uncertainty or {}) | {"T_body_cam": _uncertainty(
             _propagated(cov, off, parts))}
         cams.append(replace(cam, X=X, uncertainty=unc))
     targets = {}
-    ad_y = _adjoint(Ym)
     for k, (name, b) in enumerate((record.targets or {}).items()):
-        parts = [("Ym", 0, np.eye(6))] + ([("W", k - 1, ad_y)] if k else [])
+        j_y, j_w = board_jacobians(Ym, res.T_world_board[k])
+        parts = [("Ym", 0, j_y)] + ([("W", k - 1, j_w)] if k else [])
         targets[name] = replace(b, T_world_target=Ym @ res.T_world_board[k],
                                 uncertainty=_uncertainty(_propagated(cov, off, parts)))
     return replace(record, setup=problem.setup, Y=Ym, cameras=tuple(cams), targets=targets,
