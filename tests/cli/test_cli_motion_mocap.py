@@ -32,12 +32,14 @@ def test_mocap_and_several_boards_are_one_problem(tmp_path):
     truth = json.loads((tmp_path / "ds" / "ground_truth.json").read_text())
     rec = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert rec["setup"] == "eye-on-hand" and rec["method"] == "motion-links"
+    assert "cam0 linked by: motion capture" in res.stdout
     T_body_ref = np.array(truth["T_body_ref"])
     for name, cam in rec["cameras"].items():
         true_ref = np.array(truth["T_ref_cam"][name])
         if name != rec["reference_camera"]:
             e = _error(np.array(cam["T_ref_cam"]), true_ref)
             assert float(e @ np.linalg.solve(np.array(cam["covariance"]), e)) < 30  # chi2(6)
+        assert cam["links"]["mocap"] is True
         X, unc = np.array(cam["T_body_cam"]), cam["uncertainty"]["T_body_cam"]
         e = _error(X, T_body_ref @ true_ref)
         assert float(e @ np.linalg.solve(np.array(unc["covariance"]), e)) < 30, name

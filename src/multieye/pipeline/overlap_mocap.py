@@ -184,7 +184,9 @@ def with_mocap(record: CalibrationRecord, sol, problem: Problem) -> CalibrationR
         parts = [("Xm", 0, j_m)] + ([("C", others[j], j_c)] if j in others else [])
         unc = dict(cam.uncertainty or {}) | {"T_body_cam": _uncertainty(
             _propagated(cov, off, parts))}
-        cams.append(replace(cam, X=X, uncertainty=unc))
+        links = None if cam.links is None else replace(
+            cam.links, mocap=problem.cameras[cam.name].mocap is not None)
+        cams.append(replace(cam, X=X, uncertainty=unc, links=links))
     targets = {}
     for k, (name, b) in enumerate((record.targets or {}).items()):
         j_y, j_w = board_jacobians(Ym, res.T_world_board[k])
