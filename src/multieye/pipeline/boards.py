@@ -20,8 +20,7 @@ from multieye.imaging.target_hints import counting_rule
 from multieye.imaging.targets import Target, target_from_spec
 from multieye.io import RejectedItem, Rig
 
-__all__ = ["camera_boards", "per_board", "no_usable_image", "rejection_kind",
-           "refuse_several_boards"]
+__all__ = ["camera_boards", "per_board", "no_usable_image", "rejection_kind"]
 
 
 def camera_boards(rig: Rig, camera: str, built: Mapping[str, Target] | None = None
@@ -114,21 +113,3 @@ def no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
              for kind, items in kinds.items()]
     return f"none of the {n} images is usable: " + "; ".join(parts)
 
-
-def refuse_several_boards(rig: Rig) -> None:
-    """Several boards are read and detected, one view per (image, board); with motion
-    capture the calibration that estimates the boards' poses from them is not in this
-    version (without it: :mod:`multieye.pipeline.overlap_motion`): refuse, rather than take
-    views of different boards for views of one.
-
-    Raises
-    ------
-    DatasetError
-        rig.yaml has more than one target.
-    """
-    if len(rig.targets) > 1:
-        raise DatasetError(f"targets: {len(rig.targets)} boards ({', '.join(rig.targets)}) are "
-                           "read and detected, but their calibration with motion capture "
-                           "(each board's pose estimated with the rig) is not in this "
-                           "version; give one target, or calibrate without mocap:",
-                           path=rig.path)

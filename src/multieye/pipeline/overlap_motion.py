@@ -27,7 +27,7 @@ Synopsis
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -139,7 +139,7 @@ def _observability_findings(obs: Observability) -> tuple[Finding, ...]:
 
 def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
                  sync_tolerance: float | None = None, sync: str = "time", robust: bool = True,
-                 boards: Sequence[str] = ()) -> MotionSolution:
+                 boards: Sequence[str] = (), mocap: Callable | None = None) -> MotionSolution:
     """Calibrate the rig from views of several still boards (module docstring).
 
     Parameters
@@ -156,6 +156,11 @@ def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
         Huber loss on the pixels (else least squares).
     boards : sequence of str
         rig.yaml's board names in order (the first one seen is the world).
+    mocap : callable, optional
+        The rig's motion capture: called with the instants (dict of camera name to the
+        instant of each observation), returns a
+        :class:`~multieye.estimate.motion_mocap.RigMocap` at those instants
+        (:func:`multieye.pipeline.overlap_mocap.rig_mocap`), refined with the views.
 
     Raises
     ------
@@ -185,7 +190,8 @@ def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
     mv = MotionViews(dict(zip(names, views)), [cameras[n].intrinsics for n in names],
                      names.index(reference),
                      free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
-    result = refine_motion(mv, np.stack(poses), loss="huber" if robust else "linear")
+    result = refine_motion(mv, np.stack(poses), loss="huber" if robust else "linear",
+                           mocap=None if mocap is None else mocap(inst))
     obs = observability(result, mv)
     findings = _fit_findings(cameras, mv, result) + _observability_findings(obs)
     return MotionSolution(

@@ -33,6 +33,8 @@ from multieye.io import (
 from multieye.io.calibration_json import OVERLAP, CameraLinks
 from multieye.pipeline.camera_data import PairedCamera
 from multieye.pipeline.overlap import OverlapSolution, solve_overlap
+from multieye.pipeline.overlap_mocap import (eye_on_hand_layout, has_mocap, rig_mocap,
+                                           with_mocap)
 from multieye.pipeline.overlap_motion import MotionSolution, board_order, solve_motion
 from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.problem import Problem
@@ -96,10 +98,12 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         As :func:`multieye.pipeline.overlap.solve_overlap`.
     """
     declared = tuple(getattr(problem.rig, "targets", None) or ())
+    mocap = has_mocap(problem)          # the rig's motion capture too (issue 34, item 1)
     if len(board_order(problem.cameras, declared)) > 1:      # linked by motion too (issue 34)
         sol = solve_motion(problem.cameras, problem.reference,
                            sync_tolerance=problem.rig.sync_tolerance, sync=problem.rig.sync,
-                           robust=problem.options.robust, boards=declared)
+                           robust=problem.options.robust, boards=declared,
+                           mocap=(lambda inst: rig_mocap(problem, inst)) if mocap else None)
         M = tuple(sol.T_ref_target(n) for n in sol.names)
     else:
         sol = solve_overlap(problem.cameras, problem.reference,
@@ -128,6 +132,13 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
     warnings = camera_warnings(problem.cameras)
     warnings += sol.warnings + tuple(f.message for f in sol.findings)
     record = _record(problem, sol, paired, rms, warnings)
+    if mocap:
+        if not _by_motion(sol):
+            raise DatasetError("motion capture with several targets: the images show only "
+                               "one of them; give that one as rig.yaml's target:",
+                               path=problem.rig.path)
+        record = with_mocap(record, sol, problem)
+        paired, refinement = eye_on_hand_layout(paired, refinement, sol)
     cameras = {n: replace(d, intrinsics=estimated.get(n, d.intrinsics))
                for n, d in problem.cameras.items()}
     return CalibrationRun(rig=problem.rig, record=record, closed_form=None, cameras=cameras,

@@ -65,7 +65,7 @@ from multieye.estimate.refine_images import (
 from multieye.pipeline.overlap import paired_instants, share_instants
 from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
-from multieye.pipeline.boards import refuse_several_boards
+from multieye.pipeline.overlap_mocap import check_mocap_options, refuse_eye_to_base
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.rig_model import RigModel
@@ -136,7 +136,11 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         run = calibrate_overlap(check_overlap_options(problem))      # and by motion (34)
         return replace(run, timings=StageTimings(refinement=time.perf_counter() - clock[0],
                                                  total=time.perf_counter() - clock[0]))
-    refuse_several_boards(rig)           # with motion capture: until their estimation lands
+    if len(rig.targets) > 1:             # with motion capture: the rig's motion too (34)
+        refuse_eye_to_base(rig)
+        run = calibrate_overlap(check_mocap_options(problem))
+        return replace(run, timings=StageTimings(refinement=time.perf_counter() - clock[0],
+                                                 total=time.perf_counter() - clock[0]))
     every = pair(problem)
 
     def check() -> Plausibility:      # every measurement: why a failing stage failed
