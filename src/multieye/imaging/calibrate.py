@@ -29,7 +29,7 @@ from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
 from multieye.core.lens import project_points
 from multieye.imaging.generic_start import fit_lens, generic_start
 from multieye.imaging.detect import Detection
-from multieye.imaging.pnp import estimate_pose, estimate_poses
+from multieye.imaging.pnp import collinear, estimate_pose, estimate_poses
 from multieye.imaging.rays import bearings
 from multieye.imaging.pool_tasks import SplitTask
 
@@ -116,14 +116,20 @@ def _pinhole_start(obj, img, size, flags: int, all_poses: bool = True):
     """``cv2.calibrateCamera`` on at most :data:`START_VIEWS` views spread over the
     recording, then (``all_poses``) every other view's pose by ``cv2.solvePnP`` with that
     lens (same return values, None for a view not posed; the RMS over the calibrated views).
-    See :func:`_fisheye_start`."""
-    pick = _spread(len(obj), START_VIEWS)
+    See :func:`_fisheye_start`.  Views of fewer than 4 points or of points on one line (a
+    ChArUco board's single column of corners) determine no homography and would make OpenCV
+    fail: they are neither calibrated from nor posed (None)."""
+    good = np.array([i for i, o in enumerate(obj) if len(o) >= 4
+                     and not collinear(np.asarray(o, np.float64)[:, :2])], np.int64)
+    if good.size < MIN_VIEWS:
+        raise cv2.error(f"only {good.size} views of 4 or more points not on one line")
+    pick = good[_spread(good.size, START_VIEWS)]
     rms, K, D, rv, tv = cv2.calibrateCamera([obj[i] for i in pick], [img[i] for i in pick],
                                             size, None, None, flags=flags, criteria=_CRITERIA)
     rvecs, tvecs = [None] * len(obj), [None] * len(obj)
     for i, r, t in zip(pick, rv, tv):
         rvecs[i], tvecs[i] = r, t
-    for i in np.setdiff1d(np.arange(len(obj)), pick) if all_poses else ():
+    for i in np.setdiff1d(good, pick) if all_poses else ():
         ok, rvecs[i], tvecs[i] = cv2.solvePnP(obj[i], img[i], K, D)
         if not ok:
             raise cv2.error(f"no pose of view {i} with the start lens")

@@ -40,7 +40,7 @@ from multieye.imaging.detect import Detection
 from multieye.imaging.pnp_refine import refine_fisheye, refine_wide
 from multieye.imaging.rays import bearings, ippe_on_rays
 
-__all__ = ["PoseEstimate", "estimate_pose", "estimate_poses", "refit_pose", "refit_poses",
+__all__ = ["PoseEstimate", "collinear", "estimate_pose", "estimate_poses", "refit_pose", "refit_poses",
            "reprojection_residuals",
            "ambiguity_warning", "ALTERNATIVE_RATIO", "ALTERNATIVE_PX",
            "AMBIGUOUS_RATIO", "AMBIGUOUS_PX"]
@@ -172,7 +172,7 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
             raise InputError(f"only {int(ok.sum())} of {len(obj)} points lie where the lens "
                              "model can be inverted; PnP needs 4")
         obj, img, xy = obj[ok], img[ok], xy[ok]
-    if _collinear(obj[:, :2]):
+    if collinear(obj[:, :2]):
         raise InputError(f"the {len(obj)} points lie on one line: the pose is not determined")
 
     candidates = _ippe_candidates(obj, img, xy, intrinsics)
@@ -225,7 +225,7 @@ def estimate_poses(detections: Sequence[Detection], intrinsics: Intrinsics
     for k in batch:
         obj, img = views[k]
         xy_k, at = every[at:at + len(img)], at + len(img)
-        if not np.isfinite(xy_k).all() or _collinear(obj[:, :2]):
+        if not np.isfinite(xy_k).all() or collinear(obj[:, :2]):
             continue                                # alone: fewer points, or its error
         candidates = _ippe_candidates(obj, img, xy_k, intrinsics)
         if not candidates or len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
@@ -258,7 +258,7 @@ def _ippe_candidates(obj: F64, img: F64, rays: F64, intrinsics: Intrinsics) -> l
     return sorted(candidates, key=lambda c: c[0])
 
 
-def _collinear(xy: F64) -> bool:
+def collinear(xy: F64) -> bool:
     """Whether planar points lie on one line: the smaller singular value of the centred
     points at most 1e-6 of the larger (from the 2 x 2 scatter matrix, in closed form)."""
     c = xy - xy.mean(axis=0)

@@ -238,6 +238,9 @@ def check_table(check) -> str:
         if c.failures:
             lines.append(f"{c.name}: sampled images without a target pose: " + ", ".join(
                 f"{n} {kind}" for kind, n in c.failures))
+        if len(getattr(c, "boards", ())) > 1:
+            lines.append(f"{c.name}: boards found in the {c.sampled} sampled images: "
+                         + ", ".join(f"{n} in {k}" for n, k in c.boards))
         lines.extend(f"problem: {c.name}: {p}" for p in c.problems)
     lines.extend(getattr(check, "links", ()))
     lines.append("verdict: ok, calibrating can run" if check.ok

@@ -20,7 +20,7 @@ from multieye.imaging.target_hints import counting_rule
 from multieye.imaging.targets import Target, target_from_spec
 from multieye.io import RejectedItem, Rig
 
-__all__ = ["camera_boards", "per_board", "no_usable_image", "rejection_kind"]
+__all__ = ["camera_boards", "intrinsics_boards", "per_board", "no_usable_image", "rejection_kind"]
 
 
 def camera_boards(rig: Rig, camera: str, built: Mapping[str, Target] | None = None
@@ -46,6 +46,18 @@ def camera_boards(rig: Rig, camera: str, built: Mapping[str, Target] | None = No
     if len(made) == 1:
         return next(iter(made.values())), tuple(made)
     return Boards.of(made), tuple(made)
+
+
+def intrinsics_boards(rig: Rig, camera: str, model) -> tuple[Target | Boards, tuple[str, ...]]:
+    """What camera ``camera`` looks for in its ``intrinsics_images``: its own
+    ``intrinsics_target`` (named ``"target"``), else the boards it looks for in its
+    recording (:func:`camera_boards`), one view per (image, board) after :func:`per_board`.
+    ``model``: the rig's targets built once (:class:`multieye.pipeline.rig_model.RigModel`).
+    """
+    own = model.intrinsics_targets.get(camera)
+    if own is not None:
+        return own, ("target",)
+    return camera_boards(rig, camera, model.targets)
 
 
 def per_board(stamped: list, results: list[ImageResult], looked_for: tuple[str, ...]

@@ -29,7 +29,8 @@ from multieye.io import (
     read_mocap,
     read_tum,
 )
-from multieye.pipeline.boards import camera_boards, no_usable_image as _no_usable_image, per_board
+from multieye.pipeline.boards import camera_boards, intrinsics_boards, per_board
+from multieye.pipeline.boards import no_usable_image as _no_usable_image
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
 from multieye.pipeline.detection import Workers, detect_all, detect_listed
 from multieye.pipeline.estimated_lens import lens_start, posed_on_refined_lens, start_lens, with_poses
@@ -282,39 +283,47 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
                      chosen=chosen)
 
 
-def _detect_intrinsics_images(cam, model: RigModel, intr: Intrinsics | None, workers: Workers
-                              ) -> tuple[list[Path], list, float]:
+def _detect_intrinsics_images(rig: Rig, cam, model: RigModel, intr: Intrinsics | None,
+                              workers: Workers) -> tuple[list[tuple[Path, str | None]], list,
+                                                         float]:
     """Detection (and PnP with ``intr`` unless None) over a camera's ``intrinsics_images``
-    (their own board if given): the paths, the results and the seconds it took."""
+    (their own board if given, else every board the camera may see): per (image, board)
+    the path and board name, the results, and the seconds it took."""
 
-    target = model.intrinsics_target(cam.name)
+    target, names = intrinsics_boards(rig, cam.name, model)
     paths = list_image_files(cam.intrinsics_images)
     key = (cam.name, "intrinsics_images")
     if key in workers.detected:
-        return paths, workers.detected[key], workers.seconds[key]
-    t0 = time.perf_counter()
-    results = workers.detect(paths, target, intr)
-    return paths, results, time.perf_counter() - t0
+        results, seconds = workers.detected[key], workers.seconds[key]
+    else:
+        t0 = time.perf_counter()
+        results = workers.detect(paths, target, intr)
+        seconds = time.perf_counter() - t0
+    paths, results, boards = per_board(paths, results, names)      # one per (image, board)
+    return list(zip(paths, boards)), results, seconds
 
 
-def _intrinsics_views(cam, model: RigModel, intr: Intrinsics, workers: Workers,
+def _intrinsics_views(rig: Rig, cam, model: RigModel, intr: Intrinsics, workers: Workers,
                       detected=None) -> tuple[list[Observation], list[RejectedItem], float]:
     """Detection and PnP over a camera's ``intrinsics_images`` (their own board if given);
     ``detected``: their detection-only ``(paths, results, seconds)`` already at hand, to
     which only the PnP with ``intr`` is added."""
     if detected is None:
-        paths, results, seconds = _detect_intrinsics_images(cam, model, intr, workers)
+        paths, results, seconds = _detect_intrinsics_images(rig, cam, model, intr, workers)
     else:
         paths, results, seconds = detected
         results = with_poses(results, intr)
     obs, rejected = [], []
-    for path, res in zip(paths, results):
+    several = len({b for _, b in paths}) > 1
+    for (path, board), res in zip(paths, results):
         label = f"{cam.intrinsics_images.name}/{path.name}"
+        label += f" ({board})" if several and board is not None else ""
         if res.ok:
             obs.append(Observation(name=label, stamp=float("nan"),
                                    T_cam_target=res.pose.T_cam_target, rms_px=res.pose.rms_px,
                                    object_points=res.detection.object_points,
-                                   image_points=res.detection.image_points))
+                                   image_points=res.detection.image_points,
+                                   target=board or "target"))
         else:
             rejected.append(RejectedItem(label, res.reason))
     rejected.extend(RejectedItem(f"{cam.intrinsics_images.name}/{n}", why)
@@ -443,7 +452,7 @@ def _from_images(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
     # a lens to estimate: the intrinsics_images inform its start too
     extra = None
     if cam.intrinsics_images is not None and intr is None:
-        extra = _detect_intrinsics_images(cam, model, None, workers)
+        extra = _detect_intrinsics_images(rig, cam, model, None, workers)
     det = _observations_from_images(rig, model, name, intr, workers,
                                     listed=motion.listed if chosen is None else chosen.kept,
                                     extra_views=() if extra is None else extra[1], chosen=chosen)
@@ -454,7 +463,7 @@ def _from_images(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
     intr = intr if det.intrinsics is None else det.intrinsics
     seconds, views = det.seconds, []
     if cam.intrinsics_images is not None:
-        views, lost, s = _intrinsics_views(cam, model, intr, workers, detected=extra)
+        views, lost, s = _intrinsics_views(rig, cam, model, intr, workers, detected=extra)
         rejected, seconds = rejected + lost, seconds + s
     return _Seen(intrinsics=intr, observations=tuple(det.observations), rejected=tuple(rejected),
                  n_inputs=n_inputs, warnings=det.warnings, seconds=seconds, views=tuple(views),

@@ -19,7 +19,7 @@ from multieye.imaging.calibrate import lens_start_task
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.core.errors import DatasetError
 from multieye.io import Rig, iter_bag_images, list_image_files
-from multieye.pipeline.boards import camera_boards
+from multieye.pipeline.boards import camera_boards, intrinsics_boards
 from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.pipeline.recordings import listed_images
 from multieye.pipeline.rig_model import RigModel
@@ -92,7 +92,7 @@ def detect_all(rig: Rig, model: RigModel, motions: dict, workers: Workers, chose
         if cam.intrinsics_images is not None:
             keys.append((name, "intrinsics_images"))
             jobs.append(ImageJob(tuple(str(p) for p in list_image_files(cam.intrinsics_images)),
-                                 model.intrinsics_target(name), intr))
+                                 intrinsics_boards(rig, name, model)[0], intr))
     if not jobs:
         return workers
     t0 = time.perf_counter()

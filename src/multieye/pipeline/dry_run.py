@@ -27,6 +27,8 @@ from multieye.io import Trajectory, bag_image_count, list_image_files, load_rig,
 from multieye.io import sample_bag_images
 from multieye.pipeline.recordings import check_sync, image_notes, listed_images, sync_instant
 from multieye.pipeline.rig_model import RigModel, build_rig_model
+from multieye.pipeline.boards import camera_boards
+from multieye.pipeline.dry_run_boards import boards_found, motion_links
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 from multieye.pipeline.estimated_lens import model_warnings
@@ -77,6 +79,12 @@ class CameraCheck:
         Without motion capture: every listed image's stamp plus the camera's time offset.
     keys : tuple of str
         With rig.yaml's ``sync`` other than ``time``: every listed image's instant key.
+    boards : tuple of (str, int)
+        Every board the camera may see (rig.yaml ``targets:``) and in how many sampled images
+        it was found.
+    seen : tuple of (int, tuple of str)
+        Per sampled image with a board found: its index among the listed images and the
+        boards found in it.
     """
 
     name: str
@@ -95,6 +103,8 @@ class CameraCheck:
     fatal: tuple[str, ...]
     stamps: tuple[float, ...] = ()
     keys: tuple[str, ...] = ()
+    boards: tuple[tuple[str, int], ...] = ()
+    seen: tuple[tuple[int, tuple[str, ...]], ...] = ()
 
     @property
     def found_percent(self) -> float:
@@ -234,6 +244,8 @@ class _Sample:
     problems: tuple[str, ...] = ()
     paths: tuple = ()           # the sampled images' files (a folder of images only)
     names: tuple = ()           # every listed image's file name (a folder of images only)
+    boards: tuple = ()          # (board, sampled images it was found in), every board looked for
+    seen: tuple = ()            # (listed index, boards found) of each sampled image with one
 
 
 def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
@@ -244,6 +256,8 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
     results: list = []
     paths: list = []
     names: tuple = ()
+    boards: tuple = ()
+    seen: tuple = ()
     failures: dict[str, int] = {}
     if cam.source == "poses":
         poses = read_tum(cam.poses, parent="cam", child="target")
@@ -255,7 +269,8 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
             failures["pose row left out"] = len(poses.skipped)
         n_sampled = n_listed
     else:
-        target, intr = model.target, model.lenses[cam.name]
+        target, looked_for = camera_boards(rig, cam.name, model.targets)
+        intr = model.lenses[cam.name]
         if cam.source == "images":
             images = listed_images(rig, cam.name) if listed is None else listed
             names = tuple(p.name for _, _, p in images)
@@ -286,10 +301,13 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
             if r.reason is not None:
                 failures[rejection_kind(r.reason)] = failures.get(rejection_kind(r.reason), 0) + 1
         n_sampled = len(sampled_idx)
+        found = boards_found(results, looked_for)
+        boards = tuple((n, sum(n in f for f in found)) for n in looked_for)
+        seen = tuple((i, f) for i, f in zip(sampled_idx, found) if f)
     return _Sample(stamps=stamps, n_listed=n_listed, sampled_idx=sampled_idx,
                    found_mask=found_mask, results=results, failures=failures,
                    n_sampled=n_sampled, problems=tuple(problems), paths=tuple(paths),
-                   names=names)
+                   names=names, boards=boards, seen=seen)
 
 
 def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> CameraCheck:
@@ -368,7 +386,8 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
                        with_mocap=int(has_pose.sum()), paired=n_paired,
                        expected_usable=expected, time_tolerance_s=float(tolerance),
                        rotation_range_deg=range_deg, rotation_spread_deg=spread,
-                       problems=tuple(problems), fatal=tuple(fatal))
+                       problems=tuple(problems), fatal=tuple(fatal), boards=seen.boards,
+                       seen=seen.seen)
 
 
 def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
@@ -399,7 +418,8 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
                        problems=tuple(problems), fatal=tuple(fatal),
                        stamps=tuple(float(t) + cam.time_offset for t in seen.stamps),
                        keys=tuple(sync_instant(n, t, rig.sync) for n, t in
-                                  zip(seen.names, seen.stamps)) if rig.sync != "time" else ())
+                                  zip(seen.names, seen.stamps)) if rig.sync != "time" else (),
+                       boards=seen.boards, seen=seen.seen)
 
 
 def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...], tuple]:
@@ -419,18 +439,29 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
     allc = np.concatenate([np.full(len(i), j) for j, i in enumerate(inst)])
     cov = covisibility(allc, np.concatenate(inst), len(cams))
     groups = link_groups(cov.shared > 0, [False] * len(cams))
+    several = len(rig.targets or {}) > 1
+    lines = _link_lines(rig, cams, inst, n_inst, cov.shared, tol)
+    if several:         # the rig's motion may link them: what the sampled detections say
+        lines = lines[:1] + tuple(motion_links(
+            [c.name for c in cams],
+            [(j, int(inst[j][i]), b) for j, c in enumerate(cams) for i, bs in c.seen
+             for b in bs]))
     out = []
     for j, c in enumerate(cams):
         others = np.concatenate([i for k, i in enumerate(inst) if k != j] or [np.zeros(0)])
         shared = int(np.isin(inst[j], others).sum())
         fatal = c.fatal
         # several boards: the rig's motion may link them (which the detections decide)
-        if len(groups) > 1 and j not in groups[0] and len(rig.targets or {}) <= 1:
+        if len(groups) > 1 and j not in groups[0] and not several:
             fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol,
                                        rig.sync),)
+        apart = tuple(f"linked to {cams[0].name} by nothing in the sampled images: no board "
+                      "seen at an instant when a linked camera sees one (calibrating would "
+                      "refuse it unless other images link it)"
+                      for line in lines[1:] if line.startswith(f"{c.name} linked by: nothing"))
         out.append(replace(c, with_mocap=shared, fatal=fatal,
-                           problems=c.problems + fatal[len(c.fatal):]))
-    return tuple(out), _link_lines(rig, cams, inst, n_inst, cov.shared, tol)
+                           problems=c.problems + fatal[len(c.fatal):] + apart))
+    return tuple(out), lines
 
 
 #: How each ``sync`` makes images of different cameras one instant, for the dry run's lines.

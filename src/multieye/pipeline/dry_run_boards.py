@@ -1,0 +1,116 @@
+"""The dry run of a rig with several boards (rig.yaml ``targets:``, issue 34): which boards
+each camera found in its sampled images, and what links each camera to the reference camera.
+
+:func:`boards_found` counts, per board, the sampled images in which a camera found it (the
+results of :class:`~multieye.imaging.boards.Boards`, or of a camera's single board).
+:func:`motion_links` follows the growth of the calibration's start
+(:func:`multieye.estimate.motion_links.motion_start`) on the sampled detections alone,
+without poses: from the reference camera and the board it sees most, an instant is placed
+when a placed camera sees a placed board then, a board when a placed camera sees it at a
+placed instant, and a camera when it sees a placed board at a placed instant (*overlap* when
+a placed camera saw that board at that instant too, else *motion*) or any board at a placed
+instant (the hand-eye step, *motion*).  The calibration may still find the motion too poor
+(turned about one axis); it never links a camera this leaves apart.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from multieye.imaging.pnp import collinear
+
+__all__ = ["boards_found", "motion_links"]
+
+
+def boards_found(results: Sequence, looked_for: tuple[str, ...]) -> list[tuple[str, ...]]:
+    """Per sampled image, the names of the boards found in it and usable (posable).
+
+    Parameters
+    ----------
+    results : sequence of ImageResult
+        One per image; with several boards, one per board inside (``parts``).
+    looked_for : tuple of str
+        The boards looked for (:func:`multieye.pipeline.boards.camera_boards`).
+    """
+    return [tuple(n for n, p in (r.parts or ((looked_for[0], r),)) if _posable(p))
+            for r in results]
+
+
+def _posable(r) -> bool:
+    """A usable detection that also gives a pose: 4 points or more not on one line (those
+    on one line, a ChArUco board's single column, are refused by PnP once the lens is
+    known: without a lens the dry run leaves them out as calibrating will)."""
+    if r.reason is not None or r.detection is None:
+        return False
+    obj = np.asarray(r.detection.object_points, np.float64)
+    return len(obj) >= 4 and not collinear(obj[:, :2])
+
+
+def motion_links(labels: Sequence[str], views: Sequence[tuple[int, int, str]]
+                 ) -> list[str]:
+    """``<camera> linked by: ...`` for every camera (module docstring).
+
+    Parameters
+    ----------
+    labels : sequence of str
+        Camera names; the first is the reference camera.
+    views : sequence of (int, int, str)
+        Camera index, instant and board of every sampled detection.
+
+    Returns
+    -------
+    list of str
+        Per camera ``reference camera``, ``overlap with cam1 (3 instants); motion via cam0
+        and boards north, west`` or ``nothing (...)``.
+    """
+    own = [b for c, _, b in views if c == 0]
+    if not own:
+        return [f"{labels[0]} linked by: nothing (the reference camera saw no board in the "
+                "sampled images)"] + [f"{n} linked by: nothing" for n in labels[1:]]
+    cams, boards, insts = {0}, {max(set(own), key=own.count)}, set()
+    how: dict[int, tuple[set, set, dict]] = {}
+    grew = True
+    while grew:
+        grew = False
+        for c, t, b in views:
+            if c in cams and b in boards and t not in insts:
+                insts.add(t)
+                grew = True
+            if c in cams and t in insts and b not in boards:
+                boards.add(b)
+                grew = True
+        for j in range(1, len(labels)):
+            if j in cams:
+                continue
+            if any(c == j and t in insts for c, t, _ in views):
+                cams.add(j)
+                grew = True
+    for j in range(1, len(labels)):
+        mine = {(t, b) for c, t, b in views if c == j and t in insts}
+        shared: dict[int, int] = {}
+        for c, t, b in views:
+            if c != j and (t, b) in mine:
+                shared[c] = shared.get(c, 0) + 1
+        at = {t for t, _ in mine}
+        via = {c for c, t, _ in views if c != j and c in cams and t in at}
+        through = {b for c, t, b in views if c in via and t in at}
+        how[j] = (via, through, shared)
+    lines = [f"{labels[0]} linked by: reference camera"]
+    for j in range(1, len(labels)):
+        if j not in cams:
+            lines.append(f"{labels[j]} linked by: nothing (no sampled image with a board at "
+                         "an instant when a linked camera sees one)")
+            continue
+        via, through, shared = how[j]
+        parts = []
+        if shared:
+            parts.append("overlap with " + ", ".join(
+                f"{labels[c]} ({k}{' instants' if i == 0 else ''})"
+                for i, (c, k) in enumerate(sorted(shared.items()))))
+        elif via:
+            parts.append(f"motion via {', '.join(labels[c] for c in sorted(via))} and "
+                         f"board{'s' * (len(through) > 1)} {', '.join(sorted(through))}")
+        lines.append(f"{labels[j]} linked by: " + ("; ".join(parts) or "motion"))
+    return lines
