@@ -28,8 +28,7 @@ from multieye.imaging.targets import Chessboard, Target
 
 __all__ = ["locate", "search_order", "quick_check", "find_chessboard", "refine_grid", "refine_corners",
            "corner_window", "consistent_grid", "min_spacing", "CLASSIC_FLAGS",
-           "bounded_grid", "mean_greys", "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE",
-           "MIN_DEPARTURE_PX", "MIN_RING_CONTRAST"]
+           "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE", "MIN_DEPARTURE_PX"]
 
 F64 = NDArray[np.float64]
 
@@ -58,98 +57,6 @@ MAX_SECOND_DIFFERENCE = 0.05
 #: The least departure :func:`consistent_grid` flags, pixels: a right grid of small squares
 #: (12-16 px) with blurred corners departed by up to 0.92 px on the renders of issue 32.
 MIN_DEPARTURE_PX = 1.5
-
-
-#: Least share of the inner squares' contrast by which the squares of the board's outer ring
-#: (beyond the outermost inner corners) must keep the board's colours along each side of the
-#: grid (:func:`bounded_grid`): their expected-black ones darker than the middle grey of the
-#: inner squares by a quarter of the contrast between black and white inner squares, their
-#: expected-white ones lighter by as much.
-MIN_RING_CONTRAST = 0.25
-
-
-def bounded_grid(gray: NDArray[np.uint8], points: F64, target: Chessboard) -> bool:
-    """Whether the grid is the whole board: along each of its four sides, the board's outer
-    ring of squares (one square beyond the outermost inner corners, black and white in turn,
-    the white ones merging into the board's margin) is where the grid says.
-
-    A grid shifted by a column off a board whose last column is cut by the image edge has,
-    on its other side, a column of false corners on the board's edge (SB at full size
-    returned such a grid of a 6 x 9 board on a rendered wall view, issue 35): the squares
-    beyond them are the margin, not black and white in turn.  Each side's ring squares are
-    the grid extended by one square (:func:`_ring_centres`); their mean grey (3 x 3 box)
-    must keep the board's colours by :data:`MIN_RING_CONTRAST` of the inner squares'
-    contrast, the expected-black and the expected-white ones each on average.  Only ring
-    squares whose centre is in the image are read; a side with none there (its corners
-    within about half a square of the image edge) cannot be told from a shifted grid and
-    fails.
-
-    Parameters
-    ----------
-    gray : ndarray, shape (H, W), uint8
-    points : ndarray, shape (rows * cols, 2)
-        Refined inner corners, pixels, row by row in either detector's order.
-    target : Chessboard
-    """
-    rows, cols = target.grid_shape()
-    grid = points.reshape(rows, cols, 2)
-    inner = (grid[:-1, :-1] + grid[:-1, 1:] + grid[1:, :-1] + grid[1:, 1:]).reshape(-1, 2) / 4
-    r, c = np.divmod(np.arange(len(inner)), cols - 1)
-    sides = _ring_centres(grid)
-    greys = mean_greys(gray, np.concatenate([inner] + [x for x, _ in sides]))
-    g_in, parity = greys[:len(inner)], (r + c) % 2 == 0
-    even, odd = g_in[parity].mean(), g_in[~parity].mean() if (~parity).any() else None
-    if odd is None:                          # one inner square: no contrast to compare
-        return True
-    middle, contrast = (even + odd) / 2, abs(even - odd)
-    dark_even = even < odd
-    h, w = gray.shape
-    start = len(inner)
-    for centres, ring_parity in sides:
-        g = greys[start:start + len(centres)]
-        start += len(centres)
-        seen = ((centres >= 0.5) & (centres <= [w - 1.5, h - 1.5])).all(axis=1)
-        if not seen.any():
-            return False
-        dark = ring_parity == dark_even
-        for want_dark in (True, False):
-            sel = seen & (dark == want_dark)
-            if sel.any():
-                shift = (g[sel].mean() - middle) * (-1 if want_dark else 1)
-                if shift < MIN_RING_CONTRAST * contrast:
-                    return False
-    return True
-
-
-def _ring_centres(grid: F64) -> list[tuple[F64, NDArray[np.bool_]]]:
-    """Per side of the grid (R, C, 2) (first row, last row, first column, last column): the
-    centres of the board's outer squares along it (the grid extended by one square on that
-    side, linearly; the four corner squares left out), shape (n, 2), and per square whether
-    its (row + column) is even in the inner squares' numbering (the first inner square 0,
-    0; the ring's rows and columns -1 and R - 1 or C - 1)."""
-    out = []
-    for g in (grid, grid.transpose(1, 0, 2)):
-        n = g.shape[1] - 1
-        for edge, beyond, index in ((g[0], 2 * g[0] - g[1], -1),
-                                    (g[-1], 2 * g[-1] - g[-2], g.shape[0] - 1)):
-            centres = (edge[:-1] + edge[1:] + beyond[:-1] + beyond[1:]) / 4
-            parity = (index + np.arange(n)) % 2 == 0
-            out.append((centres, parity))
-    return out
-
-
-def mean_greys(gray: NDArray[np.uint8], centres: F64) -> F64:
-    """Mean grey of a 3 x 3 box of pixels around each of ``centres`` (N, 2), read
-    bilinearly (the image blurred by a 3 x 3 box, without blurring the whole image; pixels
-    beyond the border repeat it).  Shape (N,)."""
-    pts = (centres[:, None, :] + _BOX_OFFSETS[None]).reshape(1, -1, 2).astype(np.float32)
-    samples = cv2.remap(gray, pts[..., 0], pts[..., 1], cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REPLICATE)
-    return samples.reshape(len(centres), 9).astype(np.float64).mean(axis=1)
-
-
-#: Offsets of a 3 x 3 box of pixels, shape (9, 2).
-_BOX_OFFSETS = np.stack(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]), axis=-1).reshape(9, 2)
 
 
 def consistent_grid(points: F64, target: Target) -> bool:
@@ -306,8 +213,7 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
         if raw is None:
             continue
         corners = refine_grid(gray, raw, target)
-        if ((detector == "sb" and not half) or consistent_grid(corners, target)) \
-                and bounded_grid(gray, corners, target):
+        if (detector == "sb" and not half) or consistent_grid(corners, target):
             return corners
     return None
 
