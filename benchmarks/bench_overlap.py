@@ -49,6 +49,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -190,6 +191,7 @@ def evaluate(results: dict, truth: dict, c) -> dict:
 
 
 def main(argv=None) -> None:
+    global SPEC  # noqa: PLW0603 (the rig's spec, read by every helper here)
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=Path("/tmp/bench_overlap"))
     ap.add_argument("--seeds", type=int, default=1,
@@ -203,7 +205,12 @@ def main(argv=None) -> None:
                     help="no rendering: the true corners with Gaussian noise of PX pixels")
     ap.add_argument("--peers", default="multieye,multieye + mocap,mrcal,opencv",
                     help="comma-separated subset of the peers")
+    ap.add_argument("--instants", type=int, default=OverlapSpec().n_instants,
+                    help="board poses per rig (OverlapSpec.n_instants)")
+    ap.add_argument("--size", type=int, nargs=2, default=(OverlapSpec().width, OverlapSpec().height),
+                    metavar=("WIDTH", "HEIGHT"), help="image size, pixels")
     args = ap.parse_args(argv)
+    SPEC = replace(SPEC, n_instants=args.instants, width=args.size[0], height=args.size[1])
     times, errs = {}, []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         data = args.data / f"seed{seed}"

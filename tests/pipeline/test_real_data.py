@@ -75,35 +75,39 @@ def test_yizhong_eye_in_hand_without_published_intrinsics(shared_data, tmp_path)
     assert any("only 6 images of the target" in w for w in run.record.warnings)
 
 
-def test_boofcv_fisheye_of_180_degrees_uses_every_detected_image(shared_data, tmp_path):
+def test_boofcv_fisheye_of_180_degrees_uses_every_image(shared_data, tmp_path):
     """Issue 33: the lens started from a generic model and the images judged on the refined
-    lens: all 24 images where the board is detected are used (before: 6 of 26, the others
-    rejected as a bad fit on OpenCV's start), and the lens is within 0.8 px of BoofCV's
-    within 250 px of the centre (measured 0.67 px; before: 3.2 px)."""
+    lens: all 26 images are used (before: 6 of 26, the others rejected as a bad fit on
+    OpenCV's start; then 24, the boards of 20.jpg and 22.jpg, bent at the rim, not found), and
+    the lens is within 0.9 px of BoofCV's within 250 px of the centre (measured 0.79 px;
+    before: 3.2 px).  BoofCV's reference is not the truth: its corners (BoofCV's binary
+    detector of 2017) put its own lens 0.5 px off the truth on rendered views of this lens
+    (docs/results/wide_lens.md)."""
     from multieye.core.lens_compare import lens_difference_px   # noqa: PLC0415
 
     run = calibrate(real_datasets.boofcv_fisheye(shared_data, tmp_path / "fish"))
     cam = run.record.cameras[0]
-    assert cam.measurements_used == 24
-    assert {r.item for r in cam.rejected} == {"20.jpg", "22.jpg"}   # board not detected
+    assert cam.measurements_used == 26 and not cam.rejected
     ref = real_datasets.BOOFCV_FISHEYE_REFERENCE
     uv = np.concatenate([o.image_points for o in run.paired["fish"].observations])
     near = np.hypot(*(uv - ref.K[:2, 2]).T) <= 250
     d = lens_difference_px(run.cameras["fish"].intrinsics, ref, uv[near])
-    assert np.sqrt(np.mean(d ** 2)) < 0.8
+    assert np.sqrt(np.mean(d ** 2)) < 0.9
 
 
 def test_boofcv_fisheye_check_and_calibrate_name_the_model_that_fits_more(shared_data, tmp_path):
-    """Issue 33, item 3: the fisheye model leaves the corners beyond 90 degrees off the axis
-    without a projection, which the unified model projects with the same held-out RMS; the
-    dry run and the calibration say so, with the figures."""
+    """Issue 33, item 3: the double-sphere lens leaves more held-out reprojection RMS at the
+    rim than the unified one (0.35 against 0.24 px beyond 231 px); the dry run and the
+    calibration say so, with the figures.  (With all 26 views ``fisheye`` is no longer told
+    to use unified: it leaves 48 held-out corners beyond 90 degrees without a projection, but
+    unified's held-out RMS on the others is 0.29 against its 0.23 px, not as good.)"""
     from multieye.pipeline.dry_run import check_dataset   # noqa: PLC0415
 
-    folder = real_datasets.boofcv_fisheye(shared_data, tmp_path / "fish")
+    folder = real_datasets.boofcv_fisheye(shared_data, tmp_path / "fish", "double-sphere")
     found = check_dataset(folder)
     said = [p for c in found.cameras for p in c.problems if "consider model" in p]
     assert len(said) == 1 and said[0].endswith("consider model: unified")
     assert "held-out reprojection RMS" in said[0] and found.ok
     run = calibrate(folder)
     warned = [w for w in run.record.warnings if "consider model" in w]
-    assert len(warned) == 1 and warned[0].startswith("fish: the fisheye lens model leaves ")
+    assert len(warned) == 1 and warned[0].startswith("fish: the double-sphere lens leaves ")

@@ -95,6 +95,12 @@ class ImageData:
         The cameras' clocks: one offset and one trajectory per camera or shared clock.
     extra : IntrinsicsImages or None
         The images that only inform the intrinsics.
+    mocap_noise_scale : ndarray, shape (N,), or None
+        Per image: the noise of its motion-capture pose over the stated one (below 1 for a
+        pose interpolated between two samples); None: 1 for every image.
+    image_noise : ndarray, shape (N,), or None
+        Per image: its pixel noise over the pixel sigma the groups are made with (estimated
+        by :func:`multieye.estimate.variance_components.image_noise`); None: 1 for every image.
     """
 
     setup: str
@@ -108,6 +114,8 @@ class ImageData:
     instant_image: np.ndarray
     units: ClockUnits
     extra: IntrinsicsImages | None
+    mocap_noise_scale: F64 | None = None
+    image_noise: F64 | None = None
 
     # the stacked points' indices, as the residual groups read them
     m = property(lambda self: len(self.names))
@@ -157,8 +165,10 @@ class ImageData:
         timed = [j for j, c in enumerate(self.clocks) if c is not None]
         plain = np.flatnonzero(~np.isin(self.cam_of_image[self.instant_image], timed))
         if plain.size:                                  # one prior per instant, not per image
+            factors = (None if self.mocap_noise_scale is None
+                       else self.mocap_noise_scale[self.instant_image][plain])
             out.append(MocapPriors(self.mocap_measured[self.instant_image], sigma_rot, sigma_t,
-                                   plain))
+                                   plain, factors))
         out += self.units.priors(sigma_rot, sigma_t)
         if self.extra is not None:
             out += self.extra.groups(self, sigma_px)
@@ -345,6 +355,10 @@ class ImageProblem:
         ``t_i + delta`` (:mod:`multieye.estimate.clock_residuals`); the image stamps are the
         camera's images in the order of ``observations[j]``.  None: the given poses are the
         measurements (default for every camera).
+    mocap_noise_scale : sequence over cameras of sequence of float, optional
+        ``mocap_noise_scale[j][i]``: the noise of image i's motion-capture pose over the
+        stated noise, in (0, 1] (:attr:`multieye.estimate.pairing.Pairing.noise_scale`: a
+        pose interpolated between two samples); default 1.  Not used for cameras with a clock.
     """
 
     setup: str
@@ -354,6 +368,7 @@ class ImageProblem:
     free_intrinsics: Sequence[bool] | None = None
     intrinsics_observations: Sequence | None = None
     clocks: Sequence | None = None
+    mocap_noise_scale: Sequence | None = None
 
 
 def image_data(problem: ImageProblem) -> ImageData:
@@ -388,7 +403,23 @@ def image_data(problem: ImageProblem) -> ImageData:
     return ImageData(setup=setup, names=names, intrinsics=tuple(intrinsics), free=free,
                      clocks=clocks, points=points, mocap_measured=mocap, instant=instant,
                      instant_image=instant_image, units=units,
-                     extra=None if extra is None or extra.n_images == 0 else extra)
+                     extra=None if extra is None or extra.n_images == 0 else extra,
+                     mocap_noise_scale=_noise_scale(problem.mocap_noise_scale, points.counts))
+
+
+def _noise_scale(given: Sequence | None, counts: np.ndarray) -> F64 | None:
+    """``mocap_noise_scale`` of :class:`ImageProblem` checked and stacked, (N,)."""
+    if given is None:
+        return None
+    if len(given) != len(counts):
+        raise InputError(f"mocap_noise_scale has {len(given)} entries for {len(counts)} cameras")
+    parts = []
+    for j, (f, n) in enumerate(zip(given, counts)):
+        f = np.ones(n) if f is None else real_array(f, f"mocap_noise_scale[{j}]", shape=(n,))
+        if not np.all((f > 0) & (f <= 1)):
+            raise InputError(f"mocap_noise_scale[{j}] must be in (0, 1], one per image")
+        parts.append(f)
+    return np.concatenate(parts)
 
 @dataclass(frozen=True)
 class IntrinsicsImages:

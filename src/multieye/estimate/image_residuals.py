@@ -113,6 +113,7 @@ class PixelResiduals(ResidualGroup):
     data : ImageData
     camera : int
     sigma_px : float
+        The pixel noise; an image's is ``sigma_px`` times its ``data.image_noise`` (when set).
     free_intrinsics : bool
         Estimate the camera's intrinsics (a slot of their own).
     """
@@ -131,7 +132,10 @@ class PixelResiduals(ResidualGroup):
         self.data, self.camera, self.points = data, camera, pts
         self.images = images
         self.blocks = data.instant[images]                          # block of M of each image
-        self.sigma = float(sigma_px)
+        rel = getattr(data, "image_noise", None)
+        # per point (P_j, 1): its image's noise
+        self.sigma = float(sigma_px) * (np.ones((pts.stop - pts.start, 1)) if rel is None
+                                        else rel[data.image[pts]][:, None])
         self.free = bool(free_intrinsics)
         self._obj = np.zeros((images.size, self.longest, 3))
         self._obj[self.segment, self.position] = data.object_points[pts]
@@ -165,12 +169,13 @@ class PixelResiduals(ResidualGroup):
         images = slice(*part.index_range)
         ry, py, q, d, pc = self._chain(X, Y, M, images)
         uv, Jp, Jk = _pixels(part.gather(pc), intr, True, self.free)
-        r = (uv - self._uv[part.rows]) / self.sigma
+        sigma = self.sigma[part.rows]
+        r = (uv - self._uv[part.rows]) / sigma
         n_img, n = len(self.blocks[images]), self.longest
         RX = X[self.camera, :3, :3]
         RM = M[self.blocks[images], :3, :3]
         G = RX.T @ (RM if self.data.setup == "eye-to-base" else RM.swapaxes(1, 2))
-        flat = part.pad(Jp / self.sigma).reshape(n_img, 2 * n, 3)
+        flat = part.pad(Jp / sigma[:, :, None]).reshape(n_img, 2 * n, 3)
         JpR = (flat @ RX.T).reshape(n_img, n, 2, 3)                     # d r / d q
         JpG = (flat @ G).reshape(n_img, n, 2, 3)                        # d r / d p_y
         c = 18 + (Jk.shape[2] if self.free else 0)
@@ -192,7 +197,7 @@ class PixelResiduals(ResidualGroup):
                         .reshape(JpR.shape), out=out[..., 0:3])
             np.negative(JpG, out=out[..., 15:18])
         if self.free:
-            out[..., 18:] = part.pad(Jk / self.sigma).reshape(n_img, n, 2, -1)
+            out[..., 18:] = part.pad(Jk / sigma[:, :, None]).reshape(n_img, n, 2, -1)
         return r, out
 
     def linearize(self, values: Mapping[str, F64]):
@@ -288,13 +293,18 @@ class MocapPriors(ResidualGroup):
         position coordinate (metres, world frame).
     blocks : array_like of int, shape (n,), optional
         The blocks of ``M`` (instants) these priors cover; default all.
+    factors : array_like, shape (n,), optional
+        Per prior, its noise over ``sigma_rot, sigma_t`` (a pose interpolated between two
+        samples is less noisy than one); default 1.
     """
 
-    def __init__(self, measured: F64, sigma_rot: float, sigma_t: float, blocks=None):
+    def __init__(self, measured: F64, sigma_rot: float, sigma_t: float, blocks=None,
+                 factors=None):
         blocks = np.arange(len(measured)) if blocks is None else np.asarray(blocks, int)
         super().__init__(("M",), blocks[:, None], np.arange(len(blocks)), 6)
         self.measured = measured[blocks]
-        self.scale = 1.0 / np.repeat([float(sigma_rot), float(sigma_t)], 3)
+        f = np.ones(len(blocks)) if factors is None else np.asarray(factors, float)
+        self.scale = 1.0 / (np.repeat([float(sigma_rot), float(sigma_t)], 3) * f[:, None])
 
     def evaluate(self, values: Mapping[str, F64], jacobians: bool):
         M, Mm = values["M"][self.index[:, 0]], self.measured
@@ -303,6 +313,6 @@ class MocapPriors(ResidualGroup):
         if not jacobians:
             return r, None
         J = np.zeros((len(M), 6, 6))
-        J[:, :3, :3] = left_jacobian_inv(-r_rot) * self.scale[0]        # J_r^-1(r_rot)
-        J[:, 3:, 3:] = np.eye(3) * self.scale[3]
+        J[:, :3, :3] = left_jacobian_inv(-r_rot) * self.scale[:, :1, None]  # J_r^-1(r_rot)
+        J[:, 3:, 3:] = np.eye(3) * self.scale[:, 3:4, None]
         return r, [J]

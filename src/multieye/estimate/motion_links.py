@@ -40,7 +40,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize_scalar
 
 from multieye.core import geometry as g
 from multieye.core.errors import DegenerateMotionError, DisconnectedError, InputError
@@ -342,6 +341,8 @@ def single_axis_hand_eye(A, B) -> tuple[F64, F64]:
 
     grid = np.radians(np.arange(-180.0, 180.0, 1.0))
     best = grid[int(np.argmin([fit(a)[0] for a in grid]))]
+    from scipy.optimize import minimize_scalar  # noqa: PLC0415 (scipy.optimize imports scipy.spatial: only for a rig turning about one axis, off a calibration's usual path)
+
     theta = minimize_scalar(lambda a: fit(a)[0], bounds=(best - 0.02, best + 0.02),
                             method="bounded", options={"xatol": 1e-12}).x
     X = fit(theta)[1]

@@ -44,6 +44,10 @@ class Pairing:
         Whether the pose was interpolated between two bracketing samples.
     unpaired : tuple of (int, str)
         Query index and the reason it got no pose.
+    noise_scale : ndarray, shape (K,)
+        The standard deviation of each pose's noise over one sample's, for samples whose
+        noise is independent: ``sqrt(a^2 + (1 - a)^2)`` for a pose interpolated at ``a``
+        between two samples (0.71 midway), 1 for a sample taken as it is.
     """
 
     index: np.ndarray
@@ -51,6 +55,7 @@ class Pairing:
     gap_s: np.ndarray
     interpolated: np.ndarray
     unpaired: tuple[tuple[int, str], ...]
+    noise_scale: np.ndarray | None = None
 
 
 def interpolate_poses(T0: ArrayLike, T1: ArrayLike, alpha: ArrayLike) -> np.ndarray:
@@ -136,10 +141,12 @@ def pair_in_time(stamps: ArrayLike, T: ArrayLike, query: ArrayLike, *, tolerance
     nearest = np.where(dl <= dr, li, ri)
 
     out = T[nearest].copy()
+    scale = np.ones(len(q))
     if np.any(interp):
         k = np.flatnonzero(interp)
         alpha = (q[k] - stamps[li[k]]) / (stamps[ri[k]] - stamps[li[k]])
         out[k] = interpolate_poses(T[li[k]], T[ri[k]], alpha)
+        scale[k] = np.sqrt(alpha ** 2 + (1.0 - alpha) ** 2)
 
     unpaired = []
     for i in np.flatnonzero(~ok):
@@ -152,4 +159,4 @@ def pair_in_time(stamps: ArrayLike, T: ArrayLike, query: ArrayLike, *, tolerance
         unpaired.append((int(i), why))
     idx = np.flatnonzero(ok)
     return Pairing(index=idx, T=out[idx], gap_s=gap[idx], interpolated=interp[idx],
-                   unpaired=tuple(unpaired))
+                   unpaired=tuple(unpaired), noise_scale=scale[idx])

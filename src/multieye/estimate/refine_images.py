@@ -31,9 +31,9 @@ marginalises the mocap poses), with ``J`` the Jacobian of the sigma-normalised r
 the optimum and ``kappa = E[psi^2] / E[psi']^2`` the asymptotic efficiency factor of the robust
 loss for Gaussian residuals (1 for the linear loss: the Cramér-Rao bound,
 :func:`multieye.estimate.uncertainty.cramer_rao_bound`).  When the pixel noise is not given it
-is estimated by variance-component estimation: the robust sum of squared pixel residuals over
-their redundancy ``n_pixel - (n_params - tr(H_prior cov_M))`` (the share of the parameters the
-mocap priors do not already pay for), re-solving until the estimate settles.  When the
+is estimated by variance components: the robust sum of squared pixel residuals over their
+redundancy ``n_pixel - (n_params - tr(H_prior cov_M))``, and each image's over its share (images
+differ in how well their corners are found), re-solving until they settle.  When the
 motion-capture noise is not given, its rotation and position components are estimated the
 same way, each from its own residuals (how far the refinement moves the measured poses) over
 its own redundancy (:mod:`multieye.estimate.variance_components`; the plain RMS of the corrections, which
@@ -69,7 +69,7 @@ from multieye.estimate.clock_residuals import ClockData
 from multieye.estimate.image_data import ImageData, ImageProblem, image_data
 from multieye.estimate.image_residuals import intrinsics_family
 # estimate_mocap_noise is named here too: it is the plain form of this module's estimate
-from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR, estimate_mocap_noise
+from multieye.estimate.uncertainty import estimate_mocap_noise
 from multieye.optimize.levenberg_marquardt import (NEAR_DAMPING, Options,
                                                    covariance_and_residuals, minimize)
 from multieye.optimize.threads import threads_for
@@ -160,7 +160,11 @@ class RefinementResult:
         further from its measurement than the chi-square (6 dof) quantile allows (a shared
         measurement flags every image of its instant).
     pixel_sigma : float
-        Pixel noise used, pixels (given, or estimated from the data).
+        Pixel noise used, pixels (given, or estimated from the data): the root mean square
+        of the images' over their points.
+    image_sigma_px : tuple of ndarray, shape (N_j,)
+        Each image's pixel noise: estimated per image when the pixel noise is
+        (:func:`multieye.estimate.variance_components.image_noise`), else ``pixel_sigma``.
     pixel_sigma_estimated : bool
     mocap_rot_sigma_rad, mocap_trans_sigma_m : float
         Motion-capture noise used.
@@ -219,6 +223,7 @@ class RefinementResult:
     message: str
     time_offsets: tuple = ()
     time_offset_std_s: tuple = ()
+    image_sigma_px: tuple = ()
 
 
 
@@ -244,15 +249,6 @@ def _prior_residuals(data: ImageData, groups, ev) -> F64:
         if vc.is_prior(grp):
             out[grp.index[:, 0]] = e[0]
     return out[data.instant]
-
-
-def _clock_noise(data: ImageData) -> tuple[float, float]:
-    """Motion-capture sample noise pooled over the clock windows' fit residuals."""
-    trajs = data.units.trajectories
-    w = np.array([len(t.h) * t.dof for t in trajs], dtype=float)
-    rot, tr = np.array([t.noise() for t in trajs]).T
-    return (max(float(np.sqrt(w @ rot ** 2 / w.sum())), MOCAP_SIGMA_FLOOR),
-            max(float(np.sqrt(w @ tr ** 2 / w.sum())), MOCAP_SIGMA_FLOOR))
 
 
 def _pixel_residuals(data: ImageData, ev) -> F64:
@@ -303,6 +299,11 @@ class RefineOptions:
         and one prior.  The offsets and their standard deviations are
         ``RefinementResult.time_offsets`` and ``time_offset_std_s`` (per camera; equal on a
         shared clock).
+    mocap_noise_scale : sequence over cameras of sequence of float, optional
+        Per camera, per image: its motion-capture pose's noise over the stated (or
+        estimated) noise of one sample, in (0, 1]: ``sqrt(a^2 + (1 - a)^2)`` for a pose
+        interpolated at ``a`` between two samples
+        (:attr:`multieye.estimate.pairing.Pairing.noise_scale`).  Default 1.
     """
 
     mocap_rot_sigma_rad: float | None = DEFAULT_MOCAP_ROT_SIGMA_RAD
@@ -316,6 +317,7 @@ class RefineOptions:
     free_intrinsics: Sequence[bool] | None = None
     intrinsics_observations: Sequence | None = None
     clocks: Sequence[ClockData | None] | None = None
+    mocap_noise_scale: Sequence | None = None
 
 
 def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
@@ -368,7 +370,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     opts = with_fields(options, kw, RefineOptions, "options")
     noise = _given_noise(opts)
     data = image_data(ImageProblem(setup, observations, intrinsics, opts.names,
-                                   opts.free_intrinsics, opts.intrinsics_observations, opts.clocks))
+                                   opts.free_intrinsics, opts.intrinsics_observations, opts.clocks,
+                                   opts.mocap_noise_scale))
     fams, noise = _start(data, X0, Y0, noise)
     # BLAS threads for the reduced system's size over the whole solve (refine_rig's reason)
     with threads_for(sum(f.count * f.size for f in fams if not f.eliminate)):
@@ -414,7 +417,7 @@ def _start(data: ImageData, X0: ArrayLike, Y0: ArrayLike, noise: _Noise):
     timed = [j for j, c in enumerate(data.clocks) if c is not None]
     s_rot, s_t, s_px = noise.s_rot, noise.s_t, noise.s_px
     if noise.estimate_mocap and timed:      # one sample's noise, from the smoothing residuals
-        s_rot, s_t = _clock_noise(data)
+        s_rot, s_t = vc.clock_noise(data)
     X0 = transform(X0, "X0", count=data.m)
     Y0 = transform(Y0, "Y0")
     fams = data.families(X0, Y0)
@@ -463,7 +466,7 @@ def _recentre(data: ImageData, fams, noise: _Noise, sigmas: F64, recentres: int)
         return data, sigmas, False
     data = data.recentred({u: float(_value(fams, units.family[u])[0, 0]) for u in moved})
     if noise.estimate_mocap:
-        sigmas = np.array([sigmas[0], *_clock_noise(data)])
+        sigmas = np.array([sigmas[0], *vc.clock_noise(data)])
     return data, sigmas, True
 
 
@@ -510,17 +513,25 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
             cov, ev = covariance_and_residuals(fams, groups, local=True)
             if not free.any():
                 break
+            evaluated = ev
             sums = vc.weighted_sums(groups, ev, loss, f_scale)
             red, red_at, previous = vc.redundancy(data, fams, groups, cov, sums.n_pixels), s, None
         else:
-            sums = vc.weighted_sums(groups, res.residuals, loss, f_scale)
+            evaluated = res.residuals
+            sums = vc.weighted_sums(groups, evaluated, loss, f_scale)
         new = vc.estimate(s, sums, red, c_w)
         estimates += 1
         moved = float(np.max(np.abs(new / s - 1.0)[free] / share[free]))
+        if free[0]:                     # each image's noise over the pooled one
+            f = vc.image_noise(data, evaluated, red, sums.n_pixels, loss, f_scale, c_w)
+            f0 = np.ones(data.n_images) if data.image_noise is None else data.image_noise
+            moved = max(moved, float(np.sqrt(np.mean((f / f0 - 1.0) ** 2))) / vc.SETTLED)
         if stage == "final" and (moved < vc.FINAL_SHARE or estimates > _MAX_SIGMA_PASSES):
             break
         following, extrapolated = vc.secant(s, new, previous, free)
         previous, s = (s, new), following
+        if free[0]:
+            data = replace(data, image_noise=f)
         if stage != "final":
             near = moved < 1.0 or (extrapolated and moved < vc.EXTRAPOLATED)
             stage = "final" if near or estimates >= _MAX_SIGMA_PASSES else "step"
@@ -539,10 +550,11 @@ def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, i
     groups = data.groups(s_px, s_rot, s_t)
     cov, ev = at
     z_pix = _pixel_residuals(data, ev)
-    r_pix = z_pix * s_px                                                  # (P, 2) pixels
+    sigma_img = s_px * (np.ones(data.n_images) if data.image_noise is None else data.image_noise)
+    r_pix = z_pix * sigma_img[data.image][:, None]                       # (P, 2) pixels
     w_pt = rho((z_pix / f_scale) ** 2, loss)[1].min(axis=1)
     d2 = np.sum(r_pix ** 2, axis=1)
-    point_out = d2 / s_px ** 2 > chdtri(2, OUTLIER_PROBABILITY)
+    point_out = np.sum(z_pix ** 2, axis=1) > chdtri(2, OUTLIER_PROBABILITY)
     per_image = np.diff(np.append(data.image_starts, data.n_points))
     img_rms = np.sqrt(np.add.reduceat(d2, data.image_starts) / per_image)
     frac_out = np.add.reduceat(point_out.astype(float), data.image_starts) / per_image
@@ -580,6 +592,7 @@ def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, i
         point_weights=data.split_points(w_pt, np.nan),
         point_outliers=data.split_points(point_out, False),
         image_outliers=data.split_images(img_out), pixel_sigma=float(s_px),
+        image_sigma_px=data.split_images(sigma_img),
         pixel_sigma_estimated=noise.estimate_px, mocap_rot_sigma_rad=s_rot,
         mocap_trans_sigma_m=s_t, mocap_sigma_estimated=noise.estimate_mocap,
         loss=loss, f_scale=f_scale, iterations=counts[0], evaluations=counts[1],

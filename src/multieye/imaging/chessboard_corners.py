@@ -3,7 +3,8 @@
 ``cv2.findChessboardCorners`` (the classic detector) and ``cv2.findChessboardCornersSB``
 return the corners in their own orders (the two start from opposite corners of some boards);
 :func:`locate` runs them in turn (:func:`search_order`), refines the corners at full size
-(:func:`refine_grid`) and checks each detector's grid (:func:`consistent_grid`);
+(:func:`refine_grid`), checks that every corner is a saddle of the image (:func:`saddle_grid`)
+and that each detector's grid is smooth (:func:`consistent_grid`);
 :func:`multieye.imaging.detect.detect` then puts them in the canonical order, so that the ids
 do not depend on the detector.  OpenCV's frames for each detector's order:
 :mod:`multieye.imaging.board_frames`.
@@ -14,6 +15,7 @@ Synopsis
 >>> raw = find_chessboard(gray, board, detector="classic", half=False)      # doctest: +SKIP
 >>> refined = refine_grid(gray, raw, board)                                 # doctest: +SKIP
 >>> consistent_grid(refined, board)                                         # doctest: +SKIP
+>>> saddle_grid(gray, refined, board)                                       # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -26,9 +28,10 @@ from numpy.typing import NDArray
 
 from multieye.imaging.targets import Chessboard, Target
 
-__all__ = ["locate", "search_order", "quick_check", "find_chessboard", "refine_grid", "refine_corners",
-           "corner_window", "consistent_grid", "min_spacing", "CLASSIC_FLAGS",
-           "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE", "MIN_DEPARTURE_PX"]
+__all__ = ["locate", "search_order", "quick_check", "find_chessboard", "refine_grid",
+           "refine_corners", "corner_window", "consistent_grid", "saddle_grid", "min_spacing",
+           "CLASSIC_FLAGS", "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE",
+           "MIN_DEPARTURE_PX"]
 
 F64 = NDArray[np.float64]
 
@@ -57,6 +60,15 @@ MAX_SECOND_DIFFERENCE = 0.05
 #: The least departure :func:`consistent_grid` flags, pixels: a right grid of small squares
 #: (12-16 px) with blurred corners departed by up to 0.92 px on the renders of issue 32.
 MIN_DEPARTURE_PX = 1.5
+
+#: :func:`saddle_grid`: the circle a corner is checked on has this fraction of the distance
+#: to its nearest grid neighbour as its radius (at least :data:`SADDLE_MIN_RADIUS_PX`), and
+#: is sampled at :data:`SADDLE_SAMPLES` points.
+SADDLE_RADIUS = 0.3
+SADDLE_MIN_RADIUS_PX = 2.0
+SADDLE_SAMPLES = 64
+#: Least correlation of a corner's circle of greys with itself turned by half a turn.
+SADDLE_MIN_CORRELATION = 0.3
 
 
 def consistent_grid(points: F64, target: Target) -> bool:
@@ -91,6 +103,37 @@ def consistent_grid(points: F64, target: Target) -> bool:
         if _surface_departures(d2).max() > limit:
             return False
     return True
+
+
+def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
+    """Whether every corner is a saddle of the image, as a chessboard's inner corner is: on
+    a circle around it (radius :data:`SADDLE_RADIUS` of the distance to its nearest grid
+    neighbour) the grey repeats itself after a half turn (the squares across the corner have
+    the same colour), which the correlation of the circle's greys with themselves turned by
+    half a turn measures: at least :data:`SADDLE_MIN_CORRELATION` at every corner.  A point
+    on an edge (the two sides differ: near -1) or inside a square (noise: near 0) fails it.
+
+    Unlike :func:`consistent_grid` this holds however bent the board's image is (a fisheye
+    near 180 degrees: 0.6 and more at every corner of boofcv_fisheye's grids, real and
+    rendered), and it catches what SB finds wrong there: a row of corners put on the edge
+    between the squares and the board's margin, 21 px off, on rendered 190-degree views
+    (-0.37; ``benchmarks/bench_boofcv_reference.py``)."""
+    rows, cols = target.grid_shape()
+    grid = points.reshape(rows, cols, 2)
+    near = np.full((rows, cols), np.inf)
+    down, right = _lengths(grid[1:] - grid[:-1]), _lengths(grid[:, 1:] - grid[:, :-1])
+    near[1:], near[:-1] = np.minimum(near[1:], down), np.minimum(near[:-1], down)
+    near[:, 1:], near[:, :-1] = np.minimum(near[:, 1:], right), np.minimum(near[:, :-1], right)
+    radius = np.maximum(SADDLE_RADIUS * near.ravel(), SADDLE_MIN_RADIUS_PX)
+    phi = np.linspace(0.0, 2 * np.pi, SADDLE_SAMPLES, endpoint=False)
+    u = (points[:, :1] + radius[:, None] * np.cos(phi)).astype(np.float32)
+    v = (points[:, 1:] + radius[:, None] * np.sin(phi)).astype(np.float32)
+    ring = cv2.remap(gray, u, v, cv2.INTER_LINEAR,       # whole greys: enough for the sign
+                     borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+    ring -= ring.mean(axis=1, keepdims=True)
+    turned = np.roll(ring, SADDLE_SAMPLES // 2, axis=1)
+    power = np.maximum(np.einsum("ij,ij->i", ring, ring), 1e-9)
+    return bool(np.all(np.einsum("ij,ij->i", ring, turned) / power >= SADDLE_MIN_CORRELATION))
 
 
 def _surface_departures(d2: F64) -> F64:
@@ -195,16 +238,22 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
     the detector that found them, or None.
 
     The searches of :func:`search_order` run until one finds the board on a smooth grid
-    (:func:`consistent_grid`); a grid that is not smooth sends the search on, whichever
-    search found it but SB at full size, whose corners are kept as found (SB's were all kept
-    until issue 32: at half size, on blurred rendered views of 960 x 720, it put corners
-    5-9 px off, which the grid check sees; at full size its corners stayed within 0.5 px on
-    every view rendered for that issue, also on squares of 8 px, whose corner noise the
-    check's 1 px can take for a misplaced corner).  A board the classic detector finds at
-    half size is not searched again at full size, however small its squares: a corner it
-    misplaces there (5 px on 640 x 480 images with squares of 8.6 half-size pixels) breaks
-    the grid, and the full-size search follows."""
+    (:func:`consistent_grid`) of saddles of the image (:func:`saddle_grid`, every grid); a
+    grid of saddles that is not smooth sends the search on, whichever search found it but SB
+    at full size, whose corners are kept (SB's were all kept until issue 32: at half size,
+    on blurred rendered views of 960 x 720, it put corners 5-9 px off, which the grid check
+    sees; at full size its corners stayed within 0.5 px on every view rendered for that
+    issue, also on squares of 8 px, whose corner noise the check's 1 px can take for a
+    misplaced corner; on rendered views of a 190-degree lens it put a row on the edge of the
+    board's margin, 21 px off, which the saddle check sees).  A board the classic detector
+    finds at half size is not searched again at full size, however small its squares: a
+    corner it misplaces there (5 px on 640 x 480 images with squares of 8.6 half-size
+    pixels) breaks the grid, and the full-size search follows.  When no search gives a grid
+    that passes both checks, the first grid of saddles that only the smoothness check
+    refused is taken: a board bent by a lens near 180 degrees (boofcv_fisheye's 20.jpg and
+    22.jpg, which SB does not find)."""
     order = search_order(gray)
+    bent = None
     for detector, half in order:
         if (detector, half) == ("classic", False) and ("quick", False) in order \
                 and quick_check(gray, target):
@@ -213,9 +262,12 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
         if raw is None:
             continue
         corners = refine_grid(gray, raw, target)
+        if not saddle_grid(gray, corners, target):
+            continue
         if (detector == "sb" and not half) or consistent_grid(corners, target):
             return corners
-    return None
+        bent = corners if bent is None else bent
+    return bent
 
 
 def min_spacing(points: NDArray, target: Target) -> float:

@@ -30,7 +30,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares, minimize_scalar
 
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
@@ -148,6 +147,8 @@ def equidistant_focal(views, size: tuple[int, int]) -> tuple[float, F64]:
     scores = np.array([score(x) for x in grid])
     k = int(np.argmin(scores))
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    from scipy.optimize import minimize_scalar  # noqa: PLC0415 (heavy: SciPy, imported while the workers detect, not before the first image is sent)
+
     best = minimize_scalar(score, bounds=(lo, hi), method="bounded",
                            options={"xatol": 1e-3})
     log_f = best.x if best.fun <= scores[k] else grid[k]
@@ -183,6 +184,8 @@ def model_from_equidistant(model: str, f: float, c: F64, theta_max: float,
         return np.where(np.isfinite(u), u - want, 1e3)
 
     x0 = np.concatenate([[f], dist0[free]])
+    from scipy.optimize import least_squares  # noqa: PLC0415 (heavy: SciPy, imported while the workers detect, not before the first image is sent)
+
     fit = least_squares(residual, x0, method="trf", x_scale="jac")
     try:
         return lens(fit.x)

@@ -177,6 +177,8 @@ class PairedCamera:
         The used images, one per row of A and B.
     rejected : tuple of RejectedItem
         Everything left out so far (detection and pairing).
+    mocap_noise_scale : ndarray, shape (n,), or None
+        Per used image, :attr:`multieye.estimate.pairing.Pairing.noise_scale`; None: ones.
     """
 
     name: str
@@ -185,6 +187,7 @@ class PairedCamera:
     T_world_mocap: np.ndarray
     observations: tuple[Observation, ...]
     rejected: tuple[RejectedItem, ...]
+    mocap_noise_scale: np.ndarray | None = None
 
 
 #: How the reason of a motion-capture row left out starts (those rows are listed with the
@@ -527,11 +530,10 @@ def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = Non
     stamps = np.array([o.stamp for o in data.observations])
     p = pair_stamps(data.mocap, stamps, by_name=data.by_name, tolerance=data.time_tolerance,
                     offset=offset)
-    rejected = list(data.rejected)
     unpaired = [RejectedItem(data.observations[i].name,
                              f"no motion capture within {data.time_tolerance:g} s ({why})")
                 for i, why in p.unpaired]
-    rejected.extend(unpaired)
+    rejected = list(data.rejected) + unpaired
     used = tuple(data.observations[i] for i in p.index)
     if len(used) < MIN_MEASUREMENTS:
         lost = [r for r in data.rejected if not r.reason.startswith(_MOCAP_ROW)] + unpaired
@@ -540,8 +542,7 @@ def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = Non
             f"({data.n_inputs - len(data.observations)} without a target pose, "
             f"{len(p.unpaired)} without motion capture within {data.time_tolerance:g} s); "
             f"at least {MIN_MEASUREMENTS} are needed; left out: {_listed(lost)}")
-    T_cam_target = np.stack([o.T_cam_target for o in used])
-    B = g.inv(T_cam_target)                            # T_target_cam
+    B = g.inv(np.stack([o.T_cam_target for o in used]))  # T_target_cam
     A = g.inv(p.T) if setup == "eye-to-base" else p.T  # T_marker_world or T_world_body
     return PairedCamera(name=data.name, A=A, B=B, T_world_mocap=p.T, observations=used,
-                        rejected=tuple(rejected))
+                        rejected=tuple(rejected), mocap_noise_scale=p.noise_scale)

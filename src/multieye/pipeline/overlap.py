@@ -347,18 +347,29 @@ def share_instants(rig: Rig, paired: Mapping[str, PairedCamera],
     whose stamp falls within ``sync_tolerance`` by chance), and sharing would bias the
     result; the two stay linked by the motion capture."""
     first: dict[int, np.ndarray] = {}
+    first_scale: dict[int, float] = {}
     for n, p in paired.items():
-        for k, M in zip(instants[n], p.T_world_mocap):
+        scale = _noise_scale(p)
+        for k, M, f in zip(instants[n], p.T_world_mocap, scale):
             first.setdefault(int(k), M)
+            first_scale.setdefault(int(k), float(f))
     out = {}
     for n, p in paired.items():
-        M = p.T_world_mocap.copy()
+        M, scale = p.T_world_mocap.copy(), _noise_scale(p).copy()
         if len(M):      # every image of the camera at once (one at a time: 10 ms of 4 x 100)
             F = np.stack([first[int(k)] for k in instants[n]])
             close = ((g.rotation_angle_between(F, M) <= noise[0])
                      & (g.translation_distance(F, M) <= noise[1]))
             M[close] = F[close]
+            scale[close] = [first_scale[int(k)] for k in instants[n][close]]
         A = g.inv(M) if rig.setup == "eye-to-base" else M
         out[n] = PairedCamera(name=p.name, A=A, B=p.B, T_world_mocap=M,
-                              observations=p.observations, rejected=p.rejected)
+                              observations=p.observations, rejected=p.rejected,
+                              mocap_noise_scale=scale)
     return out
+
+
+def _noise_scale(p: PairedCamera) -> NDArray[np.float64]:
+    """The camera's :attr:`PairedCamera.mocap_noise_scale`, ones when it has none."""
+    n = len(p.T_world_mocap)
+    return np.ones(n) if p.mocap_noise_scale is None else np.asarray(p.mocap_noise_scale, float)

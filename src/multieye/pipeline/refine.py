@@ -108,7 +108,9 @@ def _refine_images(problem: Problem, pairing: Pairing, sol: Solution) -> Refinem
               for o in cameras[n].intrinsics_views] for n in paired]
     warnings: list[str] = []
     clocks = _clocks(problem, pairing, warnings) if problem.options.time_offset == "auto" else None
+    scale = [p.mocap_noise_scale for p in paired.values()]
     options = RefineOptions(names=list(paired), clocks=clocks,
+                            mocap_noise_scale=None if all(f is None for f in scale) else scale,
                             free_intrinsics=[cameras[n].intrinsics_estimated for n in paired],
                             intrinsics_observations=views if any(views) else None, **given)
     res = refine_images(problem.setup, obs, [cameras[n].intrinsics for n in paired], sol.X, sol.Y,

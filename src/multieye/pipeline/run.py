@@ -272,8 +272,10 @@ def _keep(p: PairedCamera, mask: np.ndarray, reasons: dict[int, str]) -> PairedC
     rejected = p.rejected + tuple(RejectedItem(p.observations[i].name, reasons[i])
                                   for i in sorted(reasons))
     idx = np.flatnonzero(mask)
+    scale = None if p.mocap_noise_scale is None else p.mocap_noise_scale[idx]
     return PairedCamera(name=p.name, A=p.A[idx], B=p.B[idx], T_world_mocap=p.T_world_mocap[idx],
-                        observations=tuple(p.observations[i] for i in idx), rejected=rejected)
+                        observations=tuple(p.observations[i] for i in idx), rejected=rejected,
+                        mocap_noise_scale=scale)
 
 
 def solve_closed_form(problem: Problem, pairing: Pairing, check: Callable[[], Plausibility]
