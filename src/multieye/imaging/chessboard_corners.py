@@ -29,9 +29,9 @@ from numpy.typing import NDArray
 from multieye.imaging.targets import Chessboard, Target
 
 __all__ = ["locate", "search_order", "quick_check", "find_chessboard", "refine_grid",
-           "refine_corners", "corner_window", "consistent_grid", "saddle_grid", "min_spacing",
+           "refine_corners", "corner_window", "consistent_grid", "saddle_grid", "whole_board", "min_spacing",
            "CLASSIC_FLAGS", "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE",
-           "MIN_DEPARTURE_PX"]
+           "MIN_DEPARTURE_PX", "BEYOND_MAX_CORRELATION"]
 
 F64 = NDArray[np.float64]
 
@@ -69,6 +69,13 @@ SADDLE_MIN_RADIUS_PX = 2.0
 SADDLE_SAMPLES = 64
 #: Least correlation of a corner's circle of greys with itself turned by half a turn.
 SADDLE_MIN_CORRELATION = 0.3
+#: :func:`whole_board`: a point one square beyond the grid whose correlation reaches this
+#: is a corner of the board beyond the grid (a real corner: 0.6 and more, see
+#: :func:`saddle_grid`; the board's edge: about -1/3).
+BEYOND_MAX_CORRELATION = 0.5
+#: :func:`whole_board`: near the image's edge the circle shrinks to fit in the image, down to
+#: this fraction of the square it extends (at least :data:`SADDLE_MIN_RADIUS_PX`).
+BEYOND_MIN_RADIUS = 0.1
 
 
 def consistent_grid(points: F64, target: Target) -> bool:
@@ -125,6 +132,13 @@ def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     near[1:], near[:-1] = np.minimum(near[1:], down), np.minimum(near[:-1], down)
     near[:, 1:], near[:, :-1] = np.minimum(near[:, 1:], right), np.minimum(near[:, :-1], right)
     radius = np.maximum(SADDLE_RADIUS * near.ravel(), SADDLE_MIN_RADIUS_PX)
+    return bool(np.all(_saddle_correlations(gray, points, radius) >= SADDLE_MIN_CORRELATION))
+
+
+def _saddle_correlations(gray: NDArray[np.uint8], points: F64, radius: F64) -> F64:
+    """Per point (N, 2), pixels: the correlation of the greys on a circle of ``radius``
+    (N,) around it with themselves turned by half a turn (:func:`saddle_grid`).  Shape
+    (N,)."""
     phi = np.linspace(0.0, 2 * np.pi, SADDLE_SAMPLES, endpoint=False)
     u = (points[:, :1] + radius[:, None] * np.cos(phi)).astype(np.float32)
     v = (points[:, 1:] + radius[:, None] * np.sin(phi)).astype(np.float32)
@@ -133,7 +147,47 @@ def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     ring -= ring.mean(axis=1, keepdims=True)
     turned = np.roll(ring, SADDLE_SAMPLES // 2, axis=1)
     power = np.maximum(np.einsum("ij,ij->i", ring, ring), 1e-9)
-    return bool(np.all(np.einsum("ij,ij->i", ring, turned) / power >= SADDLE_MIN_CORRELATION))
+    return np.einsum("ij,ij->i", ring, turned) / power
+
+
+def whole_board(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
+    """Whether the grid is the whole board: no saddle of the image one square beyond it.
+
+    Each side of the grid is extended by one square, linearly (``2 p[0] - p[1]`` along the
+    rows and columns; the four diagonal corners left out); where such a point is in the
+    image (by its circle's radius), it must not be a saddle: its correlation
+    (:func:`saddle_grid`'s, radius :data:`SADDLE_RADIUS` of the square it extends) below
+    :data:`BEYOND_MAX_CORRELATION`.  One square beyond a whole board's outer corners lies
+    the board's edge: its outer squares on one side, the margin or the background on the
+    other (-1/3 for a black square and three white quadrants, whatever the margin).  Beyond
+    a grid shifted by a row or column off a board cut by the image edge lies the board's
+    next corner, a saddle where it is in the image (issue 35: SB at full size returned a
+    6 x 9 grid of a board whose last column was cut, one column shifted onto the board's
+    edge: 0.07 px PnP and 380 px off; it also fails :func:`saddle_grid`), as beyond a grid
+    that is part of a larger board.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), uint8
+    points : ndarray, shape (rows * cols, 2)
+        Refined corners, pixels, row by row in either detector's order.
+    target : Target
+    """
+    rows, cols = target.grid_shape()
+    grid = points.reshape(rows, cols, 2)
+    beyond, steps = [], []
+    for g in (grid, grid.transpose(1, 0, 2)):
+        for edge, inner in ((g[0], g[1]), (g[-1], g[-2])):
+            beyond.append(2 * edge - inner)
+            steps.append(_lengths(edge - inner))
+    p, step = np.concatenate(beyond), np.concatenate(steps)
+    h, w = gray.shape
+    room = np.minimum(p, np.array([w - 1.0, h - 1.0]) - p).min(axis=1) - 1.0
+    radius = np.minimum(SADDLE_RADIUS * step, room)
+    seen = radius >= np.maximum(BEYOND_MIN_RADIUS * step, SADDLE_MIN_RADIUS_PX)
+    if not seen.any():
+        return True
+    return bool(np.all(_saddle_correlations(gray, p[seen], radius[seen]) < BEYOND_MAX_CORRELATION))
 
 
 def _surface_departures(d2: F64) -> F64:
@@ -262,7 +316,7 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
         if raw is None:
             continue
         corners = refine_grid(gray, raw, target)
-        if not saddle_grid(gray, corners, target):
+        if not (saddle_grid(gray, corners, target) and whole_board(gray, corners, target)):
             continue
         if (detector == "sb" and not half) or consistent_grid(corners, target):
             return corners
