@@ -70,9 +70,12 @@ SADDLE_SAMPLES = 64
 #: Least correlation of a corner's circle of greys with itself turned by half a turn.
 SADDLE_MIN_CORRELATION = 0.3
 #: :func:`whole_board`: a point one square beyond the grid whose correlation reaches this
-#: is a corner of the board beyond the grid (a real corner: 0.6 and more, see
-#: :func:`saddle_grid`; the board's edge: about -1/3).
-BEYOND_MAX_CORRELATION = 0.5
+#: is a corner of the board beyond the grid (the cut column's corner beyond SB's shifted
+#: grid of issue 35: 1.00; the board's edge: about -1/3, -0.3 to -0.4 on that view; up to
+#: 0.80 where the extension of a board bent by a 190-degree lens falls off the board,
+#: tests/imaging/test_bent_boards.py's RIM view, so a beyond corner as weak as the 0.6 of
+#: some real corners on such views is not seen).
+BEYOND_MAX_CORRELATION = 0.9
 #: :func:`whole_board`: near the image's edge the circle shrinks to fit in the image, down to
 #: this fraction of the square it extends (at least :data:`SADDLE_MIN_RADIUS_PX`).
 BEYOND_MIN_RADIUS = 0.1
@@ -153,11 +156,12 @@ def _saddle_correlations(gray: NDArray[np.uint8], points: F64, radius: F64) -> F
 def whole_board(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     """Whether the grid is the whole board: no saddle of the image one square beyond it.
 
-    Each side of the grid is extended by one square, linearly (``2 p[0] - p[1]`` along the
-    rows and columns; the four diagonal corners left out); where such a point is in the
-    image (by its circle's radius), it must not be a saddle: its correlation
-    (:func:`saddle_grid`'s, radius :data:`SADDLE_RADIUS` of the square it extends) below
-    :data:`BEYOND_MAX_CORRELATION`.  One square beyond a whole board's outer corners lies
+    Each side of the grid is extended by one square along the rows and columns, by the
+    parabola through the last three corners (``3 p[0] - 3 p[1] + p[2]``; linearly where
+    there are two; the four diagonal corners left out); where such a point is in the image
+    (its circle shrunk to fit, down to :data:`BEYOND_MIN_RADIUS` of the square), it must not
+    be a saddle: its correlation (:func:`saddle_grid`'s, radius :data:`SADDLE_RADIUS` of the
+    square it extends) below :data:`BEYOND_MAX_CORRELATION`.  One square beyond a whole board's outer corners lies
     the board's edge: its outer squares on one side, the margin or the background on the
     other (-1/3 for a black square and three white quadrants, whatever the margin).  Beyond
     a grid shifted by a row or column off a board cut by the image edge lies the board's
@@ -177,8 +181,10 @@ def whole_board(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     grid = points.reshape(rows, cols, 2)
     beyond, steps = [], []
     for g in (grid, grid.transpose(1, 0, 2)):
-        for edge, inner in ((g[0], g[1]), (g[-1], g[-2])):
-            beyond.append(2 * edge - inner)
+        for edge, inner, third in ((g[0], g[1], g[min(2, len(g) - 1)]),
+                                   (g[-1], g[-2], g[max(-3, -len(g))])):
+            quadratic = 3 * edge - 3 * inner + third
+            beyond.append(quadratic if len(g) >= 3 else 2 * edge - inner)
             steps.append(_lengths(edge - inner))
     p, step = np.concatenate(beyond), np.concatenate(steps)
     h, w = gray.shape
