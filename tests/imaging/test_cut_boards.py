@@ -59,6 +59,15 @@ def test_a_cut_board_is_never_returned_shifted(cut_view):
     assert found is None or np.abs(found.image_points - truth).max() < 1.0
 
 
+def test_whole_board_alone_keeps_the_shifted_grid_out(cut_view, monkeypatch):
+    """The search with the saddle check switched off (it refuses SB's false column on the
+    board's edge too): the corner beyond the grid still keeps the shifted grid out."""
+    image, board, truth = cut_view
+    monkeypatch.setattr(cc, "saddle_grid", lambda *args: True)
+    found = cc.locate(image, board)
+    assert found is None or np.linalg.norm(found[:, None] - truth[None], axis=2).min(axis=1).max() < 1.0
+
+
 def test_whole_board_accepts_the_true_grid_of_the_cut_view(cut_view):
     """The true corners (some outside the image): nothing beyond them is a saddle."""
     image, board, truth = cut_view

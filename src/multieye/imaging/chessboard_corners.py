@@ -3,8 +3,9 @@
 ``cv2.findChessboardCorners`` (the classic detector) and ``cv2.findChessboardCornersSB``
 return the corners in their own orders (the two start from opposite corners of some boards);
 :func:`locate` runs them in turn (:func:`search_order`), refines the corners at full size
-(:func:`refine_grid`), checks that every corner is a saddle of the image (:func:`saddle_grid`)
-and that each detector's grid is smooth (:func:`consistent_grid`);
+(:func:`refine_grid`), checks that every corner is a saddle of the image (:func:`saddle_grid`),
+that no saddle lies one square beyond the grid (:func:`whole_board`: not a board cut by the
+image edge, shifted) and that each detector's grid is smooth (:func:`consistent_grid`);
 :func:`multieye.imaging.detect.detect` then puts them in the canonical order, so that the ids
 do not depend on the detector.  OpenCV's frames for each detector's order:
 :mod:`multieye.imaging.board_frames`.
@@ -16,6 +17,7 @@ Synopsis
 >>> refined = refine_grid(gray, raw, board)                                 # doctest: +SKIP
 >>> consistent_grid(refined, board)                                         # doctest: +SKIP
 >>> saddle_grid(gray, refined, board)                                       # doctest: +SKIP
+>>> whole_board(gray, refined, board)                                       # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -298,7 +300,9 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
     the detector that found them, or None.
 
     The searches of :func:`search_order` run until one finds the board on a smooth grid
-    (:func:`consistent_grid`) of saddles of the image (:func:`saddle_grid`, every grid); a
+    (:func:`consistent_grid`) of saddles of the image (:func:`saddle_grid`, every grid) with
+    no saddle one square beyond it (:func:`whole_board`, every grid: a board cut by the
+    image edge is not found rather than found shifted by a row or column); a
     grid of saddles that is not smooth sends the search on, whichever search found it but SB
     at full size, whose corners are kept (SB's were all kept until issue 32: at half size,
     on blurred rendered views of 960 x 720, it put corners 5-9 px off, which the grid check
