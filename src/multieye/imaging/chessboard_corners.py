@@ -3,8 +3,9 @@
 ``cv2.findChessboardCorners`` (the classic detector) and ``cv2.findChessboardCornersSB``
 return the corners in their own orders (the two start from opposite corners of some boards);
 :func:`locate` runs them in turn (:func:`search_order`), refines the corners at full size
-(:func:`refine_grid`), checks that every corner is a saddle of the image (:func:`saddle_grid`)
-and that each detector's grid is smooth (:func:`consistent_grid`);
+(:func:`refine_grid`), checks that every corner is a saddle of the image (:func:`saddle_grid`),
+that no saddle lies one square beyond the grid (:func:`whole_board`: not a board cut by the
+image edge, shifted) and that each detector's grid is smooth (:func:`consistent_grid`);
 :func:`multieye.imaging.detect.detect` then puts them in the canonical order, so that the ids
 do not depend on the detector.  OpenCV's frames for each detector's order:
 :mod:`multieye.imaging.board_frames`.
@@ -16,6 +17,7 @@ Synopsis
 >>> refined = refine_grid(gray, raw, board)                                 # doctest: +SKIP
 >>> consistent_grid(refined, board)                                         # doctest: +SKIP
 >>> saddle_grid(gray, refined, board)                                       # doctest: +SKIP
+>>> whole_board(gray, refined, board)                                       # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -29,9 +31,9 @@ from numpy.typing import NDArray
 from multieye.imaging.targets import Chessboard, Target
 
 __all__ = ["locate", "search_order", "quick_check", "find_chessboard", "refine_grid",
-           "refine_corners", "corner_window", "consistent_grid", "saddle_grid", "min_spacing",
+           "refine_corners", "corner_window", "consistent_grid", "saddle_grid", "whole_board", "min_spacing",
            "CLASSIC_FLAGS", "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE",
-           "MIN_DEPARTURE_PX"]
+           "MIN_DEPARTURE_PX", "BEYOND_MAX_CORRELATION"]
 
 F64 = NDArray[np.float64]
 
@@ -69,6 +71,16 @@ SADDLE_MIN_RADIUS_PX = 2.0
 SADDLE_SAMPLES = 64
 #: Least correlation of a corner's circle of greys with itself turned by half a turn.
 SADDLE_MIN_CORRELATION = 0.3
+#: :func:`whole_board`: a point one square beyond the grid whose correlation reaches this
+#: is a corner of the board beyond the grid (the cut column's corner beyond SB's shifted
+#: grid of issue 35: 1.00; the board's edge: about -1/3, -0.3 to -0.4 on that view; up to
+#: 0.80 where the extension of a board bent by a 190-degree lens falls off the board,
+#: tests/imaging/test_bent_boards.py's RIM view, so a beyond corner as weak as the 0.6 of
+#: some real corners on such views is not seen).
+BEYOND_MAX_CORRELATION = 0.9
+#: :func:`whole_board`: near the image's edge the circle shrinks to fit in the image, down to
+#: this fraction of the square it extends (at least :data:`SADDLE_MIN_RADIUS_PX`).
+BEYOND_MIN_RADIUS = 0.1
 
 
 def consistent_grid(points: F64, target: Target) -> bool:
@@ -125,6 +137,13 @@ def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     near[1:], near[:-1] = np.minimum(near[1:], down), np.minimum(near[:-1], down)
     near[:, 1:], near[:, :-1] = np.minimum(near[:, 1:], right), np.minimum(near[:, :-1], right)
     radius = np.maximum(SADDLE_RADIUS * near.ravel(), SADDLE_MIN_RADIUS_PX)
+    return bool(np.all(_saddle_correlations(gray, points, radius) >= SADDLE_MIN_CORRELATION))
+
+
+def _saddle_correlations(gray: NDArray[np.uint8], points: F64, radius: F64) -> F64:
+    """Per point (N, 2), pixels: the correlation of the greys on a circle of ``radius``
+    (N,) around it with themselves turned by half a turn (:func:`saddle_grid`).  Shape
+    (N,)."""
     phi = np.linspace(0.0, 2 * np.pi, SADDLE_SAMPLES, endpoint=False)
     u = (points[:, :1] + radius[:, None] * np.cos(phi)).astype(np.float32)
     v = (points[:, 1:] + radius[:, None] * np.sin(phi)).astype(np.float32)
@@ -133,7 +152,50 @@ def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     ring -= ring.mean(axis=1, keepdims=True)
     turned = np.roll(ring, SADDLE_SAMPLES // 2, axis=1)
     power = np.maximum(np.einsum("ij,ij->i", ring, ring), 1e-9)
-    return bool(np.all(np.einsum("ij,ij->i", ring, turned) / power >= SADDLE_MIN_CORRELATION))
+    return np.einsum("ij,ij->i", ring, turned) / power
+
+
+def whole_board(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
+    """Whether the grid is the whole board: no saddle of the image one square beyond it.
+
+    Each side of the grid is extended by one square along the rows and columns, by the
+    parabola through the last three corners (``3 p[0] - 3 p[1] + p[2]``; linearly where
+    there are two; the four diagonal corners left out); where such a point is in the image
+    (its circle shrunk to fit, down to :data:`BEYOND_MIN_RADIUS` of the square), it must not
+    be a saddle: its correlation (:func:`saddle_grid`'s, radius :data:`SADDLE_RADIUS` of the
+    square it extends) below :data:`BEYOND_MAX_CORRELATION`.  One square beyond a whole board's outer corners lies
+    the board's edge: its outer squares on one side, the margin or the background on the
+    other (-1/3 for a black square and three white quadrants, whatever the margin).  Beyond
+    a grid shifted by a row or column off a board cut by the image edge lies the board's
+    next corner, a saddle where it is in the image (issue 35: SB at full size returned a
+    6 x 9 grid of a board whose last column was cut, one column shifted onto the board's
+    edge: 0.07 px PnP and 380 px off; it also fails :func:`saddle_grid`), as beyond a grid
+    that is part of a larger board.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), uint8
+    points : ndarray, shape (rows * cols, 2)
+        Refined corners, pixels, row by row in either detector's order.
+    target : Target
+    """
+    rows, cols = target.grid_shape()
+    grid = points.reshape(rows, cols, 2)
+    beyond, steps = [], []
+    for g in (grid, grid.transpose(1, 0, 2)):
+        for edge, inner, third in ((g[0], g[1], g[min(2, len(g) - 1)]),
+                                   (g[-1], g[-2], g[max(-3, -len(g))])):
+            quadratic = 3 * edge - 3 * inner + third
+            beyond.append(quadratic if len(g) >= 3 else 2 * edge - inner)
+            steps.append(_lengths(edge - inner))
+    p, step = np.concatenate(beyond), np.concatenate(steps)
+    h, w = gray.shape
+    room = np.minimum(p, np.array([w - 1.0, h - 1.0]) - p).min(axis=1) - 1.0
+    radius = np.minimum(SADDLE_RADIUS * step, room)
+    seen = radius >= np.maximum(BEYOND_MIN_RADIUS * step, SADDLE_MIN_RADIUS_PX)
+    if not seen.any():
+        return True
+    return bool(np.all(_saddle_correlations(gray, p[seen], radius[seen]) < BEYOND_MAX_CORRELATION))
 
 
 def _surface_departures(d2: F64) -> F64:
@@ -238,7 +300,9 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
     the detector that found them, or None.
 
     The searches of :func:`search_order` run until one finds the board on a smooth grid
-    (:func:`consistent_grid`) of saddles of the image (:func:`saddle_grid`, every grid); a
+    (:func:`consistent_grid`) of saddles of the image (:func:`saddle_grid`, every grid) with
+    no saddle one square beyond it (:func:`whole_board`, every grid: a board cut by the
+    image edge is not found rather than found shifted by a row or column); a
     grid of saddles that is not smooth sends the search on, whichever search found it but SB
     at full size, whose corners are kept (SB's were all kept until issue 32: at half size,
     on blurred rendered views of 960 x 720, it put corners 5-9 px off, which the grid check
@@ -262,7 +326,7 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
         if raw is None:
             continue
         corners = refine_grid(gray, raw, target)
-        if not saddle_grid(gray, corners, target):
+        if not (saddle_grid(gray, corners, target) and whole_board(gray, corners, target)):
             continue
         if (detector == "sb" and not half) or consistent_grid(corners, target):
             return corners
