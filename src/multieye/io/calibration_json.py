@@ -133,6 +133,8 @@ def calibration_to_dict(rec: CalibrationRecord) -> dict:
     if rec.targets:
         out["targets"] = {k: {"T_world_target": _matrix(b.T_world_target), "given": b.given,
                               "views": b.views, "cameras": dict(b.cameras)} | (
+            {} if b.bounds is None else {"bounds": list(b.bounds),
+                                         "z_into_board": b.z_into_board}) | (
             {} if b.uncertainty is None else _uncertainty_dict({"u": b.uncertainty})["u"])
             for k, b in rec.targets.items()}
     return out
@@ -357,7 +359,7 @@ def calibration_from_dict(data, path: str | os.PathLike | None = None) -> Calibr
 
 def _read_targets(obj, w: _Where) -> dict:
     """``targets``: name -> ``{"T_world_target", "given", "views", "cameras", "std_rot_deg",
-    "std_trans_m", "covariance"}``."""
+    "std_trans_m", "covariance", "bounds", "z_into_board"}`` (the last two optional)."""
     if not isinstance(obj, Mapping) or not all(isinstance(v, Mapping) for v in obj.values()):
         raise w.error("targets must be an object of board name -> {T_world_target, ...}")
     out = {}
@@ -369,8 +371,11 @@ def _read_targets(obj, w: _Where) -> dict:
         cams = v.get("cameras", {})
         if not isinstance(cams, Mapping):
             raise w.error(f"targets.{k}.cameras must be an object of camera name -> views")
+        bounds = v.get("bounds")          # absent from files of older versions
         out[str(k)] = w.call(BoardRecord, T, v.get("given", False), v.get("views", 0),
-                             dict(cams), unc)
+                             dict(cams), unc, None if bounds is None else w.call(
+                                 np.asarray, bounds, dtype=np.float64),
+                             v.get("z_into_board", True))
     return out
 # --------------------------------------------------------------------------- files
 

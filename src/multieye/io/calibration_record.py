@@ -149,6 +149,11 @@ class BoardRecord:
     uncertainty : PoseUncertainty or None
         Left perturbation in the fixed frame (zero for the first board without motion
         capture and for a given pose).
+    bounds : (float, float, float, float) or None
+        ``x_min, x_max, y_min, y_max`` of the printed pattern in the board's frame, metres
+        (what the report draws); None in files written before it was kept.
+    z_into_board : bool
+        The board's +z points away from the side it is seen from.
     """
 
     T_world_target: np.ndarray
@@ -156,6 +161,8 @@ class BoardRecord:
     views: int = 0
     cameras: Mapping = field(default_factory=dict)
     uncertainty: PoseUncertainty | None = None
+    bounds: tuple | None = None
+    z_into_board: bool = True
 
     def __post_init__(self):
         object.__setattr__(self, "T_world_target", _rigid(self.T_world_target,
@@ -169,6 +176,14 @@ class BoardRecord:
                              "views per camera whole numbers >= 0")
         object.__setattr__(self, "views", int(self.views))
         object.__setattr__(self, "cameras", {str(k): int(v) for k, v in self.cameras.items()})
+        if self.bounds is not None:
+            b = np.asarray(self.bounds, dtype=np.float64)
+            if b.shape != (4,) or not np.all(np.isfinite(b)) or b[0] >= b[1] or b[2] >= b[3]:
+                raise InputError("a target's bounds must be [x_min, x_max, y_min, y_max] "
+                                 "with x_min < x_max and y_min < y_max, metres")
+            object.__setattr__(self, "bounds", tuple(float(x) for x in b))
+        if not isinstance(self.z_into_board, bool):
+            raise InputError("a target's z_into_board must be true or false")
 
 
 @dataclass(frozen=True)

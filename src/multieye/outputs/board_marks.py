@@ -23,8 +23,10 @@ import numpy as np
 
 from multieye.core.target_spec import TargetSpec
 from multieye.imaging.targets import target_from_spec
+from multieye.io.calibration_json import CalibrationRecord
 
-__all__ = ["BoardMark", "board_mark", "board_lines", "board_legend", "BOARD_COLOUR"]
+__all__ = ["BoardMark", "board_mark", "board_lines", "board_legend", "record_boards",
+           "BOARD_COLOUR"]
 
 #: The colour of the boards' marks (the cameras have theirs).
 BOARD_COLOUR = "#3a3a3a"
@@ -80,6 +82,22 @@ def board_mark(name: str, spec: TargetSpec, T_frame_board, covariance=None, *,
     cov = None if covariance is None else np.asarray(covariance, dtype=np.float64)
     return BoardMark(name, np.asarray(T_frame_board, dtype=np.float64), target.bounds(),
                      target.z_into_board, cov, given)
+
+
+def record_boards(record: CalibrationRecord, details) -> tuple[BoardMark, ...]:
+    """The boards of ``calibration.json``'s ``targets`` as the rig figures draw them.
+
+    Only where the boards and the cameras are in one frame: with motion capture and
+    ``details.json`` (eye-on-hand: the boards in the motion capture's frame, the cameras at
+    ``T_world_body_shown``), for boards whose outline the file holds (``bounds``).  Without
+    motion capture the boards are in the first board's frame while the rig moves before them,
+    and ``details.json`` keeps no one instant's rig pose: no boards are drawn (empty).
+    """
+    if details is None or not record.mocap or not record.targets:
+        return ()
+    return tuple(BoardMark(name, b.T_world_target, b.bounds, b.z_into_board,
+                           None if b.uncertainty is None else b.uncertainty.covariance, b.given)
+                 for name, b in record.targets.items() if b.bounds is not None)
 
 
 def board_lines(boards: Sequence[BoardMark], disp: Callable, rings: Callable | None

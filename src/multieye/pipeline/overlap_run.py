@@ -31,6 +31,7 @@ from multieye.io import (
     Residuals,
 )
 from multieye.io.calibration_json import OVERLAP, CameraLinks
+from multieye.imaging.targets import target_from_spec
 from multieye.pipeline.camera_data import PairedCamera
 from multieye.pipeline.overlap import OverlapSolution, solve_overlap
 from multieye.pipeline.overlap_mocap import (eye_on_hand_layout, has_mocap, rig_mocap,
@@ -149,9 +150,9 @@ def _by_motion(sol) -> bool:
     return isinstance(sol, MotionSolution)
 
 
-def _targets(sol) -> dict | None:
-    """Every board's pose in the world (the first board) with its uncertainty and views, by
-    name (docs/outputs.md, several boards)."""
+def _targets(sol, problem: Problem) -> dict | None:
+    """Every board's pose in the world (the first board) with its uncertainty, views and
+    pattern's outline, by name (docs/outputs.md, several boards)."""
     if not _by_motion(sol):
         return None
     res = sol.result
@@ -159,8 +160,10 @@ def _targets(sol) -> dict | None:
     for k, b in enumerate(sol.boards):
         per = {n: int(np.sum(sol.board[n] == k)) for n in sol.names}
         per = {n: v for n, v in per.items() if v}
+        board = target_from_spec(problem.rig.targets[b])
         out[b] = BoardRecord(res.T_world_board[k], False, sum(per.values()), per,
-                             _pose_uncertainty(res.board_covariance[k]))
+                             _pose_uncertainty(res.board_covariance[k]), board.bounds(),
+                             bool(board.z_into_board))
     return out
 
 
@@ -197,7 +200,7 @@ def _record(problem: Problem, sol: OverlapSolution, paired: dict, rms: dict,
     used = sum(c.measurements_used for c in cams)
     return CalibrationRecord(
         setup=OVERLAP, method=MOTION_METHOD if _by_motion(sol) else METHOD,
-        reference_camera=problem.reference, Y=None, targets=_targets(sol),
+        reference_camera=problem.reference, Y=None, targets=_targets(sol, problem),
         cameras=tuple(cams),
         residuals=Residuals(e_R_deg=sum(rot_all) / used, e_t_m=sum(trans_all) / used),
         warnings=warnings, refinement="images",
