@@ -160,10 +160,14 @@ def _targets(sol, problem: Problem) -> dict | None:
     for k, b in enumerate(sol.boards):
         per = {n: int(np.sum(sol.board[n] == k)) for n in sol.names}
         per = {n: v for n, v in per.items() if v}
-        board = target_from_spec(problem.rig.targets[b])
+        # the targets built once (RigModel); a rig given from Python may not describe the board
+        board = (problem.model.targets.get(b) if problem.model is not None else None)
+        if board is None and b in (problem.rig.targets or {}):
+            board = target_from_spec(problem.rig.targets[b])
         out[b] = BoardRecord(res.T_world_board[k], False, sum(per.values()), per,
-                             _pose_uncertainty(res.board_covariance[k]), board.bounds(),
-                             bool(board.z_into_board))
+                             _pose_uncertainty(res.board_covariance[k]),
+                             None if board is None else board.bounds(),
+                             True if board is None else bool(board.z_into_board))
     return out
 
 
