@@ -111,3 +111,14 @@ def test_boofcv_fisheye_check_and_calibrate_name_the_model_that_fits_more(shared
     run = calibrate(folder)
     warned = [w for w in run.record.warnings if "consider model" in w]
     assert len(warned) == 1 and warned[0].startswith("fish: the double-sphere lens leaves ")
+
+
+def test_boofcv_fisheye_check_names_no_link_problem_for_its_one_camera(shared_data, tmp_path):
+    """One camera needs no link: the dry run said 'fish: linked to fish by nothing in the
+    sampled images ... (calibrating would refuse it ...)' for the only camera, a problem that
+    calibrating does not have."""
+    from multieye.pipeline.dry_run import check_dataset   # noqa: PLC0415
+
+    found = check_dataset(real_datasets.boofcv_fisheye(shared_data, tmp_path / "fish"), sample=6)
+    assert not [p for c in found.cameras for p in c.problems if "linked to" in p], found
+    assert "fish linked by: nothing needed (the only camera)" in found.links

@@ -458,7 +458,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         apart = tuple(f"linked to {cams[0].name} by nothing in the sampled images: no board "
                       "seen at an instant when a linked camera sees one (calibrating would "
                       "refuse it unless other images link it)"
-                      for line in lines[1:] if line.startswith(f"{c.name} linked by: nothing"))
+                      for line in lines[1:] if j > 0
+                      and line.startswith(f"{c.name} linked by: nothing"))
         out.append(replace(c, with_mocap=shared, fatal=fatal,
                            problems=c.problems + fatal[len(c.fatal):] + apart))
     return tuple(out), lines
@@ -482,7 +483,9 @@ def _link_lines(rig, cams, inst, n_inst: int, shared, tol: float) -> tuple[str, 
     for j, n in enumerate(labels):
         with_ = [f"{labels[k]} ({int(shared[j, k])} instants)" for k in range(len(labels))
                  if k != j and shared[j, k]]
-        lines.append(f"{n} linked by: " + (", ".join(with_) if with_ else "nothing"))
+        lines.append(f"{n} linked by: " + (", ".join(with_) if with_ else
+                                             "nothing needed (the only camera)"
+                                             if len(labels) == 1 else "nothing"))
     return tuple(lines)
 
 
