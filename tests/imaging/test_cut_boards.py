@@ -108,3 +108,17 @@ def test_part_of_a_larger_board_is_not_whole():
 
 def _lens():
     return simulate_walls(np.random.default_rng(0), WallSpec(n_instants=2, boards="chessboard")).intrinsics[0]
+
+
+def test_a_cut_board_is_named_as_cut_in_the_rejection(cut_view):
+    """The cut view is rejected with the reason it has: a corner of the board lies beyond
+    every grid found (the board runs out of the image), not a bare "target not detected";
+    a view with no board at all keeps the bare reason."""
+    from multieye.imaging.batch import process_array  # noqa: PLC0415 (one test's entry point)
+    image, board, _ = cut_view
+    result = process_array(image, "cut.png", board, None)
+    assert result.reason == ("target not detected (chessboard 6x9: part of the board is "
+                             "outside the image, or it has more inner corners than 6 x 9)")
+    blank = process_array(np.full_like(image, 128), "blank.png", board, None)
+    assert blank.reason == "target not detected (chessboard 6x9)"
+    assert cc.locate_board(image, board).beyond and not cc.locate_board(np.full_like(image, 128), board).beyond

@@ -33,7 +33,7 @@ import cv2
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.boards import Boards, combined_reason
-from multieye.imaging.detect import Detection, detect
+from multieye.imaging.detect import Detection, detect_or_why
 from multieye.imaging.image_file import read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.pool_tasks import OnPool, SplitTask
@@ -170,13 +170,14 @@ def process_array(image, name: str, target: Target | Boards, intrinsics: Intrins
             target, {n: r.reason for n, r in parts})
         return ImageResult(path, None, None, reason, image_size=shape, parts=parts)
     try:
-        detection = detect(image, target)
+        detection, why = detect_or_why(image, target)
     except (InputError, cv2.error) as exc:
         return ImageResult(path, None, None, "target not detected (detection failed: "
                            f"{_first_line(exc)})", image_size=shape)
     if detection is None:
         return ImageResult(path, None, None, f"target not detected ({target.kind} "
-                           f"{target.rows}x{target.cols})", image_size=shape)
+                           f"{target.rows}x{target.cols}" + (f": {why}" if why else "") + ")",
+                           image_size=shape)
     if intrinsics is None:
         return ImageResult(path, None, detection, None, detection.warnings, image_size=shape)
     try:

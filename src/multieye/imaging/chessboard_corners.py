@@ -22,6 +22,7 @@ Synopsis
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import cv2
@@ -30,7 +31,7 @@ from numpy.typing import NDArray
 
 from multieye.imaging.targets import Chessboard, Target
 
-__all__ = ["locate", "search_order", "quick_check", "find_chessboard", "refine_grid",
+__all__ = ["locate", "locate_board", "Located", "search_order", "quick_check", "find_chessboard", "refine_grid",
            "refine_corners", "corner_window", "consistent_grid", "saddle_grid", "whole_board", "min_spacing",
            "CLASSIC_FLAGS", "HALF_SIZE_SEARCH_ABOVE_PX", "MAX_SECOND_DIFFERENCE",
            "MIN_DEPARTURE_PX", "BEYOND_MAX_CORRELATION"]
@@ -296,6 +297,31 @@ def quick_check(gray: NDArray[np.uint8], target: Chessboard) -> bool:
 
 
 def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
+    """The board's inner corners refined at full size, or None: :func:`locate_board`'s
+    corners."""
+    return locate_board(gray, target).corners
+
+
+@dataclass(frozen=True)
+class Located:
+    """What :func:`locate_board` found.
+
+    Attributes
+    ----------
+    corners : ndarray, shape (rows * cols, 2), or None
+        The board's inner corners, pixels, in the order of the detector that found them;
+        None when no grid passed the checks.
+    beyond : bool
+        No grid passed, and a grid was found with a saddle of the image one square beyond
+        it (:func:`whole_board` refused it): the board runs past the image's edge, or it
+        has more inner corners than the target states.
+    """
+
+    corners: F64 | None
+    beyond: bool = False
+
+
+def locate_board(gray: NDArray[np.uint8], target: Chessboard) -> Located:
     """The board's inner corners refined at full size (:func:`refine_grid`), in the order of
     the detector that found them, or None.
 
@@ -317,7 +343,7 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
     refused is taken: a board bent by a lens near 180 degrees (boofcv_fisheye's 20.jpg and
     22.jpg, which SB does not find)."""
     order = search_order(gray)
-    bent = None
+    bent, beyond = None, False
     for detector, half in order:
         if (detector, half) == ("classic", False) and ("quick", False) in order \
                 and quick_check(gray, target):
@@ -326,12 +352,15 @@ def locate(gray: NDArray[np.uint8], target: Chessboard) -> F64 | None:
         if raw is None:
             continue
         corners = refine_grid(gray, raw, target)
-        if not (saddle_grid(gray, corners, target) and whole_board(gray, corners, target)):
+        if not whole_board(gray, corners, target):
+            beyond = True
+            continue
+        if not saddle_grid(gray, corners, target):
             continue
         if (detector == "sb" and not half) or consistent_grid(corners, target):
-            return corners
+            return Located(corners)
         bent = corners if bent is None else bent
-    return bent
+    return Located(bent, beyond=bent is None and beyond)
 
 
 def min_spacing(points: NDArray, target: Target) -> float:

@@ -57,7 +57,7 @@ from multieye.imaging.targets import (
     Target,
 )
 
-__all__ = ["Detection", "detect", "to_gray"]
+__all__ = ["Detection", "detect", "detect_or_why", "to_gray"]
 
 F64 = NDArray[np.float64]
 
@@ -140,9 +140,29 @@ def detect(image: ArrayLike, target: Target) -> Detection | None:
     warning (see the module docstring); several AprilTags with the same id (a stray tag in
     view) are dropped, with a warning.
     """
+    return detect_or_why(image, target)[0]
+
+
+def detect_or_why(image: ArrayLike, target: Target) -> tuple[Detection | None, str]:
+    """:func:`detect`, and when it finds nothing, what it can say about why.
+
+    Returns
+    -------
+    detection : Detection or None
+    why : str
+        Empty when found or when nothing more is known; for a chessboard whose every grid
+        found had a corner of the board one square beyond it
+        (:func:`multieye.imaging.chessboard_corners.whole_board`): ``"part of the board is
+        outside the image, or it has more inner corners than R x C"``.
+    """
     gray = to_gray(image)
     if isinstance(target, Chessboard):
         return _detect_chessboard(gray, target)
+    return _detect_other(gray, target), ""
+
+
+def _detect_other(gray: NDArray[np.uint8], target: Target) -> Detection | None:
+    """:func:`detect` for every target but the chessboard."""
     if isinstance(target, (CircleGrid, AsymmetricCircleGrid)):
         return _detect_circles(gray, target)
     if isinstance(target, Charuco):
@@ -156,11 +176,11 @@ def detect(image: ArrayLike, target: Target) -> Detection | None:
 
 # --------------------------------------------------------------------------- grids
 
-def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection | None:
+def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> tuple[Detection | None, str]:
     """The classic ``findChessboardCorners`` first, ``findChessboardCornersSB`` only where it
     fails or leaves a corner off the grid (each at half size first on large images); the
     corners refined with ``cornerSubPix`` at full size in a window of 40 % of a square
-    (:func:`multieye.imaging.chessboard_corners.locate`), then put in the canonical
+    (:func:`multieye.imaging.chessboard_corners.locate_board`), then put in the canonical
     order (:func:`_canonical`), so that the order and ids do not depend on the detector that
     found them (the two start from opposite corners of some boards).
 
@@ -169,9 +189,13 @@ def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> Detection
     ``cornerSubPix``, as accurate. SB finds boards the classic misses (strong blur, boards
     at the image border), so it stays as the fallback. SB's own CALIB_CB_ACCURACY costs 4x
     the time and gained nothing over cornerSubPix on its corners (PnP RMS on the
-    young_mocap_cam images)."""
-    corners = cc.locate(gray, target)
-    return None if corners is None else _canonical(gray, target, corners)
+    young_mocap_cam images).  Nothing found: why, when every grid found had a corner of the
+    board beyond it (:func:`detect_or_why`)."""
+    located = cc.locate_board(gray, target)
+    if located.corners is None:
+        return None, (f"part of the board is outside the image, or it has more inner "
+                      f"corners than {target.rows} x {target.cols}" if located.beyond else "")
+    return _canonical(gray, target, located.corners), ""
 
 
 #: Per circle target, whether its circles were last found light on dark: tried first next
