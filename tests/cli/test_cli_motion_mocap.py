@@ -74,6 +74,7 @@ def test_options_this_path_does_not_take_are_refused_in_one_line(tmp_path):
     render_wall_dataset(tmp_path / "ds", WallSpec(n_instants=4, width=320, height=240),
                         seed=0, mocap=True)
     res = CliRunner().invoke(main, ["calibrate", str(tmp_path / "ds"), "-o",
-                                    str(tmp_path / "out"), "--time-offset", "auto"])
+                                    str(tmp_path / "out"), "--no-refine"])
     assert res.exit_code == 2, (res.stdout, res.stderr)
-    assert "with motion capture and 3 targets the clocks are not estimated" in res.stderr
+    assert "--no-refine: with motion capture and 3 targets" in res.stderr
+    assert not (tmp_path / "out").exists()

@@ -19,6 +19,9 @@ A rig.yaml with ``mocap:`` and several ``targets:`` is calibrated as one problem
   T_world_target`` of the first board (``T_mocap_world``, the world being the first board),
   every board in the motion capture's frame, each with its covariance from the joint one;
   :func:`eye_on_hand_layout`: the evidence in the eye-on-hand layout the writers read.
+- :func:`with_clocks`: each camera's clock offset in the record, as the images were paired
+  with it (``--time-offset auto``: estimated per camera from the board it sees most and held,
+  :mod:`multieye.pipeline.clock_offsets`).
 """
 
 from __future__ import annotations
@@ -40,8 +43,8 @@ from multieye.pipeline.camera_data import pair_camera
 from multieye.pipeline.problem import Problem
 from multieye.pipeline.refine import mocap_noise
 
-__all__ = ["refuse_eye_to_base", "check_mocap_options", "rig_mocap", "with_mocap", "has_mocap", "eye_on_hand_layout",
-           "body_cam_jacobians", "board_jacobians"]
+__all__ = ["refuse_eye_to_base", "check_mocap_options", "rig_mocap", "with_mocap", "with_clocks",
+           "has_mocap", "eye_on_hand_layout", "body_cam_jacobians", "board_jacobians"]
 
 EYE_ON_HAND = "eye-on-hand"
 
@@ -73,15 +76,10 @@ def check_mocap_options(problem: Problem) -> Problem:
     Raises
     ------
     DatasetError
-        ``time_offset="auto"`` (the clocks are not estimated here), ``--no-refine`` (the
-        refinement is the solve) or another closed-form ``method`` (the start is the rig's
+        ``--no-refine`` (the refinement is the solve) or another closed-form ``method`` (the start is the rig's
         motion's, :mod:`multieye.estimate.motion_links`).
     """
     opts, where, n = problem.options, problem.rig.path, len(problem.rig.targets)
-    if opts.time_offset == "auto":
-        raise DatasetError(f"--time-offset auto: with motion capture and {n} targets the "
-                           "clocks are not estimated; give each camera's time_offset in "
-                           "rig.yaml", path=where)
     if not opts.refine:
         raise DatasetError(f"--no-refine: with motion capture and {n} targets the rig is "
                            "solved by the refinement on the views and the motion capture",
@@ -111,9 +109,8 @@ def rig_mocap(problem: Problem, instants: dict) -> RigMocap:
     for n, d in problem.cameras.items():
         if d.mocap is None:
             continue
-        opts = problem.options.time_offset
-        off = 0.0 if d.by_name else d.time_offset if opts == "rig" else float(opts)
-        p = pair_camera(problem.setup, d, time_offset=off)
+        # each camera's clock as :func:`~multieye.pipeline.clock_offsets.with_clock_offsets` set it
+        p = pair_camera(problem.setup, d, time_offset=0.0 if d.by_name else d.time_offset)
         where = {id(o): i for i, o in enumerate(d.observations)}
         for o, T in zip(p.observations, p.T_world_mocap):
             poses.setdefault(int(instants[n][where[id(o)]]), T)
@@ -197,6 +194,26 @@ def with_mocap(record: CalibrationRecord, sol, problem: Problem) -> CalibrationR
                    uncertainty={"T_world_target": _uncertainty(
                        _propagated(cov, off, [("Ym", 0, np.eye(6))]))},
                    frames=problem.rig.frames)
+
+
+def with_clocks(record: CalibrationRecord, problem: Problem, clocks: dict,
+                notes: tuple[str, ...] = ()) -> CalibrationRecord:
+    """The record with each camera's clock offset as the images were paired with it
+    (:func:`~multieye.pipeline.clock_offsets.with_clock_offsets`; ``clocks`` the estimated
+    ones, :class:`~multieye.estimate.clock.ClockOffset` by camera): estimated ones with the
+    search's standard deviation, given ones (rig.yaml's when not zero, ``--time-offset
+    SECONDS``) without; ``notes`` (a camera that took another's offset) join the warnings."""
+    cams = []
+    for cam in record.cameras:
+        d = problem.cameras[cam.name]
+        if cam.name in clocks:
+            cam = replace(cam, time_offset_s=float(clocks[cam.name].offset_s),
+                          time_offset_std_s=float(clocks[cam.name].std_s))
+        elif d.mocap is not None and not d.by_name and (
+                d.time_offset or problem.options.time_offset != "rig"):
+            cam = replace(cam, time_offset_s=float(d.time_offset))
+        cams.append(cam)
+    return replace(record, cameras=tuple(cams), warnings=tuple(record.warnings) + tuple(notes))
 
 
 def eye_on_hand_layout(paired: dict, refinement, sol) -> tuple[dict, object]:

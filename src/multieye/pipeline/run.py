@@ -35,7 +35,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from multieye.core.errors import CalibrationError, TooFewMeasurementsError
-from multieye.estimate.clock import estimate_offset
 from multieye.estimate.consensus import consensus
 from multieye.estimate.diagnostics import MotionDiagnostics, motion_diagnostics
 from multieye.estimate.plausibility import (
@@ -65,7 +64,8 @@ from multieye.estimate.refine_images import (
 from multieye.pipeline.overlap import paired_instants, share_instants
 from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
-from multieye.pipeline.overlap_mocap import check_mocap_options, refuse_eye_to_base
+from multieye.pipeline.clock_offsets import estimated_offset, with_clock_offsets
+from multieye.pipeline.overlap_mocap import check_mocap_options, refuse_eye_to_base, with_clocks
 from multieye.pipeline.problem import Pairing, Problem, make_problem
 from multieye.pipeline.record import build_record
 from multieye.pipeline.rig_model import RigModel
@@ -89,9 +89,6 @@ __all__ = [
     "pair_camera",
     "calibrate_rig",
 ]
-
-#: Smallest angular-speed correlation at which an automatic clock offset is trusted.
-CLOCK_MIN_SCORE = 0.5
 
 #: Inlier thresholds of the consensus (loop rotation residual, target position residual),
 #: then the wider ones tried when too few measurements of a camera agree with the first.
@@ -138,7 +135,9 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
                                                  total=time.perf_counter() - clock[0]))
     if len(rig.targets) > 1:             # with motion capture: the rig's motion too (34)
         refuse_eye_to_base(rig)
-        run = calibrate_overlap(check_mocap_options(problem))
+        problem, clocks, notes = with_clock_offsets(check_mocap_options(problem))
+        run = calibrate_overlap(problem)
+        run = replace(run, record=with_clocks(run.record, problem, clocks, notes))
         return replace(run, timings=StageTimings(refinement=time.perf_counter() - clock[0],
                                                  total=time.perf_counter() - clock[0]))
     every = pair(problem)
@@ -199,32 +198,8 @@ def _offsets(problem: Problem) -> dict[str, float]:
         return {n: 0.0 if d.by_name else d.time_offset for n, d in cameras.items()}
     if opts.time_offset != "auto":
         return {n: 0.0 if d.by_name else float(opts.time_offset) for n, d in cameras.items()}
-    return {n: 0.0 if d.by_name else _estimated_offset(problem, d) for n, d in cameras.items()}
-
-
-def _estimated_offset(problem: Problem, d: CameraData) -> float:
-    search = (-problem.options.max_time_offset, problem.options.max_time_offset)
-    try:
-        est = estimate_offset(np.array([o.stamp for o in d.observations]),
-                              np.stack([o.T_cam_target for o in d.observations]),
-                              d.mocap.stamps, d.mocap.T, setup=problem.setup, search_s=search)
-    except CalibrationError as exc:
-        raise CalibrationError(f"camera {d.name}: clock offset could not be estimated: {exc}; "
-                               "give --time-offset SECONDS or time_offset in rig.yaml") from None
-    edge = 0.02 * (search[1] - search[0])
-    if not est.score >= CLOCK_MIN_SCORE:
-        raise CalibrationError(
-            f"camera {d.name}: the clock offset cannot be estimated (angular speeds of camera "
-            f"and motion capture correlate at {est.score:.2f}, below {CLOCK_MIN_SCORE}): move "
-            "the target faster and less uniformly, or give --time-offset SECONDS")
-    if (min(est.coarse_offset_s, est.offset_s) < search[0] + edge
-            or max(est.coarse_offset_s, est.offset_s) > search[1] - edge):
-        raise CalibrationError(
-            f"camera {d.name}: the best clock offset ({est.offset_s:+.3f} s) is at the edge of "
-            f"the search range {search[0]:+.3g}..{search[1]:+.3g} s, so the true one is "
-            "probably outside it; widen the search (--max-time-offset SECONDS) or give "
-            "--time-offset SECONDS (or time_offset in rig.yaml)")
-    return float(est.offset_s)
+    return {n: 0.0 if d.by_name else float(estimated_offset(problem, d).offset_s)
+            for n, d in cameras.items()}
 
 
 def keep_consensus(problem: Problem, pairing: Pairing, check: Callable[[], Plausibility]

@@ -313,7 +313,8 @@ def _view(target: Target, intr: Intrinsics, T_cam_board: F64, spec: WallSpec,
     return ids, uv[ids]
 
 
-def simulate_walls(rng: np.random.Generator, spec: WallSpec = WallSpec()) -> WallScenario:
+def simulate_walls(rng: np.random.Generator, spec: WallSpec = WallSpec(),
+                   T_world_body: F64 | None = None) -> WallScenario:
     """The rig, the boards, the motion and every view with its exact pixels.
 
     Parameters
@@ -321,6 +322,9 @@ def simulate_walls(rng: np.random.Generator, spec: WallSpec = WallSpec()) -> Wal
     rng : numpy.random.Generator
         The rig's mounts, lenses and motion.
     spec : WallSpec
+    T_world_body : ndarray, shape (K, 4, 4), optional
+        The body's pose at each instant instead of ``spec.motion``'s (e.g. a smooth path in
+        time, for clock offsets); ``spec.n_instants`` is then ignored.
 
     Returns
     -------
@@ -332,7 +336,8 @@ def simulate_walls(rng: np.random.Generator, spec: WallSpec = WallSpec()) -> Wal
     T_world_board = np.stack([_board_pose(boards[n], n, spec) for n in specs])
     T_body_cam = _camera_mounts(spec.n_cameras, rng)
     intr = wall_intrinsics(spec, rng)
-    T_world_body = _body_poses(spec, rng)
+    T_world_body = _body_poses(spec, rng) if T_world_body is None else np.asarray(
+        T_world_body, dtype=np.float64)
     cameras = tuple(f"cam{j}" for j in range(spec.n_cameras))
     views = []
     for i, T_wb in enumerate(T_world_body):
