@@ -44,3 +44,23 @@ def test_check_accepts_one_chessboard_per_camera_as_calibrate_does(tmp_path):
     for cam in ("cam1", "cam2", "cam3"):
         assert f"{cam} linked by: motion via cam0" in res.stdout, res.stdout
         assert f"problem: {cam}: target found in only" not in res.stdout
+        # driven on the floor, each camera seeing only its own board: calibrating doubts its
+        # height (exit status 3); check says so beforehand
+        assert (f"problem: {cam}: the sampled views show the rig turned about one axis only"
+                in res.stdout and "not only about y of the rig" in res.stdout), res.stdout
+
+
+def test_one_axis_problems_name_only_cameras_apart_from_the_references_boards():
+    """A rig turned about its y axis only: cameras whose boards no joined camera sees are
+    named, one sharing a board with the reference is not; turned about two axes, none."""
+    import numpy as np  # noqa: PLC0415 (this test only)
+    from multieye.core.geometry import transform_from_rotvec  # noqa: PLC0415 (this test only)
+    from multieye.pipeline.dry_run_boards import one_axis_problems  # noqa: PLC0415 (this test only)
+    views = [(0, 0, "a"), (1, 0, "a"), (0, 1, "b"), (2, 1, "c"), (3, 2, "d"), (2, 3, "d")]
+    yaw = [transform_from_rotvec([0, a, 0], [0.1 * a, 0, 2]) for a in np.linspace(-0.4, 0.4, 6)]
+    poses = [(k, "a", T) for k, T in enumerate(yaw)]
+    named = one_axis_problems(["c0", "c1", "c2", "c3"], views, poses)
+    assert sorted(named) == ["c2", "c3"] and "about y of the rig" in named["c2"][0]
+    tilted = [(k, "a", transform_from_rotvec([0.2 * (-1) ** k, a, 0.1 * a], [0, 0, 2]))
+              for k, a in enumerate(np.linspace(-0.4, 0.4, 6))]
+    assert one_axis_problems(["c0", "c1", "c2", "c3"], views, tilted) == {}

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from multieye.core.lie import log_so3
 
 __all__ = ["UNDETERMINED_RATIO", "SINGLE_AXIS_SPREAD", "Undetermined", "Observability",
-           "observability", "turn_axis"]
+           "observability", "turn_axis", "one_axis_advice"]
 
 F64 = NDArray[np.float64]
 
@@ -108,6 +108,11 @@ def turn_axis(T_world_rig, spread: float = SINGLE_AXIS_SPREAD) -> F64 | None:
     if len(s) > 1 and s[1] > spread * s[0]:
         return None
     return Vt[0] * np.sign(Vt[0][np.argmax(np.abs(Vt[0]))])
+
+
+def one_axis_advice(axis: F64) -> str:
+    """What fixes a rig turned about ``axis`` only (rig frame, unit), as the doubt says it."""
+    return _FIX.format(axis=_axis_name(axis))
 
 
 def _axis_name(u: F64) -> str:

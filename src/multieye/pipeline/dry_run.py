@@ -28,7 +28,7 @@ from multieye.io import sample_bag_images
 from multieye.pipeline.recordings import check_sync, image_notes, listed_images, sync_instant
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
-from multieye.pipeline.dry_run_boards import boards_found, motion_links
+from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
 from multieye.pipeline.estimated_lens import model_warnings
@@ -85,6 +85,9 @@ class CameraCheck:
     seen : tuple of (int, tuple of str)
         Per sampled image with a board found: its index among the listed images and the
         boards found in it.
+    board_poses : tuple of (int, str, ndarray of shape (4, 4))
+        With the lens given: per sampled image and board found in it with a pose, its index
+        among the listed images, the board and ``T_cam_board`` (metres).
     """
 
     name: str
@@ -105,6 +108,7 @@ class CameraCheck:
     keys: tuple[str, ...] = ()
     boards: tuple[tuple[str, int], ...] = ()
     seen: tuple[tuple[int, tuple[str, ...]], ...] = ()
+    board_poses: tuple = ()
 
     @property
     def found_percent(self) -> float:
@@ -246,6 +250,7 @@ class _Sample:
     names: tuple = ()           # every listed image's file name (a folder of images only)
     boards: tuple = ()          # (board, sampled images it was found in), every board looked for
     seen: tuple = ()            # (listed index, boards found) of each sampled image with one
+    board_poses: tuple = ()     # (listed index, board, T_cam_board) where a pose was found
 
 
 def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
@@ -258,6 +263,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
     names: tuple = ()
     boards: tuple = ()
     seen: tuple = ()
+    posed: tuple = ()
     failures: dict[str, int] = {}
     if cam.source == "poses":
         poses = read_tum(cam.poses, parent="cam", child="target")
@@ -304,10 +310,12 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
         found = boards_found(results, looked_for)
         boards = tuple((n, sum(n in f for f in found)) for n in looked_for)
         seen = tuple((i, f) for i, f in zip(sampled_idx, found) if f)
+        posed = tuple((i, b, T) for i, r in zip(sampled_idx, results)
+                      for b, T in posed_boards(r, looked_for))
     return _Sample(stamps=stamps, n_listed=n_listed, sampled_idx=sampled_idx,
                    found_mask=found_mask, results=results, failures=failures,
                    n_sampled=n_sampled, problems=tuple(problems), paths=tuple(paths),
-                   names=names, boards=boards, seen=seen)
+                   names=names, boards=boards, seen=seen, board_poses=posed)
 
 
 def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> CameraCheck:
@@ -387,7 +395,7 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
                        expected_usable=expected, time_tolerance_s=float(tolerance),
                        rotation_range_deg=range_deg, rotation_spread_deg=spread,
                        problems=tuple(problems), fatal=tuple(fatal), boards=seen.boards,
-                       seen=seen.seen)
+                       seen=seen.seen, board_poses=seen.board_poses)
 
 
 def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
@@ -419,7 +427,7 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
                        stamps=tuple(float(t) + cam.time_offset for t in seen.stamps),
                        keys=tuple(sync_instant(n, t, rig.sync) for n, t in
                                   zip(seen.names, seen.stamps)) if rig.sync != "time" else (),
-                       boards=seen.boards, seen=seen.seen)
+                       boards=seen.boards, seen=seen.seen, board_poses=seen.board_poses)
 
 
 def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...], tuple]:
@@ -442,10 +450,11 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
     several = len(rig.targets or {}) > 1
     lines = _link_lines(rig, cams, inst, n_inst, cov.shared, tol)
     if several:         # the rig's motion may link them: what the sampled detections say
-        lines = lines[:1] + tuple(motion_links(
-            [c.name for c in cams],
-            [(j, int(inst[j][i]), b) for j, c in enumerate(cams) for i, bs in c.seen
-             for b in bs]))
+        views = [(j, int(inst[j][i]), b) for j, c in enumerate(cams) for i, bs in c.seen
+                 for b in bs]
+        lines = lines[:1] + tuple(motion_links([c.name for c in cams], views))
+        turned = one_axis_problems([c.name for c in cams], views, cams[0].board_poses)
+        cams = tuple(replace(c, problems=c.problems + turned.get(c.name, ())) for c in cams)
     out = []
     for j, c in enumerate(cams):
         others = np.concatenate([i for k, i in enumerate(inst) if k != j] or [np.zeros(0)])

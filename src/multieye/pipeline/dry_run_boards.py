@@ -11,6 +11,9 @@ placed instant, and a camera when it sees a placed board at a placed instant (*o
 a placed camera saw that board at that instant too, else *motion*) or any board at a placed
 instant (the hand-eye step, *motion*).  The calibration may still find the motion too poor
 (turned about one axis); it never links a camera this leaves apart.
+:func:`one_axis_problems` says beforehand when the sampled views of the reference camera show
+the rig turned about one axis only (with the lens given: the board poses), which leaves the
+cameras linked by the motion alone partly undetermined (calibrating doubts them, exit 3).
 """
 
 from __future__ import annotations
@@ -19,9 +22,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from multieye.core import geometry as g
+from multieye.estimate.observability import one_axis_advice, turn_axis
 from multieye.imaging.pnp import collinear
 
-__all__ = ["boards_found", "motion_links"]
+__all__ = ["boards_found", "motion_links", "posed_boards", "one_axis_problems"]
 
 
 def boards_found(results: Sequence, looked_for: tuple[str, ...]) -> list[tuple[str, ...]]:
@@ -114,3 +119,43 @@ def motion_links(labels: Sequence[str], views: Sequence[tuple[int, int, str]]
                          f"board{'s' * (len(through) > 1)} {', '.join(sorted(through))}")
         lines.append(f"{labels[j]} linked by: " + ("; ".join(parts) or "motion"))
     return lines
+
+
+def posed_boards(result, looked_for: tuple[str, ...]) -> list[tuple[str, np.ndarray]]:
+    """The boards of one sampled image's result that have a pose (the lens given), with
+    ``T_cam_board``: ``[(board, (4, 4) array), ...]``."""
+    return [(n, np.asarray(p.pose.T_cam_target, dtype=np.float64))
+            for n, p in (result.parts or ((looked_for[0], result),))
+            if _posable(p) and p.pose is not None]
+
+
+def one_axis_problems(labels: Sequence[str], views: Sequence[tuple[int, int, str]],
+                      reference_poses: Sequence) -> dict[str, tuple[str, ...]]:
+    """Per camera the problem line when the reference camera's sampled views of the board it
+    saw most (``reference_poses``: ``(index, board, T_cam_board)``, at least 4 views) show the
+    rig turned about one axis only (:func:`multieye.estimate.observability.turn_axis`, the
+    calibration's own test) and the camera is apart from the reference camera's boards: no
+    chain of boards seen by both cameras joins them in the sampled views (``views``: camera
+    index, instant, board).  Such a camera and its boards shift together along the axis
+    without changing a pixel (docs/results/motion_links.md, observability); cameras whose
+    boards the others see too are determined by planar motion.  Else nothing."""
+    boards = [b for _, b, _ in reference_poses]
+    if not boards:
+        return {}
+    main = max(set(boards), key=boards.count)
+    T = [g.inv(T) for _, b, T in reference_poses if b == main]     # T_board_ref
+    axis = turn_axis(np.stack(T)) if len(T) >= 4 else None
+    if axis is None:
+        return {}
+    joined, grew = {0}, True                  # cameras joined to the reference by boards
+    while grew:
+        seen_by = {b for c, _, b in views if c in joined}
+        more = {c for c, _, b in views if b in seen_by} - joined
+        joined |= more
+        grew = bool(more)
+    return {labels[j]: (
+        "the sampled views show the rig turned about one axis only, and no board this camera "
+        f"sees is seen by {labels[0]} or a camera that shares one with it: its position along "
+        "that axis would be undetermined (calibrating doubts it, exit status 3); "
+        + one_axis_advice(axis),)
+        for j in range(1, len(labels)) if any(c == j for c, _, _ in views) and j not in joined}
