@@ -61,6 +61,8 @@ def test_one_axis_problems_name_only_cameras_apart_from_the_references_boards():
     poses = [(k, "a", T) for k, T in enumerate(yaw)]
     named = one_axis_problems(["c0", "c1", "c2", "c3"], views, poses)
     assert sorted(named) == ["c2", "c3"] and "about y of the rig" in named["c2"][0]
+    # a board whose pose rig.yaml gives is held in the world: the cameras seeing it are placed
+    assert sorted(one_axis_problems(["c0", "c1", "c2", "c3"], views, poses, frozenset({"d"}))) == []
     tilted = [(k, "a", transform_from_rotvec([0.2 * (-1) ** k, a, 0.1 * a], [0, 0, 2]))
               for k, a in enumerate(np.linspace(-0.4, 0.4, 6))]
     assert one_axis_problems(["c0", "c1", "c2", "c3"], views, tilted) == {}

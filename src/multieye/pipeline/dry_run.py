@@ -453,7 +453,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         views = [(j, int(inst[j][i]), b) for j, c in enumerate(cams) for i, bs in c.seen
                  for b in bs]
         lines = lines[:1] + tuple(motion_links([c.name for c in cams], views))
-        turned = one_axis_problems([c.name for c in cams], views, cams[0].board_poses)
+        given = frozenset(n for n, t in rig.targets.items() if getattr(t, "pose", None) is not None)
+        turned = one_axis_problems([c.name for c in cams], views, cams[0].board_poses, given)
         cams = tuple(replace(c, problems=c.problems + turned.get(c.name, ())) for c in cams)
     out = []
     for j, c in enumerate(cams):

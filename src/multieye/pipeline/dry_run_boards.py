@@ -130,7 +130,8 @@ def posed_boards(result, looked_for: tuple[str, ...]) -> list[tuple[str, np.ndar
 
 
 def one_axis_problems(labels: Sequence[str], views: Sequence[tuple[int, int, str]],
-                      reference_poses: Sequence) -> dict[str, tuple[str, ...]]:
+                      reference_poses: Sequence, given: frozenset = frozenset()
+                      ) -> dict[str, tuple[str, ...]]:
     """Per camera the problem line when the reference camera's sampled views of the board it
     saw most (``reference_poses``: ``(index, board, T_cam_board)``, at least 4 views) show the
     rig turned about one axis only (:func:`multieye.estimate.observability.turn_axis`, the
@@ -138,7 +139,8 @@ def one_axis_problems(labels: Sequence[str], views: Sequence[tuple[int, int, str
     chain of boards seen by both cameras joins them in the sampled views (``views``: camera
     index, instant, board).  Such a camera and its boards shift together along the axis
     without changing a pixel (docs/results/motion_links.md, observability); cameras whose
-    boards the others see too are determined by planar motion.  Else nothing."""
+    boards the others see too are determined by planar motion, and so are those that see a
+    board whose pose rig.yaml gives (``given``: held in the world).  Else nothing."""
     boards = [b for _, b, _ in reference_poses]
     if not boards:
         return {}
@@ -149,7 +151,7 @@ def one_axis_problems(labels: Sequence[str], views: Sequence[tuple[int, int, str
         return {}
     joined, grew = {0}, True                  # cameras joined to the reference by boards
     while grew:
-        seen_by = {b for c, _, b in views if c in joined}
+        seen_by = {b for c, _, b in views if c in joined} | set(given)
         more = {c for c, _, b in views if b in seen_by} - joined
         joined |= more
         grew = bool(more)
