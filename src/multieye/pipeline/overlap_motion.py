@@ -97,6 +97,9 @@ class MotionSolution:
     findings, warnings : tuple
     given : tuple of str
         The boards held at their given poses (rig.yaml's ``pose:``).
+    world : str
+        The board whose frame is the world: rig.yaml's first board (when seen or when given
+        poses are in its frame), else the first board seen.
     """
 
     names: tuple[str, ...]
@@ -113,6 +116,7 @@ class MotionSolution:
     findings: tuple = ()
     warnings: tuple = ()
     given: tuple = ()
+    world: str = ""
 
     def T_ref_target(self, name: str) -> np.ndarray:
         """The board of each used observation of camera ``name`` in the rig's frame at its
@@ -225,7 +229,8 @@ def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
         names=names, reference=reference, boards=order, result=result, views=mv,
         used={n: cameras[n].observations for n in names}, instants=inst, board=which,
         links=_links(mv, result, order), observability=obs, sync_tolerance=tol,
-        findings=findings, warnings=_rig_warnings(cameras, mv, result) + notes, given=given)
+        findings=findings, warnings=_rig_warnings(cameras, mv, result) + notes, given=given,
+        world=boards[0] if boards and (boards[0] in order or given) else order[0])
 
 
 def _held(order: Sequence[str], declared: Sequence[str], poses) -> dict | None:
