@@ -30,17 +30,14 @@ eye-to-base   ``T_world_marker[i] @ T_marker_target``     ``T_world_cam`` (stati
 eye-on-hand   ``T_world_body[i] @ T_body_cam @            ``T_world_body_shown @ T_body_cam``
               T_cam_target[i]``
 overlap       ``T_ref_target`` of the image's instant     ``T_ref_cam``
-motion links  ``T_world_rig(t) @ T_ref_cam @              ``T_world_body_shown @ T_ref_cam``
-              T_cam_target[i]``
 ============  ==========================================  ===================================
 
 Without motion capture (setup ``overlap``) the ``world`` of these pictures is the reference
 camera's frame, the loop residuals are those of each image's PnP pose against the solution's
 ``inv(T_ref_cam) @ T_ref_target`` and the one trajectory is the target's origin at every
-instant (``pose`` ``T_ref_target``).  A rig linked by its motion (``motion-links``) is drawn
-in the first board's frame (``frame``): the trajectory is the rig's pose per instant (full
-poses ``T``), the cameras at its middle instant's (``T_world_body_shown``); the boards' poses
-and covariances are ``calibration.json``'s ``targets``, in that frame.
+instant (``pose`` ``T_ref_target``).  A rig linked by its motion is drawn in the first board's
+frame (``frame``; docs/outputs.md, section 3): the rig's pose per instant (trajectory ``T``),
+the cameras at its middle one, the boards as ``calibration.json``'s ``targets``.
 
 In eye-to-base the target moves and the motion capture says where it was.  In eye-on-hand the
 target is static at ``T_world_target`` and every measurement gives one estimate of it through
@@ -125,7 +122,7 @@ class TrajectoryDetails:
     n_samples : int
         Samples in the span before subsampling (``>= k``).
     T : ndarray, shape (k, 4, 4), or None
-        The full poses (a rig linked by its motion: the rig's); None for motion capture.
+        The full poses (a rig linked by its motion); None for motion capture.
     """
 
     pose: str
@@ -272,8 +269,7 @@ class RunDetails:
         The run's warnings, as in ``calibration.json`` (files read from outside the dataset
         folder among them); empty for files written before ``details.json`` had them.
     frame : str or None
-        The name of the pictures' world when it is a board (a rig linked by its motion, no
-        motion capture: the first board); None otherwise.
+        The pictures' world when it is a board (a rig linked by its motion: the first board).
     """
 
     setup: str
@@ -457,6 +453,23 @@ def _read_timings(r: _Reader, obj) -> StageTimings | None:
     return StageTimings(**values)
 
 
+def _read_trajectories(r: _Reader, data) -> list[TrajectoryDetails]:  # checked
+    trajectories = []
+    raw_trajs = r.get(data, "trajectories", "the top level")
+    if not isinstance(raw_trajs, list):
+        raise r.error("trajectories must be a list")
+    for k, t in enumerate(raw_trajs):
+        where = f"trajectories[{k}]"
+        stamps = r.array(r.get(t, "stamp", where), (-1,), f"{where}.stamp")
+        pos = r.array(r.get(t, "position", where), (stamps.size, 3), f"{where}.position")
+        n = r.get(t, "n_samples", where)
+        if isinstance(n, bool) or not isinstance(n, int) or n < stamps.size:
+            raise r.error(f"{where}.n_samples must be an integer >= {stamps.size}, got {n!r}")
+        T = None if t.get("T") is None else r.array(t["T"], (stamps.size, 4, 4), f"{where}.T")
+        trajectories.append(TrajectoryDetails(str(r.get(t, "pose", where)), stamps, pos, n, T))
+    return trajectories
+
+
 def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDetails:
     """Validate a parsed ``details.json`` object.
 
@@ -481,19 +494,7 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
     reference = r.get(data, "reference_camera", "the top level")
     shown = data.get("T_world_body_shown")
     shown = None if shown is None else r.array(shown, (4, 4), "T_world_body_shown")
-    trajectories = []
-    raw_trajs = r.get(data, "trajectories", "the top level")
-    if not isinstance(raw_trajs, list):
-        raise r.error("trajectories must be a list")
-    for k, t in enumerate(raw_trajs):
-        where = f"trajectories[{k}]"
-        stamps = r.array(r.get(t, "stamp", where), (-1,), f"{where}.stamp")
-        pos = r.array(r.get(t, "position", where), (stamps.size, 3), f"{where}.position")
-        n = r.get(t, "n_samples", where)
-        if isinstance(n, bool) or not isinstance(n, int) or n < stamps.size:
-            raise r.error(f"{where}.n_samples must be an integer >= {stamps.size}, got {n!r}")
-        T = None if t.get("T") is None else r.array(t["T"], (stamps.size, 4, 4), f"{where}.T")
-        trajectories.append(TrajectoryDetails(str(r.get(t, "pose", where)), stamps, pos, n, T))
+    trajectories = _read_trajectories(r, data)
     cams_raw = r.get(data, "cameras", "the top level")
     if not isinstance(cams_raw, Mapping) or not cams_raw:
         raise r.error("cameras must be a non-empty object of camera name -> details")
@@ -551,10 +552,9 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
     if reference not in cams_raw:
         raise r.error(f"reference camera {reference!r} is not one of {', '.join(cams_raw)}")
     warnings, frame = data.get("warnings", []), data.get("frame")
-    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
-        raise r.error("warnings must be a list of strings")
-    if frame is not None and not isinstance(frame, str):
-        raise r.error(f"frame must be a board's name, got {frame!r}")
+    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings) or not (
+            frame is None or isinstance(frame, str)):
+        raise r.error("warnings must be a list of strings, frame (optional) a board's name")
     return RunDetails(setup=setup, reference_camera=reference, cameras=tuple(cameras),
                       trajectories=tuple(trajectories), T_world_body_shown=shown,
                       timings=_read_timings(r, data.get("timings_s")),

@@ -72,5 +72,5 @@ def linked_by(rec: CalibrationRecord) -> str:
             else "no camera is linked to the reference camera " + ref)
 
 
-def _names(names: list[str]) -> str:
-    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+def _names(cams: list[str]) -> str:
+    return cams[0] if len(cams) == 1 else ", ".join(cams[:-1]) + " and " + cams[-1]
