@@ -76,6 +76,13 @@ def test_a_rig_without_motion_capture_is_calibrated_from_its_shared_views(tmp_pa
     assert details.trajectories[0].pose == "T_ref_target"
     html = (tmp_path / "out" / "report.html").read_text()
     assert "What links each camera" in html and "No motion capture" in html
+    # what is drawn and linked, said as it is: no motion capture is drawn, cam1 and cam2
+    # share views (issue 34 report wording)
+    assert "the motion capture (T_ref_target)" not in html
+    assert ("Grey line: the target&#x27;s origin from instant to instant, in the reference "
+            "camera&#x27;s frame (T_ref_target; no motion capture)") in html
+    assert ("No motion capture: linked to the reference camera cam0: cam1 and cam2 by the "
+            "views they share with another camera (one board at one instant).") in html
     # exports: the pinhole pair (cam0, cam1) rectified, cam2 (fisheye with pinholes) not
     res = CliRunner().invoke(main, ["export", str(tmp_path / "out"), "--format", "camera-info"])
     assert res.exit_code == 0, res.output

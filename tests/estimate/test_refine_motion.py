@@ -101,3 +101,70 @@ def test_covariance_of_t_ref_cam_is_honest_over_simulated_rigs():
         mv = MotionViews(s.views(0.3, rng), s.intrinsics)
         nees += _nees(refine_motion(mv, _disturbed(s.T_cam_board(), rng)), s)
     assert 0.5 < np.mean(nees) < 1.6
+
+
+def _held(s):
+    """Boards 0 (the world) and 2 held at their true poses, board 1 estimated."""
+    return {0: np.eye(4), 2: s.T_world_board[2]}
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_pixel_jacobians_with_a_board_at_a_given_pose_match_central_differences(free):
+    s = wall_rig(1, n_instants=8)
+    rng = np.random.default_rng(3)
+    mv = MotionViews(s.views(0.3, rng), s.intrinsics, 1, free_intrinsics=[free] * 4,
+                     board_poses=_held(s))
+    assert mv.free_boards == [1] and list(mv.board_slot) == [-1, 0, -1]
+    T_ref_cam = _disturbed(g.inv(s.T_ref_cam[1]) @ s.T_ref_cam, rng)
+    T_ref_cam[1] = np.eye(4)
+    fams = mv.families(T_ref_cam, _disturbed(s.T_world_board, rng),
+                       _disturbed(g.inv(s.T_world_rig @ s.T_ref_cam[1]), rng))
+    values = {f.name: f.value for f in fams}
+    assert values["W"].shape == (1, 4, 4)
+    for grp in mv.groups(0.5):
+        for a, n in zip(grp.evaluate(values, True)[1], numerical_jacobians(fams, grp)):
+            assert np.abs(a - n).max() < 1e-5 * max(1.0, float(np.abs(n).max()))
+
+
+def test_boards_at_given_poses_stay_there_and_the_rest_is_exact_without_noise():
+    s = wall_rig(5)
+    rng = np.random.default_rng(6)
+    mv = MotionViews(s.views(), s.intrinsics, board_poses=_held(s))
+    res = refine_motion(mv, _disturbed(s.T_cam_board(), rng), pixel_sigma=0.5, loss="linear")
+    # held: exactly the given matrices, in the start too, and no covariance
+    np.testing.assert_array_equal(res.T_world_board[2], s.T_world_board[2])
+    np.testing.assert_array_equal(res.start.T_world_board[2], s.T_world_board[2])
+    np.testing.assert_array_equal(res.T_world_board[0], np.eye(4))
+    assert np.all(res.board_covariance[[0, 2]] == 0)
+    assert np.all(np.linalg.eigvalsh(res.board_covariance[1]) > 0)
+    assert np.abs(res.T_world_board[1] - s.T_world_board[1]).max() < 1e-8
+    assert np.abs(res.T_ref_cam - s.T_ref_cam).max() < 1e-8
+    assert np.abs(res.T_world_rig - s.T_world_rig).max() < 1e-8
+
+
+def test_a_given_pose_alone_fixes_the_world_when_the_first_board_is_not_held():
+    """Only board 1 held: the world is the frame its pose is given in (here board 0's)."""
+    s = wall_rig(5)
+    rng = np.random.default_rng(7)
+    mv = MotionViews(s.views(), s.intrinsics, board_poses={1: s.T_world_board[1]})
+    res = refine_motion(mv, _disturbed(s.T_cam_board(), rng), pixel_sigma=0.5, loss="linear")
+    assert np.abs(res.T_world_board - s.T_world_board).max() < 1e-8
+    assert np.all(res.board_covariance[1] == 0) and np.all(res.board_covariance[0] != 0)
+
+
+def test_true_given_poses_keep_the_extrinsics_honest_and_no_less_certain():
+    """0.3 px noise, 6 rigs: with the true poses of boards 1 and 2 given, each T_ref_cam is
+    within chi-square(6)'s 99.9 % of the truth and its sigma no larger than with the boards
+    estimated (the same views)."""
+    for seed in range(6):
+        s = wall_rig(seed, n_instants=30)
+        rng = np.random.default_rng(200 + seed)
+        views, T = s.views(0.3, rng), _disturbed(s.T_cam_board(), rng)
+        est = refine_motion(MotionViews(views, s.intrinsics), T)
+        held = {0: np.eye(4), 1: s.T_world_board[1], 2: s.T_world_board[2]}
+        given = refine_motion(MotionViews(views, s.intrinsics, board_poses=held), T)
+        assert np.all(given.T_world_board[1:] == s.T_world_board[1:])
+        assert max(_nees(given, s)) * 6 < 22.46, seed
+        for j in range(1, 4):
+            assert np.trace(given.covariance[j][:3, :3]) <= np.trace(est.covariance[j][:3, :3])
+            assert np.trace(given.covariance[j][3:, 3:]) <= np.trace(est.covariance[j][3:, 3:])

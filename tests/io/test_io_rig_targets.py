@@ -158,20 +158,3 @@ def test_the_documented_example_loads(tmp_path):
     block = textwrap.dedent(doc[begin:doc.index("```", begin)])
     rig = load_rig(_write(tmp_path, block))
     assert list(rig.targets) == ["north", "west", "south", "door"]
-
-
-def test_a_given_board_pose_is_refused_by_calibrate_and_check_rather_than_ignored(tmp_path):
-    """rig.yaml reads and checks a board's ``pose:``, but the estimation holds no board at a
-    given pose yet: calibrating or checking refuses it in one line (exit status 2, nothing
-    written) instead of estimating that board as if no pose had been given."""
-    (tmp_path / "ds").mkdir()
-    ds = _write(tmp_path / "ds", GOOD + CAMS)
-    for command in ("calibrate", "check"):
-        out = tmp_path / f"out_{command}"
-        args = [command, str(ds)] + (["-o", str(out)] if command == "calibrate" else [])
-        res = CliRunner().invoke(main, args)
-        assert res.exit_code == 2, (command, res.stdout, res.stderr)
-        lines = res.stderr.strip().splitlines()
-        assert len(lines) == 1 and "Traceback" not in res.stderr, res.stderr
-        assert "door" in lines[0] and "pose:" in lines[0], lines[0]
-        assert not out.exists()

@@ -25,8 +25,13 @@ so any two of them give the third.  The start grows from the reference camera
    translation along the axis is not determined: :mod:`multieye.estimate.observability`
    says so after the refinement); then back to 1.
 
-At the end the world is moved to the first board's frame (board 0, the gauge of the
-refinement, :mod:`multieye.estimate.motion_residuals`).  Exact on noise-free poses.
+At the end the world is moved to the refinement's gauge
+(:mod:`multieye.estimate.motion_residuals`): the first board's frame (board 0), or the frame
+of the boards held at given poses (``views.held``).  Those boards are known from the start:
+when there are several and the reference camera sees one, the growth starts from it with
+every held board placed (they may link cameras the views alone would not); otherwise the
+world is the robust mean of what the growth found for them against their given poses.  Either way the held boards start
+exactly at their given poses.  Exact on noise-free poses.
 
 Synopsis
 --------
@@ -109,10 +114,10 @@ def _mean(T: list) -> F64:
 class _Growth:
     """The known poses while the start grows (module docstring)."""
 
-    def __init__(self, T_jb, camera, instant, board, m, reference, start_board):
+    def __init__(self, T_jb, camera, instant, board, reference, seed: dict):
         self.T, self.cam, self.inst, self.board = T_jb, camera, instant, board
         self.cams: dict[int, F64] = {reference: np.eye(4)}
-        self.boards: dict[int, F64] = {start_board: np.eye(4)}
+        self.boards: dict[int, F64] = dict(seed)
         self.insts: dict[int, F64] = {}
         self.placed_by: dict[int, set] = {}              # instant -> {(camera, board)}
         self.links: dict[int, Link] = {reference: Link("reference")}
@@ -267,7 +272,39 @@ def motion_start(views, T_cam_board) -> MotionStart:
     if own.size == 0:
         raise DisconnectedError(f"the reference camera {label[ref]} sees no board",
                                 (label[ref],))
-    grow = _Growth(T, camera, instant, board, m, ref, int(np.bincount(own).argmax()))
+    held = dict(getattr(views, "held", None) or {0: np.eye(4)})
+    seed = _seed(own, held)
+    try:
+        grow = _grown(T, views, seed)
+    except (DegenerateMotionError, DisconnectedError):
+        if len(seed) < 2:
+            raise
+        # grown from the boards at given poses it failed: from the views alone, as without
+        grow = _grown(T, views, {int(np.bincount(own).argmax()): np.eye(4)})
+    nb, K = int(board.max()) + 1, int(instant.max()) + 1
+    to_world = _mean([G @ g.inv(grow.boards[b]) for b, G in held.items()])
+    T_world_board = np.stack([to_world @ grow.boards[b] for b in range(nb)])
+    for b, G in held.items():
+        T_world_board[b] = G
+    return MotionStart(
+        T_ref_cam=np.stack([grow.cams[j] for j in range(m)]),
+        T_world_board=T_world_board,
+        T_world_rig=np.stack([to_world @ grow.insts[t] for t in range(K)]),
+        links=tuple(grow.links[j] for j in range(m)), single_axis=tuple(grow.single_axis))
+
+
+def _grown(T: F64, views, seed: dict) -> _Growth:
+    """The growth from ``seed`` (boards known at the start) until every camera, board and
+    instant is placed (module docstring, steps 1 and 2).
+
+    Raises
+    ------
+    DegenerateMotionError, DisconnectedError
+        As :func:`motion_start`.
+    """
+    camera, instant, board, m = views.camera, views.instant, views.board, views.m
+    ref, label = views.reference, views.names
+    grow = _Growth(T, camera, instant, board, ref, seed)
     while True:
         grow.chain()
         if len(grow.cams) == m or not grow.hand_eye():
@@ -292,12 +329,19 @@ def motion_start(views, T_cam_board) -> MotionStart:
     if missing:
         raise DisconnectedError("nothing links " + ", ".join(missing[:5]) + " to the rig: "
                                 "seen only when no linked camera sees a linked board", ())
-    to_world = g.inv(grow.boards[0]) if 0 in grow.boards else np.eye(4)
-    return MotionStart(
-        T_ref_cam=np.stack([grow.cams[j] for j in range(m)]),
-        T_world_board=np.stack([to_world @ grow.boards[b] for b in range(nb)]),
-        T_world_rig=np.stack([to_world @ grow.insts[t] for t in range(K)]),
-        links=tuple(grow.links[j] for j in range(m)), single_axis=tuple(grow.single_axis))
+    return grow
+
+
+def _seed(own, held: dict) -> dict[int, F64]:
+    """The boards the growth starts from: with boards at given poses (more than one held)
+    the held board the reference camera sees most with every held board placed relative to
+    it, else (or when it sees none of them) the board it sees most, alone."""
+    counts = np.bincount(own)
+    mine = [b for b in held if b < counts.size and counts[b]]
+    if len(held) < 2 or not mine:
+        return {int(counts.argmax()): np.eye(4)}
+    start = g.inv(held[max(mine, key=lambda b: counts[b])])
+    return {b: start @ G for b, G in held.items()}
 
 
 def single_axis_hand_eye(A, B) -> tuple[F64, F64]:

@@ -5,7 +5,8 @@ rig (the reference camera's frame) ``T_ref_cam^j`` (the reference camera's is th
 the world in the rig at every instant ``S(t) = T_ref_world(t) = inv(T_world_rig(t))`` (one per
 instant, however many cameras saw boards then), every board's pose in the world
 ``T_world_board^b`` (the world is the first board's frame: board 0 is the identity, not an
-unknown) and, when estimated, the lenses::
+unknown; boards whose pose is given, rig.yaml's ``pose:``, are held at it, not unknowns
+either) and, when estimated, the lenses::
 
     p_cam = inv(T_ref_cam^j) @ S(t) @ T_world_board^b @ p          u = pi_j(p_cam)
 
@@ -16,7 +17,8 @@ another is one unknown pose, and each instant's ``S`` is shared by the cameras t
 boards then.
 
 Block families (:class:`multieye.optimize.blocks.Blocks`): ``C`` (the m - 1 cameras other
-than the reference, camera order), ``W`` (boards 1..nb-1), ``K:<camera>`` (estimated lenses),
+than the reference, camera order), ``W`` (the boards not held, :attr:`MotionViews.free_boards`,
+in board order), ``K:<camera>`` (estimated lenses),
 ``S`` (one per instant, eliminated by the Schur complement); poses ``se3-left``.
 
 Jacobians at zero perturbation, with ``w = R_W p``, ``q_w = w + t_W`` (the point in the
@@ -66,17 +68,26 @@ class MotionViews:
         The camera whose frame is the rig's.
     free_intrinsics : sequence of bool, optional
         Per camera: estimate its lens (default: all held fixed).
+    board_poses : mapping of int to array_like (4, 4), optional
+        Boards held at a given pose ``T_world_board`` (metres), the others estimated; the
+        world is the frame these poses are in.  Default ``{0: identity}``: board 0 is the
+        world.  At least one board (the gauge).
 
     Attributes
     ----------
     camera, instant, board : ndarray of int, shape (n_views,)
     n_instants, n_boards : int
+    held : dict of int to ndarray (4, 4)
+        The boards held at a pose.
+    free_boards : list of int
+        The boards estimated, in order: the blocks of family ``W``.
     object_points, image_points : ndarray, shape (P, 3), (P, 2)
     view : ndarray of int, shape (P,)
     """
 
     def __init__(self, views: Mapping[str, Sequence], intrinsics: Sequence[Intrinsics],
-                 reference: int = 0, *, free_intrinsics: Sequence[bool] | None = None):
+                 reference: int = 0, *, free_intrinsics: Sequence[bool] | None = None,
+                 board_poses: Mapping[int, F64] | None = None):
         if not isinstance(views, Mapping):
             raise InputError("views must be a mapping of camera name to views, got "
                              f"{type(views).__name__}")
@@ -131,6 +142,15 @@ class MotionViews:
         self.view = np.concatenate(of_point)
         self.n_views = len(cams)
         self.counts = np.bincount(self.camera, minlength=m)
+        self.held = _held(board_poses, self.n_boards)
+        self.free_boards = [b for b in range(self.n_boards) if b not in self.held]
+        #: per board its block of ``W``, -1 for a board held at its pose
+        self.board_slot = np.full(self.n_boards, -1, dtype=np.int64)
+        self.board_slot[self.free_boards] = np.arange(len(self.free_boards))
+
+    def estimated(self, board) -> NDArray[np.bool_]:
+        """Whether each of ``board`` (board indices) is estimated (not held)."""
+        return self.board_slot[np.asarray(board)] >= 0
 
     @property
     def others(self) -> list[int]:
@@ -145,20 +165,20 @@ class MotionViews:
         fams = []
         if self.m > 1:
             fams.append(Blocks("C", np.asarray(T_ref_cam)[self.others], "se3-left"))
-        if self.n_boards > 1:
-            fams.append(Blocks("W", np.asarray(T_world_board)[1:], "se3-left"))
+        if self.free_boards:
+            fams.append(Blocks("W", np.asarray(T_world_board)[self.free_boards], "se3-left"))
         fams += [Blocks(intrinsics_family(n), intrinsics[j].params[None], "euclidean")
                  for j, n in enumerate(self.names) if self.free[j]]
         fams.append(Blocks("S", T_ref_world, "se3-left", eliminate=True))
         return fams
 
     def groups(self, sigma_px: float) -> list[ResidualGroup]:
-        """Per camera one :class:`MotionPixelResiduals` of its views of the first board and
-        one of the others (those that exist)."""
+        """Per camera one :class:`MotionPixelResiduals` of its views of the boards held at
+        their poses and one of the others (those that exist)."""
         out = []
         for j in range(self.m):
             for moved in (False, True):
-                if np.any((self.camera == j) & ((self.board > 0) == moved)):
+                if np.any((self.camera == j) & (self.estimated(self.board) == moved)):
                     out.append(MotionPixelResiduals(self, j, moved, sigma_px))
         return out
 
@@ -170,10 +190,13 @@ class MotionViews:
         return out
 
     def T_world_board(self, values: Mapping[str, F64]) -> F64:
-        """Every board's pose in the world (nb, 4, 4), the first the identity."""
+        """Every board's pose in the world (nb, 4, 4): the held ones' poses, the others'
+        from the values of family ``W``."""
         out = np.tile(np.eye(4), (self.n_boards, 1, 1))
-        if self.n_boards > 1:
-            out[1:] = values["W"]
+        for b, T in self.held.items():
+            out[b] = T
+        if self.free_boards:
+            out[self.free_boards] = values["W"]
         return out
 
     def current_intrinsics(self, values: Mapping[str, F64]) -> tuple[Intrinsics, ...]:
@@ -183,12 +206,30 @@ class MotionViews:
                      for j, n in enumerate(self.names))
 
 
+def _held(board_poses, n_boards: int) -> dict[int, F64]:
+    """The boards held at a pose, checked (default: board 0 at the identity)."""
+    if board_poses is None:
+        return {0: np.eye(4)}
+    if not isinstance(board_poses, Mapping) or not board_poses:
+        raise InputError("board_poses must map at least one board to its pose (the gauge)")
+    out = {}
+    for b, T in board_poses.items():
+        T = np.asarray(T, dtype=np.float64)
+        if (isinstance(b, bool) or not isinstance(b, (int, np.integer)) or not 0 <= b < n_boards
+                or T.shape != (4, 4) or not np.all(np.isfinite(T))):
+            raise InputError(f"board_poses: board {b!r} is not one of the {n_boards} boards "
+                             "or its pose is not a finite 4 x 4 matrix")
+        out[int(b)] = T
+    return out
+
+
 class MotionPixelResiduals(ResidualGroup):
-    """One camera's board-point pixel residuals over ``sigma_px``, of its views of the first
-    board (``moved=False``: no ``W`` block) or of the others (module docstring)."""
+    """One camera's board-point pixel residuals over ``sigma_px``, of its views of the boards
+    held at a pose (``moved=False``: no ``W`` block, the points placed in the world by the
+    given pose) or of the others (module docstring)."""
 
     def __init__(self, data: MotionViews, camera: int, moved: bool, sigma_px: float):
-        views = np.flatnonzero((data.camera == camera) & ((data.board > 0) == moved))
+        views = np.flatnonzero((data.camera == camera) & (data.estimated(data.board) == moved))
         pts = np.flatnonzero(np.isin(data.view, views))
         self.is_ref = camera == data.reference
         self.free, self.moved = data.free[camera], bool(moved)
@@ -198,7 +239,7 @@ class MotionPixelResiduals(ResidualGroup):
         cols = [] if self.is_ref else [np.full(views.size, data.others.index(camera))]
         cols.append(data.instant[views])
         if moved:
-            cols.append(data.board[views] - 1)
+            cols.append(data.board_slot[data.board[views]])
         if self.free:
             cols.append(np.zeros(views.size, dtype=np.int64))
         seg = np.searchsorted(views, data.view[pts])
@@ -208,6 +249,9 @@ class MotionPixelResiduals(ResidualGroup):
         self.boards = data.board[views]
         self.sigma = float(sigma_px)
         self._p = data.object_points[pts]
+        if not moved:           # a held board's points in the world, once
+            G = np.stack([data.held[b] for b in self.boards[self.segment]])
+            self._p = np.einsum("pij,pj->pi", G[:, :3, :3], self._p) + G[:, :3, 3]
         self._uv = data.image_points[pts]
 
     def _intrinsics(self, values: Mapping[str, F64]) -> Intrinsics | None:
@@ -224,7 +268,7 @@ class MotionPixelResiduals(ResidualGroup):
         C = np.eye(4) if self.is_ref else values["C"][self.data.others.index(self.camera)]
         S = values["S"][self.instants[self.segment]]
         if self.moved:
-            W = values["W"][self.boards[self.segment] - 1]
+            W = values["W"][self.data.board_slot[self.boards[self.segment]]]
             w = np.einsum("pij,pj->pi", W[:, :3, :3], self._p)
             q_w = w + W[:, :3, 3]
         else:

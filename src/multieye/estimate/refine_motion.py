@@ -63,7 +63,8 @@ class MotionResult:
     ----------
     T_ref_cam : ndarray, shape (m, 4, 4)
     T_world_board : ndarray, shape (nb, 4, 4)
-        World = board 0 (its pose the identity).
+        World = board 0 (its pose the identity), or the frame of the boards held at given
+        poses (:class:`~multieye.estimate.motion_residuals.MotionViews`' ``board_poses``).
     T_world_rig : ndarray, shape (K, 4, 4)
         The rig (reference camera) at every instant.
     intrinsics : tuple of Intrinsics
@@ -71,10 +72,11 @@ class MotionResult:
         Of each ``T_ref_cam``: rotation vector then translation, left perturbation in the
         rig's frame, radians and metres (zeros for the reference camera).
     board_covariance : ndarray, shape (nb, 6, 6)
-        Of each ``T_world_board``, left perturbation in the world (zeros for board 0).
+        Of each ``T_world_board``, left perturbation in the world (zeros for the boards held:
+        board 0, or those at given poses).
     intrinsics_covariance : tuple of (ndarray or None)
     joint_covariance : ndarray, shape (k, k)
-        Over ``C`` (m - 1 cameras), ``W`` (nb - 1 boards), each ``K:<camera>``.
+        Over ``C`` (m - 1 cameras), ``W`` (the boards estimated), each ``K:<camera>``.
     offsets : dict of str to int
         Where each family starts in ``joint_covariance``.
     pixel_sigma : float
@@ -157,7 +159,7 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
         raise InputError(f"pixel_sigma must be a positive number, got {pixel_sigma!r}")
     if start is None:
         start = motion_start(views, T)
-    k = 6 * (views.m - 1 + views.n_boards - 1) + sum(
+    k = 6 * (views.m - 1 + len(views.free_boards)) + sum(
         views.intrinsics[j].params.size for j in range(views.m) if views.free[j])
     with threads_for(k):
         fams, sigma, iterations, converged = _solve(
@@ -220,8 +222,8 @@ def _result(views: MotionViews, start: MotionStart, fams, sigma: float, robust: 
     if views.m > 1:
         cam_cov[views.others] = _blocks(kept, offsets["C"], views.m - 1, 6)
     board_cov = np.zeros((views.n_boards, 6, 6))
-    if views.n_boards > 1:
-        board_cov[1:] = _blocks(kept, offsets["W"], views.n_boards - 1, 6)
+    if views.free_boards:
+        board_cov[views.free_boards] = _blocks(kept, offsets["W"], len(views.free_boards), 6)
     und = cov.undetermined if cov.undetermined is not None else np.zeros((len(kept), 0))
     null = np.zeros((views.m, 6, und.shape[1]))
     for b, j in enumerate(views.others):
@@ -237,7 +239,7 @@ def _result(views: MotionViews, start: MotionStart, fams, sigma: float, robust: 
     resid = np.zeros((len(views.view), 2))
     for grp, e in zip(groups[:len(groups) - (mocap is not None)], ev):
         mine = np.flatnonzero((views.camera[views.view] == grp.camera)
-                              & ((views.board[views.view] > 0) == grp.moved))
+                              & (views.estimated(views.board[views.view]) == grp.moved))
         resid[mine] = e[0] * sigma
     cam_of_point = views.camera[views.view]
     rms = np.array([float(np.sqrt(np.mean(np.sum(resid[cam_of_point == j] ** 2, axis=1))))

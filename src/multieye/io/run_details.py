@@ -35,7 +35,9 @@ overlap       ``T_ref_target`` of the image's instant     ``T_ref_cam``
 Without motion capture (setup ``overlap``) the ``world`` of these pictures is the reference
 camera's frame, the loop residuals are those of each image's PnP pose against the solution's
 ``inv(T_ref_cam) @ T_ref_target`` and the one trajectory is the target's origin at every
-instant (``pose`` ``T_ref_target``).
+instant (``pose`` ``T_ref_target``).  A rig linked by its motion is drawn in the first board's
+frame (``frame``; docs/outputs.md, section 3): the rig's pose per instant (trajectory ``T``),
+the cameras at its middle one, the boards as ``calibration.json``'s ``targets``.
 
 In eye-to-base the target moves and the motion capture says where it was.  In eye-on-hand the
 target is static at ``T_world_target`` and every measurement gives one estimate of it through
@@ -119,12 +121,15 @@ class TrajectoryDetails:
         Origin of the marker (or body) frame in the world, metres.
     n_samples : int
         Samples in the span before subsampling (``>= k``).
+    T : ndarray, shape (k, 4, 4), or None
+        The full poses (a rig linked by its motion); None for motion capture.
     """
 
     pose: str
     stamps: np.ndarray
     positions: np.ndarray
     n_samples: int
+    T: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -256,12 +261,15 @@ class RunDetails:
         In the order of ``calibration.json``.
     trajectories : tuple of TrajectoryDetails
     T_world_body_shown : ndarray, shape (4, 4), or None
-        Eye-on-hand: the body pose at which the cameras are drawn; None for eye-to-base.
+        Eye-on-hand: the body pose at which the cameras are drawn; a rig linked by its motion:
+        the rig's pose at its middle instant; None for eye-to-base.
     timings : StageTimings or None
         None when the file has no ``timings_s`` (written before it existed).
     warnings : tuple of str
         The run's warnings, as in ``calibration.json`` (files read from outside the dataset
         folder among them); empty for files written before ``details.json`` had them.
+    frame : str or None
+        The pictures' world when it is a board (a rig linked by its motion: the first board).
     """
 
     setup: str
@@ -271,6 +279,7 @@ class RunDetails:
     T_world_body_shown: np.ndarray | None = None
     timings: StageTimings | None = None
     warnings: tuple[str, ...] = ()
+    frame: str | None = None
 
     def camera(self, name: str) -> CameraDetails:
         """The details of camera ``name``."""
@@ -353,10 +362,14 @@ def run_details_to_dict(details: RunDetails) -> dict:
         "T_world_body_shown": (None if details.T_world_body_shown is None
                                else _floats(details.T_world_body_shown)),
         "trajectories": [{"pose": t.pose, "n_samples": t.n_samples, "stamp": _floats(t.stamps),
-                          "position": _floats(t.positions)} for t in details.trajectories],
+                          "position": _floats(t.positions)}
+                         | ({} if t.T is None else {"T": _floats(t.T)})
+                         for t in details.trajectories],
         "cameras": cameras,
         "warnings": list(details.warnings),
     }
+    if details.frame is not None:
+        out["frame"] = details.frame
     if details.timings is not None:
         out["timings_s"] = details.timings.as_dict()
     return out
@@ -440,6 +453,23 @@ def _read_timings(r: _Reader, obj) -> StageTimings | None:
     return StageTimings(**values)
 
 
+def _read_trajectories(r: _Reader, data) -> list[TrajectoryDetails]:  # checked
+    trajectories = []
+    raw_trajs = r.get(data, "trajectories", "the top level")
+    if not isinstance(raw_trajs, list):
+        raise r.error("trajectories must be a list")
+    for k, t in enumerate(raw_trajs):
+        where = f"trajectories[{k}]"
+        stamps = r.array(r.get(t, "stamp", where), (-1,), f"{where}.stamp")
+        pos = r.array(r.get(t, "position", where), (stamps.size, 3), f"{where}.position")
+        n = r.get(t, "n_samples", where)
+        if isinstance(n, bool) or not isinstance(n, int) or n < stamps.size:
+            raise r.error(f"{where}.n_samples must be an integer >= {stamps.size}, got {n!r}")
+        T = None if t.get("T") is None else r.array(t["T"], (stamps.size, 4, 4), f"{where}.T")
+        trajectories.append(TrajectoryDetails(str(r.get(t, "pose", where)), stamps, pos, n, T))
+    return trajectories
+
+
 def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDetails:
     """Validate a parsed ``details.json`` object.
 
@@ -464,18 +494,7 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
     reference = r.get(data, "reference_camera", "the top level")
     shown = data.get("T_world_body_shown")
     shown = None if shown is None else r.array(shown, (4, 4), "T_world_body_shown")
-    trajectories = []
-    raw_trajs = r.get(data, "trajectories", "the top level")
-    if not isinstance(raw_trajs, list):
-        raise r.error("trajectories must be a list")
-    for k, t in enumerate(raw_trajs):
-        where = f"trajectories[{k}]"
-        stamps = r.array(r.get(t, "stamp", where), (-1,), f"{where}.stamp")
-        pos = r.array(r.get(t, "position", where), (stamps.size, 3), f"{where}.position")
-        n = r.get(t, "n_samples", where)
-        if isinstance(n, bool) or not isinstance(n, int) or n < stamps.size:
-            raise r.error(f"{where}.n_samples must be an integer >= {stamps.size}, got {n!r}")
-        trajectories.append(TrajectoryDetails(str(r.get(t, "pose", where)), stamps, pos, n))
+    trajectories = _read_trajectories(r, data)
     cams_raw = r.get(data, "cameras", "the top level")
     if not isinstance(cams_raw, Mapping) or not cams_raw:
         raise r.error("cameras must be a non-empty object of camera name -> details")
@@ -532,13 +551,14 @@ def run_details_from_dict(data, path: str | os.PathLike | None = None) -> RunDet
             selection=None if selection is None else dict(selection)))
     if reference not in cams_raw:
         raise r.error(f"reference camera {reference!r} is not one of {', '.join(cams_raw)}")
-    warnings = data.get("warnings", [])
-    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
-        raise r.error("warnings must be a list of strings")
+    warnings, frame = data.get("warnings", []), data.get("frame")
+    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings) or not (
+            frame is None or isinstance(frame, str)):
+        raise r.error("warnings must be a list of strings, frame (optional) a board's name")
     return RunDetails(setup=setup, reference_camera=reference, cameras=tuple(cameras),
                       trajectories=tuple(trajectories), T_world_body_shown=shown,
                       timings=_read_timings(r, data.get("timings_s")),
-                      warnings=tuple(warnings))
+                      warnings=tuple(warnings), frame=frame)
 
 
 # --------------------------------------------------------------------------- files

@@ -87,16 +87,19 @@ def board_mark(name: str, spec: TargetSpec, T_frame_board, covariance=None, *,
 def record_boards(record: CalibrationRecord, details) -> tuple[BoardMark, ...]:
     """The boards of ``calibration.json``'s ``targets`` as the rig figures draw them.
 
-    Only where the boards and the cameras are in one frame: with motion capture and
-    ``details.json`` (eye-on-hand: the boards in the motion capture's frame, the cameras at
-    ``T_world_body_shown``), for boards whose outline the file holds (``bounds``).  Without
-    motion capture the boards are in the first board's frame while the rig moves before them,
-    and ``details.json`` keeps no one instant's rig pose: no boards are drawn (empty).
+    Where the boards and the cameras are in one frame, for boards whose outline the file
+    holds (``bounds``): with motion capture and ``details.json`` (eye-on-hand: the boards in
+    the motion capture's frame, the cameras at ``T_world_body_shown``), and without it for a
+    rig linked by its motion (``details.frame``: the boards in the first board's frame, the
+    cameras at the rig's pose of its middle instant).  Empty otherwise (no ``details.json``,
+    or a file of an earlier version that keeps no rig pose).
     """
-    if details is None or not record.mocap or not record.targets:
+    if details is None or not record.targets or not (
+            record.mocap or getattr(details, "frame", None) is not None):
         return ()
     return tuple(BoardMark(name, b.T_world_target, b.bounds, b.z_into_board,
-                           None if b.uncertainty is None else b.uncertainty.covariance, b.given)
+                           None if b.uncertainty is None or not np.any(b.uncertainty.covariance)
+                           else b.uncertainty.covariance, b.given)     # zero: the world
                  for name, b in record.targets.items() if b.bounds is not None)
 
 

@@ -186,6 +186,9 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
     if setup == "eye-on-hand":
         ref = run.paired[rec.reference_camera].T_world_mocap
         T_shown = ref[len(ref) // 2]
+    rig = None if rec.mocap else _rig_path(run)     # a rig linked by its motion: its poses
+    if rig is not None:
+        T_shown = rig.T[len(rig.T) // 2]
     # one entry per distinct motion-capture trajectory (cameras share the object when they
     # share the file), with the span of the used images in the motion-capture clock
     traj_index: dict[int, int] = {}
@@ -207,7 +210,12 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
         spans[k] = [min(spans[k][0], stamps.min() + offset), max(spans[k][1], stamps.max() + offset)]
         X = cam.T_ref_cam if cam.X is None else cam.X
         rot, trans = loop_residuals(paired.A, paired.B, X, Y)
-        if setup != "eye-on-hand":   # T_world_marker[i] @ T_marker_target
+        if rig is not None:          # T_world_rig(t_i) @ T_ref_cam @ T_cam_target[i]
+            sol = run.refinement.result.solution
+            T_world_target = sol.result.T_world_rig[sol.instants[cam.name]] @ X @ np.stack(
+                [o.T_cam_target for o in paired.observations])
+            T_world_cam = T_shown @ X
+        elif setup != "eye-on-hand":   # T_world_marker[i] @ T_marker_target
             T_world_target = paired.T_world_mocap @ Y
             T_world_cam = X
         else:                        # T_world_body[i] @ T_body_cam @ T_cam_target[i]
@@ -230,7 +238,7 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
     overlaps = camera_overlaps(run)
     cams = [replace(c, overlaps=overlaps[c.name]) for c in cams]
     default = "T_world_marker" if setup == "eye-to-base" else "T_world_body"
-    trajectories = [] if rec.mocap else [_target_path(run)]
+    trajectories = [] if rec.mocap else [rig or _target_path(run)]
     for traj, (lo, hi) in zip(sources if rec.mocap else (), spans):
         inside = (traj.stamps >= lo - TRAJECTORY_MARGIN_S) & (traj.stamps <= hi + TRAJECTORY_MARGIN_S)
         idx = _span_indices(traj.stamps, lo - TRAJECTORY_MARGIN_S, hi + TRAJECTORY_MARGIN_S,
@@ -242,22 +250,45 @@ def run_details(run: CalibrationRun, *, diagnostics: Mapping[str, Mapping[str, A
                                               n_samples=int(inside.sum()) or len(traj.stamps)))
     return RunDetails(setup=setup, reference_camera=rec.reference_camera, cameras=tuple(cams),
                       trajectories=tuple(trajectories), T_world_body_shown=T_shown,
-                      timings=run.timings, warnings=tuple(rec.warnings))
+                      timings=run.timings, warnings=tuple(rec.warnings),
+                      frame=None if rig is None else run.refinement.result.solution.world)
+
+
+def _instant_stamps(run: CalibrationRun) -> tuple[np.ndarray, np.ndarray]:
+    """The mean stamp of each instant's used images, and the instants that have one (not
+    those of the lenses' own images), in time order."""
+    sol = run.refinement.result.solution
+    K = len(sol.result.T_ref_target)
+    sums, counts = np.zeros(K), np.zeros(K)
+    for n in sol.names:
+        d = run.cameras[n]
+        np.add.at(sums, sol.instants[n], [o.stamp + d.time_offset for o in sol.used[n]])
+        np.add.at(counts, sol.instants[n], 1)
+    seen = np.flatnonzero(counts)
+    order = seen[np.argsort(sums[seen] / counts[seen], kind="stable")]
+    return sums[order] / counts[order], order
 
 
 def _target_path(run: CalibrationRun) -> TrajectoryDetails:
     """A rig without motion capture: the target's origin at every instant, in ``ref``, at
     the mean stamp of the instant's images (``pose`` ``T_ref_target``)."""
+    T = run.refinement.result.solution.result.T_ref_target
+    stamps, order = _instant_stamps(run)
+    return TrajectoryDetails(pose="T_ref_target", stamps=stamps,
+                             positions=T[order, :3, 3].copy(), n_samples=len(order))
+
+
+def _rig_path(run: CalibrationRun) -> TrajectoryDetails | None:
+    """A rig linked by its motion before several boards (no motion capture): the rig's
+    (reference camera's) pose at every instant in the first board's frame, at the mean stamp
+    of the instant's images (``pose`` ``T_<board>_rig``); None for any other run."""
+    if run.record.method != "motion-links" or run.refinement is None:
+        return None
     sol = run.refinement.result.solution
-    T = sol.result.T_ref_target
-    sums, counts = np.zeros(len(T)), np.zeros(len(T))
-    for n in sol.names:
-        d = run.cameras[n]
-        np.add.at(sums, sol.instants[n], [o.stamp + d.time_offset for o in sol.used[n]])
-        np.add.at(counts, sol.instants[n], 1)
-    order = np.argsort(sums / counts)
-    return TrajectoryDetails(pose="T_ref_target", stamps=(sums / counts)[order],
-                             positions=T[order, :3, 3].copy(), n_samples=len(T))
+    stamps, order = _instant_stamps(run)
+    T = sol.result.T_world_rig[order]
+    return TrajectoryDetails(pose=f"T_{sol.world}_rig", stamps=stamps,
+                             positions=T[:, :3, 3].copy(), n_samples=len(order), T=T.copy())
 
 
 def write_run_details(path: str | os.PathLike, run: CalibrationRun, *,

@@ -31,6 +31,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.io.calibration_json import ROLE_NAMES, SETUP_KEYS, CalibrationRecord
 from multieye.io.run_details import CameraDetails, RunDetails
 from multieye.outputs.board_marks import BoardMark, board_legend, board_lines
+from multieye.outputs.rig_legend import rig_legend
 from multieye.outputs.figures import _AXIS_COLOURS, _GREY, _locator, _png, camera_colours
 
 __all__ = ["RIG_FIGURES", "RigFigures", "rig_pngs", "uncertainty_magnification", "place_labels",
@@ -59,6 +60,7 @@ class _Scene:
     trajectories: tuple[np.ndarray, ...]  # (k, 3) each
     trajectory_pose: str
     covariances: tuple                  # per camera (6, 6) in the plotting frame, or None
+    by_motion: bool = False             # a rig linked by its motion, in the first board's frame
 
 
 def _rename_pose(pose: str, frames) -> str:
@@ -83,12 +85,14 @@ def _scene(record: CalibrationRecord, details: RunDetails | None) -> _Scene:
     if record.mocap:
         world = frames.get(ROLE_NAMES[record.setup][0], "world")
         x_key = SETUP_KEYS[record.setup][1]
+    elif details.frame is not None:     # linked by its motion: the first board's frame
+        world, x_key = details.frame, "T_ref_cam"
     else:                  # no motion capture: drawn in the reference camera's frame
         world, x_key = f"{record.reference_camera} (ref)", "T_ref_cam"
-    # X's covariance is in the frame X maps into: the world (eye-to-base) or the body, drawn
-    # at T_world_body_shown (eye-on-hand): rotate it into the world
+    # X's covariance is in the frame X maps into: the world (eye-to-base) or the body (the
+    # rig), drawn at T_world_body_shown (eye-on-hand, motion links): rotate it into the world
     R = np.eye(6)
-    if record.setup == "eye-on-hand" and details.T_world_body_shown is not None:
+    if details.T_world_body_shown is not None:
         Rb = details.T_world_body_shown[:3, :3]
         R[:3, :3], R[3:, 3:] = Rb, Rb
     covs = tuple(None if not c.uncertainty or x_key not in c.uncertainty
@@ -100,7 +104,8 @@ def _scene(record: CalibrationRecord, details: RunDetails | None) -> _Scene:
                   targets=tuple(c.T_world_target[:, :3, 3] for c in cams),
                   trajectories=tuple(_break_gaps(t.stamps, t.positions)
                                      for t in details.trajectories),
-                  trajectory_pose=_rename_pose(pose, frames), covariances=covs)
+                  trajectory_pose=_rename_pose(pose, frames), covariances=covs,
+                  by_motion=not record.mocap and details.frame is not None)
 
 
 def _break_gaps(stamps: np.ndarray, positions: np.ndarray) -> np.ndarray:
@@ -417,7 +422,7 @@ def rig_pngs(record: CalibrationRecord, details: RunDetails | None = None, *,
     ax3.view_init(elev=28, azim=-55)
     frame = sc.frame
     _label_axes(figs, ax3, ax2, frame, labels)
-    legend = _legend(sc, depth, magnified, details is not None) + board_legend(boards)
+    legend = rig_legend(sc, depth, magnified, details is not None, MAX_DOTS) + board_legend(boards)
     figs["rig_3d.png"].subplots_adjust(left=0.0, right=0.97, bottom=0.03, top=1.0)
     figs["rig_top.png"].subplots_adjust(left=0.13, right=0.98, bottom=0.1, top=0.93)
     names = [n + (" (ref)" if j == sc.reference else "") for j, n in enumerate(sc.names)]
@@ -521,30 +526,6 @@ def _camera_marks(sc, colours, depth: float, magnified, P: np.ndarray, everythin
 def _even_sample(n: int, k: int) -> np.ndarray:
     """Indices of ``min(n, k)`` of ``n`` items spread evenly, first and last included."""
     return np.arange(n) if n <= k else np.unique(np.linspace(0, n - 1, k).round().astype(int))
-
-
-def _legend(sc, depth: float, magnified, in_fixed_frame: bool) -> list[str]:
-    """One sentence per kind of mark of :func:`rig_pngs`."""
-    frame = sc.frame
-    legend = [f"frustums {depth:.2f} m deep, the thick edge at the image top"]
-    if sc.targets:
-        many = max(len(t) for t in sc.targets) > MAX_DOTS
-        legend.append("dots: the target's origin at each used image"
-                      + (f" ({MAX_DOTS} spread evenly over a camera's images where it has "
-                         "more)" if many else ""))
-    if sc.trajectories:
-        legend.append(f"grey line: the motion capture ({sc.trajectory_pose})")
-    legend.append("axes x red, y green, z blue: the reference camera's"
-                  + (f" and the origin of {frame}" if in_fixed_frame else ""))
-    if magnified is not None:
-        factor, t3, r3 = magnified
-        times = f"magnified {factor:g} times" if factor > 1 else "to scale"
-        legend.append(f"around each camera its 3σ position ellipsoid (ellipse from above) and "
-                      f"the 3σ cone of its optical axis (wedge from above), {times}; the "
-                      f"largest: {t3 * 1e3:.2g} mm and {r3:.2g}°")
-    else:
-        legend.append("no uncertainty drawn: the run computed no covariance")
-    return legend
 
 
 def _annotate(ax, where: np.ndarray, texts: list[str], colours, dpi: int) -> None:

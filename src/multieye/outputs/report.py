@@ -61,6 +61,7 @@ from multieye.outputs.html import figure as _figure
 from multieye.outputs.html import num as _num
 from multieye.outputs.html import table as _table
 from multieye.outputs.report_images import THUMBNAIL, image_thumbnails, images_section
+from multieye.outputs.rig_legend import linked_by
 from multieye.outputs.report_cameras import (
     cameras_section,
     diagnostics_section,
@@ -200,9 +201,7 @@ def _summary(rec: CalibrationRecord, out: Path) -> str:
              ("histograms", "Histograms"), ("over-time", "Over time"), ("cameras", "Cameras"),
              ("diagnostics", "Diagnostics"), ("rejected", "Rejected")]
     nav = " ".join(f'<a href="#{a}">{t}</a>' for a, t in links)
-    shared = ('<p class="note">No motion capture: the cameras are linked by the views they '
-              "share" + (" and by the rig's motion before the boards"
-                         if rec.method == "motion-links" else "") + ".</p>"
+    shared = (f'<p class="note">No motion capture: {escape(linked_by(rec))}.</p>'
               if not rec.mocap else
               f'<p class="note">Shared unknown <code>'
               f"{escape(rec.named_keys()[0])}</code>: translation "
@@ -364,7 +363,14 @@ def _rig(rec: CalibrationRecord, details: RunDetails | None, figures: Mapping[st
     frame = (f"the motion capture's frame <code>{escape(world)}</code>" if details is not None
              and rec.mocap else "the reference camera's frame" + (
                  "" if details is not None else " (no <code>details.json</code>: cameras only)"))
-    if details is not None and not rec.mocap:
+    if details is not None and not rec.mocap and details.frame is not None:
+        frame = f"the first board's frame <code>{escape(details.frame)}</code>"
+        where = ("The rig moved before boards that stand still: the cameras are drawn at the "
+                 "rig's pose of its middle instant, each board at its pose (estimated, or "
+                 "given in rig.yaml), the dots are each view's board placed through the rig's "
+                 "pose and the camera, the grey line is the reference camera's position at "
+                 "every instant (the rig's trajectory, estimated from the boards).")
+    elif details is not None and not rec.mocap:
         where = ("The cameras are drawn where the co-observations place them; the dots are the "
                  "target (its first corner) at every instant, the grey line joins them in "
                  "time.")

@@ -187,7 +187,8 @@ def with_mocap(record: CalibrationRecord, sol, problem: Problem) -> CalibrationR
     targets = {}
     for k, (name, b) in enumerate((record.targets or {}).items()):
         j_y, j_w = board_jacobians(Ym, res.T_world_board[k])
-        parts = [("Ym", 0, j_y)] + ([("W", k - 1, j_w)] if k else [])
+        slot = int(sol.views.board_slot[k])             # -1: held (first or given)
+        parts = [("Ym", 0, j_y)] + ([("W", slot, j_w)] if slot >= 0 else [])
         targets[name] = replace(b, T_world_target=Ym @ res.T_world_board[k],
                                 uncertainty=_uncertainty(_propagated(cov, off, parts)))
     return replace(record, setup=problem.setup, Y=Ym, cameras=tuple(cams), targets=targets,

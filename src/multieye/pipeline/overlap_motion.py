@@ -13,11 +13,16 @@ camera name like :mod:`multieye.pipeline.overlap`:
    world), the rig's pose per instant and the lenses estimated from the recording, started
    from the loops the views close and the joint hand-eye problem, refined on the pixels
    (:func:`multieye.estimate.refine_motion.refine_motion`); cameras nothing links are
-   refused (one line naming them and what would link them);
+   refused (one line naming them and what would link them).  A board whose pose rig.yaml
+   gives (``pose:``, in the first board's frame) is held at it, not estimated;
 3. checks: the ``fit`` check of :mod:`multieye.pipeline.overlap`, and the directions the
    motion leaves undetermined (:mod:`multieye.estimate.observability`; cause
    ``observability``, exit status 3: a rig driven on a floor whose cameras each see their
-   own boards has every camera's height undetermined).
+   own boards has every camera's height undetermined), and, with boards at given poses,
+   whether the views agree with them: the rig solved again with those boards estimated
+   (only the first board held), each given pose against that estimate and its covariance
+   (cause ``given-pose``, exit status 3, naming the board, when ``e^T C^-1 e`` exceeds
+   chi-square(6)'s 99.99 % quantile, :data:`GIVEN_POSE_CHI2`).
 
 Synopsis
 --------
@@ -33,10 +38,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from multieye.core import geometry as g
+from multieye.core.errors import DegenerateMotionError, DisconnectedError
+from multieye.core.lie import log_so3
 from multieye.estimate.findings import Finding
 from multieye.estimate.motion_residuals import MotionViews
 from multieye.estimate.observability import Observability, observability
 from multieye.estimate.refine_motion import MotionResult, refine_motion
+from multieye.estimate.uncertainty import pose_std
 from multieye.io.calibration_json import CameraLinks
 from multieye.pipeline.camera_data import CameraData
 from multieye.pipeline.overlap import (
@@ -46,7 +54,12 @@ from multieye.pipeline.overlap import (
     observation_instants,
 )
 
-__all__ = ["MotionSolution", "solve_motion", "target_of", "board_order"]
+__all__ = ["MotionSolution", "solve_motion", "target_of", "board_order", "GIVEN_POSE_CHI2"]
+
+#: A given board pose is doubted when its difference from the views' own estimate of it,
+#: ``e^T C^-1 e`` (``C`` that estimate's covariance), exceeds this: chi-square(6)'s 99.99 %
+#: quantile (``scipy.stats.chi2.ppf(0.9999, 6)``).
+GIVEN_POSE_CHI2 = 27.856
 
 
 def target_of(observation) -> str:
@@ -82,6 +95,11 @@ class MotionSolution:
     observability : Observability
     sync_tolerance : float
     findings, warnings : tuple
+    given : tuple of str
+        The boards held at their given poses (rig.yaml's ``pose:``).
+    world : str
+        The board whose frame is the world: rig.yaml's first board (when seen or when given
+        poses are in its frame), else the first board seen.
     """
 
     names: tuple[str, ...]
@@ -97,6 +115,8 @@ class MotionSolution:
     sync_tolerance: float
     findings: tuple = ()
     warnings: tuple = ()
+    given: tuple = ()
+    world: str = ""
 
     def T_ref_target(self, name: str) -> np.ndarray:
         """The board of each used observation of camera ``name`` in the rig's frame at its
@@ -139,7 +159,8 @@ def _observability_findings(obs: Observability) -> tuple[Finding, ...]:
 
 def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
                  sync_tolerance: float | None = None, sync: str = "time", robust: bool = True,
-                 boards: Sequence[str] = (), mocap: Callable | None = None) -> MotionSolution:
+                 boards: Sequence[str] = (), mocap: Callable | None = None,
+                 poses: Mapping[str, np.ndarray] | None = None) -> MotionSolution:
     """Calibrate the rig from views of several still boards (module docstring).
 
     Parameters
@@ -161,6 +182,10 @@ def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
         instant of each observation), returns a
         :class:`~multieye.estimate.motion_mocap.RigMocap` at those instants
         (:func:`multieye.pipeline.overlap_mocap.rig_mocap`), refined with the views.
+    poses : mapping of str to ndarray (4, 4), optional
+        Board name -> its given pose in the first board's frame (rig.yaml's ``pose:``,
+        ``T_<first>_<name>``, metres): held there, checked against the views (module
+        docstring).
 
     Raises
     ------
@@ -173,29 +198,97 @@ def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
     names = tuple(cameras)
     order = board_order(cameras, boards)
     inst, n_inst, tol = observation_instants(cameras, sync_tolerance, sync)
-    views, poses, extra = [], [], n_inst
+    views, poses_pnp, extra = [], [], n_inst
     which = {}
     for n in names:
         d = cameras[n]
         which[n] = np.array([order.index(target_of(o)) for o in d.observations], dtype=np.int64)
         vs = [(o.object_points, o.image_points, int(t), int(b))
               for o, t, b in zip(d.observations, inst[n], which[n])]
-        poses += [o.T_cam_target for o in d.observations]
+        poses_pnp += [o.T_cam_target for o in d.observations]
         for o in (d.intrinsics_views if d.intrinsics_estimated else ()):
             vs.append((o.object_points, o.image_points, extra, order.index(target_of(o))
                        if target_of(o) in order else 0))
-            poses.append(o.T_cam_target)
+            poses_pnp.append(o.T_cam_target)
             extra += 1
         views.append(vs)
-    mv = MotionViews(dict(zip(names, views)), [cameras[n].intrinsics for n in names],
-                     names.index(reference),
-                     free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
-    result = refine_motion(mv, np.stack(poses), loss="huber" if robust else "linear",
+    held = _held(order, boards, poses)
+    views = dict(zip(names, views))
+    mv = _views(cameras, views, reference, held)
+    loss = "huber" if robust else "linear"
+    result = refine_motion(mv, np.stack(poses_pnp), loss=loss,
                            mocap=None if mocap is None else mocap(inst))
     obs = observability(result, mv)
-    findings = _fit_findings(cameras, mv, result) + _observability_findings(obs)
+    given = tuple(order[b] for b in (held or {}) if order[b] in (poses or {}))
+    checked, notes, free = _given_findings(lambda h: _views(cameras, views, reference, h),
+                                           mv, np.stack(poses_pnp), loss, (order, given))
+    # a given pose the views refute spoils every camera's fit: the fit is judged without it
+    fit = _fit_findings(cameras, *((mv, result) if not checked else free))
+    findings = fit + _observability_findings(obs) + checked
     return MotionSolution(
         names=names, reference=reference, boards=order, result=result, views=mv,
         used={n: cameras[n].observations for n in names}, instants=inst, board=which,
         links=_links(mv, result, order), observability=obs, sync_tolerance=tol,
-        findings=findings, warnings=_rig_warnings(cameras, mv, result))
+        findings=findings, warnings=_rig_warnings(cameras, mv, result) + notes, given=given,
+        world=boards[0] if boards and (boards[0] in order or given) else order[0])
+
+
+def _held(order: Sequence[str], declared: Sequence[str], poses) -> dict | None:
+    """The boards held at a pose, by index in ``order``: rig.yaml's first board (the world)
+    at the identity when it was seen, and each board with a given pose; None (board 0 is
+    the world) when there are none."""
+    held = {}
+    if declared and declared[0] in order:
+        held[order.index(declared[0])] = np.eye(4)
+    for name, T in (poses or {}).items():
+        if name in order:
+            held[order.index(name)] = np.asarray(T, dtype=np.float64)
+    return held or None
+
+
+def _views(cameras: Mapping[str, CameraData], views: dict, reference: str,
+           held: dict | None) -> MotionViews:
+    names = tuple(cameras)
+    return MotionViews(views, [cameras[n].intrinsics for n in names], names.index(reference),
+                       free_intrinsics=[cameras[n].intrinsics_estimated for n in names],
+                       board_poses=held)
+
+
+def _given_findings(views_holding: Callable, mv: MotionViews, T_cam_board, loss: str,
+                    boards: tuple) -> tuple[tuple, tuple, tuple | None]:
+    """The given board poses of ``mv`` against the views (module docstring),
+    ``views_holding(held)`` the same views holding only ``held``: the findings, a warning
+    when the views alone cannot place the boards (nothing to check against), and the views
+    and result of the solve without the given poses (None when not solved).  ``boards`` is
+    ``(order, given)``: every board's name by index, those given."""
+    order, given = boards
+    gauge = [b for b in mv.held if order[b] not in given] or sorted(mv.held)[:1]
+    checked = [b for b in mv.held if b != gauge[0]]
+    if not checked:
+        return (), (), None
+    free = views_holding({gauge[0]: mv.held[gauge[0]]})
+    try:
+        est = refine_motion(free, T_cam_board, loss=loss)
+    except (DisconnectedError, DegenerateMotionError) as e:
+        return (), (f"the given poses of targets {', '.join(order[b] for b in checked)} are "
+                    f"not checked against the views: without them {e}",), None
+    out = []
+    for b in checked:
+        G, E, C = mv.held[b], est.T_world_board[b], est.board_covariance[b]
+        e = np.concatenate([log_so3(G[:3, :3] @ E[:3, :3].T), G[:3, 3] - E[:3, 3]])
+        d2 = float(e @ np.linalg.lstsq(C, e, rcond=1e-12)[0])
+        if d2 > GIVEN_POSE_CHI2:
+            rot, trans = np.degrees(np.linalg.norm(e[:3])), float(np.linalg.norm(e[3:]))
+            s_rot, s_trans = pose_std(C)
+            out.append(Finding(
+                "given-pose", f"given-pose: target {order[b]}'s pose given in rig.yaml "
+                f"(pose:) is {rot:.3f} deg and {trans * 1e3:.1f} mm from where the views "
+                f"place it (their uncertainty {float(s_rot):.3f} deg, "
+                f"{float(s_trans) * 1e3:.2f} mm; chi-square {d2:.0f} over 6 values, more "
+                f"than {GIVEN_POSE_CHI2:.1f}): it does not hold where the cameras see it; "
+                "check the pose (the board in the first board's frame, metres) or leave it "
+                "out to have it estimated",
+                None, d2, GIVEN_POSE_CHI2,
+                {"rot_deg": float(rot), "trans_m": trans, "chi2": d2,
+                 "T_world_board_views": [[float(x) for x in r] for r in E]}))
+    return tuple(out), (), (free, est)

@@ -104,7 +104,8 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         sol = solve_motion(problem.cameras, problem.reference,
                            sync_tolerance=problem.rig.sync_tolerance, sync=problem.rig.sync,
                            robust=problem.options.robust, boards=declared,
-                           mocap=(lambda inst: rig_mocap(problem, inst)) if mocap else None)
+                           mocap=(lambda inst: rig_mocap(problem, inst)) if mocap else None,
+                           poses=given_poses(problem.rig))
         M = tuple(sol.T_ref_target(n) for n in sol.names)
     else:
         sol = solve_overlap(problem.cameras, problem.reference,
@@ -129,7 +130,8 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         intrinsics_covariance={n: res.intrinsics_covariance[j] for j, n in enumerate(names)
                                if problem.cameras[n].intrinsics_estimated})
     plaus = Plausibility(findings=sol.findings, cost=float("nan"), camera_cost={},
-                         tested=("fit", "observability") if _by_motion(sol) else ("fit",))
+                         tested=("fit",) + (("observability",) if _by_motion(sol) else ())
+                         + (("given-pose",) if getattr(sol, "given", ()) else ()))
     warnings = camera_warnings(problem.cameras)
     warnings += sol.warnings + tuple(f.message for f in sol.findings)
     record = _record(problem, sol, paired, rms, warnings)
@@ -144,6 +146,14 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
                for n, d in problem.cameras.items()}
     return CalibrationRun(rig=problem.rig, record=record, closed_form=None, cameras=cameras,
                           paired=paired, refinement=refinement, plausibility=plaus)
+
+
+def given_poses(rig) -> dict[str, np.ndarray]:
+    """rig.yaml's given board poses (``targets: ... pose:``, in the first board's frame) by
+    board name."""
+    return {name: np.array(spec.pose, dtype=np.float64)
+            for name, spec in (getattr(rig, "targets", None) or {}).items()
+            if getattr(spec, "pose", None) is not None}
 
 
 def _by_motion(sol) -> bool:
@@ -164,8 +174,9 @@ def _targets(sol, problem: Problem) -> dict | None:
         board = (problem.model.targets.get(b) if problem.model is not None else None)
         if board is None and b in (problem.rig.targets or {}):
             board = target_from_spec(problem.rig.targets[b])
-        out[b] = BoardRecord(res.T_world_board[k], False, sum(per.values()), per,
-                             _pose_uncertainty(res.board_covariance[k]),
+        given = b in sol.given                  # held at rig.yaml's pose: no covariance
+        out[b] = BoardRecord(res.T_world_board[k], given, sum(per.values()), per,
+                             None if given else _pose_uncertainty(res.board_covariance[k]),
                              None if board is None else board.bounds(),
                              True if board is None else bool(board.z_into_board))
     return out

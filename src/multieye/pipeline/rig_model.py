@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.errors import DatasetError
 from multieye.imaging.targets import Target, target_from_spec
 from multieye.io import Rig, read_camera_intrinsics
 from multieye.pipeline.estimated_lens import check_model
@@ -67,16 +66,9 @@ def build_rig_model(rig: Rig) -> RigModel:
     ------
     DatasetError
         A target the detectors cannot build, an intrinsics file that cannot be read or holds
-        another model than the camera's ``model`` (naming the file and the camera), a board
-        with a given ``pose:`` (not held fixed by the estimation in this version: refused
-        rather than silently estimated).
+        another model than the camera's ``model`` (naming the file and the camera).
     """
     specs = getattr(rig, "targets", None) or ({TARGET: rig.target} if rig.target else {})
-    given = [name for name, spec in specs.items() if getattr(spec, "pose", None) is not None]
-    if given:   # read and checked, but the estimation has no board held at a given pose yet
-        raise DatasetError(f"targets: {', '.join(given)} gives a 'pose:', which this version "
-                           "does not hold fixed: every board's pose is estimated from the "
-                           "views; leave 'pose:' out", path=rig.path)
     targets = {name: target_from_spec(spec, path=rig.path) for name, spec in specs.items()}
     own = {name: target_from_spec(cam.intrinsics_target, path=rig.path)
            for name, cam in rig.cameras.items() if cam.intrinsics_target is not None}
