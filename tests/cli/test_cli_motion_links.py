@@ -25,6 +25,9 @@ def test_a_rig_moved_before_boards_on_the_walls_is_calibrated(tmp_path):
     res = _calibrate(tmp_path / "ds", tmp_path / "out")
     assert res.exit_code == 0, (res.stdout, res.stderr)
     assert "cam1 linked by: motion via cam0" in res.stdout
+    assert "cam0 linked by: reference camera\n" in res.stdout       # not "nothing"
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert "What links each camera" in html and "motion via cam0" in html
     truth = json.loads((tmp_path / "ds" / "ground_truth.json").read_text())
     rec = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert rec["method"] == "motion-links" and rec["plausibility"] == []

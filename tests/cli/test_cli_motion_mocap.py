@@ -32,7 +32,7 @@ def test_mocap_and_several_boards_are_one_problem(tmp_path):
     truth = json.loads((tmp_path / "ds" / "ground_truth.json").read_text())
     rec = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert rec["setup"] == "eye-on-hand" and rec["method"] == "motion-links"
-    assert "cam0 linked by: motion capture" in res.stdout
+    assert "cam0 linked by: reference camera; motion capture" in res.stdout
     T_body_ref = np.array(truth["T_body_ref"])
     for name, cam in rec["cameras"].items():
         true_ref = np.array(truth["T_ref_cam"][name])

@@ -33,3 +33,22 @@ def test_transforms_are_named_in_the_users_frames_with_the_json_key():
     # the numbers are the same
     assert [ln for ln in plain.splitlines() if ln.startswith("cam1")] == \
         [ln for ln in named.splitlines() if ln.startswith("cam1")]
+
+
+def test_rejections_are_one_line_per_cause():
+    """A recording where most frames miss the board prints one line per cause and camera,
+    with the count and the first images named (issue 34, item 4), not a line per frame;
+    a cause of one image keeps ``camera/image: reason``."""
+    from dataclasses import replace  # noqa: PLC0415 (this test only)
+    from multieye.io import RejectedItem  # noqa: PLC0415 (this test only)
+    from multieye.pipeline.recordings import FIRST_NAMED  # noqa: PLC0415 (this test only)
+    rec = _record()
+    lost = tuple(RejectedItem(f"{k:06d}.png", "target not detected (chessboard 6x9)")
+                 for k in range(500))
+    odd = (RejectedItem("000777.png", "PnP failed: the 5 points lie on one line"),)
+    rec = replace(rec, cameras=(replace(rec.cameras[0], rejected=lost + odd),) + rec.cameras[1:])
+    lines = [x for x in calibration_table(rec).splitlines() if x.startswith("rejected ")]
+    assert lines == [
+        "rejected cam0: target not detected (chessboard 6x9) (500 images: "
+        + ", ".join(f"{k:06d}.png" for k in range(FIRST_NAMED)) + f" and {500 - FIRST_NAMED} more)",
+        "rejected cam0/000777.png: PnP failed: the 5 points lie on one line"]

@@ -56,7 +56,7 @@ from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUnc
 from multieye.io.run_details import RunDetails, read_run_details
 from multieye.core.metrics import pose_row
 from multieye.outputs.folder import claim_output
-from multieye.outputs.summary import lens_sigmas, pose_sigmas, reprojection_rms_px
+from multieye.outputs.summary import link_text, lens_sigmas, pose_sigmas, reprojection_rms_px
 from multieye.outputs.html import figure as _figure
 from multieye.outputs.html import num as _num
 from multieye.outputs.html import table as _table
@@ -260,10 +260,12 @@ def _pose_table(rec: CalibrationRecord, poses, key: str, ref_mark: bool) -> str:
 
 
 def _links(rec: CalibrationRecord) -> str:
-    """What links each camera (shared views, motion capture), when any camera shares views."""
-    if not any(c.links is not None and c.links.overlap for c in rec.cameras):
+    """What links each camera (shared views, the rig's motion, motion capture), when any
+    camera shares views or is linked by the rig's motion."""
+    if not any(c.links is not None and (c.links.overlap or c.links.motion)
+               for c in rec.cameras):
         return ""
-    rows = [[c.name, c.links.describe()] for c in rec.cameras if c.links is not None]
+    rows = [[c.name, link_text(rec, c)] for c in rec.cameras if c.links is not None]
     return "<h3>What links each camera</h3>" + _table(["camera", "linked by"], rows)
 
 

@@ -7,6 +7,7 @@ uncertainty when known, and every warning.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -16,9 +17,11 @@ from multieye.io import CalibrationRecord
 from multieye.io.calibration_json import SETUP_KEYS
 from multieye.io.run_details import TIMING_KEYS, StageTimings
 from multieye.core.metrics import extrinsic_errors, pose_row
+from multieye.pipeline.recordings import image_notes
 
 __all__ = ["format_table", "calibration_table", "comparison_table", "timings_line",
-           "check_table", "headline", "reprojection_rms_px", "pose_sigmas", "lens_sigmas"]
+           "check_table", "headline", "reprojection_rms_px", "pose_sigmas", "lens_sigmas",
+           "link_text"]
 
 
 def timings_line(timings: StageTimings) -> str:
@@ -85,6 +88,16 @@ def lens_sigmas(rec: CalibrationRecord) -> list[tuple[str, float]]:
     return [(c.name, c.intrinsics.projection_std_px[0]) for c in rec.cameras
             if c.intrinsics is not None and c.intrinsics.estimated
             and c.intrinsics.projection_std_px is not None]
+
+
+def link_text(rec: CalibrationRecord, cam) -> str:
+    """What links camera ``cam`` (a :class:`~multieye.io.calibration_record.CameraRecord`
+    with ``links``) to the rig: ``reference camera`` for the reference camera (its frame is
+    the rig's), then anything it shares; else ``links.describe()``."""
+    text = cam.links.describe()
+    if cam.name != rec.reference_camera:
+        return text
+    return "reference camera" + ("" if text == "nothing" else f"; {text}")
 
 
 def headline(rec: CalibrationRecord) -> list[str]:
@@ -161,7 +174,7 @@ def calibration_table(rec: CalibrationRecord) -> str:
                      f"roll = ({', '.join(y_row[3:6])}) deg"
                      + ("" if y_unc is None else f", std {y_row[6]} deg / {y_row[7]} mm"))
     if any(c.links is not None and (c.links.overlap or c.links.motion) for c in rec.cameras):
-        lines += [f"{c.name} linked by: {c.links.describe()}" for c in rec.cameras
+        lines += [f"{c.name} linked by: {link_text(rec, c)}" for c in rec.cameras
                   if c.links is not None]
     if len(rec.cameras) > 1 and rec.mocap:
         rel = [[c.name + (" (ref)" if c.name == rec.reference_camera else ""),
@@ -174,9 +187,11 @@ def calibration_table(rec: CalibrationRecord) -> str:
     for c in rec.cameras:
         if c.intrinsics is not None and c.intrinsics.estimated:
             lines.append(_intrinsics_line(c))
-    for c in rec.cameras:
-        for item in c.rejected:
-            lines.append(f"rejected {c.name}/{item.item}: {item.reason}")
+    for c in rec.cameras:           # one line per cause (calibration.json lists each item)
+        reasons = Counter(r.reason for r in c.rejected)
+        once = {r.item for r in c.rejected if reasons[r.reason] == 1}
+        lines.extend(f"rejected {c.name}{'/' if note.split(': ', 1)[0] in once else ': '}{note}"
+                     for note in image_notes((r.item, r.reason) for r in c.rejected))
     lines.extend(f"warning: {w}" for w in rec.warnings)
     return "\n".join(lines)
 
