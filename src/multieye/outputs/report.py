@@ -260,8 +260,7 @@ def _pose_table(rec: CalibrationRecord, poses, key: str, ref_mark: bool) -> str:
 
 
 def _links(rec: CalibrationRecord) -> str:
-    """What links each camera (shared views, the rig's motion, motion capture), when any
-    camera shares views or is linked by the rig's motion."""
+    """What links each camera, when any shares views or is linked by the rig's motion."""
     if not any(c.links is not None and (c.links.overlap or c.links.motion)
                for c in rec.cameras):
         return ""
