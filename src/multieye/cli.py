@@ -10,6 +10,7 @@ the same, the cause named on stderr).  Heavy modules are imported inside the com
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import signal
@@ -145,7 +146,7 @@ def _import_writers() -> None:
         import_module(name)
 
 
-def _prestart_workers(processes: int | None) -> None:
+def _prestart_workers(processes: int | None, report: bool = True) -> None:
     """The detection's fork server started before this process imports numpy, OpenCV and the
     pipeline, so that the server's own imports of them run on the other core meanwhile
     (issue 21); it imports the figure modules once the detection is done, for both figure
@@ -153,7 +154,7 @@ def _prestart_workers(processes: int | None) -> None:
     from multieye.imaging.workers import prestart_workers  # noqa: PLC0415 (instant start-up of multieye --help; no OpenCV: the server imports it first)
     from multieye.outputs.figure_workers import PRELOAD  # noqa: PLC0415 (instant start-up of multieye --help; light: no numpy)
 
-    prestart_workers(processes, preload=(PRELOAD,))
+    prestart_workers(processes, preload=(PRELOAD,) if report else ())
 
 
 #: What each exit status means (docs/conventions.md, section 8).
@@ -235,6 +236,9 @@ def main():
                    "calibration (before decoding, from the motion capture; multieye docs "
                    "recordings).")
 @click.option("--no-select", is_flag=True, help="Keep every image (no selection).")
+@click.option("--no-report", is_flag=True,
+              help="Write no report.html and figures/ (about a second less; 'multieye report "
+                   "OUT' makes them later from OUT's files).")
 @click.option("--engine", type=click.Choice(["local", "dask"]), default="local",
               show_default=True,
               help="Where detection runs: worker processes of this machine, or Dask "
@@ -253,8 +257,9 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     estimated from the recording; prints a per-camera table.  rig.yaml: multieye docs
     rig-yaml; the files: multieye docs outputs.
     """
+    report = not flags["no_report"]
     if flags["engine"] == "local" and flags["scheduler"] is None and os.path.exists(dataset):
-        _prestart_workers(processes)
+        _prestart_workers(processes, report)
     # what the detection needs only: the rest is imported while the images are detected
     from multieye.pipeline import Options, calibrate as run_calibration  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
@@ -269,16 +274,18 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
                       select=None if flags["no_select"] else flags["select"])
     _utf8_dataset(dataset)
     _processes_note(processes)
-    with claim_output(out_dir, inputs=[dataset]), figure_workers(processes) as workers:
+    drawing = figure_workers(processes) if report else contextlib.nullcontext()
+    with claim_output(out_dir, inputs=[dataset]), drawing as workers:
         run = run_calibration(dataset, options, processes=processes,
                               progress=_progress_enabled(), engine=flags["engine"],
                               scheduler=flags["scheduler"],
                               hooks=Hooks(meanwhile=_import_writers,
-                                          on_detected=workers.start_early))
+                                          on_detected=workers.start_early if report else None))
         from multieye.outputs.write import write_outputs  # noqa: PLC0415 (imported while the images were detected, _import_writers)
         from multieye.outputs.summary import calibration_table, timings_line  # noqa: PLC0415 (imported while the images were detected, likewise)
 
-        written = write_outputs(run, out_dir, processes=processes, workers=workers)
+        written = write_outputs(run, out_dir, processes=processes, workers=workers,
+                                report=report)
     _echo(calibration_table(run.record))
     for name, data in run.cameras.items():
         if data.selection is not None:
