@@ -206,6 +206,9 @@ def main() -> None:
     ap.add_argument("--mrcal-python", default="/tmp/venv-mrcal/bin/python")
     ap.add_argument("--keep", type=Path, help="keep every command's outputs in this folder "
                     "(default: a temporary folder, removed)")
+    ap.add_argument("--no-report-too", action="store_true",
+                    help="also time 'multieye calibrate --no-report' (lenses known and "
+                    "unknown): the result without report.html and figures/")
     ap.add_argument("--accuracy-only", action="store_true",
                     help="no runs: the accuracy of the outputs already in --keep")
     ap.add_argument("--variant", action="append", default=[],
@@ -231,19 +234,24 @@ def main() -> None:
         print_summary(summary)
 
 
+#: The multieye commands whose wall time is compared with the OpenCV script's (lenses known,
+#: unknown; with --no-report-too, the same without the report).
+CASES = ("known", "unknown", "known --no-report", "unknown --no-report")
+
+
 def print_summary(summary: dict) -> None:
     """Per variant: the wall-time ratio multieye / OpenCV script (median over the runs and
     each run's own ratio, the commands run side by side), lenses known and unknown."""
     print("\n| variant | images found (me / cv) | multieye / OpenCV, known: median (runs min-max) "
-          "| unknown: median (runs min-max) |")
-    print("|---|---|---|---|")
-    worst = {"known": 0.0, "unknown": 0.0}
+          "| unknown: median (runs min-max) | --no-report known | --no-report unknown |")
+    print("|---|---|---|---|---|---|")
+    worst = dict.fromkeys(CASES, 0.0)
     for name, res in summary.items():
         times, found = res["times"], res["found"]
         cells = []
-        for case in ("known", "unknown"):
-            me = np.array([w for w, _ in times[f"multieye {case}"]])
-            cv = np.array([w for w, _ in times[f"opencv {case}"]])
+        for case in CASES:
+            me = np.array([w for w, _ in times.get(f"multieye {case}", [])])
+            cv = np.array([w for w, _ in times[f"opencv {case.split()[0]}"]])
             if not len(me):
                 cells.append("-")
                 continue
@@ -251,7 +259,7 @@ def print_summary(summary: dict) -> None:
             worst[case] = max(worst[case], ratio)
             cells.append(f"{ratio:.2f} ({per_run.min():.2f}-{per_run.max():.2f})")
         print(f"| {name} | {found} | " + " | ".join(cells) + " |")
-    print(f"\nworst median ratio: known {worst['known']:.2f}, unknown {worst['unknown']:.2f}")
+    print("\nworst median ratio: " + ", ".join(f"{c} {w:.2f}" for c, w in worst.items() if w))
 
 
 def compile_package(py: str) -> str:
@@ -293,6 +301,12 @@ def run_all(args, known: Path, unknown: Path, tmp: Path, *, fisheye: bool = Fals
                             str(tmp / "cv_unknown.json"), "--unknown-lenses"],
                            tmp / "cv_unknown.json"),
     }
+    if getattr(args, "no_report_too", False):
+        for case, data in (("known", known), ("unknown", unknown)):
+            out = tmp / f"me_{case}_noreport"
+            commands[f"multieye {case} --no-report"] = (
+                [py, "-m", "multieye", "calibrate", str(data), "-o", str(out), "--processes",
+                 str(args.processes), "--no-report"], out)
     why_not = "a fisheye variant (mrcal's script fits OpenCV5)" if fisheye else \
         mrcal_usable(args.mrcal_python)
     if why_not is None:
