@@ -8,7 +8,8 @@ When the rig moves rigidly and the boards stand still, every view (camera ``j`` 
 so any two of them give the third.  The start grows from the reference camera
 (``T_ref_cam = I``) and the board it sees most (the world while growing):
 
-1. *chaining*: an instant whose rig pose two known things give (a known camera seeing a known
+1. *chaining* (the rule: :mod:`multieye.estimate.motion_growth`, which ``multieye check``
+   follows too): an instant whose rig pose two known things give (a known camera seeing a known
    board then), a board a known camera sees at a known instant, a camera that sees a known
    board at a known instant, each the robust mean of every loop that gives it
    (:func:`multieye.estimate.covisibility.relative_pose`), until nothing more follows.  A
@@ -50,6 +51,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DegenerateMotionError, DisconnectedError, InputError
 from multieye.core.lie import exp_so3, log_so3
 from multieye.estimate.covisibility import relative_pose
+from multieye.estimate.motion_growth import Link, chain_round, hand_eye_views, link_of
 from multieye.estimate.observability import turn_axis
 from multieye.solvers.general import solve_general
 
@@ -70,17 +72,6 @@ _AXIS_RCOND = 0.05
 #: ... and when the joint problem fails, this (a rig on a floor whose PnP poses tilt by half
 #: a degree: 0.08).
 FALLBACK_SPREAD = 0.25
-
-
-@dataclass(frozen=True)
-class Link:
-    """What placed a camera: ``kind`` ``"reference"``, ``"overlap"`` (``cameras`` saw the
-    same board at the same instants) or ``"motion"`` (the rig's pose at the instants came
-    from ``cameras`` seeing ``boards``)."""
-
-    kind: str
-    cameras: tuple[int, ...] = ()
-    boards: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -115,7 +106,8 @@ class _Growth:
     """The known poses while the start grows (module docstring)."""
 
     def __init__(self, T_jb, camera, instant, board, reference, seed: dict):
-        self.T, self.cam, self.inst, self.board = T_jb, camera, instant, board
+        self.T = T_jb
+        self.cam, self.inst, self.board = (np.asarray(a).tolist() for a in (camera, instant, board))
         self.cams: dict[int, F64] = {reference: np.eye(4)}
         self.boards: dict[int, F64] = dict(seed)
         self.insts: dict[int, F64] = {}
@@ -123,58 +115,38 @@ class _Growth:
         self.links: dict[int, Link] = {reference: Link("reference")}
         self.single_axis: list[int] = []
 
-    def _views(self, known_cam, known_inst, known_board):
-        return [v for v in range(len(self.T))
-                if (self.cam[v] in self.cams) == known_cam
-                and (self.inst[v] in self.insts) == known_inst
-                and (self.board[v] in self.boards) == known_board]
+    def _placed(self) -> tuple:
+        return self.cam, self.inst, self.board, self.cams, self.insts, self.boards
 
     def chain(self) -> None:
-        """Step 1 of the module docstring until nothing more follows."""
+        """Step 1 of the module docstring until nothing more follows
+        (:func:`multieye.estimate.motion_growth.chain_round`, with the poses)."""
         while True:
-            new_i, new_b, new_c = {}, {}, {}
-            for v in self._views(True, False, True):
-                t, j, b = self.inst[v], self.cam[v], self.board[v]
-                new_i.setdefault(t, []).append(
-                    (self.boards[b] @ g.inv(self.T[v]) @ g.inv(self.cams[j]), (j, b)))
-            for t, items in new_i.items():
-                self.insts[t] = _mean([T for T, _ in items])
-                self.placed_by[t] = {k for _, k in items}
-            for v in self._views(True, True, False):
-                new_b.setdefault(self.board[v], []).append(
-                    self.insts[self.inst[v]] @ self.cams[self.cam[v]] @ self.T[v])
-            for b, Ts in new_b.items():
-                self.boards[b] = _mean(Ts)
-            for v in self._views(False, True, True):
-                new_c.setdefault(self.cam[v], []).append(v)
-            for j, vs in new_c.items():
+            r = chain_round(*self._placed())
+            for t, vs in r.instants.items():
+                self.insts[t] = _mean([self.boards[self.board[v]] @ g.inv(self.T[v])
+                                       @ g.inv(self.cams[self.cam[v]]) for v in vs])
+                self.placed_by[t] = {(self.cam[v], self.board[v]) for v in vs}
+            for b, vs in r.boards.items():
+                self.boards[b] = _mean([self.insts[self.inst[v]] @ self.cams[self.cam[v]]
+                                        @ self.T[v] for v in vs])
+            for j, vs in r.cameras.items():
                 self.cams[j] = _mean([g.inv(self.insts[self.inst[v]]) @ self.boards[self.board[v]]
                                       @ g.inv(self.T[v]) for v in vs])
                 self.links[j] = self._link(vs)
-            if not (new_i or new_b or new_c):
+            if not r:
                 return
 
     def _link(self, vs) -> Link:
         """What placed a camera from its views ``vs`` (instants known)."""
-        over, via_c, via_b = set(), set(), set()
-        for v in vs:
-            by = self.placed_by.get(self.inst[v], set())
-            same = {c for c, b in by if b == self.board[v]}
-            over |= same
-            if not same:
-                via_c |= {c for c, _ in by}
-                via_b |= {b for _, b in by}
-        if over:
-            return Link("overlap", tuple(sorted(int(c) for c in over)))
-        return Link("motion", tuple(sorted(int(c) for c in via_c)),
-                    tuple(sorted(int(b) for b in via_b)))
+        return link_of([(self.inst[v], self.board[v]) for v in vs], self.placed_by)
 
     def hand_eye(self) -> bool:
         """Step 2: the unknown cameras and boards from the known instants; whether any was
         placed."""
         groups: dict[tuple[int, int], list[int]] = {}
-        for v in self._views(False, True, False):
-            groups.setdefault((int(self.cam[v]), int(self.board[v])), []).append(v)
+        for v in hand_eye_views(*self._placed()):
+            groups.setdefault((self.cam[v], self.board[v]), []).append(v)
         placed = False
         for part in _components(list(groups)):
             solved = self._solve(part, groups)
@@ -310,7 +282,7 @@ def _grown(T: F64, views, seed: dict) -> _Growth:
         if len(grow.cams) == m or not grow.hand_eye():
             break
     apart = [label[j] for j in range(m) if j not in grow.cams]
-    tried = {label[grow.cam[v]] for v in grow._views(False, True, False)}
+    tried = {label[grow.cam[v]] for v in hand_eye_views(*grow._placed())}
     if apart and tried:
         raise DegenerateMotionError(
             f"cameras {', '.join(sorted(tried))} see boards while a linked camera does, but "

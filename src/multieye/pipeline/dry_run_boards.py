@@ -3,13 +3,16 @@ each camera found in its sampled images, and what links each camera to the refer
 
 :func:`boards_found` counts, per board, the sampled images in which a camera found it (the
 results of :class:`~multieye.imaging.boards.Boards`, or of a camera's single board).
-:func:`motion_links` follows the growth of the calibration's start
-(:func:`multieye.estimate.motion_links.motion_start`) on the sampled detections alone,
-without poses: from the reference camera and the board it sees most, an instant is placed
-when a placed camera sees a placed board then, a board when a placed camera sees it at a
-placed instant, and a camera when it sees a placed board at a placed instant (*overlap* when
-a placed camera saw that board at that instant too, else *motion*) or any board at a placed
-instant (the hand-eye step, *motion*).  The calibration may still find the motion too poor
+:func:`motion_links` follows the growth rule of the calibration's start
+(:mod:`multieye.estimate.motion_growth`, which
+:func:`multieye.estimate.motion_links.motion_start` follows with the poses) on the sampled
+detections alone, without poses: from the reference camera and the board it sees most, an
+instant is placed when a placed camera sees a placed board then, a board when a placed camera
+sees it at a placed instant, and a camera when it sees a placed board at a placed instant or
+any board at a placed instant (the hand-eye step, taken to succeed); a camera is linked by
+*overlap* when another camera saw one of its boards at one of its instants, else by *motion*
+(:func:`multieye.estimate.motion_growth.link_of`, every other placed camera's views giving
+the instants).  The calibration may still find the motion too poor
 (turned about one axis); it never links a camera this leaves apart.
 :func:`one_axis_problems` says beforehand when the sampled views of the reference camera show
 the rig turned about one axis only (with the lens given: the board poses), which leaves the
@@ -23,6 +26,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from multieye.core import geometry as g
+from multieye.estimate.motion_growth import Link, link_of, reached
 from multieye.estimate.observability import one_axis_advice, turn_axis
 from multieye.imaging.pnp import collinear
 
@@ -74,51 +78,41 @@ def motion_links(labels: Sequence[str], views: Sequence[tuple[int, int, str]]
     if not own:
         return [f"{labels[0]} linked by: nothing (the reference camera saw no board in the "
                 "sampled images)"] + [f"{n} linked by: nothing" for n in labels[1:]]
-    cams, boards, insts = {0}, {max(set(own), key=own.count)}, set()
-    how: dict[int, tuple[set, set, dict]] = {}
-    grew = True
-    while grew:
-        grew = False
-        for c, t, b in views:
-            if c in cams and b in boards and t not in insts:
-                insts.add(t)
-                grew = True
-            if c in cams and t in insts and b not in boards:
-                boards.add(b)
-                grew = True
-        for j in range(1, len(labels)):
-            if j in cams:
-                continue
-            if any(c == j and t in insts for c, t, _ in views):
-                cams.add(j)
-                grew = True
-    for j in range(1, len(labels)):
-        mine = {(t, b) for c, t, b in views if c == j and t in insts}
-        shared: dict[int, int] = {}
-        for c, t, b in views:
-            if c != j and (t, b) in mine:
-                shared[c] = shared.get(c, 0) + 1
-        at = {t for t, _ in mine}
-        via = {c for c, t, _ in views if c != j and c in cams and t in at}
-        through = {b for c, t, b in views if c in via and t in at}
-        how[j] = (via, through, shared)
+    camera, instant, board = (list(x) for x in zip(*views))
+    cams, insts, _ = reached(camera, instant, board, 0, {max(set(own), key=own.count)})
     lines = [f"{labels[0]} linked by: reference camera"]
     for j in range(1, len(labels)):
         if j not in cams:
             lines.append(f"{labels[j]} linked by: nothing (no sampled image with a board at "
                          "an instant when a linked camera sees one)")
             continue
-        via, through, shared = how[j]
-        parts = []
-        if shared:
-            parts.append("overlap with " + ", ".join(
-                f"{labels[c]} ({k}{' instants' if i == 0 else ''})"
-                for i, (c, k) in enumerate(sorted(shared.items()))))
-        elif via:
-            parts.append(f"motion via {', '.join(labels[c] for c in sorted(via))} and "
-                         f"board{'s' * (len(through) > 1)} {', '.join(sorted(through))}")
-        lines.append(f"{labels[j]} linked by: " + ("; ".join(parts) or "motion"))
+        link, shared = _link(j, views, cams, insts)
+        how = "motion"
+        if link.kind == "overlap":
+            how = "overlap with " + ", ".join(
+                f"{labels[c]} ({shared[c]}{' instants' if i == 0 else ''})"
+                for i, c in enumerate(link.cameras))
+        elif link.cameras:
+            how = (f"motion via {', '.join(labels[c] for c in link.cameras)} and "
+                   f"board{'s' * (len(link.boards) > 1)} {', '.join(link.boards)}")
+        lines.append(f"{labels[j]} linked by: {how}")
     return lines
+
+
+def _link(j: int, views: Sequence[tuple[int, int, str]], cams: set, insts: set
+          ) -> tuple[Link, dict[int, int]]:
+    """What links placed camera ``j`` (:func:`multieye.estimate.motion_growth.link_of`), its
+    instants given by every other placed camera's views then, and per other camera how many
+    of its views share an instant and a board with ``j``'s."""
+    mine = {(t, b) for c, t, b in views if c == j and t in insts}
+    placers: dict[int, set] = {}
+    shared: dict[int, int] = {}
+    for c, t, b in views:
+        if c != j and c in cams and t in insts:
+            placers.setdefault(t, set()).add((c, b))
+        if c != j and (t, b) in mine:
+            shared[c] = shared.get(c, 0) + 1
+    return link_of(mine, placers), shared
 
 
 def posed_boards(result, looked_for: tuple[str, ...]) -> list[tuple[str, np.ndarray]]:

@@ -21,7 +21,7 @@ Synopsis
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -51,7 +51,8 @@ from multieye.estimate.rig_residuals import RigViews
 from multieye.pipeline.camera_data import CameraData, PairedCamera
 
 __all__ = ["CameraLinks", "OverlapSolution", "solve_overlap", "observation_instants",
-           "assign_instants", "paired_instants", "share_instants", "UNEXPLAINED_RATIO"]
+           "camera_views", "CameraViews", "assign_instants", "paired_instants",
+           "share_instants", "UNEXPLAINED_RATIO"]
 
 #: A camera is doubted (cause ``fit``) when its pixel residuals in the rig are this many times
 #: (in variance) those of its own PnP poses.
@@ -147,6 +148,64 @@ def assign_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | N
             for n, d in cameras.items()}
 
 
+@dataclass(frozen=True)
+class CameraViews:
+    """Every camera's views at their instants, as the solves without motion capture take them
+    (:func:`camera_views`).
+
+    Attributes
+    ----------
+    instants : dict of str to ndarray of int
+        The instant of each observation (:func:`observation_instants`).
+    n_instants : int
+        How many instants the observations make; each image of a camera's
+        ``intrinsics_images`` is an instant of its own after them.
+    sync_tolerance : float
+        Seconds (0 when instants come from names).
+    views : dict of str to list of tuple
+        Per camera ``(object_points (k, 3), image_points (k, 2), instant)`` of each
+        observation, then of each ``intrinsics_images`` view when its lens is estimated;
+        ``board`` (an int) appended to each when the views name their board.
+    poses : ndarray, shape (n, 4, 4)
+        ``T_cam_target`` (PnP) of every view, camera after camera in the same order.
+    """
+
+    instants: dict
+    n_instants: int
+    sync_tolerance: float
+    views: dict
+    poses: np.ndarray
+
+
+def camera_views(cameras: Mapping[str, CameraData], sync_tolerance: float | None,
+                 sync: str = "time", board_of: Callable | None = None) -> CameraViews:
+    """The cameras' images checked (:func:`_check_images`), grouped into instants
+    (:func:`observation_instants`) and stated as views, with their PnP poses.
+
+    ``board_of(observation) -> int``, when given, names each view's board (a rig before
+    several boards: :func:`multieye.pipeline.overlap_motion.solve_motion`).
+
+    Raises
+    ------
+    DatasetError, TooFewMeasurementsError
+        As :func:`_check_images`.
+    """
+    _check_images(cameras)
+    inst, n_inst, tol = observation_instants(cameras, sync_tolerance, sync)
+    tag = (lambda o: ()) if board_of is None else (lambda o: (board_of(o),))
+    views, poses, extra = {}, [], n_inst
+    for n, d in cameras.items():
+        vs = [(o.object_points, o.image_points, int(t), *tag(o))
+              for o, t in zip(d.observations, inst[n])]
+        poses += [o.T_cam_target for o in d.observations]
+        for o in (d.intrinsics_views if d.intrinsics_estimated else ()):
+            vs.append((o.object_points, o.image_points, extra, *tag(o)))
+            poses.append(o.T_cam_target)
+            extra += 1
+        views[n] = vs
+    return CameraViews(inst, n_inst, tol, views, np.stack(poses))
+
+
 def _check_images(cameras: Mapping[str, CameraData]) -> None:
     for name, d in cameras.items():
         if d.intrinsics is None or any(o.image_points is None for o in d.observations):
@@ -194,9 +253,8 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     DisconnectedError
         Cameras in groups that share no instant (one line naming the groups).
     """
-    _check_images(cameras)
-    names = tuple(cameras)
-    inst, n_inst, tol = observation_instants(cameras, sync_tolerance, sync)
+    prepared = camera_views(cameras, sync_tolerance, sync)
+    names, inst, tol = tuple(cameras), prepared.instants, prepared.sync_tolerance
     cams = [np.full(len(inst[n]), j) for j, n in enumerate(names)]
     cov = covisibility(np.concatenate(cams), np.concatenate([inst[n] for n in names]),
                        len(names))
@@ -205,20 +263,10 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
         raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol,
                                                  sync),
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))
-    views, poses, extra = [], [], n_inst
-    for n in names:
-        d = cameras[n]
-        vs = [(o.object_points, o.image_points, int(t)) for o, t in zip(d.observations, inst[n])]
-        poses += [o.T_cam_target for o in d.observations]
-        for o in (d.intrinsics_views if d.intrinsics_estimated else ()):
-            vs.append((o.object_points, o.image_points, extra))
-            poses.append(o.T_cam_target)
-            extra += 1
-        views.append(vs)
-    rv = RigViews(dict(zip(names, views)), [cameras[n].intrinsics for n in names],
+    rv = RigViews(prepared.views, [cameras[n].intrinsics for n in names],
                   names.index(reference),
                   free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
-    result = refine_rig(rv, np.stack(poses), loss="huber" if robust else "linear")
+    result = refine_rig(rv, prepared.poses, loss="huber" if robust else "linear")
     used = {n: cameras[n].observations for n in names}
     findings = _fit_findings(cameras, rv, result)
     if isolate and len(findings) > 1:

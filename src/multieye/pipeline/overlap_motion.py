@@ -6,9 +6,9 @@ one camera sees at one instant and another camera at another instant ties the tw
 the rig's poses at those instants (:mod:`multieye.estimate.motion_links`).  Stages, keyed by
 camera name like :mod:`multieye.pipeline.overlap`:
 
-1. instants: as :func:`multieye.pipeline.overlap.observation_instants` (one image showing two
-   boards: two views at one instant); each image of a camera's ``intrinsics_images`` an
-   instant of its own;
+1. instants and views: :func:`multieye.pipeline.overlap.camera_views`, each view naming its
+   board (one image showing two boards: two views at one instant); each image of a camera's
+   ``intrinsics_images`` an instant of its own;
 2. solve: every ``T_ref_cam``, every board's pose (the first board of rig.yaml seen is the
    world), the rig's pose per instant and the lenses estimated from the recording, started
    from the loops the views close and the joint hand-eye problem, refined on the pixels
@@ -47,12 +47,7 @@ from multieye.estimate.refine_motion import MotionResult, refine_motion
 from multieye.estimate.uncertainty import pose_std
 from multieye.io.calibration_json import CameraLinks
 from multieye.pipeline.camera_data import CameraData
-from multieye.pipeline.overlap import (
-    _check_images,
-    _fit_findings,
-    _rig_warnings,
-    observation_instants,
-)
+from multieye.pipeline.overlap import _fit_findings, _rig_warnings, camera_views
 
 __all__ = ["MotionSolution", "solve_motion", "target_of", "board_order", "GIVEN_POSE_CHI2"]
 
@@ -194,34 +189,22 @@ def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
     DisconnectedError
         Cameras that neither overlap nor the rig's motion links (one line naming them).
     """
-    _check_images(cameras)
     names = tuple(cameras)
     order = board_order(cameras, boards)
-    inst, n_inst, tol = observation_instants(cameras, sync_tolerance, sync)
-    views, poses_pnp, extra = [], [], n_inst
-    which = {}
-    for n in names:
-        d = cameras[n]
-        which[n] = np.array([order.index(target_of(o)) for o in d.observations], dtype=np.int64)
-        vs = [(o.object_points, o.image_points, int(t), int(b))
-              for o, t, b in zip(d.observations, inst[n], which[n])]
-        poses_pnp += [o.T_cam_target for o in d.observations]
-        for o in (d.intrinsics_views if d.intrinsics_estimated else ()):
-            vs.append((o.object_points, o.image_points, extra, order.index(target_of(o))
-                       if target_of(o) in order else 0))
-            poses_pnp.append(o.T_cam_target)
-            extra += 1
-        views.append(vs)
+    prepared = camera_views(cameras, sync_tolerance, sync, lambda o: (
+        order.index(target_of(o)) if target_of(o) in order else 0))
+    inst, tol, views = prepared.instants, prepared.sync_tolerance, prepared.views
+    which = {n: np.array([order.index(target_of(o)) for o in cameras[n].observations],
+                         dtype=np.int64) for n in names}
     held = _held(order, boards, poses)
-    views = dict(zip(names, views))
     mv = _views(cameras, views, reference, held)
     loss = "huber" if robust else "linear"
-    result = refine_motion(mv, np.stack(poses_pnp), loss=loss,
+    result = refine_motion(mv, prepared.poses, loss=loss,
                            mocap=None if mocap is None else mocap(inst))
     obs = observability(result, mv)
     given = tuple(order[b] for b in (held or {}) if order[b] in (poses or {}))
     checked, notes, free = _given_findings(lambda h: _views(cameras, views, reference, h),
-                                           mv, np.stack(poses_pnp), loss, (order, given))
+                                           mv, prepared.poses, loss, (order, given))
     # a given pose the views refute spoils every camera's fit: the fit is judged without it
     fit = _fit_findings(cameras, *((mv, result) if not checked else free))
     findings = fit + _observability_findings(obs) + checked
