@@ -3,7 +3,7 @@
 Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_wide_lens.py [--trials 20] [--seed 0]
-        [--skip boofcv,sim,mixed,timing]
+        [--draws 60] [--skip boofcv,sim,mc,mixed,timing]
 
 1. ``boofcv``: ``../shared/data/boofcv_fisheye`` (26 images of a fisheye of about 180
    degrees, BoofCV's unified-model calibration as reference; ``MULTIEYE_SHARED_DATA``) with
@@ -17,11 +17,16 @@ Run from the repository root::
    are projected, not rendered), each started by :func:`multieye.imaging.generic_start.
    generic_start` and fitted to the optimum by :func:`~multieye.imaging.generic_start.
    fit_lens`: how often the start reached the optimum that the fit started from the truth
-   reaches (its cost within 0.5 sigma^2), the lens error against the truth (RMS over the
-   observed rays after the best rotation, pixels; median and largest over the trials), and
-   the lens NEES / dim: the parameters' error in the covariance of the fit (sigma^2 times
-   the lens block of (J^T J)^-1), and the error of the pixels of three rays in theirs,
-   averaged over the trials (1 when the covariance is right).
+   reaches (its cost within 0.5 sigma^2), how often it found a better one (more than 0.5
+   sigma^2 below), how often it is that same optimum (unified, double-sphere: ``xi`` within
+   0.05 of it), the lens error against the truth (RMS over the observed rays after the best
+   rotation, pixels; median and largest over the trials), and the lens NEES / dim: the
+   parameters' error in the covariance of the fit (sigma^2 times the lens block of
+   (J^T J)^-1), the same in the curve parameters (:mod:`multieye.core.lens_curve`), and
+   the error of the pixels of three rays in theirs, over the trials (1 when the covariance
+   is right).
+2b. ``mc``: the covariance at the truth against the spread of ``--draws`` estimates
+   (:func:`monte_carlo`).
 3. ``mixed``: ``--trials // 2`` rigs of two pinhole cameras and one wide camera of each
    model seeing the board together: the NEES / 6 of ``T_ref_cam`` (cameras 1 and 2), the
    largest error of any of its six coordinates in its own standard deviations, and the wide
@@ -123,21 +128,34 @@ def _lens_covariance(views, fit, sigma: float) -> np.ndarray:
     return sigma ** 2 * np.linalg.inv(J.T @ J)[:prob.n_lens, :prob.n_lens]
 
 
-def _nees(est: Intrinsics, true: Intrinsics, C: np.ndarray, fov: float) -> tuple[float, float]:
-    """The lens' NEES / dim in its parameters, and in the pixels of three rays (at 0.3,
-    0.6 and 0.9 of the half field of view, azimuths 0, 120 and 240 degrees), whose
-    covariance is ``J C J^T`` (meaningful where the parameters have a flat valley)."""
+def _nees(est: Intrinsics, true: Intrinsics, C: np.ndarray, fov: float
+          ) -> tuple[float, float, float]:
+    """The lens' NEES / dim in its parameters; in its curve parameters where the model has
+    them (:mod:`multieye.core.lens_curve`, rays up to 0.9 of the half field; NaN for the
+    other models); and in the pixels of three rays (at 0.3, 0.6 and 0.9 of the half field
+    of view, azimuths 0, 120 and 240 degrees), whose covariance is ``J C J^T``."""
     from multieye.core.lens import project_points, project_with_jacobian  # noqa: PLC0415
+    from multieye.core.lens_curve import CURVE_MODELS, curve_jacobian  # noqa: PLC0415
 
     e = est.params - true.params
     par = float(e @ np.linalg.solve(C, e)) / len(e)
+    curve = float("nan")
+    if est.model in CURVE_MODELS:
+        phi, G = curve_jacobian(est, np.radians(fov / 2))
+        ec = phi - curve_jacobian(true, np.radians(fov / 2))[0]
+        curve = float(ec @ np.linalg.solve(G @ C @ G.T, ec)) / len(ec)
     a = np.radians(fov / 2) * np.array([0.3, 0.6, 0.9])
     phi = np.radians([0.0, 120.0, 240.0])
     rays = np.column_stack([np.sin(a) * np.cos(phi), np.sin(a) * np.sin(phi), np.cos(a)])
     uv, _, Ji = project_with_jacobian(rays, est)
     d = (uv - project_points(rays, true)).ravel()
     J = Ji.reshape(-1, Ji.shape[-1])
-    return par, float(d @ np.linalg.solve(J @ C @ J.T, d)) / len(d)
+    return par, curve, float(d @ np.linalg.solve(J @ C @ J.T, d)) / len(d)
+
+
+def _mean_median(values) -> str:
+    v = np.asarray(values, np.float64)
+    return "     -" if np.all(np.isnan(v)) else f"{np.mean(v):.2f} / {np.median(v):.2f}"
 
 
 def simulated(trials: int, seed: int) -> None:
@@ -146,11 +164,12 @@ def simulated(trials: int, seed: int) -> None:
     from multieye.sim.wide_lens import IMAGE_SIDE, board_views, wide_lens  # noqa: PLC0415
 
     print(f"\n2. simulated wide lenses, {trials} trials of 20 views, 0.2 px noise")
-    print("model          fov deg  start at optimum  lens error px median / max  "
-          "NEES/dim params  pixels  start CPU s")
+    print("model          fov deg  start at optimum  below truth's  truth's mode  "
+          "lens error px median / max  NEES/dim params (mean / median)  curve params  "
+          "pixels  start CPU s")
     for model, fov in SIM_CASES:
         true = wide_lens(model, fov)
-        hits, errors, nees, cpu = 0, [], [], []
+        hits, below, same, errors, nees, cpu = 0, 0, 0, [], [], []
         for t in range(trials):
             views, T = board_views(true, fov, 20, np.random.default_rng([seed, t]),
                                    noise_px=0.2)
@@ -162,15 +181,51 @@ def simulated(trials: int, seed: int) -> None:
             best = fit_lens(views, true, T, huber_px=None, max_iterations=500)
             n = np.array([len(o) for o, _ in views])
             cost = float(np.sum(fit.rms_px ** 2 * n))
-            hits += cost <= float(np.sum(best.rms_px ** 2 * n)) + 0.5 * 0.04
+            best_cost = float(np.sum(best.rms_px ** 2 * n))
+            hits += cost <= best_cost + 0.5 * 0.04
+            below += cost < best_cost - 0.5 * 0.04
+            # the same optimum as the fit started from the truth (the valley's xi within 0.05)
+            same += abs(fit.intrinsics.params[4] - best.intrinsics.params[4]) < 0.05 \
+                if model in ("unified", "double-sphere") else 1
             uv = np.concatenate([u for _, u in views])
             d = lens_difference_px(fit.intrinsics, true, uv)
             errors.append(float(np.sqrt(np.nanmean(d ** 2))))
             nees.append(_nees(fit.intrinsics, true, _lens_covariance(views, fit, 0.2), fov))
-        print(f"{model:<14} {fov:>7.0f}  {hits:>8} of {trials:<5}  "
+        nees = np.array(nees)
+        print(f"{model:<14} {fov:>7.0f}  {hits:>8} of {trials:<5}  {below:>13}  {same:>12}  "
               f"{np.median(errors):>13.3f} / {np.max(errors):.3f}  "
-              f"{np.mean([n[0] for n in nees]):>15.2f}  {np.mean([n[1] for n in nees]):>6.2f}  "
-              f"{np.median(cpu):>11.2f}")
+              f"{_mean_median(nees[:, 0]):>31}  {_mean_median(nees[:, 1]):>12}  "
+              f"{np.mean(nees[:, 2]):>6.2f}  {np.median(cpu):>11.2f}")
+
+
+def monte_carlo(draws: int, seed: int) -> None:
+    """The covariance at the truth against the spread of the estimates: one set of 20 views
+    per case, ``draws`` draws of 0.2 px noise on its pixels, each fitted from the truth
+    (lens and poses); the spread of each lens parameter over the draws in its predicted
+    standard deviation (sigma^2 (J^T J)^-1 at the truth, poses marginalised), and the mean
+    NEES / dim in the published and the curve parameters (covariance at each estimate)."""
+    from multieye.imaging.generic_start import fit_lens  # noqa: PLC0415
+    from multieye.sim.wide_lens import board_views, wide_lens  # noqa: PLC0415
+
+    print(f"\n2b. covariance against Monte Carlo at the truth, {draws} noise draws, 0.2 px")
+    print("model          fov deg  spread / predicted sd per parameter            "
+          "NEES/dim params (mean / median)  curve params")
+    for model, fov in SIM_CASES:
+        true = wide_lens(model, fov)
+        clean, T = board_views(true, fov, 20, np.random.default_rng([seed, 99]), noise_px=0.0)
+        rng = np.random.default_rng([seed, 98])
+        truth_fit = fit_lens(clean, true, T, huber_px=None)
+        sd = np.sqrt(np.diag(_lens_covariance(clean, truth_fit, 0.2)))
+        est, nees = [], []
+        for _ in range(draws):
+            views = [(o, u + rng.normal(0.0, 0.2, u.shape)) for o, u in clean]
+            fit = fit_lens(views, true, T, huber_px=None, max_iterations=500)
+            est.append(fit.intrinsics.params)
+            nees.append(_nees(fit.intrinsics, true, _lens_covariance(views, fit, 0.2), fov))
+        ratio = np.std(np.array(est), axis=0) / sd
+        nees = np.array(nees)
+        print(f"{model:<14} {fov:>7.0f}  {' '.join(f'{r:.2f}' for r in ratio):<46}  "
+              f"{_mean_median(nees[:, 0]):>31}  {_mean_median(nees[:, 1]):>12}")
 
 
 def mixed_rig(trials: int, seed: int) -> None:
@@ -191,8 +246,8 @@ def mixed_rig(trials: int, seed: int) -> None:
 
     print(f"\n3. mixed rig: 2 pinhole + 1 wide camera (190 deg), {trials} rigs of 30 instants, "
           "0.3 px; T_ref_cam error in its covariance")
-    print("wide model     NEES/6 cams 1,2  largest |error| / sigma  wide lens NEES/dim params  "
-          "pixels")
+    print("wide model     NEES/6 cams 1,2  largest |error| / sigma  wide lens NEES/dim params "
+          "(mean / median)  curve params  pixels")
     spec = OverlapSpec(n_instants=30, width=IMAGE_SIDE, height=IMAGE_SIDE, fisheye=())
     for model in ("unified", "double-sphere", "eucm"):
         nees, worst, lens_nees = [], [], []
@@ -223,9 +278,10 @@ def mixed_rig(trials: int, seed: int) -> None:
                 worst.append(float(np.max(np.abs(e) / np.sqrt(np.diag(C)))))
             lens_nees.append(_nees(res.intrinsics[2], sc.intrinsics[2],
                                    res.intrinsics_covariance[2], 190.0))
+        lens_nees = np.array(lens_nees)
         print(f"{model:<14} {np.mean(nees):>15.2f}  {np.max(worst):>23.2f}  "
-              f"{np.mean([n[0] for n in lens_nees]):>18.2f}  "
-              f"{np.mean([n[1] for n in lens_nees]):>6.2f}")
+              f"{_mean_median(lens_nees[:, 0]):>42}  {_mean_median(lens_nees[:, 1]):>12}  "
+              f"{np.mean(lens_nees[:, 2]):>6.2f}")
 
 
 def timing() -> None:
@@ -266,6 +322,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--draws", type=int, default=60)
     ap.add_argument("--skip", default="")
     args = ap.parse_args()
     skip = set(args.skip.split(","))
@@ -277,6 +334,8 @@ def main() -> None:
             print(f"1. boofcv_fisheye: not found under {shared} (set MULTIEYE_SHARED_DATA)")
     if "sim" not in skip:
         simulated(args.trials, args.seed)
+    if "mc" not in skip:
+        monte_carlo(args.draws, args.seed)
     if "mixed" not in skip:
         mixed_rig(max(args.trials // 2, 1), args.seed)
     if "timing" not in skip:
