@@ -29,8 +29,10 @@ Run from the repository root::
    (:func:`monte_carlo`).
 3. ``mixed``: ``--trials // 2`` rigs of two pinhole cameras and one wide camera of each
    model seeing the board together: the NEES / 6 of ``T_ref_cam`` (cameras 1 and 2), the
-   largest error of any of its six coordinates in its own standard deviations, and the wide
-   lens' NEES / dim (:func:`mixed_rig`).
+   largest error of any of its six coordinates in its own standard deviations, how many
+   rigs reach the optimum the refinement started from the true lenses reaches (the wide
+   lens' ``xi`` within 0.05), and the wide lens' NEES / dim, over all rigs and over those
+   (:func:`mixed_rig`).
 4. ``timing``: CPU seconds of :func:`multieye.imaging.calibrate.initial_intrinsics` and of
    :func:`multieye.imaging.calibrate.poses_from_detections` on 40 views of a pinhole lens
    (median of 5); run it with ``PYTHONPATH`` on another source tree for the before/after.
@@ -165,11 +167,11 @@ def simulated(trials: int, seed: int) -> None:
 
     print(f"\n2. simulated wide lenses, {trials} trials of 20 views, 0.2 px noise")
     print("model          fov deg  start at optimum  below truth's  truth's mode  "
-          "lens error px median / max  NEES/dim params (mean / median)  curve params  "
-          "pixels  start CPU s")
+          "lens error px median / max  NEES/dim params (mean / median)  (truth's mode)  "
+          "curve params  (truth's mode)  pixels  start CPU s")
     for model, fov in SIM_CASES:
         true = wide_lens(model, fov)
-        hits, below, same, errors, nees, cpu = 0, 0, 0, [], [], []
+        hits, below, same, errors, nees, cpu = 0, 0, [], [], [], []
         for t in range(trials):
             views, T = board_views(true, fov, 20, np.random.default_rng([seed, t]),
                                    noise_px=0.2)
@@ -185,16 +187,17 @@ def simulated(trials: int, seed: int) -> None:
             hits += cost <= best_cost + 0.5 * 0.04
             below += cost < best_cost - 0.5 * 0.04
             # the same optimum as the fit started from the truth (the valley's xi within 0.05)
-            same += abs(fit.intrinsics.params[4] - best.intrinsics.params[4]) < 0.05 \
-                if model in ("unified", "double-sphere") else 1
+            same.append(abs(fit.intrinsics.params[4] - best.intrinsics.params[4]) < 0.05
+                        if model in ("unified", "double-sphere") else True)
             uv = np.concatenate([u for _, u in views])
             d = lens_difference_px(fit.intrinsics, true, uv)
             errors.append(float(np.sqrt(np.nanmean(d ** 2))))
             nees.append(_nees(fit.intrinsics, true, _lens_covariance(views, fit, 0.2), fov))
-        nees = np.array(nees)
-        print(f"{model:<14} {fov:>7.0f}  {hits:>8} of {trials:<5}  {below:>13}  {same:>12}  "
-              f"{np.median(errors):>13.3f} / {np.max(errors):.3f}  "
-              f"{_mean_median(nees[:, 0]):>31}  {_mean_median(nees[:, 1]):>12}  "
+        nees, same = np.array(nees), np.array(same)
+        print(f"{model:<14} {fov:>7.0f}  {hits:>8} of {trials:<5}  {below:>13}  "
+              f"{same.sum():>12}  {np.median(errors):>13.3f} / {np.max(errors):.3f}  "
+              f"{_mean_median(nees[:, 0]):>31}  {np.mean(nees[same, 0]):>12.2f}  "
+              f"{_mean_median(nees[:, 1]):>12}  {np.mean(nees[same, 1]):>12.2f}  "
               f"{np.mean(nees[:, 2]):>6.2f}  {np.median(cpu):>11.2f}")
 
 
@@ -246,11 +249,11 @@ def mixed_rig(trials: int, seed: int) -> None:
 
     print(f"\n3. mixed rig: 2 pinhole + 1 wide camera (190 deg), {trials} rigs of 30 instants, "
           "0.3 px; T_ref_cam error in its covariance")
-    print("wide model     NEES/6 cams 1,2  largest |error| / sigma  wide lens NEES/dim params "
-          "(mean / median)  curve params  pixels")
+    print("wide model     NEES/6 cams 1,2  largest |error| / sigma  as from truth  "
+          "wide lens NEES/dim params (mean / median)  (those)  curve params  (those)  pixels")
     spec = OverlapSpec(n_instants=30, width=IMAGE_SIDE, height=IMAGE_SIDE, fisheye=())
     for model in ("unified", "double-sphere", "eucm"):
-        nees, worst, lens_nees = [], [], []
+        nees, worst, lens_nees, same = [], [], [], []
         for t in range(trials):
             rng = np.random.default_rng([seed, t, 4])
             pin = default_intrinsics(2, IMAGE_SIDE, IMAGE_SIDE, fisheye=(), rng=rng)
@@ -270,6 +273,10 @@ def mixed_rig(trials: int, seed: int) -> None:
                 T0.extend(st.T_cam_target)
             rv = RigViews(dict(zip("abc", views)), starts, free_intrinsics=[True] * 3)
             res = refine_rig(rv, np.array(T0), pixel_sigma=0.3)
+            # the same refinement started from the true lenses: the same optimum?
+            rv = RigViews(dict(zip("abc", views)), list(sc.intrinsics), free_intrinsics=[True] * 3)
+            xi = refine_rig(rv, np.array(T0), pixel_sigma=0.3).intrinsics[2].dist[0]
+            same.append(abs(res.intrinsics[2].dist[0] - xi) < 0.05 or model == "eucm")
             for j in (1, 2):
                 dR = res.T_ref_cam[j, :3, :3] @ sc.T_ref_cam[j, :3, :3].T
                 e = np.concatenate([log_so3(dR), res.T_ref_cam[j, :3, 3] - sc.T_ref_cam[j, :3, 3]])
@@ -278,9 +285,11 @@ def mixed_rig(trials: int, seed: int) -> None:
                 worst.append(float(np.max(np.abs(e) / np.sqrt(np.diag(C)))))
             lens_nees.append(_nees(res.intrinsics[2], sc.intrinsics[2],
                                    res.intrinsics_covariance[2], 190.0))
-        lens_nees = np.array(lens_nees)
+        lens_nees, same = np.array(lens_nees), np.array(same)
         print(f"{model:<14} {np.mean(nees):>15.2f}  {np.max(worst):>23.2f}  "
-              f"{_mean_median(lens_nees[:, 0]):>42}  {_mean_median(lens_nees[:, 1]):>12}  "
+              f"{same.sum():>2} of {trials:<2}  "
+              f"{_mean_median(lens_nees[:, 0]):>42}  {np.mean(lens_nees[same, 0]):>8.2f}  "
+              f"{_mean_median(lens_nees[:, 1]):>12}  {np.mean(lens_nees[same, 1]):>8.2f}  "
               f"{np.mean(lens_nees[:, 2]):>6.2f}")
 
 

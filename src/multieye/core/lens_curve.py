@@ -57,7 +57,7 @@ def _kept(intrinsics: Intrinsics) -> list[int]:
 
 def curve_names(intrinsics: Intrinsics) -> list[str]:
     """Names of :func:`curve_parameters`' entries (``rho_1``.., ``fy/fx``, the kept ones)."""
-    names = ["fx", "fy", "cx", "cy", *parameter_names(intrinsics)]
+    names = parameter_names(intrinsics)
     n = len(CURVE_MODELS[intrinsics.model])
     return [f"rho_{j + 1}" for j in range(n)] + ["fy/fx"] + [names[i] for i in
                                                                _kept(intrinsics)]

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
-from multieye.imaging.lens_valley import valley_lenses
+from multieye.imaging.lens_valley import VALLEY_MODELS, valley_lenses
 from multieye.imaging.rays import bearings, ippe_on_rays
 
 __all__ = ["LensFit", "generic_start", "fit_lens", "equidistant_focal",
@@ -375,6 +375,8 @@ def best_in_valley(views: Sequence[tuple[F64, F64]], fit: LensFit, *,
     LensFit
         The one of least cost.
     """
+    if fit.intrinsics.model not in VALLEY_MODELS:
+        return fit
     uv = np.concatenate([u for _, u in views])
     rays = bearings(uv, fit.intrinsics)
     theta = np.arctan2(np.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])

@@ -34,13 +34,15 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points
 
-__all__ = ["valley_lenses", "VALLEY_STEP"]
+__all__ = ["valley_lenses", "VALLEY_STEP", "VALLEY_MODELS"]
 
 F64 = NDArray[np.float64]
 
 #: Per model: the index in ``dist`` of the valley parameter, its range walked, and the indices
 #: in ``dist`` of the radial parameters fitted at each of its values (with the focal length).
 _VALLEY = {"unified": (0, (0.0, 4.0), (1, 2)), "double-sphere": (0, (-0.8, 2.0), (1,))}
+#: The models with such a valley.
+VALLEY_MODELS = tuple(_VALLEY)
 #: Step of the walk along the valley parameter.
 VALLEY_STEP = 0.05
 #: Pixel offset given to a ray a trial lens does not project.
