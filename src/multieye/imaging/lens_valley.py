@@ -7,7 +7,7 @@ difference is not even monotone: on a lens of 190 or 220 degrees with ``xi = -0.
 ``alpha = 0.6`` (:mod:`multieye.sim.wide_lens`) the lenses with ``xi`` near 0.2 and (190
 degrees) 1.6, focal lengths 1.4 and 3 times the true one, fit the noise-free corners of 20
 views to a sum of squares of 0.04-0.06 px^2 (an RMS of 0.005 px over 960 corners), with
-barriers of 1.5-13 px^2 between: separate local optima, which a least-squares fit started
+barriers of 1.8-13 px^2 between: separate local optima, which a least-squares fit started
 in one of them does not leave, and which 0.2 px of noise puts in either order.  A fit
 started from a single lens therefore stops in the optimum nearest its start, not in the best
 one.
