@@ -3,7 +3,7 @@
 Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_wide_lens.py [--trials 20] [--seed 0]
-        [--draws 60] [--skip boofcv,sim,mc,mixed,timing]
+        [--draws 60] [--skip boofcv,sim,mc,valley,mixed,timing]
 
 1. ``boofcv``: ``../shared/data/boofcv_fisheye`` (26 images of a fisheye of about 180
    degrees, BoofCV's unified-model calibration as reference; ``MULTIEYE_SHARED_DATA``) with
@@ -27,6 +27,7 @@ Run from the repository root::
    is right).
 2b. ``mc``: the covariance at the truth against the spread of ``--draws`` estimates
    (:func:`monte_carlo`).
+2c. ``valley``: the cost along ``xi`` without noise (:func:`valley_profile`).
 3. ``mixed``: ``--trials // 2`` rigs of two pinhole cameras and one wide camera of each
    model seeing the board together: the NEES / 6 of ``T_ref_cam`` (cameras 1 and 2), the
    largest error of any of its six coordinates in its own standard deviations, how many
@@ -131,28 +132,42 @@ def _lens_covariance(views, fit, sigma: float) -> np.ndarray:
 
 
 def _nees(est: Intrinsics, true: Intrinsics, C: np.ndarray, fov: float
-          ) -> tuple[float, float, float]:
+          ) -> tuple[float, float, float, float, float]:
     """The lens' NEES / dim in its parameters; in its curve parameters where the model has
     them (:mod:`multieye.core.lens_curve`, rays up to 0.9 of the half field; NaN for the
-    other models); and in the pixels of three rays (at 0.3, 0.6 and 0.9 of the half field
-    of view, azimuths 0, 120 and 240 degrees), whose covariance is ``J C J^T``."""
+    other models); in the pixels of three rays (at 0.3, 0.6 and 0.9 of the half field
+    of view, azimuths 0, 120 and 240 degrees), whose covariance is ``J C J^T``; in the curve
+    parameters other than ``xi`` (its marginal); and (unified only) in the parameters with
+    ``fx, fy`` replaced by ``fx / (1 + xi), fy / (1 + xi)``."""
     from multieye.core.lens import project_points, project_with_jacobian  # noqa: PLC0415
-    from multieye.core.lens_curve import CURVE_MODELS, curve_jacobian  # noqa: PLC0415
+    from multieye.core.lens_curve import (CURVE_MODELS, curve_jacobian,  # noqa: PLC0415
+                                          curve_names)
+
+    def nees(err, cov):
+        return float(err @ np.linalg.solve(cov, err)) / len(err)
 
     e = est.params - true.params
-    par = float(e @ np.linalg.solve(C, e)) / len(e)
-    curve = float("nan")
+    curve = no_xi = gamma = float("nan")
     if est.model in CURVE_MODELS:
         phi, G = curve_jacobian(est, np.radians(fov / 2))
-        ec = phi - curve_jacobian(true, np.radians(fov / 2))[0]
-        curve = float(ec @ np.linalg.solve(G @ C @ G.T, ec)) / len(ec)
+        ec, Cc = phi - curve_jacobian(true, np.radians(fov / 2))[0], G @ C @ G.T
+        curve = nees(ec, Cc)
+        k = [i for i, n in enumerate(curve_names(est)) if n != "xi"]
+        no_xi = nees(ec[k], Cc[np.ix_(k, k)])
+    if est.model == "unified":
+        p, q = est.params, true.params
+        G = np.eye(len(p))
+        G[0, 0] = G[1, 1] = 1.0 / (1.0 + p[4])
+        G[:2, 4] = -p[:2] / (1.0 + p[4]) ** 2
+        eg = np.concatenate([p[:2] / (1 + p[4]) - q[:2] / (1 + q[4]), e[2:]])
+        gamma = nees(eg, G @ C @ G.T)
     a = np.radians(fov / 2) * np.array([0.3, 0.6, 0.9])
     phi = np.radians([0.0, 120.0, 240.0])
     rays = np.column_stack([np.sin(a) * np.cos(phi), np.sin(a) * np.sin(phi), np.cos(a)])
     uv, _, Ji = project_with_jacobian(rays, est)
     d = (uv - project_points(rays, true)).ravel()
     J = Ji.reshape(-1, Ji.shape[-1])
-    return par, curve, float(d @ np.linalg.solve(J @ C @ J.T, d)) / len(d)
+    return nees(e, C), curve, nees(d, J @ C @ J.T), no_xi, gamma
 
 
 def _mean_median(values) -> str:
@@ -168,7 +183,7 @@ def simulated(trials: int, seed: int) -> None:
     print(f"\n2. simulated wide lenses, {trials} trials of 20 views, 0.2 px noise")
     print("model          fov deg  start at optimum  below truth's  truth's mode  "
           "lens error px median / max  NEES/dim params (mean / median)  (truth's mode)  "
-          "curve params  (truth's mode)  pixels  start CPU s")
+          "curve params  (truth's mode)  pixels  start CPU s  curve without xi")
     for model, fov in SIM_CASES:
         true = wide_lens(model, fov)
         hits, below, same, errors, nees, cpu = 0, 0, [], [], [], []
@@ -198,7 +213,8 @@ def simulated(trials: int, seed: int) -> None:
               f"{same.sum():>12}  {np.median(errors):>13.3f} / {np.max(errors):.3f}  "
               f"{_mean_median(nees[:, 0]):>31}  {np.mean(nees[same, 0]):>12.2f}  "
               f"{_mean_median(nees[:, 1]):>12}  {np.mean(nees[same, 1]):>12.2f}  "
-              f"{np.mean(nees[:, 2]):>6.2f}  {np.median(cpu):>11.2f}")
+              f"{np.mean(nees[:, 2]):>6.2f}  {np.median(cpu):>11.2f}  "
+              f"{_mean_median(nees[:, 3]):>12}")
 
 
 def monte_carlo(draws: int, seed: int) -> None:
@@ -212,7 +228,7 @@ def monte_carlo(draws: int, seed: int) -> None:
 
     print(f"\n2b. covariance against Monte Carlo at the truth, {draws} noise draws, 0.2 px")
     print("model          fov deg  spread / predicted sd per parameter            "
-          "NEES/dim params (mean / median)  curve params")
+          "NEES/dim params (mean / median)  curve params  curve without xi  fx / (1 + xi)")
     for model, fov in SIM_CASES:
         true = wide_lens(model, fov)
         clean, T = board_views(true, fov, 20, np.random.default_rng([seed, 99]), noise_px=0.0)
@@ -228,7 +244,51 @@ def monte_carlo(draws: int, seed: int) -> None:
         ratio = np.std(np.array(est), axis=0) / sd
         nees = np.array(nees)
         print(f"{model:<14} {fov:>7.0f}  {' '.join(f'{r:.2f}' for r in ratio):<46}  "
-              f"{_mean_median(nees[:, 0]):>31}  {_mean_median(nees[:, 1]):>12}")
+              f"{_mean_median(nees[:, 0]):>31}  {_mean_median(nees[:, 1]):>12}  "
+              f"{_mean_median(nees[:, 3]):>16}  {_mean_median(nees[:, 4]):>14}")
+
+
+def valley_profile(seed: int) -> None:
+    """The cost along the valley: trial 0's 20 views without noise, ``xi`` held at each
+    value and everything else (lens, poses) fitted from the previous value's optimum,
+    walking away from the truth both ways; the sum of squares in sigma^2 (sigma 0.2 px),
+    the focal length and the model's radial parameters there."""
+    from scipy.optimize import least_squares  # noqa: PLC0415
+
+    from multieye.imaging.generic_start import _Problem  # noqa: PLC0415
+    from multieye.sim.wide_lens import board_views, wide_lens  # noqa: PLC0415
+
+    print("\n2c. cost along xi (noise-free, trial 0, xi held, the rest fitted), sigma^2")
+    walks = {"unified": (np.round(np.arange(1.0, 0.55, -0.1), 2),
+                         np.round(np.arange(1.2, 1.75, 0.1), 2)),
+             "double-sphere": (np.round(np.arange(-0.2, -0.35, -0.05), 2),
+                               np.round(np.arange(-0.1, 1.95, 0.05), 2))}
+    for model, fov in (("unified", 190.0), ("double-sphere", 190.0), ("double-sphere", 220.0)):
+        true = wide_lens(model, fov)
+        views, T = board_views(true, fov, 20, np.random.default_rng([seed, 0]), noise_px=0.0)
+        prob = _Problem(views, true, T)
+        free = np.ones(prob.n_lens + 6 * len(views), bool)
+        free[4] = False
+        rows = []
+        for walk in walks[model]:
+            x = np.concatenate([true.params, np.zeros(6 * len(views))])
+            for xi in walk:
+                x[4] = xi
+
+                def part(z, f, x=x):
+                    y = x.copy()
+                    y[free] = z
+                    return f(y)
+
+                fit = least_squares(lambda z: part(z, prob.residual), x[free], method="lm",
+                                    jac=lambda z: part(z, prob.jacobian)[:, free],
+                                    x_scale="jac", ftol=1e-15, xtol=1e-15, gtol=1e-15)
+                x[free] = fit.x
+                rows.append((xi, 2 * fit.cost / 0.04, x[:prob.n_lens].copy()))
+        print(f"{model} {fov:.0f} deg, truth xi {true.dist[0]}:")
+        for xi, cost, p in sorted(rows, key=lambda r: r[0]):
+            print(f"   xi {xi:+.2f}  {cost:10.3f}  fx {p[0]:7.1f}  "
+                  + " ".join(f"{v:+.4f}" for v in p[5:7]))
 
 
 def mixed_rig(trials: int, seed: int) -> None:
@@ -250,7 +310,8 @@ def mixed_rig(trials: int, seed: int) -> None:
     print(f"\n3. mixed rig: 2 pinhole + 1 wide camera (190 deg), {trials} rigs of 30 instants, "
           "0.3 px; T_ref_cam error in its covariance")
     print("wide model     NEES/6 cams 1,2  largest |error| / sigma  as from truth  "
-          "wide lens NEES/dim params (mean / median)  (those)  curve params  (those)  pixels")
+          "wide lens NEES/dim params (mean / median)  (those)  curve params  (those)  pixels  "
+          "curve without xi")
     spec = OverlapSpec(n_instants=30, width=IMAGE_SIDE, height=IMAGE_SIDE, fisheye=())
     for model in ("unified", "double-sphere", "eucm"):
         nees, worst, lens_nees, same, apart = [], [], [], [], []
@@ -295,7 +356,7 @@ def mixed_rig(trials: int, seed: int) -> None:
               f"{same.sum():>2} of {trials:<2}  "
               f"{_mean_median(lens_nees[:, 0]):>42}  {np.mean(lens_nees[same, 0]):>8.2f}  "
               f"{_mean_median(lens_nees[:, 1]):>12}  {np.mean(lens_nees[same, 1]):>8.2f}  "
-              f"{np.mean(lens_nees[:, 2]):>6.2f}")
+              f"{np.mean(lens_nees[:, 2]):>6.2f}  {_mean_median(lens_nees[:, 3]):>16}")
         if apart:
             print("   not as from the truth: " + "; ".join(apart))
 
@@ -352,6 +413,8 @@ def main() -> None:
         simulated(args.trials, args.seed)
     if "mc" not in skip:
         monte_carlo(args.draws, args.seed)
+    if "valley" not in skip:
+        valley_profile(args.seed)
     if "mixed" not in skip:
         mixed_rig(max(args.trials // 2, 1), args.seed)
     if "timing" not in skip:
