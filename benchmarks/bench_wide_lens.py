@@ -342,7 +342,8 @@ def mixed_rig(trials: int, seed: int) -> None:
             if not same[-1]:       # sum of squares in sigma^2 against the one from the truth
                 apart.append(f"rig {t}: xi {res.intrinsics[2].dist[0]:.2f} against "
                              f"{other.intrinsics[2].dist[0]:.2f}, "
-                             f"{np.sum(res.residuals_px ** 2 - other.residuals_px ** 2) / 0.09:+.2f}")
+                             f"{np.sum(res.residuals_px ** 2 - other.residuals_px ** 2) / 0.09:+.2f}"
+                             f" (converged: {res.converged}, {other.converged})")
             for j in (1, 2):
                 dR = res.T_ref_cam[j, :3, :3] @ sc.T_ref_cam[j, :3, :3].T
                 e = np.concatenate([log_so3(dR), res.T_ref_cam[j, :3, 3] - sc.T_ref_cam[j, :3, 3]])

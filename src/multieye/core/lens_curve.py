@@ -5,10 +5,11 @@ The unified model's focal length, ``k1`` and ``k2`` move with its ``xi`` along a
 of nearly equal images, and the double sphere's focal length and ``alpha`` with its ``xi``
 (:mod:`multieye.imaging.lens_valley`).  The estimate's error then lies along that curve, and
 the covariance of the published parameters, a straight ellipsoid, does not describe it: on 20
-views of a unified lens of 190 degrees (0.2 px noise, poses fixed, 30 draws) the error's
-NEES / dim in those parameters averages 160, while their spread along the valley is a third
-of the one predicted.  The same lens written by the pixels of its curve is nearly linear in
-the data:
+views of a unified lens of 190 degrees (0.2 px noise, 60 draws; ``benchmarks/
+bench_wide_lens.py`` section 2b) the error's NEES / dim in those parameters averages 267,
+while the spread of ``fx``, ``xi``, ``k1`` is half the one predicted.  The same lens written
+by the pixels of its curve is nearly linear in the data (NEES / dim 1.96 there, 1.08 without
+``xi``, whose own cost is not quadratic):
 
 - unified ``(xi, k1, k2, p1, p2)``: ``fx``, ``k1``, ``k2`` replaced by ``rho_1..rho_3``;
 - double-sphere ``(xi, alpha)``: ``fx``, ``alpha`` replaced by ``rho_1, rho_2``;
