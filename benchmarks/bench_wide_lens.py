@@ -3,7 +3,7 @@
 Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_wide_lens.py [--trials 20] [--seed 0]
-        [--skip boofcv,sim,mixed,timing]
+        [--draws 60] [--skip boofcv,sim,mc,valley,mixed,timing]
 
 1. ``boofcv``: ``../shared/data/boofcv_fisheye`` (26 images of a fisheye of about 180
    degrees, BoofCV's unified-model calibration as reference; ``MULTIEYE_SHARED_DATA``) with
@@ -17,15 +17,23 @@ Run from the repository root::
    are projected, not rendered), each started by :func:`multieye.imaging.generic_start.
    generic_start` and fitted to the optimum by :func:`~multieye.imaging.generic_start.
    fit_lens`: how often the start reached the optimum that the fit started from the truth
-   reaches (its cost within 0.5 sigma^2), the lens error against the truth (RMS over the
-   observed rays after the best rotation, pixels; median and largest over the trials), and
-   the lens NEES / dim: the parameters' error in the covariance of the fit (sigma^2 times
-   the lens block of (J^T J)^-1), and the error of the pixels of three rays in theirs,
-   averaged over the trials (1 when the covariance is right).
+   reaches (its cost within 0.5 sigma^2), how often it found a better one (more than 0.5
+   sigma^2 below), how often it is that same optimum (unified, double-sphere: ``xi`` within
+   0.05 of it), the lens error against the truth (RMS over the observed rays after the best
+   rotation, pixels; median and largest over the trials), and the lens NEES / dim: the
+   parameters' error in the covariance of the fit (sigma^2 times the lens block of
+   (J^T J)^-1), the same in the curve parameters (:mod:`multieye.core.lens_curve`), and
+   the error of the pixels of three rays in theirs, over the trials (1 when the covariance
+   is right).
+2b. ``mc``: the covariance at the truth against the spread of ``--draws`` estimates
+   (:func:`monte_carlo`).
+2c. ``valley``: the cost along ``xi`` without noise (:func:`valley_profile`).
 3. ``mixed``: ``--trials // 2`` rigs of two pinhole cameras and one wide camera of each
    model seeing the board together: the NEES / 6 of ``T_ref_cam`` (cameras 1 and 2), the
-   largest error of any of its six coordinates in its own standard deviations, and the wide
-   lens' NEES / dim (:func:`mixed_rig`).
+   largest error of any of its six coordinates in its own standard deviations, how many
+   rigs reach the optimum the refinement started from the true lenses reaches (the wide
+   lens' ``xi`` within 0.05), and the wide lens' NEES / dim, over all rigs and over those
+   (:func:`mixed_rig`).
 4. ``timing``: CPU seconds of :func:`multieye.imaging.calibrate.initial_intrinsics` and of
    :func:`multieye.imaging.calibrate.poses_from_detections` on 40 views of a pinhole lens
    (median of 5); run it with ``PYTHONPATH`` on another source tree for the before/after.
@@ -123,21 +131,48 @@ def _lens_covariance(views, fit, sigma: float) -> np.ndarray:
     return sigma ** 2 * np.linalg.inv(J.T @ J)[:prob.n_lens, :prob.n_lens]
 
 
-def _nees(est: Intrinsics, true: Intrinsics, C: np.ndarray, fov: float) -> tuple[float, float]:
-    """The lens' NEES / dim in its parameters, and in the pixels of three rays (at 0.3,
-    0.6 and 0.9 of the half field of view, azimuths 0, 120 and 240 degrees), whose
-    covariance is ``J C J^T`` (meaningful where the parameters have a flat valley)."""
+def _nees(est: Intrinsics, true: Intrinsics, C: np.ndarray, fov: float
+          ) -> tuple[float, float, float, float, float]:
+    """The lens' NEES / dim in its parameters; in its curve parameters where the model has
+    them (:mod:`multieye.core.lens_curve`, rays up to 0.9 of the half field; NaN for the
+    other models); in the pixels of three rays (at 0.3, 0.6 and 0.9 of the half field
+    of view, azimuths 0, 120 and 240 degrees), whose covariance is ``J C J^T``; in the curve
+    parameters other than ``xi`` (its marginal); and (unified only) in the parameters with
+    ``fx, fy`` replaced by ``fx / (1 + xi), fy / (1 + xi)``."""
     from multieye.core.lens import project_points, project_with_jacobian  # noqa: PLC0415
+    from multieye.core.lens_curve import (CURVE_MODELS, curve_jacobian,  # noqa: PLC0415
+                                          curve_names)
+
+    def nees(err, cov):
+        return float(err @ np.linalg.solve(cov, err)) / len(err)
 
     e = est.params - true.params
-    par = float(e @ np.linalg.solve(C, e)) / len(e)
+    curve = no_xi = gamma = float("nan")
+    if est.model in CURVE_MODELS:
+        phi, G = curve_jacobian(est, np.radians(fov / 2))
+        ec, Cc = phi - curve_jacobian(true, np.radians(fov / 2))[0], G @ C @ G.T
+        curve = nees(ec, Cc)
+        k = [i for i, n in enumerate(curve_names(est)) if n != "xi"]
+        no_xi = nees(ec[k], Cc[np.ix_(k, k)])
+    if est.model == "unified":
+        p, q = est.params, true.params
+        G = np.eye(len(p))
+        G[0, 0] = G[1, 1] = 1.0 / (1.0 + p[4])
+        G[:2, 4] = -p[:2] / (1.0 + p[4]) ** 2
+        eg = np.concatenate([p[:2] / (1 + p[4]) - q[:2] / (1 + q[4]), e[2:]])
+        gamma = nees(eg, G @ C @ G.T)
     a = np.radians(fov / 2) * np.array([0.3, 0.6, 0.9])
     phi = np.radians([0.0, 120.0, 240.0])
     rays = np.column_stack([np.sin(a) * np.cos(phi), np.sin(a) * np.sin(phi), np.cos(a)])
     uv, _, Ji = project_with_jacobian(rays, est)
     d = (uv - project_points(rays, true)).ravel()
     J = Ji.reshape(-1, Ji.shape[-1])
-    return par, float(d @ np.linalg.solve(J @ C @ J.T, d)) / len(d)
+    return nees(e, C), curve, nees(d, J @ C @ J.T), no_xi, gamma
+
+
+def _mean_median(values) -> str:
+    v = np.asarray(values, np.float64)
+    return "     -" if np.all(np.isnan(v)) else f"{np.mean(v):.2f} / {np.median(v):.2f}"
 
 
 def simulated(trials: int, seed: int) -> None:
@@ -146,11 +181,12 @@ def simulated(trials: int, seed: int) -> None:
     from multieye.sim.wide_lens import IMAGE_SIDE, board_views, wide_lens  # noqa: PLC0415
 
     print(f"\n2. simulated wide lenses, {trials} trials of 20 views, 0.2 px noise")
-    print("model          fov deg  start at optimum  lens error px median / max  "
-          "NEES/dim params  pixels  start CPU s")
+    print("model          fov deg  start at optimum  below truth's  truth's mode  "
+          "lens error px median / max  NEES/dim params (mean / median)  (truth's mode)  "
+          "curve params  (truth's mode)  pixels  start CPU s  curve without xi")
     for model, fov in SIM_CASES:
         true = wide_lens(model, fov)
-        hits, errors, nees, cpu = 0, [], [], []
+        hits, below, same, errors, nees, cpu = 0, 0, [], [], [], []
         for t in range(trials):
             views, T = board_views(true, fov, 20, np.random.default_rng([seed, t]),
                                    noise_px=0.2)
@@ -162,15 +198,97 @@ def simulated(trials: int, seed: int) -> None:
             best = fit_lens(views, true, T, huber_px=None, max_iterations=500)
             n = np.array([len(o) for o, _ in views])
             cost = float(np.sum(fit.rms_px ** 2 * n))
-            hits += cost <= float(np.sum(best.rms_px ** 2 * n)) + 0.5 * 0.04
+            best_cost = float(np.sum(best.rms_px ** 2 * n))
+            hits += cost <= best_cost + 0.5 * 0.04
+            below += cost < best_cost - 0.5 * 0.04
+            # the same optimum as the fit started from the truth (the valley's xi within 0.05)
+            same.append(abs(fit.intrinsics.params[4] - best.intrinsics.params[4]) < 0.05
+                        if model in ("unified", "double-sphere") else True)
             uv = np.concatenate([u for _, u in views])
             d = lens_difference_px(fit.intrinsics, true, uv)
             errors.append(float(np.sqrt(np.nanmean(d ** 2))))
             nees.append(_nees(fit.intrinsics, true, _lens_covariance(views, fit, 0.2), fov))
-        print(f"{model:<14} {fov:>7.0f}  {hits:>8} of {trials:<5}  "
-              f"{np.median(errors):>13.3f} / {np.max(errors):.3f}  "
-              f"{np.mean([n[0] for n in nees]):>15.2f}  {np.mean([n[1] for n in nees]):>6.2f}  "
-              f"{np.median(cpu):>11.2f}")
+        nees, same = np.array(nees), np.array(same)
+        print(f"{model:<14} {fov:>7.0f}  {hits:>8} of {trials:<5}  {below:>13}  "
+              f"{same.sum():>12}  {np.median(errors):>13.3f} / {np.max(errors):.3f}  "
+              f"{_mean_median(nees[:, 0]):>31}  {np.mean(nees[same, 0]):>12.2f}  "
+              f"{_mean_median(nees[:, 1]):>12}  {np.mean(nees[same, 1]):>12.2f}  "
+              f"{np.mean(nees[:, 2]):>6.2f}  {np.median(cpu):>11.2f}  "
+              f"{_mean_median(nees[:, 3]):>12}")
+
+
+def monte_carlo(draws: int, seed: int) -> None:
+    """The covariance at the truth against the spread of the estimates: one set of 20 views
+    per case, ``draws`` draws of 0.2 px noise on its pixels, each fitted from the truth
+    (lens and poses); the spread of each lens parameter over the draws in its predicted
+    standard deviation (sigma^2 (J^T J)^-1 at the truth, poses marginalised), and the mean
+    NEES / dim in the published and the curve parameters (covariance at each estimate)."""
+    from multieye.imaging.generic_start import fit_lens  # noqa: PLC0415
+    from multieye.sim.wide_lens import board_views, wide_lens  # noqa: PLC0415
+
+    print(f"\n2b. covariance against Monte Carlo at the truth, {draws} noise draws, 0.2 px")
+    print("model          fov deg  spread / predicted sd per parameter            "
+          "NEES/dim params (mean / median)  curve params  curve without xi  fx / (1 + xi)")
+    for model, fov in SIM_CASES:
+        true = wide_lens(model, fov)
+        clean, T = board_views(true, fov, 20, np.random.default_rng([seed, 99]), noise_px=0.0)
+        rng = np.random.default_rng([seed, 98])
+        truth_fit = fit_lens(clean, true, T, huber_px=None)
+        sd = np.sqrt(np.diag(_lens_covariance(clean, truth_fit, 0.2)))
+        est, nees = [], []
+        for _ in range(draws):
+            views = [(o, u + rng.normal(0.0, 0.2, u.shape)) for o, u in clean]
+            fit = fit_lens(views, true, T, huber_px=None, max_iterations=500)
+            est.append(fit.intrinsics.params)
+            nees.append(_nees(fit.intrinsics, true, _lens_covariance(views, fit, 0.2), fov))
+        ratio = np.std(np.array(est), axis=0) / sd
+        nees = np.array(nees)
+        print(f"{model:<14} {fov:>7.0f}  {' '.join(f'{r:.2f}' for r in ratio):<46}  "
+              f"{_mean_median(nees[:, 0]):>31}  {_mean_median(nees[:, 1]):>12}  "
+              f"{_mean_median(nees[:, 3]):>16}  {_mean_median(nees[:, 4]):>14}")
+
+
+def valley_profile(seed: int) -> None:
+    """The cost along the valley: trial 0's 20 views without noise, ``xi`` held at each
+    value and everything else (lens, poses) fitted from the previous value's optimum,
+    walking away from the truth both ways; the sum of squares in sigma^2 (sigma 0.2 px),
+    the focal length and the model's radial parameters there."""
+    from scipy.optimize import least_squares  # noqa: PLC0415
+
+    from multieye.imaging.generic_start import _Problem  # noqa: PLC0415
+    from multieye.sim.wide_lens import board_views, wide_lens  # noqa: PLC0415
+
+    print("\n2c. cost along xi (noise-free, trial 0, xi held, the rest fitted), sigma^2")
+    walks = {"unified": (np.round(np.arange(1.0, 0.55, -0.1), 2),
+                         np.round(np.arange(1.2, 1.75, 0.1), 2)),
+             "double-sphere": (np.round(np.arange(-0.2, -0.35, -0.05), 2),
+                               np.round(np.arange(-0.1, 1.95, 0.05), 2))}
+    for model, fov in (("unified", 190.0), ("double-sphere", 190.0), ("double-sphere", 220.0)):
+        true = wide_lens(model, fov)
+        views, T = board_views(true, fov, 20, np.random.default_rng([seed, 0]), noise_px=0.0)
+        prob = _Problem(views, true, T)
+        free = np.ones(prob.n_lens + 6 * len(views), bool)
+        free[4] = False
+        rows = []
+        for walk in walks[model]:
+            x = np.concatenate([true.params, np.zeros(6 * len(views))])
+            for xi in walk:
+                x[4] = xi
+
+                def part(z, f, x=x):
+                    y = x.copy()
+                    y[free] = z
+                    return f(y)
+
+                fit = least_squares(lambda z: part(z, prob.residual), x[free], method="lm",
+                                    jac=lambda z: part(z, prob.jacobian)[:, free],
+                                    x_scale="jac", ftol=1e-15, xtol=1e-15, gtol=1e-15)
+                x[free] = fit.x
+                rows.append((xi, 2 * fit.cost / 0.04, x[:prob.n_lens].copy()))
+        print(f"{model} {fov:.0f} deg, truth xi {true.dist[0]}:")
+        for xi, cost, p in sorted(rows, key=lambda r: r[0]):
+            print(f"   xi {xi:+.2f}  {cost:10.3f}  fx {p[0]:7.1f}  "
+                  + " ".join(f"{v:+.4f}" for v in p[5:7]))
 
 
 def mixed_rig(trials: int, seed: int) -> None:
@@ -191,11 +309,12 @@ def mixed_rig(trials: int, seed: int) -> None:
 
     print(f"\n3. mixed rig: 2 pinhole + 1 wide camera (190 deg), {trials} rigs of 30 instants, "
           "0.3 px; T_ref_cam error in its covariance")
-    print("wide model     NEES/6 cams 1,2  largest |error| / sigma  wide lens NEES/dim params  "
-          "pixels")
+    print("wide model     NEES/6 cams 1,2  largest |error| / sigma  as from truth  "
+          "wide lens NEES/dim params (mean / median)  (those)  curve params  (those)  pixels  "
+          "curve without xi")
     spec = OverlapSpec(n_instants=30, width=IMAGE_SIDE, height=IMAGE_SIDE, fisheye=())
     for model in ("unified", "double-sphere", "eucm"):
-        nees, worst, lens_nees = [], [], []
+        nees, worst, lens_nees, same, apart = [], [], [], [], []
         for t in range(trials):
             rng = np.random.default_rng([seed, t, 4])
             pin = default_intrinsics(2, IMAGE_SIDE, IMAGE_SIDE, fisheye=(), rng=rng)
@@ -215,6 +334,16 @@ def mixed_rig(trials: int, seed: int) -> None:
                 T0.extend(st.T_cam_target)
             rv = RigViews(dict(zip("abc", views)), starts, free_intrinsics=[True] * 3)
             res = refine_rig(rv, np.array(T0), pixel_sigma=0.3)
+            # the same refinement started from the true lenses: the same optimum?
+            rv = RigViews(dict(zip("abc", views)), list(sc.intrinsics), free_intrinsics=[True] * 3)
+            other = refine_rig(rv, np.array(T0), pixel_sigma=0.3)
+            same.append(abs(res.intrinsics[2].dist[0] - other.intrinsics[2].dist[0]) < 0.05
+                        or model == "eucm")
+            if not same[-1]:       # sum of squares in sigma^2 against the one from the truth
+                apart.append(f"rig {t}: xi {res.intrinsics[2].dist[0]:.2f} against "
+                             f"{other.intrinsics[2].dist[0]:.2f}, "
+                             f"{np.sum(res.residuals_px ** 2 - other.residuals_px ** 2) / 0.09:+.2f}"
+                             f" (converged: {res.converged}, {other.converged})")
             for j in (1, 2):
                 dR = res.T_ref_cam[j, :3, :3] @ sc.T_ref_cam[j, :3, :3].T
                 e = np.concatenate([log_so3(dR), res.T_ref_cam[j, :3, 3] - sc.T_ref_cam[j, :3, 3]])
@@ -223,9 +352,14 @@ def mixed_rig(trials: int, seed: int) -> None:
                 worst.append(float(np.max(np.abs(e) / np.sqrt(np.diag(C)))))
             lens_nees.append(_nees(res.intrinsics[2], sc.intrinsics[2],
                                    res.intrinsics_covariance[2], 190.0))
+        lens_nees, same = np.array(lens_nees), np.array(same)
         print(f"{model:<14} {np.mean(nees):>15.2f}  {np.max(worst):>23.2f}  "
-              f"{np.mean([n[0] for n in lens_nees]):>18.2f}  "
-              f"{np.mean([n[1] for n in lens_nees]):>6.2f}")
+              f"{same.sum():>2} of {trials:<2}  "
+              f"{_mean_median(lens_nees[:, 0]):>42}  {np.mean(lens_nees[same, 0]):>8.2f}  "
+              f"{_mean_median(lens_nees[:, 1]):>12}  {np.mean(lens_nees[same, 1]):>8.2f}  "
+              f"{np.mean(lens_nees[:, 2]):>6.2f}  {_mean_median(lens_nees[:, 3]):>16}")
+        if apart:
+            print("   not as from the truth: " + "; ".join(apart))
 
 
 def timing() -> None:
@@ -266,6 +400,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--draws", type=int, default=60)
     ap.add_argument("--skip", default="")
     args = ap.parse_args()
     skip = set(args.skip.split(","))
@@ -277,6 +412,10 @@ def main() -> None:
             print(f"1. boofcv_fisheye: not found under {shared} (set MULTIEYE_SHARED_DATA)")
     if "sim" not in skip:
         simulated(args.trials, args.seed)
+    if "mc" not in skip:
+        monte_carlo(args.draws, args.seed)
+    if "valley" not in skip:
+        valley_profile(args.seed)
     if "mixed" not in skip:
         mixed_rig(max(args.trials // 2, 1), args.seed)
     if "timing" not in skip:

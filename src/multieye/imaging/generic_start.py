@@ -14,7 +14,9 @@ their wide models, it starts from a generic one:
 3. the lens and every view's pose fitted together on the pixels (:func:`fit_lens`:
    ``scipy.optimize.least_squares``, analytic Jacobian from
    :func:`multieye.core.lens.project_with_jacobian`, a Huber loss so that a mis-detected view
-   does not pull the start).
+   does not pull the start);
+4. for the unified and double-sphere models, the same fit started from the lenses at the
+   other optima along the model's valley, the best kept (:func:`best_in_valley`).
 
 Synopsis
 --------
@@ -34,10 +36,11 @@ from numpy.typing import NDArray
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian
+from multieye.imaging.lens_valley import VALLEY_MODELS, valley_lenses
 from multieye.imaging.rays import bearings, ippe_on_rays
 
 __all__ = ["LensFit", "generic_start", "fit_lens", "equidistant_focal",
-           "model_from_equidistant", "START_DIST", "pose_on_rays"]
+           "model_from_equidistant", "START_DIST", "pose_on_rays", "best_in_valley"]
 
 F64 = NDArray[np.float64]
 
@@ -344,6 +347,51 @@ def _levenberg_marquardt(prob: _Problem, x: F64, huber_px: float | None, max_ite
     return x
 
 
+def _fit_cost(views, fit: LensFit, huber_px: float | None) -> float:
+    """The (Huber) cost :func:`fit_lens` minimises, at ``fit``."""
+    d = np.concatenate([project_points(o @ T[:3, :3].T + T[:3, 3], fit.intrinsics) - u
+                        for (o, u), T in zip(views, fit.T_cam_target)])
+    return _huber_cost(np.where(np.isfinite(d), d, _OUTSIDE_PX).ravel(), huber_px)[0]
+
+
+def best_in_valley(views: Sequence[tuple[F64, F64]], fit: LensFit, *,
+                   huber_px: float | None = HUBER_PX, max_iterations: int = 200) -> LensFit:
+    """``fit`` or, when better, the fit of the lens and poses started from a lens at another
+    optimum along the model's valley (:func:`multieye.imaging.lens_valley.valley_lenses`;
+    unified and double-sphere: a fit from one lens stops in the optimum nearest it, which
+    may not be the best).
+
+    Parameters
+    ----------
+    views : sequence of (object_points (n, 3), image_points (n, 2))
+        The views ``fit`` was fitted to (its poses in the same order).
+    fit : LensFit
+        A fit of :func:`fit_lens` with ``huber_px``.
+    huber_px, max_iterations
+        As :func:`fit_lens`.
+
+    Returns
+    -------
+    LensFit
+        The one of least cost.
+    """
+    if fit.intrinsics.model not in VALLEY_MODELS:
+        return fit
+    uv = np.concatenate([u for _, u in views])
+    rays = bearings(uv, fit.intrinsics)
+    theta = np.arctan2(np.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])
+    if not np.any(np.isfinite(theta)):
+        return fit
+    best, cost = fit, _fit_cost(views, fit, huber_px)
+    for lens in valley_lenses(fit.intrinsics, float(np.nanmax(theta))):
+        other = fit_lens(views, lens, fit.T_cam_target, huber_px=huber_px,
+                         max_iterations=max_iterations)
+        c = _fit_cost(views, other, huber_px)
+        if c < cost:
+            best, cost = other, c
+    return best
+
+
 def _view_rms(views, lens: Intrinsics, T: F64) -> F64:
     out = []
     for (obj, uv), Ti in zip(views, T):
@@ -393,7 +441,8 @@ def generic_start(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
             T[i], rms[i] = pose_on_rays(obj, bearings(uv, lens),
                                         lambda P, uv=uv: project_points(P, lens) - uv)
         posed = np.flatnonzero(np.isfinite(rms))
-    fit = fit_lens([views[i] for i in posed], lens, T[posed])
+    fit = best_in_valley([views[i] for i in posed], fit_lens([views[i] for i in posed],
+                                                               lens, T[posed]))
     T_all = np.full((len(views), 4, 4), np.nan)
     rms_all = np.full(len(views), np.inf)
     T_all[posed], rms_all[posed] = fit.T_cam_target, fit.rms_px
