@@ -79,6 +79,8 @@ class MotionViews:
     n_instants, n_boards : int
     held : dict of int to ndarray (4, 4)
         The boards held at a pose.
+    held_poses : ndarray, shape (nb, 4, 4)
+        Every board's pose when held, the identity for the others.
     free_boards : list of int
         The boards estimated, in order: the blocks of family ``W``.
     object_points, image_points : ndarray, shape (P, 3), (P, 2)
@@ -143,6 +145,10 @@ class MotionViews:
         self.n_views = len(cams)
         self.counts = np.bincount(self.camera, minlength=m)
         self.held = _held(board_poses, self.n_boards)
+        #: every board's pose when held, identity for the others (nb, 4, 4)
+        self.held_poses = np.tile(np.eye(4), (self.n_boards, 1, 1))
+        for b, T in self.held.items():
+            self.held_poses[b] = T
         self.free_boards = [b for b in range(self.n_boards) if b not in self.held]
         #: per board its block of ``W``, -1 for a board held at its pose
         self.board_slot = np.full(self.n_boards, -1, dtype=np.int64)
@@ -192,9 +198,7 @@ class MotionViews:
     def T_world_board(self, values: Mapping[str, F64]) -> F64:
         """Every board's pose in the world (nb, 4, 4): the held ones' poses, the others'
         from the values of family ``W``."""
-        out = np.tile(np.eye(4), (self.n_boards, 1, 1))
-        for b, T in self.held.items():
-            out[b] = T
+        out = self.held_poses.copy()
         if self.free_boards:
             out[self.free_boards] = values["W"]
         return out
@@ -250,7 +254,7 @@ class MotionPixelResiduals(ResidualGroup):
         self.sigma = float(sigma_px)
         self._p = data.object_points[pts]
         if not moved:           # a held board's points in the world, once
-            G = np.stack([data.held[b] for b in self.boards[self.segment]])
+            G = data.held_poses[self.boards[self.segment]]
             self._p = np.einsum("pij,pj->pi", G[:, :3, :3], self._p) + G[:, :3, 3]
         self._uv = data.image_points[pts]
 
