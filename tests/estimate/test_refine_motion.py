@@ -48,6 +48,11 @@ def test_pixel_jacobians_match_central_differences(free, reference):
         assert len(analytic) == len(numeric) == len(grp.slots)
         for a, n in zip(analytic, numeric):
             assert np.abs(a - n).max() < 1e-5 * max(1.0, float(np.abs(n).max()))
+        # the engine's per-segment layout is evaluate()'s, padded
+        r, blocks, padded = grp.linearize(values)
+        np.testing.assert_array_equal(r, grp.evaluate(values, True)[0])
+        np.testing.assert_array_equal(blocks, grp.pad(np.concatenate(analytic, axis=2)))
+        np.testing.assert_array_equal(padded, grp.pad(r))
 
 
 @pytest.mark.parametrize("free", [False, True])

@@ -96,7 +96,7 @@ def test_pixel_jacobians_match_central_differences(free, reference):
                                                     rng.normal(scale=0.01, size=(3, 3)))
     T_ref_cam[reference] = np.eye(4)
     S = g.inv(sc.T_ref_cam[reference]) @ sc.T_ref_target
-    fams = rv.families(T_ref_cam, S)
+    fams = rv.families(T_ref_cam, np.eye(4)[None], S)          # board 0 is the world
     values = {f.name: f.value for f in fams}
     for grp in rv.groups(0.5):
         analytic = grp.evaluate(values, True)[1]

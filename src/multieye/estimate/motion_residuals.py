@@ -79,6 +79,8 @@ class MotionViews:
     n_instants, n_boards : int
     held : dict of int to ndarray (4, 4)
         The boards held at a pose.
+    held_poses : ndarray, shape (nb, 4, 4)
+        Every board's pose when held, the identity for the others.
     free_boards : list of int
         The boards estimated, in order: the blocks of family ``W``.
     object_points, image_points : ndarray, shape (P, 3), (P, 2)
@@ -143,6 +145,10 @@ class MotionViews:
         self.n_views = len(cams)
         self.counts = np.bincount(self.camera, minlength=m)
         self.held = _held(board_poses, self.n_boards)
+        #: every board's pose when held, identity for the others (nb, 4, 4)
+        self.held_poses = np.tile(np.eye(4), (self.n_boards, 1, 1))
+        for b, T in self.held.items():
+            self.held_poses[b] = T
         self.free_boards = [b for b in range(self.n_boards) if b not in self.held]
         #: per board its block of ``W``, -1 for a board held at its pose
         self.board_slot = np.full(self.n_boards, -1, dtype=np.int64)
@@ -192,9 +198,7 @@ class MotionViews:
     def T_world_board(self, values: Mapping[str, F64]) -> F64:
         """Every board's pose in the world (nb, 4, 4): the held ones' poses, the others'
         from the values of family ``W``."""
-        out = np.tile(np.eye(4), (self.n_boards, 1, 1))
-        for b, T in self.held.items():
-            out[b] = T
+        out = self.held_poses.copy()
         if self.free_boards:
             out[self.free_boards] = values["W"]
         return out
@@ -250,7 +254,7 @@ class MotionPixelResiduals(ResidualGroup):
         self.sigma = float(sigma_px)
         self._p = data.object_points[pts]
         if not moved:           # a held board's points in the world, once
-            G = np.stack([data.held[b] for b in self.boards[self.segment]])
+            G = data.held_poses[self.boards[self.segment]]
             self._p = np.einsum("pij,pj->pi", G[:, :3, :3], self._p) + G[:, :3, 3]
         self._uv = data.image_points[pts]
 
@@ -277,21 +281,47 @@ class MotionPixelResiduals(ResidualGroup):
         d = s + S[:, :3, 3] - C[:3, 3]
         return C, S[:, :3, :3], w, s, d, d @ C[:3, :3]
 
+    def _rows(self, values: Mapping[str, F64], intr: Intrinsics):
+        """Residuals (P, 2) and their Jacobian against the slots' blocks side by side
+        (P, 2, c), written in place (module docstring)."""
+        C, RS, w, s, d, pc = self._chain(values)
+        uv, Jp, Jk = project_with_jacobian(pc, intr)
+        r = (uv - self._uv) / self.sigma
+        JpR = (Jp / self.sigma) @ C[:3, :3].T                                 # (P, 2, 3)
+        J = np.empty((len(r), 2, self.width))
+        at = 0
+        if not self.is_ref:
+            J[:, :, 0:3], J[:, :, 3:6], at = cross_rows(JpR, d), -JpR, 6
+        J[:, :, at:at + 3], J[:, :, at + 3:at + 6] = -cross_rows(JpR, s), JpR
+        at += 6
+        if self.moved:
+            JpRS = JpR @ RS
+            J[:, :, at:at + 3], J[:, :, at + 3:at + 6] = -cross_rows(JpRS, w), JpRS
+            at += 6
+        if self.free:
+            J[:, :, at:] = Jk / self.sigma
+        return r, J
+
+    @property
+    def width(self) -> int:
+        """Columns of a row's Jacobian: 6 per pose slot, the lens's parameters."""
+        lens = self.data.intrinsics[self.camera].params.size if self.free else 0
+        return 6 * (len(self.slots) - self.free) + lens
+
+    def linearize(self, values: Mapping[str, F64]):
+        intr = self._intrinsics(values)
+        if intr is None:
+            raise InputError(f"camera {self.name}: intrinsics outside the model's valid range")
+        r, J = self._rows(values, intr)
+        return r, self.pad(J), self.pad(r)
+
     def evaluate(self, values: Mapping[str, F64], jacobians: bool):
         intr = self._intrinsics(values)
         if intr is None:
             return np.full((self.n_rows, 2), np.nan), None
-        C, RS, w, s, d, pc = self._chain(values)
         if not jacobians:
-            return (project_points(pc, intr) - self._uv) / self.sigma, None
-        uv, Jp, Jk = project_with_jacobian(pc, intr)
-        r = (uv - self._uv) / self.sigma
-        JpR = (Jp / self.sigma) @ C[:3, :3].T                                 # (P, 2, 3)
-        out = [] if self.is_ref else [np.concatenate([cross_rows(JpR, d), -JpR], axis=2)]
-        out.append(np.concatenate([-cross_rows(JpR, s), JpR], axis=2))
-        if self.moved:
-            JpRS = JpR @ RS
-            out.append(np.concatenate([-cross_rows(JpRS, w), JpRS], axis=2))
-        if self.free:
-            out.append(Jk / self.sigma)
-        return r, out
+            return (project_points(self._chain(values)[5], intr) - self._uv) / self.sigma, None
+        r, J = self._rows(values, intr)
+        cuts = np.cumsum([0] + [6] * (len(self.slots) - self.free)
+                         + ([J.shape[2] - 6 * (len(self.slots) - 1)] if self.free else []))
+        return r, [J[:, :, a:b] for a, b in zip(cuts[:-1], cuts[1:])]

@@ -13,10 +13,14 @@ the instants' poses eliminated by the Schur complement).  Overlap (two cameras s
 board at one instant) and motion links are the same residuals here: one problem.
 
 Covariance of ``T_ref_cam``, the boards and the lenses: ``kappa sigma^2 (J^T J)^-1`` of the
-reduced system, ``kappa`` the robust loss's efficiency for Gaussian residuals; the pixel
-noise, when not given, estimated as in :mod:`multieye.estimate.refine_rig` (its fixed point
-on the residuals, re-solving until it settles).  What the data leave undetermined (planar
-motion) is found from this covariance by :mod:`multieye.estimate.observability`.
+reduced system, ``kappa`` the robust loss's efficiency for Gaussian residuals.  When the
+pixel noise is not given it is estimated as ``sigma^2 = sum(w r^2) / (c_w (n - p))`` (``w``
+the loss's IRLS weights, ``c_w`` their expectation for Gaussian residuals, ``n - p`` the
+redundancy), re-solving until it settles.  As any linearised covariance it covers the pixel
+noise only (not a wrong lens model or a board that is not flat).  What the data leave
+undetermined (planar motion) is found from this covariance by
+:mod:`multieye.estimate.observability`.  With one board this is the rig linked by
+co-observations alone (:func:`multieye.estimate.refine_rig.refine_rig`).
 
 Synopsis
 --------
@@ -35,12 +39,11 @@ from numpy.typing import NDArray
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.robust_loss import gaussian_kappa, gaussian_scale_constant
+from multieye.core.robust_loss import gaussian_kappa, gaussian_scale_constant, rho
 from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.motion_links import MotionStart, motion_start
 from multieye.estimate.motion_mocap import MocapPoseResiduals, RigMocap, mocap_families
 from multieye.estimate.motion_residuals import MotionViews
-from multieye.estimate.refine_rig import _settled_scale
 from multieye.optimize.levenberg_marquardt import (NEAR_DAMPING, Options, covariance, evaluate,
                                                    minimize)
 from multieye.optimize.threads import threads_for
@@ -50,8 +53,12 @@ __all__ = ["MotionResult", "refine_motion"]
 F64 = NDArray[np.float64]
 
 _MAX_SIGMA_PASSES = 4
+#: Relative change of the pixel noise at which its estimate counts as settled.
 _SETTLED = 0.02
+#: Stopping tolerance of the passes after the first (relative decrease of the cost).
 _LATER_TOL = 1e-7
+#: Relative decrease of the cost below which the first pass steps on the robust cost's own
+#: curvature (:class:`~multieye.optimize.levenberg_marquardt.Options`).
 _NEWTON_BELOW = 1e-5
 
 
@@ -121,6 +128,27 @@ class MotionResult:
         return g.inv(self.T_world_rig)
 
 
+def _settled_scale(e: F64, sigma: float, loss: str, f_scale: float, denominator: float) -> float:
+    """The pixel noise ``s = sqrt(sum(w(e / s) (e / s)^2) s^2 / denominator)`` on fixed
+    residuals ``e`` (pixels), iterated from ``sigma`` to its fixed point.
+
+    One step of it from the scale a pass was solved with is the estimate of the module
+    docstring; its fixed point on the same residuals is where the passes end up, since the
+    optimum hardly moves when only the loss's scale changes.  Taking it at once saves a
+    re-solve (on ``benchmarks/bench_overlap.py``: two passes instead of three).
+    """
+    s = sigma
+    for _ in range(50):
+        z = e / s
+        w = rho((z / f_scale) ** 2, loss)[1]
+        new = s * float(np.sqrt(float(w @ z ** 2) / denominator))
+        done = abs(new - s) <= 1e-4 * s
+        s = max(new, 1e-12)
+        if done or loss == "linear":
+            break
+    return s
+
+
 def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None = None,
                   loss: str = "huber", f_scale: float = 2.0, max_iter: int = 100,
                   start: MotionStart | None = None, mocap: RigMocap | None = None
@@ -159,6 +187,10 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
         raise InputError(f"pixel_sigma must be a positive number, got {pixel_sigma!r}")
     if start is None:
         start = motion_start(views, T)
+    # the BLAS threads of the reduced system's size for the whole refinement, not only in
+    # the solves: the residuals' and Jacobians' products and the covariance use BLAS too,
+    # and on a small problem OpenBLAS's threads cost more than they give (optimize/threads.py;
+    # on benchmarks/bench_overlap.py 0.1 CPU-s of 0.4)
     k = 6 * (views.m - 1 + len(views.free_boards)) + sum(
         views.intrinsics[j].params.size for j in range(views.m) if views.free[j])
     with threads_for(k):
@@ -180,12 +212,17 @@ def _solve(views: MotionViews, start: MotionStart, given: float | None, sigma: f
     fams = views.families(start.T_ref_cam, start.T_world_board, g.inv(start.T_world_rig))
     if mocap is not None:
         fams = fams[:-1] + mocap_families(mocap, start.T_world_rig) + fams[-1:]
+    # the robust cost's own curvature near the optimum (IRLS converges only linearly there),
+    # and from the start of the passes after the first, which start at its optimum with a
+    # damping that does not shorten the lenses' ill-determined directions
+    # (NEAR_DAMPING): on benchmarks/bench_overlap.py's seed 0, 6 + 5 iterations became 6 + 3
     opts = Options(loss=loss, f_scale=f_scale, max_iter=max_iter, newton_below=_NEWTON_BELOW)
     later = replace(opts, tol=_LATER_TOL, newton_below=np.inf, initial_damping=NEAR_DAMPING)
     c_w = gaussian_scale_constant(loss, f_scale)
     iterations, converged = 0, True
     for k in range(_MAX_SIGMA_PASSES):
         groups = _groups(views, sigma, mocap)
+        # after the first pass only the loss's scale moved: a looser stop is enough
         res = minimize(fams, groups, opts if k == 0 else later)
         fams, iterations, converged = res.families, iterations + res.iterations, res.converged
         if given is not None:
@@ -194,6 +231,8 @@ def _solve(views: MotionViews, start: MotionStart, given: float | None, sigma: f
         z = np.concatenate([e[0].ravel() for e in evaluate(fams, pixels, False)])
         n_params = sum(f.count * f.size for f in fams)
         new = _settled_scale(z * sigma, sigma, loss, f_scale, c_w * max(z.size - n_params, 1))
+        # settled; or every residual within the loss's quadratic zone at both scales (the
+        # optimum is then the least-squares one, whatever the scale)
         quadratic = (loss == "linear"
                      or float(np.abs(z).max()) <= f_scale * min(1.0, new / sigma))
         settled = abs(new - sigma) <= _SETTLED * sigma or quadratic
