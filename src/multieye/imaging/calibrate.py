@@ -112,6 +112,18 @@ def _spread(n: int, k: int) -> NDArray[np.int64]:
     return np.unique(np.linspace(0, n - 1, min(n, k)).round().astype(np.int64))
 
 
+def _calibrate_camera(obj, img, size, flags: int):
+    """``cv2.calibrateCamera`` on one thread: on several, OpenCV sums its normal equations
+    in an order that changes from call to call, and the lens (with every result after it)
+    differed in its last digits between identical runs (up to 2e-7 relative)."""
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        return cv2.calibrateCamera(obj, img, size, None, None, flags=flags, criteria=_CRITERIA)
+    finally:
+        cv2.setNumThreads(threads)
+
+
 def _pinhole_start(obj, img, size, flags: int, all_poses: bool = True):
     """``cv2.calibrateCamera`` on at most :data:`START_VIEWS` views spread over the
     recording, then (``all_poses``) every other view's pose by ``cv2.solvePnP`` with that
@@ -124,8 +136,8 @@ def _pinhole_start(obj, img, size, flags: int, all_poses: bool = True):
     if good.size < MIN_VIEWS:
         raise cv2.error(f"only {good.size} views of 4 or more points not on one line")
     pick = good[_spread(good.size, START_VIEWS)]
-    rms, K, D, rv, tv = cv2.calibrateCamera([obj[i] for i in pick], [img[i] for i in pick],
-                                            size, None, None, flags=flags, criteria=_CRITERIA)
+    rms, K, D, rv, tv = _calibrate_camera([obj[i] for i in pick], [img[i] for i in pick],
+                                          size, flags)
     rvecs, tvecs = [None] * len(obj), [None] * len(obj)
     for i, r, t in zip(pick, rv, tv):
         rvecs[i], tvecs[i] = r, t
@@ -217,9 +229,8 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
                 # the equidistant model (the joint refinement estimates the fisheye's)
                 obj = [o.astype(np.float32) for o, _ in views]
                 img = [u.astype(np.float32) for _, u in views]
-                rms, K, Dp, rvecs, tvecs = cv2.calibrateCamera(
-                    obj, img, (w, h), None, None, flags=cv2.CALIB_ZERO_TANGENT_DIST,
-                    criteria=_CRITERIA)
+                rms, K, Dp, rvecs, tvecs = _calibrate_camera(obj, img, (w, h),
+                                                             cv2.CALIB_ZERO_TANGENT_DIST)
                 D = _equidistant_from_radial(np.asarray(Dp, np.float64).reshape(-1), K, views)
         else:
             obj = [o.astype(np.float32) for o, _ in views]
