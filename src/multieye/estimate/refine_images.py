@@ -63,7 +63,7 @@ from scipy.special import chdtri  # chi-square quantiles; scipy.stats costs 0.66
 from multieye.core.arguments import transform, with_fields
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.robust_loss import LOSSES, gaussian_kappa, gaussian_scale_constant, rho
+from multieye.core.robust_loss import LOSSES, gaussian_kappa, gaussian_slope, gaussian_scale_constant, rho
 from multieye.estimate import variance_components as vc
 from multieye.estimate.clock_residuals import ClockData
 from multieye.estimate.image_data import ImageData, ImageProblem, image_data
@@ -224,6 +224,7 @@ class RefinementResult:
     time_offsets: tuple = ()
     time_offset_std_s: tuple = ()
     image_sigma_px: tuple = ()
+    jackknife_covariance: F64 | None = None
 
 
 
@@ -510,7 +511,8 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
             if stage == "final":
                 continue
         if stage == "final" or red is None or np.any(np.abs(np.log(s / red_at)) > vc.STALE):
-            cov, ev = covariance_and_residuals(fams, groups, local=True)
+            cov, ev = covariance_and_residuals(fams, groups, local=True, jackknife=Options(
+                loss=loss, f_scale=f_scale) if stage == "final" else None)
             if not free.any():
                 break
             evaluated = ev
@@ -584,6 +586,8 @@ def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, i
     return RefinementResult(
         time_offsets=tuple(offsets), time_offset_std_s=tuple(offset_std),
         X=X, Y=Y, covariance=kappa * cov.kept[:k_xy, :k_xy],
+        jackknife_covariance=None if cov.jackknife is None else
+        cov.jackknife[:k_xy, :k_xy] / gaussian_slope(loss, f_scale) ** 2,
         full_covariance=kappa * cov.kept, layout=cov.layout, undetermined=undetermined,
         intrinsics=tuple(intr_out), intrinsics_covariance=tuple(intr_cov),
         mocap_covariance=kappa * cov.local[:data.n_instants][data.instant],
