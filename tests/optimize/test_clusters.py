@@ -5,6 +5,7 @@ refitting without each cluster, and on independent rows it agrees with ``(J^T J)
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from multieye.optimize.blocks import Blocks
 from multieye.optimize.levenberg_marquardt import (Options, covariance_and_residuals,
@@ -93,3 +94,13 @@ def test_jackknife_follows_errors_shared_within_a_cluster():
             assert np.mean(model) / spread < 0.5, np.mean(model) / spread
         else:
             assert 0.8 < np.mean(model) / spread < 1.25, np.mean(model) / spread
+
+
+def test_gaussian_slope_is_the_share_of_huber_residuals_inside_its_threshold():
+    """E[psi'] of Huber's loss at 2 sigma is P(|z| < 2) for standard normal z (psi' = 1
+    inside, 0 outside): the jackknife's bread is this times J^T J."""
+    from scipy.special import erf
+
+    from multieye.core.robust_loss import gaussian_slope
+    assert gaussian_slope("huber", 2.0) == pytest.approx(erf(2.0 / np.sqrt(2.0)), abs=1e-4)
+    assert gaussian_slope("linear", 2.0) == 1.0
