@@ -20,7 +20,11 @@ Item 1: per variant, images and lenses, the mean over every non-reference camera
 ``e`` the error of ``T_ref_cam`` in the covariance's convention, ``C`` its reported
 covariance) and the NEES per dimension ``e^T C^-1 e / 6``: 1 for an honest covariance.  The
 spread: a 90 % interval of each mean by bootstrap over the rigs (the cameras of one rig
-resampled together), and the median estimated corner noise.
+resampled together), and the median estimated corner noise.  With ``--jackknife`` also the
+same three figures for the cluster-robust covariance (``RefineOptions.jackknife``: the
+delete-one-instant jackknife, :mod:`multieye.optimize.clusters`; the pipeline's call of
+``refine_images`` is wrapped here to ask for it) and for the larger of the two in every
+direction (``C + (C_jack - C)_+``), beside the reported one.
 
 Item 2 (lenses unknown): per camera, the projection error of the joint lens and of OpenCV's
 per-camera calibration (``cv2.calibrateCamera`` in the same model, ``cv2.fisheye.calibrate``
@@ -41,14 +45,16 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+import multieye.pipeline.refine as pipeline_refine
 from multieye.core.intrinsics import Intrinsics, lens_model
 from multieye.core.lens import project_points, undistort_points
-from multieye.estimate.uncertainty import pose_error
+from multieye.estimate.uncertainty import pose_error, relative_covariance
 from multieye.io.intrinsics_files import read_intrinsics
 from multieye.pipeline.calibrate_dataset import calibrate
 from multieye.sim.dataset import DatasetSpec, default_intrinsics, render_dataset
@@ -127,6 +133,28 @@ def lens_error_after_rotation(est: Intrinsics, true: Intrinsics, pixels: np.ndar
     return errors(lambda r: project_points(r, est), rays, project_points(rays, true))[1]
 
 
+def ask_for_the_jackknife() -> None:
+    """Make the pipeline's image refinement also form the jackknife covariance."""
+    plain = pipeline_refine.refine_images
+
+    def with_jackknife(setup, observations, intrinsics, X0, Y0, options):
+        return plain(setup, observations, intrinsics, X0, Y0, replace(options, jackknife=True))
+
+    pipeline_refine.refine_images = with_jackknife
+
+
+def _larger(C: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """``C + (D - C)_+``: at least C and at least D in every direction."""
+    w, V = np.linalg.eigh(D - C)
+    return C + (V * np.clip(w, 0.0, None)) @ V.T
+
+
+def _ratios(out: dict, suffix: str, e: np.ndarray, C: np.ndarray) -> None:
+    out.setdefault("rot" + suffix, []).append(e[:3] @ e[:3] / np.trace(C[:3, :3]))
+    out.setdefault("trans" + suffix, []).append(e[3:] @ e[3:] / np.trace(C[3:, 3:]))
+    out.setdefault("nees" + suffix, []).append(e @ np.linalg.solve(C, e) / 6)
+
+
 def one_run(folder: Path, lens: str) -> dict:
     """Calibrate one rendered rig; its T_ref_cam ratios and (lenses unknown) lens errors."""
     truth = {}
@@ -134,16 +162,19 @@ def one_run(folder: Path, lens: str) -> dict:
     run = calibrate(folder / ("rig.yaml" if lens == "known" else "rig_unknown.yaml"),
                     processes=1)
     names = list(run.T_ref_cam)
-    out = {"rot": [], "trans": [], "nees": [], "sigma": run.refinement.result.pixel_sigma,
-           "joint": [], "opencv": []}
-    for name in names:
+    res = run.refinement.result
+    jack = None if res.jackknife_covariance is None else relative_covariance(
+        res.X, res.jackknife_covariance, names.index(run.reference)).covariance
+    out = {"sigma": res.pixel_sigma, "joint": [], "opencv": []}
+    for j, name in enumerate(names):
         if name == run.reference:
             continue
         e = pose_error(run.T_ref_cam[name], np.array(gt["cameras"][name]["T_ref_cam"]))
         C = run.T_ref_cam_covariance[name]
-        out["rot"].append(e[:3] @ e[:3] / np.trace(C[:3, :3]))
-        out["trans"].append(e[3:] @ e[3:] / np.trace(C[3:, 3:]))
-        out["nees"].append(e @ np.linalg.solve(C, e) / 6)
+        _ratios(out, "", e, C)
+        if jack is not None:
+            _ratios(out, "_jack", e, jack[j])
+            _ratios(out, "_max", e, _larger(C, jack[j]))
     if lens == "unknown":
         for name in names:
             true = truth.setdefault(name, read_intrinsics(folder / f"{name}.yaml"))
@@ -176,14 +207,19 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--variants", default="base,hd-jpeg,noisy")
     ap.add_argument("--lens", default="known,unknown")
     ap.add_argument("--data", type=Path, default=Path("/tmp/bench_nees"))
+    ap.add_argument("--jackknife", action="store_true")
     args = ap.parse_args(argv)
+    if args.jackknife:
+        ask_for_the_jackknife()
+    kinds = [""] + (["_jack", "_max"] if args.jackknife else [])
     rng = np.random.default_rng(0)
     t0 = time.perf_counter()
     print(f"{args.rigs} rigs per row (seeds {args.first_seed}.."
           f"{args.first_seed + args.rigs - 1}), {os.cpu_count()} cores\n")
+    extra = "".join(f" | rot / trans / NEES {k[1:]}" for k in kinds[1:])
     print("| variant | lenses (families) | images | corner noise px (median) | rot mse/var "
-          "(90 %) | trans mse/var (90 %) | NEES (90 %) |")
-    print("|---|---|---|---|---|---|---|")
+          "(90 %) | trans mse/var (90 %) | NEES (90 %)" + extra + " |")
+    print("|---|---|---|---|---|---|---|" + "---|" * (len(kinds) - 1))
     lens_rows = []
     for variant in args.variants.split(","):
         families = VARIANTS[variant][1]
@@ -192,9 +228,11 @@ def main(argv: list[str] | None = None) -> None:
                 runs = [one_run(rendered(args.data, variant, images, s), lens)
                         for s in range(args.first_seed, args.first_seed + args.rigs)]
                 cells = [interval([r[k] for r in runs], rng) for k in ("rot", "trans", "nees")]
+                more = [" / ".join(f"{np.mean(np.concatenate([r[q + k] for r in runs])):.2f}"
+                                   for q in ("rot", "trans", "nees")) for k in kinds[1:]]
                 print(f"| {variant} | {lens} ({', '.join(families)}) | {images} | "
                       f"{np.median([r['sigma'] for r in runs]):.3f} | "
-                      + " | ".join(f"{m:.2f} ({lo:.2f}-{hi:.2f})" for m, lo, hi in cells)
+                      + " | ".join([f"{m:.2f} ({lo:.2f}-{hi:.2f})" for m, lo, hi in cells] + more)
                       + " |", flush=True)
                 if lens == "unknown":
                     lens_rows.append((variant, images, families, runs))

@@ -13,7 +13,8 @@ from functools import cache
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["LOSSES", "rho", "robust_cost", "psi", "gaussian_kappa", "gaussian_scale_constant",
+__all__ = ["LOSSES", "rho", "robust_cost", "psi", "gaussian_kappa", "gaussian_slope",
+           "gaussian_scale_constant",
            "sample_kappa"]
 
 F64 = NDArray[np.float64]
@@ -70,6 +71,16 @@ def gaussian_kappa(loss: str, scale: float) -> float:
     x, wq = _normal_rule()
     p, dp = psi(x, loss, scale)
     return float((wq @ p ** 2) / (wq @ dp) ** 2)
+
+
+@cache
+def gaussian_slope(loss: str, scale: float) -> float:
+    """``E[psi']`` for standard normal residuals (:func:`_normal_rule`): the curvature of the
+    robust cost that a sandwich built on ``J^T J`` leaves out (its bread is ``E[psi'] J^T J``)."""
+    if loss == "linear":
+        return 1.0
+    x, wq = _normal_rule()
+    return float(wq @ psi(x, loss, scale)[1])
 
 
 @cache

@@ -63,7 +63,8 @@ from scipy.special import chdtri  # chi-square quantiles; scipy.stats costs 0.66
 from multieye.core.arguments import transform, with_fields
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.robust_loss import LOSSES, gaussian_kappa, gaussian_scale_constant, rho
+from multieye.core.robust_loss import (LOSSES, gaussian_kappa, gaussian_scale_constant,
+                                       gaussian_slope, rho)
 from multieye.estimate import variance_components as vc
 from multieye.estimate.clock_residuals import ClockData
 from multieye.estimate.image_data import ImageData, ImageProblem, image_data
@@ -165,6 +166,9 @@ class RefinementResult:
     image_sigma_px : tuple of ndarray, shape (N_j,)
         Each image's pixel noise: estimated per image when the pixel noise is
         (:func:`multieye.estimate.variance_components.image_noise`), else ``pixel_sigma``.
+    jackknife_covariance : ndarray, shape (6(m+1), 6(m+1)), or None
+        With ``RefineOptions.jackknife``: as ``covariance``, the delete-one-instant jackknife
+        (each instant's images and prior a cluster), bread ``E[psi'] J^T J``.
     pixel_sigma_estimated : bool
     mocap_rot_sigma_rad, mocap_trans_sigma_m : float
         Motion-capture noise used.
@@ -224,7 +228,7 @@ class RefinementResult:
     time_offsets: tuple = ()
     time_offset_std_s: tuple = ()
     image_sigma_px: tuple = ()
-
+    jackknife_covariance: F64 | None = None
 
 
 def _check_sigma(value, name: str) -> float:
@@ -239,21 +243,6 @@ def _check_sigma(value, name: str) -> float:
 
 def _value(fams, name: str):
     return next(f.value for f in fams if f.name == name)
-
-
-def _prior_residuals(data: ImageData, groups, ev) -> F64:
-    """Normalised motion-capture prior residuals of every image, (N, 6): each image gets its
-    instant's (the images sharing a measurement share its residual)."""
-    out = np.zeros((data.n_instants, 6))
-    for grp, e in zip(groups, ev):
-        if vc.is_prior(grp):
-            out[grp.index[:, 0]] = e[0]
-    return out[data.instant]
-
-
-def _pixel_residuals(data: ImageData, ev) -> F64:
-    """Normalised pixel residuals of every motion-captured image's points, (P, 2)."""
-    return np.concatenate([e[0] for e in ev[:data.m]])
 
 
 @dataclass(frozen=True)
@@ -304,6 +293,9 @@ class RefineOptions:
         estimated) noise of one sample, in (0, 1]: ``sqrt(a^2 + (1 - a)^2)`` for a pose
         interpolated at ``a`` between two samples
         (:attr:`multieye.estimate.pairing.Pairing.noise_scale`).  Default 1.
+    jackknife : bool
+        Also ``RefinementResult.jackknife_covariance`` (:mod:`multieye.optimize.clusters`;
+        noisy with few images per camera, docs/results/nees.md).
     """
 
     mocap_rot_sigma_rad: float | None = DEFAULT_MOCAP_ROT_SIGMA_RAD
@@ -318,6 +310,7 @@ class RefineOptions:
     intrinsics_observations: Sequence | None = None
     clocks: Sequence[ClockData | None] | None = None
     mocap_noise_scale: Sequence | None = None
+    jackknife: bool = False
 
 
 def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intrinsics],
@@ -376,7 +369,8 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     # BLAS threads for the reduced system's size over the whole solve (refine_rig's reason)
     with threads_for(sum(f.count * f.size for f in fams if not f.eliminate)):
         data, fams, noise, res, counts, at = _solve(data, fams, noise, loss=opts.loss,
-                                                    max_iter=int(opts.max_iter), tol=opts.tol)
+                                                    max_iter=int(opts.max_iter), tol=opts.tol,
+                                                    jackknife=bool(opts.jackknife))
         return _result(data, fams, noise, res, counts, at, loss=opts.loss, start=start)
 
 
@@ -470,7 +464,8 @@ def _recentre(data: ImageData, fams, noise: _Noise, sigmas: F64, recentres: int)
     return data, sigmas, True
 
 
-def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, tol: float):
+def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, tol: float,
+           jackknife: bool = False):
     """The refinement, alternating with the variance components of the noise levels being
     estimated (:mod:`multieye.estimate.variance_components`) until they settle, and the
     clock windows recentred on offsets that moved far.
@@ -510,7 +505,8 @@ def _solve(data: ImageData, fams, noise: _Noise, *, loss: str, max_iter: int, to
             if stage == "final":
                 continue
         if stage == "final" or red is None or np.any(np.abs(np.log(s / red_at)) > vc.STALE):
-            cov, ev = covariance_and_residuals(fams, groups, local=True)
+            cov, ev = covariance_and_residuals(fams, groups, local=True, jackknife=Options(
+                loss=loss, f_scale=f_scale) if jackknife and stage == "final" else None)
             if not free.any():
                 break
             evaluated = ev
@@ -549,7 +545,7 @@ def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, i
     X, Y, M = _value(fams, "X"), _value(fams, "Y")[0], _value(fams, "M")
     groups = data.groups(s_px, s_rot, s_t)
     cov, ev = at
-    z_pix = _pixel_residuals(data, ev)
+    z_pix = vc.pixel_residuals(data, ev)
     sigma_img = s_px * (np.ones(data.n_images) if data.image_noise is None else data.image_noise)
     r_pix = z_pix * sigma_img[data.image][:, None]                       # (P, 2) pixels
     w_pt = rho((z_pix / f_scale) ** 2, loss)[1].min(axis=1)
@@ -558,7 +554,7 @@ def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, i
     per_image = np.diff(np.append(data.image_starts, data.n_points))
     img_rms = np.sqrt(np.add.reduceat(d2, data.image_starts) / per_image)
     frac_out = np.add.reduceat(point_out.astype(float), data.image_starts) / per_image
-    prior = _prior_residuals(data, groups, ev)
+    prior = vc.prior_residuals(data, groups, ev)
     img_out = (frac_out > 0.5) | (np.sum(prior ** 2, axis=1) > chdtri(6, OUTLIER_PROBABILITY))
     cam_rms = np.array([np.sqrt(np.mean(d2[s])) for s in data.camera_slices])
     k_xy = 6 * (data.m + 1)
@@ -584,6 +580,8 @@ def _result(data: ImageData, fams, noise: _Noise, res, counts: tuple[int, int, i
     return RefinementResult(
         time_offsets=tuple(offsets), time_offset_std_s=tuple(offset_std),
         X=X, Y=Y, covariance=kappa * cov.kept[:k_xy, :k_xy],
+        jackknife_covariance=None if cov.jackknife is None else       # bread E[psi'] J^T J
+        cov.jackknife[:k_xy, :k_xy] / gaussian_slope(loss, f_scale) ** 2,
         full_covariance=kappa * cov.kept, layout=cov.layout, undetermined=undetermined,
         intrinsics=tuple(intr_out), intrinsics_covariance=tuple(intr_cov),
         mocap_covariance=kappa * cov.local[:data.n_instants][data.instant],

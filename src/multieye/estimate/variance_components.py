@@ -39,7 +39,7 @@ from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR
 __all__ = ["Sums", "Redundancy", "weighted_sums", "redundancy", "estimate", "secant",
            "image_noise", "clock_noise", "IMAGE_PSEUDO_COUNT",
            "is_prior", "MIN_REDUNDANCY", "SETTLED", "MOCAP_SETTLED", "FINAL_SHARE", "STALE",
-           "EXTRAPOLATED"]
+           "EXTRAPOLATED", "prior_residuals", "pixel_residuals"]
 
 F64 = NDArray[np.float64]
 
@@ -274,3 +274,18 @@ def image_noise(data: ImageData, evaluated: Sequence, red: Redundancy, n_pixels:
     pooled = float(r @ own / np.sum(r))            # log variances, in units of the sigma^2
     var = np.exp((r * own + IMAGE_PSEUDO_COUNT * pooled) / (r + IMAGE_PSEUDO_COUNT))
     return np.sqrt(var / (np.sum(n * var) / np.sum(n)))
+
+
+def prior_residuals(data: ImageData, groups, ev) -> F64:
+    """Normalised motion-capture prior residuals of every image, (N, 6): each image gets its
+    instant's (the images sharing a measurement share its residual)."""
+    out = np.zeros((data.n_instants, 6))
+    for grp, e in zip(groups, ev):
+        if is_prior(grp):
+            out[grp.index[:, 0]] = e[0]
+    return out[data.instant]
+
+
+def pixel_residuals(data: ImageData, ev) -> F64:
+    """Normalised pixel residuals of every motion-captured image's points, (P, 2)."""
+    return np.concatenate([e[0] for e in ev[:data.m]])

@@ -43,6 +43,7 @@ from multieye.core.arguments import real_number
 from multieye.core.errors import InputError
 from multieye.core.robust_loss import LOSSES, rho
 from multieye.optimize.blocks import Blocks, ResidualGroup
+from multieye.optimize.clusters import ClusterRecord, jackknife_covariance
 from multieye.optimize.normal_equations import (
     Assembly,
     Layout,
@@ -167,12 +168,19 @@ class Covariance:
     undetermined : ndarray, shape (k, r)
         Unit directions of the kept parameters that the data do not determine (r = 0 in a
         regular problem); ``kept`` is then the inverse on the other directions only.
+    jackknife : ndarray, shape (k, k), or None
+        The cluster-robust (delete-one-cluster jackknife) covariance of the kept parameters
+        when asked for (:func:`covariance_and_residuals`), unscaled like ``kept``.
+    clusters : int
+        Clusters it was formed from.
     """
 
     kept: F64
     local: F64 | None
     layout: Layout
     undetermined: F64 = None
+    jackknife: F64 | None = None
+    clusters: int = 0
 
     def undetermined_in(self, name: str, count: int, size: int) -> bool:
         """Whether an undetermined direction involves the family ``name`` (count x size
@@ -204,17 +212,25 @@ def normal_equations(families: Sequence[Blocks], groups: Sequence[ResidualGroup]
 
 
 def _linearized(families: Sequence[Blocks], groups: Sequence[ResidualGroup], layout: Layout,
-                opts: Options | None = None, newton: bool = False):
+                opts: Options | None = None, newton: bool = False, clusters=None,
+                scores: Options | None = None):
     """:func:`normal_equations`, and the residuals they were formed from: each group's
     ``(residuals (n_rows, dim), None)`` as :func:`evaluate` gives them (its chunks joined),
-    so that a caller needing both linearises once."""
+    so that a caller needing both linearises once.  With ``clusters`` (a
+    :class:`~multieye.optimize.clusters.ClusterRecord`) each segment's share is kept there,
+    its score (the gradient) weighted by the robust loss of ``scores`` (``rho'``: the
+    M-estimator's score) while ``J^T J`` stays unweighted (``opts`` None)."""
     values = {f.name: f.value for f in families}
-    acc = Assembly(layout, {f.name: f for f in families})
+    acc = Assembly(layout, {f.name: f for f in families}, clusters)
     residuals = []
     for grp in groups:
         rows = []
         for piece, r, B, rb in grp.linearize_chunks(values, CHUNK_SEGMENTS):
             rows.append(r)
+            if opts is None and scores is not None and scores.loss != "linear":
+                slope = rho((r / scores.f_scale) ** 2, scores.loss)[1]
+                acc.add(piece, B, rb, np.ones_like(slope), slope)
+                continue
             if opts is None:
                 acc.add(piece, B, rb)
                 continue
@@ -313,15 +329,20 @@ def _minimize(families, groups, opts: Options, layout: Layout) -> Result:
 
 
 def covariance_and_residuals(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,
-                             local: bool = False) -> tuple[Covariance, list]:
+                             local: bool = False, jackknife: Options | None = None
+                             ) -> tuple[Covariance, list]:
     """:func:`covariance` and :func:`evaluate` (``jacobians=False``) at the families' values,
-    from one linearisation."""
+    from one linearisation; with ``jackknife`` (the options of the minimisation: its loss
+    gives each cluster's score) also the cluster-robust covariance of the kept parameters
+    (:func:`multieye.optimize.clusters.jackknife_covariance`, ``Covariance.jackknife``)."""
     families = tuple(families)
     layout = Layout.of(families)
+    rec = None if jackknife is None else ClusterRecord(layout.n_local)
     with threads_for(layout.k):
-        ne, evaluated = _linearized(families, groups, layout)
+        ne, evaluated = _linearized(families, groups, layout, clusters=rec, scores=jackknife)
         kept, loc, undetermined = marginal_covariance(ne, local=local)
-    return Covariance(kept, loc, layout, undetermined), evaluated
+        jack, n_clusters = (None, 0) if rec is None else jackknife_covariance(ne, rec, kept)
+    return Covariance(kept, loc, layout, undetermined, jack, n_clusters), evaluated
 
 
 def covariance(families: Sequence[Blocks], groups: Sequence[ResidualGroup], *,

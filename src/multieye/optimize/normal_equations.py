@@ -136,10 +136,13 @@ class Assembly:
     ----------
     layout : Layout
     families : dict of str to Blocks
+    clusters : multieye.optimize.clusters.ClusterRecord, optional
+        Also keep each segment's share (its Gram blocks and score) there, for the
+        cluster-robust covariance (:func:`multieye.optimize.clusters.jackknife_covariance`).
     """
 
-    def __init__(self, layout: Layout, families: dict[str, Blocks]):
-        self.layout, self.families = layout, families
+    def __init__(self, layout: Layout, families: dict[str, Blocks], clusters=None):
+        self.layout, self.families, self.clusters = layout, families, clusters
         k, L, d = layout.k, layout.n_local, layout.d
         self.U = np.zeros(k * k)
         self.g = np.zeros(k)
@@ -175,6 +178,10 @@ class Assembly:
             gs = (Bt @ rb[:, :, None])[:, :, 0]                           # (S, c)
         G = Bt @ B                                                        # (S, c, c)
         cols, gpos, lblock, lpos = _columns(layout, self.families, group)
+        if self.clusters is not None:
+            Gkk = G[:, gpos][:, :, gpos]
+            self.clusters.add(lblock, cols, Gkk, None if lblock is None else
+                              G[:, gpos][:, :, lpos], gs[:, gpos])
         if cols.shape[1]:
             Ugg = G[:, gpos][:, :, gpos]
             self.U += np.bincount((cols[:, :, None] * k + cols[:, None, :]).ravel(), Ugg.ravel(),
