@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from multieye.core.intrinsics import Intrinsics
+
 from multieye.core.lens import project_points
 from multieye.imaging.detect import detect
 from multieye.imaging.targets import Chessboard
@@ -83,3 +85,25 @@ def test_a_symmetric_board_beyond_90_degrees_is_found_in_the_order_the_image_sho
                for o in (found.object_points, turned)]
         assert sorted(err)[0] < 0.4 and sorted(err)[1] > 100, err
         assert (err[0] < err[1]) == (spin == 0.0)       # the image's order, not the truth's
+
+
+def test_dataset_shows_the_board_as_large_to_a_wide_lens_as_to_a_pinhole(tmp_path):
+    # render_dataset puts the board nearer to shorter focal lengths so that every camera
+    # sees it about as large; a unified lens's focal length at the axis is fx / (1 + xi),
+    # not fx (the board was about half as large, too small to detect when blurred)
+    import cv2
+
+    from multieye.sim.dataset import DatasetSpec, default_intrinsics, render_dataset
+
+    wide = Intrinsics(K=[[420.0, 0, 399.5], [0, 420.0, 299.5], [0, 0, 1]],
+                      dist=[1.1, 0.0, 0.0, 0.0, 0.0], model="unified", width=800, height=600)
+    spec = DatasetSpec(n_cameras=2, images_per_camera=3, noise_sigma=0.0, processes=1)
+    render_dataset(tmp_path, spec, seed=3, intrinsics=[*default_intrinsics(1, 800, 600), wide])
+    board = Chessboard(rows=6, cols=9, spacing=0.05)
+    spans = []
+    for cam in ("cam0", "cam1"):
+        found = [detect(cv2.imread(str(p), cv2.IMREAD_GRAYSCALE), board)
+                 for p in sorted((tmp_path / cam).glob("*.png"))]
+        assert found and all(f is not None for f in found)
+        spans.append(np.median([np.ptp(f.image_points, axis=0).max() for f in found]))
+    assert 0.7 < spans[1] / spans[0] < 1.4, spans
