@@ -44,7 +44,8 @@ Figures per case, over the seeds:
 - mixed rig: ``T_ref_cam`` NEES / 6 of cameras 1 (pinhole) and 2 (wide) in the reported
   covariance (``run.T_ref_cam_covariance``; left perturbation, docs/conventions.md) and the
   largest |error| / sigma of any of their six coordinates;
-- images: rendered, used, rejected (with the pipeline's causes, counted);
+- images of the wide camera: in (the mixed rig: its 30 motion-captured images and 24
+  ``intrinsics_images``) and rejected by the pipeline, with its causes counted;
 - seconds of :func:`multieye.pipeline.calibrate` (wall, 1 detection process).
 
 This is a script, not a test: nothing is asserted.
@@ -253,7 +254,8 @@ def _row(rs: list[dict], kind: str) -> str:
             f"{max(err, default=np.nan):.3f} | {_mean(ok, 'nees_par'):.2f} / "
             f"{np.median(par) if par else np.nan:.2f} | {_mean(ok, 'nees_px'):.2f} | "
             f"{_mean(ok, 'nees_px_beyond90'):.2f} | {sum(r['beyond90'] for r in ok)} | "
-            f"{sum(r['inputs'] for r in ok)} / {sum(r['rejected'] for r in ok)} | "
+            f"{sum(r['inputs'] + (N_SPREAD if kind == 'mixed' else 0) for r in ok)} / "
+            f"{sum(r['rejected'] for r in ok)} | "
             f"{np.median([r['seconds'] for r in ok]) if ok else np.nan:.1f} |")
     if kind == "mixed":
         posed = [r for r in ok if "pose" in r]
@@ -298,7 +300,9 @@ def main() -> None:
     ap.add_argument("--mixed-seeds", type=int, default=None, help="default: --seeds")
     ap.add_argument("--variants", default="base,hard")
     ap.add_argument("--skip", default="")
-    ap.add_argument("--json", default=None, help="append every trial's record here")
+    ap.add_argument("--json", default=None, help="append every trial's record here (the "
+                    "tables again: python -c 'import json,sys; sys.path.insert(0,\"benchmarks\"); "
+                    "import bench_wide_render as b; b.report([json.loads(l) for l in open(F)])')")
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--fields", default="190,220")
     args = ap.parse_args()
