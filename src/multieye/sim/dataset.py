@@ -27,8 +27,9 @@ import cv2
 import numpy as np
 
 from multieye.core import geometry as g
-from multieye.core.intrinsics import Intrinsics
+from multieye.core.intrinsics import WIDE_MODELS, Intrinsics
 from multieye.core.errors import InputError
+from multieye.core.lens import project_points
 from multieye.io import (
     CalibrationRecord,
     CameraRecord,
@@ -193,6 +194,16 @@ def _centered_board(target, distance: float) -> np.ndarray:
     return g.make_transform(R, np.array([0.0, 0.0, distance]) - R @ c)
 
 
+def _axis_focal(intrinsics: Intrinsics) -> float:
+    """Pixels per radian along x at the optical axis: ``fx`` for pinhole and fisheye lenses;
+    for the wide models ``fx`` divided by their stretch there (unified: ``1 + xi``;
+    double-sphere: ``alpha + (1 - alpha)(1 + xi)``; eucm: 1), measured by projection."""
+    if intrinsics.model not in WIDE_MODELS:
+        return float(intrinsics.K[0, 0])
+    uv = project_points(np.array([[0.0, 0.0, 1.0], [1e-4, 0.0, 1.0]]), intrinsics)
+    return float(uv[1, 0] - uv[0, 0]) / 1e-4
+
+
 def _render_one(args):
     target_spec, intr, T, seed, blur, noise, path, renderer = args
     target = target_from_spec(target_spec)
@@ -247,7 +258,7 @@ def render_dataset(out_dir: str | os.PathLike, spec: DatasetSpec = DatasetSpec()
     for j, name in enumerate(names):
         (out / name).mkdir(exist_ok=True)
         # same apparent board size in every camera: closer to short focal lengths (fisheye)
-        distance = max(0.4, spec.board_distance_m * intr[j].K[0, 0] / (0.65 * spec.width))
+        distance = max(0.4, spec.board_distance_m * _axis_focal(intr[j]) / (0.65 * spec.width))
         pose = _motion(rng, _centered_board(target, distance), duration)
         # images at the camera rate, with a little trigger jitter
         t_img = (np.arange(spec.images_per_camera) + 0.5) / spec.camera_rate_hz

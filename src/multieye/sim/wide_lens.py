@@ -4,8 +4,8 @@ For the lens start's tests and ``benchmarks/bench_wide_lens.py`` (issue 33): a l
 model whose image circle of ``fov_deg`` fills a square image (:func:`wide_lens`), and views
 of a chessboard's corners spread over that field, boards beyond 90 degrees off the axis
 included, with Gaussian pixel noise (:func:`board_views`).  The corners are projected, not
-rendered: the renderer (:mod:`multieye.sim.render`) traces rays by their ``x / z`` and so
-stops at 90 degrees.
+rendered; :mod:`multieye.sim.render` renders these lenses beyond 90 degrees too
+(``benchmarks/bench_wide_render.py`` calibrates from such images).
 
 Synopsis
 --------
