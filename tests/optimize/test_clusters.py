@@ -11,7 +11,7 @@ from multieye.optimize.blocks import Blocks
 from multieye.optimize.levenberg_marquardt import (Options, covariance_and_residuals,
                                                    minimize)
 
-from test_engine import Linear, _dense  # noqa: E402  (tests/optimize on sys.path)
+from linear_groups import Linear, _dense
 
 
 def _problem(rng, n_local=40, shared=0.0, noise=None):
