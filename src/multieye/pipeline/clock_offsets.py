@@ -144,12 +144,15 @@ def _one_clock(problem: Problem, clocked: list[str]) -> list[list[str]]:
     out = []
     for group in groups:
         ns = [clocked[k] for k in group]
-        m0 = problem.cameras[ns[0]].mocap
-        if all(problem.cameras[n].mocap is m0 or (
-                np.array_equal(problem.cameras[n].mocap.stamps, m0.stamps)
-                and np.array_equal(problem.cameras[n].mocap.T, m0.T)) for n in ns):
+        if all(_same_mocap(problem.cameras[n], problem.cameras[ns[0]]) for n in ns):
             out.append(ns)
     return out
+
+
+def _same_mocap(a: CameraData, b: CameraData) -> bool:
+    """Whether two cameras pair with one motion capture (one object, or equal samples)."""
+    return a.mocap is b.mocap or (np.array_equal(a.mocap.stamps, b.mocap.stamps)
+                                  and np.array_equal(a.mocap.T, b.mocap.T))
 
 
 def _triggered_with(problem: Problem, name: str, clocks: dict) -> str | None:
@@ -160,9 +163,7 @@ def _triggered_with(problem: Problem, name: str, clocks: dict) -> str | None:
     best, count = None, 0
     for m in clocks:
         other = problem.cameras[m]
-        if other.mocap is not d.mocap and not (
-                np.array_equal(other.mocap.stamps, d.mocap.stamps)
-                and np.array_equal(other.mocap.T, d.mocap.T)):
+        if not _same_mocap(other, d):
             continue
         k = int(np.isin(mine, [o.stamp for o in other.observations]).sum())
         if 2 * k >= mine.size and k > count:
