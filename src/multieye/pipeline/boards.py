@@ -117,8 +117,8 @@ def no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
         kinds.setdefault(rejection_kind(r.reason), []).append(r)
     if set(kinds) == {"target not detected"}:
         rule = "; ".join(dict.fromkeys(counting_rule(t.type) for t in rig.targets.values()))
-        what = "target" if len(rig.targets) <= 1 else "targets"
-        return (f"the {what} ({_describe(rig)}) was not detected in any of the {n} "
+        what, was = ("target", "was") if len(rig.targets) <= 1 else ("targets", "were")
+        return (f"the {what} ({_describe(rig)}) {was} not detected in any of the {n} "
                 f"images; check the target section of rig.yaml ({rule}) and the images; "
                 "'multieye check' searches them for what they hold")
     parts = [f"{len(items)} {kind} (first {items[0].item}: {items[0].reason})"
