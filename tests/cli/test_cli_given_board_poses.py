@@ -17,6 +17,7 @@ from click.testing import CliRunner
 from multieye.cli import main
 from multieye.core import geometry as g
 from multieye.core.lie import log_so3
+from multieye.pipeline.overlap_mocap import board_jacobians
 from multieye.sim.wall_boards import WallSpec
 from multieye.sim.wall_dataset import render_wall_dataset
 
@@ -95,3 +96,35 @@ def test_check_takes_given_poses(runs):
     tmp, _, _ = runs
     res = CliRunner().invoke(main, ["check", str(tmp / "given")])
     assert res.exit_code == 0, (res.stdout, res.stderr)
+
+
+def test_given_poses_with_motion_capture_stay_as_given_in_the_mocap_frame(tmp_path):
+    """With the rig's motion capture too (eye-on-hand): the given boards are held, so each
+    sits at ``T_world_target`` of the first board times its given pose, to rounding, marked
+    given; its uncertainty there is the first board's carried through the given pose (the
+    motion capture's frame), and the extrinsics stay within their uncertainty of the truth."""
+    render_wall_dataset(tmp_path / "ds", WallSpec(n_instants=16, width=640, height=480),
+                        seed=1, mocap=True)
+    poses = _with_poses(tmp_path / "ds", tmp_path / "given")
+    res = _calibrate(tmp_path / "given", tmp_path / "out")
+    assert res.exit_code == 0, (res.stdout, res.stderr)
+    rec = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    truth = json.loads((tmp_path / "ds" / "ground_truth.json").read_text())
+    first = next(iter(rec["targets"]))
+    Y = np.array(rec["targets"][first]["T_world_target"])
+    for name, T in poses.items():
+        t = rec["targets"][name]
+        assert t["given"] is True
+        np.testing.assert_allclose(np.array(t["T_world_target"]), Y @ T, atol=1e-9)
+        # the first board's uncertainty carried to the given one (board_jacobians: checked
+        # against central differences in tests/pipeline/test_overlap_mocap.py)
+        j_y, _ = board_jacobians(Y, T)
+        np.testing.assert_allclose(np.array(t["covariance"]),
+                                   j_y @ np.array(rec["targets"][first]["covariance"]) @ j_y.T,
+                                   rtol=1e-6, atol=1e-15)
+    for name, cam in rec["cameras"].items():
+        if name == rec["reference_camera"]:
+            continue
+        T, true = np.array(cam["T_ref_cam"]), np.array(truth["T_ref_cam"][name])
+        e = np.concatenate([log_so3(T[:3, :3] @ true[:3, :3].T), T[:3, 3] - true[:3, 3]])
+        assert float(e @ np.linalg.solve(np.array(cam["covariance"]), e)) < 30, name
