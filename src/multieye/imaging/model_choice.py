@@ -163,19 +163,6 @@ def _score(model: str, err: F64, radius: F64, outer_from: float, lost: int) -> M
                       tuple(b for b in bands if np.isfinite(b[2])), lost)
 
 
-def _fits_to_the_edge(err: F64, uv: F64, size: tuple[int, int]) -> bool:
-    """Whether the requested model's held-out errors (``err``, per point of ``uv``) leave no
-    room for a clearly better model: it projects every corner, and its outer quarter's RMS is
-    below ``MIN_GAIN_PX / (1 - CLEARLY)`` (0.2 px), where no model can be both
-    :data:`CLEARLY` times it and :data:`MIN_GAIN_PX` below it.  The other models are then not
-    fitted (1.6-2.2 CPU-s per camera of a 960 x 720 fisheye rig)."""
-    if not len(err) or not np.all(np.isfinite(err)):
-        return False
-    radius = np.hypot(*(uv - (np.array(size, np.float64) - 1) / 2).T)
-    outer = radius >= np.quantile(radius, 0.75)
-    return bool(np.sqrt(np.mean(err[outer] ** 2)) < MIN_GAIN_PX / (1 - CLEARLY))
-
-
 def compare_models(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
                    requested: str, *, candidates: Sequence[str] = CANDIDATES
                    ) -> ModelComparison:
@@ -201,20 +188,23 @@ def compare_models(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int]
     size = (int(image_size[0]), int(image_size[1]))
     models = [requested] + [m for m in candidates if m != requested]
     uv = np.concatenate([u for _, u in views]) if views else np.zeros((0, 2))
+    centre = (np.array(size, np.float64) - 1) / 2
     mine = _held_out(views, size, requested) if requested in LENS_MODELS else None
-    if mine is not None and _fits_to_the_edge(mine, uv, size):
-        radius = np.hypot(*(uv - (np.array(size, np.float64) - 1) / 2).T)
+    if mine is not None and len(mine) and np.all(np.isfinite(mine)):
+        # it projects every corner: when it leaves under MIN_GAIN_PX / (1 - CLEARLY) (0.2 px)
+        # in its outer quarter no model can be clearly better, and the others are not fitted
+        # (1.6-2.2 CPU-s per camera of a 960 x 720 fisheye rig)
+        radius = np.hypot(*(uv - centre).T)
         outer_from = float(np.quantile(radius, 0.75))
-        return ModelComparison(requested, {requested: _score(requested, mine, radius,
-                                                             outer_from, 0)},
-                               outer_from, len(views), None)
+        alone = _score(requested, mine, radius, outer_from, 0)
+        if alone.outer_rms_px < MIN_GAIN_PX / (1 - CLEARLY):
+            return ModelComparison(requested, {requested: alone}, outer_from, len(views), None)
     errors = {m: e for m in models if m in LENS_MODELS
               for e in ([mine] if m == requested else [_held_out(views, size, m)])
               if e is not None}
     common = np.all([np.isfinite(e) for e in errors.values()], axis=0) if errors else []
     if requested not in errors or not np.any(common):
         return ModelComparison(requested, {}, float("nan"), len(views), None)
-    centre = (np.array(size, np.float64) - 1) / 2
     radius = np.hypot(*(uv[common] - centre).T)
     outer_from = float(np.quantile(radius, 0.75))
     some = np.any([np.isfinite(e) for e in errors.values()], axis=0)
