@@ -368,9 +368,7 @@ def _rig(rec: CalibrationRecord, details: RunDetails | None, figures: Mapping[st
         frame = f"the first board's frame <code>{escape(details.frame)}</code>"
         where = ("The rig moved before boards that stand still: the cameras are drawn at the "
                  "rig's pose of its middle instant, each board at its pose (estimated, or "
-                 "given in rig.yaml), the dots are each view's board placed through the rig's "
-                 "pose and the camera, the grey line is the reference camera's position at "
-                 "every instant (the rig's trajectory, estimated from the boards).")
+                 "given in rig.yaml); the dots and the grey line are described next.")
     elif details is not None and not rec.mocap:
         where = ("The cameras are drawn where the co-observations place them; the dots are the "
                  "target (its first corner) at every instant, the grey line joins them in "
