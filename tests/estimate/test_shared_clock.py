@@ -137,4 +137,11 @@ def test_shared_clock_is_checked_and_grouped_by_stamps():
     assert shared_clocks([t, t[:5], t[5:]]) == [[0, 1, 2]]        # transitively, via camera 0
     assert shared_clocks([t, t[:4]]) == []                         # 4 of 10: under half
     assert shared_clocks([t, t + 1e-12]) == []
+    # on two motion captures, cameras triggered together are not on one clock; the third
+    # camera's motion capture (equal samples, another array) is the first one's
+    m = (np.arange(5.0), np.tile(np.eye(4), (5, 1, 1)))
+    m2 = (m[0], m[1].copy())
+    m2[1][:, 0, 3] += 1e-3
+    assert shared_clocks([t, t, t], [m, m2, m]) == [[0, 2]]
+    assert shared_clocks([t, t], [m, (m[0].copy(), m[1].copy())]) == [[0, 1]]
     assert offset_family("cam0") == "dt:cam0"

@@ -81,11 +81,24 @@ def offset_family(name: str) -> str:
     return f"dt:{name}"
 
 
-def shared_clocks(stamps) -> list[list[int]]:
+def shared_clocks(stamps, mocaps=None) -> list[list[int]]:
     """Cameras stamped by one clock, from their image stamps: two cameras are on one clock
     when at least half of the images of each have an equal stamp in the other (cameras
-    triggered together); transitively.  Returns the groups of two or more cameras (indices
-    into ``stamps``, a sequence of 1-D arrays), each in ascending order."""
+    triggered together) and, given ``mocaps``, they pair with one motion capture; transitively.
+
+    Parameters
+    ----------
+    stamps : sequence of 1-D array
+        Per camera, its image stamps (seconds).
+    mocaps : sequence of (ndarray (K,), ndarray (K, 4, 4)), optional
+        Per camera, the motion capture it pairs with (sample stamps, poses): cameras on
+        different motion captures are never on one clock (one offset would not fit both).
+
+    Returns
+    -------
+    list of list of int
+        The groups of two or more cameras (indices into ``stamps``), each ascending.
+    """
     t = [np.asarray(x, dtype=np.float64).reshape(-1) for x in stamps]
     parent = list(range(len(t)))
 
@@ -94,10 +107,14 @@ def shared_clocks(stamps) -> list[list[int]]:
             a = parent[a]
         return a
 
+    def one_mocap(a, b) -> bool:
+        return mocaps is None or mocaps[a] is mocaps[b] or all(
+            np.array_equal(x, y) for x, y in zip(mocaps[a], mocaps[b]))
+
     for a in range(len(t)):
         for b in range(a + 1, len(t)):
             if (t[a].size and t[b].size and 2 * np.isin(t[a], t[b]).sum() >= t[a].size
-                    and 2 * np.isin(t[b], t[a]).sum() >= t[b].size):
+                    and 2 * np.isin(t[b], t[a]).sum() >= t[b].size and one_mocap(a, b)):
                 parent[max(root(a), root(b))] = min(root(a), root(b))
     groups: dict[int, list[int]] = {}
     for a in range(len(t)):

@@ -140,13 +140,10 @@ def with_clock_offsets(problem: Problem) -> tuple[Problem, dict[str, ClockOffset
 
 def _one_clock(problem: Problem, clocked: list[str]) -> list[list[str]]:
     """Groups of cameras on one clock: triggered together and on one motion capture."""
-    groups = shared_clocks([[o.stamp for o in problem.cameras[n].observations] for n in clocked])
-    out = []
-    for group in groups:
-        ns = [clocked[k] for k in group]
-        if all(_same_mocap(problem.cameras[n], problem.cameras[ns[0]]) for n in ns):
-            out.append(ns)
-    return out
+    cams = [problem.cameras[n] for n in clocked]
+    groups = shared_clocks([[o.stamp for o in d.observations] for d in cams],
+                           [(d.mocap.stamps, d.mocap.T) for d in cams])
+    return [[clocked[k] for k in group] for group in groups]
 
 
 def _same_mocap(a: CameraData, b: CameraData) -> bool:

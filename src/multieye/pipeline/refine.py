@@ -191,12 +191,9 @@ def _share_clocks(by_camera: dict[str, ClockData | None], warnings: list[str]
     stamped by one clock: one offset for them, started at the mean of their estimates."""
     names, clocks = list(by_camera), list(by_camera.values())
     timed = [j for j, c in enumerate(clocks) if c is not None]
-    for group in shared_clocks([clocks[j].image_stamps for j in timed]):
+    for group in shared_clocks([clocks[j].image_stamps for j in timed],
+                               [(clocks[j].mocap_stamps, clocks[j].mocap_T) for j in timed]):
         js = [timed[k] for k in group]
-        c0 = clocks[js[0]]
-        if not all(np.array_equal(clocks[j].mocap_stamps, c0.mocap_stamps)
-                   and np.array_equal(clocks[j].mocap_T, c0.mocap_T) for j in js):
-            continue
         start = float(np.mean([clocks[j].offset for j in js]))
         for j in js:
             clocks[j] = replace(clocks[j], offset=start, shared=names[js[0]])
