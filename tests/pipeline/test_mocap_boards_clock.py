@@ -15,9 +15,10 @@ from multieye.core.errors import CalibrationError
 from multieye.core.lie import log_so3
 from multieye.io import Rig
 from multieye.io.trajectory import Trajectory
-from multieye.pipeline.camera_data import CameraData, Observation
 from multieye.pipeline.run import calibrate_rig
-from multieye.sim.wall_boards import WallSpec, noisy_views, simulate_walls
+from multieye.sim.wall_boards import WallSpec, simulate_walls
+
+from wall_camera_data import wall_camera_data
 
 SIGMA = 0.3
 OFFSET = 0.137             # motion-capture clock minus camera clock, seconds
@@ -47,20 +48,9 @@ def _rig_and_cameras(offset=OFFSET, seed=0, n_images=100, camera_clocks=None):
     mocap_t = np.arange(-1.0, times[-1] + 1.0, 1 / 120)
     mocap = Trajectory(mocap_t + offset, np.stack([body_pose(t) for t in mocap_t]),
                        parent="world", child="body")
-    obs = {n: [] for n in sc.cameras}
-    for v in noisy_views(sc, SIGMA, rng):
-        b = list(sc.targets).index(v.target)
-        T = g.inv(sc.T_world_ref[v.instant] @ sc.T_ref_cam[v.camera]) @ sc.T_world_board[b]
-        T = T @ g.transform_from_rotvec(rng.normal(scale=0.003, size=3),
-                                        rng.normal(scale=0.002, size=3))
-        obs[sc.cameras[v.camera]].append(Observation(
-            name=f"{v.instant:04d}.png", T_cam_target=T,
-            stamp=float(times[v.instant]) + (0 if camera_clocks is None else camera_clocks[v.camera]),
-            rms_px=SIGMA, object_points=v.object_points, image_points=v.image_points,
-            target=v.target))
-    cams = {n: CameraData(name=n, intrinsics=sc.intrinsics[j], observations=tuple(obs[n]),
-                          rejected=(), n_inputs=len(obs[n]), mocap=mocap, time_offset=0.0,
-                          time_tolerance=0.01) for j, n in enumerate(sc.cameras)}
+    cams = wall_camera_data(
+        sc, SIGMA, rng, start_noise=(0.003, 0.002), mocap=mocap, time_tolerance=0.01,
+        stamp=lambda i, j: times[i] + (0 if camera_clocks is None else camera_clocks[j]))
     rig = Rig(path=Path("rig.yaml"), setup="eye-on-hand", cameras={},
               targets={n: {k: v for k, v in s.items() if k != "cameras"}
                        for n, s in sc.targets.items()})

@@ -15,10 +15,11 @@ from multieye.core.errors import DisconnectedError
 from multieye.core.lie import log_so3
 from multieye.io import Rig
 from multieye.io.calibration_json import calibration_from_dict, calibration_to_dict
-from multieye.pipeline.camera_data import CameraData, Observation
 from multieye.pipeline.overlap_motion import solve_motion
 from multieye.pipeline.run import calibrate_rig
-from multieye.sim.wall_boards import WallSpec, noisy_views, simulate_walls
+from multieye.sim.wall_boards import WallSpec, simulate_walls
+
+from wall_camera_data import wall_camera_data
 
 SIGMA = 0.3
 
@@ -26,20 +27,9 @@ SIGMA = 0.3
 def _cameras(seed=0, **spec):
     sc = simulate_walls(np.random.default_rng(seed), WallSpec(n_instants=30, **spec))
     rng = np.random.default_rng(seed + 1)
-    obs = {n: [] for n in sc.cameras}
     jitter = rng.uniform(-1e-3, 1e-3, (len(sc.T_world_body), len(sc.cameras)))   # per image
-    for v in noisy_views(sc, SIGMA, rng):
-        b = list(sc.targets).index(v.target)
-        T = g.inv(sc.T_world_ref[v.instant] @ sc.T_ref_cam[v.camera]) @ sc.T_world_board[b]
-        T = T @ g.transform_from_rotvec(rng.normal(scale=0.01, size=3),
-                                        rng.normal(scale=0.005, size=3))
-        obs[sc.cameras[v.camera]].append(Observation(
-            name=f"{v.instant:04d}.png", stamp=100 + 0.25 * v.instant + jitter[v.instant, v.camera],
-            T_cam_target=T, rms_px=SIGMA, object_points=v.object_points,
-            image_points=v.image_points, target=v.target))
-    cams = {n: CameraData(name=n, intrinsics=sc.intrinsics[j], observations=tuple(obs[n]),
-                          rejected=(), n_inputs=len(obs[n]), mocap=None, time_offset=0.0,
-                          time_tolerance=0.03) for j, n in enumerate(sc.cameras)}
+    cams = wall_camera_data(sc, SIGMA, rng, start_noise=(0.01, 0.005),
+                            stamp=lambda i, j: 100 + 0.25 * i + jitter[i, j])
     return sc, cams
 
 
