@@ -178,17 +178,25 @@ def _lens_figures(run, name: str, true: Intrinsics, fov: float) -> dict:
     return out
 
 
-def single(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
-    """One wide camera alone (module docstring, 1)."""
+def single_dataset(model: str, fov: float, seed: int, variant: str, tmp: Path
+                   ) -> tuple[Path, Intrinsics, list[np.ndarray], int]:
+    """The dataset of :func:`single`: its folder, the true lens, the views' true poses
+    (image ``k:03d.png`` the k-th) and how many views reach beyond 90 degrees."""
     rng = np.random.default_rng([seed, int(fov), MODELS.index(model)])
     lens = wide_lens(model, fov)
     board = target_from_spec(SINGLE_BOARD)
     folder = tmp / "single"
-    beyond = write_images(folder / "wide", board, lens,
-                          spread_poses(lens, fov, board, N_SPREAD, rng), seed, variant)
+    poses = spread_poses(lens, fov, board, N_SPREAD, rng)
+    beyond = write_images(folder / "wide", board, lens, poses, seed, variant)
     spec = ", ".join(f"{k}: {v}" for k, v in SINGLE_BOARD.items())
     (folder / "rig.yaml").write_text(f"target: {{{spec}}}\ncameras:\n"
                                      f"  wide: {{model: {model}, images: wide/}}\n")
+    return folder, lens, poses, beyond
+
+
+def single(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
+    """One wide camera alone (module docstring, 1)."""
+    folder, lens, _, beyond = single_dataset(model, fov, seed, variant, tmp)
     t0 = time.perf_counter()
     run = calibrate(folder, processes=1)
     rec = {"seconds": time.perf_counter() - t0, "used": run.record.cameras[0].measurements_used,
@@ -205,8 +213,9 @@ def _pose_nees(run, truth, j: int) -> tuple[float, float]:
     return float(e @ np.linalg.solve(C, e)) / 6, float(np.max(np.abs(e) / np.sqrt(np.diag(C))))
 
 
-def mixed(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
-    """Two pinhole cameras and the wide one, motion capture (module docstring, 2)."""
+def mixed_dataset(model: str, fov: float, seed: int, variant: str, tmp: Path):
+    """The dataset of :func:`mixed`: its folder, the true wide lens, the rendered dataset's
+    truth and how many of the wide camera's ``intrinsics_images`` reach beyond 90 degrees."""
     rng = np.random.default_rng([seed, int(fov), MODELS.index(model), 2])
     blur, noise = VARIANTS[variant]
     lens = wide_lens(model, fov)
@@ -224,6 +233,12 @@ def mixed(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
     text = text.replace("intrinsics: cam2.yaml",
                         f"model: {model}\n    intrinsics_images: cam2_lens/")
     (folder / "rig.yaml").write_text(text)
+    return folder, lens, truth, beyond
+
+
+def mixed(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
+    """Two pinhole cameras and the wide one, motion capture (module docstring, 2)."""
+    folder, lens, truth, beyond = mixed_dataset(model, fov, seed, variant, tmp)
     t0 = time.perf_counter()
     run = calibrate(folder, processes=1)
     rec = {"seconds": time.perf_counter() - t0,

@@ -3,14 +3,16 @@ there? (issue 33; docs/results/wide_render.md, section 4)
 
 Run from the repository root::
 
-    PYTHONPATH=src python benchmarks/bench_wide_render_optimum.py [--model unified]
+    PYTHONPATH=src python benchmarks/bench_wide_render_optimum.py [--rig single] [--model unified]
         [--field 190] [--variant base] [--seeds 0-9] [--json OUT.jsonl]
 
-For each seed the single wide camera of ``bench_wide_render.py`` (the same rendered images:
-:func:`bench_wide_render.single`'s poses and seeds) is calibrated by the pipeline; then, on
-the corners the pipeline used, the lens and every view's pose are fitted by plain least
-squares (:func:`multieye.imaging.generic_start.fit_lens`, no robust loss) twice: from the
-pipeline's lens and poses, and from the true lens and poses.  Per seed:
+For each seed the wide camera of ``bench_wide_render.py`` (the same rendered images:
+:func:`bench_wide_render.single_dataset` or, ``--rig mixed``, :func:`~bench_wide_render.
+mixed_dataset`) is calibrated by the pipeline; then, on the corners the pipeline used for that
+camera, the lens and every view's pose are fitted by plain least squares
+(:func:`multieye.imaging.generic_start.fit_lens`, no robust loss, no motion capture) twice:
+from the pipeline's lens and poses, and from the true lens and the true poses (the mixed rig:
+the first fit's poses).  Per seed:
 
 - ``dcost_sigma2``: the cost (sum of squared pixel residuals) of the first less the second,
   in sigma^2 (sigma^2 = the smaller cost over its redundancy): negative or zero when the
@@ -28,7 +30,10 @@ pipeline's lens and poses, and from the true lens and poses.  Per seed:
 - ``profile``: the cost with ``xi`` held at the optimum's plus -2, -1, 1, 2, 3 of its
   standard deviations (every other parameter and pose refitted), less the optimum's, in
   sigma^2 (4, 1, 1, 4, 9 if the cost were quadratic in ``xi``), and ``profile_truth`` with
-  ``xi`` held at the truth's.
+  ``xi`` held at the truth's;
+- ``nees_curve_ls``: the NEES / 3 of the radii of calibration.json's rays under the
+  truth-started fit, in that fit's covariance, and the ratio of its standard deviations to
+  the pipeline's (the mixed rig: the pipeline's poses are held by the motion capture too).
 
 This is a script, not a test: nothing is asserted.
 """
@@ -53,9 +58,7 @@ import bench_wide_render as b  # noqa: E402
 
 from multieye.core.lens_curve import curve_jacobian, radial_curve  # noqa: E402
 from multieye.imaging.generic_start import _Problem, fit_lens  # noqa: E402
-from multieye.imaging.targets import target_from_spec  # noqa: E402
 from multieye.pipeline import calibrate  # noqa: E402
-from multieye.sim.wide_lens import wide_lens  # noqa: E402
 
 
 def held_fit(views, lens, T, held) -> float:
@@ -82,44 +85,54 @@ def _cost(fit, views) -> float:
     return float(np.sum(fit.rms_px ** 2 * [len(o) for o, _ in views]))
 
 
-def _pipeline(model: str, fov: float, seed: int, variant: str):
-    """The single camera of bench_wide_render.single: its run, truth and true poses."""
-    rng = np.random.default_rng([seed, int(fov), b.MODELS.index(model)])
-    lens = wide_lens(model, fov)
-    board = target_from_spec(b.SINGLE_BOARD)
+def _pipeline(rig: str, model: str, fov: float, seed: int, variant: str):
+    """The wide camera of bench_wide_render's ``single`` or ``mixed`` rig, calibrated: the
+    run, the true lens, the camera's name, the observations the pipeline used (the mixed
+    rig's motion-captured views and its ``intrinsics_images``) and, for the single camera,
+    their true poses (None for the mixed rig)."""
     with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp) / "single"
-        poses = b.spread_poses(lens, fov, board, b.N_SPREAD, rng)
-        b.write_images(folder / "wide", board, lens, poses, seed, variant)
-        spec = ", ".join(f"{k}: {v}" for k, v in b.SINGLE_BOARD.items())
-        (folder / "rig.yaml").write_text(f"target: {{{spec}}}\ncameras:\n"
-                                         f"  wide: {{model: {model}, images: wide/}}\n")
+        if rig == "single":
+            folder, true, poses, _ = b.single_dataset(model, fov, seed, variant, Path(tmp))
+        else:
+            folder, true, _, _ = b.mixed_dataset(model, fov, seed, variant, Path(tmp))
         run = calibrate(folder, processes=1)
-    return run, lens, poses
+    name = "wide" if rig == "single" else "cam2"
+    obs = list(run.paired[name].observations) if name in run.paired else []
+    obs += list(run.cameras[name].intrinsics_views)
+    obs = [o for o in (obs or run.cameras[name].observations) if o.image_points is not None]
+    T_true = (np.array([poses[int(Path(o.name).stem)] for o in obs]) if rig == "single"
+              else None)
+    return run, true, name, obs, T_true
 
 
-def trial(model: str, fov: float, seed: int, variant: str) -> dict:
+def trial(rig: str, model: str, fov: float, seed: int, variant: str) -> dict:
     """One seed's figures (module docstring)."""
-    run, true, poses = _pipeline(model, fov, seed, variant)
-    est, C = run.intrinsics["wide"], run.refinement.intrinsics_covariance["wide"]
-    obs = [o for o in run.cameras["wide"].observations if o.image_points is not None]
+    run, true, name, obs, T_true = _pipeline(rig, model, fov, seed, variant)
+    est, C = run.intrinsics[name], run.refinement.intrinsics_covariance[name]
     views = [(o.object_points, o.image_points) for o in obs]
-    T_true = np.array([poses[int(Path(o.name).stem)] for o in obs])
     fe = fit_lens(views, est, np.array([o.T_cam_target for o in obs]), huber_px=None,
                   max_iterations=500)
-    ft = fit_lens(views, true, T_true, huber_px=None, max_iterations=500)
+    ft = fit_lens(views, true, fe.T_cam_target if T_true is None else T_true, huber_px=None,
+                  max_iterations=500)
     n_lens = true.params.size
     dof = 2 * sum(len(o) for o, _ in views) - n_lens - 6 * len(views)
     c_opt = _cost(ft, views)
     s2 = min(_cost(fe, views), c_opt) / dof
     e = est.params - true.params
-    curve = run.record.camera("wide").intrinsics.lens_curve
-    ec = curve.radii_px - radial_curve(true, C, np.radians(curve.angles_deg)).radii_px
+    curve = run.record.camera(name).intrinsics.lens_curve
+    angles = np.radians(curve.angles_deg)
+    ec = curve.radii_px - radial_curve(true, C, angles).radii_px
     prob = _Problem(views, ft.intrinsics, ft.T_cam_target)
     J = prob.jacobian(np.concatenate([ft.intrinsics.params, np.zeros(6 * len(views))]))
     C_ls = s2 * np.linalg.inv(J.T @ J)[:n_lens, :n_lens]
     el = ft.intrinsics.params - true.params
-    rec = {"model": model, "fov": fov, "variant": variant, "seed": seed,
+    own = radial_curve(ft.intrinsics, C_ls, angles)
+    eo = own.radii_px - radial_curve(true, C_ls, angles).radii_px
+    rec = {"rig": rig, "model": model, "fov": fov, "variant": variant, "seed": seed,
+           "views": len(views), "curve_err_px": ec.tolist(),
+           "curve_sd_px": np.sqrt(np.diag(curve.covariance)).tolist(),
+           "curve_sd_ls_px": np.sqrt(np.diag(own.covariance)).tolist(),
+           "nees_curve_ls": float(eo @ np.linalg.solve(own.covariance, eo)) / len(eo),
            "sigma_px": float(np.sqrt(s2)), "dcost_sigma2": (_cost(fe, views) - c_opt) / s2,
            "xi_true": float(true.dist[0]), "xi_pipeline": float(est.dist[0]),
            "xi_from_pipeline": float(fe.intrinsics.dist[0]),
@@ -158,6 +171,7 @@ def _seeds(text: str) -> list[int]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rig", default="single", choices=("single", "mixed"))
     ap.add_argument("--model", default="unified")
     ap.add_argument("--field", type=float, default=190.0)
     ap.add_argument("--variant", default="base", choices=sorted(b.VARIANTS))
@@ -165,9 +179,10 @@ def main() -> None:
     ap.add_argument("--json", default=None, help="append every seed's record here")
     args = ap.parse_args()
     print("seed  NEES/dim par  curve  dcost sigma^2  xi pipeline  xi from it  xi from truth  "
-          "LR truth/dim  Wald par/dim  Wald curve/dim  profile xi -2 -1 +1 +2 +3 sd  at truth")
+          "LR truth/dim  Wald par/dim  Wald curve/dim  profile xi -2 -1 +1 +2 +3 sd  at truth  "
+          "curve NEES/3 least squares  its sd / the pipeline's")
     for seed in _seeds(args.seeds):
-        r = trial(args.model, args.field, seed, args.variant)
+        r = trial(args.rig, args.model, args.field, seed, args.variant)
         if args.json:
             with open(args.json, "a") as fh:
                 fh.write(json.dumps(r) + "\n")
@@ -176,7 +191,9 @@ def main() -> None:
               f"{r['dcost_sigma2']:>13.3f}  {r['xi_pipeline']:>11.4f}  "
               f"{r['xi_from_pipeline']:>10.4f}  {r['xi_from_truth']:>13.4f}  "
               f"{r['lr_truth']:>12.2f}  {r['wald_par']:>12.2f}  {r.get('wald_curve', np.nan):>14.2f}"
-              f"  {prof}  {r.get('profile_truth', np.nan):.2f}", flush=True)
+              f"  {prof}  {r.get('profile_truth', np.nan):.2f}  {r['nees_curve_ls']:.2f}  "
+              + " ".join(f"{a / c:.2f}" for a, c in zip(r["curve_sd_ls_px"], r["curve_sd_px"])),
+              flush=True)
 
 
 if __name__ == "__main__":
