@@ -35,6 +35,9 @@ Figures per case, over the seeds:
   truth (fx fy cx cy and the model's distortion) and ``C`` the pipeline's reported
   covariance (``run.refinement.intrinsics_covariance``); mean over the seeds (1 when the
   covariance is right; in [0.5, 2] is the goal);
+- lens NEES / dim of its curve: calibration.json's ``lens_curve`` (the pixel radii of three
+  rays at 0.3, 0.6 and 0.9 of the widest observed angle, :func:`multieye.core.lens_curve.
+  observed_curve`) less the true lens' radii at the same rays, in its covariance, over 3;
 - lens NEES / dim in pixels: per ray, the error of its pixel (estimated lens less true
   lens) in its covariance ``J C J^T`` (``J`` the 2 x n Jacobian of the projection in the
   parameters), over 2, for 8 fixed rays, at 30, 60, 85 degrees off the axis and at the half
@@ -75,6 +78,7 @@ from lens_error import errors  # noqa: E402
 from multieye.core import geometry as g  # noqa: E402
 from multieye.core.intrinsics import Intrinsics  # noqa: E402
 from multieye.core.lens import project_points, project_with_jacobian, unproject_points  # noqa: E402
+from multieye.core.lens_curve import radial_curve  # noqa: E402
 from multieye.core.lie import log_so3  # noqa: E402
 from multieye.imaging.targets import Chessboard, target_from_spec  # noqa: E402
 from multieye.pipeline import calibrate  # noqa: E402
@@ -166,20 +170,33 @@ def _lens_figures(run, name: str, true: Intrinsics, fov: float) -> dict:
     cov = run.refinement.intrinsics_covariance.get(name) if run.refinement else None
     if cov is not None:
         out["nees_par"], out["nees_px"], out["nees_px_beyond90"] = lens_nees(est, true, cov, fov)
+    curve = run.record.camera(name).intrinsics.lens_curve
+    if curve is not None:
+        e = curve.radii_px - radial_curve(true, cov, np.radians(curve.angles_deg)).radii_px
+        out["nees_curve"] = float(e @ np.linalg.solve(curve.covariance, e)) / len(e)
+        out["curve_angles_deg"] = curve.angles_deg.tolist()
     return out
 
 
-def single(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
-    """One wide camera alone (module docstring, 1)."""
+def single_dataset(model: str, fov: float, seed: int, variant: str, tmp: Path
+                   ) -> tuple[Path, Intrinsics, list[np.ndarray], int]:
+    """The dataset of :func:`single`: its folder, the true lens, the views' true poses
+    (image ``k:03d.png`` the k-th) and how many views reach beyond 90 degrees."""
     rng = np.random.default_rng([seed, int(fov), MODELS.index(model)])
     lens = wide_lens(model, fov)
     board = target_from_spec(SINGLE_BOARD)
     folder = tmp / "single"
-    beyond = write_images(folder / "wide", board, lens,
-                          spread_poses(lens, fov, board, N_SPREAD, rng), seed, variant)
+    poses = spread_poses(lens, fov, board, N_SPREAD, rng)
+    beyond = write_images(folder / "wide", board, lens, poses, seed, variant)
     spec = ", ".join(f"{k}: {v}" for k, v in SINGLE_BOARD.items())
     (folder / "rig.yaml").write_text(f"target: {{{spec}}}\ncameras:\n"
                                      f"  wide: {{model: {model}, images: wide/}}\n")
+    return folder, lens, poses, beyond
+
+
+def single(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
+    """One wide camera alone (module docstring, 1)."""
+    folder, lens, _, beyond = single_dataset(model, fov, seed, variant, tmp)
     t0 = time.perf_counter()
     run = calibrate(folder, processes=1)
     rec = {"seconds": time.perf_counter() - t0, "used": run.record.cameras[0].measurements_used,
@@ -196,8 +213,9 @@ def _pose_nees(run, truth, j: int) -> tuple[float, float]:
     return float(e @ np.linalg.solve(C, e)) / 6, float(np.max(np.abs(e) / np.sqrt(np.diag(C))))
 
 
-def mixed(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
-    """Two pinhole cameras and the wide one, motion capture (module docstring, 2)."""
+def mixed_dataset(model: str, fov: float, seed: int, variant: str, tmp: Path):
+    """The dataset of :func:`mixed`: its folder, the true wide lens, the rendered dataset's
+    truth and how many of the wide camera's ``intrinsics_images`` reach beyond 90 degrees."""
     rng = np.random.default_rng([seed, int(fov), MODELS.index(model), 2])
     blur, noise = VARIANTS[variant]
     lens = wide_lens(model, fov)
@@ -215,6 +233,12 @@ def mixed(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
     text = text.replace("intrinsics: cam2.yaml",
                         f"model: {model}\n    intrinsics_images: cam2_lens/")
     (folder / "rig.yaml").write_text(text)
+    return folder, lens, truth, beyond
+
+
+def mixed(model: str, fov: float, seed: int, variant: str, tmp: Path) -> dict:
+    """Two pinhole cameras and the wide one, motion capture (module docstring, 2)."""
+    folder, lens, truth, beyond = mixed_dataset(model, fov, seed, variant, tmp)
     t0 = time.perf_counter()
     run = calibrate(folder, processes=1)
     rec = {"seconds": time.perf_counter() - t0,
@@ -250,9 +274,11 @@ def _row(rs: list[dict], kind: str) -> str:
     ok = [r for r in rs if "failed" not in r]
     err = [r["lens_err_px"] for r in ok]
     par = [r["nees_par"] for r in ok if "nees_par" in r]
+    cur = [r["nees_curve"] for r in ok if "nees_curve" in r]
     line = (f"| {len(ok)} of {len(rs)} | {np.median(err) if err else np.nan:.3f} / "
             f"{max(err, default=np.nan):.3f} | {_mean(ok, 'nees_par'):.2f} / "
-            f"{np.median(par) if par else np.nan:.2f} | {_mean(ok, 'nees_px'):.2f} | "
+            f"{np.median(par) if par else np.nan:.2f} | {_mean(ok, 'nees_curve'):.2f} / "
+            f"{np.median(cur) if cur else np.nan:.2f} | {_mean(ok, 'nees_px'):.2f} | "
             f"{_mean(ok, 'nees_px_beyond90'):.2f} | {sum(r['beyond90'] for r in ok)} | "
             f"{sum(r['inputs'] + (N_SPREAD if kind == 'mixed' else 0) for r in ok)} / "
             f"{sum(r['rejected'] for r in ok)} | "
@@ -268,8 +294,9 @@ def _row(rs: list[dict], kind: str) -> str:
 def report(rows: list[dict]) -> None:
     """The tables of docs/results/wide_render.md (markdown) from the trials' records."""
     head = ("| variant | model | field deg | runs ok | lens error px median / max | "
-            "NEES/dim params mean / median | NEES/2 pixels, 8 rays | NEES/2 pixels, 2 rays "
-            "beyond 90 | views beyond 90 | images in / rejected | seconds median |")
+            "NEES/dim params mean / median | NEES/3 lens_curve mean / median | "
+            "NEES/2 pixels, 8 rays | NEES/2 pixels, 2 rays beyond 90 | views beyond 90 | "
+            "images in / rejected | seconds median |")
     for kind in ("single", "mixed"):
         sel = [r for r in rows if r["kind"] == kind]
         if not sel:
@@ -320,7 +347,8 @@ def main() -> None:
                 fh.write(json.dumps(rec) + "\n")
         print(f"{kind} {variant} {model} {fov:.0f} seed {seed}: "
               + (rec.get("failed") or f"lens {rec['lens_err_px']:.3f} px, NEES "
-                 f"{rec.get('nees_par', np.nan):.2f} / {rec.get('nees_px', np.nan):.2f}, "
+                 f"{rec.get('nees_par', np.nan):.2f} / {rec.get('nees_curve', np.nan):.2f} / "
+                 f"{rec.get('nees_px', np.nan):.2f}, "
                  f"{rec['seconds']:.0f} s"), flush=True)
     report(rows)
 

@@ -11,6 +11,7 @@ import pytest
 
 from multieye.core import geometry
 from multieye.core.intrinsics import Intrinsics
+from multieye.core.lens_curve import RadialCurve
 from multieye.estimate.diagnostics import CameraMotion
 from multieye.io import rig as rig_yaml
 from multieye.io.calibration_json import (
@@ -219,7 +220,9 @@ def _record(setup: str) -> CalibrationRecord:
                          residuals=Residuals(0.01, 1e-4, 0.05, 3e-4, 0.2), time_offset_s=0.01,
                          time_offset_std_s=1e-4, std_rot_deg=0.02, std_trans_m=4e-4, covariance=A @ A.T * 1e-8,
                          rejected=(RejectedItem("1700000000.5.png", "no target detected"),),
-                         intrinsics=IntrinsicsRecord(lens, True, np.eye(9), (0.1, 0.3)),
+                         intrinsics=IntrinsicsRecord(lens, True, np.eye(9), (0.1, 0.3),
+                                                     RadialCurve(np.ones(3), np.ones(3),
+                                                                 np.eye(3))),
                          uncertainty={x_key: unc, "T_ref_cam": unc})
             for j in range(2)]
     motion = {c.name: CameraMotion(c.name, 30, 60.0, np.array([20.0, 10.0, 5.0]), 3.0,
@@ -238,6 +241,7 @@ def test_outputs_doc_names_every_calibration_json_key(setup):
     for cam in data["cameras"].values():
         keys |= set(cam) | set(cam["residuals"]) | set(cam["rejected"][0])
         keys |= set(cam["intrinsics"]) | set(cam["intrinsics"]["projection_std_px"])
+        keys |= set(cam["intrinsics"]["lens_curve"])
         keys |= set(cam["uncertainty"]) | set(cam["uncertainty"]["T_ref_cam"])
     keys |= set(data["uncertainty"])
     for numbers in data["motion_diagnostics"].values():

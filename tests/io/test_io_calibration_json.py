@@ -268,3 +268,43 @@ def test_a_rig_without_motion_capture_has_no_x_and_no_y_and_round_trips(tmp_path
                           Residuals(0.0, 0.0))
     with pytest.raises(InputError, match="Y and every camera's X are needed"):
         CalibrationRecord("eye-to-base", "joint", "cam0", np.eye(4), cams, Residuals(0.0, 0.0))
+
+
+def test_a_lens_curve_round_trips_and_files_without_it_still_read(tmp_path):
+    """``intrinsics.lens_curve`` (a wide lens' radii at three rays and their covariance,
+    docs/outputs.md) is written exactly, read back, optional (a file without it reads with
+    None: no new format_version) and checked where it is read."""
+    from multieye.core.intrinsics import Intrinsics
+    from multieye.core.lens_curve import RadialCurve
+    from multieye.io.calibration_record import IntrinsicsRecord
+
+    rng = np.random.default_rng(5)
+    lens = Intrinsics(K=[[260.0, 0, 511.5], [0, 260.5, 511.0], [0, 0, 1]],
+                      dist=[1.1, -0.08, 0.01, 1e-4, -2e-4], model="unified", width=1024,
+                      height=1024)
+    B = rng.normal(size=(9, 9))
+    A = rng.normal(size=(3, 3))
+    curve = RadialCurve(np.array([28.5, 57.0, 85.5]), np.array([121.3, 233.9, 331.2]),
+                        A @ A.T * 0.01)
+    rec = _record(rng)
+    cams = tuple(replace(c, intrinsics=IntrinsicsRecord(lens, True, B @ B.T, (0.05, 0.1),
+                                                         curve if j == 1 else None))
+                 for j, c in enumerate(rec.cameras))
+    write_calibration(tmp_path / "c.json", replace(rec, cameras=cams))
+    data = json.loads((tmp_path / "c.json").read_text())
+    assert data["format_version"] == 3                       # the unified lens's, as before
+    assert "lens_curve" not in data["cameras"]["cam0"]["intrinsics"]
+    assert set(data["cameras"]["cam1"]["intrinsics"]["lens_curve"]) == {
+        "angles_deg", "radii_px", "covariance"}
+    back = read_calibration(tmp_path / "c.json")
+    assert back.cameras[0].intrinsics.lens_curve is None
+    got = back.cameras[1].intrinsics.lens_curve
+    for name in ("angles_deg", "radii_px", "covariance"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(curve, name))
+    for bad in ([[1.0, 0.0], [0.0, 1.0]], [[1.0, 0.5, 0], [0, 1, 0], [0, 0, 1]], "big"):
+        data["cameras"]["cam1"]["intrinsics"]["lens_curve"]["covariance"] = bad
+        with pytest.raises(DatasetError, match="camera cam1: intrinsics.lens_curve must be"):
+            read_calibration(_write_json(tmp_path / "bad.json", data))
+    data["cameras"]["cam1"]["intrinsics"]["lens_curve"] = {"radii_px": [1.0]}
+    with pytest.raises(DatasetError, match="intrinsics.lens_curve must be"):
+        read_calibration(_write_json(tmp_path / "bad.json", data))

@@ -172,6 +172,7 @@ def test_estimated_intrinsics_are_written_where_people_look(rendered, tmp_path):
         cov = np.array(block["covariance"])
         assert cov.shape == (9, 9) and np.all(np.linalg.eigvalsh(cov) > 0)
         assert 0 < block["projection_std_px"]["mean"] <= block["projection_std_px"]["max"] < 1
+        assert "lens_curve" not in block                # a pinhole lens: its parameters'
         unc = data["cameras"][name]["uncertainty"]
         assert set(unc) == {"T_world_cam", "T_ref_cam"}
         assert unc["T_world_cam"]["std_rot_deg"] > 0 and unc["T_world_cam"]["std_trans_m"] > 0

@@ -14,6 +14,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, unproject_points
+from multieye.core.lens_curve import observed_angles, radial_curve
 from multieye.io import read_calibration, read_intrinsics
 from multieye.io.intrinsics_files import write_intrinsics_file
 from multieye.outputs.export import export
@@ -103,6 +104,21 @@ def test_perturbed_wide_lenses_are_refined_back(rendered, tmp_path):
         again = read_intrinsics(out / "intrinsics" / f"{cam.name}.yaml")
         np.testing.assert_array_equal(again.params, lens.params)
         assert read_intrinsics(out / "camchain.yaml", cam.name).model == LENSES[j].model
+        # the lens' radial curve: the library's at the rays over the field the board was
+        # seen in, from the written covariance
+        curve = data["cameras"][cam.name]["intrinsics"]["lens_curve"]
+        C = run.refinement.intrinsics_covariance[cam.name]
+        pts = np.concatenate([o.object_points @ o.T_cam_target[:3, :3].T + o.T_cam_target[:3, 3]
+                              for o in run.paired[cam.name].observations])
+        want = radial_curve(lens, C, observed_angles(lens, pts))
+        np.testing.assert_allclose(curve["angles_deg"], want.angles_deg, rtol=1e-12)
+        np.testing.assert_allclose(curve["radii_px"], want.radii_px, rtol=1e-12)
+        np.testing.assert_allclose(curve["covariance"], want.covariance, rtol=1e-12)
+        np.testing.assert_array_equal(cam.intrinsics.lens_curve.covariance, curve["covariance"])
+        # a field of 30 degrees: the double sphere's xi and alpha not both determined (the
+        # run warns; that direction has no variance), so its radii's covariance is singular
+        eig = np.linalg.eigvalsh(want.covariance)
+        assert 10.0 < want.angles_deg[-1] < 90.0 and eig.min() > -1e-12 * eig.max(), eig
     # OpenCV's extrinsics.yaml: the poses, no lens, and a note naming each camera
     notes: list[str] = []
     export(out, "opencv", notes=notes)

@@ -93,6 +93,18 @@ def test_boofcv_fisheye_of_180_degrees_uses_every_image(shared_data, tmp_path):
     near = np.hypot(*(uv - ref.K[:2, 2]).T) <= 250
     d = lens_difference_px(run.cameras["fish"].intrinsics, ref, uv[near])
     assert np.sqrt(np.mean(d ** 2)) < 0.9
+    # calibration.json's lens_curve: rays up to 0.9 of the widest corner used (89 degrees
+    # off the axis: fisheye leaves out those beyond 90), the library's radii and covariance
+    from multieye.core.lens import unproject_points  # noqa: PLC0415
+    from multieye.core.lens_curve import radial_curve  # noqa: PLC0415
+
+    lens, curve = run.cameras["fish"].intrinsics, cam.intrinsics.lens_curve
+    rays = unproject_points(uv, lens)
+    widest = np.degrees(np.nanmax(np.arctan2(np.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])))
+    assert widest > 85.0 and abs(curve.angles_deg[-1] / 0.9 - widest) < 0.5
+    want = radial_curve(lens, run.refinement.intrinsics_covariance["fish"],
+                        np.radians(curve.angles_deg))
+    np.testing.assert_allclose(curve.covariance, want.covariance, rtol=1e-12)
 
 
 def test_boofcv_fisheye_check_and_calibrate_name_the_model_that_fits_more(shared_data, tmp_path):

@@ -35,6 +35,7 @@ import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import WIDE_MODELS, Intrinsics, lens_model
+from multieye.core.lens_curve import RadialCurve
 from multieye.io.atomic import write_text_atomic
 from multieye.io.calibration_record import (
     FORMAT_VERSION,
@@ -153,7 +154,11 @@ def _intrinsics_dict(r: IntrinsicsRecord) -> dict:
             "estimated": bool(r.estimated),
             "covariance": None if r.covariance is None else _matrix(r.covariance),
             "projection_std_px": None if r.projection_std_px is None else {
-                "mean": float(r.projection_std_px[0]), "max": float(r.projection_std_px[1])}}
+                "mean": float(r.projection_std_px[0]), "max": float(r.projection_std_px[1])}
+            } | ({} if r.lens_curve is None else {"lens_curve": {
+                "angles_deg": [float(v) for v in r.lens_curve.angles_deg],
+                "radii_px": [float(v) for v in r.lens_curve.radii_px],
+                "covariance": _matrix(r.lens_curve.covariance)}})
 
 
 def _read_uncertainty(obj, w: _Where, keys: tuple[str, ...], camera=None) -> dict:
@@ -205,7 +210,27 @@ def _read_intrinsics(obj, w: _Where, camera, version: int) -> IntrinsicsRecord:
     estimated = obj.get("estimated", False)
     if not isinstance(estimated, bool):
         raise w.error("intrinsics.estimated must be true or false", camera)
-    return IntrinsicsRecord(intr, estimated, cov, proj)
+    curve = obj.get("lens_curve")
+    return IntrinsicsRecord(intr, estimated, cov, proj,
+                            None if curve is None else _read_lens_curve(curve, w, camera))
+
+
+def _read_lens_curve(obj, w: _Where, camera) -> RadialCurve:
+    """``intrinsics.lens_curve`` (optional; files without it read as None)."""
+    message = ("intrinsics.lens_curve must be {angles_deg: [n], radii_px: [n], covariance: "
+               "n x n}, finite, the covariance symmetric")
+    if not isinstance(obj, Mapping) or not {"angles_deg", "radii_px", "covariance"} <= set(obj):
+        raise w.error(message, camera)
+    try:
+        a, r, c = (np.asarray(obj[k], np.float64)
+                   for k in ("angles_deg", "radii_px", "covariance"))
+    except (TypeError, ValueError):
+        raise w.error(message, camera) from None
+    n = a.size
+    if (a.shape != (n,) or r.shape != (n,) or c.shape != (n, n) or n == 0
+            or not all(np.all(np.isfinite(v)) for v in (a, r, c)) or not np.allclose(c, c.T)):
+        raise w.error(message, camera)
+    return RadialCurve(a, r, c)
 
 
 def _read_links(obj, w: _Where, camera) -> CameraLinks:

@@ -17,6 +17,7 @@ import numpy as np
 from multieye.core.errors import InputError
 from multieye.core.arguments import transform
 from multieye.core.intrinsics import Intrinsics
+from multieye.core.lens_curve import RadialCurve
 
 __all__ = [
     "FORMAT_VERSION",
@@ -201,12 +202,18 @@ class IntrinsicsRecord:
         Mean and largest standard deviation of the projection of a fixed camera-frame ray
         over the observed target points (root of half the trace of the 2x2 pixel covariance
         from ``covariance``), pixels.
+    lens_curve : RadialCurve or None
+        A wide-angle or fisheye lens' radial curve at three rays over the observed field and
+        its covariance (:func:`multieye.core.lens_curve.observed_curve`), when estimated
+        with a covariance; the honest statement of its uncertainty where the parameters'
+        covariance is not (docs/outputs.md).
     """
 
     intrinsics: Intrinsics
     estimated: bool = False
     covariance: np.ndarray | None = None
     projection_std_px: tuple[float, float] | None = None
+    lens_curve: RadialCurve | None = None
 
 
 @dataclass(frozen=True)

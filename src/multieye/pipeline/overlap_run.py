@@ -21,6 +21,7 @@ from multieye.core.errors import DatasetError
 from multieye.core.metrics import camera_residual
 from multieye.estimate.findings import Plausibility
 from multieye.estimate.uncertainty import pose_std, projection_std
+from multieye.core.lens_curve import observed_curve
 from multieye.io import (
     BoardRecord,
     CalibrationRecord,
@@ -37,6 +38,7 @@ from multieye.pipeline.overlap import OverlapSolution, solve_overlap
 from multieye.pipeline.overlap_mocap import (eye_on_hand_layout, has_mocap, rig_mocap,
                                            with_mocap)
 from multieye.pipeline.overlap_motion import MotionSolution, board_order, solve_motion
+from multieye.pipeline.record import lens_view_points
 from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.problem import Problem
 from multieye.pipeline.result import CalibrationRun, Refinement
@@ -231,10 +233,11 @@ def _intrinsics_record(problem: Problem, sol: OverlapSolution, j: int, p: Paired
     data = problem.cameras[name]
     intr = res.intrinsics[j]
     cov = res.intrinsics_covariance[j]
-    proj = None
+    proj = curve = None
     if cov is not None:
         T = g.inv(res.T_ref_cam[j]) @ p.T_world_mocap
-        pts = [o.object_points @ Tc[:3, :3].T + Tc[:3, 3]
-               for o, Tc in zip(p.observations, T)]
-        proj = projection_std(intr, cov, np.concatenate(pts))
-    return IntrinsicsRecord(intr, data.intrinsics_estimated, cov, proj)
+        pts = np.concatenate([o.object_points @ Tc[:3, :3].T + Tc[:3, 3]
+                              for o, Tc in zip(p.observations, T)])
+        proj = projection_std(intr, cov, pts)
+        curve = observed_curve(intr, cov, np.concatenate([pts, *lens_view_points(data)]))
+    return IntrinsicsRecord(intr, data.intrinsics_estimated, cov, proj, curve)

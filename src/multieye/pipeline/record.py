@@ -11,6 +11,7 @@ import numpy as np
 
 from multieye.core.metrics import camera_residual, relative_extrinsics
 from multieye.estimate.uncertainty import pose_std, projection_std
+from multieye.core.lens_curve import observed_curve
 from multieye.io import (
     CalibrationRecord,
     CameraRecord,
@@ -26,7 +27,7 @@ from multieye.pipeline.problem import Pairing, Problem
 from multieye.pipeline.refine import Refined
 from multieye.pipeline.result import Refinement
 
-__all__ = ["build_record"]
+__all__ = ["build_record", "lens_view_points"]
 
 
 def build_record(problem: Problem, pairing: Pairing, closed, plausibility, refined: Refined,
@@ -98,6 +99,14 @@ def _pose_uncertainty(cov: np.ndarray) -> PoseUncertainty:
     return PoseUncertainty(float(rot), float(trans), cov)
 
 
+def lens_view_points(data: CameraData) -> list[np.ndarray]:
+    """The target points of the camera's ``intrinsics_images`` in its frame (their starting
+    poses), (n, 3) each: with the observations' they set the field the lens' curve is
+    stated over (:func:`multieye.core.lens_curve.observed_curve`)."""
+    return [o.object_points @ o.T_cam_target[:3, :3].T + o.T_cam_target[:3, 3]
+            for o in data.intrinsics_views if o.object_points is not None]
+
+
 def _intrinsics_record(data: CameraData, paired: PairedCamera, refinement: Refinement | None
                        ) -> IntrinsicsRecord | None:
     """The camera's final intrinsics, whether they were estimated, and their uncertainty."""
@@ -106,10 +115,11 @@ def _intrinsics_record(data: CameraData, paired: PairedCamera, refinement: Refin
     refined = {} if refinement is None else refinement.intrinsics
     intr = refined.get(data.name, data.intrinsics)
     cov = None if refinement is None else refinement.intrinsics_covariance.get(data.name)
-    proj = None
+    proj = curve = None
     if cov is not None:
         pts = [o.object_points @ o.T_cam_target[:3, :3].T + o.T_cam_target[:3, 3]
                for o in paired.observations if o.object_points is not None]
         if pts:
             proj = projection_std(intr, cov, np.concatenate(pts))
-    return IntrinsicsRecord(intr, data.intrinsics_estimated, cov, proj)
+            curve = observed_curve(intr, cov, np.concatenate(pts + lens_view_points(data)))
+    return IntrinsicsRecord(intr, data.intrinsics_estimated, cov, proj, curve)
