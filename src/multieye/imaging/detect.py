@@ -334,14 +334,9 @@ def _canonical(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detect
         kept = [k for k in kept if np.array_equal(orders.black[k], best)]
     sources = [orders.sources[k][0] for k in kept]
     if len(sources) > 1:
-        # the x axis towards the image's lower right, (1, 1): boards upright and turned a
-        # quarter (a portrait board, rows and cols swapped) are both far from the tie, which
-        # is at an x axis along the other diagonal (a board turned by 135 deg or -45 deg)
-        lower_right = []
-        for src in sources:
-            x_dir = _affine(orders, detected[src])[:, 0]
-            lower_right.append((x_dir[0] + x_dir[1]) / np.linalg.norm(x_dir))
-        sources = [sources[int(np.argmax(lower_right))]]
+        # x towards (1, 1): upright and quarter-turned boards are both far from the tie
+        x_dirs = [_affine(orders, detected[src])[:, 0] for src in sources]
+        sources = [sources[int(np.argmax([(x[0] + x[1]) / np.linalg.norm(x) for x in x_dirs]))]]
         warnings = (f"{target.kind} {target.rows}x{target.cols} looks the same after a turn, so its "
                     "point order cannot be told from the image; the order whose x axis points "
                     "right or down (towards the image's lower right) was taken (use a board "

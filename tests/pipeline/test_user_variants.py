@@ -1,0 +1,86 @@
+"""The public sets set up as another lab would from the docs alone, with the variations users
+make (a lens file without its distortion, rows and cols swapped, a BoofCV stereo file): each
+either gives the published answer or is doubted or refused naming what to change."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from multieye.cli import main
+
+NO_DISTORTION = """image_width: 640
+image_height: 480
+camera_matrix: {{rows: 3, cols: 3, data: [{f}, 0, {cx}, 0, {f}, {cy}, 0, 0, 1]}}
+distortion_model: plumb_bob
+distortion_coefficients: {{rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}}
+"""
+
+
+def _stereo(shared: Path, folder: Path, cameras: str, target: str = "rows: 6, cols: 4") -> Path:
+    """boofcv_stereo's files linked into ``folder`` with a rig.yaml pairing left/right by
+    number."""
+    folder.mkdir(parents=True)
+    for f in sorted((shared / "boofcv_stereo").iterdir()):
+        os.symlink(f, folder / f.name)
+    (folder / "rig.yaml").write_text(
+        f"sync: number\ntarget: {{type: chessboard, {target}, spacing: 0.03}}\n"
+        f"cameras:\n{cameras}")
+    return folder
+
+
+def _calibrate(dataset: Path, out: Path):
+    res = CliRunner().invoke(main, ["calibrate", str(dataset), "-o", str(out),
+                                    "--processes", "1", "--no-report"])
+    cal = json.loads((out / "calibration.json").read_text()) if out.exists() else None
+    return res, cal
+
+
+def test_lens_given_without_distortion_is_doubted_without_mocap(shared_data, tmp_path):
+    """Camera matrices without their k1 = -0.36: the baseline came out 140 mm (BoofCV 120)
+    with exit status 0. Now exit 3 naming each camera's missing distortion."""
+    data = _stereo(shared_data, tmp_path / "d",
+                   '  left: {intrinsics: left.yaml, images: "left*.jpg"}\n'
+                   '  right: {intrinsics: right.yaml, images: "right*.jpg"}\n')
+    (data / "left.yaml").write_text(NO_DISTORTION.format(f=525.0, cx=312.5, cy=247.5))
+    (data / "right.yaml").write_text(NO_DISTORTION.format(f=527.0, cx=318.5, cy=246.0))
+    res, cal = _calibrate(data, tmp_path / "out")
+    assert res.exit_code == 3, res.output
+    doubts = [p for p in cal["plausibility"] if p["cause"] == "intrinsics"]
+    assert sorted(p["camera"] for p in doubts) == ["left", "right"]
+    assert all("the distortion coefficients were probably left out" in p["message"]
+               for p in doubts)
+    assert "intrinsics: camera left's lens freed" in res.output
+
+
+def test_boofcv_stereo_file_given_fits_without_doubt(shared_data, tmp_path):
+    """BoofCV's own stereo.yaml as the lenses (camera: left / right): exit 0, no doubt, the
+    baseline within 1 mm of BoofCV's rightToLeft."""
+    data = _stereo(shared_data, tmp_path / "d",
+                   '  left: {intrinsics: {file: stereo.yaml, camera: left}, images: "left*.jpg"}\n'
+                   '  right: {intrinsics: {file: stereo.yaml, camera: right}, '
+                   'images: "right*.jpg"}\n')
+    res, cal = _calibrate(data, tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    assert cal["plausibility"] == []
+    t = np.array(cal["cameras"]["right"]["T_ref_cam"])[:3, 3]
+    assert np.linalg.norm(t - [0.12004, 0.00090, -0.00091]) < 1e-3
+
+
+@pytest.mark.parametrize("target", ["rows: 4, cols: 6", "rows: 6, cols: 4"])
+def test_symmetric_board_with_rows_and_cols_either_way(shared_data, tmp_path, target):
+    """rows and cols swapped put the board's x axis vertical in every image: the two cameras
+    took opposite orders of the symmetric board (0.84 m, 29 px, exit 3 blaming the sync).
+    Either way round: the pair within 1 mm of BoofCV's."""
+    data = _stereo(shared_data, tmp_path / "d",
+                   '  left: {model: pinhole-radtan, images: "left*.jpg"}\n'
+                   '  right: {model: pinhole-radtan, images: "right*.jpg"}\n', target)
+    res, cal = _calibrate(data, tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    t = np.array(cal["cameras"]["right"]["T_ref_cam"])[:3, 3]
+    assert np.linalg.norm(t - [0.12004, 0.00090, -0.00091]) < 1e-3
