@@ -84,3 +84,36 @@ def test_symmetric_board_with_rows_and_cols_either_way(shared_data, tmp_path, ta
     assert res.exit_code == 0, res.output
     t = np.array(cal["cameras"]["right"]["T_ref_cam"])[:3, 3]
     assert np.linalg.norm(t - [0.12004, 0.00090, -0.00091]) < 1e-3
+
+
+def _euroc(shared: Path, folder: Path) -> Path:
+    """boofcv_stereo laid out as EuRoC / Kalibr bags are extracted: cam0/data/<ns>.jpg and
+    cam1/data/<ns>.jpg, the right camera's stamps 1 ms after the left's."""
+    for cam, side, lag in (("cam0", "left", 0), ("cam1", "right", 1_000_000)):
+        (folder / cam / "data").mkdir(parents=True)
+        for k in range(1, 12):
+            stamp = 1_700_000_000_000_000_000 + k * 100_000_000 + lag
+            os.symlink(shared / "boofcv_stereo" / f"{side}{k:02d}.jpg",
+                       folder / cam / "data" / f"{stamp}.jpg")
+    return folder
+
+
+def test_images_one_folder_down_are_named_with_the_camera(shared_data, tmp_path):
+    """images: cam0 where the images are in cam0/data/: the refusal said 'no images in the
+    folder' without the camera or where they are."""
+    data = _euroc(shared_data, tmp_path / "d")
+    rig = ("target: {type: chessboard, rows: 6, cols: 4, spacing: 0.03}\ncameras:\n"
+           "  cam0: {model: pinhole-radtan, images: %s}\n"
+           "  cam1: {model: pinhole-radtan, images: %s}\n")
+    (data / "rig.yaml").write_text(rig % ("cam0", "cam1/data"))
+    for command in (["check", str(data)], ["calibrate", str(data), "-o", str(tmp_path / "o")]):
+        res = CliRunner().invoke(main, [*command, "--processes", "1"])
+        assert res.exit_code == 2, res.output
+        line = res.output.strip().splitlines()[-1]
+        assert "camera cam0: no images" in line
+        assert "its sub-folder data/ holds 11 images (sub-folders are not searched)" in line
+    assert not (tmp_path / "o").exists()
+    (data / "rig.yaml").write_text(rig % ("cam0/data", "cam1/data"))
+    res, cal = _calibrate(data, tmp_path / "out")       # nanosecond stamps, 1 ms apart
+    assert res.exit_code == 0, res.output
+    assert cal["cameras"]["cam1"]["links"]["overlap"] == {"cam0": 11}

@@ -235,7 +235,24 @@ def _none_found(root: Path, pattern: str | None = None) -> str:
     first = f"; {len(skipped)} skipped, first {skipped[0][0]}: {skipped[0][1]}" if skipped else ""
     if pattern is not None:
         return f"no image ({', '.join(IMAGE_EXTENSIONS)}) named {pattern} in the folder{first}"
-    return f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder{first}"
+    return f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder{first}{_in_sub_folders(root)}"
+
+
+def _in_sub_folders(root: Path, most: int = 20) -> str:
+    """Where the images are when a folder has none of its own but a sub-folder has (EuRoC's
+    ``cam0/data/``): the first of its first ``most`` sub-folders holding images, for the
+    message; empty when none does."""
+    try:
+        subs = [e for e in sorted_entries(root) if e.is_dir()][:most]
+        for sub in subs:
+            count = sum(1 for e in sorted_entries(sub.path)
+                        if Path(e.name).suffix.lower() in IMAGE_EXTENSIONS)
+            if count:
+                return (f"; its sub-folder {sub.name}/ holds {count} images (sub-folders are "
+                        f"not searched): give that folder as the camera's images: in rig.yaml")
+    except OSError:
+        pass
+    return ""
 
 
 def _entry_problem(p: Path) -> str | None:

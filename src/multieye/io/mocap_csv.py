@@ -183,6 +183,17 @@ def _header_name(cell: str) -> tuple[str, str | None]:
     return name.lower(), unit
 
 
+def _no_header(header: list[str]) -> str:
+    """What to do when the first line of a .csv holds numbers only (no header)."""
+    try:
+        [float(c) for c in header]
+    except ValueError:
+        return ""
+    return ("; this line holds numbers, not a header: a .csv file is read by its header's "
+            "names; for rows of t x y z qx qy qz qw without a header give format: tum under "
+            "mocap (with values: [...] for another order)")
+
+
 def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, line):
     headers = [_header_name(c) for c in header]
     found = {}
@@ -193,7 +204,7 @@ def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, li
             have = ", ".join(repr(c.strip()) for c in header)
             problem = "no column" if not hits else "several columns"
             raise DatasetError(f"{problem} for {role} (looked for {' or '.join(wanted)}); "
-                               f"header has {have}", path=path, line=line)
+                               f"header has {have}{_no_header(header)}", path=path, line=line)
         found[role] = hits[0]
     if columns:
         unknown = set(columns) - set(DEFAULT_COLUMNS)
