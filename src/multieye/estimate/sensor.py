@@ -21,7 +21,8 @@ rig.yaml's ``mocap:`` may name the sensor (``sensor: motion-capture | robot``) o
 bounds (``noise_bounds: {rotation_deg, translation_m}``); otherwise the sensor is inferred
 from the pose source: poses matched to the images by name (one pose file per image, a table
 with an image column) or in their order (``match: order``) or a robot's frame names
-(``T_base_tool0``, ``flange``, ``tcp``, ...) are a robot; time-stamped trajectories (TUM, CSV, OptiTrack, Vicon, bags) motion capture.
+(``T_base_tool0``, ``flange``, ``tcp``, ...) are a robot; time-stamped trajectories (TUM,
+CSV, OptiTrack, Vicon, bags) motion capture.
 
 Synopsis
 --------
