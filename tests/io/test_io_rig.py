@@ -508,3 +508,12 @@ def test_a_rig_without_motion_capture_is_accepted_and_its_keys_checked(tmp_path)
     (tmp_path / "rig.yaml").write_text(target + cams + "  c: {poses: p.txt}\n")
     with pytest.raises(DatasetError, match="cameras.c.*'poses' has none"):
         load_rig(tmp_path)
+
+
+def test_a_folder_with_rig_yml_says_so(tmp_path):
+    (tmp_path / "rig.yml").write_text("cameras: {}\n")
+    with pytest.raises(DatasetError, match="no rig.yaml in the folder, but rig.yml: name it "
+                       "rig.yaml, or give the file itself"):
+        load_rig(tmp_path)
+    with pytest.raises(DatasetError, match="rig.yml:1: cameras: expected a mapping"):
+        load_rig(tmp_path / "rig.yml")

@@ -261,3 +261,20 @@ def test_line_blocks_read_in_blocks_of_bytes_give_what_line_by_line_gives(tmp_pa
     assert fast == _outcome(_line_blocks_one_by_one(path, size))
     if b"\xff" in body or b"\xe2\x82\n" in body:     # the error names its line
         assert fast[1] is not None and "not a UTF-8 text file" in fast[1]
+
+
+def test_a_header_row_says_to_make_it_a_comment(tmp_path):
+    """A poses file with a CSV-style header (t,x,y,z,qx,qy,qz,qw): the message named only
+    the cell 't'; a row with a bad cell below rows of numbers keeps naming that cell."""
+    path = tmp_path / "poses.csv"
+    path.write_text("t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n")
+    with pytest.raises(DatasetError, match=r"first row is not numbers but names, a header "
+                       r"\(t x y z qx qy qz qw\): TUM trajectory files hold numbers only; "
+                       "start the line with # to make it a comment") as info:
+        read_tum(path)
+    assert info.value.line == 1
+    path.write_text("# t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n")
+    assert len(read_tum(path).stamps) == 1
+    path.write_text("0,0,0,0,0,0,0,1\n1,0,0,0,0,0,0,one\n")
+    with pytest.raises(DatasetError, match="expected a number for qw, got 'one'"):
+        read_tum(path)
