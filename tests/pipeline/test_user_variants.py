@@ -88,10 +88,10 @@ def test_symmetric_board_with_rows_and_cols_either_way(shared_data, tmp_path, ta
     assert np.linalg.norm(t - [0.12004, 0.00090, -0.00091]) < 1e-3
 
 
-def _euroc(shared: Path, folder: Path) -> Path:
+def _euroc(shared: Path, folder: Path, lag_ns: int = 1_000_000) -> Path:
     """boofcv_stereo laid out as EuRoC / Kalibr bags are extracted: cam0/data/<ns>.jpg and
-    cam1/data/<ns>.jpg, the right camera's stamps 1 ms after the left's."""
-    for cam, side, lag in (("cam0", "left", 0), ("cam1", "right", 1_000_000)):
+    cam1/data/<ns>.jpg, the right camera's stamps ``lag_ns`` after the left's."""
+    for cam, side, lag in (("cam0", "left", 0), ("cam1", "right", lag_ns)):
         (folder / cam / "data").mkdir(parents=True)
         for k in range(1, 12):
             stamp = 1_700_000_000_000_000_000 + k * 100_000_000 + lag
@@ -146,3 +146,24 @@ def test_marker_grid_with_rows_and_cols_swapped_is_refused_naming_the_layout(sha
     (data / "rig.yaml").write_text(rig)
     res, _ = _calibrate(data, tmp_path / "out")
     assert res.exit_code == 0, res.output
+
+
+def test_stamps_a_little_apart_name_the_tolerance_that_pairs_them(shared_data, tmp_path):
+    """The right camera's stamps 29 ms after the left's (not hardware-stamped): the refusal
+    named the default tolerance only; now it says which sync_tolerance pairs them, and that
+    one calibrates the pair."""
+    data = _euroc(shared_data, tmp_path / "d", lag_ns=29_000_000)
+    rig = ("target: {type: chessboard, rows: 6, cols: 4, spacing: 0.03}\ncameras:\n"
+           "  cam0: {model: pinhole-radtan, images: cam0/data}\n"
+           "  cam1: {model: pinhole-radtan, images: cam1/data}\n")
+    (data / "rig.yaml").write_text(rig)
+    for command in (["check", str(data)], ["calibrate", str(data), "-o", str(tmp_path / "o")]):
+        res = CliRunner().invoke(main, [*command, "--processes", "1"])
+        assert res.exit_code == 2, res.output
+        assert res.output.strip().splitlines()[-1].endswith(
+            "the nearest images of two groups are 29 ms apart: if the cameras were triggered "
+            "together, sync_tolerance: 0.044 in rig.yaml makes such images one instant")
+    (data / "rig.yaml").write_text("sync_tolerance: 0.044\n" + rig)
+    res, cal = _calibrate(data, tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    assert cal["cameras"]["cam1"]["links"]["overlap"] == {"cam0": 11}
