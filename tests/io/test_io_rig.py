@@ -535,3 +535,10 @@ def test_hidden_files_beside_images_are_left_out_and_listed(tmp_path):
     assert [p.name for p in list_image_files(tmp_path / "n")] == ["left01.jpg"]
     assert [n for n, why in skipped_entries(tmp_path / "t") if "a hidden file" in why] == [
         "._1700000000.5.png"]
+
+
+def test_a_tab_indent_says_yaml_indents_with_spaces(tmp_path):
+    (tmp_path / "rig.yaml").write_text("mocap:\n\tfile: m.txt\ncameras: {c: {poses: p.txt}}\n")
+    with pytest.raises(DatasetError, match=r"rig.yaml:2: invalid YAML: found character '\\t' "
+                       r"that cannot start any token \(YAML indents with spaces, not tabs\)"):
+        load_rig(tmp_path)
