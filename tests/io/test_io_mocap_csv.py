@@ -429,3 +429,17 @@ def test_csv_without_a_header_says_to_read_it_as_tum(tmp_path):
     with pytest.raises(DatasetError) as info:
         read_mocap(MocapSpec(tmp_path / "h.csv", format="csv"))
     assert "not a header" not in str(info.value)
+
+
+def test_csv_stamps_without_a_unit_in_nanoseconds(tmp_path):
+    """EuRoC's ground truth names its stamp column '#timestamp' without a unit and writes
+    19-digit nanoseconds: read as nanoseconds (exact), as image names are."""
+    (tmp_path / "gt.csv").write_text(
+        "#timestamp,p_x,p_y,p_z,q_w,q_x,q_y,q_z\n"
+        "1403636579758555392,4.6,-1.8,0.8,1,0,0,0\n1403636579763555584,4.6,-1.8,0.8,1,0,0,0\n")
+    cols = {"tx": "p_x", "ty": "p_y", "tz": "p_z", "qw": "q_w", "qx": "q_x", "qy": "q_y",
+            "qz": "q_z"}
+    traj = read_pose_csv(tmp_path / "gt.csv", columns=cols)
+    assert traj.stamps_ns.tolist() == [1403636579758555392, 1403636579763555584]
+    (tmp_path / "s.csv").write_text("t,x,y,z,qx,qy,qz,qw\n12.5,0,0,0,0,0,0,1\n13,0,0,0,0,0,0,1\n")
+    assert read_pose_csv(tmp_path / "s.csv").stamps.tolist() == [12.5, 13.0]

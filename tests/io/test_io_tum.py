@@ -278,3 +278,16 @@ def test_a_header_row_says_to_make_it_a_comment(tmp_path):
     path.write_text("0,0,0,0,0,0,0,1\n1,0,0,0,0,0,0,one\n")
     with pytest.raises(DatasetError, match="expected a number for qw, got 'one'"):
         read_tum(path)
+
+
+def test_stamps_in_integer_nanoseconds_are_read_as_image_names_are(tmp_path):
+    """EuRoC/Kalibr-style stamps (19 digits of nanoseconds): every row was left out as an
+    absurd stamp of 1.7e18 s. 16 to 19 digits are nanoseconds, as in image names; 11 to 15
+    stay refused (ambiguous)."""
+    path = tmp_path / "m.txt"
+    path.write_text("1700000000000000000 0 0 0 0 0 0 1\n1700000000500000000,1,0,0,0,0,0,1\n")
+    traj = read_tum(path)
+    np.testing.assert_allclose(traj.stamps, [1.7e9, 1.7e9 + 0.5], rtol=0, atol=1e-6)
+    path.write_text("1700000000000 0 0 0 0 0 0 1\n1700000000500 1 0 0 0 0 0 1\n")
+    with pytest.raises(DatasetError, match="absurd time stamp"):
+        read_tum(path)

@@ -117,6 +117,14 @@ def split_fields(content: str) -> list[str]:
     return [f for f in _FIELD_SEP.split(content.strip()) if f]
 
 
+def is_nanoseconds(token: str) -> bool:
+    """Whether a time-stamp cell is integer nanoseconds: 16 to 19 digits, the rule of image
+    names (:func:`multieye.io.image_folder.stamp_from_name`; seconds have at most 10 digits
+    before the point, and 11 to 15 digits are ambiguous)."""
+    text = token.strip()
+    return text.isascii() and text.isdigit() and 16 <= len(text) <= 19
+
+
 def _is_float(token: str) -> bool:
     try:
         float(token)
