@@ -268,3 +268,17 @@ def test_a_rig_without_motion_capture_has_no_x_and_no_y_and_round_trips(tmp_path
                           Residuals(0.0, 0.0))
     with pytest.raises(InputError, match="Y and every camera's X are needed"):
         CalibrationRecord("eye-to-base", "joint", "cam0", np.eye(4), cams, Residuals(0.0, 0.0))
+
+
+def test_a_dataset_folder_given_for_the_output_says_so(tmp_path):
+    """multieye report / export DATASET (the folder with rig.yaml, not -o OUT): 'calibration
+    file not found' alone did not say which folder was meant."""
+    from multieye.io.calibration_json import read_calibration
+
+    (tmp_path / "rig.yaml").write_text("cameras: {}\n")
+    with pytest.raises(DatasetError, match="this folder holds rig.yaml, a dataset; give the "
+                       "output folder of multieye calibrate"):
+        read_calibration(tmp_path / "calibration.json")
+    (tmp_path / "rig.yaml").unlink()
+    with pytest.raises(DatasetError, match=r"calibration file not found$"):
+        read_calibration(tmp_path / "calibration.json")
