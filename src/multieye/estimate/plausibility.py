@@ -130,6 +130,9 @@ MIN_CLOCK_CHANGE_S = 0.005
 #: plausibility_real.md), and the smallest systematic part of the given lens's RMS, pixels.
 LENS_PIXEL_GAIN = 3.0
 MIN_LENS_EXCESS_PX = 0.2
+#: Median view RMS of a given lens from which a rig without motion capture frees it, pixels
+#: (a lens without its distortion leaves 1-2 px on boofcv_stereo; good corners 0.1-0.3 px).
+MIN_GIVEN_LENS_RMS_PX = 0.5
 #: Fewest-fold drop of the median reprojection RMS with which a freed lens that fits the loop
 #: clearly better is believed.
 _LENS_LOOP_PIXEL_GAIN = 1.5
@@ -344,7 +347,8 @@ def given_lens_findings(cameras: Sequence[CameraEvidence]) -> tuple[Finding, ...
     it, while the extrinsics come out wrong (boofcv_stereo's baseline 17 % long).  Doubted,
     cause ``intrinsics``, when the freed lens lowers the median reprojection RMS at least
     :data:`LENS_PIXEL_GAIN` times and by at least :data:`MIN_LENS_EXCESS_PX`; not freed
-    when the given lens leaves less than that (nothing systematic could show).
+    (0.1-1 CPU-s a camera, more for the wide models) when the given lens leaves less than
+    :data:`MIN_GIVEN_LENS_RMS_PX` in the median view.
 
     Parameters
     ----------
@@ -359,7 +363,7 @@ def given_lens_findings(cameras: Sequence[CameraEvidence]) -> tuple[Finding, ...
     out = []
     for cam in cameras:
         if (not cam.has_points or cam.intrinsics_estimated or cam.rms_px is None
-                or float(np.median(cam.rms_px)) < MIN_LENS_EXCESS_PX):
+                or float(np.median(cam.rms_px)) < MIN_GIVEN_LENS_RMS_PX):
             continue
         test = lf.lens_search(cam, h.MOCAP_NOISE)
         if test is None:
