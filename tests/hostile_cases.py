@@ -277,7 +277,7 @@ NAME_CASES = [
          _json_names(("../../victim", "@victim.txt"), "--format", "camera-info"), expect=(0,),
          check=_files_inside("export/camera_info", 2)),
     Case("export camera-info, names a/b and a_b (one file)", "names",
-         _json_names(("a/b", "a_b"), "--format", "camera-info"), named=("not unique",)),
+         _json_names(("a/b", "a_b"), "--format", "camera-info"), named=("'a/b'", "'a_b'")),
     Case("export camera-info, names Cam and cam (one file on macOS)", "names",
          _json_names(("Cam", "cam"), "--format", "camera-info"), named=("'Cam'", "'cam'")),
     Case("export camera-info, 5000-character name", "names",

@@ -77,7 +77,7 @@ def test_small_rotations_over_10_degrees_warn_by_condition():
     diag = motion_diagnostics(A, B)
     assert diag.cameras[0].rotation_range_deg > 10
     (w,) = diag.warnings
-    assert w.startswith("cam0: the rotations are small")
+    assert w.startswith("cam0: the rotations are small about some axis (RMS ")
     assert diag.cameras[0].translation_condition > 100
 
 

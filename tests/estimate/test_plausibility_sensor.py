@@ -31,6 +31,8 @@ from plausibility_cases import _board, _evidence, _scaled, _stream, _with_intrin
     (MocapSpec(Path("m.csv"), format="optitrack"), "motion-capture", "optitrack"),
     (MocapSpec(Path("{stem}.json"), format="pose-files"), "robot", "matched to the images"),
     (MocapSpec(Path("poses.csv"), format="pose-table", match="image"), "robot", "by name"),
+    (MocapSpec(Path("poses.txt"), format="pose-table", match="order"), "robot",
+     "matched to the images in their order (match: order)"),
     (MocapSpec(Path("m.txt"), pose="T_world_body", frames=("base", "tool0")), "robot",
      "T_base_tool0"),
     (MocapSpec(Path("m.txt"), frames=("vicon", "board")), "motion-capture", "tum"),

@@ -208,3 +208,21 @@ def test_motion_capture_that_says_nothing_gives_the_co_observation_problem_back(
         dR = T_ref_cam[j, :3, :3] @ rig.T_ref_cam[j, :3, :3].T
         e = np.concatenate([log_so3(dR), T_ref_cam[j, :3, 3] - rig.T_ref_cam[j, :3, 3]])
         assert float(np.sqrt(e @ np.linalg.solve(rig.covariance[j], e))) < 0.01, (j, e)
+
+
+def test_pairing_hint_names_what_would_pair_unlinked_groups():
+    """sync: time: the gap between the groups' nearest images, when a tolerance of 1.5 times
+    it stays under half the cameras' interval; sync: name: the numbers that agree."""
+    from multieye.estimate.covisibility import pairing_hint
+
+    left = np.arange(10) * 0.1
+    assert pairing_hint([[0], [1]], [left, left + 0.029]) == (
+        "; the nearest images of two groups are 29 ms apart: if the cameras were triggered "
+        "together, sync_tolerance: 0.044 in rig.yaml makes such images one instant")
+    assert pairing_hint([[0], [1]], [left, left + 0.04]) == ""       # 0.06: over half of 0.1
+    assert pairing_hint([[0], [1]], [left, left + 5.0]) == ""
+    stems = [["left01", "left02"], ["right02", "right03"]]
+    assert pairing_hint([[0], [1]], stems=stems, sync="name") == (
+        "; the names differ but the numbers in them agree (left02 with right02): sync: number "
+        "pairs images by the last number in their names")
+    assert pairing_hint([[0], [1]], stems=[["a1"], ["b2"]], sync="name") == ""

@@ -105,6 +105,29 @@ def test_symmetric_chessboard_warns_and_keeps_x_to_the_right():
         assert np.linalg.norm(det.image_points - expected, axis=1).max() < 0.5
 
 
+@pytest.mark.parametrize("board", [Chessboard(rows=6, cols=8, spacing=0.04),
+                                   Chessboard(rows=8, cols=6, spacing=0.04)])
+def test_symmetric_chessboard_turned_a_quarter_keeps_one_order(board):
+    """A half-turn symmetric board whose x axis is near vertical in the image (a portrait
+    board, or rows and cols swapped in rig.yaml) turned by 88 and by 92 degrees: two
+    cameras of a stereo pair see it so. Both views must take the same corner first, else
+    the rig's cameras disagree by a half turn of the board (a garbage stereo calibration)."""
+    camera = Intrinsics(K=[[600, 0, 399.5], [0, 600, 299.5], [0, 0, 1]], width=800, height=600)
+    chosen = []
+    for degrees in (88.0, 92.0, -88.0, -92.0):
+        turn = np.eye(4)
+        turn[:3, :3] = cv2.Rodrigues(np.array([0.0, 0.0, np.radians(degrees)]))[0]
+        T = turn @ facing_pose(board, [0.15, -0.1, 0.0], 0.6)
+        det = detect(render(board, camera, T, rng=np.random.default_rng(5)), board)
+        assert det is not None and len(det.warnings) == 1
+        ids = np.arange(board.n_points)
+        as_is = np.linalg.norm(det.image_points - true_pixels(board, camera, T, ids), axis=1)
+        turned = np.linalg.norm(det.image_points - true_pixels(board, camera, T, ids[::-1]), axis=1)
+        assert min(as_is.max(), turned.max()) < 0.5
+        chosen.append(bool(as_is.max() < 0.5))
+    assert chosen[0] == chosen[1] and chosen[2] == chosen[3]
+
+
 def test_light_circles_on_dark_are_found():
     board = AsymmetricCircleGrid(rows=11, cols=7, spacing=0.03)
     T = facing_pose(board, [0.25, 0.2, 0.05], 0.45)

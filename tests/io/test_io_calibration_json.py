@@ -308,3 +308,17 @@ def test_a_lens_curve_round_trips_and_files_without_it_still_read(tmp_path):
     data["cameras"]["cam1"]["intrinsics"]["lens_curve"] = {"radii_px": [1.0]}
     with pytest.raises(DatasetError, match="intrinsics.lens_curve must be"):
         read_calibration(_write_json(tmp_path / "bad.json", data))
+
+
+def test_a_dataset_folder_given_for_the_output_says_so(tmp_path):
+    """multieye report / export DATASET (the folder with rig.yaml, not -o OUT): 'calibration
+    file not found' alone did not say which folder was meant."""
+    from multieye.io.calibration_json import read_calibration
+
+    (tmp_path / "rig.yaml").write_text("cameras: {}\n")
+    with pytest.raises(DatasetError, match="this folder holds rig.yaml, a dataset; give the "
+                       "output folder of multieye calibrate"):
+        read_calibration(tmp_path / "calibration.json")
+    (tmp_path / "rig.yaml").unlink()
+    with pytest.raises(DatasetError, match=r"calibration file not found$"):
+        read_calibration(tmp_path / "calibration.json")

@@ -287,9 +287,13 @@ def test_read_mocap_dispatches_optitrack_and_rejects_missing_topic(tmp_path, pos
 def test_read_mocap_passes_duplicates_to_csv(tmp_path):
     (tmp_path / "d.csv").write_text("t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n0,1,0,0,0,0,0,1\n"
                                     "1,2,0,0,0,0,0,1\n")
-    with pytest.raises(DatasetError, match="duplicate time stamp") as info:
+    with pytest.raises(DatasetError, match="duplicate time stamp.*; give duplicates: drop "
+                       "under mocap in rig.yaml") as info:
         read_mocap(MocapSpec(tmp_path / "d.csv", format="csv"))
     assert info.value.line == 3
+    (tmp_path / "d.txt").write_text("0 0 0 0 0 0 0 1\n0 1 0 0 0 0 0 1\n")
+    with pytest.raises(DatasetError, match="; give duplicates: drop under mocap"):
+        read_mocap(MocapSpec(tmp_path / "d.txt", format="tum"))
     traj = read_mocap(MocapSpec(tmp_path / "d.csv", format="csv", duplicates="drop"))
     assert traj.T[:, 0, 3].tolist() == [0.0, 2.0]
 
@@ -408,3 +412,34 @@ def test_vicon_segments_after_a_long_section(tmp_path, rng):
     traj = read_vicon_csv(path, "Marker")
     np.testing.assert_allclose(traj.stamps, frames / 100.0)
     np.testing.assert_allclose(traj.T[:, :3, 3], T[:, :3, 3], atol=1e-9)
+
+
+def test_csv_without_a_header_says_to_read_it_as_tum(tmp_path):
+    """ETH's hand_eye_calibration streams: .csv files of t, x, y, z, qx, qy, qz, qw without a
+    header. The message said only which names it looked for in the 'header' of numbers."""
+    (tmp_path / "v.csv").write_text("1491754390.48, 0.33, -1.01, 0.40, 0.0, 0.0, 0.0, 1.0\n"
+                                    "1491754390.49, 0.33, -1.01, 0.40, 0.0, 0.0, 0.0, 1.0\n")
+    with pytest.raises(DatasetError, match="this line holds numbers, not a header.*give "
+                       "format: tum under mocap") as info:
+        read_mocap(MocapSpec(tmp_path / "v.csv", format="csv"))
+    assert info.value.line == 1
+    traj = read_mocap(MocapSpec(tmp_path / "v.csv", format="tum"))
+    assert traj.stamps.tolist() == [1491754390.48, 1491754390.49]
+    (tmp_path / "h.csv").write_text("time,x,y,z,qx,qy,qz\n0,0,0,0,0,0,0\n")
+    with pytest.raises(DatasetError) as info:
+        read_mocap(MocapSpec(tmp_path / "h.csv", format="csv"))
+    assert "not a header" not in str(info.value)
+
+
+def test_csv_stamps_without_a_unit_in_nanoseconds(tmp_path):
+    """EuRoC's ground truth names its stamp column '#timestamp' without a unit and writes
+    19-digit nanoseconds: read as nanoseconds (exact), as image names are."""
+    (tmp_path / "gt.csv").write_text(
+        "#timestamp,p_x,p_y,p_z,q_w,q_x,q_y,q_z\n"
+        "1403636579758555392,4.6,-1.8,0.8,1,0,0,0\n1403636579763555584,4.6,-1.8,0.8,1,0,0,0\n")
+    cols = {"tx": "p_x", "ty": "p_y", "tz": "p_z", "qw": "q_w", "qx": "q_x", "qy": "q_y",
+            "qz": "q_z"}
+    traj = read_pose_csv(tmp_path / "gt.csv", columns=cols)
+    assert traj.stamps_ns.tolist() == [1403636579758555392, 1403636579763555584]
+    (tmp_path / "s.csv").write_text("t,x,y,z,qx,qy,qz,qw\n12.5,0,0,0,0,0,0,1\n13,0,0,0,0,0,0,1\n")
+    assert read_pose_csv(tmp_path / "s.csv").stamps.tolist() == [12.5, 13.0]

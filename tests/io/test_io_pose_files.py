@@ -123,6 +123,8 @@ def test_rotation_and_values_names_are_checked():
     ("a.txt", "1 2 3 4 5 6 7\n", PoseFormat(rotation="euler-xyz-deg"),
      "expected 6 numbers \\(x y z a1 a2 a3; rotation euler-xyz-deg\\), got 7"),
     ("a.txt", "1 2 3 0 0 0 2\n", PoseFormat(), "quaternion \\(qx qy qz qw\\) must have unit norm"),
+    ("a.txt", "0.7 0.1 0.1 0.7 0.9 0.8 1.4\n", PoseFormat(rotation="quaternion-wxyz"),
+     "unit norm.* with the numbers read as x y z qw qx qy qz \\(values: in rig.yaml orders"),
     ("a.txt", "1 2 x 0 0 0 1\n", PoseFormat(), "expected numbers only, got 'x'"),
     ("a.txt", "1 2 nan 0 0 0 1\n", PoseFormat(), "expected finite numbers"),
     ("a.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n0 0 0 2\n", PoseFormat(), "last row is 0 0 0 1"),

@@ -378,7 +378,9 @@ def test_entries_are_files_as_path_is_file_says(tmp_path):
     assert {e.name: is_file_entry(e) for e in entries} == {
         p.name: p.is_file() for p in tmp_path.iterdir()}
     assert [p.name for _, _, p in list_images(tmp_path)] == ["1.png", "2.png"]
-    (tmp_path / "..png").write_bytes(b"")       # ".png" its suffix, as Path says: not a stamp
+    (tmp_path / "..png").write_bytes(b"")       # ".png" its suffix, as Path says: hidden
+    assert [p.name for _, _, p in list_images(tmp_path)] == ["1.png", "2.png"]
+    (tmp_path / "x.png").write_bytes(b"")
     with pytest.raises(DatasetError, match="expected a time stamp"):
         list_images(tmp_path)
 
@@ -507,4 +509,36 @@ def test_a_rig_without_motion_capture_is_accepted_and_its_keys_checked(tmp_path)
     (tmp_path / "p.txt").write_text("0 0 0 1 0 0 0 1\n")
     (tmp_path / "rig.yaml").write_text(target + cams + "  c: {poses: p.txt}\n")
     with pytest.raises(DatasetError, match="cameras.c.*'poses' has none"):
+        load_rig(tmp_path)
+
+
+def test_a_folder_with_rig_yml_says_so(tmp_path):
+    (tmp_path / "rig.yml").write_text("cameras: {}\n")
+    with pytest.raises(DatasetError, match="no rig.yaml in the folder, but rig.yml: name it "
+                       "rig.yaml, or give the file itself"):
+        load_rig(tmp_path)
+    with pytest.raises(DatasetError, match="rig.yml:1: cameras: expected a mapping"):
+        load_rig(tmp_path / "rig.yml")
+
+
+def test_hidden_files_beside_images_are_left_out_and_listed(tmp_path):
+    """macOS writes ._left01.jpg beside left01.jpg on copied volumes: it stopped the run as a
+    second image numbered 1 (sync: number) or as a name that is not a time stamp."""
+    from multieye.io.image_folder import list_image_files, skipped_entries
+
+    (tmp_path / "t").mkdir()
+    (tmp_path / "n").mkdir()
+    for name in ("t/1700000000.5.png", "t/._1700000000.5.png", "n/left01.jpg", "n/._left01.jpg"):
+        (tmp_path / name).write_bytes(b"x")
+    assert [p.name for _, _, p in list_images(tmp_path / "t")] == ["1700000000.5.png"]
+    assert [p.name for _, _, p in list_images(tmp_path / "n", sync="number")] == ["left01.jpg"]
+    assert [p.name for p in list_image_files(tmp_path / "n")] == ["left01.jpg"]
+    assert [n for n, why in skipped_entries(tmp_path / "t") if "a hidden file" in why] == [
+        "._1700000000.5.png"]
+
+
+def test_a_tab_indent_says_yaml_indents_with_spaces(tmp_path):
+    (tmp_path / "rig.yaml").write_text("mocap:\n\tfile: m.txt\ncameras: {c: {poses: p.txt}}\n")
+    with pytest.raises(DatasetError, match=r"rig.yaml:2: invalid YAML: found character '\\t' "
+                       r"that cannot start any token \(YAML indents with spaces, not tabs\)"):
         load_rig(tmp_path)

@@ -261,3 +261,34 @@ def test_line_blocks_read_in_blocks_of_bytes_give_what_line_by_line_gives(tmp_pa
     assert fast == _outcome(_line_blocks_one_by_one(path, size))
     if b"\xff" in body or b"\xe2\x82\n" in body:     # the error names its line
         assert fast[1] is not None and "not a UTF-8 text file" in fast[1]
+
+
+def test_a_header_row_says_to_make_it_a_comment(tmp_path):
+    """A poses file with a CSV-style header (t,x,y,z,qx,qy,qz,qw): the message named only
+    the cell 't'; a row with a bad cell below rows of numbers keeps naming that cell."""
+    path = tmp_path / "poses.csv"
+    path.write_text("t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n")
+    with pytest.raises(DatasetError, match=r"first row is not numbers but names, a header "
+                       r"\(t x y z qx qy qz qw\): TUM trajectory files hold numbers only; "
+                       "start the line with # to make it a comment") as info:
+        read_tum(path)
+    assert info.value.line == 1
+    path.write_text("# t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n")
+    assert len(read_tum(path).stamps) == 1
+    path.write_text("0,0,0,0,0,0,0,1\n1,0,0,0,0,0,0,one\n")
+    with pytest.raises(DatasetError, match="expected a number for qw, got 'one'"):
+        read_tum(path)
+
+
+def test_stamps_in_integer_nanoseconds_are_read_as_image_names_are(tmp_path):
+    """EuRoC/Kalibr-style stamps (19 digits of nanoseconds): every row was left out as an
+    absurd stamp of 1.7e18 s. 16 to 19 digits are nanoseconds, as in image names; 11 to 15
+    stay refused (ambiguous)."""
+    path = tmp_path / "m.txt"
+    path.write_text("1700000000000000000 0 0 0 0 0 0 1\n1700000000500000000,1,0,0,0,0,0,1\n")
+    traj = read_tum(path)
+    np.testing.assert_allclose(traj.stamps, [1.7e9, 1.7e9 + 0.5], rtol=0, atol=1e-6)
+    path.write_text("1700000000000 0 0 0 0 0 0 1\n1700000000500 1 0 0 0 0 0 1\n")
+    with pytest.raises(DatasetError, match="no usable pose: all 2 rows left out; line 1: absurd "
+                       "time stamp.*; every stamp in milliseconds or microseconds"):
+        read_tum(path)

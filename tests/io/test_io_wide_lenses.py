@@ -113,6 +113,25 @@ def test_boofcv_fisheye_file_is_the_unified_model_it_states(shared_data):
     assert left.K[0, 0] == 524.614138540519 and left.K[1, 2] == 247.40160777589855
 
 
+def test_boofcv_stereo_file_gives_the_camera_chosen(shared_data, tmp_path):
+    """BoofCV's stereo calibration as published (model: stereo_camera, left, right,
+    rightToLeft): each camera by `camera` or by the rig camera's name; none chosen is one
+    line saying how to choose (it was refused as 'not an intrinsics file')."""
+    path = shared_data / "boofcv_stereo" / "stereo.yaml"
+    left, right = read_intrinsics(path, "left"), read_intrinsics(path, "right")
+    assert left.K[0, 0] == 524.6141554796689 and right.K[0, 0] == 526.437309515818
+    np.testing.assert_array_equal(left.dist, [-0.3625365821238732, 0.17532754393079863, 0, 0])
+    assert (right.width, right.height) == (640, 480)
+    assert read_intrinsics(path, prefer="right").K[0, 0] == right.K[0, 0]
+    with pytest.raises(DatasetError, match=r"holds two cameras, left and right; choose one "
+                       r"with intrinsics: \{file: stereo.yaml, camera: left\}") as info:
+        read_intrinsics(path, prefer="cam0")
+    assert info.value.line == 18
+    (tmp_path / "s.yaml").write_text(path.read_text().replace("    t1: 0.0", "    t9: 0.0", 1))
+    with pytest.raises(DatasetError, match="left.radial_tangential.t9"):
+        read_intrinsics(tmp_path / "s.yaml", "left")
+
+
 BOOFCV = """pinhole:
   fx: 400.0
   fy: 401.0

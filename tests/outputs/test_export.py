@@ -354,7 +354,7 @@ def test_frames_overridden_by_parent_and_child_frame(result):
 
 @pytest.mark.parametrize("parent, child, message", [
     ("", None, "non-empty"), ("a b", None, "white space"), ("/world", None, "leading"),
-    (None, "cam", "must contain {camera}"), ("cam0_link", None, "not unique")])
+    (None, "cam", "must contain {camera}"), ("cam0_link", None, "give another --parent-frame")])
 def test_bad_frame_names_are_refused_before_writing(result, tmp_path, parent, child, message):
     out, _, _ = result
     with pytest.raises(InputError, match=message):
@@ -390,14 +390,22 @@ def test_camera_names_become_ros_frame_names():
     assert ros_name("0") == "cam_0" and ros_name("ü") == "cam__"
 
 
-def test_cameras_whose_names_clean_to_one_frame_are_refused(result, tmp_path):
+def test_cameras_whose_names_clean_to_one_frame_are_refused_where_frames_are_named(result,
+                                                                                 tmp_path):
+    """'front left' and 'front_left' are both the ROS frame front_left_link: urdf and tf-static are
+    refused naming both cameras and what to do; the formats that name no camera frame are
+    written (every format was refused, with the list of frames only)."""
     out, rec, _ = result
     data = json.loads((out / "calibration.json").read_text())
     data["cameras"]["front_left"] = data["cameras"]["cam0"]
     (tmp_path / "calibration.json").write_text(json.dumps(data))
-    with pytest.raises(InputError, match="not unique"):
-        export(tmp_path, "urdf")
-    assert not (tmp_path / "export" / "cameras.urdf").exists()
+    for fmt in ("urdf", "tf-static"):
+        with pytest.raises(InputError, match=r"cameras 'front left' and 'front_left' are both the "
+                           r"frame front_left_link .*rename one in rig.yaml"):
+            export(tmp_path, fmt)
+    assert not (tmp_path / "export").exists()
+    for fmt in ("json", "opencv"):
+        assert export(tmp_path, fmt)
 
 
 #: Kalibr's camchain keys (kalibr_common.ConfigReader.CameraParameters / CameraChainParameters)

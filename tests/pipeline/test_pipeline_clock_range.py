@@ -54,3 +54,17 @@ def test_cli_option(late_mocap, tmp_path):
     assert not (tmp_path / "bad").exists()
     with pytest.raises(multieye.InputError, match="max_time_offset must be a positive"):
         calibrate(late_mocap, time_offset="auto", max_time_offset=float("nan"))
+
+
+def test_an_edge_reached_by_the_correlation_only_says_where_it_peaked(late_mocap, monkeypatch):
+    """ETH's 5_falcon camera e: refined to +0.434 s, refused as 'at the edge' of +-0.5 s
+    because the correlation peaked at the edge; the line said only +0.434."""
+    from multieye.estimate.clock import ClockOffset
+    from multieye.pipeline import clock_offsets
+
+    found = ClockOffset(offset_s=0.434, std_s=0.01, score=0.9, coarse_offset_s=0.5,
+                        method="loop", n_used=50, rot_rms_deg=1.0, trans_rms_m=0.01)
+    monkeypatch.setattr(clock_offsets, "estimate_offset", lambda *a, **k: found)
+    with pytest.raises(multieye.CalibrationError, match=r"offset \(\+0\.434 s; the angular "
+                       r"speeds correlate best at \+0\.500 s\) is at the edge"):
+        calibrate(late_mocap, time_offset="auto", refine=False)

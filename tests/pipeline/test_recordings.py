@@ -42,13 +42,14 @@ def _empty_images(folder: Path, *names: str) -> None:
 
 @pytest.mark.parametrize("sync, names, message", [
     ("number", ["left01.jpg", "left1.png", "right01.jpg"],
-     r"left1\.png: same number 1 as left01\.jpg"),
+     r"left1\.png: camera left: same number 1 as left01\.jpg"),
     ("order", ["left01.jpg", "left02.jpg", "right01.jpg"],
      "sync: order pairs the k-th image of each camera, but the cameras have different counts "
      r"of images \(left 2, right 1\)"),
-    ("name", ["left01.jpg", "left01.png", "right01.jpg"], "left01.png: same name left01 as "
+    ("name", ["left01.jpg", "left01.png", "right01.jpg"], "left01.png: camera left: same name "
+     "left01 as "
      "left01.jpg"),
-    ("number", ["right01.jpg"], "no image .* named left\\*"),
+    ("number", ["right01.jpg"], "camera left: no image .* named left\\*"),
 ])
 @pytest.mark.parametrize("command", ["calibrate", "check"])
 def test_bad_layouts_exit_2_in_one_line_and_write_nothing(tmp_path, sync, names, message,

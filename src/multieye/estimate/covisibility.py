@@ -32,6 +32,7 @@ Synopsis
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -42,6 +43,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DisconnectedError, InputError
 
 __all__ = ["Covisibility", "covisibility", "spanning_tree", "link_groups", "unlinked_message",
+           "pairing_hint",
            "relative_pose", "RigStart", "initial_rig"]
 
 F64 = NDArray[np.float64]
@@ -180,6 +182,56 @@ def unlinked_message(groups: Sequence[Sequence[str]], tolerance: float | None = 
             f"images taken at the same instants ({how}), motion capture (mocap: in "
             "rig.yaml), or several boards standing still (targets: in rig.yaml) that the "
             "cameras see while the rig moves")
+
+
+def pairing_hint(groups: Sequence[Sequence[int]], stamps: Sequence | None = None,
+                 stems: Sequence[Sequence[str]] | None = None, sync: str = "time") -> str:
+    """What would make the images of unlinked camera groups one instant, for
+    :func:`unlinked_message`: ``"; ..."`` or ``""``.
+
+    Parameters
+    ----------
+    groups : sequence of sequence of int
+        The camera groups (:func:`link_groups`), camera indices.
+    stamps : sequence of array_like, optional
+        ``sync: time``: each camera's image stamps, seconds (its time offset added). When the
+        nearest images of the first group and the others are under a second apart and a
+        tolerance of 1.5 times that gap stays under half of every camera's shortest interval
+        between images, that ``sync_tolerance`` is suggested (cameras triggered together with
+        stamps a little apart).
+    stems : sequence of sequence of str, optional
+        ``sync: name``: each camera's image names without extension; when the last numbers
+        in them agree across the groups, ``sync: number`` is suggested (``left01``,
+        ``right01``).
+    sync : str
+        rig.yaml's ``sync``.
+    """
+    first, rest = list(groups[0]), [j for g in groups[1:] for j in g]
+    if sync == "time" and stamps is not None:
+        a = np.sort(np.concatenate([np.asarray(stamps[j], np.float64) for j in first]))
+        b = np.concatenate([np.asarray(stamps[j], np.float64) for j in rest])
+        if len(a) and len(b):
+            k = np.searchsorted(a, b)               # the first of a at or after each of b
+            lo, hi = a[np.clip(k - 1, 0, len(a) - 1)], a[np.clip(k, 0, len(a) - 1)]
+            gap = float(np.min(np.minimum(np.abs(b - lo), np.abs(b - hi))))
+            steps = [np.diff(np.sort(np.asarray(t, np.float64))) for t in stamps if len(t) > 1]
+            shortest = min((float(d[d > 0].min()) for d in steps if np.any(d > 0)), default=np.inf)
+            suggest = float(np.ceil(gap * 1.5 * 1e3) / 1e3)
+            if 0 < gap < 1.0 and suggest < shortest / 2:
+                return (f"; the nearest images of two groups are {gap * 1e3:.3g} ms apart: if "
+                        f"the cameras were triggered together, sync_tolerance: {suggest:g} in "
+                        "rig.yaml makes such images one instant")
+    if sync == "name" and stems is not None:
+        def numbers(cams):
+            found = ((re.findall(r"\d+", s), s) for j in cams for s in stems[j])
+            return {int(n[-1]): s for n, s in found if n}
+        mine, others = numbers(first), numbers(rest)
+        both = sorted(set(mine) & set(others))
+        if both:
+            return (f"; the names differ but the numbers in them agree ({mine[both[0]]} with "
+                    f"{others[both[0]]}): sync: number pairs images by the last number in "
+                    "their names")
+    return ""
 
 
 def relative_pose(T_a_target, T_b_target) -> F64:

@@ -244,7 +244,7 @@ def motion_diagnostics(A, B=None, options: MotionOptions = MotionOptions(),
                 + _advice(name, opts, "rotate {thing} about a second axis"))
         elif max(cam.rotation_condition, cam.translation_condition) > max_condition:
             warnings.append(
-                f"{name}: the rotations are small (RMS {s0:.1f}, {s1:.1f}, "
+                f"{name}: the rotations are small about some axis (RMS {s0:.1f}, {s1:.1f}, "
                 f"{cam.rotation_spread_deg[2]:.1f} deg about the principal axes; conditions "
                 f"{cam.rotation_condition:.3g} rotation, {cam.translation_condition:.3g} "
                 f"translation > {max_condition:g}), so its extrinsic is poorly determined; "

@@ -20,8 +20,9 @@ reasoning):
 rig.yaml's ``mocap:`` may name the sensor (``sensor: motion-capture | robot``) or give its own
 bounds (``noise_bounds: {rotation_deg, translation_m}``); otherwise the sensor is inferred
 from the pose source: poses matched to the images by name (one pose file per image, a table
-with an image column) or a robot's frame names (``T_base_tool0``, ``flange``, ``tcp``, ...)
-are a robot; time-stamped trajectories (TUM, CSV, OptiTrack, Vicon, bags) motion capture.
+with an image column) or in their order (``match: order``) or a robot's frame names
+(``T_base_tool0``, ``flange``, ``tcp``, ...) are a robot; time-stamped trajectories (TUM,
+CSV, OptiTrack, Vicon, bags) motion capture.
 
 Synopsis
 --------
@@ -97,7 +98,8 @@ def sensor_bounds(spec: MocapSpec | None) -> SensorBounds:
     elif spec.sensor is not None:
         kind, why = spec.sensor, f"sensor: {spec.sensor} in rig.yaml"
     elif spec.by_name:
-        kind, why = "robot", ("inferred from the poses matched to the images by name; say "
+        how = "in their order (match: order)" if spec.match == "order" else "by name"
+        kind, why = "robot", (f"inferred from the poses matched to the images {how}; say "
                               "sensor: motion-capture under mocap if they are not a robot's")
     elif spec.frames is not None and any(_robot_frame(f) for f in spec.frames):
         kind, why = "robot", (f"inferred from the frame names T_{spec.frames[0]}_"

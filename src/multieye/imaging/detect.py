@@ -315,7 +315,7 @@ def _canonical(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detect
     Candidate orders are the board's symmetries applied to the detected order; kept are
     those with the canonical handedness, then (chessboard) the one whose colours fit the
     image best; ties left by the board's symmetry are broken by the direction of the x
-    axis in the image and reported.
+    axis in the image (towards its lower right) and reported.
     """
     orders = _orders(target)
     proper_id = np.linalg.det(_affine(orders, detected)) > 0
@@ -334,15 +334,14 @@ def _canonical(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detect
         kept = [k for k in kept if np.array_equal(orders.black[k], best)]
     sources = [orders.sources[k][0] for k in kept]
     if len(sources) > 1:
-        right = []
-        for src in sources:
-            x_dir = _affine(orders, detected[src])[:, 0]
-            right.append(x_dir[0] / np.linalg.norm(x_dir))
-        sources = [sources[int(np.argmax(right))]]
+        # x towards (1, 1): upright and quarter-turned boards are both far from the tie
+        x_dirs = [_affine(orders, detected[src])[:, 0] for src in sources]
+        sources = [sources[int(np.argmax([(x[0] + x[1]) / np.linalg.norm(x) for x in x_dirs]))]]
         warnings = (f"{target.kind} {target.rows}x{target.cols} looks the same after a turn, so its "
-                    "point order cannot be told from the image; the order whose x axis points right "
-                    "in the image was taken (use a board without that symmetry, e.g. a chessboard "
-                    "with rows + cols odd, to make poses comparable across images)",)
+                    "point order cannot be told from the image; the order whose x axis points "
+                    "right or down (towards the image's lower right) was taken (use a board "
+                    "without that symmetry, e.g. a chessboard with rows + cols odd, to make poses "
+                    "comparable across images)",)
     return Detection(ids=np.arange(len(orders.object_points)), image_points=detected[sources[0]],
                      object_points=orders.object_points.copy(), warnings=warnings,
                      circle_diameter=getattr(target, "diameter", None))

@@ -69,13 +69,25 @@ def decode_gray(data: bytes, reduce: int = 1) -> tuple[np.ndarray | None, str | 
             4: cv2.IMREAD_REDUCED_GRAYSCALE_4, 8: cv2.IMREAD_REDUCED_GRAYSCALE_8}[reduce]
     try:
         image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8),
-                             flag | cv2.IMREAD_IGNORE_ORIENTATION)
+                             flag | cv2.IMREAD_IGNORE_ORIENTATION | cv2.IMREAD_ANYDEPTH)
     except cv2.error as exc:
         lines = str(exc).strip().splitlines()
         return None, f"unreadable file: OpenCV cannot decode it ({lines[-1] if lines else exc})"
     if image is None or image.size == 0:
         return None, "unreadable file: not an image OpenCV can decode (truncated or corrupt?)"
+    if image.dtype != np.uint8:     # 16-bit (10 or 12 bits of a machine-vision camera), float
+        image = _to_8_bits(image)
     return image, None
+
+
+def _to_8_bits(image: np.ndarray) -> np.ndarray:
+    """A 16-bit or float gray image scaled to 8 bits by its brightest pixel, as a bag's
+    16-bit images are (:func:`multieye.imaging.detect.to_gray`): 10 or 12 bits stored in 16
+    keep their contrast (OpenCV's 8-bit decoding keeps the top 8 of the 16 bits: 4 grey
+    levels of a 10-bit image)."""
+    img = np.nan_to_num(image.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    top = float(img.max())
+    return np.clip(np.rint(img * (255.0 / top if top > 0 else 1.0)), 0, 255).astype(np.uint8)
 
 
 def read_gray(path) -> tuple[np.ndarray | None, str | None, tuple[str, ...]]:

@@ -13,8 +13,11 @@ Layout, as BoofCV writes it (one camera per file)::
 ``k1 k2 p1 p2`` (at most two radial) or ``k1 k2 p1 p2 k3``.  ``omnidirectional_universal``
 is Mei and Rives' unified model: ``xi`` is ``mirror_offset`` and the distortion of the
 normalised point ``k1 k2 p1 p2`` (at most two radial coefficients;
-:mod:`multieye.core.lens_wide`).  BoofCV's other models (``kannala_brandt``, stereo files)
-are refused with a message; every key is read or refused.
+:mod:`multieye.core.lens_wide`).  BoofCV's stereo file (``model: stereo_camera``, its
+``left`` and ``right`` cameras in the layout above and ``rightToLeft``, the pair's pose,
+ignored like every pose in an intrinsics file) gives the camera chosen by name
+(:func:`intrinsics_from_boofcv_stereo`).  BoofCV's ``kannala_brandt`` is refused with a
+message; every key is read or refused.
 """
 
 from __future__ import annotations
@@ -23,12 +26,13 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from multieye.core.errors import InputError
+from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, check_lens_bounds
 from multieye.io.intrinsics_mapping import refuse_unknown
 from multieye.io.yamlfile import YamlDocument, shown
 
-__all__ = ["is_boofcv", "intrinsics_from_boofcv", "BOOFCV_MODELS"]
+__all__ = ["is_boofcv", "is_boofcv_stereo", "intrinsics_from_boofcv",
+           "intrinsics_from_boofcv_stereo", "BOOFCV_MODELS"]
 
 #: BoofCV's camera models read, and the Intrinsics model of each.
 BOOFCV_MODELS = {"pinhole_radial_tangential": "pinhole", "omnidirectional_universal": "unified"}
@@ -36,12 +40,46 @@ _TOP = ("pinhole", "model", "radial_tangential", "mirror_offset", "version")
 _PINHOLE = ("fx", "fy", "cx", "cy", "width", "height", "skew")
 _RADTAN = ("radial", "t1", "t2")
 _OTHER_MODELS = ("kannala_brandt", "stereo_camera")
+_STEREO = ("model", "left", "right", "rightToLeft", "version")
 
 
 def is_boofcv(data) -> bool:
     """A BoofCV camera file: a ``pinhole`` mapping and a ``model`` name of BoofCV's."""
     return (isinstance(data, Mapping) and isinstance(data.get("pinhole"), Mapping)
             and data.get("model") in (*BOOFCV_MODELS, *_OTHER_MODELS))
+
+
+def is_boofcv_stereo(data) -> bool:
+    """A BoofCV stereo file: ``model: stereo_camera`` with ``left`` and ``right`` cameras."""
+    return (isinstance(data, Mapping) and data.get("model") == "stereo_camera"
+            and all(isinstance(data.get(k), Mapping) for k in ("left", "right")))
+
+
+def intrinsics_from_boofcv_stereo(doc: YamlDocument, camera: str | None,
+                                  prefer: str | None = None) -> Intrinsics:
+    """One camera of a BoofCV stereo file: ``camera`` (``left`` or ``right``), else the one
+    named like the rig's camera (``prefer``).
+
+    Raises
+    ------
+    DatasetError
+        No camera chosen, or one the file does not hold; an unknown key; as
+        :func:`intrinsics_from_boofcv` for the camera's own keys.
+    """
+    refuse_unknown(doc, doc.data, _STEREO, ())
+    if camera is None and prefer in ("left", "right"):
+        camera = prefer
+    if camera not in ("left", "right"):
+        got = "none was given" if camera is None else f"got {camera!r}"
+        raise doc.error("a BoofCV stereo file holds two cameras, left and right; choose one "
+                        f"with intrinsics: {{file: {doc.path.name}, camera: left}} in rig.yaml "
+                        f"({got})", "model")
+    sub = YamlDocument(doc.path, doc.data[camera],
+                       {k[1:]: v for k, v in doc.lines.items() if k[:1] == (camera,)})
+    try:
+        return intrinsics_from_boofcv(sub)
+    except DatasetError as exc:
+        raise DatasetError(f"{camera}.{exc.reason}", path=exc.path, line=exc.line) from None
 
 
 def _number(doc: YamlDocument, value, *keys) -> float:

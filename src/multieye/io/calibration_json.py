@@ -30,6 +30,7 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import fields
+from pathlib import Path
 
 import numpy as np
 
@@ -420,4 +421,8 @@ def read_calibration(path: str | os.PathLike) -> CalibrationRecord:
         Missing file, invalid JSON (with the line), or any check of
         :func:`calibration_from_dict`.
     """
+    path = Path(path)
+    if not path.exists() and (path.parent / "rig.yaml").exists():
+        raise DatasetError("calibration file not found: this folder holds rig.yaml, a dataset; "
+                           "give the output folder of multieye calibrate (its -o OUT)", path=path)
     return read_json_as(path, calibration_from_dict, what="calibration file")

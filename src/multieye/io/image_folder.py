@@ -122,7 +122,7 @@ def _matching(root: Path, pattern: str | None) -> list[Path]:
         raise DatasetError(f"{len(entries)} entries, more than {MAX_FOLDER_ENTRIES} in one image "
                            "folder", path=root)
     return [root / e.name for e in entries
-            if Path(e.name).suffix.lower() in IMAGE_EXTENSIONS
+            if Path(e.name).suffix.lower() in IMAGE_EXTENSIONS and not e.name.startswith(".")
             and (pattern is None or fnmatch.fnmatchcase(e.name, pattern)) and is_file_entry(e)]
 
 
@@ -235,7 +235,24 @@ def _none_found(root: Path, pattern: str | None = None) -> str:
     first = f"; {len(skipped)} skipped, first {skipped[0][0]}: {skipped[0][1]}" if skipped else ""
     if pattern is not None:
         return f"no image ({', '.join(IMAGE_EXTENSIONS)}) named {pattern} in the folder{first}"
-    return f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder{first}"
+    return f"no images ({', '.join(IMAGE_EXTENSIONS)}) in the folder{first}{_in_sub_folders(root)}"
+
+
+def _in_sub_folders(root: Path, most: int = 20) -> str:
+    """Where the images are when a folder has none of its own but a sub-folder has (EuRoC's
+    ``cam0/data/``): the first of its first ``most`` sub-folders holding images, for the
+    message; empty when none does."""
+    try:
+        subs = [e for e in sorted_entries(root) if e.is_dir()][:most]
+        for sub in subs:
+            count = sum(1 for e in sorted_entries(sub.path)
+                        if Path(e.name).suffix.lower() in IMAGE_EXTENSIONS)
+            if count:
+                return (f"; its sub-folder {sub.name}/ holds {count} images (sub-folders are "
+                        f"not searched): give that folder as the camera's images: in rig.yaml")
+    except OSError:
+        pass
+    return ""
 
 
 def _entry_problem(p: Path) -> str | None:
@@ -261,9 +278,10 @@ def skipped_entries(folder: str | os.PathLike, pattern: str | None = None
     """Entries of an image folder (whose names fit ``pattern`` if given) that are skipped, as
     ``(name, reason)`` sorted by name.
 
-    An entry named like an image (:data:`IMAGE_EXTENSIONS`) that is not a regular file, and
-    any symbolic link that does not lead to a regular file: a dangling link, a link loop, a
-    folder, a device, a FIFO or a socket.  Sub-folders and other files are not images and are
+    An entry named like an image (:data:`IMAGE_EXTENSIONS`) that is not a regular file or
+    whose name starts with ``.`` (a hidden file: macOS's ``._`` files beside copied ones),
+    and any symbolic link that does not lead to a regular file: a dangling link, a link
+    loop, a folder, a device, a FIFO or a socket.  Sub-folders and other files are not images and are
     not listed.
     """
     root = Path(folder)
@@ -276,6 +294,10 @@ def skipped_entries(folder: str | os.PathLike, pattern: str | None = None
         if p.suffix.lower() not in IMAGE_EXTENSIONS and not p.is_symlink():
             continue
         if pattern is not None and not fnmatch.fnmatchcase(p.name, pattern):
+            continue
+        if p.name.startswith("."):
+            out.append((p.name, "skipped: a hidden file (such as the ._ files macOS writes "
+                                "beside copied files)"))
             continue
         problem = _entry_problem(p)
         if problem is not None:

@@ -52,7 +52,8 @@ import numpy as np
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import WIDE_MODELS, Intrinsics, check_lens_bounds
 from multieye.io import cameramodel
-from multieye.io.boofcv import intrinsics_from_boofcv, is_boofcv
+from multieye.io.boofcv import (intrinsics_from_boofcv, intrinsics_from_boofcv_stereo,
+                                is_boofcv, is_boofcv_stereo)
 from multieye.io.atomic import write_text_atomic
 from multieye.io.intrinsics_mapping import (
     DISTORTION_MODELS,
@@ -439,6 +440,8 @@ def _load(path) -> tuple[str, object]:
         return "kalibr", doc
     if is_boofcv(doc.data):
         return "boofcv", doc
+    if is_boofcv_stereo(doc.data):
+        return "boofcv-stereo", doc
     if has_camera_matrix(doc.data):
         return "mapping", doc
     if is_aslam(doc.data):
@@ -498,4 +501,6 @@ def read_intrinsics(path: str | os.PathLike, camera: str | None = None, *,
         return intrinsics_from_aslam(content)
     if kind == "boofcv":
         return intrinsics_from_boofcv(content)
+    if kind == "boofcv-stereo":
+        return intrinsics_from_boofcv_stereo(content, camera, prefer)
     return intrinsics_from_mapping(content)

@@ -291,6 +291,18 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
     if fmt not in MOCAP_FORMATS:
         raise DatasetError(f"motion-capture format must be one of {', '.join(MOCAP_FORMATS)}, "
                            f"got {fmt!r}", path=spec.file)
+    try:
+        traj = _read_format(spec, fmt, parent, child)
+    except DatasetError as exc:
+        if not (exc.reason.startswith("duplicate time stamp") and spec.duplicates == "error"):
+            raise
+        raise DatasetError(f"{exc.reason}; give duplicates: drop under mocap in rig.yaml to keep "
+                           "the first of equal stamps", path=exc.path, line=exc.line) from None
+    return traj if traj.parent == "world" else traj.inverted()
+
+
+def _read_format(spec: MocapSpec, fmt: str, parent: str, child: str) -> Trajectory:
+    """The trajectory of ``spec``'s file in its format ``fmt``, under its own frames."""
     if fmt == "tum" and (spec.values is not None or spec.rotation != "quaternion-xyzw"):
         traj = read_stamped_table(spec.file, PoseFormat(spec.rotation, spec.values, None,
                                                         spec.unit or "m"),
@@ -311,4 +323,4 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
         traj = read_bag_trajectory(spec.file, spec.topic, parent_frame=spec.parent_frame,
                                    child_frame=spec.child_frame, unit=spec.unit or "m",
                                    parent=parent, child=child)
-    return traj if traj.parent == "world" else traj.inverted()
+    return traj

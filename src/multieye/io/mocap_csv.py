@@ -56,7 +56,8 @@ from multieye.core import geometry
 from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_TABLE_BYTES
 from multieye.io.poserows import QuaternionRows, RowPlace, trajectory_from_rows, usable_rows
-from multieye.io.textfile import LENGTH_UNITS, count_lines, parse_float, physical_lines, text_lines
+from multieye.io.textfile import (LENGTH_UNITS, count_lines, is_nanoseconds, parse_float,
+                                  physical_lines, text_lines)
 from multieye.io.trajectory import Trajectory
 
 __all__ = [
@@ -183,6 +184,17 @@ def _header_name(cell: str) -> tuple[str, str | None]:
     return name.lower(), unit
 
 
+def _no_header(header: list[str]) -> str:
+    """What to do when the first line of a .csv holds numbers only (no header)."""
+    try:
+        [float(c) for c in header]
+    except ValueError:
+        return ""
+    return ("; this line holds numbers, not a header: a .csv file is read by its header's "
+            "names; for rows of t x y z qx qy qz qw without a header give format: tum under "
+            "mocap (with values: [...] for another order)")
+
+
 def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, line):
     headers = [_header_name(c) for c in header]
     found = {}
@@ -193,7 +205,7 @@ def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, li
             have = ", ".join(repr(c.strip()) for c in header)
             problem = "no column" if not hits else "several columns"
             raise DatasetError(f"{problem} for {role} (looked for {' or '.join(wanted)}); "
-                               f"header has {have}", path=path, line=line)
+                               f"header has {have}{_no_header(header)}", path=path, line=line)
         found[role] = hits[0]
     if columns:
         unknown = set(columns) - set(DEFAULT_COLUMNS)
@@ -233,8 +245,9 @@ def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None 
     unit : {"m", "cm", "mm"}, optional
         Translation unit; default: the header's unit suffix, else metres.
     time_unit : {"s", "ms", "us", "ns"}, optional
-        Time unit; default: the header's suffix, else seconds.  With ``"ns"`` the stamps are
-        read as exact integers and kept in ``stamps_ns``.
+        Time unit; default: the header's suffix, else integer nanoseconds when the first
+        row's stamp has 16 to 19 digits (as image names), else seconds.  With ``"ns"`` the
+        stamps are read as exact integers and kept in ``stamps_ns``.
     parent, child : str
         Each row is ``T_parent_child``.
     duplicates : {"error", "drop"}
@@ -256,11 +269,10 @@ def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None 
     found, names = _find_columns(header, columns, path, first)
     unit = _unit_from_header(names, found, ("tx", "ty", "tz"), unit, LENGTH_UNITS, path,
                              first) or "m"
-    time_unit = _unit_from_header(names, found, ("t",), time_unit, _TIME_UNITS, path,
-                                  first) or "s"
+    time_unit = _unit_from_header(names, found, ("t",), time_unit, _TIME_UNITS, path, first)
     order = [found[r] for r in DEFAULT_COLUMNS]
     values, stamps_ns, lines = array("d"), array("q"), array("q")
-    seconds = _TIME_UNITS[time_unit]
+    seconds = None if time_unit is None else _TIME_UNITS[time_unit]
     sink = QuaternionRows(path, tuple(DEFAULT_COLUMNS), LENGTH_UNITS[unit],
                           capacity=count_lines(path, what="CSV file"))
 
@@ -282,6 +294,9 @@ def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None 
         cells = [row[j].strip() for j in order]
         if not all(cells):
             continue
+        if time_unit is None:      # no unit stated: the first row decides, as image names do
+            time_unit = "ns" if is_nanoseconds(cells[0]) else "s"
+            seconds = _TIME_UNITS[time_unit]
         if time_unit == "ns":
             try:
                 ns_value = int(cells[0])

@@ -260,15 +260,16 @@ def _matrix(numbers: Sequence[float], scale: float, path: Path) -> np.ndarray:
     return geometry.make_transform(u @ vt, T[:3, 3] * scale)
 
 
-def _rotation(rotation: str, v: Mapping[str, float], path: Path) -> np.ndarray:
+def _rotation(rotation: str, v: Mapping[str, float], path: Path, order=()) -> np.ndarray:
     from scipy.spatial.transform import Rotation  # noqa: PLC0415 (heavy: scipy.spatial, 0.2-0.3 CPU-s for every process that imports multieye.io, the report's figure worker included)
 
     if rotation.startswith("quaternion"):
         q = np.array([v["qx"], v["qy"], v["qz"], v["qw"]])
         norm = float(np.linalg.norm(q))
         if not abs(norm - 1) <= QUATERNION_TOLERANCE:
-            raise DatasetError(f"quaternion (qx qy qz qw) must have unit norm, got norm "
-                               f"{norm:.6g} (tolerance {QUATERNION_TOLERANCE:g})", path=path)
+            raise DatasetError(f"quaternion (qx qy qz qw) must have unit norm, got norm {norm:.6g} "
+                               f"(tolerance {QUATERNION_TOLERANCE:g}) with the numbers read as "
+                               f"{' '.join(order)} (values: in rig.yaml orders them)", path=path)
         return Rotation.from_quat(q / norm).as_matrix()
     if rotation == "rotvec":
         return Rotation.from_rotvec([v["rx"], v["ry"], v["rz"]]).as_matrix()
@@ -334,7 +335,7 @@ def _named(values: Mapping, fmt: PoseFormat, scale: float, path: Path) -> np.nda
     v = {n: float(values[n]) for n in need}
     if not all(np.isfinite(list(v.values()))):
         raise DatasetError("expected finite numbers, got nan or inf", path=path)
-    T = geometry.make_transform(_rotation(fmt.rotation, v, path),
+    T = geometry.make_transform(_rotation(fmt.rotation, v, path, fmt.order),
                                 np.array([v["x"], v["y"], v["z"]]) * scale)
     return _checked(T, path)
 

@@ -292,8 +292,12 @@ class QuaternionRows:
         stamps that repeat or go back)."""
         if self._rows and not self._n:
             first = self.skipped[0]
+            unit = ("; every stamp in milliseconds or microseconds? write seconds, or "
+                    "nanoseconds of 16 to 19 digits (a CSV header may name the unit: t [ms])"
+                    if first.reason.startswith("absurd time stamp") else "")
             raise DatasetError(f"no usable pose: all {self._rows} rows left out; "
-                               f"{first.where}: {first.reason}", path=self.path, line=first.line)
+                               f"{first.where}: {first.reason}{unit}", path=self.path,
+                               line=first.line)
         n = self._n
         for a, shape in ((self._stamps, (n,)), (self._T, (n, 4, 4)), (self._lines, (n,))):
             a.resize(shape, refcheck=False)

@@ -483,6 +483,11 @@ def load_rig(path: str | os.PathLike) -> Rig:
     """
     p = as_path(path, "dataset (a folder with rig.yaml, or the rig.yaml)")
     if p.is_dir():
+        others = [] if (p / "rig.yaml").exists() else [
+            n for n in ("rig.yml", "Rig.yaml", "RIG.yaml", "rig.yaml.txt") if (p / n).is_file()]
+        if others:
+            raise DatasetError(f"no rig.yaml in the folder, but {others[0]}: name it rig.yaml, "
+                               f"or give the file itself ({p / others[0]})", path=p)
         p = p / "rig.yaml"
     no_link_loop(p)     # a rig.yaml that is a link: its paths are relative to the real file
     doc = load_yaml(p.resolve() if p.is_symlink() else p,    # else named as typed

@@ -117,6 +117,22 @@ def split_fields(content: str) -> list[str]:
     return [f for f in _FIELD_SEP.split(content.strip()) if f]
 
 
+def is_nanoseconds(token: str) -> bool:
+    """Whether a time-stamp cell is integer nanoseconds: 16 to 19 digits, the rule of image
+    names (:func:`multieye.io.image_folder.stamp_from_name`; seconds have at most 10 digits
+    before the point, and 11 to 15 digits are ambiguous)."""
+    text = token.strip()
+    return text.isascii() and text.isdigit() and 16 <= len(text) <= 19
+
+
+def _is_float(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
 def parse_float(token: str, *, path: str | os.PathLike | None, line: int | None,
                 name: str, finite: bool = True) -> float:
     """A finite float from a text cell, or a DatasetError naming the cell.
@@ -316,6 +332,11 @@ class NumberTable:
         try:
             values = [float(f) for f in fields]
         except ValueError:
+            if not len(self) and not any(_is_float(f) for f in fields):
+                raise DatasetError(f"this first row is not numbers but names, a header ("
+                                   f"{' '.join(fields)[:80]}): {files} hold numbers only; start "
+                                   "the line with # to make it a comment", path=path,
+                                   line=number) from None
             values = [parse_float(f, path=path, line=number, name=name, finite=finite)
                       for f, name in zip(fields, columns)]
         if finite and not all(map(math.isfinite, values)):

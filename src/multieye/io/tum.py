@@ -1,6 +1,7 @@
 """TUM trajectory text files: ``t tx ty tz qx qy qz qw`` per line.
 
-Format (as the TUM RGB-D benchmark defines it): one pose per line, time stamp in seconds,
+Format (as the TUM RGB-D benchmark defines it): one pose per line, time stamp in seconds
+(or, as image names may be, integer nanoseconds of 16 to 19 digits: the first row decides),
 translation, then the unit quaternion in the order ``qx qy qz qw`` (scalar last).  The pose of
 each line is ``T_parent_child`` (for motion capture ``T_world_marker``, for precomputed camera
 poses ``T_cam_target``, docs/rig-yaml.md).  Accepted here as well: commas instead of (or
@@ -32,7 +33,8 @@ from multieye.core import geometry
 from multieye.io.atomic import atomic_output
 from multieye.core.errors import DatasetError
 from multieye.io.poserows import QuaternionRows
-from multieye.io.textfile import NumberTable, count_lines, length_scale, line_blocks
+from multieye.io.textfile import (NumberTable, count_lines, is_nanoseconds, length_scale,
+                                  line_blocks)
 from multieye.io.trajectory import Trajectory
 
 __all__ = ["read_tum", "write_tum", "TUM_COLUMNS"]
@@ -74,11 +76,17 @@ def read_tum(path: str | os.PathLike, *, unit: str = "m", parent: str = "world",
     scale = length_scale(unit, path=path)
     rows = QuaternionRows(path, TUM_COLUMNS, scale,
                           capacity=count_lines(path, what="trajectory file"))
+    nanoseconds = None
     for contents, numbers in line_blocks(path, what="trajectory file", size=_BLOCK):
         table = NumberTable(len(TUM_COLUMNS))
         table.add_block(contents, numbers, TUM_COLUMNS, files="TUM trajectory files",
                         path=path, finite=False)
-        rows.add(*table.arrays())
+        data, lines = table.arrays()
+        if nanoseconds is None and contents:     # the file's first row decides, as names do
+            nanoseconds = is_nanoseconds(contents[0].replace(",", " ").split()[0])
+        if nanoseconds:
+            data[:, 0] *= 1e-9
+        rows.add(data, lines)
     if not rows.screened:
         raise DatasetError(f"no rows: expected lines '{' '.join(TUM_COLUMNS)}'", path=path)
     return rows.trajectory(parent=parent, child=child, duplicates=duplicates)

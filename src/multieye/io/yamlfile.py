@@ -210,6 +210,8 @@ def parse_yaml(text: str, path: str | os.PathLike) -> YamlDocument:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
         problem = exc.problem or exc.context or "invalid YAML"
+        if "'\\t'" in problem:
+            problem += " (YAML indents with spaces, not tabs)"
         raise DatasetError(f"invalid YAML: {problem}", path=path, line=line) from None
     except yaml.reader.ReaderError as exc:
         raise DatasetError(f"invalid YAML: character #x{exc.character:04x} is not allowed in "

@@ -151,7 +151,7 @@ def opencv_text(rec: CalibrationRecord, intrinsics: dict[str, Intrinsics | None]
              "# multieye calibration: T_a_b maps coordinates in frame b to frame a (metres)",
              f"setup: {json.dumps(rec.setup)}", f"method: {json.dumps(rec.method)}",
              f"reference_camera: {json.dumps(rec.reference_camera)}",
-             f"base_frame: {json.dumps(frame_names(rec, parent)[0])}",
+             f"base_frame: {json.dumps(frame_names(rec, parent, cameras=False)[0])}",
              *(_opencv_matrix(y_key, rec.Y, "") if rec.mocap else []), "cameras:"]
     ind = "      "
     for cam in rec.cameras:
@@ -209,7 +209,8 @@ def base_pose(cam) -> np.ndarray:
 
 
 def frame_names(rec: CalibrationRecord, parent: str | None = None,
-                child: str | None = None) -> tuple[str, dict[str, str]]:
+                child: str | None = None, *, cameras: bool = True
+                ) -> tuple[str, dict[str, str]]:
     """The base frame and, per camera, the stem of its frames (see the module docstring).
 
     Camera names become frame names through :func:`ros_name` (``front left`` ->
@@ -219,7 +220,8 @@ def frame_names(rec: CalibrationRecord, parent: str | None = None,
     ------
     InputError
         An empty name or one with white space, a ``child`` without ``{camera}`` for several
-        cameras, or two cameras (or a camera and the base) given the same frame.
+        cameras, or (``cameras``: the camera frames checked too) two cameras, or a camera
+        and the base, given the same frame.
     """
     parent = base_frame(rec) if parent is None else parent
     child = "{camera}" if child is None else child
@@ -231,9 +233,21 @@ def frame_names(rec: CalibrationRecord, parent: str | None = None,
         raise InputError(f"--child-frame {child!r} must contain {{camera}} (the camera's name): "
                          f"the rig has {len(rec.cameras)} cameras")
     stems = {c.name: child.replace("{camera}", ros_name(c.name)) for c in rec.cameras}
-    frames = [parent] + [f"{s}{end}" for s in stems.values() for end in ("_link", "_optical_frame")]
-    if len(set(frames)) != len(frames):
-        raise InputError(f"the frame names are not unique: {', '.join(frames)}")
+    if not cameras:
+        return parent, stems
+    seen: dict[str, str] = {}
+    for name, stem in stems.items():
+        for frame in (f"{stem}_link", f"{stem}_optical_frame"):
+            if frame == parent:
+                raise InputError(f"camera {name!r} and the base are both the frame {frame}; "
+                                 "give another --parent-frame")
+            if frame in seen:
+                raise InputError(
+                    f"cameras {seen[frame]!r} and {name!r} are both the frame {frame} (a ROS "
+                    "name holds ASCII letters, digits and _ only); rename one in rig.yaml and "
+                    "calibrate again to export urdf or tf-static (the other formats name no "
+                    "camera frames)")
+            seen[frame] = name
     return parent, stems
 
 
@@ -470,7 +484,8 @@ def _export(out: Path, rec: CalibrationRecord, fmt: str, folder: Path, dest, not
     is read and checked before the folder is created and the first file written."""
     if parent_frame is None and rec.setup == "eye-on-hand" and rec.frames is None:
         parent_frame = _tracked_frame(out)      # calibration.json of an earlier version
-    frame_names(rec, parent_frame, child_frame)        # checked before anything is written
+    # checked before anything is written; camera frames only where a format names them
+    frame_names(rec, parent_frame, child_frame, cameras=fmt in ("urdf", "tf-static"))
     path = folder / FORMATS[fmt]
     if fmt in ("camera-info", "mrcal"):
         intr = _intrinsics(out, rec, required=not (out / "details.json").exists())

@@ -64,8 +64,10 @@ def estimated_offset(problem: Problem, d: CameraData, observations=None) -> Cloc
             "the target faster and less uniformly, or give --time-offset SECONDS")
     if (min(est.coarse_offset_s, est.offset_s) < search[0] + edge
             or max(est.coarse_offset_s, est.offset_s) > search[1] - edge):
+        peak = ("" if not search[0] + edge <= est.offset_s <= search[1] - edge else
+                f"; the angular speeds correlate best at {est.coarse_offset_s:+.3f} s")
         raise CalibrationError(
-            f"camera {d.name}: the best clock offset ({est.offset_s:+.3f} s) is at the edge of "
+            f"camera {d.name}: the best clock offset ({est.offset_s:+.3f} s{peak}) is at the edge of "
             f"the search range {search[0]:+.3g}..{search[1]:+.3g} s, so the true one is "
             "probably outside it; widen the search (--max-time-offset SECONDS) or give "
             "--time-offset SECONDS (or time_offset in rig.yaml)")

@@ -17,7 +17,8 @@ import numpy as np
 
 from multieye.core.arguments import real_number
 from multieye.core.errors import InputError
-from multieye.estimate.covisibility import covisibility, link_groups, unlinked_message
+from multieye.estimate.covisibility import (covisibility, link_groups, pairing_hint,
+                                            unlinked_message)
 from multieye.estimate.diagnostics import MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG, MIN_SECOND_AXIS_DEG
 from multieye.estimate.instants import default_sync_tolerance, instants_from_stamps
 from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
@@ -464,7 +465,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         # several boards: the rig's motion may link them (which the detections decide)
         if len(groups) > 1 and j not in groups[0] and not several:
             fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol,
-                                       rig.sync),)
+                                       rig.sync) + pairing_hint(
+                groups, [c.stamps for c in cams], [c.keys for c in cams], rig.sync),)
         apart = tuple(f"linked to {cams[0].name} by nothing in the sampled images: no board "
                       "seen at an instant when a linked camera sees one (calibrating would "
                       "refuse it unless other images link it)"

@@ -19,6 +19,7 @@ import numpy as np
 from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics, lens_model
+from multieye.core.lens import project_points
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
 from multieye.imaging.calibrate import (
     InitialIntrinsics,
@@ -41,6 +42,8 @@ MIN_COMPARED_VIEWS = 8
 MIN_TILT_DEG = 20.0
 #: Smallest share of a 4 x 4 grid over the image in which the target was seen.
 MIN_COVERAGE = 0.5
+#: Median reprojection RMS of the start's views beyond which no lens explains them, pixels.
+LAYOUT_RMS_PX = 20.0
 
 
 @dataclass(frozen=True)
@@ -139,9 +142,29 @@ def lens_start(name: str, model: str, results: Sequence[ImageResult],
     lens_start_task`), with what the views lack for ``model``."""
     views = _views(results)
     size = next(r.image_size for r in results if r.image_size is not None)
+    _check_layout(name, views, start)
     warnings = weak_data_warnings(name, model, views, start.T_cam_target, size)
     return LensStart(start.intrinsics, start.rms_px, len(views),
                      warnings + model_warnings(name, model, views, size))
+
+
+def _check_layout(name: str, views, start: InitialIntrinsics) -> None:
+    """Refuse a start whose median view is more than :data:`LAYOUT_RMS_PX` off: no lens puts
+    the points there, so the board of rig.yaml is not the one in the images (rows and cols
+    of a marker grid swapped: every id found, at the wrong place).  One bad view does not
+    move the median; the acceptance that follows takes such views out."""
+    rms = []
+    for (obj, img), T in zip(views, start.T_cam_target):
+        if np.all(np.isfinite(T)):
+            uv = project_points(obj @ T[:3, :3].T + T[:3, 3], start.intrinsics)
+            rms.append(float(np.sqrt(np.nanmean(np.sum((uv - img) ** 2, axis=1)))))
+    if rms and np.median(rms) > LAYOUT_RMS_PX:
+        raise DatasetError(
+            f"the lens started from its {len(views)} views leaves {np.median(rms):.3g} px of "
+            "reprojection RMS in the median view (a lens fits the views of a board to about a "
+            "pixel): the points are not where rig.yaml's board puts them; check the target's "
+            "rows and cols (swapped?) and first_id, and intrinsics_target for the "
+            "intrinsics_images", camera=name)
 
 
 def model_warnings(name: str, model: str, views, size) -> tuple[str, ...]:

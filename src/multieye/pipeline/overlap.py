@@ -35,7 +35,8 @@ from multieye.core.errors import (
     DisconnectedError,
     TooFewMeasurementsError,
 )
-from multieye.estimate.covisibility import covisibility, link_groups, unlinked_message
+from multieye.estimate.covisibility import (covisibility, link_groups, pairing_hint,
+                                            unlinked_message)
 from multieye.estimate.findings import Finding
 from multieye.estimate.refine_images import OUTLIER_PROBABILITY
 from multieye.io import Rig
@@ -260,8 +261,11 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
                        len(names))
     groups = link_groups(cov.shared > 0, [False] * len(names))
     if len(groups) > 1:
+        obs = [cameras[n].observations for n in names]
+        hint = pairing_hint(groups, [[o.stamp for o in ob] for ob in obs],
+                            [[Path(o.name).stem for o in ob] for ob in obs], sync)
         raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol,
-                                                 sync),
+                                                 sync) + hint,
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))
     rv = RigViews(prepared.views, [cameras[n].intrinsics for n in names],
                   names.index(reference),

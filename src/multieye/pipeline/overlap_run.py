@@ -20,6 +20,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError
 from multieye.core.metrics import camera_residual
 from multieye.estimate.findings import Plausibility
+from multieye.estimate.plausibility import CameraEvidence, given_lens_findings
 from multieye.estimate.uncertainty import pose_std, projection_std
 from multieye.core.lens_curve import observed_curve
 from multieye.io import (
@@ -121,6 +122,9 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         B=g.inv(np.stack([o.T_cam_target for o in sol.used[n]])),
         observations=tuple(sol.used[n]), rejected=problem.cameras[n].rejected)
         for j, n in enumerate(names)}
+    lens = given_lens_findings([_evidence(problem.cameras[n], paired[n]) for n in names
+                                if not problem.cameras[n].intrinsics_estimated])
+    sol = replace(sol, findings=tuple(sol.findings) + lens)
     estimated = {n: res.intrinsics[j] for j, n in enumerate(names)
                  if problem.cameras[n].intrinsics_estimated}
     rms = _camera_rms(sol)
@@ -132,7 +136,8 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         intrinsics_covariance={n: res.intrinsics_covariance[j] for j, n in enumerate(names)
                                if problem.cameras[n].intrinsics_estimated})
     plaus = Plausibility(findings=sol.findings, cost=float("nan"), camera_cost={},
-                         tested=("fit",) + (("observability",) if _by_motion(sol) else ())
+                         tested=("fit", "intrinsics")
+                         + (("observability",) if _by_motion(sol) else ())
                          + (("given-pose",) if getattr(sol, "given", ()) else ()))
     warnings = camera_warnings(problem.cameras)
     warnings += sol.warnings + tuple(f.message for f in sol.findings)
@@ -156,6 +161,20 @@ def given_poses(rig) -> dict[str, np.ndarray]:
     return {name: np.array(spec.pose, dtype=np.float64)
             for name, spec in (getattr(rig, "targets", None) or {}).items()
             if getattr(spec, "pose", None) is not None}
+
+
+def _evidence(data, p: PairedCamera) -> CameraEvidence:
+    """A camera's views as the lens check reads them (:func:`multieye.estimate.plausibility.
+    given_lens_findings`): its points and PnP RMS with the given lens."""
+    obs = p.observations
+    points = all(o.image_points is not None and o.object_points is not None
+                 and o.rms_px is not None for o in obs)
+    return CameraEvidence(
+        name=p.name, A=p.A, B=p.B, T_world_mocap=p.T_world_mocap, intrinsics=data.intrinsics,
+        object_points=tuple(o.object_points for o in obs) if points else None,
+        image_points=tuple(o.image_points for o in obs) if points else None,
+        rms_px=np.array([o.rms_px for o in obs]) if points else None,
+        intrinsics_estimated=data.intrinsics_estimated)
 
 
 def _by_motion(sol) -> bool:

@@ -34,7 +34,12 @@ def listed_images(rig: Rig, name: str) -> list[tuple[float, int, Path]]:
     with its ``images`` pattern and the rig's ``sync``): by the stamps in their names, or,
     with ``sync`` other than ``time``, in natural name order with their places as stamps."""
     cam = rig.cameras[name]
-    return list_images(cam.images, cam.images_pattern, rig.sync)
+    try:
+        return list_images(cam.images, cam.images_pattern, rig.sync)
+    except DatasetError as exc:
+        if exc.camera is not None:
+            raise
+        raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=name) from None
 
 
 def check_sync(rig: Rig) -> dict[str, int]:
