@@ -39,11 +39,12 @@ from numpy.typing import NDArray
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, unproject_points
 from multieye.imaging import chessboard_corners as cc
-from multieye.imaging.detect import Detection, canonical_order
+from multieye.imaging.detect import Detection, canonical_order, detect_or_why, to_gray
 from multieye.imaging.targets import Chessboard
 
-__all__ = ["is_wide", "field_deg", "directions", "virtual_view", "view_maps", "VirtualView", "second_look",
-           "WIDE_FIELD_DEG", "RING_VIEWS", "VIEW_HALF_ANGLE_DEG", "CENTRED_MARGIN", "RIM_MARGIN_DEG"]
+__all__ = ["detect_with_second_look", "is_wide", "field_deg", "directions", "virtual_view",
+           "view_maps", "VirtualView", "second_look", "WIDE_FIELD_DEG", "RING_VIEWS",
+           "VIEW_HALF_ANGLE_DEG", "CENTRED_MARGIN", "RIM_MARGIN_DEG", "MAX_TILT_DEG", "MAP_STEP"]
 
 F64 = NDArray[np.float64]
 
@@ -86,8 +87,22 @@ def field_deg(lens: Intrinsics) -> float:
 
 def is_wide(lens: Intrinsics | None) -> bool:
     """Whether ``lens`` gets the second look: not a pinhole model, and a field
-    (:func:`field_deg`) of at least :data:`WIDE_FIELD_DEG`."""
-    return lens is not None and lens.model != "pinhole" and field_deg(lens) >= WIDE_FIELD_DEG
+    (:func:`field_deg`) of at least :data:`WIDE_FIELD_DEG` (kept for the last lens)."""
+    if lens is None or lens.model == "pinhole":
+        return False
+    key = _key(lens)
+    if key not in _WIDE:
+        _WIDE.clear()
+        _WIDE[key] = field_deg(lens) >= WIDE_FIELD_DEG
+    return _WIDE[key]
+
+
+def _key(lens: Intrinsics) -> tuple:
+    return (lens.model, lens.width, lens.height, tuple(np.asarray(lens.params).tolist()))
+
+
+#: :func:`is_wide` of the last lens.
+_WIDE: dict = {}
 
 
 def directions(lens: Intrinsics) -> F64:
@@ -181,7 +196,7 @@ _MAPS: dict = {}
 
 def _views(lens: Intrinsics) -> list[tuple[VirtualView, tuple]]:
     """The virtual views of :func:`directions` with their maps, kept for the last lens."""
-    key = (lens.model, lens.width, lens.height, tuple(np.round(lens.params, 9)))
+    key = _key(lens)
     if key not in _MAPS:
         _MAPS.clear()
         views = [_view_for(lens, d) for d in directions(lens)]
@@ -194,6 +209,27 @@ def virtual_view(gray: NDArray[np.uint8], maps: tuple) -> NDArray[np.uint8]:
     whose ray the lens does not show are the image's median grey)."""
     return cv2.remap(gray, maps[0], maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                      borderValue=int(np.median(gray)))
+
+
+def detect_with_second_look(gray: NDArray, target, lens: Intrinsics | None
+                            ) -> tuple[Detection | None, str, bool]:
+    """:func:`multieye.imaging.detect.detect_or_why`, and where it finds no chessboard and
+    ``lens`` is wide (:func:`is_wide`), :func:`second_look`.
+
+    Returns
+    -------
+    detection : Detection or None
+    why : str
+        As :func:`~multieye.imaging.detect.detect_or_why` says it of the image itself.
+    looked : bool
+        The detection is the second look's.
+    """
+    gray = to_gray(gray)
+    detection, why = detect_or_why(gray, target)
+    if detection is not None or not isinstance(target, Chessboard) or not is_wide(lens):
+        return detection, why, False
+    detection = second_look(gray, target, lens)
+    return detection, why, detection is not None
 
 
 def second_look(gray: NDArray[np.uint8], target: Chessboard, lens: Intrinsics
