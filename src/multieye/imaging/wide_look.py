@@ -3,20 +3,18 @@
 A lens of 190-220 degrees bends a board near its rim into an arc, and OpenCV's chessboard
 detectors (classic and SB alike) miss most such views (docs/results/wide_render.md).  Once
 the lens is known (given, or started from the views that were found), an image whose board
-was not found is looked at again through a few perspective (pinhole) virtual views of the
-sphere of rays (:func:`directions`: the axis and a ring of :data:`RING_VIEWS` directions
-covering the field), each one resampled from the image by ``cv2.remap`` through the lens's
-projection (:func:`virtual_view`).  In such a view the board is nearly flat again, and the
-usual search (:func:`multieye.imaging.chessboard_corners.locate_board`) runs on it.  The
-corners found are taken back through the lens to the image, refined there by
-``cv2.cornerSubPix`` (:func:`multieye.imaging.chessboard_corners.refine_grid`: its window
-from the board's spacing in the image) and kept only when the checks of the usual detection
-pass: every corner a saddle of the image (:func:`~multieye.imaging.chessboard_corners.
-saddle_grid`), the refined grid smooth once seen in the virtual view again
-(:func:`~multieye.imaging.chessboard_corners.consistent_grid`), no saddle one square beyond
-it (:func:`~multieye.imaging.chessboard_corners.whole_board`, in the virtual view), and no
-corner moved by the refinement by more than :data:`MAX_SHIFT` of a square.  The caller then
-poses the view and keeps it by the same reprojection RMS as any other.
+was not found is looked at again through perspective (pinhole) virtual views of the sphere of
+rays (:func:`directions`: a ring of :data:`RING_VIEWS` directions covering the field up to
+its rim, then the axis), each resampled from the image by ``cv2.remap`` through the lens's
+projection (:func:`view_maps`, :func:`virtual_view`).  In such a view the board is nearly
+flat again.  A view that OpenCV's quick test says may show the board (:func:`_may_show`) is
+searched as any image is (:func:`multieye.imaging.chessboard_corners.locate_board`); a board
+found there is searched again in a view centred on it (:func:`_centred`), where it is least
+stretched, and kept only when the usual checks pass there: every corner a saddle, no saddle
+one square beyond the grid, the grid smooth.  Its corners, refined by ``cv2.cornerSubPix`` in
+that view, are taken back to the image through the lens (they are refined and checked in the
+centred view and not in the image: :func:`_centred` says why, with the figures).  The caller
+then poses the view and keeps it by the same reprojection RMS as any other view.
 
 Only lenses whose field reaches :data:`WIDE_FIELD_DEG` (:func:`is_wide`) get the second
 look, and only for images whose board was not found: nothing changes for narrower lenses
@@ -278,15 +276,22 @@ def _centred(gray: NDArray[np.uint8], target: Chessboard, lens: Intrinsics, rays
     centred on them, where a pinhole shows it least stretched, and spanning them with
     :data:`CENTRED_MARGIN` to spare; its corners (refined in that view, whose squares are
     at least as large as the image's) taken to ``gray`` through the lens; None unless the
-    grid is smooth (:func:`~multieye.imaging.chessboard_corners.consistent_grid`, its
-    departures measured in the image's pixels: the view's shrunk by ``least / f``) and
-    whole there and every corner is a saddle of ``gray``.
+    usual checks pass in that view: every corner a saddle
+    (:func:`~multieye.imaging.chessboard_corners.saddle_grid`), no saddle one square beyond
+    the grid (:func:`~multieye.imaging.chessboard_corners.whole_board`; both as
+    :func:`~multieye.imaging.chessboard_corners.locate_board` checks them), the grid smooth
+    (:func:`~multieye.imaging.chessboard_corners.consistent_grid`, its departures measured
+    in the image's pixels: the view's shrunk by ``least / f``, also for the grids
+    ``locate_board`` keeps bent).
 
-    The corners are refined in the centred view, not in ``gray``: where the lens bends the
-    squares' edges within ``cornerSubPix``'s window (squares of 6-16 px at the rim of a
-    220-degree lens), its corners in ``gray`` were 0.09-0.44 px RMS (largest 0.26-1.95 px)
-    from the truth on rendered views, those of the centred view 0.06-0.10 px (largest
-    0.2-0.3 px)."""
+    The corners are refined and checked in the centred view, not in ``gray``.  Where the
+    lens bends the squares' edges within ``cornerSubPix``'s window (squares of 6-16 px at the
+    rim of a 220-degree lens), its corners in ``gray`` were 0.09-0.44 px RMS (largest
+    0.26-1.95 px) from the truth on rendered views, those of the centred view 0.06-0.10 px
+    (largest 0.2-0.3 px).  And where the lens's magnification changes fast across a corner's
+    circle, the saddle check refuses true corners in ``gray`` (the true corners of 3 of 13
+    missed double-sphere views, correlation -0.3 to 0.1 at the rim) that pass it in the
+    centred view."""
     rays = rays / np.linalg.norm(rays, axis=1)[:, None]
     centre = rays.mean(axis=0)
     centre /= np.linalg.norm(centre)
@@ -295,10 +300,11 @@ def _centred(gray: NDArray[np.uint8], target: Chessboard, lens: Intrinsics, rays
     seen = virtual_view(gray, view_maps(lens, view))
     found = cc.locate_board(seen, target).corners
     # smooth within the image's pixels: the view magnifies the corners' noise by f / least
-    if found is None or not cc.consistent_grid(found * (view.least / view.f), target):
+    if found is None or not cc.consistent_grid(found * (view.least / view.f), target) \
+            or not cc.saddle_grid(seen, found, target):
         return None
     mapped = project_points(view.rays(found), lens)
     h, w = gray.shape
     if not np.isfinite(mapped).all() or np.any(mapped < 0) or np.any(mapped > [w - 1, h - 1]):
         return None
-    return mapped if cc.saddle_grid(gray, mapped, target) else None
+    return mapped
