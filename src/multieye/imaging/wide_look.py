@@ -41,15 +41,16 @@ from multieye.imaging.detect import Detection, canonical_order, detect_or_why, t
 from multieye.imaging.targets import Chessboard
 
 __all__ = ["detect_with_second_look", "is_wide", "field_deg", "directions", "virtual_view",
-           "view_maps", "VirtualView", "second_look", "WIDE_FIELD_DEG", "RING_VIEWS",
+           "view_maps", "VirtualView", "second_look", "WIDE_FIELD_DEG", "RING_VIEWS", "INNER_VIEWS",
            "VIEW_HALF_ANGLE_DEG", "CENTRED_MARGIN", "RIM_MARGIN_DEG", "MAX_TILT_DEG", "MAP_STEP"]
 
 F64 = NDArray[np.float64]
 
 #: Lenses whose field (:func:`field_deg`) is narrower than this get no second look.
 WIDE_FIELD_DEG = 150.0
-#: Directions of the ring of virtual views around the axis (:func:`directions`).
+#: Directions of the outer and the inner ring of virtual views (:func:`directions`).
 RING_VIEWS = 10
+INNER_VIEWS = 6
 #: Half the angle a virtual view spans from its centre to the middle of a side, degrees.
 VIEW_HALF_ANGLE_DEG = 50.0
 #: The ring's directions lie this far inside the half field (at least 30 degrees off the
@@ -104,15 +105,19 @@ _WIDE: dict = {}
 
 
 def directions(lens: Intrinsics) -> F64:
-    """Unit directions (camera frame) of the virtual views, shape (1 + RING_VIEWS, 3): a
-    ring of :data:`RING_VIEWS` around the axis, :data:`RIM_MARGIN_DEG` inside the half field
-    (:func:`field_deg`; 30 to :data:`MAX_TILT_DEG` degrees off the axis), then the axis.  The ring comes
-    first: boards the detector misses in the image itself lie near the rim."""
+    """Unit directions (camera frame) of the virtual views, shape (RING_VIEWS + INNER_VIEWS
+    + 1, 3): a ring of :data:`RING_VIEWS` around the axis, :data:`RIM_MARGIN_DEG` inside the
+    half field (:func:`field_deg`; 30 to :data:`MAX_TILT_DEG` degrees off the axis), a ring
+    of :data:`INNER_VIEWS` at half its angle, turned by half their step, then the axis.  The
+    outer ring comes first: boards the detector misses in the image itself lie near the
+    rim."""
     tilt = np.radians(np.clip(field_deg(lens) / 2.0 - RIM_MARGIN_DEG, 30.0, MAX_TILT_DEG))
-    phi = 2.0 * np.pi * np.arange(RING_VIEWS) / RING_VIEWS
-    ring = np.column_stack([np.sin(tilt) * np.cos(phi), np.sin(tilt) * np.sin(phi),
-                            np.full_like(phi, np.cos(tilt))])
-    return np.vstack([ring, [0.0, 0.0, 1.0]])
+    rings = []
+    for angle, n, turn in ((tilt, RING_VIEWS, 0.0), (tilt / 2.0, INNER_VIEWS, 0.5)):
+        phi = 2.0 * np.pi * (np.arange(n) + turn) / n
+        rings.append(np.column_stack([np.sin(angle) * np.cos(phi), np.sin(angle) * np.sin(phi),
+                                      np.full_like(phi, np.cos(angle))]))
+    return np.vstack([*rings, [0.0, 0.0, 1.0]])
 
 
 @dataclass(frozen=True)
