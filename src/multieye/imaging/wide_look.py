@@ -53,8 +53,9 @@ RING_VIEWS = 10
 INNER_VIEWS = 6
 #: Half the angle a virtual view spans from its centre to the middle of a side, degrees.
 VIEW_HALF_ANGLE_DEG = 50.0
-#: The ring's directions lie this far inside the half field (at least 30 degrees off the
-#: axis), degrees: a view there spans from the rim to well inside it.
+#: The outer ring's directions lie this far inside the half field (30 to
+#: :data:`MAX_TILT_DEG` degrees off the axis), degrees: a view there spans from the rim to
+#: well inside it.
 RIM_MARGIN_DEG = 30.0
 #: The view centred on a board found spans this many times the largest angle between its
 #: centre and a corner (a margin of about a square on a 6 x 9 board), at most
@@ -65,7 +66,7 @@ _GRID = 48
 #: The ring's largest angle off the axis, degrees.
 MAX_TILT_DEG = 90.0
 #: The virtual view's pixels are taken through the lens on a grid of this step, pixels, and
-#: interpolated between (the map is smooth; the corners are refined in the image itself).
+#: interpolated between (:func:`view_maps`).
 MAP_STEP = 4
 
 
