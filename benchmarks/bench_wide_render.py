@@ -5,6 +5,7 @@ Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_wide_render.py [--seeds 10] [--variants base,hard]
         [--skip single,mixed] [--json OUT.jsonl]
+    python benchmarks/bench_wide_render.py --compare BEFORE.jsonl AFTER.jsonl
 
 Each model (unified, double-sphere, eucm) at 190 and 220 degrees of field
 (:func:`multieye.sim.wide_lens.wide_lens`: a 1024 x 1024 image, the field's edge on a circle
@@ -321,6 +322,49 @@ def report(rows: list[dict]) -> None:
                       f"{r['failed']}")
 
 
+#: How a camera's warning says how many images the second look of its wide lens recovered
+#: (multieye.pipeline.camera_data); "wide: 3 of 24 images recovered by ..."
+_RECOVERED = "recovered by the wide lens's second look"
+
+
+def _recovered(r: dict) -> int:
+    """Images the second look recovered in one trial, from the warnings (only the wide
+    camera has a lens wide enough for it: "wide" alone, "cam2" in the mixed rig, its motion
+    images and its intrinsics_images each their own line)."""
+    return sum(int(w.split(" of ")[0].split(": ")[-1]) for w in r.get("warnings", ())
+               if _RECOVERED in w)
+
+
+def compare(before: list[dict], after: list[dict]) -> None:
+    """The wide camera's figures of the same trials before and after a change (the second
+    look of issue 33: docs/results/wide_render.md, section 4), per case: images rejected,
+    images the second look recovered, lens error, NEES, seconds."""
+    print("| case | variant | model | field deg | rejected before / after | recovered | lens "
+          "error px median before / after | NEES/dim params mean before / after | NEES/2 "
+          "pixels, 8 rays, before / after | beyond 90, before / after | seconds median "
+          "before / after |")
+    print("|---" * 11 + "|")
+    keys = sorted({(r["kind"], r["variant"], r["model"], r["fov"]) for r in after},
+                  key=lambda k: (k[0] == "mixed", list(VARIANTS).index(k[1]),
+                                 MODELS.index(k[2]), k[3]))
+    for key in keys:
+        sel = [[r for r in rows if (r["kind"], r["variant"], r["model"], r["fov"]) == key
+                and "failed" not in r] for rows in (before, after)]
+        seeds = {r["seed"] for r in sel[0]} & {r["seed"] for r in sel[1]}
+        b, a = ([r for r in rs if r["seed"] in seeds] for rs in sel)
+
+        def pair(f, fmt=".2f", both=(b, a)):
+            return " / ".join(format(f(rs), fmt) for rs in both)
+
+        print(f"| {key[0]} | {key[1]} | {key[2]} | {key[3]:.0f} | "
+              f"{pair(lambda rs: sum(r['rejected'] for r in rs), 'd')} | "
+              f"{sum(_recovered(r) for r in a)} | "
+              f"{pair(lambda rs: float(np.median([r['lens_err_px'] for r in rs])), '.3f')} | "
+              f"{pair(lambda rs: _mean(rs, 'nees_par'))} | {pair(lambda rs: _mean(rs, 'nees_px'))} | "
+              f"{pair(lambda rs: _mean(rs, 'nees_px_beyond90'))} | "
+              f"{pair(lambda rs: float(np.median([r['seconds'] for r in rs])), '.1f')} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
@@ -332,7 +376,13 @@ def main() -> None:
                     "import bench_wide_render as b; b.report([json.loads(l) for l in open(F)])')")
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--fields", default="190,220")
+    ap.add_argument("--compare", nargs=2, metavar=("BEFORE", "AFTER"), default=None,
+                    help="only compare two --json files of the same trials (section 4 of "
+                    "docs/results/wide_render.md)")
     args = ap.parse_args()
+    if args.compare:
+        compare(*([json.loads(line) for line in open(f)] for f in args.compare))
+        return
     skip = set(args.skip.split(","))
     rows = []
     plan = [(k, v, m, f, s) for k in ("single", "mixed") if k not in skip

@@ -49,7 +49,7 @@ def _canonical_from(image, board, detector):
     raw = cc.find_chessboard(image, board, detector=detector)
     assert raw is not None, detector
     refined = cc.refine_corners(image, raw, cc.corner_window(raw, board))
-    return raw, detect_module._canonical(image, board, refined)
+    return raw, detect_module.canonical_order(image, board, refined)
 
 
 @pytest.mark.parametrize("board", BOARDS, ids=lambda b: f"{b.rows}x{b.cols}")
@@ -188,7 +188,7 @@ def test_a_board_found_at_half_size_is_not_searched_again(monkeypatch):
         once += searches == [(240, 320)]
         raw = real(image, (board.cols, board.rows), flags=cc.CLASSIC_FLAGS)[1]
         ref = cc.refine_grid(image, raw.reshape(-1, 2).astype(np.float64), board)
-        reference = detect_module._canonical(image, board, ref)
+        reference = detect_module.canonical_order(image, board, ref)
         assert np.array_equal(det.ids, reference.ids)
         assert np.abs(det.image_points - reference.image_points).max() < 0.1
         small += cc.min_spacing(det.image_points, board) < 24.0

@@ -21,11 +21,10 @@ from __future__ import annotations
 import math
 import sys
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
-from collections.abc import Iterable
 from typing import Any
 
 import cv2
@@ -33,11 +32,12 @@ import cv2
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.boards import Boards, combined_reason
-from multieye.imaging.detect import Detection, detect_or_why
+from multieye.imaging.detect import Detection, to_gray
 from multieye.imaging.image_file import read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.pool_tasks import OnPool, SplitTask
 from multieye.imaging.targets import Target
+from multieye.imaging.wide_look import detect_with_second_look
 from multieye.imaging.main_script import main_reimport_problem, threads_instead
 from multieye.core.arguments import positive_int
 from multieye.imaging.workers import (  # re-exported: where they were
@@ -46,7 +46,6 @@ from multieye.imaging.workers import (  # re-exported: where they were
     prestart_workers,
     worker_pool,
 )
-from multieye.imaging.detect import to_gray
 
 __all__ = ["ImageResult", "ImageJob", "detect_and_estimate", "detect_and_estimate_jobs",
            "worker_count", "detect_and_estimate_arrays", "process_image", "process_array",
@@ -88,6 +87,8 @@ class ImageResult:
     parts : tuple of (str, ImageResult)
         Several boards (:class:`~multieye.imaging.boards.Boards`): each board's own result
         in this image, by name (``pose`` and ``detection`` are then None; usable when one is).
+    second_look : bool
+        Found by a wide lens's second look (:mod:`multieye.imaging.wide_look`).
     """
 
     path: str
@@ -97,6 +98,7 @@ class ImageResult:
     warnings: tuple[str, ...] = ()
     image_size: tuple[int, int] | None = None
     parts: tuple[tuple[str, ImageResult], ...] = ()
+    second_look: bool = False
 
     @property
     def ok(self) -> bool:
@@ -170,7 +172,7 @@ def process_array(image, name: str, target: Target | Boards, intrinsics: Intrins
             target, {n: r.reason for n, r in parts})
         return ImageResult(path, None, None, reason, image_size=shape, parts=parts)
     try:
-        detection, why = detect_or_why(image, target)
+        detection, why, looked = detect_with_second_look(image, target, intrinsics)
     except (InputError, cv2.error) as exc:
         return ImageResult(path, None, None, "target not detected (detection failed: "
                            f"{_first_line(exc)})", image_size=shape)
@@ -184,11 +186,11 @@ def process_array(image, name: str, target: Target | Boards, intrinsics: Intrins
         pose = estimate_pose(detection, intrinsics)
     except (InputError, cv2.error) as exc:
         return ImageResult(path, None, detection, f"PnP failed: {_first_line(exc)}",
-                           detection.warnings, image_size=shape)
-    reason = None
-    if not pose.rms_px <= max_rms_px:
-        reason = f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px"
-    return ImageResult(path, pose, detection, reason, detection.warnings, image_size=shape)
+                           detection.warnings, image_size=shape, second_look=looked)
+    reason = None if pose.rms_px <= max_rms_px else (
+        f"bad fit: reprojection RMS {pose.rms_px:.2f} px > {max_rms_px:g} px")
+    return ImageResult(path, pose, detection, reason, detection.warnings, image_size=shape,
+                       second_look=looked)
 
 
 def _first_line(exc: Exception) -> str:

@@ -32,10 +32,13 @@ from multieye.imaging.detect import Detection
 from multieye.imaging.pnp import collinear, estimate_pose, estimate_poses
 from multieye.imaging.rays import bearings
 from multieye.imaging.pool_tasks import SplitTask
+from multieye.imaging.image_file import read_gray
+from multieye.imaging.targets import Chessboard, Target
+from multieye.imaging.wide_look import is_wide, second_look
 
 __all__ = ["InitialIntrinsics", "initial_intrinsics", "MIN_VIEWS", "StartedLens",
            "LensFromViews", "lens_start_task", "poses_from_detections", "lens_from_detections",
-           "poses_with_start", "started_lens", "accept_on_refined_lens"]
+           "poses_with_start", "started_lens", "accept_on_refined_lens", "look_again"]
 
 F64 = NDArray[np.float64]
 
@@ -280,7 +283,8 @@ class StartedLens:
     results: tuple[ImageResult, ...]
 
 
-def lens_start_task(model: str, name: str = "camera") -> SplitTask:
+def lens_start_task(model: str, name: str = "camera", target: Target | None = None
+                    ) -> SplitTask:
     """A camera's whole lens start from its detection-only results, as a task that a worker
     pool runs as soon as the camera's images are detected
     (:func:`multieye.imaging.batch.detect_jobs_then`): :func:`initial_intrinsics`
@@ -297,9 +301,13 @@ def lens_start_task(model: str, name: str = "camera") -> SplitTask:
         Lens model (:data:`multieye.core.intrinsics.LENS_MODELS`).
     name : str
         Camera name for messages.
+    target : Target, optional
+        The board of the images: where it is a chessboard and the start is a wide lens,
+        the images whose board was not found are looked at again through it first
+        (:func:`look_again`, in the parts of :func:`poses_with_start`).
     """
-    return SplitTask(partial(lens_from_detections, model=model, name=name), poses_with_start,
-                     started_lens)
+    return SplitTask(partial(lens_from_detections, model=model, name=name),
+                     partial(poses_with_start, target=target), started_lens)
 
 
 @dataclass(frozen=True)
@@ -335,10 +343,38 @@ def lens_from_detections(results: Sequence[ImageResult], model: str, name: str =
 
 
 def poses_with_start(first: LensFromViews, results: Sequence[ImageResult], *,
-                     max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
+                     max_rms_px: float = DEFAULT_MAX_RMS_PX, target: Target | None = None
+                     ) -> list[ImageResult]:
     """The second step of :func:`lens_start_task`, for any part of the results: each
-    one's pose with the start's lens (:func:`poses_from_detections`)."""
-    return poses_from_detections(results, first.start.intrinsics, max_rms_px=max_rms_px)
+    one's pose with the start's lens (:func:`poses_from_detections`), after the second look
+    of a wide lens at the images of ``target`` not found (:func:`look_again`)."""
+    lens = first.start.intrinsics
+    results = results if target is None else look_again(results, target, lens)
+    return poses_from_detections(results, lens, max_rms_px=max_rms_px)
+
+
+def look_again(results: Sequence[ImageResult], target: Target, intrinsics: Intrinsics
+               ) -> list[ImageResult]:
+    """Detection-only results, those of image files whose ``target`` was not found looked
+    at again through the wide lens ``intrinsics`` (the start of the camera's lens:
+    :func:`multieye.imaging.wide_look.second_look`; only a chessboard, only a wide lens:
+    :func:`~multieye.imaging.wide_look.is_wide`); a board found so is a detection without
+    a reason, ``second_look`` True.  The files are read again (checked as before:
+    :func:`multieye.imaging.image_file.read_gray`); results of other sizes than the lens's
+    are left as they are."""
+    if not isinstance(target, Chessboard) or not is_wide(intrinsics):
+        return list(results)
+    out = []
+    for r in results:
+        image = None
+        if r.detection is None and (r.reason or "").startswith("target not detected") \
+                and r.image_size == (intrinsics.width, intrinsics.height):
+            image = read_gray(r.path)[0]
+        det = None if image is None else second_look(image, target, intrinsics)
+        out.append(r if det is None else replace(r, detection=det, reason=None,
+                                                 warnings=r.warnings + det.warnings,
+                                                 second_look=True))
+    return out
 
 
 def started_lens(first: LensFromViews, results: Sequence[ImageResult]) -> StartedLens:

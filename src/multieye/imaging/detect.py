@@ -57,7 +57,7 @@ from multieye.imaging.targets import (
     Target,
 )
 
-__all__ = ["Detection", "detect", "detect_or_why", "to_gray"]
+__all__ = ["Detection", "detect", "detect_or_why", "to_gray", "canonical_order"]
 
 F64 = NDArray[np.float64]
 
@@ -181,7 +181,7 @@ def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> tuple[Det
     fails or leaves a corner off the grid (each at half size first on large images); the
     corners refined with ``cornerSubPix`` at full size in a window of 40 % of a square
     (:func:`multieye.imaging.chessboard_corners.locate_board`), then put in the canonical
-    order (:func:`_canonical`), so that the order and ids do not depend on the detector that
+    order (:func:`canonical_order`), so that the order and ids do not depend on the detector that
     found them (the two start from opposite corners of some boards).
 
     The classic detector is much faster than SB (1.6 against 22 ms per 800 x 600 rendered
@@ -195,7 +195,7 @@ def _detect_chessboard(gray: NDArray[np.uint8], target: Chessboard) -> tuple[Det
     if located.corners is None:
         return None, (f"part of the board is outside the image, or it has more inner "
                       f"corners than {target.rows} x {target.cols}" if located.beyond else "")
-    return _canonical(gray, target, located.corners), ""
+    return canonical_order(gray, target, located.corners), ""
 
 
 #: Per circle target, whether its circles were last found light on dark: tried first next
@@ -221,7 +221,7 @@ def _detect_circles(gray: NDArray[np.uint8], target: CircleGrid | AsymmetricCirc
                 found, centres = cv2.findCirclesGrid(img, size, flags=flags, blobDetector=blobs)
             if found:
                 _LIGHT_CIRCLES_FIRST[target] = light
-                return _canonical(gray, target, centres.reshape(-1, 2).astype(np.float64))
+                return canonical_order(gray, target, centres.reshape(-1, 2).astype(np.float64))
     return None
 
 
@@ -262,7 +262,7 @@ def _symmetries(target: Target) -> tuple[tuple[NDArray[np.int64], bool], ...]:
 
 @dataclass(frozen=True)
 class _Orders:
-    """What :func:`_canonical` needs of a grid target, computed once per target.
+    """What :func:`canonical_order` needs of a grid target, computed once per target.
 
     Attributes
     ----------
@@ -309,7 +309,7 @@ def _affine(orders: _Orders, img: F64) -> F64:
     return (orders.pinv @ (img - img.mean(axis=0))).T
 
 
-def _canonical(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detection:
+def canonical_order(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detection:
     """Reorder a full-grid detection (OpenCV's order) into the canonical order.
 
     Candidate orders are the board's symmetries applied to the detected order; kept are

@@ -19,6 +19,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, TooFewMeasurementsError
 from multieye.core.intrinsics import Intrinsics
 from multieye.estimate.pairing import pair_in_time
+from multieye.imaging.calibrate import look_again
 from multieye.imaging.engines import Engine
 from multieye.io import (
     RejectedItem,
@@ -255,8 +256,11 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
             results = list(started.results)
         else:
             lens = start_lens(name, cam.model, list(results) + list(extra_views), source)
+            if cam.source == "images":      # a wide lens's second look, before the poses
+                results = look_again(results, target, lens.intrinsics)
             lens, results = posed_on_refined_lens(lens, results)
-    obs, rejected, warnings, notes = [], [], list(lens.warnings if lens else ()), []
+    obs, rejected, notes = [], [], []
+    warnings = list(lens.warnings if lens else ()) + list(_recovered(name, results, n_images))
     for (stamp, label), res, board in zip(stamped, results, boards):
         if res.ok:
             obs.append(Observation(name=label, stamp=stamp, T_cam_target=res.pose.T_cam_target,
@@ -304,16 +308,21 @@ def _detect_intrinsics_images(rig: Rig, cam, model: RigModel, intr: Intrinsics |
 
 
 def _intrinsics_views(rig: Rig, cam, model: RigModel, intr: Intrinsics, workers: Workers,
-                      detected=None) -> tuple[list[Observation], list[RejectedItem], float]:
+                      detected=None) -> tuple[list[Observation], list[RejectedItem], float,
+                                              tuple[str, ...]]:
     """Detection and PnP over a camera's ``intrinsics_images`` (their own board if given);
     ``detected``: their detection-only ``(paths, results, seconds)`` already at hand, to
-    which only the PnP with ``intr`` is added."""
+    which the second look of a wide lens (:func:`multieye.imaging.calibrate.look_again`)
+    and the PnP with ``intr`` are added.  Also the line of how many the second look found
+    (:func:`_recovered`)."""
     if detected is None:
         paths, results, seconds = _detect_intrinsics_images(rig, cam, model, intr, workers)
     else:
         paths, results, seconds = detected
-        results = with_poses(results, intr)
+        results = with_poses(look_again(results, intrinsics_boards(rig, cam.name, model)[0],
+                                        intr), intr)
     obs, rejected = [], []
+    recovered = _recovered(cam.name, results, len(results), cam.intrinsics_images.name)
     several = len({b for _, b in paths}) > 1
     for (path, board), res in zip(paths, results):
         label = f"{cam.intrinsics_images.name}/{path.name}"
@@ -328,7 +337,18 @@ def _intrinsics_views(rig: Rig, cam, model: RigModel, intr: Intrinsics, workers:
             rejected.append(RejectedItem(label, res.reason))
     rejected.extend(RejectedItem(f"{cam.intrinsics_images.name}/{n}", why)
                     for n, why in skipped_entries(cam.intrinsics_images))
-    return obs, rejected, seconds
+    return obs, rejected, seconds, recovered
+
+
+def _recovered(name: str, results, n_images: int, folder: str | None = None) -> tuple[str, ...]:
+    """The line that says how many of a camera's usable views the second look of its wide
+    lens found (:mod:`multieye.imaging.wide_look`), or nothing; ``folder``: of its
+    ``intrinsics_images``."""
+    n = sum(r.ok and r.second_look for r in results)
+    where = "" if folder is None else f" in {folder}"
+    return (f"{name}: {n} of {n_images} images{where} recovered by the wide lens's second look "
+            "(the board, not found in the image itself, found in a perspective view of the "
+            "lens's field)",) if n else ()
 
 
 def load_camera_data(rig: Rig, *, processes: int | None = None, progress: bool = False,
@@ -461,12 +481,13 @@ def _from_images(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
     n_inputs = (det.n_inputs + len(left)
                 + sum(r.reason.startswith("no pose file") for r in motion.unmatched))
     intr = intr if det.intrinsics is None else det.intrinsics
-    seconds, views = det.seconds, []
+    seconds, views, warnings = det.seconds, [], det.warnings
     if cam.intrinsics_images is not None:
-        views, lost, s = _intrinsics_views(rig, cam, model, intr, workers, detected=extra)
-        rejected, seconds = rejected + lost, seconds + s
+        views, lost, s, recovered = _intrinsics_views(rig, cam, model, intr, workers,
+                                                      detected=extra)
+        rejected, seconds, warnings = rejected + lost, seconds + s, warnings + recovered
     return _Seen(intrinsics=intr, observations=tuple(det.observations), rejected=tuple(rejected),
-                 n_inputs=n_inputs, warnings=det.warnings, seconds=seconds, views=tuple(views),
+                 n_inputs=n_inputs, warnings=warnings, seconds=seconds, views=tuple(views),
                  notes=det.notes, selection=None if det.chosen is None else det.chosen.summary)
 
 

@@ -86,7 +86,7 @@ def detect_all(rig: Rig, model: RigModel, motions: dict, workers: Workers, chose
         if (intr is None and cam.model is not None and cam.intrinsics_images is None
                 and not isinstance(target, Boards)):     # several boards: started later
             # the lens start and every pose with it, in a worker once the images are in
-            then[len(jobs)] = lens_start_task(cam.model, name)
+            then[len(jobs)] = lens_start_task(cam.model, name, target)
         keys.append((name, "images"))
         jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
         if cam.intrinsics_images is not None:
