@@ -9,6 +9,8 @@ import json
 import re
 import shutil
 
+import numpy as np
+
 import pytest
 from click.testing import CliRunner
 from pose_dataset import write_pose_dataset
@@ -102,7 +104,20 @@ def test_inverted_target_poses_of_one_camera(tmp_path):
     poses = read_tum(ds / "cam1.txt", parent="cam", child="target")
     write_tum(ds / "cam1.txt", Trajectory(poses.stamps, g.inv(poses.T), "cam", "target"))
     _doubted(_calibrate(ds, tmp_path / "out", "--no-robust"), tmp_path / "out",
-             "inverted-poses", "inverted poses", "cam1", "T_target_cam")
+             "inverted-poses", "inverted poses", "cam1", "T_target_cam",
+             "poses: {file: ..., pose: T_target_cam}")
+    # what the doubt says to do: rig.yaml states the file's direction, and the run is clean
+    # with the result of the file written the right way round
+    (tmp_path / "good").mkdir()
+    good, _, _ = write_pose_dataset(tmp_path / "good")
+    rig = (ds / "rig.yaml").read_text()
+    (ds / "rig.yaml").write_text(rig.replace(
+        "poses: cam1.txt}", "poses: {file: cam1.txt, pose: T_target_cam}}"))
+    res, ref = _calibrate(ds, tmp_path / "said"), _calibrate(good, tmp_path / "ref")
+    assert res.exit_code == 0 == ref.exit_code, res.stderr
+    got, want = (json.loads((d / "calibration.json").read_text())["cameras"]["cam1"]["T_ref_cam"]
+                 for d in (tmp_path / "said", tmp_path / "ref"))
+    np.testing.assert_allclose(got, want, atol=1e-9)
 
 
 def test_good_pose_dataset_exits_0(tmp_path):

@@ -542,3 +542,23 @@ def test_a_tab_indent_says_yaml_indents_with_spaces(tmp_path):
     with pytest.raises(DatasetError, match=r"rig.yaml:2: invalid YAML: found character '\\t' "
                        r"that cannot start any token \(YAML indents with spaces, not tabs\)"):
         load_rig(tmp_path)
+
+
+def test_poses_may_say_which_direction_the_file_holds(dataset):
+    """``poses: {file, pose}``: a file of ``T_target_cam`` (what the inverted-poses doubt
+    suggests) is read as such; ``pose`` defaults to ``T_cam_target``, and anything else is
+    refused naming the key."""
+    assert not load_rig(dataset).cameras["cam1"].poses_inverted
+    _edit(dataset, "poses: cam1_target.txt", "poses: {file: cam1_target.txt, pose: T_target_cam}")
+    cam1 = load_rig(dataset).cameras["cam1"]
+    assert cam1.poses_inverted and cam1.poses == (dataset / "cam1_target.txt").resolve()
+    _edit(dataset, "pose: T_target_cam}", "pose: T_cam_target}")
+    assert not load_rig(dataset).cameras["cam1"].poses_inverted
+    for bad, message in (("pose: T_cam_target}", "cameras.cam1.poses.pose: expected one of "
+                          "T_cam_target, T_target_cam, got 'T_target_camera'"),
+                         ("file: cam1_target.txt, ", "cameras.cam1.poses: missing key 'file'")):
+        text = (dataset / "rig.yaml").read_text()
+        _edit(dataset, bad, "pose: T_target_camera}" if bad.startswith("pose") else "")
+        with pytest.raises(DatasetError, match=re.escape(message)):
+            load_rig(dataset)
+        (dataset / "rig.yaml").write_text(text)

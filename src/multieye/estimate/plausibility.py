@@ -251,7 +251,9 @@ def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: De
             consider(fit, lambda b, a, names=names: Finding(
                 "inverted-poses", f"inverted poses: the precomputed target poses of {names} "
                 f"fit as their inverses ({_costs(b, a)}): the poses file probably holds "
-                "T_target_cam, not T_cam_target; invert them", None, b, a, {}), DISCRETE_GAIN)
+                "the other direction (T_target_cam for T_cam_target); say which in rig.yaml: "
+                "poses: {file: ..., pose: T_target_cam} (or T_cam_target)", None, b, a, {}),
+                DISCRETE_GAIN)
     return rig
 
 

@@ -125,6 +125,9 @@ CAMERA_KEYS = ("intrinsics", "model", "images", "poses", "rosbag", "topic", "vid
                "start_time", "mocap", "time_offset", "intrinsics_images", "intrinsics_target",
                "refine_intrinsics")
 CAMERA_INTRINSICS_KEYS = ("file", "camera")
+#: Keys of ``cameras.<name>.poses`` when that is a mapping, and what its ``pose`` may say.
+CAMERA_POSES_KEYS = ("file", "pose")
+CAMERA_POSES_FRAMES = ("T_cam_target", "T_target_cam")
 
 
 @dataclass(frozen=True)
@@ -139,8 +142,12 @@ class CameraSpec:
     intrinsics_camera : str or None
         Entry of a Kalibr camchain (``cam1``) when the intrinsics file holds several.
     images, poses, rosbag, video : Path or None
-        Exactly one is set: a folder of time-stamped images, a TUM file of ``T_cam_target``,
-        a bag whose ``topic`` holds the images, or a video file.
+        Exactly one is set: a folder of time-stamped images, a TUM file of ``T_cam_target``
+        (of ``T_target_cam`` with ``poses_inverted``), a bag whose ``topic`` holds the
+        images, or a video file.
+    poses_inverted : bool
+        The ``poses`` file holds ``T_target_cam`` (rig.yaml ``poses: {file, pose:
+        T_target_cam}``): each pose is inverted where it is read.
     topic, stamps, start_time : str or None, Path or None, float
         A bag's image topic; a video's frame stamps file (:mod:`multieye.io.frame_stamps`),
         or else its first frame's stamp (seconds, the others at its frame rate).
@@ -167,6 +174,7 @@ class CameraSpec:
     intrinsics_camera: str | None = None
     images: Path | None = None
     poses: Path | None = None
+    poses_inverted: bool = False
     rosbag: Path | None = None
     topic: str | None = None
     video: Path | None = None
@@ -423,6 +431,13 @@ def _camera(rw: _RigWide, name, raw) -> CameraSpec:
     kind = "folder" if source == "images" else "file or bag" if source == "rosbag" else "file"
     if source == "images":
         kw["images"], kw["images_pattern"] = images_key(c, raw["images"], keys + ("images",))
+    elif source == "poses" and isinstance(raw["poses"], Mapping):
+        at = keys + ("poses",)
+        c.mapping(raw["poses"], at, CAMERA_POSES_KEYS, ("file",))
+        kw["poses"] = c.path(raw["poses"]["file"], at + ("file",), "file")
+        pose = c.choice(raw["poses"].get("pose", "T_cam_target"), at + ("pose",),
+                        CAMERA_POSES_FRAMES)
+        kw["poses_inverted"] = pose == "T_target_cam"
     else:
         kw[source] = c.path(raw[source], keys + (source,), kind)
     if "topic" in raw:

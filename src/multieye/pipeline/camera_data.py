@@ -28,14 +28,13 @@ from multieye.io import (
     list_image_files,
     skipped_entries,
     read_mocap,
-    read_tum,
 )
 from multieye.pipeline.boards import camera_boards, intrinsics_boards, per_board
 from multieye.pipeline.boards import no_usable_image as _no_usable_image
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
 from multieye.pipeline.detection import Workers, detect_all, detect_listed
 from multieye.pipeline.estimated_lens import lens_start, posed_on_refined_lens, start_lens, with_poses
-from multieye.pipeline.recordings import check_sync, poses_by_name_of, sync_instant
+from multieye.pipeline.recordings import check_sync, poses_by_name_of, precomputed_poses, sync_instant
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.selection import (Chosen, SelectionSummary, motion_first, preselected,
                                          with_refills)
@@ -451,7 +450,7 @@ def _camera_data(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
 
 def _from_poses(cam, lens: Intrinsics | None) -> _Seen:
     """A camera given by precomputed ``T_cam_target`` poses."""
-    traj = read_tum(cam.poses, parent="cam", child="target")
+    traj = precomputed_poses(cam)
     # poses keep their row number in the file (k of "pose k") when rows are left out
     gone = {r.row for r in traj.skipped}
     rows = [k for k in range(1, len(traj) + len(gone) + 1) if k not in gone]

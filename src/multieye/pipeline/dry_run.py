@@ -24,9 +24,9 @@ from multieye.estimate.instants import default_sync_tolerance, instants_from_sta
 from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
 from multieye.imaging.target_hints import counting_rule, suggest_target
 from multieye.estimate.instants import instants_from_names
-from multieye.io import Trajectory, bag_image_count, list_image_files, load_rig, read_tum
+from multieye.io import Trajectory, bag_image_count, list_image_files, load_rig
 from multieye.io import sample_bag_images
-from multieye.pipeline.recordings import check_sync, image_notes, listed_images, sync_instant
+from multieye.pipeline.recordings import check_sync, image_notes, listed_images, precomputed_poses, sync_instant
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
 from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
@@ -267,7 +267,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
     posed: tuple = ()
     failures: dict[str, int] = {}
     if cam.source == "poses":
-        poses = read_tum(cam.poses, parent="cam", child="target")
+        poses = precomputed_poses(cam)
         stamps = np.asarray(poses.stamps, dtype=np.float64)
         n_listed = len(stamps) + len(poses.skipped)
         sampled_idx = list(range(len(stamps)))

@@ -12,17 +12,19 @@ Synopsis
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from multieye.core.errors import DatasetError
-from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, list_images
+from multieye.core import geometry as g
+from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, list_images, read_tum
 from multieye.io.image_folder import sync_key
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 
-__all__ = ["listed_images", "check_sync", "sync_instant", "image_notes", "camera_warnings",
+__all__ = ["precomputed_poses", "listed_images", "check_sync", "sync_instant", "image_notes", "camera_warnings",
            "poses_by_name_of", "FIRST_NAMED"]
 
 #: How many image names a note names before ``and N more``.
@@ -115,3 +117,13 @@ def poses_by_name_of(name: str, cam, spec, sync: str = "time") -> tuple[Trajecto
     traj = traj if parent == "world" else traj.inverted()
     listed = [(float(k), k * 1_000_000_000, image) for k, (image, _) in enumerate(matched)]
     return traj, listed, rejected
+
+
+def precomputed_poses(cam) -> Trajectory:
+    """A camera's precomputed target poses (``cam`` its ``CameraSpec``, given by ``poses``)
+    as ``T_cam_target``: the TUM file read, each pose inverted where rig.yaml says the file
+    holds ``T_target_cam`` (``CameraSpec.poses_inverted``)."""
+    traj = read_tum(cam.poses, parent="cam", child="target")
+    if not cam.poses_inverted:
+        return traj
+    return replace(traj, T=g.inv(traj.T))
