@@ -443,7 +443,7 @@ def test_failures_inside_a_worker_are_the_image_reason(image_dataset, monkeypatc
     def broken(*a, **k):
         raise MemoryError("no memory for this one")
 
-    monkeypatch.setattr(batch, "detect_or_why", broken)
+    monkeypatch.setattr(batch, "detect_with_second_look", broken)
     results = batch.detect_and_estimate(paths, target, None, processes=1)
     assert [r.reason for r in results] == ["failed while reading or detecting: MemoryError: "
                                            "no memory for this one"] * 2
