@@ -41,8 +41,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # before numpy is imported
 
 import argparse
+import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -68,7 +69,7 @@ class Condition:
     blur: float = 0.7
     square_px: float = 30.0
     window: int | None = None     # None: corner_window's 40 % rule
-    method: str = "cornersubpix"
+    noise: float = 0.0            # sensor noise, grey levels
 
 
 def camera(lens: str) -> Intrinsics:
@@ -102,7 +103,7 @@ def poses(board: Chessboard, cond: Condition, n: int, seed: int) -> list[np.ndar
 
 
 def exact_image(board: Chessboard, lens: Intrinsics, T: np.ndarray, ss: int,
-                blur: float) -> np.ndarray:
+                blur: float, noise: float, rng: np.random.Generator) -> np.ndarray:
     """The whole image, uint8: the board's pattern (white around its squares) over the
     rectangle holding its corners and 1.5 squares more, a grey of 110 beyond."""
     true = project_points(board.object_points() @ T[:3, :3].T + T[:3, 3], lens)
@@ -128,6 +129,7 @@ def exact_image(board: Chessboard, lens: Intrinsics, T: np.ndarray, ss: int,
         image[va:va + n_v, u0:u1 + 1] = grey.reshape(n_v, ss, n_u, ss).mean(axis=(1, 3))
     if blur > 0:
         image = cv2.GaussianBlur(image, (0, 0), blur)
+    image += noise * rng.standard_normal(image.shape).astype(np.float32)
     return np.clip(np.rint(image), 0, 255).astype(np.uint8)
 
 
@@ -143,22 +145,26 @@ def refine(gray: np.ndarray, start: np.ndarray, half: int, method: str) -> np.nd
     raise ValueError(method)
 
 
-def corner_errors(board, cond: Condition, Ts, rng, renderer: str, ss: int) -> tuple[list, list]:
-    """Per pose the refined corners' errors and their directions from the board's centre."""
+def corner_errors(board, cond: Condition, Ts, renderer: str, ss: int,
+                  methods: list[str]) -> tuple[dict, list]:
+    """Per method and pose the refined corners' errors, and per pose the corners' directions
+    from the board's centre (each image rendered once for every method)."""
     lens = camera(cond.lens)
-    errs, dirs = [], []
+    errs, dirs = {m: [] for m in methods}, []
+    start_rng = np.random.default_rng(2)
     for k, T in enumerate(Ts):
         true = project_points(board.object_points() @ T[:3, :3].T + T[:3, 3], lens)
         half = cond.window or cc.corner_window(true, board)
         r = np.random.default_rng(k)
         if renderer == "exact":
-            gray = exact_image(board, lens, T, ss, cond.blur)
+            gray = exact_image(board, lens, T, ss, cond.blur, cond.noise, r)
         elif renderer == "rays":
-            gray = render(board, lens, T, rng=r, blur_sigma=cond.blur, noise_sigma=0.0)
+            gray = render(board, lens, T, rng=r, blur_sigma=cond.blur, noise_sigma=cond.noise)
         else:
-            gray = render_warped(board, lens, T, rng=r, blur_sigma=cond.blur, noise_sigma=0.0)
-        start = true + rng.uniform(-0.3, 0.3, true.shape)
-        errs.append(refine(gray, start, half, cond.method) - true)
+            gray = render_warped(board, lens, T, rng=r, blur_sigma=cond.blur, noise_sigma=cond.noise)
+        start = true + start_rng.uniform(-0.3, 0.3, true.shape)
+        for m in methods:
+            errs[m].append(refine(gray, start, half, m) - true)
         dirs.append(true - true.mean(axis=0))
     return errs, dirs
 
@@ -188,7 +194,8 @@ ROWS = {
     "sq60": Condition(square_px=60.0),
     "win5": Condition(window=5),
     "win11": Condition(window=11),
-    "twice": Condition(method="twice"),
+    "noise": Condition(noise=2.0),
+    "noise14": Condition(noise=14.0, blur=1.0, square_px=15.0),
 }
 
 
@@ -198,26 +205,30 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--ss", type=int, default=12, help="sub-pixels per side, exact renderer")
     ap.add_argument("--rows", default=",".join(ROWS))
     ap.add_argument("--renderers", default="exact,rays,warp")
-    ap.add_argument("--methods", default="cornersubpix")
+    ap.add_argument("--methods", default="cornersubpix,straight",
+                    help="cornersubpix (refine_corners), twice (it again from its result), "
+                         "straight (refine_straightened after it)")
     args = ap.parse_args(argv)
     board = Chessboard(rows=6, cols=9, spacing=0.05)
     renderers = args.renderers.split(",")
     print("| condition | method | " + " | ".join(f"{r}: outward (se) / from image centre / RMS" for r in renderers) + " |")
     print("|---|---|" + "---|" * len(renderers))
+    methods = args.methods.split(",")
     for name in args.rows.split(","):
-        for method in args.methods.split(","):
-            cond = replace(ROWS[name], method=method)
-            Ts = poses(board, cond, args.poses, seed=1)
-            lens = camera(cond.lens)
-            centres = [project_points(board.object_points() @ T[:3, :3].T + T[:3, 3], lens).mean(axis=0)
-                       - [399.5, 299.5] for T in Ts]
-            cells, t0 = [], time.time()
-            for r in renderers:
-                e, d = corner_errors(board, cond, Ts, np.random.default_rng(2), r, args.ss)
-                m, se, rad, rms = summary(e, d, [x + y for x, y in zip(d, centres)])
-                cells.append(f"{m:+.2f} ({se:.2f}) / {rad:+.2f} / {rms:.1f}")
-            print(f"| {name} | {method} | " + " | ".join(cells) + f" |  ({time.time() - t0:.0f} s)",
-                  flush=True)
+        cond = ROWS[name]
+        Ts = poses(board, cond, args.poses, seed=1)
+        lens = camera(cond.lens)
+        centres = [project_points(board.object_points() @ T[:3, :3].T + T[:3, 3], lens).mean(axis=0)
+                   - [399.5, 299.5] for T in Ts]
+        cells, t0 = {m: [] for m in methods}, time.time()
+        for r in renderers:
+            e, d = corner_errors(board, cond, Ts, r, args.ss, methods)
+            for m in methods:
+                mean, se, rad, rms = summary(e[m], d, [x + y for x, y in zip(d, centres)])
+                cells[m].append(f"{mean:+.2f} ({se:.2f}) / {rad:+.2f} / {rms:.1f}")
+        for m in methods:
+            print(f"| {name} | {m} | " + " | ".join(cells[m]) + " |", flush=True)
+        print(f"({name}: {time.time() - t0:.0f} s)", file=sys.stderr, flush=True)
 
 
 if __name__ == "__main__":
