@@ -43,57 +43,41 @@ F64 = NDArray[np.float64]
 MARGIN_PX = 4
 
 
-def _lagrange(t: F64, nodes: F64) -> tuple[F64, F64]:
-    """The Lagrange basis over ``nodes`` (m,) at ``t`` (...,): values and derivatives,
-    shape (..., m)."""
-    m = len(nodes)
-    val, der = np.empty(t.shape + (m,)), np.empty(t.shape + (m,))
-    for i in range(m):
-        others = [j for j in range(m) if j != i]
-        denom = np.prod([nodes[i] - nodes[j] for j in others])
-        factors = [t - nodes[j] for j in others]
-        val[..., i] = np.prod(factors, axis=0) / denom
-        der[..., i] = sum(np.prod([f for q, f in enumerate(factors) if q != skip], axis=0)
-                          for skip in range(len(factors))) / denom
-    return val, der
+def _local_maps(points: F64, rows: int, cols: int) -> F64:
+    """Per corner the Hessian of the grid's local mapping in pixel offsets from the corner,
+    (N, 2, 2, 2): ``[k, d]`` the 2 x 2 second derivatives of pixel coordinate ``d``.
 
-
-def _blocks(n: int) -> tuple[NDArray[np.int64], NDArray[np.int64], F64]:
-    """Per grid index along an axis of ``n`` corners: the first index of its block (3 corners,
-    2 when ``n`` is 2), its own position in the block's coordinates (the block's nodes at 0, 1,
-    2), and the nodes."""
-    m = min(n, 3)
-    first = np.clip(np.arange(n) - 1, 0, n - m)
-    return first, np.arange(n) - first, np.arange(m, dtype=np.float64)
-
-
-def _maps(points: F64, rows: int, cols: int, half: int) -> tuple[F64, F64, F64, tuple]:
-    """Per corner the image positions of its straightened patch's pixels, shape
-    (N, 2 T + 1, 2 T + 1, 2) with ``T = half + MARGIN_PX``, and the quantities
-    :func:`refine_straightened` maps back with: the block's corners (N, 3, 3, 2), the
-    inverse Jacobians (N, 2, 2) and the corners' block coordinates and nodes."""
-    grid = points.reshape(rows, cols, 2)
-    ra, ta, na = _blocks(rows)
-    cb, tb, nb = _blocks(cols)
-    r, c = np.divmod(np.arange(rows * cols), cols)
-    ia = ra[r][:, None] + np.arange(len(na))
-    ib = cb[c][:, None] + np.arange(len(nb))
-    block = grid[ia[:, :, None], ib[:, None, :]]                      # (N, ma, mb, 2)
-    ta, tb = ta[r].astype(np.float64), tb[c].astype(np.float64)
-    va, da = _lagrange(ta, na)
-    vb, db = _lagrange(tb, nb)
-    jac = np.stack([np.einsum("ki,kj,kijd->kd", da, vb, block),
-                    np.einsum("ki,kj,kijd->kd", va, db, block)], axis=-1)   # d pixel / d (a, b)
+    The mapping from the grid's (row, column) indices to pixels is, along each index, the
+    quadratic through the block of 3 corners around the corner (moved inward at the grid's
+    border; a line where the grid has 2): its first and second differences there, the mixed
+    one from the block's 4 corners (for a border corner those of the block's own rows
+    and columns: the block's mixed derivative at the border node)."""
+    g = points.reshape(rows, cols, 2)
+    da, ha = _differences(g, 0)
+    db, hb = _differences(g, 1)
+    hab = _differences(da, 1)[0]                     # d/db of d/da, at every corner
+    jac = np.stack([da, db], axis=-1).reshape(-1, 2, 2)               # (N, d, a|b)
+    hess = np.stack([np.stack([ha, hab], -1), np.stack([hab, hb], -1)], -2).reshape(-1, 2, 2, 2)
     inv = np.linalg.inv(jac)
-    t = half + MARGIN_PX
-    off = np.arange(-t, t + 1, dtype=np.float64)
-    xy = np.stack(np.meshgrid(off, off), axis=-1)                     # (2T+1, 2T+1, 2): x, y
-    shift = np.rint(points) - points                                  # the patch on whole pixels
-    ab = np.einsum("kij,kpqj->kpqi", inv, xy[None] + shift[:, None, None, :])
-    pa, _ = _lagrange(ta[:, None, None] + ab[..., 0], na)
-    pb, _ = _lagrange(tb[:, None, None] + ab[..., 1], nb)
-    where = np.einsum("kpqi,kpqj,kijd->kpqd", pa, pb, block)
-    return where, block, inv, (ta, tb, na, nb, shift)
+    return np.einsum("kia,kdij,kjb->kdab", inv, hess, inv)
+
+
+def _differences(g: F64, axis: int) -> tuple[F64, F64]:
+    """First and second derivative along ``axis`` (0: rows, 1: columns) of the quadratic
+    through each point's block of 3 (moved inward at the border; with 2 points the line,
+    no bend), at every point of ``g`` (R, C, ...)."""
+    g = np.moveaxis(g, axis, 0)
+    n = g.shape[0]
+    if n == 2:
+        d = np.broadcast_to(g[1] - g[0], g.shape)
+        return np.moveaxis(d, 0, axis), np.moveaxis(np.zeros_like(g), 0, axis)
+    d, h = np.empty_like(g), np.empty_like(g)
+    d[1:-1] = 0.5 * (g[2:] - g[:-2])
+    d[0] = -1.5 * g[0] + 2.0 * g[1] - 0.5 * g[2]
+    d[-1] = 1.5 * g[-1] - 2.0 * g[-2] + 0.5 * g[-3]
+    h[1:-1] = g[2:] - 2.0 * g[1:-1] + g[:-2]
+    h[0], h[-1] = h[1], h[-2]
+    return np.moveaxis(d, 0, axis), np.moveaxis(h, 0, axis)
 
 
 def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: int,
@@ -116,25 +100,40 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     -------
     ndarray, shape (rows * cols, 2)
         Pixels.
-    """
-    where, block, inv, (ta, tb, na, nb, shift) = _maps(points, rows, cols, half)
-    n, side = where.shape[0], where.shape[1]
+
+    Notes
+    -----
+    The patch of corner ``p`` is sampled on the whole pixels around it: its pixel at offset
+    ``x`` from ``round(p)`` (offset ``u = x + round(p) - p`` from ``p``) takes the image's
+    grey (bilinear) at ``p + u + Q(u) / 2``, ``Q`` the second-order term of the grid's
+    mapping turned into pixel offsets by its inverse Jacobian at ``p`` (:func:`_local_maps`);
+    the patch's corner ``p + u*`` goes back to ``p + u* + Q(u*) / 2``.  The shifts are
+    hundredths of a pixel, so the patch is the image where the edges are straight."""
+    n = len(points)
+    hess = _local_maps(points, rows, cols)
+    t = half + MARGIN_PX
+    side = 2 * t + 1
+    off = np.arange(-t, t + 1, dtype=np.float64)
+    base = np.rint(points)
+    shift = base - points                                             # (N, 2)
+    ux = off[None, None, :] + shift[:, 0, None, None]                  # (N, 1, side)
+    uy = off[None, :, None] + shift[:, 1, None, None]                  # (N, side, 1)
     per_row = int(np.ceil(np.sqrt(n)))
+    tiles = np.full((per_row * per_row, side, side, 2), -100.0, dtype=np.float32)
+    for d in range(2):
+        h = hess[:, d]
+        bend = 0.5 * (h[:, 0, 0, None, None] * ux * ux + 2 * h[:, 0, 1, None, None] * ux * uy
+                      + h[:, 1, 1, None, None] * uy * uy)
+        grid = (ux if d == 0 else uy) - shift[:, d, None, None]
+        tiles[:n, :, :, d] = base[:, d, None, None] + grid + bend
     mosaic_rows = int(np.ceil(n / per_row))
-    tiles = np.zeros((mosaic_rows * per_row, side, side, 2), dtype=np.float32)
-    tiles[:n] = where
-    tiles[n:] = -100.0
-    mosaic = tiles.reshape(mosaic_rows, per_row, side, side, 2).transpose(0, 2, 1, 3, 4)
-    mosaic = mosaic.reshape(mosaic_rows * side, per_row * side, 2)
-    patch = cv2.remap(gray, mosaic[..., 0], mosaic[..., 1], cv2.INTER_CUBIC,
-                      borderMode=cv2.BORDER_REPLICATE)
+    tiles = tiles[:mosaic_rows * per_row].reshape(mosaic_rows, per_row, side, side, 2)
+    mosaic = tiles.transpose(0, 2, 1, 3, 4).reshape(mosaic_rows * side, per_row * side, 2)
+    patch = cv2.remap(gray, mosaic, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     k = np.arange(n)
-    centre = np.column_stack([(k % per_row) * side, (k // per_row) * side]) + (side - 1) / 2
+    centre = np.column_stack([(k % per_row) * side, (k // per_row) * side]) + float(t)
     pts = (centre - shift).astype(np.float32).reshape(-1, 1, 2)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
     cv2.cornerSubPix(patch, pts, (half, half), (-1, -1), criteria)
-    moved = pts.reshape(-1, 2).astype(np.float64) - centre
-    ab = np.einsum("kij,kj->ki", inv, moved + shift)
-    pa, _ = _lagrange(ta + ab[:, 0], na)
-    pb, _ = _lagrange(tb + ab[:, 1], nb)
-    return np.einsum("ki,kj,kijd->kd", pa, pb, block)
+    u = pts.reshape(-1, 2).astype(np.float64) - centre + shift
+    return points + u + 0.5 * np.einsum("ka,kdab,kb->kd", u, hess, u)
