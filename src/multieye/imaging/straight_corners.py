@@ -40,7 +40,7 @@ F64 = NDArray[np.float64]
 
 #: Pixels of each resampled patch beyond the refinement window (``cornerSubPix`` reads one
 #: pixel beyond it, and the corner may move a little).
-MARGIN_PX = 4
+MARGIN_PX = 3
 
 
 def _local_maps(points: F64, rows: int, cols: int) -> F64:
@@ -114,26 +114,30 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     t = half + MARGIN_PX
     side = 2 * t + 1
     off = np.arange(-t, t + 1, dtype=np.float64)
-    base = np.rint(points)
+    base = np.rint(points).astype(np.int64)
     shift = base - points                                             # (N, 2)
     ux = off[None, None, :] + shift[:, 0, None, None]                  # (N, 1, side)
     uy = off[None, :, None] + shift[:, 1, None, None]                  # (N, side, 1)
+    bend = [0.5 * (h[:, 0, 0, None, None] * ux * ux + 2 * h[:, 0, 1, None, None] * ux * uy
+                   + h[:, 1, 1, None, None] * uy * uy) for h in (hess[:, 0], hess[:, 1])]
+    # the image on each tile's whole pixels and one beyond (replicated past the image's edge)
+    reach = np.arange(-t - 1, t + 2)
+    iy = np.clip(base[:, 1, None] + reach, 0, gray.shape[0] - 1)
+    ix = np.clip(base[:, 0, None] + reach, 0, gray.shape[1] - 1)
+    block = gray[iy[:, :, None], ix[:, None, :]].astype(np.float32)
+    # moved by the bend: first order in it, central differences (no resampling grid)
+    tiles = (block[:, 1:-1, 1:-1] + bend[0] * 0.5 * (block[:, 1:-1, 2:] - block[:, 1:-1, :-2])
+             + bend[1] * 0.5 * (block[:, 2:, 1:-1] - block[:, :-2, 1:-1])).astype(np.float32)
     per_row = int(np.ceil(np.sqrt(n)))
-    tiles = np.full((per_row * per_row, side, side, 2), -100.0, dtype=np.float32)
-    for d in range(2):
-        h = hess[:, d]
-        bend = 0.5 * (h[:, 0, 0, None, None] * ux * ux + 2 * h[:, 0, 1, None, None] * ux * uy
-                      + h[:, 1, 1, None, None] * uy * uy)
-        grid = (ux if d == 0 else uy) - shift[:, d, None, None]
-        tiles[:n, :, :, d] = base[:, d, None, None] + grid + bend
     mosaic_rows = int(np.ceil(n / per_row))
-    tiles = tiles[:mosaic_rows * per_row].reshape(mosaic_rows, per_row, side, side, 2)
-    mosaic = tiles.transpose(0, 2, 1, 3, 4).reshape(mosaic_rows * side, per_row * side, 2)
-    patch = cv2.remap(gray, mosaic, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    full = np.empty((mosaic_rows * per_row, side, side), np.float32)
+    full[:n], full[n:] = tiles, tiles[:1]
+    mosaic = full.reshape(mosaic_rows, per_row, side, side).transpose(0, 2, 1, 3)
+    mosaic = np.ascontiguousarray(mosaic.reshape(mosaic_rows * side, per_row * side))
     k = np.arange(n)
     centre = np.column_stack([(k % per_row) * side, (k // per_row) * side]) + float(t)
     pts = (centre - shift).astype(np.float32).reshape(-1, 1, 2)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
-    cv2.cornerSubPix(patch, pts, (half, half), (-1, -1), criteria)
+    cv2.cornerSubPix(mosaic, pts, (half, half), (-1, -1), criteria)
     u = pts.reshape(-1, 2).astype(np.float64) - centre + shift
     return points + u + 0.5 * np.einsum("ka,kdab,kb->kd", u, hess, u)
