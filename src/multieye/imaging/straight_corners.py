@@ -13,15 +13,20 @@ many images the pose of a camera is off by more than its reported uncertainty
 
 :func:`refine_straightened` takes the bending out before ``cornerSubPix`` sees the corner.
 Around each corner the board's grid coordinates are mapped to the image by the quadratic
-(per grid axis) through the 3 x 3 block of detected corners around it (the block moved
+(per grid axis) through the 3 x 3 block of refined corners around it (the block moved
 inward at the grid's border): it passes through the corners of the rows and columns that
 meet there, so the edges between them, as the lens bends them, follow it to second order.
-The patch around the corner is resampled (``cv2.remap``, bicubic) at the points this
-mapping gives for a grid of pixel offsets transformed by its inverse Jacobian at the
-corner: a patch that equals the image to first order (same scale, same window), its edges
-straight.  ``cornerSubPix`` refines the corner there, in the same window, and the result is
-mapped back.  Under a pinhole lens the edges are straight already and the three corners of
-a row lie on its line, so the mapping changes nothing but the resampling.
+Its second-order term, turned into pixel offsets by its inverse Jacobian at the corner, is
+the bend ``Q(u) / 2`` at offset ``u``; the patch around the corner takes at each whole
+pixel ``u`` the image's grey at ``u + Q(u) / 2``, to first order in the bend (central
+differences: the bend is hundredths of a pixel): a patch that equals the image but for the
+bend, its edges straight, in the same window.  ``cornerSubPix`` refines the corner there
+and the result is mapped back.  Under a pinhole lens the edges are straight already and the
+three corners of a row lie on its line: the bend moves the patch only along its edges.
+
+``cv2.remap`` is not used to move the patch: it puts the sample positions on a grid of 1/32
+pixel (``INTER_BITS``), which turned the hundredths-of-a-pixel bend into steps and moved the
+corners inward by 1-2 thousandths of a pixel beyond the truth on exact renders.
 
 Synopsis
 --------
@@ -38,8 +43,8 @@ __all__ = ["refine_straightened", "MARGIN_PX"]
 
 F64 = NDArray[np.float64]
 
-#: Pixels of each resampled patch beyond the refinement window (``cornerSubPix`` reads one
-#: pixel beyond it, and the corner may move a little).
+#: Pixels of each patch beyond the refinement window (``cornerSubPix`` reads one pixel
+#: beyond it and interpolates, and the corner may move a little).
 MARGIN_PX = 3
 
 
