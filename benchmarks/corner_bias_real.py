@@ -25,7 +25,9 @@ out (``cornersubpix``).  Figures:
 - the CPU time of ``detect`` per image on the rendered images, both ways, interleaved;
 - with ``--rigs``: the rigs ``benchmarks/bench_nees.py`` rendered (``--nees-data``), their
   detected corners against the true projections, both ways: the mean outward error
-  (``benchmarks/nees_structure.py``'s radial figure) and the corner RMS.
+  (``benchmarks/nees_structure.py``'s radial figure) and the corner RMS;
+- with ``--timing N``: the CPU time of ``detect`` per image on N images of that base rig,
+  both ways in turn, 3 rounds.
 
 Nothing is asserted.
 """
@@ -220,6 +222,31 @@ def nees_rigs(data: Path, variants: list[str], n_rigs: int, images: int) -> None
               flush=True)
 
 
+def timing(data: Path, n: int, rounds: int = 3) -> None:
+    """CPU time of ``detect`` per image, both ways in turn, on the first ``n`` images of
+    bench_nees.py's base rig of seed 0 (decoded once, beforehand)."""
+    from multieye.imaging.targets import target_from_spec
+    from multieye.sim.dataset import DatasetSpec
+    from bench_nees import VARIANTS, rendered  # noqa: E402
+
+    board = target_from_spec(DatasetSpec(**VARIANTS["base"][0]).target)
+    folder = rendered(data, "base", 100, 0)
+    files = sorted(folder.glob("cam*/*.png"))[:n]
+    grays = [cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) for f in files]
+    cpu = {0: [], 1: []}
+    for _ in range(rounds):
+        for way in (0, 1):
+            t0 = time.process_time()
+            with (without_straightening() if way == 0 else contextlib.nullcontext()):
+                for g in grays:
+                    detect(g, board)
+            cpu[way].append(1e3 * (time.process_time() - t0) / len(grays))
+    print(f"\ndetect CPU ms per image, {len(grays)} base-rig images, {rounds} rounds in turn (load "
+          f"{os.getloadavg()[0]:.1f}): cornersubpix {', '.join(f'{x:.2f}' for x in cpu[0])}; "
+          f"straight {', '.join(f'{x:.2f}' for x in cpu[1])}; median ratio "
+          f"{np.median(cpu[1]) / np.median(cpu[0]):.3f}")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path,
@@ -230,6 +257,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--images", type=int, default=100)
     ap.add_argument("--variants", default="base,hd-jpeg,noisy")
     ap.add_argument("--nees-data", type=Path, default=Path("/tmp/bench_nees"))
+    ap.add_argument("--timing", type=int, default=0,
+                    help="time detect on this many images of bench_nees.py's base rig")
     args = ap.parse_args(argv)
     if args.data.is_dir():
         real(args.data)
@@ -239,6 +268,8 @@ def main(argv: list[str] | None = None) -> None:
         rendered(args.renders)
     if args.rigs:
         nees_rigs(args.nees_data, args.variants.split(","), args.rigs, args.images)
+    if args.timing:
+        timing(args.nees_data, args.timing)
 
 
 if __name__ == "__main__":

@@ -61,10 +61,18 @@ def _local_maps(points: F64, rows: int, cols: int) -> F64:
     da, ha = _differences(g, 0)
     db, hb = _differences(g, 1)
     hab = _differences(da, 1)[0]                     # d/db of d/da, at every corner
-    jac = np.stack([da, db], axis=-1).reshape(-1, 2, 2)               # (N, d, a|b)
-    hess = np.stack([np.stack([ha, hab], -1), np.stack([hab, hb], -1)], -2).reshape(-1, 2, 2, 2)
-    inv = np.linalg.inv(jac)
-    return np.einsum("kia,kdij,kjb->kdab", inv, hess, inv)
+    da, db, ha, hb, hab = (x.reshape(-1, 2) for x in (da, db, ha, hb, hab))
+    det = da[:, 0] * db[:, 1] - db[:, 0] * da[:, 1]
+    # the inverse Jacobian's columns: grid steps per pixel along x and along y
+    a = np.stack([db[:, 1], -da[:, 1]], axis=1) / det[:, None]
+    b = np.stack([-db[:, 0], da[:, 0]], axis=1) / det[:, None]
+    out = np.empty((len(det), 2, 2, 2))
+    out[:, :, 0, 0] = ha * (a[:, :1] ** 2) + 2 * hab * (a[:, :1] * a[:, 1:]) + hb * (a[:, 1:] ** 2)
+    out[:, :, 1, 1] = ha * (b[:, :1] ** 2) + 2 * hab * (b[:, :1] * b[:, 1:]) + hb * (b[:, 1:] ** 2)
+    out[:, :, 0, 1] = (ha * (a[:, :1] * b[:, :1]) + hab * (a[:, :1] * b[:, 1:] + a[:, 1:] * b[:, :1])
+                       + hb * (a[:, 1:] * b[:, 1:]))
+    out[:, :, 1, 0] = out[:, :, 0, 1]
+    return out
 
 
 def _differences(g: F64, axis: int) -> tuple[F64, F64]:
@@ -115,24 +123,26 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     the patch's corner ``p + u*`` goes back to ``p + u* + Q(u*) / 2``.  The shifts are
     hundredths of a pixel, so the patch is the image where the edges are straight."""
     n = len(points)
-    hess = _local_maps(points, rows, cols)
+    hess = _local_maps(points, rows, cols).astype(np.float32)
     t = half + MARGIN_PX
     side = 2 * t + 1
-    off = np.arange(-t, t + 1, dtype=np.float64)
     base = np.rint(points).astype(np.int64)
-    shift = base - points                                             # (N, 2)
-    ux = off[None, None, :] + shift[:, 0, None, None]                  # (N, 1, side)
-    uy = off[None, :, None] + shift[:, 1, None, None]                  # (N, side, 1)
-    bend = [0.5 * (h[:, 0, 0, None, None] * ux * ux + 2 * h[:, 0, 1, None, None] * ux * uy
-                   + h[:, 1, 1, None, None] * uy * uy) for h in (hess[:, 0], hess[:, 1])]
+    shift = (base - points).astype(np.float32)                        # (N, 2)
+    off = np.arange(-t, t + 1, dtype=np.float32)
+    ux = (off + shift[:, 0, None])[:, None, None, :]                  # (N, 1, 1, side)
+    uy = (off + shift[:, 1, None])[:, None, :, None]                  # (N, 1, side, 1)
+    # the bend of both coordinates, halved again for the central differences below
+    h = 0.25 * hess
+    bend = (h[:, :, 0, 0, None, None] * (ux * ux) + h[:, :, 1, 1, None, None] * (uy * uy)
+            + (2 * h[:, :, 0, 1, None, None]) * (ux * uy))            # (N, 2, side, side)
     # the image on each tile's whole pixels and one beyond (replicated past the image's edge)
     reach = np.arange(-t - 1, t + 2)
     iy = np.clip(base[:, 1, None] + reach, 0, gray.shape[0] - 1)
     ix = np.clip(base[:, 0, None] + reach, 0, gray.shape[1] - 1)
     block = gray[iy[:, :, None], ix[:, None, :]].astype(np.float32)
     # moved by the bend: first order in it, central differences (no resampling grid)
-    tiles = (block[:, 1:-1, 1:-1] + bend[0] * 0.5 * (block[:, 1:-1, 2:] - block[:, 1:-1, :-2])
-             + bend[1] * 0.5 * (block[:, 2:, 1:-1] - block[:, :-2, 1:-1])).astype(np.float32)
+    tiles = block[:, 1:-1, 1:-1] + bend[:, 0] * (block[:, 1:-1, 2:] - block[:, 1:-1, :-2])
+    tiles += bend[:, 1] * (block[:, 2:, 1:-1] - block[:, :-2, 1:-1])
     per_row = int(np.ceil(np.sqrt(n)))
     mosaic_rows = int(np.ceil(n / per_row))
     full = np.empty((mosaic_rows * per_row, side, side), np.float32)
@@ -145,4 +155,4 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
     cv2.cornerSubPix(mosaic, pts, (half, half), (-1, -1), criteria)
     u = pts.reshape(-1, 2).astype(np.float64) - centre + shift
-    return points + u + 0.5 * np.einsum("ka,kdab,kb->kd", u, hess, u)
+    return points + u + 0.5 * np.einsum("ka,kdab,kb->kd", u, hess.astype(np.float64), u)
