@@ -78,19 +78,33 @@ def _local_maps(points: F64, rows: int, cols: int) -> F64:
 def _differences(g: F64, axis: int) -> tuple[F64, F64]:
     """First and second derivative along ``axis`` (0: rows, 1: columns) of the quadratic
     through each point's block of 3 (moved inward at the border; with 2 points the line,
-    no bend), at every point of ``g`` (R, C, ...)."""
-    g = np.moveaxis(g, axis, 0)
-    n = g.shape[0]
-    if n == 2:
-        d = np.broadcast_to(g[1] - g[0], g.shape)
-        return np.moveaxis(d, 0, axis), np.moveaxis(np.zeros_like(g), 0, axis)
+    no bend), at every point of ``g`` (R, C, 2)."""
+    if axis == 1:
+        d, h = _differences(g.transpose(1, 0, 2), 0)
+        return d.transpose(1, 0, 2), h.transpose(1, 0, 2)
+    if len(g) == 2:
+        return np.broadcast_to(g[1] - g[0], g.shape), np.zeros_like(g)
     d, h = np.empty_like(g), np.empty_like(g)
     d[1:-1] = 0.5 * (g[2:] - g[:-2])
     d[0] = -1.5 * g[0] + 2.0 * g[1] - 0.5 * g[2]
     d[-1] = 1.5 * g[-1] - 2.0 * g[-2] + 0.5 * g[-3]
     h[1:-1] = g[2:] - 2.0 * g[1:-1] + g[:-2]
     h[0], h[-1] = h[1], h[-2]
-    return np.moveaxis(d, 0, axis), np.moveaxis(h, 0, axis)
+    return d, h
+
+
+def _blocks(gray: NDArray[np.uint8], centres: NDArray[np.int64], r: int) -> NDArray[np.uint8]:
+    """The (2 r + 1)-pixel squares of ``gray`` around the whole pixels ``centres`` (N, 2),
+    (N, 2 r + 1, 2 r + 1); past the image's edge its border pixels repeated."""
+    h, w = gray.shape
+    x, y = centres[:, 0], centres[:, 1]
+    if x.min() >= r and y.min() >= r and x.max() < w - r and y.max() < h - r:
+        windows = np.lib.stride_tricks.sliding_window_view(gray, (2 * r + 1, 2 * r + 1))
+        return windows[y - r, x - r]
+    reach = np.arange(-r, r + 1)
+    iy = np.clip(y[:, None] + reach, 0, h - 1)
+    ix = np.clip(x[:, None] + reach, 0, w - 1)
+    return gray[iy[:, :, None], ix[:, None, :]]
 
 
 def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: int,
@@ -136,10 +150,7 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     bend = (h[:, :, 0, 0, None, None] * (ux * ux) + h[:, :, 1, 1, None, None] * (uy * uy)
             + (2 * h[:, :, 0, 1, None, None]) * (ux * uy))            # (N, 2, side, side)
     # the image on each tile's whole pixels and one beyond (replicated past the image's edge)
-    reach = np.arange(-t - 1, t + 2)
-    iy = np.clip(base[:, 1, None] + reach, 0, gray.shape[0] - 1)
-    ix = np.clip(base[:, 0, None] + reach, 0, gray.shape[1] - 1)
-    block = gray[iy[:, :, None], ix[:, None, :]].astype(np.float32)
+    block = _blocks(gray, base, t + 1).astype(np.float32)
     # moved by the bend: first order in it, central differences (no resampling grid)
     tiles = block[:, 1:-1, 1:-1] + bend[:, 0] * (block[:, 1:-1, 2:] - block[:, 1:-1, :-2])
     tiles += bend[:, 1] * (block[:, 2:, 1:-1] - block[:, :-2, 1:-1])
