@@ -48,31 +48,39 @@ F64 = NDArray[np.float64]
 MARGIN_PX = 3
 
 
-def _local_maps(points: F64, rows: int, cols: int) -> F64:
-    """Per corner the Hessian of the grid's local mapping in pixel offsets from the corner,
-    (N, 2, 2, 2): ``[k, d]`` the 2 x 2 second derivatives of pixel coordinate ``d``.
+def _edge_frames(points: F64, rows: int, cols: int) -> tuple[F64, F64, F64, F64]:
+    """Per corner the grid's local frame: the inverse Jacobian of the mapping from the
+    grid's (row, column) indices to pixels (N, 2, 2: index steps per pixel), the second
+    derivatives of that mapping along the rows' index and along the columns' (N, 2 each:
+    pixels per square squared), and the Jacobian's columns' lengths stacked (N, 2).
 
-    The mapping from the grid's (row, column) indices to pixels is, along each index, the
-    quadratic through the block of 3 corners around the corner (moved inward at the grid's
-    border; a line where the grid has 2): its first and second differences there, the mixed
-    one from the block's 4 corners (for a border corner those of the block's own rows
-    and columns: the block's mixed derivative at the border node)."""
+    Along each index the mapping is the quadratic through the block of 3 corners around the
+    corner (moved inward at the grid's border; a line where the grid has 2)."""
     g = points.reshape(rows, cols, 2)
     da, ha = _differences(g, 0)
     db, hb = _differences(g, 1)
-    hab = _differences(da, 1)[0]                     # d/db of d/da, at every corner
-    da, db, ha, hb, hab = (x.reshape(-1, 2) for x in (da, db, ha, hb, hab))
-    det = da[:, 0] * db[:, 1] - db[:, 0] * da[:, 1]
-    # the inverse Jacobian's columns: grid steps per pixel along x and along y
-    a = np.stack([db[:, 1], -da[:, 1]], axis=1) / det[:, None]
-    b = np.stack([-db[:, 0], da[:, 0]], axis=1) / det[:, None]
-    out = np.empty((len(det), 2, 2, 2))
-    out[:, :, 0, 0] = ha * (a[:, :1] ** 2) + 2 * hab * (a[:, :1] * a[:, 1:]) + hb * (a[:, 1:] ** 2)
-    out[:, :, 1, 1] = ha * (b[:, :1] ** 2) + 2 * hab * (b[:, :1] * b[:, 1:]) + hb * (b[:, 1:] ** 2)
-    out[:, :, 0, 1] = (ha * (a[:, :1] * b[:, :1]) + hab * (a[:, :1] * b[:, 1:] + a[:, 1:] * b[:, :1])
-                       + hb * (a[:, 1:] * b[:, 1:]))
-    out[:, :, 1, 0] = out[:, :, 0, 1]
-    return out
+    da, db, ha, hb = (x.reshape(-1, 2) for x in (da, db, ha, hb))
+    jac = np.stack([da, db], axis=-1)                                 # (N, d, a|b)
+    return np.linalg.inv(jac), ha, hb, np.stack([np.hypot(*da.T), np.hypot(*db.T)], axis=1)
+
+
+def _bend(ux: NDArray, uy: NDArray, frames: tuple) -> tuple[NDArray, NDArray]:
+    """The bend (x and y, pixels) at pixel offsets ``ux``, ``uy`` (broadcast against
+    (N, 1, 1)) from each corner: near the edge along the columns' index (the grid's row
+    through the corner) the displacement of that row's point at the same column offset,
+    ``H_bb db^2 / 2``, the same across the edge; nearer the other edge its ``H_aa da^2 /
+    2``.  So each edge is moved onto its tangent as a whole: a displacement that varied
+    across an edge (the whole quadratic map's ``H_aa da^2 / 2`` near the row's edge) would
+    move its blurred profile's centre by about that second derivative times the blur's
+    variance."""
+    inv, ha, hb, lengths = frames
+    c = lambda x: x[:, None, None]  # noqa: E731  (per corner, against the offsets)
+    a = c(inv[:, 0, 0]) * ux + c(inv[:, 0, 1]) * uy
+    b = c(inv[:, 1, 0]) * ux + c(inv[:, 1, 1]) * uy
+    near_row = np.abs(a) * c(lengths[:, 0]) < np.abs(b) * c(lengths[:, 1])
+    a2, b2 = 0.5 * a * a, 0.5 * b * b
+    return (np.where(near_row, c(hb[:, 0]) * b2, c(ha[:, 0]) * a2),
+            np.where(near_row, c(hb[:, 1]) * b2, c(ha[:, 1]) * a2))
 
 
 def _differences(g: F64, axis: int) -> tuple[F64, F64]:
@@ -133,27 +141,24 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     The patch of corner ``p`` is sampled on the whole pixels around it: its pixel at offset
     ``x`` from ``round(p)`` (offset ``u = x + round(p) - p`` from ``p``) takes the image's
     grey (bilinear) at ``p + u + Q(u) / 2``, ``Q`` the second-order term of the grid's
-    mapping turned into pixel offsets by its inverse Jacobian at ``p`` (:func:`_local_maps`);
+    mapping turned into pixel offsets by its inverse Jacobian at ``p`` (:func:`_edge_frames`, :func:`_bend`);
     the patch's corner ``p + u*`` goes back to ``p + u* + Q(u*) / 2``.  The shifts are
     hundredths of a pixel, so the patch is the image where the edges are straight."""
     n = len(points)
-    hess = _local_maps(points, rows, cols).astype(np.float32)
+    frames = tuple(x.astype(np.float32) for x in _edge_frames(points, rows, cols))
     t = half + MARGIN_PX
     side = 2 * t + 1
     base = np.rint(points).astype(np.int64)
     shift = (base - points).astype(np.float32)                        # (N, 2)
     off = np.arange(-t, t + 1, dtype=np.float32)
-    ux = (off + shift[:, 0, None])[:, None, None, :]                  # (N, 1, 1, side)
-    uy = (off + shift[:, 1, None])[:, None, :, None]                  # (N, 1, side, 1)
-    # the bend of both coordinates, halved again for the central differences below
-    h = 0.25 * hess
-    bend = (h[:, :, 0, 0, None, None] * (ux * ux) + h[:, :, 1, 1, None, None] * (uy * uy)
-            + (2 * h[:, :, 0, 1, None, None]) * (ux * uy))            # (N, 2, side, side)
+    ux = (off + shift[:, 0, None])[:, None, :]                        # (N, 1, side)
+    uy = (off + shift[:, 1, None])[:, :, None]                        # (N, side, 1)
+    bx, by = _bend(ux, uy, frames)                                    # (N, side, side)
     # the image on each tile's whole pixels and one beyond (replicated past the image's edge)
     block = _blocks(gray, base, t + 1).astype(np.float32)
     # moved by the bend: first order in it, central differences (no resampling grid)
-    tiles = block[:, 1:-1, 1:-1] + bend[:, 0] * (block[:, 1:-1, 2:] - block[:, 1:-1, :-2])
-    tiles += bend[:, 1] * (block[:, 2:, 1:-1] - block[:, :-2, 1:-1])
+    tiles = block[:, 1:-1, 1:-1] + 0.5 * bx * (block[:, 1:-1, 2:] - block[:, 1:-1, :-2])
+    tiles += 0.5 * by * (block[:, 2:, 1:-1] - block[:, :-2, 1:-1])
     per_row = int(np.ceil(np.sqrt(n)))
     mosaic_rows = int(np.ceil(n / per_row))
     full = np.empty((mosaic_rows * per_row, side, side), np.float32)
@@ -166,4 +171,5 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
     cv2.cornerSubPix(mosaic, pts, (half, half), (-1, -1), criteria)
     u = pts.reshape(-1, 2).astype(np.float64) - centre + shift
-    return points + u + 0.5 * np.einsum("ka,kdab,kb->kd", u, hess.astype(np.float64), u)
+    back = _bend(u[:, :1, None], u[:, 1:, None], tuple(x.astype(np.float64) for x in frames))
+    return points + u + np.column_stack([back[0].ravel(), back[1].ravel()])
