@@ -14,15 +14,18 @@ many images the pose of a camera is off by more than its reported uncertainty
 :func:`refine_straightened` takes the bending out before ``cornerSubPix`` sees the corner.
 Around each corner the board's grid coordinates are mapped to the image by the quadratic
 (per grid axis) through the 3 x 3 block of refined corners around it (the block moved
-inward at the grid's border): it passes through the corners of the rows and columns that
+inward at the grid's border): it passes through the corners of the row and the column that
 meet there, so the edges between them, as the lens bends them, follow it to second order.
-Its second-order term, turned into pixel offsets by its inverse Jacobian at the corner, is
-the bend ``Q(u) / 2`` at offset ``u``; the patch around the corner takes at each whole
-pixel ``u`` the image's grey at ``u + Q(u) / 2``, to first order in the bend (central
-differences: the bend is hundredths of a pixel): a patch that equals the image but for the
+Each pixel of the patch around the corner takes the image's grey displaced by the bend of
+the edge it is nearer (:func:`_bend`: that row's or column's second-order term at the
+pixel's offset along it, the same across the edge, hundredths of a pixel), to first order
+with central differences on the whole pixels: a patch that equals the image but for the
 bend, its edges straight, in the same window.  ``cornerSubPix`` refines the corner there
 and the result is mapped back.  Under a pinhole lens the edges are straight already and the
-three corners of a row lie on its line: the bend moves the patch only along its edges.
+three corners of a row lie on its line: the bend moves the patch only along its edges.  The
+whole quadratic map would also vary the displacement across each edge (by the other grid
+line's bend), which moves a blurred edge's centre by about that second derivative times
+the blur's variance: on exact renders an overshoot that grew with the blur.
 
 ``cv2.remap`` is not used to move the patch: it puts the sample positions on a grid of 1/32
 pixel (``INTER_BITS``), which turned the hundredths-of-a-pixel bend into steps and moved the
@@ -140,10 +143,9 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     -----
     The patch of corner ``p`` is sampled on the whole pixels around it: its pixel at offset
     ``x`` from ``round(p)`` (offset ``u = x + round(p) - p`` from ``p``) takes the image's
-    grey (bilinear) at ``p + u + Q(u) / 2``, ``Q`` the second-order term of the grid's
-    mapping turned into pixel offsets by its inverse Jacobian at ``p`` (:func:`_edge_frames`, :func:`_bend`);
-    the patch's corner ``p + u*`` goes back to ``p + u* + Q(u*) / 2``.  The shifts are
-    hundredths of a pixel, so the patch is the image where the edges are straight."""
+    grey at ``p + u + t(u)``, ``t`` the bend (:func:`_edge_frames`, :func:`_bend`), as
+    ``I + t . grad I`` with central differences; the patch's corner ``p + u*`` goes back to
+    ``p + u* + t(u*)``."""
     n = len(points)
     frames = tuple(x.astype(np.float32) for x in _edge_frames(points, rows, cols))
     t = half + MARGIN_PX
