@@ -225,12 +225,18 @@ def main(argv: list[str] | None = None) -> None:
         families = VARIANTS[variant][1]
         for images in args.images:
             for lens in args.lens.split(","):
-                runs = [one_run(rendered(args.data, variant, images, s), lens)
-                        for s in range(args.first_seed, args.first_seed + args.rigs)]
+                runs = []
+                for s in range(args.first_seed, args.first_seed + args.rigs):
+                    try:
+                        runs.append(one_run(rendered(args.data, variant, images, s), lens))
+                    except Exception as e:  # noqa: BLE001  (named in the output, left out)
+                        print(f"({variant}, lenses {lens}, {images} images, seed {s}: the "
+                              f"calibration failed, left out: {type(e).__name__}: {e})", flush=True)
                 cells = [interval([r[k] for r in runs], rng) for k in ("rot", "trans", "nees")]
                 more = [" / ".join(f"{np.mean(np.concatenate([r[q + k] for r in runs])):.2f}"
                                    for q in ("rot", "trans", "nees")) for k in kinds[1:]]
-                print(f"| {variant} | {lens} ({', '.join(families)}) | {images} | "
+                rigs = "" if len(runs) == args.rigs else f", {len(runs)} rigs"
+                print(f"| {variant} | {lens} ({', '.join(families)}{rigs}) | {images} | "
                       f"{np.median([r['sigma'] for r in runs]):.3f} | "
                       + " | ".join([f"{m:.2f} ({lo:.2f}-{hi:.2f})" for m, lo, hi in cells] + more)
                       + " |", flush=True)

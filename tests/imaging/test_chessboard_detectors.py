@@ -48,7 +48,7 @@ def _truth(board, T):
 def _canonical_from(image, board, detector):
     raw = cc.find_chessboard(image, board, detector=detector)
     assert raw is not None, detector
-    refined = cc.refine_corners(image, raw, cc.corner_window(raw, board))
+    refined = cc.refine_grid(image, raw, board)
     return raw, detect_module.canonical_order(image, board, refined)
 
 

@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from multieye.imaging.straight_corners import refine_straightened
 from multieye.imaging.targets import Chessboard, Target
 
 __all__ = ["locate", "locate_board", "Located", "search_order", "quick_check", "find_chessboard", "refine_grid",
@@ -378,11 +379,20 @@ def corner_window(points: F64, target: Target) -> int:
 def refine_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> F64:
     """Grid corners refined by ``cornerSubPix`` in a window of 40 % of the smallest square
     (:func:`corner_window`), measured on the refined corners: when the unrefined corners
-    (found at half size, say) gave another window, they are refined again in that one."""
+    (found at half size, say) gave another window, they are refined again in that one.
+    Then once more on patches whose edges the local quadratic of the grid straightens
+    (:func:`multieye.imaging.straight_corners.refine_straightened`): ``cornerSubPix``
+    alone puts corners whose edges the lens bends off them towards the edges' convex side,
+    outward of the image centre under barrel distortion (``benchmarks/corner_bias.py``)."""
     window = corner_window(points, target)
     refined = refine_corners(gray, points, window)
     again = corner_window(refined, target)
-    return refined if again == window else refine_corners(gray, refined, again)
+    if again != window:
+        refined, window = refine_corners(gray, refined, again), again
+    rows, cols = target.grid_shape()
+    if min(rows, cols) < 2:
+        return refined
+    return refine_straightened(gray, refined, rows, cols, window)
 
 
 def refine_corners(gray: NDArray[np.uint8], points: F64, half: int) -> F64:
