@@ -49,6 +49,25 @@ def test_linear_problem_solved_exactly_with_the_dense_covariance(rng):
     np.testing.assert_allclose(cov.local, blocks, rtol=1e-9, atol=1e-12)
 
 
+def test_covariance_where_a_huge_parameter_trades_off_with_eliminated_ones(rng):
+    """Each global's first coordinate moves the residuals as its segments' first local
+    coordinates do, 1e11 times as strongly (information 1e22; only its prior, of information
+    1, tells them apart: a rational lens whose numerator and denominator nearly share a
+    factor): that difference is below double precision, so the reduced diagonal cancels.
+    The covariance comes out finite, the other coordinates' exact (the first ones are the
+    same problem reparameterised: without them the rest is unchanged), where the unscaled
+    Schur complement's diagonal went negative and the Cholesky's scaling overflowed (a
+    calibration ended in a traceback)."""
+    fams, (lin, prior) = _linear_problem(rng)
+    lin.Ag[:, :, 0] = 1e11 * lin.Al[:, :, 0]
+    cov = covariance(fams, [lin, prior], local=False)
+    assert np.all(np.isfinite(cov.kept))
+    J, _ = _dense(fams, [lin, prior])
+    keep = [j for j in range(J.shape[1]) if j >= 6 or j % 2 == 1]   # all but G[:, 0]
+    full = np.linalg.inv(J[:, keep].T @ J[:, keep])
+    np.testing.assert_allclose(cov.kept[1::2, 1::2], full[:3, :3], rtol=1e-6)
+
+
 def test_eliminated_blocks_shared_by_several_groups_match_the_dense_solution(rng):
     """An eliminated block touched by segments of several groups, each with other kept
     blocks (one motion-capture pose seen by several cameras): the Schur complement's step and

@@ -245,7 +245,11 @@ def _factor(S: F64):
     """Cholesky of ``S`` with a Jacobi scaling (parameters in pixels, metres, radians and
     unitless distortion differ by orders of magnitude): ``(c, d)`` with ``S = D C D``."""
     d = np.sqrt(np.maximum(np.diag(S), 1e-300))
-    return cho_factor(S / np.outer(d, d)), d
+    with np.errstate(over="ignore", invalid="ignore"):
+        scaled = S / np.outer(d, d)
+    if not np.all(np.isfinite(scaled)):     # a diagonal at the floor: not definite
+        raise LinAlgError("the Jacobi-scaled system is not finite")
+    return cho_factor(scaled), d
 
 
 def _solve(factor, rhs: F64) -> F64:
@@ -336,7 +340,16 @@ def marginal_covariance(ne: NormalEquations, *, local: bool = False
     InputError
         A parameter (or an eliminated block) has no information at all.
     """
-    reduced = _reduce(ne, 0.0)
+    if np.any(np.diag(ne.U) <= 0.0):       # a parameter no residual depends on
+        raise InputError("the information matrix is singular: the data do not determine "
+                         "every parameter (too few measurements, or motion that leaves a "
+                         "direction unobserved)")
+    # Jacobi-scaled before the reduction: unscaled, a parameter with an information of 1e23
+    # (a rational lens whose numerator and denominator nearly share a factor) left the
+    # reduced system's other entries below its rounding, and their diagonal cancelled to
+    # zero or below
+    scaled, dk, dl = _jacobi_scaled(ne)
+    reduced = _reduce(scaled, 0.0)
     if reduced is None:
         raise InputError("the information matrix is singular: an eliminated block is not "
                          "determined by its residuals")
@@ -344,22 +357,32 @@ def marginal_covariance(ne: NormalEquations, *, local: bool = False
     k = len(S)
     undetermined = np.zeros((k, 0))
     try:
-        cov = _solve(_factor(S), np.eye(k)) if S.size else S
+        cov = cho_solve(cho_factor(S), np.eye(k)) if S.size else S
     except LinAlgError:
-        diag = np.diag(S)
-        if np.any(diag <= 0.0):       # a parameter no residual depends on
-            raise InputError("the information matrix is singular: the data do not determine "
-                             "every parameter (too few measurements, or motion that leaves a "
-                             "direction unobserved)") from None
-        d = np.sqrt(diag)
-        w, V = eigh(S / np.outer(d, d))
+        w, V = eigh(S)
         keep = w > _UNDETERMINED * w.max()
-        cov = (V[:, keep] / w[keep]) @ V[:, keep].T / np.outer(d, d)
-        undetermined = V[:, ~keep] / d[:, None]
+        cov = (V[:, keep] / w[keep]) @ V[:, keep].T
+        undetermined = V[:, ~keep] / dk[:, None]
         undetermined /= np.linalg.norm(undetermined, axis=0)
-    cov = 0.5 * (cov + cov.T)
+    cov = 0.5 * (cov + cov.T)                                            # scaled
     if not local or WVi is None:
-        return cov, None, undetermined
+        return cov / np.outer(dk, dk), None, undetermined
     L, d = ne.g_local.shape
     Z = WVi.T.toarray().reshape(L, d, -1)                                 # V^-1 W^T
-    return cov, Vinv + Z @ cov @ np.swapaxes(Z, 1, 2), undetermined
+    local_cov = Vinv + Z @ cov @ np.swapaxes(Z, 1, 2)
+    return cov / np.outer(dk, dk), local_cov / (dl[:, :, None] * dl[:, None, :]), undetermined
+
+
+def _jacobi_scaled(ne: NormalEquations) -> tuple[NormalEquations, F64, F64]:
+    """``ne`` with every parameter scaled to unit information (``D^-1 H D^-1``, ``D`` the
+    root of the diagonal of the whole ``J^T J``): ``(scaled, d_kept (k,), d_local (L, d))``.
+    An eliminated block's zero diagonal stays zero (its inverse then fails, as unscaled)."""
+    dk = np.sqrt(np.diag(ne.U))
+    dl = np.sqrt(np.maximum(np.einsum("lii->li", ne.V), 0.0))
+    inv_l = np.divide(1.0, dl, out=np.zeros_like(dl), where=dl > 0).ravel()
+    W = sp.diags(1.0 / dk) @ ne.W @ sp.diags(inv_l)
+    inv = inv_l.reshape(dl.shape)
+    V = ne.V * (np.where(dl > 0, inv, 1.0)[:, :, None] * np.where(dl > 0, inv, 1.0)[:, None, :])
+    scaled = NormalEquations(U=ne.U / np.outer(dk, dk), g=ne.g / dk, V=V,
+                             g_local=ne.g_local * inv_l.reshape(dl.shape), W=sp.csr_matrix(W))
+    return scaled, dk, np.where(dl > 0, dl, 1.0)
