@@ -167,3 +167,21 @@ def test_stamps_a_little_apart_name_the_tolerance_that_pairs_them(shared_data, t
     res, cal = _calibrate(data, tmp_path / "out")
     assert res.exit_code == 0, res.output
     assert cal["cameras"]["cam1"]["links"]["overlap"] == {"cam0": 11}
+
+
+def test_a_spacing_in_centimetres_is_doubted_without_mocap(shared_data, tmp_path):
+    """``spacing: 3`` for 3 cm squares: without motion capture nothing else gives the scale,
+    so the rig came out 100 times larger (a 12 m baseline) with exit status 0. Now exit 3,
+    cause scale, saying what to write; the result is written as computed."""
+    data = _stereo(shared_data, tmp_path / "d",
+                   '  left: {intrinsics: {file: stereo.yaml, camera: left}, images: "left*.jpg"}\n'
+                   '  right: {intrinsics: {file: stereo.yaml, camera: right}, '
+                   'images: "right*.jpg"}\n')
+    rig = (data / "rig.yaml").read_text()
+    (data / "rig.yaml").write_text(rig.replace("spacing: 0.03", "spacing: 3"))
+    res, cal = _calibrate(data, tmp_path / "out")
+    assert res.exit_code == 3, res.output
+    doubts = [p for p in cal["plausibility"] if p["cause"] == "scale"]
+    assert len(doubts) == 1 and "write 0.03 in rig.yaml" in doubts[0]["message"], doubts
+    t = np.array(cal["cameras"]["right"]["T_ref_cam"])[:3, 3]
+    assert abs(np.linalg.norm(t) - 12.0) < 0.2

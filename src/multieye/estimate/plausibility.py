@@ -104,7 +104,8 @@ if TYPE_CHECKING:  # the refinement's result type, for the annotation only
     from multieye.estimate.refine_images import RefinementResult
 
 __all__ = ["CAUSES", "CameraEvidence", "Declared", "Finding", "Plausibility",
-           "check_plausibility", "check_noise", "given_lens_findings", "DISCRETE_GAIN", "CONTINUOUS_GAIN",
+           "check_plausibility", "check_noise", "given_lens_findings", "target_size_findings",
+           "MAX_TARGET_FEATURE_M", "DISCRETE_GAIN", "CONTINUOUS_GAIN",
            "POOR_COST", "LENS_PIXEL_GAIN", "MIN_LENS_EXCESS_PX"]
 
 #: The causes a finding can name.
@@ -338,6 +339,36 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
     if not (pixels or loop):
         return None
     return _lens_message(cam, test, loop=True)
+
+
+#: A target's square (or marker) side from which a rig without motion capture doubts its
+#: scale, metres: printed and painted boards have squares of a few millimetres to about a
+#: quarter of a metre; a spacing of 1-10 is centimetres written as metres.
+MAX_TARGET_FEATURE_M = 1.0
+
+
+def target_size_findings(spacings: dict[str, float]) -> tuple[Finding, ...]:
+    """Rigs without motion capture take their scale from the target alone: a target spacing
+    in the wrong unit scales every translation and gives no misfit to see (``spacing: 3``
+    meant as centimetres: a 100 times longer baseline, exit status 0 before).  Doubted,
+    cause ``scale``, for a square or marker side of :data:`MAX_TARGET_FEATURE_M` or more.
+
+    Parameters
+    ----------
+    spacings : dict of str to float
+        Each target's square side (``spacing``; a marker's side for ArUco), metres, by name.
+
+    Returns
+    -------
+    tuple of Finding
+    """
+    return tuple(
+        Finding("scale", f"scale: target {name!r} has squares or markers of {s:g} m, far "
+                "larger than any calibration board; without motion capture the target alone "
+                "gives the scale, so every translation is in proportion to it: if they "
+                f"measure {s:g} cm, write {s / 100:g} in rig.yaml (metres)", None,
+                float("nan"), float("nan"), {"spacing_m": float(s)})
+        for name, s in spacings.items() if s >= MAX_TARGET_FEATURE_M)
 
 
 def given_lens_findings(cameras: Sequence[CameraEvidence]) -> tuple[Finding, ...]:

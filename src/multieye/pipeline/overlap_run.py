@@ -20,7 +20,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DatasetError
 from multieye.core.metrics import camera_residual
 from multieye.estimate.findings import Plausibility
-from multieye.estimate.plausibility import CameraEvidence, given_lens_findings
+from multieye.estimate.plausibility import CameraEvidence, given_lens_findings, target_size_findings
 from multieye.estimate.uncertainty import pose_std, projection_std
 from multieye.core.lens_curve import observed_curve
 from multieye.io import (
@@ -124,7 +124,10 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         for j, n in enumerate(names)}
     lens = given_lens_findings([_evidence(problem.cameras[n], paired[n]) for n in names
                                 if not problem.cameras[n].intrinsics_estimated])
-    sol = replace(sol, findings=tuple(sol.findings) + lens)
+    boards = getattr(problem.rig, "targets", None) or {"target": problem.rig.target}
+    size = target_size_findings({n: spec.spacing for n, spec in boards.items()
+                                 if spec is not None})
+    sol = replace(sol, findings=tuple(sol.findings) + lens + size)
     estimated = {n: res.intrinsics[j] for j, n in enumerate(names)
                  if problem.cameras[n].intrinsics_estimated}
     rms = _camera_rms(sol)
@@ -136,7 +139,7 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         intrinsics_covariance={n: res.intrinsics_covariance[j] for j, n in enumerate(names)
                                if problem.cameras[n].intrinsics_estimated})
     plaus = Plausibility(findings=sol.findings, cost=float("nan"), camera_cost={},
-                         tested=("fit", "intrinsics")
+                         tested=("fit", "intrinsics", "scale")
                          + (("observability",) if _by_motion(sol) else ())
                          + (("given-pose",) if getattr(sol, "given", ()) else ()))
     warnings = camera_warnings(problem.cameras)
