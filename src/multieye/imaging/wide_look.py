@@ -219,11 +219,14 @@ def _views(lens: Intrinsics) -> list[tuple[VirtualView, NDArray[np.float32]]]:
     return _MAPS[key]
 
 
-def virtual_view(gray: NDArray[np.uint8], maps: tuple) -> NDArray[np.uint8]:
+def virtual_view(gray: NDArray[np.uint8], maps: tuple, grey: int | None = None
+                 ) -> NDArray[np.uint8]:
     """The image ``gray`` (H, W) resampled by ``maps`` (:func:`view_maps`; bilinear; pixels
-    whose ray the lens does not show are the image's median grey)."""
+    whose ray the lens does not show are ``grey``, by default the image's median grey)."""
+    if grey is None:
+        grey = int(np.median(gray))
     return cv2.remap(gray, maps[0], maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=int(np.median(gray)))
+                     borderValue=grey)
 
 
 def detect_with_second_look(gray: NDArray, target, lens: Intrinsics | None
@@ -263,8 +266,9 @@ def second_look(gray: NDArray[np.uint8], target: Chessboard, lens: Intrinsics
     lens : Intrinsics
         The camera's lens (given, or its start).
     """
+    grey = int(np.median(gray))           # once: 17 views of a 640 x 720 image, 15 ms
     for view, coarse in _views(lens):
-        seen = virtual_view(gray, _fine(view, coarse))
+        seen = virtual_view(gray, _fine(view, coarse), grey)
         if not _may_show(seen, target):
             continue
         located = cc.locate_board(seen, target)
