@@ -124,9 +124,8 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         for j, n in enumerate(names)}
     lens = given_lens_findings([_evidence(problem.cameras[n], paired[n]) for n in names
                                 if not problem.cameras[n].intrinsics_estimated])
-    boards = getattr(problem.rig, "targets", None) or {"target": problem.rig.target}
-    size = target_size_findings({n: spec.spacing for n, spec in boards.items()
-                                 if spec is not None})
+    size = () if any(d.mocap is not None for d in problem.cameras.values()) else \
+        target_size_findings(_spacings(problem.rig))
     sol = replace(sol, findings=tuple(sol.findings) + lens + size)
     estimated = {n: res.intrinsics[j] for j, n in enumerate(names)
                  if problem.cameras[n].intrinsics_estimated}
@@ -156,6 +155,21 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
                for n, d in problem.cameras.items()}
     return CalibrationRun(rig=problem.rig, record=record, closed_form=None, cameras=cameras,
                           paired=paired, refinement=refinement, plausibility=plaus)
+
+
+def _spacings(rig) -> dict[str, float]:
+    """Each board's square (or marker) side, metres, by name (rig.yaml's ``targets``, or its
+    one ``target``; specs or their mappings)."""
+    boards = getattr(rig, "targets", None) or {"target": getattr(rig, "target", None)}
+    out = {}
+    for name, spec in boards.items():
+        if isinstance(spec, dict):
+            side = spec.get("spacing", spec.get("marker_size"))
+        else:
+            side = getattr(spec, "spacing", None)
+        if side is not None:
+            out[name] = float(side)
+    return out
 
 
 def given_poses(rig) -> dict[str, np.ndarray]:
