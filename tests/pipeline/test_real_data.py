@@ -88,6 +88,9 @@ def test_boofcv_fisheye_of_180_degrees_uses_every_image(shared_data, tmp_path):
     run = calibrate(real_datasets.boofcv_fisheye(shared_data, tmp_path / "fish"))
     cam = run.record.cameras[0]
     assert cam.measurements_used == 26 and not cam.rejected
+    # its squares are "1 unit" (spacing 1.0): one camera's lens does not depend on the
+    # scale, so no scale doubt (a rig of two cameras without motion capture would get one)
+    assert not run.plausibility.findings, run.plausibility.findings
     ref = real_datasets.BOOFCV_FISHEYE_REFERENCE
     uv = np.concatenate([o.image_points for o in run.paired["fish"].observations])
     near = np.hypot(*(uv - ref.K[:2, 2]).T) <= 250

@@ -124,8 +124,10 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         for j, n in enumerate(names)}
     lens = given_lens_findings([_evidence(problem.cameras[n], paired[n]) for n in names
                                 if not problem.cameras[n].intrinsics_estimated])
-    size = () if any(d.mocap is not None for d in problem.cameras.values()) else \
-        target_size_findings(_spacings(problem.rig))
+    # the scale reaches the result through the cameras' translations only: one camera's
+    # lens does not depend on it (boofcv_fisheye's squares are "1 unit")
+    size = () if len(names) < 2 or any(d.mocap is not None for d in problem.cameras.values()) \
+        else target_size_findings(_spacings(problem.rig))
     sol = replace(sol, findings=tuple(sol.findings) + lens + size)
     estimated = {n: res.intrinsics[j] for j, n in enumerate(names)
                  if problem.cameras[n].intrinsics_estimated}
