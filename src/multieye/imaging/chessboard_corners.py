@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from multieye.imaging.straight_corners import refine_straightened
+from multieye.imaging.straight_corners import SUBPIX_CRITERIA, refine_straightened
 from multieye.imaging.targets import Chessboard, Target
 
 __all__ = ["locate", "locate_board", "Located", "search_order", "quick_check", "find_chessboard", "refine_grid",
@@ -398,6 +398,5 @@ def refine_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> F64:
 def refine_corners(gray: NDArray[np.uint8], points: F64, half: int) -> F64:
     """``cv2.cornerSubPix`` of ``points`` (N, 2), pixels, in a (2 half + 1) px window."""
     pts = points.astype(np.float32).reshape(-1, 1, 2)
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
-    cv2.cornerSubPix(gray, pts, (half, half), (-1, -1), criteria)
+    cv2.cornerSubPix(gray, pts, (half, half), (-1, -1), SUBPIX_CRITERIA)
     return pts.reshape(-1, 2).astype(np.float64)

@@ -42,13 +42,16 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["refine_straightened", "MARGIN_PX"]
+__all__ = ["refine_straightened", "MARGIN_PX", "SUBPIX_CRITERIA"]
 
 F64 = NDArray[np.float64]
 
 #: Pixels of each patch beyond the refinement window (``cornerSubPix`` reads one pixel
 #: beyond it and interpolates, and the corner may move a little).
 MARGIN_PX = 3
+#: ``cv2.cornerSubPix``'s stopping rule, here and in
+#: :func:`multieye.imaging.chessboard_corners.refine_corners`.
+SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
 
 
 def _edge_frames(points: F64, rows: int, cols: int) -> tuple[F64, F64, F64, F64]:
@@ -170,8 +173,7 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     k = np.arange(n)
     centre = np.column_stack([(k % per_row) * side, (k // per_row) * side]) + float(t)
     pts = (centre - shift).astype(np.float32).reshape(-1, 1, 2)
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
-    cv2.cornerSubPix(mosaic, pts, (half, half), (-1, -1), criteria)
+    cv2.cornerSubPix(mosaic, pts, (half, half), (-1, -1), SUBPIX_CRITERIA)
     u = pts.reshape(-1, 2).astype(np.float64) - centre + shift
     back = _bend(u[:, :1, None], u[:, 1:, None], tuple(x.astype(np.float64) for x in frames))
     return points + u + np.column_stack([back[0].ravel(), back[1].ravel()])

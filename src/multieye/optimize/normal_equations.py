@@ -378,11 +378,10 @@ def _jacobi_scaled(ne: NormalEquations) -> tuple[NormalEquations, F64, F64]:
     root of the diagonal of the whole ``J^T J``): ``(scaled, d_kept (k,), d_local (L, d))``.
     An eliminated block's zero diagonal stays zero (its inverse then fails, as unscaled)."""
     dk = np.sqrt(np.diag(ne.U))
-    dl = np.sqrt(np.maximum(np.einsum("lii->li", ne.V), 0.0))
-    inv_l = np.divide(1.0, dl, out=np.zeros_like(dl), where=dl > 0).ravel()
-    W = sp.diags(1.0 / dk) @ ne.W @ sp.diags(inv_l)
-    inv = inv_l.reshape(dl.shape)
-    V = ne.V * (np.where(dl > 0, inv, 1.0)[:, :, None] * np.where(dl > 0, inv, 1.0)[:, None, :])
-    scaled = NormalEquations(U=ne.U / np.outer(dk, dk), g=ne.g / dk, V=V,
-                             g_local=ne.g_local * inv_l.reshape(dl.shape), W=sp.csr_matrix(W))
-    return scaled, dk, np.where(dl > 0, dl, 1.0)
+    dl = np.sqrt(np.einsum("lii->li", ne.V))
+    dl = np.where(dl > 0, dl, 1.0)          # a zero diagonal left as it is (its column too)
+    W = sp.csr_matrix(sp.diags(1.0 / dk) @ ne.W @ sp.diags(1.0 / dl.ravel()))
+    scaled = NormalEquations(U=ne.U / np.outer(dk, dk), g=ne.g / dk,
+                             V=ne.V / (dl[:, :, None] * dl[:, None, :]),
+                             g_local=ne.g_local / dl, W=W)
+    return scaled, dk, dl
