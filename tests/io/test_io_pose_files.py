@@ -224,7 +224,7 @@ def test_bad_pose_tables(tmp_path, content, message, line):
 def test_stamped_table_in_any_order_and_rotation(tmp_path):
     """Rows stamped in time, e.g. OptiTrack's w x y z quaternions or Euler angles in mm."""
     from multieye.io.mocap import MocapSpec, read_mocap
-    from multieye.io.pose_files import read_stamped_table
+    from multieye.io.stamped_table import read_stamped_table
 
     rots = Rotation.from_rotvec([[0.1, 0.2, 0.3], [0.5, -0.4, 0.2], [-1.0, 0.3, 2.0]])
     pos = np.array([[0.1, 0.2, 0.3], [1.0, -2.0, 0.5], [0.0, 0.4, -0.9]])
@@ -269,9 +269,30 @@ def test_stamped_table_in_any_order_and_rotation(tmp_path):
     ("1 0 0 0 0 0 0\n0 0 0 0 0 0 0\n", PoseFormat(rotation="rotvec"), "time stamp goes back", 2),
 ])
 def test_bad_stamped_tables(tmp_path, content, fmt, message, line):
-    from multieye.io.pose_files import read_stamped_table
+    from multieye.io.stamped_table import read_stamped_table
 
     p = _write(tmp_path, "take.txt", content)
     with pytest.raises(DatasetError, match=message) as info:
         read_stamped_table(p, fmt)
     assert info.value.line == line and str(info.value).startswith(f"{p}:{line}:")
+
+
+def test_stamped_table_in_integer_nanoseconds(tmp_path):
+    """EuRoC-style stamps (19 digits) in a table given ``values:``: read as nanoseconds, as in
+    TUM files; every row was left out as an absurd stamp before."""
+    from multieye.io.stamped_table import read_stamped_table
+
+    rows = [f"{1403636579763555584 + k * 5_000_000},{k * 0.1},0,0,1,0,0,0" for k in range(4)]
+    p = _write(tmp_path, "take.csv", "# t x y z qw qx qy qz\n" + "\n".join(rows) + "\n")
+    fmt = PoseFormat(rotation="quaternion-wxyz",
+                     values=("t", "x", "y", "z", "qw", "qx", "qy", "qz"))
+    traj = read_stamped_table(p, fmt)
+    np.testing.assert_allclose(np.diff(traj.stamps), 0.005, atol=1e-6)
+    assert abs(traj.stamps[0] - 1403636579.763555584) < 1e-6
+    np.testing.assert_allclose(traj.T[:, 0, 3], [0, 0.1, 0.2, 0.3])
+    # the stamp's column is found where values put it
+    rows = [f"0,0,{k * 0.1},{1403636579763555584 + k * 5_000_000},1,0,0,0" for k in range(4)]
+    p = _write(tmp_path, "take2.csv", "\n".join(rows) + "\n")
+    fmt = PoseFormat(rotation="quaternion-wxyz",
+                     values=("x", "y", "z", "t", "qw", "qx", "qy", "qz"))
+    np.testing.assert_allclose(read_stamped_table(p, fmt).stamps, traj.stamps)

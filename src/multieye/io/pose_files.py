@@ -42,14 +42,11 @@ from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_POSITION_M, MAX_TABLE_BYTES, MAX_YAML_BYTES
 from multieye.core.regular_files import read_bounded
 from multieye.io.textfile import length_scale
-from multieye.io.poserows import RowPlace, trajectory_from_rows, usable_rows
-from multieye.io.textfile import read_number_rows
 from multieye.io.yamlfile import load_yaml
 
 __all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
            "read_pose_file", "pose_file_pattern", "poses_by_name", "read_pose_table",
-           "poses_by_table", "read_order_table", "poses_by_order",
-           "read_stamped_table"]
+           "poses_by_table", "read_order_table", "poses_by_order"]
 
 #: The placeholder of ``mocap.file`` for the image's stem.
 STEM = "{stem}"
@@ -547,52 +544,3 @@ def poses_by_order(images: Sequence[Path], table: str | os.PathLike, fmt: PoseFo
                            f"{len(rows)} pose rows and {folder} {len(ordered)} images; give "
                            f"one row per image, in the images' name order", path=table)
     return [(image, T) for image, (T, _) in zip(ordered, rows)], []
-
-
-#: The numbers of a matrix stamped in time: ``t`` then its top three rows.
-_MATRIX_ROW = ("t",) + tuple(f"m{r}{c}" for r in range(1, 4) for c in range(1, 5))
-
-
-def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str = "world",
-                       child: str = "marker", duplicates: str = "error"):
-    """Poses stamped in time, one row of plain numbers each (a TUM-like file whose ``values``
-    include ``t``, or whose ``rotation`` is not ``quaternion-xyzw``).
-
-    ``values`` default to ``t`` then :func:`default_values`; ``rotation: matrix`` rows are
-    ``t`` then the 12 numbers of the pose's top three rows (row-major). Rows with a value that
-    is not finite or absurd are left out and listed in ``skipped`` as TUM rows are
-    (:func:`multieye.io.poserows.usable_rows`).
-
-    Raises
-    ------
-    DatasetError
-        A row with another count of numbers, a bad rotation, stamps that repeat or go back;
-        with the file and the line.
-    """
-
-    matrix = fmt.rotation == "matrix"
-    order = _MATRIX_ROW if matrix else (
-        fmt.values if fmt.values is not None else ("t",) + default_values(fmt.rotation))
-    data, lines = read_number_rows(path, order, files=f"pose rows ({fmt.rotation})",
-                                   what="motion-capture file", finite=False)
-    scale = length_scale(fmt.unit, path=path)
-    col = {n: i for i, n in enumerate(order)}
-    xyz = ("m14", "m24", "m34") if matrix else ("x", "y", "z")
-    rot = [n for n in order if n not in xyz and n != "t"]
-    with np.errstate(over="ignore", invalid="ignore"):
-        t_xyz = data[:, [col[n] for n in xyz]] * scale
-    keep, skipped, kept = usable_rows(data[:, col["t"]], t_xyz, data[:, [col[n] for n in rot]],
-                                      where=RowPlace(path, lines), columns=("t", *xyz, *rot))
-    T = []
-    for row, line in zip(data[keep], kept):
-        try:
-            if matrix:
-                T.append(_checked(_matrix(row[1:], scale, path), path))
-            else:
-                T.append(_named(dict(zip(order, row)), PoseFormat(fmt.rotation, order, None,
-                                                                  fmt.unit), scale, path))
-        except DatasetError as exc:
-            raise DatasetError(exc.reason, path=path, line=line) from None
-    return trajectory_from_rows(data[keep, col["t"]], np.stack(T) if T else np.zeros((0, 4, 4)),
-                                path=path, lines=kept, frames=(parent, child),
-                                duplicates=duplicates, skipped=skipped)

@@ -125,6 +125,17 @@ def is_nanoseconds(token: str) -> bool:
     return text.isascii() and text.isdigit() and 16 <= len(text) <= 19
 
 
+def first_cell_is_nanoseconds(path: str | os.PathLike, column: int, *,
+                              what: str = "file") -> bool:
+    """Whether the first row of a table of numbers (commas and/or spaces, ``#`` comments)
+    holds integer nanoseconds in ``column`` (:func:`is_nanoseconds`); the file's first row
+    decides for every row, as in TUM files.  False for a file without such a row."""
+    for _, content in text_lines(path, what=what):
+        cells = content.replace(",", " ").split()
+        return column < len(cells) and is_nanoseconds(cells[column])
+    return False
+
+
 def _is_float(token: str) -> bool:
     try:
         float(token)

@@ -1,0 +1,71 @@
+"""Poses stamped in time, one row of plain numbers each: a TUM-like motion-capture file
+whose ``values`` include ``t``, or whose ``rotation`` is not ``quaternion-xyzw``
+(``mocap: {format: tum, values: [...], rotation: ...}`` in rig.yaml; docs/rig-yaml.md,
+section 4).  The numbers of one row are read as :mod:`multieye.io.pose_files` reads a pose
+file's; stamps are seconds, or integer nanoseconds (16 to 19 digits, as TUM files and image
+names: :func:`multieye.io.textfile.is_nanoseconds`) decided by the file's first row.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from multieye.core.errors import DatasetError
+from multieye.io.pose_files import PoseFormat, _checked, _matrix, _named, default_values
+from multieye.io.poserows import RowPlace, trajectory_from_rows, usable_rows
+from multieye.io.textfile import first_cell_is_nanoseconds, length_scale, read_number_rows
+
+__all__ = ["read_stamped_table"]
+
+
+#: The numbers of a matrix stamped in time: ``t`` then its top three rows.
+_MATRIX_ROW = ("t",) + tuple(f"m{r}{c}" for r in range(1, 4) for c in range(1, 5))
+
+
+def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str = "world",
+                       child: str = "marker", duplicates: str = "error"):
+    """Poses stamped in time, one row of plain numbers each (a TUM-like file whose ``values``
+    include ``t``, or whose ``rotation`` is not ``quaternion-xyzw``).
+
+    ``values`` default to ``t`` then :func:`default_values`; ``rotation: matrix`` rows are
+    ``t`` then the 12 numbers of the pose's top three rows (row-major). Rows with a value that
+    is not finite or absurd are left out and listed in ``skipped`` as TUM rows are
+    (:func:`multieye.io.poserows.usable_rows`).
+
+    Raises
+    ------
+    DatasetError
+        A row with another count of numbers, a bad rotation, stamps that repeat or go back;
+        with the file and the line.
+    """
+
+    matrix = fmt.rotation == "matrix"
+    order = _MATRIX_ROW if matrix else (
+        fmt.values if fmt.values is not None else ("t",) + default_values(fmt.rotation))
+    data, lines = read_number_rows(path, order, files=f"pose rows ({fmt.rotation})",
+                                   what="motion-capture file", finite=False)
+    if first_cell_is_nanoseconds(path, order.index("t")):
+        data[:, order.index("t")] *= 1e-9
+    scale = length_scale(fmt.unit, path=path)
+    col = {n: i for i, n in enumerate(order)}
+    xyz = ("m14", "m24", "m34") if matrix else ("x", "y", "z")
+    rot = [n for n in order if n not in xyz and n != "t"]
+    with np.errstate(over="ignore", invalid="ignore"):
+        t_xyz = data[:, [col[n] for n in xyz]] * scale
+    keep, skipped, kept = usable_rows(data[:, col["t"]], t_xyz, data[:, [col[n] for n in rot]],
+                                      where=RowPlace(path, lines), columns=("t", *xyz, *rot))
+    T = []
+    for row, line in zip(data[keep], kept):
+        try:
+            if matrix:
+                T.append(_checked(_matrix(row[1:], scale, path), path))
+            else:
+                T.append(_named(dict(zip(order, row)), PoseFormat(fmt.rotation, order, None,
+                                                                  fmt.unit), scale, path))
+        except DatasetError as exc:
+            raise DatasetError(exc.reason, path=path, line=line) from None
+    return trajectory_from_rows(data[keep, col["t"]], np.stack(T) if T else np.zeros((0, 4, 4)),
+                                path=path, lines=kept, frames=(parent, child),
+                                duplicates=duplicates, skipped=skipped)
