@@ -211,3 +211,59 @@ def test_half_turn_maps_point_k_to_the_last_but_k():
     moved = P @ TURN.T_target_turned[:3, :3].T + TURN.T_target_turned[:3, 3]
     np.testing.assert_allclose(moved, P[TURN.order], atol=1e-12)
     assert half_turn(Chessboard(rows=6, cols=9, spacing=0.03)) is None
+
+
+def _exact_pairs(rng, flips):
+    """Exact measurements ``A X = Y B`` of cameras whose views ``flips[j]`` (bool per view)
+    were detected in the other order (``T_cam_target @ H``); with both orders offered."""
+    from multieye.pipeline.camera_data import Observation, PairedCamera
+
+    Y = g.transform_from_rotvec([0.3, -0.2, 0.5], [0.1, 0.2, 0.3])
+    H = TURN.T_target_turned
+    paired, X = {}, []
+    for j, flip in enumerate(flips):
+        Xj = g.transform_from_rotvec(rng.normal(scale=1.0, size=3), rng.normal(size=3))
+        A = g.random_transforms(rng, len(flip))
+        T = g.inv(np.linalg.inv(Y) @ A @ Xj)                 # T_cam_target = inv(B)
+        T[flip] = T[flip] @ H
+        obs = tuple(Observation(f"{k}.png", float(k), t, 0.1, object_points=BOARD.object_points(),
+                                image_points=np.zeros((48, 2)), alternative=t @ H,
+                                alternative_rms_px=0.1, alternative_order=TURN.order)
+                    for k, t in enumerate(T))
+        paired[f"cam{j}"] = PairedCamera(f"cam{j}", A, g.inv(T), A, obs, ())
+        X.append(Xj)
+    return paired, np.stack(X), Y
+
+
+def test_noise_free_measurements_give_the_rig_exactly_whichever_order_was_detected():
+    from multieye.estimate.consensus import consensus
+    from multieye.pipeline.ambiguity import alternatives, closed_form_choice, with_choice
+    from multieye.pipeline.half_turns import fewest_turns
+    from multieye.solvers.checks import Measurements
+
+    rng = np.random.default_rng(2)
+    flips = [np.zeros(12, bool), np.ones(9, bool), rng.random(10) < 0.5]
+    paired, X, Y = _exact_pairs(rng, flips)
+    meas = Measurements.from_cameras([p.A for p in paired.values()],
+                                     [p.B for p in paired.values()])
+    # without consensus: the closed form chooses, every view in the true order
+    got, meas2, turns = closed_form_choice(paired, meas, "joint")
+    assert [t.tolist() for t in turns.values()] == [f.tolist() for f in flips]
+    for j, p in enumerate(got.values()):
+        np.testing.assert_allclose(g.inv(p.B), g.inv(paired[f"cam{j}"].B) @
+                                   np.where(flips[j][:, None, None], TURN.T_target_turned,
+                                            np.eye(4)), atol=1e-9)
+    from multieye.solvers import solve
+    sol = solve(meas2, method="joint")
+    np.testing.assert_allclose(sol.X, X, atol=1e-8)
+    np.testing.assert_allclose(sol.Y, Y, atol=1e-8)
+    # the consensus: every view kept, the same choice once the fewer turns are kept
+    cons = consensus(meas, threshold_rot_deg=1.0, threshold_trans_m=0.01,
+                     B_alternative=alternatives(paired.values()))
+    assert all(k.all() for k in cons.inliers)
+    choice = fewest_turns([p.observations for p in paired.values()], cons.alternative)
+    assert [c.tolist() for c in choice] == [f.tolist() for f in flips]
+    chosen = [with_choice(p, c) for p, c in zip(paired.values(), choice)]
+    sol = solve(Measurements.from_cameras([p.A for p in chosen], [p.B for p in chosen]),
+                method="joint")
+    np.testing.assert_allclose(sol.X, X, atol=1e-8)

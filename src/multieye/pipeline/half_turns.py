@@ -153,7 +153,5 @@ def turn_warning(observations: Mapping[str, Sequence], turns: Mapping[str, np.nd
            for n, c in can.items()}
     n_turned = sum(per.values())
     detail = ", ".join(f"{n} {k}" for n, k in per.items() if k)
-    return (f"half-turn symmetric board: its point order is not in the image (the detector "
-            f"takes the order whose x axis points towards the image's lower right); "
-            f"{n_turned} of {total} views were turned to the other order, decided by {how}"
-            + (f" ({detail})" if detail else ""),)
+    return (f"half-turn symmetric board: {n_turned} of {total} views were turned to the other "
+            f"point order, decided by {how}" + (f" ({detail})" if detail else ""),)
