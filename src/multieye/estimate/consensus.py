@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 from multieye.core import geometry as g
 from multieye.core.arguments import with_fields
-from multieye.core.errors import InputError, TooFewMeasurementsError
+from multieye.core.errors import CalibrationError, InputError, TooFewMeasurementsError
 from multieye.core.metrics import loop_residuals
 from multieye.solvers.checks import (
     MIN_MEASUREMENTS,
@@ -417,6 +417,7 @@ def consensus(A, B=None, options: ConsensusOptions = ConsensusOptions(), **kw
         inliers.append(inl)
         choices.append(choice)
         samples.append(s)
+    choices = _aligned(As, Bs, Balts, inliers, choices, thr)
     inliers, X, Y, res = _settle(meas, As, Bs, Balts, inliers, choices, thr, labels)
     return ConsensusResult(inliers=tuple(inliers), rejected=_rejected(inliers, res, thr, meas),
                            X=X, Y=Y, rot_deg=tuple(r for r, _, _ in res),
@@ -438,6 +439,42 @@ def _check_options(opts: ConsensusOptions) -> None:
     if isinstance(max_samples, bool) or not isinstance(max_samples, (int, np.integer)) \
             or max_samples < 1:
         raise InputError(f"max_samples must be a positive integer, got {max_samples!r}")
+
+
+def _aligned(As, Bs, Balts, inliers, choices, thr) -> list[NDArray[np.bool_]]:
+    """Per camera its pose choices, or all of them toggled where it has second poses,
+    whichever agrees with the cameras before it (more inliers under their joint fit, then
+    the smaller cost).  A board that looks the same after a half turn fits one camera alike in
+    either of its two frames (every view's second pose is the other frame's), so each camera's
+    own consensus may have found either, and the joint fit needs one; a single marker's
+    mirrored poses, all taken, fit worse and are left.  Cameras with too few inliers are left
+    for :func:`_settle` to name."""
+    if any(k.sum() < MIN_MEASUREMENTS for k in inliers):
+        return list(choices)
+    out = [choices[0]]
+    for j in range(1, len(As)):
+        has = _has(Balts[j])
+        if not has.any():
+            out.append(choices[j])
+            continue
+        best, best_key = choices[j], None
+        for c in (choices[j], choices[j] ^ has):
+            used = [_chosen(b, alt, ch) for b, alt, ch in zip(Bs[:j + 1], Balts[:j + 1],
+                                                               out + [c])]
+            try:
+                X, Y = solve_joint(Measurements.from_arrays(
+                    np.concatenate([a[k] for a, k in zip(As, inliers[:j + 1])]),
+                    np.concatenate([b[k] for b, k in zip(used, inliers)]),
+                    [int(k.sum()) for k in inliers[:j + 1]]))
+            except CalibrationError:
+                continue
+            scores = [_score(a, b, X[k], Y, *thr, np.full_like(b, np.nan))
+                      for k, (a, b) in enumerate(zip(As, used))]
+            key = (sum(int(i.sum()) for i, _, _ in scores), -sum(cost for _, cost, _ in scores))
+            if best_key is None or key > best_key:
+                best, best_key = c, key
+        out.append(best)
+    return out
 
 
 def _settle(meas: Measurements, As, Bs, Balts, inliers, choices, thr, labels):

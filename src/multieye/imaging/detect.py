@@ -26,7 +26,7 @@ swaps the colours (``rows + cols`` odd), the square next to the first corner is 
 :class:`~multieye.imaging.targets.Chessboard`). When a symmetry of the board leaves the
 order undecidable (``rows + cols`` even, symmetric circle grids, asymmetric grids with an
 even number of rows, square grids) the order whose x axis points most to the right in the
-image is kept and :attr:`Detection.warnings` says so.
+image is kept, :attr:`Detection.warnings` says so; the rig decides (:mod:`.order_turn`).
 
 Synopsis
 --------
@@ -339,9 +339,9 @@ def canonical_order(gray: NDArray[np.uint8], target: Target, detected: F64) -> D
         sources = [sources[int(np.argmax([(x[0] + x[1]) / np.linalg.norm(x) for x in x_dirs]))]]
         warnings = (f"{target.kind} {target.rows}x{target.cols} looks the same after a turn, so its "
                     "point order cannot be told from the image; the order whose x axis points "
-                    "right or down (towards the image's lower right) was taken (use a board "
-                    "without that symmetry, e.g. a chessboard with rows + cols odd, to make poses "
-                    "comparable across images)",)
+                    "towards the image's lower right was taken, the rig's geometry then decides "
+                    "(a board without that symmetry, e.g. a chessboard with rows + cols odd, "
+                    "decides each image by itself)",)
     return Detection(ids=np.arange(len(orders.object_points)), image_points=detected[sources[0]],
                      object_points=orders.object_points.copy(), warnings=warnings,
                      circle_diameter=getattr(target, "diameter", None))

@@ -25,6 +25,7 @@ import numpy as np
 from multieye.core import geometry as g
 from multieye.estimate.consensus import choose_poses
 from multieye.pipeline.camera_data import PairedCamera
+from multieye.pipeline.half_turns import fewest_turns, turned
 from multieye.solvers import solve
 from multieye.solvers.checks import Measurements
 
@@ -49,24 +50,26 @@ def _second_poses(p: PairedCamera) -> np.ndarray:
 def with_choice(p: PairedCamera, choice: np.ndarray) -> PairedCamera:
     """``p`` with the measurements where ``choice`` (shape (n,), bool) on their second pose:
     that pose (and its RMS) becomes ``T_cam_target`` and the row of ``B``, the first its
-    ``alternative``."""
+    ``alternative``; a half-turn symmetric board's view takes the other order's image points
+    too (:func:`multieye.pipeline.half_turns.turned`)."""
     choice = np.asarray(choice, dtype=bool)
     if not choice.any():
         return p
     obs = list(p.observations)
     B = p.B.copy()
     for i in np.flatnonzero(choice):
-        o = obs[i]
-        obs[i] = replace(o, T_cam_target=o.alternative, alternative=o.T_cam_target,
-                         rms_px=o.alternative_rms_px, alternative_rms_px=o.rms_px)
-        B[i] = g.inv(o.alternative)
+        obs[i] = turned(obs[i])
+        B[i] = g.inv(obs[i].T_cam_target)
     return replace(p, B=B, observations=tuple(obs))
 
 
-def kept_measurements(meas: Measurements, cons, paired: dict[str, PairedCamera]) -> Measurements:
-    """The measurements the consensus ``cons`` kept, each with the pose it chose (``paired``:
-    the cameras after :func:`with_choice` and the inlier selection)."""
-    if not any(c.any() for c in cons.alternative):
+def kept_measurements(meas: Measurements, cons, paired: dict[str, PairedCamera],
+                      choices=None) -> Measurements:
+    """The measurements the consensus ``cons`` kept, each with the pose chosen (``paired``:
+    the cameras after :func:`with_choice` and the inlier selection; ``choices``: per camera
+    the measurements on their second pose, default the consensus's)."""
+    choices = cons.alternative if choices is None else choices
+    if not any(np.any(c) for c in choices):
         return meas.select(cons.inliers)
     return replace(Measurements.from_cameras([p.A for p in paired.values()],
                                              [p.B for p in paired.values()]),
@@ -74,10 +77,12 @@ def kept_measurements(meas: Measurements, cons, paired: dict[str, PairedCamera])
 
 
 def closed_form_choice(paired: dict[str, PairedCamera], meas: Measurements, method: str,
-                       *, rounds: int = 5) -> tuple[dict[str, PairedCamera], Measurements]:
+                       *, rounds: int = 5) -> tuple[dict[str, PairedCamera], Measurements,
+                                                   dict[str, np.ndarray]]:
     """Without consensus: solve, choose per image the pose that agrees better with ``X``,
     ``Y`` (:func:`multieye.estimate.consensus.choose_poses`), solve again, until the choice
-    no longer changes (at most ``rounds`` times).
+    no longer changes (at most ``rounds`` times); a half-turn symmetric board's views then
+    turned the way that turns fewer of them (:func:`multieye.pipeline.half_turns.fewest_turns`).
 
     Parameters
     ----------
@@ -91,9 +96,12 @@ def closed_form_choice(paired: dict[str, PairedCamera], meas: Measurements, meth
     -------
     paired, meas
         With the chosen poses; the same objects when there are no second poses.
+    turns : dict of str to ndarray of bool
+        Per camera, the measurements on their second pose.
     """
+    turns = {n: np.zeros(len(p.observations), dtype=bool) for n, p in paired.items()}
     if alternatives(paired.values()) is None:
-        return paired, meas
+        return paired, meas, turns
     paired, names = dict(paired), list(paired)
     for _ in range(rounds):
         sol = solve(meas, method=method)
@@ -104,10 +112,21 @@ def closed_form_choice(paired: dict[str, PairedCamera], meas: Measurements, meth
             choice = choose_poses(p.A, p.B, _second_poses(p), X[j], Y)
             if choice.any():
                 paired[n] = with_choice(p, choice)
+                turns[n] ^= choice
                 changed = True
         if not changed:
             break
-        meas = replace(Measurements.from_cameras([paired[n].A for n in names],
-                                                 [paired[n].B for n in names]),
-                       names=tuple(names))
-    return paired, meas
+        meas = _rebuilt(paired)
+    fewest = fewest_turns([paired[n].observations for n in names], [turns[n] for n in names])
+    if any(np.any(f != turns[n]) for f, n in zip(fewest, names)):
+        # the views' alternatives are now the detected orders: toggling back the others
+        paired = {n: with_choice(paired[n], f != turns[n]) for f, n in zip(fewest, names)}
+        turns = dict(zip(names, fewest))
+        meas = _rebuilt(paired)
+    return paired, meas, turns
+
+
+def _rebuilt(paired: dict[str, PairedCamera]) -> Measurements:
+    return replace(Measurements.from_cameras([p.A for p in paired.values()],
+                                             [p.B for p in paired.values()]),
+                   names=tuple(paired))

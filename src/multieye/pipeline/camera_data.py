@@ -40,6 +40,7 @@ from multieye.pipeline.selection import (Chosen, SelectionSummary, motion_first,
                                          with_refills)
 from multieye.solvers.methods import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
+from multieye.pipeline.half_turns import offer_half_turn
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
            "instant_key",
@@ -67,6 +68,10 @@ class Observation:
         :attr:`multieye.imaging.pnp.PoseEstimate.alternative`), for the consensus to choose.
     alternative_rms_px : float or None
         Its reprojection RMS, pixels.
+    alternative_order : ndarray of int, shape (n,), or None
+        For a board that looks the same after a half turn, whose ``alternative`` is its other
+        point order (``T_cam_target @ H``): the image points of that order are
+        ``image_points[alternative_order]`` (:mod:`multieye.pipeline.half_turns`).
     target : str
         The name of the board the view shows (rig.yaml's ``targets:``; ``"target"`` for
         ``target:``).  An image showing two boards gives two observations, one per board,
@@ -89,6 +94,7 @@ class Observation:
     alternative: np.ndarray | None = None
     alternative_rms_px: float | None = None
     instant: str = ""
+    alternative_order: np.ndarray | None = None
     target: str = "target"
 
 
@@ -268,6 +274,7 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
                                    image_points=res.detection.image_points,
                                    alternative=res.pose.alternative,
                                    alternative_rms_px=res.pose.alternative_rms_px, target=board))
+            obs[-1] = offer_half_turn(obs[-1], model.targets.get(board, target))
             notes.extend((f"{name}/{label}", w) for w in res.warnings)
         else:
             shown = label if board is None or len(set(boards)) == 1 else f"{label} ({board})"

@@ -33,11 +33,13 @@ from multieye.core.errors import (
     CalibrationError,
     DatasetError,
     DisconnectedError,
+    InputError,
     TooFewMeasurementsError,
 )
 from multieye.estimate.covisibility import (covisibility, link_groups, pairing_hint,
                                             unlinked_message)
 from multieye.estimate.findings import Finding
+from multieye.estimate.half_turns import choose_turns
 from multieye.estimate.refine_images import OUTLIER_PROBABILITY
 from multieye.io import Rig
 from multieye.io.calibration_json import CameraLinks
@@ -49,11 +51,12 @@ from multieye.estimate.instants import (
 )
 from multieye.estimate.refine_rig import RigResult, refine_rig
 from multieye.estimate.rig_residuals import RigViews
+from multieye.pipeline import half_turns
 from multieye.pipeline.camera_data import CameraData, PairedCamera
 
 __all__ = ["CameraLinks", "OverlapSolution", "solve_overlap", "observation_instants",
            "camera_views", "CameraViews", "assign_instants", "paired_instants",
-           "share_instants", "UNEXPLAINED_RATIO"]
+           "share_instants", "agreeing_orders", "UNEXPLAINED_RATIO"]
 
 #: A camera is doubted (cause ``fit``) when its pixel residuals in the rig are this many times
 #: (in variance) those of its own PnP poses.
@@ -254,6 +257,7 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     DisconnectedError
         Cameras in groups that share no instant (one line naming the groups).
     """
+    cameras, turn_lines = agreeing_orders(cameras, reference, sync_tolerance, sync)
     prepared = camera_views(cameras, sync_tolerance, sync)
     names, inst, tol = tuple(cameras), prepared.instants, prepared.sync_tolerance
     cams = [np.full(len(inst[n]), j) for j, n in enumerate(names)]
@@ -277,7 +281,43 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
         findings = _culprit(cameras, reference, (tol, sync), robust, findings)
     return OverlapSolution(names=names, reference=reference, result=result, used=used,
                            instants=inst, links=_links(cameras, cov.shared), sync_tolerance=tol,
-                           findings=findings, warnings=_rig_warnings(cameras, rv, result))
+                           findings=findings,
+                           warnings=turn_lines + _rig_warnings(cameras, rv, result))
+
+
+def agreeing_orders(cameras: Mapping[str, CameraData], reference: str,
+                    sync_tolerance: float | None, sync: str = "time"
+                    ) -> tuple[dict[str, CameraData], tuple[str, ...]]:
+    """The cameras with every view of a half-turn symmetric board in the order that agrees
+    with the other cameras' views of its instant (:func:`multieye.estimate.half_turns.
+    choose_turns`, :func:`multieye.pipeline.half_turns.turned`), and the line saying how many
+    were turned (nothing when no view has another order).  Cameras the checks refuse, or that
+    see an instant twice, are left as they are for the solve to say why."""
+    names = tuple(cameras)
+    obs = [o for n in names for o in cameras[n].observations]
+    if not any(half_turns.turnable(obs)) or reference not in cameras:
+        return dict(cameras), ()
+    try:
+        _check_images(cameras)
+        inst, _, _ = observation_instants(cameras, sync_tolerance, sync)
+    except CalibrationError:
+        return dict(cameras), ()
+    camera = np.concatenate([np.full(len(cameras[n].observations), j)
+                             for j, n in enumerate(names)])
+    keys = [(int(t), o.target) for n in names for o, t in zip(cameras[n].observations, inst[n])]
+    instant = np.unique(np.array([f"{t}|{b}" for t, b in keys]), return_inverse=True)[1]
+    H = np.stack([h if (h := half_turns.half_turn_of(o)) is not None
+                  else np.full((4, 4), np.nan) for o in obs])
+    try:
+        turn = choose_turns(np.stack([o.T_cam_target for o in obs]), camera,
+                            np.ravel(instant), H, len(names), names.index(reference))
+    except InputError:
+        return dict(cameras), ()
+    per = dict(zip(names, np.split(turn, np.cumsum([len(cameras[n].observations)
+                                                    for n in names])[:-1])))
+    lines = half_turns.turn_warning({n: cameras[n].observations for n in names}, per,
+                                    "the other cameras' views of the same instants")
+    return half_turns.turn_views(cameras, per), lines
 
 
 def _rig_warnings(cameras: Mapping[str, CameraData], views: RigViews, result: RigResult

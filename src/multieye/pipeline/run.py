@@ -47,6 +47,7 @@ from multieye.estimate.plausibility import (
 from multieye.io import RejectedItem, Rig
 from multieye.io.run_details import StageTimings
 from multieye.pipeline import ambiguity  # single markers: the rig chooses each image's pose
+from multieye.pipeline import half_turns  # symmetric boards: the rig chooses each view's order
 from multieye.pipeline.camera_data import (
     CameraData,
     Observation,
@@ -216,19 +217,29 @@ def keep_consensus(problem: Problem, pairing: Pairing, check: Callable[[], Plaus
     by_cam: dict[str, dict[int, str]] = {n: {} for n in pairing.paired}
     for r in cons.rejected:
         by_cam[r.camera][r.index] = r.reason
-    paired = {n: _keep(ambiguity.with_choice(p, cons.alternative[j]), cons.inliers[j], by_cam[n])
+    choices = half_turns.fewest_turns([p.observations for p in pairing.paired.values()],
+                                      cons.alternative, cons.inliers)
+    paired = {n: _keep(ambiguity.with_choice(p, choices[j]), cons.inliers[j], by_cam[n])
               for j, (n, p) in enumerate(pairing.paired.items())}
+    warnings += half_turns.turn_warning(
+        {n: p.observations for n, p in paired.items()},
+        {n: choices[j][cons.inliers[j]] for j, n in enumerate(paired)},
+        "the consensus with the motion capture")
     return replace(pairing, paired=paired,
-                   measurements=ambiguity.kept_measurements(pairing.measurements, cons, paired),
+                   measurements=ambiguity.kept_measurements(pairing.measurements, cons, paired,
+                                                            choices),
                    warnings=pairing.warnings + tuple(warnings))
 
 
 def choose_without_consensus(problem: Problem, pairing: Pairing) -> Pairing:
     """Every measurement kept; a single marker's pose of the two PnP gives chosen by the
     closed form (:func:`multieye.pipeline.ambiguity.closed_form_choice`)."""
-    paired, meas = ambiguity.closed_form_choice(pairing.paired, pairing.measurements,
-                                                problem.options.method)
-    return replace(pairing, paired=paired, measurements=meas)
+    paired, meas, turns = ambiguity.closed_form_choice(pairing.paired, pairing.measurements,
+                                                       problem.options.method)
+    warnings = half_turns.turn_warning({n: p.observations for n, p in paired.items()}, turns,
+                                       "the closed form with the motion capture")
+    return replace(pairing, paired=paired, measurements=meas,
+                   warnings=pairing.warnings + warnings)
 
 
 def _consensus(meas: Measurements, warnings: list[str], labels=None, alternatives=None):
