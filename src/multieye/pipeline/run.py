@@ -154,6 +154,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     solved = check_pairing(problem, kept)
     clock.append(time.perf_counter())
     refined = refine(problem, kept, closed.solution)
+    kept = refined.pairing or kept          # images taken back or left out on the refined lens
     clock.append(time.perf_counter())
     checks = Checks(solved=solved, final=check_refined(problem, kept, solved, refined))
     run = summarise(problem, kept, closed, checks, refined)
