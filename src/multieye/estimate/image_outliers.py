@@ -8,21 +8,21 @@ image whose corners are off (a mislabelled grid, shifted corners) cannot inflate
 would inflate a pooled estimate (the refinements estimate each image's own noise, so that
 such an image merely weighs less there and is kept silently).
 
-An image is an outlier when
+An image is an outlier when both
 
-    S_i / (sigma^2 F)  >  chi2_{d_i}^{-1}(1 - p),    p = OUTLIER_PROBABILITY (1e-4),
+    S_i / sigma^2  >  chi2_{d_i}^{-1}(1 - p),    p = OUTLIER_PROBABILITY (1e-4),
+    s_i^2 / sigma^2  >  F = max(FAR^2, exp(SPREAD_SIGMAS * 1.4826 MAD_i(log s_i^2))):
 
-the chi-square test of its residuals against the camera's noise, with the allowance
-``F = max(FAR^2, exp(SPREAD_SIGMAS * 1.4826 MAD_i(log s_i^2)))``: images differ among
-themselves in how well their corners are found (blur, distance, the corner detector's
-errors correlated within an image: a test on the sum alone flagged a third of the images of
-a clean rendered rig, :func:`multieye.pipeline.overlap._rig_warnings`), so an image is only
-judged against the spread its camera's images show, and never for a noise level less than
-:data:`FAR` times (RMS) the camera's.  ``d_i = 2 n_i`` counts no degree of freedom for the
-image's pose, which makes the test lenient.
+the chi-square test of its residuals against the camera's noise (beyond what chance gives),
+and a noise level beyond the allowance ``F`` (beyond what images differ by among
+themselves: blur, distance, the corner detector's errors correlated within an image; a test
+on the sum alone flagged a third of the images of a clean rendered rig,
+:func:`multieye.pipeline.overlap._rig_warnings`), never less than :data:`FAR` times (RMS)
+the camera's median image.  ``d_i = 2 n_i`` counts no degree of freedom for the image's
+pose, which makes the first test lenient.
 
 The floor: a camera keeps at least ``max(MIN_KEPT, ceil((1 - MAX_SHARE) n))`` of its ``n``
-images; when more fail, the worst (largest ``S_i / (sigma^2 F)`` over the quantile) are
+images; when more fail, the worst (largest :attr:`ImageOutliers.ratio`) are
 left out and the rest kept, and the caller says so (that many outliers point at the lens
 model or the target, not at single images).
 
@@ -67,7 +67,8 @@ class ImageOutliers:
     over_floor : ndarray of int
         Images that fail the test but are kept by the floor.
     ratio : ndarray, shape (n,)
-        Per image ``S_i / (sigma^2 F)`` over its chi-square quantile (> 1: fails).
+        Per image the smaller of ``S_i / sigma^2`` over its chi-square quantile and
+        ``s_i^2 / (sigma^2 F)`` (> 1: fails both tests, an outlier).
     rms_px : ndarray, shape (n,)
         Per image its residuals' RMS per point, pixels (``sqrt(S_i / n_i)``).
     sigma_px : float
@@ -112,7 +113,8 @@ def image_outliers(sq_sums: ArrayLike, points: ArrayLike, *,
     log_s2 = np.log(s2[finite])
     mad = 1.4826 * float(np.median(np.abs(log_s2 - np.median(log_s2))))
     allowance = max(FAR ** 2, float(np.exp(SPREAD_SIGMAS * mad)))
-    ratio = np.where(finite, S / (sigma2 * allowance) / chdtri(dof, probability), 0.0)
+    ratio = np.where(finite, np.minimum(S / sigma2 / chdtri(dof, probability),
+                                        s2 / (sigma2 * allowance)), 0.0)
     failed = np.flatnonzero(ratio > 1.0)
     failed = failed[np.argsort(-ratio[failed], kind="stable")]
     room = n - max(MIN_KEPT, int(np.ceil((1.0 - MAX_SHARE) * n)))

@@ -120,7 +120,8 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
     paired = {n: PairedCamera(
         name=n, A=g.inv(M[j]), T_world_mocap=M[j],
         B=g.inv(np.stack([o.T_cam_target for o in sol.used[n]])),
-        observations=tuple(sol.used[n]), rejected=problem.cameras[n].rejected)
+        observations=tuple(sol.used[n]),
+        rejected=getattr(sol, "rejected", {}).get(n, problem.cameras[n].rejected))
         for j, n in enumerate(names)}
     lens = given_lens_findings([_evidence(problem.cameras[n], paired[n]) for n in names
                                 if not problem.cameras[n].intrinsics_estimated])
