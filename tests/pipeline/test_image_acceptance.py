@@ -89,6 +89,8 @@ def test_images_rejected_on_the_start_lens_are_taken_back_on_the_joint_lens(rend
     back = sorted(o.name for o in started.bad_fits)
     cam1 = next(c for c in run.record.cameras if c.name == "cam1")
     assert cam1.measurements_used == 20 and cam1.rejected == ()
+    data = run.cameras["cam1"]                                # the run's camera agrees
+    assert data.rejected == () and data.bad_fits == () and len(data.observations) == 20
     assert sorted(o.name for o in run.paired["cam1"].observations) == sorted(
         o.name for o in d.observations)
     (warning,) = _judged(run.record.warnings)
@@ -167,4 +169,7 @@ def test_a_run_without_motion_capture_records_the_outlier_among_the_rejected(tmp
     assert [r.item for r in cam1.rejected] == [r.item for r in before.rejected] + [
         d.observations[3].name]
     assert cam1.rejected[-1].reason.startswith("outlier of the joint refinement")
+    data = run.cameras["cam1"]                                # the run's camera agrees
+    assert data.rejected == cam1.rejected
+    assert len(data.observations) == cam1.measurements_used
     assert any(d.observations[3].name in w for w in _judged(run.record.warnings))

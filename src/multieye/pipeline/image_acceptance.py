@@ -35,7 +35,7 @@ from multieye.pipeline.camera_data import Observation, pair_stamps
 from multieye.solvers.checks import check_measurements
 
 __all__ = ["taken_back", "unrejected", "Judged", "judge_images", "taken_back_warning",
-           "with_taken_back", "without_outliers", "OUTLIER_REASON"]
+           "with_taken_back", "without_outliers", "camera_data_now", "OUTLIER_REASON"]
 
 #: How the reason of an image left out by the outlier test starts.
 OUTLIER_REASON = "outlier of the joint refinement"
@@ -200,3 +200,24 @@ def _remeasured(pairing, paired: dict):
     meas = check_measurements([p.A for p in paired.values()], [p.B for p in paired.values()],
                               names=list(paired), per_camera_motion=False)
     return replace(pairing, paired=paired, measurements=meas)
+
+
+def camera_data_now(data, used: Sequence[Observation], rejected=None):
+    """A camera's :class:`~multieye.pipeline.camera_data.CameraData` as the run leaves it,
+    once its images were judged on the refined lens: its bad fits among the images ``used``
+    now (taken back) are among its observations and no longer among its ``rejected`` or
+    ``bad_fits`` (an outlier of the joint refinement stays among its observations and is
+    left out in its pairing, as a consensus outlier is).  With ``rejected`` (a rig without
+    motion capture, whose cameras' rejected items are their record's): its observations are
+    the images ``used`` and its ``rejected`` what it leaves out now."""
+    names = {o.name for o in used}
+    back = [o for o in data.bad_fits if o.name in names]
+    if not back and rejected is None:
+        return data
+    bad_fits = tuple(o for o in data.bad_fits if o.name not in names)
+    if rejected is not None:
+        return replace(data, observations=tuple(used), rejected=tuple(rejected),
+                       bad_fits=bad_fits)
+    every = sorted(data.observations + tuple(back), key=lambda o: o.stamp)
+    return replace(data, observations=tuple(every), rejected=unrejected(data.rejected, back),
+                   bad_fits=bad_fits)
