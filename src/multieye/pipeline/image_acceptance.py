@@ -147,15 +147,16 @@ def judge_images(observations: dict[str, Sequence[Observation]],
     return Judged(left_out, reasons, tuple(warnings))
 
 
-def with_taken_back(setup: str, pairing, cameras, back: dict[str, list[Observation]]):
-    """``pairing`` (:class:`~multieye.pipeline.problem.Pairing`) with the images taken
+def with_taken_back(problem, pairing, back: dict[str, list[Observation]]):
+    """``pairing`` (:class:`~multieye.pipeline.problem.Pairing`) of ``problem``
+    (:class:`~multieye.pipeline.problem.Problem`: its setup and cameras) with the images taken
     ``back`` per camera that pair with its motion capture (at the camera's offset of the
     pairing) added to its measurements, in time order, and their bad-fit items out of its
     ``rejected``; also what was added per camera.  Those without motion capture stay
     rejected as they were."""
     paired, added = dict(pairing.paired), {}
     for n, obs in back.items():
-        data, p = cameras[n], pairing.paired[n]
+        data, p = problem.cameras[n], pairing.paired[n]
         if not obs or data.mocap is None:
             continue
         m = pair_stamps(data.mocap, np.array([o.stamp for o in obs]), by_name=data.by_name,
@@ -171,7 +172,7 @@ def with_taken_back(setup: str, pairing, cameras, back: dict[str, list[Observati
         M = np.concatenate([p.T_world_mocap, m.T])[order]
         B = g.inv(np.stack([every[i].T_cam_target for i in order]))
         paired[n] = replace(p, observations=tuple(every[i] for i in order), T_world_mocap=M,
-                            A=g.inv(M) if setup == "eye-to-base" else M, B=B,
+                            A=g.inv(M) if problem.setup == "eye-to-base" else M, B=B,
                             rejected=unrejected(p.rejected, new),
                             mocap_noise_scale=np.concatenate([old_scale, scale])[order])
         added[n] = new
