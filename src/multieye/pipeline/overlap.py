@@ -331,7 +331,7 @@ def judged_on_refined_lens(cameras: Mapping[str, CameraData], solve: Callable, s
     the warnings."""
     names = tuple(cameras)
     estimated = [n for n in names if cameras[n].intrinsics_estimated]
-    result, cameras, notes = solved[2], dict(cameras), []
+    result, before, cameras, notes = solved[2], cameras, dict(cameras), []
     lens = {n: result.intrinsics[names.index(n)] for n in estimated}
     back = {n: taken_back(cameras[n].bad_fits, lens[n]) for n in estimated}
     back = {n: b for n, b in back.items() if b}
@@ -344,12 +344,15 @@ def judged_on_refined_lens(cameras: Mapping[str, CameraData], solve: Callable, s
                                  bad_fits=tuple(o for o in d.bad_fits if o.name not in
                                                 {x.name for x in b}))
             notes.append(taken_back_warning(n, b))
-        solved = solve(cameras)
+        try:
+            solved = solve(cameras)
+        except CalibrationError as exc:
+            return before, solved, (f"images left out as a bad fit that fit the refined lens "
+                                    f"were not taken back: the solve with them failed ({exc})",)
     judged = judge_images({n: cameras[n].observations for n in estimated},
                           *_image_residuals(cameras, estimated, solved[1], solved[2]))
-    notes += judged.warnings
     if judged:
-        result = solved[2]
+        kept, result = dict(cameras), solved[2]
         for n, idx in judged.left_out.items():
             d = cameras[n]
             keep = np.setdiff1d(np.arange(len(d.observations)), idx)
@@ -358,7 +361,14 @@ def judged_on_refined_lens(cameras: Mapping[str, CameraData], solve: Callable, s
                                  rejected=d.rejected + tuple(
                                      RejectedItem(d.observations[i].name, judged.reasons[n][int(i)])
                                      for i in sorted(idx)))
-        solved = solve(cameras)
+        try:
+            solved = solve(cameras)
+            notes += judged.warnings
+        except CalibrationError as exc:
+            cameras = kept
+            notes.append(f"outliers of the solve kept: the solve without them failed ({exc})")
+    else:
+        notes += judged.warnings            # the floor's, when it kept every image
     return cameras, solved, tuple(notes)
 
 

@@ -109,11 +109,17 @@ def _judged(problem: Problem, pairing: Pairing, sol: Solution
     notes: list[str] = []
     back = {n: taken_back(cameras[n].bad_fits, refinement.intrinsics[n]) for n in estimated}
     grown, added = with_taken_back(problem, pairing, back)
+    given = pairing
     if added:
-        pairing = grown
-        notes += [taken_back_warning(n, obs) for n, obs in added.items()]
-        refinement = _refine_images(problem, pairing, refinement.X, refinement.Y,
-                                    refinement.intrinsics)
+        try:
+            refinement = _refine_images(problem, grown, refinement.X, refinement.Y,
+                                        refinement.intrinsics)
+            pairing = grown
+            notes += [taken_back_warning(n, obs) for n, obs in added.items()]
+        except CalibrationError as exc:
+            added = {}
+            notes.append(f"images left out as a bad fit that fit the refined lens were not "
+                         f"taken back: the refinement with them failed ({exc})")
     res, names = refinement.result, list(pairing.paired)
     judged = judge_images(
         {n: pairing.paired[n].observations for n in estimated},
@@ -122,12 +128,17 @@ def _judged(problem: Problem, pairing: Pairing, sol: Solution
          for n in estimated})
     notes += judged.warnings
     if judged:
-        pairing = without_outliers(pairing, judged)
-        refinement = _refine_images(problem, pairing, refinement.X, refinement.Y,
-                                    refinement.intrinsics)
-    if not (added or judged):
-        return replace(refinement, warnings=refinement.warnings + tuple(notes)), None
-    return replace(refinement, warnings=refinement.warnings + tuple(notes)), pairing
+        try:
+            smaller = without_outliers(pairing, judged)
+            refinement = _refine_images(problem, smaller, refinement.X, refinement.Y,
+                                        refinement.intrinsics)
+            pairing = smaller
+        except CalibrationError as exc:
+            notes = [n for n in notes if n not in judged.warnings] + [
+                f"outliers of the joint refinement kept: the refinement without them failed "
+                f"({exc})"]
+    refinement = replace(refinement, warnings=refinement.warnings + tuple(notes))
+    return refinement, None if pairing is given else pairing
 
 
 def _have_points(problem: Problem, paired: dict[str, PairedCamera]) -> bool:
