@@ -7,22 +7,38 @@ and a clean rig is left as it is."""
 from __future__ import annotations
 
 import re
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from multieye.core import geometry as g
 from multieye.imaging.detect import Detection
 from multieye.imaging.pnp import estimate_poses, refit_pose
 from multieye.io import RejectedItem, load_rig
 from multieye.pipeline import calibrate_rig, load_camera_data
+from multieye.pipeline.camera_data import CameraData, Observation
 from multieye.pipeline.overlap import solve_overlap
 from multieye.sim.dataset import DatasetSpec, render_dataset
+from multieye.sim.overlap import OverlapSpec, pixel_views, simulate_overlap
 
-sys.path.insert(0, str(Path(__file__).parent))
-from test_overlap import _cameras  # noqa: E402  (the no-mocap scene of those tests)
+
+def _overlap_cameras(seed=6, sigma=0.1):
+    """Three cameras that see the target together (no motion capture), 20 instants, the
+    pixel noise ``sigma``; lenses estimated, started at the truth."""
+    sc = simulate_overlap(np.random.default_rng(seed), OverlapSpec(n_instants=20))
+    rng = np.random.default_rng(seed + 1)
+    cams = {}
+    for j, vs in enumerate(pixel_views(sc, sigma, rng)):
+        obs = tuple(Observation(name=f"{t}.png", stamp=100 + 0.25 * t,
+                                T_cam_target=g.inv(sc.T_ref_cam[j]) @ sc.T_ref_target[t],
+                                rms_px=sigma, object_points=o, image_points=u)
+                    for o, u, t in vs)
+        cams[f"cam{j}"] = CameraData(name=f"cam{j}", intrinsics=sc.intrinsics[j],
+                                     observations=obs, rejected=(), n_inputs=len(obs),
+                                     mocap=None, time_offset=0.0, time_tolerance=0.03,
+                                     intrinsics_estimated=True)
+    return cams
 
 
 @pytest.fixture(scope="module")
@@ -122,8 +138,7 @@ def test_an_image_with_corners_off_is_left_out_by_name(rendered):
 
 
 def test_without_motion_capture_bad_fits_are_taken_back_and_outliers_left_out():
-    _, cams = _cameras(seed=6)
-    cams = {n: replace(d, intrinsics_estimated=True) for n, d in cams.items()}
+    cams = _overlap_cameras()
     clean = solve_overlap(cams, "cam0")
     assert clean.rejected == {} and _judged(clean.warnings) == []
     d = cams["cam1"]

@@ -18,7 +18,7 @@ and a noise level beyond the allowance ``F`` (beyond what images differ by among
 themselves: blur, distance, the corner detector's errors correlated within an image; a test
 on the sum alone flagged a third of the images of a clean rendered rig,
 :func:`multieye.pipeline.overlap._rig_warnings`), never less than :data:`FAR` times (RMS)
-the camera's median image.  ``d_i = 2 n_i`` counts no degree of freedom for the image's
+the camera's median image (clean rendered images reach 3 times).  ``d_i = 2 n_i`` counts no degree of freedom for the image's
 pose, which makes the first test lenient.
 
 The floor: a camera keeps at least ``max(MIN_KEPT, ceil((1 - MAX_SHARE) n))`` of its ``n``
@@ -45,8 +45,9 @@ from multieye.estimate.refine_images import OUTLIER_PROBABILITY
 __all__ = ["ImageOutliers", "image_outliers", "FAR", "SPREAD_SIGMAS", "MAX_SHARE", "MIN_KEPT"]
 
 #: An image is never an outlier for a noise level less than this many times (RMS) its
-#: camera's (the median image's).
-FAR = 3.0
+#: camera's (the median image's): clean rendered images reach 3 times (a pinhole camera of
+#: bench_wide_render's mixed rig, 0.11 against 0.04 px).
+FAR = 5.0
 #: The allowance for the spread of the images' noise levels: this many robust standard
 #: deviations of ``log s_i^2``.
 SPREAD_SIGMAS = 4.0
