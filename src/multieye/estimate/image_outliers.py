@@ -18,8 +18,8 @@ and a noise level beyond the allowance ``F`` (beyond what images differ by among
 themselves: blur, distance, the corner detector's errors correlated within an image; a test
 on the sum alone flagged a third of the images of a clean rendered rig,
 :func:`multieye.pipeline.overlap._rig_warnings`), never less than :data:`FAR` times (RMS)
-the camera's median image (clean rendered images reach 3 times).  ``d_i = 2 n_i`` counts no degree of freedom for the image's
-pose, which makes the first test lenient.
+the camera's median image (clean rendered images reach 3 times).  ``d_i = 2 n_i`` counts
+no degree of freedom for the image's pose, which makes the first test lenient.
 
 The floor: a camera keeps at least ``max(MIN_KEPT, ceil((1 - MAX_SHARE) n))`` of its ``n``
 images; when more fail, the worst (largest :attr:`ImageOutliers.ratio`) are
