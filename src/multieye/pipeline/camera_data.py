@@ -21,14 +21,8 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.estimate.pairing import pair_in_time
 from multieye.imaging.calibrate import look_again
 from multieye.imaging.engines import Engine
-from multieye.io import (
-    RejectedItem,
-    Rig,
-    Trajectory,
-    list_image_files,
-    skipped_entries,
-    read_mocap,
-)
+from multieye.io import (RejectedItem, Rig, Trajectory, list_image_files, read_mocap,
+                         skipped_entries)
 from multieye.pipeline.boards import camera_boards, intrinsics_boards, per_board
 from multieye.pipeline.boards import no_usable_image as _no_usable_image
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
@@ -43,8 +37,8 @@ from multieye.imaging.pnp import ambiguity_warning
 from multieye.pipeline.half_turns import offer_half_turn
 
 __all__ = ["Observation", "CameraData", "PairedCamera", "CameraMotion", "load_camera_data",
-           "instant_key",
-           "camera_motion", "pair_stamps", "pair_camera", "rejection_kind", "BY_NAME_TOLERANCE"]
+           "instant_key", "camera_motion", "pair_stamps", "pair_camera", "rejection_kind",
+           "BY_NAME_TOLERANCE"]
 
 @dataclass(frozen=True)
 class Observation:
@@ -151,6 +145,13 @@ class CameraData:
     image_notes : tuple of (str, str)
         Notes about single images, ``(camera/image, cause)``, gathered over the rig into one
         line per cause (:func:`multieye.pipeline.recordings.camera_warnings`).
+    bad_fits : tuple of Observation
+        The images left out as a bad fit (``bad fit: reprojection RMS ...`` among
+        ``rejected``, their item there the observation's ``name``, with `` (<target>)``
+        when the camera looks for several boards), with their points and
+        their pose by PnP on the lens they were judged on: a camera whose lens is estimated
+        judges them again on the jointly refined lens
+        (:mod:`multieye.pipeline.image_acceptance`).
     """
 
     name: str
@@ -168,6 +169,7 @@ class CameraData:
     by_name: bool = False
     selection: SelectionSummary | None = None
     image_notes: tuple[tuple[str, str], ...] = ()
+    bad_fits: tuple[Observation, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -220,6 +222,7 @@ class _Detected:
     intrinsics: Intrinsics | None = None     # the started lens, when it was estimated
     notes: tuple[tuple[str, str], ...] = ()  # (camera/image, cause)
     chosen: Chosen | None = None             # the choice before decoding, with its refills
+    bad_fits: tuple[Observation, ...] = ()   # left out as a bad fit, with points and pose
 
 
 def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrinsics | None,
@@ -264,21 +267,19 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
             if cam.source == "images":      # a wide lens's second look, before the poses
                 results = look_again(results, target, lens.intrinsics)
             lens, results = posed_on_refined_lens(lens, results)
-    obs, rejected, notes = [], [], []
+    obs, rejected, notes, bad_fits = [], [], [], []
     warnings = list(lens.warnings if lens else ()) + list(_recovered(name, results, n_images))
     for (stamp, label), res, board in zip(stamped, results, boards):
         if res.ok:
-            obs.append(Observation(name=label, stamp=stamp, T_cam_target=res.pose.T_cam_target,
-                                   rms_px=res.pose.rms_px,
-                                   object_points=res.detection.object_points,
-                                   image_points=res.detection.image_points,
-                                   alternative=res.pose.alternative,
-                                   alternative_rms_px=res.pose.alternative_rms_px, target=board))
-            obs[-1] = offer_half_turn(obs[-1], model.targets.get(board, target))
+            obs.append(offer_half_turn(_observation(label, stamp, res, board),
+                                       model.targets.get(board, target)))
             notes.extend((f"{name}/{label}", w) for w in res.warnings)
         else:
             shown = label if board is None or len(set(boards)) == 1 else f"{label} ({board})"
             rejected.append(RejectedItem(shown, res.reason))
+            if res.pose is not None and res.detection is not None \
+                    and res.reason.startswith("bad fit"):
+                bad_fits.append(_observation(label, stamp, res, board))
     # pose ambiguity (single marker): warn when the two poses fit alike in most images
     warnings.extend(w for w in [ambiguity_warning(name, [r.pose for r in results if r.ok])] if w)
     skipped = [RejectedItem(n, why) for n, why in lost]
@@ -290,7 +291,16 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
     return _Detected(observations=obs, rejected=rejected, n_inputs=n_images + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
                      intrinsics=None if lens is None else lens.intrinsics, notes=tuple(notes),
-                     chosen=chosen)
+                     chosen=chosen, bad_fits=tuple(bad_fits))
+
+
+def _observation(label: str, stamp: float, res, board: str | None) -> Observation:
+    """The :class:`Observation` of an image result with a pose."""
+    pose, det = res.pose, res.detection
+    return Observation(name=label, stamp=stamp, T_cam_target=pose.T_cam_target, rms_px=pose.rms_px,
+                       object_points=det.object_points, image_points=det.image_points,
+                       alternative=pose.alternative, alternative_rms_px=pose.alternative_rms_px,
+                       target=board)
 
 
 def _detect_intrinsics_images(rig: Rig, cam, model: RigModel, intr: Intrinsics | None,
@@ -299,7 +309,6 @@ def _detect_intrinsics_images(rig: Rig, cam, model: RigModel, intr: Intrinsics |
     """Detection (and PnP with ``intr`` unless None) over a camera's ``intrinsics_images``
     (their own board if given, else every board the camera may see): per (image, board)
     the path and board name, the results, and the seconds it took."""
-
     target, names = intrinsics_boards(rig, cam.name, model)
     paths = list_image_files(cam.intrinsics_images)
     key = (cam.name, "intrinsics_images")
@@ -431,6 +440,7 @@ class _Seen:
     views: tuple[Observation, ...] = ()
     notes: tuple[tuple[str, str], ...] = ()
     selection: SelectionSummary | None = None
+    bad_fits: tuple[Observation, ...] = ()
 
 
 def _camera_data(rig: Rig, model: RigModel, name: str, motion: CameraMotion, workers: Workers,
@@ -445,6 +455,8 @@ def _camera_data(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
     by_name = spec is not None and spec.by_name
     observations = tuple(replace(o, instant=instant_key(o, by_name, rig.sync))
                          for o in seen.observations)
+    bad_fits = tuple(replace(o, instant=instant_key(o, by_name, rig.sync))
+                     for o in seen.bad_fits)
     return CameraData(name=name, intrinsics=seen.intrinsics, observations=observations,
                       rejected=rejected, n_inputs=seen.n_inputs, mocap=motion.trajectory,
                       time_offset=cam.time_offset,
@@ -452,7 +464,7 @@ def _camera_data(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
                       warnings=seen.warnings, detection_s=seen.seconds,
                       intrinsics_estimated=cam.estimate_intrinsics, intrinsics_views=seen.views,
                       by_name=by_name, image_notes=seen.notes,
-                      selection=seen.selection)
+                      selection=seen.selection, bad_fits=bad_fits)
 
 
 def _from_poses(cam, lens: Intrinsics | None) -> _Seen:
@@ -494,7 +506,8 @@ def _from_images(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
         rejected, seconds, warnings = rejected + lost, seconds + s, warnings + recovered
     return _Seen(intrinsics=intr, observations=tuple(det.observations), rejected=tuple(rejected),
                  n_inputs=n_inputs, warnings=warnings, seconds=seconds, views=tuple(views),
-                 notes=det.notes, selection=None if det.chosen is None else det.chosen.summary)
+                 notes=det.notes, selection=None if det.chosen is None else det.chosen.summary,
+                 bad_fits=det.bad_fits)
 
 
 @dataclass(frozen=True)

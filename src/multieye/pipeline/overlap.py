@@ -22,7 +22,7 @@ Synopsis
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -51,8 +51,11 @@ from multieye.estimate.instants import (
 )
 from multieye.estimate.refine_rig import RigResult, refine_rig
 from multieye.estimate.rig_residuals import RigViews
+from multieye.io import RejectedItem
 from multieye.pipeline import half_turns
 from multieye.pipeline.camera_data import CameraData, PairedCamera
+from multieye.pipeline.image_acceptance import (judge_images, taken_back, taken_back_warning,
+                                                unrejected)
 
 __all__ = ["CameraLinks", "OverlapSolution", "solve_overlap", "observation_instants",
            "camera_views", "CameraViews", "assign_instants", "paired_instants",
@@ -84,7 +87,11 @@ class OverlapSolution:
     findings : tuple of Finding
         What the checks doubt (empty when nothing).
     warnings : tuple of str
-        Images that fit the rig poorly, undetermined directions, no convergence.
+        Images that fit the rig poorly, undetermined directions, no convergence; images
+        taken back or left out on the refined lens (:func:`judged_on_refined_lens`).
+    rejected : dict of str to tuple of RejectedItem
+        Per camera whose images were taken back or left out on the refined lens, what it
+        leaves out now (its ``CameraData.rejected`` for the others).
     """
 
     names: tuple[str, ...]
@@ -96,6 +103,7 @@ class OverlapSolution:
     sync_tolerance: float
     findings: tuple = ()
     warnings: tuple = ()
+    rejected: dict = field(default_factory=dict)
 
 
 def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | None,
@@ -230,7 +238,8 @@ def _links(cameras: Mapping, shared) -> dict[str, CameraLinks]:
 
 def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
                   sync_tolerance: float | None = None, robust: bool = True,
-                  isolate: bool = True, sync: str = "time") -> OverlapSolution:
+                  isolate: bool = True, sync: str = "time", judge: bool = True
+                  ) -> OverlapSolution:
     """Calibrate the rig from the views its cameras share (module docstring).
 
     Parameters
@@ -249,6 +258,9 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     sync : str
         rig.yaml's ``sync``: other than ``time``, the instants are the images'
         :attr:`Observation.instant` keys (:func:`observation_instants`).
+    judge : bool
+        The images of cameras whose lens is estimated judged on the refined lens
+        (:func:`judged_on_refined_lens`).
 
     Raises
     ------
@@ -271,10 +283,17 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
         raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol,
                                                  sync) + hint,
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))
-    rv = RigViews(prepared.views, [cameras[n].intrinsics for n in names],
-                  names.index(reference),
-                  free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
-    result = refine_rig(rv, prepared.poses, loss="huber" if robust else "linear")
+    solve = _Solve(reference, sync_tolerance, sync, robust)
+    prepared, rv, result = solve(cameras, prepared)
+    notes: tuple[str, ...] = ()
+    before = cameras
+    if judge and any(cameras[n].intrinsics_estimated for n in names):
+        cameras, (prepared, rv, result), notes = judged_on_refined_lens(cameras, solve,
+                                                                        (prepared, rv, result))
+        inst, tol = prepared.instants, prepared.sync_tolerance
+        cov = covisibility(np.concatenate([np.full(len(inst[n]), j) for j, n in
+                                           enumerate(names)]),
+                           np.concatenate([inst[n] for n in names]), len(names))
     used = {n: cameras[n].observations for n in names}
     findings = _fit_findings(cameras, rv, result)
     if isolate and len(findings) > 1:
@@ -282,7 +301,95 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     return OverlapSolution(names=names, reference=reference, result=result, used=used,
                            instants=inst, links=_links(cameras, cov.shared), sync_tolerance=tol,
                            findings=findings,
-                           warnings=turn_lines + _rig_warnings(cameras, rv, result))
+                           warnings=turn_lines + _rig_warnings(cameras, rv, result) + notes,
+                           rejected={n: cameras[n].rejected for n in names
+                                     if cameras[n] is not before[n]})
+
+
+@dataclass(frozen=True)
+class _Solve:
+    """The refinement of :func:`solve_overlap` on given cameras' views (prepared when
+    given, else prepared here), as it is run again on the refined lens."""
+
+    reference: str
+    sync_tolerance: float | None
+    sync: str
+    robust: bool
+
+    def __call__(self, cameras: Mapping[str, CameraData], prepared: CameraViews | None = None):
+        if prepared is None:
+            prepared = camera_views(cameras, self.sync_tolerance, self.sync)
+        names = tuple(cameras)
+        rv = RigViews(prepared.views, [cameras[n].intrinsics for n in names],
+                      names.index(self.reference),
+                      free_intrinsics=[cameras[n].intrinsics_estimated for n in names])
+        return prepared, rv, refine_rig(rv, prepared.poses,
+                                        loss="huber" if self.robust else "linear")
+
+
+def judged_on_refined_lens(cameras: Mapping[str, CameraData], solve: Callable, solved: tuple):
+    """The images of the cameras whose lens is estimated judged on the refined lens
+    (:mod:`multieye.pipeline.image_acceptance`): those left out as a bad fit that fit it
+    taken back, then the outliers of the solve left out, the solve run again (from the
+    refined lenses) after each that changed the images.  Returns the cameras (their
+    observations and ``rejected`` as they are now), what ``solve`` gives at the end, and
+    the warnings."""
+    names = tuple(cameras)
+    estimated = [n for n in names if cameras[n].intrinsics_estimated]
+    result, before, cameras, notes = solved[2], cameras, dict(cameras), []
+    lens = {n: result.intrinsics[names.index(n)] for n in estimated}
+    back = {n: taken_back(cameras[n].bad_fits, lens[n]) for n in estimated}
+    back = {n: b for n, b in back.items() if b}
+    if back:
+        for n, b in back.items():
+            d = cameras[n]
+            every = sorted(d.observations + tuple(b), key=lambda o: o.stamp)
+            cameras[n] = replace(d, observations=tuple(every), intrinsics=lens[n],
+                                 rejected=unrejected(d.rejected, b),
+                                 bad_fits=tuple(o for o in d.bad_fits if o.name not in
+                                                {x.name for x in b}))
+            notes.append(taken_back_warning(n, b))
+        try:
+            solved = solve(cameras)
+        except CalibrationError as exc:
+            return before, solved, (f"images left out as a bad fit that fit the refined lens "
+                                    f"were not taken back: the solve with them failed ({exc})",)
+    judged = judge_images({n: cameras[n].observations for n in estimated},
+                          *_image_residuals(cameras, estimated, solved[1], solved[2]))
+    if judged:
+        kept, result = dict(cameras), solved[2]
+        for n, idx in judged.left_out.items():
+            d = cameras[n]
+            keep = np.setdiff1d(np.arange(len(d.observations)), idx)
+            cameras[n] = replace(d, observations=tuple(d.observations[i] for i in keep),
+                                 intrinsics=result.intrinsics[names.index(n)],
+                                 rejected=d.rejected + tuple(
+                                     RejectedItem(d.observations[i].name, judged.reasons[n][int(i)])
+                                     for i in sorted(idx)))
+        try:
+            solved = solve(cameras)
+            notes += judged.warnings
+        except CalibrationError as exc:
+            cameras = kept
+            notes.append(f"outliers of the solve kept: the solve without them failed ({exc})")
+    else:
+        notes += judged.warnings            # the floor's, when it kept every image
+    return cameras, solved, tuple(notes)
+
+
+def _image_residuals(cameras: Mapping[str, CameraData], tested, views: RigViews,
+                     result: RigResult) -> tuple[dict, dict]:
+    """Per camera of ``tested``, its images' residual RMS per point at the optimum, pixels,
+    and their points (the images only: not its ``intrinsics_images``)."""
+    names = tuple(cameras)
+    d2 = np.sum(result.residuals_px ** 2, axis=1)
+    rms, points = {}, {}
+    for n in tested:
+        own = np.flatnonzero(views.camera == names.index(n))[:len(cameras[n].observations)]
+        per = [d2[views.view == v] for v in own]
+        rms[n] = np.array([np.sqrt(np.mean(x)) if x.size else np.nan for x in per])
+        points[n] = np.array([x.size for x in per])
+    return rms, points
 
 
 def agreeing_orders(cameras: Mapping[str, CameraData], reference: str,
@@ -363,7 +470,7 @@ def _culprit(cameras: Mapping[str, CameraData], reference: str, sync: tuple[floa
         try:
             sub = solve_overlap(rest, reference if reference in rest else next(iter(rest)),
                                 sync_tolerance=sync[0], robust=robust, isolate=False,
-                                sync=sync[1])
+                                sync=sync[1], judge=False)
         except CalibrationError:
             continue
         if not sub.findings:

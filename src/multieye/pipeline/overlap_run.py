@@ -35,6 +35,7 @@ from multieye.io import (
 from multieye.io.calibration_json import OVERLAP, CameraLinks
 from multieye.imaging.targets import target_from_spec
 from multieye.pipeline.camera_data import PairedCamera
+from multieye.pipeline.image_acceptance import camera_data_now
 from multieye.pipeline.overlap import OverlapSolution, solve_overlap
 from multieye.pipeline.overlap_mocap import (eye_on_hand_layout, has_mocap, rig_mocap,
                                            with_mocap)
@@ -120,7 +121,8 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
     paired = {n: PairedCamera(
         name=n, A=g.inv(M[j]), T_world_mocap=M[j],
         B=g.inv(np.stack([o.T_cam_target for o in sol.used[n]])),
-        observations=tuple(sol.used[n]), rejected=problem.cameras[n].rejected)
+        observations=tuple(sol.used[n]),
+        rejected=getattr(sol, "rejected", {}).get(n, problem.cameras[n].rejected))
         for j, n in enumerate(names)}
     lens = given_lens_findings([_evidence(problem.cameras[n], paired[n]) for n in names
                                 if not problem.cameras[n].intrinsics_estimated])
@@ -153,7 +155,9 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
                                path=problem.rig.path)
         record = with_mocap(record, sol, problem)
         paired, refinement = eye_on_hand_layout(paired, refinement, sol)
-    cameras = {n: replace(d, intrinsics=estimated.get(n, d.intrinsics))
+    judged = getattr(sol, "rejected", {})            # images judged on the refined lens
+    cameras = {n: replace(camera_data_now(d, sol.used[n], judged[n]) if n in judged else d,
+                          intrinsics=estimated.get(n, d.intrinsics))
                for n, d in problem.cameras.items()}
     return CalibrationRun(rig=problem.rig, record=record, closed_form=None, cameras=cameras,
                           paired=paired, refinement=refinement, plausibility=plaus)

@@ -20,6 +20,8 @@ from multieye.estimate.refine_images import RefinementResult, RefineOptions, ref
 from multieye.estimate.uncertainty import RelativeUncertainty, relative_covariance
 from multieye.io import Rig
 from multieye.pipeline.camera_data import PairedCamera
+from multieye.pipeline.image_acceptance import (judge_images, taken_back, taken_back_warning,
+                                                with_taken_back, without_outliers)
 from multieye.pipeline.options import Options
 from multieye.pipeline.problem import Pairing, Problem
 from multieye.pipeline.result import Refinement
@@ -44,11 +46,16 @@ class Refined:
     uncertainty : RelativeUncertainty or None
         Of ``T_ref_cam`` per camera, from the refinement's covariance.
     warnings : tuple of str
+    pairing : Pairing or None
+        The measurements the refinement ended on, when they are not those it was given:
+        images of a camera whose lens is estimated taken back or left out on the jointly
+        refined lens (:mod:`multieye.pipeline.image_acceptance`); None otherwise.
     """
 
     refinement: Refinement | None
     uncertainty: RelativeUncertainty | None
     warnings: tuple[str, ...] = ()
+    pairing: Pairing | None = None
 
 
 def mocap_noise(rig: Rig, paired: dict[str, PairedCamera], opts: Options):
@@ -68,9 +75,11 @@ def refine(problem: Problem, pairing: Pairing, sol: Solution) -> Refined:
     refinement that fails leaves the closed form, with a warning saying why."""
     if not problem.options.refine:
         return Refined(None, None)
+    judged = None
     try:
         if _have_points(problem, pairing.paired):
-            refinement = _refine_images(problem, pairing, sol)
+            refinement, judged = _judged(problem, pairing, sol)
+            pairing = judged or pairing
         else:
             ref = refine_solution(sol)
             refinement = Refinement(kind="poses", X=ref.X, Y=ref.Y, covariance=ref.covariance,
@@ -82,7 +91,54 @@ def refine(problem: Problem, pairing: Pairing, sol: Solution) -> Refined:
     if refinement.covariance is not None:
         uncertainty = relative_covariance(refinement.X, refinement.covariance,
                                           reference=list(pairing.paired).index(problem.reference))
-    return Refined(refinement, uncertainty, refinement.warnings)
+    return Refined(refinement, uncertainty, refinement.warnings, judged)
+
+
+def _judged(problem: Problem, pairing: Pairing, sol: Solution
+            ) -> tuple[Refinement, Pairing | None]:
+    """The image-level refinement, then the images of the cameras whose lens is estimated
+    judged on the refined lens (:mod:`multieye.pipeline.image_acceptance`): those left out
+    as a bad fit that fit it taken back, then the outliers of the joint refinement left
+    out, the refinement run again from its optimum after each that changed the images; the
+    pairing it ended on when it changed, else None."""
+    refinement = _refine_images(problem, pairing, sol.X, sol.Y, {})
+    cameras = problem.cameras
+    estimated = [n for n in pairing.paired if cameras[n].intrinsics_estimated]
+    if not estimated:
+        return refinement, None
+    notes: list[str] = []
+    back = {n: taken_back(cameras[n].bad_fits, refinement.intrinsics[n]) for n in estimated}
+    grown, added = with_taken_back(problem, pairing, back)
+    given = pairing
+    if added:
+        try:
+            refinement = _refine_images(problem, grown, refinement.X, refinement.Y,
+                                        refinement.intrinsics)
+            pairing = grown
+            notes += [taken_back_warning(n, obs) for n, obs in added.items()]
+        except CalibrationError as exc:
+            added = {}
+            notes.append(f"images left out as a bad fit that fit the refined lens were not "
+                         f"taken back: the refinement with them failed ({exc})")
+    res, names = refinement.result, list(pairing.paired)
+    judged = judge_images(
+        {n: pairing.paired[n].observations for n in estimated},
+        {n: res.image_rms_px[names.index(n)] for n in estimated},
+        {n: [int(np.sum(np.isfinite(w))) for w in res.point_weights[names.index(n)]]
+         for n in estimated})
+    notes += judged.warnings
+    if judged:
+        try:
+            smaller = without_outliers(pairing, judged)
+            refinement = _refine_images(problem, smaller, refinement.X, refinement.Y,
+                                        refinement.intrinsics)
+            pairing = smaller
+        except CalibrationError as exc:
+            notes = [n for n in notes if n not in judged.warnings] + [
+                f"outliers of the joint refinement kept: the refinement without them failed "
+                f"({exc})"]
+    refinement = replace(refinement, warnings=refinement.warnings + tuple(notes))
+    return refinement, None if pairing is given else pairing
 
 
 def _have_points(problem: Problem, paired: dict[str, PairedCamera]) -> bool:
@@ -91,9 +147,11 @@ def _have_points(problem: Problem, paired: dict[str, PairedCamera]) -> bool:
                for n, p in paired.items())
 
 
-def _refine_images(problem: Problem, pairing: Pairing, sol: Solution) -> Refinement:
-    """Image-level refinement; with ``time_offset="auto"`` the clock offsets (starting at the
-    pairing's) are unknowns of the problem (:mod:`multieye.estimate.clock_residuals`)."""
+def _refine_images(problem: Problem, pairing: Pairing, X0, Y0, lenses: dict) -> Refinement:
+    """Image-level refinement from ``X0``, ``Y0`` and the cameras' lenses (``lenses`` by
+    name where given, else the problem's); with ``time_offset="auto"`` the clock offsets
+    (starting at the pairing's) are unknowns of the problem
+    (:mod:`multieye.estimate.clock_residuals`)."""
     paired, cameras = pairing.paired, problem.cameras
     _, rot, trans = mocap_noise(problem.rig, paired, problem.options)
     sigmas = {k: v for k, v in (("mocap_rot_sigma_rad", rot), ("mocap_trans_sigma_m", trans))
@@ -113,8 +171,8 @@ def _refine_images(problem: Problem, pairing: Pairing, sol: Solution) -> Refinem
                             mocap_noise_scale=None if all(f is None for f in scale) else scale,
                             free_intrinsics=[cameras[n].intrinsics_estimated for n in paired],
                             intrinsics_observations=views if any(views) else None, **given)
-    res = refine_images(problem.setup, obs, [cameras[n].intrinsics for n in paired], sol.X, sol.Y,
-                        options)
+    res = refine_images(problem.setup, obs, [lenses.get(n, cameras[n].intrinsics) for n in paired],
+                        X0, Y0, options)
     warnings.extend(_image_warnings(res, paired))
     names = list(paired)
     estimated = [j for j, n in enumerate(names) if cameras[n].intrinsics_estimated]

@@ -56,6 +56,7 @@ from multieye.pipeline.camera_data import (
     pair_camera,
 )
 from multieye.pipeline.estimated_lens import refit_paired
+from multieye.pipeline.image_acceptance import camera_data_now
 from multieye.pipeline.options import Options, updated_options
 from multieye.estimate.refine_images import (
     DEFAULT_MOCAP_ROT_SIGMA_RAD,
@@ -155,6 +156,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
     solved = check_pairing(problem, kept)
     clock.append(time.perf_counter())
     refined = refine(problem, kept, closed.solution)
+    kept = refined.pairing or kept          # images taken back or left out on the refined lens
     clock.append(time.perf_counter())
     checks = Checks(solved=solved, final=check_refined(problem, kept, solved, refined))
     run = summarise(problem, kept, closed, checks, refined)
@@ -356,6 +358,8 @@ def summarise(problem: Problem, pairing: Pairing, closed: ClosedForm, checks: Ch
     record = build_record(problem, final, closed, checks.final, refined, warnings)
     cameras = {n: replace(d, selection=merged(d.selection, pairing.selection[n]))
                if n in pairing.selection else d for n, d in cameras.items()}
+    cameras = {n: camera_data_now(d, final.paired[n].observations) if n in final.paired
+               and d.bad_fits else d for n, d in cameras.items()}     # bad fits taken back
     return CalibrationRun(rig=problem.rig, record=record, closed_form=closed.solution,
                           cameras={n: replace(d, intrinsics=estimated.get(n, d.intrinsics))
                                    for n, d in cameras.items()} if estimated else cameras,
