@@ -32,8 +32,8 @@ extrinsics' NEES / 6 and largest |e| / sigma), and besides:
   (a bias shows as one sign over the seeds: the same true lens in every seed);
 - ``corner_err``: the detected corners of the wide lens less their true projection
   (always the detected ones, before any replacement), by angle off the axis (bins of
-  degrees): count, mean radial component (outward positive) and RMS, pixels; and the RMS of
-  the other cameras' corners.
+  degrees): count, mean radial component (outward positive) and RMS, pixels; and the same
+  of the other cameras' corners (``corner_err_other``).
 
 This is a script, not a test: nothing is asserted.
 """
@@ -141,21 +141,29 @@ def install(rec: Recorder) -> None:
         chessboard_corners.refine_straightened = lambda gray, refined, rows, cols, window: refined
 
 
-def corner_figures(rec: Recorder, model: str) -> dict:
-    """``corner_err`` of the module docstring."""
-    wide = [e for e in rec.errors if e[0] == model]
-    other = [e[1] for e in rec.errors if e[0] != model]
-    out = {}
-    if wide:
-        err, theta, off = (np.concatenate([e[i] for e in wide]) for i in (1, 2, 3))
-        radial = np.sum(err * off, axis=1) / np.maximum(np.linalg.norm(off, axis=1), 1e-9)
-        out["corner_err"] = [
-            [lo, int(m.sum()), float(radial[m].mean()), float(np.sqrt(np.mean(err[m] ** 2)))]
+def _by_angle(errors: list) -> list:
+    """Per bin of the angle off the axis: count, mean radial error (outward positive) and
+    RMS of the errors of ``errors`` (the recorder's tuples), pixels."""
+    err, theta, off = (np.concatenate([e[i] for e in errors]) for i in (1, 2, 3))
+    radial = np.sum(err * off, axis=1) / np.maximum(np.linalg.norm(off, axis=1), 1e-9)
+    return [[lo, int(m.sum()), float(radial[m].mean()), float(np.sqrt(np.mean(err[m] ** 2)))]
             for lo, hi in zip(BINS[:-1], BINS[1:]) for m in [(theta >= lo) & (theta < hi)]
             if m.any()]
-        out["corner_rms_wide"] = float(np.sqrt(np.mean(err ** 2)))
+
+
+def corner_figures(rec: Recorder, model: str) -> dict:
+    """``corner_err`` of the module docstring (``corner_err_other``: the same of the other
+    cameras' corners)."""
+    wide = [e for e in rec.errors if e[0] == model]
+    other = [e for e in rec.errors if e[0] != model]
+    out = {}
+    if wide:
+        out["corner_err"] = _by_angle(wide)
+        out["corner_rms_wide"] = float(np.sqrt(np.mean(np.concatenate([e[1] for e in wide]) ** 2)))
     if other:
-        out["corner_rms_other"] = float(np.sqrt(np.mean(np.concatenate(other) ** 2)))
+        out["corner_err_other"] = _by_angle(other)
+        out["corner_rms_other"] = float(np.sqrt(np.mean(np.concatenate([e[1] for e in other])
+                                                        ** 2)))
     return out
 
 
@@ -237,17 +245,17 @@ def report(rows: list[dict]) -> None:
         print("T_ref_cam NEES/6 mean " + " / ".join(
             f"{np.mean([r['pose'][j][0] for r in posed]):.2f}" for j in (0, 1)) +
             f", largest |e|/sigma {max(max(p[1] for p in r['pose']) for r in posed):.2f}")
-    bins: dict[int, list] = {}
-    for r in rows:
-        for lo, n, mean, rms in r.get("corner_err", ()):
-            bins.setdefault(lo, []).append((n, mean, rms))
-    for lo, v in sorted(bins.items()):
-        n = np.array([x[0] for x in v], float)
-        mean = float(np.sum(n * [x[1] for x in v]) / n.sum())
-        rms = float(np.sqrt(np.sum(n * np.square([x[2] for x in v])) / n.sum()))
-        print(f"  corners from {lo} deg: {int(n.sum())}, radial mean {mean:+.4f} px, "
-              f"RMS {rms:.4f} px")
-
+    for key, what in (("corner_err", "wide lens"), ("corner_err_other", "other cameras")):
+        bins: dict[int, list] = {}
+        for r in rows:
+            for lo, n, mean, rms in r.get(key, ()):
+                bins.setdefault(lo, []).append((n, mean, rms))
+        for lo, v in sorted(bins.items()):
+            n = np.array([x[0] for x in v], float)
+            mean = float(np.sum(n * [x[1] for x in v]) / n.sum())
+            rms = float(np.sqrt(np.sum(n * np.square([x[2] for x in v])) / n.sum()))
+            print(f"  {what}, corners from {lo} deg: {int(n.sum())}, radial mean {mean:+.4f} "
+                  f"px, RMS {rms:.4f} px")
 
 if __name__ == "__main__":
     main()
