@@ -5,7 +5,7 @@ Run from the repository root::
 
     PYTHONPATH=src python benchmarks/bench_wide_render_corners.py [--rig mixed] [--model unified]
         [--field 190] [--seeds 0-9] [--corners detected|ideal|unstraightened]
-        [--sigma 0.04] [--noise-seed 12345] [--json OUT.jsonl]
+        [--sigma 0.04] [--noise-seed 12345] [--mocap-scale F] [--json OUT.jsonl]
 
 The trials of ``bench_wide_render.py`` (the same rendered images, the same pipeline run,
 :func:`bench_wide_render.mixed` or :func:`~bench_wide_render.single`), with the corners the
@@ -47,6 +47,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import contextlib  # noqa: E402
+import functools  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -210,10 +211,18 @@ def main() -> None:
                     choices=("detected", "ideal", "unstraightened"))
     ap.add_argument("--sigma", type=float, default=0.04, help="pixels, --corners ideal")
     ap.add_argument("--noise-seed", type=int, default=12345, help="--corners ideal")
+    ap.add_argument("--mocap-scale", type=float, default=None,
+                    help="state the motion capture's noise this many times the truth's "
+                    "(calibrate's mocap_rot_sigma_rad, mocap_trans_sigma_m): a large factor "
+                    "leaves the rig's poses to the pixels alone")
     ap.add_argument("--json", default=None, help="append every seed's record here")
     args = ap.parse_args()
     rec = Recorder(args.corners, args.sigma, args.noise_seed)
     install(rec)
+    if args.mocap_scale is not None:
+        rot, trans = sim_dataset.DatasetSpec().mocap_noise
+        b.calibrate = functools.partial(b.calibrate, mocap_rot_sigma_rad=rot * args.mocap_scale,
+                                        mocap_trans_sigma_m=trans * args.mocap_scale)
     rows = []
     for seed in _seeds(args.seeds):
         r = trial(args.rig, args.model, args.field, seed, rec)
