@@ -6,6 +6,7 @@ Run from the repository root::
     PYTHONPATH=src python benchmarks/bench_wide_render.py [--seeds 10] [--variants base,hard]
         [--skip single,mixed] [--json OUT.jsonl]
     python benchmarks/bench_wide_render.py --compare BEFORE.jsonl AFTER.jsonl
+    python benchmarks/bench_wide_render.py --curve-table A.jsonl [B.jsonl ...]
 
 Each model (unified, double-sphere, eucm) at 190 and 220 degrees of field
 (:func:`multieye.sim.wide_lens.wide_lens`: a 1024 x 1024 image, the field's edge on a circle
@@ -365,6 +366,38 @@ def compare(before: list[dict], after: list[dict]) -> None:
               f"{pair(lambda rs: float(np.median([r['seconds'] for r in rs])), '.1f')} |")
 
 
+def curve_table(rows: list[dict]) -> None:
+    """The table of docs/results/wide_render.md, sections 5 and 6 (markdown): per case the
+    lens NEES in its parameters, of calibration.json's ``lens_curve`` (mean, median,
+    largest), in pixels, and the mixed rig's extrinsics (NEES / 6 of cameras 1 and 2, the
+    largest |e| / sigma and how many rigs have a coordinate beyond 3 sigma)."""
+    print("| case | model | field deg | runs ok | NEES/dim params mean / median | NEES/3 "
+          "`lens_curve` mean / median (largest) | NEES/2 pixels, 8 rays | T_ref_cam NEES/6 "
+          "cam1 / cam2 | largest \\|e\\|/sigma | rigs beyond 3 sigma |")
+    print("|---" * 10 + "|")
+    keys = sorted({(r["kind"], r["variant"], r["model"], r["fov"]) for r in rows},
+                  key=lambda k: (k[0] == "mixed", list(VARIANTS).index(k[1]),
+                                 MODELS.index(k[2]), k[3]))
+    for kind, variant, model, fov in keys:
+        rs = [r for r in rows if (r["kind"], r["variant"], r["model"], r["fov"])
+              == (kind, variant, model, fov)]
+        ok = [r for r in rs if "failed" not in r]
+        par = [r["nees_par"] for r in ok if "nees_par" in r]
+        cur = [r["nees_curve"] for r in ok if "nees_curve" in r]
+        line = (f"| {kind} | {model} | {fov:.0f} | {len(ok)} of {len(rs)} | "
+                f"{np.mean(par):.2f} / {np.median(par):.2f} | {np.mean(cur):.2f} / "
+                f"{np.median(cur):.2f} ({np.max(cur):.2f}) | {_mean(ok, 'nees_px'):.2f} |")
+        posed = [r for r in ok if "pose" in r]
+        if posed:
+            worst = [max(p[1] for p in r["pose"]) for r in posed]
+            line += (" " + " / ".join(f"{np.mean([r['pose'][j][0] for r in posed]):.2f}"
+                                      for j in (0, 1)) +
+                     f" | {max(worst):.2f} | {sum(w > 3 for w in worst)} of {len(posed)} |")
+        else:
+            line += " - | - | - |"
+        print(line)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
@@ -379,7 +412,13 @@ def main() -> None:
     ap.add_argument("--compare", nargs=2, metavar=("BEFORE", "AFTER"), default=None,
                     help="only compare two --json files of the same trials (section 4 of "
                     "docs/results/wide_render.md)")
+    ap.add_argument("--curve-table", nargs="+", metavar="JSONL", default=None,
+                    help="only print the lens_curve table (docs/results/wide_render.md, "
+                    "sections 5 and 6) of these --json files")
     args = ap.parse_args()
+    if args.curve_table:
+        curve_table([json.loads(line) for f in args.curve_table for line in open(f)])
+        return
     if args.compare:
         compare(*([json.loads(line) for line in open(f)] for f in args.compare))
         return

@@ -107,3 +107,40 @@ def test_dataset_shows_the_board_as_large_to_a_wide_lens_as_to_a_pinhole(tmp_pat
         assert found and all(f is not None for f in found)
         spans.append(np.median([np.ptp(f.image_points, axis=0).max() for f in found]))
     assert 0.7 < spans[1] / spans[0] < 1.4, spans
+
+
+def _outward_errors(views, lens) -> np.ndarray:
+    """Every detected corner's error along the direction from the principal point, px."""
+    out = []
+    for T, image in views:
+        found = detect(image, BOARD)
+        assert found is not None and len(found) == len(BOARD.object_points())
+        uv = project_points(BOARD.object_points()[found.ids] @ T[:3, :3].T + T[:3, 3], lens)
+        off = uv - lens.params[2:4]
+        out.append(np.sum((found.image_points - uv) * off, axis=1) / np.linalg.norm(off, axis=1))
+    return np.concatenate(out)
+
+
+def test_corners_50_to_80_degrees_off_a_190_degree_lens_are_not_pushed_outward(monkeypatch):
+    # docs/results/wide_render.md, section 6: the mixed rig's unified lens at 190 degrees had
+    # a lens_curve NEES/3 of 2.26 because its corners sat outward of where the lens puts them
+    # (+0.004 px near the axis growing to +0.02 px at 80-110 degrees, bench_wide_render_
+    # corners.py); the straightened refinement of the detector removed it (NEES/3 1.41).
+    # Exact renders (blur 0.7 px, no sensor noise): the premise without it, the detector with.
+    from multieye.imaging import chessboard_corners
+
+    lens = wide_lens("unified", 190.0)
+    views = []
+    for theta, phi, spin in ((50.0, 20.0, 10.0), (62.0, 140.0, 100.0), (72.0, 250.0, 40.0),
+                             (80.0, 320.0, 160.0)):
+        T = behind_pose(theta, phi, spin, distance=0.45)
+        assert visible(BOARD, lens, T)
+        views.append((T, render(BOARD, lens, T, noise_sigma=0, blur_sigma=0.7)))
+    straightened = _outward_errors(views, lens)
+    monkeypatch.setattr(chessboard_corners, "refine_straightened",
+                        lambda gray, refined, rows, cols, window: refined)
+    plain = _outward_errors(views, lens)
+    se = straightened.std() / np.sqrt(straightened.size)           # about 0.0016 px
+    assert plain.mean() > 0.012 and plain.mean() > 6 * se, (plain.mean(), se)
+    assert abs(straightened.mean()) < 0.008 and abs(straightened.mean()) < 0.5 * plain.mean(), (
+        straightened.mean(), plain.mean())
