@@ -265,6 +265,9 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.pipeline.calibrate_dataset import Hooks  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.figure_workers import figure_workers  # noqa: PLC0415 (instant start-up of multieye --help; light: no numpy)
+    from multieye.core.numpy_extras import defer_numpy_extras  # noqa: PLC0415 (instant start-up of multieye --help)
+
+    defer_numpy_extras()    # numpy imported; SciPy's first import then skips numpy.f2py, .testing
 
     # Options checks every flag, once (an InputError: one line, exit 2, nothing written)
     options = Options(method=flags["method"], reference=flags["reference"],
