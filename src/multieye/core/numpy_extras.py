@@ -1,13 +1,14 @@
-"""numpy's test and Fortran-wrapper subpackages loaded on first use in a command's process.
+"""numpy's subpackages that multieye does not use loaded on first use in a command's process.
 
 SciPy 1.15 and later (its vendored ``array_api_compat``) copy every public name of numpy
 when any SciPy subpackage is first imported (``scipy._lib._util``, which ``scipy.linalg``,
 ``scipy.sparse`` and ``scipy.special`` import): ``hasattr(numpy, name)`` for each name of
 ``dir(numpy)``, which imports numpy's lazily loaded subpackages, ``numpy.f2py`` (its Fortran
 wrapper generator, which imports ``charset_normalizer``) and ``numpy.testing`` (which
-imports ``unittest`` and ``importlib.metadata``) among them.  Nothing of multieye uses
-either; they cost 0.04-0.06 CPU-s of every ``multieye calibrate`` (``python -X importtime``
-and ``perf stat``, scipy 1.17.1, numpy 2.4; docs/results/peers.md).
+imports ``unittest`` and ``importlib.metadata``), ``numpy.ma`` and ``numpy.polynomial``
+among them.  Nothing of multieye uses them; they cost 0.05-0.08 CPU-s of every ``multieye
+calibrate`` (``python -X importtime``, scipy 1.17.1, numpy 2.4; docs/results/peers.md).
+matplotlib uses ``numpy.ma``: where the command draws figures it loads then.
 
 :func:`defer_numpy_extras` puts both in ``sys.modules`` as lazy modules
 (:class:`importlib.util.LazyLoader`): the same module objects, executed when one of their
@@ -28,8 +29,9 @@ import sys
 
 __all__ = ["defer_numpy_extras", "DEFERRED"]
 
-#: numpy's subpackages loaded on first use (what no stage of multieye reads).
-DEFERRED = ("numpy.f2py", "numpy.testing")
+#: numpy's subpackages loaded on first use (what no stage of multieye reads; numpy.random,
+#: which SciPy reads at its import, is not among them).
+DEFERRED = ("numpy.f2py", "numpy.testing", "numpy.ma", "numpy.polynomial")
 
 
 def defer_numpy_extras(names: tuple[str, ...] = DEFERRED) -> tuple[str, ...]:
