@@ -140,10 +140,11 @@ def _processes_note(processes: int | None) -> None:
                    f"the CPUs this process may use (and at most one per image)")
 
 
-def _import_writers() -> None:
-    """The output writers imported (on a thread, while the workers detect the images)."""
+def _import_writers(report: bool = True) -> None:
+    """The output writers imported (on a thread, while the workers detect the images); the
+    report's figure modules only where the report is written."""
     for name in ("multieye.outputs.write", "multieye.outputs.summary",
-                 "multieye.outputs.report_draw"):
+                 "multieye.outputs.report_draw")[:None if report else 2]:
         import_module(name)
 
 
@@ -284,7 +285,7 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
         run = run_calibration(dataset, options, processes=processes,
                               progress=_progress_enabled(), engine=flags["engine"],
                               scheduler=flags["scheduler"],
-                              hooks=Hooks(meanwhile=_import_writers,
+                              hooks=Hooks(meanwhile=functools.partial(_import_writers, report),
                                           on_detected=workers.start_early if report else None))
         from multieye.outputs.write import write_outputs  # noqa: PLC0415 (imported while the images were detected, _import_writers)
         from multieye.outputs.summary import calibration_table, timings_line  # noqa: PLC0415 (imported while the images were detected, likewise)
