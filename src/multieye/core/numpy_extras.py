@@ -10,7 +10,7 @@ among them.  Nothing of multieye uses them; they cost 0.05-0.08 CPU-s of every `
 calibrate`` (``python -X importtime``, scipy 1.17.1, numpy 2.4; docs/results/peers.md).
 matplotlib uses ``numpy.ma``: where the command draws figures it loads then.
 
-:func:`defer_numpy_extras` puts both in ``sys.modules`` as lazy modules
+:func:`defer_numpy_extras` puts them in ``sys.modules`` as lazy modules
 (:class:`importlib.util.LazyLoader`): the same module objects, executed when one of their
 attributes is first read, so whoever uses them gets them whole, only later.  It is for a
 process multieye owns (the command line), not for a library user's, whose numpy it would
@@ -34,15 +34,15 @@ __all__ = ["defer_numpy_extras", "DEFERRED"]
 DEFERRED = ("numpy.f2py", "numpy.testing", "numpy.ma", "numpy.polynomial")
 
 
-def defer_numpy_extras(names: tuple[str, ...] = DEFERRED) -> tuple[str, ...]:
-    """Make each of ``names`` (numpy subpackages) a lazy module, unless it is imported already.
+def defer_numpy_extras(modules: tuple[str, ...] = DEFERRED) -> tuple[str, ...]:
+    """Make each of ``modules`` (numpy subpackages) a lazy module, unless it is imported already.
 
     Imports numpy (a command calls this once numpy is imported).  Returns the names made lazy
     (those already imported, or that numpy lacks, are left alone)."""
     import numpy  # noqa: PLC0415 (the caller has imported it already; no import at start-up)
 
     deferred = []
-    for name in names:
+    for name in modules:
         if name in sys.modules:
             continue
         spec = importlib.util.find_spec(name)
