@@ -305,7 +305,7 @@ t["job: all"] = sum(v for k, v in t.items() if k.startswith("job: "))
 for rerun in ("", " again"):
     for k, (_, func, args) in enumerate(report_draw._tasks(rec, details, jobs, 2)):
         c = time.process_time(); drawn = func(*args)
-        names = "rig" if func is figures_rig.rig_pngs else " + ".join(drawn)
+        names = " + ".join(drawn) if isinstance(drawn, dict) else "rig"
         t[f"task{rerun}: {k} {names}"] = time.process_time() - c
     t[f"task{rerun}: all"] = sum(v for k, v in t.items() if k.startswith(f"task{rerun}: "))
 folders = {c.name: f"{dataset}/{c.name}" for c in rec.cameras}

@@ -18,7 +18,8 @@ CASES = {
     # the command before its fork server starts (cli._prestart_workers): not even numpy, so
     # that the server's imports of numpy and OpenCV run while this process imports its own
     "fork server start": ("multieye.cli, multieye.imaging.workers",
-                          ["numpy", "cv2", "multieye.pipeline", "multieye.imaging.batch"]),
+                          ["numpy", "cv2", "multieye.pipeline", "multieye.imaging.batch",
+                           "statistics"]),
     # what the command imports before it sends the first image to the workers: the later
     # stages (SciPy, the solvers, the refinement, the writers) are imported while they detect
     # (tests/pipeline/test_detection_first.py checks the order in a real run)
@@ -28,7 +29,7 @@ CASES = {
                          "multieye.outputs.figure_workers",
                          ["scipy", "multieye.pipeline.run", "multieye.solvers.registry",
                           "multieye.optimize", "multieye.estimate.plausibility",
-                          "multieye.outputs.write", "matplotlib"]),
+                          "multieye.outputs.write", "matplotlib", "secrets"]),
     # the fork server the detection's workers come from (imaging.workers.mp_context)
     "fork server": ("multieye.imaging.batch", ["scipy", "matplotlib", "multieye.pipeline"]),
     # the report's figure worker, forked from that fork server: the figure modules

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import click
 
+from multieye.core.collector import fewer_collections
 from multieye.core.cpus import one_blas_thread
 from multieye.core.version import __version__
 from multieye.core.errors import CalibrationError
@@ -139,10 +140,11 @@ def _processes_note(processes: int | None) -> None:
                    f"the CPUs this process may use (and at most one per image)")
 
 
-def _import_writers() -> None:
-    """The output writers imported (on a thread, while the workers detect the images)."""
+def _import_writers(report: bool = True) -> None:
+    """The output writers imported (on a thread, while the workers detect the images); the
+    report's figure modules only where the report is written."""
     for name in ("multieye.outputs.write", "multieye.outputs.summary",
-                 "multieye.outputs.report_draw"):
+                 "multieye.outputs.report_draw")[:None if report else 2]:
         import_module(name)
 
 
@@ -205,6 +207,7 @@ def main():
       multieye docs rig-yaml             # every key of rig.yaml; all pages: multieye docs
     """
     one_blas_thread()       # before numpy is imported: no BLAS threads spinning for nothing
+    fewer_collections()     # Python's collector every 50,000 allocations, not 700
 
 
 @main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR, EXIT_IMPLAUSIBLE))
@@ -265,6 +268,9 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
     from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.pipeline.calibrate_dataset import Hooks  # noqa: PLC0415 (instant start-up of multieye --help)
     from multieye.outputs.figure_workers import figure_workers  # noqa: PLC0415 (instant start-up of multieye --help; light: no numpy)
+    from multieye.core.numpy_extras import defer_numpy_extras  # noqa: PLC0415 (instant start-up of multieye --help)
+
+    defer_numpy_extras()    # numpy imported; SciPy's first import then skips numpy.f2py, .testing
 
     # Options checks every flag, once (an InputError: one line, exit 2, nothing written)
     options = Options(method=flags["method"], reference=flags["reference"],
@@ -279,7 +285,7 @@ def calibrate(dataset: Path, out_dir: Path, processes: int | None, **flags):
         run = run_calibration(dataset, options, processes=processes,
                               progress=_progress_enabled(), engine=flags["engine"],
                               scheduler=flags["scheduler"],
-                              hooks=Hooks(meanwhile=_import_writers,
+                              hooks=Hooks(meanwhile=functools.partial(_import_writers, report),
                                           on_detected=workers.start_early if report else None))
         from multieye.outputs.write import write_outputs  # noqa: PLC0415 (imported while the images were detected, _import_writers)
         from multieye.outputs.summary import calibration_table, timings_line  # noqa: PLC0415 (imported while the images were detected, likewise)

@@ -67,3 +67,13 @@ def test_free_core_counts_the_tasks_ready_now(monkeypatch, others, load, free):
     monkeypatch.setattr(figure_workers, "runnable_elsewhere", lambda: others)
     monkeypatch.setattr(os, "getloadavg", lambda: (load, load, load))
     assert figure_workers._free_core() is free
+
+
+def test_the_median_is_statistics_median():
+    import statistics
+
+    from multieye.core.cpus import _median
+
+    for values in ([3], [5, 1], [4, 1, 3], [2, 2, 7, 1], [9, 0, 4, 4, 1], [1, 2, 3, 4, 5, 6]):
+        assert _median(values) == statistics.median(values)
+        assert type(_median(values)) is type(statistics.median(values))

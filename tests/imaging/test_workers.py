@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import multiprocessing
 import subprocess
 import sys
@@ -119,3 +120,43 @@ def test_the_fork_server_ends_at_its_first_exit_function_and_only_it(tmp_path):
                          timeout=120)
     assert run.returncode == 0, run.stderr
     assert run.stdout.split() == ["True", "False"]
+
+
+STOP_HELPERS = """
+import os, sys, time
+from multiprocessing import forkserver, resource_tracker
+from multieye.imaging import workers
+from multieye.imaging.workers import mp_context, stop_helpers, worker_pool
+
+
+def no_polling(seconds):
+    raise AssertionError(f"polled: time.sleep({seconds})")
+
+
+if __name__ == "__main__":
+    with worker_pool(1, mp_context=mp_context()) as pool:
+        pool.submit(os.getpid).result()
+    server = forkserver._forkserver._forkserver_pid
+    tracker = resource_tracker._resource_tracker._pid
+    workers.time.sleep = no_polling     # the helpers' ends are waited on, not polled for
+    stop_helpers()
+    gone = []
+    for pid in (server, tracker):
+        try:
+            os.waitpid(pid, os.WNOHANG)
+        except ChildProcessError:       # collected by stop_helpers
+            gone.append(pid)
+    print(len(gone), forkserver._forkserver._forkserver_pid, resource_tracker._resource_tracker._pid)
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "pidfd_open"), reason="no pidfd on this platform")
+def test_the_helpers_are_collected_as_they_end_without_polling(tmp_path):
+    """stop_helpers waits on the fork server's and the resource tracker's pidfds: every
+    command ended up to 10 ms later per helper while it checked every 10 ms."""
+    script = tmp_path / "stop_helpers.py"
+    script.write_text(STOP_HELPERS)
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["2", "None", "None"]

@@ -146,15 +146,25 @@ def _saddle_correlations(gray: NDArray[np.uint8], points: F64, radius: F64) -> F
     """Per point (N, 2), pixels: the correlation of the greys on a circle of ``radius``
     (N,) around it with themselves turned by half a turn (:func:`saddle_grid`).  Shape
     (N,)."""
-    phi = np.linspace(0.0, 2 * np.pi, SADDLE_SAMPLES, endpoint=False)
-    u = (points[:, :1] + radius[:, None] * np.cos(phi)).astype(np.float32)
-    v = (points[:, 1:] + radius[:, None] * np.sin(phi)).astype(np.float32)
+    cos, sin = _circle(SADDLE_SAMPLES)
+    u = (points[:, :1] + radius[:, None] * cos).astype(np.float32)
+    v = (points[:, 1:] + radius[:, None] * sin).astype(np.float32)
     ring = cv2.remap(gray, u, v, cv2.INTER_LINEAR,       # whole greys: enough for the sign
                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
     ring -= ring.mean(axis=1, keepdims=True)
     turned = np.roll(ring, SADDLE_SAMPLES // 2, axis=1)
     power = np.maximum(np.einsum("ij,ij->i", ring, ring), 1e-9)
     return np.einsum("ij,ij->i", ring, turned) / power
+
+
+@lru_cache(maxsize=4)
+def _circle(samples: int) -> tuple[F64, F64]:
+    """Cosines and sines of ``samples`` angles evenly around the circle from 0, shape
+    (samples,) each: the same arrays for every corner of every image (read only)."""
+    phi = np.linspace(0.0, 2 * np.pi, samples, endpoint=False)
+    cos, sin = np.cos(phi), np.sin(phi)
+    cos.flags.writeable = sin.flags.writeable = False
+    return cos, sin
 
 
 def whole_board(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:

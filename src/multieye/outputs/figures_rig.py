@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multieye.core.collector import fewer_collections
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.calibration_json import ROLE_NAMES, SETUP_KEYS, CalibrationRecord
 from multieye.io.run_details import CameraDetails, RunDetails
@@ -571,6 +572,7 @@ def warm_up() -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib, imported ahead of drawing)
     from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib, imported ahead of drawing)
 
+    fewer_collections()         # matplotlib's artists: the collector every 50,000 allocations
     fig = Figure(figsize=(1.0, 1.0), dpi=10)
     FigureCanvasAgg(fig)
     fig.add_subplot(projection="3d").set_title("x", fontweight="bold")

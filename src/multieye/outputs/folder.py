@@ -48,7 +48,6 @@ import errno
 import json
 import os
 import re
-import secrets
 import shutil
 import stat
 import sys
@@ -130,7 +129,7 @@ def _lock_path(out: Path) -> Path:
 
 
 def _sibling(out: Path, kind: str) -> Path:
-    return out.parent / f"{out.name}.multieye-{kind}-{os.getpid()}-{secrets.token_hex(4)}"
+    return out.parent / f"{out.name}.multieye-{kind}-{os.getpid()}-{os.urandom(4).hex()}"
 
 
 def _leftovers(out: Path) -> tuple[list[Path], list[Path]]:

@@ -108,7 +108,7 @@ def write_output_files(run: CalibrationRun, folder: Path, *, final: Path, report
     ``time.perf_counter()`` value, where the ``outputs`` stage began (default: now).
     Returns the names written, the notes and the timings written into ``details.json``.
     """
-    from multieye.outputs.report_draw import figure_workers  # noqa: PLC0415 (heavy: the figure modules and OpenCV, only with the report)
+    from multieye.outputs.figure_workers import figure_workers  # noqa: PLC0415 (light: the figure modules are imported where the report is drawn)
 
     start = time.perf_counter() if start is None else start
     with confined_to(folder):           # nothing written through a link (docs/outputs.md)
@@ -130,10 +130,10 @@ def _write_files(run: CalibrationRun, folder: Path, *, report: bool, diagnostics
     """Every output but ``details.json``, whose text but the timings is returned
     (:func:`~multieye.io.run_details.details_head`): the figures handed to the workers
     first, the other files written while they draw."""
-    from multieye.outputs.report_draw import submit_figures  # noqa: PLC0415 (heavy: the figure modules and OpenCV, only with the report)
-
     data = run_details_to_dict(run_details(run, diagnostics=diagnostics))
     if report:      # the details as details.json holds them (rounded): what the report shows
+        from multieye.outputs.report_draw import submit_figures  # noqa: PLC0415 (heavy: the figure modules and OpenCV, only with the report)
+
         shown = run_details_from_dict(data)
         figures = submit_figures(run.record, shown, workers)
     write_calibration(folder / "calibration.json", run.record)
