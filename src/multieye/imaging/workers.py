@@ -255,34 +255,31 @@ def stop_helpers(timeout_s: float = HELPER_WAIT_S) -> None:
     from multiprocessing import forkserver, resource_tracker, util  # noqa: PLC0415 (at exit only)
 
     server = getattr(forkserver, "_forkserver", None)
-    tracker = getattr(resource_tracker, "_resource_tracker", None)
-    server_pid = getattr(server, "_forkserver_pid", None)
-    server_fd = getattr(server, "_forkserver_alive_fd", None)
-    tracker_pid, tracker_fd = getattr(tracker, "_pid", None), getattr(tracker, "_fd", None)
-    stop_server = server_pid is not None and server_fd is not None
-    stop_tracker = tracker_pid is not None and tracker_fd is not None
-    # both pipes closed first, so that both helpers end meanwhile (the tracker once the
-    # server, which holds its pipe too, has ended); the locks in multiprocessing's order
-    with contextlib.ExitStack() as locks:
-        if stop_server:
-            locks.enter_context(server._lock)
+    pid, fd = getattr(server, "_forkserver_pid", None), getattr(server, "_forkserver_alive_fd", None)
+    if pid is not None and fd is not None:
+        with server._lock:
             with contextlib.suppress(OSError):
-                os.close(server_fd)
+                os.close(fd)
             server._forkserver_alive_fd = None
-        if stop_tracker:
-            locks.enter_context(tracker._lock)
+            if _wait_for(pid, timeout_s):
+                server._forkserver_pid = None
+                address = getattr(server, "_forkserver_address", None)
+                if address and not util.is_abstract_socket_namespace(address):
+                    with contextlib.suppress(OSError):
+                        os.unlink(address)
+                server._forkserver_address = None
+    # the tracker only after the server has ended: closed together, the tracker could end
+    # first and unlink the semaphores the process's own finalizers unlink next (a stopped
+    # run then printed "Exception ignored ... sem_unlink" tracebacks)
+    tracker = getattr(resource_tracker, "_resource_tracker", None)
+    pid, fd = getattr(tracker, "_pid", None), getattr(tracker, "_fd", None)
+    if pid is not None and fd is not None:
+        with tracker._lock:
             with contextlib.suppress(OSError):
-                os.close(tracker_fd)
+                os.close(fd)
             tracker._fd = None
-        if stop_server and _wait_for(server_pid, timeout_s):
-            server._forkserver_pid = None
-            address = getattr(server, "_forkserver_address", None)
-            if address and not util.is_abstract_socket_namespace(address):
-                with contextlib.suppress(OSError):
-                    os.unlink(address)
-            server._forkserver_address = None
-        if stop_tracker and _wait_for(tracker_pid, timeout_s):
-            tracker._pid = None
+            if _wait_for(pid, timeout_s):
+                tracker._pid = None
 
 
 _AT_EXIT: list[bool] = []
