@@ -27,6 +27,8 @@ Residual groups (:class:`multieye.optimize.blocks.ResidualGroup`):
   (:func:`multieye.core.lens.project_with_jacobian`) chained with the pose derivatives below.
 - :class:`MocapPriors`: per instant, ``(Log(R_meas^T R_M) / sigma_R, (t_M - t_meas) / sigma_t)``
   (6 components), touching ``M``; its Jacobian is ``diag(J_r^-1(r_R) / sigma_R, I / sigma_t)``.
+- :class:`DenominatorPrior`: per estimated rational lens, its denominator coefficients
+  k4..k6 drawn towards 0 (3 components), touching ``K:<camera>``.
 
 Block families (:class:`multieye.optimize.blocks.Blocks`): ``X`` (m poses) and ``Y`` (one)
 on ``se3-left``, ``R = Exp(phi) R_hat``, ``t = t_hat + tau`` (the covariance convention of
@@ -58,7 +60,8 @@ from multieye.core.lens import project_points, project_with_jacobian
 from multieye.core.lie import left_jacobian_inv, log_so3
 from multieye.optimize.blocks import ResidualGroup, SegmentRange
 
-__all__ = ["PixelResiduals", "FreePoseResiduals", "MocapPriors", "intrinsics_family"]
+__all__ = ["PixelResiduals", "FreePoseResiduals", "MocapPriors", "intrinsics_family",
+           "DenominatorPrior", "RATIONAL_DENOMINATOR", "DENOMINATOR_PRIOR", "rational_edge"]
 
 F64 = NDArray[np.float64]
 
