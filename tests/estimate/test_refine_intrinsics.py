@@ -89,12 +89,16 @@ def test_exact_recovery_of_intrinsics_and_extrinsics_from_a_wrong_start(setup, m
                         max_iter=200)
     rays = np.column_stack([np.tan(np.radians(np.random.default_rng(0).uniform(
         [-35, -25], [35, 25], size=(200, 2)))), np.ones(200)])   # inside the observed area
+    # the rational lens's denominator prior (DenominatorPrior) draws k4..k6 towards 0 by a
+    # prior of 1 at the image's edge: on noise-free data stated at 0.1 px that moves the
+    # projection by up to 9e-5 px and the poses by 8e-8 (0 for the other models)
+    exact = 1e-4 if model == "rational" else 1e-6
     for got, true in zip(res.intrinsics, sc.intrinsics):
-        assert np.abs(project_points(rays, got) - project_points(rays, true)).max() < 1e-6
+        assert np.abs(project_points(rays, got) - project_points(rays, true)).max() < exact
         if model != "rational":   # (its 6 radial terms are not separable over +-40 degrees)
             np.testing.assert_allclose(got.params, true.params, rtol=0, atol=1e-6)
-    assert np.abs(res.X - sc.X).max() < 1e-8
-    assert np.abs(res.Y - sc.Y).max() < 1e-8
+    assert np.abs(res.X - sc.X).max() < exact / 100
+    assert np.abs(res.Y - sc.Y).max() < exact / 100
     assert all(c.shape == (k.params.size,) * 2 for c, k in zip(res.intrinsics_covariance,
                                                                  res.intrinsics))
 

@@ -23,6 +23,7 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.core.problem import SETUPS
 from multieye.estimate.clock_residuals import ClockData, ClockUnits, clock_units
 from multieye.estimate.image_residuals import (
+    DenominatorPrior,
     FreePoseResiduals,
     MocapPriors,
     PixelResiduals,
@@ -158,8 +159,9 @@ class ImageData:
         return fams
 
     def groups(self, sigma_px: float, sigma_rot: float, sigma_t: float) -> list[ResidualGroup]:
-        """One pixel group per camera, the motion-capture priors, then one group of
-        intrinsics-only images per camera that has them, at these noise levels."""
+        """One pixel group per camera, the motion-capture priors, one group of
+        intrinsics-only images per camera that has them, at these noise levels, then the
+        denominator prior of every estimated rational lens (:class:`DenominatorPrior`)."""
         out: list[ResidualGroup] = [PixelResiduals(self, j, sigma_px, self.free[j])
                                     for j in range(self.m)]
         timed = [j for j, c in enumerate(self.clocks) if c is not None]
@@ -172,6 +174,9 @@ class ImageData:
         out += self.units.priors(sigma_rot, sigma_t)
         if self.extra is not None:
             out += self.extra.groups(self, sigma_px)
+        out += [DenominatorPrior(n, self.intrinsics[j]) for j, n in enumerate(self.names)
+                if self.free[j] and self.intrinsics[j].model == "pinhole"
+                and self.intrinsics[j].dist.size >= 8]
         return out
 
     def mocap_start(self, offsets: Sequence[float | None] | None = None) -> F64:

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 
 from multieye.core.robust_loss import rho
 from multieye.estimate.image_data import ImageData
+from multieye.estimate.image_residuals import DenominatorPrior
 from multieye.estimate.uncertainty import MOCAP_SIGMA_FLOOR
 
 __all__ = ["Sums", "Redundancy", "weighted_sums", "redundancy", "estimate", "secant",
@@ -136,6 +137,8 @@ def weighted_sums(groups: Sequence, evaluated: Sequence, loss: str, f_scale: flo
     prior = np.zeros(2)
     pixels = []
     for grp, e in zip(groups, evaluated):
+        if isinstance(grp, DenominatorPrior):
+            continue                             # a prior of fixed scale, not measured noise
         if is_prior(grp):
             w = rho((e[0] / f_scale) ** 2, loss)[1]
             prior[0] += float(np.sum(w[:, :3] * e[0][:, :3] ** 2))
@@ -167,6 +170,11 @@ def redundancy(data: ImageData, fams, groups: Sequence, cov, n_pixels: int) -> R
     h_prior = 0.0
     red = np.zeros(2)
     for grp in groups:
+        if isinstance(grp, DenominatorPrior):     # the parameters the lens prior pays for
+            Jk = grp.evaluate(values, True)[1][0][0]                      # (3, n_K)
+            at = cov.layout.offset[grp.slots[0]]
+            C = cov.kept[at:at + Jk.shape[1], at:at + Jk.shape[1]]
+            h_prior += float(np.trace(Jk @ C @ Jk.T))
         if is_prior(grp):
             Jp = grp.evaluate(values, True)[1][0]                         # d r / d M, (n, 6, 6)
             h = np.einsum("nki,nij,nkj->nk", Jp, cov.local[grp.index[:, 0]], Jp)   # (n, 6)

@@ -238,7 +238,12 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
         else:
             obj = [o.astype(np.float32) for o, _ in views]
             img = [u.astype(np.float32) for _, u in views]
-            flags = {8: cv2.CALIB_RATIONAL_MODEL, 4: cv2.CALIB_FIX_K3}.get(len(coefficients), 0)
+            # the rational model starts from OpenCV's 5 coefficients, its denominator at 1:
+            # with CALIB_RATIONAL_MODEL OpenCV lands anywhere along the family of numerators
+            # and denominators that nearly share a factor (k1..k6 in the tens to thousands,
+            # issue 32), and the joint refinement stays there (its denominator prior,
+            # multieye.estimate.image_residuals.DenominatorPrior, then cannot pull it back)
+            flags = cv2.CALIB_FIX_K3 if len(coefficients) == 4 else 0
             rms, K, D, rvecs, tvecs = _pinhole_start(obj, img, (w, h), flags, all_poses)
     except cv2.error as exc:
         raise InputError(f"camera {name}: OpenCV could not calibrate its intrinsics from "
@@ -246,6 +251,7 @@ def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, 
                          "images with the target tilted and in the corners of the image"
                          ) from None
     D = np.asarray(D, np.float64).reshape(-1)[:len(coefficients)]
+    D = np.concatenate([D, np.zeros(len(coefficients) - D.size)])
     if not (np.all(np.isfinite(K)) and np.all(np.isfinite(D)) and np.isfinite(rms)):
         raise InputError(f"camera {name}: OpenCV's calibration of its intrinsics did not "
                          "converge; add images with the target tilted and covering the image")
