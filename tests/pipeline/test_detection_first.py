@@ -159,6 +159,21 @@ def test_alongside_runs_its_work_once_and_raises_its_error_at_the_end():
         aside.start()
 
 
+def test_alongside_interrupted_inside_start_raises_the_interrupt(monkeypatch):
+    """Ctrl-C arriving inside Thread.start() (the thread object made, never started): the
+    block's KeyboardInterrupt goes on, not join()'s "cannot join thread before it is
+    started" (seen once in test_cli_processes' Ctrl-C under load)."""
+    import threading
+
+    def interrupted(self):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(threading.Thread, "start", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        with Alongside(lambda: None) as aside:
+            aside.start()
+
+
 def test_the_lazy_packages_still_give_their_names_and_submodules():
     """pipeline, solvers and imaging import their names on first use (so that the detection
     starts first); a name, or a submodule read as an attribute, is there as it was."""

@@ -445,6 +445,10 @@ class Alongside:
         if kind is None:
             self.start()
         if self._thread is not None:
-            self._thread.join()
+            try:
+                self._thread.join()
+            except RuntimeError:        # never started: Ctrl-C came inside start(); the
+                if kind is None:        # block's own exception (KeyboardInterrupt) goes on
+                    raise
         if kind is None and self._failed:
             raise self._failed[0]
