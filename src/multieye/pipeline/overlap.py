@@ -398,11 +398,12 @@ def agreeing_orders(cameras: Mapping[str, CameraData], reference: str,
     """The cameras with every view of a half-turn symmetric board in the order that agrees
     with the other cameras' views of its instant (:func:`multieye.estimate.half_turns.
     choose_turns`, :func:`multieye.pipeline.half_turns.turned`), and the line saying how many
-    were turned (nothing when no view has another order).  Cameras the checks refuse, or that
-    see an instant twice, are left as they are for the solve to say why."""
+    were turned (nothing when no view has another order, or for a single camera, whose
+    views nothing links).  Cameras the checks refuse, or that see an instant twice, are left
+    as they are for the solve to say why."""
     names = tuple(cameras)
     obs = [o for n in names for o in cameras[n].observations]
-    if not any(half_turns.turnable(obs)) or reference not in cameras:
+    if len(cameras) < 2 or not any(half_turns.turnable(obs)) or reference not in cameras:
         return dict(cameras), ()
     try:
         _check_images(cameras)
