@@ -188,3 +188,34 @@ def test_a_run_without_motion_capture_records_the_outlier_among_the_rejected(tmp
     assert data.rejected == cam1.rejected
     assert len(data.observations) == cam1.measurements_used
     assert any(d.observations[3].name in w for w in _judged(run.record.warnings))
+
+
+def test_a_symmetric_board_taken_back_keeps_its_other_order():
+    """A view of a half-turn symmetric board left out as a bad fit, taken back on the refined
+    lens, still carries its other point order (posed again: the turn of its new pose), so
+    that the rig's choice of orders (pipeline.half_turns) covers it too; before, PnP's
+    ``alternative`` (none for a full grid) replaced it."""
+    from multieye.core.intrinsics import Intrinsics
+    from multieye.core.lens import project_points
+    from multieye.imaging.order_turn import half_turn
+    from multieye.imaging.targets import Chessboard
+    from multieye.pipeline.half_turns import offer_half_turn
+    from multieye.pipeline.image_acceptance import taken_back
+
+    board = Chessboard(rows=4, cols=6, spacing=0.03)              # rows + cols even
+    obj = board.object_points()
+    lens = Intrinsics(K=np.array([[600.0, 0, 320], [0, 600.0, 240], [0, 0, 1]]),
+                      dist=np.zeros(5), width=640, height=480)
+    T = g.transform_from_rotvec([0.2, -0.1, 0.05], [-0.07, -0.04, 0.5])
+    uv = project_points((obj @ T[:3, :3].T) + T[:3, 3], lens)
+    wrong = T.copy()
+    wrong[:3, 3] += [0.01, 0.0, 0.02]                          # the starting lens's pose
+    o = offer_half_turn(Observation(name="7.png", stamp=7.0, T_cam_target=wrong, rms_px=3.0,
+                                    object_points=obj, image_points=uv), board)
+    assert o.alternative_order is not None
+    (back,) = taken_back([o], lens)
+    H = half_turn(board).T_target_turned
+    np.testing.assert_allclose(back.T_cam_target, T, atol=1e-6)
+    assert back.alternative is not None, "its other order was lost"
+    np.testing.assert_allclose(back.alternative, back.T_cam_target @ H, atol=1e-9)
+    np.testing.assert_array_equal(back.alternative_order, o.alternative_order)

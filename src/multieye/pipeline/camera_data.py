@@ -279,7 +279,8 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
             rejected.append(RejectedItem(shown, res.reason))
             if res.pose is not None and res.detection is not None \
                     and res.reason.startswith("bad fit"):
-                bad_fits.append(_observation(label, stamp, res, board))
+                bad_fits.append(offer_half_turn(_observation(label, stamp, res, board),
+                                                model.targets.get(board, target)))
     # pose ambiguity (single marker): warn when the two poses fit alike in most images
     warnings.extend(w for w in [ambiguity_warning(name, [r.pose for r in results if r.ok])] if w)
     skipped = [RejectedItem(n, why) for n, why in lost]

@@ -32,6 +32,7 @@ from multieye.imaging.detect import Detection
 from multieye.imaging.pnp import estimate_poses
 from multieye.io import RejectedItem
 from multieye.pipeline.camera_data import Observation, pair_stamps
+from multieye.pipeline.half_turns import half_turn_of
 from multieye.solvers.checks import check_measurements
 
 __all__ = ["taken_back", "unrejected", "Judged", "judge_images", "taken_back_warning",
@@ -55,9 +56,11 @@ def taken_back(bad_fits: Sequence[Observation], intrinsics, *,
         if isinstance(pose, Exception) or not pose.rms_px <= max_rms_px \
                 or pose.n_points < len(o.image_points):
             continue
+        H = half_turn_of(o)                 # a symmetric board's other order, kept
         out.append(replace(o, T_cam_target=pose.T_cam_target, rms_px=pose.rms_px,
-                           alternative=pose.alternative,
-                           alternative_rms_px=pose.alternative_rms_px))
+                           alternative=pose.alternative if H is None else pose.T_cam_target @ H,
+                           alternative_rms_px=pose.alternative_rms_px if H is None
+                           else pose.rms_px))
     return out
 
 

@@ -316,6 +316,11 @@ class _Solve:
     sync: str
     robust: bool
 
+    def ordered(self, cameras: Mapping[str, CameraData]):
+        """The cameras with a symmetric board's views in the orders that agree
+        (:func:`agreeing_orders`), e.g. with the views taken back added."""
+        return agreeing_orders(cameras, self.reference, self.sync_tolerance, self.sync)
+
     def __call__(self, cameras: Mapping[str, CameraData], prepared: CameraViews | None = None):
         if prepared is None:
             prepared = camera_views(cameras, self.sync_tolerance, self.sync)
@@ -327,7 +332,7 @@ class _Solve:
                                         loss="huber" if self.robust else "linear")
 
 
-def judged_on_refined_lens(cameras: Mapping[str, CameraData], solve: Callable, solved: tuple):
+def judged_on_refined_lens(cameras: Mapping[str, CameraData], solve: _Solve, solved: tuple):
     """The images of the cameras whose lens is estimated judged on the refined lens
     (:mod:`multieye.pipeline.image_acceptance`): those left out as a bad fit that fit it
     taken back, then the outliers of the solve left out, the solve run again (from the
@@ -349,6 +354,7 @@ def judged_on_refined_lens(cameras: Mapping[str, CameraData], solve: Callable, s
                                  bad_fits=tuple(o for o in d.bad_fits if o.name not in
                                                 {x.name for x in b}))
             notes.append(taken_back_warning(n, b))
+        cameras = solve.ordered(cameras)[0]     # the views taken back in the agreeing order
         try:
             solved = solve(cameras)
         except CalibrationError as exc:
