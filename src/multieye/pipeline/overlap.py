@@ -272,9 +272,7 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     cameras, turn_lines = agreeing_orders(cameras, reference, sync_tolerance, sync)
     prepared = camera_views(cameras, sync_tolerance, sync)
     names, inst, tol = tuple(cameras), prepared.instants, prepared.sync_tolerance
-    cams = [np.full(len(inst[n]), j) for j, n in enumerate(names)]
-    cov = covisibility(np.concatenate(cams), np.concatenate([inst[n] for n in names]),
-                       len(names))
+    cov = _covisibility(inst, names)
     groups = link_groups(cov.shared > 0, [False] * len(names))
     if len(groups) > 1:
         obs = [cameras[n].observations for n in names]
@@ -291,9 +289,7 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
         cameras, (prepared, rv, result), notes = judged_on_refined_lens(cameras, solve,
                                                                         (prepared, rv, result))
         inst, tol = prepared.instants, prepared.sync_tolerance
-        cov = covisibility(np.concatenate([np.full(len(inst[n]), j) for j, n in
-                                           enumerate(names)]),
-                           np.concatenate([inst[n] for n in names]), len(names))
+        cov = _covisibility(inst, names)
     used = {n: cameras[n].observations for n in names}
     findings = _fit_findings(cameras, rv, result)
     if isolate and len(findings) > 1:
@@ -304,6 +300,13 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
                            warnings=turn_lines + _rig_warnings(cameras, rv, result) + notes,
                            rejected={n: cameras[n].rejected for n in names
                                      if cameras[n] is not before[n]})
+
+
+def _covisibility(inst: Mapping[str, np.ndarray], order: tuple[str, ...]):
+    """The graph of the instants the cameras share, in ``order`` (:func:`multieye.estimate.
+    covisibility.covisibility` of each camera's instant keys ``inst[name]``)."""
+    return covisibility(np.concatenate([np.full(len(inst[n]), j) for j, n in enumerate(order)]),
+                        np.concatenate([inst[n] for n in order]), len(order))
 
 
 @dataclass(frozen=True)
