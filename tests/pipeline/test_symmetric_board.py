@@ -267,3 +267,56 @@ def test_noise_free_measurements_give_the_rig_exactly_whichever_order_was_detect
     sol = solve(Measurements.from_cameras([p.A for p in chosen], [p.B for p in chosen]),
                 method="joint")
     np.testing.assert_allclose(sol.X, X, atol=1e-8)
+
+
+def test_views_taken_back_are_turned_to_the_order_the_refined_rig_agrees_with():
+    """Exact measurements: whichever order a view taken back was detected in, it joins in
+    the order ``inv(Y) A_i X`` predicts (the consensus chose it for the views kept)."""
+    from multieye.pipeline.image_acceptance import agreeing_turns
+
+    rng = np.random.default_rng(4)
+    flips = rng.random(12) < 0.5
+    assert 0 < flips.sum() < 12
+    paired, X, Y = _exact_pairs(rng, [flips])
+    p = paired["cam0"]
+    got = agreeing_turns(p.observations, p.A, X[0], Y)
+    truth = g.inv(np.linalg.solve(Y, p.A @ X[0]))
+    for o, T, flip, before in zip(got, truth, flips, p.observations):
+        assert _angle_deg(o.T_cam_target, T) < 1e-4
+        # the points follow the pose: turned views carry their points in the other order
+        expected = before.image_points[TURN.order] if flip else before.image_points
+        np.testing.assert_array_equal(o.image_points, expected)
+
+
+def test_motion_captured_views_taken_back_join_in_the_order_that_agrees(mocap_rig):
+    """cam1 (upside down: every view detected in the other order) with its lens estimated
+    from a start that leaves some views out as a bad fit: those taken back on the refined
+    lens join turned, as the consensus turned the others, and the rig is the truth's."""
+    from dataclasses import replace
+
+    from multieye.imaging.detect import Detection
+    from multieye.imaging.pnp import estimate_poses
+    from multieye.io import RejectedItem
+
+    truth, cameras, run = mocap_rig
+    d = cameras["cam1"]
+    start = d.intrinsics.with_params(d.intrinsics.params + np.r_[0, 0, 0, 0, 1.5, 0, 0, 0])
+    poses = estimate_poses([Detection(np.arange(len(o.image_points)), o.image_points,
+                                      o.object_points) for o in d.observations], start)
+    posed = [replace(o, T_cam_target=p.T_cam_target, rms_px=p.rms_px,
+                     alternative=p.T_cam_target @ TURN.T_target_turned,
+                     alternative_rms_px=p.rms_px) for o, p in zip(d.observations, poses)]
+    bad = tuple(o for o in posed if o.rms_px > 2.0)
+    assert 1 <= len(bad) <= 4, [o.rms_px for o in posed]
+    started = replace(d, intrinsics=start, intrinsics_estimated=True, bad_fits=bad,
+                      observations=tuple(o for o in posed if o.rms_px <= 2.0),
+                      rejected=tuple(RejectedItem(o.name, f"bad fit: reprojection RMS "
+                                                  f"{o.rms_px:.2f} px > 2 px") for o in bad))
+    got = calibrate_rig(run.rig, {**cameras, "cam1": started})
+    kept = got.paired["cam1"].observations
+    assert {o.name for o in bad} <= {o.name for o in kept}, got.record.warnings
+    assert any("taken back" in w for w in got.record.warnings), got.record.warnings
+    assert max(_angle_deg(o.T_cam_target, truth["cam1"][1][o.name]) for o in kept) < 3
+    T_true = np.stack([truth[c.name][0] for c in got.record.cameras])
+    rot, trans = extrinsic_errors(np.stack([c.X for c in got.record.cameras]), T_true)
+    assert rot.max() < 0.1 and trans.max() < 2e-3, (rot, trans)

@@ -32,10 +32,11 @@ from multieye.imaging.detect import Detection
 from multieye.imaging.pnp import estimate_poses
 from multieye.io import RejectedItem
 from multieye.pipeline.camera_data import Observation, pair_stamps
-from multieye.pipeline.half_turns import half_turn_of
+from multieye.pipeline.half_turns import half_turn_of, turned
 from multieye.solvers.checks import check_measurements
 
 __all__ = ["taken_back", "unrejected", "Judged", "judge_images", "taken_back_warning",
+           "agreeing_turns",
            "with_taken_back", "without_outliers", "camera_data_now", "OUTLIER_REASON"]
 
 #: How the reason of an image left out by the outlier test starts.
@@ -150,13 +151,18 @@ def judge_images(observations: dict[str, Sequence[Observation]],
     return Judged(left_out, reasons, tuple(warnings))
 
 
-def with_taken_back(problem, pairing, back: dict[str, list[Observation]]):
+def with_taken_back(problem, pairing, back: dict[str, list[Observation]], rig=None):
     """``pairing`` (:class:`~multieye.pipeline.problem.Pairing`) of ``problem``
     (:class:`~multieye.pipeline.problem.Problem`: its setup and cameras) with the images taken
     ``back`` per camera that pair with its motion capture (at the camera's offset of the
     pairing) added to its measurements, in time order, and their bad-fit items out of its
     ``rejected``; also what was added per camera.  Those without motion capture stay
-    rejected as they were."""
+    rejected as they were.
+
+    ``rig``, the refined ``(X, Y)`` (``X`` shape (n_cameras, 4, 4) in the pairing's camera
+    order, ``Y`` shape (4, 4); DESIGN.md's ``A_i X = Y B_i``), puts each view taken back that
+    carries a symmetric board's other point order in the order the rig agrees with
+    (:func:`agreeing_turns`), as the consensus did for the views kept from the start."""
     paired, added = dict(pairing.paired), {}
     for n, obs in back.items():
         data, p = problem.cameras[n], pairing.paired[n]
@@ -166,7 +172,10 @@ def with_taken_back(problem, pairing, back: dict[str, list[Observation]]):
                         tolerance=data.time_tolerance, offset=pairing.offsets[n])
         if not len(m.index):
             continue
+        A_new = g.inv(m.T) if problem.setup == "eye-to-base" else m.T
         new = [obs[i] for i in m.index]
+        if rig is not None:
+            new = agreeing_turns(new, A_new, rig[0][list(pairing.paired).index(n)], rig[1])
         scale = np.ones(len(new)) if m.noise_scale is None else np.asarray(m.noise_scale)
         old_scale = (np.ones(len(p.observations)) if p.mocap_noise_scale is None
                      else np.asarray(p.mocap_noise_scale))
@@ -180,6 +189,32 @@ def with_taken_back(problem, pairing, back: dict[str, list[Observation]]):
                             mocap_noise_scale=np.concatenate([old_scale, scale])[order])
         added[n] = new
     return _remeasured(pairing, paired), added
+
+
+def agreeing_turns(observations: Sequence[Observation], A, X, Y) -> list[Observation]:
+    """Each of ``observations`` that carries a symmetric board's other point order
+    (:func:`multieye.pipeline.half_turns.turned`) in the order whose ``B = inv(T_cam_target)``
+    is nearer in rotation to the one the rig predicts, ``inv(Y) A_i X`` (DESIGN.md's
+    ``A_i X = Y B_i``); the others unchanged.
+
+    Parameters
+    ----------
+    observations : sequence of Observation
+        One camera's views.
+    A : ndarray, shape (n, 4, 4)
+        Their ``A_i`` (from the motion capture, as the pairing builds it).
+    X, Y : ndarray, shape (4, 4)
+        The camera's ``X`` and the rig's ``Y``.
+    """
+    predicted = np.linalg.solve(np.asarray(Y, np.float64), np.asarray(A, np.float64) @ X)
+    out = []
+    for o, B in zip(observations, predicted):
+        if getattr(o, "alternative_order", None) is not None and \
+                g.rotation_angle_between(g.inv(o.alternative), B) < \
+                g.rotation_angle_between(g.inv(o.T_cam_target), B):
+            o = turned(o)
+        out.append(o)
+    return out
 
 
 def without_outliers(pairing, judged: Judged):

@@ -108,7 +108,7 @@ def _judged(problem: Problem, pairing: Pairing, sol: Solution
         return refinement, None
     notes: list[str] = []
     back = {n: taken_back(cameras[n].bad_fits, refinement.intrinsics[n]) for n in estimated}
-    grown, added = with_taken_back(problem, pairing, back)
+    grown, added = with_taken_back(problem, pairing, back, rig=(refinement.X, refinement.Y))
     given = pairing
     if added:
         try:
