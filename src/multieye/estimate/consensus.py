@@ -63,8 +63,12 @@ from multieye.solvers.checks import (
 )
 from multieye.solvers.joint import solve_joint
 
-__all__ = ["RejectedMeasurement", "ConsensusResult", "ConsensusOptions", "consensus", "measurement_residuals",
-           "choose_poses", "check_alternatives"]
+__all__ = ["DEFAULT_THRESHOLDS", "RejectedMeasurement", "ConsensusResult", "ConsensusOptions",
+           "consensus", "measurement_residuals", "choose_poses", "check_alternatives"]
+
+#: The loop-residual thresholds (degrees, metres) a measurement must meet by default: a
+#: half-turned board, a wrong PnP branch or a motion-capture glitch is far beyond them.
+DEFAULT_THRESHOLDS = (5.0, 0.05)
 
 F64 = NDArray[np.float64]
 

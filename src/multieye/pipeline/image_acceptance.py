@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from multieye.core import geometry as g
+from multieye.estimate.consensus import DEFAULT_THRESHOLDS, choose_poses, measurement_residuals
 from multieye.estimate.image_outliers import MAX_SHARE, image_outliers
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX
 from multieye.imaging.detect import Detection
@@ -36,11 +37,15 @@ from multieye.pipeline.half_turns import half_turn_of, turned
 from multieye.solvers.checks import check_measurements
 
 __all__ = ["taken_back", "unrejected", "Judged", "judge_images", "taken_back_warning",
-           "agreeing_turns",
+           "agreeing_turns", "rejected_by_consensus", "CONSENSUS_REASON",
            "with_taken_back", "without_outliers", "camera_data_now", "OUTLIER_REASON"]
 
 #: How the reason of an image left out by the outlier test starts.
 OUTLIER_REASON = "outlier of the joint refinement"
+#: How the reason of a view the consensus left out starts (:mod:`multieye.estimate.consensus`).
+CONSENSUS_REASON = "outlier by consensus"
+#: The reasons of the views left out on the starting lens that may be taken back.
+STARTING_LENS_REASONS = ("bad fit", CONSENSUS_REASON)
 
 
 def taken_back(bad_fits: Sequence[Observation], intrinsics, *,
@@ -67,20 +72,39 @@ def taken_back(bad_fits: Sequence[Observation], intrinsics, *,
 
 def unrejected(rejected: Sequence[RejectedItem], back: Sequence[Observation]
                ) -> tuple[RejectedItem, ...]:
-    """``rejected`` without the bad-fit items of the images taken ``back`` (an item is the
-    image's name, with `` (<target>)`` when the camera looks for several boards)."""
+    """``rejected`` without the items of the images taken ``back`` that were left out on the
+    starting lens (a bad fit, or an outlier of the consensus on poses from that lens; an item
+    is the image's name, with `` (<target>)`` when the camera looks for several boards)."""
     names = {o.name for o in back} | {f"{o.name} ({o.target})" for o in back}
     return tuple(r for r in rejected
-                 if not (r.item in names and r.reason.startswith("bad fit")))
+                 if not (r.item in names and r.reason.startswith(STARTING_LENS_REASONS)))
+
+
+def rejected_by_consensus(data, paired) -> list[Observation]:
+    """The views of camera ``data`` (:class:`~multieye.pipeline.camera_data.CameraData`)
+    that the consensus left out of ``paired`` (its
+    :class:`~multieye.pipeline.camera_data.PairedCamera`), with their points: judged on poses
+    from the starting lens, they are offered to :func:`taken_back` as the bad fits are."""
+    names = {r.item for r in paired.rejected if r.reason.startswith(CONSENSUS_REASON)}
+    return [o for o in data.observations if o.image_points is not None
+            and (o.name in names or f"{o.name} ({o.target})" in names)]
 
 
 def taken_back_warning(name: str, back: Sequence[Observation], max_rms_px: float =
-                       DEFAULT_MAX_RMS_PX) -> str:
-    """The warning of a camera whose images left out as a bad fit were taken ``back``."""
+                       DEFAULT_MAX_RMS_PX, by_consensus: Sequence[str] = ()) -> str:
+    """The warning of a camera whose images left out on the starting lens (as a bad fit, or
+    by the consensus: those named in ``by_consensus``) were taken ``back``."""
     shown = ", ".join(o.name for o in back[:5]) + (" ..." if len(back) > 5 else "")
-    return (f"{name}: {len(back)} image(s) left out as a bad fit on the starting lens taken "
-            f"back: posed again on the jointly refined lens they fit within {max_rms_px:g} px "
-            f"(the refinement ran again with them): {shown}")
+    k = sum(o.name in set(by_consensus) for o in back)
+    if not k:
+        return (f"{name}: {len(back)} image(s) left out as a bad fit on the starting lens "
+                f"taken back: posed again on the jointly refined lens they fit within "
+                f"{max_rms_px:g} px (the refinement ran again with them): {shown}")
+    return (f"{name}: {len(back)} image(s) left out on the starting lens ({len(back) - k} as "
+            f"a bad fit, {k} by the consensus on its poses) taken back: posed again on the "
+            f"jointly refined lens they fit within {max_rms_px:g} px and agree with the rig "
+            f"within {DEFAULT_THRESHOLDS[0]:g} deg / {DEFAULT_THRESHOLDS[1]:g} m (the "
+            f"refinement ran again with them): {shown}")
 
 
 @dataclass(frozen=True)
@@ -175,7 +199,15 @@ def with_taken_back(problem, pairing, back: dict[str, list[Observation]], rig=No
         A_new = g.inv(m.T) if problem.setup == "eye-to-base" else m.T
         new = [obs[i] for i in m.index]
         if rig is not None:
-            new = agreeing_turns(new, A_new, rig[0][list(pairing.paired).index(n)], rig[1])
+            X_n = rig[0][list(pairing.paired).index(n)]
+            new = agreeing_turns(new, A_new, X_n, rig[1])
+            rot, trans = measurement_residuals(
+                A_new, g.inv(np.stack([o.T_cam_target for o in new])), X_n, rig[1])
+            agree = (rot <= DEFAULT_THRESHOLDS[0]) & (trans <= DEFAULT_THRESHOLDS[1])
+            new, m = [o for o, a in zip(new, agree) if a], _kept_pairs(m, agree)
+            A_new = A_new[agree]
+            if not new:
+                continue
         scale = np.ones(len(new)) if m.noise_scale is None else np.asarray(m.noise_scale)
         old_scale = (np.ones(len(p.observations)) if p.mocap_noise_scale is None
                      else np.asarray(p.mocap_noise_scale))
@@ -194,8 +226,8 @@ def with_taken_back(problem, pairing, back: dict[str, list[Observation]], rig=No
 def agreeing_turns(observations: Sequence[Observation], A, X, Y) -> list[Observation]:
     """Each of ``observations`` that carries a symmetric board's other point order
     (:func:`multieye.pipeline.half_turns.turned`) in the order whose ``B = inv(T_cam_target)``
-    is nearer in rotation to the one the rig predicts, ``inv(Y) A_i X`` (DESIGN.md's
-    ``A_i X = Y B_i``); the others unchanged.
+    agrees better with the rig's ``X``, ``Y`` (DESIGN.md's ``A_i X = Y B_i``; the consensus's
+    choice, :func:`multieye.estimate.consensus.choose_poses`); the others unchanged.
 
     Parameters
     ----------
@@ -206,15 +238,22 @@ def agreeing_turns(observations: Sequence[Observation], A, X, Y) -> list[Observa
     X, Y : ndarray, shape (4, 4)
         The camera's ``X`` and the rig's ``Y``.
     """
-    predicted = np.linalg.solve(np.asarray(Y, np.float64), np.asarray(A, np.float64) @ X)
-    out = []
-    for o, B in zip(observations, predicted):
-        if getattr(o, "alternative_order", None) is not None and \
-                g.rotation_angle_between(g.inv(o.alternative), B) < \
-                g.rotation_angle_between(g.inv(o.T_cam_target), B):
-            o = turned(o)
-        out.append(o)
-    return out
+    turnable = [getattr(o, "alternative_order", None) is not None for o in observations]
+    if not any(turnable):
+        return list(observations)
+    B = g.inv(np.stack([o.T_cam_target for o in observations]))
+    B_alt = np.stack([g.inv(o.alternative) if t else np.full((4, 4), np.nan)
+                      for o, t in zip(observations, turnable)])
+    turn = choose_poses(np.asarray(A, np.float64), B, B_alt, X, Y)
+    return [turned(o) if t else o for o, t in zip(observations, turn)]
+
+
+def _kept_pairs(m, keep):
+    """The stamp pairing ``m`` (:func:`~multieye.pipeline.camera_data.pair_stamps`'s) with
+    only the pairs ``keep`` (bool per pair)."""
+    return replace(m, index=np.asarray(m.index)[keep], T=np.asarray(m.T)[keep],
+                   gap_s=np.asarray(m.gap_s)[keep], interpolated=np.asarray(m.interpolated)[keep],
+                   noise_scale=None if m.noise_scale is None else np.asarray(m.noise_scale)[keep])
 
 
 def without_outliers(pairing, judged: Judged):

@@ -20,8 +20,9 @@ from multieye.estimate.refine_images import RefinementResult, RefineOptions, ref
 from multieye.estimate.uncertainty import RelativeUncertainty, relative_covariance
 from multieye.io import Rig
 from multieye.pipeline.camera_data import PairedCamera
-from multieye.pipeline.image_acceptance import (judge_images, taken_back, taken_back_warning,
-                                                with_taken_back, without_outliers)
+from multieye.pipeline.image_acceptance import (judge_images, rejected_by_consensus, taken_back,
+                                                taken_back_warning, with_taken_back,
+                                                without_outliers)
 from multieye.pipeline.options import Options
 from multieye.pipeline.problem import Pairing, Problem
 from multieye.pipeline.result import Refinement
@@ -107,7 +108,10 @@ def _judged(problem: Problem, pairing: Pairing, sol: Solution
     if not estimated:
         return refinement, None
     notes: list[str] = []
-    back = {n: taken_back(cameras[n].bad_fits, refinement.intrinsics[n]) for n in estimated}
+    # left out on the starting lens: as a bad fit, or by the consensus on its poses
+    by_consensus = {n: rejected_by_consensus(cameras[n], pairing.paired[n]) for n in estimated}
+    early = {n: list(cameras[n].bad_fits) + by_consensus[n] for n in estimated}
+    back = {n: taken_back(early[n], refinement.intrinsics[n]) for n in estimated}
     grown, added = with_taken_back(problem, pairing, back, rig=(refinement.X, refinement.Y))
     given = pairing
     if added:
@@ -115,7 +119,8 @@ def _judged(problem: Problem, pairing: Pairing, sol: Solution
             refinement = _refine_images(problem, grown, refinement.X, refinement.Y,
                                         refinement.intrinsics)
             pairing = grown
-            notes += [taken_back_warning(n, obs) for n, obs in added.items()]
+            notes += [taken_back_warning(n, obs, by_consensus=[o.name for o in by_consensus[n]])
+                      for n, obs in added.items()]
         except CalibrationError as exc:
             added = {}
             notes.append(f"images left out as a bad fit that fit the refined lens were not "

@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from multieye.core.errors import CalibrationError, TooFewMeasurementsError
-from multieye.estimate.consensus import consensus
+from multieye.estimate.consensus import DEFAULT_THRESHOLDS, consensus
 from multieye.estimate.diagnostics import MotionDiagnostics, motion_diagnostics
 from multieye.estimate.plausibility import (
     CameraEvidence,
@@ -94,7 +94,7 @@ __all__ = [
 
 #: Inlier thresholds of the consensus (loop rotation residual, target position residual),
 #: then the wider ones tried when too few measurements of a camera agree with the first.
-CONSENSUS_THRESHOLDS = ((5.0, 0.05), (15.0, 0.15))
+CONSENSUS_THRESHOLDS = (DEFAULT_THRESHOLDS, (15.0, 0.15))
 
 
 @dataclass(frozen=True)
