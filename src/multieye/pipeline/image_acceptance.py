@@ -184,9 +184,11 @@ def with_taken_back(problem, pairing, back: dict[str, list[Observation]], rig=No
     rejected as they were.
 
     ``rig``, the refined ``(X, Y)`` (``X`` shape (n_cameras, 4, 4) in the pairing's camera
-    order, ``Y`` shape (4, 4); DESIGN.md's ``A_i X = Y B_i``), puts each view taken back that
-    carries a symmetric board's other point order in the order the rig agrees with
-    (:func:`agreeing_turns`), as the consensus did for the views kept from the start."""
+    order, ``Y`` shape (4, 4); ``A_i X = Y B_i``, docs/conventions.md, section 2), puts each
+    view taken back that carries a symmetric board's other point order in the order the rig
+    agrees with (:func:`agreeing_turns`), as the consensus did for the views kept from the
+    start, and takes back only the views whose loop residual under it is within the
+    consensus's default thresholds (:data:`multieye.estimate.consensus.DEFAULT_THRESHOLDS`)."""
     paired, added = dict(pairing.paired), {}
     for n, obs in back.items():
         data, p = problem.cameras[n], pairing.paired[n]
@@ -226,8 +228,9 @@ def with_taken_back(problem, pairing, back: dict[str, list[Observation]], rig=No
 def agreeing_turns(observations: Sequence[Observation], A, X, Y) -> list[Observation]:
     """Each of ``observations`` that carries a symmetric board's other point order
     (:func:`multieye.pipeline.half_turns.turned`) in the order whose ``B = inv(T_cam_target)``
-    agrees better with the rig's ``X``, ``Y`` (DESIGN.md's ``A_i X = Y B_i``; the consensus's
-    choice, :func:`multieye.estimate.consensus.choose_poses`); the others unchanged.
+    agrees better with the rig's ``X``, ``Y`` (``A_i X = Y B_i``, docs/conventions.md,
+    section 2; the consensus's choice, :func:`multieye.estimate.consensus.choose_poses`); the
+    others unchanged.
 
     Parameters
     ----------
