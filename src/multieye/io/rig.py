@@ -85,7 +85,8 @@ from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.core.limits import (MAX_ROTATION_NOISE_DEG, MAX_TIME_OFFSET_S, MAX_TIME_TOLERANCE_S,
                                   MAX_TRANSLATION_NOISE_M)
 from multieye.core.names import NAME_RULE, camera_name_problem
-from multieye.core.target_spec import TARGET_KEYS, TARGET_TYPES, TargetSpec
+from multieye.core.target_spec import TARGET_KEYS as SPEC_KEYS
+from multieye.core.target_spec import TARGET_TYPES, TargetSpec
 from multieye.io.intrinsics_files import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
@@ -101,6 +102,10 @@ from multieye.io.yamlfile import load_yaml, shown
 __all__ = ["SETUPS", "TARGET_TYPES", "TOP_LEVEL_KEYS", "TARGET_KEYS", "MOCAP_KEYS",
            "MOCAP_COLUMN_KEYS", "CAMERA_KEYS", "CAMERA_INTRINSICS_KEYS", "TargetSpec",
            "CameraSpec", "Rig", "load_rig", "read_camera_intrinsics"]
+
+#: The keys ``target:`` takes: the board's, and ``file`` (another tool's board file,
+#: :mod:`multieye.io.target_files`).
+TARGET_KEYS = (*SPEC_KEYS, "file")
 
 #: setup -> the frame motion capture tracks.
 SETUPS = {"eye-to-base": "marker", "eye-on-hand": "body"}

@@ -30,6 +30,7 @@ from multieye.core.names import NAME_RULE, camera_name_problem
 from multieye.core import target_spec
 from multieye.core.target_spec import TARGET_KEYS, TARGET_TYPES, TYPE_KEYS, TargetSpec, grid_keys
 from multieye.io.rig_checks import Checker
+from multieye.io.target_files import NEEDS_SPACING, target_from_file
 from multieye.io.yamlfile import shown
 
 __all__ = ["read_target", "read_targets", "TARGETS_ENTRY_KEYS", "marker_ids"]
@@ -51,6 +52,8 @@ def read_target(c: Checker, raw, keys=("target",), more: Mapping | None = None) 
     """One board: ``target:``, a camera's ``intrinsics_target:`` or an entry of ``targets:``
     (``keys``, its key path), checked key by key; ``more`` holds the entry's ``name``,
     ``cameras`` and ``pose``, already checked (:func:`read_targets`)."""
+    if isinstance(raw, str) or (isinstance(raw, Mapping) and "file" in raw):
+        raw = _from_file(c, raw, keys)
     c.mapping(raw, keys, TARGET_KEYS + (TARGETS_ENTRY_KEYS if more is not None else ()),
               ("type",))
     kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
@@ -105,6 +108,29 @@ def read_target(c: Checker, raw, keys=("target",), more: Mapping | None = None) 
     return TargetSpec(kind, rows, cols, spacing, **extra, **(more or {}))
 
 
+
+
+def _from_file(c: Checker, raw, keys: tuple) -> dict:
+    """``target: FILE`` or ``target: {file: FILE, ...}``: the board another tool's file
+    describes (:func:`multieye.io.target_files.target_from_file`), with the keys given beside
+    ``file:`` over the file's (a ``type`` must agree with it)."""
+    given = {"file": raw} if isinstance(raw, str) else dict(raw)
+    at = keys if isinstance(raw, str) else keys + ("file",)
+    if isinstance(raw, str) and not (c.folder / raw).exists():
+        raise c.error(f"expected the board's keys ({{type: chessboard, rows: 6, cols: 9, "
+                      f"spacing: 0.03}}) or another tool's board file (Kalibr, BoofCV); no file "
+                      f"{shown(raw)} beside rig.yaml", keys)
+    path = c.path(given.pop("file"), at, "file")
+    board, tool = target_from_file(path)
+    if "type" in given and given["type"] != board["type"]:
+        raise c.error(f"type {shown(given['type'])} disagrees with {path.name} ({tool}: "
+                      f"{board['type']}); leave type out beside file:", keys + ("type",))
+    out = {**board, **given}
+    if out["spacing"] == NEEDS_SPACING:
+        raise c.error(f"{path.name} ({tool}) gives the board's sizes in no stated unit: give "
+                      "'spacing:' in metres beside 'file:' (e.g. {file: " + path.name +
+                      ", spacing: 0.03})", keys)
+    return out
 
 
 def marker_ids(spec: TargetSpec) -> tuple[str, range] | None:
