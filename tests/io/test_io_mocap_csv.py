@@ -443,3 +443,24 @@ def test_csv_stamps_without_a_unit_in_nanoseconds(tmp_path):
     assert traj.stamps_ns.tolist() == [1403636579758555392, 1403636579763555584]
     (tmp_path / "s.csv").write_text("t,x,y,z,qx,qy,qz,qw\n12.5,0,0,0,0,0,0,1\n13,0,0,0,0,0,0,1\n")
     assert read_pose_csv(tmp_path / "s.csv").stamps.tolist() == [12.5, 13.0]
+
+
+def test_euroc_header_names_read_w_first(tmp_path, poses):
+    """EuRoC's vicon0/data.csv and state_groundtruth_estimate0/data.csv name their columns
+    ``p_RS_R_x [m]`` and ``q_RS_w []`` (w first), with velocity and bias columns after: read by
+    those names without ``columns:``, the quaternion in the header's order (refused before:
+    'no column for tx')."""
+    stamps, T = poses
+    q = geometry.quat_from_transform(T)
+    head = ("#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],"
+            "q_RS_y [],q_RS_z [],v_RS_R_x [m s^-1],v_RS_R_y [m s^-1],v_RS_R_z [m s^-1],"
+            "b_w_RS_S_x [rad s^-1],b_w_RS_S_y [rad s^-1],b_w_RS_S_z [rad s^-1]")
+    rows = [head] + [",".join([str(1403636579758555392 + 5_000_000 * k),
+                               *map(_fmt, Ti[:3, 3]), _fmt(qi[3]), *map(_fmt, qi[:3]),
+                               "0.1", "0.2", "0.3", "0", "0", "0"])
+                     for k, (Ti, qi) in enumerate(zip(T, q))]
+    (tmp_path / "data.csv").write_text("\n".join(rows) + "\n")
+    assert sniff_mocap_format(tmp_path / "data.csv") == "csv"
+    traj = read_mocap(MocapSpec(tmp_path / "data.csv", format="csv"))
+    np.testing.assert_allclose(traj.T, T, atol=1e-12)
+    assert traj.stamps_ns[1] - traj.stamps_ns[0] == 5_000_000

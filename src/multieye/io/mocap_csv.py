@@ -82,7 +82,12 @@ DEFAULT_COLUMNS: dict[str, tuple[str, ...]] = {
 }
 
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-_UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([a-zA-Z]+)\s*[\])]$")
+_UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([a-zA-Z]*)\s*[\])]$")
+#: EuRoC/ASL names: ``p_<frames>_x`` (position of one frame in another, as
+#: ``p_RS_R_x``) and ``q_<frames>_w`` (EuRoC writes the quaternion w first), used when no
+#: name of :data:`DEFAULT_COLUMNS` is in the header; ``v_...``, ``b_w_...`` and other
+#: columns are not poses and are left alone.
+_EUROC_NAME = re.compile(r"^(p|q)_[a-z0-9]+(?:_[a-z0-9]+)*_([xyzw])$")
 _OPTITRACK_UNITS = {"meters": "m", "millimeters": "mm", "centimeters": "cm"}
 _VICON_SECTIONS = ("Segments", "Trajectories", "Model Outputs", "Joints", "Devices")
 #: Largest rotation-vector component accepted from a Vicon export, radians (beyond it a row is
@@ -180,8 +185,17 @@ def _header_name(cell: str) -> tuple[str, str | None]:
     m = _UNIT_SUFFIX.match(name)
     unit = None
     if m:
-        name, unit = m.group(1), m.group(2).lower()
+        name, unit = m.group(1), m.group(2).lower() or None     # '[]': EuRoC's unitless
     return name.lower(), unit
+
+
+def _euroc_role(name: str) -> str | None:
+    """The role of an EuRoC/ASL header name (``p_RS_R_x`` is ``tx``, ``q_RS_w`` is ``qw``;
+    :data:`_EUROC_NAME`), or None."""
+    m = _EUROC_NAME.match(name)
+    if m is None or (m.group(1) == "p" and m.group(2) == "w"):
+        return None
+    return ("t" if m.group(1) == "p" else "q") + m.group(2)
 
 
 def _no_header(header: list[str]) -> str:
@@ -201,6 +215,9 @@ def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, li
     for role, candidates in DEFAULT_COLUMNS.items():
         wanted = (columns[role].strip().lower(),) if columns and role in columns else candidates
         hits = [j for j, (n, _) in enumerate(headers) if n in wanted]
+        if not hits and role != "t" and not (columns and role in columns):
+            hits = [j for j, (n, _) in enumerate(headers) if _euroc_role(n) == role]
+            wanted = wanted + (f"EuRoC's {'p' if role[0] == 't' else 'q'}_<frames>_{role[1]}",)
         if len(hits) != 1:
             have = ", ".join(repr(c.strip()) for c in header)
             problem = "no column" if not hits else "several columns"
