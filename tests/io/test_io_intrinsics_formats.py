@@ -74,6 +74,18 @@ LAYOUTS = {
         f"distortion_coefficients:\n  rows: 1\n  cols: 8\n  data: {DIST.tolist()}\n"
         "rectification_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n"
         "projection_matrix:\n  rows: 3\n  cols: 4\n  data: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]\n"),
+    "yaml ros2 topic echo --once (ends with ---)": lambda: (
+        "header:\n  stamp:\n    sec: 1\n    nanosec: 0\n  frame_id: cam\n"
+        f"height: {SIZE[1]}\nwidth: {SIZE[0]}\ndistortion_model: rational_polynomial\n"
+        "d:\n" + "".join(f"- {v!r}\n" for v in DIST.tolist()) +
+        "k:\n" + "".join(f"- {v!r}\n" for v in K.reshape(-1).tolist()) + "---\n"),
+    "yaml FileStorage without its %YAML:1.0 line": lambda: (
+        f"image_width: {SIZE[0]}\nimage_height: {SIZE[1]}\ncamera_matrix: !!opencv-matrix\n"
+        f"   rows: 3\n   cols: 3\n   dt: d\n   data: {K.reshape(-1).tolist()}\n"
+        "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 8\n   dt: d\n"
+        f"   data: {DIST.tolist()}\n"),
+    "json cameraMatrix with image_size [w, h] (calibrateCamera's results)": lambda: json.dumps(
+        {"cameraMatrix": K.tolist(), "distCoeffs": [DIST.tolist()], "image_size": list(SIZE)}),
     "mrcal .cameramodel (multieye's)": lambda: cameramodel_text(
         Intrinsics(K, DIST, "pinhole", *SIZE)),
 }

@@ -22,8 +22,10 @@ Layouts (each one read from JSON or YAML):
   ones left out zero;
 - the model as ``distortion_model`` (or ``model``; names of
   :data:`DISTORTION_MODELS`) or OpenCV's ``fisheye_model: 0|1``;
-- the image size as ``image_width`` / ``image_height``, ``width`` / ``height`` or
-  ``resolution: [width, height]``; a ROS CameraInfo message's ``binning_x``, ``binning_y``
+- the image size as ``image_width`` / ``image_height``, ``width`` / ``height``,
+  ``resolution: [width, height]`` or ``image_size: [width, height]`` (OpenCV's ``Size``, as
+  multieye's calibration.json writes it; a size written ``[height, width]`` shows as every
+  image of the wrong resolution); a ROS CameraInfo message's ``binning_x``, ``binning_y``
   and ``roi`` are read and must describe the full image (no binning, no region of interest).
 """
 
@@ -59,7 +61,7 @@ KEYS = {
     "fisheye flag": ("fisheye_model",),
     "image width": ("image_width", "width"),
     "image height": ("image_height", "height"),
-    "image size": ("resolution",),
+    "image size": ("resolution", "image_size"),
     "binning_x": ("binning_x",),
     "binning_y": ("binning_y",),
     "region of interest": ("roi",),
