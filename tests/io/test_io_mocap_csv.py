@@ -464,3 +464,12 @@ def test_euroc_header_names_read_w_first(tmp_path, poses):
     traj = read_mocap(MocapSpec(tmp_path / "data.csv", format="csv"))
     np.testing.assert_allclose(traj.T, T, atol=1e-12)
     assert traj.stamps_ns[1] - traj.stamps_ns[0] == 5_000_000
+
+
+def test_a_csv_with_decimal_commas_says_so(tmp_path):
+    """A spreadsheet's CSV of semicolons and decimal commas: one line naming the cell and
+    the decimal comma (before: only 'expected a number for t')."""
+    (tmp_path / "d.csv").write_text("time;x;y;z;qx;qy;qz;qw\n0,5;1,25;0;0;0;0;0;1\n")
+    with pytest.raises(DatasetError, match=r"d.csv:2: expected a number for t, got '0,5'; "
+                                           r"a decimal comma"):
+        read_pose_csv(tmp_path / "d.csv")

@@ -15,13 +15,23 @@ import numpy as np
 from multieye.core.errors import DatasetError
 from multieye.io.pose_files import PoseFormat, _checked, _matrix, _named, default_values
 from multieye.io.poserows import RowPlace, trajectory_from_rows, usable_rows
-from multieye.io.textfile import first_cell_is_nanoseconds, length_scale, read_number_rows
+from multieye.io.textfile import (first_cell_is_nanoseconds, length_scale, read_number_rows,
+                                  split_fields, text_lines)
 
 __all__ = ["read_stamped_table"]
 
 
-#: The numbers of a matrix stamped in time: ``t`` then its top three rows.
+#: The numbers of a matrix stamped in time: ``t`` then its top three rows, or (17 numbers
+#: in the first row) its four rows.
 _MATRIX_ROW = ("t",) + tuple(f"m{r}{c}" for r in range(1, 4) for c in range(1, 5))
+_MATRIX_ROW4 = ("t",) + tuple(f"m{r}{c}" for r in range(1, 5) for c in range(1, 5))
+
+
+def _first_row_count(path) -> int:
+    """How many numbers the file's first row holds (0 without rows)."""
+    for _, content in text_lines(path, what="motion-capture file"):
+        return len(split_fields(content))
+    return 0
 
 
 def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str = "world",
@@ -30,7 +40,8 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
     include ``t``, or whose ``rotation`` is not ``quaternion-xyzw``).
 
     ``values`` default to ``t`` then :func:`default_values`; ``rotation: matrix`` rows are
-    ``t`` then the 12 numbers of the pose's top three rows (row-major). Rows with a value that
+    ``t`` then the 12 numbers of the pose's top three rows (row-major), or the 16 of its
+    four rows when the first row holds 17 numbers. Rows with a value that
     is not finite or absurd are left out and listed in ``skipped`` as TUM rows are
     (:func:`multieye.io.poserows.usable_rows`).
 
@@ -42,8 +53,11 @@ def read_stamped_table(path: str | os.PathLike, fmt: PoseFormat, *, parent: str 
     """
 
     matrix = fmt.rotation == "matrix"
-    order = _MATRIX_ROW if matrix else (
-        fmt.values if fmt.values is not None else ("t",) + default_values(fmt.rotation))
+    if matrix:
+        order = _MATRIX_ROW4 if _first_row_count(path) == len(_MATRIX_ROW4) else _MATRIX_ROW
+    else:
+        order = (
+            fmt.values if fmt.values is not None else ("t",) + default_values(fmt.rotation))
     data, lines = read_number_rows(path, order, files=f"pose rows ({fmt.rotation})",
                                    what="motion-capture file", finite=False)
     if first_cell_is_nanoseconds(path, order.index("t")):
