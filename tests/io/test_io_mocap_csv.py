@@ -473,3 +473,13 @@ def test_a_csv_with_decimal_commas_says_so(tmp_path):
     with pytest.raises(DatasetError, match=r"d.csv:2: expected a number for t, got '0,5'; "
                                            r"a decimal comma"):
         read_pose_csv(tmp_path / "d.csv")
+
+
+def test_several_rigid_bodies_say_which_key_chooses(tmp_path, poses):
+    """An export of several rigid bodies (or segments) names the rig.yaml key that chooses
+    one (before: 'choose one by name', no key named)."""
+    stamps, T = poses
+    _optitrack(tmp_path / "take.csv", stamps, T)
+    with pytest.raises(DatasetError, match=r"2 rigid bodys? in the file \(Other, Target\); "
+                                           r"choose one with rigid_body: <name> under mocap"):
+        read_optitrack_csv(tmp_path / "take.csv")

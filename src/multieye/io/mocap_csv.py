@@ -360,8 +360,11 @@ def _choose(name: str | None, available: list[str], what: str, path) -> str:
     if name is None:
         if len(available) == 1:
             return available[0]
-        listing = ", ".join(available) or "none"
-        raise DatasetError(f"{len(available)} {what}s in the file ({listing}); choose one by name",
+        if not available:
+            raise DatasetError(f"no {what} in the file: export the {what} whose pose is "
+                               "wanted (markers alone have no orientation)", path=path)
+        raise DatasetError(f"{len(available)} {what}s in the file ({', '.join(available)}); "
+                           f"choose one with rigid_body: <name> under mocap in rig.yaml",
                            path=path)
     if name in available:
         return name
