@@ -483,3 +483,38 @@ def test_several_rigid_bodies_say_which_key_chooses(tmp_path, poses):
     with pytest.raises(DatasetError, match=r"2 rigid bodys? in the file \(Other, Target\); "
                                            r"choose one with rigid_body: <name> under mocap"):
         read_optitrack_csv(tmp_path / "take.csv")
+
+
+def test_a_csv_of_euler_angles_or_matrices_is_read_as_stamped_rows(tmp_path, poses):
+    """A CSV export whose rotation is Euler angles, a rotation vector or a matrix: as a
+    generic CSV it is one line saying how to read it (before: only 'no column for qx', and
+    the header row then refused by the stamped rows); read so (format: tum with values /
+    rotation), its header row is skipped, and names that are those of values give the
+    columns' order; stamps in nanoseconds are still decided by the first row of numbers."""
+    stamps, T = poses
+    eul = Rotation.from_matrix(T[:, :3, :3]).as_euler("xyz", degrees=True)
+    rows = ["time,x,y,z,roll,pitch,yaw"] + [",".join(map(_fmt, [s, *Ti[:3, 3], *e]))
+                                              for s, Ti, e in zip(stamps, T, eul)]
+    (tmp_path / "e.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(DatasetError, match=r"no column for qx.*rotation other than a "
+                                           r"quaternion: read the file with format: tum"):
+        read_mocap(MocapSpec(tmp_path / "e.csv", format="csv"))
+    traj = read_mocap(MocapSpec(tmp_path / "e.csv", format="tum", rotation="euler-xyz-deg",
+                                values=("t", "x", "y", "z", "rx", "ry", "rz")))
+    np.testing.assert_allclose(traj.T, T, atol=1e-9)
+    np.testing.assert_allclose(traj.stamps, stamps)
+    q = geometry.quat_from_transform(T)
+    ns = [1403636579758555392 + 5_000_000 * k for k in range(len(T))]
+    rows = ["t [ns],qw,qx,qy,qz,x,y,z"] + [
+        ",".join([str(n), *map(_fmt, [qi[3], *qi[:3], *Ti[:3, 3]])]) for n, Ti, qi in
+        zip(ns, T, q)]
+    (tmp_path / "w.csv").write_text("\n".join(rows) + "\n")
+    traj = read_mocap(MocapSpec(tmp_path / "w.csv", format="tum",
+                                values=("t", "x", "y", "z", "qx", "qy", "qz", "qw")))
+    np.testing.assert_allclose(traj.T, T, atol=1e-12)
+    assert traj.stamps_ns is None or traj.stamps_ns.tolist() == ns
+    assert abs(traj.stamps[1] - traj.stamps[0] - 0.005) < 1e-6    # nanoseconds, not seconds
+    rows = ["t,r11,r12,r13,x"] + ["0,1,0,0,0"]
+    (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(DatasetError, match=r"m.csv:1: the header row has 5 names"):
+        read_mocap(MocapSpec(tmp_path / "m.csv", format="tum", rotation="matrix"))

@@ -209,6 +209,23 @@ def _no_header(header: list[str]) -> str:
             "mocap (with values: [...] for another order)")
 
 
+#: Header names of rotations other than a quaternion (Euler angles, rotation vectors, matrix
+#: entries), which a generic CSV does not read: the message says how to read them.
+_OTHER_ROTATION = re.compile(r"^(roll|pitch|yaw|rx|ry|rz|rot_?vec.*|euler.*|a[123]|"
+                             r"[rm]_?[0-4]{2}|rotation_?[xyz]|angle.*)$")
+
+
+def _other_rotation(names: list[str]) -> str:
+    """What to do with a CSV whose rotation is not a quaternion (empty when its header names
+    none of :data:`_OTHER_ROTATION`)."""
+    if not any(_OTHER_ROTATION.match(n) for n in names):
+        return ""
+    return ("; this header looks like a rotation other than a quaternion: read the file with "
+            "format: tum, values: [t, x, y, z, ...] (one name per column, in order) and "
+            "rotation: rotvec, euler-<axes>-deg or matrix under mocap in rig.yaml "
+            "(docs/rig-yaml.md, section 4); its header row is then skipped")
+
+
 def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, line):
     headers = [_header_name(c) for c in header]
     found = {}
@@ -221,8 +238,10 @@ def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, li
         if len(hits) != 1:
             have = ", ".join(repr(c.strip()) for c in header)
             problem = "no column" if not hits else "several columns"
+            other = _other_rotation([n for n, _ in headers]) if role != "t" else ""
             raise DatasetError(f"{problem} for {role} (looked for {' or '.join(wanted)}); "
-                               f"header has {have}{_no_header(header)}", path=path, line=line)
+                               f"header has {have}{_no_header(header)}{other}", path=path,
+                               line=line)
         found[role] = hits[0]
     if columns:
         unknown = set(columns) - set(DEFAULT_COLUMNS)

@@ -134,7 +134,8 @@ def first_cell_is_nanoseconds(path: str | os.PathLike, column: int, *,
     decides for every row, as in TUM files.  False for a file without such a row."""
     for _, content in text_lines(path, what=what):
         cells = split_fields(content)
-        return column < len(cells) and is_nanoseconds(cells[column])
+        if any(map(_is_float, cells)):         # a header row of names does not decide
+            return column < len(cells) and is_nanoseconds(cells[column])
     return False
 
 
@@ -175,7 +176,8 @@ def parse_float(token: str, *, path: str | os.PathLike | None, line: int | None,
 
 
 def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: str,
-                     what: str = "file", finite: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                     what: str = "file", finite: bool = True, skip_line: int | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """Rows of numbers separated by commas and/or spaces, with ``#`` comments and blank lines,
     read line by line into arrays (a table of millions of rows never exists as Python objects).
 
@@ -191,6 +193,8 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
         How a missing-file message names the file.
     finite : bool
         False: cells ``nan`` and ``inf`` are read as such (see :func:`parse_float`).
+    skip_line : int, optional
+        A line left out (a header row, :func:`header_row`).
 
     Returns
     -------
@@ -206,10 +210,26 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
     """
     table = NumberTable(len(columns))
     for contents, numbers in line_blocks(path, what=what):
+        if skip_line is not None and skip_line in numbers:
+            k = numbers.index(skip_line)
+            contents, numbers = contents[:k] + contents[k + 1:], numbers[:k] + numbers[k + 1:]
         table.add_block(contents, numbers, columns, files=files, path=path, finite=finite)
     if not len(table):
         raise DatasetError(f"no rows: expected lines '{' '.join(columns)}'", path=path)
     return table.arrays()
+
+
+def header_row(path: str | os.PathLike, *, what: str = "file") -> tuple[int, list[str]] | None:
+    """The first row of a table of numbers when it holds names and no number (a header):
+    ``(1-based line, its cells)`` (separated by commas, else semicolons, else white space, so
+    that a name may hold a space: ``t [ns]``); None when it holds a number or the file has no
+    row."""
+    for number, content in text_lines(path, what=what):
+        if any(map(_is_float, split_fields(content))):
+            return None
+        sep = "," if "," in content else ";" if ";" in content else None
+        return number, [c.strip() for c in content.split(sep)]
+    return None
 
 
 def physical_lines(path: str | os.PathLike, *, what: str = "file",
