@@ -518,3 +518,17 @@ def test_a_csv_of_euler_angles_or_matrices_is_read_as_stamped_rows(tmp_path, pos
     (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
     with pytest.raises(DatasetError, match=r"m.csv:1: the header row has 5 names"):
         read_mocap(MocapSpec(tmp_path / "m.csv", format="tum", rotation="matrix"))
+
+
+def test_a_vicon_tracker_export_is_refused_saying_what_to_do(tmp_path):
+    """Vicon Tracker's CSV starts 'Objects' (not a Nexus section) and its angles are helical
+    or Euler by a setting it does not record: one line saying so and what to export, whether
+    recognised or read as format: csv (before: 'no column for t ... header has Objects')."""
+    (tmp_path / "tracker.csv").write_text(
+        "Objects\n100\n,,Global Angle board:board,,,,,\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n"
+        ",,rad,rad,rad,mm,mm,mm\n1,0,0.1,0.2,0.3,10,20,30\n")
+    for call in (lambda: sniff_mocap_format(tmp_path / "tracker.csv"),
+                 lambda: read_pose_csv(tmp_path / "tracker.csv")):
+        with pytest.raises(DatasetError, match=r"tracker.csv:1: a Vicon Tracker export .* "
+                                               r"does not guess; export from Nexus"):
+            call()

@@ -302,6 +302,7 @@ def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None 
         raise DatasetError("empty CSV file: expected a header row", path=path)
     delimiter = "," if "," in header_line else ";" if ";" in header_line else None
     (_, header), = _rows([(first, header_line)], delimiter)
+    _refuse_tracker(header[0].strip(), path, first)
     found, names = _find_columns(header, columns, path, first)
     unit = _unit_from_header(names, found, ("tx", "ty", "tz"), unit, LENGTH_UNITS, path,
                              first) or "m"
@@ -556,11 +557,26 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
                                 skipped=skipped)
 
 
+def _refuse_tracker(first: str, path, line: int | None) -> None:
+    """A Vicon Tracker export (first line ``Objects``) is refused with what to do: its
+    ``RX RY RZ`` are a helical angle or Euler XYZ angles by a Tracker setting the file does
+    not record, so no reading of them is safe."""
+    if first == "Objects":
+        raise DatasetError("a Vicon Tracker export (first line 'Objects'): its RX RY RZ are "
+                           "helical or Euler XYZ angles by a Tracker setting the file does not "
+                           "record, so multieye does not guess; export from Nexus (Segments), "
+                           "or convert the object's poses to a TUM file (t x y z qx qy qz qw) "
+                           "or to rows read with format: tum, values and rotation (rotvec or "
+                           "euler-xyz-deg; docs/rig-yaml.md, section 4)", path=path, line=line)
+
+
 def csv_flavour(path: str | os.PathLike) -> str:
-    """``"optitrack"``, ``"vicon"`` or ``"csv"`` from the first non-blank line of a CSV file."""
-    for _, line in text_lines(path, what="CSV file"):
+    """``"optitrack"``, ``"vicon"`` or ``"csv"`` from the first non-blank line of a CSV file;
+    a Vicon Tracker export is refused (:func:`_refuse_tracker`)."""
+    for number, line in text_lines(path, what="CSV file"):
         if line.strip():
             first = line.split(",")[0].strip()
+            _refuse_tracker(first, path, number)
             if first == "Format Version":
                 return "optitrack"
             if first in _VICON_SECTIONS:
