@@ -367,8 +367,11 @@ def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) ->
             camera = prefer
     if camera is None:
         if len(entries) != 1:
+            first = entries[0][0] if entries else "cam0"
             raise doc.error(f"the camchain has {len(entries)} cameras "
-                            f"({', '.join(k for k, _ in entries)}); choose one by name")
+                            f"({', '.join(k for k, _ in entries)}); choose one with "
+                            f"intrinsics: {{file: {doc.path.name}, camera: {first}}} in "
+                            "rig.yaml")
         return _kalibr_entry(entries[0][1], doc, entries[0][0])
     for key, entry in entries:
         if camera in (key, entry.get("camera_name")):
