@@ -727,3 +727,26 @@ def test_slam_tools_camera_settings_refused_with_one_line(tmp_path, change, mess
     with pytest.raises(DatasetError, match=message) as info:
         read_intrinsics(tmp_path / "cam.yaml")
     assert "\n" not in str(info.value)
+
+
+def test_an_earlier_runs_calibration_json_gives_a_cameras_lens(tmp_path):
+    """docs/rig-yaml.md names multieye's own calibration.json as a source of lenses (the
+    wide models too): intrinsics: {file: calibration.json, camera: cam1} reads cam1's lens,
+    a rig camera of the same name needs no camera:, and a file of several cameras without
+    one is one line naming them (before: 'not an intrinsics file')."""
+    from multieye.io.calibration_json import write_calibration
+    from multieye.io.calibration_record import (CalibrationRecord, CameraRecord,
+                                                IntrinsicsRecord, Residuals)
+
+    lenses = {"cam0": Intrinsics(K, DIST[:5], "pinhole", *SIZE),
+              "cam1": Intrinsics(K, np.array([0.9, -0.1, 0.02, 1e-3, -1e-3]), "unified", *SIZE)}
+    cams = tuple(CameraRecord(n, np.eye(4), np.eye(4), 10, intrinsics=IntrinsicsRecord(i))
+                 for n, i in lenses.items())
+    write_calibration(tmp_path / "calibration.json", CalibrationRecord(
+        "eye-to-base", "joint", "cam0", np.eye(4), cams, Residuals(0, 0)))
+    got = read_intrinsics(tmp_path / "calibration.json", "cam1")
+    assert got.model == "unified" and np.array_equal(got.dist, lenses["cam1"].dist)
+    assert read_intrinsics(tmp_path / "calibration.json", prefer="cam0").model == "pinhole"
+    with pytest.raises(DatasetError, match=r"choose a camera \(cameras with a lens: cam0, cam1\)"
+                                           r"; give intrinsics: \{file: calibration.json"):
+        read_intrinsics(tmp_path / "calibration.json")

@@ -461,6 +461,34 @@ def _load(path) -> tuple[str, object]:
     raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
 
 
+def _is_calibration_json(path) -> bool:
+    """Whether a ``.json`` file starts as multieye's calibration.json (its first keys), judged
+    on its first 4 KiB: such a file may be larger than an intrinsics file and has its own
+    reader (:func:`multieye.io.calibration_json.read_calibration`)."""
+    if Path(path).suffix.lower() != ".json" or not Path(path).is_file():
+        return False
+    with open(path, "rb") as f:
+        head = f.read(4096).decode("utf-8", "replace")
+    return '"format_version"' in head and ('"setup"' in head or '"cameras"' in head)
+
+
+def _from_calibration_json(path, camera: str | None, prefer: str | None) -> Intrinsics:
+    """One camera's lens from a calibration.json of an earlier run (``camera``, else the rig
+    camera of the same name ``prefer``, else the only camera)."""
+    from multieye.io.calibration_json import read_calibration  # noqa: PLC0415 (only for this)
+
+    lenses = {c.name: c.intrinsics for c in read_calibration(path).cameras
+              if c.intrinsics is not None}
+    name = camera if camera is not None else prefer if prefer in lenses else (
+        next(iter(lenses)) if len(lenses) == 1 else None)
+    if name not in lenses:
+        what = f"camera {name!r} has no lens here" if name else "choose a camera"
+        raise DatasetError(f"calibration.json: {what} (cameras with a lens: "
+                           f"{', '.join(lenses) or 'none'}); give intrinsics: {{file: "
+                           f"{Path(path).name}, camera: <name>}} in rig.yaml", path=path)
+    return lenses[name].intrinsics
+
+
 def read_camera_info(path: str | os.PathLike) -> Intrinsics:
     """Read ROS ``camera_info`` YAML, a CameraInfo message, or another mapping layout of
     :mod:`multieye.io.intrinsics_mapping` (YAML or JSON)."""
@@ -502,6 +530,8 @@ def read_intrinsics(path: str | os.PathLike, camera: str | None = None, *,
         Missing or unreadable file, unrecognised format (listing the formats), unsupported
         camera or distortion model, wrong number of coefficients; with the line where known.
     """
+    if _is_calibration_json(path):
+        return _from_calibration_json(path, camera, prefer)
     kind, content = _load(path)
     if kind == "opencv":
         return _opencv(content, Path(path), camera)
