@@ -296,3 +296,32 @@ def test_yuv422_images_decode_with_their_luma(tmp_path, ros):
     (_, a), (_, b) = iter_bag_images(path, "/cam")
     assert a.shape == (6, 8, 3) and np.array_equal(a, b)
     assert np.corrcoef(a[..., 1].ravel(), luma.ravel())[0, 1] > 0.999
+
+
+def test_bag_files_that_cannot_be_read_say_what_to_do(tmp_path, rng):
+    """A ROS 2 .mcap (or .db3) copied without its metadata.yaml, and a ROS 1 bag cut short:
+    one line each naming the tool that repairs it (before: 'Expected metadata file <folder>
+    does not exist', 'Bag index looks damaged' alone)."""
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
+
+    bag = Bag(tmp_path / "rec", 2)
+    bag.writer = Writer2(tmp_path / "rec", version=9, storage_plugin=StoragePlugin.MCAP)
+    img = rng.integers(0, 256, (4, 6), dtype=np.uint8)
+    with bag:
+        bag.write("/cam", image_msg(bag, BASE_NS, img, "mono8"), BASE_NS)
+    (stamp, got), = iter_bag_images(tmp_path / "rec" / "rec.mcap", "/cam")
+    assert np.array_equal(got, img)
+    lone = tmp_path / "lone.mcap"
+    lone.write_bytes((tmp_path / "rec" / "rec.mcap").read_bytes())
+    with pytest.raises(DatasetError, match=r"lone.mcap: a ROS 2 bag's .mcap file is read with "
+                                           r"the metadata.yaml .* 'ros2 bag reindex <folder>' "
+                                           r"-s mcap"):
+        list(iter_bag_images(lone, "/cam"))
+    with Bag(tmp_path / "one.bag", 1) as bag1:
+        bag1.write("/cam", image_msg(bag1, BASE_NS, img, "mono8"), BASE_NS)
+    data = (tmp_path / "one.bag").read_bytes()
+    (tmp_path / "cut.bag").write_bytes(data[: len(data) // 2])
+    with pytest.raises(DatasetError, match=r"cut.bag: cannot read the bag: .*repaired by "
+                                           r"'rosbag reindex'"):
+        list(iter_bag_images(tmp_path / "cut.bag", "/cam"))

@@ -119,12 +119,20 @@ def _reader(path: str | os.PathLike):
         raise DatasetError("bag not found", path=p)
     _check_bag_files(p)
     if p.is_file() and p.suffix in (".db3", ".mcap"):
+        if not (p.parent / "metadata.yaml").is_file():
+            raise DatasetError(f"a ROS 2 bag's {p.suffix} file is read with the metadata.yaml "
+                               "that ros2 bag record writes beside it, and its folder has none: "
+                               "give the bag's folder as recorded, or write metadata.yaml again "
+                               f"with 'ros2 bag reindex <folder>'"
+                               f"{' -s mcap' if p.suffix == '.mcap' else ''}", path=p)
         p = p.parent  # a ROS 2 bag is its folder (with metadata.yaml)
     try:
         reader = AnyReader([p], default_typestore=_default_typestore())
         reader.open()
     except (AnyReaderError, OSError, ValueError) as exc:
-        raise DatasetError(f"cannot read the bag: {exc}", path=path) from exc
+        hint = ("; a ROS 1 bag cut short (a recording stopped abruptly, a .bag.active) is "
+                "repaired by 'rosbag reindex'" if p.is_file() else "")
+        raise DatasetError(f"cannot read the bag: {exc}{hint}", path=path) from exc
     try:
         yield reader
     finally:
