@@ -750,3 +750,17 @@ def test_an_earlier_runs_calibration_json_gives_a_cameras_lens(tmp_path):
     with pytest.raises(DatasetError, match=r"choose a camera \(cameras with a lens: cam0, cam1\)"
                                            r"; give intrinsics: \{file: calibration.json"):
         read_intrinsics(tmp_path / "calibration.json")
+
+
+def test_opencv_2s_capitalised_filestorage_names_are_read(tmp_path):
+    """OpenCV 2's calibration sample (and the OpenCV book) wrote Camera_Matrix and
+    Distortion_Coefficients, with Calibrate_Accuracy: read as camera_matrix and
+    distortion_coefficients (before: 'no camera_matrix (or K)')."""
+    fs = cv2.FileStorage(str(tmp_path / "out_camera_data.xml"), cv2.FILE_STORAGE_WRITE)
+    fs.write("Calibrate_Accuracy", 0.4)
+    fs.write("Camera_Matrix", K)
+    fs.write("Distortion_Coefficients", DIST[:5].reshape(-1, 1))
+    fs.release()
+    intr = read_intrinsics(tmp_path / "out_camera_data.xml")
+    np.testing.assert_array_equal(intr.K, K)
+    np.testing.assert_array_equal(intr.dist, DIST[:5])
