@@ -465,8 +465,9 @@ def _is_calibration_json(path) -> bool:
     """Whether a ``.json`` file starts as multieye's calibration.json (its first keys), judged
     on its first 4 KiB: such a file may be larger than an intrinsics file and has its own
     reader (:func:`multieye.io.calibration_json.read_calibration`)."""
-    if Path(path).suffix.lower() != ".json" or not Path(path).is_file():
-        return False
+    if not isinstance(path, (str, os.PathLike)) or Path(path).suffix.lower() != ".json" or \
+            not Path(path).is_file():
+        return False                            # not a path: refused by the reader below
     with open(path, "rb") as f:
         head = f.read(4096).decode("utf-8", "replace")
     return '"format_version"' in head and ('"setup"' in head or '"cameras"' in head)
