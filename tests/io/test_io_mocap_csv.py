@@ -532,3 +532,31 @@ def test_a_vicon_tracker_export_is_refused_saying_what_to_do(tmp_path):
         with pytest.raises(DatasetError, match=r"tracker.csv:1: a Vicon Tracker export .* "
                                                r"does not guess; export from Nexus"):
             call()
+
+
+def test_rostopic_csv_dumps_and_spaced_names_are_read(tmp_path, poses):
+    """``rostopic echo -p`` dumps (field.pose.position.x, field.transform.rotation.w, the
+    header stamp in nanoseconds beside the record time %time) and spreadsheet names with
+    spaces (Pos X (mm), Quat W) are read by name; columns: names a spaced header as written
+    (before: 'no column for tx')."""
+    stamps, T = poses
+    q = geometry.quat_from_transform(T)
+    ns = [1_700_000_000_000_000_000 + 10_000_000 * k for k in range(len(T))]
+    head = ("%time,field.header.seq,field.header.stamp,field.header.frame_id,"
+            "field.child_frame_id,field.transform.translation.x,field.transform.translation.y,"
+            "field.transform.translation.z,field.transform.rotation.x,"
+            "field.transform.rotation.y,field.transform.rotation.z,field.transform.rotation.w")
+    rows = [head] + [",".join([str(n + 3_000_000), "0", str(n), "world", "board",
+                               *map(_fmt, Ti[:3, 3]), *map(_fmt, qi)])
+                     for n, Ti, qi in zip(ns, T, q)]
+    (tmp_path / "tf.csv").write_text("\n".join(rows) + "\n")
+    traj = read_pose_csv(tmp_path / "tf.csv")
+    np.testing.assert_allclose(traj.T, T, atol=1e-12)
+    assert traj.stamps_ns.tolist() == ns                  # the header stamp, not %time
+    rows = ["Time (s),Pos X (mm),Pos Y (mm),Pos Z (mm),Quat X,Quat Y,Quat Z,Quat W"] + [
+        ",".join(map(_fmt, [s, *(Ti[:3, 3] * 1000), *qi])) for s, Ti, qi in zip(stamps, T, q)]
+    (tmp_path / "s.csv").write_text("\n".join(rows) + "\n")
+    np.testing.assert_allclose(read_pose_csv(tmp_path / "s.csv").T, T, atol=1e-12)
+    traj = read_pose_csv(tmp_path / "s.csv", columns={"tx": "Pos X", "ty": "Pos Y",
+                                                      "tz": "Pos Z"})
+    np.testing.assert_allclose(traj.T, T, atol=1e-12)

@@ -71,14 +71,14 @@ __all__ = [
 #: Header names tried for each quantity of a generic CSV (after lower-casing and removing
 #: a leading ``#`` and a unit suffix).
 DEFAULT_COLUMNS: dict[str, tuple[str, ...]] = {
-    "t": ("t", "time", "timestamp", "stamp", "time_s", "times"),
-    "tx": ("tx", "x", "px", "pos_x", "position_x", "p_x", "t_x"),
-    "ty": ("ty", "y", "py", "pos_y", "position_y", "p_y", "t_y"),
-    "tz": ("tz", "z", "pz", "pos_z", "position_z", "p_z", "t_z"),
-    "qx": ("qx", "q_x", "quat_x", "orientation_x", "rot_x"),
-    "qy": ("qy", "q_y", "quat_y", "orientation_y", "rot_y"),
-    "qz": ("qz", "q_z", "quat_z", "orientation_z", "rot_z"),
-    "qw": ("qw", "q_w", "quat_w", "orientation_w", "rot_w"),
+    "t": ("t", "time", "timestamp", "stamp", "time_s", "times", "header_stamp"),
+    "tx": ("tx", "x", "px", "pos_x", "position_x", "p_x", "t_x", "translation_x"),
+    "ty": ("ty", "y", "py", "pos_y", "position_y", "p_y", "t_y", "translation_y"),
+    "tz": ("tz", "z", "pz", "pos_z", "position_z", "p_z", "t_z", "translation_z"),
+    "qx": ("qx", "q_x", "quat_x", "orientation_x", "rot_x", "rotation_x"),
+    "qy": ("qy", "q_y", "quat_y", "orientation_y", "rot_y", "rotation_y"),
+    "qz": ("qz", "q_z", "quat_z", "orientation_z", "rot_z", "rotation_z"),
+    "qw": ("qw", "q_w", "quat_w", "orientation_w", "rot_w", "rotation_w"),
 }
 
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -181,12 +181,17 @@ def _screened(stamps, t, rotation, columns, path, lines, max_rotation=None):
 
 
 def _header_name(cell: str) -> tuple[str, str | None]:
+    """A header cell's name, lower case, and its unit suffix: ``Pos X [mm]`` is ``pos_x``
+    and ``mm``; a dotted ROS field path keeps its last two parts (``rostopic echo -p``'s
+    ``field.pose.position.x`` is ``position_x``, ``field.header.stamp`` is
+    ``header_stamp``)."""
     name = cell.strip().lstrip("#").strip()
     m = _UNIT_SUFFIX.match(name)
     unit = None
     if m:
         name, unit = m.group(1), m.group(2).lower() or None     # '[]': EuRoC's unitless
-    return name.lower(), unit
+    name = re.sub(r"\s+", "_", name.strip().lower())
+    return "_".join(name.split(".")[-2:]), unit
 
 
 def _euroc_role(name: str) -> str | None:
@@ -230,7 +235,8 @@ def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, li
     headers = [_header_name(c) for c in header]
     found = {}
     for role, candidates in DEFAULT_COLUMNS.items():
-        wanted = (columns[role].strip().lower(),) if columns and role in columns else candidates
+        wanted = ((_header_name(columns[role])[0],) if columns and role in columns else
+                  candidates)
         hits = [j for j, (n, _) in enumerate(headers) if n in wanted]
         if not hits and role != "t" and not (columns and role in columns):
             hits = [j for j, (n, _) in enumerate(headers) if _euroc_role(n) == role]
