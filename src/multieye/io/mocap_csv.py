@@ -220,10 +220,10 @@ _OTHER_ROTATION = re.compile(r"^(roll|pitch|yaw|rx|ry|rz|rot_?vec.*|euler.*|a[12
                              r"[rm]_?[0-4]{2}|rotation_?[xyz]|angle.*)$")
 
 
-def _other_rotation(names: list[str]) -> str:
-    """What to do with a CSV whose rotation is not a quaternion (empty when its header names
-    none of :data:`_OTHER_ROTATION`)."""
-    if not any(_OTHER_ROTATION.match(n) for n in names):
+def _other_rotation(cells: list[str]) -> str:
+    """What to do with a CSV whose rotation is not a quaternion (empty when its header cells
+    name none of :data:`_OTHER_ROTATION`)."""
+    if not any(_OTHER_ROTATION.match(n) for n in cells):
         return ""
     return ("; this header looks like a rotation other than a quaternion: read the file with "
             "format: tum, values: [t, x, y, z, ...] (one name per column, in order) and "
