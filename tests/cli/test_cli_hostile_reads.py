@@ -347,6 +347,43 @@ def test_exif_orientation_ignored_with_a_note(image_dataset, tmp_path):
     assert angle < 1.0, angle
 
 
+def test_exif_quarter_turn_applied_when_only_the_turned_image_fits(image_dataset, tmp_path):
+    """A phone or camera that stores its pixels turned by a quarter, with EXIF orientation 6
+    ("turn 90 degrees clockwise to view"), against intrinsics of the viewed image (as
+    cv2.imread shows it, the default of OpenCV's tools): turned as the EXIF says, with a
+    note, and the result matches the truth (before: every image 'wrong resolution', exit 2).
+    The report's thumbnails read the image the same way."""
+    from multieye.imaging.image_file import read_gray
+    from multieye.imaging.thumbnails import residual_thumbnail
+
+    ds = _copy(image_dataset, tmp_path)
+    for png in sorted((ds / "cam1").glob("*.png")):
+        turned = cv2.rotate(cv2.imread(str(png), cv2.IMREAD_GRAYSCALE),
+                            cv2.ROTATE_90_COUNTERCLOCKWISE)   # stored so; EXIF 6 undoes it
+        ok, buf = cv2.imencode(".jpg", turned, [cv2.IMWRITE_JPEG_QUALITY, 98])
+        png.with_suffix(".jpg").write_bytes(_with_exif_orientation(buf.tobytes(), 6))
+        png.unlink()
+    first = sorted((ds / "cam1").glob("*.jpg"))[0]
+    h, w = cv2.imread(str(first), cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION).shape
+    image, reason, notes = read_gray(first, (h, w))
+    assert reason is None and image.shape == (w, h) and "orientation 6 applied" in notes[0]
+    assert read_gray(first)[0].shape == (h, w)            # no intrinsics: as stored
+    assert read_gray(first, (w, h))[0].shape == (h, w)    # the stored size fits: as stored
+    thumb = residual_thumbnail(first, np.zeros((0, 2)), np.zeros((0, 2)), magnify=1.0,
+                               image_size=(h, w), crop=False)
+    assert thumb is not None
+    out = tmp_path / "out"
+    res = _calibrate(ds, out, "--no-refine")
+    _ok(res, out)
+    assert "EXIF orientation 6 applied" in res.output
+    cal = json.loads((out / "calibration.json").read_text())
+    truth = json.loads((ds / "ground_truth.json").read_text())
+    T = np.array(cal["cameras"]["cam1"]["T_ref_cam"])
+    T_true = np.array(truth["cameras"]["cam1"]["T_ref_cam"])
+    angle = float(np.degrees(g.rotation_angle_between(T, T_true)))
+    assert angle < 1.0, angle
+
+
 def test_hostile_image_entries_listed_with_reasons(image_dataset, tmp_path):
     ds = _copy(image_dataset, tmp_path)
     cam = ds / "cam0"

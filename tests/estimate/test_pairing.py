@@ -117,3 +117,15 @@ def test_bad_arguments_are_input_errors_saying_what_was_expected(args, kw, messa
     with pytest.raises(InputError) as info:
         pair_in_time(*args, **kw)
     assert message in str(info.value)
+
+
+def test_unpaired_images_a_power_of_1000_apart_say_the_clocks_units_may_differ():
+    """Images stamped in seconds against motion capture in microseconds read as nanoseconds
+    (16 digits): each unpaired image says the stamps are 1000 times apart (before: only the
+    recording's span and the distance)."""
+    stamps = 1_700_000.0 + 0.01 * np.arange(5)          # 1.7e15 us read as ns: 1.7e6 s
+    T = np.repeat(np.eye(4)[None], 5, axis=0)
+    res = pair_in_time(stamps, T, [1_700_000_000.0], tolerance=0.03)
+    assert "about 1000 times the others" in res.unpaired[0][1]
+    res = pair_in_time(stamps, T, [1_700_010.0], tolerance=0.03)      # just after: no hint
+    assert "times the others" not in res.unpaired[0][1]

@@ -194,7 +194,9 @@ def test_kalibr_camchain_entries(tmp_path):
     assert np.array_equal(cam0.K, K) and (cam0.width, cam0.height) == (1280, 720)
     assert cam1.model == "fisheye" and cam1.K[0, 0] == 300.0 and cam1.K[1, 2] == 240.0
     assert read_intrinsics(tmp_path / "camchain.yaml", prefer="cam1").model == "fisheye"
-    with pytest.raises(DatasetError, match=r"the camchain has 2 cameras \(cam0, cam1\); choose"):
+    with pytest.raises(DatasetError, match=r"the camchain has 2 cameras \(cam0, cam1\); choose "
+                                           r"one with intrinsics: \{file: camchain.yaml, "
+                                           r"camera: cam0\} in rig.yaml"):   # the key to write
         read_intrinsics(tmp_path / "camchain.yaml")
     with pytest.raises(DatasetError, match="camera 'cam7' not in the camchain; it has cam0, cam1"):
         read_intrinsics(tmp_path / "camchain.yaml", "cam7")

@@ -74,6 +74,18 @@ LAYOUTS = {
         f"distortion_coefficients:\n  rows: 1\n  cols: 8\n  data: {DIST.tolist()}\n"
         "rectification_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n"
         "projection_matrix:\n  rows: 3\n  cols: 4\n  data: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]\n"),
+    "yaml ros2 topic echo --once (ends with ---)": lambda: (
+        "header:\n  stamp:\n    sec: 1\n    nanosec: 0\n  frame_id: cam\n"
+        f"height: {SIZE[1]}\nwidth: {SIZE[0]}\ndistortion_model: rational_polynomial\n"
+        "d:\n" + "".join(f"- {v!r}\n" for v in DIST.tolist()) +
+        "k:\n" + "".join(f"- {v!r}\n" for v in K.reshape(-1).tolist()) + "---\n"),
+    "yaml FileStorage without its %YAML:1.0 line": lambda: (
+        f"image_width: {SIZE[0]}\nimage_height: {SIZE[1]}\ncamera_matrix: !!opencv-matrix\n"
+        f"   rows: 3\n   cols: 3\n   dt: d\n   data: {K.reshape(-1).tolist()}\n"
+        "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 8\n   dt: d\n"
+        f"   data: {DIST.tolist()}\n"),
+    "json cameraMatrix with image_size [w, h] (calibrateCamera's results)": lambda: json.dumps(
+        {"cameraMatrix": K.tolist(), "distCoeffs": [DIST.tolist()], "image_size": list(SIZE)}),
     "mrcal .cameramodel (multieye's)": lambda: cameramodel_text(
         Intrinsics(K, DIST, "pinhole", *SIZE)),
 }
@@ -558,3 +570,197 @@ def test_a_yaml_flow_mapping_with_quotes_is_not_taken_for_json(tmp_path):
     path = tmp_path / "flow.yaml"
     path.write_text('{K: [500, 0, 320, 0, 500, 240, 0, 0, 1], camera_name: "front"}\n')
     assert read_intrinsics(path).K[0, 0] == 500.0
+
+
+SLAM_CONFIGS = {
+    "euroc sensor.yaml": ("""# General sensor definitions.
+sensor_type: camera
+comment: VI-Sensor cam0 (MT9M034)
+T_BS:
+  cols: 4
+  rows: 4
+  data: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+rate_hz: 20
+resolution: [752, 480]
+camera_model: pinhole
+intrinsics: [458.654, 457.296, 367.215, 248.375] #fu, fv, cu, cv
+distortion_model: radial-tangential
+distortion_coefficients: [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]
+""", None, "pinhole", [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]),
+    "camodocal PINHOLE (VINS)": ("""%YAML:1.0
+---
+model_type: PINHOLE
+camera_name: camera
+image_width: 752
+image_height: 480
+distortion_parameters:
+   k1: -2.917e-01
+   k2: 8.228e-02
+   p1: 5.333e-05
+   p2: -1.578e-04
+projection_parameters:
+   fx: 458.654
+   fy: 457.296
+   cx: 367.215
+   cy: 248.375
+""", None, "pinhole", [-2.917e-01, 8.228e-02, 5.333e-05, -1.578e-04]),
+    "camodocal MEI (VINS)": ("""%YAML:1.0
+---
+model_type: MEI
+camera_name: camera
+image_width: 752
+image_height: 480
+mirror_parameters:
+   xi: 1.8
+distortion_parameters:
+   k1: -0.2
+   k2: 0.1
+   p1: 0.0001
+   p2: -0.0002
+projection_parameters:
+   gamma1: 458.654
+   gamma2: 457.296
+   u0: 367.215
+   v0: 248.375
+""", None, "unified", [1.8, -0.2, 0.1, 0.0001, -0.0002]),
+    "camodocal KANNALA_BRANDT (VINS)": ("""%YAML:1.0
+---
+model_type: KANNALA_BRANDT
+camera_name: camera
+image_width: 752
+image_height: 480
+projection_parameters:
+   k2: 0.1
+   k3: 0.01
+   k4: 0.001
+   k5: 0.0001
+   mu: 458.654
+   mv: 457.296
+   u0: 367.215
+   v0: 248.375
+""", None, "fisheye", [0.1, 0.01, 0.001, 0.0001]),
+    "ORB-SLAM2 settings": ("""%YAML:1.0
+
+Camera.fx: 458.654
+Camera.fy: 457.296
+Camera.cx: 367.215
+Camera.cy: 248.375
+Camera.k1: -0.28340811
+Camera.k2: 0.07395907
+Camera.p1: 0.00019359
+Camera.p2: 1.76187114e-05
+Camera.width: 752
+Camera.height: 480
+Camera.fps: 20.0
+Camera.RGB: 1
+ORBextractor.nFeatures: 1000
+Viewer.KeyFrameSize: 0.05
+""", None, "pinhole", [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05, 0.0]),
+    "ORB-SLAM3 stereo fisheye settings, right camera": ("""%YAML:1.0
+File.version: "1.0"
+Camera.type: "KannalaBrandt8"
+Camera1.fx: 190.97
+Camera1.fy: 190.97
+Camera1.cx: 254.93
+Camera1.cy: 256.89
+Camera1.k1: 0.0034
+Camera1.k2: 0.0007
+Camera1.k3: -0.0020
+Camera1.k4: 0.0002
+Camera2.fx: 458.654
+Camera2.fy: 457.296
+Camera2.cx: 367.215
+Camera2.cy: 248.375
+Camera2.k1: 0.1
+Camera2.k2: 0.01
+Camera2.k3: 0.001
+Camera2.k4: 0.0001
+Camera.width: 752
+Camera.height: 480
+Stereo.ThDepth: 40.0
+""", "Camera2", "fisheye", [0.1, 0.01, 0.001, 0.0001]),
+}
+
+
+@pytest.mark.parametrize("name", list(SLAM_CONFIGS))
+def test_slam_tools_camera_settings_are_read(tmp_path, name):
+    """EuRoC's sensor.yaml, camodocal's (VINS-Mono/Fusion) and ORB-SLAM's camera settings,
+    as those tools ship them: read whole (before: refused, 'sensor_type: not a key ...' or
+    'no camera_matrix (or K)'). MEI is the unified model and KANNALA_BRANDT's k2..k5 are
+    OpenCV's fisheye k1..k4: the same lens as Kalibr's omni-radtan and pinhole-equidistant."""
+    text, camera, model, dist = SLAM_CONFIGS[name]
+    (tmp_path / "cam.yaml").write_text(text)
+    intr = read_intrinsics(tmp_path / "cam.yaml", camera)
+    K = [[458.654, 0, 367.215], [0, 457.296, 248.375], [0, 0, 1]]
+    np.testing.assert_array_equal(intr.K, K)
+    np.testing.assert_array_equal(intr.dist, dist)
+    assert (intr.model, intr.width, intr.height) == (model, 752, 480)
+    kalibr = {"unified": ("omni", [dist[0], *np.ravel(K)[[0, 4, 2, 5]]], "radtan", dist[1:]),
+              "fisheye": ("pinhole", np.ravel(K)[[0, 4, 2, 5]], "equidistant", dist)}
+    if model in kalibr:
+        cm, ki, dm, dc = kalibr[model]
+        (tmp_path / "k.yaml").write_text(
+            f"cam0:\n  camera_model: {cm}\n  intrinsics: {[float(v) for v in ki]}\n"
+            f"  distortion_model: {dm}\n  distortion_coeffs: {[float(v) for v in dc]}\n"
+            "  resolution: [752, 480]\n")
+        same = read_intrinsics(tmp_path / "k.yaml")
+        assert same.model == intr.model
+        np.testing.assert_array_equal(same.dist, intr.dist)
+
+
+@pytest.mark.parametrize("change, message", [
+    (("ORB-SLAM3 stereo fisheye settings, right camera", None),
+     r"holds cameras Camera1, Camera2; choose one with intrinsics: \{file: cam.yaml, "
+     r"camera: Camera1\}"),
+    (("ORB-SLAM2 settings", "Camera.k1: -0.28340811\n", "Camera.k1: -0.28340811\nCamera.k5: 1\n"),
+     r"cam.yaml:8: Camera.k5: not a key multieye reads"),
+    (("camodocal MEI (VINS)", "model_type: MEI", "model_type: SCARAMUZZA"),
+     r"camodocal model_type 'SCARAMUZZA' is not supported"),
+    (("euroc sensor.yaml", "radial-tangential", "fov"), r"distortion_model 'fov' is not "),
+])
+def test_slam_tools_camera_settings_refused_with_one_line(tmp_path, change, message):
+    name, *edit = change
+    text, camera, _, _ = SLAM_CONFIGS[name]
+    if len(edit) == 2:
+        text = text.replace(*edit)
+    (tmp_path / "cam.yaml").write_text(text)
+    with pytest.raises(DatasetError, match=message) as info:
+        read_intrinsics(tmp_path / "cam.yaml")
+    assert "\n" not in str(info.value)
+
+
+def test_an_earlier_runs_calibration_json_gives_a_cameras_lens(tmp_path):
+    """docs/rig-yaml.md names multieye's own calibration.json as a source of lenses (the
+    wide models too): intrinsics: {file: calibration.json, camera: cam1} reads cam1's lens,
+    a rig camera of the same name needs no camera:, and a file of several cameras without
+    one is one line naming them (before: 'not an intrinsics file')."""
+    from multieye.io.calibration_json import write_calibration
+    from multieye.io.calibration_record import (CalibrationRecord, CameraRecord,
+                                                IntrinsicsRecord, Residuals)
+
+    lenses = {"cam0": Intrinsics(K, DIST[:5], "pinhole", *SIZE),
+              "cam1": Intrinsics(K, np.array([0.9, -0.1, 0.02, 1e-3, -1e-3]), "unified", *SIZE)}
+    cams = tuple(CameraRecord(n, np.eye(4), np.eye(4), 10, intrinsics=IntrinsicsRecord(i))
+                 for n, i in lenses.items())
+    write_calibration(tmp_path / "calibration.json", CalibrationRecord(
+        "eye-to-base", "joint", "cam0", np.eye(4), cams, Residuals(0, 0)))
+    got = read_intrinsics(tmp_path / "calibration.json", "cam1")
+    assert got.model == "unified" and np.array_equal(got.dist, lenses["cam1"].dist)
+    assert read_intrinsics(tmp_path / "calibration.json", prefer="cam0").model == "pinhole"
+    with pytest.raises(DatasetError, match=r"choose a camera \(cameras with a lens: cam0, cam1\)"
+                                           r"; give intrinsics: \{file: calibration.json"):
+        read_intrinsics(tmp_path / "calibration.json")
+
+
+def test_opencv_2s_capitalised_filestorage_names_are_read(tmp_path):
+    """OpenCV 2's calibration sample (and the OpenCV book) wrote Camera_Matrix and
+    Distortion_Coefficients, with Calibrate_Accuracy: read as camera_matrix and
+    distortion_coefficients (before: 'no camera_matrix (or K)')."""
+    fs = cv2.FileStorage(str(tmp_path / "out_camera_data.xml"), cv2.FILE_STORAGE_WRITE)
+    fs.write("Calibrate_Accuracy", 0.4)
+    fs.write("Camera_Matrix", K)
+    fs.write("Distortion_Coefficients", DIST[:5].reshape(-1, 1))
+    fs.release()
+    intr = read_intrinsics(tmp_path / "out_camera_data.xml")
+    np.testing.assert_array_equal(intr.K, K)
+    np.testing.assert_array_equal(intr.dist, DIST[:5])

@@ -443,3 +443,120 @@ def test_csv_stamps_without_a_unit_in_nanoseconds(tmp_path):
     assert traj.stamps_ns.tolist() == [1403636579758555392, 1403636579763555584]
     (tmp_path / "s.csv").write_text("t,x,y,z,qx,qy,qz,qw\n12.5,0,0,0,0,0,0,1\n13,0,0,0,0,0,0,1\n")
     assert read_pose_csv(tmp_path / "s.csv").stamps.tolist() == [12.5, 13.0]
+
+
+def test_euroc_header_names_read_w_first(tmp_path, poses):
+    """EuRoC's vicon0/data.csv and state_groundtruth_estimate0/data.csv name their columns
+    ``p_RS_R_x [m]`` and ``q_RS_w []`` (w first), with velocity and bias columns after: read by
+    those names without ``columns:``, the quaternion in the header's order (refused before:
+    'no column for tx')."""
+    stamps, T = poses
+    q = geometry.quat_from_transform(T)
+    head = ("#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],"
+            "q_RS_y [],q_RS_z [],v_RS_R_x [m s^-1],v_RS_R_y [m s^-1],v_RS_R_z [m s^-1],"
+            "b_w_RS_S_x [rad s^-1],b_w_RS_S_y [rad s^-1],b_w_RS_S_z [rad s^-1]")
+    rows = [head] + [",".join([str(1403636579758555392 + 5_000_000 * k),
+                               *map(_fmt, Ti[:3, 3]), _fmt(qi[3]), *map(_fmt, qi[:3]),
+                               "0.1", "0.2", "0.3", "0", "0", "0"])
+                     for k, (Ti, qi) in enumerate(zip(T, q))]
+    (tmp_path / "data.csv").write_text("\n".join(rows) + "\n")
+    assert sniff_mocap_format(tmp_path / "data.csv") == "csv"
+    traj = read_mocap(MocapSpec(tmp_path / "data.csv", format="csv"))
+    np.testing.assert_allclose(traj.T, T, atol=1e-12)
+    assert traj.stamps_ns[1] - traj.stamps_ns[0] == 5_000_000
+
+
+def test_a_csv_with_decimal_commas_says_so(tmp_path):
+    """A spreadsheet's CSV of semicolons and decimal commas: one line naming the cell and
+    the decimal comma (before: only 'expected a number for t')."""
+    (tmp_path / "d.csv").write_text("time;x;y;z;qx;qy;qz;qw\n0,5;1,25;0;0;0;0;0;1\n")
+    with pytest.raises(DatasetError, match=r"d.csv:2: expected a number for t, got '0,5'; "
+                                           r"a decimal comma"):
+        read_pose_csv(tmp_path / "d.csv")
+
+
+def test_several_rigid_bodies_say_which_key_chooses(tmp_path, poses):
+    """An export of several rigid bodies (or segments) names the rig.yaml key that chooses
+    one (before: 'choose one by name', no key named)."""
+    stamps, T = poses
+    _optitrack(tmp_path / "take.csv", stamps, T)
+    with pytest.raises(DatasetError, match=r"2 rigid bodys? in the file \(Other, Target\); "
+                                           r"choose one with rigid_body: <name> under mocap"):
+        read_optitrack_csv(tmp_path / "take.csv")
+
+
+def test_a_csv_of_euler_angles_or_matrices_is_read_as_stamped_rows(tmp_path, poses):
+    """A CSV export whose rotation is Euler angles, a rotation vector or a matrix: as a
+    generic CSV it is one line saying how to read it (before: only 'no column for qx', and
+    the header row then refused by the stamped rows); read so (format: tum with values /
+    rotation), its header row is skipped, and names that are those of values give the
+    columns' order; stamps in nanoseconds are still decided by the first row of numbers."""
+    stamps, T = poses
+    eul = Rotation.from_matrix(T[:, :3, :3]).as_euler("xyz", degrees=True)
+    rows = ["time,x,y,z,roll,pitch,yaw"] + [",".join(map(_fmt, [s, *Ti[:3, 3], *e]))
+                                              for s, Ti, e in zip(stamps, T, eul)]
+    (tmp_path / "e.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(DatasetError, match=r"no column for qx.*rotation other than a "
+                                           r"quaternion: read the file with format: tum"):
+        read_mocap(MocapSpec(tmp_path / "e.csv", format="csv"))
+    traj = read_mocap(MocapSpec(tmp_path / "e.csv", format="tum", rotation="euler-xyz-deg",
+                                values=("t", "x", "y", "z", "rx", "ry", "rz")))
+    np.testing.assert_allclose(traj.T, T, atol=1e-9)
+    np.testing.assert_allclose(traj.stamps, stamps)
+    q = geometry.quat_from_transform(T)
+    ns = [1403636579758555392 + 5_000_000 * k for k in range(len(T))]
+    rows = ["t [ns],qw,qx,qy,qz,x,y,z"] + [
+        ",".join([str(n), *map(_fmt, [qi[3], *qi[:3], *Ti[:3, 3]])]) for n, Ti, qi in
+        zip(ns, T, q)]
+    (tmp_path / "w.csv").write_text("\n".join(rows) + "\n")
+    traj = read_mocap(MocapSpec(tmp_path / "w.csv", format="tum",
+                                values=("t", "x", "y", "z", "qx", "qy", "qz", "qw")))
+    np.testing.assert_allclose(traj.T, T, atol=1e-12)
+    assert traj.stamps_ns is None or traj.stamps_ns.tolist() == ns
+    assert abs(traj.stamps[1] - traj.stamps[0] - 0.005) < 1e-6    # nanoseconds, not seconds
+    rows = ["t,r11,r12,r13,x"] + ["0,1,0,0,0"]
+    (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(DatasetError, match=r"m.csv:1: the header row has 5 names"):
+        read_mocap(MocapSpec(tmp_path / "m.csv", format="tum", rotation="matrix"))
+
+
+def test_a_vicon_tracker_export_is_refused_saying_what_to_do(tmp_path):
+    """Vicon Tracker's CSV starts 'Objects' (not a Nexus section) and its angles are helical
+    or Euler by a setting it does not record: one line saying so and what to export, whether
+    recognised or read as format: csv (before: 'no column for t ... header has Objects')."""
+    (tmp_path / "tracker.csv").write_text(
+        "Objects\n100\n,,Global Angle board:board,,,,,\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n"
+        ",,rad,rad,rad,mm,mm,mm\n1,0,0.1,0.2,0.3,10,20,30\n")
+    for call in (lambda: sniff_mocap_format(tmp_path / "tracker.csv"),
+                 lambda: read_pose_csv(tmp_path / "tracker.csv")):
+        with pytest.raises(DatasetError, match=r"tracker.csv:1: a Vicon Tracker export .* "
+                                               r"does not guess; export from Nexus"):
+            call()
+
+
+def test_rostopic_csv_dumps_and_spaced_names_are_read(tmp_path, poses):
+    """``rostopic echo -p`` dumps (field.pose.position.x, field.transform.rotation.w, the
+    header stamp in nanoseconds beside the record time %time) and spreadsheet names with
+    spaces (Pos X (mm), Quat W) are read by name; columns: names a spaced header as written
+    (before: 'no column for tx')."""
+    stamps, T = poses
+    q = geometry.quat_from_transform(T)
+    ns = [1_700_000_000_000_000_000 + 10_000_000 * k for k in range(len(T))]
+    head = ("%time,field.header.seq,field.header.stamp,field.header.frame_id,"
+            "field.child_frame_id,field.transform.translation.x,field.transform.translation.y,"
+            "field.transform.translation.z,field.transform.rotation.x,"
+            "field.transform.rotation.y,field.transform.rotation.z,field.transform.rotation.w")
+    rows = [head] + [",".join([str(n + 3_000_000), "0", str(n), "world", "board",
+                               *map(_fmt, Ti[:3, 3]), *map(_fmt, qi)])
+                     for n, Ti, qi in zip(ns, T, q)]
+    (tmp_path / "tf.csv").write_text("\n".join(rows) + "\n")
+    traj = read_pose_csv(tmp_path / "tf.csv")
+    np.testing.assert_allclose(traj.T, T, atol=1e-12)
+    assert traj.stamps_ns.tolist() == ns                  # the header stamp, not %time
+    rows = ["Time (s),Pos X (mm),Pos Y (mm),Pos Z (mm),Quat X,Quat Y,Quat Z,Quat W"] + [
+        ",".join(map(_fmt, [s, *(Ti[:3, 3] * 1000), *qi])) for s, Ti, qi in zip(stamps, T, q)]
+    (tmp_path / "s.csv").write_text("\n".join(rows) + "\n")
+    np.testing.assert_allclose(read_pose_csv(tmp_path / "s.csv").T, T, atol=1e-12)
+    traj = read_pose_csv(tmp_path / "s.csv", columns={"tx": "Pos X", "ty": "Pos Y",
+                                                      "tz": "Pos Z"})
+    np.testing.assert_allclose(traj.T, T, atol=1e-12)

@@ -44,6 +44,10 @@ def pose_bag(request, tmp_path, rng):
             bag.write("/tf", bag.t("tf2_msgs/msg/TFMessage")(transforms=[
                 bag.transform_stamped(ns, "world", "rig", T[i]),
                 bag.transform_stamped(ns, "world", "other", T_other[i])]), rec)
+            bag.write("/rig/pose_cov", bag.t("geometry_msgs/msg/PoseWithCovarianceStamped")(
+                header=bag.header(ns, "world"), pose=bag.t(
+                    "geometry_msgs/msg/PoseWithCovariance")(pose=bag.pose(T[i]),
+                                                            covariance=cov)), rec)
             bag.write("/odom", bag.t("nav_msgs/msg/Odometry")(
                 header=bag.header(ns, "world"), child_frame_id="rig",
                 pose=bag.t("geometry_msgs/msg/PoseWithCovariance")(pose=bag.pose(T[i]),
@@ -55,6 +59,7 @@ def pose_bag(request, tmp_path, rng):
 @pytest.mark.parametrize("topic, frames", [
     ("/vicon/rig/pose", {}),
     ("/rig/transform", {}),
+    ("/rig/pose_cov", {}),
     ("/odom", {"child_frame": "rig"}),
     ("/tf", {"parent_frame": "world", "child_frame": "/rig"}),
 ])
@@ -149,7 +154,7 @@ def test_image_topics_decode(tmp_path, rng, ros):
         bag.write("/cam/raw", image_msg(bag, BASE_NS + 3, bgr, "bgr8"), BASE_NS + 3)
         bag.write("/cam/compressed", bag.t("sensor_msgs/msg/CompressedImage")(
             header=bag.header(0, "cam"), format="png", data=png.reshape(-1)), BASE_NS + 9)
-        bag.write("/cam/weird", image_msg(bag, BASE_NS, bgr, "yuv422"), BASE_NS)
+        bag.write("/cam/weird", image_msg(bag, BASE_NS, bgr, "bayer_rggb16"), BASE_NS)
     images = list(iter_bag_images(path, "/cam/raw"))
     assert [s for s, _ in images] == [BASE_NS, BASE_NS + 1, BASE_NS + 2, BASE_NS + 3]
     assert np.array_equal(images[0][1], bgr[..., 0])
@@ -159,7 +164,8 @@ def test_image_topics_decode(tmp_path, rng, ros):
     (stamp, decoded), = iter_bag_images(path, "/cam/compressed")
     assert stamp == BASE_NS + 9  # zero header stamp -> record time
     assert np.array_equal(decoded, bgr)
-    with pytest.raises(DatasetError, match="image encoding 'yuv422' is not supported"):
+    with pytest.raises(DatasetError, match="image encoding 'bayer_rggb16' is not supported.*"
+                                           "republish the topic"):
         list(iter_bag_images(path, "/cam/weird"))
     with pytest.raises(DatasetError, match="has type sensor_msgs/Image; expected one of"):
         read_bag_trajectory(path, "/cam/raw")
@@ -273,3 +279,49 @@ def test_exif_orientation_of_compressed_images_ignored(tmp_path, ros):
     (_, decoded), = iter_bag_images(path, "/cam/jpeg")
     assert decoded.shape == (48, 64)
     assert decoded[:8, :8].mean() > 200 and decoded[-8:, -8:].mean() < 50   # as stored
+
+
+@pytest.mark.parametrize("ros", [1, 2], ids=["ros1", "ros2"])
+def test_yuv422_images_decode_with_their_luma(tmp_path, ros):
+    """ROS's ``yuv422`` (UYVY) and ``yuv422_yuy2`` (YUYV) cameras (usb_cam's defaults):
+    decoded with the luma taken from the right bytes (refused before as unsupported)."""
+    path = _bag_path(tmp_path, ros)
+    luma = np.arange(6 * 8, dtype=np.uint8).reshape(6, 8) * 5 + 10
+    chroma = np.full_like(luma, 128)
+    uyvy = np.stack([chroma, luma], axis=-1)      # U Y V Y ...: chroma byte first
+    yuyv = np.stack([luma, chroma], axis=-1)
+    with Bag(path, ros) as bag:
+        for k, (enc, pixels) in enumerate((("yuv422", uyvy), ("yuv422_yuy2", yuyv))):
+            bag.write("/cam", image_msg(bag, BASE_NS + k, pixels, enc), BASE_NS + k)
+    (_, a), (_, b) = iter_bag_images(path, "/cam")
+    assert a.shape == (6, 8, 3) and np.array_equal(a, b)
+    assert np.corrcoef(a[..., 1].ravel(), luma.ravel())[0, 1] > 0.999
+
+
+def test_bag_files_that_cannot_be_read_say_what_to_do(tmp_path, rng):
+    """A ROS 2 .mcap (or .db3) copied without its metadata.yaml, and a ROS 1 bag cut short:
+    one line each naming the tool that repairs it (before: 'Expected metadata file <folder>
+    does not exist', 'Bag index looks damaged' alone)."""
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
+
+    bag = Bag(tmp_path / "rec", 2)
+    bag.writer = Writer2(tmp_path / "rec", version=9, storage_plugin=StoragePlugin.MCAP)
+    img = rng.integers(0, 256, (4, 6), dtype=np.uint8)
+    with bag:
+        bag.write("/cam", image_msg(bag, BASE_NS, img, "mono8"), BASE_NS)
+    (stamp, got), = iter_bag_images(tmp_path / "rec" / "rec.mcap", "/cam")
+    assert np.array_equal(got, img)
+    lone = tmp_path / "lone.mcap"
+    lone.write_bytes((tmp_path / "rec" / "rec.mcap").read_bytes())
+    with pytest.raises(DatasetError, match=r"lone.mcap: a ROS 2 bag's .mcap file is read with "
+                                           r"the metadata.yaml .* 'ros2 bag reindex <folder>' "
+                                           r"-s mcap"):
+        list(iter_bag_images(lone, "/cam"))
+    with Bag(tmp_path / "one.bag", 1) as bag1:
+        bag1.write("/cam", image_msg(bag1, BASE_NS, img, "mono8"), BASE_NS)
+    data = (tmp_path / "one.bag").read_bytes()
+    (tmp_path / "cut.bag").write_bytes(data[: len(data) // 2])
+    with pytest.raises(DatasetError, match=r"cut.bag: cannot read the bag: .*repaired by "
+                                           r"'rosbag reindex'"):
+        list(iter_bag_images(tmp_path / "cut.bag", "/cam"))

@@ -292,3 +292,31 @@ def test_stamps_in_integer_nanoseconds_are_read_as_image_names_are(tmp_path):
     with pytest.raises(DatasetError, match="no usable pose: all 2 rows left out; line 1: absurd "
                        "time stamp.*; every stamp in milliseconds or microseconds"):
         read_tum(path)
+
+
+def test_semicolons_read_and_other_rows_say_what_they_may_be(tmp_path, rng):
+    """Semicolons separate TUM numbers as commas do (European spreadsheet exports; refused
+    before with 'got 1'); decimal commas, rows of 7 numbers (a rotation vector or Euler
+    angles), 13 or 17 (a matrix) are one line that says what to write in rig.yaml; a stamped
+    4x4 (17 numbers) is read with rotation: matrix, as the 3x4 (13) is."""
+    from multieye.io.mocap import MocapSpec, read_mocap
+
+    T = geometry.random_transforms(rng, 3)
+    q = geometry.quat_from_transform(T)
+    rows = [[k + 0.5, *T[k, :3, 3].tolist(), *q[k].tolist()] for k in range(3)]
+    (tmp_path / "semi.txt").write_text("".join(";".join(map(repr, r)) + "\n" for r in rows))
+    np.testing.assert_allclose(read_tum(tmp_path / "semi.txt").T, T, atol=1e-12)
+    (tmp_path / "comma.txt").write_text("".join(
+        " ".join(repr(v).replace(".", ",") for v in r) + "\n" for r in rows))
+    with pytest.raises(DatasetError, match=r"comma.txt:1: .*got 16 .*decimal commas"):
+        read_tum(tmp_path / "comma.txt")
+    for name, numbers, hint in (("rv", [0.5, 1, 2, 3, 0.1, 0.2, 0.3], "rotation: rotvec"),
+                                ("m12", [0.5, *T[0, :3].ravel().tolist()], "rotation: matrix"),
+                                ("m16", [0.5, *T[0].ravel().tolist()], "rotation: matrix")):
+        (tmp_path / f"{name}.txt").write_text(" ".join(map(repr, numbers)) + "\n")
+        with pytest.raises(DatasetError, match=f"got {len(numbers)} .*{hint}"):
+            read_tum(tmp_path / f"{name}.txt")
+    (tmp_path / "m16.txt").write_text("".join(
+        " ".join(map(repr, [k + 0.5, *T[k].ravel().tolist()])) + "\n" for k in range(3)))
+    traj = read_mocap(MocapSpec(tmp_path / "m16.txt", format="tum", rotation="matrix"))
+    np.testing.assert_allclose(traj.T, T, atol=1e-12)

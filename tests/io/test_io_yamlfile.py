@@ -142,3 +142,16 @@ def test_opencv_filestorage_nesting_is_refused_before_opencv_parses_it(tmp_path,
                                      + "<a>" * 100_000 + "</a>" * 100_000 + "</opencv_storage>")
     with pytest.raises(DatasetError, match="cv.xml: FileStorage refused: nested deeper"):
         read_intrinsics(tmp_path / "cv.xml")
+
+
+def test_empty_documents_pass_and_a_second_document_is_one_line(tmp_path):
+    """A saved ``ros2 topic echo --once`` ends with ``---`` (an empty second document), and a
+    file may start with one: read as the one document. Two documents with content: one line
+    naming the second's line and what to do (before: 'invalid YAML: but found another
+    document' for both)."""
+    assert parse_yaml("---\na: 1\n---\n", "f.yaml").data == {"a": 1}
+    assert parse_yaml("a: 1\n...\n---\n", "f.yaml").data == {"a": 1}
+    with pytest.raises(DatasetError, match=r"f.yaml:2: a second YAML document starts here"
+                                           r".*expected one document") as info:
+        parse_yaml("a: 1\n---\nb: 2\n", "f.yaml")
+    assert "\n" not in str(info.value)

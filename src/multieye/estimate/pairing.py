@@ -58,6 +58,22 @@ class Pairing:
     noise_scale: np.ndarray | None = None
 
 
+
+def _unit_hint(q: float, stamps: np.ndarray) -> str:
+    """A hint when an image stamp is a power of 1000 times the motion capture's stamps (one
+    clock written in milliseconds, microseconds or nanoseconds where the other is in
+    seconds): empty otherwise."""
+    mid = float(np.median(stamps))
+    if not (q > 0 and mid > 0):
+        return ""
+    power = round(float(np.log10(q / mid)) / 3)
+    if power == 0 or abs(float(np.log10(q / mid)) - 3 * power) > 0.05:
+        return ""
+    bigger = "image stamps" if power > 0 else "motion-capture stamps"
+    return (f"; the {bigger} are about {1000 ** abs(power):g} times the others: one clock in "
+            "other units (milliseconds, microseconds, nanoseconds) than the other? (a file's "
+            "stamps of 16 to 19 digits are read as nanoseconds)")
+
 def interpolate_poses(T0: ArrayLike, T1: ArrayLike, alpha: ArrayLike) -> np.ndarray:
     """Poses a fraction ``alpha`` of the way from ``T0`` to ``T1``.
 
@@ -153,7 +169,7 @@ def pair_in_time(stamps: ArrayLike, T: ArrayLike, query: ArrayLike, *, tolerance
         if stamps.size and (q[i] < stamps[0] or q[i] > stamps[-1]):
             where = "before" if q[i] < stamps[0] else "after"
             why = (f"{where} the motion-capture recording ({stamps[0]:.3f}..{stamps[-1]:.3f} s), "
-                   f"nearest sample {gap[i]:.3f} s away")
+                   f"nearest sample {gap[i]:.3f} s away{_unit_hint(q[i], stamps)}")
         else:
             why = f"nearest motion-capture sample is {gap[i]:.3f} s away"
         unpaired.append((int(i), why))

@@ -125,10 +125,10 @@ def process_image(path, target: Target, intrinsics: Intrinsics | None, *,
         header stating more pixels than :data:`~multieye.core.limits.MAX_IMAGE_PIXELS`,
         another size than the intrinsics state, no target, degenerate points); the file is
         read by :func:`multieye.imaging.image_file.read_gray` (size checked before decoding,
-        EXIF orientation ignored, with a warning).
+        EXIF orientation ignored with a warning, unless only the turned image fits).
     """
     path = str(path)
-    image, reason, notes = read_gray(path)
+    image, reason, notes = read_gray(path, intrinsics and (intrinsics.width, intrinsics.height))
     if image is None:
         return ImageResult(path, None, None, reason)
     res = process_array(image, path, target, intrinsics, max_rms_px=max_rms_px)

@@ -375,7 +375,7 @@ def look_again(results: Sequence[ImageResult], target: Target, intrinsics: Intri
         image = None
         if r.detection is None and (r.reason or "").startswith("target not detected") \
                 and r.image_size == (intrinsics.width, intrinsics.height):
-            image = read_gray(r.path)[0]
+            image = read_gray(r.path, (intrinsics.width, intrinsics.height))[0]
         det = None if image is None else second_look(image, target, intrinsics)
         out.append(r if det is None else replace(r, detection=det, reason=None,
                                                  warnings=r.warnings + det.warnings,

@@ -11,7 +11,11 @@ with a byte bound: :mod:`multieye.core.regular_files`).
 
 EXIF orientation is ignored: the pixels are used as the sensor wrote them
 (``cv2.IMREAD_IGNORE_ORIENTATION``), since the intrinsics and the target's detections are in
-the sensor's frame; an orientation other than 1 (as stored) gives a note.
+the sensor's frame; an orientation other than 1 (as stored) gives a note.  One exception
+(:func:`turns_to_fit`): an image whose orientation turns it by a quarter (5 to 8) and whose
+stored size is the intrinsics' size transposed is turned as its EXIF says, as
+``cv2.imread`` shows it by default, since the intrinsics can only be of the turned image
+(made by a tool that applied the EXIF); a note says so.
 
 >>> from multieye.imaging.image_file import read_gray
 >>> image, reason, notes = read_gray("cam0/1700000000.5.png")      # doctest: +SKIP
@@ -26,7 +30,7 @@ from multieye.core.image_header import FORMATS, ImageHeader, image_header, size_
 from multieye.core.limits import MAX_IMAGE_BYTES
 from multieye.core.regular_files import read_bounded
 
-__all__ = ["ImageHeader", "image_header", "read_gray", "FORMATS"]
+__all__ = ["ImageHeader", "image_header", "read_gray", "turns_to_fit", "FORMATS"]
 
 
 def checked_bytes(path) -> tuple[bytes | None, ImageHeader | None, str | None]:
@@ -58,18 +62,28 @@ def checked_bytes(path) -> tuple[bytes | None, ImageHeader | None, str | None]:
     return data, header, None
 
 
-def decode_gray(data: bytes, reduce: int = 1) -> tuple[np.ndarray | None, str | None]:
+def turns_to_fit(header: ImageHeader, fit: tuple[int | None, int | None] | None) -> bool:
+    """Whether an image is to be turned as its EXIF orientation says: the orientation turns
+    it by a quarter (5 to 8) and its stored ``(width, height)`` is ``fit`` (the intrinsics'
+    image size) transposed, so only the turned image fits the intrinsics."""
+    return (fit is not None and None not in fit and header.orientation in (5, 6, 7, 8)
+            and (header.height, header.width) == tuple(fit) and fit[0] != fit[1])
+
+
+def decode_gray(data: bytes, reduce: int = 1, *, orient: bool = False
+                ) -> tuple[np.ndarray | None, str | None]:
     """Checked bytes (:func:`checked_bytes`) decoded to 8-bit gray pixels as stored (EXIF
-    orientation ignored), at 1/``reduce`` of the size (``reduce`` 1, 2, 4 or 8; JPEG decoders
-    scale while decoding, other formats are decoded whole). Returns the image or None and
-    the reason."""
+    orientation ignored; ``orient``: applied, as OpenCV applies it, :func:`turns_to_fit`),
+    at 1/``reduce`` of the size (``reduce`` 1, 2, 4 or 8; JPEG decoders scale while
+    decoding, other formats are decoded whole). Returns the image or None and the reason."""
     import cv2  # noqa: PLC0415 (heavy: OpenCV loads only when an image is decoded)
 
     flag = {1: cv2.IMREAD_GRAYSCALE, 2: cv2.IMREAD_REDUCED_GRAYSCALE_2,
             4: cv2.IMREAD_REDUCED_GRAYSCALE_4, 8: cv2.IMREAD_REDUCED_GRAYSCALE_8}[reduce]
+    if not orient:
+        flag |= cv2.IMREAD_IGNORE_ORIENTATION
     try:
-        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8),
-                             flag | cv2.IMREAD_IGNORE_ORIENTATION | cv2.IMREAD_ANYDEPTH)
+        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), flag | cv2.IMREAD_ANYDEPTH)
     except cv2.error as exc:
         lines = str(exc).strip().splitlines()
         return None, f"unreadable file: OpenCV cannot decode it ({lines[-1] if lines else exc})"
@@ -90,8 +104,16 @@ def _to_8_bits(image: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(img * (255.0 / top if top > 0 else 1.0)), 0, 255).astype(np.uint8)
 
 
-def read_gray(path) -> tuple[np.ndarray | None, str | None, tuple[str, ...]]:
+def read_gray(path, fit: tuple[int | None, int | None] | None = None
+              ) -> tuple[np.ndarray | None, str | None, tuple[str, ...]]:
     """One image file as 8-bit gray pixels, as the sensor wrote them.
+
+    Parameters
+    ----------
+    path : path-like
+    fit : (width, height), optional
+        The intrinsics' image size: an image whose EXIF orientation turns it by a quarter
+        and whose stored size is this transposed is turned (:func:`turns_to_fit`).
 
     Returns
     -------
@@ -101,16 +123,21 @@ def read_gray(path) -> tuple[np.ndarray | None, str | None, tuple[str, ...]]:
         file, empty, too large, a header that is none of :data:`FORMATS`, a size beyond the
         bounds, a decoder failure).
     notes : tuple of str
-        An EXIF orientation other than 1, which was ignored.
+        An EXIF orientation other than 1, which was ignored (or applied).
     """
     data, header, reason = checked_bytes(path)
     if reason is not None:
         return None, reason, ()
-    image, reason = decode_gray(data)
+    turn = turns_to_fit(header, fit)
+    image, reason = decode_gray(data, orient=turn)
     if reason is not None:
         return None, reason, ()
     notes = ()
-    if header.orientation != 1:
+    if turn:
+        notes = (f"EXIF orientation {header.orientation} applied: the stored {header.width} x "
+                 f"{header.height} pixels turned to the intrinsics' {fit[0]} x {fit[1]}, as "
+                 "cv2.imread shows them",)
+    elif header.orientation != 1:
         notes = (f"EXIF orientation {header.orientation} ignored: the pixels are used as "
                  "stored (the sensor's frame)",)
     return image, None, notes

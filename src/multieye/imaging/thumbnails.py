@@ -21,7 +21,7 @@ import os
 import cv2
 import numpy as np
 
-from multieye.imaging.image_file import checked_bytes, decode_gray
+from multieye.imaging.image_file import checked_bytes, decode_gray, turns_to_fit
 
 __all__ = ["residual_thumbnail", "crop_box", "POINT_BGR", "RESIDUAL_BGR"]
 
@@ -30,7 +30,7 @@ POINT_BGR = (255, 220, 0)
 RESIDUAL_BGR = (255, 0, 230)
 
 
-def _read_reduced(path: str, max_width: int) -> tuple[np.ndarray, float] | None:
+def _read_reduced(path: str, max_width: int, fit=None) -> tuple[np.ndarray, float] | None:
     """The image in grayscale at a reduced size, and the factor from full-size pixels to it;
     read with the same bounds and header checks as detection (:mod:`multieye.imaging.image_file`).
 
@@ -41,12 +41,14 @@ def _read_reduced(path: str, max_width: int) -> tuple[np.ndarray, float] | None:
     if reason is not None:
         return None
     reduce = 1
+    turn = turns_to_fit(header, fit)      # as detection read it (image_file.read_gray)
+    width = header.height if turn else header.width
     if header.format == "JPEG":
-        reduce = next((f for f in (8, 4, 2) if header.width / f >= max_width), 1)
-    image, reason = decode_gray(data, reduce)
+        reduce = next((f for f in (8, 4, 2) if width / f >= max_width), 1)
+    image, reason = decode_gray(data, reduce, orient=turn)
     if image is None:
         return None
-    return image, image.shape[1] / header.width
+    return image, image.shape[1] / width
 
 
 def crop_box(uv: np.ndarray, width: float, height: float, margin: float = 0.25,
@@ -100,7 +102,7 @@ def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.nda
     path = os.fspath(path)
     if not os.path.isfile(path):
         return None
-    read = _read_reduced(path, max_width * 3 if crop else max_width)
+    read = _read_reduced(path, max_width * 3 if crop else max_width, image_size)
     if read is None:
         return None
     image, reduced = read

@@ -67,6 +67,7 @@ from multieye.io.intrinsics_mapping import (
 from multieye.io.intrinsics_mapping import IGNORED_KEYS as _MAPPING_IGNORED
 from multieye.io.kalibr import (
     CamchainEntry, camchain_entries, intrinsics_from_kalibr, is_camchain, write_camchain)
+from multieye.io.slam_configs import intrinsics_from_slam_config, slam_config_kind
 from multieye.io.textfile import read_text
 from multieye.io.yamlfile import MAX_YAML_BYTES, MAX_YAML_DEPTH, YamlDocument, parse_yaml, yaml_list
 
@@ -110,7 +111,8 @@ _ROS_SIZES = {"plumb_bob": 5, "rational_polynomial": 8, "equidistant": 4}
 _FORMATS = ("expected OpenCV FileStorage (%YAML:1.0 or XML with camera_matrix), a Kalibr "
             "camchain (camera_model, intrinsics), ROS camera_info, JSON or YAML with a camera "
             "matrix (K, camera_matrix, or fx fy cx cy), aslam_cv's camera YAML (type, "
-            "intrinsics, distortion), a mrcal .cameramodel or a BoofCV camera YAML")
+            "intrinsics, distortion), a mrcal .cameramodel, a BoofCV camera YAML, EuRoC's "
+            "sensor.yaml, camodocal's (VINS) or ORB-SLAM's camera settings")
 
 
 def _read(path) -> str:
@@ -167,8 +169,8 @@ def _key_lines(text: str) -> dict:
     """Line of each top-level key of a FileStorage text (YAML ``key:`` at the margin, XML
     ``<key>`` one level in), for messages."""
     xml = text.lstrip().startswith("<")
-    pattern = re.compile(r"^ {0,4}<([A-Za-z_]\w*)[\s>/]" if xml else r"^([A-Za-z_]\w*)\s*:",
-                         re.M)
+    pattern = re.compile(r"^ {0,4}<([A-Za-z_]\w*)[\s>/]" if xml else
+                         r"^([A-Za-z_][\w.]*)\s*:", re.M)     # ORB-SLAM's Camera.fx too
     lines: dict = {}
     for m in pattern.finditer(text):
         lines.setdefault((m.group(1),), text.count("\n", 0, m.start()) + 1)
@@ -223,6 +225,8 @@ def _opencv_document(text: str, p: Path) -> YamlDocument:
             raise DatasetError("expected a FileStorage map with camera_matrix (or K)", path=p)
         keys = list(root.keys())
         doc = YamlDocument(p, dict.fromkeys(keys), _key_lines(text))
+        if not has_camera_matrix(doc.data) and slam_config_kind(doc.data) is not None:
+            return YamlDocument(p, {k: value(fs.getNode(k), k) for k in keys}, doc.lines)
         if not has_camera_matrix(doc.data):
             raise DatasetError("no camera_matrix (or K); keys present: "
                                f"{', '.join(keys) or 'none'}", path=p)
@@ -250,8 +254,11 @@ def read_opencv_intrinsics(path: str | os.PathLike) -> Intrinsics:
     return _opencv(_read(path), Path(path))
 
 
-def _opencv(text: str, p: Path) -> Intrinsics:
-    return intrinsics_from_mapping(_opencv_document(text, p))
+def _opencv(text: str, p: Path, camera: str | None = None) -> Intrinsics:
+    doc = _opencv_document(text, p)
+    if slam_config_kind(doc.data) is not None:     # camodocal (VINS), ORB-SLAM settings
+        return intrinsics_from_slam_config(doc, camera)
+    return intrinsics_from_mapping(doc)
 
 
 def write_opencv_intrinsics(path: str | os.PathLike, intr: Intrinsics) -> None:
@@ -367,8 +374,11 @@ def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) ->
             camera = prefer
     if camera is None:
         if len(entries) != 1:
+            first = entries[0][0] if entries else "cam0"
             raise doc.error(f"the camchain has {len(entries)} cameras "
-                            f"({', '.join(k for k, _ in entries)}); choose one by name")
+                            f"({', '.join(k for k, _ in entries)}); choose one with "
+                            f"intrinsics: {{file: {doc.path.name}, camera: {first}}} in "
+                            "rig.yaml")
         return _kalibr_entry(entries[0][1], doc, entries[0][0])
     for key, entry in entries:
         if camera in (key, entry.get("camera_name")):
@@ -436,6 +446,8 @@ def _load(path) -> tuple[str, object]:
         doc = parse_yaml(text, path)
     if not isinstance(doc.data, Mapping):
         raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
+    if slam_config_kind(doc.data) is not None:     # before Kalibr: EuRoC has camera_model
+        return "slam", doc
     if is_camchain(doc.data):
         return "kalibr", doc
     if is_boofcv(doc.data):
@@ -447,6 +459,35 @@ def _load(path) -> tuple[str, object]:
     if is_aslam(doc.data):
         return "aslam", doc
     raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
+
+
+def _is_calibration_json(path) -> bool:
+    """Whether a ``.json`` file starts as multieye's calibration.json (its first keys), judged
+    on its first 4 KiB: such a file may be larger than an intrinsics file and has its own
+    reader (:func:`multieye.io.calibration_json.read_calibration`)."""
+    if not isinstance(path, (str, os.PathLike)) or Path(path).suffix.lower() != ".json" or \
+            not Path(path).is_file():
+        return False                            # not a path: refused by the reader below
+    with open(path, "rb") as f:
+        head = f.read(4096).decode("utf-8", "replace")
+    return '"format_version"' in head and ('"setup"' in head or '"cameras"' in head)
+
+
+def _from_calibration_json(path, camera: str | None, prefer: str | None) -> Intrinsics:
+    """One camera's lens from a calibration.json of an earlier run (``camera``, else the rig
+    camera of the same name ``prefer``, else the only camera)."""
+    from multieye.io.calibration_json import read_calibration  # noqa: PLC0415 (only for this)
+
+    lenses = {c.name: c.intrinsics for c in read_calibration(path).cameras
+              if c.intrinsics is not None}
+    name = camera if camera is not None else prefer if prefer in lenses else (
+        next(iter(lenses)) if len(lenses) == 1 else None)
+    if name not in lenses:
+        what = f"camera {name!r} has no lens here" if name else "choose a camera"
+        raise DatasetError(f"calibration.json: {what} (cameras with a lens: "
+                           f"{', '.join(lenses) or 'none'}); give intrinsics: {{file: "
+                           f"{Path(path).name}, camera: <name>}} in rig.yaml", path=path)
+    return lenses[name].intrinsics
 
 
 def read_camera_info(path: str | os.PathLike) -> Intrinsics:
@@ -490,9 +531,13 @@ def read_intrinsics(path: str | os.PathLike, camera: str | None = None, *,
         Missing or unreadable file, unrecognised format (listing the formats), unsupported
         camera or distortion model, wrong number of coefficients; with the line where known.
     """
+    if _is_calibration_json(path):
+        return _from_calibration_json(path, camera, prefer)
     kind, content = _load(path)
     if kind == "opencv":
-        return _opencv(content, Path(path))
+        return _opencv(content, Path(path), camera)
+    if kind == "slam":
+        return intrinsics_from_slam_config(content, camera)
     if kind == "cameramodel":
         return cameramodel.intrinsics_from_cameramodel(content, Path(path))
     if kind == "kalibr":

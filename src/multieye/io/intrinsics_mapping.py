@@ -12,18 +12,22 @@ aslam_cv's camera YAML (ETH Zurich's hand-eye tools, maplab) is read by
 
 Layouts (each one read from JSON or YAML):
 
-- a camera matrix under one of ``camera_matrix``, ``K``, ``k``, ``cameraMatrix``, ``mtx``:
+- a camera matrix under one of ``camera_matrix``, ``K``, ``k``, ``cameraMatrix``, ``mtx``,
+  ``Camera_Matrix`` (OpenCV 2's calibration sample and book):
   9 numbers, a 3 x 3 list, or a matrix mapping ``{rows, cols, data}`` (ROS, and OpenCV's JSON
   ``{type_id: opencv-matrix, rows, cols, dt, data}``);
 - or flat numbers ``fx fy cx cy`` (optional ``skew``);
 - the distortion under one of ``distortion_coefficients``, ``D``, ``d``, ``dist``,
-  ``dist_coeffs``, ``dist_coeff``, ``distCoeffs``, ``distortion_coeffs`` (OpenCV's order), or
+  ``dist_coeffs``, ``dist_coeff``, ``distCoeffs``, ``distortion_coeffs``,
+  ``Distortion_Coefficients`` (OpenCV's order), or
   flat ``k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4 taux tauy`` (fisheye: ``k1 k2 k3 k4``), the
   ones left out zero;
 - the model as ``distortion_model`` (or ``model``; names of
   :data:`DISTORTION_MODELS`) or OpenCV's ``fisheye_model: 0|1``;
-- the image size as ``image_width`` / ``image_height``, ``width`` / ``height`` or
-  ``resolution: [width, height]``; a ROS CameraInfo message's ``binning_x``, ``binning_y``
+- the image size as ``image_width`` / ``image_height``, ``width`` / ``height``,
+  ``resolution: [width, height]`` or ``image_size: [width, height]`` (OpenCV's ``Size``, as
+  multieye's calibration.json writes it; a size written ``[height, width]`` shows as every
+  image of the wrong resolution); a ROS CameraInfo message's ``binning_x``, ``binning_y``
   and ``roi`` are read and must describe the full image (no binning, no region of interest).
 """
 
@@ -52,14 +56,14 @@ DISTORTION_MODELS = {
 
 #: What each read key gives, and the names it may have (at most one of them in a file).
 KEYS = {
-    "camera matrix": ("camera_matrix", "K", "k", "cameraMatrix", "mtx"),
+    "camera matrix": ("camera_matrix", "K", "k", "cameraMatrix", "mtx", "Camera_Matrix"),
     "distortion": ("distortion_coefficients", "D", "d", "dist", "dist_coeffs", "dist_coeff",
-                   "distCoeffs", "distortion_coeffs"),
+                   "distCoeffs", "distortion_coeffs", "Distortion_Coefficients"),
     "distortion model": ("distortion_model", "model"),
     "fisheye flag": ("fisheye_model",),
     "image width": ("image_width", "width"),
     "image height": ("image_height", "height"),
-    "image size": ("resolution",),
+    "image size": ("resolution", "image_size"),
     "binning_x": ("binning_x",),
     "binning_y": ("binning_y",),
     "region of interest": ("roi",),
@@ -77,7 +81,8 @@ IGNORED_KEYS = {
     "OpenCV FileStorage (OpenCV's calibration samples)": (
         "calibration_time", "nframes", "nr_of_frames", "board_width", "board_height",
         "square_size", "aspectRatio", "fix_aspect_ratio", "flags", "avg_reprojection_error",
-        "per_view_reprojection_errors", "extrinsic_parameters", "image_points", "grid_points"),
+        "per_view_reprojection_errors", "extrinsic_parameters", "image_points", "grid_points",
+        "Calibrate_Accuracy"),
     "ROS camera_info YAML": ("camera_name", "rectification_matrix", "projection_matrix"),
     "ROS CameraInfo message (YAML or JSON)": ("header", "R", "P", "r", "p"),
     "JSON and YAML layouts": ("rms", "reprojection_error", "rvecs", "tvecs"),

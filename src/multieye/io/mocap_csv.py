@@ -71,18 +71,23 @@ __all__ = [
 #: Header names tried for each quantity of a generic CSV (after lower-casing and removing
 #: a leading ``#`` and a unit suffix).
 DEFAULT_COLUMNS: dict[str, tuple[str, ...]] = {
-    "t": ("t", "time", "timestamp", "stamp", "time_s", "times"),
-    "tx": ("tx", "x", "px", "pos_x", "position_x", "p_x", "t_x"),
-    "ty": ("ty", "y", "py", "pos_y", "position_y", "p_y", "t_y"),
-    "tz": ("tz", "z", "pz", "pos_z", "position_z", "p_z", "t_z"),
-    "qx": ("qx", "q_x", "quat_x", "orientation_x", "rot_x"),
-    "qy": ("qy", "q_y", "quat_y", "orientation_y", "rot_y"),
-    "qz": ("qz", "q_z", "quat_z", "orientation_z", "rot_z"),
-    "qw": ("qw", "q_w", "quat_w", "orientation_w", "rot_w"),
+    "t": ("t", "time", "timestamp", "stamp", "time_s", "times", "header_stamp"),
+    "tx": ("tx", "x", "px", "pos_x", "position_x", "p_x", "t_x", "translation_x"),
+    "ty": ("ty", "y", "py", "pos_y", "position_y", "p_y", "t_y", "translation_y"),
+    "tz": ("tz", "z", "pz", "pos_z", "position_z", "p_z", "t_z", "translation_z"),
+    "qx": ("qx", "q_x", "quat_x", "orientation_x", "rot_x", "rotation_x"),
+    "qy": ("qy", "q_y", "quat_y", "orientation_y", "rot_y", "rotation_y"),
+    "qz": ("qz", "q_z", "quat_z", "orientation_z", "rot_z", "rotation_z"),
+    "qw": ("qw", "q_w", "quat_w", "orientation_w", "rot_w", "rotation_w"),
 }
 
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-_UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([a-zA-Z]+)\s*[\])]$")
+_UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([a-zA-Z]*)\s*[\])]$")
+#: EuRoC/ASL names: ``p_<frames>_x`` (position of one frame in another, as
+#: ``p_RS_R_x``) and ``q_<frames>_w`` (EuRoC writes the quaternion w first), used when no
+#: name of :data:`DEFAULT_COLUMNS` is in the header; ``v_...``, ``b_w_...`` and other
+#: columns are not poses and are left alone.
+_EUROC_NAME = re.compile(r"^(p|q)_[a-z0-9]+(?:_[a-z0-9]+)*_([xyzw])$")
 _OPTITRACK_UNITS = {"meters": "m", "millimeters": "mm", "centimeters": "cm"}
 _VICON_SECTIONS = ("Segments", "Trajectories", "Model Outputs", "Joints", "Devices")
 #: Largest rotation-vector component accepted from a Vicon export, radians (beyond it a row is
@@ -176,12 +181,26 @@ def _screened(stamps, t, rotation, columns, path, lines, max_rotation=None):
 
 
 def _header_name(cell: str) -> tuple[str, str | None]:
+    """A header cell's name, lower case, and its unit suffix: ``Pos X [mm]`` is ``pos_x``
+    and ``mm``; a dotted ROS field path keeps its last two parts (``rostopic echo -p``'s
+    ``field.pose.position.x`` is ``position_x``, ``field.header.stamp`` is
+    ``header_stamp``)."""
     name = cell.strip().lstrip("#").strip()
     m = _UNIT_SUFFIX.match(name)
     unit = None
     if m:
-        name, unit = m.group(1), m.group(2).lower()
-    return name.lower(), unit
+        name, unit = m.group(1), m.group(2).lower() or None     # '[]': EuRoC's unitless
+    name = re.sub(r"\s+", "_", name.strip().lower())
+    return "_".join(name.split(".")[-2:]), unit
+
+
+def _euroc_role(name: str) -> str | None:
+    """The role of an EuRoC/ASL header name (``p_RS_R_x`` is ``tx``, ``q_RS_w`` is ``qw``;
+    :data:`_EUROC_NAME`), or None."""
+    m = _EUROC_NAME.match(name)
+    if m is None or (m.group(1) == "p" and m.group(2) == "w"):
+        return None
+    return ("t" if m.group(1) == "p" else "q") + m.group(2)
 
 
 def _no_header(header: list[str]) -> str:
@@ -195,17 +214,40 @@ def _no_header(header: list[str]) -> str:
             "mocap (with values: [...] for another order)")
 
 
+#: Header names of rotations other than a quaternion (Euler angles, rotation vectors, matrix
+#: entries), which a generic CSV does not read: the message says how to read them.
+_OTHER_ROTATION = re.compile(r"^(roll|pitch|yaw|rx|ry|rz|rot_?vec.*|euler.*|a[123]|"
+                             r"[rm]_?[0-4]{2}|rotation_?[xyz]|angle.*)$")
+
+
+def _other_rotation(cells: list[str]) -> str:
+    """What to do with a CSV whose rotation is not a quaternion (empty when its header cells
+    name none of :data:`_OTHER_ROTATION`)."""
+    if not any(_OTHER_ROTATION.match(n) for n in cells):
+        return ""
+    return ("; this header looks like a rotation other than a quaternion: read the file with "
+            "format: tum, values: [t, x, y, z, ...] (one name per column, in order) and "
+            "rotation: rotvec, euler-<axes>-deg or matrix under mocap in rig.yaml "
+            "(docs/rig-yaml.md, section 4); its header row is then skipped")
+
+
 def _find_columns(header: list[str], columns: Mapping[str, str] | None, path, line):
     headers = [_header_name(c) for c in header]
     found = {}
     for role, candidates in DEFAULT_COLUMNS.items():
-        wanted = (columns[role].strip().lower(),) if columns and role in columns else candidates
+        wanted = ((_header_name(columns[role])[0],) if columns and role in columns else
+                  candidates)
         hits = [j for j, (n, _) in enumerate(headers) if n in wanted]
+        if not hits and role != "t" and not (columns and role in columns):
+            hits = [j for j, (n, _) in enumerate(headers) if _euroc_role(n) == role]
+            wanted = wanted + (f"EuRoC's {'p' if role[0] == 't' else 'q'}_<frames>_{role[1]}",)
         if len(hits) != 1:
             have = ", ".join(repr(c.strip()) for c in header)
             problem = "no column" if not hits else "several columns"
+            other = _other_rotation([n for n, _ in headers]) if role != "t" else ""
             raise DatasetError(f"{problem} for {role} (looked for {' or '.join(wanted)}); "
-                               f"header has {have}{_no_header(header)}", path=path, line=line)
+                               f"header has {have}{_no_header(header)}{other}", path=path,
+                               line=line)
         found[role] = hits[0]
     if columns:
         unknown = set(columns) - set(DEFAULT_COLUMNS)
@@ -266,6 +308,7 @@ def read_pose_csv(path: str | os.PathLike, *, columns: Mapping[str, str] | None 
         raise DatasetError("empty CSV file: expected a header row", path=path)
     delimiter = "," if "," in header_line else ";" if ";" in header_line else None
     (_, header), = _rows([(first, header_line)], delimiter)
+    _refuse_tracker(header[0].strip(), path, first)
     found, names = _find_columns(header, columns, path, first)
     unit = _unit_from_header(names, found, ("tx", "ty", "tz"), unit, LENGTH_UNITS, path,
                              first) or "m"
@@ -343,8 +386,11 @@ def _choose(name: str | None, available: list[str], what: str, path) -> str:
     if name is None:
         if len(available) == 1:
             return available[0]
-        listing = ", ".join(available) or "none"
-        raise DatasetError(f"{len(available)} {what}s in the file ({listing}); choose one by name",
+        if not available:
+            raise DatasetError(f"no {what} in the file: export the {what} whose pose is "
+                               "wanted (markers alone have no orientation)", path=path)
+        raise DatasetError(f"{len(available)} {what}s in the file ({', '.join(available)}); "
+                           f"choose one with rigid_body: <name> under mocap in rig.yaml",
                            path=path)
     if name in available:
         return name
@@ -517,11 +563,26 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
                                 skipped=skipped)
 
 
+def _refuse_tracker(first: str, path, line: int | None) -> None:
+    """A Vicon Tracker export (first line ``Objects``) is refused with what to do: its
+    ``RX RY RZ`` are a helical angle or Euler XYZ angles by a Tracker setting the file does
+    not record, so no reading of them is safe."""
+    if first == "Objects":
+        raise DatasetError("a Vicon Tracker export (first line 'Objects'): its RX RY RZ are "
+                           "helical or Euler XYZ angles by a Tracker setting the file does not "
+                           "record, so multieye does not guess; export from Nexus (Segments), "
+                           "or convert the object's poses to a TUM file (t x y z qx qy qz qw) "
+                           "or to rows read with format: tum, values and rotation (rotvec or "
+                           "euler-xyz-deg; docs/rig-yaml.md, section 4)", path=path, line=line)
+
+
 def csv_flavour(path: str | os.PathLike) -> str:
-    """``"optitrack"``, ``"vicon"`` or ``"csv"`` from the first non-blank line of a CSV file."""
-    for _, line in text_lines(path, what="CSV file"):
+    """``"optitrack"``, ``"vicon"`` or ``"csv"`` from the first non-blank line of a CSV file;
+    a Vicon Tracker export is refused (:func:`_refuse_tracker`)."""
+    for number, line in text_lines(path, what="CSV file"):
         if line.strip():
             first = line.split(",")[0].strip()
+            _refuse_tracker(first, path, number)
             if first == "Format Version":
                 return "optitrack"
             if first in _VICON_SECTIONS:

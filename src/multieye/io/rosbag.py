@@ -8,6 +8,8 @@ Pose topics -> :class:`Trajectory` (:func:`read_bag_trajectory`):
 - ``tf2_msgs/TFMessage`` (``/tf``): every transform in every message; the pair of frames is
   chosen with ``parent_frame`` / ``child_frame`` (needed when the topic carries several).
 - ``nav_msgs/Odometry``: ``pose.pose`` as ``T_<header.frame_id>_<child_frame_id>``.
+- ``geometry_msgs/PoseWithCovarianceStamped``: ``pose.pose`` as ``PoseStamped``'s pose (the
+  covariance is not read).
 
 The stamp of a sample is its ``header.stamp`` (exact integer nanoseconds, kept in
 ``stamps_ns``); a zero header stamp (a publisher that never filled it) falls back to the bag's
@@ -61,7 +63,7 @@ __all__ = [
 ]
 
 POSE_TYPES = ("geometry_msgs/PoseStamped", "geometry_msgs/TransformStamped",
-              "tf2_msgs/TFMessage", "nav_msgs/Odometry")
+              "tf2_msgs/TFMessage", "nav_msgs/Odometry", "geometry_msgs/PoseWithCovarianceStamped")
 IMAGE_TYPES = ("sensor_msgs/Image", "sensor_msgs/CompressedImage")
 
 # encoding -> (numpy dtype, channels, conversion to OpenCV layout)
@@ -76,8 +78,11 @@ _PLAIN = {
 # by demosaicing a mosaic of a known colour image).
 _BAYER = {"bayer_rggb8": "COLOR_BayerBG2BGR", "bayer_bggr8": "COLOR_BayerRG2BGR",
           "bayer_gbrg8": "COLOR_BayerGR2BGR", "bayer_grbg8": "COLOR_BayerGB2BGR"}
+# YUV 4:2:2, two bytes a pixel: ROS's yuv422 is UYVY, yuv422_yuy2 is YUYV.
+_YUV = {"yuv422": "COLOR_YUV2BGR_UYVY", "uyvy": "COLOR_YUV2BGR_UYVY",
+        "yuv422_yuy2": "COLOR_YUV2BGR_YUY2", "yuyv": "COLOR_YUV2BGR_YUY2"}
 #: Encodings of ``sensor_msgs/Image`` that :func:`iter_bag_images` decodes.
-IMAGE_ENCODINGS = tuple(_PLAIN) + tuple(_BAYER)
+IMAGE_ENCODINGS = tuple(_PLAIN) + tuple(_BAYER) + tuple(_YUV)
 
 
 def _short_type(msgtype: str) -> str:
@@ -114,12 +119,20 @@ def _reader(path: str | os.PathLike):
         raise DatasetError("bag not found", path=p)
     _check_bag_files(p)
     if p.is_file() and p.suffix in (".db3", ".mcap"):
+        if not (p.parent / "metadata.yaml").is_file():
+            raise DatasetError(f"a ROS 2 bag's {p.suffix} file is read with the metadata.yaml "
+                               "that ros2 bag record writes beside it, and its folder has none: "
+                               "give the bag's folder as recorded, or write metadata.yaml again "
+                               f"with 'ros2 bag reindex <folder>'"
+                               f"{' -s mcap' if p.suffix == '.mcap' else ''}", path=p)
         p = p.parent  # a ROS 2 bag is its folder (with metadata.yaml)
     try:
         reader = AnyReader([p], default_typestore=_default_typestore())
         reader.open()
     except (AnyReaderError, OSError, ValueError) as exc:
-        raise DatasetError(f"cannot read the bag: {exc}", path=path) from exc
+        hint = ("; a ROS 1 bag cut short (a recording stopped abruptly, a .bag.active) is "
+                "repaired by 'rosbag reindex'" if p.is_file() else "")
+        raise DatasetError(f"cannot read the bag: {exc}{hint}", path=path) from exc
     try:
         yield reader
     finally:
@@ -139,8 +152,12 @@ def _connections(reader, topic: str, allowed: tuple[str, ...], path):
         raise DatasetError(f"topic {topic!r} not in the bag; topics present: {listing}",
                            path=path)
     if present[topic] not in allowed:
+        others = [f"{t} ({m})" for t, m in present.items() if m in allowed]
+        hint = (f"; topics of those types in this bag: {', '.join(others)}" if others else
+                "; republish it as one of them, or export it to a TUM file (t x y z qx qy qz "
+                "qw) and give that as the file")
         raise DatasetError(f"topic {topic!r} has type {present[topic]}; expected one of "
-                           f"{', '.join(allowed)}", path=path)
+                           f"{', '.join(allowed)}{hint}", path=path)
     return [c for c in reader.connections if c.topic == topic], present[topic]
 
 
@@ -161,6 +178,8 @@ def _samples(msg, msgtype: str, record_ns: int):
         return
     if msgtype == "geometry_msgs/PoseStamped":
         pose, child = msg.pose, None
+    elif msgtype == "geometry_msgs/PoseWithCovarianceStamped":
+        pose, child = msg.pose.pose, None
     elif msgtype == "nav_msgs/Odometry":
         pose, child = msg.pose.pose, msg.child_frame_id
     else:  # TransformStamped
@@ -245,11 +264,15 @@ def _decode_raw(msg, where: str, path) -> np.ndarray:
     data = np.asarray(msg.data, dtype=np.uint8)
     if enc in _BAYER:
         dtype, channels, convert = "u1", 1, enc
+    elif enc in _YUV:
+        dtype, channels, convert = "u1", 2, enc
     elif enc in _PLAIN:
         dtype, channels, convert = _PLAIN[enc]
     else:
         raise DatasetError(f"{where}: image encoding {enc!r} is not supported; supported: "
-                           f"{', '.join(IMAGE_ENCODINGS)}", path=path)
+                           f"{', '.join(IMAGE_ENCODINGS)}; republish the topic in one of "
+                           "them (or as a CompressedImage of PNG), or save its images to a "
+                           "folder and give images:", path=path)
     dt = np.dtype(dtype).newbyteorder(">" if msg.is_bigendian else "<")
     row_bytes = w * channels * dt.itemsize
     if step < row_bytes or data.size < h * step:
@@ -264,10 +287,12 @@ def _decode_raw(msg, where: str, path) -> np.ndarray:
         return np.ascontiguousarray(img[..., 2::-1])
     if convert == "bgra":
         return np.ascontiguousarray(img[..., :3])
-    if convert in _BAYER:
-        import cv2  # noqa: PLC0415 (heavy: OpenCV, only to demosaic Bayer images)
+    if convert in _BAYER or convert in _YUV:
+        import cv2  # noqa: PLC0415 (heavy: OpenCV, only to demosaic Bayer or YUV images)
 
-        return cv2.cvtColor(img, getattr(cv2, _BAYER[convert]))
+        if convert in _YUV and w % 2:
+            raise DatasetError(f"{where}: a {enc} image needs an even width, got {w}", path=path)
+        return cv2.cvtColor(img, getattr(cv2, {**_BAYER, **_YUV}[convert]))
     return img
 
 

@@ -13,7 +13,7 @@ import os
 import re
 import warnings
 from array import array
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -41,7 +41,8 @@ __all__ = [
 #: Length units accepted at the file boundary, and their size in metres.
 LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
-_FIELD_SEP = re.compile(r"[,\s]+")
+_FIELD_SEP = re.compile(r"[,;\s]+")
+_DECIMAL_COMMA = re.compile(r"\d,\d")
 
 
 def read_text(path: str | os.PathLike, *, what: str = "file",
@@ -113,7 +114,8 @@ def data_lines(text: str) -> Iterator[tuple[int, str]]:
 
 
 def split_fields(content: str) -> list[str]:
-    """Fields of a row separated by commas, spaces or tabs (any mix, runs count once)."""
+    """Fields of a row separated by commas, semicolons, spaces or tabs (any mix, runs count
+    once)."""
     return [f for f in _FIELD_SEP.split(content.strip()) if f]
 
 
@@ -131,8 +133,9 @@ def first_cell_is_nanoseconds(path: str | os.PathLike, column: int, *,
     holds integer nanoseconds in ``column`` (:func:`is_nanoseconds`); the file's first row
     decides for every row, as in TUM files.  False for a file without such a row."""
     for _, content in text_lines(path, what=what):
-        cells = content.replace(",", " ").split()
-        return column < len(cells) and is_nanoseconds(cells[column])
+        cells = split_fields(content)
+        if any(map(_is_float, cells)):         # a header row of names does not decide
+            return column < len(cells) and is_nanoseconds(cells[column])
     return False
 
 
@@ -162,7 +165,9 @@ def parse_float(token: str, *, path: str | os.PathLike | None, line: int | None,
     try:
         value = float(token)
     except ValueError:
-        raise DatasetError(f"expected a number for {name}, got {token.strip()[:40]!r}",
+        comma = ("; a decimal comma: write numbers with a decimal point (0.5, not 0,5)"
+                 if re.fullmatch(r"\s*[-+]?\d*,\d+\s*", token) else "")
+        raise DatasetError(f"expected a number for {name}, got {token.strip()[:40]!r}{comma}",
                            path=path, line=line) from None
     if finite and not math.isfinite(value):
         raise DatasetError(f"expected a finite number for {name}, got {token.strip()!r}",
@@ -171,7 +176,8 @@ def parse_float(token: str, *, path: str | os.PathLike | None, line: int | None,
 
 
 def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: str,
-                     what: str = "file", finite: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                     what: str = "file", finite: bool = True, skip_line: int | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """Rows of numbers separated by commas and/or spaces, with ``#`` comments and blank lines,
     read line by line into arrays (a table of millions of rows never exists as Python objects).
 
@@ -187,6 +193,8 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
         How a missing-file message names the file.
     finite : bool
         False: cells ``nan`` and ``inf`` are read as such (see :func:`parse_float`).
+    skip_line : int, optional
+        A line left out (a header row, :func:`header_row`).
 
     Returns
     -------
@@ -202,10 +210,26 @@ def read_number_rows(path: str | os.PathLike, columns: Sequence[str], *, files: 
     """
     table = NumberTable(len(columns))
     for contents, numbers in line_blocks(path, what=what):
+        if skip_line is not None and skip_line in numbers:
+            k = numbers.index(skip_line)
+            contents, numbers = contents[:k] + contents[k + 1:], numbers[:k] + numbers[k + 1:]
         table.add_block(contents, numbers, columns, files=files, path=path, finite=finite)
     if not len(table):
         raise DatasetError(f"no rows: expected lines '{' '.join(columns)}'", path=path)
     return table.arrays()
+
+
+def header_row(path: str | os.PathLike, *, what: str = "file") -> tuple[int, list[str]] | None:
+    """The first row of a table of numbers when it holds names and no number (a header):
+    ``(1-based line, its cells)`` (separated by commas, else semicolons, else white space, so
+    that a name may hold a space: ``t [ns]``); None when it holds a number or the file has no
+    row."""
+    for number, content in text_lines(path, what=what):
+        if any(map(_is_float, split_fields(content))):
+            return None
+        sep = "," if "," in content else ";" if ";" in content else None
+        return number, [c.strip() for c in content.split(sep)]
+    return None
 
 
 def physical_lines(path: str | os.PathLike, *, what: str = "file",
@@ -332,13 +356,15 @@ class NumberTable:
         return len(self._lines)
 
     def add(self, content: str, number: int, columns: Sequence[str], *, files: str,
-            path, finite: bool) -> None:
+            path, finite: bool, hints: Mapping[int, str] | None = None) -> None:
         """Parse one data line (comments removed) and append it; DatasetError naming the line
-        when it does not hold ``len(columns)`` numbers."""
+        when it does not hold ``len(columns)`` numbers (with ``hints[count]``, what a row of
+        that count may be, or that its numbers have decimal commas)."""
         fields = split_fields(content)
         if len(fields) != self.n:
             raise DatasetError(f"{files} must have {len(columns)} entries per row, got "
-                               f"{len(fields)} (expected {' '.join(columns)})",
+                               f"{len(fields)} (expected {' '.join(columns)})"
+                               + _count_hint(content, len(fields), self.n, hints),
                                path=path, line=number)
         try:
             values = [float(f) for f in fields]
@@ -357,14 +383,15 @@ class NumberTable:
         self._lines.append(number)
 
     def add_block(self, contents: Sequence[str], numbers: Sequence[int],
-                  columns: Sequence[str], *, files: str, path, finite: bool) -> None:
+                  columns: Sequence[str], *, files: str, path, finite: bool,
+                  hints: Mapping[int, str] | None = None) -> None:
         """:meth:`add` for many lines at once: parsed by numpy's C reader when every line
         holds ``len(columns)`` plain numbers, else line by line with Python's ``float``
         (which names the bad line and reads what it reads)."""
         joined = "\n".join(contents)
-        if "," in joined:
-            joined = joined.replace(",", " ")
-            ok = all(len(c.replace(",", " ").split()) == self.n for c in contents)
+        if "," in joined or ";" in joined:
+            joined = joined.replace(",", " ").replace(";", " ")
+            ok = all(len(split_fields(c)) == self.n for c in contents)
         else:
             ok = all(len(c.split()) == self.n for c in contents)
         if ok:
@@ -378,7 +405,8 @@ class NumberTable:
                 ok = False
         if not ok:
             for content, number in zip(contents, numbers):
-                self.add(content, number, columns, files=files, path=path, finite=finite)
+                self.add(content, number, columns, files=files, path=path, finite=finite,
+                         hints=hints)
             return
         self._values.frombytes(block.tobytes())
         self._lines.extend(numbers)
@@ -389,6 +417,18 @@ class NumberTable:
         data = np.frombuffer(self._values, dtype=np.float64).reshape(-1, self.n)
         lines = np.frombuffer(self._lines, dtype=np.int64)
         return data, lines
+
+
+def _count_hint(content: str, count: int, wanted: int, hints: Mapping[int, str] | None) -> str:
+    """What a row of ``count`` entries where ``wanted`` are expected may be: numbers written
+    with decimal commas (``0,5``: the row has ``wanted`` entries when only spaces, tabs and
+    semicolons separate them), else ``hints[count]``; empty when neither."""
+    if _DECIMAL_COMMA.search(content) and len(
+            [f for f in re.split(r"[;\s]+", content.strip()) if f]) == wanted:
+        return ("; the numbers look written with decimal commas (0,5): write them with a "
+                "decimal point (0.5)")
+    hint = (hints or {}).get(count)
+    return f"; {hint}" if hint else ""
 
 
 def length_scale(unit: str, *, path: str | os.PathLike | None = None,

@@ -34,12 +34,20 @@ from multieye.io.atomic import atomic_output
 from multieye.core.errors import DatasetError
 from multieye.io.poserows import QuaternionRows
 from multieye.io.textfile import (NumberTable, count_lines, is_nanoseconds, length_scale,
-                                  line_blocks)
+                                  line_blocks, split_fields)
 from multieye.io.trajectory import Trajectory
 
 __all__ = ["read_tum", "write_tum", "TUM_COLUMNS"]
 
 TUM_COLUMNS = ("t", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
+#: What a row of another count may hold, and the rig.yaml keys that read it (docs/rig-yaml.md,
+#: section 4).
+_COUNT_HINTS = {
+    7: "t x y z and three rotation numbers? give rotation: rotvec (radians) or "
+       "euler-<axes>-deg under mocap in rig.yaml (values: [...] for another order)",
+    13: "t and the top three rows of a 4x4 pose? give rotation: matrix under mocap in rig.yaml",
+    17: "t and a 4x4 pose, row-major? give rotation: matrix under mocap in rig.yaml",
+}
 #: Rows parsed into numbers before they become poses: the file is read line by line and never
 #: held whole (a 5-million-row file, 180 MB, reads within 1 GB of memory).
 _BLOCK = 1 << 14
@@ -80,10 +88,10 @@ def read_tum(path: str | os.PathLike, *, unit: str = "m", parent: str = "world",
     for contents, numbers in line_blocks(path, what="trajectory file", size=_BLOCK):
         table = NumberTable(len(TUM_COLUMNS))
         table.add_block(contents, numbers, TUM_COLUMNS, files="TUM trajectory files",
-                        path=path, finite=False)
+                        path=path, finite=False, hints=_COUNT_HINTS)
         data, lines = table.arrays()
         if nanoseconds is None and contents:     # the file's first row decides, as names do
-            nanoseconds = is_nanoseconds(contents[0].replace(",", " ").split()[0])
+            nanoseconds = is_nanoseconds(split_fields(contents[0])[0])
         if nanoseconds:
             data[:, 0] *= 1e-9
         rows.add(data, lines)

@@ -123,6 +123,38 @@ class _Loader(yaml.SafeLoader):
         return mapping
 
 
+# OpenCV's matrix tag, read as the mapping it tags ({rows, cols, dt, data}), for FileStorage
+# YAML that lost its ``%YAML:1.0`` line (which routes a file to OpenCV's own parser).
+_Loader.add_constructor("tag:yaml.org,2002:opencv-matrix", _Loader.construct_mapping)
+
+
+def _empty_document(node: yaml.Node | None) -> bool:
+    """Whether a composed document holds nothing (a ``---`` or ``...`` with nothing after)."""
+    return node is None or (isinstance(node, yaml.ScalarNode) and node.value == ""
+                            and node.tag == "tag:yaml.org,2002:null")
+
+
+def _single_node(loader: _Loader, path: Path) -> yaml.Node | None:
+    """The stream's one document, as PyYAML's ``get_single_node``, except that empty
+    documents are let pass: ``ros2 topic echo --once`` ends its message with ``---``, and a
+    file may start with one.  Several documents with content are refused, naming the line of
+    the second."""
+    loader.get_event()                          # STREAM-START
+    node = None
+    while not loader.check_event(yaml.StreamEndEvent):
+        line = loader.peek_event().start_mark.line + 1
+        document = loader.compose_document()
+        if _empty_document(document):
+            continue
+        if node is not None:
+            raise DatasetError("a second YAML document starts here (---): expected one "
+                               "document; keep one (a saved 'ros2 topic echo' holds one "
+                               "message per document)", path=path, line=line)
+        node = document
+    loader.get_event()                          # STREAM-END
+    return node
+
+
 def _check_expansion(root: yaml.Node) -> None:
     """Refuse a composed document whose aliases expand it beyond :data:`MAX_YAML_NODES`
     values or :data:`MAX_YAML_DEPTH` levels, or that contains itself through an alias.
@@ -194,7 +226,7 @@ def parse_yaml(text: str, path: str | os.PathLike) -> YamlDocument:
     loader = None
     try:
         loader = _Loader(text)
-        node = loader.get_single_node()
+        node = _single_node(loader, path)
         lines: dict[KeyPath, int] = {}
         data = None
         if node is not None:
@@ -212,6 +244,8 @@ def parse_yaml(text: str, path: str | os.PathLike) -> YamlDocument:
         problem = exc.problem or exc.context or "invalid YAML"
         if "'\\t'" in problem:
             problem += " (YAML indents with spaces, not tabs)"
+        if "could not determine a constructor for the tag" in problem:
+            problem += " (a tag multieye does not read: remove it)"
         raise DatasetError(f"invalid YAML: {problem}", path=path, line=line) from None
     except yaml.reader.ReaderError as exc:
         raise DatasetError(f"invalid YAML: character #x{exc.character:04x} is not allowed in "
