@@ -75,6 +75,8 @@ Synopsis
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -202,8 +204,10 @@ def check_plausibility(cameras: Sequence[CameraEvidence], *,
             lens = _lens_finding(cam, sigma, tested)
             findings += () if lens is None else (lens,)
     if not findings:
-        findings = tuple(_unexplained(c.name, f.cost, tested) for c, f in zip(cams, singles)
+        findings = tuple(_unexplained(c.name, f.cost, tested, declared.mocap)
+                         for c, f in zip(cams, singles)
                          if f.cost >= UNEXPLAINED_COST)
+    findings = tuple(_partial(f, declared.mocap) for f in findings)
     return Plausibility(findings=findings, cost=base.cost,
                         camera_cost={c.name: s.cost for c, s in zip(cams, singles)},
                         tested=tuple(tested))
@@ -482,7 +486,7 @@ def check_noise(report: Plausibility, refined: RefinementResult | None, mocap=No
         causes = sorted({t.split(":")[0] for t in report.tested})
         cause = (f"; none of the causes tested ({', '.join(causes)}) explains it: check the "
                  "intrinsics (the lens distortion too), the target size, the time offset "
-                 "(--time-offset auto) and the motion-capture poses")
+                 f"(--time-offset auto){rotation_hint(mocap)} and the motion-capture poses")
     finding = Finding(
         "noise", f"noise: the {sensor.name} noise estimated from the data, "
         f"{math.degrees(rot_rad):.3g} deg and {trans_m * 1e3:.3g} mm per pose, is beyond what "
@@ -498,14 +502,42 @@ def check_noise(report: Plausibility, refined: RefinementResult | None, mocap=No
                         camera_cost=report.camera_cost, tested=report.tested + ("noise",))
 
 
-def _unexplained(name: str, cost: float, tested: list[str]) -> Finding:
+def _unexplained(name: str, cost: float, tested: list[str], mocap=None) -> Finding:
     causes = sorted({t.split(":")[0] for t in tested})
     return Finding("fit", f"poor fit: camera {name}'s residuals are {_times(cost)} times what "
                    f"the noise explains and none of the causes tested ({', '.join(causes)}) "
                    "explains them; check its target poses (images, detections), the time offset "
-                   "(--time-offset auto), and state the motion-capture noise "
-                   "(rotation_noise_deg, translation_noise_m) if it is this large", name, cost,
-                   cost, {})
+                   f"(--time-offset auto){rotation_hint(mocap)}, and state the motion-capture "
+                   "noise (rotation_noise_deg, translation_noise_m) if it is this large", name,
+                   cost, cost, {})
+
+
+def _partial(finding: Finding, mocap) -> Finding:
+    """``finding`` said to be at most part of the cause when its correction leaves residuals
+    of :data:`UNEXPLAINED_COST` or more times what the noise explains (a factor fitted to
+    data that something else spoils lowers the cost without explaining it)."""
+    if finding.cause in ("fit", "noise") or finding.corrected_cost < UNEXPLAINED_COST:
+        return finding
+    return replace(finding, message=(
+        f"{finding.message} (but with that correction the residuals are still "
+        f"{_times(finding.corrected_cost)} times what the noise explains: it is at most a part "
+        f"of the cause; check the target poses (images, detections), the time offset"
+        f"{rotation_hint(mocap)} and the motion-capture poses too)"))
+
+
+def rotation_hint(mocap) -> str:
+    """A pointer at the poses' rotation convention when rig.yaml reads three angles per pose
+    (``rotation: rotvec`` or ``euler-...``: :mod:`multieye.io.pose_files`), which no
+    hypothesis tests: Euler angles read as a rotation vector (or the other way, another axis
+    order, degrees read as radians) leave residuals no other cause explains; else ``""``.
+    ``mocap`` is rig.yaml's motion-capture section (:class:`multieye.io.mocap.MocapSpec`)."""
+    rotation = getattr(mocap, "rotation", None)
+    if not isinstance(rotation, str) or not (rotation == "rotvec"
+                                             or rotation.startswith("euler-")):
+        return ""
+    return (f", the poses' rotation convention (rig.yaml reads rotation: {rotation}: Euler "
+            "angles read as a rotation vector or the other way, another axis order or degrees "
+            "read as radians fit this badly; the robot's manual names its convention)")
 
 
 def _select(rig: list[tuple[Finding, tuple]], per_camera: dict[int, list[Finding]],
