@@ -67,7 +67,7 @@ def _edge_frames(points: F64, rows: int, cols: int) -> F64:
     corner (moved inward at the grid's border; a line where the grid has 2)."""
     g = points.reshape(rows, cols, 2)
     da, ha = _differences(g, 0)
-    db, hb = _differences(g.transpose(1, 0, 2), 0)
+    db, hb = _differences(np.ascontiguousarray(g.transpose(1, 0, 2)), 0)
     da, ha = da.reshape(-1, 2), ha.reshape(-1, 2)
     db, hb = db.transpose(1, 0, 2).reshape(-1, 2), hb.transpose(1, 0, 2).reshape(-1, 2)
     inv = np.linalg.inv(np.stack([da, db], axis=-1))                  # (N, a|b, d)
@@ -112,12 +112,18 @@ def _differences(g: F64, axis: int = 0) -> tuple[F64, F64]:
 def _gather(gray: NDArray[np.uint8], centres: NDArray[np.int64], r: int) -> NDArray[np.float32]:
     """The (2 r + 1)-pixel squares of ``gray`` around the whole pixels ``centres`` (N, 2),
     shape (N, 2 r + 1, 2 r + 1), as float32; past the image's edge its border pixels
-    repeated.  One gather of flat indices (no sliding-window view built per image)."""
+    repeated."""
     h, w = gray.shape
+    side = 2 * r + 1
+    lo, hi = centres.min(axis=0), centres.max(axis=0)
+    if lo.min() >= r and hi[0] < w - r and hi[1] < h - r and gray.flags.c_contiguous:
+        # every square inside: a strided view of the squares' corners, indexed
+        windows = np.ndarray((h - 2 * r, w - 2 * r, side, side), np.uint8, gray, 0, (w, 1, w, 1))
+        return windows[centres[:, 1] - r, centres[:, 0] - r].astype(np.float32)
     reach = np.arange(-r, r + 1)
     iy = np.minimum(np.maximum(centres[:, 1:] + reach, 0), h - 1)     # (N, side)
     ix = np.minimum(np.maximum(centres[:, :1] + reach, 0), w - 1)
-    return gray.ravel().take(iy[:, :, None] * w + ix[:, None, :]).astype(np.float32)
+    return gray[iy[:, :, None], ix[:, None, :]].astype(np.float32)
 
 
 def _mosaic_shape(n: int) -> tuple[int, int]:
