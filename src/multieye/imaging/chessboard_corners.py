@@ -134,11 +134,12 @@ def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     (-0.37; ``benchmarks/bench_boofcv_reference.py``)."""
     rows, cols = target.grid_shape()
     grid = points.reshape(rows, cols, 2)
-    near = np.full((rows, cols), np.inf)
-    down, right = _lengths(grid[1:] - grid[:-1]), _lengths(grid[:, 1:] - grid[:, :-1])
-    near[1:], near[:-1] = np.minimum(near[1:], down), np.minimum(near[:-1], down)
-    near[:, 1:], near[:, :-1] = np.minimum(near[:, 1:], right), np.minimum(near[:, :-1], right)
-    radius = np.maximum(SADDLE_RADIUS * near.ravel(), SADDLE_MIN_RADIUS_PX)
+    # the squared distances to the next corner down and to the right (the last row's and
+    # column's: to the one before), the nearer of the two per corner, one root taken
+    down, right = _squares(grid[1:] - grid[:-1]), _squares(grid[:, 1:] - grid[:, :-1])
+    near = np.minimum(np.concatenate([down, down[-1:]]),
+                      np.concatenate([right, right[:, -1:]], axis=1))
+    radius = np.maximum(SADDLE_RADIUS * np.sqrt(near.ravel()), SADDLE_MIN_RADIUS_PX)
     return bool(np.all(_saddle_correlations(gray, points, radius) >= SADDLE_MIN_CORRELATION))
 
 
@@ -151,8 +152,9 @@ def _saddle_correlations(gray: NDArray[np.uint8], points: F64, radius: F64) -> F
     v = (points[:, 1:] + radius[:, None] * sin).astype(np.float32)
     ring = cv2.remap(gray, u, v, cv2.INTER_LINEAR,       # whole greys: enough for the sign
                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
-    ring -= ring.mean(axis=1, keepdims=True)
-    turned = np.roll(ring, SADDLE_SAMPLES // 2, axis=1)
+    ring -= np.add.reduce(ring, axis=1, keepdims=True) / SADDLE_SAMPLES      # the mean
+    half = SADDLE_SAMPLES // 2                  # np.roll's result, without its overhead
+    turned = np.concatenate([ring[:, half:], ring[:, :half]], axis=1)
     power = np.maximum(np.einsum("ij,ij->i", ring, ring), 1e-9)
     return np.einsum("ij,ij->i", ring, turned) / power
 
