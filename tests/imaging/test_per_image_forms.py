@@ -279,3 +279,44 @@ def test_undistortion_polish_as_before(model, dist):
     uv = rng.uniform([-40, -40], [680, 520], size=(400, 2))
     np.testing.assert_array_equal(lens.undistort_points(uv, lens_),
                                   _former_undistort(uv.copy(), lens_))
+
+
+def _former_turn_order(object_points, T_target_turned):
+    P = np.asarray(object_points, dtype=np.float64).reshape(-1, 3)
+    if len(P) < 2:
+        return None
+    H = np.asarray(T_target_turned, dtype=np.float64)
+    moved = P @ H[:3, :3].T + H[:3, 3]
+    d = np.linalg.norm(moved[:, None, :] - P[None, :, :], axis=2)
+    idx = np.argmin(d, axis=1)
+    scale = float(np.ptp(P[:, :2], axis=0).max())
+    if np.any(d[np.arange(len(P)), idx] > 1e-6 * max(scale, 1e-9)):
+        return None
+    if len(np.unique(idx)) != len(P):
+        return None
+    return idx.astype(np.int64)
+
+
+def test_turn_orders_kept_by_value_as_before():
+    """The half turn's point order, kept per board and turn: the former answer for whole
+    and partial views, symmetric or not, and every call its own writable copy."""
+    from multieye.imaging.order_turn import half_turn, turn_order
+
+    rng = np.random.default_rng(13)
+    for rows, cols in ((5, 7), (6, 9), (4, 6), (3, 3)):
+        board = Chessboard(rows=rows, cols=cols, spacing=0.04)
+        turn = half_turn(board)
+        assert (turn is None) == ((rows + cols) % 2 == 1)
+        if turn is None:
+            continue
+        assert half_turn(board) is turn and not turn.order.flags.writeable
+        P = board.object_points()
+        for view in (P, P[: len(P) // 2], P[rng.permutation(len(P))], P + [0.01, 0.0, 0.0]):
+            for H in (turn.T_target_turned, np.eye(4)):
+                want = _former_turn_order(view, H)
+                got = turn_order(view, H)
+                assert (got is None) == (want is None)
+                if got is not None:
+                    np.testing.assert_array_equal(got, want)
+                    got[:] = -1                                 # a copy: the next is whole
+                    np.testing.assert_array_equal(turn_order(view, H), want)
