@@ -200,6 +200,8 @@ def test_squares_gathered_as_before():
     rng = np.random.default_rng(7)
     for k in range(200):
         gray = rng.integers(0, 256, size=tuple(rng.integers(20, 60, size=2)), dtype=np.uint8)
+        if k % 5 == 0:                          # other image types and layouts too
+            gray = gray.astype(np.float32) if k % 10 else gray[:, ::-1]
         r = int(rng.integers(1, 8))
         h, w = gray.shape
         lo = -3 if k % 2 else r

@@ -116,7 +116,8 @@ def _gather(gray: NDArray[np.uint8], centres: NDArray[np.int64], r: int) -> NDAr
     h, w = gray.shape
     side = 2 * r + 1
     lo, hi = centres.min(axis=0), centres.max(axis=0)
-    if lo.min() >= r and hi[0] < w - r and hi[1] < h - r and gray.flags.c_contiguous:
+    if (lo.min() >= r and hi[0] < w - r and hi[1] < h - r and gray.dtype == np.uint8
+            and gray.flags.c_contiguous):
         # every square inside: a strided view of the squares' corners, indexed
         windows = np.ndarray((h - 2 * r, w - 2 * r, side, side), np.uint8, gray, 0, (w, 1, w, 1))
         return windows[centres[:, 1] - r, centres[:, 0] - r].astype(np.float32)
