@@ -134,11 +134,12 @@ def saddle_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     (-0.37; ``benchmarks/bench_boofcv_reference.py``)."""
     rows, cols = target.grid_shape()
     grid = points.reshape(rows, cols, 2)
-    near = np.full((rows, cols), np.inf)
-    down, right = _lengths(grid[1:] - grid[:-1]), _lengths(grid[:, 1:] - grid[:, :-1])
-    near[1:], near[:-1] = np.minimum(near[1:], down), np.minimum(near[:-1], down)
-    near[:, 1:], near[:, :-1] = np.minimum(near[:, 1:], right), np.minimum(near[:, :-1], right)
-    radius = np.maximum(SADDLE_RADIUS * near.ravel(), SADDLE_MIN_RADIUS_PX)
+    # the squared distances to the next corner down and to the right (the last row's and
+    # column's: to the one before), the nearer of the two per corner, one root taken
+    down, right = _squares(grid[1:] - grid[:-1]), _squares(grid[:, 1:] - grid[:, :-1])
+    near = np.minimum(np.concatenate([down, down[-1:]]),
+                      np.concatenate([right, right[:, -1:]], axis=1))
+    radius = np.maximum(SADDLE_RADIUS * np.sqrt(near.ravel()), SADDLE_MIN_RADIUS_PX)
     return bool(np.all(_saddle_correlations(gray, points, radius) >= SADDLE_MIN_CORRELATION))
 
 
@@ -151,8 +152,9 @@ def _saddle_correlations(gray: NDArray[np.uint8], points: F64, radius: F64) -> F
     v = (points[:, 1:] + radius[:, None] * sin).astype(np.float32)
     ring = cv2.remap(gray, u, v, cv2.INTER_LINEAR,       # whole greys: enough for the sign
                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
-    ring -= ring.mean(axis=1, keepdims=True)
-    turned = np.roll(ring, SADDLE_SAMPLES // 2, axis=1)
+    ring -= np.add.reduce(ring, axis=1, keepdims=True) / SADDLE_SAMPLES      # the mean
+    half = SADDLE_SAMPLES // 2                  # np.roll's result, without its overhead
+    turned = np.concatenate([ring[:, half:], ring[:, :half]], axis=1)
     power = np.maximum(np.einsum("ij,ij->i", ring, ring), 1e-9)
     return np.einsum("ij,ij->i", ring, turned) / power
 
@@ -191,16 +193,12 @@ def whole_board(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
         Refined corners, pixels, row by row in either detector's order.
     target : Target
     """
-    rows, cols = target.grid_shape()
-    grid = points.reshape(rows, cols, 2)
-    beyond, steps = [], []
-    for g in (grid, grid.transpose(1, 0, 2)):
-        for edge, inner, third in ((g[0], g[1], g[min(2, len(g) - 1)]),
-                                   (g[-1], g[-2], g[max(-3, -len(g))])):
-            quadratic = 3 * edge - 3 * inner + third
-            beyond.append(quadratic if len(g) >= 3 else 2 * edge - inner)
-            steps.append(_lengths(edge - inner))
-    p, step = np.concatenate(beyond), np.concatenate(steps)
+    edge, inner, third, linear = _beyond_indices(*target.grid_shape())
+    edge, inner = points[edge], points[inner]
+    p = 3 * edge - 3 * inner + points[third]
+    if linear.any():
+        p[linear] = (2 * edge - inner)[linear]
+    step = _lengths(edge - inner)
     h, w = gray.shape
     room = np.minimum(p, np.array([w - 1.0, h - 1.0]) - p).min(axis=1) - 1.0
     radius = np.minimum(SADDLE_RADIUS * step, room)
@@ -208,6 +206,26 @@ def whole_board(gray: NDArray[np.uint8], points: F64, target: Target) -> bool:
     if not seen.any():
         return True
     return bool(np.all(_saddle_correlations(gray, p[seen], radius[seen]) < BEYOND_MAX_CORRELATION))
+
+
+@lru_cache(maxsize=32)
+def _beyond_indices(rows: int, cols: int) -> tuple[NDArray[np.int64], ...]:
+    """For :func:`whole_board`, per point one square beyond a grid of ``rows`` x ``cols``
+    (the first row, the last, the first column, the last, in turn): the indices (row by
+    row) of the grid's corner it extends, of the next one inward and of the one after
+    (the last there is where the grid has 2), and whether the extension is linear (a grid
+    of 2 along that direction).  Four arrays of shape (2 cols + 2 rows,), read only."""
+    idx = np.arange(rows * cols).reshape(rows, cols)
+    parts: list[list] = [[], [], [], []]
+    for g in (idx, idx.T):
+        for edge, inner, third in ((g[0], g[1], g[min(2, len(g) - 1)]),
+                                   (g[-1], g[-2], g[max(-3, -len(g))])):
+            for part, value in zip(parts, (edge, inner, third, np.full(len(edge), len(g) < 3))):
+                part.append(value)
+    out = tuple(np.concatenate(part) for part in parts)
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def _surface_departures(d2: F64) -> F64:
@@ -244,7 +262,12 @@ def _median(a: F64, axis: int) -> F64:
 def _lengths(v: F64) -> F64:
     """Lengths of the 2-vectors along the last axis (``np.linalg.norm(v, axis=-1)``, with
     less overhead on the small arrays of one board)."""
-    return np.sqrt(np.einsum("...i,...i->...", v, v))
+    return np.sqrt(_squares(v))
+
+
+def _squares(v: F64) -> F64:
+    """Squared lengths of the 2-vectors along the last axis."""
+    return np.einsum("...i,...i->...", v, v)
 
 
 def search_order(gray: NDArray[np.uint8]) -> tuple[tuple[str, bool], ...]:
@@ -378,12 +401,14 @@ def min_spacing(points: NDArray, target: Target) -> float:
     """Smallest distance between neighbouring grid points, pixels."""
     rows, cols = target.grid_shape()
     grid = np.asarray(points, dtype=np.float64).reshape(rows, cols, 2)
-    return float(min(_lengths(grid[1:] - grid[:-1]).min(), _lengths(grid[:, 1:] - grid[:, :-1]).min()))
+    down, right = grid[1:] - grid[:-1], grid[:, 1:] - grid[:, :-1]
+    # the square root of the least square length: the least length, one root taken
+    return float(np.sqrt(min(_squares(down).min(), _squares(right).min())))
 
 
 def corner_window(points: F64, target: Target) -> int:
     """Half-size of the cornerSubPix window: 40 % of the smallest neighbour distance."""
-    return int(np.clip(0.4 * min_spacing(points, target), 2, 11))
+    return int(min(max(0.4 * min_spacing(points, target), 2), 11))
 
 
 def refine_grid(gray: NDArray[np.uint8], points: F64, target: Target) -> F64:

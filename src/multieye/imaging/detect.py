@@ -37,6 +37,7 @@ Synopsis
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -306,7 +307,7 @@ def _orders(target: Target) -> _Orders:
 
 def _affine(orders: _Orders, img: F64) -> F64:
     """2x2 linear part of the least-squares affine map from board (x, y) to pixels."""
-    return (orders.pinv @ (img - img.mean(axis=0))).T
+    return (orders.pinv @ (img - np.add.reduce(img, axis=0) / len(img))).T     # centred
 
 
 def canonical_order(gray: NDArray[np.uint8], target: Target, detected: F64) -> Detection:
@@ -336,7 +337,7 @@ def canonical_order(gray: NDArray[np.uint8], target: Target, detected: F64) -> D
     if len(sources) > 1:
         # x towards (1, 1): upright and quarter-turned boards are both far from the tie
         x_dirs = [_affine(orders, detected[src])[:, 0] for src in sources]
-        sources = [sources[int(np.argmax([(x[0] + x[1]) / np.linalg.norm(x) for x in x_dirs]))]]
+        sources = [sources[int(np.argmax([(x[0] + x[1]) / math.sqrt(x @ x) for x in x_dirs]))]]
         warnings = (f"{target.kind} {target.rows}x{target.cols} looks the same after a turn, so its "
                     "point order cannot be told from the image; the order whose x axis points "
                     "towards the image's lower right was taken, the rig's geometry then decides "
@@ -368,11 +369,11 @@ def _square_greys(gray: NDArray[np.uint8], corners: F64, squares: NDArray[np.int
     """Mean grey of a 3 x 3 box at the centre of every square (its 4 corners' mean), read
     bilinearly: the same as sampling the image blurred by a 3 x 3 box, without blurring the
     whole image.  Shape (S,)."""
-    centres = corners[squares].mean(axis=1)
+    centres = np.add.reduce(corners[squares], axis=1) / 4         # the 4 corners' mean
     pts = (centres[:, None, :] + _BOX_OFFSETS[None]).reshape(1, -1, 2).astype(np.float32)
     samples = cv2.remap(gray, pts[..., 0], pts[..., 1], cv2.INTER_LINEAR,
                         borderMode=cv2.BORDER_REPLICATE)
-    return samples.reshape(len(centres), 9).astype(np.float64).mean(axis=1)
+    return np.add.reduce(samples.reshape(len(centres), 9).astype(np.float64), axis=1) / 9
 
 
 # --------------------------------------------------------------------------- markers

@@ -22,6 +22,7 @@ True
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -63,11 +64,24 @@ def _turn(points: F64) -> F64:
 def turn_order(object_points, T_target_turned) -> NDArray[np.int64] | None:
     """Where ``T_target_turned`` takes each of ``object_points`` (shape (N, 3)): the index of
     the point at its place, or None when some point lands where no point is (a partial view,
-    a board that is not symmetric)."""
+    a board that is not symmetric).
+
+    Every whole view of a board asks this of the same points and turn: the answer is kept
+    by value (:func:`_turn_order`), and each call gets its own copy."""
     P = np.asarray(object_points, dtype=np.float64).reshape(-1, 3)
+    H = np.ascontiguousarray(T_target_turned, dtype=np.float64)
+    order = _turn_order(P.tobytes(), H.tobytes(), H.shape)
+    return None if order is None else order.copy()
+
+
+@lru_cache(maxsize=64)
+def _turn_order(points: bytes, turn: bytes, shape: tuple[int, ...]) -> NDArray[np.int64] | None:
+    """:func:`turn_order` of the points (N, 3) and the turn (of ``shape``) given by their
+    float64 bytes, row by row (read only)."""
+    P = np.frombuffer(points, dtype=np.float64).reshape(-1, 3)
     if len(P) < 2:
         return None
-    H = np.asarray(T_target_turned, dtype=np.float64)
+    H = np.frombuffer(turn, dtype=np.float64).reshape(shape)
     moved = P @ H[:3, :3].T + H[:3, 3]
     d = np.linalg.norm(moved[:, None, :] - P[None, :, :], axis=2)       # (N, N)
     idx = np.argmin(d, axis=1)
@@ -76,20 +90,32 @@ def turn_order(object_points, T_target_turned) -> NDArray[np.int64] | None:
         return None
     if len(np.unique(idx)) != len(P):
         return None
-    return idx.astype(np.int64)
+    idx = idx.astype(np.int64)
+    idx.flags.writeable = False
+    return idx
 
 
 def half_turn(target: Target) -> HalfTurn | None:
     """The half turn of a board whose point order the image cannot decide (module
     docstring), or None: boards with ids (ChArUco, AprilGrid, markers), a chessboard with
     ``rows + cols`` odd (the colours decide), an asymmetric grid with an odd number of rows.
-    Square grids also look the same after a quarter turn; only the half turn is given."""
+    Square grids also look the same after a quarter turn; only the half turn is given.
+    The same board's :class:`HalfTurn` is one object, its arrays read only."""
     if isinstance(target, Chessboard):
         if not target.half_turn_symmetric:
             return None
     elif not isinstance(target, (CircleGrid, AsymmetricCircleGrid)):
         return None
-    P = target.object_points()
+    return _half_turn(np.asarray(target.object_points(), dtype=np.float64).tobytes())
+
+
+@lru_cache(maxsize=32)
+def _half_turn(points: bytes) -> HalfTurn | None:
+    """:func:`half_turn` of the board whose object points (N, 3) have these float64 bytes."""
+    P = np.frombuffer(points, dtype=np.float64).reshape(-1, 3)
     H = _turn(P)
     order = turn_order(P, H)
-    return None if order is None else HalfTurn(H, order)
+    if order is None:
+        return None
+    H.flags.writeable = order.flags.writeable = False
+    return HalfTurn(H, order)

@@ -190,7 +190,7 @@ def estimate_pose(detection: Detection, intrinsics: Intrinsics) -> PoseEstimate:
             rvec, tvec = _refine(obj, img, intrinsics, rvec, tvec)
     T = _transform(rvec, tvec)
     err = _pixel_errors(obj, img, intrinsics, rvec, tvec)
-    rms = float(np.sqrt(np.mean(err ** 2)))
+    rms = float(np.sqrt(np.add.reduce(err ** 2) / len(err)))       # np.mean's arithmetic
     alt, alt_rms = None, None
     if len(candidates) == 2 and _could_be_kept(candidates, len(obj)):
         alt, alt_rms = _alternative(obj, img, intrinsics, candidates[1][1:], T, rms)
@@ -261,7 +261,7 @@ def _ippe_candidates(obj: F64, img: F64, rays: F64, intrinsics: Intrinsics) -> l
 def collinear(xy: F64) -> bool:
     """Whether planar points lie on one line: the smaller singular value of the centred
     points at most 1e-6 of the larger (from the 2 x 2 scatter matrix, in closed form)."""
-    c = xy - xy.mean(axis=0)
+    c = xy - np.add.reduce(xy, axis=0) / len(xy)                     # centred
     a, b, d = float(c[:, 0] @ c[:, 0]), float(c[:, 0] @ c[:, 1]), float(c[:, 1] @ c[:, 1])
     mean, spread = (a + d) / 2, float(np.hypot((a - d) / 2, b))
     return bool(mean - spread <= 1e-12 * (mean + spread))
@@ -306,7 +306,8 @@ def _alternative(obj: F64, img: F64, intrinsics: Intrinsics, start, T: F64, rms:
     cos = (np.trace(T[:3, :3].T @ T2[:3, :3]) - 1.0) / 2.0
     if np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))) < _DISTINCT_DEG or T2[2, 3] <= 0:
         return None, None                       # the refinement fell into the first pose
-    rms2 = float(np.sqrt(np.mean(_pixel_errors(obj, img, intrinsics, rvec, tvec) ** 2)))
+    err2 = _pixel_errors(obj, img, intrinsics, rvec, tvec) ** 2
+    rms2 = float(np.sqrt(np.add.reduce(err2) / len(err2)))
     if not rms2 <= _limit_px(rms, len(obj)):
         return None, None
     return T2, rms2

@@ -29,6 +29,9 @@ F64 = NDArray[np.float64]
 #: Rays further off the lens axis than this (degrees) are posed in a virtual camera turned
 #: towards them (:func:`ippe_on_rays`); nearer ones as they are (the pinhole path unchanged).
 WIDE_DEG = 50.0
+_COS_WIDE = float(np.cos(np.radians(WIDE_DEG)))
+_EYE3 = np.eye(3)
+_EYE3.flags.writeable = False
 
 
 def bearings(pixels: F64, intrinsics: Intrinsics) -> F64:
@@ -75,14 +78,14 @@ def ippe_on_rays(object_points: F64, rays: F64) -> list[tuple[F64, F64]]:
         Unit rays, camera frame, finite.
     """
     R_v = None
-    if np.min(rays[:, 2]) < np.cos(np.radians(WIDE_DEG)):
+    if np.minimum.reduce(rays[:, 2]) < _COS_WIDE:
         R_v = virtual_rotation(rays)
         rays = rays @ R_v.T
-    if np.min(rays[:, 2]) <= 1e-9:
+    if np.minimum.reduce(rays[:, 2]) <= 1e-9:
         return []
     xy = np.ascontiguousarray(rays[:, :2] / rays[:, 2:3])
     _, rvecs, tvecs, _ = cv2.solvePnPGeneric(np.ascontiguousarray(object_points, np.float64),
-                                             xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
+                                             xy, _EYE3, None, flags=cv2.SOLVEPNP_IPPE)
     out = []
     for rvec, tvec in zip(rvecs, tvecs):
         rvec, tvec = rvec.reshape(3).copy(), tvec.reshape(3).copy()

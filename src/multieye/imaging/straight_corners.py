@@ -38,6 +38,8 @@ Synopsis
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -54,48 +56,48 @@ MARGIN_PX = 3
 SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
 
 
-def _edge_frames(points: F64, rows: int, cols: int) -> tuple[F64, F64, F64, F64]:
-    """Per corner the grid's local frame: the inverse Jacobian of the mapping from the
-    grid's (row, column) indices to pixels (N, 2, 2: index steps per pixel), the second
-    derivatives of that mapping along the rows' index and along the columns' (N, 2 each:
-    pixels per square squared), and the Jacobian's columns' lengths stacked (N, 2).
+def _edge_frames(points: F64, rows: int, cols: int) -> F64:
+    """Per corner the grid's local frame, shape (N, 10): the inverse Jacobian of the
+    mapping from the grid's (row, column) indices to pixels (columns 0-3: its rows' entries,
+    index steps per pixel), the Jacobian's columns' lengths (4, 5: pixels per square), and
+    the second derivatives of that mapping along the rows' index (6, 7: x and y) and along
+    the columns' (8, 9), pixels per square squared.
 
     Along each index the mapping is the quadratic through the block of 3 corners around the
     corner (moved inward at the grid's border; a line where the grid has 2)."""
     g = points.reshape(rows, cols, 2)
     da, ha = _differences(g, 0)
-    db, hb = _differences(g, 1)
-    da, db, ha, hb = (x.reshape(-1, 2) for x in (da, db, ha, hb))
-    jac = np.stack([da, db], axis=-1)                                 # (N, d, a|b)
-    return np.linalg.inv(jac), ha, hb, np.stack([np.hypot(*da.T), np.hypot(*db.T)], axis=1)
+    db, hb = _differences(np.ascontiguousarray(g.transpose(1, 0, 2)), 0)
+    da, ha = da.reshape(-1, 2), ha.reshape(-1, 2)
+    db, hb = db.transpose(1, 0, 2).reshape(-1, 2), hb.transpose(1, 0, 2).reshape(-1, 2)
+    inv = np.linalg.inv(np.stack([da, db], axis=-1))                  # (N, a|b, d)
+    return np.column_stack([inv.reshape(-1, 4), np.hypot(da[:, 0], da[:, 1]),
+                            np.hypot(db[:, 0], db[:, 1]), ha, hb])
 
 
-def _bend(ux: NDArray, uy: NDArray, frames: tuple) -> tuple[NDArray, NDArray]:
-    """The bend (x and y, pixels) at pixel offsets ``ux``, ``uy`` (broadcast against
-    (N, 1, 1)) from each corner: near the edge along the columns' index (the grid's row
-    through the corner) the displacement of that row's point at the same column offset,
-    ``H_bb db^2 / 2``, the same across the edge; nearer the other edge its ``H_aa da^2 /
-    2``.  So each edge is moved onto its tangent as a whole: a displacement that varied
-    across an edge (the whole quadratic map's ``H_aa da^2 / 2`` near the row's edge) would
-    move its blurred profile's centre by about that second derivative times the blur's
-    variance."""
-    inv, ha, hb, lengths = frames
-    c = lambda x: x[:, None, None]  # noqa: E731  (per corner, against the offsets)
-    a = c(inv[:, 0, 0]) * ux + c(inv[:, 0, 1]) * uy
-    b = c(inv[:, 1, 0]) * ux + c(inv[:, 1, 1]) * uy
-    near_row = np.abs(a) * c(lengths[:, 0]) < np.abs(b) * c(lengths[:, 1])
+def _bend(ux: NDArray, uy: NDArray, frames: NDArray) -> tuple[NDArray, NDArray]:
+    """The bend (x and y, pixels) at pixel offsets ``ux``, ``uy`` (N, ...) from each corner
+    (``frames`` (N, 10) of :func:`_edge_frames`): near the edge along the columns' index
+    (the grid's row through the corner) the displacement of that row's point at the same
+    column offset, ``H_bb db^2 / 2``, the same across the edge; nearer the other edge its
+    ``H_aa da^2 / 2``.  So each edge is moved onto its tangent as a whole: a displacement
+    that varied across an edge (the whole quadratic map's ``H_aa da^2 / 2`` near the row's
+    edge) would move its blurred profile's centre by about that second derivative times the
+    blur's variance.  :func:`_straightened_mosaic` computes the same per pixel of the
+    patches."""
+    f = frames.T
+    a = f[0] * ux + f[1] * uy
+    b = f[2] * ux + f[3] * uy
+    near_row = np.abs(a) * f[4] < np.abs(b) * f[5]
     a2, b2 = 0.5 * a * a, 0.5 * b * b
-    return (np.where(near_row, c(hb[:, 0]) * b2, c(ha[:, 0]) * a2),
-            np.where(near_row, c(hb[:, 1]) * b2, c(ha[:, 1]) * a2))
+    return (np.where(near_row, f[8] * b2, f[6] * a2),
+            np.where(near_row, f[9] * b2, f[7] * a2))
 
 
-def _differences(g: F64, axis: int) -> tuple[F64, F64]:
-    """First and second derivative along ``axis`` (0: rows, 1: columns) of the quadratic
-    through each point's block of 3 (moved inward at the border; with 2 points the line,
-    no bend), at every point of ``g`` (R, C, 2)."""
-    if axis == 1:
-        d, h = _differences(g.transpose(1, 0, 2), 0)
-        return d.transpose(1, 0, 2), h.transpose(1, 0, 2)
+def _differences(g: F64, axis: int = 0) -> tuple[F64, F64]:
+    """First and second derivative along the first axis (rows) of the quadratic through
+    each point's block of 3 (moved inward at the border; with 2 points the line, no bend),
+    at every point of ``g`` (R, C, 2)."""
     if len(g) == 2:
         return np.broadcast_to(g[1] - g[0], g.shape), np.zeros_like(g)
     d, h = np.empty_like(g), np.empty_like(g)
@@ -107,18 +109,68 @@ def _differences(g: F64, axis: int) -> tuple[F64, F64]:
     return d, h
 
 
-def _blocks(gray: NDArray[np.uint8], centres: NDArray[np.int64], r: int) -> NDArray[np.uint8]:
+def _gather(gray: NDArray[np.uint8], centres: NDArray[np.int64], r: int) -> NDArray[np.float32]:
     """The (2 r + 1)-pixel squares of ``gray`` around the whole pixels ``centres`` (N, 2),
-    (N, 2 r + 1, 2 r + 1); past the image's edge its border pixels repeated."""
+    shape (N, 2 r + 1, 2 r + 1), as float32; past the image's edge its border pixels
+    repeated."""
     h, w = gray.shape
-    x, y = centres[:, 0], centres[:, 1]
-    if x.min() >= r and y.min() >= r and x.max() < w - r and y.max() < h - r:
-        windows = np.lib.stride_tricks.sliding_window_view(gray, (2 * r + 1, 2 * r + 1))
-        return windows[y - r, x - r]
+    side = 2 * r + 1
+    lo, hi = centres.min(axis=0), centres.max(axis=0)
+    if (lo.min() >= r and hi[0] < w - r and hi[1] < h - r and gray.dtype == np.uint8
+            and gray.flags.c_contiguous):
+        # every square inside: a strided view of the squares' corners, indexed
+        windows = np.ndarray((h - 2 * r, w - 2 * r, side, side), np.uint8, gray, 0, (w, 1, w, 1))
+        return windows[centres[:, 1] - r, centres[:, 0] - r].astype(np.float32)
     reach = np.arange(-r, r + 1)
-    iy = np.clip(y[:, None] + reach, 0, h - 1)
-    ix = np.clip(x[:, None] + reach, 0, w - 1)
-    return gray[iy[:, :, None], ix[:, None, :]]
+    iy = np.minimum(np.maximum(centres[:, 1:] + reach, 0), h - 1)     # (N, side)
+    ix = np.minimum(np.maximum(centres[:, :1] + reach, 0), w - 1)
+    return gray[iy[:, :, None], ix[:, None, :]].astype(np.float32)
+
+
+def _mosaic_shape(n: int) -> tuple[int, int]:
+    """Rows and columns of tiles of the mosaic that holds ``n`` tiles."""
+    per_row = math.ceil(math.sqrt(n))
+    return math.ceil(n / per_row), per_row
+
+
+def _straightened_mosaic(gray: NDArray[np.uint8], base: NDArray[np.int64],
+                         shift: NDArray[np.float32], frames: NDArray[np.float32],
+                         t: int) -> NDArray[np.float32]:
+    """The patches of :func:`refine_straightened` (side ``2 t + 1`` around the whole pixels
+    ``base`` (N, 2), ``shift = base - points``, ``frames`` of :func:`_edge_frames`, float32),
+    each moved by its bend, laid out in one image: tile k at row ``k // per_row``, column
+    ``k % per_row`` (:func:`_mosaic_shape`), the places beyond the last tile holding copies
+    of the first.
+
+    The arithmetic is :func:`_bend`'s per pixel, in float32 and in the same order, with
+    fewer passes over the pixels: the nearer edge is chosen once for both components, by a
+    masked copy (``cv2.copyTo``, not ``np.where``), and the factors 1/2 of the bend and of
+    the central difference are moved onto the per-corner second derivatives (exact: powers
+    of two)."""
+    n = len(base)
+    rows_, per_row = _mosaic_shape(n)
+    side = 2 * t + 1
+    order = np.arange(rows_ * per_row)
+    order[n:] = 0                                               # copies of the first tile
+    f = np.concatenate([frames[:, :6], 0.25 * frames[:, 6:], shift], axis=1)[order].T
+    f = f[:, :, None, None]                                     # per tile, against pixels
+    off = np.arange(-t, t + 1, dtype=np.float32)
+    ux, uy = off + f[10, :, :, :1], (off + f[11, :, 0, :1])[:, :, None]   # (M, 1|side, side|1)
+    a = f[0] * ux + f[1] * uy                                   # (M, side, side)
+    b = f[2] * ux + f[3] * uy
+    mask = (np.abs(a) * f[4] < np.abs(b) * f[5]).view(np.uint8).reshape(-1, side)
+    s = cv2.copyTo(b.reshape(-1, side), mask, a.reshape(-1, side)).reshape(a.shape)
+    s *= s                                    # the offset along the nearer edge, squared
+    block = _gather(gray, base[order], t + 1)
+    tiles = block[:, 1:-1, 1:-1].copy()
+    for i, (ahead, behind) in enumerate(((block[:, 1:-1, 2:], block[:, 1:-1, :-2]),
+                                         (block[:, 2:, 1:-1], block[:, :-2, 1:-1]))):
+        step = f[6 + i] * s                   # half the bend: 1/4 of H_aa da^2, per pixel
+        cv2.copyTo((f[8 + i] * s).reshape(-1, side), mask, step.reshape(-1, side))
+        step *= ahead - behind
+        tiles += step
+    mosaic = tiles.reshape(rows_, per_row, side, side).transpose(0, 2, 1, 3)
+    return np.ascontiguousarray(mosaic).reshape(rows_ * side, per_row * side)
 
 
 def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: int,
@@ -148,32 +200,21 @@ def refine_straightened(gray: NDArray[np.uint8], points: F64, rows: int, cols: i
     ``x`` from ``round(p)`` (offset ``u = x + round(p) - p`` from ``p``) takes the image's
     grey at ``p + u + t(u)``, ``t`` the bend (:func:`_edge_frames`, :func:`_bend`), as
     ``I + t . grad I`` with central differences; the patch's corner ``p + u*`` goes back to
-    ``p + u* + t(u*)``."""
+    ``p + u* + t(u*)``.  The patches are refined in one call, side by side in one image
+    (:func:`_straightened_mosaic`)."""
     n = len(points)
-    frames = tuple(x.astype(np.float32) for x in _edge_frames(points, rows, cols))
+    frames = _edge_frames(points, rows, cols).astype(np.float32)
     t = half + MARGIN_PX
     side = 2 * t + 1
     base = np.rint(points).astype(np.int64)
     shift = (base - points).astype(np.float32)                        # (N, 2)
-    off = np.arange(-t, t + 1, dtype=np.float32)
-    ux = (off + shift[:, 0, None])[:, None, :]                        # (N, 1, side)
-    uy = (off + shift[:, 1, None])[:, :, None]                        # (N, side, 1)
-    bx, by = _bend(ux, uy, frames)                                    # (N, side, side)
-    # the image on each tile's whole pixels and one beyond (replicated past the image's edge)
-    block = _blocks(gray, base, t + 1).astype(np.float32)
-    # moved by the bend: first order in it, central differences (no resampling grid)
-    tiles = block[:, 1:-1, 1:-1] + 0.5 * bx * (block[:, 1:-1, 2:] - block[:, 1:-1, :-2])
-    tiles += 0.5 * by * (block[:, 2:, 1:-1] - block[:, :-2, 1:-1])
-    per_row = int(np.ceil(np.sqrt(n)))
-    mosaic_rows = int(np.ceil(n / per_row))
-    full = np.empty((mosaic_rows * per_row, side, side), np.float32)
-    full[:n], full[n:] = tiles, tiles[:1]
-    mosaic = full.reshape(mosaic_rows, per_row, side, side).transpose(0, 2, 1, 3)
-    mosaic = np.ascontiguousarray(mosaic.reshape(mosaic_rows * side, per_row * side))
+    mosaic = _straightened_mosaic(gray, base, shift, frames, t)
+    per_row = _mosaic_shape(n)[1]
     k = np.arange(n)
-    centre = np.column_stack([(k % per_row) * side, (k // per_row) * side]) + float(t)
+    centre = np.empty((n, 2))
+    centre[:, 0], centre[:, 1] = (k % per_row) * side + t, (k // per_row) * side + t
     pts = (centre - shift).astype(np.float32).reshape(-1, 1, 2)
     cv2.cornerSubPix(mosaic, pts, (half, half), (-1, -1), SUBPIX_CRITERIA)
     u = pts.reshape(-1, 2).astype(np.float64) - centre + shift
-    back = _bend(u[:, :1, None], u[:, 1:, None], tuple(x.astype(np.float64) for x in frames))
-    return points + u + np.column_stack([back[0].ravel(), back[1].ravel()])
+    back = np.column_stack(_bend(u[:, 0], u[:, 1], frames.astype(np.float64)))
+    return points + u + back
