@@ -19,7 +19,7 @@ from multieye.estimate.pairing import pair_in_time
 from multieye.io import list_images, load_rig, read_tum
 from multieye.pipeline import calibrate
 from multieye.pipeline import rig_model
-from multieye.pipeline.recordings import image_notes
+from multieye.pipeline.recordings import image_notes, instant_keys
 
 from small_dataset import render_small
 
@@ -65,6 +65,20 @@ def test_bad_layouts_exit_2_in_one_line_and_write_nothing(tmp_path, sync, names,
     lines = [line for line in res.output.splitlines() if line.strip()]
     assert len(lines) == 1 and __import__("re").search(message, lines[0]), res.output
     assert not out.exists()
+
+
+def test_sync_number_pairs_by_the_number_that_differs_not_the_camera_id(tmp_path):
+    """One folder of ``0001_cam0.png`` and ``0001_cam1.png``: both cameras' images keyed by
+    their frame number, 1 with 1 (the camera's id, the last integer, was taken and the rig
+    refused)."""
+    names = [f"{k:04d}_cam{j}.png" for k in (1, 2, 3, 10) for j in range(2)]
+    _empty_images(tmp_path, *names)
+    (tmp_path / "rig.yaml").write_text(
+        HEAD + "sync: number\ncameras:\n  a: {model: pinhole-radtan, images: '*_cam0.png'}\n"
+        "  b: {model: pinhole-radtan, images: '*_cam1.png'}\n")
+    rig = load_rig(tmp_path)
+    assert instant_keys(rig, "a") == {f"{k:04d}_cam0": str(k) for k in (1, 2, 3, 10)}
+    assert instant_keys(rig, "b") == {f"{k:04d}_cam1": str(k) for k in (1, 2, 3, 10)}
 
 
 @pytest.fixture(scope="module")

@@ -26,7 +26,8 @@ from multieye.imaging.target_hints import counting_rule, suggest_target
 from multieye.estimate.instants import instants_from_names
 from multieye.io import Trajectory, bag_image_count, list_image_files, load_rig
 from multieye.io import sample_bag_images
-from multieye.pipeline.recordings import check_sync, image_notes, listed_images, precomputed_poses, sync_instant
+from multieye.pipeline.recordings import (check_sync, image_notes, instant_keys, listed_images,
+                                          precomputed_poses, sync_instant)
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
 from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
@@ -426,9 +427,16 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
                        rotation_range_deg=None, rotation_spread_deg=None,
                        problems=tuple(problems), fatal=tuple(fatal),
                        stamps=tuple(float(t) + cam.time_offset for t in seen.stamps),
-                       keys=tuple(sync_instant(n, t, rig.sync) for n, t in
-                                  zip(seen.names, seen.stamps)) if rig.sync != "time" else (),
+                       keys=_keys(rig, name, seen),
                        boards=seen.boards, seen=seen.seen, board_poses=seen.board_poses)
+
+
+def _keys(rig, name: str, seen) -> tuple[str, ...]:
+    """The sampled images' instant keys under rig.yaml's ``sync`` (none with ``time``)."""
+    if rig.sync == "time":
+        return ()
+    keys = instant_keys(rig, name)
+    return tuple(sync_instant(n, t, rig.sync, keys) for n, t in zip(seen.names, seen.stamps))
 
 
 def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...], tuple]:

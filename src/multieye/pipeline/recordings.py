@@ -20,11 +20,12 @@ import numpy as np
 from multieye.core.errors import DatasetError
 from multieye.core import geometry as g
 from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, list_images, read_tum
-from multieye.io.image_folder import sync_key
+from multieye.io.image_folder import sync_key, sync_keys
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 
-__all__ = ["precomputed_poses", "listed_images", "check_sync", "sync_instant", "image_notes", "camera_warnings",
+__all__ = ["precomputed_poses", "listed_images", "check_sync", "sync_instant", "instant_keys",
+           "image_notes", "camera_warnings",
            "poses_by_name_of", "FIRST_NAMED"]
 
 #: How many image names a note names before ``and N more``.
@@ -59,10 +60,26 @@ def check_sync(rig: Rig) -> dict[str, int]:
     return counts
 
 
-def sync_instant(label: str, stamp: float, sync: str) -> str:
+def sync_instant(label: str, stamp: float, sync: str, keys: Mapping[str, str] | None = None
+                 ) -> str:
     """The instant key of an image named ``label`` listed with ``stamp`` under ``sync`` (not
-    ``time``): its stem, the last integer in it, or its place (the stamp)."""
-    return sync_key(Path(label).stem, sync, int(stamp))
+    ``time``): its key in ``keys`` (its camera's :func:`instant_keys`, by stem), else its
+    stem, the last integer in it, or its place (the stamp)."""
+    stem = Path(label).stem
+    if keys is not None and stem in keys:
+        return keys[stem]
+    return sync_key(stem, sync, int(stamp))
+
+
+def instant_keys(rig: Rig, name: str) -> dict[str, str]:
+    """Every listed image's instant key under rig.yaml's ``sync`` (not ``time``) by its
+    stem (:func:`multieye.io.image_folder.sync_keys`: ``sync: number`` takes the number
+    that differs between the camera's images); empty for a camera without images or with
+    ``sync: time``."""
+    if rig.sync == "time" or rig.cameras[name].source != "images":
+        return {}
+    stems = [p.stem for _, _, p in listed_images(rig, name)]
+    return dict(zip(stems, sync_keys(stems, rig.sync)))
 
 
 def image_notes(notes: Iterable[tuple[str, str]], limit: int = FIRST_NAMED
