@@ -487,7 +487,7 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
 
 #: How each ``sync`` makes images of different cameras one instant, for the dry run's lines.
 _SYNC_RULE = {"name": "equal names without the extension",
-              "number": "the same last number in their names",
+              "number": "the same frame number in their names",
               "order": "the same place in each camera's name order"}
 
 
