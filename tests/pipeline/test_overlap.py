@@ -74,6 +74,21 @@ def test_a_camera_off_by_one_frame_is_doubted():
     assert "the other cameras fit together without it" in sol.findings[0].message
 
 
+def test_a_camera_off_by_one_place_under_sync_order_is_doubted_naming_the_pairing():
+    """sync: order, cam2's images one place late (an image missing in two cameras' names
+    without numbers): the doubt names the k-th-image pairing, not the clocks, which such a
+    rig has none of."""
+    _, cams = _cameras(shift={2: lambda t: t + 1}, n=30)
+    cams = {n: CameraData(**{**d.__dict__, "observations": tuple(
+        Observation(**{**o.__dict__, "instant": str(int(round((o.stamp - 100) / 0.25)))})
+        for o in d.observations)}) for n, d in cams.items()}
+    sol = solve_overlap(cams, "cam0", sync="order")
+    assert [(f.cause, f.camera) for f in sol.findings] == [("fit", "cam2")]
+    assert "the k-th images of the cameras were taken together (sync: order" in \
+        sol.findings[0].message
+    assert "synchronised" not in sol.findings[0].message
+
+
 def test_a_camera_given_by_poses_is_refused():
     _, cams = _cameras()
     d = cams["cam1"]

@@ -20,7 +20,7 @@ import numpy as np
 from multieye.core.errors import DatasetError
 from multieye.core import geometry as g
 from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, list_images, read_tum
-from multieye.io.image_folder import sync_key, sync_keys
+from multieye.io.image_folder import numbers_in_names, sync_key, sync_keys
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 
@@ -49,15 +49,44 @@ def check_sync(rig: Rig) -> dict[str, int]:
     """The count of images per camera with images, checked against ``sync``: with ``order``
     (the k-th image of each camera is one instant) every camera must have as many, else one
     line naming each camera's count (a missing image would shift every later pair)."""
-    counts = {n: len(listed_images(rig, n)) for n, c in rig.cameras.items()
+    listed = {n: [p for _, _, p in listed_images(rig, n)] for n, c in rig.cameras.items()
               if c.source == "images" and rig.sync != "time"}
+    counts = {n: len(p) for n, p in listed.items()}
     if rig.sync == "order" and len(set(counts.values())) > 1:
         shown = ", ".join(f"{n} {k}" for n, k in counts.items())
         raise DatasetError(f"sync: order pairs the k-th image of each camera, but the cameras "
                            f"have different counts of images ({shown}); give every camera the "
                            "same images, or sync: number (the number in each name)",
                            path=rig.path)
+    if rig.sync == "order":
+        _order_shift(rig, listed)
     return counts
+
+
+def _order_shift(rig: Rig, listed: Mapping[str, list[Path]]) -> None:
+    """Refuse ``sync: order`` when the numbers in the names say that an image is missing in
+    one camera and another in a second (equal counts, every pair after the first gap shifted
+    by one): the numbers of the k-th images of two cameras differ by one constant at most
+    places (frame counters) but not at all.  Names without numbers, or numbers that differ
+    at every place (each camera's own clock), say nothing."""
+    cams = [n for n, p in listed.items() if p]
+    numbers = {n: numbers_in_names([p.stem for p in listed[n]]) for n in cams}
+    if len(cams) < 2 or any(None in v for v in numbers.values()):
+        return
+    first = np.asarray(numbers[cams[0]], dtype=object)
+    for n in cams[1:]:
+        d = np.asarray(numbers[n], dtype=object) - first
+        values, counts = np.unique(d.astype(str), return_counts=True)
+        if len(values) < 2 or 2 * counts.max() < len(d):
+            continue
+        k = int(np.flatnonzero(d != d[0])[0])
+        a, b = listed[cams[0]][k], listed[n][k]
+        raise DatasetError(
+            f"sync: order pairs the k-th image of each camera, but the numbers in the names of "
+            f"image {k + 1} of {cams[0]} and {n} ({a.name}, {b.name}) differ by {d[k]} where "
+            f"those of the {k} before differ by {d[0]}: an image missing in one camera shifts "
+            "every pair after it; give sync: number to pair images by the number in their "
+            "names", path=rig.path)
 
 
 def sync_instant(label: str, stamp: float, sync: str, keys: Mapping[str, str] | None = None
