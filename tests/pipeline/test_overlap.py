@@ -160,3 +160,37 @@ def test_an_image_with_points_off_is_named_among_the_warnings():
     sol = solve_overlap(cams, "cam0")
     poor = [w for w in sol.warnings if "fit the rig poorly" in w]
     assert poor == [f"cam1: 1 image(s) fit the rig poorly: {obs[2].name}"]
+
+
+def test_cameras_whose_images_share_instants_but_not_the_board_are_refused_by_check_and_calibrate(
+        tmp_path):
+    """Two cameras with an image at every instant, the board in cam0's first half and cam1's
+    second (grey images elsewhere): ``multieye check`` linked them by the listed images and
+    said 'ok, calibrating can run' while calibrating refused them; both now exit 2 saying
+    the board was never seen together."""
+    import shutil
+
+    import cv2
+    from click.testing import CliRunner
+
+    from multieye.cli import main
+    from multieye.sim.overlap import render_overlap_dataset
+
+    ds = tmp_path / "ds"
+    render_overlap_dataset(ds, OverlapSpec(n_cameras=2, angle_deg=10, n_instants=8,
+                                           width=320, height=240, fisheye=(),
+                                           target={"type": "chessboard", "rows": 4, "cols": 5,
+                                                   "spacing": 0.08}))
+    grey = np.full((240, 320), 128, np.uint8)
+    for j, half in ((0, slice(4, 8)), (1, slice(0, 4))):
+        for p in sorted((ds / f"cam{j}").iterdir())[half]:
+            cv2.imwrite(str(p), grey)
+    check = CliRunner().invoke(main, ["check", str(ds), "--processes", "1"])
+    assert check.exit_code == 2, check.output
+    assert "cam0: the board is in 4 of its images, but never at an instant when another " \
+           "camera's image shows it (8 instants in both)" in check.output
+    out = tmp_path / "out"
+    run = CliRunner().invoke(main, ["calibrate", str(ds), "-o", str(out), "--processes", "1"])
+    assert run.exit_code == 2 and not out.exists(), run.output
+    assert "give them views of the board at the same instants" in run.output
+    shutil.rmtree(ds)

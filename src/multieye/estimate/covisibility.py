@@ -179,7 +179,7 @@ def unlinked_message(groups: Sequence[Sequence[str]], tolerance: float | None = 
     how = (f"stamps within sync_tolerance{within}" if sync == "time"
            else f"names that pair under sync: {sync}")
     return (f"cameras fall into {len(groups)} groups that nothing links: {listing}; give them "
-            f"images taken at the same instants ({how}), motion capture (mocap: in "
+            f"views of the board at the same instants ({how}), motion capture (mocap: in "
             "rig.yaml), or several boards standing still (targets: in rig.yaml) that the "
             "cameras see while the rig moves")
 

@@ -111,6 +111,7 @@ class CameraCheck:
     boards: tuple[tuple[str, int], ...] = ()
     seen: tuple[tuple[int, tuple[str, ...]], ...] = ()
     board_poses: tuple = ()
+    sampled_at: tuple[int, ...] = ()
 
     @property
     def found_percent(self) -> float:
@@ -427,8 +428,8 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
                        rotation_range_deg=None, rotation_spread_deg=None,
                        problems=tuple(problems), fatal=tuple(fatal),
                        stamps=tuple(float(t) + cam.time_offset for t in seen.stamps),
-                       keys=_keys(rig, name, seen),
-                       boards=seen.boards, seen=seen.seen, board_poses=seen.board_poses)
+                       keys=_keys(rig, name, seen), boards=seen.boards, seen=seen.seen,
+                       board_poses=seen.board_poses, sampled_at=tuple(seen.sampled_idx))
 
 
 def _keys(rig, name: str, seen) -> tuple[str, ...]:
@@ -465,6 +466,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         given = frozenset(n for n, t in rig.targets.items() if getattr(t, "pose", None) is not None)
         turned = one_axis_problems([c.name for c in cams], views, cams[0].board_poses, given)
         cams = tuple(replace(c, problems=c.problems + turned.get(c.name, ())) for c in cams)
+    else:
+        cams = _never_together(cams, inst)
     out = []
     for j, c in enumerate(cams):
         others = np.concatenate([i for k, i in enumerate(inst) if k != j] or [np.zeros(0)])
@@ -483,6 +486,31 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         out.append(replace(c, with_mocap=shared, fatal=fatal,
                            problems=c.problems + fatal[len(c.fatal):] + apart))
     return tuple(out), lines
+
+
+def _never_together(cams: tuple[CameraCheck, ...], inst) -> tuple[CameraCheck, ...]:
+    """One board: a camera whose sampled images show the board, none of them at an instant
+    when another camera's sampled image shows it too, though both were sampled at some, gets
+    a problem: the listed images share instants, but calibrating links cameras by the board
+    seen together (cameras that do not overlap are refused unless other images link them);
+    the refusal itself when every image was sampled."""
+    sampled = [{int(inst[j][i]) for i in c.sampled_at} for j, c in enumerate(cams)]
+    board = [{int(inst[j][i]) for i, _ in c.seen} for j, c in enumerate(cams)]
+    complete = all(len(c.sampled_at) == c.listed for c in cams)    # as calibrating sees them
+    out = []
+    for j, c in enumerate(cams):
+        others = [k for k in range(len(cams)) if k != j]
+        both = sum(len(sampled[j] & sampled[k]) for k in others)
+        if both and board[j] and not any(board[j] & board[k] for k in others):
+            what = (f"the board is in {len(board[j])} of its {'' if complete else 'sampled '}"
+                    "images, but never at an instant when another camera's image shows it "
+                    f"({both} instants {'' if complete else 'sampled '}in both): cameras "
+                    "without motion capture are linked by the board seen together (check that "
+                    "the cameras overlap, or give motion capture or several boards: targets:)")
+            c = replace(c, problems=c.problems + (what,),
+                        fatal=c.fatal + ((what,) if complete else ()))
+        out.append(c)
+    return tuple(out)
 
 
 #: How each ``sync`` makes images of different cameras one instant, for the dry run's lines.
