@@ -224,5 +224,5 @@ def test_pairing_hint_names_what_would_pair_unlinked_groups():
     stems = [["left01", "left02"], ["right02", "right03"]]
     assert pairing_hint([[0], [1]], stems=stems, sync="name") == (
         "; the names differ but the numbers in them agree (left02 with right02): sync: number "
-        "pairs images by the last number in their names")
+        "pairs images by the (frame) number in their names")
     assert pairing_hint([[0], [1]], stems=[["a1"], ["b2"]], sync="name") == ""

@@ -229,7 +229,7 @@ def pairing_hint(groups: Sequence[Sequence[int]], stamps: Sequence | None = None
         both = sorted(set(mine) & set(others))
         if both:
             return (f"; the names differ but the numbers in them agree ({mine[both[0]]} with "
-                    f"{others[both[0]]}): sync: number pairs images by the last number in "
+                    f"{others[both[0]]}): sync: number pairs images by the (frame) number in "
                     "their names")
     return ""
 
