@@ -477,7 +477,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         if len(groups) > 1 and j not in groups[0] and not several:
             fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol,
                                        rig.sync) + pairing_hint(
-                groups, [c.stamps for c in cams], [c.keys for c in cams], rig.sync),)
+                groups, [c.stamps for c in cams], [c.keys for c in cams], rig.sync,
+                [c.name for c in cams]),)
         apart = tuple(f"linked to {cams[0].name} by nothing in the sampled images: no board "
                       "seen at an instant when a linked camera sees one (calibrating would "
                       "refuse it unless other images link it)"

@@ -276,8 +276,9 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     groups = link_groups(cov.shared > 0, [False] * len(names))
     if len(groups) > 1:
         obs = [cameras[n].observations for n in names]
-        hint = pairing_hint(groups, [[o.stamp for o in ob] for ob in obs],
-                            [[Path(o.name).stem for o in ob] for ob in obs], sync)
+        hint = pairing_hint(groups, [[o.stamp + cameras[n].time_offset for o in ob]
+                                     for n, ob in zip(names, obs)],
+                            [[Path(o.name).stem for o in ob] for ob in obs], sync, names)
         raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol,
                                                  sync) + hint,
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))
