@@ -86,7 +86,7 @@ def _order_shift(rig: Rig, listed: Mapping[str, list[Path]]) -> None:
             f"image {k + 1} of {cams[0]} and {n} ({a.name}, {b.name}) differ by {d[k]} where "
             f"those of the {k} before differ by {d[0]}: an image missing in one camera shifts "
             "every pair after it; give sync: number to pair images by the number in their "
-            "names", path=rig.path)
+            "names (sync: time when they are time stamps)", path=rig.path)
 
 
 def sync_instant(label: str, stamp: float, sync: str, keys: Mapping[str, str] | None = None
