@@ -11,6 +11,7 @@ Synopsis
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable, Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -49,6 +50,7 @@ def check_sync(rig: Rig) -> dict[str, int]:
     """The count of images per camera with images, checked against ``sync``: with ``order``
     (the k-th image of each camera is one instant) every camera must have as many, else one
     line naming each camera's count (a missing image would shift every later pair)."""
+    _no_shared_images(rig)
     listed = {n: [p for _, _, p in listed_images(rig, n)] for n, c in rig.cameras.items()
               if c.source == "images" and rig.sync != "time"}
     counts = {n: len(p) for n, p in listed.items()}
@@ -61,6 +63,31 @@ def check_sync(rig: Rig) -> dict[str, int]:
     if rig.sync == "order":
         _order_shift(rig, listed)
     return counts
+
+
+def _no_shared_images(rig: Rig) -> None:
+    """Refuse two cameras whose ``images`` list one file (the same folder, or patterns that
+    overlap, or links to one file): each would be calibrated against itself, a rig of two
+    cameras at one pose, exactly, with nothing to doubt (a copied line in rig.yaml)."""
+    owner: dict[str, str] = {}
+    for n, c in rig.cameras.items():
+        if c.source != "images":
+            continue
+        try:
+            files = list_image_files(c.images, c.images_pattern)
+        except DatasetError:
+            continue                    # said with the camera's name when it is listed
+        shared, folder = [], os.path.realpath(c.images)
+        for p in files:
+            real = os.path.realpath(p) if os.path.islink(p) else os.path.join(folder, p.name)
+            if owner.setdefault(real, n) != n:
+                shared.append((owner[real], p))
+        if shared:
+            other, first = shared[0]
+            more = f" and {len(shared) - 1} more" if len(shared) > 1 else ""
+            raise DatasetError(f"cameras {other} and {n} read the same image files ({first.name}"
+                               f"{more}): each camera needs its own images (check their images: "
+                               "in rig.yaml)", path=rig.path)
 
 
 def _order_shift(rig: Rig, listed: Mapping[str, list[Path]]) -> None:
