@@ -240,7 +240,7 @@ def test_pairing_hint_names_the_clock_offset_of_a_camera_on_its_own_clock():
     k = np.arange(16)
     a = 100.0 + 0.25 * k
     b = np.delete(5.3 + 0.25 * k + 0.0004, [3, 9])
-    hint = pairing_hint([[0], [1]], stamps=[a, b], sync="time", names=["left", "right"])
+    hint = pairing_hint([[0], [1]], stamps=[a, b], sync="time", labels=["left", "right"])
     assert hint == ("; camera right's stamps plus 94.6996 s meet the first group's at 14 of its "
                     "14 images: if its clock is that far off, time_offset: 94.6996 (added to "
                     "any it has) in rig.yaml makes them one instant")

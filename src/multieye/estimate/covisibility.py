@@ -186,7 +186,7 @@ def unlinked_message(groups: Sequence[Sequence[str]], tolerance: float | None = 
 
 def pairing_hint(groups: Sequence[Sequence[int]], stamps: Sequence | None = None,
                  stems: Sequence[Sequence[str]] | None = None, sync: str = "time",
-                 names: Sequence[str] | None = None) -> str:
+                 labels: Sequence[str] | None = None) -> str:
     """What would make the images of unlinked camera groups one instant, for
     :func:`unlinked_message`: ``"; ..."`` or ``""``.
 
@@ -209,7 +209,7 @@ def pairing_hint(groups: Sequence[Sequence[int]], stamps: Sequence | None = None
         ``right01``).
     sync : str
         rig.yaml's ``sync``.
-    names : sequence of str, optional
+    labels : sequence of str, optional
         The cameras' names, for the ``time_offset`` suggestion.
     """
     first, rest = list(groups[0]), [j for g in groups[1:] for j in g]
@@ -230,7 +230,7 @@ def pairing_hint(groups: Sequence[Sequence[int]], stamps: Sequence | None = None
             rest_cam = max(rest, key=lambda j: len(stamps[j]))
             hint = _offset_hint(a, np.sort(np.asarray(stamps[rest_cam], np.float64)),
                                 min(0.01, shortest / 4),
-                                f"camera {names[rest_cam]}" if names else "that camera")
+                                f"camera {labels[rest_cam]}" if labels else "that camera")
             if hint:
                 return hint
     if sync == "name" and stems is not None:
