@@ -157,3 +157,31 @@ def test_single_axis_hand_eye_leaves_the_axis_out_when_the_poses_tilt_by_noise()
     Xe, _ = single_axis_hand_eye(A, B)
     assert abs(Xe[2, 3]) < 0.05                       # left at zero, not amplified noise
     assert np.linalg.norm(Xe[:2, 3] - X[:2, 3]) < 0.1
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_a_reference_camera_that_sees_boards_at_few_instants_is_placed_by_the_others(seed):
+    """The reference camera keeps 2 of its instants, the others all of theirs: growing from
+    it placed 2 rig poses, too few for the hand-eye step, and the rig was refused (the
+    rendered wall rig with the reference camera's images thinned, run as a user would).
+    Grown from the camera that sees most and re-expressed in the reference camera's frame,
+    it is exact."""
+    s = wall_rig(seed)
+    few = sorted(set(s.instant[s.camera == 0].tolist()))[:2]
+    keep = (s.camera != 0) | np.isin(s.instant, few)
+    inst = np.unique(s.instant[keep], return_inverse=True)[1]
+    st = motion_start(MotionViews(_kept(s, keep, inst), s.intrinsics, 0), s.T_cam_board()[keep])
+    assert np.abs(st.T_ref_cam - s.T_ref_cam).max() < 1e-9
+    assert np.abs(st.T_world_board - s.T_world_board).max() < 1e-9
+    rig = s.T_world_rig[np.unique(s.instant[keep])]
+    assert np.abs(st.T_world_rig - rig).max() < 1e-9
+    assert st.links[0].kind == "reference"
+    assert all(lk.kind in ("motion", "overlap") for lk in st.links[1:])
+
+
+def _kept(s, keep, inst) -> dict:
+    views = {f"cam{j}": [] for j in range(len(s.T_ref_cam))}
+    px = s.pixels()
+    for v, k in zip(np.flatnonzero(keep), inst):
+        views[f"cam{s.camera[v]}"].append((s.object_points, px[v], int(k), int(s.board[v])))
+    return views

@@ -220,9 +220,30 @@ def test_pairing_hint_names_what_would_pair_unlinked_groups():
         "; the nearest images of two groups are 29 ms apart: if the cameras were triggered "
         "together, sync_tolerance: 0.044 in rig.yaml makes such images one instant")
     assert pairing_hint([[0], [1]], [left, left + 0.04]) == ""       # 0.06: over half of 0.1
-    assert pairing_hint([[0], [1]], [left, left + 5.0]) == ""
+    assert pairing_hint([[0], [1]], [left, left + 5.0]) == (     # a clock 5 s off
+        "; that camera's stamps plus -5 s meet the first group's at 10 of its 10 images: if "
+        "its clock is that far off, time_offset: -5 (added to any it has) in rig.yaml makes "
+        "them one instant")
     stems = [["left01", "left02"], ["right02", "right03"]]
     assert pairing_hint([[0], [1]], stems=stems, sync="name") == (
         "; the names differ but the numbers in them agree (left02 with right02): sync: number "
-        "pairs images by the last number in their names")
+        "pairs images by the (frame) number in their names")
     assert pairing_hint([[0], [1]], stems=[["a1"], ["b2"]], sync="name") == ""
+
+
+def test_pairing_hint_names_the_clock_offset_of_a_camera_on_its_own_clock():
+    """A camera stamped by its own computer's clock (5.3 s at the first image, the others at
+    100 s): refused as unlinked with no hint; the hint now names the time_offset that makes
+    its images one instant with the others'."""
+    from multieye.estimate.covisibility import pairing_hint
+
+    k = np.arange(16)
+    a = 100.0 + 0.25 * k
+    b = np.delete(5.3 + 0.25 * k + 0.0004, [3, 9])
+    hint = pairing_hint([[0], [1]], stamps=[a, b], sync="time", labels=["left", "right"])
+    assert hint == ("; camera right's stamps plus 94.6996 s meet the first group's at 14 of its "
+                    "14 images: if its clock is that far off, time_offset: 94.6996 (added to "
+                    "any it has) in rig.yaml makes them one instant")
+    rng = np.random.default_rng(0)
+    unrelated = np.sort(rng.uniform(0, 50, 16))
+    assert pairing_hint([[0], [1]], stamps=[a, unrelated], sync="time") == ""

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from multieye.core.errors import DatasetError
 from multieye.io.image_folder import (check_pattern, list_image_files, list_images,
-                                      number_in_name, sync_key)
+                                      number_in_name, numbers_in_names, sync_key)
 from multieye.io.pose_files import PoseFormat, poses_by_name, read_pose_file
 from multieye.io.rig import load_rig
 
@@ -32,6 +32,22 @@ def test_number_and_name_keys():
     assert number_in_name("left") is None
     assert sync_key("left01", "number", 5) == sync_key("right1", "number", 0) == "1"
     assert sync_key("a", "name", 0) == "a" and sync_key("a", "order", 4) == "4"
+
+
+def test_number_is_the_integer_that_differs_between_a_cameras_images(tmp_path):
+    """``0001_cam0.png`` ... ``0016_cam0.png``: the last integer (0) names the camera, and
+    sync: number refused the camera as 16 images of number 0; the number is the last integer
+    that differs between the camera's images."""
+    assert numbers_in_names(["0001_cam0", "0002_cam0", "0010_cam0"]) == [1, 2, 10]
+    assert numbers_in_names(["frame0001_cam1", "frame0002_cam1"]) == [1, 2]
+    assert numbers_in_names(["cam0_frame1_v2", "cam0_frame2_v2"]) == [1, 2]
+    assert numbers_in_names(["left01", "left2", "left10"]) == [1, 2, 10]
+    assert numbers_in_names(["0005_cam1"]) == [1]             # nothing differs: the last
+    assert numbers_in_names(["a1_b2", "a3", "x"]) == [2, 3, None]   # counts differ: the last
+    _touch(tmp_path, *(f"{k:04d}_cam{j}.png" for k in range(1, 4) for j in range(2)))
+    for j in range(2):
+        listed = list_images(tmp_path, f"*_cam{j}.png", "number")
+        assert [p.name for _, _, p in listed] == [f"{k:04d}_cam{j}.png" for k in range(1, 4)]
 
 
 def test_pattern_lists_matching_images_in_natural_order(tmp_path):

@@ -67,7 +67,7 @@ def test_check_prints_instants_and_links(shared_data, tmp_path):
     dataset = _published(shared_data, tmp_path / "data")
     res = CliRunner().invoke(main, ["check", str(dataset), "--processes", "1", "--sample", "3"])
     assert res.exit_code == 0, res.output
-    assert ("instants: 11 found by sync: number, the same last number in their names; 11 of "
+    assert ("instants: 11 found by sync: number, the same frame number in their names; 11 of "
             "them seen by more than one camera") in res.output
     assert "left linked by: right (11 instants)" in res.output
     assert "right linked by: left (11 instants)" in res.output

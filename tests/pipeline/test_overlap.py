@@ -74,6 +74,21 @@ def test_a_camera_off_by_one_frame_is_doubted():
     assert "the other cameras fit together without it" in sol.findings[0].message
 
 
+def test_a_camera_off_by_one_place_under_sync_order_is_doubted_naming_the_pairing():
+    """sync: order, cam2's images one place late (an image missing in two cameras' names
+    without numbers): the doubt names the k-th-image pairing, not the clocks, which such a
+    rig has none of."""
+    _, cams = _cameras(shift={2: lambda t: t + 1}, n=30)
+    cams = {n: CameraData(**{**d.__dict__, "observations": tuple(
+        Observation(**{**o.__dict__, "instant": str(int(round((o.stamp - 100) / 0.25)))})
+        for o in d.observations)}) for n, d in cams.items()}
+    sol = solve_overlap(cams, "cam0", sync="order")
+    assert [(f.cause, f.camera) for f in sol.findings] == [("fit", "cam2")]
+    assert "the k-th images of the cameras were taken together (sync: order" in \
+        sol.findings[0].message
+    assert "synchronised" not in sol.findings[0].message
+
+
 def test_a_camera_given_by_poses_is_refused():
     _, cams = _cameras()
     d = cams["cam1"]
@@ -145,3 +160,37 @@ def test_an_image_with_points_off_is_named_among_the_warnings():
     sol = solve_overlap(cams, "cam0")
     poor = [w for w in sol.warnings if "fit the rig poorly" in w]
     assert poor == [f"cam1: 1 image(s) fit the rig poorly: {obs[2].name}"]
+
+
+def test_cameras_whose_images_share_instants_but_not_the_board_are_refused_by_check_and_calibrate(
+        tmp_path):
+    """Two cameras with an image at every instant, the board in cam0's first half and cam1's
+    second (grey images elsewhere): ``multieye check`` linked them by the listed images and
+    said 'ok, calibrating can run' while calibrating refused them; both now exit 2 saying
+    the board was never seen together."""
+    import shutil
+
+    import cv2
+    from click.testing import CliRunner
+
+    from multieye.cli import main
+    from multieye.sim.overlap import render_overlap_dataset
+
+    ds = tmp_path / "ds"
+    render_overlap_dataset(ds, OverlapSpec(n_cameras=2, angle_deg=10, n_instants=8,
+                                           width=320, height=240, fisheye=(),
+                                           target={"type": "chessboard", "rows": 4, "cols": 5,
+                                                   "spacing": 0.08}))
+    grey = np.full((240, 320), 128, np.uint8)
+    for j, half in ((0, slice(4, 8)), (1, slice(0, 4))):
+        for p in sorted((ds / f"cam{j}").iterdir())[half]:
+            cv2.imwrite(str(p), grey)
+    check = CliRunner().invoke(main, ["check", str(ds), "--processes", "1"])
+    assert check.exit_code == 2, check.output
+    assert "cam0: the board is in 4 of its images, but never at an instant when another " \
+           "camera's image shows it (8 instants in both)" in check.output
+    out = tmp_path / "out"
+    run = CliRunner().invoke(main, ["calibrate", str(ds), "-o", str(out), "--processes", "1"])
+    assert run.exit_code == 2 and not out.exists(), run.output
+    assert "give them views of the board at the same instants" in run.output
+    shutil.rmtree(ds)

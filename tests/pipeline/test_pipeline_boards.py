@@ -72,8 +72,10 @@ def test_a_camera_no_board_is_for(dataset):
     text = text.replace("DICT_4X4_100}", "DICT_4X4_100, cameras: [cam1]}")
     text = text.replace("first_id: 20}", "first_id: 20, cameras: [cam1]}")
     (dataset / "cam1").mkdir()
+    for f in (dataset / "cam0").iterdir():     # copies: two cameras never read one file
+        (dataset / "cam1" / f.name).write_bytes(f.read_bytes())
     (dataset / "rig.yaml").write_text(text + "cameras:\n  cam0: {intrinsics: cam0.yaml, images: "
-                                      "cam0/}\n  cam1: {intrinsics: cam0.yaml, images: cam0/}\n")
+                                      "cam0/}\n  cam1: {intrinsics: cam0.yaml, images: cam1/}\n")
     with pytest.raises(DatasetError, match="no target of rig.yaml is seen by this camera") as e:
         load_camera_data(load_rig(dataset), processes=1)
     assert e.value.camera == "cam0"

@@ -19,7 +19,7 @@ from multieye.estimate.pairing import pair_in_time
 from multieye.io import list_images, load_rig, read_tum
 from multieye.pipeline import calibrate
 from multieye.pipeline import rig_model
-from multieye.pipeline.recordings import image_notes
+from multieye.pipeline.recordings import check_sync, image_notes, instant_keys
 
 from small_dataset import render_small
 
@@ -50,14 +50,25 @@ def _empty_images(folder: Path, *names: str) -> None:
      "left01 as "
      "left01.jpg"),
     ("number", ["right01.jpg"], "camera left: no image .* named left\\*"),
+    ("number", ["left01.jpg", "left02.jpg", "right01.jpg", "right02.jpg", "x.png"],
+     r"cameras left and right read the same image files \(left01\.jpg and 1 more\): each "
+     "camera needs its own images"),
+    ("order", ["left01.jpg", "left02.jpg", "left04.jpg", "right01.jpg", "right03.jpg",
+               "right04.jpg"],
+     r"sync: order pairs the k-th image of each camera, but the numbers in the names of image "
+     r"2 of left and right \(left02\.jpg, right03\.jpg\) differ by 1 where those of the 1 "
+     r"before differ by 0: an image missing in one camera shifts every pair after it; give "
+     "sync: number"),
 ])
 @pytest.mark.parametrize("command", ["calibrate", "check"])
 def test_bad_layouts_exit_2_in_one_line_and_write_nothing(tmp_path, sync, names, message,
                                                           command):
     _empty_images(tmp_path / "ds", *names)
+    # a copied line: both cameras read left*.jpg (calibrated each against itself, exactly)
+    right = "*" if "x.png" in names else "right*"
     (tmp_path / "ds" / "rig.yaml").write_text(
         HEAD + f"sync: {sync}\ncameras:\n  left: {{model: pinhole-radtan, images: 'left*'}}\n"
-        "  right: {model: pinhole-radtan, images: 'right*'}\n")
+        f"  right: {{model: pinhole-radtan, images: '{right}'}}\n")
     out = tmp_path / "out"
     args = [command, str(tmp_path / "ds"), "--processes", "1"]
     res = CliRunner().invoke(main, args + (["-o", str(out)] if command == "calibrate" else []))
@@ -65,6 +76,34 @@ def test_bad_layouts_exit_2_in_one_line_and_write_nothing(tmp_path, sync, names,
     lines = [line for line in res.output.splitlines() if line.strip()]
     assert len(lines) == 1 and __import__("re").search(message, lines[0]), res.output
     assert not out.exists()
+
+
+def test_sync_number_pairs_by_the_number_that_differs_not_the_camera_id(tmp_path):
+    """One folder of ``0001_cam0.png`` and ``0001_cam1.png``: both cameras' images keyed by
+    their frame number, 1 with 1 (the camera's id, the last integer, was taken and the rig
+    refused)."""
+    names = [f"{k:04d}_cam{j}.png" for k in (1, 2, 3, 10) for j in range(2)]
+    _empty_images(tmp_path, *names)
+    (tmp_path / "rig.yaml").write_text(
+        HEAD + "sync: number\ncameras:\n  a: {model: pinhole-radtan, images: '*_cam0.png'}\n"
+        "  b: {model: pinhole-radtan, images: '*_cam1.png'}\n")
+    rig = load_rig(tmp_path)
+    assert instant_keys(rig, "a") == {f"{k:04d}_cam0": str(k) for k in (1, 2, 3, 10)}
+    assert instant_keys(rig, "b") == {f"{k:04d}_cam1": str(k) for k in (1, 2, 3, 10)}
+
+
+@pytest.mark.parametrize("left, right", [
+    (["a.png", "b.png", "c.png"], ["x.png", "y.png", "z.png"]),                # no numbers
+    (["100.png", "200.png", "300.png"], ["7.png", "15.png", "22.png"]),        # own clocks
+    (["left01.png", "left02.png", "left03.png"], ["r11.png", "r12.png", "r13.png"]),
+])
+def test_sync_order_keeps_what_the_names_cannot_refute(tmp_path, left, right):
+    _empty_images(tmp_path / "left", *left)
+    _empty_images(tmp_path / "right", *right)
+    (tmp_path / "rig.yaml").write_text(
+        HEAD + "sync: order\ncameras:\n  left: {model: pinhole-radtan, images: left/}\n"
+        "  right: {model: pinhole-radtan, images: right/}\n")
+    assert check_sync(load_rig(tmp_path)) == {"left": 3, "right": 3}
 
 
 @pytest.fixture(scope="module")

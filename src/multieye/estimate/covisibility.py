@@ -179,13 +179,14 @@ def unlinked_message(groups: Sequence[Sequence[str]], tolerance: float | None = 
     how = (f"stamps within sync_tolerance{within}" if sync == "time"
            else f"names that pair under sync: {sync}")
     return (f"cameras fall into {len(groups)} groups that nothing links: {listing}; give them "
-            f"images taken at the same instants ({how}), motion capture (mocap: in "
+            f"views of the board at the same instants ({how}), motion capture (mocap: in "
             "rig.yaml), or several boards standing still (targets: in rig.yaml) that the "
             "cameras see while the rig moves")
 
 
 def pairing_hint(groups: Sequence[Sequence[int]], stamps: Sequence | None = None,
-                 stems: Sequence[Sequence[str]] | None = None, sync: str = "time") -> str:
+                 stems: Sequence[Sequence[str]] | None = None, sync: str = "time",
+                 labels: Sequence[str] | None = None) -> str:
     """What would make the images of unlinked camera groups one instant, for
     :func:`unlinked_message`: ``"; ..."`` or ``""``.
 
@@ -198,13 +199,18 @@ def pairing_hint(groups: Sequence[Sequence[int]], stamps: Sequence | None = None
         nearest images of the first group and the others are under a second apart and a
         tolerance of 1.5 times that gap stays under half of every camera's shortest interval
         between images, that ``sync_tolerance`` is suggested (cameras triggered together with
-        stamps a little apart).
+        stamps a little apart).  Else, when shifting the stamps of the other groups'
+        camera with most images by one offset of a second or more makes at least half of
+        them meet the first group's, that ``time_offset`` is suggested (a camera on its own
+        clock).
     stems : sequence of sequence of str, optional
         ``sync: name``: each camera's image names without extension; when the last numbers
         in them agree across the groups, ``sync: number`` is suggested (``left01``,
         ``right01``).
     sync : str
         rig.yaml's ``sync``.
+    labels : sequence of str, optional
+        The cameras' names, for the ``time_offset`` suggestion.
     """
     first, rest = list(groups[0]), [j for g in groups[1:] for j in g]
     if sync == "time" and stamps is not None:
@@ -221,6 +227,12 @@ def pairing_hint(groups: Sequence[Sequence[int]], stamps: Sequence | None = None
                 return (f"; the nearest images of two groups are {gap * 1e3:.3g} ms apart: if "
                         f"the cameras were triggered together, sync_tolerance: {suggest:g} in "
                         "rig.yaml makes such images one instant")
+            rest_cam = max(rest, key=lambda j: len(stamps[j]))
+            hint = _offset_hint(a, np.sort(np.asarray(stamps[rest_cam], np.float64)),
+                                min(0.01, shortest / 4),
+                                f"camera {labels[rest_cam]}" if labels else "that camera")
+            if hint:
+                return hint
     if sync == "name" and stems is not None:
         def numbers(cams):
             found = ((re.findall(r"\d+", s), s) for j in cams for s in stems[j])
@@ -229,9 +241,37 @@ def pairing_hint(groups: Sequence[Sequence[int]], stamps: Sequence | None = None
         both = sorted(set(mine) & set(others))
         if both:
             return (f"; the names differ but the numbers in them agree ({mine[both[0]]} with "
-                    f"{others[both[0]]}): sync: number pairs images by the last number in "
+                    f"{others[both[0]]}): sync: number pairs images by the (frame) number in "
                     "their names")
     return ""
+
+
+def _offset_hint(a: F64, b: F64, tol: float, who: str, most: int = 300) -> str:
+    """``"; ..."`` naming the clock offset that makes most images of one camera (stamps
+    ``b``, sorted) one instant with the first group's (``a``, sorted), when its clock is a
+    second or more off (each camera on its own computer's clock); ``""`` when no offset
+    pairs at least half of the fewer images (and 3).  Candidates: every ``a - b`` of the
+    first 5 of ``b`` (at most ``most`` of each, evenly spread)."""
+    a = a[np.linspace(0, len(a) - 1, min(len(a), most)).round().astype(int)]
+    b = b[np.linspace(0, len(b) - 1, min(len(b), most)).round().astype(int)]
+    if not np.isfinite(tol) or min(len(a), len(b)) < 3:
+        return ""
+    cand = (a[:, None] - b[None, :5]).ravel()
+    shifted = b[None, :] + cand[:, None]                            # (candidates, len(b))
+    k = np.clip(np.searchsorted(a, shifted), 1, len(a) - 1)
+    near = np.minimum(np.abs(a[k] - shifted), np.abs(a[k - 1] - shifted)) <= tol
+    best = int(np.argmax(near.sum(axis=1)))
+    hits = int(near[best].sum())
+    if hits < max(3, min(len(a), len(b)) / 2) or abs(cand[best]) < 1.0:
+        return ""
+    k_b = np.flatnonzero(near[best])
+    offset = float(np.median(a[np.clip(np.searchsorted(a, b[k_b] + cand[best]), 0, len(a) - 1)]
+                             - b[k_b])) if hits else float(cand[best])
+    offset = float(cand[best]) if abs(offset - cand[best]) > tol else offset
+    shown = f"{offset:.6f}".rstrip("0").rstrip(".")
+    return (f"; {who}'s stamps plus {shown} s meet the first group's at {hits} of its "
+            f"{len(b)} images: if its clock is that far off, time_offset: {shown} (added to "
+            "any it has) in rig.yaml makes them one instant")
 
 
 def relative_pose(T_a_target, T_b_target) -> F64:

@@ -26,6 +26,12 @@ so any two of them give the third.  The start grows from the reference camera
    translation along the axis is not determined: :mod:`multieye.estimate.observability`
    says so after the refinement); then back to 1.
 
+A reference camera that sees boards at few instants places too few rig poses for step 2 to
+place the others, which the rig's motion at their many instants links: when the growth from
+the reference camera fails, it grows from the other cameras in turn (most instants first)
+and the first that places everything is re-expressed in the reference camera's frame
+(:func:`_from_other_camera`).
+
 At the end the world is moved to the refinement's gauge
 (:mod:`multieye.estimate.motion_residuals`): the first board's frame (board 0), or the frame
 of the boards held at given poses (``views.held``).  Those boards are known from the start:
@@ -245,14 +251,10 @@ def motion_start(views, T_cam_board) -> MotionStart:
         raise DisconnectedError(f"the reference camera {label[ref]} sees no board",
                                 (label[ref],))
     held = dict(getattr(views, "held", None) or {0: np.eye(4)})
-    seed = _seed(own, held)
     try:
-        grow = _grown(T, views, seed)
-    except (DegenerateMotionError, DisconnectedError):
-        if len(seed) < 2:
-            raise
-        # grown from the boards at given poses it failed: from the views alone, as without
-        grow = _grown(T, views, {int(np.bincount(own).argmax()): np.eye(4)})
+        grow = _from_anchor(T, views, held, ref)
+    except (DegenerateMotionError, DisconnectedError) as exc:
+        grow = _from_other_camera(T, views, held, exc)
     nb, K = int(board.max()) + 1, int(instant.max()) + 1
     to_world = _mean([G @ g.inv(grow.boards[b]) for b, G in held.items()])
     T_world_board = np.stack([to_world @ grow.boards[b] for b in range(nb)])
@@ -265,9 +267,68 @@ def motion_start(views, T_cam_board) -> MotionStart:
         links=tuple(grow.links[j] for j in range(m)), single_axis=tuple(grow.single_axis))
 
 
-def _grown(T: F64, views, seed: dict) -> _Growth:
-    """The growth from ``seed`` (boards known at the start) until every camera, board and
-    instant is placed (module docstring, steps 1 and 2).
+def _from_anchor(T: F64, views, held: dict, anchor: int) -> _Growth:
+    """The growth from camera ``anchor`` (its frame the rig's while growing) and the boards
+    :func:`_seed` gives it; when grown from several boards at given poses fails, from the
+    views alone."""
+    own = views.board[views.camera == anchor]
+    seed = _seed(own, held)
+    try:
+        return _grown(T, views, seed, anchor)
+    except (DegenerateMotionError, DisconnectedError):
+        if len(seed) < 2:
+            raise
+        # grown from the boards at given poses it failed: from the views alone, as without
+        return _grown(T, views, {int(np.bincount(own).argmax()): np.eye(4)}, anchor)
+
+
+def _from_other_camera(T: F64, views, held: dict, failed: Exception) -> _Growth:
+    """The growth from another camera when the one from the reference camera ``failed``,
+    re-expressed in the reference camera's frame.
+
+    A reference camera that sees boards at few instants places few rig poses, too few for
+    the hand-eye step to place the other cameras, which see boards at many (the rig's
+    motion links them; only the reference camera's own pose rests on its few views).  The
+    cameras are tried in order of how many instants they see a board at; the first growth
+    that places every camera, board and instant is taken.
+
+    Raises
+    ------
+    DegenerateMotionError, DisconnectedError
+        ``failed`` when no camera's growth places everything.
+    """
+    ref = views.reference
+    counts = [len(set(views.instant[views.camera == j].tolist())) for j in range(views.m)]
+    for anchor in sorted(range(views.m), key=lambda j: -counts[j]):
+        if anchor == ref or counts[anchor] <= counts[ref]:
+            continue
+        try:
+            grow = _from_anchor(T, views, held, anchor)
+        except (DegenerateMotionError, DisconnectedError):
+            continue
+        return _reframed(grow, ref, anchor)
+    raise failed
+
+
+def _reframed(grow: _Growth, ref: int, anchor: int) -> _Growth:
+    """A growth from camera ``anchor`` in the frame of camera ``ref``: every ``T_ref_cam``
+    and rig pose moved by ``T_anchor_ref``; ``ref`` is the reference, ``anchor`` linked by
+    what placed ``ref`` (the link read the other way)."""
+    T_a_r = grow.cams[ref]
+    grow.cams = {j: g.inv(T_a_r) @ T for j, T in grow.cams.items()}
+    grow.insts = {t: T @ T_a_r for t, T in grow.insts.items()}
+    back = grow.links[ref]
+    grow.links[anchor] = (Link("overlap", (ref,)) if back.kind == "overlap"
+                          and anchor in back.cameras else
+                          Link("motion", tuple(sorted({ref, *back.cameras} - {anchor})),
+                               back.boards))
+    grow.links[ref] = Link("reference")
+    return grow
+
+
+def _grown(T: F64, views, seed: dict, anchor: int) -> _Growth:
+    """The growth from camera ``anchor`` and ``seed`` (boards known at the start) until
+    every camera, board and instant is placed (module docstring, steps 1 and 2).
 
     Raises
     ------
@@ -275,7 +336,7 @@ def _grown(T: F64, views, seed: dict) -> _Growth:
         As :func:`motion_start`.
     """
     camera, instant, board, m = views.camera, views.instant, views.board, views.m
-    ref, label = views.reference, views.names
+    ref, label = anchor, views.names
     grow = _Growth(T, camera, instant, board, ref, seed)
     while True:
         grow.chain()

@@ -21,8 +21,9 @@ nanoseconds (seconds with more than 9 decimals are rounded to the nearest nanose
 Recordings as users lay them out (rig.yaml's ``sync:``, docs/recordings.md): with ``sync``
 other than ``time`` the names need not be stamps.  The images are then in natural name order
 (``left2`` before ``left10``) and their stamps are their places in it (0, 1, 2, ... seconds);
-what pairs them across cameras is their key (:func:`sync_key`): the stem (``name``), the last
-integer in the stem (``number``: ``left01`` and ``right1`` have the key ``1``) or the place
+what pairs them across cameras is their key (:func:`sync_keys`): the stem (``name``), the
+number in the stem (``number``: ``left01`` and ``right1`` have the key ``1``; the last
+integer that differs between the camera's images, :func:`numbers_in_names`) or the place
 (``order``).  ``images:`` may be a pattern (:func:`check_pattern`: ``left*.jpg``) matched
 against the names of the one folder's entries, never a path.
 """
@@ -35,6 +36,7 @@ import os
 import re
 import stat
 from decimal import ROUND_HALF_EVEN, Decimal
+from collections.abc import Sequence
 from pathlib import Path
 
 from multieye.core.arguments import as_path
@@ -44,7 +46,8 @@ from multieye.core.regular_files import file_kind
 
 __all__ = ["IMAGE_EXTENSIONS", "SYNC_MODES", "list_images", "list_image_files",
            "stamp_from_name", "skipped_entries", "sorted_entries", "is_file_entry",
-           "check_pattern", "natural_key", "number_in_name", "sync_key"]
+           "check_pattern", "natural_key", "number_in_name", "numbers_in_names", "sync_key",
+           "sync_keys"]
 
 #: How images of different cameras are taken to be of one instant (rig.yaml's ``sync``).
 SYNC_MODES = ("time", "name", "number", "order")
@@ -101,6 +104,30 @@ def number_in_name(stem: str) -> int | None:
     None when it has no digit."""
     m = _NUMBER.search(stem)
     return int(m.group(1)) if m else None
+
+
+def numbers_in_names(stems: Sequence[str]) -> list[int | None]:
+    """The number ``sync: number`` pairs each of one camera's images by (stems in natural
+    order): when every stem holds as many integers, the last of them that is not the same in
+    all (``0001_cam0`` ... ``0016_cam0`` -> 1 ... 16, ``cam0_frame2_v2`` -> 2: an integer
+    every image of the camera shares names the camera, not the instant); otherwise, or when
+    no integer differs (one image), the last integer (:func:`number_in_name`); None for a
+    stem without a digit."""
+    runs = [[int(d) for d in re.findall(r"\d+", s)] for s in stems]
+    field = -1
+    if len({len(r) for r in runs}) == 1 and len(runs[0]) > 1:
+        varying = [i for i in range(len(runs[0])) if len({r[i] for r in runs}) > 1]
+        field = varying[-1] if varying else -1
+    return [r[field] if r else None for r in runs]
+
+
+def sync_keys(stems: Sequence[str], sync: str) -> list[str]:
+    """The instant keys of one camera's images under ``sync`` (not ``time``), stems in
+    natural name order: the stem (``name``), the number of :func:`numbers_in_names`
+    (``number``) or the place (``order``)."""
+    if sync == "number":
+        return [str(n) for n in numbers_in_names(stems)]
+    return [sync_key(s, sync, k) for k, s in enumerate(stems)]
 
 
 def sync_key(stem: str, sync: str, place: int) -> str:
@@ -177,15 +204,15 @@ def list_images(folder: str | os.PathLike, pattern: str | None = None, sync: str
 def _unique_keys(paths: list[Path], sync: str) -> None:
     """Refuse two images of one camera with one key under ``sync`` (name or number)."""
     seen: dict[str, Path] = {}
-    for p in paths:
-        if sync == "number" and number_in_name(p.stem) is None:
-            raise DatasetError("sync: number pairs images by the last integer in their names; "
+    for p, key in zip(paths, sync_keys([p.stem for p in paths], sync)):
+        if sync == "number" and key == "None":
+            raise DatasetError("sync: number pairs images by the number in their names; "
                                "this name has none", path=p)
-        key = sync_key(p.stem, sync, 0)
         if key in seen:
             what = f"number {key}" if sync == "number" else f"name {key}"
             raise DatasetError(f"same {what} as {seen[key].name} in this camera's images "
-                               f"(sync: {sync} pairs one image per camera and {what})", path=p)
+                               f"(sync: {sync} pairs one image per camera and {what}; sync: "
+                               "order pairs the k-th image of each camera)", path=p)
         seen[key] = p
 
 

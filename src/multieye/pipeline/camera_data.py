@@ -9,7 +9,7 @@ The pipeline (:mod:`multieye.pipeline`) takes it from there.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -28,7 +28,7 @@ from multieye.pipeline.boards import no_usable_image as _no_usable_image
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
 from multieye.pipeline.detection import Workers, detect_all, detect_listed
 from multieye.pipeline.estimated_lens import lens_start, posed_on_refined_lens, start_lens, with_poses
-from multieye.pipeline.recordings import check_sync, poses_by_name_of, precomputed_poses, sync_instant
+from multieye.pipeline.recordings import check_sync, instant_keys, poses_by_name_of, precomputed_poses, sync_instant
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.selection import (Chosen, SelectionSummary, motion_first, preselected,
                                          with_refills)
@@ -92,13 +92,13 @@ class Observation:
     target: str = "target"
 
 
-def instant_key(observation: Observation, by_name: bool, sync: str = "time") -> str:
+def instant_key(observation: Observation, by_name: bool, sync: str = "time",
+                keys: Mapping[str, str] | None = None) -> str:
     """The :attr:`Observation.instant` of an image: under rig.yaml's ``sync`` other than
-    ``time`` the key its name gives (:func:`multieye.pipeline.recordings.sync_instant`); else
-    its name without the suffix when the camera is paired by name, else its camera-clock
-    stamp (``repr``, exact)."""
+    ``time`` the key its name gives among its camera's ``keys`` (:mod:`multieye.pipeline.
+    recordings`); else its stem when the camera is paired by name, else its stamp (exact)."""
     if sync != "time":
-        return sync_instant(observation.name, observation.stamp, sync)
+        return sync_instant(observation.name, observation.stamp, sync, keys)
     return Path(observation.name).stem if by_name else repr(float(observation.stamp))
 
 
@@ -454,9 +454,10 @@ def _camera_data(rig: Rig, model: RigModel, name: str, motion: CameraMotion, wor
         RejectedItem(f"{spec.file.name} {r.where}", f"{_MOCAP_ROW}: {r.reason}")
         for r in (motion.trajectory.skipped if spec is not None else ()))
     by_name = spec is not None and spec.by_name
-    observations = tuple(replace(o, instant=instant_key(o, by_name, rig.sync))
+    keys = instant_keys(rig, name)
+    observations = tuple(replace(o, instant=instant_key(o, by_name, rig.sync, keys))
                          for o in seen.observations)
-    bad_fits = tuple(replace(o, instant=instant_key(o, by_name, rig.sync))
+    bad_fits = tuple(replace(o, instant=instant_key(o, by_name, rig.sync, keys))
                      for o in seen.bad_fits)
     return CameraData(name=name, intrinsics=seen.intrinsics, observations=observations,
                       rejected=rejected, n_inputs=seen.n_inputs, mocap=motion.trajectory,

@@ -26,7 +26,8 @@ from multieye.imaging.target_hints import counting_rule, suggest_target
 from multieye.estimate.instants import instants_from_names
 from multieye.io import Trajectory, bag_image_count, list_image_files, load_rig
 from multieye.io import sample_bag_images
-from multieye.pipeline.recordings import check_sync, image_notes, listed_images, precomputed_poses, sync_instant
+from multieye.pipeline.recordings import (check_sync, image_notes, instant_keys, listed_images,
+                                          precomputed_poses, sync_instant)
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
 from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
@@ -110,6 +111,7 @@ class CameraCheck:
     boards: tuple[tuple[str, int], ...] = ()
     seen: tuple[tuple[int, tuple[str, ...]], ...] = ()
     board_poses: tuple = ()
+    sampled_at: tuple[int, ...] = ()
 
     @property
     def found_percent(self) -> float:
@@ -426,9 +428,16 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
                        rotation_range_deg=None, rotation_spread_deg=None,
                        problems=tuple(problems), fatal=tuple(fatal),
                        stamps=tuple(float(t) + cam.time_offset for t in seen.stamps),
-                       keys=tuple(sync_instant(n, t, rig.sync) for n, t in
-                                  zip(seen.names, seen.stamps)) if rig.sync != "time" else (),
-                       boards=seen.boards, seen=seen.seen, board_poses=seen.board_poses)
+                       keys=_keys(rig, name, seen), boards=seen.boards, seen=seen.seen,
+                       board_poses=seen.board_poses, sampled_at=tuple(seen.sampled_idx))
+
+
+def _keys(rig, name: str, seen) -> tuple[str, ...]:
+    """The sampled images' instant keys under rig.yaml's ``sync`` (none with ``time``)."""
+    if rig.sync == "time":
+        return ()
+    keys = instant_keys(rig, name)
+    return tuple(sync_instant(n, t, rig.sync, keys) for n, t in zip(seen.names, seen.stamps))
 
 
 def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...], tuple]:
@@ -457,6 +466,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         given = frozenset(n for n, t in rig.targets.items() if getattr(t, "pose", None) is not None)
         turned = one_axis_problems([c.name for c in cams], views, cams[0].board_poses, given)
         cams = tuple(replace(c, problems=c.problems + turned.get(c.name, ())) for c in cams)
+    else:
+        cams = _never_together(cams, inst)
     out = []
     for j, c in enumerate(cams):
         others = np.concatenate([i for k, i in enumerate(inst) if k != j] or [np.zeros(0)])
@@ -466,7 +477,8 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
         if len(groups) > 1 and j not in groups[0] and not several:
             fatal += (unlinked_message([[cams[i].name for i in g] for g in groups], tol,
                                        rig.sync) + pairing_hint(
-                groups, [c.stamps for c in cams], [c.keys for c in cams], rig.sync),)
+                groups, [c.stamps for c in cams], [c.keys for c in cams], rig.sync,
+                [c.name for c in cams]),)
         apart = tuple(f"linked to {cams[0].name} by nothing in the sampled images: no board "
                       "seen at an instant when a linked camera sees one (calibrating would "
                       "refuse it unless other images link it)"
@@ -477,9 +489,34 @@ def _linked(rig, cams: tuple[CameraCheck, ...]) -> tuple[tuple[CameraCheck, ...]
     return tuple(out), lines
 
 
+def _never_together(cams: tuple[CameraCheck, ...], inst) -> tuple[CameraCheck, ...]:
+    """One board: a camera whose sampled images show the board, none of them at an instant
+    when another camera's sampled image shows it too, though both were sampled at some, gets
+    a problem: the listed images share instants, but calibrating links cameras by the board
+    seen together (cameras that do not overlap are refused unless other images link them);
+    the refusal itself when every image was sampled."""
+    sampled = [{int(inst[j][i]) for i in c.sampled_at} for j, c in enumerate(cams)]
+    board = [{int(inst[j][i]) for i, _ in c.seen} for j, c in enumerate(cams)]
+    complete = all(len(c.sampled_at) == c.listed for c in cams)    # as calibrating sees them
+    out = []
+    for j, c in enumerate(cams):
+        others = [k for k in range(len(cams)) if k != j]
+        both = sum(len(sampled[j] & sampled[k]) for k in others)
+        if both and board[j] and not any(board[j] & board[k] for k in others):
+            what = (f"the board is in {len(board[j])} of its {'' if complete else 'sampled '}"
+                    "images, but never at an instant when another camera's image shows it "
+                    f"({both} instants {'' if complete else 'sampled '}in both): cameras "
+                    "without motion capture are linked by the board seen together (check that "
+                    "the cameras overlap, or give motion capture or several boards: targets:)")
+            c = replace(c, problems=c.problems + (what,),
+                        fatal=c.fatal + ((what,) if complete else ()))
+        out.append(c)
+    return tuple(out)
+
+
 #: How each ``sync`` makes images of different cameras one instant, for the dry run's lines.
 _SYNC_RULE = {"name": "equal names without the extension",
-              "number": "the same last number in their names",
+              "number": "the same frame number in their names",
               "order": "the same place in each camera's name order"}
 
 

@@ -276,8 +276,9 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
     groups = link_groups(cov.shared > 0, [False] * len(names))
     if len(groups) > 1:
         obs = [cameras[n].observations for n in names]
-        hint = pairing_hint(groups, [[o.stamp for o in ob] for ob in obs],
-                            [[Path(o.name).stem for o in ob] for ob in obs], sync)
+        hint = pairing_hint(groups, [[o.stamp + cameras[n].time_offset for o in ob]
+                                     for n, ob in zip(names, obs)],
+                            [[Path(o.name).stem for o in ob] for ob in obs], sync, names)
         raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol,
                                                  sync) + hint,
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))
@@ -291,7 +292,7 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
         inst, tol = prepared.instants, prepared.sync_tolerance
         cov = _covisibility(inst, names)
     used = {n: cameras[n].observations for n in names}
-    findings = _fit_findings(cameras, rv, result)
+    findings = _fit_findings(cameras, rv, result, sync)
     if isolate and len(findings) > 1:
         findings = _culprit(cameras, reference, (tol, sync), robust, findings)
     return OverlapSolution(names=names, reference=reference, result=result, used=used,
@@ -489,10 +490,21 @@ def _culprit(cameras: Mapping[str, CameraData], reference: str, sync: tuple[floa
     return findings
 
 
+#: What to check when the images of one instant do not show the target at one pose, by
+#: rig.yaml's ``sync``.
+_PAIRING_CHECK = {
+    "time": "check that the cameras are synchronised (sync_tolerance, time_offset)",
+    "name": "check that images named alike were taken together (sync: name)",
+    "number": "check that images numbered alike were taken together (sync: number)",
+    "order": "check that the k-th images of the cameras were taken together (sync: order: an "
+             "image missing in one camera and another in a second shift every pair between "
+             "them; names numbered by frame and sync: number avoid it)"}
+
+
 def _fit_findings(cameras: Mapping[str, CameraData], views: RigViews,
-                  result: RigResult) -> tuple[Finding, ...]:
+                  result: RigResult, sync: str = "time") -> tuple[Finding, ...]:
     """Cameras whose pixels fit the rig far worse than their own PnP poses (``views`` holds
-    the cameras in the order of ``cameras``)."""
+    the cameras in the order of ``cameras``; ``sync`` rig.yaml's, for what to check)."""
     out = []
     cam_of_point = views.camera[views.view]
     for j, n in enumerate(cameras):
@@ -510,8 +522,8 @@ def _fit_findings(cameras: Mapping[str, CameraData], views: RigViews,
                 "fit", f"poor fit: camera {n}'s target points are {np.sqrt(ratio):.0f} times "
                 f"further from the rig's projection (RMS {np.sqrt(rig_ms):.2f} px) than from "
                 f"its own PnP poses ({np.sqrt(own_ms):.2f} px): the images of one instant do "
-                "not show the target at one pose; check that the cameras are synchronised "
-                "(sync_tolerance, time_offset), that the rig did not move, and its lens", n,
+                f"not show the target at one pose; {_PAIRING_CHECK[sync]}, that the rig did "
+                "not move, and its lens", n,
                 ratio, 1.0, {"rig_rms_px": float(np.sqrt(rig_ms)),
                              "pnp_rms_px": float(np.sqrt(own_ms))}))
     return tuple(out)

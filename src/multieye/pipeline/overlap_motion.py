@@ -206,7 +206,7 @@ def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
     checked, notes, free = _given_findings(lambda h: _views(cameras, views, reference, h),
                                            mv, prepared.poses, loss, (order, given))
     # a given pose the views refute spoils every camera's fit: the fit is judged without it
-    fit = _fit_findings(cameras, *((mv, result) if not checked else free))
+    fit = _fit_findings(cameras, *((mv, result) if not checked else free), sync)
     findings = fit + _observability_findings(obs) + checked
     return MotionSolution(
         names=names, reference=reference, boards=order, result=result, views=mv,

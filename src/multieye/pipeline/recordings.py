@@ -11,6 +11,7 @@ Synopsis
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable, Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -20,11 +21,12 @@ import numpy as np
 from multieye.core.errors import DatasetError
 from multieye.core import geometry as g
 from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, list_images, read_tum
-from multieye.io.image_folder import sync_key
+from multieye.io.image_folder import numbers_in_names, sync_key, sync_keys
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 
-__all__ = ["precomputed_poses", "listed_images", "check_sync", "sync_instant", "image_notes", "camera_warnings",
+__all__ = ["precomputed_poses", "listed_images", "check_sync", "sync_instant", "instant_keys",
+           "image_notes", "camera_warnings",
            "poses_by_name_of", "FIRST_NAMED"]
 
 #: How many image names a note names before ``and N more``.
@@ -48,21 +50,92 @@ def check_sync(rig: Rig) -> dict[str, int]:
     """The count of images per camera with images, checked against ``sync``: with ``order``
     (the k-th image of each camera is one instant) every camera must have as many, else one
     line naming each camera's count (a missing image would shift every later pair)."""
-    counts = {n: len(listed_images(rig, n)) for n, c in rig.cameras.items()
+    _no_shared_images(rig)
+    listed = {n: [p for _, _, p in listed_images(rig, n)] for n, c in rig.cameras.items()
               if c.source == "images" and rig.sync != "time"}
+    counts = {n: len(p) for n, p in listed.items()}
     if rig.sync == "order" and len(set(counts.values())) > 1:
         shown = ", ".join(f"{n} {k}" for n, k in counts.items())
         raise DatasetError(f"sync: order pairs the k-th image of each camera, but the cameras "
                            f"have different counts of images ({shown}); give every camera the "
                            "same images, or sync: number (the number in each name)",
                            path=rig.path)
+    if rig.sync == "order":
+        _order_shift(rig, listed)
     return counts
 
 
-def sync_instant(label: str, stamp: float, sync: str) -> str:
+def _no_shared_images(rig: Rig) -> None:
+    """Refuse two cameras whose ``images`` list one file (the same folder, or patterns that
+    overlap, or links to one file): each would be calibrated against itself, a rig of two
+    cameras at one pose, exactly, with nothing to doubt (a copied line in rig.yaml)."""
+    owner: dict[str, str] = {}
+    for n, c in rig.cameras.items():
+        if c.source != "images":
+            continue
+        try:
+            files = list_image_files(c.images, c.images_pattern)
+        except DatasetError:
+            continue                    # said with the camera's name when it is listed
+        shared, folder = [], os.path.realpath(c.images)
+        for p in files:
+            real = os.path.realpath(p) if os.path.islink(p) else os.path.join(folder, p.name)
+            if owner.setdefault(real, n) != n:
+                shared.append((owner[real], p))
+        if shared:
+            other, first = shared[0]
+            more = f" and {len(shared) - 1} more" if len(shared) > 1 else ""
+            raise DatasetError(f"cameras {other} and {n} read the same image files ({first.name}"
+                               f"{more}): each camera needs its own images (check their images: "
+                               "in rig.yaml)", path=rig.path)
+
+
+def _order_shift(rig: Rig, listed: Mapping[str, list[Path]]) -> None:
+    """Refuse ``sync: order`` when the numbers in the names say that an image is missing in
+    one camera and another in a second (equal counts, every pair after the first gap shifted
+    by one): the numbers of the k-th images of two cameras differ by one constant at most
+    places (frame counters) but not at all.  Names without numbers, or numbers that differ
+    at every place (each camera's own clock), say nothing."""
+    cams = [n for n, p in listed.items() if p]
+    numbers = {n: numbers_in_names([p.stem for p in listed[n]]) for n in cams}
+    if len(cams) < 2 or any(None in v for v in numbers.values()):
+        return
+    first = np.asarray(numbers[cams[0]], dtype=object)
+    for n in cams[1:]:
+        d = np.asarray(numbers[n], dtype=object) - first
+        values, counts = np.unique(d.astype(str), return_counts=True)
+        if len(values) < 2 or 2 * counts.max() < len(d):
+            continue
+        k = int(np.flatnonzero(d != d[0])[0])
+        a, b = listed[cams[0]][k], listed[n][k]
+        raise DatasetError(
+            f"sync: order pairs the k-th image of each camera, but the numbers in the names of "
+            f"image {k + 1} of {cams[0]} and {n} ({a.name}, {b.name}) differ by {d[k]} where "
+            f"those of the {k} before differ by {d[0]}: an image missing in one camera shifts "
+            "every pair after it; give sync: number to pair images by the number in their "
+            "names (sync: time when they are time stamps)", path=rig.path)
+
+
+def sync_instant(label: str, stamp: float, sync: str, keys: Mapping[str, str] | None = None
+                 ) -> str:
     """The instant key of an image named ``label`` listed with ``stamp`` under ``sync`` (not
-    ``time``): its stem, the last integer in it, or its place (the stamp)."""
-    return sync_key(Path(label).stem, sync, int(stamp))
+    ``time``): its key in ``keys`` (its camera's :func:`instant_keys`, by stem), else its
+    stem, the last integer in it, or its place (the stamp)."""
+    stem = Path(label).stem
+    if keys is not None and stem in keys:
+        return keys[stem]
+    return sync_key(stem, sync, int(stamp))
+
+
+def instant_keys(rig: Rig, name: str) -> dict[str, str]:
+    """Every listed image's instant key under rig.yaml's ``sync`` (not ``time``) by its
+    stem (:func:`multieye.io.image_folder.sync_keys`: ``sync: number`` takes the number
+    that differs between the camera's images); empty for a camera without images or with
+    ``sync: time``."""
+    if rig.sync == "time" or rig.cameras[name].source != "images":
+        return {}
+    stems = [p.stem for _, _, p in listed_images(rig, name)]
+    return dict(zip(stems, sync_keys(stems, rig.sync)))
 
 
 def image_notes(notes: Iterable[tuple[str, str]], limit: int = FIRST_NAMED
