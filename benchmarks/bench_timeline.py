@@ -199,7 +199,7 @@ def main(argv=None) -> None:
                 time.sleep(0.2)
     print(f"medians of {args.runs}: " + " | ".join(f"{n} ({srcs[n]})" for n in srcs))
     for key in rows["this"][0]:
-        vals = ["{:8.3f}".format(statistics.median(r[key] for r in rows[n] if key in r))
+        vals = [f"{statistics.median(r[key] for r in rows[n] if key in r):8.3f}"
                 if any(key in r for r in rows[n]) else "       -" for n in srcs]
         print(f"  {key:24s} " + "  ".join(vals))
 
