@@ -146,6 +146,12 @@ def summary(run: dict) -> dict:
         out["figures from"] = min(p["forked"] for p in fig) - run["t0"]
         out["figures to"] = max(p.get("end", 0) for p in fig) - run["t0"]
     out["figure workers"] = len(fig)
+    main = next(p for p in procs if p["role"] == "main")
+    wrote = [t for t, what in main["events"] if what.startswith("write .calibration.json")]
+    manifest = [t for t, what in main["events"] if what.startswith("write .multieye-manifest")]
+    if wrote and manifest:      # the files written and synced (and drawn, by this process)
+        out["files from"] = wrote[0] - run["t0"]
+        out["files to"] = manifest[-1] - run["t0"]
     return out
 
 
