@@ -123,3 +123,11 @@ def test_nothing_is_synced_when_the_block_fails(tmp_path, monkeypatch):
         with pytest.raises(RuntimeError, match="already synced together"):
             with atomic.synced_together(tmp_path):
                 pass
+
+
+def test_a_file_removed_after_it_was_written_is_not_synced_nor_an_error(tmp_path):
+    with atomic.synced_together(tmp_path):
+        write_text_atomic(tmp_path / "old.png", "data")
+        atomic.remove_file(tmp_path / "old.png")
+        write_text_atomic(tmp_path / "new.png", "data")
+    assert [p.name for p in tmp_path.iterdir()] == ["new.png"]

@@ -134,6 +134,8 @@ def _sync_file(path: Path) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
+    except FileNotFoundError:   # removed again after it was written: nothing to sync
+        return
     except OSError as exc:
         raise DatasetError(f"cannot write: {write_problem(exc)}", path=path) from exc
 
