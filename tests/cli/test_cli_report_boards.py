@@ -19,7 +19,7 @@ from multieye.imaging.targets import target_from_spec
 from multieye.io.calibration_json import calibration_from_dict, read_calibration
 from multieye.io.rig import load_rig
 from multieye.io.run_details import read_run_details
-from multieye.outputs import report_draw
+from multieye.outputs import figures_rig, report_draw
 from multieye.outputs.board_marks import record_boards
 from multieye.outputs.rig_legend import linked_by
 from multieye.sim.wall_boards import WallSpec
@@ -68,8 +68,8 @@ def test_the_report_and_both_drawing_paths_draw_the_boards(mocap_out, monkeypatc
     page = (tmp / "out" / "report.html").read_text()
     assert f"Dark rectangles: {sentence}" in page        # the CLI's report
     given = []
-    real = report_draw.rig_pngs
-    monkeypatch.setattr(report_draw, "rig_pngs", lambda *a, **k: given.append(
+    real = figures_rig.rig_pngs          # the rig's task, record_rig_pngs, calls it there
+    monkeypatch.setattr(figures_rig, "rig_pngs", lambda *a, **k: given.append(
         k["boards"]) or real(*a, **k))
     _, legend = report_draw.submit_figures(rec, details, None)()      # in this process
     assert [b.name for b in given[-1]] == list(rec.targets)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import stat
 import subprocess
@@ -470,3 +471,25 @@ def test_the_output_folder_is_named_as_typed(tmp_path, monkeypatch):
         with claim_output(Path("out") / "notes.txt" / "deeper"):
             pass
     assert str(info.value).startswith("out/notes.txt/deeper: cannot create the output folder")
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="paths of descriptors: Linux")
+def test_every_file_is_on_disk_before_the_new_set_replaces_the_folder(run, tmp_path,
+                                                                      monkeypatch):
+    """docs/outputs.md, section 1, step 4: each file is synced to disk before the staging
+    folder is renamed to OUT (the files all at once once written: io.atomic.synced_together)."""
+    events = []
+    real_fsync, real_rename = os.fsync, os.rename
+    monkeypatch.setattr(os, "fsync", lambda fd: (
+        events.append(("fsync", os.readlink(f"/proc/self/fd/{fd}"))), real_fsync(fd))[1])
+    monkeypatch.setattr(folder_mod.os, "rename", lambda a, b: (
+        events.append(("rename", os.fspath(b))), real_rename(a, b))[1])
+    out = tmp_path / "out"
+    write_outputs(run, out)
+    swap = events.index(("rename", str(out)))
+    # a file synced under its temporary name (.NAME.<hex>.tmp) before its rename counts
+    synced = {tuple(re.sub(r"^\.(.+)\.[0-9a-f]{32}\.tmp$", r"\1", part) for part in
+                    Path(p).relative_to(tmp_path).parts[1:])
+              for kind, p in events[:swap] if kind == "fsync" and Path(p).parent != tmp_path}
+    files = {p.relative_to(out).parts for p in out.rglob("*") if p.is_file()}
+    assert len(files) >= 6 and files <= synced, files - synced

@@ -4,7 +4,9 @@ Every writer goes through :func:`atomic_output` (docs/outputs.md, section 1): th
 is written to a temporary file in the destination's folder (same file system, so the final
 rename is atomic), created exclusively and never through a symbolic link, flushed and
 fsync'ed, then moved over the destination with :func:`os.replace`.  If anything fails before
-the rename, the temporary file is removed and the destination is untouched.
+the rename, the temporary file is removed and the destination is untouched.  Below a folder
+held with :func:`synced_together` (a staging folder, which nobody reads before it is
+complete) the files are synced all at once when its block ends instead of one by one.
 
 Inside a folder held with :func:`confined_to` (an output folder, a staging folder), nothing
 is written, created or removed through a symbolic link: the path below that folder is walked
@@ -31,7 +33,7 @@ from typing import IO
 from multieye.core.errors import DatasetError
 
 __all__ = ["atomic_output", "write_text_atomic", "write_bytes_atomic", "confined_to",
-           "make_folder", "remove_file", "write_problem"]
+           "make_folder", "remove_file", "write_problem", "synced_together"]
 
 _DIR_FDS = os.open in os.supports_dir_fd and os.replace in os.supports_dir_fd
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
@@ -39,6 +41,10 @@ _DIRECTORY = getattr(os, "O_DIRECTORY", 0)
 
 _ROOTS: dict[Path, int] = {}
 _ROOTS_GUARD = threading.Lock()
+#: The files written below each root of :func:`synced_together`, synced when its block ends.
+_BATCHES: dict[Path, list[Path]] = {}
+#: At most this many files synced at once by :func:`synced_together` (a thread each).
+SYNC_THREADS = 8
 
 #: What the usual reasons of a failed write mean, added to the system's words.
 _HINTS = {getattr(errno, name): hint for name, hint in (
@@ -75,6 +81,82 @@ def confined_to(root: str | os.PathLike) -> Iterator[Path]:
             _ROOTS[root] -= 1
             if not _ROOTS[root]:
                 del _ROOTS[root]
+
+
+@contextlib.contextmanager
+def synced_together(root: str | os.PathLike) -> Iterator[Path]:
+    """Within the block, files written by :func:`atomic_output` below ``root`` are synced to
+    disk together when the block ends, instead of one by one as each is written.
+
+    For a folder nobody reads until it is complete, e.g. a run's staging folder, which
+    replaces the output folder only after this block (docs/outputs.md, section 1): every
+    file and every folder it was renamed in are still synced before the block returns, but
+    the files' syncs run at once (:data:`SYNC_THREADS` threads, whose requests the file
+    system commits together) after the last write, not two in turn per file: 25 files took
+    0.15-0.23 s of syncing one by one on the benchmarks' machine, one journal commit after
+    the other, which a calibration's process waited for.  On an exception nothing is synced
+    (the folder is to be thrown away).  On Windows each file is synced as it is written.
+
+    Raises
+    ------
+    DatasetError
+        A file could not be synced (a full disk, an I/O error), named with its path.
+    """
+    root = _abs(root)
+    if os.name == "nt":         # pragma: no cover - fsync there needs a file open to write
+        yield root              # each file synced as it is written, as elsewhere
+        return
+    with _ROOTS_GUARD:
+        if root in _BATCHES:
+            raise RuntimeError(f"{root}: already synced together by an enclosing block")
+        _BATCHES[root] = []
+    try:
+        yield root
+        with _ROOTS_GUARD:
+            written = list(dict.fromkeys(_BATCHES[root]))
+        _sync_all(written)
+    finally:
+        with _ROOTS_GUARD:
+            _BATCHES.pop(root, None)
+
+
+def _batch_of(folder: Path) -> list[Path] | None:
+    """The list of :func:`synced_together` that files written in ``folder`` join, if any."""
+    with _ROOTS_GUARD:
+        return next((files for r, files in _BATCHES.items()
+                     if r == folder or r in folder.parents), None)
+
+
+def _sync_file(path: Path) -> None:
+    try:        # read-only, never through a link, never waiting on a FIFO put there
+        fd = os.open(path, os.O_RDONLY | _NOFOLLOW | getattr(os, "O_NONBLOCK", 0))
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except FileNotFoundError:   # removed again after it was written: nothing to sync
+        return
+    except OSError as exc:
+        raise DatasetError(f"cannot write: {write_problem(exc)}", path=path) from exc
+
+
+def _sync_all(paths: list[Path]) -> None:
+    """Sync ``paths`` to disk, :data:`SYNC_THREADS` at a time, then the folders they are in
+    (their new names; best effort, as :func:`atomic_output` does)."""
+    if not paths:
+        return
+    from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415 (only where files are synced together)
+
+    with ThreadPoolExecutor(min(SYNC_THREADS, len(paths)),
+                            thread_name_prefix="multieye-sync") as pool:
+        list(pool.map(_sync_file, paths))
+    for folder in dict.fromkeys(p.parent for p in paths):
+        with contextlib.suppress(OSError):
+            fd = os.open(folder, os.O_RDONLY | _DIRECTORY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
 
 
 def _root_of(folder: Path) -> Path | None:
@@ -245,6 +327,7 @@ def atomic_output(path: str | os.PathLike, *, binary: bool = False,
     full = _abs(dest)
     confined = _root_of(full.parent) is not None
     fd_dir = _open_folder(full.parent)
+    batch = _batch_of(full.parent)              # synced later, with the others of its block
     tmp_name = f".{full.name}.{uuid.uuid4().hex}.tmp"
     tmp = full.parent / tmp_name
 
@@ -266,7 +349,8 @@ def atomic_output(path: str | os.PathLike, *, binary: bool = False,
             with os.fdopen(fd, mode, **kwargs) as handle:
                 yield handle
                 handle.flush()
-                os.fsync(handle.fileno())
+                if batch is None:
+                    os.fsync(handle.fileno())
             if confined:
                 st = _lstat_in(fd_dir, full.name, full)
                 if st is not None and stat.S_ISLNK(st.st_mode):
@@ -282,8 +366,12 @@ def atomic_output(path: str | os.PathLike, *, binary: bool = False,
             if isinstance(exc, OSError):
                 raise DatasetError(f"cannot write: {write_problem(exc)}", path=dest) from exc
             raise
-        with contextlib.suppress(OSError):
-            os.fsync(fd_dir)                    # make the rename durable (best effort)
+        if batch is not None:
+            with _ROOTS_GUARD:
+                batch.append(full)
+        else:
+            with contextlib.suppress(OSError):
+                os.fsync(fd_dir)                # make the rename durable (best effort)
     finally:
         os.close(fd_dir)
 

@@ -31,12 +31,12 @@ from multieye.core.collector import fewer_collections
 from multieye.core.intrinsics import Intrinsics
 from multieye.io.calibration_json import ROLE_NAMES, SETUP_KEYS, CalibrationRecord
 from multieye.io.run_details import CameraDetails, RunDetails
-from multieye.outputs.board_marks import BoardMark, board_legend, board_lines
+from multieye.outputs.board_marks import BoardMark, board_legend, board_lines, record_boards
 from multieye.outputs.rig_legend import rig_legend
 from multieye.outputs.figures import _AXIS_COLOURS, _GREY, _locator, _png, camera_colours
 
-__all__ = ["RIG_FIGURES", "RigFigures", "rig_pngs", "uncertainty_magnification", "place_labels",
-           "warm_up", "frustum_corners", "display_rotation"]
+__all__ = ["RIG_FIGURES", "RigFigures", "rig_pngs", "record_rig_pngs", "uncertainty_magnification",
+           "place_labels", "warm_up", "frustum_corners", "display_rotation"]
 
 #: File names of the two rig pictures, in page order.
 RIG_FIGURES = ("rig_3d.png", "rig_top.png")
@@ -555,6 +555,14 @@ def _annotate(ax, where: np.ndarray, texts: list[str], colours, dpi: int) -> Non
                                  "shrinkA": 0, "shrinkB": 2} if moved else None),
                     bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
                           "alpha": 0.7})
+
+
+def record_rig_pngs(record: CalibrationRecord, details: RunDetails | None) -> RigFigures:
+    """:func:`rig_pngs` with the boards the files place in their frame
+    (:func:`multieye.outputs.board_marks.record_boards`): the report's rig task, here so
+    that a figure worker takes it with the modules it warmed up (no SciPy, which the
+    report's other modules import: 0.15-0.3 CPU-s of the rig's worker)."""
+    return rig_pngs(record, details, boards=record_boards(record, details))
 
 
 def warm_up() -> None:

@@ -28,10 +28,9 @@ from collections.abc import Callable
 
 from multieye.io.calibration_json import CalibrationRecord
 from multieye.io.run_details import RunDetails
-from multieye.outputs.board_marks import record_boards
 from multieye.outputs.report_cameras import camera_figure_names
 from multieye.outputs import figures as f
-from multieye.outputs.figures_rig import rig_pngs
+from multieye.outputs.figures_rig import record_rig_pngs
 from multieye.outputs.figure_workers import FigureWorkers, figure_workers, worker_count
 
 __all__ = ["draw_figures", "figure_jobs", "figure_workers", "submit_figures", "FigureWorkers",
@@ -76,19 +75,13 @@ def figure_jobs(rec: CalibrationRecord, details: RunDetails | None
     return jobs
 
 
-def _rig(rec: CalibrationRecord, details: RunDetails | None):
-    """The rig's pictures with the boards the files place in their frame
-    (:func:`multieye.outputs.board_marks.record_boards`)."""
-    return rig_pngs(rec, details, boards=record_boards(rec, details))
-
-
 def _tasks(rec: CalibrationRecord, details: RunDetails | None, jobs: list, batches: int
            ) -> list[tuple[float, Callable, tuple]]:
     """The figures as ``(rough CPU-s, function, arguments)`` tasks, costliest first: the
     rig's pictures, each all-camera figure of ``jobs`` (:func:`figure_jobs`), the cameras'
     figures in ``batches`` batches."""
     cameras = [job for job in jobs if job[1] is f.camera_png]
-    tasks = [(_RIG_S + _RIG_PER_CAMERA_S * len(rec.cameras), _rig, (rec, details))]
+    tasks = [(_RIG_S + _RIG_PER_CAMERA_S * len(rec.cameras), record_rig_pngs, (rec, details))]
     tasks += [(job[3], f.draw_jobs, ([job],)) for job in jobs if job[1] is not f.camera_png]
     for k in range(min(batches, len(cameras))):
         batch = cameras[k::batches]
@@ -115,7 +108,7 @@ def submit_figures(rec: CalibrationRecord, details: RunDetails | None,
         workers.start()
     if workers is None or not workers.size:
         def here():
-            rig = _rig(rec, details)
+            rig = record_rig_pngs(rec, details)
             return {**rig.pngs, **f.draw_jobs(jobs)}, rig.legend
         return here
     order = [name for name, *_ in jobs]

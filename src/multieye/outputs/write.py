@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from multieye.core.names import file_stems
 from multieye.io import write_calibration, write_camchain, write_intrinsics_file
-from multieye.io.atomic import confined_to, make_folder
+from multieye.io.atomic import confined_to, make_folder, synced_together
 from multieye.io.run_details import (StageTimings, details_head, run_details_from_dict,
                                      run_details_to_dict, write_details_text)
 from multieye.outputs.details import camera_overlaps, camera_topic, run_details
@@ -90,7 +90,9 @@ def write_outputs(run: CalibrationRun, out_dir: str | os.PathLike, *, report: bo
     start = time.perf_counter()
     rig = getattr(run, "rig", None)
     inputs = [rig.path] if getattr(rig, "path", None) is not None else []
-    with staged_output(out_dir, inputs=inputs) as stage:
+    # the staging folder's files synced to disk together once written, before it replaces
+    # out_dir (not one by one, each sync waiting for the last: io.atomic.synced_together)
+    with staged_output(out_dir, inputs=inputs) as stage, synced_together(stage.folder):
         names, notes, timings = write_output_files(run, stage.folder, final=stage.out,
                                                    report=report, diagnostics=diagnostics,
                                                    start=start, processes=processes,
