@@ -104,3 +104,64 @@ def test_a_camera_the_motion_does_not_link_is_refused_naming_it():
     with pytest.raises(DisconnectedError, match="cam2 are linked to the reference camera cam0 "
                                                 "neither by views they share nor by the rig's"):
         calibrate_rig(_rig(), cams)
+
+
+def _started_on(data, lens, limit_px=2.0):
+    """``data`` as the pipeline leaves a camera whose lens is estimated and starts at
+    ``lens``: every image posed by PnP on it, those over ``limit_px`` left out as a bad fit."""
+    from dataclasses import replace
+
+    from multieye.imaging.detect import Detection
+    from multieye.imaging.pnp import estimate_poses
+    from multieye.io import RejectedItem
+
+    poses = estimate_poses([Detection(np.arange(len(o.image_points)), o.image_points,
+                                      o.object_points) for o in data.observations], lens)
+    posed = [replace(o, T_cam_target=p.T_cam_target, rms_px=p.rms_px)
+             for o, p in zip(data.observations, poses)]
+    bad = tuple(o for o in posed if o.rms_px > limit_px)
+    return replace(data, intrinsics=lens, intrinsics_estimated=True, bad_fits=bad,
+                   observations=tuple(o for o in posed if o.rms_px <= limit_px),
+                   rejected=tuple(RejectedItem(f"{o.name} ({o.target})", f"bad fit: "
+                                               f"reprojection RMS {o.rms_px:.2f} px > 2 px")
+                                  for o in bad))
+
+
+def test_a_motion_linked_camera_whose_lens_start_left_images_out_takes_them_back():
+    """Images judged on the refined lens in a rig linked by its motion, as with motion
+    capture or overlap: cam1's lens estimated from a start (k1 off by 0.3) that leaves views
+    out as a bad fit; they fit the jointly refined lens and are taken back, named in a
+    warning, and cam1's lens and pose come out as from its every view."""
+    sc, cams = _cameras()
+    d = cams["cam1"]
+    full = calibrate_rig(_rig(), {**cams, "cam1": _started_on(d, d.intrinsics, 1e9)})
+    start = d.intrinsics.with_params(d.intrinsics.params + np.r_[0, 0, 0, 0, 0.3, 0, 0, 0])
+    started = _started_on(d, start)
+    assert 2 <= len(started.bad_fits) < len(d.observations) - 8, len(started.bad_fits)
+    run = calibrate_rig(_rig(), {**cams, "cam1": started})
+    (line,) = [w for w in run.record.warnings if "taken back" in w]
+    assert line.startswith(f"cam1: {len(started.bad_fits)} image(s) left out as a bad fit on "
+                           "the starting lens taken back"), line
+    cam1 = next(c for c in run.record.cameras if c.name == "cam1")
+    assert cam1.rejected == () and cam1.measurements_used == len(d.observations)
+    assert run.cameras["cam1"].bad_fits == ()
+    np.testing.assert_allclose(run.T_ref_cam["cam1"], full.T_ref_cam["cam1"], atol=1e-6)
+    lens, ref = run.cameras["cam1"].intrinsics, full.cameras["cam1"].intrinsics
+    np.testing.assert_allclose(lens.params, ref.params, rtol=1e-6, atol=1e-9)
+
+
+def test_a_motion_linked_image_with_corners_off_is_left_out_by_name():
+    from dataclasses import replace
+
+    _, cams = _cameras()
+    d = _started_on(cams["cam1"], cams["cam1"].intrinsics, 1e9)
+    obs = list(d.observations)
+    uv = obs[5].image_points.copy()
+    uv[::2] += [5.0, -4.0]                      # far beyond the corners' 0.3 px noise
+    obs[5] = replace(obs[5], image_points=uv)
+    run = calibrate_rig(_rig(), {**cams, "cam1": replace(d, observations=tuple(obs))})
+    cam1 = next(c for c in run.record.cameras if c.name == "cam1")
+    assert [r.item for r in cam1.rejected] == [obs[5].name]
+    assert cam1.rejected[0].reason.startswith("outlier of the joint refinement: residual RMS")
+    assert any(w.startswith("cam1: 1 image(s) left out as outliers of the joint refinement")
+               for w in run.record.warnings), run.record.warnings

@@ -33,7 +33,8 @@ Synopsis
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -47,7 +48,8 @@ from multieye.estimate.refine_motion import MotionResult, refine_motion
 from multieye.estimate.uncertainty import pose_std
 from multieye.io.calibration_json import CameraLinks
 from multieye.pipeline.camera_data import CameraData
-from multieye.pipeline.overlap import _fit_findings, _rig_warnings, camera_views
+from multieye.pipeline.overlap import (_fit_findings, _rig_warnings, camera_views,
+                                       judged_on_refined_lens)
 
 __all__ = ["MotionSolution", "solve_motion", "target_of", "board_order", "GIVEN_POSE_CHI2"]
 
@@ -95,6 +97,10 @@ class MotionSolution:
     world : str
         The board whose frame is the world: rig.yaml's first board (when seen or when given
         poses are in its frame), else the first board seen.
+    rejected : dict of str to tuple of RejectedItem
+        Per camera whose lens is estimated, what it leaves out once its images were judged
+        on the refined lens (:func:`multieye.pipeline.overlap.judged_on_refined_lens`); empty
+        when no lens is estimated.
     """
 
     names: tuple[str, ...]
@@ -112,6 +118,7 @@ class MotionSolution:
     warnings: tuple = ()
     given: tuple = ()
     world: str = ""
+    rejected: dict = field(default_factory=dict)
 
     def T_ref_target(self, name: str) -> np.ndarray:
         """The board of each used observation of camera ``name`` in the rig's frame at its
@@ -189,6 +196,40 @@ def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
     DisconnectedError
         Cameras that neither overlap nor the rig's motion links (one line naming them).
     """
+    once = _Judging(partial(_solve_once, reference=reference, sync_tolerance=sync_tolerance,
+                            sync=sync, robust=robust, boards=boards, mocap=mocap, poses=poses))
+    first = once(cameras)
+    if not any(d.intrinsics_estimated for d in cameras.values()):
+        return once.last
+    # a camera whose lens is estimated: its images judged on the refined lens, as
+    # solve_overlap does (bad fits on the starting lens taken back, outliers left out)
+    judged, _, notes = judged_on_refined_lens(cameras, once, first)
+    sol = once.last
+    return replace(sol, warnings=tuple(sol.warnings) + tuple(notes),
+                   rejected={n: judged[n].rejected for n in sol.names})
+
+
+class _Judging:
+    """``run(cameras) -> MotionSolution`` as the solve
+    :func:`~multieye.pipeline.overlap.judged_on_refined_lens` calls (``(prepared, views,
+    result)``), keeping the last solution it gave (``last``); the views keep the order they
+    were detected in (no half-turn choice: a rig before several boards)."""
+
+    def __init__(self, run: Callable):
+        self.run, self.last = run, None
+
+    def __call__(self, cameras):
+        self.last = self.run(cameras)
+        return None, self.last.views, self.last.result
+
+    @staticmethod
+    def ordered(cameras):
+        return (cameras,)
+
+
+def _solve_once(cameras: Mapping[str, CameraData], *, reference: str, sync_tolerance, sync,
+                robust, boards, mocap, poses) -> MotionSolution:
+    """One solve of :func:`solve_motion` on ``cameras`` as they are."""
     names = tuple(cameras)
     order = board_order(cameras, boards)
     prepared = camera_views(cameras, sync_tolerance, sync, lambda o: (
