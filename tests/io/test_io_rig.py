@@ -345,10 +345,22 @@ def test_list_images_seconds_and_nanoseconds(tmp_path):
                        rtol=0, atol=1e-6)
 
 
+def test_list_images_seconds_underscore_nanoseconds(tmp_path):
+    """ROS's sec and nsec as some recorders name frames: ``1700000000_000000001``."""
+    names = ["1700000000_500000000.png", "1700000000_000000001.png", "1700000001_000000000.png"]
+    for name in names:
+        (tmp_path / name).write_bytes(b"")
+    out = list_images(tmp_path)
+    assert [ns for _, ns, _ in out] == [1700000000000000001, 1700000000500000000,
+                                        1700000001000000000]
+
+
 @pytest.mark.parametrize("name, message", [
     ("frame_001.png", "expected a time stamp"),
     ("1700000000123.png", "13 digits is ambiguous"),
     ("-5.png", "expected a time stamp"),
+    ("1700000000_12345.png", "or seconds_nanoseconds"),        # nanoseconds: exactly 9 digits
+    ("0001_000000001_cam0.png", "expected a time stamp"),
 ])
 def test_list_images_rejects_names_that_are_not_stamps(tmp_path, name, message):
     (tmp_path / "1700000000.png").write_bytes(b"")

@@ -7,6 +7,8 @@ Rule for a file name's stem (the name without its extension):
   2286);
 - only digits, 16 to 19 of them (``1700000000123456789``): integer nanoseconds (16 digits
   start at 1970-04-27, 19 fit in int64);
+- whole seconds (at most 10 digits), an underscore, exactly 9 digits of nanoseconds
+  (``1700000000_123456789``: ROS's ``sec`` and ``nsec`` as some recorders name frames);
 - anything else, including 11 to 15 digits (milliseconds or microseconds could not be told
   apart from the others), is an error naming the file.
 
@@ -56,6 +58,7 @@ _NUMBER = re.compile(r"(\d+)(?!.*\d)")
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 
 _SECONDS = re.compile(r"^\d+\.\d+$")
+_SEC_NSEC = re.compile(r"^(\d{1,10})_(\d{9})$")
 _DIGITS = re.compile(r"^\d+$")
 
 
@@ -70,6 +73,9 @@ def stamp_from_name(stem: str) -> int:
     if _SECONDS.match(stem):
         ns = (Decimal(stem) * 1_000_000_000).quantize(Decimal(1), rounding=ROUND_HALF_EVEN)
         return int(ns)
+    sec_nsec = _SEC_NSEC.match(stem)
+    if sec_nsec:
+        return int(sec_nsec.group(1)) * 1_000_000_000 + int(sec_nsec.group(2))
     if _DIGITS.match(stem):
         if len(stem) <= 10:
             return int(stem) * 1_000_000_000
@@ -78,8 +84,9 @@ def stamp_from_name(stem: str) -> int:
         raise ValueError(f"{len(stem)} digits is ambiguous (milliseconds? microseconds?); "
                          "name images by seconds with a decimal point (1700000000.123456) or by "
                          "integer nanoseconds (16 to 19 digits)")
-    raise ValueError("expected a time stamp: seconds (1700000000.123456) or integer "
-                     "nanoseconds (1700000000123456789)")
+    raise ValueError("expected a time stamp: seconds (1700000000.123456), integer "
+                     "nanoseconds (1700000000123456789) or seconds_nanoseconds "
+                     "(1700000000_123456789)")
 
 
 def check_pattern(pattern: str) -> str:
