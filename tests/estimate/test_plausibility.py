@@ -69,16 +69,17 @@ def test_target_spacing_in_centimetres_is_a_unit_of_the_spacing(stream):
     assert "0.0499 fits" in f.message or "0.05 fits" in f.message
 
 
-@pytest.mark.parametrize("order, read_as", [((3, 0, 1, 2), "w x y z (scalar first)"),
-                                            ((1, 2, 3, 0), "x y z w (scalar last) where")])
-def test_quaternions_in_the_other_order(stream, order, read_as):
+@pytest.mark.parametrize("order, read_as, values", [
+    ((3, 0, 1, 2), "w x y z (scalar first)", "values: [t, x, y, z, qw, qx, qy, qz]"),
+    ((1, 2, 3, 0), "x y z w (scalar last) where", "values: [t, x, y, z, qx, qy, qz, qw]")])
+def test_quaternions_in_the_other_order(stream, order, read_as, values):
     # the file holds (w, x, y, z) but was read as (x, y, z, w): the rotation read is that of
     # the permuted quaternion; and the reverse
     M = stream.T_world_mocap
     q = g.quat_from_transform(M)[:, list(order)]
     wrong = g.transform_from_quat(q, M[:, :3, 3])
     rep = check_plausibility([_evidence(stream, mocap=wrong)])
-    _only(rep, "quaternion-order", "quaternion order", read_as, "TUM")
+    _only(rep, "quaternion-order", "quaternion order", read_as, "TUM", values)
 
 
 @pytest.mark.parametrize("true_setup", ["eye-to-base", "eye-on-hand"])
@@ -207,3 +208,22 @@ def test_every_cause_has_its_word_in_the_messages():
              "setup": "setup", "inverted-poses": "inverted", "time-offset": "time offset",
              "intrinsics": "intrinsics", "noise": "noise", "fit": "poor fit"}
     assert set(words) == set(CAUSES)
+
+
+def test_quaternions_of_pose_files_in_the_other_order_name_the_rotation_key(stream):
+    """Pose files (one per image) read as x y z w whose quaternions are w first: the message
+    names the rotation key that reads them; poses not read as quaternions get no such key."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from multieye.io.mocap import MocapSpec
+
+    M = stream.T_world_mocap
+    wrong = g.transform_from_quat(g.quat_from_transform(M)[:, [3, 0, 1, 2]], M[:, :3, 3])
+    spec = MocapSpec(file=Path("{stem}.txt"), format="pose-files")
+    declared = Declared(mocap_format="pose-files", mocap=spec)
+    rep = check_plausibility([_evidence(stream, mocap=wrong)], declared=declared)
+    _only(rep, "quaternion-order", "pose files", "rotation: quaternion-wxyz")
+    declared = Declared(mocap_format="pose-files", mocap=replace(spec, rotation="matrix"))
+    rep = check_plausibility([_evidence(stream, mocap=wrong)], declared=declared)
+    assert "rotation: quaternion" not in rep.findings[0].message

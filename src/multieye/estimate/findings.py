@@ -208,13 +208,26 @@ def _scale_finding(s: float, rel_std: float, before: float, after: float, declar
 
 
 def _quaternion_finding(desc: str, before: float, after: float, declared: Declared) -> Finding:
+    scalar_first = desc.startswith("w x y z")      # the order the file holds
+    quat = "qw, qx, qy, qz" if scalar_first else "qx, qy, qz, qw"
+    fmt = declared.mocap_format
+    if fmt in ("pose-files", "pose-table") and not str(
+            getattr(declared.mocap, "rotation", "quaternion")).startswith("quaternion"):
+        fmt = None                                 # poses not read as quaternions
     where = {"tum": "the TUM file probably has its quaternion columns in another order (TUM "
-                    "is t tx ty tz qx qy qz qw): reorder them",
+                    f"is t tx ty tz qx qy qz qw): reorder them, or say so under mocap in "
+                    f"rig.yaml: values: [t, x, y, z, {quat}]",
+             "pose-files": "the pose files probably hold the quaternion in another order: say "
+                           "so under mocap in rig.yaml: rotation: quaternion-"
+                           f"{'wxyz' if scalar_first else 'xyzw'}",
+             "pose-table": "the pose table probably holds the quaternion in another order: say "
+                           "so under mocap in rig.yaml: rotation: quaternion-"
+                           f"{'wxyz' if scalar_first else 'xyzw'}",
              "csv": "the CSV columns are probably named in the wrong order: check which one "
                     "holds qw",
              "rosbag": "the publisher probably fills the quaternion's x y z w in another "
-                       "order"}.get(declared.mocap_format,
-                                    "the file probably stores the quaternion in another order")
+                       "order"}.get(fmt, "the file probably stores the quaternion in another "
+                                         "order")
     return Finding("quaternion-order", f"quaternion order: the motion-capture rotations fit "
                    f"when their quaternions are read as {desc} ({_costs(before, after)}); "
                    f"{where}", None, before, after, {})
