@@ -197,3 +197,25 @@ def test_check_says_what_links_each_camera_with_motion_capture(rendered):
         "cam0 linked by: motion capture", "cam1 linked by: motion capture"]
     assert all(f"({c.with_mocap} of {c.listed} images with it)" in line
                for c, line in zip(check.cameras, check.links))
+
+
+def test_copies_of_one_cameras_images_given_to_another_are_refused(tmp_path):
+    """Copies (not links: check_sync's rule catches those) of cam0's images as cam1's: the
+    two would be calibrated as one camera at one pose with nothing to doubt (exit 0 before);
+    now exit 2 naming both."""
+    import shutil
+
+    from click.testing import CliRunner
+
+    from multieye.cli import main
+    from small_dataset import render_small
+
+    render_small(tmp_path)
+    shutil.rmtree(tmp_path / "cam1")
+    shutil.copytree(tmp_path / "cam0", tmp_path / "cam1")
+    res = CliRunner().invoke(main, ["calibrate", str(tmp_path), "-o", str(tmp_path / "out"),
+                                    "--processes", "1", "--no-report"])
+    assert res.exit_code == 2, res.output
+    assert "cameras cam0 and cam1 found the target at exactly the same pixels in" in res.output
+    assert "copies of one camera's images?" in res.output and "rig.yaml" in res.output
+    assert not (tmp_path / "out").exists()

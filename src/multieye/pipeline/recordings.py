@@ -90,6 +90,34 @@ def _no_shared_images(rig: Rig) -> None:
                                "in rig.yaml)", path=rig.path)
 
 
+def no_copied_images(cameras: Mapping, path=None) -> None:
+    """Refuse two cameras that found the target at exactly the same pixels in most images:
+    copies of one camera's images given to another (by :func:`check_sync`'s rule on shared
+    files, copies are not caught).  Real cameras never agree to the last bit on sub-pixel
+    corners; such a pair would be calibrated as two cameras at one pose, with nothing to
+    doubt.  ``cameras``: name to :class:`~multieye.pipeline.camera_data.CameraData`;
+    ``path``: rig.yaml, which the message names.
+
+    Raises
+    ------
+    DatasetError
+        Naming both cameras, when they share at least 3 views and at least half of the
+        views of the one with fewer.
+    """
+    seen: dict[str, set[bytes]] = {}
+    for n, d in cameras.items():
+        points = {np.ascontiguousarray(o.image_points, np.float64).tobytes()
+                  for o in d.observations if o.image_points is not None}
+        for other, theirs in seen.items():
+            same = len(points & theirs)
+            if same >= 3 and 2 * same >= min(len(points), len(theirs)):
+                raise DatasetError(f"cameras {other} and {n} found the target at exactly the "
+                                   f"same pixels in {same} images: copies of one camera's "
+                                   "images? each camera needs its own images (check their "
+                                   "images: in rig.yaml)", path=path)
+        seen[n] = points
+
+
 def _order_shift(rig: Rig, listed: Mapping[str, list[Path]]) -> None:
     """Refuse ``sync: order`` when the numbers in the names say that an image is missing in
     one camera and another in a second (equal counts, every pair after the first gap shifted

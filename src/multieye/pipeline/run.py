@@ -64,7 +64,7 @@ from multieye.estimate.refine_images import (
     RefinementResult,
 )
 from multieye.pipeline.overlap import paired_instants, share_instants
-from multieye.pipeline.recordings import camera_warnings
+from multieye.pipeline.recordings import camera_warnings, no_copied_images
 from multieye.pipeline.overlap_run import calibrate_overlap, check_overlap_options
 from multieye.pipeline.clock_offsets import estimated_offset, with_clock_offsets
 from multieye.pipeline.overlap_mocap import check_mocap_options, refuse_eye_to_base, with_clocks
@@ -130,6 +130,7 @@ def calibrate_rig(rig: Rig, cameras: dict[str, CameraData], options: Options = O
         The targets and given lenses the cameras were loaded with (built when not given).
     """
     clock = [time.perf_counter()]
+    no_copied_images(cameras, rig.path)
     problem = make_problem(rig, cameras, updated_options(options, kw), model)
     if all(d.mocap is None for d in cameras.values()):   # linked by shared views (issue 23)
         run = calibrate_overlap(check_overlap_options(problem))      # and by motion (34)
