@@ -69,6 +69,7 @@ from multieye.io.kalibr import (
     CamchainEntry, camchain_entries, intrinsics_from_kalibr, is_camchain, write_camchain)
 from multieye.io.slam_configs import intrinsics_from_slam_config, slam_config_kind
 from multieye.io.textfile import read_text
+from multieye.io.basalt import intrinsics_from_basalt, is_basalt
 from multieye.io.yamlfile import MAX_YAML_BYTES, MAX_YAML_DEPTH, YamlDocument, parse_yaml, yaml_list
 
 __all__ = [
@@ -112,7 +113,8 @@ _FORMATS = ("expected OpenCV FileStorage (%YAML:1.0 or XML with camera_matrix), 
             "camchain (camera_model, intrinsics), ROS camera_info, JSON or YAML with a camera "
             "matrix (K, camera_matrix, or fx fy cx cy), aslam_cv's camera YAML (type, "
             "intrinsics, distortion), a mrcal .cameramodel, a BoofCV camera YAML, EuRoC's "
-            "sensor.yaml, camodocal's (VINS) or ORB-SLAM's camera settings")
+            "sensor.yaml, camodocal's (VINS) or ORB-SLAM's camera settings, Basalt's "
+            "calibration JSON")
 
 
 def _read(path) -> str:
@@ -448,6 +450,8 @@ def _load(path) -> tuple[str, object]:
         raise DatasetError(f"not an intrinsics file: {_FORMATS}", path=path, line=1)
     if slam_config_kind(doc.data) is not None:     # before Kalibr: EuRoC has camera_model
         return "slam", doc
+    if is_basalt(doc.data):
+        return "basalt", doc
     if is_camchain(doc.data):
         return "kalibr", doc
     if is_boofcv(doc.data):
@@ -538,6 +542,8 @@ def read_intrinsics(path: str | os.PathLike, camera: str | None = None, *,
         return _opencv(content, Path(path), camera)
     if kind == "slam":
         return intrinsics_from_slam_config(content, camera)
+    if kind == "basalt":
+        return intrinsics_from_basalt(content, camera, prefer)
     if kind == "cameramodel":
         return cameramodel.intrinsics_from_cameramodel(content, Path(path))
     if kind == "kalibr":
