@@ -36,6 +36,8 @@ KALIBR = {
                 "{type: chessboard, rows: 7, cols: 6, spacing: 0.06}"),
     "circles": ("target_type: 'circlegrid'\ntargetCols: 6\ntargetRows: 7\nspacingMeters: 0.02\n"
                 "asymmetricGrid: False\n", "{type: circles, rows: 7, cols: 6, spacing: 0.02}"),
+    "basalt": ('{\n  "tagCols": 6,\n  "tagRows": 5,\n  "tagSize": 0.088,\n  "tagSpacing": 0.3\n}\n',
+               "{type: aprilgrid, rows: 5, cols: 6, spacing: 0.088, tag_spacing: 0.3}"),
     "asym": ("target_type: 'circlegrid'\ntargetCols: 4\ntargetRows: 11\nspacingMeters: 0.02\n"
              "asymmetricGrid: True\n",
              "{type: asymmetric-circles, rows: 11, cols: 4, spacing: 0.04}"),
@@ -98,6 +100,8 @@ BAD = [
      "BoofCV target type 'ECOCHECK': multieye reads CHESSBOARD and CIRCLE_GRID"),
     ("camera_model: pinhole\n", r"board.yaml:1: expected a Kalibr target file"),
     ("- 1\n- 2\n", r"board.yaml:1: expected a Kalibr target file"),
+    ('{"tagCols": 6, "tagRows": 6, "tagSize": 0.088, "tagSpacing": 0.3, "tagFamily": 1}',
+     r"board.yaml:1: tagFamily: not a key of Basalt's AprilGrid file"),
 ]
 
 

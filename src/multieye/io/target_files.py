@@ -19,6 +19,9 @@ if it had been typed.  What each format holds and how it maps:
     ``spacingMeters``, y = r ``spacingMeters``; multieye's ``spacing`` is the centre distance
     within a row).
 
+- **Basalt** (``aprilgrid_6x6.json``: ``tagCols``, ``tagRows``, ``tagSize``, ``tagSpacing``,
+  no ``target_type``): an AprilGrid as Kalibr's.
+
 - **BoofCV** (a serialised ``ConfigCalibrationTarget``: ``type`` and ``grid``) : ``CHESSBOARD``
   (the default when ``type`` is absent; ``numRows``, ``numCols`` count squares) ->
   ``chessboard`` of ``numRows - 1`` x ``numCols - 1`` inner corners; ``CIRCLE_GRID``
@@ -43,6 +46,8 @@ __all__ = ["target_from_file", "NEEDS_SPACING"]
 NEEDS_SPACING = "needs-spacing"
 
 _BOOF_KEY = "boofcv.alg.fiducial.calib.ConfigCalibrationTarget"
+#: Basalt's AprilGrid file (``aprilgrid_6x6.json``): Kalibr's keys without ``target_type``.
+_BASALT_KEYS = ("tagCols", "tagRows", "tagSize", "tagSpacing")
 
 
 def target_from_file(path: Path) -> tuple[dict, str]:
@@ -60,7 +65,7 @@ def target_from_file(path: Path) -> tuple[dict, str]:
         ``tag_spacing`` for an AprilGrid); ``spacing`` is :data:`NEEDS_SPACING` where the
         file has no unit (BoofCV).
     tool : str
-        ``"Kalibr"`` or ``"BoofCV"``.
+        ``"Kalibr"``, ``"Basalt"`` or ``"BoofCV"``.
 
     Raises
     ------
@@ -72,10 +77,13 @@ def target_from_file(path: Path) -> tuple[dict, str]:
     data = doc.data
     if isinstance(data, Mapping) and "target_type" in data:
         return _kalibr(doc), "Kalibr"
+    if isinstance(data, Mapping) and set(_BASALT_KEYS) <= set(data):
+        return _basalt(doc), "Basalt"
     if isinstance(data, Mapping) and _BOOF_KEY in data:
         return _boofcv(doc), "BoofCV"
     raise doc.error("expected a Kalibr target file (target_type: aprilgrid, checkerboard or "
-                    f"circlegrid) or BoofCV's ({_BOOF_KEY}: with its grid); or give the board's "
+                    f"circlegrid), Basalt's AprilGrid JSON (tagCols, tagRows, tagSize, "
+                    f"tagSpacing) or BoofCV's ({_BOOF_KEY}: with its grid); or give the board's "
                     "keys in rig.yaml (docs/rig-yaml.md, section 3)")
 
 
@@ -116,6 +124,18 @@ def _kalibr(doc: YamlDocument) -> dict:
                 "spacing": 2 * spacing if asym else spacing}
     raise doc.error(f"Kalibr target_type {shown(kind)}: expected aprilgrid, checkerboard or "
                     "circlegrid", "target_type")
+
+
+def _basalt(doc: YamlDocument) -> dict:
+    raw = doc.data
+    for key in raw:
+        if key not in _BASALT_KEYS:
+            raise doc.error(f"not a key of Basalt's AprilGrid file (expected "
+                            f"{', '.join(_BASALT_KEYS)})", key)
+    return {"type": "aprilgrid", "rows": _value(doc, raw, (), "tagRows", integer=True),
+            "cols": _value(doc, raw, (), "tagCols", integer=True),
+            "spacing": _value(doc, raw, (), "tagSize"),
+            "tag_spacing": _value(doc, raw, (), "tagSpacing")}
 
 
 def _boofcv(doc: YamlDocument) -> dict:
