@@ -54,8 +54,8 @@ def read_target(c: Checker, raw, keys=("target",), more: Mapping | None = None) 
     ``cameras`` and ``pose``, already checked (:func:`read_targets`)."""
     if isinstance(raw, str) or (isinstance(raw, Mapping) and "file" in raw):
         raw = _from_file(c, raw, keys)
-    c.mapping(raw, keys, TARGET_KEYS + (TARGETS_ENTRY_KEYS if more is not None else ()),
-              ("type",))
+    c.mapping(raw, keys, TARGET_KEYS + ("file",)       # file: read above, named in messages
+              + (TARGETS_ENTRY_KEYS if more is not None else ()), ("type",))
     kind = c.choice(raw["type"], keys + ("type",), TARGET_TYPES)
     for key in grid_keys(kind):
         if key not in raw:
