@@ -207,7 +207,6 @@ def with_taken_back(problem, pairing, back: dict[str, list[Observation]], rig=No
                 A_new, g.inv(np.stack([o.T_cam_target for o in new])), X_n, rig[1])
             agree = (rot <= DEFAULT_THRESHOLDS[0]) & (trans <= DEFAULT_THRESHOLDS[1])
             new, m = [o for o, a in zip(new, agree) if a], _kept_pairs(m, agree)
-            A_new = A_new[agree]
             if not new:
                 continue
         scale = np.ones(len(new)) if m.noise_scale is None else np.asarray(m.noise_scale)
