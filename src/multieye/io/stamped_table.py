@@ -14,7 +14,8 @@ import re
 import numpy as np
 
 from multieye.core.errors import DatasetError
-from multieye.io.pose_files import PoseFormat, _checked, _matrix, _named, default_values
+from multieye.io.pose_files import (PoseFormat, _checked, _is_number, _matrix, _named,
+                                    default_values)
 from multieye.io.poserows import RowPlace, trajectory_from_rows, usable_rows
 from multieye.io.textfile import (first_cell_is_nanoseconds, header_row, length_scale,
                                   read_number_rows, split_fields, text_lines)
@@ -35,14 +36,6 @@ def _first_row_count(path) -> int:
         if any(_is_number(c) for c in cells):
             return len(cells)
     return 0
-
-
-def _is_number(cell: str) -> bool:
-    try:
-        float(cell)
-    except ValueError:
-        return False
-    return True
 
 
 def _header_order(header: tuple[int, list[str]], order: tuple[str, ...], path
