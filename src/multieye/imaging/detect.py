@@ -47,6 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from multieye.core.errors import InputError
 from multieye.imaging import chessboard_corners as cc
+from multieye.imaging.small_markers import at_twice_the_size
 from multieye.imaging.targets import (
     AprilGrid,
     ArucoGrid,
@@ -168,10 +169,9 @@ def _detect_other(gray: NDArray[np.uint8], target: Target) -> Detection | None:
         return _detect_circles(gray, target)
     if isinstance(target, Charuco):
         return _detect_charuco(gray, target)
-    if isinstance(target, AprilGrid):
-        return _detect_aprilgrid(gray, target)
-    if isinstance(target, (ArucoMarker, ArucoGrid)):
-        return _detect_aruco(gray, target)
+    if isinstance(target, (AprilGrid, ArucoMarker, ArucoGrid)):     # small markers: 2x too
+        find = _detect_aprilgrid if isinstance(target, AprilGrid) else _detect_aruco
+        return find(gray, target) or at_twice_the_size(find, gray, target)
     raise InputError(f"no detector for target type {type(target).__name__}")
 
 
