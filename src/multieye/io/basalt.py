@@ -30,9 +30,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from multieye.core.errors import InputError
-from multieye.core.intrinsics import Intrinsics, check_lens_bounds
+from multieye.core.intrinsics import Intrinsics
 from multieye.io.intrinsics_mapping import refuse_unknown
+from multieye.io.slam_configs import _K, _checked, _size
 from multieye.io.yamlfile import YamlDocument, shown
 
 __all__ = ["is_basalt", "intrinsics_from_basalt", "BASALT_TYPES"]
@@ -75,11 +75,10 @@ def _resolution(doc: YamlDocument, data: Mapping, i: int) -> tuple[int | None, i
     if res is None:
         return None, None
     size = res[i] if isinstance(res, list) and i < len(res) else None
-    if not (isinstance(size, list) and len(size) == 2 and all(
-            isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in size)):
+    if not (isinstance(size, list) and len(size) == 2):
         raise doc.error(f"expected resolution[{i}] as [width, height] in pixels, got "
                         f"{shown(size)}", "value0", "resolution")
-    return size[0], size[1]
+    return _size(doc, *size, "value0", "resolution")
 
 
 def intrinsics_from_basalt(doc: YamlDocument, camera: str | None = None,
@@ -123,12 +122,6 @@ def intrinsics_from_basalt(doc: YamlDocument, camera: str | None = None,
                             "intrinsics", "alpha")
         scale = 1.0 / (1.0 - v["alpha"])
         dist = [v["alpha"] * scale, 0.0, 0.0, 0.0, 0.0]
-    K = np.array([[v["fx"] * scale, 0.0, v["cx"]], [0.0, v["fy"] * scale, v["cy"]],
-                  [0.0, 0.0, 1.0]])
     width, height = _resolution(doc, data, i)
-    try:
-        intr = Intrinsics(K, np.asarray(dist, dtype=np.float64), model, width, height)
-        check_lens_bounds(intr)
-    except InputError as exc:
-        raise doc.error(str(exc), *at) from None
-    return intr
+    return _checked(doc, _K(v["fx"] * scale, v["fy"] * scale, v["cx"], v["cy"]), dist, model,
+                    width, height, *at)
