@@ -74,10 +74,16 @@ def test_same_number_twice_names_both_files(tmp_path):
     assert "\n" not in str(err.value)
 
 
-@pytest.mark.parametrize("bad", ["../x*.jpg", "a/b*.jpg", "", "..", "a\\b*"])
+@pytest.mark.parametrize("bad", ["../x*.jpg", "a/../b*.jpg", "a//b*.jpg", "./b*.jpg", "", "..",
+                                 "a\\b*", "**/left.jpg", "a/*/*/*/left*.jpg"])
 def test_a_pattern_is_a_file_name(bad):
     with pytest.raises(ValueError, match="file-name pattern"):
         check_pattern(bad)
+
+
+@pytest.mark.parametrize("good", ["left*.jpg", "*/left.jpg", "run_*/cam?/*.png"])
+def test_a_pattern_may_name_sub_folders(good):
+    assert check_pattern(good) == good
 
 
 def _rig(tmp_path, body: str):
@@ -101,7 +107,8 @@ def test_rig_yaml_sync_and_pattern(tmp_path):
 @pytest.mark.parametrize("images, message", [
     ("'../*.jpg'", "folder of the dataset"),
     ("'/tmp/*.jpg'", "folder of the dataset"),
-    ("'r*/x.jpg'", "no pattern in it"),
+    ("'r*/../x.jpg'", "no '..'"),
+    ("'raw/**/x.jpg'", "no '[*][*]'"),
     ("'nowhere/*.jpg'", "folder not found"),
 ])
 def test_bad_patterns_refused_at_their_line(tmp_path, images, message):

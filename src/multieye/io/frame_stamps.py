@@ -1,9 +1,18 @@
-"""A video's frame stamps file: one time stamp per frame, in frame order.
+"""Frame stamps files: one time stamp per frame of a video, or per image of a folder.
 
 Each line holds the stamp of one frame, by the rule of image names
 (:func:`multieye.io.image_folder.stamp_from_name`): seconds with a decimal point
 (``1700000000.033333``) or integer nanoseconds (16 to 19 digits), or whole seconds of at most
-10 digits; ``#`` starts a comment, empty lines are skipped.  Stamps must increase.
+10 digits; also seconds in exponent form (``1.036896e-01``, KITTI's ``times.txt``) and a UTC
+date and time (``2011-09-26 13:02:25.594360375``, KITTI's ``timestamps.txt``: taken as UTC;
+only differences between stamps matter to a rig without motion capture).  ``#`` starts a
+comment, empty lines are skipped.  Stamps must increase.
+
+For a folder of images (:func:`read_image_stamps`) a line may instead name its image: a file
+name and a stamp in either order, separated by a comma, a semicolon or white space (EuRoC's
+``data.csv``: ``1403636579763555584,1403636579763555584.png``; TUM's ``rgb.txt``: ``stamp
+rgb/name.png``); a first line of names is a header.  One stamp per line gives the stamps of
+the images in natural name order, as many as there are images.
 
 Synopsis
 --------
@@ -14,6 +23,9 @@ Synopsis
 from __future__ import annotations
 
 import os
+import re
+from datetime import datetime, UTC
+from pathlib import Path
 
 import numpy as np
 
@@ -21,7 +33,34 @@ from multieye.core.errors import DatasetError
 from multieye.io.image_folder import stamp_from_name
 from multieye.io.textfile import text_lines
 
-__all__ = ["read_frame_stamps"]
+__all__ = ["read_frame_stamps", "read_image_stamps", "stamp_text"]
+
+_EXPONENT = re.compile(r"^[0-9]+(\.[0-9]*)?[eE][-+]?[0-9]+$")
+_DATE_TIME = re.compile(r"^(\d{4})-(\d{2})-(\d{2})[ T](\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,9}))?$")
+_FIELDS = re.compile(r"[,;\s]+")
+
+
+def stamp_text(text: str) -> int:
+    """Integer nanoseconds of one stamp in a stamps file (module docstring).
+
+    Raises
+    ------
+    ValueError
+        Not a stamp (the message says what is accepted).
+    """
+    text = text.strip()
+    if _EXPONENT.match(text):
+        return int(round(float(text) * 1e9))
+    when = _DATE_TIME.match(text)
+    if when:
+        *ymdhms, fraction = when.groups()
+        seconds = datetime(*map(int, ymdhms), tzinfo=UTC).timestamp()
+        return int(seconds) * 1_000_000_000 + int((fraction or "0").ljust(9, "0"))
+    try:
+        return stamp_from_name(text)
+    except ValueError as exc:
+        raise ValueError(f"{exc}, seconds in exponent form (1.036896e-01) or a UTC date and "
+                         "time (2011-09-26 13:02:25.594360375)") from None
 
 
 def read_frame_stamps(path: str | os.PathLike) -> np.ndarray:
@@ -36,7 +75,7 @@ def read_frame_stamps(path: str | os.PathLike) -> np.ndarray:
     out: list[int] = []
     for number, text in text_lines(path, what="frame stamps file"):
         try:
-            ns = stamp_from_name(text)
+            ns = stamp_text(text)
         except ValueError as exc:
             raise DatasetError(f"expected one time stamp per line: {exc}", path=path,
                                line=number) from None
@@ -46,3 +85,86 @@ def read_frame_stamps(path: str | os.PathLike) -> np.ndarray:
     if not out:
         raise DatasetError("no frame stamp in the file", path=path)
     return np.array(out, dtype=np.int64)
+
+
+def read_image_stamps(path: str | os.PathLike, images: list[Path], folder: Path) -> list[int]:
+    """Integer nanoseconds of each of ``images`` (natural name order, below ``folder``) from a
+    stamps file (module docstring): by name where its lines name images, else one per line.
+
+    Raises
+    ------
+    DatasetError
+        A line that is neither (with its number), stamps not increasing (one per line), a
+        count other than the images' (one per line), an image without a stamp or two stamps
+        for one image (by name; naming it), no stamp at all.
+    """
+    rows = [(number, _fields(text)) for number, text in
+            text_lines(path, what="image stamps file")]
+    if rows and not any(_is_stamp(f) for f in rows[0][1]):
+        rows = rows[1:]                                 # a header: timestamp,filename
+    if not rows:
+        raise DatasetError("no stamp in the file", path=path)
+    if all(len(fields) == 1 for _, fields in rows):
+        return _in_order(path, rows, images)
+    return _by_name(path, rows, images, folder)
+
+
+def _fields(text: str) -> list[str]:
+    """A line's fields; a date and a time (``2011-09-26 13:02:25.5``) are one."""
+    fields = [f for f in _FIELDS.split(text) if f]
+    return [" ".join(fields)] if _DATE_TIME.match(" ".join(fields)) else fields
+
+
+def _is_stamp(text: str) -> bool:
+    try:
+        stamp_text(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _in_order(path, rows, images: list[Path]) -> list[int]:
+    """One stamp per line, for the images in name order."""
+    out: list[int] = []
+    for number, fields in rows:
+        try:
+            ns = stamp_text(fields[0])
+        except ValueError as exc:
+            raise DatasetError(f"expected one time stamp per line: {exc}", path=path,
+                               line=number) from None
+        if out and ns <= out[-1]:
+            raise DatasetError("stamps must increase, image by image", path=path, line=number)
+        out.append(ns)
+    if len(out) != len(images):
+        raise DatasetError(f"{len(out)} stamps for {len(images)} images: one stamp per line "
+                           "gives the images' stamps in name order, as many as the images "
+                           "(or name each image on its line: name,stamp)", path=path)
+    return out
+
+
+def _by_name(path, rows, images: list[Path], folder: Path) -> list[int]:
+    """Lines of a file name and a stamp, either order; each image's stamp by its name (its
+    path below ``folder``, or the file name alone)."""
+    stamps: dict[str, int] = {}
+    for number, fields in rows:
+        stamp = [f for f in fields if _is_stamp(f)]
+        named = [f for f in fields if not _is_stamp(f)]
+        if len(fields) != 2 or len(stamp) != 1:
+            raise DatasetError(f"expected an image's name and its time stamp, got "
+                               f"{' '.join(fields)[:80]!r}", path=path, line=number)
+        key = named[0].replace("\\", "/") if named else fields[1]
+        if key in stamps:
+            raise DatasetError(f"a second stamp for {key}", path=path, line=number)
+        stamps[key] = stamp_text(stamp[0])
+    out = []
+    for p in images:
+        below = p.relative_to(folder).as_posix()
+        hit = [k for k in (below, p.name) if k in stamps]
+        if not hit:
+            tail = [k for k in stamps if k.endswith("/" + below)]
+            hit = tail[:1]
+        if not hit:
+            raise DatasetError(f"no stamp for image {below} (its lines name images: every "
+                               "image needs its line)", path=path)
+        out.append(stamps[hit[0]])
+    return out

@@ -48,8 +48,11 @@ from multieye.core.regular_files import file_kind
 
 __all__ = ["IMAGE_EXTENSIONS", "SYNC_MODES", "list_images", "list_image_files",
            "stamp_from_name", "skipped_entries", "sorted_entries", "is_file_entry",
-           "check_pattern", "natural_key", "number_in_name", "numbers_in_names", "sync_key",
-           "sync_keys"]
+           "MAX_PATTERN_LEVELS", "check_pattern", "image_name", "label_stem", "natural_key",
+           "number_in_name", "numbers_in_names", "sync_key", "sync_keys"]
+
+#: Levels (sub-folders, then files) that an ``images:`` pattern may span.
+MAX_PATTERN_LEVELS = 4
 
 #: How images of different cameras are taken to be of one instant (rig.yaml's ``sync``).
 SYNC_MODES = ("time", "name", "number", "order")
@@ -91,13 +94,46 @@ def stamp_from_name(stem: str) -> int:
 
 def check_pattern(pattern: str) -> str:
     """``pattern`` if it is a file-name pattern (``fnmatch``: ``*``, ``?``, ``[...]``) for the
-    entries of one folder; ValueError saying what was expected (a path, a folder part, ``..``,
-    an empty pattern)."""
-    if (not isinstance(pattern, str) or not pattern or "/" in pattern or "\\" in pattern
-            or pattern in (".", "..") or "\0" in pattern):
-        raise ValueError(f"expected a file-name pattern such as 'left*.jpg' (matched in one "
-                         f"folder: no '/', no '..'), got {pattern!r}")
+    entries of one folder (``left*.jpg``), or such patterns for sub-folders and then files,
+    joined by ``/`` (``*/left.jpg``: one folder per instant, as some recorders write), at
+    most :data:`MAX_PATTERN_LEVELS` of them; ValueError saying what was expected (``..``,
+    ``.``, an empty part, ``**``, a backslash)."""
+    parts = pattern.split("/") if isinstance(pattern, str) else []
+    if (not parts or any(p in ("", ".", "..") for p in parts) or "\\" in pattern
+            or "\0" in pattern or "**" in pattern or len(parts) > MAX_PATTERN_LEVELS):
+        raise ValueError(f"expected a file-name pattern such as 'left*.jpg', or sub-folder "
+                         f"patterns then a file-name pattern such as '*/left.jpg' (at most "
+                         f"{MAX_PATTERN_LEVELS} levels; no '..', no '**'), got {pattern!r}")
     return pattern
+
+
+def image_name(path: str | os.PathLike, folder: str | os.PathLike) -> str:
+    """The name of an image of a camera's ``folder`` that time stamps and sync keys are read
+    from: its path below ``folder`` without the extension, ``/`` between folders
+    (``left01``; ``0001/left`` for ``0001/left.png`` matched by ``*/left.png``)."""
+    return Path(path).relative_to(folder).with_suffix("").as_posix()
+
+
+def label_stem(label: str) -> str:
+    """:func:`image_name` of an image's label (its path below the camera's folder, as
+    detection names it): the stem of a plain file name, the path without the extension of an
+    image in a sub-folder."""
+    return Path(label).stem if "/" not in label else Path(label).with_suffix("").as_posix()
+
+
+def _stamp_of(name: str) -> int:
+    """:func:`stamp_from_name` of an image's :func:`image_name`: its stem, else the name of
+    the nearest of its sub-folders that is a stamp (``1700000000.5/left``)."""
+    parts = name.split("/")
+    try:
+        return stamp_from_name(parts[-1])
+    except ValueError:
+        for part in reversed(parts[:-1]):
+            try:
+                return stamp_from_name(part)
+            except ValueError:
+                continue
+        raise
 
 
 def natural_key(name: str) -> tuple:
@@ -130,11 +166,28 @@ def numbers_in_names(stems: Sequence[str]) -> list[int | None]:
 
 def sync_keys(stems: Sequence[str], sync: str) -> list[str]:
     """The instant keys of one camera's images under ``sync`` (not ``time``), stems in
-    natural name order: the stem (``name``), the number of :func:`numbers_in_names`
-    (``number``) or the place (``order``)."""
+    natural name order: the stem (``name``; for images in sub-folders the parts that vary,
+    :func:`_varying_parts`), the number of :func:`numbers_in_names` (``number``) or the
+    place (``order``)."""
     if sync == "number":
         return [str(n) for n in numbers_in_names(stems)]
+    if sync == "name" and any("/" in s for s in stems):
+        return _varying_parts(stems)
     return [sync_key(s, sync, k) for k, s in enumerate(stems)]
+
+
+def _varying_parts(stems: Sequence[str]) -> list[str]:
+    """``sync: name`` keys of images in sub-folders (:func:`image_name`): the parts of their
+    names that are not the same in all of the camera's images (``0001/left`` ... ``0016/left``
+    -> ``0001`` ... ``0016``: the folder names the instant, the file the camera), each whole
+    name where the names do not all have as many parts or none differs."""
+    split = [n.split("/") for n in stems]
+    if len({len(p) for p in split}) != 1:
+        return list(stems)
+    varying = [i for i in range(len(split[0])) if len({p[i] for p in split}) > 1]
+    if not varying:
+        return list(stems)
+    return ["/".join(p[i] for i in varying) for p in split]
 
 
 def sync_key(stem: str, sync: str, place: int) -> str:
@@ -148,16 +201,41 @@ def sync_key(stem: str, sync: str, place: int) -> str:
     return str(place)
 
 
-def _matching(root: Path, pattern: str | None) -> list[Path]:
-    """The regular files (links to them followed) of ``root`` with an image extension whose
-    names fit ``pattern``, in name order; at most :data:`MAX_FOLDER_ENTRIES` entries."""
-    entries = sorted_entries(root)
+def _entries(folder: Path) -> list[os.DirEntry]:
+    """:func:`sorted_entries`, at most :data:`MAX_FOLDER_ENTRIES` of them."""
+    entries = sorted_entries(folder)
     if len(entries) > MAX_FOLDER_ENTRIES:
         raise DatasetError(f"{len(entries)} entries, more than {MAX_FOLDER_ENTRIES} in one image "
-                           "folder", path=root)
-    return [root / e.name for e in entries
+                           "folder", path=folder)
+    return entries
+
+
+def _pattern_folders(root: Path, pattern: str | None) -> tuple[list[Path], str | None]:
+    """The folders whose files a pattern's last part is matched against (``root`` alone for a
+    file-name pattern; the sub-folders matched level by level for ``*/left.jpg``: real
+    folders only, never a link, no hidden ones) and that last part."""
+    if pattern is None or "/" not in pattern:
+        return [root], pattern
+    *levels, last = pattern.split("/")
+    folders = [root]
+    for level in levels:
+        folders = [f / e.name for f in folders for e in _entries(f)
+                   if not e.name.startswith(".") and fnmatch.fnmatchcase(e.name, level)
+                   and e.is_dir(follow_symlinks=False)]
+        if len(folders) > MAX_FOLDER_ENTRIES:
+            raise DatasetError(f"more than {MAX_FOLDER_ENTRIES} folders match {pattern}",
+                               path=root)
+    return folders, last
+
+
+def _matching(root: Path, pattern: str | None) -> list[Path]:
+    """The regular files (links to them followed) with an image extension whose names fit
+    ``pattern`` (its sub-folders too, :func:`_pattern_folders`), in name order; at most
+    :data:`MAX_FOLDER_ENTRIES` entries per folder."""
+    folders, last = _pattern_folders(root, pattern)
+    return [f / e.name for f in folders for e in _entries(f)
             if Path(e.name).suffix.lower() in IMAGE_EXTENSIONS and not e.name.startswith(".")
-            and (pattern is None or fnmatch.fnmatchcase(e.name, pattern)) and is_file_entry(e)]
+            and (last is None or fnmatch.fnmatchcase(e.name, last)) and is_file_entry(e)]
 
 
 def list_images(folder: str | os.PathLike, pattern: str | None = None, sync: str = "time"
@@ -190,35 +268,35 @@ def list_images(folder: str | os.PathLike, pattern: str | None = None, sync: str
     if not paths:
         raise DatasetError(_none_found(root, pattern), path=root)
     if sync != "time":
-        paths = sorted(paths, key=lambda p: natural_key(p.name))
+        paths = sorted(paths, key=lambda p: natural_key(image_name(p, root)))
         if sync in ("number", "name"):
-            _unique_keys(paths, sync)
+            _unique_keys(paths, sync, root)
         return [(float(k), k * 1_000_000_000, p) for k, p in enumerate(paths)]
     found: dict[int, Path] = {}
     for p in paths:
         try:
-            ns = stamp_from_name(p.stem)
+            ns = _stamp_of(image_name(p, root))
         except ValueError as exc:
             raise DatasetError(f"image name is not a time stamp: {exc} (or give rig.yaml's "
                                "'sync: name | number | order' to pair images by name)",
                                path=p) from None
         if ns in found:
-            raise DatasetError(f"same time stamp as {found[ns].name}", path=p)
+            raise DatasetError(f"same time stamp as {found[ns].relative_to(root)}", path=p)
         found[ns] = p
     return [(ns / 1e9, ns, found[ns]) for ns in sorted(found)]
 
 
-def _unique_keys(paths: list[Path], sync: str) -> None:
+def _unique_keys(paths: list[Path], sync: str, root: Path) -> None:
     """Refuse two images of one camera with one key under ``sync`` (name or number)."""
     seen: dict[str, Path] = {}
-    for p, key in zip(paths, sync_keys([p.stem for p in paths], sync)):
+    for p, key in zip(paths, sync_keys([image_name(p, root) for p in paths], sync)):
         if sync == "number" and key == "None":
             raise DatasetError("sync: number pairs images by the number in their names; "
                                "this name has none", path=p)
         if key in seen:
             what = f"number {key}" if sync == "number" else f"name {key}"
-            raise DatasetError(f"same {what} as {seen[key].name} in this camera's images "
-                               f"(sync: {sync} pairs one image per camera and {what}; sync: "
+            raise DatasetError(f"same {what} as {seen[key].relative_to(root)} in this camera's "
+                               f"images (sync: {sync} pairs one image per camera and {what}; sync: "
                                "order pairs the k-th image of each camera)", path=p)
         seen[key] = p
 
@@ -319,6 +397,8 @@ def skipped_entries(folder: str | os.PathLike, pattern: str | None = None
     not listed.
     """
     root = Path(folder)
+    if pattern is not None and "/" in pattern:
+        return _skipped_below(root, pattern)
     out = []
     try:
         entries = sorted(root.iterdir())
@@ -337,3 +417,26 @@ def skipped_entries(folder: str | os.PathLike, pattern: str | None = None
         if problem is not None:
             out.append((p.name, f"skipped: {problem}"))
     return out
+
+
+def _skipped_below(root: Path, pattern: str) -> list[tuple[str, str]]:
+    """:func:`skipped_entries` of a pattern with sub-folders (``*/left.jpg``): in every folder
+    it matches, named by their paths below ``root``; and the links that a folder part of the
+    pattern matches, which are not followed (a folder of the dataset is read, never one a
+    link leads to)."""
+    out = []
+    levels = pattern.split("/")[:-1]
+    try:
+        for depth in range(len(levels)):
+            above, _ = _pattern_folders(root, "/".join(levels[:depth] + ["x"]))
+            out += [((f / e.name).relative_to(root).as_posix(), "skipped: a symbolic link "
+                     "to a folder, not followed (give the folder itself)")
+                    for f in above for e in _entries(f)
+                    if fnmatch.fnmatchcase(e.name, levels[depth]) and e.is_symlink()]
+        folders, last = _pattern_folders(root, pattern)
+    except (OSError, DatasetError):
+        return out
+    for f in folders:
+        out += [(f"{f.relative_to(root).as_posix()}/{name}", why)
+                for name, why in skipped_entries(f, last)]
+    return sorted(out)

@@ -53,7 +53,9 @@ constants hold them, docs/rig-yaml.md documents each)::
       cam0:
         intrinsics: cam0.yaml          # or {file: camchain.yaml, camera: cam0}
         images: cam0/                  # exactly one of images, poses, rosbag, video;
-                                       #   images also a pattern: "left*.jpg"
+                                       #   images also a pattern: "left*.jpg",
+                                       #   "frames/*/left.jpg"; stamps: FILE when the
+                                       #   names are not stamps
         poses: cam0_target.txt         #   precomputed T_cam_target, TUM format
         rosbag: run.bag                #   image topic of a bag ...
         topic: /cam0/image_raw         #   ... given here (rosbag only)
@@ -154,8 +156,9 @@ class CameraSpec:
         The ``poses`` file holds ``T_target_cam`` (rig.yaml ``poses: {file, pose:
         T_target_cam}``): each pose is inverted where it is read.
     topic, stamps, start_time : str or None, Path or None, float
-        A bag's image topic; a video's frame stamps file (:mod:`multieye.io.frame_stamps`),
-        or else its first frame's stamp (seconds, the others at its frame rate).
+        A bag's image topic; a video's or an image folder's frame stamps file
+        (:mod:`multieye.io.frame_stamps`), or else a video's first frame's stamp (seconds,
+        the others at its frame rate).
     mocap : MocapSpec or None
         This camera's own motion capture (otherwise the rig's).
     time_offset : float
@@ -171,7 +174,8 @@ class CameraSpec:
     intrinsics_target : TargetSpec or None
         Their board, when it is not the rig's ``target``.
     images_pattern : str or None
-        Only the images of ``images`` whose names fit this pattern (``left*.jpg``).
+        Only the images of ``images`` whose names fit this pattern (``left*.jpg``; through
+        sub-folders: ``*/left.jpg``).
     """
 
     name: str

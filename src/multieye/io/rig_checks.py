@@ -134,11 +134,14 @@ def sensor_keys(c: Checker, raw: Mapping, at) -> dict:
 
 def video_keys(c: Checker, raw: Mapping, keys) -> dict:
     """A video camera's ``stamps`` (a frame stamps file) or ``start_time`` (seconds, the
-    first frame's stamp), each only with ``video`` and not both."""
-    for key in ("stamps", "start_time"):
-        if key in raw and "video" not in raw:
-            raise c.error(f"'{key}' goes with 'video' (the frame stamps of a video file)",
-                          keys + (key,))
+    first frame's stamp), each only with ``video`` and not both; or an image folder's
+    ``stamps`` (its images' stamps, when their names are not)."""
+    if "start_time" in raw and "video" not in raw:
+        raise c.error("'start_time' goes with 'video' (the first frame's stamp of a video "
+                      "file)", keys + ("start_time",))
+    if "stamps" in raw and "video" not in raw and "images" not in raw:
+        raise c.error("'stamps' goes with 'video' or 'images' (the stamps of a video's frames "
+                      "or of a folder's images)", keys + ("stamps",))
     if "stamps" in raw and "start_time" in raw:
         raise c.error("give either 'stamps' (a stamp per frame) or 'start_time' (the first "
                       "frame's, the others at the video's frame rate), not both", keys)
@@ -216,16 +219,19 @@ def _inside(c: Checker, typed: str, keys, what: str) -> Path:
 
 def images_key(c: Checker, value, keys) -> tuple[Path, str | None]:
     """A camera's ``images``: a folder, or a file-name pattern (``left*.jpg``, or
-    ``raw/left*.jpg`` in a folder of the dataset) as ``(folder, pattern)``."""
+    ``raw/left*.jpg`` in a folder of the dataset, or ``frames/*/left.jpg`` through its
+    sub-folders) as ``(folder, pattern)``: the folder is the path before the first part
+    with a wildcard."""
     typed = c.string(value, keys)
-    head, _, name = typed.rstrip("/").rpartition("/")
     if not _GLOB & set(typed):
         return c.path(typed, keys, "folder"), None
+    parts = typed.rstrip("/").split("/")
+    first = next(i for i, part in enumerate(parts) if _GLOB & set(part))
     try:
-        pattern = check_pattern(name)
+        pattern = check_pattern("/".join(parts[first:]))
     except ValueError as exc:
         raise c.error(str(exc), keys) from None
-    return _inside(c, head, keys, "images"), pattern
+    return _inside(c, "/".join(parts[:first]), keys, "images"), pattern
 
 
 def stem_pattern(c: Checker, typed: str, keys) -> Path:
@@ -249,6 +255,9 @@ def sync_keys(c: Checker, raw: Mapping, cameras: Mapping, mocap) -> str:
     if sync == "time":
         return sync
     for name, cam in cameras.items():
+        if cam.stamps is not None:
+            raise c.error(f"sync: {sync} pairs images by their file names; camera {name} has "
+                          "'stamps' (leave out 'sync' to pair by those stamps)", ("sync",))
         if cam.source != "images":
             raise c.error(f"sync: {sync} pairs images by their file names; camera {name} has "
                           f"{cam.source}, not images (leave out 'sync' to pair by time)",

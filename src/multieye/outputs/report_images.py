@@ -24,6 +24,7 @@ from pathlib import Path
 
 from multieye.core.names import file_stem
 from multieye.io.calibration_json import CalibrationRecord
+from multieye.io.image_folder import MAX_PATTERN_LEVELS
 from multieye.io.run_details import RunDetails
 from multieye.outputs.html import figure
 from multieye.outputs.image_stats import arrow_scale, image_frame, stacked, worst_images
@@ -66,6 +67,18 @@ def _stem(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]", "_", file_stem(name))
 
 
+def _below(folder: Path, name: str) -> bool:
+    """Whether an image's name in details.json is a file of ``folder`` or of its sub-folders
+    (``0001/left.jpg``, as a pattern with folders lists them): a relative path of plain parts
+    through real folders, never a link to a folder elsewhere, since the name is read from a
+    file that may have been edited."""
+    parts = name.split("/")
+    if any(p in ("", ".", "..") or "\\" in p for p in parts) or len(parts) > MAX_PATTERN_LEVELS:
+        return False
+    parent = folder.joinpath(*parts[:-1])
+    return os.path.realpath(parent) == os.path.join(os.path.realpath(folder), *parts[:-1])
+
+
 def image_thumbnails(rec: CalibrationRecord, details: RunDetails | None,
                      folders: Mapping[str, os.PathLike] | None,
                      per_camera: int = IMAGES_PER_CAMERA) -> dict[str, list[Thumbnail]]:
@@ -93,8 +106,8 @@ def image_thumbnails(rec: CalibrationRecord, details: RunDetails | None,
         _, magnify = arrow_scale(res, frame, share=0.03)
         index = {n: i for i, n in enumerate(cam.names)}
         for rank, (name, rms) in enumerate(worst_images(cam, per_camera), 1):
-            if Path(name).name != name or name in ("", ".", ".."):
-                continue                       # not a plain file name of the folder
+            if not _below(Path(folder), name):
+                continue                       # not an image of the folder (or of its sub-folders)
             i = index[name]
             jpeg = residual_thumbnail(Path(folder) / name, cam.points.uv[i],
                                       cam.points.residual_px[i], magnify=magnify,

@@ -23,15 +23,16 @@ from multieye.imaging.calibrate import look_again
 from multieye.imaging.engines import Engine
 from multieye.io import (RejectedItem, Rig, Trajectory, list_image_files, read_mocap,
                          skipped_entries)
+from multieye.io.image_folder import label_stem
 from multieye.pipeline.boards import camera_boards, intrinsics_boards, per_board
 from multieye.pipeline.boards import no_usable_image as _no_usable_image
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
 from multieye.pipeline.detection import Workers, detect_all, detect_listed
 from multieye.pipeline.estimated_lens import lens_start, posed_on_refined_lens, start_lens, with_poses
-from multieye.pipeline.recordings import check_sync, instant_keys, poses_by_name_of, precomputed_poses, sync_instant
+from multieye.pipeline.recordings import (check_sync, instant_keys, note_label, poses_by_name_of,
+                                          precomputed_poses, sync_instant)
 from multieye.pipeline.rig_model import RigModel, build_rig_model
-from multieye.pipeline.selection import (Chosen, SelectionSummary, motion_first, preselected,
-                                         with_refills)
+from multieye.pipeline.selection import Chosen, SelectionSummary, motion_first, preselected, with_refills
 from multieye.solvers.methods import MIN_MEASUREMENTS
 from multieye.imaging.pnp import ambiguity_warning
 from multieye.pipeline.half_turns import offer_half_turn
@@ -99,7 +100,7 @@ def instant_key(observation: Observation, by_name: bool, sync: str = "time",
     recordings`); else its stem when the camera is paired by name, else its stamp (exact)."""
     if sync != "time":
         return sync_instant(observation.name, observation.stamp, sync, keys)
-    return Path(observation.name).stem if by_name else repr(float(observation.stamp))
+    return label_stem(observation.name) if by_name else repr(float(observation.stamp))
 
 
 @dataclass(frozen=True)
@@ -273,7 +274,7 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
         if res.ok:
             obs.append(offer_half_turn(_observation(label, stamp, res, board),
                                        model.targets.get(board, target)))
-            notes.extend((f"{name}/{label}", w) for w in res.warnings)
+            notes.extend((note_label(rig, name, label), w) for w in res.warnings)
         else:
             shown = label if board is None or len(set(boards)) == 1 else f"{label} ({board})"
             rejected.append(RejectedItem(shown, res.reason))

@@ -138,7 +138,8 @@ def detect_listed(rig: Rig, model: RigModel, name: str, intr, workers: Workers, 
             results = workers.detect([p for _, _, p in images], target, intr)
         seconds = time.perf_counter() - t0 if fresh else workers.seconds.get(
             (name, "images"), time.perf_counter() - t0)
-        return [(stamp, path.name) for stamp, _, path in images], results, seconds
+        return ([(stamp, path.relative_to(cam.images).as_posix()) for stamp, _, path in images],
+                results, seconds)
     stamped = []
 
     def frames():

@@ -282,7 +282,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
         intr = model.lenses[cam.name]
         if cam.source == "images":
             images = listed_images(rig, cam.name) if listed is None else listed
-            names = tuple(p.name for _, _, p in images)
+            names = tuple(p.relative_to(cam.images).as_posix() for _, _, p in images)
             stamps = np.array([s for s, _, _ in images], dtype=np.float64)
             n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
             sampled_idx = _sample(len(images), sample)

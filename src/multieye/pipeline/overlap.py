@@ -23,7 +23,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,6 +42,7 @@ from multieye.estimate.half_turns import choose_turns
 from multieye.estimate.refine_images import OUTLIER_PROBABILITY
 from multieye.io import Rig
 from multieye.io.calibration_json import CameraLinks
+from multieye.io.image_folder import label_stem
 from multieye.core import geometry as g
 from multieye.estimate.instants import (
     default_sync_tolerance,
@@ -124,7 +124,7 @@ def observation_instants(cameras: Mapping[str, CameraData], sync_tolerance: floa
         inst, k = instants_from_names({n: [str(x) for x in u] for n, (u, _) in once.items()})
         return {n: inst[n][np.ravel(once[n][1])] for n in cameras}, k, 0.0
     if cameras and all(d.by_name and d.mocap is not None for d in cameras.values()):
-        keys = {n: [f"{Path(o.name).stem}|{_pose_at(d, o.stamp)}" for o in d.observations]
+        keys = {n: [f"{label_stem(o.name)}|{_pose_at(d, o.stamp)}" for o in d.observations]
                 for n, d in cameras.items()}
         once = {n: np.unique(np.asarray(k, dtype=object), return_inverse=True)
                 for n, k in keys.items()}
@@ -154,7 +154,7 @@ def assign_instants(cameras: Mapping[str, CameraData], sync_tolerance: float | N
     first: dict[int, str] = {}
     for n, d in cameras.items():
         for o, k in zip(d.observations, inst[n]):
-            first.setdefault(int(k), Path(o.name).stem if d.by_name else repr(float(o.stamp)))
+            first.setdefault(int(k), label_stem(o.name) if d.by_name else repr(float(o.stamp)))
     return {n: replace(d, observations=tuple(replace(o, instant=first[int(k)]) for o, k in
                                              zip(d.observations, inst[n])))
             for n, d in cameras.items()}
@@ -278,7 +278,7 @@ def solve_overlap(cameras: Mapping[str, CameraData], reference: str, *,
         obs = [cameras[n].observations for n in names]
         hint = pairing_hint(groups, [[o.stamp + cameras[n].time_offset for o in ob]
                                      for n, ob in zip(names, obs)],
-                            [[Path(o.name).stem for o in ob] for ob in obs], sync, names)
+                            [[label_stem(o.name) for o in ob] for ob in obs], sync, names)
         raise DisconnectedError(unlinked_message([[names[j] for j in grp] for grp in groups], tol,
                                                  sync) + hint,
                                 tuple(n for g in groups[1:] for n in (names[j] for j in g)))

@@ -21,12 +21,14 @@ import numpy as np
 from multieye.core.errors import DatasetError
 from multieye.core import geometry as g
 from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, list_images, read_tum
-from multieye.io.image_folder import numbers_in_names, sync_key, sync_keys
+from multieye.io.frame_stamps import read_image_stamps
+from multieye.io.image_folder import (image_name, label_stem, natural_key, numbers_in_names,
+                                     sync_key, sync_keys)
 from multieye.io.mocap import pose_frames
 from multieye.io.pose_files import PoseFormat, poses_by_name, poses_by_order, poses_by_table
 
 __all__ = ["precomputed_poses", "listed_images", "check_sync", "sync_instant", "instant_keys",
-           "image_notes", "camera_warnings",
+           "image_notes", "note_label", "camera_warnings",
            "poses_by_name_of", "FIRST_NAMED"]
 
 #: How many image names a note names before ``and N more``.
@@ -39,11 +41,28 @@ def listed_images(rig: Rig, name: str) -> list[tuple[float, int, Path]]:
     with ``sync`` other than ``time``, in natural name order with their places as stamps."""
     cam = rig.cameras[name]
     try:
+        if cam.stamps is not None:      # the names are not stamps: a stamps file gives them
+            return _stamped_by_file(cam)
         return list_images(cam.images, cam.images_pattern, rig.sync)
     except DatasetError as exc:
         if exc.camera is not None:
             raise
         raise DatasetError(exc.reason, path=exc.path, line=exc.line, camera=name) from None
+
+
+def _stamped_by_file(cam) -> list[tuple[float, int, Path]]:
+    """An image folder's images with the stamps of its ``stamps`` file
+    (:func:`multieye.io.frame_stamps.read_image_stamps`), in time order; two images with one
+    stamp are refused naming both."""
+    files = sorted(list_image_files(cam.images, cam.images_pattern),
+                   key=lambda p: natural_key(image_name(p, cam.images)))
+    ns = read_image_stamps(cam.stamps, files, cam.images)
+    order = sorted(range(len(files)), key=lambda k: ns[k])
+    for a, b in zip(order, order[1:]):
+        if ns[a] == ns[b]:
+            raise DatasetError(f"images {image_name(files[a], cam.images)} and "
+                               f"{image_name(files[b], cam.images)} have one stamp", path=cam.stamps)
+    return [(ns[k] / 1e9, ns[k], files[k]) for k in order]
 
 
 def check_sync(rig: Rig) -> dict[str, int]:
@@ -79,13 +98,15 @@ def _no_shared_images(rig: Rig) -> None:
             continue                    # said with the camera's name when it is listed
         shared, folder = [], os.path.realpath(c.images)
         for p in files:
-            real = os.path.realpath(p) if os.path.islink(p) else os.path.join(folder, p.name)
+            real = (os.path.realpath(p) if os.path.islink(p)
+                    else os.path.join(folder, p.relative_to(c.images)))
             if owner.setdefault(real, n) != n:
                 shared.append((owner[real], p))
         if shared:
             other, first = shared[0]
             more = f" and {len(shared) - 1} more" if len(shared) > 1 else ""
-            raise DatasetError(f"cameras {other} and {n} read the same image files ({first.name}"
+            raise DatasetError(f"cameras {other} and {n} read the same image files "
+                               f"({first.relative_to(c.images).as_posix()}"
                                f"{more}): each camera needs its own images (check their images: "
                                "in rig.yaml)", path=rig.path)
 
@@ -125,7 +146,8 @@ def _order_shift(rig: Rig, listed: Mapping[str, list[Path]]) -> None:
     places (frame counters) but not at all.  Names without numbers, or numbers that differ
     at every place (each camera's own clock), say nothing."""
     cams = [n for n, p in listed.items() if p]
-    numbers = {n: numbers_in_names([p.stem for p in listed[n]]) for n in cams}
+    numbers = {n: numbers_in_names([image_name(p, rig.cameras[n].images) for p in listed[n]])
+               for n in cams}
     if len(cams) < 2 or any(None in v for v in numbers.values()):
         return
     first = np.asarray(numbers[cams[0]], dtype=object)
@@ -138,10 +160,16 @@ def _order_shift(rig: Rig, listed: Mapping[str, list[Path]]) -> None:
         a, b = listed[cams[0]][k], listed[n][k]
         raise DatasetError(
             f"sync: order pairs the k-th image of each camera, but the numbers in the names of "
-            f"image {k + 1} of {cams[0]} and {n} ({a.name}, {b.name}) differ by {d[k]} where "
+            f"image {k + 1} of {cams[0]} and {n} ({_shown(rig, cams[0], a)}, "
+            f"{_shown(rig, n, b)}) differ by {d[k]} where "
             f"those of the {k} before differ by {d[0]}: an image missing in one camera shifts "
             "every pair after it; give sync: number to pair images by the number in their "
             "names (sync: time when they are time stamps)", path=rig.path)
+
+
+def _shown(rig: Rig, name: str, path: Path) -> str:
+    """An image of camera ``name`` for a message: its path below the camera's folder."""
+    return path.relative_to(rig.cameras[name].images).as_posix()
 
 
 def sync_instant(label: str, stamp: float, sync: str, keys: Mapping[str, str] | None = None
@@ -149,7 +177,7 @@ def sync_instant(label: str, stamp: float, sync: str, keys: Mapping[str, str] | 
     """The instant key of an image named ``label`` listed with ``stamp`` under ``sync`` (not
     ``time``): its key in ``keys`` (its camera's :func:`instant_keys`, by stem), else its
     stem, the last integer in it, or its place (the stamp)."""
-    stem = Path(label).stem
+    stem = label_stem(label)
     if keys is not None and stem in keys:
         return keys[stem]
     return sync_key(stem, sync, int(stamp))
@@ -162,8 +190,21 @@ def instant_keys(rig: Rig, name: str) -> dict[str, str]:
     ``sync: time``."""
     if rig.sync == "time" or rig.cameras[name].source != "images":
         return {}
-    stems = [p.stem for _, _, p in listed_images(rig, name)]
+    stems = [image_name(p, rig.cameras[name].images) for _, _, p in listed_images(rig, name)]
     return dict(zip(stems, sync_keys(stems, rig.sync)))
+
+
+def note_label(rig: Rig, name: str, label: str) -> str:
+    """An image in a note about single images: its path from rig.yaml's folder where it is a
+    file inside it (``cam0/1700000000.5.png``, ``frames/0001/left.jpg``: a path the user can
+    open, whatever the layout), else ``camera/label`` (a bag's or a video's frame)."""
+    cam = rig.cameras[name]
+    if cam.source == "images" and rig.path is not None:
+        path = Path(os.path.abspath(Path(cam.images) / label))
+        folder = Path(os.path.abspath(Path(rig.path).parent))
+        if path.is_relative_to(folder):
+            return path.relative_to(folder).as_posix()
+    return f"{name}/{label}"
 
 
 def image_notes(notes: Iterable[tuple[str, str]], limit: int = FIRST_NAMED

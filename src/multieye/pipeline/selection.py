@@ -28,7 +28,6 @@ import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -42,8 +41,10 @@ from multieye.estimate.selection import (
     select_after_detection,
     select_before_decoding,
 )
-from multieye.io import RejectedItem, Rig, bag_image_count, list_images
+from multieye.io import RejectedItem, Rig, bag_image_count, list_image_files
+from multieye.io.image_folder import image_name
 from multieye.pipeline.frames import bag_listing, video_listing
+from multieye.pipeline.recordings import listed_images
 from multieye.solvers.methods import MIN_MEASUREMENTS
 
 __all__ = ["SelectionSummary", "Chosen", "preselect", "preselected", "motion_first",
@@ -182,7 +183,8 @@ def preselect(rig: Rig, listings: dict, motions: dict, budget: int, offsets: dic
         # what makes an instant (estimate.instants): stamps on the motion-capture clock within
         # the sync tolerance, or for cameras paired by name equal name stems
         stamps[name] = st + offsets[name] if not spec.by_name else -1e12 - 1e3 * np.array(
-            [name_ids.setdefault(Path(f.name).stem, len(name_ids)) for _, _, f in listed],
+            [name_ids.setdefault(image_name(f, rig.cameras[name].images), len(name_ids))
+             for _, _, f in listed],
             dtype=np.float64)
         why[name] = f"no motion capture within {spec.time_tolerance:g} s (not decoded)"
     listings = {n: v for n, v in listings.items() if n in paired}
@@ -304,7 +306,7 @@ def _over(cam, budget: int) -> bool:
             return False
     except OSError:
         pass
-    return len(list_images(cam.images, cam.images_pattern)) > budget
+    return len(list_image_files(cam.images, cam.images_pattern)) > budget
 
 
 def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_stamps) -> dict:
@@ -326,7 +328,7 @@ def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_s
         if cam.source != "images":
             listed = video_listing(cam) if cam.source == "video" else bag_listing(cam)
         elif listed is None:
-            listed = list_images(cam.images, cam.images_pattern)
+            listed = listed_images(rig, name)
         if len(listed) > limit:
             listings[name] = listed
             offsets[name] = (0.0 if rig.mocap_for(name).by_name else

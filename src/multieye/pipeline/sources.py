@@ -16,7 +16,8 @@ import fnmatch
 import os
 from pathlib import Path
 
-from multieye.io import Rig
+from multieye.core.errors import DatasetError
+from multieye.io import Rig, list_image_files
 from multieye.io.image_folder import IMAGE_EXTENSIONS, is_file_entry, sorted_entries
 
 __all__ = ["outside_reads"]
@@ -33,13 +34,15 @@ def _real_images(folder: Path, pattern: str | None = None) -> list[str]:
     path gives, without resolving the folder's path again for each of them: 17 of the
     23 ms this module took on a 4 x 100 rig)."""
     try:
+        if pattern is not None and "/" in pattern:     # sub-folders (real ones, no links)
+            return [os.path.realpath(p) for p in list_image_files(folder, pattern)]
         entries = sorted_entries(folder)
         real = os.path.realpath(folder)
         return [os.path.realpath(e.path) if e.is_symlink() else os.path.join(real, e.name)
                 for e in entries
                 if Path(e.name).suffix.lower() in IMAGE_EXTENSIONS and is_file_entry(e)
                 and (pattern is None or fnmatch.fnmatchcase(e.name, pattern))]
-    except OSError:
+    except (OSError, DatasetError):
         return []
 
 
