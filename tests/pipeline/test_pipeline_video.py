@@ -95,7 +95,8 @@ def test_stamps_file_errors_name_the_line(tmp_path):
 
 
 @pytest.mark.parametrize("extra, message", [
-    ("    images: cam1/\n    stamps: s.txt\n", "'stamps' goes with 'video'"),
+    ("    images: cam1/\n    start_time: 3\n", "'start_time' goes with 'video'"),
+    ("    poses: s.txt\n    stamps: s.txt\n", "'stamps' goes with 'video' or 'images'"),
     ("    video: v.avi\n    stamps: s.txt\n    start_time: 3\n", "either 'stamps'"),
     ("    video: v.avi\n    start_time: -1\n", ">= 0 seconds"),
 ])

@@ -19,7 +19,6 @@ Synopsis
 from __future__ import annotations
 
 import math
-import sys
 from collections import deque
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -33,7 +32,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.boards import Boards, combined_reason
 from multieye.imaging.detect import Detection, to_gray
-from multieye.imaging.image_file import read_gray
+from multieye.imaging.image_file import cropped, read_gray
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.pool_tasks import OnPool, SplitTask
 from multieye.imaging.targets import Target
@@ -44,6 +43,8 @@ from multieye.imaging.workers import (  # re-exported: where they were
     mp_context as _mp_context,
     available_cores,
     prestart_workers,
+    call_once,
+    progress_bar,
     worker_pool,
 )
 
@@ -89,6 +90,8 @@ class ImageResult:
         in this image, by name (``pose`` and ``detection`` are then None; usable when one is).
     second_look : bool
         Found by a wide lens's second look (:mod:`multieye.imaging.wide_look`).
+    crop : (x, y, width, height) or None
+        The region of the file's image read (:func:`process_image`; ``image_size`` its).
     """
 
     path: str
@@ -99,6 +102,7 @@ class ImageResult:
     image_size: tuple[int, int] | None = None
     parts: tuple[tuple[str, ImageResult], ...] = ()
     second_look: bool = False
+    crop: tuple[int, int, int, int] | None = None
 
     @property
     def ok(self) -> bool:
@@ -107,7 +111,7 @@ class ImageResult:
 
 
 def process_image(path, target: Target, intrinsics: Intrinsics | None, *,
-                  max_rms_px: float = DEFAULT_MAX_RMS_PX) -> ImageResult:
+                  max_rms_px: float = DEFAULT_MAX_RMS_PX, crop=None) -> ImageResult:
     """Read one image, detect the target, estimate its pose; failures become a reason.
 
     Parameters
@@ -117,6 +121,9 @@ def process_image(path, target: Target, intrinsics: Intrinsics | None, *,
     intrinsics : Intrinsics
     max_rms_px : float
         Reprojection RMS, pixels, above which the fit counts as bad.
+    crop : (x, y, width, height) of int, optional
+        The camera's region of the image (a side-by-side stereo frame's half): detection
+        and pose in its pixels (:func:`multieye.imaging.image_file.cropped`).
 
     Returns
     -------
@@ -128,11 +135,14 @@ def process_image(path, target: Target, intrinsics: Intrinsics | None, *,
         EXIF orientation ignored with a warning, unless only the turned image fits).
     """
     path = str(path)
-    image, reason, notes = read_gray(path, intrinsics and (intrinsics.width, intrinsics.height))
+    fit = None if crop is not None or intrinsics is None else (intrinsics.width, intrinsics.height)
+    image, reason, notes = read_gray(path, fit)
+    if image is not None and crop is not None:
+        image, reason = cropped(image, crop)
     if image is None:
-        return ImageResult(path, None, None, reason)
+        return ImageResult(path, None, None, reason, crop=crop)
     res = process_array(image, path, target, intrinsics, max_rms_px=max_rms_px)
-    return replace(res, warnings=notes + res.warnings) if notes else res
+    return replace(res, warnings=notes + res.warnings, crop=crop) if notes or crop else res
 
 
 def _guarded(work, item, name: str) -> ImageResult:
@@ -204,26 +214,26 @@ _WORKER: dict = {}
 
 
 def _init_jobs(jobs: tuple, max_rms_px: float) -> None:
-    """Worker state for :func:`detect_and_estimate_jobs`: ``jobs`` holds a
-    ``(target, intrinsics)`` pair per job."""
+    """Worker state for :func:`detect_and_estimate_jobs`: ``jobs`` holds
+    ``(target, intrinsics, crop)`` per job."""
     cv2.setNumThreads(1)            # one process per core: no nested thread pools
     _WORKER.update(jobs=tuple(jobs), max_rms_px=max_rms_px)
 
 
 def _init_worker(target: Target, intrinsics: Intrinsics | None, max_rms_px: float) -> None:
-    _init_jobs(((target, intrinsics),), max_rms_px)
+    _init_jobs(((target, intrinsics, None),), max_rms_px)
 
 
 def _work_item(item: tuple[int, str]) -> ImageResult:
     job, path = item
-    target, intrinsics = _WORKER["jobs"][job]
-    return _guarded(lambda p: process_image(p, target, intrinsics,
+    target, intrinsics, crop = _WORKER["jobs"][job]
+    return _guarded(lambda p: process_image(p, target, intrinsics, crop=crop,
                                             max_rms_px=_WORKER["max_rms_px"]), path, path)
 
 
 def _work_array(item) -> ImageResult:
     name, image = item
-    target, intrinsics = _WORKER["jobs"][0]
+    target, intrinsics, _ = _WORKER["jobs"][0]
     return _guarded(lambda im: process_array(im, name, target, intrinsics,
                                              max_rms_px=_WORKER["max_rms_px"]), image, name)
 
@@ -238,16 +248,19 @@ class ImageJob:
     target : Target
     intrinsics : Intrinsics or None
         None: detection only (a lens still to be estimated).
+    crop : (x, y, width, height) of int or None
+        The camera's region of each image (:func:`process_image`).
     """
 
     paths: tuple[str, ...]
     target: Target
     intrinsics: Intrinsics | None
+    crop: tuple[int, int, int, int] | None = None
 
 
 def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics | None, *,
                         processes: int | None = None, progress: bool | None = None,
-                        max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
+                        max_rms_px: float = DEFAULT_MAX_RMS_PX, crop=None) -> list[ImageResult]:
     """Detect ``target`` and estimate its pose in every image, in parallel processes.
 
     Parameters
@@ -264,6 +277,8 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics 
         Show a tqdm progress bar on stderr; default only when stderr is a terminal.
     max_rms_px : float
         Reprojection RMS, pixels, above which an image is rejected as a bad fit.
+    crop : (x, y, width, height) of int, optional
+        The camera's region of each image (:func:`process_image`).
 
     Returns
     -------
@@ -274,20 +289,9 @@ def detect_and_estimate(paths: Iterable, target: Target, intrinsics: Intrinsics 
     -----
     :func:`detect_and_estimate_jobs` with one job: see there.
     """
-    job = ImageJob(tuple(str(p) for p in paths), target, intrinsics)
+    job = ImageJob(tuple(str(p) for p in paths), target, intrinsics, crop)
     return detect_and_estimate_jobs([job], processes=processes, progress=progress,
                                     max_rms_px=max_rms_px)[0]
-
-
-def _bar(total: int | None, desc: str, progress: bool | None):
-    """A tqdm bar on stderr (None when ``progress`` is false, or None and stderr is not a
-    terminal)."""
-    show = sys.stderr.isatty() if progress is None else bool(progress)
-    if not show:
-        return None
-    from tqdm import tqdm  # noqa: PLC0415 (tqdm only when a progress bar is shown)
-
-    return tqdm(total=total, desc=desc, unit="img", file=sys.stderr)
 
 
 def detect_and_estimate_jobs(jobs: Iterable[ImageJob], *, processes: int | None = None,
@@ -375,16 +379,16 @@ def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None 
     jobs, then = list(jobs), dict(then or {})
     items = [(j, p) for j, job in enumerate(jobs) for p in job.paths]
     n_workers = worker_count(processes, len(items))
-    bar = _bar(len(items), f"detecting {', '.join(sorted({j.target.kind for j in jobs})) or 'targets'}",
+    bar = progress_bar(len(items), f"detecting {', '.join(sorted({j.target.kind for j in jobs})) or 'targets'}",
                progress)
-    initargs = (tuple((job.target, job.intrinsics) for job in jobs), max_rms_px)
+    initargs = (tuple((job.target, job.intrinsics, job.crop) for job in jobs), max_rms_px)
     flat: list[ImageResult] = []
     done: dict[int, Any] = {}
 
     def one(item):
         j, p = item
         return _guarded(lambda q: process_image(q, jobs[j].target, jobs[j].intrinsics,
-                                                max_rms_px=max_rms_px), p, p)
+                                                max_rms_px=max_rms_px, crop=jobs[j].crop), p, p)
 
     def per_job() -> list[list[ImageResult]]:
         out: list[list[ImageResult]] = [[] for _ in jobs]
@@ -392,7 +396,7 @@ def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None 
             out[j].append(r)
         return out
 
-    sent = _once(on_sent)
+    sent = call_once(on_sent)
     try:
         if n_workers <= 1 or threads_instead(n_workers):
             sent()
@@ -417,17 +421,6 @@ def detect_jobs_then(jobs: Iterable[ImageJob], then: dict[int, Callable] | None 
     results = per_job()
     done.update({j: task(results[j]) for j, task in then.items() if j not in done})
     return results, done
-
-
-def _once(call: Callable[[], object] | None) -> Callable[[], None]:
-    """``call``, called at most once (nothing for None)."""
-    pending = [] if call is None else [call]
-
-    def once() -> None:
-        while pending:
-            pending.pop()()
-
-    return once
 
 
 def _here(one, items, n_workers: int, flat: list, bar) -> None:
@@ -552,7 +545,7 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
         In input order.
     """
     n_workers = worker_count(processes)
-    bar = _bar(None, f"detecting {target.kind}", progress)
+    bar = progress_bar(None, f"detecting {target.kind}", progress)
     results: list[ImageResult] = []
     it = iter(items)
 

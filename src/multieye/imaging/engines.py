@@ -242,12 +242,12 @@ def _guarded(work, item, name: str) -> ImageResult:
 
 
 def _image_task(path: str, target: Target, intrinsics: Intrinsics | None,
-                max_rms_px: float) -> ImageResult:
+                max_rms_px: float, crop=None) -> ImageResult:
     import cv2  # noqa: PLC0415 (heavy: a Dask worker imports it on its first task)
 
     cv2.setNumThreads(1)            # one task per worker thread: no nested thread pools
-    return _guarded(lambda p: process_image(p, target, intrinsics, max_rms_px=max_rms_px),
-                    path, path)
+    return _guarded(lambda p: process_image(p, target, intrinsics, max_rms_px=max_rms_px,
+                                            crop=crop), path, path)
 
 
 def _array_task(item, target: Target, intrinsics: Intrinsics | None,
@@ -258,9 +258,10 @@ def _array_task(item, target: Target, intrinsics: Intrinsics | None,
 
 
 def detect_on(engine: Engine, paths, target: Target, intrinsics: Intrinsics | None, *,
-              max_rms_px: float = DEFAULT_MAX_RMS_PX) -> list[ImageResult]:
+              max_rms_px: float = DEFAULT_MAX_RMS_PX, crop=None) -> list[ImageResult]:
     """:func:`multieye.imaging.batch.detect_and_estimate` as tasks of ``engine`` (the
-    workers read the image files themselves: on Dask they must see the same paths).
+    workers read the image files themselves: on Dask they must see the same paths), in the
+    region ``crop`` of each image where given.
 
     Returns
     -------
@@ -268,7 +269,7 @@ def detect_on(engine: Engine, paths, target: Target, intrinsics: Intrinsics | No
         One per path, in input order; a failed image carries its reason.
     """
     work = functools.partial(_image_task, target=target, intrinsics=intrinsics,
-                             max_rms_px=max_rms_px)
+                             max_rms_px=max_rms_px, crop=crop)
     return list(engine.map(work, [str(p) for p in paths]))
 
 

@@ -30,7 +30,7 @@ from multieye.core.image_header import FORMATS, ImageHeader, image_header, size_
 from multieye.core.limits import MAX_IMAGE_BYTES
 from multieye.core.regular_files import read_bounded
 
-__all__ = ["ImageHeader", "image_header", "read_gray", "turns_to_fit", "FORMATS"]
+__all__ = ["ImageHeader", "image_header", "read_gray", "cropped", "turns_to_fit", "FORMATS"]
 
 
 def checked_bytes(path) -> tuple[bytes | None, ImageHeader | None, str | None]:
@@ -141,3 +141,16 @@ def read_gray(path, fit: tuple[int | None, int | None] | None = None
         notes = (f"EXIF orientation {header.orientation} ignored: the pixels are used as "
                  "stored (the sensor's frame)",)
     return image, None, notes
+
+
+def cropped(image: np.ndarray, crop: tuple[int, int, int, int]
+            ) -> tuple[np.ndarray | None, str | None]:
+    """The region ``crop = (x, y, width, height)`` of ``image`` (a camera's part of a
+    side-by-side or top-bottom stereo frame; its pixel (0, 0) is the image's (x, y)), or
+    None and why when the image does not hold it."""
+    x, y, w, h = (int(v) for v in crop)
+    height, width = image.shape[:2]
+    if x + w > width or y + h > height:
+        return None, (f"the camera's crop [{x}, {y}, {w}, {h}] reaches beyond the {width} x "
+                      f"{height} image")
+    return image[y:y + h, x:x + w], None

@@ -68,7 +68,7 @@ from multieye.imaging.main_script import main_reimport_problem
 
 __all__ = ["worker_pool", "die_with", "stop_workers", "stop_helpers", "start_forkserver",
            "Alongside", "FORKSERVER_PRELOAD", "mp_context", "prestart_workers", "available_cores",
-           "ask_fork_server"]
+           "ask_fork_server", "progress_bar", "call_once"]
 
 #: Seconds between two checks where the main process cannot be waited for (no pidfd).
 POLL_S = 0.5
@@ -452,3 +452,25 @@ class Alongside:
                     raise
         if kind is None and self._failed:
             raise self._failed[0]
+
+
+def progress_bar(total: int | None, desc: str, progress: bool | None):
+    """A tqdm bar on stderr (None when ``progress`` is false, or None and stderr is not a
+    terminal)."""
+    show = sys.stderr.isatty() if progress is None else bool(progress)
+    if not show:
+        return None
+    from tqdm import tqdm  # noqa: PLC0415 (tqdm only when a progress bar is shown)
+
+    return tqdm(total=total, desc=desc, unit="img", file=sys.stderr)
+
+
+def call_once(call: Callable[[], object] | None) -> Callable[[], None]:
+    """``call``, called at most once (nothing for None)."""
+    pending = [] if call is None else [call]
+
+    def once() -> None:
+        while pending:
+            pending.pop()()
+
+    return once

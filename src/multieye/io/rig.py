@@ -92,7 +92,7 @@ from multieye.core.target_spec import TARGET_TYPES, TargetSpec
 from multieye.io.intrinsics_files import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
-from multieye.io.rig_checks import video_keys
+from multieye.io.rig_checks import crop_key, video_keys
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
 from multieye.io.rig_checks import camera_link, links_keys, no_link_loop, Checker as _Checker
@@ -130,7 +130,7 @@ MOCAP_COLUMN_KEYS = tuple(DEFAULT_COLUMNS)
 #: Keys of each ``cameras.<name>`` mapping, and of its ``intrinsics`` when that is a mapping.
 CAMERA_KEYS = ("intrinsics", "model", "images", "poses", "rosbag", "topic", "video", "stamps",
                "start_time", "mocap", "time_offset", "intrinsics_images", "intrinsics_target",
-               "refine_intrinsics")
+               "refine_intrinsics", "crop")
 CAMERA_INTRINSICS_KEYS = ("file", "camera")
 #: Keys of ``cameras.<name>.poses`` when that is a mapping, and what its ``pose`` may say.
 CAMERA_POSES_KEYS = ("file", "pose")
@@ -176,6 +176,9 @@ class CameraSpec:
     images_pattern : str or None
         Only the images of ``images`` whose names fit this pattern (``left*.jpg``; through
         sub-folders: ``*/left.jpg``).
+    crop : (x, y, width, height) or None
+        The camera's region of each recorded image (and of its ``intrinsics_images``):
+        one half of a side-by-side stereo frame; its lens and detections are in its pixels.
     """
 
     name: str
@@ -196,6 +199,7 @@ class CameraSpec:
     intrinsics_images: Path | None = None
     intrinsics_target: TargetSpec | None = None
     images_pattern: str | None = None
+    crop: tuple[int, int, int, int] | None = None
 
     @property
     def source(self) -> str:
@@ -452,6 +456,7 @@ def _camera(rw: _RigWide, name, raw) -> CameraSpec:
     if "topic" in raw:
         kw["topic"] = c.string(raw["topic"], keys + ("topic",))
     kw.update(video_keys(c, raw, keys))
+    kw.update(crop_key(c, raw, keys))
     if "time_offset" in raw:
         kw["time_offset"] = c.number(raw["time_offset"], keys + ("time_offset",),
                                      maximum=MAX_TIME_OFFSET_S, unit="seconds")

@@ -18,7 +18,7 @@ from multieye.core.limits import (MAX_ROTATION_NOISE_DEG, MAX_STAMP_S, MAX_TIME_
                                   MAX_TRANSLATION_NOISE_M)
 
 __all__ = ["Checker", "sensor_keys", "links_keys", "camera_link", "video_keys", "MOCAP_SENSORS",
-           "MOCAP_NOISE_BOUND_KEYS", "images_key", "stem_pattern", "sync_keys"]
+           "MOCAP_NOISE_BOUND_KEYS", "crop_key", "images_key", "stem_pattern", "sync_keys"]
 
 #: What ``mocap.sensor`` may name, and the keys of ``mocap.noise_bounds`` (docs/rig-yaml.md).
 MOCAP_SENSORS = ("motion-capture", "robot")
@@ -156,6 +156,29 @@ def video_keys(c: Checker, raw: Mapping, keys) -> dict:
                           keys + ("start_time",))
         out["start_time"] = float(start)
     return out
+
+
+#: Fewest pixels across a camera's ``crop`` (no board is found in fewer).
+MIN_CROP_PX = 32
+
+
+def crop_key(c: Checker, raw: Mapping, keys) -> dict:
+    """A camera's ``crop``: ``[x, y, width, height]`` of the recorded images (integers,
+    pixels; a side-by-side stereo frame's half), only with images, a video or a bag."""
+    if "crop" not in raw:
+        return {}
+    if "poses" in raw:
+        raise c.error("'crop' goes with 'images', 'video' or 'rosbag' (the camera's region "
+                      "of each recorded image)", keys + ("crop",))
+    value = raw["crop"]
+    if not isinstance(value, list) or len(value) != 4:
+        raise c.error(f"expected [x, y, width, height] (pixels of the recorded images), got "
+                      f"{shown(value)}", keys + ("crop",))
+    x, y, w, h = (c.number(v, keys + ("crop",), integer=True, maximum=100_000) for v in value)
+    if min(x, y) < 0 or min(w, h) < MIN_CROP_PX:
+        raise c.error(f"expected x, y >= 0 and width, height >= {MIN_CROP_PX} pixels, got "
+                      f"{shown(value)}", keys + ("crop",))
+    return {"crop": (x, y, w, h)}
 
 
 def no_link_loop(p: Path) -> None:

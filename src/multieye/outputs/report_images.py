@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from html import escape
 from pathlib import Path
 
+import numpy as np
+
 from multieye.core.names import file_stem
 from multieye.io.calibration_json import CalibrationRecord
 from multieye.io.image_folder import MAX_PATTERN_LEVELS
@@ -32,7 +34,7 @@ from multieye.pipeline import CalibrationRun
 from multieye.imaging.thumbnails import residual_thumbnail
 
 __all__ = ["IMAGES_PER_CAMERA", "Thumbnail", "image_thumbnails", "images_section",
-           "image_folders", "THUMBNAIL"]
+           "image_folders", "image_crops", "THUMBNAIL"]
 
 #: Images drawn per camera.
 IMAGES_PER_CAMERA = 3
@@ -61,6 +63,14 @@ def image_folders(run: CalibrationRun) -> dict[str, Path]:
     return {name: Path(c.images) for name, c in cams.items() if c.images is not None}
 
 
+def image_crops(run: CalibrationRun) -> dict[str, tuple]:
+    """Camera name -> its ``crop`` of the image files (rig.yaml), for the cameras that have
+    one."""
+    if run.rig is None:
+        return {}
+    return {name: c.crop for name, c in run.rig.cameras.items() if c.crop is not None}
+
+
 def _stem(name: str) -> str:
     """The camera's name in a thumbnail's file name: :func:`multieye.core.names.file_stem`,
     then reduced to the characters :data:`THUMBNAIL` allows."""
@@ -81,14 +91,18 @@ def _below(folder: Path, name: str) -> bool:
 
 def image_thumbnails(rec: CalibrationRecord, details: RunDetails | None,
                      folders: Mapping[str, os.PathLike] | None,
-                     per_camera: int = IMAGES_PER_CAMERA) -> dict[str, list[Thumbnail]]:
-    """The worst ``per_camera`` images of every camera drawn with their points and residuals.
+                     per_camera: int = IMAGES_PER_CAMERA,
+                     crop: Mapping[str, tuple] | None = None) -> dict[str, list[Thumbnail]]:
+    """The worst ``per_camera`` images of every camera drawn with their points and residuals
+    (``crop``: by camera, the region of the files its pixels are in: the points are drawn
+    on the whole image, moved by its corner).
 
     Returns camera name -> thumbnails, worst first (empty for a camera without images on
     disk or without target points).
     """
 
     out: dict[str, list[Thumbnail]] = {c.name: [] for c in rec.cameras}
+    crop = dict(crop or {})
     if details is None or not folders:
         return out
     used_stems: set[str] = set()
@@ -109,10 +123,11 @@ def image_thumbnails(rec: CalibrationRecord, details: RunDetails | None,
             if not _below(Path(folder), name):
                 continue                       # not an image of the folder (or of its sub-folders)
             i = index[name]
-            jpeg = residual_thumbnail(Path(folder) / name, cam.points.uv[i],
+            shift = np.zeros(2) if crop.get(c.name) is None else np.array(crop[c.name][:2])
+            jpeg = residual_thumbnail(Path(folder) / name, np.asarray(cam.points.uv[i]) + shift,
                                       cam.points.residual_px[i], magnify=magnify,
                                       image_size=(frame.width, frame.height) if frame.known
-                                      else None)
+                                      and crop.get(c.name) is None else None)
             if jpeg is not None:
                 out[c.name].append(Thumbnail(c.name, name, rms, len(cam.points.uv[i]),
                                              f"image_{stem}_{rank}.jpg", jpeg, magnify))

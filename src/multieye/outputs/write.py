@@ -24,7 +24,7 @@ from multieye.outputs.details import camera_overlaps, camera_topic, run_details
 from multieye.outputs.export import kalibr_chain
 from multieye.outputs.folder import staged_output
 from multieye.outputs.report import write_report_from
-from multieye.outputs.report_images import image_folders
+from multieye.outputs.report_images import image_crops, image_folders
 from multieye.pipeline import CalibrationRun
 
 if TYPE_CHECKING:
@@ -156,7 +156,7 @@ def _write_files(run: CalibrationRun, folder: Path, *, report: bool, diagnostics
     names.append("details.json")
     if report:
         write_report_from(folder, run.record, shown, figures, shown_as=final.resolve(),
-                          images=image_folders(run))
+                          images=image_folders(run), crops=image_crops(run))
         names += ["report.html", "figures"]
     return names, notes, head
 

@@ -318,7 +318,7 @@ def _detect_intrinsics_images(rig: Rig, cam, model: RigModel, intr: Intrinsics |
         results, seconds = workers.detected[key], workers.seconds[key]
     else:
         t0 = time.perf_counter()
-        results = workers.detect(paths, target, intr)
+        results = workers.detect(paths, target, intr, cam.crop)
         seconds = time.perf_counter() - t0
     paths, results, boards = per_board(paths, results, names)      # one per (image, board)
     return list(zip(paths, boards)), results, seconds

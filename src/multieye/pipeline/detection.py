@@ -16,6 +16,7 @@ from multieye.imaging.batch import (
     detect_jobs_then,
 )
 from multieye.imaging.calibrate import lens_start_task
+from multieye.imaging.image_file import cropped
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.core.errors import DatasetError
 from multieye.io import Rig, iter_bag_images, list_image_files
@@ -44,17 +45,29 @@ class Workers:
     seconds: dict = field(default_factory=dict)
     started: dict = field(default_factory=dict)
 
-    def detect(self, paths, target, intr) -> list:
+    def detect(self, paths, target, intr, crop=None) -> list:
         if self.engine is not None:
-            return detect_on(self.engine, paths, target, intr)
+            return detect_on(self.engine, paths, target, intr, crop=crop)
         return detect_and_estimate(paths, target, intr, processes=self.processes,
-                                   progress=self.progress)
+                                   progress=self.progress, crop=crop)
 
-    def detect_arrays(self, items, target, intr) -> list:
+    def detect_arrays(self, items, target, intr, crop=None) -> list:
+        items = items if crop is None else cropped_frames(items, crop)
         if self.engine is not None:
             return detect_arrays_on(self.engine, items, target, intr)
         return detect_and_estimate_arrays(items, target, intr, processes=self.processes,
                                           progress=self.progress)
+
+
+def cropped_frames(items, crop: tuple[int, int, int, int]):
+    """``(label, image)`` frames of a video or a bag, each cut to the camera's ``crop``
+    (:func:`multieye.imaging.image_file.cropped`); DatasetError when a frame does not hold
+    it (a video's frames have one size: the crop is wrong, not the frame)."""
+    for label, image in items:
+        part, reason = cropped(image, crop)
+        if part is None:
+            raise DatasetError(f"{label}: {reason}")
+        yield label, part
 
 
 def detect_all(rig: Rig, model: RigModel, motions: dict, workers: Workers, chosen: dict, *,
@@ -88,11 +101,11 @@ def detect_all(rig: Rig, model: RigModel, motions: dict, workers: Workers, chose
             # the lens start and every pose with it, in a worker once the images are in
             then[len(jobs)] = lens_start_task(cam.model, name, target)
         keys.append((name, "images"))
-        jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr))
+        jobs.append(ImageJob(tuple(str(p) for _, _, p in images), target, intr, cam.crop))
         if cam.intrinsics_images is not None:
             keys.append((name, "intrinsics_images"))
             jobs.append(ImageJob(tuple(str(p) for p in list_image_files(cam.intrinsics_images)),
-                                 intrinsics_boards(rig, name, model)[0], intr))
+                                 intrinsics_boards(rig, name, model)[0], intr, cam.crop))
     if not jobs:
         return workers
     t0 = time.perf_counter()
@@ -129,13 +142,13 @@ def detect_listed(rig: Rig, model: RigModel, name: str, intr, workers: Workers, 
         stamped: list = []         # the video is read as the frames are detected
         results = workers.detect_arrays(
             video_frames(cam, video_listing(cam) if listed is None else listed, stamped, lost),
-            target, intr)
+            target, intr, cam.crop)
         return stamped, results, time.perf_counter() - t0
     if cam.topic is None:
         images = listed_images(rig, name) if listed is None else listed
         results = None if fresh else workers.detected.get((name, "images"))
         if results is None:
-            results = workers.detect([p for _, _, p in images], target, intr)
+            results = workers.detect([p for _, _, p in images], target, intr, cam.crop)
         seconds = time.perf_counter() - t0 if fresh else workers.seconds.get(
             (name, "images"), time.perf_counter() - t0)
         return ([(stamp, path.relative_to(cam.images).as_posix()) for stamp, _, path in images],
@@ -150,7 +163,7 @@ def detect_listed(rig: Rig, model: RigModel, name: str, intr, workers: Workers, 
 
     # the bag is read as the frames are detected
     chosen = frames() if listed is None else bag_frames(cam, listed, stamped)
-    results = workers.detect_arrays(chosen, target, intr)
+    results = workers.detect_arrays(chosen, target, intr, cam.crop)
     if not stamped and not fresh:
         raise DatasetError(f"image topic {cam.topic} holds no images", path=cam.rosbag,
                            camera=name)

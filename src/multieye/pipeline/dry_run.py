@@ -30,6 +30,7 @@ from multieye.pipeline.recordings import (check_sync, image_notes, instant_keys,
                                           precomputed_poses, sync_instant)
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
+from multieye.pipeline.detection import cropped_frames
 from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
@@ -190,7 +191,8 @@ def _sample_bag(cam, target, intr, *, sample, processes):
             picked.append(index)
             yield f"{cam.topic}@{stamp_ns}", image
 
-    results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
+    items = frames() if cam.crop is None else cropped_frames(frames(), cam.crop)
+    results = detect_and_estimate_arrays(items, target, intr, processes=processes,
                                          progress=False)
     stamps = np.array(stamps_ns, dtype=np.int64) * 1e-9
     return stamps, picked, results
@@ -287,15 +289,17 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
             n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
             sampled_idx = _sample(len(images), sample)
             paths = [images[i][2] for i in sampled_idx]
-            results = detect_and_estimate(paths, target, intr,
-                                          processes=processes, progress=False)
+            results = detect_and_estimate(paths, target, intr, processes=processes,
+                                          progress=False, crop=cam.crop)
         elif cam.source == "video":
             listing = video_listing(cam)
             stamps = np.array([s for s, _, _ in listing], dtype=np.float64)
             n_listed, read, lost = len(listing), [], []
             sampled = [listing[i] for i in _sample(len(listing), sample)]
-            results = detect_and_estimate_arrays(video_frames(cam, sampled, read, lost), target,
-                                                 intr, processes=processes, progress=False)
+            frames = video_frames(cam, sampled, read, lost)
+            results = detect_and_estimate_arrays(
+                frames if cam.crop is None else cropped_frames(frames, cam.crop), target, intr,
+                processes=processes, progress=False)
             got = {label for _, label in read}
             sampled_idx = [f.index for _, _, f in sampled if f.name in got]
             problems.extend(image_notes(lost))         # one line per cause

@@ -87,7 +87,9 @@ def check_sync(rig: Rig) -> dict[str, int]:
 def _no_shared_images(rig: Rig) -> None:
     """Refuse two cameras whose ``images`` list one file (the same folder, or patterns that
     overlap, or links to one file): each would be calibrated against itself, a rig of two
-    cameras at one pose, exactly, with nothing to doubt (a copied line in rig.yaml)."""
+    cameras at one pose, exactly, with nothing to doubt (a copied line in rig.yaml).  Two
+    cameras whose ``crop`` regions of the files share no pixel (a side-by-side stereo
+    recording) may."""
     owner: dict[str, str] = {}
     for n, c in rig.cameras.items():
         if c.source != "images":
@@ -100,8 +102,9 @@ def _no_shared_images(rig: Rig) -> None:
         for p in files:
             real = (os.path.realpath(p) if os.path.islink(p)
                     else os.path.join(folder, p.relative_to(c.images)))
-            if owner.setdefault(real, n) != n:
-                shared.append((owner[real], p))
+            first = owner.setdefault(real, n)
+            if first != n and not _apart(rig.cameras[first].crop, c.crop):
+                shared.append((first, p))
         if shared:
             other, first = shared[0]
             more = f" and {len(shared) - 1} more" if len(shared) > 1 else ""
@@ -109,6 +112,15 @@ def _no_shared_images(rig: Rig) -> None:
                                f"({first.relative_to(c.images).as_posix()}"
                                f"{more}): each camera needs its own images (check their images: "
                                "in rig.yaml)", path=rig.path)
+
+
+def _apart(a, b) -> bool:
+    """Whether two cameras' crops ``(x, y, width, height)`` of one image share no pixel (the
+    halves of a side-by-side stereo frame); False where either has none."""
+    if a is None or b is None:
+        return False
+    return (a[0] + a[2] <= b[0] or b[0] + b[2] <= a[0] or a[1] + a[3] <= b[1]
+            or b[1] + b[3] <= a[1])
 
 
 def no_copied_images(cameras: Mapping, path=None) -> None:
