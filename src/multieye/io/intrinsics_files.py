@@ -372,7 +372,10 @@ def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) ->
         return _kalibr_entry(data, doc)
     entries = camchain_entries(doc)
     if camera is None and prefer is not None and len(entries) > 1:
-        if any(prefer in (key, entry.get("camera_name")) for key, entry in entries):
+        named = [(k, e) for k, e in entries if e.get("camera_name") == prefer]
+        if len(named) == 1:             # the rig camera's own name, as multieye writes it
+            return _kalibr_entry(named[0][1], doc, named[0][0])
+        if any(prefer == key for key, _ in entries):
             camera = prefer
     if camera is None:
         if len(entries) != 1:
@@ -382,9 +385,14 @@ def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) ->
                             f"intrinsics: {{file: {doc.path.name}, camera: {first}}} in "
                             "rig.yaml")
         return _kalibr_entry(entries[0][1], doc, entries[0][0])
-    for key, entry in entries:
-        if camera in (key, entry.get("camera_name")):
-            return _kalibr_entry(entry, doc, key)
+    hits = [(k, e) for k, e in entries if camera in (k, e.get("camera_name"))]
+    if len(hits) > 1:
+        how = [f"entry {k}'s {'key' if k == camera else 'camera_name'}" for k, _ in hits]
+        raise doc.error(f"camera {camera!r} is ambiguous in this camchain: {' and '.join(how)}; "
+                        "rename a camera so that no key is another entry's camera_name",
+                        hits[0][0])
+    if hits:
+        return _kalibr_entry(hits[0][1], doc, hits[0][0])
     names = ", ".join(k for k, _ in entries)
     raise DatasetError(f"camera {camera!r} not in the camchain; it has {names}", path=doc.path)
 

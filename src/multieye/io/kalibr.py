@@ -109,14 +109,26 @@ def is_camchain(data) -> bool:
         isinstance(v, Mapping) and "camera_model" in v for v in data.values())
 
 
-def _numbers(value, n: int | None, what: str, doc: YamlDocument, *keys) -> np.ndarray:
+def _numbers(value, n: int | None, what: str, doc: YamlDocument, *keys,
+             flat: bool = True) -> np.ndarray:
+    """``n`` finite numbers (a flat list unless ``flat`` is False); YAML's booleans
+    (``yes``, ``true``) are refused, numbers written as text (``'1e-3'``: YAML 1.1 reads an
+    exponent without a dot as text) read as numbers."""
+    items = value if isinstance(value, list) else [value]
+    nested = [v for v in items if isinstance(v, list)]
+    if flat and nested:
+        raise doc.error(f"{what} must be a flat list of {n} numbers, got {shown(value)}", *keys)
+    for v in (x for item in items for x in (item if isinstance(item, list) else [item])):
+        if isinstance(v, bool):
+            raise doc.error(f"{what} must be numbers, got {v} (YAML reads yes, no, true and "
+                            "false as booleans)", *keys)
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise doc.error(f"{what} must be numbers, got {shown(value)}", *keys) from None
     if (n is not None and arr.size != n) or not np.all(np.isfinite(arr)):
         raise doc.error(f"{what} must be {n} finite numbers, got {shown(value)}", *keys)
-    return arr
+    return arr.reshape(-1) if flat else arr
 
 
 def intrinsics_from_kalibr(entry: Mapping, doc: YamlDocument, *keys) -> Intrinsics:
@@ -137,7 +149,10 @@ def intrinsics_from_kalibr(entry: Mapping, doc: YamlDocument, *keys) -> Intrinsi
         raise doc.error(f"distortion_model {shown(dmodel)} is not supported with camera_model "
                         f"{model}; expected {' or '.join(dmodels)}", *keys, "distortion_model")
     n = 0 if dmodel == "none" else 4
-    coeffs = _numbers(entry.get("distortion_coeffs", [0.0] * n), n, "distortion_coeffs",
+    if n and "distortion_coeffs" not in entry:      # Kalibr needs them too: no silent zeros
+        raise doc.error(f"missing key 'distortion_coeffs' (the {n} coefficients of {dmodel})",
+                        *keys)
+    coeffs = _numbers(entry.get("distortion_coeffs", []), n, "distortion_coeffs",
                       doc, *keys, "distortion_coeffs")
     width = height = None
     if "resolution" in entry:
@@ -176,6 +191,8 @@ def kalibr_fields(intr: Intrinsics) -> dict:
         first, dmodel, coeffs = [float(intr.dist[0])], "radtan", intr.dist[1:]
     elif intr.model in _KALIBR_NAME:
         first, dmodel, coeffs = [float(v) for v in intr.dist], "none", intr.dist[:0]
+    elif intr.dist.size == 0:            # read back as the same lens: no coefficients
+        dmodel, coeffs = "none", intr.dist
     else:
         coeffs = np.zeros(4)
         coeffs[: min(4, intr.dist.size)] = intr.dist[:4]
@@ -232,7 +249,7 @@ def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry], *,
 
 
 def _rigid(value, doc: YamlDocument, *keys) -> np.ndarray:
-    T = _numbers(value, 16, "T_cn_cnm1 (4x4)", doc, *keys).reshape(4, 4)
+    T = _numbers(value, 16, "T_cn_cnm1 (4x4)", doc, *keys, flat=False).reshape(4, 4)
     if not geometry.is_rigid(T):
         raise doc.error("T_cn_cnm1 is not a rigid transform", *keys)
     return T

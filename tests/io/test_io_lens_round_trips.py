@@ -1,0 +1,278 @@
+"""Every lens model through every file multieye writes, read back through rig.yaml's
+``intrinsics:`` (issue 33, item 1): the same lens to the last digit (parameters equal, the
+projection of the same rays within 1e-9 px, the model's name and the image size kept), or a
+refusal naming the format; and the hostile inputs a tester would try on the readers (other
+tools' conventions, booleans and strings for numbers, nested lists, ambiguous camera
+choices, BoofCV's plain pinhole and Kannala-Brandt files)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from multieye.core.errors import DatasetError, InputError
+from multieye.core.intrinsics import Intrinsics, lens_model
+from multieye.core.lens import project_points
+from multieye.io import read_intrinsics, write_calibration, write_camchain
+from multieye.io.calibration_json import (CalibrationRecord, CameraRecord, IntrinsicsRecord,
+                                          Residuals)
+from multieye.io.cameramodel import cameramodel_text
+from multieye.io.intrinsics_files import camera_info_text, write_intrinsics_file
+from multieye.io.kalibr import CamchainEntry
+from multieye.io.rig import load_rig, read_camera_intrinsics
+
+
+def _K(fx, fy, cx, cy):
+    return [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]
+
+
+#: Lenses with the odd values a tester picks: fx != fy, odd image sizes, principal points
+#: outside the image, the models' bounds (alpha 0 and 1, beta near 0, xi 0, negative and > 1),
+#: numbers at the ends of the double range, no image size.
+LENSES = {
+    "pinhole-0": Intrinsics(_K(500.123456789, 480.987654321, 321.1, 239.7), [], "pinhole",
+                            641, 479),
+    "radtan4": Intrinsics(_K(500.1, 499.3, 320.3, 240.9), [-0.2, 0.05, 1e-3, -2e-4],
+                          "pinhole", 640, 480),
+    "radtan5": Intrinsics(_K(500.1, 499.3, 320.3, 240.9), [-0.2, 0.05, 1e-3, -2e-4, 0.01],
+                          "pinhole", 640, 480),
+    "rational": Intrinsics(_K(500.1, 499.3, 320.3, 240.9),
+                           [-0.2, 0.05, 1e-3, -2e-4, 0.01, 0.1, 0.02, 0.003], "pinhole",
+                           640, 480),
+    "thin-prism": Intrinsics(_K(500.1, 499.3, 320.3, 240.9),
+                             [-0.2, 0.05, 1e-3, -2e-4, 0.01, 0.1, 0.02, 0.003, 1e-3, 2e-4,
+                              -1e-3, 3e-4], "pinhole", 640, 480),
+    "tilted": Intrinsics(_K(500.1, 499.3, 320.3, 240.9),
+                         [-0.2, 0.05, 1e-3, -2e-4, 0.01, 0.1, 0.02, 0.003, 1e-3, 2e-4, -1e-3,
+                          3e-4, 1e-3, -2e-3], "pinhole", 640, 480),
+    "tiny-numbers": Intrinsics(_K(500.1, 499.3, 320.3, 240.9),
+                               [1e-300, -3.3e-17, 1e-20, 5e-324], "pinhole", 640, 480),
+    "fisheye": Intrinsics(_K(300.5, 301.25, 639.5, 359.5), [0.01, -0.002, 3e-4, -1e-5],
+                          "fisheye", 1279, 719),
+    "unified": Intrinsics(_K(560.25, 559.75, 321.5, 238.125),
+                          [0.9, -0.05, 0.01, 0.0005, -0.0003], "unified", 640, 480),
+    "unified-xi0": Intrinsics(_K(560.25, 559.75, 321.5, 238.125),
+                              [0.0, -0.05, 0.01, 0.0005, -0.0003], "unified", 640, 480),
+    "unified-xi>1": Intrinsics(_K(960.25, 959.75, 321.5, 238.125), [2.1, 0, 0, 0, 0],
+                               "unified", 641, 481),
+    "ds": Intrinsics(_K(158.28, 158.27, 254.96, 256.88), [-0.172, 0.593], "double-sphere",
+                     512, 512),
+    "ds-alpha0": Intrinsics(_K(158.28, 158.27, 254.96, 256.88), [-0.172, 0.0],
+                            "double-sphere", 511, 513),
+    "ds-alpha1": Intrinsics(_K(158.28, 158.27, 254.96, 256.88), [0.3, 1.0], "double-sphere",
+                            512, 512),
+    "eucm-no-size": Intrinsics(_K(300.5, 300.25, 320, 240), [0.6, 1.1], "eucm"),
+    "eucm-alpha0": Intrinsics(_K(300.5, 300.25, 320, 240), [0.0, 1.1], "eucm", 640, 480),
+    "eucm-alpha1": Intrinsics(_K(300.5, 300.25, 320, 240), [1.0, 1.1], "eucm", 640, 480),
+    "eucm-beta-tiny": Intrinsics(_K(300.5, 300.25, 320, 240), [0.6, 1e-12], "eucm", 640, 480),
+    "eucm-pp-outside": Intrinsics(_K(300.5, 300.25, -200.3, 700.7), [0.6, 1.1], "eucm", 640,
+                                  480),
+}
+
+
+def _record(lens):
+    cam = CameraRecord("cam0", X=np.eye(4), T_ref_cam=np.eye(4), measurements_used=3,
+                       intrinsics=IntrinsicsRecord(lens, True))
+    return CalibrationRecord("eye-to-base", "joint", "cam0", np.eye(4), (cam,),
+                             Residuals(0.01, 1e-4))
+
+
+#: Each file multieye writes a lens in: name -> (file name, writer).
+WRITERS = {
+    "OUT/intrinsics": ("lens.yaml", write_intrinsics_file),
+    "camchain": ("camchain.yaml",
+                 lambda p, lens: write_camchain(p, [CamchainEntry("cam0", lens, np.eye(4))])),
+    "calibration.json": ("calibration.json", lambda p, lens: write_calibration(p, _record(lens))),
+    "camera_info": ("camera_info.yaml", lambda p, lens: p.write_text(camera_info_text(lens, "c"))),
+    "mrcal": ("lens.cameramodel", lambda p, lens: p.write_text(cameramodel_text(lens))),
+}
+#: (format, lens) -> the refusal expected: what the format cannot hold.
+REFUSED = {
+    **{("camchain", k): "Kalibr radtan holds k1 k2 p1 p2 only"
+       for k in ("radtan5", "rational", "thin-prism", "tilted")},
+    **{("camera_info", k): "ROS camera_info names plumb_bob, rational_polynomial"
+       for k in ("thin-prism", "tilted")},
+    **{("camera_info", k): f"ROS camera_info has no {LENSES[k].model} lens model"
+       for k in LENSES if LENSES[k].model in ("unified", "double-sphere", "eucm")
+       and LENSES[k].width},
+    ("camera_info", "eucm-no-size"): "ROS camera_info has no eucm lens model",
+    ("mrcal", "tilted"): "mrcal has no lens model for a tilted sensor",
+    ("mrcal", "fisheye"): "mrcal has no lens model for OpenCV's fisheye",
+    **{("mrcal", k): f"mrcal has no lens model for the {LENSES[k].model} lens"
+       for k in LENSES if LENSES[k].model in ("unified", "double-sphere", "eucm")},
+}
+#: (format, lens) -> the same lens in the form the format states it: ROS's plumb_bob has 5
+#: coefficients (k3 = 0 added), Kalibr's radtan 4.
+SAME_LENS_OTHER_FORM = {
+    ("camera_info", "pinhole-0"): np.zeros(5),
+    ("camera_info", "radtan4"): [-0.2, 0.05, 1e-3, -2e-4, 0.0],
+    ("camera_info", "tiny-numbers"): [1e-300, -3.3e-17, 1e-20, 5e-324, 0.0],
+}
+
+
+def _rays(n=500, seed=0):
+    d = np.random.default_rng(seed).normal(size=(n, 3))
+    return d / np.linalg.norm(d, axis=1)[:, None]
+
+
+def _through_rig(tmp_path: Path, file: str, camera: str | None = None) -> Intrinsics:
+    """The lens rig.yaml's ``intrinsics:`` gives a camera named ``front`` from ``file``."""
+    spec = file if camera is None else f"{{file: {file}, camera: {camera}}}"
+    (tmp_path / "imgs").mkdir(exist_ok=True)
+    (tmp_path / "m.csv").touch()
+    (tmp_path / "rig.yaml").write_text(
+        "setup: eye-to-base\ntarget: {type: chessboard, cols: 9, rows: 6, spacing: 0.02}\n"
+        f"mocap: {{file: m.csv}}\ncameras:\n  front:\n    intrinsics: {spec}\n"
+        "    images: imgs\n")
+    return read_camera_intrinsics(load_rig(tmp_path / "rig.yaml").cameras["front"])
+
+
+@pytest.mark.parametrize("fmt", WRITERS)
+@pytest.mark.parametrize("name", LENSES)
+def test_every_lens_through_every_format_and_rig_yaml(tmp_path, fmt, name):
+    lens = LENSES[name]
+    file, write = WRITERS[fmt]
+    needs_size = fmt in ("camera_info", "mrcal") and lens.width is None
+    expected = REFUSED.get((fmt, name), "needs the image size" if needs_size else None)
+    if expected is not None:
+        with pytest.raises(InputError, match=expected):
+            write(tmp_path / file, lens)
+        assert not (tmp_path / file).exists()
+        return
+    write(tmp_path / file, lens)
+    back = _through_rig(tmp_path, file, "cam0" if fmt == "calibration.json" else None)
+    dist = np.asarray(SAME_LENS_OTHER_FORM.get((fmt, name), lens.dist), dtype=float)
+    assert back.model == lens.model
+    if (fmt, name) not in SAME_LENS_OTHER_FORM:
+        assert lens_model(back) == lens_model(lens)
+    assert (back.width, back.height) == (lens.width, lens.height)
+    np.testing.assert_array_equal(back.K, lens.K)
+    np.testing.assert_array_equal(back.dist, dist)
+    rays = _rays()
+    a, b = project_points(rays, lens), project_points(rays, back)
+    np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
+    np.testing.assert_allclose(b, a, rtol=0, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- Kalibr
+
+OMNI = """cam0:
+  camera_model: omni
+  intrinsics: {intrinsics}
+  distortion_model: radtan
+  distortion_coeffs: {coeffs}
+  resolution: {resolution}
+"""
+
+
+@pytest.mark.parametrize("intrinsics, coeffs, resolution, message", [
+    # YAML 1.1 reads yes / true as booleans: not a mirror offset of 1, not a 1-pixel image
+    ("[yes, 461.6, 460.3, 366.3, 249.2]", "[0, 0, 0, 0]", "[752, 480]",
+     r"cam0.intrinsics: intrinsics \[xi, fu, fv, pu, pv\] must be numbers, got True"),
+    ("[1.2, 461.6, 460.3, 366.3, 249.2]", "[0, false, 0, 0]", "[752, 480]",
+     "cam0.distortion_coeffs: distortion_coeffs must be numbers, got False"),
+    ("[1.2, 461.6, 460.3, 366.3, 249.2]", "[0, 0, 0, 0]", "[true, 480]",
+     r"cam0.resolution: resolution \[width, height\] must be numbers, got True"),
+    # five numbers nested: refused with the line, not a traceback
+    ("[[1.2, 461.6], [460.3, 366.3, 249.2]]", "[0, 0, 0, 0]", "[752, 480]",
+     r"cam0.intrinsics: intrinsics \[xi, fu, fv, pu, pv\] must be a flat list"),
+    ("[[1.2, 461.6, 460.3, 366.3, 249.2]]", "[0, 0, 0, 0]", "[752, 480]",
+     r"cam0.intrinsics: intrinsics \[xi, fu, fv, pu, pv\] must be a flat list"),
+])
+def test_kalibr_refuses_booleans_and_nested_lists_for_numbers(tmp_path, intrinsics, coeffs,
+                                                              resolution, message):
+    (tmp_path / "c.yaml").write_text(OMNI.format(intrinsics=intrinsics, coeffs=coeffs,
+                                                 resolution=resolution))
+    with pytest.raises(DatasetError, match=message):
+        read_intrinsics(tmp_path / "c.yaml")
+
+
+def test_kalibr_numbers_in_any_yaml_spelling_read_as_the_numbers(tmp_path):
+    """Scientific notation without a dot (a string to YAML 1.1), quoted numbers, integers."""
+    (tmp_path / "c.yaml").write_text(OMNI.format(
+        intrinsics="[1, 461, '460.3', 3.663e2, 249.2]", coeffs="[-1e-2, 2E-3, '1e-4', -2e-4]",
+        resolution="[752, 480]"))
+    lens = read_intrinsics(tmp_path / "c.yaml")
+    np.testing.assert_array_equal(lens.params, [461, 460.3, 366.3, 249.2, 1, -1e-2, 2e-3, 1e-4,
+                                                -2e-4])
+
+
+@pytest.mark.parametrize("dmodel", ["radtan", "equidistant"])
+def test_kalibr_distortion_named_without_its_coefficients_is_refused(tmp_path, dmodel):
+    """Kalibr itself needs distortion_coeffs with radtan or equidistant; without them the
+    lens is not silently undistorted."""
+    (tmp_path / "c.yaml").write_text(f"cam0:\n  camera_model: pinhole\n  intrinsics: [461, 460, "
+                                     f"366, 249]\n  distortion_model: {dmodel}\n")
+    with pytest.raises(DatasetError, match=f"cam0: missing key 'distortion_coeffs' \\(the 4 "
+                                           f"coefficients of {dmodel}\\)"):
+        read_intrinsics(tmp_path / "c.yaml")
+
+
+SWAPPED = """cam0:
+  camera_name: cam1
+  camera_model: ds
+  intrinsics: [-0.2, 0.6, 350, 351, 320, 240]
+  distortion_model: none
+cam1:
+  camera_name: cam0
+  camera_model: eucm
+  intrinsics: [0.6, 1.1, 300, 301, 320, 240]
+  distortion_model: none
+  T_cn_cnm1: [[1, 0, 0, 0.1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+"""
+
+
+def test_camchain_choice_that_is_one_entry_s_key_and_another_s_name_is_refused(tmp_path):
+    """multieye writes a rig whose cameras are named cam1, cam0 (in that order) as keys cam0,
+    cam1 with the names swapped: ``camera: cam1`` could mean either; not silently one."""
+    (tmp_path / "chain.yaml").write_text(SWAPPED)
+    for choice in ("cam0", "cam1"):
+        with pytest.raises(DatasetError, match=f"camera {choice!r} is ambiguous in this "
+                                               "camchain"):
+            read_intrinsics(tmp_path / "chain.yaml", choice)
+    with pytest.raises(DatasetError, match="'cam1' is ambiguous"):
+        _through_rig(tmp_path, "chain.yaml", "cam1")
+
+
+def test_camchain_camera_chosen_by_name_or_key_with_anchors_and_extra_chain_keys(tmp_path):
+    (tmp_path / "chain.yaml").write_text("""cam0: &base
+  camera_name: left
+  camera_model: omni
+  intrinsics: [0.9, 461.5, 460.5, 366.5, 249.5]
+  distortion_model: radtan
+  distortion_coeffs: [-0.1, 0.01, 1.0e-4, -2.0e-4]
+  resolution: [753, 481]
+  T_cam_imu: [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+  timeshift_cam_imu: 0.001
+  cam_overlaps: [1]
+  rostopic: /left/image_raw
+cam1:
+  <<: *base
+  camera_name: right
+  intrinsics: [1.1, 462.5, 461.5, 367.5, 250.5]
+  T_cn_cnm1: [[1, 0, 0, -0.1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+""")
+    for choice, xi in (("left", 0.9), ("cam0", 0.9), ("right", 1.1), ("cam1", 1.1)):
+        lens = _through_rig(tmp_path, "chain.yaml", choice)
+        assert lens.model == "unified" and lens.dist[0] == xi
+        assert (lens.width, lens.height) == (753, 481)
+        np.testing.assert_array_equal(lens.dist[1:], [-0.1, 0.01, 1e-4, -2e-4])
+
+
+def test_rig_camera_takes_the_camchain_entry_of_its_own_name_first(tmp_path):
+    """Without ``camera:``, a rig camera named cam1 takes the entry multieye wrote for it
+    (``camera_name: cam1``, key cam0), not the entry keyed cam1 of the camera named cam0."""
+    (tmp_path / "chain.yaml").write_text(SWAPPED)
+    (tmp_path / "imgs").mkdir()
+    (tmp_path / "m.csv").touch()
+    (tmp_path / "rig.yaml").write_text(
+        "setup: eye-to-base\ntarget: {type: chessboard, cols: 9, rows: 6, spacing: 0.02}\n"
+        "mocap: {file: m.csv}\ncameras:\n"
+        "  cam1: {intrinsics: chain.yaml, images: imgs}\n"
+        "  cam0: {intrinsics: chain.yaml, images: imgs}\n")
+    rig = load_rig(tmp_path / "rig.yaml")
+    assert read_camera_intrinsics(rig.cameras["cam1"]).model == "double-sphere"
+    assert read_camera_intrinsics(rig.cameras["cam0"]).model == "eucm"
