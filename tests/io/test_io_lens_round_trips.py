@@ -7,7 +7,6 @@ choices, BoofCV's plain pinhole and Kannala-Brandt files)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
