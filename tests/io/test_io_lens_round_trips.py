@@ -275,3 +275,53 @@ def test_rig_camera_takes_the_camchain_entry_of_its_own_name_first(tmp_path):
     rig = load_rig(tmp_path / "rig.yaml")
     assert read_camera_intrinsics(rig.cameras["cam1"]).model == "double-sphere"
     assert read_camera_intrinsics(rig.cameras["cam0"]).model == "eucm"
+
+
+# --------------------------------------------------------------------------- camodocal, EuRoC
+
+MEI = """model_type: MEI
+camera_name: camera
+image_width: 752
+image_height: 480
+mirror_parameters:
+   xi: {xi}
+distortion_parameters:
+   k1: -0.1
+   k2: 0.02
+   p1: 1e-4
+   p2: -2.0e-4
+projection_parameters:
+   gamma1: 900.5
+   gamma2: 899.5
+   u0: 376.5
+   v0: 240.5
+"""
+
+
+@pytest.mark.parametrize("xi, expected", [
+    ("1.5", 1.5), ("1", 1.0), ("'1.5'", 1.5), ("1.5e0", 1.5),
+    ("true", "mirror_parameters.xi: expected 1 finite numbers, got True"),
+])
+def test_camodocal_mei_numbers_and_booleans(tmp_path, xi, expected):
+    for header in ("", "%YAML:1.0\n---\n"):       # PyYAML and OpenCV's FileStorage
+        if header and xi in ("'1.5'", "true"):
+            continue                               # FileStorage: a string, not a number
+        (tmp_path / "c.yaml").write_text(header + MEI.format(xi=xi))
+        if isinstance(expected, str):
+            with pytest.raises(DatasetError, match=expected):
+                read_intrinsics(tmp_path / "c.yaml")
+            continue
+        lens = read_intrinsics(tmp_path / "c.yaml")
+        assert lens.model == "unified" and (lens.width, lens.height) == (752, 480)
+        np.testing.assert_array_equal(lens.params, [900.5, 899.5, 376.5, 240.5, expected, -0.1,
+                                                    0.02, 1e-4, -2e-4])
+
+
+def test_euroc_sensor_yaml_refuses_a_boolean_for_a_number(tmp_path):
+    (tmp_path / "sensor.yaml").write_text(
+        "sensor_type: camera\ncamera_model: pinhole\nintrinsics: [458.6, 457.3, 367.2, yes]\n"
+        "distortion_model: radial-tangential\ndistortion_coefficients: [-0.28, 0.07, 2e-4, "
+        "1.8e-05]\nresolution: [752, 480]\n")
+    with pytest.raises(DatasetError, match="sensor.yaml:3: intrinsics: expected 4 finite "
+                                           "numbers, got"):
+        read_intrinsics(tmp_path / "sensor.yaml")
