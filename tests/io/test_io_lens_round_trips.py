@@ -325,3 +325,90 @@ def test_euroc_sensor_yaml_refuses_a_boolean_for_a_number(tmp_path):
     with pytest.raises(DatasetError, match="sensor.yaml:3: intrinsics: expected 4 finite "
                                            "numbers, got"):
         read_intrinsics(tmp_path / "sensor.yaml")
+
+
+# --------------------------------------------------------------------------- BoofCV
+
+BOOF_PINHOLE = """pinhole:
+  fx: 398.77
+  fy: 398.76
+  cx: 319.17
+  cy: 319.71
+  width: 640
+  height: 720
+  skew: 0.0
+"""
+
+
+def _boofcv_kb(x, symmetric, radial=(), tangent=(), skew=0.0):
+    """BoofCV's CameraKannalaBrandt projection (KannalaBrandtStoP_F64, written from its
+    documented model): theta from the optical axis, r = sum symmetric[i] theta^(2i+1),
+    asymmetric terms zero here."""
+    theta = np.arccos(x[:, 2] / np.linalg.norm(x, axis=1))
+    r = sum(c * theta ** (2 * i + 1) for i, c in enumerate(symmetric))
+    phi = np.arctan2(x[:, 1], x[:, 0])
+    dx, dy = r * np.cos(phi), r * np.sin(phi)
+    return np.stack([398.77 * dx + skew * dy + 319.17, 398.76 * dy + 319.71], axis=1)
+
+
+@pytest.mark.parametrize("symmetric", [[1.0, 0.01, -0.002, 0.0003, -1.0e-5], [1.0, 0.4],
+                                       [0.98, 0.01, -0.002, 0.0003, -1.0e-5, 0.0]])
+def test_boofcv_symmetric_kannala_brandt_is_the_fisheye_model(tmp_path, symmetric):
+    """BoofCV's kannala_brandt without asymmetric terms projects as OpenCV's fisheye with
+    fx, fy times symmetric[0] and k_i = symmetric[i] / symmetric[0]."""
+    (tmp_path / "kb.yaml").write_text(BOOF_PINHOLE + "model: kannala_brandt\n"
+                                      f"symmetric: {symmetric}\nradial: []\nradial_trig: []\n"
+                                      "tangent: [0.0, 0.0]\ntangent_trig: [0.1, 0.2, 0.3, 0.4]\n"
+                                      "version: 0\n")
+    lens = read_intrinsics(tmp_path / "kb.yaml")
+    assert lens.model == "fisheye" and (lens.width, lens.height) == (640, 720)
+    rays = _rays()
+    rays = rays[rays[:, 2] > 0.2]
+    np.testing.assert_allclose(project_points(rays, lens), _boofcv_kb(rays, symmetric),
+                               rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("extra, message", [
+    ("symmetric: [1.0, 0.4]\nradial: [0.001]\nradial_trig: [0.1, 0.2, 0.3, 0.4]\n",
+     "radial: BoofCV's asymmetric Kannala-Brandt terms"),
+    ("symmetric: [1.0, 0.4]\ntangent: [0.0, 0.002]\ntangent_trig: [0.1, 0.2, 0.3, 0.4]\n",
+     "tangent: BoofCV's asymmetric Kannala-Brandt terms"),
+    ("symmetric: [1.0, 0.1, 0.1, 0.1, 0.1, 0.01]\n", "symmetric: 6 symmetric coefficients"),
+    ("symmetric: [0.0, 0.4]\n", "symmetric: the first symmetric coefficient"),
+    ("symmetric: []\n", "symmetric: the first symmetric coefficient"),
+    ("symmetric: [1.0, 0.4]\nradial_tangential: {t1: 0.0}\n",
+     "radial_tangential: radial_tangential belongs to pinhole_radial_tangential"),
+    ("symmetric: [1.0, 0.4]\nmirror_offset: 1.0\n",
+     "mirror_offset: mirror_offset belongs to omnidirectional_universal, not kannala_brandt"),
+])
+def test_boofcv_kannala_brandt_multieye_cannot_hold_is_refused_by_name(tmp_path, extra,
+                                                                        message):
+    (tmp_path / "kb.yaml").write_text(BOOF_PINHOLE + "model: kannala_brandt\n" + extra)
+    with pytest.raises(DatasetError, match=message):
+        read_intrinsics(tmp_path / "kb.yaml")
+
+
+def test_boofcv_plain_pinhole_is_a_pinhole_without_distortion(tmp_path):
+    (tmp_path / "p.yaml").write_text(BOOF_PINHOLE + "model: pinhole\nversion: 0\n")
+    lens = read_intrinsics(tmp_path / "p.yaml")
+    assert lens.model == "pinhole" and lens.dist.size == 0
+    np.testing.assert_array_equal(lens.params, [398.77, 398.76, 319.17, 319.71])
+    (tmp_path / "p.yaml").write_text(BOOF_PINHOLE + "model: pinhole\nradial_tangential: "
+                                     "{radial: [0.1]}\n")
+    with pytest.raises(DatasetError, match="radial_tangential belongs to pinhole_radial_tang"):
+        read_intrinsics(tmp_path / "p.yaml")
+
+
+def test_boofcv_numbers_written_as_text_read_as_numbers(tmp_path):
+    """YAML 1.1 (PyYAML) reads -2e-1 (an exponent without a dot) as text."""
+    (tmp_path / "o.yaml").write_text(
+        BOOF_PINHOLE.replace("398.77", "3.9877e2") + "model: omnidirectional_universal\n"
+        "mirror_offset: '1.13'\nradial_tangential:\n  radial: [-2e-1, 1e-2]\n  t1: 1e-4\n"
+        "  t2: 0\n")
+    lens = read_intrinsics(tmp_path / "o.yaml")
+    np.testing.assert_array_equal(lens.params, [398.77, 398.76, 319.17, 319.71, 1.13, -0.2,
+                                                0.01, 1e-4, 0.0])
+    (tmp_path / "o.yaml").write_text(BOOF_PINHOLE + "model: omnidirectional_universal\n"
+                                     "mirror_offset: 'big'\n")
+    with pytest.raises(DatasetError, match="mirror_offset: expected a finite number, got 'big'"):
+        read_intrinsics(tmp_path / "o.yaml")

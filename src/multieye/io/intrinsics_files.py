@@ -17,9 +17,10 @@ aslam_cv's camera YAML (``type: pinhole``, ``intrinsics``, ``distortion: {type, 
     :mod:`multieye.io.intrinsics_mapping`.
 mrcal ``.cameramodel`` (a Python dictionary literal with ``lensmodel``)
     :mod:`multieye.io.cameramodel`.
-BoofCV's camera YAML (``pinhole: {fx, ...}``, ``model: pinhole_radial_tangential`` or
-``omnidirectional_universal``)
-    :mod:`multieye.io.boofcv` (the unified model of Mei and Rives with ``mirror_offset``).
+BoofCV's camera YAML (``pinhole: {fx, ...}``, ``model: pinhole``,
+``pinhole_radial_tangential``, ``omnidirectional_universal`` or ``kannala_brandt``)
+    :mod:`multieye.io.boofcv` (the unified model of Mei and Rives with ``mirror_offset``;
+    a symmetric Kannala-Brandt as the fisheye model).
 
 Every key of every format is used or refused with one line naming it, except the metadata
 keys each format's table in :data:`IGNORED_KEYS` lists (docs/rig-yaml.md, section 5); the

@@ -43,7 +43,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, check_lens_bounds
 from multieye.io.yamlfile import YamlDocument
 
-__all__ = ["DISTORTION_MODELS", "KEYS", "FLAT_KEYS", "READ_KEYS", "IGNORED_KEYS",
+__all__ = ["DISTORTION_MODELS", "KEYS", "NUMBER", "FLAT_KEYS", "READ_KEYS", "IGNORED_KEYS",
            "intrinsics_from_mapping", "has_camera_matrix",
            "refuse_unknown", "build_intrinsics", "is_aslam", "intrinsics_from_aslam"]
 
@@ -94,7 +94,8 @@ _IGNORED = frozenset(k for fmt, keys in IGNORED_KEYS.items() for k in keys
 READ_KEYS = tuple(k for names in KEYS.values() for k in names) + FLAT_KEYS
 _MATRIX_KEYS = ("rows", "cols", "data", "dt", "type_id")
 _ROI_KEYS = ("x_offset", "y_offset", "height", "width", "do_rectify")
-_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+#: A number written as text (YAML 1.1 reads ``1e-3``, an exponent without a dot, as text).
+NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 _WHERE = "docs/rig-yaml.md, section 5"
 
 
@@ -118,7 +119,7 @@ def refuse_unknown(doc: YamlDocument, keys, read, ignored, *prefix) -> None:
 
 
 def _number(v):
-    if not (isinstance(v, str) and _NUMBER.fullmatch(v.strip())) and (
+    if not (isinstance(v, str) and NUMBER.fullmatch(v.strip())) and (
             not isinstance(v, (int, float, np.integer, np.floating)) or isinstance(v, bool)):
         return None
     try:
