@@ -7,6 +7,7 @@ choices, BoofCV's plain pinhole and Kannala-Brandt files)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -412,3 +413,28 @@ def test_boofcv_numbers_written_as_text_read_as_numbers(tmp_path):
                                      "mirror_offset: 'big'\n")
     with pytest.raises(DatasetError, match="mirror_offset: expected a finite number, got 'big'"):
         read_intrinsics(tmp_path / "o.yaml")
+
+
+# --------------------------------------------------------------------------- calibration.json
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"model": "pinhole-radtan4", "distortion": [0.1] * 8},
+     "intrinsics.model pinhole-radtan4 does not match its 8 distortion numbers"),
+    ({"model": "fisheye", "distortion": [0.1] * 8},
+     "intrinsics.model fisheye does not match its 8 distortion numbers"),
+    ({"model": "bogus", "distortion": [0.1] * 4},
+     "intrinsics.model 'bogus' is not one of pinhole-radtan, pinhole-radtan4"),
+    ({"distortion": [True, -0.05, 0.01, 0.0005, -0.0003]},
+     "intrinsics.distortion must be numbers, got True"),
+    ({"K": [[560.25, False, 321.5], [0, 559.75, 238.125], [0, 0, 1]]},
+     "intrinsics.K must be numbers, got False"),
+])
+def test_calibration_json_lens_whose_model_or_numbers_do_not_hold_is_refused(tmp_path, change,
+                                                                             message):
+    write_calibration(tmp_path / "calibration.json", _record(LENSES["unified"]))
+    data = json.loads((tmp_path / "calibration.json").read_text())
+    data["cameras"]["cam0"]["intrinsics"].update(change)
+    (tmp_path / "calibration.json").write_text(json.dumps(data))
+    with pytest.raises(DatasetError, match=message):
+        read_intrinsics(tmp_path / "calibration.json", "cam0")
