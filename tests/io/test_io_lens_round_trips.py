@@ -438,3 +438,37 @@ def test_calibration_json_lens_whose_model_or_numbers_do_not_hold_is_refused(tmp
     (tmp_path / "calibration.json").write_text(json.dumps(data))
     with pytest.raises(DatasetError, match=message):
         read_intrinsics(tmp_path / "calibration.json", "cam0")
+
+
+# --------------------------------------------------------------------------- what Kalibr loads
+
+
+def test_camchain_leaves_out_by_name_the_lenses_kalibr_refuses_to_load(tmp_path):
+    """Kalibr's CameraParameters (kalibr_common/ConfigReader.py) refuses a camchain entry
+    without resolution, with a principal point below 0, or with ds / eucm alpha = 1 (it needs
+    0 <= alpha < 1): such a camera is named in the note, not written for Kalibr to fail on."""
+    from multieye.outputs.export import kalibr_chain
+
+    names = ["eucm-no-size", "eucm-pp-outside", "ds-alpha1", "eucm-alpha1", "ds", "unified",
+             "fisheye", "radtan4"]
+    cams = tuple(CameraRecord(n, X=np.eye(4), T_ref_cam=np.eye(4), measurements_used=3,
+                              intrinsics=IntrinsicsRecord(LENSES[n], True)) for n in names)
+    rec = CalibrationRecord("eye-to-base", "joint", names[0], np.eye(4), cams,
+                            Residuals(0.01, 1e-4))
+    kept, left = kalibr_chain(rec, {n: LENSES[n] for n in names}, {}, None)
+    assert [e.name for e in kept] == ["ds", "unified", "fisheye", "radtan4"]
+    assert left == [
+        "eucm-no-size (Kalibr's camchain needs the image size (resolution), which these "
+        "intrinsics do not know)",
+        "eucm-pp-outside (Kalibr refuses a principal point below 0: cx = -200.3)",
+        "ds-alpha1, eucm-alpha1 (Kalibr's ds and eucm need alpha < 1, this lens has alpha = 1)"]
+
+
+def test_intrinsics_file_of_a_lens_kalibr_refuses_says_so_and_reads_back(tmp_path):
+    """OUT/intrinsics holds every estimated lens: one Kalibr would refuse is still written
+    (multieye reads it back, the same lens) with a comment saying why Kalibr refuses it."""
+    write_intrinsics_file(tmp_path / "c.yaml", LENSES["ds-alpha1"])
+    text = (tmp_path / "c.yaml").read_text()
+    assert "# Kalibr refuses this file: Kalibr's ds and eucm need alpha < 1" in text
+    np.testing.assert_array_equal(read_intrinsics(tmp_path / "c.yaml").params,
+                                  LENSES["ds-alpha1"].params)

@@ -67,7 +67,8 @@ from multieye.io.intrinsics_mapping import (
 )
 from multieye.io.intrinsics_mapping import IGNORED_KEYS as _MAPPING_IGNORED
 from multieye.io.kalibr import (
-    CamchainEntry, camchain_entries, intrinsics_from_kalibr, is_camchain, write_camchain)
+    CamchainEntry, camchain_entries, intrinsics_from_kalibr, is_camchain, kalibr_refusal,
+    write_camchain)
 from multieye.io.slam_configs import intrinsics_from_slam_config, slam_config_kind
 from multieye.io.textfile import read_text
 from multieye.io.basalt import intrinsics_from_basalt, is_basalt
@@ -303,9 +304,12 @@ def write_intrinsics_file(path: str | os.PathLike, intr: Intrinsics) -> None:
     camchain of one camera ``cam0`` for the wide-angle models (``omni``, ``ds``, ``eucm``;
     OpenCV has none of them)."""
     if intr.model in WIDE_MODELS:
+        refusal = kalibr_refusal(intr)
         write_camchain(path, [CamchainEntry("cam0", intr, np.eye(4))],
                        comments=[f"{intr.model} lens written by multieye (Kalibr camchain: "
-                                 "OpenCV FileStorage has no such model)"])
+                                 "OpenCV FileStorage has no such model)"] + (
+                           [] if refusal is None else
+                           [f"Kalibr refuses this file: {refusal}; multieye reads it"]))
     else:
         write_opencv_intrinsics(path, intr)
 

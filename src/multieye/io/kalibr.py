@@ -55,6 +55,7 @@ __all__ = [
     "write_camchain",
     "intrinsics_from_kalibr",
     "kalibr_fields",
+    "kalibr_refusal",
     "is_camchain",
     "camchain_entries",
     "overlaps_in_time",
@@ -213,6 +214,23 @@ def kalibr_fields(intr: Intrinsics) -> dict:
     if intr.width is not None and intr.height is not None:
         fields["resolution"] = [int(intr.width), int(intr.height)]
     return fields
+
+
+def kalibr_refusal(intr: Intrinsics) -> str | None:
+    """Why Kalibr would refuse to load these intrinsics from a camchain (its
+    ``CameraParameters`` checks), or None: no ``resolution`` (a required key), a principal
+    point below 0, or ``ds`` / ``eucm`` alpha not below 1 (Kalibr needs ``0 <= alpha < 1``;
+    the models themselves admit 1).  multieye reads such an entry back as written."""
+    if intr.width is None or intr.height is None:
+        return ("Kalibr's camchain needs the image size (resolution), which these intrinsics "
+                "do not know")
+    for name, c in (("cx", intr.K[0, 2]), ("cy", intr.K[1, 2])):
+        if c < 0:
+            return f"Kalibr refuses a principal point below 0: {name} = {c:g}"
+    alpha = {"double-sphere": 1, "eucm": 0}.get(intr.model)
+    if alpha is not None and not intr.dist[alpha] < 1:
+        return f"Kalibr's ds and eucm need alpha < 1, this lens has alpha = {intr.dist[alpha]:g}"
+    return None
 
 
 def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry], *,
