@@ -472,3 +472,74 @@ def test_intrinsics_file_of_a_lens_kalibr_refuses_says_so_and_reads_back(tmp_pat
     assert "# Kalibr refuses this file: Kalibr's ds and eucm need alpha < 1" in text
     np.testing.assert_array_equal(read_intrinsics(tmp_path / "c.yaml").params,
                                   LENSES["ds-alpha1"].params)
+
+
+# --------------------------------------------------------------------------- OpenCV omnidir
+
+OMNIDIR = """%YAML:1.0
+---
+calibration_time: "Sun Nov 29 12:00:00 2026"
+nFrames: 20
+flags: 1
+camera_matrix: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 7.2e+02, {skew}, 6.4e+02, 0., 7.1e+02, 3.6e+02, 0., 0., 1. ]
+distortion_coefficients: !!opencv-matrix
+   rows: 1
+   cols: 4
+   dt: d
+   data: [ -0.25, 0.07, 1.0e-4, -2.0e-4 ]
+xi: 1.3
+used_imgs:
+   - "img1.jpg"
+   - "img2.jpg"
+rms: 0.3
+"""
+
+
+def _mei(x, f, c, xi, k1, k2, p1, p2):
+    """Mei and Rives' unified projection as OpenCV's omnidir documents it (point on the unit
+    sphere seen from (0, 0, -xi), then k1 k2 p1 p2 as OpenCV's pinhole distortion)."""
+    s = x / np.linalg.norm(x, axis=1)[:, None]
+    m = s[:, :2] / (s[:, 2:] + xi)
+    r2 = (m ** 2).sum(axis=1)
+    radial = 1 + k1 * r2 + k2 * r2 ** 2
+    mx = m[:, 0] * radial + 2 * p1 * m[:, 0] * m[:, 1] + p2 * (r2 + 2 * m[:, 0] ** 2)
+    my = m[:, 1] * radial + p1 * (r2 + 2 * m[:, 1] ** 2) + 2 * p2 * m[:, 0] * m[:, 1]
+    return np.stack([f[0] * mx + c[0], f[1] * my + c[1]], axis=1)
+
+
+def test_opencv_omnidir_file_is_the_unified_model(tmp_path):
+    """OpenCV's omnidir calibration sample (opencv_contrib ccalib) writes camera_matrix,
+    distortion_coefficients (k1 k2 p1 p2) and xi: Mei's unified model, not a pinhole whose
+    xi is dropped; its skew, when estimated, is refused by name."""
+    (tmp_path / "omni.yaml").write_text(OMNIDIR.format(skew="0."))
+    lens = read_intrinsics(tmp_path / "omni.yaml")
+    assert lens.model == "unified"
+    np.testing.assert_array_equal(lens.dist, [1.3, -0.25, 0.07, 1e-4, -2e-4])
+    rays = _rays()
+    rays = rays[rays[:, 2] > -0.5]
+    np.testing.assert_allclose(project_points(rays, lens),
+                               _mei(rays, (720, 710), (640, 360), 1.3, -0.25, 0.07, 1e-4, -2e-4),
+                               rtol=0, atol=1e-9)
+    (tmp_path / "omni.yaml").write_text(OMNIDIR.format(skew="0.8"))
+    with pytest.raises(DatasetError, match="camera matrix has skew 0.8 px"):
+        read_intrinsics(tmp_path / "omni.yaml")
+
+
+@pytest.mark.parametrize("extra, message", [
+    ('"distortion_model": "fisheye", ', "xi: xi \\(the unified model's mirror offset\\) "
+                                        "with a fisheye lens"),
+    ('"k3": 0.01, ', "xi: the unified model has k1 k2 p1 p2 only"),
+])
+def test_xi_in_a_mapping_layout_that_cannot_be_unified_is_refused(tmp_path, extra, message):
+    (tmp_path / "c.json").write_text('{"fx": 500, "fy": 500, "cx": 320, "cy": 240, ' + extra
+                                     + '"k1": 0.1, "xi": 0.9}')
+    with pytest.raises(DatasetError, match=message):
+        read_intrinsics(tmp_path / "c.json")
+    (tmp_path / "c.json").write_text('{"fx": 500, "fy": 500, "cx": 320, "cy": 240, '
+                                     '"k1": 0.1, "xi": 0.9}')
+    np.testing.assert_array_equal(read_intrinsics(tmp_path / "c.json").dist,
+                                  [0.9, 0.1, 0, 0, 0])
