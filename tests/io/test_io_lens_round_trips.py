@@ -543,3 +543,52 @@ def test_xi_in_a_mapping_layout_that_cannot_be_unified_is_refused(tmp_path, extr
                                      '"k1": 0.1, "xi": 0.9}')
     np.testing.assert_array_equal(read_intrinsics(tmp_path / "c.json").dist,
                                   [0.9, 0.1, 0, 0, 0])
+
+
+# --------------------------------------------------------------------------- Kalibr's formulas
+
+CHAIN = """cam0:
+  camera_model: omni
+  intrinsics: [1.3, 720.5, 710.25, 640.5, 360.75]
+  distortion_model: radtan
+  distortion_coeffs: [-0.25, 0.07, 1.0e-4, -2.0e-4]
+  resolution: [1280, 720]
+cam1:
+  camera_model: ds
+  intrinsics: [-0.17, 0.59, 350.5, 351.25, 640.5, 360.75]
+  distortion_model: none
+  distortion_coeffs: []
+  resolution: [1280, 720]
+  T_cn_cnm1: [[1, 0, 0, 0.1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+cam2:
+  camera_model: eucm
+  intrinsics: [0.62, 1.08, 300.5, 301.25, 640.5, 360.75]
+  distortion_model: none
+  distortion_coeffs: []
+  resolution: [1280, 720]
+  T_cn_cnm1: [[1, 0, 0, 0.1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+"""
+
+
+def test_camchain_lenses_project_as_kalibr_does(tmp_path):
+    """Kalibr's aslam_cv projections (OmniProjection + RadialTangentialDistortion,
+    DoubleSphereProjection, ExtendedUnifiedProjection: euclideanToKeypoint), written from
+    their formulas, against each camchain entry read by multieye, on rays inside each model's
+    valid region."""
+    (tmp_path / "chain.yaml").write_text(CHAIN)
+    rays = _rays(2000)
+    rays = rays[rays[:, 2] > 0.0]
+    x, y, z = rays.T
+    omni = read_intrinsics(tmp_path / "chain.yaml", "cam0")
+    np.testing.assert_allclose(project_points(rays, omni), _mei(
+        rays, (720.5, 710.25), (640.5, 360.75), 1.3, -0.25, 0.07, 1e-4, -2e-4), rtol=0, atol=1e-9)
+    ds = read_intrinsics(tmp_path / "chain.yaml", "cam1")
+    d1 = np.sqrt(x * x + y * y + z * z)
+    k = -0.17 * d1 + z
+    norm = 0.59 * np.sqrt(x * x + y * y + k * k) + 0.41 * k
+    np.testing.assert_allclose(project_points(rays, ds), np.stack(
+        [350.5 * x / norm + 640.5, 351.25 * y / norm + 360.75], axis=1), rtol=0, atol=1e-9)
+    eucm = read_intrinsics(tmp_path / "chain.yaml", "cam2")
+    norm = 0.62 * np.sqrt(1.08 * (x * x + y * y) + z * z) + 0.38 * z
+    np.testing.assert_allclose(project_points(rays, eucm), np.stack(
+        [300.5 * x / norm + 640.5, 301.25 * y / norm + 360.75], axis=1), rtol=0, atol=1e-9)
