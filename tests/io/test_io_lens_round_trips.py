@@ -70,6 +70,9 @@ LENSES = {
     "eucm-beta-tiny": Intrinsics(_K(300.5, 300.25, 320, 240), [0.6, 1e-12], "eucm", 640, 480),
     "eucm-pp-outside": Intrinsics(_K(300.5, 300.25, -200.3, 700.7), [0.6, 1.1], "eucm", 640,
                                   480),
+    # a skew small enough for Intrinsics to take (the models ignore it, as OpenCV does)
+    "radtan4-skew": Intrinsics([[500.1, 1e-5, 320.3], [0.0, 499.3, 240.9], [0.0, 0.0, 1.0]],
+                               [-0.2, 0.05, 1e-3, -2e-4], "pinhole", 640, 480),
 }
 
 
@@ -100,6 +103,8 @@ REFUSED = {
        and LENSES[k].width},
     ("camera_info", "eucm-no-size"): "ROS camera_info has no eucm lens model",
     ("mrcal", "tilted"): "mrcal has no lens model for a tilted sensor",
+    ("mrcal", "radtan4-skew"): "mrcal's lens models have no skew; camera matrix has skew 1e-05",
+    ("camchain", "radtan4-skew"): "Kalibr's camera models have no skew",
     ("mrcal", "fisheye"): "mrcal has no lens model for OpenCV's fisheye",
     **{("mrcal", k): f"mrcal has no lens model for the {LENSES[k].model} lens"
        for k in LENSES if LENSES[k].model in ("unified", "double-sphere", "eucm")},
@@ -110,6 +115,7 @@ SAME_LENS_OTHER_FORM = {
     ("camera_info", "pinhole-0"): np.zeros(5),
     ("camera_info", "radtan4"): [-0.2, 0.05, 1e-3, -2e-4, 0.0],
     ("camera_info", "tiny-numbers"): [1e-300, -3.3e-17, 1e-20, 5e-324, 0.0],
+    ("camera_info", "radtan4-skew"): [-0.2, 0.05, 1e-3, -2e-4, 0.0],
 }
 
 
