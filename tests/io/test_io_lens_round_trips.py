@@ -598,3 +598,22 @@ def test_camchain_lenses_project_as_kalibr_does(tmp_path):
     norm = 0.62 * np.sqrt(1.08 * (x * x + y * y) + z * z) + 0.38 * z
     np.testing.assert_allclose(project_points(rays, eucm), np.stack(
         [300.5 * x / norm + 640.5, 301.25 * y / norm + 360.75], axis=1), rtol=0, atol=1e-9)
+
+
+def test_rig_yaml_camera_given_as_an_index_chooses_basalt_s_camera(tmp_path):
+    """docs/rig-yaml.md: Basalt's camera by ``cam1`` or its index ``1``; YAML reads an
+    unquoted 1 as an integer, which was refused as not a string."""
+    (tmp_path / "calib.json").write_text(json.dumps({"value0": {
+        "intrinsics": [{"camera_type": "ds", "intrinsics": {
+                            "fx": 349.7, "fy": 349.6, "cx": 365.1, "cy": 252.6, "xi": -0.2,
+                            "alpha": 0.56}},
+                       {"camera_type": "eucm", "intrinsics": {
+                            "fx": 300.5, "fy": 300.25, "cx": 320.0, "cy": 240.0, "alpha": 0.6,
+                            "beta": 1.1}}],
+        "resolution": [[752, 480], [640, 481]]}}))
+    lens = _through_rig(tmp_path, "calib.json", "1")
+    assert lens.model == "eucm" and (lens.width, lens.height) == (640, 481)
+    assert _through_rig(tmp_path, "calib.json", "0").model == "double-sphere"
+    with pytest.raises(DatasetError, match="intrinsics.camera: expected a camera name or "
+                                           "index, got True"):
+        _through_rig(tmp_path, "calib.json", "true")
