@@ -31,7 +31,13 @@ The wide-angle models (:mod:`multieye.core.lens_wide`), their parameters first i
 Kalibr's ``fov`` distortion and any other pairing are rejected with a message.
 
 Choices: multieye's camera names are kept in an extra ``camera_name`` field (Kalibr ignores
-unknown fields); ``resolution`` is written only when the intrinsics know the image size.
+unknown fields); ``resolution`` is written only when the intrinsics know the image size; a
+pinhole without coefficients is written with ``distortion_model: none`` (read back as the
+same lens).  Reading, as Kalibr's ``CameraParameters`` does: ``distortion_coeffs`` is needed
+with ``radtan`` and ``equidistant`` (never taken as zeros); YAML's booleans and nested lists
+are refused where numbers are expected.  :func:`kalibr_refusal` says why Kalibr would refuse
+to load an entry multieye can write (no ``resolution``, a principal point below 0, ``ds`` /
+``eucm`` alpha not below 1): the output camchains leave such cameras out with a note.
 """
 
 from __future__ import annotations
