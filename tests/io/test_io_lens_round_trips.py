@@ -617,3 +617,11 @@ def test_rig_yaml_camera_given_as_an_index_chooses_basalt_s_camera(tmp_path):
     with pytest.raises(DatasetError, match="intrinsics.camera: expected a camera name or "
                                            "index, got True"):
         _through_rig(tmp_path, "calib.json", "true")
+
+
+def test_boofcv_width_without_height_is_refused(tmp_path):
+    """BoofCV writes both; one alone was read as a lens of half an image size."""
+    (tmp_path / "p.yaml").write_text(BOOF_PINHOLE.replace("  height: 720\n", "")
+                                     + "model: pinhole\n")
+    with pytest.raises(DatasetError, match="pinhole: width without height: give both"):
+        read_intrinsics(tmp_path / "p.yaml")

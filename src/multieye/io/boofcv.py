@@ -190,6 +190,10 @@ def intrinsics_from_boofcv(doc: YamlDocument) -> Intrinsics:
         if v is not None and (isinstance(v, bool) or not isinstance(v, int)):
             raise doc.error(f"expected a whole number of pixels, got {shown(v)}", "pinhole", key)
         size.append(v)
+    if (size[0] is None) != (size[1] is None):
+        given, missing = ("width", "height") if size[1] is None else ("height", "width")
+        raise doc.error(f"{given} without {missing}: give both (BoofCV writes both) or "
+                        "neither", "pinhole")
     if model == "kannala_brandt":
         f0 = fx
         fx, fy, dist = _kannala_brandt(doc, fx, fy)
