@@ -435,6 +435,7 @@ def test_boofcv_numbers_written_as_text_read_as_numbers(tmp_path):
      "intrinsics.distortion must be numbers, got True"),
     ({"K": [[560.25, False, 321.5], [0, 559.75, 238.125], [0, 0, 1]]},
      "intrinsics.K must be numbers, got False"),
+    ({"image_size": [640, None]}, r"intrinsics.image_size must be \[width, height\] or null"),
 ])
 def test_calibration_json_lens_whose_model_or_numbers_do_not_hold_is_refused(tmp_path, change,
                                                                              message):

@@ -209,7 +209,7 @@ def _read_intrinsics(obj, w: _Where, camera, version: int) -> IntrinsicsRecord:
                       camera)
     kind = model if model in WIDE_MODELS else "fisheye" if model == "fisheye" else "pinhole"
     size = obj.get("image_size")
-    if size is not None and (not isinstance(size, list) or len(size) != 2):
+    if size is not None and (not isinstance(size, list) or len(size) != 2 or None in size):
         raise w.error("intrinsics.image_size must be [width, height] or null", camera)
     K, dist = (_no_booleans(w.need(obj, key, "intrinsics", camera), key, w, camera)
                for key in ("K", "distortion"))
