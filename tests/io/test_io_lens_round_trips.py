@@ -626,3 +626,4 @@ def test_boofcv_width_without_height_is_refused(tmp_path):
                                      + "model: pinhole\n")
     with pytest.raises(DatasetError, match="pinhole: width without height: give both"):
         read_intrinsics(tmp_path / "p.yaml")
+
