@@ -159,7 +159,10 @@ version: 0
     ("omnidirectional_universal", "[-0.2]", "", "missing key 'mirror_offset'"),
     ("pinhole_radial_tangential", "[-0.2]", "mirror_offset: 0.8\n",
      "mirror_offset belongs to omnidirectional_universal"),
-    ("kannala_brandt", "[-0.2]", "", "BoofCV model 'kannala_brandt' is not supported"),
+    ("kannala_brandt", "[-0.2]", "symmetric: [1.0]\n",
+     "radial_tangential belongs to pinhole_radial_tangential and omnidirectional_universal, "
+     "not kannala_brandt"),
+    ("fisheye", "[-0.2]", "", "BoofCV model 'fisheye' is not supported"),
     ("omnidirectional_universal", "[-0.2]", "mirror_offset: -0.5\n", "xi .* must be >= 0"),
     ("pinhole_radial_tangential", "[-0.2]", "projection: 1\n", "projection: not a key"),
 ])

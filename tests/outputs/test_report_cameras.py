@@ -557,3 +557,16 @@ def test_wide_lens_rows_and_projection_grid():
     grid = projection_std_grid(lens, np.diag([1.0, 1.0, 0.5, 0.5, 1e-4, 1e-4]), columns=16)
     corner = grid.std_px[0, 0]               # its ray is beyond 90 degrees: not NaN any more
     assert np.isfinite(corner) and corner > 0
+
+
+def test_report_table_shows_small_lens_parameters_not_as_zero():
+    """The report's lens table: a parameter below 1e-3 (EUCM beta near 0, a small p2) in
+    significant digits, not 0.00000 as if it were absent (issue 33, item 1)."""
+    from multieye.core.intrinsics import Intrinsics
+    from multieye.outputs.report_cameras import intrinsics_table
+
+    K = [[300.5, 0, 320], [0, 300.25, 240], [0, 0, 1]]
+    html = intrinsics_table(Intrinsics(K, [0.6, 1e-12], "eucm", 640, 480), False, None)
+    assert "1.000e-12" in html and "0.60000" in html
+    html = intrinsics_table(Intrinsics(K, [-0.2, 0.05, 1e-3, -2e-4], "pinhole"), False, None)
+    assert "-2.000e-04" in html and "-0.20000" in html and "0.00100" in html

@@ -180,6 +180,23 @@ def _read_uncertainty(obj, w: _Where, keys: tuple[str, ...], camera=None) -> dic
     return out
 
 
+#: ``intrinsics.model`` names (:func:`multieye.core.intrinsics.lens_model`) and the numbers
+#: of ``distortion`` each has.
+_MODEL_SIZES = {"pinhole-radtan": (0, 5), "pinhole-radtan4": (4,), "pinhole-rational": (8,),
+                "pinhole-thin-prism": (12,), "pinhole-tilted": (14,), "fisheye": (4,),
+                "unified": (5,), "double-sphere": (2,), "eucm": (2,)}
+
+
+def _no_booleans(value, key: str, w: _Where, camera):
+    """``value`` (numbers, nested lists) unless it holds a boolean (JSON's true / false),
+    which numpy would read as 1 / 0."""
+    items = value if isinstance(value, list) else [value]
+    for v in (x for item in items for x in (item if isinstance(item, list) else [item])):
+        if isinstance(v, bool):
+            raise w.error(f"intrinsics.{key} must be numbers, got {v}", camera)
+    return value
+
+
 def _read_intrinsics(obj, w: _Where, camera, version: int) -> IntrinsicsRecord:
     if not isinstance(obj, Mapping):
         raise w.error("intrinsics must be an object", camera)
@@ -187,12 +204,21 @@ def _read_intrinsics(obj, w: _Where, camera, version: int) -> IntrinsicsRecord:
     if model in WIDE_MODELS and version < WIDE_LENS_VERSION:
         raise w.error(f"intrinsics.model {model} needs format_version {WIDE_LENS_VERSION} or "
                       f"later, the file says {version}", camera)
+    if model not in _MODEL_SIZES:
+        raise w.error(f"intrinsics.model {model!r} is not one of {', '.join(_MODEL_SIZES)}",
+                      camera)
     kind = model if model in WIDE_MODELS else "fisheye" if model == "fisheye" else "pinhole"
     size = obj.get("image_size")
-    if size is not None and (not isinstance(size, list) or len(size) != 2):
+    if size is not None and (not isinstance(size, list) or len(size) != 2 or None in size):
         raise w.error("intrinsics.image_size must be [width, height] or null", camera)
-    intr = w.call(Intrinsics, np.asarray(w.need(obj, "K", "intrinsics", camera), np.float64),
-                  np.asarray(w.need(obj, "distortion", "intrinsics", camera), np.float64),
+    K, dist = (_no_booleans(w.need(obj, key, "intrinsics", camera), key, w, camera)
+               for key in ("K", "distortion"))
+    dist = w.call(np.asarray, dist, np.float64, camera=camera)
+    if dist.ndim == 1 and dist.size not in _MODEL_SIZES[model]:
+        raise w.error(f"intrinsics.model {model} does not match its {dist.size} distortion "
+                      f"numbers (expected {' or '.join(map(str, _MODEL_SIZES[model]))})",
+                      camera)
+    intr = w.call(Intrinsics, w.call(np.asarray, K, np.float64, camera=camera), dist,
                   kind, *(size or (None, None)), camera=camera)
     cov = obj.get("covariance")
     if cov is not None:

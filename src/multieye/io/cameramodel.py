@@ -131,8 +131,10 @@ def cameramodel_text(intr: Intrinsics, T_cam_ref=None, *, note: str | None = Non
     ------
     InputError
         A lens mrcal has no model for (fisheye, tilted sensor, unified, double-sphere, eucm),
-        or no image size (mrcal needs
-        ``imagersize``).
+        no image size (mrcal needs ``imagersize``), or a camera matrix with skew (mrcal has
+        none; the lens models ignore a skew small enough for
+        :class:`~multieye.core.intrinsics.Intrinsics` to take, but the file would hold another
+        camera matrix).
     """
     if intr.model != "pinhole" or intr.dist.size not in _NAMES:
         kind = ("OpenCV's fisheye" if intr.model == "fisheye"
@@ -143,6 +145,9 @@ def cameramodel_text(intr: Intrinsics, T_cam_ref=None, *, note: str | None = Non
     if intr.width is None or intr.height is None:
         raise InputError("mrcal's .cameramodel needs the image size, which these intrinsics do "
                          "not know")
+    if intr.K[0, 1] != 0:           # written without it, the file would be another K
+        raise InputError(f"mrcal's lens models have no skew; camera matrix has skew "
+                         f"{intr.K[0, 1]:g}")
     T = np.eye(4) if T_cam_ref is None else np.asarray(T_cam_ref, dtype=np.float64)
     rt = np.concatenate([geometry.rotvec_from_transform(T), T[:3, 3]])
     K = intr.K

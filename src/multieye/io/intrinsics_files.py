@@ -17,9 +17,10 @@ aslam_cv's camera YAML (``type: pinhole``, ``intrinsics``, ``distortion: {type, 
     :mod:`multieye.io.intrinsics_mapping`.
 mrcal ``.cameramodel`` (a Python dictionary literal with ``lensmodel``)
     :mod:`multieye.io.cameramodel`.
-BoofCV's camera YAML (``pinhole: {fx, ...}``, ``model: pinhole_radial_tangential`` or
-``omnidirectional_universal``)
-    :mod:`multieye.io.boofcv` (the unified model of Mei and Rives with ``mirror_offset``).
+BoofCV's camera YAML (``pinhole: {fx, ...}``, ``model: pinhole``,
+``pinhole_radial_tangential``, ``omnidirectional_universal`` or ``kannala_brandt``)
+    :mod:`multieye.io.boofcv` (the unified model of Mei and Rives with ``mirror_offset``;
+    a symmetric Kannala-Brandt as the fisheye model).
 
 Every key of every format is used or refused with one line naming it, except the metadata
 keys each format's table in :data:`IGNORED_KEYS` lists (docs/rig-yaml.md, section 5); the
@@ -66,7 +67,8 @@ from multieye.io.intrinsics_mapping import (
 )
 from multieye.io.intrinsics_mapping import IGNORED_KEYS as _MAPPING_IGNORED
 from multieye.io.kalibr import (
-    CamchainEntry, camchain_entries, intrinsics_from_kalibr, is_camchain, write_camchain)
+    CamchainEntry, camchain_entries, intrinsics_from_kalibr, is_camchain, kalibr_refusal,
+    write_camchain)
 from multieye.io.slam_configs import intrinsics_from_slam_config, slam_config_kind
 from multieye.io.textfile import read_text
 from multieye.io.basalt import intrinsics_from_basalt, is_basalt
@@ -302,9 +304,12 @@ def write_intrinsics_file(path: str | os.PathLike, intr: Intrinsics) -> None:
     camchain of one camera ``cam0`` for the wide-angle models (``omni``, ``ds``, ``eucm``;
     OpenCV has none of them)."""
     if intr.model in WIDE_MODELS:
+        refusal = kalibr_refusal(intr)
         write_camchain(path, [CamchainEntry("cam0", intr, np.eye(4))],
                        comments=[f"{intr.model} lens written by multieye (Kalibr camchain: "
-                                 "OpenCV FileStorage has no such model)"])
+                                 "OpenCV FileStorage has no such model)"] + (
+                           [] if refusal is None else
+                           [f"Kalibr refuses this file: {refusal}; multieye reads it"]))
     else:
         write_opencv_intrinsics(path, intr)
 
@@ -372,7 +377,10 @@ def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) ->
         return _kalibr_entry(data, doc)
     entries = camchain_entries(doc)
     if camera is None and prefer is not None and len(entries) > 1:
-        if any(prefer in (key, entry.get("camera_name")) for key, entry in entries):
+        named = [(k, e) for k, e in entries if e.get("camera_name") == prefer]
+        if len(named) == 1:             # the rig camera's own name, as multieye writes it
+            return _kalibr_entry(named[0][1], doc, named[0][0])
+        if any(prefer == key for key, _ in entries):
             camera = prefer
     if camera is None:
         if len(entries) != 1:
@@ -382,9 +390,14 @@ def _kalibr(doc: YamlDocument, camera: str | None, prefer: str | None = None) ->
                             f"intrinsics: {{file: {doc.path.name}, camera: {first}}} in "
                             "rig.yaml")
         return _kalibr_entry(entries[0][1], doc, entries[0][0])
-    for key, entry in entries:
-        if camera in (key, entry.get("camera_name")):
-            return _kalibr_entry(entry, doc, key)
+    hits = [(k, e) for k, e in entries if camera in (k, e.get("camera_name"))]
+    if len(hits) > 1:
+        how = [f"entry {k}'s {'key' if k == camera else 'camera_name'}" for k, _ in hits]
+        raise doc.error(f"camera {camera!r} is ambiguous in this camchain: {' and '.join(how)}; "
+                        "rename a camera so that no key is another entry's camera_name",
+                        hits[0][0])
+    if hits:
+        return _kalibr_entry(hits[0][1], doc, hits[0][0])
     names = ", ".join(k for k, _ in entries)
     raise DatasetError(f"camera {camera!r} not in the camchain; it has {names}", path=doc.path)
 

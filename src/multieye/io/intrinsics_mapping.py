@@ -23,7 +23,9 @@ Layouts (each one read from JSON or YAML):
   flat ``k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4 taux tauy`` (fisheye: ``k1 k2 k3 k4``), the
   ones left out zero;
 - the model as ``distortion_model`` (or ``model``; names of
-  :data:`DISTORTION_MODELS`) or OpenCV's ``fisheye_model: 0|1``;
+  :data:`DISTORTION_MODELS`) or OpenCV's ``fisheye_model: 0|1``; ``xi`` (OpenCV's omnidir
+  calibration, opencv_contrib's ccalib) makes it Mei's unified model with the distortion's
+  k1 k2 p1 p2;
 - the image size as ``image_width`` / ``image_height``, ``width`` / ``height``,
   ``resolution: [width, height]`` or ``image_size: [width, height]`` (OpenCV's ``Size``, as
   multieye's calibration.json writes it; a size written ``[height, width]`` shows as every
@@ -43,7 +45,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import Intrinsics, check_lens_bounds
 from multieye.io.yamlfile import YamlDocument
 
-__all__ = ["DISTORTION_MODELS", "KEYS", "FLAT_KEYS", "READ_KEYS", "IGNORED_KEYS",
+__all__ = ["DISTORTION_MODELS", "KEYS", "NUMBER", "FLAT_KEYS", "READ_KEYS", "IGNORED_KEYS",
            "intrinsics_from_mapping", "has_camera_matrix",
            "refuse_unknown", "build_intrinsics", "is_aslam", "intrinsics_from_aslam"]
 
@@ -67,6 +69,7 @@ KEYS = {
     "binning_x": ("binning_x",),
     "binning_y": ("binning_y",),
     "region of interest": ("roi",),
+    "mirror offset": ("xi",),
 }
 #: Flat numbers: the camera matrix's, then the distortion's in OpenCV's order.
 _FLAT_K = ("fx", "fy", "cx", "cy", "skew")
@@ -82,7 +85,7 @@ IGNORED_KEYS = {
         "calibration_time", "nframes", "nr_of_frames", "board_width", "board_height",
         "square_size", "aspectRatio", "fix_aspect_ratio", "flags", "avg_reprojection_error",
         "per_view_reprojection_errors", "extrinsic_parameters", "image_points", "grid_points",
-        "Calibrate_Accuracy"),
+        "Calibrate_Accuracy", "nFrames", "used_imgs"),
     "ROS camera_info YAML": ("camera_name", "rectification_matrix", "projection_matrix"),
     "ROS CameraInfo message (YAML or JSON)": ("header", "R", "P", "r", "p"),
     "JSON and YAML layouts": ("rms", "reprojection_error", "rvecs", "tvecs"),
@@ -94,7 +97,8 @@ _IGNORED = frozenset(k for fmt, keys in IGNORED_KEYS.items() for k in keys
 READ_KEYS = tuple(k for names in KEYS.values() for k in names) + FLAT_KEYS
 _MATRIX_KEYS = ("rows", "cols", "data", "dt", "type_id")
 _ROI_KEYS = ("x_offset", "y_offset", "height", "width", "do_rectify")
-_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+#: A number written as text (YAML 1.1 reads ``1e-3``, an exponent without a dot, as text).
+NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 _WHERE = "docs/rig-yaml.md, section 5"
 
 
@@ -118,7 +122,7 @@ def refuse_unknown(doc: YamlDocument, keys, read, ignored, *prefix) -> None:
 
 
 def _number(v):
-    if not (isinstance(v, str) and _NUMBER.fullmatch(v.strip())) and (
+    if not (isinstance(v, str) and NUMBER.fullmatch(v.strip())) and (
             not isinstance(v, (int, float, np.integer, np.floating)) or isinstance(v, bool)):
         return None
     try:
@@ -185,7 +189,8 @@ def build_intrinsics(doc: YamlDocument, keys, K, dist, model: str, width, height
     try:
         K = np.asarray(K, dtype=np.float64).reshape(3, 3)
         dist = np.asarray(dist, dtype=np.float64).reshape(-1)
-        Intrinsics(K, np.zeros(4 if model == "fisheye" else 0), model, width, height)
+        Intrinsics(K, np.zeros({"fisheye": 4, "unified": 5}.get(model, 0)), model, width,
+                   height)
         intr = Intrinsics(K, dist, model, width, height)
         check_lens_bounds(intr)
     except (InputError, OverflowError, TypeError, ValueError) as exc:
@@ -295,11 +300,28 @@ def intrinsics_from_mapping(doc: YamlDocument) -> Intrinsics:
         dist = _flat_distortion(doc, flat_d, model)
     else:
         dist = []
+    if "xi" in data:                # OpenCV's omnidir: Mei's unified model
+        model, dist = "unified", _unified(doc, model, dist)
     width, height = _size(doc)
     _full_image(doc, width, height)
     s_key = next((k for k in ("resolution", "image_width", "width") if k in data), None)
     return build_intrinsics(doc, (k_key, d_key or (flat_d[0] if flat_d else None), s_key), K,
                             dist, model, width, height)
+
+
+def _unified(doc: YamlDocument, model: str, dist: list[float]) -> list[float]:
+    """``xi`` and the distortion as the unified model's ``(xi, k1, k2, p1, p2)`` (OpenCV's
+    omnidir: ``camera_matrix``, ``distortion_coefficients`` k1 k2 p1 p2, ``xi``)."""
+    if model != "pinhole":
+        raise doc.error(f"xi (the unified model's mirror offset) with a {model} lens: "
+                        "give one of them", "xi")
+    if len(dist) not in (0, 4) and any(dist[4:]):
+        raise doc.error(f"the unified model has k1 k2 p1 p2 only; this file gives {len(dist)} "
+                        "distortion coefficients", "xi")
+    xi = _numbers(doc.data["xi"], doc, "xi")
+    if len(xi) != 1:
+        raise doc.error(f"expected one number, got {len(xi)}", "xi")
+    return xi + (list(dist) + [0.0] * 4)[:4]
 
 
 #: aslam_cv's camera YAML (ETH Zurich's hand_eye_calibration, maplab): the keys read, and

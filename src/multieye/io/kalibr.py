@@ -31,7 +31,13 @@ The wide-angle models (:mod:`multieye.core.lens_wide`), their parameters first i
 Kalibr's ``fov`` distortion and any other pairing are rejected with a message.
 
 Choices: multieye's camera names are kept in an extra ``camera_name`` field (Kalibr ignores
-unknown fields); ``resolution`` is written only when the intrinsics know the image size.
+unknown fields); ``resolution`` is written only when the intrinsics know the image size; a
+pinhole without coefficients is written with ``distortion_model: none`` (read back as the
+same lens).  Reading, as Kalibr's ``CameraParameters`` does: ``distortion_coeffs`` is needed
+with ``radtan`` and ``equidistant`` (never taken as zeros); YAML's booleans and nested lists
+are refused where numbers are expected.  :func:`kalibr_refusal` says why Kalibr would refuse
+to load an entry multieye can write (no ``resolution``, a principal point below 0, ``ds`` /
+``eucm`` alpha not below 1): the output camchains leave such cameras out with a note.
 """
 
 from __future__ import annotations
@@ -55,6 +61,7 @@ __all__ = [
     "write_camchain",
     "intrinsics_from_kalibr",
     "kalibr_fields",
+    "kalibr_refusal",
     "is_camchain",
     "camchain_entries",
     "overlaps_in_time",
@@ -109,14 +116,26 @@ def is_camchain(data) -> bool:
         isinstance(v, Mapping) and "camera_model" in v for v in data.values())
 
 
-def _numbers(value, n: int | None, what: str, doc: YamlDocument, *keys) -> np.ndarray:
+def _numbers(value, n: int | None, what: str, doc: YamlDocument, *keys,
+             flat: bool = True) -> np.ndarray:
+    """``n`` finite numbers (a flat list unless ``flat`` is False); YAML's booleans
+    (``yes``, ``true``) are refused, numbers written as text (``'1e-3'``: YAML 1.1 reads an
+    exponent without a dot as text) read as numbers."""
+    items = value if isinstance(value, list) else [value]
+    nested = [v for v in items if isinstance(v, list)]
+    if flat and nested:
+        raise doc.error(f"{what} must be a flat list of {n} numbers, got {shown(value)}", *keys)
+    for v in (x for item in items for x in (item if isinstance(item, list) else [item])):
+        if isinstance(v, bool):
+            raise doc.error(f"{what} must be numbers, got {v} (YAML reads yes, no, true and "
+                            "false as booleans)", *keys)
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise doc.error(f"{what} must be numbers, got {shown(value)}", *keys) from None
     if (n is not None and arr.size != n) or not np.all(np.isfinite(arr)):
         raise doc.error(f"{what} must be {n} finite numbers, got {shown(value)}", *keys)
-    return arr
+    return arr.reshape(-1) if flat else arr
 
 
 def intrinsics_from_kalibr(entry: Mapping, doc: YamlDocument, *keys) -> Intrinsics:
@@ -137,7 +156,10 @@ def intrinsics_from_kalibr(entry: Mapping, doc: YamlDocument, *keys) -> Intrinsi
         raise doc.error(f"distortion_model {shown(dmodel)} is not supported with camera_model "
                         f"{model}; expected {' or '.join(dmodels)}", *keys, "distortion_model")
     n = 0 if dmodel == "none" else 4
-    coeffs = _numbers(entry.get("distortion_coeffs", [0.0] * n), n, "distortion_coeffs",
+    if n and "distortion_coeffs" not in entry:      # Kalibr needs them too: no silent zeros
+        raise doc.error(f"missing key 'distortion_coeffs' (the {n} coefficients of {dmodel})",
+                        *keys)
+    coeffs = _numbers(entry.get("distortion_coeffs", []), n, "distortion_coeffs",
                       doc, *keys, "distortion_coeffs")
     width = height = None
     if "resolution" in entry:
@@ -176,6 +198,8 @@ def kalibr_fields(intr: Intrinsics) -> dict:
         first, dmodel, coeffs = [float(intr.dist[0])], "radtan", intr.dist[1:]
     elif intr.model in _KALIBR_NAME:
         first, dmodel, coeffs = [float(v) for v in intr.dist], "none", intr.dist[:0]
+    elif intr.dist.size == 0:            # read back as the same lens: no coefficients
+        dmodel, coeffs = "none", intr.dist
     else:
         coeffs = np.zeros(4)
         coeffs[: min(4, intr.dist.size)] = intr.dist[:4]
@@ -196,6 +220,23 @@ def kalibr_fields(intr: Intrinsics) -> dict:
     if intr.width is not None and intr.height is not None:
         fields["resolution"] = [int(intr.width), int(intr.height)]
     return fields
+
+
+def kalibr_refusal(intr: Intrinsics) -> str | None:
+    """Why Kalibr would refuse to load these intrinsics from a camchain (its
+    ``CameraParameters`` checks), or None: no ``resolution`` (a required key), a principal
+    point below 0, or ``ds`` / ``eucm`` alpha not below 1 (Kalibr needs ``0 <= alpha < 1``;
+    the models themselves admit 1).  multieye reads such an entry back as written."""
+    if intr.width is None or intr.height is None:
+        return ("Kalibr's camchain needs the image size (resolution), which these intrinsics "
+                "do not know")
+    for name, c in (("cx", intr.K[0, 2]), ("cy", intr.K[1, 2])):
+        if c < 0:
+            return f"Kalibr refuses a principal point below 0: {name} = {c:g}"
+    alpha = {"double-sphere": 1, "eucm": 0}.get(intr.model)
+    if alpha is not None and not intr.dist[alpha] < 1:
+        return f"Kalibr's ds and eucm need alpha < 1, this lens has alpha = {intr.dist[alpha]:g}"
+    return None
 
 
 def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry], *,
@@ -232,7 +273,7 @@ def write_camchain(path: str | os.PathLike, cameras: Sequence[CamchainEntry], *,
 
 
 def _rigid(value, doc: YamlDocument, *keys) -> np.ndarray:
-    T = _numbers(value, 16, "T_cn_cnm1 (4x4)", doc, *keys).reshape(4, 4)
+    T = _numbers(value, 16, "T_cn_cnm1 (4x4)", doc, *keys, flat=False).reshape(4, 4)
     if not geometry.is_rigid(T):
         raise doc.error("T_cn_cnm1 is not a rigid transform", *keys)
     return T

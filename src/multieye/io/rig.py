@@ -434,8 +434,12 @@ def _camera(rw: _RigWide, name, raw) -> CameraSpec:
         intr_path = None
     elif isinstance(intr, Mapping):
         c.mapping(intr, keys + ("intrinsics",), CAMERA_INTRINSICS_KEYS, ("file",))
-        if "camera" in intr:
-            camera = c.string(intr["camera"], keys + ("intrinsics", "camera"))
+        if "camera" in intr:            # a name, or an index (Basalt's 1: YAML's integer)
+            given = intr["camera"]
+            if isinstance(given, bool) or not isinstance(given, (str, int)):
+                raise c.error(f"expected a camera name or index, got {shown(given)}",
+                              keys + ("intrinsics", "camera"))
+            camera = c.string(str(given), keys + ("intrinsics", "camera"))
         intr_path = c.path(intr["file"], keys + ("intrinsics", "file"), "file")
     else:
         intr_path = c.path(intr, keys + ("intrinsics",), "file")

@@ -78,7 +78,12 @@ def slam_config_kind(data) -> str | None:
 
 
 def _numbers(doc: YamlDocument, value, n: int, *keys) -> np.ndarray:
+    """``n`` finite numbers; YAML's booleans (``yes``, ``true``) are not numbers here."""
+    items = value if isinstance(value, list) else [value]
     try:
+        if any(isinstance(v, bool) for item in items
+               for v in (item if isinstance(item, list) else [item])):
+            raise TypeError("a boolean")
         arr = np.asarray(value, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError):
         arr = np.zeros(0)

@@ -78,7 +78,7 @@ from multieye.outputs.stereo import opencv_stereo_lines, per_camera, stereo_pair
 from multieye.io.cameramodel import cameramodel_text
 from multieye.io.calibration_json import (CalibrationRecord, calibration_to_dict,
                                           read_calibration)
-from multieye.io.kalibr import CamchainEntry, kalibr_fields, write_camchain
+from multieye.io.kalibr import CamchainEntry, kalibr_fields, kalibr_refusal, write_camchain
 from multieye.io.run_details import read_run_details
 from multieye.io.yamlfile import yaml_list
 
@@ -342,6 +342,10 @@ def kalibr_chain(rec: CalibrationRecord, intrinsics: dict, topics: dict,
             kalibr_fields(intrinsics[c.name])
         except InputError as exc:
             left.append((c.name, str(exc)))
+            continue
+        refusal = kalibr_refusal(intrinsics[c.name])
+        if refusal is not None:                     # a file Kalibr would not load
+            left.append((c.name, refusal))
             continue
         kept.append(c)
     left = by_reason(left)

@@ -63,7 +63,8 @@ def intrinsics_table(intr: Intrinsics, estimated: bool | None,
     """fx fy cx cy and the distortion, with their standard deviations when estimated
     (``estimated`` None: not known, from an older ``details.json``)."""
     def row(label, values, sigma=False):
-        return [label, *(num(v, (".3f" if sigma else ".2f") if k < 4 else ".5f")
+        return [label, *(num(v, (".3f" if sigma else ".2f") if k < 4 else
+                             ".5f" if v == 0 or not abs(v) < 1e-3 else ".3e")   # not 0.00000
                          for k, v in enumerate(values))]
 
     if covariance is not None:
