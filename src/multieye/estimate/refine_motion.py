@@ -43,6 +43,8 @@ from multieye.core.robust_loss import gaussian_kappa, gaussian_scale_constant, r
 from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.motion_links import MotionStart, motion_start
 from multieye.estimate.motion_mocap import MocapPoseResiduals, RigMocap, mocap_families
+from multieye.estimate.motion_repose import (UnprojectableViewsError, describe_views,
+                                             reposed_start, unprojectable_views)
 from multieye.estimate.motion_residuals import MotionViews
 from multieye.optimize.levenberg_marquardt import (NEAR_DAMPING, Options, covariance, evaluate,
                                                    minimize)
@@ -99,6 +101,9 @@ class MotionResult:
         regular problem), for :func:`multieye.estimate.observability.observability`.
     T_mocap_world, T_rig_marker : ndarray, shape (4, 4), or None
         With motion capture: its frame's pose in the world, the marker's in the rig.
+    reposed : tuple of int
+        The views the start left unprojectable, solved without first, then brought back
+        (:mod:`multieye.estimate.motion_repose`); empty when the start projected them all.
     """
 
     T_ref_cam: F64
@@ -120,6 +125,7 @@ class MotionResult:
     null_space: F64 | None = None
     T_mocap_world: F64 | None = None
     T_rig_marker: F64 | None = None
+    reposed: tuple[int, ...] = ()
 
     @property
     def T_ref_target(self) -> F64:
@@ -178,6 +184,10 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
         Cameras nothing links (:func:`~multieye.estimate.motion_links.motion_start`).
     InputError
         Malformed input, or a refinement that leaves the lens models' valid range.
+    UnprojectableViewsError
+        Views whose board points stay unprojectable (behind the camera) from the rest of
+        the problem solved without them (:mod:`multieye.estimate.motion_repose`; ``views``
+        names them).
     """
     T = np.asarray(T_cam_board, dtype=np.float64).reshape(-1, 4, 4)
     if len(T) != views.n_views:
@@ -187,6 +197,8 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
         raise InputError(f"pixel_sigma must be a positive number, got {pixel_sigma!r}")
     if start is None:
         start = motion_start(views, T)
+    start, lenses, reposed = _projectable_start(views, T, start, pixel_sigma,
+                                                (loss, f_scale, max_iter))
     # the BLAS threads of the reduced system's size for the whole refinement, not only in
     # the solves: the residuals' and Jacobians' products and the covariance use BLAS too,
     # and on a small problem OpenBLAS's threads cost more than they give (optimize/threads.py;
@@ -195,9 +207,42 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
         views.intrinsics[j].params.size for j in range(views.m) if views.free[j])
     with threads_for(k):
         fams, sigma, iterations, converged = _solve(
-            views, start, pixel_sigma, sigma, (loss, f_scale, max_iter), mocap)
-        return _result(views, start, fams, sigma, (loss, f_scale), iterations, converged,
-                       mocap)
+            views, start, pixel_sigma, sigma, (loss, f_scale, max_iter), mocap, lenses)
+        res = _result(views, start, fams, sigma, (loss, f_scale), iterations, converged,
+                      mocap)
+    return replace(res, reposed=reposed)
+
+
+def _projectable_start(views: MotionViews, T: F64, start: MotionStart, given: float | None,
+                       settings: tuple):
+    """``start`` when it projects every view's points, else the start
+    :func:`~multieye.estimate.motion_repose.reposed_start` gives from the problem without
+    the views it does not (:mod:`multieye.estimate.motion_repose`); with the lenses to start
+    from (None: the views') and those views' indices.
+
+    Raises
+    ------
+    UnprojectableViewsError
+        Views unprojectable from the rest of the problem solved without them.
+    """
+    bad = unprojectable_views(views, start)
+    if not bad.size:
+        return start, None, ()
+    loss, f_scale, max_iter = settings
+
+    def solve(sub, sub_T, sub_start):
+        return refine_motion(sub, sub_T, pixel_sigma=given, loss=loss, f_scale=f_scale,
+                             max_iter=max_iter, start=sub_start)
+
+    start, lenses = reposed_start(views, T, start, bad, solve)
+    still = unprojectable_views(views, start, lenses)
+    if still.size:
+        raise UnprojectableViewsError(
+            f"views of {describe_views(views, still)} put board points behind the camera (or "
+            "outside its lens model) wherever the other views place the rig, the boards and "
+            "the cameras: they disagree with the rest (a wrong board, a wrong instant)",
+            tuple(still.tolist()))
+    return start, lenses, tuple(int(v) for v in bad)
 
 
 def _groups(views: MotionViews, sigma: float, mocap: RigMocap | None) -> list:
@@ -205,11 +250,12 @@ def _groups(views: MotionViews, sigma: float, mocap: RigMocap | None) -> list:
 
 
 def _solve(views: MotionViews, start: MotionStart, given: float | None, sigma: float,
-           settings: tuple, mocap: RigMocap | None):
+           settings: tuple, mocap: RigMocap | None, lenses=None):
     """The passes of the refinement, the pixel noise re-estimated between them (from the
-    pixels alone)."""
+    pixels alone); the estimated lenses started from ``lenses`` (default the views')."""
     loss, f_scale, max_iter = settings
-    fams = views.families(start.T_ref_cam, start.T_world_board, g.inv(start.T_world_rig))
+    fams = views.families(start.T_ref_cam, start.T_world_board, g.inv(start.T_world_rig),
+                          lenses)
     if mocap is not None:
         fams = fams[:-1] + mocap_families(mocap, start.T_world_rig) + fams[-1:]
     # the robust cost's own curvature near the optimum (IRLS converges only linearly there),
