@@ -15,7 +15,8 @@ is rendered (:func:`multieye.sim.wall_dataset.render_wall_dataset`: blur, sensor
 its boards detected by multieye (``load_camera_data``), and those corners are used (the
 observability part is then skipped).  Every view's starting pose is
 OpenCV's PnP (IPPE, then iterative) with the starting lens.  Per rig, four solves on the same
-pixels:
+pixels (the rigs whose start left views unprojectable, re-posed by
+:mod:`multieye.estimate.motion_repose`, are listed after the table):
 
 - ``motion``: :func:`multieye.estimate.refine_motion.refine_motion` (the start from the
   loops the views close and the joint hand-eye problem with the rig's own poses, then the
@@ -159,7 +160,8 @@ def _rig(seed: int, noise: float, n: int, rendered: Path | None = None) -> dict:
             t0 = time.process_time()
             res = refine_motion(mv, T0, mocap=mocap if with_mocap else None)
             key = ("lenses estimated" if free else "lenses given", with_mocap)
-            out[key] = (_errors(res, sc), time.process_time() - t0, res.pixel_sigma)
+            out[key] = (_errors(res, sc), time.process_time() - t0, res.pixel_sigma,
+                        len(res.reposed))
     return out
 
 
@@ -229,6 +231,11 @@ def main() -> None:
         cpu = np.median([r[(lens, False)][1] for r in runs])
         print(f"| ratio without / with mocap, {lens} | {no[0] / yes[0]:.2f} | "
               f"{no[1] / yes[1]:.2f} | | | median CPU {cpu:.2f} s | |")
+    for key in [(lens, m) for lens in ("lenses given", "lenses estimated") for m in (False, True)]:
+        hit = [(s, r[key][3]) for s, r in zip(seeds, runs) if r[key][3]]
+        if hit:
+            print(f"starts re-posed ({key[0]}{', mocap' if key[1] else ''}): "
+                  + ", ".join(f"seed {s} ({k} views)" for s, k in hit))
     if a.rendered is None:
         _planar(seeds, a.pixel_noise, a.instants)
 

@@ -165,3 +165,28 @@ def test_a_motion_linked_image_with_corners_off_is_left_out_by_name():
     assert cam1.rejected[0].reason.startswith("outlier of the joint refinement: residual RMS")
     assert any(w.startswith("cam1: 1 image(s) left out as outliers of the joint refinement")
                for w in run.record.warnings), run.record.warnings
+
+
+def test_an_image_behind_its_camera_wherever_the_rest_puts_the_rig_is_left_out_by_name():
+    """An image whose board points lie behind its camera at the pose the rest gives (a wrong
+    board or instant): the run does not stop (before: 'the residuals are not finite at the
+    starting point'); the image is left out, named in the warnings, and the rig is the one
+    of the other images."""
+    from dataclasses import replace
+
+    sc, cams = _cameras()
+    d = cams["cam2"]
+    obs = list(d.observations)
+    o = obs[4]
+    behind = np.column_stack([np.random.default_rng(0).uniform(-0.3, 0.3, (20, 2)),
+                              np.full(20, -1.0)])            # in cam2's frame, behind it
+    T = g.inv(o.T_cam_target)
+    obs[4] = replace(o, object_points=behind @ T[:3, :3].T + T[:3, 3],
+                     image_points=np.full((20, 2), 400.0))
+    run = calibrate_rig(_rig(), {**cams, "cam2": replace(d, observations=tuple(obs))})
+    (line,) = [w for w in run.record.warnings if w.startswith("images left out")]
+    assert line.endswith(f"cam2: {o.name} ({o.target})"), line
+    clean = calibrate_rig(_rig(), {**cams, "cam2": replace(d, observations=tuple(
+        obs[:4] + obs[5:]))})
+    for n in sc.cameras:
+        np.testing.assert_allclose(run.T_ref_cam[n], clean.T_ref_cam[n], atol=1e-9)

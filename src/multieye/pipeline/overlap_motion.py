@@ -42,6 +42,7 @@ from multieye.core import geometry as g
 from multieye.core.errors import DegenerateMotionError, DisconnectedError
 from multieye.core.lie import log_so3
 from multieye.estimate.findings import Finding
+from multieye.estimate.motion_repose import UnprojectableViewsError
 from multieye.estimate.motion_residuals import MotionViews
 from multieye.estimate.observability import Observability, observability
 from multieye.estimate.refine_motion import MotionResult, refine_motion
@@ -227,8 +228,81 @@ class _Judging:
         return (cameras,)
 
 
-def _solve_once(cameras: Mapping[str, CameraData], *, reference: str, sync_tolerance, sync,
-                robust, boards, mocap, poses) -> MotionSolution:
+#: How many times the views a solve names as unprojectable from the rest
+#: (:class:`~multieye.estimate.motion_repose.UnprojectableViewsError`) are left out and the
+#: rig solved again.
+_LEAVE_OUT_ROUNDS = 3
+
+
+def _solve_once(cameras: Mapping[str, CameraData], **settings) -> MotionSolution:
+    """One solve of :func:`solve_motion` on ``cameras``: the images whose board points
+    stay unprojectable (behind the camera) wherever the rest places the rig left out, named
+    in the warnings, and the rig solved without them."""
+    notes: list[str] = []
+    for _ in range(_LEAVE_OUT_ROUNDS):
+        try:
+            sol = _solve_views(cameras, **settings)
+        except UnprojectableViewsError as exc:
+            names = _image_names(cameras, exc.views)
+            notes.append("images left out, their board points behind the camera wherever the "
+                         "other images place the rig, the boards and the cameras (a wrong "
+                         "board or instant?): " + "; ".join(
+                             f"{n}: {', '.join(v)}" for n, v in names.items()))
+            cameras = _without(cameras, exc.views)
+            continue
+        return replace(sol, warnings=tuple(notes) + tuple(sol.warnings))
+    return replace(sol := _solve_views(cameras, **settings),
+                   warnings=tuple(notes) + tuple(sol.warnings))
+
+
+def _listed(cameras: Mapping[str, CameraData]) -> list[tuple[str, int, str]]:
+    """Every view as :func:`~multieye.pipeline.overlap.camera_views` lists them (camera by
+    camera: its observations, then its lens's own images): camera, index among the
+    camera's observations and lens images, ``"image (board)"``."""
+    return [(n, i, f"{o.name} ({o.target})") for n, d in cameras.items()
+            for i, o in enumerate(d.observations
+                                  + (d.intrinsics_views if d.intrinsics_estimated else ()))]
+
+
+def _image_names(cameras: Mapping[str, CameraData], which) -> dict[str, list[str]]:
+    """Per camera ``"image (board)"`` of the views ``which``."""
+    listed = _listed(cameras)
+    out: dict[str, list[str]] = {}
+    for v in sorted(int(w) for w in which):
+        out.setdefault(listed[v][0], []).append(listed[v][2])
+    return out
+
+
+def _without(cameras: Mapping[str, CameraData], which) -> dict:
+    """``cameras`` without the views ``which``."""
+    listed = _listed(cameras)
+    drop: dict[str, set] = {}
+    for v in which:
+        drop.setdefault(listed[int(v)][0], set()).add(listed[int(v)][1])
+    out = {}
+    for n, d in cameras.items():
+        k = len(d.observations)
+        out[n] = replace(d, observations=tuple(
+            o for i, o in enumerate(d.observations) if i not in drop.get(n, ())),
+            intrinsics_views=tuple(o for i, o in enumerate(d.intrinsics_views)
+                                   if i + k not in drop.get(n, ()))) if n in drop else d
+    return out
+
+
+def _reposed_note(cameras: Mapping[str, CameraData], result: MotionResult
+                  ) -> tuple[str, ...]:
+    """A warning naming the images the start left unprojectable (solved without first,
+    then brought back: :mod:`multieye.estimate.motion_repose`)."""
+    if not result.reposed:
+        return ()
+    names = _image_names(cameras, result.reposed)
+    return ("the start put board points of some images behind the camera (a PnP pose far "
+            "off, placing the rest wrongly); the rig was solved without them first, then with "
+            "them from there: " + "; ".join(f"{n}: {', '.join(v)}" for n, v in names.items()),)
+
+
+def _solve_views(cameras: Mapping[str, CameraData], *, reference: str, sync_tolerance, sync,
+                 robust, boards, mocap, poses) -> MotionSolution:
     """One solve of :func:`solve_motion` on ``cameras`` as they are."""
     names = tuple(cameras)
     order = board_order(cameras, boards)
@@ -253,7 +327,8 @@ def _solve_once(cameras: Mapping[str, CameraData], *, reference: str, sync_toler
         names=names, reference=reference, boards=order, result=result, views=mv,
         used={n: cameras[n].observations for n in names}, instants=inst, board=which,
         links=_links(mv, result, order), observability=obs, sync_tolerance=tol,
-        findings=findings, warnings=_rig_warnings(cameras, mv, result) + notes, given=given,
+        findings=findings, given=given,
+        warnings=_reposed_note(cameras, result) + _rig_warnings(cameras, mv, result) + notes,
         world=boards[0] if boards and (boards[0] in order or given) else order[0])
 
 
@@ -293,7 +368,7 @@ def _given_findings(views_holding: Callable, mv: MotionViews, T_cam_board, loss:
     free = views_holding({gauge[0]: mv.held[gauge[0]]})
     try:
         est = refine_motion(free, T_cam_board, loss=loss)
-    except (DisconnectedError, DegenerateMotionError) as e:
+    except (DisconnectedError, DegenerateMotionError, UnprojectableViewsError) as e:
         return (), (f"the given poses of targets {', '.join(order[b] for b in checked)} are "
                     f"not checked against the views: without them {e}",), None
     out = []
