@@ -190,3 +190,24 @@ def test_an_image_behind_its_camera_wherever_the_rest_puts_the_rig_is_left_out_b
         obs[:4] + obs[5:]))})
     for n in sc.cameras:
         np.testing.assert_allclose(run.T_ref_cam[n], clean.T_ref_cam[n], atol=1e-9)
+
+
+def test_a_pnp_pose_far_off_that_leaves_images_behind_the_camera_at_the_start_is_overcome():
+    """One image's starting pose (PnP) 40 degrees off places an instant alone, and the start
+    then puts other images' board points behind their cameras (before: the run stopped on
+    'the residuals are not finite at the starting point'): those images are solved without
+    first, then brought back, named in a warning; the rig is the one of the good start."""
+    from dataclasses import replace
+
+    _, cams = _cameras()
+    good = calibrate_rig(_rig(), cams)
+    d = cams["cam0"]
+    obs = list(d.observations)
+    obs[10] = replace(obs[10], T_cam_target=obs[10].T_cam_target @ g.transform_from_rotvec(
+        [0.0, np.radians(40.0), 0.0], np.zeros(3)))
+    run = calibrate_rig(_rig(), {**cams, "cam0": replace(d, observations=tuple(obs))})
+    (line,) = [w for w in run.record.warnings if w.startswith("the start put board points")]
+    assert "cam0: 0005.png (north)" in line and "cam1: 0007.png (south)" in line, line
+    assert run.doubts == ()
+    for n in cams:
+        np.testing.assert_allclose(run.T_ref_cam[n], good.T_ref_cam[n], atol=1e-7)
