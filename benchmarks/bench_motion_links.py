@@ -15,7 +15,8 @@ is rendered (:func:`multieye.sim.wall_dataset.render_wall_dataset`: blur, sensor
 its boards detected by multieye (``load_camera_data``), and those corners are used (the
 observability part is then skipped).  Every view's starting pose is
 OpenCV's PnP (IPPE, then iterative) with the starting lens.  Per rig, four solves on the same
-pixels (the rigs whose start left views unprojectable, re-posed by
+pixels (the rigs whose start left views unprojectable, re-posed, and those whose first
+refinement left views far off at a local optimum, looked at again, by
 :mod:`multieye.estimate.motion_repose`, are listed after the table):
 
 - ``motion``: :func:`multieye.estimate.refine_motion.refine_motion` (the start from the
@@ -161,7 +162,7 @@ def _rig(seed: int, noise: float, n: int, rendered: Path | None = None) -> dict:
             res = refine_motion(mv, T0, mocap=mocap if with_mocap else None)
             key = ("lenses estimated" if free else "lenses given", with_mocap)
             out[key] = (_errors(res, sc), time.process_time() - t0, res.pixel_sigma,
-                        len(res.reposed))
+                        len(res.reposed), len(res.second_look))
     return out
 
 
@@ -187,6 +188,9 @@ def _planar(seeds, noise: float, n: int) -> None:
                                 sc.intrinsics)
             mv = MotionViews(per, sc.intrinsics)
             res = refine_motion(mv, T0)
+            if res.reposed or res.second_look:
+                print(f"  planar {boards} seed {seed}: {len(res.reposed)} views re-posed at "
+                      f"the start, {len(res.second_look)} in a second look")
             obs = observability(res, mv)
             for u in obs.undetermined:
                 named[(u.camera, u.kind, u.along_turn_axis)] = named.get(
@@ -232,10 +236,11 @@ def main() -> None:
         print(f"| ratio without / with mocap, {lens} | {no[0] / yes[0]:.2f} | "
               f"{no[1] / yes[1]:.2f} | | | median CPU {cpu:.2f} s | |")
     for key in [(lens, m) for lens in ("lenses given", "lenses estimated") for m in (False, True)]:
-        hit = [(s, r[key][3]) for s, r in zip(seeds, runs) if r[key][3]]
-        if hit:
-            print(f"starts re-posed ({key[0]}{', mocap' if key[1] else ''}): "
-                  + ", ".join(f"seed {s} ({k} views)" for s, k in hit))
+        for col, what in ((3, "starts re-posed"), (4, "second looks kept")):
+            hit = [(s, r[key][col]) for s, r in zip(seeds, runs) if r[key][col]]
+            if hit:
+                print(f"{what} ({key[0]}{', mocap' if key[1] else ''}): "
+                      + ", ".join(f"seed {s} ({k} views)" for s, k in hit))
     if a.rendered is None:
         _planar(seeds, a.pixel_noise, a.instants)
 

@@ -15,6 +15,12 @@ residual, and the engine cannot start from them.  Instead:
    robust mean of every loop, as the growth does); the result is the start of the whole
    problem, those views brought back.
 
+The same re-posing serves a second look after a refinement: a start placed wrongly (a PnP
+pose 15 degrees off) can also lead the refinement to a local optimum where a few views lie
+far off (:func:`far_off_views`) and the robust loss discounts them; solved without them from
+that optimum, re-posed and brought back, the refinement reaches the better optimum, kept when
+its robust cost (:func:`robust_cost`) is lower.
+
 When the views are unprojectable even from the solved rest, they disagree with it (a wrong
 board name, a wrong instant): :class:`UnprojectableViewsError` names them, for the caller to
 leave them out.
@@ -35,11 +41,18 @@ from numpy.typing import NDArray
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.lens import project_points
+from multieye.core.robust_loss import rho
 from multieye.estimate.covisibility import relative_pose
 from multieye.estimate.motion_links import MotionStart
 from multieye.estimate.motion_residuals import MotionViews
 
-__all__ = ["UnprojectableViewsError", "unprojectable_views", "reposed_start", "describe_views"]
+__all__ = ["UnprojectableViewsError", "unprojectable_views", "reposed_start", "describe_views",
+           "far_off_views", "robust_cost", "FAR_OFF_Z2"]
+
+#: A view is far off the solution when the median of its points' squared normalised
+#: residuals exceeds chi-square(2)'s quantile at 1 - 1e-4 (the outlier rule of
+#: :mod:`multieye.estimate.refine_images`, ``OUTLIER_PROBABILITY``): 18.4.
+FAR_OFF_Z2 = 18.42
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -109,9 +122,9 @@ def _renumber(values: I64, keep: NDArray[np.bool_]) -> tuple[I64, I64]:
     return kept, new
 
 
-def _sub_problem(views: MotionViews, start: MotionStart, keep: NDArray[np.bool_]):
-    """The views ``keep`` as a problem of their own: its views, start, and the cameras,
-    instants and boards it holds (old indices)."""
+def _sub_problem(views: MotionViews, start: MotionStart, keep: NDArray[np.bool_], lenses: list):
+    """The views ``keep`` as a problem of their own, started at ``lenses``: its views,
+    start, and the cameras, instants and boards it holds (old indices)."""
     cams = np.unique(views.camera[keep])
     if views.reference not in cams:
         raise UnprojectableViewsError(
@@ -127,7 +140,7 @@ def _sub_problem(views: MotionViews, start: MotionStart, keep: NDArray[np.bool_]
              int(new_b[views.board[v]])))
     held = {int(new_b[b]): G for b, G in views.held.items() if new_b[b] >= 0} or {
         0: start.T_world_board[boards[0]]}
-    sub = MotionViews(per, [views.intrinsics[j] for j in cams],
+    sub = MotionViews(per, [lenses[j] for j in cams],
                       int(np.flatnonzero(cams == views.reference)[0]),
                       free_intrinsics=[views.free[j] for j in cams], board_poses=held)
     sub_start = MotionStart(start.T_ref_cam[cams], start.T_world_board[boards],
@@ -167,7 +180,7 @@ def _place_rest(views: MotionViews, T: F64, known: tuple[dict, dict, dict]) -> N
 
 
 def reposed_start(views: MotionViews, T_cam_board, start: MotionStart, bad,
-                  solve: Callable) -> tuple[MotionStart, tuple]:
+                  solve: Callable, intrinsics=None) -> tuple[MotionStart, tuple]:
     """The start of the whole problem from the problem without the views ``bad`` (module
     docstring).
 
@@ -184,6 +197,8 @@ def reposed_start(views: MotionViews, T_cam_board, start: MotionStart, bad,
         ``solve(sub_views, sub_T_cam_board, sub_start) -> MotionResult`` (on the pixels
         alone: the start of a motion-capture problem comes from the views too, and the
         motion capture's own start from the rig's poses this gives).
+    intrinsics : sequence of Intrinsics, optional
+        The lenses to start from (default the views').
 
     Returns
     -------
@@ -196,13 +211,13 @@ def reposed_start(views: MotionViews, T_cam_board, start: MotionStart, bad,
     T = np.asarray(T_cam_board, dtype=np.float64)
     keep = np.ones(views.n_views, dtype=bool)
     keep[np.asarray(bad, dtype=np.int64)] = False
-    sub, sub_start, (cams, insts, boards) = _sub_problem(views, start, keep)
+    lenses = list(views.intrinsics if intrinsics is None else intrinsics)
+    sub, sub_start, (cams, insts, boards) = _sub_problem(views, start, keep, lenses)
     res = solve(sub, T[keep], sub_start)
     known = ({int(j): res.T_ref_cam[k] for k, j in enumerate(cams)},
              {int(t): res.T_world_rig[k] for k, t in enumerate(insts)},
              {int(b): res.T_world_board[k] for k, b in enumerate(boards)})
     _place_rest(views, T, known)
-    lenses = list(views.intrinsics)
     for k, j in enumerate(cams):
         lenses[j] = res.intrinsics[k]
 
@@ -212,3 +227,17 @@ def reposed_start(views: MotionViews, T_cam_board, start: MotionStart, bad,
     return (MotionStart(pick(known[0], start.T_ref_cam), pick(known[2], start.T_world_board),
                         pick(known[1], start.T_world_rig), start.links, start.single_axis),
             tuple(lenses))
+
+
+def far_off_views(views: MotionViews, residuals_px: F64, sigma: float) -> I64:
+    """The views whose points' median squared normalised residual exceeds
+    :data:`FAR_OFF_Z2` (residuals ``(P, 2)`` in point order, pixels; ``sigma`` pixels)."""
+    z2 = np.sum((np.asarray(residuals_px) / sigma) ** 2, axis=1)
+    return np.array([v for v in range(views.n_views)
+                     if np.median(z2[views.view == v]) > FAR_OFF_Z2], dtype=np.int64)
+
+
+def robust_cost(residuals_px: F64, sigma: float, loss: str, f_scale: float) -> float:
+    """The pixels' robust cost ``sum rho((r / sigma / f_scale)^2)`` over every coordinate."""
+    z = np.asarray(residuals_px).ravel() / sigma / f_scale
+    return float(np.sum(rho(z ** 2, loss)[0]))

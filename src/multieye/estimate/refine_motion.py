@@ -37,14 +37,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from multieye.core import geometry as g
-from multieye.core.errors import InputError
+from multieye.core.errors import CalibrationError, InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.robust_loss import gaussian_kappa, gaussian_scale_constant, rho
 from multieye.estimate.image_residuals import intrinsics_family
 from multieye.estimate.motion_links import MotionStart, motion_start
 from multieye.estimate.motion_mocap import MocapPoseResiduals, RigMocap, mocap_families
 from multieye.estimate.motion_repose import (UnprojectableViewsError, describe_views,
-                                             reposed_start, unprojectable_views)
+                                             far_off_views, reposed_start, robust_cost,
+                                             unprojectable_views)
 from multieye.estimate.motion_residuals import MotionViews
 from multieye.optimize.levenberg_marquardt import (NEAR_DAMPING, Options, covariance, evaluate,
                                                    minimize)
@@ -104,6 +105,9 @@ class MotionResult:
     reposed : tuple of int
         The views the start left unprojectable, solved without first, then brought back
         (:mod:`multieye.estimate.motion_repose`); empty when the start projected them all.
+    second_look : tuple of int
+        The views a first refinement left far off, solved without, re-posed and brought
+        back, when that reached a lower robust cost (a local optimum left); else empty.
     """
 
     T_ref_cam: F64
@@ -126,6 +130,7 @@ class MotionResult:
     T_mocap_world: F64 | None = None
     T_rig_marker: F64 | None = None
     reposed: tuple[int, ...] = ()
+    second_look: tuple[int, ...] = ()
 
     @property
     def T_ref_target(self) -> F64:
@@ -197,8 +202,17 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
         raise InputError(f"pixel_sigma must be a positive number, got {pixel_sigma!r}")
     if start is None:
         start = motion_start(views, T)
-    start, lenses, reposed = _projectable_start(views, T, start, pixel_sigma,
-                                                (loss, f_scale, max_iter))
+    settings = (loss, f_scale, max_iter)
+    return _second_look(views, T, _refined(views, T, start, pixel_sigma, settings, mocap),
+                        pixel_sigma, settings, mocap)
+
+
+def _refined(views: MotionViews, T: F64, start: MotionStart, given: float | None,
+             settings: tuple, mocap: RigMocap | None, lenses=None) -> MotionResult:
+    """One refinement from ``start`` (and the estimated lenses from ``lenses``, default the
+    views'), made projectable first (:func:`_projectable_start`)."""
+    start, lenses, reposed = _projectable_start(views, T, start, given, settings, lenses)
+    sigma = 1.0 if given is None else float(given)
     # the BLAS threads of the reduced system's size for the whole refinement, not only in
     # the solves: the residuals' and Jacobians' products and the covariance use BLAS too,
     # and on a small problem OpenBLAS's threads cost more than they give (optimize/threads.py;
@@ -206,15 +220,42 @@ def refine_motion(views: MotionViews, T_cam_board, *, pixel_sigma: float | None 
     k = 6 * (views.m - 1 + len(views.free_boards)) + sum(
         views.intrinsics[j].params.size for j in range(views.m) if views.free[j])
     with threads_for(k):
-        fams, sigma, iterations, converged = _solve(
-            views, start, pixel_sigma, sigma, (loss, f_scale, max_iter), mocap, lenses)
-        res = _result(views, start, fams, sigma, (loss, f_scale), iterations, converged,
-                      mocap)
+        fams, sigma, iterations, converged = _solve(views, start, given, sigma, settings, mocap,
+                                                    lenses)
+        res = _result(views, start, fams, sigma, settings[:2], iterations, converged, mocap)
     return replace(res, reposed=reposed)
 
 
+def _second_look(views: MotionViews, T: F64, res: MotionResult, given: float | None,
+                 settings: tuple, mocap: RigMocap | None) -> MotionResult:
+    """``res``, or the refinement again from it without its far-off views, re-posed and
+    brought back (:mod:`multieye.estimate.motion_repose`), when that reaches a lower robust
+    cost (a local optimum left: the start placed wrongly by a PnP pose far off)."""
+    far = far_off_views(views, res.residuals_px, res.pixel_sigma)
+    if not far.size or far.size == views.n_views:
+        return res
+    loss, f_scale, _ = settings
+    first = MotionStart(res.T_ref_cam, res.T_world_board, res.T_world_rig, res.start.links,
+                        res.start.single_axis)
+
+    def solve(sub, sub_T, sub_start):
+        return _refined(sub, sub_T, sub_start, given, settings, None)
+
+    try:
+        start, lenses = reposed_start(views, T, first, far, solve, res.intrinsics)
+        other = _refined(views, T, start, given, settings, mocap, lenses)
+    except CalibrationError:
+        return res
+    s = min(res.pixel_sigma, other.pixel_sigma)
+    if (robust_cost(other.residuals_px, s, loss, f_scale)
+            >= robust_cost(res.residuals_px, s, loss, f_scale)):
+        return res
+    return replace(other, start=res.start, reposed=res.reposed,
+                   second_look=tuple(int(v) for v in far))
+
+
 def _projectable_start(views: MotionViews, T: F64, start: MotionStart, given: float | None,
-                       settings: tuple):
+                       settings: tuple, lenses=None):
     """``start`` when it projects every view's points, else the start
     :func:`~multieye.estimate.motion_repose.reposed_start` gives from the problem without
     the views it does not (:mod:`multieye.estimate.motion_repose`); with the lenses to start
@@ -225,16 +266,14 @@ def _projectable_start(views: MotionViews, T: F64, start: MotionStart, given: fl
     UnprojectableViewsError
         Views unprojectable from the rest of the problem solved without them.
     """
-    bad = unprojectable_views(views, start)
+    bad = unprojectable_views(views, start, lenses)
     if not bad.size:
-        return start, None, ()
-    loss, f_scale, max_iter = settings
+        return start, lenses, ()
 
     def solve(sub, sub_T, sub_start):
-        return refine_motion(sub, sub_T, pixel_sigma=given, loss=loss, f_scale=f_scale,
-                             max_iter=max_iter, start=sub_start)
+        return _refined(sub, sub_T, sub_start, given, settings, None)
 
-    start, lenses = reposed_start(views, T, start, bad, solve)
+    start, lenses = reposed_start(views, T, start, bad, solve, lenses)
     still = unprojectable_views(views, start, lenses)
     if still.size:
         raise UnprojectableViewsError(

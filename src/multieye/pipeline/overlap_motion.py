@@ -291,14 +291,21 @@ def _without(cameras: Mapping[str, CameraData], which) -> dict:
 
 def _reposed_note(cameras: Mapping[str, CameraData], result: MotionResult
                   ) -> tuple[str, ...]:
-    """A warning naming the images the start left unprojectable (solved without first,
-    then brought back: :mod:`multieye.estimate.motion_repose`)."""
-    if not result.reposed:
-        return ()
-    names = _image_names(cameras, result.reposed)
-    return ("the start put board points of some images behind the camera (a PnP pose far "
-            "off, placing the rest wrongly); the rig was solved without them first, then with "
-            "them from there: " + "; ".join(f"{n}: {', '.join(v)}" for n, v in names.items()),)
+    """Warnings naming the images the start left unprojectable, and those a first
+    refinement left far off, at a local optimum (each solved without first, then brought
+    back: :mod:`multieye.estimate.motion_repose`)."""
+    out = []
+    for which, what in ((result.reposed, "the start put board points of some images behind "
+                         "the camera (a PnP pose far off, placing the rest wrongly); the rig "
+                         "was solved without them first, then with them from there"),
+                        (result.second_look, "a first solve stopped at a local optimum with "
+                         "some images far off (its start placed wrongly by a PnP pose far "
+                         "off); solved again without them, then with them from there, the "
+                         "better optimum kept")):
+        if which:
+            names = _image_names(cameras, which)
+            out.append(what + ": " + "; ".join(f"{n}: {', '.join(v)}" for n, v in names.items()))
+    return tuple(out)
 
 
 def _solve_views(cameras: Mapping[str, CameraData], *, reference: str, sync_tolerance, sync,
