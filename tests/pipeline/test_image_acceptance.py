@@ -219,3 +219,29 @@ def test_a_symmetric_board_taken_back_keeps_its_other_order():
     assert back.alternative is not None, "its other order was lost"
     np.testing.assert_allclose(back.alternative, back.T_cam_target @ H, atol=1e-9)
     np.testing.assert_array_equal(back.alternative_order, o.alternative_order)
+
+
+def test_an_image_behind_its_camera_at_the_refinements_start_is_left_out_by_name(rendered):
+    """With motion capture and lenses estimated: an image whose target points the start
+    (closed form and its motion-capture pose) puts behind its camera (a wrong board) is left
+    out and named; the image-level refinement runs without it (before: 'refinement failed,
+    the result is the closed form without uncertainty', OpenCV's per-camera lenses)."""
+    rig, cameras, clean = rendered
+    d = cameras["cam1"]
+    obs = list(d.observations)
+    o = obs[5]
+    n = len(o.object_points)
+    behind = np.column_stack([np.random.default_rng(0).uniform(-0.3, 0.3, (n, 2)),
+                              np.full(n, -1.0)])             # in cam1's frame, behind it
+    T = g.inv(o.T_cam_target)
+    obs[5] = replace(o, object_points=behind @ T[:3, :3].T + T[:3, 3])
+    run = calibrate_rig(rig, {**cameras, "cam1": replace(d, observations=tuple(obs))})
+    assert run.record.refinement == "images" and run.doubts == ()
+    cam1 = next(c for c in run.record.cameras if c.name == "cam1")
+    assert [r.item for r in cam1.rejected] == [o.name] and cam1.measurements_used == 19
+    assert cam1.rejected[0].reason.startswith("target points behind the camera at the "
+                                              "refinement's start")
+    assert any(w.startswith("cam1: 1 image(s) left out, their target points behind")
+               and w.endswith(o.name) for w in run.record.warnings), run.record.warnings
+    T_clean = {c.name: c.T_ref_cam for c in clean.record.cameras}
+    assert np.abs(cam1.T_ref_cam - T_clean["cam1"]).max() < 3e-4

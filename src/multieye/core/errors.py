@@ -15,6 +15,7 @@ __all__ = [
     "DegenerateMotionError",
     "DisconnectedError",
     "DatasetError",
+    "UnprojectableStartError",
 ]
 
 
@@ -40,6 +41,15 @@ class DisconnectedError(CalibrationError):
     def __init__(self, message: str, names: tuple[str, ...] = ()):
         super().__init__(message)
         self.names = tuple(names)
+
+
+class UnprojectableStartError(InputError):
+    """A refinement's start puts target points of some images behind their camera (or
+    outside its lens model); ``items`` names them, e.g. ``(camera, image)`` index pairs."""
+
+    def __init__(self, message: str, items: tuple = ()):
+        super().__init__(message)
+        self.items = tuple(items)
 
 
 class DatasetError(CalibrationError):

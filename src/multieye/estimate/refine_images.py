@@ -61,7 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.special import chdtri  # chi-square quantiles; scipy.stats costs 0.66 s to import
 
 from multieye.core.arguments import transform, with_fields
-from multieye.core.errors import InputError
+from multieye.core.errors import InputError, UnprojectableStartError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.robust_loss import (LOSSES, gaussian_kappa, gaussian_scale_constant,
                                        gaussian_slope, rho)
@@ -347,7 +347,7 @@ def refine_images(setup: str, observations: Sequence, intrinsics: Sequence[Intri
     ------
     InputError
         Unknown setup or loss, mismatched counts, malformed points or poses, non-positive
-        noise levels, or target points behind a camera at the starting estimate.
+        noise levels; UnprojectableStartError: target points behind a camera at the start.
 
     Examples
     --------
@@ -418,11 +418,13 @@ def _start(data: ImageData, X0: ArrayLike, Y0: ArrayLike, noise: _Noise):
     values = {f.name: f.value for f in fams}
     r0 = np.concatenate([g_.evaluate(values, False)[0] for g_ in data.groups(1.0, s_rot, s_t)
                          [:data.m]])
-    bad = ~np.all(np.isfinite(r0), axis=1)
-    if np.any(bad):
-        raise InputError(f"{data.where(int(data.image[np.argmax(bad)]))}: target points project "
-                         "behind the camera at the starting estimate; check X0, Y0, the setup "
-                         f"({data.setup}) and the direction of T_world_mocap")
+    bad = np.unique(data.image[~np.all(np.isfinite(r0), axis=1)])
+    if bad.size:
+        j = data.cam_of_image[bad]                # items: (camera, its image) of each
+        raise UnprojectableStartError(
+            f"{data.where(int(bad[0]))}: target points project behind the camera at the "
+            f"starting estimate; check X0, Y0, the setup ({data.setup}) and the direction of "
+            "T_world_mocap", tuple(zip(j.tolist(), (bad - np.cumsum(np.r_[0, data.counts])[j]).tolist())))
     if noise.estimate_px:
         s_px = max(1.4826 * float(np.median(np.abs(r0))), 1e-3)
     return fams, replace(noise, s_px=s_px, s_rot=s_rot, s_t=s_t)

@@ -228,6 +228,8 @@ class _Judging:
         return (cameras,)
 
 
+#: At most this share of a camera's images is left out as unprojectable from the rest.
+MAX_LEFT_OUT = 0.25
 #: How many times the views a solve names as unprojectable from the rest
 #: (:class:`~multieye.estimate.motion_repose.UnprojectableViewsError`) are left out and the
 #: rig solved again.
@@ -237,13 +239,18 @@ _LEAVE_OUT_ROUNDS = 3
 def _solve_once(cameras: Mapping[str, CameraData], **settings) -> MotionSolution:
     """One solve of :func:`solve_motion` on ``cameras``: the images whose board points
     stay unprojectable (behind the camera) wherever the rest places the rig left out, named
-    in the warnings, and the rig solved without them."""
+    in the warnings, and the rig solved without them (at most :data:`MAX_LEFT_OUT` of a
+    camera's images, else the error stands)."""
     notes: list[str] = []
     for _ in range(_LEAVE_OUT_ROUNDS):
         try:
             sol = _solve_views(cameras, **settings)
         except UnprojectableViewsError as exc:
             names = _image_names(cameras, exc.views)
+            if any(len(v) > MAX_LEFT_OUT * (len(cameras[n].observations)
+                                            + len(cameras[n].intrinsics_views))
+                   for n, v in names.items()):
+                raise                   # not a few images: the rig does not hold together
             notes.append("images left out, their board points behind the camera wherever the "
                          "other images place the rig, the boards and the cameras (a wrong "
                          "board or instant?): " + "; ".join(

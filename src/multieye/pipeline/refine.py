@@ -14,15 +14,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from multieye.core.errors import CalibrationError, InputError
+from multieye.core.errors import CalibrationError, InputError, UnprojectableStartError
 from multieye.estimate.clock_residuals import ClockData, LocalTrajectory, shared_clocks
 from multieye.estimate.refine_images import RefinementResult, RefineOptions, refine_images
 from multieye.estimate.uncertainty import RelativeUncertainty, relative_covariance
 from multieye.io import Rig
 from multieye.pipeline.camera_data import PairedCamera
-from multieye.pipeline.image_acceptance import (judge_images, rejected_by_consensus, taken_back,
-                                                taken_back_warning, with_taken_back,
-                                                without_outliers)
+from multieye.pipeline.image_acceptance import (Judged, judge_images, rejected_by_consensus,
+                                                taken_back, taken_back_warning,
+                                                with_taken_back, without_outliers)
 from multieye.pipeline.options import Options
 from multieye.pipeline.problem import Pairing, Problem
 from multieye.pipeline.result import Refinement
@@ -102,18 +102,18 @@ def _judged(problem: Problem, pairing: Pairing, sol: Solution
     as a bad fit that fit it taken back, then the outliers of the joint refinement left
     out, the refinement run again from its optimum after each that changed the images; the
     pairing it ended on when it changed, else None."""
-    refinement = _refine_images(problem, pairing, sol.X, sol.Y, {})
+    given = pairing
+    refinement, pairing, notes = _first_refinement(problem, pairing, sol.X, sol.Y)
     cameras = problem.cameras
     estimated = [n for n in pairing.paired if cameras[n].intrinsics_estimated]
     if not estimated:
-        return refinement, None
-    notes: list[str] = []
+        refinement = replace(refinement, warnings=refinement.warnings + tuple(notes))
+        return refinement, None if pairing is given else pairing
     # left out on the starting lens: as a bad fit, or by the consensus on its poses
     by_consensus = {n: rejected_by_consensus(cameras[n], pairing.paired[n]) for n in estimated}
     early = {n: list(cameras[n].bad_fits) + by_consensus[n] for n in estimated}
     back = {n: taken_back(early[n], refinement.intrinsics[n]) for n in estimated}
     grown, added = with_taken_back(problem, pairing, back, rig=(refinement.X, refinement.Y))
-    given = pairing
     if added:
         try:
             refinement = _refine_images(problem, grown, refinement.X, refinement.Y,
@@ -144,6 +144,41 @@ def _judged(problem: Problem, pairing: Pairing, sol: Solution
                 f"({exc})"]
     refinement = replace(refinement, warnings=refinement.warnings + tuple(notes))
     return refinement, None if pairing is given else pairing
+
+
+#: At most this share of a camera's images is left out for target points behind it at the
+#: start; more says the closed form or the setup is wrong, not the images.
+MAX_LEFT_OUT = 0.25
+#: Why an image the image-level refinement's start puts behind its camera is left out.
+BEHIND_AT_START = ("target points behind the camera at the refinement's start (the closed "
+                   "form with the image's motion-capture pose): it disagrees with the rest")
+
+
+def _first_refinement(problem: Problem, pairing: Pairing, X0, Y0
+                      ) -> tuple[Refinement, Pairing, list[str]]:
+    """The image-level refinement from the closed form; the images whose target points its
+    start puts behind their camera (:class:`~multieye.core.errors.UnprojectableStartError`:
+    a wrong board, or a motion-capture pose that is not the image's) left out, among their
+    camera's rejected and named in a warning, and the refinement run without them (at most
+    :data:`MAX_LEFT_OUT` of a camera's images, else the error stands).  Returns the
+    refinement, the pairing it ran on and the warnings."""
+    try:
+        return _refine_images(problem, pairing, X0, Y0, {}), pairing, []
+    except UnprojectableStartError as exc:
+        names = list(pairing.paired)
+        out: dict[str, list[int]] = {}
+        for j, i in exc.items:
+            out.setdefault(names[j], []).append(int(i))
+        if any(len(ix) > MAX_LEFT_OUT * len(pairing.paired[n].observations)
+               for n, ix in out.items()):
+            raise                       # not a few images: the closed form or the setup
+        judged = Judged({n: np.array(ix) for n, ix in out.items()},
+                        {n: dict.fromkeys(ix, BEHIND_AT_START) for n, ix in out.items()}, ())
+        smaller = without_outliers(pairing, judged)
+        note = "; ".join(f"{n}: {len(ix)} image(s) left out, their {BEHIND_AT_START}: "
+                         + ", ".join(pairing.paired[n].observations[i].name for i in ix)
+                         for n, ix in out.items())
+        return _refine_images(problem, smaller, X0, Y0, {}), smaller, [note]
 
 
 def _have_points(problem: Problem, paired: dict[str, PairedCamera]) -> bool:
