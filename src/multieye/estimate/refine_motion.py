@@ -247,8 +247,9 @@ def _second_look(views: MotionViews, T: F64, res: MotionResult, given: float | N
     except CalibrationError:
         return res
     s = min(res.pixel_sigma, other.pixel_sigma)
-    if (robust_cost(other.residuals_px, s, loss, f_scale)
-            >= robust_cost(res.residuals_px, s, loss, f_scale)):
+    before = robust_cost(res.residuals_px, s, loss, f_scale)
+    # lower by more than rounding (the same optimum reached again: a real outlier kept)
+    if robust_cost(other.residuals_px, s, loss, f_scale) >= before - max(1.0, 1e-3 * before):
         return res
     return replace(other, start=res.start, reposed=res.reposed,
                    second_look=tuple(int(v) for v in far))
