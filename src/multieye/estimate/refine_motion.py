@@ -9,7 +9,9 @@ over every ``T_ref_cam^j`` (the reference camera's the identity), every board po
 ``S(t) = inv(T_world_rig(t))`` and the estimated lenses (residuals and Jacobians:
 :mod:`multieye.estimate.motion_residuals`), from the start of
 :func:`multieye.estimate.motion_links.motion_start`, on the engine (Levenberg-Marquardt,
-the instants' poses eliminated by the Schur complement).  Overlap (two cameras seeing one
+the instants' poses eliminated by the Schur complement; views the start leaves unprojectable
+solved without first and brought back, and a local optimum with views far off looked at
+again: :mod:`multieye.estimate.motion_repose`).  Overlap (two cameras seeing one
 board at one instant) and motion links are the same residuals here: one problem.
 
 Covariance of ``T_ref_cam``, the boards and the lenses: ``kappa sigma^2 (J^T J)^-1`` of the
