@@ -71,8 +71,8 @@ def crop_box(uv: np.ndarray, width: float, height: float, margin: float = 0.25,
 
 def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.ndarray, *,
                        magnify: float, max_width: int = 480, quality: int = 82,
-                       image_size: tuple[int, int] | None = None, crop: bool = True
-                       ) -> bytes | None:
+                       image_size: tuple[int, int] | None = None, crop: bool = True,
+                       region: tuple[int, int, int, int] | None = None) -> bytes | None:
     """A downscaled grey copy of an image with its points and magnified residuals, as JPEG.
 
     Parameters
@@ -93,6 +93,9 @@ def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.nda
         Full-size width and height; when given, a file of another size is refused (None).
     crop : bool
         Show only the part of the image around the points (:func:`crop_box`).
+    region : (x, y, width, height), optional
+        Show nothing outside this part of the image (a camera's half of a side-by-side
+        stereo frame), full-size pixels.
 
     Returns
     -------
@@ -114,6 +117,11 @@ def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.nda
     uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
     residual = np.asarray(residual, dtype=np.float64).reshape(-1, 2)
     x0, y0, x1, y1 = crop_box(uv, full_w, full_h) if crop else (0, 0, full_w, full_h)
+    if region is not None:
+        x0, y0 = max(x0, region[0]), max(y0, region[1])
+        x1, y1 = min(x1, region[0] + region[2]), min(y1, region[1] + region[3])
+        if x1 <= x0 or y1 <= y0:
+            return None
     part = image[int(y0 * reduced):int(math.ceil(y1 * reduced)),
                  int(x0 * reduced):int(math.ceil(x1 * reduced))]
     scale = min(reduced, max_width / (x1 - x0))  # full-size pixels -> picture pixels
