@@ -4,15 +4,11 @@ local Dask cluster, detection tasks on Dask, and clear errors."""
 from __future__ import annotations
 
 import functools
-import sys
-from pathlib import Path
 
 import pytest
 
 from multieye.core.errors import InputError
 from multieye.imaging.engines import DaskEngine, open_engine
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def _square_plus(x, y=0):

@@ -5,19 +5,16 @@ screen, after detection when the clock is estimated, and off with --no-select.""
 from __future__ import annotations
 
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from small_dataset import render_small  # noqa: E402
+from small_dataset import render_small
 
-from multieye.cli import main  # noqa: E402
-from multieye.core.errors import InputError  # noqa: E402
-from multieye.pipeline import Options, calibrate  # noqa: E402
+from multieye.cli import main
+from multieye.core.errors import InputError
+from multieye.pipeline import Options, calibrate
 
 
 @pytest.fixture(scope="module")

@@ -4,22 +4,20 @@ and what rig.yaml refuses."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from small_dataset import render_small  # noqa: E402
+from small_dataset import render_small
 
-from multieye.core import geometry as g  # noqa: E402
-from multieye.core.errors import DatasetError  # noqa: E402
-from multieye.imaging.video import iter_video_frames, video_stamps  # noqa: E402
-from multieye.io import load_rig  # noqa: E402
-from multieye.io.frame_stamps import read_frame_stamps  # noqa: E402
-from multieye.pipeline import calibrate  # noqa: E402
+from multieye.core import geometry as g
+from multieye.core.errors import DatasetError
+from multieye.imaging.video import iter_video_frames, video_stamps
+from multieye.io import load_rig
+from multieye.io.frame_stamps import read_frame_stamps
+from multieye.pipeline import calibrate
 
 
 def _write_video(path: Path, images, fps: float = 30.0) -> None:
