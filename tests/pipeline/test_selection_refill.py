@@ -137,3 +137,25 @@ def test_a_camera_whose_lens_is_estimated_is_refilled_and_its_lens_started_from_
     assert len(_usable(run, "cam0")) >= 8 and sel.refilled > 0
     assert sum(r.reason.startswith("target not detected") for r in run.cameras["cam0"].rejected
                ) == sel.unusable > 0
+
+
+def test_images_of_another_size_leave_a_camera_whose_lens_is_estimated_calibrated(tmp_path):
+    """No intrinsics give the size of a camera whose lens is estimated: its 8 x 8 frames
+    among the 640 x 480 ones refused the whole camera ('images of different sizes'), with
+    the selection and without; now they are left out as of the wrong resolution, as given
+    intrinsics leave them out, and the selection, its budget holding every usable image,
+    gives --no-select's result."""
+    folder = _recording(tmp_path / "d", 40)
+    rig = (folder / "rig.yaml").read_text()
+    (folder / "rig.yaml").write_text(rig.replace("    intrinsics: cam0.yaml\n",
+                                                 "    model: pinhole-radtan\n", 1))
+    runs = [calibrate(folder, select=s) for s in (20, None)]
+    for run in runs:
+        cam = run.cameras["cam0"]
+        assert cam.intrinsics_estimated and len(cam.observations) >= 10
+        assert sum(r.reason == "wrong resolution (8 x 8, the images showing the target are "
+                   "640 x 480)" for r in cam.rejected) == 40
+    assert runs[0].cameras["cam0"].selection.refilled > 0
+    np.testing.assert_allclose(runs[0].T_ref_cam["cam1"], runs[1].T_ref_cam["cam1"], atol=1e-6)
+    np.testing.assert_allclose(runs[0].intrinsics["cam0"].params, runs[1].intrinsics["cam0"].params,
+                               rtol=1e-6)

@@ -30,6 +30,7 @@ from multieye.pipeline.recordings import (check_sync, image_notes, instant_keys,
                                           precomputed_poses, sync_instant)
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
+from multieye.pipeline.dry_run_sample import evenly_spaced, sampled_on
 from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
@@ -140,19 +141,12 @@ class DatasetCheck:
         return not self.reasons
 
 
-def _sample(n: int, k: int) -> list[int]:
-    """At most ``k`` evenly spaced indices of ``range(n)``, first and last included."""
-    if n <= k:
-        return list(range(n))
-    return sorted(set(np.linspace(0, n - 1, k).round().astype(int).tolist()))
-
-
 def _rotation(T_mocap: np.ndarray) -> tuple[float | None, tuple | None]:
     """Largest rotation between two of the poses (degrees; at most 300 poses evenly spaced)
     and the RMS rotation about the principal axes (degrees, descending)."""
     if len(T_mocap) < 2:
         return None, None
-    R = T_mocap[_sample(len(T_mocap), 300), :3, :3]
+    R = T_mocap[evenly_spaced(len(T_mocap), 300), :3, :3]
     cos = (np.einsum("aij,bij->ab", R, R) - 1.0) / 2.0      # tr(R_a R_b^T) = sum R_a * R_b
     range_deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max())
     spread = tuple(float(v) for v in np.degrees(rotation_spread(T_mocap)))
@@ -180,7 +174,7 @@ def _sample_bag(cam, target, intr, *, sample, processes):
     indices of the sampled messages and their detection results.
     """
 
-    wanted = _sample(bag_image_count(cam.rosbag, cam.topic), sample)
+    wanted = evenly_spaced(bag_image_count(cam.rosbag, cam.topic), sample)
     stamps_ns: list[int] = []
     picked: list[int] = []
 
@@ -285,15 +279,18 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
             names = tuple(p.name for _, _, p in images)
             stamps = np.array([s for s, _, _ in images], dtype=np.float64)
             n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
-            sampled_idx = _sample(len(images), sample)
+            def detect(indices):
+                return detect_and_estimate([images[i][2] for i in indices], target, intr,
+                                           processes=processes, progress=False)
+
+            first = evenly_spaced(len(images), sample)     # more while too few show the target
+            sampled_idx, results = sampled_on(len(images), first, detect(first), detect)
             paths = [images[i][2] for i in sampled_idx]
-            results = detect_and_estimate(paths, target, intr,
-                                          processes=processes, progress=False)
         elif cam.source == "video":
             listing = video_listing(cam)
             stamps = np.array([s for s, _, _ in listing], dtype=np.float64)
             n_listed, read, lost = len(listing), [], []
-            sampled = [listing[i] for i in _sample(len(listing), sample)]
+            sampled = [listing[i] for i in evenly_spaced(len(listing), sample)]
             results = detect_and_estimate_arrays(video_frames(cam, sampled, read, lost), target,
                                                  intr, processes=processes, progress=False)
             got = {label for _, label in read}
