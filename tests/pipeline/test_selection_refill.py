@@ -5,6 +5,7 @@ for a folder and a bag; a recording where half the frames are usable needs few m
 from __future__ import annotations
 
 import json
+import shutil
 
 import cv2
 import numpy as np
@@ -159,3 +160,16 @@ def test_images_of_another_size_leave_a_camera_whose_lens_is_estimated_calibrate
     np.testing.assert_allclose(runs[0].T_ref_cam["cam1"], runs[1].T_ref_cam["cam1"], atol=1e-6)
     np.testing.assert_allclose(runs[0].intrinsics["cam0"].params, runs[1].intrinsics["cam0"].params,
                                rtol=1e-6)
+
+
+def test_a_listing_error_of_the_selection_names_the_camera(mostly_unusable, tmp_path):
+    """The images listed for the choice before decoding refused a name that is not a time
+    stamp without naming the camera, which the same error names without the selection."""
+    folder = tmp_path / "d"
+    shutil.copytree(mostly_unusable, folder)
+    cv2.imwrite(str(folder / "cam0" / "IMG_0001.png"), TINY)
+    for select in (8, None):
+        with pytest.raises(DatasetError, match="IMG_0001.png: camera cam0: image name is not a "
+                                               "time stamp") as info:
+            calibrate(folder, select=select)
+        assert info.value.camera == "cam0"

@@ -42,8 +42,9 @@ from multieye.estimate.selection import (
     select_after_detection,
     select_before_decoding,
 )
-from multieye.io import RejectedItem, Rig, bag_image_count, list_images
+from multieye.io import RejectedItem, Rig, bag_image_count
 from multieye.pipeline.frames import bag_listing, video_listing
+from multieye.pipeline.recordings import listed_images
 from multieye.solvers.methods import MIN_MEASUREMENTS
 
 __all__ = ["SelectionSummary", "Chosen", "preselect", "preselected", "motion_first",
@@ -291,20 +292,20 @@ def motion_first(rig: Rig, select: int | None, time_offset) -> bool:
     if not select or time_offset == "auto":
         return False
     return any(cam.source in ("rosbag", "video")
-               or (cam.source == "images" and _over(cam, _budget(cam, select)))
-               for cam in rig.cameras.values())
+               or (cam.source == "images" and _over(rig, name, _budget(cam, select)))
+               for name, cam in rig.cameras.items())
 
 
-def _over(cam, budget: int) -> bool:
+def _over(rig: Rig, name: str, budget: int) -> bool:
     """Whether a camera's image folder holds more images than ``budget``; not listed when it
     holds no more entries than that (a folder that cannot be read is listed: its error
-    then)."""
+    then, naming the camera)."""
     try:
-        if len(os.listdir(cam.images)) <= budget:
+        if len(os.listdir(rig.cameras[name].images)) <= budget:
             return False
     except OSError:
         pass
-    return len(list_images(cam.images, cam.images_pattern)) > budget
+    return len(listed_images(rig, name)) > budget
 
 
 def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_stamps) -> dict:
@@ -326,7 +327,7 @@ def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_s
         if cam.source != "images":
             listed = video_listing(cam) if cam.source == "video" else bag_listing(cam)
         elif listed is None:
-            listed = list_images(cam.images, cam.images_pattern)
+            listed = listed_images(rig, name)
         if len(listed) > limit:
             listings[name] = listed
             offsets[name] = (0.0 if rig.mocap_for(name).by_name else
