@@ -134,7 +134,7 @@ def test_the_motion_capture_comes_first_only_where_the_detection_needs_it(tmp_pa
 
     def rig(source="images", by_name=False, lens=False, mocap=True):
         cam = SimpleNamespace(source=source, images=folder, images_pattern=None, estimate_intrinsics=lens)
-        return SimpleNamespace(has_mocap=mocap, cameras={"cam0": cam},
+        return SimpleNamespace(has_mocap=mocap, cameras={"cam0": cam}, sync="time",
                                mocap_for=lambda name: SimpleNamespace(by_name=by_name))
 
     assert motion_first(rig(), 5, "rig")                      # 6 images, budget 5
@@ -145,5 +145,5 @@ def test_the_motion_capture_comes_first_only_where_the_detection_needs_it(tmp_pa
     assert motion_first(rig(by_name=True), None, "rig")
     assert not motion_first(rig(by_name=True, mocap=False), 5, "rig")
     (folder / "x.png").write_bytes(b"")                       # not a stamp: the listing's error
-    with pytest.raises(DatasetError, match="not a time stamp"):
+    with pytest.raises(DatasetError, match="camera cam0: image name is not a time stamp"):
         motion_first(rig(), 5, "rig")
