@@ -173,3 +173,21 @@ def test_a_listing_error_of_the_selection_names_the_camera(mostly_unusable, tmp_
                                                "time stamp") as info:
             calibrate(folder, select=select)
         assert info.value.camera == "cam0"
+
+
+def test_the_line_says_when_every_image_left_fewer_usable_than_the_budget():
+    from multieye.pipeline.selection import SelectionSummary
+
+    short = SelectionSummary(budget=8, seen=154, kept=154, stage="before decoding",
+                             unusable=150, refilled=146)
+    assert short.line("cam0") == (
+        "cam0: 154 of 154 images selected before decoding (budget 8; 150 of the images chosen "
+        "proved unusable, so 146 more were chosen from the rest; 4 usable in all, fewer than "
+        "the budget)")
+    met = SelectionSummary(budget=8, seen=161, kept=113, stage="before decoding",
+                           unusable=105, refilled=105)
+    assert met.line("cam0").endswith("so 105 more were chosen from the rest)")
+    none_left = SelectionSummary(budget=8, seen=9, kept=9, stage="before decoding", unusable=3)
+    assert none_left.line("cam0").endswith(
+        "3 of the images chosen proved unusable, none left to add; 6 usable in all, fewer than "
+        "the budget)")

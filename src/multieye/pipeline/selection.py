@@ -88,8 +88,9 @@ class SelectionSummary:
                 "refilled": self.refilled}
 
     def line(self, camera: str) -> str:
-        """``cam0: 300 of 5400 images selected before decoding (budget 300)``, and how many
-        chosen images proved unusable and were replaced."""
+        """``cam0: 300 of 5400 images selected before decoding (budget 300)``, how many
+        chosen images proved unusable and were replaced, and how many proved usable when
+        that is fewer than the budget (every paired image tried)."""
         extra = (f"; {self.without_mocap} without motion capture not decoded"
                  if self.without_mocap else "")
         if self.refilled:
@@ -97,6 +98,9 @@ class SelectionSummary:
                       f"{self.refilled} more were chosen from the rest")
         elif self.unusable:
             extra += f"; {self.unusable} of the images chosen proved unusable, none left to add"
+        if self.unusable and self.stage == "before decoding" and \
+                self.kept - self.unusable < self.budget:    # every paired image was tried
+            extra += f"; {self.kept - self.unusable} usable in all, fewer than the budget"
         return (f"{camera}: {self.kept} of {self.seen} images selected {self.stage} "
                 f"(budget {self.budget}{extra})")
 
