@@ -170,7 +170,8 @@ def _sample_bag(cam, target, intr, *, sample, processes):
     The sample is drawn over the topic's messages in bag order (their count from the bag's
     index); only the sampled messages are decoded, the stamp of every other one is read from
     its header bytes, and the bag is read once, one message at a time (at most one batch of
-    sampled images in memory). Returns the stamps of all messages (seconds, bag order), the
+    sampled images in memory); read again for more while too few show the target
+    (:func:`sampled_on`). Returns the stamps of all messages (seconds, bag order), the
     indices of the sampled messages and their detection results.
     """
 
@@ -187,6 +188,14 @@ def _sample_bag(cam, target, intr, *, sample, processes):
     results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
                                          progress=False)
     stamps = np.array(stamps_ns, dtype=np.int64) * 1e-9
+
+    def more(indices):          # another pass over the bag, decoding only these
+        return detect_and_estimate_arrays(
+            ((f"{cam.topic}@{t}", image) for _, t, image in
+             sample_bag_images(cam.rosbag, cam.topic, indices)), target, intr,
+            processes=processes, progress=False)
+
+    picked, results = sampled_on(len(stamps), picked, results, more)
     return stamps, picked, results
 
 
