@@ -190,7 +190,7 @@ def _sample_bag(cam, target, intr, *, sample, processes):
     stamps = np.array(stamps_ns, dtype=np.int64) * 1e-9
 
     def more(indices):          # another pass over the bag, decoding only these
-        return detect_and_estimate_arrays(
+        return indices, detect_and_estimate_arrays(
             ((f"{cam.topic}@{t}", image) for _, t, image in
              sample_bag_images(cam.rosbag, cam.topic, indices)), target, intr,
             processes=processes, progress=False)
@@ -288,22 +288,29 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
             names = tuple(p.name for _, _, p in images)
             stamps = np.array([s for s, _, _ in images], dtype=np.float64)
             n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
+
             def detect(indices):
-                return detect_and_estimate([images[i][2] for i in indices], target, intr,
-                                           processes=processes, progress=False)
+                return indices, detect_and_estimate([images[i][2] for i in indices], target,
+                                                    intr, processes=processes, progress=False)
 
             first = evenly_spaced(len(images), sample)     # more while too few show the target
-            sampled_idx, results = sampled_on(len(images), first, detect(first), detect)
+            sampled_idx, results = sampled_on(len(images), *detect(first), detect)
             paths = [images[i][2] for i in sampled_idx]
         elif cam.source == "video":
             listing = video_listing(cam)
             stamps = np.array([s for s, _, _ in listing], dtype=np.float64)
-            n_listed, read, lost = len(listing), [], []
-            sampled = [listing[i] for i in evenly_spaced(len(listing), sample)]
-            results = detect_and_estimate_arrays(video_frames(cam, sampled, read, lost), target,
-                                                 intr, processes=processes, progress=False)
-            got = {label for _, label in read}
-            sampled_idx = [f.index for _, _, f in sampled if f.name in got]
+            n_listed, lost = len(listing), []
+
+            def frames(indices):    # a video's frame index is its place in the listing
+                read: list = []
+                found = detect_and_estimate_arrays(
+                    video_frames(cam, [listing[i] for i in indices], read, lost), target,
+                    intr, processes=processes, progress=False)
+                got = {label for _, label in read}
+                return [i for i in indices if listing[i][2].name in got], found
+
+            first = evenly_spaced(len(listing), sample)     # more while too few show it
+            sampled_idx, results = sampled_on(len(listing), *frames(first), frames)
             problems.extend(image_notes(lost))         # one line per cause
         else:
             stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,

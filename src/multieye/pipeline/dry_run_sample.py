@@ -47,7 +47,8 @@ def sampled_on(n: int, sampled: Sequence[int], results: Sequence,
     results : sequence of ImageResult
         Their results, in the same order.
     detect : callable
-        ``detect(indices) -> results`` of more images.
+        ``detect(indices) -> (done, results)`` of more images: the indices it could read
+        (a video's frame may not decode) and their results.
 
     Returns
     -------
@@ -55,15 +56,16 @@ def sampled_on(n: int, sampled: Sequence[int], results: Sequence,
         In listed order.
     """
     idx, res = list(sampled), list(results)
+    tried = set(idx)
     found = sum(r.reason is None for r in res)
-    while found < MIN_MEASUREMENTS and len(idx) < n:
-        tried = set(idx)
+    while found < MIN_MEASUREMENTS and len(tried) < n:
         rest = [i for i in range(n) if i not in tried]
-        ask = min(len(rest), math.ceil((MIN_MEASUREMENTS - found) * (len(idx) + 2) / (found + 1)))
+        ask = min(len(rest), math.ceil((MIN_MEASUREMENTS - found) * (len(tried) + 2) / (found + 1)))
         pick = [rest[k] for k in evenly_spaced(len(rest), ask)]
-        more = list(detect(pick))
-        idx += pick
-        res += more
+        done, more = detect(pick)
+        tried.update(pick)
+        idx += list(done)
+        res += list(more)
         found += sum(r.reason is None for r in more)
     order = np.argsort(idx, kind="stable")
     return [idx[k] for k in order], [res[k] for k in order]
