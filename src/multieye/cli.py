@@ -378,7 +378,8 @@ def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, **flags):
     EXIT_USER_ERROR: "calibrating would fail (one line per reason on stderr), or bad input"}))
 @click.argument("dataset", type=click.Path(path_type=Path))
 @click.option("--sample", type=click.IntRange(1), default=20, show_default=True,
-              help="Images per camera, evenly spaced, searched for the target.")
+              help="Images per camera, evenly spaced, searched for the target (more, from "
+                   "the rest, while fewer than 3 show it).")
 @click.option("--processes", type=click.IntRange(1), default=None,
               help="Detection processes (default, and at most: one per core this process "
                    "may use, one per image).")

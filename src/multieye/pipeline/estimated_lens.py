@@ -96,7 +96,23 @@ def check_model(name: str, intrinsics: Intrinsics, model: str | None, path) -> I
                        "give one or make them agree", path=path, camera=name)
 
 
+def sized_as_seen(results: Sequence[ImageResult]) -> list[ImageResult]:
+    """A camera's results (lens estimated: no intrinsics give its image size) with the images
+    of another size than every image showing the target left out as of the wrong
+    resolution, like those that given intrinsics refuse; unchanged when the target is found
+    in images of several sizes (:func:`start_lens` refuses them) or in none.  Frames of
+    another size among a recording's (a preview, a thumbnail) refused the whole camera."""
+    seen = {r.image_size for r in results if r.reason is None and r.image_size is not None}
+    if len(seen) != 1:
+        return list(results)
+    (w, h), = seen
+    return [r if r.image_size in (None, (w, h)) else replace(
+        r, pose=None, detection=None, parts=(), reason=f"wrong resolution ({r.image_size[0]} x "
+        f"{r.image_size[1]}, the images showing the target are {w} x {h})") for r in results]
+
+
 def _image_size(name: str, results: Sequence[ImageResult], where) -> tuple[int, int]:
+    results = [r for r in results if not (r.reason or "").startswith("wrong resolution")]
     sizes = {r.image_size for r in results if r.image_size is not None}
     if not sizes:
         raise DatasetError("no image could be read to estimate the intrinsics from",
@@ -141,7 +157,8 @@ def lens_start(name: str, model: str, results: Sequence[ImageResult],
     :func:`start_lens`, or by a worker process: :func:`multieye.imaging.calibrate.
     lens_start_task`), with what the views lack for ``model``."""
     views = _views(results)
-    size = next(r.image_size for r in results if r.image_size is not None)
+    size = next(r.image_size for r in sorted(results, key=lambda r: r.reason is not None)
+                if r.image_size is not None)                # an image showing the target first
     _check_layout(name, views, start)
     warnings = weak_data_warnings(name, model, views, start.T_cam_target, size)
     return LensStart(start.intrinsics, start.rms_px, len(views),
