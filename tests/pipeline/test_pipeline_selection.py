@@ -133,7 +133,8 @@ def test_the_motion_capture_comes_first_only_where_the_detection_needs_it(tmp_pa
     (folder / "notes.txt").write_text("")       # an entry, not an image
 
     def rig(source="images", by_name=False, lens=False, mocap=True):
-        cam = SimpleNamespace(source=source, images=folder, images_pattern=None, estimate_intrinsics=lens)
+        cam = SimpleNamespace(source=source, images=folder, images_pattern=None, estimate_intrinsics=lens,
+                              stamps=None)
         return SimpleNamespace(has_mocap=mocap, cameras={"cam0": cam}, sync="time",
                                mocap_for=lambda name: SimpleNamespace(by_name=by_name))
 

@@ -23,6 +23,9 @@ import numpy as np
 
 from multieye.imaging.image_file import checked_bytes, decode_gray, turns_to_fit
 
+#: The drawn images' JPEG quality, 0-100.
+JPEG_QUALITY = 82
+
 __all__ = ["residual_thumbnail", "crop_box", "POINT_BGR", "RESIDUAL_BGR"]
 
 #: Colour of the detected points (cyan) and of the residual lines (magenta), BGR.
@@ -70,7 +73,7 @@ def crop_box(uv: np.ndarray, width: float, height: float, margin: float = 0.25,
 
 
 def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.ndarray, *,
-                       magnify: float, max_width: int = 480, quality: int = 82,
+                       magnify: float, max_width: int = 480,
                        image_size: tuple[int, int] | None = None, crop: bool = True,
                        region: tuple[int, int, int, int] | None = None) -> bytes | None:
     """A downscaled grey copy of an image with its points and magnified residuals, as JPEG.
@@ -87,8 +90,6 @@ def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.nda
         Drawn length of a residual line per pixel of residual (in full-size pixels).
     max_width : int
         Width of the picture at most, pixels (never enlarged).
-    quality : int
-        JPEG quality, 0-100.
     image_size : (int, int), optional
         Full-size width and height; when given, a file of another size is refused (None).
     crop : bool
@@ -142,5 +143,5 @@ def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.nda
         cv2.circle(picture, (int(p[0]), int(p[1])), 3 << shift, POINT_BGR, 1, cv2.LINE_AA,
                    shift)
     cv2.polylines(picture, list(lines), False, RESIDUAL_BGR, 1, cv2.LINE_AA, shift)
-    ok_, jpeg = cv2.imencode(".jpg", picture, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    ok_, jpeg = cv2.imencode(".jpg", picture, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
     return bytes(jpeg) if ok_ else None
