@@ -31,11 +31,11 @@ from scipy.sparse import lil_matrix
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.lens import project_points
+from multieye.core.lens import project_points, unproject_points
 from multieye.estimate import hypotheses as h
 
 __all__ = ["MIN_DISTORTION_VIEWS", "MIN_LENS_VIEWS", "LensTest", "lacks_distortion",
-           "free_distortion", "lens_bound", "lens_search"]
+           "lens_bend", "free_distortion", "lens_bound", "lens_search"]
 
 F64 = NDArray[np.float64]
 
@@ -58,16 +58,62 @@ def lacks_distortion(intr: Intrinsics) -> bool:
     return intr.model in _RADIAL_FIRST and not np.any(intr.dist)
 
 
+def lens_bend(pixels: F64, intr: Intrinsics) -> float:
+    """How far the lens bends the rays of ``pixels`` from those of its camera matrix alone:
+    the angle between each pixel's ray under ``intr`` and under a distortion-free pinhole
+    with the same camera matrix, in pixels at the focal length, at its 90th percentile over
+    the pixels (the outer target points, where a distortion shows; 0 for a lens without
+    distortion; NaN when no pixel unprojects).
+
+    Parameters
+    ----------
+    pixels : ndarray, shape (N, 2)
+        Observed pixels.
+    intr : Intrinsics
+        Any model.
+    """
+    uv = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+    with np.errstate(all="ignore"):
+        rays = unproject_points(uv, intr)
+        plain = np.column_stack([(uv[:, 0] - intr.K[0, 2]) / intr.K[0, 0],
+                                 (uv[:, 1] - intr.K[1, 2]) / intr.K[1, 1], np.ones(len(uv))])
+        plain /= np.linalg.norm(plain, axis=1, keepdims=True)
+        angle = np.arccos(np.clip(np.sum(rays * plain, axis=1), -1.0, 1.0))
+    angle = angle[np.isfinite(angle)]
+    return float(np.percentile(angle, 90) * intr.K[0, 0]) if angle.size else math.nan
+
+
+#: Where each model's first two radial coefficients are in ``Intrinsics.dist`` (the unified
+#: model's after xi); double-sphere and eucm have none and free their own two parameters.
+_RADIAL_AT = {"pinhole": 0, "fisheye": 0, "unified": 1, "double-sphere": 0, "eucm": 0}
+
+
 def _with_radial(intr: Intrinsics, k: F64) -> Intrinsics:
-    dist = np.zeros(_RADIAL_FIRST[intr.model])      # OpenCV's 5 (pinhole), or 4 (fisheye)
-    dist[:2] = k
+    """``intr`` with its two radial coefficients (:data:`_RADIAL_AT`) set to ``k``; a lens
+    without distortion gets OpenCV's 5 (pinhole) or 4 (fisheye) coefficients."""
+    if lacks_distortion(intr):
+        dist = np.zeros(_RADIAL_FIRST[intr.model])
+    else:
+        dist = np.array(intr.dist, dtype=np.float64)
+    at = _RADIAL_AT[intr.model]
+    dist[at:at + 2] = k
     return Intrinsics(K=intr.K, dist=dist, model=intr.model, width=intr.width,
                       height=intr.height)
 
 
+def _radial(intr: Intrinsics) -> F64:
+    """The two coefficients :func:`_with_radial` sets, as ``intr`` gives them."""
+    if lacks_distortion(intr):
+        return np.zeros(2)
+    at = _RADIAL_AT[intr.model]
+    return np.array(intr.dist[at:at + 2], dtype=np.float64)
+
+
 def free_distortion(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
                     intr: Intrinsics) -> Intrinsics | None:
-    """``intr`` with k1 and k2 fitted to the views (module docstring).
+    """``intr`` with k1 and k2 fitted to the views (module docstring); the other coefficients
+    as given (a lens given with distortion: its two radial coefficients refitted, the
+    double-sphere and eucm lenses their two parameters).
 
     Parameters
     ----------
@@ -77,25 +123,26 @@ def free_distortion(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
     T_cam_target : ndarray, shape (len(views), 4, 4)
         Starting pose of each view (PnP with ``intr``).
     intr : Intrinsics
-        The given lens (:func:`lacks_distortion`); its camera matrix is kept.
+        The given lens; its camera matrix is kept.
 
     Returns
     -------
     Intrinsics or None
-        The camera matrix of ``intr`` with the fitted k1, k2 (the other coefficients zero);
-        None with fewer than :data:`MIN_DISTORTION_VIEWS` views or when the fit fails.
+        The camera matrix of ``intr`` with the fitted k1, k2 (the other coefficients as
+        given, zero for a lens given without); None with fewer than
+        :data:`MIN_DISTORTION_VIEWS` views or when the fit fails.
     """
     from scipy.optimize import least_squares  # noqa: PLC0415 (heavy: it imports scipy.spatial, which nothing else on a calibration's path needs; only when a lens is freed)
 
     n = len(views)
-    if n < MIN_DISTORTION_VIEWS or not lacks_distortion(intr):
+    if n < MIN_DISTORTION_VIEWS or (intr.dist.size < 2 and not lacks_distortion(intr)):
         return None
     obj = [np.asarray(o, dtype=np.float64) for o, _ in views]
     img = np.concatenate([np.asarray(u, dtype=np.float64) for _, u in views])
     which = np.repeat(np.arange(n), [len(o) for o in obj])
     P = np.concatenate(obj)
     T = np.asarray(T_cam_target, dtype=np.float64)
-    x0 = np.concatenate([np.zeros(2), np.concatenate(
+    x0 = np.concatenate([_radial(intr), np.concatenate(
         [g.rotvec_from_transform(T), T[:, :3, 3]], axis=1).ravel()])
 
     def residuals(x: F64) -> F64:
@@ -203,20 +250,22 @@ def _loop_residual(cam: h.CameraEvidence, T_cam_target: F64) -> tuple[float, flo
             float(np.mean(np.linalg.norm(r[:, 3:], axis=1))))
 
 
-def lens_search(cam: h.CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTest | None:
+def lens_search(cam: h.CameraEvidence, mocap_sigma: tuple[float, float], *,
+                radial_only: bool = False) -> LensTest | None:
     """Free the lens: fit the camera's intrinsics to its own detections and compare the
     reprojection and loop residuals with those of the given lens.  A lens given without
-    distortion keeps its camera matrix and gets k1 and k2 (:func:`multieye.estimate.
-    lens_freed.free_distortion`, from 3 views); any other, every parameter of its model
-    (:func:`multieye.imaging.calibrate.initial_intrinsics`, from :data:`MIN_LENS_VIEWS`).
-    None with too few views, fewer than 8 points per view (one marker's 4 corners do not
-    determine a lens), or when the fit fails."""
+    distortion, or any lens with ``radial_only``, keeps its camera matrix and gets its k1 and
+    k2 refitted (:func:`multieye.estimate.lens_freed.free_distortion`, from 3 views); any
+    other, every parameter of its model (:func:`multieye.imaging.calibrate.
+    initial_intrinsics`, from :data:`MIN_LENS_VIEWS`).  None with too few views, fewer than 8
+    points per view (one marker's 4 corners do not determine a lens), or when the fit
+    fails."""
     if not cam.has_points:
         return None
     if np.median([len(p) for p in cam.image_points]) < _MIN_LENS_POINTS:
         return None
     intr = cam.intrinsics
-    if lacks_distortion(intr):
+    if radial_only or lacks_distortion(intr):
         given = _pnp_with_rms(cam, intr)
         freed = None if given is None else free_distortion(
             list(zip(cam.object_points, cam.image_points)), given[0], intr)

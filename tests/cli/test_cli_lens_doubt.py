@@ -1,0 +1,61 @@
+"""Issue 33, item 4, end to end without motion capture: a rendered overlap rig whose camera
+cam1 is given its camera matrix without the distortion (k1 -0.17) in a ROS CameraInfo file
+(``D: []``) exits 3 naming cam1, the missing distortion, the pose residuals before and after
+and how to estimate the lens (before: exit 0, cam1 8 mm from the truth with a sigma of
+0.4 mm); the same rig with every lens as rendered exits 0 without doubt."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from multieye.cli import main
+from multieye.io.intrinsics_files import read_intrinsics
+from multieye.sim.overlap import OverlapSpec, render_overlap_dataset
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory) -> Path:
+    ds = tmp_path_factory.mktemp("lens_doubt") / "ds"
+    render_overlap_dataset(ds, OverlapSpec(n_instants=12, width=640, height=480, fisheye=()),
+                           seed=0)
+    return ds
+
+
+def _calibrate(ds: Path, out: Path):
+    res = CliRunner().invoke(main, ["calibrate", str(ds), "-o", str(out), "--processes", "1",
+                                    "--no-report"])
+    return res, json.loads((out / "calibration.json").read_text())
+
+
+def test_the_rendered_lenses_raise_no_doubt(rig, tmp_path):
+    res, cal = _calibrate(rig, tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    assert cal["plausibility"] == []
+
+
+def test_camera_info_without_distortion_is_named(rig, tmp_path):
+    intr = read_intrinsics(rig / "cam1.yaml")
+    assert intr.dist[0] < -0.1
+    K = intr.K
+    (rig / "cam1_info.yaml").write_text(
+        f"height: 480\nwidth: 640\ndistortion_model: plumb_bob\nD: []\n"
+        f"K: [{K[0, 0]}, 0, {K[0, 2]}, 0, {K[1, 1]}, {K[1, 2]}, 0, 0, 1]\n"
+        "R: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n"
+        f"P: [{K[0, 0]}, 0, {K[0, 2]}, 0, 0, {K[1, 1]}, {K[1, 2]}, 0, 0, 0, 1, 0]\n")
+    text = (rig / "rig.yaml").read_text()
+    (rig / "rig_info.yaml").write_text(text.replace("intrinsics: cam1.yaml",
+                                                    "intrinsics: cam1_info.yaml"))
+    res, cal = _calibrate(rig / "rig_info.yaml", tmp_path / "out")
+    assert res.exit_code == 3, res.output
+    doubts = cal["plausibility"]
+    assert [(d["cause"], d["camera"]) for d in doubts if d["cause"] == "intrinsics"] == [
+        ("intrinsics", "cam1")], doubts
+    m = next(d["message"] for d in doubts if d["cause"] == "intrinsics")
+    for w in ("left out of the intrinsics file", "distortion none -> k1",
+              "mean pose residual against the rig", "model: instead of intrinsics:"):
+        assert w in m, m
+    assert "intrinsics: camera cam1's lens freed" in res.output
