@@ -21,7 +21,7 @@ from multieye.estimate.hypotheses import CameraEvidence
 
 __all__ = ["LENS_PIXEL_GAIN", "MIN_LENS_EXCESS_PX", "MIN_GIVEN_LENS_RMS_PX",
            "BARE_LENS_PIXEL_GAIN", "BARE_LENS_POSE_GAIN", "given_lens_findings",
-           "lens_message"]
+           "lens_message", "radial_doubt"]
 
 #: Fewest-fold drop of the median reprojection RMS when the lens is freed, for the given lens
 #: to be doubted on its pixels alone (the freed lens shows the detection noise: a correct lens
@@ -93,15 +93,22 @@ def given_lens_findings(cameras: Sequence[CameraEvidence]) -> tuple[Finding, ...
 def _pixels_doubt(test: lf.LensTest, radial: bool) -> bool:
     """Whether the freed lens's pixels alone doubt the given one (rigs without motion
     capture): :data:`LENS_PIXEL_GAIN` times and :data:`MIN_LENS_EXCESS_PX` less RMS; or, with
-    only k1 and k2 refitted (``radial``: two parameters, which a correct lens's noise moves
-    the RMS by a fraction of a percent), :data:`BARE_LENS_PIXEL_GAIN` times less RMS with
-    the camera's pose residuals against the rig :data:`BARE_LENS_POSE_GAIN` times smaller
-    in rotation and translation (the distortion moves the result, not only the pixels)."""
+    only k1 and k2 refitted (``radial``), :func:`radial_doubt`."""
     ratio = test.rms_given_px / max(test.rms_freed_px, 1e-9)
     excess = math.sqrt(max(test.rms_given_px ** 2 - test.rms_freed_px ** 2, 0.0))
     if ratio >= LENS_PIXEL_GAIN and excess >= MIN_LENS_EXCESS_PX:
         return True
-    if not radial or ratio < BARE_LENS_PIXEL_GAIN:
+    return radial and radial_doubt(test)
+
+
+def radial_doubt(test: lf.LensTest) -> bool:
+    """Whether the given lens is doubted against itself with k1 and k2 refitted (two
+    parameters, which move a right lens's RMS by a fraction of a percent):
+    :data:`BARE_LENS_PIXEL_GAIN` times less RMS with the camera's mean pose (loop) residuals
+    :data:`BARE_LENS_POSE_GAIN` times smaller in both rotation and translation (the
+    distortion moves the result, not only the pixels)."""
+    ratio = test.rms_given_px / max(test.rms_freed_px, 1e-9)
+    if ratio < BARE_LENS_PIXEL_GAIN:
         return False
     gains = [b / a for b, a in zip(test.loop_given, test.loop_freed) if a > 0 and np.isfinite(b)]
     return len(gains) == 2 and min(gains) >= BARE_LENS_POSE_GAIN
