@@ -161,3 +161,51 @@ def test_a_mild_distortion_left_out_is_named_under_robot_noise():
     m = check_plausibility([_with_intrinsics(st, obj, img, _lens(np.zeros(5)))], clock=False,
                            **robot).findings[0].message
     assert "mean loop residual" in m and "left out of the intrinsics file" in m, m
+
+
+def _wide_camera(truth: Intrinsics, given: Intrinsics, fov: float, seed: int) -> CameraEvidence:
+    """:func:`_camera` for a wide lens: 12 views spread over its field (0.2 px noise)."""
+    from multieye.sim.wide_lens import board_views
+
+    views, T = board_views(truth, fov, 12, np.random.default_rng(seed))
+    T_ref_cam = g.transform_from_rotvec([0.0, 0.6, 0.0], [-0.67, 0.0, 0.2])
+    B, rms = [], []
+    for o, u in views:
+        est = estimate_pose(Detection(np.arange(len(o)), u, o), given)
+        B.append(g.inv(est.T_cam_target))
+        rms.append(est.rms_px)
+    M = T_ref_cam @ T
+    return CameraEvidence("cam1", g.inv(M), np.stack(B), M, intrinsics=given,
+                          object_points=tuple(o for o, _ in views),
+                          image_points=tuple(u for _, u in views), rms_px=np.array(rms))
+
+
+@pytest.mark.parametrize("scale, cause", [(0.0, "left out of the intrinsics file"),
+                                          (0.25, "far weaker lens distortion")])
+def test_a_unified_lens_without_its_radial_tangential_part_is_named(scale, cause):
+    """A 190-degree unified lens (xi 1.1, k1 -0.08) given as Kalibr's omni with radtan
+    [0, 0, 0, 0] (or a quarter of it): named with xi kept and the distortion missing (or
+    far weaker); before, as a lens of another camera whose 'k1' was xi."""
+    from multieye.sim.wide_lens import wide_lens
+
+    truth = wide_lens("unified", 190.0)
+    dist = truth.dist.copy()
+    dist[1:] *= scale
+    given = Intrinsics(K=truth.K, dist=dist, model="unified", width=truth.width,
+                       height=truth.height)
+    found = given_lens_findings([_wide_camera(truth, given, 190.0, 1)])
+    assert [f.cause for f in found] == ["intrinsics"], found
+    m = found[0].message
+    assert cause in m and "do not belong" not in m, m
+    assert "-> xi 1.1, k1 -0.0" in m, m
+    assert ("distortion xi 1.1, no k1 k2 p1 p2 ->" in m) == (scale == 0.0), m
+
+
+@pytest.mark.parametrize("model, fov", [("unified", 190.0), ("double-sphere", 220.0),
+                                        ("eucm", 190.0), ("fisheye", 170.0)])
+def test_a_right_wide_lens_is_not_doubted(model, fov):
+    from multieye.sim.wide_lens import wide_lens
+
+    truth = wide_lens(model, fov)
+    for seed in range(3):
+        assert given_lens_findings([_wide_camera(truth, truth, fov, 100 + seed)]) == ()

@@ -34,7 +34,8 @@ from multieye.core.lens import project_points, project_with_jacobian, unproject_
 from multieye.estimate import hypotheses as h
 
 __all__ = ["MIN_DISTORTION_VIEWS", "MIN_LENS_VIEWS", "LensTest", "lacks_distortion",
-           "lens_bend", "free_distortion", "lens_bound", "lens_search"]
+           "lens_bend", "distortion_part", "distortion_missing",
+           "free_distortion", "lens_bound", "lens_search"]
 
 F64 = NDArray[np.float64]
 
@@ -60,26 +61,53 @@ def lacks_distortion(intr: Intrinsics) -> bool:
     return intr.model in _RADIAL_FIRST and not np.any(intr.dist)
 
 
+def distortion_part(intr: Intrinsics) -> F64 | None:
+    """The coefficients of ``intr`` that an intrinsics file states as its distortion: all of
+    a pinhole's or fisheye's, a unified lens's radial-tangential ones after xi; None for the
+    double-sphere and eucm lenses, whose two parameters are their projection."""
+    if intr.model in _RADIAL_FIRST:
+        return np.asarray(intr.dist, dtype=np.float64)
+    if intr.model == "unified":
+        return np.asarray(intr.dist[1:], dtype=np.float64)
+    return None
+
+
+def distortion_missing(intr: Intrinsics) -> bool:
+    """Whether ``intr`` states no distortion (its :func:`distortion_part` none or zeros)."""
+    part = distortion_part(intr)
+    return part is not None and not np.any(part)
+
+
+def _without_distortion(intr: Intrinsics) -> Intrinsics:
+    """``intr`` with its :func:`distortion_part` zero (a pinhole: its camera matrix alone; a
+    fisheye: the equidistant projection; a unified lens: its xi alone)."""
+    dist = np.zeros_like(np.asarray(intr.dist, dtype=np.float64))
+    if intr.model == "unified":
+        dist[0] = intr.dist[0]
+    return Intrinsics(K=intr.K, dist=dist, model=intr.model, width=intr.width,
+                      height=intr.height)
+
+
 def lens_bend(pixels: F64, intr: Intrinsics) -> float:
-    """How far the lens bends the rays of ``pixels`` from those of its camera matrix alone:
-    the angle between each pixel's ray under ``intr`` and under a distortion-free pinhole
-    with the same camera matrix, in pixels at the focal length, at its 90th percentile over
-    the pixels (the outer target points, where a distortion shows; 0 for a lens without
-    distortion; NaN when no pixel unprojects).
+    """How far the distortion of ``intr`` bends the rays of ``pixels``: the angle between
+    each pixel's ray under ``intr`` and under the same lens without its distortion
+    (:func:`distortion_part` zero), in pixels at the focal length, at its 90th percentile
+    over the pixels (the outer target points, where a distortion shows; 0 for a lens
+    without distortion; NaN when no pixel unprojects, or for the double-sphere and eucm
+    lenses, which have no distortion apart from their projection).
 
     Parameters
     ----------
     pixels : ndarray, shape (N, 2)
         Observed pixels.
     intr : Intrinsics
-        Any model.
     """
+    if distortion_part(intr) is None:
+        return math.nan
     uv = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
     with np.errstate(all="ignore"):
         rays = unproject_points(uv, intr)
-        plain = np.column_stack([(uv[:, 0] - intr.K[0, 2]) / intr.K[0, 0],
-                                 (uv[:, 1] - intr.K[1, 2]) / intr.K[1, 1], np.ones(len(uv))])
-        plain /= np.linalg.norm(plain, axis=1, keepdims=True)
+        plain = unproject_points(uv, _without_distortion(intr))
         angle = np.arccos(np.clip(np.sum(rays * plain, axis=1), -1.0, 1.0))
     angle = angle[np.isfinite(angle)]
     return float(np.percentile(angle, 90) * intr.K[0, 0]) if angle.size else math.nan
@@ -310,7 +338,7 @@ def lens_search(cam: h.CameraEvidence, mocap_sigma: tuple[float, float], *,
     if np.median([len(p) for p in cam.image_points]) < _MIN_LENS_POINTS:
         return None
     intr = cam.intrinsics
-    if radial_only or lacks_distortion(intr):
+    if radial_only or distortion_missing(intr):
         cam = _fewer_views(cam, _MAX_RADIAL_VIEWS)
         given = _pnp_with_rms(cam, intr)
         freed = None if given is None else free_distortion(

@@ -331,7 +331,7 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
     pixels = ratio >= LENS_PIXEL_GAIN and excess >= MIN_LENS_EXCESS_PX
     loop = (ratio >= _LENS_LOOP_PIXEL_GAIN and test.cost_given >= POOR_COST
             and _gain(test.cost_given, test.cost_freed) >= CONTINUOUS_GAIN)
-    radial = (quiet or lf.lacks_distortion(cam.intrinsics)) and radial_doubt(test)
+    radial = (quiet or lf.distortion_missing(cam.intrinsics)) and radial_doubt(test)
     if not (pixels or loop or radial):
         return None
     return lens_message(cam, test, loop=True)
