@@ -394,7 +394,8 @@ def _rig(rec: CalibrationRecord, details: RunDetails | None, figures: Mapping[st
             f"{where}{unc}</p></section>")
 
 
-def _residual_figures(details: RunDetails | None, figures: Mapping[str, bytes]) -> str:
+def _residual_figures(rec: CalibrationRecord, details: RunDetails | None,
+                      figures: Mapping[str, bytes]) -> str:
     if details is None:
         missing = ('<p class="note">Per-image residuals are in <code>details.json</code>, which '
                    "this output folder does not have; rerun <code>multieye calibrate</code> to "
@@ -404,7 +405,8 @@ def _residual_figures(details: RunDetails | None, figures: Mapping[str, bytes]) 
     return "".join([
         '<section id="histograms"><h2>Residual histograms</h2>',
         _figure(figures["residual_histograms.png"], "residual histograms per camera",
-                "Loop residuals of every used image, one row per camera; bins are shared "
+                f"{'Loop' if rec.mocap else 'Pose'} residuals of every used image, one row "
+                "per camera; bins are shared "
                 "down each column so that cameras compare at a glance. Solid line: "
                 "median, dashed: mean.", "residual_histograms.png"),
         "</section>",
@@ -508,7 +510,7 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
     body = "".join([
         _summary(rec, Path(out_dir)), _warnings(rec, notes), _rig(rec, details, figures, rig_legend),
         images_section(rec, details, thumbnails or {}), _extrinsics(rec),
-        _residuals(rec, details), _residual_figures(details, figures),
+        _residuals(rec, details), _residual_figures(rec, details, figures),
         cameras_section(rec, details, figures), diagnostics_section(rec, details),
         _rejected(rec, details),
         f"<footer>Written by multieye {escape(__version__)} from <code>calibration.json</code>"

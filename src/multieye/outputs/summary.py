@@ -135,10 +135,11 @@ def calibration_table(rec: CalibrationRecord) -> str:
     After the :func:`headline`, every camera's own unknown ``X`` (``T_world_cam`` or ``T_body_cam``) as tx ty tz
     (metres) and yaw pitch roll (degrees, ``R = Rz(yaw) Ry(pitch) Rx(roll)``) with its
     standard deviations (root of the trace of its rotation and translation covariance) and
-    the measurements used and rejected, mean loop residuals (degrees, millimetres) and
-    reprojection RMS (pixels); then the shared ``Y`` with its own; then, with several
-    cameras, ``T_ref_cam`` relative to the reference camera; then estimated intrinsics with
-    their standard deviations, rejected items and warnings.
+    the measurements used and rejected, mean loop residuals (degrees, millimetres; without
+    motion capture the pose residuals, labelled so) and reprojection RMS (pixels); then the
+    shared ``Y`` with its own; then, with several cameras, ``T_ref_cam`` relative to the
+    reference camera; then estimated intrinsics with their standard deviations, rejected
+    items and warnings.
     """
     if rec.mocap:
         y_key, x_key = SETUP_KEYS[rec.setup]
@@ -148,8 +149,9 @@ def calibration_table(rec: CalibrationRecord) -> str:
         y_name, x_name = None, "T_ref_cam"
     pose_head = ["tx m", "ty m", "tz m", "yaw deg", "pitch deg", "roll deg", "std deg",
                  "std mm"]
-    header = ["camera", "used", "rejected", "loop e_R deg", "loop e_t mm", "reproj px",
-              *pose_head, "offset ms", "offset std ms"]
+    residual = "loop" if rec.mocap else "pose"       # without motion capture: a diagnostic
+    header = ["camera", "used", "rejected", f"{residual} e_R deg", f"{residual} e_t mm",
+              "reproj px", *pose_head, "offset ms", "offset std ms"]
     rows = []
     for c in rec.cameras:
         r = c.residuals
