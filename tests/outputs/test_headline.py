@@ -130,3 +130,10 @@ def test_calibrate_many_gives_each_datasets_headline(tmp_path):
     head = line.split("; ", 1)[1]
     assert head.startswith("overlap, method covisibility, reference cam0: reprojection RMS ")
     assert "sigma of T_ref_cam cam1 " in head and "loop" not in head
+
+
+def test_pixel_methods_are_the_pipelines_names():
+    from multieye.outputs.summary import PIXEL_METHODS
+    from multieye.pipeline.overlap_run import METHOD, MOTION_METHOD
+
+    assert set(PIXEL_METHODS) == {METHOD, MOTION_METHOD}
