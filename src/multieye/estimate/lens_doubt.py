@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -20,7 +21,8 @@ from multieye.estimate.findings import Finding, _times
 from multieye.estimate.hypotheses import CameraEvidence
 
 __all__ = ["LENS_PIXEL_GAIN", "MIN_LENS_EXCESS_PX", "MIN_GIVEN_LENS_RMS_PX",
-           "BARE_LENS_PIXEL_GAIN", "BARE_LENS_POSE_GAIN", "given_lens_findings",
+           "BARE_LENS_PIXEL_GAIN", "BARE_LENS_POSE_GAIN", "ALONE_PIXEL_GAIN",
+           "given_lens_findings",
            "lens_message", "radial_doubt"]
 
 #: Fewest-fold drop of the median reprojection RMS when the lens is freed, for the given lens
@@ -41,6 +43,10 @@ MIN_GIVEN_LENS_RMS_PX = 0.5
 #: The pose residuals decide; the RMS only has to drop (by more than two parameters' share).
 BARE_LENS_PIXEL_GAIN = 1.05
 BARE_LENS_POSE_GAIN = 1.5
+#: A camera alone, given without distortion: fewest-fold drop of the median reprojection RMS
+#: with k1 and k2 freed (a right lens: 1.00; k1 -0.05 left out on a rendered 640 x 480 camera:
+#: 1.52).
+ALONE_PIXEL_GAIN = 1.3
 
 
 def _coefficients(intr) -> str:
@@ -56,7 +62,8 @@ def _coefficients(intr) -> str:
     return ", ".join(f"{n} {v:.3g}" for n, v in zip(names, intr.dist))
 
 
-def given_lens_findings(cameras: Sequence[CameraEvidence]) -> tuple[Finding, ...]:
+def given_lens_findings(cameras: Sequence[CameraEvidence], *, alone: bool = False
+                        ) -> tuple[Finding, ...]:
     """Rigs without motion capture: each camera's given lens against the lens freed on its
     own detections, judged on the pixels alone (no motion capture to close a loop with).
 
@@ -77,6 +84,10 @@ def given_lens_findings(cameras: Sequence[CameraEvidence]) -> tuple[Finding, ...
     cameras : sequence of CameraEvidence
         The cameras with given intrinsics (``intrinsics_estimated`` False) and their views'
         points and PnP RMS; ``A``, ``B`` the rig's layout (board in the reference camera).
+    alone : bool
+        The rig is one camera: its board poses are its own PnP poses, so its pose residuals
+        say nothing of the lens; a lens given without distortion is doubted on the pixels
+        (:data:`ALONE_PIXEL_GAIN`), the message gives no pose residuals.
 
     Returns
     -------
@@ -90,10 +101,21 @@ def given_lens_findings(cameras: Sequence[CameraEvidence]) -> tuple[Finding, ...
         # refitted (cheap); one that does not, every parameter
         close = float(np.median(cam.rms_px)) < MIN_GIVEN_LENS_RMS_PX
         test = lf.lens_search(cam, h.MOCAP_NOISE, radial_only=close)
-        if test is not None and _pixels_doubt(test, radial=close or lf.distortion_missing(
-                cam.intrinsics)):
+        if test is None:
+            continue
+        if alone:
+            test = replace(test, loop_given=(math.nan, math.nan),
+                           loop_freed=(math.nan, math.nan))
+        bare = lf.distortion_missing(cam.intrinsics)
+        if _pixels_doubt(test, radial=close or bare) or (alone and bare and _gain(test) >= (
+                ALONE_PIXEL_GAIN)):
             out.append(lens_message(cam, test, loop=False))
     return tuple(out)
+
+
+def _gain(test: lf.LensTest) -> float:
+    """How many times the freed lens lowers the median reprojection RMS."""
+    return test.rms_given_px / max(test.rms_freed_px, 1e-9)
 
 
 def _pixels_doubt(test: lf.LensTest, radial: bool) -> bool:
