@@ -59,3 +59,27 @@ def test_camera_info_without_distortion_is_named(rig, tmp_path):
               "mean pose residual against the rig", "model: instead of intrinsics:"):
         assert w in m, m
     assert "intrinsics: camera cam1's lens freed" in res.output
+
+
+def test_fisheye_in_basalt_json_without_distortion_is_named(tmp_path):
+    """The rig's fisheye camera (k1 0.05) given as Basalt's kb4 with k1..k4 zero: its PnP
+    poses absorb the distortion (RMS 0.096 -> 0.095 px with k1, k2 freed) while its pose
+    residuals against the rig halve (0.23 -> 0.11 deg, 5.2 -> 2.4 mm): exit 3 naming cam2
+    (before: exit 0)."""
+    ds = tmp_path / "ds"
+    render_overlap_dataset(ds, OverlapSpec(n_instants=14, width=640, height=480), seed=0)
+    intr = read_intrinsics(ds / "cam2.yaml")
+    assert intr.model == "fisheye" and intr.dist[0] > 0.03
+    (fx, _, cx), (_, fy, cy) = intr.K[0], intr.K[1]
+    (ds / "basalt.json").write_text(json.dumps({"value0": {
+        "intrinsics": [{"camera_type": "kb4", "intrinsics": {
+            "fx": fx, "fy": fy, "cx": cx, "cy": cy, "k1": 0, "k2": 0, "k3": 0, "k4": 0}}],
+        "resolution": [[640, 480]]}}))
+    text = (ds / "rig.yaml").read_text()
+    (ds / "rig.yaml").write_text(text.replace("intrinsics: cam2.yaml",
+                                              "intrinsics: {file: basalt.json, camera: cam0}"))
+    res, cal = _calibrate(ds, tmp_path / "out")
+    assert res.exit_code == 3, res.output
+    (doubt,) = [d for d in cal["plausibility"] if d["cause"] == "intrinsics"]
+    assert doubt["camera"] == "cam2"
+    assert "left out of the intrinsics file" in doubt["message"], doubt["message"]
