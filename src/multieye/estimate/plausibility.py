@@ -92,6 +92,7 @@ from multieye.estimate.lens_doubt import (
     LENS_PIXEL_GAIN,
     MIN_LENS_EXCESS_PX,
     given_lens_findings,
+    bare_doubt,
     lens_message,
     radial_doubt,
 )
@@ -331,7 +332,8 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
     pixels = ratio >= LENS_PIXEL_GAIN and excess >= MIN_LENS_EXCESS_PX
     loop = (ratio >= _LENS_LOOP_PIXEL_GAIN and test.cost_given >= POOR_COST
             and _gain(test.cost_given, test.cost_freed) >= CONTINUOUS_GAIN)
-    radial = (quiet or lf.distortion_missing(cam.intrinsics)) and radial_doubt(test)
+    bare = lf.distortion_missing(cam.intrinsics)
+    radial = (quiet or bare) and radial_doubt(test) or bare and bare_doubt(test)
     if not (pixels or loop or radial):
         return None
     return lens_message(cam, test, loop=True)
