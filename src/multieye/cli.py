@@ -360,6 +360,7 @@ def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, **flags):
     def done(o):
         line = f"{o.dataset}: " + {0: "ok", 3: "written, but implausible", 2: "error"}[o.status]
         line += f" ({o.seconds:.1f} s) -> {o.out}" if o.status != 2 else f": {o.message}"
+        line += f"; {o.headline}" if o.headline else ""
         if o.status == 3:
             line += f": {o.message}"
         _echo(line, err=o.status != 0)

@@ -27,7 +27,7 @@ from multieye.imaging.calibrate import (
     initial_intrinsics,
     poses_from_detections,
 )
-from multieye.imaging.model_choice import compare_models
+from multieye.imaging.model_choice import compare_models, edge_rms, may_be_beaten
 from multieye.imaging.pnp import refit_poses
 
 __all__ = ["LensStart", "start_lens", "lens_start", "with_poses", "weak_data_warnings", "check_model",
@@ -162,7 +162,7 @@ def lens_start(name: str, model: str, results: Sequence[ImageResult],
     _check_layout(name, views, start)
     warnings = weak_data_warnings(name, model, views, start.T_cam_target, size)
     return LensStart(start.intrinsics, start.rms_px, len(views),
-                     warnings + model_warnings(name, model, views, size))
+                     warnings + model_warnings(name, model, views, size, start))
 
 
 def _check_layout(name: str, views, start: InitialIntrinsics) -> None:
@@ -184,12 +184,24 @@ def _check_layout(name: str, views, start: InitialIntrinsics) -> None:
             "intrinsics_images", camera=name)
 
 
-def model_warnings(name: str, model: str, views, size) -> tuple[str, ...]:
-    """For a fisheye or wide lens model: the model the same views fit clearly better, with
-    the figures (:func:`multieye.imaging.model_choice.compare_models`: held-out reprojection
-    by radius), or nothing; pinhole models are not compared (their path stays as fast)."""
-    if LENS_MODELS[model][0] == "pinhole" or len(views) < MIN_COMPARED_VIEWS:
+def model_warnings(name: str, model: str, views, size,
+                   start: InitialIntrinsics | None = None) -> tuple[str, ...]:
+    """The model the same views fit clearly better, with the figures
+    (:func:`multieye.imaging.model_choice.compare_models`: held-out reprojection by
+    radius), or nothing.  A pinhole model is compared only when its lens (``start``, else
+    OpenCV's calibration on the views) leaves residuals in the outer quarter of the radii
+    that another model could clearly beat (:func:`multieye.imaging.model_choice.
+    may_be_beaten`: a wide lens given ``pinhole-radtan``): the pinhole path stays as fast on
+    a lens it fits."""
+    if len(views) < MIN_COMPARED_VIEWS:
         return ()
+    if LENS_MODELS[model][0] == "pinhole":
+        try:
+            start = start or initial_intrinsics(views, size, model, name=name)
+        except InputError:
+            return ()
+        if not may_be_beaten(*edge_rms(views, start.intrinsics, start.T_cam_target, size)):
+            return ()
     message = compare_models(views, size, model).message(name)
     return () if message is None else (message,)
 
