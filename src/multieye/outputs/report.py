@@ -573,14 +573,12 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
 def write_report_from(out_dir: str | os.PathLike, rec: CalibrationRecord,
                       details: RunDetails | None, figures: Callable, *,
                       notes: Sequence[str] = (), shown_as: str | os.PathLike | None = None,
-                      images: Mapping[str, str | os.PathLike] | None = None,
-                      crops: Mapping[str, tuple] | None = None) -> Path:
+                      images: Mapping[str, str | os.PathLike] | None = None, crops=None) -> Path:
     """:func:`write_report` of ``calibration.json`` and ``details.json`` as ``rec`` and
     ``details`` (what the files hold, not read back: :func:`multieye.outputs.write.
     write_outputs`), with ``figures`` the function that waits for the figures
-    (:func:`~multieye.outputs.report_draw.submit_figures`).  The images with the
-    detections are drawn in this process meanwhile (``crops``: by camera, the region of
-    its image files it saw, :func:`~multieye.outputs.report_images.image_crops`)."""
+    (:func:`~multieye.outputs.report_draw.submit_figures`).  The images with the detections
+    are drawn here meanwhile (``crops``: :func:`~multieye.outputs.report_images.image_crops`)."""
     out = Path(out_dir)
     thumbnails = image_thumbnails(rec, details, images, crop=crops)
     figures_drawn, legend = figures()
