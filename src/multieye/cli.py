@@ -495,8 +495,8 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
     """Reproduce a synthetic experiment of the paper (section V-B), or `refine`.
 
     noise, cameras, measurements, timing: the paper's pose-level sweeps over all solvers,
-    OUT/NAME.csv (param, method, trial, e_R_deg, e_t_m, rel_rot_err_deg, rel_trans_err_m)
-    and OUT/NAME.png.  refine: image-level simulation over pixel noise, closed form against
+    OUT/NAME.csv (param, method, trial, e_R_deg, e_t_m, rel_rot_err_deg, rel_trans_err_m,
+    time_s, failure) and OUT/NAME.png.  refine: image-level simulation over pixel noise, closed form against
     the maximum-likelihood refinement and the Cramer-Rao bound.
     """
     from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
@@ -516,6 +516,9 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
         out = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
                              progress=_progress_enabled())
     _echo(f"wrote {out.csv_path} and {out.png_path}")
+    if out.result.failures:
+        _echo(f"{out.result.failures} solves refused the data (NaN rows, column failure): "
+              f"{out.result.failure_summary()}")
 
 
 @main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR, meanings={
