@@ -360,6 +360,7 @@ def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, **flags):
     def done(o):
         line = f"{o.dataset}: " + {0: "ok", 3: "written, but implausible", 2: "error"}[o.status]
         line += f" ({o.seconds:.1f} s) -> {o.out}" if o.status != 2 else f": {o.message}"
+        line += f"; {o.headline}" if o.headline else ""
         if o.status == 3:
             line += f": {o.message}"
         _echo(line, err=o.status != 0)
@@ -378,7 +379,8 @@ def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, **flags):
     EXIT_USER_ERROR: "calibrating would fail (one line per reason on stderr), or bad input"}))
 @click.argument("dataset", type=click.Path(path_type=Path))
 @click.option("--sample", type=click.IntRange(1), default=20, show_default=True,
-              help="Images per camera, evenly spaced, searched for the target.")
+              help="Images per camera, evenly spaced, searched for the target (more, from "
+                   "the rest, while fewer than 3 show it).")
 @click.option("--processes", type=click.IntRange(1), default=None,
               help="Detection processes (default, and at most: one per core this process "
                    "may use, one per image).")
@@ -493,8 +495,8 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
     """Reproduce a synthetic experiment of the paper (section V-B), or `refine`.
 
     noise, cameras, measurements, timing: the paper's pose-level sweeps over all solvers,
-    OUT/NAME.csv (param, method, trial, e_R_deg, e_t_m, rel_rot_err_deg, rel_trans_err_m)
-    and OUT/NAME.png.  refine: image-level simulation over pixel noise, closed form against
+    OUT/NAME.csv (param, method, trial, e_R_deg, e_t_m, rel_rot_err_deg, rel_trans_err_m,
+    time_s, failure) and OUT/NAME.png.  refine: image-level simulation over pixel noise, closed form against
     the maximum-likelihood refinement and the Cramer-Rao bound.
     """
     from multieye.outputs.folder import claim_output  # noqa: PLC0415 (instant start-up of multieye --help)
@@ -514,6 +516,9 @@ def experiment(name: str, trials: int, seed: int, out_dir: Path):
         out = run_experiment(name, trials=trials, seed=seed, out_dir=out_dir,
                              progress=_progress_enabled())
     _echo(f"wrote {out.csv_path} and {out.png_path}")
+    if out.result.failures:
+        _echo(f"{out.result.failures} solves refused the data (NaN rows, column failure): "
+              f"{out.result.failure_summary()}")
 
 
 @main.command(epilog=_exit_statuses(0, EXIT_USER_ERROR, meanings={

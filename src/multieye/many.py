@@ -29,6 +29,7 @@ from pathlib import Path
 from multieye.core.errors import CalibrationError, InputError
 from multieye.imaging.engines import open_engine
 from multieye.outputs.folder import claim_output
+from multieye.outputs.summary import headline
 from multieye.outputs.write import write_outputs
 from multieye.pipeline import calibrate
 from multieye.pipeline.options import Options
@@ -59,6 +60,9 @@ class DatasetOutcome:
         ``"ok"``, the doubts, or the error's one line.
     seconds : float
         Wall time of the calibration and its writing.
+    headline : str
+        The first line of calibrate's summary (:func:`multieye.outputs.summary.headline`:
+        the figures that say how good the result is for the setup); empty when it failed.
     """
 
     dataset: str
@@ -66,6 +70,7 @@ class DatasetOutcome:
     status: int
     message: str
     seconds: float
+    headline: str = ""
 
 
 @dataclass(frozen=True)
@@ -97,7 +102,7 @@ def _calibrate_one(dataset: str, out: str, options: Options) -> DatasetOutcome:
                               time.perf_counter() - start)
     doubts = "; ".join(d.message for d in run.doubts)
     return DatasetOutcome(dataset, out, 3 if run.doubts else 0, doubts or "ok",
-                          time.perf_counter() - start)
+                          time.perf_counter() - start, headline(run.record)[0])
 
 
 def _out_folders(datasets: Sequence[Path], out_root: Path) -> list[Path]:

@@ -12,13 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from pose_dataset import write_pose_dataset  # noqa: E402
-from proc_tree import working_descendants  # noqa: E402
+from pose_dataset import write_pose_dataset
+from proc_tree import working_descendants
 
-from multieye.core import geometry as g  # noqa: E402
-from multieye.core.errors import InputError  # noqa: E402
-from multieye.many import calibrate_many, worst_status  # noqa: E402
+from multieye.core import geometry as g
+from multieye.core.errors import InputError
+from multieye.many import calibrate_many, worst_status
 
 pytest.importorskip("distributed", reason="the distributed extra is not installed")
 

@@ -33,6 +33,17 @@ def test_mocap_and_several_boards_are_one_problem(tmp_path):
     rec = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert rec["setup"] == "eye-on-hand" and rec["method"] == "motion-links"
     assert "cam0 linked by: reference camera; motion capture" in res.stdout
+    # issue 33 item 5: solved from the pixels, its residuals are each view's pose against the
+    # rig's, not a loop with the motion capture: the headline is the reprojection RMS and each
+    # camera's sigma of T_body_cam (it said 'mean loop residual'), the pose residuals below
+    lines = res.stdout.splitlines()
+    assert lines[0].startswith("eye-on-hand, method motion-links, reference cam0: reprojection "
+                               "RMS "), lines[0]
+    assert "sigma of T_body_cam cam0 " in lines[0] and "loop" not in lines[0]
+    assert lines[1].startswith("pose residuals (a diagnostic, not the accuracy): mean e_R ")
+    html = (tmp_path / "out" / "report.html").read_text()
+    cards = html[html.index('<div class="cards">'):html.index("<nav>")]
+    assert "reprojection RMS" in cards and "mean rotation residual" not in cards
     T_body_ref = np.array(truth["T_body_ref"])
     for name, cam in rec["cameras"].items():
         true_ref = np.array(truth["T_ref_cam"][name])

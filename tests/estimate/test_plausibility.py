@@ -227,3 +227,18 @@ def test_quaternions_of_pose_files_in_the_other_order_name_the_rotation_key(stre
     declared = Declared(mocap_format="pose-files", mocap=replace(spec, rotation="matrix"))
     rep = check_plausibility([_evidence(stream, mocap=wrong)], declared=declared)
     assert "rotation: quaternion" not in rep.findings[0].message
+
+
+def test_an_offset_its_loop_residuals_do_not_determine_is_not_advised(monkeypatch):
+    """estimate_offset's note (no loop-residual minimum near the correlation peak; NaN std)
+    must not become 'run with --time-offset auto, it finds X' advice."""
+    from dataclasses import replace
+
+    from multieye.estimate import hypotheses
+
+    found = hypotheses.estimate_offset
+    monkeypatch.setattr(hypotheses, "estimate_offset", lambda *a, **k: replace(
+        found(*a, **k), std_s=float("nan"), note="the loop residuals still fall ..."))
+    st = _stream(51, offset=0.1)
+    rep = check_plausibility([_evidence(st, used_offset=0.0)])
+    assert all(f.cause != "time-offset" for f in rep.findings)

@@ -30,13 +30,15 @@ def test_tiny_noise_run_writes_a_well_formed_csv_and_png(tmp_path):
     assert sorted(p.name for p in out.csv_path.parent.iterdir()) == ["noise.csv", "noise.png"]
 
     header = out.csv_path.read_text().splitlines()[0]
-    assert header == "param,method,trial,e_R_deg,e_t_m,rel_rot_err_deg,rel_trans_err_m,time_s"
+    assert header == ("param,method,trial,e_R_deg,e_t_m,rel_rot_err_deg,rel_trans_err_m,time_s,"
+                      "failure")
     rows = _read_csv(out.csv_path)
     assert len(rows) == 2 * 2 * len(ex.METHODS)
     assert {(r["param"], r["method"], r["trial"]) for r in rows} == {
         (p, m, t) for p in ("0.0", "0.05") for m in ex.METHODS for t in ("0", "1")}
     for r in rows:
-        values = {k: float(v) for k, v in r.items() if k not in ("method",)}
+        assert r["failure"] == ""
+        values = {k: float(v) for k, v in r.items() if k not in ("method", "failure")}
         assert all(math.isfinite(v) and v >= 0 for v in values.values())
         assert values["time_s"] > 0
         if values["param"] == 0.0:
@@ -142,3 +144,28 @@ def test_bad_requests_raise_input_errors(tmp_path):
     with pytest.raises(InputError, match="unknown method"):
         ex.noise_experiment(trials=1, levels=(0.0,), methods=("joint", "tsai"))
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_refused_solve_is_recorded_as_a_failure_with_its_kind(tmp_path):
+    """Trial 62 of the committed measurements sweep (seed 0, 3 per camera): camera cam0's
+    rotations are about one axis (1.2 deg off it against 103 deg), so the single-camera
+    methods refuse it; the rows say so instead of a bare NaN, and the joint methods solve
+    it through the shared Y with finite errors."""
+    out = ex.run_experiment("measurements", trials=63, seed=0, out_dir=tmp_path, progress=False,
+                            counts=(3,))
+    rows = [r for r in _read_csv(out.csv_path) if r["trial"] == "62"]
+    kinds = {r["method"]: r["failure"] for r in rows}
+    assert kinds == {"joint": "", "wang2022": "", "shah": "DegenerateMotionError",
+                     "li": "DegenerateMotionError", "tabb-c1": "DegenerateMotionError",
+                     "tabb-c2": "DegenerateMotionError"}
+    for r in rows:
+        errors = [float(r[k]) for k in ("e_R_deg", "e_t_m", "rel_rot_err_deg", "rel_trans_err_m")]
+        assert all(math.isfinite(v) for v in errors) == (r["failure"] == "")
+    joint = next(r for r in rows if r["method"] == "joint")
+    assert float(joint["rel_rot_err_deg"]) < 5 and float(joint["rel_trans_err_m"]) < 0.3
+    # No NaN anywhere without a failure that says why.
+    for r in _read_csv(out.csv_path):
+        assert math.isfinite(float(r["rel_rot_err_deg"])) or r["failure"], r
+    assert out.result.failures == 4
+    assert out.result.failure_summary() == "; ".join(
+        f"{m} at 3: DegenerateMotionError x1" for m in ("shah", "li", "tabb-c1", "tabb-c2"))

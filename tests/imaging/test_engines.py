@@ -4,19 +4,42 @@ local Dask cluster, detection tasks on Dask, and clear errors."""
 from __future__ import annotations
 
 import functools
-import sys
+import time
 from pathlib import Path
 
 import pytest
+from proc_tree import working_descendants
 
 from multieye.core.errors import InputError
 from multieye.imaging.engines import DaskEngine, open_engine
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 
 def _square_plus(x, y=0):
     return x * x + y
+
+
+def _marked_nap(folder: str, k: int) -> int:
+    Path(folder, f"{k}.started").touch()
+    time.sleep(0.4)
+    return k
+
+
+def test_an_interrupted_local_engine_ends_its_workers_and_starts_nothing_more(tmp_path):
+    """A Ctrl-C (or SIGTERM's Stopped) in the block that uses the engine ends its workers and
+    cancels what is queued: calibrate-many went on with every dataset, after saying it stopped,
+    since the engine shut its pool down as after success."""
+    before = working_descendants()
+    with pytest.raises(KeyboardInterrupt):
+        with open_engine("local", processes=2) as eng:
+            # held in a name, as calibrate_many holds it: not closed when the loop raises
+            done = enumerate(eng.map(_marked_nap, [(str(tmp_path), k) for k in range(12)],
+                                     star=True, chunksize=1))
+            for _ in done:
+                raise KeyboardInterrupt
+    started = len(list(tmp_path.glob("*.started")))
+    assert not working_descendants() - before
+    time.sleep(0.5)                                 # nothing starts once the block has left
+    assert len(list(tmp_path.glob("*.started"))) == started < 12
 
 
 @pytest.mark.parametrize("processes", [1, 2])

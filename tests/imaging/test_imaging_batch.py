@@ -112,3 +112,23 @@ def test_ten_bits_in_a_sixteen_bit_png_keep_their_grey_levels(tmp_path):
     a, b = (process_image(tmp_path / n, BOARD, CAMERA) for n in ("8.png", "10.png"))
     assert a.ok and b.ok
     assert abs(a.pose.rms_px - b.pose.rms_px) < 0.02
+
+
+def test_a_corrupt_image_is_its_reason_without_opencvs_own_lines(tmp_path):
+    """A truncated PNG and JPEG decoded in this process (``--processes 1``, calibrate-many's
+    workers) made OpenCV write '[ WARN:0@1.3] ... PNG input buffer is incomplete' and
+    '[ERROR:0@11.4] imdecode_ ...' lines of its own beside multieye's reason, per image."""
+    import subprocess
+    import sys
+
+    image = np.full((480, 640), 100, np.uint8)
+    image[::7] = 0
+    for ext in (".png", ".jpg"):
+        data = cv2.imencode(ext, image)[1].tobytes()
+        (tmp_path / f"cut{ext}").write_bytes(data[:len(data) // 3])
+    code = ("import sys; from multieye.imaging.image_file import read_gray\n"
+            "for p in sys.argv[1:]: print(read_gray(p)[1])")
+    res = subprocess.run([sys.executable, "-c", code, str(tmp_path / "cut.png"),
+                          str(tmp_path / "cut.jpg")], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0 and res.stderr == "", res.stderr
+    assert res.stdout.count("unreadable file") == 2, res.stdout

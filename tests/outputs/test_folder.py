@@ -7,6 +7,7 @@ next one.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
@@ -493,3 +494,38 @@ def test_every_file_is_on_disk_before_the_new_set_replaces_the_folder(run, tmp_p
               for kind, p in events[:swap] if kind == "fsync" and Path(p).parent != tmp_path}
     files = {p.relative_to(out).parts for p in out.rglob("*") if p.is_file()}
     assert len(files) >= 6 and files <= synced, files - synced
+
+
+def test_a_folder_named_through_a_link_and_dot_dot_is_the_one_the_lock_guards(earlier, tmp_path):
+    """``via/link/../out`` is ``out`` beside the link's target for the file system (the
+    calibration read), but its letters (os.path.abspath) put the lock beside the link: an
+    export through that name went on while a calibration held the folder."""
+    (tmp_path / "elsewhere").mkdir()
+    (earlier.parent / "inner").mkdir()
+    (tmp_path / "elsewhere" / "link").symlink_to(earlier.parent / "inner")
+    typed = tmp_path / "elsewhere" / "link" / ".." / earlier.name
+    assert (typed / "calibration.json").is_file()
+    shutil.rmtree(earlier / "export")
+    before = tree(earlier)
+    holder = _holding(earlier)
+    try:
+        with pytest.raises(DatasetError, match="in use by another multieye run"):
+            export(typed, "json")
+    finally:
+        holder.communicate("")
+    assert tree(earlier) == before and list((tmp_path / "elsewhere").iterdir()) == [
+        tmp_path / "elsewhere" / "link"]
+    export(typed, "json")                           # free again: written where it was read
+    assert (earlier / "export" / "calibration.json").is_file()
+
+
+def test_a_file_system_that_cannot_lock_is_not_another_run(tmp_path, monkeypatch):
+    def no_locks(fd, flags):
+        raise OSError(errno.ENOLCK, "No locks available")
+
+    monkeypatch.setattr(folder_mod.fcntl, "flock", no_locks)
+    with pytest.raises(DatasetError, match="does not lock files") as info:
+        with claim_output(tmp_path / "out"):
+            pass
+    assert "in use" not in str(info.value)
+    assert not (tmp_path / "out").exists() and not (tmp_path / "out.multieye-lock").exists()

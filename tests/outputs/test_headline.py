@@ -99,3 +99,41 @@ def test_motion_capture_headline_stays_the_loop_residual(tmp_path):
     assert not lines[1].startswith("pose residuals")
     cards = _cards(report_html(rec, None, _NO_FIGURES, out_dir=tmp_path))
     assert "mean rotation residual" in cards and "reprojection RMS" not in cards
+
+
+def test_pose_residual_columns_say_pose_without_motion_capture(one_camera, tmp_path):
+    """The table's residual columns were labelled 'loop' under a headline calling them pose
+    residuals; with motion capture they stay 'loop'."""
+    table = calibration_table(one_camera.record).splitlines()
+    header = next(line for line in table if line.startswith("camera "))
+    assert "pose e_R deg" in header and "pose e_t mm" in header and "loop" not in header
+    rec = make_run(tmp_path, "eye-to-base")[0].record
+    header = next(line for line in calibration_table(rec).splitlines()
+                  if line.startswith("camera "))
+    assert "loop e_R deg" in header
+
+
+def test_calibrate_many_gives_each_datasets_headline(tmp_path):
+    """calibrate-many printed 'ok (s) -> folder' with no figure; each line now carries the
+    headline of its setup (here a rig without motion capture: the reprojection RMS and each
+    camera's sigma)."""
+    from click.testing import CliRunner
+
+    from multieye.cli import main
+
+    ds = tmp_path / "ov"
+    render_overlap_dataset(ds, OverlapSpec(n_instants=10, width=640, height=480), seed=2)
+    res = CliRunner().invoke(main, ["calibrate-many", str(ds), "--out-root",
+                                    str(tmp_path / "out"), "--workers", "1"])
+    assert res.exit_code == 0, res.output
+    line = next(x for x in res.output.splitlines() if x.startswith(f"{ds}: ok ("))
+    head = line.split("; ", 1)[1]
+    assert head.startswith("overlap, method covisibility, reference cam0: reprojection RMS ")
+    assert "sigma of T_ref_cam cam1 " in head and "loop" not in head
+
+
+def test_pixel_methods_are_the_pipelines_names():
+    from multieye.outputs.summary import PIXEL_METHODS
+    from multieye.pipeline.overlap_run import METHOD, MOTION_METHOD
+
+    assert set(PIXEL_METHODS) == {METHOD, MOTION_METHOD}

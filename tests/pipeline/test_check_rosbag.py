@@ -96,3 +96,24 @@ def test_wrong_image_size_and_no_mocap_near_in_time(tmp_path):
     assert any(p.startswith("8 of 8 images have no motion capture within 0.0167 s")
                for p in c.problems)
     assert c.fatal
+
+
+def test_a_topic_whose_target_is_in_a_small_minority_is_sampled_on(tmp_path):
+    """As for a folder (issue 32): the sample of 3 messages held fewer than 3 with the
+    target, so the bag is read again for more, evenly over the rest, until 3 show it."""
+    from multieye.io import list_images
+
+    folder = tmp_path / "ds"
+    render_small(folder)
+    mocap = np.loadtxt(folder / "mocap.txt", usecols=0)
+    images = np.array([t for t, _, _ in list_images(folder / "cam1")])
+    free = mocap[np.min(np.abs(mocap[:, None] - images[None]), axis=1) > 0.05]
+    for t in free[np.linspace(0, len(free) - 1, 40).round().astype(int)]:
+        cv2.imwrite(str(folder / "cam1" / f"{t:.6f}.png"), np.full((480, 640), 128, np.uint8))
+    camera_into_bag(folder, "cam1")
+    result = check_dataset(folder, sample=3, processes=1)
+    assert result.ok, result.reasons
+    c = result.cameras[1]
+    assert (c.source, c.listed) == ("rosbag", 48) and 3 < c.sampled < 48
+    assert 3 <= c.found == c.paired <= 8
+    assert c.failures == (("target not detected", c.sampled - c.found),)

@@ -6,6 +6,7 @@ import pytest
 
 import real_datasets
 from multieye.core.errors import InputError
+from multieye.io import list_images
 from multieye.outputs.summary import check_table
 from multieye.pipeline.dry_run import check_dataset
 from pose_dataset import write_pose_dataset
@@ -136,3 +137,37 @@ def test_a_lens_to_estimate_from_too_few_views_is_said(small, tmp_path):
         "intrinsics: cam0.yaml", "model: pinhole-rational\n    intrinsics_images: extra/"))
     result = check_dataset(folder, processes=1)
     assert not any(p.startswith("lens ") for p in result.cameras[0].problems)
+
+
+def _among_unusable(folder, n: int):
+    """``n`` images of the wrong size (8 x 8) added to cam0 at motion-capture stamps away
+    from its rendered images: the rendered ones become a small minority."""
+    import cv2
+    import numpy as np
+
+    mocap = np.loadtxt(folder / "mocap.txt", usecols=0)
+    images = np.array([t for t, _, _ in list_images(folder / "cam0")])
+    free = mocap[np.min(np.abs(mocap[:, None] - images[None]), axis=1) > 0.05]
+    for t in free[np.linspace(0, len(free) - 1, n).round().astype(int)]:
+        cv2.imwrite(str(folder / "cam0" / f"{t:.6f}.png"), np.full((8, 8), 128, np.uint8))
+    return folder
+
+
+def test_a_camera_whose_target_is_in_a_tiny_minority_is_sampled_on(small, tmp_path):
+    """Issue 32: calibrate chooses again from the rest until its budget of usable images is
+    met; the dry run's evenly spaced sample of such a camera (8 of about 500 images usable)
+    held none with the target, and it said calibrating would fail (exit 2)."""
+    folder = _among_unusable(_copy(small, tmp_path / "ds"), 500)
+    listed = len(list_images(folder / "cam0"))
+    result = check_dataset(folder, processes=1)
+    assert result.ok, result.reasons
+    c = result.cameras[0]
+    assert c.listed == listed and 20 < c.sampled < listed and 3 <= c.found == c.paired <= 8
+    assert c.failures == (("wrong resolution", c.sampled - c.found),)
+    assert result.cameras[1].sampled == 8                   # nothing more where all were seen
+    for _, _, path in list_images(folder / "cam0"):
+        if path.stat().st_size > 1000:                       # the rendered ones: none left
+            path.unlink()
+    c = check_dataset(folder, processes=1).cameras[0]
+    assert (c.listed, c.sampled, c.found) == (listed - 8, listed - 8, 0)  # every one tried
+    assert c.fatal and "fewer than 3 usable images would remain (0 of" in c.fatal[0]

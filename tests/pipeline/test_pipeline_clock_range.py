@@ -68,3 +68,21 @@ def test_an_edge_reached_by_the_correlation_only_says_where_it_peaked(late_mocap
     with pytest.raises(multieye.CalibrationError, match=r"offset \(\+0\.434 s; the angular "
                        r"speeds correlate best at \+0\.500 s\) is at the edge"):
         calibrate(late_mocap, time_offset="auto", refine=False)
+
+
+def test_an_offset_its_loop_residuals_do_not_determine_is_refused(late_mocap, monkeypatch):
+    """estimate_offset's note (residuals still falling at the end of the offsets examined)
+    stops the run with the reason, instead of pairing at a number without a minimum."""
+    from multieye.estimate.clock import ClockOffset
+    from multieye.pipeline import clock_offsets
+
+    found = ClockOffset(offset_s=0.05, std_s=float("nan"), score=0.9, coarse_offset_s=0.3,
+                        method="loop", n_used=50, rot_rms_deg=1.0, trans_rms_m=0.01,
+                        note="the loop residuals still fall at +0.050 s, ...: the offset is "
+                             "not determined by them")
+    monkeypatch.setattr(clock_offsets, "estimate_offset", lambda *a, **k: found)
+    with pytest.raises(multieye.CalibrationError,
+                       match=r"camera cam0: the clock offset cannot be estimated: the loop "
+                             r"residuals still fall .* not determined by them; give "
+                             r"--time-offset"):
+        calibrate(late_mocap, time_offset="auto", refine=False)

@@ -3,20 +3,17 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from proc_tree import working_descendants  # noqa: E402
-from small_dataset import render_small  # noqa: E402
+from proc_tree import working_descendants
+from small_dataset import render_small
 
-from multieye.cli import main  # noqa: E402
-from multieye.core.errors import InputError  # noqa: E402
-from multieye.pipeline import calibrate  # noqa: E402
+from multieye.cli import main
+from multieye.core.errors import InputError
+from multieye.pipeline import calibrate
 
 pytest.importorskip("distributed", reason="the distributed extra is not installed")
 

@@ -5,19 +5,16 @@ screen, after detection when the clock is estimated, and off with --no-select.""
 from __future__ import annotations
 
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from small_dataset import render_small  # noqa: E402
+from small_dataset import render_small
 
-from multieye.cli import main  # noqa: E402
-from multieye.core.errors import InputError  # noqa: E402
-from multieye.pipeline import Options, calibrate  # noqa: E402
+from multieye.cli import main
+from multieye.core.errors import InputError
+from multieye.pipeline import Options, calibrate
 
 
 @pytest.fixture(scope="module")
@@ -136,8 +133,9 @@ def test_the_motion_capture_comes_first_only_where_the_detection_needs_it(tmp_pa
     (folder / "notes.txt").write_text("")       # an entry, not an image
 
     def rig(source="images", by_name=False, lens=False, mocap=True):
-        cam = SimpleNamespace(source=source, images=folder, images_pattern=None, estimate_intrinsics=lens)
-        return SimpleNamespace(has_mocap=mocap, cameras={"cam0": cam},
+        cam = SimpleNamespace(source=source, images=folder, images_pattern=None, estimate_intrinsics=lens,
+                              stamps=None)
+        return SimpleNamespace(has_mocap=mocap, cameras={"cam0": cam}, sync="time",
                                mocap_for=lambda name: SimpleNamespace(by_name=by_name))
 
     assert motion_first(rig(), 5, "rig")                      # 6 images, budget 5
@@ -148,5 +146,5 @@ def test_the_motion_capture_comes_first_only_where_the_detection_needs_it(tmp_pa
     assert motion_first(rig(by_name=True), None, "rig")
     assert not motion_first(rig(by_name=True, mocap=False), 5, "rig")
     (folder / "x.png").write_bytes(b"")                       # not a stamp: the listing's error
-    with pytest.raises(DatasetError, match="not a time stamp"):
+    with pytest.raises(DatasetError, match="camera cam0: image name is not a time stamp"):
         motion_first(rig(), 5, "rig")

@@ -4,22 +4,20 @@ and what rig.yaml refuses."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from small_dataset import render_small  # noqa: E402
+from small_dataset import render_small
 
-from multieye.core import geometry as g  # noqa: E402
-from multieye.core.errors import DatasetError  # noqa: E402
-from multieye.imaging.video import iter_video_frames, video_stamps  # noqa: E402
-from multieye.io import load_rig  # noqa: E402
-from multieye.io.frame_stamps import read_frame_stamps  # noqa: E402
-from multieye.pipeline import calibrate  # noqa: E402
+from multieye.core import geometry as g
+from multieye.core.errors import DatasetError
+from multieye.imaging.video import iter_video_frames, video_stamps
+from multieye.io import load_rig
+from multieye.io.frame_stamps import read_frame_stamps
+from multieye.pipeline import calibrate
 
 
 def _write_video(path: Path, images, fps: float = 30.0) -> None:
@@ -119,3 +117,28 @@ def test_check_samples_the_video(video_dataset):
     cam1 = next(c for c in result.cameras if c.name == "cam1")
     assert cam1.source == "video" and cam1.listed == n and cam1.sampled == 4
     assert cam1.found >= 3 and result.ok
+
+
+def test_check_samples_on_when_few_frames_show_the_target(tmp_path):
+    """Frames without the board (blank) around the 12 with it: the sample of 3 held fewer
+    than 3 with the target and the check said calibrating would fail; it reads more frames,
+    evenly over the rest, until 3 show it (issue 32), as for a folder or a bag."""
+    from multieye.pipeline.dry_run import check_dataset
+
+    folder = tmp_path / "d"
+    render_small(folder, images_per_camera=12)
+    files = sorted((folder / "cam1").glob("*.png"), key=lambda p: float(p.stem))
+    blank = np.full((480, 640), 128, np.uint8)
+    frames, stamps = [], []
+    for p in files:                     # 5 blank frames around each rendered one
+        frames += [blank] * 2 + [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)] + [blank] * 3
+        stamps += [float(p.stem) + 0.002 * (k - 2) for k in range(6)]
+    _write_video(folder / "cam1.avi", frames)
+    (folder / "cam1_stamps.txt").write_text("".join(f"{t:.6f}\n" for t in stamps))
+    (folder / "rig.yaml").write_text((folder / "rig.yaml").read_text().replace(
+        "    images: cam1/", "    video: cam1.avi\n    stamps: cam1_stamps.txt"))
+    result = check_dataset(folder, sample=3, processes=1)
+    cam1 = next(c for c in result.cameras if c.name == "cam1")
+    assert result.ok, result.reasons
+    assert cam1.source == "video" and cam1.listed == 72 and 3 < cam1.sampled < 72
+    assert cam1.found >= 3

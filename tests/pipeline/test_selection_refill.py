@@ -5,6 +5,7 @@ for a folder and a bag; a recording where half the frames are usable needs few m
 from __future__ import annotations
 
 import json
+import shutil
 
 import cv2
 import numpy as np
@@ -137,3 +138,56 @@ def test_a_camera_whose_lens_is_estimated_is_refilled_and_its_lens_started_from_
     assert len(_usable(run, "cam0")) >= 8 and sel.refilled > 0
     assert sum(r.reason.startswith("target not detected") for r in run.cameras["cam0"].rejected
                ) == sel.unusable > 0
+
+
+def test_images_of_another_size_leave_a_camera_whose_lens_is_estimated_calibrated(tmp_path):
+    """No intrinsics give the size of a camera whose lens is estimated: its 8 x 8 frames
+    among the 640 x 480 ones refused the whole camera ('images of different sizes'), with
+    the selection and without; now they are left out as of the wrong resolution, as given
+    intrinsics leave them out, and the selection, its budget holding every usable image,
+    gives --no-select's result."""
+    folder = _recording(tmp_path / "d", 40)
+    rig = (folder / "rig.yaml").read_text()
+    (folder / "rig.yaml").write_text(rig.replace("    intrinsics: cam0.yaml\n",
+                                                 "    model: pinhole-radtan\n", 1))
+    runs = [calibrate(folder, select=s) for s in (20, None)]
+    for run in runs:
+        cam = run.cameras["cam0"]
+        assert cam.intrinsics_estimated and len(cam.observations) >= 10
+        assert sum(r.reason == "wrong resolution (8 x 8, the images showing the target are "
+                   "640 x 480)" for r in cam.rejected) == 40
+    assert runs[0].cameras["cam0"].selection.refilled > 0
+    np.testing.assert_allclose(runs[0].T_ref_cam["cam1"], runs[1].T_ref_cam["cam1"], atol=1e-6)
+    np.testing.assert_allclose(runs[0].intrinsics["cam0"].params, runs[1].intrinsics["cam0"].params,
+                               rtol=1e-6)
+
+
+def test_a_listing_error_of_the_selection_names_the_camera(mostly_unusable, tmp_path):
+    """The images listed for the choice before decoding refused a name that is not a time
+    stamp without naming the camera, which the same error names without the selection."""
+    folder = tmp_path / "d"
+    shutil.copytree(mostly_unusable, folder)
+    cv2.imwrite(str(folder / "cam0" / "IMG_0001.png"), TINY)
+    for select in (8, None):
+        with pytest.raises(DatasetError, match="IMG_0001.png: camera cam0: image name is not a "
+                                               "time stamp") as info:
+            calibrate(folder, select=select)
+        assert info.value.camera == "cam0"
+
+
+def test_the_line_says_when_every_image_left_fewer_usable_than_the_budget():
+    from multieye.pipeline.selection import SelectionSummary
+
+    short = SelectionSummary(budget=8, seen=154, kept=154, stage="before decoding",
+                             unusable=150, refilled=146)
+    assert short.line("cam0") == (
+        "cam0: 154 of 154 images selected before decoding (budget 8; 150 of the images chosen "
+        "proved unusable, so 146 more were chosen from the rest; 4 usable in all, fewer than "
+        "the budget)")
+    met = SelectionSummary(budget=8, seen=161, kept=113, stage="before decoding",
+                           unusable=105, refilled=105)
+    assert met.line("cam0").endswith("so 105 more were chosen from the rest)")
+    none_left = SelectionSummary(budget=8, seen=9, kept=9, stage="before decoding", unusable=3)
+    assert none_left.line("cam0").endswith(
+        "3 of the images chosen proved unusable, none left to add; 6 usable in all, fewer than "
+        "the budget)")

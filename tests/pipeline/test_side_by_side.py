@@ -109,3 +109,21 @@ def test_a_frame_that_does_not_hold_the_crop_is_a_bad_input():
     with pytest.raises(DatasetError, match=r"v\.mp4#1: the camera's crop \[640, 0, 640, 480\] "
                                            r"reaches beyond the 600 x 480 image"):
         next(it)
+
+
+def test_a_thumbnail_shows_only_the_cameras_half(tmp_path):
+    """Points near the seam: the drawing of the right camera's half shows none of the left
+    half (black here; 96 after the report's lightening), which the box around the points
+    reaches without ``region``."""
+    from multieye.imaging.thumbnails import residual_thumbnail
+
+    image = np.zeros((H, 2 * W), np.uint8)
+    image[:, W:] = 255
+    cv2.imwrite(str(tmp_path / "f.png"), image)
+    uv = np.array([[W + 10.0 + 20 * k, 100.0 + 15 * k] for k in range(6)])
+    res = np.zeros_like(uv)
+    pictures = [cv2.imdecode(np.frombuffer(residual_thumbnail(
+        tmp_path / "f.png", uv, res, magnify=1.0, region=region), np.uint8), cv2.IMREAD_COLOR)
+        for region in (None, (W, 0, W, H))]
+    dark = [int(np.sum(np.all(np.abs(p.astype(int) - 96) < 12, axis=2))) for p in pictures]
+    assert dark[0] > 100 and dark[1] == 0, dark

@@ -215,3 +215,32 @@ def test_the_method_names_known_without_the_solvers_are_the_registrys():
     assert methods.JOINT_METHOD_NAMES == tuple(registry.JOINT_METHODS)
     assert methods.SINGLE_METHOD_NAMES == tuple(registry.SINGLE_METHODS)
     assert methods.METHODS == registry.METHODS
+
+
+@pytest.mark.parametrize("method", ["joint", "shah"])
+def test_a_non_finite_closed_form_is_refused_not_returned(monkeypatch, method):
+    """A method whose linear algebra gives NaN (here forced) must raise, naming the camera,
+    never hand back NaN extrinsics."""
+    A, B, _, _ = eye_to_base(np.random.default_rng(5), [8, 8, 8])
+    if method == "joint":
+        inner = registry.JOINT_METHODS["joint"]
+
+        def nan_y(meas):
+            X, Y = inner(meas)
+            return X, np.full_like(Y, np.nan)
+
+        monkeypatch.setitem(registry.JOINT_METHODS, "joint", nan_y)
+        where = "non-finite Y"
+    else:
+        inner = registry.SINGLE_METHODS["shah"]
+        calls = []
+
+        def nan_x(Aj, Bj):
+            X, Y = inner(Aj, Bj)
+            calls.append(1)
+            return (np.full_like(X, np.nan) if len(calls) == 2 else X), Y
+
+        monkeypatch.setitem(registry.SINGLE_METHODS, "shah", nan_x)
+        where = "non-finite X of camera cam1"
+    with pytest.raises(multieye.DegenerateMotionError, match=f"method {method}: .*{where}"):
+        solve(A, B, method=method)

@@ -19,7 +19,10 @@ section 4: ``time_offset_s`` = motion-capture clock minus camera clock; the imag
    :func:`multieye.estimate.pairing.interpolate_poses`), the camera's ``X`` and ``Y`` are re-solved in
    closed form (:func:`multieye.solvers.joint.solve_joint`) and the offset minimising the
    chi-square of the loop residuals (rotation and translation, each normalised by its
-   noise level; gross outliers left out) is found: a grid search around the coarse offset,
+   noise level; gross outliers left out) is found: a grid search around the coarse offset
+   (widened to half the baseline either side when the residuals still fall at its end: on
+   noisy streams the correlation peak can miss by tens of milliseconds; when they still fall
+   at the end of that, the offset is reported with a note and no standard deviation),
    then the vertex of a least-squares parabola over +-4 motion-capture sample intervals
    (interpolation between noisy samples halves their noise halfway between samples, which
    scallops the profile with the sample period; the parabola averages that out).  The
@@ -91,6 +94,9 @@ class ClockOffset:
         Images used by the fine step (angular-speed pairs for the coarse step alone).
     rot_rms_deg, trans_rms_m : float
         RMS loop residuals of the closed form at ``offset_s`` (NaN when coarse only).
+    note : str
+        Empty, or why ``offset_s`` is doubtful (the loop residuals have no minimum near the
+        angular-speed peak); ``std_s`` is then NaN.
     """
 
     offset_s: float
@@ -101,6 +107,7 @@ class ClockOffset:
     n_used: int
     rot_rms_deg: float
     trans_rms_m: float
+    note: str = ""
 
 
 def angular_speed(stamps: ArrayLike, T: ArrayLike, *, baseline_s: float | None = None,
@@ -355,31 +362,65 @@ def estimate_offset(cam_stamps: ArrayLike, T_cam_target: ArrayLike, mocap_stamps
         return ClockOffset(coarse, nan, score, coarse, method, pairs, nan, nan)
 
     half = max(3.0 * step, camera_dt, 0.03)
-    mocap_dt = float(np.median(np.diff(mocap_t)))
-    fit_half = _FIT_PERIODS * mocap_dt
-    profile = _LoopProfile(cam_t, g.inv(P), mocap_t, M, opts,
-                           (coarse - half - 2.0 * fit_half, coarse + half + 2.0 * fit_half))
-    if profile.keep.sum() < _MIN_PAIRS:
+    fit_half = _FIT_PERIODS * float(np.median(np.diff(mocap_t)))
+    wide = max(half, baseline_s / 2.0)
+    fine = _fine_step(lambda w: _LoopProfile(cam_t, g.inv(P), mocap_t, M, opts, w), coarse,
+                      (coarse - half, coarse + half),
+                      (max(lo, coarse - wide), min(hi, coarse + wide)), fit_half)
+    if fine is None:
         return ClockOffset(coarse, nan, score, coarse, method, pairs, nan, nan)
-    profile.set_scales(coarse)
-    grid = np.linspace(coarse - half, coarse + half, 41)
-    best = float(grid[np.argmin([profile.chi2(d) for d in grid])])
-    profile.set_scales(best)
-    for _ in range(3):
-        grid = np.linspace(best - fit_half, best + fit_half, 33)
-        a2, a1, _ = np.polyfit(grid - best, [profile.chi2(d) for d in grid], 2)
-        if a2 <= 0:
-            break
-        shift = float(np.clip(-a1 / (2.0 * a2), -fit_half, fit_half))
-        # never leave the interval the grid search examined around the coarse estimate
-        # (with slow motion capture the fit window is wide and a flat profile can drift)
-        new = float(np.clip(best + shift, coarse - half, coarse + half))
-        shift, best = new - best, new
-        if abs(shift) < 1e-3 * fit_half:
-            break
-    std = float(np.sqrt(1.0 / a2)) if a2 > 0 else nan
+    best, std, profile, note = fine
     rot, trans = profile.residuals(best)
     return ClockOffset(best, std, score, coarse,
                        "angular-speed correlation, refined on closed-form loop residuals",
                        int(profile.keep.sum()), float(np.degrees(np.sqrt(np.mean(rot ** 2)))),
-                       float(np.sqrt(np.mean(trans ** 2))))
+                       float(np.sqrt(np.mean(trans ** 2))), note)
+
+
+def _fine_step(profile_over, coarse: float, interval: tuple[float, float],
+               reach: tuple[float, float], fit_half: float):
+    """Offset minimising the loop-residual chi-square near ``coarse`` (module docstring).
+
+    A grid search over ``interval`` (41 points); when its minimum sits at an end of the
+    interval (the residuals still fall there: the angular-speed peak is off by more than the
+    interval, as on noisy streams), the same grid over ``reach`` (seconds; half the baseline
+    of the angular speeds either side of ``coarse``, within the search range).  Then the
+    vertex of least-squares parabolas over +-``fit_half``, never outside the interval the
+    grid examined (a flat profile under slow motion capture would drift).
+
+    Returns
+    -------
+    (offset_s, std_s, profile, note) or None
+        ``None`` when too few images stay in the recording for every offset examined.
+        ``note`` is non-empty, and ``std_s`` NaN, when the residuals fall all the way to an
+        end of ``reach``: the offset is then not determined by them.
+    """
+    spacing = (interval[1] - interval[0]) / 40.0
+    for span in (interval, reach):
+        profile = profile_over((span[0] - 2.0 * fit_half, span[1] + 2.0 * fit_half))
+        if profile.keep.sum() < _MIN_PAIRS:
+            return None
+        profile.set_scales(coarse)
+        grid = np.linspace(span[0], span[1], 1 + max(1, round((span[1] - span[0]) / spacing)))
+        k = int(np.argmin([profile.chi2(d) for d in grid]))
+        if 0 < k < grid.size - 1:
+            break
+    best = float(grid[k])
+    profile.set_scales(best)
+    a2 = 0.0
+    for _ in range(3):
+        fit = np.linspace(best - fit_half, best + fit_half, 33)
+        a2, a1, _ = np.polyfit(fit - best, [profile.chi2(d) for d in fit], 2)
+        if a2 <= 0:
+            break
+        new = float(np.clip(best - a1 / (2.0 * a2), max(best - fit_half, span[0]),
+                            min(best + fit_half, span[1])))
+        shift, best = new - best, new
+        if abs(shift) < 1e-3 * fit_half:
+            break
+    if not 0 < k < grid.size - 1:
+        return best, float("nan"), profile, (
+            f"the loop residuals still fall at {best:+.3f} s, the end of the offsets examined "
+            f"({span[0]:+.3f}..{span[1]:+.3f} s around the angular-speed peak "
+            f"{coarse:+.3f} s): the offset is not determined by them")
+    return best, float(np.sqrt(1.0 / a2)) if a2 > 0 else float("nan"), profile, ""

@@ -458,8 +458,8 @@ def clock_search(setup: str, cam: CameraEvidence, noise: F64, max_offset_s: floa
     except CalibrationError:
         return None
     edge = 0.02 * (hi - lo)
-    if not (est.score >= _MIN_CLOCK_SCORE and lo + edge < est.offset_s < hi - edge):
-        return None
+    if not (est.score >= _MIN_CLOCK_SCORE and lo + edge < est.offset_s < hi - edge) or est.note:
+        return None                       # (note: no loop-residual minimum near the peak)
     tol = 2.5 * dt_m
     at = [pair_in_time(cam.mocap_stamps, cam.mocap_T, cam.stamps, tolerance=tol, offset=o)
           for o in (cam.time_offset, est.offset_s)]

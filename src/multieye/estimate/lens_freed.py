@@ -22,19 +22,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import lil_matrix
 
 from multieye.core import geometry as g
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
-from multieye.core.lens import project_points
+from multieye.core.lens import project_points, project_with_jacobian, unproject_points
 from multieye.estimate import hypotheses as h
 
 __all__ = ["MIN_DISTORTION_VIEWS", "MIN_LENS_VIEWS", "LensTest", "lacks_distortion",
+           "lens_bend", "distortion_part", "distortion_missing",
            "free_distortion", "lens_bound", "lens_search"]
 
 F64 = NDArray[np.float64]
@@ -47,6 +47,9 @@ MIN_LENS_VIEWS = 5
 _MIN_LENS_POINTS = 8
 #: Most views the lens is fitted on (evenly spaced over the recording; PnP runs on all).
 _MAX_LENS_VIEWS = 50
+#: Most views k1 and k2 are refitted and compared on (evenly spaced; 0.02-0.05 CPU-s a
+#: camera instead of 0.1 for 40 views: it runs on every camera with a given lens).
+_MAX_RADIAL_VIEWS = 16
 #: Models whose first two coefficients are the radial k1 and k2 (OpenCV's pinhole and
 #: fisheye).
 _RADIAL_FIRST = {"pinhole": 5, "fisheye": 4}
@@ -58,16 +61,89 @@ def lacks_distortion(intr: Intrinsics) -> bool:
     return intr.model in _RADIAL_FIRST and not np.any(intr.dist)
 
 
-def _with_radial(intr: Intrinsics, k: F64) -> Intrinsics:
-    dist = np.zeros(_RADIAL_FIRST[intr.model])      # OpenCV's 5 (pinhole), or 4 (fisheye)
-    dist[:2] = k
+def distortion_part(intr: Intrinsics) -> F64 | None:
+    """The coefficients of ``intr`` that an intrinsics file states as its distortion: all of
+    a pinhole's or fisheye's, a unified lens's radial-tangential ones after xi; None for the
+    double-sphere and eucm lenses, whose two parameters are their projection."""
+    if intr.model in _RADIAL_FIRST:
+        return np.asarray(intr.dist, dtype=np.float64)
+    if intr.model == "unified":
+        return np.asarray(intr.dist[1:], dtype=np.float64)
+    return None
+
+
+def distortion_missing(intr: Intrinsics) -> bool:
+    """Whether ``intr`` states no distortion (its :func:`distortion_part` none or zeros)."""
+    part = distortion_part(intr)
+    return part is not None and not np.any(part)
+
+
+def _without_distortion(intr: Intrinsics) -> Intrinsics:
+    """``intr`` with its :func:`distortion_part` zero (a pinhole: its camera matrix alone; a
+    fisheye: the equidistant projection; a unified lens: its xi alone)."""
+    dist = np.zeros_like(np.asarray(intr.dist, dtype=np.float64))
+    if intr.model == "unified":
+        dist[0] = intr.dist[0]
     return Intrinsics(K=intr.K, dist=dist, model=intr.model, width=intr.width,
                       height=intr.height)
 
 
+def lens_bend(pixels: F64, intr: Intrinsics) -> float:
+    """How far the distortion of ``intr`` bends the rays of ``pixels``: the angle between
+    each pixel's ray under ``intr`` and under the same lens without its distortion
+    (:func:`distortion_part` zero), in pixels at the focal length, at its 90th percentile
+    over the pixels (the outer target points, where a distortion shows; 0 for a lens
+    without distortion; NaN when no pixel unprojects, or for the double-sphere and eucm
+    lenses, which have no distortion apart from their projection).
+
+    Parameters
+    ----------
+    pixels : ndarray, shape (N, 2)
+        Observed pixels.
+    intr : Intrinsics
+    """
+    if distortion_part(intr) is None:
+        return math.nan
+    uv = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+    with np.errstate(all="ignore"):
+        rays = unproject_points(uv, intr)
+        plain = unproject_points(uv, _without_distortion(intr))
+        angle = np.arccos(np.clip(np.sum(rays * plain, axis=1), -1.0, 1.0))
+    angle = angle[np.isfinite(angle)]
+    return float(np.percentile(angle, 90) * intr.K[0, 0]) if angle.size else math.nan
+
+
+#: Where each model's first two radial coefficients are in ``Intrinsics.dist`` (the unified
+#: model's after xi); double-sphere and eucm have none and free their own two parameters.
+_RADIAL_AT = {"pinhole": 0, "fisheye": 0, "unified": 1, "double-sphere": 0, "eucm": 0}
+
+
+def _with_radial(intr: Intrinsics, k: F64) -> Intrinsics:
+    """``intr`` with its two radial coefficients (:data:`_RADIAL_AT`) set to ``k``; a lens
+    without distortion gets OpenCV's 5 (pinhole) or 4 (fisheye) coefficients."""
+    if lacks_distortion(intr):
+        dist = np.zeros(_RADIAL_FIRST[intr.model])
+    else:
+        dist = np.array(intr.dist, dtype=np.float64)
+    at = _RADIAL_AT[intr.model]
+    dist[at:at + 2] = k
+    return Intrinsics(K=intr.K, dist=dist, model=intr.model, width=intr.width,
+                      height=intr.height)
+
+
+def _radial(intr: Intrinsics) -> F64:
+    """The two coefficients :func:`_with_radial` sets, as ``intr`` gives them."""
+    if lacks_distortion(intr):
+        return np.zeros(2)
+    at = _RADIAL_AT[intr.model]
+    return np.array(intr.dist[at:at + 2], dtype=np.float64)
+
+
 def free_distortion(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
                     intr: Intrinsics) -> Intrinsics | None:
-    """``intr`` with k1 and k2 fitted to the views (module docstring).
+    """``intr`` with k1 and k2 fitted to the views (module docstring); the other coefficients
+    as given (a lens given with distortion: its two radial coefficients refitted, the
+    double-sphere and eucm lenses their two parameters).
 
     Parameters
     ----------
@@ -77,46 +153,90 @@ def free_distortion(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
     T_cam_target : ndarray, shape (len(views), 4, 4)
         Starting pose of each view (PnP with ``intr``).
     intr : Intrinsics
-        The given lens (:func:`lacks_distortion`); its camera matrix is kept.
+        The given lens; its camera matrix is kept.
 
     Returns
     -------
     Intrinsics or None
-        The camera matrix of ``intr`` with the fitted k1, k2 (the other coefficients zero);
-        None with fewer than :data:`MIN_DISTORTION_VIEWS` views or when the fit fails.
+        The camera matrix of ``intr`` with the fitted k1, k2 (the other coefficients as
+        given, zero for a lens given without); None with fewer than
+        :data:`MIN_DISTORTION_VIEWS` views or when the fit fails.
     """
-    from scipy.optimize import least_squares  # noqa: PLC0415 (heavy: it imports scipy.spatial, which nothing else on a calibration's path needs; only when a lens is freed)
-
     n = len(views)
-    if n < MIN_DISTORTION_VIEWS or not lacks_distortion(intr):
+    if n < MIN_DISTORTION_VIEWS or (intr.dist.size < 2 and not lacks_distortion(intr)):
         return None
     obj = [np.asarray(o, dtype=np.float64) for o, _ in views]
     img = np.concatenate([np.asarray(u, dtype=np.float64) for _, u in views])
     which = np.repeat(np.arange(n), [len(o) for o in obj])
-    P = np.concatenate(obj)
     T = np.asarray(T_cam_target, dtype=np.float64)
-    x0 = np.concatenate([np.zeros(2), np.concatenate(
-        [g.rotvec_from_transform(T), T[:, :3, 3]], axis=1).ravel()])
-
-    def residuals(x: F64) -> F64:
-        pose = x[2:].reshape(n, 6)
-        R = g.rotation_from_rotvec(pose[:, :3])[which]
-        Pc = np.einsum("nij,nj->ni", R, P) + pose[which, 3:]
-        r = (project_points(Pc, _with_radial(intr, x[:2])) - img).ravel()
-        return np.where(np.isfinite(r), r, 1e3)       # a point thrown behind: far off
-
-    sparsity = lil_matrix((2 * len(P), 2 + 6 * n), dtype=int)
-    sparsity[:, :2] = 1
-    for i in range(n):
-        rows = np.flatnonzero(np.repeat(which == i, 2))
-        sparsity[rows[0]:rows[-1] + 1, 2 + 6 * i:8 + 6 * i] = 1
     try:
         with np.errstate(all="ignore"):
-            sol = least_squares(residuals, x0, jac_sparsity=sparsity, x_scale="jac",
-                                method="trf", max_nfev=100)
-        return _with_radial(intr, sol.x[:2]) if np.all(np.isfinite(sol.x[:2])) else None
-    except (ValueError, np.linalg.LinAlgError):
+            k = _radial_fit(np.concatenate(obj), img, which, T, intr)
+    except np.linalg.LinAlgError:
         return None
+    return _with_radial(intr, k) if np.all(np.isfinite(k)) else None
+
+
+def _skew(v: F64) -> F64:
+    """(N, 3) -> (N, 3, 3) cross-product matrices."""
+    z = np.zeros(len(v))
+    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1), np.stack([v[:, 2], z, -v[:, 0]], -1),
+                     np.stack([-v[:, 1], v[:, 0], z], -1)], axis=1)
+
+
+def _radial_fit(P: F64, img: F64, which: NDArray[np.intp], T: F64, intr: Intrinsics,
+                iterations: int = 30) -> F64:
+    """k1 and k2 with every view's pose by Levenberg-Marquardt on the pixels, the poses
+    eliminated by their Schur complement (a 2 x 2 system per step; no SciPy import on a
+    calibration's path).  ``P`` (N, 3) target points, ``img`` (N, 2) pixels, ``which`` (N,)
+    each point's view, ``T`` (n, 4, 4) starting T_cam_target.  A point thrown behind the
+    camera counts 1000 px."""
+    n, at = len(T), 4 + _RADIAL_AT[intr.model]
+    k, R, t = _radial(intr), T[:, :3, :3].copy(), T[:, :3, 3].copy()
+
+    def evaluate(k, R, t, jacobian):
+        RP = np.einsum("nij,nj->ni", R[which], P)
+        lens = _with_radial(intr, k)
+        if not jacobian:
+            r = project_points(RP + t[which], lens) - img
+            return float(np.sum(np.where(np.isfinite(r), r, 1e3) ** 2))
+        uv, Jp, Ji = project_with_jacobian(RP + t[which], lens)
+        r = uv - img
+        ok = np.all(np.isfinite(r), axis=1) & np.all(np.isfinite(Jp), axis=(1, 2))
+        Jpose = np.concatenate([-Jp @ _skew(RP), Jp], axis=2)[ok]
+        return r[ok], Jpose, Ji[ok][:, :, at:at + 2], which[ok]
+
+    cost, damping = evaluate(k, R, t, False), 1e-3
+    for _ in range(iterations):
+        r, Jpose, Jk, w = evaluate(k, R, t, True)
+        Hpp = np.zeros((n, 6, 6))
+        Hpk = np.zeros((n, 6, 2))
+        gp = np.zeros((n, 6))
+        np.add.at(Hpp, w, np.einsum("nai,naj->nij", Jpose, Jpose))
+        np.add.at(Hpk, w, np.einsum("nai,naj->nij", Jpose, Jk))
+        np.add.at(gp, w, np.einsum("nai,na->ni", Jpose, r))
+        Hkk, gk = np.einsum("nai,naj->ij", Jk, Jk), np.einsum("nai,na->i", Jk, r)
+        while damping < 1e8:
+            Dpp = Hpp + damping * np.einsum("nii->ni", Hpp)[:, :, None] * np.eye(6)
+            inv = np.linalg.inv(Dpp)
+            S = Hkk + damping * np.diag(np.diag(Hkk)) - np.einsum(
+                "nai,nab,nbj->ij", Hpk, inv, Hpk)
+            dk = np.linalg.solve(S, -(gk - np.einsum("nai,nab,nb->i", Hpk, inv, gp)))
+            dp = -np.einsum("nij,nj->ni", inv, gp + Hpk @ dk)
+            k_new = k + dk
+            R_new = g.rotation_from_rotvec(dp[:, :3]) @ R
+            t_new = t + dp[:, 3:]
+            new = evaluate(k_new, R_new, t_new, False)
+            if new < cost:
+                break
+            damping *= 5.0
+        else:
+            break
+        done = cost - new <= 1e-12 * cost
+        k, R, t, cost, damping = k_new, R_new, t_new, new, max(damping / 3.0, 1e-9)
+        if done:
+            break
+    return k
 
 
 # --------------------------------------------------------------------------- the test
@@ -203,20 +323,23 @@ def _loop_residual(cam: h.CameraEvidence, T_cam_target: F64) -> tuple[float, flo
             float(np.mean(np.linalg.norm(r[:, 3:], axis=1))))
 
 
-def lens_search(cam: h.CameraEvidence, mocap_sigma: tuple[float, float]) -> LensTest | None:
+def lens_search(cam: h.CameraEvidence, mocap_sigma: tuple[float, float], *,
+                radial_only: bool = False) -> LensTest | None:
     """Free the lens: fit the camera's intrinsics to its own detections and compare the
     reprojection and loop residuals with those of the given lens.  A lens given without
-    distortion keeps its camera matrix and gets k1 and k2 (:func:`multieye.estimate.
-    lens_freed.free_distortion`, from 3 views); any other, every parameter of its model
-    (:func:`multieye.imaging.calibrate.initial_intrinsics`, from :data:`MIN_LENS_VIEWS`).
-    None with too few views, fewer than 8 points per view (one marker's 4 corners do not
-    determine a lens), or when the fit fails."""
+    distortion, or any lens with ``radial_only``, keeps its camera matrix and gets its k1 and
+    k2 refitted (:func:`multieye.estimate.lens_freed.free_distortion`, from 3 views); any
+    other, every parameter of its model (:func:`multieye.imaging.calibrate.
+    initial_intrinsics`, from :data:`MIN_LENS_VIEWS`).  None with too few views, fewer than 8
+    points per view (one marker's 4 corners do not determine a lens), or when the fit
+    fails."""
     if not cam.has_points:
         return None
     if np.median([len(p) for p in cam.image_points]) < _MIN_LENS_POINTS:
         return None
     intr = cam.intrinsics
-    if lacks_distortion(intr):
+    if radial_only or distortion_missing(intr):
+        cam = _fewer_views(cam, _MAX_RADIAL_VIEWS)
         given = _pnp_with_rms(cam, intr)
         freed = None if given is None else free_distortion(
             list(zip(cam.object_points, cam.image_points)), given[0], intr)
@@ -224,6 +347,22 @@ def lens_search(cam: h.CameraEvidence, mocap_sigma: tuple[float, float]) -> Lens
     if len(cam.A) < MIN_LENS_VIEWS:
         return None
     return _lens_test(cam, mocap_sigma, None, _all_parameters(cam, intr))
+
+
+def _fewer_views(cam: h.CameraEvidence, most: int) -> h.CameraEvidence:
+    """``cam`` with at most ``most`` of its views, evenly spaced over the recording."""
+    n = len(cam.A)
+    if n <= most:
+        return cam
+    pick = np.unique(np.linspace(0, n - 1, most).round().astype(int))
+
+    def cut(v):
+        return v if v is None else tuple(v[i] for i in pick)
+
+    return replace(cam, A=cam.A[pick], B=cam.B[pick], T_world_mocap=cam.T_world_mocap[pick],
+                   object_points=cut(cam.object_points), image_points=cut(cam.image_points),
+                   rms_px=None if cam.rms_px is None else cam.rms_px[pick],
+                   stamps=None if cam.stamps is None else cam.stamps[pick])
 
 
 def _all_parameters(cam: h.CameraEvidence, intr: Intrinsics) -> Intrinsics | None:

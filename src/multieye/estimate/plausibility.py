@@ -88,6 +88,14 @@ from multieye.core.errors import InputError
 from multieye.core.problem import SETUPS
 from multieye.estimate import hypotheses as h
 from multieye.estimate import lens_freed as lf
+from multieye.estimate.lens_doubt import (
+    LENS_PIXEL_GAIN,
+    MIN_LENS_EXCESS_PX,
+    given_lens_findings,
+    bare_doubt,
+    lens_message,
+    radial_doubt,
+)
 from multieye.estimate.findings import (
     Declared,
     Finding,
@@ -127,15 +135,6 @@ MIN_SCALE_ERROR = 0.015
 MIN_FOCAL_ERROR = 0.01
 #: Smallest clock-offset correction reported, seconds (and at least 4 standard deviations).
 MIN_CLOCK_CHANGE_S = 0.005
-#: Fewest-fold drop of the median reprojection RMS when the lens is freed, for the given lens
-#: to be doubted on its pixels alone (the freed lens shows the detection noise: a correct lens
-#: leaves at most about 1.5-1.8 times it on the shared recordings, docs/results/
-#: plausibility_real.md), and the smallest systematic part of the given lens's RMS, pixels.
-LENS_PIXEL_GAIN = 3.0
-MIN_LENS_EXCESS_PX = 0.2
-#: Median view RMS of a given lens from which a rig without motion capture frees it, pixels
-#: (a lens without its distortion leaves 1-2 px on boofcv_stereo; good corners 0.1-0.3 px).
-MIN_GIVEN_LENS_RMS_PX = 0.5
 #: Fewest-fold drop of the median reprojection RMS with which a freed lens that fits the loop
 #: clearly better is believed.
 _LENS_LOOP_PIXEL_GAIN = 1.5
@@ -310,28 +309,21 @@ def _camera_findings(cam: CameraEvidence, w, declared: Declared, clock: bool,
     return found
 
 
-def _coefficients(dist: np.ndarray) -> str:
-    """k1 and k2; the rational model's trade off against its denominator: not shown."""
-    if not np.any(dist):
-        return "none"
-    if dist.size > 5:
-        return "fitted (rational model)"
-    return ", ".join(f"{n} {v:.3g}" for n, v in zip(("k1", "k2"), dist))
-
-
 def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[str]
                   ) -> Finding | None:
     """The given lens against the lens freed on the camera's own detections.
 
-    Not freed (it costs 0.2-1 s a camera) when neither finding could follow: the given lens
-    leaves less than :data:`MIN_LENS_EXCESS_PX` of reprojection RMS (so no systematic part
-    that large) and its poses fit the loop even weighted as if the pixel noise were at its
-    floor (:func:`multieye.estimate.lens_freed.lens_bound`)."""
+    Not freed whole (it costs 0.2-1 s a camera) when neither finding could follow: the given
+    lens leaves less than :data:`MIN_LENS_EXCESS_PX` of reprojection RMS (so no systematic
+    part that large) and its poses fit the loop even weighted as if the pixel noise were at
+    its floor (:func:`multieye.estimate.lens_freed.lens_bound`).  Such a lens, and one given
+    without distortion, has its k1 and k2 refitted instead (the camera matrix kept), and is
+    doubted by :func:`multieye.estimate.lens_doubt.radial_doubt` on its mean loop residuals
+    (a robot's 0.1 deg / 1 mm hid k1 -0.05 left out in the loop cost: exit status 0, the
+    camera 2.7 mm off at 1.3 mm sigma)."""
     bound = lf.lens_bound(cam, sigma)
-    if bound is not None and bound[0] < MIN_LENS_EXCESS_PX and bound[1] < POOR_COST:
-        tested.append(f"intrinsics:{cam.name}")
-        return None
-    test = lf.lens_search(cam, sigma)
+    quiet = bound is not None and bound[0] < MIN_LENS_EXCESS_PX and bound[1] < POOR_COST
+    test = lf.lens_search(cam, sigma, radial_only=quiet)
     if test is None:
         return None
     tested.append(f"intrinsics:{cam.name}")
@@ -340,9 +332,11 @@ def _lens_finding(cam: CameraEvidence, sigma: tuple[float, float], tested: list[
     pixels = ratio >= LENS_PIXEL_GAIN and excess >= MIN_LENS_EXCESS_PX
     loop = (ratio >= _LENS_LOOP_PIXEL_GAIN and test.cost_given >= POOR_COST
             and _gain(test.cost_given, test.cost_freed) >= CONTINUOUS_GAIN)
-    if not (pixels or loop):
+    bare = lf.distortion_missing(cam.intrinsics)
+    radial = (quiet or bare) and radial_doubt(test) or bare and bare_doubt(test)
+    if not (pixels or loop or radial):
         return None
-    return _lens_message(cam, test, loop=True)
+    return lens_message(cam, test, loop=True)
 
 
 #: A target's square (or marker) side from which a rig without motion capture doubts its
@@ -373,77 +367,6 @@ def target_size_findings(spacings: dict[str, float]) -> tuple[Finding, ...]:
                 f"measure {s:g} cm, write {s / 100:g} in rig.yaml (metres)", None,
                 float("nan"), float("nan"), {"spacing_m": float(s)})
         for name, s in spacings.items() if s >= MAX_TARGET_FEATURE_M)
-
-
-def given_lens_findings(cameras: Sequence[CameraEvidence]) -> tuple[Finding, ...]:
-    """Rigs without motion capture: each camera's given lens against the lens freed on its
-    own detections, judged on the pixels alone (no motion capture to close a loop with).
-
-    A lens given without its distortion fits every view about equally badly, so a camera's
-    PnP poses and the rig's projection agree and the rig's own ``fit`` check does not see
-    it, while the extrinsics come out wrong (boofcv_stereo's baseline 17 % long).  Doubted,
-    cause ``intrinsics``, when the freed lens lowers the median reprojection RMS at least
-    :data:`LENS_PIXEL_GAIN` times and by at least :data:`MIN_LENS_EXCESS_PX`; not freed
-    (0.1-1 CPU-s a camera, more for the wide models) when the given lens leaves less than
-    :data:`MIN_GIVEN_LENS_RMS_PX` in the median view.
-
-    Parameters
-    ----------
-    cameras : sequence of CameraEvidence
-        The cameras with given intrinsics (``intrinsics_estimated`` False) and their views'
-        points and PnP RMS; ``A``, ``B`` the rig's layout (board in the reference camera).
-
-    Returns
-    -------
-    tuple of Finding
-    """
-    out = []
-    for cam in cameras:
-        if (not cam.has_points or cam.intrinsics_estimated or cam.rms_px is None
-                or float(np.median(cam.rms_px)) < MIN_GIVEN_LENS_RMS_PX):
-            continue
-        test = lf.lens_search(cam, h.MOCAP_NOISE)
-        if test is None:
-            continue
-        ratio = test.rms_given_px / max(test.rms_freed_px, 1e-9)
-        excess = math.sqrt(max(test.rms_given_px ** 2 - test.rms_freed_px ** 2, 0.0))
-        if ratio >= LENS_PIXEL_GAIN and excess >= MIN_LENS_EXCESS_PX:
-            out.append(_lens_message(cam, test, loop=False))
-    return tuple(out)
-
-
-def _lens_message(cam: CameraEvidence, test: lf.LensTest, *, loop: bool) -> Finding:
-    """The ``intrinsics`` finding of a freed lens (with the loop residuals when motion
-    capture closes a loop)."""
-    given, freed = cam.intrinsics, test.intrinsics
-    no_distortion = not np.any(given.dist)
-    loops = (f", mean loop residual {_loop(test.loop_given)} -> {_loop(test.loop_freed)}, "
-             f"loop residuals {_times(test.cost_given)} -> {_times(test.cost_freed)} times what "
-             "the noise explains" if loop else "")
-    why = ("the intrinsics give no lens distortion while these images show one: the "
-           "distortion coefficients were probably left out of the intrinsics file (or read "
-           "under another key)" if no_distortion else
-           "the intrinsics probably do not belong to these images (another camera or lens, "
-           "a zoom or focus setting, distortion coefficients in another order or model)")
-    return Finding(
-        "intrinsics", f"intrinsics: camera {cam.name}'s lens freed (fitted to its own "
-        f"detections) fits better than the given intrinsics: reprojection RMS "
-        f"{test.rms_given_px:.3g} -> {test.rms_freed_px:.3g} px{loops} "
-        f"(fx {given.K[0, 0]:.1f} -> {freed.K[0, 0]:.1f} px; distortion "
-        f"{_coefficients(given.dist)} -> {_coefficients(freed.dist)}): {why}; calibrate the "
-        "intrinsics again, or let multieye estimate them (model: instead of intrinsics:, or "
-        "refine_intrinsics: true)", cam.name, test.cost_given,
-        test.cost_freed, {"rms_given_px": test.rms_given_px,
-                          "rms_freed_px": test.rms_freed_px, "cost_given": test.cost_given,
-                          "cost_freed": test.cost_freed,
-                          "loop_given_deg": test.loop_given[0], "loop_given_m": test.loop_given[1],
-                          "loop_freed_deg": test.loop_freed[0],
-                          "loop_freed_m": test.loop_freed[1]})
-
-
-def _loop(residual: tuple[float, float]) -> str:
-    """``1.03 deg / 14.5 mm``."""
-    return f"{residual[0]:.3g} deg / {1e3 * residual[1]:.3g} mm"
 
 
 def check_noise(report: Plausibility, refined: RefinementResult | None, mocap=None, *,

@@ -8,7 +8,10 @@ same data, and records per trial:
 - ``rel_rot_err_deg``, ``rel_trans_err_m``: the error of the relative extrinsics ``T_ref_cam``
   against the ground truth (rotation angle, translation distance), averaged over the
   non-reference cameras; with a single camera, the error of ``X`` itself;
-- ``time_s``: the wall time of the :func:`multieye.solvers.solve` call.
+- ``time_s``: the wall time of the :func:`multieye.solvers.solve` call;
+- ``failure``: empty, or the error class with which the method refused the data (its error
+  columns then NaN; e.g. ``DegenerateMotionError`` for single-camera methods when one
+  camera's few rotations are about one axis).
 
 ========== ======================================== =======================================
 sweep      parameter (column ``param``)             fixed
@@ -34,6 +37,7 @@ from __future__ import annotations
 import io
 import sys
 import time
+from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import astuple, dataclass, fields, replace
 from pathlib import Path
@@ -98,9 +102,11 @@ class ExperimentRow:
         (error of ``X`` with one camera), degrees and metres.
     time_s : float
         Wall time of the solve, seconds.
-
-    A method that rejects the data (a :class:`~multieye.core.errors.CalibrationError`) leaves NaN
-    in every error column.
+    failure : str
+        Empty, or the class of the :class:`~multieye.core.errors.CalibrationError` with which
+        the method refused the data (``DegenerateMotionError``: e.g. a camera whose rotations
+        are about one axis, which single-camera methods cannot solve); the error columns are
+        then NaN.  A solver never returns NaN without refusing (:func:`multieye.solvers.solve`).
     """
 
     param: float
@@ -111,6 +117,7 @@ class ExperimentRow:
     rel_rot_err_deg: float
     rel_trans_err_m: float
     time_s: float
+    failure: str = ""
 
 
 #: CSV header, in order.
@@ -148,7 +155,14 @@ class SweepResult:
     @property
     def failures(self) -> int:
         """Number of solves that raised a CalibrationError (NaN rows)."""
-        return sum(1 for r in self.rows if np.isnan(r.rel_rot_err_deg))
+        return sum(1 for r in self.rows if r.failure or np.isnan(r.rel_rot_err_deg))
+
+    def failure_summary(self) -> str:
+        """The refused solves by method, parameter and error class, one line (empty if none):
+        ``shah at 3: DegenerateMotionError x1; ...``."""
+        counts = Counter((r.method, r.param, r.failure or "NaN") for r in self.rows
+                         if r.failure or np.isnan(r.rel_rot_err_deg))
+        return "; ".join(f"{m} at {p:g}: {kind} x{n}" for (m, p, kind), n in counts.items())
 
 
 @dataclass(frozen=True)
@@ -165,10 +179,10 @@ def _evaluate(scenario: sim.RigScenario, method: str, param: float, trial: int) 
     start = time.perf_counter()
     try:
         sol = solve(scenario.A, scenario.B, method=method)
-    except CalibrationError:
+    except CalibrationError as exc:
         nan = float("nan")
         return ExperimentRow(param, method, trial, nan, nan, nan, nan,
-                             time.perf_counter() - start)
+                             time.perf_counter() - start, type(exc).__name__)
     elapsed = time.perf_counter() - start
     if scenario.n_cameras == 1:
         rot, trans = extrinsic_errors(sol.X, scenario.X)
@@ -382,7 +396,7 @@ def summarize(result: SweepResult, metric: str, statistic: str = "mean"
 
 
 def rows_to_csv(rows: Iterable[ExperimentRow]) -> str:
-    """CSV text with a header line ``param,method,trial,e_R_deg,...,time_s``.
+    """CSV text with a header line ``param,method,trial,e_R_deg,...,time_s,failure``.
 
     Floats are written as Python's shortest exact round-trip form; NaN as ``nan``.
     """

@@ -103,6 +103,17 @@ class LocalEngine(Engine):
         self._stack.close()
         self._pool = None
 
+    def __exit__(self, *exc):
+        # the block's exception (Ctrl-C, SIGTERM's Stopped, an error) reaches worker_pool,
+        # which then cancels the queued tasks and ends its workers; close() would shut the
+        # pool down as on success, waiting for every task (calibrate-many went on with every
+        # dataset after "stopped by SIGTERM")
+        try:
+            self._stack.__exit__(*exc)
+        finally:
+            self._pool = None
+        return False
+
     def map(self, fn, items, *, star=False, chunksize=None):
         items = list(items)
         if self.processes <= 1 or len(items) <= 1:

@@ -70,6 +70,14 @@ def turns_to_fit(header: ImageHeader, fit: tuple[int | None, int | None] | None)
             and (header.height, header.width) == tuple(fit) and fit[0] != fit[1])
 
 
+#: Set once OpenCV's log level is set: a truncated or corrupt image made OpenCV write its own
+#: lines (``[ WARN:0@1.3] ... PNG input buffer is incomplete``, ``[ERROR:0@11.4] imdecode_
+#: ... can't read data``) wherever decoding ran with the terminal's standard error (one
+#: process, ``--processes 1``, calibrate-many's workers), one or two per image, beside
+#: multieye's one line per cause.
+_QUIET: list = []
+
+
 def decode_gray(data: bytes, reduce: int = 1, *, orient: bool = False
                 ) -> tuple[np.ndarray | None, str | None]:
     """Checked bytes (:func:`checked_bytes`) decoded to 8-bit gray pixels as stored (EXIF
@@ -78,6 +86,9 @@ def decode_gray(data: bytes, reduce: int = 1, *, orient: bool = False
     decoding, other formats are decoded whole). Returns the image or None and the reason."""
     import cv2  # noqa: PLC0415 (heavy: OpenCV loads only when an image is decoded)
 
+    if not _QUIET:      # OpenCV's own lines below fatal: the reason returned is the message
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_FATAL)
+        _QUIET.append(True)
     flag = {1: cv2.IMREAD_GRAYSCALE, 2: cv2.IMREAD_REDUCED_GRAYSCALE_2,
             4: cv2.IMREAD_REDUCED_GRAYSCALE_4, 8: cv2.IMREAD_REDUCED_GRAYSCALE_8}[reduce]
     if not orient:

@@ -30,22 +30,29 @@ from numpy.typing import NDArray
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import LENS_MODELS
 from multieye.core.lens import project_points
-from multieye.imaging.generic_start import fit_lens, generic_start
+from multieye.imaging.generic_start import LensFit, fit_lens, generic_start
 from multieye.imaging.pnp import refit_poses
 
-__all__ = ["ModelScore", "ModelComparison", "compare_models", "CANDIDATES", "CLEARLY",
-           "MIN_GAIN_PX"]
+__all__ = ["ModelScore", "ModelComparison", "compare_models", "edge_rms", "may_be_beaten",
+           "CANDIDATES",
+           "PINHOLE_CANDIDATES", "CLEARLY", "MIN_GAIN_PX", "EDGE_BOUND_PX"]
 
 F64 = NDArray[np.float64]
 
 #: The models a fisheye or wide lens is compared in.
 CANDIDATES = ("fisheye", "unified", "double-sphere", "eucm")
+#: ... and a pinhole lens (the rational model first: a lens wider than radial-tangential
+#: follows).
+PINHOLE_CANDIDATES = ("pinhole-rational",) + CANDIDATES
 #: Another model is clearly better when its outer held-out RMS is at most this share ...
 CLEARLY = 0.75
 #: ... and at least this many pixels below the requested model's.
 MIN_GAIN_PX = 0.05
 #: ... or projects more of the corners seen by this share of them (and fits as well).
 LOST_SHARE = 0.02
+#: A model that leaves less than this in the outer quarter of its radii cannot be clearly
+#: beaten by the rule above (MIN_GAIN_PX / (1 - CLEARLY)), pixels.
+EDGE_BOUND_PX = MIN_GAIN_PX / (1 - CLEARLY)
 #: Views the comparison uses at most (spread over those given), and its folds.
 MAX_VIEWS = 20
 FOLDS = 4
@@ -122,12 +129,57 @@ def _spread(n: int, k: int) -> NDArray[np.int64]:
     return np.unique(np.linspace(0, n - 1, min(n, k)).round().astype(np.int64))
 
 
+def _full_fit(views, size, model: str) -> LensFit:
+    """``model`` fitted to every view: OpenCV's calibration for the pinhole models (which
+    :func:`generic_start` does not start), the generic start for the others."""
+    if LENS_MODELS[model][0] != "pinhole":
+        return generic_start(views, size, model)
+    from multieye.imaging.calibrate import initial_intrinsics  # noqa: PLC0415 (OpenCV's calibration: only when a pinhole model is compared)
+
+    start = initial_intrinsics(views, size, model)
+    T = start.T_cam_target
+    rms = np.array([np.sqrt(np.mean(np.sum((project_points(
+        o @ Ti[:3, :3].T + Ti[:3, 3], start.intrinsics) - u) ** 2, axis=1)))
+        if np.all(np.isfinite(Ti)) else np.inf for (o, u), Ti in zip(views, T)])
+    return LensFit(start.intrinsics, T, np.where(np.isfinite(rms), rms, np.inf))
+
+
+def edge_rms(views, intrinsics, T_cam_target: F64, size) -> tuple[float, float]:
+    """The reprojection RMS of a fitted lens over the outer quarter of the observed radii
+    from the image centre and over the inner three quarters, pixels (its training
+    residuals: a cheap bound for whether a model comparison could name another model; NaN
+    without a posed view)."""
+    uv, err = [], []
+    for (o, u), T in zip(views, T_cam_target):
+        if np.all(np.isfinite(T)):
+            d = project_points(np.asarray(o) @ T[:3, :3].T + T[:3, 3], intrinsics) - u
+            uv.append(np.asarray(u))
+            err.append(np.hypot(d[:, 0], d[:, 1]))
+    if not uv:
+        return float("nan"), float("nan")
+    uv, err = np.concatenate(uv), np.where(np.isfinite(np.concatenate(err)),
+                                           np.concatenate(err), 1e3)
+    radius = np.hypot(*(uv - (np.array(size, np.float64) - 1) / 2).T)
+    outer = radius >= np.quantile(radius, 0.75)
+    return (float(np.sqrt(np.mean(err[outer] ** 2))),
+            float(np.sqrt(np.mean(err[~outer] ** 2))) if np.any(~outer) else float("nan"))
+
+
+def may_be_beaten(outer_px: float, inner_px: float) -> bool:
+    """Whether a lens leaving ``outer_px`` in the outer quarter of its radii and ``inner_px``
+    inside could be clearly beaten (the rule of :func:`compare_models`): no model fits below
+    the noise, which the inner residuals bound, so the outer ones must be at least
+    :data:`EDGE_BOUND_PX` and 1 / :data:`CLEARLY` times the inner ones (a misfit that grows
+    towards the edge)."""
+    return bool(outer_px >= EDGE_BOUND_PX and outer_px >= inner_px / CLEARLY)
+
+
 def _held_out(views, size, model: str) -> F64 | None:
     """Per point of ``views`` (stacked), its held-out reprojection error in ``model``,
     pixels (NaN where the model does not project it); None when no lens can be fitted."""
     try:
-        full = generic_start(views, size, model)
-    except (InputError, np.linalg.LinAlgError):
+        full = _full_fit(views, size, model)
+    except (InputError, np.linalg.LinAlgError, ValueError):
         return None
     counts = [len(o) for o, _ in views]
     at = np.concatenate([[0], np.cumsum(counts)])
@@ -164,7 +216,7 @@ def _score(model: str, err: F64, radius: F64, outer_from: float, lost: int) -> M
 
 
 def compare_models(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
-                   requested: str, *, candidates: Sequence[str] = CANDIDATES
+                   requested: str, *, candidates: Sequence[str] | None = None
                    ) -> ModelComparison:
     """The held-out reprojection of each candidate model on the same views.
 
@@ -175,7 +227,8 @@ def compare_models(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int]
     image_size : (int, int)
     requested : str
         The rig.yaml model asked for (:data:`multieye.core.intrinsics.LENS_MODELS`).
-    candidates : sequence of str
+    candidates : sequence of str, optional
+        Default :data:`PINHOLE_CANDIDATES` for a pinhole model, else :data:`CANDIDATES`.
 
     Returns
     -------
@@ -183,6 +236,9 @@ def compare_models(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int]
         Scored over the points every fitted model projects (a fisheye lens none beyond 90
         degrees off its axis).
     """
+    if candidates is None:
+        pinhole = requested in LENS_MODELS and LENS_MODELS[requested][0] == "pinhole"
+        candidates = PINHOLE_CANDIDATES if pinhole else CANDIDATES
     views = [(np.asarray(o, np.float64), np.asarray(u, np.float64)) for o, u in views]
     views = [views[i] for i in _spread(len(views), MAX_VIEWS)]
     size = (int(image_size[0]), int(image_size[1]))
@@ -197,7 +253,7 @@ def compare_models(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int]
         radius = np.hypot(*(uv - centre).T)
         outer_from = float(np.quantile(radius, 0.75))
         alone = _score(requested, mine, radius, outer_from, 0)
-        if alone.outer_rms_px < MIN_GAIN_PX / (1 - CLEARLY):
+        if alone.outer_rms_px < EDGE_BOUND_PX:
             return ModelComparison(requested, {requested: alone}, outer_from, len(views), None)
     errors = {m: e for m in models if m in LENS_MODELS
               for e in ([mine] if m == requested else [_held_out(views, size, m)])

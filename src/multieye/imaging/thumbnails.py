@@ -23,6 +23,9 @@ import numpy as np
 
 from multieye.imaging.image_file import checked_bytes, decode_gray, turns_to_fit
 
+#: The drawn images' JPEG quality, 0-100.
+JPEG_QUALITY = 82
+
 __all__ = ["residual_thumbnail", "crop_box", "POINT_BGR", "RESIDUAL_BGR"]
 
 #: Colour of the detected points (cyan) and of the residual lines (magenta), BGR.
@@ -70,9 +73,9 @@ def crop_box(uv: np.ndarray, width: float, height: float, margin: float = 0.25,
 
 
 def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.ndarray, *,
-                       magnify: float, max_width: int = 480, quality: int = 82,
-                       image_size: tuple[int, int] | None = None, crop: bool = True
-                       ) -> bytes | None:
+                       magnify: float, max_width: int = 480,
+                       image_size: tuple[int, int] | None = None, crop: bool = True,
+                       region: tuple[int, int, int, int] | None = None) -> bytes | None:
     """A downscaled grey copy of an image with its points and magnified residuals, as JPEG.
 
     Parameters
@@ -87,12 +90,13 @@ def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.nda
         Drawn length of a residual line per pixel of residual (in full-size pixels).
     max_width : int
         Width of the picture at most, pixels (never enlarged).
-    quality : int
-        JPEG quality, 0-100.
     image_size : (int, int), optional
         Full-size width and height; when given, a file of another size is refused (None).
     crop : bool
         Show only the part of the image around the points (:func:`crop_box`).
+    region : (x, y, width, height), optional
+        Show nothing outside this part of the image (a camera's half of a side-by-side
+        stereo frame), full-size pixels.
 
     Returns
     -------
@@ -114,6 +118,11 @@ def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.nda
     uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
     residual = np.asarray(residual, dtype=np.float64).reshape(-1, 2)
     x0, y0, x1, y1 = crop_box(uv, full_w, full_h) if crop else (0, 0, full_w, full_h)
+    if region is not None:
+        x0, y0 = max(x0, region[0]), max(y0, region[1])
+        x1, y1 = min(x1, region[0] + region[2]), min(y1, region[1] + region[3])
+        if x1 <= x0 or y1 <= y0:
+            return None
     part = image[int(y0 * reduced):int(math.ceil(y1 * reduced)),
                  int(x0 * reduced):int(math.ceil(x1 * reduced))]
     scale = min(reduced, max_width / (x1 - x0))  # full-size pixels -> picture pixels
@@ -134,5 +143,5 @@ def residual_thumbnail(path: str | os.PathLike, uv: np.ndarray, residual: np.nda
         cv2.circle(picture, (int(p[0]), int(p[1])), 3 << shift, POINT_BGR, 1, cv2.LINE_AA,
                    shift)
     cv2.polylines(picture, list(lines), False, RESIDUAL_BGR, 1, cv2.LINE_AA, shift)
-    ok_, jpeg = cv2.imencode(".jpg", picture, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    ok_, jpeg = cv2.imencode(".jpg", picture, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
     return bytes(jpeg) if ok_ else None

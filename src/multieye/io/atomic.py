@@ -61,7 +61,16 @@ def write_problem(exc: OSError) -> str:
 
 
 def _abs(path: str | os.PathLike) -> Path:
-    return Path(os.path.abspath(os.fspath(path)))
+    """``path`` made absolute, ``..`` read as the file system reads it: the part up to the
+    last ``..`` resolved (``link/..`` is the folder above the link's target, not the folder
+    holding the link, as ``os.path.abspath`` has it), the rest by its letters, links kept
+    (a link inside a confined folder is found and refused, not followed)."""
+    parts = Path(os.path.join(os.getcwd(), os.fspath(path))).parts
+    if ".." not in parts:
+        return Path(os.path.abspath(os.fspath(path)))
+    last = len(parts) - parts[::-1].index("..")
+    return Path(os.path.normpath(os.path.join(os.path.realpath(os.path.join(*parts[:last])),
+                                              *parts[last:])))
 
 
 @contextlib.contextmanager

@@ -102,13 +102,19 @@ _WINDOWS_LOCK_OFFSET = 1 << 30      # msvcrt locks bytes: lock one far beyond th
 
 
 def _resolve(out: str | os.PathLike) -> Path:
-    """``out`` made absolute, the folders above it resolved (once, here), ``out`` itself not:
-    a link there is refused later (:func:`_check_real_folder`)."""
-    path = Path(os.path.abspath(os.path.expanduser(os.fspath(out))))
+    """``out`` made absolute, the folders above it resolved (once, here) as the file system
+    does (``link/../out`` lies beside the link's target: the folder read, whose lock it is),
+    ``out`` itself not: a link there is refused later (:func:`_check_real_folder`)."""
+    raw = os.path.join(os.getcwd(), os.path.expanduser(os.fspath(out)))
+    head, name = os.path.split(raw.rstrip(os.sep) or os.sep)
+    while name == "." and head.rstrip(os.sep):          # out/. names out itself
+        head, name = os.path.split(head.rstrip(os.sep))
+    path = (Path(os.path.realpath(raw)) if name in ("", "..")
+            else Path(os.path.realpath(head or os.sep)) / name)
     if path.parent == path:
         raise DatasetError("cannot use the root of a file system as the output folder",
                            path=path)
-    return path.parent.resolve() / path.name
+    return path
 
 
 def _as_typed(exc: DatasetError, out: Path, typed: str | os.PathLike) -> DatasetError:
@@ -179,7 +185,9 @@ _HELD: dict[Path, _Held] = {}
 _HELD_GUARD = threading.Lock()
 
 
-def _try_lock(fd: int) -> bool:
+def _try_lock(fd: int, path: Path) -> bool:
+    """Lock ``fd`` without waiting; False when another process holds it; DatasetError when
+    the file system cannot lock (``ENOLCK``: some network file systems), not another run."""
     try:
         if fcntl is not None:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -188,8 +196,15 @@ def _try_lock(fd: int) -> bool:
 
             os.lseek(fd, _WINDOWS_LOCK_OFFSET, os.SEEK_SET)
             msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
-    except OSError:
-        return False
+    except OSError as exc:
+        if fcntl is None or exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+            return False
+        if _same_file(fd, path) and not os.fstat(fd).st_size:     # ours, just created
+            os.unlink(path)
+        os.close(fd)
+        raise DatasetError(f"cannot lock the lock file ({exc.strerror}): the file system of "
+                           "the output folder does not lock files; choose an output folder "
+                           "on a local disk", path=path) from exc
     return True
 
 
@@ -226,7 +241,7 @@ def _acquire(out: Path) -> bool:
         fd = _open_lock(path)
         if fd is None:
             continue                # removed between our two opens: try again
-        if not _try_lock(fd):
+        if not _try_lock(fd, path):
             os.close(fd)
             raise _busy(out, _holder(path))
         if _same_file(fd, path):    # a holder that ended may have removed it: retry

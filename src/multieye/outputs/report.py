@@ -56,7 +56,7 @@ from multieye.io.calibration_json import (SETUP_KEYS, CalibrationRecord, PoseUnc
 from multieye.io.run_details import RunDetails, read_run_details
 from multieye.core.metrics import pose_row
 from multieye.outputs.folder import claim_output
-from multieye.outputs.summary import link_text, lens_sigmas, pose_sigmas, reprojection_rms_px
+from multieye.outputs.summary import link_text, lens_sigmas, loop_headline, pose_sigmas, reprojection_rms_px
 from multieye.outputs.html import figure as _figure
 from multieye.outputs.html import num as _num
 from multieye.outputs.html import table as _table
@@ -173,7 +173,7 @@ def _headline_cards(rec: CalibrationRecord) -> tuple[list[tuple[str, str]], str]
     reprojection RMS and each camera's sigma, with the pose residuals as a note below."""
     loop = [("mean rotation residual", f"{rec.residuals.e_R_deg:.3f}°"),
             ("mean translation residual", f"{rec.residuals.e_t_m * 1e3:.2f} mm")]
-    if rec.mocap:
+    if loop_headline(rec):
         return loop, ""
     rms = reprojection_rms_px(rec)
     cards = [("reprojection RMS", "-" if rms is None else f"{rms:.2f} px")]
@@ -351,7 +351,7 @@ def _residuals(rec: CalibrationRecord, details: RunDetails | None) -> str:
             + ('<p class="note">Pose residuals over the used images: the angle and distance '
                "between each image's PnP pose of the target and the solution's "
                "(<code>inv(T_ref_cam) T_ref_target</code> of its instant); reprojection RMS "
-               "of the target points in the solution.</p></section>" if not rec.mocap else
+               "of the target points in the solution.</p></section>" if not loop_headline(rec) else
                '<p class="note">Loop residuals of <code>A_i X = Y B_i</code> over the used '
                "images (paper section V-A): the angle of (R_Y R_B)<sup>T</sup> R_A R_X and the "
                "distance between the two sides' translations; reprojection RMS of the target "
@@ -394,7 +394,8 @@ def _rig(rec: CalibrationRecord, details: RunDetails | None, figures: Mapping[st
             f"{where}{unc}</p></section>")
 
 
-def _residual_figures(details: RunDetails | None, figures: Mapping[str, bytes]) -> str:
+def _residual_figures(rec: CalibrationRecord, details: RunDetails | None,
+                      figures: Mapping[str, bytes]) -> str:
     if details is None:
         missing = ('<p class="note">Per-image residuals are in <code>details.json</code>, which '
                    "this output folder does not have; rerun <code>multieye calibrate</code> to "
@@ -404,7 +405,8 @@ def _residual_figures(details: RunDetails | None, figures: Mapping[str, bytes]) 
     return "".join([
         '<section id="histograms"><h2>Residual histograms</h2>',
         _figure(figures["residual_histograms.png"], "residual histograms per camera",
-                "Loop residuals of every used image, one row per camera; bins are shared "
+                f"{'Loop' if loop_headline(rec) else 'Pose'} residuals of every used image, one row "
+                "per camera; bins are shared "
                 "down each column so that cameras compare at a glance. Solid line: "
                 "median, dashed: mean.", "residual_histograms.png"),
         "</section>",
@@ -508,7 +510,7 @@ def report_html(rec: CalibrationRecord, details: RunDetails | None,
     body = "".join([
         _summary(rec, Path(out_dir)), _warnings(rec, notes), _rig(rec, details, figures, rig_legend),
         images_section(rec, details, thumbnails or {}), _extrinsics(rec),
-        _residuals(rec, details), _residual_figures(details, figures),
+        _residuals(rec, details), _residual_figures(rec, details, figures),
         cameras_section(rec, details, figures), diagnostics_section(rec, details),
         _rejected(rec, details),
         f"<footer>Written by multieye {escape(__version__)} from <code>calibration.json</code>"
@@ -571,14 +573,12 @@ def write_report(out_dir: str | os.PathLike, *, shown_as: str | os.PathLike | No
 def write_report_from(out_dir: str | os.PathLike, rec: CalibrationRecord,
                       details: RunDetails | None, figures: Callable, *,
                       notes: Sequence[str] = (), shown_as: str | os.PathLike | None = None,
-                      images: Mapping[str, str | os.PathLike] | None = None,
-                      crops: Mapping[str, tuple] | None = None) -> Path:
+                      images: Mapping[str, str | os.PathLike] | None = None, crops=None) -> Path:
     """:func:`write_report` of ``calibration.json`` and ``details.json`` as ``rec`` and
     ``details`` (what the files hold, not read back: :func:`multieye.outputs.write.
     write_outputs`), with ``figures`` the function that waits for the figures
-    (:func:`~multieye.outputs.report_draw.submit_figures`).  The images with the
-    detections are drawn in this process meanwhile (``crops``: by camera, the region of
-    its image files it saw, :func:`~multieye.outputs.report_images.image_crops`)."""
+    (:func:`~multieye.outputs.report_draw.submit_figures`).  The images with the detections
+    are drawn here meanwhile (``crops``: :func:`~multieye.outputs.report_images.image_crops`)."""
     out = Path(out_dir)
     thumbnails = image_thumbnails(rec, details, images, crop=crops)
     figures_drawn, legend = figures()

@@ -127,7 +127,8 @@ def image_thumbnails(rec: CalibrationRecord, details: RunDetails | None,
             jpeg = residual_thumbnail(Path(folder) / name, np.asarray(cam.points.uv[i]) + shift,
                                       cam.points.residual_px[i], magnify=magnify,
                                       image_size=(frame.width, frame.height) if frame.known
-                                      and crop.get(c.name) is None else None)
+                                      and crop.get(c.name) is None else None,
+                                      region=crop.get(c.name))
             if jpeg is not None:
                 out[c.name].append(Thumbnail(c.name, name, rms, len(cam.points.uv[i]),
                                              f"image_{stem}_{rank}.jpg", jpeg, magnify))

@@ -21,6 +21,7 @@ from multieye.pipeline.recordings import image_notes
 
 __all__ = ["format_table", "calibration_table", "comparison_table", "timings_line",
            "check_table", "headline", "reprojection_rms_px", "pose_sigmas", "lens_sigmas",
+           "loop_headline", "PIXEL_METHODS",
            "link_text"]
 
 
@@ -71,13 +72,29 @@ def reprojection_rms_px(rec: CalibrationRecord) -> float | None:
     return None if not n else float(np.sqrt(sum(k * r * r for k, r in cams) / n))
 
 
+#: Methods that solve the rig from the pixels (:mod:`multieye.pipeline.overlap_run`'s
+#: ``METHOD`` and ``MOTION_METHOD``): their pose residuals compare each view's PnP pose with
+#: the rig's, also when the rig's motion capture joins the problem (a rig linked by its
+#: motion, with motion capture), so they are a diagnostic, not a hand-eye loop.
+PIXEL_METHODS = ("covisibility", "motion-links")
+
+
+def loop_headline(rec: CalibrationRecord) -> bool:
+    """Whether the record's residuals are the loop residuals of ``A_i X = Y B_i`` (motion
+    capture, solved by the hand-eye methods), the headline; else the reprojection RMS and
+    each camera's sigma are (:func:`headline`)."""
+    return bool(rec.mocap) and rec.method not in PIXEL_METHODS
+
+
 def pose_sigmas(rec: CalibrationRecord) -> list[tuple[str, float, float]]:
-    """``(camera, std deg, std m)`` of ``T_ref_cam`` of every camera but the reference (whose
-    pose is the identity), where the uncertainty is known."""
+    """``(camera, std deg, std m)`` of each camera's result where its uncertainty is known:
+    ``T_ref_cam`` of every camera but the reference (whose pose is the identity); with
+    motion capture, each camera's own unknown (``T_body_cam`` or ``T_world_cam``)."""
+    key = SETUP_KEYS[rec.setup][1] if rec.mocap else "T_ref_cam"
     out = []
     for c in rec.cameras:
-        unc = None if not c.uncertainty else c.uncertainty.get("T_ref_cam")
-        if c.name != rec.reference_camera and unc is not None:
+        unc = None if not c.uncertainty else c.uncertainty.get(key)
+        if (rec.mocap or c.name != rec.reference_camera) and unc is not None:
             out.append((c.name, unc.std_rot_deg, unc.std_trans_m))
     return out
 
@@ -104,8 +121,9 @@ def headline(rec: CalibrationRecord) -> list[str]:
     """The first lines of the summary: the figures that say how good the result is, by setup.
 
     Cameras linked by motion capture: the mean loop residual of ``A_i X = Y B_i`` (the hand-eye
-    fit).  One camera, or cameras linked only by the views they share (no motion capture):
-    the reprojection RMS and each camera's sigma (its pose relative to the reference, its
+    fit).  One camera, or cameras linked only by the views they share or by the rig's motion
+    (with or without motion capture in the problem, :func:`loop_headline`): the reprojection
+    RMS and each camera's sigma (its pose relative to the reference, its
     lens when estimated); the pose residuals there compare each view's target pose with the
     rig's, which the estimated lens and the board poses absorb, so they are a diagnostic on
     a line of their own below, not the accuracy.
@@ -113,13 +131,14 @@ def headline(rec: CalibrationRecord) -> list[str]:
     head = f"{rec.setup}, method {rec.method}, reference {rec.reference_camera}: "
     loop = (f"mean e_R {rec.residuals.e_R_deg:.3f} deg, e_t {rec.residuals.e_t_m * 1e3:.2f} "
             "mm")
-    if rec.mocap:
+    if loop_headline(rec):
         return [head + "mean loop residual " + loop.removeprefix("mean ")]
     rms = reprojection_rms_px(rec)
     parts = ["reprojection RMS " + ("-" if rms is None else f"{rms:.2f} px")]
     poses = pose_sigmas(rec)
     if poses:
-        parts.append("sigma of T_ref_cam " + ", ".join(
+        key = rec.named_keys()[1] if rec.mocap else "T_ref_cam"
+        parts.append(f"sigma of {key} " + ", ".join(
             f"{n} {d:.3f} deg / {m * 1e3:.2f} mm" for n, d, m in poses))
     lenses = lens_sigmas(rec)
     if lenses:
@@ -135,10 +154,11 @@ def calibration_table(rec: CalibrationRecord) -> str:
     After the :func:`headline`, every camera's own unknown ``X`` (``T_world_cam`` or ``T_body_cam``) as tx ty tz
     (metres) and yaw pitch roll (degrees, ``R = Rz(yaw) Ry(pitch) Rx(roll)``) with its
     standard deviations (root of the trace of its rotation and translation covariance) and
-    the measurements used and rejected, mean loop residuals (degrees, millimetres) and
-    reprojection RMS (pixels); then the shared ``Y`` with its own; then, with several
-    cameras, ``T_ref_cam`` relative to the reference camera; then estimated intrinsics with
-    their standard deviations, rejected items and warnings.
+    the measurements used and rejected, mean loop residuals (degrees, millimetres; without
+    motion capture the pose residuals, labelled so) and reprojection RMS (pixels); then the
+    shared ``Y`` with its own; then, with several cameras, ``T_ref_cam`` relative to the
+    reference camera; then estimated intrinsics with their standard deviations, rejected
+    items and warnings.
     """
     if rec.mocap:
         y_key, x_key = SETUP_KEYS[rec.setup]
@@ -148,8 +168,9 @@ def calibration_table(rec: CalibrationRecord) -> str:
         y_name, x_name = None, "T_ref_cam"
     pose_head = ["tx m", "ty m", "tz m", "yaw deg", "pitch deg", "roll deg", "std deg",
                  "std mm"]
-    header = ["camera", "used", "rejected", "loop e_R deg", "loop e_t mm", "reproj px",
-              *pose_head, "offset ms", "offset std ms"]
+    residual = "loop" if loop_headline(rec) else "pose"      # else a diagnostic
+    header = ["camera", "used", "rejected", f"{residual} e_R deg", f"{residual} e_t mm",
+              "reproj px", *pose_head, "offset ms", "offset std ms"]
     rows = []
     for c in rec.cameras:
         r = c.residuals

@@ -21,14 +21,13 @@ from multieye.core.intrinsics import Intrinsics
 from multieye.estimate.pairing import pair_in_time
 from multieye.imaging.calibrate import look_again
 from multieye.imaging.engines import Engine
-from multieye.io import (RejectedItem, Rig, Trajectory, list_image_files, read_mocap,
-                         skipped_entries)
+from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, read_mocap, skipped_entries
 from multieye.io.image_folder import label_stem
 from multieye.pipeline.boards import camera_boards, intrinsics_boards, per_board
 from multieye.pipeline.boards import no_usable_image as _no_usable_image
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
 from multieye.pipeline.detection import Workers, detect_all, detect_listed
-from multieye.pipeline.estimated_lens import lens_start, posed_on_refined_lens, start_lens, with_poses
+from multieye.pipeline.estimated_lens import lens_start, posed_on_refined_lens, sized_as_seen, start_lens, with_poses
 from multieye.pipeline.recordings import (check_sync, instant_keys, note_label, poses_by_name_of,
                                           precomputed_poses, sync_instant)
 from multieye.pipeline.rig_model import RigModel, build_rig_model
@@ -254,6 +253,7 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
     lens, n_images = None, len(stamped)
     stamped, results, boards = per_board(stamped, results, boards)    # one per (image, board)
     if intr is None:
+        results = sized_as_seen(results)
         detected = [r for r in results if r.reason is None]
         if not detected:
             raise DatasetError(_no_usable_image(rig, [RejectedItem(lb, r.reason) for (_, lb), r

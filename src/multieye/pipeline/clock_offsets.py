@@ -44,8 +44,10 @@ def estimated_offset(problem: Problem, d: CameraData, observations=None) -> Cloc
     ------
     CalibrationError
         The search failed, the angular speeds of camera and motion capture correlate below
-        :data:`CLOCK_MIN_SCORE`, or the best offset lies at the edge of the search range
-        (``--max-time-offset``); each names the camera and what to do.
+        :data:`CLOCK_MIN_SCORE`, the loop residuals have no minimum near the correlation's
+        peak (:attr:`~multieye.estimate.clock.ClockOffset.note`), or the best offset lies at
+        the edge of the search range (``--max-time-offset``); each names the camera and what
+        to do.
     """
     obs = d.observations if observations is None else observations
     search = (-problem.options.max_time_offset, problem.options.max_time_offset)
@@ -71,6 +73,10 @@ def estimated_offset(problem: Problem, d: CameraData, observations=None) -> Cloc
             f"the search range {search[0]:+.3g}..{search[1]:+.3g} s, so the true one is "
             "probably outside it; widen the search (--max-time-offset SECONDS) or give "
             "--time-offset SECONDS (or time_offset in rig.yaml)")
+    if est.note:
+        raise CalibrationError(f"camera {d.name}: the clock offset cannot be estimated: "
+                               f"{est.note}; give --time-offset SECONDS or time_offset in "
+                               "rig.yaml")
     return est
 
 

@@ -31,6 +31,7 @@ from multieye.pipeline.recordings import (check_sync, image_notes, instant_keys,
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
 from multieye.pipeline.detection import cropped_frames
+from multieye.pipeline.dry_run_sample import evenly_spaced, sampled_on
 from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
@@ -141,19 +142,12 @@ class DatasetCheck:
         return not self.reasons
 
 
-def _sample(n: int, k: int) -> list[int]:
-    """At most ``k`` evenly spaced indices of ``range(n)``, first and last included."""
-    if n <= k:
-        return list(range(n))
-    return sorted(set(np.linspace(0, n - 1, k).round().astype(int).tolist()))
-
-
 def _rotation(T_mocap: np.ndarray) -> tuple[float | None, tuple | None]:
     """Largest rotation between two of the poses (degrees; at most 300 poses evenly spaced)
     and the RMS rotation about the principal axes (degrees, descending)."""
     if len(T_mocap) < 2:
         return None, None
-    R = T_mocap[_sample(len(T_mocap), 300), :3, :3]
+    R = T_mocap[evenly_spaced(len(T_mocap), 300), :3, :3]
     cos = (np.einsum("aij,bij->ab", R, R) - 1.0) / 2.0      # tr(R_a R_b^T) = sum R_a * R_b
     range_deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max())
     spread = tuple(float(v) for v in np.degrees(rotation_spread(T_mocap)))
@@ -177,11 +171,12 @@ def _sample_bag(cam, target, intr, *, sample, processes):
     The sample is drawn over the topic's messages in bag order (their count from the bag's
     index); only the sampled messages are decoded, the stamp of every other one is read from
     its header bytes, and the bag is read once, one message at a time (at most one batch of
-    sampled images in memory). Returns the stamps of all messages (seconds, bag order), the
+    sampled images in memory); read again for more while too few show the target
+    (:func:`sampled_on`). Returns the stamps of all messages (seconds, bag order), the
     indices of the sampled messages and their detection results.
     """
 
-    wanted = _sample(bag_image_count(cam.rosbag, cam.topic), sample)
+    wanted = evenly_spaced(bag_image_count(cam.rosbag, cam.topic), sample)
     stamps_ns: list[int] = []
     picked: list[int] = []
 
@@ -195,6 +190,15 @@ def _sample_bag(cam, target, intr, *, sample, processes):
     results = detect_and_estimate_arrays(items, target, intr, processes=processes,
                                          progress=False)
     stamps = np.array(stamps_ns, dtype=np.int64) * 1e-9
+
+    def more(indices):          # another pass over the bag, decoding only these
+        items = ((f"{cam.topic}@{t}", image) for _, t, image in
+                 sample_bag_images(cam.rosbag, cam.topic, indices))
+        return indices, detect_and_estimate_arrays(
+            items if cam.crop is None else cropped_frames(items, cam.crop), target, intr,
+            processes=processes, progress=False)
+
+    picked, results = sampled_on(len(stamps), picked, results, more)
     return stamps, picked, results
 
 
@@ -287,21 +291,31 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
             names = tuple(p.relative_to(cam.images).as_posix() for _, _, p in images)
             stamps = np.array([s for s, _, _ in images], dtype=np.float64)
             n_listed = len(images) + sum(r.reason.startswith("no pose file") for r in unmatched)
-            sampled_idx = _sample(len(images), sample)
+
+            def detect(indices):
+                return indices, detect_and_estimate([images[i][2] for i in indices], target,
+                                                    intr, processes=processes, progress=False,
+                                                    crop=cam.crop)
+
+            first = evenly_spaced(len(images), sample)     # more while too few show the target
+            sampled_idx, results = sampled_on(len(images), *detect(first), detect)
             paths = [images[i][2] for i in sampled_idx]
-            results = detect_and_estimate(paths, target, intr, processes=processes,
-                                          progress=False, crop=cam.crop)
         elif cam.source == "video":
             listing = video_listing(cam)
             stamps = np.array([s for s, _, _ in listing], dtype=np.float64)
-            n_listed, read, lost = len(listing), [], []
-            sampled = [listing[i] for i in _sample(len(listing), sample)]
-            frames = video_frames(cam, sampled, read, lost)
-            results = detect_and_estimate_arrays(
-                frames if cam.crop is None else cropped_frames(frames, cam.crop), target, intr,
-                processes=processes, progress=False)
-            got = {label for _, label in read}
-            sampled_idx = [f.index for _, _, f in sampled if f.name in got]
+            n_listed, lost = len(listing), []
+
+            def frames(indices):    # a video's frame index is its place in the listing
+                read: list = []
+                items = video_frames(cam, [listing[i] for i in indices], read, lost)
+                found = detect_and_estimate_arrays(
+                    items if cam.crop is None else cropped_frames(items, cam.crop), target,
+                    intr, processes=processes, progress=False)
+                got = {label for _, label in read}
+                return [i for i in indices if listing[i][2].name in got], found
+
+            first = evenly_spaced(len(listing), sample)     # more while too few show it
+            sampled_idx, results = sampled_on(len(listing), *frames(first), frames)
             problems.extend(image_notes(lost))         # one line per cause
         else:
             stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,

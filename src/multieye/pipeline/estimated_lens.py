@@ -27,7 +27,7 @@ from multieye.imaging.calibrate import (
     initial_intrinsics,
     poses_from_detections,
 )
-from multieye.imaging.model_choice import compare_models
+from multieye.imaging.model_choice import compare_models, edge_rms, may_be_beaten
 from multieye.imaging.pnp import refit_poses
 
 __all__ = ["LensStart", "start_lens", "lens_start", "with_poses", "weak_data_warnings", "check_model",
@@ -96,7 +96,23 @@ def check_model(name: str, intrinsics: Intrinsics, model: str | None, path) -> I
                        "give one or make them agree", path=path, camera=name)
 
 
+def sized_as_seen(results: Sequence[ImageResult]) -> list[ImageResult]:
+    """A camera's results (lens estimated: no intrinsics give its image size) with the images
+    of another size than every image showing the target left out as of the wrong
+    resolution, like those that given intrinsics refuse; unchanged when the target is found
+    in images of several sizes (:func:`start_lens` refuses them) or in none.  Frames of
+    another size among a recording's (a preview, a thumbnail) refused the whole camera."""
+    seen = {r.image_size for r in results if r.reason is None and r.image_size is not None}
+    if len(seen) != 1:
+        return list(results)
+    (w, h), = seen
+    return [r if r.image_size in (None, (w, h)) else replace(
+        r, pose=None, detection=None, parts=(), reason=f"wrong resolution ({r.image_size[0]} x "
+        f"{r.image_size[1]}, the images showing the target are {w} x {h})") for r in results]
+
+
 def _image_size(name: str, results: Sequence[ImageResult], where) -> tuple[int, int]:
+    results = [r for r in results if not (r.reason or "").startswith("wrong resolution")]
     sizes = {r.image_size for r in results if r.image_size is not None}
     if not sizes:
         raise DatasetError("no image could be read to estimate the intrinsics from",
@@ -141,11 +157,12 @@ def lens_start(name: str, model: str, results: Sequence[ImageResult],
     :func:`start_lens`, or by a worker process: :func:`multieye.imaging.calibrate.
     lens_start_task`), with what the views lack for ``model``."""
     views = _views(results)
-    size = next(r.image_size for r in results if r.image_size is not None)
+    size = next(r.image_size for r in sorted(results, key=lambda r: r.reason is not None)
+                if r.image_size is not None)                # an image showing the target first
     _check_layout(name, views, start)
     warnings = weak_data_warnings(name, model, views, start.T_cam_target, size)
     return LensStart(start.intrinsics, start.rms_px, len(views),
-                     warnings + model_warnings(name, model, views, size))
+                     warnings + model_warnings(name, model, views, size, start))
 
 
 def _check_layout(name: str, views, start: InitialIntrinsics) -> None:
@@ -167,12 +184,24 @@ def _check_layout(name: str, views, start: InitialIntrinsics) -> None:
             "intrinsics_images", camera=name)
 
 
-def model_warnings(name: str, model: str, views, size) -> tuple[str, ...]:
-    """For a fisheye or wide lens model: the model the same views fit clearly better, with
-    the figures (:func:`multieye.imaging.model_choice.compare_models`: held-out reprojection
-    by radius), or nothing; pinhole models are not compared (their path stays as fast)."""
-    if LENS_MODELS[model][0] == "pinhole" or len(views) < MIN_COMPARED_VIEWS:
+def model_warnings(name: str, model: str, views, size,
+                   start: InitialIntrinsics | None = None) -> tuple[str, ...]:
+    """The model the same views fit clearly better, with the figures
+    (:func:`multieye.imaging.model_choice.compare_models`: held-out reprojection by
+    radius), or nothing.  A pinhole model is compared only when its lens (``start``, else
+    OpenCV's calibration on the views) leaves residuals in the outer quarter of the radii
+    that another model could clearly beat (:func:`multieye.imaging.model_choice.
+    may_be_beaten`: a wide lens given ``pinhole-radtan``): the pinhole path stays as fast on
+    a lens it fits."""
+    if len(views) < MIN_COMPARED_VIEWS:
         return ()
+    if LENS_MODELS[model][0] == "pinhole":
+        try:
+            start = start or initial_intrinsics(views, size, model, name=name)
+        except InputError:
+            return ()
+        if not may_be_beaten(*edge_rms(views, start.intrinsics, start.T_cam_target, size)):
+            return ()
     message = compare_models(views, size, model).message(name)
     return () if message is None else (message,)
 

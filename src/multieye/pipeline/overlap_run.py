@@ -125,7 +125,8 @@ def calibrate_overlap(problem: Problem) -> CalibrationRun:
         rejected=getattr(sol, "rejected", {}).get(n, problem.cameras[n].rejected))
         for j, n in enumerate(names)}
     lens = given_lens_findings([_evidence(problem.cameras[n], paired[n]) for n in names
-                                if not problem.cameras[n].intrinsics_estimated])
+                                if not problem.cameras[n].intrinsics_estimated],
+                               alone=len(names) == 1 and not mocap)
     # the scale reaches the result through the cameras' translations only: one camera's
     # lens does not depend on it (boofcv_fisheye's squares are "1 unit")
     size = () if len(names) < 2 or any(d.mocap is not None for d in problem.cameras.values()) \

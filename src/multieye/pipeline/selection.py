@@ -41,7 +41,7 @@ from multieye.estimate.selection import (
     select_after_detection,
     select_before_decoding,
 )
-from multieye.io import RejectedItem, Rig, bag_image_count, list_image_files
+from multieye.io import RejectedItem, Rig, bag_image_count
 from multieye.io.image_folder import image_name
 from multieye.pipeline.frames import bag_listing, video_listing
 from multieye.pipeline.recordings import listed_images
@@ -88,8 +88,9 @@ class SelectionSummary:
                 "refilled": self.refilled}
 
     def line(self, camera: str) -> str:
-        """``cam0: 300 of 5400 images selected before decoding (budget 300)``, and how many
-        chosen images proved unusable and were replaced."""
+        """``cam0: 300 of 5400 images selected before decoding (budget 300)``, how many
+        chosen images proved unusable and were replaced, and how many proved usable when
+        that is fewer than the budget (every paired image tried)."""
         extra = (f"; {self.without_mocap} without motion capture not decoded"
                  if self.without_mocap else "")
         if self.refilled:
@@ -97,6 +98,9 @@ class SelectionSummary:
                       f"{self.refilled} more were chosen from the rest")
         elif self.unusable:
             extra += f"; {self.unusable} of the images chosen proved unusable, none left to add"
+        if self.unusable and self.stage == "before decoding" and \
+                self.kept - self.unusable < self.budget:    # every paired image was tried
+            extra += f"; {self.kept - self.unusable} usable in all, fewer than the budget"
         return (f"{camera}: {self.kept} of {self.seen} images selected {self.stage} "
                 f"(budget {self.budget}{extra})")
 
@@ -293,20 +297,20 @@ def motion_first(rig: Rig, select: int | None, time_offset) -> bool:
     if not select or time_offset == "auto":
         return False
     return any(cam.source in ("rosbag", "video")
-               or (cam.source == "images" and _over(cam, _budget(cam, select)))
-               for cam in rig.cameras.values())
+               or (cam.source == "images" and _over(rig, name, _budget(cam, select)))
+               for name, cam in rig.cameras.items())
 
 
-def _over(cam, budget: int) -> bool:
+def _over(rig: Rig, name: str, budget: int) -> bool:
     """Whether a camera's image folder holds more images than ``budget``; not listed when it
     holds no more entries than that (a folder that cannot be read is listed: its error
-    then)."""
+    then, naming the camera)."""
     try:
-        if len(os.listdir(cam.images)) <= budget:
+        if len(os.listdir(rig.cameras[name].images)) <= budget:
             return False
     except OSError:
         pass
-    return len(list_image_files(cam.images, cam.images_pattern)) > budget
+    return len(listed_images(rig, name)) > budget
 
 
 def preselected(rig: Rig, motions: dict, select: int | None, time_offset, pair_stamps) -> dict:

@@ -31,7 +31,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from multieye.core.errors import InputError
+from multieye.core.errors import DegenerateMotionError, InputError
 from multieye.core.geometry import make_transform, rotation_mean
 from multieye.solvers.checks import (
     check_measurements,
@@ -108,7 +108,8 @@ def solve(A: Sequence[np.ndarray] | np.ndarray | Measurements,
     InputError, TooFewMeasurementsError, DegenerateMotionError
         See :func:`multieye.solvers.checks.check_measurements`.  Joint methods need the
         pooled motion of all cameras to rotate about two axes; single-camera methods need
-        it for every camera.
+        it for every camera.  DegenerateMotionError also when the method's closed form gives
+        a non-finite number (never returned as NaN).
     """
     if not isinstance(method, str) or method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
@@ -130,7 +131,20 @@ def solve(A: Sequence[np.ndarray] | np.ndarray | Measurements,
         X = np.stack([p[0] for p in pairs])
         Y_per_camera = np.stack([p[1] for p in pairs])
         Y = combine_y(Y_per_camera)
+    _check_finite(X, Y, method, meas)
     sol = Solution(X=X, Y=Y, method=method, Y_per_camera=Y_per_camera, measurements=meas)
     if refine:
         sol = refine_solution(sol, **refine_options)
     return sol
+
+
+def _check_finite(X: np.ndarray, Y: np.ndarray, method: str, meas: Measurements) -> None:
+    """Refuse a closed form with NaN or infinite entries (X: (m, 4, 4), Y: (4, 4)), naming
+    the cameras of ``meas`` whose ``X`` is not finite."""
+    bad = [str(meas.names[j]) for j in range(len(X)) if not np.isfinite(X[j]).all()]
+    if bad or not np.isfinite(Y).all():
+        where = f"X of camera {', '.join(bad)}" if bad else "Y"
+        raise DegenerateMotionError(
+            f"method {method}: the closed form gives a non-finite {where}, so these "
+            "measurements do not determine it for this method; try method 'joint' or "
+            "rotate the target about more axes")

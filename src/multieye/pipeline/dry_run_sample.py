@@ -1,0 +1,71 @@
+"""Which images the dry run (:mod:`multieye.pipeline.dry_run`) decodes: an evenly spaced
+sample, and more of the rest while the sample shows the target in too few of them.
+
+A recording where the target is in a tiny minority of the images (most frames without the
+board, unreadable, of another size) is calibrated: the selection chooses again from the rest
+until its budget of usable images is met (:func:`multieye.pipeline.selection.with_refills`).
+The dry run's first sample of such a camera may hold no image with the target, and said
+that calibrating would fail; so it samples on, evenly over the images not yet tried, until
+:data:`~multieye.solvers.methods.MIN_MEASUREMENTS` show the target or every image was tried.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from multieye.solvers.methods import MIN_MEASUREMENTS
+
+__all__ = ["evenly_spaced", "sampled_on"]
+
+
+def evenly_spaced(n: int, k: int) -> list[int]:
+    """At most ``k`` evenly spaced indices of ``range(n)``, first and last included."""
+    if n <= k:
+        return list(range(n))
+    return sorted(set(np.linspace(0, n - 1, k).round().astype(int).tolist()))
+
+
+def sampled_on(n: int, sampled: Sequence[int], results: Sequence,
+               detect: Callable[[list[int]], list]) -> tuple[list[int], list]:
+    """``sampled`` (indices of ``range(n)``) and their ``results``, with more sampled from
+    the rest while fewer than MIN_MEASUREMENTS results show the target (``reason`` None).
+
+    Each round takes, evenly spaced over the indices not yet tried, as many as still wanted
+    divided by the share found so far (Laplace's estimate: ``(found + 1) / (tried + 2)``), as
+    the selection's refills do, so that a camera with the target in half its images needs
+    one small round and one with none is searched whole.
+
+    Parameters
+    ----------
+    n : int
+        Images listed.
+    sampled : sequence of int
+        Indices already detected.
+    results : sequence of ImageResult
+        Their results, in the same order.
+    detect : callable
+        ``detect(indices) -> (done, results)`` of more images: the indices it could read
+        (a video's frame may not decode) and their results.
+
+    Returns
+    -------
+    sampled, results : list
+        In listed order.
+    """
+    idx, res = list(sampled), list(results)
+    tried = set(idx)
+    found = sum(r.reason is None for r in res)
+    while found < MIN_MEASUREMENTS and len(tried) < n:
+        rest = [i for i in range(n) if i not in tried]
+        ask = min(len(rest), math.ceil((MIN_MEASUREMENTS - found) * (len(tried) + 2) / (found + 1)))
+        pick = [rest[k] for k in evenly_spaced(len(rest), ask)]
+        done, more = detect(pick)
+        tried.update(pick)
+        idx += list(done)
+        res += list(more)
+        found += sum(r.reason is None for r in more)
+    order = np.argsort(idx, kind="stable")
+    return [idx[k] for k in order], [res[k] for k in order]
