@@ -72,19 +72,27 @@ def read_frame_stamps(path: str | os.PathLike) -> np.ndarray:
         Missing or unreadable file, a line that is not one time stamp (with its number), a
         stamp not after the one before, no stamp at all.
     """
+    out = _increasing(path, text_lines(path, what="frame stamps file"), "frame")
+    if not out:
+        raise DatasetError("no frame stamp in the file", path=path)
+    return np.array(out, dtype=np.int64)
+
+
+def _increasing(path, lines, what: str) -> list[int]:
+    """The stamps of ``(line number, text)`` lines, one each, each after the one before
+    (DatasetError naming the line otherwise; ``what``: frame or image)."""
     out: list[int] = []
-    for number, text in text_lines(path, what="frame stamps file"):
+    for number, text in lines:
         try:
             ns = stamp_text(text)
         except ValueError as exc:
             raise DatasetError(f"expected one time stamp per line: {exc}", path=path,
                                line=number) from None
         if out and ns <= out[-1]:
-            raise DatasetError("stamps must increase, frame by frame", path=path, line=number)
+            raise DatasetError(f"stamps must increase, {what} by {what}", path=path,
+                               line=number)
         out.append(ns)
-    if not out:
-        raise DatasetError("no frame stamp in the file", path=path)
-    return np.array(out, dtype=np.int64)
+    return out
 
 
 def read_image_stamps(path: str | os.PathLike, images: list[Path], folder: Path) -> list[int]:
@@ -125,16 +133,7 @@ def _is_stamp(text: str) -> bool:
 
 def _in_order(path, rows, images: list[Path]) -> list[int]:
     """One stamp per line, for the images in name order."""
-    out: list[int] = []
-    for number, fields in rows:
-        try:
-            ns = stamp_text(fields[0])
-        except ValueError as exc:
-            raise DatasetError(f"expected one time stamp per line: {exc}", path=path,
-                               line=number) from None
-        if out and ns <= out[-1]:
-            raise DatasetError("stamps must increase, image by image", path=path, line=number)
-        out.append(ns)
+    out = _increasing(path, ((number, fields[0]) for number, fields in rows), "image")
     if len(out) != len(images):
         raise DatasetError(f"{len(out)} stamps for {len(images)} images: one stamp per line "
                            "gives the images' stamps in name order, as many as the images "
