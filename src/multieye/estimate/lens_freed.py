@@ -340,7 +340,9 @@ def lens_search(cam: h.CameraEvidence, mocap_sigma: tuple[float, float], *,
     intr = cam.intrinsics
     if radial_only or distortion_missing(intr):
         cam = _fewer_views(cam, _MAX_RADIAL_VIEWS)
-        given = _pnp_with_rms(cam, intr)
+        # the given lens's poses and RMS are the measurements' own (B = inv(PnP) with it)
+        given = (_pnp_with_rms(cam, intr) if cam.rms_px is None
+                 else (g.inv(cam.B), np.asarray(cam.rms_px, dtype=np.float64)))
         freed = None if given is None else free_distortion(
             list(zip(cam.object_points, cam.image_points)), given[0], intr)
         return None if freed is None else _lens_test(cam, mocap_sigma, given, freed)
