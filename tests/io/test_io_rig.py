@@ -574,3 +574,20 @@ def test_poses_may_say_which_direction_the_file_holds(dataset):
         with pytest.raises(DatasetError, match=re.escape(message)):
             load_rig(dataset)
         (dataset / "rig.yaml").write_text(text)
+
+
+@pytest.mark.parametrize("given, ours", [
+    ("pinhole", "pinhole-radtan4 (Kalibr's pinhole with radtan"), ("ds", "double-sphere"),
+    ("omni", "unified"), ("equidistant", "fisheye"), ("Kannala_Brandt", "fisheye"),
+    ("plumb_bob", "pinhole-radtan"), ("rational_polynomial", "pinhole-rational"),
+])
+def test_another_tools_lens_name_is_refused_naming_multieyes(tmp_path, given, ours):
+    """Kalibr's, ROS's and Basalt's names for a lens (``model: pinhole``, ``ds``) are refused
+    at their line with multieye's name for that lens, not only the list of names."""
+    (tmp_path / "cam0").mkdir()
+    (tmp_path / "rig.yaml").write_text(
+        "target: {type: chessboard, rows: 6, cols: 9, spacing: 0.05}\n"
+        f"cameras:\n  cam0: {{images: cam0/, model: {given}}}\n")
+    with pytest.raises(DatasetError) as err:
+        load_rig(tmp_path / "rig.yaml")
+    assert err.value.line == 3 and f"another tool's name: multieye's is {ours}" in str(err.value)

@@ -92,7 +92,7 @@ from multieye.core.target_spec import TARGET_TYPES, TargetSpec
 from multieye.io.intrinsics_files import read_intrinsics
 from multieye.io.mocap import MOCAP_FORMATS, MocapSpec, named_pose, sniff_mocap_format
 from multieye.io.mocap_csv import DEFAULT_COLUMNS
-from multieye.io.rig_checks import crop_key, video_keys
+from multieye.io.rig_checks import crop_key, model_key, video_keys
 from multieye.io.pose_files import STEM, check_rotation, check_values
 from multieye.io import rig_checks as _c
 from multieye.io.rig_checks import camera_link, links_keys, no_link_loop, Checker as _Checker
@@ -473,7 +473,7 @@ def _lens(c: _Checker, raw, keys, source: str, refine_all: bool) -> dict:
     """The keys that decide whether a camera's intrinsics are estimated, checked together."""
     out: dict = {}
     if "model" in raw:
-        out["model"] = c.choice(raw["model"], keys + ("model",), tuple(LENS_MODELS))
+        out["model"] = model_key(c, raw["model"], keys + ("model",), tuple(LENS_MODELS))
         if source == "poses":
             raise c.error("a camera given by precomputed 'poses' has no images to estimate "
                           "its intrinsics from; leave out 'model'", keys + ("model",))

@@ -18,7 +18,7 @@ from multieye.core.limits import (MAX_ROTATION_NOISE_DEG, MAX_STAMP_S, MAX_TIME_
                                   MAX_TRANSLATION_NOISE_M)
 
 __all__ = ["Checker", "sensor_keys", "links_keys", "camera_link", "video_keys", "MOCAP_SENSORS",
-           "MOCAP_NOISE_BOUND_KEYS", "crop_key", "images_key", "stem_pattern", "sync_keys"]
+           "MOCAP_NOISE_BOUND_KEYS", "crop_key", "images_key", "model_key", "stem_pattern", "sync_keys"]
 
 #: What ``mocap.sensor`` may name, and the keys of ``mocap.noise_bounds`` (docs/rig-yaml.md).
 MOCAP_SENSORS = ("motion-capture", "robot")
@@ -156,6 +156,28 @@ def video_keys(c: Checker, raw: Mapping, keys) -> dict:
                           keys + ("start_time",))
         out["start_time"] = float(start)
     return out
+
+
+#: Lens model names other tools use, and what multieye calls that lens (rig.yaml's ``model``).
+OTHER_MODEL_NAMES = {
+    "pinhole": "pinhole-radtan4 (Kalibr's pinhole with radtan: k1 k2 p1 p2), pinhole-radtan "
+               "(OpenCV's and ROS plumb_bob's k1 k2 p1 p2 k3) or pinhole-rational (OpenCV's 8)",
+    "radtan": "pinhole-radtan4 (Kalibr's radtan: k1 k2 p1 p2) or pinhole-radtan (with k3)",
+    "plumb_bob": "pinhole-radtan", "rational_polynomial": "pinhole-rational",
+    "equidistant": "fisheye", "kannala_brandt": "fisheye", "kannala-brandt": "fisheye",
+    "kb4": "fisheye", "omni": "unified", "omni-radtan": "unified", "mei": "unified",
+    "ds": "double-sphere", "double_sphere": "double-sphere", "extended-unified": "eucm",
+}
+
+
+def model_key(c: Checker, value, keys, models) -> str:
+    """A camera's ``model``: one of ``models``; another tool's name for a lens is refused
+    naming multieye's (``pinhole`` -> ``pinhole-radtan4`` for Kalibr's pinhole with radtan)."""
+    name = value.strip().lower() if isinstance(value, str) else None
+    if name in OTHER_MODEL_NAMES and value not in models:
+        raise c.error(f"expected one of {', '.join(models)}, got {value!r}, another tool's "
+                      f"name: multieye's is {OTHER_MODEL_NAMES[name]}", keys)
+    return c.choice(value, keys, models)
 
 
 #: Fewest pixels across a camera's ``crop`` (no board is found in fewer).
