@@ -188,6 +188,10 @@ def test_an_image_behind_its_camera_wherever_the_rest_puts_the_rig_is_left_out_b
     run = calibrate_rig(_rig(), {**cams, "cam2": replace(d, observations=tuple(obs))})
     (line,) = [w for w in run.record.warnings if w.startswith("images left out")]
     assert line.endswith(f"cam2: {o.name} ({o.target})"), line
+    # and among the camera's rejected images in calibration.json, as the other paths do
+    cam2 = next(c for c in run.record.cameras if c.name == "cam2")
+    assert [r.item for r in cam2.rejected if r.reason.startswith("left out: its board")] == [
+        f"{o.name} ({o.target})"]
     clean = calibrate_rig(_rig(), {**cams, "cam2": replace(d, observations=tuple(
         obs[:4] + obs[5:]))})
     for n in sc.cameras:

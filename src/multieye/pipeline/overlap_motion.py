@@ -47,6 +47,7 @@ from multieye.estimate.motion_residuals import MotionViews
 from multieye.estimate.observability import Observability, observability
 from multieye.estimate.refine_motion import MotionResult, refine_motion
 from multieye.estimate.uncertainty import pose_std
+from multieye.io import RejectedItem
 from multieye.io.calibration_json import CameraLinks
 from multieye.pipeline.camera_data import CameraData
 from multieye.pipeline.overlap import (_fit_findings, _rig_warnings, camera_views,
@@ -100,8 +101,9 @@ class MotionSolution:
         poses are in its frame), else the first board seen.
     rejected : dict of str to tuple of RejectedItem
         Per camera whose lens is estimated, what it leaves out once its images were judged
-        on the refined lens (:func:`multieye.pipeline.overlap.judged_on_refined_lens`); empty
-        when no lens is estimated.
+        on the refined lens (:func:`multieye.pipeline.overlap.judged_on_refined_lens`), and
+        per camera with images left out as behind it wherever the rest places the rig, those
+        too; empty otherwise.
     """
 
     names: tuple[str, ...]
@@ -206,8 +208,9 @@ def solve_motion(cameras: Mapping[str, CameraData], reference: str, *,
     # solve_overlap does (bad fits on the starting lens taken back, outliers left out)
     judged, _, notes = judged_on_refined_lens(cameras, once, first)
     sol = once.last
-    return replace(sol, warnings=tuple(sol.warnings) + tuple(notes),
-                   rejected={n: judged[n].rejected for n in sol.names})
+    return replace(sol, warnings=tuple(sol.warnings) + tuple(notes), rejected={
+        n: judged[n].rejected + tuple(r for r in sol.rejected.get(n, ())
+                                      if r not in judged[n].rejected) for n in sol.names})
 
 
 class _Judging:
@@ -242,6 +245,7 @@ def _solve_once(cameras: Mapping[str, CameraData], **settings) -> MotionSolution
     in the warnings, and the rig solved without them (at most :data:`MAX_LEFT_OUT` of a
     camera's images, else the error stands)."""
     notes: list[str] = []
+    left: dict[str, list[RejectedItem]] = {}
     for _ in range(_LEAVE_OUT_ROUNDS):
         try:
             sol = _solve_views(cameras, **settings)
@@ -251,15 +255,23 @@ def _solve_once(cameras: Mapping[str, CameraData], **settings) -> MotionSolution
                                             + len(cameras[n].intrinsics_views))
                    for n, v in names.items()):
                 raise                   # not a few images: the rig does not hold together
-            notes.append("images left out, their board points behind the camera wherever the "
-                         "other images place the rig, the boards and the cameras (a wrong "
-                         "board or instant?): " + "; ".join(
-                             f"{n}: {', '.join(v)}" for n, v in names.items()))
+            notes.append(f"images left out, {_BEHIND}: " + "; ".join(
+                f"{n}: {', '.join(v)}" for n, v in names.items()))
+            for n, v in names.items():
+                left.setdefault(n, []).extend(RejectedItem(i, f"left out: {_BEHIND}") for i in v)
             cameras = _without(cameras, exc.views)
             continue
-        return replace(sol, warnings=tuple(notes) + tuple(sol.warnings))
-    return replace(sol := _solve_views(cameras, **settings),
-                   warnings=tuple(notes) + tuple(sol.warnings))
+        break
+    else:
+        sol = _solve_views(cameras, **settings)
+    return replace(sol, warnings=tuple(notes) + tuple(sol.warnings),
+                   rejected={**sol.rejected, **{n: cameras[n].rejected + tuple(v)
+                                                for n, v in left.items()}})
+
+
+#: Why an image is left out as unprojectable from the rest (its warning and its rejection).
+_BEHIND = ("its board points behind the camera wherever the other images place the rig, the "
+           "boards and the cameras (a wrong board or instant?)")
 
 
 def _listed(cameras: Mapping[str, CameraData]) -> list[tuple[str, int, str]]:
