@@ -4,12 +4,14 @@ lens in its published and its curve parameters against the spread of the estimat
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from multieye.core.lens import project_points
 from multieye.core.lens_curve import curve_covariance, curve_jacobian, curve_names
-from multieye.imaging.generic_start import _Problem, fit_lens, generic_start
+from multieye.imaging.generic_start import RIVAL_SIGMA2, _Problem, _rivals, fit_lens, generic_start
 from multieye.imaging.lens_valley import valley_lenses
 from multieye.sim.wide_lens import IMAGE_SIDE, board_views, wide_lens
 
@@ -96,3 +98,35 @@ def test_lens_covariance_against_monte_carlo(model):
         assert 0.5 < np.mean(nees) < 2.0
     else:
         assert np.mean(nees) > 10.0                        # the banana, as measured
+
+
+def test_the_optima_the_views_do_not_exclude_are_kept_as_rivals():
+    """A double-sphere start keeps, besides its best lens, those of the valley's other optima
+    within RIVAL_SIGMA2 of it (the pipeline names them: tests/pipeline/
+    test_pipeline_wide_lens.py); models without rivals keep none."""
+    true = wide_lens("double-sphere", 190.0)
+    views, _ = board_views(true, 190.0, 20, np.random.default_rng([0, 0]), noise_px=0.2)
+    start = generic_start(views, SIZE, "double-sphere")
+    assert start.rivals
+    for rival in start.rivals:
+        assert 0.0 <= rival.delta_sigma2 <= RIVAL_SIGMA2
+        assert not 0.7 < rival.intrinsics.K[0, 0] / start.intrinsics.K[0, 0] < 1.3
+    assert [r.delta_sigma2 for r in start.rivals] == sorted(r.delta_sigma2 for r in start.rivals)
+    for model in ("eucm", "unified"):
+        lens = wide_lens(model, 190.0)
+        views, _ = board_views(lens, 190.0, 12, np.random.default_rng(3), noise_px=0.2)
+        assert generic_start(views, SIZE, model).rivals == ()
+
+
+def test_rivals_are_those_within_the_threshold_that_project_every_point():
+    true = wide_lens("double-sphere", 190.0)
+    views, T = board_views(true, 190.0, 12, np.random.default_rng(4), noise_px=0.2)
+    best = fit_lens(views, true, T, huber_px=None)
+    same = replace(best, intrinsics=best.intrinsics.with_params(best.intrinsics.params))
+    off = replace(best, intrinsics=best.intrinsics.with_params(
+        best.intrinsics.params * [1.01, 1.01, 1, 1, 1, 1]))          # 1 % in focal length
+    assert [r.delta_sigma2 for r in _rivals(views, best, [same])] == [0.0]
+    assert _rivals(views, best, [off]) == ()
+    far = replace(best, T_cam_target=best.T_cam_target.copy())
+    far.T_cam_target[0, :3, 3] *= -1              # one view turned away: no longer a fit
+    assert _rivals(views, best, [far]) == ()

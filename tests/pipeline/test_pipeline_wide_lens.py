@@ -6,6 +6,7 @@ those that cannot."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -134,3 +135,33 @@ def test_perturbed_wide_lenses_are_refined_back(rendered, tmp_path):
     with pytest.raises(InputError, match=r"mrcal cannot describe any camera: .*cam1 \(mrcal "
                        r"has no lens model for the double-sphere lens"):
         export(out, "mrcal")
+
+
+def test_a_double_sphere_lens_whose_views_allow_other_optima_is_named(rendered, tmp_path):
+    """Issue 33 (honest lens uncertainty): the double sphere's valley holds separate optima of
+    nearly the same image; when the views do not exclude one, the parameters' +- describe one
+    of several lenses, and the run says so, naming them (before: nothing was said, and the
+    printed +- of fx and xi were read as the lens's)."""
+    folder, truth = rendered
+    name = truth.names[1]
+    text = (folder / "rig.yaml").read_text().replace(f"intrinsics: {name}.yaml",
+                                                     "model: double-sphere")
+    (tmp_path / "set").mkdir()
+    for entry in folder.iterdir():
+        if entry.name != "rig.yaml":
+            (tmp_path / "set" / entry.name).symlink_to(entry)
+    (tmp_path / "set" / "rig.yaml").write_text(text)
+    run = calibrate(tmp_path / "set", processes=2)
+    named = [w for w in run.record.warnings if "other lens(es) of this model" in w]
+    assert len(named) == 1 and named[0].startswith(f"{name}: double-sphere lens: 1 other ")
+    assert "model: eucm" in named[0]
+    fx = [float(v) for v in re.findall(r"fx ([0-9.]+)", named[0])]
+    assert len(fx) == 2 and max(fx) > 2 * min(fx)        # lenses of very different parameters
+    lens = run.cameras[name].intrinsics
+    assert lens.model == "double-sphere"
+    seen = np.concatenate([o.image_points for o in run.paired[name].observations])
+    assert _rays_error_px(lens, LENSES[1], seen) < 0.5     # ... whose image is the lens's
+    assert abs(lens.K[0, 0] / LENSES[1].K[0, 0] - 1) > 0.05  # though fx is not the truth's
+    # the given lenses of the other cameras (unified, eucm) have no such warning
+    assert all(not w.startswith((truth.names[0], truth.names[2])) or "other lens" not in w
+               for w in run.record.warnings)

@@ -27,7 +27,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import LENS_MODELS, Intrinsics
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
 from multieye.core.lens import project_points
-from multieye.imaging.generic_start import fit_lens, generic_start
+from multieye.imaging.generic_start import ValleyRival, fit_lens, generic_start
 from multieye.imaging.detect import Detection
 from multieye.imaging.pnp import collinear, estimate_pose, estimate_poses
 from multieye.imaging.rays import bearings
@@ -64,11 +64,16 @@ class InitialIntrinsics:
         OpenCV's RMS reprojection error over the views it calibrated from (at most
         :data:`START_VIEWS`, spread over the recording; the others' poses are PnP with the
         lens found), pixels.
+    rivals : tuple of ValleyRival
+        Wide models with a valley (unified, double-sphere): lenses at other optima that fit
+        the views the start was fitted to as well (:attr:`multieye.imaging.generic_start.
+        LensFit.rivals`); none otherwise.
     """
 
     intrinsics: Intrinsics
     T_cam_target: F64
     rms_px: float
+    rivals: tuple[ValleyRival, ...] = ()
 
 
 def _flat_guess(views, size) -> F64:
@@ -176,7 +181,7 @@ def _generic_start(views, size, model: str, name: str, all_poses: bool) -> Initi
     rest = np.setdiff1d(np.arange(len(views)), pick) if all_poses else ()
     for i in rest:
         T[i] = _pnp_pose(*views[i], fit.intrinsics)
-    return InitialIntrinsics(fit.intrinsics, T, float(np.sqrt(np.mean(rms ** 2))))
+    return InitialIntrinsics(fit.intrinsics, T, float(np.sqrt(np.mean(rms ** 2))), fit.rivals)
 
 
 def initial_intrinsics(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],

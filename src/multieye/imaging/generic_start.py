@@ -16,7 +16,9 @@ their wide models, it starts from a generic one:
    :func:`multieye.core.lens.project_with_jacobian`, a Huber loss so that a mis-detected view
    does not pull the start);
 4. for the unified and double-sphere models, the same fit started from the lenses at the
-   other optima along the model's valley, the best kept (:func:`best_in_valley`).
+   other optima along the model's valley, the best kept (:func:`best_in_valley`), and the
+   others that fit the views as well recorded (:attr:`LensFit.rivals`: the views then
+   determine the lens' projection but not its parameters).
 
 Synopsis
 --------
@@ -27,7 +29,7 @@ Synopsis
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -40,7 +42,8 @@ from multieye.imaging.lens_valley import VALLEY_MODELS, valley_lenses
 from multieye.imaging.rays import bearings, ippe_on_rays
 
 __all__ = ["LensFit", "generic_start", "fit_lens", "equidistant_focal",
-           "model_from_equidistant", "START_DIST", "pose_on_rays", "best_in_valley"]
+           "model_from_equidistant", "START_DIST", "pose_on_rays", "best_in_valley",
+           "ValleyRival", "RIVAL_SIGMA2"]
 
 F64 = NDArray[np.float64]
 
@@ -59,6 +62,28 @@ _OUTSIDE_PX = 2.0
 HUBER_PX = 2.0
 #: Views the focal length is searched on (spread over the views given).
 _FOCAL_VIEWS = 10
+#: Another optimum whose sum of squares is within this many times the pixel noise's variance
+#: of the kept one's is not excluded by the views (a likelihood ratio of 9 for one parameter:
+#: three standard deviations).
+RIVAL_SIGMA2 = 9.0
+
+
+@dataclass(frozen=True)
+class ValleyRival:
+    """A lens at another optimum along its model's valley that the views do not exclude.
+
+    Attributes
+    ----------
+    intrinsics : Intrinsics
+        The lens fitted (with the views' poses) from that optimum's start.
+    delta_sigma2 : float
+        Its sum of squared pixel residuals less the kept fit's, in units of the kept fit's
+        residual variance per pixel coordinate (sum of squares over its degrees of freedom);
+        at least 0 (the kept fit is the best) and at most :data:`RIVAL_SIGMA2`.
+    """
+
+    intrinsics: Intrinsics
+    delta_sigma2: float
 
 
 @dataclass(frozen=True)
@@ -72,11 +97,15 @@ class LensFit:
         Per view, the target's pose (metres as the object points).
     rms_px : ndarray, shape (n,)
         Per view, the pixel RMS (inf where a point does not project).
+    rivals : tuple of ValleyRival
+        The lenses at other optima of the model's valley that fit the same views as well
+        (:func:`best_in_valley`), best first; none for the other models.
     """
 
     intrinsics: Intrinsics
     T_cam_target: F64
     rms_px: F64
+    rivals: tuple[ValleyRival, ...] = ()
 
     @property
     def total_rms_px(self) -> float:
@@ -359,7 +388,8 @@ def best_in_valley(views: Sequence[tuple[F64, F64]], fit: LensFit, *,
     """``fit`` or, when better, the fit of the lens and poses started from a lens at another
     optimum along the model's valley (:func:`multieye.imaging.lens_valley.valley_lenses`;
     unified and double-sphere: a fit from one lens stops in the optimum nearest it, which
-    may not be the best).
+    may not be the best), with the other optima the views do not exclude as its
+    :attr:`LensFit.rivals` (:func:`_rivals`).
 
     Parameters
     ----------
@@ -382,14 +412,39 @@ def best_in_valley(views: Sequence[tuple[F64, F64]], fit: LensFit, *,
     theta = np.arctan2(np.hypot(rays[:, 0], rays[:, 1]), rays[:, 2])
     if not np.any(np.isfinite(theta)):
         return fit
-    best, cost = fit, _fit_cost(views, fit, huber_px)
-    for lens in valley_lenses(fit.intrinsics, float(np.nanmax(theta))):
-        other = fit_lens(views, lens, fit.T_cam_target, huber_px=huber_px,
-                         max_iterations=max_iterations)
-        c = _fit_cost(views, other, huber_px)
-        if c < cost:
-            best, cost = other, c
-    return best
+    fits = [fit] + [fit_lens(views, lens, fit.T_cam_target, huber_px=huber_px,
+                             max_iterations=max_iterations)
+                    for lens in valley_lenses(fit.intrinsics, float(np.nanmax(theta)))]
+    costs = [_fit_cost(views, f, huber_px) for f in fits]
+    best = fits[int(np.argmin(costs))]
+    return replace(best, rivals=_rivals(views, best, [f for f in fits if f is not best]))
+
+
+def _sum_of_squares(views, fit: LensFit) -> tuple[float, int]:
+    """Sum of squared pixel residuals at ``fit`` and how many points it does not project."""
+    d = np.concatenate([project_points(o @ T[:3, :3].T + T[:3, 3], fit.intrinsics) - u
+                        for (o, u), T in zip(views, fit.T_cam_target)])
+    lost = ~np.all(np.isfinite(d), axis=1)
+    return float(np.sum(d[~lost] ** 2)), int(np.count_nonzero(lost))
+
+
+def _rivals(views, best: LensFit, others: Sequence[LensFit]) -> tuple[ValleyRival, ...]:
+    """The ``others`` the views do not exclude against ``best``: every point projected and
+    a sum of squares within :data:`RIVAL_SIGMA2` times the pixel noise's variance of
+    ``best``'s (estimated from its own residuals), best first."""
+    ss, lost = _sum_of_squares(views, best)
+    points = sum(len(u) for _, u in views) - lost
+    dof = 2 * points - len(best.intrinsics.params) - 6 * len(views)
+    if dof <= 0 or ss <= 0:
+        return ()
+    variance = ss / dof
+    out = []
+    for other in others:
+        ss_other, lost_other = _sum_of_squares(views, other)
+        delta = (ss_other - ss) / variance
+        if lost_other <= lost and delta <= RIVAL_SIGMA2:
+            out.append(ValleyRival(other.intrinsics, max(delta, 0.0)))
+    return tuple(sorted(out, key=lambda r: r.delta_sigma2))
 
 
 def _view_rms(views, lens: Intrinsics, T: F64) -> F64:
@@ -446,4 +501,4 @@ def generic_start(views: Sequence[tuple[F64, F64]], image_size: tuple[int, int],
     T_all = np.full((len(views), 4, 4), np.nan)
     rms_all = np.full(len(views), np.inf)
     T_all[posed], rms_all[posed] = fit.T_cam_target, fit.rms_px
-    return LensFit(fit.intrinsics, T_all, rms_all)
+    return LensFit(fit.intrinsics, T_all, rms_all, fit.rivals)

@@ -18,20 +18,23 @@ import numpy as np
 
 from multieye.core import geometry as g
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.intrinsics import LENS_MODELS, Intrinsics, lens_model
+from multieye.core.intrinsics import LENS_MODELS, Intrinsics, lens_model, parameter_names
 from multieye.core.lens import project_points
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult
 from multieye.imaging.calibrate import (
+    START_VIEWS,
     InitialIntrinsics,
     accept_on_refined_lens,
     initial_intrinsics,
     poses_from_detections,
 )
+from multieye.imaging.generic_start import RIVAL_SIGMA2
 from multieye.imaging.model_choice import compare_models, edge_rms, may_be_beaten
 from multieye.imaging.pnp import refit_poses
 
 __all__ = ["LensStart", "start_lens", "lens_start", "with_poses", "weak_data_warnings", "check_model",
-           "RECOMMENDED_VIEWS", "posed_on_refined_lens", "model_warnings"]
+           "RECOMMENDED_VIEWS", "posed_on_refined_lens", "model_warnings",
+           "valley_warnings"]
 
 #: Views of the target a lens model wants before its intrinsics count as well supported.
 RECOMMENDED_VIEWS = {"pinhole-radtan": 10, "pinhole-radtan4": 10, "pinhole-rational": 20,
@@ -162,7 +165,8 @@ def lens_start(name: str, model: str, results: Sequence[ImageResult],
     _check_layout(name, views, start)
     warnings = weak_data_warnings(name, model, views, start.T_cam_target, size)
     return LensStart(start.intrinsics, start.rms_px, len(views),
-                     warnings + model_warnings(name, model, views, size, start))
+                     warnings + model_warnings(name, model, views, size, start)
+                     + valley_warnings(name, model, min(len(views), START_VIEWS), start))
 
 
 def _check_layout(name: str, views, start: InitialIntrinsics) -> None:
@@ -204,6 +208,36 @@ def model_warnings(name: str, model: str, views, size,
             return ()
     message = compare_models(views, size, model).message(name)
     return () if message is None else (message,)
+
+
+def _lens_text(lens: Intrinsics) -> str:
+    names = parameter_names(lens)
+    return ", ".join(f"{n} {v:.4g}" for n, v in zip(names, lens.params)
+                     if n == "fx" or n not in ("fy", "cx", "cy"))
+
+
+def valley_warnings(name: str, model: str, views: int, start: InitialIntrinsics
+                    ) -> tuple[str, ...]:
+    """A warning when another optimum of the model's valley fits the start's ``views`` as
+    well as the lens kept (:attr:`multieye.imaging.calibrate.InitialIntrinsics.rivals`:
+    within :data:`multieye.imaging.generic_start.RIVAL_SIGMA2` times the pixel noise's
+    variance): the parameters printed with their +- describe one of several lenses of nearly
+    the same image, so their linearised uncertainty understates how far they may be from
+    the lens; the projection, and its std, hold.  On rendered double-sphere lenses of 190
+    and 220 degrees (``xi`` -0.15, ``alpha`` 0.6, 20 views, 0.2 px) every fit has such
+    rivals, with focal lengths 1.4 and 3 times the true one (docs/results/wide_lens.md,
+    section 2c)."""
+    if not start.rivals:
+        return ()
+    rivals = "; ".join(f"{_lens_text(r.intrinsics)} ({r.delta_sigma2:.1f} sigma^2 worse)"
+                       for r in start.rivals)
+    return (f"{name}: {model} lens: {len(start.rivals)} other lens(es) of this model fit its "
+            f"{views} starting views about as well as the one found ({_lens_text(start.intrinsics)}): "
+            f"{rivals}; within {RIVAL_SIGMA2:g} sigma^2 the views cannot tell them apart. They "
+            "determine the lens' projection (its projection std holds) but not its parameters, "
+            "whose +- understate how far they may be from the lens's; for parameters to "
+            "compare or to hand to another tool use model: eucm (one optimum), or add views "
+            "with the board near the rim of the image",)
 
 
 def with_poses(results: Sequence[ImageResult], intrinsics: Intrinsics, *,
