@@ -31,7 +31,7 @@ from multieye.pipeline.recordings import (check_sync, image_notes, instant_keys,
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
 from multieye.pipeline.detection import cropped_frames
-from multieye.pipeline.dry_run_sample import evenly_spaced, sampled_on
+from multieye.pipeline.dry_run_sample import budget_note, evenly_spaced, sample_budget, sampled_on
 from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
@@ -198,7 +198,7 @@ def _sample_bag(cam, target, intr, *, sample, processes):
             items if cam.crop is None else cropped_frames(items, cam.crop), target, intr,
             processes=processes, progress=False)
 
-    picked, results = sampled_on(len(stamps), picked, results, more)
+    picked, results = sampled_on(len(stamps), picked, results, more, sample_budget(sample))
     return stamps, picked, results
 
 
@@ -298,7 +298,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
                                                     crop=cam.crop)
 
             first = evenly_spaced(len(images), sample)     # more while too few show the target
-            sampled_idx, results = sampled_on(len(images), *detect(first), detect)
+            sampled_idx, results = sampled_on(len(images), *detect(first), detect, sample_budget(sample))
             paths = [images[i][2] for i in sampled_idx]
         elif cam.source == "video":
             listing = video_listing(cam)
@@ -315,7 +315,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
                 return [i for i in indices if listing[i][2].name in got], found
 
             first = evenly_spaced(len(listing), sample)     # more while too few show it
-            sampled_idx, results = sampled_on(len(listing), *frames(first), frames)
+            sampled_idx, results = sampled_on(len(listing), *frames(first), frames, sample_budget(sample))
             problems.extend(image_notes(lost))         # one line per cause
         else:
             stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,
@@ -374,7 +374,8 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
     expected = int(round(n_listed * n_paired / n_sampled)) if n_sampled else 0
     expected = min(expected, int(has_pose.sum()))
     if cam.source != "poses" and n_found < MIN_FOUND_SHARE * n_sampled:
-        text = f"target found in only {n_found} of {n_sampled} sampled images"
+        text = (f"target found in only {n_found} of {n_sampled} sampled images"
+                + budget_note(n_found, n_listed, sample))
         if n_found == 0:
             t = rig.target
             text += (f"; check the target section of rig.yaml ({t.type} {t.rows}x{t.cols}, "
@@ -428,6 +429,7 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
     expected = int(round(seen.n_listed * n_found / seen.n_sampled)) if seen.n_sampled else 0
     if n_found < MIN_FOUND_SHARE * seen.n_sampled:
         problems.append(f"target found in only {n_found} of {seen.n_sampled} sampled images"
+                        + budget_note(n_found, seen.n_listed, sample)
                         + (_target_hint(rig, seen.paths, seen.results)
                            if n_found == 0 and cam.source == "images" else ""))
     if cam.estimate_intrinsics:
@@ -566,7 +568,7 @@ def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> Da
         At most this many images per camera, evenly spaced in time, are searched for the
         target: of a folder's images sorted by time, or of a bag topic's messages in bag
         order (only those are decoded; the stamps of the others, for the pairing, are read
-        from their header bytes).
+        from their header bytes); more while fewer than 3 show it, at most 10 x ``sample``.
     processes : int, optional
         Detection processes (default: one per core).
 
