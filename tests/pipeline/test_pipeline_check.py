@@ -187,13 +187,13 @@ def test_a_camera_without_the_board_in_any_image_is_searched_within_its_budget(
         if path.stat().st_size > 1000:                       # the rendered ones: none left
             path.unlink()
     decoded: list[str] = []
-    read_gray = batch.read_gray
+    read_region = batch.read_region            # what a worker decodes each image file with
 
     def counting(path, *args, **kwargs):
         decoded.append(str(path))
-        return read_gray(path, *args, **kwargs)
+        return read_region(path, *args, **kwargs)
 
-    monkeypatch.setattr(batch, "read_gray", counting)
+    monkeypatch.setattr(batch, "read_region", counting)
     result = check_dataset(folder, sample=4, processes=1)
     c = result.cameras[0]
     assert (c.listed, c.sampled, c.found) == (300, 40, 0)
