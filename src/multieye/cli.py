@@ -380,7 +380,7 @@ def calibrate_many_command(datasets: tuple[Path, ...], out_root: Path, **flags):
 @click.argument("dataset", type=click.Path(path_type=Path))
 @click.option("--sample", type=click.IntRange(1), default=20, show_default=True,
               help="Images per camera, evenly spaced, searched for the target (more, from "
-                   "the rest, while fewer than 3 show it).")
+                   "the rest, while fewer than 3 show it, up to 10 x N per camera).")
 @click.option("--processes", type=click.IntRange(1), default=None,
               help="Detection processes (default, and at most: one per core this process "
                    "may use, one per image).")

@@ -29,6 +29,7 @@ from pathlib import Path
 from multieye.core.errors import CalibrationError, InputError
 from multieye.imaging.engines import open_engine
 from multieye.outputs.folder import claim_output
+from multieye.outputs.folder_names import checked_output
 from multieye.outputs.summary import headline
 from multieye.outputs.write import write_outputs
 from multieye.pipeline import calibrate
@@ -130,6 +131,8 @@ def calibrate_many(datasets: Sequence[str | os.PathLike], out_root: str | os.Pat
         raise InputError("no dataset given")
     root = Path(os.fspath(out_root))
     outs = _out_folders(paths, root)
+    for o in outs:                  # a name too long refused before anything runs
+        checked_output(o)
     root.mkdir(parents=True, exist_ok=True)
     jobs = [(str(d), str(o), options) for d, o in zip(paths, outs)]
     found: dict[int, DatasetOutcome] = {}

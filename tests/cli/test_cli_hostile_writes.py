@@ -2,7 +2,8 @@
 ``tests/hostile_cases.py`` ends with an expected exit status, one error line naming what is
 wrong, no traceback, nothing changed outside ``OUT`` (a sentinel folder of files that are
 not multieye's, the lock, staging and backup names beside ``OUT``: snapshot before and
-after), and ``OUT`` unchanged when the command is refused.
+after), and ``OUT`` unchanged when the command is refused; and an output folder whose names are too
+long for the file system, refused by every writing command before it runs (long_out_cases).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import os
 
 import pytest
 from hostile_cases import CASES, make_template, make_work, run_case, snapshot
+from long_out_cases import LONG_CASES
 
 from multieye.outputs import folder as folder_mod
 
@@ -20,7 +22,7 @@ def template(tmp_path_factory):
     return make_template(tmp_path_factory.mktemp("hostile-template"))
 
 
-@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+@pytest.mark.parametrize("case", CASES + LONG_CASES, ids=[c.name for c in CASES + LONG_CASES])
 def test_hostile_case(case, template, tmp_path):
     work = make_work(tmp_path / "work", template)
     outcome = run_case(case, work)

@@ -163,6 +163,30 @@ def test_every_lens_through_every_format_and_rig_yaml(tmp_path, fmt, name):
     np.testing.assert_allclose(b, a, rtol=0, atol=1e-9)
 
 
+
+def test_camera_info_says_which_camera_s_model_it_cannot_name_and_rig_yaml_keeps_it(tmp_path):
+    """ROS's plumb_bob holds five coefficients: a pinhole-radtan4 lens (k1 k2 p1 p2) is
+    written with k3 = 0, the same projection, and read back alone it is pinhole-radtan (k3
+    freed when refined). The file's first line names the camera and says so; with rig.yaml's
+    ``model: pinhole-radtan4`` it reads back as that model, the same numbers."""
+    from multieye.pipeline.rig_model import build_rig_model
+
+    (tmp_path / "ci.yaml").write_text(camera_info_text(LENSES["radtan4"], "front left"))
+    assert (tmp_path / "ci.yaml").read_text().splitlines()[0] == (
+        '# "front left": pinhole-radtan4 lens written as ROS\'s plumb_bob with k3 = 0 (the '
+        "same projection); read back it is pinhole-radtan, pinhole-radtan4 with rig.yaml's "
+        "model: pinhole-radtan4")
+    assert lens_model(_through_rig(tmp_path, "ci.yaml")) == "pinhole-radtan"
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(rig.read_text().replace("    images: imgs", "    model: pinhole-radtan4\n"
+                                           "    images: imgs"))
+    back = build_rig_model(load_rig(rig)).lenses["front"]
+    assert lens_model(back) == "pinhole-radtan4"
+    np.testing.assert_array_equal(back.params, LENSES["radtan4"].params)
+    for name in ("pinhole-0", "radtan5", "rational", "fisheye"):     # named as they are
+        assert not camera_info_text(LENSES[name], "c").startswith("#")
+
+
 # --------------------------------------------------------------------------- Kalibr
 
 OMNI = """cam0:

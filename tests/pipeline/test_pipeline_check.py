@@ -168,6 +168,37 @@ def test_a_camera_whose_target_is_in_a_tiny_minority_is_sampled_on(small, tmp_pa
     for _, _, path in list_images(folder / "cam0"):
         if path.stat().st_size > 1000:                       # the rendered ones: none left
             path.unlink()
-    c = check_dataset(folder, processes=1).cameras[0]
+    c = check_dataset(folder, sample=50, processes=1).cameras[0]     # budget 500: all fit
     assert (c.listed, c.sampled, c.found) == (listed - 8, listed - 8, 0)  # every one tried
     assert c.fatal and "fewer than 3 usable images would remain (0 of" in c.fatal[0]
+    assert any(p.startswith(f"target found in only 0 of {listed - 8} sampled images;")
+               for p in c.problems)                  # no budget note: none left unsearched
+
+
+def test_a_camera_without_the_board_in_any_image_is_searched_within_its_budget(
+        small, tmp_path, monkeypatch):
+    """Sampling on stops at 10 x --sample images per camera: a camera none of whose many
+    images shows the board is not decoded whole (counted decodes), and the problem line
+    says in how many sampled images the board was not found and that the rest went unsearched."""
+    import multieye.imaging.batch as batch
+
+    folder = _among_unusable(_copy(small, tmp_path / "ds"), 300)
+    for _, _, path in list_images(folder / "cam0"):
+        if path.stat().st_size > 1000:                       # the rendered ones: none left
+            path.unlink()
+    decoded: list[str] = []
+    read_region = batch.read_region            # what a worker decodes each image file with
+
+    def counting(path, *args, **kwargs):
+        decoded.append(str(path))
+        return read_region(path, *args, **kwargs)
+
+    monkeypatch.setattr(batch, "read_region", counting)
+    result = check_dataset(folder, sample=4, processes=1)
+    c = result.cameras[0]
+    assert (c.listed, c.sampled, c.found) == (300, 40, 0)
+    assert sum(f"{folder / 'cam0'}" in p for p in decoded) == 40        # not 300
+    assert any(p.startswith("target found in only 0 of 40 sampled images (sampling stopped at "
+                            "its budget of 40 images per camera, 10 x --sample: 260 of 300 "
+                            "images not searched); check the target section") for p in c.problems)
+    assert not result.ok and "(0 of 40 sampled usable, about 0 of 300 in all)" in c.fatal[0]

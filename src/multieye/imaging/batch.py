@@ -32,7 +32,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.boards import Boards, combined_reason
 from multieye.imaging.detect import Detection, to_gray
-from multieye.imaging.image_file import cropped, read_gray
+from multieye.imaging.image_file import cropped_frames, read_region
 from multieye.imaging.pnp import PoseEstimate, estimate_pose
 from multieye.imaging.pool_tasks import OnPool, SplitTask
 from multieye.imaging.targets import Target
@@ -135,10 +135,8 @@ def process_image(path, target: Target, intrinsics: Intrinsics | None, *,
         EXIF orientation ignored with a warning, unless only the turned image fits).
     """
     path = str(path)
-    fit = None if crop is not None or intrinsics is None else (intrinsics.width, intrinsics.height)
-    image, reason, notes = read_gray(path, fit)
-    if image is not None and crop is not None:
-        image, reason = cropped(image, crop)
+    fit = None if intrinsics is None else (intrinsics.width, intrinsics.height)
+    image, reason, notes = read_region(path, fit, crop)
     if image is None:
         return ImageResult(path, None, None, reason, crop=crop)
     res = process_array(image, path, target, intrinsics, max_rms_px=max_rms_px)
@@ -526,7 +524,7 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
                                *,
                                processes: int | None = None, progress: bool | None = None,
                                max_rms_px: float = DEFAULT_MAX_RMS_PX,
-                               batch: int = 64) -> list[ImageResult]:
+                               batch: int = 64, crop=None) -> list[ImageResult]:
     """:func:`detect_and_estimate` for images in memory, e.g. streamed from a ROS bag.
 
     Parameters
@@ -538,6 +536,9 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
         As for :func:`detect_and_estimate`.
     batch : int
         Images sent to the workers at once.
+    crop : (x, y, width, height) of int, optional
+        The camera's region of each image, cut as the stream is read
+        (:func:`~multieye.imaging.image_file.cropped_frames`: a frame without it raises).
 
     Returns
     -------
@@ -547,7 +548,7 @@ def detect_and_estimate_arrays(items: Iterable, target: Target, intrinsics: Intr
     n_workers = worker_count(processes)
     bar = progress_bar(None, f"detecting {target.kind}", progress)
     results: list[ImageResult] = []
-    it = iter(items)
+    it = iter(cropped_frames(items, crop))
 
     def one(item):
         return _guarded(lambda im: process_array(im, item[0], target, intrinsics,

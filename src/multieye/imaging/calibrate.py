@@ -32,7 +32,7 @@ from multieye.imaging.detect import Detection
 from multieye.imaging.pnp import collinear, estimate_pose, estimate_poses
 from multieye.imaging.rays import bearings
 from multieye.imaging.pool_tasks import SplitTask
-from multieye.imaging.image_file import cropped, read_gray
+from multieye.imaging.image_file import read_region
 from multieye.imaging.targets import Chessboard, Target
 from multieye.imaging.wide_look import is_wide, second_look
 
@@ -371,7 +371,7 @@ def look_again(results: Sequence[ImageResult], target: Target, intrinsics: Intri
     :func:`multieye.imaging.wide_look.second_look`; only a chessboard, only a wide lens:
     :func:`~multieye.imaging.wide_look.is_wide`); a board found so is a detection without
     a reason, ``second_look`` True.  The files are read again (checked as before:
-    :func:`multieye.imaging.image_file.read_gray`, in the region each was read in:
+    :func:`multieye.imaging.image_file.read_region`, in the region each was read in:
     ``ImageResult.crop``); results of other sizes than the lens's are left as they are."""
     if not isinstance(target, Chessboard) or not is_wide(intrinsics):
         return list(results)
@@ -380,8 +380,7 @@ def look_again(results: Sequence[ImageResult], target: Target, intrinsics: Intri
         image = None
         if r.detection is None and (r.reason or "").startswith("target not detected") \
                 and r.image_size == (intrinsics.width, intrinsics.height):
-            image = read_gray(r.path, None if r.crop else r.image_size)[0]
-            image = image if image is None or not r.crop else cropped(image, r.crop)[0]
+            image = read_region(r.path, r.image_size, r.crop)[0]
         det = None if image is None else second_look(image, target, intrinsics)
         out.append(r if det is None else replace(r, detection=det, reason=None,
                                                  warnings=r.warnings + det.warnings,

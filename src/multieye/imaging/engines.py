@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.batch import DEFAULT_MAX_RMS_PX, ImageResult, process_array, process_image
+from multieye.imaging.image_file import cropped_frames
 from multieye.imaging.targets import Target
 from multieye.imaging.workers import available_cores, worker_pool
 
@@ -285,13 +286,14 @@ def detect_on(engine: Engine, paths, target: Target, intrinsics: Intrinsics | No
 
 
 def detect_arrays_on(engine: Engine, items, target: Target, intrinsics: Intrinsics | None, *,
-                     max_rms_px: float = DEFAULT_MAX_RMS_PX, batch: int = 64
+                     max_rms_px: float = DEFAULT_MAX_RMS_PX, batch: int = 64, crop=None
                      ) -> list[ImageResult]:
     """:func:`multieye.imaging.batch.detect_and_estimate_arrays` as tasks of ``engine``: the
-    ``(name, image)`` stream consumed ``batch`` at a time, each batch sent to the workers."""
+    ``(name, image)`` stream, cut to ``crop`` where given, consumed ``batch`` at a time, each
+    batch sent to the workers."""
     work = functools.partial(_array_task, target=target, intrinsics=intrinsics,
                              max_rms_px=max_rms_px)
-    it, results = iter(items), []
+    it, results = iter(cropped_frames(items, crop)), []
     while chunk := [item for _, item in zip(range(batch), it)]:
         results.extend(engine.map(work, chunk))
     return results

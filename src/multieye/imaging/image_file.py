@@ -17,6 +17,11 @@ stored size is the intrinsics' size transposed is turned as its EXIF says, as
 ``cv2.imread`` shows it by default, since the intrinsics can only be of the turned image
 (made by a tool that applied the EXIF); a note says so.
 
+A camera's ``crop:`` (its region of a side-by-side stereo frame) is applied here and only here:
+to an image file by :func:`read_region` (what the detection workers read), to a video's or a
+bag's frames by :func:`cropped_frames` (the stream the detection consumes); both cut with
+:func:`cropped`.
+
 >>> from multieye.imaging.image_file import read_gray
 >>> image, reason, notes = read_gray("cam0/1700000000.5.png")      # doctest: +SKIP
 """
@@ -30,7 +35,8 @@ from multieye.core.image_header import FORMATS, ImageHeader, image_header, size_
 from multieye.core.limits import MAX_IMAGE_BYTES
 from multieye.core.regular_files import read_bounded
 
-__all__ = ["ImageHeader", "image_header", "read_gray", "cropped", "turns_to_fit", "FORMATS"]
+__all__ = ["ImageHeader", "image_header", "read_gray", "read_region", "cropped", "cropped_frames",
+           "turns_to_fit", "FORMATS"]
 
 
 def checked_bytes(path) -> tuple[bytes | None, ImageHeader | None, str | None]:
@@ -165,3 +171,27 @@ def cropped(image: np.ndarray, crop: tuple[int, int, int, int]
         return None, (f"the camera's crop [{x}, {y}, {w}, {h}] reaches beyond the {width} x "
                       f"{height} image")
     return image[y:y + h, x:x + w], None
+
+
+def read_region(path, fit: tuple[int | None, int | None] | None, crop
+                ) -> tuple[np.ndarray | None, str | None, tuple[str, ...]]:
+    """:func:`read_gray` of the file, then its region ``crop`` (None: the whole image, which
+    ``fit`` then concerns; with a crop ``fit`` is not applied: the region has the lens's size)."""
+    image, reason, notes = read_gray(path, None if crop is not None else fit)
+    if image is not None and crop is not None:
+        image, reason = cropped(image, crop)
+    return image, reason, notes
+
+
+def cropped_frames(items, crop: tuple[int, int, int, int] | None):
+    """``(label, image)`` frames of a video or a bag, each cut to the camera's ``crop``
+    (:func:`cropped`; None: as they are); DatasetError when a frame does not hold it (a
+    video's frames have one size: the crop is wrong, not the frame)."""
+    if crop is None:
+        yield from items
+        return
+    for label, image in items:
+        part, reason = cropped(image, crop)
+        if part is None:
+            raise DatasetError(f"{label}: {reason}")
+        yield label, part

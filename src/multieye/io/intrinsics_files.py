@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.intrinsics import WIDE_MODELS, Intrinsics, check_lens_bounds
+from multieye.core.intrinsics import WIDE_MODELS, Intrinsics, check_lens_bounds, lens_model
 from multieye.io import cameramodel
 from multieye.io.boofcv import (intrinsics_from_boofcv, intrinsics_from_boofcv_stereo,
                                 is_boofcv, is_boofcv_stereo)
@@ -86,6 +86,7 @@ __all__ = [
     "write_intrinsics_file",
     "distortion_model_name",
     "camera_info_text",
+    "camera_info_note",
 ]
 
 #: Largest ``.cameramodel`` file read, bytes: mrcal's carries its calibration's observations
@@ -325,13 +326,26 @@ def distortion_model_name(intr: Intrinsics) -> str:
     return _PINHOLE_NAMES[int(intr.dist.size)]
 
 
+def camera_info_note(intr: Intrinsics) -> str | None:
+    """What a lens's ROS camera_info cannot say, or None: a ``pinhole-radtan4`` lens (k1 k2
+    p1 p2) is written as ``plumb_bob``'s five coefficients with k3 = 0 (ROS's plumb_bob has
+    five), the same projection, which reads back as ``pinhole-radtan`` (k3 freed when it is
+    refined) unless rig.yaml says ``model: pinhole-radtan4``."""
+    if lens_model(intr) != "pinhole-radtan4":
+        return None
+    return ("pinhole-radtan4 lens written as ROS's plumb_bob with k3 = 0 (the same "
+            "projection); read back it is pinhole-radtan, pinhole-radtan4 with rig.yaml's "
+            "model: pinhole-radtan4")
+
+
 def camera_info_text(intr: Intrinsics, camera_name: str, rectification=None) -> str:
     """ROS ``sensor_msgs/CameraInfo`` YAML (``camera_calibration_parsers``' layout).
 
     Keys: ``image_width``, ``image_height``, ``camera_name``, ``camera_matrix``,
     ``distortion_model``, ``distortion_coefficients``, ``rectification_matrix`` (identity)
     and ``projection_matrix`` (``[K | 0]``), each matrix ``{rows, cols, data}``.  A pinhole
-    lens with 0 or 4 coefficients is written as ``plumb_bob`` with the missing ones zero.
+    lens with 0 or 4 coefficients is written as ``plumb_bob`` with the missing ones zero
+    (with 4, a first comment line naming the camera says so: :func:`camera_info_note`).
     ``rectification``, ``(R, P)`` (3x3, 3x4): the camera's stereo rectification instead of
     the identity and ``[K | 0]``.
 
@@ -358,7 +372,9 @@ def camera_info_text(intr: Intrinsics, camera_name: str, rectification=None) -> 
         return [f"{key}:", f"  rows: {M.shape[0]}", f"  cols: {M.shape[1]}",
                 f"  data: {yaml_list(M.reshape(-1))}"]
 
-    lines = [f"image_width: {int(intr.width)}", f"image_height: {int(intr.height)}",
+    note = camera_info_note(intr)
+    lines = [f"# {json.dumps(camera_name)}: {note}"] if note else []
+    lines += [f"image_width: {int(intr.width)}", f"image_height: {int(intr.height)}",
              f"camera_name: {json.dumps(camera_name)}", *matrix("camera_matrix", intr.K),
              f"distortion_model: {name}", *matrix("distortion_coefficients", dist),
              *matrix("rectification_matrix", np.eye(3) if rectification is None

@@ -72,7 +72,7 @@ from multieye.core.errors import DatasetError, InputError
 from multieye.core.intrinsics import WIDE_MODELS, Intrinsics
 from multieye.core.names import file_stems
 from multieye.io.atomic import confined_to, make_folder, write_text_atomic
-from multieye.io.intrinsics_files import camera_info_text, distortion_model_name
+from multieye.io.intrinsics_files import camera_info_note, camera_info_text, distortion_model_name
 from multieye.outputs.folder import claim_output
 from multieye.outputs.stereo import opencv_stereo_lines, per_camera, stereo_pairs
 from multieye.io.cameramodel import cameramodel_text
@@ -405,14 +405,27 @@ def _per_camera_files(rec: CalibrationRecord, intr: dict, notes: list[str], *, s
 def _camera_infos(rec: CalibrationRecord, intr: dict, notes: list[str],
                   overlaps: dict | None = None) -> dict[str, str]:
     """One ROS camera_info YAML per camera ROS can describe (:func:`_per_camera_files`), a
-    camera of a stereo pair with its rectification (:mod:`multieye.outputs.stereo`)."""
+    camera of a stereo pair with its rectification (:mod:`multieye.outputs.stereo`); a note
+    names the cameras whose lens the format names otherwise
+    (:func:`~multieye.io.intrinsics_files.camera_info_note`)."""
     pairs, stereo_notes = stereo_pairs(rec, intr, overlaps)
     notes += stereo_notes
-    rect = per_camera(pairs)
-    return _per_camera_files(
+    rect, padded = per_camera(pairs), []
+
+    def text_of(cam, k):
+        text = camera_info_text(k, cam.name, rect.get(cam.name))
+        if camera_info_note(k) is not None:         # a lens the format names otherwise
+            padded.append(cam.name)
+        return text
+
+    texts = _per_camera_files(
         rec, intr, notes, stems_what="file export/camera_info/<camera>.yaml", suffix=".yaml",
         note="no camera_info for ", refusal="ROS camera_info cannot describe any camera: ",
-        text_of=lambda cam, k: camera_info_text(k, cam.name, rect.get(cam.name)))
+        text_of=text_of)
+    if padded:
+        notes.append(f"camera_info of {', '.join(padded)}: "
+                     + camera_info_note(intr[padded[0]]))
+    return texts
 
 
 def _overlaps(out: Path) -> dict | None:

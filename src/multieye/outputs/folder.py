@@ -15,7 +15,7 @@ A calibration replaces its output folder ``OUT`` as a whole (docs/outputs.md, se
    is missing (a run killed between the two renames of step 5); a link of such a name is
    neither followed, removed nor renamed.
 3. **Check**: ``OUT`` is not a symbolic link and holds none (the folders above it are
-   resolved once, :func:`_resolve`, and may be links); it is missing, an empty folder, or
+   resolved once, :func:`~multieye.outputs.folder_names.resolved_output`, and may be links); it is missing, an empty folder, or
    holds only files multieye writes
    (those listed in its ``.multieye-manifest.json`` and the fixed names of section 1 of
    docs/outputs.md); anything else (a user's notes, a dataset, a file named ``figures``)
@@ -60,6 +60,7 @@ from pathlib import Path
 from multieye.core.errors import DatasetError
 from multieye.core.version import __version__
 from multieye.io.atomic import confined_to, write_problem
+from multieye.outputs.folder_names import checked_output, lock_path, sibling
 
 try:
     import fcntl
@@ -101,22 +102,6 @@ _WINDOWS_LOCK_OFFSET = 1 << 30      # msvcrt locks bytes: lock one far beyond th
 # --------------------------------------------------------------------------- names
 
 
-def _resolve(out: str | os.PathLike) -> Path:
-    """``out`` made absolute, the folders above it resolved (once, here) as the file system
-    does (``link/../out`` lies beside the link's target: the folder read, whose lock it is),
-    ``out`` itself not: a link there is refused later (:func:`_check_real_folder`)."""
-    raw = os.path.join(os.getcwd(), os.path.expanduser(os.fspath(out)))
-    head, name = os.path.split(raw.rstrip(os.sep) or os.sep)
-    while name == "." and head.rstrip(os.sep):          # out/. names out itself
-        head, name = os.path.split(head.rstrip(os.sep))
-    path = (Path(os.path.realpath(raw)) if name in ("", "..")
-            else Path(os.path.realpath(head or os.sep)) / name)
-    if path.parent == path:
-        raise DatasetError("cannot use the root of a file system as the output folder",
-                           path=path)
-    return path
-
-
 def _as_typed(exc: DatasetError, out: Path, typed: str | os.PathLike) -> DatasetError:
     """``exc`` with a path inside the resolved output folder ``out`` named from ``typed``,
     the folder as the user gave it."""
@@ -128,14 +113,6 @@ def _as_typed(exc: DatasetError, out: Path, typed: str | os.PathLike) -> Dataset
         return exc
     shown = Path(typed) if inside == Path(".") else Path(typed) / inside
     return DatasetError(exc.reason, path=shown, line=exc.line, camera=exc.camera)
-
-
-def _lock_path(out: Path) -> Path:
-    return out.parent / f"{out.name}.multieye-lock"
-
-
-def _sibling(out: Path, kind: str) -> Path:
-    return out.parent / f"{out.name}.multieye-{kind}-{os.getpid()}-{os.urandom(4).hex()}"
 
 
 def _leftovers(out: Path) -> tuple[list[Path], list[Path]]:
@@ -236,7 +213,7 @@ def _acquire(out: Path) -> bool:
                 raise _busy(out, f"process {os.getpid()}, this one, in another thread")
             held.count += 1
             return False
-    path = _lock_path(out)
+    path = lock_path(out)
     for _ in range(20):
         fd = _open_lock(path)
         if fd is None:
@@ -476,9 +453,11 @@ def claim_output(out_dir: str | os.PathLike, *, inputs: Iterable = (),
     ------
     DatasetError
         Another run holds the folder, the folder or the lock file is a link (or holds one),
-        or it cannot be replaced (one line saying why).
+        or it cannot be replaced (one line saying why); its path or a name beside or inside
+        it would be too long (:func:`~multieye.outputs.folder_names.output_path_problem`,
+        before anything is written).
     """
-    out = _resolve(out_dir)
+    out = checked_output(out_dir, staged=replace)     # before anything is written or run
     created = []
     parent = out.parent
     while not parent.exists():
@@ -565,7 +544,7 @@ def staged_output(out_dir: str | os.PathLike, *, inputs: Iterable = ()) -> Itera
         As :func:`claim_output`; or the swap failed (``out_dir`` unchanged).
     """
     with claim_output(out_dir, inputs=inputs) as out:
-        folder, backup = _sibling(out, "tmp"), _sibling(out, "old")
+        folder, backup = sibling(out, "tmp"), sibling(out, "old")
         try:
             folder.mkdir()
         except OSError as exc:

@@ -16,7 +16,7 @@ from multieye.imaging.batch import (
     detect_jobs_then,
 )
 from multieye.imaging.calibrate import lens_start_task
-from multieye.imaging.image_file import cropped
+from multieye.imaging.image_file import cropped_frames  # re-exported: where it was
 from multieye.imaging.engines import Engine, detect_arrays_on, detect_on
 from multieye.core.errors import DatasetError
 from multieye.io import Rig, iter_bag_images, list_image_files
@@ -25,7 +25,7 @@ from multieye.pipeline.frames import bag_frames, video_frames, video_listing
 from multieye.pipeline.recordings import listed_images
 from multieye.pipeline.rig_model import RigModel
 
-__all__ = ["Workers", "detect_all", "detect_listed"]
+__all__ = ["Workers", "cropped_frames", "detect_all", "detect_listed"]
 
 
 @dataclass(frozen=True)
@@ -52,22 +52,10 @@ class Workers:
                                    progress=self.progress, crop=crop)
 
     def detect_arrays(self, items, target, intr, crop=None) -> list:
-        items = items if crop is None else cropped_frames(items, crop)
         if self.engine is not None:
-            return detect_arrays_on(self.engine, items, target, intr)
+            return detect_arrays_on(self.engine, items, target, intr, crop=crop)
         return detect_and_estimate_arrays(items, target, intr, processes=self.processes,
-                                          progress=self.progress)
-
-
-def cropped_frames(items, crop: tuple[int, int, int, int]):
-    """``(label, image)`` frames of a video or a bag, each cut to the camera's ``crop``
-    (:func:`multieye.imaging.image_file.cropped`); DatasetError when a frame does not hold
-    it (a video's frames have one size: the crop is wrong, not the frame)."""
-    for label, image in items:
-        part, reason = cropped(image, crop)
-        if part is None:
-            raise DatasetError(f"{label}: {reason}")
-        yield label, part
+                                          progress=self.progress, crop=crop)
 
 
 def detect_all(rig: Rig, model: RigModel, motions: dict, workers: Workers, chosen: dict, *,

@@ -22,6 +22,7 @@ from multieye.estimate.covisibility import (covisibility, link_groups, pairing_h
 from multieye.estimate.diagnostics import MIN_AXIS_RATIO, MIN_ROTATION_RANGE_DEG, MIN_SECOND_AXIS_DEG
 from multieye.estimate.instants import default_sync_tolerance, instants_from_stamps
 from multieye.imaging.batch import detect_and_estimate, detect_and_estimate_arrays
+from multieye.imaging.image_file import read_region
 from multieye.imaging.target_hints import counting_rule, suggest_target
 from multieye.estimate.instants import instants_from_names
 from multieye.io import Trajectory, bag_image_count, list_image_files, load_rig
@@ -30,8 +31,7 @@ from multieye.pipeline.recordings import (check_sync, image_notes, instant_keys,
                                           precomputed_poses, sync_instant)
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
-from multieye.pipeline.detection import cropped_frames
-from multieye.pipeline.dry_run_sample import evenly_spaced, sampled_on
+from multieye.pipeline.dry_run_sample import budget_note, evenly_spaced, sample_budget, sampled_on
 from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
@@ -186,19 +186,17 @@ def _sample_bag(cam, target, intr, *, sample, processes):
             picked.append(index)
             yield f"{cam.topic}@{stamp_ns}", image
 
-    items = frames() if cam.crop is None else cropped_frames(frames(), cam.crop)
-    results = detect_and_estimate_arrays(items, target, intr, processes=processes,
-                                         progress=False)
+    results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
+                                         progress=False, crop=cam.crop)
     stamps = np.array(stamps_ns, dtype=np.int64) * 1e-9
 
     def more(indices):          # another pass over the bag, decoding only these
         items = ((f"{cam.topic}@{t}", image) for _, t, image in
                  sample_bag_images(cam.rosbag, cam.topic, indices))
-        return indices, detect_and_estimate_arrays(
-            items if cam.crop is None else cropped_frames(items, cam.crop), target, intr,
-            processes=processes, progress=False)
+        return indices, detect_and_estimate_arrays(items, target, intr, processes=processes,
+                                                   progress=False, crop=cam.crop)
 
-    picked, results = sampled_on(len(stamps), picked, results, more)
+    picked, results = sampled_on(len(stamps), picked, results, more, sample_budget(sample))
     return stamps, picked, results
 
 
@@ -232,14 +230,17 @@ def _lens_problems(cam, results, found_mask, n_listed: int, n_sampled: int) -> l
     return out
 
 
-def _target_hint(rig, paths, results) -> str:
+def _target_hint(rig, cam, paths, results) -> str:
     """``; <what the images hold>`` from two of the sampled images where the target was not
-    found (:func:`multieye.imaging.target_hints.suggest_target`), or ``""``."""
+    found (:func:`multieye.imaging.target_hints.suggest_target`; the camera's region of
+    them), or ``""``."""
     missed = [p for p, r in zip(paths, results) if r.reason and r.reason.startswith(
         "target not detected")]
     if not missed:
         return ""
-    hint = suggest_target(sorted({missed[0], missed[len(missed) // 2]}), rig.target)
+    picked = sorted({missed[0], missed[len(missed) // 2]})
+    hint = suggest_target(picked if cam.crop is None else [
+        im for p in picked if (im := read_region(p, None, cam.crop)[0]) is not None], rig.target)
     return f"; {hint.text}" if hint is not None else ""
 
 
@@ -298,7 +299,7 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
                                                     crop=cam.crop)
 
             first = evenly_spaced(len(images), sample)     # more while too few show the target
-            sampled_idx, results = sampled_on(len(images), *detect(first), detect)
+            sampled_idx, results = sampled_on(len(images), *detect(first), detect, sample_budget(sample))
             paths = [images[i][2] for i in sampled_idx]
         elif cam.source == "video":
             listing = video_listing(cam)
@@ -308,14 +309,13 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
             def frames(indices):    # a video's frame index is its place in the listing
                 read: list = []
                 items = video_frames(cam, [listing[i] for i in indices], read, lost)
-                found = detect_and_estimate_arrays(
-                    items if cam.crop is None else cropped_frames(items, cam.crop), target,
-                    intr, processes=processes, progress=False)
+                found = detect_and_estimate_arrays(items, target, intr, processes=processes,
+                                                   progress=False, crop=cam.crop)
                 got = {label for _, label in read}
                 return [i for i in indices if listing[i][2].name in got], found
 
             first = evenly_spaced(len(listing), sample)     # more while too few show it
-            sampled_idx, results = sampled_on(len(listing), *frames(first), frames)
+            sampled_idx, results = sampled_on(len(listing), *frames(first), frames, sample_budget(sample))
             problems.extend(image_notes(lost))         # one line per cause
         else:
             stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,
@@ -374,14 +374,15 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
     expected = int(round(n_listed * n_paired / n_sampled)) if n_sampled else 0
     expected = min(expected, int(has_pose.sum()))
     if cam.source != "poses" and n_found < MIN_FOUND_SHARE * n_sampled:
-        text = f"target found in only {n_found} of {n_sampled} sampled images"
+        text = (f"target found in only {n_found} of {n_sampled} sampled images"
+                + budget_note(n_found, n_listed, sample))
         if n_found == 0:
             t = rig.target
             text += (f"; check the target section of rig.yaml ({t.type} {t.rows}x{t.cols}, "
                      f"spacing {t.as_dict().get('spacing', '?')} m: {counting_rule(t.type)}) "
                      "and the images")
             if cam.source == "images":
-                text += _target_hint(rig, seen.paths, results)
+                text += _target_hint(rig, cam, seen.paths, results)
         problems.append(text)
     n_no_pose = len(stamps) - int(has_pose.sum())
     if n_no_pose:
@@ -428,7 +429,8 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
     expected = int(round(seen.n_listed * n_found / seen.n_sampled)) if seen.n_sampled else 0
     if n_found < MIN_FOUND_SHARE * seen.n_sampled:
         problems.append(f"target found in only {n_found} of {seen.n_sampled} sampled images"
-                        + (_target_hint(rig, seen.paths, seen.results)
+                        + budget_note(n_found, seen.n_listed, sample)
+                        + (_target_hint(rig, cam, seen.paths, seen.results)
                            if n_found == 0 and cam.source == "images" else ""))
     if cam.estimate_intrinsics:
         problems.extend(_lens_problems(cam, seen.results, seen.found_mask, seen.n_listed,
@@ -566,7 +568,7 @@ def check_dataset(path, *, sample: int = 20, processes: int | None = None) -> Da
         At most this many images per camera, evenly spaced in time, are searched for the
         target: of a folder's images sorted by time, or of a bag topic's messages in bag
         order (only those are decoded; the stamps of the others, for the pairing, are read
-        from their header bytes).
+        from their header bytes); more while fewer than 3 show it, at most 10 x ``sample``.
     processes : int, optional
         Detection processes (default: one per core).
 

@@ -6,7 +6,9 @@ board, unreadable, of another size) is calibrated: the selection chooses again f
 until its budget of usable images is met (:func:`multieye.pipeline.selection.with_refills`).
 The dry run's first sample of such a camera may hold no image with the target, and said
 that calibrating would fail; so it samples on, evenly over the images not yet tried, until
-:data:`~multieye.solvers.methods.MIN_MEASUREMENTS` show the target or every image was tried.
+:data:`~multieye.solvers.methods.MIN_MEASUREMENTS` show the target, every image was tried, or
+the camera's budget of :data:`BUDGET_PER_SAMPLE` times the sample was decoded (a camera none of
+whose 10,000 images shows the board is not decoded whole; :func:`budget_note` says so).
 """
 
 from __future__ import annotations
@@ -18,7 +20,15 @@ import numpy as np
 
 from multieye.solvers.methods import MIN_MEASUREMENTS
 
-__all__ = ["evenly_spaced", "sampled_on"]
+__all__ = ["BUDGET_PER_SAMPLE", "budget_note", "sample_budget", "evenly_spaced", "sampled_on"]
+
+#: Sampling on decodes at most this many times ``sample`` images of a camera (200 by default).
+BUDGET_PER_SAMPLE = 10
+
+
+def sample_budget(sample: int) -> int:
+    """The most images of one camera the dry run decodes, first sample included."""
+    return BUDGET_PER_SAMPLE * int(sample)
 
 
 def evenly_spaced(n: int, k: int) -> list[int]:
@@ -29,9 +39,10 @@ def evenly_spaced(n: int, k: int) -> list[int]:
 
 
 def sampled_on(n: int, sampled: Sequence[int], results: Sequence,
-               detect: Callable[[list[int]], list]) -> tuple[list[int], list]:
+               detect: Callable[[list[int]], list], budget: int) -> tuple[list[int], list]:
     """``sampled`` (indices of ``range(n)``) and their ``results``, with more sampled from
-    the rest while fewer than MIN_MEASUREMENTS results show the target (``reason`` None).
+    the rest while fewer than MIN_MEASUREMENTS results show the target (``reason`` None)
+    and fewer than ``budget`` images were tried.
 
     Each round takes, evenly spaced over the indices not yet tried, as many as still wanted
     divided by the share found so far (Laplace's estimate: ``(found + 1) / (tried + 2)``), as
@@ -49,6 +60,8 @@ def sampled_on(n: int, sampled: Sequence[int], results: Sequence,
     detect : callable
         ``detect(indices) -> (done, results)`` of more images: the indices it could read
         (a video's frame may not decode) and their results.
+    budget : int
+        At most this many indices are tried in all (:func:`sample_budget`).
 
     Returns
     -------
@@ -58,9 +71,10 @@ def sampled_on(n: int, sampled: Sequence[int], results: Sequence,
     idx, res = list(sampled), list(results)
     tried = set(idx)
     found = sum(r.reason is None for r in res)
-    while found < MIN_MEASUREMENTS and len(tried) < n:
+    while found < MIN_MEASUREMENTS and len(tried) < min(n, budget):
         rest = [i for i in range(n) if i not in tried]
-        ask = min(len(rest), math.ceil((MIN_MEASUREMENTS - found) * (len(tried) + 2) / (found + 1)))
+        ask = min(len(rest), budget - len(tried),
+                  math.ceil((MIN_MEASUREMENTS - found) * (len(tried) + 2) / (found + 1)))
         pick = [rest[k] for k in evenly_spaced(len(rest), ask)]
         done, more = detect(pick)
         tried.update(pick)
@@ -69,3 +83,14 @@ def sampled_on(n: int, sampled: Sequence[int], results: Sequence,
         found += sum(r.reason is None for r in more)
     order = np.argsort(idx, kind="stable")
     return [idx[k] for k in order], [res[k] for k in order]
+
+
+def budget_note(found: int, listed: int, sample: int) -> str:
+    """``" (sampling stopped at ...)"`` when a camera's sampling on ended at its budget with
+    fewer than MIN_MEASUREMENTS images showing the target (more listed than the budget: it
+    would otherwise have tried them all), else ``""``."""
+    budget = sample_budget(sample)
+    if found >= MIN_MEASUREMENTS or listed <= budget:
+        return ""
+    return (f" (sampling stopped at its budget of {budget} images per camera, "
+            f"{BUDGET_PER_SAMPLE} x --sample: {listed - budget} of {listed} images not searched)")
