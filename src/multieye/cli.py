@@ -404,6 +404,8 @@ def check(dataset: Path, sample: int, processes: int | None):
         _echo(f"note: {note}")
     for reason in result.reasons:
         _echo(f"multieye: calibrating would fail: {reason}", err=True)
+    for reason in () if result.reasons else result.doubts:
+        _echo(f"multieye: calibrating may fail: {reason}", err=True)
     if not result.ok:
         sys.exit(EXIT_USER_ERROR)
 

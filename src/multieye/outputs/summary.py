@@ -279,6 +279,8 @@ def check_table(check) -> str:
                          + ", ".join(f"{n} in {k}" for n, k in c.boards))
         lines.extend(f"problem: {c.name}: {p}" for p in c.problems)
     lines.extend(getattr(check, "links", ()))
-    lines.append("verdict: ok, calibrating can run" if check.ok
-                 else "verdict: calibrating would fail: " + "; ".join(check.reasons))
+    doubts = getattr(check, "doubts", ())
+    lines.append("verdict: calibrating would fail: " + "; ".join(check.reasons) if not check.ok
+                 else "verdict: calibrating may fail: " + "; ".join(doubts) if doubts
+                 else "verdict: ok, calibrating can run")
     return "\n".join(lines)

@@ -31,7 +31,9 @@ from multieye.pipeline.recordings import (check_sync, image_notes, instant_keys,
                                           precomputed_poses, sync_instant)
 from multieye.pipeline.rig_model import RigModel, build_rig_model
 from multieye.pipeline.boards import camera_boards
-from multieye.pipeline.dry_run_sample import budget_note, evenly_spaced, sample_budget, sampled_on
+from multieye.pipeline.dry_run_sample import (
+    budget_note, evenly_spaced, sample_budget, sampled_on, shortfall)
+from multieye.pipeline.dry_run_motion import nearest_gap, rotation_range
 from multieye.pipeline.dry_run_boards import boards_found, motion_links, one_axis_problems, posed_boards
 from multieye.pipeline.camera_data import BY_NAME_TOLERANCE, camera_motion, pair_stamps, rejection_kind
 from multieye.pipeline.estimated_lens import MIN_COVERAGE, RECOMMENDED_VIEWS, image_coverage
@@ -39,8 +41,6 @@ from multieye.pipeline.estimated_lens import model_warnings
 from multieye.io.calibration_json import OVERLAP
 from multieye.pipeline.sources import outside_reads
 from multieye.pipeline.frames import video_frames, video_listing
-from multieye.solvers.checks import rotation_spread
-from multieye.solvers.methods import MIN_MEASUREMENTS
 
 __all__ = ["CameraCheck", "DatasetCheck", "check_dataset"]
 
@@ -79,6 +79,9 @@ class CameraCheck:
         What will go wrong, or may.
     fatal : tuple of str
         The problems that make calibrating fail.
+    undecided : tuple of str
+        The problems that may make it fail, which the sample cannot decide (too few images
+        with the target among those searched, the rest not searched: the check's budget).
     stamps : tuple of float
         Without motion capture: every listed image's stamp plus the camera's time offset.
     keys : tuple of str
@@ -114,6 +117,7 @@ class CameraCheck:
     seen: tuple[tuple[int, tuple[str, ...]], ...] = ()
     board_poses: tuple = ()
     sampled_at: tuple[int, ...] = ()
+    undecided: tuple[str, ...] = ()
 
     @property
     def found_percent(self) -> float:
@@ -141,28 +145,10 @@ class DatasetCheck:
     def ok(self) -> bool:
         return not self.reasons
 
-
-def _rotation(T_mocap: np.ndarray) -> tuple[float | None, tuple | None]:
-    """Largest rotation between two of the poses (degrees; at most 300 poses evenly spaced)
-    and the RMS rotation about the principal axes (degrees, descending)."""
-    if len(T_mocap) < 2:
-        return None, None
-    R = T_mocap[evenly_spaced(len(T_mocap), 300), :3, :3]
-    cos = (np.einsum("aij,bij->ab", R, R) - 1.0) / 2.0      # tr(R_a R_b^T) = sum R_a * R_b
-    range_deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max())
-    spread = tuple(float(v) for v in np.degrees(rotation_spread(T_mocap)))
-    return range_deg, spread
-
-
-def _nearest_gap(times: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Distance of each of ``q`` to the nearest of the increasing ``times`` (inf without any),
-    in memory linear in their lengths (a long bag's images against a long motion capture)."""
-    if not len(times):
-        return np.full(len(q), np.inf)
-    i = np.searchsorted(times, q)
-    before = times[np.clip(i - 1, 0, len(times) - 1)]
-    after = times[np.clip(i, 0, len(times) - 1)]
-    return np.minimum(np.abs(q - before), np.abs(q - after))
+    @property
+    def doubts(self) -> tuple[str, ...]:
+        """Why calibrating may fail, undecided by the images searched, ``camera: reason``."""
+        return tuple(f"{c.name}: {r}" for c in self.cameras for r in c.undecided)
 
 
 def _sample_bag(cam, target, intr, *, sample, processes):
@@ -344,7 +330,6 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
     if spec is None:                 # no motion capture: linked by the views (check_dataset)
         return _check_unpaired(rig, name, cam, sample=sample, processes=processes, model=model)
     problems: list[str] = []
-    fatal: list[str] = []
     motion = camera_motion(rig, name, traj_cache)
     traj, listed, unmatched = motion.trajectory, motion.listed, motion.unmatched
     tolerance = BY_NAME_TOLERANCE if spec.by_name else spec.time_tolerance
@@ -388,14 +373,14 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
     if n_no_pose:
         mocap_times = np.asarray(traj.stamps, dtype=np.float64)
         q = stamps[~has_pose] + offset
-        nearest = _nearest_gap(mocap_times, q)
+        nearest = nearest_gap(mocap_times, q)
         span = (f"motion capture {mocap_times[0]:.3f} to {mocap_times[-1]:.3f} s, images "
                 f"{stamps.min() + offset:.3f} to {stamps.max() + offset:.3f} s in its clock"
                 if len(mocap_times) else "no motion capture")
         problems.append(f"{n_no_pose} of {len(stamps)} images have no motion capture within "
                         f"{tolerance:g} s (nearest {np.min(nearest):.3g} to "
                         f"{np.max(nearest):.3g} s away; {span})")
-    range_deg, spread = _rotation(T_at[usable]) if usable else (None, None)
+    range_deg, spread = rotation_range(T_at[usable]) if usable else (None, None)
     if spread is not None:
         s0, s1 = spread[:2]
         if range_deg < MIN_ROTATION_RANGE_DEG:
@@ -407,16 +392,16 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
                             "about any other): rotate about a second axis")
     if cam.estimate_intrinsics and cam.source != "poses":
         problems.extend(_lens_problems(cam, results, found_mask, n_listed, n_sampled))
-    if expected < MIN_MEASUREMENTS or n_paired == 0:
-        fatal.append(f"fewer than {MIN_MEASUREMENTS} usable images would remain ({n_paired} of "
-                     f"{n_sampled} sampled usable, about {expected} of {n_listed} in all)")
-        problems.append(fatal[-1])
+    short = shortfall(n_paired, n_found, n_sampled, expected, n_listed)
+    problems += [short[0]] if short else []
+    fatal = [short[0]] if short and short[1] else []
     return CameraCheck(name=name, source=cam.source, listed=n_listed, sampled=n_sampled,
                        found=n_found, failures=tuple(sorted(failures.items())),
                        with_mocap=int(has_pose.sum()), paired=n_paired,
                        expected_usable=expected, time_tolerance_s=float(tolerance),
                        rotation_range_deg=range_deg, rotation_spread_deg=spread,
                        problems=tuple(problems), fatal=tuple(fatal), boards=seen.boards,
+                       undecided=() if fatal or not short else (short[0],),
                        seen=seen.seen, board_poses=seen.board_poses)
 
 
@@ -435,18 +420,16 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
     if cam.estimate_intrinsics:
         problems.extend(_lens_problems(cam, seen.results, seen.found_mask, seen.n_listed,
                                        seen.n_sampled))
-    fatal = []
-    if expected < MIN_MEASUREMENTS or n_found == 0:
-        fatal.append(f"fewer than {MIN_MEASUREMENTS} usable images would remain ({n_found} of "
-                     f"{seen.n_sampled} sampled usable, about {expected} of {seen.n_listed} in "
-                     "all)")
-        problems.append(fatal[-1])
+    short = shortfall(n_found, n_found, seen.n_sampled, expected, seen.n_listed)
+    problems += [short[0]] if short else []
+    fatal = [short[0]] if short and short[1] else []
     return CameraCheck(name=name, source=cam.source, listed=seen.n_listed,
                        sampled=seen.n_sampled, found=n_found,
                        failures=tuple(sorted(seen.failures.items())), with_mocap=0,
                        paired=n_found, expected_usable=expected, time_tolerance_s=0.0,
                        rotation_range_deg=None, rotation_spread_deg=None,
                        problems=tuple(problems), fatal=tuple(fatal),
+                       undecided=() if fatal or not short else (short[0],),
                        stamps=tuple(float(t) + cam.time_offset for t in seen.stamps),
                        keys=_keys(rig, name, seen), boards=seen.boards, seen=seen.seen,
                        board_poses=seen.board_poses, sampled_at=tuple(seen.sampled_idx))

@@ -20,7 +20,8 @@ import numpy as np
 
 from multieye.solvers.methods import MIN_MEASUREMENTS
 
-__all__ = ["BUDGET_PER_SAMPLE", "budget_note", "sample_budget", "evenly_spaced", "sampled_on"]
+__all__ = ["BUDGET_PER_SAMPLE", "budget_note", "sample_budget", "evenly_spaced", "sampled_on",
+           "shortfall"]
 
 #: Sampling on decodes at most this many times ``sample`` images of a camera (200 by default).
 BUDGET_PER_SAMPLE = 10
@@ -94,3 +95,35 @@ def budget_note(found: int, listed: int, sample: int) -> str:
         return ""
     return (f" (sampling stopped at its budget of {budget} images per camera, "
             f"{BUDGET_PER_SAMPLE} x --sample: {listed - budget} of {listed} images not searched)")
+
+
+def shortfall(usable: int, found: int, sampled: int, expected: int, listed: int
+              ) -> tuple[str, bool] | None:
+    """Why calibrating would fail for lack of usable images, and whether the sample decides
+    it; None when enough would remain.
+
+    Parameters
+    ----------
+    usable, found, sampled : int
+        Sampled images usable, with the target found, and decoded.
+    expected, listed : int
+        Usable images extrapolated to the camera's ``listed`` images.
+
+    Returns
+    -------
+    (str, bool) or None
+        The reason, and True when it is decided: every image was searched, or enough showed
+        the target (what is short is then the motion capture); False when the sampling
+        stopped at its budget (:func:`sample_budget`) with fewer than ``MIN_MEASUREMENTS``
+        found, since the images not searched may hold the target (calibrating searches them
+        all: :func:`multieye.pipeline.selection.with_refills`).
+    """
+    if expected >= MIN_MEASUREMENTS and usable > 0:
+        return None
+    if found < MIN_MEASUREMENTS and sampled < listed:
+        return (f"fewer than {MIN_MEASUREMENTS} usable images among the {sampled} searched "
+                f"({usable} usable); {listed - sampled} of its {listed} images were not "
+                "searched (the check's budget): calibrating may fail, and searches them all "
+                f"(--sample {math.ceil(listed / BUDGET_PER_SAMPLE)} searches them here)", False)
+    return (f"fewer than {MIN_MEASUREMENTS} usable images would remain ({usable} of {sampled} "
+            f"sampled usable, about {expected} of {listed} in all)", True)
