@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import pytest
+import yaml
 
 import real_datasets
 from multieye.core.errors import InputError
@@ -213,6 +214,25 @@ def test_a_camera_without_the_board_in_any_image_is_searched_within_its_budget(
     assert result.doubts == (f"{c.name}: {c.undecided[0]}",)
     assert check_table(result).splitlines()[-1] == f"verdict: calibrating may fail: {c.name}: " \
         + c.undecided[0]
+
+
+def test_a_board_of_other_corners_in_the_images_searched_decides_even_past_the_budget(
+        small, tmp_path):
+    """The budget leaves the verdict open only when the images not searched may hold the
+    target: where those searched show a board of other corner counts than rig.yaml's, the
+    target section is wrong whatever the rest hold, and calibrating would fail (exit 2)."""
+    folder = _among_unusable(_copy(small, tmp_path / "ds"), 300)
+    text = (folder / "rig.yaml").read_text()
+    rig = yaml.safe_load(text)
+    rows, cols = rig["target"]["rows"], rig["target"]["cols"]
+    (folder / "rig.yaml").write_text(text.replace(f"rows: {rows}", f"rows: {rows + 1}")
+                                     .replace(f"cols: {cols}", f"cols: {cols + 1}"))
+    result = check_dataset(folder, processes=1)
+    c = result.cameras[0]
+    assert c.sampled < c.listed and c.found == 0            # the budget stopped the search
+    assert not result.ok and not c.undecided
+    assert "squares counted instead of inner corners" in " ".join(c.problems)
+    assert c.fatal[0].startswith("fewer than 3 usable images would remain (0 of ")
 
 
 def test_check_says_may_fail_and_exits_0_where_its_budget_missed_a_tiny_minority(

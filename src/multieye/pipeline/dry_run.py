@@ -358,6 +358,7 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
     n_paired = len(usable)
     expected = int(round(n_listed * n_paired / n_sampled)) if n_sampled else 0
     expected = min(expected, int(has_pose.sum()))
+    hint = ""                      # another board found in the images: decided, not a budget
     if cam.source != "poses" and n_found < MIN_FOUND_SHARE * n_sampled:
         text = (f"target found in only {n_found} of {n_sampled} sampled images"
                 + budget_note(n_found, n_listed, sample))
@@ -366,8 +367,8 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
             text += (f"; check the target section of rig.yaml ({t.type} {t.rows}x{t.cols}, "
                      f"spacing {t.as_dict().get('spacing', '?')} m: {counting_rule(t.type)}) "
                      "and the images")
-            if cam.source == "images":
-                text += _target_hint(rig, cam, seen.paths, results)
+            hint = _target_hint(rig, cam, seen.paths, results) if cam.source == "images" else ""
+            text += hint
         problems.append(text)
     n_no_pose = len(stamps) - int(has_pose.sum())
     if n_no_pose:
@@ -392,7 +393,7 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
                             "about any other): rotate about a second axis")
     if cam.estimate_intrinsics and cam.source != "poses":
         problems.extend(_lens_problems(cam, results, found_mask, n_listed, n_sampled))
-    short = shortfall(n_paired, n_found, n_sampled, expected, n_listed)
+    short = shortfall(n_paired, n_found, n_sampled, expected, n_listed, decided=bool(hint))
     problems += [short[0]] if short else []
     fatal = [short[0]] if short and short[1] else []
     return CameraCheck(name=name, source=cam.source, listed=n_listed, sampled=n_sampled,
@@ -412,15 +413,17 @@ def _check_unpaired(rig, name, cam, *, sample, processes, model) -> CameraCheck:
     problems = list(seen.problems)
     n_found = int(seen.found_mask.sum())
     expected = int(round(seen.n_listed * n_found / seen.n_sampled)) if seen.n_sampled else 0
+    hint = (_target_hint(rig, cam, seen.paths, seen.results)
+            if n_found == 0 and cam.source == "images" else "")
     if n_found < MIN_FOUND_SHARE * seen.n_sampled:
         problems.append(f"target found in only {n_found} of {seen.n_sampled} sampled images"
                         + budget_note(n_found, seen.n_listed, sample)
-                        + (_target_hint(rig, cam, seen.paths, seen.results)
-                           if n_found == 0 and cam.source == "images" else ""))
+                        + hint)
     if cam.estimate_intrinsics:
         problems.extend(_lens_problems(cam, seen.results, seen.found_mask, seen.n_listed,
                                        seen.n_sampled))
-    short = shortfall(n_found, n_found, seen.n_sampled, expected, seen.n_listed)
+    short = shortfall(n_found, n_found, seen.n_sampled, expected, seen.n_listed,
+                      decided=bool(hint))
     problems += [short[0]] if short else []
     fatal = [short[0]] if short and short[1] else []
     return CameraCheck(name=name, source=cam.source, listed=seen.n_listed,

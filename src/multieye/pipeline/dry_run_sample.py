@@ -97,8 +97,8 @@ def budget_note(found: int, listed: int, sample: int) -> str:
             f"{BUDGET_PER_SAMPLE} x --sample: {listed - budget} of {listed} images not searched)")
 
 
-def shortfall(usable: int, found: int, sampled: int, expected: int, listed: int
-              ) -> tuple[str, bool] | None:
+def shortfall(usable: int, found: int, sampled: int, expected: int, listed: int, *,
+              decided: bool = False) -> tuple[str, bool] | None:
     """Why calibrating would fail for lack of usable images, and whether the sample decides
     it; None when enough would remain.
 
@@ -108,6 +108,9 @@ def shortfall(usable: int, found: int, sampled: int, expected: int, listed: int
         Sampled images usable, with the target found, and decoded.
     expected, listed : int
         Usable images extrapolated to the camera's ``listed`` images.
+    decided : bool
+        The images searched decide it whatever the rest hold (another board than rig.yaml's
+        was found in them: the target section is wrong).
 
     Returns
     -------
@@ -120,7 +123,7 @@ def shortfall(usable: int, found: int, sampled: int, expected: int, listed: int
     """
     if expected >= MIN_MEASUREMENTS and usable > 0:
         return None
-    if found < MIN_MEASUREMENTS and sampled < listed:
+    if found < MIN_MEASUREMENTS and sampled < listed and not decided:
         return (f"fewer than {MIN_MEASUREMENTS} usable images among the {sampled} searched "
                 f"({usable} usable); {listed - sampled} of its {listed} images were not "
                 "searched (the check's budget): calibrating may fail, and searches them all "
