@@ -351,6 +351,10 @@ def _label(r: dict) -> str:
             f"x{r['scale']:g} {r['noise']} {r['views']}v")
 
 
+def _near(r: dict | None, stat: str, thr: float) -> str:
+    return "-" if r is None else f"{r[stat]:.3g} ({r[stat] / thr:.2f}x) {_label(r)}"
+
+
 def _margins(rows: list[dict]) -> None:
     print("\nPer threshold: the statistic on every case that reaches it (R right lens, W wrong)")
     print(f"{'threshold':31} {'value':>6} {'R n':>4} {'R max':>8} {'R>=':>4} {'W n':>4} "
@@ -363,14 +367,11 @@ def _margins(rows: list[dict]) -> None:
         wrong = [r[stat] for r in sel if not r["right"]]
         below = max((r for r in sel if r[stat] < thr), key=lambda r: r[stat], default=None)
         above = min((r for r in sel if r[stat] >= thr), key=lambda r: r[stat], default=None)
-
-        def near(r):
-            return "-" if r is None else f"{r[stat]:.3g} ({r[stat] / thr:.2f}x) {_label(r)}"
-
         print(f"{name:31} {thr:6.3g} {len(right):4d} "
               f"{max(right) if right else math.nan:8.3g} {sum(v >= thr for v in right):4d} "
               f"{len(wrong):4d} {min(wrong) if wrong else math.nan:8.3g} "
-              f"{sum(v < thr for v in wrong):4d}  {near(below)} / {near(above)}")
+              f"{sum(v < thr for v in wrong):4d}  {_near(below, stat, thr)} / "
+              f"{_near(above, stat, thr)}")
 
 
 def _wrong_side(rows: list[dict]) -> None:
