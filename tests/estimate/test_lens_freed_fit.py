@@ -67,8 +67,10 @@ def _former_radial_fit(P, img, which, T, intr, iterations=30):
     return k, g.make_transform(R, t)
 
 
-def _problem(truth: Intrinsics, given: Intrinsics, seed: int, noise: float, views: int = 8):
-    """Board views by ``truth`` (``noise`` px), started from PnP with ``given``."""
+def _problem(truth: Intrinsics, given: Intrinsics, seed: int, noise: float, views: int = 8,
+             poses: list | None = None):
+    """Board views by ``truth`` (``noise`` px), started from PnP with ``given``; the true
+    poses appended to ``poses`` when given."""
     rng = np.random.default_rng(seed)
     x, y = np.meshgrid(np.arange(9) * 0.05, np.arange(6) * 0.05)
     obj = np.stack([x.ravel() - 0.2, y.ravel() - 0.125, np.zeros(54)], axis=1)
@@ -78,6 +80,8 @@ def _problem(truth: Intrinsics, given: Intrinsics, seed: int, noise: float, view
                                        [*rng.uniform(-0.15, 0.15, 2), rng.uniform(0.5, 0.9)])
         u = project_points(obj @ pose[:3, :3].T + pose[:3, 3], truth)
         u = u + rng.normal(scale=noise, size=u.shape)
+        if poses is not None:
+            poses.append(pose)
         T.append(estimate_pose(Detection(np.arange(54), u, obj), given).T_cam_target)
         P.append(obj)
         img.append(u)
@@ -169,3 +173,30 @@ def test_the_fit_poses_and_rms_are_pnp_with_the_fitted_lens():
         assert g.rotation_angle_between(est.T_cam_target, T_i) < 1e-6
         assert np.abs(est.T_cam_target[:3, 3] - T_i[:3, 3]).max() < 1e-7
         assert abs(est.rms_px - rms_i) < 1e-6
+
+
+def test_the_radial_check_runs_no_second_pnp(monkeypatch):
+    """A camera whose k1, k2 are refitted: the check takes the refitted lens's poses and RMS
+    from the refit (before: PnP again on every view with the refitted lens, a third of the
+    check's time on the 4 x 100 rig); the test's figures are those PnP gives."""
+    from multieye.estimate.plausibility import CameraEvidence
+
+    truth, given = _CASES[0]
+    true = []
+    P, img, which, T = _problem(truth, given, seed=4, noise=0.1, views=6, poses=true)
+    views = [(P[which == i], img[which == i]) for i in range(len(T))]
+    rms = np.array([estimate_pose(Detection(np.arange(len(o)), u, o), given).rms_px
+                    for o, u in views])
+    M = g.transform_from_rotvec([0.0, 0.6, 0.0], [-0.67, 0.0, 0.2]) @ np.stack(true)
+    cam = CameraEvidence("cam1", g.inv(M), g.inv(T), M, intrinsics=given,
+                         object_points=tuple(o for o, _ in views),
+                         image_points=tuple(u for _, u in views), rms_px=rms)
+    expected = lf.free_distortion(views, T, given)
+    pnp = lf._pnp_with_rms(cam, expected)
+    calls = []
+    monkeypatch.setattr(lf, "_pnp_with_rms", lambda *a: calls.append(a) or pnp)
+    test = lf.lens_search(cam, (1e-3, 1e-3), radial_only=True)
+    assert calls == []
+    assert np.allclose(test.intrinsics.dist, expected.dist, rtol=0, atol=1e-9)
+    assert abs(test.rms_freed_px - float(np.median(pnp[1]))) < 1e-6
+
