@@ -246,7 +246,7 @@ def _radial_fit(P: F64, img: F64, which: NDArray[np.intp], T: F64, intr: Intrins
     group = _RadialPixels(P, img, which, len(T), intr)
     fams = [Blocks("k", _radial(intr)[None], "euclidean"),
             Blocks("T", T, "se3-left", eliminate=True)]
-    res = minimize(fams, [group], Options(max_iter=iterations, tol=1e-12,
+    res = minimize(fams, [group], Options(max_iter=iterations, tol=1e-10,
                                           initial_damping=1e-3))
     return res.value("k")[0], res.value("T"), res.residuals[0][0]
 
