@@ -32,6 +32,7 @@ from multieye.core.errors import InputError
 from multieye.core.intrinsics import Intrinsics
 from multieye.core.lens import project_points, project_with_jacobian, unproject_points
 from multieye.estimate import hypotheses as h
+from multieye.optimize.blocks import Blocks, ResidualGroup
 
 __all__ = ["MIN_DISTORTION_VIEWS", "MIN_LENS_VIEWS", "LensTest", "lacks_distortion",
            "lens_bend", "distortion_part", "distortion_missing",
@@ -162,6 +163,15 @@ def free_distortion(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
         given, zero for a lens given without); None with fewer than
         :data:`MIN_DISTORTION_VIEWS` views or when the fit fails.
     """
+    fitted = _free_distortion_with_poses(views, T_cam_target, intr)
+    return None if fitted is None else fitted[0]
+
+
+def _free_distortion_with_poses(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
+                                intr: Intrinsics) -> tuple[Intrinsics, F64, F64] | None:
+    """:func:`free_distortion`, with the fit's own pose of each view T_cam_target (n, 4, 4)
+    and each view's reprojection RMS with the fitted lens (n,), pixels: what PnP with the
+    fitted lens gives (at the fit's optimum each pose is its view's best with that lens)."""
     n = len(views)
     if n < MIN_DISTORTION_VIEWS or (intr.dist.size < 2 and not lacks_distortion(intr)):
         return None
@@ -171,10 +181,14 @@ def free_distortion(views: Sequence[tuple[F64, F64]], T_cam_target: F64,
     T = np.asarray(T_cam_target, dtype=np.float64)
     try:
         with np.errstate(all="ignore"):
-            k = _radial_fit(np.concatenate(obj), img, which, T, intr)
-    except np.linalg.LinAlgError:
+            k, T_fit, r = _radial_fit(np.concatenate(obj), img, which, T, intr)
+    except (np.linalg.LinAlgError, InputError):
         return None
-    return _with_radial(intr, k) if np.all(np.isfinite(k)) else None
+    if not (np.all(np.isfinite(k)) and np.all(np.isfinite(T_fit))):
+        return None
+    sq = np.bincount(which, weights=np.sum(r ** 2, axis=1), minlength=n)
+    rms = np.sqrt(sq / np.bincount(which, minlength=n))
+    return _with_radial(intr, k), T_fit, rms
 
 
 def _skew(v: F64) -> F64:
@@ -184,59 +198,57 @@ def _skew(v: F64) -> F64:
                      np.stack([-v[:, 1], v[:, 0], z], -1)], axis=1)
 
 
-def _radial_fit(P: F64, img: F64, which: NDArray[np.intp], T: F64, intr: Intrinsics,
-                iterations: int = 30) -> F64:
-    """k1 and k2 with every view's pose by Levenberg-Marquardt on the pixels, the poses
-    eliminated by their Schur complement (a 2 x 2 system per step; no SciPy import on a
-    calibration's path).  ``P`` (N, 3) target points, ``img`` (N, 2) pixels, ``which`` (N,)
-    each point's view, ``T`` (n, 4, 4) starting T_cam_target.  A point thrown behind the
-    camera counts 1000 px."""
-    n, at = len(T), 4 + _RADIAL_AT[intr.model]
-    k, R, t = _radial(intr), T[:, :3, :3].copy(), T[:, :3, 3].copy()
+#: Residual of a pixel coordinate whose point the lens cannot project (behind the camera,
+#: outside the model's valid region), pixels; its Jacobian is zero.
+_UNPROJECTED_PX = 1e3
 
-    def evaluate(k, R, t, jacobian):
-        RP = np.einsum("nij,nj->ni", R[which], P)
-        lens = _with_radial(intr, k)
-        if not jacobian:
-            r = project_points(RP + t[which], lens) - img
-            return float(np.sum(np.where(np.isfinite(r), r, 1e3) ** 2))
-        uv, Jp, Ji = project_with_jacobian(RP + t[which], lens)
-        r = uv - img
+
+class _RadialPixels(ResidualGroup):
+    """The pixels of every view against the lens with radial coefficients ``k`` (family
+    "k", euclidean, one block of 2) and the view's pose T_cam_target (family "T",
+    se3-left, eliminated): rows are target points, segments views, residuals in pixels."""
+
+    def __init__(self, P: F64, img: F64, which: NDArray[np.intp], n: int, intr: Intrinsics):
+        super().__init__(("k", "T"), np.column_stack([np.zeros(n, dtype=int), np.arange(n)]),
+                         which, 2)
+        self.P, self.img, self.which, self.intr = P, img, which, intr
+        self.at = 4 + _RADIAL_AT[intr.model]
+
+    def evaluate(self, values, jacobians):
+        T = values["T"]
+        RP = np.einsum("nij,nj->ni", T[:, :3, :3][self.which], self.P)
+        X = RP + T[:, :3, 3][self.which]
+        lens = _with_radial(self.intr, values["k"][0])
+        if not jacobians:
+            r = project_points(X, lens) - self.img
+            return np.where(np.isfinite(r), r, _UNPROJECTED_PX), None
+        uv, Jp, Ji = project_with_jacobian(X, lens)
+        r = uv - self.img
         ok = np.all(np.isfinite(r), axis=1) & np.all(np.isfinite(Jp), axis=(1, 2))
-        Jpose = np.concatenate([-Jp @ _skew(RP), Jp], axis=2)[ok]
-        return r[ok], Jpose, Ji[ok][:, :, at:at + 2], which[ok]
+        J_pose = np.concatenate([-Jp @ _skew(RP), Jp], axis=2)
+        J_k = Ji[:, :, self.at:self.at + 2]
+        J_pose[~ok] = 0.0
+        J_k = np.where(ok[:, None, None], J_k, 0.0)
+        return np.where(np.isfinite(r), r, _UNPROJECTED_PX), [J_k, J_pose]
 
-    cost, damping = evaluate(k, R, t, False), 1e-3
-    for _ in range(iterations):
-        r, Jpose, Jk, w = evaluate(k, R, t, True)
-        Hpp = np.zeros((n, 6, 6))
-        Hpk = np.zeros((n, 6, 2))
-        gp = np.zeros((n, 6))
-        np.add.at(Hpp, w, np.einsum("nai,naj->nij", Jpose, Jpose))
-        np.add.at(Hpk, w, np.einsum("nai,naj->nij", Jpose, Jk))
-        np.add.at(gp, w, np.einsum("nai,na->ni", Jpose, r))
-        Hkk, gk = np.einsum("nai,naj->ij", Jk, Jk), np.einsum("nai,na->i", Jk, r)
-        while damping < 1e8:
-            Dpp = Hpp + damping * np.einsum("nii->ni", Hpp)[:, :, None] * np.eye(6)
-            inv = np.linalg.inv(Dpp)
-            S = Hkk + damping * np.diag(np.diag(Hkk)) - np.einsum(
-                "nai,nab,nbj->ij", Hpk, inv, Hpk)
-            dk = np.linalg.solve(S, -(gk - np.einsum("nai,nab,nb->i", Hpk, inv, gp)))
-            dp = -np.einsum("nij,nj->ni", inv, gp + Hpk @ dk)
-            k_new = k + dk
-            R_new = g.rotation_from_rotvec(dp[:, :3]) @ R
-            t_new = t + dp[:, 3:]
-            new = evaluate(k_new, R_new, t_new, False)
-            if new < cost:
-                break
-            damping *= 5.0
-        else:
-            break
-        done = cost - new <= 1e-12 * cost
-        k, R, t, cost, damping = k_new, R_new, t_new, new, max(damping / 3.0, 1e-9)
-        if done:
-            break
-    return k
+
+def _radial_fit(P: F64, img: F64, which: NDArray[np.intp], T: F64, intr: Intrinsics,
+                iterations: int = 30) -> tuple[F64, F64, F64]:
+    """k1 and k2 with every view's pose, least squares on the pixels by the shared
+    Levenberg-Marquardt (:func:`multieye.optimize.levenberg_marquardt.minimize`; the poses
+    eliminated by their Schur complement).  ``P`` (N, 3) target points, ``img`` (N, 2)
+    pixels, ``which`` (N,) each point's view (non-decreasing), ``T`` (n, 4, 4) starting
+    T_cam_target.  A point the lens cannot project counts :data:`_UNPROJECTED_PX` per
+    coordinate.  Returns k (2,), the poses T_cam_target (n, 4, 4) and the pixel residuals
+    (N, 2) at the optimum."""
+    from multieye.optimize.levenberg_marquardt import Options, minimize  # noqa: PLC0415 (only when a lens is refitted)
+
+    group = _RadialPixels(P, img, which, len(T), intr)
+    fams = [Blocks("k", _radial(intr)[None], "euclidean"),
+            Blocks("T", T, "se3-left", eliminate=True)]
+    res = minimize(fams, [group], Options(max_iter=iterations, tol=1e-10,
+                                          initial_damping=1e-3))
+    return res.value("k")[0], res.value("T"), res.residuals[0][0]
 
 
 # --------------------------------------------------------------------------- the test
@@ -279,12 +291,15 @@ def _lens_model(intr: Intrinsics) -> str:
                                       else "pinhole-radtan")
 
 
-def _pnp_with_rms(cam: h.CameraEvidence, intr: Intrinsics):
+def _pnp_with_rms(cam: h.CameraEvidence, intr: Intrinsics, views=None):
+    """PnP with ``intr`` on every view of ``cam`` (or on the views of index ``views``): the
+    poses T_cam_target (n, 4, 4) and each view's RMS (n,), pixels; None when PnP fails."""
     from multieye.imaging.detect import Detection  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
     from multieye.imaging.pnp import estimate_pose  # noqa: PLC0415 (heavy: OpenCV, only when the lens is doubted)
 
+    pick = range(len(cam.image_points)) if views is None else views
     poses, rms = [], []
-    for obj, img in zip(cam.object_points, cam.image_points):
+    for obj, img in ((cam.object_points[i], cam.image_points[i]) for i in pick):
         det = Detection(ids=np.arange(len(obj)), image_points=np.asarray(img, dtype=np.float64),
                         object_points=np.asarray(obj, dtype=np.float64))
         try:
@@ -343,12 +358,36 @@ def lens_search(cam: h.CameraEvidence, mocap_sigma: tuple[float, float], *,
         # the given lens's poses and RMS are the measurements' own (B = inv(PnP) with it)
         given = (_pnp_with_rms(cam, intr) if cam.rms_px is None
                  else (g.inv(cam.B), np.asarray(cam.rms_px, dtype=np.float64)))
-        freed = None if given is None else free_distortion(
+        refit = None if given is None else _free_distortion_with_poses(
             list(zip(cam.object_points, cam.image_points)), given[0], intr)
-        return None if freed is None else _lens_test(cam, mocap_sigma, given, freed)
+        # the refit's own poses and RMS are PnP's with the refitted lens (no second PnP)
+        return None if refit is None else _lens_test(cam, mocap_sigma, given, refit[0],
+                                                     _unstuck(cam, *refit))
     if len(cam.A) < MIN_LENS_VIEWS:
         return None
     return _lens_test(cam, mocap_sigma, None, _all_parameters(cam, intr))
+
+
+#: A view whose RMS after the radial refit exceeds this many times the median view's is
+#: taken again by PnP with the refitted lens: a pose that PnP took wrongly under the given
+#: lens (the mirror pose of a flat board: 64 degrees off in one of 12 views of a rendered
+#: 140-degree fisheye given without its k1 -0.2, 4 px against 0.2-0.4) stays in its minimum
+#: through the refit.
+_STUCK_VIEW_RMS = 2.0
+
+
+def _unstuck(cam: h.CameraEvidence, freed: Intrinsics, T: F64, rms: F64) -> tuple[F64, F64]:
+    """The refit's poses T_cam_target (n, 4, 4) and view RMS (n,) with those of the views
+    above :data:`_STUCK_VIEW_RMS` times the median replaced by PnP's with ``freed`` where
+    that fits them better."""
+    stuck = np.flatnonzero(rms > _STUCK_VIEW_RMS * np.median(rms))
+    again = _pnp_with_rms(cam, freed, stuck) if stuck.size else None
+    if again is None:
+        return T, rms
+    better = again[1] < rms[stuck]
+    T, rms = T.copy(), rms.copy()
+    T[stuck[better]], rms[stuck[better]] = again[0][better], again[1][better]
+    return T, rms
 
 
 def _fewer_views(cam: h.CameraEvidence, most: int) -> h.CameraEvidence:
@@ -384,13 +423,13 @@ def _all_parameters(cam: h.CameraEvidence, intr: Intrinsics) -> Intrinsics | Non
 
 
 def _lens_test(cam: h.CameraEvidence, mocap_sigma: tuple[float, float], given,
-               freed: Intrinsics | None) -> LensTest | None:
+               freed: Intrinsics | None, fitted=None) -> LensTest | None:
     """The given lens (its PnP poses and RMS ``given``, None: computed here) against
-    ``freed``."""
+    ``freed`` (its poses and RMS ``fitted``, None: PnP here)."""
     if freed is None:
         return None
     given = _pnp_with_rms(cam, cam.intrinsics) if given is None else given
-    fitted = _pnp_with_rms(cam, freed)
+    fitted = _pnp_with_rms(cam, freed) if fitted is None else fitted
     if given is None or fitted is None:
         return None
     # both lenses' poses weighted with the pixel noise the fitted lens leaves
