@@ -296,3 +296,19 @@ def test_stamped_table_in_integer_nanoseconds(tmp_path):
     fmt = PoseFormat(rotation="quaternion-wxyz",
                      values=("x", "y", "z", "t", "qw", "qx", "qy", "qz"))
     np.testing.assert_allclose(read_stamped_table(p, fmt).stamps, traj.stamps)
+
+
+@pytest.mark.parametrize("axes", ["xyz", "ZYX", "yxz"])
+def test_json_euler_angles_named_by_axis_without_values(tmp_path, axes):
+    """``rotation: euler-...`` alone reads a mapping's ``rx ry rz`` as the angles about x, y,
+    z (docs/rig-yaml.md, section 4), as a robot toolkit's ``end_xyzrpy`` holds them; before,
+    only ``a1 a2 a3`` were accepted unless ``values`` was given too."""
+    angles = R_TRUE.as_euler(axes)
+    by_axis = dict(zip(["r" + a for a in axes.lower()], angles))
+    p = _write(tmp_path, "1.json", {"end_xyzrpy": {"x": 0.5, "y": -0.2, "z": 1.25, **by_axis}})
+    fmt = PoseFormat(rotation=f"euler-{axes}-rad", key="end_xyzrpy")
+    np.testing.assert_allclose(read_pose_file(p, fmt), T_TRUE, atol=1e-9)
+    p = _write(tmp_path, "2.json", {"x": 0.5, "y": -0.2, "z": 1.25,
+                                    **dict(zip(("a1", "a2", "a3"), angles))})
+    np.testing.assert_allclose(read_pose_file(p, PoseFormat(rotation=f"euler-{axes}-rad")),
+                               T_TRUE, atol=1e-9)

@@ -210,6 +210,11 @@ def _mapping_pose(data: Mapping, fmt: PoseFormat, scale: float, path: Path) -> n
             raise DatasetError(f"keys {', '.join(quat + rvec)}: both a quaternion and a rotation "
                                "vector; keep one (or give mocap.rotation)", path=path)
         fmt = replace(fmt, rotation="rotvec" if rvec else "quaternion-xyzw")
+    elif fmt.values is None and fmt.rotation.startswith("euler-"):
+        # the angles named as the mapping names them: a1 a2 a3, or rx ry rz about each axis
+        named = [s for s in _rotation_names(fmt.rotation) if s <= set(data)]
+        if named:
+            fmt = replace(fmt, values=("x", "y", "z", *sorted(named[-1])))
     for key, value in data.items():
         if key not in fmt.order:
             raise DatasetError(f"key {key!r}: not one of the pose's numbers "
