@@ -47,8 +47,8 @@ solving the closed form again (:mod:`multieye.estimate.hypotheses`):
 
 The ``cost`` of a fit (:mod:`multieye.estimate.hypotheses`) is about 1 when the noise the
 measurements carry explains the residuals.  Hypotheses that change how the data are read
-(quaternion order, inverted poses) are always tested, since they cost one closed form
-each; the per-camera searches (clock, intrinsics) run on cameras whose cost is at least
+(quaternion order, when the rotations were read as quaternions; inverted poses) are always
+tested, since they cost one closed form each; the per-camera searches (clock, intrinsics) run on cameras whose cost is at least
 :data:`POOR_COST`.  A hypothesis is reported when it lowers the cost at least
 :data:`DISCRETE_GAIN`-fold (a corrected reading: no parameter is fitted) or
 :data:`CONTINUOUS_GAIN`-fold (a fitted factor or offset, which must also be clearly away
@@ -237,12 +237,13 @@ def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: De
                      lambda b, a: _scale_finding(s, rel, b, a, declared, d_pnp, r_mocap,
                                                  any(c.has_points for c in cams)),
                      CONTINUOUS_GAIN)
-    tested.append("quaternion-order")
-    for order, desc in h.QUATERNION_ORDERS:
-        fit = h.fit([h.mocap_A(setup, h.permuted(c.T_world_mocap, order)) for c in cams], B,
-                    weights)
-        consider(fit, lambda b, a, desc=desc: _quaternion_finding(desc, b, a, declared),
-                 DISCRETE_GAIN)
+    if _read_as_quaternions(declared):
+        tested.append("quaternion-order")
+        for order, desc in h.QUATERNION_ORDERS:
+            fit = h.fit([h.mocap_A(setup, h.permuted(c.T_world_mocap, order)) for c in cams],
+                        B, weights)
+            consider(fit, lambda b, a, desc=desc: _quaternion_finding(desc, b, a, declared),
+                     DISCRETE_GAIN)
     tested.append("setup")
     consider(h.fit([g.inv(a) for a in A], B, weights),
              lambda b, a: _setup_finding(b, a, declared), DISCRETE_GAIN)
@@ -259,6 +260,16 @@ def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: De
                 "poses: {file: ..., pose: T_target_cam} (or T_cam_target)", None, b, a, {}),
                 DISCRETE_GAIN)
     return rig
+
+
+def _read_as_quaternions(declared: Declared) -> bool:
+    """Whether the motion-capture rotations were read as quaternions, so that a quaternion
+    order can explain a poor fit: not when rig.yaml reads them as matrices, rotation vectors
+    or Euler angles (``mocap.rotation``), nor from a Vicon export (rotation vectors), where
+    a permuted quaternion that happens to fit better would name a cause the file cannot
+    have."""
+    rotation = str(getattr(declared.mocap, "rotation", None) or "quaternion-xyzw")
+    return rotation.startswith("quaternion") and declared.mocap_format != "vicon"
 
 
 def _camera_findings(cam: CameraEvidence, w, declared: Declared, clock: bool,
@@ -452,9 +463,13 @@ def rotation_hint(mocap) -> str:
     """A pointer at the poses' rotation convention when rig.yaml reads three angles per pose
     (``rotation: rotvec`` or ``euler-...``: :mod:`multieye.io.pose_files`), which no
     hypothesis tests: Euler angles read as a rotation vector (or the other way, another axis
-    order, degrees read as radians) leave residuals no other cause explains; else ``""``.
+    order, degrees read as radians) leave residuals no other cause explains; a matrix
+    (``rotation: matrix``) stored column-major reads as its transpose; else ``""``.
     ``mocap`` is rig.yaml's motion-capture section (:class:`multieye.io.mocap.MocapSpec`)."""
     rotation = getattr(mocap, "rotation", None)
+    if rotation == "matrix":
+        return (", the poses' rotation convention (rig.yaml reads rotation: matrix, row-major: "
+                "a matrix stored column-major reads as its transpose)")
     if not isinstance(rotation, str) or not (rotation == "rotvec"
                                              or rotation.startswith("euler-")):
         return ""
