@@ -355,6 +355,25 @@ def test_list_images_seconds_underscore_nanoseconds(tmp_path):
                                         1700000001000000000]
 
 
+def test_list_images_stamps_after_a_recorders_prefix(tmp_path):
+    """``frame_<ns>``, ``rgb-<s.us>``, ``cam0_<sec>_<nsec>``: the stamp after a prefix that
+    ends in a non-digit, as ROS image savers name frames; a short number after a prefix
+    (``left0001``, ``12-00-00.123``) is still no stamp."""
+    names = ["frame_1700000000500000000.png", "rgb-1700000000.25.png",
+             "cam0_1700000001_000000007.png", "IMG1700000002.5.jpg"]
+    for name in names:
+        (tmp_path / name).write_bytes(b"")
+    out = list_images(tmp_path)
+    assert [ns for _, ns, _ in out] == [1700000000250000000, 1700000000500000000,
+                                        1700000001000000007, 1700000002500000000]
+    for bad in ("left0001.png", "12-00-00.123.png", "frame_1700000000500.png"):
+        folder = tmp_path / bad.replace(".", "_")
+        folder.mkdir()
+        (folder / bad).write_bytes(b"")
+        with pytest.raises(DatasetError, match="not a time stamp.*stamps:"):
+            list_images(folder)
+
+
 @pytest.mark.parametrize("name, message", [
     ("frame_001.png", "expected a time stamp"),
     ("1700000000123.png", "13 digits is ambiguous"),
