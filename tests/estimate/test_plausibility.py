@@ -206,7 +206,8 @@ def test_every_cause_has_its_word_in_the_messages():
     # the words a user would search for (issue 13): one per cause
     words = {"scale": "spacing", "unit": "unit", "quaternion-order": "quaternion order",
              "setup": "setup", "inverted-poses": "inverted", "time-offset": "time offset",
-             "intrinsics": "intrinsics", "noise": "noise", "fit": "poor fit"}
+             "intrinsics": "intrinsics", "noise": "noise", "fit": "poor fit",
+             "observability": "not determined"}
     assert set(words) == set(CAUSES)
 
 
@@ -249,3 +250,21 @@ def test_an_offset_its_loop_residuals_do_not_determine_is_not_advised(monkeypatc
     st = _stream(51, offset=0.1)
     rep = check_plausibility([_evidence(st, used_offset=0.0)])
     assert all(f.cause != "time-offset" for f in rep.findings)
+
+
+def test_a_pose_the_measurements_do_not_determine_is_doubted():
+    """check_determined: a refined pose spread beyond 10 degrees, or beyond half the camera's
+    distance to the target, is cause ``observability`` naming the camera and the spread;
+    determined poses add nothing."""
+    from multieye.estimate.plausibility import Plausibility, check_determined
+
+    base = Plausibility(findings=(), cost=1.0, camera_cost={}, tested=())
+    ok = check_determined(base, [("cam0", 1.6, 0.022, 0.5, 30)], "T_body_cam")
+    assert ok.findings == () and not ok.doubts
+    rep = check_determined(base, [("cam0", 1.6, 0.022, 0.5, 30), ("cam1", 42.0, 0.45, 0.5, 5),
+                                  ("cam2", 2.0, 0.3, 0.5, 6)], "T_body_cam")
+    assert [f.camera for f in rep.findings] == ["cam1", "cam2"] and rep.doubts
+    f = _only(rep, "observability", "not determined", "T_body_cam", "two axes")
+    assert "5 measurements" in f.message and "42 deg" in f.message
+    assert f.evidence["std_rot_deg"] == 42.0
+    assert "0.5 x its 0.5 m" in rep.findings[1].message      # cam2: by its translation

@@ -140,3 +140,16 @@ def test_boofcv_fisheye_check_names_no_link_problem_for_its_one_camera(shared_da
     found = check_dataset(real_datasets.boofcv_fisheye(shared_data, tmp_path / "fish"), sample=6)
     assert not [p for c in found.cameras for p in c.problems if "linked to" in p], found
     assert "fish linked by: nothing needed (the only camera)" in found.links
+
+
+def test_young_mocap_cam_five_images_are_doubted_as_undetermined(shared_data, tmp_path):
+    """Five of the 30 images turn the camera by under a degree: the refined pose's spread is
+    tens of degrees (a pose 0.3 m off the one all 30 give), so the result is doubted (exit
+    status 3, cause observability) instead of written as if nothing doubted it."""
+    folder = real_datasets.young_mocap_cam(shared_data, tmp_path / "young")
+    for k in range(5, 30):
+        (folder / "cam0" / f"{k}.000000.png").unlink()
+    run = calibrate(folder)
+    assert [f.cause for f in run.record.plausibility] == ["observability"], run.record
+    assert "cam0" in run.record.plausibility[0].message
+    assert run.record.cameras[0].uncertainty["T_body_cam"].std_rot_deg > 10
