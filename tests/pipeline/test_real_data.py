@@ -153,3 +153,34 @@ def test_young_mocap_cam_five_images_are_doubted_as_undetermined(shared_data, tm
     assert [f.cause for f in run.record.plausibility] == ["observability"], run.record
     assert "cam0" in run.record.plausibility[0].message
     assert run.record.cameras[0].uncertainty["T_body_cam"].std_rot_deg > 10
+
+
+def test_two_open3dv_images_with_pose_files_say_what_is_missing(shared_data, tmp_path):
+    """Two images with a pose file each (Open3DV's layout): exit 2 naming the camera and the
+    count; no 'motion capture within 0.03 s' (they are matched by name, not in time) and
+    no empty 'left out:' list."""
+    import json
+    import shutil
+
+    import pytest
+
+    from multieye.core.errors import TooFewMeasurementsError
+
+    src = shared_data / "open3dv_eih" / "input_EyeInHand"
+    for k in range(2):
+        for ext in ("bmp", "txt"):
+            shutil.copy(src / f"pos{k}.{ext}", tmp_path / f"pos{k}.{ext}")
+    p = np.loadtxt(src / "param.txt")
+    (tmp_path / "cam.json").write_text(json.dumps(
+        {"K": p[:9].tolist(), "dist": p[9:14].tolist(), "width": 1920, "height": 1200}))
+    (tmp_path / "rig.yaml").write_text(
+        "setup: eye-on-hand\n"
+        "target: {type: asymmetric-circles, rows: 11, cols: 7, spacing: 0.02}\n"
+        'mocap: {file: "{stem}.txt", pose: T_base_tool0, values: [rx, ry, rz, x, y, z], '
+        "rotation: euler-xyz-deg, unit: mm}\n"
+        "cameras:\n  cam0: {intrinsics: cam.json, images: ./}\n")
+    with pytest.raises(TooFewMeasurementsError) as info:
+        calibrate(tmp_path)
+    message = str(info.value)
+    assert "camera cam0: only 2 of 2 images" in message and "at least 3" in message
+    assert "motion capture within" not in message and "left out" not in message
