@@ -52,8 +52,8 @@ solving the closed form again (:mod:`multieye.estimate.hypotheses`):
 The ``cost`` of a fit (:mod:`multieye.estimate.hypotheses`) is about 1 when the noise the
 measurements carry explains the residuals.  Hypotheses that change how the data are read
 (quaternion order, when the rotations were read as quaternions; inverted poses) are always
-tested, since they cost one closed form each; the per-camera searches (clock, intrinsics) run on cameras whose cost is at least
-:data:`POOR_COST`.  A hypothesis is reported when it lowers the cost at least
+tested, since they cost one closed form each; the per-camera searches (clock, intrinsics)
+run on cameras whose cost is at least :data:`POOR_COST`.  A hypothesis is reported when it lowers the cost at least
 :data:`DISCRETE_GAIN`-fold (a corrected reading: no parameter is fitted) or
 :data:`CONTINUOUS_GAIN`-fold (a fitted factor or offset, which must also be clearly away
 from its neutral value), costs below 1 counting as 1: on data that fit as well as their

@@ -204,10 +204,10 @@ class PairedCamera:
 _MOCAP_ROW = "motion-capture row left out"
 
 
-def _listed(items: list[RejectedItem], limit: int = 3) -> str:
-    """``a.png (reason), b.png (reason) and 5 more`` for a message."""
+def _listed(items: list[RejectedItem], prefix: str = "", limit: int = 3) -> str:
+    """``a.png (reason), b.png (reason) and 5 more`` after ``prefix``; ``""`` without items."""
     text = ", ".join(f"{r.item} ({r.reason})" for r in items[:limit])
-    return text + (f" and {len(items) - limit} more" if len(items) > limit else "")
+    return prefix + text + (f" and {len(items) - limit} more" if len(items) > limit else "") if items else ""
 
 
 @dataclass(frozen=True)
@@ -589,13 +589,11 @@ def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = Non
     used = tuple(data.observations[i] for i in p.index)
     if len(used) < MIN_MEASUREMENTS:
         lost = [r for r in data.rejected if not r.reason.startswith(_MOCAP_ROW)] + unpaired
-        paired = ("without a pose for it" if data.by_name else
-                  f"without motion capture within {data.time_tolerance:g} s")
+        paired = "a pose for it" if data.by_name else f"motion capture within {data.time_tolerance:g} s"
         raise TooFewMeasurementsError(
             f"camera {data.name}: only {len(used)} of {data.n_inputs} images could be used "
-            f"({data.n_inputs - len(data.observations)} without a target pose, "
-            f"{len(p.unpaired)} {paired}); at least {MIN_MEASUREMENTS} are needed"
-            + (f"; left out: {_listed(lost)}" if lost else ""))
+            f"({data.n_inputs - len(data.observations)} without a target pose, {len(p.unpaired)} "
+            f"without {paired}); at least {MIN_MEASUREMENTS} are needed{_listed(lost, '; left out: ')}")
     B = g.inv(np.stack([o.T_cam_target for o in used]))  # T_target_cam
     A = g.inv(p.T) if setup == "eye-to-base" else p.T  # T_marker_world or T_world_body
     return PairedCamera(name=data.name, A=A, B=B, T_world_mocap=p.T, observations=used,
