@@ -184,3 +184,34 @@ def test_two_open3dv_images_with_pose_files_say_what_is_missing(shared_data, tmp
     message = str(info.value)
     assert "camera cam0: only 2 of 2 images" in message and "at least 3" in message
     assert "motion capture within" not in message and "left out" not in message
+
+
+def test_images_resized_after_the_intrinsics_name_the_resize(shared_data, tmp_path):
+    """young_mocap_cam's images halved, its intrinsics given without an image size: every
+    view is a bad fit (the strong rational lens), and the line says why: the principal point
+    is the centre of images twice the size (exit 2 naming the camera and the fix)."""
+    import json
+
+    import cv2
+    import pytest
+
+    from multieye.core.errors import DatasetError
+
+    folder = real_datasets.young_mocap_cam(shared_data, tmp_path / "young")
+    for k in range(30):
+        path = folder / "cam0" / f"{k}.000000.png"
+        image = cv2.imread(str(path))
+        path.unlink()
+        if k < 6:
+            cv2.imwrite(str(path), cv2.resize(image, (640, 360), interpolation=cv2.INTER_AREA))
+    (folder / "cam0.json").write_text(json.dumps({
+        "K": [[607.88, 0, 641.875], [0, 607.966, 365.585], [0, 0, 1]],
+        "dist": [0.458331, -2.87024, 0.00048617, -9.82262e-05, 1.74446, 0.331466, -2.66947,
+                 1.65473]}))
+    rig = (folder / "rig.yaml").read_text().replace("cam0.yaml", "cam0.json")
+    (folder / "rig.yaml").write_text(rig)
+    with pytest.raises(DatasetError) as info:
+        calibrate(folder)
+    message = str(info.value)
+    assert "cam0" in message and "none of the 6 images is usable" in message
+    assert "images 2 times the size of these 640 x 360" in message and "resized" in message

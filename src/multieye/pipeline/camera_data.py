@@ -23,7 +23,7 @@ from multieye.imaging.calibrate import look_again
 from multieye.imaging.engines import Engine
 from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, read_mocap, skipped_entries
 from multieye.io.image_folder import label_stem
-from multieye.pipeline.boards import camera_boards, intrinsics_boards, per_board
+from multieye.pipeline.boards import camera_boards, intrinsics_boards, per_board, resized_hint
 from multieye.pipeline.boards import no_usable_image as _no_usable_image
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
 from multieye.pipeline.detection import Workers, detect_all, detect_listed
@@ -205,8 +205,7 @@ _MOCAP_ROW = "motion-capture row left out"
 
 
 def _listed(items: list[RejectedItem], prefix: str = "", limit: int = 3) -> str:
-    """``a.png (reason), b.png (reason) and 5 more`` after ``prefix``; ``""`` without items."""
-    text = ", ".join(f"{r.item} ({r.reason})" for r in items[:limit])
+    text = ", ".join(f"{r.item} ({r.reason})" for r in items[:limit])  # a.png (why), ... and 5 more
     return prefix + text + (f" and {len(items) - limit} more" if len(items) > limit else "") if items else ""
 
 
@@ -289,7 +288,8 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
         skipped += [RejectedItem(n, why) for n, why in skipped_entries(source, cam.images_pattern)]
     rejected.extend(skipped)
     if not obs:
-        raise DatasetError(_no_usable_image(rig, rejected, n_images), path=source, camera=name)
+        why = _no_usable_image(rig, rejected, n_images, resized_hint(intr, results))
+        raise DatasetError(why, path=source, camera=name)
     return _Detected(observations=obs, rejected=rejected, n_inputs=n_images + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
                      intrinsics=None if lens is None else lens.intrinsics, notes=tuple(notes),
