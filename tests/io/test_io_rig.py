@@ -471,6 +471,22 @@ def test_fixed_frame_that_cannot_be_is_refused(pose, fixed, message):
         named_pose(pose, "body", None, fixed)
 
 
+@pytest.mark.parametrize("pose, moving", [("T_tool0_base", "body"), ("T_flange_base_link", "body"),
+                                          ("T_ee_map", "marker"), ("T_tcp_mocap", "marker")])
+def test_a_tool_over_a_base_without_fixed_frame_is_refused(pose, moving):
+    """``T_tool0_base`` alone made the tool the fixed frame (the parent) and printed the
+    camera's pose in the tool as ``T_base_cam``; a name of a moving frame over one of a fixed
+    frame now asks which is meant, naming both fixes; ``fixed_frame`` settles it."""
+    from multieye.io.mocap import named_pose
+
+    parent, child = pose[2:].split("_", 1)
+    with pytest.raises(ValueError, match=re.escape(f"write pose: T_{child}_{parent}")) as info:
+        named_pose(pose, moving, (parent, child))
+    assert f"add fixed_frame: {child}" in str(info.value)
+    assert named_pose(pose, moving, (parent, child), child)[1] == (child, parent)
+    assert named_pose(f"T_{child}_{parent}", moving, (child, parent))[1] == (child, parent)
+
+
 def test_fixed_frame_is_read_from_rig_yaml_and_its_line_named(dataset):
     _edit(dataset, "  pose: T_world_marker\n", "  pose: T_board_mocap\n  fixed_frame: mocap\n")
     rig = load_rig(dataset)

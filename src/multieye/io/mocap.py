@@ -58,6 +58,16 @@ def _check_frame_name(name) -> str:
     return name
 
 
+#: Name starts of frames that move (a robot's flange or tool) and of frames that stay (its
+#: base, a map): ``T_tool0_base`` without ``fixed_frame`` would make the tool the fixed one.
+_MOVING_LIKE = ("tool", "flange", "tcp", "ee", "end", "gripper", "wrist", "hand")
+_FIXED_LIKE = ("base", "map", "odom", "mocap", "vicon", "optitrack")
+
+
+def _looks(name: str, starts: tuple[str, ...]) -> bool:
+    return name.lower().startswith(starts)
+
+
 def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = None,
                fixed: str | None = None) -> tuple[str, tuple[str, str]]:
     """Read rig.yaml's ``pose: T_<parent>_<child>`` with the user's own frame names.
@@ -68,7 +78,11 @@ def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = N
 
     - a frame named ``world`` is the fixed one; a frame named ``moving`` is the tracked one;
     - otherwise the parent is fixed and the child tracked (``T_base_tool0``: a robot's
-      base and its flange);
+      base and its flange), except that a parent named like a moving frame (``tool``,
+      ``flange``, ``tcp``, ``ee``, ``end``, ``gripper``, ``wrist``, ``hand``) over a child
+      named like a fixed one (``base``, ``map``, ``odom``, ``mocap``, ``vicon``,
+      ``optitrack``) is refused as ambiguous (``T_tool0_base``: the tool in the base, or the
+      base in the tool?);
     - ``fixed`` overrides all of these: a file holding the inverse, the base in the flange,
       is ``T_tool0_base`` with ``fixed="base"``.
 
@@ -150,6 +164,13 @@ def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = N
         fixed = child if parent == moving else parent
     else:
         fixed = parent
+        if _looks(parent, _MOVING_LIKE) and _looks(child, _FIXED_LIKE):
+            raise ValueError(
+                f"T_{parent}_{child} reads as the pose of {child} in {parent}, with {parent} "
+                f"fixed (the parent is the fixed frame), but {child} names a fixed frame and "
+                f"{parent} a moving one: if the rows hold {parent} in {child}, write pose: "
+                f"T_{child}_{parent}; if they hold {child} in {parent}, add fixed_frame: "
+                f"{child} (they are then inverted)")
     tracked = child if fixed == parent else parent
     if tracked in others or fixed in others:
         setup = "eye-to-base" if moving == "marker" else "eye-on-hand"
