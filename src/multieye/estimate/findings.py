@@ -125,12 +125,18 @@ class Plausibility:
     tested : tuple of str
         The hypotheses tested (a cause, ``cause:camera`` for per-camera ones that could be
         tested).
+    latent : tuple of Finding
+        Whole-rig hypotheses that lower the cost as clearly as a finding must, but from a
+        cost the assumed noise already explains (below 1): not reported by themselves, they
+        are the likely cause when the noise the refinement estimates is beyond the sensor's
+        (:func:`multieye.estimate.plausibility.check_noise`); best first.
     """
 
     findings: tuple[Finding, ...]
     cost: float
     camera_cost: dict
     tested: tuple[str, ...]
+    latent: tuple[Finding, ...] = ()
 
     @property
     def doubts(self) -> bool:

@@ -203,7 +203,8 @@ def check_plausibility(cameras: Sequence[CameraEvidence], *,
     base = h.fit(A, B, weights)
     singles = [h.fit([c.A], [c.B], [w]) for c, w in zip(cams, weights)]
     tested: list[str] = []
-    rig = _rig_findings(cams, weights, base, declared, tested)
+    latent: list[Finding] = []
+    rig = _rig_findings(cams, weights, base, declared, tested, latent)
     per_camera = {}
     for j, (cam, w, single) in enumerate(zip(cams, weights, singles)):
         if single.cost >= POOR_COST:
@@ -221,20 +222,23 @@ def check_plausibility(cameras: Sequence[CameraEvidence], *,
     findings = tuple(_partial(f, declared.mocap) for f in findings)
     return Plausibility(findings=findings, cost=base.cost,
                         camera_cost={c.name: s.cost for c, s in zip(cams, singles)},
-                        tested=tuple(tested))
+                        tested=tuple(tested),
+                        latent=tuple(sorted(latent, key=lambda f: f.corrected_cost)))
 
 
 def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: Declared,
-                  tested: list[str]) -> list[tuple[Finding, tuple]]:
+                  tested: list[str], latent: list[Finding]) -> list[tuple[Finding, tuple]]:
     """The whole-rig hypotheses (scale, quaternion order, setup, inverted poses) that fit
     better than ``base``, with their per-camera costs; each hypothesis tested is added to
-    ``tested``."""
+    ``tested``, each that lowers a cost below 1 as clearly to ``latent``."""
     A, B, setup = [c.A for c in cams], [c.B for c in cams], declared.setup
     rig: list[tuple[Finding, tuple]] = []     # whole-rig findings, with their per-camera costs
 
     def consider(fit: h.Fit, make, gain: float) -> None:
         if _gain(base.cost, fit.cost) >= gain:
             rig.append((make(base.cost, fit.cost), fit.camera_cost))
+        elif base.cost >= gain * max(fit.cost, 1e-12):   # hidden by the noise assumed
+            latent.append(make(base.cost, fit.cost))
 
     tested.append("scale")
     k, k_std = h.scale_factor(A, B, base)
@@ -425,6 +429,9 @@ def check_noise(report: Plausibility, refined: RefinementResult | None, mocap=No
     if not over:
         return report
     found = [f for f in report.findings if f.cause not in ("noise", "fit")]
+    if not found and report.latent:      # the estimate confirms what the assumed noise hid
+        report = replace(report, findings=report.findings + report.latent[:1])
+        found = list(report.latent[:1])
     if found:
         cause = ("; " + ", ".join(sorted({f.cause for f in found})) + " (above) probably "
                  "explains it")
