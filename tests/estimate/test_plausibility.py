@@ -268,3 +268,5 @@ def test_a_pose_the_measurements_do_not_determine_is_doubted():
     assert "5 measurements" in f.message and "42 deg" in f.message
     assert f.evidence["std_rot_deg"] == 42.0
     assert "0.5 x its 0.5 m" in rep.findings[1].message      # cam2: by its translation
+    # a result doubted for a wrong input already: its spread follows from that input
+    assert check_determined(rep, [("cam3", 50.0, 1.0, 0.5, 5)]) is rep

@@ -475,9 +475,12 @@ def check_determined(report: Plausibility, std: Sequence[tuple[str, float, float
     -------
     Plausibility
         ``report`` with the findings added: rotation above :data:`UNDETERMINED_ROT_DEG`, or
-        translation above :data:`UNDETERMINED_DISTANCE_SHARE` times the distance.
+        translation above :data:`UNDETERMINED_DISTANCE_SHARE` times the distance; ``report``
+        itself when it doubts the result already (a wrong input spreads the pose too).
     """
     found = []
+    if report.findings:          # a wrong input named already: the spread follows from it
+        return report
     for name, rot, trans, dist, n in std:
         if not (rot > UNDETERMINED_ROT_DEG or trans > UNDETERMINED_DISTANCE_SHARE * dist):
             continue
