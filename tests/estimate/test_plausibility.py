@@ -207,6 +207,7 @@ def test_every_cause_has_its_word_in_the_messages():
     words = {"scale": "spacing", "unit": "unit", "quaternion-order": "quaternion order",
              "setup": "setup", "inverted-poses": "inverted", "time-offset": "time offset",
              "intrinsics": "intrinsics", "noise": "noise", "fit": "poor fit",
+             "rotation-convention": "rotation convention",
              "observability": "not determined"}
     assert set(words) == set(CAUSES)
 
@@ -270,3 +271,48 @@ def test_a_pose_the_measurements_do_not_determine_is_doubted():
     assert "0.5 x its 0.5 m" in rep.findings[1].message      # cam2: by its translation
     # a result doubted for a wrong input already: its spread follows from that input
     assert check_determined(rep, [("cam3", 50.0, 1.0, 0.5, 5)]) is rep
+
+
+@pytest.mark.parametrize("file_rotation, declared, words", [
+    ("euler-xyz-deg", "euler-XYZ-deg", ("read as euler-xyz-deg", "fixed axes")),
+    ("euler-ZYX-deg", "euler-zyx-deg", ("read as euler-ZYX-deg", "moving axes")),
+    ("euler-xyz-rad", "euler-xyz-deg", ("read as euler-xyz-rad", "radians, not degrees")),
+    ("euler-ZYX-rad", "rotvec", ("read as euler-ZYX-rad", "not a rotation vector")),
+])
+@pytest.mark.parametrize("inverse", [False, True])
+def test_euler_angles_read_in_another_convention_are_named(stream, file_rotation, declared,
+                                                           words, inverse):
+    """Robot poses whose numbers rig.yaml reads in another rotation convention than the file
+    holds (issue of session 17: Open3DV's extrinsic x-y-z angles given as euler-XYZ-deg or
+    euler-zyx-deg were named 'quaternion order', then no cause): the convention that fits is
+    named with the rotation key to set, also for a file holding the inverse poses."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from scipy.spatial.transform import Rotation
+
+    from multieye.io.mocap import MocapSpec
+
+    M = stream.T_world_mocap
+    F = g.inv(M) if inverse else M               # what the file describes
+    _, axes, unit = file_rotation.split("-") if file_rotation != "rotvec" else ("", "", "")
+    if declared == "rotvec":                     # ZYX angles named by axis, read as a rotvec
+        zyx = Rotation.from_matrix(F[:, :3, :3]).as_euler("ZYX")
+        numbers = zyx[:, ::-1]                   # rx, ry, rz
+        read = Rotation.from_rotvec(numbers).as_matrix()
+    else:
+        numbers = Rotation.from_matrix(F[:, :3, :3]).as_euler(axes, degrees=unit == "deg")
+        d_axes, d_unit = declared.split("-")[1:]
+        read = Rotation.from_euler(d_axes, numbers, degrees=d_unit == "deg").as_matrix()
+    wrong = F.copy()
+    wrong[:, :3, :3] = read
+    wrong = g.inv(wrong) if inverse else wrong
+    spec = replace(MocapSpec(file=Path("{stem}.txt"), format="pose-files"), rotation=declared)
+    pose = "T_marker_world" if inverse else "T_world_marker"
+    rep = check_plausibility([_evidence(stream, mocap=wrong)], declared=Declared(
+        mocap_format="pose-files", mocap=spec, mocap_pose=pose))
+    assert "rotation-convention" in {f.cause for f in rep.findings}, rep.findings
+    f = next(f for f in rep.findings if f.cause == "rotation-convention")
+    for w in words + (f"rotation: {declared}", f"set rotation: {file_rotation}"):
+        assert w in f.message, f.message
+    assert f.corrected_cost < 1.5

@@ -239,6 +239,24 @@ def _quaternion_finding(desc: str, before: float, after: float, declared: Declar
                    f"{where}", None, before, after, {})
 
 
+def _rotation_finding(other: str, before: float, after: float, declared: Declared) -> Finding:
+    """The poses' numbers fit as rotation convention ``other`` instead of rig.yaml's."""
+    given = str(getattr(declared.mocap, "rotation", ""))
+    if given == "rotvec":
+        what = "the three numbers are Euler angles, not a rotation vector"
+    elif other.endswith("-rad") and given.endswith("-deg"):
+        what = "the angles are in radians, not degrees"
+    elif other.split("-")[1].isupper():
+        what = "the Euler angles turn about the moving axes (intrinsic: upper case), not the fixed ones"
+    else:
+        what = "the Euler angles turn about the fixed axes (extrinsic: lower case), not the moving ones"
+    return Finding("rotation-convention", f"rotation convention: the poses' rotations fit when "
+                   f"their numbers are read as {other} where rig.yaml reads rotation: {given} "
+                   f"({_costs(before, after)}): {what}; set rotation: {other} under mocap in "
+                   "rig.yaml (the robot's manual names its convention)", None, before, after,
+                   {})
+
+
 def _setup_finding(before: float, after: float, declared: Declared) -> Finding:
     setup = declared.setup
     other, meaning, pose, inverse = _SETUPS[setup]

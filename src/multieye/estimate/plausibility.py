@@ -17,6 +17,11 @@ solving the closed form again (:mod:`multieye.estimate.hypotheses`):
 ``quaternion-order``
     The motion-capture rotations re-read with the quaternion's scalar first instead of last
     (and the reverse).  SLERP commutes with the permutation, so interpolated poses are exact.
+``rotation-convention``
+    Poses read from Euler angles or rotation vectors (``mocap.rotation``) re-read in the
+    conventions robot files are confused with (:func:`multieye.estimate.hypotheses.
+    other_rotations`): Euler angles about the moving instead of the fixed axes (or the
+    reverse), radians read as degrees, Euler angles read as a rotation vector.
 ``setup``
     The motion-capture poses inverted: eye-on-hand data declared eye-to-base (or the
     reverse), or ``T_marker_world`` given as ``T_world_marker``: the algebra is the same, so
@@ -107,6 +112,7 @@ from multieye.estimate.findings import (
     _costs,
     _gain,
     _quaternion_finding,
+    _rotation_finding,
     _scale_finding,
     _setup_finding,
     _times,
@@ -124,8 +130,8 @@ __all__ = ["CAUSES", "CameraEvidence", "Declared", "Finding", "Plausibility",
            "POOR_COST", "LENS_PIXEL_GAIN", "MIN_LENS_EXCESS_PX"]
 
 #: The causes a finding can name.
-CAUSES = ("scale", "unit", "quaternion-order", "setup", "inverted-poses", "time-offset",
-          "intrinsics", "noise", "fit", "observability")
+CAUSES = ("scale", "unit", "quaternion-order", "rotation-convention", "setup", "inverted-poses",
+          "time-offset", "intrinsics", "noise", "fit", "observability")
 #: Fewest-fold drop of the cost for a corrected reading (quaternion order, inverted poses).
 DISCRETE_GAIN = 1.5
 #: ... for a fitted factor or offset (scale, focal length, image size, clock offset).
@@ -259,6 +265,15 @@ def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: De
             fit = h.fit([h.mocap_A(setup, h.permuted(c.T_world_mocap, order)) for c in cams],
                         B, weights)
             consider(fit, lambda b, a, desc=desc: _quaternion_finding(desc, b, a, declared),
+                     DISCRETE_GAIN)
+    rotation = str(getattr(declared.mocap, "rotation", None) or "")
+    if h.other_rotations(rotation):
+        tested.append("rotation-convention")
+        inverse = str(declared.mocap_pose or "").endswith("_world")   # the file holds inv(T)
+        for other in h.other_rotations(rotation):
+            fit = h.fit([h.mocap_A(setup, h.reread_rotations(c.T_world_mocap, rotation, other,
+                                                              inverse)) for c in cams], B, weights)
+            consider(fit, lambda b, a, other=other: _rotation_finding(other, b, a, declared),
                      DISCRETE_GAIN)
     tested.append("setup")
     consider(h.fit([g.inv(a) for a in A], B, weights),

@@ -64,8 +64,17 @@ _MOVING_LIKE = ("tool", "flange", "tcp", "ee", "end", "gripper", "wrist", "hand"
 _FIXED_LIKE = ("base", "map", "odom", "mocap", "vicon", "optitrack")
 
 
-def _looks(name: str, starts: tuple[str, ...]) -> bool:
-    return name.lower().startswith(starts)
+def _parent_fixed(parent: str, child: str) -> str:
+    """``parent``, the fixed frame by default; ValueError naming both readings when its name
+    is a moving frame's and the child's a fixed one's (``T_tool0_base``)."""
+    if parent.lower().startswith(_MOVING_LIKE) and child.lower().startswith(_FIXED_LIKE):
+        raise ValueError(
+            f"T_{parent}_{child} reads as the pose of {child} in {parent}, with {parent} "
+            f"fixed (the parent is the fixed frame), but {child} names a fixed frame and "
+            f"{parent} a moving one: if the rows hold {parent} in {child}, write pose: "
+            f"T_{child}_{parent}; if they hold {child} in {parent}, add fixed_frame: "
+            f"{child} (they are then inverted)")
+    return parent
 
 
 def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = None,
@@ -78,11 +87,8 @@ def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = N
 
     - a frame named ``world`` is the fixed one; a frame named ``moving`` is the tracked one;
     - otherwise the parent is fixed and the child tracked (``T_base_tool0``: a robot's
-      base and its flange), except that a parent named like a moving frame (``tool``,
-      ``flange``, ``tcp``, ``ee``, ``end``, ``gripper``, ``wrist``, ``hand``) over a child
-      named like a fixed one (``base``, ``map``, ``odom``, ``mocap``, ``vicon``,
-      ``optitrack``) is refused as ambiguous (``T_tool0_base``: the tool in the base, or the
-      base in the tool?);
+      base and its flange); a moving frame's name over a fixed one's (``T_tool0_base``) is
+      refused as ambiguous (:func:`_parent_fixed`);
     - ``fixed`` overrides all of these: a file holding the inverse, the base in the flange,
       is ``T_tool0_base`` with ``fixed="base"``.
 
@@ -163,14 +169,7 @@ def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = N
     elif moving in (parent, child):
         fixed = child if parent == moving else parent
     else:
-        fixed = parent
-        if _looks(parent, _MOVING_LIKE) and _looks(child, _FIXED_LIKE):
-            raise ValueError(
-                f"T_{parent}_{child} reads as the pose of {child} in {parent}, with {parent} "
-                f"fixed (the parent is the fixed frame), but {child} names a fixed frame and "
-                f"{parent} a moving one: if the rows hold {parent} in {child}, write pose: "
-                f"T_{child}_{parent}; if they hold {child} in {parent}, add fixed_frame: "
-                f"{child} (they are then inverted)")
+        fixed = _parent_fixed(parent, child)
     tracked = child if fixed == parent else parent
     if tracked in others or fixed in others:
         setup = "eye-to-base" if moving == "marker" else "eye-on-hand"
