@@ -239,9 +239,8 @@ def _quaternion_finding(desc: str, before: float, after: float, declared: Declar
                    f"{where}", None, before, after, {})
 
 
-def _rotation_finding(other: str, before: float, after: float, declared: Declared) -> Finding:
-    """The poses' numbers fit as rotation convention ``other`` instead of rig.yaml's."""
-    given = str(getattr(declared.mocap, "rotation", ""))
+def _rotation_finding(other: str, before: float, after: float, given: str) -> Finding:
+    """The poses' numbers fit as rotation convention ``other`` instead of ``given``."""
     if given == "rotvec":
         what = "the three numbers are Euler angles, not a rotation vector"
     elif other.endswith("-rad") and given.endswith("-deg"):
@@ -251,7 +250,7 @@ def _rotation_finding(other: str, before: float, after: float, declared: Declare
     else:
         what = "the Euler angles turn about the fixed axes (extrinsic: lower case), not the moving ones"
     return Finding("rotation-convention", f"rotation convention: the poses' rotations fit when "
-                   f"their numbers are read as {other} where rig.yaml reads rotation: {given} "
+                   f"their numbers are read as {other} where they were read as {given} "
                    f"({_costs(before, after)}): {what}; set rotation: {other} under mocap in "
                    "rig.yaml (the robot's manual names its convention)", None, before, after,
                    {})

@@ -334,8 +334,8 @@ def other_rotations(rotation: str) -> tuple[str, ...]:
     angles about moving instead of fixed axes (``xyz`` <-> ``XYZ``, the sequence's letters
     and so each angle's axis kept), radians read as degrees; a rotation vector read as the
     angles about x, y and z of the common robot conventions.  ``()`` for other rotations."""
-    if rotation == "rotvec":
-        return ("euler-xyz-rad", "euler-XYZ-rad", "euler-ZYX-rad")
+    if rotation == "rotvec":     # angles named by axis: ZYX is xyz, zyx is XYZ
+        return ("euler-xyz-rad", "euler-XYZ-rad")
     if not rotation.startswith("euler-"):
         return ()
     _, axes, unit = rotation.split("-")

@@ -267,13 +267,15 @@ def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: De
             consider(fit, lambda b, a, desc=desc: _quaternion_finding(desc, b, a, declared),
                      DISCRETE_GAIN)
     rotation = str(getattr(declared.mocap, "rotation", None) or "")
+    if rotation == "quaternion-xyzw" and declared.mocap_format in ("pose-files", "pose-table"):
+        rotation = "rotvec"      # named rx ry rz are read as a rotation vector by default
     if h.other_rotations(rotation):
         tested.append("rotation-convention")
         inverse = str(declared.mocap_pose or "").endswith("_world")   # the file holds inv(T)
         for other in h.other_rotations(rotation):
             fit = h.fit([h.mocap_A(setup, h.reread_rotations(c.T_world_mocap, rotation, other,
                                                               inverse)) for c in cams], B, weights)
-            consider(fit, lambda b, a, other=other: _rotation_finding(other, b, a, declared),
+            consider(fit, lambda b, a, other=other: _rotation_finding(other, b, a, rotation),
                      DISCRETE_GAIN)
     tested.append("setup")
     consider(h.fit([g.inv(a) for a in A], B, weights),
