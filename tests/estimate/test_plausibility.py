@@ -206,7 +206,9 @@ def test_every_cause_has_its_word_in_the_messages():
     # the words a user would search for (issue 13): one per cause
     words = {"scale": "spacing", "unit": "unit", "quaternion-order": "quaternion order",
              "setup": "setup", "inverted-poses": "inverted", "time-offset": "time offset",
-             "intrinsics": "intrinsics", "noise": "noise", "fit": "poor fit"}
+             "intrinsics": "intrinsics", "noise": "noise", "fit": "poor fit",
+             "rotation-convention": "rotation convention",
+             "observability": "not determined"}
     assert set(words) == set(CAUSES)
 
 
@@ -224,9 +226,16 @@ def test_quaternions_of_pose_files_in_the_other_order_name_the_rotation_key(stre
     declared = Declared(mocap_format="pose-files", mocap=spec)
     rep = check_plausibility([_evidence(stream, mocap=wrong)], declared=declared)
     _only(rep, "quaternion-order", "pose files", "rotation: quaternion-wxyz")
-    declared = Declared(mocap_format="pose-files", mocap=replace(spec, rotation="matrix"))
-    rep = check_plausibility([_evidence(stream, mocap=wrong)], declared=declared)
-    assert "rotation: quaternion" not in rep.findings[0].message
+    for rotation in ("matrix", "euler-xyz-deg", "rotvec"):
+        # poses not read as quaternions: no quaternion order can be the cause (issue of
+        # session 17: Open3DV's Euler angles read in another axis order were said to be
+        # quaternions in the other order); the poor fit is doubted naming the convention
+        declared = Declared(mocap_format="pose-files", mocap=replace(spec, rotation=rotation))
+        rep = check_plausibility([_evidence(stream, mocap=wrong)], declared=declared)
+        assert rep.findings and "quaternion-order" not in rep.tested, rep.findings
+        assert "quaternion-order" not in {f.cause for f in rep.findings}
+        for f in rep.findings:
+            assert "quaternion" not in f.message and f"rotation: {rotation}" in f.message
 
 
 def test_an_offset_its_loop_residuals_do_not_determine_is_not_advised(monkeypatch):
@@ -242,3 +251,67 @@ def test_an_offset_its_loop_residuals_do_not_determine_is_not_advised(monkeypatc
     st = _stream(51, offset=0.1)
     rep = check_plausibility([_evidence(st, used_offset=0.0)])
     assert all(f.cause != "time-offset" for f in rep.findings)
+
+
+def test_a_pose_the_measurements_do_not_determine_is_doubted():
+    """check_determined: a refined pose spread beyond 10 degrees, or beyond half the camera's
+    distance to the target, is cause ``observability`` naming the camera and the spread;
+    determined poses add nothing."""
+    from multieye.estimate.plausibility import Plausibility, check_determined
+
+    base = Plausibility(findings=(), cost=1.0, camera_cost={}, tested=())
+    ok = check_determined(base, [("cam0", 1.6, 0.022, 0.5, 30)], "T_body_cam")
+    assert ok.findings == () and not ok.doubts
+    rep = check_determined(base, [("cam0", 1.6, 0.022, 0.5, 30), ("cam1", 42.0, 0.45, 0.5, 5),
+                                  ("cam2", 2.0, 0.3, 0.5, 6)], "T_body_cam")
+    assert [f.camera for f in rep.findings] == ["cam1", "cam2"] and rep.doubts
+    f = _only(rep, "observability", "not determined", "T_body_cam", "two axes")
+    assert "5 measurements" in f.message and "42 deg" in f.message
+    assert f.evidence["std_rot_deg"] == 42.0
+    assert "0.5 x its 0.5 m" in rep.findings[1].message      # cam2: by its translation
+    # a result doubted for a wrong input already: its spread follows from that input
+    assert check_determined(rep, [("cam3", 50.0, 1.0, 0.5, 5)]) is rep
+
+
+@pytest.mark.parametrize("file_rotation, declared, words", [
+    ("euler-xyz-deg", "euler-XYZ-deg", ("read as euler-xyz-deg", "fixed axes")),
+    ("euler-ZYX-deg", "euler-zyx-deg", ("read as euler-ZYX-deg", "moving axes")),
+    ("euler-xyz-rad", "euler-xyz-deg", ("read as euler-xyz-rad", "radians, not degrees")),
+    ("euler-XYZ-rad", "rotvec", ("read as euler-XYZ-rad", "not a rotation vector")),
+])
+@pytest.mark.parametrize("inverse", [False, True])
+def test_euler_angles_read_in_another_convention_are_named(stream, file_rotation, declared,
+                                                           words, inverse):
+    """Robot poses whose numbers rig.yaml reads in another rotation convention than the file
+    holds (issue of session 17: Open3DV's extrinsic x-y-z angles given as euler-XYZ-deg or
+    euler-zyx-deg were named 'quaternion order', then no cause): the convention that fits is
+    named with the rotation key to set, also for a file holding the inverse poses."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from scipy.spatial.transform import Rotation
+
+    from multieye.io.mocap import MocapSpec
+
+    M = stream.T_world_mocap
+    F = g.inv(M) if inverse else M               # what the file describes
+    _, axes, unit = file_rotation.split("-") if file_rotation != "rotvec" else ("", "", "")
+    if declared == "rotvec":                     # XYZ angles named by axis, read as a rotvec
+        numbers = Rotation.from_matrix(F[:, :3, :3]).as_euler("XYZ")       # rx, ry, rz
+        read = Rotation.from_rotvec(numbers).as_matrix()
+    else:
+        numbers = Rotation.from_matrix(F[:, :3, :3]).as_euler(axes, degrees=unit == "deg")
+        d_axes, d_unit = declared.split("-")[1:]
+        read = Rotation.from_euler(d_axes, numbers, degrees=d_unit == "deg").as_matrix()
+    wrong = F.copy()
+    wrong[:, :3, :3] = read
+    wrong = g.inv(wrong) if inverse else wrong
+    spec = replace(MocapSpec(file=Path("{stem}.txt"), format="pose-files"), rotation=declared)
+    pose = "T_marker_world" if inverse else "T_world_marker"
+    rep = check_plausibility([_evidence(stream, mocap=wrong)], declared=Declared(
+        mocap_format="pose-files", mocap=spec, mocap_pose=pose))
+    assert "rotation-convention" in {f.cause for f in rep.findings}, rep.findings
+    f = next(f for f in rep.findings if f.cause == "rotation-convention")
+    for w in words + (f"read as {declared}", f"set rotation: {file_rotation}"):
+        assert w in f.message, f.message
+    assert f.corrected_cost < 1.5

@@ -296,3 +296,48 @@ def test_stamped_table_in_integer_nanoseconds(tmp_path):
     fmt = PoseFormat(rotation="quaternion-wxyz",
                      values=("x", "y", "z", "t", "qw", "qx", "qy", "qz"))
     np.testing.assert_allclose(read_stamped_table(p, fmt).stamps, traj.stamps)
+
+
+@pytest.mark.parametrize("axes", ["xyz", "ZYX", "yxz"])
+def test_json_euler_angles_named_by_axis_without_values(tmp_path, axes):
+    """``rotation: euler-...`` alone reads a mapping's ``rx ry rz`` as the angles about x, y,
+    z (docs/rig-yaml.md, section 4), as a robot toolkit's ``end_xyzrpy`` holds them; before,
+    only ``a1 a2 a3`` were accepted unless ``values`` was given too."""
+    angles = R_TRUE.as_euler(axes)
+    by_axis = dict(zip(["r" + a for a in axes.lower()], angles))
+    p = _write(tmp_path, "1.json", {"end_xyzrpy": {"x": 0.5, "y": -0.2, "z": 1.25, **by_axis}})
+    fmt = PoseFormat(rotation=f"euler-{axes}-rad", key="end_xyzrpy")
+    np.testing.assert_allclose(read_pose_file(p, fmt), T_TRUE, atol=1e-9)
+    p = _write(tmp_path, "2.json", {"x": 0.5, "y": -0.2, "z": 1.25,
+                                    **dict(zip(("a1", "a2", "a3"), angles))})
+    np.testing.assert_allclose(read_pose_file(p, PoseFormat(rotation=f"euler-{axes}-rad")),
+                               T_TRUE, atol=1e-9)
+
+
+@pytest.mark.parametrize("match", ["order", "image"])
+def test_a_pose_table_row_of_nan_or_inf_leaves_its_image_out(tmp_path, match):
+    """A row of a pose table holding ``nan`` or ``inf`` (a robot's or tracker's dropout, as
+    young_mocap_cam's pose_quat.txt with one value lost) leaves its image out, listed with the
+    table's line, and keeps every other pairing (``match: order`` keeps the row's place), as
+    TUM rows are; before, the whole run stopped (exit 2)."""
+    from multieye.io.pose_files import poses_by_order, poses_by_table
+
+    q = Rotation.from_matrix(T_TRUE[:3, :3]).as_quat()
+    row = " ".join(f"{v:.17g}" for v in [*T_TRUE[:3, 3], *q])
+    images = [tmp_path / f"pos{k}.png" for k in range(3)]
+    if match == "order":
+        t = _write(tmp_path, "poses.txt", f"{row}\n{row.replace(row.split()[1], 'nan', 1)}\n"
+                   f"{row}\n")
+        matched, unmatched = poses_by_order(images, t, PoseFormat(values=(
+            "x", "y", "z", "qx", "qy", "qz", "qw")))
+    else:
+        t = _write(tmp_path, "poses.txt", "image x y z qx qy qz qw\n" + "".join(
+            f"pos{k}.png {row if k != 1 else row.replace(row.split()[2], 'inf', 1)}\n"
+            for k in range(3)))
+        matched, unmatched = poses_by_table(images, t, PoseFormat())
+    assert [p.name for p, _ in matched] == ["pos0.png", "pos2.png"]
+    for _, T in matched:
+        np.testing.assert_allclose(T, T_TRUE, atol=1e-12)
+    assert unmatched == [("pos1.png", "pose row left out: poses.txt line 2 holds nan or inf"
+                          if match == "order" else
+                          "pose row left out: poses.txt line 3 holds nan or inf")]

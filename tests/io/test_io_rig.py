@@ -355,6 +355,25 @@ def test_list_images_seconds_underscore_nanoseconds(tmp_path):
                                         1700000001000000000]
 
 
+def test_list_images_stamps_after_a_recorders_prefix(tmp_path):
+    """``frame_<ns>``, ``rgb-<s.us>``, ``cam0_<sec>_<nsec>``: the stamp after a prefix that
+    ends in a non-digit, as ROS image savers name frames; a short number after a prefix
+    (``left0001``, ``12-00-00.123``) is still no stamp."""
+    names = ["frame_1700000000500000000.png", "rgb-1700000000.25.png",
+             "cam0_1700000001_000000007.png", "IMG1700000002.5.jpg"]
+    for name in names:
+        (tmp_path / name).write_bytes(b"")
+    out = list_images(tmp_path)
+    assert [ns for _, ns, _ in out] == [1700000000250000000, 1700000000500000000,
+                                        1700000001000000007, 1700000002500000000]
+    for bad in ("left0001.png", "12-00-00.123.png", "frame_1700000000500.png"):
+        folder = tmp_path / bad.replace(".", "_")
+        folder.mkdir()
+        (folder / bad).write_bytes(b"")
+        with pytest.raises(DatasetError, match="not a time stamp.*stamps:"):
+            list_images(folder)
+
+
 @pytest.mark.parametrize("name, message", [
     ("frame_001.png", "expected a time stamp"),
     ("1700000000123.png", "13 digits is ambiguous"),
@@ -450,6 +469,22 @@ def test_fixed_frame_that_cannot_be_is_refused(pose, fixed, message):
 
     with pytest.raises(ValueError, match=re.escape(message)):
         named_pose(pose, "body", None, fixed)
+
+
+@pytest.mark.parametrize("pose, moving", [("T_tool0_base", "body"), ("T_flange_base_link", "body"),
+                                          ("T_ee_map", "marker"), ("T_tcp_mocap", "marker")])
+def test_a_tool_over_a_base_without_fixed_frame_is_refused(pose, moving):
+    """``T_tool0_base`` alone made the tool the fixed frame (the parent) and printed the
+    camera's pose in the tool as ``T_base_cam``; a name of a moving frame over one of a fixed
+    frame now asks which is meant, naming both fixes; ``fixed_frame`` settles it."""
+    from multieye.io.mocap import named_pose
+
+    parent, child = pose[2:].split("_", 1)
+    with pytest.raises(ValueError, match=re.escape(f"write pose: T_{child}_{parent}")) as info:
+        named_pose(pose, moving, (parent, child))
+    assert f"add fixed_frame: {child}" in str(info.value)
+    assert named_pose(pose, moving, (parent, child), child)[1] == (child, parent)
+    assert named_pose(f"T_{child}_{parent}", moving, (child, parent))[1] == (child, parent)
 
 
 def test_fixed_frame_is_read_from_rig_yaml_and_its_line_named(dataset):

@@ -248,3 +248,26 @@ def test_check_says_may_fail_and_exits_0_where_its_budget_missed_a_tiny_minority
         "searched" in done.stdout
     assert done.stderr.startswith("multieye: calibrating may fail: cam0: ")
     assert "would fail" not in done.stdout + done.stderr
+
+
+
+
+def test_a_toolkits_config_json_beside_the_pose_files_is_no_problem(shared_data, tmp_path):
+    """yizhong's folder as published: ``k.jpg`` + ``k.json`` and the toolkit's
+    ``chessboard_config.json``, read with ``{stem}.json``: that file has no image, which costs
+    calibrating nothing, so check names no problem for it; an image without its pose file
+    still is one."""
+    import shutil
+
+    src = shared_data / "yizhong_toolkit" / "sample_data" / "eye_in_hand_test_data"
+    ds = tmp_path / "ds"
+    shutil.copytree(src, ds)
+    (ds / "rig.yaml").write_text(
+        "setup: eye-on-hand\ntarget: {type: chessboard, rows: 8, cols: 11, spacing: 0.02}\n"
+        'mocap: {file: "{stem}.json", key: end2base, pose: T_base_tool0}\n'
+        "cameras:\n  cam0: {model: pinhole-radtan, images: ./}\n")
+    c = check_dataset(ds, sample=6).cameras[0]
+    assert not any("chessboard_config" in p for p in c.problems), c.problems
+    (ds / "8.json").unlink()
+    c = check_dataset(ds, sample=6).cameras[0]
+    assert any("1 images without a pose (first 8.jpg" in p for p in c.problems), c.problems

@@ -125,12 +125,18 @@ class Plausibility:
     tested : tuple of str
         The hypotheses tested (a cause, ``cause:camera`` for per-camera ones that could be
         tested).
+    latent : tuple of Finding
+        Whole-rig hypotheses that lower the cost as clearly as a finding must, but from a
+        cost the assumed noise already explains (below 1): not reported by themselves, they
+        are the likely cause when the noise the refinement estimates is beyond the sensor's
+        (:func:`multieye.estimate.plausibility.check_noise`); best first.
     """
 
     findings: tuple[Finding, ...]
     cost: float
     camera_cost: dict
     tested: tuple[str, ...]
+    latent: tuple[Finding, ...] = ()
 
     @property
     def doubts(self) -> bool:
@@ -231,6 +237,23 @@ def _quaternion_finding(desc: str, before: float, after: float, declared: Declar
     return Finding("quaternion-order", f"quaternion order: the motion-capture rotations fit "
                    f"when their quaternions are read as {desc} ({_costs(before, after)}); "
                    f"{where}", None, before, after, {})
+
+
+def _rotation_finding(other: str, before: float, after: float, given: str) -> Finding:
+    """The poses' numbers fit as rotation convention ``other`` instead of ``given``."""
+    if given == "rotvec":
+        what = "the three numbers are Euler angles, not a rotation vector"
+    elif other.endswith("-rad") and given.endswith("-deg"):
+        what = "the angles are in radians, not degrees"
+    elif other.split("-")[1].isupper():
+        what = "the Euler angles turn about the moving axes (intrinsic: upper case), not the fixed ones"
+    else:
+        what = "the Euler angles turn about the fixed axes (extrinsic: lower case), not the moving ones"
+    return Finding("rotation-convention", f"rotation convention: the poses' rotations fit when "
+                   f"their numbers are read as {other} where they were read as {given} "
+                   f"({_costs(before, after)}): {what}; set rotation: {other} under mocap in "
+                   "rig.yaml (the robot's manual names its convention)", None, before, after,
+                   {})
 
 
 def _setup_finding(before: float, after: float, declared: Declared) -> Finding:

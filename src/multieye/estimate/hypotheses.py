@@ -31,7 +31,8 @@ from multieye.estimate.clock import estimate_offset
 from multieye.estimate.pairing import pair_in_time
 
 __all__ = ["CameraEvidence", "Fit", "noise", "fit", "mocap_A", "scaled_A", "scale_factor",
-           "permuted", "QUATERNION_ORDERS", "focal_search", "resize_search", "clock_search",
+           "permuted", "QUATERNION_ORDERS", "other_rotations", "reread_rotations",
+           "focal_search", "resize_search", "clock_search",
            "MOCAP_NOISE", "RESIZE_FACTORS", "cost_with", "loop_residuals", "MIN_RMS_PX"]
 
 F64 = NDArray[np.float64]
@@ -325,6 +326,56 @@ def permuted(T: F64, order: Sequence[int]) -> F64:
     """Poses with their quaternions' components (x y z w) taken in another order."""
     q = g.quat_from_transform(T)
     return g.transform_from_quat(q[:, list(order)], T[:, :3, 3])
+
+
+def other_rotations(rotation: str) -> tuple[str, ...]:
+    """The rotation conventions a file read as ``rotation`` (rig.yaml's ``mocap.rotation``:
+    ``euler-<axes>-<unit>`` or ``rotvec``) is re-read in by :func:`reread_rotations`: Euler
+    angles about moving instead of fixed axes (``xyz`` <-> ``XYZ``, the sequence's letters
+    and so each angle's axis kept), radians read as degrees; a rotation vector read as the
+    angles about x, y and z of the common robot conventions.  ``()`` for other rotations."""
+    if rotation == "rotvec":     # angles named by axis: ZYX is xyz, zyx is XYZ
+        return ("euler-xyz-rad", "euler-XYZ-rad")
+    if not rotation.startswith("euler-"):
+        return ()
+    _, axes, unit = rotation.split("-")
+    return (f"euler-{axes.swapcase()}-{unit}",) + (("euler-" + axes + "-rad",) if unit == "deg"
+                                                   else ())
+
+
+def _angles_by_axis(rotation: str, R: F64) -> dict[str, F64]:
+    """The numbers a file read as ``rotation`` held for the rotations ``R`` (n, 3, 3), by the
+    axis they turn about (``x``, ``y``, ``z``; a rotation vector's components), or in the
+    order of the Euler sequence (``1``, ``2``, ``3``) when the axes repeat one."""
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (only when a rotation is doubted)
+
+    if rotation == "rotvec":
+        v = Rotation.from_matrix(R).as_rotvec()
+        return dict(zip("xyz", v.T))
+    _, axes, unit = rotation.split("-")
+    import warnings  # noqa: PLC0415 (gimbal lock of single poses is no error here)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        v = Rotation.from_matrix(R).as_euler(axes, degrees=unit == "deg")
+    keys = axes.lower() if sorted(axes.lower()) == ["x", "y", "z"] else "123"
+    return dict(zip(keys, v.T))
+
+
+def reread_rotations(T: F64, rotation: str, other: str, inverse: bool) -> F64:
+    """Poses ``T`` (n, 4, 4) read as ``rotation`` with their file's numbers read as ``other``
+    instead (:func:`other_rotations`), the translations kept; ``inverse``: the file held the
+    inverse poses (``T_<tracked>_<fixed>``), so its rotations are those of ``inv(T)``."""
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (only when a rotation is doubted)
+
+    F = g.inv(T) if inverse else T
+    by_axis = _angles_by_axis(rotation, F[:, :3, :3])
+    _, axes, unit = other.split("-")
+    keys = axes.lower() if set(by_axis) == set("xyz") else "123"
+    angles = np.stack([by_axis[k] for k in keys], axis=1)
+    out = F.copy()       # the numbers as the file held them (degrees read as radians too)
+    out[:, :3, :3] = Rotation.from_euler(axes, angles, degrees=unit == "deg").as_matrix()
+    return g.inv(out) if inverse else out
 
 
 #: Quaternion orders tried: the file holds w x y z but was read as x y z w, and the reverse.

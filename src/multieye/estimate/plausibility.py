@@ -17,6 +17,11 @@ solving the closed form again (:mod:`multieye.estimate.hypotheses`):
 ``quaternion-order``
     The motion-capture rotations re-read with the quaternion's scalar first instead of last
     (and the reverse).  SLERP commutes with the permutation, so interpolated poses are exact.
+``rotation-convention``
+    Poses read from Euler angles or rotation vectors (``mocap.rotation``) re-read in the
+    conventions robot files are confused with (:func:`multieye.estimate.hypotheses.
+    other_rotations`): Euler angles about the moving instead of the fixed axes (or the
+    reverse), radians read as degrees, Euler angles read as a rotation vector.
 ``setup``
     The motion-capture poses inverted: eye-on-hand data declared eye-to-base (or the
     reverse), or ``T_marker_world`` given as ``T_world_marker``: the algebra is the same, so
@@ -38,6 +43,10 @@ solving the closed form again (:mod:`multieye.estimate.hypotheses`):
     camera).  Run on every camera with given intrinsics and at least 5 views of 8 or more
     points, whatever its loop cost: a wrong lens inflates the pixel noise the loop is weighed
     with, and so hides itself there.
+``observability``
+    After the refinement (:func:`check_determined`): a camera whose refined pose has a
+    standard deviation beyond :data:`UNDETERMINED_ROT_DEG` or half its distance to the target
+    (a few images, or a motion too small to determine it), whatever its residuals.
 ``noise``
     After the refinement (:func:`check_noise`): a motion-capture noise estimated from the data
     beyond what the sensor has at most (:mod:`multieye.estimate.sensor`: a robot 0.1 degrees
@@ -47,9 +56,9 @@ solving the closed form again (:mod:`multieye.estimate.hypotheses`):
 
 The ``cost`` of a fit (:mod:`multieye.estimate.hypotheses`) is about 1 when the noise the
 measurements carry explains the residuals.  Hypotheses that change how the data are read
-(quaternion order, inverted poses) are always tested, since they cost one closed form
-each; the per-camera searches (clock, intrinsics) run on cameras whose cost is at least
-:data:`POOR_COST`.  A hypothesis is reported when it lowers the cost at least
+(quaternion order, when the rotations were read as quaternions; inverted poses) are always
+tested, since they cost one closed form each; the per-camera searches (clock, intrinsics)
+run on cameras whose cost is at least :data:`POOR_COST`.  A hypothesis is reported when it lowers the cost at least
 :data:`DISCRETE_GAIN`-fold (a corrected reading: no parameter is fitted) or
 :data:`CONTINUOUS_GAIN`-fold (a fitted factor or offset, which must also be clearly away
 from its neutral value), costs below 1 counting as 1: on data that fit as well as their
@@ -103,6 +112,7 @@ from multieye.estimate.findings import (
     _costs,
     _gain,
     _quaternion_finding,
+    _rotation_finding,
     _scale_finding,
     _setup_finding,
     _times,
@@ -115,12 +125,13 @@ if TYPE_CHECKING:  # the refinement's result type, for the annotation only
 
 __all__ = ["CAUSES", "CameraEvidence", "Declared", "Finding", "Plausibility",
            "check_plausibility", "check_noise", "given_lens_findings", "target_size_findings",
-           "MAX_TARGET_FEATURE_M", "DISCRETE_GAIN", "CONTINUOUS_GAIN",
+           "MAX_TARGET_FEATURE_M", "DISCRETE_GAIN", "CONTINUOUS_GAIN", "check_determined",
+           "UNDETERMINED_ROT_DEG", "UNDETERMINED_DISTANCE_SHARE",
            "POOR_COST", "LENS_PIXEL_GAIN", "MIN_LENS_EXCESS_PX"]
 
 #: The causes a finding can name.
-CAUSES = ("scale", "unit", "quaternion-order", "setup", "inverted-poses", "time-offset",
-          "intrinsics", "noise", "fit")
+CAUSES = ("scale", "unit", "quaternion-order", "rotation-convention", "setup", "inverted-poses",
+          "time-offset", "intrinsics", "noise", "fit", "observability")
 #: Fewest-fold drop of the cost for a corrected reading (quaternion order, inverted poses).
 DISCRETE_GAIN = 1.5
 #: ... for a fitted factor or offset (scale, focal length, image size, clock offset).
@@ -138,6 +149,13 @@ MIN_CLOCK_CHANGE_S = 0.005
 #: Fewest-fold drop of the median reprojection RMS with which a freed lens that fits the loop
 #: clearly better is believed.
 _LENS_LOOP_PIXEL_GAIN = 1.5
+#: A camera's pose whose rotation standard deviation (root of the trace, degrees) exceeds
+#: this is not determined by the measurements (cause ``observability``): the real sets'
+#: one-axis recording of 30 images (young_mocap_cam) has 1.6, five of its images 42.
+UNDETERMINED_ROT_DEG = 10.0
+#: ... or whose translation standard deviation exceeds this share of the camera's median
+#: distance to the target.
+UNDETERMINED_DISTANCE_SHARE = 0.5
 # --------------------------------------------------------------------------- the checks
 
 
@@ -191,7 +209,8 @@ def check_plausibility(cameras: Sequence[CameraEvidence], *,
     base = h.fit(A, B, weights)
     singles = [h.fit([c.A], [c.B], [w]) for c, w in zip(cams, weights)]
     tested: list[str] = []
-    rig = _rig_findings(cams, weights, base, declared, tested)
+    latent: list[Finding] = []
+    rig = _rig_findings(cams, weights, base, declared, tested, latent)
     per_camera = {}
     for j, (cam, w, single) in enumerate(zip(cams, weights, singles)):
         if single.cost >= POOR_COST:
@@ -209,20 +228,23 @@ def check_plausibility(cameras: Sequence[CameraEvidence], *,
     findings = tuple(_partial(f, declared.mocap) for f in findings)
     return Plausibility(findings=findings, cost=base.cost,
                         camera_cost={c.name: s.cost for c, s in zip(cams, singles)},
-                        tested=tuple(tested))
+                        tested=tuple(tested),
+                        latent=tuple(sorted(latent, key=lambda f: f.corrected_cost)))
 
 
 def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: Declared,
-                  tested: list[str]) -> list[tuple[Finding, tuple]]:
+                  tested: list[str], latent: list[Finding]) -> list[tuple[Finding, tuple]]:
     """The whole-rig hypotheses (scale, quaternion order, setup, inverted poses) that fit
     better than ``base``, with their per-camera costs; each hypothesis tested is added to
-    ``tested``."""
+    ``tested``, each that lowers a cost below 1 as clearly to ``latent``."""
     A, B, setup = [c.A for c in cams], [c.B for c in cams], declared.setup
     rig: list[tuple[Finding, tuple]] = []     # whole-rig findings, with their per-camera costs
 
     def consider(fit: h.Fit, make, gain: float) -> None:
         if _gain(base.cost, fit.cost) >= gain:
             rig.append((make(base.cost, fit.cost), fit.camera_cost))
+        elif base.cost >= gain * max(fit.cost, 1e-12):   # hidden by the noise assumed
+            latent.append(make(base.cost, fit.cost))
 
     tested.append("scale")
     k, k_std = h.scale_factor(A, B, base)
@@ -237,12 +259,24 @@ def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: De
                      lambda b, a: _scale_finding(s, rel, b, a, declared, d_pnp, r_mocap,
                                                  any(c.has_points for c in cams)),
                      CONTINUOUS_GAIN)
-    tested.append("quaternion-order")
-    for order, desc in h.QUATERNION_ORDERS:
-        fit = h.fit([h.mocap_A(setup, h.permuted(c.T_world_mocap, order)) for c in cams], B,
-                    weights)
-        consider(fit, lambda b, a, desc=desc: _quaternion_finding(desc, b, a, declared),
-                 DISCRETE_GAIN)
+    if _read_as_quaternions(declared):
+        tested.append("quaternion-order")
+        for order, desc in h.QUATERNION_ORDERS:
+            fit = h.fit([h.mocap_A(setup, h.permuted(c.T_world_mocap, order)) for c in cams],
+                        B, weights)
+            consider(fit, lambda b, a, desc=desc: _quaternion_finding(desc, b, a, declared),
+                     DISCRETE_GAIN)
+    rotation = str(getattr(declared.mocap, "rotation", None) or "")
+    if rotation == "quaternion-xyzw" and declared.mocap_format in ("pose-files", "pose-table"):
+        rotation = "rotvec"      # named rx ry rz are read as a rotation vector by default
+    if h.other_rotations(rotation):
+        tested.append("rotation-convention")
+        inverse = str(declared.mocap_pose or "").endswith("_world")   # the file holds inv(T)
+        for other in h.other_rotations(rotation):
+            fit = h.fit([h.mocap_A(setup, h.reread_rotations(c.T_world_mocap, rotation, other,
+                                                              inverse)) for c in cams], B, weights)
+            consider(fit, lambda b, a, other=other: _rotation_finding(other, b, a, rotation),
+                     DISCRETE_GAIN)
     tested.append("setup")
     consider(h.fit([g.inv(a) for a in A], B, weights),
              lambda b, a: _setup_finding(b, a, declared), DISCRETE_GAIN)
@@ -259,6 +293,16 @@ def _rig_findings(cams: list[CameraEvidence], weights, base: h.Fit, declared: De
                 "poses: {file: ..., pose: T_target_cam} (or T_cam_target)", None, b, a, {}),
                 DISCRETE_GAIN)
     return rig
+
+
+def _read_as_quaternions(declared: Declared) -> bool:
+    """Whether the motion-capture rotations were read as quaternions, so that a quaternion
+    order can explain a poor fit: not when rig.yaml reads them as matrices, rotation vectors
+    or Euler angles (``mocap.rotation``), nor from a Vicon export (rotation vectors), where
+    a permuted quaternion that happens to fit better would name a cause the file cannot
+    have."""
+    rotation = str(getattr(declared.mocap, "rotation", None) or "quaternion-xyzw")
+    return rotation.startswith("quaternion") and declared.mocap_format != "vicon"
 
 
 def _camera_findings(cam: CameraEvidence, w, declared: Declared, clock: bool,
@@ -402,6 +446,9 @@ def check_noise(report: Plausibility, refined: RefinementResult | None, mocap=No
     if not over:
         return report
     found = [f for f in report.findings if f.cause not in ("noise", "fit")]
+    if not found and report.latent:      # the estimate confirms what the assumed noise hid
+        report = replace(report, findings=report.findings + report.latent[:1])
+        found = list(report.latent[:1])
     if found:
         cause = ("; " + ", ".join(sorted({f.cause for f in found})) + " (above) probably "
                  "explains it")
@@ -423,6 +470,49 @@ def check_noise(report: Plausibility, refined: RefinementResult | None, mocap=No
          "bound_rot_deg": math.degrees(sensor.rot_rad), "bound_trans_m": sensor.trans_m})
     return Plausibility(findings=report.findings + (finding,), cost=report.cost,
                         camera_cost=report.camera_cost, tested=report.tested + ("noise",))
+
+
+def check_determined(report: Plausibility, std: Sequence[tuple[str, float, float, float, int]],
+                     pose: str = "T_ref_cam") -> Plausibility:
+    """``report`` with a doubt (cause ``observability``) for every camera whose refined pose
+    the measurements do not determine: a result whose spread is that large is no answer,
+    whatever the loop residuals say (a few images of one motion fit any pose).
+
+    Parameters
+    ----------
+    report : Plausibility
+    std : sequence of (camera, std_rot_deg, std_trans_m, distance_m, measurements)
+        Per camera the standard deviations (roots of the traces) of its refined pose's
+        rotation (degrees) and translation (metres), its median distance to the target
+        (metres) and how many measurements it used.
+    pose : str
+        The pose's name in the outputs (``T_body_cam``, ``T_world_cam``), for the message.
+
+    Returns
+    -------
+    Plausibility
+        ``report`` with the findings added: rotation above :data:`UNDETERMINED_ROT_DEG`, or
+        translation above :data:`UNDETERMINED_DISTANCE_SHARE` times the distance; ``report``
+        itself when it doubts the result already (a wrong input spreads the pose too).
+    """
+    found = []
+    if report.findings:          # a wrong input named already: the spread follows from it
+        return report
+    for name, rot, trans, dist, n in std:
+        if not (rot > UNDETERMINED_ROT_DEG or trans > UNDETERMINED_DISTANCE_SHARE * dist):
+            continue
+        found.append(Finding(
+            "observability", f"observability: camera {name}'s {pose} is not determined by its "
+            f"{n} measurements: standard deviation {rot:.3g} deg and {1000 * trans:.4g} mm "
+            f"(more than {UNDETERMINED_ROT_DEG:g} deg, or more than "
+            f"{UNDETERMINED_DISTANCE_SHARE:g} x its {dist:.3g} m from the target), so the "
+            f"pose given is one of many that fit; record more views with the rig or target "
+            f"turned by 30 degrees or more about two axes while {name} sees the target",
+            name, rot, rot, {"std_rot_deg": rot, "std_trans_m": trans, "distance_m": dist}))
+    if not found:
+        return report
+    return replace(report, findings=report.findings + tuple(found),
+                   tested=report.tested + ("observability",))
 
 
 def _unexplained(name: str, cost: float, tested: list[str], mocap=None) -> Finding:
@@ -452,9 +542,13 @@ def rotation_hint(mocap) -> str:
     """A pointer at the poses' rotation convention when rig.yaml reads three angles per pose
     (``rotation: rotvec`` or ``euler-...``: :mod:`multieye.io.pose_files`), which no
     hypothesis tests: Euler angles read as a rotation vector (or the other way, another axis
-    order, degrees read as radians) leave residuals no other cause explains; else ``""``.
+    order, degrees read as radians) leave residuals no other cause explains; a matrix
+    (``rotation: matrix``) stored column-major reads as its transpose; else ``""``.
     ``mocap`` is rig.yaml's motion-capture section (:class:`multieye.io.mocap.MocapSpec`)."""
     rotation = getattr(mocap, "rotation", None)
+    if rotation == "matrix":
+        return (", the poses' rotation convention (rig.yaml reads rotation: matrix, row-major: "
+                "a matrix stored column-major reads as its transpose)")
     if not isinstance(rotation, str) or not (rotation == "rotvec"
                                              or rotation.startswith("euler-")):
         return ""

@@ -99,8 +99,9 @@ class RejectedItem:
 @dataclass(frozen=True)
 class PlausibilityItem:
     """What a plausibility check doubts (:mod:`multieye.estimate.plausibility`): its
-    ``cause`` (``scale``, ``unit``, ``quaternion-order``, ``setup``, ``inverted-poses``,
-    ``time-offset``, ``intrinsics``, ``fit``), the ``message`` and, for a per-camera doubt, the
+    ``cause`` (``scale``, ``unit``, ``quaternion-order``, ``rotation-convention``, ``setup``,
+    ``inverted-poses``, ``time-offset``, ``intrinsics``, ``noise``, ``fit``, ``observability``,
+    ``given-pose``), the ``message`` and, for a per-camera doubt, the
     ``camera``."""
 
     cause: str

@@ -9,6 +9,10 @@ Rule for a file name's stem (the name without its extension):
   start at 1970-04-27, 19 fit in int64);
 - whole seconds (at most 10 digits), an underscore, exactly 9 digits of nanoseconds
   (``1700000000_123456789``: ROS's ``sec`` and ``nsec`` as some recorders name frames);
+- any of the last three forms with at least 9 digits of whole seconds (``1700000000.123456``,
+  ``1700000000_123456789``, ``1700000000123456789``) after a prefix that ends in a character
+  other than a digit or ``.`` (``frame_1700000000123456789``, ``rgb-1700000000.123456``,
+  ``cam0_1700000000_123456789``: a recorder's prefix before the stamp; image folders only);
 - anything else, including 11 to 15 digits (milliseconds or microseconds could not be told
   apart from the others), is an error naming the file.
 
@@ -63,6 +67,9 @@ IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".
 _SECONDS = re.compile(r"^\d+\.\d+$")
 _SEC_NSEC = re.compile(r"^(\d{1,10})_(\d{9})$")
 _DIGITS = re.compile(r"^\d+$")
+#: A stamp after a recorder's prefix (module docstring): the prefix ends in a character that
+#: is neither a digit nor ``.``; only the unambiguous forms of an epoch stamp follow it.
+_PREFIXED = re.compile(r"^.*[^0-9.](\d{9,10}\.\d+|\d{9,10}_\d{9}|\d{16,19})$")
 
 
 def stamp_from_name(stem: str) -> int:
@@ -128,6 +135,9 @@ def _stamp_of(name: str) -> int:
     try:
         return stamp_from_name(parts[-1])
     except ValueError:
+        prefixed = _PREFIXED.match(parts[-1])
+        if prefixed:
+            return stamp_from_name(prefixed.group(1))
         for part in reversed(parts[:-1]):
             try:
                 return stamp_from_name(part)
@@ -277,9 +287,11 @@ def list_images(folder: str | os.PathLike, pattern: str | None = None, sync: str
         try:
             ns = _stamp_of(image_name(p, root))
         except ValueError as exc:
-            raise DatasetError(f"image name is not a time stamp: {exc} (or give rig.yaml's "
-                               "'sync: name | number | order' to pair images by name)",
-                               path=p) from None
+            raise DatasetError(f"image name is not a time stamp: {exc}; give the camera "
+                               "'stamps:', a file of the images' stamps (one per line in name "
+                               "order, or name and stamp per line: EuRoC's data.csv, TUM's "
+                               "rgb.txt), or rig.yaml's 'sync: name | number | order' to pair "
+                               "images by name", path=p) from None
         if ns in found:
             raise DatasetError(f"same time stamp as {found[ns].relative_to(root)}", path=p)
         found[ns] = p

@@ -58,6 +58,25 @@ def _check_frame_name(name) -> str:
     return name
 
 
+#: Name starts of frames that move (a robot's flange or tool) and of frames that stay (its
+#: base, a map): ``T_tool0_base`` without ``fixed_frame`` would make the tool the fixed one.
+_MOVING_LIKE = ("tool", "flange", "tcp", "ee", "end", "gripper", "wrist", "hand")
+_FIXED_LIKE = ("base", "map", "odom", "mocap", "vicon", "optitrack")
+
+
+def _parent_fixed(parent: str, child: str) -> str:
+    """``parent``, the fixed frame by default; ValueError naming both readings when its name
+    is a moving frame's and the child's a fixed one's (``T_tool0_base``)."""
+    if parent.lower().startswith(_MOVING_LIKE) and child.lower().startswith(_FIXED_LIKE):
+        raise ValueError(
+            f"T_{parent}_{child} reads as the pose of {child} in {parent}, with {parent} "
+            f"fixed (the parent is the fixed frame), but {child} names a fixed frame and "
+            f"{parent} a moving one: if the rows hold {parent} in {child}, write pose: "
+            f"T_{child}_{parent}; if they hold {child} in {parent}, add fixed_frame: "
+            f"{child} (they are then inverted)")
+    return parent
+
+
 def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = None,
                fixed: str | None = None) -> tuple[str, tuple[str, str]]:
     """Read rig.yaml's ``pose: T_<parent>_<child>`` with the user's own frame names.
@@ -68,7 +87,8 @@ def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = N
 
     - a frame named ``world`` is the fixed one; a frame named ``moving`` is the tracked one;
     - otherwise the parent is fixed and the child tracked (``T_base_tool0``: a robot's
-      base and its flange);
+      base and its flange); a moving frame's name over a fixed one's (``T_tool0_base``) is
+      refused as ambiguous (:func:`_parent_fixed`);
     - ``fixed`` overrides all of these: a file holding the inverse, the base in the flange,
       is ``T_tool0_base`` with ``fixed="base"``.
 
@@ -149,7 +169,7 @@ def named_pose(pose: str | None, moving: str, frames: tuple[str, str] | None = N
     elif moving in (parent, child):
         fixed = child if parent == moving else parent
     else:
-        fixed = parent
+        fixed = _parent_fixed(parent, child)
     tracked = child if fixed == parent else parent
     if tracked in others or fixed in others:
         setup = "eye-to-base" if moving == "marker" else "eye-on-hand"

@@ -210,6 +210,11 @@ def _mapping_pose(data: Mapping, fmt: PoseFormat, scale: float, path: Path) -> n
             raise DatasetError(f"keys {', '.join(quat + rvec)}: both a quaternion and a rotation "
                                "vector; keep one (or give mocap.rotation)", path=path)
         fmt = replace(fmt, rotation="rotvec" if rvec else "quaternion-xyzw")
+    elif fmt.values is None and fmt.rotation.startswith("euler-"):
+        # the angles named as the mapping names them: a1 a2 a3, or rx ry rz about each axis
+        named = [s for s in _rotation_names(fmt.rotation) if s <= set(data)]
+        if named:
+            fmt = replace(fmt, values=("x", "y", "z", *sorted(named[-1])))
     for key, value in data.items():
         if key not in fmt.order:
             raise DatasetError(f"key {key!r}: not one of the pose's numbers "
@@ -387,8 +392,10 @@ def poses_by_name(images: Sequence[Path], pattern: str, fmt: PoseFormat
     return matched, unmatched
 
 
-def read_pose_table(path: str | os.PathLike, fmt: PoseFormat) -> dict[str, tuple[np.ndarray, int]]:
-    """A table of poses with an ``image`` column (``match: image``): image name -> (pose, line).
+def read_pose_table(path: str | os.PathLike, fmt: PoseFormat
+                    ) -> dict[str, tuple[np.ndarray | None, int]]:
+    """A table of poses with an ``image`` column (``match: image``): image name -> (pose, line);
+    the pose is None for a row holding a value that is not a finite number (left out).
 
     The first line that is not a comment (``#``) is the header; cells are separated by
     commas, else semicolons, else white space. Besides ``image`` (any case), the columns are
@@ -410,9 +417,11 @@ def read_pose_table(path: str | os.PathLike, fmt: PoseFormat) -> dict[str, tuple
     return out
 
 
-def read_order_table(path: str | os.PathLike, fmt: PoseFormat) -> list[tuple[np.ndarray, int]]:
+def read_order_table(path: str | os.PathLike, fmt: PoseFormat
+                     ) -> list[tuple[np.ndarray | None, int]]:
     """A table of poses whose rows follow the images sorted by name (``match: order``, as
-    KUKA's ``RobotPosesVec.txt``): ``(pose, line)`` per row, in file order.
+    KUKA's ``RobotPosesVec.txt``): ``(pose, line)`` per row, in file order; the pose is None
+    for a row holding a value that is not a finite number (left out, keeping its place).
 
     A header is optional: a first line (not a ``#`` comment) with a cell that is not a
     number is the header, and its cells name the columns as in :func:`read_pose_table`
@@ -429,7 +438,7 @@ def read_order_table(path: str | os.PathLike, fmt: PoseFormat) -> list[tuple[np.
 
 def _table_rows(path: Path, fmt: PoseFormat, *, image_column: bool):
     """``(image or None, pose, line)`` for each row of a pose table (docs/rig-yaml.md,
-    section 4, "Pose tables")."""
+    section 4, "Pose tables"); the pose is None for a row holding ``nan`` or ``inf``."""
     what = "the pose table" + (" (match: image)" if image_column else " (match: order)")
     try:
         text = read_bounded(path, what="pose table", max_bytes=MAX_TABLE_BYTES).decode(
@@ -473,6 +482,9 @@ def _table_rows(path: Path, fmt: PoseFormat, *, image_column: bool):
             besides = " besides the image name" if col is not None else ""
             raise DatasetError(f"expected numbers{besides}, got {bad!r}", path=path,
                                line=n) from None
+        if not all(np.isfinite(numbers)):      # left out, its image listed (as TUM rows)
+            yield image, None, n
+            continue
         try:
             if by_name:
                 T = _named(dict(zip(others, numbers)), fmt, scale, path)
@@ -514,6 +526,9 @@ def poses_by_table(images: Sequence[Path], table: str | os.PathLike, fmt: PoseFo
         cell = image.name if image.name in rows else image.stem if image.stem in rows else None
         if cell is None:
             unmatched.append((image.name, f"no row for it in {Path(table).name}"))
+        elif rows[cell][0] is None:
+            used.add(cell)
+            unmatched.append((image.name, _not_finite(table, rows[cell][1])))
         else:
             used.add(cell)
             matched.append((image, rows[cell][0]))
@@ -528,7 +543,7 @@ def poses_by_order(images: Sequence[Path], table: str | os.PathLike, fmt: PoseFo
                    ) -> tuple[list[tuple[Path, np.ndarray]], list[tuple[str, str]]]:
     """Each image, in natural name order (``pos2`` before ``pos10``), with the row of
     ``table`` at its place (``match: order``); returns what :func:`poses_by_name` returns
-    (nothing is unmatched).
+    (unmatched: the images whose row holds ``nan`` or ``inf``).
 
     Raises
     ------
@@ -543,4 +558,10 @@ def poses_by_order(images: Sequence[Path], table: str | os.PathLike, fmt: PoseFo
         raise DatasetError(f"match: order pairs row k with image k, but the table has "
                            f"{len(rows)} pose rows and {folder} {len(ordered)} images; give "
                            f"one row per image, in the images' name order", path=table)
-    return [(image, T) for image, (T, _) in zip(ordered, rows)], []
+    return ([(image, T) for image, (T, _) in zip(ordered, rows) if T is not None],
+            [(image.name, _not_finite(table, n)) for image, (T, n) in zip(ordered, rows)
+             if T is None])
+
+
+def _not_finite(table: str | os.PathLike, line: int) -> str:
+    return f"pose row left out: {Path(table).name} line {line} holds nan or inf"

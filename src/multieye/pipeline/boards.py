@@ -14,13 +14,15 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from multieye.core.errors import DatasetError
+from multieye.core.intrinsics import Intrinsics
 from multieye.imaging.batch import ImageResult
 from multieye.imaging.boards import Boards
 from multieye.imaging.target_hints import counting_rule
 from multieye.imaging.targets import Target, target_from_spec
 from multieye.io import RejectedItem, Rig
 
-__all__ = ["camera_boards", "intrinsics_boards", "per_board", "no_usable_image", "rejection_kind"]
+__all__ = ["camera_boards", "intrinsics_boards", "per_board", "no_usable_image", "rejection_kind",
+           "resized_hint"]
 
 
 def camera_boards(rig: Rig, camera: str, built: Mapping[str, Target] | None = None
@@ -110,8 +112,29 @@ def _describe(rig: Rig) -> str:
                      for n, t in rig.targets.items())
 
 
-def no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
-    """Why a camera has no usable image, by kind, naming the first image of each kind."""
+def resized_hint(intrinsics: Intrinsics | None, results) -> str:
+    """What a given lens without an image size says when its principal point is the centre
+    of images about ``k`` times the size of these (both axes alike, ``k`` at least 1.3 or at
+    most 0.77): intrinsics calibrated on images of another size (resized, binned, a camera
+    mode), which makes every view a bad fit; ``""`` otherwise.  ``results`` are the camera's
+    detection results (:class:`~multieye.imaging.batch.ImageResult`; their image sizes)."""
+    size = next((r.image_size for r in results if getattr(r, "image_size", None)), None)
+    if intrinsics is None or intrinsics.width is not None or size is None:
+        return ""
+    (w, h), (cx, cy) = size, intrinsics.K[:2, 2]
+    kx, ky = cx / max((w - 1) / 2, 1.0), cy / max((h - 1) / 2, 1.0)
+    if not (kx > 0 and ky > 0 and abs(kx / ky - 1) < 0.1 and not 0.77 < kx < 1.3):
+        return ""
+    return (f"; the intrinsics file states no image size and its principal point ({cx:.1f}, "
+            f"{cy:.1f}) is the centre of images {(kx + ky) / 2:.2g} times the size of these "
+            f"{w} x {h} ones: were the images resized after the intrinsics were calibrated? "
+            "Use intrinsics for this image size and state image_width and image_height in the "
+            "file")
+
+
+def no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int, hint: str = "") -> str:
+    """Why a camera has no usable image, by kind, naming the first image of each kind; then
+    ``hint`` (:func:`resized_hint`)."""
     kinds: dict[str, list[RejectedItem]] = {}
     for r in rejected:
         kinds.setdefault(rejection_kind(r.reason), []).append(r)
@@ -123,5 +146,5 @@ def no_usable_image(rig: Rig, rejected: list[RejectedItem], n: int) -> str:
                 "'multieye check' searches them for what they hold")
     parts = [f"{len(items)} {kind} (first {items[0].item}: {items[0].reason})"
              for kind, items in kinds.items()]
-    return f"none of the {n} images is usable: " + "; ".join(parts)
+    return f"none of the {n} images is usable: " + "; ".join(parts) + hint
 

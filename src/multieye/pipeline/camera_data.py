@@ -23,7 +23,7 @@ from multieye.imaging.calibrate import look_again
 from multieye.imaging.engines import Engine
 from multieye.io import RejectedItem, Rig, Trajectory, list_image_files, read_mocap, skipped_entries
 from multieye.io.image_folder import label_stem
-from multieye.pipeline.boards import camera_boards, intrinsics_boards, per_board
+from multieye.pipeline.boards import camera_boards, intrinsics_boards, per_board, resized_hint
 from multieye.pipeline.boards import no_usable_image as _no_usable_image
 from multieye.pipeline.boards import rejection_kind  # noqa: F401  (where it was)
 from multieye.pipeline.detection import Workers, detect_all, detect_listed
@@ -204,10 +204,9 @@ class PairedCamera:
 _MOCAP_ROW = "motion-capture row left out"
 
 
-def _listed(items: list[RejectedItem], limit: int = 3) -> str:
-    """``a.png (reason), b.png (reason) and 5 more`` for a message."""
-    text = ", ".join(f"{r.item} ({r.reason})" for r in items[:limit])
-    return text + (f" and {len(items) - limit} more" if len(items) > limit else "")
+def _listed(items: list[RejectedItem], prefix: str = "", limit: int = 3) -> str:
+    text = ", ".join(f"{r.item} ({r.reason})" for r in items[:limit])  # a.png (why), ... and 5 more
+    return prefix + text + (f" and {len(items) - limit} more" if len(items) > limit else "") if items else ""
 
 
 @dataclass(frozen=True)
@@ -289,7 +288,8 @@ def _observations_from_images(rig: Rig, model: RigModel, name: str, intr: Intrin
         skipped += [RejectedItem(n, why) for n, why in skipped_entries(source, cam.images_pattern)]
     rejected.extend(skipped)
     if not obs:
-        raise DatasetError(_no_usable_image(rig, rejected, n_images), path=source, camera=name)
+        why = _no_usable_image(rig, rejected, n_images, resized_hint(intr, results))
+        raise DatasetError(why, path=source, camera=name)
     return _Detected(observations=obs, rejected=rejected, n_inputs=n_images + len(skipped),
                      warnings=tuple(warnings), seconds=seconds,
                      intrinsics=None if lens is None else lens.intrinsics, notes=tuple(notes),
@@ -589,11 +589,11 @@ def pair_camera(setup: str, data: CameraData, *, time_offset: float | None = Non
     used = tuple(data.observations[i] for i in p.index)
     if len(used) < MIN_MEASUREMENTS:
         lost = [r for r in data.rejected if not r.reason.startswith(_MOCAP_ROW)] + unpaired
+        paired = "a pose for it" if data.by_name else f"motion capture within {data.time_tolerance:g} s"
         raise TooFewMeasurementsError(
             f"camera {data.name}: only {len(used)} of {data.n_inputs} images could be used "
-            f"({data.n_inputs - len(data.observations)} without a target pose, "
-            f"{len(p.unpaired)} without motion capture within {data.time_tolerance:g} s); "
-            f"at least {MIN_MEASUREMENTS} are needed; left out: {_listed(lost)}")
+            f"({data.n_inputs - len(data.observations)} without a target pose, {len(p.unpaired)} "
+            f"without {paired}); at least {MIN_MEASUREMENTS} are needed{_listed(lost, '; left out: ')}")
     B = g.inv(np.stack([o.T_cam_target for o in used]))  # T_target_cam
     A = g.inv(p.T) if setup == "eye-to-base" else p.T  # T_marker_world or T_world_body
     return PairedCamera(name=data.name, A=A, B=B, T_world_mocap=p.T, observations=used,

@@ -340,9 +340,10 @@ def _check_camera(rig, name, cam, traj_cache, *, sample, processes, model) -> Ca
     found_mask, results, failures, n_sampled = (seen.found_mask, seen.results, seen.failures,
                                                 seen.n_sampled)
     problems.extend(seen.problems)
-    if unmatched:
-        problems.append(f"{len(unmatched)} images or pose files without their partner (first "
-                        f"{unmatched[0].item}: {unmatched[0].reason})")
+    lacking = [u for u in unmatched if not u.reason.startswith("pose file without")]
+    if lacking:          # a pose file without an image (a toolkit's config.json) costs nothing
+        problems.append(f"{len(lacking)} images without a pose (first {lacking[0].item}: "
+                        f"{lacking[0].reason})")
     # pairing of every listed image in time (cheap), by calibrate's pairing
     if len(stamps):
         p = pair_stamps(traj, stamps, by_name=spec.by_name, tolerance=spec.time_tolerance,

@@ -41,10 +41,13 @@ from multieye.estimate.plausibility import (
     CameraEvidence,
     Declared,
     Plausibility,
+    check_determined,
     check_noise,
     check_plausibility,
 )
+from multieye.estimate.uncertainty import pose_std
 from multieye.io import RejectedItem, Rig
+from multieye.io.calibration_json import SETUP_KEYS
 from multieye.io.run_details import StageTimings
 from multieye.pipeline import ambiguity  # single markers: the rig chooses each image's pose
 from multieye.pipeline import half_turns  # symmetric boards: the rig chooses each view's order
@@ -322,10 +325,27 @@ def check_refined(problem: Problem, pairing: Pairing, solved: Plausibility, refi
                   ) -> Plausibility:
     """``solved`` with the motion-capture noise the refinement estimated checked against what
     the sensor has (issue 20); ``solved`` itself without a refinement."""
-    if refined.refinement is None or not isinstance(refined.refinement.result, RefinementResult):
+    if refined.refinement is None:
+        return solved
+    solved = check_determined(solved, _pose_spread(problem, pairing, refined.refinement),
+                              SETUP_KEYS[problem.setup][1])
+    if not isinstance(refined.refinement.result, RefinementResult):
         return solved               # only the image-level refinement estimates the noise
     return check_noise(solved, refined.refinement.result,
                        mocap_noise(problem.rig, pairing.paired, problem.options)[0])
+
+
+def _pose_spread(problem: Problem, pairing: Pairing, refinement: Refinement):
+    """Per camera (name, std_rot_deg, std_trans_m, median distance to the target in metres,
+    measurements) of its refined pose X, for :func:`check_determined`."""
+    out = []
+    if refinement.covariance is None:
+        return out
+    for j, (name, p) in enumerate(pairing.paired.items()):
+        rot, trans = pose_std(refinement.covariance[6 * j:6 * j + 6, 6 * j:6 * j + 6])
+        dist = float(np.median(np.linalg.norm(np.asarray(p.B)[:, :3, 3], axis=1)))
+        out.append((name, float(rot), float(trans), dist, len(p.B)))
+    return out
 
 
 def _failed(exc: CalibrationError, check: Callable[[], Plausibility]) -> CalibrationError:
