@@ -341,3 +341,26 @@ def test_a_pose_table_row_of_nan_or_inf_leaves_its_image_out(tmp_path, match):
     assert unmatched == [("pos1.png", "pose row left out: poses.txt line 2 holds nan or inf"
                           if match == "order" else
                           "pose row left out: poses.txt line 3 holds nan or inf")]
+
+
+def test_a_pose_file_of_nan_or_inf_leaves_its_image_out(tmp_path):
+    """A tracking dropout written as ``nan`` in one image's pose file leaves that image out,
+    named with its file, as a pose table's row of such values does (README: a single bad pose
+    row does not stop the run); before, the run stopped with exit 2 on that file."""
+    from multieye.io.pose_files import poses_by_name
+
+    fmt = PoseFormat(key="end2base")
+    images = []
+    for k in range(4):
+        T = T_TRUE.copy()
+        T[0, 3] += 0.01 * k
+        if k == 2:
+            T[0, 3] = float("nan")
+        _write(tmp_path, f"{k}.json", {"end2base": T.tolist()})
+        images.append(_write(tmp_path, f"{k}.png", "x"))
+    matched, unmatched = poses_by_name(images, "{stem}.json", fmt)
+    assert [p.name for p, _ in matched] == ["0.png", "1.png", "3.png"]
+    np.testing.assert_allclose(matched[2][1][0, 3], T_TRUE[0, 3] + 0.03)
+    assert unmatched == [("2.png", "pose file 2.json holds nan or inf")]
+    with pytest.raises(DatasetError, match="expected finite numbers"):     # one file alone
+        read_pose_file(tmp_path / "2.json", fmt)

@@ -45,7 +45,7 @@ from multieye.io.textfile import length_scale
 from multieye.io.yamlfile import load_yaml
 
 __all__ = ["STEM", "ROTATION_NAMES", "PoseFormat", "check_rotation", "default_values",
-           "read_pose_file", "pose_file_pattern", "poses_by_name", "read_pose_table",
+           "read_pose_file", "pose_file_pattern", "poses_by_name", "read_pose_table", "NonFinitePose",
            "poses_by_table", "read_order_table", "poses_by_order"]
 
 #: The placeholder of ``mocap.file`` for the image's stem.
@@ -283,6 +283,11 @@ def _rotation(rotation: str, v: Mapping[str, float], path: Path, order=()) -> np
     return Rotation.from_euler(axes, angles, degrees=unit == "deg").as_matrix()
 
 
+class NonFinitePose(DatasetError):
+    """A pose file holding ``nan`` or ``inf`` (a tracking dropout): its image is left out
+    (:func:`poses_by_name`), as a pose table's row of such values is."""
+
+
 def read_pose_file(path: str | os.PathLike, fmt: PoseFormat) -> np.ndarray:
     """The 4x4 pose (metres) one file holds.
 
@@ -310,7 +315,7 @@ def read_pose_file(path: str | os.PathLike, fmt: PoseFormat) -> np.ndarray:
         raise DatasetError(f"cannot read the pose file: {exc.strerror or exc}",
                            path=path) from None
     if not all(np.isfinite(numbers)):
-        raise DatasetError("expected finite numbers, got nan or inf", path=path)
+        raise NonFinitePose("expected finite numbers, got nan or inf", path=path)
     if rows or fmt.rotation == "matrix" or (len(numbers) == 16 and fmt.values is None):
         if len(numbers) not in (12, 16):
             raise DatasetError(f"expected 16 numbers (a 4x4 pose, row-major) or 12 (its top "
@@ -336,7 +341,7 @@ def _named(values: Mapping, fmt: PoseFormat, scale: float, path: Path) -> np.nda
                            f"missing {', '.join(missing)}", path=path)
     v = {n: float(values[n]) for n in need}
     if not all(np.isfinite(list(v.values()))):
-        raise DatasetError("expected finite numbers, got nan or inf", path=path)
+        raise NonFinitePose("expected finite numbers, got nan or inf", path=path)
     T = geometry.make_transform(_rotation(fmt.rotation, v, path, fmt.order),
                                 np.array([v["x"], v["y"], v["z"]]) * scale)
     return _checked(T, path)
@@ -364,20 +369,24 @@ def poses_by_name(images: Sequence[Path], pattern: str, fmt: PoseFormat
     matched : list of (image, 4x4 pose)
         In natural name order (``pos2`` before ``pos10``).
     unmatched : list of (name, reason)
-        Images without a pose file, and pose files (names that fit ``pattern``) without an
-        image.
+        Images without a pose file or whose pose file holds ``nan`` or ``inf`` (a dropout:
+        the image is left out, as a pose table's row of such values leaves its image out),
+        and pose files (names that fit ``pattern``) without an image.
 
     Raises
     ------
     DatasetError
-        A pose file that cannot be read (:func:`read_pose_file`).
+        Any other pose file that cannot be read (:func:`read_pose_file`).
     """
     matched, unmatched, stems = [], [], set()
     for image in sorted(images, key=_natural):
         stems.add(image.stem)
         pose = pose_file_pattern(pattern, image)
         if pose.is_file():
-            matched.append((image, read_pose_file(pose, fmt)))
+            try:
+                matched.append((image, read_pose_file(pose, fmt)))
+            except NonFinitePose:
+                unmatched.append((image.name, f"pose file {pose.name} holds nan or inf"))
         else:
             unmatched.append((image.name, f"no pose file {pose.name}"))
     for folder in sorted({image.parent for image in images}):
