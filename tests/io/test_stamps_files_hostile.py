@@ -87,3 +87,19 @@ def test_files_as_tools_write_them(tmp_path, images):
     f = tmp_path / "stamps.txt"
     f.write_bytes(b"\xef\xbb\xbf# stamps\r\n\t1.5\t# first\r\n2.5\r\n3.5\r\n\r\n \r\n")
     assert read_image_stamps(f, paths, folder) == [1_500_000_000, 2_500_000_000, 3_500_000_000]
+
+
+def test_lines_naming_images_by_longer_paths_find_them(tmp_path):
+    """Per-instant folders (``frames/*/left.png``) named in the file from anywhere above
+    (``/data/run1/frames/0001/left.png``): each image's line by its path's end; the file's
+    lines in any order."""
+    folder = tmp_path / "frames"
+    paths = [folder / f"{k:04d}" / "left.png" for k in range(40)]
+    f = tmp_path / "stamps.txt"
+    f.write_text("".join(f"/data/a b/run1/frames/{k:04d}/left.png,{100 + k}.25\n"
+                         for k in reversed(range(40))))
+    ns = read_image_stamps(f, paths, folder)
+    assert ns == [(100 + k) * 1_000_000_000 + 250_000_000 for k in range(40)]
+    f.write_text(f.read_text() + "/data/other/0003/left.png,7.5\n")
+    with pytest.raises(DatasetError, match="two lines name image 0003/left.png"):
+        read_image_stamps(f, paths, folder)

@@ -34,7 +34,7 @@ import numpy as np
 
 from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_STAMP_S
-from multieye.io.image_folder import stamp_from_name
+from multieye.io.image_folder import MAX_PATTERN_LEVELS, stamp_from_name
 from multieye.io.textfile import text_lines
 
 __all__ = ["MAX_STAMP_NS", "read_frame_stamps", "read_image_stamps", "stamp_text"]
@@ -186,12 +186,13 @@ def _by_name(path, rows, images: list[Path], folder: Path) -> list[int]:
         if key in stamps:
             raise DatasetError(f"a second stamp for {key}", path=path, line=number)
         stamps[key] = stamp_text(stamp[0])
+    tails = _tails(stamps)
     out = []
     for p in images:
         below = p.relative_to(folder).as_posix()
         hit = [k for k in (below, p.name) if k in stamps]
         if not hit:
-            hit = [k for k in stamps if k.endswith("/" + below)]
+            hit = tails.get(below, [])
             if len(hit) > 1:
                 raise DatasetError(f"two lines name image {below}: {hit[0]} and {hit[1]} "
                                    "(name each image once)", path=path)
@@ -199,4 +200,17 @@ def _by_name(path, rows, images: list[Path], folder: Path) -> list[int]:
             raise DatasetError(f"no stamp for image {below} (its lines name images: every "
                                "image needs its line)", path=path)
         out.append(stamps[hit[0]])
+    return out
+
+
+def _tails(names) -> dict[str, list[str]]:
+    """The names that end in each path of at most :data:`MAX_PATTERN_LEVELS` parts after a
+    ``/`` (``a/b/0001/left.png`` under ``0001/left.png``, ``b/0001/left.png``, ...): an image's
+    line by its path below the camera's folder in one look-up, not a scan of every line per
+    image (quadratic: 7 s for 8,000 images)."""
+    out: dict[str, list[str]] = {}
+    for name in names:
+        parts = name.rsplit("/", MAX_PATTERN_LEVELS)
+        for k in range(1, len(parts)):
+            out.setdefault("/".join(parts[k:]), []).append(name)
     return out
