@@ -5,6 +5,7 @@ taken from another image's line."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from multieye.core.errors import DatasetError
@@ -103,3 +104,17 @@ def test_lines_naming_images_by_longer_paths_find_them(tmp_path):
     f.write_text(f.read_text() + "/data/other/0003/left.png,7.5\n")
     with pytest.raises(DatasetError, match="two lines name image 0003/left.png"):
         read_image_stamps(f, paths, folder)
+
+
+@pytest.mark.parametrize("line", ["{name},{stamp}", "{stamp}; {name}",
+                                  "2011-09-26 13:02:{s:02d}.5,{name}"])
+def test_names_with_spaces_in_a_comma_separated_file(tmp_path, line):
+    """``My Frames/0001.png`` (a folder with a space, as Windows and macOS users name them) in
+    a CSV: before, the line was split at the space too and refused."""
+    folder = tmp_path / "My Frames é"
+    paths = [folder / f"{k:04d} copy.png" for k in range(3)]
+    f = tmp_path / "stamps.csv"
+    f.write_text("".join(line.format(name=f"My Frames é/{p.name}", stamp=f"{10 + k}.5", s=k)
+                         + "\n" for k, p in enumerate(paths)))
+    ns = read_image_stamps(f, paths, folder)
+    assert np.all(np.diff(ns) == 1_000_000_000) and len(ns) == 3

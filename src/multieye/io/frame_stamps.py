@@ -10,10 +10,11 @@ comment, empty lines are skipped.  Stamps must increase, and lie from 1970 to th
 stamp integer nanoseconds hold (:data:`MAX_STAMP_NS`, the year 2262).
 
 For a folder of images (:func:`read_image_stamps`) a line may instead name its image: a file
-name and a stamp in either order, separated by a comma, a semicolon or white space (EuRoC's
-``data.csv``: ``1403636579763555584,1403636579763555584.png``; TUM's ``rgb.txt``: ``stamp
-rgb/name.png``); a first line of names (no field a number: ``timestamp,filename``) is a
-header, any other line that is not a stamp is refused with its number.  One stamp per line gives the stamps of
+name and a stamp in either order, separated by a comma or a semicolon (a name may then hold
+spaces) or else white space (EuRoC's ``data.csv``:
+``1403636579763555584,1403636579763555584.png``; TUM's ``rgb.txt``: ``stamp rgb/name.png``);
+a first line of names (no field a number: ``timestamp,filename``) is a header, any other
+line that is not a stamp is refused with its number.  One stamp per line gives the stamps of
 the images in natural name order, as many as there are images.
 
 Synopsis
@@ -45,7 +46,7 @@ MAX_STAMP_NS = min(int(MAX_STAMP_S) * 1_000_000_000, 2**63 - 1)
 
 _EXPONENT = re.compile(r"^[0-9]+(\.[0-9]*)?[eE][-+]?[0-9]+$")
 _DATE_TIME = re.compile(r"^(\d{4})-(\d{2})-(\d{2})[ T](\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,9}))?$")
-_FIELDS = re.compile(r"[,;\s]+")
+_SEPARATORS = re.compile(r"[,;]")
 
 
 def stamp_text(text: str) -> int:
@@ -136,8 +137,12 @@ def read_image_stamps(path: str | os.PathLike, images: list[Path], folder: Path)
 
 
 def _fields(text: str) -> list[str]:
-    """A line's fields; a date and a time (``2011-09-26 13:02:25.5``) are one."""
-    fields = [f for f in _FIELDS.split(text) if f]
+    """A line's fields: split at commas and semicolons where it has one (a name may then
+    hold spaces: ``My Frames/0001.png``, a stamp be a date and a time), else at white space;
+    a date and a time (``2011-09-26 13:02:25.5``) are one."""
+    if _SEPARATORS.search(text):
+        return [f.strip() for f in _SEPARATORS.split(text) if f.strip()]
+    fields = text.split()
     return [" ".join(fields)] if _DATE_TIME.match(" ".join(fields)) else fields
 
 
