@@ -70,6 +70,7 @@ def check_sync(rig: Rig) -> dict[str, int]:
     (the k-th image of each camera is one instant) every camera must have as many, else one
     line naming each camera's count (a missing image would shift every later pair)."""
     _no_shared_images(rig)
+    _no_shared_frames(rig)
     listed = {n: [p for _, _, p in listed_images(rig, n)] for n, c in rig.cameras.items()
               if c.source == "images" and rig.sync != "time"}
     counts = {n: len(p) for n, p in listed.items()}
@@ -112,6 +113,31 @@ def _no_shared_images(rig: Rig) -> None:
                                f"({first.relative_to(c.images).as_posix()}"
                                f"{more}): each camera needs its own images (check their images: "
                                "in rig.yaml)", path=rig.path)
+
+
+def _no_shared_frames(rig: Rig) -> None:
+    """Refuse two cameras reading one video (or one bag's topic) whose ``crop`` regions share
+    a pixel, as :func:`_no_shared_images` refuses for files: two regions of one sensor's
+    frames that overlap are not two cameras (identical regions were caught only after the
+    detection, overlapping ones not at all)."""
+    owner: dict[tuple, list[str]] = {}
+    for n, c in rig.cameras.items():
+        if c.source not in ("video", "rosbag"):
+            continue
+        key = (os.path.realpath(c.video if c.source == "video" else c.rosbag), c.topic)
+        for other in owner.get(key, []):
+            if not _apart(rig.cameras[other].crop, c.crop):
+                what = "video" if c.source == "video" else f"bag's topic {c.topic}"
+                raise DatasetError(f"cameras {other} and {n} read the same {what} "
+                                   f"({Path(key[0]).name}) with regions that share pixels "
+                                   f"(crop: {_shown_crop(rig.cameras[other].crop)} and "
+                                   f"{_shown_crop(c.crop)}): each camera needs its own frames, "
+                                   "or its own part of them (crops side by side)", path=rig.path)
+        owner.setdefault(key, []).append(n)
+
+
+def _shown_crop(crop) -> str:
+    return "none" if crop is None else f"[{', '.join(map(str, crop))}]"
 
 
 def _apart(a, b) -> bool:
