@@ -12,6 +12,7 @@ Synopsis
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -74,6 +75,8 @@ def check_sync(rig: Rig) -> dict[str, int]:
     listed = {n: [p for _, _, p in listed_images(rig, n)] for n, c in rig.cameras.items()
               if c.source == "images" and rig.sync != "time"}
     counts = {n: len(p) for n, p in listed.items()}
+    if rig.sync == "number":
+        _one_number_each(rig, listed)
     if rig.sync == "order" and len(set(counts.values())) > 1:
         shown = ", ".join(f"{n} {k}" for n, k in counts.items())
         raise DatasetError(f"sync: order pairs the k-th image of each camera, but the cameras "
@@ -113,6 +116,24 @@ def _no_shared_images(rig: Rig) -> None:
                                f"({first.relative_to(c.images).as_posix()}"
                                f"{more}): each camera needs its own images (check their images: "
                                "in rig.yaml)", path=rig.path)
+
+
+def _one_number_each(rig: Rig, listed: Mapping[str, list[Path]]) -> None:
+    """Refuse ``sync: number`` for a camera with one image whose name holds several integers
+    (``0005_cam0.png``): the frame number is the integer that differs between a camera's
+    images (:func:`~multieye.io.image_folder.numbers_in_names`), which one image cannot say;
+    the last one (the camera's 0) would pair it with another camera's frame 0."""
+    for n, paths in listed.items():
+        if len(paths) != 1:
+            continue
+        name = image_name(paths[0], rig.cameras[n].images)
+        numbers = re.findall(r"\d+", name)
+        if len(numbers) > 1:
+            raise DatasetError(
+                f"sync: number pairs images by the frame number in their names, but camera {n} "
+                f"has one image, whose name holds several numbers ({', '.join(numbers)}): "
+                "which is the frame number is told by the one that differs between a camera's "
+                "images; give it more images, or sync: name", path=paths[0], camera=n)
 
 
 def _no_shared_frames(rig: Rig) -> None:
