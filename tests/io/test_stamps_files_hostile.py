@@ -118,3 +118,17 @@ def test_names_with_spaces_in_a_comma_separated_file(tmp_path, line):
                          + "\n" for k, p in enumerate(paths)))
     ns = read_image_stamps(f, paths, folder)
     assert np.all(np.diff(ns) == 1_000_000_000) and len(ns) == 3
+
+
+@pytest.mark.parametrize("in_file, on_disk", [("NFD", "NFC"), ("NFC", "NFD")])
+def test_a_name_in_either_unicode_form_finds_its_image(tmp_path, in_file, on_disk):
+    """``é`` composed (Linux, Windows) or decomposed (macOS's HFS+): one name. Before, a
+    stamps file written in one form for images copied in the other was refused."""
+    import unicodedata
+
+    folder = tmp_path / unicodedata.normalize(on_disk, "Séquence")
+    paths = [folder / unicodedata.normalize(on_disk, f"é{k}.png") for k in range(2)]
+    f = tmp_path / "stamps.csv"
+    f.write_text("".join(f"{unicodedata.normalize(in_file, p.name)},{k + 1}.5\n"
+                         for k, p in enumerate(paths)))
+    assert read_image_stamps(f, paths, folder) == [1_500_000_000, 2_500_000_000]

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import unicodedata
 from datetime import datetime, UTC
 from pathlib import Path
 
@@ -187,15 +188,15 @@ def _by_name(path, rows, images: list[Path], folder: Path) -> list[int]:
         if len(fields) != 2 or len(stamp) != 1:
             raise DatasetError(f"expected an image's name and its time stamp, got "
                                f"{' '.join(fields)[:80]!r}", path=path, line=number)
-        key = named[0].replace("\\", "/") if named else fields[1]
+        key = _nfc(named[0].replace("\\", "/"))
         if key in stamps:
             raise DatasetError(f"a second stamp for {key}", path=path, line=number)
         stamps[key] = stamp_text(stamp[0])
     tails = _tails(stamps)
     out = []
     for p in images:
-        below = p.relative_to(folder).as_posix()
-        hit = [k for k in (below, p.name) if k in stamps]
+        below = _nfc(p.relative_to(folder).as_posix())
+        hit = [k for k in (below, _nfc(p.name)) if k in stamps]
         if not hit:
             hit = tails.get(below, [])
             if len(hit) > 1:
@@ -206,6 +207,12 @@ def _by_name(path, rows, images: list[Path], folder: Path) -> list[int]:
                                "image needs its line)", path=path)
         out.append(stamps[hit[0]])
     return out
+
+
+def _nfc(name: str) -> str:
+    """``name`` in Unicode's composed form: ``é`` typed (NFC) and as macOS's HFS+ stores it
+    (NFD, ``e`` and an accent) are one name."""
+    return unicodedata.normalize("NFC", name)
 
 
 def _tails(names) -> dict[str, list[str]]:
