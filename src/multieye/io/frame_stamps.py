@@ -215,14 +215,14 @@ def _nfc(name: str) -> str:
     return unicodedata.normalize("NFC", name)
 
 
-def _tails(names) -> dict[str, list[str]]:
-    """The names that end in each path of at most :data:`MAX_PATTERN_LEVELS` parts after a
-    ``/`` (``a/b/0001/left.png`` under ``0001/left.png``, ``b/0001/left.png``, ...): an image's
-    line by its path below the camera's folder in one look-up, not a scan of every line per
-    image (quadratic: 7 s for 8,000 images)."""
+def _tails(lines) -> dict[str, list[str]]:
+    """The lines' image names by each path of at most :data:`MAX_PATTERN_LEVELS` parts after a
+    ``/`` they end in (``a/b/0001/left.png`` under ``0001/left.png``, ``b/0001/left.png``,
+    ...): an image's line by its path below the camera's folder in one look-up, not a scan of
+    every line per image (quadratic: 7 s for 8,000 images)."""
     out: dict[str, list[str]] = {}
-    for name in names:
-        parts = name.rsplit("/", MAX_PATTERN_LEVELS)
+    for line in lines:
+        parts = line.rsplit("/", MAX_PATTERN_LEVELS)
         for k in range(1, len(parts)):
-            out.setdefault("/".join(parts[k:]), []).append(name)
+            out.setdefault("/".join(parts[k:]), []).append(line)
     return out
