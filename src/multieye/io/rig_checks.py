@@ -74,13 +74,14 @@ class Checker:
         ok = ok and (maximum is None or (value if positive else abs(value)) <= maximum)
         if not ok:
             kind = "integer" if integer else "number"
+            article = "an" if integer else "a"
             unit = f" {unit}" if unit else ""
             if maximum is None:
-                what = f"a {'positive ' if positive else ''}{kind}{unit}"
+                what = f"a positive {kind}{unit}" if positive else f"{article} {kind}{unit}"
             elif positive:
                 what = f"a positive {kind} of at most {maximum:g}{unit}"
             else:
-                what = f"a {kind} between {-maximum:g} and {maximum:g}{unit}"
+                what = f"{article} {kind} between {-maximum:g} and {maximum:g}{unit}"
             hint = ""
             if isinstance(value, str) and _FLOAT_TEXT.match(value.strip()):
                 hint = (" (YAML 1.1 reads an exponent without a dot and a sign as text: write "
@@ -196,6 +197,9 @@ def crop_key(c: Checker, raw: Mapping, keys) -> dict:
     if not isinstance(value, list) or len(value) != 4:
         raise c.error(f"expected [x, y, width, height] (pixels of the recorded images), got "
                       f"{shown(value)}", keys + ("crop",))
+    if not all(isinstance(v, int) and not isinstance(v, bool) for v in value):
+        raise c.error(f"expected [x, y, width, height] in whole pixels (integers such as 640, "
+                      f"not 640.0, '640' or true), got {shown(value)}", keys + ("crop",))
     x, y, w, h = (c.number(v, keys + ("crop",), integer=True, maximum=100_000) for v in value)
     if min(x, y) < 0 or min(w, h) < MIN_CROP_PX:
         raise c.error(f"expected x, y >= 0 and width, height >= {MIN_CROP_PX} pixels, got "

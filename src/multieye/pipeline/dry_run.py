@@ -500,8 +500,8 @@ def _never_together(cams: tuple[CameraCheck, ...], inst) -> tuple[CameraCheck, .
     """One board: a camera whose sampled images show the board, none of them at an instant
     when another camera's sampled image shows it too, though both were sampled at some, gets
     a problem: the listed images share instants, but calibrating links cameras by the board
-    seen together (cameras that do not overlap are refused unless other images link them);
-    the refusal itself when every image was sampled."""
+    seen together (cameras that do not overlap are refused unless other images link them):
+    the refusal itself when every image was sampled, else a doubt ('calibrating may fail')."""
     sampled = [{int(inst[j][i]) for i in c.sampled_at} for j, c in enumerate(cams)]
     board = [{int(inst[j][i]) for i, _ in c.seen} for j, c in enumerate(cams)]
     complete = all(len(c.sampled_at) == c.listed for c in cams)    # as calibrating sees them
@@ -515,8 +515,9 @@ def _never_together(cams: tuple[CameraCheck, ...], inst) -> tuple[CameraCheck, .
                     f"({both} instants {'' if complete else 'sampled '}in both): cameras "
                     "without motion capture are linked by the board seen together (check that "
                     "the cameras overlap, or give motion capture or several boards: targets:)")
-            c = replace(c, problems=c.problems + (what,),
-                        fatal=c.fatal + ((what,) if complete else ()))
+            c = replace(c, problems=c.problems + (what,),   # undecided on a sample
+                        fatal=c.fatal + ((what,) if complete else ()),
+                        undecided=c.undecided + (() if complete else (what,)))
         out.append(c)
     return tuple(out)
 

@@ -119,14 +119,17 @@ def shortfall(usable: int, found: int, sampled: int, expected: int, listed: int,
         the target (what is short is then the motion capture); False when the sampling
         stopped at its budget (:func:`sample_budget`) with fewer than ``MIN_MEASUREMENTS``
         found, since the images not searched may hold the target (calibrating searches them
-        all: :func:`multieye.pipeline.selection.with_refills`).
+        all: :func:`multieye.pipeline.selection.with_refills`), also where the few found
+        extrapolate to enough (2 of 20 searched is no evidence of 30 of 302).
     """
-    if expected >= MIN_MEASUREMENTS and usable > 0:
-        return None
     if found < MIN_MEASUREMENTS and sampled < listed and not decided:
+        # the budget stopped the search: an estimate from 1 or 2 hits (2 of 20 searched, so
+        # "about 30 of 302") says nothing; only searching the rest does
         return (f"fewer than {MIN_MEASUREMENTS} usable images among the {sampled} searched "
                 f"({usable} usable); {listed - sampled} of its {listed} images were not "
                 "searched (the check's budget): calibrating may fail, and searches them all "
                 f"(--sample {math.ceil(listed / BUDGET_PER_SAMPLE)} searches them here)", False)
+    if expected >= MIN_MEASUREMENTS and usable > 0:
+        return None
     return (f"fewer than {MIN_MEASUREMENTS} usable images would remain ({usable} of {sampled} "
             f"sampled usable, about {expected} of {listed} in all)", True)

@@ -12,6 +12,7 @@ Synopsis
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -70,9 +71,12 @@ def check_sync(rig: Rig) -> dict[str, int]:
     (the k-th image of each camera is one instant) every camera must have as many, else one
     line naming each camera's count (a missing image would shift every later pair)."""
     _no_shared_images(rig)
+    _no_shared_frames(rig)
     listed = {n: [p for _, _, p in listed_images(rig, n)] for n, c in rig.cameras.items()
               if c.source == "images" and rig.sync != "time"}
     counts = {n: len(p) for n, p in listed.items()}
+    if rig.sync == "number":
+        _one_number_each(rig, listed)
     if rig.sync == "order" and len(set(counts.values())) > 1:
         shown = ", ".join(f"{n} {k}" for n, k in counts.items())
         raise DatasetError(f"sync: order pairs the k-th image of each camera, but the cameras "
@@ -112,6 +116,49 @@ def _no_shared_images(rig: Rig) -> None:
                                f"({first.relative_to(c.images).as_posix()}"
                                f"{more}): each camera needs its own images (check their images: "
                                "in rig.yaml)", path=rig.path)
+
+
+def _one_number_each(rig: Rig, listed: Mapping[str, list[Path]]) -> None:
+    """Refuse ``sync: number`` for a camera with one image whose name holds several integers
+    (``0005_cam0.png``): the frame number is the integer that differs between a camera's
+    images (:func:`~multieye.io.image_folder.numbers_in_names`), which one image cannot say;
+    the last one (the camera's 0) would pair it with another camera's frame 0."""
+    for n, paths in listed.items():
+        if len(paths) != 1:
+            continue
+        name = image_name(paths[0], rig.cameras[n].images)
+        numbers = re.findall(r"\d+", name)
+        if len(numbers) > 1:
+            raise DatasetError(
+                f"sync: number pairs images by the frame number in their names, but camera {n} "
+                f"has one image, whose name holds several numbers ({', '.join(numbers)}): "
+                "which is the frame number is told by the one that differs between a camera's "
+                "images; give it more images, or sync: name", path=paths[0], camera=n)
+
+
+def _no_shared_frames(rig: Rig) -> None:
+    """Refuse two cameras reading one video (or one bag's topic) whose ``crop`` regions share
+    a pixel, as :func:`_no_shared_images` refuses for files: two regions of one sensor's
+    frames that overlap are not two cameras (identical regions were caught only after the
+    detection, overlapping ones not at all)."""
+    owner: dict[tuple, list[str]] = {}
+    for n, c in rig.cameras.items():
+        if c.source not in ("video", "rosbag"):
+            continue
+        key = (os.path.realpath(c.video if c.source == "video" else c.rosbag), c.topic)
+        for other in owner.get(key, []):
+            if not _apart(rig.cameras[other].crop, c.crop):
+                what = "video" if c.source == "video" else f"bag's topic {c.topic}"
+                raise DatasetError(f"cameras {other} and {n} read the same {what} "
+                                   f"({Path(key[0]).name}) with regions that share pixels "
+                                   f"(crop: {_shown_crop(rig.cameras[other].crop)} and "
+                                   f"{_shown_crop(c.crop)}): each camera needs its own frames, "
+                                   "or its own part of them (crops side by side)", path=rig.path)
+        owner.setdefault(key, []).append(n)
+
+
+def _shown_crop(crop) -> str:
+    return "none" if crop is None else f"[{', '.join(map(str, crop))}]"
 
 
 def _apart(a, b) -> bool:
