@@ -6,7 +6,9 @@ Rule for a file name's stem (the name without its extension):
 - only digits, at most 10 of them (``1700000000``): whole seconds (10 digits reach the year
   2286);
 - only digits, 16 to 19 of them (``1700000000123456789``): integer nanoseconds (16 digits
-  start at 1970-04-27, 19 fit in int64);
+  are 1970-01-12 to 1970-04-26, or 12 to 116 days after a clock's start; microseconds of
+  today's dates have 16 digits too: such images are 1000 times too early, which pairing
+  with a motion capture names as clocks 1000 times apart; 19 fit in int64);
 - whole seconds (at most 10 digits), an underscore, exactly 9 digits of nanoseconds
   (``1700000000_123456789``: ROS's ``sec`` and ``nsec`` as some recorders name frames);
 - any of the last three forms with at least 9 digits of whole seconds (``1700000000.123456``,
