@@ -33,22 +33,11 @@ def test_cameras_never_seeing_the_board_together_in_a_sample_may_fail(tmp_path):
     in the last 4): calibrate refuses them (nothing links them, exit 2). Searched whole,
     `check` says it would fail; on a sample (6 of 8 each) it said 'ok, calibrating can run'
     under a problem line saying so; now the verdict says that calibrating may fail."""
-    import cv2
-    import numpy as np
-
+    from apart_views import render_apart
     from multieye.outputs.summary import check_table
     from multieye.pipeline.dry_run import check_dataset
-    from multieye.sim.overlap import OverlapSpec, render_overlap_dataset
 
-    ds = tmp_path / "ds"
-    render_overlap_dataset(ds, OverlapSpec(n_cameras=2, angle_deg=10, n_instants=8,
-                                           width=320, height=240, fisheye=(),
-                                           target={"type": "chessboard", "rows": 4, "cols": 5,
-                                                   "spacing": 0.08}))
-    grey = np.full((240, 320), 128, np.uint8)
-    for j, half in ((0, slice(4, 8)), (1, slice(0, 4))):
-        for p in sorted((ds / f"cam{j}").iterdir())[half]:
-            cv2.imwrite(str(p), grey)
+    ds = render_apart(tmp_path / "ds")
     result = check_dataset(ds, sample=4, processes=1)
     assert all(c.sampled < c.listed for c in result.cameras)      # a sample, not all
     assert result.ok and len(result.doubts) == 2, result.doubts

@@ -170,21 +170,12 @@ def test_cameras_whose_images_share_instants_but_not_the_board_are_refused_by_ch
     the board was never seen together."""
     import shutil
 
-    import cv2
     from click.testing import CliRunner
 
+    from apart_views import render_apart
     from multieye.cli import main
-    from multieye.sim.overlap import render_overlap_dataset
 
-    ds = tmp_path / "ds"
-    render_overlap_dataset(ds, OverlapSpec(n_cameras=2, angle_deg=10, n_instants=8,
-                                           width=320, height=240, fisheye=(),
-                                           target={"type": "chessboard", "rows": 4, "cols": 5,
-                                                   "spacing": 0.08}))
-    grey = np.full((240, 320), 128, np.uint8)
-    for j, half in ((0, slice(4, 8)), (1, slice(0, 4))):
-        for p in sorted((ds / f"cam{j}").iterdir())[half]:
-            cv2.imwrite(str(p), grey)
+    ds = render_apart(tmp_path / "ds")
     check = CliRunner().invoke(main, ["check", str(ds), "--processes", "1"])
     assert check.exit_code == 2, check.output
     assert "cam0: the board is in 4 of its images, but never at an instant when another " \
