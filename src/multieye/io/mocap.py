@@ -20,7 +20,8 @@ from pathlib import Path
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
-from multieye.io.mocap_csv import csv_flavour, read_optitrack_csv, read_pose_csv, read_vicon_csv
+from multieye.io.mocap_csv import read_pose_csv
+from multieye.io.mocap_exports import csv_flavour, read_optitrack_csv, read_vicon_csv
 from multieye.io.pose_files import STEM, PoseFormat
 from multieye.io.stamped_table import read_stamped_table
 from multieye.io.rosbag import read_bag_trajectory
