@@ -21,7 +21,8 @@ from pathlib import Path
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
 from multieye.io.mocap_csv import read_pose_csv
-from multieye.io.mocap_exports import csv_flavour, read_optitrack_csv, read_vicon_csv
+from multieye.io.mocap_exports import (csv_flavour, read_optitrack_csv, read_vicon_csv,
+                                      refuse_qualisys)
 from multieye.io.pose_files import STEM, PoseFormat
 from multieye.io.stamped_table import read_stamped_table
 from multieye.io.rosbag import read_bag_trajectory
@@ -325,6 +326,8 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
 
 def _read_format(spec: MocapSpec, fmt: str, parent: str, child: str) -> Trajectory:
     """The trajectory of ``spec``'s file in its format ``fmt``, under its own frames."""
+    if fmt == "tum":
+        refuse_qualisys(spec.file)
     if fmt == "tum" and (spec.values is not None or spec.rotation != "quaternion-xyzw"):
         traj = read_stamped_table(spec.file, PoseFormat(spec.rotation, spec.values, None,
                                                         spec.unit or "m"),

@@ -22,7 +22,7 @@ from multieye.io.poserows import QuaternionRows, trajectory_from_rows
 from multieye.io.textfile import LENGTH_UNITS, count_lines, parse_float, text_lines
 from multieye.io.trajectory import Trajectory
 
-__all__ = ["read_optitrack_csv", "read_vicon_csv", "csv_flavour"]
+__all__ = ["read_optitrack_csv", "read_vicon_csv", "csv_flavour", "refuse_qualisys"]
 
 _OPTITRACK_UNITS = {"meters": "m", "millimeters": "mm", "centimeters": "cm"}
 _VICON_SECTIONS = ("Segments", "Trajectories", "Model Outputs", "Joints", "Devices")
@@ -59,6 +59,21 @@ def _choose(name: str | None, available: list[str], what: str, path) -> str:
         return short[0]
     raise DatasetError(f"{what} {name!r} not found; the file has {', '.join(available) or 'none'}",
                        path=path)
+
+
+def _columns_once(labelled, wanted, what: str, path, line: int) -> dict:
+    """``{label: column}`` of ``labelled`` (``(label, 0-based column)`` pairs under one body's
+    name); a label of ``wanted`` met twice is refused naming both columns (1-based): reading
+    either would take another body's numbers or a shifted names row's."""
+    cols = {}
+    for label, j in labelled:
+        if label in wanted and label in cols:
+            shown = " ".join(label) if isinstance(label, tuple) else label
+            raise DatasetError(f"{what} has two {shown} columns ({cols[label] + 1} and {j + 1}): "
+                               "its name stands over another's columns (a names row shifted, or "
+                               "two bodies of one name); expected each once", path=path, line=line)
+        cols[label] = j
+    return cols
 
 
 def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *,
@@ -116,11 +131,11 @@ def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *
     bodies = list(dict.fromkeys(names[j].strip() for j in range(2, min(len(kinds), len(names)))
                                 if kinds[j].strip() == "Rigid Body"))
     body = _choose(rigid_body, bodies, "rigid body", path)
-    cols = {}
-    for j in range(2, min(len(kinds), len(names), len(quantity), len(axes))):
-        if kinds[j].strip() == "Rigid Body" and names[j].strip() == body:
-            cols[(quantity[j].strip(), axes[j].strip())] = j
     wanted = [("Position", a) for a in "XYZ"] + [("Rotation", a) for a in "XYZW"]
+    cols = _columns_once((((quantity[j].strip(), axes[j].strip()), j)
+                          for j in range(2, min(len(kinds), len(names), len(quantity), len(axes)))
+                          if kinds[j].strip() == "Rigid Body" and names[j].strip() == body),
+                         wanted, f"rigid body {body!r}", path, frame_row + 1)
     missing = [f"{q} {a}" for q, a in wanted if (q, a) not in cols]
     if missing:
         raise DatasetError(f"rigid body {body!r} has no column for {', '.join(missing)}",
@@ -188,8 +203,9 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
     name = _choose(segment, segments, "segment", path)
     j0 = starts[segments.index(name)]
     j1 = next((j for j in starts if j > j0), len(labels))
-    block = {labels[j].strip(): j for j in range(j0, min(j1, len(labels)))}
     wanted = ("TX", "TY", "TZ", "RX", "RY", "RZ")
+    block = _columns_once(((labels[j].strip(), j) for j in range(j0, min(j1, len(labels)))),
+                          wanted, f"segment {name!r}", path, s + 4)
     missing = [w for w in wanted if w not in block]
     if missing:
         raise DatasetError(f"segment {name!r} has no column for {', '.join(missing)}",
@@ -236,3 +252,19 @@ def csv_flavour(path: str | os.PathLike) -> str:
                 return "vicon"
             return "csv"
     return "csv"
+
+
+def refuse_qualisys(path: str | os.PathLike) -> None:
+    """Refuse a Qualisys Track Manager TSV export (first key ``NO_OF_FRAMES``), saying what to
+    do, instead of reading its header as TUM rows: its 6DOF ``Roll Pitch Yaw`` follow a QTM
+    Euler setting the file does not record, so no reading of them is safe."""
+    for number, line in text_lines(path, what="motion-capture file"):
+        if line.strip():
+            if line.split()[0] == "NO_OF_FRAMES":
+                raise DatasetError(
+                    "a Qualisys Track Manager TSV export (first key NO_OF_FRAMES): multieye does "
+                    "not read it (its Roll Pitch Yaw follow a QTM Euler setting the file does not "
+                    "record); convert the body's poses to a TUM file (t x y z qx qy qz qw, "
+                    "metres) or to rows read with format: tum, values and rotation "
+                    "(docs/rig-yaml.md, section 4)", path=path, line=number)
+            return
