@@ -109,3 +109,34 @@ def test_qualisys_tsv_is_refused_naming_it(tmp_path, truth):
     with pytest.raises(DatasetError, match=r"take_6D\.tsv:1: a Qualisys Track Manager TSV "
                                            r"export.*convert the body's poses to a TUM file"):
         read_mocap(MocapSpec(file=path, format="tum"))
+
+
+@pytest.mark.parametrize("fmt", ["optitrack", "vicon"])
+def test_a_repeated_frame_of_an_export_is_dropped_as_the_message_advises(tmp_path, truth, fmt):
+    """A frame exported twice: the error advised ``duplicates: drop``, which rig.yaml then
+    refused for these formats ('applies to tum, csv sources only')."""
+    from multieye.io.rig import load_rig
+
+    frames, stamps, T = truth
+    path = tmp_path / "take.csv"
+    if fmt == "optitrack":
+        _motive(path, stamps, T, ["board"])
+    else:
+        _vicon(path, frames, T, ",,Board:Board,,,,,,Other:Other,,,,,")
+    lines = path.read_text(encoding="utf-8-sig").splitlines()
+    lines.insert(len(lines) - 2, lines[-3])          # the 4th frame twice
+    path.write_text("\n".join(lines) + "\n")
+    body = "board" if fmt == "optitrack" else "Board"
+    with pytest.raises(DatasetError, match="duplicate time stamp.*give duplicates: drop"):
+        read_mocap(MocapSpec(file=path, format=fmt, rigid_body=body))
+    (tmp_path / "rig.yaml").write_text(
+        "setup: eye-to-base\ntarget: {type: chessboard, rows: 6, cols: 9, spacing: 0.05}\n"
+        f"mocap: {{file: take.csv, duplicates: drop, rigid_body: {body}}}\n"
+        "cameras:\n  cam0: {poses: cam0.txt}\n")
+    (tmp_path / "cam0.txt").write_text("0 0 0 1 0 0 0 1\n")
+    spec = load_rig(tmp_path / "rig.yaml").mocap
+    assert spec.format == fmt and spec.duplicates == "drop"
+    traj = read_mocap(spec)
+    assert np.abs(traj.T - T).max() < 1e-12      # the repeated row left out, every frame once
+    assert np.allclose(traj.stamps, stamps if fmt == "vicon" else np.round(stamps, 6), rtol=0,
+                       atol=1e-12)

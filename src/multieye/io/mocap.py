@@ -317,7 +317,8 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
     try:
         traj = _read_format(spec, fmt, parent, child)
     except DatasetError as exc:
-        if not (exc.reason.startswith("duplicate time stamp") and spec.duplicates == "error"):
+        if not (exc.reason.startswith("duplicate time stamp") and spec.duplicates == "error"
+                and fmt != "rosbag"):   # rig.yaml's duplicates is not for bags: not advised
             raise
         raise DatasetError(f"{exc.reason}; give duplicates: drop under mocap in rig.yaml to keep "
                            "the first of equal stamps", path=exc.path, line=exc.line) from None
@@ -339,9 +340,11 @@ def _read_format(spec: MocapSpec, fmt: str, parent: str, child: str) -> Trajecto
         traj = read_pose_csv(spec.file, columns=spec.columns, unit=spec.unit, parent=parent,
                              child=child, duplicates=spec.duplicates)
     elif fmt == "optitrack":
-        traj = read_optitrack_csv(spec.file, spec.rigid_body, parent=parent, child=child)
+        traj = read_optitrack_csv(spec.file, spec.rigid_body, parent=parent, child=child,
+                                  duplicates=spec.duplicates)
     elif fmt == "vicon":
-        traj = read_vicon_csv(spec.file, spec.rigid_body, parent=parent, child=child)
+        traj = read_vicon_csv(spec.file, spec.rigid_body, parent=parent, child=child,
+                              duplicates=spec.duplicates)
     else:
         if not spec.topic:
             raise DatasetError("a rosbag motion-capture source needs a topic", path=spec.file)

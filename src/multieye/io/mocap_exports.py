@@ -77,7 +77,8 @@ def _columns_once(labelled, wanted, what: str, path, line: int) -> dict:
 
 
 def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *,
-                       parent: str = "world", child: str = "marker") -> Trajectory:
+                       parent: str = "world", child: str = "marker",
+                       duplicates: str = "error") -> Trajectory:
     """Read one rigid body's poses from an OptiTrack Motive CSV export.
 
     Parameters
@@ -87,6 +88,8 @@ def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *
         Name of the rigid body (as in the ``Name`` row); needed when the file has several.
     parent, child : str
         Frame names: the poses are ``T_parent_child`` (the rigid body in Motive's world).
+    duplicates : {"error", "drop"}
+        A frame whose stamp repeats the previous one's: an error, or left out (the first kept).
 
     Returns
     -------
@@ -149,14 +152,15 @@ def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *
                           capacity=count_lines(path, what="OptiTrack CSV export"))
     _complete_rows(stream, order, cell_names, path, section_ends_at_blank=False,
                    missing=f"rigid body {body!r} is not tracked in any frame", sink=sink)
-    return sink.trajectory(parent=parent, child=child)
+    return sink.trajectory(parent=parent, child=child, duplicates=duplicates)
 
 
 # --------------------------------------------------------------------------- Vicon
 
 
 def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
-                   parent: str = "world", child: str = "marker") -> Trajectory:
+                   parent: str = "world", child: str = "marker",
+                   duplicates: str = "error") -> Trajectory:
     """Read one segment's global poses from the ``Segments`` section of a Vicon Nexus export.
 
     Parameters
@@ -167,6 +171,8 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
         when that is unique; needed when the section has several segments.
     parent, child : str
         The poses are ``T_parent_child`` (segment in the Vicon world).
+    duplicates : {"error", "drop"}
+        As :func:`read_optitrack_csv`.
 
     Raises
     ------
@@ -236,7 +242,7 @@ def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
                                      max_rotation=_MAX_ROTVEC_RAD)
     T = geometry.transform_from_rotvec(rotvec[keep], t[keep])
     return trajectory_from_rows(stamps[keep], T, path=path, lines=lines, frames=(parent, child),
-                                skipped=skipped)
+                                skipped=skipped, duplicates=duplicates)
 
 
 def csv_flavour(path: str | os.PathLike) -> str:
