@@ -13,7 +13,8 @@ from scipy.spatial.transform import Rotation
 from multieye.core import geometry
 from multieye.core.errors import DatasetError
 from multieye.io.mocap import MocapSpec, read_mocap, sniff_mocap_format
-from multieye.io.mocap_csv import read_optitrack_csv, read_pose_csv, read_vicon_csv
+from multieye.io.mocap_csv import read_pose_csv
+from multieye.io.mocap_exports import read_optitrack_csv, read_vicon_csv
 
 
 @pytest.fixture

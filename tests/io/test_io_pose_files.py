@@ -364,3 +364,32 @@ def test_a_pose_file_of_nan_or_inf_leaves_its_image_out(tmp_path):
     assert unmatched == [("2.png", "pose file 2.json holds nan or inf")]
     with pytest.raises(DatasetError, match="expected finite numbers"):     # one file alone
         read_pose_file(tmp_path / "2.json", fmt)
+
+
+def test_a_kitti_pose_table_of_12_numbers_a_row_is_a_matrix(tmp_path):
+    """KITTI's poses/NN.txt: the top three rows of each 4x4, 12 numbers a row, no header, no
+    stamps (docs: '16 (or 12) numbers of a matrix'); 12 were refused as 'expected the numbers
+    x, y, z, qx, qy, qz, qw ... or 16 numbers', unless rotation: matrix was given."""
+    from multieye.io.pose_files import read_order_table, read_pose_table
+
+    t = _write(tmp_path, "00.txt", "".join(" ".join(f"{v:.6e}" for v in T_TRUE[:3].ravel())
+                                          + "\n" for _ in range(3)))
+    rows = read_order_table(t, PoseFormat())
+    assert [n for _, n in rows] == [1, 2, 3]
+    for T, _ in rows:
+        np.testing.assert_allclose(T, T_TRUE, atol=1e-6)
+    # matched by image: 'image' and 12 names, any names
+    t = _write(tmp_path, "poses.csv", "image," + ",".join(f"r{k}" for k in range(12)) + "\n"
+               + "1.png," + ",".join(repr(float(v)) for v in T_TRUE[:3].ravel()) + "\n")
+    np.testing.assert_allclose(read_pose_table(t, PoseFormat())["1.png"][0], T_TRUE, atol=1e-15)
+
+
+def test_a_pose_table_with_decimal_commas_says_so(tmp_path):
+    """European Excel's CSV (semicolons, decimal commas): the message named the cell only."""
+    from multieye.io.pose_files import read_pose_table
+
+    t = _write(tmp_path, "poses.csv", "image;x;y;z;qx;qy;qz;qw\n1.png;0,5;0;0;0;0;0;1\n")
+    with pytest.raises(DatasetError, match=r"poses\.csv:2: expected numbers besides the image "
+                                           r"name, got '0,5'; a decimal comma: write numbers "
+                                           r"with a decimal point"):
+        read_pose_table(t, PoseFormat())

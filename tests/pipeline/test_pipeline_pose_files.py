@@ -246,7 +246,7 @@ def test_bad_pose_files_exit_2_naming_the_file(tmp_path, mocap, content, expecte
      "mocap.match: match: order reads a table in image-name order; leave out 'format'"),
     ('{file: cam0/mocap.txt, match: order}',
      "cam0/mocap.txt:1: camera cam0: expected the numbers x, y, z, qx, qy, qz, qw (rotation "
-     "quaternion-xyzw), or 16 numbers of a 4x4 matrix, got 8 numbers"),
+     "quaternion-xyzw), or 16 (or 12) numbers of a 4x4 matrix, got 8 numbers"),
     ('{file: cam0/mocap.txt, match: order, rotation: matrix}',
      "cam0/mocap.txt:1: camera cam0: expected 16 numbers (a 4x4 pose, row-major) or 12, got 8"),
 ])

@@ -7,7 +7,7 @@ naming the file, the line (where the format has lines) and what was expected.  E
 atomic (:mod:`multieye.io.atomic`).
 
 Modules: :mod:`~.trajectory` (the Trajectory type), :mod:`~.tum`, :mod:`~.mocap_csv`
-(generic CSV, OptiTrack, Vicon), :mod:`~.rosbag`, :mod:`~.mocap` (one entry point for the
+(generic CSV), :mod:`~.mocap_exports` (OptiTrack, Vicon), :mod:`~.rosbag`, :mod:`~.mocap` (one entry point for the
 ``mocap:`` section), :mod:`~.intrinsics`, :mod:`~.kalibr`, :mod:`~.rig` (``rig.yaml``),
 :mod:`~.image_folder` (time-stamped image names), :mod:`~.calibration_json`.
 OpenCV (``cv2.FileStorage``, ``cv2.imdecode``) and ``rosbags`` are imported only when a
@@ -38,7 +38,8 @@ from multieye.io.intrinsics_files import (
 )
 from multieye.io.kalibr import CamchainEntry, read_camchain, write_camchain
 from multieye.io.mocap import MocapSpec, read_mocap, sniff_mocap_format
-from multieye.io.mocap_csv import read_optitrack_csv, read_pose_csv, read_vicon_csv
+from multieye.io.mocap_csv import read_pose_csv
+from multieye.io.mocap_exports import read_optitrack_csv, read_vicon_csv
 from multieye.io.rig import CameraSpec, Rig, TargetSpec, load_rig, read_camera_intrinsics
 from multieye.io.rosbag import (bag_image_count, bag_topics, iter_bag_images, read_bag_trajectory,
                                 sample_bag_images)

@@ -20,7 +20,9 @@ from pathlib import Path
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
-from multieye.io.mocap_csv import csv_flavour, read_optitrack_csv, read_pose_csv, read_vicon_csv
+from multieye.io.mocap_csv import read_pose_csv
+from multieye.io.mocap_exports import (csv_flavour, read_optitrack_csv, read_vicon_csv,
+                                      refuse_qualisys)
 from multieye.io.pose_files import STEM, PoseFormat
 from multieye.io.stamped_table import read_stamped_table
 from multieye.io.rosbag import read_bag_trajectory
@@ -315,7 +317,8 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
     try:
         traj = _read_format(spec, fmt, parent, child)
     except DatasetError as exc:
-        if not (exc.reason.startswith("duplicate time stamp") and spec.duplicates == "error"):
+        if not (exc.reason.startswith("duplicate time stamp") and spec.duplicates == "error"
+                and fmt != "rosbag"):   # rig.yaml's duplicates is not for bags: not advised
             raise
         raise DatasetError(f"{exc.reason}; give duplicates: drop under mocap in rig.yaml to keep "
                            "the first of equal stamps", path=exc.path, line=exc.line) from None
@@ -324,6 +327,8 @@ def read_mocap(spec: MocapSpec) -> Trajectory:
 
 def _read_format(spec: MocapSpec, fmt: str, parent: str, child: str) -> Trajectory:
     """The trajectory of ``spec``'s file in its format ``fmt``, under its own frames."""
+    if fmt == "tum":
+        refuse_qualisys(spec.file)
     if fmt == "tum" and (spec.values is not None or spec.rotation != "quaternion-xyzw"):
         traj = read_stamped_table(spec.file, PoseFormat(spec.rotation, spec.values, None,
                                                         spec.unit or "m"),
@@ -335,9 +340,11 @@ def _read_format(spec: MocapSpec, fmt: str, parent: str, child: str) -> Trajecto
         traj = read_pose_csv(spec.file, columns=spec.columns, unit=spec.unit, parent=parent,
                              child=child, duplicates=spec.duplicates)
     elif fmt == "optitrack":
-        traj = read_optitrack_csv(spec.file, spec.rigid_body, parent=parent, child=child)
+        traj = read_optitrack_csv(spec.file, spec.rigid_body, parent=parent, child=child,
+                                  duplicates=spec.duplicates)
     elif fmt == "vicon":
-        traj = read_vicon_csv(spec.file, spec.rigid_body, parent=parent, child=child)
+        traj = read_vicon_csv(spec.file, spec.rigid_body, parent=parent, child=child,
+                              duplicates=spec.duplicates)
     else:
         if not spec.topic:
             raise DatasetError("a rosbag motion-capture source needs a topic", path=spec.file)

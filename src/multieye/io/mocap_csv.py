@@ -1,6 +1,6 @@
-"""Motion-capture poses from CSV files: a generic CSV with a header, OptiTrack Motive and
-Vicon Nexus exports.  Every reader returns a :class:`Trajectory` of ``T_world_<child>`` in
-metres and seconds.
+"""Motion-capture poses from CSV files: a generic CSV with a header; the layouts of OptiTrack
+Motive and Vicon Nexus exports, read by :mod:`multieye.io.mocap_exports`.  Every reader
+returns a :class:`Trajectory` of ``T_world_<child>`` in metres and seconds.
 
 Generic CSV (:func:`read_pose_csv`)
     One header row, then one pose per row.  Columns are found by name (case-insensitive,
@@ -44,7 +44,6 @@ Errors name the file and the 1-based line as before.
 from __future__ import annotations
 
 import csv
-import itertools
 import os
 import re
 from array import array
@@ -52,20 +51,16 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from multieye.core import geometry
 from multieye.core.errors import DatasetError
 from multieye.core.limits import MAX_TABLE_BYTES
-from multieye.io.poserows import QuaternionRows, RowPlace, trajectory_from_rows, usable_rows
+from multieye.io.poserows import QuaternionRows, RowPlace, usable_rows
 from multieye.io.textfile import (LENGTH_UNITS, count_lines, is_nanoseconds, parse_float,
-                                  physical_lines, text_lines)
+                                  physical_lines)
 from multieye.io.trajectory import Trajectory
 
 __all__ = [
     "DEFAULT_COLUMNS",
     "read_pose_csv",
-    "read_optitrack_csv",
-    "read_vicon_csv",
-    "csv_flavour",
 ]
 
 #: Header names tried for each quantity of a generic CSV (after lower-casing and removing
@@ -88,18 +83,11 @@ _UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([a-zA-Z]*)\s*[\])]$")
 #: name of :data:`DEFAULT_COLUMNS` is in the header; ``v_...``, ``b_w_...`` and other
 #: columns are not poses and are left alone.
 _EUROC_NAME = re.compile(r"^(p|q)_[a-z0-9]+(?:_[a-z0-9]+)*_([xyzw])$")
-_OPTITRACK_UNITS = {"meters": "m", "millimeters": "mm", "centimeters": "cm"}
-_VICON_SECTIONS = ("Segments", "Trajectories", "Model Outputs", "Joints", "Devices")
-#: Largest rotation-vector component accepted from a Vicon export, radians (beyond it a row is
-#: left out as absurd: no exporter writes it, and it has lost every digit of the angle).
-_MAX_ROTVEC_RAD = 1e3
 
 
 #: Rows turned into poses at a time (:class:`~multieye.io.poserows.QuaternionRows`): the
 #: table of numbers is never held whole.
 _BLOCK = 1 << 14
-#: Most lines above the first data row of an OptiTrack export that are kept (Motive writes 7).
-_MAX_HEADER_ROWS = 1000
 
 
 def _lines(path, what: str) -> Iterator[tuple[int, str]]:
@@ -175,6 +163,19 @@ def _screened(stamps, t, rotation, columns, path, lines, max_rotation=None):
     """:func:`usable_rows` on the converted numbers: ``(keep, skipped, kept lines)``."""
     return usable_rows(stamps, t, rotation, where=RowPlace(path, lines), columns=columns,
                        max_rotation=max_rotation)
+
+
+def _refuse_tracker(first: str, path, line: int | None) -> None:
+    """A Vicon Tracker export (first line ``Objects``) is refused with what to do: its
+    ``RX RY RZ`` are a helical angle or Euler XYZ angles by a Tracker setting the file does
+    not record, so no reading of them is safe."""
+    if first == "Objects":
+        raise DatasetError("a Vicon Tracker export (first line 'Objects'): its RX RY RZ are "
+                           "helical or Euler XYZ angles by a Tracker setting the file does not "
+                           "record, so multieye does not guess; export from Nexus (Segments), "
+                           "or convert the object's poses to a TUM file (t x y z qx qy qz qw) "
+                           "or to rows read with format: tum, values and rotation (rotvec or "
+                           "euler-xyz-deg; docs/rig-yaml.md, section 4)", path=path, line=line)
 
 
 # --------------------------------------------------------------------------- generic CSV
@@ -370,222 +371,3 @@ def _seconds(block: tuple[np.ndarray, np.ndarray], seconds: float):
         with np.errstate(over="ignore", invalid="ignore"):
             data[:, 0] *= seconds
     return data, lines
-
-
-# --------------------------------------------------------------------------- OptiTrack
-
-
-def _label_row(rows: list[list[str]], label: str, start: int, stop: int) -> int | None:
-    for i in range(start, stop):
-        if len(rows[i]) > 1 and rows[i][1].strip() == label and not rows[i][0].strip():
-            return i
-    return None
-
-
-def _choose(name: str | None, available: list[str], what: str, path) -> str:
-    if name is None:
-        if len(available) == 1:
-            return available[0]
-        if not available:
-            raise DatasetError(f"no {what} in the file: export the {what} whose pose is "
-                               "wanted (markers alone have no orientation)", path=path)
-        raise DatasetError(f"{len(available)} {what}s in the file ({', '.join(available)}); "
-                           f"choose one with rigid_body: <name> under mocap in rig.yaml",
-                           path=path)
-    if name in available:
-        return name
-    short = [a for a in available if a.split(":")[-1] == name]
-    if len(short) == 1:
-        return short[0]
-    raise DatasetError(f"{what} {name!r} not found; the file has {', '.join(available) or 'none'}",
-                       path=path)
-
-
-def read_optitrack_csv(path: str | os.PathLike, rigid_body: str | None = None, *,
-                       parent: str = "world", child: str = "marker") -> Trajectory:
-    """Read one rigid body's poses from an OptiTrack Motive CSV export.
-
-    Parameters
-    ----------
-    path : path-like
-    rigid_body : str, optional
-        Name of the rigid body (as in the ``Name`` row); needed when the file has several.
-    parent, child : str
-        Frame names: the poses are ``T_parent_child`` (the rigid body in Motive's world).
-
-    Returns
-    -------
-    Trajectory
-        Stamps from ``Time (Seconds)``, translations converted from ``Length Units``.
-
-    Raises
-    ------
-    DatasetError
-        Not a Motive export, Euler rotations, unknown length unit, rigid body missing (listing
-        those present), malformed cells (with the line).
-    """
-    stream = _rows(_lines(path, "OptiTrack CSV export"))
-    rows = []       # the header rows, up to the 'Frame' row; the data rows are read one by one
-    for _, row in stream:
-        rows.append(row)
-        if (row and row[0].strip() == "Frame") or len(rows) >= _MAX_HEADER_ROWS:
-            break
-    if not rows or rows[0][0].strip() != "Format Version":
-        raise DatasetError("not an OptiTrack Motive CSV export: the first cell should be "
-                           "'Format Version' (export with header information)", path=path, line=1)
-    meta = {k.strip(): v.strip() for k, v in zip(rows[0][0::2], rows[0][1::2])}
-    rotation = meta.get("Rotation Type", "Quaternion")
-    if rotation != "Quaternion":
-        raise DatasetError(f"Rotation Type is {rotation!r}; export rigid bodies with Rotation "
-                           "Type 'Quaternion'", path=path, line=1)
-    units = meta.get("Length Units")
-    if units is None or units.lower() not in _OPTITRACK_UNITS:
-        raise DatasetError(f"Length Units must be Meters, Millimeters or Centimeters, got "
-                           f"{units!r}", path=path, line=1)
-    scale = LENGTH_UNITS[_OPTITRACK_UNITS[units.lower()]]
-    frame_row = next((i for i, r in enumerate(rows) if r and r[0].strip() == "Frame"), None)
-    if frame_row is None:
-        raise DatasetError("no 'Frame,Time (Seconds),...' header row", path=path)
-    type_row = _label_row(rows, "Type", 1, frame_row)
-    name_row = _label_row(rows, "Name", 1, frame_row)
-    if type_row is None or name_row is None:
-        raise DatasetError("header rows 'Type' and 'Name' not found above the 'Frame' row",
-                           path=path)
-    kinds, names = rows[type_row], rows[name_row]
-    quantity, axes = rows[frame_row - 1], rows[frame_row]
-    bodies = list(dict.fromkeys(names[j].strip() for j in range(2, min(len(kinds), len(names)))
-                                if kinds[j].strip() == "Rigid Body"))
-    body = _choose(rigid_body, bodies, "rigid body", path)
-    cols = {}
-    for j in range(2, min(len(kinds), len(names), len(quantity), len(axes))):
-        if kinds[j].strip() == "Rigid Body" and names[j].strip() == body:
-            cols[(quantity[j].strip(), axes[j].strip())] = j
-    wanted = [("Position", a) for a in "XYZ"] + [("Rotation", a) for a in "XYZW"]
-    missing = [f"{q} {a}" for q, a in wanted if (q, a) not in cols]
-    if missing:
-        raise DatasetError(f"rigid body {body!r} has no column for {', '.join(missing)}",
-                           path=path, line=frame_row + 1)
-    time_col = next((j for j, c in enumerate(axes) if c.strip().startswith("Time")), None)
-    if time_col is None:
-        raise DatasetError("no 'Time (Seconds)' column", path=path, line=frame_row + 1)
-    order = [time_col] + [cols[w] for w in wanted]
-    cell_names = ["Time (Seconds)"] + [f"{body} {q} {a}" for q, a in wanted]
-    sink = QuaternionRows(path, cell_names, scale,
-                          capacity=count_lines(path, what="OptiTrack CSV export"))
-    _complete_rows(stream, order, cell_names, path, section_ends_at_blank=False,
-                   missing=f"rigid body {body!r} is not tracked in any frame", sink=sink)
-    return sink.trajectory(parent=parent, child=child)
-
-
-# --------------------------------------------------------------------------- Vicon
-
-
-def read_vicon_csv(path: str | os.PathLike, segment: str | None = None, *,
-                   parent: str = "world", child: str = "marker") -> Trajectory:
-    """Read one segment's global poses from the ``Segments`` section of a Vicon Nexus export.
-
-    Parameters
-    ----------
-    path : path-like
-    segment : str, optional
-        Segment name as in the names row (``Subject:Segment``), or its part after the colon
-        when that is unique; needed when the section has several segments.
-    parent, child : str
-        The poses are ``T_parent_child`` (segment in the Vicon world).
-
-    Raises
-    ------
-    DatasetError
-        No ``Segments`` section, bad frame rate, unknown units, segment missing (listing those
-        present), malformed cells (with the line).
-    """
-    stream = _rows(_lines(path, "Vicon CSV export"))
-    heads = set()   # sections seen, up to Segments; other sections' rows are not kept
-    for number, r in stream:  # noqa: B007 (number is read after the loop)
-        if r and r[0].strip() in _VICON_SECTIONS and _blank(r[1:]):
-            heads.add(r[0].strip())
-            if r[0].strip() == "Segments":
-                break
-    if "Segments" not in heads:
-        reason = ("it has only marker Trajectories, which carry no orientation; export the "
-                  "Segments section" if "Trajectories" in heads else
-                  "expected a section line 'Segments' as Vicon Nexus writes it")
-        raise DatasetError(f"no Segments section: {reason}", path=path)
-    s = number - 1                              # 0-based index of the section line
-    below = [r for _, r in itertools.islice(stream, 5)]
-    if len(below) < 4:
-        raise DatasetError("Segments section is truncated", path=path, line=s + 1)
-    rate = parse_float(below[0][0] if below[0] else "", path=path, line=s + 2,
-                       name="the frame rate (Hz)")
-    if rate <= 0:
-        raise DatasetError(f"frame rate must be positive, got {rate}", path=path, line=s + 2)
-    names, labels, units = below[1], below[2], below[3]
-    if [c.strip() for c in labels[:2]] != ["Frame", "Sub Frame"]:
-        raise DatasetError("expected the labels row 'Frame,Sub Frame,RX,RY,RZ,TX,TY,TZ,...'",
-                           path=path, line=s + 4)
-    starts = [j for j in range(2, len(names)) if names[j].strip()]
-    segments = [names[j].strip() for j in starts]
-    name = _choose(segment, segments, "segment", path)
-    j0 = starts[segments.index(name)]
-    j1 = next((j for j in starts if j > j0), len(labels))
-    block = {labels[j].strip(): j for j in range(j0, min(j1, len(labels)))}
-    wanted = ("TX", "TY", "TZ", "RX", "RY", "RZ")
-    missing = [w for w in wanted if w not in block]
-    if missing:
-        raise DatasetError(f"segment {name!r} has no column for {', '.join(missing)}",
-                           path=path, line=s + 4)
-    order = [block[w] for w in wanted]
-
-    def unit_of(label):
-        j = block[label]
-        return units[j].strip().lower() if j < len(units) else ""
-
-    angle = {unit_of(w) for w in ("RX", "RY", "RZ")}
-    length = {unit_of(w) for w in ("TX", "TY", "TZ")}
-    if len(angle) != 1 or angle & {"deg", "rad"} != angle:
-        raise DatasetError(f"rotation units must be 'deg' or 'rad', got {sorted(angle)}",
-                           path=path, line=s + 5)
-    if len(length) != 1 or not length <= set(LENGTH_UNITS):
-        raise DatasetError(f"translation units must be one of {', '.join(LENGTH_UNITS)}, got "
-                           f"{sorted(length)}", path=path, line=s + 5)
-    to_rad = np.pi / 180.0 if angle == {"deg"} else 1.0
-    scale = LENGTH_UNITS[length.pop()]
-    data, lines = _complete_rows(itertools.chain([(s + 6, r) for r in below[4:]], stream), [0, *order],
-                                 ("Frame",) + wanted, path,
-                                 section_ends_at_blank=True,
-                                 missing=f"segment {name!r} has no frame with a complete pose")
-    with np.errstate(over="ignore", invalid="ignore"):
-        t, rotvec, stamps = data[:, 1:4] * scale, data[:, 4:7] * to_rad, data[:, 0] / rate
-    keep, skipped, lines = _screened(stamps, t, rotvec, ("Frame",) + wanted, path, lines,
-                                     max_rotation=_MAX_ROTVEC_RAD)
-    T = geometry.transform_from_rotvec(rotvec[keep], t[keep])
-    return trajectory_from_rows(stamps[keep], T, path=path, lines=lines, frames=(parent, child),
-                                skipped=skipped)
-
-
-def _refuse_tracker(first: str, path, line: int | None) -> None:
-    """A Vicon Tracker export (first line ``Objects``) is refused with what to do: its
-    ``RX RY RZ`` are a helical angle or Euler XYZ angles by a Tracker setting the file does
-    not record, so no reading of them is safe."""
-    if first == "Objects":
-        raise DatasetError("a Vicon Tracker export (first line 'Objects'): its RX RY RZ are "
-                           "helical or Euler XYZ angles by a Tracker setting the file does not "
-                           "record, so multieye does not guess; export from Nexus (Segments), "
-                           "or convert the object's poses to a TUM file (t x y z qx qy qz qw) "
-                           "or to rows read with format: tum, values and rotation (rotvec or "
-                           "euler-xyz-deg; docs/rig-yaml.md, section 4)", path=path, line=line)
-
-
-def csv_flavour(path: str | os.PathLike) -> str:
-    """``"optitrack"``, ``"vicon"`` or ``"csv"`` from the first non-blank line of a CSV file;
-    a Vicon Tracker export is refused (:func:`_refuse_tracker`)."""
-    for number, line in text_lines(path, what="CSV file"):
-        if line.strip():
-            first = line.split(",")[0].strip()
-            _refuse_tracker(first, path, number)
-            if first == "Format Version":
-                return "optitrack"
-            if first in _VICON_SECTIONS:
-                return "vicon"
-            return "csv"
-    return "csv"

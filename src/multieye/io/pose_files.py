@@ -489,7 +489,9 @@ def _table_rows(path: Path, fmt: PoseFormat, *, image_column: bool):
         except ValueError:
             bad = next(c for c in cells if not _is_number(c))
             besides = " besides the image name" if col is not None else ""
-            raise DatasetError(f"expected numbers{besides}, got {bad!r}", path=path,
+            comma = ("; a decimal comma: write numbers with a decimal point (0.5, not 0,5)"
+                     if re.fullmatch(r"[-+]?\d*,\d+", bad) else "")
+            raise DatasetError(f"expected numbers{besides}, got {bad!r}{comma}", path=path,
                                line=n) from None
         if not all(np.isfinite(numbers)):      # left out, its image listed (as TUM rows)
             yield image, None, n
@@ -497,7 +499,7 @@ def _table_rows(path: Path, fmt: PoseFormat, *, image_column: bool):
         try:
             if by_name:
                 T = _named(dict(zip(others, numbers)), fmt, scale, path)
-            elif fmt.rotation == "matrix" or (len(numbers) == 16 and fmt.values is None):
+            elif fmt.rotation == "matrix" or (len(numbers) in (12, 16) and fmt.values is None):
                 if len(numbers) not in (12, 16):
                     raise DatasetError(f"expected 16 numbers (a 4x4 pose, row-major) or 12, got "
                                        f"{len(numbers)}", path=path)
@@ -507,8 +509,8 @@ def _table_rows(path: Path, fmt: PoseFormat, *, image_column: bool):
                              else ("numbers", f"{len(numbers)} numbers"))
                 besides = " besides image" if col is not None else ""
                 raise DatasetError(f"expected the {kind} {', '.join(fmt.order)}{besides} "
-                                   f"(rotation {fmt.rotation}), or 16 numbers of a 4x4 "
-                                   f"matrix, got {got}", path=path)
+                                   f"(rotation {fmt.rotation}), or 16 (or 12) numbers of a "
+                                   f"4x4 matrix, got {got}", path=path)
             else:
                 T = _named(dict(zip(fmt.order, numbers)), fmt, scale, path)
         except DatasetError as exc:

@@ -41,7 +41,7 @@ constants hold them, docs/rig-yaml.md documents each)::
       parent_frame: world                                    # rosbag only
       child_frame: rig                                       # rosbag only
       columns: {t: time, tx: x, ...}                         # csv only
-      duplicates: error | drop                               # tum, csv only; default error
+      duplicates: error | drop             # tum, csv, optitrack, vicon only; default error
       # file: "{stem}.json": one pose file beside each image (format pose-files), or in a
       # folder of the dataset: "poses/{stem}.yaml"; with
       # key: end2base, values: [x, y, z, qx, qy, qz, qw], rotation: quaternion-xyzw | ...
@@ -113,7 +113,7 @@ TARGET_KEYS = (*SPEC_KEYS, "file")
 SETUPS = {"eye-to-base": "marker", "eye-on-hand": "body"}
 _MOCAP_ONLY = {"topic": ("rosbag",), "unit": ("tum", "csv", "rosbag", "pose-files", "pose-table"),
                "rigid_body": ("optitrack", "vicon"), "parent_frame": ("rosbag",),
-               "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv"),
+               "child_frame": ("rosbag",), "columns": ("csv",), "duplicates": ("tum", "csv", "optitrack", "vicon"),
                "key": ("pose-files",), "values": ("pose-files", "pose-table", "tum"),
                "rotation": ("pose-files", "pose-table", "tum")}
 _SOURCES = ("images", "poses", "rosbag", "video")
