@@ -296,8 +296,8 @@ def _decode_raw(msg, where: str, path) -> np.ndarray:
     return img
 
 
-def _decode_compressed(msg, where: str, path) -> np.ndarray:
-    import cv2  # noqa: PLC0415 (heavy: OpenCV, only to demosaic Bayer images)
+def _decode_compressed(msg, where: str, path, gray: bool = False) -> np.ndarray:
+    import cv2  # noqa: PLC0415 (heavy: OpenCV, only to decode compressed images)
 
     buf = np.asarray(msg.data, dtype=np.uint8)
     header = image_header(buf.tobytes()) if buf.size else None
@@ -307,8 +307,12 @@ def _decode_compressed(msg, where: str, path) -> np.ndarray:
     problem = size_problem(header.width, header.height, f"{header.format} header")
     if problem is not None:
         raise DatasetError(f"{where}: {problem}", path=path)
-    # IMREAD_UNCHANGED (-1) includes IMREAD_IGNORE_ORIENTATION: the pixels as stored
-    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED | cv2.IMREAD_IGNORE_ORIENTATION)
+    # IMREAD_UNCHANGED (-1) includes IMREAD_IGNORE_ORIENTATION: the pixels as stored; grey:
+    # the flags image files are read with (multieye.imaging.image_file.decode_gray), so that
+    # the same JPEG or PNG bytes give the same grey pixels from a bag as from a file (a colour
+    # JPEG's grey is its decoder's luma, not a conversion of its BGR decoding)
+    flags = (cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH if gray else cv2.IMREAD_UNCHANGED)
+    img = cv2.imdecode(buf, flags | cv2.IMREAD_IGNORE_ORIENTATION)
     if img is None:
         raise DatasetError(f"{where}: cannot decode the compressed image (format "
                            f"{msg.format!r}); expected a JPEG or PNG stream", path=path)
@@ -317,16 +321,18 @@ def _decode_compressed(msg, where: str, path) -> np.ndarray:
     return img
 
 
-def _decode(reader, conn, msgtype: str, raw, record_ns: int, topic: str, path):
+def _decode(reader, conn, msgtype: str, raw, record_ns: int, topic: str, path, *,
+            gray: bool = False):
     msg = reader.deserialize(raw, conn.msgtype)
     stamp = _stamp_ns(msg.header, record_ns)
     where = f"topic {topic} at {stamp} ns"
     if msgtype == "sensor_msgs/Image":
         return stamp, _decode_raw(msg, where, path)
-    return stamp, _decode_compressed(msg, where, path)
+    return stamp, _decode_compressed(msg, where, path, gray)
 
 
-def iter_bag_images(path: str | os.PathLike, topic: str) -> Iterator[tuple[int, np.ndarray]]:
+def iter_bag_images(path: str | os.PathLike, topic: str, *,
+                    gray: bool = False) -> Iterator[tuple[int, np.ndarray]]:
     """Images of a ``sensor_msgs/Image`` or ``sensor_msgs/CompressedImage`` topic.
 
     Parameters
@@ -334,6 +340,11 @@ def iter_bag_images(path: str | os.PathLike, topic: str) -> Iterator[tuple[int, 
     path : path-like
         ROS 1 ``.bag`` or ROS 2 bag.
     topic : str
+    gray : bool
+        Compressed images decoded to grey as image files are (``cv2.IMREAD_GRAYSCALE`` with
+        ``IMREAD_ANYDEPTH``: a colour JPEG's luma as its decoder gives it), so that the same
+        bytes give the same pixels from a bag and from a file; ``sensor_msgs/Image`` messages
+        are returned as without it.
 
     Yields
     ------
@@ -350,7 +361,7 @@ def iter_bag_images(path: str | os.PathLike, topic: str) -> Iterator[tuple[int, 
     with _reader(path) as reader:
         connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
         for conn, record_ns, raw in reader.messages(connections=connections):
-            yield _decode(reader, conn, msgtype, raw, record_ns, topic, path)
+            yield _decode(reader, conn, msgtype, raw, record_ns, topic, path, gray=gray)
 
 
 def bag_image_count(path: str | os.PathLike, topic: str) -> int:
@@ -383,8 +394,8 @@ def _header_stamp_ns(raw, ros2: bool) -> int | None:
     return int(sec) * 1_000_000_000 + int(nsec)
 
 
-def sample_bag_images(path: str | os.PathLike, topic: str, indices, *,
-                      stamps: list | None = None) -> Iterator[tuple[int, int, np.ndarray]]:
+def sample_bag_images(path: str | os.PathLike, topic: str, indices, *, stamps: list | None = None,
+                      gray: bool = False) -> Iterator[tuple[int, int, np.ndarray]]:
     """The images at some positions of an image topic, decoding only those.
 
     Every message of the topic is read in bag order, one at a time; only the messages at
@@ -404,6 +415,8 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *,
         When given, the stamp (ns) of every message of the topic is appended to it in bag
         order, the decoded ones included; the bag is then read to its end, else reading stops
         after the last wanted message.
+    gray : bool
+        As :func:`iter_bag_images`.
 
     Yields
     ------
@@ -426,7 +439,8 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *,
         for index, (conn, record_ns, raw) in enumerate(
                 reader.messages(connections=connections)):
             if index in wanted:
-                stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path)
+                stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path,
+                                       gray=gray)
                 if stamps is not None:
                     stamps.append(stamp)
                 yield index, stamp, image

@@ -144,7 +144,7 @@ def detect_listed(rig: Rig, model: RigModel, name: str, intr, workers: Workers, 
     stamped = []
 
     def frames():
-        for stamp_ns, image in iter_bag_images(cam.rosbag, cam.topic):
+        for stamp_ns, image in iter_bag_images(cam.rosbag, cam.topic, gray=True):
             label = f"{cam.topic}@{stamp_ns}"
             stamped.append((stamp_ns * 1e-9, label))
             yield label, image

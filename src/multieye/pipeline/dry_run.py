@@ -168,7 +168,7 @@ def _sample_bag(cam, target, intr, *, sample, processes):
 
     def frames():
         for index, stamp_ns, image in sample_bag_images(cam.rosbag, cam.topic, wanted,
-                                                        stamps=stamps_ns):
+                                                        stamps=stamps_ns, gray=True):
             picked.append(index)
             yield f"{cam.topic}@{stamp_ns}", image
 
@@ -178,7 +178,7 @@ def _sample_bag(cam, target, intr, *, sample, processes):
 
     def more(indices):          # another pass over the bag, decoding only these
         items = ((f"{cam.topic}@{t}", image) for _, t, image in
-                 sample_bag_images(cam.rosbag, cam.topic, indices))
+                 sample_bag_images(cam.rosbag, cam.topic, indices, gray=True))
         return indices, detect_and_estimate_arrays(items, target, intr, processes=processes,
                                                    progress=False, crop=cam.crop)
 

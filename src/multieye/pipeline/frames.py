@@ -61,7 +61,7 @@ def bag_frames(cam: CameraSpec, listed, stamped: list) -> Iterator[tuple]:
     """``(label, image)`` of the messages ``listed`` (items of :func:`bag_listing`), decoded
     in bag order one at a time; each appended to ``stamped`` as ``(stamp, label)``."""
     wanted = [f.index for _, _, f in listed]
-    for _, stamp_ns, image in sample_bag_images(cam.rosbag, cam.topic, wanted):
+    for _, stamp_ns, image in sample_bag_images(cam.rosbag, cam.topic, wanted, gray=True):
         label = f"{cam.topic}@{stamp_ns}"
         stamped.append((stamp_ns * 1e-9, label))
         yield label, image
