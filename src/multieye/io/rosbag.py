@@ -147,6 +147,11 @@ def bag_topics(path: str | os.PathLike) -> dict[str, str]:
 
 def _connections(reader, topic: str, allowed: tuple[str, ...], path):
     present = {t: _short_type(i.msgtype) for t, i in sorted(reader.topics.items())}
+    # a recorded topic's name is absolute ('/cam0/image_raw'); 'cam0/image_raw' (a relative
+    # name, as a launch file or Kalibr's camchain may write it) names the same topic
+    same = [t for t in present if t.lstrip("/") == topic.lstrip("/")]
+    if topic not in present and len(same) == 1:
+        topic = same[0]
     if topic not in present:
         listing = ", ".join(f"{t} ({m})" for t, m in present.items()) or "none"
         raise DatasetError(f"topic {topic!r} not in the bag; topics present: {listing}",
@@ -331,6 +336,18 @@ def _decode(reader, conn, msgtype: str, raw, record_ns: int, topic: str, path, *
     return stamp, _decode_compressed(msg, where, path, gray)
 
 
+def _new_stamp(seen: set, stamp: int, topic: str, path) -> int:
+    """``stamp``, added to ``seen``; a stamp seen before is an error (two images of one
+    instant of one camera: which motion-capture pose or which view is each?)."""
+    if stamp in seen:
+        raise DatasetError(f"image topic {topic}: two messages with the header stamp {stamp} "
+                           "ns; each image needs its own stamp (republish the topic with each "
+                           "image's capture time in header.stamp, or save its images to a "
+                           "folder named by their times)", path=path)
+    seen.add(stamp)
+    return stamp
+
+
 def iter_bag_images(path: str | os.PathLike, topic: str, *,
                     gray: bool = False) -> Iterator[tuple[int, np.ndarray]]:
     """Images of a ``sensor_msgs/Image`` or ``sensor_msgs/CompressedImage`` topic.
@@ -356,12 +373,16 @@ def iter_bag_images(path: str | os.PathLike, topic: str, *,
     Raises
     ------
     DatasetError
-        Missing bag or topic (listing those present), unsupported encoding, undecodable data.
+        Missing bag or topic (listing those present), unsupported encoding, undecodable data,
+        two messages with one stamp.
     """
+    seen: set[int] = set()
     with _reader(path) as reader:
         connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
         for conn, record_ns, raw in reader.messages(connections=connections):
-            yield _decode(reader, conn, msgtype, raw, record_ns, topic, path, gray=gray)
+            stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path,
+                                   gray=gray)
+            yield _new_stamp(seen, stamp, topic, path), image
 
 
 def bag_image_count(path: str | os.PathLike, topic: str) -> int:
@@ -374,8 +395,8 @@ def bag_image_count(path: str | os.PathLike, topic: str) -> int:
         As :func:`iter_bag_images` for a missing bag or topic, or a topic of another type.
     """
     with _reader(path) as reader:
-        _connections(reader, topic, IMAGE_TYPES, path)
-        return int(reader.topics[topic].msgcount)
+        connections, _ = _connections(reader, topic, IMAGE_TYPES, path)
+        return sum(int(c.msgcount) for c in connections)
 
 
 def _header_stamp_ns(raw, ros2: bool) -> int | None:
@@ -428,12 +449,14 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *, stamps: l
     Raises
     ------
     DatasetError
-        As :func:`iter_bag_images`, for the decoded messages.
+        As :func:`iter_bag_images`, for the decoded messages (two with one stamp: among all
+        messages when ``stamps`` is given).
     """
     wanted = {int(i) for i in indices}
     last = max(wanted, default=-1)
     if not wanted and stamps is None:
         return
+    seen: set[int] = set()
     with _reader(path) as reader:
         connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
         for index, (conn, record_ns, raw) in enumerate(
@@ -442,7 +465,7 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *, stamps: l
                 stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path,
                                        gray=gray)
                 if stamps is not None:
-                    stamps.append(stamp)
+                    stamps.append(_new_stamp(seen, stamp, topic, path))
                 yield index, stamp, image
                 if stamps is None and index >= last:
                     return
@@ -450,4 +473,4 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *, stamps: l
                 ns = _header_stamp_ns(raw, reader.is2)
                 if ns is None:      # not a plain header: deserialize the message for it
                     ns = _stamp_ns(reader.deserialize(raw, conn.msgtype).header, record_ns)
-                stamps.append(ns if ns != 0 else int(record_ns))
+                stamps.append(_new_stamp(seen, ns if ns != 0 else int(record_ns), topic, path))
