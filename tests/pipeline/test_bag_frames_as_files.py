@@ -48,7 +48,7 @@ def test_bag_frames_are_the_grey_pixels_of_the_same_files(tmp_path, rng, ros):
     for topic in ("/c", "/r"):
         cam = SimpleNamespace(rosbag=path, topic=topic)
         got += [(int(label.split("@")[1]), to_gray(img))
-                for label, img in bag_frames(cam, bag_listing(cam), [])]
+                for label, img in bag_frames(cam, bag_listing(cam), [], [])]
     got.sort(key=lambda item: item[0])
     assert [ns - BASE_NS for ns, _ in got] == [0, 1, 2, 3]
     for k, ((_, image), data) in enumerate(zip(got, files)):

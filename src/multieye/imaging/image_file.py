@@ -31,7 +31,8 @@ from __future__ import annotations
 import numpy as np
 
 from multieye.core.errors import DatasetError
-from multieye.core.image_header import FORMATS, ImageHeader, image_header, size_problem
+from multieye.core.image_header import (FORMATS, ImageHeader, cut_short, image_header,
+                                        size_problem)
 from multieye.core.limits import MAX_IMAGE_BYTES
 from multieye.core.regular_files import read_bounded
 
@@ -62,7 +63,8 @@ def checked_bytes(path) -> tuple[bytes | None, ImageHeader | None, str | None]:
     if header is None:
         return None, None, (f"unreadable file: not a {FORMATS} image (or its header is cut "
                             "short)")
-    problem = size_problem(header.width, header.height, f"{header.format} header")
+    problem = (size_problem(header.width, header.height, f"{header.format} header")
+               or cut_short(data, header))
     if problem is not None:
         return None, None, f"unreadable file: {problem}"
     return data, header, None

@@ -44,7 +44,7 @@ import numpy as np
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.image_header import FORMATS, image_header, size_problem
+from multieye.core.image_header import FORMATS, cut_short, image_header, size_problem
 from multieye.core.limits import MAX_YAML_BYTES
 from multieye.io.poserows import RowPlace, quaternion_poses, usable_rows
 from multieye.io.textfile import length_scale
@@ -301,17 +301,28 @@ def _decode_raw(msg, where: str, path) -> np.ndarray:
     return img
 
 
+class _Undecodable(DatasetError):
+    """One compressed message whose bytes are not decoded (cut short, corrupt, a size beyond
+    the bounds): one bad image, as an unreadable image file is, not a bad topic."""
+
+    def __init__(self, where: str, reason: str, path):
+        super().__init__(f"{where}: {reason}", path=path)
+        self.why = reason
+
+
 def _decode_compressed(msg, where: str, path, gray: bool = False) -> np.ndarray:
     import cv2  # noqa: PLC0415 (heavy: OpenCV, only to decode compressed images)
 
     buf = np.asarray(msg.data, dtype=np.uint8)
-    header = image_header(buf.tobytes()) if buf.size else None
+    data = buf.tobytes()
+    header = image_header(data) if buf.size else None
     if header is None:
-        raise DatasetError(f"{where}: the compressed image (format {msg.format!r}) is not a "
-                           f"{FORMATS} stream, or its header is cut short", path=path)
-    problem = size_problem(header.width, header.height, f"{header.format} header")
+        raise _Undecodable(where, f"the compressed image (format {msg.format!r}) is not a "
+                           f"{FORMATS} stream, or its header is cut short", path)
+    problem = (size_problem(header.width, header.height, f"{header.format} header")
+               or cut_short(data, header))
     if problem is not None:
-        raise DatasetError(f"{where}: {problem}", path=path)
+        raise _Undecodable(where, problem, path)
     # IMREAD_UNCHANGED (-1) includes IMREAD_IGNORE_ORIENTATION: the pixels as stored; grey:
     # the flags image files are read with (multieye.imaging.image_file.decode_gray), so that
     # the same JPEG or PNG bytes give the same grey pixels from a bag as from a file (a colour
@@ -319,21 +330,29 @@ def _decode_compressed(msg, where: str, path, gray: bool = False) -> np.ndarray:
     flags = (cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH if gray else cv2.IMREAD_UNCHANGED)
     img = cv2.imdecode(buf, flags | cv2.IMREAD_IGNORE_ORIENTATION)
     if img is None:
-        raise DatasetError(f"{where}: cannot decode the compressed image (format "
-                           f"{msg.format!r}); expected a JPEG or PNG stream", path=path)
+        raise _Undecodable(where, f"cannot decode the compressed image (format "
+                           f"{msg.format!r}): corrupt, or not a JPEG or PNG stream", path)
     if img.ndim == 3 and img.shape[2] == 4:
         img = np.ascontiguousarray(img[..., :3])
     return img
 
 
 def _decode(reader, conn, msgtype: str, raw, record_ns: int, topic: str, path, *,
-            gray: bool = False):
+            gray: bool = False, lost: list | None = None):
+    """``(stamp, image)``; image None for a compressed message that is not decoded when
+    ``lost`` is given, ``(stamp, reason)`` appended to it."""
     msg = reader.deserialize(raw, conn.msgtype)
     stamp = _stamp_ns(msg.header, record_ns)
     where = f"topic {topic} at {stamp} ns"
     if msgtype == "sensor_msgs/Image":
         return stamp, _decode_raw(msg, where, path)
-    return stamp, _decode_compressed(msg, where, path, gray)
+    try:
+        return stamp, _decode_compressed(msg, where, path, gray)
+    except _Undecodable as exc:
+        if lost is None:
+            raise
+        lost.append((stamp, f"unreadable message: {exc.why}"))
+        return stamp, None
 
 
 def _new_stamp(seen: set, stamp: int, topic: str, path) -> int:
@@ -348,8 +367,8 @@ def _new_stamp(seen: set, stamp: int, topic: str, path) -> int:
     return stamp
 
 
-def iter_bag_images(path: str | os.PathLike, topic: str, *,
-                    gray: bool = False) -> Iterator[tuple[int, np.ndarray]]:
+def iter_bag_images(path: str | os.PathLike, topic: str, *, gray: bool = False,
+                    lost: list | None = None) -> Iterator[tuple[int, np.ndarray]]:
     """Images of a ``sensor_msgs/Image`` or ``sensor_msgs/CompressedImage`` topic.
 
     Parameters
@@ -362,6 +381,10 @@ def iter_bag_images(path: str | os.PathLike, topic: str, *,
         ``IMREAD_ANYDEPTH``: a colour JPEG's luma as its decoder gives it), so that the same
         bytes give the same pixels from a bag and from a file; ``sensor_msgs/Image`` messages
         are returned as without it.
+    lost : list, optional
+        When given, a compressed message whose bytes are not decoded (cut short, corrupt,
+        a size beyond the bounds) is appended to it as ``(stamp_ns, reason)`` and left out,
+        as an unreadable image file is; without it, it is an error.
 
     Yields
     ------
@@ -381,8 +404,10 @@ def iter_bag_images(path: str | os.PathLike, topic: str, *,
         connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
         for conn, record_ns, raw in reader.messages(connections=connections):
             stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path,
-                                   gray=gray)
-            yield _new_stamp(seen, stamp, topic, path), image
+                                   gray=gray, lost=lost)
+            _new_stamp(seen, stamp, topic, path)
+            if image is not None:
+                yield stamp, image
 
 
 def bag_image_count(path: str | os.PathLike, topic: str) -> int:
@@ -416,7 +441,8 @@ def _header_stamp_ns(raw, ros2: bool) -> int | None:
 
 
 def sample_bag_images(path: str | os.PathLike, topic: str, indices, *, stamps: list | None = None,
-                      gray: bool = False) -> Iterator[tuple[int, int, np.ndarray]]:
+                      gray: bool = False, lost: list | None = None
+                      ) -> Iterator[tuple[int, int, np.ndarray]]:
     """The images at some positions of an image topic, decoding only those.
 
     Every message of the topic is read in bag order, one at a time; only the messages at
@@ -436,8 +462,8 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *, stamps: l
         When given, the stamp (ns) of every message of the topic is appended to it in bag
         order, the decoded ones included; the bag is then read to its end, else reading stops
         after the last wanted message.
-    gray : bool
-        As :func:`iter_bag_images`.
+    gray, lost : bool, list
+        As :func:`iter_bag_images` (a message left out is not yielded).
 
     Yields
     ------
@@ -463,10 +489,11 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *, stamps: l
                 reader.messages(connections=connections)):
             if index in wanted:
                 stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path,
-                                       gray=gray)
+                                       gray=gray, lost=lost)
                 if stamps is not None:
                     stamps.append(_new_stamp(seen, stamp, topic, path))
-                yield index, stamp, image
+                if image is not None:
+                    yield index, stamp, image
                 if stamps is None and index >= last:
                     return
             elif stamps is not None:
