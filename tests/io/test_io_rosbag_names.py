@@ -3,6 +3,7 @@ without its leading slash, two messages of one topic with the same header stamp.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -55,3 +56,29 @@ def test_two_messages_with_one_stamp_are_refused_naming_the_topic(tmp_path, rng,
         list(sample_bag_images(path, "/cam/img", [], stamps=[]))
     with pytest.raises(DatasetError, match=expected):     # the last one decoded
         list(sample_bag_images(path, "/cam/img", [2], stamps=[]))
+
+
+def test_a_depth_topic_and_an_mcap_cut_short_are_named(tmp_path, rng):
+    """A compressedDepth topic is refused as depth images (was: 'not a PNG ... stream', now
+    that one undecodable message is left out it would have been every message left out); an
+    MCAP file cut short names 'mcap recover'."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    import rosbag_writer
+
+    png = cv2.imencode(".png", rng.integers(0, 4000, (16, 24), dtype=np.uint16))[1].tobytes()
+    path = tmp_path / "run"
+    bag = Bag.__new__(Bag)
+    bag.ros, bag.ts, bag.conns = 2, rosbag_writer._typestore(2), {}
+    bag.writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    with bag:
+        for k in range(3):
+            bag.write("/depth/compressedDepth", bag.t("sensor_msgs/msg/CompressedImage")(
+                header=bag.header(BASE_NS + k, "cam"), format="16UC1; compressedDepth",
+                data=np.frombuffer(bytes(12) + png, np.uint8).copy()), BASE_NS + k)
+    with pytest.raises(DatasetError, match="the topic holds depth images"):
+        list(iter_bag_images(path, "/depth/compressedDepth", lost=[]))
+    mcap = next(path.glob("*.mcap"))
+    mcap.write_bytes(mcap.read_bytes()[:-40])
+    with pytest.raises(DatasetError, match="cannot read the bag: .*'mcap recover"):
+        bag_image_count(path, "/depth/compressedDepth")

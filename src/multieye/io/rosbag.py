@@ -131,8 +131,11 @@ def _reader(path: str | os.PathLike):
         reader.open()
     except (AnyReaderError, OSError, ValueError) as exc:
         hint = ("; a ROS 1 bag cut short (a recording stopped abruptly, a .bag.active) is "
-                "repaired by 'rosbag reindex'" if p.is_file() else "")
-        raise DatasetError(f"cannot read the bag: {exc}{hint}", path=path) from exc
+                "repaired by 'rosbag reindex'" if p.is_file() else
+                "; an MCAP file cut short (a recording stopped abruptly) is repaired by 'mcap "
+                "recover FILE -o NEW', a .db3 by sqlite3's '.recover'")
+        why = str(exc).rstrip(".")
+        raise DatasetError(f"cannot read the bag: {why}{hint}", path=path) from exc
     try:
         yield reader
     finally:
@@ -313,6 +316,10 @@ class _Undecodable(DatasetError):
 def _decode_compressed(msg, where: str, path, gray: bool = False) -> np.ndarray:
     import cv2  # noqa: PLC0415 (heavy: OpenCV, only to decode compressed images)
 
+    if "compresseddepth" in msg.format.replace(" ", "").lower():
+        raise DatasetError(f"{where}: the topic holds depth images (format {msg.format!r}), "
+                           "not a camera's picture of the board; give the camera's image "
+                           "topic (its colour, grey or infrared images)", path=path)
     buf = np.asarray(msg.data, dtype=np.uint8)
     data = buf.tobytes()
     header = image_header(data) if buf.size else None
