@@ -82,3 +82,12 @@ def test_a_depth_topic_and_an_mcap_cut_short_are_named(tmp_path, rng):
     mcap.write_bytes(mcap.read_bytes()[:-40])
     with pytest.raises(DatasetError, match="cannot read the bag: .*'mcap recover"):
         bag_image_count(path, "/depth/compressedDepth")
+
+
+def test_a_ros2_bag_is_named_by_its_metadata_too(tmp_path, rng):
+    path = tmp_path / "run"
+    with Bag(path, 2) as bag:
+        bag.write("/c", image_msg(bag, BASE_NS, rng.integers(0, 256, (16, 24), dtype=np.uint8),
+                                  "mono8"), BASE_NS)
+    assert bag_image_count(path / "metadata.yaml", "/c") == 1   # was 'rosbag reindex'
+    assert bag_image_count(path, "/c") == 1

@@ -126,12 +126,15 @@ def _reader(path: str | os.PathLike):
                                f"with 'ros2 bag reindex <folder>'"
                                f"{' -s mcap' if p.suffix == '.mcap' else ''}", path=p)
         p = p.parent  # a ROS 2 bag is its folder (with metadata.yaml)
+    elif p.is_file() and p.name == "metadata.yaml":
+        p = p.parent  # the bag's metadata names it too
+        _check_bag_files(p)
     try:
         reader = AnyReader([p], default_typestore=_default_typestore())
         reader.open()
     except (AnyReaderError, OSError, ValueError) as exc:
         hint = ("; a ROS 1 bag cut short (a recording stopped abruptly, a .bag.active) is "
-                "repaired by 'rosbag reindex'" if p.is_file() else
+                "repaired by 'rosbag reindex'" if p.is_file() and p.suffix != ".yaml" else
                 "; an MCAP file cut short (a recording stopped abruptly) is repaired by 'mcap "
                 "recover FILE -o NEW', a .db3 by sqlite3's '.recover'")
         why = str(exc).rstrip(".")
