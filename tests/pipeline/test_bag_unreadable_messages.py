@@ -68,3 +68,32 @@ def test_a_png_file_cut_short_is_named_before_decoding(tmp_path, rng):
                                                       "short (no IEND chunk)")
     (tmp_path / "whole.png").write_bytes(data)
     assert checked_bytes(tmp_path / "whole.png")[2] is None
+
+
+def test_the_dry_run_names_an_unreadable_sampled_message(tmp_path):
+    """multieye check samples the topic as calibrate reads it: the corrupt message is one
+    problem line naming it, the rest of the camera checked (refused before: exit 2)."""
+    from multieye.pipeline.dry_run import check_dataset
+    from rosbag_writer import camera_into_bag
+    from small_dataset import render_small
+
+    render_small(tmp_path / "ds")
+    camera_into_bag(tmp_path / "ds", "cam1")         # mono8 messages, then one made corrupt
+    path = tmp_path / "ds" / "run"
+    moved = tmp_path / "raw"
+    path.rename(moved)
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([moved]) as reader, Bag(path, 2) as bag:
+        for k, (conn, rec, raw) in enumerate(reader.messages()):
+            msg = reader.deserialize(raw, conn.msgtype)
+            img = msg.data.reshape(msg.height, msg.step)
+            data = cv2.imencode(".png", img)[1].tobytes()
+            bag.write(conn.topic, bag.t("sensor_msgs/msg/CompressedImage")(
+                header=msg.header, format="png",
+                data=np.frombuffer(data[:100] if k == 2 else data, np.uint8).copy()), rec)
+    result = check_dataset(tmp_path / "ds", processes=1)
+    assert result.ok, result.reasons
+    c = result.cameras[1]
+    assert (c.source, c.listed, c.found) == ("rosbag", 8, 7)
+    assert any(p.endswith(CUT) and p.startswith("/cam1/image_raw@") for p in c.problems)

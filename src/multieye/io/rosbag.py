@@ -347,14 +347,14 @@ def _decode_compressed(msg, where: str, path, gray: bool = False) -> np.ndarray:
     return img
 
 
-def _decode(reader, conn, msgtype: str, raw, record_ns: int, topic: str, path, *,
-            gray: bool = False, lost: list | None = None):
+def _decode(reader, conn, raw, record_ns: int, topic: str, path, *, gray: bool = False,
+            lost: list | None = None):
     """``(stamp, image)``; image None for a compressed message that is not decoded when
     ``lost`` is given, ``(stamp, reason)`` appended to it."""
     msg = reader.deserialize(raw, conn.msgtype)
     stamp = _stamp_ns(msg.header, record_ns)
     where = f"topic {topic} at {stamp} ns"
-    if msgtype == "sensor_msgs/Image":
+    if _short_type(conn.msgtype) == "sensor_msgs/Image":
         return stamp, _decode_raw(msg, where, path)
     try:
         return stamp, _decode_compressed(msg, where, path, gray)
@@ -411,9 +411,9 @@ def iter_bag_images(path: str | os.PathLike, topic: str, *, gray: bool = False,
     """
     seen: set[int] = set()
     with _reader(path) as reader:
-        connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
+        connections, _ = _connections(reader, topic, IMAGE_TYPES, path)
         for conn, record_ns, raw in reader.messages(connections=connections):
-            stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path,
+            stamp, image = _decode(reader, conn, raw, record_ns, topic, path,
                                    gray=gray, lost=lost)
             _new_stamp(seen, stamp, topic, path)
             if image is not None:
@@ -494,11 +494,11 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *, stamps: l
         return
     seen: set[int] = set()
     with _reader(path) as reader:
-        connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
+        connections, _ = _connections(reader, topic, IMAGE_TYPES, path)
         for index, (conn, record_ns, raw) in enumerate(
                 reader.messages(connections=connections)):
             if index in wanted:
-                stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path,
+                stamp, image = _decode(reader, conn, raw, record_ns, topic, path,
                                        gray=gray, lost=lost)
                 if stamps is not None:
                     stamps.append(_new_stamp(seen, stamp, topic, path))

@@ -167,31 +167,23 @@ def _sample_bag(cam, target, intr, lost: list, *, sample, processes):
     stamps_ns: list[int] = []
     picked: list[int] = []
 
-    def frames():
+    def read(indices, done: list, **stamps):     # these messages decoded, in bag order
         bad: list = []
-        for index, stamp_ns, image in sample_bag_images(cam.rosbag, cam.topic, wanted,
-                                                        stamps=stamps_ns, gray=True, lost=bad):
-            picked.append(index)
-            yield f"{cam.topic}@{stamp_ns}", image
+        for index, t, image in sample_bag_images(cam.rosbag, cam.topic, indices, gray=True,
+                                                 lost=bad, **stamps):
+            done.append(index)
+            yield f"{cam.topic}@{t}", image
         lost.extend((f"{cam.topic}@{ns}", why) for ns, why in bad)
 
-    results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
-                                         progress=False, crop=cam.crop)
+    results = detect_and_estimate_arrays(read(wanted, picked, stamps=stamps_ns), target, intr,
+                                         processes=processes, progress=False, crop=cam.crop)
     stamps = np.array(stamps_ns, dtype=np.int64) * 1e-9
 
     def more(indices):          # another pass over the bag, decoding only these
-        got, bad = [], []
-
-        def items():
-            for index, t, image in sample_bag_images(cam.rosbag, cam.topic, indices,
-                                                     gray=True, lost=bad):
-                got.append(index)
-                yield f"{cam.topic}@{t}", image
-            lost.extend((f"{cam.topic}@{ns}", why) for ns, why in bad)
-
-        found = detect_and_estimate_arrays(items(), target, intr, processes=processes,
-                                           progress=False, crop=cam.crop)
-        return got, found
+        got: list[int] = []
+        return got, detect_and_estimate_arrays(read(indices, got), target, intr,
+                                               processes=processes, progress=False,
+                                               crop=cam.crop)
 
     picked, results = sampled_on(len(stamps), picked, results, more, sample_budget(sample))
     return stamps, picked, results
