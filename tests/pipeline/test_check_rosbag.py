@@ -49,8 +49,8 @@ def test_only_the_sampled_messages_are_decoded(tmp_path, monkeypatch):
     decoded, deserialized = [], []
     decode = rosbag_io._decode
 
-    def counting_decode(reader, conn, msgtype, raw, record_ns, topic, path):
-        stamp, img = decode(reader, conn, msgtype, raw, record_ns, topic, path)
+    def counting_decode(reader, conn, raw, record_ns, topic, path, **kw):
+        stamp, img = decode(reader, conn, raw, record_ns, topic, path, **kw)
         decoded.append(stamp)
         return stamp, img
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from multieye.core.limits import MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE_PX
 
-__all__ = ["ImageHeader", "image_header", "size_problem", "FORMATS"]
+__all__ = ["ImageHeader", "image_header", "size_problem", "cut_short", "FORMATS"]
 
 #: The formats whose header is read (OpenCV decodes them).
 FORMATS = "PNG, JPEG, BMP, TIFF, PGM/PPM/PBM or WebP"
@@ -204,4 +204,15 @@ def size_problem(width: int, height: int, what: str) -> str | None:
         return (f"the {what} states {width} x {height} pixels, more than the "
                 f"{MAX_IMAGE_PIXELS / 1e6:g} megapixels (or {MAX_IMAGE_SIDE_PX} per side) "
                 "accepted; not decoded")
+    return None
+
+
+def cut_short(data: bytes, header: ImageHeader) -> str | None:
+    """Why a stream whose header was read is not decoded because its end is missing: a PNG
+    without its ``IEND`` chunk (a file or a bag message cut short; libpng would write
+    ``libpng error: PNG input buffer is incomplete`` on the process's standard error, below
+    OpenCV's log level, beside multieye's one line).  None otherwise (other formats'
+    decoders fail silently)."""
+    if header.format == "PNG" and bytes(data).rfind(b"IEND") < 0:
+        return "the PNG stream is cut short (no IEND chunk)"
     return None

@@ -47,6 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from multieye.core.errors import InputError
 from multieye.imaging import chessboard_corners as cc
+from multieye.imaging.image_file import to_8_bits
 from multieye.imaging.small_markers import at_twice_the_size
 from multieye.imaging.targets import (
     AprilGrid,
@@ -113,11 +114,9 @@ def to_gray(image: ArrayLike) -> NDArray[np.uint8]:
 
 
 def _to_uint8(img: np.ndarray) -> NDArray[np.uint8]:
-    if img.dtype == np.uint8:
-        return img
-    top = float(np.nanmax(img)) if img.size else 0.0
-    scale = 255.0 / top if top > 0 else 1.0
-    return np.clip(np.nan_to_num(img.astype(np.float64) * scale), 0, 255).astype(np.uint8)
+    # one scaling for every source: a bag's 16-bit message and the same pixels as a 16-bit
+    # PNG file give the same 8-bit image (rounded, not truncated)
+    return img if img.dtype == np.uint8 else to_8_bits(img)
 
 
 def detect(image: ArrayLike, target: Target) -> Detection | None:

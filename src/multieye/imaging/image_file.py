@@ -31,11 +31,12 @@ from __future__ import annotations
 import numpy as np
 
 from multieye.core.errors import DatasetError
-from multieye.core.image_header import FORMATS, ImageHeader, image_header, size_problem
+from multieye.core.image_header import (FORMATS, ImageHeader, cut_short, image_header,
+                                        size_problem)
 from multieye.core.limits import MAX_IMAGE_BYTES
 from multieye.core.regular_files import read_bounded
 
-__all__ = ["ImageHeader", "image_header", "read_gray", "read_region", "cropped", "cropped_frames",
+__all__ = ["ImageHeader", "image_header", "read_gray", "to_8_bits", "read_region", "cropped", "cropped_frames",
            "turns_to_fit", "FORMATS"]
 
 
@@ -62,7 +63,8 @@ def checked_bytes(path) -> tuple[bytes | None, ImageHeader | None, str | None]:
     if header is None:
         return None, None, (f"unreadable file: not a {FORMATS} image (or its header is cut "
                             "short)")
-    problem = size_problem(header.width, header.height, f"{header.format} header")
+    problem = (size_problem(header.width, header.height, f"{header.format} header")
+               or cut_short(data, header))
     if problem is not None:
         return None, None, f"unreadable file: {problem}"
     return data, header, None
@@ -107,11 +109,11 @@ def decode_gray(data: bytes, reduce: int = 1, *, orient: bool = False
     if image is None or image.size == 0:
         return None, "unreadable file: not an image OpenCV can decode (truncated or corrupt?)"
     if image.dtype != np.uint8:     # 16-bit (10 or 12 bits of a machine-vision camera), float
-        image = _to_8_bits(image)
+        image = to_8_bits(image)
     return image, None
 
 
-def _to_8_bits(image: np.ndarray) -> np.ndarray:
+def to_8_bits(image: np.ndarray) -> np.ndarray:
     """A 16-bit or float gray image scaled to 8 bits by its brightest pixel, as a bag's
     16-bit images are (:func:`multieye.imaging.detect.to_gray`): 10 or 12 bits stored in 16
     keep their contrast (OpenCV's 8-bit decoding keeps the top 8 of the 16 bits: 4 grey

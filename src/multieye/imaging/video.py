@@ -37,31 +37,55 @@ MAX_VIDEO_FRAMES = 1_080_000
 
 def _open(path) -> cv2.VideoCapture:
     check_regular(path, what="video file", max_bytes=MAX_VIDEO_BYTES)
+    # FFmpeg's own lines ('moov atom not found', 'overread 8') kept off stderr, where the
+    # reason is multieye's one line; OpenCV reads this when it opens its first video (a level
+    # the user set is kept)
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     cap = cv2.VideoCapture(os.fspath(path))
     if not cap.isOpened():
         cap.release()
-        raise DatasetError("cannot open the video file (not a video OpenCV's FFmpeg reads)",
-                           path=path)
+        raise DatasetError("cannot open the video file: not a video OpenCV's FFmpeg reads, or "
+                           "one cut short (an .mp4 or .mov whose recording stopped before its "
+                           "index was written)", path=path)
     return cap
 
 
-def video_frame_count(path: str | os.PathLike) -> tuple[int, float]:
-    """Frames and frame rate (Hz) as the container states them, without reading a frame.
+def _grabbed_frames(path) -> int:
+    """Frames of a video counted by grabbing each (the codec decodes them)."""
+    cap = _open(path)
+    try:
+        n = 0
+        while cap.grab():
+            n += 1
+            if n > MAX_VIDEO_FRAMES:
+                raise DatasetError(f"more than the {MAX_VIDEO_FRAMES} frames accepted",
+                                   path=path)
+        return n
+    finally:
+        cap.release()
+
+
+def video_frame_count(path: str | os.PathLike, *, counted: bool = False) -> tuple[int, float]:
+    """Frames and frame rate (Hz) as the container states them, without reading a frame;
+    the frames counted by grabbing each when ``counted`` or when the container states no
+    count (a raw MJPEG or H.264 stream).  Many containers' count is an estimate from their
+    duration (an MPEG-PS ``.mpg`` of 5 frames states 1).
 
     Raises
     ------
     DatasetError
-        Missing, too large or unreadable file; a container that states no frame count or
-        more than :data:`MAX_VIDEO_FRAMES`.
+        Missing, too large or unreadable file; a video without a frame; more than
+        :data:`MAX_VIDEO_FRAMES` frames.
     """
     cap = _open(path)
     try:
         n, fps = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)), float(cap.get(cv2.CAP_PROP_FPS))
     finally:
         cap.release()
-    if n <= 0:
-        raise DatasetError("the video states no frame count; give its frame stamps as "
-                           "'stamps: FILE' in rig.yaml", path=path)
+    if n <= 0 or counted:
+        n = _grabbed_frames(path)
+    if n == 0:
+        raise DatasetError("the video holds no frame", path=path)
     if n > MAX_VIDEO_FRAMES:
         raise DatasetError(f"{n} frames, more than the {MAX_VIDEO_FRAMES} accepted", path=path)
     return n, fps
@@ -75,14 +99,17 @@ def video_stamps(path: str | os.PathLike, *, start_s: float = 0.0,
     Raises
     ------
     DatasetError
-        As :func:`video_frame_count`; a stamps file whose count is not the video's; no frame
-        rate and no stamps file.
+        As :func:`video_frame_count`; a stamps file whose count is not the video's frames
+        (counted by grabbing each when the container states another); no frame rate and no
+        stamps file.
     """
     n, fps = video_frame_count(path)
     if stamps_ns is not None:
+        if len(stamps_ns) != n:     # the stated count may be an estimate: count the frames
+            n = video_frame_count(path, counted=True)[0]
         if len(stamps_ns) != n:
             raise DatasetError(f"the stamps file has {len(stamps_ns)} stamps for the video's "
-                               f"{n} frames (one per frame, in order)", path=path)
+                               f"{n} frames (one per frame, in order; counted)", path=path)
         return np.asarray(stamps_ns, dtype=np.int64) / 1e9
     if not (np.isfinite(fps) and fps > 0):
         raise DatasetError("the video states no frame rate; give its frame stamps as "

@@ -44,7 +44,7 @@ import numpy as np
 
 from multieye.core.arguments import as_path
 from multieye.core.errors import DatasetError, InputError
-from multieye.core.image_header import FORMATS, image_header, size_problem
+from multieye.core.image_header import FORMATS, cut_short, image_header, size_problem
 from multieye.core.limits import MAX_YAML_BYTES
 from multieye.io.poserows import RowPlace, quaternion_poses, usable_rows
 from multieye.io.textfile import length_scale
@@ -126,13 +126,19 @@ def _reader(path: str | os.PathLike):
                                f"with 'ros2 bag reindex <folder>'"
                                f"{' -s mcap' if p.suffix == '.mcap' else ''}", path=p)
         p = p.parent  # a ROS 2 bag is its folder (with metadata.yaml)
+    elif p.is_file() and p.name == "metadata.yaml":
+        p = p.parent  # the bag's metadata names it too
+        _check_bag_files(p)
     try:
         reader = AnyReader([p], default_typestore=_default_typestore())
         reader.open()
     except (AnyReaderError, OSError, ValueError) as exc:
         hint = ("; a ROS 1 bag cut short (a recording stopped abruptly, a .bag.active) is "
-                "repaired by 'rosbag reindex'" if p.is_file() else "")
-        raise DatasetError(f"cannot read the bag: {exc}{hint}", path=path) from exc
+                "repaired by 'rosbag reindex'" if p.is_file() and p.suffix != ".yaml" else
+                "; an MCAP file cut short (a recording stopped abruptly) is repaired by 'mcap "
+                "recover FILE -o NEW', a .db3 by sqlite3's '.recover'")
+        why = str(exc).rstrip(".")
+        raise DatasetError(f"cannot read the bag: {why}{hint}", path=path) from exc
     try:
         yield reader
     finally:
@@ -147,6 +153,11 @@ def bag_topics(path: str | os.PathLike) -> dict[str, str]:
 
 def _connections(reader, topic: str, allowed: tuple[str, ...], path):
     present = {t: _short_type(i.msgtype) for t, i in sorted(reader.topics.items())}
+    # a recorded topic's name is absolute ('/cam0/image_raw'); 'cam0/image_raw' (a relative
+    # name, as a launch file or Kalibr's camchain may write it) names the same topic
+    same = [t for t in present if t.lstrip("/") == topic.lstrip("/")]
+    if topic not in present and len(same) == 1:
+        topic = same[0]
     if topic not in present:
         listing = ", ".join(f"{t} ({m})" for t, m in present.items()) or "none"
         raise DatasetError(f"topic {topic!r} not in the bag; topics present: {listing}",
@@ -296,37 +307,78 @@ def _decode_raw(msg, where: str, path) -> np.ndarray:
     return img
 
 
-def _decode_compressed(msg, where: str, path) -> np.ndarray:
-    import cv2  # noqa: PLC0415 (heavy: OpenCV, only to demosaic Bayer images)
+class _Undecodable(DatasetError):
+    """One compressed message whose bytes are not decoded (cut short, corrupt, a size beyond
+    the bounds): one bad image, as an unreadable image file is, not a bad topic."""
 
+    def __init__(self, where: str, reason: str, path):
+        super().__init__(f"{where}: {reason}", path=path)
+        self.why = reason
+
+
+def _decode_compressed(msg, where: str, path, gray: bool = False) -> np.ndarray:
+    import cv2  # noqa: PLC0415 (heavy: OpenCV, only to decode compressed images)
+
+    if "compresseddepth" in msg.format.replace(" ", "").lower():
+        raise DatasetError(f"{where}: the topic holds depth images (format {msg.format!r}), "
+                           "not a camera's picture of the board; give the camera's image "
+                           "topic (its colour, grey or infrared images)", path=path)
     buf = np.asarray(msg.data, dtype=np.uint8)
-    header = image_header(buf.tobytes()) if buf.size else None
+    data = buf.tobytes()
+    header = image_header(data) if buf.size else None
     if header is None:
-        raise DatasetError(f"{where}: the compressed image (format {msg.format!r}) is not a "
-                           f"{FORMATS} stream, or its header is cut short", path=path)
-    problem = size_problem(header.width, header.height, f"{header.format} header")
+        raise _Undecodable(where, f"the compressed image (format {msg.format!r}) is not a "
+                           f"{FORMATS} stream, or its header is cut short", path)
+    problem = (size_problem(header.width, header.height, f"{header.format} header")
+               or cut_short(data, header))
     if problem is not None:
-        raise DatasetError(f"{where}: {problem}", path=path)
-    # IMREAD_UNCHANGED (-1) includes IMREAD_IGNORE_ORIENTATION: the pixels as stored
-    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED | cv2.IMREAD_IGNORE_ORIENTATION)
+        raise _Undecodable(where, problem, path)
+    # IMREAD_UNCHANGED (-1) includes IMREAD_IGNORE_ORIENTATION: the pixels as stored; grey:
+    # the flags image files are read with (multieye.imaging.image_file.decode_gray), so that
+    # the same JPEG or PNG bytes give the same grey pixels from a bag as from a file (a colour
+    # JPEG's grey is its decoder's luma, not a conversion of its BGR decoding)
+    flags = (cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH if gray else cv2.IMREAD_UNCHANGED)
+    img = cv2.imdecode(buf, flags | cv2.IMREAD_IGNORE_ORIENTATION)
     if img is None:
-        raise DatasetError(f"{where}: cannot decode the compressed image (format "
-                           f"{msg.format!r}); expected a JPEG or PNG stream", path=path)
+        raise _Undecodable(where, f"cannot decode the compressed image (format "
+                           f"{msg.format!r}): corrupt, or not a JPEG or PNG stream", path)
     if img.ndim == 3 and img.shape[2] == 4:
         img = np.ascontiguousarray(img[..., :3])
     return img
 
 
-def _decode(reader, conn, msgtype: str, raw, record_ns: int, topic: str, path):
+def _decode(reader, conn, raw, record_ns: int, topic: str, path, *, gray: bool = False,
+            lost: list | None = None):
+    """``(stamp, image)``; image None for a compressed message that is not decoded when
+    ``lost`` is given, ``(stamp, reason)`` appended to it."""
     msg = reader.deserialize(raw, conn.msgtype)
     stamp = _stamp_ns(msg.header, record_ns)
     where = f"topic {topic} at {stamp} ns"
-    if msgtype == "sensor_msgs/Image":
+    if _short_type(conn.msgtype) == "sensor_msgs/Image":
         return stamp, _decode_raw(msg, where, path)
-    return stamp, _decode_compressed(msg, where, path)
+    try:
+        return stamp, _decode_compressed(msg, where, path, gray)
+    except _Undecodable as exc:
+        if lost is None:
+            raise
+        lost.append((stamp, f"unreadable message: {exc.why}"))
+        return stamp, None
 
 
-def iter_bag_images(path: str | os.PathLike, topic: str) -> Iterator[tuple[int, np.ndarray]]:
+def _new_stamp(seen: set, stamp: int, topic: str, path) -> int:
+    """``stamp``, added to ``seen``; a stamp seen before is an error (two images of one
+    instant of one camera: which motion-capture pose or which view is each?)."""
+    if stamp in seen:
+        raise DatasetError(f"image topic {topic}: two messages with the header stamp {stamp} "
+                           "ns; each image needs its own stamp (republish the topic with each "
+                           "image's capture time in header.stamp, or save its images to a "
+                           "folder named by their times)", path=path)
+    seen.add(stamp)
+    return stamp
+
+
+def iter_bag_images(path: str | os.PathLike, topic: str, *, gray: bool = False,
+                    lost: list | None = None) -> Iterator[tuple[int, np.ndarray]]:
     """Images of a ``sensor_msgs/Image`` or ``sensor_msgs/CompressedImage`` topic.
 
     Parameters
@@ -334,6 +386,15 @@ def iter_bag_images(path: str | os.PathLike, topic: str) -> Iterator[tuple[int, 
     path : path-like
         ROS 1 ``.bag`` or ROS 2 bag.
     topic : str
+    gray : bool
+        Compressed images decoded to grey as image files are (``cv2.IMREAD_GRAYSCALE`` with
+        ``IMREAD_ANYDEPTH``: a colour JPEG's luma as its decoder gives it), so that the same
+        bytes give the same pixels from a bag and from a file; ``sensor_msgs/Image`` messages
+        are returned as without it.
+    lost : list, optional
+        When given, a compressed message whose bytes are not decoded (cut short, corrupt,
+        a size beyond the bounds) is appended to it as ``(stamp_ns, reason)`` and left out,
+        as an unreadable image file is; without it, it is an error.
 
     Yields
     ------
@@ -345,12 +406,18 @@ def iter_bag_images(path: str | os.PathLike, topic: str) -> Iterator[tuple[int, 
     Raises
     ------
     DatasetError
-        Missing bag or topic (listing those present), unsupported encoding, undecodable data.
+        Missing bag or topic (listing those present), unsupported encoding, undecodable data,
+        two messages with one stamp.
     """
+    seen: set[int] = set()
     with _reader(path) as reader:
-        connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
+        connections, _ = _connections(reader, topic, IMAGE_TYPES, path)
         for conn, record_ns, raw in reader.messages(connections=connections):
-            yield _decode(reader, conn, msgtype, raw, record_ns, topic, path)
+            stamp, image = _decode(reader, conn, raw, record_ns, topic, path,
+                                   gray=gray, lost=lost)
+            _new_stamp(seen, stamp, topic, path)
+            if image is not None:
+                yield stamp, image
 
 
 def bag_image_count(path: str | os.PathLike, topic: str) -> int:
@@ -363,8 +430,8 @@ def bag_image_count(path: str | os.PathLike, topic: str) -> int:
         As :func:`iter_bag_images` for a missing bag or topic, or a topic of another type.
     """
     with _reader(path) as reader:
-        _connections(reader, topic, IMAGE_TYPES, path)
-        return int(reader.topics[topic].msgcount)
+        connections, _ = _connections(reader, topic, IMAGE_TYPES, path)
+        return sum(int(c.msgcount) for c in connections)
 
 
 def _header_stamp_ns(raw, ros2: bool) -> int | None:
@@ -383,8 +450,9 @@ def _header_stamp_ns(raw, ros2: bool) -> int | None:
     return int(sec) * 1_000_000_000 + int(nsec)
 
 
-def sample_bag_images(path: str | os.PathLike, topic: str, indices, *,
-                      stamps: list | None = None) -> Iterator[tuple[int, int, np.ndarray]]:
+def sample_bag_images(path: str | os.PathLike, topic: str, indices, *, stamps: list | None = None,
+                      gray: bool = False, lost: list | None = None
+                      ) -> Iterator[tuple[int, int, np.ndarray]]:
     """The images at some positions of an image topic, decoding only those.
 
     Every message of the topic is read in bag order, one at a time; only the messages at
@@ -404,6 +472,8 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *,
         When given, the stamp (ns) of every message of the topic is appended to it in bag
         order, the decoded ones included; the bag is then read to its end, else reading stops
         after the last wanted message.
+    gray, lost : bool, list
+        As :func:`iter_bag_images` (a message left out is not yielded).
 
     Yields
     ------
@@ -415,25 +485,29 @@ def sample_bag_images(path: str | os.PathLike, topic: str, indices, *,
     Raises
     ------
     DatasetError
-        As :func:`iter_bag_images`, for the decoded messages.
+        As :func:`iter_bag_images`, for the decoded messages (two with one stamp: among all
+        messages when ``stamps`` is given).
     """
     wanted = {int(i) for i in indices}
     last = max(wanted, default=-1)
     if not wanted and stamps is None:
         return
+    seen: set[int] = set()
     with _reader(path) as reader:
-        connections, msgtype = _connections(reader, topic, IMAGE_TYPES, path)
+        connections, _ = _connections(reader, topic, IMAGE_TYPES, path)
         for index, (conn, record_ns, raw) in enumerate(
                 reader.messages(connections=connections)):
             if index in wanted:
-                stamp, image = _decode(reader, conn, msgtype, raw, record_ns, topic, path)
+                stamp, image = _decode(reader, conn, raw, record_ns, topic, path,
+                                       gray=gray, lost=lost)
                 if stamps is not None:
-                    stamps.append(stamp)
-                yield index, stamp, image
+                    stamps.append(_new_stamp(seen, stamp, topic, path))
+                if image is not None:
+                    yield index, stamp, image
                 if stamps is None and index >= last:
                     return
             elif stamps is not None:
                 ns = _header_stamp_ns(raw, reader.is2)
                 if ns is None:      # not a plain header: deserialize the message for it
                     ns = _stamp_ns(reader.deserialize(raw, conn.msgtype).header, record_ns)
-                stamps.append(ns if ns != 0 else int(record_ns))
+                stamps.append(_new_stamp(seen, ns if ns != 0 else int(record_ns), topic, path))

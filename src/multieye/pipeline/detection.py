@@ -113,7 +113,8 @@ def detect_listed(rig: Rig, model: RigModel, name: str, intr, workers: Workers, 
     ``listed`` as ``(stamp, ns, item)``.  The folder's images come from the detection of
     :func:`detect_all` unless ``fresh`` (images chosen again after the first ones proved
     unusable, :func:`multieye.pipeline.selection.with_refills`).  Video frames that could
-    not be decoded are appended to ``lost`` as ``(label, reason)``.
+    not be decoded (and a bag's compressed messages) are appended to ``lost`` as
+    ``(label, reason)``.
 
     Returns
     -------
@@ -141,18 +142,19 @@ def detect_listed(rig: Rig, model: RigModel, name: str, intr, workers: Workers, 
             (name, "images"), time.perf_counter() - t0)
         return ([(stamp, path.relative_to(cam.images).as_posix()) for stamp, _, path in images],
                 results, seconds)
-    stamped = []
+    stamped, bad = [], []
 
     def frames():
-        for stamp_ns, image in iter_bag_images(cam.rosbag, cam.topic):
+        for stamp_ns, image in iter_bag_images(cam.rosbag, cam.topic, gray=True, lost=bad):
             label = f"{cam.topic}@{stamp_ns}"
             stamped.append((stamp_ns * 1e-9, label))
             yield label, image
+        lost.extend((f"{cam.topic}@{ns}", why) for ns, why in bad)
 
     # the bag is read as the frames are detected
-    chosen = frames() if listed is None else bag_frames(cam, listed, stamped)
+    chosen = frames() if listed is None else bag_frames(cam, listed, stamped, lost)
     results = workers.detect_arrays(chosen, target, intr, cam.crop)
-    if not stamped and not fresh:
+    if not stamped and not lost and not fresh:
         raise DatasetError(f"image topic {cam.topic} holds no images", path=cam.rosbag,
                            camera=name)
     return stamped, results, time.perf_counter() - t0

@@ -151,7 +151,7 @@ class DatasetCheck:
         return tuple(f"{c.name}: {r}" for c in self.cameras for r in c.undecided)
 
 
-def _sample_bag(cam, target, intr, *, sample, processes):
+def _sample_bag(cam, target, intr, lost: list, *, sample, processes):
     """Detection in an evenly spaced sample of a bag's image topic, as for a folder.
 
     The sample is drawn over the topic's messages in bag order (their count from the bag's
@@ -159,28 +159,31 @@ def _sample_bag(cam, target, intr, *, sample, processes):
     its header bytes, and the bag is read once, one message at a time (at most one batch of
     sampled images in memory); read again for more while too few show the target
     (:func:`sampled_on`). Returns the stamps of all messages (seconds, bag order), the
-    indices of the sampled messages and their detection results.
+    indices of the sampled messages and their detection results; the sampled compressed
+    messages that could not be decoded are appended to ``lost`` as ``(label, reason)``.
     """
 
     wanted = evenly_spaced(bag_image_count(cam.rosbag, cam.topic), sample)
     stamps_ns: list[int] = []
     picked: list[int] = []
 
-    def frames():
-        for index, stamp_ns, image in sample_bag_images(cam.rosbag, cam.topic, wanted,
-                                                        stamps=stamps_ns):
-            picked.append(index)
-            yield f"{cam.topic}@{stamp_ns}", image
+    def read(indices, done: list, **stamps):     # these messages decoded, in bag order
+        bad: list = []
+        for index, t, image in sample_bag_images(cam.rosbag, cam.topic, indices, gray=True,
+                                                 lost=bad, **stamps):
+            done.append(index)
+            yield f"{cam.topic}@{t}", image
+        lost.extend((f"{cam.topic}@{ns}", why) for ns, why in bad)
 
-    results = detect_and_estimate_arrays(frames(), target, intr, processes=processes,
-                                         progress=False, crop=cam.crop)
+    results = detect_and_estimate_arrays(read(wanted, picked, stamps=stamps_ns), target, intr,
+                                         processes=processes, progress=False, crop=cam.crop)
     stamps = np.array(stamps_ns, dtype=np.int64) * 1e-9
 
     def more(indices):          # another pass over the bag, decoding only these
-        items = ((f"{cam.topic}@{t}", image) for _, t, image in
-                 sample_bag_images(cam.rosbag, cam.topic, indices))
-        return indices, detect_and_estimate_arrays(items, target, intr, processes=processes,
-                                                   progress=False, crop=cam.crop)
+        got: list[int] = []
+        return got, detect_and_estimate_arrays(read(indices, got), target, intr,
+                                               processes=processes, progress=False,
+                                               crop=cam.crop)
 
     picked, results = sampled_on(len(stamps), picked, results, more, sample_budget(sample))
     return stamps, picked, results
@@ -304,8 +307,10 @@ def _sampled(rig, cam, listed, unmatched, *, sample: int, processes,
             sampled_idx, results = sampled_on(len(listing), *frames(first), frames, sample_budget(sample))
             problems.extend(image_notes(lost))         # one line per cause
         else:
-            stamps, sampled_idx, results = _sample_bag(cam, target, intr, sample=sample,
+            lost = []
+            stamps, sampled_idx, results = _sample_bag(cam, target, intr, lost, sample=sample,
                                                        processes=processes)
+            problems.extend(image_notes(lost))         # one line per cause
             n_listed = len(stamps)
             if not n_listed:
                 problems.append(f"image topic {cam.topic} holds no images")

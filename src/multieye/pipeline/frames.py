@@ -57,11 +57,15 @@ def bag_listing(cam: CameraSpec) -> list[tuple[float, int, VideoFrame]]:
     return [(ns * 1e-9, ns, VideoFrame(f"{cam.topic}@{ns}", k)) for k, ns in enumerate(stamps)]
 
 
-def bag_frames(cam: CameraSpec, listed, stamped: list) -> Iterator[tuple]:
+def bag_frames(cam: CameraSpec, listed, stamped: list, lost: list) -> Iterator[tuple]:
     """``(label, image)`` of the messages ``listed`` (items of :func:`bag_listing`), decoded
-    in bag order one at a time; each appended to ``stamped`` as ``(stamp, label)``."""
+    in bag order one at a time; each appended to ``stamped`` as ``(stamp, label)``, each
+    compressed message that could not be decoded to ``lost`` as ``(label, reason)``."""
     wanted = [f.index for _, _, f in listed]
-    for _, stamp_ns, image in sample_bag_images(cam.rosbag, cam.topic, wanted):
+    bad: list = []
+    for _, stamp_ns, image in sample_bag_images(cam.rosbag, cam.topic, wanted, gray=True,
+                                                lost=bad):
         label = f"{cam.topic}@{stamp_ns}"
         stamped.append((stamp_ns * 1e-9, label))
         yield label, image
+    lost.extend((f"{cam.topic}@{ns}", why) for ns, why in bad)
