@@ -129,3 +129,20 @@ def test_unpaired_images_a_power_of_1000_apart_say_the_clocks_units_may_differ()
     assert "about 1000 times the others" in res.unpaired[0][1]
     res = pair_in_time(stamps, T, [1_700_010.0], tolerance=0.03)      # just after: no hint
     assert "times the others" not in res.unpaired[0][1]
+
+
+def test_a_motion_capture_timed_from_its_take_against_dated_images_says_so():
+    """Motion capture whose times start at 0 (an OptiTrack or Vicon export: time since the take
+    started) against images named by dates: each unpaired image says so and gives the
+    time_offset that would put the first image at the first sample (before: only the span and
+    a distance of 1.7e9 s); and the reverse; no hint where both are dates."""
+    T = np.repeat(np.eye(4)[None], 5, axis=0)
+    take = 0.01 * np.arange(5)
+    res = pair_in_time(take, T, [1_700_000_000.5, 1_700_000_001.0], tolerance=0.03)
+    why = res.unpaired[0][1]
+    assert "the motion capture's times start at 0.000 s (time since its take started" in why
+    assert "time_offset (seconds added to its image stamps: -1700000000.500 if" in why
+    res = pair_in_time(1_700_000_000.0 + take, T, [3.5], tolerance=0.03)
+    assert "the image stamps are times since a start" in res.unpaired[0][1]
+    res = pair_in_time(1_700_000_000.0 + take, T, [1_700_000_100.0], tolerance=0.03)
+    assert "time_offset" not in res.unpaired[0][1]

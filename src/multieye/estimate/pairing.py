@@ -74,6 +74,32 @@ def _unit_hint(q: float, stamps: np.ndarray) -> str:
             "other units (milliseconds, microseconds, nanoseconds) than the other? (a file's "
             "stamps of 16 to 19 digits are read as nanoseconds)")
 
+#: Stamps above this are dates (seconds since 1970: after March 1973) ...
+DATE_S = 1e8
+#: ... and below this, times since a take or a device started (under 11.6 days).
+SINCE_START_S = 1e6
+
+
+def _clock_hint(q: float, first: float, stamps: np.ndarray) -> str:
+    """:func:`_unit_hint`, or a hint when one clock holds dates and the other the time since
+    a take started (Motive, Vicon and robot logs write that; image names are often dates):
+    with the camera's ``time_offset`` (added to the image stamps) about ``stamps[0] - first``
+    the first image falls at the take's start.  Empty otherwise."""
+    hint = _unit_hint(q, stamps)
+    if hint or not stamps.size:
+        return hint
+    if q > DATE_S and stamps[-1] < SINCE_START_S:
+        which = "the motion capture's times start at {:.3f} s (time since its take started, as "
+    elif q < SINCE_START_S and stamps[0] > DATE_S:
+        which = "the image stamps are times since a start where the motion capture's ({:.3f} s) "
+    else:
+        return ""
+    return ("; " + which.format(stamps[0]) + "exports write them) where the other clock holds "
+            "dates: give the camera's time_offset (seconds added to its image stamps: "
+            f"{stamps[0] - first:.3f} if its first image was taken at the motion capture's "
+            "first sample) or record both in one clock")
+
+
 def interpolate_poses(T0: ArrayLike, T1: ArrayLike, alpha: ArrayLike) -> np.ndarray:
     """Poses a fraction ``alpha`` of the way from ``T0`` to ``T1``.
 
@@ -169,7 +195,8 @@ def pair_in_time(stamps: ArrayLike, T: ArrayLike, query: ArrayLike, *, tolerance
         if stamps.size and (q[i] < stamps[0] or q[i] > stamps[-1]):
             where = "before" if q[i] < stamps[0] else "after"
             why = (f"{where} the motion-capture recording ({stamps[0]:.3f}..{stamps[-1]:.3f} s), "
-                   f"nearest sample {gap[i]:.3f} s away{_unit_hint(q[i], stamps)}")
+                   f"nearest sample {gap[i]:.3f} s away"
+                   f"{_clock_hint(q[i], float(np.min(q)), stamps)}")
         else:
             why = f"nearest motion-capture sample is {gap[i]:.3f} s away"
         unpaired.append((int(i), why))
