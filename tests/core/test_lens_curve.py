@@ -94,3 +94,18 @@ def test_unified_curve_covariance_is_honest_where_its_parameters_are_not():
         nees_par.append(ep @ np.linalg.solve(C, ep) / ep.size)
     assert 0.5 < np.mean(nees_curve) < 2.0, np.mean(nees_curve)
     assert np.mean(nees_par) > 5.0, np.mean(nees_par)
+
+
+def test_undetermined_parameters_are_those_whose_sd_dwarfs_their_scale():
+    """fx with a standard deviation over 10 % of it, cx/cy over 50 px, xi/alpha/beta over 1
+    are named (NaN too); k1 k2 are not judged."""
+    from multieye.core.lens_curve import undetermined_parameters
+
+    lens = wide_lens("double-sphere", 190.0)
+    C = np.diag([1.0, 1.0, 0.01, 0.01, 0.01, 1e-4])
+    assert undetermined_parameters(lens, C) == []
+    fx = lens.params[0]
+    C = np.diag([(0.2 * fx) ** 2, 1.0, 60.0 ** 2, 0.01, 4.0, np.nan])
+    assert [n for n, _, _ in undetermined_parameters(lens, C)] == ["fx", "cx", "xi", "alpha"]
+    uni = wide_lens("unified", 190.0)
+    assert undetermined_parameters(uni, np.diag([1.0] * 4 + [0.01, 1e6, 1e6, 1e6, 1e6])) == []

@@ -49,7 +49,7 @@ from numpy.typing import NDArray
 from multieye.core.intrinsics import Intrinsics, parameter_names
 from multieye.core.lens import project_with_jacobian, projectable
 
-__all__ = ["CURVE_MODELS", "curve_parameters", "curve_jacobian", "curve_covariance",
+__all__ = ["undetermined_parameters", "CURVE_MODELS", "curve_parameters", "curve_jacobian", "curve_covariance",
            "curve_names", "RadialCurve", "radial_curve", "observed_angles", "CURVE_RAYS",
            "RADIAL_CURVE_MODELS", "observed_curve"]
 
@@ -199,3 +199,48 @@ def observed_curve(intrinsics: Intrinsics, covariance: F64, points_cam: F64
         return None
     angles = observed_angles(intrinsics, points_cam)
     return None if angles is None else radial_curve(intrinsics, covariance, angles)
+
+
+#: A parameter the views do not determine by itself: a focal length whose standard deviation
+#: exceeds this share of it, a principal point coordinate beyond :data:`UNDETERMINED_CENTRE_PX`,
+#: a shape parameter of a wide model (``xi``, ``alpha``, ``beta``, of order 1) beyond
+#: :data:`UNDETERMINED_SHAPE`.
+UNDETERMINED_FOCAL_SHARE = 0.1
+UNDETERMINED_CENTRE_PX = 50.0
+UNDETERMINED_SHAPE = 1.0
+
+
+def undetermined_parameters(intrinsics: Intrinsics, covariance: F64
+                            ) -> list[tuple[str, float, float]]:
+    """The lens parameters whose standard deviation says the views do not determine them one
+    by one (they trade against each other along a flat valley, e.g. the double sphere's
+    ``xi`` near 0 against ``fx`` and ``alpha``), while the projection may still be well
+    determined (:func:`radial_curve`).
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+    covariance : ndarray, shape (p, p)
+        Over ``intrinsics.params`` (fx fy cx cy, then the model's parameters).
+
+    Returns
+    -------
+    list of (name, value, standard deviation)
+        In parameter order; the radial and tangential coefficients are not judged (their
+        scale depends on the model and the field).
+    """
+    names = parameter_names(intrinsics)
+    sd = np.sqrt(np.clip(np.diag(np.asarray(covariance, np.float64)), 0.0, None))
+    out = []
+    for name, value, s in zip(names, intrinsics.params, sd):
+        if name in ("fx", "fy"):
+            limit = UNDETERMINED_FOCAL_SHARE * abs(value)
+        elif name in ("cx", "cy"):
+            limit = UNDETERMINED_CENTRE_PX
+        elif name in ("xi", "alpha", "beta"):
+            limit = UNDETERMINED_SHAPE
+        else:
+            continue
+        if not s <= limit:                                   # NaN counts as undetermined
+            out.append((name, float(value), float(s)))
+    return out

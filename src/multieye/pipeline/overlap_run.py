@@ -40,7 +40,7 @@ from multieye.pipeline.overlap import OverlapSolution, solve_overlap
 from multieye.pipeline.overlap_mocap import (eye_on_hand_layout, has_mocap, rig_mocap,
                                            with_mocap)
 from multieye.pipeline.overlap_motion import MotionSolution, board_order, solve_motion
-from multieye.pipeline.record import lens_view_points
+from multieye.pipeline.record import lens_parameter_warnings, lens_view_points
 from multieye.pipeline.recordings import camera_warnings
 from multieye.pipeline.problem import Problem
 from multieye.pipeline.result import CalibrationRun, Refinement
@@ -263,7 +263,7 @@ def _record(problem: Problem, sol: OverlapSolution, paired: dict, rms: dict,
         reference_camera=problem.reference, Y=None, targets=_targets(sol, problem),
         cameras=tuple(cams),
         residuals=Residuals(e_R_deg=sum(rot_all) / used, e_t_m=sum(trans_all) / used),
-        warnings=warnings, refinement="images",
+        warnings=warnings + lens_parameter_warnings(cams), refinement="images",
         plausibility=tuple(PlausibilityItem(f.cause, f.message, f.camera)
                            for f in sol.findings))
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from multieye.core.metrics import camera_residual, relative_extrinsics
 from multieye.estimate.uncertainty import pose_std, projection_std
-from multieye.core.lens_curve import observed_curve
+from multieye.core.lens_curve import observed_curve, undetermined_parameters
 from multieye.io import (
     CalibrationRecord,
     CameraRecord,
@@ -27,7 +27,7 @@ from multieye.pipeline.problem import Pairing, Problem
 from multieye.pipeline.refine import Refined
 from multieye.pipeline.result import Refinement
 
-__all__ = ["build_record", "lens_view_points"]
+__all__ = ["build_record", "lens_view_points", "lens_parameter_warnings"]
 
 
 def build_record(problem: Problem, pairing: Pairing, closed, plausibility, refined: Refined,
@@ -73,7 +73,8 @@ def build_record(problem: Problem, pairing: Pairing, closed, plausibility, refin
         setup=problem.setup, method=problem.options.method, reference_camera=problem.reference,
         Y=Y, cameras=tuple(cams),
         residuals=Residuals(e_R_deg=sum(rot_all) / n, e_t_m=sum(trans_all) / n),
-        warnings=tuple(warnings), refinement=None if refinement is None else refinement.kind,
+        warnings=tuple(warnings) + lens_parameter_warnings(cams),
+        refinement=None if refinement is None else refinement.kind,
         motion_diagnostics=closed.motion.as_dict()["cameras"],
         plausibility=tuple(PlausibilityItem(f.cause, f.message, f.camera)
                            for f in plausibility.findings),
@@ -123,3 +124,30 @@ def _intrinsics_record(data: CameraData, paired: PairedCamera, refinement: Refin
             proj = projection_std(intr, cov, np.concatenate(pts))
             curve = observed_curve(intr, cov, np.concatenate(pts + lens_view_points(data)))
     return IntrinsicsRecord(intr, data.intrinsics_estimated, cov, proj, curve)
+
+
+def lens_parameter_warnings(cameras) -> tuple[str, ...]:
+    """Per camera whose estimated lens has parameters the views do not determine one by one
+    (:func:`multieye.core.lens_curve.undetermined_parameters`: a double sphere with ``xi``
+    near 0 on ``boofcv_fisheye``, ``fx 189 +- 3.8e+04``), a warning naming them: their
+    ``+-`` are true but say nothing of the lens, whose projection is determined (its std,
+    and calibration.json's ``lens_curve``)."""
+    out = []
+    for cam in cameras:
+        rec = cam.intrinsics
+        if rec is None or not rec.estimated or rec.covariance is None:
+            continue
+        loose = undetermined_parameters(rec.intrinsics, rec.covariance)
+        if not loose:
+            continue
+        model = rec.intrinsics.model
+        listed = ", ".join(f"{n} {v:.4g} +- {s:.2g}" for n, v, s in loose)
+        proj = ("" if rec.projection_std_px is None
+                else f" (projection std {rec.projection_std_px[0]:.2f} px mean)")
+        fix = ("use model: eucm for parameters that compare across calibrations"
+               if model in ("unified", "double-sphere") else
+               "add views of the board tilted and near the edges and corners of the image")
+        out.append(f"{cam.name}: the views do not determine the {model} lens' {listed} one by "
+                   f"one (they trade against each other); its projection is determined{proj}, "
+                   "and calibration.json's lens_curve states it with its uncertainty; " + fix)
+    return tuple(out)
