@@ -213,6 +213,15 @@ def cut_short(data: bytes, header: ImageHeader) -> str | None:
     ``libpng error: PNG input buffer is incomplete`` on the process's standard error, below
     OpenCV's log level, beside multieye's one line).  None otherwise (other formats'
     decoders fail silently)."""
-    if header.format == "PNG" and bytes(data).rfind(b"IEND") < 0:
+    if header.format != "PNG":
+        return None
+    view = memoryview(data).cast("B")
+    # IEND is the last chunk: look at the tail first, the whole stream only when it is not
+    # there (bytes after IEND are allowed), so a whole file is not copied per image
+    if bytes(view[-_PNG_TAIL:]).rfind(b"IEND") < 0 and bytes(view).rfind(b"IEND") < 0:
         return "the PNG stream is cut short (no IEND chunk)"
     return None
+
+
+#: Bytes at a PNG stream's end searched first for its IEND chunk (12 bytes in a whole file).
+_PNG_TAIL = 4096
